@@ -1,0 +1,26 @@
+//! akd_native: an EtherCAT master for Kollmorgen AKD drives and a virtual AKD that answers as a
+//! real one does.
+//!
+//! The protocol modules are pure codecs with no I/O and no allocation in their hot paths, so
+//! each can be tested alone and the master and the virtual AKD share them without sharing any
+//! state: [`frame`] (datagrams and working counters), [`registers`] (ESC register map),
+//! [`sii`] (SII EEPROM content), [`al`] (AL states and status codes), [`mailbox`] and [`coe`]
+//! (mailbox header, CoE SDO, SDO information, emergency), [`pdo`] (AKD process-data mappings)
+//! and [`dc`] (distributed-clock arithmetic). [`link`] moves frames; [`master`] drives a bus;
+//! [`sim`] is the virtual AKD.
+
+pub mod al;
+pub mod coe;
+pub mod dc;
+pub mod error;
+pub mod frame;
+pub mod link;
+pub mod mailbox;
+pub mod master;
+pub mod pdo;
+pub mod registers;
+pub mod sii;
+pub mod sim;
+
+#[cfg(feature = "python")]
+mod python;

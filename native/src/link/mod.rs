@@ -1,0 +1,37 @@
+//! Links: how EtherCAT frames reach the slaves and come back.
+//!
+//! Every link carries the EtherCAT payload (frame header plus datagrams) and hides what wraps it:
+//! nothing for the in-process virtual bus, a UDP datagram for EtherCAT-over-UDP, an Ethernet II
+//! header for a raw interface. [`Recorder`](pcap::Recorder) wraps any link and writes what it
+//! sends and receives to a pcapng file.
+
+use std::time::Duration;
+
+use crate::error::Result;
+
+pub mod inproc;
+pub mod pcap;
+pub mod raw;
+pub mod udp;
+
+/// A path to a chain of slaves.
+pub trait Link: Send {
+    /// Sends the EtherCAT payload `tx` and waits up to `timeout` for the frame to come back.
+    /// The returned frame is written to `rx` and its length returned. Stale or foreign frames
+    /// (an earlier frame's late return, another master's traffic) are dropped, not returned.
+    /// A frame that does not come back gives [`Error::Timeout`](crate::error::Error::Timeout).
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize>;
+
+    /// Human-readable description, e.g. `udp://127.0.0.1:34980` or `eth0`.
+    fn describe(&self) -> String;
+}
+
+impl<L: Link + ?Sized> Link for Box<L> {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        (**self).exchange(tx, rx, timeout)
+    }
+
+    fn describe(&self) -> String {
+        (**self).describe()
+    }
+}

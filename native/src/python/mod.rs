@@ -1,0 +1,107 @@
+//! The Python face of the crate, the extension module `akd_ros._native`.
+//!
+//! Thin by design: it converts arguments, releases the GIL around anything that waits on the
+//! bus, and turns [`Error`] into exceptions that carry the drive's own codes and names.
+
+use pyo3::create_exception;
+use pyo3::exceptions::PyException;
+use pyo3::prelude::*;
+
+use crate::error::Error;
+
+mod master;
+mod sim;
+
+create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
+create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
+create_exception!(_native, LinkError, EtherCatError, "The operating system refused a link operation (socket, interface, permission).");
+create_exception!(_native, TimeoutError, EtherCatError, "No reply in time.");
+create_exception!(_native, WorkingCounterError, EtherCatError, "A datagram's working counter was not the expected one; attributes expected, got.");
+create_exception!(_native, AlStateError, EtherCatError, "A slave refused a state change; attributes slave, requested, actual, code, code_name.");
+create_exception!(_native, SdoAbortError, EtherCatError, "An SDO transfer was aborted; attributes index, subindex, code, code_name.");
+create_exception!(_native, MailboxError, EtherCatError, "A mailbox reply that does not fit the request or the protocol.");
+create_exception!(_native, SiiError, EtherCatError, "The SII EEPROM content or interface is not as expected.");
+create_exception!(_native, PdoError, EtherCatError, "A process-data mapping the AKD would refuse, or an unknown one.");
+create_exception!(_native, ConfigError, EtherCatError, "A configuration value out of its allowed range.");
+
+/// Converts a crate error into the matching Python exception, with the codes as attributes.
+pub(crate) fn to_py_err(error: Error) -> PyErr {
+    let message = error.to_string();
+    Python::with_gil(|py| {
+        let (err, attrs): (PyErr, Vec<(&str, PyObject)>) = match &error {
+            Error::Frame(_) => (FrameError::new_err(message), vec![]),
+            Error::Io { .. } => (LinkError::new_err(message), vec![]),
+            Error::Timeout { .. } => (TimeoutError::new_err(message), vec![]),
+            Error::WorkingCounter { expected, got, .. } => (
+                WorkingCounterError::new_err(message),
+                vec![("expected", expected.into_py(py)), ("got", got.into_py(py))],
+            ),
+            Error::AlState { slave, requested, actual, code, code_name } => (
+                AlStateError::new_err(message),
+                vec![
+                    ("slave", slave.into_py(py)),
+                    ("requested", requested.into_py(py)),
+                    ("actual", actual.into_py(py)),
+                    ("code", code.into_py(py)),
+                    ("code_name", code_name.into_py(py)),
+                ],
+            ),
+            Error::SdoAbort { index, subindex, code, code_name } => (
+                SdoAbortError::new_err(message),
+                vec![
+                    ("index", index.into_py(py)),
+                    ("subindex", subindex.into_py(py)),
+                    ("code", code.into_py(py)),
+                    ("code_name", code_name.into_py(py)),
+                ],
+            ),
+            Error::Mailbox(_) => (MailboxError::new_err(message), vec![]),
+            Error::Sii(_) => (SiiError::new_err(message), vec![]),
+            Error::Pdo(_) => (PdoError::new_err(message), vec![]),
+            Error::Config(_) | Error::NoSuchSlave { .. } => (ConfigError::new_err(message), vec![]),
+        };
+        let value = err.value(py);
+        for (name, v) in attrs {
+            // Setting an attribute on a fresh exception instance cannot fail.
+            let _ = value.setattr(name, v);
+        }
+        err
+    })
+}
+
+/// Result type of binding functions.
+pub(crate) type PyResult<T> = Result<T, PyErr>;
+
+/// Extension trait: `.py()?` converts a crate result into a Python one.
+pub(crate) trait IntoPyResult<T> {
+    fn py(self) -> PyResult<T>;
+}
+
+impl<T> IntoPyResult<T> for crate::error::Result<T> {
+    fn py(self) -> PyResult<T> {
+        self.map_err(to_py_err)
+    }
+}
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
+    let py = m.py();
+    for (name, class) in [
+        ("EtherCatError", py.get_type::<EtherCatError>()),
+        ("FrameError", py.get_type::<FrameError>()),
+        ("LinkError", py.get_type::<LinkError>()),
+        ("TimeoutError", py.get_type::<TimeoutError>()),
+        ("WorkingCounterError", py.get_type::<WorkingCounterError>()),
+        ("AlStateError", py.get_type::<AlStateError>()),
+        ("SdoAbortError", py.get_type::<SdoAbortError>()),
+        ("MailboxError", py.get_type::<MailboxError>()),
+        ("SiiError", py.get_type::<SiiError>()),
+        ("PdoError", py.get_type::<PdoError>()),
+        ("ConfigError", py.get_type::<ConfigError>()),
+    ] {
+        m.add(name, class)?;
+    }
+    master::register(m)?;
+    sim::register(m)?;
+    Ok(())
+}
