@@ -1,0 +1,3 @@
+//! (being written)
+use pyo3::prelude::*;
+pub(super) fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> { Ok(()) }
