@@ -1,1 +1,244 @@
-//! (being written)
+//! Mailbox header codec (ETG.1000.4 §5.6, AKD manual §5.13).
+//!
+//! Every mailbox message starts with a 6-byte header: the length of what follows, an address,
+//! channel and priority, and the protocol type with a 3-bit counter. The counter lets a slave
+//! tell a repeated message from a new one; the AKD echoes the master's counter in its reply.
+
+use crate::error::Error;
+
+/// Length of the mailbox header.
+pub const HEADER_LEN: usize = 6;
+
+/// The protocol a mailbox message carries (header byte 5, bits 0–3).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum MailboxType {
+    /// A mailbox error reply.
+    Error = 0x00,
+    /// ADS over EtherCAT.
+    Aoe = 0x01,
+    /// Ethernet over EtherCAT.
+    Eoe = 0x02,
+    /// CANopen over EtherCAT.
+    Coe = 0x03,
+    /// File access over EtherCAT.
+    Foe = 0x04,
+    /// Servo profile over EtherCAT.
+    Soe = 0x05,
+    /// Vendor specific.
+    Voe = 0x0F,
+}
+
+impl MailboxType {
+    /// Decodes the type nibble; `None` for a reserved value.
+    pub fn from_u8(value: u8) -> Option<Self> {
+        match value & 0x0F {
+            0x00 => Some(MailboxType::Error),
+            0x01 => Some(MailboxType::Aoe),
+            0x02 => Some(MailboxType::Eoe),
+            0x03 => Some(MailboxType::Coe),
+            0x04 => Some(MailboxType::Foe),
+            0x05 => Some(MailboxType::Soe),
+            0x0F => Some(MailboxType::Voe),
+            _ => None,
+        }
+    }
+
+    /// Bit of this protocol in the SII mailbox-protocol word (0x1C): AoE 0x01, EoE 0x02,
+    /// CoE 0x04, FoE 0x08, SoE 0x10, VoE 0x20.
+    pub fn sii_protocol_bit(self) -> u16 {
+        match self {
+            MailboxType::Error => 0,
+            MailboxType::Aoe => 0x01,
+            MailboxType::Eoe => 0x02,
+            MailboxType::Coe => 0x04,
+            MailboxType::Foe => 0x08,
+            MailboxType::Soe => 0x10,
+            MailboxType::Voe => 0x20,
+        }
+    }
+}
+
+/// A decoded mailbox header.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MailboxHeader {
+    /// Bytes that follow the header.
+    pub length: u16,
+    /// Station address of the source (slave to master) or destination; 0 for the master.
+    pub address: u16,
+    /// Channel (bits 0–5 of byte 4).
+    pub channel: u8,
+    /// Priority (bits 6–7 of byte 4).
+    pub priority: u8,
+    /// Protocol type nibble, kept raw so that an unsupported type can be answered.
+    pub mailbox_type: u8,
+    /// Counter 1..=7 (0 is reserved for "not used").
+    pub counter: u8,
+}
+
+impl MailboxHeader {
+    /// A header for a message of `length` bytes of `mailbox_type` with `counter`.
+    pub fn new(mailbox_type: MailboxType, length: u16, counter: u8) -> Self {
+        MailboxHeader { length, address: 0, channel: 0, priority: 0, mailbox_type: mailbox_type as u8, counter }
+    }
+
+    /// Decodes a header and checks that the message it announces fits `bytes`.
+    pub fn decode(bytes: &[u8]) -> Result<Self, Error> {
+        if bytes.len() < HEADER_LEN {
+            return Err(Error::Mailbox(format!(
+                "message of {} bytes is shorter than the {HEADER_LEN}-byte mailbox header",
+                bytes.len()
+            )));
+        }
+        let header = MailboxHeader {
+            length: u16::from_le_bytes([bytes[0], bytes[1]]),
+            address: u16::from_le_bytes([bytes[2], bytes[3]]),
+            channel: bytes[4] & 0x3F,
+            priority: bytes[4] >> 6,
+            mailbox_type: bytes[5] & 0x0F,
+            counter: (bytes[5] >> 4) & 0x07,
+        };
+        if HEADER_LEN + header.length as usize > bytes.len() {
+            return Err(Error::Mailbox(format!(
+                "header announces {} bytes but the mailbox holds {}",
+                header.length,
+                bytes.len() - HEADER_LEN
+            )));
+        }
+        Ok(header)
+    }
+
+    /// Encodes the header into the first six bytes of `out`.
+    pub fn encode(&self, out: &mut [u8]) {
+        out[0..2].copy_from_slice(&self.length.to_le_bytes());
+        out[2..4].copy_from_slice(&self.address.to_le_bytes());
+        out[4] = (self.channel & 0x3F) | (self.priority << 6);
+        out[5] = (self.mailbox_type & 0x0F) | ((self.counter & 0x07) << 4);
+    }
+
+    /// The decoded protocol type, if not reserved.
+    pub fn protocol(&self) -> Option<MailboxType> {
+        MailboxType::from_u8(self.mailbox_type)
+    }
+
+    /// The message body that follows this header in `bytes`.
+    pub fn body<'a>(&self, bytes: &'a [u8]) -> &'a [u8] {
+        &bytes[HEADER_LEN..HEADER_LEN + self.length as usize]
+    }
+}
+
+/// The counter after `counter`: 1, 2, ... 7, 1, ... (0 is skipped, it means "not used").
+pub fn next_counter(counter: u8) -> u8 {
+    if counter >= 7 {
+        1
+    } else {
+        counter + 1
+    }
+}
+
+/// Service word of a mailbox error reply.
+pub const ERROR_SERVICE: u16 = 0x0001;
+/// Length of a mailbox error reply body (service and detail words).
+pub const ERROR_BODY_LEN: usize = 4;
+
+/// Detail codes of a mailbox error reply (ETG.1000.4 table 30).
+pub mod error_detail {
+    /// Syntax of the 6-byte header is wrong.
+    pub const SYNTAX: u16 = 0x0001;
+    /// The mailbox protocol is not supported.
+    pub const UNSUPPORTED_PROTOCOL: u16 = 0x0002;
+    /// The channel field is not 0.
+    pub const INVALID_CHANNEL: u16 = 0x0003;
+    /// The service in the protocol is not supported.
+    pub const SERVICE_NOT_SUPPORTED: u16 = 0x0004;
+    /// The protocol header is wrong.
+    pub const INVALID_HEADER: u16 = 0x0005;
+    /// The data is too short.
+    pub const SIZE_TOO_SHORT: u16 = 0x0006;
+    /// Not enough memory in the slave.
+    pub const NO_MORE_MEMORY: u16 = 0x0007;
+    /// The length is inconsistent.
+    pub const INVALID_SIZE: u16 = 0x0008;
+}
+
+/// Name of a mailbox error detail code.
+pub fn error_detail_name(detail: u16) -> &'static str {
+    match detail {
+        error_detail::SYNTAX => "syntax error in the mailbox header",
+        error_detail::UNSUPPORTED_PROTOCOL => "mailbox protocol not supported",
+        error_detail::INVALID_CHANNEL => "invalid channel",
+        error_detail::SERVICE_NOT_SUPPORTED => "service not supported",
+        error_detail::INVALID_HEADER => "invalid protocol header",
+        error_detail::SIZE_TOO_SHORT => "data too short",
+        error_detail::NO_MORE_MEMORY => "no more memory",
+        error_detail::INVALID_SIZE => "inconsistent length",
+        _ => "unknown mailbox error",
+    }
+}
+
+/// Writes a complete mailbox error reply (header and body) into `out`; returns its length.
+pub fn write_error_reply(out: &mut [u8], counter: u8, detail: u16) -> usize {
+    MailboxHeader::new(MailboxType::Error, ERROR_BODY_LEN as u16, counter).encode(out);
+    out[HEADER_LEN..HEADER_LEN + 2].copy_from_slice(&ERROR_SERVICE.to_le_bytes());
+    out[HEADER_LEN + 2..HEADER_LEN + 4].copy_from_slice(&detail.to_le_bytes());
+    HEADER_LEN + ERROR_BODY_LEN
+}
+
+/// Reads the detail code of a mailbox error reply body.
+pub fn parse_error_reply(body: &[u8]) -> Result<u16, Error> {
+    if body.len() < ERROR_BODY_LEN {
+        return Err(Error::Mailbox(format!("mailbox error reply of {} bytes, expected {ERROR_BODY_LEN}", body.len())));
+    }
+    Ok(u16::from_le_bytes([body[2], body[3]]))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    #[test]
+    fn decodes_the_manuals_example() {
+        // AKD manual §5.13.3: write 0x1C12:01 = 0x1704.
+        let request = [0x0A, 0x00, 0x00, 0x00, 0x00, 0x03, 0x00, 0x20, 0x2B, 0x12, 0x1C, 0x01, 0x04, 0x17, 0x00, 0x00];
+        let h = MailboxHeader::decode(&request).unwrap();
+        assert_eq!(h.length, 10);
+        assert_eq!(h.protocol(), Some(MailboxType::Coe));
+        assert_eq!(h.counter, 0);
+        assert_eq!(h.body(&request).len(), 10);
+    }
+
+    #[test]
+    fn counter_skips_zero() {
+        let mut c = 0;
+        let seen: Vec<u8> = (0..9).map(|_| { c = next_counter(c); c }).collect();
+        assert_eq!(seen, vec![1, 2, 3, 4, 5, 6, 7, 1, 2]);
+    }
+
+    #[test]
+    fn error_reply_round_trips() {
+        let mut buf = [0u8; 16];
+        let len = write_error_reply(&mut buf, 3, error_detail::UNSUPPORTED_PROTOCOL);
+        let h = MailboxHeader::decode(&buf[..len]).unwrap();
+        assert_eq!(h.protocol(), Some(MailboxType::Error));
+        assert_eq!(h.counter, 3);
+        assert_eq!(parse_error_reply(h.body(&buf)).unwrap(), error_detail::UNSUPPORTED_PROTOCOL);
+    }
+
+    #[test]
+    fn refuses_overlong_length() {
+        let bytes = [0xFF, 0x00, 0, 0, 0, 0x13, 0, 0];
+        assert!(MailboxHeader::decode(&bytes).is_err());
+        assert!(MailboxHeader::decode(&bytes[..3]).is_err());
+    }
+
+    proptest! {
+        #[test]
+        fn header_round_trips(length in 0u16..100, address: u16, channel in 0u8..64, priority in 0u8..4, t in 0u8..16, counter in 0u8..8) {
+            let h = MailboxHeader { length, address, channel, priority, mailbox_type: t, counter };
+            let mut buf = vec![0u8; HEADER_LEN + length as usize];
+            h.encode(&mut buf);
+            prop_assert_eq!(MailboxHeader::decode(&buf).unwrap(), h);
+        }
+    }
+}
