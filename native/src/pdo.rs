@@ -1,1 +1,462 @@
-//! (being written)
+//! The AKD's process-data mappings (AKD manual §5.5–5.7, and the real drive's SII).
+//!
+//! Fixed mappings are whole PDOs the drive defines (0x1701.., 0x1B01..) and selects through
+//! the sync-manager assignment objects 0x1C12 (outputs, RxPDO) and 0x1C13 (inputs, TxPDO).
+//! Flexible mappings are built in 0x1600–0x1603 and 0x1A00–0x1A03 under the AKD's rules, which
+//! [`check_flexible`] applies, so that the master refuses a mapping before writing anything and
+//! the virtual AKD refuses it as the drive does.
+//!
+//! Where the manual and the real drive differ, the real drive's SII wins: 0x1B01 carries the
+//! internal position 0x6063, digital outputs 0x60FE:01 are 32 bits, and 0x1725/0x1B26 exist.
+
+use crate::coe::abort;
+
+/// One mapped object: index, subindex and bit length, as written to a mapping object's
+/// subindices in the form 0xIIIISSBB.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PdoEntry {
+    /// Object index.
+    pub index: u16,
+    /// Subindex.
+    pub subindex: u8,
+    /// Length in bits.
+    pub bits: u8,
+}
+
+impl PdoEntry {
+    /// An entry of `bits` bits of `index:subindex`.
+    pub const fn new(index: u16, subindex: u8, bits: u8) -> Self {
+        PdoEntry { index, subindex, bits }
+    }
+
+    /// Decodes a mapping object value 0xIIIISSBB.
+    pub const fn from_u32(value: u32) -> Self {
+        PdoEntry { index: (value >> 16) as u16, subindex: (value >> 8) as u8, bits: value as u8 }
+    }
+
+    /// Encodes as a mapping object value 0xIIIISSBB.
+    pub const fn to_u32(self) -> u32 {
+        ((self.index as u32) << 16) | ((self.subindex as u32) << 8) | self.bits as u32
+    }
+
+    /// Whether this is a padding entry (0x0002 on outputs, 0x2002:01..04 on inputs), which
+    /// occupies bits but carries no object.
+    pub const fn is_padding(self) -> bool {
+        self.index == RX_PADDING_INDEX || self.index == TX_PADDING_INDEX
+    }
+}
+
+/// Which way a PDO carries data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Direction {
+    /// Master to drive: set-points (RxPDO, sync manager 2, assignment 0x1C12).
+    Rx,
+    /// Drive to master: actual values (TxPDO, sync manager 3, assignment 0x1C13).
+    Tx,
+}
+
+impl Direction {
+    /// The sync-manager assignment object of this direction.
+    pub const fn assignment_index(self) -> u16 {
+        match self {
+            Direction::Rx => 0x1C12,
+            Direction::Tx => 0x1C13,
+        }
+    }
+
+    /// First flexible mapping object of this direction (0x1600 or 0x1A00).
+    pub const fn flexible_base(self) -> u16 {
+        match self {
+            Direction::Rx => 0x1600,
+            Direction::Tx => 0x1A00,
+        }
+    }
+
+    /// Largest process image the AKD accepts in this direction, in bytes.
+    pub const fn max_bytes(self) -> usize {
+        match self {
+            Direction::Rx => MAX_RX_BYTES,
+            Direction::Tx => MAX_TX_BYTES,
+        }
+    }
+
+    /// The sync manager carrying this direction.
+    pub const fn sync_manager(self) -> u8 {
+        match self {
+            Direction::Rx => 2,
+            Direction::Tx => 3,
+        }
+    }
+
+    /// "RxPDO" or "TxPDO".
+    pub const fn name(self) -> &'static str {
+        match self {
+            Direction::Rx => "RxPDO",
+            Direction::Tx => "TxPDO",
+        }
+    }
+}
+
+/// Number of flexible mapping objects per direction (0x1600–0x1603, 0x1A00–0x1A03).
+pub const FLEXIBLE_PDO_COUNT: usize = 4;
+/// Largest flexible PDO, in bytes.
+pub const MAX_FLEXIBLE_PDO_BYTES: usize = 8;
+/// Largest flexible set-point image, in bytes.
+pub const MAX_RX_BYTES: usize = 22;
+/// Largest flexible actual-value image, in bytes.
+pub const MAX_TX_BYTES: usize = 32;
+/// Dummy object that pads an RxPDO (8 bits, subindex 0).
+pub const RX_PADDING_INDEX: u16 = 0x0002;
+/// Manufacturer status object whose subindices 1..4 pad a TxPDO.
+pub const TX_PADDING_INDEX: u16 = 0x2002;
+
+/// A fixed mapping the drive defines.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FixedPdo {
+    /// The mapping object, e.g. 0x1701.
+    pub index: u16,
+    /// Which way it carries data.
+    pub direction: Direction,
+    /// Its entries in wire order.
+    pub entries: &'static [PdoEntry],
+}
+
+impl FixedPdo {
+    /// Length of the process image in bytes.
+    pub fn byte_len(&self) -> usize {
+        bit_len(self.entries) / 8
+    }
+}
+
+const CONTROLWORD: PdoEntry = PdoEntry::new(0x6040, 0, 16);
+const STATUSWORD: PdoEntry = PdoEntry::new(0x6041, 0, 16);
+const IP_SETPOINT: PdoEntry = PdoEntry::new(0x60C1, 1, 32);
+const TARGET_POSITION: PdoEntry = PdoEntry::new(0x607A, 0, 32);
+const TARGET_VELOCITY: PdoEntry = PdoEntry::new(0x60FF, 0, 32);
+const LATCH_CONTROLWORD: PdoEntry = PdoEntry::new(0x20A4, 0, 16);
+const TORQUE_OFFSET: PdoEntry = PdoEntry::new(0x60B2, 0, 16);
+const PHYSICAL_OUTPUTS: PdoEntry = PdoEntry::new(0x60FE, 1, 32);
+const MAX_TORQUE: PdoEntry = PdoEntry::new(0x6072, 0, 16);
+const CLEAR_INPUT_CHANGED: PdoEntry = PdoEntry::new(0x20B8, 0, 16);
+const ANALOG_OUTPUT: PdoEntry = PdoEntry::new(0x3470, 3, 16);
+const POSITION_INTERNAL: PdoEntry = PdoEntry::new(0x6063, 0, 32);
+const POSITION_ACTUAL: PdoEntry = PdoEntry::new(0x6064, 0, 32);
+const SECOND_FEEDBACK: PdoEntry = PdoEntry::new(0x2050, 0, 32);
+const VELOCITY_ACTUAL: PdoEntry = PdoEntry::new(0x606C, 0, 32);
+const DIGITAL_INPUTS: PdoEntry = PdoEntry::new(0x60FD, 0, 32);
+const FOLLOWING_ERROR: PdoEntry = PdoEntry::new(0x60F4, 0, 32);
+const TORQUE_ACTUAL: PdoEntry = PdoEntry::new(0x6077, 0, 16);
+const LATCH_STATUSWORD: PdoEntry = PdoEntry::new(0x20A5, 0, 16);
+const ANALOG_INPUT: PdoEntry = PdoEntry::new(0x3470, 4, 16);
+
+const fn rx(index: u16, entries: &'static [PdoEntry]) -> FixedPdo {
+    FixedPdo { index, direction: Direction::Rx, entries }
+}
+
+const fn tx(index: u16, entries: &'static [PdoEntry]) -> FixedPdo {
+    FixedPdo { index, direction: Direction::Tx, entries }
+}
+
+/// Every fixed mapping of the real drive (firmware 01-20-00-003), outputs then inputs.
+pub const FIXED: &[FixedPdo] = &[
+    rx(0x1701, &[IP_SETPOINT, CONTROLWORD]),
+    rx(0x1702, &[TARGET_VELOCITY, CONTROLWORD]),
+    rx(0x1720, &[CONTROLWORD, IP_SETPOINT, LATCH_CONTROLWORD, TORQUE_OFFSET, PHYSICAL_OUTPUTS]),
+    rx(0x1721, &[IP_SETPOINT, CONTROLWORD, TORQUE_OFFSET]),
+    rx(0x1722, &[CONTROLWORD, IP_SETPOINT, LATCH_CONTROLWORD, TORQUE_OFFSET, PHYSICAL_OUTPUTS, MAX_TORQUE]),
+    rx(0x1723, &[CONTROLWORD, IP_SETPOINT, LATCH_CONTROLWORD, TORQUE_OFFSET, PHYSICAL_OUTPUTS, CLEAR_INPUT_CHANGED]),
+    rx(0x1724, &[TARGET_POSITION, CONTROLWORD, TORQUE_OFFSET]),
+    rx(0x1725, &[CONTROLWORD, TARGET_POSITION, PHYSICAL_OUTPUTS, TORQUE_OFFSET, ANALOG_OUTPUT, MAX_TORQUE]),
+    tx(0x1B01, &[POSITION_INTERNAL, STATUSWORD]),
+    tx(
+        0x1B20,
+        &[
+            POSITION_INTERNAL, SECOND_FEEDBACK, VELOCITY_ACTUAL, DIGITAL_INPUTS, FOLLOWING_ERROR,
+            PdoEntry::new(0x20A0, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+        ],
+    ),
+    tx(0x1B21, &[POSITION_INTERNAL, STATUSWORD]),
+    tx(
+        0x1B22,
+        &[
+            POSITION_INTERNAL, SECOND_FEEDBACK, VELOCITY_ACTUAL, DIGITAL_INPUTS, FOLLOWING_ERROR,
+            PdoEntry::new(0x20A1, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+        ],
+    ),
+    tx(
+        0x1B23,
+        &[
+            POSITION_INTERNAL, SECOND_FEEDBACK, VELOCITY_ACTUAL, DIGITAL_INPUTS, FOLLOWING_ERROR,
+            PdoEntry::new(0x20A6, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+        ],
+    ),
+    tx(0x1B24, &[POSITION_ACTUAL, STATUSWORD]),
+    tx(
+        0x1B25,
+        &[
+            POSITION_INTERNAL, SECOND_FEEDBACK, PdoEntry::new(0x20A7, 0, 32), DIGITAL_INPUTS, FOLLOWING_ERROR,
+            PdoEntry::new(0x20A6, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+        ],
+    ),
+    tx(0x1B26, &[STATUSWORD, POSITION_ACTUAL, TORQUE_ACTUAL, DIGITAL_INPUTS, ANALOG_INPUT, FOLLOWING_ERROR]),
+];
+
+/// The fixed mapping at `index`, if the drive has one.
+pub fn fixed(index: u16) -> Option<&'static FixedPdo> {
+    FIXED.iter().find(|p| p.index == index)
+}
+
+/// The fixed mappings the manual names as the default selection (0x1701 and 0x1B01).
+pub const DEFAULT_FIXED: (u16, u16) = (0x1701, 0x1B01);
+
+/// The flexible mapping the real drive reports at power-up (from the SOEM capture): four
+/// RxPDOs and four TxPDOs of 17 bytes each way, which the drive itself refuses in SafeOp
+/// because the length is odd.
+pub const POWER_UP_RX: [&[PdoEntry]; FLEXIBLE_PDO_COUNT] = [
+    &[CONTROLWORD],
+    &[CONTROLWORD, PdoEntry::new(0x6060, 0, 8)],
+    &[CONTROLWORD, TARGET_POSITION],
+    &[CONTROLWORD, TARGET_VELOCITY],
+];
+
+/// TxPDO counterpart of [`POWER_UP_RX`].
+pub const POWER_UP_TX: [&[PdoEntry]; FLEXIBLE_PDO_COUNT] = [
+    &[STATUSWORD],
+    &[STATUSWORD, PdoEntry::new(0x6061, 0, 8)],
+    &[STATUSWORD, POSITION_ACTUAL],
+    &[STATUSWORD, VELOCITY_ACTUAL],
+];
+
+/// Objects the AKD can map cyclically (§5.7), with their bit lengths.
+pub const MAPPABLE_RX: &[PdoEntry] = &[
+    IP_SETPOINT,
+    TARGET_VELOCITY,
+    CONTROLWORD,
+    LATCH_CONTROLWORD,
+    TORQUE_OFFSET,
+    PHYSICAL_OUTPUTS,
+    PdoEntry::new(0x2071, 0, 32),
+    PdoEntry::new(0x6060, 0, 8),
+    PdoEntry::new(0x606D, 0, 16),
+    PdoEntry::new(0x606E, 0, 16),
+    PdoEntry::new(0x6071, 0, 16),
+    MAX_TORQUE,
+    PdoEntry::new(0x6081, 0, 32),
+    PdoEntry::new(0x6083, 0, 32),
+    PdoEntry::new(0x6084, 0, 32),
+    PdoEntry::new(0x60B1, 0, 32),
+    PdoEntry::new(0x60B8, 0, 16),
+    ANALOG_OUTPUT,
+    PdoEntry::new(0x3497, 0, 32),
+    CLEAR_INPUT_CHANGED,
+    TARGET_POSITION,
+    PdoEntry::new(RX_PADDING_INDEX, 0, 8),
+];
+
+/// TxPDO counterpart of [`MAPPABLE_RX`].
+pub const MAPPABLE_TX: &[PdoEntry] = &[
+    POSITION_INTERNAL,
+    VELOCITY_ACTUAL,
+    STATUSWORD,
+    SECOND_FEEDBACK,
+    DIGITAL_INPUTS,
+    FOLLOWING_ERROR,
+    PdoEntry::new(0x20A0, 0, 32),
+    TORQUE_ACTUAL,
+    LATCH_STATUSWORD,
+    PdoEntry::new(0x3470, 0, 16),
+    ANALOG_INPUT,
+    PdoEntry::new(0x2077, 0, 32),
+    PdoEntry::new(0x20A1, 0, 32),
+    PdoEntry::new(0x20A2, 0, 32),
+    PdoEntry::new(0x20A3, 0, 32),
+    PdoEntry::new(0x20A6, 0, 32),
+    PdoEntry::new(0x20A7, 0, 32),
+    PdoEntry::new(0x6061, 0, 8),
+    POSITION_ACTUAL,
+    PdoEntry::new(0x60B9, 0, 16),
+    PdoEntry::new(0x60BA, 0, 32),
+    PdoEntry::new(0x60BB, 0, 32),
+    PdoEntry::new(0x60BC, 0, 32),
+    PdoEntry::new(0x60BD, 0, 32),
+    PdoEntry::new(0x60E4, 0, 48),
+    PdoEntry::new(0x60E4, 1, 32),
+    PdoEntry::new(0x3427, 3, 32),
+    PdoEntry::new(0x3470, 2, 16),
+    PdoEntry::new(0x1002, 0, 32),
+    PdoEntry::new(TX_PADDING_INDEX, 1, 8),
+    PdoEntry::new(TX_PADDING_INDEX, 2, 8),
+    PdoEntry::new(TX_PADDING_INDEX, 3, 8),
+    PdoEntry::new(TX_PADDING_INDEX, 4, 8),
+];
+
+/// The mappable-object table of a direction.
+pub fn mappable(direction: Direction) -> &'static [PdoEntry] {
+    match direction {
+        Direction::Rx => MAPPABLE_RX,
+        Direction::Tx => MAPPABLE_TX,
+    }
+}
+
+/// Total bit length of `entries`.
+pub fn bit_len(entries: &[PdoEntry]) -> usize {
+    entries.iter().map(|e| e.bits as usize).sum()
+}
+
+/// Why the AKD refuses a flexible mapping, with the SDO abort code it answers with.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MappingRefused {
+    /// What is wrong and what is allowed.
+    pub reason: String,
+    /// The abort code the drive gives when the offending value is written.
+    pub abort_code: u32,
+}
+
+/// Checks one flexible PDO's entries: each mappable in this direction with its real bit
+/// length, and the PDO at most 8 bytes.
+pub fn check_flexible_pdo(direction: Direction, pdo_index: u16, entries: &[PdoEntry]) -> Result<(), MappingRefused> {
+    for entry in entries {
+        if !mappable(direction).contains(entry) {
+            return Err(MappingRefused {
+                reason: format!(
+                    "0x{:04X}:{:02X} with {} bits cannot be mapped in {} 0x{pdo_index:04X} (see AKD manual §5.7 for the mappable objects)",
+                    entry.index,
+                    entry.subindex,
+                    entry.bits,
+                    direction.name()
+                ),
+                abort_code: abort::NOT_MAPPABLE,
+            });
+        }
+    }
+    let bits = bit_len(entries);
+    if bits > MAX_FLEXIBLE_PDO_BYTES * 8 {
+        return Err(MappingRefused {
+            reason: format!(
+                "{} 0x{pdo_index:04X} holds {} bytes; a flexible PDO holds at most {MAX_FLEXIBLE_PDO_BYTES}",
+                direction.name(),
+                bits / 8
+            ),
+            abort_code: abort::PDO_TOO_LONG,
+        });
+    }
+    Ok(())
+}
+
+/// Checks a whole flexible mapping of one direction: at most four PDOs from 0x1600/0x1A00
+/// upwards, each valid, the total within 22 (Rx) or 32 (Tx) bytes and of even length.
+pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Result<(), MappingRefused> {
+    if pdos.len() > FLEXIBLE_PDO_COUNT {
+        return Err(MappingRefused {
+            reason: format!("{} {} PDOs assigned; the AKD takes at most {FLEXIBLE_PDO_COUNT}", pdos.len(), direction.name()),
+            abort_code: abort::VALUE_RANGE,
+        });
+    }
+    let base = direction.flexible_base();
+    for (index, entries) in pdos {
+        if !(base..base + FLEXIBLE_PDO_COUNT as u16).contains(index) {
+            return Err(MappingRefused {
+                reason: format!(
+                    "0x{index:04X} is not a flexible {} (allowed 0x{base:04X}..=0x{:04X})",
+                    direction.name(),
+                    base + FLEXIBLE_PDO_COUNT as u16 - 1
+                ),
+                abort_code: abort::VALUE_RANGE,
+            });
+        }
+        check_flexible_pdo(direction, *index, entries)?;
+    }
+    let bits: usize = pdos.iter().map(|(_, e)| bit_len(e)).sum();
+    if bits > direction.max_bytes() * 8 {
+        return Err(MappingRefused {
+            reason: format!(
+                "{} mapping of {} bytes exceeds the AKD's {} bytes",
+                direction.name(),
+                bits / 8,
+                direction.max_bytes()
+            ),
+            abort_code: abort::PDO_TOO_LONG,
+        });
+    }
+    if bits % 16 != 0 {
+        let padding = match direction {
+            Direction::Rx => "0x0002:00 (8 bits)",
+            Direction::Tx => "one of 0x2002:01..04 (8 bits)",
+        };
+        return Err(MappingRefused {
+            reason: format!(
+                "{} mapping of {} bits has an odd byte length, which the AKD refuses; pad it with {padding}",
+                direction.name(),
+                bits
+            ),
+            abort_code: abort::PARAMETER_INCOMPATIBLE,
+        });
+    }
+    Ok(())
+}
+
+/// Where each entry of a mapping sits in the process image: byte offset and entry.
+pub fn layout(entries: impl IntoIterator<Item = PdoEntry>) -> impl Iterator<Item = (usize, PdoEntry)> {
+    let mut bit = 0usize;
+    entries.into_iter().map(move |e| {
+        let at = bit / 8;
+        bit += e.bits as usize;
+        (at, e)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn entries_round_trip_the_wire_form() {
+        assert_eq!(PdoEntry::from_u32(0x60FF0020), TARGET_VELOCITY);
+        assert_eq!(CONTROLWORD.to_u32(), 0x60400010);
+        assert_eq!(IP_SETPOINT.to_u32(), 0x60C10120);
+    }
+
+    #[test]
+    fn fixed_mappings_match_the_manual() {
+        let velocity = fixed(0x1702).unwrap();
+        assert_eq!(velocity.entries.iter().map(|e| e.to_u32()).collect::<Vec<_>>(), vec![0x60FF0020, 0x60400010]);
+        assert_eq!(fixed(0x1701).unwrap().byte_len(), 6);
+        assert_eq!(fixed(0x1B01).unwrap().byte_len(), 6);
+        assert_eq!(fixed(0x1B20).unwrap().byte_len(), 32);
+        assert_eq!(fixed(0x1720).unwrap().byte_len(), 14);
+        assert!(fixed(0x1704).is_none());
+        for p in FIXED {
+            assert!(p.byte_len() <= 64, "0x{:04X} exceeds the 64-byte SM buffer", p.index);
+        }
+    }
+
+    #[test]
+    fn the_power_up_mapping_is_refused_for_its_odd_length() {
+        let pdos: Vec<(u16, &[PdoEntry])> = POWER_UP_RX.iter().enumerate().map(|(i, e)| (0x1600 + i as u16, *e)).collect();
+        let refused = check_flexible(Direction::Rx, &pdos).unwrap_err();
+        assert!(refused.reason.contains("odd"), "{}", refused.reason);
+        assert_eq!(bit_len(&POWER_UP_RX.concat()), 17 * 8);
+    }
+
+    #[test]
+    fn flexible_rules() {
+        let ok: &[PdoEntry] = &[CONTROLWORD, IP_SETPOINT];
+        assert!(check_flexible(Direction::Rx, &[(0x1600, ok)]).is_ok());
+        let padded: &[PdoEntry] = &[CONTROLWORD, PdoEntry::new(0x6060, 0, 8), PdoEntry::new(0x0002, 0, 8)];
+        assert!(check_flexible(Direction::Rx, &[(0x1600, padded)]).is_ok());
+        let too_long: &[PdoEntry] = &[CONTROLWORD, IP_SETPOINT, TARGET_VELOCITY];
+        assert_eq!(check_flexible(Direction::Rx, &[(0x1600, too_long)]).unwrap_err().abort_code, abort::PDO_TOO_LONG);
+        let wrong_way: &[PdoEntry] = &[STATUSWORD];
+        assert_eq!(check_flexible(Direction::Rx, &[(0x1600, wrong_way)]).unwrap_err().abort_code, abort::NOT_MAPPABLE);
+        assert!(check_flexible(Direction::Rx, &[(0x1A00, ok)]).is_err());
+        let full: &[PdoEntry] = &[TARGET_POSITION, TARGET_VELOCITY];
+        let over: Vec<(u16, &[PdoEntry])> = (0..3).map(|i| (0x1600 + i, full)).collect();
+        assert!(check_flexible(Direction::Rx, &over).unwrap_err().reason.contains("22"));
+    }
+
+    #[test]
+    fn layout_gives_byte_offsets() {
+        let offsets: Vec<usize> = layout(fixed(0x1720).unwrap().entries.iter().copied()).map(|(o, _)| o).collect();
+        assert_eq!(offsets, vec![0, 2, 6, 8, 10]);
+    }
+}
