@@ -6,12 +6,13 @@
 //! state: [`frame`] (datagrams and working counters), [`registers`] (ESC register map),
 //! [`sii`] (SII EEPROM content), [`al`] (AL states and status codes), [`mailbox`] and [`coe`]
 //! (mailbox header, CoE SDO, SDO information, emergency), [`pdo`] (AKD process-data mappings)
-//! and [`dc`] (distributed-clock arithmetic). [`link`] moves frames; [`master`] drives a bus;
-//! [`sim`] is the virtual AKD.
+//! [`dc`] (distributed-clock arithmetic) and [`ds402`] (CiA 402 drive state machine).
+//! [`link`] moves frames; [`master`] drives a bus; [`sim`] is the virtual AKD.
 
 pub mod al;
 pub mod coe;
 pub mod dc;
+pub mod ds402;
 pub mod error;
 pub mod frame;
 pub mod link;
