@@ -6,6 +6,7 @@
 use pyo3::create_exception;
 use pyo3::exceptions::PyException;
 use pyo3::prelude::*;
+use pyo3::IntoPyObjectExt;
 
 use crate::error::Error;
 
@@ -28,49 +29,48 @@ create_exception!(_native, ConfigError, EtherCatError, "A configuration value ou
 pub(crate) fn to_py_err(error: Error) -> PyErr {
     let message = error.to_string();
     Python::with_gil(|py| {
-        let (err, attrs): (PyErr, Vec<(&str, PyObject)>) = match &error {
-            Error::Frame(_) => (FrameError::new_err(message), vec![]),
-            Error::Io { .. } => (LinkError::new_err(message), vec![]),
-            Error::Timeout { .. } => (TimeoutError::new_err(message), vec![]),
-            Error::WorkingCounter { expected, got, .. } => (
-                WorkingCounterError::new_err(message),
-                vec![("expected", expected.into_py(py)), ("got", got.into_py(py))],
-            ),
-            Error::AlState { slave, requested, actual, code, code_name } => (
-                AlStateError::new_err(message),
-                vec![
-                    ("slave", slave.into_py(py)),
-                    ("requested", requested.into_py(py)),
-                    ("actual", actual.into_py(py)),
-                    ("code", code.into_py(py)),
-                    ("code_name", code_name.into_py(py)),
-                ],
-            ),
-            Error::SdoAbort { index, subindex, code, code_name } => (
-                SdoAbortError::new_err(message),
-                vec![
-                    ("index", index.into_py(py)),
-                    ("subindex", subindex.into_py(py)),
-                    ("code", code.into_py(py)),
-                    ("code_name", code_name.into_py(py)),
-                ],
-            ),
-            Error::Mailbox(_) => (MailboxError::new_err(message), vec![]),
-            Error::Sii(_) => (SiiError::new_err(message), vec![]),
-            Error::Pdo(_) => (PdoError::new_err(message), vec![]),
-            Error::Config(_) | Error::NoSuchSlave { .. } => (ConfigError::new_err(message), vec![]),
+        let err = match &error {
+            Error::Frame(_) => FrameError::new_err(message),
+            Error::Io { .. } => LinkError::new_err(message),
+            Error::Timeout { .. } => TimeoutError::new_err(message),
+            Error::WorkingCounter { .. } => WorkingCounterError::new_err(message),
+            Error::AlState { .. } => AlStateError::new_err(message),
+            Error::SdoAbort { .. } => SdoAbortError::new_err(message),
+            Error::Mailbox(_) => MailboxError::new_err(message),
+            Error::Sii(_) => SiiError::new_err(message),
+            Error::Pdo(_) => PdoError::new_err(message),
+            Error::Config(_) | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
         };
         let value = err.value(py);
-        for (name, v) in attrs {
+        let set = |name: &str, v: PyResult<PyObject>| {
             // Setting an attribute on a fresh exception instance cannot fail.
-            let _ = value.setattr(name, v);
+            if let Ok(v) = v {
+                let _ = value.setattr(name, v);
+            }
+        };
+        match error {
+            Error::WorkingCounter { expected, got, .. } => {
+                set("expected", expected.into_py_any(py));
+                set("got", got.into_py_any(py));
+            }
+            Error::AlState { slave, requested, actual, code, code_name } => {
+                set("slave", slave.into_py_any(py));
+                set("requested", requested.into_py_any(py));
+                set("actual", actual.into_py_any(py));
+                set("code", code.into_py_any(py));
+                set("code_name", code_name.into_py_any(py));
+            }
+            Error::SdoAbort { index, subindex, code, code_name } => {
+                set("index", index.into_py_any(py));
+                set("subindex", subindex.into_py_any(py));
+                set("code", code.into_py_any(py));
+                set("code_name", code_name.into_py_any(py));
+            }
+            _ => {}
         }
         err
     })
 }
-
-/// Result type of binding functions.
-pub(crate) type PyResult<T> = Result<T, PyErr>;
 
 /// Extension trait: `.py()?` converts a crate result into a Python one.
 pub(crate) trait IntoPyResult<T> {
