@@ -1,1 +1,322 @@
-//! (being written)
+//! Raw Ethernet on a named interface (AF_PACKET, EtherType 0x88A4), for real hardware and for a
+//! veth pair to a simulator.
+//!
+//! [`RawSocket`] moves whole Ethernet frames and is shared by the master and the simulator's
+//! server; [`RawLink`] is the master's [`Link`]: it adds the Ethernet header on the way out and
+//! strips it on the way back, so the master sees only EtherCAT payloads.
+
+use std::ffi::CString;
+use std::io;
+use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::time::{Duration, Instant};
+
+use crate::error::{Error, FrameError, Result};
+use crate::frame::{self, ETHERTYPE, ETH_HEADER_LEN, MIN_ETH_FRAME_LEN};
+use crate::link::{is_reply_to, Link};
+
+/// Source MAC of the master's frames: the one SOEM uses, so captures of both look alike.
+pub const MASTER_MAC: [u8; 6] = [0x01, 0x01, 0x01, 0x01, 0x01, 0x01];
+/// Bit an EtherCAT slave sets in the first byte of the source MAC of a frame it forwards back.
+pub const RETURNED_MAC_BIT: u8 = 0x02;
+/// Largest Ethernet frame without FCS.
+pub const MAX_ETH_FRAME_LEN: usize = ETH_HEADER_LEN + frame::MAX_PAYLOAD_LEN;
+
+/// An AF_PACKET socket bound to EtherType 0x88A4 on one interface.
+#[derive(Debug)]
+pub struct RawSocket {
+    fd: OwnedFd,
+    ifindex: i32,
+    iface: String,
+}
+
+impl RawSocket {
+    /// Opens a raw socket on `iface`. Frames are broadcast, so no promiscuous mode is needed.
+    /// Fails with an error naming the interface when it does not exist or when the process
+    /// lacks CAP_NET_RAW.
+    pub fn open(iface: &str) -> Result<Self> {
+        let name = CString::new(iface)
+            .map_err(|_| Error::Config(format!("interface name {iface:?} contains a NUL byte")))?;
+        // SAFETY: `name` is a valid NUL-terminated string.
+        let ifindex = unsafe { libc::if_nametoindex(name.as_ptr()) };
+        if ifindex == 0 {
+            return Err(Error::io(
+                format!("network interface {iface:?}"),
+                io::Error::new(io::ErrorKind::NotFound, "no such interface (see `ip link`)"),
+            ));
+        }
+        let protocol = ETHERTYPE.to_be() as libc::c_int;
+        // SAFETY: plain socket(2) call; the result is checked.
+        let raw = unsafe { libc::socket(libc::AF_PACKET, libc::SOCK_RAW | libc::SOCK_CLOEXEC, protocol) };
+        if raw < 0 {
+            let err = io::Error::last_os_error();
+            let hint = if err.kind() == io::ErrorKind::PermissionDenied {
+                " (raw Ethernet needs root or CAP_NET_RAW)"
+            } else {
+                ""
+            };
+            return Err(Error::io(format!("opening an AF_PACKET socket on {iface:?}{hint}"), err));
+        }
+        // SAFETY: `raw` is a fresh descriptor owned by nobody else.
+        let fd = unsafe { OwnedFd::from_raw_fd(raw) };
+        let address = sockaddr_ll(ifindex as i32);
+        // SAFETY: `address` is a valid sockaddr_ll of the size passed.
+        let rc = unsafe {
+            libc::bind(
+                fd.as_raw_fd(),
+                &address as *const libc::sockaddr_ll as *const libc::sockaddr,
+                std::mem::size_of::<libc::sockaddr_ll>() as libc::socklen_t,
+            )
+        };
+        if rc < 0 {
+            return Err(Error::last_os(format!("binding the raw socket to interface {iface:?}")));
+        }
+        Ok(RawSocket { fd, ifindex: ifindex as i32, iface: iface.to_owned() })
+    }
+
+    /// The interface name.
+    pub fn interface(&self) -> &str {
+        &self.iface
+    }
+
+    /// Sends one whole Ethernet frame (headers included, no FCS).
+    pub fn send(&self, ethernet_frame: &[u8]) -> Result<()> {
+        // SAFETY: the pointer and length describe `ethernet_frame`.
+        let sent = unsafe {
+            libc::send(self.fd.as_raw_fd(), ethernet_frame.as_ptr() as *const libc::c_void, ethernet_frame.len(), 0)
+        };
+        if sent < 0 {
+            return Err(Error::last_os(format!("sending on interface {:?}", self.iface)));
+        }
+        if sent as usize != ethernet_frame.len() {
+            return Err(Error::io(
+                format!("sending on interface {:?}", self.iface),
+                io::Error::new(io::ErrorKind::WriteZero, format!("sent {sent} of {} bytes", ethernet_frame.len())),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Waits up to `timeout` for an incoming Ethernet frame and writes it to `buf`; `None` when
+    /// nothing came. The socket's own outgoing frames, which AF_PACKET also delivers, are
+    /// skipped.
+    pub fn recv(&self, buf: &mut [u8], timeout: Duration) -> Result<Option<usize>> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if !self.wait_readable(left)? {
+                return Ok(None);
+            }
+            // SAFETY: zeroed sockaddr_ll is a valid value.
+            let mut from: libc::sockaddr_ll = unsafe { std::mem::zeroed() };
+            let mut from_len = std::mem::size_of::<libc::sockaddr_ll>() as libc::socklen_t;
+            // SAFETY: `buf` and `from` are valid for the lengths passed.
+            let got = unsafe {
+                libc::recvfrom(
+                    self.fd.as_raw_fd(),
+                    buf.as_mut_ptr() as *mut libc::c_void,
+                    buf.len(),
+                    libc::MSG_DONTWAIT,
+                    &mut from as *mut libc::sockaddr_ll as *mut libc::sockaddr,
+                    &mut from_len,
+                )
+            };
+            if got < 0 {
+                let err = io::Error::last_os_error();
+                if matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
+                    continue;
+                }
+                return Err(Error::io(format!("receiving on interface {:?}", self.iface), err));
+            }
+            if from.sll_pkttype == libc::PACKET_OUTGOING as u8 {
+                continue;
+            }
+            return Ok(Some(got as usize));
+        }
+    }
+
+    /// Waits until a frame can be read or `timeout` passes; `false` on time-out.
+    fn wait_readable(&self, timeout: Duration) -> Result<bool> {
+        let mut poll = libc::pollfd { fd: self.fd.as_raw_fd(), events: libc::POLLIN, revents: 0 };
+        let spec = libc::timespec { tv_sec: timeout.as_secs() as libc::time_t, tv_nsec: timeout.subsec_nanos() as _ };
+        // SAFETY: one valid pollfd, a valid timespec, no signal mask.
+        let rc = unsafe { libc::ppoll(&mut poll, 1, &spec, std::ptr::null()) };
+        if rc < 0 {
+            let err = io::Error::last_os_error();
+            if err.kind() == io::ErrorKind::Interrupted {
+                return Ok(true);
+            }
+            return Err(Error::io(format!("waiting on interface {:?}", self.iface), err));
+        }
+        Ok(rc > 0)
+    }
+}
+
+fn sockaddr_ll(ifindex: i32) -> libc::sockaddr_ll {
+    // SAFETY: zeroed sockaddr_ll is a valid value; the fields that matter are set below.
+    let mut address: libc::sockaddr_ll = unsafe { std::mem::zeroed() };
+    address.sll_family = libc::AF_PACKET as u16;
+    address.sll_protocol = ETHERTYPE.to_be();
+    address.sll_ifindex = ifindex;
+    address
+}
+
+/// The master's link over a [`RawSocket`]: broadcast frames from [`MASTER_MAC`], replies
+/// recognised by the returned-frame bit in their source MAC and by their datagrams.
+#[derive(Debug)]
+pub struct RawLink {
+    socket: RawSocket,
+    tx: [u8; MAX_ETH_FRAME_LEN],
+    rx: [u8; MAX_ETH_FRAME_LEN],
+}
+
+impl RawLink {
+    /// Opens the interface `iface` (see [`RawSocket::open`]).
+    pub fn open(iface: &str) -> Result<Self> {
+        Ok(RawLink { socket: RawSocket::open(iface)?, tx: [0; MAX_ETH_FRAME_LEN], rx: [0; MAX_ETH_FRAME_LEN] })
+    }
+
+    /// The interface index the socket is bound to.
+    pub fn ifindex(&self) -> i32 {
+        self.socket.ifindex
+    }
+}
+
+/// Writes the Ethernet header of a frame from the master and returns the frame length, padded
+/// to the Ethernet minimum.
+fn wrap(payload: &[u8], out: &mut [u8; MAX_ETH_FRAME_LEN]) -> Result<usize> {
+    let len = ETH_HEADER_LEN + payload.len();
+    if len > MAX_ETH_FRAME_LEN {
+        return Err(FrameError::TooLarge { len: payload.len(), room: frame::MAX_PAYLOAD_LEN }.into());
+    }
+    out[..6].fill(0xFF);
+    out[6..12].copy_from_slice(&MASTER_MAC);
+    out[12..14].copy_from_slice(&ETHERTYPE.to_be_bytes());
+    out[ETH_HEADER_LEN..len].copy_from_slice(payload);
+    let padded = len.max(MIN_ETH_FRAME_LEN);
+    out[len..padded].fill(0);
+    Ok(padded)
+}
+
+/// The EtherCAT payload of a returned frame, without Ethernet padding; `None` for anything
+/// else (another EtherType, a frame no slave has forwarded).
+fn unwrap_returned(frame: &[u8]) -> Option<&[u8]> {
+    if frame.len() < ETH_HEADER_LEN + frame::FRAME_HEADER_LEN
+        || u16::from_be_bytes([frame[12], frame[13]]) != ETHERTYPE
+        || frame[6] & RETURNED_MAC_BIT == 0
+    {
+        return None;
+    }
+    let payload = &frame[ETH_HEADER_LEN..];
+    let len = frame::frame_header(payload).ok()?;
+    Some(&payload[..frame::FRAME_HEADER_LEN + len])
+}
+
+impl Link for RawLink {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        let len = wrap(tx, &mut self.tx)?;
+        self.socket.send(&self.tx[..len])?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            let Some(got) = self.socket.recv(&mut self.rx, left)? else {
+                return Err(Error::Timeout { what: format!("the frame to return on {:?}", self.socket.iface) });
+            };
+            if let Some(payload) = unwrap_returned(&self.rx[..got]) {
+                if is_reply_to(tx, payload) {
+                    let n = payload.len();
+                    let room = rx.len();
+                    rx.get_mut(..n)
+                        .ok_or(Error::Frame(FrameError::TooLarge { len: n, room }))?
+                        .copy_from_slice(payload);
+                    return Ok(n);
+                }
+            }
+        }
+    }
+
+    fn describe(&self) -> String {
+        self.socket.iface.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{Command, FrameBuilder};
+
+    fn payload() -> Vec<u8> {
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf);
+        b.push(Command::Brd, 7, 0, 0x0130, &[0, 0]).unwrap();
+        let n = b.finish();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn wraps_as_soem_does_and_pads() {
+        let p = payload();
+        let mut out = [0u8; MAX_ETH_FRAME_LEN];
+        let n = wrap(&p, &mut out).unwrap();
+        assert_eq!(n, MIN_ETH_FRAME_LEN);
+        assert_eq!(&out[..6], &[0xFF; 6]);
+        assert_eq!(&out[6..12], &MASTER_MAC);
+        assert_eq!(&out[12..14], &[0x88, 0xA4]);
+        assert_eq!(&out[14..14 + p.len()], &p[..]);
+        // The master's own frame is not a returned one; the slave-forwarded copy is, without padding.
+        assert_eq!(unwrap_returned(&out[..n]), None);
+        out[6] |= RETURNED_MAC_BIT;
+        assert_eq!(unwrap_returned(&out[..n]), Some(&p[..]));
+        out[13] = 0x00;
+        assert_eq!(unwrap_returned(&out[..n]), None);
+    }
+
+    #[test]
+    fn refuses_oversized_payload() {
+        let mut out = [0u8; MAX_ETH_FRAME_LEN];
+        assert!(matches!(wrap(&[0u8; 1501], &mut out), Err(Error::Frame(FrameError::TooLarge { .. }))));
+    }
+
+    #[test]
+    fn names_a_missing_interface() {
+        let err = RawSocket::open("nosuchif0").unwrap_err().to_string();
+        assert!(err.contains("nosuchif0") && err.contains("no such interface"), "{err}");
+    }
+
+    #[test]
+    fn skips_its_own_outgoing_frames() {
+        // On loopback every sent frame also comes back once as an incoming one; without the
+        // PACKET_OUTGOING filter the socket would see it twice.
+        let socket = match RawSocket::open("lo") {
+            Ok(s) => s,
+            Err(Error::Io { source, .. }) if source.kind() == io::ErrorKind::PermissionDenied => {
+                eprintln!("skipped: raw sockets need CAP_NET_RAW here");
+                return;
+            }
+            Err(e) => panic!("{e}"),
+        };
+        let mut out = [0u8; MAX_ETH_FRAME_LEN];
+        let n = wrap(&payload(), &mut out).unwrap();
+        socket.send(&out[..n]).unwrap();
+        // Other EtherCAT traffic on loopback is ignored: only copies of this frame count.
+        let mut buf = [0u8; MAX_ETH_FRAME_LEN];
+        let mut copies = 0;
+        let deadline = Instant::now() + Duration::from_millis(200);
+        while let Some(got) = socket.recv(&mut buf, deadline.saturating_duration_since(Instant::now())).unwrap() {
+            copies += (buf[..got] == out[..n]) as usize;
+        }
+        assert_eq!(copies, 1);
+    }
+
+    #[test]
+    fn reply_matching_follows_command_index_and_length() {
+        let p = payload();
+        let mut back = p.clone();
+        back[2 + 2] = 0x55; // ADP changed by auto-increment: still the reply
+        back[p.len() - 2] = 1; // WKC
+        assert!(is_reply_to(&p, &back));
+        let mut other = p.clone();
+        other[3] = 8; // another index: a stale frame
+        assert!(!is_reply_to(&p, &other));
+        assert!(!is_reply_to(&p, &p[..p.len() - 1]));
+    }
+}

@@ -1,1 +1,131 @@
-//! (being written)
+//! EtherCAT over UDP: the EtherCAT payload (frame header plus datagrams) is the UDP payload,
+//! sent to a simulator in another process, by default on port 0x88A4.
+
+use std::io;
+use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
+use std::time::{Duration, Instant};
+
+use crate::error::{Error, FrameError, Result};
+use crate::frame::{self, ETHERTYPE};
+use crate::link::{is_reply_to, Link};
+
+/// The UDP port of EtherCAT over UDP (0x88A4 = 34980).
+pub const DEFAULT_PORT: u16 = ETHERTYPE;
+
+/// A link to a simulator listening on a UDP address.
+#[derive(Debug)]
+pub struct Udp {
+    socket: UdpSocket,
+    peer: SocketAddr,
+    rx: [u8; frame::MAX_PAYLOAD_LEN],
+}
+
+impl Udp {
+    /// Connects to `address`, `HOST:PORT` or `HOST` (then port 0x88A4).
+    pub fn connect(address: &str) -> Result<Self> {
+        let with_port = if address.rsplit_once(':').is_some_and(|(_, p)| p.parse::<u16>().is_ok()) {
+            address.to_owned()
+        } else {
+            format!("{address}:{DEFAULT_PORT}")
+        };
+        let peer = with_port
+            .to_socket_addrs()
+            .map_err(|e| Error::io(format!("resolving the UDP address {address:?}"), e))?
+            .next()
+            .ok_or_else(|| Error::Config(format!("UDP address {address:?} resolves to nothing")))?;
+        let local: SocketAddr = if peer.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" }.parse().expect("literal");
+        let socket = UdpSocket::bind(local).map_err(|e| Error::io("binding a UDP socket", e))?;
+        // Connecting filters out datagrams from anyone but the simulator.
+        socket.connect(peer).map_err(|e| Error::io(format!("connecting to udp://{peer}"), e))?;
+        Ok(Udp { socket, peer, rx: [0; frame::MAX_PAYLOAD_LEN] })
+    }
+
+    /// The simulator's address.
+    pub fn peer(&self) -> SocketAddr {
+        self.peer
+    }
+}
+
+impl Link for Udp {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        self.socket.send(tx).map_err(|e| Error::io(format!("sending to udp://{}", self.peer), e))?;
+        let deadline = Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            if left.is_zero() {
+                return Err(Error::Timeout { what: format!("the frame to return from udp://{}", self.peer) });
+            }
+            self.socket
+                .set_read_timeout(Some(left))
+                .map_err(|e| Error::io("setting the UDP read time-out", e))?;
+            let got = match self.socket.recv(&mut self.rx) {
+                Ok(n) => n,
+                Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => continue,
+                // A simulator not (yet) listening answers with ICMP port unreachable.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
+                    return Err(Error::io(format!("udp://{}: no simulator listening", self.peer), e))
+                }
+                Err(e) => return Err(Error::io(format!("receiving from udp://{}", self.peer), e)),
+            };
+            let reply = &self.rx[..got];
+            if is_reply_to(tx, reply) {
+                let room = rx.len();
+                rx.get_mut(..got).ok_or(Error::Frame(FrameError::TooLarge { len: got, room }))?.copy_from_slice(reply);
+                return Ok(got);
+            }
+        }
+    }
+
+    fn describe(&self) -> String {
+        format!("udp://{}", self.peer)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{Command, FrameBuilder};
+
+    fn request(index: u8) -> Vec<u8> {
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf);
+        b.push(Command::Brd, index, 0, 0x0000, &[0, 0]).unwrap();
+        let n = b.finish();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn returns_the_matching_reply_and_drops_stale_ones() {
+        let server = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut link = Udp::connect(&server.local_addr().unwrap().to_string()).unwrap();
+        let echo = std::thread::spawn(move || {
+            let mut buf = [0u8; 1500];
+            let (n, from) = server.recv_from(&mut buf).unwrap();
+            // A stale reply of an earlier frame first, then the real one with WKC 1.
+            server.send_to(&request(buf[3].wrapping_sub(1)), from).unwrap();
+            buf[n - 2] = 1;
+            server.send_to(&buf[..n], from).unwrap();
+        });
+        let tx = request(42);
+        let mut rx = [0u8; 1500];
+        let n = link.exchange(&tx, &mut rx, Duration::from_secs(2)).unwrap();
+        assert_eq!(rx[3], 42);
+        assert_eq!(rx[n - 2], 1);
+        echo.join().unwrap();
+    }
+
+    #[test]
+    fn times_out_without_reply() {
+        let server = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut link = Udp::connect(&server.local_addr().unwrap().to_string()).unwrap();
+        let mut rx = [0u8; 1500];
+        let err = link.exchange(&request(1), &mut rx, Duration::from_millis(20)).unwrap_err();
+        assert!(matches!(err, Error::Timeout { .. }), "{err}");
+    }
+
+    #[test]
+    fn default_port_is_the_ethertype() {
+        let link = Udp::connect("127.0.0.1").unwrap();
+        assert_eq!(link.peer().port(), 34980);
+    }
+}
