@@ -35,3 +35,24 @@ impl<L: Link + ?Sized> Link for Box<L> {
         (**self).describe()
     }
 }
+
+/// Whether `rx` is the return of the frame `tx`: same frame header and, datagram by datagram,
+/// the same command, index and length. Slaves change addresses (auto-increment), data, IRQ
+/// and working counters, never these, so a stale reply of an earlier frame (another index)
+/// or foreign traffic is told apart from the awaited one.
+pub fn is_reply_to(tx: &[u8], rx: &[u8]) -> bool {
+    let (Ok(sent), Ok(back)) = (crate::frame::parse(tx), crate::frame::parse(rx)) else {
+        return false;
+    };
+    let mut back = back;
+    for request in sent {
+        match (request, back.next()) {
+            (Ok(a), Some(Ok(b)))
+                if a.header.command == b.header.command
+                    && a.header.index == b.header.index
+                    && a.header.len == b.header.len => {}
+            _ => return false,
+        }
+    }
+    back.next().is_none()
+}
