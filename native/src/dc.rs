@@ -86,7 +86,7 @@ pub fn time_difference(raw: u32) -> i64 {
 
 /// The cycle time as the AKD's interpolation time period 0x60C2: units (sub 1, UNSIGNED8) and
 /// a signed power of ten (sub 2, INTEGER8), choosing the coarsest exact exponent, e.g. 2 ms =
-/// (2, -3), 250 µs = (250, -6). Refuses cycles under 250 µs or without an exact encoding.
+/// (2, -3), 250 µs = (25, -5). Refuses cycles under 250 µs or without an exact encoding.
 pub fn interpolation_time_period(cycle_ns: u32) -> Result<(u8, i8)> {
     if cycle_ns < MIN_CYCLE_NS {
         return Err(Error::Config(format!(
@@ -163,7 +163,7 @@ mod tests {
     #[test]
     fn interpolation_period_as_the_manual_writes_it() {
         assert_eq!(interpolation_time_period(2_000_000).unwrap(), (2, -3));
-        assert_eq!(interpolation_time_period(250_000).unwrap(), (250, -6));
+        assert_eq!(interpolation_time_period(250_000).unwrap(), (25, -5));
         assert_eq!(interpolation_time_period(1_000_000).unwrap(), (1, -3));
         assert_eq!(interpolation_time_period(500_000).unwrap(), (5, -4));
         assert!(interpolation_time_period(312_500).is_err());
