@@ -1,0 +1,1 @@
+"""Helpers shared by the Python tests (network namespaces, simulator processes)."""
