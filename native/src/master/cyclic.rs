@@ -1,0 +1,208 @@
+//! The cyclic exchange: one frame per cycle carrying one LRW over every slave's process data
+//! and, when distributed clocks run, the FRMW that hands the reference clock's time to the
+//! others. The working counter is checked every cycle; lost frames and wrong counters are
+//! counted. The process image and the frame buffers are allocated when the image is laid out,
+//! never per cycle.
+//!
+//! Layout of the logical address space: every slave's outputs one after the other from
+//! address 0, then every slave's inputs.
+
+use crate::error::{Error, Result};
+use crate::frame::{self, Command, FrameBuilder, Slot};
+use crate::master::pdo::Mapping;
+use crate::master::Master;
+use crate::pdo::DEFAULT_FIXED;
+use crate::registers::DC_SYSTEM_TIME;
+
+/// Where one slave's data sits in the process image.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ImageSlot {
+    /// Offset of its outputs in the output image (and logical address).
+    pub out_offset: usize,
+    /// Bytes of outputs.
+    pub out_len: usize,
+    /// Offset of its inputs in the input image.
+    pub in_offset: usize,
+    /// Bytes of inputs.
+    pub in_len: usize,
+}
+
+/// The process image of the bus.
+#[derive(Clone, Debug)]
+pub struct ProcessImage {
+    outputs: Vec<u8>,
+    inputs: Vec<u8>,
+    slots: Vec<Option<ImageSlot>>,
+    expected_wkc: u16,
+}
+
+impl ProcessImage {
+    /// Lays out the slaves' mappings (`None` for a slave without process data).
+    fn layout(lens: &[Option<(usize, usize)>]) -> Result<Self> {
+        let out_total: usize = lens.iter().flatten().map(|l| l.0).sum();
+        let in_total: usize = lens.iter().flatten().map(|l| l.1).sum();
+        if out_total + in_total > frame::MAX_DATAGRAM_DATA - 8 - frame::DATAGRAM_HEADER_LEN - frame::WKC_LEN {
+            return Err(Error::Config(format!(
+                "process image of {} bytes does not fit one frame",
+                out_total + in_total
+            )));
+        }
+        let (mut out_at, mut in_at, mut expected_wkc) = (0, 0, 0);
+        let slots = lens
+            .iter()
+            .map(|l| {
+                l.map(|(out_len, in_len)| {
+                    let slot = ImageSlot { out_offset: out_at, out_len, in_offset: in_at, in_len };
+                    out_at += out_len;
+                    in_at += in_len;
+                    expected_wkc += frame::expected_wkc(Command::Lrw, (in_len > 0) as u16, (out_len > 0) as u16);
+                    slot
+                })
+            })
+            .collect();
+        Ok(ProcessImage { outputs: vec![0; out_total], inputs: vec![0; in_total], slots, expected_wkc })
+    }
+
+    /// The working counter the LRW should come back with: 2 per slave that takes outputs, 1
+    /// per slave that gives inputs.
+    pub fn expected_wkc(&self) -> u16 {
+        self.expected_wkc
+    }
+
+    fn slot(&self, position: u16) -> Result<ImageSlot> {
+        self.slots
+            .get(position as usize)
+            .copied()
+            .flatten()
+            .ok_or_else(|| Error::Config(format!("slave {position} has no process data (map it, then go to SafeOp)")))
+    }
+}
+
+impl Master {
+    /// Before SafeOp: gives every slave at `positions` without a mapping the drive's default
+    /// fixed mapping (0x1701/0x1B01), lays out the process image over every mapped slave, and
+    /// sets up the sync managers and FMMUs of the slaves at `positions`.
+    pub(crate) fn setup_process_data(&mut self, positions: &[u16]) -> Result<()> {
+        for &p in positions {
+            if self.slave(p)?.mapping.is_none() && self.slave(p)?.mailbox.is_some() {
+                self.configure_pdo(p, Mapping::Fixed(DEFAULT_FIXED.0), Mapping::Fixed(DEFAULT_FIXED.1))?;
+            }
+        }
+        let lens: Vec<Option<(usize, usize)>> =
+            self.slaves.iter().map(|s| s.mapping.as_ref().map(|m| (m.rx_bytes(), m.tx_bytes()))).collect();
+        let image = ProcessImage::layout(&lens)?;
+        let out_total = image.outputs.len() as u32;
+        for &p in positions {
+            if let Ok(slot) = image.slot(p) {
+                self.setup_process_syncmanagers(p, slot.out_offset as u32, out_total + slot.in_offset as u32)?;
+            }
+        }
+        self.process = Some(image);
+        Ok(())
+    }
+
+    fn image(&self) -> Result<&ProcessImage> {
+        self.process.as_ref().ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))
+    }
+
+    /// The outputs of the slave at `position` as they go out in the next cycle.
+    pub fn outputs(&self, position: u16) -> Result<&[u8]> {
+        let image = self.image()?;
+        let s = image.slot(position)?;
+        Ok(&image.outputs[s.out_offset..s.out_offset + s.out_len])
+    }
+
+    /// Sets the outputs of the slave at `position`; `data` must have their exact length.
+    pub fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
+        let image = self.process.as_mut().ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))?;
+        let s = image.slot(position)?;
+        if data.len() != s.out_len {
+            return Err(Error::Config(format!(
+                "slave {position} has {} bytes of outputs, {} given",
+                s.out_len,
+                data.len()
+            )));
+        }
+        image.outputs[s.out_offset..s.out_offset + s.out_len].copy_from_slice(data);
+        Ok(())
+    }
+
+    /// The inputs of the slave at `position` from the last good cycle.
+    pub fn inputs(&self, position: u16) -> Result<&[u8]> {
+        let image = self.image()?;
+        let s = image.slot(position)?;
+        Ok(&image.inputs[s.in_offset..s.in_offset + s.in_len])
+    }
+
+    /// The LRW's expected working counter.
+    pub fn expected_wkc(&self) -> Result<u16> {
+        Ok(self.image()?.expected_wkc)
+    }
+
+    /// One cycle: sends the outputs, takes the inputs, and keeps the clocks together. Returns
+    /// the LRW's working counter; a wrong one is counted and raised as
+    /// [`Error::WorkingCounter`], and the inputs of that cycle are not taken.
+    pub fn exchange(&mut self) -> Result<u16> {
+        let Some(image) = self.process.as_ref() else {
+            return Err(Error::Config("no process image yet: take the slaves to SafeOp first".into()));
+        };
+        let index = self.index.wrapping_add(1);
+        self.index = index;
+        let out_len = image.outputs.len();
+        let expected = image.expected_wkc;
+        let mut builder = FrameBuilder::new(&mut self.tx[..]);
+        let lrw = builder.push_zeroed(Command::Lrw, index, 0, 0, out_len + image.inputs.len())?;
+        builder.bytes_mut()[lrw.data_offset..lrw.data_offset + out_len].copy_from_slice(&image.outputs);
+        let clock: Option<Slot> = match &self.clock {
+            Some(c) => Some(builder.push_zeroed(Command::Frmw, index, c.reference_station, DC_SYSTEM_TIME, 8)?),
+            None => None,
+        };
+        let len = builder.finish();
+        self.stats.cycles += 1;
+        let n = self.send_frame(len)?;
+        let reply = &self.rx[..n];
+        let wkc = lrw.wkc(reply)?;
+        let mut clock_time = None;
+        if let Some(slot) = clock {
+            let data = slot.data(reply)?;
+            clock_time = Some((u64::from_le_bytes(data.try_into().expect("8 bytes")), slot.wkc(reply)?));
+        }
+        if wkc != expected {
+            self.stats.wkc_errors += 1;
+            return Err(Error::WorkingCounter { what: "the cyclic LRW".into(), expected, got: wkc });
+        }
+        let data = &self.rx[lrw.data_offset + out_len..lrw.data_offset + lrw.len];
+        if let Some(image) = self.process.as_mut() {
+            image.inputs.copy_from_slice(data);
+        }
+        if let (Some((time, clock_wkc)), Some(c)) = (clock_time, self.clock.as_mut()) {
+            c.system_time = time;
+            if clock_wkc != c.expected_wkc {
+                self.stats.wkc_errors += 1;
+                let expected = c.expected_wkc;
+                return Err(Error::WorkingCounter { what: "the cyclic FRMW of the DC system time".into(), expected, got: clock_wkc });
+            }
+        }
+        Ok(wkc)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn layout_puts_outputs_then_inputs_and_counts_wkc() {
+        let image = ProcessImage::layout(&[Some((6, 6)), None, Some((10, 28))]).unwrap();
+        assert_eq!(image.slot(0).unwrap(), ImageSlot { out_offset: 0, out_len: 6, in_offset: 0, in_len: 6 });
+        assert_eq!(image.slot(2).unwrap(), ImageSlot { out_offset: 6, out_len: 10, in_offset: 6, in_len: 28 });
+        assert!(image.slot(1).is_err());
+        assert_eq!(image.expected_wkc(), 6);
+        assert_eq!((image.outputs.len(), image.inputs.len()), (16, 34));
+    }
+
+    #[test]
+    fn layout_refuses_an_image_beyond_one_frame() {
+        assert!(ProcessImage::layout(&[Some((1000, 1000))]).is_err());
+    }
+}

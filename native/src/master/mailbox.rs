@@ -1,0 +1,232 @@
+//! Mailbox client: messages to the slave through SM0, replies from it through SM1.
+//!
+//! A message is written as a whole buffer (the last byte makes SM0 full), with a counter
+//! 1..7 that lets the slave tell a repeat from a new message. A reply is read when SM1 says
+//! full; reading it empties SM1, so a reply lost on the way back is fetched again with the
+//! repeat request of SM1 (activate bit 1, acknowledged in PDI control bit 1). Emergency
+//! messages that arrive in between are queued on the slave, and a mailbox error reply becomes
+//! an error naming its detail code.
+
+use std::time::{Duration, Instant};
+
+use crate::coe::{self, service, Emergency};
+use crate::error::{Error, Result};
+use crate::frame::Command;
+use crate::mailbox::{self as codec, MailboxHeader, MailboxType};
+use crate::master::Master;
+use crate::registers::{self, sm_reg};
+use crate::sii::Sii;
+
+/// Pause between polls of a sync manager's status.
+const POLL_INTERVAL: Duration = Duration::from_micros(100);
+/// Control byte of SM0 when the SII gives none: mailbox, master writes, PDI interrupt (AKD).
+const SM0_CONTROL: u8 = 0x26;
+/// Control byte of SM1 when the SII gives none: mailbox, master reads, PDI interrupt (AKD).
+const SM1_CONTROL: u8 = 0x22;
+
+/// A slave's mailbox: where its two sync managers sit and the counter of the last message.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Mailbox {
+    /// SM0 (master to slave) start address.
+    pub out_start: u16,
+    /// SM0 length.
+    pub out_len: u16,
+    /// SM0 control byte.
+    pub out_control: u8,
+    /// SM1 (slave to master) start address.
+    pub in_start: u16,
+    /// SM1 length.
+    pub in_len: u16,
+    /// SM1 control byte.
+    pub in_control: u8,
+    /// Mailbox protocols the slave supports (SII word 0x1C).
+    pub protocols: u16,
+    counter: u8,
+}
+
+impl Mailbox {
+    /// The standard mailbox of a slave from its SII, `None` when it has no mailbox.
+    pub fn from_sii(sii: &Sii) -> Option<Self> {
+        // "Receive" and "send" are the slave's view: it receives through SM0.
+        let mb = &sii.header.standard_mailbox;
+        let protocols = sii.header.mailbox_protocols;
+        if protocols == 0 || mb.receive_size == 0 || mb.send_size == 0 {
+            return None;
+        }
+        // The SM category, when present, holds the control bytes the slave expects.
+        let control = |n: usize, default: u8| sii.sync_managers().get(n).map_or(default, |sm| sm.control);
+        Some(Mailbox {
+            out_start: mb.receive_offset,
+            out_len: mb.receive_size,
+            out_control: control(0, SM0_CONTROL),
+            in_start: mb.send_offset,
+            in_len: mb.send_size,
+            in_control: control(1, SM1_CONTROL),
+            protocols,
+            counter: 0,
+        })
+    }
+
+    /// Whether the slave speaks CoE.
+    pub fn has_coe(&self) -> bool {
+        self.protocols & MailboxType::Coe.sii_protocol_bit() != 0
+    }
+}
+
+/// The eight bytes of a sync manager's registers.
+pub(crate) fn sm_registers(start: u16, len: u16, control: u8, enable: bool) -> [u8; 8] {
+    let mut r = [0u8; 8];
+    r[sm_reg::START..sm_reg::START + 2].copy_from_slice(&start.to_le_bytes());
+    r[sm_reg::LENGTH..sm_reg::LENGTH + 2].copy_from_slice(&len.to_le_bytes());
+    r[sm_reg::CONTROL] = control;
+    r[sm_reg::ACTIVATE] = enable as u8;
+    r
+}
+
+impl Master {
+    fn mailbox(&self, position: u16) -> Result<Mailbox> {
+        self.slave(position)?
+            .mailbox
+            .clone()
+            .ok_or_else(|| Error::Mailbox(format!("slave {position} has no mailbox (its SII lists no mailbox protocol)")))
+    }
+
+    /// Writes SM0 and SM1 of the slave at `position` from its SII, as Init → PreOp needs.
+    pub(crate) fn setup_mailbox(&mut self, position: u16) -> Result<()> {
+        let Some(mb) = self.slave(position)?.mailbox.clone() else { return Ok(()) };
+        let station = self.station(position)?;
+        let mut both = [0u8; 16];
+        both[..8].copy_from_slice(&sm_registers(mb.out_start, mb.out_len, mb.out_control, true));
+        both[8..].copy_from_slice(&sm_registers(mb.in_start, mb.in_len, mb.in_control, true));
+        self.write_registers(station, registers::sm(0), &both)
+    }
+
+    /// Sends one mailbox message (header included) to the slave at `position`, waiting up to
+    /// `timeout` for SM0 to be free. Gives the message the next counter value.
+    pub fn mailbox_send(&mut self, position: u16, message: &mut [u8], timeout: Duration) -> Result<()> {
+        let mb = self.mailbox(position)?;
+        let station = self.station(position)?;
+        if message.len() > mb.out_len as usize {
+            return Err(Error::Mailbox(format!(
+                "message of {} bytes does not fit slave {position}'s {}-byte mailbox",
+                message.len(),
+                mb.out_len
+            )));
+        }
+        let counter = codec::next_counter(mb.counter);
+        if let Some(m) = self.slave_mut(position)?.mailbox.as_mut() {
+            m.counter = counter;
+        }
+        message[5] = (message[5] & 0x0F) | (counter << 4);
+        let mut buffer = vec![0u8; mb.out_len as usize];
+        buffer[..message.len()].copy_from_slice(message);
+        let deadline = Instant::now() + timeout;
+        loop {
+            // Writing the whole buffer fills SM0; WKC 0 means it is still full with an earlier
+            // message. A frame lost on the way is written again with the same counter, which
+            // the slave takes as a repeat if the first one did arrive.
+            match self.datagram(Command::Fpwr, station, mb.out_start, &mut buffer) {
+                Ok(1) => return Ok(()),
+                Ok(_) | Err(Error::Timeout { .. }) => {}
+                Err(e) => return Err(e),
+            }
+            if Instant::now() >= deadline {
+                return Err(Error::Timeout { what: format!("slave {position}'s mailbox (SM0) to accept a message") });
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
+    }
+
+    /// Waits up to `timeout` for the next mailbox message from the slave at `position` that is
+    /// not an emergency; emergencies are queued on the slave. Returns the whole message.
+    pub fn mailbox_receive(&mut self, position: u16, timeout: Duration) -> Result<Vec<u8>> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            if let Some(message) = self.mailbox_poll(position)? {
+                return Ok(message);
+            }
+            if Instant::now() >= deadline {
+                return Err(Error::Timeout { what: format!("a mailbox reply from slave {position}") });
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
+    }
+
+    /// Drops whatever waits in the slave's SM1 (a reply to an abandoned request), keeping
+    /// emergencies.
+    pub(crate) fn mailbox_flush(&mut self, position: u16) -> Result<()> {
+        while self.mailbox_poll(position)?.is_some() {}
+        Ok(())
+    }
+
+    /// Reads SM1 once if it is full; `None` when it was empty or held only an emergency.
+    fn mailbox_poll(&mut self, position: u16) -> Result<Option<Vec<u8>>> {
+        let mb = self.mailbox(position)?;
+        let station = self.station(position)?;
+        let mut status = [0u8; 1];
+        self.read_registers(station, registers::sm(1) + sm_reg::STATUS as u16, &mut status)?;
+        if status[0] & sm_reg::STATUS_MAILBOX_FULL == 0 {
+            return Ok(None);
+        }
+        let mut buffer = vec![0u8; mb.in_len as usize];
+        match self.datagram(Command::Fprd, station, mb.in_start, &mut buffer) {
+            Ok(1) => {}
+            Ok(_) => return Ok(None),
+            Err(Error::Timeout { .. }) => {
+                self.repeat_request(position, station)?;
+                return Ok(None);
+            }
+            Err(e) => return Err(e),
+        }
+        let header = MailboxHeader::decode(&buffer)?;
+        match header.protocol() {
+            Some(MailboxType::Error) => {
+                let detail = codec::parse_error_reply(header.body(&buffer))?;
+                Err(Error::Mailbox(format!(
+                    "slave {position} answered with mailbox error 0x{detail:04X} ({})",
+                    codec::error_detail_name(detail)
+                )))
+            }
+            Some(MailboxType::Coe) => {
+                let (_, coe_header, body) = coe::split_message(&buffer)?;
+                if coe_header.service == service::EMERGENCY {
+                    let emergency = Emergency::decode(body)?;
+                    self.stats.emergencies += 1;
+                    self.slave_mut(position)?.emergencies.push_back(emergency);
+                    return Ok(None);
+                }
+                buffer.truncate(codec::HEADER_LEN + header.length as usize);
+                Ok(Some(buffer))
+            }
+            _ => Err(Error::Mailbox(format!(
+                "slave {position} sent a mailbox message of type {} that this master does not speak (CoE is 3)",
+                header.mailbox_type
+            ))),
+        }
+    }
+
+    /// Asks the slave to put its last reply into SM1 again after the frame reading it was lost:
+    /// toggle SM1's repeat request and wait for the slave's acknowledge.
+    fn repeat_request(&mut self, position: u16, station: u16) -> Result<()> {
+        self.stats.mailbox_repeats += 1;
+        let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
+        let mut activate = [0u8; 1];
+        self.read_registers(station, activate_at, &mut activate)?;
+        let request = activate[0] ^ 0x02;
+        self.write_registers(station, activate_at, &[request])?;
+        let deadline = Instant::now() + self.timeout.max(Duration::from_millis(100));
+        loop {
+            let mut pdi = [0u8; 1];
+            self.read_registers(station, registers::sm(1) + sm_reg::PDI_CONTROL as u16, &mut pdi)?;
+            if pdi[0] & 0x02 == request & 0x02 {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                return Err(Error::Timeout {
+                    what: format!("slave {position} to acknowledge the mailbox repeat request"),
+                });
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
+    }
+}

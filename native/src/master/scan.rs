@@ -1,0 +1,79 @@
+//! Bus scan: count the slaves, put them in Init with a clean configuration, give each a station
+//! address by position, and read what each one is from its SII.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use crate::al::{AlState, AL_ERROR_ACK};
+use crate::error::{Error, Result};
+use crate::frame::Command;
+use crate::master::{mailbox::Mailbox, Master, Slave, FIRST_STATION_ADDRESS};
+use crate::registers::{self, FMMU0, SM0};
+use crate::sii::Sii;
+
+/// How long the slaves may take to fall back to Init at the start of a scan.
+const INIT_TIMEOUT: Duration = Duration::from_secs(5);
+/// FMMUs the scan clears: a master of the AKD uses FMMU 0 (outputs), 1 (inputs), 2 (mailbox).
+const FMMUS_CLEARED: usize = 3;
+/// Sync managers the scan clears: the AKD's two mailbox and two process-data ones.
+const SMS_CLEARED: usize = 4;
+
+impl Master {
+    /// Finds the slaves on the bus, in order, and returns how many there are. Every slave is
+    /// taken to Init with its FMMUs, sync managers and SYNC outputs cleared, as a fresh start.
+    pub fn scan(&mut self) -> Result<usize> {
+        self.slaves.clear();
+        self.process = None;
+        self.clock = None;
+        let count = self.datagram_retry(Command::Brd, 0, registers::TYPE, &mut [0u8; 2])?;
+        if count == 0 {
+            return Ok(0);
+        }
+        self.broadcast_write(registers::AL_CONTROL, &(AlState::Init as u16 | AL_ERROR_ACK).to_le_bytes())?;
+        for position in 0..count {
+            let address = FIRST_STATION_ADDRESS + position;
+            let wkc = self.datagram_retry(
+                Command::Apwr,
+                0u16.wrapping_sub(position),
+                registers::STATION_ADDRESS,
+                &mut address.to_le_bytes(),
+            )?;
+            self.expect_wkc(|| format!("APWR of the station address to position {position}"), 1, wkc)?;
+        }
+        for position in 0..count {
+            let station = FIRST_STATION_ADDRESS + position;
+            self.wait_state(position, station, AlState::Init, INIT_TIMEOUT)?;
+        }
+        // A clean start: no process data, no mailbox, no SYNC pulses until configured again.
+        self.broadcast_write(FMMU0, &[0; FMMUS_CLEARED * registers::FMMU_LEN as usize])?;
+        self.broadcast_write(SM0, &[0; SMS_CLEARED * registers::SM_LEN as usize])?;
+        self.broadcast_write(registers::DC_ACTIVATION, &[0])?;
+        for position in 0..count {
+            let slave = self.read_slave(position, FIRST_STATION_ADDRESS + position)?;
+            self.slaves.push(slave);
+        }
+        Ok(count as usize)
+    }
+
+    /// Reads what the slave at `station` is: features, alias and SII.
+    fn read_slave(&mut self, position: u16, station: u16) -> Result<Slave> {
+        let esc_features = self.read_u16(station, registers::FEATURES)?;
+        let alias = self.read_u16(station, registers::STATION_ALIAS)?;
+        let image = self.read_sii(station)?;
+        let sii = Sii::parse(&image).map_err(|e| match e {
+            Error::Sii(m) => Error::Sii(format!("slave {position} (station 0x{station:04X}): {m}")),
+            other => other,
+        })?;
+        let mailbox = Mailbox::from_sii(&sii);
+        Ok(Slave {
+            position,
+            station_address: station,
+            alias,
+            esc_features,
+            sii,
+            mailbox,
+            emergencies: VecDeque::new(),
+            mapping: None,
+        })
+    }
+}

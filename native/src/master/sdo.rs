@@ -1,0 +1,161 @@
+//! CoE SDO client: upload (read) and download (write) of object dictionary entries, expedited
+//! (up to 4 bytes in the request or reply), normal (the whole value in one mailbox) and
+//! segmented (what the mailbox cannot hold, in segments with an alternating toggle bit).
+//! Aborts come back as [`Error::SdoAbort`] with the code's name.
+
+use std::time::Duration;
+
+use crate::coe::{self, abort, service, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::error::{Error, Result};
+use crate::master::Master;
+
+/// How long a slave may take to answer one SDO message.
+pub const SDO_TIMEOUT: Duration = Duration::from_secs(2);
+
+impl Master {
+    /// Sends one CoE message built by `write` and returns the slave's reply message.
+    pub(crate) fn coe_transaction(
+        &mut self,
+        position: u16,
+        write: impl FnOnce(&mut [u8]) -> usize,
+    ) -> Result<Vec<u8>> {
+        let mut message = vec![0u8; self.mailbox_out_len(position)?];
+        let len = write(&mut message);
+        self.mailbox_flush(position)?;
+        self.mailbox_send(position, &mut message[..len], SDO_TIMEOUT)?;
+        self.mailbox_receive(position, SDO_TIMEOUT)
+    }
+
+    fn mailbox_out_len(&self, position: u16) -> Result<usize> {
+        let slave = self.slave(position)?;
+        match &slave.mailbox {
+            Some(mb) if mb.has_coe() => Ok(mb.out_len as usize),
+            _ => Err(Error::Mailbox(format!("slave {position} does not speak CoE (SII mailbox protocols)"))),
+        }
+    }
+
+    /// One SDO request and its response, decoded by `handle`.
+    fn sdo_exchange<T>(
+        &mut self,
+        position: u16,
+        request: &SdoRequest<'_>,
+        handle: impl FnOnce(SdoResponse<'_>) -> Result<T>,
+    ) -> Result<T> {
+        let reply = self.coe_transaction(position, |out| coe::write_sdo_request(out, 0, request))?;
+        let (_, coe_header, body) = coe::split_message(&reply)?;
+        if coe_header.service != service::SDO_RESPONSE {
+            return Err(Error::Mailbox(format!(
+                "slave {position} answered an SDO request with CoE service {} (expected {}, SDO response)",
+                coe_header.service,
+                service::SDO_RESPONSE
+            )));
+        }
+        handle(SdoResponse::decode(body)?)
+    }
+
+    /// Aborts a transfer the slave got wrong and returns the error that says why.
+    fn sdo_abort(&mut self, position: u16, index: u16, subindex: u8, code: u32) -> Error {
+        let request = SdoRequest::Abort { index, subindex, code };
+        let mut message = [0u8; SDO_OFFSET + SDO_LEN];
+        let len = coe::write_sdo_request(&mut message, 0, &request);
+        // The abort is a courtesy to the slave; the error to report is the one found here.
+        let _ = self.mailbox_send(position, &mut message[..len], SDO_TIMEOUT);
+        coe::abort_error(index, subindex, code)
+    }
+
+    /// Reads `index:subindex` of the slave at `position`.
+    pub fn sdo_read(&mut self, position: u16, index: u16, subindex: u8) -> Result<Vec<u8>> {
+        let request = SdoRequest::Upload { index, subindex, complete_access: false };
+        let (mut value, complete_size) = self.sdo_exchange(position, &request, |response| match response {
+            SdoResponse::UploadExpedited { index: i, subindex: s, data } if (i, s) == (index, subindex) => {
+                Ok((data.to_vec(), data.len()))
+            }
+            SdoResponse::UploadNormal { index: i, subindex: s, complete_size, data } if (i, s) == (index, subindex) => {
+                let size = complete_size as usize;
+                Ok((data[..data.len().min(size)].to_vec(), size))
+            }
+            other => Err(unexpected(position, index, subindex, "upload", &other)),
+        })?;
+        let mut toggle = false;
+        while value.len() < complete_size {
+            let segment = self.sdo_exchange(position, &SdoRequest::UploadSegment { toggle }, |response| match response {
+                SdoResponse::UploadSegment { toggle: t, last, data } => Ok(Some((t, last, data.to_vec()))),
+                SdoResponse::Abort { code, .. } => Err(coe::abort_error(index, subindex, code)),
+                _ => Ok(None),
+            })?;
+            let Some((t, last, data)) = segment else {
+                return Err(self.sdo_abort(position, index, subindex, abort::BAD_COMMAND));
+            };
+            if t != toggle {
+                return Err(self.sdo_abort(position, index, subindex, abort::TOGGLE_BIT));
+            }
+            value.extend_from_slice(&data);
+            toggle = !toggle;
+            if last {
+                break;
+            }
+        }
+        if value.len() != complete_size {
+            return Err(Error::Mailbox(format!(
+                "upload of 0x{index:04X}:{subindex:02X} from slave {position} announced {complete_size} bytes but carried {}",
+                value.len()
+            )));
+        }
+        Ok(value)
+    }
+
+    /// Writes `data` to `index:subindex` of the slave at `position`.
+    pub fn sdo_write(&mut self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
+        let room = self.mailbox_out_len(position)? - SDO_OFFSET;
+        let accepted = |position| {
+            move |response: SdoResponse<'_>| match response {
+                SdoResponse::Download { index: i, subindex: s } if (i, s) == (index, subindex) => Ok(()),
+                other => Err(unexpected(position, index, subindex, "download", &other)),
+            }
+        };
+        if data.is_empty() {
+            return Err(Error::Config(format!("SDO write of 0x{index:04X}:{subindex:02X} with no data")));
+        }
+        if data.len() <= 4 {
+            let request = SdoRequest::DownloadExpedited { index, subindex, complete_access: false, data };
+            return self.sdo_exchange(position, &request, accepted(position));
+        }
+        let first = data.len().min(room - SDO_LEN);
+        let request = SdoRequest::DownloadNormal {
+            index,
+            subindex,
+            complete_access: false,
+            complete_size: data.len() as u32,
+            data: &data[..first],
+        };
+        self.sdo_exchange(position, &request, accepted(position))?;
+        let mut toggle = false;
+        for chunk_start in (first..data.len()).step_by(room - 1) {
+            let chunk = &data[chunk_start..data.len().min(chunk_start + room - 1)];
+            let last = chunk_start + chunk.len() == data.len();
+            let request = SdoRequest::DownloadSegment { toggle, last, data: chunk };
+            let answered = self.sdo_exchange(position, &request, |response| match response {
+                SdoResponse::DownloadSegment { toggle: t } => Ok(Some(t)),
+                SdoResponse::Abort { code, .. } => Err(coe::abort_error(index, subindex, code)),
+                _ => Ok(None),
+            })?;
+            match answered {
+                Some(t) if t == toggle => toggle = !toggle,
+                Some(_) => return Err(self.sdo_abort(position, index, subindex, abort::TOGGLE_BIT)),
+                None => return Err(self.sdo_abort(position, index, subindex, abort::BAD_COMMAND)),
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The error for a response that does not answer the request: an abort by name, or a
+/// description of what came instead.
+fn unexpected(position: u16, index: u16, subindex: u8, what: &str, response: &SdoResponse<'_>) -> Error {
+    match *response {
+        SdoResponse::Abort { code, .. } => coe::abort_error(index, subindex, code),
+        ref other => Error::Mailbox(format!(
+            "slave {position} answered the {what} of 0x{index:04X}:{subindex:02X} with {other:?}"
+        )),
+    }
+}

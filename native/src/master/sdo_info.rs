@@ -1,0 +1,126 @@
+//! CoE SDO information client: the object list and the descriptions of objects and entries,
+//! each reply gathered from as many fragments as the slave needs.
+
+use crate::coe::{
+    self, info_opcode, service, EntryDescription, ObjectDescription, SdoInfoHeader, SDO_INFO_HEADER_LEN,
+};
+use crate::error::{Error, Result};
+use crate::master::Master;
+
+/// An object's description, owned.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ObjectInfo {
+    /// Object index.
+    pub index: u16,
+    /// Data type code, see [`coe::data_type`].
+    pub data_type: u16,
+    /// Highest subindex.
+    pub max_subindex: u8,
+    /// Object code, see [`coe::object_code`].
+    pub object_code: u8,
+    /// Name.
+    pub name: String,
+}
+
+/// An entry's description, owned.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EntryInfo {
+    /// Subindex.
+    pub subindex: u8,
+    /// Data type code.
+    pub data_type: u16,
+    /// Length in bits.
+    pub bit_length: u16,
+    /// Access bits, see [`coe::access`].
+    pub access: u16,
+    /// Name.
+    pub name: String,
+}
+
+impl Master {
+    /// One SDO information request; returns the data of every response fragment joined.
+    /// `index`/`subindex` name the object in an error.
+    fn sdo_info(&mut self, position: u16, opcode: u8, request: &[u8], index: u16, subindex: u8) -> Result<Vec<u8>> {
+        let header = SdoInfoHeader { opcode, incomplete: false, fragments_left: 0 };
+        let mut reply = self.coe_transaction(position, |out| coe::write_info_message(out, 0, header, request))?;
+        let mut data = Vec::new();
+        loop {
+            let (_, coe_header, body) = coe::split_message(&reply)?;
+            if coe_header.service != service::SDO_INFORMATION {
+                return Err(Error::Mailbox(format!(
+                    "slave {position} answered an SDO information request with CoE service {} (expected {})",
+                    coe_header.service,
+                    service::SDO_INFORMATION
+                )));
+            }
+            let info = SdoInfoHeader::decode(body)?;
+            let payload = &body[SDO_INFO_HEADER_LEN..];
+            if info.opcode == info_opcode::ERROR {
+                let code = payload
+                    .get(..4)
+                    .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    .ok_or_else(|| Error::Mailbox("SDO information error without an abort code".into()))?;
+                return Err(coe::abort_error(index, subindex, code));
+            }
+            if info.opcode != opcode + 1 {
+                return Err(Error::Mailbox(format!(
+                    "slave {position} answered SDO information opcode {opcode} with opcode {} (expected {})",
+                    info.opcode,
+                    opcode + 1
+                )));
+            }
+            data.extend_from_slice(payload);
+            if !info.incomplete {
+                return Ok(data);
+            }
+            reply = self.mailbox_receive(position, super::sdo::SDO_TIMEOUT)?;
+        }
+    }
+
+    /// The indices of the objects in one of the slave's object lists (see [`coe::od_list`]).
+    pub fn sdo_object_list(&mut self, position: u16, list_type: u16) -> Result<Vec<u16>> {
+        let data = self.sdo_info(position, info_opcode::GET_OD_LIST_REQUEST, &list_type.to_le_bytes(), 0, 0)?;
+        // The first fragment starts with the list type; the indices follow, two bytes each.
+        let indices = data.get(2..).ok_or_else(|| Error::Mailbox("OD list response without its list type".into()))?;
+        Ok(indices.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect())
+    }
+
+    /// The description of object `index`.
+    pub fn sdo_object_description(&mut self, position: u16, index: u16) -> Result<ObjectInfo> {
+        let data =
+            self.sdo_info(position, info_opcode::GET_OBJECT_DESCRIPTION_REQUEST, &index.to_le_bytes(), index, 0)?;
+        let d = ObjectDescription::decode(&data)?;
+        if d.index != index {
+            return Err(Error::Mailbox(format!("asked for the description of 0x{index:04X}, got 0x{:04X}'s", d.index)));
+        }
+        Ok(ObjectInfo {
+            index: d.index,
+            data_type: d.data_type,
+            max_subindex: d.max_subindex,
+            object_code: d.object_code,
+            name: d.name.to_owned(),
+        })
+    }
+
+    /// The description of entry `index:subindex` (without the optional values).
+    pub fn sdo_entry_description(&mut self, position: u16, index: u16, subindex: u8) -> Result<EntryInfo> {
+        let [lo, hi] = index.to_le_bytes();
+        let request = [lo, hi, subindex, 0];
+        let data =
+            self.sdo_info(position, info_opcode::GET_ENTRY_DESCRIPTION_REQUEST, &request, index, subindex)?;
+        let d = EntryDescription::decode(&data)?;
+        if (d.index, d.subindex) != (index, subindex) {
+            return Err(Error::Mailbox(format!(
+                "asked for the description of 0x{index:04X}:{subindex:02X}, got 0x{:04X}:{:02X}'s",
+                d.index, d.subindex
+            )));
+        }
+        Ok(EntryInfo {
+            subindex: d.subindex,
+            data_type: d.data_type,
+            bit_length: d.bit_length,
+            access: d.access,
+            name: d.name.to_owned(),
+        })
+    }
+}
