@@ -421,9 +421,7 @@ fn latin1_bytes(s: &str, what: &str) -> Result<Vec<u8>> {
     s.chars()
         .map(|c| {
             u8::try_from(u32::from(c)).map_err(|_| {
-                Error::Sii(format!(
-                    "{what} {s:?} holds {c:?}, outside ISO 8859-1 (allowed U+0000..=U+00FF)"
-                ))
+                Error::Sii(format!("{what} {s:?} holds {c:?}, outside ISO 8859-1 (allowed U+0000..=U+00FF)"))
             })
         })
         .collect()
@@ -481,7 +479,7 @@ fn decode_general(data: &[u8]) -> General {
 }
 
 fn whole_records(data: &[u8], record: usize, what: &str) -> Result<()> {
-    if data.len() % record != 0 {
+    if !data.len().is_multiple_of(record) {
         return Err(Error::Sii(format!(
             "the {what} category is {} bytes, not a multiple of its {record}-byte records",
             data.len()
@@ -663,10 +661,7 @@ impl Sii {
                 break;
             }
             if at + 4 > data.len() {
-                return Err(Error::Sii(format!(
-                    "category 0x{kind:04X} at word 0x{:04X} has no length word",
-                    at / 2
-                )));
+                return Err(Error::Sii(format!("category 0x{kind:04X} at word 0x{:04X} has no length word", at / 2)));
             }
             let len = usize::from(u16::from_le_bytes([data[at + 2], data[at + 3]])) * 2;
             let start = at + 4;
@@ -928,11 +923,7 @@ fn encode_pdos(pdos: &[SiiPdo], what: &str) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     for p in pdos {
         let count = u8::try_from(p.entries.len()).map_err(|_| {
-            Error::Sii(format!(
-                "{what} 0x{:04X} has {} entries (allowed 0..=255)",
-                p.index,
-                p.entries.len()
-            ))
+            Error::Sii(format!("{what} 0x{:04X} has {} entries (allowed 0..=255)", p.index, p.entries.len()))
         })?;
         out.extend_from_slice(&p.index.to_le_bytes());
         out.extend_from_slice(&[count, p.sync_manager, p.dc_sync, p.name_idx]);
@@ -950,15 +941,13 @@ fn encode_category(c: &Category) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     match c {
         Category::Strings(strings) => {
-            let count = u8::try_from(strings.len()).map_err(|_| {
-                Error::Sii(format!("{} strings (allowed 0..=255)", strings.len()))
-            })?;
+            let count = u8::try_from(strings.len())
+                .map_err(|_| Error::Sii(format!("{} strings (allowed 0..=255)", strings.len())))?;
             out.push(count);
             for s in strings {
                 let bytes = latin1_bytes(s, "string")?;
-                let len = u8::try_from(bytes.len()).map_err(|_| {
-                    Error::Sii(format!("string {s:?} is {} bytes (allowed 0..=255)", bytes.len()))
-                })?;
+                let len = u8::try_from(bytes.len())
+                    .map_err(|_| Error::Sii(format!("string {s:?} is {} bytes (allowed 0..=255)", bytes.len())))?;
                 out.push(len);
                 out.extend_from_slice(&bytes);
             }
@@ -1050,9 +1039,7 @@ impl Builder {
             }
         };
         u8::try_from(i + 1).unwrap_or_else(|_| {
-            self.error.get_or_insert_with(|| {
-                Error::Sii(format!("more than 255 strings (the 256th is {s:?})"))
-            });
+            self.error.get_or_insert_with(|| Error::Sii(format!("more than 255 strings (the 256th is {s:?})")));
             0
         })
     }
@@ -1162,9 +1149,7 @@ mod tests {
         let e = Sii::parse(&image).unwrap_err().to_string();
         assert!(e.contains("TxPDO 0x1A00 entry 0x6041:00 names string 2"), "{e}");
 
-        let mut cut = Sii { header: header(1, 0), categories: vec![] }
-            .encode()
-            .unwrap();
+        let mut cut = Sii { header: header(1, 0), categories: vec![] }.encode().unwrap();
         cut[HEADER_BYTES..HEADER_BYTES + 4].copy_from_slice(&[0x0A, 0, 0x40, 0]);
         let e = Sii::parse(&cut).unwrap_err().to_string();
         assert!(e.contains("announces 64 words"), "{e}");
@@ -1182,15 +1167,16 @@ mod tests {
                 flags,
             },
         );
-        let pdo = (any::<u16>(), any::<u8>(), any::<u8>(), idx.clone(), any::<u16>(), prop::collection::vec(entry, 0..5))
-            .prop_map(|(index, sync_manager, dc_sync, name_idx, flags, entries)| SiiPdo {
-                index,
-                sync_manager,
-                dc_sync,
-                name_idx,
-                flags,
-                entries,
-            });
+        let pdo =
+            (any::<u16>(), any::<u8>(), any::<u8>(), idx.clone(), any::<u16>(), prop::collection::vec(entry, 0..5))
+                .prop_map(|(index, sync_manager, dc_sync, name_idx, flags, entries)| SiiPdo {
+                    index,
+                    sync_manager,
+                    dc_sync,
+                    name_idx,
+                    flags,
+                    entries,
+                });
         let sm = (any::<u16>(), any::<u16>(), any::<u8>(), any::<u8>(), any::<u8>(), any::<u8>()).prop_map(
             |(start_address, length, control, status, enable, sm_type)| SyncManager {
                 start_address,
@@ -1201,20 +1187,21 @@ mod tests {
                 sm_type,
             },
         );
-        let dc = (any::<[u32; 3]>(), any::<i16>(), any::<u16>(), any::<i16>(), idx.clone(), idx.clone(), any::<[u8; 4]>())
-            .prop_map(|(t, s1, aa, s0, n, d, reserved)| DcOpMode {
-                cycle_time0: t[0],
-                shift_time0: t[1],
-                shift_time1: t[2],
-                sync1_cycle_factor: s1,
-                assign_activate: aa,
-                sync0_cycle_factor: s0,
-                name_idx: n,
-                description_idx: d,
-                reserved,
-            });
-        let general = (any::<[u8; 16]>(), idx.clone(), idx.clone(), any::<[u8; 12]>()).prop_map(|(b, name, group, r)| {
-            General {
+        let dc =
+            (any::<[u32; 3]>(), any::<i16>(), any::<u16>(), any::<i16>(), idx.clone(), idx.clone(), any::<[u8; 4]>())
+                .prop_map(|(t, s1, aa, s0, n, d, reserved)| DcOpMode {
+                    cycle_time0: t[0],
+                    shift_time0: t[1],
+                    shift_time1: t[2],
+                    sync1_cycle_factor: s1,
+                    assign_activate: aa,
+                    sync0_cycle_factor: s0,
+                    name_idx: n,
+                    description_idx: d,
+                    reserved,
+                });
+        let general =
+            (any::<[u8; 16]>(), idx.clone(), idx.clone(), any::<[u8; 12]>()).prop_map(|(b, name, group, r)| General {
                 group_idx: group,
                 image_idx: 0,
                 order_idx: 0,
@@ -1233,18 +1220,16 @@ mod tests {
                 physical_port: u16::from_le_bytes([b[11], b[12]]),
                 physical_memory_address: u16::from_le_bytes([b[13], b[14]]),
                 reserved_20: r,
-            }
-        });
+            });
         // Model strings without NUL and of even length round-trip exactly; odd ones gain a
         // zero pad byte that decoding strips.
         let text = "[ -~\u{a0}-\u{ff}]{0,12}";
         prop_oneof![
             general.prop_map(Category::General),
-            prop::collection::vec(any::<u8>(), 0..4)
-                .prop_map(|mut v| {
-                    pad_to_word(&mut v);
-                    Category::Fmmu(v)
-                }),
+            prop::collection::vec(any::<u8>(), 0..4).prop_map(|mut v| {
+                pad_to_word(&mut v);
+                Category::Fmmu(v)
+            }),
             prop::collection::vec(sm, 0..5).prop_map(Category::SyncManagers),
             prop::collection::vec(pdo.clone(), 0..4).prop_map(Category::TxPdos),
             prop::collection::vec(pdo, 0..4).prop_map(Category::RxPdos),

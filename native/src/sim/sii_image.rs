@@ -1,0 +1,246 @@
+//! The SII EEPROM image of the real AKD the virtual AKD stands in for: an AKD-P00606-NBCC-E000
+//! with firmware 01-20-00-003, written out as what it says (identity, mailbox, names, sync
+//! managers, PDOs, DC modes) and encoded with [`sii::Builder`](crate::sii::Builder).
+//!
+//! The fixed PDOs come from [`pdo::FIXED`](crate::pdo::FIXED), so the image and the mapping
+//! rules cannot drift apart; this file adds only what the SII holds besides them: entry names
+//! and data types, default sync-manager assignment, and the flexible PDOs' content at the time
+//! the image was read.
+
+use crate::coe::data_type;
+use crate::error::{Error, Result};
+use crate::pdo::{self, Direction, PdoEntry};
+use crate::sii::{
+    category, fmmu_usage, mailbox_protocol, sync_manager_type, Builder, Category, DcOpMode, General, Header, Identity,
+    MailboxLayout, SiiPdo, SiiPdoEntry, SyncManager,
+};
+
+/// The drive's model string (category 0x0800).
+pub const MODEL: &str = "AKD-P00606-NBCC-E000";
+/// The drive's firmware version string (category 0x0801).
+pub const FIRMWARE: &str = "01-20-00-003";
+/// The device name of the general category.
+pub const NAME: &str = "AKD EtherCAT Drive (CoE)";
+/// Vendor id, product code, revision and serial number of the real drive.
+pub const IDENTITY: Identity =
+    Identity { vendor_id: 0x0000_006A, product_code: 0x0041_4B44, revision: 2, serial_number: 0x9983_0093 };
+
+/// Both mailboxes (bootstrap and standard) of the AKD: 1 KiB each at 0x1800 and 0x1C00.
+const MAILBOX: MailboxLayout =
+    MailboxLayout { receive_offset: 0x1800, receive_size: 0x0400, send_offset: 0x1C00, send_size: 0x0400 };
+
+/// Name and SII data type of every object the drive's PDOs carry.
+const OBJECTS: &[(u16, u8, &str, u16)] = &[
+    (0x6041, 0, "Statusword", data_type::UNSIGNED16),
+    (0x6063, 0, "Position actual internal value", data_type::INTEGER32),
+    (0x2050, 0, "Second position feedback", data_type::INTEGER32),
+    (0x606C, 0, "Velocity actual value", data_type::INTEGER32),
+    (0x60FD, 0, "Digital inputs", data_type::UNSIGNED32),
+    (0x60F4, 0, "Following error actual value", data_type::INTEGER32),
+    (0x20A0, 0, "Latch 1p", data_type::INTEGER32),
+    (0x6077, 0, "Torque actual value", data_type::INTEGER16),
+    (0x20A5, 0, "Latch statusword", data_type::UNSIGNED16),
+    (0x3470, 4, "AIN.VALUE", data_type::INTEGER16),
+    (0x20A1, 0, "Latch 1n", data_type::INTEGER32),
+    (0x20A6, 0, "Latch 1 pn", data_type::INTEGER32),
+    (0x6064, 0, "Position actual value", data_type::INTEGER32),
+    (0x20A7, 0, "Latch 2 pn", data_type::INTEGER32),
+    (0x6040, 0, "Controlword", data_type::UNSIGNED16),
+    (0x60C1, 1, "1st set-point", data_type::INTEGER32),
+    (0x60FF, 0, "Target velocity", data_type::INTEGER32),
+    (0x20A4, 0, "Latch controlword", data_type::UNSIGNED16),
+    (0x60B2, 0, "Torque offset", data_type::INTEGER16),
+    (0x60FE, 1, "Physical outputs", data_type::UNSIGNED32),
+    (0x6072, 0, "Max torque", data_type::UNSIGNED16),
+    (0x20B8, 0, "ClearDigInputChangedBit", data_type::UNSIGNED16),
+    (0x607A, 0, "Target position", data_type::INTEGER32),
+    (0x3470, 3, "AOUT.VALUE write", data_type::INTEGER16),
+];
+
+/// The flexible PDOs as the image lists them: only the first of each direction carries an
+/// entry (the control or status word); the mapping the drive reports over CoE at power-up is
+/// richer ([`pdo::POWER_UP_RX`]) because the drive fills it in after the image was written.
+const FLEXIBLE_RX: [(u16, &[PdoEntry]); 4] =
+    [(0x1600, &[PdoEntry::new(0x6040, 0, 16)]), (0x1601, &[]), (0x1602, &[]), (0x1603, &[])];
+/// TxPDO counterpart of [`FLEXIBLE_RX`].
+const FLEXIBLE_TX: [(u16, &[PdoEntry]); 4] =
+    [(0x1A00, &[PdoEntry::new(0x6041, 0, 16)]), (0x1A01, &[]), (0x1A02, &[]), (0x1A03, &[])];
+
+/// PDO flag: the content is fixed (ETG.2010 PDO flags bit 4).
+const PDO_FIXED_CONTENT: u16 = 0x0010;
+/// Sync manager of a PDO not assigned by default.
+const NO_SYNC_MANAGER: u8 = 0xFF;
+
+fn header() -> Header {
+    Header {
+        pdi_control: 0x0009,
+        pdi_configuration: 0x0800,
+        sync_impulse_length: 0,
+        pdi_configuration2: 0,
+        configured_station_alias: 0,
+        reserved_05: [0; 2],
+        checksum_reserved: 0,
+        identity: IDENTITY,
+        execution_delay: 0,
+        port0_delay: 0,
+        port1_delay: 0,
+        reserved_13: 0,
+        bootstrap_mailbox: MAILBOX,
+        standard_mailbox: MAILBOX,
+        mailbox_protocols: mailbox_protocol::EOE | mailbox_protocol::COE | mailbox_protocol::FOE,
+        reserved_1d: [0; 33],
+        // 16 KiBit: a 2 KiB EEPROM.
+        size: 0x000F,
+        version: 1,
+    }
+}
+
+fn sii_entry(b: &mut Builder, entry: PdoEntry) -> Result<SiiPdoEntry> {
+    let &(_, _, name, data_type) = OBJECTS
+        .iter()
+        .find(|&&(index, subindex, _, _)| index == entry.index && subindex == entry.subindex)
+        .ok_or_else(|| {
+            Error::Sii(format!(
+                "no name for PDO object 0x{:04X}:{:02X} in the AKD's image",
+                entry.index, entry.subindex
+            ))
+        })?;
+    Ok(SiiPdoEntry {
+        index: entry.index,
+        subindex: entry.subindex,
+        name_idx: b.string(name),
+        // SII data types are the CoE codes' low byte (all the AKD maps are below 0x100).
+        data_type: data_type as u8,
+        bit_len: entry.bits,
+        flags: 0,
+    })
+}
+
+/// The PDOs of one direction in image order: flexible ones first, then the fixed ones, the
+/// default pair (0x1701, 0x1B01) assigned to its sync manager.
+fn pdos(b: &mut Builder, direction: Direction) -> Result<Vec<SiiPdo>> {
+    let (name, flexible, default, sm) = match direction {
+        Direction::Rx => ("Outputs", FLEXIBLE_RX, pdo::DEFAULT_FIXED.0, 2),
+        Direction::Tx => ("Inputs", FLEXIBLE_TX, pdo::DEFAULT_FIXED.1, 3),
+    };
+    let flexible = flexible.iter().map(|&(index, entries)| (index, entries, NO_SYNC_MANAGER, 0));
+    let fixed = pdo::FIXED
+        .iter()
+        .filter(|p| p.direction == direction)
+        .map(|p| (p.index, p.entries, if p.index == default { sm } else { NO_SYNC_MANAGER }, PDO_FIXED_CONTENT));
+    let mut out = Vec::new();
+    for (index, entries, sync_manager, flags) in flexible.chain(fixed) {
+        let name_idx = b.string(name);
+        let entries = entries.iter().map(|&e| sii_entry(b, e)).collect::<Result<_>>()?;
+        out.push(SiiPdo { index, sync_manager, dc_sync: 0, name_idx, flags, entries });
+    }
+    Ok(out)
+}
+
+fn sync_manager(start_address: u16, length: u16, control: u8, sm_type: u8) -> SyncManager {
+    SyncManager { start_address, length, control, status: 0, enable: 1, sm_type }
+}
+
+fn describe() -> Result<Vec<u8>> {
+    let mut b = Builder::new(header());
+    b.push(Category::AkdModel(MODEL.into()));
+    b.push(Category::AkdFirmware(FIRMWARE.into()));
+    b.strings_here();
+    // Fields in the order the drive's string table names them.
+    let general = General {
+        order_idx: b.string("AKD"),
+        group_idx: b.string("Drive"),
+        group_idx_2: b.string("Drives"),
+        name_idx: b.string(NAME),
+        image_idx: b.string("DRIVE"),
+        // As the drive writes it, though ETG.2010 reserves it.
+        reserved_4: 1,
+        // SDO, PDO assign, PDO configuration; the drive answers SDO information all the same.
+        coe_details: 0x0D,
+        foe_details: 0x01,
+        eoe_details: 0x03,
+        ds402_channels: 1,
+        // Enable SafeOp, mailbox data link layer.
+        flags: 0x05,
+        // Ports 0 and 1: MII.
+        physical_port: 0x0011,
+        ..General::default()
+    };
+    b.push(Category::General(general));
+    b.push(Category::Fmmu(vec![
+        fmmu_usage::OUTPUTS,
+        fmmu_usage::INPUTS,
+        fmmu_usage::SYNC_MANAGER_STATUS,
+        fmmu_usage::NOT_USED,
+    ]));
+    b.push(Category::SyncManagers(vec![
+        sync_manager(0x1800, 0x0400, 0x26, sync_manager_type::MAILBOX_OUT),
+        sync_manager(0x1C00, 0x0400, 0x22, sync_manager_type::MAILBOX_IN),
+        sync_manager(0x1100, 0, 0x24, sync_manager_type::PROCESS_DATA_OUT),
+        sync_manager(0x1140, 0, 0x20, sync_manager_type::PROCESS_DATA_IN),
+    ]));
+    b.push(Category::Other { kind: category::SYNC_UNIT, data: vec![0xF0, 0xFF] });
+    // The drive's string table names the DC modes before the PDOs.
+    let dc = vec![
+        // SYNC0 from the master's cycle (0x0980 = 0x0300: cyclic unit and SYNC0 active).
+        DcOpMode {
+            assign_activate: 0x0300,
+            sync0_cycle_factor: 1,
+            name_idx: b.string("DcSync"),
+            ..DcOpMode::default()
+        },
+        DcOpMode { assign_activate: 0, sync0_cycle_factor: 1, name_idx: b.string("DcOff"), ..DcOpMode::default() },
+    ];
+    let tx = pdos(&mut b, Direction::Tx)?;
+    let rx = pdos(&mut b, Direction::Rx)?;
+    b.push(Category::TxPdos(tx));
+    b.push(Category::RxPdos(rx));
+    b.push(Category::Dc(dc));
+    b.finish()
+}
+
+/// The real AKD's 2 KiB SII image: the content above, 0xFF after the end category.
+pub fn akd_sii() -> Vec<u8> {
+    // The description is constant; `describes_the_real_drive` proves it encodes.
+    describe().expect("the AKD's SII description encodes")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sii::Sii;
+
+    #[test]
+    fn describes_the_real_drive() {
+        let image = describe().unwrap();
+        assert_eq!(image.len(), 2048);
+        let sii = Sii::parse(&image).unwrap();
+        let id = sii.identity();
+        assert_eq!((id.vendor_id, id.product_code, id.revision), (0x6A, 0x0041_4B44, 2));
+        assert_eq!(sii.name(), Some("AKD EtherCAT Drive (CoE)"));
+        assert_eq!(sii.model(), Some("AKD-P00606-NBCC-E000"));
+        assert_eq!(sii.firmware(), Some("01-20-00-003"));
+        let sms: Vec<_> = sii.sync_managers().iter().map(|sm| (sm.start_address, sm.control)).collect();
+        assert_eq!(sms, [(0x1800, 0x26), (0x1C00, 0x22), (0x1100, 0x24), (0x1140, 0x20)]);
+        assert_eq!(sii.header.mailbox_protocols, 0x000E);
+        let assigned: Vec<_> =
+            sii.rx_pdos().iter().chain(sii.tx_pdos()).filter(|p| p.sync_manager != 0xFF).map(|p| p.index).collect();
+        assert_eq!(assigned, [0x1701, 0x1B01]);
+        let statusword = &sii.tx_pdos()[0].entries[0];
+        assert_eq!(sii.string(statusword.name_idx), Some("Statusword"));
+        assert_eq!(u16::from(statusword.data_type), data_type::UNSIGNED16);
+    }
+
+    #[test]
+    fn equals_the_real_drives_eeprom() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/real-akd/akd.hex");
+        let Ok(real) = std::fs::read(path) else {
+            eprintln!("SKIPPED equals_the_real_drives_eeprom: {path} is absent");
+            return;
+        };
+        let ours = akd_sii();
+        let first_difference = ours.iter().zip(&real).position(|(a, b)| a != b);
+        assert_eq!(first_difference, None, "first differing byte offset");
+        assert_eq!(ours.len(), real.len());
+    }
+}
