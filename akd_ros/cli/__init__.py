@@ -1,0 +1,1 @@
+"""Command-line tools: akd-sim (the virtual AKD), akd-scan (bus scan), akd-sdo (SDO access)."""

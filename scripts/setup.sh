@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Sets up this repository on a fresh Debian 12 machine (root, Python >= 3.10, rustup's cargo):
+# the apt tools the tests use, a virtual environment at .venv with the test and interop
+# packages, and akd_ros itself installed editable, which compiles the Rust extension.
+# Idempotent: a second run only rebuilds what changed.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+say() { printf 'setup: %s\n' "$*"; }
+die() { printf 'setup: error: %s\n' "$*" >&2; exit 1; }
+
+# tshark decodes captures in the tests, iproute2 makes the test namespaces, rt-tests measures
+# scheduling latency for the benchmarks.
+APT_PACKAGES=(tshark iproute2 rt-tests)
+missing=()
+for package in "${APT_PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" || missing+=("$package")
+done
+if ((${#missing[@]})); then
+    command -v apt-get >/dev/null || die "apt-get not found; install ${missing[*]} by hand"
+    sudo=()
+    if [[ $(id -u) -ne 0 ]]; then
+        command -v sudo >/dev/null || die "not root and no sudo: install ${missing[*]} as root"
+        sudo=(sudo)
+    fi
+    say "installing ${missing[*]} from apt"
+    # tshark asks whether non-root users may capture; answer no so the install never prompts.
+    echo "wireshark-common wireshark-common/install-setuid boolean false" | "${sudo[@]}" debconf-set-selections
+    "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get update -q
+    "${sudo[@]}" env DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi
+
+if ! command -v cargo >/dev/null; then
+    # rustup installs into ~/.cargo/bin, which a non-login shell may not have on its PATH.
+    [[ -f "$HOME/.cargo/env" ]] && . "$HOME/.cargo/env"
+    command -v cargo >/dev/null || die "cargo not found: install Rust with rustup (https://rustup.rs) first"
+fi
+
+PYTHON=${PYTHON:-python3}
+"$PYTHON" -c 'import sys; sys.exit(sys.version_info < (3, 10))' \
+    || die "$PYTHON is older than 3.10; set PYTHON to a newer interpreter"
+if [[ ! -x .venv/bin/python ]]; then
+    say "creating .venv with $("$PYTHON" --version)"
+    "$PYTHON" -m venv .venv
+fi
+
+say "installing build, test and interop packages into .venv"
+.venv/bin/python -m pip install -q --disable-pip-version-check \
+    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest hypothesis pysoem kickcat
+
+say "building the Rust extension akd_ros._native (cargo, release)"
+.venv/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation -e .
+
+.venv/bin/python -c 'import akd_ros._native' || die "akd_ros._native does not import after the build"
+say "ready: .venv/bin/akd-scan sim, bash scripts/test.sh"

@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Runs every test: the Rust crate's own tests, then the Python suite against the built extension.
+# Extra arguments go to pytest (e.g. -k soem). Exits non-zero when any test fails.
+set -uo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+command -v cargo >/dev/null || { [[ -f "$HOME/.cargo/env" ]] && . "$HOME/.cargo/env"; }
+[[ -x .venv/bin/pytest ]] || { echo "test: .venv missing: run bash scripts/setup.sh first" >&2; exit 1; }
+
+status=0
+echo "test: cargo test (native/)"
+(cd native && cargo test --quiet) || status=1
+echo "test: pytest (tests/)"
+.venv/bin/pytest "$@" || status=1
+if ((status)); then echo "test: FAILED" >&2; else echo "test: all passed"; fi
+exit "$status"

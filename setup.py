@@ -1,0 +1,51 @@
+"""Builds akd_ros: the Python package and the Rust crate in native/ as akd_ros._native.
+
+The same file serves `pip install -e .` (the virtual environment made by scripts/setup.sh) and
+`colcon build` in a ROS 2 workspace (ament_python), where setuptools-rust and cargo come from apt
+or rustup.
+"""
+
+from pathlib import Path
+
+from setuptools import find_packages, setup
+from setuptools_rust import Binding, RustExtension
+
+PACKAGE = "akd_ros"
+HERE = Path(__file__).parent
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    description="Kollmorgen AKD servo drives on EtherCAT in ROS 2, over a Rust EtherCAT master",
+    long_description=(HERE / "README.md").read_text(encoding="utf-8"),
+    long_description_content_type="text/markdown",
+    license="Apache-2.0",
+    maintainer="akd_ros maintainers",
+    maintainer_email="akd_ros@users.noreply.github.com",
+    python_requires=">=3.10",
+    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    rust_extensions=[
+        RustExtension(
+            f"{PACKAGE}._native",
+            path="native/Cargo.toml",
+            binding=Binding.PyO3,
+            features=["extension-module"],
+            # Release build always: the cyclic path must be fast even in a developer's venv
+            # (Cargo.toml keeps line-level debug info in release).
+            debug=False,
+        )
+    ],
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    entry_points={
+        "console_scripts": [
+            "akd-sim = akd_ros.cli.sim:main",
+            "akd-scan = akd_ros.cli.scan:main",
+            "akd-sdo = akd_ros.cli.sdo:main",
+        ]
+    },
+)
