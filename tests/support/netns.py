@@ -191,38 +191,34 @@ def _wait_until(ready, process: subprocess.Popen, what: str, timeout: float) -> 
 
 
 @contextmanager
-def akd_sim_in_netns(ns: str, ifname: str, count: int = 1,
-                     ready_timeout: float = 10.0) -> Iterator[subprocess.Popen]:
-    """Runs `akd-sim --iface IFNAME --count N` in `ns`; yields the process once its socket is
-    bound; stops it with SIGTERM on exit and checks it stopped cleanly (status 0)."""
+def _serving(argv: list[str], ready, what: str, ready_timeout: float) -> Iterator[subprocess.Popen]:
+    """Starts a simulator process, yields it once `ready()` holds, stops it with SIGTERM on exit
+    and checks it stopped cleanly (status 0)."""
+    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _wait_until(ready, process, what, ready_timeout)
+    try:
+        yield process
+    finally:
+        out, err = stop_process(process)
+    if process.returncode != 0:
+        raise RuntimeError(f"{what} did not stop cleanly on SIGTERM (status "
+                           f"{process.returncode}): {err.strip() or out.strip()}")
+
+
+def akd_sim_in_netns(ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0):
+    """Runs `akd-sim --iface IFNAME --count N` in `ns` (context manager yielding the process once
+    its packet socket is bound; stopped with SIGTERM on exit)."""
     argv = netns_argv(ns, [*console_script("akd-sim"), "--iface", ifname, "--count", str(count)])
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_until(lambda: _packet_socket_open(ns, ifname), process,
-                f"akd-sim on {ifname} in {ns}", ready_timeout)
-    try:
-        yield process
-    finally:
-        out, err = stop_process(process)
-    if process.returncode != 0:
-        raise RuntimeError(f"akd-sim did not stop cleanly on SIGTERM (status "
-                           f"{process.returncode}): {err.strip() or out.strip()}")
+    return _serving(argv, lambda: _packet_socket_open(ns, ifname),
+                    f"akd-sim on {ifname} in {ns}", ready_timeout)
 
 
-@contextmanager
-def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1",
-                ready_timeout: float = 10.0) -> Iterator[subprocess.Popen]:
-    """Runs `akd-sim --udp HOST:PORT --count N` in this namespace; like `akd_sim_in_netns`."""
+def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeout: float = 10.0):
+    """Runs `akd-sim --udp HOST:PORT --count N` in this namespace (context manager yielding the
+    process once the port is bound; stopped with SIGTERM on exit)."""
     argv = [*console_script("akd-sim"), "--udp", f"{host}:{port}", "--count", str(count)]
-    process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    _wait_until(lambda: udp_port_bound(port), process, f"akd-sim on udp {host}:{port}",
-                ready_timeout)
-    try:
-        yield process
-    finally:
-        out, err = stop_process(process)
-    if process.returncode != 0:
-        raise RuntimeError(f"akd-sim did not stop cleanly on SIGTERM (status "
-                           f"{process.returncode}): {err.strip() or out.strip()}")
+    return _serving(argv, lambda: udp_port_bound(port), f"akd-sim on udp {host}:{port}",
+                    ready_timeout)
 
 
 @contextmanager
