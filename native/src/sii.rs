@@ -791,6 +791,11 @@ impl Sii {
         Ok(out)
     }
 
+    /// The list a category holds, empty when the image has no such category.
+    fn slice<T>(&self, pick: fn(&Category) -> Option<&[T]>) -> &[T] {
+        self.categories.iter().find_map(pick).unwrap_or(&[])
+    }
+
     /// Vendor id, product code, revision and serial number.
     pub fn identity(&self) -> Identity {
         self.header.identity
@@ -803,13 +808,7 @@ impl Sii {
 
     /// The strings category's strings (empty without one).
     pub fn strings(&self) -> &[String] {
-        self.categories
-            .iter()
-            .find_map(|c| match c {
-                Category::Strings(s) => Some(s.as_slice()),
-                _ => None,
-            })
-            .unwrap_or(&[])
+        self.slice(|c| if let Category::Strings(v) = c { Some(v.as_slice()) } else { None })
     }
 
     /// String `idx` (1-based); `None` for 0 (no string) or an index past the table.
@@ -820,10 +819,7 @@ impl Sii {
 
     /// The general category.
     pub fn general(&self) -> Option<&General> {
-        self.categories.iter().find_map(|c| match c {
-            Category::General(g) => Some(g),
-            _ => None,
-        })
+        self.categories.iter().find_map(|c| if let Category::General(g) = c { Some(g) } else { None })
     }
 
     /// The device name (general category's name string), e.g. "AKD EtherCAT Drive (CoE)".
@@ -843,73 +839,37 @@ impl Sii {
 
     /// The FMMU usage codes.
     pub fn fmmu_usage(&self) -> &[u8] {
-        self.categories
-            .iter()
-            .find_map(|c| match c {
-                Category::Fmmu(f) => Some(f.as_slice()),
-                _ => None,
-            })
-            .unwrap_or(&[])
+        self.slice(|c| if let Category::Fmmu(v) = c { Some(v.as_slice()) } else { None })
     }
 
     /// The sync managers, SM0 first.
     pub fn sync_managers(&self) -> &[SyncManager] {
-        self.categories
-            .iter()
-            .find_map(|c| match c {
-                Category::SyncManagers(s) => Some(s.as_slice()),
-                _ => None,
-            })
-            .unwrap_or(&[])
+        self.slice(|c| if let Category::SyncManagers(v) = c { Some(v.as_slice()) } else { None })
     }
 
     /// The TxPDOs (drive to master).
     pub fn tx_pdos(&self) -> &[SiiPdo] {
-        self.categories
-            .iter()
-            .find_map(|c| match c {
-                Category::TxPdos(p) => Some(p.as_slice()),
-                _ => None,
-            })
-            .unwrap_or(&[])
+        self.slice(|c| if let Category::TxPdos(v) = c { Some(v.as_slice()) } else { None })
     }
 
     /// The RxPDOs (master to drive).
     pub fn rx_pdos(&self) -> &[SiiPdo] {
-        self.categories
-            .iter()
-            .find_map(|c| match c {
-                Category::RxPdos(p) => Some(p.as_slice()),
-                _ => None,
-            })
-            .unwrap_or(&[])
+        self.slice(|c| if let Category::RxPdos(v) = c { Some(v.as_slice()) } else { None })
     }
 
     /// The DC operation modes.
     pub fn dc_modes(&self) -> &[DcOpMode] {
-        self.categories
-            .iter()
-            .find_map(|c| match c {
-                Category::Dc(d) => Some(d.as_slice()),
-                _ => None,
-            })
-            .unwrap_or(&[])
+        self.slice(|c| if let Category::Dc(v) = c { Some(v.as_slice()) } else { None })
     }
 
     /// The AKD's model string (category 0x0800).
     pub fn model(&self) -> Option<&str> {
-        self.categories.iter().find_map(|c| match c {
-            Category::AkdModel(s) => Some(s.as_str()),
-            _ => None,
-        })
+        self.categories.iter().find_map(|c| if let Category::AkdModel(v) = c { Some(v.as_str()) } else { None })
     }
 
     /// The AKD's firmware version string (category 0x0801).
     pub fn firmware(&self) -> Option<&str> {
-        self.categories.iter().find_map(|c| match c {
-            Category::AkdFirmware(s) => Some(s.as_str()),
-            _ => None,
-        })
+        self.categories.iter().find_map(|c| if let Category::AkdFirmware(v) = c { Some(v.as_str()) } else { None })
     }
 }
 

@@ -16,32 +16,38 @@ fn mailbox_dict<'py>(py: Python<'py>, m: &MailboxLayout) -> PyResult<Bound<'py, 
     Ok(d)
 }
 
-fn pdo_dicts<'py>(py: Python<'py>, sii: &Sii, pdos: &[SiiPdo]) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    pdos.iter()
-        .map(|p| {
-            let entries = p
-                .entries
-                .iter()
-                .map(|e| {
-                    let d = PyDict::new(py);
-                    d.set_item("index", e.index)?;
-                    d.set_item("subindex", e.subindex)?;
-                    d.set_item("name", sii.string(e.name_idx))?;
-                    d.set_item("data_type", e.data_type)?;
-                    d.set_item("bit_len", e.bit_len)?;
-                    Ok(d)
-                })
-                .collect::<PyResult<Vec<_>>>()?;
+/// One dict per item, filled in by `fill`.
+fn dicts<'py, T>(
+    py: Python<'py>,
+    items: &[T],
+    fill: impl Fn(&Bound<'py, PyDict>, &T) -> PyResult<()>,
+) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    items
+        .iter()
+        .map(|item| {
             let d = PyDict::new(py);
-            d.set_item("index", p.index)?;
-            d.set_item("name", sii.string(p.name_idx))?;
-            d.set_item("sync_manager", p.sync_manager)?;
-            d.set_item("dc_sync", p.dc_sync)?;
-            d.set_item("flags", p.flags)?;
-            d.set_item("entries", entries)?;
+            fill(&d, item)?;
             Ok(d)
         })
         .collect()
+}
+
+fn pdo_dicts<'py>(py: Python<'py>, sii: &Sii, pdos: &[SiiPdo]) -> PyResult<Vec<Bound<'py, PyDict>>> {
+    dicts(py, pdos, |d, p| {
+        d.set_item("index", p.index)?;
+        d.set_item("name", sii.string(p.name_idx))?;
+        d.set_item("sync_manager", p.sync_manager)?;
+        d.set_item("dc_sync", p.dc_sync)?;
+        d.set_item("flags", p.flags)?;
+        let entries = dicts(py, &p.entries, |e, entry| {
+            e.set_item("index", entry.index)?;
+            e.set_item("subindex", entry.subindex)?;
+            e.set_item("name", sii.string(entry.name_idx))?;
+            e.set_item("data_type", entry.data_type)?;
+            e.set_item("bit_len", entry.bit_len)
+        })?;
+        d.set_item("entries", entries)
+    })
 }
 
 /// Decodes an SII EEPROM image (the whole EEPROM, or up to the end category) into a dict:
@@ -84,37 +90,25 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
     }
     // A list of codes, not bytes: each is an FMMU usage code (1 outputs, 2 inputs, 3 SM status).
     d.set_item("fmmu_usage", PyList::new(py, sii.fmmu_usage())?)?;
-    let sms = sii
-        .sync_managers()
-        .iter()
-        .map(|sm| {
-            let s = PyDict::new(py);
-            s.set_item("start_address", sm.start_address)?;
-            s.set_item("length", sm.length)?;
-            s.set_item("control", sm.control)?;
-            s.set_item("status", sm.status)?;
-            s.set_item("enable", sm.enable)?;
-            s.set_item("type", sm.sm_type)?;
-            Ok(s)
-        })
-        .collect::<PyResult<Vec<_>>>()?;
+    let sms = dicts(py, sii.sync_managers(), |s, sm| {
+        s.set_item("start_address", sm.start_address)?;
+        s.set_item("length", sm.length)?;
+        s.set_item("control", sm.control)?;
+        s.set_item("status", sm.status)?;
+        s.set_item("enable", sm.enable)?;
+        s.set_item("type", sm.sm_type)
+    })?;
     d.set_item("sync_managers", sms)?;
     d.set_item("tx_pdos", pdo_dicts(py, &sii, sii.tx_pdos())?)?;
     d.set_item("rx_pdos", pdo_dicts(py, &sii, sii.rx_pdos())?)?;
-    let modes = sii
-        .dc_modes()
-        .iter()
-        .map(|m| {
-            let s = PyDict::new(py);
-            s.set_item("name", sii.string(m.name_idx))?;
-            s.set_item("assign_activate", m.assign_activate)?;
-            s.set_item("cycle_time0", m.cycle_time0)?;
-            s.set_item("shift_time0", m.shift_time0)?;
-            s.set_item("sync0_cycle_factor", m.sync0_cycle_factor)?;
-            s.set_item("sync1_cycle_factor", m.sync1_cycle_factor)?;
-            Ok(s)
-        })
-        .collect::<PyResult<Vec<_>>>()?;
+    let modes = dicts(py, sii.dc_modes(), |s, m| {
+        s.set_item("name", sii.string(m.name_idx))?;
+        s.set_item("assign_activate", m.assign_activate)?;
+        s.set_item("cycle_time0", m.cycle_time0)?;
+        s.set_item("shift_time0", m.shift_time0)?;
+        s.set_item("sync0_cycle_factor", m.sync0_cycle_factor)?;
+        s.set_item("sync1_cycle_factor", m.sync1_cycle_factor)
+    })?;
     d.set_item("dc_modes", modes)?;
     Ok(d)
 }
