@@ -23,16 +23,12 @@ pub const HEADER_BYTES: usize = HEADER_WORDS * 2;
 pub mod category {
     /// Strings referenced by index from the other categories.
     pub const STRINGS: u16 = 0x000A;
-    /// Data types (not used by the AKD).
-    pub const DATA_TYPES: u16 = 0x0014;
     /// General information: names, supported mailbox details, flags.
     pub const GENERAL: u16 = 0x001E;
     /// FMMU usage.
     pub const FMMU: u16 = 0x0028;
     /// Sync manager layout.
     pub const SYNC_MANAGER: u16 = 0x0029;
-    /// FMMU extension (not used by the AKD).
-    pub const FMMU_EX: u16 = 0x002A;
     /// Sync unit (kept raw: the AKD's is the two bytes F0 FF).
     pub const SYNC_UNIT: u16 = 0x002B;
     /// TxPDOs (drive to master).
@@ -49,40 +45,20 @@ pub mod category {
     pub const END: u16 = 0xFFFF;
 }
 
-/// Mailbox protocol bits of header word 0x1C.
-pub mod mailbox_protocol {
-    /// ADS over EtherCAT.
-    pub const AOE: u16 = 0x0001;
-    /// Ethernet over EtherCAT.
-    pub const EOE: u16 = 0x0002;
-    /// CANopen over EtherCAT.
-    pub const COE: u16 = 0x0004;
-    /// File access over EtherCAT.
-    pub const FOE: u16 = 0x0008;
-    /// Servo profile over EtherCAT.
-    pub const SOE: u16 = 0x0010;
-    /// Vendor specific.
-    pub const VOE: u16 = 0x0020;
-}
-
 /// FMMU usage codes of the FMMU category.
 pub mod fmmu_usage {
-    /// Not used.
-    pub const UNUSED: u8 = 0x00;
     /// Process data outputs.
     pub const OUTPUTS: u8 = 0x01;
     /// Process data inputs.
     pub const INPUTS: u8 = 0x02;
     /// Sync manager status (mailbox state).
     pub const SYNC_MANAGER_STATUS: u8 = 0x03;
-    /// Not used (the other spelling ETG.2010 allows).
+    /// Not used (ETG.2010 also allows 0x00).
     pub const NOT_USED: u8 = 0xFF;
 }
 
 /// Sync manager types of the SM category.
 pub mod sync_manager_type {
-    /// Not used.
-    pub const UNUSED: u8 = 0;
     /// Mailbox out (master to slave).
     pub const MAILBOX_OUT: u8 = 1;
     /// Mailbox in (slave to master).
@@ -164,7 +140,8 @@ pub struct Header {
     pub bootstrap_mailbox: MailboxLayout,
     /// Words 0x18..0x1B: the standard mailbox (PreOp and up).
     pub standard_mailbox: MailboxLayout,
-    /// Word 0x1C: supported mailbox protocols, bits of [`mailbox_protocol`].
+    /// Word 0x1C: supported mailbox protocols, the bits of
+    /// [`MailboxType::sii_protocol_bit`](crate::mailbox::MailboxType::sii_protocol_bit).
     pub mailbox_protocols: u16,
     /// Words 0x1D..0x3D: reserved.
     pub reserved_1d: [u16; 33],
@@ -1065,7 +1042,7 @@ mod tests {
                 send_offset: 0x1080,
                 send_size: 128,
             },
-            mailbox_protocols: mailbox_protocol::COE,
+            mailbox_protocols: crate::mailbox::MailboxType::Coe.sii_protocol_bit(),
             reserved_1d: [0; 33],
             size,
             version: 1,

@@ -9,10 +9,11 @@
 
 use crate::coe::data_type;
 use crate::error::{Error, Result};
+use crate::mailbox::MailboxType;
 use crate::pdo::{self, Direction, PdoEntry};
 use crate::sii::{
-    category, fmmu_usage, mailbox_protocol, sync_manager_type, Builder, Category, DcOpMode, General, Header, Identity,
-    MailboxLayout, SiiPdo, SiiPdoEntry, SyncManager,
+    category, fmmu_usage, sync_manager_type, Builder, Category, DcOpMode, General, Header, Identity, MailboxLayout,
+    SiiPdo, SiiPdoEntry, SyncManager,
 };
 
 /// The drive's model string (category 0x0800).
@@ -87,7 +88,9 @@ fn header() -> Header {
         reserved_13: 0,
         bootstrap_mailbox: MAILBOX,
         standard_mailbox: MAILBOX,
-        mailbox_protocols: mailbox_protocol::EOE | mailbox_protocol::COE | mailbox_protocol::FOE,
+        mailbox_protocols: [MailboxType::Eoe, MailboxType::Coe, MailboxType::Foe]
+            .into_iter()
+            .fold(0, |bits, protocol| bits | protocol.sii_protocol_bit()),
         reserved_1d: [0; 33],
         // 16 KiBit: a 2 KiB EEPROM.
         size: 0x000F,
