@@ -6,22 +6,27 @@
 //! [`RETURNED_MAC_BIT`](super::raw::RETURNED_MAC_BIT) set for replies, as a real ESC marks the
 //! frames it returns, EtherType 0x88A4, padded to the Ethernet minimum. Timestamps are wall-clock
 //! nanoseconds (pcapng `if_tsresol` 9) taken just before the request leaves and just after the
-//! reply is back; the file is written after the exchange, through a large buffer, so recording
-//! adds no system call to most exchanges.
+//! reply is back.
 //!
-//! A failing write never breaks the link: it is counted ([`Recorder::write_errors`]) and the
-//! first one is returned by [`Recorder::finish`]. A recorder dropped without `finish` still
-//! flushes its buffer (the buffered writer does on drop), only without reporting a failure.
+//! The exchange itself only appends the two blocks to a memory chunk; full chunks go to a writer
+//! thread and come back empty, so recording costs no system call and, once a few chunks exist,
+//! no allocation in the cyclic path. If the writer falls so far behind that no chunk can be
+//! handed over, the frames of that chunk are counted as lost, never waited for.
+//! [`Recorder::finish`] (or dropping the recorder) writes the rest and reports lost frames and
+//! write errors.
 
 use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
+use std::mem;
 use std::path::{Path, PathBuf};
+use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
+use std::thread::JoinHandle;
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use super::raw::{MASTER_MAC, RETURNED_MAC_BIT};
 use super::Link;
 use crate::error::{Error, Result};
-use crate::frame::{write_ethernet_header, ETH_HEADER_LEN, MAX_PAYLOAD_LEN, MIN_ETH_FRAME_LEN};
+use crate::frame::{write_ethernet_header, ETH_HEADER_LEN, MIN_ETH_FRAME_LEN};
 
 /// pcapng block types and option codes (pcapng specification, IETF draft).
 mod block {
@@ -36,18 +41,26 @@ mod block {
     pub const OPT_SHB_USERAPPL: u16 = 4;
 }
 
-/// Buffer between the recorder and the file: about 8000 minimum-size frames.
-const WRITE_BUFFER: usize = 1 << 20;
+/// A chunk is handed to the writer once it holds this many bytes (about 600 minimum frames).
+const CHUNK: usize = 64 * 1024;
+/// Chunks that may wait for the writer: 1 MiB of frames.
+const QUEUED_CHUNKS: usize = 16;
+
+/// A chunk of blocks and the number of frames in it.
+type Chunk = (Vec<u8>, u64);
 
 /// A link whose every frame sent and received is written to a pcapng file.
 pub struct Recorder<L: Link> {
     inner: L,
     path: PathBuf,
-    out: BufWriter<File>,
-    /// The block being assembled, reused so recording does not allocate per frame.
-    block: Vec<u8>,
-    write_errors: u64,
-    first_error: Option<std::io::Error>,
+    /// Blocks not yet handed to the writer.
+    chunk: Chunk,
+    /// `None` once finished.
+    to_writer: Option<SyncSender<Chunk>>,
+    /// Chunks the writer has written, to be filled again.
+    spare: Receiver<Vec<u8>>,
+    writer: Option<JoinHandle<std::io::Result<()>>>,
+    lost_frames: u64,
 }
 
 /// Nanoseconds since the Unix epoch (0 if the clock is before it).
@@ -56,126 +69,154 @@ fn now_ns() -> u64 {
 }
 
 /// Appends a pcapng option, padded to 4 bytes.
-fn push_option(block: &mut Vec<u8>, code: u16, value: &[u8]) {
-    block.extend_from_slice(&code.to_le_bytes());
-    block.extend_from_slice(&(value.len() as u16).to_le_bytes());
-    block.extend_from_slice(value);
-    block.resize(block.len().next_multiple_of(4), 0);
+fn push_option(out: &mut Vec<u8>, code: u16, value: &[u8]) {
+    out.extend_from_slice(&code.to_le_bytes());
+    out.extend_from_slice(&(value.len() as u16).to_le_bytes());
+    out.extend_from_slice(value);
+    out.resize(out.len().next_multiple_of(4), 0);
 }
 
-/// Starts a block of `kind` in `block` (cleared); [`end_block`] fills in its length.
-fn begin_block(block: &mut Vec<u8>, kind: u32) {
-    block.clear();
-    block.extend_from_slice(&kind.to_le_bytes());
-    block.extend_from_slice(&[0; 4]);
+/// Starts a block of `kind` at the end of `out` and returns where it starts, for [`end_block`].
+fn begin_block(out: &mut Vec<u8>, kind: u32) -> usize {
+    let start = out.len();
+    out.extend_from_slice(&kind.to_le_bytes());
+    out.extend_from_slice(&[0; 4]);
+    start
 }
 
-/// Pads the block, appends the trailing length and writes both length fields.
-fn end_block(block: &mut Vec<u8>) {
-    block.resize(block.len().next_multiple_of(4), 0);
-    let total = (block.len() + 4) as u32;
-    block.extend_from_slice(&total.to_le_bytes());
-    block[4..8].copy_from_slice(&total.to_le_bytes());
+/// Pads the block that starts at `start`, appends its trailing length and fills in the leading one.
+fn end_block(out: &mut Vec<u8>, start: usize) {
+    out.resize(out.len().next_multiple_of(4), 0);
+    let total = (out.len() + 4 - start) as u32;
+    out.extend_from_slice(&total.to_le_bytes());
+    out[start + 4..start + 8].copy_from_slice(&total.to_le_bytes());
+}
+
+/// Appends one EtherCAT payload as an Ethernet frame at `time_ns`; a reply's source address has
+/// [`RETURNED_MAC_BIT`] set.
+fn push_frame(out: &mut Vec<u8>, payload: &[u8], time_ns: u64, reply: bool) {
+    let start = begin_block(out, block::ENHANCED_PACKET);
+    // Interface 0, timestamp high then low 32 bits.
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&((time_ns >> 32) as u32).to_le_bytes());
+    out.extend_from_slice(&(time_ns as u32).to_le_bytes());
+    let frame_len = (ETH_HEADER_LEN + payload.len()).max(MIN_ETH_FRAME_LEN);
+    out.extend_from_slice(&(frame_len as u32).to_le_bytes());
+    out.extend_from_slice(&(frame_len as u32).to_le_bytes());
+    let frame_start = out.len();
+    let mut source = MASTER_MAC;
+    if reply {
+        source[0] |= RETURNED_MAC_BIT;
+    }
+    out.resize(frame_start + ETH_HEADER_LEN, 0);
+    write_ethernet_header(&mut out[frame_start..], source);
+    out.extend_from_slice(payload);
+    out.resize(frame_start + frame_len, 0);
+    end_block(out, start);
+}
+
+/// The section header and interface description (named `interface`) that open the file.
+fn file_header(interface: &str) -> Vec<u8> {
+    let mut out = Vec::new();
+    let start = begin_block(&mut out, block::SECTION_HEADER);
+    out.extend_from_slice(&block::BYTE_ORDER_MAGIC.to_le_bytes());
+    out.extend_from_slice(&1u16.to_le_bytes());
+    out.extend_from_slice(&0u16.to_le_bytes());
+    // Section length unknown.
+    out.extend_from_slice(&(-1i64).to_le_bytes());
+    push_option(&mut out, block::OPT_SHB_USERAPPL, b"akd_ros");
+    push_option(&mut out, block::OPT_END, &[]);
+    end_block(&mut out, start);
+
+    let start = begin_block(&mut out, block::INTERFACE_DESCRIPTION);
+    out.extend_from_slice(&block::LINKTYPE_ETHERNET.to_le_bytes());
+    out.extend_from_slice(&0u16.to_le_bytes());
+    // No snapshot limit.
+    out.extend_from_slice(&0u32.to_le_bytes());
+    push_option(&mut out, block::OPT_IF_NAME, interface.as_bytes());
+    // Timestamps in units of 10^-9 s.
+    push_option(&mut out, block::OPT_IF_TSRESOL, &[9]);
+    push_option(&mut out, block::OPT_END, &[]);
+    end_block(&mut out, start);
+    out
+}
+
+/// The writer thread: writes chunks in order and returns them empty. After a write error it
+/// keeps returning chunks (so the recorder never waits) and reports the first error at the end.
+fn write_chunks(mut file: File, chunks: Receiver<Chunk>, spare: SyncSender<Vec<u8>>) -> std::io::Result<()> {
+    let mut result = Ok(());
+    for (mut chunk, _) in chunks {
+        if result.is_ok() {
+            result = file.write_all(&chunk);
+        }
+        chunk.clear();
+        // The recorder may be gone or have spares enough; either way the chunk is not needed.
+        let _ = spare.try_send(chunk);
+    }
+    result.and_then(|()| file.sync_data())
 }
 
 impl<L: Link> Recorder<L> {
-    /// Wraps `inner`, creating (or truncating) the pcapng file at `path` and writing its
-    /// section header and interface description (named after `inner`).
+    /// Wraps `inner`, creating (or truncating) the pcapng file at `path`, writing its section
+    /// header and interface description (named after `inner`) and starting the writer thread.
     pub fn new(inner: L, path: impl AsRef<Path>) -> Result<Self> {
         let path = path.as_ref().to_path_buf();
-        let file =
-            File::create(&path).map_err(|e| Error::io(format!("creating capture file {}", path.display()), e))?;
-        let mut recorder = Recorder {
+        let context = |what: &str| format!("{what} capture file {}", path.display());
+        let mut file = File::create(&path).map_err(|e| Error::io(context("creating"), e))?;
+        file.write_all(&file_header(&inner.describe())).map_err(|e| Error::io(context("writing"), e))?;
+        let (to_writer, chunks) = mpsc::sync_channel(QUEUED_CHUNKS);
+        let (spare_tx, spare) = mpsc::sync_channel(QUEUED_CHUNKS);
+        let writer = std::thread::Builder::new()
+            .name("pcap-writer".into())
+            .spawn(move || write_chunks(file, chunks, spare_tx))
+            .map_err(|e| Error::io(context("starting the writer thread of"), e))?;
+        Ok(Recorder {
             inner,
             path,
-            out: BufWriter::with_capacity(WRITE_BUFFER, file),
-            block: Vec::with_capacity(ETH_HEADER_LEN + MAX_PAYLOAD_LEN + 64),
-            write_errors: 0,
-            first_error: None,
-        };
-        let b = &mut recorder.block;
-        begin_block(b, block::SECTION_HEADER);
-        b.extend_from_slice(&block::BYTE_ORDER_MAGIC.to_le_bytes());
-        b.extend_from_slice(&1u16.to_le_bytes());
-        b.extend_from_slice(&0u16.to_le_bytes());
-        // Section length unknown.
-        b.extend_from_slice(&(-1i64).to_le_bytes());
-        push_option(b, block::OPT_SHB_USERAPPL, b"akd_ros");
-        push_option(b, block::OPT_END, &[]);
-        end_block(b);
-        recorder.write_block()?;
-
-        let name = recorder.inner.describe();
-        let b = &mut recorder.block;
-        begin_block(b, block::INTERFACE_DESCRIPTION);
-        b.extend_from_slice(&block::LINKTYPE_ETHERNET.to_le_bytes());
-        b.extend_from_slice(&0u16.to_le_bytes());
-        // No snapshot limit.
-        b.extend_from_slice(&0u32.to_le_bytes());
-        push_option(b, block::OPT_IF_NAME, name.as_bytes());
-        // Timestamps in units of 10^-9 s.
-        push_option(b, block::OPT_IF_TSRESOL, &[9]);
-        push_option(b, block::OPT_END, &[]);
-        end_block(b);
-        recorder.write_block()?;
-        Ok(recorder)
+            chunk: (Vec::with_capacity(CHUNK + 4096), 0),
+            to_writer: Some(to_writer),
+            spare,
+            writer: Some(writer),
+            lost_frames: 0,
+        })
     }
 
-    /// Writes the assembled block, an error naming the file.
-    fn write_block(&mut self) -> Result<()> {
-        self.out
-            .write_all(&self.block)
-            .map_err(|e| Error::io(format!("writing capture file {}", self.path.display()), e))
-    }
-
-    /// Records one EtherCAT payload as an Ethernet frame at `time_ns`; a reply's source address
-    /// has [`RETURNED_MAC_BIT`] set.
-    fn record(&mut self, payload: &[u8], time_ns: u64, reply: bool) {
-        let b = &mut self.block;
-        begin_block(b, block::ENHANCED_PACKET);
-        // Interface 0, timestamp high then low 32 bits.
-        b.extend_from_slice(&0u32.to_le_bytes());
-        b.extend_from_slice(&((time_ns >> 32) as u32).to_le_bytes());
-        b.extend_from_slice(&(time_ns as u32).to_le_bytes());
-        let frame_len = (ETH_HEADER_LEN + payload.len()).max(MIN_ETH_FRAME_LEN) as u32;
-        b.extend_from_slice(&frame_len.to_le_bytes());
-        b.extend_from_slice(&frame_len.to_le_bytes());
-        let frame_start = b.len();
-        let mut source = MASTER_MAC;
-        if reply {
-            source[0] |= RETURNED_MAC_BIT;
-        }
-        b.resize(frame_start + ETH_HEADER_LEN, 0);
-        write_ethernet_header(&mut b[frame_start..], source);
-        b.extend_from_slice(payload);
-        b.resize(frame_start + frame_len as usize, 0);
-        end_block(b);
-        if let Err(e) = self.out.write_all(&self.block) {
-            self.count_error(e);
+    /// Hands a full chunk to the writer and continues in a spare one.
+    fn hand_over(&mut self) {
+        let Some(to_writer) = &self.to_writer else { return };
+        let empty = self.spare.try_recv().unwrap_or_else(|_| Vec::with_capacity(CHUNK + 4096));
+        let full = (mem::replace(&mut self.chunk.0, empty), mem::take(&mut self.chunk.1));
+        match to_writer.try_send(full) {
+            Ok(()) => {}
+            Err(TrySendError::Full((mut chunk, frames)) | TrySendError::Disconnected((mut chunk, frames))) => {
+                self.lost_frames += frames;
+                chunk.clear();
+                self.chunk.0 = chunk;
+            }
         }
     }
 
-    fn count_error(&mut self, e: std::io::Error) {
-        self.write_errors += 1;
-        self.first_error.get_or_insert(e);
+    /// Frames that could not be recorded because the writer fell behind.
+    pub fn lost_frames(&self) -> u64 {
+        self.lost_frames
     }
 
-    /// Frames that could not be written to the file.
-    pub fn write_errors(&self) -> u64 {
-        self.write_errors
-    }
-
-    /// Flushes the file and returns the wrapped link, or the first write error.
-    pub fn finish(mut self) -> Result<L> {
-        if let Err(e) = self.out.flush() {
-            self.count_error(e);
-        }
-        match self.first_error.take() {
-            Some(e) => Err(Error::io(
-                format!("writing capture file {} ({} frames lost)", self.path.display(), self.write_errors),
-                e,
-            )),
-            None => Ok(self.inner),
+    /// Writes what is left and stops the writer; an error names the file and says how many
+    /// frames were lost. Later exchanges are no longer recorded.
+    pub fn finish(&mut self) -> Result<()> {
+        let (Some(to_writer), Some(writer)) = (self.to_writer.take(), self.writer.take()) else { return Ok(()) };
+        let last = mem::take(&mut self.chunk);
+        let handed = to_writer.send(last).is_ok();
+        drop(to_writer);
+        let written = writer.join().unwrap_or_else(|_| Err(std::io::Error::other("the writer thread panicked")));
+        let context = format!("writing capture file {}", self.path.display());
+        match (written, handed, self.lost_frames) {
+            (Err(e), _, _) => Err(Error::io(context, e)),
+            (Ok(()), false, _) => Err(Error::io(context, std::io::Error::other("the writer thread ended early"))),
+            (Ok(()), true, 0) => Ok(()),
+            (Ok(()), true, lost) => {
+                Err(Error::io(context, std::io::Error::other(format!("{lost} frames lost: the writer fell behind"))))
+            }
         }
     }
 }
@@ -185,15 +226,30 @@ impl<L: Link> Link for Recorder<L> {
         let sent_ns = now_ns();
         let result = self.inner.exchange(tx, rx, timeout);
         let received_ns = now_ns();
-        self.record(tx, sent_ns, false);
-        if let Ok(n) = result {
-            self.record(&rx[..n], received_ns, true);
+        if self.to_writer.is_some() {
+            push_frame(&mut self.chunk.0, tx, sent_ns, false);
+            self.chunk.1 += 1;
+            if let Ok(n) = result {
+                push_frame(&mut self.chunk.0, &rx[..n], received_ns, true);
+                self.chunk.1 += 1;
+            }
+            if self.chunk.0.len() >= CHUNK {
+                self.hand_over();
+            }
         }
         result
     }
 
     fn describe(&self) -> String {
         format!("{} recorded to {}", self.inner.describe(), self.path.display())
+    }
+}
+
+impl<L: Link> Drop for Recorder<L> {
+    fn drop(&mut self) {
+        // Owners that hold the recorder as a plain `Link` cannot call `finish`; the file is
+        // completed here all the same, and a failure has no caller left to tell.
+        let _ = self.finish();
     }
 }
 
@@ -252,7 +308,7 @@ mod tests {
         for _ in 0..3 {
             let _ = recorder.exchange(&tx[..n], &mut rx, Duration::from_millis(1));
         }
-        assert_eq!(recorder.write_errors(), 0);
+        assert_eq!(recorder.lost_frames(), 0);
         recorder.finish().unwrap();
         let file = std::fs::read(&path).unwrap();
         std::fs::remove_file(&path).unwrap();
@@ -284,6 +340,27 @@ mod tests {
             let wkc = u16::from_le_bytes([frame[14 + n - 2], frame[14 + n - 1]]);
             assert_eq!(wkc, u16::from(reply));
         }
+    }
+
+    #[test]
+    fn frames_over_many_chunks_are_all_written_when_the_recorder_is_dropped() {
+        let path = std::env::temp_dir().join(format!("akd_pcap_chunks_{}.pcapng", std::process::id()));
+        let mut recorder = Recorder::new(Loop { exchanges: 0 }, &path).unwrap();
+        let mut tx = [0u8; 64];
+        let mut builder = FrameBuilder::new(&mut tx);
+        builder.push_zeroed(Command::Lrw, 0, 0, 0, 34).unwrap();
+        let n = builder.finish();
+        let mut rx = [0u8; 64];
+        // 4000 exchanges (one times out): 7999 blocks of 96 bytes, about 12 chunks.
+        for _ in 0..4000 {
+            let _ = recorder.exchange(&tx[..n], &mut rx, Duration::from_millis(1));
+        }
+        drop(recorder);
+        let file = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        let blocks = blocks(&file);
+        assert_eq!(blocks.len(), 2 + 7999);
+        assert!(blocks[2..].iter().all(|b| b.0 == block::ENHANCED_PACKET));
     }
 
     #[test]
