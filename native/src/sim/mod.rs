@@ -1,1 +1,405 @@
-//! (being written)
+//! The virtual AKD: a Kollmorgen AKD on EtherCAT as the master sees it, faithful to the real
+//! drive (its SII, register values, AL status codes, object dictionary and mailbox timing).
+//!
+//! Each [`VirtualAkd`] is an ESC ([`esc`]) plus the drive's firmware on the PDI side: the AL
+//! state machine ([`al`]), the mailbox server ([`coe`]) over the object dictionary ([`od`]), the
+//! process image ([`pdo`]) and the process-data watchdog ([`watchdog`]). A [`VirtualBus`] is a
+//! line of them that serves EtherCAT frames in place, with time passed in by the caller so
+//! that a run is deterministic. [`server`] serves a bus on UDP or on a network interface.
+
+pub mod al;
+pub mod coe;
+pub mod esc;
+pub mod od;
+pub mod pdo;
+pub mod server;
+pub mod sii_image;
+pub mod sync_manager;
+pub mod watchdog;
+
+use crate::al::{code, AlState};
+use crate::error::FrameError;
+use crate::frame::{self, DatagramMut};
+use crate::mailbox::HEADER_LEN;
+use crate::registers as reg;
+use crate::sim::esc::{Arrival, Esc, Events};
+use crate::sim::sync_manager::{SyncManager, ACTIVATE_REPEAT, PDI_REPEAT_ACK, SM_COUNT};
+
+/// How long the drive's firmware takes to react, in ns of bus time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Timing {
+    /// From a write of AL control until the firmware handles the request (and the master may
+    /// write AL control again).
+    pub al_request_ns: u64,
+    /// From a complete mailbox write until the reply is in the mailbox-in buffer.
+    pub mailbox_ns: u64,
+}
+
+impl Timing {
+    /// The real drive's typical delays in the SOEM capture: Init→PreOp shows after 4.2–6.2 ms
+    /// and PreOp→SafeOp within 4.9 ms; most mailbox replies are there 0.65–1.4 ms after the
+    /// request (some take up to 2.9 ms).
+    pub const REAL_DRIVE: Timing = Timing { al_request_ns: 4_500_000, mailbox_ns: 1_000_000 };
+    /// No delay: each request is handled before the next frame.
+    pub const IMMEDIATE: Timing = Timing { al_request_ns: 0, mailbox_ns: 0 };
+}
+
+impl Default for Timing {
+    fn default() -> Self {
+        Timing::REAL_DRIVE
+    }
+}
+
+/// Time a frame takes through one drive and its cable, ns.
+const FORWARD_DELAY_NS: u64 = 500;
+
+/// One virtual AKD.
+pub struct VirtualAkd {
+    esc: Esc,
+    al: al::AlMachine,
+    od: od::ObjectDictionary,
+    mailbox: coe::MailboxServer,
+    watchdog: watchdog::Watchdog,
+    timing: Timing,
+    pending_al: Option<(u16, u64)>,
+    pending_mailbox: Option<u64>,
+    outputs_fresh: bool,
+    rx_image: pdo::Image,
+    tx_image: pdo::Image,
+}
+
+impl VirtualAkd {
+    /// A drive at power-up; `has_successor` tells whether another drive follows on port 1.
+    pub fn new(has_successor: bool, timing: Timing) -> Self {
+        let mut esc = Esc::new(sii_image::akd_sii(), has_successor);
+        for n in 0..SM_COUNT {
+            sync_manager::set_pdi_deactivated(esc.memory_mut(), n, true);
+        }
+        VirtualAkd {
+            esc,
+            al: al::AlMachine::power_up(),
+            od: od::ObjectDictionary::akd(),
+            mailbox: coe::MailboxServer::default(),
+            watchdog: watchdog::Watchdog::default(),
+            timing,
+            pending_al: None,
+            pending_mailbox: None,
+            outputs_fresh: false,
+            rx_image: Vec::new(),
+            tx_image: Vec::new(),
+        }
+    }
+
+    /// The AL state, the error flag and the AL status code.
+    pub fn al_status(&self) -> (AlState, bool, u16) {
+        (self.al.state(), self.al.error(), self.al.status_code())
+    }
+
+    /// The ESC's register and RAM space.
+    pub fn registers(&self) -> &[u8] {
+        self.esc.memory()
+    }
+
+    /// The object dictionary.
+    pub fn od(&self) -> &od::ObjectDictionary {
+        &self.od
+    }
+
+    /// The object dictionary, to set what the drive reports (tests, fault injection).
+    pub fn od_mut(&mut self) -> &mut od::ObjectDictionary {
+        &mut self.od
+    }
+
+    /// Changes how fast the firmware reacts.
+    pub fn set_timing(&mut self, timing: Timing) {
+        self.timing = timing;
+    }
+
+    /// Queues an emergency message, as the drive sends on a fault.
+    pub fn emergency(&mut self, emergency: &crate::coe::Emergency) {
+        let size = SyncManager::read(self.esc.memory(), 1).length as usize;
+        self.mailbox.emergency(emergency, size);
+    }
+
+    /// Serves one datagram passing the drive at bus time `now_ns`.
+    fn serve(&mut self, dg: &mut DatagramMut<'_>, now_ns: u64, arrival: Arrival) {
+        self.esc.serve(dg, arrival);
+        let events = self.esc.take_events();
+        if events != Events::default() {
+            self.schedule(events, now_ns);
+        }
+    }
+
+    fn schedule(&mut self, events: Events, now_ns: u64) {
+        if let Some(control) = events.al_control {
+            self.pending_al = Some((control, now_ns + self.timing.al_request_ns));
+        }
+        if events.mailbox_written {
+            self.pending_mailbox = Some(now_ns + self.timing.mailbox_ns);
+        }
+        if events.watchdog_trigger {
+            self.watchdog.trigger(now_ns);
+        }
+        self.outputs_fresh |= events.outputs_written;
+        if events.repeat_request {
+            self.repeat_mailbox();
+        }
+    }
+
+    /// The firmware's work between frames: AL requests, mailbox, watchdog, process data.
+    pub fn poll(&mut self, now_ns: u64) {
+        if let Some((control, due)) = self.pending_al {
+            if due <= now_ns {
+                self.pending_al = None;
+                self.esc.release_al_control();
+                self.handle_al_control(control, now_ns);
+            }
+        }
+        if let Some(due) = self.pending_mailbox {
+            if due <= now_ns {
+                self.pending_mailbox = None;
+                self.read_mailbox();
+            }
+        }
+        self.write_mailbox();
+        if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
+            self.al.fail(AlState::SafeOp, code::SM_WATCHDOG);
+            self.watchdog.stop();
+            self.write_al_status();
+        }
+        if self.al.state() == AlState::Op && self.outputs_fresh {
+            pdo::apply_outputs(&mut self.od, self.esc.memory(), &self.rx_image);
+        }
+        self.outputs_fresh = false;
+        if self.al.state() >= AlState::SafeOp && self.al.state() != AlState::Bootstrap {
+            pdo::refresh_inputs(&self.od, self.esc.memory_mut(), &self.tx_image);
+        }
+    }
+
+    fn handle_al_control(&mut self, control: u16, now_ns: u64) {
+        let (od, memory) = (&self.od, self.esc.memory());
+        let transition = self.al.request(control, |from, to| match (from, to) {
+            (AlState::Init, AlState::PreOp) => sync_manager::check_mailbox(memory),
+            (AlState::PreOp, AlState::SafeOp) => pdo::check_safeop(od, memory),
+            _ => Ok(()),
+        });
+        if let Some(t) = transition {
+            let memory = self.esc.memory_mut();
+            let mailbox_on = t.to != AlState::Init && t.to != AlState::Bootstrap;
+            let process_data_on = t.to >= AlState::SafeOp && t.to != AlState::Bootstrap;
+            for n in 0..2 {
+                sync_manager::set_pdi_deactivated(memory, n, !mailbox_on);
+            }
+            for n in 2..4 {
+                sync_manager::set_pdi_deactivated(memory, n, !process_data_on);
+            }
+            if !mailbox_on {
+                self.mailbox.reset();
+                self.pending_mailbox = None;
+                for n in 0..2 {
+                    memory[sync_manager::status_address(n)] = 0;
+                }
+            }
+            if t.from == AlState::PreOp && t.to == AlState::SafeOp {
+                (self.rx_image, self.tx_image) = pdo::images(&self.od);
+            }
+            if t.to == AlState::Op {
+                self.watchdog.trigger(now_ns);
+            } else {
+                self.watchdog.stop();
+            }
+        }
+        self.write_al_status();
+    }
+
+    fn write_al_status(&mut self) {
+        let (status, status_code) = (self.al.status(), self.al.status_code());
+        let memory = self.esc.memory_mut();
+        memory[reg::AL_STATUS as usize..reg::AL_STATUS as usize + 2].copy_from_slice(&status.to_le_bytes());
+        memory[reg::AL_STATUS_CODE as usize..reg::AL_STATUS_CODE as usize + 2]
+            .copy_from_slice(&status_code.to_le_bytes());
+    }
+
+    /// Takes the master's message out of the mailbox-out buffer and answers it.
+    fn read_mailbox(&mut self) {
+        let out = SyncManager::read(self.esc.memory(), 0);
+        let size = SyncManager::read(self.esc.memory(), 1).length as usize;
+        let memory = self.esc.memory();
+        let buffer = &memory[out.range()];
+        let announced = buffer.get(..2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
+        let message = buffer[..(HEADER_LEN + announced).min(buffer.len())].to_vec();
+        sync_manager::mark_read(self.esc.memory_mut(), 0);
+        self.mailbox.handle(&message, &mut self.od, self.al.state(), size);
+    }
+
+    /// Puts the next queued reply into the mailbox-in buffer when the master emptied it.
+    fn write_mailbox(&mut self) {
+        let sm = SyncManager::read(self.esc.memory(), 1);
+        if !sm.active() || sm.full() {
+            return;
+        }
+        if let Some(reply) = self.mailbox.next_reply() {
+            let n = reply.len().min(sm.length as usize);
+            let start = sm.start as usize;
+            let memory = self.esc.memory_mut();
+            memory[start..start + n].copy_from_slice(&reply[..n]);
+            sync_manager::mark_written(memory, 1);
+        }
+    }
+
+    /// The master toggled the repeat request: the last reply goes into the buffer again and
+    /// the repeat acknowledge follows the request bit.
+    fn repeat_mailbox(&mut self) {
+        let sm = SyncManager::read(self.esc.memory(), 1);
+        if let Some(reply) = self.mailbox.last_reply() {
+            let n = reply.len().min(sm.length as usize);
+            let start = sm.start as usize;
+            let reply = reply[..n].to_vec();
+            let memory = self.esc.memory_mut();
+            memory[start..start + n].copy_from_slice(&reply);
+            sync_manager::mark_written(memory, 1);
+        }
+        let memory = self.esc.memory_mut();
+        let ack = memory[reg::sm(1) as usize + 6] & ACTIVATE_REPEAT;
+        let pdi = &mut memory[sync_manager::pdi_control_address(1)];
+        *pdi = (*pdi & !PDI_REPEAT_ACK) | ack;
+    }
+}
+
+/// A line of virtual AKDs, as a real bus: frames pass drive 0, 1, ... in order.
+pub struct VirtualBus {
+    slaves: Vec<VirtualAkd>,
+}
+
+impl VirtualBus {
+    /// `count` virtual AKDs at power-up, with the real drive's timing.
+    pub fn new(count: usize) -> Self {
+        Self::with_timing(count, Timing::REAL_DRIVE)
+    }
+
+    /// `count` virtual AKDs reacting with `timing`.
+    pub fn with_timing(count: usize, timing: Timing) -> Self {
+        VirtualBus { slaves: (0..count).map(|i| VirtualAkd::new(i + 1 < count, timing)).collect() }
+    }
+
+    /// Number of drives.
+    pub fn len(&self) -> usize {
+        self.slaves.len()
+    }
+
+    /// Whether the line has no drive.
+    pub fn is_empty(&self) -> bool {
+        self.slaves.is_empty()
+    }
+
+    /// Drive `i`. Panics when `i` is not below [`len`](Self::len).
+    pub fn slave(&self, i: usize) -> &VirtualAkd {
+        &self.slaves[i]
+    }
+
+    /// Drive `i`, to change it (tests, fault injection). Panics when `i` is out of range.
+    pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
+        &mut self.slaves[i]
+    }
+
+    /// Serves an EtherCAT payload (frame header and datagrams) in place at bus time `now_ns`.
+    /// A malformed frame is refused untouched.
+    pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> Result<(), FrameError> {
+        frame::validate(payload)?;
+        let last = self.slaves.len().saturating_sub(1) as u64;
+        for (i, slave) in self.slaves.iter_mut().enumerate() {
+            slave.poll(now_ns);
+            let i = i as u64;
+            let arrival = Arrival {
+                port0_ns: now_ns + i * FORWARD_DELAY_NS,
+                port1_ns: (i < last).then_some(now_ns + (2 * last - i) * FORWARD_DELAY_NS),
+            };
+            frame::for_each_datagram_mut(payload, |dg| slave.serve(dg, now_ns, arrival))?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{Command, FrameBuilder};
+
+    fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+        let mut buf = [0u8; 1500];
+        let mut b = FrameBuilder::new(&mut buf);
+        let slot = b.push(command, 0, adp, ado, data).unwrap();
+        let len = b.finish();
+        bus.process(&mut buf[..len], now).unwrap();
+        (slot.data(&buf[..len]).unwrap().to_vec(), slot.wkc(&buf[..len]).unwrap())
+    }
+
+    fn to_preop(bus: &mut VirtualBus) {
+        exchange(bus, 0, Command::Bwr, 0, 0x0800, &[0x00, 0x18, 0x00, 0x04, 0x26, 0x00, 0x01, 0x00]);
+        exchange(bus, 0, Command::Bwr, 0, 0x0808, &[0x00, 0x1C, 0x00, 0x04, 0x22, 0x00, 0x01, 0x00]);
+        exchange(bus, 0, Command::Bwr, 0, 0x0120, &[0x02, 0x00]);
+    }
+
+    #[test]
+    fn a_line_counts_and_addresses_every_drive() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        assert_eq!(exchange(&mut bus, 0, Command::Brd, 0, 0x0000, &[0, 0]), (vec![0x04, 0x02], 3));
+        for i in 0..3u16 {
+            exchange(&mut bus, 0, Command::Apwr, 0u16.wrapping_sub(i), 0x0010, &(0x1001 + i).to_le_bytes());
+        }
+        assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1003, 0x0010, &[0, 0]), (vec![0x03, 0x10], 1));
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFE, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+    }
+
+    #[test]
+    fn al_requests_take_the_firmwares_time() {
+        let mut bus = VirtualBus::new(1);
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 1_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
+        assert_eq!(exchange(&mut bus, 4_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        // SafeOp with the power-up mapping (17 bytes each way) is refused as the real drive does.
+        exchange(&mut bus, 5_000_000, Command::Bwr, 0, 0x0810, &[0x00, 0x11, 17, 0, 0x24, 0, 1, 0]);
+        exchange(&mut bus, 5_000_000, Command::Bwr, 0, 0x0818, &[0x40, 0x11, 17, 0, 0x20, 0, 1, 0]);
+        exchange(&mut bus, 5_000_000, Command::Bwr, 0, 0x0120, &[0x04, 0x00]);
+        let (status, _) = exchange(&mut bus, 10_000_000, Command::Brd, 0, 0x0130, &[0; 6]);
+        assert_eq!(status, vec![0x12, 0, 0, 0, 0x1D, 0]);
+    }
+
+    #[test]
+    fn refuses_init_to_preop_without_mailbox_sync_managers() {
+        let mut bus = VirtualBus::with_timing(1, Timing::IMMEDIATE);
+        exchange(&mut bus, 0, Command::Bwr, 0, 0x0120, &[0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 1, Command::Brd, 0, 0x0130, &[0; 6]).0, vec![0x11, 0, 0, 0, 0x17, 0]);
+        exchange(&mut bus, 2, Command::Bwr, 0, 0x0120, &[0x08, 0x00]);
+        exchange(&mut bus, 3, Command::Bwr, 0, 0x0120, &[0x18, 0x00]);
+        assert_eq!(exchange(&mut bus, 4, Command::Brd, 0, 0x0130, &[0; 6]).0, vec![0x11, 0, 0, 0, 0x11, 0]);
+    }
+
+    #[test]
+    fn a_mailbox_round_trip() {
+        let mut bus = VirtualBus::new(1);
+        to_preop(&mut bus);
+        let mut request = vec![0u8; 0x400];
+        request[..16].copy_from_slice(&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x20, 0x40, 0x00, 0x1C, 0x03, 0, 0, 0, 0]);
+        let t = 5_000_000;
+        assert_eq!(exchange(&mut bus, t, Command::Bwr, 0, 0x1800, &request).1, 1);
+        assert_eq!(exchange(&mut bus, t + 650_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x00, 0x01]);
+        assert_eq!(exchange(&mut bus, t + 1_400_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x09, 0x01]);
+        let (reply, wkc) = exchange(&mut bus, t + 2_000_000, Command::Brd, 0, 0x1C00, &[0; 0x400]);
+        assert_eq!(
+            (&reply[..16], wkc),
+            (&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0][..], 1)
+        );
+        assert_eq!(exchange(&mut bus, t + 2_500_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+    }
+
+    #[test]
+    fn malformed_frames_are_refused_untouched() {
+        let mut bus = VirtualBus::new(2);
+        let mut garbage = [0x0C, 0x10, 0x07, 0x00, 0, 0, 0x30, 0x01, 0x02];
+        let before = garbage;
+        assert!(bus.process(&mut garbage, 0).is_err());
+        assert_eq!(garbage, before);
+    }
+}

@@ -1,0 +1,480 @@
+//! The virtual AKD's mailbox server: CoE SDO transfers (expedited, normal, segmented), SDO
+//! information with fragmentation, emergencies, and mailbox error replies for anything else.
+//!
+//! Replies echo the request's mailbox counter, as the real drive does (request counter 1 →
+//! reply counter 1 in the SOEM capture). Replies wait in a queue until the mailbox-in buffer is
+//! free; the last one is kept for a repeat request.
+
+use std::collections::VecDeque;
+
+use crate::al::AlState;
+use crate::coe::{
+    abort, access, info_opcode, od_list, service, write_info_message, write_message, write_sdo_response, CoeHeader,
+    Emergency, EntryDescription, ObjectDescription, SdoInfoHeader, SdoRequest, SdoResponse, COE_HEADER_LEN,
+    SDO_INFO_HEADER_LEN, SDO_LEN,
+};
+use crate::mailbox::{error_detail, next_counter, write_error_reply, MailboxHeader, MailboxType, HEADER_LEN};
+use crate::sim::od::ObjectDictionary;
+
+/// A segmented upload in progress.
+struct Upload {
+    index: u16,
+    subindex: u8,
+    data: Vec<u8>,
+    sent: usize,
+    toggle: bool,
+}
+
+/// A segmented download in progress.
+struct Download {
+    index: u16,
+    subindex: u8,
+    size: usize,
+    data: Vec<u8>,
+    toggle: bool,
+}
+
+/// The mailbox server of one virtual AKD.
+#[derive(Default)]
+pub struct MailboxServer {
+    upload: Option<Upload>,
+    download: Option<Download>,
+    replies: VecDeque<Vec<u8>>,
+    last: Option<Vec<u8>>,
+    counter: u8,
+}
+
+/// The write-access bit of the state the drive is in.
+fn state_write_access(state: AlState) -> u16 {
+    match state {
+        AlState::SafeOp => access::WRITE_SAFEOP,
+        AlState::Op => access::WRITE_OP,
+        _ => access::WRITE_PREOP,
+    }
+}
+
+impl MailboxServer {
+    /// Forgets transfers and queued replies (the mailbox stops when the drive goes to Init).
+    pub fn reset(&mut self) {
+        *self = MailboxServer::default();
+    }
+
+    /// The next reply for the mailbox-in buffer; it is kept for a repeat request.
+    pub fn next_reply(&mut self) -> Option<&[u8]> {
+        let reply = self.replies.pop_front()?;
+        self.last = Some(reply);
+        self.last.as_deref()
+    }
+
+    /// The reply last put in the mailbox-in buffer, for a repeat request.
+    pub fn last_reply(&self) -> Option<&[u8]> {
+        self.last.as_deref()
+    }
+
+    /// Queues an emergency message (CoE service 1) with the drive's own counter.
+    pub fn emergency(&mut self, emergency: &Emergency, mailbox_size: usize) {
+        self.counter = next_counter(self.counter);
+        let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + COE_HEADER_LEN + 8)];
+        let len = write_message(&mut out, self.counter, service::EMERGENCY, |b| emergency.encode(b));
+        out.truncate(len);
+        self.replies.push_back(out);
+    }
+
+    /// Handles one message the master wrote to the mailbox-out buffer; `mailbox_size` is the
+    /// length of the mailbox-in buffer the replies must fit.
+    pub fn handle(&mut self, message: &[u8], od: &mut ObjectDictionary, state: AlState, mailbox_size: usize) {
+        let mut out = vec![0u8; mailbox_size];
+        let counter = message.get(5).map_or(0, |b| (b >> 4) & 0x07);
+        let header = match MailboxHeader::decode(message) {
+            Ok(h) if h.length == 0 => return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size),
+            Ok(h) => h,
+            Err(_) => return self.error(counter, error_detail::INVALID_SIZE, mailbox_size),
+        };
+        if header.protocol() != Some(MailboxType::Coe) {
+            return self.error(counter, error_detail::UNSUPPORTED_PROTOCOL, mailbox_size);
+        }
+        let body = header.body(message);
+        let Ok(coe) = CoeHeader::decode(body) else {
+            return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+        };
+        let body = &body[COE_HEADER_LEN..];
+        match coe.service {
+            service::SDO_REQUEST => {
+                let len = match SdoRequest::decode(body) {
+                    Ok(request) => self.sdo(&request, od, state, &mut out, header.counter),
+                    Err(_) => {
+                        let (index, subindex) = match body {
+                            [_, lo, hi, sub, ..] => (u16::from_le_bytes([*lo, *hi]), *sub),
+                            _ => (0, 0),
+                        };
+                        let response = SdoResponse::Abort { index, subindex, code: abort::BAD_COMMAND };
+                        write_sdo_response(&mut out, header.counter, &response)
+                    }
+                };
+                out.truncate(len);
+                self.replies.push_back(out);
+            }
+            service::SDO_INFORMATION => self.information(body, od, header.counter, mailbox_size),
+            _ => self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
+        }
+    }
+
+    fn error(&mut self, counter: u8, detail: u16, mailbox_size: usize) {
+        let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + 4)];
+        let len = write_error_reply(&mut out, counter, detail);
+        out.truncate(len);
+        self.replies.push_back(out);
+    }
+
+    /// Answers one SDO request into `out`; returns the reply's length.
+    fn sdo(
+        &mut self,
+        request: &SdoRequest<'_>,
+        od: &mut ObjectDictionary,
+        state: AlState,
+        out: &mut [u8],
+        counter: u8,
+    ) -> usize {
+        let room = out.len() - HEADER_LEN - COE_HEADER_LEN;
+        let response = match *request {
+            SdoRequest::Upload { index, subindex, complete_access } => {
+                self.upload = None;
+                match od.read(index, subindex) {
+                    _ if complete_access => SdoResponse::Abort { index, subindex, code: abort::UNSUPPORTED_ACCESS },
+                    Err(code) => SdoResponse::Abort { index, subindex, code },
+                    Ok(data) if data.len() <= 4 => {
+                        return write_sdo_response(
+                            out,
+                            counter,
+                            &SdoResponse::UploadExpedited { index, subindex, data },
+                        );
+                    }
+                    Ok(data) => {
+                        let first = data.len().min(room - SDO_LEN);
+                        let data = data.to_vec();
+                        if first < data.len() {
+                            self.upload =
+                                Some(Upload { index, subindex, data: data.clone(), sent: first, toggle: false });
+                        }
+                        let response = SdoResponse::UploadNormal {
+                            index,
+                            subindex,
+                            complete_size: data.len() as u32,
+                            data: &data[..first],
+                        };
+                        return write_sdo_response(out, counter, &response);
+                    }
+                }
+            }
+            SdoRequest::UploadSegment { toggle } => match self.upload.as_mut() {
+                None => SdoResponse::Abort { index: 0, subindex: 0, code: abort::BAD_COMMAND },
+                Some(u) if u.toggle != toggle => {
+                    let (index, subindex) = (u.index, u.subindex);
+                    self.upload = None;
+                    SdoResponse::Abort { index, subindex, code: abort::TOGGLE_BIT }
+                }
+                Some(u) => {
+                    let n = (u.data.len() - u.sent).min(room - 1);
+                    let (from, last) = (u.sent, u.sent + n == u.data.len());
+                    u.sent += n;
+                    u.toggle = !u.toggle;
+                    let data = u.data[from..from + n].to_vec();
+                    if last {
+                        self.upload = None;
+                    }
+                    return write_sdo_response(out, counter, &SdoResponse::UploadSegment { toggle, last, data: &data });
+                }
+            },
+            SdoRequest::DownloadExpedited { index, subindex, complete_access, data }
+            | SdoRequest::DownloadNormal { index, subindex, complete_access, data, .. }
+                if complete_access =>
+            {
+                let _ = data;
+                SdoResponse::Abort { index, subindex, code: abort::UNSUPPORTED_ACCESS }
+            }
+            SdoRequest::DownloadExpedited { index, subindex, data, .. } => {
+                self.download = None;
+                match od.write(index, subindex, data, state_write_access(state)) {
+                    Ok(()) => SdoResponse::Download { index, subindex },
+                    Err(code) => SdoResponse::Abort { index, subindex, code },
+                }
+            }
+            SdoRequest::DownloadNormal { index, subindex, complete_size, data, .. } => {
+                let size = complete_size as usize;
+                self.download = None;
+                if data.len() >= size {
+                    match od.write(index, subindex, &data[..size], state_write_access(state)) {
+                        Ok(()) => SdoResponse::Download { index, subindex },
+                        Err(code) => SdoResponse::Abort { index, subindex, code },
+                    }
+                } else {
+                    self.download = Some(Download { index, subindex, size, data: data.to_vec(), toggle: false });
+                    SdoResponse::Download { index, subindex }
+                }
+            }
+            SdoRequest::DownloadSegment { toggle, last, data } => match self.download.as_mut() {
+                None => SdoResponse::Abort { index: 0, subindex: 0, code: abort::BAD_COMMAND },
+                Some(d) if d.toggle != toggle => {
+                    let (index, subindex) = (d.index, d.subindex);
+                    self.download = None;
+                    SdoResponse::Abort { index, subindex, code: abort::TOGGLE_BIT }
+                }
+                Some(d) => {
+                    d.data.extend_from_slice(data);
+                    d.toggle = !d.toggle;
+                    if !last {
+                        return write_sdo_response(out, counter, &SdoResponse::DownloadSegment { toggle });
+                    }
+                    let d = self.download.take().expect("matched above");
+                    let result = if d.data.len() == d.size {
+                        od.write(d.index, d.subindex, &d.data, state_write_access(state))
+                    } else {
+                        Err(abort::LENGTH_MISMATCH)
+                    };
+                    match result {
+                        Ok(()) => SdoResponse::DownloadSegment { toggle },
+                        Err(code) => SdoResponse::Abort { index: d.index, subindex: d.subindex, code },
+                    }
+                }
+            },
+            SdoRequest::Abort { .. } => {
+                // The master gave up a transfer: forget it, nothing is answered.
+                self.upload = None;
+                self.download = None;
+                return 0;
+            }
+        };
+        write_sdo_response(out, counter, &response)
+    }
+
+    /// SDO information: OD lists, object and entry descriptions, split into fragments when a
+    /// reply does not fit the mailbox.
+    fn information(&mut self, body: &[u8], od: &ObjectDictionary, counter: u8, mailbox_size: usize) {
+        let Ok(header) = SdoInfoHeader::decode(body) else {
+            return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+        };
+        let request = &body[SDO_INFO_HEADER_LEN..];
+        let word = |at: usize| request.get(at..at + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
+        let mut data = Vec::new();
+        let opcode = match header.opcode {
+            info_opcode::GET_OD_LIST_REQUEST => {
+                let Some(list) = word(0) else {
+                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                };
+                let lists = [
+                    od_list::ALL,
+                    od_list::RX_PDO_MAPPABLE,
+                    od_list::TX_PDO_MAPPABLE,
+                    od_list::BACKUP,
+                    od_list::STARTUP,
+                ];
+                data.extend_from_slice(&list.to_le_bytes());
+                if list == od_list::LENGTHS {
+                    for l in lists {
+                        data.extend_from_slice(&(object_list(od, l).count() as u16).to_le_bytes());
+                    }
+                } else if lists.contains(&list) {
+                    for index in object_list(od, list) {
+                        data.extend_from_slice(&index.to_le_bytes());
+                    }
+                } else {
+                    return self.info_error(counter, abort::VALUE_RANGE, mailbox_size);
+                }
+                info_opcode::GET_OD_LIST_RESPONSE
+            }
+            info_opcode::GET_OBJECT_DESCRIPTION_REQUEST => {
+                let Some(index) = word(0) else {
+                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                };
+                let Some(o) = od.object(index) else {
+                    return self.info_error(counter, abort::NO_SUCH_OBJECT, mailbox_size);
+                };
+                let d = ObjectDescription {
+                    index,
+                    data_type: o.data_type,
+                    max_subindex: o.max_subindex(),
+                    object_code: o.object_code,
+                    name: o.name,
+                };
+                data.resize(6 + o.name.len(), 0);
+                d.encode(&mut data);
+                info_opcode::GET_OBJECT_DESCRIPTION_RESPONSE
+            }
+            info_opcode::GET_ENTRY_DESCRIPTION_REQUEST => {
+                let (Some(index), Some(&subindex), Some(_value_info)) = (word(0), request.get(2), request.get(3))
+                else {
+                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                };
+                let Some(o) = od.object(index) else {
+                    return self.info_error(counter, abort::NO_SUCH_OBJECT, mailbox_size);
+                };
+                let Some(e) = o.entry(subindex) else {
+                    return self.info_error(counter, abort::NO_SUCH_SUBINDEX, mailbox_size);
+                };
+                // The AKD sends no unit, default, minimum or maximum, so no value information.
+                let d = EntryDescription {
+                    index,
+                    subindex,
+                    value_info: 0,
+                    data_type: e.data_type,
+                    bit_length: e.bits,
+                    access: e.access,
+                    name: e.name,
+                };
+                data.resize(10 + e.name.len(), 0);
+                d.encode(&mut data);
+                info_opcode::GET_ENTRY_DESCRIPTION_RESPONSE
+            }
+            _ => return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
+        };
+        let room = mailbox_size - HEADER_LEN - COE_HEADER_LEN - SDO_INFO_HEADER_LEN;
+        let fragments = data.len().div_ceil(room).max(1);
+        for (i, chunk) in data.chunks(room).chain(data.is_empty().then_some(&[][..])).enumerate() {
+            let left = (fragments - 1 - i) as u16;
+            let h = SdoInfoHeader { opcode, incomplete: left > 0, fragments_left: left };
+            let mut out = vec![0u8; mailbox_size];
+            let len = write_info_message(&mut out, counter, h, chunk);
+            out.truncate(len);
+            self.replies.push_back(out);
+        }
+    }
+
+    fn info_error(&mut self, counter: u8, code: u32, mailbox_size: usize) {
+        let mut out = vec![0u8; mailbox_size];
+        let h = SdoInfoHeader { opcode: info_opcode::ERROR, incomplete: false, fragments_left: 0 };
+        let len = write_info_message(&mut out, counter, h, &code.to_le_bytes());
+        out.truncate(len);
+        self.replies.push_back(out);
+    }
+}
+
+/// The indices of one OD list: all, Rx- or Tx-mappable; the AKD marks none for backup or
+/// start-up.
+fn object_list(od: &ObjectDictionary, list: u16) -> impl Iterator<Item = u16> + '_ {
+    let wanted = match list {
+        od_list::ALL => 0,
+        od_list::RX_PDO_MAPPABLE => access::RX_PDO,
+        od_list::TX_PDO_MAPPABLE => access::TX_PDO,
+        _ => u16::MAX,
+    };
+    od.objects()
+        .iter()
+        .filter(move |o| wanted == 0 || (wanted != u16::MAX && o.entries.iter().any(|e| e.access & wanted != 0)))
+        .map(|o| o.index)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coe::{split_message, write_sdo_request};
+
+    fn ask(server: &mut MailboxServer, od: &mut ObjectDictionary, request: &SdoRequest<'_>) -> Vec<u8> {
+        let mut buf = [0u8; 64];
+        let len = write_sdo_request(&mut buf, 3, request);
+        server.handle(&buf[..len], od, AlState::PreOp, 128);
+        server.next_reply().expect("a reply").to_vec()
+    }
+
+    #[test]
+    fn answers_as_the_real_drive() {
+        let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
+        // From the capture: upload 0x1C12:01 with counter 1 -> 4B 12 1C 01 00 16 00 00.
+        let request = [0x0A, 0, 0, 0, 0, 0x13, 0x00, 0x20, 0x40, 0x12, 0x1C, 0x01, 0, 0, 0, 0];
+        server.handle(&request, &mut od, AlState::PreOp, 1024);
+        let reply = server.next_reply().unwrap();
+        assert_eq!(reply, &[0x0A, 0, 0, 0, 0, 0x13, 0x00, 0x30, 0x4B, 0x12, 0x1C, 0x01, 0x00, 0x16, 0x00, 0x00]);
+    }
+
+    #[test]
+    fn segmented_upload_and_download() {
+        let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
+        // 0x100A is 12 bytes; a 24-byte mailbox carries 8 in the initiate reply, then segments.
+        let mut buf = [0u8; 32];
+        let len =
+            write_sdo_request(&mut buf, 1, &SdoRequest::Upload { index: 0x100A, subindex: 0, complete_access: false });
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 24);
+        let reply = server.next_reply().unwrap().to_vec();
+        let (_, _, body) = split_message(&reply).unwrap();
+        let SdoResponse::UploadNormal { complete_size: 12, data, .. } = SdoResponse::decode(body).unwrap() else {
+            panic!()
+        };
+        let mut value = data.to_vec();
+        let mut toggle = false;
+        loop {
+            let len = write_sdo_request(&mut buf, 2, &SdoRequest::UploadSegment { toggle });
+            server.handle(&buf[..len], &mut od, AlState::PreOp, 24);
+            let reply = server.next_reply().unwrap().to_vec();
+            let (_, _, body) = split_message(&reply).unwrap();
+            let SdoResponse::UploadSegment { last, data, .. } = SdoResponse::decode(body).unwrap() else { panic!() };
+            value.extend_from_slice(data);
+            toggle = !toggle;
+            if last {
+                break;
+            }
+        }
+        assert_eq!(value, b"01-20-00-003");
+        // A 4-byte value downloaded in a normal transfer with one segment.
+        let reply = ask(
+            &mut server,
+            &mut od,
+            &SdoRequest::DownloadNormal {
+                index: 0x607A,
+                subindex: 0,
+                complete_access: false,
+                complete_size: 4,
+                data: &[1],
+            },
+        );
+        assert_eq!(SdoResponse::decode(&reply[8..]).unwrap(), SdoResponse::Download { index: 0x607A, subindex: 0 });
+        let reply =
+            ask(&mut server, &mut od, &SdoRequest::DownloadSegment { toggle: false, last: true, data: &[2, 3, 4] });
+        assert_eq!(SdoResponse::decode(&reply[8..]).unwrap(), SdoResponse::DownloadSegment { toggle: false });
+        assert_eq!(od.get(0x607A, 0).unwrap(), &[1, 2, 3, 4]);
+    }
+
+    #[test]
+    fn aborts_by_the_rules() {
+        let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
+        let cases: [(SdoRequest<'_>, u32); 4] = [
+            (SdoRequest::Upload { index: 0x1234, subindex: 0, complete_access: false }, abort::NO_SUCH_OBJECT),
+            (SdoRequest::Upload { index: 0x1C12, subindex: 0, complete_access: true }, abort::UNSUPPORTED_ACCESS),
+            (
+                SdoRequest::DownloadExpedited { index: 0x6041, subindex: 0, complete_access: false, data: &[0, 0] },
+                abort::READ_ONLY,
+            ),
+            (SdoRequest::UploadSegment { toggle: false }, abort::BAD_COMMAND),
+        ];
+        for (request, code) in cases {
+            let reply = ask(&mut server, &mut od, &request);
+            let SdoResponse::Abort { code: got, .. } = SdoResponse::decode(&reply[8..]).unwrap() else { panic!() };
+            assert_eq!(got, code, "{request:?}");
+        }
+    }
+
+    #[test]
+    fn other_protocols_get_a_mailbox_error() {
+        let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
+        server.handle(&[0x04, 0, 0, 0, 0, 0x22, 1, 2, 3, 4], &mut od, AlState::PreOp, 64);
+        let reply = server.next_reply().unwrap();
+        assert_eq!(reply, &[0x04, 0, 0, 0, 0, 0x20, 0x01, 0x00, 0x02, 0x00]);
+    }
+
+    #[test]
+    fn od_list_is_fragmented_to_fit_the_mailbox() {
+        let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
+        let request = [0x08, 0, 0, 0, 0, 0x13, 0x00, 0x80, 0x01, 0x00, 0x00, 0x00, 0x01, 0x00];
+        server.handle(&request, &mut od, AlState::PreOp, 32);
+        let mut indices = Vec::new();
+        while let Some(reply) = server.next_reply() {
+            let (_, coe, body) = split_message(reply).unwrap();
+            assert_eq!(coe.service, service::SDO_INFORMATION);
+            let h = SdoInfoHeader::decode(body).unwrap();
+            indices.extend_from_slice(&body[SDO_INFO_HEADER_LEN..]);
+            if !h.incomplete {
+                break;
+            }
+        }
+        let listed: Vec<u16> = indices[2..].chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
+        assert_eq!(listed, od.objects().iter().map(|o| o.index).collect::<Vec<_>>());
+    }
+}

@@ -1,0 +1,528 @@
+//! The EtherCAT slave controller (ESC) of the virtual AKD: its register and RAM space and the
+//! datagram service as the hardware does it, without the drive's firmware (the PDI side, in
+//! [`super::VirtualAkd`]).
+//!
+//! The register values at power-up are the real drive's, read in the SOEM capture: type 0x04
+//! revision 0x02 (an ESC20-class controller with 4 KiB of RAM at 0x1000–0x1FFF), port
+//! descriptor 0x0F, features 0x0184, DL status 0x5613, PDI control 0x080C, SII control 0x0020
+//! (EEPROM emulated by the PDI, 4-byte reads). What the hardware does by itself is here: the
+//! SII interface reading the EEPROM image, DC receive-time latching and the system time, the
+//! sync managers' buffer protection, FMMU mapping of logical datagrams, and the AL control
+//! register behaving like a mailbox (a second write before the firmware read the first is
+//! refused, as the real drive refuses SOEM's quick second write of 0x0120).
+
+use crate::frame::{Addressing, Command, DatagramMut};
+use crate::registers::{self as reg, fmmu_reg, sii_reg};
+use crate::sim::sync_manager::{self, SyncManager, ACTIVATE_REPEAT, CONTROL_WATCHDOG, SM_COUNT};
+
+/// Number of FMMUs of the AKD's ESC.
+pub const FMMU_COUNT: u8 = 4;
+/// First byte of process RAM.
+pub const RAM_START: usize = 0x1000;
+/// One past the last byte of process RAM (4 KiB).
+pub const RAM_END: usize = 0x2000;
+/// Size of the address space a datagram can reach (ADO up to 0xFFFF plus its length).
+const SPACE: usize = 0x10000 + crate::frame::MAX_DATAGRAM_DATA;
+/// DL status of the last drive of a line: port 0 link and communication, port 1 loop closed.
+const DL_STATUS_LAST: u16 = 0x5613;
+/// DL status of a drive with a successor: port 1 also has link and communication, loop open.
+const DL_STATUS_FORWARDING: u16 = 0x5A33;
+
+/// What the firmware has to react to after a datagram: the ESC raises these as events.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Events {
+    /// AL control was written with this value.
+    pub al_control: Option<u16>,
+    /// The master completed a write of the mailbox-out buffer (SM0).
+    pub mailbox_written: bool,
+    /// The master completed a read of the mailbox-in buffer (SM1).
+    pub mailbox_read: bool,
+    /// The master toggled SM1's repeat request.
+    pub repeat_request: bool,
+    /// The master completed a write of the output buffer (SM2).
+    pub outputs_written: bool,
+    /// That write restarts the process-data watchdog (SM2 control bit 6).
+    pub watchdog_trigger: bool,
+}
+
+/// When a frame passes this ESC, in the ESC's local clock (ns).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Arrival {
+    /// The frame reaches port 0.
+    pub port0_ns: u64,
+    /// The frame comes back at port 1 from the following drives (none for the last drive).
+    pub port1_ns: Option<u64>,
+}
+
+/// The register and RAM space of one ESC.
+pub struct Esc {
+    memory: Box<[u8]>,
+    sii: Vec<u8>,
+    al_control_locked: bool,
+    events: Events,
+}
+
+/// Whether the master may write the byte at `addr` (ETG.1000.4 register access types, as
+/// implemented by Beckhoff ESCs; most identification and status registers are read-only).
+fn master_writable(addr: usize) -> bool {
+    match addr {
+        0x0010..=0x0011 | 0x0100..=0x0103 | 0x0108..=0x0109 | 0x0120..=0x0121 | 0x0200..=0x0201 => true,
+        0x0400..=0x0401 | 0x0410..=0x0411 | 0x0420..=0x0421 | 0x0500 | 0x0502..=0x050F => true,
+        0x0600..=0x06FF | 0x0920..=0x092B | 0x0930..=0x0935 | 0x0980..=0x0981 => true,
+        0x0990..=0x0997 | 0x09A0..=0x09A7 | RAM_START..=0x1FFF => true,
+        0x0800..=0x081F => !matches!((addr - 0x0800) % 8, 5 | 7),
+        _ => false,
+    }
+}
+
+fn touches(at: usize, len: usize, register: u16, register_len: usize) -> bool {
+    let r = register as usize;
+    at < r + register_len && r < at + len
+}
+
+impl Esc {
+    /// An ESC at power-up serving the EEPROM `sii`; `has_successor` tells whether another
+    /// drive follows on port 1 (it sets the DL status).
+    pub fn new(sii: Vec<u8>, has_successor: bool) -> Self {
+        let mut memory = vec![0u8; SPACE].into_boxed_slice();
+        memory[0x0000] = 0x04;
+        memory[0x0001] = 0x02;
+        memory[0x0004] = FMMU_COUNT;
+        memory[0x0005] = SM_COUNT;
+        memory[0x0006] = ((RAM_END - RAM_START) / 1024) as u8;
+        memory[0x0007] = 0x0F;
+        memory[0x0008..0x000A].copy_from_slice(&0x0184u16.to_le_bytes());
+        let alias = sii.get(8..10).map_or(0, |w| u16::from_le_bytes([w[0], w[1]]));
+        memory[0x0012..0x0014].copy_from_slice(&alias.to_le_bytes());
+        let dl_status = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
+        memory[0x0110..0x0112].copy_from_slice(&dl_status.to_le_bytes());
+        memory[0x0130] = 0x01;
+        memory[0x0140..0x0142].copy_from_slice(&0x080Cu16.to_le_bytes());
+        memory[0x0400..0x0402].copy_from_slice(&0x09C2u16.to_le_bytes());
+        memory[0x0420..0x0422].copy_from_slice(&1000u16.to_le_bytes());
+        memory[0x0502..0x0504].copy_from_slice(&sii_reg::EMULATION.to_le_bytes());
+        Esc { memory, sii, al_control_locked: false, events: Events::default() }
+    }
+
+    /// The whole space, as the firmware (PDI) sees it.
+    pub fn memory(&self) -> &[u8] {
+        &self.memory
+    }
+
+    /// The whole space for the firmware (PDI) to write, e.g. AL status or the mailbox-in buffer.
+    pub fn memory_mut(&mut self) -> &mut [u8] {
+        &mut self.memory
+    }
+
+    /// A little-endian 16-bit register.
+    pub fn u16_at(&self, addr: u16) -> u16 {
+        let a = addr as usize;
+        u16::from_le_bytes([self.memory[a], self.memory[a + 1]])
+    }
+
+    /// The events raised since the last call.
+    pub fn take_events(&mut self) -> Events {
+        std::mem::take(&mut self.events)
+    }
+
+    /// The firmware has read AL control: the master may write it again.
+    pub fn release_al_control(&mut self) {
+        self.al_control_locked = false;
+    }
+
+    /// Serves one datagram as it passes this ESC: addressing, memory access, ADP increment
+    /// and working counter.
+    pub fn serve(&mut self, dg: &mut DatagramMut<'_>, arrival: Arrival) {
+        let h = dg.header;
+        let command = h.command;
+        let (did_read, did_write) = match command.addressing() {
+            Addressing::AutoIncrement => {
+                dg.header.adp = h.adp.wrapping_add(1);
+                self.physical(dg, h.adp == 0, arrival)
+            }
+            Addressing::Configured => {
+                let alias_enabled = self.memory[0x0103] & 0x01 != 0;
+                let addressed = h.adp == self.u16_at(reg::STATION_ADDRESS)
+                    || (alias_enabled && h.adp == self.u16_at(reg::STATION_ALIAS));
+                self.physical(dg, addressed, arrival)
+            }
+            Addressing::Broadcast => {
+                dg.header.adp = h.adp.wrapping_add(1);
+                self.physical(dg, true, arrival)
+            }
+            Addressing::Logical => self.logical(dg),
+            Addressing::None => (false, false),
+        };
+        dg.wkc = dg.wkc.wrapping_add(command.wkc_increment(did_read, did_write));
+    }
+
+    /// A physical access at ADO. ARMW/FRMW read at the addressed drive and write at all others.
+    fn physical(&mut self, dg: &mut DatagramMut<'_>, addressed: bool, arrival: Arrival) -> (bool, bool) {
+        let command = dg.header.command;
+        let (read, write) = match command {
+            Command::Armw | Command::Frmw => (addressed, !addressed),
+            _ if addressed => (command.reads(), command.writes()),
+            _ => return (false, false),
+        };
+        let at = dg.header.ado as usize;
+        let len = dg.data.len();
+        let (read, write) = self.gate(at, len, read, write);
+        let write = write && !(self.al_control_locked && touches(at, len, reg::AL_CONTROL, 2));
+        if read {
+            self.refresh_system_time(at, len, arrival);
+        }
+        let repeat_before = old_repeat_bits(self, at, len);
+        for (i, byte) in dg.data.iter_mut().enumerate() {
+            let addr = at + i;
+            let old = self.memory[addr];
+            if write && master_writable(addr) {
+                self.memory[addr] = *byte;
+            }
+            if read {
+                *byte = old;
+            }
+        }
+        if write {
+            self.after_register_write(at, dg, arrival, repeat_before);
+            self.after_ram_access(at, len, false);
+        }
+        if read {
+            self.after_ram_access(at, len, true);
+        }
+        (read, write)
+    }
+
+    /// Whether a read and a write of `[at, at + len)` pass the sync managers: a full mailbox
+    /// refuses writes from the master, an empty one refuses reads, and a buffer the firmware
+    /// deactivated refuses both. Memory no enabled sync manager covers is free.
+    fn gate(&self, at: usize, len: usize, read: bool, write: bool) -> (bool, bool) {
+        let (mut read, mut write) = (read, write);
+        for n in 0..SM_COUNT {
+            let sm = SyncManager::read(&self.memory, n);
+            if sm.activate & sync_manager::ACTIVATE_ENABLE == 0 || sm.length == 0 || !sm.overlaps(at, len) {
+                continue;
+            }
+            if !sm.active() {
+                return (false, false);
+            }
+            if sm.is_mailbox() {
+                if sm.master_writes() {
+                    write &= !sm.full();
+                    read = false;
+                } else {
+                    read &= sm.full();
+                    write = false;
+                }
+            }
+        }
+        (read, write)
+    }
+
+    /// Completes transfers: the last byte of a buffer written or read by the master.
+    fn after_ram_access(&mut self, at: usize, len: usize, was_read: bool) {
+        for n in 0..SM_COUNT {
+            let sm = SyncManager::read(&self.memory, n);
+            if !sm.active() || !sm.covers_last_byte(at, len) || sm.master_writes() == was_read {
+                continue;
+            }
+            match (sm.is_mailbox(), was_read) {
+                (true, false) => {
+                    sync_manager::mark_written(&mut self.memory, n);
+                    self.events.mailbox_written = true;
+                }
+                (true, true) => {
+                    sync_manager::mark_read(&mut self.memory, n);
+                    self.events.mailbox_read = true;
+                }
+                (false, false) => {
+                    self.events.outputs_written = true;
+                    self.events.watchdog_trigger |= sm.control & CONTROL_WATCHDOG != 0;
+                }
+                (false, true) => {}
+            }
+        }
+    }
+
+    /// What the hardware does when particular registers are written.
+    fn after_register_write(&mut self, at: usize, dg: &DatagramMut<'_>, arrival: Arrival, repeat_bits_before: u8) {
+        let len = dg.data.len();
+        let value_at = |addr: u16| dg.data.get(addr as usize - at).copied();
+        if touches(at, len, reg::AL_CONTROL, 2) {
+            self.al_control_locked = true;
+            self.events.al_control = Some(self.u16_at(reg::AL_CONTROL));
+        }
+        if touches(at, len, reg::RX_ERROR_COUNTERS, 0x14) {
+            self.memory[0x0300..0x0314].fill(0);
+        }
+        if touches(at, len, reg::SII_CONTROL, 2) {
+            self.sii_command();
+        }
+        if old_repeat_bits(self, at, len) != repeat_bits_before {
+            self.events.repeat_request = true;
+        }
+        if touches(at, len, reg::DC_RECEIVE_TIME_PORT0, 4) {
+            self.latch_receive_times(arrival);
+        }
+        if touches(at, len, reg::DC_SYSTEM_TIME, 8) {
+            let mut received = [0u8; 8];
+            let mut written = 0;
+            for (i, b) in received.iter_mut().enumerate() {
+                if let Some(v) = value_at(reg::DC_SYSTEM_TIME + i as u16) {
+                    *b = v;
+                    written = i + 1;
+                }
+            }
+            self.compare_system_time(&received[..written], arrival);
+        }
+    }
+
+    /// Executes the command written to SII control: a read copies 4 bytes of the EEPROM at the
+    /// word address into SII data at once (the drive emulates the EEPROM, never busy); other
+    /// commands are refused with the error bit, as an emulated EEPROM cannot be written here.
+    fn sii_command(&mut self) {
+        let control = self.u16_at(reg::SII_CONTROL);
+        let mut status = sii_reg::EMULATION | (control & sii_reg::WRITE_ENABLE);
+        if control & sii_reg::CMD_READ != 0 {
+            let a = reg::SII_ADDRESS as usize;
+            let word = u32::from_le_bytes([self.memory[a], self.memory[a + 1], self.memory[a + 2], self.memory[a + 3]]);
+            for i in 0..4 {
+                let byte = (word as usize).checked_mul(2).and_then(|b| self.sii.get(b + i)).copied().unwrap_or(0xFF);
+                self.memory[reg::SII_DATA as usize + i] = byte;
+            }
+        } else if control & (sii_reg::CMD_WRITE | sii_reg::CMD_RELOAD) != 0 {
+            status |= sii_reg::ERROR_ACK;
+        }
+        self.memory[reg::SII_CONTROL as usize..reg::SII_CONTROL as usize + 2].copy_from_slice(&status.to_le_bytes());
+    }
+
+    fn system_time_offset(&self) -> u64 {
+        let a = reg::DC_SYSTEM_TIME_OFFSET as usize;
+        u64::from_le_bytes(self.memory[a..a + 8].try_into().expect("8 bytes"))
+    }
+
+    fn system_time(&self, local_ns: u64) -> u64 {
+        local_ns.wrapping_add(self.system_time_offset())
+    }
+
+    fn refresh_system_time(&mut self, at: usize, len: usize, arrival: Arrival) {
+        if touches(at, len, reg::DC_SYSTEM_TIME, 8) {
+            let t = self.system_time(arrival.port0_ns);
+            let a = reg::DC_SYSTEM_TIME as usize;
+            self.memory[a..a + 8].copy_from_slice(&t.to_le_bytes());
+        }
+    }
+
+    /// A write to receive time port 0 latches when the frame passed each port, and the local
+    /// time of the processing unit (0x0918).
+    fn latch_receive_times(&mut self, arrival: Arrival) {
+        let a = reg::DC_RECEIVE_TIME_PORT0 as usize;
+        self.memory[a..a + 4].copy_from_slice(&(arrival.port0_ns as u32).to_le_bytes());
+        let port1 = arrival.port1_ns.map_or(0, |t| t as u32);
+        self.memory[a + 4..a + 8].copy_from_slice(&port1.to_le_bytes());
+        self.memory[a + 8..a + 16].fill(0);
+        let e = reg::DC_RECEIVE_TIME_ECAT as usize;
+        self.memory[e..e + 8].copy_from_slice(&arrival.port0_ns.to_le_bytes());
+    }
+
+    /// A write to the system time feeds the drift control: the difference between the time
+    /// received and the local copy goes to 0x092C (bit 31 set when the local copy is ahead),
+    /// and the local copy is pulled towards it.
+    fn compare_system_time(&mut self, received: &[u8], arrival: Arrival) {
+        let local = self.system_time(arrival.port0_ns);
+        let mut bytes = local.to_le_bytes();
+        bytes[..received.len()].copy_from_slice(received);
+        let received = u64::from_le_bytes(bytes);
+        let difference = received.wrapping_sub(local) as i64;
+        let magnitude = difference.unsigned_abs().min(0x7FFF_FFFF) as u32;
+        let value = if difference <= 0 { magnitude | 0x8000_0000 } else { magnitude };
+        let d = reg::DC_SYSTEM_TIME_DIFFERENCE as usize;
+        self.memory[d..d + 4].copy_from_slice(&value.to_le_bytes());
+        let offset = self.system_time_offset().wrapping_add(difference as u64);
+        let o = reg::DC_SYSTEM_TIME_OFFSET as usize;
+        self.memory[o..o + 8].copy_from_slice(&offset.to_le_bytes());
+    }
+
+    /// A logical access through the FMMUs: outputs are taken from the datagram as it arrived,
+    /// then inputs are put into it. Start and end bits mask the first and last byte.
+    fn logical(&mut self, dg: &mut DatagramMut<'_>) -> (bool, bool) {
+        let command = dg.header.command;
+        let start = dg.header.logical_address() as u64;
+        let end = start + dg.data.len() as u64;
+        let (mut did_read, mut did_write) = (false, false);
+        for pass_reads in [false, true] {
+            for n in 0..FMMU_COUNT {
+                let f = reg::fmmu(n) as usize;
+                let r = &self.memory[f..f + 16];
+                let kind = r[fmmu_reg::TYPE];
+                let wanted = if pass_reads { fmmu_reg::TYPE_READ } else { fmmu_reg::TYPE_WRITE };
+                let allowed = if pass_reads { command.reads() } else { command.writes() };
+                if r[fmmu_reg::ACTIVATE] & 0x01 == 0 || kind & wanted == 0 || !allowed {
+                    continue;
+                }
+                let l_start = u32::from_le_bytes([r[0], r[1], r[2], r[3]]) as u64;
+                let f_len = u16::from_le_bytes([r[4], r[5]]) as u64;
+                let (start_bit, end_bit) = (r[fmmu_reg::LOGICAL_START_BIT] & 7, r[fmmu_reg::LOGICAL_END_BIT] & 7);
+                let p_start = u16::from_le_bytes([r[8], r[9]]) as usize;
+                let (from, to) = (start.max(l_start), end.min(l_start + f_len));
+                if f_len == 0 || from >= to {
+                    continue;
+                }
+                let p_from = p_start + (from - l_start) as usize;
+                let count = (to - from) as usize;
+                let (read_ok, write_ok) = self.gate(p_from, count, pass_reads, !pass_reads);
+                if !(read_ok || write_ok) {
+                    continue;
+                }
+                for i in 0..count {
+                    let logical = from + i as u64;
+                    let mut mask = 0xFFu8;
+                    if logical == l_start {
+                        mask &= 0xFFu8 << start_bit;
+                    }
+                    if logical == l_start + f_len - 1 {
+                        mask &= 0xFFu8 >> (7 - end_bit);
+                    }
+                    let d = (logical - start) as usize;
+                    let p = p_from + i;
+                    if pass_reads {
+                        dg.data[d] = (dg.data[d] & !mask) | (self.memory[p] & mask);
+                    } else if (RAM_START..RAM_END).contains(&p) {
+                        self.memory[p] = (self.memory[p] & !mask) | (dg.data[d] & mask);
+                    }
+                }
+                self.after_ram_access(p_from, count, pass_reads);
+                if pass_reads {
+                    did_read = true;
+                } else {
+                    did_write = true;
+                }
+            }
+        }
+        (did_read, did_write)
+    }
+}
+
+/// The repeat-request bits of the mailbox sync managers a write at `[at, at + len)` touches,
+/// to tell when the master toggles one.
+fn old_repeat_bits(esc: &Esc, at: usize, len: usize) -> u8 {
+    (0..SM_COUNT)
+        .filter(|&n| touches(at, len, reg::sm(n) + 6, 1))
+        .fold(0, |bits, n| bits | ((esc.memory[reg::sm(n) as usize + 6] & ACTIVATE_REPEAT) << n))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{for_each_datagram_mut, FrameBuilder};
+
+    const NOW: Arrival = Arrival { port0_ns: 1_000, port1_ns: None };
+
+    fn run(esc: &mut Esc, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+        let mut buf = [0u8; 1600];
+        let mut b = FrameBuilder::new(&mut buf);
+        let slot = b.push(command, 0, adp, ado, data).unwrap();
+        let len = b.finish();
+        for_each_datagram_mut(&mut buf[..len], |dg| esc.serve(dg, NOW)).unwrap();
+        (slot.data(&buf[..len]).unwrap().to_vec(), slot.wkc(&buf[..len]).unwrap())
+    }
+
+    fn esc() -> Esc {
+        Esc::new(crate::sim::sii_image::akd_sii(), false)
+    }
+
+    #[test]
+    fn power_up_registers_are_the_real_drives() {
+        let mut e = esc();
+        assert_eq!(run(&mut e, Command::Brd, 0, 0x0000, &[0, 0]), (vec![0x04, 0x02], 1));
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0007, &[0, 0]).0, vec![0x0F, 0x84]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0140, &[0, 0]).0, vec![0x0C, 0x08]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0130, &[0; 6]).0, vec![1, 0, 0, 0, 0, 0]);
+        // Read-only registers stay as they are; the write still counts, as on a real ESC.
+        assert_eq!(run(&mut e, Command::Apwr, 0, 0x0000, &[9, 9]).1, 1);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0000, &[0, 0]).0, vec![0x04, 0x02]);
+    }
+
+    #[test]
+    fn addressing_and_working_counters() {
+        let mut e = esc();
+        assert_eq!(run(&mut e, Command::Aprd, 1, 0x0000, &[0]).1, 0);
+        assert_eq!(run(&mut e, Command::Apwr, 0, 0x0010, &[0x01, 0x10]).1, 1);
+        assert_eq!(run(&mut e, Command::Fprd, 0x1001, 0x0010, &[0, 0]), (vec![0x01, 0x10], 1));
+        assert_eq!(run(&mut e, Command::Fprd, 0x1002, 0x0010, &[0, 0]).1, 0);
+        assert_eq!(run(&mut e, Command::Fprw, 0x1001, 0x0010, &[0x02, 0x10]), (vec![0x01, 0x10], 3));
+        assert_eq!(run(&mut e, Command::Fprd, 0x1002, 0x0010, &[0, 0]).1, 1);
+        // FRMW: the addressed drive reads, the others would write.
+        assert_eq!(run(&mut e, Command::Frmw, 0x1002, 0x0010, &[0, 0]).1, 1);
+    }
+
+    #[test]
+    fn sii_reads_four_bytes_at_the_word_address() {
+        let mut e = esc();
+        let image = crate::sim::sii_image::akd_sii();
+        run(&mut e, Command::Apwr, 0, 0x0502, &[0x00, 0x01, 0x08, 0x00, 0x00, 0x00]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0502, &[0, 0]).0, vec![0x20, 0x00]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0508, &[0; 4]).0, image[16..20].to_vec());
+        run(&mut e, Command::Apwr, 0, 0x0502, &[0x00, 0x02, 0x08, 0x00, 0x00, 0x00]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0502, &[0, 0]).0, vec![0x20, 0x20]);
+    }
+
+    #[test]
+    fn al_control_is_refused_until_the_firmware_read_it() {
+        let mut e = esc();
+        assert_eq!(run(&mut e, Command::Bwr, 0, 0x0120, &[0x11]).1, 1);
+        assert_eq!(e.take_events().al_control, Some(0x11));
+        assert_eq!(run(&mut e, Command::Bwr, 0, 0x0120, &[0x11]).1, 0);
+        e.release_al_control();
+        assert_eq!(run(&mut e, Command::Bwr, 0, 0x0120, &[0x12]).1, 1);
+    }
+
+    #[test]
+    fn mailbox_buffers_are_guarded() {
+        let mut e = esc();
+        run(&mut e, Command::Apwr, 0, 0x0800, &[0x00, 0x18, 0x00, 0x04, 0x26, 0x00, 0x01, 0x00]);
+        run(&mut e, Command::Apwr, 0, 0x0808, &[0x00, 0x1C, 0x00, 0x04, 0x22, 0x00, 0x01, 0x00]);
+        e.take_events();
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x1C00, &[0; 0x400]).1, 0, "empty mailbox-in");
+        assert_eq!(run(&mut e, Command::Apwr, 0, 0x1800, &[1; 0x400]).1, 1);
+        assert!(e.take_events().mailbox_written);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0805, &[0]).0, vec![0x09]);
+        assert_eq!(run(&mut e, Command::Apwr, 0, 0x1800, &[2; 0x400]).1, 0, "full mailbox-out");
+        sync_manager::mark_written(e.memory_mut(), 1);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x1C00, &[0; 0x400]).1, 1);
+        assert!(e.take_events().mailbox_read);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x080D, &[0]).0, vec![0x02]);
+    }
+
+    #[test]
+    fn fmmus_map_logical_to_physical_with_bit_masks() {
+        let mut e = esc();
+        // FMMU 0: logical 0x10000 (2 bytes) -> 0x1100, write; FMMU 1: 0x10002 (2) <- 0x1140, read.
+        run(&mut e, Command::Apwr, 0, 0x0600, &[0, 0, 1, 0, 2, 0, 0, 7, 0x00, 0x11, 0, 2, 1, 0, 0, 0]);
+        run(&mut e, Command::Apwr, 0, 0x0610, &[2, 0, 1, 0, 2, 0, 0, 3, 0x40, 0x11, 0, 1, 1, 0, 0, 0]);
+        e.memory_mut()[0x1140..0x1142].copy_from_slice(&[0xFF, 0xFF]);
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf);
+        let slot = b.push(Command::Lrw, 0, 0x0000, 0x0001, &[0xAA, 0xBB, 0, 0]).unwrap();
+        let len = b.finish();
+        for_each_datagram_mut(&mut buf[..len], |dg| e.serve(dg, NOW)).unwrap();
+        assert_eq!(slot.wkc(&buf[..len]).unwrap(), 3);
+        // The read FMMU ends at bit 3 of its last byte.
+        assert_eq!(slot.data(&buf[..len]).unwrap(), &[0xAA, 0xBB, 0xFF, 0x0F]);
+        assert_eq!(&e.memory()[0x1100..0x1102], &[0xAA, 0xBB]);
+        assert!(e.take_events().outputs_written == false, "no sync manager covers 0x1100 yet");
+    }
+
+    #[test]
+    fn dc_latches_and_system_time() {
+        let mut e = esc();
+        run(&mut e, Command::Bwr, 0, 0x0900, &[0; 4]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0900, &[0; 4]).0, 1_000u32.to_le_bytes().to_vec());
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0918, &[0; 8]).0, 1_000u64.to_le_bytes().to_vec());
+        run(&mut e, Command::Apwr, 0, 0x0920, &5_000u64.to_le_bytes());
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0910, &[0; 8]).0, 6_000u64.to_le_bytes().to_vec());
+        // FRMW from another drive writes 6_100: 100 ns ahead of the local copy.
+        run(&mut e, Command::Frmw, 0x7777, 0x0910, &6_100u64.to_le_bytes());
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x092C, &[0; 4]).0, 100u32.to_le_bytes().to_vec());
+    }
+}
