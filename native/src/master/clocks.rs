@@ -8,7 +8,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::dc::{self, PortReceiveTimes};
 use crate::error::{Error, Result};
-use crate::frame::{self, Command};
+use crate::frame::Command;
 use crate::master::Master;
 use crate::registers;
 
@@ -86,7 +86,8 @@ impl Master {
         }
         self.clock = Some(Clock {
             reference_station,
-            expected_wkc: frame::expected_wkc(Command::Frmw, 1, dc_slaves.len() as u16 - 1),
+            // FRMW: 1 for the reference clock that reads, 1 for every other clock that writes.
+            expected_wkc: dc_slaves.len() as u16,
             cycle_ns,
             system_time: u64::from_le_bytes(now),
         });
@@ -96,15 +97,5 @@ impl Master {
     /// The distributed-clock set-up, if any.
     pub fn clock(&self) -> Option<&Clock> {
         self.clock.as_ref()
-    }
-
-    /// The offset (0x0920) and delay (0x0928) a slave's clock was given.
-    pub fn dc_offset_and_delay(&mut self, position: u16) -> Result<(u64, u32)> {
-        let station = self.station(position)?;
-        let mut offset = [0u8; 8];
-        self.read_registers(station, registers::DC_SYSTEM_TIME_OFFSET, &mut offset)?;
-        let mut delay = [0u8; 4];
-        self.read_registers(station, registers::DC_SYSTEM_TIME_DELAY, &mut delay)?;
-        Ok((u64::from_le_bytes(offset), u32::from_le_bytes(delay)))
     }
 }

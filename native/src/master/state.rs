@@ -10,11 +10,14 @@ use std::time::{Duration, Instant};
 
 use crate::al::{self, AlState, AL_ERROR_ACK, AL_ERROR_FLAG};
 use crate::error::{Error, Result};
+use crate::frame::Command;
 use crate::master::Master;
 use crate::registers::{AL_CONTROL, AL_STATUS};
 
 /// Pause between polls of AL status, short against a drive that polls its AL control itself.
 const POLL_INTERVAL: Duration = Duration::from_micros(200);
+/// How long the drive may take to accept an error acknowledge.
+const ACK_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// What AL status (0x0130) and AL status code (0x0134) say about one slave.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -85,31 +88,28 @@ impl Master {
     pub fn request_state(&mut self, target: AlState, position: Option<u16>, timeout: Duration) -> Result<()> {
         let positions = self.positions(position)?;
         loop {
-            let mut lowest = None::<AlState>;
+            let mut states = Vec::with_capacity(positions.len());
             for &p in &positions {
                 let station = self.station(p)?;
                 let status = self.read_al_status(station)?;
                 if status.error() {
-                    self.acknowledge(station, status)?;
+                    self.acknowledge(p, station, status)?;
                 }
-                let state = status.state().unwrap_or(AlState::Init);
-                if lowest.is_none_or(|l| rank(state) < rank(l)) {
-                    lowest = Some(state);
-                }
+                states.push((p, station, status.state().unwrap_or(AlState::Init)));
             }
-            let Some(lowest) = lowest else { return Ok(()) };
+            let Some(lowest) = states.iter().map(|s| s.2).min_by_key(|&s| rank(s)) else { return Ok(()) };
             // Down, Bootstrap, or the last step up: ask for the target itself.
-            let step = if rank(target) <= rank(lowest) || target == AlState::Bootstrap { target } else { next_up(lowest) };
-            self.prepare(step, &positions)?;
-            for &p in &positions {
-                let station = self.station(p)?;
-                let status = self.read_al_status(station)?;
-                if status.state() != Some(step) {
-                    self.write_u16(station, AL_CONTROL, step as u16)?;
+            let step =
+                if rank(target) <= rank(lowest) || target == AlState::Bootstrap { target } else { next_up(lowest) };
+            let climbing: Vec<u16> =
+                states.iter().filter(|s| s.2 != step && rank(s.2) < rank(step)).map(|s| s.0).collect();
+            self.prepare(step, &climbing)?;
+            for &(p, station, state) in &states {
+                if state != step {
+                    self.write_al_control(p, station, step as u16, timeout)?;
                 }
             }
-            for &p in &positions {
-                let station = self.station(p)?;
+            for &(p, station, _) in &states {
                 self.wait_state(p, station, step, timeout)?;
             }
             if step == target {
@@ -127,10 +127,40 @@ impl Master {
         }
     }
 
-    /// Acknowledges an AL error: AL control = current state with the acknowledge bit.
-    fn acknowledge(&mut self, station: u16, status: AlStatus) -> Result<()> {
+    /// Acknowledges an AL error (AL control = current state with the acknowledge bit) and
+    /// waits until the drive has cleared the error flag.
+    fn acknowledge(&mut self, position: u16, station: u16, status: AlStatus) -> Result<()> {
         let state = status.status & al::AL_STATE_MASK;
-        self.write_u16(station, AL_CONTROL, state | AL_ERROR_ACK)
+        self.write_al_control(position, station, state | AL_ERROR_ACK, ACK_TIMEOUT)?;
+        let deadline = Instant::now() + ACK_TIMEOUT;
+        while self.read_al_status(station)?.error() {
+            if Instant::now() >= deadline {
+                return Err(Error::Timeout { what: format!("slave {position} to clear its AL error flag") });
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
+        Ok(())
+    }
+
+    /// Writes AL control. Without device emulation (0x0140 bit 8, off on the AKD) AL control
+    /// works like a mailbox: the ESC refuses a new write (WKC 0) until the drive's firmware has
+    /// read the last one, so a refused write is repeated until `timeout`.
+    fn write_al_control(&mut self, position: u16, station: u16, value: u16, timeout: Duration) -> Result<()> {
+        let deadline = Instant::now() + timeout;
+        loop {
+            let wkc = self.datagram_retry(Command::Fpwr, station, AL_CONTROL, &mut value.to_le_bytes())?;
+            if wkc == 1 {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                return self.expect_wkc(
+                    || format!("FPWR of AL control 0x{value:04X} to slave {position} (its firmware never took the last request)"),
+                    1,
+                    wkc,
+                );
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
     }
 
     /// Polls the slave until it is in `target`, refuses with the error flag, or `timeout` passes.
@@ -139,15 +169,15 @@ impl Master {
         let deadline = Instant::now() + timeout;
         loop {
             if target == AlState::Op && self.process.is_some() {
-                // The WKC changes while the slaves move to Op; the result is the state, not it.
-                let _ = self.exchange();
+                // The WKC changes while the slaves move to Op: not an error, so not judged.
+                self.cycle(false)?;
             }
             let status = self.read_al_status(station)?;
             if status.state() == Some(target) && !status.error() {
                 return Ok(());
             }
             if status.error() {
-                self.acknowledge(station, status)?;
+                self.acknowledge(position, station, status)?;
                 return Err(Error::AlState {
                     slave: position,
                     requested: target.name(),

@@ -1,0 +1,347 @@
+//! The master against the in-process virtual AKD: scan, AL states, SDO, SDO information,
+//! every fixed mapping and a flexible one, cyclic exchange with its working counter, DC, and
+//! the counting of lost frames and wrong working counters.
+
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use akd_native::al::AlState;
+use akd_native::coe::{abort, data_type, object_code, od_list};
+use akd_native::error::{Error, Result};
+use akd_native::frame::{self, Command};
+use akd_native::link::inproc::InProcess;
+use akd_native::link::Link;
+use akd_native::master::{Mapping, Master};
+use akd_native::pdo::{self, Direction, PdoEntry};
+
+const STEP: Duration = Duration::from_secs(5);
+
+fn master(count: usize) -> Master {
+    let mut m = Master::new(Box::new(InProcess::new(count)), Duration::from_millis(100));
+    assert_eq!(m.scan().unwrap(), count);
+    m
+}
+
+/// Writes AL control behind the master's state handling. The AKD's AL control works like a
+/// mailbox (its ESC refuses a write until the firmware took the last one), so retry a while.
+fn raw_al_request(m: &mut Master, position: u16, state: AlState) {
+    let deadline = std::time::Instant::now() + STEP;
+    while let Err(e) = m.write_register_at(position, 0x0120, &(state as u16).to_le_bytes()) {
+        assert!(std::time::Instant::now() < deadline, "{e}");
+    }
+}
+
+/// Byte offset of `index` in a mapping's entries.
+fn offset_of(entries: &[PdoEntry], index: u16) -> Option<usize> {
+    pdo::layout(entries.iter().copied()).find(|(_, e)| e.index == index).map(|(at, _)| at)
+}
+
+#[test]
+fn scan_finds_the_virtual_akds_with_the_real_identity() {
+    for count in [1, 3] {
+        let mut m = master(count);
+        for position in 0..count as u16 {
+            let slave = m.slave(position).unwrap().clone();
+            assert_eq!(slave.station_address, 0x1001 + position);
+            let id = slave.sii.identity();
+            assert_eq!((id.vendor_id, id.product_code, id.revision), (0x6A, 0x0041_4B44, 2));
+            assert_eq!(slave.sii.name(), Some("AKD EtherCAT Drive (CoE)"));
+            assert_eq!(slave.sii.model(), Some("AKD-P00606-NBCC-E000"));
+            assert_eq!(slave.sii.firmware(), Some("01-20-00-003"));
+            let mb = slave.mailbox.as_ref().expect("the AKD has a mailbox");
+            assert_eq!((mb.out_start, mb.out_len, mb.in_start, mb.in_len), (0x1800, 0x400, 0x1C00, 0x400));
+            assert!(mb.has_coe());
+            assert!(slave.has_dc());
+            let status = m.al_status(position).unwrap();
+            assert_eq!((status.state(), status.code), (Some(AlState::Init), 0));
+        }
+    }
+}
+
+#[test]
+fn reaches_op_with_the_default_mapping_and_three_wkc_per_slave() {
+    let mut m = master(2);
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    for position in 0..2 {
+        assert_eq!(m.al_status(position).unwrap().state(), Some(AlState::Op));
+        assert_eq!(m.outputs(position).unwrap().len(), 6);
+        assert_eq!(m.inputs(position).unwrap().len(), 6);
+    }
+    assert_eq!(m.expected_wkc().unwrap(), 6);
+    for _ in 0..10 {
+        assert_eq!(m.exchange().unwrap(), 6);
+    }
+    assert_eq!(m.stats().wkc_errors, 0);
+    m.request_state(AlState::Init, None, STEP).unwrap();
+    assert_eq!(m.al_status(1).unwrap().state(), Some(AlState::Init));
+}
+
+/// Outputs written by the LRW land in the drive (its controlword object follows them) and
+/// inputs come from the drive (its statusword object is what the LRW brought back).
+fn check_process_data(m: &mut Master, position: u16, rx: &[PdoEntry], tx: &[PdoEntry]) {
+    let controlword = offset_of(rx, 0x6040).expect("every fixed RxPDO carries the controlword");
+    let mut outputs = m.outputs(position).unwrap().to_vec();
+    outputs[controlword..controlword + 2].copy_from_slice(&0x0006u16.to_le_bytes());
+    m.set_outputs(position, &outputs).unwrap();
+    assert_eq!(m.exchange().unwrap(), m.expected_wkc().unwrap());
+    assert_eq!(m.sdo_read(position, 0x6040, 0).unwrap(), 0x0006u16.to_le_bytes());
+    if let Some(statusword) = offset_of(tx, 0x6041) {
+        assert_eq!(m.exchange().unwrap(), m.expected_wkc().unwrap());
+        let from_sdo = m.sdo_read(position, 0x6041, 0).unwrap();
+        assert_eq!(&m.inputs(position).unwrap()[statusword..statusword + 2], &from_sdo[..]);
+    }
+}
+
+#[test]
+fn every_fixed_mapping_exchanges_process_data() {
+    let rxs = pdo::FIXED.iter().filter(|p| p.direction == Direction::Rx);
+    let txs = pdo::FIXED.iter().filter(|p| p.direction == Direction::Tx);
+    // Every RxPDO with the default TxPDO and every TxPDO with the default RxPDO.
+    let pairs: Vec<(u16, u16)> = rxs
+        .map(|r| (r.index, pdo::DEFAULT_FIXED.1))
+        .chain(txs.map(|t| (pdo::DEFAULT_FIXED.0, t.index)))
+        .collect();
+    for (rx, tx) in pairs {
+        let mut m = master(1);
+        m.request_state(AlState::PreOp, None, STEP).unwrap();
+        m.configure_pdo(0, Mapping::Fixed(rx), Mapping::Fixed(tx)).unwrap();
+        assert_eq!(m.sdo_read(0, 0x1C12, 1).unwrap(), rx.to_le_bytes(), "0x1C12:01 for {rx:04X}");
+        assert_eq!(m.sdo_read(0, 0x1C13, 1).unwrap(), tx.to_le_bytes(), "0x1C13:01 for {tx:04X}");
+        m.request_state(AlState::Op, None, STEP).unwrap_or_else(|e| panic!("0x{rx:04X}/0x{tx:04X}: {e}"));
+        let (rx_entries, tx_entries) = (pdo::fixed(rx).unwrap().entries, pdo::fixed(tx).unwrap().entries);
+        assert_eq!(m.outputs(0).unwrap().len(), pdo::bit_len(rx_entries) / 8);
+        assert_eq!(m.inputs(0).unwrap().len(), pdo::bit_len(tx_entries) / 8);
+        assert_eq!(m.expected_wkc().unwrap(), 3);
+        check_process_data(&mut m, 0, rx_entries, tx_entries);
+    }
+}
+
+#[test]
+fn flexible_mapping_is_written_in_the_akds_order_and_exchanged() {
+    let mut m = master(1);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    let rx = vec![vec![PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x607A, 0, 32)]];
+    let tx = vec![vec![PdoEntry::new(0x6041, 0, 16), PdoEntry::new(0x6064, 0, 32)], vec![PdoEntry::new(0x606C, 0, 32)]];
+    m.configure_pdo(0, Mapping::Flexible(rx.clone()), Mapping::Flexible(tx.clone())).unwrap();
+    assert_eq!(m.sdo_read(0, 0x1C12, 0).unwrap(), [1]);
+    assert_eq!(m.sdo_read(0, 0x1C12, 1).unwrap(), 0x1600u16.to_le_bytes());
+    assert_eq!(m.sdo_read(0, 0x1C13, 0).unwrap(), [2]);
+    assert_eq!(m.sdo_read(0, 0x1C13, 2).unwrap(), 0x1A01u16.to_le_bytes());
+    assert_eq!(m.sdo_read(0, 0x1600, 0).unwrap(), [2]);
+    assert_eq!(m.sdo_read(0, 0x1600, 2).unwrap(), 0x607A_0020u32.to_le_bytes());
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    assert_eq!((m.outputs(0).unwrap().len(), m.inputs(0).unwrap().len()), (6, 10));
+    let rx: Vec<PdoEntry> = rx.concat();
+    let tx: Vec<PdoEntry> = tx.concat();
+    check_process_data(&mut m, 0, &rx, &tx);
+}
+
+#[test]
+fn a_mapping_the_akd_refuses_is_refused_before_anything_is_written() {
+    let mut m = master(1);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    let before = m.sdo_read(0, 0x1C12, 0).unwrap();
+    let frames = m.stats().frames;
+    // The real drive's own power-up mapping: 17 bytes, odd.
+    let odd = Mapping::Flexible(pdo::POWER_UP_RX.iter().map(|p| p.to_vec()).collect());
+    let err = m.configure_pdo(0, odd, Mapping::Fixed(0x1B01)).unwrap_err();
+    assert!(matches!(&err, Error::Pdo(reason) if reason.contains("odd")), "{err}");
+    let err = m.configure_pdo(0, Mapping::Fixed(0x1B01), Mapping::Fixed(0x1701)).unwrap_err();
+    assert!(matches!(&err, Error::Pdo(reason) if reason.contains("0x1701")), "{err}");
+    assert_eq!(m.stats().frames, frames, "nothing was sent");
+    assert_eq!(m.sdo_read(0, 0x1C12, 0).unwrap(), before);
+}
+
+#[test]
+fn sdo_round_trips_of_every_size() {
+    let mut m = master(2);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    for position in 0..2 {
+        // Expedited: 1, 2 and 4 bytes.
+        m.sdo_write(position, 0x6060, 0, &[8]).unwrap();
+        assert_eq!(m.sdo_read(position, 0x6060, 0).unwrap(), [8]);
+        m.sdo_write(position, 0x6040, 0, &0x000Fu16.to_le_bytes()).unwrap();
+        assert_eq!(m.sdo_read(position, 0x6040, 0).unwrap(), 0x000Fu16.to_le_bytes());
+        let target = -123_456i32 - position as i32;
+        m.sdo_write(position, 0x607A, 0, &target.to_le_bytes()).unwrap();
+        assert_eq!(m.sdo_read(position, 0x607A, 0).unwrap(), target.to_le_bytes());
+        // Normal: strings longer than 4 bytes, which the SII also names.
+        let sii = m.slave(position).unwrap().sii.clone();
+        assert_eq!(m.sdo_read(position, 0x1009, 0).unwrap(), sii.model().unwrap().as_bytes());
+        assert_eq!(m.sdo_read(position, 0x100A, 0).unwrap(), sii.firmware().unwrap().as_bytes());
+        // The identity object agrees with the SII.
+        assert_eq!(m.sdo_read(position, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+        assert_eq!(m.sdo_read(position, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    }
+}
+
+#[test]
+fn sdo_aborts_come_back_by_name() {
+    let mut m = master(1);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    match m.sdo_read(0, 0x1234, 0).unwrap_err() {
+        Error::SdoAbort { index: 0x1234, subindex: 0, code, code_name } => {
+            assert_eq!(code, abort::NO_SUCH_OBJECT);
+            assert_eq!(code_name, "object does not exist in the object dictionary");
+        }
+        other => panic!("{other}"),
+    }
+    match m.sdo_write(0, 0x1018, 1, &[1, 2, 3, 4]).unwrap_err() {
+        Error::SdoAbort { code, code_name, .. } => {
+            assert_eq!(code, abort::READ_ONLY);
+            assert_eq!(code_name, "attempt to write a read-only object");
+        }
+        other => panic!("{other}"),
+    }
+    // The mailbox still works after aborts.
+    assert_eq!(m.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+}
+
+#[test]
+fn sdo_information_lists_and_describes_objects() {
+    let mut m = master(1);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    let list = m.sdo_object_list(0, od_list::ALL).unwrap();
+    for index in [0x1000, 0x1018, 0x1C12, 0x6040, 0x6041] {
+        assert!(list.contains(&index), "0x{index:04X} missing from {list:04X?}");
+    }
+    let identity = m.sdo_object_description(0, 0x1018).unwrap();
+    assert_eq!(identity.index, 0x1018);
+    assert_eq!(identity.object_code, object_code::RECORD);
+    assert!(identity.max_subindex >= 4);
+    let statusword = m.sdo_entry_description(0, 0x6041, 0).unwrap();
+    assert_eq!((statusword.data_type, statusword.bit_length), (data_type::UNSIGNED16, 16));
+    assert!(!statusword.name.is_empty());
+    match m.sdo_object_description(0, 0x1234).unwrap_err() {
+        Error::SdoAbort { code, .. } => assert_eq!(code, abort::NO_SUCH_OBJECT),
+        other => panic!("{other}"),
+    }
+}
+
+#[test]
+fn a_refused_state_change_is_reported_by_name_and_acknowledged() {
+    let mut m = master(1);
+    // Init -> Op directly: the AKD refuses with 0x0011.
+    raw_al_request(&mut m, 0, AlState::Op);
+    let deadline = std::time::Instant::now() + STEP;
+    let status = loop {
+        let s = m.al_status(0).unwrap();
+        if s.error() || std::time::Instant::now() > deadline {
+            break s;
+        }
+    };
+    assert!(status.error(), "AL status 0x{:04X}", status.status);
+    assert_eq!((status.state(), status.code), (Some(AlState::Init), 0x0011));
+    assert_eq!(status.code_name(), "invalid requested state change");
+    // request_state acknowledges the error and goes on.
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    // PreOp -> Bootstrap: refused too, and request_state says so by name.
+    match m.request_state(AlState::Bootstrap, Some(0), STEP).unwrap_err() {
+        Error::AlState { slave: 0, requested: "Bootstrap", code: 0x0011, code_name, .. } => {
+            assert_eq!(code_name, "invalid requested state change")
+        }
+        other => panic!("{other}"),
+    }
+    assert!(!m.al_status(0).unwrap().error(), "the error was acknowledged");
+}
+
+#[test]
+fn a_wrong_working_counter_is_counted_and_raised() {
+    let mut m = master(2);
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    assert_eq!(m.exchange().unwrap(), 6);
+    // Slave 1 drops to Init behind the master's back: its process data stop.
+    raw_al_request(&mut m, 1, AlState::Init);
+    let deadline = std::time::Instant::now() + STEP;
+    while m.al_status(1).unwrap().state() != Some(AlState::Init) {
+        assert!(std::time::Instant::now() < deadline);
+    }
+    match m.exchange().unwrap_err() {
+        Error::WorkingCounter { expected: 6, got, .. } => assert_eq!(got, 3),
+        other => panic!("{other}"),
+    }
+    assert_eq!(m.stats().wkc_errors, 1);
+}
+
+/// A link that loses the return of chosen frames after the slaves have served them, as a
+/// broken cable on the way back would.
+struct Lossy {
+    inner: InProcess,
+    /// Returns of LRW frames still to lose.
+    lose_lrw: Arc<AtomicU32>,
+    /// Returns of reads of the mailbox-in buffer (0x1C00) still to lose.
+    lose_mailbox_reads: Arc<AtomicU32>,
+}
+
+impl Link for Lossy {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        let n = self.inner.exchange(tx, rx, timeout)?;
+        let first = frame::parse(tx)?.next().expect("one datagram")?.header;
+        let counter = match (first.command, first.ado) {
+            (Command::Lrw, _) => &self.lose_lrw,
+            (Command::Fprd, 0x1C00) => &self.lose_mailbox_reads,
+            _ => return Ok(n),
+        };
+        if counter.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |c| c.checked_sub(1)).is_ok() {
+            return Err(Error::Timeout { what: "a frame lost by the test".into() });
+        }
+        Ok(n)
+    }
+
+    fn describe(&self) -> String {
+        "lossy sim".into()
+    }
+}
+
+#[test]
+fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
+    let lose_lrw = Arc::new(AtomicU32::new(0));
+    let lose_mailbox_reads = Arc::new(AtomicU32::new(0));
+    let link =
+        Lossy { inner: InProcess::new(1), lose_lrw: lose_lrw.clone(), lose_mailbox_reads: lose_mailbox_reads.clone() };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    let before = m.stats();
+    lose_lrw.store(1, Ordering::SeqCst);
+    assert!(matches!(m.exchange().unwrap_err(), Error::Timeout { .. }));
+    assert_eq!(m.exchange().unwrap(), 3);
+    assert_eq!(m.stats().lost_frames, before.lost_frames + 1);
+    // The reply to an SDO upload is lost on its way back; the repeat request brings it again.
+    lose_mailbox_reads.store(1, Ordering::SeqCst);
+    assert_eq!(m.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    assert_eq!(m.stats().mailbox_repeats, before.mailbox_repeats + 1);
+    assert_eq!(m.stats().lost_frames, before.lost_frames + 2);
+}
+
+#[test]
+fn distributed_clocks_run_sync0_and_the_drift_datagram_rides_in_the_cycle() {
+    let mut m = master(2);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.configure_dc(1_000_000).unwrap();
+    for position in 0..2 {
+        assert_eq!(m.read_register_at(position, 0x0981, 1).unwrap(), [0x03]);
+        assert_eq!(m.read_register_at(position, 0x09A0, 4).unwrap(), 1_000_000u32.to_le_bytes());
+        assert_eq!(m.sdo_read(position, 0x60C2, 1).unwrap(), [1]);
+        assert_eq!(m.sdo_read(position, 0x60C2, 2).unwrap(), [(-3i8) as u8]);
+    }
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    assert_eq!(m.exchange().unwrap(), 6);
+    let first = m.clock().unwrap().system_time;
+    std::thread::sleep(Duration::from_millis(2));
+    assert_eq!(m.exchange().unwrap(), 6);
+    let second = m.clock().unwrap().system_time;
+    assert!(second > first, "the reference clock runs: {first} then {second}");
+    assert_eq!(m.stats().wkc_errors, 0);
+}
+
+#[test]
+fn an_empty_position_is_named() {
+    let mut m = master(1);
+    match m.sdo_read(3, 0x1000, 0).unwrap_err() {
+        Error::NoSuchSlave { position: 3, count: 1 } => {}
+        other => panic!("{other}"),
+    }
+    assert!(m.configure_dc(100_000).is_err(), "below the AKD's 250 µs");
+}
