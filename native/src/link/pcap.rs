@@ -296,22 +296,38 @@ mod tests {
         out
     }
 
-    #[test]
-    fn records_requests_and_replies_as_ethernet_frames() {
-        let path = std::env::temp_dir().join(format!("akd_pcap_test_{}.pcapng", std::process::id()));
+    /// Records `exchanges` exchanges of one datagram through a [`Loop`], ends the recorder
+    /// with `end` and returns the request and the file.
+    fn record(
+        name: &str,
+        command: Command,
+        data_len: usize,
+        exchanges: usize,
+        end: impl FnOnce(Recorder<Loop>),
+    ) -> (Vec<u8>, Vec<u8>) {
+        let path = std::env::temp_dir().join(format!("akd_pcap_{name}_{}.pcapng", std::process::id()));
         let mut recorder = Recorder::new(Loop { exchanges: 0 }, &path).unwrap();
         let mut tx = [0u8; 64];
         let mut builder = FrameBuilder::new(&mut tx);
-        builder.push_zeroed(Command::Brd, 0, 0, 0x0130, 2).unwrap();
+        builder.push_zeroed(command, 0, 0, 0x0130, data_len).unwrap();
         let n = builder.finish();
         let mut rx = [0u8; 64];
-        for _ in 0..3 {
+        for _ in 0..exchanges {
             let _ = recorder.exchange(&tx[..n], &mut rx, Duration::from_millis(1));
         }
-        assert_eq!(recorder.lost_frames(), 0);
-        recorder.finish().unwrap();
+        end(recorder);
         let file = std::fs::read(&path).unwrap();
         std::fs::remove_file(&path).unwrap();
+        (tx[..n].to_vec(), file)
+    }
+
+    #[test]
+    fn records_requests_and_replies_as_ethernet_frames() {
+        let (tx, file) = record("frames", Command::Brd, 2, 3, |mut recorder| {
+            assert_eq!(recorder.lost_frames(), 0);
+            recorder.finish().unwrap();
+        });
+        let n = tx.len();
 
         let blocks = blocks(&file);
         let kinds: Vec<u32> = blocks.iter().map(|b| b.0).collect();
@@ -344,20 +360,8 @@ mod tests {
 
     #[test]
     fn frames_over_many_chunks_are_all_written_when_the_recorder_is_dropped() {
-        let path = std::env::temp_dir().join(format!("akd_pcap_chunks_{}.pcapng", std::process::id()));
-        let mut recorder = Recorder::new(Loop { exchanges: 0 }, &path).unwrap();
-        let mut tx = [0u8; 64];
-        let mut builder = FrameBuilder::new(&mut tx);
-        builder.push_zeroed(Command::Lrw, 0, 0, 0, 34).unwrap();
-        let n = builder.finish();
-        let mut rx = [0u8; 64];
         // 4000 exchanges (one times out): 7999 blocks of 96 bytes, about 12 chunks.
-        for _ in 0..4000 {
-            let _ = recorder.exchange(&tx[..n], &mut rx, Duration::from_millis(1));
-        }
-        drop(recorder);
-        let file = std::fs::read(&path).unwrap();
-        std::fs::remove_file(&path).unwrap();
+        let (_, file) = record("chunks", Command::Lrw, 34, 4000, drop);
         let blocks = blocks(&file);
         assert_eq!(blocks.len(), 2 + 7999);
         assert!(blocks[2..].iter().all(|b| b.0 == block::ENHANCED_PACKET));
