@@ -12,6 +12,7 @@ use crate::error::Error;
 
 mod master;
 mod sim;
+mod sii;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
 create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
@@ -103,5 +104,6 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     }
     master::register(m)?;
     sim::register(m)?;
+    sii::register(m)?;
     Ok(())
 }
