@@ -4,7 +4,7 @@
 //!
 //! The register values at power-up are the real drive's, read in the SOEM capture: type 0x04
 //! revision 0x02 (an ESC20-class controller with 4 KiB of RAM at 0x1000–0x1FFF), port
-//! descriptor 0x0F, features 0x0184, DL status 0x5613, PDI control 0x080C, SII control 0x0020
+//! descriptor 0x0F, features 0x0184, DL status 0x5613, PDI control 0x0C08, SII control 0x0020
 //! (EEPROM emulated by the PDI, 4-byte reads). What the hardware does by itself is here: the
 //! SII interface reading the EEPROM image, DC receive-time latching and the system time, the
 //! sync managers' buffer protection, FMMU mapping of logical datagrams, and the AL control
@@ -97,7 +97,7 @@ impl Esc {
         let dl_status = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
         memory[0x0110..0x0112].copy_from_slice(&dl_status.to_le_bytes());
         memory[0x0130] = 0x01;
-        memory[0x0140..0x0142].copy_from_slice(&0x080Cu16.to_le_bytes());
+        memory[0x0140..0x0142].copy_from_slice(&0x0C08u16.to_le_bytes());
         memory[0x0400..0x0402].copy_from_slice(&0x09C2u16.to_le_bytes());
         memory[0x0420..0x0422].copy_from_slice(&1000u16.to_le_bytes());
         memory[0x0502..0x0504].copy_from_slice(&sii_reg::EMULATION.to_le_bytes());
@@ -436,7 +436,7 @@ mod tests {
         assert_eq!(run(&mut e, Command::Brd, 0, 0x0000, &[0, 0]), (vec![0x04, 0x02], 1));
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x0007, &[0, 0]).0, vec![0x0F, 0x84]);
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
-        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0140, &[0, 0]).0, vec![0x0C, 0x08]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0140, &[0, 0]).0, vec![0x08, 0x0C]);
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x0130, &[0; 6]).0, vec![1, 0, 0, 0, 0, 0]);
         // Read-only registers stay as they are; the write still counts, as on a real ESC.
         assert_eq!(run(&mut e, Command::Apwr, 0, 0x0000, &[9, 9]).1, 1);
