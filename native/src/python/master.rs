@@ -1,3 +1,333 @@
-//! (being written)
+//! `akd_ros._native.Master`: the EtherCAT master for Python.
+//!
+//! Every call that waits on the bus releases the GIL. The master is taken with `try_lock` for
+//! the call, so a second thread using the same master at once gets an error instead of waiting
+//! on a lock it cannot see.
+
+use std::sync::{Mutex, MutexGuard, TryLockError};
+use std::time::Duration;
+
 use pyo3::prelude::*;
-pub(super) fn register(_m: &Bound<'_, PyModule>) -> PyResult<()> { Ok(()) }
+use pyo3::types::{PyBytes, PyDict, PyList};
+
+use super::IntoPyResult;
+use crate::al::AlState;
+use crate::error::Error;
+use crate::link::{self, Link};
+use crate::master::{self, Mapping};
+use crate::pdo::PdoEntry;
+
+/// Opens the link named by `spec`: "sim", "sim:N", "udp://HOST:PORT" or an interface name.
+fn open_link(spec: &str) -> crate::error::Result<Box<dyn Link>> {
+    if spec == "sim" {
+        return Ok(Box::new(link::inproc::InProcess::new(1)));
+    }
+    if let Some(count) = spec.strip_prefix("sim:") {
+        let count: usize = count
+            .parse()
+            .ok()
+            .filter(|n| (1..=64).contains(n))
+            .ok_or_else(|| Error::Config(format!("link {spec:?}: the number of virtual AKDs must be 1..=64")))?;
+        return Ok(Box::new(link::inproc::InProcess::new(count)));
+    }
+    if let Some(address) = spec.strip_prefix("udp://") {
+        return Ok(Box::new(link::udp::Udp::connect(address)?));
+    }
+    if spec.is_empty() || spec.contains(['/', ':']) {
+        return Err(Error::Config(format!(
+            "link {spec:?} is none of \"sim\", \"sim:N\", \"udp://HOST:PORT\" or a network interface name"
+        )));
+    }
+    Ok(Box::new(link::raw::RawLink::open(spec)?))
+}
+
+fn parse_state(name: &str) -> crate::error::Result<AlState> {
+    AlState::parse(name).ok_or_else(|| {
+        Error::Config(format!("unknown AL state {name:?} (allowed: init, preop, safeop, op, bootstrap)"))
+    })
+}
+
+/// A mapping given from Python: a fixed mapping's index, or a list of PDOs, each a list of
+/// entries 0xIIIISSBB.
+fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
+    if let Ok(index) = value.extract::<u16>() {
+        return Ok(Mapping::Fixed(index));
+    }
+    let pdos: Vec<Vec<u32>> = value.extract().map_err(|_| {
+        Error::Config(
+            "a mapping is a fixed mapping index (e.g. 0x1701) or a list of PDOs, each a list of entries 0xIIIISSBB"
+                .into(),
+        )
+    })
+    .map_err(super::to_py_err)?;
+    Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
+}
+
+fn seconds(value: f64, what: &str) -> PyResult<Duration> {
+    Duration::try_from_secs_f64(value)
+        .map_err(|_| super::to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}"))))
+}
+
+/// An EtherCAT master on one link.
+#[pyclass(name = "Master", module = "akd_ros._native")]
+pub struct PyMaster {
+    master: Mutex<Option<master::Master>>,
+}
+
+/// The master while one call uses it.
+struct InUse<'a>(MutexGuard<'a, Option<master::Master>>);
+
+impl InUse<'_> {
+    fn get(&mut self) -> PyResult<&mut master::Master> {
+        self.0.as_mut().ok_or_else(|| super::to_py_err(Error::Config("the master is closed".into())))
+    }
+}
+
+impl PyMaster {
+    fn lock(&self) -> PyResult<InUse<'_>> {
+        match self.master.try_lock() {
+            Ok(guard) => Ok(InUse(guard)),
+            // A call that panicked left the master as it was; the panic was already raised.
+            Err(TryLockError::Poisoned(poisoned)) => Ok(InUse(poisoned.into_inner())),
+            Err(TryLockError::WouldBlock) => Err(super::to_py_err(Error::Config(
+                "the master is in use by another thread; use one master from one thread at a time".into(),
+            ))),
+        }
+    }
+}
+
+#[pymethods]
+impl PyMaster {
+    /// Opens `link`: "sim" (one in-process virtual AKD), "sim:N", "udp://HOST:PORT", or a
+    /// network interface name. `pcap` records every frame to a pcapng file; `timeout` is how
+    /// long each frame may take to come back, in seconds.
+    #[new]
+    #[pyo3(signature = (link, *, pcap = None, timeout = 0.1))]
+    fn new(py: Python<'_>, link: &str, pcap: Option<&str>, timeout: f64) -> PyResult<Self> {
+        let timeout = seconds(timeout, "timeout")?;
+        let master = py.allow_threads(|| -> crate::error::Result<master::Master> {
+            let inner = open_link(link)?;
+            let inner: Box<dyn Link> = match pcap {
+                Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
+                None => inner,
+            };
+            Ok(master::Master::new(inner, timeout))
+        });
+        Ok(PyMaster { master: Mutex::new(Some(master.py()?)) })
+    }
+
+    /// Finds the slaves and returns one dict per slave.
+    fn scan<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.scan()).py()?;
+        let list = PyList::empty(py);
+        for position in 0..m.slaves().len() as u16 {
+            let status = py.allow_threads(|| m.al_status(position)).py()?;
+            let slave = m.slave(position).py()?;
+            let identity = slave.sii.identity();
+            let d = PyDict::new(py);
+            d.set_item("position", slave.position)?;
+            d.set_item("station_address", slave.station_address)?;
+            d.set_item("alias", slave.alias)?;
+            d.set_item("vendor_id", identity.vendor_id)?;
+            d.set_item("product_code", identity.product_code)?;
+            d.set_item("revision", identity.revision)?;
+            d.set_item("serial_number", identity.serial_number)?;
+            d.set_item("name", slave.sii.name())?;
+            d.set_item("model", slave.sii.model())?;
+            d.set_item("firmware", slave.sii.firmware())?;
+            d.set_item("al_state", status.state_name())?;
+            d.set_item("al_status_code", status.code)?;
+            d.set_item("al_status_code_name", status.code_name())?;
+            d.set_item("mailbox_protocols", slave.sii.header.mailbox_protocols)?;
+            d.set_item("dc", slave.has_dc())?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+
+    /// Number of slaves found by the last scan.
+    #[getter]
+    fn slave_count(&self) -> PyResult<usize> {
+        Ok(self.lock()?.get()?.slaves().len())
+    }
+
+    /// The link's description.
+    #[getter]
+    fn link(&self) -> PyResult<String> {
+        Ok(self.lock()?.get()?.describe())
+    }
+
+    /// Takes the slave at `position` (every slave when None) to `state`.
+    #[pyo3(signature = (state, position = None, timeout = 5.0))]
+    fn request_state(&self, py: Python<'_>, state: &str, position: Option<u16>, timeout: f64) -> PyResult<()> {
+        let target = parse_state(state).py()?;
+        let timeout = seconds(timeout, "timeout")?;
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.request_state(target, position, timeout)).py()
+    }
+
+    /// (state, AL status code, its name) of the slave at `position`.
+    fn al_status(&self, py: Python<'_>, position: u16) -> PyResult<(String, u16, String)> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        let s = py.allow_threads(|| m.al_status(position)).py()?;
+        Ok((s.state_name().to_owned(), s.code, s.code_name().to_owned()))
+    }
+
+    /// Reads `length` bytes of ESC registers from `address` of the slave at `position`.
+    fn read_register<'py>(&self, py: Python<'py>, position: u16, address: u16, length: usize) -> PyResult<Bound<'py, PyBytes>> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        let data = py.allow_threads(|| m.read_register_at(position, address, length)).py()?;
+        Ok(PyBytes::new(py, &data))
+    }
+
+    /// Writes ESC registers from `address` of the slave at `position`.
+    fn write_register(&self, py: Python<'_>, position: u16, address: u16, data: Vec<u8>) -> PyResult<()> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.write_register_at(position, address, &data)).py()
+    }
+
+    /// Reads an SDO.
+    fn sdo_read<'py>(&self, py: Python<'py>, position: u16, index: u16, subindex: u8) -> PyResult<Bound<'py, PyBytes>> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        let data = py.allow_threads(|| m.sdo_read(position, index, subindex)).py()?;
+        Ok(PyBytes::new(py, &data))
+    }
+
+    /// Writes an SDO.
+    fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.sdo_write(position, index, subindex, &data)).py()
+    }
+
+    /// Every object index of the slave's object dictionary (SDO information).
+    fn sdo_object_list(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u16>> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.sdo_object_list(position, crate::coe::od_list::ALL)).py()
+    }
+
+    /// The description of object `index`.
+    fn sdo_object_description<'py>(&self, py: Python<'py>, position: u16, index: u16) -> PyResult<Bound<'py, PyDict>> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        let o = py.allow_threads(|| m.sdo_object_description(position, index)).py()?;
+        let d = PyDict::new(py);
+        d.set_item("index", o.index)?;
+        d.set_item("data_type", o.data_type)?;
+        d.set_item("max_subindex", o.max_subindex)?;
+        d.set_item("object_code", o.object_code)?;
+        d.set_item("name", o.name)?;
+        Ok(d)
+    }
+
+    /// The description of entry `index:subindex`.
+    fn sdo_entry_description<'py>(&self, py: Python<'py>, position: u16, index: u16, subindex: u8) -> PyResult<Bound<'py, PyDict>> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        let e = py.allow_threads(|| m.sdo_entry_description(position, index, subindex)).py()?;
+        let d = PyDict::new(py);
+        d.set_item("subindex", e.subindex)?;
+        d.set_item("data_type", e.data_type)?;
+        d.set_item("bit_length", e.bit_length)?;
+        d.set_item("access", e.access)?;
+        d.set_item("name", e.name)?;
+        Ok(d)
+    }
+
+    /// Takes the emergency messages received from the slave at `position`.
+    fn emergencies<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for e in self.lock()?.get()?.take_emergencies(position).py()? {
+            let d = PyDict::new(py);
+            d.set_item("error_code", e.error_code)?;
+            d.set_item("error_register", e.error_register)?;
+            d.set_item("data", PyBytes::new(py, &e.data))?;
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+
+    /// Gives the slave at `position` (in PreOp) its outputs mapping `rx` and inputs mapping
+    /// `tx`: each a fixed mapping index (0x1701, 0x1B01, ...) or a list of PDOs, each a list of
+    /// entries 0xIIIISSBB.
+    fn configure_pdo(&self, py: Python<'_>, position: u16, rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<()> {
+        let (rx, tx) = (parse_mapping(rx)?, parse_mapping(tx)?);
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.configure_pdo(position, rx, tx)).py()
+    }
+
+    /// Sets up distributed clocks and SYNC0 at `cycle_time_ns` (in PreOp).
+    fn configure_dc(&self, py: Python<'_>, cycle_time_ns: u32) -> PyResult<()> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.configure_dc(cycle_time_ns)).py()
+    }
+
+    /// One cyclic exchange; returns the working counter.
+    fn exchange(&self, py: Python<'_>) -> PyResult<u16> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.exchange()).py()
+    }
+
+    /// The working counter a good cycle comes back with.
+    #[getter]
+    fn expected_wkc(&self) -> PyResult<u16> {
+        self.lock()?.get()?.expected_wkc().py()
+    }
+
+    /// The outputs of the slave at `position`.
+    fn outputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
+        Ok(PyBytes::new(py, self.lock()?.get()?.outputs(position).py()?))
+    }
+
+    /// Sets the outputs of the slave at `position` for the next cycles.
+    fn set_outputs(&self, position: u16, data: Vec<u8>) -> PyResult<()> {
+        self.lock()?.get()?.set_outputs(position, &data).py()
+    }
+
+    /// The inputs of the slave at `position` from the last good cycle.
+    fn inputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
+        Ok(PyBytes::new(py, self.lock()?.get()?.inputs(position).py()?))
+    }
+
+    /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats, emergencies.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.lock()?.get()?.stats();
+        let d = PyDict::new(py);
+        d.set_item("frames", s.frames)?;
+        d.set_item("lost_frames", s.lost_frames)?;
+        d.set_item("wkc_errors", s.wkc_errors)?;
+        d.set_item("cycles", s.cycles)?;
+        d.set_item("mailbox_repeats", s.mailbox_repeats)?;
+        d.set_item("emergencies", s.emergencies)?;
+        Ok(d)
+    }
+
+    /// Closes the link; later calls raise ConfigError.
+    fn close(&self) -> PyResult<()> {
+        *self.lock()?.0 = None;
+        Ok(())
+    }
+
+    fn __enter__(slf: Py<Self>) -> Py<Self> {
+        slf
+    }
+
+    fn __exit__(&self, _exc_type: PyObject, _exc: PyObject, _tb: PyObject) -> PyResult<()> {
+        self.close()
+    }
+}
+
+pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyMaster>()
+}
