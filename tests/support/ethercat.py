@@ -74,3 +74,62 @@ def payload_of(ethernet_frame: bytes) -> bytes | None:
 def exchange(bus, time_ns: int, *datagrams: Datagram) -> list[Datagram]:
     """Sends one frame of `datagrams` through `bus` at `time_ns`; returns the reply datagrams."""
     return parse(bus.process(build(*datagrams), time_ns))
+
+
+STATION = 0x1001
+MAILBOX_OUT, MAILBOX_IN, MAILBOX_SIZE = 0x1800, 0x1C00, 0x400
+
+
+class VirtualAkdSession:
+    """Drives one virtual AKD by hand-built frames: station address, mailbox sync managers,
+    AL requests and SDO transfers through the mailbox, with a clock that advances by 10 ms per
+    frame (longer than the firmware's reaction times)."""
+
+    def __init__(self, bus):
+        self.bus = bus
+        self.time_ns = 0
+        self.counter = 0
+        self.request("APWR", 0, 0x0010, STATION.to_bytes(2, "little"))
+
+    def request(self, name: str, adp: int, ado: int, data: bytes | int) -> Datagram:
+        self.time_ns += 10_000_000
+        return exchange(self.bus, self.time_ns, datagram(name, adp, ado, data))[0]
+
+    def fp(self, name: str, ado: int, data: bytes | int) -> Datagram:
+        return self.request(name, STATION, ado, data)
+
+    def configure_mailbox(self) -> None:
+        self.fp("FPWR", 0x0800, struct.pack("<HHBBBB", MAILBOX_OUT, MAILBOX_SIZE, 0x26, 0, 1, 0))
+        self.fp("FPWR", 0x0808, struct.pack("<HHBBBB", MAILBOX_IN, MAILBOX_SIZE, 0x22, 0, 1, 0))
+
+    def al_request(self, state: int) -> tuple[int, int]:
+        """Writes AL control and returns (AL status, AL status code) once the drive handled it."""
+        self.fp("FPWR", 0x0120, state.to_bytes(2, "little"))
+        self.time_ns += 10_000_000
+        reply = self.fp("FPRD", 0x0130, 6).data
+        return int.from_bytes(reply[0:2], "little"), int.from_bytes(reply[4:6], "little")
+
+    def mailbox(self, message: bytes) -> bytes:
+        """Writes a mailbox message and returns the drive's reply (the whole mailbox-in buffer)."""
+        written = self.fp("FPWR", MAILBOX_OUT, message.ljust(MAILBOX_SIZE, b"\0"))
+        assert written.wkc == 1, "the mailbox-out buffer refused the message"
+        reply = self.fp("FPRD", MAILBOX_IN, MAILBOX_SIZE)
+        assert reply.wkc == 1, "no reply in the mailbox-in buffer"
+        return reply.data
+
+    def coe(self, service: int, body: bytes, mailbox_type: int = 3) -> bytes:
+        self.counter = self.counter % 7 + 1
+        header = struct.pack("<HHBB", 2 + len(body), 0, 0, mailbox_type | self.counter << 4)
+        return self.mailbox(header + struct.pack("<H", service << 12) + body)
+
+    def sdo_upload(self, index: int, subindex: int) -> tuple[int, bytes]:
+        """Expedited upload request: returns the SDO command byte of the reply and its data."""
+        reply = self.coe(2, struct.pack("<BHBI", 0x40, index, subindex, 0))
+        return reply[8], reply[12:16]
+
+    def sdo_download(self, index: int, subindex: int, value: bytes) -> tuple[int, int]:
+        """Expedited download: returns the reply's command byte and its 4 data bytes as a number
+        (the abort code when the command is 0x80)."""
+        command = 0x23 | (4 - len(value)) << 2
+        reply = self.coe(2, struct.pack("<BHB", command, index, subindex) + value.ljust(4, b"\0"))
+        return reply[8], int.from_bytes(reply[12:16], "little")

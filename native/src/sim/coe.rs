@@ -111,8 +111,11 @@ impl MailboxServer {
                         write_sdo_response(&mut out, header.counter, &response)
                     }
                 };
-                out.truncate(len);
-                self.replies.push_back(out);
+                // An abort from the master is not answered.
+                if len > 0 {
+                    out.truncate(len);
+                    self.replies.push_back(out);
+                }
             }
             service::SDO_INFORMATION => self.information(body, od, header.counter, mailbox_size),
             _ => self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
