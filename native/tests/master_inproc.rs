@@ -98,10 +98,8 @@ fn every_fixed_mapping_exchanges_process_data() {
     let rxs = pdo::FIXED.iter().filter(|p| p.direction == Direction::Rx);
     let txs = pdo::FIXED.iter().filter(|p| p.direction == Direction::Tx);
     // Every RxPDO with the default TxPDO and every TxPDO with the default RxPDO.
-    let pairs: Vec<(u16, u16)> = rxs
-        .map(|r| (r.index, pdo::DEFAULT_FIXED.1))
-        .chain(txs.map(|t| (pdo::DEFAULT_FIXED.0, t.index)))
-        .collect();
+    let pairs: Vec<(u16, u16)> =
+        rxs.map(|r| (r.index, pdo::DEFAULT_FIXED.1)).chain(txs.map(|t| (pdo::DEFAULT_FIXED.0, t.index))).collect();
     for (rx, tx) in pairs {
         let mut m = master(1);
         m.request_state(AlState::PreOp, None, STEP).unwrap();

@@ -34,8 +34,8 @@ impl RawSocket {
     /// Fails with an error naming the interface when it does not exist or when the process
     /// lacks CAP_NET_RAW.
     pub fn open(iface: &str) -> Result<Self> {
-        let name = CString::new(iface)
-            .map_err(|_| Error::Config(format!("interface name {iface:?} contains a NUL byte")))?;
+        let name =
+            CString::new(iface).map_err(|_| Error::Config(format!("interface name {iface:?} contains a NUL byte")))?;
         // SAFETY: `name` is a valid NUL-terminated string.
         let ifindex = unsafe { libc::if_nametoindex(name.as_ptr()) };
         if ifindex == 0 {

@@ -55,9 +55,7 @@ impl Link for Udp {
             if left.is_zero() {
                 return Err(Error::Timeout { what: format!("the frame to return from udp://{}", self.peer) });
             }
-            self.socket
-                .set_read_timeout(Some(left))
-                .map_err(|e| Error::io("setting the UDP read time-out", e))?;
+            self.socket.set_read_timeout(Some(left)).map_err(|e| Error::io("setting the UDP read time-out", e))?;
             let got = match self.socket.recv(&mut self.rx) {
                 Ok(n) => n,
                 Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => continue,

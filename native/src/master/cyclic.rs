@@ -102,7 +102,9 @@ impl Master {
     }
 
     fn image(&self) -> Result<&ProcessImage> {
-        self.process.as_ref().ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))
+        self.process
+            .as_ref()
+            .ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))
     }
 
     /// The outputs of the slave at `position` as they go out in the next cycle.
@@ -114,7 +116,10 @@ impl Master {
 
     /// Sets the outputs of the slave at `position`; `data` must have their exact length.
     pub fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
-        let image = self.process.as_mut().ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))?;
+        let image = self
+            .process
+            .as_mut()
+            .ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))?;
         let s = image.slot(position)?;
         if data.len() != s.out_len {
             return Err(Error::Config(format!(
@@ -189,7 +194,11 @@ impl Master {
             if judge && clock_wkc != c.expected_wkc {
                 self.stats.wkc_errors += 1;
                 let expected = c.expected_wkc;
-                return Err(Error::WorkingCounter { what: "the cyclic FRMW of the DC system time".into(), expected, got: clock_wkc });
+                return Err(Error::WorkingCounter {
+                    what: "the cyclic FRMW of the DC system time".into(),
+                    expected,
+                    got: clock_wkc,
+                });
             }
         }
         Ok(wkc)

@@ -85,10 +85,9 @@ pub(crate) fn sm_registers(start: u16, len: u16, control: u8, enable: bool) -> [
 
 impl Master {
     fn mailbox(&self, position: u16) -> Result<Mailbox> {
-        self.slave(position)?
-            .mailbox
-            .clone()
-            .ok_or_else(|| Error::Mailbox(format!("slave {position} has no mailbox (its SII lists no mailbox protocol)")))
+        self.slave(position)?.mailbox.clone().ok_or_else(|| {
+            Error::Mailbox(format!("slave {position} has no mailbox (its SII lists no mailbox protocol)"))
+        })
     }
 
     /// Writes SM0 and SM1 of the slave at `position` from its SII, as Init → PreOp needs.

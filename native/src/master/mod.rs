@@ -204,10 +204,9 @@ impl Master {
     /// Writes registers of the slave at `station` (FPWR).
     pub fn write_registers(&mut self, station: u16, register: u16, data: &[u8]) -> Result<()> {
         let mut copy = [0u8; frame::MAX_DATAGRAM_DATA];
-        let buf = copy.get_mut(..data.len()).ok_or(crate::error::FrameError::TooLarge {
-            len: data.len(),
-            room: frame::MAX_DATAGRAM_DATA,
-        })?;
+        let buf = copy
+            .get_mut(..data.len())
+            .ok_or(crate::error::FrameError::TooLarge { len: data.len(), room: frame::MAX_DATAGRAM_DATA })?;
         buf.copy_from_slice(data);
         let wkc = self.datagram_retry(Command::Fpwr, station, register, buf)?;
         self.expect_wkc(|| format!("FPWR of 0x{register:04X} to station 0x{station:04X}"), 1, wkc)

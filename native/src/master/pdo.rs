@@ -132,13 +132,16 @@ impl Master {
 
     /// Writes SM2/SM3 and FMMU0/FMMU1 of the slave at `position` for outputs at logical
     /// address `out_logical` and inputs at `in_logical`.
-    pub(crate) fn setup_process_syncmanagers(&mut self, position: u16, out_logical: u32, in_logical: u32) -> Result<()> {
+    pub(crate) fn setup_process_syncmanagers(
+        &mut self,
+        position: u16,
+        out_logical: u32,
+        in_logical: u32,
+    ) -> Result<()> {
         let slave = self.slave(position)?;
         let station = slave.station_address;
-        let mapping = slave
-            .mapping
-            .clone()
-            .ok_or_else(|| Error::Pdo(format!("slave {position} has no process-data mapping")))?;
+        let mapping =
+            slave.mapping.clone().ok_or_else(|| Error::Pdo(format!("slave {position} has no process-data mapping")))?;
         let sm = |n: usize, default: (u16, u8)| {
             slave.sii.sync_managers().get(n).map_or(default, |sm| (sm.start_address, sm.control))
         };

@@ -14,11 +14,7 @@ pub const SDO_TIMEOUT: Duration = Duration::from_secs(2);
 
 impl Master {
     /// Sends one CoE message built by `write` and returns the slave's reply message.
-    pub(crate) fn coe_transaction(
-        &mut self,
-        position: u16,
-        write: impl FnOnce(&mut [u8]) -> usize,
-    ) -> Result<Vec<u8>> {
+    pub(crate) fn coe_transaction(&mut self, position: u16, write: impl FnOnce(&mut [u8]) -> usize) -> Result<Vec<u8>> {
         let mut message = vec![0u8; self.mailbox_out_len(position)?];
         let len = write(&mut message);
         self.mailbox_flush(position)?;
@@ -78,11 +74,12 @@ impl Master {
         })?;
         let mut toggle = false;
         while value.len() < complete_size {
-            let segment = self.sdo_exchange(position, &SdoRequest::UploadSegment { toggle }, |response| match response {
-                SdoResponse::UploadSegment { toggle: t, last, data } => Ok(Some((t, last, data.to_vec()))),
-                SdoResponse::Abort { code, .. } => Err(coe::abort_error(index, subindex, code)),
-                _ => Ok(None),
-            })?;
+            let segment =
+                self.sdo_exchange(position, &SdoRequest::UploadSegment { toggle }, |response| match response {
+                    SdoResponse::UploadSegment { toggle: t, last, data } => Ok(Some((t, last, data.to_vec()))),
+                    SdoResponse::Abort { code, .. } => Err(coe::abort_error(index, subindex, code)),
+                    _ => Ok(None),
+                })?;
             let Some((t, last, data)) = segment else {
                 return Err(self.sdo_abort(position, index, subindex, abort::BAD_COMMAND));
             };

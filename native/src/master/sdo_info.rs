@@ -1,9 +1,7 @@
 //! CoE SDO information client: the object list and the descriptions of objects and entries,
 //! each reply gathered from as many fragments as the slave needs.
 
-use crate::coe::{
-    self, info_opcode, service, EntryDescription, ObjectDescription, SdoInfoHeader, SDO_INFO_HEADER_LEN,
-};
+use crate::coe::{self, info_opcode, service, EntryDescription, ObjectDescription, SdoInfoHeader, SDO_INFO_HEADER_LEN};
 use crate::error::{Error, Result};
 use crate::master::Master;
 
@@ -106,8 +104,7 @@ impl Master {
     pub fn sdo_entry_description(&mut self, position: u16, index: u16, subindex: u8) -> Result<EntryInfo> {
         let [lo, hi] = index.to_le_bytes();
         let request = [lo, hi, subindex, 0];
-        let data =
-            self.sdo_info(position, info_opcode::GET_ENTRY_DESCRIPTION_REQUEST, &request, index, subindex)?;
+        let data = self.sdo_info(position, info_opcode::GET_ENTRY_DESCRIPTION_REQUEST, &request, index, subindex)?;
         let d = EntryDescription::decode(&data)?;
         if (d.index, d.subindex) != (index, subindex) {
             return Err(Error::Mailbox(format!(

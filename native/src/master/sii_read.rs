@@ -46,7 +46,9 @@ impl Master {
             }
             if Instant::now() > deadline {
                 return Err(Error::Timeout {
-                    what: format!("station 0x{station:04X}'s SII interface (word 0x{word:04X}, control 0x{control:04X})"),
+                    what: format!(
+                        "station 0x{station:04X}'s SII interface (word 0x{word:04X}, control 0x{control:04X})"
+                    ),
                 });
             }
         }

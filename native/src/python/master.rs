@@ -53,19 +53,22 @@ fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     if let Ok(index) = value.extract::<u16>() {
         return Ok(Mapping::Fixed(index));
     }
-    let pdos: Vec<Vec<u32>> = value.extract().map_err(|_| {
-        Error::Config(
-            "a mapping is a fixed mapping index (e.g. 0x1701) or a list of PDOs, each a list of entries 0xIIIISSBB"
-                .into(),
-        )
-    })
-    .map_err(super::to_py_err)?;
+    let pdos: Vec<Vec<u32>> = value
+        .extract()
+        .map_err(|_| {
+            Error::Config(
+                "a mapping is a fixed mapping index (e.g. 0x1701) or a list of PDOs, each a list of entries 0xIIIISSBB"
+                    .into(),
+            )
+        })
+        .map_err(super::to_py_err)?;
     Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
 }
 
 fn seconds(value: f64, what: &str) -> PyResult<Duration> {
-    Duration::try_from_secs_f64(value)
-        .map_err(|_| super::to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}"))))
+    Duration::try_from_secs_f64(value).map_err(|_| {
+        super::to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}")))
+    })
 }
 
 /// An EtherCAT master on one link.
@@ -178,7 +181,13 @@ impl PyMaster {
     }
 
     /// Reads `length` bytes of ESC registers from `address` of the slave at `position`.
-    fn read_register<'py>(&self, py: Python<'py>, position: u16, address: u16, length: usize) -> PyResult<Bound<'py, PyBytes>> {
+    fn read_register<'py>(
+        &self,
+        py: Python<'py>,
+        position: u16,
+        address: u16,
+        length: usize,
+    ) -> PyResult<Bound<'py, PyBytes>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
         let data = py.allow_threads(|| m.read_register_at(position, address, length)).py()?;
@@ -229,7 +238,13 @@ impl PyMaster {
     }
 
     /// The description of entry `index:subindex`.
-    fn sdo_entry_description<'py>(&self, py: Python<'py>, position: u16, index: u16, subindex: u8) -> PyResult<Bound<'py, PyDict>> {
+    fn sdo_entry_description<'py>(
+        &self,
+        py: Python<'py>,
+        position: u16,
+        index: u16,
+        subindex: u8,
+    ) -> PyResult<Bound<'py, PyDict>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
         let e = py.allow_threads(|| m.sdo_entry_description(position, index, subindex)).py()?;
@@ -258,7 +273,13 @@ impl PyMaster {
     /// Gives the slave at `position` (in PreOp) its outputs mapping `rx` and inputs mapping
     /// `tx`: each a fixed mapping index (0x1701, 0x1B01, ...) or a list of PDOs, each a list of
     /// entries 0xIIIISSBB.
-    fn configure_pdo(&self, py: Python<'_>, position: u16, rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn configure_pdo(
+        &self,
+        py: Python<'_>,
+        position: u16,
+        rx: &Bound<'_, PyAny>,
+        tx: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
         let (rx, tx) = (parse_mapping(rx)?, parse_mapping(tx)?);
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
