@@ -343,3 +343,79 @@ fn an_empty_position_is_named() {
     }
     assert!(m.configure_dc(100_000).is_err(), "below the AKD's 250 µs");
 }
+
+#[test]
+fn clocks_read_the_masters_time_and_follow_the_reference() {
+    let mut m = master(3);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.configure_dc(1_000_000).unwrap();
+    // The reference clock was set to the master's time (ns since 2000).
+    let reference = u64::from_le_bytes(m.read_register_at(0, 0x0910, 8).unwrap().try_into().unwrap());
+    let now = akd_native::dc::system_time(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap());
+    assert!(now.abs_diff(reference) < 100_000_000, "reference clock {reference} vs master {now}");
+    for position in 1..3 {
+        // Delays grow along the line; the drift datagrams left each clock next to the reference.
+        let delay =
+            |m: &mut Master, p| u32::from_le_bytes(m.read_register_at(p, 0x0928, 4).unwrap().try_into().unwrap());
+        assert!(delay(&mut m, position) > delay(&mut m, position - 1), "delay of slave {position}");
+        let raw = u32::from_le_bytes(m.read_register_at(position, 0x092C, 4).unwrap().try_into().unwrap());
+        let difference = akd_native::dc::time_difference(raw);
+        assert!(difference.abs() < 10_000, "slave {position} is {difference} ns off the reference");
+    }
+}
+
+/// A link to a bus the test keeps a handle on, to act as the drive would between frames.
+struct Shared(Arc<std::sync::Mutex<InProcess>>);
+
+impl Link for Shared {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        self.0.lock().unwrap().exchange(tx, rx, timeout)
+    }
+
+    fn describe(&self) -> String {
+        "shared sim".into()
+    }
+}
+
+#[test]
+fn emergencies_are_queued_while_sdo_goes_on() {
+    let bus = Arc::new(std::sync::Mutex::new(InProcess::new(1)));
+    let mut m = Master::new(Box::new(Shared(bus.clone())), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    let fault = akd_native::coe::Emergency { error_code: 0x7380, error_register: 0x81, data: [1, 2, 3, 4, 5] };
+    bus.lock().unwrap().bus_mut().slave_mut(0).emergency(&fault);
+    assert_eq!(m.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    assert_eq!(m.take_emergencies(0).unwrap(), vec![fault]);
+    assert_eq!(m.stats().emergencies, 1);
+    assert!(m.take_emergencies(0).unwrap().is_empty());
+}
+
+#[test]
+fn several_drives_share_one_cyclic_frame_each_with_its_own_data() {
+    let mut m = master(3);
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.configure_pdo(1, Mapping::Fixed(0x1720), Mapping::Fixed(0x1B20)).unwrap();
+    m.configure_pdo(2, Mapping::Fixed(0x1702), Mapping::Fixed(0x1B24)).unwrap();
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    assert_eq!(m.expected_wkc().unwrap(), 9);
+    let frames = m.stats().frames;
+    let mappings = [(0x1701, 0x1B01), (0x1720, 0x1B20), (0x1702, 0x1B24)];
+    for (position, (rx, _)) in mappings.iter().enumerate() {
+        let entries = pdo::fixed(*rx).unwrap().entries;
+        let at = offset_of(entries, 0x6040).unwrap();
+        let mut outputs = m.outputs(position as u16).unwrap().to_vec();
+        outputs[at..at + 2].copy_from_slice(&(0x0100 + position as u16).to_le_bytes());
+        m.set_outputs(position as u16, &outputs).unwrap();
+    }
+    assert_eq!(m.exchange().unwrap(), 9);
+    assert_eq!(m.stats().frames, frames + 1, "one frame for every drive");
+    for (position, (_, tx)) in mappings.iter().enumerate() {
+        let p = position as u16;
+        assert_eq!(m.sdo_read(p, 0x6040, 0).unwrap(), (0x0100 + p).to_le_bytes());
+        let at = offset_of(pdo::fixed(*tx).unwrap().entries, 0x6041).unwrap();
+        assert_eq!(m.exchange().unwrap(), 9);
+        let statusword = m.sdo_read(p, 0x6041, 0).unwrap();
+        assert_eq!(&m.inputs(p).unwrap()[at..at + 2], &statusword[..]);
+    }
+}
