@@ -270,6 +270,8 @@ struct Lossy {
     lose_lrw: Arc<AtomicU32>,
     /// Returns of reads of the mailbox-in buffer (0x1C00) still to lose.
     lose_mailbox_reads: Arc<AtomicU32>,
+    /// Returns of writes to the mailbox-out buffer (0x1800) still to lose.
+    lose_mailbox_writes: Arc<AtomicU32>,
 }
 
 impl Link for Lossy {
@@ -279,6 +281,7 @@ impl Link for Lossy {
         let counter = match (first.command, first.ado) {
             (Command::Lrw, _) => &self.lose_lrw,
             (Command::Fprd, 0x1C00) => &self.lose_mailbox_reads,
+            (Command::Fpwr, 0x1800) => &self.lose_mailbox_writes,
             _ => return Ok(n),
         };
         if counter.fetch_update(Ordering::SeqCst, Ordering::SeqCst, |c| c.checked_sub(1)).is_ok() {
@@ -296,8 +299,13 @@ impl Link for Lossy {
 fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
     let lose_lrw = Arc::new(AtomicU32::new(0));
     let lose_mailbox_reads = Arc::new(AtomicU32::new(0));
-    let link =
-        Lossy { inner: InProcess::new(1), lose_lrw: lose_lrw.clone(), lose_mailbox_reads: lose_mailbox_reads.clone() };
+    let lose_mailbox_writes = Arc::new(AtomicU32::new(0));
+    let link = Lossy {
+        inner: InProcess::new(1),
+        lose_lrw: lose_lrw.clone(),
+        lose_mailbox_reads: lose_mailbox_reads.clone(),
+        lose_mailbox_writes: lose_mailbox_writes.clone(),
+    };
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();
     m.request_state(AlState::Op, None, STEP).unwrap();
@@ -311,6 +319,12 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
     assert_eq!(m.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
     assert_eq!(m.stats().mailbox_repeats, before.mailbox_repeats + 1);
     assert_eq!(m.stats().lost_frames, before.lost_frames + 2);
+    // A request that reached the drive but whose frame did not come back is written again
+    // with the same counter; the answer is still the one asked for, and the next SDO works.
+    lose_mailbox_writes.store(1, Ordering::SeqCst);
+    assert_eq!(m.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    assert_eq!(m.sdo_read(0, 0x1018, 3).unwrap(), 2u32.to_le_bytes());
+    assert_eq!(m.stats().lost_frames, before.lost_frames + 3);
 }
 
 #[test]

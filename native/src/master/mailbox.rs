@@ -4,8 +4,9 @@
 //! 1..7 that lets the slave tell a repeat from a new message. A reply is read when SM1 says
 //! full; reading it empties SM1, so a reply lost on the way back is fetched again with the
 //! repeat request of SM1 (activate bit 1, acknowledged in PDI control bit 1). Emergency
-//! messages that arrive in between are queued on the slave, and a mailbox error reply becomes
-//! an error naming its detail code.
+//! messages that arrive in between are queued on the slave, a reply with another counter than
+//! the request's is a stale one and dropped (and counted), and a mailbox error reply becomes an
+//! error naming its detail code.
 
 use std::time::{Duration, Instant};
 
@@ -192,6 +193,12 @@ impl Master {
                     let emergency = Emergency::decode(body)?;
                     self.stats.emergencies += 1;
                     self.slave_mut(position)?.emergencies.push_back(emergency);
+                    return Ok(None);
+                }
+                // The AKD answers with the counter of the request. Another counter is the late
+                // answer to an earlier request (e.g. one written twice after a lost frame).
+                if header.counter != 0 && header.counter != mb.counter {
+                    self.stats.stale_mailbox_replies += 1;
                     return Ok(None);
                 }
                 buffer.truncate(codec::HEADER_LEN + header.length as usize);

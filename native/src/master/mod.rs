@@ -48,6 +48,8 @@ pub struct Stats {
     pub mailbox_repeats: u64,
     /// Emergency messages received.
     pub emergencies: u64,
+    /// Mailbox replies dropped because their counter was not the request's (late answers).
+    pub stale_mailbox_replies: u64,
 }
 
 /// One slave as the scan found it.

@@ -321,7 +321,8 @@ impl PyMaster {
         Ok(PyBytes::new(py, self.lock()?.get()?.inputs(position).py()?))
     }
 
-    /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats, emergencies.
+    /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats,
+    /// emergencies, stale_mailbox_replies.
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let s = self.lock()?.get()?.stats();
         let d = PyDict::new(py);
@@ -331,6 +332,7 @@ impl PyMaster {
         d.set_item("cycles", s.cycles)?;
         d.set_item("mailbox_repeats", s.mailbox_repeats)?;
         d.set_item("emergencies", s.emergencies)?;
+        d.set_item("stale_mailbox_replies", s.stale_mailbox_replies)?;
         Ok(d)
     }
 
