@@ -66,8 +66,9 @@ pub fn serve_iface(iface: &str, mut bus: VirtualBus, stop: &AtomicBool) -> Resul
     while !stop.load(Ordering::Relaxed) {
         let Some(len) = socket.recv(&mut buf, POLL_INTERVAL)? else { continue };
         let is_ecat = len > ETH_HEADER_LEN && u16::from_be_bytes([buf[12], buf[13]]) == ETHERTYPE;
-        // A frame this server sent back has the returned bit: never serve it twice.
-        if !is_ecat || buf[6] & RETURNED_MAC_BIT != 0 {
+        // Masters differ in their source MAC (SOEM 01:.., KickCAT 02:..), so the returned bit
+        // cannot tell requests from replies; the socket already skips what this server sent.
+        if !is_ecat {
             continue;
         }
         if bus.process(&mut buf[ETH_HEADER_LEN..len], elapsed_ns(start)).is_err() {
