@@ -196,3 +196,11 @@ def test_distributed_clocks():
         m.request_state("op")
         assert m.exchange() == 6
         assert m.stats()["wkc_errors"] == 0
+
+
+def test_cycle_time_without_dc(master):
+    master.request_state("preop")
+    master.set_cycle_time(0, 500_000)
+    assert (master.sdo_read(0, 0x60C2, 1), master.sdo_read(0, 0x60C2, 2)) == (b"\x05", (-4).to_bytes(1, "little", signed=True))
+    with pytest.raises(_native.ConfigError, match="250000"):
+        master.set_cycle_time(0, 100_000)

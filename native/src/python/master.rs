@@ -286,6 +286,14 @@ impl PyMaster {
         py.allow_threads(|| m.configure_pdo(position, rx, tx)).py()
     }
 
+    /// Sets the drive's cycle time (interpolation time period 0x60C2) without distributed
+    /// clocks, e.g. for a drive synchronised on the SM2 event (in PreOp).
+    fn set_cycle_time(&self, py: Python<'_>, position: u16, cycle_time_ns: u32) -> PyResult<()> {
+        let mut in_use = self.lock()?;
+        let m = in_use.get()?;
+        py.allow_threads(|| m.set_cycle_time(position, cycle_time_ns)).py()
+    }
+
     /// Sets up distributed clocks and SYNC0 at `cycle_time_ns` (in PreOp).
     fn configure_dc(&self, py: Python<'_>, cycle_time_ns: u32) -> PyResult<()> {
         let mut in_use = self.lock()?;
