@@ -510,7 +510,7 @@ mod tests {
         // The read FMMU ends at bit 3 of its last byte.
         assert_eq!(slot.data(&buf[..len]).unwrap(), &[0xAA, 0xBB, 0xFF, 0x0F]);
         assert_eq!(&e.memory()[0x1100..0x1102], &[0xAA, 0xBB]);
-        assert!(e.take_events().outputs_written == false, "no sync manager covers 0x1100 yet");
+        assert!(!e.take_events().outputs_written, "no sync manager covers 0x1100 yet");
     }
 
     #[test]
