@@ -20,6 +20,8 @@ use crate::sii::Sii;
 
 /// Pause between polls of a sync manager's status.
 const POLL_INTERVAL: Duration = Duration::from_micros(100);
+/// Smallest mailbox that holds an SDO message: mailbox header, CoE header, SDO command.
+const MIN_MAILBOX_LEN: u16 = (coe::SDO_OFFSET + coe::SDO_LEN) as u16;
 /// Control byte of SM0 when the SII gives none: mailbox, master writes, PDI interrupt (AKD).
 const SM0_CONTROL: u8 = 0x26;
 /// Control byte of SM1 when the SII gives none: mailbox, master reads, PDI interrupt (AKD).
@@ -46,17 +48,24 @@ pub struct Mailbox {
 }
 
 impl Mailbox {
-    /// The standard mailbox of a slave from its SII, `None` when it has no mailbox.
-    pub fn from_sii(sii: &Sii) -> Option<Self> {
+    /// The standard mailbox of a slave from its SII, `None` when it has no mailbox; an error
+    /// when the mailbox is too small for any CoE message.
+    pub fn from_sii(sii: &Sii) -> Result<Option<Self>> {
         // "Receive" and "send" are the slave's view: it receives through SM0.
         let mb = &sii.header.standard_mailbox;
         let protocols = sii.header.mailbox_protocols;
         if protocols == 0 || mb.receive_size == 0 || mb.send_size == 0 {
-            return None;
+            return Ok(None);
+        }
+        if mb.receive_size.min(mb.send_size) < MIN_MAILBOX_LEN {
+            return Err(Error::Sii(format!(
+                "mailbox of {} bytes out and {} in is smaller than the {MIN_MAILBOX_LEN} bytes of an SDO message",
+                mb.receive_size, mb.send_size
+            )));
         }
         // The SM category, when present, holds the control bytes the slave expects.
         let control = |n: usize, default: u8| sii.sync_managers().get(n).map_or(default, |sm| sm.control);
-        Some(Mailbox {
+        Ok(Some(Mailbox {
             out_start: mb.receive_offset,
             out_len: mb.receive_size,
             out_control: control(0, SM0_CONTROL),
@@ -65,7 +74,7 @@ impl Mailbox {
             in_control: control(1, SM1_CONTROL),
             protocols,
             counter: 0,
-        })
+        }))
     }
 
     /// Whether the slave speaks CoE.

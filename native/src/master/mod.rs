@@ -30,6 +30,8 @@ pub use pdo::Mapping;
 
 /// Station address given to the slave at position 0; the next ones count up from it.
 pub const FIRST_STATION_ADDRESS: u16 = 0x1001;
+/// How long a slave may take by default to take or answer one mailbox message.
+pub const MAILBOX_TIMEOUT: Duration = Duration::from_secs(2);
 /// How often an idempotent register access is repeated after a lost frame.
 const REGISTER_RETRIES: u32 = 3;
 
@@ -84,6 +86,7 @@ impl Slave {
 pub struct Master {
     link: Box<dyn Link>,
     timeout: Duration,
+    mailbox_timeout: Duration,
     tx: Box<[u8; frame::MAX_PAYLOAD_LEN]>,
     rx: Box<[u8; frame::MAX_PAYLOAD_LEN]>,
     index: u8,
@@ -99,6 +102,7 @@ impl Master {
         Master {
             link,
             timeout,
+            mailbox_timeout: MAILBOX_TIMEOUT,
             tx: Box::new([0; frame::MAX_PAYLOAD_LEN]),
             rx: Box::new([0; frame::MAX_PAYLOAD_LEN]),
             index: 0,
@@ -107,6 +111,11 @@ impl Master {
             process: None,
             clock: None,
         }
+    }
+
+    /// How long a slave may take to take or answer one mailbox message (default 2 s).
+    pub fn set_mailbox_timeout(&mut self, timeout: Duration) {
+        self.mailbox_timeout = timeout;
     }
 
     /// The link's description.

@@ -64,7 +64,10 @@ impl Master {
             Error::Sii(m) => Error::Sii(format!("slave {position} (station 0x{station:04X}): {m}")),
             other => other,
         })?;
-        let mailbox = Mailbox::from_sii(&sii);
+        let mailbox = Mailbox::from_sii(&sii).map_err(|e| match e {
+            Error::Sii(m) => Error::Sii(format!("slave {position} (station 0x{station:04X}): {m}")),
+            other => other,
+        })?;
         Ok(Slave {
             position,
             station_address: station,

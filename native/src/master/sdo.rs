@@ -3,14 +3,9 @@
 //! segmented (what the mailbox cannot hold, in segments with an alternating toggle bit).
 //! Aborts come back as [`Error::SdoAbort`] with the code's name.
 
-use std::time::Duration;
-
 use crate::coe::{self, abort, service, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::error::{Error, Result};
 use crate::master::Master;
-
-/// How long a slave may take to answer one SDO message.
-pub const SDO_TIMEOUT: Duration = Duration::from_secs(2);
 
 impl Master {
     /// Sends one CoE message built by `write` and returns the slave's reply message.
@@ -18,8 +13,8 @@ impl Master {
         let mut message = vec![0u8; self.mailbox_out_len(position)?];
         let len = write(&mut message);
         self.mailbox_flush(position)?;
-        self.mailbox_send(position, &mut message[..len], SDO_TIMEOUT)?;
-        self.mailbox_receive(position, SDO_TIMEOUT)
+        self.mailbox_send(position, &mut message[..len], self.mailbox_timeout)?;
+        self.mailbox_receive(position, self.mailbox_timeout)
     }
 
     fn mailbox_out_len(&self, position: u16) -> Result<usize> {
@@ -55,7 +50,7 @@ impl Master {
         let mut message = [0u8; SDO_OFFSET + SDO_LEN];
         let len = coe::write_sdo_request(&mut message, 0, &request);
         // The abort is a courtesy to the slave; the error to report is the one found here.
-        let _ = self.mailbox_send(position, &mut message[..len], SDO_TIMEOUT);
+        let _ = self.mailbox_send(position, &mut message[..len], self.mailbox_timeout);
         coe::abort_error(index, subindex, code)
     }
 
@@ -85,6 +80,10 @@ impl Master {
             };
             if t != toggle {
                 return Err(self.sdo_abort(position, index, subindex, abort::TOGGLE_BIT));
+            }
+            if data.is_empty() && !last {
+                // A segment must carry data; an empty one would never end the transfer.
+                return Err(self.sdo_abort(position, index, subindex, abort::LENGTH_TOO_LOW));
             }
             value.extend_from_slice(&data);
             toggle = !toggle;

@@ -71,7 +71,7 @@ impl Master {
             if !info.incomplete {
                 return Ok(data);
             }
-            reply = self.mailbox_receive(position, super::sdo::SDO_TIMEOUT)?;
+            reply = self.mailbox_receive(position, self.mailbox_timeout)?;
         }
     }
 
