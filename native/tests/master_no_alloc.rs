@@ -1,0 +1,81 @@
+//! The cyclic exchange allocates nothing: counted by a global allocator, per thread, while the
+//! master exchanges with virtual AKDs served over UDP by another thread (whose allocations,
+//! the simulator's, are not the master's and are not counted).
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+use akd_native::al::AlState;
+use akd_native::link::udp::Udp;
+use akd_native::master::Master;
+use akd_native::sim::{server, Timing, VirtualBus};
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // try_with: the counter may be gone while a thread is being torn down.
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        System.alloc(layout)
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static COUNTING: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(|n| n.get())
+}
+
+#[test]
+fn exchange_allocates_nothing() {
+    let address: SocketAddr = {
+        let probe = UdpSocket::bind("127.0.0.1:0").unwrap();
+        probe.local_addr().unwrap()
+    };
+    let stop = Arc::new(AtomicBool::new(false));
+    let serving = {
+        let stop = stop.clone();
+        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(2, Timing::IMMEDIATE), &stop))
+    };
+    let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
+    // The server may take a moment to bind.
+    let deadline = std::time::Instant::now() + Duration::from_secs(5);
+    while m.scan().is_err() {
+        assert!(std::time::Instant::now() < deadline, "no simulator on {address}");
+    }
+    m.request_state(AlState::PreOp, None, Duration::from_secs(5)).unwrap();
+    m.configure_dc(1_000_000).unwrap();
+    m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
+    m.set_outputs(1, &[1, 2, 3, 4, 5, 6]).unwrap();
+    assert_eq!(m.exchange().unwrap(), 6);
+    // The counter sees this thread's allocations.
+    let probe = allocations();
+    drop(std::hint::black_box(Vec::<u8>::with_capacity(8)));
+    assert_eq!(allocations(), probe + 1);
+    let before = allocations();
+    for _ in 0..1000 {
+        assert_eq!(m.exchange().unwrap(), 6);
+    }
+    let during = allocations() - before;
+    stop.store(true, Ordering::SeqCst);
+    serving.join().unwrap().unwrap();
+    assert_eq!(during, 0, "allocations in 1000 cycles");
+}
