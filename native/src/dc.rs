@@ -98,7 +98,7 @@ pub fn interpolation_time_period(cycle_ns: u32) -> Result<(u8, i8)> {
         .find_map(|exponent| {
             let unit = 10u64.pow((exponent + 9) as u32);
             let units = cycle_ns as u64 / unit;
-            (cycle_ns as u64 % unit == 0 && units <= u8::MAX as u64).then_some((units as u8, exponent))
+            ((cycle_ns as u64).is_multiple_of(unit) && units <= u8::MAX as u64).then_some((units as u8, exponent))
         })
         .ok_or_else(|| {
             Error::Config(format!(

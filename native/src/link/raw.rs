@@ -127,7 +127,7 @@ impl RawSocket {
                 }
                 return Err(Error::io(format!("receiving on interface {:?}", self.iface), err));
             }
-            if from.sll_pkttype == libc::PACKET_OUTGOING as u8 {
+            if from.sll_pkttype == libc::PACKET_OUTGOING {
                 continue;
             }
             return Ok(Some(got as usize));
