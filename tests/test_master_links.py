@@ -35,11 +35,13 @@ def test_master_over_udp_without_simulator_times_out(udp_port):
             master.scan()
 
 
-def test_master_over_veth_with_af_packet(veth):
-    with akd_sim_in_netns(veth.ns_sim, veth.if_sim):
+@pytest.mark.parametrize("count", [1, 2])
+def test_master_over_veth_with_af_packet(veth, count):
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=count):
         with entered_netns(veth.ns_master):
             master = _native.Master(veth.if_master, timeout=0.5)
         try:
-            _bring_to_op_and_exchange(master, 1)
+            assert master.link == veth.if_master
+            _bring_to_op_and_exchange(master, count)
         finally:
             master.close()
