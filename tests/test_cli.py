@@ -1,0 +1,171 @@
+"""The command-line tools as a user runs them: akd-scan, akd-sdo, akd-sim (UDP and raw)."""
+
+from __future__ import annotations
+
+import re
+import signal
+import subprocess
+
+import pytest
+
+import akd_ros
+from support.netns import (akd_sim_in_netns, akd_sim_udp, console_script, run_in_netns,
+                           stop_process)
+
+# One line of akd-scan for a virtual AKD: the real drive's identity from its SII.
+AKD_LINE = re.compile(
+    r"^(?P<position>\d+) vendor=0x0000006A product=0x00414B44 revision=0x00000002 "
+    r"name='AKD EtherCAT Drive \(CoE\)' state=(?P<state>\w+)")
+
+
+def run_tool(name: str, *args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
+    """Runs one console script to completion and returns its status and output."""
+    return subprocess.run([*console_script(name), *args], capture_output=True, text=True,
+                          timeout=timeout, check=False)
+
+
+def scanned_positions(stdout: str) -> list[int]:
+    """Positions of the AKD lines akd-scan printed; fails on any other line."""
+    positions = []
+    for line in stdout.splitlines():
+        match = AKD_LINE.match(line)
+        assert match, f"unexpected akd-scan line: {line!r}"
+        positions.append(int(match["position"]))
+    return positions
+
+
+def test_scan_sim_prints_one_line_per_virtual_akd():
+    result = run_tool("akd-scan", "sim")
+    assert result.returncode == 0, result.stderr
+    assert scanned_positions(result.stdout) == [0]
+    assert "model=AKD-" in result.stdout
+
+
+def test_scan_sim_count_two():
+    result = run_tool("akd-scan", "sim:2")
+    assert result.returncode == 0, result.stderr
+    assert scanned_positions(result.stdout) == [0, 1]
+
+
+def test_sdo_read_identity_matches_scan():
+    result = run_tool("akd-sdo", "sim", "read", "0x1018:1")
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "0x1018:01 = 106 (0x0000006A)"
+
+
+def test_sdo_read_string_object():
+    result = run_tool("akd-sdo", "sim", "read", "0x1008:0")
+    assert result.returncode == 0, result.stderr
+    master = akd_ros.Master("sim")
+    master.scan()
+    master.request_state("PreOp")
+    expected = master.sdo_read(0, 0x1008, 0).rstrip(b"\0").decode("latin-1")
+    master.close()
+    assert result.stdout.strip() == f"0x1008:00 = {expected!r}"
+
+
+def expected_abort_name(index: int, subindex: int, write: bytes | None = None) -> tuple[int, str]:
+    """The abort the library itself reports for this access, to compare the tool's line with."""
+    master = akd_ros.Master("sim")
+    master.scan()
+    master.request_state("PreOp")
+    try:
+        if write is None:
+            master.sdo_read(0, index, subindex)
+        else:
+            master.sdo_write(0, index, subindex, write)
+    except akd_ros.SdoAbortError as abort:
+        return abort.code, abort.code_name
+    finally:
+        master.close()
+    pytest.fail(f"0x{index:04X}:{subindex:02X} did not abort")
+
+
+def test_sdo_read_missing_object_names_the_abort():
+    code, name = expected_abort_name(0x1234, 0)
+    assert code == 0x06020000
+    result = run_tool("akd-sdo", "sim", "read", "0x1234:0")
+    assert result.returncode == 1
+    assert "0x06020000" in result.stderr and name in result.stderr
+    assert "Traceback" not in result.stderr
+    assert result.stdout == ""
+
+
+def test_sdo_write_read_only_object_names_the_abort():
+    result = run_tool("akd-sdo", "sim", "write", "0x6041:0", "0")
+    assert result.returncode == 1
+    code, name = expected_abort_name(0x6041, 0, b"\0\0")
+    assert code == 0x06010002
+    assert "0x06010002" in result.stderr and name in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("value", ["128", "-129", "0x1FF", "eight"])
+def test_sdo_write_value_that_does_not_fit_is_refused_before_sending(value):
+    result = run_tool("akd-sdo", "sim", "write", "0x6060:0", value)
+    assert result.returncode == 1
+    assert result.stderr.startswith("akd-sdo: error: ")
+    assert "INTEGER8" in result.stderr or "number" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.parametrize("address", ["0x10000:0", "0x6060:256", "6060", "x:y"])
+def test_sdo_bad_address_is_a_clear_error(address):
+    result = run_tool("akd-sdo", "sim", "read", address)
+    assert result.returncode == 1
+    assert "INDEX:SUB" in result.stderr or "0..0xFFFF" in result.stderr
+
+
+def test_sim_over_udp_serves_scan_and_sdo_round_trip(udp_port):
+    link = f"udp://127.0.0.1:{udp_port}"
+    with akd_sim_udp(udp_port) as sim:
+        scan = run_tool("akd-scan", link)
+        assert scan.returncode == 0, scan.stderr
+        assert scanned_positions(scan.stdout) == [0]
+        # The simulator keeps its object dictionary between masters, so a value written by one
+        # akd-sdo process is read back by the next, whatever its size and sign.
+        for address, value, shown in (("0x6060:0", "-3", "-3 (0xFD)"),
+                                      ("0x6060:0", "8", "8 (0x08)")):
+            written = run_tool("akd-sdo", link, "write", address, value)
+            assert written.returncode == 0, written.stderr
+            read = run_tool("akd-sdo", link, "read", address)
+            assert read.returncode == 0, read.stderr
+            assert read.stdout.strip().endswith(f"= {shown}")
+    assert sim.returncode == 0
+    assert sim.stdout.strip().splitlines()[-1] == "akd-sim: stopped"
+
+
+def test_sim_over_udp_count_two(udp_port):
+    with akd_sim_udp(udp_port, count=2):
+        scan = run_tool("akd-scan", f"udp://127.0.0.1:{udp_port}")
+    assert scan.returncode == 0, scan.stderr
+    assert scanned_positions(scan.stdout) == [0, 1]
+
+
+def test_sim_stops_cleanly_on_sigint(udp_port):
+    with akd_sim_udp(udp_port) as sim:
+        sim.send_signal(signal.SIGINT)
+        out, _ = stop_process(sim)
+    assert sim.returncode == 0
+    assert "akd-sim: stopped" in out
+
+
+def test_sim_refuses_bad_arguments():
+    assert run_tool("akd-sim", "--udp", "127.0.0.1:1", "--count", "0").returncode == 2
+    bad_port = run_tool("akd-sim", "--udp", "127.0.0.1:99999")
+    assert bad_port.returncode == 1
+    assert "1..65535" in bad_port.stderr
+
+
+def test_scan_names_a_missing_interface():
+    result = run_tool("akd-scan", "akd-no-such-if")
+    assert result.returncode == 1
+    assert "akd-no-such-if" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+def test_scan_over_raw_ethernet_in_netns(veth):
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
+        scan = run_in_netns(veth.ns_master, [*console_script("akd-scan"), veth.if_master])
+    assert scan.returncode == 0, scan.stderr
+    assert scanned_positions(scan.stdout) == [0, 1]
