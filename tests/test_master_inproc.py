@@ -204,3 +204,19 @@ def test_cycle_time_without_dc(master):
     assert (master.sdo_read(0, 0x60C2, 1), master.sdo_read(0, 0x60C2, 2)) == (b"\x05", (-4).to_bytes(1, "little", signed=True))
     with pytest.raises(_native.ConfigError, match="250000"):
         master.set_cycle_time(0, 100_000)
+
+
+def test_a_second_thread_gets_an_error_instead_of_waiting(master):
+    import threading
+
+    worker = threading.Thread(target=master.request_state, args=("op",))
+    worker.start()
+    refused = []
+    while worker.is_alive():
+        try:
+            master.stats()
+        except _native.ConfigError as error:
+            refused.append(str(error))
+    worker.join()
+    assert refused and "in use by another thread" in refused[0]
+    assert master.al_status(0)[0] == "Op"
