@@ -9,8 +9,7 @@ import subprocess
 import pytest
 
 import akd_ros
-from support.netns import (akd_sim_in_netns, akd_sim_udp, console_script, run_in_netns,
-                           stop_process)
+from support.netns import akd_sim_in_netns, akd_sim_udp, console_script, run_in_netns
 
 # One line of akd-scan for a virtual AKD: the real drive's identity from its SII.
 AKD_LINE = re.compile(
@@ -124,15 +123,17 @@ def test_sim_over_udp_serves_scan_and_sdo_round_trip(udp_port):
         assert scanned_positions(scan.stdout) == [0]
         # The simulator keeps its object dictionary between masters, so a value written by one
         # akd-sdo process is read back by the next, whatever its size and sign.
-        for address, value, shown in (("0x6060:0", "-3", "-3 (0xFD)"),
-                                      ("0x6060:0", "8", "8 (0x08)")):
+        for address, value, shown in (("0x6060:0", "3", "3 (0x03)"),
+                                      ("0x6071:0", "-100", "-100 (0xFF9C)"),
+                                      ("0x607A:0", "-123456", "-123456 (0xFFFE1DC0)"),
+                                      ("0x607A:0", "0x7FFFFFFF", "2147483647 (0x7FFFFFFF)")):
             written = run_tool("akd-sdo", link, "write", address, value)
             assert written.returncode == 0, written.stderr
             read = run_tool("akd-sdo", link, "read", address)
             assert read.returncode == 0, read.stderr
             assert read.stdout.strip().endswith(f"= {shown}")
     assert sim.returncode == 0
-    assert sim.stdout.strip().splitlines()[-1] == "akd-sim: stopped"
+    assert sim.output_text.strip().splitlines()[-1] == "akd-sim: stopped"
 
 
 def test_sim_over_udp_count_two(udp_port):
@@ -145,9 +146,9 @@ def test_sim_over_udp_count_two(udp_port):
 def test_sim_stops_cleanly_on_sigint(udp_port):
     with akd_sim_udp(udp_port) as sim:
         sim.send_signal(signal.SIGINT)
-        out, _ = stop_process(sim)
+        out, _ = sim.communicate(timeout=10)
     assert sim.returncode == 0
-    assert "akd-sim: stopped" in out
+    assert out.strip().splitlines()[-1] == "akd-sim: stopped"
 
 
 def test_sim_refuses_bad_arguments():

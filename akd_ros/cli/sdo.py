@@ -25,9 +25,9 @@ _VISIBLE_STRING = 0x0009
 
 def parse_address(text: str) -> tuple[int, int]:
     """'INDEX:SUB' in hex or decimal; raises ValueError naming the allowed ranges."""
-    index_text, sep, sub_text = text.partition(":")
+    index_text, _, sub_text = text.partition(":")
     try:
-        index, subindex = int(index_text, 0), int(sub_text if sep else "0", 0)
+        index, subindex = int(index_text, 0), int(sub_text, 0)
     except ValueError:
         raise ValueError(f"expected INDEX:SUB such as 0x6060:0, got {text!r}") from None
     if not 0 <= index <= 0xFFFF or not 0 <= subindex <= 0xFF:

@@ -8,6 +8,7 @@ line of drives would (for a veth end, or a spare port wired to a master).
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 
 from akd_ros.cli.common import run
@@ -51,8 +52,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"akd-sim: serving {drives} on interface {args.iface}", flush=True)
                 serve_iface(args.iface, args.count)
         except KeyboardInterrupt:
-            # SIGINT and SIGTERM are how a simulator is meant to stop.
-            pass
+            # SIGINT and SIGTERM are how a simulator is meant to stop; a second signal while
+            # it stops must not turn the clean stop into an interrupted one.
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
         print("akd-sim: stopped", flush=True)
         return 0
 

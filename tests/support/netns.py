@@ -193,13 +193,14 @@ def _wait_until(ready, process: subprocess.Popen, what: str, timeout: float) -> 
 @contextmanager
 def _serving(argv: list[str], ready, what: str, ready_timeout: float) -> Iterator[subprocess.Popen]:
     """Starts a simulator process, yields it once `ready()` holds, stops it with SIGTERM on exit
-    and checks it stopped cleanly (status 0)."""
+    and checks it stopped cleanly (status 0). Its output is then in `process.output_text`."""
     process = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _wait_until(ready, process, what, ready_timeout)
     try:
         yield process
     finally:
         out, err = stop_process(process)
+        process.output_text = out
     if process.returncode != 0:
         raise RuntimeError(f"{what} did not stop cleanly on SIGTERM (status "
                            f"{process.returncode}): {err.strip() or out.strip()}")
