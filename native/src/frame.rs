@@ -147,12 +147,13 @@ impl Command {
         )
     }
 
-    /// Whether a serving slave copies datagram data into its memory.
+    /// Whether a serving slave copies datagram data into its memory (for ARMW and FRMW, every
+    /// slave but the addressed one).
     pub fn writes(self) -> bool {
         matches!(
             self,
             Command::Apwr | Command::Aprw | Command::Fpwr | Command::Fprw | Command::Bwr | Command::Brw
-                | Command::Lwr | Command::Lrw
+                | Command::Lwr | Command::Lrw | Command::Armw | Command::Frmw
         )
     }
 
@@ -169,7 +170,8 @@ impl Command {
     }
 }
 
-/// Expected working counter of a datagram served by `slaves` slaves that each read and/or write.
+/// Expected working counter of a datagram served by `readers` slaves that read and `writers`
+/// slaves that write (for ARMW/FRMW: the addressed slave reads, the others write).
 pub fn expected_wkc(command: Command, readers: u16, writers: u16) -> u16 {
     match command {
         Command::Nop => 0,
@@ -524,6 +526,8 @@ mod tests {
         assert_eq!(expected_wkc(Command::Lrw, 2, 2), 6);
         assert_eq!(expected_wkc(Command::Bwr, 0, 3), 3);
         assert_eq!(expected_wkc(Command::Nop, 4, 4), 0);
+        // DC drift datagram on three clocks: the reference reads, the two others write.
+        assert_eq!(expected_wkc(Command::Frmw, 1, 2), 3);
     }
 
     #[test]

@@ -8,7 +8,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::dc::{self, PortReceiveTimes};
 use crate::error::{Error, Result};
-use crate::frame::Command;
+use crate::frame::{self, Command};
 use crate::master::Master;
 use crate::registers;
 
@@ -86,8 +86,7 @@ impl Master {
         }
         self.clock = Some(Clock {
             reference_station,
-            // FRMW: 1 for the reference clock that reads, 1 for every other clock that writes.
-            expected_wkc: dc_slaves.len() as u16,
+            expected_wkc: frame::expected_wkc(Command::Frmw, 1, dc_slaves.len() as u16 - 1),
             cycle_ns,
             system_time: u64::from_le_bytes(now),
         });
