@@ -233,17 +233,8 @@ mod tests {
         assert_eq!(sii.string(statusword.name_idx), Some("Statusword"));
         assert_eq!(u16::from(statusword.data_type), data_type::UNSIGNED16);
     }
+    // The byte-for-byte comparison with the real drive's EEPROM is
+    // tests/test_real_akd_sii.py::test_real_akd_sii_virtual_image_equals_the_real_one, where a
+    // missing ../shared is reported as a skip rather than passed off as a pass.
 
-    #[test]
-    fn equals_the_real_drives_eeprom() {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/real-akd/akd.hex");
-        let Ok(real) = std::fs::read(path) else {
-            eprintln!("SKIPPED equals_the_real_drives_eeprom: {path} is absent");
-            return;
-        };
-        let ours = akd_sii();
-        let first_difference = ours.iter().zip(&real).position(|(a, b)| a != b);
-        assert_eq!(first_difference, None, "first differing byte offset");
-        assert_eq!(ours.len(), real.len());
-    }
 }
