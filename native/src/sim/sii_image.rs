@@ -233,8 +233,8 @@ mod tests {
         assert_eq!(sii.string(statusword.name_idx), Some("Statusword"));
         assert_eq!(u16::from(statusword.data_type), data_type::UNSIGNED16);
     }
+
     // The byte-for-byte comparison with the real drive's EEPROM is
     // tests/test_real_akd_sii.py::test_real_akd_sii_virtual_image_equals_the_real_one, where a
     // missing ../shared is reported as a skip rather than passed off as a pass.
-
 }
