@@ -65,7 +65,7 @@ try:
     report["sizes"] = [[len(s.output), len(s.input)] for s in slaves]
     master.state = pysoem.SAFEOP_STATE
     master.write_state()
-    report["safeop"] = master.state_check(pysoem.SAFEOP_STATE, 3_000_000) == pysoem.SAFEOP_STATE
+    report["safeop"] = master.state_check(pysoem.SAFEOP_STATE, 1_000_000) == pysoem.SAFEOP_STATE
     master.read_state()
     report["al_after_safeop"] = [[s.state, s.al_status,
                                   pysoem.al_status_code_to_string(s.al_status)] for s in slaves]
