@@ -14,6 +14,7 @@ use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::master::{Mapping, Master};
 use akd_native::pdo::{self, Direction, PdoEntry};
+use akd_native::sim::{Timing, VirtualBus};
 
 const STEP: Duration = Duration::from_secs(5);
 
@@ -323,8 +324,30 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
     // with the same counter; the answer is still the one asked for, and the next SDO works.
     lose_mailbox_writes.store(1, Ordering::SeqCst);
     assert_eq!(m.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    // The drive takes the second write for a repetition (same counter) and does not answer it
+    // again: once its firmware had the time to handle it, SM1 stays empty.
+    std::thread::sleep(Duration::from_millis(10));
+    let sm1_status = m.read_register_at(0, 0x080D, 1).unwrap()[0];
+    assert_eq!(sm1_status & 0x08, 0, "a second reply waits in SM1 (status 0x{sm1_status:02X})");
     assert_eq!(m.sdo_read(0, 0x1018, 3).unwrap(), 2u32.to_le_bytes());
     assert_eq!(m.stats().lost_frames, before.lost_frames + 3);
+}
+
+#[test]
+fn a_late_reply_to_a_request_given_up_is_not_taken_for_the_next_ones() {
+    // A drive whose firmware takes 50 ms per mailbox message, asked with a 1 ms time-out.
+    let slow = Timing { al_request_ns: 0, mailbox_ns: 50_000_000 };
+    let link = InProcess::with_bus(VirtualBus::with_timing(1, slow));
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.set_mailbox_timeout(Duration::from_millis(1));
+    assert!(matches!(m.sdo_read(0, 0x1018, 1).unwrap_err(), Error::Timeout { .. }));
+    // With time enough, the next request waits for SM0, then gets the answer to the first
+    // request first (another counter): it is dropped and counted, the right one comes next.
+    m.set_mailbox_timeout(Duration::from_secs(1));
+    assert_eq!(m.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    assert_eq!(m.stats().stale_mailbox_replies, 1);
 }
 
 #[test]

@@ -205,7 +205,7 @@ impl Master {
                     return Ok(None);
                 }
                 // The AKD answers with the counter of the request. Another counter is the late
-                // answer to an earlier request (e.g. one written twice after a lost frame).
+                // answer to an earlier request this master gave up waiting for.
                 if header.counter != 0 && header.counter != mb.counter {
                     self.stats.stale_mailbox_replies += 1;
                     return Ok(None);

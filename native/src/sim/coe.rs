@@ -2,8 +2,10 @@
 //! information with fragmentation, emergencies, and mailbox error replies for anything else.
 //!
 //! Replies echo the request's mailbox counter, as the real drive does (request counter 1 →
-//! reply counter 1 in the SOEM capture). Replies wait in a queue until the mailbox-in buffer is
-//! free; the last one is kept for a repeat request.
+//! reply counter 1 in the SOEM capture). A message with the same non-zero counter as the last
+//! one accepted is the master writing it again after a lost frame (ETG.1000.6 mailbox "Cnt"):
+//! it is not served a second time. Replies wait in a queue until the mailbox-in buffer is free;
+//! the last one is kept for a repeat request.
 
 use std::collections::VecDeque;
 
@@ -42,6 +44,8 @@ pub struct MailboxServer {
     replies: VecDeque<Vec<u8>>,
     last: Option<Vec<u8>>,
     counter: u8,
+    /// Counter of the last message from the master that was served (0: none, or not counted).
+    accepted_counter: u8,
 }
 
 /// The write-access bit of the state the drive is in.
@@ -83,8 +87,13 @@ impl MailboxServer {
     /// Handles one message the master wrote to the mailbox-out buffer; `mailbox_size` is the
     /// length of the mailbox-in buffer the replies must fit.
     pub fn handle(&mut self, message: &[u8], od: &mut ObjectDictionary, state: AlState, mailbox_size: usize) {
-        let mut out = vec![0u8; mailbox_size];
         let counter = message.get(5).map_or(0, |b| (b >> 4) & 0x07);
+        // Counter 0 is the master's "not counting"; any other repeated value is a repetition.
+        if counter != 0 && counter == self.accepted_counter {
+            return;
+        }
+        self.accepted_counter = counter;
+        let mut out = vec![0u8; mailbox_size];
         let header = match MailboxHeader::decode(message) {
             Ok(h) if h.length == 0 => return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size),
             Ok(h) => h,
@@ -373,7 +382,8 @@ mod tests {
 
     fn ask(server: &mut MailboxServer, od: &mut ObjectDictionary, request: &SdoRequest<'_>) -> Vec<u8> {
         let mut buf = [0u8; 64];
-        let len = write_sdo_request(&mut buf, 3, request);
+        // Each request a new one, as a master counts them.
+        let len = write_sdo_request(&mut buf, next_counter(server.accepted_counter), request);
         server.handle(&buf[..len], od, AlState::PreOp, 128);
         server.next_reply().expect("a reply").to_vec()
     }
@@ -404,7 +414,8 @@ mod tests {
         let mut value = data.to_vec();
         let mut toggle = false;
         loop {
-            let len = write_sdo_request(&mut buf, 2, &SdoRequest::UploadSegment { toggle });
+            let counter = next_counter(server.accepted_counter);
+            let len = write_sdo_request(&mut buf, counter, &SdoRequest::UploadSegment { toggle });
             server.handle(&buf[..len], &mut od, AlState::PreOp, 24);
             let reply = server.next_reply().unwrap().to_vec();
             let (_, _, body) = split_message(&reply).unwrap();
@@ -479,5 +490,28 @@ mod tests {
         }
         let listed: Vec<u16> = indices[2..].chunks(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect();
         assert_eq!(listed, od.objects().iter().map(|o| o.index).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_message_written_again_with_its_counter_is_served_once() {
+        let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
+        let mut buf = [0u8; 32];
+        let write = SdoRequest::DownloadExpedited { index: 0x607A, subindex: 0, complete_access: false, data: &[5; 4] };
+        let len = write_sdo_request(&mut buf, 4, &write);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        // The master did not see its frame come back and writes the same message again.
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        assert!(server.next_reply().is_some());
+        assert_eq!(server.next_reply(), None, "the repetition was answered");
+        // The next counter is a new request; counter 0 (a master that does not count) always is.
+        let len = write_sdo_request(&mut buf, 5, &write);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        assert!(server.next_reply().is_some());
+        let read = SdoRequest::Upload { index: 0x607A, subindex: 0, complete_access: false };
+        let len = write_sdo_request(&mut buf, 0, &read);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        assert!(server.next_reply().is_some() && server.next_reply().is_some());
+        assert_eq!(server.next_reply(), None);
     }
 }
