@@ -324,14 +324,17 @@ impl Esc {
         self.memory[e..e + 8].copy_from_slice(&arrival.port0_ns.to_le_bytes());
     }
 
-    /// A write to the system time feeds the drift control: the difference between the time
-    /// received and the local copy goes to 0x092C (bit 31 set when the local copy is ahead),
-    /// and the local copy is pulled towards it.
+    /// A write to the system time feeds the drift control: the time received plus the
+    /// propagation delay from the reference clock (0x0928, ETG.1000.4 DC: the value left the
+    /// reference that long ago) is compared with the local copy, the difference goes to 0x092C
+    /// (bit 31 set when the local copy is ahead), and the local copy is pulled towards it.
     fn compare_system_time(&mut self, received: &[u8], arrival: Arrival) {
         let local = self.system_time(arrival.port0_ns);
         let mut bytes = local.to_le_bytes();
         bytes[..received.len()].copy_from_slice(received);
-        let received = u64::from_le_bytes(bytes);
+        let d = reg::DC_SYSTEM_TIME_DELAY as usize;
+        let delay = u32::from_le_bytes(self.memory[d..d + 4].try_into().expect("4 bytes"));
+        let received = u64::from_le_bytes(bytes).wrapping_add(delay as u64);
         let difference = received.wrapping_sub(local) as i64;
         let magnitude = difference.unsigned_abs().min(0x7FFF_FFFF) as u32;
         let value = if difference <= 0 { magnitude | 0x8000_0000 } else { magnitude };
@@ -524,5 +527,20 @@ mod tests {
         // FRMW from another drive writes 6_100: 100 ns ahead of the local copy.
         run(&mut e, Command::Frmw, 0x7777, 0x0910, &6_100u64.to_le_bytes());
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x092C, &[0; 4]).0, 100u32.to_le_bytes().to_vec());
+    }
+
+    #[test]
+    fn dc_drift_adds_the_propagation_delay_to_the_time_received() {
+        let mut e = esc();
+        run(&mut e, Command::Apwr, 0, 0x0920, &5_000u64.to_le_bytes());
+        // 300 ns from the reference clock: its 5_800 is 6_100 by the time it arrives, and the
+        // local copy reads 6_000, 100 ns behind.
+        run(&mut e, Command::Apwr, 0, 0x0928, &300u32.to_le_bytes());
+        run(&mut e, Command::Frmw, 0x7777, 0x0910, &5_800u64.to_le_bytes());
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x092C, &[0; 4]).0, 100u32.to_le_bytes().to_vec());
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0910, &[0; 8]).0, 6_100u64.to_le_bytes().to_vec());
+        // Received 5_650 + 300 = 5_950 against 6_100: the local copy is 150 ns ahead (bit 31).
+        run(&mut e, Command::Frmw, 0x7777, 0x0910, &5_650u64.to_le_bytes());
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x092C, &[0; 4]).0, (150u32 | 1 << 31).to_le_bytes().to_vec());
     }
 }
