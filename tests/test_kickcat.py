@@ -9,11 +9,9 @@ kickcat reaching PreOp with the mailbox the SII describes.
 
 from __future__ import annotations
 
-import json
-
 import pytest
 
-from support.netns import akd_sim_in_netns, run_python_in_netns
+from support.netns import master_script_report
 
 kickcat = pytest.importorskip("kickcat", reason="kickcat is installed by scripts/setup.sh")
 
@@ -104,12 +102,8 @@ print(json.dumps(report))
 
 
 def run_kickcat(net, count: int, mapping: str) -> dict:
-    """Serves `count` virtual AKDs and runs the kickcat script against them; returns its report."""
-    with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count):
-        result = run_python_in_netns(net.ns_master, KICKCAT_SCRIPT,
-                                     args=[net.if_master, mapping], timeout=120)
-    assert result.returncode == 0, f"kickcat script failed:\n{result.stderr}\n{result.stdout}"
-    return json.loads(result.stdout.strip().splitlines()[-1])
+    """Serves `count` virtual AKDs and runs the script against them; returns its report."""
+    return master_script_report(net, KICKCAT_SCRIPT, [mapping], count=count)
 
 
 @pytest.mark.parametrize("count", [1, 2])

@@ -7,11 +7,9 @@ own lets the test bound it in time). The script prints what SOEM saw as JSON; th
 
 from __future__ import annotations
 
-import json
-
 import pytest
 
-from support.netns import akd_sim_in_netns, run_python_in_netns
+from support.netns import master_script_report
 
 pysoem = pytest.importorskip("pysoem", reason="pysoem is installed by scripts/setup.sh")
 
@@ -104,12 +102,8 @@ print(json.dumps(report, default=lambda raw: raw.decode("latin-1")))
 
 
 def run_soem(net, count: int, mapping: str, what: str = "") -> dict:
-    """Serves `count` virtual AKDs and runs the pysoem script against them; returns its report."""
-    with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count):
-        result = run_python_in_netns(net.ns_master, SOEM_SCRIPT,
-                                     args=[net.if_master, mapping, what], timeout=120)
-    assert result.returncode == 0, f"pysoem script failed:\n{result.stderr}"
-    return json.loads(result.stdout.strip().splitlines()[-1])
+    """Serves `count` virtual AKDs and runs the script against them; returns its report."""
+    return master_script_report(net, SOEM_SCRIPT, [mapping, what], count=count)
 
 
 def test_soem_reads_identity_from_sii_and_object_dictionary(veth):

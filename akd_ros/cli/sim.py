@@ -46,10 +46,10 @@ def main(argv: list[str] | None = None) -> int:
         try:
             if args.udp:
                 host, port = parse_host_port(args.udp)
-                print(f"akd-sim: serving {drives} on udp {host}:{port}", flush=True)
+                print(f"akd-sim: starting {drives} on udp {host}:{port}", flush=True)
                 serve_udp(host, port, args.count)
             else:
-                print(f"akd-sim: serving {drives} on interface {args.iface}", flush=True)
+                print(f"akd-sim: starting {drives} on interface {args.iface}", flush=True)
                 serve_iface(args.iface, args.count)
         except KeyboardInterrupt:
             # SIGINT and SIGTERM are how a simulator is meant to stop; a second signal while

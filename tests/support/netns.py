@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import ctypes
 import itertools
+import json
 import os
 import shutil
 import signal
@@ -220,6 +221,20 @@ def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeou
     argv = [*console_script("akd-sim"), "--udp", f"{host}:{port}", "--count", str(count)]
     return _serving(argv, lambda: udp_port_bound(port), f"akd-sim on udp {host}:{port}",
                     ready_timeout)
+
+
+def master_script_report(net: VethPair, script: str, args: Sequence[str], count: int = 1,
+                         timeout: float = 120.0) -> dict:
+    """Serves `count` virtual AKDs on the sim end of `net`, runs a third-party master's script
+    (source text) in the master namespace with (interface, *args), and returns the JSON report
+    the script printed as its last line; fails the test with the script's output otherwise."""
+    with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count):
+        result = run_python_in_netns(net.ns_master, script, args=[net.if_master, *args],
+                                     timeout=timeout)
+    if result.returncode != 0:
+        pytest.fail(f"master script failed (status {result.returncode}):\n{result.stderr}\n"
+                    f"{result.stdout}")
+    return json.loads(result.stdout.strip().splitlines()[-1])
 
 
 @contextmanager
