@@ -1,10 +1,13 @@
 """KickCAT (PyPI `kickcat`), a third-party master, against the virtual AKD over a veth pair.
 
 Like test_soem: akd-sim on one veth end in its namespace, the kickcat script in the other, the
-script's observations as JSON. kickcat's Python API (2.5) reads the SII inside `Bus.init` (the
-slave's mailbox set-up and the PDO detection depend on it) but does not expose the identity it
-read, so the identity is checked through CoE 0x1018 and the SII reads themselves are checked by
-kickcat reaching PreOp with the mailbox the SII describes.
+script's observations as JSON. kickcat's Python API (2.5) reads the SII inside `Bus.init` but does
+not expose what it read, so the identity is checked through CoE 0x1018, and the SII content
+kickcat uses is checked by what depends on it: the mailbox sync managers it sets from the SII
+(the virtual AKD refuses PreOp with 0x0017 unless SM0/SM1 are at 0x1800/0x1C00 in mailbox mode,
+no longer than the SII's 1024 bytes)
+and the process-data sync manager start addresses it takes from the SII SM category (SafeOp is
+refused when SM2/SM3 are not at 0x1100/0x1140).
 """
 
 from __future__ import annotations
