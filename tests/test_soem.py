@@ -57,9 +57,24 @@ try:
             slave.sdo_write(assign, 1, struct.pack("<H", pdo))
             slave.sdo_write(assign, 0, bytes([1]))
 
-    if mapping == "fixed":
+    def select_flexible_mappings(position):
+        # AKD_FACTS 6: counts cleared, entries with sub 0 = 0 first and the count last, then
+        # the assignment; 24-bit PDOs padded to even lengths with the AKD's dummy objects.
+        slave = master.slaves[position]
+        for assign, pdo, entries in ((0x1C12, 0x1600, (0x60400010, 0x60600008, 0x00020008)),
+                                     (0x1C13, 0x1A00, (0x60410010, 0x60610008, 0x20020108))):
+            slave.sdo_write(assign, 0, bytes([0]))
+            slave.sdo_write(pdo, 0, bytes([0]))
+            for sub, entry in enumerate(entries, start=1):
+                slave.sdo_write(pdo, sub, struct.pack("<I", entry))
+            slave.sdo_write(pdo, 0, bytes([len(entries)]))
+            slave.sdo_write(assign, 1, struct.pack("<H", pdo))
+            slave.sdo_write(assign, 0, bytes([1]))
+
+    if mapping != "powerup":
+        chosen = {"fixed": select_fixed_mappings, "flexible": select_flexible_mappings}[mapping]
         for slave in slaves:
-            slave.config_func = select_fixed_mappings
+            slave.config_func = chosen
     report["iomap_size"] = master.config_map()
     if "dc" in extras:
         # SOEM measures the line's delays, sets each slave's system-time offset so that DC time
@@ -92,8 +107,10 @@ try:
         wkcs, inputs = [], []
         for cycle in range(100):
             for position, slave in enumerate(slaves):
-                # 0x1701: position command (4), controlword (2); a distinct value per cycle.
-                slave.output = struct.pack("<iH", 1000 * cycle + position, 0x0006)
+                # 0x1701: position command (4), controlword (2), a distinct value per cycle;
+                # the flexible mapping: controlword (2), modes of operation (1), padding (1).
+                slave.output = (struct.pack("<iH", 1000 * cycle + position, 0x0006)
+                                if mapping == "fixed" else struct.pack("<HbB", 0x0006, 8, 0))
             master.send_processdata()
             wkcs.append(master.receive_processdata(20000))
         report["op_wkcs"] = wkcs
@@ -167,3 +184,12 @@ def test_soem_distributed_clocks_with_two_drives(veth):
     # The reference clock's system time, read back through SOEM's cyclic FRMW, follows the host
     # clock SOEM set it from (well within the 10 s the test as a whole may take).
     assert abs(report["dc_time"] - report["host_dc_time"]) < 10 * 10**9
+
+
+def test_soem_flexible_mapping_padded_to_even_lengths(veth):
+    report = run_soem(veth, 1, "flexible")
+    # 0x1600 = controlword, modes of operation, pad 0x0002; 0x1A00 = statusword, modes display,
+    # pad 0x2002:01: 4 bytes each way, which the AKD accepts (odd lengths it refuses).
+    assert report["sizes"] == [[4, 4]]
+    assert report["safeop"], report["al_after_safeop"]
+    assert report["op"] and report["op_wkcs"] == [3] * 100
