@@ -6,6 +6,9 @@
 //! process image ([`pdo`]) and the process-data watchdog ([`watchdog`]). A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
 //! that a run is deterministic. [`server`] serves a bus on UDP or on a network interface.
+//! [`VirtualBus::with_mailbox_size`] builds drives whose SII declares a smaller mailbox than
+//! the real drive's 1 KiB, so that segmented SDO transfers and fragmented SDO information,
+//! which the real drive's objects never need, can be exercised.
 
 pub mod al;
 pub mod coe;
@@ -18,12 +21,12 @@ pub mod sync_manager;
 pub mod watchdog;
 
 use crate::al::{code, AlState};
-use crate::error::FrameError;
+use crate::error::{Error, FrameError, Result};
 use crate::frame::{self, DatagramMut};
 use crate::mailbox::HEADER_LEN;
 use crate::registers as reg;
 use crate::sim::esc::{Arrival, Esc, Events};
-use crate::sim::sync_manager::{SyncManager, ACTIVATE_REPEAT, PDI_REPEAT_ACK, SM_COUNT};
+use crate::sim::sync_manager::{SyncManager, ACTIVATE_REPEAT, MIN_MAILBOX_SIZE, PDI_REPEAT_ACK, SM_COUNT};
 
 /// How long the drive's firmware takes to react, in ns of bus time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -53,6 +56,25 @@ impl Default for Timing {
 /// Time a frame takes through one drive and its cable, ns.
 const FORWARD_DELAY_NS: u64 = 500;
 
+/// The real AKD's standard mailbox: 1 KiB each way.
+pub const AKD_MAILBOX_SIZE: u16 = 0x0400;
+
+/// The AKD's SII image declaring a standard mailbox of `size` bytes each way (the sync manager
+/// category says the same), everything else as the real drive's.
+fn sii_with_mailbox_size(size: u16) -> Result<Vec<u8>> {
+    let mut sii = crate::sii::Sii::parse(&sii_image::akd_sii())?;
+    let mailbox = &mut sii.header.standard_mailbox;
+    (mailbox.receive_size, mailbox.send_size) = (size, size);
+    for category in &mut sii.categories {
+        if let crate::sii::Category::SyncManagers(sms) = category {
+            for sm in sms.iter_mut().take(2) {
+                sm.length = size;
+            }
+        }
+    }
+    sii.encode()
+}
+
 /// One virtual AKD.
 pub struct VirtualAkd {
     esc: Esc,
@@ -61,6 +83,7 @@ pub struct VirtualAkd {
     mailbox: coe::MailboxServer,
     watchdog: watchdog::Watchdog,
     timing: Timing,
+    mailbox_size: u16,
     pending_al: Option<(u16, u64)>,
     pending_mailbox: Option<u64>,
     outputs_fresh: bool,
@@ -71,7 +94,26 @@ pub struct VirtualAkd {
 impl VirtualAkd {
     /// A drive at power-up; `has_successor` tells whether another drive follows on port 1.
     pub fn new(has_successor: bool, timing: Timing) -> Self {
-        let mut esc = Esc::new(sii_image::akd_sii(), has_successor);
+        Self::with_sii(sii_image::akd_sii(), AKD_MAILBOX_SIZE, has_successor, timing)
+    }
+
+    /// A drive at power-up that declares a standard mailbox of `mailbox_size` bytes each way
+    /// instead of the real AKD's 1 KiB, so that SDO values and SDO information replies longer
+    /// than a mailbox go in segments and fragments. The drive then expects sync managers 0 and
+    /// 1 of at most that size. `mailbox_size` is 64 ([`MIN_MAILBOX_SIZE`]) to 1024
+    /// ([`AKD_MAILBOX_SIZE`]).
+    pub fn with_mailbox_size(mailbox_size: u16, has_successor: bool, timing: Timing) -> Result<Self> {
+        if !(MIN_MAILBOX_SIZE..=AKD_MAILBOX_SIZE).contains(&mailbox_size) {
+            return Err(Error::Config(format!(
+                "a virtual AKD's mailbox of {mailbox_size} bytes: allowed are {MIN_MAILBOX_SIZE} to {AKD_MAILBOX_SIZE}"
+            )));
+        }
+        let sii = sii_with_mailbox_size(mailbox_size)?;
+        Ok(Self::with_sii(sii, mailbox_size, has_successor, timing))
+    }
+
+    fn with_sii(sii: Vec<u8>, mailbox_size: u16, has_successor: bool, timing: Timing) -> Self {
+        let mut esc = Esc::new(sii, has_successor);
         for n in 0..SM_COUNT {
             sync_manager::set_pdi_deactivated(esc.memory_mut(), n, true);
         }
@@ -82,6 +124,7 @@ impl VirtualAkd {
             mailbox: coe::MailboxServer::default(),
             watchdog: watchdog::Watchdog::default(),
             timing,
+            mailbox_size,
             pending_al: None,
             pending_mailbox: None,
             outputs_fresh: false,
@@ -177,9 +220,9 @@ impl VirtualAkd {
     }
 
     fn handle_al_control(&mut self, control: u16, now_ns: u64) {
-        let (od, memory) = (&self.od, self.esc.memory());
+        let (od, memory, mailbox_size) = (&self.od, self.esc.memory(), self.mailbox_size);
         let transition = self.al.request(control, |from, to| match (from, to) {
-            (AlState::Init, AlState::PreOp) => sync_manager::check_mailbox(memory),
+            (AlState::Init, AlState::PreOp) => sync_manager::check_mailbox(memory, mailbox_size),
             (AlState::PreOp, AlState::SafeOp) => pdo::check_safeop(od, memory),
             _ => Ok(()),
         });
@@ -280,6 +323,14 @@ impl VirtualBus {
     /// `count` virtual AKDs reacting with `timing`.
     pub fn with_timing(count: usize, timing: Timing) -> Self {
         VirtualBus { slaves: (0..count).map(|i| VirtualAkd::new(i + 1 < count, timing)).collect() }
+    }
+
+    /// `count` virtual AKDs reacting with `timing` whose SII declares a standard mailbox of
+    /// `mailbox_size` bytes (see [`VirtualAkd::with_mailbox_size`]): a master reading the SII
+    /// as usual then transfers long SDO values in segments and SDO information in fragments.
+    pub fn with_mailbox_size(count: usize, timing: Timing, mailbox_size: u16) -> Result<Self> {
+        let slaves = (0..count).map(|i| VirtualAkd::with_mailbox_size(mailbox_size, i + 1 < count, timing));
+        Ok(VirtualBus { slaves: slaves.collect::<Result<_>>()? })
     }
 
     /// Number of drives.
@@ -392,6 +443,34 @@ mod tests {
             (&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0][..], 1)
         );
         assert_eq!(exchange(&mut bus, t + 2_500_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+    }
+
+    #[test]
+    fn a_small_mailbox_is_declared_in_the_sii_and_expected_at_init_to_preop() {
+        // Re-encoding with the real size gives the real image: only the mailbox size changes.
+        assert_eq!(sii_with_mailbox_size(AKD_MAILBOX_SIZE).unwrap(), sii_image::akd_sii());
+        let sii = crate::sii::Sii::parse(&sii_with_mailbox_size(64).unwrap()).unwrap();
+        let mb = sii.header.standard_mailbox;
+        assert_eq!((mb.receive_offset, mb.receive_size, mb.send_offset, mb.send_size), (0x1800, 64, 0x1C00, 64));
+        let sms: Vec<_> = sii.sync_managers().iter().map(|sm| sm.length).collect();
+        assert_eq!(sms, [64, 64, 0, 0]);
+        // Sync managers of the real drive's 1 KiB are refused, 64 bytes accepted.
+        let mut bus = VirtualBus::with_mailbox_size(1, Timing::IMMEDIATE, 64).unwrap();
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 1, Command::Brd, 0, 0x0130, &[0; 6]).0, vec![0x11, 0, 0, 0, 0x17, 0]);
+        exchange(&mut bus, 2, Command::Bwr, 0, 0x0120, &[0x11, 0x00]);
+        exchange(&mut bus, 3, Command::Bwr, 0, 0x0800, &[0x00, 0x18, 64, 0, 0x26, 0x00, 0x01, 0x00]);
+        exchange(&mut bus, 3, Command::Bwr, 0, 0x0808, &[0x00, 0x1C, 64, 0, 0x22, 0x00, 0x01, 0x00]);
+        exchange(&mut bus, 4, Command::Bwr, 0, 0x0120, &[0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 5, Command::Brd, 0, 0x0130, &[0; 6]).0, vec![0x02, 0, 0, 0, 0, 0]);
+    }
+
+    #[test]
+    fn a_mailbox_size_out_of_range_is_named() {
+        for size in [32, 2048] {
+            let Err(e) = VirtualBus::with_mailbox_size(1, Timing::IMMEDIATE, size) else { panic!("{size} accepted") };
+            assert!(e.to_string().contains(&format!("{size} bytes: allowed are 64 to 1024")), "{e}");
+        }
     }
 
     #[test]

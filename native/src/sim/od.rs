@@ -488,6 +488,16 @@ impl ObjectDictionary {
         self.objects.binary_search_by_key(&index, |o| o.index).ok().map(|i| &self.objects[i])
     }
 
+    /// Adds `object`, or replaces the one at its index. For tests that need an object the AKD
+    /// does not have, e.g. a writable string longer than a small mailbox
+    /// ([`VirtualAkd::with_mailbox_size`](crate::sim::VirtualAkd::with_mailbox_size)).
+    pub fn insert(&mut self, object: Object) {
+        match self.objects.binary_search_by_key(&object.index, |o| o.index) {
+            Ok(i) => self.objects[i] = object,
+            Err(i) => self.objects.insert(i, object),
+        }
+    }
+
     fn object_mut(&mut self, index: u16) -> Option<&mut Object> {
         self.objects.binary_search_by_key(&index, |o| o.index).ok().map(|i| &mut self.objects[i])
     }

@@ -25,6 +25,8 @@ pub const PDI_DEACTIVATE: u8 = 0x01;
 pub const PDI_REPEAT_ACK: u8 = 0x02;
 /// Control bit 6: writes to this sync manager restart the process-data watchdog.
 pub const CONTROL_WATCHDOG: u8 = 0x40;
+/// Shortest mailbox sync manager the drive accepts at Init→PreOp, bytes.
+pub const MIN_MAILBOX_SIZE: u16 = 64;
 
 /// One sync manager's registers, as read from the ESC's register space.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -125,14 +127,15 @@ pub fn set_pdi_deactivated(memory: &mut [u8], n: u8, deactivated: bool) {
 }
 
 /// The drive's checks of Init→PreOp: the mailbox sync managers where the SII puts them, in
-/// mailbox mode, with a buffer of 64 bytes to 1 KiB.
-pub fn check_mailbox(memory: &[u8]) -> Result<(), u16> {
+/// mailbox mode, with a buffer of [`MIN_MAILBOX_SIZE`] up to the `mailbox_size` the SII
+/// declares.
+pub fn check_mailbox(memory: &[u8], mailbox_size: u16) -> Result<(), u16> {
     for (n, start, master_writes) in [(0u8, 0x1800u16, true), (1, 0x1C00, false)] {
         let sm = SyncManager::read(memory, n);
         let enabled = sm.activate & ACTIVATE_ENABLE != 0;
         if !enabled
             || sm.start != start
-            || !(64..=0x400).contains(&sm.length)
+            || !(MIN_MAILBOX_SIZE..=mailbox_size).contains(&sm.length)
             || !sm.is_mailbox()
             || sm.master_writes() != master_writes
         {
