@@ -103,6 +103,11 @@ fn bodies(messages: &Messages) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
     (written, read)
 }
 
+/// What `pick` finds in each message body; a body where it finds nothing fails the test.
+fn decode_each<T>(bodies: &[Vec<u8>], pick: impl Fn(&[u8]) -> Option<T>) -> Vec<T> {
+    bodies.iter().map(|b| pick(b).unwrap_or_else(|| panic!("unexpected message body {b:02X?}"))).collect()
+}
+
 /// 200 characters: 48 go in the initiate message, the rest in segments of up to 55.
 fn long_text(seed: u8) -> String {
     (0..200u8).map(|i| char::from(b'A' + (i.wrapping_mul(7).wrapping_add(seed)) % 26)).collect()
@@ -114,13 +119,10 @@ fn segmented_upload_alternates_the_toggle_bit() {
     let (mut m, messages) = master(&text);
     assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
     let (requests, responses) = bodies(&messages);
-    let toggles: Vec<bool> = requests[1..]
-        .iter()
-        .map(|b| match SdoRequest::decode(b).unwrap() {
-            SdoRequest::UploadSegment { toggle } => toggle,
-            other => panic!("{other:?}"),
-        })
-        .collect();
+    let toggles = decode_each(&requests[1..], |b| match SdoRequest::decode(b) {
+        Ok(SdoRequest::UploadSegment { toggle }) => Some(toggle),
+        _ => None,
+    });
     assert_eq!(toggles, [false, true, false]);
     let mut carried = Vec::new();
     for (i, body) in responses.iter().enumerate() {
@@ -157,13 +159,10 @@ fn segmented_download_alternates_the_toggle_bit_and_round_trips() {
     }
     assert_eq!(toggles, [false, true, false]);
     assert_eq!(carried, [48, 55, 55, 42]);
-    let answered: Vec<_> = responses[1..]
-        .iter()
-        .map(|b| match SdoResponse::decode(b).unwrap() {
-            SdoResponse::DownloadSegment { toggle } => toggle,
-            other => panic!("{other:?}"),
-        })
-        .collect();
+    let answered = decode_each(&responses[1..], |b| match SdoResponse::decode(b) {
+        Ok(SdoResponse::DownloadSegment { toggle }) => Some(toggle),
+        _ => None,
+    });
     assert_eq!(answered, toggles);
     assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
     // A value of the wrong length is refused after its last segment, by name.
