@@ -10,30 +10,22 @@ from __future__ import annotations
 import pytest
 
 from support.netns import master_script_report
+from support.soem_script import SOEM_HELPERS
 
 pysoem = pytest.importorskip("pysoem", reason="pysoem is installed by scripts/setup.sh")
 
 IDENTITY = {"vendor_id": 0x6A, "product_code": 0x00414B44, "revision": 2}
 
-# Runs in the master's namespace: argv = interface, mapping ('fixed' or 'powerup'), what to read.
-SOEM_SCRIPT = r'''
-import json, struct, sys
-import pysoem
-
-import time
+# Runs in the master's namespace: argv = interface, mapping ('fixed', 'flexible' or 'powerup'),
+# extras (comma-separated: 'od' reads the object dictionary, 'dc' sets distributed clocks up).
+SOEM_SCRIPT = SOEM_HELPERS + r'''
 iface, mapping, extras = sys.argv[1], sys.argv[2], sys.argv[3].split(",")
-# A 2-core machine shared with compilers: give each frame 20 ms instead of SOEM's 2 ms.
-pysoem.settings.timeouts.ret = 20000
 report = {}
-master = pysoem.Master()
-master.open(iface)
+master, report["found"], report["preop"] = open_master(iface)
 try:
-    report["found"] = master.config_init()
     slaves = master.slaves
     report["identity"] = [{"vendor_id": s.man, "product_code": s.id, "revision": s.rev,
                            "name": s.name} for s in slaves]
-    # config_init requests PreOp and returns; the drive takes a few ms (as the real one does).
-    report["preop"] = master.state_check(pysoem.PREOP_STATE, 3_000_000) == pysoem.PREOP_STATE
     master.read_state()
     report["state_after_config_init"] = [s.state for s in slaves]
     first = slaves[0]
@@ -48,33 +40,9 @@ try:
                          "entries": [(e.name, e.data_type, e.bit_length)
                                      for e in getattr(o, "entries", [])]}
                         for o in first.od]
-
-    def select_fixed_mappings(position):
-        # AKD_FACTS 6: the fixed mappings are chosen by writing both assignment objects.
-        slave = master.slaves[position]
-        for assign, pdo in ((0x1C12, 0x1701), (0x1C13, 0x1B01)):
-            slave.sdo_write(assign, 0, bytes([0]))
-            slave.sdo_write(assign, 1, struct.pack("<H", pdo))
-            slave.sdo_write(assign, 0, bytes([1]))
-
-    def select_flexible_mappings(position):
-        # AKD_FACTS 6: counts cleared, entries with sub 0 = 0 first and the count last, then
-        # the assignment; 24-bit PDOs padded to even lengths with the AKD's dummy objects.
-        slave = master.slaves[position]
-        for assign, pdo, entries in ((0x1C12, 0x1600, (0x60400010, 0x60600008, 0x00020008)),
-                                     (0x1C13, 0x1A00, (0x60410010, 0x60610008, 0x20020108))):
-            slave.sdo_write(assign, 0, bytes([0]))
-            slave.sdo_write(pdo, 0, bytes([0]))
-            for sub, entry in enumerate(entries, start=1):
-                slave.sdo_write(pdo, sub, struct.pack("<I", entry))
-            slave.sdo_write(pdo, 0, bytes([len(entries)]))
-            slave.sdo_write(assign, 1, struct.pack("<H", pdo))
-            slave.sdo_write(assign, 0, bytes([1]))
-
     if mapping != "powerup":
-        chosen = {"fixed": select_fixed_mappings, "flexible": select_flexible_mappings}[mapping]
-        for slave in slaves:
-            slave.config_func = chosen
+        use_mappings(master, {"fixed": select_fixed_mappings,
+                              "flexible": select_flexible_mappings}[mapping])
     report["iomap_size"] = master.config_map()
     if "dc" in extras:
         # SOEM measures the line's delays, sets each slave's system-time offset so that DC time
@@ -84,9 +52,7 @@ try:
             slave.dc_sync(True, 2_000_000)
         report["host_dc_time"] = time.time_ns() - 946_684_800 * 10**9
     report["sizes"] = [[len(s.output), len(s.input)] for s in slaves]
-    master.state = pysoem.SAFEOP_STATE
-    master.write_state()
-    report["safeop"] = master.state_check(pysoem.SAFEOP_STATE, 1_000_000) == pysoem.SAFEOP_STATE
+    report["safeop"] = reach_safeop(master)
     master.read_state()
     report["al_after_safeop"] = [[s.state, s.al_status,
                                   pysoem.al_status_code_to_string(s.al_status)] for s in slaves]
@@ -94,17 +60,8 @@ try:
         report["expected_wkc"] = master.expected_wkc
         master.send_processdata()
         report["safeop_wkc"] = master.receive_processdata(20000)
-        master.state = pysoem.OP_STATE
-        master.write_state()
-        reached = False
-        for _ in range(300):
-            master.send_processdata()
-            master.receive_processdata(20000)
-            if master.state_check(pysoem.OP_STATE, 5000) == pysoem.OP_STATE:
-                reached = True
-                break
-        report["op"] = reached
-        wkcs, inputs = [], []
+        report["op"] = reach_op(master)
+        wkcs = []
         for cycle in range(100):
             for position, slave in enumerate(slaves):
                 # 0x1701: position command (4), controlword (2), a distinct value per cycle;
