@@ -156,5 +156,7 @@ def test_sim_mailbox_garbage_gets_an_answer(message):
     is_coe_sdo = 10 <= announced <= 0x3FA and padded[5] & 0x0F == 3 and padded[7] >> 4 == 2
     is_sdo_abort = is_coe_sdo and padded[8] >> 5 == 4
     assert reply.wkc == (0 if is_sdo_abort else 1), reply.data[:16].hex()
-    # The drive keeps answering after whatever came before.
+    # The drive keeps answering after whatever came before; the next request counts on from
+    # the garbage's mailbox counter, as a master's would (the same counter is a repetition).
+    session.counter = padded[5] >> 4 & 0x07
     assert session.sdo_upload(0x1018, 1) == (0x43, b"\x6a\0\0\0")

@@ -246,7 +246,7 @@ impl Esc {
     /// What the hardware does when particular registers are written.
     fn after_register_write(&mut self, at: usize, dg: &DatagramMut<'_>, arrival: Arrival, repeat_bits_before: u8) {
         let len = dg.data.len();
-        let value_at = |addr: u16| dg.data.get(addr as usize - at).copied();
+        let value_at = |addr: u16| (addr as usize).checked_sub(at).and_then(|i| dg.data.get(i)).copied();
         if touches(at, len, reg::AL_CONTROL, 2) {
             self.al_control_locked = true;
             self.events.al_control = Some(self.u16_at(reg::AL_CONTROL));
@@ -264,15 +264,8 @@ impl Esc {
             self.latch_receive_times(arrival);
         }
         if touches(at, len, reg::DC_SYSTEM_TIME, 8) {
-            let mut received = [0u8; 8];
-            let mut written = 0;
-            for (i, b) in received.iter_mut().enumerate() {
-                if let Some(v) = value_at(reg::DC_SYSTEM_TIME + i as u16) {
-                    *b = v;
-                    written = i + 1;
-                }
-            }
-            self.compare_system_time(&received[..written], arrival);
+            let received: [Option<u8>; 8] = std::array::from_fn(|i| value_at(reg::DC_SYSTEM_TIME + i as u16));
+            self.compare_system_time(&received, arrival);
         }
     }
 
@@ -328,10 +321,13 @@ impl Esc {
     /// propagation delay from the reference clock (0x0928, ETG.1000.4 DC: the value left the
     /// reference that long ago) is compared with the local copy, the difference goes to 0x092C
     /// (bit 31 set when the local copy is ahead), and the local copy is pulled towards it.
-    fn compare_system_time(&mut self, received: &[u8], arrival: Arrival) {
+    /// Bytes of the register the datagram did not cover (`None`) are the local copy's.
+    fn compare_system_time(&mut self, received: &[Option<u8>; 8], arrival: Arrival) {
         let local = self.system_time(arrival.port0_ns);
         let mut bytes = local.to_le_bytes();
-        bytes[..received.len()].copy_from_slice(received);
+        for (b, r) in bytes.iter_mut().zip(received) {
+            *b = r.unwrap_or(*b);
+        }
         let d = reg::DC_SYSTEM_TIME_DELAY as usize;
         let delay = u32::from_le_bytes(self.memory[d..d + 4].try_into().expect("4 bytes"));
         let received = u64::from_le_bytes(bytes).wrapping_add(delay as u64);
@@ -542,5 +538,10 @@ mod tests {
         // Received 5_650 + 300 = 5_950 against 6_100: the local copy is 150 ns ahead (bit 31).
         run(&mut e, Command::Frmw, 0x7777, 0x0910, &5_650u64.to_le_bytes());
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x092C, &[0; 4]).0, (150u32 | 1 << 31).to_le_bytes().to_vec());
+        // A write of the upper half only (no delay now): the lower half is the local copy's,
+        // so the same upper half means no difference.
+        run(&mut e, Command::Apwr, 0, 0x0928, &[0; 4]);
+        run(&mut e, Command::Frmw, 0x7777, 0x0914, &[0, 0, 0, 0]);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x092C, &[0; 4]).0, 0x8000_0000u32.to_le_bytes().to_vec());
     }
 }
