@@ -40,6 +40,15 @@ try:
                          "entries": [(e.name, e.data_type, e.bit_length)
                                      for e in getattr(o, "entries", [])]}
                         for o in first.od]
+        # Then every entry's value by SDO upload (subindex 0 of a VAR, each subindex otherwise).
+        report["od_reads"], report["od_aborts"] = 0, []
+        for o in report["od"]:
+            for sub in ([0] if o["object_code"] == 7 else range(len(o["entries"]))):
+                try:
+                    first.sdo_read(o["index"], sub)
+                    report["od_reads"] += 1
+                except pysoem.SdoError as abort:
+                    report["od_aborts"].append([o["index"], sub, abort.abort_code, abort.desc])
     if mapping != "powerup":
         use_mappings(master, {"fixed": select_fixed_mappings,
                               "flexible": select_flexible_mappings}[mapping])
@@ -108,6 +117,9 @@ def test_soem_reads_identity_from_sii_and_object_dictionary(veth):
         assert index in od, f"SOEM's object list lacks 0x{index:04X}"
         assert od[index]["name"], f"0x{index:04X} has no name"
     assert [e[0] for e in od[0x1018]["entries"]][1:5], "0x1018 entries have no descriptions"
+    # Every entry SOEM listed answers an SDO upload, unless it is write-only.
+    assert [a for a in report["od_aborts"] if a[2] != 0x06010001] == []
+    assert report["od_reads"] >= len(od)
 
 
 @pytest.mark.parametrize("count", [1, 2])
