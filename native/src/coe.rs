@@ -255,9 +255,12 @@ impl<'a> SdoRequest<'a> {
                 let (index, subindex) = address(body);
                 let complete_access = command & 0x10 != 0;
                 match ccs {
-                    1 if command & 0x02 != 0 => {
-                        Ok(SdoRequest::DownloadExpedited { index, subindex, complete_access, data: expedited_data(body) })
-                    }
+                    1 if command & 0x02 != 0 => Ok(SdoRequest::DownloadExpedited {
+                        index,
+                        subindex,
+                        complete_access,
+                        data: expedited_data(body),
+                    }),
                     1 => Ok(SdoRequest::DownloadNormal {
                         index,
                         subindex,
@@ -529,10 +532,7 @@ impl Emergency {
     /// Decodes the body after the CoE header.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < EMERGENCY_LEN {
-            return Err(Error::Mailbox(format!(
-                "emergency message of {} bytes, expected {EMERGENCY_LEN}",
-                body.len()
-            )));
+            return Err(Error::Mailbox(format!("emergency message of {} bytes, expected {EMERGENCY_LEN}", body.len())));
         }
         let mut data = [0; 5];
         data.copy_from_slice(&body[3..8]);
@@ -864,11 +864,16 @@ mod tests {
             0,
             &SdoRequest::DownloadExpedited { index: 0x1C12, subindex: 1, complete_access: false, data: &[0x04, 0x17] },
         );
-        assert_eq!(&buf[..len], &[0x0A, 0x00, 0x00, 0x00, 0x00, 0x03, 0x00, 0x20, 0x2B, 0x12, 0x1C, 0x01, 0x04, 0x17, 0x00, 0x00]);
+        assert_eq!(
+            &buf[..len],
+            &[0x0A, 0x00, 0x00, 0x00, 0x00, 0x03, 0x00, 0x20, 0x2B, 0x12, 0x1C, 0x01, 0x04, 0x17, 0x00, 0x00]
+        );
         // The manual's reply announces 14 bytes but prints 10; the master reads the whole SM1
         // buffer, so the announced length fits there.
         let mut reply = [0u8; 32];
-        reply[..16].copy_from_slice(&[0x0E, 0x00, 0x00, 0x00, 0x00, 0x03, 0x00, 0x30, 0x60, 0x12, 0x1C, 0x01, 0x00, 0x00, 0x00, 0x00]);
+        reply[..16].copy_from_slice(&[
+            0x0E, 0x00, 0x00, 0x00, 0x00, 0x03, 0x00, 0x30, 0x60, 0x12, 0x1C, 0x01, 0x00, 0x00, 0x00, 0x00,
+        ]);
         let (_, coe, body) = split_message(&reply).unwrap();
         assert_eq!(coe.service, service::SDO_RESPONSE);
         assert_eq!(SdoResponse::decode(body).unwrap(), SdoResponse::Download { index: 0x1C12, subindex: 1 });
@@ -925,10 +930,24 @@ mod tests {
     #[test]
     fn descriptions_round_trip() {
         let mut buf = [0u8; 64];
-        let d = ObjectDescription { index: 0x6041, data_type: data_type::UNSIGNED16, max_subindex: 0, object_code: object_code::VAR, name: "Statusword" };
+        let d = ObjectDescription {
+            index: 0x6041,
+            data_type: data_type::UNSIGNED16,
+            max_subindex: 0,
+            object_code: object_code::VAR,
+            name: "Statusword",
+        };
         let len = d.encode(&mut buf);
         assert_eq!(ObjectDescription::decode(&buf[..len]).unwrap(), d);
-        let e = EntryDescription { index: 0x6041, subindex: 0, value_info: 0, data_type: data_type::UNSIGNED16, bit_length: 16, access: access::READ | access::TX_PDO, name: "Statusword" };
+        let e = EntryDescription {
+            index: 0x6041,
+            subindex: 0,
+            value_info: 0,
+            data_type: data_type::UNSIGNED16,
+            bit_length: 16,
+            access: access::READ | access::TX_PDO,
+            name: "Statusword",
+        };
         let len = e.encode(&mut buf);
         assert_eq!(EntryDescription::decode(&buf[..len]).unwrap(), e);
         let h = SdoInfoHeader { opcode: info_opcode::GET_OD_LIST_RESPONSE, incomplete: true, fragments_left: 3 };

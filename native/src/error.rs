@@ -55,10 +55,9 @@ impl fmt::Display for FrameError {
                 write!(f, "unknown datagram command {c} (allowed 0..=14, NOP..FRMW)")
             }
             FrameError::Empty => write!(f, "frame header announces no datagrams"),
-            FrameError::LengthMismatch { header, datagrams } => write!(
-                f,
-                "frame header announces {header} bytes of datagrams but the datagrams take {datagrams}"
-            ),
+            FrameError::LengthMismatch { header, datagrams } => {
+                write!(f, "frame header announces {header} bytes of datagrams but the datagrams take {datagrams}")
+            }
             FrameError::TooLarge { len, room } => {
                 write!(f, "datagram of {len} data bytes does not fit the frame ({room} bytes left)")
             }
@@ -151,10 +150,9 @@ impl fmt::Display for Error {
                 f,
                 "slave {slave} did not reach {requested}: it is in {actual}, AL status code 0x{code:04X} ({code_name})"
             ),
-            Error::SdoAbort { index, subindex, code, code_name } => write!(
-                f,
-                "SDO 0x{index:04X}:{subindex:02X} aborted with 0x{code:08X} ({code_name})"
-            ),
+            Error::SdoAbort { index, subindex, code, code_name } => {
+                write!(f, "SDO 0x{index:04X}:{subindex:02X} aborted with 0x{code:08X} ({code_name})")
+            }
             Error::Mailbox(m) => write!(f, "mailbox: {m}"),
             Error::Sii(m) => write!(f, "SII: {m}"),
             Error::Pdo(m) => write!(f, "PDO mapping: {m}"),

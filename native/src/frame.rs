@@ -142,8 +142,16 @@ impl Command {
     pub fn reads(self) -> bool {
         matches!(
             self,
-            Command::Aprd | Command::Aprw | Command::Fprd | Command::Fprw | Command::Brd | Command::Brw
-                | Command::Lrd | Command::Lrw | Command::Armw | Command::Frmw
+            Command::Aprd
+                | Command::Aprw
+                | Command::Fprd
+                | Command::Fprw
+                | Command::Brd
+                | Command::Brw
+                | Command::Lrd
+                | Command::Lrw
+                | Command::Armw
+                | Command::Frmw
         )
     }
 
@@ -152,8 +160,16 @@ impl Command {
     pub fn writes(self) -> bool {
         matches!(
             self,
-            Command::Apwr | Command::Aprw | Command::Fpwr | Command::Fprw | Command::Bwr | Command::Brw
-                | Command::Lwr | Command::Lrw | Command::Armw | Command::Frmw
+            Command::Apwr
+                | Command::Aprw
+                | Command::Fpwr
+                | Command::Fprw
+                | Command::Bwr
+                | Command::Brw
+                | Command::Lwr
+                | Command::Lrw
+                | Command::Armw
+                | Command::Frmw
         )
     }
 
@@ -162,9 +178,7 @@ impl Command {
     /// ARMW and FRMW count 1 for the reading slave and 1 for each writing slave.
     pub fn wkc_increment(self, did_read: bool, did_write: bool) -> u16 {
         match self {
-            Command::Aprw | Command::Fprw | Command::Brw | Command::Lrw => {
-                (did_read as u16) + 2 * (did_write as u16)
-            }
+            Command::Aprw | Command::Fprw | Command::Brw | Command::Lrw => (did_read as u16) + 2 * (did_write as u16),
             _ => (did_read || did_write) as u16,
         }
     }
@@ -397,10 +411,11 @@ impl Slot {
     /// Reads the working counter of this slot from a reply frame.
     pub fn wkc(&self, reply: &[u8]) -> Result<u16, FrameError> {
         let at = self.wkc_offset();
-        reply
-            .get(at..at + WKC_LEN)
-            .map(|b| u16::from_le_bytes([b[0], b[1]]))
-            .ok_or(FrameError::Truncated { what: "reply working counter", needed: at + WKC_LEN, got: reply.len() })
+        reply.get(at..at + WKC_LEN).map(|b| u16::from_le_bytes([b[0], b[1]])).ok_or(FrameError::Truncated {
+            what: "reply working counter",
+            needed: at + WKC_LEN,
+            got: reply.len(),
+        })
     }
 
     /// The data part of this slot in a reply frame.
@@ -439,7 +454,14 @@ impl<'a> FrameBuilder<'a> {
     }
 
     /// Appends a datagram with `len` zero bytes of data, for the caller to fill through the slot.
-    pub fn push_zeroed(&mut self, command: Command, index: u8, adp: u16, ado: u16, len: usize) -> Result<Slot, FrameError> {
+    pub fn push_zeroed(
+        &mut self,
+        command: Command,
+        index: u8,
+        adp: u16,
+        ado: u16,
+        len: usize,
+    ) -> Result<Slot, FrameError> {
         if len > MAX_DATAGRAM_DATA || len > self.remaining_data() {
             return Err(FrameError::TooLarge { len, room: self.remaining_data() });
         }

@@ -211,7 +211,12 @@ mod tests {
     #[test]
     fn counter_skips_zero() {
         let mut c = 0;
-        let seen: Vec<u8> = (0..9).map(|_| { c = next_counter(c); c }).collect();
+        let seen: Vec<u8> = (0..9)
+            .map(|_| {
+                c = next_counter(c);
+                c
+            })
+            .collect();
         assert_eq!(seen, vec![1, 2, 3, 4, 5, 6, 7, 1, 2]);
     }
 

@@ -171,31 +171,63 @@ pub const FIXED: &[FixedPdo] = &[
     tx(
         0x1B20,
         &[
-            POSITION_INTERNAL, SECOND_FEEDBACK, VELOCITY_ACTUAL, DIGITAL_INPUTS, FOLLOWING_ERROR,
-            PdoEntry::new(0x20A0, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+            POSITION_INTERNAL,
+            SECOND_FEEDBACK,
+            VELOCITY_ACTUAL,
+            DIGITAL_INPUTS,
+            FOLLOWING_ERROR,
+            PdoEntry::new(0x20A0, 0, 32),
+            STATUSWORD,
+            TORQUE_ACTUAL,
+            LATCH_STATUSWORD,
+            ANALOG_INPUT,
         ],
     ),
     tx(0x1B21, &[POSITION_INTERNAL, STATUSWORD]),
     tx(
         0x1B22,
         &[
-            POSITION_INTERNAL, SECOND_FEEDBACK, VELOCITY_ACTUAL, DIGITAL_INPUTS, FOLLOWING_ERROR,
-            PdoEntry::new(0x20A1, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+            POSITION_INTERNAL,
+            SECOND_FEEDBACK,
+            VELOCITY_ACTUAL,
+            DIGITAL_INPUTS,
+            FOLLOWING_ERROR,
+            PdoEntry::new(0x20A1, 0, 32),
+            STATUSWORD,
+            TORQUE_ACTUAL,
+            LATCH_STATUSWORD,
+            ANALOG_INPUT,
         ],
     ),
     tx(
         0x1B23,
         &[
-            POSITION_INTERNAL, SECOND_FEEDBACK, VELOCITY_ACTUAL, DIGITAL_INPUTS, FOLLOWING_ERROR,
-            PdoEntry::new(0x20A6, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+            POSITION_INTERNAL,
+            SECOND_FEEDBACK,
+            VELOCITY_ACTUAL,
+            DIGITAL_INPUTS,
+            FOLLOWING_ERROR,
+            PdoEntry::new(0x20A6, 0, 32),
+            STATUSWORD,
+            TORQUE_ACTUAL,
+            LATCH_STATUSWORD,
+            ANALOG_INPUT,
         ],
     ),
     tx(0x1B24, &[POSITION_ACTUAL, STATUSWORD]),
     tx(
         0x1B25,
         &[
-            POSITION_INTERNAL, SECOND_FEEDBACK, PdoEntry::new(0x20A7, 0, 32), DIGITAL_INPUTS, FOLLOWING_ERROR,
-            PdoEntry::new(0x20A6, 0, 32), STATUSWORD, TORQUE_ACTUAL, LATCH_STATUSWORD, ANALOG_INPUT,
+            POSITION_INTERNAL,
+            SECOND_FEEDBACK,
+            PdoEntry::new(0x20A7, 0, 32),
+            DIGITAL_INPUTS,
+            FOLLOWING_ERROR,
+            PdoEntry::new(0x20A6, 0, 32),
+            STATUSWORD,
+            TORQUE_ACTUAL,
+            LATCH_STATUSWORD,
+            ANALOG_INPUT,
         ],
     ),
     tx(0x1B26, &[STATUSWORD, POSITION_ACTUAL, TORQUE_ACTUAL, DIGITAL_INPUTS, ANALOG_INPUT, FOLLOWING_ERROR]),
@@ -348,7 +380,11 @@ pub fn check_flexible_pdo(direction: Direction, pdo_index: u16, entries: &[PdoEn
 pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Result<(), MappingRefused> {
     if pdos.len() > FLEXIBLE_PDO_COUNT {
         return Err(MappingRefused {
-            reason: format!("{} {} PDOs assigned; the AKD takes at most {FLEXIBLE_PDO_COUNT}", pdos.len(), direction.name()),
+            reason: format!(
+                "{} {} PDOs assigned; the AKD takes at most {FLEXIBLE_PDO_COUNT}",
+                pdos.len(),
+                direction.name()
+            ),
             abort_code: abort::VALUE_RANGE,
         });
     }
@@ -432,7 +468,8 @@ mod tests {
 
     #[test]
     fn the_power_up_mapping_is_refused_for_its_odd_length() {
-        let pdos: Vec<(u16, &[PdoEntry])> = POWER_UP_RX.iter().enumerate().map(|(i, e)| (0x1600 + i as u16, *e)).collect();
+        let pdos: Vec<(u16, &[PdoEntry])> =
+            POWER_UP_RX.iter().enumerate().map(|(i, e)| (0x1600 + i as u16, *e)).collect();
         let refused = check_flexible(Direction::Rx, &pdos).unwrap_err();
         assert!(refused.reason.contains("odd"), "{}", refused.reason);
         assert_eq!(bit_len(&POWER_UP_RX.concat()), 17 * 8);

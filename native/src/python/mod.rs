@@ -11,17 +11,42 @@ use pyo3::IntoPyObjectExt;
 use crate::error::Error;
 
 mod master;
-mod sim;
 mod sii;
+mod sim;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
 create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
-create_exception!(_native, LinkError, EtherCatError, "The operating system refused a link operation (socket, interface, permission).");
+create_exception!(
+    _native,
+    LinkError,
+    EtherCatError,
+    "The operating system refused a link operation (socket, interface, permission)."
+);
 create_exception!(_native, TimeoutError, EtherCatError, "No reply in time.");
-create_exception!(_native, WorkingCounterError, EtherCatError, "A datagram's working counter was not the expected one; attributes expected, got.");
-create_exception!(_native, AlStateError, EtherCatError, "A slave refused a state change; attributes slave, requested, actual, code, code_name.");
-create_exception!(_native, SdoAbortError, EtherCatError, "An SDO transfer was aborted; attributes index, subindex, code, code_name.");
-create_exception!(_native, MailboxError, EtherCatError, "A mailbox reply that does not fit the request or the protocol.");
+create_exception!(
+    _native,
+    WorkingCounterError,
+    EtherCatError,
+    "A datagram's working counter was not the expected one; attributes expected, got."
+);
+create_exception!(
+    _native,
+    AlStateError,
+    EtherCatError,
+    "A slave refused a state change; attributes slave, requested, actual, code, code_name."
+);
+create_exception!(
+    _native,
+    SdoAbortError,
+    EtherCatError,
+    "An SDO transfer was aborted; attributes index, subindex, code, code_name."
+);
+create_exception!(
+    _native,
+    MailboxError,
+    EtherCatError,
+    "A mailbox reply that does not fit the request or the protocol."
+);
 create_exception!(_native, SiiError, EtherCatError, "The SII EEPROM content or interface is not as expected.");
 create_exception!(_native, PdoError, EtherCatError, "A process-data mapping the AKD would refuse, or an unknown one.");
 create_exception!(_native, ConfigError, EtherCatError, "A configuration value out of its allowed range.");
