@@ -11,7 +11,22 @@ from setuptools import find_packages, setup
 from setuptools_rust import Binding, RustExtension
 
 PACKAGE = "akd_ros"
-HERE = Path(__file__).parent
+# The real source directory: `colcon build --symlink-install` runs a symlink of this file from
+# its build directory, where neither native/ nor README.md is linked.
+HERE = Path(__file__).resolve().parent
+
+
+class LiteralReprRustExtension(RustExtension):
+    """A RustExtension whose repr is a Python literal.
+
+    colcon learns about a package by running setup.py with --dry-run and literal-evaluating the
+    repr of the distribution's attributes; it skips `ext_modules` but not `rust_extensions`, and
+    the default repr of a RustExtension is no literal, so `colcon build` would stop with a
+    SyntaxError before building anything.
+    """
+
+    def __repr__(self) -> str:
+        return repr(f"RustExtension {self.name} from {self.path}")
 
 setup(
     name=PACKAGE,
@@ -25,9 +40,9 @@ setup(
     python_requires=">=3.10",
     packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
     rust_extensions=[
-        RustExtension(
+        LiteralReprRustExtension(
             f"{PACKAGE}._native",
-            path="native/Cargo.toml",
+            path=str(HERE / "native" / "Cargo.toml"),
             binding=Binding.PyO3,
             features=["extension-module"],
             # Release build always: the cyclic path must be fast even in a developer's venv
