@@ -44,9 +44,12 @@ if [[ ! -x .venv/bin/python ]]; then
     "$PYTHON" -m venv .venv
 fi
 
+# pysoem and kickcat are the third-party masters of the interop tests; colcon checks that the
+# package builds in a ROS workspace as it does here.
 say "installing build, test and interop packages into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check \
-    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest hypothesis pysoem kickcat
+    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest hypothesis pysoem kickcat \
+    colcon-common-extensions
 
 say "building the Rust extension akd_ros._native (cargo, release)"
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation -e .

@@ -1,0 +1,46 @@
+"""The package as ROS users build it: `colcon build` of this repository in a workspace.
+
+The issue asks that the same setup.py work in a colcon workspace; colcon (from PyPI here, the same
+code as Jazzy's apt packages) introspects setup.py in ways pip does not, so it is built for real:
+plainly and with --symlink-install, then the installed tool is run from the install space.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+COLCON = Path(sys.executable).with_name("colcon")
+
+
+@pytest.mark.skipif(not COLCON.exists(), reason="colcon not installed (scripts/setup.sh installs it)")
+@pytest.mark.parametrize("mode", [[], ["--symlink-install"]], ids=["install", "symlink_install"])
+def test_colcon_build_installs_a_working_package(tmp_path, mode):
+    workspace = tmp_path / "ws"
+    (workspace / "src").mkdir(parents=True)
+    (workspace / "src" / "akd_ros").symlink_to(REPO)
+    build = subprocess.run([str(COLCON), "build", "--packages-select", "akd_ros", *mode],
+                           cwd=workspace, capture_output=True, text=True, timeout=600, check=False)
+    log = workspace / "log" / "latest_build" / "akd_ros" / "stderr.log"
+    assert build.returncode == 0, build.stdout + (log.read_text() if log.exists() else "")
+    prefix = workspace / "install" / "akd_ros"
+    site = prefix / "lib" / f"python{sys.version_info.major}.{sys.version_info.minor}" / "site-packages"
+    assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / "akd_ros").exists()
+    assert (prefix / "share" / "akd_ros" / "package.xml").exists()
+    env = {**os.environ, "PYTHONPATH": str(site)}
+    # The install space's package is the one imported, not the development install in .venv
+    # (with --symlink-install it links back to this repository, which is the point of it).
+    where = subprocess.run([sys.executable, "-c", "import akd_ros; print(akd_ros.__file__)"],
+                           env=env, cwd=tmp_path, capture_output=True, text=True, timeout=60,
+                           check=True)
+    expected = REPO if mode else site
+    assert where.stdout.startswith(str(expected)), where.stdout
+    scan = subprocess.run([str(prefix / "lib" / "akd_ros" / "akd-scan"), "sim"], env=env,
+                          cwd=tmp_path, capture_output=True, text=True, timeout=60, check=False)
+    assert scan.returncode == 0, scan.stderr
+    assert scan.stdout.startswith("0 vendor=0x0000006A product=0x00414B44")
