@@ -60,7 +60,23 @@ def test_scan_finds_the_virtual_akd():
             assert slave["firmware"] == "01-20-00-003"
             assert slave["al_state"] == "Init"
             assert (slave["al_status_code"], slave["al_status_code_name"]) == (0, "no error")
+            assert (slave["found_al_state"], slave["found_al_status_code"]) == ("Init", 0)
             assert slave["mailbox_protocols"] & 0x04, "CoE"
+
+
+def test_scan_reports_the_state_and_error_it_found_before_resetting(master):
+    master.request_state("op")
+    (slave,) = master.scan()
+    assert (slave["found_al_state"], slave["al_state"]) == ("Op", "Init")
+    # Init -> Op directly is refused by the AKD with 0x0011; the scan reports it as found.
+    master.write_register(0, 0x0120, b"\x08\x00")
+    deadline = time.monotonic() + 2.0
+    while master.al_status(0)[1] == 0 and time.monotonic() < deadline:
+        time.sleep(0.001)
+    (slave,) = master.scan()
+    assert slave["found_al_status_code"] == 0x0011
+    assert slave["found_al_status_code_name"] == "invalid requested state change"
+    assert slave["al_status_code"] == 0
 
 
 def test_walks_init_preop_safeop_op_and_back(master):

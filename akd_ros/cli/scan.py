@@ -2,6 +2,7 @@
 
 Each line gives position, vendor id, product code, revision, name and AL state, then the AKD's
 model and firmware strings and, when the slave reports one, the AL status code with its name.
+State and code are those the scan found; the scan leaves every slave in Init.
 """
 
 from __future__ import annotations
@@ -16,14 +17,14 @@ def format_slave(slave: dict) -> str:
     """One line describing a slave as `Master.scan()` reports it."""
     line = (f"{slave['position']} vendor=0x{slave['vendor_id']:08X} "
             f"product=0x{slave['product_code']:08X} revision=0x{slave['revision']:08X} "
-            f"name={slave['name']!r} state={slave['al_state']}")
+            f"name={slave['name']!r} state={slave['found_al_state']}")
     if slave.get("model"):
         line += f" model={slave['model']}"
     if slave.get("firmware"):
         line += f" firmware={slave['firmware']}"
-    if slave["al_status_code"]:
-        line += (f" al_status_code=0x{slave['al_status_code']:04X}"
-                 f" ({slave['al_status_code_name']})")
+    if slave["found_al_status_code"]:
+        line += (f" al_status_code=0x{slave['found_al_status_code']:04X}"
+                 f" ({slave['found_al_status_code_name']})")
     return line
 
 

@@ -65,6 +65,9 @@ pub struct Slave {
     pub alias: u16,
     /// ESC features (register 0x0008); bit 2 says whether it has a distributed clock.
     pub esc_features: u16,
+    /// AL status and code as the scan found them, before it took the slave to Init: what a
+    /// commissioning engineer needs to see of a drive that was left in Op or with an error.
+    pub found: state::AlStatus,
     /// The SII EEPROM content.
     pub sii: Sii,
     /// Mailbox state, when the slave has a mailbox.

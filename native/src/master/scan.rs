@@ -4,10 +4,9 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use crate::al::{AlState, AL_ERROR_ACK};
 use crate::error::{Error, Result};
 use crate::frame::Command;
-use crate::master::{mailbox::Mailbox, Master, Slave, FIRST_STATION_ADDRESS};
+use crate::master::{mailbox::Mailbox, state::AlStatus, Master, Slave, FIRST_STATION_ADDRESS};
 use crate::registers::{self, FMMU0, SM0};
 use crate::sii::Sii;
 
@@ -19,8 +18,9 @@ const FMMUS_CLEARED: usize = 3;
 const SMS_CLEARED: usize = 4;
 
 impl Master {
-    /// Finds the slaves on the bus, in order, and returns how many there are. Every slave is
-    /// taken to Init with its FMMUs, sync managers and SYNC outputs cleared, as a fresh start.
+    /// Finds the slaves on the bus, in order, and returns how many there are. Each slave's AL
+    /// status is recorded as found ([`Slave::found`]); then every slave is taken to Init with its
+    /// FMMUs, sync managers and SYNC outputs cleared, as a fresh start.
     pub fn scan(&mut self) -> Result<usize> {
         self.slaves.clear();
         self.process = None;
@@ -29,7 +29,14 @@ impl Master {
         if count == 0 {
             return Ok(0);
         }
-        self.broadcast_write(registers::AL_CONTROL, &(AlState::Init as u16 | AL_ERROR_ACK).to_le_bytes())?;
+        let mut found = Vec::with_capacity(count as usize);
+        for position in 0..count {
+            let mut registers = [0u8; 6];
+            let wkc =
+                self.datagram_retry(Command::Aprd, 0u16.wrapping_sub(position), registers::AL_STATUS, &mut registers)?;
+            self.expect_wkc(|| format!("APRD of the AL status of position {position}"), 1, wkc)?;
+            found.push(AlStatus::from_registers(&registers));
+        }
         for position in 0..count {
             let address = FIRST_STATION_ADDRESS + position;
             let wkc = self.datagram_retry(
@@ -41,22 +48,21 @@ impl Master {
             self.expect_wkc(|| format!("APWR of the station address to position {position}"), 1, wkc)?;
         }
         for position in 0..count {
-            let station = FIRST_STATION_ADDRESS + position;
-            self.wait_state(position, station, AlState::Init, INIT_TIMEOUT)?;
+            self.reset_to_init(position, FIRST_STATION_ADDRESS + position, INIT_TIMEOUT)?;
         }
         // A clean start: no process data, no mailbox, no SYNC pulses until configured again.
         self.broadcast_write(FMMU0, &[0; FMMUS_CLEARED * registers::FMMU_LEN as usize])?;
         self.broadcast_write(SM0, &[0; SMS_CLEARED * registers::SM_LEN as usize])?;
         self.broadcast_write(registers::DC_ACTIVATION, &[0])?;
-        for position in 0..count {
-            let slave = self.read_slave(position, FIRST_STATION_ADDRESS + position)?;
+        for (position, found) in (0..count).zip(found) {
+            let slave = self.read_slave(position, FIRST_STATION_ADDRESS + position, found)?;
             self.slaves.push(slave);
         }
         Ok(count as usize)
     }
 
     /// Reads what the slave at `station` is: features, alias and SII.
-    fn read_slave(&mut self, position: u16, station: u16) -> Result<Slave> {
+    fn read_slave(&mut self, position: u16, station: u16, found: AlStatus) -> Result<Slave> {
         let esc_features = self.read_u16(station, registers::FEATURES)?;
         let alias = self.read_u16(station, registers::STATION_ALIAS)?;
         let image = self.read_sii(station)?;
@@ -73,6 +79,7 @@ impl Master {
             station_address: station,
             alias,
             esc_features,
+            found,
             sii,
             mailbox,
             emergencies: VecDeque::new(),

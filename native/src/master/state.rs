@@ -29,6 +29,11 @@ pub struct AlStatus {
 }
 
 impl AlStatus {
+    /// Decodes AL status (0x0130) and AL status code (0x0134) from the six bytes at 0x0130.
+    pub fn from_registers(b: &[u8; 6]) -> Self {
+        AlStatus { status: u16::from_le_bytes([b[0], b[1]]), code: u16::from_le_bytes([b[4], b[5]]) }
+    }
+
     /// The state, if the state bits hold a valid one.
     pub fn state(&self) -> Option<AlState> {
         AlState::from_bits(self.status)
@@ -73,7 +78,7 @@ impl Master {
     fn read_al_status(&mut self, station: u16) -> Result<AlStatus> {
         let mut b = [0u8; 6];
         self.read_registers(station, AL_STATUS, &mut b)?;
-        Ok(AlStatus { status: u16::from_le_bytes([b[0], b[1]]), code: u16::from_le_bytes([b[4], b[5]]) })
+        Ok(AlStatus::from_registers(&b))
     }
 
     /// AL status and AL status code of the slave at `position`.
@@ -140,6 +145,31 @@ impl Master {
             std::thread::sleep(POLL_INTERVAL);
         }
         Ok(())
+    }
+
+    /// Takes a slave found in any state, with or without its error flag set, to Init with the
+    /// flag cleared. Unlike a state request, an error flag seen here is the old one still
+    /// waiting for the drive's firmware to take the acknowledge, not a refusal.
+    pub(crate) fn reset_to_init(&mut self, position: u16, station: u16, timeout: Duration) -> Result<()> {
+        let deadline = Instant::now() + timeout;
+        self.write_al_control(position, station, AlState::Init as u16 | AL_ERROR_ACK, timeout)?;
+        loop {
+            let status = self.read_al_status(station)?;
+            if status.state() == Some(AlState::Init) && !status.error() {
+                return Ok(());
+            }
+            if Instant::now() >= deadline {
+                return Err(Error::Timeout {
+                    what: format!(
+                        "slave {position} to return to Init (it is in {}, AL status code 0x{:04X}: {})",
+                        status.state_name(),
+                        status.code,
+                        status.code_name()
+                    ),
+                });
+            }
+            std::thread::sleep(POLL_INTERVAL);
+        }
     }
 
     /// Writes AL control. Without device emulation (0x0140 bit 8, off on the AKD) AL control

@@ -119,7 +119,9 @@ impl PyMaster {
         Ok(PyMaster { master: Mutex::new(Some(master.py()?)) })
     }
 
-    /// Finds the slaves and returns one dict per slave.
+    /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
+    /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
+    /// what the scan found before it reset the bus.
     fn scan<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
@@ -143,6 +145,9 @@ impl PyMaster {
             d.set_item("al_state", status.state_name())?;
             d.set_item("al_status_code", status.code)?;
             d.set_item("al_status_code_name", status.code_name())?;
+            d.set_item("found_al_state", slave.found.state_name())?;
+            d.set_item("found_al_status_code", slave.found.code)?;
+            d.set_item("found_al_status_code_name", slave.found.code_name())?;
             d.set_item("mailbox_protocols", slave.sii.header.mailbox_protocols)?;
             d.set_item("dc", slave.has_dc())?;
             list.append(d)?;
