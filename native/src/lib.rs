@@ -11,6 +11,7 @@
 
 pub mod al;
 pub mod coe;
+pub mod cycle;
 pub mod dc;
 pub mod ds402;
 pub mod error;

@@ -205,6 +205,38 @@ impl Master {
     }
 }
 
+/// Whole-image access for a cycle thread, which moves every slave's data at once.
+impl Master {
+    /// Where the slave at `position` has its data in the images.
+    pub fn image_slot(&self, position: u16) -> Result<ImageSlot> {
+        self.image()?.slot(position)
+    }
+
+    /// The whole output image, every slave's outputs at their [`ImageSlot`] offsets.
+    pub fn output_image(&self) -> Result<&[u8]> {
+        Ok(&self.image()?.outputs)
+    }
+
+    /// The whole output image, to set for the next cycle.
+    pub fn output_image_mut(&mut self) -> Result<&mut [u8]> {
+        match self.process.as_mut() {
+            Some(image) => Ok(&mut image.outputs),
+            None => Err(Error::Config("no process image yet: take the slaves to SafeOp first".into())),
+        }
+    }
+
+    /// The whole input image from the last good cycle.
+    pub fn input_image(&self) -> Result<&[u8]> {
+        Ok(&self.image()?.inputs)
+    }
+
+    /// Sets how long every frame may take to come back and returns the previous time-out; a
+    /// cycle thread shortens it to its period so that a lost frame costs one cycle, not more.
+    pub fn replace_timeout(&mut self, timeout: std::time::Duration) -> std::time::Duration {
+        std::mem::replace(&mut self.timeout, timeout)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,0 +1,358 @@
+//! The real-time cycle thread: it owns a [`Master`] whose bus is in Op and exchanges its
+//! process image every period, sleeping to absolute deadlines on the monotonic clock.
+//!
+//! Other threads (Python among them) never touch the master while it cycles: they write
+//! set-points into a lock-free buffer that the thread copies into the output image before each
+//! exchange, and read snapshots (cycle count, time, working counter, inputs) that the thread
+//! publishes after it. Statistics are atomics the thread updates and anyone reads. Nothing in
+//! the loop allocates, takes a lock or needs the GIL; the thread never waits on another one.
+//! [`CycleThread::stop`] hands the master back, e.g. to bring the bus down.
+//!
+//! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics and
+//! [`exchange`] the lock-free buffers.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::thread::JoinHandle;
+use std::time::Duration;
+
+use crate::error::{Error, Result};
+use crate::master::cyclic::ImageSlot;
+use crate::master::Master;
+
+pub mod exchange;
+pub mod rt;
+pub mod stats;
+pub mod timing;
+
+use exchange::SeqBytes;
+use stats::CycleStats;
+
+/// How a cycle thread runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Config {
+    /// The period, [`timing::MIN_PERIOD`]..=[`timing::MAX_PERIOD`].
+    pub period: Duration,
+    /// SCHED_FIFO priority (1..=99), or the normal scheduler when `None`.
+    pub priority: Option<i32>,
+    /// The CPU the thread is bound to, or any when `None`.
+    pub cpu: Option<usize>,
+    /// Whether to lock the process's memory (mlockall).
+    pub lock_memory: bool,
+}
+
+impl Config {
+    /// A cycle of `period` with no real-time settings.
+    pub fn new(period: Duration) -> Self {
+        Config { period, priority: None, cpu: None, lock_memory: false }
+    }
+}
+
+/// The snapshot header's layout: cycle (u64), time (u64), working counter (u16), whether the
+/// cycle's inputs are fresh (u8); the input image follows.
+const HEADER_LEN: usize = 8 + 8 + 2 + 1;
+
+/// What the cycle thread published after one cycle.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Snapshot {
+    /// Cycles done when it was taken (the first cycle is 1; 0 before any).
+    pub cycle: u64,
+    /// When the cycle woke up, on the monotonic clock (ns).
+    pub time_ns: u64,
+    /// The cyclic LRW's working counter (0 when the frame was lost).
+    pub wkc: u16,
+    /// Whether this cycle's exchange succeeded; if not, the inputs are the last good ones.
+    pub fresh: bool,
+    /// The whole input image; [`CycleThread::inputs_of`] cuts out one slave's.
+    pub inputs: Vec<u8>,
+}
+
+/// What the thread and the other threads share.
+struct Shared {
+    stop: AtomicBool,
+    setpoints: SeqBytes,
+    snapshot: SeqBytes,
+    stats: CycleStats,
+}
+
+/// A running cycle thread.
+pub struct CycleThread {
+    shared: Arc<Shared>,
+    thread: Option<JoinHandle<Option<Master>>>,
+    slots: Vec<Option<ImageSlot>>,
+    warnings: Vec<String>,
+    period: Duration,
+}
+
+impl CycleThread {
+    /// Starts cycling `master` (its bus in Op, its process image laid out). The output image
+    /// starts as the master holds it, so nothing changes at the start. A bad period, priority
+    /// or CPU, or a master without a process image, is refused and the master handed back
+    /// with the error. Real-time settings that are not permitted become [`warnings`](Self::warnings).
+    pub fn start(master: Master, config: Config) -> std::result::Result<CycleThread, Box<(Error, Master)>> {
+        let checked = timing::period_ns(config.period).and_then(|period_ns| {
+            rt::check(config.priority, config.cpu)?;
+            let outputs = master.output_image()?.to_vec();
+            let inputs_len = master.input_image()?.len();
+            Ok((period_ns, outputs, inputs_len))
+        });
+        let (period_ns, outputs, inputs_len) = match checked {
+            Ok(c) => c,
+            Err(e) => return Err(Box::new((e, master))),
+        };
+        let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
+        let shared = Arc::new(Shared {
+            stop: AtomicBool::new(false),
+            setpoints: SeqBytes::new(outputs.len(), &outputs),
+            snapshot: SeqBytes::new(HEADER_LEN + inputs_len, &[]),
+            stats: CycleStats::new(period_ns),
+        });
+        // The master goes to the thread once it exists, so a failed spawn can hand it back.
+        let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
+        let (ready_tx, ready_rx) = mpsc::sync_channel(1);
+        let spawned = {
+            let shared = shared.clone();
+            std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
+                let mut master = master_rx.recv().ok()?;
+                let mut warnings = Vec::new();
+                warnings.extend(config.priority.and_then(rt::set_fifo_priority));
+                warnings.extend(config.cpu.and_then(rt::set_affinity));
+                if config.lock_memory {
+                    warnings.extend(rt::lock_memory());
+                }
+                // The starting thread waits for this message; it cannot be gone.
+                let _ = ready_tx.send(warnings);
+                let timeout = master.replace_timeout(config.period);
+                run(&mut master, &shared, period_ns);
+                master.replace_timeout(timeout);
+                Some(master)
+            })
+        };
+        let thread = match spawned {
+            Ok(t) => t,
+            Err(source) => {
+                return Err(Box::new((Error::Io { context: "starting the cycle thread".into(), source }, master)))
+            }
+        };
+        // The thread is waiting for it.
+        let _ = master_tx.send(master);
+        let warnings = ready_rx.recv().unwrap_or_default();
+        Ok(CycleThread { shared, thread: Some(thread), slots, warnings, period: config.period })
+    }
+
+    /// The real-time settings that were asked for and not permitted, one sentence each.
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// The period.
+    pub fn period(&self) -> Duration {
+        self.period
+    }
+
+    fn slot(&self, position: u16) -> Result<ImageSlot> {
+        self.slots.get(position as usize).copied().flatten().ok_or_else(|| {
+            Error::Config(format!(
+                "slave {position} has no process data (slaves with process data: {:?})",
+                (0..self.slots.len()).filter(|&p| self.slots[p].is_some()).collect::<Vec<_>>()
+            ))
+        })
+    }
+
+    /// Sets the outputs of the slave at `position` from the next cycle on; `data` must have
+    /// their exact length. Lock-free: the cycle thread never waits for it.
+    pub fn set_outputs(&self, position: u16, data: &[u8]) -> Result<()> {
+        let slot = self.slot(position)?;
+        if data.len() != slot.out_len {
+            return Err(Error::Config(format!(
+                "slave {position} has {} bytes of outputs, {} given",
+                slot.out_len,
+                data.len()
+            )));
+        }
+        self.shared.setpoints.write().write(slot.out_offset, data);
+        Ok(())
+    }
+
+    /// The outputs of the slave at `position` as they go out from the next cycle on.
+    pub fn outputs(&self, position: u16) -> Result<Vec<u8>> {
+        let slot = self.slot(position)?;
+        let mut image = vec![0; self.shared.setpoints.len()];
+        self.shared.setpoints.read(&mut image);
+        Ok(image[slot.out_offset..slot.out_offset + slot.out_len].to_vec())
+    }
+
+    /// The last cycle's snapshot.
+    pub fn snapshot(&self) -> Snapshot {
+        let mut bytes = vec![0; self.shared.snapshot.len()];
+        self.shared.snapshot.read(&mut bytes);
+        let (header, inputs) = bytes.split_at(HEADER_LEN);
+        Snapshot {
+            cycle: u64::from_le_bytes(header[0..8].try_into().expect("8 bytes")),
+            time_ns: u64::from_le_bytes(header[8..16].try_into().expect("8 bytes")),
+            wkc: u16::from_le_bytes([header[16], header[17]]),
+            fresh: header[18] != 0,
+            inputs: inputs.to_vec(),
+        }
+    }
+
+    /// The inputs of the slave at `position` in `snapshot`.
+    pub fn inputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+        let slot = self.slot(position)?;
+        Ok(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_len])
+    }
+
+    /// The statistics, updated by the thread every cycle.
+    pub fn stats(&self) -> &CycleStats {
+        &self.shared.stats
+    }
+
+    /// Whether the thread still runs.
+    pub fn running(&self) -> bool {
+        self.thread.as_ref().is_some_and(|t| !t.is_finished())
+    }
+
+    /// Stops the thread after its current cycle and hands the master back.
+    pub fn stop(mut self) -> Result<Master> {
+        self.halt().ok_or_else(|| Error::Config("the cycle thread panicked; the master is lost".into()))
+    }
+
+    fn halt(&mut self) -> Option<Master> {
+        self.shared.stop.store(true, Ordering::Release);
+        self.thread.take()?.join().ok().flatten()
+    }
+}
+
+impl Drop for CycleThread {
+    /// A cycle thread dropped without [`stop`](CycleThread::stop) stops, and its master closes.
+    fn drop(&mut self) {
+        self.halt();
+    }
+}
+
+/// The loop. Everything it touches was allocated before it starts.
+fn run(master: &mut Master, shared: &Shared, period_ns: u64) {
+    let stats = &shared.stats;
+    let base = master.stats();
+    let mut schedule = timing::Schedule::new(timing::now_ns() + period_ns, period_ns);
+    let mut last_wake = None;
+    while !shared.stop.load(Ordering::Acquire) {
+        timing::sleep_until(schedule.next_ns());
+        let wake = timing::now_ns();
+        if let Some(last) = last_wake {
+            stats.period.record(wake - last);
+        }
+        last_wake = Some(wake);
+        if let Ok(outputs) = master.output_image_mut() {
+            if shared.setpoints.try_read(outputs).is_none() {
+                CycleStats::add(&stats.setpoints_busy, 1);
+            }
+        }
+        let sent = timing::now_ns();
+        let result = master.exchange();
+        stats.exchange.record(timing::now_ns() - sent);
+        // Lost frames and wrong working counters are the master's own counts; other failures
+        // are counted here. None of them stops the cycle: what to do is the caller's decision.
+        let wkc = match &result {
+            Ok(wkc) => *wkc,
+            Err(Error::WorkingCounter { got, .. }) => *got,
+            Err(Error::Timeout { .. }) => 0,
+            Err(_) => {
+                CycleStats::add(&stats.other_errors, 1);
+                0
+            }
+        };
+        let now = master.stats();
+        stats.lost_frames.store(now.lost_frames - base.lost_frames, Ordering::Relaxed);
+        stats.wkc_errors.store(now.wkc_errors - base.wkc_errors, Ordering::Relaxed);
+        CycleStats::add(&stats.cycles, 1);
+        {
+            let mut w = shared.snapshot.write();
+            w.write(0, &stats.cycles.load(Ordering::Relaxed).to_le_bytes());
+            w.write(8, &wake.to_le_bytes());
+            w.write(16, &wkc.to_le_bytes());
+            w.write(18, &[result.is_ok() as u8]);
+            if let Ok(inputs) = master.input_image() {
+                w.write(HEADER_LEN, inputs);
+            }
+        }
+        CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::al::AlState;
+    use crate::link::inproc::InProcess;
+
+    fn master_in_op(count: usize) -> Master {
+        let mut m = Master::new(Box::new(InProcess::new(count)), Duration::from_millis(100));
+        m.scan().unwrap();
+        m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
+        m
+    }
+
+    fn wait_for_cycle(cycle: &CycleThread, after: u64) -> Snapshot {
+        loop {
+            let s = cycle.snapshot();
+            if s.cycle > after {
+                return s;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    #[test]
+    fn refuses_a_period_out_of_range_and_hands_the_master_back() {
+        let (error, master) =
+            *CycleThread::start(master_in_op(1), Config::new(Duration::from_micros(100))).err().unwrap();
+        assert!(error.to_string().contains("250 µs ..= 10000 µs"), "{error}");
+        let (error, _) =
+            *CycleThread::start(master, Config { priority: Some(0), ..Config::new(Duration::from_millis(1)) })
+                .err()
+                .unwrap();
+        assert!(error.to_string().contains("1..=99"), "{error}");
+    }
+
+    #[test]
+    fn refuses_a_master_without_process_image() {
+        let mut m = Master::new(Box::new(InProcess::new(1)), Duration::from_millis(100));
+        m.scan().unwrap();
+        let (error, _) = *CycleThread::start(m, Config::new(Duration::from_millis(1))).err().unwrap();
+        assert!(error.to_string().contains("no process image"), "{error}");
+    }
+
+    #[test]
+    fn cycles_sets_outputs_and_hands_the_master_back() {
+        let mut master = master_in_op(2);
+        // Outputs set before the start go on unchanged.
+        master.set_outputs(1, &[0x44, 0x33, 0x22, 0x11, 0x0F, 0]).unwrap();
+        let cycle = CycleThread::start(master, Config::new(Duration::from_micros(500))).map_err(|e| e.0).unwrap();
+        assert!(cycle.running());
+        assert_eq!(cycle.outputs(1).unwrap(), [0x44, 0x33, 0x22, 0x11, 0x0F, 0]);
+        cycle.set_outputs(0, &[0x78, 0x56, 0x34, 0x12, 0x06, 0]).unwrap();
+        assert!(cycle.set_outputs(0, &[1, 2]).unwrap_err().to_string().contains("6 bytes of outputs, 2 given"));
+        assert!(cycle.set_outputs(5, &[0; 6]).unwrap_err().to_string().contains("slave 5 has no process data"));
+        let first = wait_for_cycle(&cycle, 0);
+        let later = wait_for_cycle(&cycle, first.cycle + 20);
+        assert!(later.time_ns > first.time_ns);
+        assert!(later.fresh);
+        assert_eq!(later.wkc, 6);
+        assert_eq!(cycle.inputs_of(&later, 1).unwrap().len(), 6);
+        let stats = cycle.stats();
+        assert!(stats.period.summary().count >= 20);
+        assert!(stats.exchange.summary().count >= 21);
+        let mut master = cycle.stop().unwrap();
+        let cycles = master.stats().cycles;
+        assert!(cycles > later.cycle, "{cycles}");
+        assert_eq!((master.stats().lost_frames, master.stats().wkc_errors), (0, 0));
+        // The set-points reached the drives: read back from their object dictionaries.
+        // 0x1701 carries the interpolation set-point 0x60C1:01, then the controlword.
+        assert_eq!(master.sdo_read(0, 0x60C1, 1).unwrap(), 0x1234_5678u32.to_le_bytes());
+        assert_eq!(master.sdo_read(0, 0x6040, 0).unwrap(), [0x06, 0]);
+        assert_eq!(master.sdo_read(1, 0x60C1, 1).unwrap(), 0x1122_3344u32.to_le_bytes());
+        // The master works on after the thread: the bus goes down.
+        master.request_state(AlState::Init, None, Duration::from_secs(5)).unwrap();
+    }
+}

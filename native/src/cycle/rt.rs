@@ -1,0 +1,100 @@
+//! Real-time settings of the cycle thread: SCHED_FIFO priority, CPU affinity and locked
+//! memory. Each is optional. A value outside its range is an error; a setting the system does
+//! not permit (no CAP_SYS_NICE, a CPU outside the container's set, a memlock limit) is a
+//! warning that names what was refused and why, and the cycle runs without it.
+
+use crate::error::{Error, Result};
+
+/// The SCHED_FIFO priorities Linux allows.
+pub fn fifo_priorities() -> (i32, i32) {
+    unsafe { (libc::sched_get_priority_min(libc::SCHED_FIFO), libc::sched_get_priority_max(libc::SCHED_FIFO)) }
+}
+
+/// Checks a SCHED_FIFO priority and a CPU number before anything starts.
+pub fn check(priority: Option<i32>, cpu: Option<usize>) -> Result<()> {
+    let (low, high) = fifo_priorities();
+    if let Some(p) = priority.filter(|p| !(low..=high).contains(p)) {
+        return Err(Error::Config(format!("SCHED_FIFO priority {p} is outside {low}..={high}")));
+    }
+    let cpus = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_CONF) }.max(1) as usize;
+    if let Some(c) = cpu.filter(|&c| c >= cpus.min(libc::CPU_SETSIZE as usize)) {
+        return Err(Error::Config(format!("CPU {c} does not exist: this machine has CPUs 0..={}", cpus - 1)));
+    }
+    Ok(())
+}
+
+fn os_error(code: i32) -> String {
+    std::io::Error::from_raw_os_error(code).to_string()
+}
+
+/// Gives the calling thread SCHED_FIFO at `priority`; a warning when not permitted.
+pub fn set_fifo_priority(priority: i32) -> Option<String> {
+    let param = libc::sched_param { sched_priority: priority };
+    match unsafe { libc::pthread_setschedparam(libc::pthread_self(), libc::SCHED_FIFO, &param) } {
+        0 => None,
+        code => Some(format!(
+            "SCHED_FIFO priority {priority} not set ({}): the cycle runs at normal priority; \
+             it needs CAP_SYS_NICE or an RLIMIT_RTPRIO of at least {priority}",
+            os_error(code)
+        )),
+    }
+}
+
+/// Binds the calling thread to `cpu`; a warning when not permitted.
+pub fn set_affinity(cpu: usize) -> Option<String> {
+    let code = unsafe {
+        let mut set: libc::cpu_set_t = std::mem::zeroed();
+        libc::CPU_SET(cpu, &mut set);
+        libc::pthread_setaffinity_np(libc::pthread_self(), std::mem::size_of::<libc::cpu_set_t>(), &set)
+    };
+    (code != 0).then(|| {
+        format!(
+            "CPU affinity to CPU {cpu} not set ({}): the cycle runs on any CPU (is it in this process's cpuset?)",
+            os_error(code)
+        )
+    })
+}
+
+/// Locks the process's memory, now and future, so page faults never stall the cycle; a
+/// warning when not permitted.
+pub fn lock_memory() -> Option<String> {
+    if unsafe { libc::mlockall(libc::MCL_CURRENT | libc::MCL_FUTURE) } == 0 {
+        return None;
+    }
+    Some(format!(
+        "memory not locked ({}): the cycle may meet page faults; it needs CAP_IPC_LOCK or a larger RLIMIT_MEMLOCK",
+        std::io::Error::last_os_error()
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn out_of_range_values_are_refused_with_the_range() {
+        let (low, high) = fifo_priorities();
+        assert_eq!((low, high), (1, 99));
+        let message = check(Some(0), None).unwrap_err().to_string();
+        assert!(message.contains("priority 0 is outside 1..=99"), "{message}");
+        assert!(check(Some(100), None).is_err());
+        let message = check(None, Some(100_000)).unwrap_err().to_string();
+        assert!(message.contains("CPU 100000 does not exist"), "{message}");
+        assert!(check(Some(50), Some(0)).is_ok());
+    }
+
+    #[test]
+    fn settings_apply_or_warn_by_name() {
+        // On a thread of its own: the test harness's threads keep their normal scheduling.
+        std::thread::spawn(|| {
+            if let Some(w) = set_fifo_priority(10) {
+                assert!(w.contains("SCHED_FIFO priority 10 not set"), "{w}");
+            }
+            if let Some(w) = set_affinity(0) {
+                assert!(w.contains("CPU affinity to CPU 0"), "{w}");
+            }
+        })
+        .join()
+        .unwrap();
+    }
+}

@@ -1,0 +1,111 @@
+//! The cycle thread's loop allocates nothing: a global allocator counts the allocations of
+//! the thread named `akd-cycle` (found by its kernel thread id in /proc), while the virtual
+//! AKDs are served over UDP by another thread whose allocations are not counted.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::net::{SocketAddr, UdpSocket};
+use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use akd_native::al::AlState;
+use akd_native::cycle::{Config, CycleThread, Snapshot};
+use akd_native::link::udp::Udp;
+use akd_native::master::Master;
+use akd_native::sim::{server, Timing, VirtualBus};
+
+struct Counting;
+
+/// The kernel thread id whose allocations are counted (0: none yet).
+static WATCHED: AtomicI32 = AtomicI32::new(0);
+static ALLOCATIONS: AtomicU64 = AtomicU64::new(0);
+
+fn count() {
+    // gettid allocates nothing, so the allocator may call it.
+    if WATCHED.load(Ordering::Relaxed) == unsafe { libc::gettid() } {
+        ALLOCATIONS.fetch_add(1, Ordering::Relaxed);
+    }
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        count();
+        System.alloc(layout)
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        count();
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static COUNTING: Counting = Counting;
+
+/// The kernel thread id of this process's thread named `name`.
+fn thread_named(name: &str) -> i32 {
+    std::fs::read_dir("/proc/self/task")
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .find(|e| std::fs::read_to_string(e.path().join("comm")).is_ok_and(|c| c.trim_end() == name))
+        .and_then(|e| e.file_name().to_str()?.parse().ok())
+        .unwrap_or_else(|| panic!("no thread named {name}"))
+}
+
+fn wait_for_cycle(cycle: &CycleThread, after: u64) -> Snapshot {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let s = cycle.snapshot();
+        if s.cycle > after {
+            return s;
+        }
+        assert!(Instant::now() < deadline, "the cycle stopped at {}", s.cycle);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+#[test]
+fn cycle_loop_allocates_nothing() {
+    let address: SocketAddr = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let serving = {
+        let stop = stop.clone();
+        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(2, Timing::IMMEDIATE), &stop))
+    };
+    let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while m.scan().is_err() {
+        assert!(Instant::now() < deadline, "no simulator on {address}");
+    }
+    m.request_state(AlState::PreOp, None, Duration::from_secs(5)).unwrap();
+    m.configure_dc(1_000_000).unwrap();
+    m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let started = wait_for_cycle(&cycle, 5);
+    WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);
+    // The counter sees the watched thread only: this thread's allocation is not counted.
+    drop(std::hint::black_box(Vec::<u8>::with_capacity(8)));
+    let armed = wait_for_cycle(&cycle, started.cycle);
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    // Set-points written and snapshots read meanwhile, as a user would.
+    for n in 0..200u32 {
+        cycle.set_outputs(0, &[n as u8, 0, 0, 0, 0x06, 0]).unwrap();
+        std::hint::black_box(cycle.snapshot());
+    }
+    let last = wait_for_cycle(&cycle, armed.cycle + 300);
+    let during = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    WATCHED.store(0, Ordering::SeqCst);
+    let stats = cycle.stats();
+    let (lost, wkc) = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
+    let master = cycle.stop().unwrap();
+    stop.store(true, Ordering::SeqCst);
+    serving.join().unwrap().unwrap();
+    assert_eq!((lost, wkc), (0, 0), "lost frames and WKC errors");
+    assert!(last.fresh);
+    assert_eq!(during, 0, "allocations in {} cycles", last.cycle - armed.cycle);
+    drop(master);
+}
