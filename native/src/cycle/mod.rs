@@ -145,6 +145,11 @@ impl CycleThread {
         &self.warnings
     }
 
+    /// Slaves on the bus, with process data or not.
+    pub fn slave_count(&self) -> u16 {
+        self.slots.len() as u16
+    }
+
     /// The period.
     pub fn period(&self) -> Duration {
         self.period

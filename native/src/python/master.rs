@@ -82,7 +82,11 @@ struct InUse<'a>(MutexGuard<'a, Option<master::Master>>);
 
 impl InUse<'_> {
     fn get(&mut self) -> PyResult<&mut master::Master> {
-        self.0.as_mut().ok_or_else(|| super::to_py_err(Error::Config("the master is closed".into())))
+        self.0.as_mut().ok_or_else(|| {
+            super::to_py_err(Error::Config(
+                "the master is closed, or handed to a Cycle (stop the Cycle to get it back)".into(),
+            ))
+        })
     }
 }
 
@@ -366,4 +370,20 @@ impl PyMaster {
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyMaster>()
+}
+
+/// Handing the master to a cycle thread and back (`akd_ros._native.Cycle`).
+impl PyMaster {
+    /// Takes the master out; calls meanwhile raise ConfigError until it is [`put_back`](Self::put_back).
+    pub(super) fn take(&self) -> PyResult<master::Master> {
+        let mut in_use = self.lock()?;
+        in_use.get()?;
+        Ok(in_use.0.take().expect("checked just above"))
+    }
+
+    /// Gives the master back after its cycle thread stopped. Waits for the lock: while the
+    /// master is out, a call holds it only to fail at once, with the GIL that the caller holds.
+    pub(super) fn put_back(&self, master: master::Master) {
+        *self.master.lock().unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(master);
+    }
 }

@@ -10,6 +10,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::error::Error;
 
+mod cycle;
 mod master;
 mod sii;
 mod sim;
@@ -130,5 +131,6 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     master::register(m)?;
     sim::register(m)?;
     sii::register(m)?;
+    cycle::register(m)?;
     Ok(())
 }
