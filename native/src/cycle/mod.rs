@@ -167,6 +167,9 @@ impl CycleThread {
     /// Sets the outputs of the slave at `position` from the next cycle on; `data` must have
     /// their exact length. Lock-free: the cycle thread never waits for it.
     pub fn set_outputs(&self, position: u16, data: &[u8]) -> Result<()> {
+        if self.stopped() {
+            return Err(Error::Config("the cycle is stopped: set-points no longer go out".into()));
+        }
         let slot = self.slot(position)?;
         if data.len() != slot.out_len {
             return Err(Error::Config(format!(
@@ -217,9 +220,18 @@ impl CycleThread {
         self.thread.as_ref().is_some_and(|t| !t.is_finished())
     }
 
-    /// Stops the thread after its current cycle and hands the master back.
-    pub fn stop(mut self) -> Result<Master> {
+    /// Stops the thread after its current cycle and hands the master back. The last snapshot
+    /// and the statistics stay readable; set-points are refused from then on.
+    pub fn stop(&mut self) -> Result<Master> {
+        if self.stopped() {
+            return Err(Error::Config("the cycle thread was already stopped".into()));
+        }
         self.halt().ok_or_else(|| Error::Config("the cycle thread panicked; the master is lost".into()))
+    }
+
+    /// Whether [`stop`](Self::stop) was called.
+    pub fn stopped(&self) -> bool {
+        self.thread.is_none()
     }
 
     fn halt(&mut self) -> Option<Master> {
@@ -244,6 +256,7 @@ fn run(master: &mut Master, shared: &Shared, period_ns: u64) {
     while !shared.stop.load(Ordering::Acquire) {
         timing::sleep_until(schedule.next_ns());
         let wake = timing::now_ns();
+        stats.wake_latency.record(wake.saturating_sub(schedule.next_ns()));
         if let Some(last) = last_wake {
             stats.period.record(wake - last);
         }
@@ -333,7 +346,7 @@ mod tests {
         let mut master = master_in_op(2);
         // Outputs set before the start go on unchanged.
         master.set_outputs(1, &[0x44, 0x33, 0x22, 0x11, 0x0F, 0]).unwrap();
-        let cycle = CycleThread::start(master, Config::new(Duration::from_micros(500))).map_err(|e| e.0).unwrap();
+        let mut cycle = CycleThread::start(master, Config::new(Duration::from_micros(500))).map_err(|e| e.0).unwrap();
         assert!(cycle.running());
         assert_eq!(cycle.outputs(1).unwrap(), [0x44, 0x33, 0x22, 0x11, 0x0F, 0]);
         cycle.set_outputs(0, &[0x78, 0x56, 0x34, 0x12, 0x06, 0]).unwrap();
@@ -347,9 +360,13 @@ mod tests {
         assert_eq!(cycle.inputs_of(&later, 1).unwrap().len(), 6);
         let stats = cycle.stats();
         assert!(stats.period.summary().count >= 20);
+        assert!(stats.wake_latency.summary().count >= 21);
         assert!(stats.exchange.summary().count >= 21);
         let mut master = cycle.stop().unwrap();
+        assert!(cycle.stop().err().unwrap().to_string().contains("already stopped"));
+        assert!(cycle.set_outputs(0, &[0; 6]).unwrap_err().to_string().contains("the cycle is stopped"));
         let cycles = master.stats().cycles;
+        assert_eq!(cycle.stats().cycles.load(Ordering::Relaxed), cycle.snapshot().cycle);
         assert!(cycles > later.cycle, "{cycles}");
         assert_eq!((master.stats().lost_frames, master.stats().wkc_errors), (0, 0));
         // The set-points reached the drives: read back from their object dictionaries.

@@ -157,6 +157,8 @@ impl Histogram {
 pub struct CycleStats {
     /// Time from one cycle's wake-up to the next's: the period as it really was.
     pub period: Histogram,
+    /// How late the thread woke after its deadline (what `cyclictest` calls latency).
+    pub wake_latency: Histogram,
     /// Time the exchange of the process image took (frame out and back).
     pub exchange: Histogram,
     /// Cycles run.
@@ -179,6 +181,7 @@ impl CycleStats {
     pub fn new(period_ns: u64) -> Self {
         CycleStats {
             period: Histogram::around(period_ns),
+            wake_latency: Histogram::new(0),
             exchange: Histogram::new(0),
             cycles: AtomicU64::new(0),
             overruns: AtomicU64::new(0),

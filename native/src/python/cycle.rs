@@ -19,7 +19,7 @@ use crate::error::Error;
 #[pyclass(name = "Cycle", module = "akd_ros._native")]
 pub struct PyCycle {
     master: Py<PyMaster>,
-    cycle: Option<CycleThread>,
+    cycle: CycleThread,
 }
 
 fn summary<'py>(py: Python<'py>, s: Summary) -> PyResult<Bound<'py, PyDict>> {
@@ -33,16 +33,11 @@ fn summary<'py>(py: Python<'py>, s: Summary) -> PyResult<Bound<'py, PyDict>> {
 }
 
 impl PyCycle {
-    fn running(&self) -> PyResult<&CycleThread> {
-        self.cycle
-            .as_ref()
-            .ok_or_else(|| super::to_py_err(Error::Config("the cycle is stopped; its master was handed back".into())))
-    }
-
     fn halt(&mut self, py: Python<'_>) -> PyResult<()> {
-        let Some(cycle) = self.cycle.take() else {
+        if self.cycle.stopped() {
             return Ok(());
-        };
+        }
+        let cycle = &mut self.cycle;
         let master = py.allow_threads(|| cycle.stop()).py()?;
         self.master.borrow(py).put_back(master);
         Ok(())
@@ -73,7 +68,7 @@ impl PyCycle {
         let config = Config { period, priority, cpu, lock_memory };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
-            Ok(cycle) => Ok(PyCycle { master, cycle: Some(cycle) }),
+            Ok(cycle) => Ok(PyCycle { master, cycle }),
             Err(refused) => {
                 let (error, taken) = *refused;
                 master.borrow(py).put_back(taken);
@@ -84,19 +79,19 @@ impl PyCycle {
 
     /// Sets the outputs of the slave at `position` (their exact length) from the next cycle on.
     fn set_outputs(&self, position: u16, data: Vec<u8>) -> PyResult<()> {
-        self.running()?.set_outputs(position, &data).py()
+        self.cycle.set_outputs(position, &data).py()
     }
 
     /// The outputs of the slave at `position` as they go out.
     fn outputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
-        Ok(PyBytes::new(py, &self.running()?.outputs(position).py()?))
+        Ok(PyBytes::new(py, &self.cycle.outputs(position).py()?))
     }
 
     /// The last cycle's snapshot: cycle (count, from 1), time_ns (monotonic wake-up time),
     /// wkc, fresh (whether this cycle's exchange succeeded) and inputs (one bytes per slave,
     /// None for a slave without process data), all from the same cycle.
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let cycle = self.running()?;
+        let cycle = &self.cycle;
         let s = cycle.snapshot();
         let d = PyDict::new(py);
         d.set_item("cycle", s.cycle)?;
@@ -115,10 +110,11 @@ impl PyCycle {
     }
 
     /// The statistics: cycles, overruns, lost_frames, wkc_errors, other_errors,
-    /// setpoints_busy, and period and exchange, each {count, min_ns, mean_ns, p99_ns, max_ns}.
+    /// setpoints_busy, and period, wake_latency (how late after its deadline the thread woke)
+    /// and exchange, each {count, min_ns, mean_ns, p99_ns, max_ns}.
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         use std::sync::atomic::Ordering::Relaxed;
-        let s = self.running()?.stats();
+        let s = self.cycle.stats();
         let d = PyDict::new(py);
         d.set_item("cycles", s.cycles.load(Relaxed))?;
         d.set_item("overruns", s.overruns.load(Relaxed))?;
@@ -127,39 +123,42 @@ impl PyCycle {
         d.set_item("other_errors", s.other_errors.load(Relaxed))?;
         d.set_item("setpoints_busy", s.setpoints_busy.load(Relaxed))?;
         d.set_item("period", summary(py, s.period.summary())?)?;
+        d.set_item("wake_latency", summary(py, s.wake_latency.summary())?)?;
         d.set_item("exchange", summary(py, s.exchange.summary())?)?;
         Ok(d)
     }
 
-    /// The histograms "period" and "exchange", each a list of (upper edge in ns, count) of its
+    /// The histograms "period", "wake_latency" and "exchange", each a list of (upper edge in ns, count) of its
     /// non-empty 1 µs buckets.
     fn histograms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let s = self.running()?.stats();
+        let s = self.cycle.stats();
         let d = PyDict::new(py);
         d.set_item("period", s.period.buckets())?;
+        d.set_item("wake_latency", s.wake_latency.buckets())?;
         d.set_item("exchange", s.exchange.buckets())?;
         Ok(d)
     }
 
     /// The real-time settings asked for and not permitted, one sentence each.
     #[getter]
-    fn warnings(&self) -> PyResult<Vec<String>> {
-        Ok(self.running()?.warnings().to_vec())
+    fn warnings(&self) -> Vec<String> {
+        self.cycle.warnings().to_vec()
     }
 
     /// The period in seconds.
     #[getter]
-    fn period(&self) -> PyResult<f64> {
-        Ok(self.running()?.period().as_secs_f64())
+    fn period(&self) -> f64 {
+        self.cycle.period().as_secs_f64()
     }
 
     /// Whether the thread runs.
     #[getter(running)]
     fn is_running(&self) -> bool {
-        self.cycle.as_ref().is_some_and(CycleThread::running)
+        self.cycle.running()
     }
 
-    /// Stops the thread after its current cycle and hands the master back to its Master object.
+    /// Stops the thread after its current cycle and hands the master back to its Master object;
+    /// snapshot, stats and histograms stay readable (the final ones). A second stop does nothing.
     fn stop(&mut self, py: Python<'_>) -> PyResult<()> {
         self.halt(py)
     }
@@ -176,7 +175,7 @@ impl PyCycle {
 impl Drop for PyCycle {
     /// A Cycle forgotten without `stop()` still stops and hands its master back.
     fn drop(&mut self) {
-        if self.cycle.is_some() {
+        if !self.cycle.stopped() {
             Python::with_gil(|py| {
                 let _ = self.halt(py);
             });
