@@ -6,10 +6,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use pyo3::prelude::*;
-use pyo3::types::PyBytes;
+use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
 use crate::error::{Error, Result};
+use crate::sim::faults::Fault;
 use crate::sim::{server, Timing, VirtualBus};
 
 /// A line of virtual AKDs serving EtherCAT payloads (frame header and datagrams) in place.
@@ -43,6 +44,52 @@ impl PyVirtualBus {
         self.check(position)?;
         let (state, error, code) = self.bus.slave(position).al_status();
         Ok((state as u16 | if error { crate::al::AL_ERROR_FLAG } else { 0 }, code))
+    }
+
+    /// Lets bus time `time_ns` pass with no frame: the drives' firmware and motors run up to it.
+    fn advance(&mut self, time_ns: u64) {
+        self.bus.advance(time_ns);
+    }
+
+    /// Raises fault `name` in drive `position` at its next run, as its firmware would:
+    /// "following_error" (F439), "over_temperature" (F235), "sync_lost" (F125) or
+    /// "setpoints_missing" (F706), by name or as "F125".
+    fn inject_fault(&mut self, position: usize, name: &str) -> PyResult<()> {
+        self.check(position)?;
+        let fault = Fault::from_name(name).map_err(Error::Config).py()?;
+        self.bus.slave_mut(position).drive_mut().inject(fault);
+        Ok(())
+    }
+
+    /// Sets the hardware enable input of drive `position` (high at power-up).
+    fn set_hardware_enable(&mut self, position: usize, high: bool) -> PyResult<()> {
+        self.check(position)?;
+        self.bus.slave_mut(position).drive_mut().set_hardware_enable(high);
+        Ok(())
+    }
+
+    /// Digital input `input` (1..7) of drive `position` toggles wherever the actual position
+    /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
+    fn set_input_toggles(&mut self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
+        self.check(position)?;
+        self.bus.slave_mut(position).drive_mut().inputs_mut().set_toggles(input, &positions).map_err(Error::Config).py()
+    }
+
+    /// The drive firmware of drive `position` as a dict: "state" (the CiA 402 state's name),
+    /// "fault" (the active fault's name, or None), "fault_number" (e.g. 125, or None), and the
+    /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m).
+    fn drive_state<'py>(&self, py: Python<'py>, position: usize) -> PyResult<Bound<'py, PyDict>> {
+        self.check(position)?;
+        let drive = self.bus.slave(position).drive();
+        let shaft = drive.shaft();
+        let state = PyDict::new(py);
+        state.set_item("state", drive.state().name())?;
+        state.set_item("fault", drive.fault().map(Fault::name))?;
+        state.set_item("fault_number", drive.fault().map(Fault::number))?;
+        state.set_item("position", drive.position())?;
+        state.set_item("velocity", shaft.velocity)?;
+        state.set_item("torque", shaft.torque)?;
+        Ok(state)
     }
 
     fn __len__(&self) -> usize {

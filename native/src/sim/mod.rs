@@ -3,7 +3,9 @@
 //!
 //! Each [`VirtualAkd`] is an ESC ([`esc`]) plus the drive's firmware on the PDI side: the AL
 //! state machine ([`al`]), the mailbox server ([`coe`]) over the object dictionary ([`od`]), the
-//! process image ([`pdo`]) and the process-data watchdog ([`watchdog`]). A [`VirtualBus`] is a
+//! process image ([`pdo`]), the process-data watchdog ([`watchdog`]), and the drive firmware
+//! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
+//! load ([`motion`]) and simulated digital inputs and latch ([`latch`]). A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
 //! that a run is deterministic. [`server`] serves a bus on UDP or on a network interface.
 //! [`VirtualBus::with_mailbox_size`] builds drives whose SII declares a smaller mailbox than
@@ -12,7 +14,11 @@
 
 pub mod al;
 pub mod coe;
+pub mod drive;
 pub mod esc;
+pub mod faults;
+pub mod latch;
+pub mod motion;
 pub mod od;
 pub mod pdo;
 pub mod server;
@@ -87,6 +93,9 @@ pub struct VirtualAkd {
     pending_al: Option<(u16, u64)>,
     pending_mailbox: Option<u64>,
     outputs_fresh: bool,
+    /// Bus time of the last complete write of the outputs.
+    outputs_at_ns: u64,
+    drive: drive::Drive,
     rx_image: pdo::Image,
     tx_image: pdo::Image,
 }
@@ -128,6 +137,8 @@ impl VirtualAkd {
             pending_al: None,
             pending_mailbox: None,
             outputs_fresh: false,
+            outputs_at_ns: 0,
+            drive: drive::Drive::default(),
             rx_image: Vec::new(),
             tx_image: Vec::new(),
         }
@@ -151,6 +162,16 @@ impl VirtualAkd {
     /// The object dictionary, to set what the drive reports (tests, fault injection).
     pub fn od_mut(&mut self) -> &mut od::ObjectDictionary {
         &mut self.od
+    }
+
+    /// The drive firmware: CiA 402 state, motor, inputs.
+    pub fn drive(&self) -> &drive::Drive {
+        &self.drive
+    }
+
+    /// The drive firmware, for fault injection and the simulated inputs.
+    pub fn drive_mut(&mut self) -> &mut drive::Drive {
+        &mut self.drive
     }
 
     /// Changes how fast the firmware reacts.
@@ -183,7 +204,10 @@ impl VirtualAkd {
         if events.watchdog_trigger {
             self.watchdog.trigger(now_ns);
         }
-        self.outputs_fresh |= events.outputs_written;
+        if events.outputs_written {
+            self.outputs_fresh = true;
+            self.outputs_at_ns = now_ns;
+        }
         if events.repeat_request {
             self.repeat_mailbox();
         }
@@ -210,10 +234,19 @@ impl VirtualAkd {
             self.watchdog.stop();
             self.write_al_status();
         }
-        if self.al.state() == AlState::Op && self.outputs_fresh {
+        let fresh = self.al.state() == AlState::Op && self.outputs_fresh;
+        if fresh {
             pdo::apply_outputs(&mut self.od, self.esc.memory(), &self.rx_image);
         }
         self.outputs_fresh = false;
+        let bus = drive::Bus {
+            received: fresh.then_some(drive::Received { at_ns: self.outputs_at_ns, image: &self.rx_image }),
+            process_data_expected: matches!(self.al.state(), AlState::SafeOp | AlState::Op),
+            watchdog_ns: watchdog::timeout_ns(self.esc.memory()),
+        };
+        if let Some(emergency) = self.drive.run(&mut self.od, now_ns, bus) {
+            self.emergency(&emergency);
+        }
         if self.al.state() >= AlState::SafeOp && self.al.state() != AlState::Bootstrap {
             pdo::refresh_inputs(&self.od, self.esc.memory_mut(), &self.tx_image);
         }
@@ -246,7 +279,10 @@ impl VirtualAkd {
             if t.from == AlState::PreOp && t.to == AlState::SafeOp {
                 (self.rx_image, self.tx_image) = pdo::images(&self.od);
             }
-            if t.to == AlState::Op {
+            // The watchdog runs only for a master whose SM2 asks for it (control bit 6); the
+            // AKD's SII gives 0x24, without it.
+            let triggered = SyncManager::read(self.esc.memory(), 2).control & sync_manager::CONTROL_WATCHDOG != 0;
+            if t.to == AlState::Op && triggered {
                 self.watchdog.trigger(now_ns);
             } else {
                 self.watchdog.stop();
@@ -351,6 +387,14 @@ impl VirtualBus {
     /// Drive `i`, to change it (tests, fault injection). Panics when `i` is out of range.
     pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
         &mut self.slaves[i]
+    }
+
+    /// Lets bus time `now_ns` pass with no frame: every drive's firmware runs up to it (the
+    /// motors move, supervision counts missed frames).
+    pub fn advance(&mut self, now_ns: u64) {
+        for slave in &mut self.slaves {
+            slave.poll(now_ns);
+        }
     }
 
     /// Serves an EtherCAT payload (frame header and datagrams) in place at bus time `now_ns`.

@@ -1,8 +1,9 @@
 //! The virtual AKD's CANopen object dictionary: the objects the AKD manual (§5.5–5.14) and the
 //! real drive's SII name, with their data types, access rights and value checks.
 //!
-//! Values are stored as little-endian bytes, as SDO and process data carry them. Objects that
-//! later work drives (DS402, latch) are plain stored values here. Checks that involve more than
+//! Values are stored as little-endian bytes, as SDO and process data carry them. The DS402,
+//! motion and latch objects are stored values here that the drive firmware
+//! ([`crate::sim::drive`]) reads and updates. Checks that involve more than
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
@@ -374,6 +375,7 @@ impl ObjectDictionary {
             (0x6061, "Modes of operation display", INTEGER8, RO),
             (0x6063, "Position actual internal value", INTEGER32, RO),
             (0x6064, "Position actual value", INTEGER32, RO),
+            (0x6065, "Following error window", UNSIGNED32, RW),
             (0x606C, "Velocity actual value", INTEGER32, RO),
             (0x606D, "Velocity window", UNSIGNED16, RW),
             (0x606E, "Velocity window time", UNSIGNED16, RW),
@@ -384,6 +386,7 @@ impl ObjectDictionary {
             (0x6081, "Profile velocity", UNSIGNED32, RW),
             (0x6083, "Profile acceleration", UNSIGNED32, RW),
             (0x6084, "Profile deceleration", UNSIGNED32, RW),
+            (0x6085, "Quick stop deceleration", UNSIGNED32, RW),
             (0x60B1, "Velocity offset", INTEGER32, RW),
             (0x60B2, "Torque offset", INTEGER16, RW),
             (0x60B8, "Touch probe function", UNSIGNED16, RW),
@@ -462,6 +465,12 @@ impl ObjectDictionary {
         od.objects.sort_by_key(|o| o.index);
         od.set(0x6041, 0, &0x0240u16.to_le_bytes());
         od.set(0x6502, 0, &0x0000_00EDu32.to_le_bytes());
+        // The virtual drive's power-up motion parameters (crate::sim::drive).
+        od.set(0x6065, 0, &crate::sim::drive::FOLLOWING_ERROR_WINDOW.to_le_bytes());
+        od.set(0x6081, 0, &crate::sim::drive::PROFILE_VELOCITY.to_le_bytes());
+        for index in [0x6083, 0x6084, 0x6085] {
+            od.set(index, 0, &crate::sim::drive::PROFILE_ACCELERATION.to_le_bytes());
+        }
         let modes = od.objects.iter_mut().find(|o| o.index == 0x6060).expect("listed above");
         modes.entries[0].check = Some(modes_of_operation);
         for o in &mut od.objects {

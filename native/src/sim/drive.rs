@@ -1,0 +1,584 @@
+//! The virtual AKD's drive firmware: the CiA 402 state machine (AKD manual §5.4, through
+//! [`crate::ds402`]), the modes of operation (§5.8), the set-point handling, the monitoring that
+//! raises faults (§5.14), and the motor model ([`crate::sim::motion`]) it drives.
+//!
+//! The drive reads what the master sent from the object dictionary (controlword 0x6040, mode
+//! 0x6060, set-points), whether process data or SDO put it there, and writes back the actual
+//! values (0x6041, 0x6061, 0x6063/0x6064, 0x606C, 0x6077, 0x60F4, 0x603F, latch objects). Time
+//! is the bus time the caller passes; the model runs in steps of [`STEP_NS`] up to it, so a run
+//! is deterministic.
+//!
+//! What the drive does, in the AKD's words:
+//! - Controlword commands as §4's table, fault reset on the rising edge of bit 7 only
+//!   (FBUS.PARAM05 bit 0 = 1); enable operation from Ready to switch on passes Switched on.
+//! - Hardware enable low (FBUS.PARAM05 bit 1 = 0): Switched on and Operation enabled fall back
+//!   to Switch on disabled; the statusword shows a warning (bit 7) while it is low.
+//! - Quick stop (transition 11) and halt (bit 8) ramp the speed to zero with 0x6085 (halt: 0x6084)
+//!   and hold the position; quick stop then stays in Quick stop active (CiA 402 option 6) until
+//!   Disable voltage (12) or Enable operation (16). A fault ramps down the same way in Fault
+//!   reaction active (13) and then enters Fault (14) with the power stage off.
+//! - Cyclic position modes (8: 0x607A, 7: 0x60C1:01) interpolate linearly between set-points
+//!   over the cycle time 0x60C2, the slope feeding the velocity loop forward. Profile velocity
+//!   (3) ramps to 0x60FF with 0x6083/0x6084. Torque (4) gives 0x6071 in 0.1 % of the rated
+//!   torque. Profile position (1) moves to 0x607A (bit 6: relative) on the rising edge of bit 4
+//!   with a trapezoid of 0x6081/0x6083/0x6084, each new set-point at once. Homing (6) is the
+//!   AKD's "home at the current position": bit 4 rising makes the actual position 0.
+//! - On entering Operation enabled and on every mode change the position command is the actual
+//!   position: nothing moves until a set-point asks for it.
+//! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
+//!   counts/s², torque in 0.1 % of the rated torque.
+
+use crate::coe::Emergency;
+use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
+use crate::pdo::PdoEntry;
+use crate::sim::faults::Fault;
+use crate::sim::latch::{Inputs, Latch};
+use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
+use crate::sim::od::ObjectDictionary;
+
+/// Frames the drive tolerates missing while enabled; one more raises F125 (§5.14).
+pub const MISSED_FRAMES_TOLERATED: u64 = 7;
+/// How long an enabled drive waits for cyclic set-points before F706 when the master set no
+/// process-data watchdog (the AKD's default, FAULT706.ACTION).
+pub const SETPOINT_TIMEOUT_NS: u64 = 100_000_000;
+/// Power-up following error window 0x6065: five revolutions.
+pub const FOLLOWING_ERROR_WINDOW: u32 = 5 << 20;
+/// Power-up profile velocity 0x6081: 10 rev/s.
+pub const PROFILE_VELOCITY: u32 = 10 << 20;
+/// Power-up profile acceleration, deceleration and quick stop deceleration (0x6083, 0x6084,
+/// 0x6085): 100 rev/s².
+pub const PROFILE_ACCELERATION: u32 = 100 << 20;
+/// Position window of "target reached", counts.
+const POSITION_WINDOW: f64 = 100.0;
+/// Velocity window of "target reached" and of "speed is zero", counts/s (0.01 rev/s).
+const VELOCITY_WINDOW: f64 = COUNTS_PER_REV / 100.0;
+/// Longest stretch of bus time the model catches up with in one go; after a longer silence
+/// the motor's time jumps (a stopped motor loses nothing by it).
+const MAX_CATCH_UP_NS: u64 = 10_000_000_000;
+
+fn bytes<const N: usize>(od: &ObjectDictionary, index: u16, subindex: u8) -> [u8; N] {
+    let mut out = [0u8; N];
+    if let Some(v) = od.get(index, subindex) {
+        let n = N.min(v.len());
+        out[..n].copy_from_slice(&v[..n]);
+    }
+    out
+}
+
+fn i32_of(od: &ObjectDictionary, index: u16, subindex: u8) -> i32 {
+    i32::from_le_bytes(bytes(od, index, subindex))
+}
+
+fn u32_of(od: &ObjectDictionary, index: u16) -> u32 {
+    u32::from_le_bytes(bytes(od, index, 0))
+}
+
+fn u16_of(od: &ObjectDictionary, index: u16) -> u16 {
+    u16::from_le_bytes(bytes(od, index, 0))
+}
+
+/// `value` moved toward `target` by at most `step` (any step when `step` is not positive:
+/// an acceleration of 0 means no ramp).
+fn approach(value: f64, target: f64, step: f64) -> f64 {
+    if step <= 0.0 {
+        target
+    } else {
+        value + (target - value).clamp(-step, step)
+    }
+}
+
+/// One cyclic set-point's stretch: from the previous set-point to this one over a cycle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Segment {
+    from: f64,
+    to: f64,
+    start_ns: u64,
+    length_ns: u64,
+}
+
+impl Segment {
+    /// Position command and its velocity at time `t`.
+    fn at(&self, t: u64) -> (f64, f64) {
+        let elapsed = t.saturating_sub(self.start_ns);
+        if elapsed >= self.length_ns {
+            return (self.to, 0.0);
+        }
+        let share = elapsed as f64 / self.length_ns as f64;
+        (self.from + (self.to - self.from) * share, (self.to - self.from) / (self.length_ns as f64 * 1e-9))
+    }
+}
+
+/// Process data the drive received.
+#[derive(Clone, Copy, Debug)]
+pub struct Received<'a> {
+    /// Bus time the master wrote them.
+    pub at_ns: u64,
+    /// The output image they fill.
+    pub image: &'a [PdoEntry],
+}
+
+/// What the ESC tells the firmware besides process data.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Bus<'a> {
+    /// Process data from the master since the last run, if any.
+    pub received: Option<Received<'a>>,
+    /// Whether process data are expected (AL state SafeOp or Op): synchronisation is
+    /// supervised only then.
+    pub process_data_expected: bool,
+    /// The process-data watchdog time the master configured, if any (F706's time-out).
+    pub watchdog_ns: Option<u64>,
+}
+
+/// The drive firmware of one virtual AKD.
+#[derive(Clone, Debug)]
+pub struct Drive {
+    state: State,
+    controlword: u16,
+    mode: Option<Mode>,
+    mechanics: Mechanics,
+    gains: Gains,
+    shaft: Shaft,
+    loops: Loops,
+    /// Reported position = shaft position + offset (homing moves the offset).
+    offset: f64,
+    /// Position command, in shaft counts.
+    command: f64,
+    /// Velocity command of the ramps and profiles, counts/s.
+    command_velocity: f64,
+    segment: Option<Segment>,
+    profile_target: Option<f64>,
+    setpoint_acknowledged: bool,
+    homing_attained: bool,
+    /// A ramp to stand-still runs (halt, quick stop, fault reaction).
+    stopping: bool,
+    hardware_enable: bool,
+    injected: Option<Fault>,
+    fault: Option<Fault>,
+    last_error_code: u16,
+    inputs: Inputs,
+    latch: Latch,
+    time_ns: Option<u64>,
+    last_process_data_ns: Option<u64>,
+    last_setpoint_ns: Option<u64>,
+    enabled_at_ns: u64,
+}
+
+impl Default for Drive {
+    fn default() -> Self {
+        Drive::new(Mechanics::default())
+    }
+}
+
+impl Drive {
+    /// A drive at power-up driving a motor and load of `mechanics`, loops tuned for it.
+    pub fn new(mechanics: Mechanics) -> Self {
+        Drive {
+            state: State::NotReadyToSwitchOn,
+            controlword: 0,
+            mode: None,
+            gains: Gains::tuned_for(&mechanics),
+            mechanics,
+            shaft: Shaft::default(),
+            loops: Loops::default(),
+            offset: 0.0,
+            command: 0.0,
+            command_velocity: 0.0,
+            segment: None,
+            profile_target: None,
+            setpoint_acknowledged: false,
+            homing_attained: false,
+            stopping: false,
+            hardware_enable: true,
+            injected: None,
+            fault: None,
+            last_error_code: 0,
+            inputs: Inputs::default(),
+            latch: Latch::default(),
+            time_ns: None,
+            last_process_data_ns: None,
+            last_setpoint_ns: None,
+            enabled_at_ns: 0,
+        }
+    }
+
+    /// The CiA 402 state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// The active fault, if any.
+    pub fn fault(&self) -> Option<Fault> {
+        self.fault
+    }
+
+    /// The actual position 0x6064 reports, counts (fractional: the model's own resolution).
+    pub fn position(&self) -> f64 {
+        self.reported(self.shaft.position)
+    }
+
+    /// The shaft (position in counts before any homing offset, velocity, torque).
+    pub fn shaft(&self) -> &Shaft {
+        &self.shaft
+    }
+
+    /// Raises `fault` at the drive's next run, as the firmware would on detecting it.
+    pub fn inject(&mut self, fault: Fault) {
+        self.injected = Some(fault);
+    }
+
+    /// Sets the hardware enable input (X8), high at power-up.
+    pub fn set_hardware_enable(&mut self, high: bool) {
+        self.hardware_enable = high;
+    }
+
+    /// The simulated digital inputs, to set where they toggle.
+    pub fn inputs_mut(&mut self) -> &mut Inputs {
+        &mut self.inputs
+    }
+
+    /// The position reported in 0x6063/0x6064, counts (fractional).
+    fn reported(&self, shaft_position: f64) -> f64 {
+        shaft_position + self.offset
+    }
+
+    /// Runs the firmware up to bus time `now_ns`; returns the emergency of a fault raised.
+    pub fn run(&mut self, od: &mut ObjectDictionary, now_ns: u64, bus: Bus<'_>) -> Option<Emergency> {
+        let mut raised = None;
+        if !bus.process_data_expected {
+            self.last_process_data_ns = None;
+        }
+        if let Some(received) = bus.received {
+            self.receive(od, received);
+        }
+        self.take_commands(od);
+        let time = *self.time_ns.get_or_insert(now_ns);
+        let mut t = time;
+        if now_ns.saturating_sub(t) > MAX_CATCH_UP_NS {
+            t = now_ns - MAX_CATCH_UP_NS;
+        }
+        let cycle_ns = od.cycle_time_ns().unwrap_or(0);
+        let timeout = bus.watchdog_ns.unwrap_or(SETPOINT_TIMEOUT_NS);
+        let window = u32_of(od, 0x6065) as f64;
+        while t + STEP_NS <= now_ns {
+            t += STEP_NS;
+            if let Some(fault) = self.injected.take().or_else(|| self.supervise(t, cycle_ns, timeout)) {
+                raised = raised.or(self.raise(fault));
+            }
+            if self.shaft.at_rest() && !self.state.is_power_stage_on() {
+                continue;
+            }
+            let before = self.reported(self.shaft.position);
+            let torque = self.control(od, t);
+            self.shaft.step(torque, &self.mechanics);
+            self.latch.capture(&self.inputs, before, self.reported(self.shaft.position));
+            if self.state.is_power_stage_on() && window > 0.0 && self.following_error().abs() > window {
+                raised = raised.or(self.raise(Fault::FollowingError));
+            }
+            if self.state == State::FaultReactionActive && self.command_velocity == 0.0 {
+                self.enter(State::Fault, t);
+            }
+        }
+        self.time_ns = Some(t);
+        self.publish(od);
+        raised
+    }
+
+    /// Process data arrived: note the time and take a new cyclic set-point.
+    fn receive(&mut self, od: &ObjectDictionary, received: Received<'_>) {
+        self.last_process_data_ns = Some(received.at_ns);
+        let setpoint = match self.mode {
+            Some(Mode::CyclicSynchronousPosition) => (0x607A, 0),
+            Some(Mode::InterpolatedPosition) => (0x60C1, 1),
+            _ => return,
+        };
+        if !received.image.iter().any(|e| (e.index, e.subindex) == setpoint) {
+            return;
+        }
+        self.last_setpoint_ns = Some(received.at_ns);
+        if self.state != State::OperationEnabled || self.stopping {
+            return;
+        }
+        let to = i32_of(od, setpoint.0, setpoint.1) as f64 - self.offset;
+        let from = self.segment.map_or(self.command, |s| s.to);
+        let length_ns = od.cycle_time_ns().unwrap_or(STEP_NS).max(STEP_NS);
+        self.segment = Some(Segment { from, to, start_ns: received.at_ns, length_ns });
+    }
+
+    /// The controlword, the mode, the latch control: what the master asks now.
+    fn take_commands(&mut self, od: &ObjectDictionary) {
+        let now = self.time_ns.unwrap_or(0);
+        let controlword = u16_of(od, 0x6040);
+        let previous = std::mem::replace(&mut self.controlword, controlword);
+        if self.state == State::NotReadyToSwitchOn {
+            // Transition 1: the firmware is up.
+            self.state = State::SwitchOnDisabled;
+        }
+        let mut edge = controlword & cw::FAULT_RESET != 0 && previous & cw::FAULT_RESET == 0;
+        for _ in 0..2 {
+            match transition(self.state, controlword, edge) {
+                Some((next, _)) => self.enter(next, now),
+                None => break,
+            }
+            edge = false;
+        }
+        if !self.hardware_enable && matches!(self.state, State::SwitchedOn | State::OperationEnabled) {
+            self.enter(State::SwitchOnDisabled, now);
+        }
+        let requested = Mode::from_i8(bytes::<1>(od, 0x6060, 0)[0] as i8);
+        if requested.is_some() && requested != self.mode {
+            self.mode = requested;
+            self.hold_here();
+            self.homing_attained = false;
+        }
+        let enabled = self.state == State::OperationEnabled;
+        let halt = enabled && controlword & cw::HALT != 0;
+        if halt && !self.stopping {
+            self.start_stop();
+        } else if !halt && self.stopping && enabled {
+            self.stopping = false;
+            self.hold_here();
+        }
+        let new_setpoint = controlword & cw::NEW_SETPOINT != 0 && previous & cw::NEW_SETPOINT == 0;
+        if controlword & cw::NEW_SETPOINT == 0 {
+            self.setpoint_acknowledged = false;
+        }
+        if enabled && new_setpoint && !halt {
+            match self.mode {
+                Some(Mode::ProfilePosition) => {
+                    let target = i32_of(od, 0x607A, 0) as f64;
+                    let base = if controlword & cw::RELATIVE != 0 {
+                        self.profile_target.unwrap_or(self.command)
+                    } else {
+                        -self.offset
+                    };
+                    self.profile_target = Some(base + target);
+                    self.setpoint_acknowledged = true;
+                }
+                Some(Mode::Homing) => {
+                    self.offset = -self.shaft.position.round();
+                    self.homing_attained = true;
+                }
+                _ => {}
+            }
+        }
+        self.latch.control(u16_of(od, 0x20A4));
+    }
+
+    /// The command holds the actual position: nothing moves until a set-point asks for it.
+    fn hold_here(&mut self) {
+        self.command = self.shaft.position;
+        self.command_velocity = self.shaft.velocity;
+        self.segment = None;
+        self.profile_target = None;
+    }
+
+    fn start_stop(&mut self) {
+        self.hold_here();
+        self.stopping = true;
+    }
+
+    /// Enters `next`, setting up what the new state needs.
+    fn enter(&mut self, next: State, now: u64) {
+        let was_on = self.state.is_power_stage_on();
+        self.state = next;
+        match next {
+            State::OperationEnabled => {
+                if !was_on || self.stopping {
+                    self.enabled_at_ns = now;
+                    self.loops.reset();
+                    self.stopping = false;
+                    self.hold_here();
+                }
+            }
+            State::QuickStopActive | State::FaultReactionActive => self.start_stop(),
+            State::SwitchOnDisabled if self.fault.is_some() => self.fault = None,
+            _ => {
+                self.stopping = false;
+                self.loops.reset();
+                self.segment = None;
+                self.profile_target = None;
+            }
+        }
+    }
+
+    /// Raises `fault` unless one is active; returns its emergency.
+    fn raise(&mut self, fault: Fault) -> Option<Emergency> {
+        if self.fault.is_some() {
+            return None;
+        }
+        self.fault = Some(fault);
+        self.last_error_code = fault.error_code();
+        let now = self.time_ns.unwrap_or(0);
+        if self.state.is_power_stage_on() {
+            self.enter(State::FaultReactionActive, now);
+        } else {
+            self.enter(State::Fault, now);
+        }
+        Some(fault.emergency())
+    }
+
+    /// The fault the firmware's supervision finds at time `t`, if any.
+    fn supervise(&self, t: u64, cycle_ns: u64, timeout_ns: u64) -> Option<Fault> {
+        if self.fault.is_some() || !matches!(self.state, State::OperationEnabled | State::QuickStopActive) {
+            return None;
+        }
+        if let (Some(last), true) = (self.last_process_data_ns, cycle_ns > 0) {
+            // A frame is missed once half a cycle passed after it was due.
+            let missed = t.saturating_sub(last).saturating_sub(cycle_ns / 2) / cycle_ns;
+            if missed > MISSED_FRAMES_TOLERATED {
+                return Some(Fault::SyncLost);
+            }
+        }
+        let cyclic = matches!(self.mode, Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition));
+        if cyclic && self.state == State::OperationEnabled {
+            let since = self.last_setpoint_ns.map_or(self.enabled_at_ns, |s| s.max(self.enabled_at_ns));
+            if t.saturating_sub(since) > timeout_ns {
+                return Some(Fault::SetpointsMissing);
+            }
+        }
+        None
+    }
+
+    /// The torque for one step at time `t` (`None`: power stage off).
+    fn control(&mut self, od: &ObjectDictionary, t: u64) -> Option<f64> {
+        if !self.state.is_power_stage_on() {
+            self.hold_here();
+            return None;
+        }
+        let mut m = self.mechanics;
+        let max_torque = u16_of(od, 0x6072) as f64 * m.rated_torque / 1000.0;
+        if max_torque > 0.0 {
+            m.peak_torque = m.peak_torque.min(max_torque);
+        }
+        let (shaft, g) = (self.shaft, self.gains);
+        if self.stopping {
+            let deceleration = match self.state {
+                State::OperationEnabled => u32_of(od, 0x6084),
+                _ => u32_of(od, 0x6085),
+            } as f64;
+            self.command_velocity = approach(self.command_velocity, 0.0, deceleration * STEP_S);
+            self.command += self.command_velocity * STEP_S;
+            return Some(self.loops.position(self.command, self.command_velocity, &shaft, &g, &m));
+        }
+        let torque = match self.mode {
+            Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition) => {
+                let (position, velocity) = self.segment.map_or((self.command, 0.0), |s| s.at(t));
+                self.command = position;
+                self.loops.position(position, velocity, &shaft, &g, &m)
+            }
+            Some(Mode::ProfileVelocity) => {
+                let target = i32_of(od, 0x60FF, 0) as f64;
+                let speeding_up = target.abs() > self.command_velocity.abs();
+                let rate = u32_of(od, if speeding_up { 0x6083 } else { 0x6084 }) as f64;
+                self.command_velocity = approach(self.command_velocity, target, rate * STEP_S);
+                self.command = shaft.position;
+                self.loops.velocity(self.command_velocity, 0.0, &shaft, &g, &m)
+            }
+            Some(Mode::ProfileTorque) => {
+                self.command = shaft.position;
+                let target = bytes::<2>(od, 0x6071, 0);
+                self.loops.torque(i16::from_le_bytes(target) as f64 * m.rated_torque / 1000.0, &m)
+            }
+            Some(Mode::ProfilePosition) => {
+                self.profile_step(od);
+                self.loops.position(self.command, self.command_velocity, &shaft, &g, &m)
+            }
+            Some(Mode::Homing) | None => self.loops.position(self.command, 0.0, &shaft, &g, &m),
+        };
+        Some(torque)
+    }
+
+    /// One step of the profile position trapezoid toward the target.
+    fn profile_step(&mut self, od: &ObjectDictionary) {
+        let Some(target) = self.profile_target else {
+            return;
+        };
+        let (v_max, acceleration, deceleration) =
+            (u32_of(od, 0x6081) as f64, u32_of(od, 0x6083) as f64, u32_of(od, 0x6084) as f64);
+        let remaining = target - self.command;
+        let v = self.command_velocity;
+        let direction = remaining.signum();
+        let braking = deceleration > 0.0 && v * direction > 0.0 && remaining.abs() <= v * v / (2.0 * deceleration);
+        let wanted = if braking { 0.0 } else { direction * v_max };
+        let rate = if wanted.abs() > v.abs() && wanted * v >= 0.0 { acceleration } else { deceleration };
+        let next = approach(v, wanted, rate * STEP_S);
+        if (next * STEP_S).abs() >= remaining.abs() {
+            self.command = target;
+            self.command_velocity = 0.0;
+        } else {
+            self.command += next * STEP_S;
+            self.command_velocity = next;
+        }
+    }
+
+    /// The statusword: the state's bits, remote, warning, and the mode-specific bits.
+    fn statusword(&self, od: &ObjectDictionary, following_error: f64, window: f64) -> u16 {
+        let mut word = self.state.statusword_bits() | sw::REMOTE;
+        if !self.hardware_enable {
+            word |= sw::WARNING;
+        }
+        if self.state != State::OperationEnabled {
+            return word;
+        }
+        if self.loops.limited {
+            word |= sw::INTERNAL_LIMIT;
+        }
+        let lagging = window > 0.0 && following_error.abs() > window;
+        let still = self.shaft.velocity.abs() <= VELOCITY_WINDOW;
+        let (reached, bit12, bit13) = if self.stopping {
+            (still, false, false)
+        } else {
+            match self.mode {
+                Some(Mode::ProfilePosition) => {
+                    let done = self
+                        .profile_target
+                        .is_none_or(|t| t == self.command && (self.shaft.position - t).abs() <= POSITION_WINDOW);
+                    (done, self.setpoint_acknowledged, lagging)
+                }
+                Some(Mode::ProfileVelocity) => {
+                    let target = i32_of(od, 0x60FF, 0) as f64;
+                    ((self.shaft.velocity - target).abs() <= VELOCITY_WINDOW, still, false)
+                }
+                Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition) => {
+                    (following_error.abs() <= POSITION_WINDOW, true, lagging)
+                }
+                Some(Mode::Homing) => (self.homing_attained, self.homing_attained, false),
+                Some(Mode::ProfileTorque) | None => (!self.loops.limited, false, false),
+            }
+        };
+        for (on, bit) in [(reached, sw::TARGET_REACHED), (bit12, sw::MODE_SPECIFIC_12), (bit13, sw::MODE_SPECIFIC_13)] {
+            if on {
+                word |= bit;
+            }
+        }
+        word
+    }
+
+    /// Position command minus actual position, counts; 0 in the modes without a position
+    /// command (profile velocity and torque, unless a stop ramp runs).
+    fn following_error(&self) -> f64 {
+        match self.mode {
+            Some(Mode::ProfileVelocity | Mode::ProfileTorque) if !self.stopping => 0.0,
+            _ => self.command - self.shaft.position,
+        }
+    }
+
+    /// Writes the actual values into the object dictionary.
+    fn publish(&self, od: &mut ObjectDictionary) {
+        let position = self.reported(self.shaft.position);
+        let counts = position.round() as i64 as i32;
+        let following_error = self.following_error();
+        let window = u32_of(od, 0x6065) as f64;
+        od.set(0x6041, 0, &self.statusword(od, following_error, window).to_le_bytes());
+        od.set(0x6061, 0, &[self.mode.map_or(0, |m| m as i8) as u8]);
+        od.set(0x6063, 0, &counts.to_le_bytes());
+        od.set(0x6064, 0, &counts.to_le_bytes());
+        od.set(0x606C, 0, &(self.shaft.velocity.round() as i64 as i32).to_le_bytes());
+        let torque = (self.shaft.torque / self.mechanics.rated_torque * 1000.0).round() as i16;
+        od.set(0x6077, 0, &torque.to_le_bytes());
+        od.set(0x60F4, 0, &(following_error.round() as i64 as i32).to_le_bytes());
+        od.set(0x603F, 0, &self.last_error_code.to_le_bytes());
+        od.set(0x1001, 0, &[self.fault.map_or(0, |f| f.error_register())]);
+        self.latch.publish(od, self.inputs.levels(position));
+    }
+}

@@ -1,0 +1,178 @@
+//! The virtual AKD's digital inputs and position latch (AKD manual §5.12).
+//!
+//! Inputs are simulated: each one changes level wherever the shaft crosses one of its toggle
+//! positions, whichever way it moves, so its level is a function of the position alone. Latch 1
+//! captures on digital input 1 and latch 2 on input 2 (the AKD's fast inputs). A capture is the
+//! position where the input toggled, found within the model step (so within one count, not
+//! within the distance travelled in a step), as the AKD's hardware capture does.
+//!
+//! Latch control 0x20A4: bits 0–3 arm latch 1 rising, 1 falling, 2 rising, 2 falling; an edge
+//! captures once while its bit is set, and setting the bit again (0 then 1) re-arms it and
+//! clears its valid bit. Bits 8–12 select the value 0x20A6/0x20A7 show (1 latch 1 rising, 2
+//! latch 1 falling, 3 latch 2 rising, 4 latch 2 falling), acknowledged in 0x20A5 bits 8–11.
+//! Latch status 0x20A5: bits 0–3 valid, bits 12–15 the levels of inputs 4, 3, 2, 1.
+
+use crate::sim::od::ObjectDictionary;
+
+/// Digital inputs of the AKD (DIN1..DIN7).
+pub const INPUT_COUNT: usize = 7;
+/// Bit of 0x60FD that carries digital input 1 (the manufacturer-specific bits 16–31).
+const DIGITAL_INPUTS_SHIFT: u32 = 16;
+
+/// Simulated digital inputs: toggle positions per input.
+#[derive(Clone, Debug, Default)]
+pub struct Inputs {
+    toggles: [Vec<f64>; INPUT_COUNT],
+}
+
+impl Inputs {
+    /// Input `input` (1..=7) toggles at `positions` (counts); it is low below all of them.
+    /// Refuses an input number out of range or a position that is not finite.
+    pub fn set_toggles(&mut self, input: usize, positions: &[f64]) -> Result<(), String> {
+        if !(1..=INPUT_COUNT).contains(&input) {
+            return Err(format!("digital input {input}: the AKD has inputs 1 to {INPUT_COUNT}"));
+        }
+        if let Some(p) = positions.iter().find(|p| !p.is_finite()) {
+            return Err(format!("toggle position {p} of digital input {input} is not a finite number of counts"));
+        }
+        let mut sorted = positions.to_vec();
+        sorted.sort_by(f64::total_cmp);
+        self.toggles[input - 1] = sorted;
+        Ok(())
+    }
+
+    /// Level of input `index` (0-based) with the shaft at `position`: high after an odd number
+    /// of toggle positions at or below it.
+    fn level(&self, index: usize, position: f64) -> bool {
+        self.toggles[index].partition_point(|t| *t <= position) % 2 == 1
+    }
+
+    /// The input levels at `position`, input 1 in bit 0.
+    pub fn levels(&self, position: f64) -> u8 {
+        (0..INPUT_COUNT).fold(0, |bits, i| bits | (u8::from(self.level(i, position)) << i))
+    }
+
+    /// Calls `edge(position, rising)` for every toggle of input `index` that the shaft crossed
+    /// moving from `from` to `to`, in the order it crossed them.
+    fn crossings(&self, index: usize, from: f64, to: f64, mut edge: impl FnMut(f64, bool)) {
+        let toggles = &self.toggles[index];
+        let (low, high) = if from <= to { (from, to) } else { (to, from) };
+        let range = toggles.partition_point(|t| *t <= low)..toggles.partition_point(|t| *t <= high);
+        let mut level = self.level(index, from);
+        let mut visit = |t: f64| {
+            level = !level;
+            edge(t, level);
+        };
+        if from <= to {
+            toggles[range].iter().for_each(|t| visit(*t));
+        } else {
+            toggles[range].iter().rev().for_each(|t| visit(*t));
+        }
+    }
+}
+
+/// The latch unit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Latch {
+    control: u16,
+    valid: u8,
+    positions: [i32; 4],
+}
+
+impl Latch {
+    /// Takes the latch control word 0x20A4: an arming bit that rises clears its valid bit.
+    pub fn control(&mut self, control: u16) {
+        let rising = (control & !self.control) as u8 & 0x0F;
+        self.valid &= !rising;
+        self.control = control;
+    }
+
+    /// Captures the edges of inputs 1 and 2 the shaft crossed from `from` to `to`.
+    pub fn capture(&mut self, inputs: &Inputs, from: f64, to: f64) {
+        for latch in 0..2 {
+            inputs.crossings(latch, from, to, |position, rising| {
+                let bit = latch * 2 + usize::from(!rising);
+                let mask = 1u8 << bit;
+                if self.control as u8 & mask != 0 && self.valid & mask == 0 {
+                    self.valid |= mask;
+                    self.positions[bit] = position.floor() as i64 as i32;
+                }
+            });
+        }
+    }
+
+    /// The value selected by 0x20A4 bits 8–12 (1..=4), or 0.
+    fn selected(&self) -> u16 {
+        match (self.control >> 8) & 0x1F {
+            s @ 1..=4 => s,
+            _ => 0,
+        }
+    }
+
+    /// The latch status word 0x20A5 with inputs 1–4 at `levels` (input 1 in bit 0).
+    pub fn status(&self, levels: u8) -> u16 {
+        let inputs = (0..4).fold(0u16, |bits, i| bits | (u16::from(levels >> i & 1) << (15 - i)));
+        self.valid as u16 | self.selected() << 8 | inputs
+    }
+
+    /// Writes the latch objects and the digital inputs 0x60FD.
+    pub fn publish(&self, od: &mut ObjectDictionary, levels: u8) {
+        for (i, p) in self.positions.iter().enumerate() {
+            od.set(0x20A0 + i as u16, 0, &p.to_le_bytes());
+        }
+        let one = if self.selected() == 2 { self.positions[1] } else { self.positions[0] };
+        let two = if self.selected() == 4 { self.positions[3] } else { self.positions[2] };
+        od.set(0x20A6, 0, &one.to_le_bytes());
+        od.set(0x20A7, 0, &two.to_le_bytes());
+        od.set(0x20A5, 0, &self.status(levels).to_le_bytes());
+        od.set(0x60FD, 0, &((levels as u32) << DIGITAL_INPUTS_SHIFT).to_le_bytes());
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inputs_follow_the_position_whichever_way_it_moves() {
+        let mut inputs = Inputs::default();
+        inputs.set_toggles(1, &[300.0, 100.0]).unwrap();
+        assert_eq!(inputs.levels(99.0), 0);
+        assert_eq!(inputs.levels(100.0), 1);
+        assert_eq!(inputs.levels(299.5), 1);
+        assert_eq!(inputs.levels(300.0), 0);
+        assert!(inputs.set_toggles(8, &[]).unwrap_err().contains("inputs 1 to 7"));
+        assert!(inputs.set_toggles(2, &[f64::NAN]).unwrap_err().contains("not a finite"));
+    }
+
+    #[test]
+    fn a_latch_captures_once_per_arming_where_the_input_toggled() {
+        let mut inputs = Inputs::default();
+        inputs.set_toggles(1, &[100.25, 200.75]).unwrap();
+        inputs.set_toggles(2, &[-50.5]).unwrap();
+        let mut latch = Latch::default();
+        latch.control(0x0001 | 0x0002 | 0x0004 | 0x0008 | 0x0100);
+        latch.capture(&inputs, 0.0, 150.0);
+        assert_eq!(latch.status(inputs.levels(150.0)), 0x8000 | 0x4000 | 0x0100 | 0x0001);
+        latch.capture(&inputs, 150.0, 250.0);
+        // Going back down: input 1 rises again at 200.75 but latch 1 rising is already valid.
+        latch.capture(&inputs, 250.0, -60.0);
+        let mut od = ObjectDictionary::akd();
+        latch.publish(&mut od, inputs.levels(-60.0));
+        assert_eq!(od.get(0x20A0, 0).unwrap(), 100i32.to_le_bytes());
+        assert_eq!(od.get(0x20A1, 0).unwrap(), 200i32.to_le_bytes());
+        // Input 2 is high above -50.5: it fell there on the way down (latch 2 falling).
+        assert_eq!(latch.status(inputs.levels(-60.0)) & 0x000F, 0x000B);
+        assert_eq!(od.get(0x20A3, 0).unwrap(), (-51i32).to_le_bytes());
+        assert_eq!(od.get(0x20A6, 0).unwrap(), 100i32.to_le_bytes());
+        // Re-arming latch 1 rising clears its valid bit, and it captures the next rising edge.
+        latch.control(0x010E);
+        latch.control(0x020F);
+        assert_eq!(latch.status(0) & 0x0001, 0);
+        latch.capture(&inputs, -60.0, 300.0);
+        latch.publish(&mut od, 0);
+        assert_eq!(od.get(0x20A0, 0).unwrap(), 100i32.to_le_bytes());
+        assert_eq!(od.get(0x20A6, 0).unwrap(), 200i32.to_le_bytes(), "selection 2: latch 1 falling");
+        assert_eq!(od.get(0x20A5, 0).unwrap()[1] & 0x0F, 2);
+    }
+}
