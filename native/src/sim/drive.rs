@@ -582,3 +582,166 @@ impl Drive {
         self.latch.publish(od, self.inputs.levels(position));
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MS: u64 = 1_000_000;
+
+    /// A drive and its dictionary, run at bus time `now` with SDO-like writes between runs.
+    struct Bench {
+        drive: Drive,
+        od: ObjectDictionary,
+        now: u64,
+        emergencies: Vec<u16>,
+    }
+
+    impl Bench {
+        fn new() -> Bench {
+            let mut b = Bench { drive: Drive::default(), od: ObjectDictionary::akd(), now: 0, emergencies: Vec::new() };
+            b.run_for(0);
+            b
+        }
+
+        fn write(&mut self, index: u16, subindex: u8, value: &[u8]) {
+            self.od.set(index, subindex, value);
+        }
+
+        fn controlword(&mut self, controlword: u16) {
+            self.write(0x6040, 0, &controlword.to_le_bytes());
+            self.run_for(MS);
+        }
+
+        fn run_with(&mut self, duration: u64, bus: Bus<'_>) {
+            self.now += duration;
+            if let Some(e) = self.drive.run(&mut self.od, self.now, bus) {
+                self.emergencies.push(e.error_code);
+            }
+        }
+
+        fn run_for(&mut self, duration: u64) {
+            self.run_with(duration, Bus::default());
+        }
+
+        fn enable(&mut self, mode: i8) {
+            self.write(0x6060, 0, &[mode as u8]);
+            for controlword in [cw::SHUTDOWN, cw::SWITCH_ON_COMMAND, cw::ENABLE_OPERATION_COMMAND] {
+                self.controlword(controlword);
+            }
+            assert_eq!(self.drive.state(), State::OperationEnabled);
+        }
+
+        /// Operation enabled in profile velocity at `revs_per_s` after `duration`.
+        fn spin(&mut self, revs_per_s: i32, duration: u64) {
+            self.enable(3);
+            self.write(0x60FF, 0, &(revs_per_s << 20).to_le_bytes());
+            self.run_for(duration);
+        }
+
+        fn i32(&self, index: u16) -> i32 {
+            i32_of(&self.od, index, 0)
+        }
+    }
+
+    #[test]
+    fn quick_stop_ramps_with_0x6085_and_holds_in_quick_stop_active() {
+        let mut b = Bench::new();
+        b.spin(10, 300 * MS);
+        assert!((b.drive.shaft().velocity - COUNTS_PER_REV * 10.0).abs() < COUNTS_PER_REV * 0.05);
+        b.controlword(cw::QUICK_STOP_COMMAND);
+        assert_eq!(b.drive.state(), State::QuickStopActive);
+        assert_eq!(b.od.get(0x6041, 0).unwrap()[0] & 0x6F, 0x07, "quick stop bit 5 low");
+        // 10 rev/s at 100 rev/s² stops in 0.1 s; it has not stopped half-way.
+        b.run_for(50 * MS);
+        assert!(b.drive.shaft().velocity > COUNTS_PER_REV * 3.0, "{}", b.drive.shaft().velocity);
+        b.run_for(100 * MS);
+        assert!(b.drive.shaft().velocity.abs() < COUNTS_PER_REV * 0.01, "{}", b.drive.shaft().velocity);
+        // The command stands still; the shaft settles on it (dry friction and the integrator
+        // leave a few counts of stick-slip) and stays.
+        let command = b.drive.command;
+        for _ in 0..10 {
+            b.run_for(100 * MS);
+            assert!((b.drive.shaft().position - command).abs() < 20.0, "held at {command}: {:?}", b.drive.shaft());
+        }
+        assert_eq!(b.drive.state(), State::QuickStopActive);
+    }
+
+    #[test]
+    fn with_the_power_stage_off_the_motor_coasts_to_a_stop() {
+        let mut b = Bench::new();
+        b.spin(5, 200 * MS);
+        b.controlword(cw::DISABLE_VOLTAGE);
+        assert_eq!(b.drive.state(), State::SwitchOnDisabled);
+        let at_disable = b.drive.position();
+        b.run_for(3000 * MS);
+        assert_eq!(b.drive.shaft().velocity, 0.0, "friction stopped it");
+        assert!(b.drive.position() > at_disable + COUNTS_PER_REV * 0.1, "it coasted on");
+        assert_eq!(b.i32(0x6064), b.drive.position().round() as i32);
+        assert_eq!(b.i32(0x60F4), 0, "no command while disabled");
+    }
+
+    #[test]
+    fn f125_counts_missed_frames_from_the_last_process_data() {
+        // The eighth frame after the last one at T is due at T + 16 ms and missed half a
+        // cycle later, at T + 17 ms.
+        for (silence, faults) in [(17 * MS - STEP_NS, false), (17 * MS, true)] {
+            let mut b = Bench::new();
+            let image = [PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x607A, 0, 32)];
+            let expected = |received| Bus { received, process_data_expected: true, watchdog_ns: None };
+            b.write(0x60C2, 2, &[(-3i8) as u8]);
+            b.enable(8);
+            for _ in 0..5 {
+                b.run_with(2 * MS, expected(Some(Received { at_ns: b.now, image: &image })));
+            }
+            let last = b.now - 2 * MS;
+            b.run_with(last + silence - b.now, expected(None));
+            assert_eq!(b.drive.fault() == Some(Fault::SyncLost), faults, "{silence} ns of silence");
+            assert_eq!(b.emergencies, if faults { vec![0x8700] } else { vec![] });
+        }
+    }
+
+    #[test]
+    fn f706_when_no_set_point_follows_the_enable() {
+        let mut b = Bench::new();
+        b.enable(7);
+        b.run_for(SETPOINT_TIMEOUT_NS - 2 * MS);
+        assert_eq!(b.drive.fault(), None);
+        b.run_for(2 * MS);
+        assert_eq!(b.drive.fault(), Some(Fault::SetpointsMissing));
+        assert_eq!(b.drive.state(), State::Fault);
+        assert_eq!(u16_of(&b.od, 0x603F), 0x8250);
+        assert_eq!(b.od.get(0x1001, 0).unwrap(), [0x11]);
+    }
+
+    #[test]
+    fn profile_position_relative_moves_and_homing_zeroes_the_position() {
+        let mut b = Bench::new();
+        b.enable(1);
+        b.write(0x607A, 0, &(1i32 << 20).to_le_bytes());
+        for _ in 0..2 {
+            b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT | cw::RELATIVE);
+            b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::RELATIVE);
+            b.run_for(1000 * MS);
+        }
+        assert!((b.drive.position() - 2.0 * COUNTS_PER_REV).abs() <= POSITION_WINDOW, "{}", b.drive.position());
+        assert_ne!(u16_of(&b.od, 0x6041) & sw::TARGET_REACHED, 0);
+        b.write(0x6060, 0, &[6]);
+        b.controlword(cw::ENABLE_OPERATION_COMMAND);
+        b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT);
+        assert!(b.drive.position().abs() < 1.0, "{}", b.drive.position());
+        assert_eq!(u16_of(&b.od, 0x6041) & (sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED), 0x1400);
+        assert_eq!(b.i32(0x6064), 0);
+    }
+
+    #[test]
+    fn max_torque_0x6072_limits_the_torque_and_sets_internal_limit() {
+        let mut b = Bench::new();
+        b.enable(4);
+        b.write(0x6072, 0, &200u16.to_le_bytes());
+        b.write(0x6071, 0, &500i16.to_le_bytes());
+        b.run_for(10 * MS);
+        assert_eq!(bytes::<2>(&b.od, 0x6077, 0), 200i16.to_le_bytes());
+        assert_ne!(u16_of(&b.od, 0x6041) & sw::INTERNAL_LIMIT, 0);
+    }
+}
