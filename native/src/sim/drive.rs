@@ -241,16 +241,25 @@ impl Drive {
         shaft_position + self.offset
     }
 
+    /// The shaft position of a 32-bit position `target` taken as the nearest one to shaft
+    /// position `near`: positions wrap at ±2^31 counts (2048 revolutions) as 0x6064 does, and
+    /// the axis moves the short way across the wrap, not 2^32 counts back.
+    fn shaft_target(&self, target: i32, near: f64) -> f64 {
+        let near_counts = (near + self.offset).round();
+        near_counts - self.offset + target.wrapping_sub(near_counts as i64 as i32) as f64
+    }
+
     /// Runs the firmware up to bus time `now_ns`; returns the emergency of a fault raised.
     pub fn run(&mut self, od: &mut ObjectDictionary, now_ns: u64, bus: Bus<'_>) -> Option<Emergency> {
         let mut raised = None;
         if !bus.process_data_expected {
             self.last_process_data_ns = None;
         }
+        // Commands first: a mode change or an enable in the same frame applies to its set-point.
+        self.take_commands(od);
         if let Some(received) = bus.received {
             self.receive(od, received);
         }
-        self.take_commands(od);
         let time = *self.time_ns.get_or_insert(now_ns);
         let mut t = time;
         if now_ns.saturating_sub(t) > MAX_CATCH_UP_NS {
@@ -298,8 +307,8 @@ impl Drive {
         if self.state != State::OperationEnabled || self.stopping {
             return;
         }
-        let to = i32_of(od, setpoint.0, setpoint.1) as f64 - self.offset;
         let from = self.segment.map_or(self.command, |s| s.to);
+        let to = self.shaft_target(i32_of(od, setpoint.0, setpoint.1), from);
         let length_ns = od.cycle_time_ns().unwrap_or(STEP_NS).max(STEP_NS);
         self.segment = Some(Segment { from, to, start_ns: received.at_ns, length_ns });
     }
@@ -345,13 +354,12 @@ impl Drive {
         if enabled && new_setpoint && !halt {
             match self.mode {
                 Some(Mode::ProfilePosition) => {
-                    let target = i32_of(od, 0x607A, 0) as f64;
-                    let base = if controlword & cw::RELATIVE != 0 {
-                        self.profile_target.unwrap_or(self.command)
+                    let target = i32_of(od, 0x607A, 0);
+                    self.profile_target = Some(if controlword & cw::RELATIVE != 0 {
+                        self.profile_target.unwrap_or(self.command) + target as f64
                     } else {
-                        -self.offset
-                    };
-                    self.profile_target = Some(base + target);
+                        self.shaft_target(target, self.command)
+                    });
                     self.setpoint_acknowledged = true;
                 }
                 Some(Mode::Homing) => {
@@ -732,6 +740,25 @@ mod tests {
         assert!(b.drive.position().abs() < 1.0, "{}", b.drive.position());
         assert_eq!(u16_of(&b.od, 0x6041) & (sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED), 0x1400);
         assert_eq!(b.i32(0x6064), 0);
+    }
+
+    #[test]
+    fn cyclic_positions_cross_the_32_bit_wrap_the_short_way() {
+        let mut b = Bench::new();
+        let image = [PdoEntry::new(0x607A, 0, 32)];
+        b.drive.shaft.position = i32::MAX as f64 - 5000.0;
+        b.enable(8);
+        let mut target = b.i32(0x6064);
+        for _ in 0..100 {
+            target = target.wrapping_add(100);
+            b.write(0x607A, 0, &target.to_le_bytes());
+            let bus = Bus { received: Some(Received { at_ns: b.now, image: &image }), ..Bus::default() };
+            b.run_with(MS, bus);
+        }
+        b.run_for(20 * MS);
+        assert_eq!(b.drive.fault(), None);
+        // Settled within the few counts of stick-slip, past the wrap: not 2^32 counts back.
+        assert!(b.i32(0x6064) < 0 && b.i32(0x6064).wrapping_sub(target).abs() <= 20, "{}", b.i32(0x6064));
     }
 
     #[test]
