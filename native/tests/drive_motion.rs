@@ -1,7 +1,7 @@
 //! The virtual AKD moves like a drive, seen through the real master over an in-process link
 //! whose clock the test steps (1 ms cycles, deterministic): every CiA 402 transition, each mode
 //! tracking a moving target within a stated bound, a bumpless enable and mode change, latches
-//! firing where the simulated input toggles, F125 after the eighth missed frame, F706, the
+//! and touch probes firing where the simulated input toggles, F125 after the eighth missed frame, F706, the
 //! following-error fault, injected faults and the fault reset on the rising edge of bit 7.
 
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
@@ -60,20 +60,21 @@ const fn e(index: u16, subindex: u8, bits: u8) -> PdoEntry {
     PdoEntry::new(index, subindex, bits)
 }
 
-/// Outputs: controlword, mode, latch control, CSP target, target velocity, IP set-point, torque.
+/// Outputs (22 bytes, the AKD's most): controlword, mode, latch control, CSP target, target
+/// velocity, IP set-point, torque, touch probe function.
 fn rx_mapping() -> Vec<Vec<PdoEntry>> {
     vec![
         vec![e(0x6040, 0, 16), e(0x6060, 0, 8), e(0x0002, 0, 8), e(0x20A4, 0, 16)],
         vec![e(0x607A, 0, 32), e(0x60FF, 0, 32)],
-        vec![e(0x60C1, 1, 32), e(0x6071, 0, 16)],
+        vec![e(0x60C1, 1, 32), e(0x6071, 0, 16), e(0x60B8, 0, 16)],
     ]
 }
 
-/// Inputs: statusword, mode display, latch status, positions, velocity, following error,
-/// latch positions, torque.
+/// Inputs (32 bytes, the AKD's most): statusword, mode display, latch status, touch probe
+/// status, positions, velocity, following error, latch positions, torque.
 fn tx_mapping() -> Vec<Vec<PdoEntry>> {
     vec![
-        vec![e(0x6041, 0, 16), e(0x6061, 0, 8), e(0x2002, 1, 8), e(0x20A5, 0, 16)],
+        vec![e(0x6041, 0, 16), e(0x6061, 0, 8), e(0x2002, 1, 8), e(0x20A5, 0, 16), e(0x60B9, 0, 16)],
         vec![e(0x6064, 0, 32), e(0x606C, 0, 32)],
         vec![e(0x60F4, 0, 32), e(0x20A0, 0, 32)],
         vec![e(0x6077, 0, 16), e(0x2002, 2, 8), e(0x2002, 3, 8), e(0x20A1, 0, 32)],
@@ -128,7 +129,7 @@ impl Rig {
         // Sign-extend the signed objects of this mapping (positions, velocity, torque).
         let value = i64::from_le_bytes(bytes);
         match (index, len) {
-            (0x6041 | 0x20A5, _) => value,
+            (0x6041 | 0x20A5 | 0x60B9, _) => value,
             (_, 2) => value as i16 as i64,
             (_, 4) => value as i32 as i64,
             _ => value,
@@ -353,6 +354,7 @@ fn latches_capture_within_one_count_of_where_the_input_toggled() {
     rig.bus.lock().unwrap().slave_mut(0).drive_mut().inputs_mut().set_toggles(1, &[rise, fall]).unwrap();
     rig.enable(3);
     rig.set(0x20A4, 0, 0x0003); // latch 1, both edges
+    rig.set(0x60B8, 0, 0x0011); // touch probe 1, rising edge
     rig.set(0x60FF, 0, (3.0 * REV) as i64);
     rig.cycles(1500);
     assert!(rig.position() > fall as i64);
@@ -361,6 +363,9 @@ fn latches_capture_within_one_count_of_where_the_input_toggled() {
     assert!((rig.get(0x20A0, 0) as f64 - rise).abs() <= 1.0, "rising {}", rig.get(0x20A0, 0));
     assert!((rig.get(0x20A1, 0) as f64 - fall).abs() <= 1.0, "falling {}", rig.get(0x20A1, 0));
     assert_eq!(status & 0x8000, 0, "input 1 is low again past its second toggle");
+    assert_eq!(rig.get(0x60B9, 0), 0x0003, "touch probe 1 enabled, rising edge stored");
+    let probe = i32::from_le_bytes(rig.m.sdo_read(0, 0x60BA, 0).unwrap().try_into().unwrap());
+    assert_eq!(probe as i64, rig.get(0x20A0, 0), "the same capture as latch 1 rising");
 }
 
 #[test]

@@ -32,7 +32,7 @@ use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
 use crate::pdo::PdoEntry;
 use crate::sim::faults::Fault;
-use crate::sim::latch::{Inputs, Latch};
+use crate::sim::latch::{Inputs, Latch, TouchProbe};
 use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
 use crate::sim::od::ObjectDictionary;
 
@@ -157,6 +157,7 @@ pub struct Drive {
     last_error_code: u16,
     inputs: Inputs,
     latch: Latch,
+    touch_probe: TouchProbe,
     time_ns: Option<u64>,
     last_process_data_ns: Option<u64>,
     last_setpoint_ns: Option<u64>,
@@ -194,6 +195,7 @@ impl Drive {
             last_error_code: 0,
             inputs: Inputs::default(),
             latch: Latch::default(),
+            touch_probe: TouchProbe::default(),
             time_ns: None,
             last_process_data_ns: None,
             last_setpoint_ns: None,
@@ -279,7 +281,9 @@ impl Drive {
             let before = self.reported(self.shaft.position);
             let torque = self.control(od, t);
             self.shaft.step(torque, &self.mechanics);
-            self.latch.capture(&self.inputs, before, self.reported(self.shaft.position));
+            let after = self.reported(self.shaft.position);
+            self.latch.capture(&self.inputs, before, after);
+            self.touch_probe.capture(&self.inputs, before, after);
             if self.state.is_power_stage_on() && window > 0.0 && self.following_error().abs() > window {
                 raised = raised.or(self.raise(Fault::FollowingError));
             }
@@ -370,6 +374,7 @@ impl Drive {
             }
         }
         self.latch.control(u16_of(od, 0x20A4));
+        self.touch_probe.function(u16_of(od, 0x60B8));
     }
 
     /// The command holds the actual position: nothing moves until a set-point asks for it.
@@ -588,6 +593,7 @@ impl Drive {
         od.set(0x603F, 0, &self.last_error_code.to_le_bytes());
         od.set(0x1001, 0, &[self.fault.map_or(0, |f| f.error_register())]);
         self.latch.publish(od, self.inputs.levels(position));
+        self.touch_probe.publish(od);
     }
 }
 

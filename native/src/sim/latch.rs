@@ -11,6 +11,9 @@
 //! clears its valid bit. Bits 8–12 select the value 0x20A6/0x20A7 show (1 latch 1 rising, 2
 //! latch 1 falling, 3 latch 2 rising, 4 latch 2 falling), acknowledged in 0x20A5 bits 8–11.
 //! Latch status 0x20A5: bits 0–3 valid, bits 12–15 the levels of inputs 4, 3, 2, 1.
+//!
+//! The CiA 402 touch probes ([`TouchProbe`], 0x60B8–0x60BD) are the same capture seen through
+//! the standard objects: probe 1 on input 1, probe 2 on input 2, single-shot (bit 1/9 = 0).
 
 use crate::sim::od::ObjectDictionary;
 
@@ -129,6 +132,40 @@ impl Latch {
     }
 }
 
+/// The CiA 402 touch probes: function 0x60B8, status 0x60B9, edge positions 0x60BA–0x60BD.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TouchProbe {
+    latch: Latch,
+    function: u16,
+}
+
+impl TouchProbe {
+    /// Takes the touch probe function 0x60B8: bit 0 enables probe 1, bits 4/5 its rising and
+    /// falling edge; bits 8, 12, 13 the same for probe 2. An edge bit that rises re-arms it.
+    pub fn function(&mut self, function: u16) {
+        let edge = |enable: u16, edge: u16| u16::from(function & enable != 0 && function & edge != 0);
+        let control =
+            edge(1 << 0, 1 << 4) | edge(1 << 0, 1 << 5) << 1 | edge(1 << 8, 1 << 12) << 2 | edge(1 << 8, 1 << 13) << 3;
+        self.latch.control(control);
+        self.function = function;
+    }
+
+    /// Captures the edges of inputs 1 and 2 the shaft crossed from `from` to `to`.
+    pub fn capture(&mut self, inputs: &Inputs, from: f64, to: f64) {
+        self.latch.capture(inputs, from, to);
+    }
+
+    /// Writes the touch probe status 0x60B9 and the edge positions 0x60BA–0x60BD.
+    pub fn publish(&self, od: &mut ObjectDictionary) {
+        let valid = self.latch.valid as u16;
+        let status = (self.function & 0x0101) | (valid & 0x3) << 1 | (valid >> 2 & 0x3) << 9;
+        od.set(0x60B9, 0, &status.to_le_bytes());
+        for (i, p) in self.latch.positions.iter().enumerate() {
+            od.set(0x60BA + i as u16, 0, &p.to_le_bytes());
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -174,5 +211,26 @@ mod tests {
         assert_eq!(od.get(0x20A0, 0).unwrap(), 100i32.to_le_bytes());
         assert_eq!(od.get(0x20A6, 0).unwrap(), 200i32.to_le_bytes(), "selection 2: latch 1 falling");
         assert_eq!(od.get(0x20A5, 0).unwrap()[1] & 0x0F, 2);
+    }
+
+    #[test]
+    fn touch_probes_are_the_same_capture_through_the_cia_402_objects() {
+        let mut inputs = Inputs::default();
+        inputs.set_toggles(2, &[500.5]).unwrap();
+        inputs.set_toggles(1, &[-20.0, 20.0]).unwrap();
+        let mut probe = TouchProbe::default();
+        probe.function(0x3001); // probe 1 enabled without an edge, probe 2 on both edges but off
+        probe.capture(&inputs, -100.0, 1000.0);
+        let mut od = ObjectDictionary::akd();
+        probe.publish(&mut od);
+        assert_eq!(od.get(0x60B9, 0).unwrap(), 0x0001u16.to_le_bytes(), "nothing armed");
+        probe.function(0x1111); // probe 1 rising, probe 2 rising
+        // Input 1 is high between -20 and 20: coming down it rises at 20.
+        probe.capture(&inputs, 1000.0, -100.0);
+        probe.capture(&inputs, -100.0, 1000.0);
+        probe.publish(&mut od);
+        assert_eq!(od.get(0x60B9, 0).unwrap(), 0x0303u16.to_le_bytes());
+        assert_eq!(od.get(0x60BA, 0).unwrap(), 20i32.to_le_bytes());
+        assert_eq!(od.get(0x60BC, 0).unwrap(), 500i32.to_le_bytes());
     }
 }
