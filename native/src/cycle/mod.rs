@@ -6,6 +6,9 @@
 //! exchange, and read snapshots (cycle count, time, working counter, inputs) that the thread
 //! publishes after it. Statistics are atomics the thread updates and anyone reads. Nothing in
 //! the loop allocates, takes a lock or needs the GIL; the thread never waits on another one.
+//! (A failed exchange comes back as an [`Error`] whose text allocates: only in a cycle that
+//! already went wrong, and counted.) Failed cycles do not stop the thread: what to do about
+//! them is the caller's decision, made from the counters and snapshots.
 //! [`CycleThread::stop`] hands the master back, e.g. to bring the bus down.
 //!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics and
@@ -171,13 +174,7 @@ impl CycleThread {
             return Err(Error::Config("the cycle is stopped: set-points no longer go out".into()));
         }
         let slot = self.slot(position)?;
-        if data.len() != slot.out_len {
-            return Err(Error::Config(format!(
-                "slave {position} has {} bytes of outputs, {} given",
-                slot.out_len,
-                data.len()
-            )));
-        }
+        slot.check_outputs_len(position, data.len())?;
         self.shared.setpoints.write().write(slot.out_offset, data);
         Ok(())
     }

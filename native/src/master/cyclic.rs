@@ -27,6 +27,16 @@ pub struct ImageSlot {
     pub in_len: usize,
 }
 
+impl ImageSlot {
+    /// Checks that `len` bytes are exactly the outputs of this slot (the slave at `position`).
+    pub fn check_outputs_len(&self, position: u16, len: usize) -> Result<()> {
+        if len == self.out_len {
+            return Ok(());
+        }
+        Err(Error::Config(format!("slave {position} has {} bytes of outputs, {len} given", self.out_len)))
+    }
+}
+
 /// The process image of the bus.
 #[derive(Clone, Debug)]
 pub struct ProcessImage {
@@ -78,6 +88,10 @@ impl ProcessImage {
     }
 }
 
+fn no_image() -> Error {
+    Error::Config("no process image yet: take the slaves to SafeOp first".into())
+}
+
 impl Master {
     /// Before SafeOp: gives every slave at `positions` without a mapping the drive's default
     /// fixed mapping (0x1701/0x1B01), lays out the process image over every mapped slave, and
@@ -102,9 +116,11 @@ impl Master {
     }
 
     fn image(&self) -> Result<&ProcessImage> {
-        self.process
-            .as_ref()
-            .ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))
+        self.process.as_ref().ok_or_else(no_image)
+    }
+
+    fn image_mut(&mut self) -> Result<&mut ProcessImage> {
+        self.process.as_mut().ok_or_else(no_image)
     }
 
     /// The outputs of the slave at `position` as they go out in the next cycle.
@@ -116,18 +132,9 @@ impl Master {
 
     /// Sets the outputs of the slave at `position`; `data` must have their exact length.
     pub fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
-        let image = self
-            .process
-            .as_mut()
-            .ok_or_else(|| Error::Config("no process image yet: take the slaves to SafeOp first".into()))?;
+        let image = self.image_mut()?;
         let s = image.slot(position)?;
-        if data.len() != s.out_len {
-            return Err(Error::Config(format!(
-                "slave {position} has {} bytes of outputs, {} given",
-                s.out_len,
-                data.len()
-            )));
-        }
+        s.check_outputs_len(position, data.len())?;
         image.outputs[s.out_offset..s.out_offset + s.out_len].copy_from_slice(data);
         Ok(())
     }
@@ -154,8 +161,9 @@ impl Master {
     /// One cycle; with `judge` a wrong working counter is counted and raised, without it (while
     /// the slaves change state) it is only returned. Inputs are taken only from a good cycle.
     pub(crate) fn cycle(&mut self, judge: bool) -> Result<u16> {
+        // The field itself, not image(): the frame index is updated while the image is read.
         let Some(image) = self.process.as_ref() else {
-            return Err(Error::Config("no process image yet: take the slaves to SafeOp first".into()));
+            return Err(no_image());
         };
         let index = self.index.wrapping_add(1);
         self.index = index;
@@ -219,10 +227,7 @@ impl Master {
 
     /// The whole output image, to set for the next cycle.
     pub fn output_image_mut(&mut self) -> Result<&mut [u8]> {
-        match self.process.as_mut() {
-            Some(image) => Ok(&mut image.outputs),
-            None => Err(Error::Config("no process image yet: take the slaves to SafeOp first".into())),
-        }
+        Ok(&mut self.image_mut()?.outputs)
     }
 
     /// The whole input image from the last good cycle.
