@@ -567,9 +567,12 @@ impl Drive {
         word
     }
 
-    /// Position command minus actual position, counts; 0 in the modes without a position
-    /// command (profile velocity and torque, unless a stop ramp runs).
+    /// Position command minus actual position, counts; 0 with the power stage off and in the
+    /// modes without a position command (profile velocity and torque, unless a stop ramp runs).
     fn following_error(&self) -> f64 {
+        if !self.state.is_power_stage_on() {
+            return 0.0;
+        }
         match self.mode {
             Some(Mode::ProfileVelocity | Mode::ProfileTorque) if !self.stopping => 0.0,
             _ => self.command - self.shaft.position,
