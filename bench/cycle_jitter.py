@@ -79,11 +79,6 @@ def run_cycle(link: str, rate: int, args) -> None:
     period_ns = 1_000_000_000 // rate
     with _native.Master(link, timeout=0.5) as master:
         master.scan()
-        master.request_state("preop")
-        # The virtual AKD arms its process-data watchdog on entering Op although the AKD's SM2
-        # control has no trigger bit; off (0x0420 = 0) so it does not fall to SafeOp mid-run.
-        for position in range(master.slave_count):
-            master.write_register(position, 0x0420, b"\x00\x00")
         master.request_state("op")
         with Busy(args.busy):
             cycle = _native.Cycle(master, period_ns / 1e9, priority=args.priority, cpu=args.cpu,

@@ -25,11 +25,6 @@ INPUTS = struct.Struct("<iH")
 def master():
     with _native.Master("sim") as m:
         m.scan()
-        m.request_state("preop")
-        # Process-data watchdog off (time 0x0420 = 0): the virtual AKD arms it on entering Op
-        # although the AKD's SM2 control 0x24 has no trigger bit, so it would fall to SafeOp
-        # (0x001B) 100 ms into any run; these tests are about the cycle, not that watchdog.
-        m.write_register(0, 0x0420, b"\x00\x00")
         m.request_state("op")
         yield m
 
@@ -40,6 +35,15 @@ def wait_for_cycle(cycle, at_least: int, timeout: float = 30.0) -> dict:
         assert time.monotonic() < deadline, f"the cycle stopped at {snapshot['cycle']}"
         time.sleep(0.005)
     return snapshot
+
+
+def wait_for_statusword(cycle, mask: int, value: int, timeout: float = 5.0) -> int:
+    """Waits until the drive's statusword in the snapshots matches `value` under `mask`."""
+    deadline = time.monotonic() + timeout
+    while (statusword := INPUTS.unpack(cycle.snapshot()["inputs"][0])[1]) & mask != value:
+        assert time.monotonic() < deadline, f"statusword 0x{statusword:04X}, wanted 0x{value:04X}/0x{mask:04X}"
+        time.sleep(0.005)
+    return statusword
 
 
 def busy_work(stop: threading.Event) -> int:
@@ -67,6 +71,14 @@ def test_2000_cycles_with_python_busy_reach_the_drive(master):
                 cycle.set_outputs(0, OUTPUTS.pack(setpoint, 0x0006))
                 assert cycle.outputs(0) == OUTPUTS.pack(setpoint, 0x0006)
                 time.sleep(0.002)
+            # The controlword went out: the drive answers Shutdown with Ready to Switch On in
+            # the statusword the inputs bring back, and a zero controlword with Switch On
+            # Disabled (CiA 402).
+            wait_for_statusword(cycle, 0x006F, 0x0021)
+            cycle.set_outputs(0, OUTPUTS.pack(setpoint, 0x0000))
+            wait_for_statusword(cycle, 0x004F, 0x0040)
+            cycle.set_outputs(0, OUTPUTS.pack(setpoint, 0x0006))
+            wait_for_statusword(cycle, 0x006F, 0x0021)
         finally:
             stop.set()
             for w in workers:
