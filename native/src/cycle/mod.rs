@@ -78,7 +78,7 @@ struct Shared {
     stats: CycleStats,
 }
 
-/// A running cycle thread.
+/// A cycle thread: it runs from [`start`](CycleThread::start) to [`stop`](CycleThread::stop).
 pub struct CycleThread {
     shared: Arc<Shared>,
     thread: Option<JoinHandle<Option<Master>>>,
