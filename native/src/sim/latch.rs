@@ -224,7 +224,8 @@ mod tests {
         let mut od = ObjectDictionary::akd();
         probe.publish(&mut od);
         assert_eq!(od.get(0x60B9, 0).unwrap(), 0x0001u16.to_le_bytes(), "nothing armed");
-        probe.function(0x1111); // probe 1 rising, probe 2 rising
+        // Probe 1 rising, probe 2 rising.
+        probe.function(0x1111);
         // Input 1 is high between -20 and 20: coming down it rises at 20.
         probe.capture(&inputs, 1000.0, -100.0);
         probe.capture(&inputs, -100.0, 1000.0);
