@@ -414,7 +414,7 @@ pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Resu
             abort_code: abort::PDO_TOO_LONG,
         });
     }
-    if bits % 16 != 0 {
+    if !bits.is_multiple_of(16) {
         let padding = match direction {
             Direction::Rx => "0x0002:00 (8 bits)",
             Direction::Tx => "one of 0x2002:01..04 (8 bits)",
