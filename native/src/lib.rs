@@ -5,9 +5,10 @@
 //! each can be tested alone and the master and the virtual AKD share them without sharing any
 //! state: [`frame`] (datagrams and working counters), [`registers`] (ESC register map),
 //! [`sii`] (SII EEPROM content), [`al`] (AL states and status codes), [`mailbox`] and [`coe`]
-//! (mailbox header, CoE SDO, SDO information, emergency), [`pdo`] (AKD process-data mappings)
+//! (mailbox header, CoE SDO, SDO information, emergency), [`pdo`] (AKD process-data mappings),
 //! [`dc`] (distributed-clock arithmetic) and [`ds402`] (CiA 402 drive state machine).
-//! [`link`] moves frames; [`master`] drives a bus; [`sim`] is the virtual AKD.
+//! [`link`] moves frames; [`master`] drives a bus; [`cycle`] runs the master's exchange in a
+//! real-time thread; [`sim`] is the virtual AKD.
 
 pub mod al;
 pub mod coe;
