@@ -134,18 +134,11 @@ impl PyMaster {
         for position in 0..m.slaves().len() as u16 {
             let status = py.allow_threads(|| m.al_status(position)).py()?;
             let slave = m.slave(position).py()?;
-            let identity = slave.sii.identity();
             let d = PyDict::new(py);
             d.set_item("position", slave.position)?;
             d.set_item("station_address", slave.station_address)?;
             d.set_item("alias", slave.alias)?;
-            d.set_item("vendor_id", identity.vendor_id)?;
-            d.set_item("product_code", identity.product_code)?;
-            d.set_item("revision", identity.revision)?;
-            d.set_item("serial_number", identity.serial_number)?;
-            d.set_item("name", slave.sii.name())?;
-            d.set_item("model", slave.sii.model())?;
-            d.set_item("firmware", slave.sii.firmware())?;
+            super::sii::set_identity(&d, &slave.sii)?;
             d.set_item("al_state", status.state_name())?;
             d.set_item("al_status_code", status.code)?;
             d.set_item("al_status_code_name", status.code_name())?;

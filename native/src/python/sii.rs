@@ -50,6 +50,20 @@ fn pdo_dicts<'py>(py: Python<'py>, sii: &Sii, pdos: &[SiiPdo]) -> PyResult<Vec<B
     })
 }
 
+/// Puts what identifies a drive in its SII into `d`: vendor_id, product_code, revision,
+/// serial_number, and the names name, model and firmware (None where absent). Shared by
+/// `parse_sii` and the master's scan so both speak of a drive in the same keys.
+pub(super) fn set_identity(d: &Bound<'_, PyDict>, sii: &Sii) -> PyResult<()> {
+    let id = sii.identity();
+    d.set_item("vendor_id", id.vendor_id)?;
+    d.set_item("product_code", id.product_code)?;
+    d.set_item("revision", id.revision)?;
+    d.set_item("serial_number", id.serial_number)?;
+    d.set_item("name", sii.name())?;
+    d.set_item("model", sii.model())?;
+    d.set_item("firmware", sii.firmware())
+}
+
 /// Decodes an SII EEPROM image (the whole EEPROM, or up to the end category) into a dict:
 /// identity (vendor_id, product_code, revision, serial_number, alias), names (name, group,
 /// order, model, firmware; None where absent), mailbox_protocols, standard_mailbox,
@@ -60,17 +74,10 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
     let sii = Sii::parse(data).py()?;
     let h = &sii.header;
     let d = PyDict::new(py);
-    let id = sii.identity();
-    d.set_item("vendor_id", id.vendor_id)?;
-    d.set_item("product_code", id.product_code)?;
-    d.set_item("revision", id.revision)?;
-    d.set_item("serial_number", id.serial_number)?;
+    set_identity(&d, &sii)?;
     d.set_item("alias", sii.alias())?;
-    d.set_item("name", sii.name())?;
     d.set_item("group", sii.group())?;
     d.set_item("order", sii.order())?;
-    d.set_item("model", sii.model())?;
-    d.set_item("firmware", sii.firmware())?;
     d.set_item("mailbox_protocols", h.mailbox_protocols)?;
     d.set_item("standard_mailbox", mailbox_dict(py, &h.standard_mailbox)?)?;
     d.set_item("bootstrap_mailbox", mailbox_dict(py, &h.bootstrap_mailbox)?)?;
