@@ -260,12 +260,9 @@ impl Mode {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use controlword::*;
-
-    const STATES: [State; 8] = [
+impl State {
+    /// Every state, in the order of CiA 402's state diagram (for looking one up by name).
+    pub const ALL: [State; 8] = [
         State::NotReadyToSwitchOn,
         State::SwitchOnDisabled,
         State::ReadyToSwitchOn,
@@ -275,10 +272,16 @@ mod tests {
         State::FaultReactionActive,
         State::Fault,
     ];
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use controlword::*;
 
     #[test]
     fn statusword_round_trips_every_state() {
-        for s in STATES {
+        for s in State::ALL {
             assert_eq!(State::from_statusword(s.statusword_bits() | statusword::REMOTE), Some(s), "{}", s.name());
         }
     }
@@ -326,7 +329,7 @@ mod tests {
     #[test]
     fn sequencing_reaches_every_target_from_every_state() {
         for target in [State::SwitchOnDisabled, State::ReadyToSwitchOn, State::SwitchedOn, State::OperationEnabled] {
-            for start in STATES {
+            for start in State::ALL {
                 let mut state = start;
                 let mut previous_cw = 0u16;
                 for _ in 0..10 {

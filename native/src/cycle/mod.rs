@@ -11,10 +11,14 @@
 //! them is the caller's decision, made from the counters and snapshots.
 //! [`CycleThread::stop`] hands the master back, e.g. to bring the bus down.
 //!
-//! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics and
-//! [`exchange`] the lock-free buffers.
+//! Drives whose mapping carries controlword and statusword are sequenced in the loop by
+//! [`ds402`]: [`CycleThread::request`] asks for enable, disable, quick stop or fault reset,
+//! [`CycleThread::drive_status`] tells how far it is.
+//!
+//! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
+//! [`exchange`] the lock-free buffers and [`ds402`] the drive sequencer.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
@@ -23,6 +27,7 @@ use crate::error::{Error, Result};
 use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
 
+pub mod ds402;
 pub mod exchange;
 pub mod rt;
 pub mod stats;
@@ -76,6 +81,35 @@ struct Shared {
     setpoints: SeqBytes,
     snapshot: SeqBytes,
     stats: CycleStats,
+    /// One per slave, sequenced or not.
+    drives: Vec<ds402::Shared>,
+    /// How long a drive request may take before it is reported stuck (ns).
+    request_timeout_ns: AtomicU64,
+}
+
+/// How long a drive request may take by default before it is reported stuck.
+pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// The drives of `master` that can be sequenced, with their objects' offsets in the whole
+/// images; for the others, why not.
+fn sequenced_drives(master: &Master) -> Vec<std::result::Result<ds402::Offsets, String>> {
+    (0..master.slaves().len() as u16)
+        .map(|position| {
+            let slave = master.slave(position).map_err(|e| e.to_string())?;
+            let mapping =
+                slave.mapping.as_ref().ok_or_else(|| format!("slave {position} has no process-data mapping"))?;
+            let slot = master.image_slot(position).map_err(|e| e.to_string())?;
+            let o = ds402::Offsets::find(&mapping.rx_entries, &mapping.tx_entries)
+                .map_err(|e| format!("slave {position}: {e}"))?;
+            Ok(ds402::Offsets {
+                controlword: slot.out_offset + o.controlword,
+                statusword: slot.in_offset + o.statusword,
+                targets: o.targets.map(|t| t.map(|t| slot.out_offset + t)),
+                actual: o.actual.map(|a| slot.in_offset + a),
+                mode_display: o.mode_display.map(|m| slot.in_offset + m),
+            })
+        })
+        .collect()
 }
 
 /// A cycle thread: it runs from [`start`](CycleThread::start) to [`stop`](CycleThread::stop).
@@ -85,6 +119,8 @@ pub struct CycleThread {
     slots: Vec<Option<ImageSlot>>,
     warnings: Vec<String>,
     period: Duration,
+    /// Per slave: whether it is sequenced, or why not.
+    sequenced: Vec<std::result::Result<(), String>>,
 }
 
 impl CycleThread {
@@ -104,17 +140,24 @@ impl CycleThread {
             Err(e) => return Err(Box::new((e, master))),
         };
         let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
+        let found = sequenced_drives(&master);
+        let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
+        let drives: Vec<(usize, ds402::Drive)> =
+            found.into_iter().enumerate().filter_map(|(p, f)| Some((p, ds402::Drive::new(f.ok()?)))).collect();
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
             setpoints: SeqBytes::new(outputs.len(), &outputs),
             snapshot: SeqBytes::new(HEADER_LEN + inputs_len, &[]),
             stats: CycleStats::new(period_ns),
+            drives: (0..master.slaves().len()).map(|_| ds402::Shared::default()).collect(),
+            request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
         });
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
         let (ready_tx, ready_rx) = mpsc::sync_channel(1);
         let spawned = {
             let shared = shared.clone();
+            let mut drives = drives;
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = Vec::new();
@@ -126,7 +169,7 @@ impl CycleThread {
                 // The starting thread waits for this message; it cannot be gone.
                 let _ = ready_tx.send(warnings);
                 let timeout = master.replace_timeout(config.period);
-                run(&mut master, &shared, period_ns);
+                run(&mut master, &shared, &mut drives, period_ns);
                 master.replace_timeout(timeout);
                 Some(master)
             })
@@ -140,7 +183,7 @@ impl CycleThread {
         // The thread is waiting for it.
         let _ = master_tx.send(master);
         let warnings = ready_rx.recv().unwrap_or_default();
-        Ok(CycleThread { shared, thread: Some(thread), slots, warnings, period: config.period })
+        Ok(CycleThread { shared, thread: Some(thread), slots, warnings, period: config.period, sequenced })
     }
 
     /// The real-time settings that were asked for and not permitted, one sentence each.
@@ -176,7 +219,44 @@ impl CycleThread {
         let slot = self.slot(position)?;
         slot.check_outputs_len(position, data.len())?;
         self.shared.setpoints.write().write(slot.out_offset, data);
+        self.shared.drives[position as usize].setpoint_written();
         Ok(())
+    }
+
+    fn sequenced(&self, position: u16) -> Result<&ds402::Shared> {
+        match self.sequenced.get(position as usize) {
+            None => Err(Error::NoSuchSlave { position, count: self.slave_count() }),
+            Some(Err(why)) => Err(Error::Config(why.clone())),
+            Some(Ok(())) => Ok(&self.shared.drives[position as usize]),
+        }
+    }
+
+    /// Asks the drive at `position` for `request`, taken in the next cycle (replacing one
+    /// under way). Lock-free. Refused for a drive whose mapping cannot be sequenced and once
+    /// the cycle is stopped.
+    pub fn request(&self, position: u16, request: ds402::Request) -> Result<()> {
+        let drive = self.sequenced(position)?;
+        if self.stopped() {
+            return Err(Error::Config(format!("the cycle is stopped: {} can no longer be sequenced", request.name())));
+        }
+        drive.request(request);
+        Ok(())
+    }
+
+    /// The drive's status as the cycle thread last published it. Lock-free.
+    pub fn drive_status(&self, position: u16) -> Result<ds402::Status> {
+        Ok(self.sequenced(position)?.status())
+    }
+
+    /// Sets how long a drive request may take before it is reported stuck (from the next
+    /// request on).
+    pub fn set_request_timeout(&self, timeout: Duration) {
+        self.shared.request_timeout_ns.store(timeout.as_nanos().min(u64::MAX as u128) as u64, Ordering::Relaxed);
+    }
+
+    /// How long a drive request may take before it is reported stuck.
+    pub fn request_timeout(&self) -> Duration {
+        Duration::from_nanos(self.shared.request_timeout_ns.load(Ordering::Relaxed))
     }
 
     /// The outputs of the slave at `position` as they go out from the next cycle on.
@@ -245,7 +325,7 @@ impl Drop for CycleThread {
 }
 
 /// The loop. Everything it touches was allocated before it starts.
-fn run(master: &mut Master, shared: &Shared, period_ns: u64) {
+fn run(master: &mut Master, shared: &Shared, drives: &mut [(usize, ds402::Drive)], period_ns: u64) {
     let stats = &shared.stats;
     let base = master.stats();
     let mut schedule = timing::Schedule::new(timing::now_ns() + period_ns, period_ns);
@@ -261,6 +341,18 @@ fn run(master: &mut Master, shared: &Shared, period_ns: u64) {
         if let Ok(outputs) = master.output_image_mut() {
             if shared.setpoints.try_read(outputs).is_none() {
                 CycleStats::add(&stats.setpoints_busy, 1);
+            }
+        }
+        // The sequencer reads the inputs of the last exchange and writes over the set-points.
+        if let Ok(inputs) = master.input_image() {
+            let timeout_ns = shared.request_timeout_ns.load(Ordering::Relaxed);
+            for (position, drive) in drives.iter_mut() {
+                drive.observe(&shared.drives[*position], inputs, wake, timeout_ns);
+            }
+        }
+        if let Ok(outputs) = master.output_image_mut() {
+            for (_, drive) in drives.iter() {
+                drive.apply(outputs);
             }
         }
         let sent = timing::now_ns();

@@ -11,8 +11,10 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 
 use super::master::PyMaster;
 use super::IntoPyResult;
+use crate::cycle::ds402::{Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{Config, CycleThread};
+use crate::ds402::State;
 use crate::error::Error;
 
 /// Exchanges a Master's process image every period on a thread of its own.
@@ -32,7 +34,14 @@ fn summary<'py>(py: Python<'py>, s: Summary) -> PyResult<Bound<'py, PyDict>> {
     Ok(d)
 }
 
+/// How often `wait_state` looks at the drive's status.
+const WAIT_POLL: Duration = Duration::from_millis(1);
+
 impl PyCycle {
+    fn request(&self, position: u16, request: Request) -> PyResult<()> {
+        self.cycle.request(position, request).py()
+    }
+
     fn halt(&mut self, py: Python<'_>) -> PyResult<()> {
         if self.cycle.stopped() {
             return Ok(());
@@ -139,6 +148,100 @@ impl PyCycle {
         Ok(d)
     }
 
+    /// Asks drive `position` for Operation enabled, stepping it through the CiA 402 states in
+    /// the cycle thread. While it is not enabled the position target is its actual position,
+    /// and after that it stays there until a set-point is written: nothing moves until
+    /// commanded. A drive in Fault is not reset by it (`reset_fault()` first). Returns at once;
+    /// `wait_state` waits.
+    fn enable(&self, position: u16) -> PyResult<()> {
+        self.request(position, Request::Enable)
+    }
+
+    /// Asks drive `position` for Switch on disabled (power stage off).
+    fn disable(&self, position: u16) -> PyResult<()> {
+        self.request(position, Request::Disable)
+    }
+
+    /// Asks drive `position` for a quick stop: it brakes and holds in Quick stop active.
+    fn quick_stop(&self, position: u16) -> PyResult<()> {
+        self.request(position, Request::QuickStop)
+    }
+
+    /// Asks drive `position` for a fault reset: bit 7 of the controlword low for a cycle, then
+    /// high (the drive reacts to the rising edge), to Switch on disabled.
+    fn reset_fault(&self, position: u16) -> PyResult<()> {
+        self.request(position, Request::FaultReset)
+    }
+
+    /// How long a request may take before it is reported stuck, in seconds (1 by default).
+    #[getter]
+    fn get_request_timeout(&self) -> f64 {
+        self.cycle.request_timeout().as_secs_f64()
+    }
+
+    #[setter]
+    fn set_request_timeout(&self, seconds: f64) -> PyResult<()> {
+        let timeout = Duration::try_from_secs_f64(seconds)
+            .map_err(|_| super::to_py_err(Error::Config(format!("request timeout {seconds} s must be >= 0"))))?;
+        self.cycle.set_request_timeout(timeout);
+        Ok(())
+    }
+
+    /// Drive `position` as the cycle thread last saw it: "state" (the CiA 402 state's name,
+    /// or None for a statusword that shows none), "statusword", "request" ("enable",
+    /// "disable", "quick_stop", "reset_fault" or None), "progress" ("idle", "in_progress",
+    /// "done", "stuck", or "lost" when the drive left the state it had reached), "reason"
+    /// (why stuck or lost, else None) and "mode_display" (0x6061 where mapped, else None).
+    fn drive_status<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.cycle.drive_status(position).py()?;
+        let d = PyDict::new(py);
+        d.set_item("state", s.state().map(|state| state.name()))?;
+        d.set_item("statusword", s.statusword)?;
+        d.set_item("request", s.request.map(Request::name))?;
+        d.set_item("progress", progress_name(s.progress))?;
+        d.set_item("reason", s.stuck_reason())?;
+        d.set_item("mode_display", s.mode_display)?;
+        Ok(d)
+    }
+
+    /// Waits, without holding the GIL, until drive `position` shows `state` (a CiA 402 state's
+    /// name, e.g. "Operation enabled"); raises TimeoutError after `timeout` seconds, and at
+    /// once when the request under way is stuck, saying in which state it is and why.
+    #[pyo3(signature = (position, state, timeout = 5.0))]
+    fn wait_state(&self, py: Python<'_>, position: u16, state: &str, timeout: f64) -> PyResult<()> {
+        let wanted = State::ALL.iter().copied().find(|s| s.name().eq_ignore_ascii_case(state)).ok_or_else(|| {
+            let names: Vec<&str> = State::ALL.iter().map(|s| s.name()).collect();
+            super::to_py_err(Error::Config(format!("unknown state {state:?} (allowed: {})", names.join(", "))))
+        })?;
+        let timeout = Duration::try_from_secs_f64(timeout)
+            .map_err(|_| super::to_py_err(Error::Config(format!("timeout {timeout} s must be >= 0"))))?;
+        let cycle = &self.cycle;
+        let outcome = py.allow_threads(|| {
+            let deadline = std::time::Instant::now() + timeout;
+            loop {
+                let status = cycle.drive_status(position)?;
+                if status.state() == Some(wanted) {
+                    return Ok(None);
+                }
+                let stuck = status.progress == Progress::Stuck;
+                if stuck || std::time::Instant::now() >= deadline || !cycle.running() {
+                    let seen = status.state().map_or("no valid state", |s| s.name());
+                    let why = status.stuck_reason().map_or(String::new(), |r| format!(": {r}"));
+                    return Ok(Some(format!(
+                        "drive {position} to reach {} (it is in {seen}, statusword 0x{:04X}){why}",
+                        wanted.name(),
+                        status.statusword
+                    )));
+                }
+                std::thread::sleep(WAIT_POLL);
+            }
+        });
+        match outcome.py()? {
+            None => Ok(()),
+            Some(what) => Err(super::to_py_err(Error::Timeout { what })),
+        }
+    }
+
     /// The real-time settings asked for and not permitted, one sentence each.
     #[getter]
     fn warnings(&self) -> Vec<String> {
@@ -180,6 +283,16 @@ impl Drop for PyCycle {
                 let _ = self.halt(py);
             });
         }
+    }
+}
+
+fn progress_name(progress: Progress) -> &'static str {
+    match progress {
+        Progress::Idle => "idle",
+        Progress::InProgress => "in_progress",
+        Progress::Done => "done",
+        Progress::Stuck => "stuck",
+        Progress::Lost => "lost",
     }
 }
 

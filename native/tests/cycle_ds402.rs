@@ -1,0 +1,122 @@
+//! The DS402 sequencer in the cycle thread against a virtual AKD the test can reach while the
+//! thread cycles (hardware enable, injected faults), which a Master("sim") from Python cannot.
+//! The waits have deadlines only so that a failure does not hang; no timing is asserted.
+
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use akd_native::al::AlState;
+use akd_native::cycle::ds402::{Progress, Request, Status};
+use akd_native::cycle::{Config, CycleThread};
+use akd_native::ds402::State;
+use akd_native::error::{Error, FrameError, Result};
+use akd_native::link::Link;
+use akd_native::master::{Mapping, Master};
+use akd_native::sim::faults::Fault;
+use akd_native::sim::{Timing, VirtualBus};
+
+const STEP: Duration = Duration::from_secs(5);
+
+/// A link to a virtual bus the test shares, on the monotonic clock.
+struct Shared {
+    bus: Arc<Mutex<VirtualBus>>,
+    start: Instant,
+}
+
+impl Link for Shared {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], _timeout: Duration) -> Result<usize> {
+        let room = rx.len();
+        let frame = rx.get_mut(..tx.len()).ok_or(Error::Frame(FrameError::TooLarge { len: tx.len(), room }))?;
+        frame.copy_from_slice(tx);
+        self.bus.lock().unwrap().process(frame, self.start.elapsed().as_nanos() as u64)?;
+        Ok(tx.len())
+    }
+
+    fn describe(&self) -> String {
+        "shared sim".into()
+    }
+}
+
+/// One virtual AKD in cyclic synchronous position with 0x1724/0x1B24, cycling at 1 kHz.
+fn rig() -> (CycleThread, Arc<Mutex<VirtualBus>>) {
+    let bus = Arc::new(Mutex::new(VirtualBus::with_timing(1, Timing::IMMEDIATE)));
+    let mut m = Master::new(Box::new(Shared { bus: bus.clone(), start: Instant::now() }), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.configure_pdo(0, Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
+    m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    cycle.set_request_timeout(Duration::from_millis(200));
+    (cycle, bus)
+}
+
+/// Waits until the drive's status satisfies `done`.
+fn wait(cycle: &CycleThread, done: impl Fn(&Status) -> bool) -> Status {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    loop {
+        let status = cycle.drive_status(0).unwrap();
+        if done(&status) {
+            return status;
+        }
+        assert!(Instant::now() < deadline, "{status:?}");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// Lets `count` cycles pass.
+fn cycles(cycle: &CycleThread, count: u64) {
+    let later = cycle.snapshot().cycle + count;
+    while cycle.snapshot().cycle < later {
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+fn wait_state(cycle: &CycleThread, state: State) -> Status {
+    wait(cycle, |s| s.state() == Some(state))
+}
+
+#[test]
+fn hardware_enable_low_makes_enable_stuck_with_the_reason() {
+    let (cycle, bus) = rig();
+    bus.lock().unwrap().slave_mut(0).drive_mut().set_hardware_enable(false);
+    cycle.request(0, Request::Enable).unwrap();
+    let status = wait(&cycle, |s| s.progress == Progress::Stuck);
+    let why = status.stuck_reason().unwrap();
+    assert!(why.starts_with("enable stuck in "), "{why}");
+    assert!(why.contains("warning (bit 7): on the AKD the hardware enable input is low"), "{why}");
+    // A stuck enable leaves the drive powerless (the statusword comes back a cycle after the
+    // controlword went out, so a few cycles on).
+    cycles(&cycle, 5);
+    assert_eq!(cycle.drive_status(0).unwrap().state(), Some(State::SwitchOnDisabled));
+    assert_eq!(bus.lock().unwrap().slave(0).drive().state(), State::SwitchOnDisabled);
+    bus.lock().unwrap().slave_mut(0).drive_mut().set_hardware_enable(true);
+    cycle.request(0, Request::Enable).unwrap();
+    let status = wait_state(&cycle, State::OperationEnabled);
+    assert_eq!((status.request, status.stuck_reason()), (Some(Request::Enable), None));
+}
+
+#[test]
+fn a_fault_while_enabled_is_not_retried_and_the_reset_clears_it() {
+    let (cycle, bus) = rig();
+    cycle.request(0, Request::Enable).unwrap();
+    wait_state(&cycle, State::OperationEnabled);
+    bus.lock().unwrap().slave_mut(0).drive_mut().inject(Fault::OverTemperature);
+    let status = wait_state(&cycle, State::Fault);
+    let status =
+        if status.progress == Progress::Lost { status } else { wait(&cycle, |s| s.progress == Progress::Lost) };
+    let why = status.stuck_reason().unwrap();
+    assert!(why.contains("enable left the requested state in Fault"), "{why}");
+    assert!(why.contains("fault (bit 3)"), "{why}");
+    // Many cycles later the drive is still in Fault: nothing reset it behind the caller's back.
+    cycles(&cycle, 50);
+    assert_eq!(bus.lock().unwrap().slave(0).drive().fault(), Some(Fault::OverTemperature));
+    cycle.request(0, Request::FaultReset).unwrap();
+    let status = wait_state(&cycle, State::SwitchOnDisabled);
+    let status =
+        if status.progress == Progress::Done { status } else { wait(&cycle, |s| s.progress == Progress::Done) };
+    assert_eq!(status.request, Some(Request::FaultReset));
+    assert_eq!(bus.lock().unwrap().slave(0).drive().fault(), None);
+    cycle.request(0, Request::Enable).unwrap();
+    wait_state(&cycle, State::OperationEnabled);
+}
