@@ -9,6 +9,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
+use akd_native::cycle::ds402::Request;
 use akd_native::cycle::{Config, CycleThread, Snapshot};
 use akd_native::link::udp::Udp;
 use akd_native::master::Master;
@@ -91,21 +92,29 @@ fn cycle_loop_allocates_nothing() {
     drop(std::hint::black_box(Vec::<u8>::with_capacity(8)));
     let armed = wait_for_cycle(&cycle, started.cycle);
     let before = ALLOCATIONS.load(Ordering::SeqCst);
-    // Set-points written and snapshots read meanwhile, as a user would.
+    // Set-points written, drives sequenced and snapshots read meanwhile, as a user would.
+    cycle.request(1, Request::Enable).unwrap();
     for n in 0..200u32 {
         cycle.set_outputs(0, &[n as u8, 0, 0, 0, 0x06, 0]).unwrap();
-        std::hint::black_box(cycle.snapshot());
+        if n % 50 == 0 {
+            let request = [Request::Enable, Request::QuickStop, Request::Disable, Request::FaultReset][n as usize / 50];
+            cycle.request(0, request).unwrap();
+        }
+        std::hint::black_box((cycle.snapshot(), cycle.drive_status(1).unwrap()));
     }
     let last = wait_for_cycle(&cycle, armed.cycle + 300);
     let during = ALLOCATIONS.load(Ordering::SeqCst) - before;
     WATCHED.store(0, Ordering::SeqCst);
     let stats = cycle.stats();
     let (lost, wkc) = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
+    // The sequencer did run in those cycles.
+    let sequenced = cycle.drive_status(1).unwrap();
     let master = cycle.stop().unwrap();
     stop.store(true, Ordering::SeqCst);
     serving.join().unwrap().unwrap();
     assert_eq!((lost, wkc), (0, 0), "lost frames and WKC errors");
     assert!(last.fresh);
+    assert_eq!(sequenced.state(), Some(akd_native::ds402::State::OperationEnabled), "{sequenced:?}");
     assert_eq!(during, 0, "allocations in {} cycles", last.cycle - armed.cycle);
     drop(master);
 }
