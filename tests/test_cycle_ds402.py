@@ -98,8 +98,13 @@ def test_enable_is_bumpless_and_set_points_after_it_move_the_axis(csp):
     assert abs(here) > 200_000
     csp.enable(0)
     csp.wait_state(0, "Operation enabled")
-    after_cycles(csp, 50)
+    snapshot = after_cycles(csp, 50)
     assert abs(actual(csp) - here) <= 1
+    # What went out: the target the cycle thread holds is where the axis is, with Enable
+    # operation, although the set-point written is 0.
+    assert CSP_OUTPUTS.unpack(csp.outputs(0))[:2] == (0, 0)
+    target, controlword, _ = CSP_OUTPUTS.unpack(snapshot["outputs"][0])
+    assert (abs(target - here) <= 1, controlword) == (True, 0x000F)
     # A set-point written after enable passes through.
     move_to(csp, here + 100_000)
 
@@ -114,6 +119,8 @@ def test_disable_and_quick_stop(csp):
     csp.wait_state(0, "Switch on disabled")
     status = csp.drive_status(0)
     assert (status["request"], status["progress"]) == ("disable", "done")
+    # The controlword that goes out is Disable voltage.
+    assert CSP_OUTPUTS.unpack(after_cycles(csp, 1)["outputs"][0])[1] == 0
 
 
 def test_fault_is_not_retried_and_reset_fault_clears_it_by_the_rising_edge():
@@ -137,6 +144,8 @@ def test_fault_is_not_retried_and_reset_fault_clears_it_by_the_rising_edge():
         cycle.wait_state(0, "Switch on disabled")
         status = cycle.drive_status(0)
         assert (status["request"], status["progress"], status["reason"]) == ("reset_fault", "done", None)
+        # Out of Fault, bit 7 is low again (ready for the next edge), the power stage stays off.
+        assert struct.unpack("<iH", after_cycles(cycle, 1)["outputs"][0])[1] == 0
 
 
 def test_a_drive_without_controlword_is_refused_naming_what_is_missing():

@@ -117,6 +117,9 @@ fn a_fault_while_enabled_is_not_retried_and_the_reset_clears_it() {
         if status.progress == Progress::Done { status } else { wait(&cycle, |s| s.progress == Progress::Done) };
     assert_eq!(status.request, Some(Request::FaultReset));
     assert_eq!(bus.lock().unwrap().slave(0).drive().fault(), None);
+    // Out of Fault, bit 7 is low again (ready for the next edge) and the power stage stays off.
+    let snapshot = cycle.snapshot();
+    assert_eq!(cycle.outputs_of(&snapshot, 0).unwrap()[4..6], [0, 0]);
     cycle.request(0, Request::Enable).unwrap();
     wait_state(&cycle, State::OperationEnabled);
 }

@@ -57,7 +57,7 @@ impl Config {
 }
 
 /// The snapshot header's layout: cycle (u64), time (u64), working counter (u16), whether the
-/// cycle's inputs are fresh (u8); the input image follows.
+/// cycle's inputs are fresh (u8); the input image follows, then the output image as sent.
 const HEADER_LEN: usize = 8 + 8 + 2 + 1;
 
 /// What the cycle thread published after one cycle.
@@ -73,6 +73,9 @@ pub struct Snapshot {
     pub fresh: bool,
     /// The whole input image; [`CycleThread::inputs_of`] cuts out one slave's.
     pub inputs: Vec<u8>,
+    /// The whole output image as this cycle sent it: the set-points with what the DS402
+    /// sequencer wrote over them; [`CycleThread::outputs_of`] cuts out one slave's.
+    pub outputs: Vec<u8>,
 }
 
 /// What the thread and the other threads share.
@@ -147,7 +150,7 @@ impl CycleThread {
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
             setpoints: SeqBytes::new(outputs.len(), &outputs),
-            snapshot: SeqBytes::new(HEADER_LEN + inputs_len, &[]),
+            snapshot: SeqBytes::new(HEADER_LEN + inputs_len + outputs.len(), &[]),
             stats: CycleStats::new(period_ns),
             drives: (0..master.slaves().len()).map(|_| ds402::Shared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
@@ -259,7 +262,8 @@ impl CycleThread {
         Duration::from_nanos(self.shared.request_timeout_ns.load(Ordering::Relaxed))
     }
 
-    /// The outputs of the slave at `position` as they go out from the next cycle on.
+    /// The outputs of the slave at `position` as last set (the set-points; for a sequenced
+    /// drive, the controlword and held target that go out are in [`Snapshot::outputs`]).
     pub fn outputs(&self, position: u16) -> Result<Vec<u8>> {
         let slot = self.slot(position)?;
         let mut image = vec![0; self.shared.setpoints.len()];
@@ -271,14 +275,22 @@ impl CycleThread {
     pub fn snapshot(&self) -> Snapshot {
         let mut bytes = vec![0; self.shared.snapshot.len()];
         self.shared.snapshot.read(&mut bytes);
-        let (header, inputs) = bytes.split_at(HEADER_LEN);
+        let (header, images) = bytes.split_at(HEADER_LEN);
+        let (inputs, outputs) = images.split_at(images.len() - self.shared.setpoints.len());
         Snapshot {
             cycle: u64::from_le_bytes(header[0..8].try_into().expect("8 bytes")),
             time_ns: u64::from_le_bytes(header[8..16].try_into().expect("8 bytes")),
             wkc: u16::from_le_bytes([header[16], header[17]]),
             fresh: header[18] != 0,
             inputs: inputs.to_vec(),
+            outputs: outputs.to_vec(),
         }
+    }
+
+    /// The outputs the slave at `position` was sent in `snapshot`'s cycle.
+    pub fn outputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+        let slot = self.slot(position)?;
+        Ok(&snapshot.outputs[slot.out_offset..slot.out_offset + slot.out_len])
     }
 
     /// The inputs of the slave at `position` in `snapshot`.
@@ -379,8 +391,9 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [(usize, ds402::Drive)
             w.write(8, &wake.to_le_bytes());
             w.write(16, &wkc.to_le_bytes());
             w.write(18, &[result.is_ok() as u8]);
-            if let Ok(inputs) = master.input_image() {
+            if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
                 w.write(HEADER_LEN, inputs);
+                w.write(HEADER_LEN + inputs.len(), outputs);
             }
         }
         CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
@@ -447,6 +460,8 @@ mod tests {
         assert!(later.fresh);
         assert_eq!(later.wkc, 6);
         assert_eq!(cycle.inputs_of(&later, 1).unwrap().len(), 6);
+        // No drive was asked for anything: the set-points go out as written.
+        assert_eq!(cycle.outputs_of(&later, 0).unwrap(), [0x78, 0x56, 0x34, 0x12, 0x06, 0]);
         let stats = cycle.stats();
         assert!(stats.period.summary().count >= 20);
         assert!(stats.wake_latency.summary().count >= 21);

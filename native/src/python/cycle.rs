@@ -91,14 +91,15 @@ impl PyCycle {
         self.cycle.set_outputs(position, &data).py()
     }
 
-    /// The outputs of the slave at `position` as they go out.
+    /// The outputs of the slave at `position` as last set; what went out is in `snapshot()`.
     fn outputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
         Ok(PyBytes::new(py, &self.cycle.outputs(position).py()?))
     }
 
     /// The last cycle's snapshot: cycle (count, from 1), time_ns (monotonic wake-up time),
-    /// wkc, fresh (whether this cycle's exchange succeeded) and inputs (one bytes per slave,
-    /// None for a slave without process data), all from the same cycle.
+    /// wkc, fresh (whether this cycle's exchange succeeded), inputs and outputs (as sent: the
+    /// set-points with the sequencer's controlword and held target), each one bytes per slave
+    /// (None for a slave without process data), all from the same cycle.
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let cycle = &self.cycle;
         let s = cycle.snapshot();
@@ -108,13 +109,17 @@ impl PyCycle {
         d.set_item("wkc", s.wkc)?;
         d.set_item("fresh", s.fresh)?;
         let inputs = PyList::empty(py);
+        let outputs = PyList::empty(py);
         for position in 0..cycle.slave_count() {
-            match cycle.inputs_of(&s, position) {
-                Ok(data) => inputs.append(PyBytes::new(py, data))?,
-                Err(_) => inputs.append(py.None())?,
+            for (list, data) in [(&inputs, cycle.inputs_of(&s, position)), (&outputs, cycle.outputs_of(&s, position))] {
+                match data {
+                    Ok(data) => list.append(PyBytes::new(py, data))?,
+                    Err(_) => list.append(py.None())?,
+                }
             }
         }
         d.set_item("inputs", inputs)?;
+        d.set_item("outputs", outputs)?;
         Ok(d)
     }
 
