@@ -3,6 +3,8 @@
 //! The Cycle takes the Master for as long as it runs and gives it back on `stop()`. The thread
 //! never needs the GIL; set-points and snapshots go through lock-free buffers, so a Python
 //! thread busy with anything never delays a cycle. Waiting on the thread releases the GIL.
+//! Drives are enabled, disabled, quick-stopped and reset by the DS402 sequencer inside the
+//! thread (`enable`, `disable`, `quick_stop`, `reset_fault`, `drive_status`, `wait_state`).
 
 use std::time::Duration;
 
