@@ -36,6 +36,16 @@ impl<L: Link + ?Sized> Link for Box<L> {
     }
 }
 
+/// Copies a returned frame into the caller's buffer and gives its length; a buffer too small
+/// for it is an error, not a truncated frame.
+pub fn copy_reply(reply: &[u8], rx: &mut [u8]) -> Result<usize> {
+    let room = rx.len();
+    rx.get_mut(..reply.len())
+        .ok_or(crate::error::FrameError::TooLarge { len: reply.len(), room })?
+        .copy_from_slice(reply);
+    Ok(reply.len())
+}
+
 /// Whether `rx` is the return of the frame `tx`: same frame header and, datagram by datagram,
 /// the same command, index and length. Slaves change addresses (auto-increment), data, IRQ
 /// and working counters, never these, so a stale reply of an earlier frame (another index)

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use crate::error::{Error, FrameError, Result};
 use crate::frame::{self, ETHERTYPE, ETH_HEADER_LEN, MIN_ETH_FRAME_LEN};
-use crate::link::{is_reply_to, Link};
+use crate::link::{copy_reply, is_reply_to, Link};
 
 /// Source MAC of the master's frames: the one SOEM uses, so captures of both look alike.
 pub const MASTER_MAC: [u8; 6] = [0x01, 0x01, 0x01, 0x01, 0x01, 0x01];
@@ -223,12 +223,7 @@ impl Link for RawLink {
             };
             if let Some(payload) = unwrap_returned(&self.rx[..got]) {
                 if is_reply_to(tx, payload) {
-                    let n = payload.len();
-                    let room = rx.len();
-                    rx.get_mut(..n)
-                        .ok_or(Error::Frame(FrameError::TooLarge { len: n, room }))?
-                        .copy_from_slice(payload);
-                    return Ok(n);
+                    return copy_reply(payload, rx);
                 }
             }
         }

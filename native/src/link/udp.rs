@@ -5,9 +5,9 @@ use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
-use crate::error::{Error, FrameError, Result};
+use crate::error::{Error, Result};
 use crate::frame::{self, ETHERTYPE};
-use crate::link::{is_reply_to, Link};
+use crate::link::{copy_reply, is_reply_to, Link};
 
 /// The UDP port of EtherCAT over UDP (0x88A4 = 34980).
 pub const DEFAULT_PORT: u16 = ETHERTYPE;
@@ -67,9 +67,7 @@ impl Link for Udp {
             };
             let reply = &self.rx[..got];
             if is_reply_to(tx, reply) {
-                let room = rx.len();
-                rx.get_mut(..got).ok_or(Error::Frame(FrameError::TooLarge { len: got, room }))?.copy_from_slice(reply);
-                return Ok(got);
+                return copy_reply(reply, rx);
             }
         }
     }
