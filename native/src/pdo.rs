@@ -39,6 +39,11 @@ impl PdoEntry {
         ((self.index as u32) << 16) | ((self.subindex as u32) << 8) | self.bits as u32
     }
 
+    /// Bytes the entry occupies in the process image, a partial byte counting as one.
+    pub const fn byte_len(self) -> usize {
+        (self.bits as usize).div_ceil(8)
+    }
+
     /// Whether this is a padding entry (0x0002 on outputs, 0x2002:01..04 on inputs), which
     /// occupies bits but carries no object.
     pub const fn is_padding(self) -> bool {

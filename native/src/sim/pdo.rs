@@ -54,7 +54,7 @@ pub fn apply_outputs(od: &mut ObjectDictionary, memory: &[u8], image: &[PdoEntry
     let base = AKD_PROCESS_OUT as usize;
     for (at, entry) in pdo::layout(image.iter().copied()) {
         if !entry.is_padding() {
-            let len = (entry.bits as usize).div_ceil(8);
+            let len = entry.byte_len();
             od.set(entry.index, entry.subindex, &memory[base + at..base + at + len]);
         }
     }
@@ -64,7 +64,7 @@ pub fn apply_outputs(od: &mut ObjectDictionary, memory: &[u8], image: &[PdoEntry
 pub fn refresh_inputs(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoEntry]) {
     let base = AKD_PROCESS_IN as usize;
     for (at, entry) in pdo::layout(image.iter().copied()) {
-        let len = (entry.bits as usize).div_ceil(8);
+        let len = entry.byte_len();
         let target = &mut memory[base + at..base + at + len];
         target.fill(0);
         if let Some(value) = od.get(entry.index, entry.subindex) {
