@@ -1,0 +1,842 @@
+"""Recording of the drive's topics into rosbag2 bags, with a black box of the last seconds.
+
+A :class:`Recorder` writes one rosbag2 bag directory (metadata.yaml version 9 and MCAP files with
+the ``ros2`` profile) as ``ros2 bag record -s mcap`` would, without needing rosbag2 itself: the
+node hands it messages, a writer thread of its own serialises them and does all the disk I/O.
+
+- Messages are serialised by rclpy's ``serialize_message`` (rclpy message classes) or by rosbags'
+  ``serialize_cdr`` (rosbags message classes with their typestore); the schemas are the complete
+  ``ros2msg`` definitions and the type hashes the RIHS01 hashes that the message's own type support
+  (or rosbags) reports, so every reader decodes the bag without this package.
+- The per-cycle channel (:meth:`Recorder.cycle_sample`) is recorded every ``decimation``-th
+  cycle, or not at all with ``decimation=0``; the last ``black_box_seconds`` of every cycle are
+  kept in memory regardless, and :meth:`Recorder.fault` writes them to the black box topic (by
+  default ``black_box`` beside the cycle topic, e.g. ``/akd_node/black_box``) with their own
+  times, so the cycles before a fault are in the bag even when the cycle topic is not recorded.
+- Chunks are closed (and so safe from a crash of the process) every ``chunk_size`` bytes or
+  ``flush_interval`` seconds, and metadata.yaml is rewritten each time to describe exactly what
+  the closed chunks hold. A bag whose process was killed has MCAP files without a summary:
+  :func:`reindex` rebuilds their summaries and metadata.yaml, as ``ros2 bag reindex`` does.
+- Files are split by size or by duration into ``<bag>_0.mcap``, ``<bag>_1.mcap``, ..., each a
+  complete MCAP file with all schemas and channels.
+- :meth:`Recorder.write` never blocks and never raises for I/O: a full queue drops the message
+  and counts it; a failed disk (unwritable folder, disk full) is reported once, through
+  ``on_error`` and the ``akd_ros.recorder`` logger, and counted in :attr:`Recorder.stats`;
+  recording stops there, and the bag stays readable up to the last closed chunk.
+"""
+
+from __future__ import annotations
+
+import collections
+import ctypes
+import datetime
+import logging
+import math
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+import yaml
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Message, Schema
+from mcap.writer import CompressionType, Writer
+
+__all__ = [
+    "BAG_VERSION",
+    "COMPRESSIONS",
+    "MessageType",
+    "Recorder",
+    "RecorderStats",
+    "message_type",
+    "reindex",
+]
+
+LOG = logging.getLogger("akd_ros.recorder")
+
+#: rosbag2 metadata version written (Jazzy's).
+BAG_VERSION = 9
+#: Chunk compressions, by the name used in the constructor and the ROS parameters.
+COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+_DEFINITION_DELIMITER = "=" * 80 + "\n"
+_STORAGE_ID = "mcap"
+_SERIALIZATION = "cdr"
+_LIBRARY = "akd_ros recorder"
+# The profile an rmw publisher offers by default (rmw_qos_profile_default), in rosbag2's v9 form.
+_DEFAULT_QOS = {
+    "history": "keep_last",
+    "depth": 10,
+    "reliability": "reliable",
+    "durability": "volatile",
+    "deadline": {"sec": 0, "nsec": 0},
+    "lifespan": {"sec": 0, "nsec": 0},
+    "liveliness": "system_default",
+    "liveliness_lease_duration": {"sec": 0, "nsec": 0},
+    "avoid_ros_namespace_conventions": False,
+}
+
+
+@dataclass(frozen=True)
+class MessageType:
+    """What a bag needs of one message type.
+
+    ``name`` is the full ROS name (``pkg/msg/Type``), ``definition`` the complete ``ros2msg``
+    schema (the type's .msg text, then each nested type's after a delimiter), ``type_hash`` the
+    RIHS01 type description hash and ``serialize`` turns a message into CDR bytes.
+    """
+
+    name: str
+    definition: str
+    type_hash: str
+    serialize: Callable[[Any], bytes] = field(compare=False)
+
+
+class _RosidlTypeHash(ctypes.Structure):
+    _fields_ = [("version", ctypes.c_uint8), ("value", ctypes.c_uint8 * 32)]
+
+
+class _RosidlString(ctypes.Structure):
+    _fields_ = [("data", ctypes.c_char_p), ("size", ctypes.c_size_t), ("capacity", ctypes.c_size_t)]
+
+
+class _RosidlTypeSource(ctypes.Structure):
+    _fields_ = [("type_name", _RosidlString), ("encoding", _RosidlString), ("raw_file_contents", _RosidlString)]
+
+
+class _RosidlTypeSourceSequence(ctypes.Structure):
+    _fields_ = [("data", ctypes.POINTER(_RosidlTypeSource)), ("size", ctypes.c_size_t), ("capacity", ctypes.c_size_t)]
+
+
+class _RosidlMessageTypeSupport(ctypes.Structure):
+    pass
+
+
+# rosidl_message_type_support_t of rosidl_runtime_c (Iron and later): the C type support that a
+# Python message class holds in its _TYPE_SUPPORT capsule carries the type's hash and .msg sources.
+_RosidlMessageTypeSupport._fields_ = [
+    ("typesupport_identifier", ctypes.c_char_p),
+    ("data", ctypes.c_void_p),
+    ("func", ctypes.c_void_p),
+    ("get_type_hash_func", ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeHash), ctypes.POINTER(_RosidlMessageTypeSupport))),
+    ("get_type_description_func", ctypes.c_void_p),
+    (
+        "get_type_description_sources_func",
+        ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeSourceSequence), ctypes.POINTER(_RosidlMessageTypeSupport)),
+    ),
+]
+
+
+def _type_support(msg_class: type) -> _RosidlMessageTypeSupport:
+    capsule = msg_class._TYPE_SUPPORT
+    get_name = ctypes.pythonapi.PyCapsule_GetName
+    get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
+    get_pointer = ctypes.pythonapi.PyCapsule_GetPointer
+    get_pointer.restype, get_pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
+    pointer = get_pointer(capsule, get_name(capsule))
+    return ctypes.cast(pointer, ctypes.POINTER(_RosidlMessageTypeSupport)).contents
+
+
+def _rclpy_name(msg_class: type) -> str:
+    return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
+
+
+def _nested_classes(msg_class: type) -> list[type]:
+    """The message classes of msg_class's fields, sorted by name, as rosbag2 orders dependencies."""
+    import importlib
+
+    found = {}
+    for slot_type in msg_class.SLOT_TYPES:
+        slot_type = getattr(slot_type, "value_type", slot_type)
+        namespaces = getattr(slot_type, "namespaces", None)
+        if namespaces:
+            module = importlib.import_module(".".join(namespaces))
+            nested = getattr(module, slot_type.name)
+            found[_rclpy_name(nested)] = nested
+    return [found[name] for name in sorted(found)]
+
+
+def _rclpy_message_type(msg_class: type) -> MessageType:
+    from rclpy.serialization import serialize_message
+    from rclpy.type_support import check_for_type_support
+
+    check_for_type_support(msg_class)
+    support = _type_support(msg_class)
+    digest = support.get_type_hash_func(ctypes.byref(support)).contents
+    sources_seq = support.get_type_description_sources_func(ctypes.byref(support)).contents
+    sources = {}
+    for index in range(sources_seq.size):
+        source = sources_seq.data[index]
+        if source.encoding.data == b"msg":
+            sources[source.type_name.data.decode()] = source.raw_file_contents.data.decode()
+    name = _rclpy_name(msg_class)
+    if name not in sources:
+        raise ValueError(
+            f"{name}: its type support carries no .msg source (it was generated from "
+            f"{sorted(sources) or 'no .msg file'}), so the bag could not describe it"
+        )
+
+    seen: set[str] = set()
+
+    # rosbag2's LocalMessageDefinitionSource: each type's text, then, depth first, every nested
+    # type not written yet after the two-line delimiter.
+    def definition(cls: type) -> str:
+        text = sources[_rclpy_name(cls)]
+        for nested in _nested_classes(cls):
+            nested_name = _rclpy_name(nested)
+            if nested_name not in seen:
+                seen.add(nested_name)
+                text += f"\n{_DEFINITION_DELIMITER}MSG: {nested_name}\n" + definition(nested)
+        return text
+
+    full_definition = definition(msg_class)
+    cdr_length = _cdr_length(full_definition, name)
+
+    def serialize(msg: Any) -> bytes:
+        data = serialize_message(msg)
+        return data[: cdr_length(data)]
+
+    return MessageType(
+        name=name,
+        definition=full_definition,
+        type_hash=f"RIHS{digest.version:02d}_{bytes(digest.value).hex()}",
+        serialize=serialize,
+    )
+
+
+def _cdr_length(definition: str, name: str) -> Callable[[bytes], int]:
+    """How many bytes of a serialised name are the message, by decoding it with the bag's schema.
+
+    rmw_fastrtps's rmw_serialize (behind rclpy's serialize_message) returns the buffer at its
+    size estimate, which for some types (e.g. empty float64 sequences) is longer than the CDR
+    written; rosbags rejects such messages, and they should not be in a bag.
+    """
+    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+
+    store = get_typestore(Stores.EMPTY)
+    store.register(get_types_from_msg(definition, name))
+    msgdef = store.get_msgdef(name)
+
+    def length(data: bytes) -> int:
+        decode = msgdef.deserialize_cdr_le if data[1] else msgdef.deserialize_cdr_be
+        _, end = decode(memoryview(data)[4:], 0, msgdef.cls, store)
+        return 4 + end
+
+    return length
+
+
+def _rosbags_message_type(msg_class: type, typestore: Any) -> MessageType:
+    name = msg_class.__msgtype__
+    if typestore.types.get(name) is not msg_class:
+        raise ValueError(f"{name} is not a message class of the given typestore")
+    definition, _ = typestore.generate_msgdef(name, ros_version=2)
+    return MessageType(
+        name=name,
+        definition=definition,
+        type_hash=typestore.hash_rihs01(name),
+        serialize=lambda msg: bytes(typestore.serialize_cdr(msg, name)),
+    )
+
+
+def message_type(msg_class: type, typestore: Any = None) -> MessageType:
+    """Describes msg_class for a bag.
+
+    msg_class is an rclpy message class (e.g. ``sensor_msgs.msg.JointState``), or, with the
+    rosbags ``typestore`` it belongs to, a rosbags message class (e.g.
+    ``typestore.types['sensor_msgs/msg/JointState']``). Raises ValueError for anything else.
+    """
+    if typestore is not None:
+        if not hasattr(msg_class, "__msgtype__"):
+            raise ValueError(f"{msg_class!r} is not a rosbags message class (no __msgtype__)")
+        return _rosbags_message_type(msg_class, typestore)
+    if not (isinstance(msg_class, type) and hasattr(msg_class, "SLOT_TYPES")):
+        raise ValueError(
+            f"{msg_class!r} is not an rclpy message class; pass a class such as "
+            "sensor_msgs.msg.JointState, or a rosbags message class with typestore="
+        )
+    return _rclpy_message_type(msg_class)
+
+
+def _duration_yaml(duration: Any) -> dict:
+    nanoseconds = duration.nanoseconds
+    return {"sec": nanoseconds // 1_000_000_000, "nsec": nanoseconds % 1_000_000_000}
+
+
+def _qos_profile(qos: Any) -> dict:
+    """rosbag2's v9 dictionary of an rclpy QoSProfile (None: the rmw default profile)."""
+    if qos is None:
+        return dict(_DEFAULT_QOS)
+    try:
+        return {
+            "history": qos.history.name.lower(),
+            "depth": int(qos.depth),
+            "reliability": qos.reliability.name.lower(),
+            "durability": qos.durability.name.lower(),
+            "deadline": _duration_yaml(qos.deadline),
+            "lifespan": _duration_yaml(qos.lifespan),
+            "liveliness": qos.liveliness.name.lower(),
+            "liveliness_lease_duration": _duration_yaml(qos.liveliness_lease_duration),
+            "avoid_ros_namespace_conventions": bool(qos.avoid_ros_namespace_conventions),
+        }
+    except AttributeError as err:
+        raise ValueError(f"qos must be an rclpy.qos.QoSProfile or None, not {qos!r}") from err
+
+
+def _dump_yaml(data: Any) -> str:
+    return yaml.safe_dump(data, default_flow_style=False, sort_keys=False)
+
+
+@dataclass
+class _Topic:
+    name: str
+    msg_type: MessageType
+    qos_yaml: str
+    message_count: int = 0
+
+
+@dataclass
+class _File:
+    path: Path
+    start_ns: Optional[int] = None
+    end_ns: Optional[int] = None
+    message_count: int = 0
+
+    def add(self, time_ns: int) -> None:
+        self.start_ns = time_ns if self.start_ns is None else min(self.start_ns, time_ns)
+        self.end_ns = time_ns if self.end_ns is None else max(self.end_ns, time_ns)
+        self.message_count += 1
+
+
+def _bag_metadata(topics: list[_Topic], files: list[_File]) -> dict:
+    """metadata.yaml's content, as rosbag2 (Jazzy) writes it, for the given topics and files."""
+    starts = [f.start_ns for f in files if f.start_ns is not None]
+    ends = [f.end_ns for f in files if f.end_ns is not None]
+    start = min(starts, default=0)
+    return {
+        "rosbag2_bagfile_information": {
+            "version": BAG_VERSION,
+            "storage_identifier": _STORAGE_ID,
+            "duration": {"nanoseconds": max(ends, default=start) - start},
+            "starting_time": {"nanoseconds_since_epoch": start},
+            "message_count": sum(f.message_count for f in files),
+            "topics_with_message_count": [
+                {
+                    "topic_metadata": {
+                        "name": t.name,
+                        "type": t.msg_type.name,
+                        "serialization_format": _SERIALIZATION,
+                        "offered_qos_profiles": yaml.safe_load(t.qos_yaml),
+                        "type_description_hash": t.msg_type.type_hash,
+                    },
+                    "message_count": t.message_count,
+                }
+                for t in topics
+            ],
+            # Compression is MCAP's own, per chunk: rosbag2 lists no bag-level compression then.
+            "compression_format": "",
+            "compression_mode": "",
+            "relative_file_paths": [f.path.name for f in files],
+            "files": [
+                {
+                    "path": f.path.name,
+                    "starting_time": {"nanoseconds_since_epoch": f.start_ns or 0},
+                    "duration": {"nanoseconds": (f.end_ns or 0) - (f.start_ns or 0)},
+                    "message_count": f.message_count,
+                }
+                for f in files
+            ],
+            "custom_data": None,
+            "ros_distro": os.environ.get("ROS_DISTRO", "jazzy"),
+        }
+    }
+
+
+def _write_metadata(bag: Path, metadata: dict) -> None:
+    # Written beside and renamed, so a crash never leaves a half-written metadata.yaml.
+    tmp = bag / "metadata.yaml.tmp"
+    tmp.write_text(_dump_yaml(metadata), encoding="utf-8")
+    os.replace(tmp, bag / "metadata.yaml")
+
+
+class _McapFile:
+    """One open MCAP file of the bag, with every topic's schema and channel."""
+
+    def __init__(self, path: Path, topics: list[_Topic], compression: CompressionType):
+        self.info = _File(path)
+        self.stream = open(path, "wb")
+        # Chunks are closed by flush() from the recorder, so that each closed chunk reaches the
+        # OS at once; mcap's own size limit is set out of reach.
+        self.writer = Writer(
+            self.stream, chunk_size=2**62, compression=compression, enable_crcs=True
+        )
+        self.writer.start(profile="ros2", library=_LIBRARY)
+        self.schema_ids: dict[str, int] = {}
+        self.channel_ids: dict[str, int] = {}
+        for topic in topics:
+            self.add_topic(topic)
+
+    def add_topic(self, topic: _Topic) -> None:
+        msg_type = topic.msg_type
+        if msg_type.name not in self.schema_ids:
+            self.schema_ids[msg_type.name] = self.writer.register_schema(
+                msg_type.name, "ros2msg", msg_type.definition.encode()
+            )
+        self.channel_ids[topic.name] = self.writer.register_channel(
+            topic.name,
+            _SERIALIZATION,
+            self.schema_ids[msg_type.name],
+            {"offered_qos_profiles": topic.qos_yaml, "topic_type_hash": msg_type.type_hash},
+        )
+
+    def add_message(self, topic: str, time_ns: int, data: bytes) -> None:
+        self.writer.add_message(self.channel_ids[topic], time_ns, data, time_ns)
+        self.info.add(time_ns)
+
+    def flush(self) -> None:
+        self.writer.flush()
+
+    def size(self) -> int:
+        return self.stream.tell()
+
+    def close(self, metadata: dict) -> None:
+        self.writer.add_metadata(
+            "rosbag2",
+            {
+                "serialized_metadata": _dump_yaml(metadata["rosbag2_bagfile_information"]),
+                "ROS_DISTRO": metadata["rosbag2_bagfile_information"]["ros_distro"],
+            },
+        )
+        self.writer.finish()
+        self.stream.flush()
+        os.fsync(self.stream.fileno())
+        self.stream.close()
+
+
+@dataclass
+class RecorderStats:
+    """Counters of a Recorder, all since it was made.
+
+    ``written`` messages are in the bag's closed chunks or pending in the open one; ``dropped``
+    were refused because the queue was full or recording had stopped on an error; ``errors``
+    counts I/O failures (only the first is reported); ``black_box_dumps`` counts faults whose
+    black box was written; ``files`` are the bag's MCAP files so far.
+    """
+
+    bag: Optional[Path] = None
+    written: int = 0
+    dropped: int = 0
+    errors: int = 0
+    black_box_dumps: int = 0
+    files: list[Path] = field(default_factory=list)
+
+
+_CLOSE = object()
+
+
+class Recorder:
+    """Records topics into a new rosbag2 bag (MCAP) inside ``folder``; see the module doc.
+
+    The bag directory is named ``<prefix>_<YYYY_MM_DD-HH_MM_SS>`` after the local time it was
+    opened at. Arguments:
+
+    - ``cycle_rate_hz``: the rate of :meth:`cycle_sample` calls, which sizes the black box ring.
+    - ``split_size`` (bytes) / ``split_duration`` (seconds): start a new MCAP file when the
+      current one has reached this size, or spans this long; None never splits.
+    - ``chunk_size`` (bytes) / ``flush_interval`` (seconds): a chunk is closed, compressed and
+      written when it holds this much, or is this old; a killed process loses at most that.
+    - ``compression``: ``'zstd'``, ``'lz4'`` or ``'none'`` for the chunks.
+    - ``decimation``: record every n-th cycle sample on the cycle topic; 0 records none (the
+      black box still keeps them all).
+    - ``black_box_seconds``: how much of the past :meth:`fault` writes to the black box topic.
+    - ``queue_size``: messages waiting for the writer thread beyond which :meth:`write` drops.
+    - ``on_error``: called once, from the writer thread, with the text of the first I/O error.
+
+    Bad arguments raise ValueError naming the allowed values; I/O never raises into the caller.
+    """
+
+    def __init__(
+        self,
+        folder: os.PathLike | str,
+        *,
+        cycle_rate_hz: float,
+        split_size: Optional[int] = None,
+        split_duration: Optional[float] = None,
+        chunk_size: int = 1 << 20,
+        flush_interval: float = 1.0,
+        compression: str = "zstd",
+        decimation: int = 1,
+        black_box_seconds: float = 5.0,
+        queue_size: int = 100_000,
+        prefix: str = "akd",
+        on_error: Optional[Callable[[str], None]] = None,
+    ):
+        if compression not in COMPRESSIONS:
+            raise ValueError(f"compression {compression!r} is not one of {sorted(COMPRESSIONS)}")
+        _check_positive("cycle_rate_hz", cycle_rate_hz)
+        _check_positive("chunk_size", chunk_size, integer=True)
+        _check_positive("flush_interval", flush_interval)
+        _check_positive("queue_size", queue_size, integer=True)
+        if split_size is not None:
+            _check_positive("split_size", split_size, integer=True)
+        if split_duration is not None:
+            _check_positive("split_duration", split_duration)
+        if not isinstance(decimation, int) or isinstance(decimation, bool) or decimation < 0:
+            raise ValueError(f"decimation must be an integer >= 0 (0: cycle topic off), not {decimation!r}")
+        if not isinstance(black_box_seconds, (int, float)) or not 0 <= black_box_seconds < math.inf:
+            raise ValueError(f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}")
+
+        self._folder = Path(folder)
+        self._compression = COMPRESSIONS[compression]
+        self._split_size = split_size
+        self._split_duration_ns = None if split_duration is None else int(split_duration * 1e9)
+        self._chunk_size = chunk_size
+        self._flush_interval = flush_interval
+        self._decimation = decimation
+        self._queue_size = queue_size
+        self._on_error = on_error
+        self._name = f"{prefix}_{datetime.datetime.now().strftime('%Y_%m_%d-%H_%M_%S')}"
+
+        self._topics: dict[str, _Topic] = {}
+        self._cycle_topic: Optional[str] = None
+        self._black_box_topic: Optional[str] = None
+        self._ring: collections.deque = collections.deque(maxlen=max(1, math.ceil(black_box_seconds * cycle_rate_hz)))
+        self._black_box_on = black_box_seconds > 0
+        self._last_dumped_ns: Optional[int] = None
+        self._cycle_count = 0
+        self._lock = threading.Lock()
+        self._stats_lock = threading.Lock()
+
+        # A deque, not a queue.Queue: append and popleft take no lock the caller could wait on.
+        self._queue: collections.deque = collections.deque()
+        self._wake = threading.Event()
+        self._closed = False
+        self._failed = False
+        self.stats = RecorderStats()
+        self._files: list[_File] = []
+        self._file: Optional[_McapFile] = None
+        self._pending_bytes = 0
+        self._last_flush = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="akd_recorder", daemon=True)
+        self._thread.start()
+
+    @property
+    def bag_path(self) -> Path:
+        """The bag directory (made by the writer thread; it may not exist yet or have failed)."""
+        return self._folder / self._name
+
+    def add_topic(self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None) -> None:
+        """Adds a topic of msg_class (see :func:`message_type`) with the QoS its publisher offers.
+
+        Raises ValueError for a topic name that is not absolute, one added before, or a class
+        that is no message class.
+        """
+        if not isinstance(topic, str) or not topic.startswith("/") or topic.endswith("/") or " " in topic:
+            raise ValueError(f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}")
+        with self._lock:
+            if topic in self._topics:
+                raise ValueError(f"topic {topic} was added before (topics: {sorted(self._topics)})")
+            entry = _Topic(topic, message_type(msg_class, typestore), _dump_yaml([_qos_profile(qos)]))
+            self._topics[topic] = entry
+        self._enqueue(("topic", entry), control=True)
+
+    def add_cycle_topic(
+        self,
+        topic: str,
+        msg_class: type,
+        qos: Any = None,
+        *,
+        black_box_topic: Optional[str] = None,
+        typestore: Any = None,
+    ) -> None:
+        """Adds the per-cycle topic that :meth:`cycle_sample` feeds, and its black box topic.
+
+        The black box topic (default: ``black_box`` in the cycle topic's namespace) has the same
+        type; it is only in the bag when the black box is on (``black_box_seconds > 0``), and
+        the cycle topic only when ``decimation > 0``.
+        """
+        if self._cycle_topic is not None:
+            raise ValueError(f"the cycle topic is {self._cycle_topic} already; there is one per recorder")
+        if black_box_topic is None:
+            black_box_topic = topic.rsplit("/", 1)[0] + "/black_box"
+        if black_box_topic == topic:
+            raise ValueError(f"black_box_topic must differ from the cycle topic {topic}")
+        if self._decimation:
+            self.add_topic(topic, msg_class, qos, typestore=typestore)
+        if self._black_box_on:
+            self.add_topic(black_box_topic, msg_class, qos, typestore=typestore)
+        self._cycle_topic, self._black_box_topic = topic, black_box_topic
+
+    def write(self, topic: str, msg: Any, time_ns: int) -> None:
+        """Queues msg for topic at time_ns (nanoseconds since the epoch); never blocks.
+
+        The message must not be changed afterwards: it is serialised by the writer thread.
+        Raises ValueError for a topic not added; a full queue or a failed recorder drops and
+        counts the message instead.
+        """
+        if topic not in self._topics:
+            raise ValueError(f"topic {topic} was not added (topics: {sorted(self._topics)})")
+        self._enqueue((topic, msg, time_ns))
+
+    def cycle_sample(self, msg: Any, time_ns: int) -> None:
+        """Takes one cycle's sample: into the black box ring, and every decimation-th to the cycle topic."""
+        if self._cycle_topic is None:
+            raise ValueError("no cycle topic: call add_cycle_topic first")
+        self._ring.append((time_ns, msg))
+        if self._decimation and self._cycle_count % self._decimation == 0:
+            self._enqueue((self._cycle_topic, msg, time_ns))
+        self._cycle_count += 1
+
+    def fault(self, time_ns: int) -> None:
+        """Writes the black box: the ring's samples up to time_ns not written by an earlier fault.
+
+        They go to the black box topic with their own times, and the chunk is closed and synced
+        at once so that the moments before the fault survive whatever follows.
+        """
+        if self._cycle_topic is None or not self._black_box_on:
+            return
+        samples = [s for s in list(self._ring) if s[0] <= time_ns]
+        if self._last_dumped_ns is not None:
+            samples = [s for s in samples if s[0] > self._last_dumped_ns]
+        if samples:
+            self._last_dumped_ns = samples[-1][0]
+        self._enqueue(("black_box", samples), control=True)
+
+    def close(self, timeout: float = 30.0) -> RecorderStats:
+        """Writes what is queued, finishes the MCAP summaries and metadata.yaml, stops the thread."""
+        if not self._closed:
+            self._closed = True
+            self._enqueue(_CLOSE, control=True)
+        self._thread.join(timeout)
+        return self.stats
+
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _enqueue(self, item: Any, control: bool = False) -> None:
+        if self._failed or (self._closed and item is not _CLOSE) or (
+            not control and len(self._queue) >= self._queue_size
+        ):
+            with self._stats_lock:
+                self.stats.dropped += 1
+            return
+        self._queue.append(item)
+        self._wake.set()
+
+    # --- writer thread ---------------------------------------------------------------------
+
+    def _run(self) -> None:
+        try:
+            self.bag_path.parent.mkdir(parents=True, exist_ok=True)
+            self.bag_path.mkdir()
+            self.stats.bag = self.bag_path
+            self._open_file()
+            self._save_metadata()
+        except Exception as err:  # noqa: BLE001 - every I/O failure is reported, none raised
+            self._fail(f"cannot open bag {self.bag_path}: {err}")
+        while True:
+            self._wake.wait(self._flush_interval)
+            self._wake.clear()
+            while self._queue:
+                item = self._queue.popleft()
+                if item is _CLOSE:
+                    self._finish()
+                    return
+                if not self._failed:
+                    self._guarded(self._handle, item)
+            if not self._failed and self._pending_bytes and time.monotonic() - self._last_flush >= self._flush_interval:
+                self._guarded(self._flush)
+
+    def _guarded(self, action: Callable, *args: Any) -> None:
+        try:
+            action(*args)
+        except Exception as err:  # noqa: BLE001 - every I/O failure is reported, none raised
+            self._fail(f"recording into {self.bag_path} stopped: {err}")
+
+    def _fail(self, text: str) -> None:
+        self.stats.errors += 1
+        if self._failed:
+            return
+        self._failed = True
+        LOG.error("%s", text)
+        if self._on_error is not None:
+            self._on_error(text)
+        # What waits is lost with the failed disk: count it as dropped.
+        with self._stats_lock:
+            self.stats.dropped += sum(1 for item in self._queue if isinstance(item, tuple) and len(item) == 3)
+
+    def _handle(self, item: tuple) -> None:
+        if item[0] == "topic":
+            self._file.add_topic(item[1])
+            self._save_metadata()
+        elif item[0] == "black_box":
+            for time_ns, msg in item[1]:
+                self._add(self._black_box_topic, msg, time_ns)
+            self.stats.black_box_dumps += 1
+            self._flush(sync=True)
+        else:
+            self._add(*item)
+
+    def _add(self, topic: str, msg: Any, time_ns: int) -> None:
+        entry = self._topics[topic]
+        data = entry.msg_type.serialize(msg)
+        if (
+            self._split_duration_ns is not None
+            and self._file.info.start_ns is not None
+            and time_ns - self._file.info.start_ns >= self._split_duration_ns
+        ):
+            self._split()
+        self._file.add_message(topic, time_ns, data)
+        entry.message_count += 1
+        self.stats.written += 1
+        self._pending_bytes += len(data)
+        if self._pending_bytes >= self._chunk_size:
+            self._flush()
+
+    def _flush(self, sync: bool = False) -> None:
+        self._file.flush()
+        if sync:
+            os.fsync(self._file.stream.fileno())
+        self._pending_bytes = 0
+        self._last_flush = time.monotonic()
+        self._save_metadata()
+        if self._split_size is not None and self._file.size() >= self._split_size:
+            self._split()
+
+    def _split(self) -> None:
+        self._file.flush()
+        self._file.close(self._metadata())
+        self._open_file()
+        self._pending_bytes = 0
+        self._save_metadata()
+
+    def _open_file(self) -> None:
+        path = self.bag_path / f"{self._name}_{len(self._files)}.mcap"
+        self._file = _McapFile(path, list(self._topics.values()), self._compression)
+        self._files.append(self._file.info)
+        self.stats.files.append(path)
+
+    def _metadata(self) -> dict:
+        return _bag_metadata(list(self._topics.values()), self._files)
+
+    def _save_metadata(self) -> None:
+        _write_metadata(self.bag_path, self._metadata())
+
+    def _finish(self) -> None:
+        if self._failed or self._file is None:
+            return
+        self._guarded(self._file.close, self._metadata())
+        if not self._failed:
+            self._guarded(self._save_metadata)
+
+
+def _check_positive(name: str, value: Any, integer: bool = False) -> None:
+    kinds = (int,) if integer else (int, float)
+    if not isinstance(value, kinds) or isinstance(value, bool) or not 0 < value < math.inf:
+        kind = "an integer" if integer else "a number"
+        raise ValueError(f"{name} must be {kind} > 0, not {value!r}")
+
+
+# --- reindex ---------------------------------------------------------------------------------
+
+
+def _read_records(path: Path) -> tuple[list, bool]:
+    """The schema, channel and message records of an MCAP file, read to the last whole record.
+
+    Returns them and whether the file was complete (had its footer).
+    """
+    records = []
+    complete = False
+    with open(path, "rb") as stream:
+        try:
+            for record in StreamReader(stream, skip_magic=False).records:
+                if isinstance(record, (Schema, Channel, Message)):
+                    records.append(record)
+            complete = True
+        except (McapError, EOFError, ValueError, OSError) as err:
+            LOG.info("%s ends early (%s); recovering what precedes", path.name, err)
+    return records, complete
+
+
+def _has_summary(path: Path) -> bool:
+    try:
+        with open(path, "rb") as stream:
+            return make_reader(stream).get_summary() is not None
+    except Exception:  # noqa: BLE001 - any failure means the summary must be rebuilt
+        return False
+
+
+def reindex(bag: os.PathLike | str) -> Path:
+    """Rebuilds a bag after a crash, as ``ros2 bag reindex`` does, and returns metadata.yaml's path.
+
+    Each ``.mcap`` file of the directory without a summary (its writer was killed) is rewritten
+    with every whole record it holds (all messages of its closed chunks) and a complete summary;
+    metadata.yaml is then written anew from the files. Raises FileNotFoundError for a path that
+    is no directory or holds no .mcap file.
+    """
+    bag = Path(bag)
+    if not bag.is_dir():
+        raise FileNotFoundError(f"{bag} is not a bag directory")
+
+    def index(path: Path) -> tuple[int, str]:
+        suffix = path.stem.rsplit("_", 1)[-1]
+        return (int(suffix), path.name) if suffix.isdigit() else (-1, path.name)
+
+    paths = sorted(bag.glob("*.mcap"), key=index)
+    if not paths:
+        raise FileNotFoundError(f"{bag} holds no .mcap file")
+
+    topics: dict[str, _Topic] = {}
+    files: list[_File] = []
+    for path in paths:
+        records, complete = _read_records(path)
+        schemas = {r.id: r for r in records if isinstance(r, Schema)}
+        channels = {r.id: r for r in records if isinstance(r, Channel)}
+        for channel in channels.values():
+            if channel.topic not in topics:
+                schema = schemas[channel.schema_id]
+                msg_type = MessageType(
+                    name=schema.name,
+                    definition=schema.data.decode(),
+                    type_hash=channel.metadata.get("topic_type_hash", ""),
+                    serialize=bytes,
+                )
+                topics[channel.topic] = _Topic(channel.topic, msg_type, channel.metadata.get("offered_qos_profiles", ""))
+        info = _File(path)
+        for record in records:
+            if isinstance(record, Message):
+                info.add(record.log_time)
+                topics[channels[record.channel_id].topic].message_count += 1
+        files.append(info)
+        if not (complete and _has_summary(path)):
+            _rewrite(path, records, schemas, channels)
+
+    metadata = _bag_metadata(list(topics.values()), files)
+    _write_metadata(bag, metadata)
+    return bag / "metadata.yaml"
+
+
+def _rewrite(path: Path, records: list, schemas: dict, channels: dict) -> None:
+    tmp = path.with_name(path.name + ".reindex")
+    with open(tmp, "wb") as stream:
+        writer = Writer(stream, compression=CompressionType.ZSTD)
+        writer.start(profile="ros2", library=_LIBRARY)
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
+        channel_ids = {
+            cid: writer.register_channel(c.topic, c.message_encoding, schema_ids[c.schema_id], c.metadata)
+            for cid, c in channels.items()
+        }
+        for record in records:
+            if isinstance(record, Message):
+                writer.add_message(
+                    channel_ids[record.channel_id], record.log_time, record.data, record.publish_time, record.sequence
+                )
+        writer.finish()
+        stream.flush()
+        os.fsync(stream.fileno())
+    os.replace(tmp, path)
