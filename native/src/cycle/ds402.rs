@@ -17,7 +17,7 @@
 //! A request that does not reach its state within the time-out is reported stuck, with the
 //! statusword of that moment, from which [`Status::stuck_reason`] says why.
 
-use std::sync::atomic::{AtomicU64, AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 
 use crate::ds402::{self, controlword as cw, statusword as sw, State};
 use crate::error::{Error, Result};
@@ -79,6 +79,12 @@ pub struct Offsets {
     pub actual: Option<usize>,
     /// Modes of operation display 0x6061 in the inputs, where mapped.
     pub mode_display: Option<usize>,
+    /// Target velocity 0x60FF in the outputs, where mapped: 0 while the target is held.
+    pub velocity_target: Option<usize>,
+    /// Target torque 0x6071 in the outputs, where mapped: 0 while the target is held.
+    pub torque_target: Option<usize>,
+    /// Modes of operation 0x6060 in the outputs, where mapped.
+    pub mode: Option<usize>,
 }
 
 impl Offsets {
@@ -107,7 +113,33 @@ impl Offsets {
         };
         let targets = [at(rx, 0x607A, 0), at(rx, 0x60C1, 1)];
         let actual = at(tx, 0x6064, 0).or_else(|| at(tx, 0x6063, 0));
-        Ok(Offsets { controlword, statusword, targets, actual, mode_display: at(tx, 0x6061, 0) })
+        Ok(Offsets {
+            controlword,
+            statusword,
+            targets,
+            actual,
+            mode_display: at(tx, 0x6061, 0),
+            velocity_target: at(rx, 0x60FF, 0),
+            torque_target: at(rx, 0x6071, 0),
+            mode: at(rx, 0x6060, 0),
+        })
+    }
+
+    /// The same objects with their offsets moved by `out_base` and `in_base` (a slave's place
+    /// in the whole images).
+    pub fn shifted(self, out_base: usize, in_base: usize) -> Offsets {
+        let out = |o: Option<usize>| o.map(|o| o + out_base);
+        let inp = |o: Option<usize>| o.map(|o| o + in_base);
+        Offsets {
+            controlword: self.controlword + out_base,
+            statusword: self.statusword + in_base,
+            targets: self.targets.map(out),
+            actual: inp(self.actual),
+            mode_display: inp(self.mode_display),
+            velocity_target: out(self.velocity_target),
+            torque_target: out(self.torque_target),
+            mode: out(self.mode),
+        }
     }
 }
 
@@ -210,12 +242,22 @@ pub struct Shared {
     request: AtomicU8,
     status: AtomicU64,
     setpoint_writes: AtomicU64,
+    /// Asks for the target to be held at the actual position again (after a mode change).
+    rehold: AtomicBool,
+    /// Controlword bit 8: the drive stops and stays enabled.
+    halt: AtomicBool,
 }
 
 impl Default for Shared {
     fn default() -> Self {
         let idle = Status { statusword: 0, request: None, progress: Progress::Idle, mode_display: None };
-        Shared { request: AtomicU8::new(0), status: AtomicU64::new(idle.pack()), setpoint_writes: AtomicU64::new(0) }
+        Shared {
+            request: AtomicU8::new(0),
+            status: AtomicU64::new(idle.pack()),
+            setpoint_writes: AtomicU64::new(0),
+            rehold: AtomicBool::new(false),
+            halt: AtomicBool::new(false),
+        }
     }
 }
 
@@ -240,6 +282,22 @@ impl Shared {
     pub fn setpoint_written(&self) {
         self.setpoint_writes.fetch_add(1, Ordering::Release);
     }
+
+    /// Holds the target at the actual position again from the next cycle until a set-point is
+    /// written after it (after a mode change, so the new mode starts where the axis is).
+    pub fn hold(&self) {
+        self.rehold.store(true, Ordering::Release);
+    }
+
+    /// Sets or clears halt (controlword bit 8) while the drive is enabled.
+    pub fn set_halt(&self, halt: bool) {
+        self.halt.store(halt, Ordering::Release);
+    }
+
+    /// Whether halt is set.
+    pub fn halted(&self) -> bool {
+        self.halt.load(Ordering::Acquire)
+    }
 }
 
 /// One cycle's inputs to the sequencing step.
@@ -253,6 +311,8 @@ pub struct Observed {
     pub now_ns: u64,
     /// How many set-points were written for the drive so far.
     pub setpoint_writes: u64,
+    /// Whether the target is to be held at the actual position again from this cycle.
+    pub rehold: bool,
 }
 
 /// What the sequencing step writes into the drive's outputs; `None` leaves them as the user
@@ -261,7 +321,7 @@ pub struct Observed {
 pub struct Command {
     /// The controlword.
     pub controlword: Option<u16>,
-    /// The position target(s) to hold.
+    /// The position target(s) to hold; while held, velocity and torque targets are 0.
     pub target: Option<i32>,
 }
 
@@ -348,7 +408,7 @@ impl Sequencer {
     /// The target to hold: the actual position while not in Operation enabled, and the last
     /// one held after it until a set-point is written.
     fn target(&mut self, state: Option<State>, seen: Observed) -> Option<i32> {
-        if state != Some(State::OperationEnabled) {
+        if state != Some(State::OperationEnabled) || seen.rehold {
             self.held = seen.actual;
             self.writes_at_hold = seen.setpoint_writes;
         } else if seen.setpoint_writes != self.writes_at_hold {
@@ -371,12 +431,19 @@ pub struct Drive {
     pub sequencer: Sequencer,
     /// What to write in this cycle.
     pub command: Command,
+    /// Whether halt (bit 8) goes out.
+    halt: bool,
 }
 
 impl Drive {
     /// A drive with its objects at `offsets`, not sequenced until a request comes.
     pub fn new(offsets: Offsets) -> Self {
-        Drive { offsets, sequencer: Sequencer::default(), command: Command { controlword: None, target: None } }
+        Drive {
+            offsets,
+            sequencer: Sequencer::default(),
+            command: Command { controlword: None, target: None },
+            halt: false,
+        }
     }
 
     /// The first half of a cycle: reads the statusword and actual position from `inputs`,
@@ -390,7 +457,9 @@ impl Drive {
             actual: o.actual.map(i32_at),
             now_ns,
             setpoint_writes: shared.setpoint_writes.load(Ordering::Acquire),
+            rehold: shared.rehold.swap(false, Ordering::AcqRel),
         };
+        self.halt = shared.halted();
         let new = Request::from_u8(shared.request.swap(0, Ordering::AcqRel));
         self.command = self.sequencer.step(new, seen, timeout_ns);
         let mode_display = o.mode_display.map(|at| inputs[at] as i8);
@@ -399,16 +468,40 @@ impl Drive {
 
     /// The second half: writes the controlword and held target into `outputs`, over what the
     /// user set.
+    ///
+    /// The sequencer owns the state bits (0–3, 7); the mode-specific bits the user set (4–6,
+    /// 9, e.g. new set-point in profile position) go through once the target is released, and
+    /// halt (bit 8) is added while asked for.
     pub fn apply(&self, outputs: &mut [u8]) {
         let o = self.offsets;
         if let Some(controlword) = self.command.controlword {
-            outputs[o.controlword..o.controlword + 2].copy_from_slice(&controlword.to_le_bytes());
+            let user = u16::from_le_bytes([outputs[o.controlword], outputs[o.controlword + 1]]);
+            let mode_bits = if self.command.target.is_none() { user & !cw::COMMAND_MASK & !cw::HALT } else { 0 };
+            let halt = if self.halt { cw::HALT } else { 0 };
+            outputs[o.controlword..o.controlword + 2].copy_from_slice(&(controlword | mode_bits | halt).to_le_bytes());
         }
         if let Some(target) = self.command.target {
             for at in o.targets.into_iter().flatten() {
                 outputs[at..at + 4].copy_from_slice(&target.to_le_bytes());
             }
+            for at in o.velocity_target.into_iter() {
+                outputs[at..at + 4].fill(0);
+            }
+            for at in o.torque_target.into_iter() {
+                outputs[at..at + 2].fill(0);
+            }
         }
+    }
+
+    /// Whether the drive is in Operation enabled by the sequencer's request (what a gap in the
+    /// exchange would interrupt).
+    pub fn enabled(&self) -> bool {
+        self.sequencer.progress() == (Some(Request::Enable), Progress::Done)
+    }
+
+    /// Whether a request is in force, so that the sequencer reacts to a fault by disabling.
+    pub fn sequenced(&self) -> bool {
+        self.sequencer.progress().0.is_some()
     }
 }
 
@@ -419,7 +512,7 @@ mod tests {
     const TIMEOUT: u64 = 1_000_000_000;
 
     fn seen(state: State, now_ns: u64) -> Observed {
-        Observed { statusword: state.statusword_bits(), actual: Some(1234), now_ns, setpoint_writes: 0 }
+        Observed { statusword: state.statusword_bits(), actual: Some(1234), now_ns, setpoint_writes: 0, rehold: false }
     }
 
     #[test]

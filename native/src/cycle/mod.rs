@@ -26,14 +26,22 @@ use std::time::Duration;
 use crate::error::{Error, Result};
 use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
+use crate::pdo::PdoEntry;
 
 pub mod ds402;
+pub mod events;
 pub mod exchange;
+pub mod faults;
+pub mod latch;
+pub mod mailbox;
 pub mod rt;
 pub mod stats;
 pub mod timing;
 
+use events::{Event, Events};
 use exchange::SeqBytes;
+use faults::{Exchange, Gaps};
+use mailbox::{MailboxService, SdoSlot};
 use stats::CycleStats;
 
 /// How a cycle thread runs.
@@ -88,29 +96,38 @@ struct Shared {
     drives: Vec<ds402::Shared>,
     /// How long a drive request may take before it is reported stuck (ns).
     request_timeout_ns: AtomicU64,
+    /// One per slave: the latch edges armed.
+    latches: Vec<latch::Shared>,
+    events: Events,
+    sdo: SdoSlot,
 }
 
 /// How long a drive request may take by default before it is reported stuck.
 pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
 
+/// What the cycle thread runs for one drive it sequences.
+struct DriveLoop {
+    position: u16,
+    drive: ds402::Drive,
+    latch: Option<latch::Latch>,
+    watch: faults::DriveWatch,
+}
+
 /// The drives of `master` that can be sequenced, with their objects' offsets in the whole
-/// images; for the others, why not.
-fn sequenced_drives(master: &Master) -> Vec<std::result::Result<ds402::Offsets, String>> {
+/// images and their latch where mapped; for the others, why not.
+fn sequenced_drives(
+    master: &Master,
+) -> Vec<std::result::Result<(ds402::Offsets, Option<latch::LatchObjects>), String>> {
     (0..master.slaves().len() as u16)
         .map(|position| {
             let slave = master.slave(position).map_err(|e| e.to_string())?;
             let mapping =
                 slave.mapping.as_ref().ok_or_else(|| format!("slave {position} has no process-data mapping"))?;
             let slot = master.image_slot(position).map_err(|e| e.to_string())?;
-            let o = ds402::Offsets::find(&mapping.rx_entries, &mapping.tx_entries)
-                .map_err(|e| format!("slave {position}: {e}"))?;
-            Ok(ds402::Offsets {
-                controlword: slot.out_offset + o.controlword,
-                statusword: slot.in_offset + o.statusword,
-                targets: o.targets.map(|t| t.map(|t| slot.out_offset + t)),
-                actual: o.actual.map(|a| slot.in_offset + a),
-                mode_display: o.mode_display.map(|m| slot.in_offset + m),
-            })
+            let (rx, tx) = (&mapping.rx_entries, &mapping.tx_entries);
+            let offsets = ds402::Offsets::find(rx, tx).map_err(|e| format!("slave {position}: {e}"))?;
+            let latch = latch::LatchObjects::find(rx, tx, slot.out_offset, slot.in_offset);
+            Ok((offsets.shifted(slot.out_offset, slot.in_offset), latch))
         })
         .collect()
 }
@@ -124,6 +141,12 @@ pub struct CycleThread {
     period: Duration,
     /// Per slave: whether it is sequenced, or why not.
     sequenced: Vec<std::result::Result<(), String>>,
+    /// Per slave: the latch objects, where mapped.
+    latch_objects: Vec<Option<latch::LatchObjects>>,
+    /// Per slave: the drive's objects, where sequenced.
+    offsets: Vec<Option<ds402::Offsets>>,
+    /// Per slave: the mapping's entries, outputs and inputs, where mapped.
+    mappings: Vec<Option<(Vec<PdoEntry>, Vec<PdoEntry>)>>,
 }
 
 impl CycleThread {
@@ -131,7 +154,7 @@ impl CycleThread {
     /// starts as the master holds it, so nothing changes at the start. A bad period, priority
     /// or CPU, or a master without a process image, is refused and the master handed back
     /// with the error. Real-time settings that are not permitted become [`warnings`](Self::warnings).
-    pub fn start(master: Master, config: Config) -> std::result::Result<CycleThread, Box<(Error, Master)>> {
+    pub fn start(mut master: Master, config: Config) -> std::result::Result<CycleThread, Box<(Error, Master)>> {
         let checked = timing::period_ns(config.period).and_then(|period_ns| {
             rt::check(config.priority, config.cpu)?;
             let outputs = master.output_image()?.to_vec();
@@ -145,8 +168,33 @@ impl CycleThread {
         let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
         let found = sequenced_drives(&master);
         let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
-        let drives: Vec<(usize, ds402::Drive)> =
-            found.into_iter().enumerate().filter_map(|(p, f)| Some((p, ds402::Drive::new(f.ok()?)))).collect();
+        let latch_objects = found.iter().map(|f| f.as_ref().ok().and_then(|f| f.1)).collect();
+        let offsets = found.iter().map(|f| f.as_ref().ok().map(|f| f.0)).collect();
+        let drives: Vec<DriveLoop> = found
+            .into_iter()
+            .enumerate()
+            .filter_map(|(p, f)| {
+                let (offsets, latch) = f.ok()?;
+                Some(DriveLoop {
+                    position: p as u16,
+                    drive: ds402::Drive::new(offsets),
+                    latch: latch.map(latch::Latch::new),
+                    watch: faults::DriveWatch::default(),
+                })
+            })
+            .collect();
+        // AL status and mailbox status ride in the cyclic frame; without room for them the
+        // cycle runs on, unsupervised, and says so.
+        let mut start_warnings = Vec::new();
+        if let Err(e) = master.set_supervision(true) {
+            start_warnings.push(format!("AL state and mailbox supervision is off: {e}"));
+        }
+        let mailbox = MailboxService::new(&master);
+        let mappings = master
+            .slaves()
+            .iter()
+            .map(|s| s.mapping.as_ref().map(|m| (m.rx_entries.clone(), m.tx_entries.clone())))
+            .collect();
         let shared = Arc::new(Shared {
             stop: AtomicBool::new(false),
             setpoints: SeqBytes::new(outputs.len(), &outputs),
@@ -154,6 +202,9 @@ impl CycleThread {
             stats: CycleStats::new(period_ns),
             drives: (0..master.slaves().len()).map(|_| ds402::Shared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
+            latches: (0..master.slaves().len()).map(|_| latch::Shared::default()).collect(),
+            events: Events::default(),
+            sdo: SdoSlot::default(),
         });
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
@@ -161,9 +212,10 @@ impl CycleThread {
         let spawned = {
             let shared = shared.clone();
             let mut drives = drives;
+            let mut mailbox = mailbox;
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
-                let mut warnings = Vec::new();
+                let mut warnings = start_warnings;
                 warnings.extend(config.priority.and_then(rt::set_fifo_priority));
                 warnings.extend(config.cpu.and_then(rt::set_affinity));
                 if config.lock_memory {
@@ -172,8 +224,10 @@ impl CycleThread {
                 // The starting thread waits for this message; it cannot be gone.
                 let _ = ready_tx.send(warnings);
                 let timeout = master.replace_timeout(config.period);
-                run(&mut master, &shared, &mut drives, period_ns);
+                run(&mut master, &shared, &mut drives, &mut mailbox, period_ns);
                 master.replace_timeout(timeout);
+                // The master goes on without the thread: plain exchanges, no status reads.
+                let _ = master.set_supervision(false);
                 Some(master)
             })
         };
@@ -186,7 +240,17 @@ impl CycleThread {
         // The thread is waiting for it.
         let _ = master_tx.send(master);
         let warnings = ready_rx.recv().unwrap_or_default();
-        Ok(CycleThread { shared, thread: Some(thread), slots, warnings, period: config.period, sequenced })
+        Ok(CycleThread {
+            shared,
+            thread: Some(thread),
+            slots,
+            warnings,
+            period: config.period,
+            sequenced,
+            latch_objects,
+            offsets,
+            mappings,
+        })
     }
 
     /// The real-time settings that were asked for and not permitted, one sentence each.
@@ -244,6 +308,125 @@ impl CycleThread {
         }
         drive.request(request);
         Ok(())
+    }
+
+    /// Arms (`arm`) or disarms the latch edges in `edges` (bits as [`latch::edge_bit`]) of the
+    /// drive at `position`; refused for a drive whose mapping carries no latch or no position
+    /// for one of the edges.
+    pub fn arm_latch(&self, position: u16, edges: u8, arm: bool) -> Result<()> {
+        self.sequenced(position)?;
+        let objects = self.latch_objects[position as usize].ok_or_else(|| {
+            Error::Config(format!(
+                "slave {position}'s mapping carries no latch: map latch control 0x20A4 and latch status 0x20A5 \
+                 with a latched position (0x20A0..0x20A3, 0x20A6, 0x20A7), or the touch probe 0x60B8/0x60B9 \
+                 with 0x60BA..0x60BD"
+            ))
+        })?;
+        let missing = edges & !objects.readable();
+        if arm && missing != 0 {
+            return Err(Error::Config(format!(
+                "slave {position}'s mapping carries no latched position for edge bits 0x{missing:X} \
+                 (readable: 0x{:X}; bit 0 latch 1 rising, 1 latch 1 falling, 2 latch 2 rising, 3 latch 2 falling)",
+                objects.readable()
+            )));
+        }
+        self.shared.latches[position as usize].set(edges, arm);
+        Ok(())
+    }
+
+    /// The latch edges armed on the drive at `position`.
+    pub fn armed_latches(&self, position: u16) -> Result<u8> {
+        self.sequenced(position)?;
+        Ok(self.shared.latches[position as usize].armed())
+    }
+
+    /// Latch and fault events since the last call, oldest first.
+    pub fn events(&self) -> Vec<Event> {
+        self.shared.events.drain()
+    }
+
+    /// Events lost because nobody took them and the ring filled up.
+    pub fn events_dropped(&self) -> u64 {
+        self.shared.events.dropped()
+    }
+
+    /// Reads `index:subindex` of the slave at `position` through the cycle thread, beside the
+    /// process data. Waits (the caller, not the cycle) for the answer.
+    pub fn sdo_read(&self, position: u16, index: u16, subindex: u8) -> Result<Vec<u8>> {
+        self.check_slave(position)?;
+        self.shared.sdo.transfer(position, index, subindex, None, || self.running())
+    }
+
+    /// Writes `data` to `index:subindex` of the slave at `position` through the cycle thread.
+    pub fn sdo_write(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
+        self.check_slave(position)?;
+        self.shared.sdo.transfer(position, index, subindex, Some(data), || self.running()).map(|_| ())
+    }
+
+    fn check_slave(&self, position: u16) -> Result<()> {
+        if self.stopped() {
+            return Err(Error::Config("the cycle is stopped: use the master's own SDO access".into()));
+        }
+        if position >= self.slave_count() {
+            return Err(Error::NoSuchSlave { position, count: self.slave_count() });
+        }
+        Ok(())
+    }
+
+    /// Sets the mode of operation of the drive at `position` — through 0x6060 in the outputs
+    /// where mapped, else by SDO — and holds its target at the actual position until the next
+    /// set-point, so the new mode starts where the axis is.
+    pub fn set_mode(&self, position: u16, mode: i8) -> Result<()> {
+        let drive = self.sequenced(position)?;
+        match self.offsets[position as usize].and_then(|o| o.mode) {
+            Some(at) => self.shared.setpoints.write().write(at, &[mode as u8]),
+            None => self.sdo_write(position, 0x6060, 0, &[mode as u8])?,
+        }
+        drive.hold();
+        Ok(())
+    }
+
+    /// Sets or clears halt (controlword bit 8) on the drive at `position`.
+    pub fn set_halt(&self, position: u16, halt: bool) -> Result<()> {
+        self.sequenced(position)?.set_halt(halt);
+        Ok(())
+    }
+
+    /// Sets one mapped output object `index:subindex` of the slave at `position` (its exact
+    /// size) from the next cycle on, leaving the other outputs as they are; a set-point write
+    /// that releases a held target.
+    pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
+        if self.stopped() {
+            return Err(Error::Config("the cycle is stopped: set-points no longer go out".into()));
+        }
+        let slot = self.slot(position)?;
+        let (rx, _) = self.mapping(position)?;
+        let (offset, entry) = crate::pdo::layout(rx.iter().copied())
+            .find(|(_, e)| (e.index, e.subindex) == (index, subindex))
+            .ok_or_else(|| {
+                Error::Config(format!("0x{index:04X}:{subindex:02X} is not in slave {position}'s output mapping"))
+            })?;
+        if entry.byte_len() != data.len() {
+            return Err(Error::Config(format!(
+                "0x{index:04X}:{subindex:02X} takes {} bytes, {} given",
+                entry.byte_len(),
+                data.len()
+            )));
+        }
+        self.shared.setpoints.write().write(slot.out_offset + offset, data);
+        if let Some(Ok(())) = self.sequenced.get(position as usize) {
+            self.shared.drives[position as usize].setpoint_written();
+        }
+        Ok(())
+    }
+
+    /// The mapping of the slave at `position`: its output entries and input entries, in wire
+    /// order.
+    pub fn mapping(&self, position: u16) -> Result<&(Vec<PdoEntry>, Vec<PdoEntry>)> {
+        self.slot(position)?;
+        self.mappings[position as usize]
+            .as_ref()
+            .ok_or_else(|| Error::Config(format!("slave {position} has no process-data mapping")))
     }
 
     /// The drive's status as the cycle thread last published it. Lock-free.
@@ -337,11 +520,12 @@ impl Drop for CycleThread {
 }
 
 /// The loop. Everything it touches was allocated before it starts.
-fn run(master: &mut Master, shared: &Shared, drives: &mut [(usize, ds402::Drive)], period_ns: u64) {
+fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: &mut MailboxService, period_ns: u64) {
     let stats = &shared.stats;
     let base = master.stats();
     let mut schedule = timing::Schedule::new(timing::now_ns() + period_ns, period_ns);
     let mut last_wake = None;
+    let mut gaps = Gaps::default();
     while !shared.stop.load(Ordering::Acquire) {
         timing::sleep_until(schedule.next_ns());
         let wake = timing::now_ns();
@@ -350,40 +534,63 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [(usize, ds402::Drive)
             stats.period.record(wake - last);
         }
         last_wake = Some(wake);
+        let now = (stats.cycles.load(Ordering::Relaxed) + 1, wake);
         if let Ok(outputs) = master.output_image_mut() {
             if shared.setpoints.try_read(outputs).is_none() {
                 CycleStats::add(&stats.setpoints_busy, 1);
             }
         }
-        // The sequencer reads the inputs of the last exchange and writes over the set-points.
+        // The sequencer and the latches read the inputs of the last exchange and write over
+        // the set-points.
         if let Ok(inputs) = master.input_image() {
             let timeout_ns = shared.request_timeout_ns.load(Ordering::Relaxed);
-            for (position, drive) in drives.iter_mut() {
-                drive.observe(&shared.drives[*position], inputs, wake, timeout_ns);
+            for d in drives.iter_mut() {
+                d.drive.observe(&shared.drives[d.position as usize], inputs, wake, timeout_ns);
+                if let Some(latch) = d.latch.as_mut() {
+                    let slave = d.position;
+                    latch.observe(&shared.latches[slave as usize], inputs, |channel, edge, position| {
+                        shared.events.push(Event::Latch {
+                            cycle: now.0,
+                            time_ns: now.1,
+                            slave,
+                            channel,
+                            edge,
+                            position,
+                        })
+                    });
+                }
             }
         }
         if let Ok(outputs) = master.output_image_mut() {
-            for (_, drive) in drives.iter() {
-                drive.apply(outputs);
+            for d in drives.iter() {
+                d.drive.apply(outputs);
+                if let Some(latch) = d.latch.as_ref() {
+                    latch.apply(outputs);
+                }
             }
         }
         let sent = timing::now_ns();
         let result = master.exchange();
         stats.exchange.record(timing::now_ns() - sent);
         // Lost frames and wrong working counters are the master's own counts; other failures
-        // are counted here. None of them stops the cycle: what to do is the caller's decision.
-        let wkc = match &result {
-            Ok(wkc) => *wkc,
-            Err(Error::WorkingCounter { got, .. }) => *got,
-            Err(Error::Timeout { .. }) => 0,
+        // are counted here. None of them stops the cycle: supervise() judges them.
+        let (wkc, exchange) = match &result {
+            Ok(wkc) => (*wkc, Exchange::Good),
+            Err(Error::WorkingCounter { got, .. }) => (*got, Exchange::WrongWkc),
+            Err(Error::Timeout { .. }) => (0, Exchange::Lost),
             Err(_) => {
                 CycleStats::add(&stats.other_errors, 1);
-                0
+                (0, Exchange::Lost)
             }
         };
-        let now = master.stats();
-        stats.lost_frames.store(now.lost_frames - base.lost_frames, Ordering::Relaxed);
-        stats.wkc_errors.store(now.wkc_errors - base.wkc_errors, Ordering::Relaxed);
+        supervise(master, shared, drives, mailbox, &mut gaps, exchange, now);
+        mailbox.run(master, &shared.sdo, &shared.events, now, |slave| {
+            let status = shared.drives.get(slave as usize).map(|d| d.status());
+            status.map_or(0, |s| s.statusword)
+        });
+        let now_stats = master.stats();
+        stats.lost_frames.store(now_stats.lost_frames - base.lost_frames, Ordering::Relaxed);
+        stats.wkc_errors.store(now_stats.wkc_errors - base.wkc_errors, Ordering::Relaxed);
         CycleStats::add(&stats.cycles, 1);
         {
             let mut w = shared.snapshot.write();
@@ -397,6 +604,53 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [(usize, ds402::Drive)
             }
         }
         CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
+    }
+}
+
+/// Judges the cycle's exchange and every drive's state; reports faults and brings drives to a
+/// safe state where the fault calls for it.
+fn supervise(
+    master: &Master,
+    shared: &Shared,
+    drives: &mut [DriveLoop],
+    mailbox: &mut MailboxService,
+    gaps: &mut Gaps,
+    exchange: Exchange,
+    now: (u64, u64),
+) {
+    let enabled = drives.iter().any(|d| d.drive.enabled());
+    let gap = gaps.observe(exchange, enabled, now);
+    let (Ok(inputs), watch) = (master.input_image(), master.watch().ok()) else { return };
+    for d in drives.iter_mut() {
+        let slave = d.position;
+        let o = d.drive.offsets;
+        let statusword =
+            (exchange == Exchange::Good).then(|| u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]));
+        let al_status = watch.and_then(|w| w.get(slave as usize)).filter(|w| w.answered).map(|w| w.al_status);
+        let seen = d.watch.observe(slave, statusword, al_status, d.drive.sequenced(), now);
+        if let Some(event) = seen.fault {
+            mailbox.read_error_code(master, slave, mailbox::PendingFault { event }, &shared.events);
+        }
+        if let Some(event) = seen.left_op {
+            shared.events.push(event);
+            shared.drives[slave as usize].request(ds402::Request::Disable);
+        }
+        if let Some(report) = gap.filter(|_| d.drive.enabled()) {
+            shared.events.push(Event::Fault {
+                cycle: report.began.0,
+                time_ns: report.began.1,
+                slave,
+                source: report.source,
+                code: report.length.min(u16::MAX as u32) as u16,
+                statusword: statusword.unwrap_or(0),
+                al_status: al_status.map_or(0, |a| a.status),
+                al_status_code: al_status.map_or(0, |a| a.code),
+                action: report.action,
+            });
+            if report.action == events::Action::Disabled {
+                shared.drives[slave as usize].request(ds402::Request::Disable);
+            }
+        }
     }
 }
 

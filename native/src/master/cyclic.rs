@@ -1,6 +1,9 @@
 //! The cyclic exchange: one frame per cycle carrying one LRW over every slave's process data
 //! and, when distributed clocks run, the FRMW that hands the reference clock's time to the
-//! others. The working counter is checked every cycle; lost frames and wrong counters are
+//! others. With [supervision](Master::set_supervision) on, the same frame also reads every
+//! slave's AL status and mailbox status, so that a slave dropping out of Op or a message
+//! waiting in its mailbox (an emergency, an SDO reply) is seen in the cycle it happens, at no
+//! extra frame. The working counter is checked every cycle; lost frames and wrong counters are
 //! counted. The process image and the frame buffers are allocated when the image is laid out,
 //! never per cycle.
 //!
@@ -10,9 +13,10 @@
 use crate::error::{Error, Result};
 use crate::frame::{self, Command, FrameBuilder, Slot};
 use crate::master::pdo::Mapping;
-use crate::master::Master;
+use crate::master::state::AlStatus;
+use crate::master::{Master, Slave};
 use crate::pdo::DEFAULT_FIXED;
-use crate::registers::DC_SYSTEM_TIME;
+use crate::registers::{self, sm_reg, AL_STATUS, DC_SYSTEM_TIME};
 
 /// Where one slave's data sits in the process image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -37,6 +41,17 @@ impl ImageSlot {
     }
 }
 
+/// What the cyclic frame read of one slave besides its process data, with supervision on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SlaveWatch {
+    /// AL status and AL status code as read in the last cycle whose frame came back.
+    pub al_status: AlStatus,
+    /// Whether SM1 held a message for the master (an emergency or a reply).
+    pub mailbox_full: bool,
+    /// Whether the slave answered both reads in that cycle.
+    pub answered: bool,
+}
+
 /// The process image of the bus.
 #[derive(Clone, Debug)]
 pub struct ProcessImage {
@@ -44,6 +59,9 @@ pub struct ProcessImage {
     inputs: Vec<u8>,
     slots: Vec<Option<ImageSlot>>,
     expected_wkc: u16,
+    /// One per slave; read only while `supervised`.
+    watch: Vec<SlaveWatch>,
+    supervised: bool,
 }
 
 impl ProcessImage {
@@ -70,7 +88,15 @@ impl ProcessImage {
                 })
             })
             .collect();
-        Ok(ProcessImage { outputs: vec![0; out_total], inputs: vec![0; in_total], slots, expected_wkc })
+        let unseen = SlaveWatch { al_status: AlStatus { status: 0, code: 0 }, mailbox_full: false, answered: false };
+        Ok(ProcessImage {
+            outputs: vec![0; out_total],
+            inputs: vec![0; in_total],
+            slots,
+            expected_wkc,
+            watch: vec![unseen; lens.len()],
+            supervised: false,
+        })
     }
 
     /// The working counter the LRW should come back with: 2 per slave that takes outputs, 1
@@ -176,10 +202,19 @@ impl Master {
             Some(c) => Some(builder.push_zeroed(Command::Frmw, index, c.reference_station, DC_SYSTEM_TIME, 8)?),
             None => None,
         };
+        // Two reads per slave: their slots follow each other in the frame, so the reply is
+        // walked with the same arithmetic (every slot's size is fixed).
+        let watch_first = match image.supervised {
+            true => Some(push_watch(&self.slaves, &mut builder, index)?),
+            false => None,
+        };
         let len = builder.finish();
         self.stats.cycles += 1;
         let n = self.send_frame(len)?;
         let reply = &self.rx[..n];
+        if let (Some(first), Some(image)) = (watch_first, self.process.as_mut()) {
+            read_watch(&mut image.watch, first, reply)?;
+        }
         let wkc = lrw.wkc(reply)?;
         let mut clock_time = None;
         if let Some(slot) = clock {
@@ -211,6 +246,64 @@ impl Master {
         }
         Ok(wkc)
     }
+}
+
+/// Bytes of AL status (0x0130) through AL status code (0x0134..0x0135).
+const AL_STATUS_LEN: usize = 6;
+/// Frame bytes each datagram takes besides its data.
+const DATAGRAM_OVERHEAD: usize = frame::DATAGRAM_HEADER_LEN + frame::WKC_LEN;
+
+/// Pushes the AL status and SM1 status reads of every slave; returns the first slot.
+fn push_watch(slaves: &[Slave], builder: &mut FrameBuilder<'_>, index: u8) -> Result<Slot> {
+    let mut first = None;
+    for slave in slaves {
+        let station = slave.station_address;
+        let al = builder.push_zeroed(Command::Fprd, index, station, AL_STATUS, AL_STATUS_LEN)?;
+        let sm1 = registers::sm(1) + sm_reg::STATUS as u16;
+        builder.push_zeroed(Command::Fprd, index, station, sm1, 1)?;
+        first.get_or_insert(al);
+    }
+    first.ok_or_else(|| Error::Config("supervision needs at least one slave".into()))
+}
+
+impl Master {
+    /// Turns the AL status and mailbox status reads of the cyclic frame on or off.
+    pub fn set_supervision(&mut self, on: bool) -> Result<()> {
+        let slaves = self.slaves.len();
+        let image = self.image_mut()?;
+        let watch_len = slaves * (AL_STATUS_LEN + 1 + 2 * DATAGRAM_OVERHEAD);
+        let room = frame::MAX_DATAGRAM_DATA - 8 - DATAGRAM_OVERHEAD;
+        if on && image.outputs.len() + image.inputs.len() + watch_len > room {
+            return Err(Error::Config(format!(
+                "the process image ({} bytes) and the status reads of {slaves} slaves ({watch_len} bytes) do not fit one frame",
+                image.outputs.len() + image.inputs.len()
+            )));
+        }
+        image.supervised = on;
+        Ok(())
+    }
+
+    /// What the last cycle read of every slave besides process data (all unanswered while
+    /// supervision is off).
+    pub fn watch(&self) -> Result<&[SlaveWatch]> {
+        Ok(&self.image()?.watch)
+    }
+}
+
+/// Takes every slave's AL status and SM1 status from `reply`, from the slot of the first read on.
+fn read_watch(watch: &mut [SlaveWatch], first: Slot, reply: &[u8]) -> Result<()> {
+    let stride = AL_STATUS_LEN + DATAGRAM_OVERHEAD + 1 + DATAGRAM_OVERHEAD;
+    for (n, w) in watch.iter_mut().enumerate() {
+        let al = Slot { data_offset: first.data_offset + n * stride, len: AL_STATUS_LEN, index: first.index };
+        let sm1 = Slot { data_offset: al.data_offset + AL_STATUS_LEN + DATAGRAM_OVERHEAD, len: 1, index: first.index };
+        w.answered = al.wkc(reply)? == 1 && sm1.wkc(reply)? == 1;
+        if w.answered {
+            let bytes: &[u8; AL_STATUS_LEN] = al.data(reply)?.try_into().expect("six bytes");
+            w.al_status = AlStatus::from_registers(bytes);
+            w.mailbox_full = sm1.data(reply)?[0] & sm_reg::STATUS_MAILBOX_FULL != 0;
+        }
+    }
+    Ok(())
 }
 
 /// Whole-image access for a cycle thread, which moves every slave's data at once.

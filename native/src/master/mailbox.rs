@@ -93,11 +93,13 @@ pub(crate) fn sm_registers(start: u16, len: u16, control: u8, enable: bool) -> [
     r
 }
 
+fn no_mailbox(position: u16) -> Error {
+    Error::Mailbox(format!("slave {position} has no mailbox (its SII lists no mailbox protocol)"))
+}
+
 impl Master {
     fn mailbox(&self, position: u16) -> Result<Mailbox> {
-        self.slave(position)?.mailbox.clone().ok_or_else(|| {
-            Error::Mailbox(format!("slave {position} has no mailbox (its SII lists no mailbox protocol)"))
-        })
+        self.slave(position)?.mailbox.clone().ok_or_else(|| no_mailbox(position))
     }
 
     /// Writes SM0 and SM1 of the slave at `position` from its SII, as Init → PreOp needs.
@@ -159,6 +161,53 @@ impl Master {
             }
             std::thread::sleep(POLL_INTERVAL);
         }
+    }
+
+    /// Takes the counter for the next message to the slave at `position` (1..=7), as
+    /// [`mailbox_send`](Self::mailbox_send) does, for a caller that writes SM0 itself.
+    pub fn mailbox_take_counter(&mut self, position: u16) -> Result<u8> {
+        let mailbox = self.slave_mut(position)?.mailbox.as_mut().ok_or_else(|| no_mailbox(position))?;
+        mailbox.counter = codec::next_counter(mailbox.counter);
+        Ok(mailbox.counter)
+    }
+
+    /// One attempt to write `buffer` (exactly SM0's length, counter in place) into the slave's
+    /// SM0, for a cycle thread that must not wait: `true` when the slave took it, `false` when
+    /// SM0 still held an earlier message or the frame was lost (try again with the same bytes).
+    pub fn mailbox_try_send(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
+        let (station, out_start) = self.mailbox_address(position, |mb| mb.out_start)?;
+        match self.datagram(Command::Fpwr, station, out_start, buffer) {
+            Ok(wkc) => Ok(wkc == 1),
+            Err(Error::Timeout { .. }) => Ok(false),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// One read of the slave's SM1 into `buffer` (exactly SM1's length), for a cycle thread
+    /// that saw SM1 full and must not wait: `true` when a message was read. A lost reply is
+    /// asked for again with SM1's repeat request, without waiting for it; SM1 shows full again
+    /// once the slave has put it back.
+    pub fn mailbox_try_read(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
+        let (station, in_start) = self.mailbox_address(position, |mb| mb.in_start)?;
+        match self.datagram(Command::Fprd, station, in_start, buffer) {
+            Ok(wkc) => Ok(wkc == 1),
+            Err(Error::Timeout { .. }) => {
+                self.stats.mailbox_repeats += 1;
+                let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
+                let mut activate = [0u8; 1];
+                self.datagram(Command::Fprd, station, activate_at, &mut activate)?;
+                self.datagram(Command::Fpwr, station, activate_at, &mut [activate[0] ^ 0x02])?;
+                Ok(false)
+            }
+            Err(e) => Err(e),
+        }
+    }
+
+    /// The station address and one address of the slave's mailbox, without copying it.
+    fn mailbox_address(&self, position: u16, which: impl Fn(&Mailbox) -> u16) -> Result<(u16, u16)> {
+        let slave = self.slave(position)?;
+        let mailbox = slave.mailbox.as_ref().ok_or_else(|| no_mailbox(position))?;
+        Ok((slave.station_address, which(mailbox)))
     }
 
     /// Drops whatever waits in the slave's SM1 (a reply to an abandoned request), keeping

@@ -1,0 +1,272 @@
+//! Events the cycle thread reports — latch captures and faults — through a lock-free
+//! single-producer ring, so that the thread never waits for whoever reads them.
+//!
+//! An event is four 64-bit words written into a slot before the head moves past it; the
+//! reader copies the slots between its tail and the head. A full ring drops the new event and
+//! counts it: the cycle never waits, and the count says what was missed. Readers other than
+//! the cycle thread are serialised by their own lock, which the cycle thread never takes.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+/// Events the ring holds before new ones are dropped.
+pub const CAPACITY: usize = 256;
+
+/// A latch edge.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Edge {
+    /// The input went high.
+    Rising,
+    /// The input went low.
+    Falling,
+}
+
+impl Edge {
+    /// The edge's name as the Python API and the messages spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Edge::Rising => "rising",
+            Edge::Falling => "falling",
+        }
+    }
+}
+
+/// What a fault event is about.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum FaultSource {
+    /// The statusword shows Fault (or Fault reaction active); the code is 0x603F's.
+    DriveFault = 1,
+    /// The drive sent a CoE emergency message; the code is the message's.
+    Emergency = 2,
+    /// Frames were lost while a drive was enabled; the code is how many in a row.
+    LostFrames = 3,
+    /// The cyclic working counter was wrong while a drive was enabled; the code is how many
+    /// cycles in a row.
+    WorkingCounter = 4,
+    /// The slave left Op; the AL status says where it went and why.
+    AlState = 5,
+}
+
+impl FaultSource {
+    const ALL: [FaultSource; 5] = [
+        FaultSource::DriveFault,
+        FaultSource::Emergency,
+        FaultSource::LostFrames,
+        FaultSource::WorkingCounter,
+        FaultSource::AlState,
+    ];
+
+    /// The source's name as the Python API and the DriveFault message spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            FaultSource::DriveFault => "drive_fault",
+            FaultSource::Emergency => "emergency",
+            FaultSource::LostFrames => "lost_frames",
+            FaultSource::WorkingCounter => "working_counter",
+            FaultSource::AlState => "al_state",
+        }
+    }
+}
+
+/// What the cycle thread did about a fault.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Action {
+    /// Reported only: the drive's own reaction (or another event's action) covers it.
+    Reported = 1,
+    /// The drive was asked for Switch on disabled and its target held at the actual position.
+    Disabled = 2,
+    /// Counted: the drive held its last set-point through a short gap and went on.
+    Counted = 3,
+}
+
+impl Action {
+    const ALL: [Action; 3] = [Action::Reported, Action::Disabled, Action::Counted];
+
+    /// One sentence for the fault message and the log.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Action::Reported => "reported; the drive reacts by itself (power stage off in Fault)",
+            Action::Disabled => {
+                "drive disabled (Switch on disabled requested) with its target held at the actual position; \
+                 nothing moves until it is reset, enabled and commanded again"
+            }
+            Action::Counted => "counted; the drive held its last set-point through the gap and no more than that",
+        }
+    }
+}
+
+/// One event.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Event {
+    /// A position captured by a latch (or touch probe).
+    Latch {
+        /// The cycle that saw it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The slave's position on the bus.
+        slave: u16,
+        /// Latch 1 or 2.
+        channel: u8,
+        /// Which edge.
+        edge: Edge,
+        /// The captured position (counts).
+        position: i32,
+    },
+    /// A fault.
+    Fault {
+        /// The cycle that saw it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The slave's position on the bus.
+        slave: u16,
+        /// What it is about.
+        source: FaultSource,
+        /// The error code (see [`FaultSource`]), 0 when none.
+        code: u16,
+        /// The statusword of that cycle.
+        statusword: u16,
+        /// AL status 0x0130 of that cycle (0 when not read).
+        al_status: u16,
+        /// AL status code 0x0134 of that cycle.
+        al_status_code: u16,
+        /// What was done about it.
+        action: Action,
+    },
+}
+
+impl Event {
+    fn encode(&self) -> [u64; 4] {
+        match *self {
+            Event::Latch { cycle, time_ns, slave, channel, edge, position } => [
+                cycle,
+                time_ns,
+                1 | (slave as u64) << 8 | (channel as u64) << 24 | ((edge == Edge::Falling) as u64) << 32,
+                position as u32 as u64,
+            ],
+            Event::Fault { cycle, time_ns, slave, source, code, statusword, al_status, al_status_code, action } => [
+                cycle,
+                time_ns,
+                2 | (slave as u64) << 8 | (source as u64) << 24 | (action as u64) << 32,
+                code as u64 | (statusword as u64) << 16 | (al_status as u64) << 32 | (al_status_code as u64) << 48,
+            ],
+        }
+    }
+
+    fn decode(w: [u64; 4]) -> Option<Event> {
+        let [cycle, time_ns, what, data] = w;
+        let slave = (what >> 8) as u16;
+        match what as u8 {
+            1 => Some(Event::Latch {
+                cycle,
+                time_ns,
+                slave,
+                channel: (what >> 24) as u8,
+                edge: if (what >> 32) & 1 == 1 { Edge::Falling } else { Edge::Rising },
+                position: data as u32 as i32,
+            }),
+            2 => Some(Event::Fault {
+                cycle,
+                time_ns,
+                slave,
+                source: *FaultSource::ALL.iter().find(|s| **s as u8 == (what >> 24) as u8)?,
+                code: data as u16,
+                statusword: (data >> 16) as u16,
+                al_status: (data >> 32) as u16,
+                al_status_code: (data >> 48) as u16,
+                action: *Action::ALL.iter().find(|a| **a as u8 == (what >> 32) as u8)?,
+            }),
+            _ => None,
+        }
+    }
+}
+
+/// The ring.
+pub struct Events {
+    slots: Box<[[AtomicU64; 4]]>,
+    head: AtomicU64,
+    tail: AtomicU64,
+    dropped: AtomicU64,
+    readers: Mutex<()>,
+}
+
+impl Default for Events {
+    fn default() -> Self {
+        Events {
+            slots: (0..CAPACITY).map(|_| std::array::from_fn(|_| AtomicU64::new(0))).collect(),
+            head: AtomicU64::new(0),
+            tail: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            readers: Mutex::new(()),
+        }
+    }
+}
+
+impl Events {
+    /// Adds `event` (the cycle thread only); counts it as dropped when the ring is full.
+    pub fn push(&self, event: Event) {
+        let head = self.head.load(Ordering::Relaxed);
+        if head - self.tail.load(Ordering::Acquire) >= CAPACITY as u64 {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        let slot = &self.slots[head as usize % CAPACITY];
+        for (cell, word) in slot.iter().zip(event.encode()) {
+            cell.store(word, Ordering::Relaxed);
+        }
+        self.head.store(head + 1, Ordering::Release);
+    }
+
+    /// Takes every event pushed since the last call, oldest first.
+    pub fn drain(&self) -> Vec<Event> {
+        let _reader = self.readers.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let tail = self.tail.load(Ordering::Relaxed);
+        let head = self.head.load(Ordering::Acquire);
+        let events = (tail..head)
+            .filter_map(|n| {
+                Event::decode(self.slots[n as usize % CAPACITY].each_ref().map(|c| c.load(Ordering::Relaxed)))
+            })
+            .collect();
+        self.tail.store(head, Ordering::Release);
+        events
+    }
+
+    /// Events dropped because the ring was full.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn events_round_trip_and_a_full_ring_drops_and_counts() {
+        let events = Events::default();
+        let latch = Event::Latch { cycle: 7, time_ns: 9, slave: 2, channel: 1, edge: Edge::Falling, position: -5 };
+        let fault = Event::Fault {
+            cycle: 8,
+            time_ns: 10,
+            slave: 0,
+            source: FaultSource::AlState,
+            code: 0x8611,
+            statusword: 0x0218,
+            al_status: 0x0014,
+            al_status_code: 0x001B,
+            action: Action::Disabled,
+        };
+        events.push(latch);
+        events.push(fault);
+        assert_eq!(events.drain(), [latch, fault]);
+        assert!(events.drain().is_empty());
+        for _ in 0..CAPACITY + 3 {
+            events.push(latch);
+        }
+        assert_eq!(events.dropped(), 3);
+        assert_eq!(events.drain().len(), CAPACITY);
+    }
+}

@@ -1,0 +1,421 @@
+//! Mailbox traffic beside the cycle: SDO reads and writes asked by other threads, the error
+//! code 0x603F read after a drive fault, and emergency messages — at most one mailbox frame per
+//! cycle, sent after the cyclic exchange, so process data always goes first and a drive that
+//! is slow to answer an SDO never delays a cycle. The cyclic frame's supervision reads tell
+//! which slave has a message waiting in SM1.
+//!
+//! A transfer travels in one mailbox message each way: expedited, or normal when the value
+//! fits the mailbox (the AKD's objects do); a value that would need segments is refused with
+//! an error saying so. Other threads hand a transfer over through [`SdoSlot`], a handshake on
+//! one atomic, and wait for it without any lock the cycle thread takes.
+
+use std::sync::atomic::{AtomicU16, AtomicU32, AtomicU8, Ordering};
+use std::sync::Mutex;
+use std::time::Duration;
+
+use crate::coe::{self, service, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::cycle::events::{Action, Event, Events, FaultSource};
+use crate::error::{Error, Result};
+use crate::mailbox::{MailboxHeader, MailboxType};
+use crate::master::cyclic::SlaveWatch;
+use crate::master::Master;
+
+/// Largest value a transfer beside the cycle carries.
+pub const MAX_DATA: usize = 1024;
+/// How long a transfer beside the cycle may take.
+pub const TRANSFER_TIMEOUT: Duration = Duration::from_secs(1);
+
+const FREE: u8 = 0;
+const ASKED: u8 = 1;
+const TAKEN: u8 = 2;
+const DONE: u8 = 3;
+
+/// How a transfer ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+enum Outcome {
+    Done = 0,
+    Aborted = 1,
+    TimedOut = 2,
+    TooLarge = 3,
+    Unexpected = 4,
+    MailboxError = 5,
+    NoMailbox = 6,
+}
+
+/// The hand-over of one SDO transfer between another thread and the cycle thread.
+pub struct SdoSlot {
+    state: AtomicU8,
+    slave: AtomicU16,
+    index: AtomicU16,
+    subindex: AtomicU8,
+    /// Bytes to write; 0 for a read. After the transfer: bytes read.
+    len: AtomicU16,
+    data: Box<[AtomicU8]>,
+    outcome: AtomicU8,
+    /// The abort code, or the mailbox error's detail code.
+    code: AtomicU32,
+    /// Callers take turns; the cycle thread never takes this.
+    callers: Mutex<()>,
+}
+
+impl Default for SdoSlot {
+    fn default() -> Self {
+        SdoSlot {
+            state: AtomicU8::new(FREE),
+            slave: AtomicU16::new(0),
+            index: AtomicU16::new(0),
+            subindex: AtomicU8::new(0),
+            len: AtomicU16::new(0),
+            data: (0..MAX_DATA).map(|_| AtomicU8::new(0)).collect(),
+            outcome: AtomicU8::new(0),
+            code: AtomicU32::new(0),
+            callers: Mutex::new(()),
+        }
+    }
+}
+
+impl SdoSlot {
+    /// Runs one transfer through the cycle thread and waits for it (polling every 100 µs,
+    /// for at most the transfer time-out and a margin); `write` is `None` for a read. Returns
+    /// the value read (empty for a write). `running` says whether the thread still cycles.
+    pub fn transfer(
+        &self,
+        slave: u16,
+        index: u16,
+        subindex: u8,
+        write: Option<&[u8]>,
+        running: impl Fn() -> bool,
+    ) -> Result<Vec<u8>> {
+        let what = || format!("0x{index:04X}:{subindex:02X} of slave {slave}");
+        if let Some(data) = write {
+            if data.is_empty() || data.len() > MAX_DATA {
+                return Err(Error::Config(format!(
+                    "SDO write of {} bytes to {}: 1 ..= {MAX_DATA} bytes while cycling",
+                    data.len(),
+                    what()
+                )));
+            }
+        }
+        let _turn = self.callers.lock().unwrap_or_else(|p| p.into_inner());
+        self.slave.store(slave, Ordering::Relaxed);
+        self.index.store(index, Ordering::Relaxed);
+        self.subindex.store(subindex, Ordering::Relaxed);
+        let data = write.unwrap_or(&[]);
+        for (cell, b) in self.data.iter().zip(data) {
+            cell.store(*b, Ordering::Relaxed);
+        }
+        self.len.store(data.len() as u16, Ordering::Relaxed);
+        self.state.store(ASKED, Ordering::Release);
+        let deadline = std::time::Instant::now() + TRANSFER_TIMEOUT + Duration::from_millis(500);
+        while self.state.load(Ordering::Acquire) != DONE {
+            if !running() || std::time::Instant::now() > deadline {
+                // Taken back only if the thread has not started it; else it finishes on its own.
+                let _ = self.state.compare_exchange(ASKED, FREE, Ordering::AcqRel, Ordering::Acquire);
+                return Err(Error::Timeout { what: format!("the cycle thread to transfer {}", what()) });
+            }
+            std::thread::sleep(Duration::from_micros(100));
+        }
+        let len = self.len.load(Ordering::Relaxed) as usize;
+        let value: Vec<u8> = self.data[..len].iter().map(|c| c.load(Ordering::Relaxed)).collect();
+        let code = self.code.load(Ordering::Relaxed);
+        let outcome = self.outcome.load(Ordering::Relaxed);
+        self.state.store(FREE, Ordering::Release);
+        let verb = if write.is_some() { "write" } else { "read" };
+        match outcome {
+            o if o == Outcome::Done as u8 => Ok(value),
+            o if o == Outcome::Aborted as u8 => Err(coe::abort_error(index, subindex, code)),
+            o if o == Outcome::TimedOut as u8 => Err(Error::Timeout {
+                what: format!("slave {slave} to answer the SDO {verb} of 0x{index:04X}:{subindex:02X}"),
+            }),
+            o if o == Outcome::TooLarge as u8 => Err(Error::Mailbox(format!(
+                "SDO {verb} of {} needs a segmented transfer, which runs only with the cycle stopped",
+                what()
+            ))),
+            o if o == Outcome::MailboxError as u8 => Err(Error::Mailbox(format!(
+                "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} with mailbox error 0x{code:04X} ({})",
+                crate::mailbox::error_detail_name(code as u16)
+            ))),
+            o if o == Outcome::NoMailbox as u8 => {
+                Err(Error::Mailbox(format!("slave {slave} has no CoE mailbox for the SDO {verb} of {}", what())))
+            }
+            _ => Err(Error::Mailbox(format!("slave {slave} answered the SDO {verb} of {} with something else", what()))),
+        }
+    }
+}
+
+/// A drive fault waiting for its error code: the event as it will be reported.
+#[derive(Clone, Copy, Debug)]
+pub struct PendingFault {
+    /// The fault event, its code still 0.
+    pub event: Event,
+}
+
+/// Where a transfer came from.
+#[derive(Clone, Copy, Debug)]
+enum Origin {
+    Caller,
+    ErrorCode(PendingFault),
+}
+
+#[derive(Clone, Copy, Debug)]
+enum Phase {
+    Idle,
+    /// The request is built in the send buffer; SM0 has not taken it yet.
+    Sending {
+        slave: u16,
+        origin: Origin,
+        deadline_ns: u64,
+    },
+    /// SM0 took it; the answer is awaited in SM1.
+    Awaiting {
+        slave: u16,
+        counter: u8,
+        origin: Origin,
+        deadline_ns: u64,
+    },
+}
+
+/// The cycle thread's side: buffers and the transfer under way.
+pub struct MailboxService {
+    send: Vec<u8>,
+    receive: Vec<u8>,
+    phase: Phase,
+    /// Drive faults waiting for 0x603F, one per slave.
+    pending: Vec<Option<PendingFault>>,
+    /// Where the search for a full SM1 starts next, so every slave gets its turn.
+    next_slave: usize,
+    index: u16,
+    subindex: u8,
+}
+
+impl MailboxService {
+    /// Buffers for the largest mailbox of `master`'s slaves, allocated before the cycle.
+    pub fn new(master: &Master) -> Self {
+        let largest = |f: fn(&crate::master::mailbox::Mailbox) -> u16| {
+            master.slaves().iter().filter_map(|s| s.mailbox.as_ref().map(f)).max().unwrap_or(0) as usize
+        };
+        MailboxService {
+            send: vec![0; largest(|m| m.out_len)],
+            receive: vec![0; largest(|m| m.in_len)],
+            phase: Phase::Idle,
+            pending: vec![None; master.slaves().len()],
+            next_slave: 0,
+            index: 0,
+            subindex: 0,
+        }
+    }
+
+    /// Queues the read of 0x603F for a drive fault; the event goes out when the code is in
+    /// (or at once, code 0, for a slave without CoE).
+    pub fn read_error_code(&mut self, master: &Master, slave: u16, fault: PendingFault, events: &Events) {
+        let has_coe = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).is_some_and(|m| m.has_coe());
+        match self.pending.get_mut(slave as usize) {
+            Some(slot) if has_coe => *slot = Some(fault),
+            _ => events.push(fault.event),
+        }
+    }
+
+    /// One cycle's mailbox work, after the exchange: reads one waiting message, else starts
+    /// or continues one transfer. `statusword(slave)` gives a drive's statusword for events.
+    pub fn run(
+        &mut self,
+        master: &mut Master,
+        slot: &SdoSlot,
+        events: &Events,
+        context: (u64, u64),
+        statusword: impl Fn(u16) -> u16,
+    ) {
+        let now_ns = context.1;
+        if self.read_one(master, slot, events, context, &statusword) {
+            return;
+        }
+        if let Phase::Sending { deadline_ns, origin, .. } | Phase::Awaiting { deadline_ns, origin, .. } = self.phase {
+            if now_ns > deadline_ns {
+                self.finish(slot, events, origin, Outcome::TimedOut, 0, &[]);
+            }
+        }
+        if let Phase::Idle = self.phase {
+            self.start(master, slot, events, now_ns + TRANSFER_TIMEOUT.as_nanos() as u64);
+        }
+        if let Phase::Sending { slave, origin, deadline_ns } = self.phase {
+            let len = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).map_or(0, |m| m.out_len as usize);
+            match master.mailbox_try_send(slave, &mut self.send[..len]) {
+                Ok(true) => {
+                    let counter = self.send[5] >> 4;
+                    self.phase = Phase::Awaiting { slave, counter, origin, deadline_ns };
+                }
+                Ok(false) => {}
+                Err(_) => self.finish(slot, events, origin, Outcome::Unexpected, 0, &[]),
+            }
+        }
+    }
+
+    /// Builds the next request: a fault's 0x603F first, then a caller's transfer.
+    fn start(&mut self, master: &mut Master, slot: &SdoSlot, events: &Events, deadline_ns: u64) {
+        let (slave, origin, write_len) = if let Some(slave) = self.pending.iter().position(Option::is_some) {
+            let fault = self.pending[slave].take().expect("found above");
+            self.index = 0x603F;
+            self.subindex = 0;
+            (slave as u16, Origin::ErrorCode(fault), 0)
+        } else if slot.state.compare_exchange(ASKED, TAKEN, Ordering::AcqRel, Ordering::Acquire).is_ok() {
+            self.index = slot.index.load(Ordering::Relaxed);
+            self.subindex = slot.subindex.load(Ordering::Relaxed);
+            (slot.slave.load(Ordering::Relaxed), Origin::Caller, slot.len.load(Ordering::Relaxed) as usize)
+        } else {
+            return;
+        };
+        let out_len = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).map(|m| m.out_len as usize);
+        let Some(out_len) = out_len else {
+            return self.finish(slot, events, origin, Outcome::NoMailbox, 0, &[]);
+        };
+        if write_len > out_len - SDO_OFFSET - SDO_LEN {
+            return self.finish(slot, events, origin, Outcome::TooLarge, 0, &[]);
+        }
+        let Ok(counter) = master.mailbox_take_counter(slave) else {
+            return self.finish(slot, events, origin, Outcome::NoMailbox, 0, &[]);
+        };
+        let mut value = [0u8; MAX_DATA];
+        for (v, cell) in value.iter_mut().zip(slot.data.iter()).take(write_len) {
+            *v = cell.load(Ordering::Relaxed);
+        }
+        let (index, subindex, data) = (self.index, self.subindex, &value[..write_len]);
+        let request = match write_len {
+            0 => SdoRequest::Upload { index, subindex, complete_access: false },
+            1..=4 => SdoRequest::DownloadExpedited { index, subindex, complete_access: false, data },
+            _ => SdoRequest::DownloadNormal {
+                index,
+                subindex,
+                complete_access: false,
+                complete_size: write_len as u32,
+                data,
+            },
+        };
+        self.send.fill(0);
+        coe::write_sdo_request(&mut self.send[..out_len], counter, &request);
+        self.phase = Phase::Sending { slave, origin, deadline_ns };
+    }
+
+    /// Reads SM1 of the next slave that has a message; `true` when a frame was spent on it.
+    fn read_one(
+        &mut self,
+        master: &mut Master,
+        slot: &SdoSlot,
+        events: &Events,
+        (cycle, time_ns): (u64, u64),
+        statusword: &impl Fn(u16) -> u16,
+    ) -> bool {
+        let Ok(watch) = master.watch() else { return false };
+        let count = watch.len();
+        let Some(slave) = (0..count).map(|n| (self.next_slave + n) % count).find(|&s| watch[s].mailbox_full) else {
+            return false;
+        };
+        let SlaveWatch { al_status, .. } = watch[slave];
+        self.next_slave = (slave + 1) % count;
+        let slave = slave as u16;
+        let len = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).map_or(0, |m| m.in_len as usize);
+        if !matches!(master.mailbox_try_read(slave, &mut self.receive[..len]), Ok(true)) {
+            return true;
+        }
+        let Ok(header) = MailboxHeader::decode(&self.receive[..len]) else { return true };
+        let awaited = match self.phase {
+            Phase::Awaiting { slave: s, counter, origin, .. } if s == slave => Some((counter, origin)),
+            _ => None,
+        };
+        match header.protocol() {
+            Some(MailboxType::Error) => {
+                if let Some((_, origin)) = awaited {
+                    let detail = crate::mailbox::parse_error_reply(header.body(&self.receive[..len])).unwrap_or(0);
+                    self.finish(slot, events, origin, Outcome::MailboxError, detail as u32, &[]);
+                }
+            }
+            Some(MailboxType::Coe) => {
+                let Ok((_, coe_header, body)) = coe::split_message(&self.receive[..len]) else { return true };
+                if coe_header.service == service::EMERGENCY {
+                    if let Ok(emergency) = Emergency::decode(body) {
+                        events.push(Event::Fault {
+                            cycle,
+                            time_ns,
+                            slave,
+                            source: FaultSource::Emergency,
+                            code: emergency.error_code,
+                            statusword: statusword(slave),
+                            al_status: al_status.status,
+                            al_status_code: al_status.code,
+                            action: Action::Reported,
+                        });
+                    }
+                    return true;
+                }
+                let Some((counter, origin)) = awaited else { return true };
+                if header.counter != 0 && header.counter != counter {
+                    return true;
+                }
+                let (index, subindex) = (self.index, self.subindex);
+                // The response borrows the receive buffer; copy what is kept first.
+                let mut value = [0u8; MAX_DATA];
+                let (outcome, code, len) = match SdoResponse::decode(body) {
+                    Ok(SdoResponse::UploadExpedited { index: i, subindex: s, data }) if (i, s) == (index, subindex) => {
+                        value[..data.len()].copy_from_slice(data);
+                        (Outcome::Done, 0, data.len())
+                    }
+                    Ok(SdoResponse::UploadNormal { index: i, subindex: s, complete_size, data })
+                        if (i, s) == (index, subindex) =>
+                    {
+                        if complete_size as usize > data.len() || data.len() > MAX_DATA {
+                            (Outcome::TooLarge, 0, 0)
+                        } else {
+                            let n = complete_size as usize;
+                            value[..n].copy_from_slice(&data[..n]);
+                            (Outcome::Done, 0, n)
+                        }
+                    }
+                    Ok(SdoResponse::Download { index: i, subindex: s }) if (i, s) == (index, subindex) => {
+                        (Outcome::Done, 0, 0)
+                    }
+                    Ok(SdoResponse::Abort { code, .. }) => (Outcome::Aborted, code, 0),
+                    _ => (Outcome::Unexpected, 0, 0),
+                };
+                self.finish(slot, events, origin, outcome, code, &value[..len]);
+            }
+            _ => {}
+        }
+        true
+    }
+
+    /// Ends the transfer under way: a caller's goes back through the slot, a fault's becomes
+    /// its event (code 0 when 0x603F could not be read).
+    fn finish(&mut self, slot: &SdoSlot, events: &Events, origin: Origin, outcome: Outcome, code: u32, value: &[u8]) {
+        self.phase = Phase::Idle;
+        match origin {
+            Origin::ErrorCode(fault) => {
+                events.push(with_code(fault.event, if outcome == Outcome::Done { error_code(value) } else { 0 }))
+            }
+            Origin::Caller => {
+                for (cell, b) in slot.data.iter().zip(value) {
+                    cell.store(*b, Ordering::Relaxed);
+                }
+                slot.len.store(value.len() as u16, Ordering::Relaxed);
+                slot.outcome.store(outcome as u8, Ordering::Relaxed);
+                slot.code.store(code, Ordering::Relaxed);
+                slot.state.store(DONE, Ordering::Release);
+            }
+        }
+    }
+}
+
+fn error_code(value: &[u8]) -> u16 {
+    match value {
+        [a, b, ..] => u16::from_le_bytes([*a, *b]),
+        _ => 0,
+    }
+}
+
+fn with_code(event: Event, code: u16) -> Event {
+    match event {
+        Event::Fault { cycle, time_ns, slave, source, statusword, al_status, al_status_code, action, .. } => {
+            Event::Fault { cycle, time_ns, slave, source, code, statusword, al_status, al_status_code, action }
+        }
+        other => other,
+    }
+}
