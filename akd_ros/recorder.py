@@ -171,7 +171,8 @@ def _rclpy_message_type(msg_class: type) -> MessageType:
     for index in range(sources_seq.size):
         source = sources_seq.data[index]
         if source.encoding.data == b"msg":
-            sources[source.type_name.data.decode()] = source.raw_file_contents.data.decode()
+            # The generator strips the file's final newline, which rosbag2's copy of the file has.
+            sources[source.type_name.data.decode()] = source.raw_file_contents.data.decode().rstrip("\n") + "\n"
     name = _rclpy_name(msg_class)
     if name not in sources:
         raise ValueError(
@@ -619,11 +620,10 @@ class Recorder:
         self.close()
 
     def _enqueue(self, item: Any, control: bool = False) -> None:
-        if self._failed or (self._closed and item is not _CLOSE) or (
-            not control and len(self._queue) >= self._queue_size
-        ):
+        refused = self._failed or self._closed or (not control and len(self._queue) >= self._queue_size)
+        if refused and item is not _CLOSE:
             with self._stats_lock:
-                self.stats.dropped += 1
+                self.stats.dropped += _messages_in(item)
             return
         self._queue.append(item)
         self._wake.set()
@@ -668,7 +668,7 @@ class Recorder:
             self._on_error(text)
         # What waits is lost with the failed disk: count it as dropped.
         with self._stats_lock:
-            self.stats.dropped += sum(1 for item in self._queue if isinstance(item, tuple) and len(item) == 3)
+            self.stats.dropped += sum(_messages_in(item) for item in self._queue)
 
     def _handle(self, item: tuple) -> None:
         if item[0] == "topic":
@@ -733,6 +733,13 @@ class Recorder:
         self._guarded(self._file.close, self._metadata())
         if not self._failed:
             self._guarded(self._save_metadata)
+
+
+def _messages_in(item: Any) -> int:
+    """How many messages a queue item carries (topic additions and the close carry none)."""
+    if item is _CLOSE or item[0] == "topic":
+        return 0
+    return len(item[1]) if item[0] == "black_box" else 1
 
 
 def _check_positive(name: str, value: Any, integer: bool = False) -> None:
