@@ -1,6 +1,6 @@
 """Conversion between the AKD's drive units and SI units of the load (REP 103), and set-point limits.
 
-The drive speaks in counts of the motor's feedback and in thousandths of rated torque; the Python surface speaks in
+The drive speaks in counts of the motor's feedback and in thousandths of the drive's peak torque; the Python surface speaks in
 rad, rad/s and N·m for a rotary axis, or m, m/s and N for a linear one. `Units` holds the mechanics that relate the
 two; `Limits` checks set-points before they are converted and sent.
 
@@ -10,7 +10,8 @@ Drive units, as the virtual AKD uses them:
   counter wraps at 32 bits; `unwrap_position` turns successive raw readings into one continuous count.
 - velocity (0x606C, 0x60FF): int32 counts per second. This is an assumption the virtual AKD makes; the real AKD's
   DS402 velocity unit is configurable, so a real drive must be set up to match it.
-- torque (0x6071, 0x6077): int16 in 0.1 % of the motor's rated torque (thousandths: 1000 means 100 %).
+- torque (0x6071, 0x6077): int16 in 0.1 % of the drive's peak torque (thousandths: 1000 means 100 %). The AKD
+  manual says so for mode 4 ("torque in % of drive peak torque"), unlike CiA 402's per mille of rated torque.
 
 `gear_ratio` is motor revolutions per load revolution, `direction` flips the load's sense against the motor's, and
 `offset` is the load position (SI) at motor count 0. A linear axis moves `lead` metres per load revolution.
@@ -25,8 +26,8 @@ from typing import Callable, Literal
 
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 INT16_MIN, INT16_MAX = -(2**15), 2**15 - 1
-TORQUE_UNITS_PER_RATED = 1000
-"""Drive torque units per rated torque: 0x6071/0x6077 count in 0.1 %."""
+TORQUE_UNITS_PER_PEAK = 1000
+"""Drive torque units per peak torque: 0x6071/0x6077 count in 0.1 %."""
 
 AxisKind = Literal["rotary", "linear"]
 LimitKind = Literal["position", "velocity", "torque"]
@@ -72,7 +73,7 @@ def unwrap_position(previous: int, raw: int) -> int:
 
 @dataclass(frozen=True)
 class Units:
-    """How drive counts and thousandths of rated torque map to SI units of the load (see the module doc)."""
+    """How drive counts and thousandths of peak torque map to SI units of the load (see the module doc)."""
 
     counts_per_revolution: int = 2**20
     """Feedback counts per motor revolution; the virtual AKD uses 2**20."""
@@ -86,8 +87,9 @@ class Units:
     """"rotary" (rad, rad/s, N·m) or "linear" (m, m/s, N)."""
     lead: float | None = None
     """Metres the load travels per load revolution; required for, and only for, a linear axis."""
-    rated_torque: float = 1.0
-    """The motor's rated torque in N·m, which drive torque value 1000 (100 %) means."""
+    peak_torque: float = 3.0
+    """The drive's peak torque at the motor in N·m (peak current × motor torque constant), which drive torque value
+    1000 (100 %) means; the virtual AKD's is 3 N·m."""
 
     def __post_init__(self) -> None:
         cpr = self.counts_per_revolution
@@ -106,7 +108,7 @@ class Units:
             _finite("lead", self.lead, positive=True)
         else:
             raise ValueError(f"axis must be 'rotary' or 'linear', got {self.axis!r}")
-        _finite("rated_torque", self.rated_torque, positive=True)
+        _finite("peak_torque", self.peak_torque, positive=True)
 
     @property
     def position_unit(self) -> str:
@@ -121,8 +123,8 @@ class Units:
 
     @property
     def si_per_torque_unit(self) -> float:
-        """Load torque (N·m) or force (N), signed by `direction`, per drive torque unit (0.1 % of rated)."""
-        load_torque = self.rated_torque * self.gear_ratio / TORQUE_UNITS_PER_RATED
+        """Load torque (N·m) or force (N), signed by `direction`, per drive torque unit (0.1 % of peak)."""
+        load_torque = self.peak_torque * self.gear_ratio / TORQUE_UNITS_PER_PEAK
         per_unit = load_torque if self.lead is None else load_torque * 2 * math.pi / self.lead
         return self.direction * per_unit
 
@@ -147,11 +149,11 @@ class Units:
         return _drive_value("velocity", velocity, counts, (INT32_MIN, INT32_MAX), self.velocity_to_si, unit)
 
     def torque_to_si(self, value: int) -> float:
-        """The load torque (N·m) or force (N) for the drive torque `value` (0x6077, 0.1 % of rated)."""
+        """The load torque (N·m) or force (N) for the drive torque `value` (0x6077, 0.1 % of peak)."""
         return value * self.si_per_torque_unit
 
     def torque_to_drive(self, torque: float) -> int:
-        """The int16 target torque (0x6071, 0.1 % of rated) for the load torque (N·m) or force (N) `torque`."""
+        """The int16 target torque (0x6071, 0.1 % of peak) for the load torque (N·m) or force (N) `torque`."""
         value = round(_finite("torque", torque) / self.si_per_torque_unit)
         unit = "N·m" if self.lead is None else "N"
         return _drive_value("torque", torque, value, (INT16_MIN, INT16_MAX), self.torque_to_si, unit)

@@ -26,7 +26,7 @@ def any_units(draw: st.DrawFn) -> Units:
         offset=draw(st.floats(-100.0, 100.0)),
         axis="linear" if linear else "rotary",
         lead=draw(st.floats(1e-4, 1.0)) if linear else None,
-        rated_torque=draw(st.floats(0.01, 1000.0)),
+        peak_torque=draw(st.floats(0.01, 1000.0)),
     )
 
 
@@ -80,15 +80,15 @@ def test_one_revolution_is_2_pi_rad_and_2_pow_20_counts() -> None:
 
 
 def test_gear_10_turns_the_motor_10_times_per_load_revolution() -> None:
-    units = Units(gear_ratio=10.0, rated_torque=2.5)
+    units = Units(gear_ratio=10.0, peak_torque=2.5)
     assert units.position_to_counts(TAU) == 10 * REV
     assert units.velocity_to_counts(-TAU) == -10 * REV
-    assert units.torque_to_drive(25.0) == 1000  # rated motor torque gives ten times the torque at the load
+    assert units.torque_to_drive(25.0) == 1000  # peak motor torque gives ten times the torque at the load
     assert units.torque_to_si(500) == pytest.approx(12.5)
 
 
 def test_direction_minus_1_flips_every_sign() -> None:
-    units = Units(direction=-1, rated_torque=2.0)
+    units = Units(direction=-1, peak_torque=2.0)
     assert units.position_to_counts(TAU) == -REV
     assert units.position_to_si(REV) == pytest.approx(-TAU)
     assert units.velocity_to_counts(TAU) == -REV
@@ -105,17 +105,17 @@ def test_offset_shifts_positions_only() -> None:
 
 
 def test_linear_axis_in_metres_and_newtons() -> None:
-    units = Units(axis="linear", lead=0.005, gear_ratio=2.0, rated_torque=0.5)
+    units = Units(axis="linear", lead=0.005, gear_ratio=2.0, peak_torque=0.5)
     assert units.position_unit == "m"
     assert units.position_to_counts(0.005) == 2 * REV  # one load revolution
     assert units.velocity_to_counts(0.01) == 4 * REV
-    # rated torque 0.5 N·m x gear 2 = 1 N·m at the screw; 2π rad per 5 mm gives 1 N·m x 2π / 0.005 m
+    # peak torque 0.5 N·m x gear 2 = 1 N·m at the screw; 2π rad per 5 mm gives 1 N·m x 2π / 0.005 m
     assert units.torque_to_si(1000) == pytest.approx(TAU / 0.005)
     assert units.torque_to_drive(TAU / 0.005 / 2) == 500
 
 
-def test_rated_torque_is_1000_thousandths() -> None:
-    units = Units(rated_torque=3.0)
+def test_peak_torque_is_1000_thousandths() -> None:
+    units = Units(peak_torque=3.0)
     assert units.torque_to_drive(3.0) == 1000
     assert units.torque_to_drive(-0.003) == -1
     assert units.torque_to_si(INT16_MAX) == pytest.approx(3.0 * INT16_MAX / 1000)
@@ -177,8 +177,8 @@ def test_unwrapped_position_stays_continuous_in_si() -> None:
         ({"axis": "linear"}, "lead (m per load revolution) is required for a linear axis"),
         ({"axis": "linear", "lead": 0.0}, "lead must be a finite number greater than 0, got 0.0"),
         ({"lead": 0.01}, "lead applies to a linear axis only; a rotary axis needs lead None, got 0.01"),
-        ({"rated_torque": 0.0}, "rated_torque must be a finite number greater than 0, got 0.0"),
-        ({"rated_torque": math.nan}, "rated_torque must be a finite number greater than 0, got nan"),
+        ({"peak_torque": 0.0}, "peak_torque must be a finite number greater than 0, got 0.0"),
+        ({"peak_torque": math.nan}, "peak_torque must be a finite number greater than 0, got nan"),
     ],
 )
 def test_units_refuse_bad_configuration(kwargs: dict, message: str) -> None:
@@ -223,7 +223,7 @@ def test_velocity_outside_int32_is_refused() -> None:
 
 
 def test_torque_beyond_int16_of_0_1_percent_is_refused() -> None:
-    units = Units(rated_torque=1.0)
+    units = Units(peak_torque=1.0)
     assert units.torque_to_drive(32.767) == INT16_MAX
     assert units.torque_to_drive(-32.768) == INT16_MIN
     message = (

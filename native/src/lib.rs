@@ -10,6 +10,7 @@
 //! [`link`] moves frames; [`master`] drives a bus; [`cycle`] runs the master's exchange in a
 //! real-time thread; [`sim`] is the virtual AKD.
 
+pub mod akd_fault;
 pub mod al;
 pub mod coe;
 pub mod cycle;

@@ -319,7 +319,7 @@ fn profile_velocity_torque_and_profile_position_track() {
     assert!(rig.get(0x606C, 0).abs() < (REV * 0.01) as i64, "halted: {}", rig.get(0x606C, 0));
     rig.set(0x6040, 0, cw::ENABLE_OPERATION_COMMAND as i64);
 
-    // Torque: 10 % of the rated torque is given and accelerates the motor.
+    // Torque: 10 % of the peak torque is given and accelerates the motor.
     rig.set(0x6071, 0, 100);
     rig.set(0x6060, 0, 4);
     rig.cycles(20);

@@ -13,7 +13,10 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 
 use super::master::PyMaster;
 use super::IntoPyResult;
+use crate::akd_fault;
 use crate::cycle::ds402::{Progress, Request};
+use crate::cycle::events::{Edge, Event};
+use crate::cycle::latch;
 use crate::cycle::stats::Summary;
 use crate::cycle::{Config, CycleThread};
 use crate::ds402::State;
@@ -247,6 +250,126 @@ impl PyCycle {
             None => Ok(()),
             Some(what) => Err(super::to_py_err(Error::Timeout { what })),
         }
+    }
+
+    /// Latch and fault events since the last call, oldest first, each a dict. Every event has
+    /// "kind" ("latch" or "fault"), "cycle", "time_ns" (the cycle's monotonic wake-up time) and
+    /// "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
+    /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
+    /// "working_counter", "al_state"), "code" (CiA error code; for lost frames and working
+    /// counter errors the cycles in a row), "text" (the AKD's text where known, else None),
+    /// "statusword", "al_status", "al_status_code" and "action" (what the loop did).
+    fn events<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
+        let list = PyList::empty(py);
+        for event in self.cycle.events() {
+            let d = PyDict::new(py);
+            match event {
+                Event::Latch { cycle, time_ns, slave, channel, edge, position } => {
+                    d.set_item("kind", "latch")?;
+                    d.set_item("cycle", cycle)?;
+                    d.set_item("time_ns", time_ns)?;
+                    d.set_item("slave", slave)?;
+                    d.set_item("channel", channel)?;
+                    d.set_item("edge", edge.name())?;
+                    d.set_item("position", position)?;
+                }
+                Event::Fault { cycle, time_ns, slave, source, code, statusword, al_status, al_status_code, action } => {
+                    d.set_item("kind", "fault")?;
+                    d.set_item("cycle", cycle)?;
+                    d.set_item("time_ns", time_ns)?;
+                    d.set_item("slave", slave)?;
+                    d.set_item("source", source.name())?;
+                    d.set_item("code", code)?;
+                    let text = matches!(
+                        source,
+                        crate::cycle::events::FaultSource::DriveFault | crate::cycle::events::FaultSource::Emergency
+                    )
+                    .then(|| akd_fault::by_code(code).map(|f| format!("F{} {}", f.number, f.text)))
+                    .flatten();
+                    d.set_item("text", text)?;
+                    d.set_item("statusword", statusword)?;
+                    d.set_item("al_status", al_status)?;
+                    d.set_item("al_status_code", al_status_code)?;
+                    d.set_item("al_status_code_name", crate::al::status_code_name(al_status_code))?;
+                    d.set_item("action", action.describe())?;
+                }
+            }
+            list.append(d)?;
+        }
+        Ok(list)
+    }
+
+    /// Events lost because they were not taken before 256 piled up.
+    #[getter]
+    fn events_dropped(&self) -> u64 {
+        self.cycle.events_dropped()
+    }
+
+    /// Arms (or with `arm=False` disarms) latch `channel` (1 or 2) on `edge` ("rising" or
+    /// "falling") of drive `position`; every capture then becomes one event.
+    #[pyo3(signature = (position, channel, edge, arm = true))]
+    fn arm_latch(&self, position: u16, channel: u8, edge: &str, arm: bool) -> PyResult<()> {
+        if !(1..=2).contains(&channel) {
+            return Err(super::to_py_err(Error::Config(format!(
+                "latch channel {channel}: the AKD has latches 1 and 2"
+            ))));
+        }
+        let edge = match edge {
+            "rising" => Edge::Rising,
+            "falling" => Edge::Falling,
+            other => {
+                return Err(super::to_py_err(Error::Config(format!(
+                    "latch edge {other:?}: allowed \"rising\" or \"falling\""
+                ))))
+            }
+        };
+        self.cycle.arm_latch(position, latch::edge_bit(channel, edge), arm).py()
+    }
+
+    /// Reads `index:subindex` of slave `position` beside the running cycle (the GIL released
+    /// while it waits); raises SdoAbortError, TimeoutError or MailboxError.
+    fn sdo_read<'py>(&self, py: Python<'py>, position: u16, index: u16, subindex: u8) -> PyResult<Bound<'py, PyBytes>> {
+        let cycle = &self.cycle;
+        let value = py.allow_threads(|| cycle.sdo_read(position, index, subindex)).py()?;
+        Ok(PyBytes::new(py, &value))
+    }
+
+    /// Writes `data` to `index:subindex` of slave `position` beside the running cycle.
+    fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
+        let cycle = &self.cycle;
+        py.allow_threads(|| cycle.sdo_write(position, index, subindex, &data)).py()
+    }
+
+    /// Sets the mode of operation (0x6060) of drive `position` and holds its target at the
+    /// actual position until the next set-point.
+    fn set_mode(&self, py: Python<'_>, position: u16, mode: i8) -> PyResult<()> {
+        let cycle = &self.cycle;
+        py.allow_threads(|| cycle.set_mode(position, mode)).py()
+    }
+
+    /// Sets or clears halt (controlword bit 8) of drive `position`.
+    fn set_halt(&self, position: u16, halt: bool) -> PyResult<()> {
+        self.cycle.set_halt(position, halt).py()
+    }
+
+    /// Sets one mapped output object of slave `position` from the next cycle on (its exact
+    /// size in bytes); releases a held target like any set-point.
+    fn set_object(&self, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
+        self.cycle.set_object(position, index, subindex, &data).py()
+    }
+
+    /// The mapping of slave `position`: {"outputs": [...], "inputs": [...]}, each a list of
+    /// (index, subindex, bit length, byte offset within the slave's data) in wire order.
+    fn mapping<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
+        let (rx, tx) = self.cycle.mapping(position).py()?;
+        let d = PyDict::new(py);
+        for (name, entries) in [("outputs", rx), ("inputs", tx)] {
+            let list: Vec<(u16, u8, u8, usize)> = crate::pdo::layout(entries.iter().copied())
+                .map(|(offset, e)| (e.index, e.subindex, e.bits, offset))
+                .collect();
+            d.set_item(name, list)?;
+        }
+        Ok(d)
     }
 
     /// The real-time settings asked for and not permitted, one sentence each.

@@ -19,14 +19,14 @@
 //!   reaction active (13) and then enters Fault (14) with the power stage off.
 //! - Cyclic position modes (8: 0x607A, 7: 0x60C1:01) interpolate linearly between set-points
 //!   over the cycle time 0x60C2, the slope feeding the velocity loop forward. Profile velocity
-//!   (3) ramps to 0x60FF with 0x6083/0x6084. Torque (4) gives 0x6071 in 0.1 % of the rated
+//!   (3) ramps to 0x60FF with 0x6083/0x6084. Torque (4) gives 0x6071 in 0.1 % of the peak
 //!   torque. Profile position (1) moves to 0x607A (bit 6: relative) on the rising edge of bit 4
 //!   with a trapezoid of 0x6081/0x6083/0x6084, each new set-point at once. Homing (6) is the
 //!   AKD's "home at the current position": bit 4 rising makes the actual position 0.
 //! - On entering Operation enabled and on every mode change the position command is the actual
 //!   position: nothing moves until a set-point asks for it.
 //! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
-//!   counts/s², torque in 0.1 % of the rated torque.
+//!   counts/s², torque in 0.1 % of the drive's peak torque.
 
 use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
@@ -459,7 +459,7 @@ impl Drive {
             return None;
         }
         let mut m = self.mechanics;
-        let max_torque = u16_of(od, 0x6072) as f64 * m.rated_torque / 1000.0;
+        let max_torque = u16_of(od, 0x6072) as f64 * m.peak_torque / 1000.0;
         if max_torque > 0.0 {
             m.peak_torque = m.peak_torque.min(max_torque);
         }
@@ -490,7 +490,7 @@ impl Drive {
             Some(Mode::ProfileTorque) => {
                 self.command = shaft.position;
                 let target = bytes::<2>(od, 0x6071, 0);
-                self.loops.torque(i16::from_le_bytes(target) as f64 * m.rated_torque / 1000.0, &m)
+                self.loops.torque(i16::from_le_bytes(target) as f64 * self.mechanics.peak_torque / 1000.0, &m)
             }
             Some(Mode::ProfilePosition) => {
                 self.profile_step(od);
@@ -590,7 +590,7 @@ impl Drive {
         od.set(0x6063, 0, &counts.to_le_bytes());
         od.set(0x6064, 0, &counts.to_le_bytes());
         od.set(0x606C, 0, &(self.shaft.velocity.round() as i64 as i32).to_le_bytes());
-        let torque = (self.shaft.torque / self.mechanics.rated_torque * 1000.0).round() as i16;
+        let torque = (self.shaft.torque / self.mechanics.peak_torque * 1000.0).round() as i16;
         od.set(0x6077, 0, &torque.to_le_bytes());
         od.set(0x60F4, 0, &(following_error.round() as i64 as i32).to_le_bytes());
         od.set(0x603F, 0, &self.last_error_code.to_le_bytes());

@@ -7,6 +7,7 @@
 //! (0x8611 following error, 0x8700 sync controller, 0x8250 RPDO time-out), as the AKD's table
 //! is not in the project's sources.
 
+use crate::akd_fault::{self, AkdFault};
 use crate::coe::Emergency;
 
 /// A drive fault.
@@ -55,24 +56,19 @@ impl Fault {
         }
     }
 
+    /// The fault's number, text and code as the real drive has them.
+    fn info(self) -> &'static AkdFault {
+        akd_fault::by_number(self.number()).expect("every simulated fault is in the table")
+    }
+
     /// The AKD's text.
     pub fn text(self) -> &'static str {
-        match self {
-            Fault::FollowingError => "Following error",
-            Fault::OverTemperature => "Excessive temperature, drive (heat sink)",
-            Fault::SyncLost => "Synchronization lost",
-            Fault::SetpointsMissing => "Cyclic set-points missing",
-        }
+        self.info().text
     }
 
     /// The CiA error code of 0x603F and the emergency message.
     pub fn error_code(self) -> u16 {
-        match self {
-            Fault::FollowingError => 0x8611,
-            Fault::OverTemperature => 0x4310,
-            Fault::SyncLost => 0x8700,
-            Fault::SetpointsMissing => 0x8250,
-        }
+        self.info().error_code
     }
 
     /// The error register 0x1001 while the fault is active.

@@ -24,16 +24,15 @@ pub struct Mechanics {
     pub viscous: f64,
     /// Coulomb (dry) friction, N·m.
     pub coulomb: f64,
-    /// Rated (continuous) torque, N·m: 0x6071/0x6077 count in 0.1 % of it.
-    pub rated_torque: f64,
-    /// Peak torque the drive gives, N·m (the torque limit).
+    /// Peak torque the drive gives, N·m: the torque limit, and what 0x6071/0x6072/0x6077 count
+    /// in 0.1 % of ("torque in % of drive peak torque", AKD manual, mode 4).
     pub peak_torque: f64,
 }
 
 impl Default for Mechanics {
     /// A small AKM-class servo motor with a light load.
     fn default() -> Self {
-        Mechanics { inertia: 2.0e-4, viscous: 2.0e-4, coulomb: 0.02, rated_torque: 1.0, peak_torque: 3.0 }
+        Mechanics { inertia: 2.0e-4, viscous: 2.0e-4, coulomb: 0.02, peak_torque: 3.0 }
     }
 }
 
