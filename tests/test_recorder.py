@@ -167,6 +167,26 @@ def test_schema_is_the_msg_text_with_its_dependencies_and_the_type_support_hash(
     assert message_type(Float64).definition == (share / "std_msgs/msg/Float64.msg").read_text()
 
 
+def test_the_package_messages_hashes_agree_with_rosbags_hash_of_their_definitions():
+    from akd_ros.msg import CycleSample, DriveFault, LatchEvent
+    from rosbags.typesys import get_types_from_msg
+
+    for msg_class in (CycleSample, LatchEvent, DriveFault):
+        described = message_type(msg_class)
+        store = get_typestore(Stores.ROS2_JAZZY)
+        store.register(get_types_from_msg(described.definition, described.name))
+        assert described.type_hash == store.hash_rihs01(described.name)
+        own_text = described.definition.split("\n" + "=" * 80 + "\n")[0]
+        msg_file = Path(__file__).parents[1] / "msg" / f"{msg_class.__name__}.msg"
+        # Fields and constants as in the .msg file (the type support escapes non-ASCII comments).
+        assert fields_of(own_text) == fields_of(msg_file.read_text())
+
+
+def fields_of(msg_text: str) -> list[str]:
+    """The field and constant lines of .msg text, without comments."""
+    return [line.split("#")[0].strip() for line in msg_text.splitlines() if line.split("#")[0].strip()]
+
+
 def test_rosbags_message_classes_go_through_the_rosbags_serializer(tmp_path):
     store = get_typestore(Stores.ROS2_JAZZY)
     float64 = store.types["std_msgs/msg/Float64"]

@@ -1,0 +1,214 @@
+"""akd-plot BAG -o FILE.png: one picture of a recorded run, to see what happened around a fault.
+
+BAG is a rosbag2 directory written by akd_ros (akd_ros.recorder). The picture has, against the
+time since the first cycle sample: position and command, following error, torque, each with the
+faults (red, with code, text and what the driver did) and latch captures (green, with channel,
+edge and position) drawn across; and a histogram of the cycle periods. Cycle samples come from
+the cycle topic and the black box (the seconds before each fault, shaded) alike. A bag whose
+recorder was killed is read after ``--reindex`` (akd_ros.recorder.reindex).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from akd_ros.cli.common import EXIT_FAILURE, run
+
+CYCLE_SAMPLE = "akd_ros/msg/CycleSample"
+LATCH_EVENT = "akd_ros/msg/LatchEvent"
+DRIVE_FAULT = "akd_ros/msg/DriveFault"
+#: File types the picture can be written as, by extension.
+FORMATS = (".png", ".svg", ".pdf")
+_EDGES = {1: "rising", 2: "falling"}
+
+
+@dataclass
+class Run:
+    """What a bag holds for the picture: cycle samples by cycle number, latches and faults.
+
+    ``samples`` maps cycle number to (time_ns, sample); ``black_box`` lists (first, last) time of
+    each black box dump; ``latches`` and ``faults`` are (time_ns, message) in time order.
+    """
+
+    samples: dict = field(default_factory=dict)
+    black_box: list = field(default_factory=list)
+    latches: list = field(default_factory=list)
+    faults: list = field(default_factory=list)
+    topics: dict = field(default_factory=dict)
+
+
+def read_run(bag: Path) -> Run:
+    """Reads a bag's cycle samples, latch events and faults; ValueError/OSError say what is wrong."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    if bag.is_file() and bag.suffix == ".mcap":
+        bag = bag.parent
+    if not (bag / "metadata.yaml").is_file():
+        raise FileNotFoundError(f"no bag at {bag}: expected a rosbag2 directory with metadata.yaml")
+    result = Run()
+    try:
+        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+            result.topics = {c.topic: c.msgtype for c in reader.connections}
+            black_box_topics = {c.topic for c in reader.connections if c.topic.endswith("/black_box")}
+            wanted = [c for c in reader.connections if c.msgtype in (CYCLE_SAMPLE, LATCH_EVENT, DRIVE_FAULT)]
+            dump: list = []
+            for connection, time_ns, raw in reader.messages(connections=wanted):
+                msg = reader.deserialize(raw, connection.msgtype)
+                if connection.msgtype == CYCLE_SAMPLE:
+                    result.samples[msg.cycle] = (time_ns, msg)
+                    if connection.topic in black_box_topics:
+                        dump.append(time_ns)
+                elif connection.msgtype == LATCH_EVENT:
+                    result.latches.append((time_ns, msg))
+                else:
+                    result.faults.append((time_ns, msg))
+            result.black_box = _spans(sorted(dump))
+    except Exception as err:  # noqa: BLE001 - rosbags' errors have many types; all mean the same
+        raise ValueError(
+            f"cannot read bag {bag}: {err} (if its recorder was killed, run akd-plot with --reindex)"
+        ) from err
+    return result
+
+
+def _spans(times: list, gap_ns: int = 100_000_000) -> list:
+    """Groups sorted times into (first, last) spans, a new span after a gap longer than gap_ns."""
+    spans: list = []
+    for t in times:
+        if spans and t - spans[-1][1] <= gap_ns:
+            spans[-1][1] = t
+        else:
+            spans.append([t, t])
+    return [tuple(s) for s in spans]
+
+
+def fault_label(msg) -> str:
+    """One line for a fault: code, text, source and what the driver did."""
+    code = f"0x{msg.code:04X} " if msg.code else ""
+    al = f", AL 0x{msg.al_status_code:04X}" if msg.al_status_code else ""
+    return f"FAULT {code}{msg.text or msg.source} [{msg.source}{al}] -> {msg.action}"
+
+
+def latch_label(msg) -> str:
+    """One line for a latch capture: channel, edge and position."""
+    return f"latch {msg.channel} {_EDGES.get(msg.edge, f'edge {msg.edge}')} @ {msg.position:.4g}"
+
+
+def plot(run_data: Run, title: str, output: Path) -> None:
+    """Draws the run into output (its extension picks the format)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    cycles = sorted(run_data.samples)
+    times = np.array([run_data.samples[c][0] for c in cycles], dtype=np.int64)
+    samples = [run_data.samples[c][1] for c in cycles]
+    t0 = times[0]
+
+    def seconds(time_ns) -> float:
+        return (time_ns - t0) / 1e9
+
+    t = seconds(times)
+    column = {name: np.array([getattr(s, name) for s in samples], dtype=float) for name in (
+        "position", "command", "following_error", "torque", "period_ns")}
+
+    figure = plt.figure(figsize=(13, 11), layout="constrained")
+    grid = figure.add_gridspec(4, 1, height_ratios=[3, 2, 2, 2])
+    ax_position = figure.add_subplot(grid[0])
+    ax_error = figure.add_subplot(grid[1], sharex=ax_position)
+    ax_torque = figure.add_subplot(grid[2], sharex=ax_position)
+    ax_period = figure.add_subplot(grid[3])
+    ax_position.set_title(title, fontsize=11)
+
+    ax_position.plot(t, column["position"], lw=1.2, label="position")
+    ax_position.plot(t, column["command"], lw=1.0, ls="--", label="command")
+    ax_position.set_ylabel("position (rad or m)")
+    ax_error.plot(t, column["following_error"], lw=1.0, color="tab:purple")
+    ax_error.set_ylabel("following error\n(rad or m)")
+    ax_torque.plot(t, column["torque"], lw=1.0, color="tab:brown")
+    ax_torque.set_ylabel("torque (N·m or N)")
+    ax_torque.set_xlabel(f"time since the first cycle sample (s); cycles {cycles[0]}..{cycles[-1]}")
+
+    time_axes = (ax_position, ax_error, ax_torque)
+    for first, last in run_data.black_box:
+        for ax in time_axes:
+            ax.axvspan(seconds(first), seconds(last), color="0.85", zorder=0,
+                       label="black box (cycles before a fault)" if ax is ax_position else None)
+    for number, (time_ns, msg) in enumerate(run_data.latches, 1):
+        _mark(time_axes, seconds(time_ns), f"L{number}", latch_label(msg), "tab:green", "--")
+    for number, (time_ns, msg) in enumerate(run_data.faults, 1):
+        _mark(time_axes, seconds(time_ns), f"F{number}", fault_label(msg), "tab:red", "-")
+    for ax in time_axes:
+        ax.grid(True, alpha=0.3)
+    # The events' full text in one legend above the panels, where it hides no curve.
+    figure.legend(*ax_position.get_legend_handles_labels(), loc="outside upper center", fontsize=9, ncols=2)
+
+    period_us = column["period_ns"][column["period_ns"] > 0] / 1e3
+    if period_us.size:
+        # Log counts: the rare late cycles that matter would not show on a linear scale.
+        ax_period.hist(period_us, bins=min(100, max(10, period_us.size // 20)), color="tab:blue", log=True)
+        ax_period.set_ylim(bottom=0.5)
+        p50, p99 = np.percentile(period_us, [50, 99])
+        ax_period.axvline(p50, color="k", lw=1)
+        ax_period.set_title(
+            f"cycle period: min {period_us.min():.1f}, median {p50:.1f}, 99 % {p99:.1f}, "
+            f"max {period_us.max():.1f} µs ({period_us.size} samples)", fontsize=10)
+    else:
+        ax_period.text(0.5, 0.5, "no cycle periods recorded", ha="center", transform=ax_period.transAxes)
+    ax_period.set_xlabel("cycle period (µs)")
+    ax_period.set_ylabel("cycles")
+    figure.savefig(output, dpi=100)
+    plt.close(figure)
+
+
+def _mark(axes, x: float, tag: str, label: str, color: str, style: str) -> None:
+    for ax in axes:
+        ax.axvline(x, color=color, ls=style, lw=1.5, label=f"{tag} at {x:.3f} s: {label}" if ax is axes[0] else None)
+    axes[0].annotate(tag, xy=(x, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12),
+                     textcoords="offset points", fontsize=9, color=color, fontweight="bold")
+
+
+def _output(text: str) -> Path:
+    path = Path(text)
+    if path.suffix.lower() not in FORMATS:
+        raise argparse.ArgumentTypeError(f"{text}: the picture's file name must end in one of {', '.join(FORMATS)}")
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """akd-plot's entry point; returns the exit status (0, 1 for a bag it cannot plot, 2 for usage)."""
+    parser = argparse.ArgumentParser(prog="akd-plot", description=__doc__.splitlines()[0])
+    parser.add_argument("bag", metavar="BAG", type=Path, help="rosbag2 directory recorded by akd_ros")
+    parser.add_argument("-o", "--output", required=True, type=_output, metavar="FILE.png",
+                        help=f"picture to write ({', '.join(FORMATS)})")
+    parser.add_argument("--reindex", action="store_true",
+                        help="first rebuild the bag's summaries and metadata.yaml (after a killed recording)")
+    args = parser.parse_args(argv)
+
+    def body() -> int:
+        if args.reindex:
+            from akd_ros.recorder import reindex
+
+            reindex(args.bag)
+        run_data = read_run(args.bag)
+        if not run_data.samples:
+            topics = ", ".join(f"{name} ({kind})" for name, kind in sorted(run_data.topics.items())) or "none"
+            print(f"akd-plot: error: bag {args.bag} has no {CYCLE_SAMPLE} messages (its topics: {topics})",
+                  file=sys.stderr)
+            return EXIT_FAILURE
+        title = (f"{args.bag.name}: {len(run_data.samples)} cycle samples, "
+                 f"{len(run_data.faults)} fault(s), {len(run_data.latches)} latch capture(s)")
+        plot(run_data, title, args.output)
+        print(args.output)
+        return 0
+
+    return run("akd-plot", body)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
