@@ -242,8 +242,10 @@ pub struct Shared {
     request: AtomicU8,
     status: AtomicU64,
     setpoint_writes: AtomicU64,
-    /// Asks for the target to be held at the actual position again (after a mode change).
-    rehold: AtomicBool,
+    /// Asks for the target to be held at the actual position again (after a mode change):
+    /// 1 + the set-point writes counted when asked, so that only later writes release it; 0
+    /// when not asked.
+    rehold: AtomicU64,
     /// Controlword bit 8: the drive stops and stays enabled.
     halt: AtomicBool,
 }
@@ -255,7 +257,7 @@ impl Default for Shared {
             request: AtomicU8::new(0),
             status: AtomicU64::new(idle.pack()),
             setpoint_writes: AtomicU64::new(0),
-            rehold: AtomicBool::new(false),
+            rehold: AtomicU64::new(0),
             halt: AtomicBool::new(false),
         }
     }
@@ -286,7 +288,7 @@ impl Shared {
     /// Holds the target at the actual position again from the next cycle until a set-point is
     /// written after it (after a mode change, so the new mode starts where the axis is).
     pub fn hold(&self) {
-        self.rehold.store(true, Ordering::Release);
+        self.rehold.store(self.setpoint_writes.load(Ordering::Acquire) + 1, Ordering::Release);
     }
 
     /// Sets or clears halt (controlword bit 8) while the drive is enabled.
@@ -311,8 +313,9 @@ pub struct Observed {
     pub now_ns: u64,
     /// How many set-points were written for the drive so far.
     pub setpoint_writes: u64,
-    /// Whether the target is to be held at the actual position again from this cycle.
-    pub rehold: bool,
+    /// Whether the target is to be held at the actual position again from this cycle, with
+    /// the set-point writes counted when that was asked.
+    pub rehold: Option<u64>,
 }
 
 /// What the sequencing step writes into the drive's outputs; `None` leaves them as the user
@@ -408,7 +411,11 @@ impl Sequencer {
     /// The target to hold: the actual position while not in Operation enabled, and the last
     /// one held after it until a set-point is written.
     fn target(&mut self, state: Option<State>, seen: Observed) -> Option<i32> {
-        if state != Some(State::OperationEnabled) || seen.rehold {
+        if let Some(writes) = seen.rehold {
+            self.held = seen.actual;
+            self.writes_at_hold = writes;
+        }
+        if state != Some(State::OperationEnabled) {
             self.held = seen.actual;
             self.writes_at_hold = seen.setpoint_writes;
         } else if seen.setpoint_writes != self.writes_at_hold {
@@ -457,7 +464,7 @@ impl Drive {
             actual: o.actual.map(i32_at),
             now_ns,
             setpoint_writes: shared.setpoint_writes.load(Ordering::Acquire),
-            rehold: shared.rehold.swap(false, Ordering::AcqRel),
+            rehold: shared.rehold.swap(0, Ordering::AcqRel).checked_sub(1),
         };
         self.halt = shared.halted();
         let new = Request::from_u8(shared.request.swap(0, Ordering::AcqRel));
@@ -512,7 +519,7 @@ mod tests {
     const TIMEOUT: u64 = 1_000_000_000;
 
     fn seen(state: State, now_ns: u64) -> Observed {
-        Observed { statusword: state.statusword_bits(), actual: Some(1234), now_ns, setpoint_writes: 0, rehold: false }
+        Observed { statusword: state.statusword_bits(), actual: Some(1234), now_ns, setpoint_writes: 0, rehold: None }
     }
 
     #[test]

@@ -288,7 +288,9 @@ impl PyCycle {
                     .flatten();
                     d.set_item("text", text)?;
                     d.set_item("statusword", statusword)?;
+                    d.set_item("ds402_state", State::from_statusword(statusword).map(|s| s.name()))?;
                     d.set_item("al_status", al_status)?;
+                    d.set_item("al_state", (al_status != 0).then(|| crate::al::state_name(al_status)))?;
                     d.set_item("al_status_code", al_status_code)?;
                     d.set_item("al_status_code_name", crate::al::status_code_name(al_status_code))?;
                     d.set_item("action", action.describe())?;
