@@ -75,7 +75,8 @@ def test_a_fault_injected_while_a_cycle_holds_the_master_shows_in_the_statusword
     simulator.inject_fault(0, "F439")
     wait_for("statusword fault bit", lambda: inputs(cycle)[1] & STATUSWORD_FAULT)
     state = simulator.drive_state(0)
-    assert (state["state"], state["fault"], state["fault_number"]) == ("Fault", "following_error", 439)
+    assert (state["state"], state["fault"], state["fault_number"]) == \
+        ("Fault", "following_error", 439)
     assert cycle.drive_status(0)["state"] == "Fault"
     cycle.stop()
     # Back with the master: the drive reports the fault's CiA code and sent its emergency.
@@ -87,7 +88,8 @@ def test_hardware_enable_low_drops_an_enabled_drive_with_a_warning(rig):
     _, simulator, cycle = rig
     enabled(cycle)
     simulator.set_hardware_enable(0, False)
-    statusword = wait_for("warning bit", lambda: inputs(cycle)[1] & STATUSWORD_WARNING and inputs(cycle)[1])
+    wait_for("warning bit", lambda: inputs(cycle)[1] & STATUSWORD_WARNING)
+    statusword = inputs(cycle)[1]
     assert statusword & 0x004F == 0x0040, f"not Switch on disabled: 0x{statusword:04X}"
     assert simulator.drive_state(0)["state"] == "Switch on disabled"
     simulator.set_hardware_enable(0, True)
@@ -116,18 +118,22 @@ def test_bad_values_are_refused_naming_the_allowed_ones():
     with _native.Master("sim:2") as master:
         simulator = master.simulator
         assert len(simulator) == 2
-        with pytest.raises(_native.ConfigError, match=r"no fault named \"F1\".*following_error \(F439\)"):
+        with pytest.raises(_native.ConfigError,
+                           match=r"no fault named \"F1\".*following_error \(F439\)"):
             simulator.inject_fault(0, "F1")
-        with pytest.raises(_native.ConfigError, match="no slave at position 2: the bus has 2 slave"):
+        with pytest.raises(_native.ConfigError,
+                           match="no slave at position 2: the bus has 2 slave"):
             simulator.set_hardware_enable(2, False)
         with pytest.raises(_native.ConfigError, match="digital input 8: the AKD has inputs 1 to 7"):
             simulator.set_input_toggles(0, 8, [1.0])
-        with pytest.raises(_native.ConfigError, match="toggle position NaN of digital input 1 is not a finite"):
+        with pytest.raises(_native.ConfigError,
+                           match="toggle position NaN of digital input 1 is not a finite"):
             simulator.set_input_toggles(1, 1, [0.0, math.nan])
         with pytest.raises(_native.ConfigError, match="timeout must be a non-negative number"):
             simulator.drive_state(0, timeout=-1)
         # Nobody exchanges frames: the query says so instead of waiting for ever.
-        with pytest.raises(_native.ConfigError, match="not answered within 50ms.*idle in-process master"):
+        with pytest.raises(_native.ConfigError,
+                           match="not answered within 50ms.*idle in-process master"):
             simulator.drive_state(0, timeout=0.05)
     with pytest.raises(_native.ConfigError, match="virtual AKDs are gone"):
         simulator.inject_fault(0, "F439")
@@ -173,7 +179,8 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
         reply = command("state 0")
         assert reply.startswith("ok {")
         state = json.loads(reply[3:])
-        assert (state["state"], state["fault"], state["fault_number"]) == ("Fault", "sync_lost", 125)
+        assert (state["state"], state["fault"], state["fault_number"]) == \
+            ("Fault", "sync_lost", 125)
         assert command("hardware_enable 0 low") == "ok hardware_enable 0 low"
         assert command("toggles 0 1 -100,250.5") == "ok toggles 0 1 -100,250.5"
         assert command("help").startswith("ok commands: fault POSITION NAME | hardware_enable")
