@@ -136,7 +136,8 @@ impl PyMaster {
     }
 
     /// The `Simulator` of link "sim" or "sim:N": injects faults, sets inputs and queries the
-    /// virtual AKDs while this master, or a Cycle holding it, serves their frames.
+    /// virtual AKDs while this master, or a Cycle holding it, serves their frames. Other links
+    /// raise ConfigError.
     #[getter]
     fn simulator(&self) -> PyResult<super::sim::PySimulator> {
         let control = self.simulator.clone().ok_or_else(|| {
