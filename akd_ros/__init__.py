@@ -1,7 +1,8 @@
 """Kollmorgen AKD servo drives on EtherCAT, over the Rust EtherCAT master in `akd_ros._native`.
 
 Everything public here comes from the native extension: the `Master`, the virtual AKD
-(`VirtualBus`, `serve_udp`, `serve_iface`) and the exceptions, all under `EtherCatError`.
+(`VirtualBus`, `serve_udp`, `serve_iface`, and `Simulator`, which controls the virtual AKDs of a
+`Master("sim")` or a server while they serve) and the exceptions, all under `EtherCatError`.
 """
 
 from akd_ros import _native

@@ -3,15 +3,43 @@
 With --udp the EtherCAT payload travels as the UDP payload (the master's 'udp://HOST:PORT'
 link); with --iface the virtual AKDs answer raw EtherCAT frames on that interface as a real
 line of drives would (for a veth end, or a spare port wired to a master).
+
+While it serves, akd-sim takes commands on stdin, one a line, each answered with one line on
+stdout, 'ok ...' or 'error: ...':
+
+  fault POSITION NAME                 raise a fault, e.g. 'fault 0 F439', 'fault 0 sync_lost'
+  hardware_enable POSITION high|low   set the hardware enable input
+  toggles POSITION INPUT P1,P2,...    digital input 1..7 toggles at these positions (counts);
+                                      without positions it stays low
+  state POSITION                      the drive firmware's state as JSON
+  help                                the commands
+
+A change reaches the drive at once; the drive firmware acts on it when it next runs, at the
+next frame a master sends. The end of stdin ends the commands, not the simulator.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
+import os
 import signal
 import sys
+import threading
 
 from akd_ros.cli.common import run
+
+USAGE = {
+    "fault": "fault POSITION NAME",
+    "hardware_enable": "hardware_enable POSITION high|low",
+    "toggles": "toggles POSITION INPUT P1,P2,...",
+    "state": "state POSITION",
+    "help": "help",
+}
+
+
+class CommandError(ValueError):
+    """A command line that is not one of the commands; the message names what is allowed."""
 
 
 def parse_host_port(text: str) -> tuple[str, int]:
@@ -29,9 +57,95 @@ def count_argument(text: str) -> int:
     return int(text)
 
 
+def _whole_number(text: str, what: str, allowed: str) -> int:
+    # The bound keeps a number too long for the native side an error that names the range.
+    if not text.isdigit() or int(text) >= 2**32:
+        raise CommandError(f"{what} must be a whole number {allowed}, got {text!r}")
+    return int(text)
+
+
+def _toggle_positions(text: str) -> list[float]:
+    """The positions of 'P1,P2,...'; the simulator refuses those that are not finite."""
+    try:
+        return [float(p) for p in text.split(",")]
+    except ValueError:
+        raise CommandError("toggle positions are counts separated by commas, e.g. 1000,-2500.5; "
+                           f"got {text!r}") from None
+
+
+def execute(simulator, line: str) -> str | None:
+    """Carries out one command line on `simulator` (an akd_ros.Simulator) and gives its answer,
+    'ok ...' (None for a blank line); raises CommandError or the simulator's EtherCatError."""
+    words = line.split()
+    if not words:
+        return None
+    name, args = words[0], words[1:]
+    if name not in USAGE:
+        raise CommandError(f"unknown command {name!r}: allowed are {', '.join(USAGE)}")
+    if name == "help":
+        return "ok commands: " + " | ".join(USAGE.values())
+    arity = {"fault": (2,), "hardware_enable": (2,), "toggles": (2, 3), "state": (1,)}[name]
+    if len(args) not in arity:
+        raise CommandError(f"usage: {USAGE[name]}")
+    position = _whole_number(args[0], "POSITION", f"0..{len(simulator) - 1}")
+    if name == "fault":
+        simulator.inject_fault(position, args[1])
+    elif name == "hardware_enable":
+        levels = {"high": True, "low": False}
+        if args[1] not in levels:
+            raise CommandError(f"hardware_enable takes high or low, got {args[1]!r}")
+        simulator.set_hardware_enable(position, levels[args[1]])
+    elif name == "toggles":
+        digital_input = _whole_number(args[1], "INPUT", "1..7")
+        positions = _toggle_positions(args[2]) if len(args) == 3 else []
+        simulator.set_input_toggles(position, digital_input, positions)
+    else:
+        return "ok " + json.dumps(simulator.drive_state(position))
+    return "ok " + " ".join(words)
+
+
+def answer(simulator, line: str) -> str | None:
+    """The reply line to one command line: 'ok ...' or 'error: ...' (None for a blank line)."""
+    from akd_ros import EtherCatError
+
+    try:
+        return execute(simulator, line)
+    except (CommandError, EtherCatError) as error:
+        return f"error: {error}"
+
+
+def serve_commands(simulator, fd: int = 0) -> None:
+    """Answers the command lines read from `fd` until its end. Reads the descriptor itself, not
+    sys.stdin: this thread may still wait in a read when the interpreter shuts down, and must
+    then hold none of sys.stdin's locks."""
+    pending = b""
+    while True:
+        try:
+            chunk = os.read(fd, 4096)
+        except OSError:
+            return
+        if not chunk:
+            return
+        *lines, pending = (pending + chunk).split(b"\n")
+        for line in lines:
+            reply = answer(simulator, line.decode("utf-8", errors="replace"))
+            if reply is not None:
+                # One write per reply, so that a reply stays one line next to the main thread's.
+                sys.stdout.write(reply + "\n")
+                sys.stdout.flush()
+
+
+def start_commands(simulator) -> None:
+    """Answers stdin's commands on a thread of their own while the simulator serves."""
+    threading.Thread(target=serve_commands, args=(simulator,), name="akd-sim commands",
+                     daemon=True).start()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-sim."""
-    parser = argparse.ArgumentParser(prog="akd-sim", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="akd-sim", description=__doc__.splitlines()[0],
+                                     epilog=__doc__.split("\n\n", 2)[2],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--udp", metavar="HOST:PORT", help="serve EtherCAT over UDP here")
     where.add_argument("--iface", metavar="NAME", help="serve raw EtherCAT on this interface")
@@ -47,10 +161,10 @@ def main(argv: list[str] | None = None) -> int:
             if args.udp:
                 host, port = parse_host_port(args.udp)
                 print(f"akd-sim: starting {drives} on udp {host}:{port}", flush=True)
-                serve_udp(host, port, args.count)
+                serve_udp(host, port, args.count, on_start=start_commands)
             else:
                 print(f"akd-sim: starting {drives} on interface {args.iface}", flush=True)
-                serve_iface(args.iface, args.count)
+                serve_iface(args.iface, args.count, on_start=start_commands)
         except KeyboardInterrupt:
             # SIGINT and SIGTERM are how a simulator is meant to stop; a second signal while
             # it stops must not turn the clean stop into an interrupted one.

@@ -1,15 +1,18 @@
 //! The in-process link: frames go straight through a [`VirtualBus`] of virtual AKDs, with no
-//! socket in between, so tests are fast and deterministic.
+//! socket in between, so tests are fast and deterministic. The bus takes commands from
+//! [`SimControl`] handles at each frame (see [`crate::sim::control`]), so a test can inject
+//! faults while the master, or its cycle thread, owns the link.
 
 use std::time::{Duration, Instant};
 
 use crate::error::Result;
 use crate::link::{copy_reply, Link};
+use crate::sim::control::{ControlledBus, SimControl};
 use crate::sim::VirtualBus;
 
 /// A link to virtual AKDs in this process.
 pub struct InProcess {
-    bus: VirtualBus,
+    bus: ControlledBus,
     start: Instant,
 }
 
@@ -21,17 +24,22 @@ impl InProcess {
 
     /// A link to an existing bus (for tests that prepare or inspect it).
     pub fn with_bus(bus: VirtualBus) -> Self {
-        InProcess { bus, start: Instant::now() }
+        InProcess { bus: ControlledBus::from(bus), start: Instant::now() }
     }
 
     /// The bus behind the link.
     pub fn bus(&self) -> &VirtualBus {
-        &self.bus
+        self.bus.bus()
     }
 
     /// The bus behind the link, for fault injection.
     pub fn bus_mut(&mut self) -> &mut VirtualBus {
-        &mut self.bus
+        self.bus.bus_mut()
+    }
+
+    /// A handle that controls the bus from any thread while the link is in use.
+    pub fn control(&self) -> SimControl {
+        self.bus.control()
     }
 }
 
@@ -45,6 +53,6 @@ impl Link for InProcess {
     }
 
     fn describe(&self) -> String {
-        format!("sim:{}", self.bus.len())
+        format!("sim:{}", self.bus.bus().len())
     }
 }

@@ -16,11 +16,18 @@ use crate::error::Error;
 use crate::link::{self, Link};
 use crate::master::{self, Mapping};
 use crate::pdo::PdoEntry;
+use crate::sim::control::SimControl;
 
-/// Opens the link named by `spec`: "sim", "sim:N", "udp://HOST:PORT" or an interface name.
-fn open_link(spec: &str) -> crate::error::Result<Box<dyn Link>> {
+/// Opens the link named by `spec`: "sim", "sim:N", "udp://HOST:PORT" or an interface name;
+/// with the handle that controls its virtual AKDs for the in-process links.
+fn open_link(spec: &str) -> crate::error::Result<(Box<dyn Link>, Option<SimControl>)> {
+    let in_process = |count| {
+        let link = link::inproc::InProcess::new(count);
+        let control = link.control();
+        (Box::new(link) as Box<dyn Link>, Some(control))
+    };
     if spec == "sim" {
-        return Ok(Box::new(link::inproc::InProcess::new(1)));
+        return Ok(in_process(1));
     }
     if let Some(count) = spec.strip_prefix("sim:") {
         let count: usize = count
@@ -28,17 +35,17 @@ fn open_link(spec: &str) -> crate::error::Result<Box<dyn Link>> {
             .ok()
             .filter(|n| (1..=64).contains(n))
             .ok_or_else(|| Error::Config(format!("link {spec:?}: the number of virtual AKDs must be 1..=64")))?;
-        return Ok(Box::new(link::inproc::InProcess::new(count)));
+        return Ok(in_process(count));
     }
     if let Some(address) = spec.strip_prefix("udp://") {
-        return Ok(Box::new(link::udp::Udp::connect(address)?));
+        return Ok((Box::new(link::udp::Udp::connect(address)?), None));
     }
     if spec.is_empty() || spec.contains(['/', ':']) {
         return Err(Error::Config(format!(
             "link {spec:?} is none of \"sim\", \"sim:N\", \"udp://HOST:PORT\" or a network interface name"
         )));
     }
-    Ok(Box::new(link::raw::RawLink::open(spec)?))
+    Ok((Box::new(link::raw::RawLink::open(spec)?), None))
 }
 
 fn parse_state(name: &str) -> crate::error::Result<AlState> {
@@ -65,7 +72,7 @@ fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
 }
 
-fn seconds(value: f64, what: &str) -> PyResult<Duration> {
+pub(super) fn seconds(value: f64, what: &str) -> PyResult<Duration> {
     Duration::try_from_secs_f64(value).map_err(|_| {
         super::to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}")))
     })
@@ -75,6 +82,9 @@ fn seconds(value: f64, what: &str) -> PyResult<Duration> {
 #[pyclass(name = "Master", module = "akd_ros._native")]
 pub struct PyMaster {
     master: Mutex<Option<master::Master>>,
+    /// The in-process link's virtual AKDs, apart from the master so that a Cycle holding it
+    /// does not hold them.
+    simulator: Option<SimControl>,
 }
 
 /// The master while one call uses it.
@@ -112,15 +122,32 @@ impl PyMaster {
     #[pyo3(signature = (link, *, pcap = None, timeout = 0.1))]
     fn new(py: Python<'_>, link: &str, pcap: Option<&str>, timeout: f64) -> PyResult<Self> {
         let timeout = seconds(timeout, "timeout")?;
-        let master = py.allow_threads(|| -> crate::error::Result<master::Master> {
-            let inner = open_link(link)?;
-            let inner: Box<dyn Link> = match pcap {
-                Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
-                None => inner,
-            };
-            Ok(master::Master::new(inner, timeout))
-        });
-        Ok(PyMaster { master: Mutex::new(Some(master.py()?)) })
+        let (master, simulator) = py
+            .allow_threads(|| -> crate::error::Result<(master::Master, Option<SimControl>)> {
+                let (inner, simulator) = open_link(link)?;
+                let inner: Box<dyn Link> = match pcap {
+                    Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
+                    None => inner,
+                };
+                Ok((master::Master::new(inner, timeout), simulator))
+            })
+            .py()?;
+        Ok(PyMaster { master: Mutex::new(Some(master)), simulator })
+    }
+
+    /// The `Simulator` of link "sim" or "sim:N": injects faults, sets inputs and queries the
+    /// virtual AKDs while this master, or a Cycle holding it, serves their frames. Other links
+    /// raise ConfigError.
+    #[getter]
+    fn simulator(&self) -> PyResult<super::sim::PySimulator> {
+        let control = self.simulator.clone().ok_or_else(|| {
+            super::to_py_err(Error::Config(
+                "Master.simulator is there for the in-process links \"sim\" and \"sim:N\" only; \
+                 an akd-sim server takes its commands on stdin"
+                    .into(),
+            ))
+        })?;
+        Ok(super::sim::PySimulator::new(control))
     }
 
     /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and

@@ -1,5 +1,6 @@
-//! Python face of the virtual AKD: `VirtualBus` for tests that build their own frames, and
-//! `serve_udp` / `serve_iface` for the `akd-sim` command.
+//! Python face of the virtual AKD: `VirtualBus` for tests that build their own frames,
+//! `serve_udp` / `serve_iface` for the `akd-sim` command, and `Simulator`, which controls
+//! virtual AKDs another thread serves (a `Master("sim")` and its Cycle, or a server).
 
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -10,8 +11,23 @@ use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
 use crate::error::{Error, Result};
+use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::{server, Timing, VirtualBus};
+
+/// The dict `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active
+/// fault's name, or None), "fault_number" (e.g. 125, or None), and the motor's "position"
+/// (counts), "velocity" (counts/s) and "torque" (N·m).
+fn state_dict<'py>(py: Python<'py>, drive: &DriveState) -> PyResult<Bound<'py, PyDict>> {
+    let state = PyDict::new(py);
+    state.set_item("state", drive.state.name())?;
+    state.set_item("fault", drive.fault.map(Fault::name))?;
+    state.set_item("fault_number", drive.fault.map(Fault::number))?;
+    state.set_item("position", drive.position)?;
+    state.set_item("velocity", drive.velocity)?;
+    state.set_item("torque", drive.torque)?;
+    Ok(state)
+}
 
 /// A line of virtual AKDs serving EtherCAT payloads (frame header and datagrams) in place.
 #[pyclass(name = "VirtualBus", module = "akd_ros._native")]
@@ -55,24 +71,21 @@ impl PyVirtualBus {
     /// "following_error" (F439), "over_temperature" (F235), "sync_lost" (F125) or
     /// "setpoints_missing" (F706), by name or as "F125".
     fn inject_fault(&mut self, position: usize, name: &str) -> PyResult<()> {
-        self.check(position)?;
-        let fault = Fault::from_name(name).map_err(Error::Config).py()?;
-        self.bus.slave_mut(position).drive_mut().inject(fault);
+        Change::inject_fault(self.bus.len(), position, name).py()?.apply(&mut self.bus);
         Ok(())
     }
 
     /// Sets the hardware enable input of drive `position` (high at power-up).
     fn set_hardware_enable(&mut self, position: usize, high: bool) -> PyResult<()> {
-        self.check(position)?;
-        self.bus.slave_mut(position).drive_mut().set_hardware_enable(high);
+        Change::hardware_enable(self.bus.len(), position, high).py()?.apply(&mut self.bus);
         Ok(())
     }
 
     /// Digital input `input` (1..7) of drive `position` toggles wherever the actual position
     /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
     fn set_input_toggles(&mut self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
-        self.check(position)?;
-        self.bus.slave_mut(position).drive_mut().inputs_mut().set_toggles(input, &positions).map_err(Error::Config).py()
+        Change::input_toggles(self.bus.len(), position, input, positions).py()?.apply(&mut self.bus);
+        Ok(())
     }
 
     /// The drive firmware of drive `position` as a dict: "state" (the CiA 402 state's name),
@@ -80,16 +93,7 @@ impl PyVirtualBus {
     /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m).
     fn drive_state<'py>(&self, py: Python<'py>, position: usize) -> PyResult<Bound<'py, PyDict>> {
         self.check(position)?;
-        let drive = self.bus.slave(position).drive();
-        let shaft = drive.shaft();
-        let state = PyDict::new(py);
-        state.set_item("state", drive.state().name())?;
-        state.set_item("fault", drive.fault().map(Fault::name))?;
-        state.set_item("fault_number", drive.fault().map(Fault::number))?;
-        state.set_item("position", drive.position())?;
-        state.set_item("velocity", shaft.velocity)?;
-        state.set_item("torque", shaft.torque)?;
-        Ok(state)
+        state_dict(py, &DriveState::of(self.bus.slave(position).drive()))
     }
 
     fn __len__(&self) -> usize {
@@ -99,11 +103,73 @@ impl PyVirtualBus {
 
 impl PyVirtualBus {
     fn check(&self, position: usize) -> PyResult<()> {
-        if position < self.bus.len() {
-            return Ok(());
-        }
-        Err(Error::NoSuchSlave { position: position as u16, count: self.bus.len() as u16 }).py()
+        control::check_position(self.bus.len(), position).py()
     }
+}
+
+/// Controls virtual AKDs that another thread serves: those of a `Master("sim")` or
+/// `Master("sim:N")` (`Master.simulator`), also while a `Cycle` holds the master, or those of
+/// an `akd-sim` server (`serve_udp`'s and `serve_iface`'s `on_start`).
+///
+/// Changes are checked at once (a bad one raises ConfigError naming the allowed values) and
+/// reach the drives before their next frame. `drive_state` waits for the drives' answer after
+/// that frame: an idle in-process master exchanges no frame, so it raises ConfigError after
+/// `timeout`; start a Cycle first.
+#[pyclass(name = "Simulator", module = "akd_ros._native", frozen)]
+pub struct PySimulator {
+    control: SimControl,
+}
+
+impl PySimulator {
+    /// The Python face of `control`.
+    pub(super) fn new(control: SimControl) -> Self {
+        PySimulator { control }
+    }
+}
+
+#[pymethods]
+impl PySimulator {
+    /// Raises fault `name` in drive `position` at its next model step after the next frame:
+    /// "following_error" (F439), "over_temperature" (F235), "sync_lost" (F125) or
+    /// "setpoints_missing" (F706), by name or as "F125".
+    fn inject_fault(&self, position: usize, name: &str) -> PyResult<()> {
+        self.control.inject_fault(position, name).py()
+    }
+
+    /// Sets the hardware enable input of drive `position` (high at power-up).
+    fn set_hardware_enable(&self, position: usize, high: bool) -> PyResult<()> {
+        self.control.set_hardware_enable(position, high).py()
+    }
+
+    /// Digital input `input` (1..7) of drive `position` toggles wherever the actual position
+    /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
+    fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
+        self.control.set_input_toggles(position, input, positions).py()
+    }
+
+    /// The drive firmware of drive `position` after the next frame, as `VirtualBus.drive_state`
+    /// gives it; waits up to `timeout` seconds for that frame.
+    #[pyo3(signature = (position, timeout = QUERY_TIMEOUT.as_secs_f64()))]
+    fn drive_state<'py>(&self, py: Python<'py>, position: usize, timeout: f64) -> PyResult<Bound<'py, PyDict>> {
+        let timeout = super::master::seconds(timeout, "timeout")?;
+        let control = &self.control;
+        let state = py.allow_threads(|| control.drive_state(position, timeout)).py()?;
+        state_dict(py, &state)
+    }
+
+    fn __len__(&self) -> usize {
+        self.control.len()
+    }
+}
+
+/// A bus of `count` virtual AKDs for a server; `on_start`, if given, is called with its
+/// Simulator before serving starts.
+fn controlled_bus(count: usize, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<ControlledBus> {
+    let bus = ControlledBus::from(VirtualBus::new(count));
+    if let Some(on_start) = on_start {
+        on_start.call1((PySimulator::new(bus.control()),))?;
+    }
+    Ok(bus)
 }
 
 /// Runs `serve` on a thread until it ends or a Python signal handler raises (SIGINT gives
@@ -133,29 +199,34 @@ fn run_until_signal(
     }
 }
 
-/// Serves `count` virtual AKDs on UDP `host:port` until SIGINT/SIGTERM.
+/// Serves `count` virtual AKDs on UDP `host:port` until SIGINT/SIGTERM. `on_start(simulator)`
+/// is called first with the `Simulator` that controls them while they serve.
 #[pyfunction]
-#[pyo3(signature = (host, port, count = 1))]
-fn serve_udp(py: Python<'_>, host: &str, port: u16, count: usize) -> PyResult<()> {
+#[pyo3(signature = (host, port, count = 1, on_start = None))]
+fn serve_udp(py: Python<'_>, host: &str, port: u16, count: usize, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
     let address: SocketAddr = (host, port)
         .to_socket_addrs()
         .ok()
         .and_then(|mut a| a.next())
         .ok_or_else(|| Error::Config(format!("cannot resolve {host:?} as a host to bind")))
         .py()?;
-    run_until_signal(py, move |stop| server::serve_udp(address, VirtualBus::new(count), stop))
+    let bus = controlled_bus(count, on_start)?;
+    run_until_signal(py, move |stop| server::serve_udp(address, bus, stop))
 }
 
 /// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
+/// `on_start(simulator)` is called first with the `Simulator` that controls them.
 #[pyfunction]
-#[pyo3(signature = (iface, count = 1))]
-fn serve_iface(py: Python<'_>, iface: &str, count: usize) -> PyResult<()> {
+#[pyo3(signature = (iface, count = 1, on_start = None))]
+fn serve_iface(py: Python<'_>, iface: &str, count: usize, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
     let iface = iface.to_owned();
-    run_until_signal(py, move |stop| server::serve_iface(&iface, VirtualBus::new(count), stop))
+    let bus = controlled_bus(count, on_start)?;
+    run_until_signal(py, move |stop| server::serve_iface(&iface, bus, stop))
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyVirtualBus>()?;
+    m.add_class::<PySimulator>()?;
     m.add_function(wrap_pyfunction!(serve_udp, m)?)?;
     m.add_function(wrap_pyfunction!(serve_iface, m)?)?;
     Ok(())

@@ -8,12 +8,15 @@
 //! load ([`motion`]) and simulated digital inputs and latch ([`latch`]). A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
 //! that a run is deterministic. [`server`] serves a bus on UDP or on a network interface.
+//! [`control`] lets tests and the simulator command inject faults, set inputs and query a
+//! drive while another thread owns the bus and serves its frames.
 //! [`VirtualBus::with_mailbox_size`] builds drives whose SII declares a smaller mailbox than
 //! the real drive's 1 KiB, so that segmented SDO transfers and fragmented SDO information,
 //! which the real drive's objects never need, can be exercised.
 
 pub mod al;
 pub mod coe;
+pub mod control;
 pub mod drive;
 pub mod esc;
 pub mod faults;

@@ -3,7 +3,9 @@
 //!
 //! Each request is processed at the monotonic time since the server started and sent back at
 //! once; a malformed request is counted and dropped, as a real line drops a corrupt frame. The
-//! loops wake at least every 100 ms to see `stop`.
+//! loops wake at least every 100 ms to see `stop`. The bus takes commands from its
+//! [`SimControl`](crate::sim::control::SimControl) handles at each frame and, with no frame,
+//! at each wake-up, so a query is answered within 100 ms whether a master runs or not.
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -12,7 +14,7 @@ use std::time::{Duration, Instant};
 use crate::error::{Error, Result};
 use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
 use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
-use crate::sim::VirtualBus;
+use crate::sim::control::ControlledBus;
 
 /// How often a server looks at its stop flag.
 pub const POLL_INTERVAL: Duration = Duration::from_millis(100);
@@ -30,9 +32,11 @@ fn elapsed_ns(start: Instant) -> u64 {
     start.elapsed().as_nanos() as u64
 }
 
-/// Serves `bus` on UDP at `bind` until `stop` is set: each datagram is an EtherCAT payload,
-/// answered to its sender.
-pub fn serve_udp(bind: SocketAddr, mut bus: VirtualBus, stop: &AtomicBool) -> Result<ServerStats> {
+/// Serves `bus` (a [`VirtualBus`](crate::sim::VirtualBus), or a [`ControlledBus`] whose
+/// handles the caller kept) on UDP at `bind` until `stop` is set: each datagram is an EtherCAT
+/// payload, answered to its sender.
+pub fn serve_udp(bind: SocketAddr, bus: impl Into<ControlledBus>, stop: &AtomicBool) -> Result<ServerStats> {
+    let mut bus = bus.into();
     let socket = UdpSocket::bind(bind).map_err(|e| Error::io(format!("binding UDP {bind}"), e))?;
     socket.set_read_timeout(Some(POLL_INTERVAL)).map_err(|e| Error::io("setting the UDP read timeout", e))?;
     let start = Instant::now();
@@ -41,8 +45,15 @@ pub fn serve_udp(bind: SocketAddr, mut bus: VirtualBus, stop: &AtomicBool) -> Re
     while !stop.load(Ordering::Relaxed) {
         let (len, peer) = match socket.recv_from(&mut buf) {
             Ok(r) => r,
-            Err(e) if matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut) => continue,
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted
+                ) =>
+            {
+                bus.serve_commands();
+                continue;
+            }
             Err(e) => return Err(Error::io(format!("receiving on UDP {bind}"), e)),
         };
         if bus.process(&mut buf[..len], elapsed_ns(start)).is_err() {
@@ -55,20 +66,27 @@ pub fn serve_udp(bind: SocketAddr, mut bus: VirtualBus, stop: &AtomicBool) -> Re
     Ok(stats)
 }
 
-/// Serves `bus` on network interface `iface` until `stop` is set: each EtherCAT frame received
-/// is processed and sent back with the first byte of its source MAC ORed with 0x02, as the
-/// real ESC marks a frame it returns (01:01:01:01:01:01 → 03:01:01:01:01:01).
-pub fn serve_iface(iface: &str, mut bus: VirtualBus, stop: &AtomicBool) -> Result<ServerStats> {
+/// Serves `bus` (as [`serve_udp`] takes it) on network interface `iface` until `stop` is set:
+/// each EtherCAT frame received is processed and sent back with the first byte of its source
+/// MAC ORed with 0x02, as the real ESC marks a frame it returns (01:01:01:01:01:01 →
+/// 03:01:01:01:01:01).
+pub fn serve_iface(iface: &str, bus: impl Into<ControlledBus>, stop: &AtomicBool) -> Result<ServerStats> {
+    let mut bus = bus.into();
     let socket = RawSocket::open(iface)?;
     let start = Instant::now();
     let mut stats = ServerStats::default();
     let mut buf = [0u8; MAX_ETH_FRAME_LEN];
     while !stop.load(Ordering::Relaxed) {
-        let Some(len) = socket.recv(&mut buf, POLL_INTERVAL)? else { continue };
+        let Some(len) = socket.recv(&mut buf, POLL_INTERVAL)? else {
+            bus.serve_commands();
+            continue;
+        };
         let is_ecat = len > ETH_HEADER_LEN && u16::from_be_bytes([buf[12], buf[13]]) == ETHERTYPE;
         // Masters differ in their source MAC (SOEM 01:.., KickCAT 02:..), so the returned bit
         // cannot tell requests from replies; the socket already skips what this server sent.
         if !is_ecat {
+            // Other traffic on the wire must not hold commands back until it pauses.
+            bus.serve_commands();
             continue;
         }
         if bus.process(&mut buf[ETH_HEADER_LEN..len], elapsed_ns(start)).is_err() {
@@ -86,6 +104,7 @@ pub fn serve_iface(iface: &str, mut bus: VirtualBus, stop: &AtomicBool) -> Resul
 mod tests {
     use super::*;
     use crate::frame::{Command, FrameBuilder};
+    use crate::sim::VirtualBus;
     use std::sync::Arc;
 
     #[test]
@@ -114,6 +133,37 @@ mod tests {
         stop.store(true, Ordering::Relaxed);
         let stats = server.join().unwrap().unwrap();
         assert!(stats.served >= 1);
+    }
+
+    #[test]
+    fn takes_commands_with_and_without_frames() {
+        let probe = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let address = probe.local_addr().unwrap();
+        drop(probe);
+        let bus = ControlledBus::from(VirtualBus::new(1));
+        let control = bus.control();
+        let stop = Arc::new(AtomicBool::new(false));
+        let flag = stop.clone();
+        let server = std::thread::spawn(move || serve_udp(address, bus, &flag));
+        // No master: the server answers at its next wake-up.
+        let idle = control.drive_state(0, Duration::from_secs(5)).unwrap();
+        assert_eq!(idle.fault, None);
+        control.inject_fault(0, "F125").unwrap();
+        // The drive raises the fault when its firmware next runs, at a frame.
+        let client = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf);
+        b.push(Command::Brd, 0, 0, 0x0130, &[0, 0]).unwrap();
+        let len = b.finish();
+        let deadline = Instant::now() + Duration::from_secs(5);
+        while control.drive_state(0, Duration::from_secs(5)).unwrap().fault.is_none() {
+            assert!(Instant::now() < deadline, "F125 not raised");
+            client.send_to(&buf[..len], address).unwrap();
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        stop.store(true, Ordering::Relaxed);
+        server.join().unwrap().unwrap();
+        assert!(control.set_hardware_enable(0, false).unwrap_err().to_string().contains("gone"));
     }
 
     #[test]

@@ -1,0 +1,354 @@
+//! Control of virtual AKDs whose bus another thread owns: fault injection, the hardware enable
+//! input, digital input toggles, and a query of the drive firmware's state.
+//!
+//! The bus is owned by whoever serves its frames: the in-process link inside a master (and so
+//! the cycle thread while a cycle runs), or the `akd-sim` server loop. A [`SimControl`] handle
+//! (Clone + Send) sends commands over a `std::sync::mpsc` channel to the [`ControlledBus`]
+//! there, which takes them with `try_recv` at each frame: with no command pending that costs
+//! no lock, no wait and no allocation, so the cycle thread's exchange stays as it was.
+//!
+//! Changes are checked before they are sent (drive position, fault name, input number,
+//! finite toggle positions), so a bad one is refused at the caller with the allowed values,
+//! never lost on the owner's side. They apply before the next frame is served. A query of
+//! [`DriveState`] is answered after that frame, so it sees every change sent before it.
+//!
+//! A query waits for the owner's next frame, with a time-out. The in-process bus is not
+//! answered directly while its master is idle: it lives inside the master, which Python or the
+//! cycle thread holds, and sharing it behind a lock would put a lock on the exchange path.
+//! Nothing happens in an idle in-process bus anyway: its drives run on bus time, which moves
+//! only with frames. A query to an idle master so fails after the time-out and says why; the
+//! `akd-sim` server answers within its poll interval, frames or not
+//! ([`ControlledBus::serve_commands`]).
+
+use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender};
+use std::time::Duration;
+
+use crate::ds402::State;
+use crate::error::{Error, FrameError, Result};
+use crate::sim::drive::Drive;
+use crate::sim::faults::Fault;
+use crate::sim::latch::Inputs;
+use crate::sim::VirtualBus;
+
+/// How long a [`SimControl::drive_state`] query waits for the owner by default.
+pub const QUERY_TIMEOUT: Duration = Duration::from_secs(1);
+
+/// The drive firmware's state as a query reports it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DriveState {
+    /// The CiA 402 state.
+    pub state: State,
+    /// The active fault, if any.
+    pub fault: Option<Fault>,
+    /// Actual position as 0x6064 reports it, counts (fractional).
+    pub position: f64,
+    /// Shaft velocity, counts/s.
+    pub velocity: f64,
+    /// Motor torque, N·m.
+    pub torque: f64,
+}
+
+impl DriveState {
+    /// The state of `drive` now.
+    pub fn of(drive: &Drive) -> Self {
+        let shaft = drive.shaft();
+        DriveState {
+            state: drive.state(),
+            fault: drive.fault(),
+            position: drive.position(),
+            velocity: shaft.velocity,
+            torque: shaft.torque,
+        }
+    }
+}
+
+/// Checks that drive `position` is on a bus of `count` drives.
+pub fn check_position(count: usize, position: usize) -> Result<()> {
+    if position < count {
+        return Ok(());
+    }
+    let count = u16::try_from(count).unwrap_or(u16::MAX);
+    Err(match u16::try_from(position) {
+        Ok(position) => Error::NoSuchSlave { position, count },
+        Err(_) => Error::Config(format!("no slave at position {position}: the bus has {count} slave(s)")),
+    })
+}
+
+/// A change to one drive of a bus, checked against that bus's size when made.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Change {
+    /// Raise `fault` at the drive's next model step.
+    InjectFault {
+        /// Drive position.
+        position: usize,
+        /// The fault.
+        fault: Fault,
+    },
+    /// Set the hardware enable input (X8).
+    HardwareEnable {
+        /// Drive position.
+        position: usize,
+        /// Input level.
+        high: bool,
+    },
+    /// Make a digital input toggle where the actual position crosses `positions`.
+    InputToggles {
+        /// Drive position.
+        position: usize,
+        /// Digital input, 1..=7.
+        input: usize,
+        /// Toggle positions, counts, each finite.
+        positions: Vec<f64>,
+    },
+}
+
+impl Change {
+    /// Fault `name` (as [`Fault::from_name`] takes it, e.g. "F439" or "following_error") for
+    /// drive `position` of a bus of `count` drives.
+    pub fn inject_fault(count: usize, position: usize, name: &str) -> Result<Self> {
+        check_position(count, position)?;
+        Ok(Change::InjectFault { position, fault: Fault::from_name(name).map_err(Error::Config)? })
+    }
+
+    /// Hardware enable `high` or low for drive `position` of a bus of `count` drives.
+    pub fn hardware_enable(count: usize, position: usize, high: bool) -> Result<Self> {
+        check_position(count, position)?;
+        Ok(Change::HardwareEnable { position, high })
+    }
+
+    /// Toggle positions of digital input `input` of drive `position` of a bus of `count`
+    /// drives; refused for an input outside 1..=7 or a position that is not finite.
+    pub fn input_toggles(count: usize, position: usize, input: usize, positions: Vec<f64>) -> Result<Self> {
+        check_position(count, position)?;
+        // The drive's own inputs decide what they take; a scratch set asks them now, so the
+        // owner never gets a change it would refuse.
+        Inputs::default().set_toggles(input, &positions).map_err(Error::Config)?;
+        Ok(Change::InputToggles { position, input, positions })
+    }
+
+    /// Applies the change to `bus` (the bus it was checked against).
+    pub fn apply(self, bus: &mut VirtualBus) {
+        match self {
+            Change::InjectFault { position, fault } => bus.slave_mut(position).drive_mut().inject(fault),
+            Change::HardwareEnable { position, high } => bus.slave_mut(position).drive_mut().set_hardware_enable(high),
+            Change::InputToggles { position, input, positions } => {
+                let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_toggles(input, &positions);
+                debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+            }
+        }
+    }
+}
+
+/// What a [`SimControl`] sends to the owner of the bus.
+enum Message {
+    Change(Change),
+    DriveState { position: usize, reply: SyncSender<DriveState> },
+}
+
+/// A handle that controls virtual AKDs whose bus another thread serves.
+#[derive(Clone, Debug)]
+pub struct SimControl {
+    sender: Sender<Message>,
+    count: usize,
+}
+
+impl SimControl {
+    /// Number of drives on the bus.
+    pub fn len(&self) -> usize {
+        self.count
+    }
+
+    /// Whether the bus has no drive.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+
+    fn send(&self, message: Message) -> Result<()> {
+        self.sender.send(message).map_err(|_| gone())
+    }
+
+    /// Raises fault `name` ("F439", "following_error", ...) in drive `position` at its next
+    /// model step after the next frame.
+    pub fn inject_fault(&self, position: usize, name: &str) -> Result<()> {
+        self.send(Message::Change(Change::inject_fault(self.count, position, name)?))
+    }
+
+    /// Sets the hardware enable input of drive `position` before the next frame.
+    pub fn set_hardware_enable(&self, position: usize, high: bool) -> Result<()> {
+        self.send(Message::Change(Change::hardware_enable(self.count, position, high)?))
+    }
+
+    /// Digital input `input` (1..=7) of drive `position` toggles wherever the actual position
+    /// (counts) crosses one of `positions` from the next frame on; it is low below all of them.
+    pub fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> Result<()> {
+        self.send(Message::Change(Change::input_toggles(self.count, position, input, positions)?))
+    }
+
+    /// The drive firmware's state of drive `position` after the owner's next frame; waits up
+    /// to `timeout` for it.
+    pub fn drive_state(&self, position: usize, timeout: Duration) -> Result<DriveState> {
+        check_position(self.count, position)?;
+        let (reply, answer) = mpsc::sync_channel(1);
+        self.send(Message::DriveState { position, reply })?;
+        answer.recv_timeout(timeout).map_err(|e| match e {
+            RecvTimeoutError::Disconnected => gone(),
+            RecvTimeoutError::Timeout => Error::Config(format!(
+                "the state of virtual AKD {position} was not answered within {timeout:?}: the drives \
+                 answer when their bus serves a frame and none passed (an idle in-process master \
+                 exchanges no frames: start a Cycle, or query while a master call runs)"
+            )),
+        })
+    }
+}
+
+fn gone() -> Error {
+    Error::Config("the virtual AKDs are gone: their master was closed or their server stopped".into())
+}
+
+/// A [`VirtualBus`] that takes commands from [`SimControl`] handles while it serves frames.
+pub struct ControlledBus {
+    bus: VirtualBus,
+    receiver: Receiver<Message>,
+    control: SimControl,
+    /// Queries taken before a frame, answered after it. Its capacity stays once a query came,
+    /// so later queries do not allocate on the owner's side either.
+    queries: Vec<(usize, SyncSender<DriveState>)>,
+}
+
+impl From<VirtualBus> for ControlledBus {
+    fn from(bus: VirtualBus) -> Self {
+        let (sender, receiver) = mpsc::channel();
+        let control = SimControl { sender, count: bus.len() };
+        ControlledBus { bus, receiver, control, queries: Vec::new() }
+    }
+}
+
+impl ControlledBus {
+    /// A handle that controls this bus from any thread.
+    pub fn control(&self) -> SimControl {
+        self.control.clone()
+    }
+
+    /// The bus.
+    pub fn bus(&self) -> &VirtualBus {
+        &self.bus
+    }
+
+    /// The bus, to change it directly (the owner's own tests).
+    pub fn bus_mut(&mut self) -> &mut VirtualBus {
+        &mut self.bus
+    }
+
+    /// Serves an EtherCAT payload in place at bus time `now_ns` as [`VirtualBus::process`]
+    /// does, with the changes sent before it applied first and the queries answered after it.
+    pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> std::result::Result<(), FrameError> {
+        self.take_commands();
+        let served = self.bus.process(payload, now_ns);
+        self.answer_queries();
+        served
+    }
+
+    /// Applies the changes and answers the queries pending, with no frame: for an owner that
+    /// waits for frames and wakes up now and then (the `akd-sim` server).
+    pub fn serve_commands(&mut self) {
+        self.take_commands();
+        self.answer_queries();
+    }
+
+    fn take_commands(&mut self) {
+        while let Ok(message) = self.receiver.try_recv() {
+            match message {
+                Message::Change(change) => change.apply(&mut self.bus),
+                Message::DriveState { position, reply } => self.queries.push((position, reply)),
+            }
+        }
+    }
+
+    fn answer_queries(&mut self) {
+        for (position, reply) in self.queries.drain(..) {
+            // A query that timed out has dropped its receiver; there is nobody left to tell.
+            let _ = reply.try_send(DriveState::of(self.bus.slave(position).drive()));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{Command, FrameBuilder};
+    use crate::sim::Timing;
+
+    /// One BRD of the AL status through `bus` at `now_ns`.
+    fn frame(bus: &mut ControlledBus, now_ns: u64) {
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf);
+        b.push(Command::Brd, 0, 0, 0x0130, &[0, 0]).unwrap();
+        let len = b.finish();
+        bus.process(&mut buf[..len], now_ns).unwrap();
+    }
+
+    #[test]
+    fn changes_are_checked_before_they_are_sent() {
+        let bus = ControlledBus::from(VirtualBus::with_timing(2, Timing::IMMEDIATE));
+        let control = bus.control();
+        let e = control.inject_fault(2, "F439").unwrap_err().to_string();
+        assert!(e.contains("no slave at position 2: the bus has 2 slave(s)"), "{e}");
+        let e = control.inject_fault(0, "F1").unwrap_err().to_string();
+        assert!(e.contains("no fault named \"F1\"") && e.contains("following_error (F439)"), "{e}");
+        let e = control.set_input_toggles(1, 8, vec![1.0]).unwrap_err().to_string();
+        assert!(e.contains("digital input 8: the AKD has inputs 1 to 7"), "{e}");
+        let e = control.set_input_toggles(1, 1, vec![1.0, f64::INFINITY]).unwrap_err().to_string();
+        assert!(e.contains("toggle position inf of digital input 1 is not a finite"), "{e}");
+        let e = control.set_hardware_enable(usize::MAX, false).unwrap_err().to_string();
+        assert!(e.contains(&format!("no slave at position {}: the bus has 2", usize::MAX)), "{e}");
+        // Nothing refused reached the owner.
+        assert!(bus.receiver.try_recv().is_err());
+    }
+
+    #[test]
+    fn a_query_is_answered_after_the_next_frame_with_the_changes_before_it() {
+        let mut bus = ControlledBus::from(VirtualBus::with_timing(2, Timing::IMMEDIATE));
+        let control = bus.control();
+        frame(&mut bus, 0);
+        control.inject_fault(1, "sync_lost").unwrap();
+        control.set_hardware_enable(0, false).unwrap();
+        control.set_input_toggles(0, 1, vec![-10.0]).unwrap();
+        let asking = std::thread::spawn(move || control.drive_state(1, Duration::from_secs(30)));
+        // The query reaches the owner's queue before the frame that answers it.
+        while !asking.is_finished() {
+            frame(&mut bus, 1_000_000);
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let state = asking.join().unwrap().unwrap();
+        assert_eq!((state.state, state.fault), (State::Fault, Some(Fault::SyncLost)));
+        assert_eq!(bus.bus().slave(0).drive().fault(), None);
+        // Input 1 is high above -10 counts: the toggles arrived.
+        assert_eq!(bus.bus().slave(0).od().get(0x20A5, 0).unwrap()[1] & 0x80, 0x80);
+    }
+
+    #[test]
+    fn an_idle_owner_is_named_and_a_gone_one_too() {
+        let bus = ControlledBus::from(VirtualBus::new(1));
+        let control = bus.control();
+        let e = control.drive_state(0, Duration::from_millis(10)).unwrap_err().to_string();
+        assert!(e.contains("not answered within 10ms") && e.contains("idle in-process master"), "{e}");
+        drop(bus);
+        let e = control.set_hardware_enable(0, true).unwrap_err().to_string();
+        assert!(e.contains("the virtual AKDs are gone"), "{e}");
+        assert!(control.drive_state(0, QUERY_TIMEOUT).unwrap_err().to_string().contains("gone"));
+    }
+
+    #[test]
+    fn a_server_answers_between_frames() {
+        let mut bus = ControlledBus::from(VirtualBus::new(1));
+        let control = bus.control();
+        control.set_hardware_enable(0, false).unwrap();
+        let asking = std::thread::spawn(move || control.drive_state(0, Duration::from_secs(30)));
+        while !asking.is_finished() {
+            bus.serve_commands();
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        let state = asking.join().unwrap().unwrap();
+        assert_eq!((state.state, state.fault, state.position), (State::NotReadyToSwitchOn, None, 0.0));
+    }
+}

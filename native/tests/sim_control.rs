@@ -1,0 +1,115 @@
+//! Controlling the virtual AKDs of an in-process link while a master owns it: through the cycle
+//! thread (a fault injected from the test's thread shows in the statusword the cycle reads) and
+//! on the exchange path, which allocates nothing while no command is pending. Allocations are
+//! counted by a global allocator per thread: the in-process bus runs in the master's thread, so
+//! its work is counted with the master's. Waits have deadlines only so that a failure does not
+//! hang; no timing is asserted.
+
+use std::alloc::{GlobalAlloc, Layout, System};
+use std::cell::Cell;
+use std::time::{Duration, Instant};
+
+use akd_native::al::AlState;
+use akd_native::cycle::{Config, CycleThread};
+use akd_native::ds402::{statusword, State};
+use akd_native::link::inproc::InProcess;
+use akd_native::master::{Mapping, Master};
+use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
+use akd_native::sim::faults::Fault;
+
+struct Counting;
+
+thread_local! {
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
+        // try_with: the counter may be gone while a thread is being torn down.
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        System.alloc(layout)
+    }
+
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
+        System.dealloc(ptr, layout)
+    }
+
+    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
+        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
+        System.realloc(ptr, layout, new_size)
+    }
+}
+
+#[global_allocator]
+static COUNTING: Counting = Counting;
+
+fn allocations() -> u64 {
+    ALLOCATIONS.with(|n| n.get())
+}
+
+const STEP: Duration = Duration::from_secs(5);
+
+/// A master in Op on one in-process virtual AKD in cyclic synchronous position with
+/// 0x1724/0x1B24 (outputs: target position, controlword, torque offset; inputs: actual
+/// position, statusword), and the handle that controls the drive.
+fn master_in_op() -> (Master, SimControl) {
+    let link = InProcess::new(1);
+    let control = link.control();
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.configure_pdo(0, Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
+    m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    (m, control)
+}
+
+fn statusword_of(inputs: &[u8]) -> u16 {
+    u16::from_le_bytes([inputs[4], inputs[5]])
+}
+
+#[test]
+fn a_fault_injected_while_the_cycle_thread_owns_the_link_shows_in_the_statusword() {
+    let (m, control) = master_in_op();
+    let mut cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    assert_eq!(control.drive_state(0, STEP).unwrap().fault, None);
+    control.inject_fault(0, "F439").unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while statusword_of(&cycle.snapshot().inputs) & statusword::FAULT == 0 {
+        assert!(Instant::now() < deadline, "no fault bit in {:?}", cycle.snapshot().inputs);
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let state = control.drive_state(0, STEP).unwrap();
+    assert_eq!((state.state, state.fault), (State::Fault, Some(Fault::FollowingError)));
+    let mut m = cycle.stop().unwrap();
+    // Back with its owner, idle: a query waits for a frame, and one call of the master is one.
+    let asking = std::thread::spawn(move || control.drive_state(0, STEP));
+    while !asking.is_finished() {
+        m.exchange().unwrap();
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(asking.join().unwrap().unwrap().fault, Some(Fault::FollowingError));
+    let e = m.sdo_read(0, 0x603F, 0).unwrap();
+    assert_eq!(e, 0x8611u16.to_le_bytes());
+}
+
+#[test]
+fn the_exchange_allocates_nothing_while_no_command_is_pending() {
+    let (mut m, control) = master_in_op();
+    m.exchange().unwrap();
+    // A command and a query were served once, as they are in a test that uses them.
+    control.set_hardware_enable(0, true).unwrap();
+    let asking = std::thread::spawn(move || control.drive_state(0, QUERY_TIMEOUT).map(|_| control));
+    while !asking.is_finished() {
+        m.exchange().unwrap();
+    }
+    let _control = asking.join().unwrap().unwrap();
+    let probe = allocations();
+    drop(std::hint::black_box(Vec::<u8>::with_capacity(8)));
+    assert_eq!(allocations(), probe + 1, "the counter sees this thread's allocations");
+    let before = allocations();
+    for _ in 0..1000 {
+        m.exchange().unwrap();
+    }
+    assert_eq!(allocations() - before, 0, "allocations in 1000 exchanges");
+}

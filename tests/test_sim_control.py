@@ -1,0 +1,208 @@
+"""Controlling virtual AKDs while a master drives them: `Master("sim").simulator` while a Cycle
+holds the master, and the commands `akd-sim` takes on stdin while a master talks to it over UDP.
+
+Everything runs through the real Master, Cycle and akd-sim process. The waits have deadlines
+only so that a failure does not hang; nothing here asserts how fast anything happens.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import queue
+import signal
+import struct
+import subprocess
+import threading
+import time
+
+import pytest
+
+from akd_ros import _native
+from support.netns import console_script, udp_port_bound
+
+# 0x1724 outputs: target position 0x607A (i32), controlword (u16), torque offset 0x60B2 (i16).
+CSP_OUTPUTS = struct.Struct("<iHh")
+# The inputs mapped here: actual position 0x6064 (i32), statusword 0x6041, latch status 0x20A5.
+INPUTS = struct.Struct("<iHH")
+INPUT_ENTRIES = [[0x60640020, 0x60410010, 0x20A50010]]
+
+STATUSWORD_FAULT = 0x0008
+STATUSWORD_WARNING = 0x0080
+
+
+def inputs(cycle) -> tuple[int, int, int]:
+    """(actual position, statusword, latch status) of the last cycle."""
+    return INPUTS.unpack(cycle.snapshot()["inputs"][0])
+
+
+def wait_for(what: str, done, timeout: float = 10.0):
+    """Polls `done()` until it gives something true, and returns that."""
+    deadline = time.monotonic() + timeout
+    while not (result := done()):
+        assert time.monotonic() < deadline, what
+        time.sleep(0.002)
+    return result
+
+
+@pytest.fixture
+def rig():
+    """A Master("sim") in Op in cyclic synchronous position (8) with 0x1724 and the inputs
+    above, its Simulator, and a Cycle at 1 kHz holding the master."""
+    with _native.Master("sim") as master:
+        master.scan()
+        master.request_state("preop")
+        master.configure_pdo(0, 0x1724, INPUT_ENTRIES)
+        master.sdo_write(0, 0x6060, 0, bytes([8]))
+        master.request_state("op")
+        with _native.Cycle(master, 0.001) as cycle:
+            yield master, master.simulator, cycle
+
+
+def enabled(cycle) -> None:
+    cycle.enable(0)
+    cycle.wait_state(0, "Operation enabled")
+
+
+def test_a_fault_injected_while_a_cycle_holds_the_master_shows_in_the_statusword(rig):
+    master, _, cycle = rig
+    # The Simulator is reachable while the Cycle holds the master, which itself is not.
+    simulator = master.simulator
+    with pytest.raises(_native.ConfigError, match="handed to a Cycle"):
+        master.sdo_read(0, 0x603F, 0)
+    enabled(cycle)
+    assert simulator.drive_state(0)["fault"] is None
+    simulator.inject_fault(0, "F439")
+    wait_for("statusword fault bit", lambda: inputs(cycle)[1] & STATUSWORD_FAULT)
+    state = simulator.drive_state(0)
+    assert (state["state"], state["fault"], state["fault_number"]) == \
+        ("Fault", "following_error", 439)
+    assert cycle.drive_status(0)["state"] == "Fault"
+    cycle.stop()
+    # Back with the master: the drive reports the fault's CiA code and sent its emergency.
+    assert master.sdo_read(0, 0x603F, 0) == (0x8611).to_bytes(2, "little")
+    assert [e["error_code"] for e in master.emergencies(0)] == [0x8611]
+
+
+def test_hardware_enable_low_drops_an_enabled_drive_with_a_warning(rig):
+    _, simulator, cycle = rig
+    enabled(cycle)
+    simulator.set_hardware_enable(0, False)
+    wait_for("warning bit", lambda: inputs(cycle)[1] & STATUSWORD_WARNING)
+    statusword = inputs(cycle)[1]
+    assert statusword & 0x004F == 0x0040, f"not Switch on disabled: 0x{statusword:04X}"
+    assert simulator.drive_state(0)["state"] == "Switch on disabled"
+    simulator.set_hardware_enable(0, True)
+    wait_for("warning bit gone", lambda: not inputs(cycle)[1] & STATUSWORD_WARNING)
+    enabled(cycle)
+
+
+def test_input_toggles_change_the_latch_status_where_the_drive_is_and_as_it_moves(rig):
+    _, simulator, cycle = rig
+    # Bits 15, 14, 13, 12 of 0x20A5 are the levels of inputs 1, 2, 3, 4; all low at power-up.
+    assert inputs(cycle)[2] & 0xF000 == 0
+    # Input 1 toggling below where the drive stands is high there.
+    simulator.set_input_toggles(0, 1, [-1000.0])
+    wait_for("input 1 high", lambda: inputs(cycle)[2] & 0x8000)
+    # Input 2 toggles ahead of the drive: low until the drive moves past it.
+    simulator.set_input_toggles(0, 2, [150_000.0])
+    enabled(cycle)
+    assert inputs(cycle)[2] & 0x4000 == 0
+    cycle.set_outputs(0, CSP_OUTPUTS.pack(300_000, 0, 0))
+    wait_for("the drive past 150000", lambda: inputs(cycle)[0] > 160_000)
+    assert inputs(cycle)[2] & 0xC000 == 0xC000
+    assert simulator.drive_state(0)["position"] > 150_000.0
+
+
+def test_bad_values_are_refused_naming_the_allowed_ones():
+    with _native.Master("sim:2") as master:
+        simulator = master.simulator
+        assert len(simulator) == 2
+        with pytest.raises(_native.ConfigError,
+                           match=r"no fault named \"F1\".*following_error \(F439\)"):
+            simulator.inject_fault(0, "F1")
+        with pytest.raises(_native.ConfigError,
+                           match="no slave at position 2: the bus has 2 slave"):
+            simulator.set_hardware_enable(2, False)
+        with pytest.raises(_native.ConfigError, match="digital input 8: the AKD has inputs 1 to 7"):
+            simulator.set_input_toggles(0, 8, [1.0])
+        with pytest.raises(_native.ConfigError,
+                           match="toggle position NaN of digital input 1 is not a finite"):
+            simulator.set_input_toggles(1, 1, [0.0, math.nan])
+        with pytest.raises(_native.ConfigError, match="timeout must be a non-negative number"):
+            simulator.drive_state(0, timeout=-1)
+        # Nobody exchanges frames: the query says so instead of waiting for ever.
+        with pytest.raises(_native.ConfigError,
+                           match="not answered within 50ms.*idle in-process master"):
+            simulator.drive_state(0, timeout=0.05)
+    with pytest.raises(_native.ConfigError, match="virtual AKDs are gone"):
+        simulator.inject_fault(0, "F439")
+    with pytest.raises(_native.ConfigError, match='in-process links "sim" and "sim:N" only'):
+        _native.Master("udp://127.0.0.1:9").simulator
+
+
+class Lines:
+    """The lines a process writes to stdout, read on a thread so that a wait can time out."""
+
+    def __init__(self, stream):
+        self._lines: queue.Queue[str] = queue.Queue()
+        threading.Thread(target=self._read, args=(stream,), daemon=True).start()
+
+    def _read(self, stream) -> None:
+        for line in stream:
+            self._lines.put(line.rstrip("\n"))
+
+    def next(self, timeout: float = 10.0) -> str:
+        return self._lines.get(timeout=timeout)
+
+
+def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
+    argv = [*console_script("akd-sim"), "--udp", f"127.0.0.1:{udp_port}"]
+    sim = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                           stderr=subprocess.PIPE, text=True)
+    try:
+        lines = Lines(sim.stdout)
+        assert lines.next() == f"akd-sim: starting 1 virtual AKD on udp 127.0.0.1:{udp_port}"
+        wait_for("akd-sim bound", lambda: udp_port_bound(udp_port) or sim.poll() is not None)
+
+        def command(line: str) -> str:
+            sim.stdin.write(line + "\n")
+            sim.stdin.flush()
+            return lines.next()
+
+        assert command("fault 0 F125") == "ok fault 0 F125"
+        # A master on UDP: its frames run the drive's firmware, which raises the fault.
+        with _native.Master(f"udp://127.0.0.1:{udp_port}") as master:
+            assert len(master.scan()) == 1
+            master.request_state("preop")
+            assert master.sdo_read(0, 0x603F, 0) == (0x8700).to_bytes(2, "little")
+        reply = command("state 0")
+        assert reply.startswith("ok {")
+        state = json.loads(reply[3:])
+        assert (state["state"], state["fault"], state["fault_number"]) == \
+            ("Fault", "sync_lost", 125)
+        assert command("hardware_enable 0 low") == "ok hardware_enable 0 low"
+        assert command("toggles 0 1 -100,250.5") == "ok toggles 0 1 -100,250.5"
+        assert command("help").startswith("ok commands: fault POSITION NAME | hardware_enable")
+        for bad, named in (("fault 0 F1", "following_error (F439)"),
+                           ("fault 1 F439", "no slave at position 1: the bus has 1 slave"),
+                           ("hardware_enable 0 maybe", "high or low"),
+                           ("toggles 0 8 1", "inputs 1 to 7"),
+                           ("toggles 0 1 1,x", "counts separated by commas"),
+                           ("state x", "POSITION must be a whole number 0..0"),
+                           ("state", "usage: state POSITION"),
+                           ("jog 0", "allowed are fault, hardware_enable, toggles, state, help")):
+            reply = command(bad)
+            assert reply.startswith("error: ") and named in reply, (bad, reply)
+        # The end of stdin ends the commands, not the simulator.
+        sim.stdin.close()
+        with _native.Master(f"udp://127.0.0.1:{udp_port}") as master:
+            assert len(master.scan()) == 1
+        assert sim.poll() is None
+        sim.send_signal(signal.SIGTERM)
+        assert sim.wait(timeout=10) == 0, sim.stderr.read()
+        assert lines.next() == "akd-sim: stopped"
+    finally:
+        if sim.poll() is None:
+            sim.kill()
+            sim.wait()
