@@ -1,0 +1,175 @@
+//! Fault and latch events of the cycle thread against a virtual AKD behind a link that the
+//! test can make lose frames: a gap long enough for the drive's F125 is reported by the
+//! master as lost frames (the eighth disables the drive), then as the drive's fault with its
+//! 0x603F code read beside the cycle, and the drive falling out of Op as an AL state event.
+//! The waits have deadlines only so that a failure does not hang; no timing is asserted.
+
+use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use akd_native::al::AlState;
+use akd_native::cycle::events::{Action, Event, FaultSource};
+use akd_native::cycle::{Config, CycleThread};
+use akd_native::ds402::State;
+use akd_native::error::{Error, Result};
+use akd_native::frame::{Command, FrameBuilder};
+use akd_native::link::inproc::InProcess;
+use akd_native::link::Link;
+use akd_native::master::{Mapping, Master};
+use akd_native::registers::AL_CONTROL;
+
+const STEP: Duration = Duration::from_secs(5);
+
+/// The in-process link, losing the next `drop` frames (the frame never reaches the drives),
+/// and, when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a
+/// drive leaving Op by itself, as far as the master can tell.
+struct Lossy {
+    inner: InProcess,
+    drop: Arc<AtomicU32>,
+    to_safeop: Arc<AtomicU32>,
+}
+
+impl Link for Lossy {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        if self.to_safeop.swap(0, Ordering::AcqRel) > 0 {
+            let mut frame = [0u8; 64];
+            let mut builder = FrameBuilder::new(&mut frame);
+            builder.push(Command::Apwr, 0, 0, AL_CONTROL, &(AlState::SafeOp as u16).to_le_bytes()).unwrap();
+            let len = builder.finish();
+            let mut reply = [0u8; 64];
+            self.inner.exchange(&frame[..len], &mut reply, timeout)?;
+        }
+        if self.drop.load(Ordering::Acquire) > 0 {
+            self.drop.fetch_sub(1, Ordering::AcqRel);
+            return Err(Error::Timeout { what: "a frame the test lost".into() });
+        }
+        self.inner.exchange(tx, rx, timeout)
+    }
+
+    fn describe(&self) -> String {
+        "lossy sim".into()
+    }
+}
+
+struct Rig {
+    cycle: CycleThread,
+    drop: Arc<AtomicU32>,
+    to_safeop: Arc<AtomicU32>,
+}
+
+fn rig() -> Rig {
+    let drop = Arc::new(AtomicU32::new(0));
+    let to_safeop = Arc::new(AtomicU32::new(0));
+    let link = Lossy { inner: InProcess::new(1), drop: drop.clone(), to_safeop: to_safeop.clone() };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.configure_pdo(0, Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
+    m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
+    m.request_state(AlState::Op, None, STEP).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    Rig { cycle, drop, to_safeop }
+}
+
+fn enable(cycle: &CycleThread) {
+    cycle.request(0, akd_native::cycle::ds402::Request::Enable).unwrap();
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while cycle.drive_status(0).unwrap().state() != Some(State::OperationEnabled) {
+        assert!(Instant::now() < deadline, "not enabled: {:?}", cycle.drive_status(0).unwrap());
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// Collects events until `done` holds for the ones so far.
+fn events_until(cycle: &CycleThread, done: impl Fn(&[Event]) -> bool) -> Vec<Event> {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let mut events = Vec::new();
+    while !done(&events) {
+        assert!(Instant::now() < deadline, "events so far: {events:?}");
+        events.extend(cycle.events());
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    events
+}
+
+fn source(e: &Event) -> Option<FaultSource> {
+    match e {
+        Event::Fault { source, .. } => Some(*source),
+        Event::Latch { .. } => None,
+    }
+}
+
+#[test]
+fn a_short_gap_is_counted_and_the_drive_stays_enabled() {
+    let Rig { cycle, drop, .. } = rig();
+    enable(&cycle);
+    drop.store(3, Ordering::Release);
+    let events = events_until(&cycle, |e| !e.is_empty());
+    match events[0] {
+        Event::Fault { source: FaultSource::LostFrames, code: 3, action: Action::Counted, .. } => {}
+        other => panic!("{other:?}"),
+    }
+    std::thread::sleep(Duration::from_millis(50));
+    assert_eq!(cycle.drive_status(0).unwrap().state(), Some(State::OperationEnabled));
+    assert!(cycle.events().is_empty());
+}
+
+#[test]
+fn f125_after_the_eighth_lost_frame_is_reported_with_its_code_and_the_drive_disabled() {
+    let Rig { cycle, drop, .. } = rig();
+    enable(&cycle);
+    // The AKD keeps its AL state through a gap (its SII asks for no process-data watchdog)
+    // and raises F125 instead.
+    drop.store(100, Ordering::Release);
+    let events = events_until(&cycle, |e| {
+        e.iter().any(|e| source(e) == Some(FaultSource::DriveFault))
+            && e.iter().any(|e| source(e) == Some(FaultSource::Emergency))
+    });
+    let lost = events.iter().find(|e| source(e) == Some(FaultSource::LostFrames)).unwrap();
+    assert!(matches!(lost, Event::Fault { code: 8, action: Action::Disabled, .. }), "{lost:?}");
+    let fault = events.iter().find(|e| source(e) == Some(FaultSource::DriveFault)).unwrap();
+    assert!(matches!(fault, Event::Fault { code: 0x8700, .. }), "F125's code from 0x603F: {fault:?}");
+    let emergency = events.iter().find(|e| source(e) == Some(FaultSource::Emergency)).unwrap();
+    assert!(matches!(emergency, Event::Fault { code: 0x8700, action: Action::Reported, .. }), "{emergency:?}");
+    // The eighth frame's event comes once: the rest of the gap adds none.
+    assert_eq!(events.iter().filter(|e| source(e) == Some(FaultSource::LostFrames)).count(), 1, "{events:?}");
+    // Nothing is retried into motion: the drive stays out of Operation enabled.
+    std::thread::sleep(Duration::from_millis(50));
+    assert_ne!(cycle.drive_status(0).unwrap().state(), Some(State::OperationEnabled));
+}
+
+#[test]
+fn a_drive_leaving_op_is_reported_with_its_al_status_and_disabled() {
+    let Rig { cycle, to_safeop, .. } = rig();
+    enable(&cycle);
+    to_safeop.store(1, Ordering::Release);
+    let events = events_until(&cycle, |e| e.iter().any(|e| source(e) == Some(FaultSource::AlState)));
+    let al = events.iter().find(|e| source(e) == Some(FaultSource::AlState)).unwrap();
+    match al {
+        Event::Fault { al_status, action: Action::Disabled, .. } => {
+            assert_eq!(al_status & 0x0F, AlState::SafeOp as u16, "{al:?}")
+        }
+        other => panic!("{other:?}"),
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while cycle.drive_status(0).unwrap().request != Some(akd_native::cycle::ds402::Request::Disable) {
+        assert!(Instant::now() < deadline, "{:?}", cycle.drive_status(0).unwrap());
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+#[test]
+fn sdo_beside_the_cycle_reads_writes_and_names_aborts() {
+    let Rig { cycle, .. } = rig();
+    assert_eq!(cycle.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    cycle.sdo_write(0, 0x6083, 0, &5000u32.to_le_bytes()).unwrap();
+    assert_eq!(cycle.sdo_read(0, 0x6083, 0).unwrap(), 5000u32.to_le_bytes());
+    let e = cycle.sdo_read(0, 0x7777, 0).unwrap_err().to_string();
+    assert!(e.contains("0x06020000"), "{e}");
+    let e = cycle.sdo_write(0, 0x1018, 1, &[1, 0, 0, 0]).unwrap_err().to_string();
+    assert!(e.contains("0x06010002"), "{e}");
+    assert!(cycle.sdo_read(3, 0x1018, 1).is_err());
+    let stats = cycle.stats();
+    assert_eq!(stats.lost_frames.load(Ordering::Relaxed), 0);
+}
