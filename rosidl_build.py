@@ -78,11 +78,18 @@ def data_files(source_dir: Path = HERE) -> list[tuple[str, list[str]]]:
             for kind in INTERFACE_KINDS]
 
 
-def ros_prefixes() -> list[Path]:
-    """Install prefixes that may hold ROS packages: AMENT_PREFIX_PATH first, then sys.prefix."""
+def ros_prefixes(generators: dict[str, object]) -> list[Path]:
+    """Install prefixes that may hold ROS packages, in the order they are searched.
+
+    AMENT_PREFIX_PATH first (a sourced ROS install, a colcon workspace), then the prefixes the
+    generators are installed in (<prefix>/lib/pythonX.Y/site-packages/<module>; PyPI's ROS wheels
+    install into the virtual environment). Not sys.prefix: colcon overrides it with the install
+    prefix while it runs setup.py.
+    """
     entries = [Path(entry) for entry in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)
                if entry]
-    return list(dict.fromkeys([*entries, Path(sys.prefix)]))
+    entries += [Path(module.__file__).resolve().parents[4] for module in generators.values()]
+    return list(dict.fromkeys(entries))
 
 
 def package_prefix(package: str, prefixes: list[Path]) -> Path:
@@ -170,7 +177,7 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
     if not files:
         raise InterfaceBuildError(f"no interfaces in {source_dir}/msg or {source_dir}/srv")
     generators = import_generators()
-    prefixes = ros_prefixes()
+    prefixes = ros_prefixes(generators)
     dependency_shares = {package: package_prefix(package, prefixes) / "share" / package
                          for package in INTERFACE_DEPENDENCIES}
 
@@ -326,11 +333,17 @@ class generate_interfaces(Command):
 
 
 class egg_info_interfaces(egg_info):
-    """egg_info that generates first: its file list checks that akd_ros/msg and /srv exist."""
+    """egg_info that accepts akd_ros.msg and akd_ros.srv before they are generated.
+
+    Its file list checks that every package's directory exists; the modules in them are the
+    build's business (build_py, build_ext), and generating takes seconds that pip and colcon
+    would spend again, as they write the metadata in a process of its own.
+    """
 
     def run(self) -> None:
-        """Generates, then writes the metadata."""
-        self.run_command("generate_interfaces")
+        """Makes the (git-ignored) package directories, then writes the metadata."""
+        for kind in INTERFACE_KINDS:
+            (HERE / PACKAGE / kind).mkdir(exist_ok=True)
         super().run()
 
 

