@@ -1,11 +1,24 @@
 """Kollmorgen AKD servo drives on EtherCAT, over the Rust EtherCAT master in `akd_ros._native`.
 
-Everything public here comes from the native extension: the `Master`, the virtual AKD
-(`VirtualBus`, `serve_udp`, `serve_iface`, and `Simulator`, which controls the virtual AKDs of a
+From the native extension: the `Master`, the real-time `Cycle`, the virtual AKD (`VirtualBus`,
+`serve_udp`, `serve_iface`, and `Simulator`, which controls the virtual AKDs of a
 `Master("sim")` or a server while they serve) and the exceptions, all under `EtherCatError`.
+In Python: `Axis`, one drive commanded in SI units (`Units`, `Limits`), with its events.
 """
 
 from akd_ros import _native
 from akd_ros._native import *  # noqa: F401,F403  (the native module is the API)
+from akd_ros.axis import MODES, Axis, AxisState, CommandError, FaultEvent, LatchEvent
+from akd_ros.units import Limits, Units, unwrap_position
 
-__all__ = [name for name in dir(_native) if not name.startswith("_")]
+__all__ = [name for name in dir(_native) if not name.startswith("_")] + [
+    "MODES",
+    "Axis",
+    "AxisState",
+    "CommandError",
+    "FaultEvent",
+    "LatchEvent",
+    "Limits",
+    "Units",
+    "unwrap_position",
+]

@@ -1,0 +1,473 @@
+"""`Axis`: one AKD on EtherCAT from Python, without ROS.
+
+An Axis opens a link (``"sim"`` for the built-in virtual AKD, ``"udp://HOST:PORT"`` for `akd-sim`, or a network
+interface), brings the drive to Op with a process-data mapping that carries what it needs, and starts the native
+cycle thread. Everything at its surface is in SI units of the load (`akd_ros.units.Units`): positions in rad (m on a
+linear axis), velocities in rad/s (m/s), torques in N·m (N).
+
+Nothing moves unless commanded: enabling holds the target at the actual position, and so does every mode change,
+until a command is written. Commands are checked before they reach the drive: NaN and infinite values are refused,
+limits clamp or refuse as configured (`akd_ros.units.Limits`), and a command for another mode than the active one is
+refused. Each refusal is a `CommandError` naming the problem and what is allowed; nothing is sent then.
+
+Latch captures and faults arrive as events from the cycle thread, stamped with the cycle that saw them; `latch_events`
+and `fault_events` hand them out once each.
+"""
+
+from __future__ import annotations
+
+import collections
+import struct
+import time
+from dataclasses import dataclass, field
+from typing import Iterator
+
+from akd_ros import _native
+from akd_ros.units import Limits, Units, unwrap_position
+
+MODES: dict[str, int] = {
+    "profile_position": 1,
+    "profile_velocity": 3,
+    "profile_torque": 4,
+    "homing": 6,
+    "interpolated_position": 7,
+    "cyclic_synchronous_position": 8,
+}
+"""The CiA 402 modes the AKD offers over EtherCAT, by name, with their 0x6060 values."""
+
+MODE_NAMES = {code: name for name, code in MODES.items()}
+
+# What each mode's command is written to, in the order tried; the mapping must carry one of them.
+_MODE_TARGETS: dict[str, tuple[tuple[int, int], ...]] = {
+    "profile_position": ((0x607A, 0),),
+    "profile_velocity": ((0x60FF, 0),),
+    "profile_torque": ((0x6071, 0),),
+    "homing": (),
+    "interpolated_position": ((0x60C1, 1),),
+    "cyclic_synchronous_position": ((0x607A, 0),),
+}
+_COMMAND_KIND = {
+    "profile_position": "position",
+    "interpolated_position": "position",
+    "cyclic_synchronous_position": "position",
+    "profile_velocity": "velocity",
+    "profile_torque": "torque",
+}
+
+# The default mapping: everything an axis needs within the AKD's flexible limits (22 bytes out, 32 in, 8 per PDO).
+# Out: controlword, interpolation set-point 0x60C1:01, modes of operation, pad | target velocity, target torque,
+# latch control. In: statusword, mode display, pad, position actual | velocity actual, torque actual, latch status |
+# following error, latch 1 position 0x20A6 | latch 2 position 0x20A7, digital inputs.
+DEFAULT_RX = [[0x60400010, 0x60C10120, 0x60600008, 0x00020008], [0x60FF0020, 0x60710010, 0x20A40010]]
+DEFAULT_TX = [
+    [0x60410010, 0x60610008, 0x20020108, 0x60640020],
+    [0x606C0020, 0x60770010, 0x20A50010],
+    [0x60F40020, 0x20A60020],
+    [0x20A70020, 0x60FD0020],
+]
+
+# Velocity below which an enabled axis counts as standing still for a mode change, in counts/s (about 0.4 °/s at
+# 2^20 counts per revolution).
+STANDSTILL_COUNTS_PER_S = 1000
+
+_FORMATS = {8: "b", 16: "h", 32: "i"}
+_UNSIGNED = {(0x6041, 0), (0x20A5, 0), (0x60FD, 0), (0x6040, 0)}
+
+
+class CommandError(ValueError):
+    """A command or request was refused before anything reached the drive."""
+
+
+@dataclass(frozen=True)
+class AxisState:
+    """One cycle's view of the axis, in SI units (rad, rad/s, N·m; m, m/s, N on a linear axis)."""
+
+    cycle: int
+    """The cycle it was taken in (from 1)."""
+    time_ns: int
+    """That cycle's wake-up time on the monotonic clock."""
+    fresh: bool
+    """Whether that cycle's exchange succeeded (else the values are the last good ones)."""
+    state: str | None
+    """The CiA 402 state's name, None for a statusword that shows none."""
+    statusword: int
+    mode: str | None
+    """The mode the drive shows (0x6061), by name."""
+    position: float
+    velocity: float | None
+    torque: float | None
+    following_error: float | None
+    position_counts: int
+    """The actual position in counts, unwrapped across the 32-bit wrap."""
+    request: str | None
+    """The last request: "enable", "disable", "quick_stop", "reset_fault"."""
+    progress: str
+    """"idle", "in_progress", "done", "stuck" or "lost"."""
+    reason: str | None
+    """Why a request is stuck or lost, from the statusword."""
+    digital_inputs: int | None = None
+
+
+@dataclass(frozen=True)
+class LatchEvent:
+    """One position capture."""
+
+    cycle: int
+    time_ns: int
+    channel: int
+    """Latch 1 or 2."""
+    edge: str
+    """"rising" or "falling"."""
+    position: float
+    """The captured position in SI units."""
+    position_counts: int
+
+
+@dataclass(frozen=True)
+class FaultEvent:
+    """One fault and what the cycle thread did about it."""
+
+    cycle: int
+    time_ns: int
+    source: str
+    """"drive_fault", "emergency", "lost_frames", "working_counter" or "al_state"."""
+    code: int
+    """CiA error code (0x603F or the emergency's); cycles in a row for lost frames and working counter errors."""
+    text: str | None
+    """The AKD's text for the code where known, e.g. "F439 Following error"."""
+    statusword: int
+    ds402_state: str | None
+    al_state: str | None
+    al_status_code: int
+    al_status_code_name: str
+    action: str
+
+    def describe(self) -> str:
+        """One line for a log."""
+        what = self.text or (f"code 0x{self.code:04X}" if self.source in ("drive_fault", "emergency") else "")
+        if self.source in ("lost_frames", "working_counter"):
+            what = f"{self.code} cycles in a row"
+        if self.source == "al_state":
+            what = f"slave now in {self.al_state}, AL status code 0x{self.al_status_code:04X} ({self.al_status_code_name})"
+        return f"{self.source}: {what}; {self.action}"
+
+
+@dataclass
+class _Layout:
+    """Where objects sit in one slave's process data."""
+
+    outputs: dict[tuple[int, int], tuple[int, int]] = field(default_factory=dict)
+    inputs: dict[tuple[int, int], tuple[int, int]] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, mapping: dict) -> _Layout:
+        def table(entries):
+            return {(index, sub): (bits, offset) for index, sub, bits, offset in entries}
+
+        return cls(table(mapping["outputs"]), table(mapping["inputs"]))
+
+    def read(self, data: bytes, key: tuple[int, int]) -> int | None:
+        found = self.inputs.get(key)
+        if found is None:
+            return None
+        bits, offset = found
+        code = _FORMATS[bits]
+        if key in _UNSIGNED:
+            code = code.upper()
+        return struct.unpack_from("<" + code, data, offset)[0]
+
+
+class Axis:
+    """One AKD axis: opens the bus, cycles it, and commands the drive in SI units.
+
+    Use as a context manager or call `close()`: it disables the drive, stops the cycle and returns the bus to Init.
+    """
+
+    def __init__(
+        self,
+        link: str = "sim",
+        *,
+        slave: int = 0,
+        period: float = 0.001,
+        mode: str = "interpolated_position",
+        units: Units | None = None,
+        limits: Limits | None = None,
+        mapping: tuple[object, object] | None = None,
+        priority: int | None = None,
+        cpu: int | None = None,
+        lock_memory: bool = False,
+        request_timeout: float = 1.0,
+        frame_timeout: float = 0.1,
+    ) -> None:
+        if mode not in MODES:
+            raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+        self.units = units or Units()
+        self.limits = limits or Limits()
+        self.slave = slave
+        self._master = _native.Master(link, timeout=frame_timeout)
+        self._cycle = None
+        try:
+            count = len(self._master.scan())
+            if not 0 <= slave < count:
+                raise CommandError(f"slave {slave} is not on the bus (slaves 0..{count - 1})")
+            self.simulator = self._master.simulator if link == "sim" or link.startswith("sim:") else None
+            """For the built-in virtual AKD: its `Simulator` (fault injection, hardware enable, input toggles)."""
+            self._master.request_state("preop")
+            rx, tx = mapping if mapping is not None else (DEFAULT_RX, DEFAULT_TX)
+            self._master.configure_pdo(slave, rx, tx)
+            self._master.sdo_write(slave, 0x6060, 0, bytes([MODES[mode]]))
+            self._master.request_state("op")
+            self._cycle = _native.Cycle(self._master, period, priority=priority, cpu=cpu, lock_memory=lock_memory)
+        except BaseException:
+            self._master.close()
+            raise
+        self._cycle.request_timeout = request_timeout
+        self._layout = _Layout.of(self._cycle.mapping(slave))
+        self._mode = mode
+        self._latches: collections.deque[LatchEvent] = collections.deque()
+        self._faults: collections.deque[FaultEvent] = collections.deque()
+        self._unwrapped: int | None = None
+        self._last_raw: int | None = None
+        self._commanded: dict[str, float] = {}
+
+    # --- life cycle ---------------------------------------------------------------------------------------------
+
+    @property
+    def warnings(self) -> list[str]:
+        """Real-time settings asked for and not permitted, one sentence each."""
+        return list(self._cycle.warnings)
+
+    def close(self) -> None:
+        """Disables the drive (waiting up to a second), stops the cycle and returns the bus to Init."""
+        if self._cycle is None:
+            return
+        cycle, self._cycle = self._cycle, None
+        try:
+            if cycle.running:
+                cycle.disable(self.slave)
+                try:
+                    cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
+                except Exception:  # noqa: BLE001 - a drive in Fault or unreachable stays as it is: powerless
+                    pass
+        finally:
+            cycle.stop()
+            try:
+                self._master.request_state("init")
+            finally:
+                self._master.close()
+
+    def __enter__(self) -> Axis:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _running(self):
+        if self._cycle is None:
+            raise CommandError("the axis is closed")
+        return self._cycle
+
+    # --- DS402 ----------------------------------------------------------------------------------------------------
+
+    def enable(self, timeout: float = 5.0) -> None:
+        """Brings the drive to Operation enabled and waits; the target holds the actual position until commanded.
+        Raises TimeoutError saying in which state it is stuck and why (fault, hardware enable low, ...)."""
+        cycle = self._running()
+        self._commanded.clear()
+        cycle.enable(self.slave)
+        cycle.wait_state(self.slave, "Operation enabled", timeout=timeout)
+
+    def disable(self, timeout: float = 5.0) -> None:
+        """Switches the power stage off (Switch on disabled) and waits."""
+        cycle = self._running()
+        cycle.disable(self.slave)
+        cycle.wait_state(self.slave, "Switch on disabled", timeout=timeout)
+
+    def quick_stop(self, timeout: float = 5.0) -> None:
+        """Brakes with the quick-stop deceleration and holds in Quick stop active (Switch on disabled if off)."""
+        cycle = self._running()
+        cycle.quick_stop(self.slave)
+        deadline = time.monotonic() + timeout
+        while (status := cycle.drive_status(self.slave))["state"] not in ("Quick stop active", "Switch on disabled"):
+            if status["progress"] == "stuck" or time.monotonic() > deadline:
+                raise TimeoutError(f"quick stop of drive {self.slave}: {status['reason'] or status['state']}")
+            time.sleep(0.001)
+
+    def reset_fault(self, timeout: float = 5.0) -> None:
+        """Resets a fault by a rising edge of controlword bit 7 and waits for Switch on disabled. Raises
+        TimeoutError when the fault persists (its cause is still there)."""
+        cycle = self._running()
+        cycle.reset_fault(self.slave)
+        cycle.wait_state(self.slave, "Switch on disabled", timeout=timeout)
+
+    def halt(self, on: bool = True) -> None:
+        """Halt (controlword bit 8): the drive stops and stays enabled; `halt(False)` lets it go on."""
+        self._running().set_halt(self.slave, on)
+
+    @property
+    def mode(self) -> str:
+        """The mode of operation last set."""
+        return self._mode
+
+    def set_mode(self, mode: str) -> None:
+        """Changes the mode of operation. Allowed while disabled, or enabled at standstill; the target then holds the
+        actual position until the first command of the new mode."""
+        cycle = self._running()
+        if mode not in MODES:
+            raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+        missing = [t for t in _MODE_TARGETS[mode] if t not in self._layout.outputs]
+        if _MODE_TARGETS[mode] and len(missing) == len(_MODE_TARGETS[mode]):
+            objects = " or ".join(f"0x{i:04X}:{s:02X}" for i, s in _MODE_TARGETS[mode])
+            raise CommandError(f"mode {mode} needs {objects} in the output mapping, which this mapping lacks")
+        state = self.state()
+        if state.state == "Operation enabled" and state.velocity is not None:
+            counts_per_s = abs(state.velocity / self.units.si_per_count)
+            if counts_per_s > STANDSTILL_COUNTS_PER_S:
+                raise CommandError(
+                    f"mode change to {mode} refused while the axis moves ({state.velocity:.4g} "
+                    f"{self.units.position_unit}/s); stop it (halt, or command zero) or disable it first"
+                )
+        cycle.set_mode(self.slave, MODES[mode])
+        self._mode = mode
+        self._commanded.clear()
+
+    # --- commands -------------------------------------------------------------------------------------------------
+
+    def _command(self, kind: str, value: float) -> None:
+        cycle = self._running()
+        wanted = _COMMAND_KIND.get(self._mode)
+        if wanted != kind:
+            modes = [m for m, k in _COMMAND_KIND.items() if k == kind]
+            raise CommandError(
+                f"{kind} command refused: the axis is in mode {self._mode}; {kind} commands need mode "
+                f"{' or '.join(modes)}"
+            )
+        try:
+            checked = self.limits.check(kind, value)
+            if kind == "position":
+                counts = self.units.position_to_counts(checked)
+                data = struct.pack("<i", counts)
+            elif kind == "velocity":
+                data = struct.pack("<i", self.units.velocity_to_counts(checked))
+            else:
+                data = struct.pack("<h", self.units.torque_to_drive(checked))
+        except ValueError as e:
+            raise CommandError(f"{kind} command refused: {e}") from None
+        index, sub = next(t for t in _MODE_TARGETS[self._mode] if t in self._layout.outputs)
+        cycle.set_object(self.slave, index, sub, data)
+        self._commanded[kind] = checked
+
+    def command_position(self, position: float) -> None:
+        """Commands a position (rad or m) in a position mode."""
+        self._command("position", position)
+
+    def command_velocity(self, velocity: float) -> None:
+        """Commands a velocity (rad/s or m/s) in profile velocity mode."""
+        self._command("velocity", velocity)
+
+    def command_torque(self, torque: float) -> None:
+        """Commands a torque (N·m, or N on a linear axis) in profile torque mode."""
+        self._command("torque", torque)
+
+    @property
+    def command(self) -> float | None:
+        """The last command accepted in the current mode (SI), None before one."""
+        return self._commanded.get(_COMMAND_KIND.get(self._mode, ""))
+
+    # --- state and events -----------------------------------------------------------------------------------------
+
+    def _position_counts(self, raw: int) -> int:
+        if self._unwrapped is None or self._last_raw is None:
+            self._unwrapped = raw
+        else:
+            self._unwrapped = unwrap_position(self._unwrapped, raw)
+        self._last_raw = raw
+        return self._unwrapped
+
+    def state(self) -> AxisState:
+        """The last cycle's state of the axis."""
+        cycle = self._running()
+        snapshot = cycle.snapshot()
+        status = cycle.drive_status(self.slave)
+        data = snapshot["inputs"][self.slave]
+        read = self._layout.read
+        raw = read(data, (0x6064, 0))
+        if raw is None:
+            raw = read(data, (0x6063, 0)) or 0
+        counts = self._position_counts(raw)
+        velocity, torque, following = read(data, (0x606C, 0)), read(data, (0x6077, 0)), read(data, (0x60F4, 0))
+        mode = read(data, (0x6061, 0))
+        return AxisState(
+            cycle=snapshot["cycle"],
+            time_ns=snapshot["time_ns"],
+            fresh=snapshot["fresh"],
+            state=status["state"],
+            statusword=status["statusword"],
+            mode=MODE_NAMES.get(mode) if mode is not None else None,
+            position=self.units.position_to_si(counts),
+            velocity=None if velocity is None else self.units.velocity_to_si(velocity),
+            torque=None if torque is None else self.units.torque_to_si(torque),
+            following_error=None if following is None else following * self.units.si_per_count,
+            position_counts=counts,
+            request=status["request"],
+            progress=status["progress"],
+            reason=status["reason"],
+            digital_inputs=read(data, (0x60FD, 0)),
+        )
+
+    def arm_latch(self, channel: int, edge: str, arm: bool = True) -> None:
+        """Arms latch `channel` (1 or 2) on `edge` ("rising" or "falling"); every capture becomes a LatchEvent."""
+        self._running().arm_latch(self.slave, channel, edge, arm)
+
+    def _poll(self) -> None:
+        if self._cycle is None:
+            return
+        for e in self._cycle.events():
+            if e["slave"] != self.slave:
+                continue
+            if e["kind"] == "latch":
+                counts = e["position"]
+                self._latches.append(
+                    LatchEvent(e["cycle"], e["time_ns"], e["channel"], e["edge"], self.units.position_to_si(counts), counts)
+                )
+            else:
+                self._faults.append(
+                    FaultEvent(
+                        e["cycle"], e["time_ns"], e["source"], e["code"], e["text"], e["statusword"], e["ds402_state"],
+                        e["al_state"], e["al_status_code"], e["al_status_code_name"], e["action"],
+                    )
+                )
+
+    def latch_events(self) -> Iterator[LatchEvent]:
+        """The latch captures since the last call, oldest first, each handed out once."""
+        self._poll()
+        while self._latches:
+            yield self._latches.popleft()
+
+    def fault_events(self) -> Iterator[FaultEvent]:
+        """The faults since the last call, oldest first, each handed out once."""
+        self._poll()
+        while self._faults:
+            yield self._faults.popleft()
+
+    # --- mailbox and statistics -----------------------------------------------------------------------------------
+
+    def sdo_read(self, index: int, subindex: int = 0) -> bytes:
+        """Reads an object of the drive beside the running cycle."""
+        return self._running().sdo_read(self.slave, index, subindex)
+
+    def sdo_write(self, index: int, subindex: int, data: bytes) -> None:
+        """Writes an object of the drive beside the running cycle."""
+        self._running().sdo_write(self.slave, index, subindex, data)
+
+    def stats(self) -> dict:
+        """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped."""
+        cycle = self._running()
+        stats = cycle.stats()
+        stats["events_dropped"] = cycle.events_dropped
+        return stats
+
+    @property
+    def cycle(self):
+        """The native cycle, for what the Axis does not wrap (histograms, raw snapshots)."""
+        return self._running()
