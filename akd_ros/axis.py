@@ -37,7 +37,8 @@ MODES: dict[str, int] = {
 
 MODE_NAMES = {code: name for name, code in MODES.items()}
 
-# What each mode's command is written to, in the order tried; the mapping must carry one of them.
+# What each mode's command is written to, in the order tried; a cyclic mode's mapping must carry one of them, the
+# profile modes write it by SDO where it is not mapped (0x607A cannot be mapped flexibly on the AKD).
 _MODE_TARGETS: dict[str, tuple[tuple[int, int], ...]] = {
     "profile_position": ((0x607A, 0),),
     "profile_velocity": ((0x60FF, 0),),
@@ -46,6 +47,12 @@ _MODE_TARGETS: dict[str, tuple[tuple[int, int], ...]] = {
     "interpolated_position": ((0x60C1, 1),),
     "cyclic_synchronous_position": ((0x607A, 0),),
 }
+_PROFILE_MODES = ("profile_position", "homing")
+# Controlword bits 4 (new set-point, or start homing) and 5 (change set-point immediately), and statusword bit 12
+# (set-point acknowledged, or homing attained).
+_NEW_SETPOINT = 0x0030
+_START_HOMING = 0x0010
+_ACKNOWLEDGED = 0x1000
 _COMMAND_KIND = {
     "profile_position": "position",
     "interpolated_position": "position",
@@ -262,6 +269,14 @@ class Axis:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    def _wait_state(self, state: str, timeout: float) -> None:
+        """Waits for the drive to show `state`; the native time-out (which names the state it is stuck in and why)
+        becomes Python's TimeoutError, as callers of a driver expect."""
+        try:
+            self._running().wait_state(self.slave, state, timeout=timeout)
+        except _native.TimeoutError as e:
+            raise TimeoutError(str(e)) from None
+
     def _running(self):
         if self._cycle is None:
             raise CommandError("the axis is closed")
@@ -275,13 +290,13 @@ class Axis:
         cycle = self._running()
         self._commanded.clear()
         cycle.enable(self.slave)
-        cycle.wait_state(self.slave, "Operation enabled", timeout=timeout)
+        self._wait_state("Operation enabled", timeout)
 
     def disable(self, timeout: float = 5.0) -> None:
         """Switches the power stage off (Switch on disabled) and waits."""
         cycle = self._running()
         cycle.disable(self.slave)
-        cycle.wait_state(self.slave, "Switch on disabled", timeout=timeout)
+        self._wait_state("Switch on disabled", timeout)
 
     def quick_stop(self, timeout: float = 5.0) -> None:
         """Brakes with the quick-stop deceleration and holds in Quick stop active (Switch on disabled if off)."""
@@ -298,7 +313,7 @@ class Axis:
         TimeoutError when the fault persists (its cause is still there)."""
         cycle = self._running()
         cycle.reset_fault(self.slave)
-        cycle.wait_state(self.slave, "Switch on disabled", timeout=timeout)
+        self._wait_state("Switch on disabled", timeout)
 
     def halt(self, on: bool = True) -> None:
         """Halt (controlword bit 8): the drive stops and stays enabled; `halt(False)` lets it go on."""
@@ -316,7 +331,7 @@ class Axis:
         if mode not in MODES:
             raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
         missing = [t for t in _MODE_TARGETS[mode] if t not in self._layout.outputs]
-        if _MODE_TARGETS[mode] and len(missing) == len(_MODE_TARGETS[mode]):
+        if mode not in _PROFILE_MODES and _MODE_TARGETS[mode] and len(missing) == len(_MODE_TARGETS[mode]):
             objects = " or ".join(f"0x{i:04X}:{s:02X}" for i, s in _MODE_TARGETS[mode])
             raise CommandError(f"mode {mode} needs {objects} in the output mapping, which this mapping lacks")
         state = self.state()
@@ -353,9 +368,39 @@ class Axis:
                 data = struct.pack("<h", self.units.torque_to_drive(checked))
         except ValueError as e:
             raise CommandError(f"{kind} command refused: {e}") from None
-        index, sub = next(t for t in _MODE_TARGETS[self._mode] if t in self._layout.outputs)
-        cycle.set_object(self.slave, index, sub, data)
+        mapped = [t for t in _MODE_TARGETS[self._mode] if t in self._layout.outputs]
+        if mapped:
+            cycle.set_object(self.slave, *mapped[0], data)
+        else:
+            cycle.sdo_write(self.slave, *_MODE_TARGETS[self._mode][0], data)
+        if self._mode == "profile_position":
+            self._start(_NEW_SETPOINT, "the new position set-point")
         self._commanded[kind] = checked
+
+    def _start(self, bits: int, what: str, timeout: float = 1.0) -> None:
+        """Raises controlword `bits` (bit 4 starts a profile move or homing) until the drive acknowledges in
+        statusword bit 12, then lowers them, so the next command makes a new rising edge."""
+        cycle = self._running()
+        cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", bits))
+        deadline = time.monotonic() + timeout
+        try:
+            while not cycle.drive_status(self.slave)["statusword"] & _ACKNOWLEDGED:
+                if time.monotonic() > deadline:
+                    status = cycle.drive_status(self.slave)
+                    raise TimeoutError(
+                        f"drive {self.slave} did not acknowledge {what} (statusword 0x{status['statusword']:04X}, "
+                        f"state {status['state']}); it must be in Operation enabled"
+                    )
+                time.sleep(0.001)
+        finally:
+            cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", 0))
+
+    def home(self, timeout: float = 30.0) -> None:
+        """Runs the drive's homing (mode homing, with its homing method and speeds set in the drive) and waits until
+        homing is attained."""
+        if self._mode != "homing":
+            raise CommandError(f"home() needs mode homing; the axis is in mode {self._mode} (set_mode('homing'))")
+        self._start(_START_HOMING, "homing", timeout)
 
     def command_position(self, position: float) -> None:
         """Commands a position (rad or m) in a position mode."""

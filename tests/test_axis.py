@@ -1,0 +1,279 @@
+"""`akd_ros.Axis` against the in-process virtual AKD: bumpless enable and mode changes, each mode tracking its
+command, checked commands, latch captures where the input toggled, faults as events with the drive's code and text,
+quick stop, halt, and SDO beside the cycle.
+
+The waits have deadlines only so that a failure does not hang; no test asserts how fast anything happens. Bounds on
+tracking are the drive model's following error at these speeds with room to spare, stated where they are used.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+
+import pytest
+
+from akd_ros import Axis, CommandError, Limits, Units
+
+COUNTS = 2**20
+COUNT = 2 * math.pi / COUNTS
+"""One count in rad at the virtual AKD's 2^20 counts per revolution."""
+
+
+def wait_for(what: str, predicate, timeout: float = 10.0):
+    deadline = time.monotonic() + timeout
+    while not (result := predicate()):
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.005)
+    return result
+
+
+def cycles_later(axis: Axis, count: int):
+    start = axis.state().cycle
+    return wait_for(f"{count} cycles", lambda: (s := axis.state()).cycle >= start + count and s)
+
+
+def settled(axis: Axis):
+    """The state once the axis stands still: within 2 counts over 50 cycles."""
+    def still():
+        before = axis.state().position_counts
+        s = cycles_later(axis, 50)
+        return abs(s.position_counts - before) <= 2 and s
+    return wait_for("the axis to stand still", still)
+
+
+def position_range(axis: Axis, cycles: int) -> tuple[int, int]:
+    """The lowest and highest actual position (counts) over the next `cycles` cycles, sampled every few ms."""
+    seen = []
+    end = axis.state().cycle + cycles
+    while (s := axis.state()).cycle < end:
+        seen.append(s.position_counts)
+        time.sleep(0.002)
+    return min(seen), max(seen)
+
+
+@pytest.fixture
+def axis():
+    with Axis("sim", limits=Limits(min_position=-100.0, max_position=100.0, max_velocity=50.0, max_torque=2.0)) as a:
+        yield a
+
+
+def test_a_stale_command_does_not_move_the_axis_at_enable(axis: Axis) -> None:
+    # A set-point written while disabled (a stale command, or the 0 of a fresh drive while the axis stands
+    # elsewhere) must not be where the drive goes when it is enabled.
+    axis.enable()
+    axis.command_position(2.0)
+    at = wait_for("the move", lambda: abs((s := settled(axis)).position - 2.0) < 1e-3 and s)
+    axis.disable()
+    axis.command_position(-3.0)
+    axis.enable()
+    low, high = position_range(axis, 300)
+    assert high - low <= 1, f"moved {high - low} counts after enable"
+    assert abs(low - at.position_counts) <= 1
+
+
+def test_a_mode_change_holds_the_axis_where_it_is(axis: Axis) -> None:
+    axis.enable()
+    axis.command_position(1.0)  # a stale interpolated position for later
+    axis.set_mode("profile_velocity")
+    axis.command_velocity(5.0)
+    wait_for("the velocity", lambda: abs(axis.state().velocity - 5.0) < 0.05)
+    wait_for("the axis to pass 2 rad", lambda: axis.state().position > 2.0)
+    axis.command_velocity(0.0)
+    here = settled(axis)
+    assert abs(here.position - 1.0) > 1.0, "the test needs the axis away from the stale command"
+    axis.set_mode("interpolated_position")
+    low, high = position_range(axis, 300)
+    assert high - low <= 1 and abs(low - here.position_counts) <= 1, (low, high, here.position_counts)
+    # The first command of the new mode moves it.
+    axis.command_position(here.position + 0.5)
+    moved = wait_for("the move", lambda: abs((s := settled(axis)).position - here.position - 0.5) < 1e-3 and s)
+    assert moved.mode == "interpolated_position"
+
+
+def test_interpolated_position_tracks_a_moving_target(axis: Axis) -> None:
+    axis.enable()
+    start = axis.state().position
+    # A ramp at 2 rad/s, sent every millisecond from Python, for 0.5 s.
+    errors = []
+    t0 = time.monotonic()
+    while (t := time.monotonic() - t0) < 0.5:
+        axis.command_position(start + 2.0 * t)
+        s = axis.state()
+        if t > 0.1:
+            errors.append(abs(s.following_error))
+        time.sleep(0.001)
+    # The model's following error at 2 rad/s is a few hundred counts; 0.01 rad is about 1700 counts.
+    assert max(errors) < 0.01, max(errors)
+    final = start + 2.0 * (time.monotonic() - t0)
+    axis.command_position(final)
+    end = settled(axis)
+    assert abs(end.position_counts - Units().position_to_counts(final)) <= 2
+
+
+def test_cyclic_synchronous_position_with_a_fixed_mapping() -> None:
+    with Axis("sim", mode="cyclic_synchronous_position", mapping=(0x1725, 0x1B26)) as a:
+        a.enable()
+        start = a.state().position
+        for step in range(1, 301):
+            a.command_position(start + step * 0.002)
+            time.sleep(0.001)
+        end = settled(a)
+        assert abs(end.position - (start + 0.6)) < 2 * COUNT
+        with pytest.raises(CommandError, match="profile_velocity needs 0x60FF"):
+            a.set_mode("profile_velocity")
+
+
+def test_profile_velocity_and_torque_track_their_commands(axis: Axis) -> None:
+    axis.enable()
+    axis.set_mode("profile_velocity")
+    axis.command_velocity(-8.0)
+    s = wait_for("-8 rad/s", lambda: abs(axis.state().velocity + 8.0) < 0.08 and axis.state())
+    assert s.mode == "profile_velocity"
+    axis.command_velocity(0.0)
+    settled(axis)
+    axis.set_mode("profile_torque")
+    axis.command_torque(0.3)
+    # 0.3 N·m is 100 thousandths of the 3 N·m peak torque; the actual torque reads back to the unit.
+    s = wait_for("the torque", lambda: abs(axis.state().torque - 0.3) <= 3.0 / 1000 and axis.state())
+    assert s.velocity > 0.0
+
+
+def test_profile_position_moves_to_the_target(axis: Axis) -> None:
+    axis.enable()
+    axis.set_mode("profile_position")
+    start = axis.state().position
+    axis.command_position(start + 3.0)
+    end = wait_for("the target", lambda: abs((s := settled(axis)).position - start - 3.0) < 10 * COUNT and s)
+    assert end.statusword & 0x0400, "target reached"
+
+
+def test_homing_is_attained() -> None:
+    with Axis("sim", mode="homing") as a:
+        a.enable()
+        a.home()
+        assert a.state().statusword & 0x1000
+
+
+@pytest.mark.parametrize(
+    ("command", "value", "message"),
+    [
+        ("command_position", math.nan, "position must be a finite number"),
+        ("command_position", math.inf, "position must be a finite number"),
+        ("command_position", 150.0, "beyond the limit max_position"),
+        ("command_velocity", 1.0, "velocity commands need mode profile_velocity"),
+        ("command_torque", 0.1, "torque commands need mode profile_torque"),
+    ],
+)
+def test_bad_commands_are_refused_and_nothing_moves(axis: Axis, command: str, value: float, message: str) -> None:
+    axis.enable()
+    before = axis.cycle.outputs(0)
+    with pytest.raises(CommandError, match=message):
+        getattr(axis, command)(value)
+    assert axis.cycle.outputs(0) == before, "a refused command reached the set-points"
+    low, high = position_range(axis, 100)
+    assert high - low <= 1
+
+
+def test_limits_clamp_when_so_configured() -> None:
+    with Axis("sim", limits=Limits(max_position=0.5, policy="clamp")) as a:
+        a.enable()
+        a.command_position(10.0)
+        assert a.command == 0.5
+        end = wait_for("the clamped target", lambda: abs((s := settled(a)).position - 0.5) < 2 * COUNT and s)
+        assert end.position < 0.5 + 2 * COUNT
+
+
+def test_a_latch_captures_where_the_input_toggled(axis: Axis) -> None:
+    toggle = 300_000.4  # counts; the capture is the count the input toggled in
+    axis.simulator.set_input_toggles(0, 1, [toggle])
+    axis.enable()
+    axis.arm_latch(1, "rising")
+    axis.arm_latch(1, "falling")
+    axis.command_position(0.5)  # 0.5 rad is about 83,000 counts: below the toggle
+    settled(axis)
+    assert list(axis.latch_events()) == []
+    axis.command_position(2.0)  # about 334,000 counts: across it
+    rising = wait_for("the rising capture", lambda: list(axis.latch_events()))
+    assert len(rising) == 1
+    event = rising[0]
+    assert (event.channel, event.edge) == (1, "rising")
+    assert abs(event.position_counts - toggle) <= 1, event
+    assert event.position == pytest.approx(event.position_counts * COUNT)
+    axis.command_position(0.5)  # back across: the falling edge, at the same place
+    falling = wait_for("the falling capture", lambda: list(axis.latch_events()))
+    assert [(e.channel, e.edge) for e in falling] == [(1, "falling")]
+    assert abs(falling[0].position_counts - toggle) <= 1
+    with pytest.raises(Exception, match="latch channel 3"):
+        axis.arm_latch(3, "rising")
+    with pytest.raises(Exception, match='allowed "rising" or "falling"'):
+        axis.arm_latch(1, "both")
+
+
+def test_a_drive_fault_is_one_event_with_its_code_and_text_and_reset_clears_it(axis: Axis) -> None:
+    axis.enable()
+    axis.command_position(1.0)
+    axis.simulator.inject_fault(0, "F439")
+    faults = wait_for(
+        "the fault events",
+        lambda: (f := list(axis.fault_events())) and f,
+    )
+    faults += wait_for("the emergency", lambda: [e for e in axis.fault_events()] or
+                       [e for e in faults if e.source == "emergency"])
+    by_source = {e.source: e for e in faults}
+    fault = by_source["drive_fault"]
+    assert fault.code == 0x8611 and fault.text == "F439 Following error", fault
+    assert fault.ds402_state in ("Fault", "Fault reaction active")
+    assert "disabled" in fault.action
+    assert by_source["emergency"].code == 0x8611
+    assert axis.sdo_read(0x603F) == (0x8611).to_bytes(2, "little")
+    with pytest.raises(TimeoutError, match="fault"):
+        axis.enable(timeout=2.0)
+    axis.reset_fault()
+    assert axis.state().state == "Switch on disabled"
+    # Enabled again, it stays where it stopped: nothing retried the old command into motion.
+    here = settled(axis)
+    axis.enable()
+    low, high = position_range(axis, 200)
+    assert abs(low - here.position_counts) <= 1 and high - low <= 1
+
+
+def test_hardware_enable_low_is_named_when_enable_is_stuck(axis: Axis) -> None:
+    axis.simulator.set_hardware_enable(0, False)
+    with pytest.raises(TimeoutError, match="hardware enable"):
+        axis.enable(timeout=2.0)
+    axis.simulator.set_hardware_enable(0, True)
+    axis.enable()
+
+
+def test_quick_stop_and_halt_stop_a_moving_axis(axis: Axis) -> None:
+    axis.enable()
+    axis.set_mode("profile_velocity")
+    axis.command_velocity(10.0)
+    wait_for("10 rad/s", lambda: abs(axis.state().velocity - 10.0) < 0.1)
+    axis.halt()
+    s = settled(axis)
+    assert s.state == "Operation enabled"
+    axis.halt(False)
+    wait_for("10 rad/s again", lambda: abs(axis.state().velocity - 10.0) < 0.1)
+    axis.quick_stop()
+    s = settled(axis)
+    assert s.state == "Quick stop active"
+
+
+def test_sdo_beside_the_cycle(axis: Axis) -> None:
+    axis.enable()
+    assert axis.sdo_read(0x1018, 1) == (0x6A).to_bytes(4, "little")
+    axis.sdo_write(0x6083, 0, (20_000_000).to_bytes(4, "little"))
+    assert axis.sdo_read(0x6083) == (20_000_000).to_bytes(4, "little")
+    with pytest.raises(Exception, match="0x06020000"):
+        axis.sdo_read(0x7777)
+    stats = axis.stats()
+    assert stats["lost_frames"] == 0 and stats["wkc_errors"] == 0 and stats["events_dropped"] == 0
+
+
+def test_opening_refuses_what_cannot_work() -> None:
+    with pytest.raises(CommandError, match="mode 'spin' is not one of"):
+        Axis("sim", mode="spin")
+    with pytest.raises(CommandError, match="slave 2 is not on the bus"):
+        Axis("sim", slave=2)
