@@ -103,8 +103,10 @@ def test_interpolated_position_tracks_a_moving_target(axis: Axis) -> None:
         if t > 0.1:
             errors.append(abs(s.following_error))
         time.sleep(0.001)
-    # The model's following error at 2 rad/s is a few hundred counts; 0.01 rad is about 1700 counts.
-    assert max(errors) < 0.01, max(errors)
+    # The drive model lags about 0.005 rad at 2 rad/s; commands sent from Python arrive with its scheduling jitter
+    # (a command 5 ms late is 0.01 rad behind). 0.02 rad (about 3300 counts) bounds both; a drive that did not
+    # track would be off by the whole ramp (1 rad).
+    assert max(errors) < 0.02, max(errors)
     final = start + 2.0 * (time.monotonic() - t0)
     axis.command_position(final)
     end = settled(axis)
