@@ -15,16 +15,16 @@ libraries into the akd_ros package directory:
 The generated Python modules go into akd_ros/msg and akd_ros/srv in the source tree (git-ignored),
 so an editable install imports them where they are and a normal build copies them like any module.
 
-The headers, libraries and generator templates come from the ROS prefixes: the virtual
-environment (PyPI's ROS wheels install into sys.prefix) and every AMENT_PREFIX_PATH entry (an apt
-ROS install, a colcon workspace).
+The headers, libraries and generator templates come from the ROS prefixes: every
+AMENT_PREFIX_PATH entry (an apt ROS install, a colcon workspace) and the prefix the generators are
+installed in (the virtual environment, for PyPI's ROS wheels).
 """
 
 from __future__ import annotations
 
+import importlib
 import json
 import os
-import shutil
 import sys
 from pathlib import Path
 
@@ -116,8 +116,6 @@ def header_dir(package: str, prefixes: list[Path]) -> Path:
 
 def import_generators() -> dict[str, object]:
     """The rosidl generator modules by name; InterfaceBuildError naming every missing one."""
-    import importlib
-
     modules, missing = {}, []
     for name in GENERATOR_MODULES:
         try:
@@ -171,7 +169,8 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
     """Runs every generator over source_dir's interfaces; the Python modules go to package_dir.
 
     Returns the generated sources of each library (keys: 'generator_c', the TYPESUPPORTS,
-    'typesupport_c', 'python') and the include directories ('include').
+    'typesupport_c', 'python'), the include directories ('include') and the ROS library
+    directories ('library_dirs') to compile them with.
     """
     files = interface_files(source_dir)
     if not files:
@@ -227,7 +226,13 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
     }
     _sync_python_modules(build_dir / "rosidl_generator_py" / PACKAGE, package_dir)
 
-    import numpy
+    try:
+        import numpy
+    except ImportError as error:
+        raise InterfaceBuildError(
+            f"the Python bindings of {PACKAGE}'s messages compile against numpy's headers, and "
+            f"numpy does not import in {sys.executable} ({error}): pip install numpy, or apt "
+            "install python3-numpy") from None
 
     include = [str(build_dir / generator) for generator in (
         "rosidl_generator_c", "rosidl_typesupport_fastrtps_c",
@@ -271,10 +276,12 @@ class InterfaceLibrary(Extension):
 
 
 def _own(suffix: str) -> str:
+    """This package's library of that kind, by ROS library name (akd_ros__<suffix>)."""
     return f"{PACKAGE}__{suffix}"
 
 
 def _deps(suffix: str) -> list[str]:
+    """The interface dependencies' libraries of that kind."""
     return [f"{package}__{suffix}" for package in INTERFACE_DEPENDENCIES]
 
 
