@@ -30,6 +30,7 @@ from __future__ import annotations
 import collections
 import ctypes
 import datetime
+import importlib
 import logging
 import math
 import os
@@ -61,7 +62,11 @@ LOG = logging.getLogger("akd_ros.recorder")
 #: rosbag2 metadata version written (Jazzy's).
 BAG_VERSION = 9
 #: Chunk compressions, by the name used in the constructor and the ROS parameters.
-COMPRESSIONS = {"zstd": CompressionType.ZSTD, "lz4": CompressionType.LZ4, "none": CompressionType.NONE}
+COMPRESSIONS = {
+    "zstd": CompressionType.ZSTD,
+    "lz4": CompressionType.LZ4,
+    "none": CompressionType.NONE,
+}
 _DEFINITION_DELIMITER = "=" * 80 + "\n"
 _STORAGE_ID = "mcap"
 _SERIALIZATION = "cdr"
@@ -104,11 +109,19 @@ class _RosidlString(ctypes.Structure):
 
 
 class _RosidlTypeSource(ctypes.Structure):
-    _fields_ = [("type_name", _RosidlString), ("encoding", _RosidlString), ("raw_file_contents", _RosidlString)]
+    _fields_ = [
+        ("type_name", _RosidlString),
+        ("encoding", _RosidlString),
+        ("raw_file_contents", _RosidlString),
+    ]
 
 
 class _RosidlTypeSourceSequence(ctypes.Structure):
-    _fields_ = [("data", ctypes.POINTER(_RosidlTypeSource)), ("size", ctypes.c_size_t), ("capacity", ctypes.c_size_t)]
+    _fields_ = [
+        ("data", ctypes.POINTER(_RosidlTypeSource)),
+        ("size", ctypes.c_size_t),
+        ("capacity", ctypes.c_size_t),
+    ]
 
 
 class _RosidlMessageTypeSupport(ctypes.Structure):
@@ -117,15 +130,16 @@ class _RosidlMessageTypeSupport(ctypes.Structure):
 
 # rosidl_message_type_support_t of rosidl_runtime_c (Iron and later): the C type support that a
 # Python message class holds in its _TYPE_SUPPORT capsule carries the type's hash and .msg sources.
+_SUPPORT_POINTER = ctypes.POINTER(_RosidlMessageTypeSupport)
 _RosidlMessageTypeSupport._fields_ = [
     ("typesupport_identifier", ctypes.c_char_p),
     ("data", ctypes.c_void_p),
     ("func", ctypes.c_void_p),
-    ("get_type_hash_func", ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeHash), ctypes.POINTER(_RosidlMessageTypeSupport))),
+    ("get_type_hash_func", ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeHash), _SUPPORT_POINTER)),
     ("get_type_description_func", ctypes.c_void_p),
     (
         "get_type_description_sources_func",
-        ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeSourceSequence), ctypes.POINTER(_RosidlMessageTypeSupport)),
+        ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeSourceSequence), _SUPPORT_POINTER),
     ),
 ]
 
@@ -146,8 +160,6 @@ def _rclpy_name(msg_class: type) -> str:
 
 def _nested_classes(msg_class: type) -> list[type]:
     """The message classes of msg_class's fields, sorted by name, as rosbag2 orders dependencies."""
-    import importlib
-
     found = {}
     for slot_type in msg_class.SLOT_TYPES:
         slot_type = getattr(slot_type, "value_type", slot_type)
@@ -172,7 +184,8 @@ def _rclpy_message_type(msg_class: type) -> MessageType:
         source = sources_seq.data[index]
         if source.encoding.data == b"msg":
             # The generator strips the file's final newline, which rosbag2's copy of the file has.
-            sources[source.type_name.data.decode()] = source.raw_file_contents.data.decode().rstrip("\n") + "\n"
+            text = source.raw_file_contents.data.decode()
+            sources[source.type_name.data.decode()] = text.rstrip("\n") + "\n"
     name = _rclpy_name(msg_class)
     if name not in sources:
         raise ValueError(
@@ -485,9 +498,13 @@ class Recorder:
         if split_duration is not None:
             _check_positive("split_duration", split_duration)
         if not isinstance(decimation, int) or isinstance(decimation, bool) or decimation < 0:
-            raise ValueError(f"decimation must be an integer >= 0 (0: cycle topic off), not {decimation!r}")
+            raise ValueError(
+                f"decimation must be an integer >= 0 (0: cycle topic off), not {decimation!r}"
+            )
         if not isinstance(black_box_seconds, (int, float)) or not 0 <= black_box_seconds < math.inf:
-            raise ValueError(f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}")
+            raise ValueError(
+                f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}"
+            )
 
         self._folder = Path(folder)
         self._compression = COMPRESSIONS[compression]
@@ -503,19 +520,23 @@ class Recorder:
         self._topics: dict[str, _Topic] = {}
         self._cycle_topic: Optional[str] = None
         self._black_box_topic: Optional[str] = None
-        self._ring: collections.deque = collections.deque(maxlen=max(1, math.ceil(black_box_seconds * cycle_rate_hz)))
+        ring_size = max(1, math.ceil(black_box_seconds * cycle_rate_hz))
+        self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
         self._last_dumped_ns: Optional[int] = None
         self._cycle_count = 0
         self._lock = threading.Lock()
         self._stats_lock = threading.Lock()
 
-        # A deque, not a queue.Queue: append and popleft take no lock the caller could wait on.
+        # A deque, not a queue.Queue: append and popleft take no lock the caller could wait on
+        # (the wake-up event's lock is only taken when the writer thread is asleep).
         self._queue: collections.deque = collections.deque()
         self._wake = threading.Event()
         self._closed = False
         self._failed = False
         self.stats = RecorderStats()
+        # The topics the writer thread has registered, in order; _topics may be ahead of it.
+        self._registered: list[_Topic] = []
         self._files: list[_File] = []
         self._file: Optional[_McapFile] = None
         self._pending_bytes = 0
@@ -525,21 +546,29 @@ class Recorder:
 
     @property
     def bag_path(self) -> Path:
-        """The bag directory (made by the writer thread; it may not exist yet or have failed)."""
+        """The bag directory, made by the writer thread (so it may not exist yet, or have failed).
+
+        ``_2``, ``_3``, ... is appended to its name if another recorder took it that second."""
         return self._folder / self._name
 
-    def add_topic(self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None) -> None:
+    def add_topic(
+        self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None
+    ) -> None:
         """Adds a topic of msg_class (see :func:`message_type`) with the QoS its publisher offers.
 
         Raises ValueError for a topic name that is not absolute, one added before, or a class
         that is no message class.
         """
-        if not isinstance(topic, str) or not topic.startswith("/") or topic.endswith("/") or " " in topic:
-            raise ValueError(f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}")
+        if not (isinstance(topic, str) and topic.startswith("/") and not topic.endswith("/")
+                and " " not in topic):
+            raise ValueError(
+                f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}"
+            )
         with self._lock:
             if topic in self._topics:
                 raise ValueError(f"topic {topic} was added before (topics: {sorted(self._topics)})")
-            entry = _Topic(topic, message_type(msg_class, typestore), _dump_yaml([_qos_profile(qos)]))
+            msg_type = message_type(msg_class, typestore)
+            entry = _Topic(topic, msg_type, _dump_yaml([_qos_profile(qos)]))
             self._topics[topic] = entry
         self._enqueue(("topic", entry), control=True)
 
@@ -559,7 +588,9 @@ class Recorder:
         the cycle topic only when ``decimation > 0``.
         """
         if self._cycle_topic is not None:
-            raise ValueError(f"the cycle topic is {self._cycle_topic} already; there is one per recorder")
+            raise ValueError(
+                f"the cycle topic is {self._cycle_topic} already; there is one per recorder"
+            )
         if black_box_topic is None:
             black_box_topic = topic.rsplit("/", 1)[0] + "/black_box"
         if black_box_topic == topic:
@@ -582,7 +613,8 @@ class Recorder:
         self._enqueue((topic, msg, time_ns))
 
     def cycle_sample(self, msg: Any, time_ns: int) -> None:
-        """Takes one cycle's sample: into the black box ring, and every decimation-th to the cycle topic."""
+        """Takes one cycle's sample: into the black box ring, and every decimation-th to the
+        cycle topic. Never blocks; raises ValueError before add_cycle_topic."""
         if self._cycle_topic is None:
             raise ValueError("no cycle topic: call add_cycle_topic first")
         self._ring.append((time_ns, msg))
@@ -593,20 +625,20 @@ class Recorder:
     def fault(self, time_ns: int) -> None:
         """Writes the black box: the ring's samples up to time_ns not written by an earlier fault.
 
+        Does nothing without a cycle topic or with ``black_box_seconds=0``.
+
         They go to the black box topic with their own times, and the chunk is closed and synced
         at once so that the moments before the fault survive whatever follows.
         """
         if self._cycle_topic is None or not self._black_box_on:
             return
-        samples = [s for s in list(self._ring) if s[0] <= time_ns]
-        if self._last_dumped_ns is not None:
-            samples = [s for s in samples if s[0] > self._last_dumped_ns]
-        if samples:
-            self._last_dumped_ns = samples[-1][0]
-        self._enqueue(("black_box", samples), control=True)
+        # Only the copy here (one C call); the writer thread picks the samples.
+        self._enqueue(("black_box", list(self._ring), time_ns), control=True)
 
     def close(self, timeout: float = 30.0) -> RecorderStats:
-        """Writes what is queued, finishes the MCAP summaries and metadata.yaml, stops the thread."""
+        """Writes what is queued, finishes the MCAP summaries and metadata.yaml, stops the thread.
+
+        Waits at most timeout seconds for the writer thread; returns the final stats."""
         if not self._closed:
             self._closed = True
             self._enqueue(_CLOSE, control=True)
@@ -620,20 +652,29 @@ class Recorder:
         self.close()
 
     def _enqueue(self, item: Any, control: bool = False) -> None:
-        refused = self._failed or self._closed or (not control and len(self._queue) >= self._queue_size)
+        full = not control and len(self._queue) >= self._queue_size
+        refused = self._failed or self._closed or full
         if refused and item is not _CLOSE:
             with self._stats_lock:
                 self.stats.dropped += _messages_in(item)
             return
         self._queue.append(item)
-        self._wake.set()
+        if not self._wake.is_set():
+            self._wake.set()
 
     # --- writer thread ---------------------------------------------------------------------
 
     def _run(self) -> None:
         try:
-            self.bag_path.parent.mkdir(parents=True, exist_ok=True)
-            self.bag_path.mkdir()
+            self._folder.mkdir(parents=True, exist_ok=True)
+            name, number = self._name, 1
+            while True:
+                try:
+                    self.bag_path.mkdir()
+                    break
+                except FileExistsError:
+                    number += 1
+                    self._name = f"{name}_{number}"
             self.stats.bag = self.bag_path
             self._open_file()
             self._save_metadata()
@@ -649,8 +690,11 @@ class Recorder:
                     return
                 if not self._failed:
                     self._guarded(self._handle, item)
-            if not self._failed and self._pending_bytes and time.monotonic() - self._last_flush >= self._flush_interval:
+            if not self._failed and self._pending_bytes and self._flush_due():
                 self._guarded(self._flush)
+
+    def _flush_due(self) -> bool:
+        return time.monotonic() - self._last_flush >= self._flush_interval
 
     def _guarded(self, action: Callable, *args: Any) -> None:
         try:
@@ -672,11 +716,16 @@ class Recorder:
 
     def _handle(self, item: tuple) -> None:
         if item[0] == "topic":
+            self._registered.append(item[1])
             self._file.add_topic(item[1])
             self._save_metadata()
         elif item[0] == "black_box":
-            for time_ns, msg in item[1]:
-                self._add(self._black_box_topic, msg, time_ns)
+            _, ring, fault_ns = item
+            newest = self._last_dumped_ns
+            for time_ns, msg in ring:
+                if time_ns <= fault_ns and (newest is None or time_ns > newest):
+                    self._add(self._black_box_topic, msg, time_ns)
+                    self._last_dumped_ns = time_ns
             self.stats.black_box_dumps += 1
             self._flush(sync=True)
         else:
@@ -695,7 +744,7 @@ class Recorder:
         entry.message_count += 1
         self.stats.written += 1
         self._pending_bytes += len(data)
-        if self._pending_bytes >= self._chunk_size:
+        if self._pending_bytes >= self._chunk_size or self._flush_due():
             self._flush()
 
     def _flush(self, sync: bool = False) -> None:
@@ -717,12 +766,12 @@ class Recorder:
 
     def _open_file(self) -> None:
         path = self.bag_path / f"{self._name}_{len(self._files)}.mcap"
-        self._file = _McapFile(path, list(self._topics.values()), self._compression)
+        self._file = _McapFile(path, self._registered, self._compression)
         self._files.append(self._file.info)
         self.stats.files.append(path)
 
     def _metadata(self) -> dict:
-        return _bag_metadata(list(self._topics.values()), self._files)
+        return _bag_metadata(self._registered, self._files)
 
     def _save_metadata(self) -> None:
         _write_metadata(self.bag_path, self._metadata())
@@ -739,7 +788,7 @@ def _messages_in(item: Any) -> int:
     """How many messages a queue item carries (topic additions and the close carry none)."""
     if item is _CLOSE or item[0] == "topic":
         return 0
-    return len(item[1]) if item[0] == "black_box" else 1
+    return len(item[1]) if item[0] == "black_box" else 1  # a black box: its ring's samples
 
 
 def _check_positive(name: str, value: Any, integer: bool = False) -> None:
@@ -813,7 +862,8 @@ def reindex(bag: os.PathLike | str) -> Path:
                     type_hash=channel.metadata.get("topic_type_hash", ""),
                     serialize=bytes,
                 )
-                topics[channel.topic] = _Topic(channel.topic, msg_type, channel.metadata.get("offered_qos_profiles", ""))
+                qos_yaml = channel.metadata.get("offered_qos_profiles", "")
+                topics[channel.topic] = _Topic(channel.topic, msg_type, qos_yaml)
         info = _File(path)
         for record in records:
             if isinstance(record, Message):
@@ -833,15 +883,23 @@ def _rewrite(path: Path, records: list, schemas: dict, channels: dict) -> None:
     with open(tmp, "wb") as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
         writer.start(profile="ros2", library=_LIBRARY)
-        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
+        schema_ids = {
+            sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()
+        }
         channel_ids = {
-            cid: writer.register_channel(c.topic, c.message_encoding, schema_ids[c.schema_id], c.metadata)
+            cid: writer.register_channel(
+                c.topic, c.message_encoding, schema_ids[c.schema_id], c.metadata
+            )
             for cid, c in channels.items()
         }
         for record in records:
             if isinstance(record, Message):
                 writer.add_message(
-                    channel_ids[record.channel_id], record.log_time, record.data, record.publish_time, record.sequence
+                    channel_ids[record.channel_id],
+                    record.log_time,
+                    record.data,
+                    record.publish_time,
+                    record.sequence,
                 )
         writer.finish()
         stream.flush()

@@ -44,7 +44,8 @@ def cycle_sample(i: int) -> CycleSample:
 
 def record(folder: Path, decimation: int = 4) -> Path:
     """Records the stalled move with a latch capture and the fault; returns the bag."""
-    with Recorder(folder, cycle_rate_hz=RATE_HZ, decimation=decimation, black_box_seconds=1.0) as recorder:
+    options = {"cycle_rate_hz": RATE_HZ, "decimation": decimation, "black_box_seconds": 1.0}
+    with Recorder(folder, **options) as recorder:
         recorder.add_cycle_topic("/akd_node/cycle", CycleSample)
         recorder.add_topic("/akd_node/latch", LatchEvent)
         recorder.add_topic("/akd_node/fault", DriveFault)
@@ -58,8 +59,9 @@ def record(folder: Path, decimation: int = 4) -> Path:
                 latch.header.stamp = sample.stamp
                 recorder.write("/akd_node/latch", latch, time_ns)
             if i == FAULT_CYCLE:
-                fault = DriveFault(joint="axis", source="drive_fault", code=0x8611, text="F439 following error",
-                                   ds402_state="fault", al_state="op", al_status_code=0, action="power stage off")
+                fault = DriveFault(joint="axis", source="drive_fault", code=0x8611,
+                                   text="F439 following error", ds402_state="fault", al_state="op",
+                                   al_status_code=0, action="power stage off")
                 fault.header.stamp = sample.stamp
                 recorder.write("/akd_node/fault", fault, time_ns)
                 recorder.fault(time_ns)
@@ -94,7 +96,8 @@ def test_plot_from_the_black_box_alone(tmp_path):
 
 def test_missing_bag_is_named(tmp_path, capsys):
     assert main([str(tmp_path / "nothing"), "-o", str(tmp_path / "x.png")]) == 1
-    assert f"akd-plot: error: no bag at {tmp_path / 'nothing'}: expected a rosbag2 directory" in capsys.readouterr().err
+    expected = f"akd-plot: error: no bag at {tmp_path / 'nothing'}: expected a rosbag2 directory"
+    assert expected in capsys.readouterr().err
     assert not (tmp_path / "x.png").exists()
 
 

@@ -35,7 +35,8 @@ from akd_ros.recorder import Recorder, message_type, reindex
 T0 = 1_700_000_000_000_000_000
 RATE_HZ = 1000
 PERIOD_NS = 1_000_000_000 // RATE_HZ
-CYCLE, BLACK_BOX, LATCH, FAULT = "/akd_node/cycle", "/akd_node/black_box", "/akd_node/latch", "/akd_node/fault"
+CYCLE, BLACK_BOX = "/akd_node/cycle", "/akd_node/black_box"
+LATCH, FAULT = "/akd_node/latch", "/akd_node/fault"
 
 
 def sample(i: int) -> JointState:
@@ -52,11 +53,13 @@ def sample(i: int) -> JointState:
 def fault_message(code: str) -> DiagnosticArray:
     """A drive fault as diagnostics, the way a fault topic of standard messages would carry it."""
     msg = DiagnosticArray()
-    msg.status = [DiagnosticStatus(level=DiagnosticStatus.ERROR, name="akd", message=f"{code} following error")]
+    msg.status = [
+        DiagnosticStatus(level=DiagnosticStatus.ERROR, name="akd", message=f"{code} lag too large")
+    ]
     return msg
 
 
-def record_run(folder: Path, cycles: int = 3000, fault_at: int = 2500, latch_at: int = 1200, **options):
+def record_run(folder: Path, cycles=3000, fault_at=2500, latch_at=1200, **options):
     """Records a synthetic run: cycles, a latch, a fault; returns the bag and what went in."""
     options.setdefault("black_box_seconds", 1.0)
     options.setdefault("decimation", 2)
@@ -76,16 +79,36 @@ def record_run(folder: Path, cycles: int = 3000, fault_at: int = 2500, latch_at:
 
 
 def read_metadata(bag: Path) -> dict:
+    """metadata.yaml's rosbag2_bagfile_information."""
     return yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+
+
+def topic_metadata(info: dict) -> dict:
+    """Each topic's topic_metadata in metadata.yaml, by topic name."""
+    return {t["topic_metadata"]["name"]: t["topic_metadata"]
+            for t in info["topics_with_message_count"]}
+
+
+def topic_counts(info: dict) -> dict:
+    """Each topic's message_count in metadata.yaml, by topic name."""
+    return {t["topic_metadata"]["name"]: t["message_count"]
+            for t in info["topics_with_message_count"]}
+
+
+def cycle_index(time_ns: int) -> int:
+    """The synthetic run's cycle number at time_ns."""
+    return round((time_ns - T0) / PERIOD_NS)
 
 
 def test_bag_reads_back_with_rosbags_mcap_and_rclpy(tmp_path):
     bag, stats = record_run(tmp_path)
-    assert bag.parent == tmp_path and bag.name.startswith("akd_20") and len(bag.name) == len("akd_2026_11_28-20_51_03")
+    assert bag.parent == tmp_path and bag.name.startswith("akd_20")
+    assert len(bag.name) == len("akd_2026_11_28-20_51_03")
     info = read_metadata(bag)
     assert info["version"] == 9 and info["storage_identifier"] == "mcap"
-    assert info["relative_file_paths"] == [f"{bag.name}_0.mcap"] == [f["path"] for f in info["files"]]
-    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
+    assert info["relative_file_paths"] == [f"{bag.name}_0.mcap"]
+    assert [f["path"] for f in info["files"]] == [f"{bag.name}_0.mcap"]
+    counts = topic_counts(info)
     # Decimation 2 keeps every other cycle; the black box holds the second before the fault.
     assert counts == {CYCLE: 1500, BLACK_BOX: 1000, LATCH: 1, FAULT: 1}
     assert info["message_count"] == sum(counts.values()) == stats.written
@@ -102,40 +125,44 @@ def test_bag_reads_back_with_rosbags_mcap_and_rclpy(tmp_path):
             LATCH: "std_msgs/msg/Float64",
             FAULT: "diagnostic_msgs/msg/DiagnosticArray",
         }
-        meta_hashes = {t["topic_metadata"]["name"]: t["topic_metadata"]["type_description_hash"] for t in info["topics_with_message_count"]}
+        meta_hashes = {n: t["type_description_hash"] for n, t in topic_metadata(info).items()}
         assert {c.topic: c.digest for c in reader.connections} == meta_hashes
         jazzy = get_typestore(Stores.ROS2_JAZZY)
         assert all(meta_hashes[t] == jazzy.hash_rihs01(types[t]) for t in types)
         by_topic: dict[str, list] = {}
         for connection, timestamp, raw in reader.messages():
-            by_topic.setdefault(connection.topic, []).append((timestamp, reader.deserialize(raw, connection.msgtype)))
-    cycle_indices = [round((t - T0) / PERIOD_NS) for t, _ in by_topic[CYCLE]]
+            msg = reader.deserialize(raw, connection.msgtype)
+            by_topic.setdefault(connection.topic, []).append((timestamp, msg))
+    cycle_indices = [cycle_index(t) for t, _ in by_topic[CYCLE]]
     assert cycle_indices == list(range(0, 3000, 2))
     for (timestamp, msg), i in zip(by_topic[CYCLE], cycle_indices):
         assert msg.position[0] == sample(i).position[0] and msg.effort[0] == sample(i).effort[0]
         assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == timestamp
-    assert [round((t - T0) / PERIOD_NS) for t, _ in by_topic[BLACK_BOX]] == list(range(1501, 2501))
+    assert [cycle_index(t) for t, _ in by_topic[BLACK_BOX]] == list(range(1501, 2501))
     assert [m.data for _, m in by_topic[LATCH]] == [1.2]
-    assert by_topic[FAULT][0][1].status[0].message == "F439 following error"
+    assert by_topic[FAULT][0][1].status[0].message == "F439 lag too large"
 
-    # mcap: profile, schemas, channel metadata equal to metadata.yaml, statistics, compressed chunks.
+    # mcap: profile, schemas, channel metadata as in metadata.yaml, statistics, compressed chunks.
     with open(bag / f"{bag.name}_0.mcap", "rb") as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
         assert reader.get_header().profile == "ros2"
         summary = reader.get_summary()
         assert summary.statistics.message_count == info["message_count"]
         assert summary.chunk_indexes and {c.compression for c in summary.chunk_indexes} == {"zstd"}
-        topics = {t["topic_metadata"]["name"]: t["topic_metadata"] for t in info["topics_with_message_count"]}
+        topics = topic_metadata(info)
         for channel in summary.channels.values():
             schema = summary.schemas[channel.schema_id]
             meta = topics[channel.topic]
-            assert (schema.name, schema.encoding, channel.message_encoding) == (meta["type"], "ros2msg", "cdr")
-            assert yaml.safe_load(channel.metadata["offered_qos_profiles"]) == meta["offered_qos_profiles"]
+            assert (schema.name, schema.encoding) == (meta["type"], "ros2msg")
+            assert channel.message_encoding == meta["serialization_format"] == "cdr"
+            qos = yaml.safe_load(channel.metadata["offered_qos_profiles"])
+            assert qos == meta["offered_qos_profiles"]
             assert channel.metadata["topic_type_hash"] == meta["type_description_hash"]
             assert summary.statistics.channel_message_counts[channel.id] == counts[channel.topic]
-        decoded = [(c.topic, m.log_time, d) for _, c, m, d in reader.iter_decoded_messages(topics=[LATCH, FAULT])]
-        assert [(t, round((ts - T0) / PERIOD_NS)) for t, ts, _ in decoded] == [(LATCH, 1200), (FAULT, 2500)]
-        assert decoded[1][2].status[0].message == "F439 following error"
+        events = reader.iter_decoded_messages(topics=[LATCH, FAULT])
+        decoded = [(c.topic, m.log_time, d) for _, c, m, d in events]
+        assert [(t, cycle_index(ts)) for t, ts, _ in decoded] == [(LATCH, 1200), (FAULT, 2500)]
+        assert decoded[1][2].status[0].message == "F439 lag too large"
         raw = next(m for _, c, m in reader.iter_messages(topics=[CYCLE]))
         assert deserialize_message(raw.data, JointState).position[0] == 0.0
 
@@ -160,8 +187,9 @@ def test_schema_is_the_msg_text_with_its_dependencies_and_the_type_support_hash(
     share = Path(sys.prefix) / "share"
     sections = joint_state.definition.split("\n" + "=" * 80 + "\n")
     assert sections[0] == (share / "sensor_msgs/msg/JointState.msg").read_text()
-    assert sections[1] == "MSG: std_msgs/msg/Header\n" + (share / "std_msgs/msg/Header.msg").read_text()
-    assert sections[2] == "MSG: builtin_interfaces/msg/Time\n" + (share / "builtin_interfaces/msg/Time.msg").read_text()
+    for section, name in zip(sections[1:], ["std_msgs/msg/Header", "builtin_interfaces/msg/Time"]):
+        assert section == f"MSG: {name}\n" + (share / f"{name}.msg").read_text()
+    assert len(sections) == 3
     generated = json.loads((share / "sensor_msgs/msg/JointState.json").read_text())
     assert joint_state.type_hash == generated["type_hashes"][0]["hash_string"]
     assert message_type(Float64).definition == (share / "std_msgs/msg/Float64.msg").read_text()
@@ -184,7 +212,8 @@ def test_the_package_messages_hashes_agree_with_rosbags_hash_of_their_definition
 
 def fields_of(msg_text: str) -> list[str]:
     """The field and constant lines of .msg text, without comments."""
-    return [line.split("#")[0].strip() for line in msg_text.splitlines() if line.split("#")[0].strip()]
+    lines = (line.split("#")[0].strip() for line in msg_text.splitlines())
+    return [line for line in lines if line]
 
 
 def test_rosbags_message_classes_go_through_the_rosbags_serializer(tmp_path):
@@ -202,7 +231,7 @@ def test_rosbags_message_classes_go_through_the_rosbags_serializer(tmp_path):
 
 def test_decimation_zero_keeps_only_the_black_box(tmp_path):
     bag, _ = record_run(tmp_path, decimation=0, black_box_seconds=0.5)
-    counts = {t["topic_metadata"]["name"]: t["message_count"] for t in read_metadata(bag)["topics_with_message_count"]}
+    counts = topic_counts(read_metadata(bag))
     assert counts == {BLACK_BOX: 500, LATCH: 1, FAULT: 1}
 
 
@@ -215,7 +244,7 @@ def test_a_second_fault_writes_only_the_samples_after_the_first(tmp_path):
                 recorder.fault(T0 + i * PERIOD_NS)
     assert recorder.stats.black_box_dumps == 2
     with AnyReader([recorder.bag_path]) as reader:
-        indices = [round((t - T0) / PERIOD_NS) for _, t, _ in reader.messages()]
+        indices = [cycle_index(t) for _, t, _ in reader.messages()]
         assert [c.topic for c in reader.connections] == ["/akd/box"]
     assert indices == list(range(501, 1701))
 
@@ -235,10 +264,12 @@ def test_split_files_are_each_complete_and_all_listed(tmp_path, split):
         assert {c.compression for c in summary.chunk_indexes} <= {"lz4"}
         assert summary.statistics.message_count == entry["message_count"]
         if entry["message_count"]:
-            assert entry["starting_time"]["nanoseconds_since_epoch"] == summary.statistics.message_start_time
-            assert entry["duration"]["nanoseconds"] == summary.statistics.message_end_time - summary.statistics.message_start_time
+            start, end = summary.statistics.message_start_time, summary.statistics.message_end_time
+            assert entry["starting_time"]["nanoseconds_since_epoch"] == start
+            assert entry["duration"]["nanoseconds"] == end - start
         black_box_id = next(c.id for c in summary.channels.values() if c.topic == BLACK_BOX)
-        if "split_duration" in split and not summary.statistics.channel_message_counts.get(black_box_id):
+        has_black_box = summary.statistics.channel_message_counts.get(black_box_id)
+        if "split_duration" in split and not has_black_box:
             # The black box reaches back before its file's start; every other file spans less.
             assert entry["duration"]["nanoseconds"] < 700_000_000
         total += entry["message_count"]
@@ -288,16 +319,21 @@ def test_disk_full_is_reported_once_and_the_bag_is_readable_after_reindex(tmp_pa
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
         resource.setrlimit(resource.RLIMIT_FSIZE, (60_000, 60_000))
         reports = []
-        recorder = Recorder({str(tmp_path)!r}, cycle_rate_hz=1000, chunk_size=4_000, on_error=reports.append)
+        recorder = Recorder(
+            {str(tmp_path)!r}, cycle_rate_hz=1000, chunk_size=4_000, on_error=reports.append
+        )
         recorder.add_cycle_topic(CYCLE, JointState)
         for i in range(20_000):
             recorder.cycle_sample(sample(i), T0 + i * PERIOD_NS)
         stats = recorder.close()
-        print(len(reports), stats.errors >= 1, stats.written > 0, stats.dropped > 0, stats.written + stats.dropped >= 20_000)
+        print(len(reports), stats.errors >= 1, stats.written > 0, stats.dropped > 0,
+              stats.written + stats.dropped >= 20_000)
         print(reports[0])
         """
     )
-    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    result = subprocess.run(
+        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
+    )
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     assert lines[0] == "1 True True True True", result.stdout
@@ -305,7 +341,7 @@ def test_disk_full_is_reported_once_and_the_bag_is_readable_after_reindex(tmp_pa
     (bag,) = tmp_path.iterdir()
     reindex(bag)
     with AnyReader([bag]) as reader:
-        indices = [round((t - T0) / PERIOD_NS) for _, t, _ in reader.messages()]
+        indices = [cycle_index(t) for _, t, _ in reader.messages()]
     assert indices and indices == list(range(len(indices)))
 
 
@@ -337,7 +373,7 @@ def test_sigkilled_recording_is_readable_up_to_the_last_closed_chunk(tmp_path):
         deadline = time.monotonic() + 60
         while time.monotonic() < deadline:
             meta = bag / "metadata.yaml"
-            if meta.exists() and yaml.safe_load(meta.read_text())["rosbag2_bagfile_information"]["message_count"] > 500:
+            if meta.exists() and read_metadata(bag)["message_count"] > 500:
                 break
             time.sleep(0.05)
         process.send_signal(signal.SIGKILL)
@@ -356,7 +392,7 @@ def test_sigkilled_recording_is_readable_up_to_the_last_closed_chunk(tmp_path):
         indices = []
         try:
             for _, _, message in NonSeekingReader(stream).iter_messages(log_time_order=False):
-                indices.append(round((message.log_time - T0) / PERIOD_NS))
+                indices.append(cycle_index(message.log_time))
         except EndOfFile:  # the chunk being written when the process was killed
             pass
     assert len(indices) >= counted and indices == list(range(len(indices)))
@@ -368,7 +404,7 @@ def test_sigkilled_recording_is_readable_up_to_the_last_closed_chunk(tmp_path):
     reindex(bag)
     info = read_metadata(bag)
     with AnyReader([bag]) as reader:
-        recovered = [round((t - T0) / PERIOD_NS) for _, t, _ in reader.messages()]
+        recovered = [cycle_index(t) for _, t, _ in reader.messages()]
         assert reader.connections[0].msgcount == info["message_count"]
     assert recovered == indices
     assert info["files"][0]["message_count"] == len(indices)
@@ -424,3 +460,14 @@ def test_reindex_of_a_finished_bag_rebuilds_the_same_metadata(tmp_path):
     reindex(bag)
     assert read_metadata(bag) == before
     assert {p: p.stat().st_size for p in bag.glob("*.mcap")} == sizes
+
+
+def test_two_recorders_in_the_same_second_get_two_bags(tmp_path):
+    recorders = [Recorder(tmp_path, cycle_rate_hz=RATE_HZ) for _ in range(3)]
+    for recorder in recorders:
+        recorder.add_topic(LATCH, Float64)
+        recorder.write(LATCH, Float64(data=1.0), T0)
+        recorder.close()
+    bags = {recorder.bag_path for recorder in recorders}
+    assert len(bags) == 3 and bags == set(tmp_path.iterdir())
+    assert all(read_metadata(bag)["message_count"] == 1 for bag in bags)

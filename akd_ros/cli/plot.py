@@ -41,7 +41,9 @@ class Run:
 
 
 def read_run(bag: Path) -> Run:
-    """Reads a bag's cycle samples, latch events and faults; ValueError/OSError say what is wrong."""
+    """Reads a bag's cycle samples, latch events and faults.
+
+    Raises FileNotFoundError for no bag, ValueError for one that rosbags cannot read."""
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
@@ -53,8 +55,10 @@ def read_run(bag: Path) -> Run:
     try:
         with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
             result.topics = {c.topic: c.msgtype for c in reader.connections}
-            black_box_topics = {c.topic for c in reader.connections if c.topic.endswith("/black_box")}
-            wanted = [c for c in reader.connections if c.msgtype in (CYCLE_SAMPLE, LATCH_EVENT, DRIVE_FAULT)]
+            connections = reader.connections
+            black_box_topics = {c.topic for c in connections if c.topic.endswith("/black_box")}
+            kinds = (CYCLE_SAMPLE, LATCH_EVENT, DRIVE_FAULT)
+            wanted = [c for c in connections if c.msgtype in kinds]
             dump: list = []
             for connection, time_ns, raw in reader.messages(connections=wanted):
                 msg = reader.deserialize(raw, connection.msgtype)
@@ -69,7 +73,8 @@ def read_run(bag: Path) -> Run:
             result.black_box = _spans(sorted(dump))
     except Exception as err:  # noqa: BLE001 - rosbags' errors have many types; all mean the same
         raise ValueError(
-            f"cannot read bag {bag}: {err} (if its recorder was killed, run akd-plot with --reindex)"
+            f"cannot read bag {bag}: {err} "
+            "(if its recorder was killed, run akd-plot with --reindex)"
         ) from err
     return result
 
@@ -146,12 +151,14 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     for ax in time_axes:
         ax.grid(True, alpha=0.3)
     # The events' full text in one legend above the panels, where it hides no curve.
-    figure.legend(*ax_position.get_legend_handles_labels(), loc="outside upper center", fontsize=9, ncols=2)
+    figure.legend(*ax_position.get_legend_handles_labels(), loc="outside upper center",
+                  fontsize=9, ncols=2)
 
     period_us = column["period_ns"][column["period_ns"] > 0] / 1e3
     if period_us.size:
         # Log counts: the rare late cycles that matter would not show on a linear scale.
-        ax_period.hist(period_us, bins=min(100, max(10, period_us.size // 20)), color="tab:blue", log=True)
+        bins = min(100, max(10, period_us.size // 20))
+        ax_period.hist(period_us, bins=bins, color="tab:blue", log=True)
         ax_period.set_ylim(bottom=0.5)
         p50, p99 = np.percentile(period_us, [50, 99])
         ax_period.axvline(p50, color="k", lw=1)
@@ -159,7 +166,8 @@ def plot(run_data: Run, title: str, output: Path) -> None:
             f"cycle period: min {period_us.min():.1f}, median {p50:.1f}, 99 % {p99:.1f}, "
             f"max {period_us.max():.1f} µs ({period_us.size} samples)", fontsize=10)
     else:
-        ax_period.text(0.5, 0.5, "no cycle periods recorded", ha="center", transform=ax_period.transAxes)
+        ax_period.text(0.5, 0.5, "no cycle periods recorded", ha="center",
+                       transform=ax_period.transAxes)
     ax_period.set_xlabel("cycle period (µs)")
     ax_period.set_ylabel("cycles")
     figure.savefig(output, dpi=100)
@@ -168,7 +176,8 @@ def plot(run_data: Run, title: str, output: Path) -> None:
 
 def _mark(axes, x: float, tag: str, label: str, color: str, style: str) -> None:
     for ax in axes:
-        ax.axvline(x, color=color, ls=style, lw=1.5, label=f"{tag} at {x:.3f} s: {label}" if ax is axes[0] else None)
+        legend = f"{tag} at {x:.3f} s: {label}" if ax is axes[0] else None
+        ax.axvline(x, color=color, ls=style, lw=1.5, label=legend)
     axes[0].annotate(tag, xy=(x, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12),
                      textcoords="offset points", fontsize=9, color=color, fontweight="bold")
 
@@ -176,18 +185,23 @@ def _mark(axes, x: float, tag: str, label: str, color: str, style: str) -> None:
 def _output(text: str) -> Path:
     path = Path(text)
     if path.suffix.lower() not in FORMATS:
-        raise argparse.ArgumentTypeError(f"{text}: the picture's file name must end in one of {', '.join(FORMATS)}")
+        raise argparse.ArgumentTypeError(
+            f"{text}: the picture's file name must end in one of {', '.join(FORMATS)}")
     return path
 
 
 def main(argv: list[str] | None = None) -> int:
-    """akd-plot's entry point; returns the exit status (0, 1 for a bag it cannot plot, 2 for usage)."""
+    """akd-plot's entry point; returns the exit status: 0, or 1 for a bag it cannot plot.
+
+    argparse exits with 2 for bad arguments (e.g. an output type not in FORMATS)."""
     parser = argparse.ArgumentParser(prog="akd-plot", description=__doc__.splitlines()[0])
-    parser.add_argument("bag", metavar="BAG", type=Path, help="rosbag2 directory recorded by akd_ros")
+    parser.add_argument("bag", metavar="BAG", type=Path,
+                        help="rosbag2 directory recorded by akd_ros")
     parser.add_argument("-o", "--output", required=True, type=_output, metavar="FILE.png",
                         help=f"picture to write ({', '.join(FORMATS)})")
     parser.add_argument("--reindex", action="store_true",
-                        help="first rebuild the bag's summaries and metadata.yaml (after a killed recording)")
+                        help="first rebuild the bag's summaries and metadata.yaml "
+                             "(after a killed recording)")
     args = parser.parse_args(argv)
 
     def body() -> int:
@@ -197,9 +211,10 @@ def main(argv: list[str] | None = None) -> int:
             reindex(args.bag)
         run_data = read_run(args.bag)
         if not run_data.samples:
-            topics = ", ".join(f"{name} ({kind})" for name, kind in sorted(run_data.topics.items())) or "none"
-            print(f"akd-plot: error: bag {args.bag} has no {CYCLE_SAMPLE} messages (its topics: {topics})",
-                  file=sys.stderr)
+            topics = ", ".join(
+                f"{name} ({kind})" for name, kind in sorted(run_data.topics.items())) or "none"
+            print(f"akd-plot: error: bag {args.bag} has no {CYCLE_SAMPLE} messages "
+                  f"(its topics: {topics})", file=sys.stderr)
             return EXIT_FAILURE
         title = (f"{args.bag.name}: {len(run_data.samples)} cycle samples, "
                  f"{len(run_data.faults)} fault(s), {len(run_data.latches)} latch capture(s)")
