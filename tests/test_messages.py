@@ -9,6 +9,7 @@ process. Each run takes its own ROS_DOMAIN_ID and keeps discovery on this host, 
 
 from __future__ import annotations
 
+import ctypes
 import os
 import random
 import subprocess
@@ -24,6 +25,7 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
 
+import akd_ros
 from akd_ros.msg import CycleSample, DriveFault, DriveStatus, LatchEvent
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
 
@@ -216,6 +218,69 @@ def test_serialization_round_trips_every_request_and_response(name):
 
 def test_latch_edge_constants():
     assert (LatchEvent.EDGE_RISING, LatchEvent.EDGE_FALLING) == (1, 2)
+
+
+class MessageTypeSupport(ctypes.Structure):
+    """rosidl_message_type_support_t (rosidl_runtime_c/message_type_support_struct.h)."""
+
+
+MessageTypeSupport._fields_ = [
+    ("typesupport_identifier", ctypes.c_char_p),
+    ("data", ctypes.c_void_p),
+    ("func", ctypes.CFUNCTYPE(ctypes.POINTER(MessageTypeSupport),
+                              ctypes.POINTER(MessageTypeSupport), ctypes.c_char_p)),
+    ("get_type_hash_func", ctypes.c_void_p),
+    ("get_type_description_func", ctypes.c_void_p),
+    ("get_type_description_sources_func", ctypes.c_void_p),
+]
+
+
+class IntrospectionMember(ctypes.Structure):
+    """rosidl_typesupport_introspection_c__MessageMember (Jazzy's layout)."""
+
+    _fields_ = [
+        ("name_", ctypes.c_char_p), ("type_id_", ctypes.c_uint8),
+        ("string_upper_bound_", ctypes.c_size_t), ("members_", ctypes.c_void_p),
+        ("is_key_", ctypes.c_bool), ("is_array_", ctypes.c_bool),
+        ("array_size_", ctypes.c_size_t), ("is_upper_bound_", ctypes.c_bool),
+        ("offset_", ctypes.c_uint32), ("default_value_", ctypes.c_void_p),
+        *((function, ctypes.c_void_p) for function in (
+            "size_function", "get_const_function", "get_function", "fetch_function",
+            "assign_function", "resize_function")),
+    ]
+
+
+class IntrospectionMembers(ctypes.Structure):
+    """rosidl_typesupport_introspection_c__MessageMembers (Jazzy's layout)."""
+
+    _fields_ = [
+        ("message_namespace_", ctypes.c_char_p), ("message_name_", ctypes.c_char_p),
+        ("member_count_", ctypes.c_uint32), ("size_of_", ctypes.c_size_t),
+        ("has_any_key_member_", ctypes.c_bool),
+        ("members_", ctypes.POINTER(IntrospectionMember)),
+        ("init_function", ctypes.c_void_p), ("fini_function", ctypes.c_void_p),
+    ]
+
+
+@pytest.mark.parametrize("name", sorted(MESSAGE_TYPES))
+def test_the_dispatch_finds_both_type_supports(name):
+    # What an rmw does with the C type support rclpy hands it: ask the dispatch library for its
+    # own kind by name. The introspection one describes the message field by field.
+    package_dir = Path(akd_ros.__file__).parent
+    dispatch = ctypes.CDLL(str(package_dir / "libakd_ros__rosidl_typesupport_c.so"))
+    get_handle = getattr(
+        dispatch, f"rosidl_typesupport_c__get_message_type_support_handle__akd_ros__msg__{name}")
+    get_handle.restype = ctypes.POINTER(MessageTypeSupport)
+    handle = get_handle()
+    fast_dds = handle.contents.func(handle, b"rosidl_typesupport_fastrtps_c")
+    assert fast_dds and fast_dds.contents.typesupport_identifier == b"rosidl_typesupport_fastrtps_c"
+    introspection = handle.contents.func(handle, b"rosidl_typesupport_introspection_c")
+    assert introspection, "no introspection type support"
+    members = ctypes.cast(introspection.contents.data,
+                          ctypes.POINTER(IntrospectionMembers)).contents
+    assert (members.message_namespace_, members.message_name_) == (b"akd_ros__msg", name.encode())
+    assert [members.members_[i].name_.decode() for i in range(members.member_count_)] == \
+        list(MESSAGE_TYPES[name].get_fields_and_field_types())
 
 
 def test_the_build_stops_naming_the_generators_it_cannot_import():
