@@ -27,6 +27,7 @@ node hands it messages, a writer thread of its own serialises them and does all 
 
 from __future__ import annotations
 
+import atexit
 import collections
 import ctypes
 import datetime
@@ -453,8 +454,9 @@ _CLOSE = object()
 class Recorder:
     """Records topics into a new rosbag2 bag (MCAP) inside ``folder``; see the module doc.
 
-    The bag directory is named ``<prefix>_<YYYY_MM_DD-HH_MM_SS>`` after the local time it was
-    opened at. Arguments:
+    The bag directory is named ``<prefix>_<YYYY_MM_DD-HH_MM_SS>`` (no prefix: the time alone)
+    after the local time it was opened at. A recorder not closed is closed at interpreter exit.
+    Arguments:
 
     - ``cycle_rate_hz``: the rate of :meth:`cycle_sample` calls, which sizes the black box ring.
     - ``split_size`` (bytes) / ``split_duration`` (seconds): start a new MCAP file when the
@@ -515,7 +517,8 @@ class Recorder:
         self._decimation = decimation
         self._queue_size = queue_size
         self._on_error = on_error
-        self._name = f"{prefix}_{datetime.datetime.now().strftime('%Y_%m_%d-%H_%M_%S')}"
+        stamp = datetime.datetime.now().strftime("%Y_%m_%d-%H_%M_%S")
+        self._name = f"{prefix}_{stamp}" if prefix else stamp
 
         self._topics: dict[str, _Topic] = {}
         self._cycle_topic: Optional[str] = None
@@ -543,6 +546,8 @@ class Recorder:
         self._last_flush = time.monotonic()
         self._thread = threading.Thread(target=self._run, name="akd_recorder", daemon=True)
         self._thread.start()
+        # A recorder left open still gets its summaries when the interpreter exits normally.
+        atexit.register(self.close)
 
     @property
     def bag_path(self) -> Path:
@@ -642,6 +647,7 @@ class Recorder:
         if not self._closed:
             self._closed = True
             self._enqueue(_CLOSE, control=True)
+            atexit.unregister(self.close)
         self._thread.join(timeout)
         return self.stats
 

@@ -471,3 +471,23 @@ def test_two_recorders_in_the_same_second_get_two_bags(tmp_path):
     bags = {recorder.bag_path for recorder in recorders}
     assert len(bags) == 3 and bags == set(tmp_path.iterdir())
     assert all(read_metadata(bag)["message_count"] == 1 for bag in bags)
+
+
+def test_a_recorder_left_open_is_closed_at_exit(tmp_path):
+    script = textwrap.dedent(
+        f"""
+        from std_msgs.msg import Float64
+        from akd_ros.recorder import Recorder
+        recorder = Recorder({str(tmp_path)!r}, cycle_rate_hz=1000, prefix="")
+        recorder.add_topic("/value", Float64)
+        for i in range(100):
+            recorder.write("/value", Float64(data=float(i)), {T0} + i)
+        """
+    )
+    subprocess.run([sys.executable, "-c", script], check=True, timeout=120)
+    (bag,) = tmp_path.iterdir()
+    assert bag.name.startswith("20") and len(bag.name) == len("2026_11_28-20_51_03")
+    with AnyReader([bag]) as reader:
+        assert [reader.deserialize(raw, c.msgtype).data for c, _, raw in reader.messages()] == [
+            float(i) for i in range(100)
+        ]
