@@ -1,8 +1,8 @@
 """akd_ros.recorder: bags written by the Recorder, read back by rosbags, mcap and rclpy.
 
 Every test records real rclpy messages through the recorder's writer thread into a bag on disk
-and reads it with third-party readers only (rosbags' AnyReader, mcap's reader with the
-mcap-ros2 decoder, rclpy's deserialize_message), so what is checked is what a user of
+and reads it with third-party readers only (rosbags' AnyReader, which decodes with the bag's own
+schemas, mcap's reader, rclpy's deserialize_message), so what is checked is what a user of
 ``ros2 bag`` or Foxglove would see.
 """
 
@@ -22,7 +22,6 @@ import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import NonSeekingReader, make_reader
-from mcap_ros2.decoder import DecoderFactory
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
 from rosbags.highlevel import AnyReader
@@ -144,7 +143,7 @@ def test_bag_reads_back_with_rosbags_mcap_and_rclpy(tmp_path):
 
     # mcap: profile, schemas, channel metadata as in metadata.yaml, statistics, compressed chunks.
     with open(bag / f"{bag.name}_0.mcap", "rb") as stream:
-        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        reader = make_reader(stream)
         assert reader.get_header().profile == "ros2"
         summary = reader.get_summary()
         assert summary.statistics.message_count == info["message_count"]
@@ -159,10 +158,11 @@ def test_bag_reads_back_with_rosbags_mcap_and_rclpy(tmp_path):
             assert qos == meta["offered_qos_profiles"]
             assert channel.metadata["topic_type_hash"] == meta["type_description_hash"]
             assert summary.statistics.channel_message_counts[channel.id] == counts[channel.topic]
-        events = reader.iter_decoded_messages(topics=[LATCH, FAULT])
-        decoded = [(c.topic, m.log_time, d) for _, c, m, d in events]
-        assert [(t, cycle_index(ts)) for t, ts, _ in decoded] == [(LATCH, 1200), (FAULT, 2500)]
-        assert decoded[1][2].status[0].message == "F439 lag too large"
+        events = [(c.topic, m) for _, c, m in reader.iter_messages(topics=[LATCH, FAULT])]
+        assert [(t, cycle_index(m.log_time)) for t, m in events] == [(LATCH, 1200), (FAULT, 2500)]
+        assert deserialize_message(events[0][1].data, Float64).data == 1.2
+        fault = deserialize_message(events[1][1].data, DiagnosticArray)
+        assert fault.status[0].message == "F439 lag too large"
         raw = next(m for _, c, m in reader.iter_messages(topics=[CYCLE]))
         assert deserialize_message(raw.data, JointState).position[0] == 0.0
 
