@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 
 import pytest
+import sensor_msgs
 import yaml
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from mcap.exceptions import EndOfFile, McapError
@@ -184,7 +185,8 @@ def test_bag_reads_back_with_rosbags_mcap_and_rclpy(tmp_path):
 
 def test_schema_is_the_msg_text_with_its_dependencies_and_the_type_support_hash():
     joint_state = message_type(JointState)
-    share = Path(sys.prefix) / "share"
+    # <prefix>/lib/pythonX.Y/site-packages/sensor_msgs/__init__.py -> <prefix>/share
+    share = Path(sensor_msgs.__file__).parents[4] / "share"
     sections = joint_state.definition.split("\n" + "=" * 80 + "\n")
     assert sections[0] == (share / "sensor_msgs/msg/JointState.msg").read_text()
     for section, name in zip(sections[1:], ["std_msgs/msg/Header", "builtin_interfaces/msg/Time"]):
