@@ -1,0 +1,349 @@
+"""The parameters of `akd_node`: their schema (type, default, range, description) and their checks.
+
+Every parameter is declared on the node with a `ParameterDescriptor` carrying its description, its range (numbers)
+or its allowed values (strings, in `additional_constraints`), so `ros2 param describe /akd_node NAME` tells what a
+file may say. All are read-only: they are read once, at start-up; change the file and restart the node.
+
+A parameters file is checked before anything reaches the bus: an unknown name, a wrong type, a value outside its
+range or its allowed values, an unknown PDO mapping, a cycle time below the AKD's 250 µs or a network interface
+that does not exist each raise `ParameterError`, whose message names the parameter and what is allowed. A whole
+number where a real number is expected (``gear_ratio: 2``) is taken as that real number.
+
+PDO mapping (`mapping`):
+
+- ``default``: the Axis's own flexible mapping, which carries everything every mode needs except the target
+  position 0x607A (so not cyclic_synchronous_position);
+- ``RX/TX``: one of the AKD's fixed mappings each way, e.g. ``0x1724/0x1B26`` (cyclic synchronous position);
+- ``flexible``: the PDOs given by `mapping.rx` and `mapping.tx`, one string per PDO, its entries separated by
+  spaces as ``INDEX:SUB/BITS``, e.g. ``["0x6040:00/16 0x607A:00/32", "0x60FF:00/32"]``.
+
+Every mapping is tried on a virtual AKD before it is accepted; it refuses what the real drive refuses (unknown
+fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+import socket
+from dataclasses import dataclass
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.parameter import Parameter
+
+from akd_ros.axis import MODES
+from akd_ros.units import Limits, Units
+
+CYCLE_TIME_RANGE = (0.00025, 0.01)
+"""Cycle times the AKD takes, in seconds: 250 µs (4 kHz) to 10 ms."""
+EDGES = ("rising", "falling")
+LATCH_CHANNELS = (1, 2)
+FAULT_RESET_POLICIES = ("manual", "auto_once")
+COMMAND_TIMEOUT_POLICIES = ("hold", "quick_stop")
+_TYPE_WORDS = {
+    Parameter.Type.BOOL: "a bool (true or false)",
+    Parameter.Type.INTEGER: "an integer",
+    Parameter.Type.DOUBLE: "a number",
+    Parameter.Type.STRING: "a string",
+    Parameter.Type.STRING_ARRAY: "a list of strings",
+}
+
+
+class ParameterError(ValueError):
+    """A parameter with a value the node cannot run with; the message names the parameter and what is allowed."""
+
+
+@dataclass(frozen=True)
+class Spec:
+    """One parameter: its name, default (which gives its type), description and what values it allows."""
+
+    name: str
+    default: object
+    description: str
+    low: float | None = None
+    high: float | None = None
+    choices: tuple | None = None
+
+    @property
+    def type(self) -> Parameter.Type:
+        """The ROS parameter type, from the default."""
+        if isinstance(self.default, list):
+            return Parameter.Type.STRING_ARRAY
+        return Parameter.Type.from_parameter_value(self.default)
+
+    def allowed(self) -> str:
+        """What the parameter allows, in words."""
+        if self.choices is not None:
+            return "one of " + ", ".join(str(c) for c in self.choices)
+        if self.low is not None:
+            return f"{_TYPE_WORDS[self.type]} in [{self.low}, {self.high}]"
+        return _TYPE_WORDS[self.type]
+
+    def descriptor(self) -> ParameterDescriptor:
+        """The descriptor it is declared with (read-only: read once at start-up)."""
+        descriptor = ParameterDescriptor(
+            name=self.name, type=self.type.value, description=self.description, read_only=True
+        )
+        if self.choices is not None:
+            descriptor.additional_constraints = self.allowed()
+            if self.type == Parameter.Type.INTEGER:
+                # The only integer choice set is direction's {-1, +1}: a range of step 2.
+                descriptor.integer_range = [IntegerRange(from_value=min(self.choices), to_value=max(self.choices),
+                                                         step=max(self.choices) - min(self.choices))]
+        elif self.low is not None and self.type == Parameter.Type.INTEGER:
+            descriptor.integer_range = [IntegerRange(from_value=int(self.low), to_value=int(self.high), step=1)]
+        elif self.low is not None:
+            descriptor.floating_point_range = [FloatingPointRange(from_value=self.low, to_value=self.high, step=0.0)]
+        return descriptor
+
+    def check(self, value: object) -> object:
+        """`value` as this parameter's type (a whole number taken for a real one), or ParameterError."""
+        kind = self.type
+        if kind == Parameter.Type.DOUBLE and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if kind == Parameter.Type.STRING_ARRAY and value is None:
+            value = []  # an empty YAML list arrives without a type
+        if kind == Parameter.Type.STRING_ARRAY:
+            typed = isinstance(value, list) and all(isinstance(v, str) for v in value)
+        else:
+            typed = isinstance(value, (bool, int, float, str)) and Parameter.Type.from_parameter_value(value) == kind
+        if not typed:
+            raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
+        if self.choices is not None and value not in self.choices:
+            raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
+        if self.low is not None and not (self.low <= value <= self.high):
+            raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
+        return value
+
+
+INF = math.inf
+SCHEMA: tuple[Spec, ...] = (
+    Spec("link", "sim", "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
+         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW)."),
+    Spec("slave", 0, "Position of the drive on the bus, counted from 0 nearest the master.", 0, 65535),
+    Spec("cycle_time", 0.001, "Period of the EtherCAT cycle in seconds (the AKD takes 250 µs to 10 ms).",
+         *CYCLE_TIME_RANGE),
+    Spec("mode", "interpolated_position", "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
+         choices=tuple(MODES)),
+    Spec("mapping", "default", "PDO mapping: 'default', fixed mappings 'RX/TX' such as '0x1724/0x1B26', or "
+         "'flexible' (then mapping.rx and mapping.tx)."),
+    Spec("mapping.rx", [], "With mapping 'flexible': the RxPDOs (set-points), one string per PDO of entries "
+         "'INDEX:SUB/BITS' separated by spaces, e.g. '0x6040:00/16 0x607A:00/32'."),
+    Spec("mapping.tx", [], "With mapping 'flexible': the TxPDOs (actual values), as mapping.rx."),
+    Spec("joint_name", "akd_axis", "Name of the joint in joint_states and in the package's messages."),
+    Spec("counts_per_revolution", 2**20, "Feedback counts per motor revolution.", 1, 2**31 - 1),
+    Spec("gear_ratio", 1.0, "Motor revolutions per load revolution.", 1e-9, 1e9),
+    Spec("direction", 1, "+1 when the load turns with the motor's positive sense, -1 against it.",
+         choices=(1, -1)),
+    Spec("offset", 0.0, "Load position at motor count 0: rad (m on a linear axis)."),
+    Spec("axis", "rotary", "'rotary' (rad, rad/s, N·m) or 'linear' (m, m/s, N).", choices=("rotary", "linear")),
+    Spec("lead", 0.0, "Linear axis only: metres of travel per load revolution (0 on a rotary axis).", 0.0, 1e6),
+    Spec("peak_torque", 3.0, "The drive's peak torque at the motor in N·m, which torque command 100 % means.",
+         1e-9, 1e6),
+    Spec("limits.min_position", -INF, "Lowest position command, rad (m); -.inf for none."),
+    Spec("limits.max_position", INF, "Highest position command, rad (m); .inf for none."),
+    Spec("limits.max_velocity", INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none."),
+    Spec("limits.max_torque", INF, "Largest torque command magnitude, N·m (N); .inf for none."),
+    Spec("limits.policy", "refuse", "A command past a limit is refused, or clamped to the limit.",
+         choices=("refuse", "clamp")),
+    Spec("joint_states_rate", 100.0, "Rate of /joint_states in Hz.", 1.0, 1000.0),
+    Spec("status_rate", 10.0, "Rate of ~/status in Hz.", 0.1, 100.0),
+    Spec("diagnostics_rate", 1.0, "Rate of /diagnostics in Hz.", 0.1, 10.0),
+    Spec("latch.arm", [], "Latches armed at activate, each 'CHANNEL/EDGE' with channel 1 or 2 and edge rising "
+         "or falling, e.g. ['1/rising', '2/falling']."),
+    Spec("fault_reset", "manual", "'manual': a fault stays until ~/reset_fault; 'auto_once': each fault is reset "
+         "once automatically (the drive is left disabled, never re-enabled).", choices=FAULT_RESET_POLICIES),
+    Spec("command_timeout", 0.5, "Seconds without a velocity or torque command, while that command is not zero, "
+         "after which command_timeout_policy acts; 0 for never.", 0.0, 60.0),
+    Spec("command_timeout_policy", "hold", "'hold': halt (controlword bit 8) and stay enabled until the next "
+         "command; 'quick_stop': quick stop, ~/enable to go on.", choices=COMMAND_TIMEOUT_POLICIES),
+    Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
+    Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
+    Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
+    Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
+    Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
+)
+SPECS = {spec.name: spec for spec in SCHEMA}
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The node's checked parameters, in the forms the Axis takes."""
+
+    link: str
+    slave: int
+    cycle_time: float
+    mode: str
+    mapping: tuple[object, object] | None
+    """(rx, tx) for `akd_ros.Axis`, None for its default mapping."""
+    joint_name: str
+    units: Units
+    limits: Limits
+    joint_states_rate: float
+    status_rate: float
+    diagnostics_rate: float
+    latch_arm: tuple[tuple[int, str], ...]
+    """(channel, edge) of each latch armed at activate."""
+    fault_reset: str
+    command_timeout: float
+    command_timeout_policy: str
+    rt_priority: int | None
+    rt_cpu: int | None
+    rt_lock_memory: bool
+    autostart: bool
+    enable_on_start: bool
+
+
+def declare(node) -> Settings:
+    """Declares every parameter on `node` (its overrides checked first) and gives the checked settings; raises
+    ParameterError naming the first parameter that is wrong and what it allows."""
+    overrides = node._parameter_overrides  # what --params-file and -p gave, before anything is declared
+    for name, spec in SPECS.items():
+        if name in overrides:
+            overrides[name] = Parameter(name, spec.type, spec.check(overrides[name].value))
+    for spec in SCHEMA:
+        if spec.type == Parameter.Type.STRING_ARRAY:
+            node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor())
+        else:
+            node.declare_parameter(spec.name, spec.default, spec.descriptor())
+    unknown = sorted(n for n in overrides if not node.has_parameter(n) and not n.startswith("qos_overrides."))
+    if unknown:
+        raise ParameterError(f"unknown parameter {', '.join(unknown)}; the parameters are: {', '.join(SPECS)}")
+    return settings({spec.name: _value(node, spec.name) for spec in SCHEMA})
+
+
+def _value(node, name: str) -> object:
+    try:
+        return node.get_parameter(name).value
+    except ParameterUninitializedException:
+        return []
+
+
+def settings(values: dict[str, object]) -> Settings:
+    """The settings for `values` (every parameter of SCHEMA by name, each of its type); raises ParameterError."""
+    values = {name: SPECS[name].check(value) for name, value in values.items()}
+    link = check_link(values["link"])
+    rx, tx = values["mapping.rx"], values["mapping.tx"]
+    mapping = parse_mapping(values["mapping"], rx, tx)
+    if mapping is not None:
+        check_mapping(mapping)
+    try:
+        lead = values["lead"] or None
+        units = Units(values["counts_per_revolution"], values["gear_ratio"], values["direction"], values["offset"],
+                      values["axis"], lead if values["axis"] == "linear" else None, values["peak_torque"])
+    except ValueError as e:
+        raise ParameterError(f"parameters axis/lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')") \
+            from None
+    if values["axis"] == "rotary" and lead is not None:
+        raise ParameterError(f"parameter lead applies to a linear axis only; with axis 'rotary' it must be 0, "
+                             f"got {lead}")
+    limits = parse_limits(values)
+    return Settings(
+        link=link, slave=values["slave"], cycle_time=values["cycle_time"], mode=values["mode"], mapping=mapping,
+        joint_name=values["joint_name"], units=units, limits=limits,
+        joint_states_rate=values["joint_states_rate"], status_rate=values["status_rate"],
+        diagnostics_rate=values["diagnostics_rate"], latch_arm=parse_latches(values["latch.arm"]),
+        fault_reset=values["fault_reset"], command_timeout=values["command_timeout"],
+        command_timeout_policy=values["command_timeout_policy"],
+        rt_priority=values["rt.priority"] or None, rt_cpu=None if values["rt.cpu"] < 0 else values["rt.cpu"],
+        rt_lock_memory=values["rt.lock_memory"], autostart=values["autostart"],
+        enable_on_start=values["enable_on_start"],
+    )
+
+
+def check_link(link: str) -> str:
+    """`link` if the node can open it: 'sim', 'sim:N', 'udp://HOST:PORT' or an interface of this machine."""
+    interfaces = sorted(name for _, name in socket.if_nameindex())
+    allowed = ("'sim', 'sim:N' (N >= 1), 'udp://HOST:PORT', or a network interface of this machine "
+               f"({', '.join(interfaces)})")
+    if link == "sim" or re.fullmatch(r"sim:[1-9][0-9]*", link):
+        return link
+    if link.startswith("udp://"):
+        if not re.fullmatch(r"udp://(\[[0-9A-Fa-f:]+\]|[^:/\s]+):([0-9]{1,5})", link) or not (
+            0 < int(link.rsplit(":", 1)[1]) < 65536
+        ):
+            raise ParameterError(f"parameter link {link!r} is no udp://HOST:PORT with a port in 1..65535; "
+                                 f"allowed: {allowed}")
+        return link
+    if link not in interfaces:
+        raise ParameterError(f"parameter link: network interface {link!r} does not exist; allowed: {allowed}")
+    return link
+
+
+_ENTRY = re.compile(r"(?:0x)?([0-9A-Fa-f]{4}):(?:0x)?([0-9A-Fa-f]{1,2})/([0-9]{1,2})")
+
+
+def parse_mapping(mapping: str, rx: list[str], tx: list[str]) -> tuple[object, object] | None:
+    """(rx, tx) in the form `_native.Master.configure_pdo` takes, None for 'default'; raises ParameterError."""
+    allowed = "'default', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
+    if (rx or tx) and mapping != "flexible":
+        raise ParameterError(f"parameters mapping.rx and mapping.tx apply to mapping 'flexible' only; mapping is "
+                             f"{mapping!r}")
+    if mapping == "default":
+        return None
+    if mapping == "flexible":
+        if not rx or not tx:
+            raise ParameterError("parameter mapping 'flexible' needs both mapping.rx and mapping.tx, each a list of "
+                                 "PDOs such as ['0x6040:00/16 0x607A:00/32']")
+        return [_pdo("mapping.rx", p) for p in rx], [_pdo("mapping.tx", p) for p in tx]
+    found = re.fullmatch(r"0x([0-9A-Fa-f]{4})/0x([0-9A-Fa-f]{4})", mapping)
+    if not found:
+        raise ParameterError(f"parameter mapping {mapping!r} is not a mapping; allowed: {allowed}")
+    return int(found[1], 16), int(found[2], 16)
+
+
+def _pdo(name: str, text: str) -> list[int]:
+    """One PDO's entries as 0xIIIISSBB from 'INDEX:SUB/BITS ...'."""
+    entries = []
+    for word in text.split():
+        found = _ENTRY.fullmatch(word)
+        if not found:
+            raise ParameterError(f"parameter {name}: entry {word!r} is not INDEX:SUB/BITS in hex, e.g. 0x6040:00/16")
+        entries.append(int(found[1], 16) << 16 | int(found[2], 16) << 8 | int(found[3]))
+    if not entries:
+        raise ParameterError(f"parameter {name}: an empty PDO; each string lists entries INDEX:SUB/BITS")
+    return entries
+
+
+def check_mapping(mapping: tuple[object, object]) -> None:
+    """Tries `mapping` on a virtual AKD; ParameterError with the drive's reason (and the allowed fixed mappings)
+    when it refuses it."""
+    from akd_ros import _native
+
+    master = _native.Master("sim")
+    try:
+        master.scan()
+        master.request_state("preop")
+        master.configure_pdo(0, *mapping)
+    except _native.PdoError as e:
+        raise ParameterError(f"parameter mapping: {e}") from None
+    finally:
+        master.close()
+
+
+def parse_limits(values: dict[str, object]) -> Limits:
+    """The Limits of the limits.* parameters (an infinite one is no limit)."""
+    def bound(name: str) -> float | None:
+        value = values["limits." + name]
+        if math.isnan(value):
+            raise ParameterError(f"parameter limits.{name} must be a number or .inf/-.inf for none, got NaN")
+        return None if math.isinf(value) else value
+
+    try:
+        return Limits(bound("min_position"), bound("max_position"), bound("max_velocity"), bound("max_torque"),
+                      values["limits.policy"])
+    except ValueError as e:
+        raise ParameterError(f"parameters limits.*: {e}") from None
+
+
+def parse_latches(items: list[str]) -> tuple[tuple[int, str], ...]:
+    """(channel, edge) of each 'CHANNEL/EDGE' of latch.arm; raises ParameterError."""
+    latches = []
+    for item in items:
+        channel, _, edge = item.partition("/")
+        if channel not in ("1", "2") or edge not in EDGES:
+            raise ParameterError(f"parameter latch.arm: {item!r} is not CHANNEL/EDGE; allowed: 1/rising, "
+                                 "1/falling, 2/rising, 2/falling")
+        latches.append((int(channel), edge))
+    return tuple(latches)
