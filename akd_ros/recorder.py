@@ -309,6 +309,7 @@ class _Topic:
     name: str
     msg_type: MessageType
     qos_yaml: str
+    msg_class: Optional[type] = None
     message_count: int = 0
 
 
@@ -523,6 +524,7 @@ class Recorder:
         self._topics: dict[str, _Topic] = {}
         self._cycle_topic: Optional[str] = None
         self._black_box_topic: Optional[str] = None
+        self._cycle_class: Optional[type] = None
         ring_size = max(1, math.ceil(black_box_seconds * cycle_rate_hz))
         self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
@@ -573,7 +575,7 @@ class Recorder:
             if topic in self._topics:
                 raise ValueError(f"topic {topic} was added before (topics: {sorted(self._topics)})")
             msg_type = message_type(msg_class, typestore)
-            entry = _Topic(topic, msg_type, _dump_yaml([_qos_profile(qos)]))
+            entry = _Topic(topic, msg_type, _dump_yaml([_qos_profile(qos)]), msg_class)
             self._topics[topic] = entry
         self._enqueue(("topic", entry), control=True)
 
@@ -605,23 +607,33 @@ class Recorder:
         if self._black_box_on:
             self.add_topic(black_box_topic, msg_class, qos, typestore=typestore)
         self._cycle_topic, self._black_box_topic = topic, black_box_topic
+        self._cycle_class = msg_class
 
     def write(self, topic: str, msg: Any, time_ns: int) -> None:
         """Queues msg for topic at time_ns (nanoseconds since the epoch); never blocks.
 
         The message must not be changed afterwards: it is serialised by the writer thread.
-        Raises ValueError for a topic not added; a full queue or a failed recorder drops and
-        counts the message instead.
+        Raises ValueError for a topic not added or a message of another type than the topic's;
+        a full queue or a failed recorder drops and counts the message instead.
         """
-        if topic not in self._topics:
+        entry = self._topics.get(topic)
+        if entry is None:
             raise ValueError(f"topic {topic} was not added (topics: {sorted(self._topics)})")
+        if type(msg) is not entry.msg_class:
+            raise ValueError(
+                f"topic {topic} takes {entry.msg_type.name}, not {type(msg).__qualname__}"
+            )
         self._enqueue((topic, msg, time_ns))
 
     def cycle_sample(self, msg: Any, time_ns: int) -> None:
         """Takes one cycle's sample: into the black box ring, and every decimation-th to the
-        cycle topic. Never blocks; raises ValueError before add_cycle_topic."""
-        if self._cycle_topic is None:
-            raise ValueError("no cycle topic: call add_cycle_topic first")
+        cycle topic. Never blocks; raises ValueError before add_cycle_topic or for a message of
+        another type."""
+        if type(msg) is not self._cycle_class:
+            if self._cycle_topic is None:
+                raise ValueError("no cycle topic: call add_cycle_topic first")
+            expected, got = self._cycle_class.__qualname__, type(msg).__qualname__
+            raise ValueError(f"the cycle topic takes {expected}, not {got}")
         self._ring.append((time_ns, msg))
         if self._decimation and self._cycle_count % self._decimation == 0:
             self._enqueue((self._cycle_topic, msg, time_ns))
@@ -630,10 +642,9 @@ class Recorder:
     def fault(self, time_ns: int) -> None:
         """Writes the black box: the ring's samples up to time_ns not written by an earlier fault.
 
-        Does nothing without a cycle topic or with ``black_box_seconds=0``.
-
         They go to the black box topic with their own times, and the chunk is closed and synced
-        at once so that the moments before the fault survive whatever follows.
+        at once so that the moments before the fault survive whatever follows. Does nothing
+        without a cycle topic or with ``black_box_seconds=0``.
         """
         if self._cycle_topic is None or not self._black_box_on:
             return

@@ -443,8 +443,13 @@ def test_bad_topics_and_classes_are_named(tmp_path):
             recorder.add_topic("/x", Float64)
         with pytest.raises(ValueError, match=r"topic /y was not added \(topics: \['/x'\]\)"):
             recorder.write("/y", Float64(), T0)
+        with pytest.raises(ValueError, match="topic /x takes std_msgs/msg/Float64, not JointState"):
+            recorder.write("/x", JointState(), T0)
         with pytest.raises(ValueError, match="no cycle topic: call add_cycle_topic first"):
             recorder.cycle_sample(sample(0), T0)
+        recorder.add_cycle_topic(CYCLE, JointState)
+        with pytest.raises(ValueError, match="the cycle topic takes JointState, not Float64"):
+            recorder.cycle_sample(Float64(), T0)
 
 
 def test_reindex_of_a_folder_without_mcap_files_says_so(tmp_path):
