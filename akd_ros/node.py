@@ -24,6 +24,7 @@ the Axis's Python-side state (position unwrapping, event queues, the last comman
 from __future__ import annotations
 
 import math
+import re
 import signal
 import sys
 import threading
@@ -56,6 +57,7 @@ EVENT_POLL_S = 0.02
 SUPERVISOR_PERIOD_S = 0.02
 # How often one kind of refused command is logged.
 REFUSAL_LOG_PERIOD_S = 1.0
+_NUMBER = re.compile(r"[-+]?(\d+\.?\d*(e[-+]?\d+)?|nan|inf)")
 _ERRORS = (ValueError, _native.EtherCatError)
 
 
@@ -81,6 +83,7 @@ class AkdNode(LifecycleNode):
         self._reset_pending = False
         self._last_fault: DriveFault | None = None
         self._counters_seen: dict[str, int] = {}
+        self._refusals: dict[str, tuple[float, int]] = {}
         periodic = MutuallyExclusiveCallbackGroup()
         requests = MutuallyExclusiveCallbackGroup()
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -321,7 +324,20 @@ class AkdNode(LifecycleNode):
                     self.axis.halt(False)
                     self._halted = False
         except CommandError as e:
-            self.get_logger().warning(str(e), throttle_duration_sec=REFUSAL_LOG_PERIOD_S)
+            self._warn_refused(str(e))
+
+    def _warn_refused(self, message: str) -> None:
+        """Logs a refusal, each kind (its text without the numbers) at most once per REFUSAL_LOG_PERIOD_S, with the
+        count of those not logged since."""
+        kind = _NUMBER.sub("#", message)
+        now = time.monotonic()
+        last, hidden = self._refusals.get(kind, (-math.inf, 0))
+        if now - last < REFUSAL_LOG_PERIOD_S:
+            self._refusals[kind] = (last, hidden + 1)
+            return
+        self._refusals[kind] = (now, 0)
+        more = f" ({hidden} more like it since)" if hidden else ""
+        self.get_logger().warning(message + more)
 
     def _supervise(self) -> None:
         """Resets a fault once under fault_reset auto_once; acts on a velocity or torque stream that stopped."""
