@@ -4,6 +4,7 @@
 //! code's name, the SDO abort code's name) so that the Python exception it becomes can be read
 //! without a manual.
 
+use std::borrow::Cow;
 use std::fmt;
 
 /// A malformed or unexpected EtherCAT frame.
@@ -84,13 +85,14 @@ pub enum Error {
     },
     /// No reply in time.
     Timeout {
-        /// What was awaited.
-        what: String,
+        /// What was awaited; a fixed text where the cycle thread may meet it, which must not
+        /// allocate even when a frame is lost.
+        what: Cow<'static, str>,
     },
     /// A datagram's working counter was not the expected one.
     WorkingCounter {
-        /// What the datagram did.
-        what: String,
+        /// What the datagram did (a fixed text in the cycle, as for a time-out).
+        what: Cow<'static, str>,
         /// The expected WKC.
         expected: u16,
         /// The WKC received.

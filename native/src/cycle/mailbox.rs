@@ -112,7 +112,7 @@ impl SdoSlot {
             if !running() || std::time::Instant::now() > deadline {
                 // Taken back only if the thread has not started it; else it finishes on its own.
                 let _ = self.state.compare_exchange(ASKED, FREE, Ordering::AcqRel, Ordering::Acquire);
-                return Err(Error::Timeout { what: format!("the cycle thread to transfer {}", what()) });
+                return Err(Error::Timeout { what: format!("the cycle thread to transfer {}", what()).into() });
             }
             std::thread::sleep(Duration::from_micros(100));
         }
@@ -126,7 +126,7 @@ impl SdoSlot {
             o if o == Outcome::Done as u8 => Ok(value),
             o if o == Outcome::Aborted as u8 => Err(coe::abort_error(index, subindex, code)),
             o if o == Outcome::TimedOut as u8 => Err(Error::Timeout {
-                what: format!("slave {slave} to answer the SDO {verb} of 0x{index:04X}:{subindex:02X}"),
+                what: format!("slave {slave} to answer the SDO {verb} of 0x{index:04X}:{subindex:02X}").into(),
             }),
             o if o == Outcome::TooLarge as u8 => Err(Error::Mailbox(format!(
                 "SDO {verb} of {} needs a segmented transfer, which runs only with the cycle stopped",

@@ -219,7 +219,7 @@ impl Link for RawLink {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             let Some(got) = self.socket.recv(&mut self.rx, left)? else {
-                return Err(Error::Timeout { what: format!("the frame to return on {:?}", self.socket.iface) });
+                return Err(Error::Timeout { what: "a frame to come back on the interface".into() });
             };
             if let Some(payload) = unwrap_returned(&self.rx[..got]) {
                 if is_reply_to(tx, payload) {

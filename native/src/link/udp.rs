@@ -53,7 +53,7 @@ impl Link for Udp {
         loop {
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
-                return Err(Error::Timeout { what: format!("the frame to return from udp://{}", self.peer) });
+                return Err(Error::Timeout { what: "a frame to come back over UDP".into() });
             }
             self.socket.set_read_timeout(Some(left)).map_err(|e| Error::io("setting the UDP read time-out", e))?;
             let got = match self.socket.recv(&mut self.rx) {

@@ -142,7 +142,9 @@ impl Master {
                 Err(e) => return Err(e),
             }
             if Instant::now() >= deadline {
-                return Err(Error::Timeout { what: format!("slave {position}'s mailbox (SM0) to accept a message") });
+                return Err(Error::Timeout {
+                    what: format!("slave {position}'s mailbox (SM0) to accept a message").into(),
+                });
             }
             std::thread::sleep(POLL_INTERVAL);
         }
@@ -157,7 +159,7 @@ impl Master {
                 return Ok(message);
             }
             if Instant::now() >= deadline {
-                return Err(Error::Timeout { what: format!("a mailbox reply from slave {position}") });
+                return Err(Error::Timeout { what: format!("a mailbox reply from slave {position}").into() });
             }
             std::thread::sleep(POLL_INTERVAL);
         }
@@ -287,7 +289,7 @@ impl Master {
             }
             if Instant::now() >= deadline {
                 return Err(Error::Timeout {
-                    what: format!("slave {position} to acknowledge the mailbox repeat request"),
+                    what: format!("slave {position} to acknowledge the mailbox repeat request").into(),
                 });
             }
             std::thread::sleep(POLL_INTERVAL);

@@ -205,7 +205,7 @@ impl Master {
             Ok(())
         } else {
             self.stats.wkc_errors += 1;
-            Err(Error::WorkingCounter { what: what(), expected, got })
+            Err(Error::WorkingCounter { what: what().into(), expected, got })
         }
     }
 

@@ -48,7 +48,8 @@ impl Master {
                 return Err(Error::Timeout {
                     what: format!(
                         "station 0x{station:04X}'s SII interface (word 0x{word:04X}, control 0x{control:04X})"
-                    ),
+                    )
+                    .into(),
                 });
             }
         }

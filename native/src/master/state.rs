@@ -140,7 +140,7 @@ impl Master {
         let deadline = Instant::now() + ACK_TIMEOUT;
         while self.read_al_status(station)?.error() {
             if Instant::now() >= deadline {
-                return Err(Error::Timeout { what: format!("slave {position} to clear its AL error flag") });
+                return Err(Error::Timeout { what: format!("slave {position} to clear its AL error flag").into() });
             }
             std::thread::sleep(POLL_INTERVAL);
         }
@@ -165,7 +165,8 @@ impl Master {
                         status.state_name(),
                         status.code,
                         status.code_name()
-                    ),
+                    )
+                    .into(),
                 });
             }
             std::thread::sleep(POLL_INTERVAL);
@@ -224,7 +225,8 @@ impl Master {
                         status.state_name(),
                         status.code,
                         status.code_name()
-                    ),
+                    )
+                    .into(),
                 });
             }
             std::thread::sleep(POLL_INTERVAL);

@@ -248,7 +248,7 @@ impl PyCycle {
         });
         match outcome.py()? {
             None => Ok(()),
-            Some(what) => Err(super::to_py_err(Error::Timeout { what })),
+            Some(what) => Err(super::to_py_err(Error::Timeout { what: what.into() })),
         }
     }
 
