@@ -495,6 +495,15 @@ class Axis:
         while self._faults:
             yield self._faults.popleft()
 
+    def samples(self) -> dict[str, list]:
+        """Every cycle's record of this drive since the last call, as columns in drive units (see
+        `_native.Cycle.samples`); `units` converts them. For recording: take them at least every few seconds."""
+        columns = self._running().samples()
+        keep = [i for i, slave in enumerate(columns["slave"]) if slave == self.slave]
+        if len(keep) == len(columns["slave"]):
+            return columns
+        return {name: [values[i] for i in keep] for name, values in columns.items()}
+
     # --- mailbox and statistics -----------------------------------------------------------------------------------
 
     def sdo_read(self, index: int, subindex: int = 0) -> bytes:

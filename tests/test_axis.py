@@ -279,3 +279,17 @@ def test_opening_refuses_what_cannot_work() -> None:
         Axis("sim", mode="spin")
     with pytest.raises(CommandError, match="slave 2 is not on the bus"):
         Axis("sim", slave=2)
+
+
+def test_every_cycle_is_recorded_once_with_what_was_sent(axis: Axis) -> None:
+    axis.samples()
+    axis.enable()
+    axis.command_position(0.25)
+    settled(axis)
+    columns = axis.samples()
+    cycles = columns["cycle"]
+    assert len(cycles) > 50 and cycles == list(range(cycles[0], cycles[0] + len(cycles))), "a cycle missing"
+    assert set(columns["wkc"]) == {3} and all(columns["fresh"])
+    assert columns["target_position"][-1] == Units().position_to_counts(0.25)
+    assert abs(columns["position"][-1] - columns["target_position"][-1]) <= 2
+    assert axis.cycle.samples_dropped == 0

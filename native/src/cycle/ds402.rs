@@ -85,6 +85,12 @@ pub struct Offsets {
     pub torque_target: Option<usize>,
     /// Modes of operation 0x6060 in the outputs, where mapped.
     pub mode: Option<usize>,
+    /// Velocity actual 0x606C in the inputs, where mapped (recorded, not sequenced).
+    pub velocity_actual: Option<usize>,
+    /// Torque actual 0x6077 in the inputs, where mapped (recorded).
+    pub torque_actual: Option<usize>,
+    /// Following error 0x60F4 in the inputs, where mapped (recorded).
+    pub following_error: Option<usize>,
 }
 
 impl Offsets {
@@ -122,6 +128,9 @@ impl Offsets {
             velocity_target: at(rx, 0x60FF, 0),
             torque_target: at(rx, 0x6071, 0),
             mode: at(rx, 0x6060, 0),
+            velocity_actual: at(tx, 0x606C, 0),
+            torque_actual: at(tx, 0x6077, 0),
+            following_error: at(tx, 0x60F4, 0),
         })
     }
 
@@ -139,6 +148,9 @@ impl Offsets {
             velocity_target: out(self.velocity_target),
             torque_target: out(self.torque_target),
             mode: out(self.mode),
+            velocity_actual: inp(self.velocity_actual),
+            torque_actual: inp(self.torque_actual),
+            following_error: inp(self.following_error),
         }
     }
 }

@@ -35,6 +35,7 @@ pub mod faults;
 pub mod latch;
 pub mod mailbox;
 pub mod rt;
+pub mod samples;
 pub mod stats;
 pub mod timing;
 
@@ -42,6 +43,7 @@ use events::{Event, Events};
 use exchange::SeqBytes;
 use faults::{Exchange, Gaps};
 use mailbox::{MailboxService, SdoSlot};
+use samples::{Sample, Samples};
 use stats::CycleStats;
 
 /// How a cycle thread runs.
@@ -99,6 +101,7 @@ struct Shared {
     /// One per slave: the latch edges armed.
     latches: Vec<latch::Shared>,
     events: Events,
+    samples: Samples,
     sdo: SdoSlot,
 }
 
@@ -204,6 +207,7 @@ impl CycleThread {
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
             latches: (0..master.slaves().len()).map(|_| latch::Shared::default()).collect(),
             events: Events::default(),
+            samples: Samples::default(),
             sdo: SdoSlot::default(),
         });
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
@@ -348,6 +352,16 @@ impl CycleThread {
     /// Events lost because nobody took them and the ring filled up.
     pub fn events_dropped(&self) -> u64 {
         self.shared.events.dropped()
+    }
+
+    /// One record per cycle and sequenced drive since the last call, oldest first.
+    pub fn samples(&self) -> Vec<Sample> {
+        self.shared.samples.drain()
+    }
+
+    /// Records lost because nobody took them and the ring filled up.
+    pub fn samples_dropped(&self) -> u64 {
+        self.shared.samples.dropped()
     }
 
     /// Reads `index:subindex` of the slave at `position` through the cycle thread, beside the
@@ -530,8 +544,9 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
         timing::sleep_until(schedule.next_ns());
         let wake = timing::now_ns();
         stats.wake_latency.record(wake.saturating_sub(schedule.next_ns()));
-        if let Some(last) = last_wake {
-            stats.period.record(wake - last);
+        let period = last_wake.map_or(0, |last| wake - last);
+        if last_wake.is_some() {
+            stats.period.record(period);
         }
         last_wake = Some(wake);
         let now = (stats.cycles.load(Ordering::Relaxed) + 1, wake);
@@ -571,7 +586,8 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
         }
         let sent = timing::now_ns();
         let result = master.exchange();
-        stats.exchange.record(timing::now_ns() - sent);
+        let exchange_ns = timing::now_ns() - sent;
+        stats.exchange.record(exchange_ns);
         // Lost frames and wrong working counters are the master's own counts; other failures
         // are counted here. None of them stops the cycle: supervise() judges them.
         let (wkc, exchange) = match &result {
@@ -584,6 +600,12 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
             }
         };
         supervise(master, shared, drives, mailbox, &mut gaps, exchange, now);
+        if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
+            let timing = (period.min(u32::MAX as u64) as u32, exchange_ns.min(u32::MAX as u64) as u32);
+            for d in drives.iter() {
+                shared.samples.push(&sample(d, inputs, outputs, now, timing, (wkc, result.is_ok())));
+            }
+        }
         mailbox.run(master, &shared.sdo, &shared.events, now, |slave| {
             let status = shared.drives.get(slave as usize).map(|d| d.status());
             status.map_or(0, |s| s.statusword)
@@ -604,6 +626,43 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
             }
         }
         CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
+    }
+}
+
+/// The record of drive `d` in this cycle.
+fn sample(
+    d: &DriveLoop,
+    inputs: &[u8],
+    outputs: &[u8],
+    (cycle, time_ns): (u64, u64),
+    (period_ns, exchange_ns): (u32, u32),
+    (wkc, fresh): (u16, bool),
+) -> Sample {
+    let o = d.drive.offsets;
+    let i32_in = |at: Option<usize>| {
+        at.map_or(0, |a| i32::from_le_bytes([inputs[a], inputs[a + 1], inputs[a + 2], inputs[a + 3]]))
+    };
+    let i32_out = |at: Option<usize>| {
+        at.map_or(0, |a| i32::from_le_bytes([outputs[a], outputs[a + 1], outputs[a + 2], outputs[a + 3]]))
+    };
+    let i16_at = |image: &[u8], at: Option<usize>| at.map_or(0, |a| i16::from_le_bytes([image[a], image[a + 1]]));
+    Sample {
+        cycle,
+        time_ns,
+        slave: d.position,
+        period_ns,
+        exchange_ns,
+        wkc,
+        fresh,
+        statusword: u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]),
+        mode: o.mode_display.map_or(0, |a| inputs[a] as i8),
+        position: i32_in(o.actual),
+        velocity: i32_in(o.velocity_actual),
+        torque: i16_at(inputs, o.torque_actual),
+        following_error: i32_in(o.following_error),
+        target_position: i32_out(o.targets[0].or(o.targets[1])),
+        target_velocity: i32_out(o.velocity_target),
+        target_torque: i16_at(outputs, o.torque_target),
     }
 }
 

@@ -301,6 +301,47 @@ impl PyCycle {
         Ok(list)
     }
 
+    /// One record per cycle and sequenced drive since the last call, oldest first, as columns:
+    /// a dict of equal-length lists "cycle", "time_ns", "slave", "period_ns", "exchange_ns",
+    /// "wkc", "fresh", "statusword", "mode", "position", "velocity", "torque",
+    /// "following_error", "target_position", "target_velocity", "target_torque" (drive units:
+    /// counts, counts/s, 0.1 % of peak torque; 0 for objects the mapping lacks). The ring holds
+    /// 8192 records; take them at least that often (`samples_dropped` counts the rest).
+    fn samples<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let samples = self.cycle.samples();
+        let d = PyDict::new(py);
+        macro_rules! column {
+            ($($field:ident),*) => {
+                $( d.set_item(stringify!($field), samples.iter().map(|s| s.$field).collect::<Vec<_>>())?; )*
+            };
+        }
+        column!(
+            cycle,
+            time_ns,
+            slave,
+            period_ns,
+            exchange_ns,
+            wkc,
+            fresh,
+            statusword,
+            mode,
+            position,
+            velocity,
+            torque,
+            following_error,
+            target_position,
+            target_velocity,
+            target_torque
+        );
+        Ok(d)
+    }
+
+    /// Per-cycle records lost because they were not taken in time.
+    #[getter]
+    fn samples_dropped(&self) -> u64 {
+        self.cycle.samples_dropped()
+    }
+
     /// Events lost because they were not taken before 256 piled up.
     #[getter]
     fn events_dropped(&self) -> u64 {

@@ -1,0 +1,178 @@
+//! One record per cycle and sequenced drive — what the drive reported and what it was sent —
+//! through a lock-free single-producer ring, for recording every cycle (or every n-th) from a
+//! thread that cannot keep up with the cycle one by one but can take them in batches.
+//!
+//! Like the events ring, a full ring drops the new record and counts it: the cycle never
+//! waits. Readers are serialised by their own lock, which the cycle thread never takes.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+/// Records the ring holds: at 4 kHz, two seconds of one drive.
+pub const CAPACITY: usize = 8192;
+const WORDS: usize = 8;
+
+/// One drive in one cycle, in drive units (counts, counts/s, 0.1 % of peak torque).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sample {
+    /// The cycle (from 1).
+    pub cycle: u64,
+    /// Its wake-up time (ns, monotonic).
+    pub time_ns: u64,
+    /// The slave's position on the bus.
+    pub slave: u16,
+    /// Time since the previous wake-up (ns; 0 for the first cycle).
+    pub period_ns: u32,
+    /// How long the exchange took (ns).
+    pub exchange_ns: u32,
+    /// The cyclic working counter (0 when the frame was lost).
+    pub wkc: u16,
+    /// Whether this cycle's exchange succeeded (else the actual values are the last good ones).
+    pub fresh: bool,
+    /// The statusword.
+    pub statusword: u16,
+    /// Modes of operation display 0x6061 (0 where not mapped).
+    pub mode: i8,
+    /// Actual position (0x6064 or 0x6063).
+    pub position: i32,
+    /// Actual velocity 0x606C (0 where not mapped).
+    pub velocity: i32,
+    /// Actual torque 0x6077 (0 where not mapped).
+    pub torque: i16,
+    /// Following error 0x60F4 (0 where not mapped).
+    pub following_error: i32,
+    /// The position target as sent (0x607A or 0x60C1:01; 0 where not mapped).
+    pub target_position: i32,
+    /// The velocity target as sent (0x60FF; 0 where not mapped).
+    pub target_velocity: i32,
+    /// The torque target as sent (0x6071; 0 where not mapped).
+    pub target_torque: i16,
+}
+
+impl Sample {
+    fn encode(&self) -> [u64; WORDS] {
+        let lo_hi = |lo: u32, hi: u32| lo as u64 | (hi as u64) << 32;
+        [
+            self.cycle,
+            self.time_ns,
+            lo_hi(self.period_ns, self.exchange_ns),
+            self.statusword as u64
+                | (self.wkc as u64) << 16
+                | (self.mode as u8 as u64) << 32
+                | (self.slave as u64) << 40
+                | (self.fresh as u64) << 56,
+            lo_hi(self.position as u32, self.velocity as u32),
+            lo_hi(self.torque as u16 as u32, self.following_error as u32),
+            lo_hi(self.target_position as u32, self.target_velocity as u32),
+            self.target_torque as u16 as u64,
+        ]
+    }
+
+    fn decode(w: [u64; WORDS]) -> Sample {
+        Sample {
+            cycle: w[0],
+            time_ns: w[1],
+            period_ns: w[2] as u32,
+            exchange_ns: (w[2] >> 32) as u32,
+            statusword: w[3] as u16,
+            wkc: (w[3] >> 16) as u16,
+            mode: (w[3] >> 32) as u8 as i8,
+            slave: (w[3] >> 40) as u16,
+            fresh: (w[3] >> 56) & 1 == 1,
+            position: w[4] as u32 as i32,
+            velocity: (w[4] >> 32) as u32 as i32,
+            torque: w[5] as u16 as i16,
+            following_error: (w[5] >> 32) as u32 as i32,
+            target_position: w[6] as u32 as i32,
+            target_velocity: (w[6] >> 32) as u32 as i32,
+            target_torque: w[7] as u16 as i16,
+        }
+    }
+}
+
+/// The ring.
+pub struct Samples {
+    slots: Box<[[AtomicU64; WORDS]]>,
+    head: AtomicU64,
+    tail: AtomicU64,
+    dropped: AtomicU64,
+    readers: Mutex<()>,
+}
+
+impl Default for Samples {
+    fn default() -> Self {
+        Samples {
+            slots: (0..CAPACITY).map(|_| std::array::from_fn(|_| AtomicU64::new(0))).collect(),
+            head: AtomicU64::new(0),
+            tail: AtomicU64::new(0),
+            dropped: AtomicU64::new(0),
+            readers: Mutex::new(()),
+        }
+    }
+}
+
+impl Samples {
+    /// Adds `sample` (the cycle thread only); counts it as dropped when the ring is full.
+    pub fn push(&self, sample: &Sample) {
+        let head = self.head.load(Ordering::Relaxed);
+        if head - self.tail.load(Ordering::Acquire) >= CAPACITY as u64 {
+            self.dropped.fetch_add(1, Ordering::Relaxed);
+            return;
+        }
+        for (cell, word) in self.slots[head as usize % CAPACITY].iter().zip(sample.encode()) {
+            cell.store(word, Ordering::Relaxed);
+        }
+        self.head.store(head + 1, Ordering::Release);
+    }
+
+    /// Takes every record pushed since the last call, oldest first.
+    pub fn drain(&self) -> Vec<Sample> {
+        let _reader = self.readers.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let tail = self.tail.load(Ordering::Relaxed);
+        let head = self.head.load(Ordering::Acquire);
+        let samples = (tail..head)
+            .map(|n| Sample::decode(self.slots[n as usize % CAPACITY].each_ref().map(|c| c.load(Ordering::Relaxed))))
+            .collect();
+        self.tail.store(head, Ordering::Release);
+        samples
+    }
+
+    /// Records dropped because the ring was full.
+    pub fn dropped(&self) -> u64 {
+        self.dropped.load(Ordering::Relaxed)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn samples_round_trip_every_field_and_a_full_ring_drops() {
+        let sample = Sample {
+            cycle: 9,
+            time_ns: 1 << 40,
+            slave: 3,
+            period_ns: 1_000_123,
+            exchange_ns: 4567,
+            wkc: 3,
+            fresh: true,
+            statusword: 0x1637,
+            mode: -1,
+            position: -5,
+            velocity: -1_000_000,
+            torque: -300,
+            following_error: -12,
+            target_position: i32::MIN,
+            target_velocity: i32::MAX,
+            target_torque: i16::MIN,
+        };
+        let samples = Samples::default();
+        samples.push(&sample);
+        assert_eq!(samples.drain(), [sample]);
+        for _ in 0..CAPACITY + 2 {
+            samples.push(&sample);
+        }
+        assert_eq!((samples.drain().len(), samples.dropped()), (CAPACITY, 2));
+    }
+}
