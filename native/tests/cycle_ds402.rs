@@ -5,17 +5,17 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::ds402::{Progress, Request, Status};
-use akd_native::cycle::{Config, CycleThread};
+use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::error::{Error, FrameError, Result};
 use akd_native::link::Link;
-use akd_native::master::{Mapping, Master};
 use akd_native::sim::faults::Fault;
 use akd_native::sim::{Timing, VirtualBus};
 
-const STEP: Duration = Duration::from_secs(5);
+#[path = "support/csp.rs"]
+mod csp;
+use csp::csp_cycle;
 
 /// A link to a virtual bus the test shares, on the monotonic clock.
 struct Shared {
@@ -40,13 +40,7 @@ impl Link for Shared {
 /// One virtual AKD in cyclic synchronous position with 0x1724/0x1B24, cycling at 1 kHz.
 fn rig() -> (CycleThread, Arc<Mutex<VirtualBus>>) {
     let bus = Arc::new(Mutex::new(VirtualBus::with_timing(1, Timing::IMMEDIATE)));
-    let mut m = Master::new(Box::new(Shared { bus: bus.clone(), start: Instant::now() }), Duration::from_millis(100));
-    m.scan().unwrap();
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    m.configure_pdo(0, Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
-    m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
-    m.request_state(AlState::Op, None, STEP).unwrap();
-    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let cycle = csp_cycle(Box::new(Shared { bus: bus.clone(), start: Instant::now() }));
     cycle.set_request_timeout(Duration::from_millis(200));
     (cycle, bus)
 }

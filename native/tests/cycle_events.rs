@@ -10,16 +10,17 @@ use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
 use akd_native::cycle::events::{Action, Event, FaultSource};
-use akd_native::cycle::{Config, CycleThread};
+use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::error::{Error, Result};
 use akd_native::frame::{Command, FrameBuilder};
 use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
-use akd_native::master::{Mapping, Master};
 use akd_native::registers::AL_CONTROL;
 
-const STEP: Duration = Duration::from_secs(5);
+#[path = "support/csp.rs"]
+mod csp;
+use csp::csp_cycle;
 
 /// The in-process link, losing the next `drop` frames (the frame never reaches the drives),
 /// and, when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a
@@ -62,14 +63,7 @@ fn rig() -> Rig {
     let drop = Arc::new(AtomicU32::new(0));
     let to_safeop = Arc::new(AtomicU32::new(0));
     let link = Lossy { inner: InProcess::new(1), drop: drop.clone(), to_safeop: to_safeop.clone() };
-    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
-    m.scan().unwrap();
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    m.configure_pdo(0, Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
-    m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
-    m.request_state(AlState::Op, None, STEP).unwrap();
-    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
-    Rig { cycle, drop, to_safeop }
+    Rig { cycle: csp_cycle(Box::new(link)), drop, to_safeop }
 }
 
 fn enable(cycle: &CycleThread) {

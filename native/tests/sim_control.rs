@@ -5,49 +5,22 @@
 //! its work is counted with the master's. Waits have deadlines only so that a failure does not
 //! hang; no timing is asserted.
 
-use std::alloc::{GlobalAlloc, Layout, System};
-use std::cell::Cell;
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::ds402::{statusword, State};
 use akd_native::link::inproc::InProcess;
-use akd_native::master::{Mapping, Master};
+use akd_native::master::Master;
 use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
 use akd_native::sim::faults::Fault;
 
-struct Counting;
+#[path = "support/counting.rs"]
+mod counting;
+use counting::allocations;
 
-thread_local! {
-    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
-}
-
-unsafe impl GlobalAlloc for Counting {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        // try_with: the counter may be gone while a thread is being torn down.
-        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
-        System.alloc(layout)
-    }
-
-    unsafe fn dealloc(&self, ptr: *mut u8, layout: Layout) {
-        System.dealloc(ptr, layout)
-    }
-
-    unsafe fn realloc(&self, ptr: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
-        System.realloc(ptr, layout, new_size)
-    }
-}
-
-#[global_allocator]
-static COUNTING: Counting = Counting;
-
-fn allocations() -> u64 {
-    ALLOCATIONS.with(|n| n.get())
-}
-
-const STEP: Duration = Duration::from_secs(5);
+#[path = "support/csp.rs"]
+mod csp;
+use csp::{csp_master, STEP};
 
 /// A master in Op on one in-process virtual AKD in cyclic synchronous position with
 /// 0x1724/0x1B24 (outputs: target position, controlword, torque offset; inputs: actual
@@ -55,13 +28,7 @@ const STEP: Duration = Duration::from_secs(5);
 fn master_in_op() -> (Master, SimControl) {
     let link = InProcess::new(1);
     let control = link.control();
-    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
-    m.scan().unwrap();
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    m.configure_pdo(0, Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
-    m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
-    m.request_state(AlState::Op, None, STEP).unwrap();
-    (m, control)
+    (csp_master(Box::new(link)), control)
 }
 
 fn statusword_of(inputs: &[u8]) -> u16 {

@@ -1,13 +1,8 @@
-//! Events the cycle thread reports — latch captures and faults — through a lock-free
-//! single-producer ring, so that the thread never waits for whoever reads them.
-//!
-//! An event is four 64-bit words written into a slot before the head moves past it; the
-//! reader copies the slots between its tail and the head. A full ring drops the new event and
-//! counts it: the cycle never waits, and the count says what was missed. Readers other than
-//! the cycle thread are serialised by their own lock, which the cycle thread never takes.
+//! Events the cycle thread reports — latch captures and faults — as four words each through a
+//! [`Ring`], so that the thread never waits for whoever reads them; a full ring drops and
+//! counts, so what was missed is known.
 
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
+use crate::cycle::ring::Ring;
 
 /// Events the ring holds before new ones are dropped.
 pub const CAPACITY: usize = 256;
@@ -184,59 +179,31 @@ impl Event {
     }
 }
 
-/// The ring.
+/// The events the cycle thread has reported and nobody has taken yet.
 pub struct Events {
-    slots: Box<[[AtomicU64; 4]]>,
-    head: AtomicU64,
-    tail: AtomicU64,
-    dropped: AtomicU64,
-    readers: Mutex<()>,
+    ring: Ring<4>,
 }
 
 impl Default for Events {
     fn default() -> Self {
-        Events {
-            slots: (0..CAPACITY).map(|_| std::array::from_fn(|_| AtomicU64::new(0))).collect(),
-            head: AtomicU64::new(0),
-            tail: AtomicU64::new(0),
-            dropped: AtomicU64::new(0),
-            readers: Mutex::new(()),
-        }
+        Events { ring: Ring::new(CAPACITY) }
     }
 }
 
 impl Events {
     /// Adds `event` (the cycle thread only); counts it as dropped when the ring is full.
     pub fn push(&self, event: Event) {
-        let head = self.head.load(Ordering::Relaxed);
-        if head - self.tail.load(Ordering::Acquire) >= CAPACITY as u64 {
-            self.dropped.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-        let slot = &self.slots[head as usize % CAPACITY];
-        for (cell, word) in slot.iter().zip(event.encode()) {
-            cell.store(word, Ordering::Relaxed);
-        }
-        self.head.store(head + 1, Ordering::Release);
+        self.ring.push(event.encode());
     }
 
     /// Takes every event pushed since the last call, oldest first.
     pub fn drain(&self) -> Vec<Event> {
-        let _reader = self.readers.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        let tail = self.tail.load(Ordering::Relaxed);
-        let head = self.head.load(Ordering::Acquire);
-        let events = (tail..head)
-            .filter_map(|n| {
-                Event::decode(self.slots[n as usize % CAPACITY].each_ref().map(|c| c.load(Ordering::Relaxed)))
-            })
-            .collect();
-        self.tail.store(head, Ordering::Release);
-        events
+        self.ring.drain(Event::decode)
     }
 
     /// Events dropped because the ring was full.
     pub fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
+        self.ring.dropped()
     }
 }
 

@@ -34,6 +34,7 @@ pub mod exchange;
 pub mod faults;
 pub mod latch;
 pub mod mailbox;
+pub mod ring;
 pub mod rt;
 pub mod samples;
 pub mod stats;

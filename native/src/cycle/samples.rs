@@ -1,12 +1,8 @@
 //! One record per cycle and sequenced drive — what the drive reported and what it was sent —
-//! through a lock-free single-producer ring, for recording every cycle (or every n-th) from a
-//! thread that cannot keep up with the cycle one by one but can take them in batches.
-//!
-//! Like the events ring, a full ring drops the new record and counts it: the cycle never
-//! waits. Readers are serialised by their own lock, which the cycle thread never takes.
+//! through a [`Ring`], for recording every cycle from a thread that cannot keep up with the
+//! cycle one by one but can take them in batches.
 
-use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
+use crate::cycle::ring::Ring;
 
 /// Records the ring holds: at 4 kHz, two seconds of one drive.
 pub const CAPACITY: usize = 8192;
@@ -90,56 +86,31 @@ impl Sample {
     }
 }
 
-/// The ring.
+/// The records nobody has taken yet.
 pub struct Samples {
-    slots: Box<[[AtomicU64; WORDS]]>,
-    head: AtomicU64,
-    tail: AtomicU64,
-    dropped: AtomicU64,
-    readers: Mutex<()>,
+    ring: Ring<WORDS>,
 }
 
 impl Default for Samples {
     fn default() -> Self {
-        Samples {
-            slots: (0..CAPACITY).map(|_| std::array::from_fn(|_| AtomicU64::new(0))).collect(),
-            head: AtomicU64::new(0),
-            tail: AtomicU64::new(0),
-            dropped: AtomicU64::new(0),
-            readers: Mutex::new(()),
-        }
+        Samples { ring: Ring::new(CAPACITY) }
     }
 }
 
 impl Samples {
     /// Adds `sample` (the cycle thread only); counts it as dropped when the ring is full.
     pub fn push(&self, sample: &Sample) {
-        let head = self.head.load(Ordering::Relaxed);
-        if head - self.tail.load(Ordering::Acquire) >= CAPACITY as u64 {
-            self.dropped.fetch_add(1, Ordering::Relaxed);
-            return;
-        }
-        for (cell, word) in self.slots[head as usize % CAPACITY].iter().zip(sample.encode()) {
-            cell.store(word, Ordering::Relaxed);
-        }
-        self.head.store(head + 1, Ordering::Release);
+        self.ring.push(sample.encode());
     }
 
     /// Takes every record pushed since the last call, oldest first.
     pub fn drain(&self) -> Vec<Sample> {
-        let _reader = self.readers.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        let tail = self.tail.load(Ordering::Relaxed);
-        let head = self.head.load(Ordering::Acquire);
-        let samples = (tail..head)
-            .map(|n| Sample::decode(self.slots[n as usize % CAPACITY].each_ref().map(|c| c.load(Ordering::Relaxed))))
-            .collect();
-        self.tail.store(head, Ordering::Release);
-        samples
+        self.ring.drain(|w| Some(Sample::decode(w)))
     }
 
     /// Records dropped because the ring was full.
     pub fn dropped(&self) -> u64 {
-        self.dropped.load(Ordering::Relaxed)
+        self.ring.dropped()
     }
 }
 
