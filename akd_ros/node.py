@@ -158,6 +158,7 @@ class AkdNode(LifecycleNode):
         if self.settings.enable_on_start:
             ok, message = self._enable()
             (self.get_logger().info if ok else self.get_logger().error)(f"enable_on_start: {message}")
+        self.get_logger().info(f"active: publishing /joint_states of {self.settings.joint_name}, taking commands")
         return result
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -483,7 +484,9 @@ def main(args: list[str] | None = None) -> int:
     # The signals end spin() here rather than shutting the context down at once, so the drive is disabled and the
     # bus closed while the node can still log it.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    signal.signal(signal.SIGTERM, signal.default_int_handler)
+    # SIGINT too: a shell starts background jobs with it ignored, and it must still stop the node cleanly.
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, signal.default_int_handler)
     try:
         node = AkdNode()
     except ParameterError as e:

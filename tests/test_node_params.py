@@ -1,0 +1,177 @@
+"""akd_node's parameters: every bad parameters file stops the node with its message, good ones start it.
+
+Each case is a real run of `.venv/bin/akd_node --ros-args --params-file FILE` (link "sim", the built-in virtual AKD,
+unless the case is about the link): its exit status and what it printed are checked. The declared descriptors
+(types, ranges, allowed values) are read back from a node in this process.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import random
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import rclpy
+import yaml
+from rcl_interfaces.msg import ParameterType
+
+from akd_ros import params
+from akd_ros.node import AkdNode
+
+BIN = Path(sys.executable).parent
+REPO = Path(__file__).resolve().parents[1]
+# A bound on each run, not a timing expectation: a bad file ends the node within a second or two.
+RUN_TIMEOUT_S = 60.0
+
+
+@pytest.fixture(scope="module", autouse=True)
+def ros_domain():
+    """A ROS_DOMAIN_ID of this module's own, discovery on localhost, for the nodes it starts."""
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("ROS_DOMAIN_ID", str(random.randint(231, 232)))
+        patch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+        patch.setenv("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
+        patch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+        yield
+
+
+def params_file(directory: Path, body: str) -> Path:
+    """A parameters file for akd_node whose ros__parameters are `body` (YAML lines)."""
+    path = directory / "params.yaml"
+    lines = "".join(f"    {line}\n" for line in body.strip().splitlines())
+    path.write_text(f"akd_node:\n  ros__parameters:\n{lines}")
+    return path
+
+
+def run_node(path: Path) -> subprocess.CompletedProcess:
+    """akd_node with `path`, to its end."""
+    return subprocess.run([str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)], capture_output=True,
+                          text=True, timeout=RUN_TIMEOUT_S, env=dict(os.environ), check=False)
+
+
+BAD_FILES = {
+    "wrong type": ("cycle_time: fast", ["parameter cycle_time must be a number in [0.00025, 0.01]", "'fast'"]),
+    "real for an integer": ("slave: 1.5", ["parameter slave must be an integer in [0, 65535]"]),
+    "cycle below 250 us": ("cycle_time: 0.0001", ["parameter cycle_time", "[0.00025, 0.01]", "0.0001"]),
+    "cycle above 10 ms": ("cycle_time: 0.02", ["parameter cycle_time", "[0.00025, 0.01]"]),
+    "unknown mode": ("mode: cyclic_synchronous_velocity",
+                     ["parameter mode must be one of profile_position", "cyclic_synchronous_position",
+                      "'cyclic_synchronous_velocity'"]),
+    "unknown fixed mapping": ("mapping: 0x1799/0x1B01",
+                              ["parameter mapping", "0x1799 is not a fixed RxPDO", "0x1701", "0x1725"]),
+    "unknown fixed tx mapping": ("mapping: 0x1724/0x1B99", ["parameter mapping", "0x1B99", "0x1B26"]),
+    "mapping no mapping": ("mapping: csp", ["parameter mapping 'csp' is not a mapping", "'default'", "'flexible'"]),
+    "flexible entry unmappable": ('mapping: flexible\nmapping.rx: ["0x6040:00/16 0x1234:56/32"]\n'
+                                  'mapping.tx: ["0x6041:00/16 0x6064:00/32"]',
+                                  ["parameter mapping", "0x1234:56"]),
+    "flexible entry malformed": ('mapping: flexible\nmapping.rx: ["6040-16"]\nmapping.tx: ["0x6041:00/16"]',
+                                 ["parameter mapping.rx", "'6040-16'", "INDEX:SUB/BITS"]),
+    "flexible lists without flexible": ('mapping.rx: ["0x6040:00/16"]', ["mapping.rx", "'flexible' only"]),
+    "mode the mapping cannot carry": ("mode: cyclic_synchronous_position",
+                                      ["parameters mode/mapping", "0x607A", "lacks"]),
+    "missing interface": ("link: akd_missing0", ["parameter link", "'akd_missing0' does not exist", "'sim'",
+                                                 "udp://HOST:PORT", "lo"]),
+    "udp without port": ("link: udp://127.0.0.1", ["parameter link", "udp://HOST:PORT", "1..65535"]),
+    "unknown parameter": ("cycle_tme: 0.001", ["unknown parameter cycle_tme", "cycle_time"]),
+    "direction": ("direction: 0", ["parameter direction must be one of 1, -1"]),
+    "linear without lead": ("axis: linear", ["axis/lead", "lead", "linear"]),
+    "lead on a rotary axis": ("lead: 0.005", ["parameter lead", "rotary", "0"]),
+    "limits crossed": ("limits.min_position: 2.0\nlimits.max_position: 1.0", ["limits", "min_position",
+                                                                              "max_position"]),
+    "limit policy": ("limits.policy: wrap", ["parameter limits.policy must be one of refuse, clamp"]),
+    "latch": ('latch.arm: ["3/rising"]', ["parameter latch.arm", "'3/rising'", "1/rising", "2/falling"]),
+    "fault reset policy": ("fault_reset: always", ["parameter fault_reset must be one of manual, auto_once"]),
+    "command timeout policy": ("command_timeout_policy: coast",
+                               ["parameter command_timeout_policy must be one of hold, quick_stop"]),
+    "rate": ("joint_states_rate: 0.0", ["parameter joint_states_rate", "[1.0, 1000.0]"]),
+    "bool": ("autostart: 1", ["parameter autostart must be a bool"]),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_FILES))
+def test_a_bad_parameters_file_stops_the_node_with_its_message(case, tmp_path):
+    body, expected = BAD_FILES[case]
+    result = run_node(params_file(tmp_path, body))
+    assert result.returncode == 1, f"exit {result.returncode}\n{result.stdout}\n{result.stderr}"
+    assert "akd_node: error: " in result.stderr, result.stderr
+    for text in expected:
+        assert text in result.stderr, f"{text!r} not in:\n{result.stderr}"
+
+
+def run_until_configured(path: Path, stop: int = signal.SIGINT) -> tuple[int, str]:
+    """Starts akd_node with `path`, waits until it is active (or fails), sends `stop`; its exit status and
+    output."""
+    process = subprocess.Popen([str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    try:
+        output = []
+        for line in process.stdout:
+            output.append(line)
+            if "active:" in line or "error" in line:
+                break
+        process.send_signal(stop)
+        rest, _ = process.communicate(timeout=RUN_TIMEOUT_S)
+        return process.returncode, "".join(output) + rest
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def test_the_simulator_config_runs_and_sigint_ends_it_cleanly():
+    status, output = run_until_configured(REPO / "config" / "akd_sim.yaml")
+    assert status == 0, output
+    assert "configured: slave 0 on sim in Op" in output and "closed: drive disabled, bus in Init" in output
+
+
+def test_cyclic_synchronous_position_with_fixed_mappings_and_whole_numbers_for_reals(tmp_path):
+    path = params_file(tmp_path, "mode: cyclic_synchronous_position\nmapping: 0x1724/0x1B26\ngear_ratio: 2\n"
+                                 "enable_on_start: true")
+    status, output = run_until_configured(path, signal.SIGTERM)
+    assert status == 0, output
+    assert "mode cyclic_synchronous_position" in output and "enable_on_start: Operation enabled" in output
+
+
+def test_the_real_drive_template_names_only_known_parameters_with_good_values():
+    template = yaml.safe_load((REPO / "config" / "akd.yaml").read_text())["akd_node"]["ros__parameters"]
+    assert set(template) == set(params.SPECS), set(template) ^ set(params.SPECS)
+    values = {name: [] if value == [] else value for name, value in template.items()}
+    # Its link names an interface of the target machine, which this one need not have.
+    values["link"] = "sim"
+    settings = params.settings(values)
+    assert (settings.rt_priority, settings.rt_cpu, settings.limits.max_velocity) == (80, 1, 50.0)
+    assert math.isinf(template["limits.max_position"]) and settings.limits.max_position is None
+
+
+@pytest.fixture
+def node_in_process():
+    """An AkdNode in this process (its own context), with the built-in defaults."""
+    context = rclpy.Context()
+    rclpy.init(context=context)
+    node = AkdNode(context=context)
+    yield node
+    node.destroy_node()
+    rclpy.shutdown(context=context)
+
+
+def test_every_parameter_is_declared_with_type_description_and_range(node_in_process):
+    names = [spec.name for spec in params.SCHEMA]
+    descriptors = dict(zip(names, node_in_process.describe_parameters(names)))
+    for spec in params.SCHEMA:
+        descriptor = descriptors[spec.name]
+        assert descriptor.description and descriptor.read_only, spec.name
+        assert descriptor.type == spec.type.value, spec.name
+    cycle = descriptors["cycle_time"]
+    assert cycle.type == ParameterType.PARAMETER_DOUBLE
+    assert (cycle.floating_point_range[0].from_value, cycle.floating_point_range[0].to_value) == (0.00025, 0.01)
+    assert descriptors["slave"].integer_range[0].to_value == 65535
+    assert "cyclic_synchronous_position" in descriptors["mode"].additional_constraints
+    direction = descriptors["direction"].integer_range[0]
+    assert (direction.from_value, direction.to_value, direction.step) == (-1, 1, 2)
+    assert node_in_process.get_parameter("mode").value == "interpolated_position"
+    assert node_in_process.settings.latch_arm == () and node_in_process.settings.mapping is None
