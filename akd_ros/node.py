@@ -59,6 +59,7 @@ SUPERVISOR_PERIOD_S = 0.02
 REFUSAL_LOG_PERIOD_S = 1.0
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*(e[-+]?\d+)?|nan|inf)")
 _ERRORS = (ValueError, _native.EtherCatError)
+SIGNAL_CHECK_S = 0.1
 
 
 def snake(name: str | None) -> str:
@@ -503,8 +504,10 @@ def main(args: list[str] | None = None) -> int:
                     print(f"{NODE_NAME}: error: {node.failure}", file=sys.stderr)
                     status = 1
                     break
-        if status == 0:
-            executor.spin()
+        while status == 0 and rclpy.ok():
+            # Bounded waits: a signal's handler runs only when the wait returns to Python, and an inactive node
+            # has no timer to wake it.
+            executor.spin_once(timeout_sec=SIGNAL_CHECK_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

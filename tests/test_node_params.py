@@ -13,6 +13,7 @@ import random
 import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -175,3 +176,69 @@ def test_every_parameter_is_declared_with_type_description_and_range(node_in_pro
     assert (direction.from_value, direction.to_value, direction.step) == (-1, 1, 2)
     assert node_in_process.get_parameter("mode").value == "interpolated_position"
     assert node_in_process.settings.latch_arm == () and node_in_process.settings.mapping is None
+
+
+def test_without_autostart_the_lifecycle_services_walk_the_node(tmp_path):
+    from lifecycle_msgs.msg import State, Transition
+    from lifecycle_msgs.srv import ChangeState, GetState
+    from rclpy.executors import SingleThreadedExecutor
+    from sensor_msgs.msg import JointState
+
+    path = params_file(tmp_path, "autostart: false\njoint_states_rate: 50.0")
+    process = subprocess.Popen([str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
+                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=int(os.environ["ROS_DOMAIN_ID"]))
+    client = rclpy.create_node("akd_lifecycle_test", context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(client)
+    joint_states: list = []
+    client.create_subscription(JointState, "/joint_states", joint_states.append, 10)
+
+    def spin_until(done, what: str) -> None:
+        deadline = time.monotonic() + RUN_TIMEOUT_S
+        while not done():
+            assert time.monotonic() < deadline and process.poll() is None, f"no {what}"
+            executor.spin_once(timeout_sec=0.02)
+
+    def call(kind, name, request):
+        service = client.create_client(kind, f"/akd_node/{name}")
+        spin_until(service.service_is_ready, f"service {name}")
+        future = service.call_async(request)
+        spin_until(future.done, f"answer of {name}")
+        return future.result()
+
+    def state() -> int:
+        return call(GetState, "get_state", GetState.Request()).current_state.id
+
+    def change(transition: int) -> None:
+        assert call(ChangeState, "change_state", ChangeState.Request(transition=Transition(id=transition))).success
+
+    try:
+        assert state() == State.PRIMARY_STATE_UNCONFIGURED
+        change(Transition.TRANSITION_CONFIGURE)
+        assert state() == State.PRIMARY_STATE_INACTIVE
+        executor.spin_once(timeout_sec=0.5)
+        assert not joint_states, "an inactive node published"
+        change(Transition.TRANSITION_ACTIVATE)
+        spin_until(lambda: len(joint_states) >= 5, "joint_states once active")
+        change(Transition.TRANSITION_DEACTIVATE)
+        count = len(joint_states)
+        deadline = time.monotonic() + 0.5
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
+        # One already on its way may still arrive; publishing has stopped.
+        assert len(joint_states) <= count + 1
+        change(Transition.TRANSITION_CLEANUP)
+        assert state() == State.PRIMARY_STATE_UNCONFIGURED
+        process.send_signal(signal.SIGINT)
+        output, _ = process.communicate(timeout=RUN_TIMEOUT_S)
+        assert process.returncode == 0, output
+        assert "closed: drive disabled, bus in Init" in output
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+        executor.shutdown()
+        client.destroy_node()
+        rclpy.shutdown(context=context)
