@@ -190,7 +190,7 @@ akd_node:
 @pytest.fixture(scope="module")
 def ros_domain():
     """A ROS_DOMAIN_ID of this module's own, discovery on localhost, Fast DDS; set for the module."""
-    domain = random.randint(201, 230)
+    domain = random.randint(201, 215)
     settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
                 "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
     with pytest.MonkeyPatch.context() as patch:
