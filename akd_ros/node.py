@@ -252,9 +252,9 @@ class AkdNode(LifecycleNode):
         counters = {k: stats[k] for k in ("overruns", "lost_frames", "wkc_errors", "events_dropped")}
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
         self._counters_seen = counters
-        if state.state in FAULT_STATES or not state.fresh:
+        if state.state in FAULT_STATES:
             level = DiagnosticStatus.ERROR
-        elif grown or state.progress in ("stuck", "lost") or state.state == "Quick stop active":
+        elif grown or not state.fresh or state.progress in ("stuck", "lost") or state.state == "Quick stop active":
             level = DiagnosticStatus.WARN
         else:
             level = DiagnosticStatus.OK

@@ -15,7 +15,7 @@ PDO mapping (`mapping`):
   position 0x607A (so not cyclic_synchronous_position);
 - ``RX/TX``: one of the AKD's fixed mappings each way, e.g. ``0x1724/0x1B26`` (cyclic synchronous position);
 - ``flexible``: the PDOs given by `mapping.rx` and `mapping.tx`, one string per PDO, its entries separated by
-  spaces as ``INDEX:SUB/BITS``, e.g. ``["0x6040:00/16 0x607A:00/32", "0x60FF:00/32"]``.
+  spaces as ``INDEX:SUB/BITS``, e.g. ``["0x6040:00/16 0x60C1:01/32", "0x60FF:00/32"]``.
 
 Every mapping is tried on a virtual AKD before it is accepted; it refuses what the real drive refuses (unknown
 fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths).
@@ -129,7 +129,7 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("mapping", "default", "PDO mapping: 'default', fixed mappings 'RX/TX' such as '0x1724/0x1B26', or "
          "'flexible' (then mapping.rx and mapping.tx)."),
     Spec("mapping.rx", [], "With mapping 'flexible': the RxPDOs (set-points), one string per PDO of entries "
-         "'INDEX:SUB/BITS' separated by spaces, e.g. '0x6040:00/16 0x607A:00/32'."),
+         "'INDEX:SUB/BITS' separated by spaces, e.g. '0x6040:00/16 0x60C1:01/32'."),
     Spec("mapping.tx", [], "With mapping 'flexible': the TxPDOs (actual values), as mapping.rx."),
     Spec("joint_name", "akd_axis", "Name of the joint in joint_states and in the package's messages."),
     Spec("counts_per_revolution", 2**20, "Feedback counts per motor revolution.", 1, 2**31 - 1),
@@ -285,7 +285,7 @@ def parse_mapping(mapping: str, rx: list[str], tx: list[str]) -> tuple[object, o
     if mapping == "flexible":
         if not rx or not tx:
             raise ParameterError("parameter mapping 'flexible' needs both mapping.rx and mapping.tx, each a list of "
-                                 "PDOs such as ['0x6040:00/16 0x607A:00/32']")
+                                 "PDOs such as ['0x6040:00/16 0x60C1:01/32']")
         return [_pdo("mapping.rx", p) for p in rx], [_pdo("mapping.tx", p) for p in tx]
     found = re.fullmatch(r"0x([0-9A-Fa-f]{4})/0x([0-9A-Fa-f]{4})", mapping)
     if not found:
