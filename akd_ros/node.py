@@ -95,15 +95,13 @@ class AkdNode(LifecycleNode):
         self._latch = self.create_lifecycle_publisher(LatchEvent, "~/latch", events)
         self._fault = self.create_lifecycle_publisher(DriveFault, "~/fault", events)
         s = self.settings
-        self._timers = [
-            self.create_timer(1.0 / s.joint_states_rate, self._publish_joint_states, periodic),
-            self.create_timer(1.0 / s.status_rate, self._publish_status, periodic),
-            self.create_timer(1.0 / s.diagnostics_rate, self._publish_diagnostics, periodic),
-            self.create_timer(EVENT_POLL_S, self._publish_events, periodic),
-            self.create_timer(SUPERVISOR_PERIOD_S, self._supervise, requests),
-        ]
-        for timer in self._timers:
-            timer.cancel()
+        # The timers run in every state and do nothing unless active: cancelling a timer the executor has already
+        # taken as ready makes rclpy raise in the executor.
+        self.create_timer(1.0 / s.joint_states_rate, self._publish_joint_states, periodic)
+        self.create_timer(1.0 / s.status_rate, self._publish_status, periodic)
+        self.create_timer(1.0 / s.diagnostics_rate, self._publish_diagnostics, periodic)
+        self.create_timer(EVENT_POLL_S, self._publish_events, periodic)
+        self.create_timer(SUPERVISOR_PERIOD_S, self._supervise, requests)
         for kind in ("position", "velocity", "torque"):
             self.create_subscription(Float64, f"~/{kind}_command", lambda m, k=kind: self._on_command(k, m.data),
                                      reliable, callback_group=periodic)
@@ -153,8 +151,6 @@ class AkdNode(LifecycleNode):
                 return self._fail(f"parameter latch.arm: latch {channel}/{edge} not armed: {e}")
         self._counters_seen = {}
         self._active = True
-        for timer in self._timers:
-            timer.reset()
         result = super().on_activate(state)
         if self.settings.enable_on_start:
             ok, message = self._enable()
@@ -164,7 +160,7 @@ class AkdNode(LifecycleNode):
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Stops publishing and accepting commands and disables the drive."""
-        self._stop_activity()
+        self._active = False
         ok, message = self._disable()
         if not ok:
             self.get_logger().error(f"deactivate: {message}")
@@ -185,14 +181,9 @@ class AkdNode(LifecycleNode):
         self.close()
         return TransitionCallbackReturn.SUCCESS
 
-    def _stop_activity(self) -> None:
-        self._active = False
-        for timer in self._timers:
-            timer.cancel()
-
     def close(self) -> None:
         """Stops publishing, disables the drive and returns the bus to Init (does nothing when not configured)."""
-        self._stop_activity()
+        self._active = False
         with self._lock:
             axis, self.axis = self.axis, None
         if axis is not None:
@@ -505,8 +496,7 @@ def main(args: list[str] | None = None) -> int:
                     status = 1
                     break
         while status == 0 and rclpy.ok():
-            # Bounded waits: a signal's handler runs only when the wait returns to Python, and an inactive node
-            # has no timer to wake it.
+            # Bounded waits: a signal's handler runs only when the wait returns to Python.
             executor.spin_once(timeout_sec=SIGNAL_CHECK_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

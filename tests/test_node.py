@@ -190,7 +190,7 @@ akd_node:
 @pytest.fixture(scope="module")
 def ros_domain():
     """A ROS_DOMAIN_ID of this module's own, discovery on localhost, Fast DDS; set for the module."""
-    domain = random.randint(201, 215)
+    domain = random.randint(201, 210)
     settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
                 "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
     with pytest.MonkeyPatch.context() as patch:
@@ -393,3 +393,63 @@ def test_sigterm_disables_the_drive_and_exits_0(ros, sim, node):
         master.close()
     # Switch on disabled; a drive left enabled would show Fault (F125 after eight missed frames).
     assert statusword & 0x6F == 0x40, hex(statusword)
+
+
+SECOND_PARAMS = """\
+akd_node:
+  ros__parameters:
+    link: udp://127.0.0.1:{port}
+    cycle_time: 0.002
+    mode: profile_velocity
+    joint_name: {joint}
+    joint_states_rate: 50.0
+    fault_reset: auto_once
+    command_timeout: 0.3
+    command_timeout_policy: quick_stop
+    enable_on_start: true
+"""
+
+
+@pytest.fixture
+def second(tmp_path, ros_domain):
+    """Another simulator and node (auto_once fault reset, quick stop on a stopped command stream, enabled at
+    start-up), with a client of its own, on a domain of its own so the module's node is not seen."""
+    from support.netns import free_udp_port
+
+    simulator = Sim(free_udp_port())
+    params = tmp_path / "second.yaml"
+    params.write_text(SECOND_PARAMS.format(port=simulator.process.args[2].rsplit(":", 1)[1], joint=JOINT))
+    domain = ros_domain + SECOND_DOMAIN_OFFSET
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("ROS_DOMAIN_ID", str(domain))
+        process = NodeProcess(params)
+    client = Client(domain)
+    try:
+        client.spin_until(lambda: client.received["/joint_states"] or process.process.poll() is not None,
+                          "joint_states of the second node")
+        assert process.process.poll() is None, f"akd_node exited:\n{process.output()}"
+        yield simulator, process, client
+    finally:
+        client.close()
+        stop(process.process)
+        simulator.stop()
+        print(f"second akd_node output:\n{process.output()}")
+
+
+SECOND_DOMAIN_OFFSET = 10
+
+
+def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself(second):
+    sim, node, ros = second
+    ros.spin_until(lambda: "enable_on_start: Operation enabled" in node.output(), "enable at start-up")
+    ros.stream("velocity", [3.0] * 25)
+    assert ros.latest("/joint_states").velocity[0] == pytest.approx(3.0, rel=0.05)
+    # The stream stops: after command_timeout the node quick-stops the axis.
+    ros.spin_until(lambda: "quick stop; call ~/enable to go on" in node.output(), "quick stop on the time-out")
+    assert sim.state()["state"] == "Quick stop active"
+    ros.trigger("enable")
+    sim.command("fault 0 F235")
+    ros.spin_until(lambda: any("F235" in f.text for f in ros.received[NODE + "fault"]), "DriveFault F235")
+    # auto_once resets the fault and leaves the drive disabled.
+    ros.spin_until(lambda: "fault_reset auto_once: fault reset" in node.output(), "the fault reset by the node")
+    assert sim.state()["fault"] is None and sim.state()["state"] == "Switch on disabled"

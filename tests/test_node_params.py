@@ -35,7 +35,7 @@ IN_PROCESS_DOMAIN_OFFSET = 5
 def ros_domain():
     """A ROS_DOMAIN_ID of this module's own, discovery on localhost, for the nodes it starts."""
     with pytest.MonkeyPatch.context() as patch:
-        patch.setenv("ROS_DOMAIN_ID", str(random.randint(216, 220)))
+        patch.setenv("ROS_DOMAIN_ID", str(random.randint(221, 225)))
         patch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
         patch.setenv("RMW_IMPLEMENTATION", "rmw_fastrtps_cpp")
         patch.delenv("ROS_LOCALHOST_ONLY", raising=False)
