@@ -15,6 +15,10 @@ of the cycle that saw them: its monotonic wake-up time moved onto the ROS clock 
 publication, ``now_ros - (now_monotonic - time_ns)``, so an event is stamped as long before its publication as it
 really happened.
 
+Recording (`record.enabled`): from configure to cleanup an `akd_ros.recorder.Recorder` writes a rosbag2 bag of every
+message published (at its stamp), every command received (refused ones too, at their arrival) and every cycle as
+a CycleSample on ~/cycle (every `record.decimation`-th), and writes its black box (~/black_box) at each fault.
+
 Threads: a MultiThreadedExecutor runs two callback groups. The periodic group (publishing timers, command
 subscriptions) never waits on the drive; the request group (services, the supervisor that handles command time-outs
 and automatic fault resets) may wait up to the Axis's time-outs without stopping the periodic topics. `_lock` guards
@@ -44,8 +48,9 @@ from std_srvs.srv import Trigger
 
 from akd_ros import _native
 from akd_ros.axis import MODES, Axis, CommandError
-from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
+from akd_ros.msg import CycleSample, DriveFault, DriveStatus, LatchEvent
 from akd_ros.params import ParameterError, Settings, declare
+from akd_ros.recorder import Recorder
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
 
 NODE_NAME = "akd_node"
@@ -59,6 +64,10 @@ SUPERVISOR_PERIOD_S = 0.02
 REFUSAL_LOG_PERIOD_S = 1.0
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*(e[-+]?\d+)?|nan|inf)")
 _ERRORS = (ValueError, _native.EtherCatError)
+# Which target of a cycle record is the command, by the mode the drive shows (0x6061).
+_TARGET_OF_MODE = {1: "target_position", 7: "target_position", 8: "target_position", 3: "target_velocity",
+                   4: "target_torque"}
+_UINT32_MAX = 2**32 - 1
 SIGNAL_CHECK_S = 0.1
 
 
@@ -85,6 +94,7 @@ class AkdNode(LifecycleNode):
         self._last_fault: DriveFault | None = None
         self._counters_seen: dict[str, int] = {}
         self._refusals: dict[str, tuple[float, int]] = {}
+        self._recorder: Recorder | None = None
         periodic = MutuallyExclusiveCallbackGroup()
         requests = MutuallyExclusiveCallbackGroup()
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
@@ -102,9 +112,13 @@ class AkdNode(LifecycleNode):
         self.create_timer(1.0 / s.diagnostics_rate, self._publish_diagnostics, periodic)
         self.create_timer(EVENT_POLL_S, self._publish_events, periodic)
         self.create_timer(SUPERVISOR_PERIOD_S, self._supervise, requests)
+        self._qos = {"reliable": reliable, "events": events}
+        self._command_topics = {}
         for kind in ("position", "velocity", "torque"):
-            self.create_subscription(Float64, f"~/{kind}_command", lambda m, k=kind: self._on_command(k, m.data),
-                                     reliable, callback_group=periodic)
+            subscription = self.create_subscription(Float64, f"~/{kind}_command",
+                                                    lambda m, k=kind: self._on_command(k, m), reliable,
+                                                    callback_group=periodic)
+            self._command_topics[kind] = subscription.topic_name
         for name, handler in (("enable", self._enable), ("disable", self._disable),
                               ("reset_fault", self._reset_fault), ("quick_stop", self._quick_stop)):
             self.create_service(Trigger, f"~/{name}", self._trigger(name, handler), callback_group=requests)
@@ -136,6 +150,12 @@ class AkdNode(LifecycleNode):
             return self._fail(f"parameters mode/mapping: {e}")
         for warning in axis.warnings:
             self.get_logger().warning(f"real-time settings (rt.*): {warning}")
+        if s.record is not None:
+            try:
+                self._recorder = self._open_recorder()
+            except (ValueError, OSError) as e:
+                axis.close()
+                return self._fail(f"parameters record.*: the recorder did not start: {e}")
         with self._lock:
             self.axis = axis
         self.get_logger().info(f"configured: slave {s.slave} on {s.link} in Op, cycle {s.cycle_time * 1e3:g} ms, "
@@ -189,6 +209,71 @@ class AkdNode(LifecycleNode):
         if axis is not None:
             axis.close()
             self.get_logger().info("closed: drive disabled, bus in Init")
+        recorder, self._recorder = self._recorder, None
+        if recorder is not None:
+            stats = recorder.close()
+            self.get_logger().info(f"recorded {stats.bag}: {stats.written} messages, {stats.dropped} dropped, "
+                                   f"{stats.black_box_dumps} black box dumps, {stats.errors} errors")
+
+    # --- recording -------------------------------------------------------------------------------------------------
+
+    def _open_recorder(self) -> Recorder:
+        """A Recorder of every topic the node publishes, the commands it receives and its cycles."""
+        s = self.settings
+        recorder = Recorder(s.record["folder"], cycle_rate_hz=1.0 / s.cycle_time,
+                            decimation=s.record["decimation"], black_box_seconds=s.record["black_box_seconds"],
+                            on_error=lambda text: self.get_logger().error(f"recording stopped: {text}"))
+        try:
+            for publisher, kind, qos in ((self._joint_states, JointState, "reliable"),
+                                         (self._status, DriveStatus, "reliable"),
+                                         (self._diagnostics, DiagnosticArray, "reliable"),
+                                         (self._latch, LatchEvent, "events"), (self._fault, DriveFault, "events")):
+                recorder.add_topic(publisher.topic_name, kind, self._qos[qos])
+            for topic in self._command_topics.values():
+                recorder.add_topic(topic, Float64, self._qos["reliable"])
+            recorder.add_cycle_topic(self.resolve_topic_name("~/cycle"), CycleSample, self._qos["reliable"])
+        except ValueError:
+            recorder.close()
+            raise
+        self.get_logger().info(f"recording to {recorder.bag_path}")
+        return recorder
+
+    def _publish(self, publisher, message) -> None:
+        """Publishes `message` (stamped) and records it at its stamp."""
+        publisher.publish(message)
+        recorder = self._recorder
+        if recorder is not None:
+            stamp = message.header.stamp
+            recorder.write(publisher.topic_name, message, stamp.sec * 1_000_000_000 + stamp.nanosec)
+
+    def _record_cycles(self, recorder: Recorder, columns: dict[str, list]) -> None:
+        """Hands each cycle record of `columns` (`Axis.samples`) to `recorder` as a CycleSample."""
+        units = self.settings.units
+        # Cycle times are monotonic; the bag's are ROS times (see the module doc on stamps).
+        offset = self.get_clock().now().nanoseconds - time.monotonic_ns()
+        for i in range(len(columns["cycle"])):
+            mode = columns["mode"][i]
+            target = _TARGET_OF_MODE.get(mode)
+            if target == "target_position":
+                command = units.position_to_si(columns[target][i])
+            elif target == "target_velocity":
+                command = units.velocity_to_si(columns[target][i])
+            elif target == "target_torque":
+                command = units.torque_to_si(columns[target][i])
+            else:
+                command = math.nan
+            time_ns = columns["time_ns"][i] + offset
+            sample = CycleSample(
+                stamp=Time(nanoseconds=time_ns).to_msg(), cycle=columns["cycle"][i],
+                position=units.position_to_si(columns["position"][i]),
+                velocity=units.velocity_to_si(columns["velocity"][i]),
+                torque=units.torque_to_si(columns["torque"][i]), command=command,
+                following_error=columns["following_error"][i] * units.si_per_count,
+                position_counts=columns["position"][i], statusword=columns["statusword"][i], mode_of_operation=mode,
+                period_ns=min(columns["period_ns"][i], _UINT32_MAX),
+                exchange_ns=min(columns["exchange_ns"][i], _UINT32_MAX), wkc=columns["wkc"][i],
+            )
+            recorder.cycle_sample(sample, time_ns)
 
     # --- periodic topics -------------------------------------------------------------------------------------------
 
@@ -217,7 +302,7 @@ class AkdNode(LifecycleNode):
             message.velocity = [state.velocity]
         if state.torque is not None:
             message.effort = [state.torque]
-        self._joint_states.publish(message)
+        self._publish(self._joint_states, message)
 
     def _publish_status(self) -> None:
         taken = self._state()
@@ -233,7 +318,7 @@ class AkdNode(LifecycleNode):
             period_max=stats["period"]["max_ns"] * 1e-9, exchange_p99=stats["exchange"]["p99_ns"] * 1e-9,
         )
         message.header.stamp = self._stamp()
-        self._status.publish(message)
+        self._publish(self._status, message)
 
     def _publish_diagnostics(self) -> None:
         taken = self._state()
@@ -275,19 +360,24 @@ class AkdNode(LifecycleNode):
         )
         message = DiagnosticArray(status=[status])
         message.header.stamp = self._stamp()
-        self._diagnostics.publish(message)
+        self._publish(self._diagnostics, message)
 
     def _publish_events(self) -> None:
         with self._lock:
             if self.axis is None or not self._active:
                 return
             latches, faults = list(self.axis.latch_events()), list(self.axis.fault_events())
+            # Taken with the events, so the black box holds the cycles up to a fault when it is written.
+            recorder = self._recorder
+            columns = self.axis.samples() if recorder is not None else None
+        if columns is not None:
+            self._record_cycles(recorder, columns)
         joint = self.settings.joint_name
         for e in latches:
             message = LatchEvent(joint=joint, channel=e.channel, edge=EDGE_CODES[e.edge], position=e.position,
                                  position_counts=e.position_counts)
             message.header.stamp = self._stamp(e.time_ns)
-            self._latch.publish(message)
+            self._publish(self._latch, message)
         for e in faults:
             self.get_logger().error(f"fault: {e.describe()}")
             message = DriveFault(
@@ -297,12 +387,18 @@ class AkdNode(LifecycleNode):
             )
             message.header.stamp = self._stamp(e.time_ns)
             self._last_fault = message
-            self._fault.publish(message)
+            self._publish(self._fault, message)
+            if recorder is not None:
+                recorder.fault(message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec)
             self._reset_pending = self.settings.fault_reset == "auto_once"
 
     # --- commands --------------------------------------------------------------------------------------------------
 
-    def _on_command(self, kind: str, value: float) -> None:
+    def _on_command(self, kind: str, message: Float64) -> None:
+        recorder = self._recorder
+        if recorder is not None:
+            recorder.write(self._command_topics[kind], message, self.get_clock().now().nanoseconds)
+        value = message.data
         try:
             with self._lock:
                 if self.axis is None or not self._active:

@@ -161,6 +161,13 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
     Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
+    Spec("record.enabled", False, "Record the node's topics, its commands and every cycle to a rosbag2 bag (MCAP), "
+         "from configure to cleanup."),
+    Spec("record.folder", "bags", "Folder the bags go into, each named by the date and time it was opened."),
+    Spec("record.decimation", 1, "Record every n-th cycle on ~/cycle; 0 records none (the black box keeps them).",
+         0, 1_000_000),
+    Spec("record.black_box_seconds", 5.0, "Seconds of every cycle kept in memory and written to ~/black_box at a "
+         "fault; 0 for none.", 0.0, 600.0),
     Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
     Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
 )
@@ -191,6 +198,8 @@ class Settings:
     rt_priority: int | None
     rt_cpu: int | None
     rt_lock_memory: bool
+    record: dict[str, object] | None
+    """The Recorder's folder, decimation and black_box_seconds; None when recording is off."""
     autostart: bool
     enable_on_start: bool
 
@@ -247,7 +256,10 @@ def settings(values: dict[str, object]) -> Settings:
         fault_reset=values["fault_reset"], command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
         rt_priority=values["rt.priority"] or None, rt_cpu=None if values["rt.cpu"] < 0 else values["rt.cpu"],
-        rt_lock_memory=values["rt.lock_memory"], autostart=values["autostart"],
+        rt_lock_memory=values["rt.lock_memory"],
+        record={"folder": values["record.folder"], "decimation": values["record.decimation"],
+                "black_box_seconds": values["record.black_box_seconds"]} if values["record.enabled"] else None,
+        autostart=values["autostart"],
         enable_on_start=values["enable_on_start"],
     )
 

@@ -156,7 +156,10 @@ class Client:
         return self.latest("/joint_states").position[0]
 
     def stream(self, kind: str, values, period: float = 0.02) -> None:
-        """Publishes each of `values` as a `kind` command, one every `period` seconds, spinning between."""
+        """Publishes each of `values` as a `kind` command, one every `period` seconds, spinning between (once the
+        node's subscription is matched, so none is lost)."""
+        publisher = self.commands[kind]
+        self.spin_until(lambda: publisher.get_subscription_count() > 0, f"subscriber of {kind} commands")
         for value in values:
             self.commands[kind].publish(Float64(data=float(value)))
             self.spin_for(period)
@@ -407,6 +410,9 @@ akd_node:
     command_timeout: 0.3
     command_timeout_policy: quick_stop
     enable_on_start: true
+    record.enabled: true
+    record.folder: {bags}
+    record.decimation: 10
 """
 
 
@@ -418,7 +424,8 @@ def second(tmp_path, ros_domain):
 
     simulator = Sim(free_udp_port())
     params = tmp_path / "second.yaml"
-    params.write_text(SECOND_PARAMS.format(port=simulator.process.args[2].rsplit(":", 1)[1], joint=JOINT))
+    params.write_text(SECOND_PARAMS.format(port=simulator.process.args[2].rsplit(":", 1)[1], joint=JOINT,
+                                           bags=tmp_path / "bags"))
     domain = ros_domain + SECOND_DOMAIN_OFFSET
     with pytest.MonkeyPatch.context() as patch:
         patch.setenv("ROS_DOMAIN_ID", str(domain))
@@ -428,7 +435,7 @@ def second(tmp_path, ros_domain):
         client.spin_until(lambda: client.received["/joint_states"] or process.process.poll() is not None,
                           "joint_states of the second node")
         assert process.process.poll() is None, f"akd_node exited:\n{process.output()}"
-        yield simulator, process, client
+        yield simulator, process, client, tmp_path / "bags"
     finally:
         client.close()
         stop(process.process)
@@ -439,8 +446,8 @@ def second(tmp_path, ros_domain):
 SECOND_DOMAIN_OFFSET = 10
 
 
-def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself(second):
-    sim, node, ros = second
+def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself_all_recorded(second):
+    sim, node, ros, bags = second
     ros.spin_until(lambda: "enable_on_start: Operation enabled" in node.output(), "enable at start-up")
     ros.stream("velocity", [3.0] * 25)
     assert ros.latest("/joint_states").velocity[0] == pytest.approx(3.0, rel=0.05)
@@ -453,3 +460,19 @@ def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself(second)
     # auto_once resets the fault and leaves the drive disabled.
     ros.spin_until(lambda: "fault_reset auto_once: fault reset" in node.output(), "the fault reset by the node")
     assert sim.state()["fault"] is None and sim.state()["state"] == "Switch on disabled"
+
+    stop(node.process)
+    assert node.process.returncode == 0, node.output()
+    (bag,) = bags.iterdir()
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        faults = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()
+                  if c.topic == NODE + "fault"]
+    assert set(counts) == {"/joint_states", "/diagnostics", NODE + "status", NODE + "latch", NODE + "fault",
+                           NODE + "position_command", NODE + "velocity_command", NODE + "torque_command",
+                           NODE + "cycle", NODE + "black_box"}, counts
+    assert counts["/joint_states"] > 10 and counts[NODE + "cycle"] > 10 and counts[NODE + "black_box"] > 10
+    assert counts[NODE + "velocity_command"] == 25, counts
+    assert any("F235" in f.text for f in faults)
