@@ -54,21 +54,22 @@ from akd_ros.recorder import Recorder
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
 
 NODE_NAME = "akd_node"
-EDGE_NAMES = {LatchEvent.EDGE_RISING: "rising", LatchEvent.EDGE_FALLING: "falling"}
-EDGE_CODES = {name: code for code, name in EDGE_NAMES.items()}
-FAULT_STATES = ("Fault", "Fault reaction active")
+"""The node's name, under which its ~/ topics and services are."""
+_EDGE_NAMES = {LatchEvent.EDGE_RISING: "rising", LatchEvent.EDGE_FALLING: "falling"}
+_EDGE_CODES = {name: code for code, name in _EDGE_NAMES.items()}
+_FAULT_STATES = ("Fault", "Fault reaction active")
 # Events are taken from the cycle thread at this rate; its queue holds 256, far more than arrive in 20 ms.
-EVENT_POLL_S = 0.02
-SUPERVISOR_PERIOD_S = 0.02
+_EVENT_POLL_S = 0.02
+_SUPERVISOR_PERIOD_S = 0.02
 # How often one kind of refused command is logged.
-REFUSAL_LOG_PERIOD_S = 1.0
+_REFUSAL_LOG_PERIOD_S = 1.0
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*(e[-+]?\d+)?|nan|inf)")
 _ERRORS = (ValueError, _native.EtherCatError)
 # Which target of a cycle record is the command, by the mode the drive shows (0x6061).
 _TARGET_OF_MODE = {1: "target_position", 7: "target_position", 8: "target_position", 3: "target_velocity",
                    4: "target_torque"}
 _UINT32_MAX = 2**32 - 1
-SIGNAL_CHECK_S = 0.1
+_SIGNAL_CHECK_S = 0.1
 
 
 def snake(name: str | None) -> str:
@@ -110,8 +111,8 @@ class AkdNode(LifecycleNode):
         self.create_timer(1.0 / s.joint_states_rate, self._publish_joint_states, periodic)
         self.create_timer(1.0 / s.status_rate, self._publish_status, periodic)
         self.create_timer(1.0 / s.diagnostics_rate, self._publish_diagnostics, periodic)
-        self.create_timer(EVENT_POLL_S, self._publish_events, periodic)
-        self.create_timer(SUPERVISOR_PERIOD_S, self._supervise, requests)
+        self.create_timer(_EVENT_POLL_S, self._publish_events, periodic)
+        self.create_timer(_SUPERVISOR_PERIOD_S, self._supervise, requests)
         self._qos = {"reliable": reliable, "events": events}
         self._command_topics = {}
         for kind in ("position", "velocity", "torque"):
@@ -328,7 +329,7 @@ class AkdNode(LifecycleNode):
         counters = {k: stats[k] for k in ("overruns", "lost_frames", "wkc_errors", "events_dropped")}
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
         self._counters_seen = counters
-        if state.state in FAULT_STATES:
+        if state.state in _FAULT_STATES:
             level = DiagnosticStatus.ERROR
         elif grown or not state.fresh or state.progress in ("stuck", "lost") or state.state == "Quick stop active":
             level = DiagnosticStatus.WARN
@@ -374,7 +375,7 @@ class AkdNode(LifecycleNode):
             self._record_cycles(recorder, columns)
         joint = self.settings.joint_name
         for e in latches:
-            message = LatchEvent(joint=joint, channel=e.channel, edge=EDGE_CODES[e.edge], position=e.position,
+            message = LatchEvent(joint=joint, channel=e.channel, edge=_EDGE_CODES[e.edge], position=e.position,
                                  position_counts=e.position_counts)
             message.header.stamp = self._stamp(e.time_ns)
             self._publish(self._latch, message)
@@ -416,12 +417,12 @@ class AkdNode(LifecycleNode):
             self._warn_refused(str(e))
 
     def _warn_refused(self, message: str) -> None:
-        """Logs a refusal, each kind (its text without the numbers) at most once per REFUSAL_LOG_PERIOD_S, with the
+        """Logs a refusal, each kind (its text without the numbers) at most once per _REFUSAL_LOG_PERIOD_S, with the
         count of those not logged since."""
         kind = _NUMBER.sub("#", message)
         now = time.monotonic()
         last, hidden = self._refusals.get(kind, (-math.inf, 0))
-        if now - last < REFUSAL_LOG_PERIOD_S:
+        if now - last < _REFUSAL_LOG_PERIOD_S:
             self._refusals[kind] = (last, hidden + 1)
             return
         self._refusals[kind] = (now, 0)
@@ -435,7 +436,7 @@ class AkdNode(LifecycleNode):
             return
         if self._reset_pending:
             self._reset_pending = False
-            if axis.cycle.drive_status(axis.slave)["state"] in FAULT_STATES:
+            if axis.cycle.drive_status(axis.slave)["state"] in _FAULT_STATES:
                 ok, message = self._reset_fault()
                 self.get_logger().warning(f"fault_reset auto_once: {message}")
         timeout = self.settings.command_timeout
@@ -538,13 +539,13 @@ class AkdNode(LifecycleNode):
     def _arm_latch(self, request, response):
         try:
             axis = self._axis_for_request()
-            if request.edge not in EDGE_NAMES:
+            if request.edge not in _EDGE_NAMES:
                 raise CommandError(f"latch edge {request.edge}: allowed {LatchEvent.EDGE_RISING} (rising) or "
                                    f"{LatchEvent.EDGE_FALLING} (falling)")
-            axis.arm_latch(request.channel, EDGE_NAMES[request.edge], request.arm)
+            axis.arm_latch(request.channel, _EDGE_NAMES[request.edge], request.arm)
             response.success = True
             response.message = (f"latch {request.channel} {'armed' if request.arm else 'disarmed'} on the "
-                                f"{EDGE_NAMES[request.edge]} edge")
+                                f"{_EDGE_NAMES[request.edge]} edge")
         except _ERRORS as e:
             response.success, response.message = False, f"latch not changed: {e}"
         return response
@@ -593,7 +594,7 @@ def main(args: list[str] | None = None) -> int:
                     break
         while status == 0 and rclpy.ok():
             # Bounded waits: a signal's handler runs only when the wait returns to Python.
-            executor.spin_once(timeout_sec=SIGNAL_CHECK_S)
+            executor.spin_once(timeout_sec=_SIGNAL_CHECK_S)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

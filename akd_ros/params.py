@@ -38,9 +38,11 @@ from akd_ros.units import Limits, Units
 CYCLE_TIME_RANGE = (0.00025, 0.01)
 """Cycle times the AKD takes, in seconds: 250 µs (4 kHz) to 10 ms."""
 EDGES = ("rising", "falling")
-LATCH_CHANNELS = (1, 2)
+"""Latch edges by name."""
 FAULT_RESET_POLICIES = ("manual", "auto_once")
+"""Values of fault_reset."""
 COMMAND_TIMEOUT_POLICIES = ("hold", "quick_stop")
+"""Values of command_timeout_policy."""
 _TYPE_WORDS = {
     Parameter.Type.BOOL: "a bool (true or false)",
     Parameter.Type.INTEGER: "an integer",
@@ -117,7 +119,7 @@ class Spec:
         return value
 
 
-INF = math.inf
+_INF = math.inf
 SCHEMA: tuple[Spec, ...] = (
     Spec("link", "sim", "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
          "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW)."),
@@ -141,10 +143,10 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("lead", 0.0, "Linear axis only: metres of travel per load revolution (0 on a rotary axis).", 0.0, 1e6),
     Spec("peak_torque", 3.0, "The drive's peak torque at the motor in N·m, which torque command 100 % means.",
          1e-9, 1e6),
-    Spec("limits.min_position", -INF, "Lowest position command, rad (m); -.inf for none."),
-    Spec("limits.max_position", INF, "Highest position command, rad (m); .inf for none."),
-    Spec("limits.max_velocity", INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none."),
-    Spec("limits.max_torque", INF, "Largest torque command magnitude, N·m (N); .inf for none."),
+    Spec("limits.min_position", -_INF, "Lowest position command, rad (m); -.inf for none."),
+    Spec("limits.max_position", _INF, "Highest position command, rad (m); .inf for none."),
+    Spec("limits.max_velocity", _INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none."),
+    Spec("limits.max_torque", _INF, "Largest torque command magnitude, N·m (N); .inf for none."),
     Spec("limits.policy", "refuse", "A command past a limit is refused, or clamped to the limit.",
          choices=("refuse", "clamp")),
     Spec("joint_states_rate", 100.0, "Rate of /joint_states in Hz.", 1.0, 1000.0),
@@ -171,7 +173,9 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
     Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
 )
+"""Every parameter of akd_node, in the order the README's table lists them."""
 SPECS = {spec.name: spec for spec in SCHEMA}
+"""SCHEMA by parameter name."""
 
 
 @dataclass(frozen=True)
