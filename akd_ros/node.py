@@ -73,8 +73,9 @@ _SIGNAL_CHECK_S = 0.1
 
 
 def snake(name: str | None) -> str:
-    """A state's name as the messages spell it: "Operation enabled" -> "operation_enabled"; None -> "unknown"."""
-    return "unknown" if name is None else name.lower().replace(" ", "_")
+    """A state's name as the messages spell it: "Operation enabled" -> "operation_enabled", "SafeOp" -> "safe_op";
+    None -> "unknown"."""
+    return "unknown" if name is None else re.sub(r"(?<=[a-z])(?=[A-Z])", "_", name).replace(" ", "_").lower()
 
 
 class AkdNode(LifecycleNode):
@@ -383,7 +384,7 @@ class AkdNode(LifecycleNode):
             self.get_logger().error(f"fault: {e.describe()}")
             message = DriveFault(
                 joint=joint, source=e.source, code=min(e.code, 0xFFFF), text=e.text or "",
-                ds402_state=snake(e.ds402_state), al_state=(e.al_state or "unknown").lower(),
+                ds402_state=snake(e.ds402_state), al_state=snake(e.al_state),
                 al_status_code=e.al_status_code, action=e.action,
             )
             message.header.stamp = self._stamp(e.time_ns)

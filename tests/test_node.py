@@ -322,6 +322,7 @@ def test_an_injected_fault_shows_on_fault_and_diagnostics_and_reset_clears_it(ro
     fault = following[-1]
     assert "F439" in fault.text, fault
     assert fault.joint == JOINT and fault.source in ("drive_fault", "emergency")
+    assert fault.al_state == "op" and fault.ds402_state in ("fault", "fault_reaction_active"), fault
     assert fault.header.stamp.sec > 0
 
     def status() -> DiagnosticStatus:
