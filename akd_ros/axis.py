@@ -195,6 +195,7 @@ class Axis:
         link: str = "sim",
         *,
         slave: int = 0,
+        alias: int | None = None,
         period: float = 0.001,
         mode: str = "interpolated_position",
         units: Units | None = None,
@@ -210,13 +211,22 @@ class Axis:
             raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
         self.units = units or Units()
         self.limits = limits or Limits()
-        self.slave = slave
         self._master = _native.Master(link, timeout=frame_timeout)
         self._cycle = None
         try:
-            count = len(self._master.scan())
-            if not 0 <= slave < count:
-                raise CommandError(f"slave {slave} is not on the bus (slaves 0..{count - 1})")
+            slaves = self._master.scan()
+            if alias is not None:
+                found = [s["position"] for s in slaves if s["alias"] == alias]
+                if len(found) != 1:
+                    aliases = ", ".join(f"{s['position']}: {s['alias']}" for s in slaves)
+                    raise CommandError(
+                        f"station alias {alias} is on {len(found)} slaves, not one (position: alias of each: {aliases})"
+                    )
+                slave = found[0]
+            if not 0 <= slave < len(slaves):
+                raise CommandError(f"slave {slave} is not on the bus (slaves 0..{len(slaves) - 1})")
+            self.slave = slave
+            """The drive's position on the bus (found from `alias` when given)."""
             self.simulator = self._master.simulator if link == "sim" or link.startswith("sim:") else None
             """For the built-in virtual AKD: its `Simulator` (fault injection, hardware enable, input toggles)."""
             self._master.request_state("preop")

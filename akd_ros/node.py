@@ -140,7 +140,7 @@ class AkdNode(LifecycleNode):
         """Opens the Axis: the bus to Op and the cycle thread running, the drive disabled."""
         s = self.settings
         try:
-            axis = Axis(s.link, slave=s.slave, period=s.cycle_time, mode=s.mode, units=s.units, limits=s.limits,
+            axis = Axis(s.link, slave=s.slave, alias=s.alias, period=s.cycle_time, mode=s.mode, units=s.units, limits=s.limits,
                         mapping=s.mapping, priority=s.rt_priority, cpu=s.rt_cpu, lock_memory=s.rt_lock_memory)
         except _ERRORS as e:
             return self._fail(f"configure: the drive at slave {s.slave} on link {s.link!r} did not open: {e}")

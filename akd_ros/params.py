@@ -124,6 +124,8 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("link", "sim", "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
          "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW)."),
     Spec("slave", 0, "Position of the drive on the bus, counted from 0 nearest the master.", 0, 65535),
+    Spec("alias", -1, "Station alias of the drive (SII word 4, set with the drive's FBUS.PARAM03); when >= 0 it "
+         "finds the drive instead of slave.", -1, 65535),
     Spec("cycle_time", 0.001, "Period of the EtherCAT cycle in seconds (the AKD takes 250 µs to 10 ms).",
          *CYCLE_TIME_RANGE),
     Spec("mode", "interpolated_position", "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
@@ -184,6 +186,8 @@ class Settings:
 
     link: str
     slave: int
+    alias: int | None
+    """The station alias that finds the drive, None to use `slave`."""
     cycle_time: float
     mode: str
     mapping: tuple[object, object] | None
@@ -253,7 +257,8 @@ def settings(values: dict[str, object]) -> Settings:
                              f"got {lead}")
     limits = parse_limits(values)
     return Settings(
-        link=link, slave=values["slave"], cycle_time=values["cycle_time"], mode=values["mode"], mapping=mapping,
+        link=link, slave=values["slave"], alias=None if values["alias"] < 0 else values["alias"],
+        cycle_time=values["cycle_time"], mode=values["mode"], mapping=mapping,
         joint_name=values["joint_name"], units=units, limits=limits,
         joint_states_rate=values["joint_states_rate"], status_rate=values["status_rate"],
         diagnostics_rate=values["diagnostics_rate"], latch_arm=parse_latches(values["latch.arm"]),

@@ -279,6 +279,13 @@ def test_opening_refuses_what_cannot_work() -> None:
         Axis("sim", mode="spin")
     with pytest.raises(CommandError, match="slave 2 is not on the bus"):
         Axis("sim", slave=2)
+    # The virtual AKDs keep the alias 0 of a fresh drive: an alias must name exactly one.
+    with pytest.raises(CommandError, match="station alias 0 is on 2 slaves, not one"):
+        Axis("sim:2", alias=0)
+    with pytest.raises(CommandError, match="station alias 7 is on 0 slaves"):
+        Axis("sim", alias=7)
+    with Axis("sim", alias=0) as axis:
+        assert axis.slave == 0
 
 
 def test_every_cycle_is_recorded_once_with_what_was_sent(axis: Axis) -> None:
