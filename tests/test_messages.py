@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import ctypes
 import os
-import random
 import subprocess
 import sys
 import time
@@ -20,22 +19,20 @@ from pathlib import Path
 import pytest
 import rclpy
 from builtin_interfaces.msg import Time
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
+from support.ros import RMW, WAIT_S, Participant, ros_environment
 
 import akd_ros
 from akd_ros.msg import CycleSample, DriveFault, DriveStatus, LatchEvent
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
 
 REPO = Path(__file__).resolve().parents[1]
-RMW = "rmw_fastrtps_cpp"
 TOPIC_PREFIX = "/akd_messages_test/"
 SERVICE_PREFIX = "/akd_messages_test/"
-# A bound on every wait, not a timing expectation: discovery on a loaded 2-core CI machine can
-# take seconds; a healthy run takes well under this.
-WAIT_S = 30.0
+# ROS_DOMAIN_IDs of this module; other modules take other ranges.
+DOMAINS = range(100, 201)
 PEER_LIFETIME_S = 180.0
 STAMP = Time(sec=1_764_000_000, nanosec=999_999_999)
 
@@ -136,13 +133,7 @@ def peer(lifetime_s: float) -> None:
 @pytest.fixture(scope="module")
 def ros_domain():
     """A ROS_DOMAIN_ID of this run's own, discovery on localhost, Fast DDS; set for the module."""
-    domain = random.randint(100, 200)
-    settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-                "RMW_IMPLEMENTATION": RMW}
-    with pytest.MonkeyPatch.context() as patch:
-        for key, value in settings.items():
-            patch.setenv(key, value)
-        patch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+    with ros_environment(DOMAINS) as domain:
         yield domain
 
 
@@ -162,34 +153,10 @@ def peer_process(ros_domain):
     print(f"peer output:\n{output}")
 
 
-class Participant:
-    """A node of this process in a context of its own, with the executor that spins it."""
-
-    def __init__(self, domain: int):
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("akd_messages_test", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-
-    def spin_until(self, done, what: str) -> None:
-        """Spins until done() is true; fails naming what did not arrive."""
-        deadline = time.monotonic() + WAIT_S
-        while not done():
-            assert time.monotonic() < deadline, f"no {what} within {WAIT_S} s"
-            self.executor.spin_once(timeout_sec=0.1)
-
-    def close(self) -> None:
-        """Destroys the node and shuts the context down."""
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
-
-
 @pytest.fixture
 def ros(ros_domain):
     """This process's participant on the run's domain."""
-    participant = Participant(ros_domain)
+    participant = Participant(ros_domain, "akd_messages_test")
     yield participant
     participant.close()
 

@@ -8,167 +8,22 @@ both processes are always ended in teardown. The tests share one node and set up
 
 from __future__ import annotations
 
-import json
 import math
-import os
-import queue
-import random
 import signal
-import subprocess
-import sys
-import threading
-import time
-from pathlib import Path
 
 import pytest
-import rclpy
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
-from std_srvs.srv import Trigger
+from diagnostic_msgs.msg import DiagnosticStatus
+from support.ros import NODE, WAIT_S, Client, NodeProcess, Sim, move_to, node_on_sim, ready, ros_environment, stop
 
-from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
+from akd_ros.msg import LatchEvent
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
 
-BIN = Path(sys.executable).parent
-NODE = "/akd_node/"
+# ROS_DOMAIN_IDs of this module; the second node's are SECOND_DOMAIN_OFFSET above. Other modules take other ranges.
+DOMAINS = range(201, 211)
 JOINT = "test_axis"
 COUNTS_PER_RAD = 2**20 / (2 * math.pi)
-# A bound on every wait, not a timing expectation: discovery and start-up on a loaded 2-core machine take seconds.
-WAIT_S = 30.0
 JOINT_STATES_RATE = 50.0
 MAX_POSITION = 1e4
-
-
-def lines_of(stream, into: queue.Queue, log: list[str]) -> None:
-    """Copies a process's output lines into a queue and a log, until its end."""
-    for line in stream:
-        log.append(line)
-        into.put(line)
-
-
-class Sim:
-    """An akd-sim --udp process and its command line on stdin."""
-
-    def __init__(self, port: int):
-        self.log: list[str] = []
-        self.lines: queue.Queue = queue.Queue()
-        self.process = subprocess.Popen([str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}"], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
-        threading.Thread(target=lines_of, args=(self.process.stdout, self.lines, self.log), daemon=True).start()
-        self.reply("akd-sim: starting")
-
-    def reply(self, prefix: str) -> str:
-        """The next output line starting with `prefix`."""
-        deadline = time.monotonic() + WAIT_S
-        while True:
-            try:
-                line = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
-            except queue.Empty:
-                raise AssertionError(f"akd-sim gave no line starting {prefix!r}; output:\n{''.join(self.log)}")
-            if line.startswith(prefix) or line.startswith("error"):
-                assert not line.startswith("error"), line
-                return line
-
-    def command(self, line: str) -> str:
-        """Sends one command line and gives its answer, which must be 'ok ...'."""
-        self.process.stdin.write(line + "\n")
-        self.process.stdin.flush()
-        return self.reply("ok")
-
-    def state(self) -> dict:
-        """The virtual drive's firmware state (state, fault, position in counts, velocity, torque)."""
-        return json.loads(self.command("state 0")[3:])
-
-    def stop(self) -> None:
-        """Ends the simulator."""
-        stop(self.process)
-
-
-def stop(process: subprocess.Popen) -> None:
-    """SIGTERM, then SIGKILL if it does not end in time."""
-    if process.poll() is None:
-        process.terminate()
-        try:
-            process.wait(timeout=WAIT_S)
-        except subprocess.TimeoutExpired:
-            process.kill()
-            process.wait()
-
-
-class Client:
-    """This process's ROS side: every topic of the node collected, its services called."""
-
-    def __init__(self, domain: int):
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=domain)
-        self.node = rclpy.create_node("akd_node_test", context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.received: dict[str, list] = {}
-        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        for topic, kind in (("/joint_states", JointState), ("/diagnostics", DiagnosticArray),
-                            (NODE + "status", DriveStatus), (NODE + "latch", LatchEvent),
-                            (NODE + "fault", DriveFault)):
-            self.received[topic] = []
-            self.node.create_subscription(kind, topic, self.received[topic].append, qos)
-        self.commands = {kind: self.node.create_publisher(Float64, f"{NODE}{kind}_command", qos)
-                         for kind in ("position", "velocity", "torque")}
-
-    def spin_until(self, done, what: str, timeout: float = WAIT_S) -> None:
-        """Spins until done() is true; fails naming what did not happen."""
-        deadline = time.monotonic() + timeout
-        while not done():
-            assert time.monotonic() < deadline, f"no {what} within {timeout} s"
-            self.executor.spin_once(timeout_sec=0.02)
-
-    def spin_for(self, seconds: float) -> None:
-        """Spins for `seconds`, collecting what arrives."""
-        deadline = time.monotonic() + seconds
-        while time.monotonic() < deadline:
-            self.executor.spin_once(timeout_sec=0.02)
-
-    def call(self, kind, name: str, request=None):
-        """Calls service ~/name of the node and gives its response."""
-        client = self.node.create_client(kind, NODE + name)
-        self.spin_until(client.service_is_ready, f"service {NODE}{name}")
-        future = client.call_async(request or kind.Request())
-        self.spin_until(future.done, f"answer of {NODE}{name}")
-        self.node.destroy_client(client)
-        return future.result()
-
-    def trigger(self, name: str) -> str:
-        """Calls a Trigger service that must succeed; gives its message."""
-        response = self.call(Trigger, name)
-        assert response.success, f"{name}: {response.message}"
-        return response.message
-
-    def latest(self, topic: str):
-        """The last message of `topic` after a fresh one arrived."""
-        count = len(self.received[topic])
-        self.spin_until(lambda: len(self.received[topic]) > count, f"message on {topic}")
-        return self.received[topic][-1]
-
-    def position(self) -> float:
-        """The joint's position from a fresh joint_states message."""
-        return self.latest("/joint_states").position[0]
-
-    def stream(self, kind: str, values, period: float = 0.02) -> None:
-        """Publishes each of `values` as a `kind` command, one every `period` seconds, spinning between (once the
-        node's subscription is matched, so none is lost)."""
-        publisher = self.commands[kind]
-        self.spin_until(lambda: publisher.get_subscription_count() > 0, f"subscriber of {kind} commands")
-        for value in values:
-            self.commands[kind].publish(Float64(data=float(value)))
-            self.spin_for(period)
-
-    def close(self) -> None:
-        """Destroys the node and shuts the context down."""
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
 
 
 PARAMS = """\
@@ -193,13 +48,7 @@ akd_node:
 @pytest.fixture(scope="module")
 def ros_domain():
     """A ROS_DOMAIN_ID of this module's own, discovery on localhost, Fast DDS; set for the module."""
-    domain = random.randint(201, 210)
-    settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-                "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
-    with pytest.MonkeyPatch.context() as patch:
-        for key, value in settings.items():
-            patch.setenv(key, value)
-        patch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+    with ros_environment(DOMAINS) as domain:
         yield domain
 
 
@@ -213,27 +62,11 @@ def sim():
     simulator.stop()
 
 
-class NodeProcess:
-    """akd_node running as `akd_node --ros-args --params-file FILE`, its output collected."""
-
-    def __init__(self, params: Path):
-        self.log: list[str] = []
-        self.process = subprocess.Popen([str(BIN / "akd_node"), "--ros-args", "--params-file", str(params)],
-                                        env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                                        text=True, bufsize=1)
-        threading.Thread(target=lines_of, args=(self.process.stdout, queue.Queue(), self.log), daemon=True).start()
-
-    def output(self) -> str:
-        """What the node printed so far."""
-        return "".join(self.log)
-
-
 @pytest.fixture(scope="module")
 def node(ros_domain, sim, tmp_path_factory):
     """The node on the simulator's port."""
-    port = sim.process.args[2].rsplit(":", 1)[1]
     params = tmp_path_factory.mktemp("node") / "akd_test.yaml"
-    params.write_text(PARAMS.format(port=port, joint=JOINT, max_position=MAX_POSITION, rate=JOINT_STATES_RATE))
+    params.write_text(PARAMS.format(port=sim.port, joint=JOINT, max_position=MAX_POSITION, rate=JOINT_STATES_RATE))
     process = NodeProcess(params)
     yield process
     stop(process.process)
@@ -241,31 +74,13 @@ def node(ros_domain, sim, tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def ros(node):
+def ros(node, ros_domain):
     """The client, once the node publishes."""
-    client = Client(int(os.environ["ROS_DOMAIN_ID"]))
+    client = Client(ros_domain)
     client.spin_until(lambda: client.received["/joint_states"] or node.process.poll() is not None, "joint_states")
     assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
     yield client
     client.close()
-
-
-def ready(ros: Client, sim: Sim, mode: str) -> None:
-    """The drive without a fault, in `mode`, enabled."""
-    if sim.state()["fault"] is not None:
-        ros.trigger("reset_fault")
-    ros.trigger("disable")
-    response = ros.call(SetMode, "set_mode", SetMode.Request(mode=mode))
-    assert response.success, response.message
-    ros.trigger("enable")
-
-
-def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
-    """Streams position commands in a ramp from where the axis is to `target`, then waits for it to arrive."""
-    start = ros.position()
-    steps = max(1, int(seconds / 0.02))
-    ros.stream("position", [start + (target - start) * (i + 1) / steps for i in range(steps)])
-    ros.spin_until(lambda: abs(ros.position() - target) < 1e-3, f"axis at {target} rad")
 
 
 def test_joint_states_arrive_at_the_configured_rate_with_the_drive_values(ros, sim):
@@ -388,7 +203,7 @@ def test_sigterm_disables_the_drive_and_exits_0(ros, sim, node):
     # The simulator answers queries only while a master sends frames: a fresh master looks at what the node left.
     from akd_ros import Master
 
-    master = Master(sim.process.args[2].replace("127.0.0.1", "udp://127.0.0.1", 1))
+    master = Master(f"udp://127.0.0.1:{sim.port}")
     try:
         assert master.scan()[0]["found_al_state"] == "Init"
         master.request_state("preop")
@@ -402,7 +217,7 @@ def test_sigterm_disables_the_drive_and_exits_0(ros, sim, node):
 SECOND_PARAMS = """\
 akd_node:
   ros__parameters:
-    link: udp://127.0.0.1:{port}
+    link: udp://127.0.0.1:{{port}}
     cycle_time: 0.002
     mode: profile_velocity
     joint_name: {joint}
@@ -415,36 +230,16 @@ akd_node:
     record.folder: {bags}
     record.decimation: 10
 """
+SECOND_DOMAIN_OFFSET = 10
 
 
 @pytest.fixture
 def second(tmp_path, ros_domain):
     """Another simulator and node (auto_once fault reset, quick stop on a stopped command stream, enabled at
     start-up), with a client of its own, on a domain of its own so the module's node is not seen."""
-    from support.netns import free_udp_port
-
-    simulator = Sim(free_udp_port())
-    params = tmp_path / "second.yaml"
-    params.write_text(SECOND_PARAMS.format(port=simulator.process.args[2].rsplit(":", 1)[1], joint=JOINT,
-                                           bags=tmp_path / "bags"))
-    domain = ros_domain + SECOND_DOMAIN_OFFSET
-    with pytest.MonkeyPatch.context() as patch:
-        patch.setenv("ROS_DOMAIN_ID", str(domain))
-        process = NodeProcess(params)
-    client = Client(domain)
-    try:
-        client.spin_until(lambda: client.received["/joint_states"] or process.process.poll() is not None,
-                          "joint_states of the second node")
-        assert process.process.poll() is None, f"akd_node exited:\n{process.output()}"
+    params = SECOND_PARAMS.format(joint=JOINT, bags=tmp_path / "bags")
+    with node_on_sim(params, tmp_path, ros_domain + SECOND_DOMAIN_OFFSET) as (simulator, process, client):
         yield simulator, process, client, tmp_path / "bags"
-    finally:
-        client.close()
-        stop(process.process)
-        simulator.stop()
-        print(f"second akd_node output:\n{process.output()}")
-
-
-SECOND_DOMAIN_OFFSET = 10
 
 
 def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself_all_recorded(second):

@@ -1,0 +1,255 @@
+"""ROS side of the tests: a domain of their own, `akd-sim` and `akd_node` processes, a client node.
+
+Every wait is bounded by WAIT_S and every process is ended by its owner's teardown (`stop`). The client is real rclpy
+over rmw_fastrtps_cpp in an rclpy.Context of its own, so several can live in one test process on different domains.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import random
+import subprocess
+import sys
+import threading
+import time
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Iterator
+
+import pytest
+import rclpy
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64
+from std_srvs.srv import Trigger
+
+from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
+from akd_ros.srv import SetMode
+
+BIN = Path(sys.executable).parent
+RMW = "rmw_fastrtps_cpp"
+NODE = "/akd_node/"
+# A bound on every wait, not a timing expectation: discovery and start-up on a loaded 2-core machine take seconds.
+WAIT_S = 30.0
+COMMAND_KINDS = ("position", "velocity", "torque")
+# What the client subscribes to: every topic akd_node publishes (the recorded ~/cycle and ~/black_box are not).
+NODE_TOPICS = {"/joint_states": JointState, "/diagnostics": DiagnosticArray, NODE + "status": DriveStatus,
+               NODE + "latch": LatchEvent, NODE + "fault": DriveFault}
+
+
+@contextmanager
+def ros_environment(domains: range) -> Iterator[int]:
+    """Sets, for the block, a ROS_DOMAIN_ID picked from `domains`, discovery on localhost and Fast DDS; gives the
+    domain. Test modules take ranges apart, so modules run at once on one machine do not see each other's nodes."""
+    domain = random.choice(domains)
+    settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+                "RMW_IMPLEMENTATION": RMW}
+    with pytest.MonkeyPatch.context() as patch:
+        for key, value in settings.items():
+            patch.setenv(key, value)
+        patch.delenv("ROS_LOCALHOST_ONLY", raising=False)
+        yield domain
+
+
+def lines_of(stream, into: queue.Queue, log: list[str]) -> None:
+    """Copies a process's output lines into a queue and a log, until its end."""
+    for line in stream:
+        log.append(line)
+        into.put(line)
+
+
+def stop(process: subprocess.Popen) -> None:
+    """SIGTERM, then SIGKILL if it does not end in time."""
+    if process.poll() is None:
+        process.terminate()
+        try:
+            process.wait(timeout=WAIT_S)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            process.wait()
+
+
+class Sim:
+    """An akd-sim --udp process on 127.0.0.1:`port` and its command line on stdin."""
+
+    def __init__(self, port: int):
+        self.port = port
+        self.log: list[str] = []
+        self.lines: queue.Queue = queue.Queue()
+        self.process = subprocess.Popen([str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}"], stdin=subprocess.PIPE,
+                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
+        threading.Thread(target=lines_of, args=(self.process.stdout, self.lines, self.log), daemon=True).start()
+        self.reply("akd-sim: starting")
+
+    def reply(self, prefix: str) -> str:
+        """The next output line starting with `prefix`."""
+        deadline = time.monotonic() + WAIT_S
+        while True:
+            try:
+                line = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
+            except queue.Empty:
+                raise AssertionError(f"akd-sim gave no line starting {prefix!r}; output:\n{''.join(self.log)}")
+            if line.startswith(prefix) or line.startswith("error"):
+                assert not line.startswith("error"), line
+                return line
+
+    def command(self, line: str) -> str:
+        """Sends one command line and gives its answer, which must be 'ok ...'."""
+        self.process.stdin.write(line + "\n")
+        self.process.stdin.flush()
+        return self.reply("ok")
+
+    def state(self) -> dict:
+        """The virtual drive's firmware state (state, fault, position in counts, velocity, torque)."""
+        return json.loads(self.command("state 0")[3:])
+
+    def stop(self) -> None:
+        """Ends the simulator."""
+        stop(self.process)
+
+
+class NodeProcess:
+    """akd_node running as `akd_node --ros-args --params-file FILE`, its output collected; `domain` overrides the
+    environment's ROS_DOMAIN_ID."""
+
+    def __init__(self, params: Path, domain: int | None = None):
+        self.log: list[str] = []
+        env = dict(os.environ)
+        if domain is not None:
+            env["ROS_DOMAIN_ID"] = str(domain)
+        self.process = subprocess.Popen([str(BIN / "akd_node"), "--ros-args", "--params-file", str(params)],
+                                        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                                        bufsize=1)
+        threading.Thread(target=lines_of, args=(self.process.stdout, queue.Queue(), self.log), daemon=True).start()
+
+    def output(self) -> str:
+        """What the node printed so far."""
+        return "".join(self.log)
+
+
+class Participant:
+    """A node of this process in a context of its own on `domain`, with the executor that spins it."""
+
+    def __init__(self, domain: int, name: str):
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain)
+        self.node = rclpy.create_node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+
+    def spin_until(self, done, what: str, timeout: float = WAIT_S) -> None:
+        """Spins until done() is true; fails naming what did not happen."""
+        deadline = time.monotonic() + timeout
+        while not done():
+            assert time.monotonic() < deadline, f"no {what} within {timeout} s"
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def spin_for(self, seconds: float) -> None:
+        """Spins for `seconds`, collecting what arrives."""
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.02)
+
+    def close(self) -> None:
+        """Destroys the node and shuts the context down."""
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+class Client(Participant):
+    """The ROS side of akd_node's tests: every topic of the node collected in `received`, its services called, and
+    the commands published, each counted in `sent`."""
+
+    def __init__(self, domain: int):
+        super().__init__(domain, "akd_node_test")
+        self.received: dict[str, list] = {}
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        for topic, kind in NODE_TOPICS.items():
+            self.received[topic] = []
+            self.node.create_subscription(kind, topic, self.received[topic].append, qos)
+        self.commands = {kind: self.node.create_publisher(Float64, f"{NODE}{kind}_command", qos)
+                         for kind in COMMAND_KINDS}
+        self.sent = dict.fromkeys(COMMAND_KINDS, 0)
+
+    def call(self, kind, name: str, request=None):
+        """Calls service ~/name of the node and gives its response."""
+        client = self.node.create_client(kind, NODE + name)
+        self.spin_until(client.service_is_ready, f"service {NODE}{name}")
+        future = client.call_async(request or kind.Request())
+        self.spin_until(future.done, f"answer of {NODE}{name}")
+        self.node.destroy_client(client)
+        return future.result()
+
+    def trigger(self, name: str) -> str:
+        """Calls a Trigger service that must succeed; gives its message."""
+        response = self.call(Trigger, name)
+        assert response.success, f"{name}: {response.message}"
+        return response.message
+
+    def latest(self, topic: str):
+        """The last message of `topic` after a fresh one arrived."""
+        count = len(self.received[topic])
+        self.spin_until(lambda: len(self.received[topic]) > count, f"message on {topic}")
+        return self.received[topic][-1]
+
+    def position(self) -> float:
+        """The joint's position from a fresh joint_states message."""
+        return self.latest("/joint_states").position[0]
+
+    def stream(self, kind: str, values, period: float = 0.02) -> None:
+        """Publishes each of `values` as a `kind` command, one every `period` seconds, spinning between (once the
+        node's subscription is matched, so none is lost)."""
+        publisher = self.commands[kind]
+        self.spin_until(lambda: publisher.get_subscription_count() > 0, f"subscriber of {kind} commands")
+        for value in values:
+            publisher.publish(Float64(data=float(value)))
+            self.sent[kind] += 1
+            self.spin_for(period)
+
+
+def ready(ros: Client, sim: Sim, mode: str) -> None:
+    """The drive without a fault, in `mode`, enabled."""
+    if sim.state()["fault"] is not None:
+        ros.trigger("reset_fault")
+    ros.trigger("disable")
+    response = ros.call(SetMode, "set_mode", SetMode.Request(mode=mode))
+    assert response.success, response.message
+    ros.trigger("enable")
+
+
+def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
+    """Streams position commands in a ramp from where the axis is to `target`, then waits for it to arrive."""
+    start = ros.position()
+    steps = max(1, int(seconds / 0.02))
+    ros.stream("position", [start + (target - start) * (i + 1) / steps for i in range(steps)])
+    ros.spin_until(lambda: abs(ros.position() - target) < 1e-3, f"axis at {target} rad")
+
+
+@contextmanager
+def node_on_sim(params: str, folder: Path, domain: int) -> Iterator[tuple[Sim, NodeProcess, Client]]:
+    """A fresh simulator, akd_node on it with `params` (a template whose {port} is the simulator's) on `domain`, and
+    a client there once joint_states arrive; all ended afterwards, the node's output printed."""
+    from support.netns import free_udp_port
+
+    sim = Sim(free_udp_port())
+    path = folder / "akd_node.yaml"
+    path.write_text(params.format(port=sim.port))
+    node = NodeProcess(path, domain)
+    client = None
+    try:
+        client = Client(domain)
+        client.spin_until(lambda: client.received["/joint_states"] or node.process.poll() is not None,
+                          "joint_states")
+        assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
+        yield sim, node, client
+    finally:
+        if client is not None:
+            client.close()
+        stop(node.process)
+        sim.stop()
+        print(f"akd_node output:\n{node.output()}")
