@@ -38,7 +38,7 @@ MODES: dict[str, int] = {
 MODE_NAMES = {code: name for name, code in MODES.items()}
 
 # What each mode's command is written to, in the order tried; a cyclic mode's mapping must carry one of them, the
-# profile modes write it by SDO where it is not mapped (0x607A cannot be mapped flexibly on the AKD).
+# profile modes write it by SDO where it is not mapped.
 _MODE_TARGETS: dict[str, tuple[tuple[int, int], ...]] = {
     "profile_position": ((0x607A, 0),),
     "profile_velocity": ((0x60FF, 0),),
@@ -61,11 +61,12 @@ _COMMAND_KIND = {
     "profile_torque": "torque",
 }
 
-# The default mapping: everything an axis needs within the AKD's flexible limits (22 bytes out, 32 in, 8 per PDO).
-# Out: controlword, interpolation set-point 0x60C1:01, modes of operation, pad | target velocity, target torque,
-# latch control. In: statusword, mode display, pad, position actual | velocity actual, torque actual, latch status |
-# following error, latch 1 position 0x20A6 | latch 2 position 0x20A7, digital inputs.
-DEFAULT_RX = [[0x60400010, 0x60C10120, 0x60600008, 0x00020008], [0x60FF0020, 0x60710010, 0x20A40010]]
+# The default mapping: everything every mode needs within the AKD's flexible limits (22 bytes out, 32 in, 8 per
+# PDO). Out: controlword, interpolation set-point 0x60C1:01, modes of operation, pad | target velocity, target torque,
+# latch control | target position 0x607A (which the real drive maps flexibly: its power-up mapping has it). In:
+# statusword, mode display, pad, position actual | velocity actual, torque actual, latch status | following error,
+# latch 1 position 0x20A6 | latch 2 position 0x20A7, digital inputs.
+DEFAULT_RX = [[0x60400010, 0x60C10120, 0x60600008, 0x00020008], [0x60FF0020, 0x60710010, 0x20A40010], [0x607A0020]]
 DEFAULT_TX = [
     [0x60410010, 0x60610008, 0x20020108, 0x60640020],
     [0x606C0020, 0x60770010, 0x20A50010],
@@ -355,6 +356,20 @@ class Axis:
         cycle.set_mode(self.slave, MODES[mode])
         self._mode = mode
         self._commanded.clear()
+        if (0x6061, 0) in self._layout.inputs:
+            self._wait_for(lambda s: s["mode_display"] == MODES[mode], f"the drive to show mode {mode} (0x6061)")
+
+    def _wait_for(self, done, what: str, timeout: float = 1.0) -> None:
+        """Polls the drive's status until `done(status)`; TimeoutError naming `what` and the drive's state."""
+        cycle = self._running()
+        deadline = time.monotonic() + timeout
+        while not done(status := cycle.drive_status(self.slave)):
+            if time.monotonic() > deadline:
+                raise TimeoutError(
+                    f"drive {self.slave}: timed out waiting for {what} (statusword 0x{status['statusword']:04X}, "
+                    f"state {status['state']}, mode display {status['mode_display']})"
+                )
+            time.sleep(0.001)
 
     # --- commands -------------------------------------------------------------------------------------------------
 
@@ -391,17 +406,12 @@ class Axis:
         """Raises controlword `bits` (bit 4 starts a profile move or homing) until the drive acknowledges in
         statusword bit 12, then lowers them, so the next command makes a new rising edge."""
         cycle = self._running()
+        # The handshake starts from bit 12 clear (in another mode it means something else).
+        self._wait_for(lambda s: not s["statusword"] & _ACKNOWLEDGED, f"statusword bit 12 to clear before {what}")
         cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", bits))
-        deadline = time.monotonic() + timeout
         try:
-            while not cycle.drive_status(self.slave)["statusword"] & _ACKNOWLEDGED:
-                if time.monotonic() > deadline:
-                    status = cycle.drive_status(self.slave)
-                    raise TimeoutError(
-                        f"drive {self.slave} did not acknowledge {what} (statusword 0x{status['statusword']:04X}, "
-                        f"state {status['state']}); it must be in Operation enabled"
-                    )
-                time.sleep(0.001)
+            self._wait_for(lambda s: s["statusword"] & _ACKNOWLEDGED,
+                           f"the drive to acknowledge {what} (it must be in Operation enabled)", timeout)
         finally:
             cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", 0))
 

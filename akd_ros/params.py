@@ -11,8 +11,7 @@ number where a real number is expected (``gear_ratio: 2``) is taken as that real
 
 PDO mapping (`mapping`):
 
-- ``default``: the Axis's own flexible mapping, which carries everything every mode needs except the target
-  position 0x607A (so not cyclic_synchronous_position);
+- ``default``: the Axis's own flexible mapping, which carries everything every mode needs;
 - ``RX/TX``: one of the AKD's fixed mappings each way, e.g. ``0x1724/0x1B26`` (cyclic synchronous position);
 - ``flexible``: the PDOs given by `mapping.rx` and `mapping.tx`, one string per PDO, its entries separated by
   spaces as ``INDEX:SUB/BITS``, e.g. ``["0x6040:00/16 0x60C1:01/32", "0x60FF:00/32"]``.

@@ -124,6 +124,14 @@ def test_cyclic_synchronous_position_with_a_fixed_mapping() -> None:
         assert abs(end.position - (start + 0.6)) < 2 * COUNT
         with pytest.raises(CommandError, match="profile_velocity needs 0x60FF"):
             a.set_mode("profile_velocity")
+    # The default mapping carries 0x607A too: a running interpolated axis switches to CSP at standstill.
+    with Axis("sim") as a:
+        a.enable()
+        a.set_mode("cyclic_synchronous_position")
+        start = a.state().position
+        a.command_position(start + 0.001)
+        end = wait_for("the move", lambda: abs((s := settled(a)).position - start - 0.001) < 2 * COUNT and s)
+        assert end.mode == "cyclic_synchronous_position"
 
 
 def test_profile_velocity_and_torque_track_their_commands(axis: Axis) -> None:

@@ -74,7 +74,7 @@ BAD_FILES = {
     "flexible entry malformed": ('mapping: flexible\nmapping.rx: ["6040-16"]\nmapping.tx: ["0x6041:00/16"]',
                                  ["parameter mapping.rx", "'6040-16'", "INDEX:SUB/BITS"]),
     "flexible lists without flexible": ('mapping.rx: ["0x6040:00/16"]', ["mapping.rx", "'flexible' only"]),
-    "mode the mapping cannot carry": ("mode: cyclic_synchronous_position",
+    "mode the mapping cannot carry": ("mode: cyclic_synchronous_position\nmapping: 0x1701/0x1B01",
                                       ["parameters mode/mapping", "0x607A", "lacks"]),
     "missing interface": ("link: akd_missing0", ["parameter link", "'akd_missing0' does not exist", "'sim'",
                                                  "udp://HOST:PORT", "lo"]),

@@ -640,6 +640,10 @@ fn sample(
     (wkc, fresh): (u16, bool),
 ) -> Sample {
     let o = d.drive.offsets;
+    let mode = o.mode_display.map_or(0, |a| inputs[a] as i8);
+    // The position target of the mode in force: interpolated position (7) takes 0x60C1:01.
+    let [target_position, ip_setpoint] = o.targets;
+    let position_target = if mode == 7 { ip_setpoint.or(target_position) } else { target_position.or(ip_setpoint) };
     let i32_in = |at: Option<usize>| {
         at.map_or(0, |a| i32::from_le_bytes([inputs[a], inputs[a + 1], inputs[a + 2], inputs[a + 3]]))
     };
@@ -656,12 +660,12 @@ fn sample(
         wkc,
         fresh,
         statusword: u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]),
-        mode: o.mode_display.map_or(0, |a| inputs[a] as i8),
+        mode,
         position: i32_in(o.actual),
         velocity: i32_in(o.velocity_actual),
         torque: i16_at(inputs, o.torque_actual),
         following_error: i32_in(o.following_error),
-        target_position: i32_out(o.targets[0].or(o.targets[1])),
+        target_position: i32_out(position_target),
         target_velocity: i32_out(o.velocity_target),
         target_torque: i16_at(outputs, o.torque_target),
     }
