@@ -64,7 +64,7 @@ _SUPERVISOR_PERIOD_S = 0.02
 # How often one kind of refused command is logged.
 _REFUSAL_LOG_PERIOD_S = 1.0
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*(e[-+]?\d+)?|nan|inf)")
-_ERRORS = (ValueError, _native.EtherCatError)
+_ERRORS = (ValueError, TimeoutError, _native.EtherCatError)
 # Which target of a cycle record is the command, by the mode the drive shows (0x6061).
 _TARGET_OF_MODE = {1: "target_position", 7: "target_position", 8: "target_position", 3: "target_velocity",
                    4: "target_torque"}
