@@ -176,7 +176,10 @@ class AkdNode(LifecycleNode):
         result = super().on_activate(state)
         if self.settings.enable_on_start:
             ok, message = self._enable()
-            (self.get_logger().info if ok else self.get_logger().error)(f"enable_on_start: {message}")
+            if ok:
+                self.get_logger().info(f"enable_on_start: {message}")
+            else:
+                self.get_logger().error(f"enable_on_start: {message}")
         self.get_logger().info(f"active: publishing /joint_states of {self.settings.joint_name}, taking commands")
         return result
 
@@ -517,8 +520,11 @@ class AkdNode(LifecycleNode):
     def _trigger(self, name: str, handler):
         def callback(request, response):
             response.success, response.message = handler()
-            (self.get_logger().info if response.success else self.get_logger().warning)(f"~/{name}: "
-                                                                                         f"{response.message}")
+            # rclpy ties a severity to each logging call site: one call per severity.
+            if response.success:
+                self.get_logger().info(f"~/{name}: {response.message}")
+            else:
+                self.get_logger().warning(f"~/{name}: {response.message}")
             return response
 
         return callback

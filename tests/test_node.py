@@ -13,6 +13,7 @@ import signal
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
+from std_srvs.srv import Trigger
 from support.ros import NODE, WAIT_S, Client, NodeProcess, Sim, move_to, node_on_sim, ready, ros_environment, stop
 
 from akd_ros.msg import LatchEvent
@@ -146,6 +147,9 @@ def test_an_injected_fault_shows_on_fault_and_diagnostics_and_reset_clears_it(ro
     ros.spin_until(lambda: status().level == DiagnosticStatus.ERROR, "ERROR on /diagnostics")
     values = {v.key: v.value for v in status().values}
     assert "F439" in values["last_fault"] and values["ds402_state"] == "Fault", values
+    # Enable does not reset a fault: it fails, saying where the drive is stuck and why.
+    refused = ros.call(Trigger, "enable")
+    assert not refused.success and "Fault" in refused.message and "reset_fault" in refused.message, refused
 
     ros.trigger("reset_fault")
     assert sim.state()["fault"] is None
