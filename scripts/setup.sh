@@ -73,4 +73,4 @@ say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and t
 
 .venv/bin/python -c 'import akd_ros._native' || die "akd_ros._native does not import after the build"
 .venv/bin/python -c 'from akd_ros.msg import LatchEvent' || die "akd_ros.msg does not import after the build"
-say "ready: .venv/bin/akd-scan sim, bash scripts/test.sh"
+say "ready: .venv/bin/akd_node --ros-args --params-file config/akd_sim.yaml, bash scripts/test.sh"
