@@ -69,6 +69,9 @@ COMPRESSIONS = {
     "none": CompressionType.NONE,
 }
 _DEFINITION_DELIMITER = "=" * 80 + "\n"
+# The black box ring holds this much more than black_box_seconds: samples reach the recorder in
+# batches after the cycle that faulted, and the window before the fault must still be whole then.
+_BLACK_BOX_MARGIN_S = 1.0
 _STORAGE_ID = "mcap"
 _SERIALIZATION = "cdr"
 _LIBRARY = "akd_ros recorder"
@@ -525,10 +528,12 @@ class Recorder:
         self._cycle_topic: Optional[str] = None
         self._black_box_topic: Optional[str] = None
         self._cycle_class: Optional[type] = None
-        ring_size = max(1, math.ceil(black_box_seconds * cycle_rate_hz))
+        ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz))
         self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
-        self._last_dumped_ns: Optional[int] = None
+        self._black_box_ns = int(black_box_seconds * 1e9)
+        # Times of the samples in the ring that a fault wrote already (writer thread only).
+        self._dumped: set[int] = set()
         self._cycle_count = 0
         self._lock = threading.Lock()
         self._stats_lock = threading.Lock()
@@ -640,7 +645,8 @@ class Recorder:
         self._cycle_count += 1
 
     def fault(self, time_ns: int) -> None:
-        """Writes the black box: the ring's samples up to time_ns not written by an earlier fault.
+        """Writes the black box: the samples of the ``black_box_seconds`` up to time_ns (the
+        fault's time; samples after it may have been taken already) not written by an earlier fault.
 
         They go to the black box topic with their own times, and the chunk is closed and synced
         at once so that the moments before the fault survive whatever follows. Does nothing
@@ -738,11 +744,15 @@ class Recorder:
             self._save_metadata()
         elif item[0] == "black_box":
             _, ring, fault_ns = item
-            newest = self._last_dumped_ns
+            oldest = fault_ns - self._black_box_ns
+            # Faults may come out of time order (an emergency before the Fault state seen in an
+            # earlier cycle): each writes its whole window but no sample written before.
+            if ring:
+                self._dumped = {t for t in self._dumped if t >= ring[0][0]}
             for time_ns, msg in ring:
-                if time_ns <= fault_ns and (newest is None or time_ns > newest):
+                if oldest < time_ns <= fault_ns and time_ns not in self._dumped:
                     self._add(self._black_box_topic, msg, time_ns)
-                    self._last_dumped_ns = time_ns
+                    self._dumped.add(time_ns)
             self.stats.black_box_dumps += 1
             self._flush(sync=True)
         else:
