@@ -70,6 +70,9 @@ _TARGET_OF_MODE = {1: "target_position", 7: "target_position", 8: "target_positi
                    4: "target_torque"}
 _UINT32_MAX = 2**32 - 1
 _SIGNAL_CHECK_S = 0.1
+# Readings of the ROS and the monotonic clock closer than this are taken as simultaneous.
+_CLOCK_READ_SPREAD_NS = 50_000
+_CLOCK_READ_TRIES = 5
 
 
 def snake(name: str | None) -> str:
@@ -255,7 +258,7 @@ class AkdNode(LifecycleNode):
         """Hands each cycle record of `columns` (`Axis.samples`) to `recorder` as a CycleSample."""
         units = self.settings.units
         # Cycle times are monotonic; the bag's are ROS times (see the module doc on stamps).
-        offset = self.get_clock().now().nanoseconds - time.monotonic_ns()
+        offset = self._ros_minus_monotonic_ns()
         for i in range(len(columns["cycle"])):
             mode = columns["mode"][i]
             target = _TARGET_OF_MODE.get(mode)
@@ -284,10 +287,25 @@ class AkdNode(LifecycleNode):
 
     def _stamp(self, time_ns: int | None = None):
         """ROS time now, or of the cycle whose monotonic wake-up time is `time_ns` (see the module doc)."""
-        now = self.get_clock().now()
         if time_ns is None:
-            return now.to_msg()
-        return Time(nanoseconds=now.nanoseconds - (time.monotonic_ns() - time_ns)).to_msg()
+            return self.get_clock().now().to_msg()
+        return Time(nanoseconds=time_ns + self._ros_minus_monotonic_ns()).to_msg()
+
+    def _ros_minus_monotonic_ns(self) -> int:
+        """ROS time minus monotonic time, from the two clocks read as close together as a few tries allow.
+
+        Another thread taking the GIL between the two readings would shift the result by milliseconds, and with it
+        the recorded cycles (out of order in the bag) and the events' stamps (outside their black box)."""
+        best_spread, offset = math.inf, 0
+        for _ in range(_CLOCK_READ_TRIES):
+            before = time.monotonic_ns()
+            ros = self.get_clock().now().nanoseconds
+            after = time.monotonic_ns()
+            if after - before < best_spread:
+                best_spread, offset = after - before, ros - (before + after) // 2
+            if best_spread <= _CLOCK_READ_SPREAD_NS:
+                break
+        return offset
 
     def _state(self):
         """(axis, its state and statistics), or None when the axis is closed or the node inactive."""
