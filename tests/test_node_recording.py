@@ -1,0 +1,322 @@
+"""akd_node's bags (record.*), made by the running node against a virtual AKD and read by third-party readers.
+
+One recorded run with a latch and a fault, stopped by SIGINT, is read back with rosbags' AnyReader and with mcap's
+reader (messages decoded by rclpy's deserialize_message), and compared with what this process received from and sent
+to the node over ROS; akd-plot draws it. A second run is killed with SIGKILL while recording, and a third records into
+a folder that cannot be made. The node is `.venv/bin/akd_node` on an `akd-sim --udp` process (tests/support/ros.py);
+every wait is bounded and both processes are ended in teardown.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import signal
+import subprocess
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+import yaml
+from mcap.exceptions import EndOfFile
+from mcap.reader import NonSeekingReader, make_reader
+from rclpy.serialization import deserialize_message
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+from support.ros import BIN, NODE, NODE_TOPICS, WAIT_S, move_to, node_on_sim, ready, ros_environment
+
+from akd_ros.msg import LatchEvent
+from akd_ros.recorder import reindex
+from akd_ros.srv import ArmLatch
+
+REPO = Path(__file__).resolve().parents[1]
+# ROS_DOMAIN_IDs of this module, apart from test_messages' (100-200), test_node's (201-220) and test_node_params'
+# (221-230); each run below takes its own domain, RUN_DOMAIN_STEP apart.
+DOMAINS = range(60, 70)
+RUN_DOMAIN_STEP = 10
+COUNTS_PER_RAD = 2**20 / (2 * math.pi)
+CYCLE_TIME = 0.002
+BLACK_BOX_SECONDS = 1.0
+CYCLE, BLACK_BOX = NODE + "cycle", NODE + "black_box"
+COMMAND_TOPICS = {kind: f"{NODE}{kind}_command" for kind in ("position", "velocity", "torque")}
+RECORDED_TOPICS = {*NODE_TOPICS, *COMMAND_TOPICS.values(), CYCLE, BLACK_BOX}
+F439_CODE = 0x8611
+
+PARAMS = """\
+akd_node:
+  ros__parameters:
+    link: udp://127.0.0.1:{{port}}
+    cycle_time: {cycle_time}
+    mode: interpolated_position
+    joint_name: recorded_axis
+    joint_states_rate: 50.0
+    status_rate: 10.0
+    diagnostics_rate: 5.0
+    record.enabled: true
+    record.folder: {folder}
+    record.decimation: 1
+    record.black_box_seconds: {black_box_seconds}
+"""
+
+
+def params(folder: Path) -> str:
+    """The node's parameters file (a node_on_sim template) recording every cycle into `folder`."""
+    return PARAMS.format(cycle_time=CYCLE_TIME, folder=folder, black_box_seconds=BLACK_BOX_SECONDS)
+
+
+@pytest.fixture(scope="module")
+def ros_domain():
+    """A ROS_DOMAIN_ID of this module's own, discovery on localhost, Fast DDS; set for the module."""
+    with ros_environment(DOMAINS) as domain:
+        yield domain
+
+
+def stamp_ns(stamp) -> int:
+    """A builtin_interfaces/Time (rclpy's or rosbags') in nanoseconds."""
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
+@dataclass
+class FaultRun:
+    """A recorded run and what the client saw of it."""
+
+    bag: Path
+    received: dict
+    sent: dict
+    type_hashes: dict
+    """The RIHS01 hash each topic's live endpoint on the node offered (its publisher or its subscription)."""
+    edge_counts: int
+    """Where the simulated input of latch 1 rose."""
+    output: str
+
+
+@pytest.fixture(scope="module")
+def fault_run(ros_domain, tmp_path_factory) -> FaultRun:
+    """The node recording every cycle: enabled, moved across an input toggle so latch 1 fires, refused velocity
+    and torque commands, F439 injected, then SIGINT."""
+    folder = tmp_path_factory.mktemp("fault_run")
+    with node_on_sim(params(folder / "bags"), folder, ros_domain) as (sim, node, ros):
+        # Every topic matched before anything happens, so the client sees every event the node records.
+        hashes = {}
+        for topic in NODE_TOPICS:
+            ros.spin_until(lambda: ros.node.get_publishers_info_by_topic(topic), f"the node's publisher of {topic}")
+            hashes[topic] = str(ros.node.get_publishers_info_by_topic(topic)[0].topic_type_hash)
+        for topic in COMMAND_TOPICS.values():
+            ros.spin_until(lambda: ros.node.get_subscriptions_info_by_topic(topic),
+                           f"the node's subscription of {topic}")
+            hashes[topic] = str(ros.node.get_subscriptions_info_by_topic(topic)[0].topic_type_hash)
+
+        ready(ros, sim, "interpolated_position")
+        response = ros.call(ArmLatch, "arm_latch", ArmLatch.Request(channel=1, edge=LatchEvent.EDGE_RISING, arm=True))
+        assert response.success, response.message
+        here = ros.position()
+        # Between two of move_to's steps, where the axis passes rather than settles.
+        edge_counts = round((here + 0.51) * COUNTS_PER_RAD)
+        sim.command(f"toggles 0 1 {edge_counts}")
+        move_to(ros, here + 1.0)
+        ros.spin_until(lambda: ros.received[NODE + "latch"], "LatchEvent")
+        # Refused (interpolated_position is active) yet recorded: the bag keeps every command received.
+        ros.stream("velocity", [0.5] * 3)
+        ros.stream("torque", [0.1] * 2)
+        sim.command("fault 0 F439")
+        ros.spin_until(lambda: any(f.code == F439_CODE for f in ros.received[NODE + "fault"]), "DriveFault F439")
+        # Whatever else the fault brings (the emergency beside the Fault state) arrives too.
+        ros.spin_for(1.0)
+        node.process.send_signal(signal.SIGINT)
+        ros.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
+        assert node.process.returncode == 0, node.output()
+        ros.spin_for(0.5)
+        (bag,) = (folder / "bags").iterdir()
+        return FaultRun(bag, {topic: list(messages) for topic, messages in ros.received.items()}, dict(ros.sent),
+                        hashes, edge_counts, node.output())
+
+
+def rosbags_messages(bag: Path) -> tuple[dict, dict]:
+    """(topic: message count, topic: [(time_ns, message)]) of a bag through rosbags' AnyReader, which decodes with
+    the bag's own schemas."""
+    with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        messages: dict = {topic: [] for topic in counts}
+        for connection, time_ns, raw in reader.messages():
+            messages[connection.topic].append((time_ns, reader.deserialize(raw, connection.msgtype)))
+    return counts, messages
+
+
+def rclpy_class(type_name: str) -> type:
+    """The rclpy message class of a bag's type name, e.g. 'akd_ros/msg/LatchEvent'."""
+    package, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{package}.{kind}"), name)
+
+
+def mcap_messages(bag: Path) -> tuple[dict, dict]:
+    """(topic: channel metadata, topic: [(log_time, rclpy message)]) of a bag's MCAP files through mcap's reader,
+    each message decoded by rclpy's deserialize_message into the class its schema names."""
+    channels: dict = {}
+    messages: dict = {}
+    for path in sorted(bag.glob("*.mcap")):
+        with open(path, "rb") as stream:
+            reader = make_reader(stream)
+            assert reader.get_header().profile == "ros2"
+            for schema, channel, message in reader.iter_messages(log_time_order=False):
+                assert (schema.encoding, channel.message_encoding) == ("ros2msg", "cdr"), (schema, channel)
+                channels[channel.topic] = dict(channel.metadata)
+                decoded = deserialize_message(message.data, rclpy_class(schema.name))
+                messages.setdefault(channel.topic, []).append((message.log_time, decoded))
+    return channels, messages
+
+
+def metadata(bag: Path) -> dict:
+    """metadata.yaml's rosbag2_bagfile_information."""
+    return yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+
+
+def test_rosbags_reads_every_topic_with_the_counts_sent_and_received_live(fault_run):
+    counts, messages = rosbags_messages(fault_run.bag)
+    assert set(counts) == RECORDED_TOPICS, sorted(counts)
+    for kind, topic in COMMAND_TOPICS.items():
+        assert counts[topic] == fault_run.sent[kind], (topic, counts[topic], fault_run.sent)
+    assert [m.data for _, m in messages[COMMAND_TOPICS["velocity"]]] == [0.5] * 3
+    for topic in (NODE + "latch", NODE + "fault"):
+        assert counts[topic] == len(fault_run.received[topic]), (topic, counts[topic], fault_run.received[topic])
+    # Periodic topics: the bag has every message the client got (it may have more, from before the client matched).
+    for topic in ("/joint_states", "/diagnostics", NODE + "status"):
+        recorded = {time_ns for time_ns, _ in messages[topic]}
+        live = {stamp_ns(m.header.stamp) for m in fault_run.received[topic]}
+        assert live and live <= recorded, (topic, len(live - recorded))
+    # The axis may cross the edge more than once while it settles: every capture is an event.
+    latches = fault_run.received[NODE + "latch"]
+    assert latches and len(messages[NODE + "latch"]) == len(latches)
+    for latch, (time_ns, recorded) in zip(latches, messages[NODE + "latch"]):
+        assert time_ns == stamp_ns(latch.header.stamp) == stamp_ns(recorded.header.stamp)
+        assert (recorded.position, recorded.position_counts, recorded.channel, recorded.edge) \
+            == (latch.position, latch.position_counts, latch.channel, latch.edge)
+        assert abs(recorded.position_counts - fault_run.edge_counts) <= 1, (recorded, fault_run.edge_counts)
+    faults = [m for _, m in messages[NODE + "fault"] if m.code == F439_CODE]
+    assert faults and all("F439" in f.text for f in faults), faults
+    info = metadata(fault_run.bag)
+    assert {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]} == counts
+    assert info["message_count"] == sum(counts.values())
+
+
+def test_every_cycle_is_recorded_with_consecutive_cycle_numbers(fault_run):
+    _, messages = rosbags_messages(fault_run.bag)
+    cycles = [m.cycle for _, m in messages[CYCLE]]
+    assert len(cycles) > 1000, len(cycles)
+    assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), "a cycle is missing or repeated"
+    times = [time_ns for time_ns, _ in messages[CYCLE]]
+    assert all(a < b for a, b in zip(times, times[1:]))
+    assert all(time_ns == stamp_ns(m.stamp) for time_ns, m in messages[CYCLE])
+    # The recorded cycles are the drive's: Operation enabled (0x27 in the low bits) while moving, in mode 7.
+    assert any(m.statusword & 0x6F == 0x27 and m.mode_of_operation == 7 for _, m in messages[CYCLE])
+
+
+def test_the_black_box_ends_at_the_fault_and_holds_black_box_seconds_of_cycles(fault_run):
+    _, messages = rosbags_messages(fault_run.bag)
+    fault_ns = min(time_ns for time_ns, m in messages[NODE + "fault"] if m.code == F439_CODE)
+    # The cycles of the BLACK_BOX_SECONDS up to the fault, whether this fault or an earlier one (a lost frame is a
+    # fault too) wrote them: exactly those the cycle topic (every cycle) has in that window, the same samples.
+    window = (fault_ns - round(BLACK_BOX_SECONDS * 1e9), fault_ns)
+    dump = [(time_ns, m) for time_ns, m in messages[BLACK_BOX] if window[0] < time_ns <= window[1]]
+    cycles = [(time_ns, m) for time_ns, m in messages[CYCLE] if window[0] < time_ns <= window[1]]
+    assert len(dump) > 100, len(dump)
+    assert [m.cycle for _, m in dump] == [m.cycle for _, m in cycles], "the black box differs from the cycles"
+    assert dump == cycles
+    # The window was full: the cycle topic has cycles before it, and the next cycle after the black box's last is
+    # after the fault, so the black box ends at the fault's cycle or the one before.
+    assert messages[CYCLE][0][0] <= window[0]
+    following = [time_ns for time_ns, m in messages[CYCLE] if m.cycle == dump[-1][1].cycle + 1]
+    assert following and following[0] > fault_ns - 1_000_000, (following, fault_ns)
+    assert len({m.cycle for _, m in messages[BLACK_BOX]}) == len(messages[BLACK_BOX]), "a sample written twice"
+    # The black box shows the drive in Operation enabled before the fault.
+    assert dump[0][1].statusword & 0x6F == 0x27, hex(dump[0][1].statusword)
+
+
+def test_mcap_reads_the_same_messages_which_rclpy_decodes_equal_to_those_received(fault_run):
+    channels, messages = mcap_messages(fault_run.bag)
+    counts, _ = rosbags_messages(fault_run.bag)
+    assert set(channels) == RECORDED_TOPICS
+    assert {topic: len(m) for topic, m in messages.items()} == counts
+    for topic in (NODE + "latch", NODE + "fault"):
+        assert [m for _, m in messages[topic]] == fault_run.received[topic], topic
+    recorded = {time_ns: m for time_ns, m in messages["/joint_states"]}
+    for message in fault_run.received["/joint_states"]:
+        assert recorded[stamp_ns(message.header.stamp)] == message
+
+
+def test_type_hashes_agree_between_metadata_mcap_the_live_node_and_the_message_definitions(fault_run):
+    info = metadata(fault_run.bag)
+    channels, _ = mcap_messages(fault_run.bag)
+    store = get_typestore(Stores.ROS2_JAZZY)
+    for path in sorted((REPO / "msg").glob("*.msg")):
+        store.register(get_types_from_msg(path.read_text(), f"akd_ros/msg/{path.stem}"))
+    for entry in info["topics_with_message_count"]:
+        topic = entry["topic_metadata"]
+        name, type_hash = topic["name"], topic["type_description_hash"]
+        assert channels[name]["topic_type_hash"] == type_hash, name
+        assert yaml.safe_load(channels[name]["offered_qos_profiles"]) == topic["offered_qos_profiles"], name
+        # RIHS01 computed by rosbags from the .msg definitions, independently of the type support's own.
+        assert store.hash_rihs01(topic["type"]) == type_hash, name
+        if name in fault_run.type_hashes:
+            assert fault_run.type_hashes[name] == type_hash, name
+
+
+def test_akd_plot_draws_the_fault_run(fault_run, tmp_path):
+    picture = tmp_path / "fault.png"
+    done = subprocess.run([str(BIN / "akd-plot"), str(fault_run.bag), "-o", str(picture)], capture_output=True,
+                          text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert picture.stat().st_size > 20_000
+
+
+def test_a_bag_of_a_sigkilled_node_is_readable_up_to_its_last_chunk_and_reindexed(ros_domain, tmp_path):
+    with node_on_sim(params(tmp_path / "bags"), tmp_path, ros_domain + RUN_DOMAIN_STEP) as (sim, node, ros):
+        ready(ros, sim, "interpolated_position")
+        # Over a second of motion, so chunks have been closed (record flush interval: 1 s).
+        move_to(ros, ros.position() + 2.0, seconds=3.0)
+        node.process.kill()
+        node.process.wait(timeout=WAIT_S)
+    (bag,) = (tmp_path / "bags").iterdir()
+    (path,) = bag.glob("*.mcap")
+    counted = metadata(bag)["message_count"]
+
+    cycles, read = [], 0
+    with open(path, "rb") as stream:
+        try:
+            for schema, channel, message in NonSeekingReader(stream).iter_messages(log_time_order=False):
+                read += 1
+                if channel.topic == CYCLE:
+                    cycles.append(deserialize_message(message.data, rclpy_class(schema.name)).cycle)
+        except EndOfFile:  # the chunk being written at the kill
+            pass
+    assert len(cycles) > 500, len(cycles)
+    assert cycles == list(range(cycles[0], cycles[0] + len(cycles)))
+    # metadata.yaml, rewritten at each closed chunk, claims nothing the file does not hold.
+    assert 0 < counted <= read, (counted, read)
+
+    with pytest.raises(Exception):
+        with AnyReader([bag]) as reader:
+            list(reader.messages())
+    reindex(bag)
+    counts, messages = rosbags_messages(bag)
+    assert [m.cycle for _, m in messages[CYCLE]] == cycles
+    assert metadata(bag)["message_count"] == sum(counts.values()) == read
+
+
+def test_an_unwritable_folder_is_reported_once_and_the_node_runs_on(ros_domain, tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    folder = blocker / "bags"
+    with node_on_sim(params(folder), tmp_path, ros_domain + 2 * RUN_DOMAIN_STEP) as (sim, node, ros):
+        ready(ros, sim, "interpolated_position")
+        target = ros.position() + 1.0
+        move_to(ros, target)
+        assert abs(sim.state()["position"] - target * COUNTS_PER_RAD) < 1e-3 * COUNTS_PER_RAD
+        count = len(ros.received["/joint_states"])
+        ros.spin_for(1.0)
+        # 50 Hz: the range only tells publishing from not publishing.
+        assert len(ros.received["/joint_states"]) - count >= 25
+        assert node.process.poll() is None
+        output = node.output()
+    assert output.count(str(folder)) >= 1 and output.count("recording stopped") == 1, output
+    assert not folder.exists()
