@@ -220,8 +220,9 @@ class AkdNode(LifecycleNode):
         recorder, self._recorder = self._recorder, None
         if recorder is not None:
             stats = recorder.close()
-            self.get_logger().info(f"recorded {stats.bag}: {stats.written} messages, {stats.dropped} dropped, "
-                                   f"{stats.black_box_dumps} black box dumps, {stats.errors} errors")
+            self.get_logger().info(f"recorded {stats.bag or 'no bag'}: {stats.written} messages, "
+                                   f"{stats.dropped} dropped, {stats.black_box_dumps} black box dumps, "
+                                   f"{stats.errors} errors")
 
     # --- recording -------------------------------------------------------------------------------------------------
 

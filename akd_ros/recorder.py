@@ -21,7 +21,7 @@ node hands it messages, a writer thread of its own serialises them and does all 
   complete MCAP file with all schemas and channels.
 - :meth:`Recorder.write` never blocks and never raises for I/O: a full queue drops the message
   and counts it; a failed disk (unwritable folder, disk full) is reported once, through
-  ``on_error`` and the ``akd_ros.recorder`` logger, and counted in :attr:`Recorder.stats`;
+  ``on_error`` or else the ``akd_ros.recorder`` logger, and counted in :attr:`Recorder.stats`;
   recording stops there, and the bag stays readable up to the last closed chunk.
 """
 
@@ -472,7 +472,8 @@ class Recorder:
       black box still keeps them all).
     - ``black_box_seconds``: how much of the past :meth:`fault` writes to the black box topic.
     - ``queue_size``: messages waiting for the writer thread beyond which :meth:`write` drops.
-    - ``on_error``: called once, from the writer thread, with the text of the first I/O error.
+    - ``on_error``: called once, from the writer thread, with the text of the first I/O error
+      (without it, the error goes to the ``akd_ros.recorder`` logger).
 
     Bad arguments raise ValueError naming the allowed values; I/O never raises into the caller.
     """
@@ -730,9 +731,11 @@ class Recorder:
         if self._failed:
             return
         self._failed = True
-        LOG.error("%s", text)
+        # One report: a caller with on_error logs it its own way (the node through its ROS logger).
         if self._on_error is not None:
             self._on_error(text)
+        else:
+            LOG.error("%s", text)
         # What waits is lost with the failed disk: count it as dropped.
         with self._stats_lock:
             self.stats.dropped += sum(_messages_in(item) for item in self._queue)
