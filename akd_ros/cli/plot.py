@@ -1,9 +1,10 @@
 """akd-plot BAG -o FILE.png: one picture of a recorded run, to see what happened around a fault.
 
 BAG is a rosbag2 directory written by akd_ros (akd_ros.recorder). The picture has, against the
-time since the first cycle sample: position and command, following error, torque, each with the
-faults (red, with code, text and what the driver did) and latch captures (green, with channel,
-edge and position) drawn across; and a histogram of the cycle periods. Cycle samples come from
+time since the first cycle sample: position and command, following error, torque and the DS402
+state read from the statusword, each with the faults (red, with code, text and what the driver
+did) and latch captures (green, with channel, edge and position) drawn across; and a histogram of
+the cycle periods. Cycle samples come from
 the cycle topic and the black box (the seconds before each fault, shaded) alike. A bag whose
 recorder was killed is read after ``--reindex`` (akd_ros.recorder.reindex).
 """
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -23,6 +25,19 @@ DRIVE_FAULT = "akd_ros/msg/DriveFault"
 #: File types the picture can be written as, by extension.
 FORMATS = (".png", ".svg", ".pdf")
 _EDGES = {1: "rising", 2: "falling"}
+# DS402 states by statusword (AKD_FACTS §4): (mask, value, name), bottom to top of the state panel.
+_DS402_STATES = (
+    (0x4F, 0x00, "Not ready to switch on"),
+    (0x4F, 0x40, "Switch on disabled"),
+    (0x6F, 0x21, "Ready to switch on"),
+    (0x6F, 0x23, "Switched on"),
+    (0x6F, 0x27, "Operation enabled"),
+    (0x6F, 0x07, "Quick stop active"),
+    (0x4F, 0x0F, "Fault reaction active"),
+    (0x4F, 0x08, "Fault"),
+)
+# Legend lines are wrapped to this many characters, so long fault actions stay inside the picture.
+_LEGEND_WIDTH = 150
 
 
 @dataclass
@@ -102,6 +117,14 @@ def latch_label(msg) -> str:
     return f"latch {msg.channel} {_EDGES.get(msg.edge, f'edge {msg.edge}')} @ {msg.position:.4g}"
 
 
+def ds402_state(statusword: int) -> int:
+    """The index in _DS402_STATES of the state a statusword shows, -1 for none."""
+    for index, (mask, value, _) in enumerate(_DS402_STATES):
+        if statusword & mask == value:
+            return index
+    return -1
+
+
 def plot(run_data: Run, title: str, output: Path) -> None:
     """Draws the run into output (its extension picks the format)."""
     import matplotlib
@@ -122,12 +145,15 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     column = {name: np.array([getattr(s, name) for s in samples], dtype=float) for name in (
         "position", "command", "following_error", "torque", "period_ns")}
 
+    states = np.array([ds402_state(s.statusword) for s in samples])
+
     figure = plt.figure(figsize=(13, 11), layout="constrained")
-    grid = figure.add_gridspec(4, 1, height_ratios=[3, 2, 2, 2])
+    grid = figure.add_gridspec(5, 1, height_ratios=[3, 2, 2, 2, 2])
     ax_position = figure.add_subplot(grid[0])
     ax_error = figure.add_subplot(grid[1], sharex=ax_position)
     ax_torque = figure.add_subplot(grid[2], sharex=ax_position)
-    ax_period = figure.add_subplot(grid[3])
+    ax_state = figure.add_subplot(grid[3], sharex=ax_position)
+    ax_period = figure.add_subplot(grid[4])
     ax_position.set_title(title, fontsize=11)
 
     ax_position.plot(t, column["position"], lw=1.2, label="position")
@@ -137,22 +163,28 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     ax_error.set_ylabel("following error\n(rad or m)")
     ax_torque.plot(t, column["torque"], lw=1.0, color="tab:brown")
     ax_torque.set_ylabel("torque (N·m or N)")
-    ax_torque.set_xlabel(f"time since the first cycle sample (s); cycles {cycles[0]}..{cycles[-1]}")
+    ax_state.step(t, states, where="post", lw=1.5, color="tab:gray")
+    ax_state.set_yticks(range(-1, len(_DS402_STATES)),
+                        ["no valid state"] + [name for _, _, name in _DS402_STATES], fontsize=8)
+    ax_state.set_ylim(-1.5, len(_DS402_STATES) - 0.5)
+    ax_state.set_ylabel("DS402 state\n(statusword)")
+    ax_state.set_xlabel(f"time since the first cycle sample (s); cycles {cycles[0]}..{cycles[-1]}")
 
-    time_axes = (ax_position, ax_error, ax_torque)
+    time_axes = (ax_position, ax_error, ax_torque, ax_state)
     for first, last in run_data.black_box:
         for ax in time_axes:
             ax.axvspan(seconds(first), seconds(last), color="0.85", zorder=0,
                        label="black box (cycles before a fault)" if ax is ax_position else None)
     for number, (time_ns, msg) in enumerate(run_data.latches, 1):
-        _mark(time_axes, seconds(time_ns), f"L{number}", latch_label(msg), "tab:green", "--")
+        _mark(time_axes, seconds(time_ns), f"L{number}", latch_label(msg), "tab:green", "--", number)
     for number, (time_ns, msg) in enumerate(run_data.faults, 1):
-        _mark(time_axes, seconds(time_ns), f"F{number}", fault_label(msg), "tab:red", "-")
+        _mark(time_axes, seconds(time_ns), f"F{number}", fault_label(msg), "tab:red", "-", number)
     for ax in time_axes:
         ax.grid(True, alpha=0.3)
     # The events' full text in one legend above the panels, where it hides no curve.
-    figure.legend(*ax_position.get_legend_handles_labels(), loc="outside upper center",
-                  fontsize=9, ncols=2)
+    handles, labels = ax_position.get_legend_handles_labels()
+    labels = [textwrap.fill(label, _LEGEND_WIDTH, subsequent_indent="    ") for label in labels]
+    figure.legend(handles, labels, loc="outside upper left", fontsize=9, ncols=1)
 
     period_us = column["period_ns"][column["period_ns"] > 0] / 1e3
     if period_us.size:
@@ -174,12 +206,14 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     plt.close(figure)
 
 
-def _mark(axes, x: float, tag: str, label: str, color: str, style: str) -> None:
+def _mark(axes, x: float, tag: str, label: str, color: str, style: str, number: int) -> None:
     for ax in axes:
         legend = f"{tag} at {x:.3f} s: {label}" if ax is axes[0] else None
         ax.axvline(x, color=color, ls=style, lw=1.5, label=legend)
-    axes[0].annotate(tag, xy=(x, 1.0), xycoords=("data", "axes fraction"), xytext=(3, -12),
-                     textcoords="offset points", fontsize=9, color=color, fontweight="bold")
+    # Tags step down, so events close in time (an emergency and the Fault state) stay readable.
+    axes[0].annotate(tag, xy=(x, 1.0), xycoords=("data", "axes fraction"),
+                     xytext=(3, -12 * (1 + (number - 1) % 4)), textcoords="offset points",
+                     fontsize=9, color=color, fontweight="bold")
 
 
 def _output(text: str) -> Path:
