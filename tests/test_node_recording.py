@@ -13,6 +13,7 @@ import importlib
 import math
 import signal
 import subprocess
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +27,6 @@ from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 from support.ros import BIN, NODE, NODE_TOPICS, WAIT_S, move_to, node_on_sim, ready, ros_environment
 
 from akd_ros.msg import LatchEvent
-from akd_ros.recorder import reindex
 from akd_ros.srv import ArmLatch
 
 REPO = Path(__file__).resolve().parents[1]
@@ -297,10 +297,15 @@ def test_a_bag_of_a_sigkilled_node_is_readable_up_to_its_last_chunk_and_reindexe
     with pytest.raises(Exception):
         with AnyReader([bag]) as reader:
             list(reader.messages())
-    reindex(bag)
+    # The README's way (section Recording), then the picture of what was saved.
+    subprocess.run([sys.executable, "-c", f"from akd_ros.recorder import reindex; reindex({str(bag)!r})"],
+                   check=True, timeout=120)
     counts, messages = rosbags_messages(bag)
     assert [m.cycle for _, m in messages[CYCLE]] == cycles
     assert metadata(bag)["message_count"] == sum(counts.values()) == read
+    picture = tmp_path / "killed.png"
+    subprocess.run([str(BIN / "akd-plot"), str(bag), "-o", str(picture)], check=True, timeout=120)
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_an_unwritable_folder_is_reported_once_and_the_node_runs_on(ros_domain, tmp_path):
