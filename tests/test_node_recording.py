@@ -196,6 +196,9 @@ def test_rosbags_reads_every_topic_with_the_counts_sent_and_received_live(fault_
     info = metadata(fault_run.bag)
     assert {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]} == counts
     assert info["message_count"] == sum(counts.values())
+    # The node's own account at the close: everything handed to the recorder is in the bag.
+    assert (f"recorded {fault_run.bag}: {sum(counts.values())} messages, 0 dropped, {counts[NODE + 'fault']} black "
+            "box dumps, 0 errors") in fault_run.output
 
 
 def test_every_cycle_is_recorded_with_consecutive_cycle_numbers(fault_run):
