@@ -19,9 +19,10 @@ Recording (`record.enabled`): from configure to cleanup an `akd_ros.recorder.Rec
 message published (at its stamp), every command received (refused ones too, at their arrival) and every cycle as
 a CycleSample on ~/cycle (every `record.decimation`-th), and writes its black box (~/black_box) at each fault.
 
-Threads: a MultiThreadedExecutor runs two callback groups. The periodic group (publishing timers, command
-subscriptions) never waits on the drive; the request group (services, the supervisor that handles command time-outs
-and automatic fault resets) may wait up to the Axis's time-outs without stopping the periodic topics. `_lock` guards
+Threads: a MultiThreadedExecutor runs three callback groups. The periodic group (publishing timers) and the command
+group (the command subscriptions, queued 100 deep so a stall of the Python side delays commands rather than drops
+them) never wait on the drive; the request group (services, the supervisor that handles command time-outs and
+automatic fault resets) may wait up to the Axis's time-outs without stopping the periodic topics. `_lock` guards
 the Axis's Python-side state (position unwrapping, event queues, the last command) between them.
 """
 
@@ -102,6 +103,10 @@ class AkdNode(LifecycleNode):
         self._recorder: Recorder | None = None
         periodic = MutuallyExclusiveCallbackGroup()
         requests = MutuallyExclusiveCallbackGroup()
+        # Commands have a group of their own, so a slow timer callback (a batch of cycles to record) does not hold
+        # them up, and a deep queue, so a stall of the node's Python side delays commands instead of dropping them.
+        commands = MutuallyExclusiveCallbackGroup()
+        command_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         events = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self._joint_states = self.create_lifecycle_publisher(JointState, "/joint_states", reliable)
@@ -117,12 +122,12 @@ class AkdNode(LifecycleNode):
         self.create_timer(1.0 / s.diagnostics_rate, self._publish_diagnostics, periodic)
         self.create_timer(_EVENT_POLL_S, self._publish_events, periodic)
         self.create_timer(_SUPERVISOR_PERIOD_S, self._supervise, requests)
-        self._qos = {"reliable": reliable, "events": events}
+        self._qos = {"reliable": reliable, "events": events, "commands": command_qos}
         self._command_topics = {}
         for kind in ("position", "velocity", "torque"):
             subscription = self.create_subscription(Float64, f"~/{kind}_command",
-                                                    lambda m, k=kind: self._on_command(k, m), reliable,
-                                                    callback_group=periodic)
+                                                    lambda m, k=kind: self._on_command(k, m), command_qos,
+                                                    callback_group=commands)
             self._command_topics[kind] = subscription.topic_name
         for name, handler in (("enable", self._enable), ("disable", self._disable),
                               ("reset_fault", self._reset_fault), ("quick_stop", self._quick_stop)):
@@ -239,7 +244,7 @@ class AkdNode(LifecycleNode):
                                          (self._latch, LatchEvent, "events"), (self._fault, DriveFault, "events")):
                 recorder.add_topic(publisher.topic_name, kind, self._qos[qos])
             for topic in self._command_topics.values():
-                recorder.add_topic(topic, Float64, self._qos["reliable"])
+                recorder.add_topic(topic, Float64, self._qos["commands"])
             recorder.add_cycle_topic(self.resolve_topic_name("~/cycle"), CycleSample, self._qos["reliable"])
         except ValueError:
             recorder.close()
