@@ -14,15 +14,15 @@ import signal
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_srvs.srv import Trigger
-from support.ros import NODE, WAIT_S, Client, NodeProcess, Sim, move_to, node_on_sim, ready, ros_environment, stop
+from support.ros import (COUNTS_PER_RAD, NODE, WAIT_S, Client, NodeProcess, Sim, latch_across, move_to, node_on_sim,
+                         ready, ros_environment, stop)
 
 from akd_ros.msg import LatchEvent
-from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
+from akd_ros.srv import SdoRead, SdoWrite, SetMode
 
 # ROS_DOMAIN_IDs of this module; the second node's are SECOND_DOMAIN_OFFSET above. Other modules take other ranges.
 DOMAINS = range(201, 211)
 JOINT = "test_axis"
-COUNTS_PER_RAD = 2**20 / (2 * math.pi)
 JOINT_STATES_RATE = 50.0
 MAX_POSITION = 1e4
 
@@ -158,13 +158,7 @@ def test_an_injected_fault_shows_on_fault_and_diagnostics_and_reset_clears_it(ro
 
 def test_a_latch_event_arrives_after_the_input_edge(ros, sim):
     ready(ros, sim, "interpolated_position")
-    response = ros.call(ArmLatch, "arm_latch", ArmLatch.Request(channel=1, edge=LatchEvent.EDGE_RISING, arm=True))
-    assert response.success, response.message
-    here = ros.position()
-    edge_counts = round((here + 0.5) * COUNTS_PER_RAD)
-    sim.command(f"toggles 0 1 {edge_counts}")
-    move_to(ros, here + 1.0)
-    ros.spin_until(lambda: ros.received[NODE + "latch"], "LatchEvent")
+    edge_counts = latch_across(ros, sim, 0.5)
     latch = ros.received[NODE + "latch"][-1]
     assert (latch.joint, latch.channel, latch.edge) == (JOINT, 1, LatchEvent.EDGE_RISING)
     assert abs(latch.position_counts - edge_counts) <= 1, (latch.position_counts, edge_counts)

@@ -10,7 +10,6 @@ every wait is bounded and both processes are ended in teardown.
 from __future__ import annotations
 
 import importlib
-import math
 import signal
 import subprocess
 import sys
@@ -24,17 +23,14 @@ from mcap.reader import NonSeekingReader, make_reader
 from rclpy.serialization import deserialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-from support.ros import BIN, NODE, NODE_TOPICS, WAIT_S, move_to, node_on_sim, ready, ros_environment
-
-from akd_ros.msg import LatchEvent
-from akd_ros.srv import ArmLatch
+from support.ros import (BIN, COUNTS_PER_RAD, NODE, NODE_TOPICS, WAIT_S, latch_across, move_to, node_on_sim, ready,
+                         ros_environment)
 
 REPO = Path(__file__).resolve().parents[1]
 # ROS_DOMAIN_IDs of this module, apart from test_messages' (100-200), test_node's (201-220) and test_node_params'
 # (221-230); each run below takes its own domain, RUN_DOMAIN_STEP apart.
 DOMAINS = range(60, 70)
 RUN_DOMAIN_STEP = 10
-COUNTS_PER_RAD = 2**20 / (2 * math.pi)
 CYCLE_TIME = 0.002
 BLACK_BOX_SECONDS = 1.0
 CYCLE, BLACK_BOX = NODE + "cycle", NODE + "black_box"
@@ -107,14 +103,8 @@ def fault_run(ros_domain, tmp_path_factory) -> FaultRun:
             hashes[topic] = str(ros.node.get_subscriptions_info_by_topic(topic)[0].topic_type_hash)
 
         ready(ros, sim, "interpolated_position")
-        response = ros.call(ArmLatch, "arm_latch", ArmLatch.Request(channel=1, edge=LatchEvent.EDGE_RISING, arm=True))
-        assert response.success, response.message
-        here = ros.position()
         # Between two of move_to's steps, where the axis passes rather than settles.
-        edge_counts = round((here + 0.51) * COUNTS_PER_RAD)
-        sim.command(f"toggles 0 1 {edge_counts}")
-        move_to(ros, here + 1.0)
-        ros.spin_until(lambda: ros.received[NODE + "latch"], "LatchEvent")
+        edge_counts = latch_across(ros, sim, 0.51)
         # Refused (interpolated_position is active) yet recorded: the bag keeps every command received.
         ros.stream("velocity", [0.5] * 3)
         ros.stream("torque", [0.1] * 2)

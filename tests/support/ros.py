@@ -7,6 +7,7 @@ over rmw_fastrtps_cpp in an rclpy.Context of its own, so several can live in one
 from __future__ import annotations
 
 import json
+import math
 import os
 import queue
 import random
@@ -28,7 +29,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
-from akd_ros.srv import SetMode
+from akd_ros.srv import ArmLatch, SetMode
 
 BIN = Path(sys.executable).parent
 RMW = "rmw_fastrtps_cpp"
@@ -220,6 +221,23 @@ def ready(ros: Client, sim: Sim, mode: str) -> None:
     response = ros.call(SetMode, "set_mode", SetMode.Request(mode=mode))
     assert response.success, response.message
     ros.trigger("enable")
+
+
+COUNTS_PER_RAD = 2**20 / (2 * math.pi)
+"""The virtual AKD's counts per radian with the node's default units."""
+
+
+def latch_across(ros: Client, sim: Sim, offset: float) -> int:
+    """Arms latch 1 on the rising edge, puts the simulator's input 1 edge `offset` rad ahead of the axis and moves 1 rad
+    across it; gives the edge in counts once the LatchEvent arrived."""
+    response = ros.call(ArmLatch, "arm_latch", ArmLatch.Request(channel=1, edge=LatchEvent.EDGE_RISING, arm=True))
+    assert response.success, response.message
+    here = ros.position()
+    edge_counts = round((here + offset) * COUNTS_PER_RAD)
+    sim.command(f"toggles 0 1 {edge_counts}")
+    move_to(ros, here + 1.0)
+    ros.spin_until(lambda: ros.received[NODE + "latch"], "LatchEvent")
+    return edge_counts
 
 
 def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
