@@ -94,19 +94,20 @@ def test_a_mode_change_holds_the_axis_where_it_is(axis: Axis) -> None:
 def test_interpolated_position_tracks_a_moving_target(axis: Axis) -> None:
     axis.enable()
     start = axis.state().position
-    # A ramp at 2 rad/s, sent every millisecond from Python, for 0.5 s.
-    errors = []
+    # A ramp at 2 rad/s, sent every millisecond from Python, for 0.5 s; the drive's following error of every cycle
+    # comes from the per-cycle records.
     t0 = time.monotonic()
+    axis.samples()
     while (t := time.monotonic() - t0) < 0.5:
         axis.command_position(start + 2.0 * t)
-        s = axis.state()
-        if t > 0.1:
-            errors.append(abs(s.following_error))
         time.sleep(0.001)
-    # The drive model lags about 0.005 rad at 2 rad/s; commands sent from Python arrive with its scheduling jitter
-    # (a command 5 ms late is 0.01 rad behind). 0.02 rad (about 3300 counts) bounds both; a drive that did not
-    # track would be off by the whole ramp (1 rad).
-    assert max(errors) < 0.02, max(errors)
+    errors = sorted(abs(e) * COUNT for e in axis.samples()["following_error"][100:])
+    # The drive model lags about 0.005 rad at 2 rad/s. Commands sent from Python arrive with its scheduling jitter:
+    # a command 5 ms late is 0.01 rad behind, and a virtual machine can hold Python back for tens of ms now and then.
+    # So 99 % of the cycles within 0.01 rad (about 1700 counts) and all within 0.1 rad; a drive that did not track
+    # would be off by the whole ramp (1 rad).
+    assert errors[int(len(errors) * 0.99)] < 0.01, errors[-20:]
+    assert errors[-1] < 0.1, errors[-20:]
     final = start + 2.0 * (time.monotonic() - t0)
     axis.command_position(final)
     end = settled(axis)
