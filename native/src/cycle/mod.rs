@@ -339,12 +339,6 @@ impl CycleThread {
         Ok(())
     }
 
-    /// The latch edges armed on the drive at `position`.
-    pub fn armed_latches(&self, position: u16) -> Result<u8> {
-        self.sequenced(position)?;
-        Ok(self.shared.latches[position as usize].armed())
-    }
-
     /// Latch and fault events since the last call, oldest first.
     pub fn events(&self) -> Vec<Event> {
         self.shared.events.drain()
