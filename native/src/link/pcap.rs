@@ -2,8 +2,8 @@
 //!
 //! [`Recorder`] wraps any [`Link`]. Links carry bare EtherCAT payloads, so each frame is written
 //! as the Ethernet frame it is (or would be) on the wire: broadcast, from
-//! [`MASTER_MAC`](super::raw::MASTER_MAC) for requests and from the same address with
-//! [`RETURNED_MAC_BIT`](super::raw::RETURNED_MAC_BIT) set for replies, as a real ESC marks the
+//! [`super::raw::MASTER_MAC`] for requests and from the same address with
+//! [`super::raw::RETURNED_MAC_BIT`] set for replies, as a real ESC marks the
 //! frames it returns, EtherType 0x88A4, padded to the Ethernet minimum. Timestamps are wall-clock
 //! nanoseconds (pcapng `if_tsresol` 9) taken just before the request leaves and just after the
 //! reply is back.

@@ -1,4 +1,4 @@
-//! Serving a [`VirtualBus`] to a master in another process: EtherCAT over UDP (the payload is
+//! Serving a [`VirtualBus`](crate::sim::VirtualBus) to a master in another process: EtherCAT over UDP (the payload is
 //! the UDP datagram) or raw Ethernet on a network interface (e.g. one end of a veth pair).
 //!
 //! Each request is processed at the monotonic time since the server started and sent back at

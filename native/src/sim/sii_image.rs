@@ -2,7 +2,7 @@
 //! with firmware 01-20-00-003, written out as what it says (identity, mailbox, names, sync
 //! managers, PDOs, DC modes) and encoded with [`sii::Builder`](crate::sii::Builder).
 //!
-//! The fixed PDOs come from [`pdo::FIXED`](crate::pdo::FIXED), so the image and the mapping
+//! The fixed PDOs come from [`crate::pdo::FIXED`], so the image and the mapping
 //! rules cannot drift apart; this file adds only what the SII holds besides them: entry names
 //! and data types, default sync-manager assignment, and the flexible PDOs' content at the time
 //! the image was read.
