@@ -116,7 +116,6 @@ impl Master {
     /// `timeout` for SM0 to be free. Gives the message the next counter value.
     pub fn mailbox_send(&mut self, position: u16, message: &mut [u8], timeout: Duration) -> Result<()> {
         let mb = self.mailbox(position)?;
-        let station = self.station(position)?;
         if message.len() > mb.out_len as usize {
             return Err(Error::Mailbox(format!(
                 "message of {} bytes does not fit slave {position}'s {}-byte mailbox",
@@ -124,22 +123,14 @@ impl Master {
                 mb.out_len
             )));
         }
-        let counter = codec::next_counter(mb.counter);
-        if let Some(m) = self.slave_mut(position)?.mailbox.as_mut() {
-            m.counter = counter;
-        }
+        let counter = self.mailbox_take_counter(position)?;
         message[5] = (message[5] & 0x0F) | (counter << 4);
         let mut buffer = vec![0u8; mb.out_len as usize];
         buffer[..message.len()].copy_from_slice(message);
         let deadline = Instant::now() + timeout;
         loop {
-            // Writing the whole buffer fills SM0; WKC 0 means it is still full with an earlier
-            // message. A frame lost on the way is written again with the same counter, which
-            // the slave takes as a repeat if the first one did arrive.
-            match self.datagram(Command::Fpwr, station, mb.out_start, &mut buffer) {
-                Ok(1) => return Ok(()),
-                Ok(_) | Err(Error::Timeout { .. }) => {}
-                Err(e) => return Err(e),
+            if self.mailbox_try_send(position, &mut buffer)? {
+                return Ok(());
             }
             if Instant::now() >= deadline {
                 return Err(Error::Timeout {
@@ -178,6 +169,9 @@ impl Master {
     /// SM0 still held an earlier message or the frame was lost (try again with the same bytes).
     pub fn mailbox_try_send(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
         let (station, out_start) = self.mailbox_address(position, |mb| mb.out_start)?;
+        // Writing the whole buffer fills SM0; WKC 0 means it is still full with an earlier
+        // message. A frame lost on the way is written again with the same counter, which the
+        // slave takes as a repeat if the first one did arrive.
         match self.datagram(Command::Fpwr, station, out_start, buffer) {
             Ok(wkc) => Ok(wkc == 1),
             Err(Error::Timeout { .. }) => Ok(false),
@@ -194,15 +188,23 @@ impl Master {
         match self.datagram(Command::Fprd, station, in_start, buffer) {
             Ok(wkc) => Ok(wkc == 1),
             Err(Error::Timeout { .. }) => {
-                self.stats.mailbox_repeats += 1;
-                let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
-                let mut activate = [0u8; 1];
-                self.datagram(Command::Fprd, station, activate_at, &mut activate)?;
-                self.datagram(Command::Fpwr, station, activate_at, &mut [activate[0] ^ 0x02])?;
+                self.toggle_repeat_request(station)?;
                 Ok(false)
             }
             Err(e) => Err(e),
         }
+    }
+
+    /// Toggles SM1's repeat request (activate bit 1) and counts it; gives the activate byte
+    /// written, whose bit 1 the slave's acknowledge (PDI control bit 1) will match.
+    fn toggle_repeat_request(&mut self, station: u16) -> Result<u8> {
+        self.stats.mailbox_repeats += 1;
+        let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
+        let mut activate = [0u8; 1];
+        self.read_registers(station, activate_at, &mut activate)?;
+        let request = activate[0] ^ 0x02;
+        self.write_registers(station, activate_at, &[request])?;
+        Ok(request)
     }
 
     /// The station address and one address of the slave's mailbox, without copying it.
@@ -274,12 +276,7 @@ impl Master {
     /// Asks the slave to put its last reply into SM1 again after the frame reading it was lost:
     /// toggle SM1's repeat request and wait for the slave's acknowledge.
     fn repeat_request(&mut self, position: u16, station: u16) -> Result<()> {
-        self.stats.mailbox_repeats += 1;
-        let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
-        let mut activate = [0u8; 1];
-        self.read_registers(station, activate_at, &mut activate)?;
-        let request = activate[0] ^ 0x02;
-        self.write_registers(station, activate_at, &[request])?;
+        let request = self.toggle_repeat_request(station)?;
         let deadline = Instant::now() + self.timeout.max(Duration::from_millis(100));
         loop {
             let mut pdi = [0u8; 1];
