@@ -19,6 +19,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 
+use crate::cycle::image::{i32_at, u16_at};
 use crate::ds402::{self, controlword as cw, statusword as sw, State};
 use crate::error::{Error, Result};
 use crate::pdo::{self, PdoEntry};
@@ -469,11 +470,10 @@ impl Drive {
     /// takes a request from `shared`, decides what to write and publishes the status.
     pub fn observe(&mut self, shared: &Shared, inputs: &[u8], now_ns: u64, timeout_ns: u64) {
         let o = self.offsets;
-        let i32_at = |at: usize| i32::from_le_bytes([inputs[at], inputs[at + 1], inputs[at + 2], inputs[at + 3]]);
-        let statusword = u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]);
+        let statusword = u16_at(inputs, o.statusword);
         let seen = Observed {
             statusword,
-            actual: o.actual.map(i32_at),
+            actual: o.actual.map(|at| i32_at(inputs, at)),
             now_ns,
             setpoint_writes: shared.setpoint_writes.load(Ordering::Acquire),
             rehold: shared.rehold.swap(0, Ordering::AcqRel).checked_sub(1),

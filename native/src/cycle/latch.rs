@@ -16,6 +16,7 @@
 use std::sync::atomic::{AtomicU8, Ordering};
 
 use crate::cycle::events::Edge;
+use crate::cycle::image::{i32_at, u16_at};
 use crate::pdo::{self, PdoEntry};
 
 /// The four edges' bits.
@@ -122,14 +123,6 @@ pub struct Latch {
     rearming: u8,
     /// The value selected for 0x20A6/0x20A7 (1..=4), 0 for none.
     select: u8,
-}
-
-fn u16_at(image: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([image[at], image[at + 1]])
-}
-
-fn i32_at(image: &[u8], at: usize) -> i32 {
-    i32::from_le_bytes([image[at], image[at + 1], image[at + 2], image[at + 3]])
 }
 
 impl Latch {

@@ -18,6 +18,7 @@ use crate::cycle::events::{Action, Event, Events, FaultSource};
 use crate::error::{Error, Result};
 use crate::mailbox::{MailboxHeader, MailboxType};
 use crate::master::cyclic::SlaveWatch;
+use crate::master::mailbox::Mailbox;
 use crate::master::Master;
 
 /// Largest value a transfer beside the cycle carries.
@@ -144,18 +145,12 @@ impl SdoSlot {
     }
 }
 
-/// A drive fault waiting for its error code: the event as it will be reported.
-#[derive(Clone, Copy, Debug)]
-pub struct PendingFault {
-    /// The fault event, its code still 0.
-    pub event: Event,
-}
-
 /// Where a transfer came from.
 #[derive(Clone, Copy, Debug)]
 enum Origin {
     Caller,
-    ErrorCode(PendingFault),
+    /// A drive fault's event, reported once its code is in.
+    ErrorCode(Event),
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -181,8 +176,8 @@ pub struct MailboxService {
     send: Vec<u8>,
     receive: Vec<u8>,
     phase: Phase,
-    /// Drive faults waiting for 0x603F, one per slave.
-    pending: Vec<Option<PendingFault>>,
+    /// Drive fault events waiting for their code from 0x603F, one per slave.
+    pending: Vec<Option<Event>>,
     /// Where the search for a full SM1 starts next, so every slave gets its turn.
     next_slave: usize,
     index: u16,
@@ -192,7 +187,7 @@ pub struct MailboxService {
 impl MailboxService {
     /// Buffers for the largest mailbox of `master`'s slaves, allocated before the cycle.
     pub fn new(master: &Master) -> Self {
-        let largest = |f: fn(&crate::master::mailbox::Mailbox) -> u16| {
+        let largest = |f: fn(&Mailbox) -> u16| {
             master.slaves().iter().filter_map(|s| s.mailbox.as_ref().map(f)).max().unwrap_or(0) as usize
         };
         MailboxService {
@@ -206,13 +201,13 @@ impl MailboxService {
         }
     }
 
-    /// Queues the read of 0x603F for a drive fault; the event goes out when the code is in
-    /// (or at once, code 0, for a slave without CoE).
-    pub fn read_error_code(&mut self, master: &Master, slave: u16, fault: PendingFault, events: &Events) {
-        let has_coe = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).is_some_and(|m| m.has_coe());
+    /// Queues the read of 0x603F for a drive fault's `event`; the event goes out when the code
+    /// is in (or at once, code 0, for a slave without CoE).
+    pub fn read_error_code(&mut self, master: &Master, slave: u16, event: Event, events: &Events) {
+        let has_coe = mailbox_of(master, slave).is_some_and(|m| m.has_coe());
         match self.pending.get_mut(slave as usize) {
-            Some(slot) if has_coe => *slot = Some(fault),
-            _ => events.push(fault.event),
+            Some(slot) if has_coe => *slot = Some(event),
+            _ => events.push(event),
         }
     }
 
@@ -239,7 +234,7 @@ impl MailboxService {
             self.start(master, slot, events, now_ns + TRANSFER_TIMEOUT.as_nanos() as u64);
         }
         if let Phase::Sending { slave, origin, deadline_ns } = self.phase {
-            let len = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).map_or(0, |m| m.out_len as usize);
+            let len = mailbox_of(master, slave).map_or(0, |m| m.out_len as usize);
             match master.mailbox_try_send(slave, &mut self.send[..len]) {
                 Ok(true) => {
                     let counter = self.send[5] >> 4;
@@ -265,8 +260,7 @@ impl MailboxService {
         } else {
             return;
         };
-        let out_len = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).map(|m| m.out_len as usize);
-        let Some(out_len) = out_len else {
+        let Some(out_len) = mailbox_of(master, slave).map(|m| m.out_len as usize) else {
             return self.finish(slot, events, origin, Outcome::NoMailbox, 0, &[]);
         };
         if write_len > out_len - SDO_OFFSET - SDO_LEN {
@@ -313,7 +307,7 @@ impl MailboxService {
         let SlaveWatch { al_status, .. } = watch[slave];
         self.next_slave = (slave + 1) % count;
         let slave = slave as u16;
-        let len = master.slave(slave).ok().and_then(|s| s.mailbox.as_ref()).map_or(0, |m| m.in_len as usize);
+        let len = mailbox_of(master, slave).map_or(0, |m| m.in_len as usize);
         if !matches!(master.mailbox_try_read(slave, &mut self.receive[..len]), Ok(true)) {
             return true;
         }
@@ -388,8 +382,11 @@ impl MailboxService {
     fn finish(&mut self, slot: &SdoSlot, events: &Events, origin: Origin, outcome: Outcome, code: u32, value: &[u8]) {
         self.phase = Phase::Idle;
         match origin {
-            Origin::ErrorCode(fault) => {
-                events.push(with_code(fault.event, if outcome == Outcome::Done { error_code(value) } else { 0 }))
+            Origin::ErrorCode(mut event) => {
+                if let (Event::Fault { code, .. }, Outcome::Done, [low, high, ..]) = (&mut event, outcome, value) {
+                    *code = u16::from_le_bytes([*low, *high]);
+                }
+                events.push(event)
             }
             Origin::Caller => {
                 for (cell, b) in slot.data.iter().zip(value) {
@@ -404,18 +401,7 @@ impl MailboxService {
     }
 }
 
-fn error_code(value: &[u8]) -> u16 {
-    match value {
-        [a, b, ..] => u16::from_le_bytes([*a, *b]),
-        _ => 0,
-    }
-}
-
-fn with_code(event: Event, code: u16) -> Event {
-    match event {
-        Event::Fault { cycle, time_ns, slave, source, statusword, al_status, al_status_code, action, .. } => {
-            Event::Fault { cycle, time_ns, slave, source, code, statusword, al_status, al_status_code, action }
-        }
-        other => other,
-    }
+/// The mailbox of the slave at `slave`, if it has one.
+fn mailbox_of(master: &Master, slave: u16) -> Option<&Mailbox> {
+    master.slave(slave).ok()?.mailbox.as_ref()
 }

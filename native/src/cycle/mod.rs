@@ -32,6 +32,7 @@ pub mod ds402;
 pub mod events;
 pub mod exchange;
 pub mod faults;
+pub mod image;
 pub mod latch;
 pub mod mailbox;
 pub mod ring;
@@ -638,13 +639,7 @@ fn sample(
     // The position target of the mode in force: interpolated position (7) takes 0x60C1:01.
     let [target_position, ip_setpoint] = o.targets;
     let position_target = if mode == 7 { ip_setpoint.or(target_position) } else { target_position.or(ip_setpoint) };
-    let i32_in = |at: Option<usize>| {
-        at.map_or(0, |a| i32::from_le_bytes([inputs[a], inputs[a + 1], inputs[a + 2], inputs[a + 3]]))
-    };
-    let i32_out = |at: Option<usize>| {
-        at.map_or(0, |a| i32::from_le_bytes([outputs[a], outputs[a + 1], outputs[a + 2], outputs[a + 3]]))
-    };
-    let i16_at = |image: &[u8], at: Option<usize>| at.map_or(0, |a| i16::from_le_bytes([image[a], image[a + 1]]));
+    let i32_in = |at: Option<usize>| at.map_or(0, |a| image::i32_at(inputs, a));
     Sample {
         cycle,
         time_ns,
@@ -653,15 +648,15 @@ fn sample(
         exchange_ns,
         wkc,
         fresh,
-        statusword: u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]),
+        statusword: image::u16_at(inputs, o.statusword),
         mode,
         position: i32_in(o.actual),
         velocity: i32_in(o.velocity_actual),
-        torque: i16_at(inputs, o.torque_actual),
+        torque: o.torque_actual.map_or(0, |a| image::i16_at(inputs, a)),
         following_error: i32_in(o.following_error),
-        target_position: i32_out(position_target),
-        target_velocity: i32_out(o.velocity_target),
-        target_torque: i16_at(outputs, o.torque_target),
+        target_position: position_target.map_or(0, |a| image::i32_at(outputs, a)),
+        target_velocity: o.velocity_target.map_or(0, |a| image::i32_at(outputs, a)),
+        target_torque: o.torque_target.map_or(0, |a| image::i16_at(outputs, a)),
     }
 }
 
@@ -682,12 +677,11 @@ fn supervise(
     for d in drives.iter_mut() {
         let slave = d.position;
         let o = d.drive.offsets;
-        let statusword =
-            (exchange == Exchange::Good).then(|| u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]));
+        let statusword = (exchange == Exchange::Good).then(|| image::u16_at(inputs, o.statusword));
         let al_status = watch.and_then(|w| w.get(slave as usize)).filter(|w| w.answered).map(|w| w.al_status);
         let seen = d.watch.observe(slave, statusword, al_status, d.drive.sequenced(), now);
         if let Some(event) = seen.fault {
-            mailbox.read_error_code(master, slave, mailbox::PendingFault { event }, &shared.events);
+            mailbox.read_error_code(master, slave, event, &shared.events);
         }
         if let Some(event) = seen.left_op {
             shared.events.push(event);
