@@ -245,7 +245,6 @@ class Axis:
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
         self._unwrapped: int | None = None
-        self._last_raw: int | None = None
         self._commanded: dict[str, float] = {}
 
     # --- life cycle ---------------------------------------------------------------------------------------------
@@ -311,13 +310,8 @@ class Axis:
 
     def quick_stop(self, timeout: float = 5.0) -> None:
         """Brakes with the quick-stop deceleration and holds in Quick stop active (Switch on disabled if off)."""
-        cycle = self._running()
-        cycle.quick_stop(self.slave)
-        deadline = time.monotonic() + timeout
-        while (status := cycle.drive_status(self.slave))["state"] not in ("Quick stop active", "Switch on disabled"):
-            if status["progress"] == "stuck" or time.monotonic() > deadline:
-                raise TimeoutError(f"quick stop of drive {self.slave}: {status['reason'] or status['state']}")
-            time.sleep(0.001)
+        self._running().quick_stop(self.slave)
+        self._wait_for(lambda s: s["state"] in ("Quick stop active", "Switch on disabled"), "the quick stop", timeout)
 
     def reset_fault(self, timeout: float = 5.0) -> None:
         """Resets a fault by a rising edge of controlword bit 7 and waits for Switch on disabled. Raises
@@ -360,14 +354,17 @@ class Axis:
             self._wait_for(lambda s: s["mode_display"] == MODES[mode], f"the drive to show mode {mode} (0x6061)")
 
     def _wait_for(self, done, what: str, timeout: float = 1.0) -> None:
-        """Polls the drive's status until `done(status)`; TimeoutError naming `what` and the drive's state."""
+        """Polls the drive's status until `done(status)`; TimeoutError naming `what`, the drive's state and, for a
+        request the sequencer found stuck (which ends the wait at once), why."""
         cycle = self._running()
         deadline = time.monotonic() + timeout
         while not done(status := cycle.drive_status(self.slave)):
-            if time.monotonic() > deadline:
+            stuck = status["progress"] == "stuck"
+            if stuck or time.monotonic() > deadline:
                 raise TimeoutError(
                     f"drive {self.slave}: timed out waiting for {what} (statusword 0x{status['statusword']:04X}, "
                     f"state {status['state']}, mode display {status['mode_display']})"
+                    + (f": {status['reason']}" if stuck else "")
                 )
             time.sleep(0.001)
 
@@ -442,11 +439,7 @@ class Axis:
     # --- state and events -----------------------------------------------------------------------------------------
 
     def _position_counts(self, raw: int) -> int:
-        if self._unwrapped is None or self._last_raw is None:
-            self._unwrapped = raw
-        else:
-            self._unwrapped = unwrap_position(self._unwrapped, raw)
-        self._last_raw = raw
+        self._unwrapped = raw if self._unwrapped is None else unwrap_position(self._unwrapped, raw)
         return self._unwrapped
 
     def state(self) -> AxisState:
