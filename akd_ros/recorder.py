@@ -4,10 +4,11 @@ A :class:`Recorder` writes one rosbag2 bag directory (metadata.yaml version 9 an
 the ``ros2`` profile) as ``ros2 bag record -s mcap`` would, without needing rosbag2 itself: the
 node hands it messages, a writer thread of its own serialises them and does all the disk I/O.
 
-- Messages are serialised by rclpy's ``serialize_message`` (rclpy message classes) or by rosbags'
-  ``serialize_cdr`` (rosbags message classes with their typestore); the schemas are the complete
-  ``ros2msg`` definitions and the type hashes the RIHS01 hashes that the message's own type support
-  (or rosbags) reports, so every reader decodes the bag without this package.
+- Messages are serialised once, by rclpy's ``serialize_message`` (rclpy message classes) or by
+  rosbags' ``serialize_cdr`` (rosbags message classes with their typestore); the schemas are the
+  complete ``ros2msg`` definitions, made of the packages' .msg files as rosbag2 makes them, and the
+  type hashes their RIHS01 hashes, computed by rosbags' typestore from those definitions, so every
+  reader decodes the bag without this package.
 - The per-cycle channel (:meth:`Recorder.cycle_sample`) is recorded every ``decimation``-th
   cycle, or not at all with ``decimation=0``; the last ``black_box_seconds`` of every cycle are
   kept in memory regardless, and :meth:`Recorder.fault` writes them to the black box topic (by
@@ -29,7 +30,6 @@ from __future__ import annotations
 
 import atexit
 import collections
-import ctypes
 import datetime
 import importlib
 import logging
@@ -104,60 +104,6 @@ class MessageType:
     serialize: Callable[[Any], bytes] = field(compare=False)
 
 
-class _RosidlTypeHash(ctypes.Structure):
-    _fields_ = [("version", ctypes.c_uint8), ("value", ctypes.c_uint8 * 32)]
-
-
-class _RosidlString(ctypes.Structure):
-    _fields_ = [("data", ctypes.c_char_p), ("size", ctypes.c_size_t), ("capacity", ctypes.c_size_t)]
-
-
-class _RosidlTypeSource(ctypes.Structure):
-    _fields_ = [
-        ("type_name", _RosidlString),
-        ("encoding", _RosidlString),
-        ("raw_file_contents", _RosidlString),
-    ]
-
-
-class _RosidlTypeSourceSequence(ctypes.Structure):
-    _fields_ = [
-        ("data", ctypes.POINTER(_RosidlTypeSource)),
-        ("size", ctypes.c_size_t),
-        ("capacity", ctypes.c_size_t),
-    ]
-
-
-class _RosidlMessageTypeSupport(ctypes.Structure):
-    pass
-
-
-# rosidl_message_type_support_t of rosidl_runtime_c (Iron and later): the C type support that a
-# Python message class holds in its _TYPE_SUPPORT capsule carries the type's hash and .msg sources.
-_SUPPORT_POINTER = ctypes.POINTER(_RosidlMessageTypeSupport)
-_RosidlMessageTypeSupport._fields_ = [
-    ("typesupport_identifier", ctypes.c_char_p),
-    ("data", ctypes.c_void_p),
-    ("func", ctypes.c_void_p),
-    ("get_type_hash_func", ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeHash), _SUPPORT_POINTER)),
-    ("get_type_description_func", ctypes.c_void_p),
-    (
-        "get_type_description_sources_func",
-        ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeSourceSequence), _SUPPORT_POINTER),
-    ),
-]
-
-
-def _type_support(msg_class: type) -> _RosidlMessageTypeSupport:
-    capsule = msg_class._TYPE_SUPPORT
-    get_name = ctypes.pythonapi.PyCapsule_GetName
-    get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
-    get_pointer = ctypes.pythonapi.PyCapsule_GetPointer
-    get_pointer.restype, get_pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
-    pointer = get_pointer(capsule, get_name(capsule))
-    return ctypes.cast(pointer, ctypes.POINTER(_RosidlMessageTypeSupport)).contents
-
-
 def _rclpy_name(msg_class: type) -> str:
     return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
 
@@ -175,34 +121,42 @@ def _nested_classes(msg_class: type) -> list[type]:
     return [found[name] for name in sorted(found)]
 
 
+def _msg_file(name: str) -> Path:
+    """The .msg file that defines name (``pkg/msg/Type``), as its package installs it.
+
+    rosbag2 reads the same file from the package's share directory. An installed package (a ROS
+    install, a colcon install, PyPI's ROS wheels, a wheel of akd_ros) has its Python modules in
+    ``<prefix>/lib/pythonX.Y/site-packages/<pkg>`` and its definitions in
+    ``<prefix>/share/<pkg>/msg``; an editable one (``pip install -e``, ``colcon build
+    --symlink-install``) imports its modules from its source tree, where ``msg/`` is beside them.
+    """
+    package, _, type_name = name.split("/")
+    module_dir = Path(importlib.import_module(package).__file__).resolve().parent
+    folders = [module_dir.parents[3] / "share" / package] if len(module_dir.parents) > 3 else []
+    folders.append(module_dir.parent)
+    for folder in folders:
+        path = folder / "msg" / f"{type_name}.msg"
+        if path.is_file():
+            return path
+    raise ValueError(
+        f"{name}: no {type_name}.msg in {', '.join(str(f / 'msg') for f in folders)}, so the bag "
+        "could not describe it"
+    )
+
+
 def _rclpy_message_type(msg_class: type) -> MessageType:
     from rclpy.serialization import serialize_message
     from rclpy.type_support import check_for_type_support
+    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
 
     check_for_type_support(msg_class)
-    support = _type_support(msg_class)
-    digest = support.get_type_hash_func(ctypes.byref(support)).contents
-    sources_seq = support.get_type_description_sources_func(ctypes.byref(support)).contents
-    sources = {}
-    for index in range(sources_seq.size):
-        source = sources_seq.data[index]
-        if source.encoding.data == b"msg":
-            # The generator strips the file's final newline, which rosbag2's copy of the file has.
-            text = source.raw_file_contents.data.decode()
-            sources[source.type_name.data.decode()] = text.rstrip("\n") + "\n"
     name = _rclpy_name(msg_class)
-    if name not in sources:
-        raise ValueError(
-            f"{name}: its type support carries no .msg source (it was generated from "
-            f"{sorted(sources) or 'no .msg file'}), so the bag could not describe it"
-        )
-
     seen: set[str] = set()
 
-    # rosbag2's LocalMessageDefinitionSource: each type's text, then, depth first, every nested
-    # type not written yet after the two-line delimiter.
+    # rosbag2's LocalMessageDefinitionSource: each type's .msg text, then, depth first, every
+    # nested type not written yet after the two-line delimiter.
     def definition(cls: type) -> str:
-        text = sources[_rclpy_name(cls)]
+        text = _msg_file(_rclpy_name(cls)).read_text(encoding="utf-8").rstrip("\n") + "\n"
         for nested in _nested_classes(cls):
             nested_name = _rclpy_name(nested)
             if nested_name not in seen:
@@ -211,39 +165,27 @@ def _rclpy_message_type(msg_class: type) -> MessageType:
         return text
 
     full_definition = definition(msg_class)
-    cdr_length = _cdr_length(full_definition, name)
+    # The RIHS01 hash of exactly the definition the bag carries: rosbags computes it as rosidl's
+    # generators do (the type support of the same .msg files reports the same hash).
+    store = get_typestore(Stores.EMPTY)
+    store.register(get_types_from_msg(full_definition, name))
+    msgdef = store.get_msgdef(name)
 
     def serialize(msg: Any) -> bytes:
+        # rmw_fastrtps's rmw_serialize (behind serialize_message) returns the buffer at its size
+        # estimate, which aligns even empty sequences (e.g. an empty float64[]) and so can be
+        # longer than the CDR written; rosbags refuses more than 3 bytes after a message. The CDR's
+        # length follows from the message's sequence and string lengths alone: rosbags' size
+        # function reads those from the rclpy message by field name, without a second decode.
         data = serialize_message(msg)
-        return data[: cdr_length(data)]
+        return data[: 4 + msgdef.getsize_cdr(0, msg, store)]
 
     return MessageType(
         name=name,
         definition=full_definition,
-        type_hash=f"RIHS{digest.version:02d}_{bytes(digest.value).hex()}",
+        type_hash=store.hash_rihs01(name),
         serialize=serialize,
     )
-
-
-def _cdr_length(definition: str, name: str) -> Callable[[bytes], int]:
-    """How many bytes of a serialised name are the message, by decoding it with the bag's schema.
-
-    rmw_fastrtps's rmw_serialize (behind rclpy's serialize_message) returns the buffer at its
-    size estimate, which for some types (e.g. empty float64 sequences) is longer than the CDR
-    written; rosbags rejects such messages, and they should not be in a bag.
-    """
-    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-
-    store = get_typestore(Stores.EMPTY)
-    store.register(get_types_from_msg(definition, name))
-    msgdef = store.get_msgdef(name)
-
-    def length(data: bytes) -> int:
-        decode = msgdef.deserialize_cdr_le if data[1] else msgdef.deserialize_cdr_be
-        _, end = decode(memoryview(data)[4:], 0, msgdef.cls, store)
-        return 4 + end
-
-    return length
 
 
 def _rosbags_message_type(msg_class: type, typestore: Any) -> MessageType:
