@@ -86,9 +86,12 @@ class AkdNode(LifecycleNode):
     """The lifecycle node of one AKD axis (see the module doc); parameters are checked on construction and a bad
     one raises `akd_ros.params.ParameterError`."""
 
-    def __init__(self, **kwargs) -> None:
+    def __init__(self, args: list[str] | None = None, **kwargs) -> None:
+        """`args` is the command line rclpy.init was given (None: sys.argv, as rclpy.init takes it); kwargs go to
+        rclpy's Node."""
         super().__init__(NODE_NAME, **kwargs)
-        self.settings: Settings = declare(self)
+        arguments = [*(sys.argv if args is None else args), *(kwargs.get("cli_args") or [])]
+        self.settings: Settings = declare(self, arguments, kwargs.get("parameter_overrides") or [])
         self.axis: Axis | None = None
         self.failure: str | None = None
         """Why the last transition failed, for the log and the exit message."""
@@ -608,7 +611,7 @@ def main(args: list[str] | None = None) -> int:
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, signal.default_int_handler)
     try:
-        node = AkdNode()
+        node = AkdNode(args)
     except ParameterError as e:
         print(f"{NODE_NAME}: error: {e}", file=sys.stderr)
         rclpy.try_shutdown()

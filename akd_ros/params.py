@@ -27,6 +27,8 @@ import re
 import socket
 from dataclasses import dataclass
 
+import yaml
+
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
@@ -211,22 +213,76 @@ class Settings:
     enable_on_start: bool
 
 
-def declare(node) -> Settings:
-    """Declares every parameter on `node` (its overrides checked first) and gives the checked settings; raises
-    ParameterError naming the first parameter that is wrong and what it allows."""
-    overrides = node._parameter_overrides  # what --params-file and -p gave, before anything is declared
-    for name, spec in SPECS.items():
-        if name in overrides:
-            overrides[name] = Parameter(name, spec.type, spec.check(overrides[name].value))
+def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Settings:
+    """Declares every parameter on `node` (what the ROS arguments gave each checked first) and gives the checked
+    settings; raises ParameterError naming the first parameter that is wrong and what it allows.
+
+    `arguments` are the command lines rcl read for the node (rclpy.init's and the node's own cli_args) and
+    `overrides` the node's parameter_overrides: they tell which names were given, so that a name given but not
+    declared is reported as unknown."""
+    named = {**_named_in(arguments), **{parameter.name: parameter.value for parameter in overrides}}
     for spec in SCHEMA:
-        if spec.type == Parameter.Type.STRING_ARRAY:
-            node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor())
+        given = _given(node, spec.name)
+        # An empty YAML list arrives without a type, as nothing does.
+        unset = given.type_ == Parameter.Type.NOT_SET and named.get(spec.name) != []
+        value = spec.check(spec.default if unset else given.value)
+        if value == []:
+            node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor(), ignore_override=True)
         else:
-            node.declare_parameter(spec.name, spec.default, spec.descriptor())
-    unknown = sorted(n for n in overrides if not node.has_parameter(n) and not n.startswith("qos_overrides."))
+            node.declare_parameter(spec.name, value, spec.descriptor(), ignore_override=True)
+    unknown = sorted(n for n in named if not node.has_parameter(n) and not n.startswith("qos_overrides.")
+                     and _given(node, n).type_ != Parameter.Type.NOT_SET)
     if unknown:
         raise ParameterError(f"unknown parameter {', '.join(unknown)}; the parameters are: {', '.join(SPECS)}")
     return settings({spec.name: _value(node, spec.name) for spec in SCHEMA})
+
+
+def _given(node, name: str) -> Parameter:
+    """What the ROS arguments gave `name` on `node`, whatever its type (NOT_SET for nothing).
+
+    rclpy hands a parameter's override to its declaration: declared with dynamic typing, it takes the value as the
+    file spelt it, which this package then checks with its own messages; it is undeclared again at once."""
+    parameter = node.declare_parameter(name, None, ParameterDescriptor(dynamic_typing=True))
+    node.undeclare_parameter(name)
+    return parameter
+
+
+def _named_in(arguments: list[str]) -> dict[str, object]:
+    """The parameters that ROS arguments set, by name, as YAML values: each -p NAME:=VALUE and every parameter of
+    every --params-file, in all its nodes' sections (rcl decides which apply to this node; _given tells)."""
+    named = {}
+    ros = False
+    for argument, following in zip(arguments, [*arguments[1:], None]):
+        if argument in ("--ros-args", "--"):
+            ros = argument == "--ros-args"
+        elif ros and following is not None and argument in ("-p", "--param"):
+            name, _, text = following.partition(":=")
+            named[name] = _yaml_value(text)
+        elif ros and following is not None and argument == "--params-file":
+            with open(following, encoding="utf-8") as stream:
+                named.update(_parameters_in(yaml.safe_load(stream)))
+    return named
+
+
+def _yaml_value(text: str) -> object:
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text  # rcl takes what YAML cannot read as a string
+
+
+def _parameters_in(tree: object, prefix: str | None = None) -> dict[str, object]:
+    """The parameters of a parameters file's tree by dotted name, from every ros__parameters in it (under any node
+    name or namespace)."""
+    if prefix is not None and not isinstance(tree, dict):
+        return {prefix: tree}
+    found = {}
+    for key, value in tree.items() if isinstance(tree, dict) else ():
+        if prefix is not None:
+            found.update(_parameters_in(value, f"{prefix}.{key}" if prefix else str(key)))
+        else:
+            found.update(_parameters_in(value, "" if key == "ros__parameters" else None))
+    return found
 
 
 def _value(node, name: str) -> object:
