@@ -139,8 +139,7 @@ def _msg_file(name: str) -> Path:
         if path.is_file():
             return path
     raise ValueError(
-        f"{name}: no {type_name}.msg in {', '.join(str(f / 'msg') for f in folders)}, so the bag "
-        "could not describe it"
+        f"{name}: no {type_name}.msg in {', '.join(str(f / 'msg') for f in folders)}, so the bag could not describe it"
     )
 
 
@@ -330,9 +329,7 @@ class _McapFile:
         self.stream = open(path, "wb")
         # Chunks are closed by flush() from the recorder, so that each closed chunk reaches the
         # OS at once; mcap's own size limit is set out of reach.
-        self.writer = Writer(
-            self.stream, chunk_size=2**62, compression=compression, enable_crcs=True
-        )
+        self.writer = Writer(self.stream, chunk_size=2**62, compression=compression, enable_crcs=True)
         self.writer.start(profile="ros2", library=_LIBRARY)
         self.schema_ids: dict[str, int] = {}
         self.channel_ids: dict[str, int] = {}
@@ -447,13 +444,9 @@ class Recorder:
         if split_duration is not None:
             _check_positive("split_duration", split_duration)
         if not isinstance(decimation, int) or isinstance(decimation, bool) or decimation < 0:
-            raise ValueError(
-                f"decimation must be an integer >= 0 (0: cycle topic off), not {decimation!r}"
-            )
+            raise ValueError(f"decimation must be an integer >= 0 (0: cycle topic off), not {decimation!r}")
         if not isinstance(black_box_seconds, (int, float)) or not 0 <= black_box_seconds < math.inf:
-            raise ValueError(
-                f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}"
-            )
+            raise ValueError(f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}")
 
         self._folder = Path(folder)
         self._compression = COMPRESSIONS[compression]
@@ -506,19 +499,14 @@ class Recorder:
         ``_2``, ``_3``, ... is appended to its name if another recorder took it that second."""
         return self._folder / self._name
 
-    def add_topic(
-        self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None
-    ) -> None:
+    def add_topic(self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None) -> None:
         """Adds a topic of msg_class (see :func:`message_type`) with the QoS its publisher offers.
 
         Raises ValueError for a topic name that is not absolute, one added before, or a class
         that is no message class.
         """
-        if not (isinstance(topic, str) and topic.startswith("/") and not topic.endswith("/")
-                and " " not in topic):
-            raise ValueError(
-                f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}"
-            )
+        if not (isinstance(topic, str) and topic.startswith("/") and not topic.endswith("/") and " " not in topic):
+            raise ValueError(f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}")
         with self._lock:
             if topic in self._topics:
                 raise ValueError(f"topic {topic} was added before (topics: {sorted(self._topics)})")
@@ -543,9 +531,7 @@ class Recorder:
         the cycle topic only when ``decimation > 0``.
         """
         if self._cycle_topic is not None:
-            raise ValueError(
-                f"the cycle topic is {self._cycle_topic} already; there is one per recorder"
-            )
+            raise ValueError(f"the cycle topic is {self._cycle_topic} already; there is one per recorder")
         if black_box_topic is None:
             black_box_topic = topic.rsplit("/", 1)[0] + "/black_box"
         if black_box_topic == topic:
@@ -568,9 +554,7 @@ class Recorder:
         if entry is None:
             raise ValueError(f"topic {topic} was not added (topics: {sorted(self._topics)})")
         if type(msg) is not entry.msg_class:
-            raise ValueError(
-                f"topic {topic} takes {entry.msg_type.name}, not {type(msg).__qualname__}"
-            )
+            raise ValueError(f"topic {topic} takes {entry.msg_type.name}, not {type(msg).__qualname__}")
         self._enqueue((topic, msg, time_ns))
 
     def cycle_sample(self, msg: Any, time_ns: int) -> None:
@@ -855,13 +839,9 @@ def _rewrite(path: Path, records: list, schemas: dict, channels: dict) -> None:
     with open(tmp, "wb") as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
         writer.start(profile="ros2", library=_LIBRARY)
-        schema_ids = {
-            sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()
-        }
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
         channel_ids = {
-            cid: writer.register_channel(
-                c.topic, c.message_encoding, schema_ids[c.schema_id], c.metadata
-            )
+            cid: writer.register_channel(c.topic, c.message_encoding, schema_ids[c.schema_id], c.metadata)
             for cid, c in channels.items()
         }
         for record in records:

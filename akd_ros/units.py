@@ -37,8 +37,11 @@ Policy = Literal["clamp", "refuse"]
 def _finite(name: str, value: float, *, positive: bool = False) -> float:
     """`value` as a float, or a ValueError naming `name` when it is no real number, NaN, infinite or (if `positive`)
     not greater than zero."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or (
-        positive and value <= 0
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, numbers.Real)
+        or not math.isfinite(value)
+        or (positive and value <= 0)
     ):
         allowed = "a finite number greater than 0" if positive else "a finite number"
         raise ValueError(f"{name} must be {allowed}, got {value!r}")

@@ -36,9 +36,11 @@ def measure(link: str, count: int, cycles: int, dc: bool) -> None:
         stats = master.stats()
     times.sort()
     pct = lambda p: times[min(len(times) - 1, int(p * len(times)))] / 1000  # noqa: E731
-    print(f"{link:28s} slaves={count} dc={dc} cycles={cycles}: mean {statistics.mean(times) / 1000:.1f} us, "
-          f"p50 {pct(0.5):.1f} us, p99 {pct(0.99):.1f} us, p99.9 {pct(0.999):.1f} us, max {times[-1] / 1000:.1f} us; "
-          f"lost {stats['lost_frames']}, wkc errors {stats['wkc_errors']}")
+    print(
+        f"{link:28s} slaves={count} dc={dc} cycles={cycles}: mean {statistics.mean(times) / 1000:.1f} us, "
+        f"p50 {pct(0.5):.1f} us, p99 {pct(0.99):.1f} us, p99.9 {pct(0.999):.1f} us, max {times[-1] / 1000:.1f} us; "
+        f"lost {stats['lost_frames']}, wkc errors {stats['wkc_errors']}"
+    )
 
 
 def main() -> None:

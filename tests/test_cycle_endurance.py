@@ -71,18 +71,24 @@ def test_100000_cycles_at_1_khz_with_python_busy_beside(capsys) -> None:
         if worker.is_alive():
             worker.join(timeout=5)
     with capsys.disabled():
-        print(f"\n  {stats['cycles']} cycles at 1 kHz with Python busy beside: overruns {stats['overruns']}, "
-              f"lost frames {stats['lost_frames']}, WKC errors {stats['wkc_errors']}, "
-              f"set-points busy {stats['setpoints_busy']}; "
-              f"{'; '.join(warnings) or 'SCHED_FIFO 80'}")
-        print(f"  periods of {STALL_NS // 1_000_000} ms or more: {stalls}, of {GIL_WAIT_NS // 1_000_000} ms or more: "
-              f"{waits}; drive at the end: {state.state}")
+        print(
+            f"\n  {stats['cycles']} cycles at 1 kHz with Python busy beside: overruns {stats['overruns']}, "
+            f"lost frames {stats['lost_frames']}, WKC errors {stats['wkc_errors']}, "
+            f"set-points busy {stats['setpoints_busy']}; "
+            f"{'; '.join(warnings) or 'SCHED_FIFO 80'}"
+        )
+        print(
+            f"  periods of {STALL_NS // 1_000_000} ms or more: {stalls}, of {GIL_WAIT_NS // 1_000_000} ms or more: "
+            f"{waits}; drive at the end: {state.state}"
+        )
         for fault in faults:
             print(f"  fault: {fault.describe()}")
         for name in ("period", "wake_latency", "exchange"):
             s = stats[name]
-            print(f"  {name:>12}: min {s['min_ns'] / 1000:8.1f} us  mean {s['mean_ns'] / 1000:8.1f} us  "
-                  f"p99 {s['p99_ns'] / 1000:8.1f} us  max {s['max_ns'] / 1000:8.1f} us")
+            print(
+                f"  {name:>12}: min {s['min_ns'] / 1000:8.1f} us  mean {s['mean_ns'] / 1000:8.1f} us  "
+                f"p99 {s['p99_ns'] / 1000:8.1f} us  max {s['max_ns'] / 1000:8.1f} us"
+            )
     assert stats["cycles"] >= CYCLES
     assert stats["lost_frames"] == 0 and stats["wkc_errors"] == 0 and stats["other_errors"] == 0
     # A writer preempted in the middle of writing a set-point (microseconds of work, but the scheduler may take the

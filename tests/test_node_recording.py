@@ -23,8 +23,18 @@ from mcap.reader import NonSeekingReader, make_reader
 from rclpy.serialization import deserialize_message
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-from support.ros import (BIN, COUNTS_PER_RAD, NODE, NODE_TOPICS, WAIT_S, latch_across, move_to, node_on_sim, ready,
-                         ros_environment)
+from support.ros import (
+    BIN,
+    COUNTS_PER_RAD,
+    NODE,
+    NODE_TOPICS,
+    WAIT_S,
+    latch_across,
+    move_to,
+    node_on_sim,
+    ready,
+    ros_environment,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 # ROS_DOMAIN_IDs of this module, apart from test_messages' (100-200), test_node's (201-220) and test_node_params'
@@ -98,8 +108,9 @@ def fault_run(ros_domain, tmp_path_factory) -> FaultRun:
             ros.spin_until(lambda: ros.node.get_publishers_info_by_topic(topic), f"the node's publisher of {topic}")
             hashes[topic] = str(ros.node.get_publishers_info_by_topic(topic)[0].topic_type_hash)
         for topic in COMMAND_TOPICS.values():
-            ros.spin_until(lambda: ros.node.get_subscriptions_info_by_topic(topic),
-                           f"the node's subscription of {topic}")
+            ros.spin_until(
+                lambda: ros.node.get_subscriptions_info_by_topic(topic), f"the node's subscription of {topic}"
+            )
             hashes[topic] = str(ros.node.get_subscriptions_info_by_topic(topic)[0].topic_type_hash)
 
         ready(ros, sim, "interpolated_position")
@@ -117,8 +128,14 @@ def fault_run(ros_domain, tmp_path_factory) -> FaultRun:
         assert node.process.returncode == 0, node.output()
         ros.spin_for(0.5)
         (bag,) = (folder / "bags").iterdir()
-        return FaultRun(bag, {topic: list(messages) for topic, messages in ros.received.items()}, dict(ros.sent),
-                        hashes, edge_counts, node.output())
+        return FaultRun(
+            bag,
+            {topic: list(messages) for topic, messages in ros.received.items()},
+            dict(ros.sent),
+            hashes,
+            edge_counts,
+            node.output(),
+        )
 
 
 def rosbags_messages(bag: Path) -> tuple[dict, dict]:
@@ -178,8 +195,12 @@ def test_rosbags_reads_every_topic_with_the_counts_sent_and_received_live(fault_
     assert latches and len(messages[NODE + "latch"]) == len(latches)
     for latch, (time_ns, recorded) in zip(latches, messages[NODE + "latch"]):
         assert time_ns == stamp_ns(latch.header.stamp) == stamp_ns(recorded.header.stamp)
-        assert (recorded.position, recorded.position_counts, recorded.channel, recorded.edge) \
-            == (latch.position, latch.position_counts, latch.channel, latch.edge)
+        assert (recorded.position, recorded.position_counts, recorded.channel, recorded.edge) == (
+            latch.position,
+            latch.position_counts,
+            latch.channel,
+            latch.edge,
+        )
         assert abs(recorded.position_counts - fault_run.edge_counts) <= 1, (recorded, fault_run.edge_counts)
     faults = [m for _, m in messages[NODE + "fault"] if m.code == F439_CODE]
     assert faults and all("F439" in f.text for f in faults), faults
@@ -187,8 +208,10 @@ def test_rosbags_reads_every_topic_with_the_counts_sent_and_received_live(fault_
     assert {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]} == counts
     assert info["message_count"] == sum(counts.values())
     # The node's own account at the close: everything handed to the recorder is in the bag.
-    assert (f"recorded {fault_run.bag}: {sum(counts.values())} messages, 0 dropped, {counts[NODE + 'fault']} black "
-            "box dumps, 0 errors") in fault_run.output
+    assert (
+        f"recorded {fault_run.bag}: {sum(counts.values())} messages, 0 dropped, {counts[NODE + 'fault']} black "
+        "box dumps, 0 errors"
+    ) in fault_run.output
 
 
 def test_every_cycle_is_recorded_with_consecutive_cycle_numbers(fault_run):
@@ -255,8 +278,13 @@ def test_type_hashes_agree_between_metadata_mcap_the_live_node_and_the_message_d
 
 def test_akd_plot_draws_the_fault_run(fault_run, tmp_path):
     picture = tmp_path / "fault.png"
-    done = subprocess.run([str(BIN / "akd-plot"), str(fault_run.bag), "-o", str(picture)], capture_output=True,
-                          text=True, timeout=120, check=False)
+    done = subprocess.run(
+        [str(BIN / "akd-plot"), str(fault_run.bag), "-o", str(picture)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert picture.stat().st_size > 20_000
@@ -291,8 +319,9 @@ def test_a_bag_of_a_sigkilled_node_is_readable_up_to_its_last_chunk_and_reindexe
         with AnyReader([bag]) as reader:
             list(reader.messages())
     # The README's way (section Recording), then the picture of what was saved.
-    subprocess.run([sys.executable, "-c", f"from akd_ros.recorder import reindex; reindex({str(bag)!r})"],
-                   check=True, timeout=120)
+    subprocess.run(
+        [sys.executable, "-c", f"from akd_ros.recorder import reindex; reindex({str(bag)!r})"], check=True, timeout=120
+    )
     counts, messages = rosbags_messages(bag)
     assert [m.cycle for _, m in messages[CYCLE]] == cycles
     assert metadata(bag)["message_count"] == sum(counts.values()) == read

@@ -129,8 +129,10 @@ def test_real_akd_replay_report(replayed):
     identical = sum(c.identical for c in comparable)
     left_out = sorted({f"0x{c.request.ado:04X}" for c in compared if c.time_varying})
     print(f"\nreplayed {len(compared)} answered datagrams ({unanswered} requests unanswered in the capture)")
-    print(f"identical: {sum(c.identical for c in compared)}/{len(compared)} of all, "
-          f"{identical}/{len(comparable)} = {100 * identical / len(comparable):.2f} % of the non-time-varying")
+    print(
+        f"identical: {sum(c.identical for c in compared)}/{len(compared)} of all, "
+        f"{identical}/{len(comparable)} = {100 * identical / len(comparable):.2f} % of the non-time-varying"
+    )
     print(f"left out as time-varying (DC receive/system time reads): {', '.join(left_out)}")
     by_area = Counter(c.area for c in comparable if not c.identical)
     print(f"differences by area: {dict(by_area)}")

@@ -53,9 +53,7 @@ def sample(i: int) -> JointState:
 def fault_message(code: str) -> DiagnosticArray:
     """A drive fault as diagnostics, the way a fault topic of standard messages would carry it."""
     msg = DiagnosticArray()
-    msg.status = [
-        DiagnosticStatus(level=DiagnosticStatus.ERROR, name="akd", message=f"{code} lag too large")
-    ]
+    msg.status = [DiagnosticStatus(level=DiagnosticStatus.ERROR, name="akd", message=f"{code} lag too large")]
     return msg
 
 
@@ -85,14 +83,12 @@ def read_metadata(bag: Path) -> dict:
 
 def topic_metadata(info: dict) -> dict:
     """Each topic's topic_metadata in metadata.yaml, by topic name."""
-    return {t["topic_metadata"]["name"]: t["topic_metadata"]
-            for t in info["topics_with_message_count"]}
+    return {t["topic_metadata"]["name"]: t["topic_metadata"] for t in info["topics_with_message_count"]}
 
 
 def topic_counts(info: dict) -> dict:
     """Each topic's message_count in metadata.yaml, by topic name."""
-    return {t["topic_metadata"]["name"]: t["message_count"]
-            for t in info["topics_with_message_count"]}
+    return {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
 
 
 def cycle_index(time_ns: int) -> int:
@@ -333,9 +329,7 @@ def test_disk_full_is_reported_once_and_the_bag_is_readable_after_reindex(tmp_pa
         print(reports[0])
         """
     )
-    result = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
-    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     assert lines[0] == "1 True True True True", result.stdout

@@ -32,8 +32,9 @@ class Commands:
     """The command subscriptions (in `group`, `qos`), the supervisor timer (in `supervisor_group`: it may wait on
     the drive) and the state they share: the last command, whether halted, whether a fault reset is due."""
 
-    def __init__(self, node, session: Session, clock: CycleClock, settings: Settings, group, qos: QoSProfile,
-                 supervisor_group) -> None:
+    def __init__(
+        self, node, session: Session, clock: CycleClock, settings: Settings, group, qos: QoSProfile, supervisor_group
+    ) -> None:
         self._session, self._clock, self._settings = session, clock, settings
         self._logger = node.get_logger()
         self.qos = qos
@@ -44,9 +45,9 @@ class Commands:
         self.topics: dict[str, str] = {}
         """The command topics' names by kind (position, velocity, torque)."""
         for kind in ("position", "velocity", "torque"):
-            subscription = node.create_subscription(Float64, f"~/{kind}_command",
-                                                    lambda m, k=kind: self._on_command(k, m), qos,
-                                                    callback_group=group)
+            subscription = node.create_subscription(
+                Float64, f"~/{kind}_command", lambda m, k=kind: self._on_command(k, m), qos, callback_group=group
+            )
             self.topics[kind] = subscription.topic_name
         node.create_timer(_SUPERVISOR_PERIOD_S, self._supervise, supervisor_group)
 
@@ -66,8 +67,10 @@ class Commands:
                     raise CommandError(f"{kind} command refused: the node is not active (activate it first)")
                 drive_state = session.axis.cycle.drive_status(session.axis.slave)["state"]
                 if drive_state != "Operation enabled":
-                    raise CommandError(f"{kind} command refused: the drive is in {drive_state}, not Operation "
-                                       "enabled; call ~/enable first")
+                    raise CommandError(
+                        f"{kind} command refused: the drive is in {drive_state}, not Operation "
+                        "enabled; call ~/enable first"
+                    )
                 getattr(session.axis, f"command_{kind}")(value)
                 self._last_command = (kind, value, time.monotonic())
                 if self._halted:
@@ -133,8 +136,9 @@ class Commands:
 
     def enable(self) -> tuple[bool, str]:
         """Enables the drive: (done, what happened)."""
-        return self._after_release(Axis.enable, "not enabled",
-                                   "Operation enabled; the target holds the actual position until commanded")
+        return self._after_release(
+            Axis.enable, "not enabled", "Operation enabled; the target holds the actual position until commanded"
+        )
 
     def disable(self) -> tuple[bool, str]:
         """Disables the drive (also when the node is configured but inactive): (done, what happened)."""

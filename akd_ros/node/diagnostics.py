@@ -18,8 +18,17 @@ from akd_ros.params import Settings
 class Diagnostics:
     """The /diagnostics publisher and its timer; `name` names the status, `publishing` has the last fault."""
 
-    def __init__(self, node, session: Session, clock: CycleClock, settings: Settings, group, qos: QoSProfile,
-                 name: str, publishing: Publishing) -> None:
+    def __init__(
+        self,
+        node,
+        session: Session,
+        clock: CycleClock,
+        settings: Settings,
+        group,
+        qos: QoSProfile,
+        name: str,
+        publishing: Publishing,
+    ) -> None:
         self._session, self._clock, self._settings = session, clock, settings
         self._name, self._publishing = name, publishing
         self.publisher = RecordedPublisher(node, DiagnosticArray, "/diagnostics", qos, session)
@@ -53,9 +62,14 @@ class Diagnostics:
         if level == DiagnosticStatus.ERROR and fault is not None:
             summary += f"; last fault {fault.text or hex(fault.code)}"
         values = {
-            "ds402_state": state.state or "unknown", "statusword": f"0x{state.statusword:04X}",
-            "mode": state.mode or axis.mode, "request": state.request or "", "progress": state.progress,
-            "position": f"{state.position:.9g}", "cycles": stats["cycles"], **counters,
+            "ds402_state": state.state or "unknown",
+            "statusword": f"0x{state.statusword:04X}",
+            "mode": state.mode or axis.mode,
+            "request": state.request or "",
+            "progress": state.progress,
+            "position": f"{state.position:.9g}",
+            "cycles": stats["cycles"],
+            **counters,
             "period_mean_s": f"{stats['period']['mean_ns'] * 1e-9:.6g}",
             "period_max_s": f"{stats['period']['max_ns'] * 1e-9:.6g}",
             "exchange_p99_s": f"{stats['exchange']['p99_ns'] * 1e-9:.6g}",
@@ -64,7 +78,9 @@ class Diagnostics:
             "last_fault_action": "" if fault is None else fault.action,
         }
         status = DiagnosticStatus(
-            level=level, name=self._name, message=summary,
+            level=level,
+            name=self._name,
+            message=summary,
             hardware_id=f"AKD slave {self._settings.slave} on {self._settings.link}",
             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
         )

@@ -53,10 +53,12 @@ class AkdNode(LifecycleNode):
         events = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         s = self.settings
         self._commands = Commands(self, self._session, clock, s, commands, command_qos, requests)
-        self._publishing = Publishing(self, self._session, clock, s, periodic, self._reliable, events,
-                                      self._commands.fault_seen)
-        self._diagnostics = Diagnostics(self, self._session, clock, s, periodic, self._reliable,
-                                        f"{NODE_NAME}: {s.joint_name}", self._publishing)
+        self._publishing = Publishing(
+            self, self._session, clock, s, periodic, self._reliable, events, self._commands.fault_seen
+        )
+        self._diagnostics = Diagnostics(
+            self, self._session, clock, s, periodic, self._reliable, f"{NODE_NAME}: {s.joint_name}", self._publishing
+        )
         Services(self, self._session, self._commands, requests)
 
     @property
@@ -73,9 +75,19 @@ class AkdNode(LifecycleNode):
         """Opens the Axis: the bus to Op and the cycle thread running, the drive disabled."""
         s = self.settings
         try:
-            axis = Axis(s.link, slave=s.slave, alias=s.alias, period=s.cycle_time, mode=s.mode, units=s.units,
-                        limits=s.limits, mapping=s.mapping, priority=s.rt_priority, cpu=s.rt_cpu,
-                        lock_memory=s.rt_lock_memory)
+            axis = Axis(
+                s.link,
+                slave=s.slave,
+                alias=s.alias,
+                period=s.cycle_time,
+                mode=s.mode,
+                units=s.units,
+                limits=s.limits,
+                mapping=s.mapping,
+                priority=s.rt_priority,
+                cpu=s.rt_cpu,
+                lock_memory=s.rt_lock_memory,
+            )
         except AXIS_ERRORS as e:
             return self._fail(f"configure: the drive at slave {s.slave} on link {s.link!r} did not open: {e}")
         try:
@@ -88,9 +100,16 @@ class AkdNode(LifecycleNode):
             self.get_logger().warning(f"real-time settings (rt.*): {warning}")
         if s.record is not None:
             publishing = self._publishing
-            topics = [(p.topic_name, p.msg_type, p.qos) for p in (
-                publishing.joint_states, publishing.status, self._diagnostics.publisher, publishing.latch,
-                publishing.fault)]
+            topics = [
+                (p.topic_name, p.msg_type, p.qos)
+                for p in (
+                    publishing.joint_states,
+                    publishing.status,
+                    self._diagnostics.publisher,
+                    publishing.latch,
+                    publishing.fault,
+                )
+            ]
             topics += [(topic, Float64, self._commands.qos) for topic in self._commands.topics.values()]
             try:
                 self._session.recorder = open_recorder(self, s, topics, self._reliable)
@@ -99,8 +118,9 @@ class AkdNode(LifecycleNode):
                 return self._fail(f"parameters record.*: the recorder did not start: {e}")
         with self._session.lock:
             self._session.axis = axis
-        self.get_logger().info(f"configured: slave {s.slave} on {s.link} in Op, cycle {s.cycle_time * 1e3:g} ms, "
-                               f"mode {s.mode}")
+        self.get_logger().info(
+            f"configured: slave {s.slave} on {s.link} in Op, cycle {s.cycle_time * 1e3:g} ms, mode {s.mode}"
+        )
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -157,6 +177,8 @@ class AkdNode(LifecycleNode):
         recorder, session.recorder = session.recorder, None
         if recorder is not None:
             stats = recorder.close()
-            self.get_logger().info(f"recorded {stats.bag or 'no bag'}: {stats.written} messages, "
-                                   f"{stats.dropped} dropped, {stats.black_box_dumps} black box dumps, "
-                                   f"{stats.errors} errors")
+            self.get_logger().info(
+                f"recorded {stats.bag or 'no bag'}: {stats.written} messages, "
+                f"{stats.dropped} dropped, {stats.black_box_dumps} black box dumps, "
+                f"{stats.errors} errors"
+            )

@@ -55,8 +55,17 @@ class Publishing:
     """The periodic joint_states and status, and the events (latches, faults) with the cycle records; `on_fault` is
     called for each fault published."""
 
-    def __init__(self, node, session: Session, clock: CycleClock, settings: Settings, group, reliable: QoSProfile,
-                 events: QoSProfile, on_fault: Callable[[], None]) -> None:
+    def __init__(
+        self,
+        node,
+        session: Session,
+        clock: CycleClock,
+        settings: Settings,
+        group,
+        reliable: QoSProfile,
+        events: QoSProfile,
+        on_fault: Callable[[], None],
+    ) -> None:
         self._session, self._clock, self._settings, self._on_fault = session, clock, settings, on_fault
         self._logger = node.get_logger()
         self.joint_states = RecordedPublisher(node, JointState, "/joint_states", reliable, session)
@@ -88,12 +97,19 @@ class Publishing:
             return
         axis, state, stats = taken
         message = DriveStatus(
-            joint=self._settings.joint_name, ds402_state=snake(state.state), statusword=state.statusword,
-            mode=state.mode or axis.mode, mode_of_operation=MODES.get(state.mode, 0),
+            joint=self._settings.joint_name,
+            ds402_state=snake(state.state),
+            statusword=state.statusword,
+            mode=state.mode or axis.mode,
+            mode_of_operation=MODES.get(state.mode, 0),
             following_error=math.nan if state.following_error is None else state.following_error,
-            cycles=stats["cycles"], overruns=stats["overruns"], lost_frames=stats["lost_frames"],
-            wkc_errors=stats["wkc_errors"], period_mean=stats["period"]["mean_ns"] * 1e-9,
-            period_max=stats["period"]["max_ns"] * 1e-9, exchange_p99=stats["exchange"]["p99_ns"] * 1e-9,
+            cycles=stats["cycles"],
+            overruns=stats["overruns"],
+            lost_frames=stats["lost_frames"],
+            wkc_errors=stats["wkc_errors"],
+            period_mean=stats["period"]["mean_ns"] * 1e-9,
+            period_max=stats["period"]["max_ns"] * 1e-9,
+            exchange_p99=stats["exchange"]["p99_ns"] * 1e-9,
         )
         message.header.stamp = self._clock.stamp()
         self.status.publish(message)
@@ -111,16 +127,26 @@ class Publishing:
             record_cycles(recorder, columns, self._settings.units, self._clock.ros_minus_monotonic_ns())
         joint = self._settings.joint_name
         for e in latches:
-            message = LatchEvent(joint=joint, channel=e.channel, edge=_EDGE_CODES[e.edge], position=e.position,
-                                 position_counts=e.position_counts)
+            message = LatchEvent(
+                joint=joint,
+                channel=e.channel,
+                edge=_EDGE_CODES[e.edge],
+                position=e.position,
+                position_counts=e.position_counts,
+            )
             message.header.stamp = self._clock.stamp(e.time_ns)
             self.latch.publish(message)
         for e in faults:
             self._logger.error(f"fault: {e.describe()}")
             message = DriveFault(
-                joint=joint, source=e.source, code=min(e.code, 0xFFFF), text=e.text or "",
-                ds402_state=snake(e.ds402_state), al_state=snake(e.al_state),
-                al_status_code=e.al_status_code, action=e.action,
+                joint=joint,
+                source=e.source,
+                code=min(e.code, 0xFFFF),
+                text=e.text or "",
+                ds402_state=snake(e.ds402_state),
+                al_state=snake(e.al_state),
+                al_status_code=e.al_status_code,
+                action=e.action,
             )
             message.header.stamp = self._clock.stamp(e.time_ns)
             self.last_fault = message

@@ -15,19 +15,29 @@ from akd_ros.recorder import Recorder
 from akd_ros.units import Units
 
 # Which target of a cycle record is the command, by the mode the drive shows (0x6061).
-_TARGET_OF_MODE = {1: "target_position", 7: "target_position", 8: "target_position", 3: "target_velocity",
-                   4: "target_torque"}
+_TARGET_OF_MODE = {
+    1: "target_position",
+    7: "target_position",
+    8: "target_position",
+    3: "target_velocity",
+    4: "target_torque",
+}
 _UINT32_MAX = 2**32 - 1
 
 
-def open_recorder(node, settings: Settings, topics: list[tuple[str, type, QoSProfile]],
-                  cycle_qos: QoSProfile) -> Recorder:
+def open_recorder(
+    node, settings: Settings, topics: list[tuple[str, type, QoSProfile]], cycle_qos: QoSProfile
+) -> Recorder:
     """A Recorder of `topics` (name, message class, QoS: what the node publishes and the commands it receives) and
     of the node's cycles on ~/cycle; raises ValueError or OSError when it cannot start."""
     record = settings.record
-    recorder = Recorder(record["folder"], cycle_rate_hz=1.0 / settings.cycle_time,
-                        decimation=record["decimation"], black_box_seconds=record["black_box_seconds"],
-                        on_error=lambda text: node.get_logger().error(f"recording stopped: {text}"))
+    recorder = Recorder(
+        record["folder"],
+        cycle_rate_hz=1.0 / settings.cycle_time,
+        decimation=record["decimation"],
+        black_box_seconds=record["black_box_seconds"],
+        on_error=lambda text: node.get_logger().error(f"recording stopped: {text}"),
+    )
     try:
         for topic, kind, qos in topics:
             recorder.add_topic(topic, kind, qos)
@@ -55,13 +65,18 @@ def record_cycles(recorder: Recorder, columns: dict[str, list], units: Units, of
             command = math.nan
         time_ns = columns["time_ns"][i] + offset_ns
         sample = CycleSample(
-            stamp=Time(nanoseconds=time_ns).to_msg(), cycle=columns["cycle"][i],
+            stamp=Time(nanoseconds=time_ns).to_msg(),
+            cycle=columns["cycle"][i],
             position=units.position_to_si(columns["position"][i]),
             velocity=units.velocity_to_si(columns["velocity"][i]),
-            torque=units.torque_to_si(columns["torque"][i]), command=command,
+            torque=units.torque_to_si(columns["torque"][i]),
+            command=command,
             following_error=columns["following_error"][i] * units.si_per_count,
-            position_counts=columns["position"][i], statusword=columns["statusword"][i], mode_of_operation=mode,
+            position_counts=columns["position"][i],
+            statusword=columns["statusword"][i],
+            mode_of_operation=mode,
             period_ns=min(columns["period_ns"][i], _UINT32_MAX),
-            exchange_ns=min(columns["exchange_ns"][i], _UINT32_MAX), wkc=columns["wkc"][i],
+            exchange_ns=min(columns["exchange_ns"][i], _UINT32_MAX),
+            wkc=columns["wkc"][i],
         )
         recorder.cycle_sample(sample, time_ns)

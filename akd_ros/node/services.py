@@ -22,8 +22,12 @@ class Services:
     def __init__(self, node, session: Session, commands: Commands, group) -> None:
         self._session, self._commands = session, commands
         self._logger = node.get_logger()
-        for name, handler in (("enable", commands.enable), ("disable", commands.disable),
-                              ("reset_fault", commands.reset_fault), ("quick_stop", commands.quick_stop)):
+        for name, handler in (
+            ("enable", commands.enable),
+            ("disable", commands.disable),
+            ("reset_fault", commands.reset_fault),
+            ("quick_stop", commands.quick_stop),
+        ):
             node.create_service(Trigger, f"~/{name}", self._trigger(name, handler), callback_group=group)
         node.create_service(SetMode, "~/set_mode", self._set_mode, callback_group=group)
         node.create_service(ArmLatch, "~/arm_latch", self._arm_latch, callback_group=group)
@@ -60,12 +64,16 @@ class Services:
         try:
             axis = self._session.axis_for_request()
             if request.edge not in EDGE_NAMES:
-                raise CommandError(f"latch edge {request.edge}: allowed {LatchEvent.EDGE_RISING} (rising) or "
-                                   f"{LatchEvent.EDGE_FALLING} (falling)")
+                raise CommandError(
+                    f"latch edge {request.edge}: allowed {LatchEvent.EDGE_RISING} (rising) or "
+                    f"{LatchEvent.EDGE_FALLING} (falling)"
+                )
             axis.arm_latch(request.channel, EDGE_NAMES[request.edge], request.arm)
             response.success = True
-            response.message = (f"latch {request.channel} {'armed' if request.arm else 'disarmed'} on the "
-                                f"{EDGE_NAMES[request.edge]} edge")
+            response.message = (
+                f"latch {request.channel} {'armed' if request.arm else 'disarmed'} on the "
+                f"{EDGE_NAMES[request.edge]} edge"
+            )
         except AXIS_ERRORS as e:
             response.success, response.message = False, f"latch not changed: {e}"
         return response
