@@ -27,6 +27,7 @@ import json
 import os
 import sys
 from pathlib import Path
+from typing import ClassVar
 
 from setuptools import Command, Extension
 from setuptools.command.build_ext import build_ext
@@ -175,7 +176,7 @@ def _sync_python_modules(generated: Path, package_dir: Path) -> None:
         target = package_dir / kind
         sources = {path.name: path for path in (generated / kind).glob("*.py")}
         target.mkdir(exist_ok=True)
-        for stale in set(p.name for p in target.glob("*.py")) - set(sources):
+        for stale in {p.name for p in target.glob("*.py")} - set(sources):
             (target / stale).unlink()
         for name, source in sources.items():
             text = source.read_text(encoding="utf-8")
@@ -284,7 +285,7 @@ class InterfaceLibrary(Extension):
     the interface dependencies it links against (by ROS library name, without lib and .so);
     shared marks a plain shared library (lib<name>.so, found by the others and by the dispatch's
     dlopen) rather than a Python extension module; kept_libraries are linked even though none of
-    their symbols is used (see build_interfaces_ext.link_arguments).
+    their symbols is used (see BuildInterfacesExt.link_arguments).
     """
 
     def __init__(
@@ -381,11 +382,11 @@ def extensions() -> list[InterfaceLibrary]:
     ]
 
 
-class generate_interfaces(Command):
+class GenerateInterfaces(Command):
     """setup.py command: runs the rosidl generators (build_py and build_ext run it first)."""
 
     description = "generate akd_ros's ROS 2 messages and services (msg/, srv/)"
-    user_options: list = []
+    user_options: ClassVar[list] = []
 
     def initialize_options(self) -> None:
         """No options; the build directory comes from the build command."""
@@ -404,7 +405,7 @@ class generate_interfaces(Command):
             raise SystemExit(f"error: {error}") from None
 
 
-class egg_info_interfaces(egg_info):
+class EggInfoInterfaces(egg_info):
     """egg_info that accepts akd_ros.msg and akd_ros.srv before they are generated.
 
     Its file list checks that every package's directory exists; the modules in them are the
@@ -419,7 +420,7 @@ class egg_info_interfaces(egg_info):
         super().run()
 
 
-class build_interfaces_py(build_py):
+class BuildInterfacesPy(build_py):
     """build_py that generates the message modules before it copies the package."""
 
     def run(self) -> None:
@@ -428,7 +429,7 @@ class build_interfaces_py(build_py):
         super().run()
 
 
-class build_interfaces_ext(build_ext):
+class BuildInterfacesExt(build_ext):
     """build_ext that compiles the interface libraries as well as the other extensions."""
 
     def run(self) -> None:
@@ -485,8 +486,8 @@ class build_interfaces_ext(build_ext):
 
 
 COMMANDS = {
-    "generate_interfaces": generate_interfaces,
-    "egg_info": egg_info_interfaces,
-    "build_py": build_interfaces_py,
-    "build_ext": build_interfaces_ext,
+    "generate_interfaces": GenerateInterfaces,
+    "egg_info": EggInfoInterfaces,
+    "build_py": BuildInterfacesPy,
+    "build_ext": BuildInterfacesExt,
 }

@@ -17,10 +17,11 @@ and `fault_events` hand them out once each.
 from __future__ import annotations
 
 import collections
+import contextlib
 import struct
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 from akd_ros import _native
 from akd_ros.units import Limits, Units, unwrap_position
@@ -264,10 +265,9 @@ class Axis:
         try:
             if cycle.running:
                 cycle.disable(self.slave)
-                try:
+                # A drive in Fault or unreachable stays as it is: powerless.
+                with contextlib.suppress(Exception):
                     cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
-                except Exception:  # noqa: BLE001 - a drive in Fault or unreachable stays as it is: powerless
-                    pass
         finally:
             cycle.stop()
             try:

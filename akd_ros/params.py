@@ -28,7 +28,6 @@ import socket
 from dataclasses import dataclass
 
 import yaml
-
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
@@ -325,7 +324,7 @@ def _named_in(arguments: list[str]) -> dict[str, object]:
     every --params-file, in all its nodes' sections (rcl decides which apply to this node; _given tells)."""
     named = {}
     ros = False
-    for argument, following in zip(arguments, [*arguments[1:], None]):
+    for argument, following in zip(arguments, [*arguments[1:], None], strict=True):
         if argument in ("--ros-args", "--"):
             ros = argument == "--ros-args"
         elif ros and following is not None and argument in ("-p", "--param"):

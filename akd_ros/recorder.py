@@ -37,15 +37,16 @@ import math
 import os
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any
 
 import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.stream_reader import StreamReader
 from mcap.records import Channel, Message, Schema
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 __all__ = [
@@ -146,7 +147,7 @@ def _msg_file(name: str) -> Path:
 def _rclpy_message_type(msg_class: type) -> MessageType:
     from rclpy.serialization import serialize_message
     from rclpy.type_support import check_for_type_support
-    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     check_for_type_support(msg_class)
     name = _rclpy_name(msg_class)
@@ -253,15 +254,15 @@ class _Topic:
     name: str
     msg_type: MessageType
     qos_yaml: str
-    msg_class: Optional[type] = None
+    msg_class: type | None = None
     message_count: int = 0
 
 
 @dataclass
 class _File:
     path: Path
-    start_ns: Optional[int] = None
-    end_ns: Optional[int] = None
+    start_ns: int | None = None
+    end_ns: int | None = None
     message_count: int = 0
 
     def add(self, time_ns: int) -> None:
@@ -326,7 +327,8 @@ class _McapFile:
 
     def __init__(self, path: Path, topics: list[_Topic], compression: CompressionType):
         self.info = _File(path)
-        self.stream = open(path, "wb")
+        # Open for the life of the _McapFile, whose close() closes it.
+        self.stream = open(path, "wb")  # noqa: SIM115
         # Chunks are closed by flush() from the recorder, so that each closed chunk reaches the
         # OS at once; mcap's own size limit is set out of reach.
         self.writer = Writer(self.stream, chunk_size=2**62, compression=compression, enable_crcs=True)
@@ -383,7 +385,7 @@ class RecorderStats:
     black box was written; ``files`` are the bag's MCAP files so far.
     """
 
-    bag: Optional[Path] = None
+    bag: Path | None = None
     written: int = 0
     dropped: int = 0
     errors: int = 0
@@ -422,8 +424,8 @@ class Recorder:
         folder: os.PathLike | str,
         *,
         cycle_rate_hz: float,
-        split_size: Optional[int] = None,
-        split_duration: Optional[float] = None,
+        split_size: int | None = None,
+        split_duration: float | None = None,
         chunk_size: int = 1 << 20,
         flush_interval: float = 1.0,
         compression: str = "zstd",
@@ -431,7 +433,7 @@ class Recorder:
         black_box_seconds: float = 5.0,
         queue_size: int = 100_000,
         prefix: str = "akd",
-        on_error: Optional[Callable[[str], None]] = None,
+        on_error: Callable[[str], None] | None = None,
     ):
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression {compression!r} is not one of {sorted(COMPRESSIONS)}")
@@ -461,9 +463,9 @@ class Recorder:
         self._name = f"{prefix}_{stamp}" if prefix else stamp
 
         self._topics: dict[str, _Topic] = {}
-        self._cycle_topic: Optional[str] = None
-        self._black_box_topic: Optional[str] = None
-        self._cycle_class: Optional[type] = None
+        self._cycle_topic: str | None = None
+        self._black_box_topic: str | None = None
+        self._cycle_class: type | None = None
         ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz))
         self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
@@ -484,7 +486,7 @@ class Recorder:
         # The topics the writer thread has registered, in order; _topics may be ahead of it.
         self._registered: list[_Topic] = []
         self._files: list[_File] = []
-        self._file: Optional[_McapFile] = None
+        self._file: _McapFile | None = None
         self._pending_bytes = 0
         self._last_flush = time.monotonic()
         self._thread = threading.Thread(target=self._run, name="akd_recorder", daemon=True)
@@ -521,7 +523,7 @@ class Recorder:
         msg_class: type,
         qos: Any = None,
         *,
-        black_box_topic: Optional[str] = None,
+        black_box_topic: str | None = None,
         typestore: Any = None,
     ) -> None:
         """Adds the per-cycle topic that :meth:`cycle_sample` feeds, and its black box topic.
@@ -595,7 +597,7 @@ class Recorder:
         self._thread.join(timeout)
         return self.stats
 
-    def __enter__(self) -> "Recorder":
+    def __enter__(self) -> Recorder:
         return self
 
     def __exit__(self, *exc: object) -> None:

@@ -24,8 +24,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from akd_ros import _native  # noqa: E402
-from support.netns import akd_sim_udp, free_udp_port  # noqa: E402
+from akd_ros import _native
+from support.netns import akd_sim_udp, free_udp_port
 
 
 def busy_work(stop: threading.Event) -> None:
@@ -41,7 +41,7 @@ class Busy:
         self.stop = threading.Event()
         self.threads = [threading.Thread(target=busy_work, args=(self.stop,)) for _ in range(count)]
 
-    def __enter__(self) -> "Busy":
+    def __enter__(self) -> Busy:
         for t in self.threads:
             t.start()
         return self

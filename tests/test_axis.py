@@ -232,7 +232,7 @@ def test_a_drive_fault_is_one_event_with_its_code_and_text_and_reset_clears_it(a
         lambda: (f := list(axis.fault_events())) and f,
     )
     faults += wait_for(
-        "the emergency", lambda: [e for e in axis.fault_events()] or [e for e in faults if e.source == "emergency"]
+        "the emergency", lambda: list(axis.fault_events()) or [e for e in faults if e.source == "emergency"]
     )
     by_source = {e.source: e for e in faults}
     fault = by_source["drive_fault"]

@@ -4,8 +4,8 @@ The cycle thread needs no GIL. To make any dependence on it visible, the test st
 interval to 50 ms and keeps a thread computing in pure Python (holding the GIL for 50 ms at a time) while the main
 thread commands a moving target and reads states: a loop that needed the GIL would stall for about 50 cycles at a
 time. The test asserts no such stalls (at most a few periods of 25 ms or more, which a virtual machine can add by
-itself), no lost frame, no working-counter error, and that every cycle ran, and prints the statistics. How regular the periods are on this machine is the benchmark's business
-(bench/cycle_jitter.py), not this test's.
+itself), no lost frame, no working-counter error, and that every cycle ran, and prints the statistics. How regular
+the periods are on this machine is the benchmark's business (bench/cycle_jitter.py), not this test's.
 
 The cycle asks for SCHED_FIFO priority 80, as a robot would run it; where that is not permitted it runs without and
 says so in the printed statistics. Even so a virtual machine can stall the thread for more than the eight cycles the

@@ -22,11 +22,11 @@ from builtin_interfaces.msg import Time
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
-from support.ros import RMW, WAIT_S, Participant, ros_environment
 
 import akd_ros
 from akd_ros.msg import CycleSample, DriveFault, DriveStatus, LatchEvent
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
+from support.ros import RMW, WAIT_S, Participant, ros_environment
 
 REPO = Path(__file__).resolve().parents[1]
 TOPIC_PREFIX = "/akd_messages_test/"

@@ -14,6 +14,9 @@ import signal
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_srvs.srv import Trigger
+
+from akd_ros.msg import LatchEvent
+from akd_ros.srv import SdoRead, SdoWrite, SetMode
 from support.ros import (
     COUNTS_PER_RAD,
     NODE,
@@ -28,9 +31,6 @@ from support.ros import (
     ros_environment,
     stop,
 )
-
-from akd_ros.msg import LatchEvent
-from akd_ros.srv import SdoRead, SdoWrite, SetMode
 
 # ROS_DOMAIN_IDs of this module; the second node's are SECOND_DOMAIN_OFFSET above. Other modules take other ranges.
 DOMAINS = range(201, 211)

@@ -194,7 +194,7 @@ def node_in_process():
 
 def test_every_parameter_is_declared_with_type_description_and_range(node_in_process):
     names = [spec.name for spec in params.SCHEMA]
-    descriptors = dict(zip(names, node_in_process.describe_parameters(names)))
+    descriptors = dict(zip(names, node_in_process.describe_parameters(names), strict=True))
     for spec in params.SCHEMA:
         descriptor = descriptors[spec.name]
         assert descriptor.description and descriptor.read_only, spec.name

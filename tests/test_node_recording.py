@@ -10,6 +10,7 @@ every wait is bounded and both processes are ended in teardown.
 from __future__ import annotations
 
 import importlib
+import itertools
 import signal
 import subprocess
 import sys
@@ -21,8 +22,9 @@ import yaml
 from mcap.exceptions import EndOfFile
 from mcap.reader import NonSeekingReader, make_reader
 from rclpy.serialization import deserialize_message
-from rosbags.highlevel import AnyReader
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
 from support.ros import (
     BIN,
     COUNTS_PER_RAD,
@@ -105,11 +107,14 @@ def fault_run(ros_domain, tmp_path_factory) -> FaultRun:
         # Every topic matched before anything happens, so the client sees every event the node records.
         hashes = {}
         for topic in NODE_TOPICS:
-            ros.spin_until(lambda: ros.node.get_publishers_info_by_topic(topic), f"the node's publisher of {topic}")
+            ros.spin_until(
+                lambda topic=topic: ros.node.get_publishers_info_by_topic(topic), f"the node's publisher of {topic}"
+            )
             hashes[topic] = str(ros.node.get_publishers_info_by_topic(topic)[0].topic_type_hash)
         for topic in COMMAND_TOPICS.values():
             ros.spin_until(
-                lambda: ros.node.get_subscriptions_info_by_topic(topic), f"the node's subscription of {topic}"
+                lambda topic=topic: ros.node.get_subscriptions_info_by_topic(topic),
+                f"the node's subscription of {topic}",
             )
             hashes[topic] = str(ros.node.get_subscriptions_info_by_topic(topic)[0].topic_type_hash)
 
@@ -193,7 +198,7 @@ def test_rosbags_reads_every_topic_with_the_counts_sent_and_received_live(fault_
     # The axis may cross the edge more than once while it settles: every capture is an event.
     latches = fault_run.received[NODE + "latch"]
     assert latches and len(messages[NODE + "latch"]) == len(latches)
-    for latch, (time_ns, recorded) in zip(latches, messages[NODE + "latch"]):
+    for latch, (time_ns, recorded) in zip(latches, messages[NODE + "latch"], strict=True):
         assert time_ns == stamp_ns(latch.header.stamp) == stamp_ns(recorded.header.stamp)
         assert (recorded.position, recorded.position_counts, recorded.channel, recorded.edge) == (
             latch.position,
@@ -220,7 +225,7 @@ def test_every_cycle_is_recorded_with_consecutive_cycle_numbers(fault_run):
     assert len(cycles) > 1000, len(cycles)
     assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), "a cycle is missing or repeated"
     times = [time_ns for time_ns, _ in messages[CYCLE]]
-    assert all(a < b for a, b in zip(times, times[1:]))
+    assert all(a < b for a, b in itertools.pairwise(times))
     assert all(time_ns == stamp_ns(m.stamp) for time_ns, m in messages[CYCLE])
     # The recorded cycles are the drive's: Operation enabled (0x27 in the low bits) while moving, in mode 7.
     assert any(m.statusword & 0x6F == 0x27 and m.mode_of_operation == 7 for _, m in messages[CYCLE])
@@ -254,7 +259,7 @@ def test_mcap_reads_the_same_messages_which_rclpy_decodes_equal_to_those_receive
     assert {topic: len(m) for topic, m in messages.items()} == counts
     for topic in (NODE + "latch", NODE + "fault"):
         assert [m for _, m in messages[topic]] == fault_run.received[topic], topic
-    recorded = {time_ns: m for time_ns, m in messages["/joint_states"]}
+    recorded = dict(messages["/joint_states"])
     for message in fault_run.received["/joint_states"]:
         assert recorded[stamp_ns(message.header.stamp)] == message
 
@@ -315,9 +320,8 @@ def test_a_bag_of_a_sigkilled_node_is_readable_up_to_its_last_chunk_and_reindexe
     # metadata.yaml, rewritten at each closed chunk, claims nothing the file does not hold.
     assert 0 < counted <= read, (counted, read)
 
-    with pytest.raises(Exception):
-        with AnyReader([bag]) as reader:
-            list(reader.messages())
+    with pytest.raises(AnyReaderError), AnyReader([bag]) as reader:
+        list(reader.messages())
     # The README's way (section Recording), then the picture of what was saved.
     subprocess.run(
         [sys.executable, "-c", f"from akd_ros.recorder import reindex; reindex({str(bag)!r})"], check=True, timeout=120

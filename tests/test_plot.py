@@ -7,10 +7,10 @@ import struct
 from pathlib import Path
 
 import pytest
-from akd_ros.msg import CycleSample, DriveFault, LatchEvent
 from sensor_msgs.msg import JointState
 
 from akd_ros.cli.plot import main
+from akd_ros.msg import CycleSample, DriveFault, LatchEvent
 from akd_ros.recorder import Recorder
 
 T0 = 1_700_000_000_000_000_000

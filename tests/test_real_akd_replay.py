@@ -91,7 +91,8 @@ class Compared:
         r = self.request
         return (
             f"frame {self.frame} {r.name} 0x{r.adp:04X}:0x{r.ado:04X} ({len(r.data)} bytes): "
-            f"real wkc {self.real.wkc} {self.real.data[:16].hex()} / ours wkc {self.ours.wkc} {self.ours.data[:16].hex()}"
+            f"real wkc {self.real.wkc} {self.real.data[:16].hex()} / "
+            f"ours wkc {self.ours.wkc} {self.ours.data[:16].hex()}"
         )
 
 
@@ -111,7 +112,7 @@ def replay(capture) -> tuple[list[Compared], int]:
             continue
         real = parse(following[3])
         assert len(real) == len(ours), f"frame {number}: datagram count differs"
-        compared += [Compared(number, q, r, o) for q, r, o in zip(parse(payload), real, ours)]
+        compared += [Compared(number, q, r, o) for q, r, o in zip(parse(payload), real, ours, strict=True)]
     return compared, unanswered
 
 

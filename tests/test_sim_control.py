@@ -130,12 +130,12 @@ def test_bad_values_are_refused_naming_the_allowed_ones():
         with pytest.raises(_native.ConfigError, match="timeout must be a non-negative number"):
             simulator.drive_state(0, timeout=-1)
         # Nobody exchanges frames: the query says so instead of waiting for ever.
-        with pytest.raises(_native.ConfigError, match="not answered within 50ms.*idle in-process master"):
+        with pytest.raises(_native.ConfigError, match=r"not answered within 50ms.*idle in-process master"):
             simulator.drive_state(0, timeout=0.05)
     with pytest.raises(_native.ConfigError, match="virtual AKDs are gone"):
         simulator.inject_fault(0, "F439")
     with pytest.raises(_native.ConfigError, match='in-process links "sim" and "sim:N" only'):
-        _native.Master("udp://127.0.0.1:9").simulator
+        _ = _native.Master("udp://127.0.0.1:9").simulator
 
 
 class Lines:

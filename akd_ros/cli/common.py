@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-from typing import Callable
+from collections.abc import Callable
 
 LINK_HELP = (
     "the bus: 'sim' (one in-process virtual AKD), 'sim:N' (N of them), "

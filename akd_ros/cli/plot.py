@@ -86,7 +86,7 @@ def read_run(bag: Path) -> Run:
                 else:
                     result.faults.append((time_ns, msg))
             result.black_box = _spans(sorted(dump))
-    except Exception as err:  # noqa: BLE001 - rosbags' errors have many types; all mean the same
+    except Exception as err:
         raise ValueError(
             f"cannot read bag {bag}: {err} (if its recorder was killed, run akd-plot with --reindex)"
         ) from err

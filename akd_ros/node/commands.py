@@ -100,7 +100,7 @@ class Commands:
         if self._reset_pending:
             self._reset_pending = False
             if axis.cycle.drive_status(axis.slave)["state"] in FAULT_STATES:
-                ok, message = self.reset_fault()
+                _, message = self.reset_fault()
                 self._logger.warning(f"fault_reset auto_once: {message}")
         timeout = self._settings.command_timeout
         policy = self._settings.command_timeout_policy

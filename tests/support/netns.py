@@ -19,6 +19,7 @@ or, to open a raw socket of the current process inside the master's namespace::
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import itertools
 import json
@@ -29,10 +30,10 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, Sequence
 
 import pytest
 
@@ -71,10 +72,8 @@ def _kill_pids_in(ns: str) -> None:
     """Stops processes the test left in its own namespace, so deleting it frees the veth."""
     listed = _ip("netns", "pids", ns, check=False)
     for pid in listed.stdout.split():
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.kill(int(pid), signal.SIGKILL)
-        except ProcessLookupError:
-            pass
 
 
 @contextmanager

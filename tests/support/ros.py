@@ -15,9 +15,9 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 import pytest
 import rclpy
@@ -103,8 +103,10 @@ class Sim:
             try:
                 line = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
-                raise AssertionError(f"akd-sim gave no line starting {prefix!r}; output:\n{''.join(self.log)}")
-            if line.startswith(prefix) or line.startswith("error"):
+                raise AssertionError(
+                    f"akd-sim gave no line starting {prefix!r}; output:\n{''.join(self.log)}"
+                ) from None
+            if line.startswith((prefix, "error")):
                 assert not line.startswith("error"), line
                 return line
 
