@@ -14,7 +14,7 @@ One module per job, each a part that `AkdNode` is made of:
 - `services`: the services over those requests;
 - `recording`: the bag of everything published and received, and of every cycle (`record.*`);
 - `clock`: stamps, the cycle thread's monotonic times moved onto the ROS clock;
-- `session`: what the parts share from configure to cleanup (the Axis, the Recorder, the lock).
+- `session`: what the parts share (the settings, the clock; from configure to cleanup the Axis, the Recorder, the lock).
 
 Threads: a MultiThreadedExecutor runs three callback groups. The periodic group (publishing timers) and the command
 group (the command subscriptions, queued 100 deep so a stall of the Python side delays commands rather than drops

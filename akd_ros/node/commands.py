@@ -18,9 +18,7 @@ from rclpy.qos import QoSProfile
 from std_msgs.msg import Float64
 
 from akd_ros.axis import Axis, CommandError
-from akd_ros.node.clock import CycleClock
 from akd_ros.node.session import AXIS_ERRORS, FAULT_STATES, Session
-from akd_ros.params import Settings
 
 _SUPERVISOR_PERIOD_S = 0.02
 # How often one kind of refused command is logged.
@@ -32,10 +30,8 @@ class Commands:
     """The command subscriptions (in `group`, `qos`), the supervisor timer (in `supervisor_group`: it may wait on
     the drive) and the state they share: the last command, whether halted, whether a fault reset is due."""
 
-    def __init__(
-        self, node, session: Session, clock: CycleClock, settings: Settings, group, qos: QoSProfile, supervisor_group
-    ) -> None:
-        self._session, self._clock, self._settings = session, clock, settings
+    def __init__(self, node, session: Session, group, qos: QoSProfile, supervisor_group) -> None:
+        self._session, self._clock, self._settings = session, session.clock, session.settings
         self._logger = node.get_logger()
         self.qos = qos
         self._last_command: tuple[str, float, float] | None = None

@@ -9,10 +9,8 @@ from __future__ import annotations
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.qos import QoSProfile
 
-from akd_ros.node.clock import CycleClock
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
-from akd_ros.params import Settings
 
 
 class Diagnostics:
@@ -22,18 +20,16 @@ class Diagnostics:
         self,
         node,
         session: Session,
-        clock: CycleClock,
-        settings: Settings,
         group,
         qos: QoSProfile,
         name: str,
         publishing: Publishing,
     ) -> None:
-        self._session, self._clock, self._settings = session, clock, settings
+        self._session, self._clock, self._settings = session, session.clock, session.settings
         self._name, self._publishing = name, publishing
         self.publisher = RecordedPublisher(node, DiagnosticArray, "/diagnostics", qos, session)
         self._counters_seen: dict[str, int] = {}
-        node.create_timer(1.0 / settings.diagnostics_rate, self._publish, group)
+        node.create_timer(1.0 / session.settings.diagnostics_rate, self._publish, group)
 
     def restart_counters(self) -> None:
         """Counts the fault counters' growth from the next report on (at activate)."""

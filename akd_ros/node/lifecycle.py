@@ -41,8 +41,7 @@ class AkdNode(LifecycleNode):
         self.settings: Settings = declare(self, arguments, kwargs.get("parameter_overrides") or [])
         self.failure: str | None = None
         """Why the last transition failed, for the log and the exit message."""
-        self._session = Session()
-        clock = CycleClock(self.get_clock())
+        self._session = Session(self.settings, CycleClock(self.get_clock()))
         periodic = MutuallyExclusiveCallbackGroup()
         requests = MutuallyExclusiveCallbackGroup()
         # Commands have a group of their own, so a slow timer callback (a batch of cycles to record) does not hold
@@ -52,12 +51,10 @@ class AkdNode(LifecycleNode):
         self._reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         events = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         s = self.settings
-        self._commands = Commands(self, self._session, clock, s, commands, command_qos, requests)
-        self._publishing = Publishing(
-            self, self._session, clock, s, periodic, self._reliable, events, self._commands.fault_seen
-        )
+        self._commands = Commands(self, self._session, commands, command_qos, requests)
+        self._publishing = Publishing(self, self._session, periodic, self._reliable, events, self._commands.fault_seen)
         self._diagnostics = Diagnostics(
-            self, self._session, clock, s, periodic, self._reliable, f"{NODE_NAME}: {s.joint_name}", self._publishing
+            self, self._session, periodic, self._reliable, f"{NODE_NAME}: {s.joint_name}", self._publishing
         )
         Services(self, self._session, self._commands, requests)
 

@@ -15,10 +15,9 @@ from sensor_msgs.msg import JointState
 
 from akd_ros.axis import MODES
 from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
-from akd_ros.node.clock import CycleClock, nanoseconds
+from akd_ros.node.clock import nanoseconds
 from akd_ros.node.recording import record_cycles
 from akd_ros.node.session import Session
-from akd_ros.params import Settings
 
 EDGE_NAMES = {LatchEvent.EDGE_RISING: "rising", LatchEvent.EDGE_FALLING: "falling"}
 """Latch edges by their LatchEvent code."""
@@ -59,14 +58,12 @@ class Publishing:
         self,
         node,
         session: Session,
-        clock: CycleClock,
-        settings: Settings,
         group,
         reliable: QoSProfile,
         events: QoSProfile,
         on_fault: Callable[[], None],
     ) -> None:
-        self._session, self._clock, self._settings, self._on_fault = session, clock, settings, on_fault
+        self._session, self._clock, self._settings, self._on_fault = session, session.clock, session.settings, on_fault
         self._logger = node.get_logger()
         self.joint_states = RecordedPublisher(node, JointState, "/joint_states", reliable, session)
         self.status = RecordedPublisher(node, DriveStatus, "~/status", reliable, session)
@@ -74,8 +71,8 @@ class Publishing:
         self.fault = RecordedPublisher(node, DriveFault, "~/fault", events, session)
         self.last_fault: DriveFault | None = None
         """The last fault published, for /diagnostics."""
-        node.create_timer(1.0 / settings.joint_states_rate, self._publish_joint_states, group)
-        node.create_timer(1.0 / settings.status_rate, self._publish_status, group)
+        node.create_timer(1.0 / session.settings.joint_states_rate, self._publish_joint_states, group)
+        node.create_timer(1.0 / session.settings.status_rate, self._publish_status, group)
         node.create_timer(_EVENT_POLL_S, self._publish_events, group)
 
     def _publish_joint_states(self) -> None:

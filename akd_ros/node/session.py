@@ -1,6 +1,6 @@
-"""What the node's parts share from a configure to its cleanup: the Axis, the Recorder, whether the node is active,
-and the lock that guards the Axis's Python-side state (position unwrapping, event queues, the last command) between
-the callback groups."""
+"""What the node's parts share: the settings and the clock, and from a configure to its cleanup the Axis, the
+Recorder, whether the node is active, and the lock that guards the Axis's Python-side state (position unwrapping,
+event queues, the last command) between the callback groups."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ import threading
 
 from akd_ros import _native
 from akd_ros.axis import Axis, CommandError
+from akd_ros.node.clock import CycleClock
+from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 
 AXIS_ERRORS = (ValueError, TimeoutError, _native.EtherCatError)
@@ -17,10 +19,11 @@ FAULT_STATES = ("Fault", "Fault reaction active")
 
 
 class Session:
-    """The Axis (None until configured), the Recorder (None unless recording), whether the node is active, and the
-    lock that guards the Axis between the callback groups."""
+    """The node's settings and clock; the Axis (None until configured), the Recorder (None unless recording),
+    whether the node is active, and the lock that guards the Axis between the callback groups."""
 
-    def __init__(self) -> None:
+    def __init__(self, settings: Settings, clock: CycleClock) -> None:
+        self.settings, self.clock = settings, clock
         self.lock = threading.Lock()
         self.axis: Axis | None = None
         self.active = False
