@@ -329,7 +329,8 @@ def _named_in(arguments: list[str]) -> dict[str, object]:
             ros = argument == "--ros-args"
         elif ros and following is not None and argument in ("-p", "--param"):
             name, _, text = following.partition(":=")
-            named[name] = _yaml_value(text)
+            if name:  # rcl refuses -p without a name
+                named[name] = _yaml_value(text)
         elif ros and following is not None and argument == "--params-file":
             with open(following, encoding="utf-8") as stream:
                 named.update(_parameters_in(yaml.safe_load(stream)))
@@ -347,7 +348,7 @@ def _parameters_in(tree: object, prefix: str | None = None) -> dict[str, object]
     """The parameters of a parameters file's tree by dotted name, from every ros__parameters in it (under any node
     name or namespace)."""
     if prefix is not None and not isinstance(tree, dict):
-        return {prefix: tree}
+        return {prefix: tree} if prefix else {}  # no name: not a parameter (rcl refuses such a file)
     found = {}
     for key, value in tree.items() if isinstance(tree, dict) else ():
         if prefix is not None:
