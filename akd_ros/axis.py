@@ -17,10 +17,11 @@ and `fault_events` hand them out once each.
 from __future__ import annotations
 
 import collections
+import contextlib
 import struct
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 from akd_ros import _native
 from akd_ros.units import Limits, Units, unwrap_position
@@ -156,7 +157,9 @@ class FaultEvent:
         if self.source in ("lost_frames", "working_counter"):
             what = f"{self.code} cycles in a row"
         if self.source == "al_state":
-            what = f"slave now in {self.al_state}, AL status code 0x{self.al_status_code:04X} ({self.al_status_code_name})"
+            what = (
+                f"slave now in {self.al_state}, AL status code 0x{self.al_status_code:04X} ({self.al_status_code_name})"
+            )
         return f"{self.source}: {what}; {self.action}"
 
 
@@ -262,10 +265,9 @@ class Axis:
         try:
             if cycle.running:
                 cycle.disable(self.slave)
-                try:
+                # A drive in Fault or unreachable stays as it is: powerless.
+                with contextlib.suppress(Exception):
                     cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
-                except Exception:  # noqa: BLE001 - a drive in Fault or unreachable stays as it is: powerless
-                    pass
         finally:
             cycle.stop()
             try:
@@ -407,8 +409,11 @@ class Axis:
         self._wait_for(lambda s: not s["statusword"] & _ACKNOWLEDGED, f"statusword bit 12 to clear before {what}")
         cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", bits))
         try:
-            self._wait_for(lambda s: s["statusword"] & _ACKNOWLEDGED,
-                           f"the drive to acknowledge {what} (it must be in Operation enabled)", timeout)
+            self._wait_for(
+                lambda s: s["statusword"] & _ACKNOWLEDGED,
+                f"the drive to acknowledge {what} (it must be in Operation enabled)",
+                timeout,
+            )
         finally:
             cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", 0))
 
@@ -486,13 +491,24 @@ class Axis:
             if e["kind"] == "latch":
                 counts = e["position"]
                 self._latches.append(
-                    LatchEvent(e["cycle"], e["time_ns"], e["channel"], e["edge"], self.units.position_to_si(counts), counts)
+                    LatchEvent(
+                        e["cycle"], e["time_ns"], e["channel"], e["edge"], self.units.position_to_si(counts), counts
+                    )
                 )
             else:
                 self._faults.append(
                     FaultEvent(
-                        e["cycle"], e["time_ns"], e["source"], e["code"], e["text"], e["statusword"], e["ds402_state"],
-                        e["al_state"], e["al_status_code"], e["al_status_code_name"], e["action"],
+                        e["cycle"],
+                        e["time_ns"],
+                        e["source"],
+                        e["code"],
+                        e["text"],
+                        e["statusword"],
+                        e["ds402_state"],
+                        e["al_state"],
+                        e["al_status_code"],
+                        e["al_status_code_name"],
+                        e["action"],
                     )
                 )
 

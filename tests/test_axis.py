@@ -35,10 +35,12 @@ def cycles_later(axis: Axis, count: int):
 
 def settled(axis: Axis):
     """The state once the axis stands still: within 2 counts over 50 cycles."""
+
     def still():
         before = axis.state().position_counts
         s = cycles_later(axis, 50)
         return abs(s.position_counts - before) <= 2 and s
+
     return wait_for("the axis to stand still", still)
 
 
@@ -229,8 +231,9 @@ def test_a_drive_fault_is_one_event_with_its_code_and_text_and_reset_clears_it(a
         "the fault events",
         lambda: (f := list(axis.fault_events())) and f,
     )
-    faults += wait_for("the emergency", lambda: [e for e in axis.fault_events()] or
-                       [e for e in faults if e.source == "emergency"])
+    faults += wait_for(
+        "the emergency", lambda: list(axis.fault_events()) or [e for e in faults if e.source == "emergency"]
+    )
     by_source = {e.source: e for e in faults}
     fault = by_source["drive_fault"]
     assert fault.code == 0x8611 and fault.text == "F439 Following error", fault

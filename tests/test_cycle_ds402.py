@@ -162,5 +162,5 @@ def test_a_drive_without_controlword_is_refused_naming_what_is_missing():
 
 
 def test_wait_state_refuses_an_unknown_state(csp):
-    with pytest.raises(_native.EtherCatError, match='unknown state "Enabled".*Operation enabled'):
+    with pytest.raises(_native.EtherCatError, match=r'unknown state "Enabled".*Operation enabled'):
         csp.wait_state(0, "Enabled")
