@@ -431,7 +431,7 @@ class Axis:
         """Runs the set-point handshake in the cycle thread and waits for it: controlword `bits` (bit 4 starts a
         profile move or homing) raised from statusword bit 12 clear until the drive acknowledges in bit 12, then
         lowered, so the next command makes a new rising edge. TimeoutError says why it is stuck (not in Operation
-        enabled, bit 12 never set or cleared within `timeout`, homing error)."""
+        enabled, bit 12 not cleared within the request time-out or not set within `timeout`, homing error)."""
         cycle = self._running()
         cycle.start_setpoint(self.slave, bits, timeout=timeout)
         try:

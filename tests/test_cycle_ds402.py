@@ -174,7 +174,8 @@ def test_set_point_handshake_and_command_timeout_refuse_what_cannot_work(csp):
     # Cyclic synchronous position shows statusword bit 12 all along: a handshake never starts.
     csp.enable(0)
     csp.wait_state(0, "Operation enabled")
-    assert csp.start_setpoint(0, 0x0030, timeout=0.05) == 1
+    csp.request_timeout = 0.1
+    assert csp.start_setpoint(0, 0x0030) == 1
     with pytest.raises(_native.TimeoutError, match="stuck in Operation enabled .*bit 12 stayed set"):
         csp.wait_setpoint(0)
     status = csp.setpoint_status(0)

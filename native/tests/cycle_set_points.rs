@@ -122,12 +122,14 @@ fn a_handshake_starts_from_bit_12_clear() {
     // Cyclic synchronous position shows bit 12 set all along: the bits are never raised.
     let cycle = rig(Mode::CyclicSynchronousPosition);
     enabled(&cycle);
-    cycle.start_setpoint(0, 0x0030, Some(Duration::from_millis(100))).unwrap();
+    cycle.set_request_timeout(Duration::from_millis(100));
+    cycle.start_setpoint(0, 0x0030, None).unwrap();
     let e = cycle.wait_setpoint(0, None).unwrap_err().to_string();
     assert!(e.contains("bit 12 stayed set"), "{e}");
     assert_eq!(sent_controlword(&cycle) & cw::NEW_SETPOINT, 0);
     // Homing attained stays set after a homing; a later handshake waits for it to clear (here
     // by a mode change to profile position) and then goes through.
+    cycle.set_request_timeout(Duration::from_secs(10));
     cycle.set_mode(0, Mode::Homing as i8).unwrap();
     shows_mode(&cycle, Mode::Homing);
     cycle.start_setpoint(0, 0x0010, Some(Duration::from_secs(5))).unwrap();

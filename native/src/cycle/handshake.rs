@@ -10,8 +10,9 @@
 //! the bits of a request that replaces one under way go out low for that cycle first.
 //!
 //! The handshake is stuck, and the bits go low, when the drive is not (or no longer) in
-//! Operation enabled, when bit 12 does not clear or is not set within the request's time-out,
-//! or in homing when the drive shows a homing error (statusword bit 13). Requests and status
+//! Operation enabled, when bit 12 does not clear within the clearing time-out (the request
+//! time-out) or is not set within the request's own time-out from the raise (which homing may
+//! make long), or in homing when the drive shows a homing error (statusword bit 13). Requests and status
 //! pass through atomics: nothing here locks, allocates or waits.
 
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -29,9 +30,9 @@ pub const ALLOWED_BITS: u16 = cw::NEW_SETPOINT | cw::CHANGE_IMMEDIATELY | cw::RE
 pub enum Stuck {
     /// The drive is not, or no longer, in Operation enabled.
     NotEnabled = 1,
-    /// Statusword bit 12 stayed set for the time-out, so the bits could not be raised.
+    /// Statusword bit 12 stayed set for the clearing time-out, so the bits were not raised.
     NeverCleared = 2,
-    /// Statusword bit 12 was not set within the time-out while the bits were raised.
+    /// Statusword bit 12 was not set within the time-out from the raise.
     NeverSet = 3,
     /// The drive shows a homing error (statusword bit 13) while homing.
     HomingError = 4,
@@ -45,11 +46,12 @@ impl Stuck {
         match self {
             Stuck::NotEnabled => "the drive is not in Operation enabled",
             Stuck::NeverCleared => {
-                "statusword bit 12 stayed set within the time-out (the handshake starts from bit 12 clear; in \
-                 homing it is the homing attained of an earlier homing)"
+                "statusword bit 12 stayed set for the request time-out (the handshake starts from bit 12 clear; \
+                 in homing it is the homing attained of an earlier homing)"
             }
             Stuck::NeverSet => {
-                "statusword bit 12 (set-point acknowledged, or homing attained) was not set within the time-out"
+                "statusword bit 12 (set-point acknowledged, or homing attained) was not set within the time-out \
+                 after the bits were raised"
             }
             Stuck::HomingError => "homing error (statusword bit 13)",
         }
@@ -129,7 +131,9 @@ impl Status {
 pub struct Shared {
     /// The request counter (high 32 bits) and its bits (low 16).
     request: AtomicU64,
-    /// The time-out of the last request (ns).
+    /// How long the last request may wait for bit 12 to clear (ns).
+    clear_timeout_ns: AtomicU64,
+    /// How long the last request may wait for bit 12 once the bits are raised (ns).
     timeout_ns: AtomicU64,
     /// The published [`Status`], packed.
     status: AtomicU64,
@@ -137,9 +141,12 @@ pub struct Shared {
 
 impl Shared {
     /// Asks for a handshake raising `bits` (within [`ALLOWED_BITS`], with bit 4) that ends stuck
-    /// when not done within `timeout`; it replaces one under way. Returns its number.
-    pub fn start(&self, bits: u16, timeout: Duration) -> u32 {
-        self.timeout_ns.store(timeout.as_nanos().min(u64::MAX as u128) as u64, Ordering::Release);
+    /// when bit 12 does not clear within `clear_timeout` or is not set within `timeout` of the
+    /// raise; it replaces one under way. Returns its number.
+    pub fn start(&self, bits: u16, clear_timeout: Duration, timeout: Duration) -> u32 {
+        let ns = |t: Duration| t.as_nanos().min(u64::MAX as u128) as u64;
+        self.clear_timeout_ns.store(ns(clear_timeout), Ordering::Release);
+        self.timeout_ns.store(ns(timeout), Ordering::Release);
         let next = |r: u64| ((r >> 32) as u32).wrapping_add(1);
         let before = self
             .request
@@ -186,7 +193,9 @@ pub struct Handshake {
     request: u32,
     bits: u16,
     phase: Phase,
+    /// When it was taken, then when the bits were raised.
     started_ns: u64,
+    clear_timeout_ns: u64,
     timeout_ns: u64,
     statusword: u16,
 }
@@ -200,11 +209,16 @@ impl Handshake {
         if (request >> 32) as u32 != self.request {
             self.request = (request >> 32) as u32;
             self.bits = request as u16;
+            self.clear_timeout_ns = shared.clear_timeout_ns.load(Ordering::Acquire);
             self.timeout_ns = shared.timeout_ns.load(Ordering::Acquire);
             self.started_ns = now_ns;
             self.phase = Phase::Taken;
         } else {
-            self.phase = self.next(statusword, mode_display, now_ns);
+            let next = self.next(statusword, mode_display, now_ns);
+            if next == Phase::Raised && self.phase != Phase::Raised {
+                self.started_ns = now_ns;
+            }
+            self.phase = next;
         }
         // The statusword of the cycle that ended it stays, to say why.
         if was_under_way || self.phase.under_way() {
@@ -218,16 +232,16 @@ impl Handshake {
             return self.phase;
         }
         let acknowledged = statusword & sw::MODE_SPECIFIC_12 != 0;
-        let timed_out = now_ns.saturating_sub(self.started_ns) >= self.timeout_ns;
+        let waited = now_ns.saturating_sub(self.started_ns);
         let homing = mode_display == Some(Mode::Homing as i8);
         match self.phase {
             _ if State::from_statusword(statusword) != Some(State::OperationEnabled) => Phase::Stuck(Stuck::NotEnabled),
             Phase::Raised if homing && statusword & sw::MODE_SPECIFIC_13 != 0 => Phase::Stuck(Stuck::HomingError),
             Phase::Raised if acknowledged => Phase::Done,
-            Phase::Raised if timed_out => Phase::Stuck(Stuck::NeverSet),
+            Phase::Raised if waited >= self.timeout_ns => Phase::Stuck(Stuck::NeverSet),
             Phase::Raised => Phase::Raised,
             _ if !acknowledged => Phase::Raised,
-            _ if timed_out => Phase::Stuck(Stuck::NeverCleared),
+            _ if waited >= self.clear_timeout_ns => Phase::Stuck(Stuck::NeverCleared),
             _ => Phase::Clearing,
         }
     }
@@ -279,7 +293,7 @@ mod tests {
     fn raises_the_bits_the_cycle_after_it_took_them_and_lowers_them_at_bit_12() {
         let (mut h, shared) = (Handshake::default(), Shared::default());
         assert_eq!(shared.status().progress, Progress::Idle);
-        assert_eq!(shared.start(0x0030, TIMEOUT), 1);
+        assert_eq!(shared.start(0x0030, TIMEOUT, TIMEOUT), 1);
         assert_eq!(shared.status(), Status { request: 1, bits: 0x30, progress: Progress::InProgress, statusword: 0 });
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 0), (Progress::InProgress, 0));
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 1), (Progress::InProgress, 0x30));
@@ -291,11 +305,11 @@ mod tests {
     #[test]
     fn starts_from_bit_12_clear_or_gets_stuck_saying_so() {
         let (mut h, shared) = (Handshake::default(), Shared::default());
-        shared.start(0x0030, TIMEOUT);
+        shared.start(0x0030, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, ENABLED | 0x1000, 1, 0);
         assert_eq!(run(&mut h, &shared, ENABLED | 0x1000, 1, 5), (Progress::InProgress, 0));
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 6), (Progress::InProgress, 0x30));
-        shared.start(0x0030, TIMEOUT);
+        shared.start(0x0030, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, ENABLED | 0x1000, 1, 20);
         assert_eq!(run(&mut h, &shared, ENABLED | 0x1000, 1, 30), (Progress::Stuck(Stuck::NeverCleared), 0));
         let why = shared.status().stuck_reason().unwrap();
@@ -306,28 +320,30 @@ mod tests {
     #[test]
     fn a_drive_not_enabled_or_a_homing_error_ends_it_stuck() {
         let (mut h, shared) = (Handshake::default(), Shared::default());
-        shared.start(0x0010, TIMEOUT);
+        shared.start(0x0010, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, 0x0040, 6, 0);
         assert_eq!(run(&mut h, &shared, 0x0040, 6, 1), (Progress::Stuck(Stuck::NotEnabled), 0));
         assert!(shared.status().stuck_reason().unwrap().contains("stuck in Switch on disabled"));
-        shared.start(0x0010, TIMEOUT);
+        shared.start(0x0010, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, ENABLED, 6, 2);
         assert_eq!(run(&mut h, &shared, ENABLED, 6, 3), (Progress::InProgress, 0x10));
         assert_eq!(run(&mut h, &shared, ENABLED | 0x2000, 6, 4), (Progress::Stuck(Stuck::HomingError), 0));
         // Bit 13 in profile position is a following error, not the end of the handshake.
-        shared.start(0x0030, TIMEOUT);
+        shared.start(0x0030, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, ENABLED, 1, 5);
         assert_eq!(run(&mut h, &shared, ENABLED | 0x2000, 1, 6), (Progress::InProgress, 0x30));
+        // The time-out counts from the raise.
+        assert_eq!(run(&mut h, &shared, ENABLED | 0x2000, 1, 15), (Progress::InProgress, 0x30));
         assert_eq!(run(&mut h, &shared, ENABLED | 0x2000, 1, 16), (Progress::Stuck(Stuck::NeverSet), 0));
     }
 
     #[test]
     fn a_request_replacing_one_under_way_goes_out_low_first() {
         let (mut h, shared) = (Handshake::default(), Shared::default());
-        shared.start(0x0030, TIMEOUT);
+        shared.start(0x0030, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, ENABLED, 1, 0);
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 1).1, 0x30);
-        assert_eq!(shared.start(0x0010, TIMEOUT), 2);
+        assert_eq!(shared.start(0x0010, TIMEOUT, TIMEOUT), 2);
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 2), (Progress::InProgress, 0));
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 3), (Progress::InProgress, 0x10));
     }

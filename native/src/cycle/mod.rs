@@ -427,8 +427,9 @@ impl CycleThread {
     /// Asks the drive at `position` for the set-point handshake (see [`handshake`]): `bits`
     /// (within [`handshake::ALLOWED_BITS`], with bit 4: 0x0030 for a profile-position
     /// set-point changed at once, 0x0010 to start homing) raised from statusword bit 12 clear
-    /// until bit 12 is set, then lowered; stuck when not done within `timeout` (the request
-    /// time-out when `None`). Replaces one under way; returns its number. Lock-free.
+    /// until bit 12 is set, then lowered; stuck when bit 12 does not clear within the request
+    /// time-out, or is not set within `timeout` of the raise (the request time-out when `None`;
+    /// homing may take long). Replaces one under way; returns its number. Lock-free.
     pub fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<Duration>) -> Result<u32> {
         self.sequenced(position)?;
         if self.stopped() {
@@ -440,8 +441,8 @@ impl CycleThread {
                  with bit 5 (0x0020, change set immediately) and bit 6 (0x0040, relative), e.g. 0x0030 or 0x0010"
             )));
         }
-        let timeout = timeout.unwrap_or_else(|| self.request_timeout());
-        Ok(self.shared.handshakes[position as usize].start(bits, timeout))
+        let clear_timeout = self.request_timeout();
+        Ok(self.shared.handshakes[position as usize].start(bits, clear_timeout, timeout.unwrap_or(clear_timeout)))
     }
 
     /// The set-point handshake last asked for at `position`, as the cycle thread last published

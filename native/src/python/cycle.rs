@@ -425,9 +425,10 @@ impl PyCycle {
     /// bit 12 clear, controlword `bits` (0x0030: a profile-position set-point changed at once;
     /// 0x0010: start homing; bit 6 0x0040 relative) go out with the sequencer's own until bit 12
     /// is set (set-point acknowledged, homing attained), then low again. Stuck when the drive is
-    /// not in Operation enabled, when bit 12 does not clear or is not set within `timeout`
-    /// seconds (`request_timeout` when None), or on a homing error (bit 13). Replaces one under
-    /// way; returns its number at once (`wait_setpoint` waits).
+    /// not in Operation enabled, when bit 12 does not clear within `request_timeout`, when it is
+    /// not set within `timeout` seconds of the raise (`request_timeout` when None; homing may
+    /// take long), or on a homing error (bit 13). Replaces one under way; returns its number at
+    /// once (`wait_setpoint` waits).
     #[pyo3(signature = (position, bits, timeout = None))]
     fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<f64>) -> PyResult<u32> {
         let timeout = timeout.map(|t| duration("set-point handshake timeout", t, SECONDS)).transpose()?;
