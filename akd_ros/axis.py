@@ -11,7 +11,8 @@ limits clamp or refuse as configured (`akd_ros.units.Limits`), and a command for
 refused. Each refusal is a `CommandError` naming the problem and what is allowed; nothing is sent then.
 
 Latch captures and faults arrive as events from the cycle thread, stamped with the cycle that saw them; `latch_events`
-and `fault_events` hand them out once each.
+and `fault_events` hand them out once each. The set-point handshake of profile position and homing, and the command
+time-out (`set_command_timeout`), run in the cycle thread too; `command_timeout_events` hands out each time-out once.
 """
 
 from __future__ import annotations
@@ -49,11 +50,10 @@ _MODE_TARGETS: dict[str, tuple[tuple[int, int], ...]] = {
     "cyclic_synchronous_position": ((0x607A, 0),),
 }
 _PROFILE_MODES = ("profile_position", "homing")
-# Controlword bits 4 (new set-point, or start homing) and 5 (change set-point immediately), and statusword bit 12
-# (set-point acknowledged, or homing attained).
+# Controlword bits 4 (new set-point, or start homing) and 5 (change set-point immediately), raised by the cycle thread's
+# handshake until statusword bit 12 (set-point acknowledged, or homing attained).
 _NEW_SETPOINT = 0x0030
 _START_HOMING = 0x0010
-_ACKNOWLEDGED = 0x1000
 _COMMAND_KIND = {
     "profile_position": "position",
     "interpolated_position": "position",
@@ -163,6 +163,35 @@ class FaultEvent:
         return f"{self.source}: {what}; {self.action}"
 
 
+@dataclass(frozen=True)
+class CommandTimeoutEvent:
+    """A velocity or torque stream that stopped for longer than the command time-out, and what the cycle thread did."""
+
+    cycle: int
+    time_ns: int
+    command: str
+    """"velocity" or "torque"."""
+    timeout: float
+    """The time-out in s."""
+    value: float
+    """The last command in SI units (rad/s, N·m; m/s, N on a linear axis)."""
+    value_drive: int
+    """The same in drive units (counts/s, 0.1 % of peak torque)."""
+    statusword: int
+    ds402_state: str | None
+    action: str
+    """"hold" (halted until the next command) or "quick_stop" (until enabled again)."""
+    text: str
+    """What was done, e.g. "halted, holding until the next command"."""
+
+    def describe(self) -> str:
+        """One line for a log."""
+        return (
+            f"no {self.command} command for {self.timeout:g} s (command_timeout) while commanding {self.value:g}: "
+            f"{self.text}"
+        )
+
+
 @dataclass
 class _Layout:
     """Where objects sit in one slave's process data."""
@@ -247,6 +276,7 @@ class Axis:
         self._mode = mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
+        self._command_timeouts: collections.deque[CommandTimeoutEvent] = collections.deque()
         self._unwrapped: int | None = None
         self._commanded: dict[str, float] = {}
 
@@ -402,20 +432,16 @@ class Axis:
         self._commanded[kind] = checked
 
     def _start(self, bits: int, what: str, timeout: float = 1.0) -> None:
-        """Raises controlword `bits` (bit 4 starts a profile move or homing) until the drive acknowledges in
-        statusword bit 12, then lowers them, so the next command makes a new rising edge."""
+        """Runs the set-point handshake in the cycle thread and waits for it: controlword `bits` (bit 4 starts a
+        profile move or homing) raised from statusword bit 12 clear until the drive acknowledges in bit 12, then
+        lowered, so the next command makes a new rising edge. TimeoutError says why it is stuck (not in Operation
+        enabled, bit 12 not cleared within the request time-out or not set within `timeout`, homing error)."""
         cycle = self._running()
-        # The handshake starts from bit 12 clear (in another mode it means something else).
-        self._wait_for(lambda s: not s["statusword"] & _ACKNOWLEDGED, f"statusword bit 12 to clear before {what}")
-        cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", bits))
+        cycle.start_setpoint(self.slave, bits, timeout=timeout)
         try:
-            self._wait_for(
-                lambda s: s["statusword"] & _ACKNOWLEDGED,
-                f"the drive to acknowledge {what} (it must be in Operation enabled)",
-                timeout,
-            )
-        finally:
-            cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", 0))
+            cycle.wait_setpoint(self.slave)
+        except _native.TimeoutError as e:
+            raise TimeoutError(f"{what}: {e}") from None
 
     def home(self, timeout: float = 30.0) -> None:
         """Runs the drive's homing (mode homing, with its homing method and speeds set in the drive) and waits until
@@ -435,6 +461,18 @@ class Axis:
     def command_torque(self, torque: float) -> None:
         """Commands a torque (N·m, or N on a linear axis) in profile torque mode."""
         self._command("torque", torque)
+
+    def set_command_timeout(self, seconds: float, policy: str = "hold") -> None:
+        """Stops the axis in the cycle thread when a non-zero velocity (profile velocity) or torque (profile torque)
+        command is not sent again within `seconds` while it is enabled: policy "hold" halts it (controlword bit 8)
+        until the next command, "quick_stop" quick-stops it until `enable()`. 0 turns it off. Position commands and zero
+        never time out; enable, disable, quick stop and a mode change forget the stream and lift the hold. Each
+        time-out is one `CommandTimeoutEvent` (`command_timeout_events`)."""
+        cycle = self._running()
+        try:
+            cycle.set_command_timeout(self.slave, seconds, policy)
+        except _native.ConfigError as e:
+            raise CommandError(str(e)) from None
 
     @property
     def command(self) -> float | None:
@@ -495,6 +533,22 @@ class Axis:
                         e["cycle"], e["time_ns"], e["channel"], e["edge"], self.units.position_to_si(counts), counts
                     )
                 )
+            elif e["kind"] == "command_timeout":
+                to_si = self.units.velocity_to_si if e["command"] == "velocity" else self.units.torque_to_si
+                self._command_timeouts.append(
+                    CommandTimeoutEvent(
+                        e["cycle"],
+                        e["time_ns"],
+                        e["command"],
+                        e["timeout"],
+                        to_si(e["value"]),
+                        e["value"],
+                        e["statusword"],
+                        e["ds402_state"],
+                        e["action"],
+                        e["text"],
+                    )
+                )
             else:
                 self._faults.append(
                     FaultEvent(
@@ -523,6 +577,12 @@ class Axis:
         self._poll()
         while self._faults:
             yield self._faults.popleft()
+
+    def command_timeout_events(self) -> Iterator[CommandTimeoutEvent]:
+        """The command time-outs since the last call, oldest first, each handed out once."""
+        self._poll()
+        while self._command_timeouts:
+            yield self._command_timeouts.popleft()
 
     def samples(self) -> dict[str, list]:
         """Every cycle's record of this drive since the last call, as columns in drive units (see
