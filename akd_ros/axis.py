@@ -184,11 +184,12 @@ class CommandTimeoutEvent:
     text: str
     """What was done, e.g. "halted, holding until the next command"."""
 
-    def describe(self) -> str:
-        """One line for a log."""
+    def describe(self, how_to_enable: str = "call Axis.enable() to go on") -> str:
+        """One line for a log; after a quick stop it ends with `how_to_enable`, which depends on who reads it."""
+        after = f"; {how_to_enable}" if self.action == "quick_stop" else ""
         return (
             f"no {self.command} command for {self.timeout:g} s (command_timeout) while commanding {self.value:g}: "
-            f"{self.text}"
+            f"{self.text}{after}"
         )
 
 

@@ -297,3 +297,26 @@ def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself_all_rec
     assert counts["/joint_states"] > 10 and counts[NODE + "cycle"] > 10 and counts[NODE + "black_box"] > 10
     assert counts[NODE + "velocity_command"] == 25, counts
     assert any("F235" in f.text for f in faults)
+
+
+FIXED_CSP_PARAMS = """\
+akd_node:
+  ros__parameters:
+    link: udp://127.0.0.1:{port}
+    cycle_time: 0.002
+    mode: cyclic_synchronous_position
+    mapping: 0x1724/0x1B26
+    joint_name: test_axis
+    joint_states_rate: 50.0
+    enable_on_start: true
+"""
+
+
+def test_a_fixed_mapping_without_velocity_or_torque_targets_runs_with_the_time_out_unwatched(tmp_path, ros_domain):
+    """The fixed CSP mapping carries no 0x60FF/0x6071, so the cycle thread cannot watch a velocity or torque stream:
+    the node says so once and runs; position commands need no time-out."""
+    with node_on_sim(FIXED_CSP_PARAMS, tmp_path, ros_domain + SECOND_DOMAIN_OFFSET) as (sim, node, ros):
+        ros.spin_until(lambda: "enable_on_start: Operation enabled" in node.output(), "enable at start-up")
+        assert "parameter command_timeout: not watched" in node.output()
+        assert "0x60FF" in node.output()
+        move_to(ros, ros.position() + 0.5)

@@ -5,7 +5,8 @@ command time-out and the automatic fault reset, and the drive requests that the 
 A refused command never reaches the drive; each kind is logged as a warning at most once per
 _REFUSAL_LOG_PERIOD_S, with the count of those not logged. A velocity or torque command that is not zero and not
 renewed for `command_timeout` seconds is handled by `command_timeout_policy` (hold: halt until the next command;
-quick_stop). Every command received is recorded, refused ones too, at its arrival."""
+quick_stop) in the cycle thread, which sees the stream stop to the cycle (`Axis.set_command_timeout`); the node
+logs what it did. Every command received is recorded, refused ones too, at its arrival."""
 
 from __future__ import annotations
 
@@ -28,14 +29,12 @@ _NUMBER = re.compile(r"[-+]?(\d+\.?\d*(e[-+]?\d+)?|nan|inf)")
 
 class Commands:
     """The command subscriptions (in `group`, `qos`), the supervisor timer (in `supervisor_group`: it may wait on
-    the drive) and the state they share: the last command, whether halted, whether a fault reset is due."""
+    the drive) that resets a fault under auto_once, and whether such a reset is due."""
 
     def __init__(self, node, session: Session, group, qos: QoSProfile, supervisor_group) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
         self._logger = node.get_logger()
         self.qos = qos
-        self._last_command: tuple[str, float, float] | None = None
-        self._halted = False
         self._reset_pending = False
         self._refusals: dict[str, tuple[float, int]] = {}
         self.topics: dict[str, str] = {}
@@ -68,10 +67,6 @@ class Commands:
                         "enabled; call ~/enable first"
                     )
                 getattr(session.axis, f"command_{kind}")(value)
-                self._last_command = (kind, value, time.monotonic())
-                if self._halted:
-                    session.axis.halt(False)
-                    self._halted = False
         except CommandError as e:
             self._warn_refused(str(e))
 
@@ -89,7 +84,7 @@ class Commands:
         self._logger.warning(message + more)
 
     def _supervise(self) -> None:
-        """Resets a fault once under fault_reset auto_once; acts on a velocity or torque stream that stopped."""
+        """Resets a fault once under fault_reset auto_once."""
         axis = self._session.axis
         if axis is None or not self._session.active:
             return
@@ -98,41 +93,10 @@ class Commands:
             if axis.cycle.drive_status(axis.slave)["state"] in FAULT_STATES:
                 _, message = self.reset_fault()
                 self._logger.warning(f"fault_reset auto_once: {message}")
-        timeout = self._settings.command_timeout
-        policy = self._settings.command_timeout_policy
-        with self._session.lock:
-            last = self._last_command
-            if timeout <= 0 or last is None or last[0] == "position" or last[1] == 0.0:
-                return
-            if time.monotonic() - last[2] < timeout:
-                return
-            self._last_command = None
-            if axis.cycle.drive_status(axis.slave)["state"] != "Operation enabled":
-                return
-            if policy == "hold":
-                axis.halt(True)
-                self._halted = True
-        what = f"no {last[0]} command for {timeout:g} s (command_timeout) while commanding {last[1]:g}"
-        if policy == "hold":
-            self._logger.warning(f"{what}: halted, holding until the next command")
-            return
-        try:
-            axis.quick_stop()
-            self._logger.warning(f"{what}: quick stop; call ~/enable to go on")
-        except AXIS_ERRORS as e:
-            self._logger.error(f"{what}: quick stop failed: {e}")
-
-    def release_halt(self, axis: Axis) -> None:
-        """Ends a halt of the command time-out and forgets the last command, before a request of its own."""
-        with self._session.lock:
-            if self._halted:
-                axis.halt(False)
-                self._halted = False
-            self._last_command = None
 
     def enable(self) -> tuple[bool, str]:
         """Enables the drive: (done, what happened)."""
-        return self._after_release(
+        return self._request(
             Axis.enable, "not enabled", "Operation enabled; the target holds the actual position until commanded"
         )
 
@@ -142,7 +106,6 @@ class Commands:
         if axis is None:
             return False, "not disabled: the node is not configured"
         try:
-            self.release_halt(axis)
             axis.disable()
         except AXIS_ERRORS as e:
             return False, f"not disabled: {e}"
@@ -158,14 +121,12 @@ class Commands:
 
     def quick_stop(self) -> tuple[bool, str]:
         """Quick stop: (done, what happened)."""
-        return self._after_release(Axis.quick_stop, "quick stop failed", "Quick stop active; call ~/enable to go on")
+        return self._request(Axis.quick_stop, "quick stop failed", "Quick stop active; call ~/enable to go on")
 
-    def _after_release(self, request: Callable[[Axis], None], failed: str, done: str) -> tuple[bool, str]:
-        """`request` of the active node's Axis after release_halt: (True, done) or (False, failed and why)."""
+    def _request(self, request: Callable[[Axis], None], failed: str, done: str) -> tuple[bool, str]:
+        """`request` of the active node's Axis: (True, done) or (False, failed and why)."""
         try:
-            axis = self._session.axis_for_request()
-            self.release_halt(axis)
-            request(axis)
+            request(self._session.axis_for_request())
         except AXIS_ERRORS as e:
             return False, f"{failed}: {e}"
         return True, done

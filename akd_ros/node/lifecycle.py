@@ -15,7 +15,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Float64
 
-from akd_ros.axis import Axis
+from akd_ros.axis import Axis, CommandError
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
@@ -93,6 +93,11 @@ class AkdNode(LifecycleNode):
         except AXIS_ERRORS as e:
             axis.close()
             return self._fail(f"parameters mode/mapping: {e}")
+        try:
+            axis.set_command_timeout(s.command_timeout, s.command_timeout_policy)
+        except CommandError as e:
+            # Velocity and torque commands then go by SDO, which the cycle thread does not watch.
+            self.get_logger().warning(f"parameter command_timeout: not watched: {e}")
         for warning in axis.warnings:
             self.get_logger().warning(f"real-time settings (rt.*): {warning}")
         if s.record is not None:

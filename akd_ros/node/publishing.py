@@ -117,11 +117,14 @@ class Publishing:
             if session.axis is None or not session.active:
                 return
             latches, faults = list(session.axis.latch_events()), list(session.axis.fault_events())
+            timeouts = list(session.axis.command_timeout_events())
             # Taken with the events, so the black box holds the cycles up to a fault when it is written.
             recorder = session.recorder
             columns = session.axis.samples() if recorder is not None else None
         if columns is not None:
             record_cycles(recorder, columns, self._settings.units, self._clock.ros_minus_monotonic_ns())
+        for e in timeouts:
+            self._logger.warning(e.describe("call ~/enable to go on"))
         joint = self._settings.joint_name
         for e in latches:
             message = LatchEvent(

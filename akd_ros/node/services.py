@@ -20,7 +20,7 @@ class Services:
     """The node's services, in `group` (they may wait up to the Axis's time-outs)."""
 
     def __init__(self, node, session: Session, commands: Commands, group) -> None:
-        self._session, self._commands = session, commands
+        self._session = session
         self._logger = node.get_logger()
         for name, handler in (
             ("enable", commands.enable),
@@ -51,7 +51,6 @@ class Services:
             axis = self._session.axis_for_request()
             if request.mode not in MODES:
                 raise CommandError(f"mode {request.mode!r} is not one of {', '.join(MODES)}")
-            self._commands.release_halt(axis)
             with self._session.lock:
                 axis.set_mode(request.mode)
             response.success, response.message = True, f"mode {request.mode}"

@@ -119,7 +119,7 @@ impl CommandTimeoutAction {
     pub fn describe(self) -> &'static str {
         match self {
             CommandTimeoutAction::Halt => "halted, holding until the next command",
-            CommandTimeoutAction::QuickStop => "quick stop; enable to go on",
+            CommandTimeoutAction::QuickStop => "quick stop",
         }
     }
 }

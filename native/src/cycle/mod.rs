@@ -484,8 +484,9 @@ impl CycleThread {
     /// Sets the command time-out of the drive at `position` (see [`command_timeout`]): when a
     /// non-zero velocity (profile velocity) or torque (profile torque) stream stops for
     /// `timeout` while the drive is in Operation enabled, `action` is taken and an
-    /// [`Event::CommandTimeout`] pushed; `None` turns it off. Refused for a mapping without
-    /// target velocity 0x60FF or target torque 0x6071, or without the mode (0x6060 or 0x6061).
+    /// [`Event::CommandTimeout`] pushed; `None` turns it off, which is always allowed. A time-out
+    /// is refused for a mapping without target velocity 0x60FF or target torque 0x6071, or
+    /// without the mode (0x6060 or 0x6061): the thread could not see the stream it watches.
     pub fn set_command_timeout(
         &self,
         position: u16,
@@ -500,7 +501,7 @@ impl CycleThread {
             (o.mode.is_none() && o.mode_display.is_none())
                 .then_some("modes of operation 0x6060 in the outputs or its display 0x6061 in the inputs"),
         ];
-        if let Some(what) = missing.into_iter().flatten().next() {
+        if let Some(what) = missing.into_iter().flatten().next().filter(|_| timeout.is_some_and(|t| !t.is_zero())) {
             return Err(Error::Config(format!(
                 "slave {position}: the command time-out watches mapped targets, and the mapping lacks {what}"
             )));
