@@ -315,7 +315,7 @@ akd_node:
 def test_a_fixed_mapping_without_velocity_or_torque_targets_runs_with_the_time_out_unwatched(tmp_path, ros_domain):
     """The fixed CSP mapping carries no 0x60FF/0x6071, so the cycle thread cannot watch a velocity or torque stream:
     the node says so once and runs; position commands need no time-out."""
-    with node_on_sim(FIXED_CSP_PARAMS, tmp_path, ros_domain + SECOND_DOMAIN_OFFSET) as (sim, node, ros):
+    with node_on_sim(FIXED_CSP_PARAMS, tmp_path, ros_domain + SECOND_DOMAIN_OFFSET) as (_sim, node, ros):
         ros.spin_until(lambda: "enable_on_start: Operation enabled" in node.output(), "enable at start-up")
         assert "parameter command_timeout: not watched" in node.output()
         assert "0x60FF" in node.output()
