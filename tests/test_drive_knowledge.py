@@ -213,3 +213,31 @@ def test_data_types_read_the_drives_values_as_its_sdo_information_names_them() -
             assert (_native.data_type_name(data_type), _native.data_type_kind(data_type)) == (name, kind)
     assert _native.data_type_kind(0x0008) == "real" and _native.data_type_kind(0x0023) == "other"
     assert _native.data_type_name(0x7777) == "unknown data type"
+
+
+def test_encoded_values_are_what_the_drive_takes_and_reads_back() -> None:
+    with _native.Master("sim") as master:
+        master.scan()
+        master.request_state("preop")
+        for index, subindex, value in ((0x607A, 0, -(2**31)), (0x60FF, 0, 2**31 - 1), (0x6071, 0, -1000),
+                                       (0x6060, 0, MODES["homing"].code), (0x6081, 0, 2**32 - 1), (0x60C1, 1, -5)):
+            data = _native.encode_value(index, subindex, value)
+            kinds = {(index, subindex): entry_type(master, index, subindex)}
+            assert len(data) == kinds[(index, subindex)][1], hex(index)
+            master.sdo_write(0, index, subindex, data)
+            assert decode(kinds, (index, subindex), master.sdo_read(0, index, subindex)) == value
+    with pytest.raises(ValueError, match=r"40000 is outside the range of 0x6071:00 Target torque \(INTEGER16"):
+        _native.encode_value(0x6071, 0, 40_000)
+    with pytest.raises(ValueError, match="0x1234:05 is no object the AKD maps"):
+        _native.encode_value(0x1234, 5, 0)
+
+
+def test_ds402_states_name_what_the_sequencer_reaches(drive) -> None:
+    cycle, _ = drive
+    for request, state in ((cycle.enable, "Operation enabled"), (cycle.quick_stop, "Quick stop active"),
+                           (cycle.disable, "Switch on disabled")):
+        request(0)
+        cycle.wait_state(0, state)
+        assert state in _native.DS402_STATES
+        assert _native.ds402_state(cycle.drive_inputs(0).statusword) == state
+    assert _native.ds402_state(0x0005) is None

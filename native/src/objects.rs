@@ -95,7 +95,7 @@ pub fn read(entries: &[PdoEntry], image: &[u8], index: u16, subindex: u8) -> Opt
     let raw = bytes.iter().rev().fold(0u64, |v, b| (v << 8) | *b as u64);
     let bits = u32::from(entry.bits).min(64);
     let signed = mappable_object(index, subindex).is_some_and(|o| data_type::is_signed(o.data_type));
-    Some(if signed && bits < 64 {
+    Some(if signed && (1..64).contains(&bits) {
         // Shift the sign bit to the top and back: an arithmetic shift extends it.
         ((raw << (64 - bits)) as i64) >> (64 - bits)
     } else {
@@ -138,6 +138,66 @@ impl DriveInputs {
             digital_inputs: value(0x60FD).map(|v| v as u32),
         }
     }
+}
+
+/// Why a value cannot be written to an object as its data type.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EncodeError {
+    /// The object is none the AKD maps, so its type is not known here.
+    NotMappable {
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+    },
+    /// The value is outside the data type's range.
+    OutOfRange {
+        /// The object.
+        object: MappableObject,
+        /// The value given.
+        value: i64,
+        /// The lowest value the type holds.
+        min: i64,
+        /// The highest.
+        max: i64,
+    },
+}
+
+impl std::fmt::Display for EncodeError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            EncodeError::NotMappable { index, subindex } => {
+                write!(f, "0x{index:04X}:{subindex:02X} is no object the AKD maps, so its data type is not known")
+            }
+            EncodeError::OutOfRange { object, value, min, max } => write!(
+                f,
+                "{value} is outside the range of 0x{:04X}:{:02X} {} ({}: {min}..={max})",
+                object.index,
+                object.subindex,
+                object.name,
+                data_type::name(object.data_type)
+            ),
+        }
+    }
+}
+
+impl std::error::Error for EncodeError {}
+
+/// `value` as mappable object `index:subindex` holds it: little-endian in its data type's
+/// length, after checking it is within the type's range.
+pub fn encode(index: u16, subindex: u8, value: i64) -> Result<Vec<u8>, EncodeError> {
+    let object = mappable_object(index, subindex).ok_or(EncodeError::NotMappable { index, subindex })?;
+    // Every mappable object is an integer of at most 32 bits (see the tests), so the range fits an i64.
+    let bits = u32::from(data_type::bit_len(object.data_type).unwrap_or(32));
+    let (min, max) = if data_type::is_signed(object.data_type) {
+        (-(1i64 << (bits - 1)), (1i64 << (bits - 1)) - 1)
+    } else {
+        (0, (1i64 << bits) - 1)
+    };
+    if !(min..=max).contains(&value) {
+        return Err(EncodeError::OutOfRange { object: *object, value, min, max });
+    }
+    Ok(value.to_le_bytes()[..bits as usize / 8].to_vec())
 }
 
 #[cfg(test)]
@@ -237,6 +297,37 @@ mod tests {
             assert_eq!(numeric, data_type::bit_len(code).is_some(), "{}", data_type::name(code));
             if numeric {
                 assert_ne!(data_type::name(code), "unknown data type", "0x{code:04X}");
+            }
+        }
+    }
+
+    #[test]
+    fn values_encode_in_their_types_length_and_range() {
+        assert_eq!(encode(0x6071, 0, -2), Ok(vec![0xFE, 0xFF]));
+        assert_eq!(encode(0x607A, 0, i32::MIN.into()), Ok(i32::MIN.to_le_bytes().to_vec()));
+        assert_eq!(encode(0x6040, 0, 0xFFFF), Ok(vec![0xFF, 0xFF]));
+        assert_eq!(encode(0x6060, 0, -1), Ok(vec![0xFF]));
+        let refused = encode(0x6071, 0, 40_000).unwrap_err();
+        assert_eq!(
+            refused.to_string(),
+            "40000 is outside the range of 0x6071:00 Target torque (INTEGER16: -32768..=32767)"
+        );
+        assert!(matches!(encode(0x6040, 0, -1), Err(EncodeError::OutOfRange { min: 0, max: 0xFFFF, .. })));
+        assert_eq!(encode(0x1234, 5, 0), Err(EncodeError::NotMappable { index: 0x1234, subindex: 5 }));
+        for o in MAPPABLE_OBJECTS {
+            assert!(data_type::bit_len(o.data_type).is_some_and(|bits| bits <= 32), "{}", o.name);
+        }
+        // What encode writes, read reads back, for every object at both ends of its range.
+        for o in MAPPABLE_OBJECTS {
+            let bits = data_type::bit_len(o.data_type).unwrap() as u8;
+            let entries = [PdoEntry::new(o.index, o.subindex, bits)];
+            let (min, max) = match encode(o.index, o.subindex, i64::MIN).unwrap_err() {
+                EncodeError::OutOfRange { min, max, .. } => (min, max),
+                other => panic!("{other}"),
+            };
+            for value in [min, max, 0] {
+                let image = encode(o.index, o.subindex, value).unwrap();
+                assert_eq!(read(&entries, &image, o.index, o.subindex), Some(value), "{}", o.name);
             }
         }
     }

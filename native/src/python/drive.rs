@@ -1,17 +1,19 @@
 //! The drive's knowledge for Python, as the crate holds it, so that the package keeps no copy:
 //! the modes of operation (`MODES_OF_OPERATION`), akd_ros's default mapping
 //! (`DEFAULT_MAPPING`), the AKD's mapping rules (`check_mapping`) and entry syntax
-//! (`parse_pdo_entry`), CoE data types (`data_type_name`, `data_type_kind`), and one drive's
-//! inputs read by its mapping (`DriveInputs`, from `Cycle.drive_inputs`).
+//! (`parse_pdo_entry`), CoE data types (`data_type_name`, `data_type_kind`), mapped objects'
+//! values as bytes (`encode_value`) and one drive's inputs read by its mapping (`DriveInputs`,
+//! from `Cycle.drive_inputs`), and the CiA 402 states (`DS402_STATES`, `ds402_state`).
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyTuple};
 
 use super::IntoPyResult;
 use crate::coe::data_type;
 use crate::cycle::CycleThread;
-use crate::ds402::{self, Mode};
-use crate::objects::DriveInputs;
+use crate::ds402::{self, Mode, State};
+use crate::objects::{self, DriveInputs};
 use crate::pdo::{self, Direction, PdoEntry};
 
 /// One mode of operation of the AKD (0x6060), as `MODES_OF_OPERATION` lists them.
@@ -141,6 +143,21 @@ fn data_type_kind(code: u16) -> &'static str {
     data_type::kind(code).name()
 }
 
+/// `value` as the bytes of mappable object `index:subindex` (e.g. a set-point for
+/// `Cycle.set_object`): little-endian in its data type's length; raises ValueError for a value
+/// outside the type's range or an object the AKD does not map.
+#[pyfunction]
+fn encode_value<'py>(py: Python<'py>, index: u16, subindex: u8, value: i64) -> PyResult<Bound<'py, PyBytes>> {
+    let bytes = objects::encode(index, subindex, value).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok(PyBytes::new(py, &bytes))
+}
+
+/// The name of the CiA 402 state `statusword` shows (one of `DS402_STATES`), None for none.
+#[pyfunction]
+fn ds402_state(statusword: u16) -> Option<&'static str> {
+    State::from_statusword(statusword).map(State::name)
+}
+
 /// The flexible PDOs of a mapping as `Master.configure_pdo` takes them: lists of 0xIIIISSBB.
 fn as_words(pdos: &[&[PdoEntry]]) -> Vec<Vec<u32>> {
     pdos.iter().map(|p| p.iter().map(|e| e.to_u32()).collect()).collect()
@@ -150,11 +167,14 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModeOfOperation>()?;
     m.add_class::<PyDriveInputs>()?;
     let modes: Vec<PyModeOfOperation> = Mode::ALL.into_iter().map(PyModeOfOperation::of).collect();
-    m.add("MODES_OF_OPERATION", pyo3::types::PyTuple::new(m.py(), modes)?)?;
+    m.add("MODES_OF_OPERATION", PyTuple::new(m.py(), modes)?)?;
     m.add("DEFAULT_MAPPING", (as_words(&pdo::DEFAULT_RX), as_words(&pdo::DEFAULT_TX)))?;
     m.add_function(wrap_pyfunction!(check_mapping, m)?)?;
     m.add_function(wrap_pyfunction!(parse_pdo_entry, m)?)?;
     m.add_function(wrap_pyfunction!(data_type_name, m)?)?;
     m.add_function(wrap_pyfunction!(data_type_kind, m)?)?;
+    m.add_function(wrap_pyfunction!(encode_value, m)?)?;
+    m.add_function(wrap_pyfunction!(ds402_state, m)?)?;
+    m.add("DS402_STATES", PyTuple::new(m.py(), State::ALL.map(State::name))?)?;
     Ok(())
 }
