@@ -3,21 +3,12 @@ read by the mapping), checked against what the virtual AKD does and says about i
 
 from __future__ import annotations
 
-import time
-
 import pytest
+from support.waiting import wait_for
 
 from akd_ros import _native
 
 MODES = {m.name: m for m in _native.MODES_OF_OPERATION}
-
-
-def wait_until(what: str, done, timeout: float = 5.0):
-    deadline = time.monotonic() + timeout
-    while not (found := done()):
-        assert time.monotonic() < deadline, f"timed out waiting for {what}"
-        time.sleep(0.002)
-    return found
 
 
 def entry_type(master, index: int, subindex: int = 0) -> tuple[str, int]:
@@ -80,7 +71,7 @@ def test_every_mode_is_shown_by_the_drive_and_its_command_is_mapped_by_the_defau
     for mode in MODES.values():
         assert not mode.command_objects or mode.command_objects[0] in outputs, mode.name
         cycle.set_mode(0, mode.code)
-        shown = wait_until(f"mode display {mode.code}", lambda: cycle.drive_inputs(0).mode_display == mode.code)
+        shown = wait_for(f"mode display {mode.code}", lambda: cycle.drive_inputs(0).mode_display == mode.code)
         assert shown and decode(kinds, (0x6061, 0), cycle.sdo_read(0, 0x6061, 0)) == mode.code
         for address in mode.command_objects:
             # A command may be negative (backwards, or braking): its object is a signed integer on the drive.
@@ -99,14 +90,14 @@ def test_the_handshake_starts_profile_position_and_homing_as_the_drive_acknowled
             start = cycle.drive_inputs(0).position_actual
             cycle.set_object(0, *mode.command_objects[0], encode(kinds, mode.command_objects[0], start - 50_000))
         cycle.set_object(0, 0x6040, 0, encode(kinds, (0x6040, 0), mode.handshake_controlword))
-        wait_until(f"{name} to acknowledge",
+        wait_for(f"{name} to acknowledge",
                    lambda: cycle.drive_inputs(0).statusword & mode.handshake_acknowledged)
         cycle.set_object(0, 0x6040, 0, encode(kinds, (0x6040, 0), 0))
         if name == "profile_position":
             target = start - 50_000
-            wait_until("the profile move", lambda: abs(cycle.drive_inputs(0).position_actual - target) < 20)
+            wait_for("the profile move", lambda: abs(cycle.drive_inputs(0).position_actual - target) < 20)
         else:
-            wait_until("homing to zero the position", lambda: abs(cycle.drive_inputs(0).position_actual) < 2)
+            wait_for("homing to zero the position", lambda: abs(cycle.drive_inputs(0).position_actual) < 2)
         cycle.disable(0)
         cycle.wait_state(0, "Switch on disabled")
     for mode in MODES.values():
@@ -121,7 +112,7 @@ def test_decoded_inputs_agree_with_sdo_reads_of_the_same_objects(drive) -> None:
     cycle.wait_state(0, "Operation enabled")
     # A negative torque: the shaft accelerates backwards, so position and velocity go negative and fall each cycle.
     cycle.set_object(0, *torque.command_objects[0], encode(kinds, torque.command_objects[0], -200))
-    wait_until("a negative position", lambda: cycle.drive_inputs(0).position_actual < -10_000)
+    wait_for("a negative position", lambda: cycle.drive_inputs(0).position_actual < -10_000)
     for _ in range(5):
         before = cycle.drive_inputs(0)
         read = {name: decode(kinds, (index, 0), cycle.sdo_read(0, index, 0)) for name, index in INPUT_OBJECTS.items()}
@@ -143,7 +134,7 @@ def test_a_fixed_mapping_reads_the_internal_position_and_lacks_the_rest() -> Non
         master.configure_pdo(0, 0x1701, 0x1B01)
         master.request_state("op")
         with _native.Cycle(master, 0.001) as cycle:
-            inputs = wait_until("a cycle", lambda: (i := cycle.drive_inputs(0)).cycle > 0 and i)
+            inputs = wait_for("a cycle", lambda: (i := cycle.drive_inputs(0)).cycle > 0 and i)
             assert inputs.position_actual == int.from_bytes(cycle.sdo_read(0, 0x6063, 0), "little", signed=True)
             assert (inputs.velocity_actual, inputs.torque_actual, inputs.following_error, inputs.mode_display,
                     inputs.digital_inputs) == (None,) * 5
