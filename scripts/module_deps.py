@@ -42,12 +42,12 @@ def rust_module_of(path: Path) -> tuple[str, ...]:
 
 def strip_rust(text: str) -> str:
     """The code without comments, string literals or `#[cfg(test)]` modules."""
-    text = re.sub(r"/\*.*?\*/", "", text, flags=re.S)
+    text = re.sub(r"/\*.*?\*/", "", text, flags=re.DOTALL)
     text = re.sub(r'r#*"(?:.|\n)*?"#*', '""', text)
     text = re.sub(r'"(?:\\.|[^"\\])*"', '""', text)
     text = re.sub(r"'(?:\\.|[^'\\])'", "' '", text)
     text = re.sub(r"//[^\n]*", "", text)
-    while (found := re.search(r"#\[cfg\(test\)\]\s*(?:pub(?:\([^)]*\))?\s+)?mod\s+" + IDENT + r"\s*\{", text)):
+    while found := re.search(r"#\[cfg\(test\)\]\s*(?:pub(?:\([^)]*\))?\s+)?mod\s+" + IDENT + r"\s*\{", text):
         depth, end = 0, found.end() - 1
         for end in range(found.end() - 1, len(text)):
             depth += {"{": 1, "}": -1}.get(text[end], 0)
@@ -98,8 +98,8 @@ def resolve_rust(module: tuple[str, ...], path: str, modules: set) -> tuple[str,
         rest = parts
     target = base
     for part in rest:
-        if base + (part,) in modules or target + (part,) in modules:
-            target = target + (part,)
+        if (*base, part) in modules or (*target, part) in modules:
+            target = (*target, part)
         else:
             break
     return target
@@ -133,7 +133,7 @@ def python_graph() -> dict[tuple[str, ...], set[tuple[str, ...]]]:
     root = PYTHON_PACKAGE.name
 
     def module_of(f: Path) -> tuple[str, ...]:
-        parts = (root,) + f.relative_to(PYTHON_PACKAGE).with_suffix("").parts
+        parts = (root, *f.relative_to(PYTHON_PACKAGE).with_suffix("").parts)
         return parts[:-1] if parts[-1] == "__init__" else parts
 
     # The extension module is the Rust crate's layer below, a module of the package like the others.
@@ -150,7 +150,7 @@ def python_graph() -> dict[tuple[str, ...], set[tuple[str, ...]]]:
             elif isinstance(node, ast.ImportFrom):
                 base = package[: len(package) - node.level + 1] if node.level else ()
                 stem = base + tuple((node.module or "").split(".")) if node.module else base
-                names = [stem + (a.name,) for a in node.names] + [stem]
+                names = [(*stem, a.name) for a in node.names] + [stem]
             for name in names:
                 while name and name not in modules:
                     name = name[:-1]
@@ -216,7 +216,9 @@ def check(name: str, graph: dict, root: tuple[str, ...], show: bool) -> list[str
     for directory in directories:
         for component in cycles(fold(graph, directory)):
             where = "::".join(directory) or "the crate"
-            problems.append(f"{name}: cycle among the modules of {where}: " + " <-> ".join("::".join(m) for m in component))
+            problems.append(
+                f"{name}: cycle among the modules of {where}: " + " <-> ".join("::".join(m) for m in component)
+            )
     if show:
         for module in sorted(graph):
             targets = ", ".join("::".join(t) for t in sorted(graph[module])) or "-"
