@@ -4,9 +4,9 @@ read by the mapping), checked against what the virtual AKD does and says about i
 from __future__ import annotations
 
 import pytest
-from support.waiting import wait_for
 
 from akd_ros import _native
+from support.waiting import wait_for
 
 MODES = {m.name: m for m in _native.MODES_OF_OPERATION}
 
@@ -29,9 +29,15 @@ def decode(kinds: dict, address: tuple[int, int], data: bytes) -> int:
 
 
 # The inputs Cycle.drive_inputs reads, by the objects they come from.
-INPUT_OBJECTS = {"statusword": 0x6041, "mode_display": 0x6061, "position_actual": 0x6064,
-                 "velocity_actual": 0x606C, "torque_actual": 0x6077, "following_error": 0x60F4,
-                 "digital_inputs": 0x60FD}
+INPUT_OBJECTS = {
+    "statusword": 0x6041,
+    "mode_display": 0x6061,
+    "position_actual": 0x6064,
+    "velocity_actual": 0x606C,
+    "torque_actual": 0x6077,
+    "following_error": 0x60F4,
+    "digital_inputs": 0x60FD,
+}
 COMMAND_OBJECTS = {address for m in MODES.values() for address in m.command_objects}
 
 
@@ -71,7 +77,7 @@ def test_every_mode_is_shown_by_the_drive_and_its_command_is_mapped_by_the_defau
     for mode in MODES.values():
         assert not mode.command_objects or mode.command_objects[0] in outputs, mode.name
         cycle.set_mode(0, mode.code)
-        shown = wait_for(f"mode display {mode.code}", lambda: cycle.drive_inputs(0).mode_display == mode.code)
+        shown = wait_for(f"mode display {mode.code}", lambda code=mode.code: cycle.drive_inputs(0).mode_display == code)
         assert shown and decode(kinds, (0x6061, 0), cycle.sdo_read(0, 0x6061, 0)) == mode.code
         for address in mode.command_objects:
             # A command may be negative (backwards, or braking): its object is a signed integer on the drive.
@@ -79,7 +85,7 @@ def test_every_mode_is_shown_by_the_drive_and_its_command_is_mapped_by_the_defau
         assert (mode.command is None) == (not mode.command_objects), mode.name
 
 
-def test_the_handshake_starts_profile_position_and_homing_as_the_drive_acknowledges(drive) -> None:
+def test_the_handshake_bits_start_profile_position_and_homing_in_the_cycle_threads_handshake(drive) -> None:
     cycle, kinds = drive
     for name in ("profile_position", "homing"):
         mode = MODES[name]
@@ -87,21 +93,18 @@ def test_the_handshake_starts_profile_position_and_homing_as_the_drive_acknowled
         cycle.enable(0)
         cycle.wait_state(0, "Operation enabled")
         if mode.command_objects:
-            start = cycle.drive_inputs(0).position_actual
-            cycle.set_object(0, *mode.command_objects[0], encode(kinds, mode.command_objects[0], start - 50_000))
-        cycle.set_object(0, 0x6040, 0, encode(kinds, (0x6040, 0), mode.handshake_controlword))
-        wait_for(f"{name} to acknowledge",
-                   lambda: cycle.drive_inputs(0).statusword & mode.handshake_acknowledged)
-        cycle.set_object(0, 0x6040, 0, encode(kinds, (0x6040, 0), 0))
+            target = cycle.drive_inputs(0).position_actual - 50_000
+            cycle.set_object(0, *mode.command_objects[0], encode(kinds, mode.command_objects[0], target))
+        cycle.start_setpoint(0, mode.handshake_controlword)
+        cycle.wait_setpoint(0, timeout=5.0)
         if name == "profile_position":
-            target = start - 50_000
-            wait_for("the profile move", lambda: abs(cycle.drive_inputs(0).position_actual - target) < 20)
+            wait_for("the profile move", lambda target=target: abs(cycle.drive_inputs(0).position_actual - target) < 20)
         else:
             wait_for("homing to zero the position", lambda: abs(cycle.drive_inputs(0).position_actual) < 2)
         cycle.disable(0)
         cycle.wait_state(0, "Switch on disabled")
-    for mode in MODES.values():
-        assert (mode.handshake_controlword is None) == (mode.handshake_acknowledged is None)
+    # The modes that follow their command every cycle have no handshake to start them.
+    assert {m.name for m in MODES.values() if m.handshake_controlword is not None} == {"profile_position", "homing"}
 
 
 def test_decoded_inputs_agree_with_sdo_reads_of_the_same_objects(drive) -> None:
@@ -136,8 +139,13 @@ def test_a_fixed_mapping_reads_the_internal_position_and_lacks_the_rest() -> Non
         with _native.Cycle(master, 0.001) as cycle:
             inputs = wait_for("a cycle", lambda: (i := cycle.drive_inputs(0)).cycle > 0 and i)
             assert inputs.position_actual == int.from_bytes(cycle.sdo_read(0, 0x6063, 0), "little", signed=True)
-            assert (inputs.velocity_actual, inputs.torque_actual, inputs.following_error, inputs.mode_display,
-                    inputs.digital_inputs) == (None,) * 5
+            assert (
+                inputs.velocity_actual,
+                inputs.torque_actual,
+                inputs.following_error,
+                inputs.mode_display,
+                inputs.digital_inputs,
+            ) == (None,) * 5
             assert inputs.statusword is not None
 
 
@@ -197,9 +205,11 @@ def test_data_types_read_the_drives_values_as_its_sdo_information_names_them() -
     with _native.Master("sim") as master:
         master.scan()
         master.request_state("preop")
-        for index, subindex, name, kind in ((0x6041, 0, "UNSIGNED16", "unsigned_integer"),
-                                            (0x6064, 0, "INTEGER32", "signed_integer"),
-                                            (0x1008, 0, "VISIBLE_STRING", "visible_string")):
+        for index, subindex, name, kind in (
+            (0x6041, 0, "UNSIGNED16", "unsigned_integer"),
+            (0x6064, 0, "INTEGER32", "signed_integer"),
+            (0x1008, 0, "VISIBLE_STRING", "visible_string"),
+        ):
             data_type = master.sdo_entry_description(0, index, subindex)["data_type"]
             assert (_native.data_type_name(data_type), _native.data_type_kind(data_type)) == (name, kind)
     assert _native.data_type_kind(0x0008) == "real" and _native.data_type_kind(0x0023) == "other"
@@ -210,8 +220,14 @@ def test_encoded_values_are_what_the_drive_takes_and_reads_back() -> None:
     with _native.Master("sim") as master:
         master.scan()
         master.request_state("preop")
-        for index, subindex, value in ((0x607A, 0, -(2**31)), (0x60FF, 0, 2**31 - 1), (0x6071, 0, -1000),
-                                       (0x6060, 0, MODES["homing"].code), (0x6081, 0, 2**32 - 1), (0x60C1, 1, -5)):
+        for index, subindex, value in (
+            (0x607A, 0, -(2**31)),
+            (0x60FF, 0, 2**31 - 1),
+            (0x6071, 0, -1000),
+            (0x6060, 0, MODES["homing"].code),
+            (0x6081, 0, 2**32 - 1),
+            (0x60C1, 1, -5),
+        ):
             data = _native.encode_value(index, subindex, value)
             kinds = {(index, subindex): entry_type(master, index, subindex)}
             assert len(data) == kinds[(index, subindex)][1], hex(index)
@@ -225,8 +241,11 @@ def test_encoded_values_are_what_the_drive_takes_and_reads_back() -> None:
 
 def test_ds402_states_name_what_the_sequencer_reaches(drive) -> None:
     cycle, _ = drive
-    for request, state in ((cycle.enable, "Operation enabled"), (cycle.quick_stop, "Quick stop active"),
-                           (cycle.disable, "Switch on disabled")):
+    for request, state in (
+        (cycle.enable, "Operation enabled"),
+        (cycle.quick_stop, "Quick stop active"),
+        (cycle.disable, "Switch on disabled"),
+    ):
         request(0)
         cycle.wait_state(0, state)
         assert state in _native.DS402_STATES

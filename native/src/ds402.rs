@@ -336,8 +336,9 @@ impl Mode {
 
     /// The controlword bits whose rising edge starts what the mode was commanded: profile
     /// position takes a new set-point at once (bits 4 and 5), homing starts (bit 4). The drive
-    /// acknowledges in [`HANDSHAKE_ACKNOWLEDGED`]; the bits then go low again, so that the next
-    /// command makes a new edge. `None` for the modes that follow their command every cycle.
+    /// acknowledges in statusword bit 12; the bits then go low again, so that the next command
+    /// makes a new edge (the cycle thread's set-point handshake). `None` for the modes that
+    /// follow their command every cycle.
     pub fn handshake_controlword(self) -> Option<u16> {
         match self {
             Mode::ProfilePosition => Some(controlword::NEW_SETPOINT | controlword::CHANGE_IMMEDIATELY),
@@ -346,10 +347,6 @@ impl Mode {
         }
     }
 }
-
-/// The statusword bit that acknowledges a handshake (bit 12: set-point acknowledge in profile
-/// position, homing attained in homing); see [`Mode::handshake_controlword`].
-pub const HANDSHAKE_ACKNOWLEDGED: u16 = statusword::MODE_SPECIFIC_12;
 
 #[cfg(test)]
 mod tests {
@@ -469,7 +466,7 @@ mod tests {
     }
 
     #[test]
-    fn handshakes_raise_bit_4_and_are_acknowledged_in_bit_12() {
+    fn handshakes_raise_bit_4_and_leave_the_device_control_bits_alone() {
         for mode in Mode::ALL {
             let handshake = mode.handshake_controlword();
             assert_eq!(handshake.is_some(), matches!(mode, Mode::ProfilePosition | Mode::Homing), "{}", mode.name());
@@ -478,6 +475,5 @@ mod tests {
                 assert_eq!(bits & COMMAND_MASK, 0, "the handshake leaves the device-control bits alone");
             }
         }
-        assert_eq!(HANDSHAKE_ACKNOWLEDGED, 1 << 12);
     }
 }

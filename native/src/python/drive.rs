@@ -29,23 +29,19 @@ pub struct PyModeOfOperation {
     /// the output mapping carries; a mode with a handshake writes the first by SDO where none
     /// is mapped, the others need one mapped.
     command_objects: Vec<(u16, u8)>,
-    /// The controlword bits whose rising edge starts a command (profile position, homing),
-    /// None for a mode that follows its command every cycle.
+    /// The controlword bits whose rising edge starts a command (profile position, homing), for
+    /// `Cycle.start_setpoint`; None for a mode that follows its command every cycle.
     handshake_controlword: Option<u16>,
-    /// The statusword bit that acknowledges the handshake, None without one.
-    handshake_acknowledged: Option<u16>,
 }
 
 impl PyModeOfOperation {
     fn of(mode: Mode) -> Self {
-        let handshake = mode.handshake_controlword();
         PyModeOfOperation {
             name: mode.snake_name(),
             code: mode as i8,
             command: mode.command().map(ds402::Command::name),
             command_objects: mode.command_objects().to_vec(),
-            handshake_controlword: handshake,
-            handshake_acknowledged: handshake.map(|_| ds402::HANDSHAKE_ACKNOWLEDGED),
+            handshake_controlword: mode.handshake_controlword(),
         }
     }
 }
