@@ -19,68 +19,27 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import struct
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 from akd_ros import _native
 from akd_ros.units import Limits, Units, unwrap_position
 
-MODES: dict[str, int] = {
-    "profile_position": 1,
-    "profile_velocity": 3,
-    "profile_torque": 4,
-    "homing": 6,
-    "interpolated_position": 7,
-    "cyclic_synchronous_position": 8,
-}
-"""The CiA 402 modes the AKD offers over EtherCAT, by name, with their 0x6060 values."""
+_MODES = {mode.name: mode for mode in _native.MODES_OF_OPERATION}
+MODES: dict[str, int] = {name: mode.code for name, mode in _MODES.items()}
+"""The CiA 402 modes the AKD offers over EtherCAT, by name, with their 0x6060 values (from the extension's table,
+`_native.MODES_OF_OPERATION`, which also gives each mode's command, the objects it is written to and the handshake
+that starts it)."""
 
 MODE_NAMES = {code: name for name, code in MODES.items()}
 
-# What each mode's command is written to, in the order tried; a cyclic mode's mapping must carry one of them, the
-# profile modes write it by SDO where it is not mapped.
-_MODE_TARGETS: dict[str, tuple[tuple[int, int], ...]] = {
-    "profile_position": ((0x607A, 0),),
-    "profile_velocity": ((0x60FF, 0),),
-    "profile_torque": ((0x6071, 0),),
-    "homing": (),
-    "interpolated_position": ((0x60C1, 1),),
-    "cyclic_synchronous_position": ((0x607A, 0),),
-}
-_PROFILE_MODES = ("profile_position", "homing")
-# Controlword bits 4 (new set-point, or start homing) and 5 (change set-point immediately), raised by the cycle thread's
-# handshake until statusword bit 12 (set-point acknowledged, or homing attained).
-_NEW_SETPOINT = 0x0030
-_START_HOMING = 0x0010
-_COMMAND_KIND = {
-    "profile_position": "position",
-    "interpolated_position": "position",
-    "cyclic_synchronous_position": "position",
-    "profile_velocity": "velocity",
-    "profile_torque": "torque",
-}
-
-# The default mapping: everything every mode needs within the AKD's flexible limits (22 bytes out, 32 in, 8 per
-# PDO). Out: controlword, interpolation set-point 0x60C1:01, modes of operation, pad | target velocity, target torque,
-# latch control | target position 0x607A (which the real drive maps flexibly: its power-up mapping has it). In:
-# statusword, mode display, pad, position actual | velocity actual, torque actual, latch status | following error,
-# latch 1 position 0x20A6 | latch 2 position 0x20A7, digital inputs.
-DEFAULT_RX = [[0x60400010, 0x60C10120, 0x60600008, 0x00020008], [0x60FF0020, 0x60710010, 0x20A40010], [0x607A0020]]
-DEFAULT_TX = [
-    [0x60410010, 0x60610008, 0x20020108, 0x60640020],
-    [0x606C0020, 0x60770010, 0x20A50010],
-    [0x60F40020, 0x20A60020],
-    [0x20A70020, 0x60FD0020],
-]
+DEFAULT_RX, DEFAULT_TX = _native.DEFAULT_MAPPING
+"""The mapping an Axis takes unless given one (`_native.DEFAULT_MAPPING`): everything every mode needs."""
 
 # Velocity below which an enabled axis counts as standing still for a mode change, in counts/s (about 0.4 °/s at
 # 2^20 counts per revolution).
 STANDSTILL_COUNTS_PER_S = 1000
-
-_FORMATS = {8: "b", 16: "h", 32: "i"}
-_UNSIGNED = {(0x6041, 0), (0x20A5, 0), (0x60FD, 0), (0x6040, 0)}
 
 
 class CommandError(ValueError):
@@ -193,31 +152,6 @@ class CommandTimeoutEvent:
         )
 
 
-@dataclass
-class _Layout:
-    """Where objects sit in one slave's process data."""
-
-    outputs: dict[tuple[int, int], tuple[int, int]] = field(default_factory=dict)
-    inputs: dict[tuple[int, int], tuple[int, int]] = field(default_factory=dict)
-
-    @classmethod
-    def of(cls, mapping: dict) -> _Layout:
-        def table(entries):
-            return {(index, sub): (bits, offset) for index, sub, bits, offset in entries}
-
-        return cls(table(mapping["outputs"]), table(mapping["inputs"]))
-
-    def read(self, data: bytes, key: tuple[int, int]) -> int | None:
-        found = self.inputs.get(key)
-        if found is None:
-            return None
-        bits, offset = found
-        code = _FORMATS[bits]
-        if key in _UNSIGNED:
-            code = code.upper()
-        return struct.unpack_from("<" + code, data, offset)[0]
-
-
 class Axis:
     """One AKD axis: opens the bus, cycles it, and commands the drive in SI units.
 
@@ -266,14 +200,14 @@ class Axis:
             self._master.request_state("preop")
             rx, tx = mapping if mapping is not None else (DEFAULT_RX, DEFAULT_TX)
             self._master.configure_pdo(slave, rx, tx)
-            self._master.sdo_write(slave, 0x6060, 0, bytes([MODES[mode]]))
+            self._master.sdo_write(slave, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[mode]))
             self._master.request_state("op")
             self._cycle = _native.Cycle(self._master, period, priority=priority, cpu=cpu, lock_memory=lock_memory)
         except BaseException:
             self._master.close()
             raise
         self._cycle.request_timeout = request_timeout
-        self._layout = _Layout.of(self._cycle.mapping(slave))
+        self._outputs = {(index, subindex) for index, subindex, _, _ in self._cycle.mapping(slave)["outputs"]}
         self._mode = mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
@@ -368,9 +302,10 @@ class Axis:
         cycle = self._running()
         if mode not in MODES:
             raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
-        missing = [t for t in _MODE_TARGETS[mode] if t not in self._layout.outputs]
-        if mode not in _PROFILE_MODES and _MODE_TARGETS[mode] and len(missing) == len(_MODE_TARGETS[mode]):
-            objects = " or ".join(f"0x{i:04X}:{s:02X}" for i, s in _MODE_TARGETS[mode])
+        targets = _MODES[mode].command_objects
+        # A mode started by a handshake takes its command by SDO where it is not mapped; the others need it mapped.
+        if _MODES[mode].handshake_controlword is None and targets and not self._outputs.intersection(targets):
+            objects = " or ".join(f"0x{i:04X}:{s:02X}" for i, s in targets)
             raise CommandError(f"mode {mode} needs {objects} in the output mapping, which this mapping lacks")
         state = self.state()
         if state.state == "Operation enabled" and state.velocity is not None:
@@ -383,7 +318,7 @@ class Axis:
         cycle.set_mode(self.slave, MODES[mode])
         self._mode = mode
         self._commanded.clear()
-        if (0x6061, 0) in self._layout.inputs:
+        if cycle.drive_inputs(self.slave).mode_display is not None:
             self._wait_for(lambda s: s["mode_display"] == MODES[mode], f"the drive to show mode {mode} (0x6061)")
 
     def _wait_for(self, done, what: str, timeout: float = 1.0) -> None:
@@ -405,31 +340,32 @@ class Axis:
 
     def _command(self, kind: str, value: float) -> None:
         cycle = self._running()
-        wanted = _COMMAND_KIND.get(self._mode)
-        if wanted != kind:
-            modes = [m for m, k in _COMMAND_KIND.items() if k == kind]
+        mode = _MODES[self._mode]
+        if mode.command != kind:
+            modes = [name for name, m in _MODES.items() if m.command == kind]
             raise CommandError(
                 f"{kind} command refused: the axis is in mode {self._mode}; {kind} commands need mode "
                 f"{' or '.join(modes)}"
             )
         try:
             checked = self.limits.check(kind, value)
-            if kind == "position":
-                counts = self.units.position_to_counts(checked)
-                data = struct.pack("<i", counts)
-            elif kind == "velocity":
-                data = struct.pack("<i", self.units.velocity_to_counts(checked))
-            else:
-                data = struct.pack("<h", self.units.torque_to_drive(checked))
+            to_drive = {
+                "position": self.units.position_to_counts,
+                "velocity": self.units.velocity_to_counts,
+                "torque": self.units.torque_to_drive,
+            }[kind]
+            drive_value = to_drive(checked)
         except ValueError as e:
             raise CommandError(f"{kind} command refused: {e}") from None
-        mapped = [t for t in _MODE_TARGETS[self._mode] if t in self._layout.outputs]
+        mapped = [t for t in mode.command_objects if t in self._outputs]
+        target = (mapped or mode.command_objects)[0]
+        data = _native.encode_value(*target, drive_value)
         if mapped:
-            cycle.set_object(self.slave, *mapped[0], data)
+            cycle.set_object(self.slave, *target, data)
         else:
-            cycle.sdo_write(self.slave, *_MODE_TARGETS[self._mode][0], data)
-        if self._mode == "profile_position":
-            self._start(_NEW_SETPOINT, "the new position set-point")
+            cycle.sdo_write(self.slave, *target, data)
+        if mode.handshake_controlword is not None:
+            self._start(mode.handshake_controlword, "the new position set-point")
         self._commanded[kind] = checked
 
     def _start(self, bits: int, what: str, timeout: float = 1.0) -> None:
@@ -449,7 +385,7 @@ class Axis:
         homing is attained."""
         if self._mode != "homing":
             raise CommandError(f"home() needs mode homing; the axis is in mode {self._mode} (set_mode('homing'))")
-        self._start(_START_HOMING, "homing", timeout)
+        self._start(_MODES["homing"].handshake_controlword, "homing", timeout)
 
     def command_position(self, position: float) -> None:
         """Commands a position (rad or m) in a position mode."""
@@ -478,7 +414,7 @@ class Axis:
     @property
     def command(self) -> float | None:
         """The last command accepted in the current mode (SI), None before one."""
-        return self._commanded.get(_COMMAND_KIND.get(self._mode, ""))
+        return self._commanded.get(_MODES[self._mode].command or "")
 
     # --- state and events -----------------------------------------------------------------------------------------
 
@@ -489,20 +425,15 @@ class Axis:
     def state(self) -> AxisState:
         """The last cycle's state of the axis."""
         cycle = self._running()
-        snapshot = cycle.snapshot()
+        inputs = cycle.drive_inputs(self.slave)
         status = cycle.drive_status(self.slave)
-        data = snapshot["inputs"][self.slave]
-        read = self._layout.read
-        raw = read(data, (0x6064, 0))
-        if raw is None:
-            raw = read(data, (0x6063, 0)) or 0
-        counts = self._position_counts(raw)
-        velocity, torque, following = read(data, (0x606C, 0)), read(data, (0x6077, 0)), read(data, (0x60F4, 0))
-        mode = read(data, (0x6061, 0))
+        counts = self._position_counts(inputs.position_actual or 0)
+        velocity, torque, following = inputs.velocity_actual, inputs.torque_actual, inputs.following_error
+        mode = inputs.mode_display
         return AxisState(
-            cycle=snapshot["cycle"],
-            time_ns=snapshot["time_ns"],
-            fresh=snapshot["fresh"],
+            cycle=inputs.cycle,
+            time_ns=inputs.time_ns,
+            fresh=inputs.fresh,
             state=status["state"],
             statusword=status["statusword"],
             mode=MODE_NAMES.get(mode) if mode is not None else None,
@@ -514,7 +445,7 @@ class Axis:
             request=status["request"],
             progress=status["progress"],
             reason=status["reason"],
-            digital_inputs=read(data, (0x60FD, 0)),
+            digital_inputs=inputs.digital_inputs,
         )
 
     def arm_latch(self, channel: int, edge: str, arm: bool = True) -> None:

@@ -444,9 +444,6 @@ def check_link(link: str) -> str:
     return link
 
 
-_ENTRY = re.compile(r"(?:0x)?([0-9A-Fa-f]{4}):(?:0x)?([0-9A-Fa-f]{1,2})/([0-9]{1,2})")
-
-
 def parse_mapping(mapping: str, rx: list[str], tx: list[str]) -> tuple[object, object] | None:
     """(rx, tx) in the form `_native.Master.configure_pdo` takes, None for 'default'; raises ParameterError."""
     allowed = "'default', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
@@ -470,32 +467,29 @@ def parse_mapping(mapping: str, rx: list[str], tx: list[str]) -> tuple[object, o
 
 
 def _pdo(name: str, text: str) -> list[int]:
-    """One PDO's entries as 0xIIIISSBB from 'INDEX:SUB/BITS ...'."""
+    """One PDO's entries as 0xIIIISSBB from 'INDEX:SUB/BITS ...' (the extension's entry syntax)."""
+    from akd_ros import _native
+
     entries = []
     for word in text.split():
-        found = _ENTRY.fullmatch(word)
-        if not found:
-            raise ParameterError(f"parameter {name}: entry {word!r} is not INDEX:SUB/BITS in hex, e.g. 0x6040:00/16")
-        entries.append(int(found[1], 16) << 16 | int(found[2], 16) << 8 | int(found[3]))
+        try:
+            entries.append(_native.parse_pdo_entry(word))
+        except ValueError as e:
+            raise ParameterError(f"parameter {name}: {e}") from None
     if not entries:
         raise ParameterError(f"parameter {name}: an empty PDO; each string lists entries INDEX:SUB/BITS")
     return entries
 
 
 def check_mapping(mapping: tuple[object, object]) -> None:
-    """Tries `mapping` on a virtual AKD; ParameterError with the drive's reason (and the allowed fixed mappings)
-    when it refuses it."""
+    """Checks `mapping` against the AKD's mapping rules (the extension's, without a drive); ParameterError with the
+    reason (and the allowed fixed mappings) when a drive would refuse it."""
     from akd_ros import _native
 
-    master = _native.Master("sim")
     try:
-        master.scan()
-        master.request_state("preop")
-        master.configure_pdo(0, *mapping)
+        _native.check_mapping(*mapping)
     except _native.PdoError as e:
         raise ParameterError(f"parameter mapping: {e}") from None
-    finally:
-        master.close()
 
 
 def parse_limits(values: dict[str, object]) -> Limits:

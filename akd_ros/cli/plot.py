@@ -17,6 +17,7 @@ import textwrap
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from akd_ros import _native
 from akd_ros.cli.common import EXIT_FAILURE, run
 
 CYCLE_SAMPLE = "akd_ros/msg/CycleSample"
@@ -25,17 +26,8 @@ DRIVE_FAULT = "akd_ros/msg/DriveFault"
 #: File types the picture can be written as, by extension.
 FORMATS = (".png", ".svg", ".pdf")
 _EDGES = {1: "rising", 2: "falling"}
-# DS402 states by statusword (AKD_FACTS §4): (mask, value, name), bottom to top of the state panel.
-_DS402_STATES = (
-    (0x4F, 0x00, "Not ready to switch on"),
-    (0x4F, 0x40, "Switch on disabled"),
-    (0x6F, 0x21, "Ready to switch on"),
-    (0x6F, 0x23, "Switched on"),
-    (0x6F, 0x27, "Operation enabled"),
-    (0x6F, 0x07, "Quick stop active"),
-    (0x4F, 0x0F, "Fault reaction active"),
-    (0x4F, 0x08, "Fault"),
-)
+# DS402 states in the order of CiA 402's state diagram (the extension's), bottom to top of the state panel.
+_DS402_STATES = _native.DS402_STATES
 # Legend lines are wrapped to this many characters, so long fault actions stay inside the picture.
 _LEGEND_WIDTH = 150
 
@@ -118,10 +110,8 @@ def latch_label(msg) -> str:
 
 def ds402_state(statusword: int) -> int:
     """The index in _DS402_STATES of the state a statusword shows, -1 for none."""
-    for index, (mask, value, _) in enumerate(_DS402_STATES):
-        if statusword & mask == value:
-            return index
-    return -1
+    name = _native.ds402_state(statusword)
+    return -1 if name is None else _DS402_STATES.index(name)
 
 
 def plot(run_data: Run, title: str, output: Path) -> None:
@@ -165,9 +155,7 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     ax_torque.plot(t, column["torque"], lw=1.0, color="tab:brown")
     ax_torque.set_ylabel("torque (N·m or N)")
     ax_state.step(t, states, where="post", lw=1.5, color="tab:gray")
-    ax_state.set_yticks(
-        range(-1, len(_DS402_STATES)), ["no valid state"] + [name for _, _, name in _DS402_STATES], fontsize=8
-    )
+    ax_state.set_yticks(range(-1, len(_DS402_STATES)), ["no valid state", *_DS402_STATES], fontsize=8)
     ax_state.set_ylim(-1.5, len(_DS402_STATES) - 0.5)
     ax_state.set_ylabel("DS402 state\n(statusword)")
     ax_state.set_xlabel(f"time since the first cycle sample (s); cycles {cycles[0]}..{cycles[-1]}")

@@ -11,32 +11,17 @@ import argparse
 import struct
 import sys
 
+from akd_ros import _native
 from akd_ros.cli.common import add_master_arguments, open_master, run
 
-# CoE data type codes (ETG.1000.6 table 64) the tool can show as numbers or text.
-_SIGNED = {
-    0x0002: "INTEGER8",
-    0x0003: "INTEGER16",
-    0x0004: "INTEGER32",
-    0x0010: "INTEGER24",
-    0x0012: "INTEGER40",
-    0x0013: "INTEGER48",
-    0x0014: "INTEGER56",
-    0x0015: "INTEGER64",
-}
-_UNSIGNED = {
-    0x0001: "BOOLEAN",
-    0x0005: "UNSIGNED8",
-    0x0006: "UNSIGNED16",
-    0x0007: "UNSIGNED32",
-    0x0016: "UNSIGNED24",
-    0x0018: "UNSIGNED40",
-    0x0019: "UNSIGNED48",
-    0x001A: "UNSIGNED56",
-    0x001B: "UNSIGNED64",
-}
-_REAL = {0x0008: "<f", 0x0011: "<d"}
-_VISIBLE_STRING = 0x0009
+# IEEE 754 numbers by their size in bytes (REAL32, REAL64).
+_REAL_FORMATS = {4: "<f", 8: "<d"}
+_INTEGER_KINDS = ("signed_integer", "unsigned_integer")
+
+
+def _kind(data_type: int | None) -> str:
+    """How values of a CoE data type read, by the extension's table ("other" without SDO information)."""
+    return "other" if data_type is None else _native.data_type_kind(data_type)
 
 
 def parse_address(text: str) -> tuple[int, int]:
@@ -53,30 +38,32 @@ def parse_address(text: str) -> tuple[int, int]:
 
 def format_value(data: bytes, data_type: int | None) -> str:
     """Shows an SDO value as its data type reads (number, text), or as hex bytes."""
-    if data_type in _SIGNED or data_type in _UNSIGNED:
-        value = int.from_bytes(data, "little", signed=data_type in _SIGNED)
+    kind = _kind(data_type)
+    if kind in _INTEGER_KINDS:
+        value = int.from_bytes(data, "little", signed=kind == "signed_integer")
         return f"{value} (0x{data[::-1].hex().upper()})"
-    if data_type in _REAL and len(data) == struct.calcsize(_REAL[data_type]):
-        return repr(struct.unpack(_REAL[data_type], data)[0])
-    if data_type == _VISIBLE_STRING:
+    if kind == "real" and len(data) in _REAL_FORMATS:
+        return repr(struct.unpack(_REAL_FORMATS[len(data)], data)[0])
+    if kind == "visible_string":
         return repr(data.rstrip(b"\0").decode("latin-1"))
     return data.hex(" ") if data else "(empty)"
 
 
 def encode_value(text: str, data_type: int | None, size: int) -> bytes:
     """Encodes VALUE for an object of `data_type` and `size` bytes; ValueError when it cannot."""
-    if data_type == _VISIBLE_STRING:
+    kind = _kind(data_type)
+    if kind == "visible_string":
         return text.encode("latin-1")
-    if data_type in _REAL:
-        return struct.pack(_REAL[data_type], float(text))
+    if kind == "real" and size in _REAL_FORMATS:
+        return struct.pack(_REAL_FORMATS[size], float(text))
     try:
         value = int(text, 0)
     except ValueError:
         raise ValueError(f"expected a number in hex (0x...) or decimal, got {text!r}") from None
-    signed = data_type in _SIGNED
+    signed = kind == "signed_integer"
     low, high = (-(1 << (8 * size - 1)), (1 << (8 * size - 1)) - 1) if signed else (0, (1 << (8 * size)) - 1)
     if not low <= value <= high:
-        type_name = _SIGNED.get(data_type) or _UNSIGNED.get(data_type) or f"{size}-byte value"
+        type_name = _native.data_type_name(data_type) if kind in _INTEGER_KINDS else f"{size}-byte value"
         raise ValueError(f"{text} is out of range for {type_name} ({low}..{high})")
     return value.to_bytes(size, "little", signed=signed)
 

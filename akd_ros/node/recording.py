@@ -9,19 +9,14 @@ import math
 from rclpy.qos import QoSProfile
 from rclpy.time import Time
 
+from akd_ros import _native
 from akd_ros.msg import CycleSample
 from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 from akd_ros.units import Units
 
-# Which target of a cycle record is the command, by the mode the drive shows (0x6061).
-_TARGET_OF_MODE = {
-    1: "target_position",
-    7: "target_position",
-    8: "target_position",
-    3: "target_velocity",
-    4: "target_torque",
-}
+# Which target of a cycle record is the command, by the mode the drive shows (0x6061): the one of the mode's command.
+_TARGET_OF_MODE = {mode.code: f"target_{mode.command}" for mode in _native.MODES_OF_OPERATION if mode.command}
 _UINT32_MAX = 2**32 - 1
 
 

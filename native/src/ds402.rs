@@ -274,6 +274,80 @@ impl State {
     ];
 }
 
+/// What the command of a mode of operation sets.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Command {
+    /// A position, in counts.
+    Position,
+    /// A velocity, in counts per second.
+    Velocity,
+    /// A torque, in 0.1 % of the drive's peak torque.
+    Torque,
+}
+
+impl Command {
+    /// The command's name as the Python API spells it: "position", "velocity", "torque".
+    pub fn name(self) -> &'static str {
+        match self {
+            Command::Position => "position",
+            Command::Velocity => "velocity",
+            Command::Torque => "torque",
+        }
+    }
+}
+
+impl Mode {
+    /// The mode's name as one word, as the Python API and the node's parameters spell it:
+    /// "profile_position".
+    pub fn snake_name(self) -> String {
+        self.name().replace(' ', "_")
+    }
+
+    /// The mode whose [`snake_name`](Mode::snake_name) is `name`.
+    pub fn from_snake_name(name: &str) -> Option<Mode> {
+        Self::ALL.into_iter().find(|m| m.snake_name() == name)
+    }
+
+    /// What the mode's command sets; `None` for homing, which the drive runs by itself.
+    pub fn command(self) -> Option<Command> {
+        match self {
+            Mode::ProfilePosition | Mode::InterpolatedPosition | Mode::CyclicSynchronousPosition => {
+                Some(Command::Position)
+            }
+            Mode::ProfileVelocity => Some(Command::Velocity),
+            Mode::ProfileTorque => Some(Command::Torque),
+            Mode::Homing => None,
+        }
+    }
+
+    /// The objects (index, subindex) the mode's command is written to, in the order tried: the
+    /// first the output mapping carries; a mode started by a handshake
+    /// ([`handshake_controlword`](Mode::handshake_controlword)) writes the first by SDO where
+    /// none is mapped, the others need one mapped. Empty for homing.
+    pub fn command_objects(self) -> &'static [(u16, u8)] {
+        match self {
+            Mode::ProfilePosition | Mode::CyclicSynchronousPosition => &[(0x607A, 0)],
+            Mode::ProfileVelocity => &[(0x60FF, 0)],
+            Mode::ProfileTorque => &[(0x6071, 0)],
+            Mode::Homing => &[],
+            Mode::InterpolatedPosition => &[(0x60C1, 1)],
+        }
+    }
+
+    /// The controlword bits whose rising edge starts what the mode was commanded: profile
+    /// position takes a new set-point at once (bits 4 and 5), homing starts (bit 4). The drive
+    /// acknowledges in statusword bit 12; the bits then go low again, so that the next command
+    /// makes a new edge (the cycle thread's set-point handshake). `None` for the modes that
+    /// follow their command every cycle.
+    pub fn handshake_controlword(self) -> Option<u16> {
+        match self {
+            Mode::ProfilePosition => Some(controlword::NEW_SETPOINT | controlword::CHANGE_IMMEDIATELY),
+            Mode::Homing => Some(controlword::NEW_SETPOINT),
+            _ => None,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -358,5 +432,48 @@ mod tests {
     fn modes() {
         assert_eq!(Mode::from_i8(8), Some(Mode::CyclicSynchronousPosition));
         assert_eq!(Mode::from_i8(2), None);
+    }
+
+    #[test]
+    fn the_virtual_akd_takes_exactly_the_modes_of_the_table() {
+        use crate::coe::access::WRITE_OP;
+        let mut od = crate::sim::od::ObjectDictionary::default();
+        for code in i8::MIN..=i8::MAX {
+            let taken = od.write(0x6060, 0, &[code as u8], WRITE_OP).is_ok();
+            assert_eq!(taken, Mode::from_i8(code).is_some(), "0x6060 = {code}");
+        }
+        for mode in Mode::ALL {
+            assert_eq!(Mode::from_snake_name(&mode.snake_name()), Some(mode));
+            assert!(!mode.snake_name().contains(' '));
+        }
+        assert_eq!(Mode::from_snake_name("profile position"), None);
+    }
+
+    #[test]
+    fn each_command_goes_to_mappable_objects_of_its_own_type() {
+        use crate::coe::data_type::{self, ValueKind};
+        for mode in Mode::ALL {
+            assert_eq!(mode.command().is_none(), mode.command_objects().is_empty(), "{}", mode.name());
+            for &(index, subindex) in mode.command_objects() {
+                assert!(crate::pdo::MAPPABLE_RX.iter().any(|e| (e.index, e.subindex) == (index, subindex)));
+                let object = crate::objects::mappable_object(index, subindex).expect("a typed object");
+                assert_eq!(data_type::kind(object.data_type), ValueKind::SignedInteger, "{}", object.name);
+                // Torque counts in 0.1 % of peak (16 bits); positions and velocities in counts (32).
+                let bits = if mode.command() == Some(Command::Torque) { 16 } else { 32 };
+                assert_eq!(data_type::bit_len(object.data_type), Some(bits), "{}", object.name);
+            }
+        }
+    }
+
+    #[test]
+    fn handshakes_raise_bit_4_and_leave_the_device_control_bits_alone() {
+        for mode in Mode::ALL {
+            let handshake = mode.handshake_controlword();
+            assert_eq!(handshake.is_some(), matches!(mode, Mode::ProfilePosition | Mode::Homing), "{}", mode.name());
+            if let Some(bits) = handshake {
+                assert_ne!(bits & NEW_SETPOINT, 0);
+                assert_eq!(bits & COMMAND_MASK, 0, "the handshake leaves the device-control bits alone");
+            }
+        }
     }
 }

@@ -21,6 +21,7 @@ pub mod frame;
 pub mod link;
 pub mod mailbox;
 pub mod master;
+pub mod objects;
 pub mod pdo;
 pub mod registers;
 pub mod sii;

@@ -446,6 +446,73 @@ pub fn layout(entries: impl IntoIterator<Item = PdoEntry>) -> impl Iterator<Item
     })
 }
 
+/// akd_ros's default mapping, outputs: everything every mode of operation needs within the
+/// AKD's flexible limits (22 bytes out, 32 in, 8 per PDO). Controlword, interpolation set-point
+/// 0x60C1:01, modes of operation 0x6060, padding | target velocity 0x60FF, target torque 0x6071,
+/// latch controlword | target position 0x607A (which the real drive maps flexibly: its power-up
+/// mapping has it). Unlike [`DEFAULT_FIXED`], the manual's default, it carries every mode's
+/// command, so a mode change needs no new mapping.
+pub const DEFAULT_RX: [&[PdoEntry]; 3] = [
+    &[CONTROLWORD, IP_SETPOINT, MODES_OF_OPERATION, PdoEntry::new(RX_PADDING_INDEX, 0, 8)],
+    &[TARGET_VELOCITY, TARGET_TORQUE, LATCH_CONTROLWORD],
+    &[TARGET_POSITION],
+];
+
+/// Inputs of akd_ros's default mapping (see [`DEFAULT_RX`]): statusword, modes of operation
+/// display, padding, position actual 0x6064 | velocity actual, torque actual, latch statusword
+/// | following error, latch 1 position 0x20A6 | latch 2 position 0x20A7, digital inputs 0x60FD.
+pub const DEFAULT_TX: [&[PdoEntry]; 4] = [
+    &[STATUSWORD, MODES_OF_OPERATION_DISPLAY, PdoEntry::new(TX_PADDING_INDEX, 1, 8), POSITION_ACTUAL],
+    &[VELOCITY_ACTUAL, TORQUE_ACTUAL, LATCH_STATUSWORD],
+    &[FOLLOWING_ERROR, LATCH_1_POSITION],
+    &[LATCH_2_POSITION, DIGITAL_INPUTS],
+];
+
+const MODES_OF_OPERATION: PdoEntry = PdoEntry::new(0x6060, 0, 8);
+const MODES_OF_OPERATION_DISPLAY: PdoEntry = PdoEntry::new(0x6061, 0, 8);
+const TARGET_TORQUE: PdoEntry = PdoEntry::new(0x6071, 0, 16);
+const LATCH_1_POSITION: PdoEntry = PdoEntry::new(0x20A6, 0, 32);
+const LATCH_2_POSITION: PdoEntry = PdoEntry::new(0x20A7, 0, 32);
+
+/// A mapping entry written as text in a form other than [`PdoEntry::parse`] takes.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct EntrySyntaxError {
+    /// The text as given.
+    pub text: String,
+}
+
+impl std::fmt::Display for EntrySyntaxError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "entry '{}' is not INDEX:SUB/BITS in hex, e.g. 0x6040:00/16", self.text)
+    }
+}
+
+impl std::error::Error for EntrySyntaxError {}
+
+impl PdoEntry {
+    /// Parses an entry written as the node's parameters write it, `INDEX:SUB/BITS`: index in
+    /// four hex digits, subindex in one or two, each with or without `0x`, and the bit length
+    /// in one or two decimal digits, e.g. `0x6040:00/16`. Whether the AKD maps it is
+    /// [`check_flexible`]'s question.
+    pub fn parse(text: &str) -> Result<PdoEntry, EntrySyntaxError> {
+        let refused = || EntrySyntaxError { text: text.to_owned() };
+        let hex = |part: &str, digits: std::ops::RangeInclusive<usize>| {
+            let part = part.strip_prefix("0x").unwrap_or(part);
+            let well_formed = digits.contains(&part.len()) && part.bytes().all(|b| b.is_ascii_hexdigit());
+            well_formed.then(|| u16::from_str_radix(part, 16).ok()).flatten()
+        };
+        let (address, bits) = text.split_once('/').ok_or_else(refused)?;
+        let (index, subindex) = address.split_once(':').ok_or_else(refused)?;
+        let index = hex(index, 4..=4).ok_or_else(refused)?;
+        let subindex = hex(subindex, 1..=2).ok_or_else(refused)? as u8;
+        if !(1..=2).contains(&bits.len()) || !bits.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(refused());
+        }
+        let bits = bits.parse().map_err(|_| refused())?;
+        Ok(PdoEntry::new(index, subindex, bits))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -500,5 +567,59 @@ mod tests {
     fn layout_gives_byte_offsets() {
         let offsets: Vec<usize> = layout(fixed(0x1720).unwrap().entries.iter().copied()).map(|(o, _)| o).collect();
         assert_eq!(offsets, vec![0, 2, 6, 8, 10]);
+    }
+
+    #[test]
+    fn the_default_mapping_is_one_the_akd_takes_and_carries_every_modes_command() {
+        for (direction, pdos) in [(Direction::Rx, &DEFAULT_RX[..]), (Direction::Tx, &DEFAULT_TX[..])] {
+            let indexed: Vec<(u16, &[PdoEntry])> =
+                pdos.iter().enumerate().map(|(i, e)| (direction.flexible_base() + i as u16, *e)).collect();
+            assert_eq!(check_flexible(direction, &indexed), Ok(()), "{}", direction.name());
+        }
+        let rx: Vec<PdoEntry> = DEFAULT_RX.concat();
+        for mode in crate::ds402::Mode::ALL {
+            if let Some(&(index, subindex)) = mode.command_objects().first() {
+                assert!(rx.iter().any(|e| (e.index, e.subindex) == (index, subindex)), "{}", mode.name());
+            }
+        }
+        let inputs = crate::objects::DriveInputs::read(&DEFAULT_TX.concat(), &[0; MAX_TX_BYTES]);
+        assert_eq!(
+            inputs,
+            crate::objects::DriveInputs {
+                statusword: Some(0),
+                mode_display: Some(0),
+                position_actual: Some(0),
+                velocity_actual: Some(0),
+                torque_actual: Some(0),
+                following_error: Some(0),
+                digital_inputs: Some(0),
+            },
+            "the default inputs carry every value an axis shows"
+        );
+    }
+
+    #[test]
+    fn entries_parse_from_the_parameters_text() {
+        assert_eq!(PdoEntry::parse("0x6040:00/16"), Ok(CONTROLWORD));
+        assert_eq!(PdoEntry::parse("60C1:1/32"), Ok(IP_SETPOINT));
+        assert_eq!(PdoEntry::parse("0x60c1:0x01/32"), Ok(IP_SETPOINT));
+        for bad in [
+            "6040-16",
+            "0x6040:00",
+            "0x604:00/16",
+            "0x60400:00/16",
+            "0x6040:000/16",
+            "0x6040:00/160",
+            "0x6040:00/",
+            "0x6040:0g/16",
+            "0X6040:00/16",
+            "0x6040:00/+8",
+            " 0x6040:00/16",
+            "",
+        ] {
+            let refused = PdoEntry::parse(bad).unwrap_err();
+            assert!(refused.to_string().contains(&format!("'{bad}'")), "{refused}");
+            assert!(refused.to_string().contains("INDEX:SUB/BITS"), "{refused}");
+        }
     }
 }

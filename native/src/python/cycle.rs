@@ -537,6 +537,14 @@ impl PyCycle {
     fn __exit__(&mut self, py: Python<'_>, _exc_type: PyObject, _exc: PyObject, _tb: PyObject) -> PyResult<()> {
         self.halt(py)
     }
+
+    /// Drive `position`'s inputs in the last snapshot, read by its mapping with each object's
+    /// data type: a DriveInputs (statusword, mode_display, position_actual, velocity_actual,
+    /// torque_actual, following_error, digital_inputs; None where not mapped) with the
+    /// snapshot's cycle, time_ns and fresh.
+    fn drive_inputs(&self, position: u16) -> PyResult<super::drive::PyDriveInputs> {
+        super::drive::drive_inputs(&self.cycle, position)
+    }
 }
 
 impl Drop for PyCycle {

@@ -56,7 +56,7 @@ fn parse_state(name: &str) -> crate::error::Result<AlState> {
 
 /// A mapping given from Python: a fixed mapping's index, or a list of PDOs, each a list of
 /// entries 0xIIIISSBB.
-fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
+pub(super) fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     if let Ok(index) = value.extract::<u16>() {
         return Ok(Mapping::Fixed(index));
     }

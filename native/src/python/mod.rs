@@ -11,6 +11,7 @@ use pyo3::IntoPyObjectExt;
 use crate::error::Error;
 
 mod cycle;
+mod drive;
 mod master;
 mod sii;
 mod sim;
@@ -132,5 +133,6 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     sim::register(m)?;
     sii::register(m)?;
     cycle::register(m)?;
+    drive::register(m)?;
     Ok(())
 }

@@ -7,9 +7,9 @@
 //! and data types, default sync-manager assignment, and the flexible PDOs' content at the time
 //! the image was read.
 
-use crate::coe::data_type;
 use crate::error::{Error, Result};
 use crate::mailbox::MailboxType;
+use crate::objects::{self, MappableObject};
 use crate::pdo::{self, Direction, PdoEntry};
 use crate::sii::{
     category, fmmu_usage, sync_manager_type, Builder, Category, DcOpMode, General, Header, Identity, MailboxLayout,
@@ -29,34 +29,6 @@ pub const IDENTITY: Identity =
 /// Both mailboxes (bootstrap and standard) of the AKD: 1 KiB each at 0x1800 and 0x1C00.
 const MAILBOX: MailboxLayout =
     MailboxLayout { receive_offset: 0x1800, receive_size: 0x0400, send_offset: 0x1C00, send_size: 0x0400 };
-
-/// Name and SII data type of every object the drive's PDOs carry.
-const OBJECTS: &[(u16, u8, &str, u16)] = &[
-    (0x6041, 0, "Statusword", data_type::UNSIGNED16),
-    (0x6063, 0, "Position actual internal value", data_type::INTEGER32),
-    (0x2050, 0, "Second position feedback", data_type::INTEGER32),
-    (0x606C, 0, "Velocity actual value", data_type::INTEGER32),
-    (0x60FD, 0, "Digital inputs", data_type::UNSIGNED32),
-    (0x60F4, 0, "Following error actual value", data_type::INTEGER32),
-    (0x20A0, 0, "Latch 1p", data_type::INTEGER32),
-    (0x6077, 0, "Torque actual value", data_type::INTEGER16),
-    (0x20A5, 0, "Latch statusword", data_type::UNSIGNED16),
-    (0x3470, 4, "AIN.VALUE", data_type::INTEGER16),
-    (0x20A1, 0, "Latch 1n", data_type::INTEGER32),
-    (0x20A6, 0, "Latch 1 pn", data_type::INTEGER32),
-    (0x6064, 0, "Position actual value", data_type::INTEGER32),
-    (0x20A7, 0, "Latch 2 pn", data_type::INTEGER32),
-    (0x6040, 0, "Controlword", data_type::UNSIGNED16),
-    (0x60C1, 1, "1st set-point", data_type::INTEGER32),
-    (0x60FF, 0, "Target velocity", data_type::INTEGER32),
-    (0x20A4, 0, "Latch controlword", data_type::UNSIGNED16),
-    (0x60B2, 0, "Torque offset", data_type::INTEGER16),
-    (0x60FE, 1, "Physical outputs", data_type::UNSIGNED32),
-    (0x6072, 0, "Max torque", data_type::UNSIGNED16),
-    (0x20B8, 0, "ClearDigInputChangedBit", data_type::UNSIGNED16),
-    (0x607A, 0, "Target position", data_type::INTEGER32),
-    (0x3470, 3, "AOUT.VALUE write", data_type::INTEGER16),
-];
 
 /// The flexible PDOs as the image lists them: only the first of each direction carries an
 /// entry (the control or status word); the mapping the drive reports over CoE at power-up is
@@ -99,10 +71,8 @@ fn header() -> Header {
 }
 
 fn sii_entry(b: &mut Builder, entry: PdoEntry) -> Result<SiiPdoEntry> {
-    let &(_, _, name, data_type) = OBJECTS
-        .iter()
-        .find(|&&(index, subindex, _, _)| index == entry.index && subindex == entry.subindex)
-        .ok_or_else(|| {
+    let &MappableObject { name, data_type, .. } =
+        objects::mappable_object(entry.index, entry.subindex).ok_or_else(|| {
             Error::Sii(format!(
                 "no name for PDO object 0x{:04X}:{:02X} in the AKD's image",
                 entry.index, entry.subindex
@@ -211,6 +181,7 @@ pub fn akd_sii() -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::coe::data_type;
     use crate::sii::Sii;
 
     #[test]
