@@ -194,9 +194,15 @@ impl Esc {
 
     /// Whether a read and a write of `[at, at + len)` pass the sync managers: a full mailbox
     /// refuses writes from the master, an empty one refuses reads, and a buffer the firmware
-    /// deactivated refuses both. Memory no enabled sync manager covers is free.
+    /// deactivated refuses both. Memory no enabled sync manager covers is free, and so are the
+    /// registers below [`RAM_START`]: an ESC's sync managers work on process memory only, so a
+    /// sync manager a master set over the registers (a broadcast write may do that) never
+    /// blocks them.
     fn gate(&self, at: usize, len: usize, read: bool, write: bool) -> (bool, bool) {
         let (mut read, mut write) = (read, write);
+        if at + len <= RAM_START {
+            return (read, write);
+        }
         for n in 0..SM_COUNT {
             let sm = SyncManager::read(&self.memory, n);
             if sm.activate & sync_manager::ACTIVATE_ENABLE == 0 || sm.length == 0 || !sm.overlaps(at, len) {
@@ -220,6 +226,9 @@ impl Esc {
 
     /// Completes transfers: the last byte of a buffer written or read by the master.
     fn after_ram_access(&mut self, at: usize, len: usize, was_read: bool) {
+        if at + len <= RAM_START {
+            return;
+        }
         for n in 0..SM_COUNT {
             let sm = SyncManager::read(&self.memory, n);
             if !sm.active() || !sm.covers_last_byte(at, len) || sm.master_writes() == was_read {
@@ -453,6 +462,17 @@ mod tests {
         assert_eq!(run(&mut e, Command::Fprd, 0x1002, 0x0010, &[0, 0]).1, 1);
         // FRMW: the addressed drive reads, the others would write.
         assert_eq!(run(&mut e, Command::Frmw, 0x1002, 0x0010, &[0, 0]).1, 1);
+    }
+
+    #[test]
+    fn a_sync_manager_set_over_the_registers_leaves_them_free() {
+        let mut e = esc();
+        // SM1 as a mailbox (read by the master, empty) at 0x0000: a real ESC gates process
+        // memory only, so the registers stay readable and writable.
+        assert_eq!(run(&mut e, Command::Apwr, 0, 0x0808, &[0, 0, 0, 4, 0x22, 0, 1, 0]).1, 1);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0000, &[0, 0]), (vec![0x04, 0x02], 1));
+        assert_eq!(run(&mut e, Command::Apwr, 0, 0x0010, &[0x01, 0x10]).1, 1);
+        assert_eq!(run(&mut e, Command::Fprd, 0x1001, 0x0010, &[0, 0]), (vec![0x01, 0x10], 1));
     }
 
     #[test]
