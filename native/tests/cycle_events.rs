@@ -14,9 +14,9 @@ use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::error::{Error, Result};
 use akd_native::frame::{Command, FrameBuilder};
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::registers::AL_CONTROL;
+use akd_native::sim::in_process::InProcess;
 
 #[path = "support/csp.rs"]
 mod csp;

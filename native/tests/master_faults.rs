@@ -6,9 +6,9 @@ use std::time::Duration;
 
 use akd_native::al::AlState;
 use akd_native::error::Result;
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::master::Master;
+use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 use proptest::prelude::*;
 

@@ -10,10 +10,10 @@ use akd_native::al::AlState;
 use akd_native::coe::{abort, data_type, object_code, od_list};
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::master::{Mapping, Master};
 use akd_native::pdo::{self, Direction, PdoEntry};
+use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 
 const STEP: Duration = Duration::from_secs(5);

@@ -12,10 +12,10 @@ use akd_native::coe::{
 };
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::master::Master;
 use akd_native::registers::{AKD_MAILBOX_IN, AKD_MAILBOX_OUT};
+use akd_native::sim::in_process::InProcess;
 use akd_native::sim::od::{Entry, Object};
 use akd_native::sim::{Timing, VirtualBus};
 

@@ -710,7 +710,7 @@ fn supervise(
 mod tests {
     use super::*;
     use crate::al::AlState;
-    use crate::link::inproc::InProcess;
+    use crate::sim::in_process::InProcess;
 
     fn master_in_op(count: usize) -> Master {
         let mut m = Master::new(Box::new(InProcess::new(count)), Duration::from_millis(100));

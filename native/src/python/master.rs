@@ -5,7 +5,6 @@
 //! on a lock it cannot see.
 
 use std::sync::{Mutex, MutexGuard, TryLockError};
-use std::time::Duration;
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
@@ -22,7 +21,7 @@ use crate::sim::control::SimControl;
 /// with the handle that controls its virtual AKDs for the in-process links.
 fn open_link(spec: &str) -> crate::error::Result<(Box<dyn Link>, Option<SimControl>)> {
     let in_process = |count| {
-        let link = link::inproc::InProcess::new(count);
+        let link = crate::sim::in_process::InProcess::new(count);
         let control = link.control();
         (Box::new(link) as Box<dyn Link>, Some(control))
     };
@@ -72,12 +71,6 @@ fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
 }
 
-pub(super) fn seconds(value: f64, what: &str) -> PyResult<Duration> {
-    Duration::try_from_secs_f64(value).map_err(|_| {
-        super::to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}")))
-    })
-}
-
 /// An EtherCAT master on one link.
 #[pyclass(name = "Master", module = "akd_ros._native")]
 pub struct PyMaster {
@@ -121,7 +114,7 @@ impl PyMaster {
     #[new]
     #[pyo3(signature = (link, *, pcap = None, timeout = 0.1))]
     fn new(py: Python<'_>, link: &str, pcap: Option<&str>, timeout: f64) -> PyResult<Self> {
-        let timeout = seconds(timeout, "timeout")?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let (master, simulator) = py
             .allow_threads(|| -> crate::error::Result<(master::Master, Option<SimControl>)> {
                 let (inner, simulator) = open_link(link)?;
@@ -195,7 +188,7 @@ impl PyMaster {
     #[pyo3(signature = (state, position = None, timeout = 5.0))]
     fn request_state(&self, py: Python<'_>, state: &str, position: Option<u16>, timeout: f64) -> PyResult<()> {
         let target = parse_state(state).py()?;
-        let timeout = seconds(timeout, "timeout")?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
         py.allow_threads(|| m.request_state(target, position, timeout)).py()

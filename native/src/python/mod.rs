@@ -99,6 +99,12 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
     })
 }
 
+/// A duration given from Python in seconds; a negative or non-finite one is refused.
+pub(crate) fn seconds(value: f64, what: &str) -> PyResult<std::time::Duration> {
+    std::time::Duration::try_from_secs_f64(value)
+        .map_err(|_| to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}"))))
+}
+
 /// Extension trait: `.py()?` converts a crate result into a Python one.
 pub(crate) trait IntoPyResult<T> {
     fn py(self) -> PyResult<T>;

@@ -151,7 +151,7 @@ impl PySimulator {
     /// gives it; waits up to `timeout` seconds for that frame.
     #[pyo3(signature = (position, timeout = QUERY_TIMEOUT.as_secs_f64()))]
     fn drive_state<'py>(&self, py: Python<'py>, position: usize, timeout: f64) -> PyResult<Bound<'py, PyDict>> {
-        let timeout = super::master::seconds(timeout, "timeout")?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let control = &self.control;
         let state = py.allow_threads(|| control.drive_state(position, timeout)).py()?;
         state_dict(py, &state)

@@ -7,7 +7,8 @@
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
 //! load ([`motion`]) and simulated digital inputs and latch ([`latch`]). A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
-//! that a run is deterministic. [`server`] serves a bus on UDP or on a network interface.
+//! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
+//! the link trait; [`server`] serves one on UDP or on a network interface.
 //! [`control`] lets tests and the simulator command inject faults, set inputs and query a
 //! drive while another thread owns the bus and serves its frames.
 //! [`VirtualBus::with_mailbox_size`] builds drives whose SII declares a smaller mailbox than
@@ -20,6 +21,7 @@ pub mod control;
 pub mod drive;
 pub mod esc;
 pub mod faults;
+pub mod in_process;
 pub mod latch;
 pub mod motion;
 pub mod od;

@@ -3,13 +3,21 @@
 //!
 //! Values are stored as little-endian bytes, as SDO and process data carry them. The DS402,
 //! motion and latch objects are stored values here that the drive firmware
-//! ([`crate::sim::drive`]) reads and updates. Checks that involve more than
+//! (the drive module beside it) reads and updates. Checks that involve more than
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
 use crate::coe::{abort, access, data_type, object_code};
 use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
 use crate::sim::sii_image;
+
+/// Power-up following error window 0x6065: five revolutions.
+pub const FOLLOWING_ERROR_WINDOW: u32 = 5 << 20;
+/// Power-up profile velocity 0x6081: 10 rev/s.
+pub const PROFILE_VELOCITY: u32 = 10 << 20;
+/// Power-up profile acceleration, deceleration and quick stop deceleration (0x6083, 0x6084,
+/// 0x6085): 100 rev/s².
+pub const PROFILE_ACCELERATION: u32 = 100 << 20;
 
 /// Checks a value about to be written to one entry; returns the SDO abort code on refusal.
 pub type ValueCheck = fn(&[u8]) -> Result<(), u32>;
@@ -465,11 +473,11 @@ impl ObjectDictionary {
         od.objects.sort_by_key(|o| o.index);
         od.set(0x6041, 0, &0x0240u16.to_le_bytes());
         od.set(0x6502, 0, &0x0000_00EDu32.to_le_bytes());
-        // The virtual drive's power-up motion parameters (crate::sim::drive).
-        od.set(0x6065, 0, &crate::sim::drive::FOLLOWING_ERROR_WINDOW.to_le_bytes());
-        od.set(0x6081, 0, &crate::sim::drive::PROFILE_VELOCITY.to_le_bytes());
+        // The virtual drive's power-up motion parameters, which the drive model reads back.
+        od.set(0x6065, 0, &FOLLOWING_ERROR_WINDOW.to_le_bytes());
+        od.set(0x6081, 0, &PROFILE_VELOCITY.to_le_bytes());
         for index in [0x6083, 0x6084, 0x6085] {
-            od.set(index, 0, &crate::sim::drive::PROFILE_ACCELERATION.to_le_bytes());
+            od.set(index, 0, &PROFILE_ACCELERATION.to_le_bytes());
         }
         let modes = od.objects.iter_mut().find(|o| o.index == 0x6060).expect("listed above");
         modes.entries[0].check = Some(modes_of_operation);
