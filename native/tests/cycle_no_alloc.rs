@@ -9,7 +9,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
-use akd_native::cycle::ds402::{Progress, Request};
+use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::{Config, CycleThread, Snapshot};
 use akd_native::link::udp::Udp;
 use akd_native::master::Master;

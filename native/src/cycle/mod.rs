@@ -12,11 +12,13 @@
 //! [`CycleThread::stop`] hands the master back, e.g. to bring the bus down.
 //!
 //! Drives whose mapping carries controlword and statusword are sequenced in the loop by
-//! [`ds402`]: [`CycleThread::request`] asks for enable, disable, quick stop or fault reset,
+//! [`sequencer`]: [`CycleThread::request`] asks for enable, disable, quick stop or fault reset,
 //! [`CycleThread::drive_status`] tells how far it is.
 //!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
-//! [`exchange`] the lock-free buffers and [`ds402`] the drive sequencer.
+//! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
+//! fault supervision, [`latch`] the position latch and [`acyclic`] the mailbox traffic beside
+//! the cycle.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
@@ -28,25 +30,25 @@ use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
 use crate::pdo::PdoEntry;
 
-pub mod ds402;
+pub mod acyclic;
 pub mod events;
-pub mod exchange;
-pub mod faults;
 pub mod image;
 pub mod latch;
-pub mod mailbox;
 pub mod ring;
 pub mod rt;
 pub mod samples;
+pub mod seqlock;
+pub mod sequencer;
 pub mod stats;
+pub mod supervision;
 pub mod timing;
 
+use acyclic::{MailboxService, SdoSlot};
 use events::{Event, Events};
-use exchange::SeqBytes;
-use faults::{Exchange, Gaps};
-use mailbox::{MailboxService, SdoSlot};
 use samples::{Sample, Samples};
+use seqlock::SeqBytes;
 use stats::CycleStats;
+use supervision::{Exchange, Gaps};
 
 /// How a cycle thread runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -97,7 +99,7 @@ struct Shared {
     snapshot: SeqBytes,
     stats: CycleStats,
     /// One per slave, sequenced or not.
-    drives: Vec<ds402::Shared>,
+    drives: Vec<sequencer::Shared>,
     /// How long a drive request may take before it is reported stuck (ns).
     request_timeout_ns: AtomicU64,
     /// One per slave: the latch edges armed.
@@ -113,16 +115,16 @@ pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
 /// What the cycle thread runs for one drive it sequences.
 struct DriveLoop {
     position: u16,
-    drive: ds402::Drive,
+    drive: sequencer::Drive,
     latch: Option<latch::Latch>,
-    watch: faults::DriveWatch,
+    watch: supervision::DriveWatch,
 }
 
 /// The drives of `master` that can be sequenced, with their objects' offsets in the whole
 /// images and their latch where mapped; for the others, why not.
 fn sequenced_drives(
     master: &Master,
-) -> Vec<std::result::Result<(ds402::Offsets, Option<latch::LatchObjects>), String>> {
+) -> Vec<std::result::Result<(sequencer::Offsets, Option<latch::LatchObjects>), String>> {
     (0..master.slaves().len() as u16)
         .map(|position| {
             let slave = master.slave(position).map_err(|e| e.to_string())?;
@@ -130,7 +132,7 @@ fn sequenced_drives(
                 slave.mapping.as_ref().ok_or_else(|| format!("slave {position} has no process-data mapping"))?;
             let slot = master.image_slot(position).map_err(|e| e.to_string())?;
             let (rx, tx) = (&mapping.rx_entries, &mapping.tx_entries);
-            let offsets = ds402::Offsets::find(rx, tx).map_err(|e| format!("slave {position}: {e}"))?;
+            let offsets = sequencer::Offsets::find(rx, tx).map_err(|e| format!("slave {position}: {e}"))?;
             let latch = latch::LatchObjects::find(rx, tx, slot.out_offset, slot.in_offset);
             Ok((offsets.shifted(slot.out_offset, slot.in_offset), latch))
         })
@@ -149,7 +151,7 @@ pub struct CycleThread {
     /// Per slave: the latch objects, where mapped.
     latch_objects: Vec<Option<latch::LatchObjects>>,
     /// Per slave: the drive's objects, where sequenced.
-    offsets: Vec<Option<ds402::Offsets>>,
+    offsets: Vec<Option<sequencer::Offsets>>,
     /// Per slave: the mapping's entries, outputs and inputs, where mapped.
     mappings: Vec<Option<(Vec<PdoEntry>, Vec<PdoEntry>)>>,
 }
@@ -182,9 +184,9 @@ impl CycleThread {
                 let (offsets, latch) = f.ok()?;
                 Some(DriveLoop {
                     position: p as u16,
-                    drive: ds402::Drive::new(offsets),
+                    drive: sequencer::Drive::new(offsets),
                     latch: latch.map(latch::Latch::new),
-                    watch: faults::DriveWatch::default(),
+                    watch: supervision::DriveWatch::default(),
                 })
             })
             .collect();
@@ -205,7 +207,7 @@ impl CycleThread {
             setpoints: SeqBytes::new(outputs.len(), &outputs),
             snapshot: SeqBytes::new(HEADER_LEN + inputs_len + outputs.len(), &[]),
             stats: CycleStats::new(period_ns),
-            drives: (0..master.slaves().len()).map(|_| ds402::Shared::default()).collect(),
+            drives: (0..master.slaves().len()).map(|_| sequencer::Shared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
             latches: (0..master.slaves().len()).map(|_| latch::Shared::default()).collect(),
             events: Events::default(),
@@ -296,7 +298,7 @@ impl CycleThread {
         Ok(())
     }
 
-    fn sequenced(&self, position: u16) -> Result<&ds402::Shared> {
+    fn sequenced(&self, position: u16) -> Result<&sequencer::Shared> {
         match self.sequenced.get(position as usize) {
             None => Err(Error::NoSuchSlave { position, count: self.slave_count() }),
             Some(Err(why)) => Err(Error::Config(why.clone())),
@@ -307,7 +309,7 @@ impl CycleThread {
     /// Asks the drive at `position` for `request`, taken in the next cycle (replacing one
     /// under way). Lock-free. Refused for a drive whose mapping cannot be sequenced and once
     /// the cycle is stopped.
-    pub fn request(&self, position: u16, request: ds402::Request) -> Result<()> {
+    pub fn request(&self, position: u16, request: sequencer::Request) -> Result<()> {
         let drive = self.sequenced(position)?;
         if self.stopped() {
             return Err(Error::Config(format!("the cycle is stopped: {} can no longer be sequenced", request.name())));
@@ -440,7 +442,7 @@ impl CycleThread {
     }
 
     /// The drive's status as the cycle thread last published it. Lock-free.
-    pub fn drive_status(&self, position: u16) -> Result<ds402::Status> {
+    pub fn drive_status(&self, position: u16) -> Result<sequencer::Status> {
         Ok(self.sequenced(position)?.status())
     }
 
@@ -685,7 +687,7 @@ fn supervise(
         }
         if let Some(event) = seen.left_op {
             shared.events.push(event);
-            shared.drives[slave as usize].request(ds402::Request::Disable);
+            shared.drives[slave as usize].request(sequencer::Request::Disable);
         }
         if let Some(report) = gap.filter(|_| d.drive.enabled()) {
             shared.events.push(Event::Fault {
@@ -700,7 +702,7 @@ fn supervise(
                 action: report.action,
             });
             if report.action == events::Action::Disabled {
-                shared.drives[slave as usize].request(ds402::Request::Disable);
+                shared.drives[slave as usize].request(sequencer::Request::Disable);
             }
         }
     }

@@ -12,7 +12,7 @@
 
 use crate::error::{Error, Result};
 use crate::frame::{self, Command, FrameBuilder, Slot};
-use crate::master::pdo::Mapping;
+use crate::master::mapping::Mapping;
 use crate::master::state::AlStatus;
 use crate::master::{Master, Slave};
 use crate::pdo::DEFAULT_FIXED;

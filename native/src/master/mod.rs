@@ -2,8 +2,8 @@
 //!
 //! One module per concept: [`scan`] finds the slaves and gives them station addresses,
 //! [`sii_read`] reads their EEPROM, [`state`] moves them through the AL state machine,
-//! [`mailbox`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
-//! the CoE client, [`pdo`] selects the process-data mapping, [`clocks`] sets up distributed
+//! [`mailbox_client`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
+//! the CoE client, [`mapping`] selects the process-data mapping, [`clocks`] sets up distributed
 //! clocks and [`cyclic`] exchanges the process image. This file holds the bus-wide state and
 //! the register access all of them share.
 
@@ -18,15 +18,15 @@ use crate::sii::Sii;
 
 pub mod clocks;
 pub mod cyclic;
-pub mod mailbox;
-pub mod pdo;
+pub mod mailbox_client;
+pub mod mapping;
 pub mod scan;
 pub mod sdo;
 pub mod sdo_info;
 pub mod sii_read;
 pub mod state;
 
-pub use pdo::Mapping;
+pub use mapping::Mapping;
 
 /// Station address given to the slave at position 0; the next ones count up from it.
 pub const FIRST_STATION_ADDRESS: u16 = 0x1001;
@@ -71,11 +71,11 @@ pub struct Slave {
     /// The SII EEPROM content.
     pub sii: Sii,
     /// Mailbox state, when the slave has a mailbox.
-    pub mailbox: Option<mailbox::Mailbox>,
+    pub mailbox: Option<mailbox_client::Mailbox>,
     /// Emergency messages received and not yet taken.
     pub emergencies: VecDeque<Emergency>,
     /// The process-data mapping chosen for this slave, if any.
-    pub mapping: Option<pdo::SlaveMapping>,
+    pub mapping: Option<mapping::SlaveMapping>,
 }
 
 impl Slave {

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use crate::error::{Error, Result};
 use crate::frame::Command;
-use crate::master::{mailbox::Mailbox, state::AlStatus, Master, Slave, FIRST_STATION_ADDRESS};
+use crate::master::{mailbox_client::Mailbox, state::AlStatus, Master, Slave, FIRST_STATION_ADDRESS};
 use crate::registers::{self, FMMU0, SM0};
 use crate::sii::Sii;
 

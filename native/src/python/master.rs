@@ -158,7 +158,7 @@ impl PyMaster {
             d.set_item("position", slave.position)?;
             d.set_item("station_address", slave.station_address)?;
             d.set_item("alias", slave.alias)?;
-            super::sii::set_identity(&d, &slave.sii)?;
+            super::eeprom::set_identity(&d, &slave.sii)?;
             d.set_item("al_state", status.state_name())?;
             d.set_item("al_status_code", status.code)?;
             d.set_item("al_status_code_name", status.code_name())?;

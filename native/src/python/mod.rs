@@ -11,8 +11,8 @@ use pyo3::IntoPyObjectExt;
 use crate::error::Error;
 
 mod cycle;
+mod eeprom;
 mod master;
-mod sii;
 mod sim;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
@@ -136,7 +136,7 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     }
     master::register(m)?;
     sim::register(m)?;
-    sii::register(m)?;
+    eeprom::register(m)?;
     cycle::register(m)?;
     Ok(())
 }

@@ -25,9 +25,9 @@ use std::time::Duration;
 
 use crate::ds402::State;
 use crate::error::{Error, FrameError, Result};
+use crate::sim::digital_inputs::Inputs;
 use crate::sim::drive::Drive;
 use crate::sim::faults::Fault;
-use crate::sim::latch::Inputs;
 use crate::sim::VirtualBus;
 
 /// How long a [`SimControl::drive_state`] query waits for the owner by default.

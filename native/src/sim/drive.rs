@@ -31,8 +31,8 @@
 use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
 use crate::pdo::PdoEntry;
+use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
-use crate::sim::latch::{Inputs, Latch, TouchProbe};
 use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
 use crate::sim::od::ObjectDictionary;
 

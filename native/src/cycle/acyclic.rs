@@ -18,7 +18,7 @@ use crate::cycle::events::{Action, Event, Events, FaultSource};
 use crate::error::{Error, Result};
 use crate::mailbox::{MailboxHeader, MailboxType};
 use crate::master::cyclic::SlaveWatch;
-use crate::master::mailbox::Mailbox;
+use crate::master::mailbox_client::Mailbox;
 use crate::master::Master;
 
 /// Largest value a transfer beside the cycle carries.

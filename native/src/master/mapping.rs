@@ -8,7 +8,7 @@
 //! mapping's lengths and the slave's place in the process image.
 
 use crate::error::{Error, Result};
-use crate::master::mailbox::sm_registers;
+use crate::master::mailbox_client::sm_registers;
 use crate::master::Master;
 use crate::pdo::{self, Direction, PdoEntry};
 use crate::registers::{self, fmmu_reg};
