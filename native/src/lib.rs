@@ -10,6 +10,8 @@
 //! [`link`] moves frames; [`master`] drives a bus; [`cycle`] runs the master's exchange in a
 //! real-time thread; [`sim`] is the virtual AKD.
 
+#![deny(missing_docs)]
+
 pub mod akd_fault;
 pub mod al;
 pub mod coe;
