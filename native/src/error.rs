@@ -71,6 +71,42 @@ impl fmt::Display for FrameError {
 
 impl std::error::Error for FrameError {}
 
+/// Why a text is not a link spec; its text names the allowed forms.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LinkSpecError {
+    /// `sim:N` with N not a number in 1..=`max`.
+    SimCount {
+        /// The spec as given.
+        spec: String,
+        /// The most virtual AKDs a bus may hold ([`MAX_SIM_COUNT`](crate::link::spec::MAX_SIM_COUNT)).
+        max: usize,
+    },
+    /// None of the forms (empty, or a path or an address without `udp://`).
+    Unknown {
+        /// The spec as given.
+        spec: String,
+        /// As for [`SimCount`](LinkSpecError::SimCount), to name the allowed N.
+        max_sim_count: usize,
+    },
+}
+
+impl fmt::Display for LinkSpecError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkSpecError::SimCount { spec, max } => {
+                write!(f, "link {spec:?}: the number of virtual AKDs must be 1..={max}")
+            }
+            LinkSpecError::Unknown { spec, max_sim_count } => write!(
+                f,
+                "link {spec:?} is none of \"sim\", \"sim:N\" (N 1..={max_sim_count}), \"udp://HOST:PORT\" or a network \
+                 interface name"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for LinkSpecError {}
+
 /// Any failure of the master or of a link.
 #[derive(Debug)]
 pub enum Error {
@@ -128,6 +164,8 @@ pub enum Error {
     Sii(String),
     /// A process-data mapping that the AKD would refuse, or an unknown one.
     Pdo(String),
+    /// A link spec that names no link.
+    LinkSpec(LinkSpecError),
     /// A configuration value out of its allowed range.
     Config(String),
     /// A slave position that is not on the bus.
@@ -158,6 +196,7 @@ impl fmt::Display for Error {
             Error::Mailbox(m) => write!(f, "mailbox: {m}"),
             Error::Sii(m) => write!(f, "SII: {m}"),
             Error::Pdo(m) => write!(f, "PDO mapping: {m}"),
+            Error::LinkSpec(e) => write!(f, "configuration: {e}"),
             Error::Config(m) => write!(f, "configuration: {m}"),
             Error::NoSuchSlave { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
@@ -167,6 +206,12 @@ impl fmt::Display for Error {
 }
 
 impl std::error::Error for Error {}
+
+impl From<LinkSpecError> for Error {
+    fn from(e: LinkSpecError) -> Self {
+        Error::LinkSpec(e)
+    }
+}
 
 impl From<FrameError> for Error {
     fn from(e: FrameError) -> Self {

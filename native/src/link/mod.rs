@@ -9,8 +9,11 @@ use std::time::Duration;
 
 use crate::error::Result;
 
+pub use spec::LinkSpec;
+
 pub mod pcap;
 pub mod raw;
+pub mod spec;
 pub mod udp;
 
 /// A path to a chain of slaves.

@@ -12,39 +12,24 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 use super::IntoPyResult;
 use crate::al::AlState;
 use crate::error::Error;
-use crate::link::{self, Link};
+use crate::link::{self, Link, LinkSpec};
 use crate::master::{self, Mapping};
 use crate::pdo::PdoEntry;
 use crate::sim::control::SimControl;
+use crate::sim::in_process::InProcess;
 
-/// Opens the link named by `spec`: "sim", "sim:N", "udp://HOST:PORT" or an interface name;
-/// with the handle that controls its virtual AKDs for the in-process links.
+/// Opens the link named by `spec` (a [`LinkSpec`]), with the handle that controls its virtual
+/// AKDs for the in-process links.
 fn open_link(spec: &str) -> crate::error::Result<(Box<dyn Link>, Option<SimControl>)> {
-    let in_process = |count| {
-        let link = crate::sim::in_process::InProcess::new(count);
-        let control = link.control();
-        (Box::new(link) as Box<dyn Link>, Some(control))
-    };
-    if spec == "sim" {
-        return Ok(in_process(1));
-    }
-    if let Some(count) = spec.strip_prefix("sim:") {
-        let count: usize = count
-            .parse()
-            .ok()
-            .filter(|n| (1..=64).contains(n))
-            .ok_or_else(|| Error::Config(format!("link {spec:?}: the number of virtual AKDs must be 1..=64")))?;
-        return Ok(in_process(count));
-    }
-    if let Some(address) = spec.strip_prefix("udp://") {
-        return Ok((Box::new(link::udp::Udp::connect(address)?), None));
-    }
-    if spec.is_empty() || spec.contains(['/', ':']) {
-        return Err(Error::Config(format!(
-            "link {spec:?} is none of \"sim\", \"sim:N\", \"udp://HOST:PORT\" or a network interface name"
-        )));
-    }
-    Ok((Box::new(link::raw::RawLink::open(spec)?), None))
+    Ok(match spec.parse::<LinkSpec>()? {
+        LinkSpec::Sim { count } => {
+            let link = InProcess::new(count);
+            let control = link.control();
+            (Box::new(link), Some(control))
+        }
+        LinkSpec::Udp { address } => (Box::new(link::udp::Udp::connect(&address)?), None),
+        LinkSpec::Interface { name } => (Box::new(link::raw::RawLink::open(&name)?), None),
+    })
 }
 
 fn parse_state(name: &str) -> crate::error::Result<AlState> {
