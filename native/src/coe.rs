@@ -19,24 +19,63 @@ pub const SDO_OFFSET: usize = HEADER_LEN + COE_HEADER_LEN;
 /// Length of the SDO information header (opcode, reserved, fragments left).
 pub const SDO_INFO_HEADER_LEN: usize = 4;
 
-/// CoE services (CoE header bits 12–15).
-pub mod service {
-    /// Emergency message.
-    pub const EMERGENCY: u8 = 1;
-    /// SDO request (master to slave).
-    pub const SDO_REQUEST: u8 = 2;
-    /// SDO response (slave to master).
-    pub const SDO_RESPONSE: u8 = 3;
-    /// TxPDO.
-    pub const TX_PDO: u8 = 4;
-    /// RxPDO.
-    pub const RX_PDO: u8 = 5;
-    /// TxPDO remote request.
-    pub const TX_PDO_REMOTE: u8 = 6;
-    /// RxPDO remote request.
-    pub const RX_PDO_REMOTE: u8 = 7;
-    /// SDO information.
-    pub const SDO_INFORMATION: u8 = 8;
+wire_codes! {
+    /// CoE services (CoE header bits 12–15, ETG.1000.6 Table 29).
+    pub enum CoeService: u8, "CoE service" {
+        /// Emergency message.
+        Emergency = 1 => "Emergency",
+        /// SDO request (master to slave).
+        SdoRequest = 2 => "SDO Request",
+        /// SDO response (slave to master).
+        SdoResponse = 3 => "SDO Response",
+        /// TxPDO.
+        TxPdo = 4 => "TxPDO",
+        /// RxPDO.
+        RxPdo = 5 => "RxPDO",
+        /// TxPDO remote request.
+        TxPdoRemoteRequest = 6 => "TxPDO remote request",
+        /// RxPDO remote request.
+        RxPdoRemoteRequest = 7 => "RxPDO remote request",
+        /// SDO information.
+        SdoInformation = 8 => "SDO Information",
+    }
+}
+
+wire_codes! {
+    /// Client command specifiers of an SDO request (command byte bits 5–7, CiA 301 §7.2.4.3).
+    pub enum ClientCommand: u8, "SDO client command specifier" {
+        /// Download segment request.
+        DownloadSegment = 0 => "download segment request",
+        /// Initiate download request.
+        InitiateDownload = 1 => "initiate download request",
+        /// Initiate upload request.
+        InitiateUpload = 2 => "initiate upload request",
+        /// Upload segment request.
+        UploadSegment = 3 => "upload segment request",
+        /// Abort transfer.
+        Abort = 4 => "abort transfer",
+    }
+}
+
+wire_codes! {
+    /// Server command specifiers of an SDO response (command byte bits 5–7, CiA 301 §7.2.4.3).
+    pub enum ServerCommand: u8, "SDO server command specifier" {
+        /// Upload segment response.
+        UploadSegment = 0 => "upload segment response",
+        /// Download segment response.
+        DownloadSegment = 1 => "download segment response",
+        /// Initiate upload response.
+        InitiateUpload = 2 => "initiate upload response",
+        /// Initiate download response.
+        InitiateDownload = 3 => "initiate download response",
+        /// Abort transfer.
+        Abort = 4 => "abort transfer",
+    }
+}
+
+/// The command byte's specifier bits for `specifier` (bits 5–7).
+fn specifier_bits(specifier: u8) -> u8 {
+    specifier << 5
 }
 
 /// The CoE header: a 9-bit number (PDO number, unused for SDO) and the service.
@@ -44,23 +83,25 @@ pub mod service {
 pub struct CoeHeader {
     /// Number (bits 0–8).
     pub number: u16,
-    /// Service (bits 12–15), see [`service`].
-    pub service: u8,
+    /// Service (bits 12–15).
+    pub service: CoeService,
 }
 
 impl CoeHeader {
     /// A header for `service` with number 0.
-    pub fn new(service: u8) -> Self {
+    pub fn new(service: CoeService) -> Self {
         CoeHeader { number: 0, service }
     }
 
-    /// Decodes the first two bytes of a mailbox body.
+    /// Decodes the first two bytes of a mailbox body; a service outside the standard's set is an
+    /// error naming it.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < COE_HEADER_LEN {
             return Err(Error::Mailbox(format!("CoE message of {} bytes has no 2-byte CoE header", body.len())));
         }
         let word = u16::from_le_bytes([body[0], body[1]]);
-        Ok(CoeHeader { number: word & 0x01FF, service: (word >> 12) as u8 })
+        let service = CoeService::try_from((word >> 12) as u8).map_err(|e| Error::Mailbox(e.to_string()))?;
+        Ok(CoeHeader { number: word & 0x01FF, service })
     }
 
     /// Encodes into the first two bytes of `out`.
@@ -242,41 +283,40 @@ impl<'a> SdoRequest<'a> {
     /// Decodes the SDO part of a request (the bytes after the CoE header).
     pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
         let command = *body.first().ok_or_else(|| sdo_too_short("request", 0))?;
-        match command >> 5 {
-            0 => {
+        let ccs = ClientCommand::try_from(command >> 5).map_err(|e| Error::Mailbox(e.to_string()))?;
+        match ccs {
+            ClientCommand::DownloadSegment => {
                 let (toggle, last, data) = segment_data(body, "download segment")?;
                 Ok(SdoRequest::DownloadSegment { toggle, last, data })
             }
-            3 => Ok(SdoRequest::UploadSegment { toggle: command & 0x10 != 0 }),
-            ccs => {
+            ClientCommand::UploadSegment => Ok(SdoRequest::UploadSegment { toggle: command & 0x10 != 0 }),
+            ClientCommand::InitiateDownload | ClientCommand::InitiateUpload | ClientCommand::Abort => {
                 if body.len() < SDO_LEN {
                     return Err(sdo_too_short("request", body.len()));
                 }
                 let (index, subindex) = address(body);
                 let complete_access = command & 0x10 != 0;
                 match ccs {
-                    1 if command & 0x02 != 0 => Ok(SdoRequest::DownloadExpedited {
+                    ClientCommand::InitiateDownload if command & 0x02 != 0 => Ok(SdoRequest::DownloadExpedited {
                         index,
                         subindex,
                         complete_access,
                         data: expedited_data(body),
                     }),
-                    1 => Ok(SdoRequest::DownloadNormal {
+                    ClientCommand::InitiateDownload => Ok(SdoRequest::DownloadNormal {
                         index,
                         subindex,
                         complete_access,
                         complete_size: u32::from_le_bytes([body[4], body[5], body[6], body[7]]),
                         data: &body[SDO_LEN..],
                     }),
-                    2 => Ok(SdoRequest::Upload { index, subindex, complete_access }),
-                    4 => Ok(SdoRequest::Abort {
+                    ClientCommand::InitiateUpload => Ok(SdoRequest::Upload { index, subindex, complete_access }),
+                    // The arm above lets only an abort get here.
+                    _ => Ok(SdoRequest::Abort {
                         index,
                         subindex,
                         code: u32::from_le_bytes([body[4], body[5], body[6], body[7]]),
                     }),
-                    _ => Err(Error::Mailbox(format!(
-                        "SDO request command 0x{command:02X} has client command specifier {ccs} (allowed 0..=4)"
-                    ))),
                 }
             }
         }
@@ -287,23 +327,41 @@ impl<'a> SdoRequest<'a> {
     pub fn encode(&self, out: &mut [u8]) -> usize {
         match *self {
             SdoRequest::DownloadExpedited { index, subindex, complete_access, data } => {
-                write_expedited(out, 0x20 | ((complete_access as u8) << 4), index, subindex, data);
+                write_expedited(
+                    out,
+                    specifier_bits(ClientCommand::InitiateDownload as u8) | ((complete_access as u8) << 4),
+                    index,
+                    subindex,
+                    data,
+                );
                 SDO_LEN
             }
             SdoRequest::DownloadNormal { index, subindex, complete_access, complete_size, data } => {
-                write_address(out, 0x21 | ((complete_access as u8) << 4), index, subindex);
+                write_address(
+                    out,
+                    specifier_bits(ClientCommand::InitiateDownload as u8) | 0x01 | ((complete_access as u8) << 4),
+                    index,
+                    subindex,
+                );
                 out[4..8].copy_from_slice(&complete_size.to_le_bytes());
                 out[SDO_LEN..SDO_LEN + data.len()].copy_from_slice(data);
                 SDO_LEN + data.len()
             }
-            SdoRequest::DownloadSegment { toggle, last, data } => write_segment(out, 0x00, toggle, last, data),
+            SdoRequest::DownloadSegment { toggle, last, data } => {
+                write_segment(out, specifier_bits(ClientCommand::DownloadSegment as u8), toggle, last, data)
+            }
             SdoRequest::Upload { index, subindex, complete_access } => {
-                write_address(out, 0x40 | ((complete_access as u8) << 4), index, subindex);
+                write_address(
+                    out,
+                    specifier_bits(ClientCommand::InitiateUpload as u8) | ((complete_access as u8) << 4),
+                    index,
+                    subindex,
+                );
                 out[4..SDO_LEN].fill(0);
                 SDO_LEN
             }
             SdoRequest::UploadSegment { toggle } => {
-                out[0] = 0x60 | ((toggle as u8) << 4);
+                out[0] = specifier_bits(ClientCommand::UploadSegment as u8) | ((toggle as u8) << 4);
                 out[1..SDO_LEN].fill(0);
                 SDO_LEN
             }
@@ -313,7 +371,7 @@ impl<'a> SdoRequest<'a> {
 }
 
 fn write_abort(out: &mut [u8], index: u16, subindex: u8, code: u32) -> usize {
-    write_address(out, 0x80, index, subindex);
+    write_address(out, specifier_bits(ClientCommand::Abort as u8), index, subindex);
     out[4..8].copy_from_slice(&code.to_le_bytes());
     SDO_LEN
 }
@@ -322,28 +380,29 @@ impl<'a> SdoResponse<'a> {
     /// Decodes the SDO part of a response (the bytes after the CoE header).
     pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
         let command = *body.first().ok_or_else(|| sdo_too_short("response", 0))?;
-        match command >> 5 {
-            0 => {
+        let scs = ServerCommand::try_from(command >> 5).map_err(|e| Error::Mailbox(e.to_string()))?;
+        match scs {
+            ServerCommand::UploadSegment => {
                 let (toggle, last, data) = segment_data(body, "upload segment")?;
                 Ok(SdoResponse::UploadSegment { toggle, last, data })
             }
-            1 => Ok(SdoResponse::DownloadSegment { toggle: command & 0x10 != 0 }),
-            scs => {
+            ServerCommand::DownloadSegment => Ok(SdoResponse::DownloadSegment { toggle: command & 0x10 != 0 }),
+            ServerCommand::InitiateUpload | ServerCommand::InitiateDownload | ServerCommand::Abort => {
                 if body.len() < SDO_LEN {
                     return Err(sdo_too_short("response", body.len()));
                 }
                 let (index, subindex) = address(body);
                 let word = u32::from_le_bytes([body[4], body[5], body[6], body[7]]);
                 match scs {
-                    2 if command & 0x02 != 0 => {
+                    ServerCommand::InitiateUpload if command & 0x02 != 0 => {
                         Ok(SdoResponse::UploadExpedited { index, subindex, data: expedited_data(body) })
                     }
-                    2 => Ok(SdoResponse::UploadNormal { index, subindex, complete_size: word, data: &body[SDO_LEN..] }),
-                    3 => Ok(SdoResponse::Download { index, subindex }),
-                    4 => Ok(SdoResponse::Abort { index, subindex, code: word }),
-                    _ => Err(Error::Mailbox(format!(
-                        "SDO response command 0x{command:02X} has server command specifier {scs} (allowed 0..=4)"
-                    ))),
+                    ServerCommand::InitiateUpload => {
+                        Ok(SdoResponse::UploadNormal { index, subindex, complete_size: word, data: &body[SDO_LEN..] })
+                    }
+                    ServerCommand::InitiateDownload => Ok(SdoResponse::Download { index, subindex }),
+                    // The arm above lets only an abort get here.
+                    _ => Ok(SdoResponse::Abort { index, subindex, code: word }),
                 }
             }
         }
@@ -353,23 +412,25 @@ impl<'a> SdoResponse<'a> {
     pub fn encode(&self, out: &mut [u8]) -> usize {
         match *self {
             SdoResponse::UploadExpedited { index, subindex, data } => {
-                write_expedited(out, 0x40, index, subindex, data);
+                write_expedited(out, specifier_bits(ServerCommand::InitiateUpload as u8), index, subindex, data);
                 SDO_LEN
             }
             SdoResponse::UploadNormal { index, subindex, complete_size, data } => {
-                write_address(out, 0x41, index, subindex);
+                write_address(out, specifier_bits(ServerCommand::InitiateUpload as u8) | 0x01, index, subindex);
                 out[4..8].copy_from_slice(&complete_size.to_le_bytes());
                 out[SDO_LEN..SDO_LEN + data.len()].copy_from_slice(data);
                 SDO_LEN + data.len()
             }
-            SdoResponse::UploadSegment { toggle, last, data } => write_segment(out, 0x00, toggle, last, data),
+            SdoResponse::UploadSegment { toggle, last, data } => {
+                write_segment(out, specifier_bits(ServerCommand::UploadSegment as u8), toggle, last, data)
+            }
             SdoResponse::Download { index, subindex } => {
-                write_address(out, 0x60, index, subindex);
+                write_address(out, specifier_bits(ServerCommand::InitiateDownload as u8), index, subindex);
                 out[4..SDO_LEN].fill(0);
                 SDO_LEN
             }
             SdoResponse::DownloadSegment { toggle } => {
-                out[0] = 0x20 | ((toggle as u8) << 4);
+                out[0] = specifier_bits(ServerCommand::DownloadSegment as u8) | ((toggle as u8) << 4);
                 out[1..SDO_LEN].fill(0);
                 SDO_LEN
             }
@@ -380,7 +441,7 @@ impl<'a> SdoResponse<'a> {
 
 /// Writes a whole CoE mailbox message: mailbox header, CoE header for `service`, and a body
 /// written by `body` into the space after them. Returns the message length.
-pub fn write_message(out: &mut [u8], counter: u8, service: u8, body: impl FnOnce(&mut [u8]) -> usize) -> usize {
+pub fn write_message(out: &mut [u8], counter: u8, service: CoeService, body: impl FnOnce(&mut [u8]) -> usize) -> usize {
     let len = body(&mut out[SDO_OFFSET..]);
     MailboxHeader::new(MailboxType::Coe, (COE_HEADER_LEN + len) as u16, counter).encode(out);
     CoeHeader::new(service).encode(&mut out[HEADER_LEN..]);
@@ -389,12 +450,12 @@ pub fn write_message(out: &mut [u8], counter: u8, service: u8, body: impl FnOnce
 
 /// Writes a complete SDO request message; returns its length.
 pub fn write_sdo_request(out: &mut [u8], counter: u8, request: &SdoRequest<'_>) -> usize {
-    write_message(out, counter, service::SDO_REQUEST, |b| request.encode(b))
+    write_message(out, counter, CoeService::SdoRequest, |b| request.encode(b))
 }
 
 /// Writes a complete SDO response message; returns its length.
 pub fn write_sdo_response(out: &mut [u8], counter: u8, response: &SdoResponse<'_>) -> usize {
-    write_message(out, counter, service::SDO_RESPONSE, |b| response.encode(b))
+    write_message(out, counter, CoeService::SdoResponse, |b| response.encode(b))
 }
 
 /// Splits a CoE mailbox message into its mailbox header, CoE header and the body after them.
@@ -548,45 +609,61 @@ impl Emergency {
     }
 }
 
-/// SDO information opcodes (ETG.1000.6 §5.6.3).
-pub mod info_opcode {
-    /// Get OD list request.
-    pub const GET_OD_LIST_REQUEST: u8 = 0x01;
-    /// Get OD list response.
-    pub const GET_OD_LIST_RESPONSE: u8 = 0x02;
-    /// Get object description request.
-    pub const GET_OBJECT_DESCRIPTION_REQUEST: u8 = 0x03;
-    /// Get object description response.
-    pub const GET_OBJECT_DESCRIPTION_RESPONSE: u8 = 0x04;
-    /// Get entry description request.
-    pub const GET_ENTRY_DESCRIPTION_REQUEST: u8 = 0x05;
-    /// Get entry description response.
-    pub const GET_ENTRY_DESCRIPTION_RESPONSE: u8 = 0x06;
-    /// SDO information error request (carries an abort code).
-    pub const ERROR: u8 = 0x07;
+wire_codes! {
+    /// SDO information opcodes (ETG.1000.6 §5.6.3).
+    pub enum SdoInfoOpcode: u8, "SDO information opcode" {
+        /// Get OD list request.
+        GetOdListRequest = 0x01 => "Get OD List Request",
+        /// Get OD list response.
+        GetOdListResponse = 0x02 => "Get OD List Response",
+        /// Get object description request.
+        GetObjectDescriptionRequest = 0x03 => "Get Object Description Request",
+        /// Get object description response.
+        GetObjectDescriptionResponse = 0x04 => "Get Object Description Response",
+        /// Get entry description request.
+        GetEntryDescriptionRequest = 0x05 => "Get Entry Description Request",
+        /// Get entry description response.
+        GetEntryDescriptionResponse = 0x06 => "Get Entry Description Response",
+        /// SDO information error request (carries an abort code).
+        SdoInfoErrorRequest = 0x07 => "SDO Info Error Request",
+    }
 }
 
-/// OD list types of a Get OD list request.
-pub mod od_list {
-    /// Number of objects in each of the five lists.
-    pub const LENGTHS: u16 = 0x00;
-    /// All objects.
-    pub const ALL: u16 = 0x01;
-    /// Objects mappable in an RxPDO.
-    pub const RX_PDO_MAPPABLE: u16 = 0x02;
-    /// Objects mappable in a TxPDO.
-    pub const TX_PDO_MAPPABLE: u16 = 0x03;
-    /// Objects to be stored for a device replacement.
-    pub const BACKUP: u16 = 0x04;
-    /// Start-up parameters.
-    pub const STARTUP: u16 = 0x05;
+impl SdoInfoOpcode {
+    /// The response that answers this request; `None` for what is not a request.
+    pub fn response(self) -> Option<SdoInfoOpcode> {
+        match self {
+            SdoInfoOpcode::GetOdListRequest => Some(SdoInfoOpcode::GetOdListResponse),
+            SdoInfoOpcode::GetObjectDescriptionRequest => Some(SdoInfoOpcode::GetObjectDescriptionResponse),
+            SdoInfoOpcode::GetEntryDescriptionRequest => Some(SdoInfoOpcode::GetEntryDescriptionResponse),
+            _ => None,
+        }
+    }
+}
+
+wire_codes! {
+    /// OD list types of a Get OD list request (ETG.1000.6 §5.6.3.3).
+    pub enum OdListType: u16, "OD list type" {
+        /// Number of objects in each of the five lists.
+        Lengths = 0x00 => "number of objects in the five lists",
+        /// All objects.
+        All = 0x01 => "all objects",
+        /// Objects mappable in an RxPDO.
+        RxPdoMappable = 0x02 => "RxPDO mappable objects",
+        /// Objects mappable in a TxPDO.
+        TxPdoMappable = 0x03 => "TxPDO mappable objects",
+        /// Objects to be stored for a device replacement.
+        Backup = 0x04 => "objects to be stored for a device replacement",
+        /// Start-up parameters.
+        Startup = 0x05 => "startup parameters",
+    }
 }
 
 /// The SDO information header.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SdoInfoHeader {
-    /// Opcode, see [`info_opcode`].
-    pub opcode: u8,
+    /// Opcode.
+    pub opcode: SdoInfoOpcode,
     /// More fragments follow.
     pub incomplete: bool,
     /// Fragments still to come after this one.
@@ -594,7 +671,8 @@ pub struct SdoInfoHeader {
 }
 
 impl SdoInfoHeader {
-    /// Decodes the header at the start of an SDO information body.
+    /// Decodes the header at the start of an SDO information body; an opcode outside the
+    /// standard's set is an error naming it.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < SDO_INFO_HEADER_LEN {
             return Err(Error::Mailbox(format!(
@@ -603,7 +681,7 @@ impl SdoInfoHeader {
             )));
         }
         Ok(SdoInfoHeader {
-            opcode: body[0] & 0x7F,
+            opcode: SdoInfoOpcode::try_from(body[0] & 0x7F).map_err(|e| Error::Mailbox(e.to_string()))?,
             incomplete: body[0] & 0x80 != 0,
             fragments_left: u16::from_le_bytes([body[2], body[3]]),
         })
@@ -611,7 +689,7 @@ impl SdoInfoHeader {
 
     /// Encodes into the first four bytes of `out`.
     pub fn encode(&self, out: &mut [u8]) {
-        out[0] = (self.opcode & 0x7F) | ((self.incomplete as u8) << 7);
+        out[0] = (self.opcode as u8 & 0x7F) | ((self.incomplete as u8) << 7);
         out[1] = 0;
         out[2..4].copy_from_slice(&self.fragments_left.to_le_bytes());
     }
@@ -619,7 +697,7 @@ impl SdoInfoHeader {
 
 /// Writes an SDO information message carrying `data` after its header; returns the length.
 pub fn write_info_message(out: &mut [u8], counter: u8, header: SdoInfoHeader, data: &[u8]) -> usize {
-    write_message(out, counter, service::SDO_INFORMATION, |b| {
+    write_message(out, counter, CoeService::SdoInformation, |b| {
         header.encode(b);
         b[SDO_INFO_HEADER_LEN..SDO_INFO_HEADER_LEN + data.len()].copy_from_slice(data);
         SDO_INFO_HEADER_LEN + data.len()
@@ -853,6 +931,18 @@ pub mod data_type {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wire_codes_round_trip_and_name_the_unknown() {
+        for &service in CoeService::ALL {
+            assert_eq!(CoeService::try_from(u8::from(service)), Ok(service));
+        }
+        assert_eq!(CoeService::SdoInformation.to_string(), "8 (SDO Information)");
+        let err = CoeService::try_from(9).unwrap_err().to_string();
+        assert!(err.starts_with("CoE service 9 is none of 1 (Emergency), 2 (SDO Request)"), "{err}");
+        assert_eq!(SdoInfoOpcode::GetOdListRequest.response(), Some(SdoInfoOpcode::GetOdListResponse));
+        assert!(SdoRequest::decode(&[0xA0, 0, 0, 0, 0, 0, 0, 0]).unwrap_err().to_string().contains("specifier 5"));
+    }
     use proptest::prelude::*;
 
     #[test]
@@ -875,7 +965,7 @@ mod tests {
             0x0E, 0x00, 0x00, 0x00, 0x00, 0x03, 0x00, 0x30, 0x60, 0x12, 0x1C, 0x01, 0x00, 0x00, 0x00, 0x00,
         ]);
         let (_, coe, body) = split_message(&reply).unwrap();
-        assert_eq!(coe.service, service::SDO_RESPONSE);
+        assert_eq!(coe.service, CoeService::SdoResponse);
         assert_eq!(SdoResponse::decode(body).unwrap(), SdoResponse::Download { index: 0x1C12, subindex: 1 });
     }
 
@@ -950,7 +1040,7 @@ mod tests {
         };
         let len = e.encode(&mut buf);
         assert_eq!(EntryDescription::decode(&buf[..len]).unwrap(), e);
-        let h = SdoInfoHeader { opcode: info_opcode::GET_OD_LIST_RESPONSE, incomplete: true, fragments_left: 3 };
+        let h = SdoInfoHeader { opcode: SdoInfoOpcode::GetOdListResponse, incomplete: true, fragments_left: 3 };
         h.encode(&mut buf);
         assert_eq!(SdoInfoHeader::decode(&buf).unwrap(), h);
     }

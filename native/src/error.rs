@@ -107,6 +107,29 @@ impl fmt::Display for LinkSpecError {
 
 impl std::error::Error for LinkSpecError {}
 
+/// A wire code outside its closed set (a CoE service, an SDO information opcode, ...).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownCode {
+    /// The field the code came in, e.g. "CoE service".
+    pub what: &'static str,
+    /// The value received.
+    pub value: u16,
+    /// The set's codes and names, to say what was allowed.
+    pub known: &'static [(u16, &'static str)],
+}
+
+impl fmt::Display for UnknownCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} {} is none of", self.what, self.value)?;
+        for (i, (value, name)) in self.known.iter().enumerate() {
+            write!(f, "{} {value} ({name})", if i == 0 { "" } else { "," })?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for UnknownCode {}
+
 /// Any failure of the master or of a link.
 #[derive(Debug)]
 pub enum Error {

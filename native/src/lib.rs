@@ -12,6 +12,9 @@
 
 #![deny(missing_docs)]
 
+#[macro_use]
+mod wire_code;
+
 pub mod akd_fault;
 pub mod al;
 pub mod coe;

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use akd_native::al::AlState;
-use akd_native::coe::{abort, data_type, object_code, od_list};
+use akd_native::coe::{abort, data_type, object_code, OdListType};
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
 use akd_native::link::Link;
@@ -201,7 +201,7 @@ fn sdo_aborts_come_back_by_name() {
 fn sdo_information_lists_and_describes_objects() {
     let mut m = master(1);
     m.request_state(AlState::PreOp, None, STEP).unwrap();
-    let list = m.sdo_object_list(0, od_list::ALL).unwrap();
+    let list = m.sdo_object_list(0, OdListType::All).unwrap();
     for index in [0x1000, 0x1018, 0x1C12, 0x6040, 0x6041] {
         assert!(list.contains(&index), "0x{index:04X} missing from {list:04X?}");
     }

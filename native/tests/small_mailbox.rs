@@ -8,7 +8,8 @@ use std::time::Duration;
 
 use akd_native::al::AlState;
 use akd_native::coe::{
-    self, abort, access, data_type, info_opcode, object_code, od_list, service, SdoInfoHeader, SdoRequest, SdoResponse,
+    self, abort, access, data_type, object_code, CoeService, OdListType, SdoInfoHeader, SdoInfoOpcode, SdoRequest,
+    SdoResponse,
 };
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
@@ -97,7 +98,7 @@ fn bodies(messages: &Messages) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
     for (to_slave, message) in messages.lock().unwrap().drain(..) {
         assert!(message.len() <= MAILBOX as usize);
         let (_, coe, body) = coe::split_message(&message).unwrap();
-        assert_ne!(coe.service, service::EMERGENCY);
+        assert_ne!(coe.service, CoeService::Emergency);
         if to_slave { &mut written } else { &mut read }.push(body.to_vec());
     }
     (written, read)
@@ -174,7 +175,7 @@ fn segmented_download_alternates_the_toggle_bit_and_round_trips() {
 }
 
 /// The fragments of every SDO information reply in the log: (opcode, fragments left, incomplete).
-fn fragments(messages: &Messages) -> Vec<(u8, u16, bool)> {
+fn fragments(messages: &Messages) -> Vec<(SdoInfoOpcode, u16, bool)> {
     let (_, responses) = bodies(messages);
     responses
         .iter()
@@ -186,7 +187,7 @@ fn fragments(messages: &Messages) -> Vec<(u8, u16, bool)> {
 #[test]
 fn sdo_information_replies_come_in_fragments() {
     let (mut m, messages) = master("short");
-    let list = m.sdo_object_list(0, od_list::ALL).unwrap();
+    let list = m.sdo_object_list(0, OdListType::All).unwrap();
     let mut expected: Vec<u16> = VirtualBus::new(1).slave(0).od().objects().iter().map(|o| o.index).collect();
     expected.push(TEXT);
     expected.sort();
@@ -194,7 +195,7 @@ fn sdo_information_replies_come_in_fragments() {
     // Two bytes of list type and two per index, 52 bytes of data per fragment.
     let count = (2 + 2 * list.len()).div_ceil(52) as u16;
     assert!(count >= 4, "{} objects fit {count} fragments", list.len());
-    let expected: Vec<_> = (0..count).rev().map(|left| (info_opcode::GET_OD_LIST_RESPONSE, left, left > 0)).collect();
+    let expected: Vec<_> = (0..count).rev().map(|left| (SdoInfoOpcode::GetOdListResponse, left, left > 0)).collect();
     assert_eq!(fragments(&messages), expected);
 
     let text = m.sdo_object_description(0, TEXT).unwrap();
@@ -202,10 +203,10 @@ fn sdo_information_replies_come_in_fragments() {
         (text.name.as_str(), text.data_type, text.object_code),
         (TEXT_NAME, data_type::VISIBLE_STRING, object_code::VAR)
     );
-    let opcode = info_opcode::GET_OBJECT_DESCRIPTION_RESPONSE;
+    let opcode = SdoInfoOpcode::GetObjectDescriptionResponse;
     assert_eq!(fragments(&messages), [(opcode, 1, true), (opcode, 0, false)]);
     let entry = m.sdo_entry_description(0, TEXT, 0).unwrap();
     assert_eq!((entry.name.as_str(), entry.bit_length), (TEXT_NAME, 40));
-    let opcode = info_opcode::GET_ENTRY_DESCRIPTION_RESPONSE;
+    let opcode = SdoInfoOpcode::GetEntryDescriptionResponse;
     assert_eq!(fragments(&messages), [(opcode, 1, true), (opcode, 0, false)]);
 }

@@ -13,7 +13,7 @@ use std::sync::atomic::{AtomicU16, AtomicU32, AtomicU8, Ordering};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use crate::coe::{self, service, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::coe::{self, CoeService, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::cycle::events::{Action, Event, Events, FaultSource};
 use crate::error::{Error, Result};
 use crate::mailbox::{MailboxHeader, MailboxType};
@@ -325,7 +325,7 @@ impl MailboxService {
             }
             Some(MailboxType::Coe) => {
                 let Ok((_, coe_header, body)) = coe::split_message(&self.receive[..len]) else { return true };
-                if coe_header.service == service::EMERGENCY {
+                if coe_header.service == CoeService::Emergency {
                     if let Ok(emergency) = Emergency::decode(body) {
                         events.push(Event::Fault {
                             cycle,

@@ -10,7 +10,7 @@
 
 use std::time::{Duration, Instant};
 
-use crate::coe::{self, service, Emergency};
+use crate::coe::{self, CoeService, Emergency};
 use crate::error::{Error, Result};
 use crate::frame::Command;
 use crate::mailbox::{self as codec, MailboxHeader, MailboxType};
@@ -251,7 +251,7 @@ impl Master {
             }
             Some(MailboxType::Coe) => {
                 let (_, coe_header, body) = coe::split_message(&buffer)?;
-                if coe_header.service == service::EMERGENCY {
+                if coe_header.service == CoeService::Emergency {
                     let emergency = Emergency::decode(body)?;
                     self.stats.emergencies += 1;
                     self.slave_mut(position)?.emergencies.push_back(emergency);

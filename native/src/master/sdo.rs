@@ -3,7 +3,7 @@
 //! segmented (what the mailbox cannot hold, in segments with an alternating toggle bit).
 //! Aborts come back as [`Error::SdoAbort`] with the code's name.
 
-use crate::coe::{self, abort, service, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::coe::{self, abort, CoeService, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::error::{Error, Result};
 use crate::master::Master;
 
@@ -34,11 +34,11 @@ impl Master {
     ) -> Result<T> {
         let reply = self.coe_transaction(position, |out| coe::write_sdo_request(out, 0, request))?;
         let (_, coe_header, body) = coe::split_message(&reply)?;
-        if coe_header.service != service::SDO_RESPONSE {
+        if coe_header.service != CoeService::SdoResponse {
             return Err(Error::Mailbox(format!(
                 "slave {position} answered an SDO request with CoE service {} (expected {}, SDO response)",
                 coe_header.service,
-                service::SDO_RESPONSE
+                CoeService::SdoResponse
             )));
         }
         handle(SdoResponse::decode(body)?)

@@ -227,7 +227,7 @@ impl PyMaster {
     fn sdo_object_list(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u16>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.sdo_object_list(position, crate::coe::od_list::ALL)).py()
+        py.allow_threads(|| m.sdo_object_list(position, crate::coe::OdListType::All)).py()
     }
 
     /// The description of object `index`.

@@ -11,9 +11,9 @@ use std::collections::VecDeque;
 
 use crate::al::AlState;
 use crate::coe::{
-    abort, access, info_opcode, od_list, service, write_info_message, write_message, write_sdo_response, CoeHeader,
-    Emergency, EntryDescription, ObjectDescription, SdoInfoHeader, SdoRequest, SdoResponse, COE_HEADER_LEN,
-    SDO_INFO_HEADER_LEN, SDO_LEN,
+    abort, access, write_info_message, write_message, write_sdo_response, CoeHeader, CoeService, Emergency,
+    EntryDescription, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse,
+    COE_HEADER_LEN, SDO_INFO_HEADER_LEN, SDO_LEN,
 };
 use crate::mailbox::{error_detail, next_counter, write_error_reply, MailboxHeader, MailboxType, HEADER_LEN};
 use crate::sim::od::ObjectDictionary;
@@ -79,7 +79,7 @@ impl MailboxServer {
     pub fn emergency(&mut self, emergency: &Emergency, mailbox_size: usize) {
         self.counter = next_counter(self.counter);
         let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + COE_HEADER_LEN + 8)];
-        let len = write_message(&mut out, self.counter, service::EMERGENCY, |b| emergency.encode(b));
+        let len = write_message(&mut out, self.counter, CoeService::Emergency, |b| emergency.encode(b));
         out.truncate(len);
         self.replies.push_back(out);
     }
@@ -103,12 +103,16 @@ impl MailboxServer {
             return self.error(counter, error_detail::UNSUPPORTED_PROTOCOL, mailbox_size);
         }
         let body = header.body(message);
-        let Ok(coe) = CoeHeader::decode(body) else {
+        if body.len() < COE_HEADER_LEN {
             return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+        }
+        // Long enough, so only a service outside the standard's set fails to decode.
+        let Ok(coe) = CoeHeader::decode(body) else {
+            return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size);
         };
         let body = &body[COE_HEADER_LEN..];
         match coe.service {
-            service::SDO_REQUEST => {
+            CoeService::SdoRequest => {
                 let len = match SdoRequest::decode(body) {
                     Ok(request) => self.sdo(&request, od, state, &mut out, header.counter),
                     Err(_) => {
@@ -126,7 +130,7 @@ impl MailboxServer {
                     self.replies.push_back(out);
                 }
             }
-            service::SDO_INFORMATION => self.information(body, od, header.counter, mailbox_size),
+            CoeService::SdoInformation => self.information(body, od, header.counter, mailbox_size),
             _ => self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
         }
     }
@@ -262,39 +266,37 @@ impl MailboxServer {
     /// SDO information: OD lists, object and entry descriptions, split into fragments when a
     /// reply does not fit the mailbox.
     fn information(&mut self, body: &[u8], od: &ObjectDictionary, counter: u8, mailbox_size: usize) {
-        let Ok(header) = SdoInfoHeader::decode(body) else {
+        if body.len() < SDO_INFO_HEADER_LEN {
             return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+        }
+        // Long enough, so only an opcode outside the standard's set fails to decode.
+        let Ok(header) = SdoInfoHeader::decode(body) else {
+            return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size);
         };
         let request = &body[SDO_INFO_HEADER_LEN..];
         let word = |at: usize| request.get(at..at + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
         let mut data = Vec::new();
         let opcode = match header.opcode {
-            info_opcode::GET_OD_LIST_REQUEST => {
-                let Some(list) = word(0) else {
+            SdoInfoOpcode::GetOdListRequest => {
+                let Some(raw) = word(0) else {
                     return self.info_error(counter, abort::GENERAL, mailbox_size);
                 };
-                let lists = [
-                    od_list::ALL,
-                    od_list::RX_PDO_MAPPABLE,
-                    od_list::TX_PDO_MAPPABLE,
-                    od_list::BACKUP,
-                    od_list::STARTUP,
-                ];
-                data.extend_from_slice(&list.to_le_bytes());
-                if list == od_list::LENGTHS {
-                    for l in lists {
+                let Ok(list) = OdListType::try_from(raw) else {
+                    return self.info_error(counter, abort::VALUE_RANGE, mailbox_size);
+                };
+                data.extend_from_slice(&raw.to_le_bytes());
+                if list == OdListType::Lengths {
+                    for &l in OdListType::ALL.iter().filter(|&&l| l != OdListType::Lengths) {
                         data.extend_from_slice(&(object_list(od, l).count() as u16).to_le_bytes());
                     }
-                } else if lists.contains(&list) {
+                } else {
                     for index in object_list(od, list) {
                         data.extend_from_slice(&index.to_le_bytes());
                     }
-                } else {
-                    return self.info_error(counter, abort::VALUE_RANGE, mailbox_size);
                 }
-                info_opcode::GET_OD_LIST_RESPONSE
+                SdoInfoOpcode::GetOdListResponse
             }
-            info_opcode::GET_OBJECT_DESCRIPTION_REQUEST => {
+            SdoInfoOpcode::GetObjectDescriptionRequest => {
                 let Some(index) = word(0) else {
                     return self.info_error(counter, abort::GENERAL, mailbox_size);
                 };
@@ -310,9 +312,9 @@ impl MailboxServer {
                 };
                 data.resize(6 + o.name.len(), 0);
                 d.encode(&mut data);
-                info_opcode::GET_OBJECT_DESCRIPTION_RESPONSE
+                SdoInfoOpcode::GetObjectDescriptionResponse
             }
-            info_opcode::GET_ENTRY_DESCRIPTION_REQUEST => {
+            SdoInfoOpcode::GetEntryDescriptionRequest => {
                 let (Some(index), Some(&subindex), Some(_value_info)) = (word(0), request.get(2), request.get(3))
                 else {
                     return self.info_error(counter, abort::GENERAL, mailbox_size);
@@ -335,7 +337,7 @@ impl MailboxServer {
                 };
                 data.resize(10 + e.name.len(), 0);
                 d.encode(&mut data);
-                info_opcode::GET_ENTRY_DESCRIPTION_RESPONSE
+                SdoInfoOpcode::GetEntryDescriptionResponse
             }
             _ => return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
         };
@@ -353,7 +355,7 @@ impl MailboxServer {
 
     fn info_error(&mut self, counter: u8, code: u32, mailbox_size: usize) {
         let mut out = vec![0u8; mailbox_size];
-        let h = SdoInfoHeader { opcode: info_opcode::ERROR, incomplete: false, fragments_left: 0 };
+        let h = SdoInfoHeader { opcode: SdoInfoOpcode::SdoInfoErrorRequest, incomplete: false, fragments_left: 0 };
         let len = write_info_message(&mut out, counter, h, &code.to_le_bytes());
         out.truncate(len);
         self.replies.push_back(out);
@@ -362,12 +364,12 @@ impl MailboxServer {
 
 /// The indices of one OD list: all, Rx- or Tx-mappable; the AKD marks none for backup or
 /// start-up.
-fn object_list(od: &ObjectDictionary, list: u16) -> impl Iterator<Item = u16> + '_ {
+fn object_list(od: &ObjectDictionary, list: OdListType) -> impl Iterator<Item = u16> + '_ {
     let wanted = match list {
-        od_list::ALL => 0,
-        od_list::RX_PDO_MAPPABLE => access::RX_PDO,
-        od_list::TX_PDO_MAPPABLE => access::TX_PDO,
-        _ => u16::MAX,
+        OdListType::All => 0,
+        OdListType::RxPdoMappable => access::RX_PDO,
+        OdListType::TxPdoMappable => access::TX_PDO,
+        OdListType::Lengths | OdListType::Backup | OdListType::Startup => u16::MAX,
     };
     od.objects()
         .iter()
@@ -481,7 +483,7 @@ mod tests {
         let mut indices = Vec::new();
         while let Some(reply) = server.next_reply() {
             let (_, coe, body) = split_message(reply).unwrap();
-            assert_eq!(coe.service, service::SDO_INFORMATION);
+            assert_eq!(coe.service, CoeService::SdoInformation);
             let h = SdoInfoHeader::decode(body).unwrap();
             indices.extend_from_slice(&body[SDO_INFO_HEADER_LEN..]);
             if !h.incomplete {
