@@ -191,6 +191,13 @@ pub enum Error {
     LinkSpec(LinkSpecError),
     /// A configuration value out of its allowed range.
     Config(String),
+    /// A station alias that is on no slave or on several, so it names no one drive.
+    AliasNotUnique {
+        /// The alias asked for.
+        alias: u16,
+        /// Slaves that have it.
+        count: usize,
+    },
     /// A slave position that is not on the bus.
     NoSuchSlave {
         /// The position asked for.
@@ -221,6 +228,9 @@ impl fmt::Display for Error {
             Error::Pdo(m) => write!(f, "PDO mapping: {m}"),
             Error::LinkSpec(e) => write!(f, "configuration: {e}"),
             Error::Config(m) => write!(f, "configuration: {m}"),
+            Error::AliasNotUnique { alias, count } => {
+                write!(f, "station alias {alias} is on {count} slave(s), not one")
+            }
             Error::NoSuchSlave { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
             }

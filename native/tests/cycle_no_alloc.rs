@@ -82,9 +82,9 @@ fn cycle_loop_allocates_nothing() {
     while m.scan().is_err() {
         assert!(Instant::now() < deadline, "no simulator on {address}");
     }
-    m.request_state(AlState::PreOp, None, Duration::from_secs(5)).unwrap();
+    m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
     m.configure_dc(1_000_000).unwrap();
-    m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
+    m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
     let mut cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);

@@ -87,7 +87,7 @@ fn master(text: &str) -> (Master, Messages) {
     m.scan().unwrap();
     let mb = m.slave(0).unwrap().mailbox.clone().unwrap();
     assert_eq!((mb.out_len, mb.in_len), (MAILBOX, MAILBOX), "the master takes the size from the SII");
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     messages.lock().unwrap().clear();
     (m, messages)
 }
@@ -118,7 +118,7 @@ fn long_text(seed: u8) -> String {
 fn segmented_upload_alternates_the_toggle_bit() {
     let text = long_text(0);
     let (mut m, messages) = master(&text);
-    assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());
     let (requests, responses) = bodies(&messages);
     let toggles = decode_each(&requests[1..], |b| match SdoRequest::decode(b) {
         Ok(SdoRequest::UploadSegment { toggle }) => Some(toggle),
@@ -143,7 +143,7 @@ fn segmented_upload_alternates_the_toggle_bit() {
 fn segmented_download_alternates_the_toggle_bit_and_round_trips() {
     let (mut m, messages) = master(&long_text(0));
     let text = long_text(5);
-    m.sdo_write(0, TEXT, 0, text.as_bytes()).unwrap();
+    m.slave_mut(0).unwrap().sdo_write(TEXT, 0, text.as_bytes()).unwrap();
     let (requests, responses) = bodies(&messages);
     let mut toggles = Vec::new();
     let mut carried = Vec::new();
@@ -165,13 +165,13 @@ fn segmented_download_alternates_the_toggle_bit_and_round_trips() {
         _ => None,
     });
     assert_eq!(answered, toggles);
-    assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());
     // A value of the wrong length is refused after its last segment, by name.
-    match m.sdo_write(0, TEXT, 0, &text.as_bytes()[..150]).unwrap_err() {
+    match m.slave_mut(0).unwrap().sdo_write(TEXT, 0, &text.as_bytes()[..150]).unwrap_err() {
         Error::SdoAbort { code, .. } => assert_eq!(code, abort::LENGTH_TOO_LOW),
         other => panic!("{other}"),
     }
-    assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());
 }
 
 /// The fragments of every SDO information reply in the log: (opcode, fragments left, incomplete).
@@ -187,7 +187,7 @@ fn fragments(messages: &Messages) -> Vec<(SdoInfoOpcode, u16, bool)> {
 #[test]
 fn sdo_information_replies_come_in_fragments() {
     let (mut m, messages) = master("short");
-    let list = m.sdo_object_list(0, OdListType::All).unwrap();
+    let list = m.slave_mut(0).unwrap().sdo_object_list(OdListType::All).unwrap();
     let mut expected: Vec<u16> = VirtualBus::new(1).slave(0).od().objects().iter().map(|o| o.index).collect();
     expected.push(TEXT);
     expected.sort();
@@ -198,14 +198,14 @@ fn sdo_information_replies_come_in_fragments() {
     let expected: Vec<_> = (0..count).rev().map(|left| (SdoInfoOpcode::GetOdListResponse, left, left > 0)).collect();
     assert_eq!(fragments(&messages), expected);
 
-    let text = m.sdo_object_description(0, TEXT).unwrap();
+    let text = m.slave_mut(0).unwrap().sdo_object_description(TEXT).unwrap();
     assert_eq!(
         (text.name.as_str(), text.data_type, text.object_code),
         (TEXT_NAME, data_type::VISIBLE_STRING, object_code::VAR)
     );
     let opcode = SdoInfoOpcode::GetObjectDescriptionResponse;
     assert_eq!(fragments(&messages), [(opcode, 1, true), (opcode, 0, false)]);
-    let entry = m.sdo_entry_description(0, TEXT, 0).unwrap();
+    let entry = m.slave_mut(0).unwrap().sdo_entry_description(TEXT, 0).unwrap();
     assert_eq!((entry.name.as_str(), entry.bit_length), (TEXT_NAME, 40));
     let opcode = SdoInfoOpcode::GetEntryDescriptionResponse;
     assert_eq!(fragments(&messages), [(opcode, 1, true), (opcode, 0, false)]);

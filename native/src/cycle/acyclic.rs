@@ -235,7 +235,7 @@ impl MailboxService {
         }
         if let Phase::Sending { slave, origin, deadline_ns } = self.phase {
             let len = mailbox_of(master, slave).map_or(0, |m| m.out_len as usize);
-            match master.mailbox_try_send(slave, &mut self.send[..len]) {
+            match master.slave_mut(slave).and_then(|mut s| s.mailbox_try_send(&mut self.send[..len])) {
                 Ok(true) => {
                     let counter = self.send[5] >> 4;
                     self.phase = Phase::Awaiting { slave, counter, origin, deadline_ns };
@@ -266,7 +266,7 @@ impl MailboxService {
         if write_len > out_len - SDO_OFFSET - SDO_LEN {
             return self.finish(slot, events, origin, Outcome::TooLarge, 0, &[]);
         }
-        let Ok(counter) = master.mailbox_take_counter(slave) else {
+        let Ok(counter) = master.slave_mut(slave).and_then(|mut s| s.mailbox_take_counter()) else {
             return self.finish(slot, events, origin, Outcome::NoMailbox, 0, &[]);
         };
         let mut value = [0u8; MAX_DATA];
@@ -308,7 +308,7 @@ impl MailboxService {
         self.next_slave = (slave + 1) % count;
         let slave = slave as u16;
         let len = mailbox_of(master, slave).map_or(0, |m| m.in_len as usize);
-        if !matches!(master.mailbox_try_read(slave, &mut self.receive[..len]), Ok(true)) {
+        if !matches!(master.slave_mut(slave).and_then(|mut s| s.mailbox_try_read(&mut self.receive[..len])), Ok(true)) {
             return true;
         }
         let Ok(header) = MailboxHeader::decode(&self.receive[..len]) else { return true };

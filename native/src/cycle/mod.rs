@@ -717,7 +717,7 @@ mod tests {
     fn master_in_op(count: usize) -> Master {
         let mut m = Master::new(Box::new(InProcess::new(count)), Duration::from_millis(100));
         m.scan().unwrap();
-        m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
+        m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
         m
     }
 
@@ -755,7 +755,7 @@ mod tests {
     fn cycles_sets_outputs_and_hands_the_master_back() {
         let mut master = master_in_op(2);
         // Outputs set before the start go on unchanged.
-        master.set_outputs(1, &[0x44, 0x33, 0x22, 0x11, 0x0F, 0]).unwrap();
+        master.slave_mut(1).unwrap().set_outputs(&[0x44, 0x33, 0x22, 0x11, 0x0F, 0]).unwrap();
         let mut cycle = CycleThread::start(master, Config::new(Duration::from_micros(500))).map_err(|e| e.0).unwrap();
         assert!(cycle.running());
         assert_eq!(cycle.outputs(1).unwrap(), [0x44, 0x33, 0x22, 0x11, 0x0F, 0]);
@@ -783,10 +783,10 @@ mod tests {
         assert_eq!((master.stats().lost_frames, master.stats().wkc_errors), (0, 0));
         // The set-points reached the drives: read back from their object dictionaries.
         // 0x1701 carries the interpolation set-point 0x60C1:01, then the controlword.
-        assert_eq!(master.sdo_read(0, 0x60C1, 1).unwrap(), 0x1234_5678u32.to_le_bytes());
-        assert_eq!(master.sdo_read(0, 0x6040, 0).unwrap(), [0x06, 0]);
-        assert_eq!(master.sdo_read(1, 0x60C1, 1).unwrap(), 0x1122_3344u32.to_le_bytes());
+        assert_eq!(master.slave_mut(0).unwrap().sdo_read(0x60C1, 1).unwrap(), 0x1234_5678u32.to_le_bytes());
+        assert_eq!(master.slave_mut(0).unwrap().sdo_read(0x6040, 0).unwrap(), [0x06, 0]);
+        assert_eq!(master.slave_mut(1).unwrap().sdo_read(0x60C1, 1).unwrap(), 0x1122_3344u32.to_le_bytes());
         // The master works on after the thread: the bus goes down.
-        master.request_state(AlState::Init, None, Duration::from_secs(5)).unwrap();
+        master.request_state(AlState::Init, Duration::from_secs(5)).unwrap();
     }
 }

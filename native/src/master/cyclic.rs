@@ -150,14 +150,14 @@ impl Master {
     }
 
     /// The outputs of the slave at `position` as they go out in the next cycle.
-    pub fn outputs(&self, position: u16) -> Result<&[u8]> {
+    pub(super) fn outputs(&self, position: u16) -> Result<&[u8]> {
         let image = self.image()?;
         let s = image.slot(position)?;
         Ok(&image.outputs[s.out_offset..s.out_offset + s.out_len])
     }
 
     /// Sets the outputs of the slave at `position`; `data` must have their exact length.
-    pub fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
+    pub(super) fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
         let image = self.image_mut()?;
         let s = image.slot(position)?;
         s.check_outputs_len(position, data.len())?;
@@ -166,7 +166,7 @@ impl Master {
     }
 
     /// The inputs of the slave at `position` from the last good cycle.
-    pub fn inputs(&self, position: u16) -> Result<&[u8]> {
+    pub(super) fn inputs(&self, position: u16) -> Result<&[u8]> {
         let image = self.image()?;
         let s = image.slot(position)?;
         Ok(&image.inputs[s.in_offset..s.in_offset + s.in_len])

@@ -114,7 +114,7 @@ impl Master {
 
     /// Sends one mailbox message (header included) to the slave at `position`, waiting up to
     /// `timeout` for SM0 to be free. Gives the message the next counter value.
-    pub fn mailbox_send(&mut self, position: u16, message: &mut [u8], timeout: Duration) -> Result<()> {
+    pub(super) fn mailbox_send(&mut self, position: u16, message: &mut [u8], timeout: Duration) -> Result<()> {
         let mb = self.mailbox(position)?;
         if message.len() > mb.out_len as usize {
             return Err(Error::Mailbox(format!(
@@ -143,7 +143,7 @@ impl Master {
 
     /// Waits up to `timeout` for the next mailbox message from the slave at `position` that is
     /// not an emergency; emergencies are queued on the slave. Returns the whole message.
-    pub fn mailbox_receive(&mut self, position: u16, timeout: Duration) -> Result<Vec<u8>> {
+    pub(super) fn mailbox_receive(&mut self, position: u16, timeout: Duration) -> Result<Vec<u8>> {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(message) = self.mailbox_poll(position)? {
@@ -158,8 +158,8 @@ impl Master {
 
     /// Takes the counter for the next message to the slave at `position` (1..=7), as
     /// [`mailbox_send`](Self::mailbox_send) does, for a caller that writes SM0 itself.
-    pub fn mailbox_take_counter(&mut self, position: u16) -> Result<u8> {
-        let mailbox = self.slave_mut(position)?.mailbox.as_mut().ok_or_else(|| no_mailbox(position))?;
+    pub(super) fn mailbox_take_counter(&mut self, position: u16) -> Result<u8> {
+        let mailbox = self.slave_entry_mut(position)?.mailbox.as_mut().ok_or_else(|| no_mailbox(position))?;
         mailbox.counter = codec::next_counter(mailbox.counter);
         Ok(mailbox.counter)
     }
@@ -167,7 +167,7 @@ impl Master {
     /// One attempt to write `buffer` (exactly SM0's length, counter in place) into the slave's
     /// SM0, for a cycle thread that must not wait: `true` when the slave took it, `false` when
     /// SM0 still held an earlier message or the frame was lost (try again with the same bytes).
-    pub fn mailbox_try_send(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
+    pub(super) fn mailbox_try_send(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
         let (station, out_start) = self.mailbox_address(position, |mb| mb.out_start)?;
         // Writing the whole buffer fills SM0; WKC 0 means it is still full with an earlier
         // message. A frame lost on the way is written again with the same counter, which the
@@ -183,7 +183,7 @@ impl Master {
     /// that saw SM1 full and must not wait: `true` when a message was read. A lost reply is
     /// asked for again with SM1's repeat request, without waiting for it; SM1 shows full again
     /// once the slave has put it back.
-    pub fn mailbox_try_read(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
+    pub(super) fn mailbox_try_read(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
         let (station, in_start) = self.mailbox_address(position, |mb| mb.in_start)?;
         match self.datagram(Command::Fprd, station, in_start, buffer) {
             Ok(wkc) => Ok(wkc == 1),
@@ -254,7 +254,7 @@ impl Master {
                 if coe_header.service == CoeService::Emergency {
                     let emergency = Emergency::decode(body)?;
                     self.stats.emergencies += 1;
-                    self.slave_mut(position)?.emergencies.push_back(emergency);
+                    self.slave_entry_mut(position)?.emergencies.push_back(emergency);
                     return Ok(None);
                 }
                 // The AKD answers with the counter of the request. Another counter is the late

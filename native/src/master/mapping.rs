@@ -86,12 +86,12 @@ impl SlaveMapping {
 impl Master {
     /// Gives the slave at `position` (in PreOp) the mappings `rx` and `tx`. Both are checked
     /// first, so a refused mapping writes nothing.
-    pub fn configure_pdo(&mut self, position: u16, rx: Mapping, tx: Mapping) -> Result<()> {
+    pub(super) fn configure_pdo(&mut self, position: u16, rx: Mapping, tx: Mapping) -> Result<()> {
         let rx_entries = rx.entries(Direction::Rx)?;
         let tx_entries = tx.entries(Direction::Tx)?;
         self.write_mapping(position, Direction::Rx, &rx)?;
         self.write_mapping(position, Direction::Tx, &tx)?;
-        self.slave_mut(position)?.mapping = Some(SlaveMapping { rx, tx, rx_entries, tx_entries });
+        self.slave_entry_mut(position)?.mapping = Some(SlaveMapping { rx, tx, rx_entries, tx_entries });
         // A new mapping changes the process image; it is laid out again before SafeOp.
         self.process = None;
         Ok(())
@@ -124,7 +124,7 @@ impl Master {
 
     /// Sets the drive's cycle time (interpolation time period 0x60C2) of the slave at
     /// `position`, e.g. 2 ms as (2, -3).
-    pub fn set_cycle_time(&mut self, position: u16, cycle_ns: u32) -> Result<()> {
+    pub(super) fn set_cycle_time(&mut self, position: u16, cycle_ns: u32) -> Result<()> {
         let (units, exponent) = crate::dc::interpolation_time_period(cycle_ns)?;
         self.sdo_write(position, 0x60C2, 1, &[units])?;
         self.sdo_write(position, 0x60C2, 2, &[exponent as u8])

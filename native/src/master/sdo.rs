@@ -55,7 +55,7 @@ impl Master {
     }
 
     /// Reads `index:subindex` of the slave at `position`.
-    pub fn sdo_read(&mut self, position: u16, index: u16, subindex: u8) -> Result<Vec<u8>> {
+    pub(super) fn sdo_read(&mut self, position: u16, index: u16, subindex: u8) -> Result<Vec<u8>> {
         let request = SdoRequest::Upload { index, subindex, complete_access: false };
         let (mut value, complete_size) = self.sdo_exchange(position, &request, |response| match response {
             SdoResponse::UploadExpedited { index: i, subindex: s, data } if (i, s) == (index, subindex) => {
@@ -101,7 +101,7 @@ impl Master {
     }
 
     /// Writes `data` to `index:subindex` of the slave at `position`.
-    pub fn sdo_write(&mut self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
+    pub(super) fn sdo_write(&mut self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         let room = self.mailbox_out_len(position)? - SDO_OFFSET;
         let accepted = |position| {
             move |response: SdoResponse<'_>| match response {

@@ -86,7 +86,7 @@ impl Master {
     }
 
     /// The indices of the objects in one of the slave's object lists.
-    pub fn sdo_object_list(&mut self, position: u16, list_type: OdListType) -> Result<Vec<u16>> {
+    pub(super) fn sdo_object_list(&mut self, position: u16, list_type: OdListType) -> Result<Vec<u16>> {
         let data =
             self.sdo_info(position, SdoInfoOpcode::GetOdListRequest, &u16::from(list_type).to_le_bytes(), 0, 0)?;
         // The first fragment starts with the list type; the indices follow, two bytes each.
@@ -95,7 +95,7 @@ impl Master {
     }
 
     /// The description of object `index`.
-    pub fn sdo_object_description(&mut self, position: u16, index: u16) -> Result<ObjectInfo> {
+    pub(super) fn sdo_object_description(&mut self, position: u16, index: u16) -> Result<ObjectInfo> {
         let data =
             self.sdo_info(position, SdoInfoOpcode::GetObjectDescriptionRequest, &index.to_le_bytes(), index, 0)?;
         let d = ObjectDescription::decode(&data)?;
@@ -112,7 +112,7 @@ impl Master {
     }
 
     /// The description of entry `index:subindex` (without the optional values).
-    pub fn sdo_entry_description(&mut self, position: u16, index: u16, subindex: u8) -> Result<EntryInfo> {
+    pub(super) fn sdo_entry_description(&mut self, position: u16, index: u16, subindex: u8) -> Result<EntryInfo> {
         let [lo, hi] = index.to_le_bytes();
         let request = [lo, hi, subindex, 0];
         let data = self.sdo_info(position, SdoInfoOpcode::GetEntryDescriptionRequest, &request, index, subindex)?;

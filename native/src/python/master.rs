@@ -137,7 +137,7 @@ impl PyMaster {
         py.allow_threads(|| m.scan()).py()?;
         let list = PyList::empty(py);
         for position in 0..m.slaves().len() as u16 {
-            let status = py.allow_threads(|| m.al_status(position)).py()?;
+            let status = py.allow_threads(|| m.slave_mut(position)?.al_status()).py()?;
             let slave = m.slave(position).py()?;
             let d = PyDict::new(py);
             d.set_item("position", slave.position)?;
@@ -176,14 +176,18 @@ impl PyMaster {
         let timeout = super::seconds(timeout, "timeout")?;
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.request_state(target, position, timeout)).py()
+        py.allow_threads(|| match position {
+            Some(p) => m.slave_mut(p)?.request_state(target, timeout),
+            None => m.request_state(target, timeout),
+        })
+        .py()
     }
 
     /// (state, AL status code, its name) of the slave at `position`.
     fn al_status(&self, py: Python<'_>, position: u16) -> PyResult<(String, u16, String)> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let s = py.allow_threads(|| m.al_status(position)).py()?;
+        let s = py.allow_threads(|| m.slave_mut(position)?.al_status()).py()?;
         Ok((s.state_name().to_owned(), s.code, s.code_name().to_owned()))
     }
 
@@ -197,7 +201,7 @@ impl PyMaster {
     ) -> PyResult<Bound<'py, PyBytes>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let data = py.allow_threads(|| m.read_register_at(position, address, length)).py()?;
+        let data = py.allow_threads(|| m.slave_mut(position)?.read_register(address, length)).py()?;
         Ok(PyBytes::new(py, &data))
     }
 
@@ -205,14 +209,14 @@ impl PyMaster {
     fn write_register(&self, py: Python<'_>, position: u16, address: u16, data: Vec<u8>) -> PyResult<()> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.write_register_at(position, address, &data)).py()
+        py.allow_threads(|| m.slave_mut(position)?.write_register(address, &data)).py()
     }
 
     /// Reads an SDO.
     fn sdo_read<'py>(&self, py: Python<'py>, position: u16, index: u16, subindex: u8) -> PyResult<Bound<'py, PyBytes>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let data = py.allow_threads(|| m.sdo_read(position, index, subindex)).py()?;
+        let data = py.allow_threads(|| m.slave_mut(position)?.sdo_read(index, subindex)).py()?;
         Ok(PyBytes::new(py, &data))
     }
 
@@ -220,21 +224,21 @@ impl PyMaster {
     fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.sdo_write(position, index, subindex, &data)).py()
+        py.allow_threads(|| m.slave_mut(position)?.sdo_write(index, subindex, &data)).py()
     }
 
     /// Every object index of the slave's object dictionary (SDO information).
     fn sdo_object_list(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u16>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.sdo_object_list(position, crate::coe::OdListType::All)).py()
+        py.allow_threads(|| m.slave_mut(position)?.sdo_object_list(crate::coe::OdListType::All)).py()
     }
 
     /// The description of object `index`.
     fn sdo_object_description<'py>(&self, py: Python<'py>, position: u16, index: u16) -> PyResult<Bound<'py, PyDict>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let o = py.allow_threads(|| m.sdo_object_description(position, index)).py()?;
+        let o = py.allow_threads(|| m.slave_mut(position)?.sdo_object_description(index)).py()?;
         let d = PyDict::new(py);
         d.set_item("index", o.index)?;
         d.set_item("data_type", o.data_type)?;
@@ -254,7 +258,7 @@ impl PyMaster {
     ) -> PyResult<Bound<'py, PyDict>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let e = py.allow_threads(|| m.sdo_entry_description(position, index, subindex)).py()?;
+        let e = py.allow_threads(|| m.slave_mut(position)?.sdo_entry_description(index, subindex)).py()?;
         let d = PyDict::new(py);
         d.set_item("subindex", e.subindex)?;
         d.set_item("data_type", e.data_type)?;
@@ -267,7 +271,7 @@ impl PyMaster {
     /// Takes the emergency messages received from the slave at `position`.
     fn emergencies<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);
-        for e in self.lock()?.get()?.take_emergencies(position).py()? {
+        for e in self.lock()?.get()?.slave_mut(position).py()?.take_emergencies().py()? {
             let d = PyDict::new(py);
             d.set_item("error_code", e.error_code)?;
             d.set_item("error_register", e.error_register)?;
@@ -290,7 +294,7 @@ impl PyMaster {
         let (rx, tx) = (parse_mapping(rx)?, parse_mapping(tx)?);
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.configure_pdo(position, rx, tx)).py()
+        py.allow_threads(|| m.slave_mut(position)?.configure_pdo(rx, tx)).py()
     }
 
     /// Sets the drive's cycle time (interpolation time period 0x60C2) without distributed
@@ -298,7 +302,7 @@ impl PyMaster {
     fn set_cycle_time(&self, py: Python<'_>, position: u16, cycle_time_ns: u32) -> PyResult<()> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.set_cycle_time(position, cycle_time_ns)).py()
+        py.allow_threads(|| m.slave_mut(position)?.set_cycle_time(cycle_time_ns)).py()
     }
 
     /// Sets up distributed clocks and SYNC0 at `cycle_time_ns` (in PreOp).
@@ -323,17 +327,17 @@ impl PyMaster {
 
     /// The outputs of the slave at `position`.
     fn outputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
-        Ok(PyBytes::new(py, self.lock()?.get()?.outputs(position).py()?))
+        Ok(PyBytes::new(py, self.lock()?.get()?.slave_mut(position).py()?.outputs().py()?))
     }
 
     /// Sets the outputs of the slave at `position` for the next cycles.
     fn set_outputs(&self, position: u16, data: Vec<u8>) -> PyResult<()> {
-        self.lock()?.get()?.set_outputs(position, &data).py()
+        self.lock()?.get()?.slave_mut(position).py()?.set_outputs(&data).py()
     }
 
     /// The inputs of the slave at `position` from the last good cycle.
     fn inputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
-        Ok(PyBytes::new(py, self.lock()?.get()?.inputs(position).py()?))
+        Ok(PyBytes::new(py, self.lock()?.get()?.slave_mut(position).py()?.inputs().py()?))
     }
 
     /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats,

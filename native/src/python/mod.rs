@@ -66,7 +66,9 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             Error::Mailbox(_) => MailboxError::new_err(message),
             Error::Sii(_) => SiiError::new_err(message),
             Error::Pdo(_) => PdoError::new_err(message),
-            Error::LinkSpec(_) | Error::Config(_) | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
+            Error::LinkSpec(_) | Error::Config(_) | Error::AliasNotUnique { .. } | Error::NoSuchSlave { .. } => {
+                ConfigError::new_err(message)
+            }
         };
         let value = err.value(py);
         let set = |name: &str, v: PyResult<PyObject>| {
