@@ -5,7 +5,7 @@
 //! segmented, abort), emergency messages and the SDO information service, on both the client
 //! (master) and server (virtual AKD) side. Values are borrowed from the caller's buffers.
 
-use crate::error::Error;
+use crate::error::{Error, MailboxError};
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
 
 /// Length of the CoE header.
@@ -97,10 +97,10 @@ impl CoeHeader {
     /// error naming it.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < COE_HEADER_LEN {
-            return Err(Error::Mailbox(format!("CoE message of {} bytes has no 2-byte CoE header", body.len())));
+            return Err(MailboxError::Truncated { what: "CoE message", len: body.len(), needed: COE_HEADER_LEN }.into());
         }
         let word = u16::from_le_bytes([body[0], body[1]]);
-        let service = CoeService::try_from((word >> 12) as u8).map_err(|e| Error::Mailbox(e.to_string()))?;
+        let service = CoeService::try_from((word >> 12) as u8)?;
         Ok(CoeHeader { number: word & 0x01FF, service })
     }
 
@@ -227,8 +227,8 @@ pub enum SdoResponse<'a> {
     },
 }
 
-fn sdo_too_short(what: &str, len: usize) -> Error {
-    Error::Mailbox(format!("SDO {what} of {len} bytes is shorter than its {SDO_LEN}-byte minimum"))
+fn sdo_too_short(what: &'static str, len: usize) -> Error {
+    MailboxError::Truncated { what, len, needed: SDO_LEN }.into()
 }
 
 fn address(body: &[u8]) -> (u16, u8) {
@@ -243,7 +243,7 @@ fn write_address(out: &mut [u8], command: u8, index: u16, subindex: u8) {
 
 /// Decodes the data of a segment: `n` (bits 1–3) counts padding bytes when the segment
 /// carries the minimum of seven; longer segments carry exactly what the mailbox holds.
-fn segment_data<'a>(body: &'a [u8], what: &str) -> Result<(bool, bool, &'a [u8]), Error> {
+fn segment_data<'a>(body: &'a [u8], what: &'static str) -> Result<(bool, bool, &'a [u8]), Error> {
     if body.len() < 1 + SEGMENT_MIN_DATA {
         return Err(sdo_too_short(what, body.len()));
     }
@@ -282,17 +282,17 @@ fn expedited_data(body: &[u8]) -> &[u8] {
 impl<'a> SdoRequest<'a> {
     /// Decodes the SDO part of a request (the bytes after the CoE header).
     pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
-        let command = *body.first().ok_or_else(|| sdo_too_short("request", 0))?;
-        let ccs = ClientCommand::try_from(command >> 5).map_err(|e| Error::Mailbox(e.to_string()))?;
+        let command = *body.first().ok_or_else(|| sdo_too_short("SDO request", 0))?;
+        let ccs = ClientCommand::try_from(command >> 5)?;
         match ccs {
             ClientCommand::DownloadSegment => {
-                let (toggle, last, data) = segment_data(body, "download segment")?;
+                let (toggle, last, data) = segment_data(body, "SDO download segment")?;
                 Ok(SdoRequest::DownloadSegment { toggle, last, data })
             }
             ClientCommand::UploadSegment => Ok(SdoRequest::UploadSegment { toggle: command & 0x10 != 0 }),
             ClientCommand::InitiateDownload | ClientCommand::InitiateUpload | ClientCommand::Abort => {
                 if body.len() < SDO_LEN {
-                    return Err(sdo_too_short("request", body.len()));
+                    return Err(sdo_too_short("SDO request", body.len()));
                 }
                 let (index, subindex) = address(body);
                 let complete_access = command & 0x10 != 0;
@@ -379,17 +379,17 @@ fn write_abort(out: &mut [u8], index: u16, subindex: u8, code: u32) -> usize {
 impl<'a> SdoResponse<'a> {
     /// Decodes the SDO part of a response (the bytes after the CoE header).
     pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
-        let command = *body.first().ok_or_else(|| sdo_too_short("response", 0))?;
-        let scs = ServerCommand::try_from(command >> 5).map_err(|e| Error::Mailbox(e.to_string()))?;
+        let command = *body.first().ok_or_else(|| sdo_too_short("SDO response", 0))?;
+        let scs = ServerCommand::try_from(command >> 5)?;
         match scs {
             ServerCommand::UploadSegment => {
-                let (toggle, last, data) = segment_data(body, "upload segment")?;
+                let (toggle, last, data) = segment_data(body, "SDO upload segment")?;
                 Ok(SdoResponse::UploadSegment { toggle, last, data })
             }
             ServerCommand::DownloadSegment => Ok(SdoResponse::DownloadSegment { toggle: command & 0x10 != 0 }),
             ServerCommand::InitiateUpload | ServerCommand::InitiateDownload | ServerCommand::Abort => {
                 if body.len() < SDO_LEN {
-                    return Err(sdo_too_short("response", body.len()));
+                    return Err(sdo_too_short("SDO response", body.len()));
                 }
                 let (index, subindex) = address(body);
                 let word = u32::from_le_bytes([body[4], body[5], body[6], body[7]]);
@@ -462,7 +462,7 @@ pub fn write_sdo_response(out: &mut [u8], counter: u8, response: &SdoResponse<'_
 pub fn split_message(message: &[u8]) -> Result<(MailboxHeader, CoeHeader, &[u8]), Error> {
     let header = MailboxHeader::decode(message)?;
     if header.protocol() != Some(MailboxType::Coe) {
-        return Err(Error::Mailbox(format!("mailbox type {} is not CoE (3)", header.mailbox_type)));
+        return Err(MailboxError::NotCoe { mailbox_type: header.mailbox_type }.into());
     }
     let body = header.body(message);
     let coe = CoeHeader::decode(body)?;
@@ -593,7 +593,9 @@ impl Emergency {
     /// Decodes the body after the CoE header.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < EMERGENCY_LEN {
-            return Err(Error::Mailbox(format!("emergency message of {} bytes, expected {EMERGENCY_LEN}", body.len())));
+            return Err(
+                MailboxError::Truncated { what: "emergency message", len: body.len(), needed: EMERGENCY_LEN }.into()
+            );
         }
         let mut data = [0; 5];
         data.copy_from_slice(&body[3..8]);
@@ -675,13 +677,15 @@ impl SdoInfoHeader {
     /// standard's set is an error naming it.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < SDO_INFO_HEADER_LEN {
-            return Err(Error::Mailbox(format!(
-                "SDO information message of {} bytes has no {SDO_INFO_HEADER_LEN}-byte header",
-                body.len()
-            )));
+            return Err(MailboxError::Truncated {
+                what: "SDO information message",
+                len: body.len(),
+                needed: SDO_INFO_HEADER_LEN,
+            }
+            .into());
         }
         Ok(SdoInfoHeader {
-            opcode: SdoInfoOpcode::try_from(body[0] & 0x7F).map_err(|e| Error::Mailbox(e.to_string()))?,
+            opcode: SdoInfoOpcode::try_from(body[0] & 0x7F)?,
             incomplete: body[0] & 0x80 != 0,
             fragments_left: u16::from_le_bytes([body[2], body[3]]),
         })
@@ -734,18 +738,20 @@ pub const OBJECT_DESCRIPTION_FIXED_LEN: usize = 6;
 /// Length of an entry description before its optional values and name.
 pub const ENTRY_DESCRIPTION_FIXED_LEN: usize = 10;
 
-fn text<'a>(bytes: &'a [u8], what: &str) -> Result<&'a str, Error> {
-    std::str::from_utf8(bytes).map_err(|_| Error::Mailbox(format!("{what} is not valid text")))
+fn text<'a>(bytes: &'a [u8], what: &'static str) -> Result<&'a str, Error> {
+    std::str::from_utf8(bytes).map_err(|_| MailboxError::NotText { what }.into())
 }
 
 impl<'a> ObjectDescription<'a> {
     /// Decodes the data of a Get object description response.
     pub fn decode(data: &'a [u8]) -> Result<Self, Error> {
         if data.len() < OBJECT_DESCRIPTION_FIXED_LEN {
-            return Err(Error::Mailbox(format!(
-                "object description of {} bytes, expected at least {OBJECT_DESCRIPTION_FIXED_LEN}",
-                data.len()
-            )));
+            return Err(MailboxError::Truncated {
+                what: "object description",
+                len: data.len(),
+                needed: OBJECT_DESCRIPTION_FIXED_LEN,
+            }
+            .into());
         }
         Ok(ObjectDescription {
             index: u16::from_le_bytes([data[0], data[1]]),
@@ -816,10 +822,12 @@ impl<'a> EntryDescription<'a> {
     /// Decodes the data of a Get entry description response.
     pub fn decode(data: &'a [u8]) -> Result<Self, Error> {
         if data.len() < ENTRY_DESCRIPTION_FIXED_LEN {
-            return Err(Error::Mailbox(format!(
-                "entry description of {} bytes, expected at least {ENTRY_DESCRIPTION_FIXED_LEN}",
-                data.len()
-            )));
+            return Err(MailboxError::Truncated {
+                what: "entry description",
+                len: data.len(),
+                needed: ENTRY_DESCRIPTION_FIXED_LEN,
+            }
+            .into());
         }
         Ok(EntryDescription {
             index: u16::from_le_bytes([data[0], data[1]]),

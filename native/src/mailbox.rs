@@ -4,7 +4,7 @@
 //! channel and priority, and the protocol type with a 3-bit counter. The counter lets a slave
 //! tell a repeated message from a new one; the AKD echoes the master's counter in its reply.
 
-use crate::error::Error;
+use crate::error::{Error, MailboxError};
 
 /// Length of the mailbox header.
 pub const HEADER_LEN: usize = 6;
@@ -85,10 +85,9 @@ impl MailboxHeader {
     /// Decodes a header and checks that the message it announces fits `bytes`.
     pub fn decode(bytes: &[u8]) -> Result<Self, Error> {
         if bytes.len() < HEADER_LEN {
-            return Err(Error::Mailbox(format!(
-                "message of {} bytes is shorter than the {HEADER_LEN}-byte mailbox header",
-                bytes.len()
-            )));
+            return Err(
+                MailboxError::Truncated { what: "mailbox message", len: bytes.len(), needed: HEADER_LEN }.into()
+            );
         }
         let header = MailboxHeader {
             length: u16::from_le_bytes([bytes[0], bytes[1]]),
@@ -99,11 +98,9 @@ impl MailboxHeader {
             counter: (bytes[5] >> 4) & 0x07,
         };
         if HEADER_LEN + header.length as usize > bytes.len() {
-            return Err(Error::Mailbox(format!(
-                "header announces {} bytes but the mailbox holds {}",
-                header.length,
-                bytes.len() - HEADER_LEN
-            )));
+            return Err(
+                MailboxError::LengthMismatch { announced: header.length, holds: bytes.len() - HEADER_LEN }.into()
+            );
         }
         Ok(header)
     }
@@ -187,7 +184,9 @@ pub fn write_error_reply(out: &mut [u8], counter: u8, detail: u16) -> usize {
 /// Reads the detail code of a mailbox error reply body.
 pub fn parse_error_reply(body: &[u8]) -> Result<u16, Error> {
     if body.len() < ERROR_BODY_LEN {
-        return Err(Error::Mailbox(format!("mailbox error reply of {} bytes, expected {ERROR_BODY_LEN}", body.len())));
+        return Err(
+            MailboxError::Truncated { what: "mailbox error reply", len: body.len(), needed: ERROR_BODY_LEN }.into()
+        );
     }
     Ok(u16::from_le_bytes([body[2], body[3]]))
 }

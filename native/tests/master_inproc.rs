@@ -148,9 +148,9 @@ fn a_mapping_the_akd_refuses_is_refused_before_anything_is_written() {
     // The real drive's own power-up mapping: 17 bytes, odd.
     let odd = Mapping::Flexible(pdo::POWER_UP_RX.iter().map(|p| p.to_vec()).collect());
     let err = m.slave_mut(0).unwrap().configure_pdo(odd, Mapping::Fixed(0x1B01)).unwrap_err();
-    assert!(matches!(&err, Error::Pdo(reason) if reason.contains("odd")), "{err}");
+    assert!(matches!(&err, Error::Pdo(reason) if reason.to_string().contains("odd")), "{err}");
     let err = m.slave_mut(0).unwrap().configure_pdo(Mapping::Fixed(0x1B01), Mapping::Fixed(0x1701)).unwrap_err();
-    assert!(matches!(&err, Error::Pdo(reason) if reason.contains("0x1701")), "{err}");
+    assert!(matches!(&err, Error::Pdo(reason) if reason.to_string().contains("0x1701")), "{err}");
     assert_eq!(m.stats().frames, frames, "nothing was sent");
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C12, 0).unwrap(), before);
 }

@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use crate::coe::{self, CoeService, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::cycle::events::{Action, Event, Events, FaultSource};
-use crate::error::{Error, Result};
+use crate::error::{Error, MailboxError, Result, SettingError};
 use crate::mailbox::{MailboxHeader, MailboxType};
 use crate::master::cyclic::SlaveWatch;
 use crate::master::mailbox_client::Mailbox;
@@ -91,11 +91,9 @@ impl SdoSlot {
         let what = || format!("0x{index:04X}:{subindex:02X} of slave {slave}");
         if let Some(data) = write {
             if data.is_empty() || data.len() > MAX_DATA {
-                return Err(Error::Config(format!(
-                    "SDO write of {} bytes to {}: 1 ..= {MAX_DATA} bytes while cycling",
-                    data.len(),
-                    what()
-                )));
+                return Err(
+                    SettingError::SdoWriteLength { slave, index, subindex, len: data.len(), max: MAX_DATA }.into()
+                );
             }
         }
         let _turn = self.callers.lock().unwrap_or_else(|p| p.into_inner());
@@ -129,18 +127,22 @@ impl SdoSlot {
             o if o == Outcome::TimedOut as u8 => Err(Error::Timeout {
                 what: format!("slave {slave} to answer the SDO {verb} of 0x{index:04X}:{subindex:02X}").into(),
             }),
-            o if o == Outcome::TooLarge as u8 => Err(Error::Mailbox(format!(
-                "SDO {verb} of {} needs a segmented transfer, which runs only with the cycle stopped",
-                what()
-            ))),
-            o if o == Outcome::MailboxError as u8 => Err(Error::Mailbox(format!(
-                "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} with mailbox error 0x{code:04X} ({})",
-                crate::mailbox::error_detail_name(code as u16)
-            ))),
-            o if o == Outcome::NoMailbox as u8 => {
-                Err(Error::Mailbox(format!("slave {slave} has no CoE mailbox for the SDO {verb} of {}", what())))
+            o if o == Outcome::TooLarge as u8 => {
+                Err(MailboxError::NeedsSegments { verb, slave, index, subindex }.into())
             }
-            _ => Err(Error::Mailbox(format!("slave {slave} answered the SDO {verb} of {} with something else", what()))),
+            o if o == Outcome::MailboxError as u8 => Err(MailboxError::TransferErrorReply {
+                verb,
+                slave,
+                index,
+                subindex,
+                detail: code as u16,
+                detail_name: crate::mailbox::error_detail_name(code as u16),
+            }
+            .into()),
+            o if o == Outcome::NoMailbox as u8 => {
+                Err(MailboxError::NoCoeForTransfer { verb, slave, index, subindex }.into())
+            }
+            _ => Err(MailboxError::TransferUnexpected { verb, slave, index, subindex }.into()),
         }
     }
 }

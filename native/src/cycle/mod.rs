@@ -25,7 +25,7 @@ use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
 use crate::pdo::PdoEntry;
@@ -49,6 +49,11 @@ use samples::{Sample, Samples};
 use seqlock::SeqBytes;
 use stats::CycleStats;
 use supervision::{Exchange, Gaps};
+
+/// Why a set-point is refused once the cycle stopped.
+fn setpoints_stopped() -> Error {
+    Unavailable::CycleStopped { consequence: "set-points no longer go out".into() }.into()
+}
 
 /// How a cycle thread runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -124,15 +129,24 @@ struct DriveLoop {
 /// images and their latch where mapped; for the others, why not.
 fn sequenced_drives(
     master: &Master,
-) -> Vec<std::result::Result<(sequencer::Offsets, Option<latch::LatchObjects>), String>> {
-    (0..master.slaves().len() as u16)
-        .map(|position| {
-            let slave = master.slave(position).map_err(|e| e.to_string())?;
-            let mapping =
-                slave.mapping.as_ref().ok_or_else(|| format!("slave {position} has no process-data mapping"))?;
-            let slot = master.image_slot(position).map_err(|e| e.to_string())?;
+) -> Vec<std::result::Result<(sequencer::Offsets, Option<latch::LatchObjects>), Unavailable>> {
+    master
+        .slaves()
+        .iter()
+        .map(|slave| {
+            let position = slave.position;
+            let mapping = slave.mapping.as_ref().ok_or(Unavailable::NoMapping { slave: position })?;
+            // A mapped slave has its slot once the image exists, which the cycle's start needs.
+            let slot = master
+                .image_slot(position)
+                .map_err(|_| Unavailable::NoProcessData { slave: position, with_data: None })?;
             let (rx, tx) = (&mapping.rx_entries, &mapping.tx_entries);
-            let offsets = sequencer::Offsets::find(rx, tx).map_err(|e| format!("slave {position}: {e}"))?;
+            let offsets = sequencer::Offsets::find(rx, tx).map_err(|e| match e {
+                Unavailable::NotSequenced { missing, .. } => {
+                    Unavailable::NotSequenced { slave: Some(position), missing }
+                }
+                other => other,
+            })?;
             let latch = latch::LatchObjects::find(rx, tx, slot.out_offset, slot.in_offset);
             Ok((offsets.shifted(slot.out_offset, slot.in_offset), latch))
         })
@@ -147,7 +161,7 @@ pub struct CycleThread {
     warnings: Vec<String>,
     period: Duration,
     /// Per slave: whether it is sequenced, or why not.
-    sequenced: Vec<std::result::Result<(), String>>,
+    sequenced: Vec<std::result::Result<(), Unavailable>>,
     /// Per slave: the latch objects, where mapped.
     latch_objects: Vec<Option<latch::LatchObjects>>,
     /// Per slave: the drive's objects, where sequenced.
@@ -278,10 +292,10 @@ impl CycleThread {
 
     fn slot(&self, position: u16) -> Result<ImageSlot> {
         self.slots.get(position as usize).copied().flatten().ok_or_else(|| {
-            Error::Config(format!(
-                "slave {position} has no process data (slaves with process data: {:?})",
-                (0..self.slots.len()).filter(|&p| self.slots[p].is_some()).collect::<Vec<_>>()
-            ))
+            Error::from(Unavailable::NoProcessData {
+                slave: position,
+                with_data: Some((0..self.slots.len() as u16).filter(|&p| self.slots[p as usize].is_some()).collect()),
+            })
         })
     }
 
@@ -289,7 +303,7 @@ impl CycleThread {
     /// their exact length. Lock-free: the cycle thread never waits for it.
     pub fn set_outputs(&self, position: u16, data: &[u8]) -> Result<()> {
         if self.stopped() {
-            return Err(Error::Config("the cycle is stopped: set-points no longer go out".into()));
+            return Err(setpoints_stopped());
         }
         let slot = self.slot(position)?;
         slot.check_outputs_len(position, data.len())?;
@@ -301,7 +315,7 @@ impl CycleThread {
     fn sequenced(&self, position: u16) -> Result<&sequencer::Shared> {
         match self.sequenced.get(position as usize) {
             None => Err(Error::NoSuchSlave { position, count: self.slave_count() }),
-            Some(Err(why)) => Err(Error::Config(why.clone())),
+            Some(Err(why)) => Err(why.clone().into()),
             Some(Ok(())) => Ok(&self.shared.drives[position as usize]),
         }
     }
@@ -312,7 +326,10 @@ impl CycleThread {
     pub fn request(&self, position: u16, request: sequencer::Request) -> Result<()> {
         let drive = self.sequenced(position)?;
         if self.stopped() {
-            return Err(Error::Config(format!("the cycle is stopped: {} can no longer be sequenced", request.name())));
+            return Err(Unavailable::CycleStopped {
+                consequence: format!("{} can no longer be sequenced", request.name()).into(),
+            }
+            .into());
         }
         drive.request(request);
         Ok(())
@@ -323,20 +340,13 @@ impl CycleThread {
     /// for one of the edges.
     pub fn arm_latch(&self, position: u16, edges: u8, arm: bool) -> Result<()> {
         self.sequenced(position)?;
-        let objects = self.latch_objects[position as usize].ok_or_else(|| {
-            Error::Config(format!(
-                "slave {position}'s mapping carries no latch: map latch control 0x20A4 and latch status 0x20A5 \
-                 with a latched position (0x20A0..0x20A3, 0x20A6, 0x20A7), or the touch probe 0x60B8/0x60B9 \
-                 with 0x60BA..0x60BD"
-            ))
-        })?;
+        let objects = self.latch_objects[position as usize]
+            .ok_or_else(|| Error::from(Unavailable::NoLatch { slave: position }))?;
         let missing = edges & !objects.readable();
         if arm && missing != 0 {
-            return Err(Error::Config(format!(
-                "slave {position}'s mapping carries no latched position for edge bits 0x{missing:X} \
-                 (readable: 0x{:X}; bit 0 latch 1 rising, 1 latch 1 falling, 2 latch 2 rising, 3 latch 2 falling)",
-                objects.readable()
-            )));
+            return Err(
+                Unavailable::LatchEdgesUnreadable { slave: position, missing, readable: objects.readable() }.into()
+            );
         }
         self.shared.latches[position as usize].set(edges, arm);
         Ok(())
@@ -377,7 +387,7 @@ impl CycleThread {
 
     fn check_slave(&self, position: u16) -> Result<()> {
         if self.stopped() {
-            return Err(Error::Config("the cycle is stopped: use the master's own SDO access".into()));
+            return Err(Unavailable::CycleStopped { consequence: "use the master's own SDO access".into() }.into());
         }
         if position >= self.slave_count() {
             return Err(Error::NoSuchSlave { position, count: self.slave_count() });
@@ -409,21 +419,17 @@ impl CycleThread {
     /// that releases a held target.
     pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         if self.stopped() {
-            return Err(Error::Config("the cycle is stopped: set-points no longer go out".into()));
+            return Err(setpoints_stopped());
         }
         let slot = self.slot(position)?;
         let (rx, _) = self.mapping(position)?;
         let (offset, entry) = crate::pdo::layout(rx.iter().copied())
             .find(|(_, e)| (e.index, e.subindex) == (index, subindex))
-            .ok_or_else(|| {
-                Error::Config(format!("0x{index:04X}:{subindex:02X} is not in slave {position}'s output mapping"))
-            })?;
+            .ok_or_else(|| Error::from(Unavailable::NotInOutputs { slave: position, index, subindex }))?;
         if entry.byte_len() != data.len() {
-            return Err(Error::Config(format!(
-                "0x{index:04X}:{subindex:02X} takes {} bytes, {} given",
-                entry.byte_len(),
-                data.len()
-            )));
+            return Err(
+                SettingError::EntryLength { index, subindex, expected: entry.byte_len(), given: data.len() }.into()
+            );
         }
         self.shared.setpoints.write().write(slot.out_offset + offset, data);
         if let Some(Ok(())) = self.sequenced.get(position as usize) {
@@ -436,9 +442,7 @@ impl CycleThread {
     /// order.
     pub fn mapping(&self, position: u16) -> Result<&(Vec<PdoEntry>, Vec<PdoEntry>)> {
         self.slot(position)?;
-        self.mappings[position as usize]
-            .as_ref()
-            .ok_or_else(|| Error::Config(format!("slave {position} has no process-data mapping")))
+        self.mappings[position as usize].as_ref().ok_or(Unavailable::NoMapping { slave: position }.into())
     }
 
     /// The drive's status as the cycle thread last published it. Lock-free.
@@ -508,9 +512,9 @@ impl CycleThread {
     /// and the statistics stay readable; set-points are refused from then on.
     pub fn stop(&mut self) -> Result<Master> {
         if self.stopped() {
-            return Err(Error::Config("the cycle thread was already stopped".into()));
+            return Err(Unavailable::CycleAlreadyStopped.into());
         }
-        self.halt().ok_or_else(|| Error::Config("the cycle thread panicked; the master is lost".into()))
+        self.halt().ok_or(Unavailable::CyclePanicked.into())
     }
 
     /// Whether [`stop`](Self::stop) was called.

@@ -11,7 +11,7 @@
 use std::time::{Duration, Instant};
 
 use crate::coe::{self, CoeService, Emergency};
-use crate::error::{Error, Result};
+use crate::error::{Error, MailboxError, Result, SiiError};
 use crate::frame::Command;
 use crate::mailbox::{self as codec, MailboxHeader, MailboxType};
 use crate::master::Master;
@@ -58,10 +58,12 @@ impl Mailbox {
             return Ok(None);
         }
         if mb.receive_size.min(mb.send_size) < MIN_MAILBOX_LEN {
-            return Err(Error::Sii(format!(
-                "mailbox of {} bytes out and {} in is smaller than the {MIN_MAILBOX_LEN} bytes of an SDO message",
-                mb.receive_size, mb.send_size
-            )));
+            return Err(SiiError::MailboxTooSmall {
+                receive: mb.receive_size,
+                send: mb.send_size,
+                min: MIN_MAILBOX_LEN,
+            }
+            .into());
         }
         // The SM category, when present, holds the control bytes the slave expects.
         let control = |n: usize, default: u8| sii.sync_managers().get(n).map_or(default, |sm| sm.control);
@@ -94,7 +96,7 @@ pub(crate) fn sm_registers(start: u16, len: u16, control: u8, enable: bool) -> [
 }
 
 fn no_mailbox(position: u16) -> Error {
-    Error::Mailbox(format!("slave {position} has no mailbox (its SII lists no mailbox protocol)"))
+    MailboxError::NoMailbox { slave: position }.into()
 }
 
 impl Master {
@@ -117,11 +119,7 @@ impl Master {
     pub(super) fn mailbox_send(&mut self, position: u16, message: &mut [u8], timeout: Duration) -> Result<()> {
         let mb = self.mailbox(position)?;
         if message.len() > mb.out_len as usize {
-            return Err(Error::Mailbox(format!(
-                "message of {} bytes does not fit slave {position}'s {}-byte mailbox",
-                message.len(),
-                mb.out_len
-            )));
+            return Err(MailboxError::TooLong { slave: position, len: message.len(), room: mb.out_len }.into());
         }
         let counter = self.mailbox_take_counter(position)?;
         message[5] = (message[5] & 0x0F) | (counter << 4);
@@ -244,10 +242,8 @@ impl Master {
         match header.protocol() {
             Some(MailboxType::Error) => {
                 let detail = codec::parse_error_reply(header.body(&buffer))?;
-                Err(Error::Mailbox(format!(
-                    "slave {position} answered with mailbox error 0x{detail:04X} ({})",
-                    codec::error_detail_name(detail)
-                )))
+                Err(MailboxError::ErrorReply { slave: position, detail, detail_name: codec::error_detail_name(detail) }
+                    .into())
             }
             Some(MailboxType::Coe) => {
                 let (_, coe_header, body) = coe::split_message(&buffer)?;
@@ -266,10 +262,7 @@ impl Master {
                 buffer.truncate(codec::HEADER_LEN + header.length as usize);
                 Ok(Some(buffer))
             }
-            _ => Err(Error::Mailbox(format!(
-                "slave {position} sent a mailbox message of type {} that this master does not speak (CoE is 3)",
-                header.mailbox_type
-            ))),
+            _ => Err(MailboxError::UnsupportedType { slave: position, mailbox_type: header.mailbox_type }.into()),
         }
     }
 

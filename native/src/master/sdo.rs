@@ -4,7 +4,7 @@
 //! Aborts come back as [`Error::SdoAbort`] with the code's name.
 
 use crate::coe::{self, abort, CoeService, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
-use crate::error::{Error, Result};
+use crate::error::{Error, MailboxError, Result, SettingError};
 use crate::master::Master;
 
 impl Master {
@@ -21,7 +21,7 @@ impl Master {
         let slave = self.slave(position)?;
         match &slave.mailbox {
             Some(mb) if mb.has_coe() => Ok(mb.out_len as usize),
-            _ => Err(Error::Mailbox(format!("slave {position} does not speak CoE (SII mailbox protocols)"))),
+            _ => Err(MailboxError::NoCoe { slave: position }.into()),
         }
     }
 
@@ -35,11 +35,13 @@ impl Master {
         let reply = self.coe_transaction(position, |out| coe::write_sdo_request(out, 0, request))?;
         let (_, coe_header, body) = coe::split_message(&reply)?;
         if coe_header.service != CoeService::SdoResponse {
-            return Err(Error::Mailbox(format!(
-                "slave {position} answered an SDO request with CoE service {} (expected {}, SDO response)",
-                coe_header.service,
-                CoeService::SdoResponse
-            )));
+            return Err(MailboxError::UnexpectedService {
+                slave: position,
+                request: "an SDO request",
+                got: coe_header.service.name(),
+                expected: CoeService::SdoResponse.name(),
+            }
+            .into());
         }
         handle(SdoResponse::decode(body)?)
     }
@@ -92,10 +94,14 @@ impl Master {
             }
         }
         if value.len() != complete_size {
-            return Err(Error::Mailbox(format!(
-                "upload of 0x{index:04X}:{subindex:02X} from slave {position} announced {complete_size} bytes but carried {}",
-                value.len()
-            )));
+            return Err(MailboxError::UploadSize {
+                slave: position,
+                index,
+                subindex,
+                announced: complete_size,
+                carried: value.len(),
+            }
+            .into());
         }
         Ok(value)
     }
@@ -110,7 +116,7 @@ impl Master {
             }
         };
         if data.is_empty() {
-            return Err(Error::Config(format!("SDO write of 0x{index:04X}:{subindex:02X} with no data")));
+            return Err(SettingError::EmptySdoWrite { index, subindex }.into());
         }
         if data.len() <= 4 {
             let request = SdoRequest::DownloadExpedited { index, subindex, complete_access: false, data };
@@ -147,11 +153,16 @@ impl Master {
 
 /// The error for a response that does not answer the request: an abort by name, or a
 /// description of what came instead.
-fn unexpected(position: u16, index: u16, subindex: u8, what: &str, response: &SdoResponse<'_>) -> Error {
+fn unexpected(position: u16, index: u16, subindex: u8, what: &'static str, response: &SdoResponse<'_>) -> Error {
     match *response {
         SdoResponse::Abort { code, .. } => coe::abort_error(index, subindex, code),
-        ref other => Error::Mailbox(format!(
-            "slave {position} answered the {what} of 0x{index:04X}:{subindex:02X} with {other:?}"
-        )),
+        ref other => MailboxError::UnexpectedResponse {
+            slave: position,
+            transfer: what,
+            index,
+            subindex,
+            response: format!("{other:?}"),
+        }
+        .into(),
     }
 }

@@ -5,7 +5,7 @@ use crate::coe::{
     self, CoeService, EntryDescription, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode,
     SDO_INFO_HEADER_LEN,
 };
-use crate::error::{Error, Result};
+use crate::error::{MailboxError, Result};
 use crate::master::Master;
 
 /// An object's description, owned.
@@ -55,11 +55,13 @@ impl Master {
         loop {
             let (_, coe_header, body) = coe::split_message(&reply)?;
             if coe_header.service != CoeService::SdoInformation {
-                return Err(Error::Mailbox(format!(
-                    "slave {position} answered an SDO information request with CoE service {} (expected {})",
-                    coe_header.service,
-                    CoeService::SdoInformation
-                )));
+                return Err(MailboxError::UnexpectedService {
+                    slave: position,
+                    request: "an SDO information request",
+                    got: coe_header.service.name(),
+                    expected: CoeService::SdoInformation.name(),
+                }
+                .into());
             }
             let info = SdoInfoHeader::decode(body)?;
             let payload = &body[SDO_INFO_HEADER_LEN..];
@@ -67,15 +69,17 @@ impl Master {
                 let code = payload
                     .get(..4)
                     .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                    .ok_or_else(|| Error::Mailbox("SDO information error without an abort code".into()))?;
+                    .ok_or(MailboxError::InfoErrorWithoutCode)?;
                 return Err(coe::abort_error(index, subindex, code));
             }
             if Some(info.opcode) != opcode.response() {
-                return Err(Error::Mailbox(format!(
-                    "slave {position} answered SDO information opcode {opcode} with opcode {} (expected {})",
-                    info.opcode,
-                    opcode.response().map_or("none".into(), |o| o.to_string())
-                )));
+                return Err(MailboxError::UnexpectedOpcode {
+                    slave: position,
+                    asked: opcode.name(),
+                    got: info.opcode.name(),
+                    expected: opcode.response().map_or("none", |o| o.name()),
+                }
+                .into());
             }
             data.extend_from_slice(payload);
             if !info.incomplete {
@@ -90,7 +94,7 @@ impl Master {
         let data =
             self.sdo_info(position, SdoInfoOpcode::GetOdListRequest, &u16::from(list_type).to_le_bytes(), 0, 0)?;
         // The first fragment starts with the list type; the indices follow, two bytes each.
-        let indices = data.get(2..).ok_or_else(|| Error::Mailbox("OD list response without its list type".into()))?;
+        let indices = data.get(2..).ok_or(MailboxError::OdListWithoutType)?;
         Ok(indices.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect())
     }
 
@@ -100,7 +104,11 @@ impl Master {
             self.sdo_info(position, SdoInfoOpcode::GetObjectDescriptionRequest, &index.to_le_bytes(), index, 0)?;
         let d = ObjectDescription::decode(&data)?;
         if d.index != index {
-            return Err(Error::Mailbox(format!("asked for the description of 0x{index:04X}, got 0x{:04X}'s", d.index)));
+            return Err(MailboxError::WrongDescription {
+                asked: format!("0x{index:04X}"),
+                got: format!("0x{:04X}", d.index),
+            }
+            .into());
         }
         Ok(ObjectInfo {
             index: d.index,
@@ -118,10 +126,11 @@ impl Master {
         let data = self.sdo_info(position, SdoInfoOpcode::GetEntryDescriptionRequest, &request, index, subindex)?;
         let d = EntryDescription::decode(&data)?;
         if (d.index, d.subindex) != (index, subindex) {
-            return Err(Error::Mailbox(format!(
-                "asked for the description of 0x{index:04X}:{subindex:02X}, got 0x{:04X}:{:02X}'s",
-                d.index, d.subindex
-            )));
+            return Err(MailboxError::WrongDescription {
+                asked: format!("0x{index:04X}:{subindex:02X}"),
+                got: format!("0x{:04X}:{:02X}", d.index, d.subindex),
+            }
+            .into());
         }
         Ok(EntryInfo {
             subindex: d.subindex,

@@ -20,7 +20,7 @@ use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{Config, CycleThread};
 use crate::ds402::State;
-use crate::error::Error;
+use crate::error::{Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
 #[pyclass(name = "Cycle", module = "akd_ros._native")]
@@ -74,11 +74,8 @@ impl PyCycle {
         cpu: Option<usize>,
         lock_memory: bool,
     ) -> PyResult<Self> {
-        let period = Duration::try_from_secs_f64(period).map_err(|_| {
-            super::to_py_err(Error::Config(format!(
-                "cycle period {period} s is outside the allowed range 0.00025 ..= 0.01 s"
-            )))
-        })?;
+        let period = Duration::try_from_secs_f64(period)
+            .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
         let config = Config { period, priority, cpu, lock_memory };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
@@ -191,8 +188,7 @@ impl PyCycle {
 
     #[setter]
     fn set_request_timeout(&self, seconds: f64) -> PyResult<()> {
-        let timeout = Duration::try_from_secs_f64(seconds)
-            .map_err(|_| super::to_py_err(Error::Config(format!("request timeout {seconds} s must be >= 0"))))?;
+        let timeout = super::seconds(seconds, "request timeout")?;
         self.cycle.set_request_timeout(timeout);
         Ok(())
     }
@@ -221,10 +217,9 @@ impl PyCycle {
     fn wait_state(&self, py: Python<'_>, position: u16, state: &str, timeout: f64) -> PyResult<()> {
         let wanted = State::ALL.iter().copied().find(|s| s.name().eq_ignore_ascii_case(state)).ok_or_else(|| {
             let names: Vec<&str> = State::ALL.iter().map(|s| s.name()).collect();
-            super::to_py_err(Error::Config(format!("unknown state {state:?} (allowed: {})", names.join(", "))))
+            super::to_py_err(UnknownName::DriveState { name: state.to_owned(), allowed: names }.into())
         })?;
-        let timeout = Duration::try_from_secs_f64(timeout)
-            .map_err(|_| super::to_py_err(Error::Config(format!("timeout {timeout} s must be >= 0"))))?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let cycle = &self.cycle;
         let outcome = py.allow_threads(|| {
             let deadline = std::time::Instant::now() + timeout;
@@ -353,18 +348,12 @@ impl PyCycle {
     #[pyo3(signature = (position, channel, edge, arm = true))]
     fn arm_latch(&self, position: u16, channel: u8, edge: &str, arm: bool) -> PyResult<()> {
         if !(1..=2).contains(&channel) {
-            return Err(super::to_py_err(Error::Config(format!(
-                "latch channel {channel}: the AKD has latches 1 and 2"
-            ))));
+            return Err(super::to_py_err(SettingError::LatchChannel { channel }.into()));
         }
         let edge = match edge {
             "rising" => Edge::Rising,
             "falling" => Edge::Falling,
-            other => {
-                return Err(super::to_py_err(Error::Config(format!(
-                    "latch edge {other:?}: allowed \"rising\" or \"falling\""
-                ))))
-            }
+            other => return Err(super::to_py_err(UnknownName::LatchEdge { name: other.to_owned() }.into())),
         };
         self.cycle.arm_latch(position, latch::edge_bit(channel, edge), arm).py()
     }

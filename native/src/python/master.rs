@@ -11,7 +11,7 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 
 use super::IntoPyResult;
 use crate::al::AlState;
-use crate::error::Error;
+use crate::error::{Error, SettingError, Unavailable, UnknownName};
 use crate::link::{self, Link, LinkSpec};
 use crate::master::{self, Mapping};
 use crate::pdo::PdoEntry;
@@ -33,9 +33,7 @@ fn open_link(spec: &str) -> crate::error::Result<(Box<dyn Link>, Option<SimContr
 }
 
 fn parse_state(name: &str) -> crate::error::Result<AlState> {
-    AlState::parse(name).ok_or_else(|| {
-        Error::Config(format!("unknown AL state {name:?} (allowed: init, preop, safeop, op, bootstrap)"))
-    })
+    AlState::parse(name).ok_or_else(|| UnknownName::AlState { name: name.to_owned() }.into())
 }
 
 /// A mapping given from Python: a fixed mapping's index, or a list of PDOs, each a list of
@@ -44,15 +42,8 @@ fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     if let Ok(index) = value.extract::<u16>() {
         return Ok(Mapping::Fixed(index));
     }
-    let pdos: Vec<Vec<u32>> = value
-        .extract()
-        .map_err(|_| {
-            Error::Config(
-                "a mapping is a fixed mapping index (e.g. 0x1701) or a list of PDOs, each a list of entries 0xIIIISSBB"
-                    .into(),
-            )
-        })
-        .map_err(super::to_py_err)?;
+    let pdos: Vec<Vec<u32>> =
+        value.extract().map_err(|_| Error::from(SettingError::MappingForm)).map_err(super::to_py_err)?;
     Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
 }
 
@@ -70,11 +61,7 @@ struct InUse<'a>(MutexGuard<'a, Option<master::Master>>);
 
 impl InUse<'_> {
     fn get(&mut self) -> PyResult<&mut master::Master> {
-        self.0.as_mut().ok_or_else(|| {
-            super::to_py_err(Error::Config(
-                "the master is closed, or handed to a Cycle (stop the Cycle to get it back)".into(),
-            ))
-        })
+        self.0.as_mut().ok_or_else(|| super::to_py_err(Unavailable::MasterClosed.into()))
     }
 }
 
@@ -84,9 +71,7 @@ impl PyMaster {
             Ok(guard) => Ok(InUse(guard)),
             // A call that panicked left the master as it was; the panic was already raised.
             Err(TryLockError::Poisoned(poisoned)) => Ok(InUse(poisoned.into_inner())),
-            Err(TryLockError::WouldBlock) => Err(super::to_py_err(Error::Config(
-                "the master is in use by another thread; use one master from one thread at a time".into(),
-            ))),
+            Err(TryLockError::WouldBlock) => Err(super::to_py_err(Unavailable::MasterBusy.into())),
         }
     }
 }
@@ -118,13 +103,7 @@ impl PyMaster {
     /// raise ConfigError.
     #[getter]
     fn simulator(&self) -> PyResult<super::sim::PySimulator> {
-        let control = self.simulator.clone().ok_or_else(|| {
-            super::to_py_err(Error::Config(
-                "Master.simulator is there for the in-process links \"sim\" and \"sim:N\" only; \
-                 an akd-sim server takes its commands on stdin"
-                    .into(),
-            ))
-        })?;
+        let control = self.simulator.clone().ok_or_else(|| super::to_py_err(Unavailable::NoSimulator.into()))?;
         Ok(super::sim::PySimulator::new(control))
     }
 

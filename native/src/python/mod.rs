@@ -66,9 +66,12 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             Error::Mailbox(_) => MailboxError::new_err(message),
             Error::Sii(_) => SiiError::new_err(message),
             Error::Pdo(_) => PdoError::new_err(message),
-            Error::LinkSpec(_) | Error::Config(_) | Error::AliasNotUnique { .. } | Error::NoSuchSlave { .. } => {
-                ConfigError::new_err(message)
-            }
+            Error::LinkSpec(_)
+            | Error::Setting(_)
+            | Error::UnknownName(_)
+            | Error::Unavailable(_)
+            | Error::AliasNotUnique { .. }
+            | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
         };
         let value = err.value(py);
         let set = |name: &str, v: PyResult<PyObject>| {
@@ -102,9 +105,9 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
 }
 
 /// A duration given from Python in seconds; a negative or non-finite one is refused.
-pub(crate) fn seconds(value: f64, what: &str) -> PyResult<std::time::Duration> {
+pub(crate) fn seconds(value: f64, what: &'static str) -> PyResult<std::time::Duration> {
     std::time::Duration::try_from_secs_f64(value)
-        .map_err(|_| to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}"))))
+        .map_err(|_| to_py_err(crate::error::SettingError::Seconds { what, value }.into()))
 }
 
 /// Extension trait: `.py()?` converts a crate result into a Python one.

@@ -32,7 +32,7 @@ pub mod sync_manager;
 pub mod watchdog;
 
 use crate::al::{code, AlState};
-use crate::error::{Error, FrameError, Result};
+use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
 use crate::mailbox::HEADER_LEN;
 use crate::registers as reg;
@@ -118,9 +118,9 @@ impl VirtualAkd {
     /// ([`AKD_MAILBOX_SIZE`]).
     pub fn with_mailbox_size(mailbox_size: u16, has_successor: bool, timing: Timing) -> Result<Self> {
         if !(MIN_MAILBOX_SIZE..=AKD_MAILBOX_SIZE).contains(&mailbox_size) {
-            return Err(Error::Config(format!(
-                "a virtual AKD's mailbox of {mailbox_size} bytes: allowed are {MIN_MAILBOX_SIZE} to {AKD_MAILBOX_SIZE}"
-            )));
+            return Err(
+                SettingError::MailboxSize { size: mailbox_size, min: MIN_MAILBOX_SIZE, max: AKD_MAILBOX_SIZE }.into()
+            );
         }
         let sii = sii_with_mailbox_size(mailbox_size)?;
         Ok(Self::with_sii(sii, mailbox_size, has_successor, timing))

@@ -228,7 +228,7 @@ fn flexible_pdo(_: &ObjectDictionary, object: &Object, written: u8) -> Result<()
     if entries.len() > FLEXIBLE_CAPACITY {
         return Err(abort::VALUE_RANGE);
     }
-    pdo::check_flexible_pdo(direction, object.index, &entries).map_err(|r| r.abort_code)
+    pdo::check_flexible_pdo(direction, object.index, &entries).map_err(|r| r.abort_code())
 }
 
 /// An assignment (0x1C12/0x1C13) is checked when its count is written: either one fixed

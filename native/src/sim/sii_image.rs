@@ -8,7 +8,7 @@
 //! the image was read.
 
 use crate::coe::data_type;
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SiiError};
 use crate::mailbox::MailboxType;
 use crate::pdo::{self, Direction, PdoEntry};
 use crate::sii::{
@@ -102,12 +102,7 @@ fn sii_entry(b: &mut Builder, entry: PdoEntry) -> Result<SiiPdoEntry> {
     let &(_, _, name, data_type) = OBJECTS
         .iter()
         .find(|&&(index, subindex, _, _)| index == entry.index && subindex == entry.subindex)
-        .ok_or_else(|| {
-            Error::Sii(format!(
-                "no name for PDO object 0x{:04X}:{:02X} in the AKD's image",
-                entry.index, entry.subindex
-            ))
-        })?;
+        .ok_or_else(|| Error::from(SiiError::NoPdoName { index: entry.index, subindex: entry.subindex }))?;
     Ok(SiiPdoEntry {
         index: entry.index,
         subindex: entry.subindex,
