@@ -78,7 +78,7 @@ pub enum LinkSpecError {
     SimCount {
         /// The spec as given.
         spec: String,
-        /// The most virtual AKDs a bus may hold ([`MAX_SIM_COUNT`](crate::link::spec::MAX_SIM_COUNT)).
+        /// The most virtual AKDs a bus may hold (the link spec's `MAX_SIM_COUNT`).
         max: usize,
     },
     /// None of the forms (empty, or a path or an address without `udp://`).
@@ -1330,57 +1330,31 @@ impl fmt::Display for Error {
 
 impl std::error::Error for Error {}
 
-impl From<MailboxError> for Error {
-    fn from(e: MailboxError) -> Self {
-        Error::Mailbox(e)
-    }
+/// `From` of each sub-error into the [`Error`] variant that carries it, so `?` lifts it.
+macro_rules! error_from {
+    ($($sub:ident => $variant:ident),+ $(,)?) => {
+        $(impl From<$sub> for Error {
+            fn from(e: $sub) -> Self {
+                Error::$variant(e)
+            }
+        })+
+    };
 }
 
-impl From<SiiError> for Error {
-    fn from(e: SiiError) -> Self {
-        Error::Sii(e)
-    }
-}
-
-impl From<PdoError> for Error {
-    fn from(e: PdoError) -> Self {
-        Error::Pdo(e)
-    }
-}
-
-impl From<SettingError> for Error {
-    fn from(e: SettingError) -> Self {
-        Error::Setting(e)
-    }
-}
-
-impl From<UnknownName> for Error {
-    fn from(e: UnknownName) -> Self {
-        Error::UnknownName(e)
-    }
-}
-
-impl From<Unavailable> for Error {
-    fn from(e: Unavailable) -> Self {
-        Error::Unavailable(e)
-    }
+error_from! {
+    MailboxError => Mailbox,
+    SiiError => Sii,
+    PdoError => Pdo,
+    SettingError => Setting,
+    UnknownName => UnknownName,
+    Unavailable => Unavailable,
+    LinkSpecError => LinkSpec,
+    FrameError => Frame,
 }
 
 impl From<UnknownCode> for Error {
     fn from(e: UnknownCode) -> Self {
         Error::Mailbox(MailboxError::UnknownCode(e))
-    }
-}
-
-impl From<LinkSpecError> for Error {
-    fn from(e: LinkSpecError) -> Self {
-        Error::LinkSpec(e)
-    }
-}
-
-impl From<FrameError> for Error {
-    fn from(e: FrameError) -> Self {
-        Error::Frame(e)
     }
 }
 

@@ -33,16 +33,7 @@ impl Master {
         handle: impl FnOnce(SdoResponse<'_>) -> Result<T>,
     ) -> Result<T> {
         let reply = self.coe_transaction(position, |out| coe::write_sdo_request(out, 0, request))?;
-        let (_, coe_header, body) = coe::split_message(&reply)?;
-        if coe_header.service != CoeService::SdoResponse {
-            return Err(MailboxError::UnexpectedService {
-                slave: position,
-                request: "an SDO request",
-                got: coe_header.service.name(),
-                expected: CoeService::SdoResponse.name(),
-            }
-            .into());
-        }
+        let body = body_of_service(position, &reply, CoeService::SdoResponse, "an SDO request")?;
         handle(SdoResponse::decode(body)?)
     }
 
@@ -149,6 +140,27 @@ impl Master {
         }
         Ok(())
     }
+}
+
+/// The body of the CoE reply `reply` of the slave at `position` to `request`, which only
+/// `expected` answers; any other service is an error naming both.
+pub(super) fn body_of_service<'a>(
+    position: u16,
+    reply: &'a [u8],
+    expected: CoeService,
+    request: &'static str,
+) -> Result<&'a [u8]> {
+    let (_, coe_header, body) = coe::split_message(reply)?;
+    if coe_header.service != expected {
+        return Err(MailboxError::UnexpectedService {
+            slave: position,
+            request,
+            got: coe_header.service.name(),
+            expected: expected.name(),
+        }
+        .into());
+    }
+    Ok(body)
 }
 
 /// The error for a response that does not answer the request: an abort by name, or a

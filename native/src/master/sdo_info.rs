@@ -6,6 +6,7 @@ use crate::coe::{
     SDO_INFO_HEADER_LEN,
 };
 use crate::error::{MailboxError, Result};
+use crate::master::sdo::body_of_service;
 use crate::master::Master;
 
 /// An object's description, owned.
@@ -53,16 +54,7 @@ impl Master {
         let mut reply = self.coe_transaction(position, |out| coe::write_info_message(out, 0, header, request))?;
         let mut data = Vec::new();
         loop {
-            let (_, coe_header, body) = coe::split_message(&reply)?;
-            if coe_header.service != CoeService::SdoInformation {
-                return Err(MailboxError::UnexpectedService {
-                    slave: position,
-                    request: "an SDO information request",
-                    got: coe_header.service.name(),
-                    expected: CoeService::SdoInformation.name(),
-                }
-                .into());
-            }
+            let body = body_of_service(position, &reply, CoeService::SdoInformation, "an SDO information request")?;
             let info = SdoInfoHeader::decode(body)?;
             let payload = &body[SDO_INFO_HEADER_LEN..];
             if info.opcode == SdoInfoOpcode::SdoInfoErrorRequest {
