@@ -15,7 +15,7 @@ use crate::coe::{
     EntryDescription, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse,
     COE_HEADER_LEN, SDO_INFO_HEADER_LEN, SDO_LEN,
 };
-use crate::mailbox::{error_detail, next_counter, write_error_reply, MailboxHeader, MailboxType, HEADER_LEN};
+use crate::mailbox::{next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN};
 use crate::sim::od::ObjectDictionary;
 
 /// A segmented upload in progress.
@@ -95,20 +95,20 @@ impl MailboxServer {
         self.accepted_counter = counter;
         let mut out = vec![0u8; mailbox_size];
         let header = match MailboxHeader::decode(message) {
-            Ok(h) if h.length == 0 => return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size),
+            Ok(h) if h.length == 0 => return self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size),
             Ok(h) => h,
-            Err(_) => return self.error(counter, error_detail::INVALID_SIZE, mailbox_size),
+            Err(_) => return self.error(counter, MailboxErrorDetail::InvalidSize, mailbox_size),
         };
         if header.protocol() != Some(MailboxType::Coe) {
-            return self.error(counter, error_detail::UNSUPPORTED_PROTOCOL, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::UnsupportedProtocol, mailbox_size);
         }
         let body = header.body(message);
         if body.len() < COE_HEADER_LEN {
-            return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size);
         }
         // Long enough, so only a service outside the standard's set fails to decode.
         let Ok(coe) = CoeHeader::decode(body) else {
-            return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size);
         };
         let body = &body[COE_HEADER_LEN..];
         match coe.service {
@@ -131,11 +131,11 @@ impl MailboxServer {
                 }
             }
             CoeService::SdoInformation => self.information(body, od, header.counter, mailbox_size),
-            _ => self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
+            _ => self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
         }
     }
 
-    fn error(&mut self, counter: u8, detail: u16, mailbox_size: usize) {
+    fn error(&mut self, counter: u8, detail: MailboxErrorDetail, mailbox_size: usize) {
         let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + 4)];
         let len = write_error_reply(&mut out, counter, detail);
         out.truncate(len);
@@ -267,11 +267,11 @@ impl MailboxServer {
     /// reply does not fit the mailbox.
     fn information(&mut self, body: &[u8], od: &ObjectDictionary, counter: u8, mailbox_size: usize) {
         if body.len() < SDO_INFO_HEADER_LEN {
-            return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size);
         }
         // Long enough, so only an opcode outside the standard's set fails to decode.
         let Ok(header) = SdoInfoHeader::decode(body) else {
-            return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size);
         };
         let request = &body[SDO_INFO_HEADER_LEN..];
         let word = |at: usize| request.get(at..at + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
@@ -339,7 +339,7 @@ impl MailboxServer {
                 d.encode(&mut data);
                 SdoInfoOpcode::GetEntryDescriptionResponse
             }
-            _ => return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
+            _ => return self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
         };
         let room = mailbox_size - HEADER_LEN - COE_HEADER_LEN - SDO_INFO_HEADER_LEN;
         let fragments = data.len().div_ceil(room).max(1);
