@@ -5,6 +5,8 @@
 //! segmented, abort), emergency messages and the SDO information service, on both the client
 //! (master) and server (virtual AKD) side. Values are borrowed from the caller's buffers.
 
+use std::fmt;
+
 use crate::error::{Error, MailboxError};
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
 
@@ -167,8 +169,8 @@ pub enum SdoRequest<'a> {
         index: u16,
         /// Subindex.
         subindex: u8,
-        /// Abort code, see [`abort`].
-        code: u32,
+        /// Abort code.
+        code: SdoAbortCode,
     },
 }
 
@@ -222,8 +224,8 @@ pub enum SdoResponse<'a> {
         index: u16,
         /// Subindex.
         subindex: u8,
-        /// Abort code, see [`abort`].
-        code: u32,
+        /// Abort code.
+        code: SdoAbortCode,
     },
 }
 
@@ -315,7 +317,7 @@ impl<'a> SdoRequest<'a> {
                     _ => Ok(SdoRequest::Abort {
                         index,
                         subindex,
-                        code: u32::from_le_bytes([body[4], body[5], body[6], body[7]]),
+                        code: SdoAbortCode(u32::from_le_bytes([body[4], body[5], body[6], body[7]])),
                     }),
                 }
             }
@@ -370,9 +372,9 @@ impl<'a> SdoRequest<'a> {
     }
 }
 
-fn write_abort(out: &mut [u8], index: u16, subindex: u8, code: u32) -> usize {
+fn write_abort(out: &mut [u8], index: u16, subindex: u8, code: SdoAbortCode) -> usize {
     write_address(out, specifier_bits(ClientCommand::Abort as u8), index, subindex);
-    out[4..8].copy_from_slice(&code.to_le_bytes());
+    out[4..8].copy_from_slice(&code.0.to_le_bytes());
     SDO_LEN
 }
 
@@ -402,7 +404,7 @@ impl<'a> SdoResponse<'a> {
                     }
                     ServerCommand::InitiateDownload => Ok(SdoResponse::Download { index, subindex }),
                     // The arm above lets only an abort get here.
-                    _ => Ok(SdoResponse::Abort { index, subindex, code: word }),
+                    _ => Ok(SdoResponse::Abort { index, subindex, code: SdoAbortCode(word) }),
                 }
             }
         }
@@ -469,109 +471,124 @@ pub fn split_message(message: &[u8]) -> Result<(MailboxHeader, CoeHeader, &[u8])
     Ok((header, coe, &body[COE_HEADER_LEN..]))
 }
 
-/// SDO abort codes (CiA 301 §7.2.4.3.17, AKD manual §5.13).
-pub mod abort {
+/// An SDO abort code (CiA 301 §7.2.4.3.17, AKD manual §5.13). A slave may abort with a code
+/// outside the standard's list (a manufacturer's), so this is the wire value with the
+/// standard's codes as constants and [`name`](SdoAbortCode::name) for any of them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SdoAbortCode(pub u32);
+
+impl SdoAbortCode {
     /// Toggle bit not alternated.
-    pub const TOGGLE_BIT: u32 = 0x0503_0000;
+    pub const TOGGLE_BIT: SdoAbortCode = SdoAbortCode(0x0503_0000);
     /// SDO protocol timed out.
-    pub const TIMEOUT: u32 = 0x0504_0000;
+    pub const TIMEOUT: SdoAbortCode = SdoAbortCode(0x0504_0000);
     /// Client/server command specifier not valid or unknown.
-    pub const BAD_COMMAND: u32 = 0x0504_0001;
+    pub const BAD_COMMAND: SdoAbortCode = SdoAbortCode(0x0504_0001);
     /// Out of memory.
-    pub const OUT_OF_MEMORY: u32 = 0x0504_0005;
+    pub const OUT_OF_MEMORY: SdoAbortCode = SdoAbortCode(0x0504_0005);
     /// Unsupported access to an object.
-    pub const UNSUPPORTED_ACCESS: u32 = 0x0601_0000;
+    pub const UNSUPPORTED_ACCESS: SdoAbortCode = SdoAbortCode(0x0601_0000);
     /// Attempt to read a write-only object.
-    pub const WRITE_ONLY: u32 = 0x0601_0001;
+    pub const WRITE_ONLY: SdoAbortCode = SdoAbortCode(0x0601_0001);
     /// Attempt to write a read-only object.
-    pub const READ_ONLY: u32 = 0x0601_0002;
+    pub const READ_ONLY: SdoAbortCode = SdoAbortCode(0x0601_0002);
     /// Subindex cannot be written, sub 0 must be 0 for write access.
-    pub const SUBINDEX_WRITE_NEEDS_ZERO: u32 = 0x0601_0003;
+    pub const SUBINDEX_WRITE_NEEDS_ZERO: SdoAbortCode = SdoAbortCode(0x0601_0003);
     /// Complete access not supported.
-    pub const COMPLETE_ACCESS_UNSUPPORTED: u32 = 0x0601_0004;
+    pub const COMPLETE_ACCESS_UNSUPPORTED: SdoAbortCode = SdoAbortCode(0x0601_0004);
     /// Object does not exist in the object dictionary.
-    pub const NO_SUCH_OBJECT: u32 = 0x0602_0000;
+    pub const NO_SUCH_OBJECT: SdoAbortCode = SdoAbortCode(0x0602_0000);
     /// Object cannot be mapped to the PDO.
-    pub const NOT_MAPPABLE: u32 = 0x0604_0041;
+    pub const NOT_MAPPABLE: SdoAbortCode = SdoAbortCode(0x0604_0041);
     /// The number and length of the objects to be mapped would exceed the PDO length.
-    pub const PDO_TOO_LONG: u32 = 0x0604_0042;
+    pub const PDO_TOO_LONG: SdoAbortCode = SdoAbortCode(0x0604_0042);
     /// General parameter incompatibility.
-    pub const PARAMETER_INCOMPATIBLE: u32 = 0x0604_0043;
+    pub const PARAMETER_INCOMPATIBLE: SdoAbortCode = SdoAbortCode(0x0604_0043);
     /// General internal incompatibility in the device.
-    pub const DEVICE_INCOMPATIBLE: u32 = 0x0604_0047;
+    pub const DEVICE_INCOMPATIBLE: SdoAbortCode = SdoAbortCode(0x0604_0047);
     /// Access failed due to a hardware error.
-    pub const HARDWARE_ERROR: u32 = 0x0606_0000;
+    pub const HARDWARE_ERROR: SdoAbortCode = SdoAbortCode(0x0606_0000);
     /// Data type does not match, length of service parameter does not match.
-    pub const LENGTH_MISMATCH: u32 = 0x0607_0010;
+    pub const LENGTH_MISMATCH: SdoAbortCode = SdoAbortCode(0x0607_0010);
     /// Data type does not match, length of service parameter too high.
-    pub const LENGTH_TOO_HIGH: u32 = 0x0607_0012;
+    pub const LENGTH_TOO_HIGH: SdoAbortCode = SdoAbortCode(0x0607_0012);
     /// Data type does not match, length of service parameter too low.
-    pub const LENGTH_TOO_LOW: u32 = 0x0607_0013;
+    pub const LENGTH_TOO_LOW: SdoAbortCode = SdoAbortCode(0x0607_0013);
     /// Subindex does not exist.
-    pub const NO_SUCH_SUBINDEX: u32 = 0x0609_0011;
+    pub const NO_SUCH_SUBINDEX: SdoAbortCode = SdoAbortCode(0x0609_0011);
     /// Value range of parameter exceeded (download only).
-    pub const VALUE_RANGE: u32 = 0x0609_0030;
+    pub const VALUE_RANGE: SdoAbortCode = SdoAbortCode(0x0609_0030);
     /// Value of parameter written too high.
-    pub const VALUE_TOO_HIGH: u32 = 0x0609_0031;
+    pub const VALUE_TOO_HIGH: SdoAbortCode = SdoAbortCode(0x0609_0031);
     /// Value of parameter written too low.
-    pub const VALUE_TOO_LOW: u32 = 0x0609_0032;
+    pub const VALUE_TOO_LOW: SdoAbortCode = SdoAbortCode(0x0609_0032);
     /// Maximum value is less than minimum value.
-    pub const MAX_BELOW_MIN: u32 = 0x0609_0036;
+    pub const MAX_BELOW_MIN: SdoAbortCode = SdoAbortCode(0x0609_0036);
     /// General error.
-    pub const GENERAL: u32 = 0x0800_0000;
+    pub const GENERAL: SdoAbortCode = SdoAbortCode(0x0800_0000);
     /// Data cannot be transferred or stored to the application.
-    pub const CANNOT_STORE: u32 = 0x0800_0020;
+    pub const CANNOT_STORE: SdoAbortCode = SdoAbortCode(0x0800_0020);
     /// Data cannot be transferred because of local control.
-    pub const LOCAL_CONTROL: u32 = 0x0800_0021;
+    pub const LOCAL_CONTROL: SdoAbortCode = SdoAbortCode(0x0800_0021);
     /// Data cannot be transferred because of the present device state.
-    pub const DEVICE_STATE: u32 = 0x0800_0022;
+    pub const DEVICE_STATE: SdoAbortCode = SdoAbortCode(0x0800_0022);
     /// Object dictionary dynamic generation fails or no object dictionary is present.
-    pub const NO_OBJECT_DICTIONARY: u32 = 0x0800_0023;
+    pub const NO_OBJECT_DICTIONARY: SdoAbortCode = SdoAbortCode(0x0800_0023);
 }
 
-/// The name CiA 301 / ETG.1000.6 give an SDO abort code.
-pub fn abort_code_name(code: u32) -> &'static str {
-    match code {
-        abort::TOGGLE_BIT => "toggle bit not alternated",
-        abort::TIMEOUT => "SDO protocol timed out",
-        abort::BAD_COMMAND => "client/server command specifier not valid or unknown",
-        0x0504_0002 => "invalid block size",
-        0x0504_0003 => "invalid sequence number",
-        0x0504_0004 => "CRC error",
-        abort::OUT_OF_MEMORY => "out of memory",
-        abort::UNSUPPORTED_ACCESS => "unsupported access to an object",
-        abort::WRITE_ONLY => "attempt to read a write-only object",
-        abort::READ_ONLY => "attempt to write a read-only object",
-        abort::SUBINDEX_WRITE_NEEDS_ZERO => "subindex cannot be written, subindex 0 must be 0 for write access",
-        abort::COMPLETE_ACCESS_UNSUPPORTED => "complete access not supported for objects of variable length",
-        0x0601_0005 => "object length exceeds mailbox size",
-        0x0601_0006 => "object mapped to RxPDO, SDO download blocked",
-        abort::NO_SUCH_OBJECT => "object does not exist in the object dictionary",
-        abort::NOT_MAPPABLE => "object cannot be mapped to the PDO",
-        abort::PDO_TOO_LONG => "number and length of mapped objects exceed the PDO length",
-        abort::PARAMETER_INCOMPATIBLE => "general parameter incompatibility",
-        abort::DEVICE_INCOMPATIBLE => "general internal incompatibility in the device",
-        abort::HARDWARE_ERROR => "access failed due to a hardware error",
-        abort::LENGTH_MISMATCH => "data type does not match, length of service parameter does not match",
-        abort::LENGTH_TOO_HIGH => "data type does not match, length of service parameter too high",
-        abort::LENGTH_TOO_LOW => "data type does not match, length of service parameter too low",
-        abort::NO_SUCH_SUBINDEX => "subindex does not exist",
-        abort::VALUE_RANGE => "value range of parameter exceeded",
-        abort::VALUE_TOO_HIGH => "value of parameter written too high",
-        abort::VALUE_TOO_LOW => "value of parameter written too low",
-        abort::MAX_BELOW_MIN => "maximum value is less than minimum value",
-        abort::GENERAL => "general error",
-        abort::CANNOT_STORE => "data cannot be transferred or stored to the application",
-        abort::LOCAL_CONTROL => "data cannot be transferred or stored because of local control",
-        abort::DEVICE_STATE => "data cannot be transferred or stored because of the present device state",
-        abort::NO_OBJECT_DICTIONARY => "no object dictionary is present",
-        _ => "unknown abort code",
+impl SdoAbortCode {
+    /// The name CiA 301 / ETG.1000.6 give the code; "unknown abort code" outside their list.
+    pub fn name(self) -> &'static str {
+        match self {
+            SdoAbortCode::TOGGLE_BIT => "toggle bit not alternated",
+            SdoAbortCode::TIMEOUT => "SDO protocol timed out",
+            SdoAbortCode::BAD_COMMAND => "client/server command specifier not valid or unknown",
+            SdoAbortCode(0x0504_0002) => "invalid block size",
+            SdoAbortCode(0x0504_0003) => "invalid sequence number",
+            SdoAbortCode(0x0504_0004) => "CRC error",
+            SdoAbortCode::OUT_OF_MEMORY => "out of memory",
+            SdoAbortCode::UNSUPPORTED_ACCESS => "unsupported access to an object",
+            SdoAbortCode::WRITE_ONLY => "attempt to read a write-only object",
+            SdoAbortCode::READ_ONLY => "attempt to write a read-only object",
+            SdoAbortCode::SUBINDEX_WRITE_NEEDS_ZERO => {
+                "subindex cannot be written, subindex 0 must be 0 for write access"
+            }
+            SdoAbortCode::COMPLETE_ACCESS_UNSUPPORTED => "complete access not supported for objects of variable length",
+            SdoAbortCode(0x0601_0005) => "object length exceeds mailbox size",
+            SdoAbortCode(0x0601_0006) => "object mapped to RxPDO, SDO download blocked",
+            SdoAbortCode::NO_SUCH_OBJECT => "object does not exist in the object dictionary",
+            SdoAbortCode::NOT_MAPPABLE => "object cannot be mapped to the PDO",
+            SdoAbortCode::PDO_TOO_LONG => "number and length of mapped objects exceed the PDO length",
+            SdoAbortCode::PARAMETER_INCOMPATIBLE => "general parameter incompatibility",
+            SdoAbortCode::DEVICE_INCOMPATIBLE => "general internal incompatibility in the device",
+            SdoAbortCode::HARDWARE_ERROR => "access failed due to a hardware error",
+            SdoAbortCode::LENGTH_MISMATCH => "data type does not match, length of service parameter does not match",
+            SdoAbortCode::LENGTH_TOO_HIGH => "data type does not match, length of service parameter too high",
+            SdoAbortCode::LENGTH_TOO_LOW => "data type does not match, length of service parameter too low",
+            SdoAbortCode::NO_SUCH_SUBINDEX => "subindex does not exist",
+            SdoAbortCode::VALUE_RANGE => "value range of parameter exceeded",
+            SdoAbortCode::VALUE_TOO_HIGH => "value of parameter written too high",
+            SdoAbortCode::VALUE_TOO_LOW => "value of parameter written too low",
+            SdoAbortCode::MAX_BELOW_MIN => "maximum value is less than minimum value",
+            SdoAbortCode::GENERAL => "general error",
+            SdoAbortCode::CANNOT_STORE => "data cannot be transferred or stored to the application",
+            SdoAbortCode::LOCAL_CONTROL => "data cannot be transferred or stored because of local control",
+            SdoAbortCode::DEVICE_STATE => "data cannot be transferred or stored because of the present device state",
+            SdoAbortCode::NO_OBJECT_DICTIONARY => "no object dictionary is present",
+            _ => "unknown abort code",
+        }
+    }
+}
+
+impl fmt::Display for SdoAbortCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "0x{:08X} ({})", self.0, self.name())
     }
 }
 
 /// The error for an SDO aborted with `code`.
-pub fn abort_error(index: u16, subindex: u8, code: u32) -> Error {
-    Error::SdoAbort { index, subindex, code, code_name: abort_code_name(code) }
+pub fn abort_error(index: u16, subindex: u8, code: SdoAbortCode) -> Error {
+    Error::SdoAbort { index, subindex, code: code.0, code_name: code.name() }
 }
 
 /// An emergency message (CoE service 1): CiA error code, error register, 5 bytes of
@@ -1006,10 +1023,10 @@ mod tests {
 
     #[test]
     fn names_abort_codes() {
-        assert_eq!(abort_code_name(abort::NO_SUCH_OBJECT), "object does not exist in the object dictionary");
-        assert_eq!(abort_code_name(abort::READ_ONLY), "attempt to write a read-only object");
-        assert_eq!(abort_code_name(abort::VALUE_RANGE), "value range of parameter exceeded");
-        assert_eq!(abort_code_name(0x1234_5678), "unknown abort code");
+        assert_eq!(SdoAbortCode::NO_SUCH_OBJECT.name(), "object does not exist in the object dictionary");
+        assert_eq!(SdoAbortCode::READ_ONLY.name(), "attempt to write a read-only object");
+        assert_eq!(SdoAbortCode::VALUE_RANGE.name(), "value range of parameter exceeded");
+        assert_eq!(SdoAbortCode(0x1234_5678).name(), "unknown abort code");
     }
 
     #[test]

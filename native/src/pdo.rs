@@ -9,7 +9,7 @@
 //! Where the manual and the real drive differ, the real drive's SII wins: 0x1B01 carries the
 //! internal position 0x6063, digital outputs 0x60FE:01 are 32 bits, and 0x1725/0x1B26 exist.
 
-use crate::coe::abort;
+use crate::coe::SdoAbortCode;
 
 /// One mapped object: index, subindex and bit length, as written to a mapping object's
 /// subindices in the form 0xIIIISSBB.
@@ -343,15 +343,15 @@ pub fn bit_len(entries: &[PdoEntry]) -> usize {
 pub use crate::error::PdoError;
 
 impl PdoError {
-    /// The SDO abort code the AKD answers the write that breaks this rule with; 0 where no
+    /// The SDO abort code the AKD answers the write that breaks this rule with; `None` where no
     /// single write breaks it (a mapping this master refuses before writing anything).
-    pub fn abort_code(&self) -> u32 {
+    pub fn abort_code(&self) -> Option<SdoAbortCode> {
         match self {
-            PdoError::NotMappable { .. } => abort::NOT_MAPPABLE,
-            PdoError::PdoTooLong { .. } | PdoError::MappingTooLong { .. } => abort::PDO_TOO_LONG,
-            PdoError::TooManyPdos { .. } | PdoError::NotFlexible { .. } => abort::VALUE_RANGE,
-            PdoError::OddLength { .. } => abort::PARAMETER_INCOMPATIBLE,
-            PdoError::NotFixed { .. } | PdoError::NoMapping { .. } => 0,
+            PdoError::NotMappable { .. } => Some(SdoAbortCode::NOT_MAPPABLE),
+            PdoError::PdoTooLong { .. } | PdoError::MappingTooLong { .. } => Some(SdoAbortCode::PDO_TOO_LONG),
+            PdoError::TooManyPdos { .. } | PdoError::NotFlexible { .. } => Some(SdoAbortCode::VALUE_RANGE),
+            PdoError::OddLength { .. } => Some(SdoAbortCode::PARAMETER_INCOMPATIBLE),
+            PdoError::NotFixed { .. } | PdoError::NoMapping { .. } => None,
         }
     }
 }
@@ -469,11 +469,14 @@ mod tests {
         let padded: &[PdoEntry] = &[CONTROLWORD, PdoEntry::new(0x6060, 0, 8), PdoEntry::new(0x0002, 0, 8)];
         assert!(check_flexible(Direction::Rx, &[(0x1600, padded)]).is_ok());
         let too_long: &[PdoEntry] = &[CONTROLWORD, IP_SETPOINT, TARGET_VELOCITY];
-        assert_eq!(check_flexible(Direction::Rx, &[(0x1600, too_long)]).unwrap_err().abort_code(), abort::PDO_TOO_LONG);
+        assert_eq!(
+            check_flexible(Direction::Rx, &[(0x1600, too_long)]).unwrap_err().abort_code(),
+            Some(SdoAbortCode::PDO_TOO_LONG)
+        );
         let wrong_way: &[PdoEntry] = &[STATUSWORD];
         assert_eq!(
             check_flexible(Direction::Rx, &[(0x1600, wrong_way)]).unwrap_err().abort_code(),
-            abort::NOT_MAPPABLE
+            Some(SdoAbortCode::NOT_MAPPABLE)
         );
         assert!(check_flexible(Direction::Rx, &[(0x1A00, ok)]).is_err());
         let full: &[PdoEntry] = &[TARGET_POSITION, TARGET_VELOCITY];

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use akd_native::al::AlState;
-use akd_native::coe::{abort, data_type, object_code, OdListType};
+use akd_native::coe::{data_type, object_code, OdListType, SdoAbortCode};
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
 use akd_native::link::Link;
@@ -184,14 +184,14 @@ fn sdo_aborts_come_back_by_name() {
     m.request_state(AlState::PreOp, STEP).unwrap();
     match m.slave_mut(0).unwrap().sdo_read(0x1234, 0).unwrap_err() {
         Error::SdoAbort { index: 0x1234, subindex: 0, code, code_name } => {
-            assert_eq!(code, abort::NO_SUCH_OBJECT);
+            assert_eq!(code, SdoAbortCode::NO_SUCH_OBJECT.0);
             assert_eq!(code_name, "object does not exist in the object dictionary");
         }
         other => panic!("{other}"),
     }
     match m.slave_mut(0).unwrap().sdo_write(0x1018, 1, &[1, 2, 3, 4]).unwrap_err() {
         Error::SdoAbort { code, code_name, .. } => {
-            assert_eq!(code, abort::READ_ONLY);
+            assert_eq!(code, SdoAbortCode::READ_ONLY.0);
             assert_eq!(code_name, "attempt to write a read-only object");
         }
         other => panic!("{other}"),
@@ -216,7 +216,7 @@ fn sdo_information_lists_and_describes_objects() {
     assert_eq!((statusword.data_type, statusword.bit_length), (data_type::UNSIGNED16, 16));
     assert!(!statusword.name.is_empty());
     match m.slave_mut(0).unwrap().sdo_object_description(0x1234).unwrap_err() {
-        Error::SdoAbort { code, .. } => assert_eq!(code, abort::NO_SUCH_OBJECT),
+        Error::SdoAbort { code, .. } => assert_eq!(code, SdoAbortCode::NO_SUCH_OBJECT.0),
         other => panic!("{other}"),
     }
 }

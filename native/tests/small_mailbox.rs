@@ -8,8 +8,8 @@ use std::time::Duration;
 
 use akd_native::al::AlState;
 use akd_native::coe::{
-    self, abort, access, data_type, object_code, CoeService, OdListType, SdoInfoHeader, SdoInfoOpcode, SdoRequest,
-    SdoResponse,
+    self, access, data_type, object_code, CoeService, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode,
+    SdoRequest, SdoResponse,
 };
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
@@ -168,7 +168,7 @@ fn segmented_download_alternates_the_toggle_bit_and_round_trips() {
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());
     // A value of the wrong length is refused after its last segment, by name.
     match m.slave_mut(0).unwrap().sdo_write(TEXT, 0, &text.as_bytes()[..150]).unwrap_err() {
-        Error::SdoAbort { code, .. } => assert_eq!(code, abort::LENGTH_TOO_LOW),
+        Error::SdoAbort { code, .. } => assert_eq!(code, SdoAbortCode::LENGTH_TOO_LOW.0),
         other => panic!("{other}"),
     }
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());

@@ -123,7 +123,7 @@ impl SdoSlot {
         let verb = if write.is_some() { "write" } else { "read" };
         match outcome {
             o if o == Outcome::Done as u8 => Ok(value),
-            o if o == Outcome::Aborted as u8 => Err(coe::abort_error(index, subindex, code)),
+            o if o == Outcome::Aborted as u8 => Err(coe::abort_error(index, subindex, coe::SdoAbortCode(code))),
             o if o == Outcome::TimedOut as u8 => Err(Error::Timeout {
                 what: format!("slave {slave} to answer the SDO {verb} of 0x{index:04X}:{subindex:02X}").into(),
             }),
@@ -369,7 +369,7 @@ impl MailboxService {
                     Ok(SdoResponse::Download { index: i, subindex: s }) if (i, s) == (index, subindex) => {
                         (Outcome::Done, 0, 0)
                     }
-                    Ok(SdoResponse::Abort { code, .. }) => (Outcome::Aborted, code, 0),
+                    Ok(SdoResponse::Abort { code, .. }) => (Outcome::Aborted, code.0, 0),
                     _ => (Outcome::Unexpected, 0, 0),
                 };
                 self.finish(slot, events, origin, outcome, code, &value[..len]);

@@ -3,7 +3,7 @@
 //! segmented (what the mailbox cannot hold, in segments with an alternating toggle bit).
 //! Aborts come back as [`Error::SdoAbort`] with the code's name.
 
-use crate::coe::{self, abort, CoeService, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::coe::{self, CoeService, SdoAbortCode, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::error::{Error, MailboxError, Result, SettingError};
 use crate::master::Master;
 
@@ -38,7 +38,7 @@ impl Master {
     }
 
     /// Aborts a transfer the slave got wrong and returns the error that says why.
-    fn sdo_abort(&mut self, position: u16, index: u16, subindex: u8, code: u32) -> Error {
+    fn sdo_abort(&mut self, position: u16, index: u16, subindex: u8, code: SdoAbortCode) -> Error {
         let request = SdoRequest::Abort { index, subindex, code };
         let mut message = [0u8; SDO_OFFSET + SDO_LEN];
         let len = coe::write_sdo_request(&mut message, 0, &request);
@@ -69,14 +69,14 @@ impl Master {
                     _ => Ok(None),
                 })?;
             let Some((t, last, data)) = segment else {
-                return Err(self.sdo_abort(position, index, subindex, abort::BAD_COMMAND));
+                return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::BAD_COMMAND));
             };
             if t != toggle {
-                return Err(self.sdo_abort(position, index, subindex, abort::TOGGLE_BIT));
+                return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::TOGGLE_BIT));
             }
             if data.is_empty() && !last {
                 // A segment must carry data; an empty one would never end the transfer.
-                return Err(self.sdo_abort(position, index, subindex, abort::LENGTH_TOO_LOW));
+                return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::LENGTH_TOO_LOW));
             }
             value.extend_from_slice(&data);
             toggle = !toggle;
@@ -134,8 +134,8 @@ impl Master {
             })?;
             match answered {
                 Some(t) if t == toggle => toggle = !toggle,
-                Some(_) => return Err(self.sdo_abort(position, index, subindex, abort::TOGGLE_BIT)),
-                None => return Err(self.sdo_abort(position, index, subindex, abort::BAD_COMMAND)),
+                Some(_) => return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::TOGGLE_BIT)),
+                None => return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::BAD_COMMAND)),
             }
         }
         Ok(())

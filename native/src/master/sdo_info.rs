@@ -62,7 +62,7 @@ impl Master {
                     .get(..4)
                     .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
                     .ok_or(MailboxError::InfoErrorWithoutCode)?;
-                return Err(coe::abort_error(index, subindex, code));
+                return Err(coe::abort_error(index, subindex, coe::SdoAbortCode(code)));
             }
             if Some(info.opcode) != opcode.response() {
                 return Err(MailboxError::UnexpectedOpcode {

@@ -11,9 +11,9 @@ use std::collections::VecDeque;
 
 use crate::al::AlState;
 use crate::coe::{
-    abort, access, write_info_message, write_message, write_sdo_response, CoeHeader, CoeService, Emergency,
-    EntryDescription, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse,
-    COE_HEADER_LEN, SDO_INFO_HEADER_LEN, SDO_LEN,
+    access, write_info_message, write_message, write_sdo_response, CoeHeader, CoeService, Emergency, EntryDescription,
+    ObjectDescription, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse, COE_HEADER_LEN,
+    SDO_INFO_HEADER_LEN, SDO_LEN,
 };
 use crate::mailbox::{next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN};
 use crate::sim::od::ObjectDictionary;
@@ -120,7 +120,7 @@ impl MailboxServer {
                             [_, lo, hi, sub, ..] => (u16::from_le_bytes([*lo, *hi]), *sub),
                             _ => (0, 0),
                         };
-                        let response = SdoResponse::Abort { index, subindex, code: abort::BAD_COMMAND };
+                        let response = SdoResponse::Abort { index, subindex, code: SdoAbortCode::BAD_COMMAND };
                         write_sdo_response(&mut out, header.counter, &response)
                     }
                 };
@@ -156,7 +156,9 @@ impl MailboxServer {
             SdoRequest::Upload { index, subindex, complete_access } => {
                 self.upload = None;
                 match od.read(index, subindex) {
-                    _ if complete_access => SdoResponse::Abort { index, subindex, code: abort::UNSUPPORTED_ACCESS },
+                    _ if complete_access => {
+                        SdoResponse::Abort { index, subindex, code: SdoAbortCode::UNSUPPORTED_ACCESS }
+                    }
                     Err(code) => SdoResponse::Abort { index, subindex, code },
                     Ok(data) if data.len() <= 4 => {
                         return write_sdo_response(
@@ -183,11 +185,11 @@ impl MailboxServer {
                 }
             }
             SdoRequest::UploadSegment { toggle } => match self.upload.as_mut() {
-                None => SdoResponse::Abort { index: 0, subindex: 0, code: abort::BAD_COMMAND },
+                None => SdoResponse::Abort { index: 0, subindex: 0, code: SdoAbortCode::BAD_COMMAND },
                 Some(u) if u.toggle != toggle => {
                     let (index, subindex) = (u.index, u.subindex);
                     self.upload = None;
-                    SdoResponse::Abort { index, subindex, code: abort::TOGGLE_BIT }
+                    SdoResponse::Abort { index, subindex, code: SdoAbortCode::TOGGLE_BIT }
                 }
                 Some(u) => {
                     let n = (u.data.len() - u.sent).min(room - 1);
@@ -206,7 +208,7 @@ impl MailboxServer {
                 if complete_access =>
             {
                 let _ = data;
-                SdoResponse::Abort { index, subindex, code: abort::UNSUPPORTED_ACCESS }
+                SdoResponse::Abort { index, subindex, code: SdoAbortCode::UNSUPPORTED_ACCESS }
             }
             SdoRequest::DownloadExpedited { index, subindex, data, .. } => {
                 self.download = None;
@@ -229,11 +231,11 @@ impl MailboxServer {
                 }
             }
             SdoRequest::DownloadSegment { toggle, last, data } => match self.download.as_mut() {
-                None => SdoResponse::Abort { index: 0, subindex: 0, code: abort::BAD_COMMAND },
+                None => SdoResponse::Abort { index: 0, subindex: 0, code: SdoAbortCode::BAD_COMMAND },
                 Some(d) if d.toggle != toggle => {
                     let (index, subindex) = (d.index, d.subindex);
                     self.download = None;
-                    SdoResponse::Abort { index, subindex, code: abort::TOGGLE_BIT }
+                    SdoResponse::Abort { index, subindex, code: SdoAbortCode::TOGGLE_BIT }
                 }
                 Some(d) => {
                     d.data.extend_from_slice(data);
@@ -245,7 +247,7 @@ impl MailboxServer {
                     let result = if d.data.len() == d.size {
                         od.write(d.index, d.subindex, &d.data, state_write_access(state))
                     } else {
-                        Err(abort::LENGTH_MISMATCH)
+                        Err(SdoAbortCode::LENGTH_MISMATCH)
                     };
                     match result {
                         Ok(()) => SdoResponse::DownloadSegment { toggle },
@@ -279,10 +281,10 @@ impl MailboxServer {
         let opcode = match header.opcode {
             SdoInfoOpcode::GetOdListRequest => {
                 let Some(raw) = word(0) else {
-                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::GENERAL, mailbox_size);
                 };
                 let Ok(list) = OdListType::try_from(raw) else {
-                    return self.info_error(counter, abort::VALUE_RANGE, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::VALUE_RANGE, mailbox_size);
                 };
                 data.extend_from_slice(&raw.to_le_bytes());
                 if list == OdListType::Lengths {
@@ -298,10 +300,10 @@ impl MailboxServer {
             }
             SdoInfoOpcode::GetObjectDescriptionRequest => {
                 let Some(index) = word(0) else {
-                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::GENERAL, mailbox_size);
                 };
                 let Some(o) = od.object(index) else {
-                    return self.info_error(counter, abort::NO_SUCH_OBJECT, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::NO_SUCH_OBJECT, mailbox_size);
                 };
                 let d = ObjectDescription {
                     index,
@@ -317,13 +319,13 @@ impl MailboxServer {
             SdoInfoOpcode::GetEntryDescriptionRequest => {
                 let (Some(index), Some(&subindex), Some(_value_info)) = (word(0), request.get(2), request.get(3))
                 else {
-                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::GENERAL, mailbox_size);
                 };
                 let Some(o) = od.object(index) else {
-                    return self.info_error(counter, abort::NO_SUCH_OBJECT, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::NO_SUCH_OBJECT, mailbox_size);
                 };
                 let Some(e) = o.entry(subindex) else {
-                    return self.info_error(counter, abort::NO_SUCH_SUBINDEX, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::NO_SUCH_SUBINDEX, mailbox_size);
                 };
                 // The AKD sends no unit, default, minimum or maximum, so no value information.
                 let d = EntryDescription {
@@ -353,10 +355,10 @@ impl MailboxServer {
         }
     }
 
-    fn info_error(&mut self, counter: u8, code: u32, mailbox_size: usize) {
+    fn info_error(&mut self, counter: u8, code: SdoAbortCode, mailbox_size: usize) {
         let mut out = vec![0u8; mailbox_size];
         let h = SdoInfoHeader { opcode: SdoInfoOpcode::SdoInfoErrorRequest, incomplete: false, fragments_left: 0 };
-        let len = write_info_message(&mut out, counter, h, &code.to_le_bytes());
+        let len = write_info_message(&mut out, counter, h, &code.0.to_le_bytes());
         out.truncate(len);
         self.replies.push_back(out);
     }
@@ -451,14 +453,17 @@ mod tests {
     #[test]
     fn aborts_by_the_rules() {
         let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
-        let cases: [(SdoRequest<'_>, u32); 4] = [
-            (SdoRequest::Upload { index: 0x1234, subindex: 0, complete_access: false }, abort::NO_SUCH_OBJECT),
-            (SdoRequest::Upload { index: 0x1C12, subindex: 0, complete_access: true }, abort::UNSUPPORTED_ACCESS),
+        let cases: [(SdoRequest<'_>, SdoAbortCode); 4] = [
+            (SdoRequest::Upload { index: 0x1234, subindex: 0, complete_access: false }, SdoAbortCode::NO_SUCH_OBJECT),
+            (
+                SdoRequest::Upload { index: 0x1C12, subindex: 0, complete_access: true },
+                SdoAbortCode::UNSUPPORTED_ACCESS,
+            ),
             (
                 SdoRequest::DownloadExpedited { index: 0x6041, subindex: 0, complete_access: false, data: &[0, 0] },
-                abort::READ_ONLY,
+                SdoAbortCode::READ_ONLY,
             ),
-            (SdoRequest::UploadSegment { toggle: false }, abort::BAD_COMMAND),
+            (SdoRequest::UploadSegment { toggle: false }, SdoAbortCode::BAD_COMMAND),
         ];
         for (request, code) in cases {
             let reply = ask(&mut server, &mut od, &request);

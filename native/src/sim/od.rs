@@ -7,7 +7,7 @@
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
-use crate::coe::{abort, access, data_type, object_code};
+use crate::coe::{access, data_type, object_code, SdoAbortCode};
 use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
 use crate::sim::sii_image;
 
@@ -20,9 +20,9 @@ pub const PROFILE_VELOCITY: u32 = 10 << 20;
 pub const PROFILE_ACCELERATION: u32 = 100 << 20;
 
 /// Checks a value about to be written to one entry; returns the SDO abort code on refusal.
-pub type ValueCheck = fn(&[u8]) -> Result<(), u32>;
+pub type ValueCheck = fn(&[u8]) -> Result<(), SdoAbortCode>;
 /// Checks a whole object after a write; returns the SDO abort code on refusal.
-pub type ObjectCheck = fn(&ObjectDictionary, &Object, u8) -> Result<(), u32>;
+pub type ObjectCheck = fn(&ObjectDictionary, &Object, u8) -> Result<(), SdoAbortCode>;
 
 /// One subindex of an object.
 #[derive(Clone, Debug)]
@@ -175,18 +175,18 @@ const TX_NAMES: [&str; 4] =
 /// Largest number of entries of a flexible PDO (eight one-byte objects fill eight bytes).
 pub const FLEXIBLE_CAPACITY: usize = 8;
 
-fn modes_of_operation(value: &[u8]) -> Result<(), u32> {
+fn modes_of_operation(value: &[u8]) -> Result<(), SdoAbortCode> {
     match value.first().map(|v| *v as i8) {
         Some(1 | 3 | 4 | 6 | 7 | 8) => Ok(()),
-        _ => Err(abort::VALUE_RANGE),
+        _ => Err(SdoAbortCode::VALUE_RANGE),
     }
 }
 
-fn nonzero(value: &[u8]) -> Result<(), u32> {
+fn nonzero(value: &[u8]) -> Result<(), SdoAbortCode> {
     if value.iter().any(|b| *b != 0) {
         Ok(())
     } else {
-        Err(abort::VALUE_RANGE)
+        Err(SdoAbortCode::VALUE_RANGE)
     }
 }
 
@@ -201,14 +201,14 @@ pub fn cycle_ns(units: u8, index: i8) -> Option<u64> {
 
 /// 0x60C2 is checked when its index (sub 2) is written: the master writes units first, and
 /// the pair must then give at least 250 µs.
-fn interpolation_period(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), u32> {
+fn interpolation_period(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), SdoAbortCode> {
     if written != 2 {
         return Ok(());
     }
     match cycle_ns(object.unsigned(1) as u8, object.unsigned(2) as u8 as i8) {
         Some(ns) if ns >= MIN_CYCLE_NS => Ok(()),
-        Some(_) => Err(abort::VALUE_TOO_LOW),
-        None => Err(abort::VALUE_RANGE),
+        Some(_) => Err(SdoAbortCode::VALUE_TOO_LOW),
+        None => Err(SdoAbortCode::VALUE_RANGE),
     }
 }
 
@@ -219,21 +219,22 @@ pub fn mapped_entries(object: &Object) -> impl Iterator<Item = PdoEntry> + '_ {
 
 /// A flexible PDO is checked when its count (sub 0) is written; entries may be written only
 /// while the count is 0 (AKD manual §5.6: "sub 0 = 0 first, the count last").
-fn flexible_pdo(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), u32> {
+fn flexible_pdo(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), SdoAbortCode> {
     let direction = if object.index < 0x1A00 { Direction::Rx } else { Direction::Tx };
     if written != 0 {
         return Ok(());
     }
     let entries: Vec<PdoEntry> = mapped_entries(object).collect();
     if entries.len() > FLEXIBLE_CAPACITY {
-        return Err(abort::VALUE_RANGE);
+        return Err(SdoAbortCode::VALUE_RANGE);
     }
-    pdo::check_flexible_pdo(direction, object.index, &entries).map_err(|r| r.abort_code())
+    pdo::check_flexible_pdo(direction, object.index, &entries)
+        .map_err(|r| r.abort_code().unwrap_or(SdoAbortCode::GENERAL))
 }
 
 /// An assignment (0x1C12/0x1C13) is checked when its count is written: either one fixed
 /// mapping, or up to four flexible PDOs within the drive's total size.
-fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(), u32> {
+fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(), SdoAbortCode> {
     let direction = if object.index == 0x1C12 { Direction::Rx } else { Direction::Tx };
     let count = object.unsigned(0) as usize;
     let assigned: Vec<u16> = (1..=count as u8).map(|s| object.unsigned(s) as u16).collect();
@@ -244,24 +245,24 @@ fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(),
         return if fixed || (base..base + FLEXIBLE_PDO_COUNT as u16).contains(&chosen) {
             Ok(())
         } else {
-            Err(abort::VALUE_RANGE)
+            Err(SdoAbortCode::VALUE_RANGE)
         };
     }
     if count > FLEXIBLE_PDO_COUNT {
-        return Err(abort::VALUE_RANGE);
+        return Err(SdoAbortCode::VALUE_RANGE);
     }
     if assigned.iter().any(|i| pdo::fixed(*i).is_some()) {
-        return if count == 1 { Ok(()) } else { Err(abort::VALUE_RANGE) };
+        return if count == 1 { Ok(()) } else { Err(SdoAbortCode::VALUE_RANGE) };
     }
     let mut total = 0;
     for index in &assigned {
-        let o = od.object(*index).ok_or(abort::VALUE_RANGE)?;
+        let o = od.object(*index).ok_or(SdoAbortCode::VALUE_RANGE)?;
         total += pdo::bit_len(&mapped_entries(o).collect::<Vec<_>>());
     }
     // Odd lengths are accepted here (the real drive powers up with one) and refused at the
     // PreOp→SafeOp transition with AL status code 0x001D/0x001E.
     if total > direction.max_bytes() * 8 {
-        return Err(abort::PDO_TOO_LONG);
+        return Err(SdoAbortCode::PDO_TOO_LONG);
     }
     Ok(())
 }
@@ -534,30 +535,30 @@ impl ObjectDictionary {
     }
 
     /// An SDO read in AL state `state` (as access bits READ_PREOP/SAFEOP/OP).
-    pub fn read(&self, index: u16, subindex: u8) -> Result<&[u8], u32> {
-        let object = self.object(index).ok_or(abort::NO_SUCH_OBJECT)?;
-        let entry = object.entry(subindex).ok_or(abort::NO_SUCH_SUBINDEX)?;
+    pub fn read(&self, index: u16, subindex: u8) -> Result<&[u8], SdoAbortCode> {
+        let object = self.object(index).ok_or(SdoAbortCode::NO_SUCH_OBJECT)?;
+        let entry = object.entry(subindex).ok_or(SdoAbortCode::NO_SUCH_SUBINDEX)?;
         if entry.access & access::READ == 0 {
-            return Err(abort::WRITE_ONLY);
+            return Err(SdoAbortCode::WRITE_ONLY);
         }
         Ok(&entry.value)
     }
 
     /// An SDO write while the drive is in the state whose write-access bit is `state_write`
     /// (e.g. [`access::WRITE_PREOP`]): checks access, length and range, then the object.
-    pub fn write(&mut self, index: u16, subindex: u8, value: &[u8], state_write: u16) -> Result<(), u32> {
-        let object = self.object(index).ok_or(abort::NO_SUCH_OBJECT)?;
-        let entry = object.entry(subindex).ok_or(abort::NO_SUCH_SUBINDEX)?;
+    pub fn write(&mut self, index: u16, subindex: u8, value: &[u8], state_write: u16) -> Result<(), SdoAbortCode> {
+        let object = self.object(index).ok_or(SdoAbortCode::NO_SUCH_OBJECT)?;
+        let entry = object.entry(subindex).ok_or(SdoAbortCode::NO_SUCH_SUBINDEX)?;
         if entry.access & access::WRITE == 0 {
-            return Err(abort::READ_ONLY);
+            return Err(SdoAbortCode::READ_ONLY);
         }
         if entry.access & state_write == 0 {
-            return Err(abort::DEVICE_STATE);
+            return Err(SdoAbortCode::DEVICE_STATE);
         }
         if value.len() != entry.value.len() {
             return Err(match value.len().cmp(&entry.value.len()) {
-                std::cmp::Ordering::Greater => abort::LENGTH_TOO_HIGH,
-                _ => abort::LENGTH_TOO_LOW,
+                std::cmp::Ordering::Greater => SdoAbortCode::LENGTH_TOO_HIGH,
+                _ => SdoAbortCode::LENGTH_TOO_LOW,
             });
         }
         if let Some(check) = entry.check {
@@ -565,7 +566,7 @@ impl ObjectDictionary {
         }
         let flexible = matches!(index, 0x1600..=0x1603 | 0x1A00..=0x1A03);
         if subindex != 0 && flexible && object.unsigned(0) != 0 {
-            return Err(abort::SUBINDEX_WRITE_NEEDS_ZERO);
+            return Err(SdoAbortCode::SUBINDEX_WRITE_NEEDS_ZERO);
         }
         let old = entry.value.clone();
         self.set(index, subindex, value);
@@ -623,23 +624,26 @@ mod tests {
     fn writes_are_checked() {
         let mut od = ObjectDictionary::akd();
         let preop = access::WRITE_PREOP;
-        assert_eq!(od.write(0x1234, 0, &[0], preop), Err(abort::NO_SUCH_OBJECT));
-        assert_eq!(od.write(0x6040, 1, &[0, 0], preop), Err(abort::NO_SUCH_SUBINDEX));
-        assert_eq!(od.write(0x6041, 0, &[0, 0], preop), Err(abort::READ_ONLY));
-        assert_eq!(od.write(0x6040, 0, &[0], preop), Err(abort::LENGTH_TOO_LOW));
-        assert_eq!(od.write(0x6060, 0, &[2], preop), Err(abort::VALUE_RANGE));
-        assert_eq!(od.write(0x1C12, 0, &[0], access::WRITE_SAFEOP), Err(abort::DEVICE_STATE));
+        assert_eq!(od.write(0x1234, 0, &[0], preop), Err(SdoAbortCode::NO_SUCH_OBJECT));
+        assert_eq!(od.write(0x6040, 1, &[0, 0], preop), Err(SdoAbortCode::NO_SUCH_SUBINDEX));
+        assert_eq!(od.write(0x6041, 0, &[0, 0], preop), Err(SdoAbortCode::READ_ONLY));
+        assert_eq!(od.write(0x6040, 0, &[0], preop), Err(SdoAbortCode::LENGTH_TOO_LOW));
+        assert_eq!(od.write(0x6060, 0, &[2], preop), Err(SdoAbortCode::VALUE_RANGE));
+        assert_eq!(od.write(0x1C12, 0, &[0], access::WRITE_SAFEOP), Err(SdoAbortCode::DEVICE_STATE));
         // Entries of a flexible PDO only while its count is 0, then the count is checked.
-        assert_eq!(od.write(0x1600, 2, &0x6060_0008u32.to_le_bytes(), preop), Err(abort::SUBINDEX_WRITE_NEEDS_ZERO));
+        assert_eq!(
+            od.write(0x1600, 2, &0x6060_0008u32.to_le_bytes(), preop),
+            Err(SdoAbortCode::SUBINDEX_WRITE_NEEDS_ZERO)
+        );
         od.write(0x1600, 0, &[0], preop).unwrap();
         od.write(0x1600, 1, &0x6041_0010u32.to_le_bytes(), preop).unwrap();
-        assert_eq!(od.write(0x1600, 0, &[1], preop), Err(abort::NOT_MAPPABLE));
+        assert_eq!(od.write(0x1600, 0, &[1], preop), Err(SdoAbortCode::NOT_MAPPABLE));
         assert_eq!(od.read(0x1600, 0).unwrap(), &[0], "a refused count is undone");
         od.write(0x1600, 1, &0x6040_0010u32.to_le_bytes(), preop).unwrap();
         od.write(0x1600, 0, &[1], preop).unwrap();
         // Fixed mappings: one per direction.
         od.write(0x1C12, 0, &[0], preop).unwrap();
-        assert_eq!(od.write(0x1C12, 1, &0x1B01u16.to_le_bytes(), preop), Err(abort::VALUE_RANGE));
+        assert_eq!(od.write(0x1C12, 1, &0x1B01u16.to_le_bytes(), preop), Err(SdoAbortCode::VALUE_RANGE));
         od.write(0x1C12, 1, &0x1701u16.to_le_bytes(), preop).unwrap();
         od.write(0x1C12, 0, &[1], preop).unwrap();
         assert_eq!(od.assigned_pdos(Direction::Rx)[0].0, 0x1701);
@@ -648,6 +652,6 @@ mod tests {
         od.write(0x60C2, 2, &[(-5i8) as u8], preop).unwrap();
         assert_eq!(od.cycle_time_ns(), Some(250_000));
         od.write(0x60C2, 1, &[1], preop).unwrap();
-        assert_eq!(od.write(0x60C2, 2, &[(-5i8) as u8], preop), Err(abort::VALUE_TOO_LOW));
+        assert_eq!(od.write(0x60C2, 2, &[(-5i8) as u8], preop), Err(SdoAbortCode::VALUE_TOO_LOW));
     }
 }
