@@ -51,7 +51,7 @@ impl AlStatus {
 
     /// The name of the AL status code.
     pub fn code_name(&self) -> &'static str {
-        al::status_code_name(self.code)
+        al::AlStatusCode(self.code).name()
     }
 }
 

@@ -287,7 +287,7 @@ impl PyCycle {
                     d.set_item("al_status", al_status)?;
                     d.set_item("al_state", (al_status != 0).then(|| crate::al::state_name(al_status)))?;
                     d.set_item("al_status_code", al_status_code)?;
-                    d.set_item("al_status_code_name", crate::al::status_code_name(al_status_code))?;
+                    d.set_item("al_status_code_name", crate::al::AlStatusCode(al_status_code).name())?;
                     d.set_item("action", action.describe())?;
                 }
             }

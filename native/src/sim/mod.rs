@@ -31,7 +31,7 @@ pub mod sii_image;
 pub mod sync_manager;
 pub mod watchdog;
 
-use crate::al::{code, AlState};
+use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
 use crate::mailbox::HEADER_LEN;
@@ -235,7 +235,7 @@ impl VirtualAkd {
         }
         self.write_mailbox();
         if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
-            self.al.fail(AlState::SafeOp, code::SM_WATCHDOG);
+            self.al.fail(AlState::SafeOp, AlStatusCode::SM_WATCHDOG);
             self.watchdog.stop();
             self.write_al_status();
         }
