@@ -375,6 +375,23 @@ fn distributed_clocks_run_sync0_and_the_drift_datagram_rides_in_the_cycle() {
 }
 
 #[test]
+fn a_station_alias_names_one_drive_or_says_on_how_many_it_is() {
+    let mut m = master(2);
+    let alias = m.slaves()[1].alias;
+    match m.slave_by_alias(alias).map(|s| s.position()) {
+        // The virtual AKDs share the real drive's SII alias, so it names no one drive.
+        Err(Error::AliasNotUnique { count: 2, .. }) => {}
+        other => panic!("{:?}", other.map_err(|e| e.to_string())),
+    }
+    let unused = alias.wrapping_add(1);
+    assert!(m.slave_by_alias(unused).err().unwrap().to_string().contains("is on 0 slave(s), not one"));
+    let mut one = master(1);
+    let mut drive = one.slave_by_alias(alias).unwrap();
+    assert_eq!((drive.position(), drive.info().alias), (0, alias));
+    assert_eq!(drive.al_status().unwrap().state(), Some(AlState::Init), "the handle talks to the drive");
+}
+
+#[test]
 fn an_empty_position_is_named() {
     let mut m = master(1);
     match m.slave_mut(3).and_then(|mut s| s.sdo_read(0x1000, 0)).unwrap_err() {
