@@ -725,14 +725,22 @@ pub fn write_info_message(out: &mut [u8], counter: u8, header: SdoInfoHeader, da
     })
 }
 
-/// Object codes of an object description.
-pub mod object_code {
-    /// A single value.
-    pub const VAR: u8 = 0x07;
-    /// Subindices of one type.
-    pub const ARRAY: u8 = 0x08;
-    /// Subindices of different types.
-    pub const RECORD: u8 = 0x09;
+wire_codes! {
+    /// Object codes of an object description (ETG.1000.6 Table 43, CiA 301 §7.4.3).
+    pub enum ObjectCode: u8, "object code" {
+        /// A large variable amount of data.
+        Domain = 0x02 => "DOMAIN",
+        /// A type definition.
+        Deftype = 0x05 => "DEFTYPE",
+        /// A record type definition.
+        Defstruct = 0x06 => "DEFSTRUCT",
+        /// A single value.
+        Var = 0x07 => "VAR",
+        /// Subindices of one type.
+        Array = 0x08 => "ARRAY",
+        /// Subindices of different types.
+        Record = 0x09 => "RECORD",
+    }
 }
 
 /// An object description (Get object description response data).
@@ -744,8 +752,8 @@ pub struct ObjectDescription<'a> {
     pub data_type: u16,
     /// Highest subindex.
     pub max_subindex: u8,
-    /// Object code, see [`object_code`].
-    pub object_code: u8,
+    /// Object code.
+    pub object_code: ObjectCode,
     /// Name.
     pub name: &'a str,
 }
@@ -774,7 +782,7 @@ impl<'a> ObjectDescription<'a> {
             index: u16::from_le_bytes([data[0], data[1]]),
             data_type: u16::from_le_bytes([data[2], data[3]]),
             max_subindex: data[4],
-            object_code: data[5],
+            object_code: ObjectCode::try_from(data[5])?,
             name: text(&data[OBJECT_DESCRIPTION_FIXED_LEN..], "object name")?,
         })
     }
@@ -784,7 +792,7 @@ impl<'a> ObjectDescription<'a> {
         out[0..2].copy_from_slice(&self.index.to_le_bytes());
         out[2..4].copy_from_slice(&self.data_type.to_le_bytes());
         out[4] = self.max_subindex;
-        out[5] = self.object_code;
+        out[5] = self.object_code.into();
         let end = OBJECT_DESCRIPTION_FIXED_LEN + self.name.len();
         out[OBJECT_DESCRIPTION_FIXED_LEN..end].copy_from_slice(self.name.as_bytes());
         end
@@ -1049,7 +1057,7 @@ mod tests {
             index: 0x6041,
             data_type: data_type::UNSIGNED16,
             max_subindex: 0,
-            object_code: object_code::VAR,
+            object_code: ObjectCode::Var,
             name: "Statusword",
         };
         let len = d.encode(&mut buf);

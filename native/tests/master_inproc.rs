@@ -7,7 +7,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use akd_native::al::AlState;
-use akd_native::coe::{data_type, object_code, OdListType, SdoAbortCode};
+use akd_native::coe::{data_type, ObjectCode, OdListType, SdoAbortCode};
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
 use akd_native::link::Link;
@@ -210,7 +210,7 @@ fn sdo_information_lists_and_describes_objects() {
     }
     let identity = m.slave_mut(0).unwrap().sdo_object_description(0x1018).unwrap();
     assert_eq!(identity.index, 0x1018);
-    assert_eq!(identity.object_code, object_code::RECORD);
+    assert_eq!(identity.object_code, ObjectCode::Record);
     assert!(identity.max_subindex >= 4);
     let statusword = m.slave_mut(0).unwrap().sdo_entry_description(0x6041, 0).unwrap();
     assert_eq!((statusword.data_type, statusword.bit_length), (data_type::UNSIGNED16, 16));

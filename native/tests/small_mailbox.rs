@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use akd_native::al::AlState;
 use akd_native::coe::{
-    self, access, data_type, object_code, CoeService, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode,
+    self, access, data_type, CoeService, ObjectCode, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode,
     SdoRequest, SdoResponse,
 };
 use akd_native::error::{Error, Result};
@@ -76,7 +76,7 @@ fn master(text: &str) -> (Master, Messages) {
     bus.slave_mut(0).od_mut().insert(Object {
         index: TEXT,
         name: TEXT_NAME,
-        object_code: object_code::VAR,
+        object_code: ObjectCode::Var,
         data_type: data_type::VISIBLE_STRING,
         entries: vec![entry],
         check: None,
@@ -201,7 +201,7 @@ fn sdo_information_replies_come_in_fragments() {
     let text = m.slave_mut(0).unwrap().sdo_object_description(TEXT).unwrap();
     assert_eq!(
         (text.name.as_str(), text.data_type, text.object_code),
-        (TEXT_NAME, data_type::VISIBLE_STRING, object_code::VAR)
+        (TEXT_NAME, data_type::VISIBLE_STRING, ObjectCode::Var)
     );
     let opcode = SdoInfoOpcode::GetObjectDescriptionResponse;
     assert_eq!(fragments(&messages), [(opcode, 1, true), (opcode, 0, false)]);

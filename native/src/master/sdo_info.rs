@@ -2,7 +2,7 @@
 //! each reply gathered from as many fragments as the slave needs.
 
 use crate::coe::{
-    self, CoeService, EntryDescription, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode,
+    self, CoeService, EntryDescription, ObjectCode, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode,
     SDO_INFO_HEADER_LEN,
 };
 use crate::error::{MailboxError, Result};
@@ -18,8 +18,8 @@ pub struct ObjectInfo {
     pub data_type: u16,
     /// Highest subindex.
     pub max_subindex: u8,
-    /// Object code, see [`coe::object_code`].
-    pub object_code: u8,
+    /// Object code.
+    pub object_code: ObjectCode,
     /// Name.
     pub name: String,
 }

@@ -222,7 +222,7 @@ impl PyMaster {
         d.set_item("index", o.index)?;
         d.set_item("data_type", o.data_type)?;
         d.set_item("max_subindex", o.max_subindex)?;
-        d.set_item("object_code", o.object_code)?;
+        d.set_item("object_code", u8::from(o.object_code))?;
         d.set_item("name", o.name)?;
         Ok(d)
     }

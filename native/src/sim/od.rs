@@ -7,7 +7,7 @@
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
-use crate::coe::{access, data_type, object_code, SdoAbortCode};
+use crate::coe::{access, data_type, ObjectCode, SdoAbortCode};
 use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
 use crate::sim::sii_image;
 
@@ -50,8 +50,8 @@ pub struct Object {
     pub index: u16,
     /// Name.
     pub name: &'static str,
-    /// Object code, see [`object_code`].
-    pub object_code: u8,
+    /// Object code.
+    pub object_code: ObjectCode,
     /// Data type of the object (of its entries for a VAR or ARRAY).
     pub data_type: u16,
     /// Entries, by subindex order.
@@ -107,7 +107,7 @@ fn string_var(index: u16, name: &'static str, value: &str) -> Object {
     Object {
         index,
         name,
-        object_code: object_code::VAR,
+        object_code: ObjectCode::Var,
         data_type: data_type::VISIBLE_STRING,
         entries: vec![e],
         check: None,
@@ -127,7 +127,7 @@ fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Objec
     Object {
         index,
         name,
-        object_code: object_code::VAR,
+        object_code: ObjectCode::Var,
         data_type: t,
         entries: vec![entry(0, name, t, bits_of(t), access, value)],
         check: None,
@@ -135,7 +135,7 @@ fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Objec
 }
 
 /// A record or array: subindex 0 holds the count of `entries`.
-fn record(index: u16, name: &'static str, code: u8, t: u16, sub0_access: u16, entries: Vec<Entry>) -> Object {
+fn record(index: u16, name: &'static str, code: ObjectCode, t: u16, sub0_access: u16, entries: Vec<Entry>) -> Object {
     let count = entries.len() as u64;
     let mut all = vec![entry(0, "SubIndex 000", data_type::UNSIGNED8, 8, sub0_access, count)];
     all.extend(entries);
@@ -149,7 +149,7 @@ fn mapping_object(index: u16, name: &'static str, access: u16, entries: &[PdoEnt
             entry(i as u8, SUBINDEX_NAMES[i], data_type::UNSIGNED32, 32, access, value)
         })
         .collect();
-    let mut o = record(index, name, object_code::RECORD, data_type::PDO_MAPPING, access, subs);
+    let mut o = record(index, name, ObjectCode::Record, data_type::PDO_MAPPING, access, subs);
     o.entries[0].value[0] = entries.len() as u8;
     o
 }
@@ -295,7 +295,7 @@ impl ObjectDictionary {
             record(
                 0x1018,
                 "Identity object",
-                object_code::RECORD,
+                ObjectCode::Record,
                 IDENTITY,
                 RO,
                 vec![
@@ -326,7 +326,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x1C00,
             "Sync manager communication type",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED8,
             RO,
             (1..=4).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED8, 8, RO, i as u64)).collect(),
@@ -334,7 +334,7 @@ impl ObjectDictionary {
         for (index, name, base) in [(0x1C12, "RxPDO assign", 0x1600u64), (0x1C13, "TxPDO assign", 0x1A00)] {
             let subs =
                 (1..=4u8).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED16, 16, RW_PREOP, base + i as u64 - 1));
-            let mut o = record(index, name, object_code::ARRAY, UNSIGNED16, RW_PREOP, subs.collect());
+            let mut o = record(index, name, ObjectCode::Array, UNSIGNED16, RW_PREOP, subs.collect());
             o.check = Some(assignment);
             objects.push(o);
         }
@@ -342,7 +342,7 @@ impl ObjectDictionary {
             objects.push(record(
                 index,
                 name,
-                object_code::RECORD,
+                ObjectCode::Record,
                 SM_SYNCHRONIZATION,
                 RO,
                 vec![
@@ -358,7 +358,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x2002,
             "Manufacturer status padding",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED8,
             RO,
             (1..=4).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED8, 8, RO, 0)).collect(),
@@ -414,7 +414,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x3427,
             "Feedback position",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED32,
             RO,
             (1..=3).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED32, 32, RO, 0)).collect(),
@@ -422,7 +422,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x3470,
             "Analog I/O",
-            object_code::RECORD,
+            ObjectCode::Record,
             INTEGER16,
             RO,
             vec![
@@ -435,7 +435,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x60C1,
             "Interpolation data record",
-            object_code::ARRAY,
+            ObjectCode::Array,
             INTEGER32,
             RO,
             vec![entry(1, "1st set-point", INTEGER32, 32, RW, 0)],
@@ -443,7 +443,7 @@ impl ObjectDictionary {
         let mut period = record(
             0x60C2,
             "Interpolation time period",
-            object_code::RECORD,
+            ObjectCode::Record,
             UNSIGNED8,
             RO,
             vec![
@@ -457,7 +457,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x60E4,
             "Additional position actual value",
-            object_code::ARRAY,
+            ObjectCode::Array,
             INTEGER32,
             RO,
             vec![entry(1, "1st additional position actual value", INTEGER32, 32, RO, 0)],
@@ -465,7 +465,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x60FE,
             "Digital outputs",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED32,
             RO,
             vec![entry(1, "Physical outputs", UNSIGNED32, 32, RW, 0), entry(2, "Bit mask", UNSIGNED32, 32, RW, 0)],
