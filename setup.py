@@ -34,6 +34,7 @@ class LiteralReprRustExtension(RustExtension):
     def __repr__(self) -> str:
         return repr(f"RustExtension {self.name} from {self.path}")
 
+
 setup(
     name=PACKAGE,
     version="0.1.0",
@@ -45,8 +46,12 @@ setup(
     maintainer_email="akd_ros@users.noreply.github.com",
     python_requires=">=3.10",
     # The message modules are generated during the build, so they may not exist yet to be found.
-    packages=sorted({*find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
-                     *(f"{PACKAGE}.{kind}" for kind in rosidl_build.INTERFACE_KINDS)}),
+    packages=sorted(
+        {
+            *find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
+            *(f"{PACKAGE}.{kind}" for kind in rosidl_build.INTERFACE_KINDS),
+        }
+    ),
     ext_modules=rosidl_build.extensions(),
     cmdclass=rosidl_build.COMMANDS,
     rust_extensions=[

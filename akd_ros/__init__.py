@@ -7,8 +7,8 @@ In Python: `Axis`, one drive commanded in SI units (`Units`, `Limits`), with its
 """
 
 from akd_ros import _native
-from akd_ros._native import *  # noqa: F401,F403  (the native module is the API)
-from akd_ros.axis import MODES, Axis, AxisState, CommandError, FaultEvent, LatchEvent
+from akd_ros._native import *  # noqa: F403  (the native module is the API)
+from akd_ros.axis import MODES, Axis, AxisState, CommandError, CommandTimeoutEvent, FaultEvent, LatchEvent
 from akd_ros.units import Limits, Units, unwrap_position
 
 __all__ = [name for name in dir(_native) if not name.startswith("_")] + [
@@ -16,6 +16,7 @@ __all__ = [name for name in dir(_native) if not name.startswith("_")] + [
     "Axis",
     "AxisState",
     "CommandError",
+    "CommandTimeoutEvent",
     "FaultEvent",
     "LatchEvent",
     "Limits",

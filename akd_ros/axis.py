@@ -11,16 +11,18 @@ limits clamp or refuse as configured (`akd_ros.units.Limits`), and a command for
 refused. Each refusal is a `CommandError` naming the problem and what is allowed; nothing is sent then.
 
 Latch captures and faults arrive as events from the cycle thread, stamped with the cycle that saw them; `latch_events`
-and `fault_events` hand them out once each.
+and `fault_events` hand them out once each. The set-point handshake of profile position and homing, and the command
+time-out (`set_command_timeout`), run in the cycle thread too; `command_timeout_events` hands out each time-out once.
 """
 
 from __future__ import annotations
 
 import collections
+import contextlib
 import struct
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass, field
-from typing import Iterator
 
 from akd_ros import _native
 from akd_ros.units import Limits, Units, unwrap_position
@@ -48,11 +50,10 @@ _MODE_TARGETS: dict[str, tuple[tuple[int, int], ...]] = {
     "cyclic_synchronous_position": ((0x607A, 0),),
 }
 _PROFILE_MODES = ("profile_position", "homing")
-# Controlword bits 4 (new set-point, or start homing) and 5 (change set-point immediately), and statusword bit 12
-# (set-point acknowledged, or homing attained).
+# Controlword bits 4 (new set-point, or start homing) and 5 (change set-point immediately), raised by the cycle thread's
+# handshake until statusword bit 12 (set-point acknowledged, or homing attained).
 _NEW_SETPOINT = 0x0030
 _START_HOMING = 0x0010
-_ACKNOWLEDGED = 0x1000
 _COMMAND_KIND = {
     "profile_position": "position",
     "interpolated_position": "position",
@@ -156,8 +157,40 @@ class FaultEvent:
         if self.source in ("lost_frames", "working_counter"):
             what = f"{self.code} cycles in a row"
         if self.source == "al_state":
-            what = f"slave now in {self.al_state}, AL status code 0x{self.al_status_code:04X} ({self.al_status_code_name})"
+            what = (
+                f"slave now in {self.al_state}, AL status code 0x{self.al_status_code:04X} ({self.al_status_code_name})"
+            )
         return f"{self.source}: {what}; {self.action}"
+
+
+@dataclass(frozen=True)
+class CommandTimeoutEvent:
+    """A velocity or torque stream that stopped for longer than the command time-out, and what the cycle thread did."""
+
+    cycle: int
+    time_ns: int
+    command: str
+    """"velocity" or "torque"."""
+    timeout: float
+    """The time-out in s."""
+    value: float
+    """The last command in SI units (rad/s, N·m; m/s, N on a linear axis)."""
+    value_drive: int
+    """The same in drive units (counts/s, 0.1 % of peak torque)."""
+    statusword: int
+    ds402_state: str | None
+    action: str
+    """"hold" (halted until the next command) or "quick_stop" (until enabled again)."""
+    text: str
+    """What was done, e.g. "halted, holding until the next command"."""
+
+    def describe(self, how_to_enable: str = "call Axis.enable() to go on") -> str:
+        """One line for a log; after a quick stop it ends with `how_to_enable`, which depends on who reads it."""
+        after = f"; {how_to_enable}" if self.action == "quick_stop" else ""
+        return (
+            f"no {self.command} command for {self.timeout:g} s (command_timeout) while commanding {self.value:g}: "
+            f"{self.text}{after}"
+        )
 
 
 @dataclass
@@ -244,6 +277,7 @@ class Axis:
         self._mode = mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
+        self._command_timeouts: collections.deque[CommandTimeoutEvent] = collections.deque()
         self._unwrapped: int | None = None
         self._commanded: dict[str, float] = {}
 
@@ -262,10 +296,9 @@ class Axis:
         try:
             if cycle.running:
                 cycle.disable(self.slave)
-                try:
+                # A drive in Fault or unreachable stays as it is: powerless.
+                with contextlib.suppress(Exception):
                     cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
-                except Exception:  # noqa: BLE001 - a drive in Fault or unreachable stays as it is: powerless
-                    pass
         finally:
             cycle.stop()
             try:
@@ -400,17 +433,16 @@ class Axis:
         self._commanded[kind] = checked
 
     def _start(self, bits: int, what: str, timeout: float = 1.0) -> None:
-        """Raises controlword `bits` (bit 4 starts a profile move or homing) until the drive acknowledges in
-        statusword bit 12, then lowers them, so the next command makes a new rising edge."""
+        """Runs the set-point handshake in the cycle thread and waits for it: controlword `bits` (bit 4 starts a
+        profile move or homing) raised from statusword bit 12 clear until the drive acknowledges in bit 12, then
+        lowered, so the next command makes a new rising edge. TimeoutError says why it is stuck (not in Operation
+        enabled, bit 12 not cleared within the request time-out or not set within `timeout`, homing error)."""
         cycle = self._running()
-        # The handshake starts from bit 12 clear (in another mode it means something else).
-        self._wait_for(lambda s: not s["statusword"] & _ACKNOWLEDGED, f"statusword bit 12 to clear before {what}")
-        cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", bits))
+        cycle.start_setpoint(self.slave, bits, timeout=timeout)
         try:
-            self._wait_for(lambda s: s["statusword"] & _ACKNOWLEDGED,
-                           f"the drive to acknowledge {what} (it must be in Operation enabled)", timeout)
-        finally:
-            cycle.set_object(self.slave, 0x6040, 0, struct.pack("<H", 0))
+            cycle.wait_setpoint(self.slave)
+        except _native.TimeoutError as e:
+            raise TimeoutError(f"{what}: {e}") from None
 
     def home(self, timeout: float = 30.0) -> None:
         """Runs the drive's homing (mode homing, with its homing method and speeds set in the drive) and waits until
@@ -430,6 +462,18 @@ class Axis:
     def command_torque(self, torque: float) -> None:
         """Commands a torque (N·m, or N on a linear axis) in profile torque mode."""
         self._command("torque", torque)
+
+    def set_command_timeout(self, seconds: float, policy: str = "hold") -> None:
+        """Stops the axis in the cycle thread when a non-zero velocity (profile velocity) or torque (profile torque)
+        command is not sent again within `seconds` while it is enabled: policy "hold" halts it (controlword bit 8)
+        until the next command, "quick_stop" quick-stops it until `enable()`. 0 turns it off. Position commands and zero
+        never time out; enable, disable, quick stop and a mode change forget the stream and lift the hold. Each
+        time-out is one `CommandTimeoutEvent` (`command_timeout_events`)."""
+        cycle = self._running()
+        try:
+            cycle.set_command_timeout(self.slave, seconds, policy)
+        except _native.ConfigError as e:
+            raise CommandError(str(e)) from None
 
     @property
     def command(self) -> float | None:
@@ -486,13 +530,40 @@ class Axis:
             if e["kind"] == "latch":
                 counts = e["position"]
                 self._latches.append(
-                    LatchEvent(e["cycle"], e["time_ns"], e["channel"], e["edge"], self.units.position_to_si(counts), counts)
+                    LatchEvent(
+                        e["cycle"], e["time_ns"], e["channel"], e["edge"], self.units.position_to_si(counts), counts
+                    )
+                )
+            elif e["kind"] == "command_timeout":
+                to_si = self.units.velocity_to_si if e["command"] == "velocity" else self.units.torque_to_si
+                self._command_timeouts.append(
+                    CommandTimeoutEvent(
+                        e["cycle"],
+                        e["time_ns"],
+                        e["command"],
+                        e["timeout"],
+                        to_si(e["value"]),
+                        e["value"],
+                        e["statusword"],
+                        e["ds402_state"],
+                        e["action"],
+                        e["text"],
+                    )
                 )
             else:
                 self._faults.append(
                     FaultEvent(
-                        e["cycle"], e["time_ns"], e["source"], e["code"], e["text"], e["statusword"], e["ds402_state"],
-                        e["al_state"], e["al_status_code"], e["al_status_code_name"], e["action"],
+                        e["cycle"],
+                        e["time_ns"],
+                        e["source"],
+                        e["code"],
+                        e["text"],
+                        e["statusword"],
+                        e["ds402_state"],
+                        e["al_state"],
+                        e["al_status_code"],
+                        e["al_status_code_name"],
+                        e["action"],
                     )
                 )
 
@@ -507,6 +578,12 @@ class Axis:
         self._poll()
         while self._faults:
             yield self._faults.popleft()
+
+    def command_timeout_events(self) -> Iterator[CommandTimeoutEvent]:
+        """The command time-outs since the last call, oldest first, each handed out once."""
+        self._poll()
+        while self._command_timeouts:
+            yield self._command_timeouts.popleft()
 
     def samples(self) -> dict[str, list]:
         """Every cycle's record of this drive since the last call, as columns in drive units (see

@@ -27,6 +27,7 @@ import re
 import socket
 from dataclasses import dataclass
 
+import yaml
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
@@ -90,8 +91,13 @@ class Spec:
             descriptor.additional_constraints = self.allowed()
             if self.type == Parameter.Type.INTEGER:
                 # The only integer choice set is direction's {-1, +1}: a range of step 2.
-                descriptor.integer_range = [IntegerRange(from_value=min(self.choices), to_value=max(self.choices),
-                                                         step=max(self.choices) - min(self.choices))]
+                descriptor.integer_range = [
+                    IntegerRange(
+                        from_value=min(self.choices),
+                        to_value=max(self.choices),
+                        step=max(self.choices) - min(self.choices),
+                    )
+                ]
         elif self.low is not None and self.type == Parameter.Type.INTEGER:
             descriptor.integer_range = [IntegerRange(from_value=int(self.low), to_value=int(self.high), step=1)]
         elif self.low is not None:
@@ -120,57 +126,120 @@ class Spec:
 
 _INF = math.inf
 SCHEMA: tuple[Spec, ...] = (
-    Spec("link", "sim", "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
-         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW)."),
+    Spec(
+        "link",
+        "sim",
+        "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
+        "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW).",
+    ),
     Spec("slave", 0, "Position of the drive on the bus, counted from 0 nearest the master.", 0, 65535),
-    Spec("alias", -1, "Station alias of the drive (SII word 4, set with the drive's FBUS.PARAM03); when >= 0 it "
-         "finds the drive instead of slave.", -1, 65535),
-    Spec("cycle_time", 0.001, "Period of the EtherCAT cycle in seconds (the AKD takes 250 µs to 10 ms).",
-         *CYCLE_TIME_RANGE),
-    Spec("mode", "interpolated_position", "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
-         choices=tuple(MODES)),
-    Spec("mapping", "default", "PDO mapping: 'default', fixed mappings 'RX/TX' such as '0x1724/0x1B26', or "
-         "'flexible' (then mapping.rx and mapping.tx)."),
-    Spec("mapping.rx", [], "With mapping 'flexible': the RxPDOs (set-points), one string per PDO of entries "
-         "'INDEX:SUB/BITS' separated by spaces, e.g. '0x6040:00/16 0x60C1:01/32'."),
+    Spec(
+        "alias",
+        -1,
+        "Station alias of the drive (SII word 4, set with the drive's FBUS.PARAM03); when >= 0 it "
+        "finds the drive instead of slave.",
+        -1,
+        65535,
+    ),
+    Spec(
+        "cycle_time",
+        0.001,
+        "Period of the EtherCAT cycle in seconds (the AKD takes 250 µs to 10 ms).",
+        *CYCLE_TIME_RANGE,
+    ),
+    Spec(
+        "mode",
+        "interpolated_position",
+        "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
+        choices=tuple(MODES),
+    ),
+    Spec(
+        "mapping",
+        "default",
+        "PDO mapping: 'default', fixed mappings 'RX/TX' such as '0x1724/0x1B26', or "
+        "'flexible' (then mapping.rx and mapping.tx).",
+    ),
+    Spec(
+        "mapping.rx",
+        [],
+        "With mapping 'flexible': the RxPDOs (set-points), one string per PDO of entries "
+        "'INDEX:SUB/BITS' separated by spaces, e.g. '0x6040:00/16 0x60C1:01/32'.",
+    ),
     Spec("mapping.tx", [], "With mapping 'flexible': the TxPDOs (actual values), as mapping.rx."),
     Spec("joint_name", "akd_axis", "Name of the joint in joint_states and in the package's messages."),
     Spec("counts_per_revolution", 2**20, "Feedback counts per motor revolution.", 1, 2**31 - 1),
     Spec("gear_ratio", 1.0, "Motor revolutions per load revolution.", 1e-9, 1e9),
-    Spec("direction", 1, "+1 when the load turns with the motor's positive sense, -1 against it.",
-         choices=(1, -1)),
+    Spec("direction", 1, "+1 when the load turns with the motor's positive sense, -1 against it.", choices=(1, -1)),
     Spec("offset", 0.0, "Load position at motor count 0: rad (m on a linear axis)."),
     Spec("axis", "rotary", "'rotary' (rad, rad/s, N·m) or 'linear' (m, m/s, N).", choices=("rotary", "linear")),
     Spec("lead", 0.0, "Linear axis only: metres of travel per load revolution (0 on a rotary axis).", 0.0, 1e6),
-    Spec("peak_torque", 3.0, "The drive's peak torque at the motor in N·m, which torque command 100 % means.",
-         1e-9, 1e6),
+    Spec(
+        "peak_torque", 3.0, "The drive's peak torque at the motor in N·m, which torque command 100 % means.", 1e-9, 1e6
+    ),
     Spec("limits.min_position", -_INF, "Lowest position command, rad (m); -.inf for none."),
     Spec("limits.max_position", _INF, "Highest position command, rad (m); .inf for none."),
     Spec("limits.max_velocity", _INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none."),
     Spec("limits.max_torque", _INF, "Largest torque command magnitude, N·m (N); .inf for none."),
-    Spec("limits.policy", "refuse", "A command past a limit is refused, or clamped to the limit.",
-         choices=("refuse", "clamp")),
+    Spec(
+        "limits.policy",
+        "refuse",
+        "A command past a limit is refused, or clamped to the limit.",
+        choices=("refuse", "clamp"),
+    ),
     Spec("joint_states_rate", 100.0, "Rate of /joint_states in Hz.", 1.0, 1000.0),
     Spec("status_rate", 10.0, "Rate of ~/status in Hz.", 0.1, 100.0),
     Spec("diagnostics_rate", 1.0, "Rate of /diagnostics in Hz.", 0.1, 10.0),
-    Spec("latch.arm", [], "Latches armed at activate, each 'CHANNEL/EDGE' with channel 1 or 2 and edge rising "
-         "or falling, e.g. ['1/rising', '2/falling']."),
-    Spec("fault_reset", "manual", "'manual': a fault stays until ~/reset_fault; 'auto_once': each fault is reset "
-         "once automatically (the drive is left disabled, never re-enabled).", choices=FAULT_RESET_POLICIES),
-    Spec("command_timeout", 0.5, "Seconds without a velocity or torque command, while that command is not zero, "
-         "after which command_timeout_policy acts; 0 for never.", 0.0, 60.0),
-    Spec("command_timeout_policy", "hold", "'hold': halt (controlword bit 8) and stay enabled until the next "
-         "command; 'quick_stop': quick stop, ~/enable to go on.", choices=COMMAND_TIMEOUT_POLICIES),
+    Spec(
+        "latch.arm",
+        [],
+        "Latches armed at activate, each 'CHANNEL/EDGE' with channel 1 or 2 and edge rising "
+        "or falling, e.g. ['1/rising', '2/falling'].",
+    ),
+    Spec(
+        "fault_reset",
+        "manual",
+        "'manual': a fault stays until ~/reset_fault; 'auto_once': each fault is reset "
+        "once automatically (the drive is left disabled, never re-enabled).",
+        choices=FAULT_RESET_POLICIES,
+    ),
+    Spec(
+        "command_timeout",
+        0.5,
+        "Seconds without a velocity or torque command, while that command is not zero, "
+        "after which command_timeout_policy acts; 0 for never.",
+        0.0,
+        60.0,
+    ),
+    Spec(
+        "command_timeout_policy",
+        "hold",
+        "'hold': halt (controlword bit 8) and stay enabled until the next "
+        "command; 'quick_stop': quick stop, ~/enable to go on.",
+        choices=COMMAND_TIMEOUT_POLICIES,
+    ),
     Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
     Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
-    Spec("record.enabled", False, "Record the node's topics, its commands and every cycle to a rosbag2 bag (MCAP), "
-         "from configure to cleanup."),
+    Spec(
+        "record.enabled",
+        False,
+        "Record the node's topics, its commands and every cycle to a rosbag2 bag (MCAP), from configure to cleanup.",
+    ),
     Spec("record.folder", "bags", "Folder the bags go into, each named by the date and time it was opened."),
-    Spec("record.decimation", 1, "Record every n-th cycle on ~/cycle; 0 records none (the black box keeps them).",
-         0, 1_000_000),
-    Spec("record.black_box_seconds", 5.0, "Seconds of every cycle kept in memory and written to ~/black_box at a "
-         "fault; 0 for none.", 0.0, 600.0),
+    Spec(
+        "record.decimation",
+        1,
+        "Record every n-th cycle on ~/cycle; 0 records none (the black box keeps them).",
+        0,
+        1_000_000,
+    ),
+    Spec(
+        "record.black_box_seconds",
+        5.0,
+        "Seconds of every cycle kept in memory and written to ~/black_box at a fault; 0 for none.",
+        0.0,
+        600.0,
+    ),
     Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
     Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
 )
@@ -211,22 +280,82 @@ class Settings:
     enable_on_start: bool
 
 
-def declare(node) -> Settings:
-    """Declares every parameter on `node` (its overrides checked first) and gives the checked settings; raises
-    ParameterError naming the first parameter that is wrong and what it allows."""
-    overrides = node._parameter_overrides  # what --params-file and -p gave, before anything is declared
-    for name, spec in SPECS.items():
-        if name in overrides:
-            overrides[name] = Parameter(name, spec.type, spec.check(overrides[name].value))
+def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Settings:
+    """Declares every parameter on `node` (what the ROS arguments gave each checked first) and gives the checked
+    settings; raises ParameterError naming the first parameter that is wrong and what it allows.
+
+    `arguments` are the command lines rcl read for the node (rclpy.init's and the node's own cli_args) and
+    `overrides` the node's parameter_overrides: they tell which names were given, so that a name given but not
+    declared is reported as unknown."""
+    named = {**_named_in(arguments), **{parameter.name: parameter.value for parameter in overrides}}
     for spec in SCHEMA:
-        if spec.type == Parameter.Type.STRING_ARRAY:
-            node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor())
+        given = _given(node, spec.name)
+        # An empty YAML list arrives without a type, as nothing does.
+        unset = given.type_ == Parameter.Type.NOT_SET and named.get(spec.name) != []
+        value = spec.check(spec.default if unset else given.value)
+        if value == []:
+            node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor(), ignore_override=True)
         else:
-            node.declare_parameter(spec.name, spec.default, spec.descriptor())
-    unknown = sorted(n for n in overrides if not node.has_parameter(n) and not n.startswith("qos_overrides."))
+            node.declare_parameter(spec.name, value, spec.descriptor(), ignore_override=True)
+    unknown = sorted(
+        n
+        for n in named
+        if not node.has_parameter(n)
+        and not n.startswith("qos_overrides.")
+        and _given(node, n).type_ != Parameter.Type.NOT_SET
+    )
     if unknown:
         raise ParameterError(f"unknown parameter {', '.join(unknown)}; the parameters are: {', '.join(SPECS)}")
     return settings({spec.name: _value(node, spec.name) for spec in SCHEMA})
+
+
+def _given(node, name: str) -> Parameter:
+    """What the ROS arguments gave `name` on `node`, whatever its type (NOT_SET for nothing).
+
+    rclpy hands a parameter's override to its declaration: declared with dynamic typing, it takes the value as the
+    file spelt it, which this package then checks with its own messages; it is undeclared again at once."""
+    parameter = node.declare_parameter(name, None, ParameterDescriptor(dynamic_typing=True))
+    node.undeclare_parameter(name)
+    return parameter
+
+
+def _named_in(arguments: list[str]) -> dict[str, object]:
+    """The parameters that ROS arguments set, by name, as YAML values: each -p NAME:=VALUE and every parameter of
+    every --params-file, in all its nodes' sections (rcl decides which apply to this node; _given tells)."""
+    named = {}
+    ros = False
+    for argument, following in zip(arguments, [*arguments[1:], None], strict=True):
+        if argument in ("--ros-args", "--"):
+            ros = argument == "--ros-args"
+        elif ros and following is not None and argument in ("-p", "--param"):
+            name, _, text = following.partition(":=")
+            if name:  # rcl refuses -p without a name
+                named[name] = _yaml_value(text)
+        elif ros and following is not None and argument == "--params-file":
+            with open(following, encoding="utf-8") as stream:
+                named.update(_parameters_in(yaml.safe_load(stream)))
+    return named
+
+
+def _yaml_value(text: str) -> object:
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError:
+        return text  # rcl takes what YAML cannot read as a string
+
+
+def _parameters_in(tree: object, prefix: str | None = None) -> dict[str, object]:
+    """The parameters of a parameters file's tree by dotted name, from every ros__parameters in it (under any node
+    name or namespace)."""
+    if prefix is not None and not isinstance(tree, dict):
+        return {prefix: tree} if prefix else {}  # no name: not a parameter (rcl refuses such a file)
+    found = {}
+    for key, value in tree.items() if isinstance(tree, dict) else ():
+        if prefix is not None:
+            found.update(_parameters_in(value, f"{prefix}.{key}" if prefix else str(key)))
+        else:
+            found.update(_parameters_in(value, "" if key == "ros__parameters" else None))
+    return found
 
 
 def _value(node, name: str) -> object:
@@ -246,27 +375,49 @@ def settings(values: dict[str, object]) -> Settings:
         check_mapping(mapping)
     try:
         lead = values["lead"] or None
-        units = Units(values["counts_per_revolution"], values["gear_ratio"], values["direction"], values["offset"],
-                      values["axis"], lead if values["axis"] == "linear" else None, values["peak_torque"])
+        units = Units(
+            values["counts_per_revolution"],
+            values["gear_ratio"],
+            values["direction"],
+            values["offset"],
+            values["axis"],
+            lead if values["axis"] == "linear" else None,
+            values["peak_torque"],
+        )
     except ValueError as e:
-        raise ParameterError(f"parameters axis/lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')") \
-            from None
+        raise ParameterError(f"parameters axis/lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')") from None
     if values["axis"] == "rotary" and lead is not None:
-        raise ParameterError(f"parameter lead applies to a linear axis only; with axis 'rotary' it must be 0, "
-                             f"got {lead}")
+        raise ParameterError(
+            f"parameter lead applies to a linear axis only; with axis 'rotary' it must be 0, got {lead}"
+        )
     limits = parse_limits(values)
     return Settings(
-        link=link, slave=values["slave"], alias=None if values["alias"] < 0 else values["alias"],
-        cycle_time=values["cycle_time"], mode=values["mode"], mapping=mapping,
-        joint_name=values["joint_name"], units=units, limits=limits,
-        joint_states_rate=values["joint_states_rate"], status_rate=values["status_rate"],
-        diagnostics_rate=values["diagnostics_rate"], latch_arm=parse_latches(values["latch.arm"]),
-        fault_reset=values["fault_reset"], command_timeout=values["command_timeout"],
+        link=link,
+        slave=values["slave"],
+        alias=None if values["alias"] < 0 else values["alias"],
+        cycle_time=values["cycle_time"],
+        mode=values["mode"],
+        mapping=mapping,
+        joint_name=values["joint_name"],
+        units=units,
+        limits=limits,
+        joint_states_rate=values["joint_states_rate"],
+        status_rate=values["status_rate"],
+        diagnostics_rate=values["diagnostics_rate"],
+        latch_arm=parse_latches(values["latch.arm"]),
+        fault_reset=values["fault_reset"],
+        command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
-        rt_priority=values["rt.priority"] or None, rt_cpu=None if values["rt.cpu"] < 0 else values["rt.cpu"],
+        rt_priority=values["rt.priority"] or None,
+        rt_cpu=None if values["rt.cpu"] < 0 else values["rt.cpu"],
         rt_lock_memory=values["rt.lock_memory"],
-        record={"folder": values["record.folder"], "decimation": values["record.decimation"],
-                "black_box_seconds": values["record.black_box_seconds"]} if values["record.enabled"] else None,
+        record={
+            "folder": values["record.folder"],
+            "decimation": values["record.decimation"],
+            "black_box_seconds": values["record.black_box_seconds"],
+        }
+        if values["record.enabled"]
+        else None,
         autostart=values["autostart"],
         enable_on_start=values["enable_on_start"],
     )
@@ -275,16 +426,18 @@ def settings(values: dict[str, object]) -> Settings:
 def check_link(link: str) -> str:
     """`link` if the node can open it: 'sim', 'sim:N', 'udp://HOST:PORT' or an interface of this machine."""
     interfaces = sorted(name for _, name in socket.if_nameindex())
-    allowed = ("'sim', 'sim:N' (N >= 1), 'udp://HOST:PORT', or a network interface of this machine "
-               f"({', '.join(interfaces)})")
+    allowed = (
+        f"'sim', 'sim:N' (N >= 1), 'udp://HOST:PORT', or a network interface of this machine ({', '.join(interfaces)})"
+    )
     if link == "sim" or re.fullmatch(r"sim:[1-9][0-9]*", link):
         return link
     if link.startswith("udp://"):
         if not re.fullmatch(r"udp://(\[[0-9A-Fa-f:]+\]|[^:/\s]+):([0-9]{1,5})", link) or not (
             0 < int(link.rsplit(":", 1)[1]) < 65536
         ):
-            raise ParameterError(f"parameter link {link!r} is no udp://HOST:PORT with a port in 1..65535; "
-                                 f"allowed: {allowed}")
+            raise ParameterError(
+                f"parameter link {link!r} is no udp://HOST:PORT with a port in 1..65535; allowed: {allowed}"
+            )
         return link
     if link not in interfaces:
         raise ParameterError(f"parameter link: network interface {link!r} does not exist; allowed: {allowed}")
@@ -298,14 +451,17 @@ def parse_mapping(mapping: str, rx: list[str], tx: list[str]) -> tuple[object, o
     """(rx, tx) in the form `_native.Master.configure_pdo` takes, None for 'default'; raises ParameterError."""
     allowed = "'default', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
     if (rx or tx) and mapping != "flexible":
-        raise ParameterError(f"parameters mapping.rx and mapping.tx apply to mapping 'flexible' only; mapping is "
-                             f"{mapping!r}")
+        raise ParameterError(
+            f"parameters mapping.rx and mapping.tx apply to mapping 'flexible' only; mapping is {mapping!r}"
+        )
     if mapping == "default":
         return None
     if mapping == "flexible":
         if not rx or not tx:
-            raise ParameterError("parameter mapping 'flexible' needs both mapping.rx and mapping.tx, each a list of "
-                                 "PDOs such as ['0x6040:00/16 0x60C1:01/32']")
+            raise ParameterError(
+                "parameter mapping 'flexible' needs both mapping.rx and mapping.tx, each a list of "
+                "PDOs such as ['0x6040:00/16 0x60C1:01/32']"
+            )
         return [_pdo("mapping.rx", p) for p in rx], [_pdo("mapping.tx", p) for p in tx]
     found = re.fullmatch(r"0x([0-9A-Fa-f]{4})/0x([0-9A-Fa-f]{4})", mapping)
     if not found:
@@ -344,6 +500,7 @@ def check_mapping(mapping: tuple[object, object]) -> None:
 
 def parse_limits(values: dict[str, object]) -> Limits:
     """The Limits of the limits.* parameters (an infinite one is no limit)."""
+
     def bound(name: str) -> float | None:
         value = values["limits." + name]
         if math.isnan(value):
@@ -351,8 +508,13 @@ def parse_limits(values: dict[str, object]) -> Limits:
         return None if math.isinf(value) else value
 
     try:
-        return Limits(bound("min_position"), bound("max_position"), bound("max_velocity"), bound("max_torque"),
-                      values["limits.policy"])
+        return Limits(
+            bound("min_position"),
+            bound("max_position"),
+            bound("max_velocity"),
+            bound("max_torque"),
+            values["limits.policy"],
+        )
     except ValueError as e:
         raise ParameterError(f"parameters limits.*: {e}") from None
 
@@ -363,7 +525,8 @@ def parse_latches(items: list[str]) -> tuple[tuple[int, str], ...]:
     for item in items:
         channel, _, edge = item.partition("/")
         if channel not in ("1", "2") or edge not in EDGES:
-            raise ParameterError(f"parameter latch.arm: {item!r} is not CHANNEL/EDGE; allowed: 1/rising, "
-                                 "1/falling, 2/rising, 2/falling")
+            raise ParameterError(
+                f"parameter latch.arm: {item!r} is not CHANNEL/EDGE; allowed: 1/rising, 1/falling, 2/rising, 2/falling"
+            )
         latches.append((int(channel), edge))
     return tuple(latches)

@@ -4,10 +4,11 @@ A :class:`Recorder` writes one rosbag2 bag directory (metadata.yaml version 9 an
 the ``ros2`` profile) as ``ros2 bag record -s mcap`` would, without needing rosbag2 itself: the
 node hands it messages, a writer thread of its own serialises them and does all the disk I/O.
 
-- Messages are serialised by rclpy's ``serialize_message`` (rclpy message classes) or by rosbags'
-  ``serialize_cdr`` (rosbags message classes with their typestore); the schemas are the complete
-  ``ros2msg`` definitions and the type hashes the RIHS01 hashes that the message's own type support
-  (or rosbags) reports, so every reader decodes the bag without this package.
+- Messages are serialised once, by rclpy's ``serialize_message`` (rclpy message classes) or by
+  rosbags' ``serialize_cdr`` (rosbags message classes with their typestore); the schemas are the
+  complete ``ros2msg`` definitions, made of the packages' .msg files as rosbag2 makes them, and the
+  type hashes their RIHS01 hashes, computed by rosbags' typestore from those definitions, so every
+  reader decodes the bag without this package.
 - The per-cycle channel (:meth:`Recorder.cycle_sample`) is recorded every ``decimation``-th
   cycle, or not at all with ``decimation=0``; the last ``black_box_seconds`` of every cycle are
   kept in memory regardless, and :meth:`Recorder.fault` writes them to the black box topic (by
@@ -29,7 +30,6 @@ from __future__ import annotations
 
 import atexit
 import collections
-import ctypes
 import datetime
 import importlib
 import logging
@@ -37,15 +37,16 @@ import math
 import os
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Optional
+from typing import Any
 
 import yaml
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.stream_reader import StreamReader
 from mcap.records import Channel, Message, Schema
+from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
 
 __all__ = [
@@ -104,60 +105,6 @@ class MessageType:
     serialize: Callable[[Any], bytes] = field(compare=False)
 
 
-class _RosidlTypeHash(ctypes.Structure):
-    _fields_ = [("version", ctypes.c_uint8), ("value", ctypes.c_uint8 * 32)]
-
-
-class _RosidlString(ctypes.Structure):
-    _fields_ = [("data", ctypes.c_char_p), ("size", ctypes.c_size_t), ("capacity", ctypes.c_size_t)]
-
-
-class _RosidlTypeSource(ctypes.Structure):
-    _fields_ = [
-        ("type_name", _RosidlString),
-        ("encoding", _RosidlString),
-        ("raw_file_contents", _RosidlString),
-    ]
-
-
-class _RosidlTypeSourceSequence(ctypes.Structure):
-    _fields_ = [
-        ("data", ctypes.POINTER(_RosidlTypeSource)),
-        ("size", ctypes.c_size_t),
-        ("capacity", ctypes.c_size_t),
-    ]
-
-
-class _RosidlMessageTypeSupport(ctypes.Structure):
-    pass
-
-
-# rosidl_message_type_support_t of rosidl_runtime_c (Iron and later): the C type support that a
-# Python message class holds in its _TYPE_SUPPORT capsule carries the type's hash and .msg sources.
-_SUPPORT_POINTER = ctypes.POINTER(_RosidlMessageTypeSupport)
-_RosidlMessageTypeSupport._fields_ = [
-    ("typesupport_identifier", ctypes.c_char_p),
-    ("data", ctypes.c_void_p),
-    ("func", ctypes.c_void_p),
-    ("get_type_hash_func", ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeHash), _SUPPORT_POINTER)),
-    ("get_type_description_func", ctypes.c_void_p),
-    (
-        "get_type_description_sources_func",
-        ctypes.CFUNCTYPE(ctypes.POINTER(_RosidlTypeSourceSequence), _SUPPORT_POINTER),
-    ),
-]
-
-
-def _type_support(msg_class: type) -> _RosidlMessageTypeSupport:
-    capsule = msg_class._TYPE_SUPPORT
-    get_name = ctypes.pythonapi.PyCapsule_GetName
-    get_name.restype, get_name.argtypes = ctypes.c_char_p, [ctypes.py_object]
-    get_pointer = ctypes.pythonapi.PyCapsule_GetPointer
-    get_pointer.restype, get_pointer.argtypes = ctypes.c_void_p, [ctypes.py_object, ctypes.c_char_p]
-    pointer = get_pointer(capsule, get_name(capsule))
-    return ctypes.cast(pointer, ctypes.POINTER(_RosidlMessageTypeSupport)).contents
-
-
 def _rclpy_name(msg_class: type) -> str:
     return f"{msg_class.__module__.split('.')[0]}/msg/{msg_class.__name__}"
 
@@ -175,34 +122,41 @@ def _nested_classes(msg_class: type) -> list[type]:
     return [found[name] for name in sorted(found)]
 
 
+def _msg_file(name: str) -> Path:
+    """The .msg file that defines name (``pkg/msg/Type``), as its package installs it.
+
+    rosbag2 reads the same file from the package's share directory. An installed package (a ROS
+    install, a colcon install, PyPI's ROS wheels, a wheel of akd_ros) has its Python modules in
+    ``<prefix>/lib/pythonX.Y/site-packages/<pkg>`` and its definitions in
+    ``<prefix>/share/<pkg>/msg``; an editable one (``pip install -e``, ``colcon build
+    --symlink-install``) imports its modules from its source tree, where ``msg/`` is beside them.
+    """
+    package, _, type_name = name.split("/")
+    module_dir = Path(importlib.import_module(package).__file__).resolve().parent
+    folders = [module_dir.parents[3] / "share" / package] if len(module_dir.parents) > 3 else []
+    folders.append(module_dir.parent)
+    for folder in folders:
+        path = folder / "msg" / f"{type_name}.msg"
+        if path.is_file():
+            return path
+    raise ValueError(
+        f"{name}: no {type_name}.msg in {', '.join(str(f / 'msg') for f in folders)}, so the bag could not describe it"
+    )
+
+
 def _rclpy_message_type(msg_class: type) -> MessageType:
     from rclpy.serialization import serialize_message
     from rclpy.type_support import check_for_type_support
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     check_for_type_support(msg_class)
-    support = _type_support(msg_class)
-    digest = support.get_type_hash_func(ctypes.byref(support)).contents
-    sources_seq = support.get_type_description_sources_func(ctypes.byref(support)).contents
-    sources = {}
-    for index in range(sources_seq.size):
-        source = sources_seq.data[index]
-        if source.encoding.data == b"msg":
-            # The generator strips the file's final newline, which rosbag2's copy of the file has.
-            text = source.raw_file_contents.data.decode()
-            sources[source.type_name.data.decode()] = text.rstrip("\n") + "\n"
     name = _rclpy_name(msg_class)
-    if name not in sources:
-        raise ValueError(
-            f"{name}: its type support carries no .msg source (it was generated from "
-            f"{sorted(sources) or 'no .msg file'}), so the bag could not describe it"
-        )
-
     seen: set[str] = set()
 
-    # rosbag2's LocalMessageDefinitionSource: each type's text, then, depth first, every nested
-    # type not written yet after the two-line delimiter.
+    # rosbag2's LocalMessageDefinitionSource: each type's .msg text, then, depth first, every
+    # nested type not written yet after the two-line delimiter.
     def definition(cls: type) -> str:
-        text = sources[_rclpy_name(cls)]
+        text = _msg_file(_rclpy_name(cls)).read_text(encoding="utf-8").rstrip("\n") + "\n"
         for nested in _nested_classes(cls):
             nested_name = _rclpy_name(nested)
             if nested_name not in seen:
@@ -211,39 +165,27 @@ def _rclpy_message_type(msg_class: type) -> MessageType:
         return text
 
     full_definition = definition(msg_class)
-    cdr_length = _cdr_length(full_definition, name)
+    # The RIHS01 hash of exactly the definition the bag carries: rosbags computes it as rosidl's
+    # generators do (the type support of the same .msg files reports the same hash).
+    store = get_typestore(Stores.EMPTY)
+    store.register(get_types_from_msg(full_definition, name))
+    msgdef = store.get_msgdef(name)
 
     def serialize(msg: Any) -> bytes:
+        # rmw_fastrtps's rmw_serialize (behind serialize_message) returns the buffer at its size
+        # estimate, which aligns even empty sequences (e.g. an empty float64[]) and so can be
+        # longer than the CDR written; rosbags refuses more than 3 bytes after a message. The CDR's
+        # length follows from the message's sequence and string lengths alone: rosbags' size
+        # function reads those from the rclpy message by field name, without a second decode.
         data = serialize_message(msg)
-        return data[: cdr_length(data)]
+        return data[: 4 + msgdef.getsize_cdr(0, msg, store)]
 
     return MessageType(
         name=name,
         definition=full_definition,
-        type_hash=f"RIHS{digest.version:02d}_{bytes(digest.value).hex()}",
+        type_hash=store.hash_rihs01(name),
         serialize=serialize,
     )
-
-
-def _cdr_length(definition: str, name: str) -> Callable[[bytes], int]:
-    """How many bytes of a serialised name are the message, by decoding it with the bag's schema.
-
-    rmw_fastrtps's rmw_serialize (behind rclpy's serialize_message) returns the buffer at its
-    size estimate, which for some types (e.g. empty float64 sequences) is longer than the CDR
-    written; rosbags rejects such messages, and they should not be in a bag.
-    """
-    from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-
-    store = get_typestore(Stores.EMPTY)
-    store.register(get_types_from_msg(definition, name))
-    msgdef = store.get_msgdef(name)
-
-    def length(data: bytes) -> int:
-        decode = msgdef.deserialize_cdr_le if data[1] else msgdef.deserialize_cdr_be
-        _, end = decode(memoryview(data)[4:], 0, msgdef.cls, store)
-        return 4 + end
-
-    return length
 
 
 def _rosbags_message_type(msg_class: type, typestore: Any) -> MessageType:
@@ -312,15 +254,15 @@ class _Topic:
     name: str
     msg_type: MessageType
     qos_yaml: str
-    msg_class: Optional[type] = None
+    msg_class: type | None = None
     message_count: int = 0
 
 
 @dataclass
 class _File:
     path: Path
-    start_ns: Optional[int] = None
-    end_ns: Optional[int] = None
+    start_ns: int | None = None
+    end_ns: int | None = None
     message_count: int = 0
 
     def add(self, time_ns: int) -> None:
@@ -385,12 +327,11 @@ class _McapFile:
 
     def __init__(self, path: Path, topics: list[_Topic], compression: CompressionType):
         self.info = _File(path)
-        self.stream = open(path, "wb")
+        # Open for the life of the _McapFile, whose close() closes it.
+        self.stream = open(path, "wb")  # noqa: SIM115
         # Chunks are closed by flush() from the recorder, so that each closed chunk reaches the
         # OS at once; mcap's own size limit is set out of reach.
-        self.writer = Writer(
-            self.stream, chunk_size=2**62, compression=compression, enable_crcs=True
-        )
+        self.writer = Writer(self.stream, chunk_size=2**62, compression=compression, enable_crcs=True)
         self.writer.start(profile="ros2", library=_LIBRARY)
         self.schema_ids: dict[str, int] = {}
         self.channel_ids: dict[str, int] = {}
@@ -444,7 +385,7 @@ class RecorderStats:
     black box was written; ``files`` are the bag's MCAP files so far.
     """
 
-    bag: Optional[Path] = None
+    bag: Path | None = None
     written: int = 0
     dropped: int = 0
     errors: int = 0
@@ -483,8 +424,8 @@ class Recorder:
         folder: os.PathLike | str,
         *,
         cycle_rate_hz: float,
-        split_size: Optional[int] = None,
-        split_duration: Optional[float] = None,
+        split_size: int | None = None,
+        split_duration: float | None = None,
         chunk_size: int = 1 << 20,
         flush_interval: float = 1.0,
         compression: str = "zstd",
@@ -492,7 +433,7 @@ class Recorder:
         black_box_seconds: float = 5.0,
         queue_size: int = 100_000,
         prefix: str = "akd",
-        on_error: Optional[Callable[[str], None]] = None,
+        on_error: Callable[[str], None] | None = None,
     ):
         if compression not in COMPRESSIONS:
             raise ValueError(f"compression {compression!r} is not one of {sorted(COMPRESSIONS)}")
@@ -505,13 +446,9 @@ class Recorder:
         if split_duration is not None:
             _check_positive("split_duration", split_duration)
         if not isinstance(decimation, int) or isinstance(decimation, bool) or decimation < 0:
-            raise ValueError(
-                f"decimation must be an integer >= 0 (0: cycle topic off), not {decimation!r}"
-            )
+            raise ValueError(f"decimation must be an integer >= 0 (0: cycle topic off), not {decimation!r}")
         if not isinstance(black_box_seconds, (int, float)) or not 0 <= black_box_seconds < math.inf:
-            raise ValueError(
-                f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}"
-            )
+            raise ValueError(f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}")
 
         self._folder = Path(folder)
         self._compression = COMPRESSIONS[compression]
@@ -526,9 +463,9 @@ class Recorder:
         self._name = f"{prefix}_{stamp}" if prefix else stamp
 
         self._topics: dict[str, _Topic] = {}
-        self._cycle_topic: Optional[str] = None
-        self._black_box_topic: Optional[str] = None
-        self._cycle_class: Optional[type] = None
+        self._cycle_topic: str | None = None
+        self._black_box_topic: str | None = None
+        self._cycle_class: type | None = None
         ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz))
         self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
@@ -549,7 +486,7 @@ class Recorder:
         # The topics the writer thread has registered, in order; _topics may be ahead of it.
         self._registered: list[_Topic] = []
         self._files: list[_File] = []
-        self._file: Optional[_McapFile] = None
+        self._file: _McapFile | None = None
         self._pending_bytes = 0
         self._last_flush = time.monotonic()
         self._thread = threading.Thread(target=self._run, name="akd_recorder", daemon=True)
@@ -564,19 +501,14 @@ class Recorder:
         ``_2``, ``_3``, ... is appended to its name if another recorder took it that second."""
         return self._folder / self._name
 
-    def add_topic(
-        self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None
-    ) -> None:
+    def add_topic(self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None) -> None:
         """Adds a topic of msg_class (see :func:`message_type`) with the QoS its publisher offers.
 
         Raises ValueError for a topic name that is not absolute, one added before, or a class
         that is no message class.
         """
-        if not (isinstance(topic, str) and topic.startswith("/") and not topic.endswith("/")
-                and " " not in topic):
-            raise ValueError(
-                f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}"
-            )
+        if not (isinstance(topic, str) and topic.startswith("/") and not topic.endswith("/") and " " not in topic):
+            raise ValueError(f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}")
         with self._lock:
             if topic in self._topics:
                 raise ValueError(f"topic {topic} was added before (topics: {sorted(self._topics)})")
@@ -591,7 +523,7 @@ class Recorder:
         msg_class: type,
         qos: Any = None,
         *,
-        black_box_topic: Optional[str] = None,
+        black_box_topic: str | None = None,
         typestore: Any = None,
     ) -> None:
         """Adds the per-cycle topic that :meth:`cycle_sample` feeds, and its black box topic.
@@ -601,9 +533,7 @@ class Recorder:
         the cycle topic only when ``decimation > 0``.
         """
         if self._cycle_topic is not None:
-            raise ValueError(
-                f"the cycle topic is {self._cycle_topic} already; there is one per recorder"
-            )
+            raise ValueError(f"the cycle topic is {self._cycle_topic} already; there is one per recorder")
         if black_box_topic is None:
             black_box_topic = topic.rsplit("/", 1)[0] + "/black_box"
         if black_box_topic == topic:
@@ -626,9 +556,7 @@ class Recorder:
         if entry is None:
             raise ValueError(f"topic {topic} was not added (topics: {sorted(self._topics)})")
         if type(msg) is not entry.msg_class:
-            raise ValueError(
-                f"topic {topic} takes {entry.msg_type.name}, not {type(msg).__qualname__}"
-            )
+            raise ValueError(f"topic {topic} takes {entry.msg_type.name}, not {type(msg).__qualname__}")
         self._enqueue((topic, msg, time_ns))
 
     def cycle_sample(self, msg: Any, time_ns: int) -> None:
@@ -669,7 +597,7 @@ class Recorder:
         self._thread.join(timeout)
         return self.stats
 
-    def __enter__(self) -> "Recorder":
+    def __enter__(self) -> Recorder:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -913,13 +841,9 @@ def _rewrite(path: Path, records: list, schemas: dict, channels: dict) -> None:
     with open(tmp, "wb") as stream:
         writer = Writer(stream, compression=CompressionType.ZSTD)
         writer.start(profile="ros2", library=_LIBRARY)
-        schema_ids = {
-            sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()
-        }
+        schema_ids = {sid: writer.register_schema(s.name, s.encoding, s.data) for sid, s in schemas.items()}
         channel_ids = {
-            cid: writer.register_channel(
-                c.topic, c.message_encoding, schema_ids[c.schema_id], c.metadata
-            )
+            cid: writer.register_channel(c.topic, c.message_encoding, schema_ids[c.schema_id], c.metadata)
             for cid, c in channels.items()
         }
         for record in records:

@@ -1,8 +1,8 @@
 """Conversion between the AKD's drive units and SI units of the load (REP 103), and set-point limits.
 
-The drive speaks in counts of the motor's feedback and in thousandths of the drive's peak torque; the Python surface speaks in
-rad, rad/s and N·m for a rotary axis, or m, m/s and N for a linear one. `Units` holds the mechanics that relate the
-two; `Limits` checks set-points before they are converted and sent.
+The drive speaks in counts of the motor's feedback and in thousandths of the drive's peak torque; the Python surface
+speaks in rad, rad/s and N·m for a rotary axis, or m, m/s and N for a linear one. `Units` holds the mechanics that
+relate the two; `Limits` checks set-points before they are converted and sent.
 
 Drive units, as the virtual AKD uses them:
 
@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import math
 import numbers
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Literal
+from typing import Literal
 
 INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
 INT16_MIN, INT16_MAX = -(2**15), 2**15 - 1
@@ -37,8 +38,11 @@ Policy = Literal["clamp", "refuse"]
 def _finite(name: str, value: float, *, positive: bool = False) -> float:
     """`value` as a float, or a ValueError naming `name` when it is no real number, NaN, infinite or (if `positive`)
     not greater than zero."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or (
-        positive and value <= 0
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, numbers.Real)
+        or not math.isfinite(value)
+        or (positive and value <= 0)
     ):
         allowed = "a finite number greater than 0" if positive else "a finite number"
         raise ValueError(f"{name} must be {allowed}, got {value!r}")
@@ -88,7 +92,7 @@ class Units:
     lead: float | None = None
     """Metres the load travels per load revolution; required for, and only for, a linear axis."""
     peak_torque: float = 3.0
-    """The drive's peak torque at the motor in N·m (peak current × motor torque constant), which drive torque value
+    """The drive's peak torque at the motor in N·m (peak current times motor torque constant), which drive torque value
     1000 (100 %) means; the virtual AKD's is 3 N·m."""
 
     def __post_init__(self) -> None:

@@ -24,8 +24,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from akd_ros import _native  # noqa: E402
-from support.netns import akd_sim_udp, free_udp_port  # noqa: E402
+from akd_ros import _native
+from support.netns import akd_sim_udp, free_udp_port
 
 
 def busy_work(stop: threading.Event) -> None:
@@ -41,7 +41,7 @@ class Busy:
         self.stop = threading.Event()
         self.threads = [threading.Thread(target=busy_work, args=(self.stop,)) for _ in range(count)]
 
-    def __enter__(self) -> "Busy":
+    def __enter__(self) -> Busy:
         for t in self.threads:
             t.start()
         return self
@@ -81,8 +81,9 @@ def run_cycle(link: str, rate: int, args) -> None:
         master.scan()
         master.request_state("op")
         with Busy(args.busy):
-            cycle = _native.Cycle(master, period_ns / 1e9, priority=args.priority, cpu=args.cpu,
-                                  lock_memory=args.lock_memory)
+            cycle = _native.Cycle(
+                master, period_ns / 1e9, priority=args.priority, cpu=args.cpu, lock_memory=args.lock_memory
+            )
             for w in cycle.warnings:
                 print(f"  warning: {w}")
             while cycle.snapshot()["cycle"] < 10:
@@ -98,17 +99,25 @@ def run_cycle(link: str, rate: int, args) -> None:
     period, latency, exchange = s["period"], s["wake_latency"], s["exchange"]
     jitter = max(period["max_ns"] - period_ns, period_ns - period["min_ns"])
     print(f"  cycle   {rate} Hz, {s['cycles']} cycles on {link}, {args.busy} Python threads busy")
-    print(f"    period       min {us(period['min_ns'])}  mean {us(period['mean_ns'])}  "
-          f"p99 {us(period['p99_ns'])}  max {us(period['max_ns'])} us;  jitter (max |period - "
-          f"{period_ns / 1000:.0f}|) {us(jitter)} us")
-    print(f"    wake latency min {us(latency['min_ns'])}  mean {us(latency['mean_ns'])}  "
-          f"p99 {us(latency['p99_ns'])}  p99.9 {us(percentile(h['wake_latency'], 0.999))}  "
-          f"max {us(latency['max_ns'])} us")
-    print(f"    exchange     min {us(exchange['min_ns'])}  mean {us(exchange['mean_ns'])}  "
-          f"p99 {us(exchange['p99_ns'])}  max {us(exchange['max_ns'])} us")
-    print(f"    CPU time per cycle {(cpu1 - cpu0) / max(1, cycles1 - cycles0) / 1000:.1f} us; "
-          f"overruns {s['overruns']}, lost frames {s['lost_frames']}, wkc errors {s['wkc_errors']}, "
-          f"other errors {s['other_errors']}, set-points busy {s['setpoints_busy']}")
+    print(
+        f"    period       min {us(period['min_ns'])}  mean {us(period['mean_ns'])}  "
+        f"p99 {us(period['p99_ns'])}  max {us(period['max_ns'])} us;  jitter (max |period - "
+        f"{period_ns / 1000:.0f}|) {us(jitter)} us"
+    )
+    print(
+        f"    wake latency min {us(latency['min_ns'])}  mean {us(latency['mean_ns'])}  "
+        f"p99 {us(latency['p99_ns'])}  p99.9 {us(percentile(h['wake_latency'], 0.999))}  "
+        f"max {us(latency['max_ns'])} us"
+    )
+    print(
+        f"    exchange     min {us(exchange['min_ns'])}  mean {us(exchange['mean_ns'])}  "
+        f"p99 {us(exchange['p99_ns'])}  max {us(exchange['max_ns'])} us"
+    )
+    print(
+        f"    CPU time per cycle {(cpu1 - cpu0) / max(1, cycles1 - cycles0) / 1000:.1f} us; "
+        f"overruns {s['overruns']}, lost frames {s['lost_frames']}, wkc errors {s['wkc_errors']}, "
+        f"other errors {s['other_errors']}, set-points busy {s['setpoints_busy']}"
+    )
 
 
 def run_cyclictest(rate: int, args) -> None:
@@ -145,8 +154,10 @@ def main() -> None:
     args = parser.parse_args()
     args.priority = args.priority or None
     rates = [int(r) for r in args.rates.split(",")]
-    print(f"cycle_jitter: {args.cycles} cycles per rate, priority {args.priority}, cpu {args.cpu}, "
-          f"lock memory {args.lock_memory}")
+    print(
+        f"cycle_jitter: {args.cycles} cycles per rate, priority {args.priority}, cpu {args.cpu}, "
+        f"lock memory {args.lock_memory}"
+    )
     for rate in rates:
         if args.udp:
             port = free_udp_port()

@@ -17,8 +17,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from akd_ros import _native  # noqa: E402
-from support.netns import akd_sim_udp, free_udp_port  # noqa: E402
+from akd_ros import _native
+from support.netns import akd_sim_udp, free_udp_port
 
 
 def measure(link: str, count: int, cycles: int, dc: bool) -> None:
@@ -35,10 +35,15 @@ def measure(link: str, count: int, cycles: int, dc: bool) -> None:
             times.append(time.perf_counter_ns() - start)
         stats = master.stats()
     times.sort()
-    pct = lambda p: times[min(len(times) - 1, int(p * len(times)))] / 1000  # noqa: E731
-    print(f"{link:28s} slaves={count} dc={dc} cycles={cycles}: mean {statistics.mean(times) / 1000:.1f} us, "
-          f"p50 {pct(0.5):.1f} us, p99 {pct(0.99):.1f} us, p99.9 {pct(0.999):.1f} us, max {times[-1] / 1000:.1f} us; "
-          f"lost {stats['lost_frames']}, wkc errors {stats['wkc_errors']}")
+
+    def pct(p: float) -> float:
+        return times[min(len(times) - 1, int(p * len(times)))] / 1000
+
+    print(
+        f"{link:28s} slaves={count} dc={dc} cycles={cycles}: mean {statistics.mean(times) / 1000:.1f} us, "
+        f"p50 {pct(0.5):.1f} us, p99 {pct(0.99):.1f} us, p99.9 {pct(0.999):.1f} us, max {times[-1] / 1000:.1f} us; "
+        f"lost {stats['lost_frames']}, wkc errors {stats['wkc_errors']}"
+    )
 
 
 def main() -> None:

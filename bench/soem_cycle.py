@@ -16,10 +16,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from support.netns import master_script_report, netns_unavailable_reason, veth_pair  # noqa: E402
-from support.soem_script import SOEM_HELPERS  # noqa: E402
+from support.netns import master_script_report, netns_unavailable_reason, veth_pair
+from support.soem_script import SOEM_HELPERS
 
-SCRIPT = SOEM_HELPERS + r'''
+SCRIPT = (
+    SOEM_HELPERS
+    + r"""
 iface, cycles = sys.argv[1], int(sys.argv[2])
 master, _, _ = open_master(iface)
 try:
@@ -39,7 +41,8 @@ try:
 finally:
     master.close()
 print(json.dumps({"times_ns": times, "wkcs": wkcs, "expected_wkc": master.expected_wkc}))
-'''
+"""
+)
 
 
 def main() -> None:
@@ -53,11 +56,16 @@ def main() -> None:
     with veth_pair() as net:
         report = master_script_report(net, SCRIPT, [str(args.cycles)], count=args.count)
     times = sorted(report["times_ns"])
-    pick = lambda q: times[min(len(times) - 1, int(q * len(times)))] / 1000  # noqa: E731
-    print(f"SOEM over veth, {args.count} virtual AKD(s), {len(times)} cycles: "
-          f"p50 {pick(0.5):.1f} us, p99 {pick(0.99):.1f} us, p99.9 {pick(0.999):.1f} us, "
-          f"worst {times[-1] / 1000:.1f} us; WKC seen {report['wkcs']} "
-          f"(expected {report['expected_wkc']})")
+
+    def pick(q: float) -> float:
+        return times[min(len(times) - 1, int(q * len(times)))] / 1000
+
+    print(
+        f"SOEM over veth, {args.count} virtual AKD(s), {len(times)} cycles: "
+        f"p50 {pick(0.5):.1f} us, p99 {pick(0.99):.1f} us, p99.9 {pick(0.999):.1f} us, "
+        f"worst {times[-1] / 1000:.1f} us; WKC seen {report['wkcs']} "
+        f"(expected {report['expected_wkc']})"
+    )
 
 
 if __name__ == "__main__":

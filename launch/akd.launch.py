@@ -19,18 +19,23 @@ from launch_ros.actions import LifecycleNode
 def generate_launch_description() -> LaunchDescription:
     """akd_node with the parameters file given as `params_file` (default: the package's akd_sim.yaml)."""
     default_params = os.path.join(get_package_share_directory("akd_ros"), "config", "akd_sim.yaml")
-    return LaunchDescription([
-        DeclareLaunchArgument("params_file", default_value=default_params,
-                              description="akd_node parameters file (see config/akd.yaml for a real drive)"),
-        DeclareLaunchArgument("namespace", default_value="", description="namespace of the node"),
-        LifecycleNode(
-            package="akd_ros",
-            executable="akd_node",
-            name="akd_node",
-            namespace=LaunchConfiguration("namespace"),
-            parameters=[LaunchConfiguration("params_file")],
-            output="screen",
-            # SIGINT first: the node disables the drive and returns the bus to Init before it exits.
-            sigterm_timeout="10",
-        ),
-    ])
+    return LaunchDescription(
+        [
+            DeclareLaunchArgument(
+                "params_file",
+                default_value=default_params,
+                description="akd_node parameters file (see config/akd.yaml for a real drive)",
+            ),
+            DeclareLaunchArgument("namespace", default_value="", description="namespace of the node"),
+            LifecycleNode(
+                package="akd_ros",
+                executable="akd_node",
+                name="akd_node",
+                namespace=LaunchConfiguration("namespace"),
+                parameters=[LaunchConfiguration("params_file")],
+                output="screen",
+                # SIGINT first: the node disables the drive and returns the bus to Init before it exits.
+                sigterm_timeout="10",
+            ),
+        ]
+    )

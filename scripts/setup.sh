@@ -46,11 +46,12 @@ if [[ ! -x .venv/bin/python ]]; then
 fi
 
 # pysoem and kickcat are the third-party masters of the interop tests; colcon checks that the
-# package builds in a ROS workspace as it does here.
+# package builds in a ROS workspace as it does here. ruff lints and formats the Python code
+# (scripts/test.sh); pinned, because a new release may add rules and fail a tree that passed.
 say "installing build, test and interop packages into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check \
     "setuptools>=64" wheel "setuptools-rust>=1.7" pytest hypothesis pysoem kickcat \
-    colcon-common-extensions
+    colcon-common-extensions ruff==0.17.6
 
 # ROS 2 Jazzy as PyPI wheels (they need no sourcing: ros-wheels-bootstrapper, which rclpy pulls
 # in, restarts .venv's python with LD_LIBRARY_PATH pointing at the wheels' libraries). The node

@@ -1,10 +1,11 @@
 #!/usr/bin/env bash
-# Runs every test: the Rust crate's lints and own tests, then the Python suite against the built extension.
-# Extra arguments go to pytest (e.g. -k soem). Exits non-zero when any test fails.
+# Runs every test: the Rust crate's lints (clippy, rustdoc, rustfmt) and own tests, the Python linter and
+# formatter (ruff, configured in pyproject.toml), then the Python suite against the built extension. Extra
+# arguments go to pytest (e.g. -k soem). Exits non-zero when any test or check fails.
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 command -v cargo >/dev/null || { [[ -f "$HOME/.cargo/env" ]] && . "$HOME/.cargo/env"; }
-[[ -x .venv/bin/pytest ]] || { echo "test: .venv missing: run bash scripts/setup.sh first" >&2; exit 1; }
+[[ -x .venv/bin/pytest && -x .venv/bin/ruff ]] || { echo "test: .venv missing: run bash scripts/setup.sh first" >&2; exit 1; }
 
 status=0
 # The crate's lints, so CI holds the code to them: clippy (with and without the bindings),
@@ -23,6 +24,9 @@ echo "test: cargo test (native/)"
 cargo_args=()
 ((EUID == 0)) && cargo_args=(-- --include-ignored)
 (cd native && cargo test --quiet "${cargo_args[@]}") || status=1
+echo "test: ruff check, ruff format --check (the Python code, configured in pyproject.toml)"
+.venv/bin/ruff check . || status=1
+.venv/bin/ruff format --check . || status=1
 echo "test: pytest (tests/)"
 .venv/bin/pytest "$@" || status=1
 if ((status)); then echo "test: FAILED" >&2; else echo "test: all passed"; fi

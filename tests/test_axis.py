@@ -35,10 +35,12 @@ def cycles_later(axis: Axis, count: int):
 
 def settled(axis: Axis):
     """The state once the axis stands still: within 2 counts over 50 cycles."""
+
     def still():
         before = axis.state().position_counts
         s = cycles_later(axis, 50)
         return abs(s.position_counts - before) <= 2 and s
+
     return wait_for("the axis to stand still", still)
 
 
@@ -229,8 +231,9 @@ def test_a_drive_fault_is_one_event_with_its_code_and_text_and_reset_clears_it(a
         "the fault events",
         lambda: (f := list(axis.fault_events())) and f,
     )
-    faults += wait_for("the emergency", lambda: [e for e in axis.fault_events()] or
-                       [e for e in faults if e.source == "emergency"])
+    faults += wait_for(
+        "the emergency", lambda: list(axis.fault_events()) or [e for e in faults if e.source == "emergency"]
+    )
     by_source = {e.source: e for e in faults}
     fault = by_source["drive_fault"]
     assert fault.code == 0x8611 and fault.text == "F439 Following error", fault
@@ -309,3 +312,99 @@ def test_every_cycle_is_recorded_once_with_what_was_sent(axis: Axis) -> None:
     assert columns["target_position"][-1] == Units().position_to_counts(0.25)
     assert abs(columns["position"][-1] - columns["target_position"][-1]) <= 2
     assert axis.cycle.samples_dropped == 0
+
+
+def test_profile_position_set_points_follow_each_other_and_need_operation_enabled(axis: Axis) -> None:
+    axis.set_mode("profile_position")
+    with pytest.raises(
+        TimeoutError, match=r"set-point handshake .* stuck in Switch on disabled.*not in Operation enabled"
+    ):
+        axis.command_position(1.0)
+    axis.enable()
+    start = axis.state().position
+    # Each command is its own handshake in the cycle thread: the second goes out after the first was acknowledged.
+    axis.command_position(start + 1.0)
+    axis.command_position(start - 1.0)
+    assert axis.cycle.setpoint_status(0)["progress"] == "done"
+    end = wait_for("the second target", lambda: abs((s := settled(axis)).position - start + 1.0) < 10 * COUNT and s)
+    assert end.statusword & 0x0400, "target reached"
+
+
+def stream_velocity(axis: Axis, velocity: float, seconds: float) -> None:
+    """Commands `velocity` every 10 ms for `seconds`."""
+    end = time.monotonic() + seconds
+    while time.monotonic() < end:
+        axis.command_velocity(velocity)
+        time.sleep(0.01)
+
+
+def test_a_velocity_stream_that_stops_is_halted_until_the_next_command(axis: Axis) -> None:
+    axis.enable()
+    axis.set_mode("profile_velocity")
+    axis.set_command_timeout(0.3, "hold")
+    # A stream that lasts longer than the time-out keeps the axis going.
+    stream_velocity(axis, 5.0, 0.6)
+    assert list(axis.command_timeout_events()) == []
+    assert abs(axis.state().velocity - 5.0) < 0.05
+    event = wait_for("the time-out", lambda: list(axis.command_timeout_events()))[0]
+    assert (event.command, event.action, event.timeout) == ("velocity", "hold", pytest.approx(0.3))
+    assert event.value == pytest.approx(5.0, abs=1e-4) and event.ds402_state == "Operation enabled"
+    assert event.describe() == (
+        "no velocity command for 0.3 s (command_timeout) while commanding 5: halted, holding until the next command"
+    )
+    assert list(axis.fault_events()) == [], "a command time-out is not a fault"
+    s = settled(axis)
+    assert s.state == "Operation enabled" and abs(s.velocity) < 0.01
+    assert axis.cycle.command_timeout_status(0)["halted"]
+    # The next command lets it go on.
+    axis.command_velocity(5.0)
+    wait_for("5 rad/s again", lambda: abs(axis.state().velocity - 5.0) < 0.05)
+    axis.set_command_timeout(0)
+    cycles_later(axis, 5)
+    assert axis.cycle.command_timeout_status(0) == {
+        "timeout": 0.0,
+        "policy": None,
+        "armed": False,
+        "halted": False,
+        "timeouts": 1,
+    }
+
+
+def test_a_torque_stream_that_stops_is_quick_stopped_until_enabled(axis: Axis) -> None:
+    axis.enable()
+    axis.set_mode("profile_torque")
+    axis.set_command_timeout(0.1, "quick_stop")
+    axis.command_torque(0.3)
+    event = wait_for("the time-out", lambda: list(axis.command_timeout_events()))[0]
+    assert (event.command, event.action) == ("torque", "quick_stop")
+    assert event.value == pytest.approx(0.3, abs=3.0 / 1000) and event.value_drive == 100
+    wait_for("Quick stop active", lambda: axis.state().state == "Quick stop active")
+    axis.enable()
+    assert axis.state().state == "Operation enabled"
+
+
+def test_position_and_zero_commands_never_time_out(axis: Axis) -> None:
+    axis.enable()
+    axis.set_command_timeout(0.05, "hold")
+    axis.command_position(0.5)
+    settled(axis)
+    axis.set_mode("profile_velocity")
+    axis.command_velocity(0.0)
+    cycles_later(axis, 300)
+    assert list(axis.command_timeout_events()) == []
+    assert not axis.cycle.command_timeout_status(0)["halted"]
+
+
+@pytest.mark.parametrize(
+    ("seconds", "policy", "message"),
+    [
+        (1.0, "stop", 'command timeout policy "stop": allowed "hold" or "quick_stop"'),
+        (-1.0, "hold", "command timeout -1 s: allowed a finite number of seconds >= 0, 0 turning it off"),
+        (math.nan, "hold", "command timeout NaN s: allowed a finite number of seconds >= 0"),
+        (math.inf, "quick_stop", "command timeout inf s: allowed a finite number of seconds >= 0"),
+    ],
+)
+def test_a_bad_command_timeout_is_refused(axis: Axis, seconds: float, policy: str, message: str) -> None:
+    with pytest.raises(CommandError, match=message):
+        axis.set_command_timeout(seconds, policy)
+    assert axis.cycle.command_timeout_status(0)["policy"] is None

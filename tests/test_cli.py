@@ -15,13 +15,13 @@ from support.netns import akd_sim_in_netns, akd_sim_udp, console_script, run_in_
 # One line of akd-scan for a virtual AKD: the real drive's identity from its SII.
 AKD_LINE = re.compile(
     r"^(?P<position>\d+) vendor=0x0000006A product=0x00414B44 revision=0x00000002 "
-    r"name='AKD EtherCAT Drive \(CoE\)' state=(?P<state>\w+)")
+    r"name='AKD EtherCAT Drive \(CoE\)' state=(?P<state>\w+)"
+)
 
 
 def run_tool(name: str, *args: str, timeout: float = 60.0) -> subprocess.CompletedProcess:
     """Runs one console script to completion and returns its status and output."""
-    return subprocess.run([*console_script(name), *args], capture_output=True, text=True,
-                          timeout=timeout, check=False)
+    return subprocess.run([*console_script(name), *args], capture_output=True, text=True, timeout=timeout, check=False)
 
 
 def scanned_positions(stdout: str) -> list[int]:
@@ -124,10 +124,12 @@ def test_sim_over_udp_serves_scan_and_sdo_round_trip(udp_port):
         assert scanned_positions(scan.stdout) == [0]
         # The simulator keeps its object dictionary between masters, so a value written by one
         # akd-sdo process is read back by the next, whatever its size and sign.
-        for address, value, shown in (("0x6060:0", "3", "3 (0x03)"),
-                                      ("0x6071:0", "-100", "-100 (0xFF9C)"),
-                                      ("0x607A:0", "-123456", "-123456 (0xFFFE1DC0)"),
-                                      ("0x607A:0", "0x7FFFFFFF", "2147483647 (0x7FFFFFFF)")):
+        for address, value, shown in (
+            ("0x6060:0", "3", "3 (0x03)"),
+            ("0x6071:0", "-100", "-100 (0xFF9C)"),
+            ("0x607A:0", "-123456", "-123456 (0xFFFE1DC0)"),
+            ("0x607A:0", "0x7FFFFFFF", "2147483647 (0x7FFFFFFF)"),
+        ):
             written = run_tool("akd-sdo", link, "write", address, value)
             assert written.returncode == 0, written.stderr
             read = run_tool("akd-sdo", link, "read", address)
@@ -150,8 +152,7 @@ def test_sdo_position_selects_the_drive(udp_port):
         for position, value in ((0, "1"), (1, "7")):
             written = run_tool("akd-sdo", link, "--position", str(position), "write", "0x6060:0", value)
             assert written.returncode == 0, written.stderr
-        shown = [run_tool("akd-sdo", link, "--position", str(p), "read", "0x6060:0").stdout.strip()
-                 for p in (0, 1)]
+        shown = [run_tool("akd-sdo", link, "--position", str(p), "read", "0x6060:0").stdout.strip() for p in (0, 1)]
         beyond = run_tool("akd-sdo", link, "--position", "2", "read", "0x6060:0")
     assert shown == ["0x6060:00 = 1 (0x01)", "0x6060:00 = 7 (0x07)"]
     assert beyond.returncode == 1 and "position 2" in beyond.stderr
@@ -162,8 +163,9 @@ def test_scan_pcap_option_writes_a_capture_tshark_decodes(tmp_path):
     capture = tmp_path / "scan.pcapng"
     result = run_tool("akd-scan", "--pcap", str(capture), "sim")
     assert result.returncode == 0, result.stderr
-    decoded = subprocess.run(["tshark", "-r", str(capture), "-Y", "ecat"], capture_output=True,
-                             text=True, timeout=60, check=False)
+    decoded = subprocess.run(
+        ["tshark", "-r", str(capture), "-Y", "ecat"], capture_output=True, text=True, timeout=60, check=False
+    )
     assert decoded.returncode == 0, decoded.stderr
     frames = decoded.stdout.splitlines()
     assert frames and all("Malformed" not in line for line in frames)

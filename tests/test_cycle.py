@@ -7,6 +7,7 @@ cycle are printed by bench/cycle_jitter.py.
 
 from __future__ import annotations
 
+import itertools
 import struct
 import threading
 import time
@@ -94,7 +95,7 @@ def test_2000_cycles_with_python_busy_reach_the_drive(master):
     for s in snapshots[1:]:
         assert (s["wkc"], s["fresh"]) == (expected_wkc, True), s
         assert len(s["inputs"]) == 1 and len(s["inputs"][0]) == INPUTS.size
-    for a, b in zip(snapshots, snapshots[1:]):
+    for a, b in itertools.pairwise(snapshots):
         assert b["cycle"] >= a["cycle"]
         assert (b["time_ns"] > a["time_ns"]) == (b["cycle"] > a["cycle"])
     assert last["cycle"] >= 2000

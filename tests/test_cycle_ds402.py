@@ -162,5 +162,26 @@ def test_a_drive_without_controlword_is_refused_naming_what_is_missing():
 
 
 def test_wait_state_refuses_an_unknown_state(csp):
-    with pytest.raises(_native.EtherCatError, match='unknown state "Enabled".*Operation enabled'):
+    with pytest.raises(_native.EtherCatError, match=r'unknown state "Enabled".*Operation enabled'):
         csp.wait_state(0, "Enabled")
+
+
+def test_set_point_handshake_and_command_timeout_refuse_what_cannot_work(csp):
+    with pytest.raises(_native.ConfigError, match="no set-point handshake was asked for"):
+        csp.wait_setpoint(0)
+    with pytest.raises(_native.ConfigError, match=r"bits 0x0100: allowed are bit 4 \(0x0010"):
+        csp.start_setpoint(0, 0x0100)
+    # Cyclic synchronous position shows statusword bit 12 all along: a handshake never starts.
+    csp.enable(0)
+    csp.wait_state(0, "Operation enabled")
+    csp.request_timeout = 0.1
+    assert csp.start_setpoint(0, 0x0030) == 1
+    with pytest.raises(_native.TimeoutError, match=r"stuck in Operation enabled .*bit 12 stayed set"):
+        csp.wait_setpoint(0)
+    status = csp.setpoint_status(0)
+    assert (status["request"], status["bits"], status["progress"]) == (1, 0x30, "stuck")
+    assert "bit 12 stayed set" in status["reason"]
+    with pytest.raises(_native.ConfigError, match="lacks target velocity 0x60FF or target torque 0x6071"):
+        csp.set_command_timeout(0, 1.0, "hold")
+    with pytest.raises(_native.ConfigError, match='policy "halt": allowed "hold" or "quick_stop"'):
+        csp.set_command_timeout(0, 1.0, "halt")

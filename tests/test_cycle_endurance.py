@@ -4,8 +4,8 @@ The cycle thread needs no GIL. To make any dependence on it visible, the test st
 interval to 50 ms and keeps a thread computing in pure Python (holding the GIL for 50 ms at a time) while the main
 thread commands a moving target and reads states: a loop that needed the GIL would stall for about 50 cycles at a
 time. The test asserts no such stalls (at most a few periods of 25 ms or more, which a virtual machine can add by
-itself), no lost frame, no working-counter error, and that every cycle ran, and prints the statistics. How regular the periods are on this machine is the benchmark's business
-(bench/cycle_jitter.py), not this test's.
+itself), no lost frame, no working-counter error, and that every cycle ran, and prints the statistics. How regular
+the periods are on this machine is the benchmark's business (bench/cycle_jitter.py), not this test's.
 
 The cycle asks for SCHED_FIFO priority 80, as a robot would run it; where that is not permitted it runs without and
 says so in the printed statistics. Even so a virtual machine can stall the thread for more than the eight cycles the
@@ -71,18 +71,24 @@ def test_100000_cycles_at_1_khz_with_python_busy_beside(capsys) -> None:
         if worker.is_alive():
             worker.join(timeout=5)
     with capsys.disabled():
-        print(f"\n  {stats['cycles']} cycles at 1 kHz with Python busy beside: overruns {stats['overruns']}, "
-              f"lost frames {stats['lost_frames']}, WKC errors {stats['wkc_errors']}, "
-              f"set-points busy {stats['setpoints_busy']}; "
-              f"{'; '.join(warnings) or 'SCHED_FIFO 80'}")
-        print(f"  periods of {STALL_NS // 1_000_000} ms or more: {stalls}, of {GIL_WAIT_NS // 1_000_000} ms or more: "
-              f"{waits}; drive at the end: {state.state}")
+        print(
+            f"\n  {stats['cycles']} cycles at 1 kHz with Python busy beside: overruns {stats['overruns']}, "
+            f"lost frames {stats['lost_frames']}, WKC errors {stats['wkc_errors']}, "
+            f"set-points busy {stats['setpoints_busy']}; "
+            f"{'; '.join(warnings) or 'SCHED_FIFO 80'}"
+        )
+        print(
+            f"  periods of {STALL_NS // 1_000_000} ms or more: {stalls}, of {GIL_WAIT_NS // 1_000_000} ms or more: "
+            f"{waits}; drive at the end: {state.state}"
+        )
         for fault in faults:
             print(f"  fault: {fault.describe()}")
         for name in ("period", "wake_latency", "exchange"):
             s = stats[name]
-            print(f"  {name:>12}: min {s['min_ns'] / 1000:8.1f} us  mean {s['mean_ns'] / 1000:8.1f} us  "
-                  f"p99 {s['p99_ns'] / 1000:8.1f} us  max {s['max_ns'] / 1000:8.1f} us")
+            print(
+                f"  {name:>12}: min {s['min_ns'] / 1000:8.1f} us  mean {s['mean_ns'] / 1000:8.1f} us  "
+                f"p99 {s['p99_ns'] / 1000:8.1f} us  max {s['max_ns'] / 1000:8.1f} us"
+            )
     assert stats["cycles"] >= CYCLES
     assert stats["lost_frames"] == 0 and stats["wkc_errors"] == 0 and stats["other_errors"] == 0
     # A writer preempted in the middle of writing a set-point (microseconds of work, but the scheduler may take the

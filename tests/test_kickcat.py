@@ -18,7 +18,7 @@ from support.netns import master_script_report
 
 kickcat = pytest.importorskip("kickcat", reason="kickcat is installed by scripts/setup.sh")
 
-KICKCAT_SCRIPT = r'''
+KICKCAT_SCRIPT = r"""
 import json, struct, sys, time
 import kickcat
 from kickcat import State
@@ -101,7 +101,7 @@ report["cycle_errors"] = errors
 report["inputs"] = [s.input_data.hex() for s in slaves]
 bus.request_state(State.INIT)
 print(json.dumps(report))
-'''
+"""
 
 
 def run_kickcat(net, count: int, mapping: str) -> dict:

@@ -217,7 +217,10 @@ def test_distributed_clocks():
 def test_cycle_time_without_dc(master):
     master.request_state("preop")
     master.set_cycle_time(0, 500_000)
-    assert (master.sdo_read(0, 0x60C2, 1), master.sdo_read(0, 0x60C2, 2)) == (b"\x05", (-4).to_bytes(1, "little", signed=True))
+    assert (master.sdo_read(0, 0x60C2, 1), master.sdo_read(0, 0x60C2, 2)) == (
+        b"\x05",
+        (-4).to_bytes(1, "little", signed=True),
+    )
     with pytest.raises(_native.ConfigError, match="250000"):
         master.set_cycle_time(0, 100_000)
 

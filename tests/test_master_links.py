@@ -23,16 +23,17 @@ def _bring_to_op_and_exchange(master: _native.Master, count: int) -> None:
 
 
 def test_master_over_udp_to_akd_sim(udp_port):
-    with akd_sim_udp(udp_port, count=2):
-        with _native.Master(f"udp://127.0.0.1:{udp_port}", timeout=0.5) as master:
-            assert master.link == f"udp://127.0.0.1:{udp_port}"
-            _bring_to_op_and_exchange(master, 2)
+    with akd_sim_udp(udp_port, count=2), _native.Master(f"udp://127.0.0.1:{udp_port}", timeout=0.5) as master:
+        assert master.link == f"udp://127.0.0.1:{udp_port}"
+        _bring_to_op_and_exchange(master, 2)
 
 
 def test_master_over_udp_without_simulator_times_out(udp_port):
-    with _native.Master(f"udp://127.0.0.1:{udp_port}", timeout=0.05) as master:
-        with pytest.raises((_native.TimeoutError, _native.LinkError)):
-            master.scan()
+    with (
+        _native.Master(f"udp://127.0.0.1:{udp_port}", timeout=0.05) as master,
+        pytest.raises((_native.TimeoutError, _native.LinkError)),
+    ):
+        master.scan()
 
 
 @pytest.mark.parametrize("count", [1, 2])

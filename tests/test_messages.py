@@ -22,11 +22,11 @@ from builtin_interfaces.msg import Time
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Header
-from support.ros import RMW, WAIT_S, Participant, ros_environment
 
 import akd_ros
 from akd_ros.msg import CycleSample, DriveFault, DriveStatus, LatchEvent
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
+from support.ros import RMW, WAIT_S, Participant, ros_environment
 
 REPO = Path(__file__).resolve().parents[1]
 TOPIC_PREFIX = "/akd_messages_test/"
@@ -42,29 +42,65 @@ def samples() -> dict[str, object]:
     header = Header(stamp=STAMP, frame_id="")
     return {
         "LatchEvent": LatchEvent(
-            header=header, joint="axis_1", channel=2, edge=LatchEvent.EDGE_FALLING,
-            position=-3.141592653589793, position_counts=-(2**31)),
+            header=header,
+            joint="axis_1",
+            channel=2,
+            edge=LatchEvent.EDGE_FALLING,
+            position=-3.141592653589793,
+            position_counts=-(2**31),
+        ),
         "DriveFault": DriveFault(
-            header=Header(stamp=STAMP, frame_id="drive"), joint="axis_1", source="emergency",
-            code=0xFF00, text="F125: Fieldbus - synchronization lost", ds402_state="fault",
-            al_state="safe_op", al_status_code=0x001A, action="quick_stop"),
+            header=Header(stamp=STAMP, frame_id="drive"),
+            joint="axis_1",
+            source="emergency",
+            code=0xFF00,
+            text="F125: Fieldbus - synchronization lost",
+            ds402_state="fault",
+            al_state="safe_op",
+            al_status_code=0x001A,
+            action="quick_stop",
+        ),
         "DriveStatus": DriveStatus(
-            header=header, joint="axis_1", ds402_state="operation_enabled", statusword=0x1637,
-            mode="cyclic_synchronous_position", mode_of_operation=8, following_error=-1.5e-6,
-            cycles=2**64 - 1, overruns=3, lost_frames=2**40, wkc_errors=7, period_mean=0.001,
-            period_max=0.00125, exchange_p99=4.2e-5),
+            header=header,
+            joint="axis_1",
+            ds402_state="operation_enabled",
+            statusword=0x1637,
+            mode="cyclic_synchronous_position",
+            mode_of_operation=8,
+            following_error=-1.5e-6,
+            cycles=2**64 - 1,
+            overruns=3,
+            lost_frames=2**40,
+            wkc_errors=7,
+            period_mean=0.001,
+            period_max=0.00125,
+            exchange_p99=4.2e-5,
+        ),
         "CycleSample": CycleSample(
-            stamp=STAMP, cycle=123_456_789_012, position=1e9, velocity=-62.83, torque=2.5,
-            command=-1e-12, following_error=3.0e-7, position_counts=2**31 - 1,
-            statusword=0xFFFF, mode_of_operation=-128, period_ns=2**32 - 1,
-            exchange_ns=41_000, wkc=3),
+            stamp=STAMP,
+            cycle=123_456_789_012,
+            position=1e9,
+            velocity=-62.83,
+            torque=2.5,
+            command=-1e-12,
+            following_error=3.0e-7,
+            position_counts=2**31 - 1,
+            statusword=0xFFFF,
+            mode_of_operation=-128,
+            period_ns=2**32 - 1,
+            exchange_ns=41_000,
+            wkc=3,
+        ),
     }
 
 
-MESSAGE_TYPES = {"LatchEvent": LatchEvent, "DriveFault": DriveFault,
-                 "DriveStatus": DriveStatus, "CycleSample": CycleSample}
-SERVICE_TYPES = {"SetMode": SetMode, "ArmLatch": ArmLatch, "SdoRead": SdoRead,
-                 "SdoWrite": SdoWrite}
+MESSAGE_TYPES = {
+    "LatchEvent": LatchEvent,
+    "DriveFault": DriveFault,
+    "DriveStatus": DriveStatus,
+    "CycleSample": CycleSample,
+}
+SERVICE_TYPES = {"SetMode": SetMode, "ArmLatch": ArmLatch, "SdoRead": SdoRead, "SdoWrite": SdoWrite}
 
 
 def requests() -> dict[str, object]:
@@ -107,8 +143,7 @@ def peer(lifetime_s: float) -> None:
     rclpy.init()
     node = rclpy.create_node("akd_messages_peer")
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-    publishers = {name: node.create_publisher(MESSAGE_TYPES[name], TOPIC_PREFIX + name, qos)
-                  for name in MESSAGE_TYPES}
+    publishers = {name: node.create_publisher(MESSAGE_TYPES[name], TOPIC_PREFIX + name, qos) for name in MESSAGE_TYPES}
     sample_messages = samples()
 
     def publish_all() -> None:
@@ -118,6 +153,7 @@ def peer(lifetime_s: float) -> None:
     def server(name: str):
         def callback(request, response):
             return answer(name, request)
+
         return callback
 
     node.create_timer(0.05, publish_all)
@@ -140,9 +176,13 @@ def ros_domain():
 @pytest.fixture(scope="module")
 def peer_process(ros_domain):
     """The peer (this file with .venv's python), running for the module's tests."""
-    process = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "peer"],
-                               env=dict(os.environ), stdout=subprocess.PIPE,
-                               stderr=subprocess.STDOUT, text=True)
+    process = subprocess.Popen(
+        [sys.executable, str(Path(__file__).resolve()), "peer"],
+        env=dict(os.environ),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     yield process
     process.terminate()
     try:
@@ -179,8 +219,7 @@ def test_serialization_round_trips_every_request_and_response(name):
     request = requests()[name]
     response = answer(name, request)
     for message in (request, response):
-        assert_same_fields(deserialize_message(serialize_message(message), type(message)),
-                           message)
+        assert_same_fields(deserialize_message(serialize_message(message), type(message)), message)
 
 
 def test_latch_edge_constants():
@@ -194,8 +233,7 @@ class MessageTypeSupport(ctypes.Structure):
 MessageTypeSupport._fields_ = [
     ("typesupport_identifier", ctypes.c_char_p),
     ("data", ctypes.c_void_p),
-    ("func", ctypes.CFUNCTYPE(ctypes.POINTER(MessageTypeSupport),
-                              ctypes.POINTER(MessageTypeSupport), ctypes.c_char_p)),
+    ("func", ctypes.CFUNCTYPE(ctypes.POINTER(MessageTypeSupport), ctypes.POINTER(MessageTypeSupport), ctypes.c_char_p)),
     ("get_type_hash_func", ctypes.c_void_p),
     ("get_type_description_func", ctypes.c_void_p),
     ("get_type_description_sources_func", ctypes.c_void_p),
@@ -206,14 +244,27 @@ class IntrospectionMember(ctypes.Structure):
     """rosidl_typesupport_introspection_c__MessageMember (Jazzy's layout)."""
 
     _fields_ = [
-        ("name_", ctypes.c_char_p), ("type_id_", ctypes.c_uint8),
-        ("string_upper_bound_", ctypes.c_size_t), ("members_", ctypes.c_void_p),
-        ("is_key_", ctypes.c_bool), ("is_array_", ctypes.c_bool),
-        ("array_size_", ctypes.c_size_t), ("is_upper_bound_", ctypes.c_bool),
-        ("offset_", ctypes.c_uint32), ("default_value_", ctypes.c_void_p),
-        *((function, ctypes.c_void_p) for function in (
-            "size_function", "get_const_function", "get_function", "fetch_function",
-            "assign_function", "resize_function")),
+        ("name_", ctypes.c_char_p),
+        ("type_id_", ctypes.c_uint8),
+        ("string_upper_bound_", ctypes.c_size_t),
+        ("members_", ctypes.c_void_p),
+        ("is_key_", ctypes.c_bool),
+        ("is_array_", ctypes.c_bool),
+        ("array_size_", ctypes.c_size_t),
+        ("is_upper_bound_", ctypes.c_bool),
+        ("offset_", ctypes.c_uint32),
+        ("default_value_", ctypes.c_void_p),
+        *(
+            (function, ctypes.c_void_p)
+            for function in (
+                "size_function",
+                "get_const_function",
+                "get_function",
+                "fetch_function",
+                "assign_function",
+                "resize_function",
+            )
+        ),
     ]
 
 
@@ -221,11 +272,14 @@ class IntrospectionMembers(ctypes.Structure):
     """rosidl_typesupport_introspection_c__MessageMembers (Jazzy's layout)."""
 
     _fields_ = [
-        ("message_namespace_", ctypes.c_char_p), ("message_name_", ctypes.c_char_p),
-        ("member_count_", ctypes.c_uint32), ("size_of_", ctypes.c_size_t),
+        ("message_namespace_", ctypes.c_char_p),
+        ("message_name_", ctypes.c_char_p),
+        ("member_count_", ctypes.c_uint32),
+        ("size_of_", ctypes.c_size_t),
         ("has_any_key_member_", ctypes.c_bool),
         ("members_", ctypes.POINTER(IntrospectionMember)),
-        ("init_function", ctypes.c_void_p), ("fini_function", ctypes.c_void_p),
+        ("init_function", ctypes.c_void_p),
+        ("fini_function", ctypes.c_void_p),
     ]
 
 
@@ -235,31 +289,32 @@ def test_the_dispatch_finds_both_type_supports(name):
     # own kind by name. The introspection one describes the message field by field.
     package_dir = Path(akd_ros.__file__).parent
     dispatch = ctypes.CDLL(str(package_dir / "libakd_ros__rosidl_typesupport_c.so"))
-    get_handle = getattr(
-        dispatch, f"rosidl_typesupport_c__get_message_type_support_handle__akd_ros__msg__{name}")
+    get_handle = getattr(dispatch, f"rosidl_typesupport_c__get_message_type_support_handle__akd_ros__msg__{name}")
     get_handle.restype = ctypes.POINTER(MessageTypeSupport)
     handle = get_handle()
     fast_dds = handle.contents.func(handle, b"rosidl_typesupport_fastrtps_c")
     assert fast_dds and fast_dds.contents.typesupport_identifier == b"rosidl_typesupport_fastrtps_c"
     introspection = handle.contents.func(handle, b"rosidl_typesupport_introspection_c")
     assert introspection, "no introspection type support"
-    members = ctypes.cast(introspection.contents.data,
-                          ctypes.POINTER(IntrospectionMembers)).contents
+    members = ctypes.cast(introspection.contents.data, ctypes.POINTER(IntrospectionMembers)).contents
     assert (members.message_namespace_, members.message_name_) == (b"akd_ros__msg", name.encode())
-    assert [members.members_[i].name_.decode() for i in range(members.member_count_)] == \
-        list(MESSAGE_TYPES[name].get_fields_and_field_types())
+    assert [members.members_[i].name_.decode() for i in range(members.member_count_)] == list(
+        MESSAGE_TYPES[name].get_fields_and_field_types()
+    )
 
 
 def test_the_build_stops_naming_the_generators_it_cannot_import():
     # setup.py's own command, run as pip or colcon would, with rosidl_generator_py unimportable.
-    script = ("import runpy, sys; sys.modules['rosidl_generator_py'] = None; "
-              "sys.argv = ['setup.py', 'generate_interfaces']; "
-              "runpy.run_path('setup.py', run_name='__main__')")
-    build = subprocess.run([sys.executable, "-c", script], cwd=REPO, capture_output=True,
-                           text=True, timeout=120, check=False)
+    script = (
+        "import runpy, sys; sys.modules['rosidl_generator_py'] = None; "
+        "sys.argv = ['setup.py', 'generate_interfaces']; "
+        "runpy.run_path('setup.py', run_name='__main__')"
+    )
+    build = subprocess.run(
+        [sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=120, check=False
+    )
     assert build.returncode != 0
-    assert "rosidl_generator_py" in build.stderr and "scripts/setup.sh" in build.stderr, \
-        build.stderr
+    assert "rosidl_generator_py" in build.stderr and "scripts/setup.sh" in build.stderr, build.stderr
 
 
 def test_messages_from_another_process_arrive_with_every_field(ros, peer_process):
@@ -267,11 +322,12 @@ def test_messages_from_another_process_arrive_with_every_field(ros, peer_process
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
     for name, kind in MESSAGE_TYPES.items():
         ros.node.create_subscription(
-            kind, TOPIC_PREFIX + name,
-            lambda message, name=name: received.setdefault(name, message), qos)
+            kind, TOPIC_PREFIX + name, lambda message, name=name: received.setdefault(name, message), qos
+        )
     ros.spin_until(
         lambda: len(received) == len(MESSAGE_TYPES) or peer_process.poll() is not None,
-        f"message of each of {sorted(MESSAGE_TYPES)}")
+        f"message of each of {sorted(MESSAGE_TYPES)}",
+    )
     assert peer_process.poll() is None, "the peer process exited"
     expected = samples()
     for name in MESSAGE_TYPES:
@@ -281,8 +337,7 @@ def test_messages_from_another_process_arrive_with_every_field(ros, peer_process
 @pytest.mark.parametrize("name", sorted(SERVICE_TYPES))
 def test_each_service_answers_from_another_process(ros, peer_process, name):
     client = ros.node.create_client(SERVICE_TYPES[name], SERVICE_PREFIX + name)
-    ros.spin_until(lambda: client.service_is_ready() or peer_process.poll() is not None,
-                   f"{name} service")
+    ros.spin_until(lambda: client.service_is_ready() or peer_process.poll() is not None, f"{name} service")
     assert peer_process.poll() is None, "the peer process exited"
     request = requests()[name]
     future = client.call_async(request)

@@ -14,11 +14,23 @@ import signal
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_srvs.srv import Trigger
-from support.ros import (COUNTS_PER_RAD, NODE, WAIT_S, Client, NodeProcess, Sim, latch_across, move_to, node_on_sim,
-                         ready, ros_environment, stop)
 
 from akd_ros.msg import LatchEvent
 from akd_ros.srv import SdoRead, SdoWrite, SetMode
+from support.ros import (
+    COUNTS_PER_RAD,
+    NODE,
+    WAIT_S,
+    Client,
+    NodeProcess,
+    Sim,
+    latch_across,
+    move_to,
+    node_on_sim,
+    ready,
+    ros_environment,
+    stop,
+)
 
 # ROS_DOMAIN_IDs of this module; the second node's are SECOND_DOMAIN_OFFSET above. Other modules take other ranges.
 DOMAINS = range(201, 211)
@@ -133,8 +145,10 @@ def test_an_injected_fault_shows_on_fault_and_diagnostics_and_reset_clears_it(ro
     sim.command("fault 0 F439")
     # Lost frames on a busy machine come as faults too; the one injected is F439 (CiA code 0x8611).
     following = [f for f in ros.received[NODE + "fault"] if f.code == 0x8611]
-    ros.spin_until(lambda: following or following.extend(f for f in ros.received[NODE + "fault"]
-                                                         if f.code == 0x8611), "DriveFault 0x8611")
+    ros.spin_until(
+        lambda: following or following.extend(f for f in ros.received[NODE + "fault"] if f.code == 0x8611),
+        "DriveFault 0x8611",
+    )
     fault = following[-1]
     assert "F439" in fault.text, fault
     assert fault.joint == JOINT and fault.source in ("drive_fault", "emergency")
@@ -189,8 +203,13 @@ def test_bad_commands_are_refused_and_the_axis_stays_still(ros, sim, node):
     ros.spin_for(0.5)
     assert abs(sim.state()["position"] - before) <= 2, "the axis moved"
     log = node.output()
-    for what in ("position command refused: position must be a finite number", "beyond the limit max_position",
-                 "beyond the limit min_position", "velocity command refused", "torque command refused"):
+    for what in (
+        "position command refused: position must be a finite number",
+        "beyond the limit max_position",
+        "beyond the limit min_position",
+        "velocity command refused",
+        "torque command refused",
+    ):
         assert what in log, f"no warning with {what!r} in:\n{log}"
 
 
@@ -262,11 +281,42 @@ def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself_all_rec
 
     with AnyReader([bag]) as reader:
         counts = {c.topic: c.msgcount for c in reader.connections}
-        faults = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages()
-                  if c.topic == NODE + "fault"]
-    assert set(counts) == {"/joint_states", "/diagnostics", NODE + "status", NODE + "latch", NODE + "fault",
-                           NODE + "position_command", NODE + "velocity_command", NODE + "torque_command",
-                           NODE + "cycle", NODE + "black_box"}, counts
+        faults = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages() if c.topic == NODE + "fault"]
+    assert set(counts) == {
+        "/joint_states",
+        "/diagnostics",
+        NODE + "status",
+        NODE + "latch",
+        NODE + "fault",
+        NODE + "position_command",
+        NODE + "velocity_command",
+        NODE + "torque_command",
+        NODE + "cycle",
+        NODE + "black_box",
+    }, counts
     assert counts["/joint_states"] > 10 and counts[NODE + "cycle"] > 10 and counts[NODE + "black_box"] > 10
     assert counts[NODE + "velocity_command"] == 25, counts
     assert any("F235" in f.text for f in faults)
+
+
+FIXED_CSP_PARAMS = """\
+akd_node:
+  ros__parameters:
+    link: udp://127.0.0.1:{port}
+    cycle_time: 0.002
+    mode: cyclic_synchronous_position
+    mapping: 0x1724/0x1B26
+    joint_name: test_axis
+    joint_states_rate: 50.0
+    enable_on_start: true
+"""
+
+
+def test_a_fixed_mapping_without_velocity_or_torque_targets_runs_with_the_time_out_unwatched(tmp_path, ros_domain):
+    """The fixed CSP mapping carries no 0x60FF/0x6071, so the cycle thread cannot watch a velocity or torque stream:
+    the node says so once and runs; position commands need no time-out."""
+    with node_on_sim(FIXED_CSP_PARAMS, tmp_path, ros_domain + SECOND_DOMAIN_OFFSET) as (_sim, node, ros):
+        ros.spin_until(lambda: "enable_on_start: Operation enabled" in node.output(), "enable at start-up")
+        assert "parameter command_timeout: not watched" in node.output()
+        assert "0x60FF" in node.output()
+        move_to(ros, ros.position() + 0.5)

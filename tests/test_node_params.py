@@ -52,8 +52,14 @@ def params_file(directory: Path, body: str) -> Path:
 
 def run_node(path: Path) -> subprocess.CompletedProcess:
     """akd_node with `path`, to its end."""
-    return subprocess.run([str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)], capture_output=True,
-                          text=True, timeout=RUN_TIMEOUT_S, env=dict(os.environ), check=False)
+    return subprocess.run(
+        [str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=RUN_TIMEOUT_S,
+        env=dict(os.environ),
+        check=False,
+    )
 
 
 BAD_FILES = {
@@ -61,35 +67,53 @@ BAD_FILES = {
     "real for an integer": ("slave: 1.5", ["parameter slave must be an integer in [0, 65535]"]),
     "cycle below 250 us": ("cycle_time: 0.0001", ["parameter cycle_time", "[0.00025, 0.01]", "0.0001"]),
     "cycle above 10 ms": ("cycle_time: 0.02", ["parameter cycle_time", "[0.00025, 0.01]"]),
-    "unknown mode": ("mode: cyclic_synchronous_velocity",
-                     ["parameter mode must be one of profile_position", "cyclic_synchronous_position",
-                      "'cyclic_synchronous_velocity'"]),
-    "unknown fixed mapping": ("mapping: 0x1799/0x1B01",
-                              ["parameter mapping", "0x1799 is not a fixed RxPDO", "0x1701", "0x1725"]),
+    "unknown mode": (
+        "mode: cyclic_synchronous_velocity",
+        [
+            "parameter mode must be one of profile_position",
+            "cyclic_synchronous_position",
+            "'cyclic_synchronous_velocity'",
+        ],
+    ),
+    "unknown fixed mapping": (
+        "mapping: 0x1799/0x1B01",
+        ["parameter mapping", "0x1799 is not a fixed RxPDO", "0x1701", "0x1725"],
+    ),
     "unknown fixed tx mapping": ("mapping: 0x1724/0x1B99", ["parameter mapping", "0x1B99", "0x1B26"]),
     "mapping no mapping": ("mapping: csp", ["parameter mapping 'csp' is not a mapping", "'default'", "'flexible'"]),
-    "flexible entry unmappable": ('mapping: flexible\nmapping.rx: ["0x6040:00/16 0x1234:56/32"]\n'
-                                  'mapping.tx: ["0x6041:00/16 0x6064:00/32"]',
-                                  ["parameter mapping", "0x1234:56"]),
-    "flexible entry malformed": ('mapping: flexible\nmapping.rx: ["6040-16"]\nmapping.tx: ["0x6041:00/16"]',
-                                 ["parameter mapping.rx", "'6040-16'", "INDEX:SUB/BITS"]),
+    "flexible entry unmappable": (
+        'mapping: flexible\nmapping.rx: ["0x6040:00/16 0x1234:56/32"]\nmapping.tx: ["0x6041:00/16 0x6064:00/32"]',
+        ["parameter mapping", "0x1234:56"],
+    ),
+    "flexible entry malformed": (
+        'mapping: flexible\nmapping.rx: ["6040-16"]\nmapping.tx: ["0x6041:00/16"]',
+        ["parameter mapping.rx", "'6040-16'", "INDEX:SUB/BITS"],
+    ),
     "flexible lists without flexible": ('mapping.rx: ["0x6040:00/16"]', ["mapping.rx", "'flexible' only"]),
-    "mode the mapping cannot carry": ("mode: cyclic_synchronous_position\nmapping: 0x1701/0x1B01",
-                                      ["parameters mode/mapping", "0x607A", "lacks"]),
-    "missing interface": ("link: akd_missing0", ["parameter link", "'akd_missing0' does not exist", "'sim'",
-                                                 "udp://HOST:PORT", "lo"]),
+    "mode the mapping cannot carry": (
+        "mode: cyclic_synchronous_position\nmapping: 0x1701/0x1B01",
+        ["parameters mode/mapping", "0x607A", "lacks"],
+    ),
+    "missing interface": (
+        "link: akd_missing0",
+        ["parameter link", "'akd_missing0' does not exist", "'sim'", "udp://HOST:PORT", "lo"],
+    ),
     "udp without port": ("link: udp://127.0.0.1", ["parameter link", "udp://HOST:PORT", "1..65535"]),
     "unknown parameter": ("cycle_tme: 0.001", ["unknown parameter cycle_tme", "cycle_time"]),
     "direction": ("direction: 0", ["parameter direction must be one of 1, -1"]),
     "linear without lead": ("axis: linear", ["axis/lead", "lead", "linear"]),
     "lead on a rotary axis": ("lead: 0.005", ["parameter lead", "rotary", "0"]),
-    "limits crossed": ("limits.min_position: 2.0\nlimits.max_position: 1.0", ["limits", "min_position",
-                                                                              "max_position"]),
+    "limits crossed": (
+        "limits.min_position: 2.0\nlimits.max_position: 1.0",
+        ["limits", "min_position", "max_position"],
+    ),
     "limit policy": ("limits.policy: wrap", ["parameter limits.policy must be one of refuse, clamp"]),
     "latch": ('latch.arm: ["3/rising"]', ["parameter latch.arm", "'3/rising'", "1/rising", "2/falling"]),
     "fault reset policy": ("fault_reset: always", ["parameter fault_reset must be one of manual, auto_once"]),
-    "command timeout policy": ("command_timeout_policy: coast",
-                               ["parameter command_timeout_policy must be one of hold, quick_stop"]),
+    "command timeout policy": (
+        "command_timeout_policy: coast",
+        ["parameter command_timeout_policy must be one of hold, quick_stop"],
+    ),
     "rate": ("joint_states_rate: 0.0", ["parameter joint_states_rate", "[1.0, 1000.0]"]),
     "bool": ("autostart: 1", ["parameter autostart must be a bool"]),
 }
@@ -108,8 +132,13 @@ def test_a_bad_parameters_file_stops_the_node_with_its_message(case, tmp_path):
 def run_until_configured(path: Path, stop: int = signal.SIGINT) -> tuple[int, str]:
     """Starts akd_node with `path`, waits until it is active (or fails), sends `stop`; its exit status and
     output."""
-    process = subprocess.Popen([str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    process = subprocess.Popen(
+        [str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=dict(os.environ),
+    )
     try:
         output = []
         for line in process.stdout:
@@ -132,8 +161,9 @@ def test_the_simulator_config_runs_and_sigint_ends_it_cleanly():
 
 
 def test_cyclic_synchronous_position_with_fixed_mappings_and_whole_numbers_for_reals(tmp_path):
-    path = params_file(tmp_path, "mode: cyclic_synchronous_position\nmapping: 0x1724/0x1B26\ngear_ratio: 2\n"
-                                 "enable_on_start: true")
+    path = params_file(
+        tmp_path, "mode: cyclic_synchronous_position\nmapping: 0x1724/0x1B26\ngear_ratio: 2\nenable_on_start: true"
+    )
     status, output = run_until_configured(path, signal.SIGTERM)
     assert status == 0, output
     assert "mode cyclic_synchronous_position" in output and "enable_on_start: Operation enabled" in output
@@ -164,7 +194,7 @@ def node_in_process():
 
 def test_every_parameter_is_declared_with_type_description_and_range(node_in_process):
     names = [spec.name for spec in params.SCHEMA]
-    descriptors = dict(zip(names, node_in_process.describe_parameters(names)))
+    descriptors = dict(zip(names, node_in_process.describe_parameters(names), strict=True))
     for spec in params.SCHEMA:
         descriptor = descriptors[spec.name]
         assert descriptor.description and descriptor.read_only, spec.name
@@ -187,8 +217,13 @@ def test_without_autostart_the_lifecycle_services_walk_the_node(tmp_path):
     from sensor_msgs.msg import JointState
 
     path = params_file(tmp_path, "autostart: false\njoint_states_rate: 50.0")
-    process = subprocess.Popen([str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
-                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=dict(os.environ))
+    process = subprocess.Popen(
+        [str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=dict(os.environ),
+    )
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=int(os.environ["ROS_DOMAIN_ID"]))
     client = rclpy.create_node("akd_lifecycle_test", context=context)

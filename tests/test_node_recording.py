@@ -10,6 +10,7 @@ every wait is bounded and both processes are ended in teardown.
 from __future__ import annotations
 
 import importlib
+import itertools
 import signal
 import subprocess
 import sys
@@ -21,10 +22,21 @@ import yaml
 from mcap.exceptions import EndOfFile
 from mcap.reader import NonSeekingReader, make_reader
 from rclpy.serialization import deserialize_message
-from rosbags.highlevel import AnyReader
-from rosbags.typesys import Stores, get_typestore, get_types_from_msg
-from support.ros import (BIN, COUNTS_PER_RAD, NODE, NODE_TOPICS, WAIT_S, latch_across, move_to, node_on_sim, ready,
-                         ros_environment)
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+from support.ros import (
+    BIN,
+    COUNTS_PER_RAD,
+    NODE,
+    NODE_TOPICS,
+    WAIT_S,
+    latch_across,
+    move_to,
+    node_on_sim,
+    ready,
+    ros_environment,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 # ROS_DOMAIN_IDs of this module, apart from test_messages' (100-200), test_node's (201-220) and test_node_params'
@@ -95,11 +107,15 @@ def fault_run(ros_domain, tmp_path_factory) -> FaultRun:
         # Every topic matched before anything happens, so the client sees every event the node records.
         hashes = {}
         for topic in NODE_TOPICS:
-            ros.spin_until(lambda: ros.node.get_publishers_info_by_topic(topic), f"the node's publisher of {topic}")
+            ros.spin_until(
+                lambda topic=topic: ros.node.get_publishers_info_by_topic(topic), f"the node's publisher of {topic}"
+            )
             hashes[topic] = str(ros.node.get_publishers_info_by_topic(topic)[0].topic_type_hash)
         for topic in COMMAND_TOPICS.values():
-            ros.spin_until(lambda: ros.node.get_subscriptions_info_by_topic(topic),
-                           f"the node's subscription of {topic}")
+            ros.spin_until(
+                lambda topic=topic: ros.node.get_subscriptions_info_by_topic(topic),
+                f"the node's subscription of {topic}",
+            )
             hashes[topic] = str(ros.node.get_subscriptions_info_by_topic(topic)[0].topic_type_hash)
 
         ready(ros, sim, "interpolated_position")
@@ -117,8 +133,14 @@ def fault_run(ros_domain, tmp_path_factory) -> FaultRun:
         assert node.process.returncode == 0, node.output()
         ros.spin_for(0.5)
         (bag,) = (folder / "bags").iterdir()
-        return FaultRun(bag, {topic: list(messages) for topic, messages in ros.received.items()}, dict(ros.sent),
-                        hashes, edge_counts, node.output())
+        return FaultRun(
+            bag,
+            {topic: list(messages) for topic, messages in ros.received.items()},
+            dict(ros.sent),
+            hashes,
+            edge_counts,
+            node.output(),
+        )
 
 
 def rosbags_messages(bag: Path) -> tuple[dict, dict]:
@@ -176,10 +198,14 @@ def test_rosbags_reads_every_topic_with_the_counts_sent_and_received_live(fault_
     # The axis may cross the edge more than once while it settles: every capture is an event.
     latches = fault_run.received[NODE + "latch"]
     assert latches and len(messages[NODE + "latch"]) == len(latches)
-    for latch, (time_ns, recorded) in zip(latches, messages[NODE + "latch"]):
+    for latch, (time_ns, recorded) in zip(latches, messages[NODE + "latch"], strict=True):
         assert time_ns == stamp_ns(latch.header.stamp) == stamp_ns(recorded.header.stamp)
-        assert (recorded.position, recorded.position_counts, recorded.channel, recorded.edge) \
-            == (latch.position, latch.position_counts, latch.channel, latch.edge)
+        assert (recorded.position, recorded.position_counts, recorded.channel, recorded.edge) == (
+            latch.position,
+            latch.position_counts,
+            latch.channel,
+            latch.edge,
+        )
         assert abs(recorded.position_counts - fault_run.edge_counts) <= 1, (recorded, fault_run.edge_counts)
     faults = [m for _, m in messages[NODE + "fault"] if m.code == F439_CODE]
     assert faults and all("F439" in f.text for f in faults), faults
@@ -187,8 +213,10 @@ def test_rosbags_reads_every_topic_with_the_counts_sent_and_received_live(fault_
     assert {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]} == counts
     assert info["message_count"] == sum(counts.values())
     # The node's own account at the close: everything handed to the recorder is in the bag.
-    assert (f"recorded {fault_run.bag}: {sum(counts.values())} messages, 0 dropped, {counts[NODE + 'fault']} black "
-            "box dumps, 0 errors") in fault_run.output
+    assert (
+        f"recorded {fault_run.bag}: {sum(counts.values())} messages, 0 dropped, {counts[NODE + 'fault']} black "
+        "box dumps, 0 errors"
+    ) in fault_run.output
 
 
 def test_every_cycle_is_recorded_with_consecutive_cycle_numbers(fault_run):
@@ -197,7 +225,7 @@ def test_every_cycle_is_recorded_with_consecutive_cycle_numbers(fault_run):
     assert len(cycles) > 1000, len(cycles)
     assert cycles == list(range(cycles[0], cycles[0] + len(cycles))), "a cycle is missing or repeated"
     times = [time_ns for time_ns, _ in messages[CYCLE]]
-    assert all(a < b for a, b in zip(times, times[1:]))
+    assert all(a < b for a, b in itertools.pairwise(times))
     assert all(time_ns == stamp_ns(m.stamp) for time_ns, m in messages[CYCLE])
     # The recorded cycles are the drive's: Operation enabled (0x27 in the low bits) while moving, in mode 7.
     assert any(m.statusword & 0x6F == 0x27 and m.mode_of_operation == 7 for _, m in messages[CYCLE])
@@ -231,7 +259,7 @@ def test_mcap_reads_the_same_messages_which_rclpy_decodes_equal_to_those_receive
     assert {topic: len(m) for topic, m in messages.items()} == counts
     for topic in (NODE + "latch", NODE + "fault"):
         assert [m for _, m in messages[topic]] == fault_run.received[topic], topic
-    recorded = {time_ns: m for time_ns, m in messages["/joint_states"]}
+    recorded = dict(messages["/joint_states"])
     for message in fault_run.received["/joint_states"]:
         assert recorded[stamp_ns(message.header.stamp)] == message
 
@@ -255,8 +283,13 @@ def test_type_hashes_agree_between_metadata_mcap_the_live_node_and_the_message_d
 
 def test_akd_plot_draws_the_fault_run(fault_run, tmp_path):
     picture = tmp_path / "fault.png"
-    done = subprocess.run([str(BIN / "akd-plot"), str(fault_run.bag), "-o", str(picture)], capture_output=True,
-                          text=True, timeout=120, check=False)
+    done = subprocess.run(
+        [str(BIN / "akd-plot"), str(fault_run.bag), "-o", str(picture)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
     assert done.returncode == 0, done.stderr
     assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert picture.stat().st_size > 20_000
@@ -287,12 +320,12 @@ def test_a_bag_of_a_sigkilled_node_is_readable_up_to_its_last_chunk_and_reindexe
     # metadata.yaml, rewritten at each closed chunk, claims nothing the file does not hold.
     assert 0 < counted <= read, (counted, read)
 
-    with pytest.raises(Exception):
-        with AnyReader([bag]) as reader:
-            list(reader.messages())
+    with pytest.raises(AnyReaderError), AnyReader([bag]) as reader:
+        list(reader.messages())
     # The README's way (section Recording), then the picture of what was saved.
-    subprocess.run([sys.executable, "-c", f"from akd_ros.recorder import reindex; reindex({str(bag)!r})"],
-                   check=True, timeout=120)
+    subprocess.run(
+        [sys.executable, "-c", f"from akd_ros.recorder import reindex; reindex({str(bag)!r})"], check=True, timeout=120
+    )
     counts, messages = rosbags_messages(bag)
     assert [m.cycle for _, m in messages[CYCLE]] == cycles
     assert metadata(bag)["message_count"] == sum(counts.values()) == read

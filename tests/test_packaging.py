@@ -24,8 +24,14 @@ def test_colcon_build_installs_a_working_package(tmp_path, mode):
     workspace = tmp_path / "ws"
     (workspace / "src").mkdir(parents=True)
     (workspace / "src" / "akd_ros").symlink_to(REPO)
-    build = subprocess.run([str(COLCON), "build", "--packages-select", "akd_ros", *mode],
-                           cwd=workspace, capture_output=True, text=True, timeout=600, check=False)
+    build = subprocess.run(
+        [str(COLCON), "build", "--packages-select", "akd_ros", *mode],
+        cwd=workspace,
+        capture_output=True,
+        text=True,
+        timeout=600,
+        check=False,
+    )
     log = workspace / "log" / "latest_build" / "akd_ros" / "stderr.log"
     assert build.returncode == 0, build.stdout + (log.read_text() if log.exists() else "")
     prefix = workspace / "install" / "akd_ros"
@@ -35,12 +41,25 @@ def test_colcon_build_installs_a_working_package(tmp_path, mode):
     env = {**os.environ, "PYTHONPATH": str(site)}
     # The install space's package is the one imported, not the development install in .venv
     # (with --symlink-install it links back to this repository, which is the point of it).
-    where = subprocess.run([sys.executable, "-c", "import akd_ros; print(akd_ros.__file__)"],
-                           env=env, cwd=tmp_path, capture_output=True, text=True, timeout=60,
-                           check=True)
+    where = subprocess.run(
+        [sys.executable, "-c", "import akd_ros; print(akd_ros.__file__)"],
+        env=env,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=True,
+    )
     expected = REPO if mode else site
     assert where.stdout.startswith(str(expected)), where.stdout
-    scan = subprocess.run([str(prefix / "lib" / "akd_ros" / "akd-scan"), "sim"], env=env,
-                          cwd=tmp_path, capture_output=True, text=True, timeout=60, check=False)
+    scan = subprocess.run(
+        [str(prefix / "lib" / "akd_ros" / "akd-scan"), "sim"],
+        env=env,
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
     assert scan.returncode == 0, scan.stderr
     assert scan.stdout.startswith("0 vendor=0x0000006A product=0x00414B44")

@@ -70,7 +70,8 @@ def test_pcap_tshark_decodes_every_frame_without_errors(recorded_session):
 def test_pcap_tshark_timestamps_are_nanoseconds_of_the_session(recorded_session):
     path, start, end = recorded_session
     stamps = [
-        int(Decimal(s) * 1_000_000_000) for s in tshark("-r", str(path), "-T", "fields", "-e", "frame.time_epoch").split()
+        int(Decimal(s) * 1_000_000_000)
+        for s in tshark("-r", str(path), "-T", "fields", "-e", "frame.time_epoch").split()
     ]
     assert stamps == sorted(stamps)
     assert start <= stamps[0] and stamps[-1] <= end

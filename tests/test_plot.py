@@ -7,10 +7,10 @@ import struct
 from pathlib import Path
 
 import pytest
-from akd_ros.msg import CycleSample, DriveFault, LatchEvent
 from sensor_msgs.msg import JointState
 
 from akd_ros.cli.plot import main
+from akd_ros.msg import CycleSample, DriveFault, LatchEvent
 from akd_ros.recorder import Recorder
 
 T0 = 1_700_000_000_000_000_000
@@ -54,14 +54,26 @@ def record(folder: Path, decimation: int = 4) -> Path:
             sample = cycle_sample(i)
             recorder.cycle_sample(sample, time_ns)
             if i == LATCH_CYCLE:
-                latch = LatchEvent(joint="axis", channel=1, edge=LatchEvent.EDGE_RISING,
-                                   position=sample.position, position_counts=sample.position_counts)
+                latch = LatchEvent(
+                    joint="axis",
+                    channel=1,
+                    edge=LatchEvent.EDGE_RISING,
+                    position=sample.position,
+                    position_counts=sample.position_counts,
+                )
                 latch.header.stamp = sample.stamp
                 recorder.write("/akd_node/latch", latch, time_ns)
             if i == FAULT_CYCLE:
-                fault = DriveFault(joint="axis", source="drive_fault", code=0x8611,
-                                   text="F439 following error", ds402_state="fault", al_state="op",
-                                   al_status_code=0, action="power stage off")
+                fault = DriveFault(
+                    joint="axis",
+                    source="drive_fault",
+                    code=0x8611,
+                    text="F439 following error",
+                    ds402_state="fault",
+                    al_state="op",
+                    al_status_code=0,
+                    action="power stage off",
+                )
                 fault.header.stamp = sample.stamp
                 recorder.write("/akd_node/fault", fault, time_ns)
                 recorder.fault(time_ns)

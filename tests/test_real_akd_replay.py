@@ -91,7 +91,8 @@ class Compared:
         r = self.request
         return (
             f"frame {self.frame} {r.name} 0x{r.adp:04X}:0x{r.ado:04X} ({len(r.data)} bytes): "
-            f"real wkc {self.real.wkc} {self.real.data[:16].hex()} / ours wkc {self.ours.wkc} {self.ours.data[:16].hex()}"
+            f"real wkc {self.real.wkc} {self.real.data[:16].hex()} / "
+            f"ours wkc {self.ours.wkc} {self.ours.data[:16].hex()}"
         )
 
 
@@ -111,7 +112,7 @@ def replay(capture) -> tuple[list[Compared], int]:
             continue
         real = parse(following[3])
         assert len(real) == len(ours), f"frame {number}: datagram count differs"
-        compared += [Compared(number, q, r, o) for q, r, o in zip(parse(payload), real, ours)]
+        compared += [Compared(number, q, r, o) for q, r, o in zip(parse(payload), real, ours, strict=True)]
     return compared, unanswered
 
 
@@ -129,8 +130,10 @@ def test_real_akd_replay_report(replayed):
     identical = sum(c.identical for c in comparable)
     left_out = sorted({f"0x{c.request.ado:04X}" for c in compared if c.time_varying})
     print(f"\nreplayed {len(compared)} answered datagrams ({unanswered} requests unanswered in the capture)")
-    print(f"identical: {sum(c.identical for c in compared)}/{len(compared)} of all, "
-          f"{identical}/{len(comparable)} = {100 * identical / len(comparable):.2f} % of the non-time-varying")
+    print(
+        f"identical: {sum(c.identical for c in compared)}/{len(compared)} of all, "
+        f"{identical}/{len(comparable)} = {100 * identical / len(comparable):.2f} % of the non-time-varying"
+    )
     print(f"left out as time-varying (DC receive/system time reads): {', '.join(left_out)}")
     by_area = Counter(c.area for c in comparable if not c.identical)
     print(f"differences by area: {dict(by_area)}")

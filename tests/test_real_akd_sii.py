@@ -59,14 +59,14 @@ def test_real_akd_sii_pdos_carry_named_entries(real_image):
     assert [e["name"] for e in tx[0x1B01]["entries"]] == ["Position actual internal value", "Statusword"]
     assert {p["name"] for p in sii["rx_pdos"]} == {"Outputs"}
     assert {p["name"] for p in sii["tx_pdos"]} == {"Inputs"}
-    assert sorted(rx) == [0x1600, 0x1601, 0x1602, 0x1603] + list(range(0x1701, 0x1703)) + list(range(0x1720, 0x1726))
+    assert sorted(rx) == [0x1600, 0x1601, 0x1602, 0x1603, *range(0x1701, 0x1703), *range(0x1720, 0x1726)]
     assert [m["name"] for m in sii["dc_modes"]] == ["DcSync", "DcOff"]
     assert sii["dc_modes"][0]["assign_activate"] == 0x0300
 
 
 def test_real_akd_sii_virtual_image_equals_the_real_one(real_image):
     ours = _native.akd_sii_image()
-    first_difference = next((i for i, (a, b) in enumerate(zip(ours, real_image)) if a != b), None)
+    first_difference = next((i for i, (a, b) in enumerate(zip(ours, real_image, strict=False)) if a != b), None)
     assert first_difference is None, f"first differing byte at 0x{first_difference:04X}"
     assert len(ours) == len(real_image)
 

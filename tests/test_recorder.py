@@ -25,7 +25,7 @@ from mcap.exceptions import EndOfFile, McapError
 from mcap.reader import NonSeekingReader, make_reader
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
-from rosbags.highlevel import AnyReader
+from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.typesys import Stores, get_typestore
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
@@ -53,9 +53,7 @@ def sample(i: int) -> JointState:
 def fault_message(code: str) -> DiagnosticArray:
     """A drive fault as diagnostics, the way a fault topic of standard messages would carry it."""
     msg = DiagnosticArray()
-    msg.status = [
-        DiagnosticStatus(level=DiagnosticStatus.ERROR, name="akd", message=f"{code} lag too large")
-    ]
+    msg.status = [DiagnosticStatus(level=DiagnosticStatus.ERROR, name="akd", message=f"{code} lag too large")]
     return msg
 
 
@@ -85,14 +83,12 @@ def read_metadata(bag: Path) -> dict:
 
 def topic_metadata(info: dict) -> dict:
     """Each topic's topic_metadata in metadata.yaml, by topic name."""
-    return {t["topic_metadata"]["name"]: t["topic_metadata"]
-            for t in info["topics_with_message_count"]}
+    return {t["topic_metadata"]["name"]: t["topic_metadata"] for t in info["topics_with_message_count"]}
 
 
 def topic_counts(info: dict) -> dict:
     """Each topic's message_count in metadata.yaml, by topic name."""
-    return {t["topic_metadata"]["name"]: t["message_count"]
-            for t in info["topics_with_message_count"]}
+    return {t["topic_metadata"]["name"]: t["message_count"] for t in info["topics_with_message_count"]}
 
 
 def cycle_index(time_ns: int) -> int:
@@ -135,7 +131,7 @@ def test_bag_reads_back_with_rosbags_mcap_and_rclpy(tmp_path):
             by_topic.setdefault(connection.topic, []).append((timestamp, msg))
     cycle_indices = [cycle_index(t) for t, _ in by_topic[CYCLE]]
     assert cycle_indices == list(range(0, 3000, 2))
-    for (timestamp, msg), i in zip(by_topic[CYCLE], cycle_indices):
+    for (timestamp, msg), i in zip(by_topic[CYCLE], cycle_indices, strict=True):
         assert msg.position[0] == sample(i).position[0] and msg.effort[0] == sample(i).effort[0]
         assert msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec == timestamp
     assert [cycle_index(t) for t, _ in by_topic[BLACK_BOX]] == list(range(1501, 2501))
@@ -189,7 +185,7 @@ def test_schema_is_the_msg_text_with_its_dependencies_and_the_type_support_hash(
     share = Path(sensor_msgs.__file__).parents[4] / "share"
     sections = joint_state.definition.split("\n" + "=" * 80 + "\n")
     assert sections[0] == (share / "sensor_msgs/msg/JointState.msg").read_text()
-    for section, name in zip(sections[1:], ["std_msgs/msg/Header", "builtin_interfaces/msg/Time"]):
+    for section, name in zip(sections[1:], ["std_msgs/msg/Header", "builtin_interfaces/msg/Time"], strict=True):
         assert section == f"MSG: {name}\n" + (share / f"{name}.msg").read_text()
     assert len(sections) == 3
     generated = json.loads((share / "sensor_msgs/msg/JointState.json").read_text())
@@ -198,8 +194,9 @@ def test_schema_is_the_msg_text_with_its_dependencies_and_the_type_support_hash(
 
 
 def test_the_package_messages_hashes_agree_with_rosbags_hash_of_their_definitions():
-    from akd_ros.msg import CycleSample, DriveFault, LatchEvent
     from rosbags.typesys import get_types_from_msg
+
+    from akd_ros.msg import CycleSample, DriveFault, LatchEvent
 
     for msg_class in (CycleSample, LatchEvent, DriveFault):
         described = message_type(msg_class)
@@ -333,9 +330,7 @@ def test_disk_full_is_reported_once_and_the_bag_is_readable_after_reindex(tmp_pa
         print(reports[0])
         """
     )
-    result = subprocess.run(
-        [sys.executable, "-c", script], capture_output=True, text=True, timeout=120
-    )
+    result = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0, result.stderr
     lines = result.stdout.splitlines()
     assert lines[0] == "1 True True True True", result.stdout
@@ -400,9 +395,8 @@ def test_sigkilled_recording_is_readable_up_to_the_last_closed_chunk(tmp_path):
     assert len(indices) >= counted and indices == list(range(len(indices)))
 
     # rosbags needs the summary: it refuses the file until reindex rebuilds it.
-    with pytest.raises(Exception):
-        with AnyReader([bag]) as reader:
-            list(reader.messages())
+    with pytest.raises(AnyReaderError), AnyReader([bag]) as reader:
+        list(reader.messages())
     reindex(bag)
     info = read_metadata(bag)
     with AnyReader([bag]) as reader:
@@ -436,7 +430,7 @@ def test_bad_topics_and_classes_are_named(tmp_path):
             recorder.add_topic("cycle", JointState)
         with pytest.raises(ValueError, match="is not an rclpy message class"):
             recorder.add_topic("/x", dict)
-        with pytest.raises(ValueError, match="qos must be an rclpy.qos.QoSProfile or None"):
+        with pytest.raises(ValueError, match=r"qos must be an rclpy.qos.QoSProfile or None"):
             recorder.add_topic("/x", Float64, qos="reliable")
         recorder.add_topic("/x", Float64)
         with pytest.raises(ValueError, match=r"topic /x was added before \(topics: \['/x'\]\)"):
@@ -453,7 +447,7 @@ def test_bad_topics_and_classes_are_named(tmp_path):
 
 
 def test_reindex_of_a_folder_without_mcap_files_says_so(tmp_path):
-    with pytest.raises(FileNotFoundError, match="holds no .mcap file"):
+    with pytest.raises(FileNotFoundError, match=r"holds no .mcap file"):
         reindex(tmp_path)
     with pytest.raises(FileNotFoundError, match="is not a bag directory"):
         reindex(tmp_path / "missing")

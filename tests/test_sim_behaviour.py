@@ -6,7 +6,8 @@ from __future__ import annotations
 import struct
 
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from support.ethercat import COMMANDS, Datagram, VirtualAkdSession, build, datagram, exchange, parse
 

@@ -75,8 +75,7 @@ def test_a_fault_injected_while_a_cycle_holds_the_master_shows_in_the_statusword
     simulator.inject_fault(0, "F439")
     wait_for("statusword fault bit", lambda: inputs(cycle)[1] & STATUSWORD_FAULT)
     state = simulator.drive_state(0)
-    assert (state["state"], state["fault"], state["fault_number"]) == \
-        ("Fault", "following_error", 439)
+    assert (state["state"], state["fault"], state["fault_number"]) == ("Fault", "following_error", 439)
     assert cycle.drive_status(0)["state"] == "Fault"
     # The cycle thread took the drive's emergency from its mailbox and made it an event.
     emergency = wait_for("the emergency", lambda: [e for e in cycle.events() if e.get("source") == "emergency"])
@@ -120,27 +119,23 @@ def test_bad_values_are_refused_naming_the_allowed_ones():
     with _native.Master("sim:2") as master:
         simulator = master.simulator
         assert len(simulator) == 2
-        with pytest.raises(_native.ConfigError,
-                           match=r"no fault named \"F1\".*following_error \(F439\)"):
+        with pytest.raises(_native.ConfigError, match=r"no fault named \"F1\".*following_error \(F439\)"):
             simulator.inject_fault(0, "F1")
-        with pytest.raises(_native.ConfigError,
-                           match="no slave at position 2: the bus has 2 slave"):
+        with pytest.raises(_native.ConfigError, match="no slave at position 2: the bus has 2 slave"):
             simulator.set_hardware_enable(2, False)
         with pytest.raises(_native.ConfigError, match="digital input 8: the AKD has inputs 1 to 7"):
             simulator.set_input_toggles(0, 8, [1.0])
-        with pytest.raises(_native.ConfigError,
-                           match="toggle position NaN of digital input 1 is not a finite"):
+        with pytest.raises(_native.ConfigError, match="toggle position NaN of digital input 1 is not a finite"):
             simulator.set_input_toggles(1, 1, [0.0, math.nan])
         with pytest.raises(_native.ConfigError, match="timeout must be a non-negative number"):
             simulator.drive_state(0, timeout=-1)
         # Nobody exchanges frames: the query says so instead of waiting for ever.
-        with pytest.raises(_native.ConfigError,
-                           match="not answered within 50ms.*idle in-process master"):
+        with pytest.raises(_native.ConfigError, match=r"not answered within 50ms.*idle in-process master"):
             simulator.drive_state(0, timeout=0.05)
     with pytest.raises(_native.ConfigError, match="virtual AKDs are gone"):
         simulator.inject_fault(0, "F439")
     with pytest.raises(_native.ConfigError, match='in-process links "sim" and "sim:N" only'):
-        _native.Master("udp://127.0.0.1:9").simulator
+        _ = _native.Master("udp://127.0.0.1:9").simulator
 
 
 class Lines:
@@ -160,8 +155,7 @@ class Lines:
 
 def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
     argv = [*console_script("akd-sim"), "--udp", f"127.0.0.1:{udp_port}"]
-    sim = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                           stderr=subprocess.PIPE, text=True)
+    sim = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         lines = Lines(sim.stdout)
         assert lines.next() == f"akd-sim: starting 1 virtual AKD on udp 127.0.0.1:{udp_port}"
@@ -181,19 +175,20 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
         reply = command("state 0")
         assert reply.startswith("ok {")
         state = json.loads(reply[3:])
-        assert (state["state"], state["fault"], state["fault_number"]) == \
-            ("Fault", "sync_lost", 125)
+        assert (state["state"], state["fault"], state["fault_number"]) == ("Fault", "sync_lost", 125)
         assert command("hardware_enable 0 low") == "ok hardware_enable 0 low"
         assert command("toggles 0 1 -100,250.5") == "ok toggles 0 1 -100,250.5"
         assert command("help").startswith("ok commands: fault POSITION NAME | hardware_enable")
-        for bad, named in (("fault 0 F1", "following_error (F439)"),
-                           ("fault 1 F439", "no slave at position 1: the bus has 1 slave"),
-                           ("hardware_enable 0 maybe", "high or low"),
-                           ("toggles 0 8 1", "inputs 1 to 7"),
-                           ("toggles 0 1 1,x", "counts separated by commas"),
-                           ("state x", "POSITION must be a whole number 0..0"),
-                           ("state", "usage: state POSITION"),
-                           ("jog 0", "allowed are fault, hardware_enable, toggles, state, help")):
+        for bad, named in (
+            ("fault 0 F1", "following_error (F439)"),
+            ("fault 1 F439", "no slave at position 1: the bus has 1 slave"),
+            ("hardware_enable 0 maybe", "high or low"),
+            ("toggles 0 8 1", "inputs 1 to 7"),
+            ("toggles 0 1 1,x", "counts separated by commas"),
+            ("state x", "POSITION must be a whole number 0..0"),
+            ("state", "usage: state POSITION"),
+            ("jog 0", "allowed are fault, hardware_enable, toggles, state, help"),
+        ):
             reply = command(bad)
             assert reply.startswith("error: ") and named in reply, (bad, reply)
         # The end of stdin ends the commands, not the simulator.

@@ -68,7 +68,7 @@ def test_sim_drive_injected_fault_sends_an_emergency_and_resets_on_the_edge(sess
     assert sdo_read(session, 0x603F, 2) == 0x4310
     sdo_write(session, 0x6040, 0, struct.pack("<H", FAULT_RESET))
     assert session.bus.drive_state(0)["state"] == "Switch on disabled"
-    with pytest.raises(akd.ConfigError, match='no fault named "F1".*sync_lost \\(F125\\)'):
+    with pytest.raises(akd.ConfigError, match=r'no fault named "F1".*sync_lost \(F125\)'):
         session.bus.inject_fault(0, "F1")
 
 

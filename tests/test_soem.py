@@ -18,7 +18,9 @@ IDENTITY = {"vendor_id": 0x6A, "product_code": 0x00414B44, "revision": 2}
 
 # Runs in the master's namespace: argv = interface, mapping ('fixed', 'flexible' or 'powerup'),
 # extras (comma-separated: 'od' reads the object dictionary, 'dc' sets distributed clocks up).
-SOEM_SCRIPT = SOEM_HELPERS + r'''
+SOEM_SCRIPT = (
+    SOEM_HELPERS
+    + r"""
 iface, mapping, extras = sys.argv[1], sys.argv[2], sys.argv[3].split(",")
 report = {}
 master, report["found"], report["preop"] = open_master(iface)
@@ -91,7 +93,8 @@ finally:
     master.close()
 # pysoem gives names as bytes or str depending on the object.
 print(json.dumps(report, default=lambda raw: raw.decode("latin-1")))
-'''
+"""
+)
 
 
 def run_soem(net, count: int, mapping: str, extras: str = "") -> dict:

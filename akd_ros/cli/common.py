@@ -5,10 +5,12 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
-from typing import Callable
+from collections.abc import Callable
 
-LINK_HELP = ("the bus: 'sim' (one in-process virtual AKD), 'sim:N' (N of them), "
-             "'udp://HOST:PORT' (akd-sim --udp), or a network interface name (needs CAP_NET_RAW)")
+LINK_HELP = (
+    "the bus: 'sim' (one in-process virtual AKD), 'sim:N' (N of them), "
+    "'udp://HOST:PORT' (akd-sim --udp), or a network interface name (needs CAP_NET_RAW)"
+)
 
 #: Exit status of a tool that failed (bus, drive or argument error).
 EXIT_FAILURE = 1
@@ -19,10 +21,10 @@ EXIT_INTERRUPTED = 130
 def add_master_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds LINK and the options every tool that opens a master takes."""
     parser.add_argument("link", metavar="LINK", help=LINK_HELP)
-    parser.add_argument("--timeout", type=float, default=0.1, metavar="SECONDS",
-                        help="reply time-out of one frame (default 0.1 s)")
-    parser.add_argument("--pcap", metavar="FILE",
-                        help="write every frame sent and received to this pcapng file")
+    parser.add_argument(
+        "--timeout", type=float, default=0.1, metavar="SECONDS", help="reply time-out of one frame (default 0.1 s)"
+    )
+    parser.add_argument("--pcap", metavar="FILE", help="write every frame sent and received to this pcapng file")
 
 
 def open_master(args: argparse.Namespace):
@@ -34,6 +36,7 @@ def open_master(args: argparse.Namespace):
 
 def stop_on_sigterm() -> None:
     """Makes SIGTERM end the tool like SIGINT does, through Python, so it cleans up."""
+
     def handler(signum, frame):
         raise KeyboardInterrupt(f"signal {signum}")
 

@@ -86,10 +86,9 @@ def read_run(bag: Path) -> Run:
                 else:
                     result.faults.append((time_ns, msg))
             result.black_box = _spans(sorted(dump))
-    except Exception as err:  # noqa: BLE001 - rosbags' errors have many types; all mean the same
+    except Exception as err:
         raise ValueError(
-            f"cannot read bag {bag}: {err} "
-            "(if its recorder was killed, run akd-plot with --reindex)"
+            f"cannot read bag {bag}: {err} (if its recorder was killed, run akd-plot with --reindex)"
         ) from err
     return result
 
@@ -142,8 +141,10 @@ def plot(run_data: Run, title: str, output: Path) -> None:
         return (time_ns - t0) / 1e9
 
     t = seconds(times)
-    column = {name: np.array([getattr(s, name) for s in samples], dtype=float) for name in (
-        "position", "command", "following_error", "torque", "period_ns")}
+    column = {
+        name: np.array([getattr(s, name) for s in samples], dtype=float)
+        for name in ("position", "command", "following_error", "torque", "period_ns")
+    }
 
     states = np.array([ds402_state(s.statusword) for s in samples])
 
@@ -164,8 +165,9 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     ax_torque.plot(t, column["torque"], lw=1.0, color="tab:brown")
     ax_torque.set_ylabel("torque (N·m or N)")
     ax_state.step(t, states, where="post", lw=1.5, color="tab:gray")
-    ax_state.set_yticks(range(-1, len(_DS402_STATES)),
-                        ["no valid state"] + [name for _, _, name in _DS402_STATES], fontsize=8)
+    ax_state.set_yticks(
+        range(-1, len(_DS402_STATES)), ["no valid state"] + [name for _, _, name in _DS402_STATES], fontsize=8
+    )
     ax_state.set_ylim(-1.5, len(_DS402_STATES) - 0.5)
     ax_state.set_ylabel("DS402 state\n(statusword)")
     ax_state.set_xlabel(f"time since the first cycle sample (s); cycles {cycles[0]}..{cycles[-1]}")
@@ -173,8 +175,13 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     time_axes = (ax_position, ax_error, ax_torque, ax_state)
     for first, last in run_data.black_box:
         for ax in time_axes:
-            ax.axvspan(seconds(first), seconds(last), color="0.85", zorder=0,
-                       label="black box (cycles before a fault)" if ax is ax_position else None)
+            ax.axvspan(
+                seconds(first),
+                seconds(last),
+                color="0.85",
+                zorder=0,
+                label="black box (cycles before a fault)" if ax is ax_position else None,
+            )
     for number, (time_ns, msg) in enumerate(run_data.latches, 1):
         _mark(time_axes, seconds(time_ns), f"L{number}", latch_label(msg), "tab:green", "--", number)
     for number, (time_ns, msg) in enumerate(run_data.faults, 1):
@@ -196,10 +203,11 @@ def plot(run_data: Run, title: str, output: Path) -> None:
         ax_period.axvline(p50, color="k", lw=1)
         ax_period.set_title(
             f"cycle period: min {period_us.min():.1f}, median {p50:.1f}, 99 % {p99:.1f}, "
-            f"max {period_us.max():.1f} µs ({period_us.size} samples)", fontsize=10)
+            f"max {period_us.max():.1f} µs ({period_us.size} samples)",
+            fontsize=10,
+        )
     else:
-        ax_period.text(0.5, 0.5, "no cycle periods recorded", ha="center",
-                       transform=ax_period.transAxes)
+        ax_period.text(0.5, 0.5, "no cycle periods recorded", ha="center", transform=ax_period.transAxes)
     ax_period.set_xlabel("cycle period (µs)")
     ax_period.set_ylabel("cycles")
     figure.savefig(output, dpi=100)
@@ -211,16 +219,22 @@ def _mark(axes, x: float, tag: str, label: str, color: str, style: str, number: 
         legend = f"{tag} at {x:.3f} s: {label}" if ax is axes[0] else None
         ax.axvline(x, color=color, ls=style, lw=1.5, label=legend)
     # Tags step down, so events close in time (an emergency and the Fault state) stay readable.
-    axes[0].annotate(tag, xy=(x, 1.0), xycoords=("data", "axes fraction"),
-                     xytext=(3, -12 * (1 + (number - 1) % 4)), textcoords="offset points",
-                     fontsize=9, color=color, fontweight="bold")
+    axes[0].annotate(
+        tag,
+        xy=(x, 1.0),
+        xycoords=("data", "axes fraction"),
+        xytext=(3, -12 * (1 + (number - 1) % 4)),
+        textcoords="offset points",
+        fontsize=9,
+        color=color,
+        fontweight="bold",
+    )
 
 
 def _output(text: str) -> Path:
     path = Path(text)
     if path.suffix.lower() not in FORMATS:
-        raise argparse.ArgumentTypeError(
-            f"{text}: the picture's file name must end in one of {', '.join(FORMATS)}")
+        raise argparse.ArgumentTypeError(f"{text}: the picture's file name must end in one of {', '.join(FORMATS)}")
     return path
 
 
@@ -229,13 +243,20 @@ def main(argv: list[str] | None = None) -> int:
 
     argparse exits with 2 for bad arguments (e.g. an output type not in FORMATS)."""
     parser = argparse.ArgumentParser(prog="akd-plot", description=__doc__.splitlines()[0])
-    parser.add_argument("bag", metavar="BAG", type=Path,
-                        help="rosbag2 directory recorded by akd_ros")
-    parser.add_argument("-o", "--output", required=True, type=_output, metavar="FILE.png",
-                        help=f"picture to write ({', '.join(FORMATS)})")
-    parser.add_argument("--reindex", action="store_true",
-                        help="first rebuild the bag's summaries and metadata.yaml "
-                             "(after a killed recording)")
+    parser.add_argument("bag", metavar="BAG", type=Path, help="rosbag2 directory recorded by akd_ros")
+    parser.add_argument(
+        "-o",
+        "--output",
+        required=True,
+        type=_output,
+        metavar="FILE.png",
+        help=f"picture to write ({', '.join(FORMATS)})",
+    )
+    parser.add_argument(
+        "--reindex",
+        action="store_true",
+        help="first rebuild the bag's summaries and metadata.yaml (after a killed recording)",
+    )
     args = parser.parse_args(argv)
 
     def body() -> int:
@@ -245,13 +266,16 @@ def main(argv: list[str] | None = None) -> int:
             reindex(args.bag)
         run_data = read_run(args.bag)
         if not run_data.samples:
-            topics = ", ".join(
-                f"{name} ({kind})" for name, kind in sorted(run_data.topics.items())) or "none"
-            print(f"akd-plot: error: bag {args.bag} has no {CYCLE_SAMPLE} messages "
-                  f"(its topics: {topics})", file=sys.stderr)
+            topics = ", ".join(f"{name} ({kind})" for name, kind in sorted(run_data.topics.items())) or "none"
+            print(
+                f"akd-plot: error: bag {args.bag} has no {CYCLE_SAMPLE} messages (its topics: {topics})",
+                file=sys.stderr,
+            )
             return EXIT_FAILURE
-        title = (f"{args.bag.name}: {len(run_data.samples)} cycle samples, "
-                 f"{len(run_data.faults)} fault(s), {len(run_data.latches)} latch capture(s)")
+        title = (
+            f"{args.bag.name}: {len(run_data.samples)} cycle samples, "
+            f"{len(run_data.faults)} fault(s), {len(run_data.latches)} latch capture(s)"
+        )
         plot(run_data, title, args.output)
         print(args.output)
         return 0

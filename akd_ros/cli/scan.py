@@ -15,16 +15,17 @@ from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, 
 
 def format_slave(slave: dict) -> str:
     """One line describing a slave as `Master.scan()` reports it."""
-    line = (f"{slave['position']} vendor=0x{slave['vendor_id']:08X} "
-            f"product=0x{slave['product_code']:08X} revision=0x{slave['revision']:08X} "
-            f"name={slave['name']!r} state={slave['found_al_state']}")
+    line = (
+        f"{slave['position']} vendor=0x{slave['vendor_id']:08X} "
+        f"product=0x{slave['product_code']:08X} revision=0x{slave['revision']:08X} "
+        f"name={slave['name']!r} state={slave['found_al_state']}"
+    )
     if slave.get("model"):
         line += f" model={slave['model']}"
     if slave.get("firmware"):
         line += f" firmware={slave['firmware']}"
     if slave["found_al_status_code"]:
-        line += (f" al_status_code=0x{slave['found_al_status_code']:04X}"
-                 f" ({slave['found_al_status_code_name']})")
+        line += f" al_status_code=0x{slave['found_al_status_code']:04X} ({slave['found_al_status_code_name']})"
     return line
 
 

@@ -14,11 +14,27 @@ import sys
 from akd_ros.cli.common import add_master_arguments, open_master, run
 
 # CoE data type codes (ETG.1000.6 table 64) the tool can show as numbers or text.
-_SIGNED = {0x0002: "INTEGER8", 0x0003: "INTEGER16", 0x0004: "INTEGER32", 0x0010: "INTEGER24",
-           0x0012: "INTEGER40", 0x0013: "INTEGER48", 0x0014: "INTEGER56", 0x0015: "INTEGER64"}
-_UNSIGNED = {0x0001: "BOOLEAN", 0x0005: "UNSIGNED8", 0x0006: "UNSIGNED16", 0x0007: "UNSIGNED32",
-             0x0016: "UNSIGNED24", 0x0018: "UNSIGNED40", 0x0019: "UNSIGNED48",
-             0x001A: "UNSIGNED56", 0x001B: "UNSIGNED64"}
+_SIGNED = {
+    0x0002: "INTEGER8",
+    0x0003: "INTEGER16",
+    0x0004: "INTEGER32",
+    0x0010: "INTEGER24",
+    0x0012: "INTEGER40",
+    0x0013: "INTEGER48",
+    0x0014: "INTEGER56",
+    0x0015: "INTEGER64",
+}
+_UNSIGNED = {
+    0x0001: "BOOLEAN",
+    0x0005: "UNSIGNED8",
+    0x0006: "UNSIGNED16",
+    0x0007: "UNSIGNED32",
+    0x0016: "UNSIGNED24",
+    0x0018: "UNSIGNED40",
+    0x0019: "UNSIGNED48",
+    0x001A: "UNSIGNED56",
+    0x001B: "UNSIGNED64",
+}
 _REAL = {0x0008: "<f", 0x0011: "<d"}
 _VISIBLE_STRING = 0x0009
 
@@ -69,10 +85,12 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-sdo."""
     parser = argparse.ArgumentParser(prog="akd-sdo", description=__doc__.splitlines()[0])
     add_master_arguments(parser)
-    parser.add_argument("--position", type=int, default=0, metavar="N",
-                        help="the slave's position on the bus (default 0)")
-    parser.add_argument("--size", type=int, metavar="BYTES",
-                        help="size of a written integer, for drives without SDO information")
+    parser.add_argument(
+        "--position", type=int, default=0, metavar="N", help="the slave's position on the bus (default 0)"
+    )
+    parser.add_argument(
+        "--size", type=int, metavar="BYTES", help="size of a written integer, for drives without SDO information"
+    )
     actions = parser.add_subparsers(dest="action", required=True, metavar="read|write")
     read = actions.add_parser("read", help="read INDEX:SUB")
     read.add_argument("address", metavar="INDEX:SUB")

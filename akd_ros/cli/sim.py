@@ -69,8 +69,9 @@ def _toggle_positions(text: str) -> list[float]:
     try:
         return [float(p) for p in text.split(",")]
     except ValueError:
-        raise CommandError("toggle positions are counts separated by commas, e.g. 1000,-2500.5; "
-                           f"got {text!r}") from None
+        raise CommandError(
+            f"toggle positions are counts separated by commas, e.g. 1000,-2500.5; got {text!r}"
+        ) from None
 
 
 def execute(simulator, line: str) -> str | None:
@@ -137,20 +138,23 @@ def serve_commands(simulator, fd: int = 0) -> None:
 
 def start_commands(simulator) -> None:
     """Answers stdin's commands on a thread of their own while the simulator serves."""
-    threading.Thread(target=serve_commands, args=(simulator,), name="akd-sim commands",
-                     daemon=True).start()
+    threading.Thread(target=serve_commands, args=(simulator,), name="akd-sim commands", daemon=True).start()
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-sim."""
-    parser = argparse.ArgumentParser(prog="akd-sim", description=__doc__.splitlines()[0],
-                                     epilog=__doc__.split("\n\n", 2)[2],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        prog="akd-sim",
+        description=__doc__.splitlines()[0],
+        epilog=__doc__.split("\n\n", 2)[2],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--udp", metavar="HOST:PORT", help="serve EtherCAT over UDP here")
     where.add_argument("--iface", metavar="NAME", help="serve raw EtherCAT on this interface")
-    parser.add_argument("--count", type=count_argument, default=1, metavar="N",
-                        help="number of virtual AKDs in the line (default 1)")
+    parser.add_argument(
+        "--count", type=count_argument, default=1, metavar="N", help="number of virtual AKDs in the line (default 1)"
+    )
     args = parser.parse_args(argv)
 
     def body() -> int:

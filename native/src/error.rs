@@ -938,6 +938,20 @@ pub enum SettingError {
         /// "bind" for a server, "connect" for a link.
         role: &'static str,
     },
+    /// A duration that is not a finite number of seconds in the setting's range.
+    Duration {
+        /// The setting, e.g. "command timeout".
+        what: &'static str,
+        /// The value given, s.
+        seconds: f64,
+        /// What the setting allows.
+        allowed: &'static str,
+    },
+    /// Set-point handshake bits outside those the AKD's profile position and homing take.
+    HandshakeBits {
+        /// The bits given.
+        bits: u16,
+    },
     /// A virtual drive's position beyond any bus position (above 65535).
     DrivePosition {
         /// The position asked for.
@@ -1017,6 +1031,12 @@ impl fmt::Display for SettingError {
                 write!(f, "cannot resolve {host:?} as a host to bind")
             }
             SettingError::UnresolvedHost { host, .. } => write!(f, "UDP address {host:?} resolves to nothing"),
+            SettingError::Duration { what, seconds, allowed } => write!(f, "{what} {seconds} s: allowed {allowed}"),
+            SettingError::HandshakeBits { bits } => write!(
+                f,
+                "set-point handshake bits 0x{bits:04X}: allowed are bit 4 (0x0010, new set-point or start homing) \
+                 with bit 5 (0x0020, change set immediately) and bit 6 (0x0040, relative), e.g. 0x0030 or 0x0010"
+            ),
             SettingError::DrivePosition { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
             }
@@ -1052,6 +1072,11 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
+    /// A command time-out policy name.
+    CommandTimeoutPolicy {
+        /// The name given.
+        name: String,
+    },
 }
 
 impl fmt::Display for UnknownName {
@@ -1067,6 +1092,9 @@ impl fmt::Display for UnknownName {
                 write!(f, "no fault named {name:?}: the virtual AKD raises {}", allowed.join(", "))
             }
             UnknownName::LatchEdge { name } => write!(f, "latch edge {name:?}: allowed \"rising\" or \"falling\""),
+            UnknownName::CommandTimeoutPolicy { name } => {
+                write!(f, "command timeout policy {name:?}: allowed \"hold\" or \"quick_stop\"")
+            }
         }
     }
 }
@@ -1122,6 +1150,18 @@ pub enum Unavailable {
         missing: u8,
         /// Edge bits readable.
         readable: u8,
+    },
+    /// A set-point handshake waited for where none was asked.
+    NoHandshake {
+        /// Drive position.
+        position: u16,
+    },
+    /// A command time-out asked of a drive whose mapping does not carry what it watches.
+    CommandTimeoutUnwatched {
+        /// Slave position.
+        slave: u16,
+        /// What the mapping lacks.
+        missing: &'static str,
     },
     /// An object that is not in the slave's output mapping.
     NotInOutputs {
@@ -1186,6 +1226,12 @@ impl fmt::Display for Unavailable {
                 "slave {slave}'s mapping carries no latched position for edge bits 0x{missing:X} (readable: \
                  0x{readable:X}; bit 0 latch 1 rising, 1 latch 1 falling, 2 latch 2 rising, 3 latch 2 falling)"
             ),
+            Unavailable::NoHandshake { position } => {
+                write!(f, "drive {position}: no set-point handshake was asked for")
+            }
+            Unavailable::CommandTimeoutUnwatched { slave, missing } => {
+                write!(f, "slave {slave}: the command time-out watches mapped targets, and the mapping lacks {missing}")
+            }
             Unavailable::NotInOutputs { slave, index, subindex } => {
                 write!(f, "0x{index:04X}:{subindex:02X} is not in slave {slave}'s output mapping")
             }

@@ -1,6 +1,8 @@
 //! The cycle thread's loop allocates nothing: a global allocator counts the allocations of
 //! the thread named `akd-cycle` (found by its kernel thread id in /proc), while the virtual
-//! AKDs are served over UDP by another thread whose allocations are not counted.
+//! AKDs are served over UDP by another thread whose allocations are not counted. Drive 2 is
+//! mapped for the profile modes, so that the set-point handshake and the command time-out (its
+//! halt, its release and its quick stop) run in the watched cycles too.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::net::{SocketAddr, UdpSocket};
@@ -9,11 +11,16 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
+use akd_native::cycle::events::CommandTimeoutAction;
 use akd_native::cycle::sequencer::{Progress, Request};
-use akd_native::cycle::{Config, CycleThread, Snapshot};
+use akd_native::cycle::{handshake, Config, CycleThread, Snapshot};
+use akd_native::ds402::{Mode, State};
 use akd_native::link::udp::Udp;
 use akd_native::master::Master;
 use akd_native::sim::{server, Timing, VirtualBus};
+
+#[path = "support/profile.rs"]
+mod profile;
 
 struct Counting;
 
@@ -75,7 +82,7 @@ fn cycle_loop_allocates_nothing() {
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
         let stop = stop.clone();
-        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(2, Timing::IMMEDIATE), &stop))
+        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(3, Timing::IMMEDIATE), &stop))
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
     let deadline = Instant::now() + Duration::from_secs(5);
@@ -84,6 +91,9 @@ fn cycle_loop_allocates_nothing() {
     }
     m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
     m.configure_dc(1_000_000).unwrap();
+    let (rx, tx) = profile::profile_mapping();
+    m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
+    m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
     let mut cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
@@ -102,6 +112,7 @@ fn cycle_loop_allocates_nothing() {
         }
         std::hint::black_box((cycle.snapshot(), cycle.drive_status(1).unwrap()));
     }
+    let handshake = set_point_and_command_timeouts(&cycle);
     let last = wait_for_cycle(&cycle, armed.cycle + 300);
     let during = ALLOCATIONS.load(Ordering::SeqCst) - before;
     WATCHED.store(0, Ordering::SeqCst);
@@ -109,6 +120,7 @@ fn cycle_loop_allocates_nothing() {
     let (lost, wkc) = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
     // The sequencer did run in those cycles.
     let sequenced = cycle.drive_status(1).unwrap();
+    let command_timeouts = cycle.command_timeout_status(2).unwrap().timeouts;
     let master = cycle.stop().unwrap();
     stop.store(true, Ordering::SeqCst);
     serving.join().unwrap().unwrap();
@@ -121,6 +133,44 @@ fn cycle_loop_allocates_nothing() {
         sequenced.progress == Progress::Done || (sequenced.progress == Progress::Lost && lost > 0),
         "{sequenced:?}"
     );
+    // Drive 2 went through the handshake and both time-outs, unless lost frames faulted it.
+    if lost == 0 {
+        assert_eq!(handshake.map(|s| s.progress), Some(handshake::Progress::Done), "{handshake:?}");
+        assert_eq!(command_timeouts, 2);
+    }
     assert_eq!(during, 0, "allocations in {} cycles", last.cycle - armed.cycle);
     drop(master);
+}
+
+fn wait_until(what: &str, done: impl Fn() -> bool) {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while !done() {
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
+
+/// Drive 2: a profile-position set-point, then a velocity stream that times out twice, halted
+/// and released by the next write, then quick-stopped. The handshake's end, `None` when the
+/// drive could not be enabled (a lost frame on a loaded machine can fault it).
+fn set_point_and_command_timeouts(cycle: &CycleThread) -> Option<handshake::Status> {
+    cycle.request(2, Request::Enable).unwrap();
+    let enabled = || cycle.drive_status(2).unwrap().state() == Some(State::OperationEnabled);
+    wait_until("drive 2 enabled", || enabled() || cycle.drive_status(2).unwrap().progress != Progress::InProgress);
+    if !enabled() {
+        return None;
+    }
+    cycle.set_object(2, 0x607A, 0, &1000i32.to_le_bytes()).unwrap();
+    cycle.start_setpoint(2, 0x0030, None).unwrap();
+    let handshake = cycle.wait_setpoint(2, None).ok();
+    cycle.set_mode(2, Mode::ProfileVelocity as i8).unwrap();
+    let timeouts = || cycle.command_timeout_status(2).unwrap().timeouts;
+    for (n, action) in [CommandTimeoutAction::Halt, CommandTimeoutAction::QuickStop].into_iter().enumerate() {
+        cycle.set_command_timeout(2, Some(Duration::from_millis(20)), action).unwrap();
+        cycle.set_object(2, 0x60FF, 0, &10_000i32.to_le_bytes()).unwrap();
+        wait_until("a command time-out", || timeouts() > n as u64 || !enabled());
+        // Released by the next write.
+        cycle.set_object(2, 0x60FF, 0, &0i32.to_le_bytes()).unwrap();
+    }
+    handshake
 }

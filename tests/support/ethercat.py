@@ -9,7 +9,23 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-COMMANDS = "NOP APRD APWR APRW FPRD FPWR FPRW BRD BWR BRW LRD LWR LRW ARMW FRMW".split()
+COMMANDS = [
+    "NOP",
+    "APRD",
+    "APWR",
+    "APRW",
+    "FPRD",
+    "FPWR",
+    "FPRW",
+    "BRD",
+    "BWR",
+    "BRW",
+    "LRD",
+    "LWR",
+    "LRW",
+    "ARMW",
+    "FRMW",
+]
 ETHERTYPE = 0x88A4
 
 

@@ -19,6 +19,7 @@ or, to open a raw socket of the current process inside the master's namespace::
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
 import itertools
 import json
@@ -29,10 +30,10 @@ import socket
 import subprocess
 import sys
 import time
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, Sequence
 
 import pytest
 
@@ -71,10 +72,8 @@ def _kill_pids_in(ns: str) -> None:
     """Stops processes the test left in its own namespace, so deleting it frees the veth."""
     listed = _ip("netns", "pids", ns, check=False)
     for pid in listed.stdout.split():
-        try:
+        with contextlib.suppress(ProcessLookupError):
             os.kill(int(pid), signal.SIGKILL)
-        except ProcessLookupError:
-            pass
 
 
 @contextmanager
@@ -96,12 +95,31 @@ def veth_pair(mtu: int = 1500) -> Iterator[VethPair]:
             _ip("netns", "add", ns)
             made.append(ns)
             _ip("-n", ns, "link", "set", "lo", "up")
-        _ip("link", "add", net.if_master, "netns", net.ns_master, "mtu", str(mtu),
-            "type", "veth", "peer", "name", net.if_sim, "netns", net.ns_sim, "mtu", str(mtu))
+        _ip(
+            "link",
+            "add",
+            net.if_master,
+            "netns",
+            net.ns_master,
+            "mtu",
+            str(mtu),
+            "type",
+            "veth",
+            "peer",
+            "name",
+            net.if_sim,
+            "netns",
+            net.ns_sim,
+            "mtu",
+            str(mtu),
+        )
         for ns, ifname in ((net.ns_master, net.if_master), (net.ns_sim, net.if_sim)):
-            subprocess.run(["ip", "netns", "exec", ns, "sysctl", "-qw",
-                            f"net.ipv6.conf.{ifname}.disable_ipv6=1"],
-                           capture_output=True, timeout=10, check=False)
+            subprocess.run(
+                ["ip", "netns", "exec", ns, "sysctl", "-qw", f"net.ipv6.conf.{ifname}.disable_ipv6=1"],
+                capture_output=True,
+                timeout=10,
+                check=False,
+            )
             _ip("-n", ns, "link", "set", ifname, "up")
         yield net
     except subprocess.CalledProcessError as error:
@@ -117,15 +135,16 @@ def netns_argv(ns: str, argv: Sequence[str]) -> list[str]:
     return ["ip", "netns", "exec", ns, *argv]
 
 
-def run_in_netns(ns: str, argv: Sequence[str], timeout: float = 30.0,
-                 env: dict | None = None) -> subprocess.CompletedProcess:
+def run_in_netns(
+    ns: str, argv: Sequence[str], timeout: float = 30.0, env: dict | None = None
+) -> subprocess.CompletedProcess:
     """Runs a command in `ns` to completion (bounded by `timeout`), capturing text output."""
-    return subprocess.run(netns_argv(ns, argv), capture_output=True, text=True,
-                          timeout=timeout, env=env, check=False)
+    return subprocess.run(netns_argv(ns, argv), capture_output=True, text=True, timeout=timeout, env=env, check=False)
 
 
-def run_python_in_netns(ns: str, script: str, args: Sequence[str] = (), timeout: float = 30.0,
-                        env: dict | None = None) -> subprocess.CompletedProcess:
+def run_python_in_netns(
+    ns: str, script: str, args: Sequence[str] = (), timeout: float = 30.0, env: dict | None = None
+) -> subprocess.CompletedProcess:
     """Runs a Python script (source text) with this interpreter in `ns`, bounded by `timeout`."""
     return run_in_netns(ns, [sys.executable, "-c", script, *args], timeout=timeout, env=env)
 
@@ -183,8 +202,9 @@ def _wait_until(ready, process: subprocess.Popen, what: str, timeout: float) -> 
     while not ready():
         if process.poll() is not None:
             out, err = process.communicate()
-            raise RuntimeError(f"{what} exited with status {process.returncode} before it was "
-                               f"ready: {err.strip() or out.strip()}")
+            raise RuntimeError(
+                f"{what} exited with status {process.returncode} before it was ready: {err.strip() or out.strip()}"
+            )
         if time.monotonic() > deadline:
             stop_process(process)
             raise RuntimeError(f"{what} was not ready within {timeout} s")
@@ -203,37 +223,35 @@ def _serving(argv: list[str], ready, what: str, ready_timeout: float) -> Iterato
         out, err = stop_process(process)
         process.output_text = out
     if process.returncode != 0:
-        raise RuntimeError(f"{what} did not stop cleanly on SIGTERM (status "
-                           f"{process.returncode}): {err.strip() or out.strip()}")
+        raise RuntimeError(
+            f"{what} did not stop cleanly on SIGTERM (status {process.returncode}): {err.strip() or out.strip()}"
+        )
 
 
 def akd_sim_in_netns(ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0):
     """Runs `akd-sim --iface IFNAME --count N` in `ns` (context manager yielding the process once
     its packet socket is bound; stopped with SIGTERM on exit)."""
     argv = netns_argv(ns, [*console_script("akd-sim"), "--iface", ifname, "--count", str(count)])
-    return _serving(argv, lambda: _packet_socket_open(ns, ifname),
-                    f"akd-sim on {ifname} in {ns}", ready_timeout)
+    return _serving(argv, lambda: _packet_socket_open(ns, ifname), f"akd-sim on {ifname} in {ns}", ready_timeout)
 
 
 def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeout: float = 10.0):
     """Runs `akd-sim --udp HOST:PORT --count N` in this namespace (context manager yielding the
     process once the port is bound; stopped with SIGTERM on exit)."""
     argv = [*console_script("akd-sim"), "--udp", f"{host}:{port}", "--count", str(count)]
-    return _serving(argv, lambda: udp_port_bound(port), f"akd-sim on udp {host}:{port}",
-                    ready_timeout)
+    return _serving(argv, lambda: udp_port_bound(port), f"akd-sim on udp {host}:{port}", ready_timeout)
 
 
-def master_script_report(net: VethPair, script: str, args: Sequence[str], count: int = 1,
-                         timeout: float = 120.0) -> dict:
+def master_script_report(
+    net: VethPair, script: str, args: Sequence[str], count: int = 1, timeout: float = 120.0
+) -> dict:
     """Serves `count` virtual AKDs on the sim end of `net`, runs a third-party master's script
     (source text) in the master namespace with (interface, *args), and returns the JSON report
     the script printed as its last line; fails the test with the script's output otherwise."""
     with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count):
-        result = run_python_in_netns(net.ns_master, script, args=[net.if_master, *args],
-                                     timeout=timeout)
+        result = run_python_in_netns(net.ns_master, script, args=[net.if_master, *args], timeout=timeout)
     if result.returncode != 0:
-        pytest.fail(f"master script failed (status {result.returncode}):\n{result.stderr}\n"
-                    f"{result.stdout}")
+        pytest.fail(f"master script failed (status {result.returncode}):\n{result.stderr}\n{result.stdout}")
     return json.loads(result.stdout.strip().splitlines()[-1])
 
 

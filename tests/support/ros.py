@@ -15,9 +15,9 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterator
 
 import pytest
 import rclpy
@@ -38,8 +38,13 @@ NODE = "/akd_node/"
 WAIT_S = 30.0
 COMMAND_KINDS = ("position", "velocity", "torque")
 # What the client subscribes to: every topic akd_node publishes (the recorded ~/cycle and ~/black_box are not).
-NODE_TOPICS = {"/joint_states": JointState, "/diagnostics": DiagnosticArray, NODE + "status": DriveStatus,
-               NODE + "latch": LatchEvent, NODE + "fault": DriveFault}
+NODE_TOPICS = {
+    "/joint_states": JointState,
+    "/diagnostics": DiagnosticArray,
+    NODE + "status": DriveStatus,
+    NODE + "latch": LatchEvent,
+    NODE + "fault": DriveFault,
+}
 
 
 @contextmanager
@@ -47,8 +52,7 @@ def ros_environment(domains: range) -> Iterator[int]:
     """Sets, for the block, a ROS_DOMAIN_ID picked from `domains`, discovery on localhost and Fast DDS; gives the
     domain. Test modules take ranges apart, so modules run at once on one machine do not see each other's nodes."""
     domain = random.choice(domains)
-    settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-                "RMW_IMPLEMENTATION": RMW}
+    settings = {"ROS_DOMAIN_ID": str(domain), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "RMW_IMPLEMENTATION": RMW}
     with pytest.MonkeyPatch.context() as patch:
         for key, value in settings.items():
             patch.setenv(key, value)
@@ -81,8 +85,14 @@ class Sim:
         self.port = port
         self.log: list[str] = []
         self.lines: queue.Queue = queue.Queue()
-        self.process = subprocess.Popen([str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}"], stdin=subprocess.PIPE,
-                                        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1)
+        self.process = subprocess.Popen(
+            [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            bufsize=1,
+        )
         threading.Thread(target=lines_of, args=(self.process.stdout, self.lines, self.log), daemon=True).start()
         self.reply("akd-sim: starting")
 
@@ -93,8 +103,10 @@ class Sim:
             try:
                 line = self.lines.get(timeout=max(0.0, deadline - time.monotonic()))
             except queue.Empty:
-                raise AssertionError(f"akd-sim gave no line starting {prefix!r}; output:\n{''.join(self.log)}")
-            if line.startswith(prefix) or line.startswith("error"):
+                raise AssertionError(
+                    f"akd-sim gave no line starting {prefix!r}; output:\n{''.join(self.log)}"
+                ) from None
+            if line.startswith((prefix, "error")):
                 assert not line.startswith("error"), line
                 return line
 
@@ -122,9 +134,14 @@ class NodeProcess:
         env = dict(os.environ)
         if domain is not None:
             env["ROS_DOMAIN_ID"] = str(domain)
-        self.process = subprocess.Popen([str(BIN / "akd_node"), "--ros-args", "--params-file", str(params)],
-                                        env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                                        bufsize=1)
+        self.process = subprocess.Popen(
+            [str(BIN / "akd_node"), "--ros-args", "--params-file", str(params)],
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+            bufsize=1,
+        )
         threading.Thread(target=lines_of, args=(self.process.stdout, queue.Queue(), self.log), daemon=True).start()
 
     def output(self) -> str:
@@ -173,8 +190,9 @@ class Client(Participant):
         for topic, kind in NODE_TOPICS.items():
             self.received[topic] = []
             self.node.create_subscription(kind, topic, self.received[topic].append, qos)
-        self.commands = {kind: self.node.create_publisher(Float64, f"{NODE}{kind}_command", qos)
-                         for kind in COMMAND_KINDS}
+        self.commands = {
+            kind: self.node.create_publisher(Float64, f"{NODE}{kind}_command", qos) for kind in COMMAND_KINDS
+        }
         self.sent = dict.fromkeys(COMMAND_KINDS, 0)
 
     def call(self, kind, name: str, request=None):
@@ -261,8 +279,7 @@ def node_on_sim(params: str, folder: Path, domain: int) -> Iterator[tuple[Sim, N
     client = None
     try:
         client = Client(domain)
-        client.spin_until(lambda: client.received["/joint_states"] or node.process.poll() is not None,
-                          "joint_states")
+        client.spin_until(lambda: client.received["/joint_states"] or node.process.poll() is not None, "joint_states")
         assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
         yield sim, node, client
     finally:

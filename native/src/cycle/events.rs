@@ -1,4 +1,5 @@
-//! Events the cycle thread reports — latch captures and faults — as four words each through a
+//! Events the cycle thread reports — latch captures, faults and command time-outs — as four
+//! words each through a
 //! [`Ring`], so that the thread never waits for whoever reads them; a full ring drops and
 //! counts, so what was missed is known.
 
@@ -92,6 +93,59 @@ impl Action {
     }
 }
 
+/// What the command time-out does when a velocity or torque stream stops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum CommandTimeoutAction {
+    /// Halt (controlword bit 8) until the next target write.
+    Halt = 1,
+    /// Quick stop: the drive brakes and holds in Quick stop active until enabled again.
+    QuickStop = 2,
+}
+
+impl CommandTimeoutAction {
+    /// Every action.
+    pub const ALL: [CommandTimeoutAction; 2] = [CommandTimeoutAction::Halt, CommandTimeoutAction::QuickStop];
+
+    /// The action's name as the Python API and the node's command_timeout_policy spell it.
+    pub fn name(self) -> &'static str {
+        match self {
+            CommandTimeoutAction::Halt => "hold",
+            CommandTimeoutAction::QuickStop => "quick_stop",
+        }
+    }
+
+    /// What was done, for the log.
+    pub fn describe(self) -> &'static str {
+        match self {
+            CommandTimeoutAction::Halt => "halted, holding until the next command",
+            CommandTimeoutAction::QuickStop => "quick stop",
+        }
+    }
+}
+
+/// The target a command stream writes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum CommandedTarget {
+    /// Target velocity 0x60FF (profile velocity), counts/s.
+    Velocity = 1,
+    /// Target torque 0x6071 (profile torque), 0.1 % of peak torque.
+    Torque = 2,
+}
+
+impl CommandedTarget {
+    const ALL: [CommandedTarget; 2] = [CommandedTarget::Velocity, CommandedTarget::Torque];
+
+    /// The command's kind as the Python API spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            CommandedTarget::Velocity => "velocity",
+            CommandedTarget::Torque => "torque",
+        }
+    }
+}
+
 /// One event.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Event {
@@ -131,6 +185,26 @@ pub enum Event {
         /// What was done about it.
         action: Action,
     },
+    /// A velocity or torque stream stopped for longer than the command time-out while the
+    /// drive was in Operation enabled.
+    CommandTimeout {
+        /// The cycle that saw it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The slave's position on the bus.
+        slave: u16,
+        /// Which target the stream wrote.
+        target: CommandedTarget,
+        /// Its last value (drive units).
+        value: i32,
+        /// The time-out (µs, saturating).
+        timeout_us: u32,
+        /// The statusword of that cycle.
+        statusword: u16,
+        /// What was done.
+        action: CommandTimeoutAction,
+    },
 }
 
 impl Event {
@@ -147,6 +221,12 @@ impl Event {
                 time_ns,
                 2 | (slave as u64) << 8 | (source as u64) << 24 | (action as u64) << 32,
                 code as u64 | (statusword as u64) << 16 | (al_status as u64) << 32 | (al_status_code as u64) << 48,
+            ],
+            Event::CommandTimeout { cycle, time_ns, slave, target, value, timeout_us, statusword, action } => [
+                cycle,
+                time_ns,
+                3 | (slave as u64) << 8 | (action as u64) << 24 | (target as u64) << 32 | (statusword as u64) << 40,
+                value as u32 as u64 | (timeout_us as u64) << 32,
             ],
         }
     }
@@ -173,6 +253,16 @@ impl Event {
                 al_status: (data >> 32) as u16,
                 al_status_code: (data >> 48) as u16,
                 action: *Action::ALL.iter().find(|a| **a as u8 == (what >> 32) as u8)?,
+            }),
+            3 => Some(Event::CommandTimeout {
+                cycle,
+                time_ns,
+                slave,
+                target: *CommandedTarget::ALL.iter().find(|t| **t as u8 == (what >> 32) as u8)?,
+                value: data as u32 as i32,
+                timeout_us: (data >> 32) as u32,
+                statusword: (what >> 40) as u16,
+                action: *CommandTimeoutAction::ALL.iter().find(|a| **a as u8 == (what >> 24) as u8)?,
             }),
             _ => None,
         }
@@ -226,9 +316,20 @@ mod tests {
             al_status_code: 0x001B,
             action: Action::Disabled,
         };
+        let timeout = Event::CommandTimeout {
+            cycle: 9,
+            time_ns: 11,
+            slave: 3,
+            target: CommandedTarget::Torque,
+            value: -300,
+            timeout_us: 500_000,
+            statusword: 0x1637,
+            action: CommandTimeoutAction::QuickStop,
+        };
         events.push(latch);
         events.push(fault);
-        assert_eq!(events.drain(), [latch, fault]);
+        events.push(timeout);
+        assert_eq!(events.drain(), [latch, fault, timeout]);
         assert!(events.drain().is_empty());
         for _ in 0..CAPACITY + 3 {
             events.push(latch);

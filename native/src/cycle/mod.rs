@@ -13,7 +13,10 @@
 //!
 //! Drives whose mapping carries controlword and statusword are sequenced in the loop by
 //! [`sequencer`]: [`CycleThread::request`] asks for enable, disable, quick stop or fault reset,
-//! [`CycleThread::drive_status`] tells how far it is.
+//! [`CycleThread::drive_status`] tells how far it is. The set-point handshake of profile
+//! position and the start of homing run there too ([`handshake`],
+//! [`CycleThread::start_setpoint`]), and so does the command time-out of velocity and torque
+//! streams ([`command_timeout`], [`CycleThread::set_command_timeout`]).
 //!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
@@ -31,7 +34,9 @@ use crate::master::Master;
 use crate::pdo::PdoEntry;
 
 pub mod acyclic;
+pub mod command_timeout;
 pub mod events;
+pub mod handshake;
 pub mod image;
 pub mod latch;
 pub mod ring;
@@ -44,7 +49,7 @@ pub mod supervision;
 pub mod timing;
 
 use acyclic::{MailboxService, SdoSlot};
-use events::{Event, Events};
+use events::{CommandTimeoutAction, Event, Events};
 use samples::{Sample, Samples};
 use seqlock::SeqBytes;
 use stats::CycleStats;
@@ -109,6 +114,10 @@ struct Shared {
     request_timeout_ns: AtomicU64,
     /// One per slave: the latch edges armed.
     latches: Vec<latch::Shared>,
+    /// One per slave: the set-point handshake asked for.
+    handshakes: Vec<handshake::Shared>,
+    /// One per slave: the command time-out.
+    command_timeouts: Vec<command_timeout::Shared>,
     events: Events,
     samples: Samples,
     sdo: SdoSlot,
@@ -123,6 +132,11 @@ struct DriveLoop {
     drive: sequencer::Drive,
     latch: Option<latch::Latch>,
     watch: supervision::DriveWatch,
+    handshake: handshake::Handshake,
+    command_timeout: command_timeout::CommandTimeout,
+    /// The command time-out's target writes counted before this cycle's copy of the
+    /// set-points; `None` when the copy did not succeed.
+    target_writes: Option<u64>,
 }
 
 /// The drives of `master` that can be sequenced, with their objects' offsets in the whole
@@ -201,6 +215,9 @@ impl CycleThread {
                     drive: sequencer::Drive::new(offsets),
                     latch: latch.map(latch::Latch::new),
                     watch: supervision::DriveWatch::default(),
+                    handshake: handshake::Handshake::default(),
+                    command_timeout: command_timeout::CommandTimeout::default(),
+                    target_writes: None,
                 })
             })
             .collect();
@@ -224,6 +241,8 @@ impl CycleThread {
             drives: (0..master.slaves().len()).map(|_| sequencer::Shared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
             latches: (0..master.slaves().len()).map(|_| latch::Shared::default()).collect(),
+            handshakes: (0..master.slaves().len()).map(|_| handshake::Shared::default()).collect(),
+            command_timeouts: (0..master.slaves().len()).map(|_| command_timeout::Shared::default()).collect(),
             events: Events::default(),
             samples: Samples::default(),
             sdo: SdoSlot::default(),
@@ -309,6 +328,7 @@ impl CycleThread {
         slot.check_outputs_len(position, data.len())?;
         self.shared.setpoints.write().write(slot.out_offset, data);
         self.shared.drives[position as usize].setpoint_written();
+        self.shared.command_timeouts[position as usize].target_written();
         Ok(())
     }
 
@@ -332,6 +352,7 @@ impl CycleThread {
             .into());
         }
         drive.request(request);
+        self.shared.command_timeouts[position as usize].release();
         Ok(())
     }
 
@@ -405,6 +426,7 @@ impl CycleThread {
             None => self.sdo_write(position, 0x6060, 0, &[mode as u8])?,
         }
         drive.hold();
+        self.shared.command_timeouts[position as usize].release();
         Ok(())
     }
 
@@ -412,6 +434,91 @@ impl CycleThread {
     pub fn set_halt(&self, position: u16, halt: bool) -> Result<()> {
         self.sequenced(position)?.set_halt(halt);
         Ok(())
+    }
+
+    /// Asks the drive at `position` for the set-point handshake (see [`handshake`]): `bits`
+    /// (within [`handshake::ALLOWED_BITS`], with bit 4: 0x0030 for a profile-position
+    /// set-point changed at once, 0x0010 to start homing) raised from statusword bit 12 clear
+    /// until bit 12 is set, then lowered; stuck when bit 12 does not clear within the request
+    /// time-out, or is not set within `timeout` of the raise (the request time-out when `None`;
+    /// homing may take long). Replaces one under way; returns its number. Lock-free.
+    pub fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<Duration>) -> Result<u32> {
+        self.sequenced(position)?;
+        if self.stopped() {
+            return Err(Unavailable::CycleStopped { consequence: "no set-point handshake can run".into() }.into());
+        }
+        if bits & !handshake::ALLOWED_BITS != 0 || bits & crate::ds402::controlword::NEW_SETPOINT == 0 {
+            return Err(SettingError::HandshakeBits { bits }.into());
+        }
+        let clear_timeout = self.request_timeout();
+        Ok(self.shared.handshakes[position as usize].start(bits, clear_timeout, timeout.unwrap_or(clear_timeout)))
+    }
+
+    /// The set-point handshake last asked for at `position`, as the cycle thread last published
+    /// it. Lock-free.
+    pub fn setpoint_status(&self, position: u16) -> Result<handshake::Status> {
+        self.sequenced(position)?;
+        Ok(self.shared.handshakes[position as usize].status())
+    }
+
+    /// Waits (the caller, polling every millisecond) until the set-point handshake last asked
+    /// for at `position` is done, and returns its status; a [`Error::Timeout`] saying why when
+    /// it is stuck, when `timeout` passes first (the handshake goes on in the cycle until its
+    /// own time-out) or when the cycle stops.
+    pub fn wait_setpoint(&self, position: u16, timeout: Option<Duration>) -> Result<handshake::Status> {
+        let deadline = timeout.map(|t| std::time::Instant::now() + t);
+        loop {
+            let status = self.setpoint_status(position)?;
+            let what = match status.progress {
+                handshake::Progress::Done => return Ok(status),
+                handshake::Progress::Idle => return Err(Unavailable::NoHandshake { position }.into()),
+                handshake::Progress::Stuck(_) => status.stuck_reason(),
+                handshake::Progress::InProgress if !self.running() => {
+                    Some(status.describe("cut short: the cycle stopped"))
+                }
+                handshake::Progress::InProgress if deadline.is_some_and(|d| std::time::Instant::now() >= d) => {
+                    Some(status.describe("still in progress"))
+                }
+                handshake::Progress::InProgress => None,
+            };
+            if let Some(what) = what {
+                return Err(Error::Timeout { what: format!("drive {position}: {what}").into() });
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    }
+
+    /// Sets the command time-out of the drive at `position` (see [`command_timeout`]): when a
+    /// non-zero velocity (profile velocity) or torque (profile torque) stream stops for
+    /// `timeout` while the drive is in Operation enabled, `action` is taken and an
+    /// [`Event::CommandTimeout`] pushed; `None` turns it off, which is always allowed. A time-out
+    /// is refused for a mapping without target velocity 0x60FF or target torque 0x6071, or
+    /// without the mode (0x6060 or 0x6061): the thread could not see the stream it watches.
+    pub fn set_command_timeout(
+        &self,
+        position: u16,
+        timeout: Option<Duration>,
+        action: CommandTimeoutAction,
+    ) -> Result<()> {
+        self.sequenced(position)?;
+        let o = self.offsets[position as usize].unwrap_or_default();
+        let missing = [
+            (o.velocity_target.is_none() && o.torque_target.is_none())
+                .then_some("target velocity 0x60FF or target torque 0x6071 in the outputs"),
+            (o.mode.is_none() && o.mode_display.is_none())
+                .then_some("modes of operation 0x6060 in the outputs or its display 0x6061 in the inputs"),
+        ];
+        if let Some(what) = missing.into_iter().flatten().next().filter(|_| timeout.is_some_and(|t| !t.is_zero())) {
+            return Err(Unavailable::CommandTimeoutUnwatched { slave: position, missing: what }.into());
+        }
+        self.shared.command_timeouts[position as usize].set(timeout.map(|t| (t, action)));
+        Ok(())
+    }
+
+    /// The command time-out of the drive at `position` as the cycle thread last published it.
+    pub fn command_timeout_status(&self, position: u16) -> Result<command_timeout::Status> {
+        self.sequenced(position)?;
+        Ok(self.shared.command_timeouts[position as usize].status())
     }
 
     /// Sets one mapped output object `index:subindex` of the slave at `position` (its exact
@@ -434,6 +541,9 @@ impl CycleThread {
         self.shared.setpoints.write().write(slot.out_offset + offset, data);
         if let Some(Ok(())) = self.sequenced.get(position as usize) {
             self.shared.drives[position as usize].setpoint_written();
+            if command_timeout::TARGETS.contains(&(index, subindex)) {
+                self.shared.command_timeouts[position as usize].target_written();
+            }
         }
         Ok(())
     }
@@ -552,9 +662,13 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
         }
         last_wake = Some(wake);
         let now = (stats.cycles.load(Ordering::Relaxed) + 1, wake);
+        for d in drives.iter_mut() {
+            d.target_writes = Some(shared.command_timeouts[d.position as usize].writes());
+        }
         if let Ok(outputs) = master.output_image_mut() {
             if shared.setpoints.try_read(outputs).is_none() {
                 CycleStats::add(&stats.setpoints_busy, 1);
+                drives.iter_mut().for_each(|d| d.target_writes = None);
             }
         }
         // The sequencer and the latches read the inputs of the last exchange and write over
@@ -578,9 +692,16 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
                 }
             }
         }
+        if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
+            for d in drives.iter_mut() {
+                observe_set_points(shared, d, inputs, outputs, now);
+            }
+        }
         if let Ok(outputs) = master.output_image_mut() {
             for d in drives.iter() {
                 d.drive.apply(outputs);
+                d.handshake.apply(outputs, d.drive.offsets.controlword);
+                d.command_timeout.apply(outputs, d.drive.offsets.controlword);
                 if let Some(latch) = d.latch.as_ref() {
                     latch.apply(outputs);
                 }
@@ -629,6 +750,18 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
         }
         CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
     }
+}
+
+/// Moves drive `d`'s set-point handshake and command time-out on, from this cycle's inputs and
+/// the set-points just copied into `outputs`.
+fn observe_set_points(shared: &Shared, d: &mut DriveLoop, inputs: &[u8], outputs: &[u8], now: (u64, u64)) {
+    let o = d.drive.offsets;
+    let slave = d.position as usize;
+    let statusword = image::u16_at(inputs, o.statusword);
+    let mode_display = o.mode_display.map(|at| inputs[at] as i8);
+    d.handshake.observe(&shared.handshakes[slave], statusword, mode_display, now.1);
+    let seen = command_timeout::Seen { now, slave: d.position, writes: d.target_writes, outputs, inputs, statusword };
+    d.command_timeout.observe(&shared.command_timeouts[slave], &o, &shared.drives[slave], &shared.events, seen);
 }
 
 /// The record of drive `d` in this cycle.

@@ -4,7 +4,9 @@
 //! never needs the GIL; set-points and snapshots go through lock-free buffers, so a Python
 //! thread busy with anything never delays a cycle. Waiting on the thread releases the GIL.
 //! Drives are enabled, disabled, quick-stopped and reset by the DS402 sequencer inside the
-//! thread (`enable`, `disable`, `quick_stop`, `reset_fault`, `drive_status`, `wait_state`).
+//! thread (`enable`, `disable`, `quick_stop`, `reset_fault`, `drive_status`, `wait_state`), and
+//! so are the set-point handshake (`start_setpoint`, `wait_setpoint`, `setpoint_status`) and the
+//! command time-out (`set_command_timeout`, `command_timeout_status`).
 
 use std::time::Duration;
 
@@ -14,10 +16,10 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 use super::master::PyMaster;
 use super::IntoPyResult;
 use crate::akd_fault;
-use crate::cycle::events::{Edge, Event};
-use crate::cycle::latch;
+use crate::cycle::events::{CommandTimeoutAction, Edge, Event};
 use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
+use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
 use crate::ds402::State;
 use crate::error::{Error, SettingError, UnknownName};
@@ -38,6 +40,14 @@ fn summary<'py>(py: Python<'py>, s: Summary) -> PyResult<Bound<'py, PyDict>> {
     d.set_item("max_ns", s.max_ns)?;
     Ok(d)
 }
+
+/// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
+fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
+    Duration::try_from_secs_f64(seconds)
+        .map_err(|_| super::to_py_err(SettingError::Duration { what, seconds, allowed }.into()))
+}
+
+const SECONDS: &str = "a finite number of seconds >= 0";
 
 /// How often `wait_state` looks at the drive's status.
 const WAIT_POLL: Duration = Duration::from_millis(1);
@@ -247,13 +257,16 @@ impl PyCycle {
         }
     }
 
-    /// Latch and fault events since the last call, oldest first, each a dict. Every event has
-    /// "kind" ("latch" or "fault"), "cycle", "time_ns" (the cycle's monotonic wake-up time) and
+    /// Latch, fault and command time-out events since the last call, oldest first, each a dict.
+    /// Every event has "kind" ("latch", "fault" or "command_timeout"), "cycle", "time_ns" (the cycle's monotonic wake-up time) and
     /// "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
     /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
     /// "working_counter", "al_state"), "code" (CiA error code; for lost frames and working
     /// counter errors the cycles in a row), "text" (the AKD's text where known, else None),
-    /// "statusword", "al_status", "al_status_code" and "action" (what the loop did).
+    /// "statusword", "al_status", "al_status_code" and "action" (what the loop did). A command
+    /// time-out adds "command" ("velocity", "torque"), "value" (its last value in drive units:
+    /// counts/s, 0.1 % of peak torque), "timeout" (s), "statusword", "ds402_state", "action"
+    /// ("hold" or "quick_stop") and "text" (what was done, for the log).
     fn events<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);
         for event in self.cycle.events() {
@@ -289,6 +302,19 @@ impl PyCycle {
                     d.set_item("al_status_code", al_status_code)?;
                     d.set_item("al_status_code_name", crate::al::AlStatusCode(al_status_code).name())?;
                     d.set_item("action", action.describe())?;
+                }
+                Event::CommandTimeout { cycle, time_ns, slave, target, value, timeout_us, statusword, action } => {
+                    d.set_item("kind", "command_timeout")?;
+                    d.set_item("cycle", cycle)?;
+                    d.set_item("time_ns", time_ns)?;
+                    d.set_item("slave", slave)?;
+                    d.set_item("command", target.name())?;
+                    d.set_item("value", value)?;
+                    d.set_item("timeout", timeout_us as f64 * 1e-6)?;
+                    d.set_item("statusword", statusword)?;
+                    d.set_item("ds402_state", State::from_statusword(statusword).map(|s| s.name()))?;
+                    d.set_item("action", action.name())?;
+                    d.set_item("text", action.describe())?;
                 }
             }
             list.append(d)?;
@@ -384,6 +410,70 @@ impl PyCycle {
         self.cycle.set_halt(position, halt).py()
     }
 
+    /// Starts the set-point handshake of drive `position` in the cycle thread: from statusword
+    /// bit 12 clear, controlword `bits` (0x0030: a profile-position set-point changed at once;
+    /// 0x0010: start homing; bit 6 0x0040 relative) go out with the sequencer's own until bit 12
+    /// is set (set-point acknowledged, homing attained), then low again. Stuck when the drive is
+    /// not in Operation enabled, when bit 12 does not clear within `request_timeout`, when it is
+    /// not set within `timeout` seconds of the raise (`request_timeout` when None; homing may
+    /// take long), or on a homing error (bit 13). Replaces one under way; returns its number at
+    /// once (`wait_setpoint` waits).
+    #[pyo3(signature = (position, bits, timeout = None))]
+    fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<f64>) -> PyResult<u32> {
+        let timeout = timeout.map(|t| duration("set-point handshake timeout", t, SECONDS)).transpose()?;
+        self.cycle.start_setpoint(position, bits, timeout).py()
+    }
+
+    /// Waits, without holding the GIL, until the set-point handshake last started on drive
+    /// `position` is done. Raises TimeoutError saying why at once when it is stuck, and when
+    /// `timeout` seconds pass first (None: until the handshake's own time-out ends it).
+    #[pyo3(signature = (position, timeout = None))]
+    fn wait_setpoint<'py>(&self, py: Python<'py>, position: u16, timeout: Option<f64>) -> PyResult<Bound<'py, PyDict>> {
+        let timeout = timeout.map(|t| duration("timeout", t, SECONDS)).transpose()?;
+        let cycle = &self.cycle;
+        let status = py.allow_threads(|| cycle.wait_setpoint(position, timeout)).py()?;
+        setpoint_dict(py, status)
+    }
+
+    /// The set-point handshake last started on drive `position`: "request" (its number, 0
+    /// before any), "bits", "progress" ("idle", "in_progress", "done", "stuck"), "reason" (why
+    /// stuck, else None) and "statusword" (the last seen while under way, at its end after).
+    fn setpoint_status<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
+        setpoint_dict(py, self.cycle.setpoint_status(position).py()?)
+    }
+
+    /// Sets the command time-out of drive `position`: when a non-zero velocity (profile
+    /// velocity) or torque (profile torque) written by `set_object` or `set_outputs` is not
+    /// written again for `timeout` seconds while the drive is in Operation enabled, the cycle
+    /// thread acts by `policy` — "hold": halt (controlword bit 8, its own; a halt set by
+    /// `set_halt` stays) until the next velocity or torque write; "quick_stop": quick stop,
+    /// until enabled again — and reports a "command_timeout" event. 0 turns it off. Position
+    /// commands and zero never time out. A request (enable, ...) or mode change forgets the
+    /// stream and lifts the hold.
+    #[pyo3(signature = (position, timeout, policy = "hold"))]
+    fn set_command_timeout(&self, position: u16, timeout: f64, policy: &str) -> PyResult<()> {
+        let action = CommandTimeoutAction::ALL
+            .into_iter()
+            .find(|a| a.name() == policy)
+            .ok_or_else(|| super::to_py_err(UnknownName::CommandTimeoutPolicy { name: policy.to_owned() }.into()))?;
+        let timeout = duration("command timeout", timeout, "a finite number of seconds >= 0, 0 turning it off")?;
+        self.cycle.set_command_timeout(position, Some(timeout), action).py()
+    }
+
+    /// The command time-out of drive `position`: "timeout" (s, 0 when off), "policy" ("hold",
+    /// "quick_stop", None when off), "armed" (a non-zero stream is watched), "halted" (its
+    /// hold is on) and "timeouts" (how many so far).
+    fn command_timeout_status<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
+        let s = self.cycle.command_timeout_status(position).py()?;
+        let d = PyDict::new(py);
+        d.set_item("timeout", s.config.map_or(0.0, |(t, _)| t.as_secs_f64()))?;
+        d.set_item("policy", s.config.map(|(_, a)| a.name()))?;
+        d.set_item("armed", s.armed)?;
+        d.set_item("halted", s.halted)?;
+        d.set_item("timeouts", s.timeouts)?;
+        Ok(d)
+    }
+
     /// Sets one mapped output object of slave `position` from the next cycle on (its exact
     /// size in bytes); releases a held target like any set-point.
     fn set_object(&self, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
@@ -456,6 +546,22 @@ fn progress_name(progress: Progress) -> &'static str {
         Progress::Stuck => "stuck",
         Progress::Lost => "lost",
     }
+}
+
+fn setpoint_dict(py: Python<'_>, s: handshake::Status) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    d.set_item("request", s.request)?;
+    d.set_item("bits", s.bits)?;
+    let progress = match s.progress {
+        handshake::Progress::Idle => "idle",
+        handshake::Progress::InProgress => "in_progress",
+        handshake::Progress::Done => "done",
+        handshake::Progress::Stuck(_) => "stuck",
+    };
+    d.set_item("progress", progress)?;
+    d.set_item("reason", s.stuck_reason())?;
+    d.set_item("statusword", s.statusword)?;
+    Ok(d)
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

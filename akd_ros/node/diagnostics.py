@@ -1,0 +1,85 @@
+"""Diagnostics: /diagnostics (diagnostic_msgs/DiagnosticArray) at `diagnostics_rate`, one status of the axis.
+
+ERROR in a fault state; WARN when a fault counter grew since the last report, the state is not fresh, a request is
+stuck or lost, or in Quick stop active; OK otherwise. The values carry the state, the cycle statistics and the last
+fault."""
+
+from __future__ import annotations
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rclpy.qos import QoSProfile
+
+from akd_ros.node.publishing import Publishing, RecordedPublisher
+from akd_ros.node.session import FAULT_STATES, Session
+
+
+class Diagnostics:
+    """The /diagnostics publisher and its timer; `name` names the status, `publishing` has the last fault."""
+
+    def __init__(
+        self,
+        node,
+        session: Session,
+        group,
+        qos: QoSProfile,
+        name: str,
+        publishing: Publishing,
+    ) -> None:
+        self._session, self._clock, self._settings = session, session.clock, session.settings
+        self._name, self._publishing = name, publishing
+        self.publisher = RecordedPublisher(node, DiagnosticArray, "/diagnostics", qos, session)
+        self._counters_seen: dict[str, int] = {}
+        node.create_timer(1.0 / session.settings.diagnostics_rate, self._publish, group)
+
+    def restart_counters(self) -> None:
+        """Counts the fault counters' growth from the next report on (at activate)."""
+        self._counters_seen = {}
+
+    def _publish(self) -> None:
+        taken = self._session.state()
+        if taken is None:
+            return
+        axis, state, stats = taken
+        counters = {k: stats[k] for k in ("overruns", "lost_frames", "wkc_errors", "events_dropped")}
+        grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
+        self._counters_seen = counters
+        fault = self._publishing.last_fault
+        if state.state in FAULT_STATES:
+            level = DiagnosticStatus.ERROR
+        elif grown or not state.fresh or state.progress in ("stuck", "lost") or state.state == "Quick stop active":
+            level = DiagnosticStatus.WARN
+        else:
+            level = DiagnosticStatus.OK
+        summary = state.state or "no valid DS402 state"
+        if state.reason:
+            summary += f": {state.reason}"
+        if grown:
+            summary += f" ({', '.join(grown)} since the last report)"
+        if level == DiagnosticStatus.ERROR and fault is not None:
+            summary += f"; last fault {fault.text or hex(fault.code)}"
+        values = {
+            "ds402_state": state.state or "unknown",
+            "statusword": f"0x{state.statusword:04X}",
+            "mode": state.mode or axis.mode,
+            "request": state.request or "",
+            "progress": state.progress,
+            "position": f"{state.position:.9g}",
+            "cycles": stats["cycles"],
+            **counters,
+            "period_mean_s": f"{stats['period']['mean_ns'] * 1e-9:.6g}",
+            "period_max_s": f"{stats['period']['max_ns'] * 1e-9:.6g}",
+            "exchange_p99_s": f"{stats['exchange']['p99_ns'] * 1e-9:.6g}",
+            "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
+            "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
+            "last_fault_action": "" if fault is None else fault.action,
+        }
+        status = DiagnosticStatus(
+            level=level,
+            name=self._name,
+            message=summary,
+            hardware_id=f"AKD slave {self._settings.slave} on {self._settings.link}",
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+        )
+        message = DiagnosticArray(status=[status])
+        message.header.stamp = self._clock.stamp()
+        self.publisher.publish(message)

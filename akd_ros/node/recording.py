@@ -1,0 +1,82 @@
+"""Recording (`record.enabled`): from configure to cleanup an `akd_ros.recorder.Recorder` writes a rosbag2 bag of
+every message published (at its stamp), every command received (refused ones too, at their arrival) and every cycle
+as a CycleSample on ~/cycle (every `record.decimation`-th), and writes its black box (~/black_box) at each fault."""
+
+from __future__ import annotations
+
+import math
+
+from rclpy.qos import QoSProfile
+from rclpy.time import Time
+
+from akd_ros.msg import CycleSample
+from akd_ros.params import Settings
+from akd_ros.recorder import Recorder
+from akd_ros.units import Units
+
+# Which target of a cycle record is the command, by the mode the drive shows (0x6061).
+_TARGET_OF_MODE = {
+    1: "target_position",
+    7: "target_position",
+    8: "target_position",
+    3: "target_velocity",
+    4: "target_torque",
+}
+_UINT32_MAX = 2**32 - 1
+
+
+def open_recorder(
+    node, settings: Settings, topics: list[tuple[str, type, QoSProfile]], cycle_qos: QoSProfile
+) -> Recorder:
+    """A Recorder of `topics` (name, message class, QoS: what the node publishes and the commands it receives) and
+    of the node's cycles on ~/cycle; raises ValueError or OSError when it cannot start."""
+    record = settings.record
+    recorder = Recorder(
+        record["folder"],
+        cycle_rate_hz=1.0 / settings.cycle_time,
+        decimation=record["decimation"],
+        black_box_seconds=record["black_box_seconds"],
+        on_error=lambda text: node.get_logger().error(f"recording stopped: {text}"),
+    )
+    try:
+        for topic, kind, qos in topics:
+            recorder.add_topic(topic, kind, qos)
+        recorder.add_cycle_topic(node.resolve_topic_name("~/cycle"), CycleSample, cycle_qos)
+    except ValueError:
+        recorder.close()
+        raise
+    node.get_logger().info(f"recording to {recorder.bag_path}")
+    return recorder
+
+
+def record_cycles(recorder: Recorder, columns: dict[str, list], units: Units, offset_ns: int) -> None:
+    """Hands each cycle record of `columns` (`Axis.samples`) to `recorder` as a CycleSample; cycle times are
+    monotonic, and `offset_ns` (ROS minus monotonic time) moves them onto the bag's ROS times."""
+    for i in range(len(columns["cycle"])):
+        mode = columns["mode"][i]
+        target = _TARGET_OF_MODE.get(mode)
+        if target == "target_position":
+            command = units.position_to_si(columns[target][i])
+        elif target == "target_velocity":
+            command = units.velocity_to_si(columns[target][i])
+        elif target == "target_torque":
+            command = units.torque_to_si(columns[target][i])
+        else:
+            command = math.nan
+        time_ns = columns["time_ns"][i] + offset_ns
+        sample = CycleSample(
+            stamp=Time(nanoseconds=time_ns).to_msg(),
+            cycle=columns["cycle"][i],
+            position=units.position_to_si(columns["position"][i]),
+            velocity=units.velocity_to_si(columns["velocity"][i]),
+            torque=units.torque_to_si(columns["torque"][i]),
+            command=command,
+            following_error=columns["following_error"][i] * units.si_per_count,
+            position_counts=columns["position"][i],
+            statusword=columns["statusword"][i],
+            mode_of_operation=mode,
+            period_ns=min(columns["period_ns"][i], _UINT32_MAX),
+            exchange_ns=min(columns["exchange_ns"][i], _UINT32_MAX),
+            wkc=columns["wkc"][i],
+        )
+        recorder.cycle_sample(sample, time_ns)

@@ -1,0 +1,94 @@
+"""Services: ~/enable, ~/disable, ~/reset_fault, ~/quick_stop (std_srvs/Trigger), ~/set_mode, ~/arm_latch,
+~/sdo_read and ~/sdo_write (the package's own). Each answers with success and a message saying what happened or
+why not; none raises."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from std_srvs.srv import Trigger
+
+from akd_ros.axis import MODES, CommandError
+from akd_ros.msg import LatchEvent
+from akd_ros.node.commands import Commands
+from akd_ros.node.publishing import EDGE_NAMES
+from akd_ros.node.session import AXIS_ERRORS, Session
+from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
+
+
+class Services:
+    """The node's services, in `group` (they may wait up to the Axis's time-outs)."""
+
+    def __init__(self, node, session: Session, commands: Commands, group) -> None:
+        self._session = session
+        self._logger = node.get_logger()
+        for name, handler in (
+            ("enable", commands.enable),
+            ("disable", commands.disable),
+            ("reset_fault", commands.reset_fault),
+            ("quick_stop", commands.quick_stop),
+        ):
+            node.create_service(Trigger, f"~/{name}", self._trigger(name, handler), callback_group=group)
+        node.create_service(SetMode, "~/set_mode", self._set_mode, callback_group=group)
+        node.create_service(ArmLatch, "~/arm_latch", self._arm_latch, callback_group=group)
+        node.create_service(SdoRead, "~/sdo_read", self._sdo_read, callback_group=group)
+        node.create_service(SdoWrite, "~/sdo_write", self._sdo_write, callback_group=group)
+
+    def _trigger(self, name: str, handler: Callable[[], tuple[bool, str]]):
+        def callback(request, response):
+            response.success, response.message = handler()
+            # rclpy ties a severity to each logging call site: one call per severity.
+            if response.success:
+                self._logger.info(f"~/{name}: {response.message}")
+            else:
+                self._logger.warning(f"~/{name}: {response.message}")
+            return response
+
+        return callback
+
+    def _set_mode(self, request, response):
+        try:
+            axis = self._session.axis_for_request()
+            if request.mode not in MODES:
+                raise CommandError(f"mode {request.mode!r} is not one of {', '.join(MODES)}")
+            with self._session.lock:
+                axis.set_mode(request.mode)
+            response.success, response.message = True, f"mode {request.mode}"
+        except AXIS_ERRORS as e:
+            response.success, response.message = False, f"mode not changed: {e}"
+        self._logger.info(f"~/set_mode: {response.message}")
+        return response
+
+    def _arm_latch(self, request, response):
+        try:
+            axis = self._session.axis_for_request()
+            if request.edge not in EDGE_NAMES:
+                raise CommandError(
+                    f"latch edge {request.edge}: allowed {LatchEvent.EDGE_RISING} (rising) or "
+                    f"{LatchEvent.EDGE_FALLING} (falling)"
+                )
+            axis.arm_latch(request.channel, EDGE_NAMES[request.edge], request.arm)
+            response.success = True
+            response.message = (
+                f"latch {request.channel} {'armed' if request.arm else 'disarmed'} on the "
+                f"{EDGE_NAMES[request.edge]} edge"
+            )
+        except AXIS_ERRORS as e:
+            response.success, response.message = False, f"latch not changed: {e}"
+        return response
+
+    def _sdo_read(self, request, response):
+        try:
+            response.data = list(self._session.axis_for_request().sdo_read(request.index, request.subindex))
+            response.success, response.message = True, ""
+        except AXIS_ERRORS as e:
+            response.success, response.message = False, f"0x{request.index:04X}:{request.subindex:02X}: {e}"
+        return response
+
+    def _sdo_write(self, request, response):
+        try:
+            self._session.axis_for_request().sdo_write(request.index, request.subindex, bytes(request.data))
+            response.success, response.message = True, ""
+        except AXIS_ERRORS as e:
+            response.success, response.message = False, f"0x{request.index:04X}:{request.subindex:02X}: {e}"
+        return response
