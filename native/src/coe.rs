@@ -5,7 +5,9 @@
 //! segmented, abort), emergency messages and the SDO information service, on both the client
 //! (master) and server (virtual AKD) side. Values are borrowed from the caller's buffers.
 
-use crate::error::Error;
+use std::fmt;
+
+use crate::error::{Error, MailboxError};
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
 
 /// Length of the CoE header.
@@ -19,24 +21,63 @@ pub const SDO_OFFSET: usize = HEADER_LEN + COE_HEADER_LEN;
 /// Length of the SDO information header (opcode, reserved, fragments left).
 pub const SDO_INFO_HEADER_LEN: usize = 4;
 
-/// CoE services (CoE header bits 12–15).
-pub mod service {
-    /// Emergency message.
-    pub const EMERGENCY: u8 = 1;
-    /// SDO request (master to slave).
-    pub const SDO_REQUEST: u8 = 2;
-    /// SDO response (slave to master).
-    pub const SDO_RESPONSE: u8 = 3;
-    /// TxPDO.
-    pub const TX_PDO: u8 = 4;
-    /// RxPDO.
-    pub const RX_PDO: u8 = 5;
-    /// TxPDO remote request.
-    pub const TX_PDO_REMOTE: u8 = 6;
-    /// RxPDO remote request.
-    pub const RX_PDO_REMOTE: u8 = 7;
-    /// SDO information.
-    pub const SDO_INFORMATION: u8 = 8;
+wire_codes! {
+    /// CoE services (CoE header bits 12–15, ETG.1000.6 Table 29).
+    pub enum CoeService: u8, "CoE service" {
+        /// Emergency message.
+        Emergency = 1 => "Emergency",
+        /// SDO request (master to slave).
+        SdoRequest = 2 => "SDO Request",
+        /// SDO response (slave to master).
+        SdoResponse = 3 => "SDO Response",
+        /// TxPDO.
+        TxPdo = 4 => "TxPDO",
+        /// RxPDO.
+        RxPdo = 5 => "RxPDO",
+        /// TxPDO remote request.
+        TxPdoRemoteRequest = 6 => "TxPDO remote request",
+        /// RxPDO remote request.
+        RxPdoRemoteRequest = 7 => "RxPDO remote request",
+        /// SDO information.
+        SdoInformation = 8 => "SDO Information",
+    }
+}
+
+wire_codes! {
+    /// Client command specifiers of an SDO request (command byte bits 5–7, CiA 301 §7.2.4.3).
+    pub enum ClientCommand: u8, "SDO client command specifier" {
+        /// Download segment request.
+        DownloadSegment = 0 => "download segment request",
+        /// Initiate download request.
+        InitiateDownload = 1 => "initiate download request",
+        /// Initiate upload request.
+        InitiateUpload = 2 => "initiate upload request",
+        /// Upload segment request.
+        UploadSegment = 3 => "upload segment request",
+        /// Abort transfer.
+        Abort = 4 => "abort transfer",
+    }
+}
+
+wire_codes! {
+    /// Server command specifiers of an SDO response (command byte bits 5–7, CiA 301 §7.2.4.3).
+    pub enum ServerCommand: u8, "SDO server command specifier" {
+        /// Upload segment response.
+        UploadSegment = 0 => "upload segment response",
+        /// Download segment response.
+        DownloadSegment = 1 => "download segment response",
+        /// Initiate upload response.
+        InitiateUpload = 2 => "initiate upload response",
+        /// Initiate download response.
+        InitiateDownload = 3 => "initiate download response",
+        /// Abort transfer.
+        Abort = 4 => "abort transfer",
+    }
+}
+
+/// The command byte's specifier bits for `specifier` (bits 5–7).
+fn specifier_bits(specifier: u8) -> u8 {
+    specifier << 5
 }
 
 /// The CoE header: a 9-bit number (PDO number, unused for SDO) and the service.
@@ -44,23 +85,25 @@ pub mod service {
 pub struct CoeHeader {
     /// Number (bits 0–8).
     pub number: u16,
-    /// Service (bits 12–15), see [`service`].
-    pub service: u8,
+    /// Service (bits 12–15).
+    pub service: CoeService,
 }
 
 impl CoeHeader {
     /// A header for `service` with number 0.
-    pub fn new(service: u8) -> Self {
+    pub fn new(service: CoeService) -> Self {
         CoeHeader { number: 0, service }
     }
 
-    /// Decodes the first two bytes of a mailbox body.
+    /// Decodes the first two bytes of a mailbox body; a service outside the standard's set is an
+    /// error naming it.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < COE_HEADER_LEN {
-            return Err(Error::Mailbox(format!("CoE message of {} bytes has no 2-byte CoE header", body.len())));
+            return Err(MailboxError::Truncated { what: "CoE message", len: body.len(), needed: COE_HEADER_LEN }.into());
         }
         let word = u16::from_le_bytes([body[0], body[1]]);
-        Ok(CoeHeader { number: word & 0x01FF, service: (word >> 12) as u8 })
+        let service = CoeService::try_from((word >> 12) as u8)?;
+        Ok(CoeHeader { number: word & 0x01FF, service })
     }
 
     /// Encodes into the first two bytes of `out`.
@@ -126,8 +169,8 @@ pub enum SdoRequest<'a> {
         index: u16,
         /// Subindex.
         subindex: u8,
-        /// Abort code, see [`abort`].
-        code: u32,
+        /// Abort code.
+        code: SdoAbortCode,
     },
 }
 
@@ -181,13 +224,13 @@ pub enum SdoResponse<'a> {
         index: u16,
         /// Subindex.
         subindex: u8,
-        /// Abort code, see [`abort`].
-        code: u32,
+        /// Abort code.
+        code: SdoAbortCode,
     },
 }
 
-fn sdo_too_short(what: &str, len: usize) -> Error {
-    Error::Mailbox(format!("SDO {what} of {len} bytes is shorter than its {SDO_LEN}-byte minimum"))
+fn sdo_too_short(what: &'static str, len: usize) -> Error {
+    MailboxError::Truncated { what, len, needed: SDO_LEN }.into()
 }
 
 fn address(body: &[u8]) -> (u16, u8) {
@@ -202,7 +245,7 @@ fn write_address(out: &mut [u8], command: u8, index: u16, subindex: u8) {
 
 /// Decodes the data of a segment: `n` (bits 1–3) counts padding bytes when the segment
 /// carries the minimum of seven; longer segments carry exactly what the mailbox holds.
-fn segment_data<'a>(body: &'a [u8], what: &str) -> Result<(bool, bool, &'a [u8]), Error> {
+fn segment_data<'a>(body: &'a [u8], what: &'static str) -> Result<(bool, bool, &'a [u8]), Error> {
     if body.len() < 1 + SEGMENT_MIN_DATA {
         return Err(sdo_too_short(what, body.len()));
     }
@@ -241,42 +284,41 @@ fn expedited_data(body: &[u8]) -> &[u8] {
 impl<'a> SdoRequest<'a> {
     /// Decodes the SDO part of a request (the bytes after the CoE header).
     pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
-        let command = *body.first().ok_or_else(|| sdo_too_short("request", 0))?;
-        match command >> 5 {
-            0 => {
-                let (toggle, last, data) = segment_data(body, "download segment")?;
+        let command = *body.first().ok_or_else(|| sdo_too_short("SDO request", 0))?;
+        let ccs = ClientCommand::try_from(command >> 5)?;
+        match ccs {
+            ClientCommand::DownloadSegment => {
+                let (toggle, last, data) = segment_data(body, "SDO download segment")?;
                 Ok(SdoRequest::DownloadSegment { toggle, last, data })
             }
-            3 => Ok(SdoRequest::UploadSegment { toggle: command & 0x10 != 0 }),
-            ccs => {
+            ClientCommand::UploadSegment => Ok(SdoRequest::UploadSegment { toggle: command & 0x10 != 0 }),
+            ClientCommand::InitiateDownload | ClientCommand::InitiateUpload | ClientCommand::Abort => {
                 if body.len() < SDO_LEN {
-                    return Err(sdo_too_short("request", body.len()));
+                    return Err(sdo_too_short("SDO request", body.len()));
                 }
                 let (index, subindex) = address(body);
                 let complete_access = command & 0x10 != 0;
                 match ccs {
-                    1 if command & 0x02 != 0 => Ok(SdoRequest::DownloadExpedited {
+                    ClientCommand::InitiateDownload if command & 0x02 != 0 => Ok(SdoRequest::DownloadExpedited {
                         index,
                         subindex,
                         complete_access,
                         data: expedited_data(body),
                     }),
-                    1 => Ok(SdoRequest::DownloadNormal {
+                    ClientCommand::InitiateDownload => Ok(SdoRequest::DownloadNormal {
                         index,
                         subindex,
                         complete_access,
                         complete_size: u32::from_le_bytes([body[4], body[5], body[6], body[7]]),
                         data: &body[SDO_LEN..],
                     }),
-                    2 => Ok(SdoRequest::Upload { index, subindex, complete_access }),
-                    4 => Ok(SdoRequest::Abort {
+                    ClientCommand::InitiateUpload => Ok(SdoRequest::Upload { index, subindex, complete_access }),
+                    // The arm above lets only an abort get here.
+                    _ => Ok(SdoRequest::Abort {
                         index,
                         subindex,
-                        code: u32::from_le_bytes([body[4], body[5], body[6], body[7]]),
+                        code: SdoAbortCode(u32::from_le_bytes([body[4], body[5], body[6], body[7]])),
                     }),
-                    _ => Err(Error::Mailbox(format!(
-                        "SDO request command 0x{command:02X} has client command specifier {ccs} (allowed 0..=4)"
-                    ))),
                 }
             }
         }
@@ -287,23 +329,41 @@ impl<'a> SdoRequest<'a> {
     pub fn encode(&self, out: &mut [u8]) -> usize {
         match *self {
             SdoRequest::DownloadExpedited { index, subindex, complete_access, data } => {
-                write_expedited(out, 0x20 | ((complete_access as u8) << 4), index, subindex, data);
+                write_expedited(
+                    out,
+                    specifier_bits(ClientCommand::InitiateDownload as u8) | ((complete_access as u8) << 4),
+                    index,
+                    subindex,
+                    data,
+                );
                 SDO_LEN
             }
             SdoRequest::DownloadNormal { index, subindex, complete_access, complete_size, data } => {
-                write_address(out, 0x21 | ((complete_access as u8) << 4), index, subindex);
+                write_address(
+                    out,
+                    specifier_bits(ClientCommand::InitiateDownload as u8) | 0x01 | ((complete_access as u8) << 4),
+                    index,
+                    subindex,
+                );
                 out[4..8].copy_from_slice(&complete_size.to_le_bytes());
                 out[SDO_LEN..SDO_LEN + data.len()].copy_from_slice(data);
                 SDO_LEN + data.len()
             }
-            SdoRequest::DownloadSegment { toggle, last, data } => write_segment(out, 0x00, toggle, last, data),
+            SdoRequest::DownloadSegment { toggle, last, data } => {
+                write_segment(out, specifier_bits(ClientCommand::DownloadSegment as u8), toggle, last, data)
+            }
             SdoRequest::Upload { index, subindex, complete_access } => {
-                write_address(out, 0x40 | ((complete_access as u8) << 4), index, subindex);
+                write_address(
+                    out,
+                    specifier_bits(ClientCommand::InitiateUpload as u8) | ((complete_access as u8) << 4),
+                    index,
+                    subindex,
+                );
                 out[4..SDO_LEN].fill(0);
                 SDO_LEN
             }
             SdoRequest::UploadSegment { toggle } => {
-                out[0] = 0x60 | ((toggle as u8) << 4);
+                out[0] = specifier_bits(ClientCommand::UploadSegment as u8) | ((toggle as u8) << 4);
                 out[1..SDO_LEN].fill(0);
                 SDO_LEN
             }
@@ -312,38 +372,39 @@ impl<'a> SdoRequest<'a> {
     }
 }
 
-fn write_abort(out: &mut [u8], index: u16, subindex: u8, code: u32) -> usize {
-    write_address(out, 0x80, index, subindex);
-    out[4..8].copy_from_slice(&code.to_le_bytes());
+fn write_abort(out: &mut [u8], index: u16, subindex: u8, code: SdoAbortCode) -> usize {
+    write_address(out, specifier_bits(ClientCommand::Abort as u8), index, subindex);
+    out[4..8].copy_from_slice(&code.0.to_le_bytes());
     SDO_LEN
 }
 
 impl<'a> SdoResponse<'a> {
     /// Decodes the SDO part of a response (the bytes after the CoE header).
     pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
-        let command = *body.first().ok_or_else(|| sdo_too_short("response", 0))?;
-        match command >> 5 {
-            0 => {
-                let (toggle, last, data) = segment_data(body, "upload segment")?;
+        let command = *body.first().ok_or_else(|| sdo_too_short("SDO response", 0))?;
+        let scs = ServerCommand::try_from(command >> 5)?;
+        match scs {
+            ServerCommand::UploadSegment => {
+                let (toggle, last, data) = segment_data(body, "SDO upload segment")?;
                 Ok(SdoResponse::UploadSegment { toggle, last, data })
             }
-            1 => Ok(SdoResponse::DownloadSegment { toggle: command & 0x10 != 0 }),
-            scs => {
+            ServerCommand::DownloadSegment => Ok(SdoResponse::DownloadSegment { toggle: command & 0x10 != 0 }),
+            ServerCommand::InitiateUpload | ServerCommand::InitiateDownload | ServerCommand::Abort => {
                 if body.len() < SDO_LEN {
-                    return Err(sdo_too_short("response", body.len()));
+                    return Err(sdo_too_short("SDO response", body.len()));
                 }
                 let (index, subindex) = address(body);
                 let word = u32::from_le_bytes([body[4], body[5], body[6], body[7]]);
                 match scs {
-                    2 if command & 0x02 != 0 => {
+                    ServerCommand::InitiateUpload if command & 0x02 != 0 => {
                         Ok(SdoResponse::UploadExpedited { index, subindex, data: expedited_data(body) })
                     }
-                    2 => Ok(SdoResponse::UploadNormal { index, subindex, complete_size: word, data: &body[SDO_LEN..] }),
-                    3 => Ok(SdoResponse::Download { index, subindex }),
-                    4 => Ok(SdoResponse::Abort { index, subindex, code: word }),
-                    _ => Err(Error::Mailbox(format!(
-                        "SDO response command 0x{command:02X} has server command specifier {scs} (allowed 0..=4)"
-                    ))),
+                    ServerCommand::InitiateUpload => {
+                        Ok(SdoResponse::UploadNormal { index, subindex, complete_size: word, data: &body[SDO_LEN..] })
+                    }
+                    ServerCommand::InitiateDownload => Ok(SdoResponse::Download { index, subindex }),
+                    // The arm above lets only an abort get here.
+                    _ => Ok(SdoResponse::Abort { index, subindex, code: SdoAbortCode(word) }),
                 }
             }
         }
@@ -353,23 +414,25 @@ impl<'a> SdoResponse<'a> {
     pub fn encode(&self, out: &mut [u8]) -> usize {
         match *self {
             SdoResponse::UploadExpedited { index, subindex, data } => {
-                write_expedited(out, 0x40, index, subindex, data);
+                write_expedited(out, specifier_bits(ServerCommand::InitiateUpload as u8), index, subindex, data);
                 SDO_LEN
             }
             SdoResponse::UploadNormal { index, subindex, complete_size, data } => {
-                write_address(out, 0x41, index, subindex);
+                write_address(out, specifier_bits(ServerCommand::InitiateUpload as u8) | 0x01, index, subindex);
                 out[4..8].copy_from_slice(&complete_size.to_le_bytes());
                 out[SDO_LEN..SDO_LEN + data.len()].copy_from_slice(data);
                 SDO_LEN + data.len()
             }
-            SdoResponse::UploadSegment { toggle, last, data } => write_segment(out, 0x00, toggle, last, data),
+            SdoResponse::UploadSegment { toggle, last, data } => {
+                write_segment(out, specifier_bits(ServerCommand::UploadSegment as u8), toggle, last, data)
+            }
             SdoResponse::Download { index, subindex } => {
-                write_address(out, 0x60, index, subindex);
+                write_address(out, specifier_bits(ServerCommand::InitiateDownload as u8), index, subindex);
                 out[4..SDO_LEN].fill(0);
                 SDO_LEN
             }
             SdoResponse::DownloadSegment { toggle } => {
-                out[0] = 0x20 | ((toggle as u8) << 4);
+                out[0] = specifier_bits(ServerCommand::DownloadSegment as u8) | ((toggle as u8) << 4);
                 out[1..SDO_LEN].fill(0);
                 SDO_LEN
             }
@@ -380,7 +443,7 @@ impl<'a> SdoResponse<'a> {
 
 /// Writes a whole CoE mailbox message: mailbox header, CoE header for `service`, and a body
 /// written by `body` into the space after them. Returns the message length.
-pub fn write_message(out: &mut [u8], counter: u8, service: u8, body: impl FnOnce(&mut [u8]) -> usize) -> usize {
+pub fn write_message(out: &mut [u8], counter: u8, service: CoeService, body: impl FnOnce(&mut [u8]) -> usize) -> usize {
     let len = body(&mut out[SDO_OFFSET..]);
     MailboxHeader::new(MailboxType::Coe, (COE_HEADER_LEN + len) as u16, counter).encode(out);
     CoeHeader::new(service).encode(&mut out[HEADER_LEN..]);
@@ -389,128 +452,143 @@ pub fn write_message(out: &mut [u8], counter: u8, service: u8, body: impl FnOnce
 
 /// Writes a complete SDO request message; returns its length.
 pub fn write_sdo_request(out: &mut [u8], counter: u8, request: &SdoRequest<'_>) -> usize {
-    write_message(out, counter, service::SDO_REQUEST, |b| request.encode(b))
+    write_message(out, counter, CoeService::SdoRequest, |b| request.encode(b))
 }
 
 /// Writes a complete SDO response message; returns its length.
 pub fn write_sdo_response(out: &mut [u8], counter: u8, response: &SdoResponse<'_>) -> usize {
-    write_message(out, counter, service::SDO_RESPONSE, |b| response.encode(b))
+    write_message(out, counter, CoeService::SdoResponse, |b| response.encode(b))
 }
 
 /// Splits a CoE mailbox message into its mailbox header, CoE header and the body after them.
 pub fn split_message(message: &[u8]) -> Result<(MailboxHeader, CoeHeader, &[u8]), Error> {
     let header = MailboxHeader::decode(message)?;
     if header.protocol() != Some(MailboxType::Coe) {
-        return Err(Error::Mailbox(format!("mailbox type {} is not CoE (3)", header.mailbox_type)));
+        return Err(MailboxError::NotCoe { mailbox_type: header.mailbox_type }.into());
     }
     let body = header.body(message);
     let coe = CoeHeader::decode(body)?;
     Ok((header, coe, &body[COE_HEADER_LEN..]))
 }
 
-/// SDO abort codes (CiA 301 §7.2.4.3.17, AKD manual §5.13).
-pub mod abort {
+/// An SDO abort code (CiA 301 §7.2.4.3.17, AKD manual §5.13). A slave may abort with a code
+/// outside the standard's list (a manufacturer's), so this is the wire value with the
+/// standard's codes as constants and [`name`](SdoAbortCode::name) for any of them.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct SdoAbortCode(pub u32);
+
+impl SdoAbortCode {
     /// Toggle bit not alternated.
-    pub const TOGGLE_BIT: u32 = 0x0503_0000;
+    pub const TOGGLE_BIT: SdoAbortCode = SdoAbortCode(0x0503_0000);
     /// SDO protocol timed out.
-    pub const TIMEOUT: u32 = 0x0504_0000;
+    pub const TIMEOUT: SdoAbortCode = SdoAbortCode(0x0504_0000);
     /// Client/server command specifier not valid or unknown.
-    pub const BAD_COMMAND: u32 = 0x0504_0001;
+    pub const BAD_COMMAND: SdoAbortCode = SdoAbortCode(0x0504_0001);
     /// Out of memory.
-    pub const OUT_OF_MEMORY: u32 = 0x0504_0005;
+    pub const OUT_OF_MEMORY: SdoAbortCode = SdoAbortCode(0x0504_0005);
     /// Unsupported access to an object.
-    pub const UNSUPPORTED_ACCESS: u32 = 0x0601_0000;
+    pub const UNSUPPORTED_ACCESS: SdoAbortCode = SdoAbortCode(0x0601_0000);
     /// Attempt to read a write-only object.
-    pub const WRITE_ONLY: u32 = 0x0601_0001;
+    pub const WRITE_ONLY: SdoAbortCode = SdoAbortCode(0x0601_0001);
     /// Attempt to write a read-only object.
-    pub const READ_ONLY: u32 = 0x0601_0002;
+    pub const READ_ONLY: SdoAbortCode = SdoAbortCode(0x0601_0002);
     /// Subindex cannot be written, sub 0 must be 0 for write access.
-    pub const SUBINDEX_WRITE_NEEDS_ZERO: u32 = 0x0601_0003;
+    pub const SUBINDEX_WRITE_NEEDS_ZERO: SdoAbortCode = SdoAbortCode(0x0601_0003);
     /// Complete access not supported.
-    pub const COMPLETE_ACCESS_UNSUPPORTED: u32 = 0x0601_0004;
+    pub const COMPLETE_ACCESS_UNSUPPORTED: SdoAbortCode = SdoAbortCode(0x0601_0004);
     /// Object does not exist in the object dictionary.
-    pub const NO_SUCH_OBJECT: u32 = 0x0602_0000;
+    pub const NO_SUCH_OBJECT: SdoAbortCode = SdoAbortCode(0x0602_0000);
     /// Object cannot be mapped to the PDO.
-    pub const NOT_MAPPABLE: u32 = 0x0604_0041;
+    pub const NOT_MAPPABLE: SdoAbortCode = SdoAbortCode(0x0604_0041);
     /// The number and length of the objects to be mapped would exceed the PDO length.
-    pub const PDO_TOO_LONG: u32 = 0x0604_0042;
+    pub const PDO_TOO_LONG: SdoAbortCode = SdoAbortCode(0x0604_0042);
     /// General parameter incompatibility.
-    pub const PARAMETER_INCOMPATIBLE: u32 = 0x0604_0043;
+    pub const PARAMETER_INCOMPATIBLE: SdoAbortCode = SdoAbortCode(0x0604_0043);
     /// General internal incompatibility in the device.
-    pub const DEVICE_INCOMPATIBLE: u32 = 0x0604_0047;
+    pub const DEVICE_INCOMPATIBLE: SdoAbortCode = SdoAbortCode(0x0604_0047);
     /// Access failed due to a hardware error.
-    pub const HARDWARE_ERROR: u32 = 0x0606_0000;
+    pub const HARDWARE_ERROR: SdoAbortCode = SdoAbortCode(0x0606_0000);
     /// Data type does not match, length of service parameter does not match.
-    pub const LENGTH_MISMATCH: u32 = 0x0607_0010;
+    pub const LENGTH_MISMATCH: SdoAbortCode = SdoAbortCode(0x0607_0010);
     /// Data type does not match, length of service parameter too high.
-    pub const LENGTH_TOO_HIGH: u32 = 0x0607_0012;
+    pub const LENGTH_TOO_HIGH: SdoAbortCode = SdoAbortCode(0x0607_0012);
     /// Data type does not match, length of service parameter too low.
-    pub const LENGTH_TOO_LOW: u32 = 0x0607_0013;
+    pub const LENGTH_TOO_LOW: SdoAbortCode = SdoAbortCode(0x0607_0013);
     /// Subindex does not exist.
-    pub const NO_SUCH_SUBINDEX: u32 = 0x0609_0011;
+    pub const NO_SUCH_SUBINDEX: SdoAbortCode = SdoAbortCode(0x0609_0011);
     /// Value range of parameter exceeded (download only).
-    pub const VALUE_RANGE: u32 = 0x0609_0030;
+    pub const VALUE_RANGE: SdoAbortCode = SdoAbortCode(0x0609_0030);
     /// Value of parameter written too high.
-    pub const VALUE_TOO_HIGH: u32 = 0x0609_0031;
+    pub const VALUE_TOO_HIGH: SdoAbortCode = SdoAbortCode(0x0609_0031);
     /// Value of parameter written too low.
-    pub const VALUE_TOO_LOW: u32 = 0x0609_0032;
+    pub const VALUE_TOO_LOW: SdoAbortCode = SdoAbortCode(0x0609_0032);
     /// Maximum value is less than minimum value.
-    pub const MAX_BELOW_MIN: u32 = 0x0609_0036;
+    pub const MAX_BELOW_MIN: SdoAbortCode = SdoAbortCode(0x0609_0036);
     /// General error.
-    pub const GENERAL: u32 = 0x0800_0000;
+    pub const GENERAL: SdoAbortCode = SdoAbortCode(0x0800_0000);
     /// Data cannot be transferred or stored to the application.
-    pub const CANNOT_STORE: u32 = 0x0800_0020;
+    pub const CANNOT_STORE: SdoAbortCode = SdoAbortCode(0x0800_0020);
     /// Data cannot be transferred because of local control.
-    pub const LOCAL_CONTROL: u32 = 0x0800_0021;
+    pub const LOCAL_CONTROL: SdoAbortCode = SdoAbortCode(0x0800_0021);
     /// Data cannot be transferred because of the present device state.
-    pub const DEVICE_STATE: u32 = 0x0800_0022;
+    pub const DEVICE_STATE: SdoAbortCode = SdoAbortCode(0x0800_0022);
     /// Object dictionary dynamic generation fails or no object dictionary is present.
-    pub const NO_OBJECT_DICTIONARY: u32 = 0x0800_0023;
+    pub const NO_OBJECT_DICTIONARY: SdoAbortCode = SdoAbortCode(0x0800_0023);
 }
 
-/// The name CiA 301 / ETG.1000.6 give an SDO abort code.
-pub fn abort_code_name(code: u32) -> &'static str {
-    match code {
-        abort::TOGGLE_BIT => "toggle bit not alternated",
-        abort::TIMEOUT => "SDO protocol timed out",
-        abort::BAD_COMMAND => "client/server command specifier not valid or unknown",
-        0x0504_0002 => "invalid block size",
-        0x0504_0003 => "invalid sequence number",
-        0x0504_0004 => "CRC error",
-        abort::OUT_OF_MEMORY => "out of memory",
-        abort::UNSUPPORTED_ACCESS => "unsupported access to an object",
-        abort::WRITE_ONLY => "attempt to read a write-only object",
-        abort::READ_ONLY => "attempt to write a read-only object",
-        abort::SUBINDEX_WRITE_NEEDS_ZERO => "subindex cannot be written, subindex 0 must be 0 for write access",
-        abort::COMPLETE_ACCESS_UNSUPPORTED => "complete access not supported for objects of variable length",
-        0x0601_0005 => "object length exceeds mailbox size",
-        0x0601_0006 => "object mapped to RxPDO, SDO download blocked",
-        abort::NO_SUCH_OBJECT => "object does not exist in the object dictionary",
-        abort::NOT_MAPPABLE => "object cannot be mapped to the PDO",
-        abort::PDO_TOO_LONG => "number and length of mapped objects exceed the PDO length",
-        abort::PARAMETER_INCOMPATIBLE => "general parameter incompatibility",
-        abort::DEVICE_INCOMPATIBLE => "general internal incompatibility in the device",
-        abort::HARDWARE_ERROR => "access failed due to a hardware error",
-        abort::LENGTH_MISMATCH => "data type does not match, length of service parameter does not match",
-        abort::LENGTH_TOO_HIGH => "data type does not match, length of service parameter too high",
-        abort::LENGTH_TOO_LOW => "data type does not match, length of service parameter too low",
-        abort::NO_SUCH_SUBINDEX => "subindex does not exist",
-        abort::VALUE_RANGE => "value range of parameter exceeded",
-        abort::VALUE_TOO_HIGH => "value of parameter written too high",
-        abort::VALUE_TOO_LOW => "value of parameter written too low",
-        abort::MAX_BELOW_MIN => "maximum value is less than minimum value",
-        abort::GENERAL => "general error",
-        abort::CANNOT_STORE => "data cannot be transferred or stored to the application",
-        abort::LOCAL_CONTROL => "data cannot be transferred or stored because of local control",
-        abort::DEVICE_STATE => "data cannot be transferred or stored because of the present device state",
-        abort::NO_OBJECT_DICTIONARY => "no object dictionary is present",
-        _ => "unknown abort code",
+impl SdoAbortCode {
+    /// The name CiA 301 / ETG.1000.6 give the code; "unknown abort code" outside their list.
+    pub fn name(self) -> &'static str {
+        match self {
+            SdoAbortCode::TOGGLE_BIT => "toggle bit not alternated",
+            SdoAbortCode::TIMEOUT => "SDO protocol timed out",
+            SdoAbortCode::BAD_COMMAND => "client/server command specifier not valid or unknown",
+            SdoAbortCode(0x0504_0002) => "invalid block size",
+            SdoAbortCode(0x0504_0003) => "invalid sequence number",
+            SdoAbortCode(0x0504_0004) => "CRC error",
+            SdoAbortCode::OUT_OF_MEMORY => "out of memory",
+            SdoAbortCode::UNSUPPORTED_ACCESS => "unsupported access to an object",
+            SdoAbortCode::WRITE_ONLY => "attempt to read a write-only object",
+            SdoAbortCode::READ_ONLY => "attempt to write a read-only object",
+            SdoAbortCode::SUBINDEX_WRITE_NEEDS_ZERO => {
+                "subindex cannot be written, subindex 0 must be 0 for write access"
+            }
+            SdoAbortCode::COMPLETE_ACCESS_UNSUPPORTED => "complete access not supported for objects of variable length",
+            SdoAbortCode(0x0601_0005) => "object length exceeds mailbox size",
+            SdoAbortCode(0x0601_0006) => "object mapped to RxPDO, SDO download blocked",
+            SdoAbortCode::NO_SUCH_OBJECT => "object does not exist in the object dictionary",
+            SdoAbortCode::NOT_MAPPABLE => "object cannot be mapped to the PDO",
+            SdoAbortCode::PDO_TOO_LONG => "number and length of mapped objects exceed the PDO length",
+            SdoAbortCode::PARAMETER_INCOMPATIBLE => "general parameter incompatibility",
+            SdoAbortCode::DEVICE_INCOMPATIBLE => "general internal incompatibility in the device",
+            SdoAbortCode::HARDWARE_ERROR => "access failed due to a hardware error",
+            SdoAbortCode::LENGTH_MISMATCH => "data type does not match, length of service parameter does not match",
+            SdoAbortCode::LENGTH_TOO_HIGH => "data type does not match, length of service parameter too high",
+            SdoAbortCode::LENGTH_TOO_LOW => "data type does not match, length of service parameter too low",
+            SdoAbortCode::NO_SUCH_SUBINDEX => "subindex does not exist",
+            SdoAbortCode::VALUE_RANGE => "value range of parameter exceeded",
+            SdoAbortCode::VALUE_TOO_HIGH => "value of parameter written too high",
+            SdoAbortCode::VALUE_TOO_LOW => "value of parameter written too low",
+            SdoAbortCode::MAX_BELOW_MIN => "maximum value is less than minimum value",
+            SdoAbortCode::GENERAL => "general error",
+            SdoAbortCode::CANNOT_STORE => "data cannot be transferred or stored to the application",
+            SdoAbortCode::LOCAL_CONTROL => "data cannot be transferred or stored because of local control",
+            SdoAbortCode::DEVICE_STATE => "data cannot be transferred or stored because of the present device state",
+            SdoAbortCode::NO_OBJECT_DICTIONARY => "no object dictionary is present",
+            _ => "unknown abort code",
+        }
+    }
+}
+
+impl fmt::Display for SdoAbortCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "0x{:08X} ({})", self.0, self.name())
     }
 }
 
 /// The error for an SDO aborted with `code`.
-pub fn abort_error(index: u16, subindex: u8, code: u32) -> Error {
-    Error::SdoAbort { index, subindex, code, code_name: abort_code_name(code) }
+pub fn abort_error(index: u16, subindex: u8, code: SdoAbortCode) -> Error {
+    Error::SdoAbort { index, subindex, code: code.0, code_name: code.name() }
 }
 
 /// An emergency message (CoE service 1): CiA error code, error register, 5 bytes of
@@ -532,7 +610,9 @@ impl Emergency {
     /// Decodes the body after the CoE header.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < EMERGENCY_LEN {
-            return Err(Error::Mailbox(format!("emergency message of {} bytes, expected {EMERGENCY_LEN}", body.len())));
+            return Err(
+                MailboxError::Truncated { what: "emergency message", len: body.len(), needed: EMERGENCY_LEN }.into()
+            );
         }
         let mut data = [0; 5];
         data.copy_from_slice(&body[3..8]);
@@ -548,45 +628,61 @@ impl Emergency {
     }
 }
 
-/// SDO information opcodes (ETG.1000.6 §5.6.3).
-pub mod info_opcode {
-    /// Get OD list request.
-    pub const GET_OD_LIST_REQUEST: u8 = 0x01;
-    /// Get OD list response.
-    pub const GET_OD_LIST_RESPONSE: u8 = 0x02;
-    /// Get object description request.
-    pub const GET_OBJECT_DESCRIPTION_REQUEST: u8 = 0x03;
-    /// Get object description response.
-    pub const GET_OBJECT_DESCRIPTION_RESPONSE: u8 = 0x04;
-    /// Get entry description request.
-    pub const GET_ENTRY_DESCRIPTION_REQUEST: u8 = 0x05;
-    /// Get entry description response.
-    pub const GET_ENTRY_DESCRIPTION_RESPONSE: u8 = 0x06;
-    /// SDO information error request (carries an abort code).
-    pub const ERROR: u8 = 0x07;
+wire_codes! {
+    /// SDO information opcodes (ETG.1000.6 §5.6.3).
+    pub enum SdoInfoOpcode: u8, "SDO information opcode" {
+        /// Get OD list request.
+        GetOdListRequest = 0x01 => "Get OD List Request",
+        /// Get OD list response.
+        GetOdListResponse = 0x02 => "Get OD List Response",
+        /// Get object description request.
+        GetObjectDescriptionRequest = 0x03 => "Get Object Description Request",
+        /// Get object description response.
+        GetObjectDescriptionResponse = 0x04 => "Get Object Description Response",
+        /// Get entry description request.
+        GetEntryDescriptionRequest = 0x05 => "Get Entry Description Request",
+        /// Get entry description response.
+        GetEntryDescriptionResponse = 0x06 => "Get Entry Description Response",
+        /// SDO information error request (carries an abort code).
+        SdoInfoErrorRequest = 0x07 => "SDO Info Error Request",
+    }
 }
 
-/// OD list types of a Get OD list request.
-pub mod od_list {
-    /// Number of objects in each of the five lists.
-    pub const LENGTHS: u16 = 0x00;
-    /// All objects.
-    pub const ALL: u16 = 0x01;
-    /// Objects mappable in an RxPDO.
-    pub const RX_PDO_MAPPABLE: u16 = 0x02;
-    /// Objects mappable in a TxPDO.
-    pub const TX_PDO_MAPPABLE: u16 = 0x03;
-    /// Objects to be stored for a device replacement.
-    pub const BACKUP: u16 = 0x04;
-    /// Start-up parameters.
-    pub const STARTUP: u16 = 0x05;
+impl SdoInfoOpcode {
+    /// The response that answers this request; `None` for what is not a request.
+    pub fn response(self) -> Option<SdoInfoOpcode> {
+        match self {
+            SdoInfoOpcode::GetOdListRequest => Some(SdoInfoOpcode::GetOdListResponse),
+            SdoInfoOpcode::GetObjectDescriptionRequest => Some(SdoInfoOpcode::GetObjectDescriptionResponse),
+            SdoInfoOpcode::GetEntryDescriptionRequest => Some(SdoInfoOpcode::GetEntryDescriptionResponse),
+            _ => None,
+        }
+    }
+}
+
+wire_codes! {
+    /// OD list types of a Get OD list request (ETG.1000.6 §5.6.3.3).
+    pub enum OdListType: u16, "OD list type" {
+        /// Number of objects in each of the five lists.
+        Lengths = 0x00 => "number of objects in the five lists",
+        /// All objects.
+        All = 0x01 => "all objects",
+        /// Objects mappable in an RxPDO.
+        RxPdoMappable = 0x02 => "RxPDO mappable objects",
+        /// Objects mappable in a TxPDO.
+        TxPdoMappable = 0x03 => "TxPDO mappable objects",
+        /// Objects to be stored for a device replacement.
+        Backup = 0x04 => "objects to be stored for a device replacement",
+        /// Start-up parameters.
+        Startup = 0x05 => "startup parameters",
+    }
 }
 
 /// The SDO information header.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct SdoInfoHeader {
-    /// Opcode, see [`info_opcode`].
-    pub opcode: u8,
+    /// Opcode.
+    pub opcode: SdoInfoOpcode,
     /// More fragments follow.
     pub incomplete: bool,
     /// Fragments still to come after this one.
@@ -594,16 +690,19 @@ pub struct SdoInfoHeader {
 }
 
 impl SdoInfoHeader {
-    /// Decodes the header at the start of an SDO information body.
+    /// Decodes the header at the start of an SDO information body; an opcode outside the
+    /// standard's set is an error naming it.
     pub fn decode(body: &[u8]) -> Result<Self, Error> {
         if body.len() < SDO_INFO_HEADER_LEN {
-            return Err(Error::Mailbox(format!(
-                "SDO information message of {} bytes has no {SDO_INFO_HEADER_LEN}-byte header",
-                body.len()
-            )));
+            return Err(MailboxError::Truncated {
+                what: "SDO information message",
+                len: body.len(),
+                needed: SDO_INFO_HEADER_LEN,
+            }
+            .into());
         }
         Ok(SdoInfoHeader {
-            opcode: body[0] & 0x7F,
+            opcode: SdoInfoOpcode::try_from(body[0] & 0x7F)?,
             incomplete: body[0] & 0x80 != 0,
             fragments_left: u16::from_le_bytes([body[2], body[3]]),
         })
@@ -611,7 +710,7 @@ impl SdoInfoHeader {
 
     /// Encodes into the first four bytes of `out`.
     pub fn encode(&self, out: &mut [u8]) {
-        out[0] = (self.opcode & 0x7F) | ((self.incomplete as u8) << 7);
+        out[0] = (self.opcode as u8 & 0x7F) | ((self.incomplete as u8) << 7);
         out[1] = 0;
         out[2..4].copy_from_slice(&self.fragments_left.to_le_bytes());
     }
@@ -619,21 +718,29 @@ impl SdoInfoHeader {
 
 /// Writes an SDO information message carrying `data` after its header; returns the length.
 pub fn write_info_message(out: &mut [u8], counter: u8, header: SdoInfoHeader, data: &[u8]) -> usize {
-    write_message(out, counter, service::SDO_INFORMATION, |b| {
+    write_message(out, counter, CoeService::SdoInformation, |b| {
         header.encode(b);
         b[SDO_INFO_HEADER_LEN..SDO_INFO_HEADER_LEN + data.len()].copy_from_slice(data);
         SDO_INFO_HEADER_LEN + data.len()
     })
 }
 
-/// Object codes of an object description.
-pub mod object_code {
-    /// A single value.
-    pub const VAR: u8 = 0x07;
-    /// Subindices of one type.
-    pub const ARRAY: u8 = 0x08;
-    /// Subindices of different types.
-    pub const RECORD: u8 = 0x09;
+wire_codes! {
+    /// Object codes of an object description (ETG.1000.6 Table 43, CiA 301 §7.4.3).
+    pub enum ObjectCode: u8, "object code" {
+        /// A large variable amount of data.
+        Domain = 0x02 => "DOMAIN",
+        /// A type definition.
+        Deftype = 0x05 => "DEFTYPE",
+        /// A record type definition.
+        Defstruct = 0x06 => "DEFSTRUCT",
+        /// A single value.
+        Var = 0x07 => "VAR",
+        /// Subindices of one type.
+        Array = 0x08 => "ARRAY",
+        /// Subindices of different types.
+        Record = 0x09 => "RECORD",
+    }
 }
 
 /// An object description (Get object description response data).
@@ -645,8 +752,8 @@ pub struct ObjectDescription<'a> {
     pub data_type: u16,
     /// Highest subindex.
     pub max_subindex: u8,
-    /// Object code, see [`object_code`].
-    pub object_code: u8,
+    /// Object code.
+    pub object_code: ObjectCode,
     /// Name.
     pub name: &'a str,
 }
@@ -656,24 +763,26 @@ pub const OBJECT_DESCRIPTION_FIXED_LEN: usize = 6;
 /// Length of an entry description before its optional values and name.
 pub const ENTRY_DESCRIPTION_FIXED_LEN: usize = 10;
 
-fn text<'a>(bytes: &'a [u8], what: &str) -> Result<&'a str, Error> {
-    std::str::from_utf8(bytes).map_err(|_| Error::Mailbox(format!("{what} is not valid text")))
+fn text<'a>(bytes: &'a [u8], what: &'static str) -> Result<&'a str, Error> {
+    std::str::from_utf8(bytes).map_err(|_| MailboxError::NotText { what }.into())
 }
 
 impl<'a> ObjectDescription<'a> {
     /// Decodes the data of a Get object description response.
     pub fn decode(data: &'a [u8]) -> Result<Self, Error> {
         if data.len() < OBJECT_DESCRIPTION_FIXED_LEN {
-            return Err(Error::Mailbox(format!(
-                "object description of {} bytes, expected at least {OBJECT_DESCRIPTION_FIXED_LEN}",
-                data.len()
-            )));
+            return Err(MailboxError::Truncated {
+                what: "object description",
+                len: data.len(),
+                needed: OBJECT_DESCRIPTION_FIXED_LEN,
+            }
+            .into());
         }
         Ok(ObjectDescription {
             index: u16::from_le_bytes([data[0], data[1]]),
             data_type: u16::from_le_bytes([data[2], data[3]]),
             max_subindex: data[4],
-            object_code: data[5],
+            object_code: ObjectCode::try_from(data[5])?,
             name: text(&data[OBJECT_DESCRIPTION_FIXED_LEN..], "object name")?,
         })
     }
@@ -683,7 +792,7 @@ impl<'a> ObjectDescription<'a> {
         out[0..2].copy_from_slice(&self.index.to_le_bytes());
         out[2..4].copy_from_slice(&self.data_type.to_le_bytes());
         out[4] = self.max_subindex;
-        out[5] = self.object_code;
+        out[5] = self.object_code.into();
         let end = OBJECT_DESCRIPTION_FIXED_LEN + self.name.len();
         out[OBJECT_DESCRIPTION_FIXED_LEN..end].copy_from_slice(self.name.as_bytes());
         end
@@ -738,10 +847,12 @@ impl<'a> EntryDescription<'a> {
     /// Decodes the data of a Get entry description response.
     pub fn decode(data: &'a [u8]) -> Result<Self, Error> {
         if data.len() < ENTRY_DESCRIPTION_FIXED_LEN {
-            return Err(Error::Mailbox(format!(
-                "entry description of {} bytes, expected at least {ENTRY_DESCRIPTION_FIXED_LEN}",
-                data.len()
-            )));
+            return Err(MailboxError::Truncated {
+                what: "entry description",
+                len: data.len(),
+                needed: ENTRY_DESCRIPTION_FIXED_LEN,
+            }
+            .into());
         }
         Ok(EntryDescription {
             index: u16::from_le_bytes([data[0], data[1]]),
@@ -928,6 +1039,18 @@ pub mod data_type {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn wire_codes_round_trip_and_name_the_unknown() {
+        for &service in CoeService::ALL {
+            assert_eq!(CoeService::try_from(u8::from(service)), Ok(service));
+        }
+        assert_eq!(CoeService::SdoInformation.to_string(), "8 (SDO Information)");
+        let err = CoeService::try_from(9).unwrap_err().to_string();
+        assert!(err.starts_with("CoE service 9 is none of 1 (Emergency), 2 (SDO Request)"), "{err}");
+        assert_eq!(SdoInfoOpcode::GetOdListRequest.response(), Some(SdoInfoOpcode::GetOdListResponse));
+        assert!(SdoRequest::decode(&[0xA0, 0, 0, 0, 0, 0, 0, 0]).unwrap_err().to_string().contains("specifier 5"));
+    }
     use proptest::prelude::*;
 
     #[test]
@@ -950,7 +1073,7 @@ mod tests {
             0x0E, 0x00, 0x00, 0x00, 0x00, 0x03, 0x00, 0x30, 0x60, 0x12, 0x1C, 0x01, 0x00, 0x00, 0x00, 0x00,
         ]);
         let (_, coe, body) = split_message(&reply).unwrap();
-        assert_eq!(coe.service, service::SDO_RESPONSE);
+        assert_eq!(coe.service, CoeService::SdoResponse);
         assert_eq!(SdoResponse::decode(body).unwrap(), SdoResponse::Download { index: 0x1C12, subindex: 1 });
     }
 
@@ -983,10 +1106,10 @@ mod tests {
 
     #[test]
     fn names_abort_codes() {
-        assert_eq!(abort_code_name(abort::NO_SUCH_OBJECT), "object does not exist in the object dictionary");
-        assert_eq!(abort_code_name(abort::READ_ONLY), "attempt to write a read-only object");
-        assert_eq!(abort_code_name(abort::VALUE_RANGE), "value range of parameter exceeded");
-        assert_eq!(abort_code_name(0x1234_5678), "unknown abort code");
+        assert_eq!(SdoAbortCode::NO_SUCH_OBJECT.name(), "object does not exist in the object dictionary");
+        assert_eq!(SdoAbortCode::READ_ONLY.name(), "attempt to write a read-only object");
+        assert_eq!(SdoAbortCode::VALUE_RANGE.name(), "value range of parameter exceeded");
+        assert_eq!(SdoAbortCode(0x1234_5678).name(), "unknown abort code");
     }
 
     #[test]
@@ -1009,7 +1132,7 @@ mod tests {
             index: 0x6041,
             data_type: data_type::UNSIGNED16,
             max_subindex: 0,
-            object_code: object_code::VAR,
+            object_code: ObjectCode::Var,
             name: "Statusword",
         };
         let len = d.encode(&mut buf);
@@ -1025,7 +1148,7 @@ mod tests {
         };
         let len = e.encode(&mut buf);
         assert_eq!(EntryDescription::decode(&buf[..len]).unwrap(), e);
-        let h = SdoInfoHeader { opcode: info_opcode::GET_OD_LIST_RESPONSE, incomplete: true, fragments_left: 3 };
+        let h = SdoInfoHeader { opcode: SdoInfoOpcode::GetOdListResponse, incomplete: true, fragments_left: 3 };
         h.encode(&mut buf);
         assert_eq!(SdoInfoHeader::decode(&buf).unwrap(), h);
     }

@@ -8,7 +8,7 @@
 
 use std::time::Duration;
 
-use crate::error::{Error, Result};
+use crate::error::{Result, SettingError};
 
 /// Seconds from the Unix epoch to the EtherCAT epoch, 2000-01-01 00:00:00 UTC.
 pub const EPOCH_OFFSET_S: u64 = 946_684_800;
@@ -89,9 +89,7 @@ pub fn time_difference(raw: u32) -> i64 {
 /// (2, -3), 250 µs = (25, -5). Refuses cycles under 250 µs or without an exact encoding.
 pub fn interpolation_time_period(cycle_ns: u32) -> Result<(u8, i8)> {
     if cycle_ns < MIN_CYCLE_NS {
-        return Err(Error::Config(format!(
-            "cycle time {cycle_ns} ns is below the AKD's minimum of {MIN_CYCLE_NS} ns (4 kHz)"
-        )));
+        return Err(SettingError::CycleTimeBelowMinimum { cycle_ns, min_ns: MIN_CYCLE_NS }.into());
     }
     (-9i8..=0)
         .rev()
@@ -100,11 +98,7 @@ pub fn interpolation_time_period(cycle_ns: u32) -> Result<(u8, i8)> {
             let units = cycle_ns as u64 / unit;
             ((cycle_ns as u64).is_multiple_of(unit) && units <= u8::MAX as u64).then_some((units as u8, exponent))
         })
-        .ok_or_else(|| {
-            Error::Config(format!(
-                "cycle time {cycle_ns} ns has no exact encoding as units (0..=255) times a power of ten for 0x60C2"
-            ))
-        })
+        .ok_or(SettingError::CycleTimeNotEncodable { cycle_ns }.into())
 }
 
 #[cfg(test)]

@@ -1,14 +1,37 @@
 //! akd_native: an EtherCAT master for Kollmorgen AKD drives and a virtual AKD that answers as a
 //! real one does.
 //!
-//! The protocol modules are pure codecs with no I/O and no allocation in their hot paths, so
-//! each can be tested alone and the master and the virtual AKD share them without sharing any
-//! state: [`frame`] (datagrams and working counters), [`registers`] (ESC register map),
-//! [`sii`] (SII EEPROM content), [`al`] (AL states and status codes), [`mailbox`] and [`coe`]
-//! (mailbox header, CoE SDO, SDO information, emergency), [`pdo`] (AKD process-data mappings),
-//! [`dc`] (distributed-clock arithmetic) and [`ds402`] (CiA 402 drive state machine).
-//! [`link`] moves frames; [`master`] drives a bus; [`cycle`] runs the master's exchange in a
-//! real-time thread; [`sim`] is the virtual AKD.
+//! The layers point one way, each using only those listed before it:
+//!
+//! 1. [`error`]: the typed errors every layer returns, carrying the standard's and the drive's
+//!    names (AL status code names, SDO abort code names, the AKD's mapping rules).
+//! 2. Pure codecs, no I/O and no allocation in their hot paths, so each is tested alone and the
+//!    master and the virtual AKD share them without sharing any state: [`frame`] (datagrams
+//!    and working counters), [`registers`] (ESC register map), [`sii`] (SII EEPROM content),
+//!    [`al`] (AL states and status codes), [`mailbox`] and [`coe`] (mailbox header, CoE SDO,
+//!    SDO information, emergency), [`pdo`] (the AKD's process-data mappings and their rules),
+//!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine) and
+//!    [`akd_fault`] (the AKD's fault numbers). Closed sets of wire codes are enums (e.g.
+//!    [`coe::CoeService`]); open ones are newtypes with a `name()` (e.g. [`coe::SdoAbortCode`]).
+//! 3. [`link`]: the [`link::Link`] trait that moves frames, the [`link::LinkSpec`] that names
+//!    one, and the links to a real line (UDP, raw interface) with the pcapng recorder.
+//! 4. [`master`]: one [`master::Master`] drives one bus (scan, AL states of every slave, the
+//!    cyclic exchange, distributed clocks) and hands out a [`master::SlaveRef`] per drive for
+//!    what concerns that drive alone (SDO, mailbox, mapping, its process data).
+//! 5. [`cycle`]: the real-time thread that owns a master in Op, exchanges its process image
+//!    every period and sequences each drive's CiA 402 state machine, without allocating,
+//!    locking or waiting on another thread.
+//!
+//! [`sim`], the virtual AKD, stands beside the master: it uses the codecs and serves frames
+//! through the same [`link::Link`] trait ([`sim::in_process`]) or over UDP and raw Ethernet
+//! ([`sim::server`]), so the master cannot tell it from a real line. The Python bindings (feature
+//! `python`) sit on top of all of them and are the only place that opens a link spec, since
+//! only they may see both the links and the simulator.
+
+#![deny(missing_docs)]
+
+#[macro_use]
+mod wire_code;
 
 pub mod akd_fault;
 pub mod al;

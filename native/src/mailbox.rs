@@ -4,7 +4,7 @@
 //! channel and priority, and the protocol type with a 3-bit counter. The counter lets a slave
 //! tell a repeated message from a new one; the AKD echoes the master's counter in its reply.
 
-use crate::error::Error;
+use crate::error::{Error, MailboxError};
 
 /// Length of the mailbox header.
 pub const HEADER_LEN: usize = 6;
@@ -85,10 +85,9 @@ impl MailboxHeader {
     /// Decodes a header and checks that the message it announces fits `bytes`.
     pub fn decode(bytes: &[u8]) -> Result<Self, Error> {
         if bytes.len() < HEADER_LEN {
-            return Err(Error::Mailbox(format!(
-                "message of {} bytes is shorter than the {HEADER_LEN}-byte mailbox header",
-                bytes.len()
-            )));
+            return Err(
+                MailboxError::Truncated { what: "mailbox message", len: bytes.len(), needed: HEADER_LEN }.into()
+            );
         }
         let header = MailboxHeader {
             length: u16::from_le_bytes([bytes[0], bytes[1]]),
@@ -99,11 +98,9 @@ impl MailboxHeader {
             counter: (bytes[5] >> 4) & 0x07,
         };
         if HEADER_LEN + header.length as usize > bytes.len() {
-            return Err(Error::Mailbox(format!(
-                "header announces {} bytes but the mailbox holds {}",
-                header.length,
-                bytes.len() - HEADER_LEN
-            )));
+            return Err(
+                MailboxError::LengthMismatch { announced: header.length, holds: bytes.len() - HEADER_LEN }.into()
+            );
         }
         Ok(header)
     }
@@ -141,53 +138,47 @@ pub const ERROR_SERVICE: u16 = 0x0001;
 /// Length of a mailbox error reply body (service and detail words).
 pub const ERROR_BODY_LEN: usize = 4;
 
-/// Detail codes of a mailbox error reply (ETG.1000.4 table 30).
-pub mod error_detail {
-    /// Syntax of the 6-byte header is wrong.
-    pub const SYNTAX: u16 = 0x0001;
-    /// The mailbox protocol is not supported.
-    pub const UNSUPPORTED_PROTOCOL: u16 = 0x0002;
-    /// The channel field is not 0.
-    pub const INVALID_CHANNEL: u16 = 0x0003;
-    /// The service in the protocol is not supported.
-    pub const SERVICE_NOT_SUPPORTED: u16 = 0x0004;
-    /// The protocol header is wrong.
-    pub const INVALID_HEADER: u16 = 0x0005;
-    /// The data is too short.
-    pub const SIZE_TOO_SHORT: u16 = 0x0006;
-    /// Not enough memory in the slave.
-    pub const NO_MORE_MEMORY: u16 = 0x0007;
-    /// The length is inconsistent.
-    pub const INVALID_SIZE: u16 = 0x0008;
-}
-
-/// Name of a mailbox error detail code.
-pub fn error_detail_name(detail: u16) -> &'static str {
-    match detail {
-        error_detail::SYNTAX => "syntax error in the mailbox header",
-        error_detail::UNSUPPORTED_PROTOCOL => "mailbox protocol not supported",
-        error_detail::INVALID_CHANNEL => "invalid channel",
-        error_detail::SERVICE_NOT_SUPPORTED => "service not supported",
-        error_detail::INVALID_HEADER => "invalid protocol header",
-        error_detail::SIZE_TOO_SHORT => "data too short",
-        error_detail::NO_MORE_MEMORY => "no more memory",
-        error_detail::INVALID_SIZE => "inconsistent length",
-        _ => "unknown mailbox error",
+wire_codes! {
+    /// Detail codes of a mailbox error reply (ETG.1000.4 table 30).
+    pub enum MailboxErrorDetail: u16, "mailbox error detail" {
+        /// Syntax of the 6-byte header is wrong.
+        Syntax = 0x0001 => "syntax error in the mailbox header",
+        /// The mailbox protocol is not supported.
+        UnsupportedProtocol = 0x0002 => "mailbox protocol not supported",
+        /// The channel field is not 0.
+        InvalidChannel = 0x0003 => "invalid channel",
+        /// The service in the protocol is not supported.
+        ServiceNotSupported = 0x0004 => "service not supported",
+        /// The protocol header is wrong.
+        InvalidHeader = 0x0005 => "invalid protocol header",
+        /// The data is too short.
+        SizeTooShort = 0x0006 => "data too short",
+        /// Not enough memory in the slave.
+        NoMoreMemory = 0x0007 => "no more memory",
+        /// The length is inconsistent.
+        InvalidSize = 0x0008 => "inconsistent length",
     }
 }
 
+/// Name of a mailbox error detail code as a slave sent it, which may be outside the table.
+pub fn error_detail_name(detail: u16) -> &'static str {
+    MailboxErrorDetail::try_from(detail).map_or("unknown mailbox error", MailboxErrorDetail::name)
+}
+
 /// Writes a complete mailbox error reply (header and body) into `out`; returns its length.
-pub fn write_error_reply(out: &mut [u8], counter: u8, detail: u16) -> usize {
+pub fn write_error_reply(out: &mut [u8], counter: u8, detail: MailboxErrorDetail) -> usize {
     MailboxHeader::new(MailboxType::Error, ERROR_BODY_LEN as u16, counter).encode(out);
     out[HEADER_LEN..HEADER_LEN + 2].copy_from_slice(&ERROR_SERVICE.to_le_bytes());
-    out[HEADER_LEN + 2..HEADER_LEN + 4].copy_from_slice(&detail.to_le_bytes());
+    out[HEADER_LEN + 2..HEADER_LEN + 4].copy_from_slice(&u16::from(detail).to_le_bytes());
     HEADER_LEN + ERROR_BODY_LEN
 }
 
 /// Reads the detail code of a mailbox error reply body.
 pub fn parse_error_reply(body: &[u8]) -> Result<u16, Error> {
     if body.len() < ERROR_BODY_LEN {
-        return Err(Error::Mailbox(format!("mailbox error reply of {} bytes, expected {ERROR_BODY_LEN}", body.len())));
+        return Err(
+            MailboxError::Truncated { what: "mailbox error reply", len: body.len(), needed: ERROR_BODY_LEN }.into()
+        );
     }
     Ok(u16::from_le_bytes([body[2], body[3]]))
 }
@@ -223,11 +214,11 @@ mod tests {
     #[test]
     fn error_reply_round_trips() {
         let mut buf = [0u8; 16];
-        let len = write_error_reply(&mut buf, 3, error_detail::UNSUPPORTED_PROTOCOL);
+        let len = write_error_reply(&mut buf, 3, MailboxErrorDetail::UnsupportedProtocol);
         let h = MailboxHeader::decode(&buf[..len]).unwrap();
         assert_eq!(h.protocol(), Some(MailboxType::Error));
         assert_eq!(h.counter, 3);
-        assert_eq!(parse_error_reply(h.body(&buf)).unwrap(), error_detail::UNSUPPORTED_PROTOCOL);
+        assert_eq!(parse_error_reply(h.body(&buf)).unwrap(), u16::from(MailboxErrorDetail::UnsupportedProtocol));
     }
 
     #[test]

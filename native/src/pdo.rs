@@ -9,7 +9,7 @@
 //! Where the manual and the real drive differ, the real drive's SII wins: 0x1B01 carries the
 //! internal position 0x6063, digital outputs 0x60FE:01 are 32 bits, and 0x1725/0x1B26 exist.
 
-use crate::coe::abort;
+use crate::coe::SdoAbortCode;
 
 /// One mapped object: index, subindex and bit length, as written to a mapping object's
 /// subindices in the form 0xIIIISSBB.
@@ -340,41 +340,43 @@ pub fn bit_len(entries: &[PdoEntry]) -> usize {
     entries.iter().map(|e| e.bits as usize).sum()
 }
 
-/// Why the AKD refuses a flexible mapping, with the SDO abort code it answers with.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct MappingRefused {
-    /// What is wrong and what is allowed.
-    pub reason: String,
-    /// The abort code the drive gives when the offending value is written.
-    pub abort_code: u32,
+pub use crate::error::PdoError;
+
+impl PdoError {
+    /// The SDO abort code the AKD answers the write that breaks this rule with; `None` where no
+    /// single write breaks it (a mapping this master refuses before writing anything).
+    pub fn abort_code(&self) -> Option<SdoAbortCode> {
+        match self {
+            PdoError::NotMappable { .. } => Some(SdoAbortCode::NOT_MAPPABLE),
+            PdoError::PdoTooLong { .. } | PdoError::MappingTooLong { .. } => Some(SdoAbortCode::PDO_TOO_LONG),
+            PdoError::TooManyPdos { .. } | PdoError::NotFlexible { .. } => Some(SdoAbortCode::VALUE_RANGE),
+            PdoError::OddLength { .. } => Some(SdoAbortCode::PARAMETER_INCOMPATIBLE),
+            PdoError::NotFixed { .. } | PdoError::NoMapping { .. } => None,
+        }
+    }
 }
 
 /// Checks one flexible PDO's entries: each mappable in this direction with its real bit
 /// length, and the PDO at most 8 bytes.
-pub fn check_flexible_pdo(direction: Direction, pdo_index: u16, entries: &[PdoEntry]) -> Result<(), MappingRefused> {
+pub fn check_flexible_pdo(direction: Direction, pdo_index: u16, entries: &[PdoEntry]) -> Result<(), PdoError> {
     for entry in entries {
         if !mappable(direction).contains(entry) {
-            return Err(MappingRefused {
-                reason: format!(
-                    "0x{:04X}:{:02X} with {} bits cannot be mapped in {} 0x{pdo_index:04X} (see AKD manual §5.7 for the mappable objects)",
-                    entry.index,
-                    entry.subindex,
-                    entry.bits,
-                    direction.name()
-                ),
-                abort_code: abort::NOT_MAPPABLE,
+            return Err(PdoError::NotMappable {
+                direction: direction.name(),
+                pdo: pdo_index,
+                index: entry.index,
+                subindex: entry.subindex,
+                bits: entry.bits,
             });
         }
     }
     let bits = bit_len(entries);
     if bits > MAX_FLEXIBLE_PDO_BYTES * 8 {
-        return Err(MappingRefused {
-            reason: format!(
-                "{} 0x{pdo_index:04X} holds {} bytes; a flexible PDO holds at most {MAX_FLEXIBLE_PDO_BYTES}",
-                direction.name(),
-                bits / 8
-            ),
-            abort_code: abort::PDO_TOO_LONG,
+        return Err(PdoError::PdoTooLong {
+            direction: direction.name(),
+            pdo: pdo_index,
+            bytes: bits / 8,
+            max: MAX_FLEXIBLE_PDO_BYTES,
         });
     }
     Ok(())
@@ -382,41 +384,28 @@ pub fn check_flexible_pdo(direction: Direction, pdo_index: u16, entries: &[PdoEn
 
 /// Checks a whole flexible mapping of one direction: at most four PDOs from 0x1600/0x1A00
 /// upwards, each valid, the total within 22 (Rx) or 32 (Tx) bytes and of even length.
-pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Result<(), MappingRefused> {
+pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Result<(), PdoError> {
     if pdos.len() > FLEXIBLE_PDO_COUNT {
-        return Err(MappingRefused {
-            reason: format!(
-                "{} {} PDOs assigned; the AKD takes at most {FLEXIBLE_PDO_COUNT}",
-                pdos.len(),
-                direction.name()
-            ),
-            abort_code: abort::VALUE_RANGE,
-        });
+        return Err(PdoError::TooManyPdos { direction: direction.name(), count: pdos.len(), max: FLEXIBLE_PDO_COUNT });
     }
     let base = direction.flexible_base();
     for (index, entries) in pdos {
         if !(base..base + FLEXIBLE_PDO_COUNT as u16).contains(index) {
-            return Err(MappingRefused {
-                reason: format!(
-                    "0x{index:04X} is not a flexible {} (allowed 0x{base:04X}..=0x{:04X})",
-                    direction.name(),
-                    base + FLEXIBLE_PDO_COUNT as u16 - 1
-                ),
-                abort_code: abort::VALUE_RANGE,
+            return Err(PdoError::NotFlexible {
+                direction: direction.name(),
+                index: *index,
+                first: base,
+                last: base + FLEXIBLE_PDO_COUNT as u16 - 1,
             });
         }
         check_flexible_pdo(direction, *index, entries)?;
     }
     let bits: usize = pdos.iter().map(|(_, e)| bit_len(e)).sum();
     if bits > direction.max_bytes() * 8 {
-        return Err(MappingRefused {
-            reason: format!(
-                "{} mapping of {} bytes exceeds the AKD's {} bytes",
-                direction.name(),
-                bits / 8,
-                direction.max_bytes()
-            ),
-            abort_code: abort::PDO_TOO_LONG,
+        return Err(PdoError::MappingTooLong {
+            direction: direction.name(),
+            bytes: bits / 8,
+            max: direction.max_bytes(),
         });
     }
     if !bits.is_multiple_of(16) {
@@ -424,14 +413,7 @@ pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Resu
             Direction::Rx => "0x0002:00 (8 bits)",
             Direction::Tx => "one of 0x2002:01..04 (8 bits)",
         };
-        return Err(MappingRefused {
-            reason: format!(
-                "{} mapping of {} bits has an odd byte length, which the AKD refuses; pad it with {padding}",
-                direction.name(),
-                bits
-            ),
-            abort_code: abort::PARAMETER_INCOMPATIBLE,
-        });
+        return Err(PdoError::OddLength { direction: direction.name(), bits, padding });
     }
     Ok(())
 }
@@ -543,7 +525,7 @@ mod tests {
         let pdos: Vec<(u16, &[PdoEntry])> =
             POWER_UP_RX.iter().enumerate().map(|(i, e)| (0x1600 + i as u16, *e)).collect();
         let refused = check_flexible(Direction::Rx, &pdos).unwrap_err();
-        assert!(refused.reason.contains("odd"), "{}", refused.reason);
+        assert!(refused.to_string().contains("odd"), "{refused}");
         assert_eq!(bit_len(&POWER_UP_RX.concat()), 17 * 8);
     }
 
@@ -554,13 +536,19 @@ mod tests {
         let padded: &[PdoEntry] = &[CONTROLWORD, PdoEntry::new(0x6060, 0, 8), PdoEntry::new(0x0002, 0, 8)];
         assert!(check_flexible(Direction::Rx, &[(0x1600, padded)]).is_ok());
         let too_long: &[PdoEntry] = &[CONTROLWORD, IP_SETPOINT, TARGET_VELOCITY];
-        assert_eq!(check_flexible(Direction::Rx, &[(0x1600, too_long)]).unwrap_err().abort_code, abort::PDO_TOO_LONG);
+        assert_eq!(
+            check_flexible(Direction::Rx, &[(0x1600, too_long)]).unwrap_err().abort_code(),
+            Some(SdoAbortCode::PDO_TOO_LONG)
+        );
         let wrong_way: &[PdoEntry] = &[STATUSWORD];
-        assert_eq!(check_flexible(Direction::Rx, &[(0x1600, wrong_way)]).unwrap_err().abort_code, abort::NOT_MAPPABLE);
+        assert_eq!(
+            check_flexible(Direction::Rx, &[(0x1600, wrong_way)]).unwrap_err().abort_code(),
+            Some(SdoAbortCode::NOT_MAPPABLE)
+        );
         assert!(check_flexible(Direction::Rx, &[(0x1A00, ok)]).is_err());
         let full: &[PdoEntry] = &[TARGET_POSITION, TARGET_VELOCITY];
         let over: Vec<(u16, &[PdoEntry])> = (0..3).map(|i| (0x1600 + i, full)).collect();
-        assert!(check_flexible(Direction::Rx, &over).unwrap_err().reason.contains("22"));
+        assert!(check_flexible(Direction::Rx, &over).unwrap_err().to_string().contains("22"));
     }
 
     #[test]

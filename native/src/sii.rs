@@ -11,7 +11,7 @@
 //! Strings are ISO 8859-1 (Latin-1): each byte is one character, so any byte string decodes and
 //! encodes back unchanged.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SiiError};
 use crate::pdo::PdoEntry;
 
 /// Words in the fixed header before the first category.
@@ -355,12 +355,9 @@ impl<'a> Reader<'a> {
     fn bytes(&mut self, n: usize) -> Result<&'a [u8]> {
         let rest = &self.data[self.at..];
         if rest.len() < n {
-            return Err(Error::Sii(format!(
-                "the {} category is {} bytes: reading {n} bytes at byte {} runs past its end",
-                self.what,
-                self.data.len(),
-                self.at
-            )));
+            return Err(
+                SiiError::CategoryOverrun { category: self.what, len: self.data.len(), read: n, at: self.at }.into()
+            );
         }
         self.at += n;
         Ok(&rest[..n])
@@ -394,12 +391,11 @@ fn latin1(bytes: &[u8]) -> String {
     bytes.iter().map(|&b| char::from(b)).collect()
 }
 
-fn latin1_bytes(s: &str, what: &str) -> Result<Vec<u8>> {
+fn latin1_bytes(s: &str, what: &'static str) -> Result<Vec<u8>> {
     s.chars()
         .map(|c| {
-            u8::try_from(u32::from(c)).map_err(|_| {
-                Error::Sii(format!("{what} {s:?} holds {c:?}, outside ISO 8859-1 (allowed U+0000..=U+00FF)"))
-            })
+            u8::try_from(u32::from(c))
+                .map_err(|_| SiiError::NotLatin1 { what, text: s.to_owned(), character: c }.into())
         })
         .collect()
 }
@@ -416,11 +412,11 @@ fn decode_strings(data: &[u8]) -> Result<Vec<String>> {
     let mut strings = Vec::with_capacity(usize::from(count));
     for n in 1..=count {
         let len = r.u8()?;
-        let bytes = r.bytes(usize::from(len)).map_err(|_| {
-            Error::Sii(format!(
-                "string {n} of {count} announces {len} bytes but the strings category has {} left",
-                r.remaining()
-            ))
+        let bytes = r.bytes(usize::from(len)).map_err(|_| SiiError::StringOverrun {
+            number: n.into(),
+            count: count.into(),
+            len: len.into(),
+            left: r.remaining(),
         })?;
         strings.push(latin1(bytes));
     }
@@ -455,12 +451,9 @@ fn decode_general(data: &[u8]) -> General {
     g
 }
 
-fn whole_records(data: &[u8], record: usize, what: &str) -> Result<()> {
+fn whole_records(data: &[u8], record: usize, what: &'static str) -> Result<()> {
     if !data.len().is_multiple_of(record) {
-        return Err(Error::Sii(format!(
-            "the {what} category is {} bytes, not a multiple of its {record}-byte records",
-            data.len()
-        )));
+        return Err(SiiError::NotWholeRecords { category: what, len: data.len(), record }.into());
     }
     Ok(())
 }
@@ -497,11 +490,7 @@ fn decode_pdos(data: &[u8], what: &'static str) -> Result<Vec<SiiPdo>> {
             entries: Vec::with_capacity(usize::from(count)),
         };
         if r.remaining() < usize::from(count) * 8 {
-            return Err(Error::Sii(format!(
-                "{what} 0x{index:04X} announces {count} entries ({} bytes) but the category has {} bytes left",
-                usize::from(count) * 8,
-                r.remaining()
-            )));
+            return Err(SiiError::PdoEntriesOverrun { what, index, count, left: r.remaining() }.into());
         }
         for _ in 0..count {
             pdo.entries.push(SiiPdoEntry {
@@ -565,19 +554,13 @@ fn dword(data: &[u8], w: usize) -> u32 {
 
 fn decode_header(data: &[u8]) -> Result<Header> {
     if data.len() < HEADER_BYTES {
-        return Err(Error::Sii(format!(
-            "image of {} bytes is shorter than the {HEADER_BYTES}-byte header",
-            data.len()
-        )));
+        return Err(SiiError::ShortImage { len: data.len(), header: HEADER_BYTES }.into());
     }
     let mut first = [0u8; 14];
     first.copy_from_slice(&data[..14]);
     let crc = header_checksum(&first);
     if data[14] != crc {
-        return Err(Error::Sii(format!(
-            "header checksum (low byte of word 7) is 0x{:02X} but the CRC-8 of words 0..6 is 0x{crc:02X}",
-            data[14]
-        )));
+        return Err(SiiError::Checksum { stored: data[14], computed: crc }.into());
     }
     let mailbox = |w| MailboxLayout {
         receive_offset: word(data, w),
@@ -627,28 +610,25 @@ impl Sii {
         let mut at = HEADER_BYTES;
         loop {
             if at + 2 > data.len() {
-                return Err(Error::Sii(format!(
-                    "no end category (0xFFFF) before the end of the {}-byte image (after {} categories)",
-                    data.len(),
-                    categories.len()
-                )));
+                return Err(SiiError::NoEndCategory { len: data.len(), categories: categories.len() }.into());
             }
             let kind = u16::from_le_bytes([data[at], data[at + 1]]);
             if kind == category::END {
                 break;
             }
             if at + 4 > data.len() {
-                return Err(Error::Sii(format!("category 0x{kind:04X} at word 0x{:04X} has no length word", at / 2)));
+                return Err(SiiError::NoLengthWord { kind, word: at / 2 }.into());
             }
             let len = usize::from(u16::from_le_bytes([data[at + 2], data[at + 3]])) * 2;
             let start = at + 4;
             if start + len > data.len() {
-                return Err(Error::Sii(format!(
-                    "category 0x{kind:04X} at word 0x{:04X} announces {} words but the image has {} words left",
-                    at / 2,
-                    len / 2,
-                    (data.len() - start) / 2
-                )));
+                return Err(SiiError::CategoryPastEnd {
+                    kind,
+                    word: at / 2,
+                    words: len / 2,
+                    left: (data.len() - start) / 2,
+                }
+                .into());
             }
             categories.push(decode_category(kind, &data[start..start + len])?);
             at = start + len;
@@ -662,10 +642,7 @@ impl Sii {
         let count = self.strings().len();
         let check = |idx: u8, what: &dyn Fn() -> String| {
             if usize::from(idx) > count {
-                Err(Error::Sii(format!(
-                    "{} names string {idx} but the strings category has {count} (allowed 0..={count}, 0 = none)",
-                    what()
-                )))
+                Err(SiiError::NoSuchString { what: what(), index: idx, count })
             } else {
                 Ok(())
             }
@@ -744,25 +721,15 @@ impl Sii {
         push16(&mut out, h.version);
         for c in &self.categories {
             let data = encode_category(c)?;
-            let words = u16::try_from(data.len() / 2).map_err(|_| {
-                Error::Sii(format!(
-                    "category 0x{:04X} of {} bytes exceeds the 65535 words a length word holds",
-                    c.kind(),
-                    data.len()
-                ))
-            })?;
+            let words = u16::try_from(data.len() / 2)
+                .map_err(|_| Error::from(SiiError::CategoryTooLong { kind: c.kind(), len: data.len() }))?;
             push16(&mut out, c.kind());
             push16(&mut out, words);
             out.extend_from_slice(&data);
         }
         push16(&mut out, category::END);
         if out.len() > h.eeprom_bytes() {
-            return Err(Error::Sii(format!(
-                "the image takes {} bytes but the size word 0x{:04X} announces an EEPROM of {} bytes",
-                out.len(),
-                h.size,
-                h.eeprom_bytes()
-            )));
+            return Err(SiiError::ImageTooLarge { len: out.len(), size_word: h.size, eeprom: h.eeprom_bytes() }.into());
         }
         out.resize(h.eeprom_bytes(), 0xFF);
         Ok(out)
@@ -856,12 +823,11 @@ fn pad_to_word(data: &mut Vec<u8>) {
     }
 }
 
-fn encode_pdos(pdos: &[SiiPdo], what: &str) -> Result<Vec<u8>> {
+fn encode_pdos(pdos: &[SiiPdo], what: &'static str) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     for p in pdos {
-        let count = u8::try_from(p.entries.len()).map_err(|_| {
-            Error::Sii(format!("{what} 0x{:04X} has {} entries (allowed 0..=255)", p.index, p.entries.len()))
-        })?;
+        let count = u8::try_from(p.entries.len())
+            .map_err(|_| Error::from(SiiError::TooManyEntries { what, index: p.index, count: p.entries.len() }))?;
         out.extend_from_slice(&p.index.to_le_bytes());
         out.extend_from_slice(&[count, p.sync_manager, p.dc_sync, p.name_idx]);
         out.extend_from_slice(&p.flags.to_le_bytes());
@@ -879,12 +845,12 @@ fn encode_category(c: &Category) -> Result<Vec<u8>> {
     match c {
         Category::Strings(strings) => {
             let count = u8::try_from(strings.len())
-                .map_err(|_| Error::Sii(format!("{} strings (allowed 0..=255)", strings.len())))?;
+                .map_err(|_| SiiError::TooManyStrings { count: strings.len(), first_over: None })?;
             out.push(count);
             for s in strings {
                 let bytes = latin1_bytes(s, "string")?;
                 let len = u8::try_from(bytes.len())
-                    .map_err(|_| Error::Sii(format!("string {s:?} is {} bytes (allowed 0..=255)", bytes.len())))?;
+                    .map_err(|_| SiiError::StringTooLong { text: s.clone(), len: bytes.len() })?;
                 out.push(len);
                 out.extend_from_slice(&bytes);
             }
@@ -936,10 +902,7 @@ fn encode_category(c: &Category) -> Result<Vec<u8>> {
         Category::AkdFirmware(s) => out = latin1_bytes(s, "firmware string")?,
         Category::Other { kind, data } => {
             if data.len() % 2 == 1 {
-                return Err(Error::Sii(format!(
-                    "category 0x{kind:04X} has {} bytes; a category is whole words",
-                    data.len()
-                )));
+                return Err(SiiError::OddCategory { kind: *kind, len: data.len() }.into());
             }
             out.extend_from_slice(data);
         }
@@ -976,7 +939,9 @@ impl Builder {
             }
         };
         u8::try_from(i + 1).unwrap_or_else(|_| {
-            self.error.get_or_insert_with(|| Error::Sii(format!("more than 255 strings (the 256th is {s:?})")));
+            self.error.get_or_insert_with(|| {
+                SiiError::TooManyStrings { count: i + 1, first_over: Some(s.to_owned()) }.into()
+            });
             0
         })
     }
@@ -1000,10 +965,7 @@ impl Builder {
         match self.strings_at {
             Some(i) => self.categories[i] = Category::Strings(self.strings),
             None if !self.strings.is_empty() => {
-                return Err(Error::Sii(format!(
-                    "{} strings interned but no strings category placed (call strings_here)",
-                    self.strings.len()
-                )))
+                return Err(SiiError::NoStringsCategory { count: self.strings.len() }.into())
             }
             None => {}
         }

@@ -5,7 +5,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::cycle::ds402::{Progress, Request, Status};
+use akd_native::cycle::sequencer::{Progress, Request, Status};
 use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::error::{Error, FrameError, Result};

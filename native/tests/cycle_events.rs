@@ -14,9 +14,9 @@ use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::error::{Error, Result};
 use akd_native::frame::{Command, FrameBuilder};
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::registers::AL_CONTROL;
+use akd_native::sim::in_process::InProcess;
 
 #[path = "support/csp.rs"]
 mod csp;
@@ -67,7 +67,7 @@ fn rig() -> Rig {
 }
 
 fn enable(cycle: &CycleThread) {
-    cycle.request(0, akd_native::cycle::ds402::Request::Enable).unwrap();
+    cycle.request(0, akd_native::cycle::sequencer::Request::Enable).unwrap();
     let deadline = Instant::now() + Duration::from_secs(10);
     while cycle.drive_status(0).unwrap().state() != Some(State::OperationEnabled) {
         assert!(Instant::now() < deadline, "not enabled: {:?}", cycle.drive_status(0).unwrap());
@@ -147,7 +147,7 @@ fn a_drive_leaving_op_is_reported_with_its_al_status_and_disabled() {
         other => panic!("{other:?}"),
     }
     let deadline = Instant::now() + Duration::from_secs(10);
-    while cycle.drive_status(0).unwrap().request != Some(akd_native::cycle::ds402::Request::Disable) {
+    while cycle.drive_status(0).unwrap().request != Some(akd_native::cycle::sequencer::Request::Disable) {
         assert!(Instant::now() < deadline, "{:?}", cycle.drive_status(0).unwrap());
         std::thread::sleep(Duration::from_millis(1));
     }

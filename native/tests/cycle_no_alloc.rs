@@ -11,8 +11,8 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
-use akd_native::cycle::ds402::{Progress, Request};
 use akd_native::cycle::events::CommandTimeoutAction;
+use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::{handshake, Config, CycleThread, Snapshot};
 use akd_native::ds402::{Mode, State};
 use akd_native::link::udp::Udp;
@@ -89,12 +89,12 @@ fn cycle_loop_allocates_nothing() {
     while m.scan().is_err() {
         assert!(Instant::now() < deadline, "no simulator on {address}");
     }
-    m.request_state(AlState::PreOp, None, Duration::from_secs(5)).unwrap();
+    m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
     m.configure_dc(1_000_000).unwrap();
     let (rx, tx) = profile::profile_mapping();
-    m.configure_pdo(2, rx, tx).unwrap();
-    m.sdo_write(2, 0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
-    m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
+    m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
+    m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
+    m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
     let mut cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);

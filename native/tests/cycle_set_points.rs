@@ -5,13 +5,13 @@
 use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
-use akd_native::cycle::ds402::Request;
 use akd_native::cycle::events::{CommandTimeoutAction, CommandedTarget, Event};
 use akd_native::cycle::handshake::{Progress, Stuck};
+use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::ds402::{controlword as cw, Mode, State};
-use akd_native::link::inproc::InProcess;
 use akd_native::master::{Mapping, Master};
+use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 
 #[path = "support/profile.rs"]
@@ -28,11 +28,11 @@ fn rig_with(mode: Mode, mapping: Option<(Mapping, Mapping)>) -> CycleThread {
         Duration::from_millis(100),
     );
     m.scan().unwrap();
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     let (rx, tx) = mapping.unwrap_or_else(profile_mapping);
-    m.configure_pdo(0, rx, tx).unwrap();
-    m.sdo_write(0, 0x6060, 0, &[mode as u8]).unwrap();
-    m.request_state(AlState::Op, None, STEP).unwrap();
+    m.slave_mut(0).unwrap().configure_pdo(rx, tx).unwrap();
+    m.slave_mut(0).unwrap().sdo_write(0x6060, 0, &[mode as u8]).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
     CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap()
 }
 

@@ -99,10 +99,14 @@ struct Rig {
 impl Rig {
     fn new() -> Rig {
         let mut rig = Rig::preop();
-        rig.m.configure_pdo(0, Mapping::Flexible(rx_mapping()), Mapping::Flexible(tx_mapping())).unwrap();
-        rig.m.set_cycle_time(0, CYCLE_NS as u32).unwrap();
-        rig.m.request_state(AlState::Op, None, STEP).unwrap();
-        rig.outputs = vec![0; rig.m.outputs(0).unwrap().len()];
+        rig.m
+            .slave_mut(0)
+            .unwrap()
+            .configure_pdo(Mapping::Flexible(rx_mapping()), Mapping::Flexible(tx_mapping()))
+            .unwrap();
+        rig.m.slave_mut(0).unwrap().set_cycle_time(CYCLE_NS as u32).unwrap();
+        rig.m.request_state(AlState::Op, STEP).unwrap();
+        rig.outputs = vec![0; rig.m.slave_mut(0).unwrap().outputs().unwrap().len()];
         rig.cycles(2);
         rig
     }
@@ -113,7 +117,7 @@ impl Rig {
         let link = Stepped { bus: bus.clone(), clock: clock.clone() };
         let mut m = Master::new(Box::new(link), Duration::from_millis(10));
         m.scan().unwrap();
-        m.request_state(AlState::PreOp, None, STEP).unwrap();
+        m.request_state(AlState::PreOp, STEP).unwrap();
         Rig { m, bus, clock, outputs: Vec::new() }
     }
 
@@ -125,7 +129,9 @@ impl Rig {
     fn get(&self, index: u16, subindex: u8) -> i64 {
         let (at, len) = offset(&tx_mapping(), index, subindex);
         let mut bytes = [0u8; 8];
-        bytes[..len].copy_from_slice(&self.m.inputs(0).unwrap()[at..at + len]);
+        // The whole input image, as the cycle thread reads it, since this reader holds `&self`.
+        let at = self.m.image_slot(0).unwrap().in_offset + at;
+        bytes[..len].copy_from_slice(&self.m.input_image().unwrap()[at..at + len]);
         // Sign-extend the signed objects of this mapping (positions, velocity, torque).
         let value = i64::from_le_bytes(bytes);
         match (index, len) {
@@ -145,7 +151,7 @@ impl Rig {
     /// One cycle; the frame may be lost on purpose.
     fn cycle(&mut self) -> Result<u16> {
         self.tick();
-        self.m.set_outputs(0, &self.outputs.clone()).unwrap();
+        self.m.slave_mut(0).unwrap().set_outputs(&self.outputs.clone()).unwrap();
         self.m.exchange()
     }
 
@@ -244,8 +250,8 @@ fn every_ds402_transition_of_the_manual() {
     rig.inject(Fault::OverTemperature);
     rig.cycles(3);
     assert_eq!(rig.state(), State::Fault, "a drive at rest leaves Fault reaction active at once");
-    assert_eq!(rig.m.sdo_read(0, 0x603F, 0).unwrap(), 0x4310u16.to_le_bytes());
-    let emergencies = rig.m.take_emergencies(0).unwrap();
+    assert_eq!(rig.m.slave_mut(0).unwrap().sdo_read(0x603F, 0).unwrap(), 0x4310u16.to_le_bytes());
+    let emergencies = rig.m.slave_mut(0).unwrap().take_emergencies().unwrap();
     assert_eq!(emergencies.iter().map(|e| e.error_code).collect::<Vec<_>>(), [0x4310]);
     assert_eq!(&emergencies[0].data[..4], b"F235");
     assert_eq!(rig.command(cw::FAULT_RESET), State::Fault, "bit 7 was already high: no edge");
@@ -364,7 +370,7 @@ fn latches_capture_within_one_count_of_where_the_input_toggled() {
     assert!((rig.get(0x20A1, 0) as f64 - fall).abs() <= 1.0, "falling {}", rig.get(0x20A1, 0));
     assert_eq!(status & 0x8000, 0, "input 1 is low again past its second toggle");
     assert_eq!(rig.get(0x60B9, 0), 0x0003, "touch probe 1 enabled, rising edge stored");
-    let probe = i32::from_le_bytes(rig.m.sdo_read(0, 0x60BA, 0).unwrap().try_into().unwrap());
+    let probe = i32::from_le_bytes(rig.m.slave_mut(0).unwrap().sdo_read(0x60BA, 0).unwrap().try_into().unwrap());
     assert_eq!(probe as i64, rig.get(0x20A0, 0), "the same capture as latch 1 rising");
 }
 
@@ -387,8 +393,9 @@ fn f125_after_the_eighth_missed_frame() {
     }
     rig.cycles(3);
     assert_eq!(rig.state(), State::Fault, "the eighth missed frame raises F125");
-    assert_eq!(rig.m.sdo_read(0, 0x603F, 0).unwrap(), 0x8700u16.to_le_bytes());
-    let codes: Vec<u16> = rig.m.take_emergencies(0).unwrap().iter().map(|e| e.error_code).collect();
+    assert_eq!(rig.m.slave_mut(0).unwrap().sdo_read(0x603F, 0).unwrap(), 0x8700u16.to_le_bytes());
+    let codes: Vec<u16> =
+        rig.m.slave_mut(0).unwrap().take_emergencies().unwrap().iter().map(|e| e.error_code).collect();
     assert_eq!(codes, [0x8700]);
     assert_eq!(rig.m.stats().lost_frames, 16);
 }
@@ -396,18 +403,20 @@ fn f125_after_the_eighth_missed_frame() {
 #[test]
 fn f706_when_enabled_by_sdo_before_any_set_point() {
     let mut rig = Rig::preop();
-    rig.m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
+    rig.m.slave_mut(0).unwrap().sdo_write(0x6060, 0, &[8]).unwrap();
     for controlword in [cw::SHUTDOWN, cw::SWITCH_ON_COMMAND, cw::ENABLE_OPERATION_COMMAND] {
-        rig.m.sdo_write(0, 0x6040, 0, &controlword.to_le_bytes()).unwrap();
+        rig.m.slave_mut(0).unwrap().sdo_write(0x6040, 0, &controlword.to_le_bytes()).unwrap();
     }
-    let statusword = |rig: &mut Rig| u16::from_le_bytes(rig.m.sdo_read(0, 0x6041, 0).unwrap().try_into().unwrap());
+    let statusword = |rig: &mut Rig| {
+        u16::from_le_bytes(rig.m.slave_mut(0).unwrap().sdo_read(0x6041, 0).unwrap().try_into().unwrap())
+    };
     assert_eq!(State::from_statusword(statusword(&mut rig)), Some(State::OperationEnabled));
     rig.clock.now.fetch_add(50_000_000, Ordering::SeqCst);
     assert_eq!(State::from_statusword(statusword(&mut rig)), Some(State::OperationEnabled), "within 100 ms");
     rig.clock.now.fetch_add(60_000_000, Ordering::SeqCst);
     assert_eq!(State::from_statusword(statusword(&mut rig)), Some(State::Fault));
-    assert_eq!(rig.m.sdo_read(0, 0x603F, 0).unwrap(), 0x8250u16.to_le_bytes());
-    assert_eq!(rig.m.take_emergencies(0).unwrap()[0].data[..4], *b"F706");
+    assert_eq!(rig.m.slave_mut(0).unwrap().sdo_read(0x603F, 0).unwrap(), 0x8250u16.to_le_bytes());
+    assert_eq!(rig.m.slave_mut(0).unwrap().take_emergencies().unwrap()[0].data[..4], *b"F706");
 }
 
 #[test]
@@ -418,8 +427,8 @@ fn a_target_far_from_the_actual_position_raises_the_following_error_fault() {
     rig.set(0x607A, 0, rig.position() + (50.0 * REV) as i64);
     rig.cycles(100);
     assert_eq!(rig.state(), State::Fault);
-    assert_eq!(rig.m.sdo_read(0, 0x603F, 0).unwrap(), 0x8611u16.to_le_bytes());
-    assert_eq!(rig.m.take_emergencies(0).unwrap()[0].error_code, 0x8611);
+    assert_eq!(rig.m.slave_mut(0).unwrap().sdo_read(0x603F, 0).unwrap(), 0x8611u16.to_le_bytes());
+    assert_eq!(rig.m.slave_mut(0).unwrap().take_emergencies().unwrap()[0].error_code, 0x8611);
 }
 
 #[test]
@@ -435,5 +444,5 @@ fn hardware_enable_low_drops_to_switch_on_disabled_with_a_warning() {
     rig.bus.lock().unwrap().slave_mut(0).drive_mut().set_hardware_enable(true);
     rig.enable(8);
     assert_eq!(rig.statusword() & sw::WARNING, 0);
-    assert!(rig.m.take_emergencies(0).unwrap().is_empty(), "hardware enable is not a fault");
+    assert!(rig.m.slave_mut(0).unwrap().take_emergencies().unwrap().is_empty(), "hardware enable is not a fault");
 }

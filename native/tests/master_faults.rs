@@ -6,9 +6,9 @@ use std::time::Duration;
 
 use akd_native::al::AlState;
 use akd_native::error::Result;
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::master::Master;
+use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 use proptest::prelude::*;
 
@@ -37,10 +37,10 @@ impl Link for Corrupting {
 
 fn session(m: &mut Master) -> Result<()> {
     m.scan()?;
-    m.request_state(AlState::PreOp, None, Duration::from_millis(50))?;
-    m.sdo_read(0, 0x100A, 0)?;
-    m.sdo_object_description(0, 0x1018)?;
-    m.request_state(AlState::Op, None, Duration::from_millis(50))?;
+    m.request_state(AlState::PreOp, Duration::from_millis(50))?;
+    m.slave_mut(0).unwrap().sdo_read(0x100A, 0)?;
+    m.slave_mut(0).unwrap().sdo_object_description(0x1018)?;
+    m.request_state(AlState::Op, Duration::from_millis(50))?;
     for _ in 0..3 {
         m.exchange()?;
     }

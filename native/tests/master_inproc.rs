@@ -7,13 +7,13 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use akd_native::al::AlState;
-use akd_native::coe::{abort, data_type, object_code, od_list};
+use akd_native::coe::{data_type, ObjectCode, OdListType, SdoAbortCode};
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::master::{Mapping, Master};
 use akd_native::pdo::{self, Direction, PdoEntry};
+use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 
 const STEP: Duration = Duration::from_secs(5);
@@ -28,7 +28,7 @@ fn master(count: usize) -> Master {
 /// mailbox (its ESC refuses a write until the firmware took the last one), so retry a while.
 fn raw_al_request(m: &mut Master, position: u16, state: AlState) {
     let deadline = std::time::Instant::now() + STEP;
-    while let Err(e) = m.write_register_at(position, 0x0120, &(state as u16).to_le_bytes()) {
+    while let Err(e) = m.slave_mut(position).unwrap().write_register(0x0120, &(state as u16).to_le_bytes()) {
         assert!(std::time::Instant::now() < deadline, "{e}");
     }
 }
@@ -54,7 +54,7 @@ fn scan_finds_the_virtual_akds_with_the_real_identity() {
             assert_eq!((mb.out_start, mb.out_len, mb.in_start, mb.in_len), (0x1800, 0x400, 0x1C00, 0x400));
             assert!(mb.has_coe());
             assert!(slave.has_dc());
-            let status = m.al_status(position).unwrap();
+            let status = m.slave_mut(position).unwrap().al_status().unwrap();
             assert_eq!((status.state(), status.code), (Some(AlState::Init), 0));
         }
     }
@@ -63,34 +63,34 @@ fn scan_finds_the_virtual_akds_with_the_real_identity() {
 #[test]
 fn reaches_op_with_the_default_mapping_and_three_wkc_per_slave() {
     let mut m = master(2);
-    m.request_state(AlState::Op, None, STEP).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
     for position in 0..2 {
-        assert_eq!(m.al_status(position).unwrap().state(), Some(AlState::Op));
-        assert_eq!(m.outputs(position).unwrap().len(), 6);
-        assert_eq!(m.inputs(position).unwrap().len(), 6);
+        assert_eq!(m.slave_mut(position).unwrap().al_status().unwrap().state(), Some(AlState::Op));
+        assert_eq!(m.slave_mut(position).unwrap().outputs().unwrap().len(), 6);
+        assert_eq!(m.slave_mut(position).unwrap().inputs().unwrap().len(), 6);
     }
     assert_eq!(m.expected_wkc().unwrap(), 6);
     for _ in 0..10 {
         assert_eq!(m.exchange().unwrap(), 6);
     }
     assert_eq!(m.stats().wkc_errors, 0);
-    m.request_state(AlState::Init, None, STEP).unwrap();
-    assert_eq!(m.al_status(1).unwrap().state(), Some(AlState::Init));
+    m.request_state(AlState::Init, STEP).unwrap();
+    assert_eq!(m.slave_mut(1).unwrap().al_status().unwrap().state(), Some(AlState::Init));
 }
 
 /// Outputs written by the LRW land in the drive (its controlword object follows them) and
 /// inputs come from the drive (its statusword object is what the LRW brought back).
 fn check_process_data(m: &mut Master, position: u16, rx: &[PdoEntry], tx: &[PdoEntry]) {
     let controlword = offset_of(rx, 0x6040).expect("every fixed RxPDO carries the controlword");
-    let mut outputs = m.outputs(position).unwrap().to_vec();
+    let mut outputs = m.slave_mut(position).unwrap().outputs().unwrap().to_vec();
     outputs[controlword..controlword + 2].copy_from_slice(&0x0006u16.to_le_bytes());
-    m.set_outputs(position, &outputs).unwrap();
+    m.slave_mut(position).unwrap().set_outputs(&outputs).unwrap();
     assert_eq!(m.exchange().unwrap(), m.expected_wkc().unwrap());
-    assert_eq!(m.sdo_read(position, 0x6040, 0).unwrap(), 0x0006u16.to_le_bytes());
+    assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x6040, 0).unwrap(), 0x0006u16.to_le_bytes());
     if let Some(statusword) = offset_of(tx, 0x6041) {
         assert_eq!(m.exchange().unwrap(), m.expected_wkc().unwrap());
-        let from_sdo = m.sdo_read(position, 0x6041, 0).unwrap();
-        assert_eq!(&m.inputs(position).unwrap()[statusword..statusword + 2], &from_sdo[..]);
+        let from_sdo = m.slave_mut(position).unwrap().sdo_read(0x6041, 0).unwrap();
+        assert_eq!(&m.slave_mut(position).unwrap().inputs().unwrap()[statusword..statusword + 2], &from_sdo[..]);
     }
 }
 
@@ -103,14 +103,14 @@ fn every_fixed_mapping_exchanges_process_data() {
         rxs.map(|r| (r.index, pdo::DEFAULT_FIXED.1)).chain(txs.map(|t| (pdo::DEFAULT_FIXED.0, t.index))).collect();
     for (rx, tx) in pairs {
         let mut m = master(1);
-        m.request_state(AlState::PreOp, None, STEP).unwrap();
-        m.configure_pdo(0, Mapping::Fixed(rx), Mapping::Fixed(tx)).unwrap();
-        assert_eq!(m.sdo_read(0, 0x1C12, 1).unwrap(), rx.to_le_bytes(), "0x1C12:01 for {rx:04X}");
-        assert_eq!(m.sdo_read(0, 0x1C13, 1).unwrap(), tx.to_le_bytes(), "0x1C13:01 for {tx:04X}");
-        m.request_state(AlState::Op, None, STEP).unwrap_or_else(|e| panic!("0x{rx:04X}/0x{tx:04X}: {e}"));
+        m.request_state(AlState::PreOp, STEP).unwrap();
+        m.slave_mut(0).unwrap().configure_pdo(Mapping::Fixed(rx), Mapping::Fixed(tx)).unwrap();
+        assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C12, 1).unwrap(), rx.to_le_bytes(), "0x1C12:01 for {rx:04X}");
+        assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C13, 1).unwrap(), tx.to_le_bytes(), "0x1C13:01 for {tx:04X}");
+        m.request_state(AlState::Op, STEP).unwrap_or_else(|e| panic!("0x{rx:04X}/0x{tx:04X}: {e}"));
         let (rx_entries, tx_entries) = (pdo::fixed(rx).unwrap().entries, pdo::fixed(tx).unwrap().entries);
-        assert_eq!(m.outputs(0).unwrap().len(), pdo::bit_len(rx_entries) / 8);
-        assert_eq!(m.inputs(0).unwrap().len(), pdo::bit_len(tx_entries) / 8);
+        assert_eq!(m.slave_mut(0).unwrap().outputs().unwrap().len(), pdo::bit_len(rx_entries) / 8);
+        assert_eq!(m.slave_mut(0).unwrap().inputs().unwrap().len(), pdo::bit_len(tx_entries) / 8);
         assert_eq!(m.expected_wkc().unwrap(), 3);
         check_process_data(&mut m, 0, rx_entries, tx_entries);
     }
@@ -119,18 +119,21 @@ fn every_fixed_mapping_exchanges_process_data() {
 #[test]
 fn flexible_mapping_is_written_in_the_akds_order_and_exchanged() {
     let mut m = master(1);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     let rx = vec![vec![PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x607A, 0, 32)]];
     let tx = vec![vec![PdoEntry::new(0x6041, 0, 16), PdoEntry::new(0x6064, 0, 32)], vec![PdoEntry::new(0x606C, 0, 32)]];
-    m.configure_pdo(0, Mapping::Flexible(rx.clone()), Mapping::Flexible(tx.clone())).unwrap();
-    assert_eq!(m.sdo_read(0, 0x1C12, 0).unwrap(), [1]);
-    assert_eq!(m.sdo_read(0, 0x1C12, 1).unwrap(), 0x1600u16.to_le_bytes());
-    assert_eq!(m.sdo_read(0, 0x1C13, 0).unwrap(), [2]);
-    assert_eq!(m.sdo_read(0, 0x1C13, 2).unwrap(), 0x1A01u16.to_le_bytes());
-    assert_eq!(m.sdo_read(0, 0x1600, 0).unwrap(), [2]);
-    assert_eq!(m.sdo_read(0, 0x1600, 2).unwrap(), 0x607A_0020u32.to_le_bytes());
-    m.request_state(AlState::Op, None, STEP).unwrap();
-    assert_eq!((m.outputs(0).unwrap().len(), m.inputs(0).unwrap().len()), (6, 10));
+    m.slave_mut(0).unwrap().configure_pdo(Mapping::Flexible(rx.clone()), Mapping::Flexible(tx.clone())).unwrap();
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C12, 0).unwrap(), [1]);
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C12, 1).unwrap(), 0x1600u16.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C13, 0).unwrap(), [2]);
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C13, 2).unwrap(), 0x1A01u16.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1600, 0).unwrap(), [2]);
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1600, 2).unwrap(), 0x607A_0020u32.to_le_bytes());
+    m.request_state(AlState::Op, STEP).unwrap();
+    assert_eq!(
+        (m.slave_mut(0).unwrap().outputs().unwrap().len(), m.slave_mut(0).unwrap().inputs().unwrap().len()),
+        (6, 10)
+    );
     let rx: Vec<PdoEntry> = rx.concat();
     let tx: Vec<PdoEntry> = tx.concat();
     check_process_data(&mut m, 0, &rx, &tx);
@@ -139,81 +142,81 @@ fn flexible_mapping_is_written_in_the_akds_order_and_exchanged() {
 #[test]
 fn a_mapping_the_akd_refuses_is_refused_before_anything_is_written() {
     let mut m = master(1);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    let before = m.sdo_read(0, 0x1C12, 0).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let before = m.slave_mut(0).unwrap().sdo_read(0x1C12, 0).unwrap();
     let frames = m.stats().frames;
     // The real drive's own power-up mapping: 17 bytes, odd.
     let odd = Mapping::Flexible(pdo::POWER_UP_RX.iter().map(|p| p.to_vec()).collect());
-    let err = m.configure_pdo(0, odd, Mapping::Fixed(0x1B01)).unwrap_err();
-    assert!(matches!(&err, Error::Pdo(reason) if reason.contains("odd")), "{err}");
-    let err = m.configure_pdo(0, Mapping::Fixed(0x1B01), Mapping::Fixed(0x1701)).unwrap_err();
-    assert!(matches!(&err, Error::Pdo(reason) if reason.contains("0x1701")), "{err}");
+    let err = m.slave_mut(0).unwrap().configure_pdo(odd, Mapping::Fixed(0x1B01)).unwrap_err();
+    assert!(matches!(&err, Error::Pdo(reason) if reason.to_string().contains("odd")), "{err}");
+    let err = m.slave_mut(0).unwrap().configure_pdo(Mapping::Fixed(0x1B01), Mapping::Fixed(0x1701)).unwrap_err();
+    assert!(matches!(&err, Error::Pdo(reason) if reason.to_string().contains("0x1701")), "{err}");
     assert_eq!(m.stats().frames, frames, "nothing was sent");
-    assert_eq!(m.sdo_read(0, 0x1C12, 0).unwrap(), before);
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C12, 0).unwrap(), before);
 }
 
 #[test]
 fn sdo_round_trips_of_every_size() {
     let mut m = master(2);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     for position in 0..2 {
         // Expedited: 1, 2 and 4 bytes.
-        m.sdo_write(position, 0x6060, 0, &[8]).unwrap();
-        assert_eq!(m.sdo_read(position, 0x6060, 0).unwrap(), [8]);
-        m.sdo_write(position, 0x6040, 0, &0x000Fu16.to_le_bytes()).unwrap();
-        assert_eq!(m.sdo_read(position, 0x6040, 0).unwrap(), 0x000Fu16.to_le_bytes());
+        m.slave_mut(position).unwrap().sdo_write(0x6060, 0, &[8]).unwrap();
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x6060, 0).unwrap(), [8]);
+        m.slave_mut(position).unwrap().sdo_write(0x6040, 0, &0x000Fu16.to_le_bytes()).unwrap();
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x6040, 0).unwrap(), 0x000Fu16.to_le_bytes());
         let target = -123_456i32 - position as i32;
-        m.sdo_write(position, 0x607A, 0, &target.to_le_bytes()).unwrap();
-        assert_eq!(m.sdo_read(position, 0x607A, 0).unwrap(), target.to_le_bytes());
+        m.slave_mut(position).unwrap().sdo_write(0x607A, 0, &target.to_le_bytes()).unwrap();
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x607A, 0).unwrap(), target.to_le_bytes());
         // Normal: strings longer than 4 bytes, which the SII also names.
         let sii = m.slave(position).unwrap().sii.clone();
-        assert_eq!(m.sdo_read(position, 0x1009, 0).unwrap(), sii.model().unwrap().as_bytes());
-        assert_eq!(m.sdo_read(position, 0x100A, 0).unwrap(), sii.firmware().unwrap().as_bytes());
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1009, 0).unwrap(), sii.model().unwrap().as_bytes());
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x100A, 0).unwrap(), sii.firmware().unwrap().as_bytes());
         // The identity object agrees with the SII.
-        assert_eq!(m.sdo_read(position, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
-        assert_eq!(m.sdo_read(position, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
     }
 }
 
 #[test]
 fn sdo_aborts_come_back_by_name() {
     let mut m = master(1);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    match m.sdo_read(0, 0x1234, 0).unwrap_err() {
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    match m.slave_mut(0).unwrap().sdo_read(0x1234, 0).unwrap_err() {
         Error::SdoAbort { index: 0x1234, subindex: 0, code, code_name } => {
-            assert_eq!(code, abort::NO_SUCH_OBJECT);
+            assert_eq!(code, SdoAbortCode::NO_SUCH_OBJECT.0);
             assert_eq!(code_name, "object does not exist in the object dictionary");
         }
         other => panic!("{other}"),
     }
-    match m.sdo_write(0, 0x1018, 1, &[1, 2, 3, 4]).unwrap_err() {
+    match m.slave_mut(0).unwrap().sdo_write(0x1018, 1, &[1, 2, 3, 4]).unwrap_err() {
         Error::SdoAbort { code, code_name, .. } => {
-            assert_eq!(code, abort::READ_ONLY);
+            assert_eq!(code, SdoAbortCode::READ_ONLY.0);
             assert_eq!(code_name, "attempt to write a read-only object");
         }
         other => panic!("{other}"),
     }
     // The mailbox still works after aborts.
-    assert_eq!(m.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
 }
 
 #[test]
 fn sdo_information_lists_and_describes_objects() {
     let mut m = master(1);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    let list = m.sdo_object_list(0, od_list::ALL).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let list = m.slave_mut(0).unwrap().sdo_object_list(OdListType::All).unwrap();
     for index in [0x1000, 0x1018, 0x1C12, 0x6040, 0x6041] {
         assert!(list.contains(&index), "0x{index:04X} missing from {list:04X?}");
     }
-    let identity = m.sdo_object_description(0, 0x1018).unwrap();
+    let identity = m.slave_mut(0).unwrap().sdo_object_description(0x1018).unwrap();
     assert_eq!(identity.index, 0x1018);
-    assert_eq!(identity.object_code, object_code::RECORD);
+    assert_eq!(identity.object_code, ObjectCode::Record);
     assert!(identity.max_subindex >= 4);
-    let statusword = m.sdo_entry_description(0, 0x6041, 0).unwrap();
+    let statusword = m.slave_mut(0).unwrap().sdo_entry_description(0x6041, 0).unwrap();
     assert_eq!((statusword.data_type, statusword.bit_length), (data_type::UNSIGNED16, 16));
     assert!(!statusword.name.is_empty());
-    match m.sdo_object_description(0, 0x1234).unwrap_err() {
-        Error::SdoAbort { code, .. } => assert_eq!(code, abort::NO_SUCH_OBJECT),
+    match m.slave_mut(0).unwrap().sdo_object_description(0x1234).unwrap_err() {
+        Error::SdoAbort { code, .. } => assert_eq!(code, SdoAbortCode::NO_SUCH_OBJECT.0),
         other => panic!("{other}"),
     }
 }
@@ -225,7 +228,7 @@ fn a_refused_state_change_is_reported_by_name_and_acknowledged() {
     raw_al_request(&mut m, 0, AlState::Op);
     let deadline = std::time::Instant::now() + STEP;
     let status = loop {
-        let s = m.al_status(0).unwrap();
+        let s = m.slave_mut(0).unwrap().al_status().unwrap();
         if s.error() || std::time::Instant::now() > deadline {
             break s;
         }
@@ -234,26 +237,26 @@ fn a_refused_state_change_is_reported_by_name_and_acknowledged() {
     assert_eq!((status.state(), status.code), (Some(AlState::Init), 0x0011));
     assert_eq!(status.code_name(), "invalid requested state change");
     // request_state acknowledges the error and goes on.
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     // PreOp -> Bootstrap: refused too, and request_state says so by name.
-    match m.request_state(AlState::Bootstrap, Some(0), STEP).unwrap_err() {
+    match m.slave_mut(0).unwrap().request_state(AlState::Bootstrap, STEP).unwrap_err() {
         Error::AlState { slave: 0, requested: "Bootstrap", code: 0x0011, code_name, .. } => {
             assert_eq!(code_name, "invalid requested state change")
         }
         other => panic!("{other}"),
     }
-    assert!(!m.al_status(0).unwrap().error(), "the error was acknowledged");
+    assert!(!m.slave_mut(0).unwrap().al_status().unwrap().error(), "the error was acknowledged");
 }
 
 #[test]
 fn a_wrong_working_counter_is_counted_and_raised() {
     let mut m = master(2);
-    m.request_state(AlState::Op, None, STEP).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
     assert_eq!(m.exchange().unwrap(), 6);
     // Slave 1 drops to Init behind the master's back: its process data stop.
     raw_al_request(&mut m, 1, AlState::Init);
     let deadline = std::time::Instant::now() + STEP;
-    while m.al_status(1).unwrap().state() != Some(AlState::Init) {
+    while m.slave_mut(1).unwrap().al_status().unwrap().state() != Some(AlState::Init) {
         assert!(std::time::Instant::now() < deadline);
     }
     match m.exchange().unwrap_err() {
@@ -309,7 +312,7 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
     };
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();
-    m.request_state(AlState::Op, None, STEP).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
     let before = m.stats();
     lose_lrw.store(1, Ordering::SeqCst);
     assert!(matches!(m.exchange().unwrap_err(), Error::Timeout { .. }));
@@ -317,19 +320,19 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
     assert_eq!(m.stats().lost_frames, before.lost_frames + 1);
     // The reply to an SDO upload is lost on its way back; the repeat request brings it again.
     lose_mailbox_reads.store(1, Ordering::SeqCst);
-    assert_eq!(m.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
     assert_eq!(m.stats().mailbox_repeats, before.mailbox_repeats + 1);
     assert_eq!(m.stats().lost_frames, before.lost_frames + 2);
     // A request that reached the drive but whose frame did not come back is written again
     // with the same counter; the answer is still the one asked for, and the next SDO works.
     lose_mailbox_writes.store(1, Ordering::SeqCst);
-    assert_eq!(m.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
     // The drive takes the second write for a repetition (same counter) and does not answer it
     // again: once its firmware had the time to handle it, SM1 stays empty.
     std::thread::sleep(Duration::from_millis(10));
-    let sm1_status = m.read_register_at(0, 0x080D, 1).unwrap()[0];
+    let sm1_status = m.slave_mut(0).unwrap().read_register(0x080D, 1).unwrap()[0];
     assert_eq!(sm1_status & 0x08, 0, "a second reply waits in SM1 (status 0x{sm1_status:02X})");
-    assert_eq!(m.sdo_read(0, 0x1018, 3).unwrap(), 2u32.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 3).unwrap(), 2u32.to_le_bytes());
     assert_eq!(m.stats().lost_frames, before.lost_frames + 3);
 }
 
@@ -340,28 +343,28 @@ fn a_late_reply_to_a_request_given_up_is_not_taken_for_the_next_ones() {
     let link = InProcess::with_bus(VirtualBus::with_timing(1, slow));
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     m.set_mailbox_timeout(Duration::from_millis(1));
-    assert!(matches!(m.sdo_read(0, 0x1018, 1).unwrap_err(), Error::Timeout { .. }));
+    assert!(matches!(m.slave_mut(0).unwrap().sdo_read(0x1018, 1).unwrap_err(), Error::Timeout { .. }));
     // With time enough, the next request waits for SM0, then gets the answer to the first
     // request first (another counter): it is dropped and counted, the right one comes next.
     m.set_mailbox_timeout(Duration::from_secs(1));
-    assert_eq!(m.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
     assert_eq!(m.stats().stale_mailbox_replies, 1);
 }
 
 #[test]
 fn distributed_clocks_run_sync0_and_the_drift_datagram_rides_in_the_cycle() {
     let mut m = master(2);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     m.configure_dc(1_000_000).unwrap();
     for position in 0..2 {
-        assert_eq!(m.read_register_at(position, 0x0981, 1).unwrap(), [0x03]);
-        assert_eq!(m.read_register_at(position, 0x09A0, 4).unwrap(), 1_000_000u32.to_le_bytes());
-        assert_eq!(m.sdo_read(position, 0x60C2, 1).unwrap(), [1]);
-        assert_eq!(m.sdo_read(position, 0x60C2, 2).unwrap(), [(-3i8) as u8]);
+        assert_eq!(m.slave_mut(position).unwrap().read_register(0x0981, 1).unwrap(), [0x03]);
+        assert_eq!(m.slave_mut(position).unwrap().read_register(0x09A0, 4).unwrap(), 1_000_000u32.to_le_bytes());
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x60C2, 1).unwrap(), [1]);
+        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x60C2, 2).unwrap(), [(-3i8) as u8]);
     }
-    m.request_state(AlState::Op, None, STEP).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
     assert_eq!(m.exchange().unwrap(), 6);
     let first = m.clock().unwrap().system_time;
     std::thread::sleep(Duration::from_millis(2));
@@ -372,9 +375,26 @@ fn distributed_clocks_run_sync0_and_the_drift_datagram_rides_in_the_cycle() {
 }
 
 #[test]
+fn a_station_alias_names_one_drive_or_says_on_how_many_it_is() {
+    let mut m = master(2);
+    let alias = m.slaves()[1].alias;
+    match m.slave_by_alias(alias).map(|s| s.position()) {
+        // The virtual AKDs share the real drive's SII alias, so it names no one drive.
+        Err(Error::AliasNotUnique { count: 2, .. }) => {}
+        other => panic!("{:?}", other.map_err(|e| e.to_string())),
+    }
+    let unused = alias.wrapping_add(1);
+    assert!(m.slave_by_alias(unused).err().unwrap().to_string().contains("is on 0 slave(s), not one"));
+    let mut one = master(1);
+    let mut drive = one.slave_by_alias(alias).unwrap();
+    assert_eq!((drive.position(), drive.info().alias), (0, alias));
+    assert_eq!(drive.al_status().unwrap().state(), Some(AlState::Init), "the handle talks to the drive");
+}
+
+#[test]
 fn an_empty_position_is_named() {
     let mut m = master(1);
-    match m.sdo_read(3, 0x1000, 0).unwrap_err() {
+    match m.slave_mut(3).and_then(|mut s| s.sdo_read(0x1000, 0)).unwrap_err() {
         Error::NoSuchSlave { position: 3, count: 1 } => {}
         other => panic!("{other}"),
     }
@@ -384,18 +404,20 @@ fn an_empty_position_is_named() {
 #[test]
 fn clocks_read_the_masters_time_and_follow_the_reference() {
     let mut m = master(3);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     m.configure_dc(1_000_000).unwrap();
     // The reference clock was set to the master's time (ns since 2000).
-    let reference = u64::from_le_bytes(m.read_register_at(0, 0x0910, 8).unwrap().try_into().unwrap());
+    let reference = u64::from_le_bytes(m.slave_mut(0).unwrap().read_register(0x0910, 8).unwrap().try_into().unwrap());
     let now = akd_native::dc::system_time(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap());
     assert!(now.abs_diff(reference) < 100_000_000, "reference clock {reference} vs master {now}");
     for position in 1..3 {
         // Delays grow along the line; the drift datagrams left each clock next to the reference.
-        let delay =
-            |m: &mut Master, p| u32::from_le_bytes(m.read_register_at(p, 0x0928, 4).unwrap().try_into().unwrap());
+        let delay = |m: &mut Master, p| {
+            u32::from_le_bytes(m.slave_mut(p).unwrap().read_register(0x0928, 4).unwrap().try_into().unwrap())
+        };
         assert!(delay(&mut m, position) > delay(&mut m, position - 1), "delay of slave {position}");
-        let raw = u32::from_le_bytes(m.read_register_at(position, 0x092C, 4).unwrap().try_into().unwrap());
+        let raw =
+            u32::from_le_bytes(m.slave_mut(position).unwrap().read_register(0x092C, 4).unwrap().try_into().unwrap());
         let difference = akd_native::dc::time_difference(raw);
         assert!(difference.abs() < 10_000, "slave {position} is {difference} ns off the reference");
     }
@@ -419,40 +441,40 @@ fn emergencies_are_queued_while_sdo_goes_on() {
     let bus = Arc::new(std::sync::Mutex::new(InProcess::new(1)));
     let mut m = Master::new(Box::new(Shared(bus.clone())), Duration::from_millis(100));
     m.scan().unwrap();
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     let fault = akd_native::coe::Emergency { error_code: 0x7380, error_register: 0x81, data: [1, 2, 3, 4, 5] };
     bus.lock().unwrap().bus_mut().slave_mut(0).emergency(&fault);
-    assert_eq!(m.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
-    assert_eq!(m.take_emergencies(0).unwrap(), vec![fault]);
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().take_emergencies().unwrap(), vec![fault]);
     assert_eq!(m.stats().emergencies, 1);
-    assert!(m.take_emergencies(0).unwrap().is_empty());
+    assert!(m.slave_mut(0).unwrap().take_emergencies().unwrap().is_empty());
 }
 
 #[test]
 fn several_drives_share_one_cyclic_frame_each_with_its_own_data() {
     let mut m = master(3);
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    m.configure_pdo(1, Mapping::Fixed(0x1720), Mapping::Fixed(0x1B20)).unwrap();
-    m.configure_pdo(2, Mapping::Fixed(0x1702), Mapping::Fixed(0x1B24)).unwrap();
-    m.request_state(AlState::Op, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    m.slave_mut(1).unwrap().configure_pdo(Mapping::Fixed(0x1720), Mapping::Fixed(0x1B20)).unwrap();
+    m.slave_mut(2).unwrap().configure_pdo(Mapping::Fixed(0x1702), Mapping::Fixed(0x1B24)).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
     assert_eq!(m.expected_wkc().unwrap(), 9);
     let frames = m.stats().frames;
     let mappings = [(0x1701, 0x1B01), (0x1720, 0x1B20), (0x1702, 0x1B24)];
     for (position, (rx, _)) in mappings.iter().enumerate() {
         let entries = pdo::fixed(*rx).unwrap().entries;
         let at = offset_of(entries, 0x6040).unwrap();
-        let mut outputs = m.outputs(position as u16).unwrap().to_vec();
+        let mut outputs = m.slave_mut(position as u16).unwrap().outputs().unwrap().to_vec();
         outputs[at..at + 2].copy_from_slice(&(0x0100 + position as u16).to_le_bytes());
-        m.set_outputs(position as u16, &outputs).unwrap();
+        m.slave_mut(position as u16).unwrap().set_outputs(&outputs).unwrap();
     }
     assert_eq!(m.exchange().unwrap(), 9);
     assert_eq!(m.stats().frames, frames + 1, "one frame for every drive");
     for (position, (_, tx)) in mappings.iter().enumerate() {
         let p = position as u16;
-        assert_eq!(m.sdo_read(p, 0x6040, 0).unwrap(), (0x0100 + p).to_le_bytes());
+        assert_eq!(m.slave_mut(p).unwrap().sdo_read(0x6040, 0).unwrap(), (0x0100 + p).to_le_bytes());
         let at = offset_of(pdo::fixed(*tx).unwrap().entries, 0x6041).unwrap();
         assert_eq!(m.exchange().unwrap(), 9);
-        let statusword = m.sdo_read(p, 0x6041, 0).unwrap();
-        assert_eq!(&m.inputs(p).unwrap()[at..at + 2], &statusword[..]);
+        let statusword = m.slave_mut(p).unwrap().sdo_read(0x6041, 0).unwrap();
+        assert_eq!(&m.slave_mut(p).unwrap().inputs().unwrap()[at..at + 2], &statusword[..]);
     }
 }

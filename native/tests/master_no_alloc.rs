@@ -33,10 +33,10 @@ fn exchange_allocates_nothing() {
     while m.scan().is_err() {
         assert!(std::time::Instant::now() < deadline, "no simulator on {address}");
     }
-    m.request_state(AlState::PreOp, None, Duration::from_secs(5)).unwrap();
+    m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
     m.configure_dc(1_000_000).unwrap();
-    m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
-    m.set_outputs(1, &[1, 2, 3, 4, 5, 6]).unwrap();
+    m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
+    m.slave_mut(1).unwrap().set_outputs(&[1, 2, 3, 4, 5, 6]).unwrap();
     assert_eq!(m.exchange().unwrap(), 6);
     // The counter sees this thread's allocations.
     let probe = allocations();

@@ -9,10 +9,10 @@ use std::time::{Duration, Instant};
 
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::ds402::{statusword, State};
-use akd_native::link::inproc::InProcess;
 use akd_native::master::Master;
 use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
 use akd_native::sim::faults::Fault;
+use akd_native::sim::in_process::InProcess;
 
 #[path = "support/counting.rs"]
 mod counting;
@@ -56,7 +56,7 @@ fn a_fault_injected_while_the_cycle_thread_owns_the_link_shows_in_the_statusword
         std::thread::sleep(Duration::from_millis(1));
     }
     assert_eq!(asking.join().unwrap().unwrap().fault, Some(Fault::FollowingError));
-    let e = m.sdo_read(0, 0x603F, 0).unwrap();
+    let e = m.slave_mut(0).unwrap().sdo_read(0x603F, 0).unwrap();
     assert_eq!(e, 0x8611u16.to_le_bytes());
 }
 

@@ -8,14 +8,15 @@ use std::time::Duration;
 
 use akd_native::al::AlState;
 use akd_native::coe::{
-    self, abort, access, data_type, info_opcode, object_code, od_list, service, SdoInfoHeader, SdoRequest, SdoResponse,
+    self, access, data_type, CoeService, ObjectCode, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode,
+    SdoRequest, SdoResponse,
 };
 use akd_native::error::{Error, Result};
 use akd_native::frame::{self, Command};
-use akd_native::link::inproc::InProcess;
 use akd_native::link::Link;
 use akd_native::master::Master;
 use akd_native::registers::{AKD_MAILBOX_IN, AKD_MAILBOX_OUT};
+use akd_native::sim::in_process::InProcess;
 use akd_native::sim::od::{Entry, Object};
 use akd_native::sim::{Timing, VirtualBus};
 
@@ -75,7 +76,7 @@ fn master(text: &str) -> (Master, Messages) {
     bus.slave_mut(0).od_mut().insert(Object {
         index: TEXT,
         name: TEXT_NAME,
-        object_code: object_code::VAR,
+        object_code: ObjectCode::Var,
         data_type: data_type::VISIBLE_STRING,
         entries: vec![entry],
         check: None,
@@ -86,7 +87,7 @@ fn master(text: &str) -> (Master, Messages) {
     m.scan().unwrap();
     let mb = m.slave(0).unwrap().mailbox.clone().unwrap();
     assert_eq!((mb.out_len, mb.in_len), (MAILBOX, MAILBOX), "the master takes the size from the SII");
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
     messages.lock().unwrap().clear();
     (m, messages)
 }
@@ -97,7 +98,7 @@ fn bodies(messages: &Messages) -> (Vec<Vec<u8>>, Vec<Vec<u8>>) {
     for (to_slave, message) in messages.lock().unwrap().drain(..) {
         assert!(message.len() <= MAILBOX as usize);
         let (_, coe, body) = coe::split_message(&message).unwrap();
-        assert_ne!(coe.service, service::EMERGENCY);
+        assert_ne!(coe.service, CoeService::Emergency);
         if to_slave { &mut written } else { &mut read }.push(body.to_vec());
     }
     (written, read)
@@ -117,7 +118,7 @@ fn long_text(seed: u8) -> String {
 fn segmented_upload_alternates_the_toggle_bit() {
     let text = long_text(0);
     let (mut m, messages) = master(&text);
-    assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());
     let (requests, responses) = bodies(&messages);
     let toggles = decode_each(&requests[1..], |b| match SdoRequest::decode(b) {
         Ok(SdoRequest::UploadSegment { toggle }) => Some(toggle),
@@ -142,7 +143,7 @@ fn segmented_upload_alternates_the_toggle_bit() {
 fn segmented_download_alternates_the_toggle_bit_and_round_trips() {
     let (mut m, messages) = master(&long_text(0));
     let text = long_text(5);
-    m.sdo_write(0, TEXT, 0, text.as_bytes()).unwrap();
+    m.slave_mut(0).unwrap().sdo_write(TEXT, 0, text.as_bytes()).unwrap();
     let (requests, responses) = bodies(&messages);
     let mut toggles = Vec::new();
     let mut carried = Vec::new();
@@ -164,17 +165,17 @@ fn segmented_download_alternates_the_toggle_bit_and_round_trips() {
         _ => None,
     });
     assert_eq!(answered, toggles);
-    assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());
     // A value of the wrong length is refused after its last segment, by name.
-    match m.sdo_write(0, TEXT, 0, &text.as_bytes()[..150]).unwrap_err() {
-        Error::SdoAbort { code, .. } => assert_eq!(code, abort::LENGTH_TOO_LOW),
+    match m.slave_mut(0).unwrap().sdo_write(TEXT, 0, &text.as_bytes()[..150]).unwrap_err() {
+        Error::SdoAbort { code, .. } => assert_eq!(code, SdoAbortCode::LENGTH_TOO_LOW.0),
         other => panic!("{other}"),
     }
-    assert_eq!(m.sdo_read(0, TEXT, 0).unwrap(), text.as_bytes());
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(TEXT, 0).unwrap(), text.as_bytes());
 }
 
 /// The fragments of every SDO information reply in the log: (opcode, fragments left, incomplete).
-fn fragments(messages: &Messages) -> Vec<(u8, u16, bool)> {
+fn fragments(messages: &Messages) -> Vec<(SdoInfoOpcode, u16, bool)> {
     let (_, responses) = bodies(messages);
     responses
         .iter()
@@ -186,7 +187,7 @@ fn fragments(messages: &Messages) -> Vec<(u8, u16, bool)> {
 #[test]
 fn sdo_information_replies_come_in_fragments() {
     let (mut m, messages) = master("short");
-    let list = m.sdo_object_list(0, od_list::ALL).unwrap();
+    let list = m.slave_mut(0).unwrap().sdo_object_list(OdListType::All).unwrap();
     let mut expected: Vec<u16> = VirtualBus::new(1).slave(0).od().objects().iter().map(|o| o.index).collect();
     expected.push(TEXT);
     expected.sort();
@@ -194,18 +195,18 @@ fn sdo_information_replies_come_in_fragments() {
     // Two bytes of list type and two per index, 52 bytes of data per fragment.
     let count = (2 + 2 * list.len()).div_ceil(52) as u16;
     assert!(count >= 4, "{} objects fit {count} fragments", list.len());
-    let expected: Vec<_> = (0..count).rev().map(|left| (info_opcode::GET_OD_LIST_RESPONSE, left, left > 0)).collect();
+    let expected: Vec<_> = (0..count).rev().map(|left| (SdoInfoOpcode::GetOdListResponse, left, left > 0)).collect();
     assert_eq!(fragments(&messages), expected);
 
-    let text = m.sdo_object_description(0, TEXT).unwrap();
+    let text = m.slave_mut(0).unwrap().sdo_object_description(TEXT).unwrap();
     assert_eq!(
         (text.name.as_str(), text.data_type, text.object_code),
-        (TEXT_NAME, data_type::VISIBLE_STRING, object_code::VAR)
+        (TEXT_NAME, data_type::VISIBLE_STRING, ObjectCode::Var)
     );
-    let opcode = info_opcode::GET_OBJECT_DESCRIPTION_RESPONSE;
+    let opcode = SdoInfoOpcode::GetObjectDescriptionResponse;
     assert_eq!(fragments(&messages), [(opcode, 1, true), (opcode, 0, false)]);
-    let entry = m.sdo_entry_description(0, TEXT, 0).unwrap();
+    let entry = m.slave_mut(0).unwrap().sdo_entry_description(TEXT, 0).unwrap();
     assert_eq!((entry.name.as_str(), entry.bit_length), (TEXT_NAME, 40));
-    let opcode = info_opcode::GET_ENTRY_DESCRIPTION_RESPONSE;
+    let opcode = SdoInfoOpcode::GetEntryDescriptionResponse;
     assert_eq!(fragments(&messages), [(opcode, 1, true), (opcode, 0, false)]);
 }

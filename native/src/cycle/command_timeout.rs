@@ -16,9 +16,9 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::Duration;
 
-use crate::cycle::ds402::{self, Offsets, Request};
 use crate::cycle::events::{CommandTimeoutAction, CommandedTarget, Event, Events};
 use crate::cycle::image::{i16_at, i32_at};
+use crate::cycle::sequencer::{self, Offsets, Request};
 use crate::ds402::{controlword as cw, Mode, State};
 
 /// The targets whose writes feed the time-out: target velocity 0x60FF and target torque 0x6071.
@@ -134,7 +134,7 @@ pub struct Seen<'a> {
 impl CommandTimeout {
     /// One cycle: notes target writes, and when a non-zero stream stopped for the time-out in
     /// Operation enabled, halts or asks `drive` for a quick stop and pushes one event.
-    pub fn observe(&mut self, shared: &Shared, o: &Offsets, drive: &ds402::Shared, events: &Events, seen: Seen) {
+    pub fn observe(&mut self, shared: &Shared, o: &Offsets, drive: &sequencer::Shared, events: &Events, seen: Seen) {
         let config = shared.config();
         if shared.release.swap(false, Ordering::AcqRel) || config.is_none() {
             self.stream = false;
@@ -212,7 +212,7 @@ mod tests {
 
     struct Rig {
         shared: Shared,
-        drive: ds402::Shared,
+        drive: sequencer::Shared,
         events: Events,
         watch: CommandTimeout,
         outputs: [u8; 9],
@@ -225,7 +225,7 @@ mod tests {
             outputs[8] = mode as i8 as u8;
             let shared = Shared::default();
             shared.set(Some((Duration::from_millis(5), CommandTimeoutAction::Halt)));
-            let (drive, events) = (ds402::Shared::default(), Events::default());
+            let (drive, events) = (sequencer::Shared::default(), Events::default());
             Rig { shared, drive, events, watch: CommandTimeout::default(), outputs, cycle: 0 }
         }
 

@@ -12,46 +12,53 @@
 //! [`CycleThread::stop`] hands the master back, e.g. to bring the bus down.
 //!
 //! Drives whose mapping carries controlword and statusword are sequenced in the loop by
-//! [`ds402`]: [`CycleThread::request`] asks for enable, disable, quick stop or fault reset,
+//! [`sequencer`]: [`CycleThread::request`] asks for enable, disable, quick stop or fault reset,
 //! [`CycleThread::drive_status`] tells how far it is. The set-point handshake of profile
 //! position and the start of homing run there too ([`handshake`],
 //! [`CycleThread::start_setpoint`]), and so does the command time-out of velocity and torque
 //! streams ([`command_timeout`], [`CycleThread::set_command_timeout`]).
 //!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
-//! [`exchange`] the lock-free buffers and [`ds402`] the drive sequencer.
+//! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
+//! fault supervision, [`latch`] the position latch and [`acyclic`] the mailbox traffic beside
+//! the cycle.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
 use crate::pdo::PdoEntry;
 
+pub mod acyclic;
 pub mod command_timeout;
-pub mod ds402;
 pub mod events;
-pub mod exchange;
-pub mod faults;
 pub mod handshake;
 pub mod image;
 pub mod latch;
-pub mod mailbox;
 pub mod ring;
 pub mod rt;
 pub mod samples;
+pub mod seqlock;
+pub mod sequencer;
 pub mod stats;
+pub mod supervision;
 pub mod timing;
 
+use acyclic::{MailboxService, SdoSlot};
 use events::{CommandTimeoutAction, Event, Events};
-use exchange::SeqBytes;
-use faults::{Exchange, Gaps};
-use mailbox::{MailboxService, SdoSlot};
 use samples::{Sample, Samples};
+use seqlock::SeqBytes;
 use stats::CycleStats;
+use supervision::{Exchange, Gaps};
+
+/// Why a set-point is refused once the cycle stopped.
+fn setpoints_stopped() -> Error {
+    Unavailable::CycleStopped { consequence: "set-points no longer go out".into() }.into()
+}
 
 /// How a cycle thread runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -102,7 +109,7 @@ struct Shared {
     snapshot: SeqBytes,
     stats: CycleStats,
     /// One per slave, sequenced or not.
-    drives: Vec<ds402::Shared>,
+    drives: Vec<sequencer::Shared>,
     /// How long a drive request may take before it is reported stuck (ns).
     request_timeout_ns: AtomicU64,
     /// One per slave: the latch edges armed.
@@ -122,9 +129,9 @@ pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
 /// What the cycle thread runs for one drive it sequences.
 struct DriveLoop {
     position: u16,
-    drive: ds402::Drive,
+    drive: sequencer::Drive,
     latch: Option<latch::Latch>,
-    watch: faults::DriveWatch,
+    watch: supervision::DriveWatch,
     handshake: handshake::Handshake,
     command_timeout: command_timeout::CommandTimeout,
     /// The command time-out's target writes counted before this cycle's copy of the
@@ -136,15 +143,24 @@ struct DriveLoop {
 /// images and their latch where mapped; for the others, why not.
 fn sequenced_drives(
     master: &Master,
-) -> Vec<std::result::Result<(ds402::Offsets, Option<latch::LatchObjects>), String>> {
-    (0..master.slaves().len() as u16)
-        .map(|position| {
-            let slave = master.slave(position).map_err(|e| e.to_string())?;
-            let mapping =
-                slave.mapping.as_ref().ok_or_else(|| format!("slave {position} has no process-data mapping"))?;
-            let slot = master.image_slot(position).map_err(|e| e.to_string())?;
+) -> Vec<std::result::Result<(sequencer::Offsets, Option<latch::LatchObjects>), Unavailable>> {
+    master
+        .slaves()
+        .iter()
+        .map(|slave| {
+            let position = slave.position;
+            let mapping = slave.mapping.as_ref().ok_or(Unavailable::NoMapping { slave: position })?;
+            // A mapped slave has its slot once the image exists, which the cycle's start needs.
+            let slot = master
+                .image_slot(position)
+                .map_err(|_| Unavailable::NoProcessData { slave: position, with_data: None })?;
             let (rx, tx) = (&mapping.rx_entries, &mapping.tx_entries);
-            let offsets = ds402::Offsets::find(rx, tx).map_err(|e| format!("slave {position}: {e}"))?;
+            let offsets = sequencer::Offsets::find(rx, tx).map_err(|e| match e {
+                Unavailable::NotSequenced { missing, .. } => {
+                    Unavailable::NotSequenced { slave: Some(position), missing }
+                }
+                other => other,
+            })?;
             let latch = latch::LatchObjects::find(rx, tx, slot.out_offset, slot.in_offset);
             Ok((offsets.shifted(slot.out_offset, slot.in_offset), latch))
         })
@@ -159,11 +175,11 @@ pub struct CycleThread {
     warnings: Vec<String>,
     period: Duration,
     /// Per slave: whether it is sequenced, or why not.
-    sequenced: Vec<std::result::Result<(), String>>,
+    sequenced: Vec<std::result::Result<(), Unavailable>>,
     /// Per slave: the latch objects, where mapped.
     latch_objects: Vec<Option<latch::LatchObjects>>,
     /// Per slave: the drive's objects, where sequenced.
-    offsets: Vec<Option<ds402::Offsets>>,
+    offsets: Vec<Option<sequencer::Offsets>>,
     /// Per slave: the mapping's entries, outputs and inputs, where mapped.
     mappings: Vec<Option<(Vec<PdoEntry>, Vec<PdoEntry>)>>,
 }
@@ -196,9 +212,9 @@ impl CycleThread {
                 let (offsets, latch) = f.ok()?;
                 Some(DriveLoop {
                     position: p as u16,
-                    drive: ds402::Drive::new(offsets),
+                    drive: sequencer::Drive::new(offsets),
                     latch: latch.map(latch::Latch::new),
-                    watch: faults::DriveWatch::default(),
+                    watch: supervision::DriveWatch::default(),
                     handshake: handshake::Handshake::default(),
                     command_timeout: command_timeout::CommandTimeout::default(),
                     target_writes: None,
@@ -222,7 +238,7 @@ impl CycleThread {
             setpoints: SeqBytes::new(outputs.len(), &outputs),
             snapshot: SeqBytes::new(HEADER_LEN + inputs_len + outputs.len(), &[]),
             stats: CycleStats::new(period_ns),
-            drives: (0..master.slaves().len()).map(|_| ds402::Shared::default()).collect(),
+            drives: (0..master.slaves().len()).map(|_| sequencer::Shared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
             latches: (0..master.slaves().len()).map(|_| latch::Shared::default()).collect(),
             handshakes: (0..master.slaves().len()).map(|_| handshake::Shared::default()).collect(),
@@ -295,10 +311,10 @@ impl CycleThread {
 
     fn slot(&self, position: u16) -> Result<ImageSlot> {
         self.slots.get(position as usize).copied().flatten().ok_or_else(|| {
-            Error::Config(format!(
-                "slave {position} has no process data (slaves with process data: {:?})",
-                (0..self.slots.len()).filter(|&p| self.slots[p].is_some()).collect::<Vec<_>>()
-            ))
+            Error::from(Unavailable::NoProcessData {
+                slave: position,
+                with_data: Some((0..self.slots.len() as u16).filter(|&p| self.slots[p as usize].is_some()).collect()),
+            })
         })
     }
 
@@ -306,7 +322,7 @@ impl CycleThread {
     /// their exact length. Lock-free: the cycle thread never waits for it.
     pub fn set_outputs(&self, position: u16, data: &[u8]) -> Result<()> {
         if self.stopped() {
-            return Err(Error::Config("the cycle is stopped: set-points no longer go out".into()));
+            return Err(setpoints_stopped());
         }
         let slot = self.slot(position)?;
         slot.check_outputs_len(position, data.len())?;
@@ -316,10 +332,10 @@ impl CycleThread {
         Ok(())
     }
 
-    fn sequenced(&self, position: u16) -> Result<&ds402::Shared> {
+    fn sequenced(&self, position: u16) -> Result<&sequencer::Shared> {
         match self.sequenced.get(position as usize) {
             None => Err(Error::NoSuchSlave { position, count: self.slave_count() }),
-            Some(Err(why)) => Err(Error::Config(why.clone())),
+            Some(Err(why)) => Err(why.clone().into()),
             Some(Ok(())) => Ok(&self.shared.drives[position as usize]),
         }
     }
@@ -327,10 +343,13 @@ impl CycleThread {
     /// Asks the drive at `position` for `request`, taken in the next cycle (replacing one
     /// under way). Lock-free. Refused for a drive whose mapping cannot be sequenced and once
     /// the cycle is stopped.
-    pub fn request(&self, position: u16, request: ds402::Request) -> Result<()> {
+    pub fn request(&self, position: u16, request: sequencer::Request) -> Result<()> {
         let drive = self.sequenced(position)?;
         if self.stopped() {
-            return Err(Error::Config(format!("the cycle is stopped: {} can no longer be sequenced", request.name())));
+            return Err(Unavailable::CycleStopped {
+                consequence: format!("{} can no longer be sequenced", request.name()).into(),
+            }
+            .into());
         }
         drive.request(request);
         self.shared.command_timeouts[position as usize].release();
@@ -342,20 +361,13 @@ impl CycleThread {
     /// for one of the edges.
     pub fn arm_latch(&self, position: u16, edges: u8, arm: bool) -> Result<()> {
         self.sequenced(position)?;
-        let objects = self.latch_objects[position as usize].ok_or_else(|| {
-            Error::Config(format!(
-                "slave {position}'s mapping carries no latch: map latch control 0x20A4 and latch status 0x20A5 \
-                 with a latched position (0x20A0..0x20A3, 0x20A6, 0x20A7), or the touch probe 0x60B8/0x60B9 \
-                 with 0x60BA..0x60BD"
-            ))
-        })?;
+        let objects = self.latch_objects[position as usize]
+            .ok_or_else(|| Error::from(Unavailable::NoLatch { slave: position }))?;
         let missing = edges & !objects.readable();
         if arm && missing != 0 {
-            return Err(Error::Config(format!(
-                "slave {position}'s mapping carries no latched position for edge bits 0x{missing:X} \
-                 (readable: 0x{:X}; bit 0 latch 1 rising, 1 latch 1 falling, 2 latch 2 rising, 3 latch 2 falling)",
-                objects.readable()
-            )));
+            return Err(
+                Unavailable::LatchEdgesUnreadable { slave: position, missing, readable: objects.readable() }.into()
+            );
         }
         self.shared.latches[position as usize].set(edges, arm);
         Ok(())
@@ -396,7 +408,7 @@ impl CycleThread {
 
     fn check_slave(&self, position: u16) -> Result<()> {
         if self.stopped() {
-            return Err(Error::Config("the cycle is stopped: use the master's own SDO access".into()));
+            return Err(Unavailable::CycleStopped { consequence: "use the master's own SDO access".into() }.into());
         }
         if position >= self.slave_count() {
             return Err(Error::NoSuchSlave { position, count: self.slave_count() });
@@ -433,13 +445,10 @@ impl CycleThread {
     pub fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<Duration>) -> Result<u32> {
         self.sequenced(position)?;
         if self.stopped() {
-            return Err(Error::Config("the cycle is stopped: no set-point handshake can run".into()));
+            return Err(Unavailable::CycleStopped { consequence: "no set-point handshake can run".into() }.into());
         }
         if bits & !handshake::ALLOWED_BITS != 0 || bits & crate::ds402::controlword::NEW_SETPOINT == 0 {
-            return Err(Error::Config(format!(
-                "set-point handshake bits 0x{bits:04X}: allowed are bit 4 (0x0010, new set-point or start homing) \
-                 with bit 5 (0x0020, change set immediately) and bit 6 (0x0040, relative), e.g. 0x0030 or 0x0010"
-            )));
+            return Err(SettingError::HandshakeBits { bits }.into());
         }
         let clear_timeout = self.request_timeout();
         Ok(self.shared.handshakes[position as usize].start(bits, clear_timeout, timeout.unwrap_or(clear_timeout)))
@@ -462,9 +471,7 @@ impl CycleThread {
             let status = self.setpoint_status(position)?;
             let what = match status.progress {
                 handshake::Progress::Done => return Ok(status),
-                handshake::Progress::Idle => {
-                    return Err(Error::Config(format!("drive {position}: no set-point handshake was asked for")))
-                }
+                handshake::Progress::Idle => return Err(Unavailable::NoHandshake { position }.into()),
                 handshake::Progress::Stuck(_) => status.stuck_reason(),
                 handshake::Progress::InProgress if !self.running() => {
                     Some(status.describe("cut short: the cycle stopped"))
@@ -502,9 +509,7 @@ impl CycleThread {
                 .then_some("modes of operation 0x6060 in the outputs or its display 0x6061 in the inputs"),
         ];
         if let Some(what) = missing.into_iter().flatten().next().filter(|_| timeout.is_some_and(|t| !t.is_zero())) {
-            return Err(Error::Config(format!(
-                "slave {position}: the command time-out watches mapped targets, and the mapping lacks {what}"
-            )));
+            return Err(Unavailable::CommandTimeoutUnwatched { slave: position, missing: what }.into());
         }
         self.shared.command_timeouts[position as usize].set(timeout.map(|t| (t, action)));
         Ok(())
@@ -521,21 +526,17 @@ impl CycleThread {
     /// that releases a held target.
     pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         if self.stopped() {
-            return Err(Error::Config("the cycle is stopped: set-points no longer go out".into()));
+            return Err(setpoints_stopped());
         }
         let slot = self.slot(position)?;
         let (rx, _) = self.mapping(position)?;
         let (offset, entry) = crate::pdo::layout(rx.iter().copied())
             .find(|(_, e)| (e.index, e.subindex) == (index, subindex))
-            .ok_or_else(|| {
-                Error::Config(format!("0x{index:04X}:{subindex:02X} is not in slave {position}'s output mapping"))
-            })?;
+            .ok_or_else(|| Error::from(Unavailable::NotInOutputs { slave: position, index, subindex }))?;
         if entry.byte_len() != data.len() {
-            return Err(Error::Config(format!(
-                "0x{index:04X}:{subindex:02X} takes {} bytes, {} given",
-                entry.byte_len(),
-                data.len()
-            )));
+            return Err(
+                SettingError::EntryLength { index, subindex, expected: entry.byte_len(), given: data.len() }.into()
+            );
         }
         self.shared.setpoints.write().write(slot.out_offset + offset, data);
         if let Some(Ok(())) = self.sequenced.get(position as usize) {
@@ -551,13 +552,11 @@ impl CycleThread {
     /// order.
     pub fn mapping(&self, position: u16) -> Result<&(Vec<PdoEntry>, Vec<PdoEntry>)> {
         self.slot(position)?;
-        self.mappings[position as usize]
-            .as_ref()
-            .ok_or_else(|| Error::Config(format!("slave {position} has no process-data mapping")))
+        self.mappings[position as usize].as_ref().ok_or(Unavailable::NoMapping { slave: position }.into())
     }
 
     /// The drive's status as the cycle thread last published it. Lock-free.
-    pub fn drive_status(&self, position: u16) -> Result<ds402::Status> {
+    pub fn drive_status(&self, position: u16) -> Result<sequencer::Status> {
         Ok(self.sequenced(position)?.status())
     }
 
@@ -623,9 +622,9 @@ impl CycleThread {
     /// and the statistics stay readable; set-points are refused from then on.
     pub fn stop(&mut self) -> Result<Master> {
         if self.stopped() {
-            return Err(Error::Config("the cycle thread was already stopped".into()));
+            return Err(Unavailable::CycleAlreadyStopped.into());
         }
-        self.halt().ok_or_else(|| Error::Config("the cycle thread panicked; the master is lost".into()))
+        self.halt().ok_or(Unavailable::CyclePanicked.into())
     }
 
     /// Whether [`stop`](Self::stop) was called.
@@ -825,7 +824,7 @@ fn supervise(
         }
         if let Some(event) = seen.left_op {
             shared.events.push(event);
-            shared.drives[slave as usize].request(ds402::Request::Disable);
+            shared.drives[slave as usize].request(sequencer::Request::Disable);
         }
         if let Some(report) = gap.filter(|_| d.drive.enabled()) {
             shared.events.push(Event::Fault {
@@ -840,7 +839,7 @@ fn supervise(
                 action: report.action,
             });
             if report.action == events::Action::Disabled {
-                shared.drives[slave as usize].request(ds402::Request::Disable);
+                shared.drives[slave as usize].request(sequencer::Request::Disable);
             }
         }
     }
@@ -850,12 +849,12 @@ fn supervise(
 mod tests {
     use super::*;
     use crate::al::AlState;
-    use crate::link::inproc::InProcess;
+    use crate::sim::in_process::InProcess;
 
     fn master_in_op(count: usize) -> Master {
         let mut m = Master::new(Box::new(InProcess::new(count)), Duration::from_millis(100));
         m.scan().unwrap();
-        m.request_state(AlState::Op, None, Duration::from_secs(5)).unwrap();
+        m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
         m
     }
 
@@ -893,7 +892,7 @@ mod tests {
     fn cycles_sets_outputs_and_hands_the_master_back() {
         let mut master = master_in_op(2);
         // Outputs set before the start go on unchanged.
-        master.set_outputs(1, &[0x44, 0x33, 0x22, 0x11, 0x0F, 0]).unwrap();
+        master.slave_mut(1).unwrap().set_outputs(&[0x44, 0x33, 0x22, 0x11, 0x0F, 0]).unwrap();
         let mut cycle = CycleThread::start(master, Config::new(Duration::from_micros(500))).map_err(|e| e.0).unwrap();
         assert!(cycle.running());
         assert_eq!(cycle.outputs(1).unwrap(), [0x44, 0x33, 0x22, 0x11, 0x0F, 0]);
@@ -921,10 +920,10 @@ mod tests {
         assert_eq!((master.stats().lost_frames, master.stats().wkc_errors), (0, 0));
         // The set-points reached the drives: read back from their object dictionaries.
         // 0x1701 carries the interpolation set-point 0x60C1:01, then the controlword.
-        assert_eq!(master.sdo_read(0, 0x60C1, 1).unwrap(), 0x1234_5678u32.to_le_bytes());
-        assert_eq!(master.sdo_read(0, 0x6040, 0).unwrap(), [0x06, 0]);
-        assert_eq!(master.sdo_read(1, 0x60C1, 1).unwrap(), 0x1122_3344u32.to_le_bytes());
+        assert_eq!(master.slave_mut(0).unwrap().sdo_read(0x60C1, 1).unwrap(), 0x1234_5678u32.to_le_bytes());
+        assert_eq!(master.slave_mut(0).unwrap().sdo_read(0x6040, 0).unwrap(), [0x06, 0]);
+        assert_eq!(master.slave_mut(1).unwrap().sdo_read(0x60C1, 1).unwrap(), 0x1122_3344u32.to_le_bytes());
         // The master works on after the thread: the bus goes down.
-        master.request_state(AlState::Init, None, Duration::from_secs(5)).unwrap();
+        master.request_state(AlState::Init, Duration::from_secs(5)).unwrap();
     }
 }

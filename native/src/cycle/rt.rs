@@ -3,7 +3,7 @@
 //! not permit (no CAP_SYS_NICE, a CPU outside the container's set, a memlock limit) is a
 //! warning that names what was refused and why, and the cycle runs without it.
 
-use crate::error::{Error, Result};
+use crate::error::{Result, SettingError};
 
 /// The SCHED_FIFO priorities Linux allows.
 pub fn fifo_priorities() -> (i32, i32) {
@@ -14,11 +14,11 @@ pub fn fifo_priorities() -> (i32, i32) {
 pub fn check(priority: Option<i32>, cpu: Option<usize>) -> Result<()> {
     let (low, high) = fifo_priorities();
     if let Some(p) = priority.filter(|p| !(low..=high).contains(p)) {
-        return Err(Error::Config(format!("SCHED_FIFO priority {p} is outside {low}..={high}")));
+        return Err(SettingError::Priority { priority: p, low, high }.into());
     }
     let cpus = unsafe { libc::sysconf(libc::_SC_NPROCESSORS_CONF) }.max(1) as usize;
     if let Some(c) = cpu.filter(|&c| c >= cpus.min(libc::CPU_SETSIZE as usize)) {
-        return Err(Error::Config(format!("CPU {c} does not exist: this machine has CPUs 0..={}", cpus - 1)));
+        return Err(SettingError::Cpu { cpu: c, cpus }.into());
     }
     Ok(())
 }

@@ -8,7 +8,7 @@
 
 use std::time::Duration;
 
-use crate::error::{Error, Result};
+use crate::error::{Result, SettingError};
 
 /// The shortest period: the AKD's minimum cycle time.
 pub const MIN_PERIOD: Duration = Duration::from_micros(250);
@@ -20,10 +20,7 @@ pub fn period_ns(period: Duration) -> Result<u64> {
     if (MIN_PERIOD..=MAX_PERIOD).contains(&period) {
         Ok(period.as_nanos() as u64)
     } else {
-        Err(Error::Config(format!(
-            "cycle period {} µs is outside the allowed range 250 µs ..= 10000 µs (the AKD's minimum to 10 ms)",
-            period.as_nanos() as f64 / 1000.0
-        )))
+        Err(SettingError::CyclePeriod { period_us: period.as_nanos() as f64 / 1000.0 }.into())
     }
 }
 

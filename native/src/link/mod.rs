@@ -1,7 +1,7 @@
 //! Links: how EtherCAT frames reach the slaves and come back.
 //!
 //! Every link carries the EtherCAT payload (frame header plus datagrams) and hides what wraps it:
-//! nothing for the in-process virtual bus, a UDP datagram for EtherCAT-over-UDP, an Ethernet II
+//! nothing for the in-process virtual bus (which the simulator provides), a UDP datagram for EtherCAT-over-UDP, an Ethernet II
 //! header for a raw interface. [`Recorder`](pcap::Recorder) wraps any link and writes what it
 //! sends and receives to a pcapng file.
 
@@ -9,9 +9,11 @@ use std::time::Duration;
 
 use crate::error::Result;
 
-pub mod inproc;
+pub use spec::LinkSpec;
+
 pub mod pcap;
 pub mod raw;
+pub mod spec;
 pub mod udp;
 
 /// A path to a chain of slaves.

@@ -10,7 +10,7 @@ use std::io;
 use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
 use std::time::{Duration, Instant};
 
-use crate::error::{Error, FrameError, Result};
+use crate::error::{Error, FrameError, Result, SettingError};
 use crate::frame::{self, ETHERTYPE, ETH_HEADER_LEN, MIN_ETH_FRAME_LEN};
 use crate::link::{copy_reply, is_reply_to, Link};
 
@@ -34,8 +34,7 @@ impl RawSocket {
     /// Fails with an error naming the interface when it does not exist or when the process
     /// lacks CAP_NET_RAW.
     pub fn open(iface: &str) -> Result<Self> {
-        let name =
-            CString::new(iface).map_err(|_| Error::Config(format!("interface name {iface:?} contains a NUL byte")))?;
+        let name = CString::new(iface).map_err(|_| SettingError::InterfaceName { name: iface.to_owned() })?;
         // SAFETY: `name` is a valid NUL-terminated string.
         let ifindex = unsafe { libc::if_nametoindex(name.as_ptr()) };
         if ifindex == 0 {

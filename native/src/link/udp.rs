@@ -5,7 +5,7 @@ use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
 use std::time::{Duration, Instant};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SettingError};
 use crate::frame::{self, ETHERTYPE};
 use crate::link::{copy_reply, is_reply_to, Link};
 
@@ -32,7 +32,7 @@ impl Udp {
             .to_socket_addrs()
             .map_err(|e| Error::io(format!("resolving the UDP address {address:?}"), e))?
             .next()
-            .ok_or_else(|| Error::Config(format!("UDP address {address:?} resolves to nothing")))?;
+            .ok_or_else(|| SettingError::UnresolvedHost { host: address.to_owned(), role: "connect" })?;
         let local: SocketAddr = if peer.is_ipv4() { "0.0.0.0:0" } else { "[::]:0" }.parse().expect("literal");
         let socket = UdpSocket::bind(local).map_err(|e| Error::io("binding a UDP socket", e))?;
         // Connecting filters out datagrams from anyone but the simulator.

@@ -7,7 +7,7 @@
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::dc::{self, PortReceiveTimes};
-use crate::error::{Error, Result};
+use crate::error::{Result, Unavailable};
 use crate::frame::{self, Command};
 use crate::master::Master;
 use crate::registers;
@@ -45,7 +45,7 @@ impl Master {
         dc::interpolation_time_period(cycle_ns)?;
         let dc_slaves: Vec<u16> = self.slaves.iter().filter(|s| s.has_dc()).map(|s| s.station_address).collect();
         let Some(&reference_station) = dc_slaves.first() else {
-            return Err(Error::Config("no slave on the bus has a distributed clock (ESC feature bit 2)".into()));
+            return Err(Unavailable::NoDistributedClock.into());
         };
         // Latch every port's receive time with one frame, noting when the master sent it.
         let sent_at = master_time();

@@ -10,9 +10,9 @@
 //! Layout of the logical address space: every slave's outputs one after the other from
 //! address 0, then every slave's inputs.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::frame::{self, Command, FrameBuilder, Slot};
-use crate::master::pdo::Mapping;
+use crate::master::mapping::Mapping;
 use crate::master::state::AlStatus;
 use crate::master::{Master, Slave};
 use crate::pdo::DEFAULT_FIXED;
@@ -37,7 +37,7 @@ impl ImageSlot {
         if len == self.out_len {
             return Ok(());
         }
-        Err(Error::Config(format!("slave {position} has {} bytes of outputs, {len} given", self.out_len)))
+        Err(SettingError::OutputsLength { slave: position, expected: self.out_len, given: len }.into())
     }
 }
 
@@ -70,10 +70,7 @@ impl ProcessImage {
         let out_total: usize = lens.iter().flatten().map(|l| l.0).sum();
         let in_total: usize = lens.iter().flatten().map(|l| l.1).sum();
         if out_total + in_total > frame::MAX_DATAGRAM_DATA - 8 - frame::DATAGRAM_HEADER_LEN - frame::WKC_LEN {
-            return Err(Error::Config(format!(
-                "process image of {} bytes does not fit one frame",
-                out_total + in_total
-            )));
+            return Err(SettingError::ImageTooLarge { bytes: out_total + in_total }.into());
         }
         let (mut out_at, mut in_at, mut expected_wkc) = (0, 0, 0);
         let slots = lens
@@ -110,12 +107,12 @@ impl ProcessImage {
             .get(position as usize)
             .copied()
             .flatten()
-            .ok_or_else(|| Error::Config(format!("slave {position} has no process data (map it, then go to SafeOp)")))
+            .ok_or(Unavailable::NoProcessData { slave: position, with_data: None }.into())
     }
 }
 
 fn no_image() -> Error {
-    Error::Config("no process image yet: take the slaves to SafeOp first".into())
+    Unavailable::NoProcessImage.into()
 }
 
 impl Master {
@@ -150,14 +147,14 @@ impl Master {
     }
 
     /// The outputs of the slave at `position` as they go out in the next cycle.
-    pub fn outputs(&self, position: u16) -> Result<&[u8]> {
+    pub(super) fn outputs(&self, position: u16) -> Result<&[u8]> {
         let image = self.image()?;
         let s = image.slot(position)?;
         Ok(&image.outputs[s.out_offset..s.out_offset + s.out_len])
     }
 
     /// Sets the outputs of the slave at `position`; `data` must have their exact length.
-    pub fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
+    pub(super) fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
         let image = self.image_mut()?;
         let s = image.slot(position)?;
         s.check_outputs_len(position, data.len())?;
@@ -166,7 +163,7 @@ impl Master {
     }
 
     /// The inputs of the slave at `position` from the last good cycle.
-    pub fn inputs(&self, position: u16) -> Result<&[u8]> {
+    pub(super) fn inputs(&self, position: u16) -> Result<&[u8]> {
         let image = self.image()?;
         let s = image.slot(position)?;
         Ok(&image.inputs[s.in_offset..s.in_offset + s.in_len])
@@ -263,7 +260,7 @@ fn push_watch(slaves: &[Slave], builder: &mut FrameBuilder<'_>, index: u8) -> Re
         builder.push_zeroed(Command::Fprd, index, station, sm1, 1)?;
         first.get_or_insert(al);
     }
-    first.ok_or_else(|| Error::Config("supervision needs at least one slave".into()))
+    first.ok_or(Unavailable::NoSlaves.into())
 }
 
 impl Master {
@@ -274,10 +271,12 @@ impl Master {
         let watch_len = slaves * (AL_STATUS_LEN + 1 + 2 * DATAGRAM_OVERHEAD);
         let room = frame::MAX_DATAGRAM_DATA - 8 - DATAGRAM_OVERHEAD;
         if on && image.outputs.len() + image.inputs.len() + watch_len > room {
-            return Err(Error::Config(format!(
-                "the process image ({} bytes) and the status reads of {slaves} slaves ({watch_len} bytes) do not fit one frame",
-                image.outputs.len() + image.inputs.len()
-            )));
+            return Err(SettingError::SupervisionTooLarge {
+                image: image.outputs.len() + image.inputs.len(),
+                slaves,
+                watch: watch_len,
+            }
+            .into());
         }
         image.supervised = on;
         Ok(())

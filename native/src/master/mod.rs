@@ -2,8 +2,8 @@
 //!
 //! One module per concept: [`scan`] finds the slaves and gives them station addresses,
 //! [`sii_read`] reads their EEPROM, [`state`] moves them through the AL state machine,
-//! [`mailbox`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
-//! the CoE client, [`pdo`] selects the process-data mapping, [`clocks`] sets up distributed
+//! [`mailbox_client`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
+//! the CoE client, [`mapping`] selects the process-data mapping, [`clocks`] sets up distributed
 //! clocks and [`cyclic`] exchanges the process image. This file holds the bus-wide state and
 //! the register access all of them share.
 
@@ -18,15 +18,17 @@ use crate::sii::Sii;
 
 pub mod clocks;
 pub mod cyclic;
-pub mod mailbox;
-pub mod pdo;
+pub mod mailbox_client;
+pub mod mapping;
 pub mod scan;
 pub mod sdo;
 pub mod sdo_info;
 pub mod sii_read;
+pub mod slave_ref;
 pub mod state;
 
-pub use pdo::Mapping;
+pub use mapping::Mapping;
+pub use slave_ref::SlaveRef;
 
 /// Station address given to the slave at position 0; the next ones count up from it.
 pub const FIRST_STATION_ADDRESS: u16 = 0x1001;
@@ -71,11 +73,11 @@ pub struct Slave {
     /// The SII EEPROM content.
     pub sii: Sii,
     /// Mailbox state, when the slave has a mailbox.
-    pub mailbox: Option<mailbox::Mailbox>,
+    pub mailbox: Option<mailbox_client::Mailbox>,
     /// Emergency messages received and not yet taken.
     pub emergencies: VecDeque<Emergency>,
     /// The process-data mapping chosen for this slave, if any.
-    pub mapping: Option<pdo::SlaveMapping>,
+    pub mapping: Option<mapping::SlaveMapping>,
 }
 
 impl Slave {
@@ -141,14 +143,14 @@ impl Master {
         self.slaves.get(position as usize).ok_or(Error::NoSuchSlave { position, count: self.slaves.len() as u16 })
     }
 
-    fn slave_mut(&mut self, position: u16) -> Result<&mut Slave> {
+    fn slave_entry_mut(&mut self, position: u16) -> Result<&mut Slave> {
         let count = self.slaves.len() as u16;
         self.slaves.get_mut(position as usize).ok_or(Error::NoSuchSlave { position, count })
     }
 
     /// Takes the emergency messages received from the slave at `position`.
-    pub fn take_emergencies(&mut self, position: u16) -> Result<Vec<Emergency>> {
-        Ok(self.slave_mut(position)?.emergencies.drain(..).collect())
+    pub(super) fn take_emergencies(&mut self, position: u16) -> Result<Vec<Emergency>> {
+        Ok(self.slave_entry_mut(position)?.emergencies.drain(..).collect())
     }
 
     /// Sends the frame of `len` bytes in `tx` and returns the length of its return in `rx`.
@@ -250,7 +252,7 @@ impl Master {
     }
 
     /// Reads registers of the slave at `position` (for tools and tests).
-    pub fn read_register_at(&mut self, position: u16, register: u16, len: usize) -> Result<Vec<u8>> {
+    pub(super) fn read_register_at(&mut self, position: u16, register: u16, len: usize) -> Result<Vec<u8>> {
         let station = self.station(position)?;
         let mut data = vec![0; len];
         self.read_registers(station, register, &mut data)?;
@@ -258,7 +260,7 @@ impl Master {
     }
 
     /// Writes registers of the slave at `position` (for tools and tests).
-    pub fn write_register_at(&mut self, position: u16, register: u16, data: &[u8]) -> Result<()> {
+    pub(super) fn write_register_at(&mut self, position: u16, register: u16, data: &[u8]) -> Result<()> {
         let station = self.station(position)?;
         self.write_registers(station, register, data)
     }

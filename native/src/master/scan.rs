@@ -4,9 +4,9 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SiiError};
 use crate::frame::Command;
-use crate::master::{mailbox::Mailbox, state::AlStatus, Master, Slave, FIRST_STATION_ADDRESS};
+use crate::master::{mailbox_client::Mailbox, state::AlStatus, Master, Slave, FIRST_STATION_ADDRESS};
 use crate::registers::{self, FMMU0, SM0};
 use crate::sii::Sii;
 
@@ -66,14 +66,13 @@ impl Master {
         let esc_features = self.read_u16(station, registers::FEATURES)?;
         let alias = self.read_u16(station, registers::STATION_ALIAS)?;
         let image = self.read_sii(station)?;
-        let sii = Sii::parse(&image).map_err(|e| match e {
-            Error::Sii(m) => Error::Sii(format!("slave {position} (station 0x{station:04X}): {m}")),
+        // An SII fault names the slave it was found on.
+        let of_slave = |e| match e {
+            Error::Sii(error) => SiiError::OfSlave { position, station, error: Box::new(error) }.into(),
             other => other,
-        })?;
-        let mailbox = Mailbox::from_sii(&sii).map_err(|e| match e {
-            Error::Sii(m) => Error::Sii(format!("slave {position} (station 0x{station:04X}): {m}")),
-            other => other,
-        })?;
+        };
+        let sii = Sii::parse(&image).map_err(of_slave)?;
+        let mailbox = Mailbox::from_sii(&sii).map_err(of_slave)?;
         Ok(Slave {
             position,
             station_address: station,

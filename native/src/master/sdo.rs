@@ -3,8 +3,8 @@
 //! segmented (what the mailbox cannot hold, in segments with an alternating toggle bit).
 //! Aborts come back as [`Error::SdoAbort`] with the code's name.
 
-use crate::coe::{self, abort, service, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
-use crate::error::{Error, Result};
+use crate::coe::{self, CoeService, SdoAbortCode, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::error::{Error, MailboxError, Result, SettingError};
 use crate::master::Master;
 
 impl Master {
@@ -21,7 +21,7 @@ impl Master {
         let slave = self.slave(position)?;
         match &slave.mailbox {
             Some(mb) if mb.has_coe() => Ok(mb.out_len as usize),
-            _ => Err(Error::Mailbox(format!("slave {position} does not speak CoE (SII mailbox protocols)"))),
+            _ => Err(MailboxError::NoCoe { slave: position }.into()),
         }
     }
 
@@ -33,19 +33,12 @@ impl Master {
         handle: impl FnOnce(SdoResponse<'_>) -> Result<T>,
     ) -> Result<T> {
         let reply = self.coe_transaction(position, |out| coe::write_sdo_request(out, 0, request))?;
-        let (_, coe_header, body) = coe::split_message(&reply)?;
-        if coe_header.service != service::SDO_RESPONSE {
-            return Err(Error::Mailbox(format!(
-                "slave {position} answered an SDO request with CoE service {} (expected {}, SDO response)",
-                coe_header.service,
-                service::SDO_RESPONSE
-            )));
-        }
+        let body = body_of_service(position, &reply, CoeService::SdoResponse, "an SDO request")?;
         handle(SdoResponse::decode(body)?)
     }
 
     /// Aborts a transfer the slave got wrong and returns the error that says why.
-    fn sdo_abort(&mut self, position: u16, index: u16, subindex: u8, code: u32) -> Error {
+    fn sdo_abort(&mut self, position: u16, index: u16, subindex: u8, code: SdoAbortCode) -> Error {
         let request = SdoRequest::Abort { index, subindex, code };
         let mut message = [0u8; SDO_OFFSET + SDO_LEN];
         let len = coe::write_sdo_request(&mut message, 0, &request);
@@ -55,7 +48,7 @@ impl Master {
     }
 
     /// Reads `index:subindex` of the slave at `position`.
-    pub fn sdo_read(&mut self, position: u16, index: u16, subindex: u8) -> Result<Vec<u8>> {
+    pub(super) fn sdo_read(&mut self, position: u16, index: u16, subindex: u8) -> Result<Vec<u8>> {
         let request = SdoRequest::Upload { index, subindex, complete_access: false };
         let (mut value, complete_size) = self.sdo_exchange(position, &request, |response| match response {
             SdoResponse::UploadExpedited { index: i, subindex: s, data } if (i, s) == (index, subindex) => {
@@ -76,14 +69,14 @@ impl Master {
                     _ => Ok(None),
                 })?;
             let Some((t, last, data)) = segment else {
-                return Err(self.sdo_abort(position, index, subindex, abort::BAD_COMMAND));
+                return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::BAD_COMMAND));
             };
             if t != toggle {
-                return Err(self.sdo_abort(position, index, subindex, abort::TOGGLE_BIT));
+                return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::TOGGLE_BIT));
             }
             if data.is_empty() && !last {
                 // A segment must carry data; an empty one would never end the transfer.
-                return Err(self.sdo_abort(position, index, subindex, abort::LENGTH_TOO_LOW));
+                return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::LENGTH_TOO_LOW));
             }
             value.extend_from_slice(&data);
             toggle = !toggle;
@@ -92,16 +85,20 @@ impl Master {
             }
         }
         if value.len() != complete_size {
-            return Err(Error::Mailbox(format!(
-                "upload of 0x{index:04X}:{subindex:02X} from slave {position} announced {complete_size} bytes but carried {}",
-                value.len()
-            )));
+            return Err(MailboxError::UploadSize {
+                slave: position,
+                index,
+                subindex,
+                announced: complete_size,
+                carried: value.len(),
+            }
+            .into());
         }
         Ok(value)
     }
 
     /// Writes `data` to `index:subindex` of the slave at `position`.
-    pub fn sdo_write(&mut self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
+    pub(super) fn sdo_write(&mut self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         let room = self.mailbox_out_len(position)? - SDO_OFFSET;
         let accepted = |position| {
             move |response: SdoResponse<'_>| match response {
@@ -110,7 +107,7 @@ impl Master {
             }
         };
         if data.is_empty() {
-            return Err(Error::Config(format!("SDO write of 0x{index:04X}:{subindex:02X} with no data")));
+            return Err(SettingError::EmptySdoWrite { index, subindex }.into());
         }
         if data.len() <= 4 {
             let request = SdoRequest::DownloadExpedited { index, subindex, complete_access: false, data };
@@ -137,21 +134,47 @@ impl Master {
             })?;
             match answered {
                 Some(t) if t == toggle => toggle = !toggle,
-                Some(_) => return Err(self.sdo_abort(position, index, subindex, abort::TOGGLE_BIT)),
-                None => return Err(self.sdo_abort(position, index, subindex, abort::BAD_COMMAND)),
+                Some(_) => return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::TOGGLE_BIT)),
+                None => return Err(self.sdo_abort(position, index, subindex, SdoAbortCode::BAD_COMMAND)),
             }
         }
         Ok(())
     }
 }
 
+/// The body of the CoE reply `reply` of the slave at `position` to `request`, which only
+/// `expected` answers; any other service is an error naming both.
+pub(super) fn body_of_service<'a>(
+    position: u16,
+    reply: &'a [u8],
+    expected: CoeService,
+    request: &'static str,
+) -> Result<&'a [u8]> {
+    let (_, coe_header, body) = coe::split_message(reply)?;
+    if coe_header.service != expected {
+        return Err(MailboxError::UnexpectedService {
+            slave: position,
+            request,
+            got: coe_header.service.name(),
+            expected: expected.name(),
+        }
+        .into());
+    }
+    Ok(body)
+}
+
 /// The error for a response that does not answer the request: an abort by name, or a
 /// description of what came instead.
-fn unexpected(position: u16, index: u16, subindex: u8, what: &str, response: &SdoResponse<'_>) -> Error {
+fn unexpected(position: u16, index: u16, subindex: u8, what: &'static str, response: &SdoResponse<'_>) -> Error {
     match *response {
         SdoResponse::Abort { code, .. } => coe::abort_error(index, subindex, code),
-        ref other => Error::Mailbox(format!(
-            "slave {position} answered the {what} of 0x{index:04X}:{subindex:02X} with {other:?}"
-        )),
+        ref other => MailboxError::UnexpectedResponse {
+            slave: position,
+            transfer: what,
+            index,
+            subindex,
+            response: format!("{other:?}"),
+        }
+        .into(),
     }
 }

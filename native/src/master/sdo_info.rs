@@ -1,8 +1,12 @@
 //! CoE SDO information client: the object list and the descriptions of objects and entries,
 //! each reply gathered from as many fragments as the slave needs.
 
-use crate::coe::{self, info_opcode, service, EntryDescription, ObjectDescription, SdoInfoHeader, SDO_INFO_HEADER_LEN};
-use crate::error::{Error, Result};
+use crate::coe::{
+    self, CoeService, EntryDescription, ObjectCode, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode,
+    SDO_INFO_HEADER_LEN,
+};
+use crate::error::{MailboxError, Result};
+use crate::master::sdo::body_of_service;
 use crate::master::Master;
 
 /// An object's description, owned.
@@ -14,8 +18,8 @@ pub struct ObjectInfo {
     pub data_type: u16,
     /// Highest subindex.
     pub max_subindex: u8,
-    /// Object code, see [`coe::object_code`].
-    pub object_code: u8,
+    /// Object code.
+    pub object_code: ObjectCode,
     /// Name.
     pub name: String,
 }
@@ -38,34 +42,36 @@ pub struct EntryInfo {
 impl Master {
     /// One SDO information request; returns the data of every response fragment joined.
     /// `index`/`subindex` name the object in an error.
-    fn sdo_info(&mut self, position: u16, opcode: u8, request: &[u8], index: u16, subindex: u8) -> Result<Vec<u8>> {
+    fn sdo_info(
+        &mut self,
+        position: u16,
+        opcode: SdoInfoOpcode,
+        request: &[u8],
+        index: u16,
+        subindex: u8,
+    ) -> Result<Vec<u8>> {
         let header = SdoInfoHeader { opcode, incomplete: false, fragments_left: 0 };
         let mut reply = self.coe_transaction(position, |out| coe::write_info_message(out, 0, header, request))?;
         let mut data = Vec::new();
         loop {
-            let (_, coe_header, body) = coe::split_message(&reply)?;
-            if coe_header.service != service::SDO_INFORMATION {
-                return Err(Error::Mailbox(format!(
-                    "slave {position} answered an SDO information request with CoE service {} (expected {})",
-                    coe_header.service,
-                    service::SDO_INFORMATION
-                )));
-            }
+            let body = body_of_service(position, &reply, CoeService::SdoInformation, "an SDO information request")?;
             let info = SdoInfoHeader::decode(body)?;
             let payload = &body[SDO_INFO_HEADER_LEN..];
-            if info.opcode == info_opcode::ERROR {
+            if info.opcode == SdoInfoOpcode::SdoInfoErrorRequest {
                 let code = payload
                     .get(..4)
                     .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
-                    .ok_or_else(|| Error::Mailbox("SDO information error without an abort code".into()))?;
-                return Err(coe::abort_error(index, subindex, code));
+                    .ok_or(MailboxError::InfoErrorWithoutCode)?;
+                return Err(coe::abort_error(index, subindex, coe::SdoAbortCode(code)));
             }
-            if info.opcode != opcode + 1 {
-                return Err(Error::Mailbox(format!(
-                    "slave {position} answered SDO information opcode {opcode} with opcode {} (expected {})",
-                    info.opcode,
-                    opcode + 1
-                )));
+            if Some(info.opcode) != opcode.response() {
+                return Err(MailboxError::UnexpectedOpcode {
+                    slave: position,
+                    asked: opcode.name(),
+                    got: info.opcode.name(),
+                    expected: opcode.response().map_or("none", |o| o.name()),
+                }
+                .into());
             }
             data.extend_from_slice(payload);
             if !info.incomplete {
@@ -75,21 +81,26 @@ impl Master {
         }
     }
 
-    /// The indices of the objects in one of the slave's object lists (see [`coe::od_list`]).
-    pub fn sdo_object_list(&mut self, position: u16, list_type: u16) -> Result<Vec<u16>> {
-        let data = self.sdo_info(position, info_opcode::GET_OD_LIST_REQUEST, &list_type.to_le_bytes(), 0, 0)?;
+    /// The indices of the objects in one of the slave's object lists.
+    pub(super) fn sdo_object_list(&mut self, position: u16, list_type: OdListType) -> Result<Vec<u16>> {
+        let data =
+            self.sdo_info(position, SdoInfoOpcode::GetOdListRequest, &u16::from(list_type).to_le_bytes(), 0, 0)?;
         // The first fragment starts with the list type; the indices follow, two bytes each.
-        let indices = data.get(2..).ok_or_else(|| Error::Mailbox("OD list response without its list type".into()))?;
+        let indices = data.get(2..).ok_or(MailboxError::OdListWithoutType)?;
         Ok(indices.chunks_exact(2).map(|c| u16::from_le_bytes([c[0], c[1]])).collect())
     }
 
     /// The description of object `index`.
-    pub fn sdo_object_description(&mut self, position: u16, index: u16) -> Result<ObjectInfo> {
+    pub(super) fn sdo_object_description(&mut self, position: u16, index: u16) -> Result<ObjectInfo> {
         let data =
-            self.sdo_info(position, info_opcode::GET_OBJECT_DESCRIPTION_REQUEST, &index.to_le_bytes(), index, 0)?;
+            self.sdo_info(position, SdoInfoOpcode::GetObjectDescriptionRequest, &index.to_le_bytes(), index, 0)?;
         let d = ObjectDescription::decode(&data)?;
         if d.index != index {
-            return Err(Error::Mailbox(format!("asked for the description of 0x{index:04X}, got 0x{:04X}'s", d.index)));
+            return Err(MailboxError::WrongDescription {
+                asked: format!("0x{index:04X}"),
+                got: format!("0x{:04X}", d.index),
+            }
+            .into());
         }
         Ok(ObjectInfo {
             index: d.index,
@@ -101,16 +112,17 @@ impl Master {
     }
 
     /// The description of entry `index:subindex` (without the optional values).
-    pub fn sdo_entry_description(&mut self, position: u16, index: u16, subindex: u8) -> Result<EntryInfo> {
+    pub(super) fn sdo_entry_description(&mut self, position: u16, index: u16, subindex: u8) -> Result<EntryInfo> {
         let [lo, hi] = index.to_le_bytes();
         let request = [lo, hi, subindex, 0];
-        let data = self.sdo_info(position, info_opcode::GET_ENTRY_DESCRIPTION_REQUEST, &request, index, subindex)?;
+        let data = self.sdo_info(position, SdoInfoOpcode::GetEntryDescriptionRequest, &request, index, subindex)?;
         let d = EntryDescription::decode(&data)?;
         if (d.index, d.subindex) != (index, subindex) {
-            return Err(Error::Mailbox(format!(
-                "asked for the description of 0x{index:04X}:{subindex:02X}, got 0x{:04X}:{:02X}'s",
-                d.index, d.subindex
-            )));
+            return Err(MailboxError::WrongDescription {
+                asked: format!("0x{index:04X}:{subindex:02X}"),
+                got: format!("0x{:04X}:{:02X}", d.index, d.subindex),
+            }
+            .into());
         }
         Ok(EntryInfo {
             subindex: d.subindex,

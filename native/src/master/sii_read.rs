@@ -7,7 +7,7 @@
 
 use std::time::{Duration, Instant};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SiiError};
 use crate::master::Master;
 use crate::registers::{sii_reg, SII_CONTROL};
 
@@ -36,9 +36,7 @@ impl Master {
             let control = u16::from_le_bytes([state[0], state[1]]);
             if control & (sii_reg::BUSY | sii_reg::CMD_READ) == 0 {
                 if control & sii_reg::ERROR_ACK != 0 {
-                    return Err(Error::Sii(format!(
-                        "station 0x{station:04X}: EEPROM read of word 0x{word:04X} failed (SII control 0x{control:04X}: missing acknowledge)"
-                    )));
+                    return Err(SiiError::EepromNack { station, word, control }.into());
                 }
                 let len = if control & sii_reg::READ_8_BYTES != 0 { 8 } else { 4 };
                 out.extend_from_slice(&state[6..6 + len]);
@@ -76,9 +74,7 @@ impl Master {
         let mut word = HEADER_WORDS;
         loop {
             if word + 1 >= size_words {
-                return Err(Error::Sii(format!(
-                    "station 0x{station:04X}: no end category (0xFFFF) before the end of the {size_kbit} kbit EEPROM"
-                )));
+                return Err(SiiError::EepromNoEnd { station, size_kbit }.into());
             }
             let header = self.read_sii_words(station, word, 2)?;
             let kind = u16::from_le_bytes([header[0], header[1]]);
@@ -88,9 +84,7 @@ impl Master {
             }
             let len = u16::from_le_bytes([header[2], header[3]]) as u32;
             if word + 2 + len > size_words {
-                return Err(Error::Sii(format!(
-                    "station 0x{station:04X}: category 0x{kind:04X} at word 0x{word:04X} of {len} words runs past the {size_kbit} kbit EEPROM"
-                )));
+                return Err(SiiError::EepromCategoryPastEnd { station, kind, word, len, size_kbit }.into());
             }
             image.extend(self.read_sii_words(station, word + 2, len)?);
             word += 2 + len;

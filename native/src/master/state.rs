@@ -51,7 +51,7 @@ impl AlStatus {
 
     /// The name of the AL status code.
     pub fn code_name(&self) -> &'static str {
-        al::status_code_name(self.code)
+        al::AlStatusCode(self.code).name()
     }
 }
 
@@ -82,15 +82,22 @@ impl Master {
     }
 
     /// AL status and AL status code of the slave at `position`.
-    pub fn al_status(&mut self, position: u16) -> Result<AlStatus> {
+    pub(super) fn al_status(&mut self, position: u16) -> Result<AlStatus> {
         let station = self.station(position)?;
         self.read_al_status(station)
     }
 
-    /// Takes the slave at `position` (or every slave) to `target`, stepping through the states
-    /// in between, each step within `timeout`. A refusal raises [`Error::AlState`] with the AL
-    /// status code and its name, after the error has been acknowledged.
-    pub fn request_state(&mut self, target: AlState, position: Option<u16>, timeout: Duration) -> Result<()> {
+    /// Takes every slave to `target`, stepping through the states in between together, each
+    /// step within `timeout`. A refusal raises [`Error::AlState`] with the AL status code and its
+    /// name, after the error has been acknowledged. One slave alone goes with
+    /// [`SlaveRef::request_state`](crate::master::SlaveRef::request_state).
+    pub fn request_state(&mut self, target: AlState, timeout: Duration) -> Result<()> {
+        self.request_state_of(target, None, timeout)
+    }
+
+    /// Takes the slave at `position` (or every slave) to `target`, as
+    /// [`request_state`](Self::request_state) says.
+    pub(super) fn request_state_of(&mut self, target: AlState, position: Option<u16>, timeout: Duration) -> Result<()> {
         let positions = self.positions(position)?;
         loop {
             let mut states = Vec::with_capacity(positions.len());

@@ -16,13 +16,13 @@ use pyo3::types::{PyBytes, PyDict, PyList};
 use super::master::PyMaster;
 use super::IntoPyResult;
 use crate::akd_fault;
-use crate::cycle::ds402::{Progress, Request};
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event};
+use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
 use crate::ds402::State;
-use crate::error::Error;
+use crate::error::{Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
 #[pyclass(name = "Cycle", module = "akd_ros._native")]
@@ -42,9 +42,9 @@ fn summary<'py>(py: Python<'py>, s: Summary) -> PyResult<Bound<'py, PyDict>> {
 }
 
 /// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
-fn duration(what: &str, seconds: f64, allowed: &str) -> PyResult<Duration> {
+fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
     Duration::try_from_secs_f64(seconds)
-        .map_err(|_| super::to_py_err(Error::Config(format!("{what} {seconds} s: allowed {allowed}"))))
+        .map_err(|_| super::to_py_err(SettingError::Duration { what, seconds, allowed }.into()))
 }
 
 const SECONDS: &str = "a finite number of seconds >= 0";
@@ -84,11 +84,8 @@ impl PyCycle {
         cpu: Option<usize>,
         lock_memory: bool,
     ) -> PyResult<Self> {
-        let period = Duration::try_from_secs_f64(period).map_err(|_| {
-            super::to_py_err(Error::Config(format!(
-                "cycle period {period} s is outside the allowed range 0.00025 ..= 0.01 s"
-            )))
-        })?;
+        let period = Duration::try_from_secs_f64(period)
+            .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
         let config = Config { period, priority, cpu, lock_memory };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
@@ -201,8 +198,7 @@ impl PyCycle {
 
     #[setter]
     fn set_request_timeout(&self, seconds: f64) -> PyResult<()> {
-        let timeout = Duration::try_from_secs_f64(seconds)
-            .map_err(|_| super::to_py_err(Error::Config(format!("request timeout {seconds} s must be >= 0"))))?;
+        let timeout = super::seconds(seconds, "request timeout")?;
         self.cycle.set_request_timeout(timeout);
         Ok(())
     }
@@ -231,10 +227,9 @@ impl PyCycle {
     fn wait_state(&self, py: Python<'_>, position: u16, state: &str, timeout: f64) -> PyResult<()> {
         let wanted = State::ALL.iter().copied().find(|s| s.name().eq_ignore_ascii_case(state)).ok_or_else(|| {
             let names: Vec<&str> = State::ALL.iter().map(|s| s.name()).collect();
-            super::to_py_err(Error::Config(format!("unknown state {state:?} (allowed: {})", names.join(", "))))
+            super::to_py_err(UnknownName::DriveState { name: state.to_owned(), allowed: names }.into())
         })?;
-        let timeout = Duration::try_from_secs_f64(timeout)
-            .map_err(|_| super::to_py_err(Error::Config(format!("timeout {timeout} s must be >= 0"))))?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let cycle = &self.cycle;
         let outcome = py.allow_threads(|| {
             let deadline = std::time::Instant::now() + timeout;
@@ -305,7 +300,7 @@ impl PyCycle {
                     d.set_item("al_status", al_status)?;
                     d.set_item("al_state", (al_status != 0).then(|| crate::al::state_name(al_status)))?;
                     d.set_item("al_status_code", al_status_code)?;
-                    d.set_item("al_status_code_name", crate::al::status_code_name(al_status_code))?;
+                    d.set_item("al_status_code_name", crate::al::AlStatusCode(al_status_code).name())?;
                     d.set_item("action", action.describe())?;
                 }
                 Event::CommandTimeout { cycle, time_ns, slave, target, value, timeout_us, statusword, action } => {
@@ -379,18 +374,12 @@ impl PyCycle {
     #[pyo3(signature = (position, channel, edge, arm = true))]
     fn arm_latch(&self, position: u16, channel: u8, edge: &str, arm: bool) -> PyResult<()> {
         if !(1..=2).contains(&channel) {
-            return Err(super::to_py_err(Error::Config(format!(
-                "latch channel {channel}: the AKD has latches 1 and 2"
-            ))));
+            return Err(super::to_py_err(SettingError::LatchChannel { channel }.into()));
         }
         let edge = match edge {
             "rising" => Edge::Rising,
             "falling" => Edge::Falling,
-            other => {
-                return Err(super::to_py_err(Error::Config(format!(
-                    "latch edge {other:?}: allowed \"rising\" or \"falling\""
-                ))))
-            }
+            other => return Err(super::to_py_err(UnknownName::LatchEdge { name: other.to_owned() }.into())),
         };
         self.cycle.arm_latch(position, latch::edge_bit(channel, edge), arm).py()
     }
@@ -463,11 +452,10 @@ impl PyCycle {
     /// stream and lifts the hold.
     #[pyo3(signature = (position, timeout, policy = "hold"))]
     fn set_command_timeout(&self, position: u16, timeout: f64, policy: &str) -> PyResult<()> {
-        let action = CommandTimeoutAction::ALL.into_iter().find(|a| a.name() == policy).ok_or_else(|| {
-            super::to_py_err(Error::Config(format!(
-                "command timeout policy {policy:?}: allowed \"hold\" or \"quick_stop\""
-            )))
-        })?;
+        let action = CommandTimeoutAction::ALL
+            .into_iter()
+            .find(|a| a.name() == policy)
+            .ok_or_else(|| super::to_py_err(UnknownName::CommandTimeoutPolicy { name: policy.to_owned() }.into()))?;
         let timeout = duration("command timeout", timeout, "a finite number of seconds >= 0, 0 turning it off")?;
         self.cycle.set_command_timeout(position, Some(timeout), action).py()
     }

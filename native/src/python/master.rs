@@ -5,53 +5,35 @@
 //! on a lock it cannot see.
 
 use std::sync::{Mutex, MutexGuard, TryLockError};
-use std::time::Duration;
 
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict, PyList};
 
 use super::IntoPyResult;
 use crate::al::AlState;
-use crate::error::Error;
-use crate::link::{self, Link};
+use crate::error::{Error, SettingError, Unavailable, UnknownName};
+use crate::link::{self, Link, LinkSpec};
 use crate::master::{self, Mapping};
 use crate::pdo::PdoEntry;
 use crate::sim::control::SimControl;
+use crate::sim::in_process::InProcess;
 
-/// Opens the link named by `spec`: "sim", "sim:N", "udp://HOST:PORT" or an interface name;
-/// with the handle that controls its virtual AKDs for the in-process links.
+/// Opens the link named by `spec` (a [`LinkSpec`]), with the handle that controls its virtual
+/// AKDs for the in-process links.
 fn open_link(spec: &str) -> crate::error::Result<(Box<dyn Link>, Option<SimControl>)> {
-    let in_process = |count| {
-        let link = link::inproc::InProcess::new(count);
-        let control = link.control();
-        (Box::new(link) as Box<dyn Link>, Some(control))
-    };
-    if spec == "sim" {
-        return Ok(in_process(1));
-    }
-    if let Some(count) = spec.strip_prefix("sim:") {
-        let count: usize = count
-            .parse()
-            .ok()
-            .filter(|n| (1..=64).contains(n))
-            .ok_or_else(|| Error::Config(format!("link {spec:?}: the number of virtual AKDs must be 1..=64")))?;
-        return Ok(in_process(count));
-    }
-    if let Some(address) = spec.strip_prefix("udp://") {
-        return Ok((Box::new(link::udp::Udp::connect(address)?), None));
-    }
-    if spec.is_empty() || spec.contains(['/', ':']) {
-        return Err(Error::Config(format!(
-            "link {spec:?} is none of \"sim\", \"sim:N\", \"udp://HOST:PORT\" or a network interface name"
-        )));
-    }
-    Ok((Box::new(link::raw::RawLink::open(spec)?), None))
+    Ok(match spec.parse::<LinkSpec>()? {
+        LinkSpec::Sim { count } => {
+            let link = InProcess::new(count);
+            let control = link.control();
+            (Box::new(link), Some(control))
+        }
+        LinkSpec::Udp { address } => (Box::new(link::udp::Udp::connect(&address)?), None),
+        LinkSpec::Interface { name } => (Box::new(link::raw::RawLink::open(&name)?), None),
+    })
 }
 
 fn parse_state(name: &str) -> crate::error::Result<AlState> {
-    AlState::parse(name).ok_or_else(|| {
-        Error::Config(format!("unknown AL state {name:?} (allowed: init, preop, safeop, op, bootstrap)"))
-    })
+    AlState::parse(name).ok_or_else(|| UnknownName::AlState { name: name.to_owned() }.into())
 }
 
 /// A mapping given from Python: a fixed mapping's index, or a list of PDOs, each a list of
@@ -60,22 +42,9 @@ pub(super) fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     if let Ok(index) = value.extract::<u16>() {
         return Ok(Mapping::Fixed(index));
     }
-    let pdos: Vec<Vec<u32>> = value
-        .extract()
-        .map_err(|_| {
-            Error::Config(
-                "a mapping is a fixed mapping index (e.g. 0x1701) or a list of PDOs, each a list of entries 0xIIIISSBB"
-                    .into(),
-            )
-        })
-        .map_err(super::to_py_err)?;
+    let pdos: Vec<Vec<u32>> =
+        value.extract().map_err(|_| Error::from(SettingError::MappingForm)).map_err(super::to_py_err)?;
     Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
-}
-
-pub(super) fn seconds(value: f64, what: &str) -> PyResult<Duration> {
-    Duration::try_from_secs_f64(value).map_err(|_| {
-        super::to_py_err(Error::Config(format!("{what} must be a non-negative number of seconds, got {value}")))
-    })
 }
 
 /// An EtherCAT master on one link.
@@ -92,11 +61,7 @@ struct InUse<'a>(MutexGuard<'a, Option<master::Master>>);
 
 impl InUse<'_> {
     fn get(&mut self) -> PyResult<&mut master::Master> {
-        self.0.as_mut().ok_or_else(|| {
-            super::to_py_err(Error::Config(
-                "the master is closed, or handed to a Cycle (stop the Cycle to get it back)".into(),
-            ))
-        })
+        self.0.as_mut().ok_or_else(|| super::to_py_err(Unavailable::MasterClosed.into()))
     }
 }
 
@@ -106,9 +71,7 @@ impl PyMaster {
             Ok(guard) => Ok(InUse(guard)),
             // A call that panicked left the master as it was; the panic was already raised.
             Err(TryLockError::Poisoned(poisoned)) => Ok(InUse(poisoned.into_inner())),
-            Err(TryLockError::WouldBlock) => Err(super::to_py_err(Error::Config(
-                "the master is in use by another thread; use one master from one thread at a time".into(),
-            ))),
+            Err(TryLockError::WouldBlock) => Err(super::to_py_err(Unavailable::MasterBusy.into())),
         }
     }
 }
@@ -121,7 +84,7 @@ impl PyMaster {
     #[new]
     #[pyo3(signature = (link, *, pcap = None, timeout = 0.1))]
     fn new(py: Python<'_>, link: &str, pcap: Option<&str>, timeout: f64) -> PyResult<Self> {
-        let timeout = seconds(timeout, "timeout")?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let (master, simulator) = py
             .allow_threads(|| -> crate::error::Result<(master::Master, Option<SimControl>)> {
                 let (inner, simulator) = open_link(link)?;
@@ -140,13 +103,7 @@ impl PyMaster {
     /// raise ConfigError.
     #[getter]
     fn simulator(&self) -> PyResult<super::sim::PySimulator> {
-        let control = self.simulator.clone().ok_or_else(|| {
-            super::to_py_err(Error::Config(
-                "Master.simulator is there for the in-process links \"sim\" and \"sim:N\" only; \
-                 an akd-sim server takes its commands on stdin"
-                    .into(),
-            ))
-        })?;
+        let control = self.simulator.clone().ok_or_else(|| super::to_py_err(Unavailable::NoSimulator.into()))?;
         Ok(super::sim::PySimulator::new(control))
     }
 
@@ -159,13 +116,13 @@ impl PyMaster {
         py.allow_threads(|| m.scan()).py()?;
         let list = PyList::empty(py);
         for position in 0..m.slaves().len() as u16 {
-            let status = py.allow_threads(|| m.al_status(position)).py()?;
+            let status = py.allow_threads(|| m.slave_mut(position)?.al_status()).py()?;
             let slave = m.slave(position).py()?;
             let d = PyDict::new(py);
             d.set_item("position", slave.position)?;
             d.set_item("station_address", slave.station_address)?;
             d.set_item("alias", slave.alias)?;
-            super::sii::set_identity(&d, &slave.sii)?;
+            super::eeprom::set_identity(&d, &slave.sii)?;
             d.set_item("al_state", status.state_name())?;
             d.set_item("al_status_code", status.code)?;
             d.set_item("al_status_code_name", status.code_name())?;
@@ -195,17 +152,21 @@ impl PyMaster {
     #[pyo3(signature = (state, position = None, timeout = 5.0))]
     fn request_state(&self, py: Python<'_>, state: &str, position: Option<u16>, timeout: f64) -> PyResult<()> {
         let target = parse_state(state).py()?;
-        let timeout = seconds(timeout, "timeout")?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.request_state(target, position, timeout)).py()
+        py.allow_threads(|| match position {
+            Some(p) => m.slave_mut(p)?.request_state(target, timeout),
+            None => m.request_state(target, timeout),
+        })
+        .py()
     }
 
     /// (state, AL status code, its name) of the slave at `position`.
     fn al_status(&self, py: Python<'_>, position: u16) -> PyResult<(String, u16, String)> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let s = py.allow_threads(|| m.al_status(position)).py()?;
+        let s = py.allow_threads(|| m.slave_mut(position)?.al_status()).py()?;
         Ok((s.state_name().to_owned(), s.code, s.code_name().to_owned()))
     }
 
@@ -219,7 +180,7 @@ impl PyMaster {
     ) -> PyResult<Bound<'py, PyBytes>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let data = py.allow_threads(|| m.read_register_at(position, address, length)).py()?;
+        let data = py.allow_threads(|| m.slave_mut(position)?.read_register(address, length)).py()?;
         Ok(PyBytes::new(py, &data))
     }
 
@@ -227,14 +188,14 @@ impl PyMaster {
     fn write_register(&self, py: Python<'_>, position: u16, address: u16, data: Vec<u8>) -> PyResult<()> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.write_register_at(position, address, &data)).py()
+        py.allow_threads(|| m.slave_mut(position)?.write_register(address, &data)).py()
     }
 
     /// Reads an SDO.
     fn sdo_read<'py>(&self, py: Python<'py>, position: u16, index: u16, subindex: u8) -> PyResult<Bound<'py, PyBytes>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let data = py.allow_threads(|| m.sdo_read(position, index, subindex)).py()?;
+        let data = py.allow_threads(|| m.slave_mut(position)?.sdo_read(index, subindex)).py()?;
         Ok(PyBytes::new(py, &data))
     }
 
@@ -242,26 +203,26 @@ impl PyMaster {
     fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.sdo_write(position, index, subindex, &data)).py()
+        py.allow_threads(|| m.slave_mut(position)?.sdo_write(index, subindex, &data)).py()
     }
 
     /// Every object index of the slave's object dictionary (SDO information).
     fn sdo_object_list(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u16>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.sdo_object_list(position, crate::coe::od_list::ALL)).py()
+        py.allow_threads(|| m.slave_mut(position)?.sdo_object_list(crate::coe::OdListType::All)).py()
     }
 
     /// The description of object `index`.
     fn sdo_object_description<'py>(&self, py: Python<'py>, position: u16, index: u16) -> PyResult<Bound<'py, PyDict>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let o = py.allow_threads(|| m.sdo_object_description(position, index)).py()?;
+        let o = py.allow_threads(|| m.slave_mut(position)?.sdo_object_description(index)).py()?;
         let d = PyDict::new(py);
         d.set_item("index", o.index)?;
         d.set_item("data_type", o.data_type)?;
         d.set_item("max_subindex", o.max_subindex)?;
-        d.set_item("object_code", o.object_code)?;
+        d.set_item("object_code", u8::from(o.object_code))?;
         d.set_item("name", o.name)?;
         Ok(d)
     }
@@ -276,7 +237,7 @@ impl PyMaster {
     ) -> PyResult<Bound<'py, PyDict>> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        let e = py.allow_threads(|| m.sdo_entry_description(position, index, subindex)).py()?;
+        let e = py.allow_threads(|| m.slave_mut(position)?.sdo_entry_description(index, subindex)).py()?;
         let d = PyDict::new(py);
         d.set_item("subindex", e.subindex)?;
         d.set_item("data_type", e.data_type)?;
@@ -289,7 +250,7 @@ impl PyMaster {
     /// Takes the emergency messages received from the slave at `position`.
     fn emergencies<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyList>> {
         let list = PyList::empty(py);
-        for e in self.lock()?.get()?.take_emergencies(position).py()? {
+        for e in self.lock()?.get()?.slave_mut(position).py()?.take_emergencies().py()? {
             let d = PyDict::new(py);
             d.set_item("error_code", e.error_code)?;
             d.set_item("error_register", e.error_register)?;
@@ -312,7 +273,7 @@ impl PyMaster {
         let (rx, tx) = (parse_mapping(rx)?, parse_mapping(tx)?);
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.configure_pdo(position, rx, tx)).py()
+        py.allow_threads(|| m.slave_mut(position)?.configure_pdo(rx, tx)).py()
     }
 
     /// Sets the drive's cycle time (interpolation time period 0x60C2) without distributed
@@ -320,7 +281,7 @@ impl PyMaster {
     fn set_cycle_time(&self, py: Python<'_>, position: u16, cycle_time_ns: u32) -> PyResult<()> {
         let mut in_use = self.lock()?;
         let m = in_use.get()?;
-        py.allow_threads(|| m.set_cycle_time(position, cycle_time_ns)).py()
+        py.allow_threads(|| m.slave_mut(position)?.set_cycle_time(cycle_time_ns)).py()
     }
 
     /// Sets up distributed clocks and SYNC0 at `cycle_time_ns` (in PreOp).
@@ -345,17 +306,17 @@ impl PyMaster {
 
     /// The outputs of the slave at `position`.
     fn outputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
-        Ok(PyBytes::new(py, self.lock()?.get()?.outputs(position).py()?))
+        Ok(PyBytes::new(py, self.lock()?.get()?.slave_mut(position).py()?.outputs().py()?))
     }
 
     /// Sets the outputs of the slave at `position` for the next cycles.
     fn set_outputs(&self, position: u16, data: Vec<u8>) -> PyResult<()> {
-        self.lock()?.get()?.set_outputs(position, &data).py()
+        self.lock()?.get()?.slave_mut(position).py()?.set_outputs(&data).py()
     }
 
     /// The inputs of the slave at `position` from the last good cycle.
     fn inputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
-        Ok(PyBytes::new(py, self.lock()?.get()?.inputs(position).py()?))
+        Ok(PyBytes::new(py, self.lock()?.get()?.slave_mut(position).py()?.inputs().py()?))
     }
 
     /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats,

@@ -12,8 +12,8 @@ use crate::error::Error;
 
 mod cycle;
 mod drive;
+mod eeprom;
 mod master;
-mod sii;
 mod sim;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
@@ -67,7 +67,12 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             Error::Mailbox(_) => MailboxError::new_err(message),
             Error::Sii(_) => SiiError::new_err(message),
             Error::Pdo(_) => PdoError::new_err(message),
-            Error::Config(_) | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
+            Error::LinkSpec(_)
+            | Error::Setting(_)
+            | Error::UnknownName(_)
+            | Error::Unavailable(_)
+            | Error::AliasNotUnique { .. }
+            | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
         };
         let value = err.value(py);
         let set = |name: &str, v: PyResult<PyObject>| {
@@ -98,6 +103,12 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
         }
         err
     })
+}
+
+/// A duration given from Python in seconds; a negative or non-finite one is refused.
+pub(crate) fn seconds(value: f64, what: &'static str) -> PyResult<std::time::Duration> {
+    std::time::Duration::try_from_secs_f64(value)
+        .map_err(|_| to_py_err(crate::error::SettingError::Seconds { what, value }.into()))
 }
 
 /// Extension trait: `.py()?` converts a crate result into a Python one.
@@ -131,7 +142,7 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     }
     master::register(m)?;
     sim::register(m)?;
-    sii::register(m)?;
+    eeprom::register(m)?;
     cycle::register(m)?;
     drive::register(m)?;
     Ok(())

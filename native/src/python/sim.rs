@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::{server, Timing, VirtualBus};
@@ -151,7 +151,7 @@ impl PySimulator {
     /// gives it; waits up to `timeout` seconds for that frame.
     #[pyo3(signature = (position, timeout = QUERY_TIMEOUT.as_secs_f64()))]
     fn drive_state<'py>(&self, py: Python<'py>, position: usize, timeout: f64) -> PyResult<Bound<'py, PyDict>> {
-        let timeout = super::master::seconds(timeout, "timeout")?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let control = &self.control;
         let state = py.allow_threads(|| control.drive_state(position, timeout)).py()?;
         state_dict(py, &state)
@@ -195,7 +195,7 @@ fn run_until_signal(
     }
     match py.allow_threads(|| worker.join()) {
         Ok(result) => result.map(|_| ()).py(),
-        Err(_) => Err(Error::Config("the simulator thread panicked".into())).py(),
+        Err(_) => Err(Unavailable::SimulatorPanicked.into()).py(),
     }
 }
 
@@ -208,7 +208,7 @@ fn serve_udp(py: Python<'_>, host: &str, port: u16, count: usize, on_start: Opti
         .to_socket_addrs()
         .ok()
         .and_then(|mut a| a.next())
-        .ok_or_else(|| Error::Config(format!("cannot resolve {host:?} as a host to bind")))
+        .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
     let bus = controlled_bus(count, on_start)?;
     run_until_signal(py, move |stop| server::serve_udp(address, bus, stop))

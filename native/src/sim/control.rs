@@ -24,10 +24,10 @@ use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender};
 use std::time::Duration;
 
 use crate::ds402::State;
-use crate::error::{Error, FrameError, Result};
+use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
+use crate::sim::digital_inputs::Inputs;
 use crate::sim::drive::Drive;
 use crate::sim::faults::Fault;
-use crate::sim::latch::Inputs;
 use crate::sim::VirtualBus;
 
 /// How long a [`SimControl::drive_state`] query waits for the owner by default.
@@ -67,10 +67,9 @@ pub fn check_position(count: usize, position: usize) -> Result<()> {
     if position < count {
         return Ok(());
     }
-    let count = u16::try_from(count).unwrap_or(u16::MAX);
-    Err(match u16::try_from(position) {
-        Ok(position) => Error::NoSuchSlave { position, count },
-        Err(_) => Error::Config(format!("no slave at position {position}: the bus has {count} slave(s)")),
+    Err(match (u16::try_from(position), u16::try_from(count)) {
+        (Ok(position), Ok(count)) => Error::NoSuchSlave { position, count },
+        _ => SettingError::DrivePosition { position, count }.into(),
     })
 }
 
@@ -107,7 +106,7 @@ impl Change {
     /// drive `position` of a bus of `count` drives.
     pub fn inject_fault(count: usize, position: usize, name: &str) -> Result<Self> {
         check_position(count, position)?;
-        Ok(Change::InjectFault { position, fault: Fault::from_name(name).map_err(Error::Config)? })
+        Ok(Change::InjectFault { position, fault: Fault::from_name(name)? })
     }
 
     /// Hardware enable `high` or low for drive `position` of a bus of `count` drives.
@@ -122,7 +121,7 @@ impl Change {
         check_position(count, position)?;
         // The drive's own inputs decide what they take; a scratch set asks them now, so the
         // owner never gets a change it would refuse.
-        Inputs::default().set_toggles(input, &positions).map_err(Error::Config)?;
+        Inputs::default().set_toggles(input, &positions)?;
         Ok(Change::InputToggles { position, input, positions })
     }
 
@@ -192,17 +191,13 @@ impl SimControl {
         self.send(Message::DriveState { position, reply })?;
         answer.recv_timeout(timeout).map_err(|e| match e {
             RecvTimeoutError::Disconnected => gone(),
-            RecvTimeoutError::Timeout => Error::Config(format!(
-                "the state of virtual AKD {position} was not answered within {timeout:?}: the drives \
-                 answer when their bus serves a frame and none passed (an idle in-process master \
-                 exchanges no frames: start a Cycle, or query while a master call runs)"
-            )),
+            RecvTimeoutError::Timeout => Unavailable::SimulatorSilent { position, timeout }.into(),
         })
     }
 }
 
 fn gone() -> Error {
-    Error::Config("the virtual AKDs are gone: their master was closed or their server stopped".into())
+    Unavailable::SimulatorGone.into()
 }
 
 /// A [`VirtualBus`] that takes commands from [`SimControl`] handles while it serves frames.

@@ -31,8 +31,8 @@
 use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
 use crate::pdo::PdoEntry;
+use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
-use crate::sim::latch::{Inputs, Latch, TouchProbe};
 use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
 use crate::sim::od::ObjectDictionary;
 
@@ -41,13 +41,6 @@ pub const MISSED_FRAMES_TOLERATED: u64 = 7;
 /// How long an enabled drive waits for cyclic set-points before F706 when the master set no
 /// process-data watchdog (the AKD's default, FAULT706.ACTION).
 pub const SETPOINT_TIMEOUT_NS: u64 = 100_000_000;
-/// Power-up following error window 0x6065: five revolutions.
-pub const FOLLOWING_ERROR_WINDOW: u32 = 5 << 20;
-/// Power-up profile velocity 0x6081: 10 rev/s.
-pub const PROFILE_VELOCITY: u32 = 10 << 20;
-/// Power-up profile acceleration, deceleration and quick stop deceleration (0x6083, 0x6084,
-/// 0x6085): 100 rev/s².
-pub const PROFILE_ACCELERATION: u32 = 100 << 20;
 /// Position window of "target reached", counts.
 const POSITION_WINDOW: f64 = 100.0;
 /// Velocity window of "target reached" and of "speed is zero", counts/s (0.01 rev/s).

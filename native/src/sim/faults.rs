@@ -9,6 +9,7 @@
 
 use crate::akd_fault::{self, AkdFault};
 use crate::coe::Emergency;
+use crate::error::UnknownName;
 
 /// A drive fault.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -91,10 +92,12 @@ impl Fault {
     }
 
     /// The fault named `name` (its [`name`](Fault::name) or "F" and its number, e.g. "F125").
-    pub fn from_name(name: &str) -> Result<Fault, String> {
+    pub fn from_name(name: &str) -> Result<Fault, UnknownName> {
         Self::ALL.into_iter().find(|f| f.name() == name || format!("F{}", f.number()) == name).ok_or_else(|| {
-            let names: Vec<String> = Self::ALL.iter().map(|f| format!("{} (F{})", f.name(), f.number())).collect();
-            format!("no fault named {name:?}: the virtual AKD raises {}", names.join(", "))
+            UnknownName::Fault {
+                name: name.to_owned(),
+                allowed: Self::ALL.iter().map(|f| format!("{} (F{})", f.name(), f.number())).collect(),
+            }
         })
     }
 }
@@ -109,7 +112,7 @@ mod tests {
             assert_eq!(Fault::from_name(fault.name()), Ok(fault));
             assert_eq!(Fault::from_name(&format!("F{}", fault.number())), Ok(fault));
         }
-        let e = Fault::from_name("F999").unwrap_err();
+        let e = Fault::from_name("F999").unwrap_err().to_string();
         assert!(e.contains("F999") && e.contains("sync_lost (F125)"), "{e}");
     }
 

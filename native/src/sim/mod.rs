@@ -2,35 +2,37 @@
 //! drive (its SII, register values, AL status codes, object dictionary and mailbox timing).
 //!
 //! Each [`VirtualAkd`] is an ESC ([`esc`]) plus the drive's firmware on the PDI side: the AL
-//! state machine ([`al`]), the mailbox server ([`coe`]) over the object dictionary ([`od`]), the
-//! process image ([`pdo`]), the process-data watchdog ([`watchdog`]), and the drive firmware
+//! state machine ([`al_machine`]), the mailbox server ([`mailbox_server`]) over the object dictionary ([`od`]), the
+//! process image ([`process_data`]), the process-data watchdog ([`watchdog`]), and the drive firmware
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
-//! load ([`motion`]) and simulated digital inputs and latch ([`latch`]). A [`VirtualBus`] is a
+//! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]). A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
-//! that a run is deterministic. [`server`] serves a bus on UDP or on a network interface.
+//! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
+//! the link trait; [`server`] serves one on UDP or on a network interface.
 //! [`control`] lets tests and the simulator command inject faults, set inputs and query a
 //! drive while another thread owns the bus and serves its frames.
 //! [`VirtualBus::with_mailbox_size`] builds drives whose SII declares a smaller mailbox than
 //! the real drive's 1 KiB, so that segmented SDO transfers and fragmented SDO information,
 //! which the real drive's objects never need, can be exercised.
 
-pub mod al;
-pub mod coe;
+pub mod al_machine;
 pub mod control;
+pub mod digital_inputs;
 pub mod drive;
 pub mod esc;
 pub mod faults;
-pub mod latch;
+pub mod in_process;
+pub mod mailbox_server;
 pub mod motion;
 pub mod od;
-pub mod pdo;
+pub mod process_data;
 pub mod server;
 pub mod sii_image;
 pub mod sync_manager;
 pub mod watchdog;
 
-use crate::al::{code, AlState};
-use crate::error::{Error, FrameError, Result};
+use crate::al::{AlState, AlStatusCode};
+use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
 use crate::mailbox::HEADER_LEN;
 use crate::registers as reg;
@@ -87,9 +89,9 @@ fn sii_with_mailbox_size(size: u16) -> Result<Vec<u8>> {
 /// One virtual AKD.
 pub struct VirtualAkd {
     esc: Esc,
-    al: al::AlMachine,
+    al: al_machine::AlMachine,
     od: od::ObjectDictionary,
-    mailbox: coe::MailboxServer,
+    mailbox: mailbox_server::MailboxServer,
     watchdog: watchdog::Watchdog,
     timing: Timing,
     mailbox_size: u16,
@@ -99,8 +101,8 @@ pub struct VirtualAkd {
     /// Bus time of the last complete write of the outputs.
     outputs_at_ns: u64,
     drive: drive::Drive,
-    rx_image: pdo::Image,
-    tx_image: pdo::Image,
+    rx_image: process_data::Image,
+    tx_image: process_data::Image,
 }
 
 impl VirtualAkd {
@@ -116,9 +118,9 @@ impl VirtualAkd {
     /// ([`AKD_MAILBOX_SIZE`]).
     pub fn with_mailbox_size(mailbox_size: u16, has_successor: bool, timing: Timing) -> Result<Self> {
         if !(MIN_MAILBOX_SIZE..=AKD_MAILBOX_SIZE).contains(&mailbox_size) {
-            return Err(Error::Config(format!(
-                "a virtual AKD's mailbox of {mailbox_size} bytes: allowed are {MIN_MAILBOX_SIZE} to {AKD_MAILBOX_SIZE}"
-            )));
+            return Err(
+                SettingError::MailboxSize { size: mailbox_size, min: MIN_MAILBOX_SIZE, max: AKD_MAILBOX_SIZE }.into()
+            );
         }
         let sii = sii_with_mailbox_size(mailbox_size)?;
         Ok(Self::with_sii(sii, mailbox_size, has_successor, timing))
@@ -131,9 +133,9 @@ impl VirtualAkd {
         }
         VirtualAkd {
             esc,
-            al: al::AlMachine::power_up(),
+            al: al_machine::AlMachine::power_up(),
             od: od::ObjectDictionary::akd(),
-            mailbox: coe::MailboxServer::default(),
+            mailbox: mailbox_server::MailboxServer::default(),
             watchdog: watchdog::Watchdog::default(),
             timing,
             mailbox_size,
@@ -233,13 +235,13 @@ impl VirtualAkd {
         }
         self.write_mailbox();
         if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
-            self.al.fail(AlState::SafeOp, code::SM_WATCHDOG);
+            self.al.fail(AlState::SafeOp, AlStatusCode::SM_WATCHDOG);
             self.watchdog.stop();
             self.write_al_status();
         }
         let fresh = self.al.state() == AlState::Op && self.outputs_fresh;
         if fresh {
-            pdo::apply_outputs(&mut self.od, self.esc.memory(), &self.rx_image);
+            process_data::apply_outputs(&mut self.od, self.esc.memory(), &self.rx_image);
         }
         self.outputs_fresh = false;
         let bus = drive::Bus {
@@ -251,7 +253,7 @@ impl VirtualAkd {
             self.emergency(&emergency);
         }
         if self.al.state() >= AlState::SafeOp && self.al.state() != AlState::Bootstrap {
-            pdo::refresh_inputs(&self.od, self.esc.memory_mut(), &self.tx_image);
+            process_data::refresh_inputs(&self.od, self.esc.memory_mut(), &self.tx_image);
         }
     }
 
@@ -259,7 +261,7 @@ impl VirtualAkd {
         let (od, memory, mailbox_size) = (&self.od, self.esc.memory(), self.mailbox_size);
         let transition = self.al.request(control, |from, to| match (from, to) {
             (AlState::Init, AlState::PreOp) => sync_manager::check_mailbox(memory, mailbox_size),
-            (AlState::PreOp, AlState::SafeOp) => pdo::check_safeop(od, memory),
+            (AlState::PreOp, AlState::SafeOp) => process_data::check_safeop(od, memory),
             _ => Ok(()),
         });
         if let Some(t) = transition {
@@ -280,7 +282,7 @@ impl VirtualAkd {
                 }
             }
             if t.from == AlState::PreOp && t.to == AlState::SafeOp {
-                (self.rx_image, self.tx_image) = pdo::images(&self.od);
+                (self.rx_image, self.tx_image) = process_data::images(&self.od);
             }
             // The watchdog runs only for a master whose SM2 asks for it (control bit 6); the
             // AKD's SII gives 0x24, without it.

@@ -3,18 +3,26 @@
 //!
 //! Values are stored as little-endian bytes, as SDO and process data carry them. The DS402,
 //! motion and latch objects are stored values here that the drive firmware
-//! ([`crate::sim::drive`]) reads and updates. Checks that involve more than
+//! (the drive module beside it) reads and updates. Checks that involve more than
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
-use crate::coe::{abort, access, data_type, object_code};
+use crate::coe::{access, data_type, ObjectCode, SdoAbortCode};
 use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
 use crate::sim::sii_image;
 
+/// Power-up following error window 0x6065: five revolutions.
+pub const FOLLOWING_ERROR_WINDOW: u32 = 5 << 20;
+/// Power-up profile velocity 0x6081: 10 rev/s.
+pub const PROFILE_VELOCITY: u32 = 10 << 20;
+/// Power-up profile acceleration, deceleration and quick stop deceleration (0x6083, 0x6084,
+/// 0x6085): 100 rev/s².
+pub const PROFILE_ACCELERATION: u32 = 100 << 20;
+
 /// Checks a value about to be written to one entry; returns the SDO abort code on refusal.
-pub type ValueCheck = fn(&[u8]) -> Result<(), u32>;
+pub type ValueCheck = fn(&[u8]) -> Result<(), SdoAbortCode>;
 /// Checks a whole object after a write; returns the SDO abort code on refusal.
-pub type ObjectCheck = fn(&ObjectDictionary, &Object, u8) -> Result<(), u32>;
+pub type ObjectCheck = fn(&ObjectDictionary, &Object, u8) -> Result<(), SdoAbortCode>;
 
 /// One subindex of an object.
 #[derive(Clone, Debug)]
@@ -42,8 +50,8 @@ pub struct Object {
     pub index: u16,
     /// Name.
     pub name: &'static str,
-    /// Object code, see [`object_code`].
-    pub object_code: u8,
+    /// Object code.
+    pub object_code: ObjectCode,
     /// Data type of the object (of its entries for a VAR or ARRAY).
     pub data_type: u16,
     /// Entries, by subindex order.
@@ -99,7 +107,7 @@ fn string_var(index: u16, name: &'static str, value: &str) -> Object {
     Object {
         index,
         name,
-        object_code: object_code::VAR,
+        object_code: ObjectCode::Var,
         data_type: data_type::VISIBLE_STRING,
         entries: vec![e],
         check: None,
@@ -119,7 +127,7 @@ fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Objec
     Object {
         index,
         name,
-        object_code: object_code::VAR,
+        object_code: ObjectCode::Var,
         data_type: t,
         entries: vec![entry(0, name, t, bits_of(t), access, value)],
         check: None,
@@ -127,7 +135,7 @@ fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Objec
 }
 
 /// A record or array: subindex 0 holds the count of `entries`.
-fn record(index: u16, name: &'static str, code: u8, t: u16, sub0_access: u16, entries: Vec<Entry>) -> Object {
+fn record(index: u16, name: &'static str, code: ObjectCode, t: u16, sub0_access: u16, entries: Vec<Entry>) -> Object {
     let count = entries.len() as u64;
     let mut all = vec![entry(0, "SubIndex 000", data_type::UNSIGNED8, 8, sub0_access, count)];
     all.extend(entries);
@@ -141,7 +149,7 @@ fn mapping_object(index: u16, name: &'static str, access: u16, entries: &[PdoEnt
             entry(i as u8, SUBINDEX_NAMES[i], data_type::UNSIGNED32, 32, access, value)
         })
         .collect();
-    let mut o = record(index, name, object_code::RECORD, data_type::PDO_MAPPING, access, subs);
+    let mut o = record(index, name, ObjectCode::Record, data_type::PDO_MAPPING, access, subs);
     o.entries[0].value[0] = entries.len() as u8;
     o
 }
@@ -167,18 +175,18 @@ const TX_NAMES: [&str; 4] =
 /// Largest number of entries of a flexible PDO (eight one-byte objects fill eight bytes).
 pub const FLEXIBLE_CAPACITY: usize = 8;
 
-fn modes_of_operation(value: &[u8]) -> Result<(), u32> {
+fn modes_of_operation(value: &[u8]) -> Result<(), SdoAbortCode> {
     match value.first().map(|v| *v as i8) {
         Some(1 | 3 | 4 | 6 | 7 | 8) => Ok(()),
-        _ => Err(abort::VALUE_RANGE),
+        _ => Err(SdoAbortCode::VALUE_RANGE),
     }
 }
 
-fn nonzero(value: &[u8]) -> Result<(), u32> {
+fn nonzero(value: &[u8]) -> Result<(), SdoAbortCode> {
     if value.iter().any(|b| *b != 0) {
         Ok(())
     } else {
-        Err(abort::VALUE_RANGE)
+        Err(SdoAbortCode::VALUE_RANGE)
     }
 }
 
@@ -193,14 +201,14 @@ pub fn cycle_ns(units: u8, index: i8) -> Option<u64> {
 
 /// 0x60C2 is checked when its index (sub 2) is written: the master writes units first, and
 /// the pair must then give at least 250 µs.
-fn interpolation_period(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), u32> {
+fn interpolation_period(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), SdoAbortCode> {
     if written != 2 {
         return Ok(());
     }
     match cycle_ns(object.unsigned(1) as u8, object.unsigned(2) as u8 as i8) {
         Some(ns) if ns >= MIN_CYCLE_NS => Ok(()),
-        Some(_) => Err(abort::VALUE_TOO_LOW),
-        None => Err(abort::VALUE_RANGE),
+        Some(_) => Err(SdoAbortCode::VALUE_TOO_LOW),
+        None => Err(SdoAbortCode::VALUE_RANGE),
     }
 }
 
@@ -211,21 +219,22 @@ pub fn mapped_entries(object: &Object) -> impl Iterator<Item = PdoEntry> + '_ {
 
 /// A flexible PDO is checked when its count (sub 0) is written; entries may be written only
 /// while the count is 0 (AKD manual §5.6: "sub 0 = 0 first, the count last").
-fn flexible_pdo(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), u32> {
+fn flexible_pdo(_: &ObjectDictionary, object: &Object, written: u8) -> Result<(), SdoAbortCode> {
     let direction = if object.index < 0x1A00 { Direction::Rx } else { Direction::Tx };
     if written != 0 {
         return Ok(());
     }
     let entries: Vec<PdoEntry> = mapped_entries(object).collect();
     if entries.len() > FLEXIBLE_CAPACITY {
-        return Err(abort::VALUE_RANGE);
+        return Err(SdoAbortCode::VALUE_RANGE);
     }
-    pdo::check_flexible_pdo(direction, object.index, &entries).map_err(|r| r.abort_code)
+    pdo::check_flexible_pdo(direction, object.index, &entries)
+        .map_err(|r| r.abort_code().unwrap_or(SdoAbortCode::GENERAL))
 }
 
 /// An assignment (0x1C12/0x1C13) is checked when its count is written: either one fixed
 /// mapping, or up to four flexible PDOs within the drive's total size.
-fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(), u32> {
+fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(), SdoAbortCode> {
     let direction = if object.index == 0x1C12 { Direction::Rx } else { Direction::Tx };
     let count = object.unsigned(0) as usize;
     let assigned: Vec<u16> = (1..=count as u8).map(|s| object.unsigned(s) as u16).collect();
@@ -236,24 +245,24 @@ fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(),
         return if fixed || (base..base + FLEXIBLE_PDO_COUNT as u16).contains(&chosen) {
             Ok(())
         } else {
-            Err(abort::VALUE_RANGE)
+            Err(SdoAbortCode::VALUE_RANGE)
         };
     }
     if count > FLEXIBLE_PDO_COUNT {
-        return Err(abort::VALUE_RANGE);
+        return Err(SdoAbortCode::VALUE_RANGE);
     }
     if assigned.iter().any(|i| pdo::fixed(*i).is_some()) {
-        return if count == 1 { Ok(()) } else { Err(abort::VALUE_RANGE) };
+        return if count == 1 { Ok(()) } else { Err(SdoAbortCode::VALUE_RANGE) };
     }
     let mut total = 0;
     for index in &assigned {
-        let o = od.object(*index).ok_or(abort::VALUE_RANGE)?;
+        let o = od.object(*index).ok_or(SdoAbortCode::VALUE_RANGE)?;
         total += pdo::bit_len(&mapped_entries(o).collect::<Vec<_>>());
     }
     // Odd lengths are accepted here (the real drive powers up with one) and refused at the
     // PreOp→SafeOp transition with AL status code 0x001D/0x001E.
     if total > direction.max_bytes() * 8 {
-        return Err(abort::PDO_TOO_LONG);
+        return Err(SdoAbortCode::PDO_TOO_LONG);
     }
     Ok(())
 }
@@ -286,7 +295,7 @@ impl ObjectDictionary {
             record(
                 0x1018,
                 "Identity object",
-                object_code::RECORD,
+                ObjectCode::Record,
                 IDENTITY,
                 RO,
                 vec![
@@ -317,7 +326,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x1C00,
             "Sync manager communication type",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED8,
             RO,
             (1..=4).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED8, 8, RO, i as u64)).collect(),
@@ -325,7 +334,7 @@ impl ObjectDictionary {
         for (index, name, base) in [(0x1C12, "RxPDO assign", 0x1600u64), (0x1C13, "TxPDO assign", 0x1A00)] {
             let subs =
                 (1..=4u8).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED16, 16, RW_PREOP, base + i as u64 - 1));
-            let mut o = record(index, name, object_code::ARRAY, UNSIGNED16, RW_PREOP, subs.collect());
+            let mut o = record(index, name, ObjectCode::Array, UNSIGNED16, RW_PREOP, subs.collect());
             o.check = Some(assignment);
             objects.push(o);
         }
@@ -333,7 +342,7 @@ impl ObjectDictionary {
             objects.push(record(
                 index,
                 name,
-                object_code::RECORD,
+                ObjectCode::Record,
                 SM_SYNCHRONIZATION,
                 RO,
                 vec![
@@ -349,7 +358,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x2002,
             "Manufacturer status padding",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED8,
             RO,
             (1..=4).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED8, 8, RO, 0)).collect(),
@@ -405,7 +414,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x3427,
             "Feedback position",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED32,
             RO,
             (1..=3).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED32, 32, RO, 0)).collect(),
@@ -413,7 +422,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x3470,
             "Analog I/O",
-            object_code::RECORD,
+            ObjectCode::Record,
             INTEGER16,
             RO,
             vec![
@@ -426,7 +435,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x60C1,
             "Interpolation data record",
-            object_code::ARRAY,
+            ObjectCode::Array,
             INTEGER32,
             RO,
             vec![entry(1, "1st set-point", INTEGER32, 32, RW, 0)],
@@ -434,7 +443,7 @@ impl ObjectDictionary {
         let mut period = record(
             0x60C2,
             "Interpolation time period",
-            object_code::RECORD,
+            ObjectCode::Record,
             UNSIGNED8,
             RO,
             vec![
@@ -448,7 +457,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x60E4,
             "Additional position actual value",
-            object_code::ARRAY,
+            ObjectCode::Array,
             INTEGER32,
             RO,
             vec![entry(1, "1st additional position actual value", INTEGER32, 32, RO, 0)],
@@ -456,7 +465,7 @@ impl ObjectDictionary {
         objects.push(record(
             0x60FE,
             "Digital outputs",
-            object_code::ARRAY,
+            ObjectCode::Array,
             UNSIGNED32,
             RO,
             vec![entry(1, "Physical outputs", UNSIGNED32, 32, RW, 0), entry(2, "Bit mask", UNSIGNED32, 32, RW, 0)],
@@ -465,11 +474,11 @@ impl ObjectDictionary {
         od.objects.sort_by_key(|o| o.index);
         od.set(0x6041, 0, &0x0240u16.to_le_bytes());
         od.set(0x6502, 0, &0x0000_00EDu32.to_le_bytes());
-        // The virtual drive's power-up motion parameters (crate::sim::drive).
-        od.set(0x6065, 0, &crate::sim::drive::FOLLOWING_ERROR_WINDOW.to_le_bytes());
-        od.set(0x6081, 0, &crate::sim::drive::PROFILE_VELOCITY.to_le_bytes());
+        // The virtual drive's power-up motion parameters, which the drive model reads back.
+        od.set(0x6065, 0, &FOLLOWING_ERROR_WINDOW.to_le_bytes());
+        od.set(0x6081, 0, &PROFILE_VELOCITY.to_le_bytes());
         for index in [0x6083, 0x6084, 0x6085] {
-            od.set(index, 0, &crate::sim::drive::PROFILE_ACCELERATION.to_le_bytes());
+            od.set(index, 0, &PROFILE_ACCELERATION.to_le_bytes());
         }
         let modes = od.objects.iter_mut().find(|o| o.index == 0x6060).expect("listed above");
         modes.entries[0].check = Some(modes_of_operation);
@@ -526,30 +535,30 @@ impl ObjectDictionary {
     }
 
     /// An SDO read in AL state `state` (as access bits READ_PREOP/SAFEOP/OP).
-    pub fn read(&self, index: u16, subindex: u8) -> Result<&[u8], u32> {
-        let object = self.object(index).ok_or(abort::NO_SUCH_OBJECT)?;
-        let entry = object.entry(subindex).ok_or(abort::NO_SUCH_SUBINDEX)?;
+    pub fn read(&self, index: u16, subindex: u8) -> Result<&[u8], SdoAbortCode> {
+        let object = self.object(index).ok_or(SdoAbortCode::NO_SUCH_OBJECT)?;
+        let entry = object.entry(subindex).ok_or(SdoAbortCode::NO_SUCH_SUBINDEX)?;
         if entry.access & access::READ == 0 {
-            return Err(abort::WRITE_ONLY);
+            return Err(SdoAbortCode::WRITE_ONLY);
         }
         Ok(&entry.value)
     }
 
     /// An SDO write while the drive is in the state whose write-access bit is `state_write`
     /// (e.g. [`access::WRITE_PREOP`]): checks access, length and range, then the object.
-    pub fn write(&mut self, index: u16, subindex: u8, value: &[u8], state_write: u16) -> Result<(), u32> {
-        let object = self.object(index).ok_or(abort::NO_SUCH_OBJECT)?;
-        let entry = object.entry(subindex).ok_or(abort::NO_SUCH_SUBINDEX)?;
+    pub fn write(&mut self, index: u16, subindex: u8, value: &[u8], state_write: u16) -> Result<(), SdoAbortCode> {
+        let object = self.object(index).ok_or(SdoAbortCode::NO_SUCH_OBJECT)?;
+        let entry = object.entry(subindex).ok_or(SdoAbortCode::NO_SUCH_SUBINDEX)?;
         if entry.access & access::WRITE == 0 {
-            return Err(abort::READ_ONLY);
+            return Err(SdoAbortCode::READ_ONLY);
         }
         if entry.access & state_write == 0 {
-            return Err(abort::DEVICE_STATE);
+            return Err(SdoAbortCode::DEVICE_STATE);
         }
         if value.len() != entry.value.len() {
             return Err(match value.len().cmp(&entry.value.len()) {
-                std::cmp::Ordering::Greater => abort::LENGTH_TOO_HIGH,
-                _ => abort::LENGTH_TOO_LOW,
+                std::cmp::Ordering::Greater => SdoAbortCode::LENGTH_TOO_HIGH,
+                _ => SdoAbortCode::LENGTH_TOO_LOW,
             });
         }
         if let Some(check) = entry.check {
@@ -557,7 +566,7 @@ impl ObjectDictionary {
         }
         let flexible = matches!(index, 0x1600..=0x1603 | 0x1A00..=0x1A03);
         if subindex != 0 && flexible && object.unsigned(0) != 0 {
-            return Err(abort::SUBINDEX_WRITE_NEEDS_ZERO);
+            return Err(SdoAbortCode::SUBINDEX_WRITE_NEEDS_ZERO);
         }
         let old = entry.value.clone();
         self.set(index, subindex, value);
@@ -615,23 +624,26 @@ mod tests {
     fn writes_are_checked() {
         let mut od = ObjectDictionary::akd();
         let preop = access::WRITE_PREOP;
-        assert_eq!(od.write(0x1234, 0, &[0], preop), Err(abort::NO_SUCH_OBJECT));
-        assert_eq!(od.write(0x6040, 1, &[0, 0], preop), Err(abort::NO_SUCH_SUBINDEX));
-        assert_eq!(od.write(0x6041, 0, &[0, 0], preop), Err(abort::READ_ONLY));
-        assert_eq!(od.write(0x6040, 0, &[0], preop), Err(abort::LENGTH_TOO_LOW));
-        assert_eq!(od.write(0x6060, 0, &[2], preop), Err(abort::VALUE_RANGE));
-        assert_eq!(od.write(0x1C12, 0, &[0], access::WRITE_SAFEOP), Err(abort::DEVICE_STATE));
+        assert_eq!(od.write(0x1234, 0, &[0], preop), Err(SdoAbortCode::NO_SUCH_OBJECT));
+        assert_eq!(od.write(0x6040, 1, &[0, 0], preop), Err(SdoAbortCode::NO_SUCH_SUBINDEX));
+        assert_eq!(od.write(0x6041, 0, &[0, 0], preop), Err(SdoAbortCode::READ_ONLY));
+        assert_eq!(od.write(0x6040, 0, &[0], preop), Err(SdoAbortCode::LENGTH_TOO_LOW));
+        assert_eq!(od.write(0x6060, 0, &[2], preop), Err(SdoAbortCode::VALUE_RANGE));
+        assert_eq!(od.write(0x1C12, 0, &[0], access::WRITE_SAFEOP), Err(SdoAbortCode::DEVICE_STATE));
         // Entries of a flexible PDO only while its count is 0, then the count is checked.
-        assert_eq!(od.write(0x1600, 2, &0x6060_0008u32.to_le_bytes(), preop), Err(abort::SUBINDEX_WRITE_NEEDS_ZERO));
+        assert_eq!(
+            od.write(0x1600, 2, &0x6060_0008u32.to_le_bytes(), preop),
+            Err(SdoAbortCode::SUBINDEX_WRITE_NEEDS_ZERO)
+        );
         od.write(0x1600, 0, &[0], preop).unwrap();
         od.write(0x1600, 1, &0x6041_0010u32.to_le_bytes(), preop).unwrap();
-        assert_eq!(od.write(0x1600, 0, &[1], preop), Err(abort::NOT_MAPPABLE));
+        assert_eq!(od.write(0x1600, 0, &[1], preop), Err(SdoAbortCode::NOT_MAPPABLE));
         assert_eq!(od.read(0x1600, 0).unwrap(), &[0], "a refused count is undone");
         od.write(0x1600, 1, &0x6040_0010u32.to_le_bytes(), preop).unwrap();
         od.write(0x1600, 0, &[1], preop).unwrap();
         // Fixed mappings: one per direction.
         od.write(0x1C12, 0, &[0], preop).unwrap();
-        assert_eq!(od.write(0x1C12, 1, &0x1B01u16.to_le_bytes(), preop), Err(abort::VALUE_RANGE));
+        assert_eq!(od.write(0x1C12, 1, &0x1B01u16.to_le_bytes(), preop), Err(SdoAbortCode::VALUE_RANGE));
         od.write(0x1C12, 1, &0x1701u16.to_le_bytes(), preop).unwrap();
         od.write(0x1C12, 0, &[1], preop).unwrap();
         assert_eq!(od.assigned_pdos(Direction::Rx)[0].0, 0x1701);
@@ -640,6 +652,6 @@ mod tests {
         od.write(0x60C2, 2, &[(-5i8) as u8], preop).unwrap();
         assert_eq!(od.cycle_time_ns(), Some(250_000));
         od.write(0x60C2, 1, &[1], preop).unwrap();
-        assert_eq!(od.write(0x60C2, 2, &[(-5i8) as u8], preop), Err(abort::VALUE_TOO_LOW));
+        assert_eq!(od.write(0x60C2, 2, &[(-5i8) as u8], preop), Err(SdoAbortCode::VALUE_TOO_LOW));
     }
 }

@@ -7,7 +7,7 @@
 //! and data types, default sync-manager assignment, and the flexible PDOs' content at the time
 //! the image was read.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SiiError};
 use crate::mailbox::MailboxType;
 use crate::objects::{self, MappableObject};
 use crate::pdo::{self, Direction, PdoEntry};
@@ -71,13 +71,8 @@ fn header() -> Header {
 }
 
 fn sii_entry(b: &mut Builder, entry: PdoEntry) -> Result<SiiPdoEntry> {
-    let &MappableObject { name, data_type, .. } =
-        objects::mappable_object(entry.index, entry.subindex).ok_or_else(|| {
-            Error::Sii(format!(
-                "no name for PDO object 0x{:04X}:{:02X} in the AKD's image",
-                entry.index, entry.subindex
-            ))
-        })?;
+    let &MappableObject { name, data_type, .. } = objects::mappable_object(entry.index, entry.subindex)
+        .ok_or_else(|| Error::from(SiiError::NoPdoName { index: entry.index, subindex: entry.subindex }))?;
     Ok(SiiPdoEntry {
         index: entry.index,
         subindex: entry.subindex,

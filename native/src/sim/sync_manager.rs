@@ -129,7 +129,7 @@ pub fn set_pdi_deactivated(memory: &mut [u8], n: u8, deactivated: bool) {
 /// The drive's checks of Init→PreOp: the mailbox sync managers where the SII puts them, in
 /// mailbox mode, with a buffer of [`MIN_MAILBOX_SIZE`] up to the `mailbox_size` the SII
 /// declares.
-pub fn check_mailbox(memory: &[u8], mailbox_size: u16) -> Result<(), u16> {
+pub fn check_mailbox(memory: &[u8], mailbox_size: u16) -> Result<(), crate::al::AlStatusCode> {
     for (n, start, master_writes) in [(0u8, 0x1800u16, true), (1, 0x1C00, false)] {
         let sm = SyncManager::read(memory, n);
         let enabled = sm.activate & ACTIVATE_ENABLE != 0;
@@ -139,7 +139,7 @@ pub fn check_mailbox(memory: &[u8], mailbox_size: u16) -> Result<(), u16> {
             || !sm.is_mailbox()
             || sm.master_writes() != master_writes
         {
-            return Err(crate::al::code::INVALID_SM_CONFIG);
+            return Err(crate::al::AlStatusCode::INVALID_SM_CONFIG);
         }
     }
     Ok(())

@@ -15,10 +15,10 @@ pub const STEP: Duration = Duration::from_secs(5);
 pub fn csp_master(link: Box<dyn Link>) -> Master {
     let mut m = Master::new(link, Duration::from_millis(100));
     m.scan().unwrap();
-    m.request_state(AlState::PreOp, None, STEP).unwrap();
-    m.configure_pdo(0, Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
-    m.sdo_write(0, 0x6060, 0, &[8]).unwrap();
-    m.request_state(AlState::Op, None, STEP).unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    m.slave_mut(0).unwrap().configure_pdo(Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
+    m.slave_mut(0).unwrap().sdo_write(0x6060, 0, &[8]).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
     m
 }
 

@@ -6,7 +6,7 @@
 //! has an odd length (17 bytes at power-up, in the SOEM capture), 0x001E for the inputs, and
 //! 0x0017 when SM2/SM3 do not match the image.
 
-use crate::al::code;
+use crate::al::AlStatusCode;
 use crate::pdo::{self, Direction, PdoEntry};
 use crate::registers::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
 use crate::sim::od::ObjectDictionary;
@@ -22,28 +22,28 @@ pub fn images(od: &ObjectDictionary) -> (Image, Image) {
 }
 
 /// Checks one process-data sync manager against its image length, start and direction.
-fn check_sync_manager(sm: &SyncManager, start: u16, bytes: usize, master_writes: bool) -> Result<(), u16> {
+fn check_sync_manager(sm: &SyncManager, start: u16, bytes: usize, master_writes: bool) -> Result<(), AlStatusCode> {
     let enabled = sm.activate & ACTIVATE_ENABLE != 0 && sm.length > 0;
     if bytes == 0 {
-        return if enabled { Err(code::INVALID_SM_CONFIG) } else { Ok(()) };
+        return if enabled { Err(AlStatusCode::INVALID_SM_CONFIG) } else { Ok(()) };
     }
     let buffered = sm.control & 0x03 == 0;
     if !enabled || sm.start != start || sm.length as usize != bytes || !buffered || sm.master_writes() != master_writes
     {
-        return Err(code::INVALID_SM_CONFIG);
+        return Err(AlStatusCode::INVALID_SM_CONFIG);
     }
     Ok(())
 }
 
 /// The drive's checks of PreOp→SafeOp: even image lengths, then SM2 and SM3.
-pub fn check_safeop(od: &ObjectDictionary, memory: &[u8]) -> Result<(), u16> {
+pub fn check_safeop(od: &ObjectDictionary, memory: &[u8]) -> Result<(), AlStatusCode> {
     let (rx, tx) = images(od);
     let (rx_bits, tx_bits) = (pdo::bit_len(&rx), pdo::bit_len(&tx));
     if rx_bits % 16 != 0 {
-        return Err(code::INVALID_OUTPUT_CONFIG);
+        return Err(AlStatusCode::INVALID_OUTPUT_CONFIG);
     }
     if tx_bits % 16 != 0 {
-        return Err(code::INVALID_INPUT_CONFIG);
+        return Err(AlStatusCode::INVALID_INPUT_CONFIG);
     }
     check_sync_manager(&SyncManager::read(memory, 2), AKD_PROCESS_OUT, rx_bits / 8, true)?;
     check_sync_manager(&SyncManager::read(memory, 3), AKD_PROCESS_IN, tx_bits / 8, false)
@@ -97,7 +97,7 @@ mod tests {
         let od = ObjectDictionary::akd();
         let mut memory = vec![0u8; 0x2000];
         configure(&mut memory, 17, 17);
-        assert_eq!(check_safeop(&od, &memory), Err(code::INVALID_OUTPUT_CONFIG));
+        assert_eq!(check_safeop(&od, &memory), Err(AlStatusCode::INVALID_OUTPUT_CONFIG));
     }
 
     #[test]
@@ -106,7 +106,7 @@ mod tests {
         select_fixed(&mut od, 0x1701, 0x1B01);
         let mut memory = vec![0u8; 0x2000];
         configure(&mut memory, 6, 8);
-        assert_eq!(check_safeop(&od, &memory), Err(code::INVALID_SM_CONFIG));
+        assert_eq!(check_safeop(&od, &memory), Err(AlStatusCode::INVALID_SM_CONFIG));
         configure(&mut memory, 6, 6);
         assert_eq!(check_safeop(&od, &memory), Ok(()));
     }

@@ -10,8 +10,8 @@
 
 use std::time::{Duration, Instant};
 
-use crate::coe::{self, service, Emergency};
-use crate::error::{Error, Result};
+use crate::coe::{self, CoeService, Emergency};
+use crate::error::{Error, MailboxError, Result, SiiError};
 use crate::frame::Command;
 use crate::mailbox::{self as codec, MailboxHeader, MailboxType};
 use crate::master::Master;
@@ -58,10 +58,12 @@ impl Mailbox {
             return Ok(None);
         }
         if mb.receive_size.min(mb.send_size) < MIN_MAILBOX_LEN {
-            return Err(Error::Sii(format!(
-                "mailbox of {} bytes out and {} in is smaller than the {MIN_MAILBOX_LEN} bytes of an SDO message",
-                mb.receive_size, mb.send_size
-            )));
+            return Err(SiiError::MailboxTooSmall {
+                receive: mb.receive_size,
+                send: mb.send_size,
+                min: MIN_MAILBOX_LEN,
+            }
+            .into());
         }
         // The SM category, when present, holds the control bytes the slave expects.
         let control = |n: usize, default: u8| sii.sync_managers().get(n).map_or(default, |sm| sm.control);
@@ -94,7 +96,7 @@ pub(crate) fn sm_registers(start: u16, len: u16, control: u8, enable: bool) -> [
 }
 
 fn no_mailbox(position: u16) -> Error {
-    Error::Mailbox(format!("slave {position} has no mailbox (its SII lists no mailbox protocol)"))
+    MailboxError::NoMailbox { slave: position }.into()
 }
 
 impl Master {
@@ -114,14 +116,10 @@ impl Master {
 
     /// Sends one mailbox message (header included) to the slave at `position`, waiting up to
     /// `timeout` for SM0 to be free. Gives the message the next counter value.
-    pub fn mailbox_send(&mut self, position: u16, message: &mut [u8], timeout: Duration) -> Result<()> {
+    pub(super) fn mailbox_send(&mut self, position: u16, message: &mut [u8], timeout: Duration) -> Result<()> {
         let mb = self.mailbox(position)?;
         if message.len() > mb.out_len as usize {
-            return Err(Error::Mailbox(format!(
-                "message of {} bytes does not fit slave {position}'s {}-byte mailbox",
-                message.len(),
-                mb.out_len
-            )));
+            return Err(MailboxError::TooLong { slave: position, len: message.len(), room: mb.out_len }.into());
         }
         let counter = self.mailbox_take_counter(position)?;
         message[5] = (message[5] & 0x0F) | (counter << 4);
@@ -143,7 +141,7 @@ impl Master {
 
     /// Waits up to `timeout` for the next mailbox message from the slave at `position` that is
     /// not an emergency; emergencies are queued on the slave. Returns the whole message.
-    pub fn mailbox_receive(&mut self, position: u16, timeout: Duration) -> Result<Vec<u8>> {
+    pub(super) fn mailbox_receive(&mut self, position: u16, timeout: Duration) -> Result<Vec<u8>> {
         let deadline = Instant::now() + timeout;
         loop {
             if let Some(message) = self.mailbox_poll(position)? {
@@ -158,8 +156,8 @@ impl Master {
 
     /// Takes the counter for the next message to the slave at `position` (1..=7), as
     /// [`mailbox_send`](Self::mailbox_send) does, for a caller that writes SM0 itself.
-    pub fn mailbox_take_counter(&mut self, position: u16) -> Result<u8> {
-        let mailbox = self.slave_mut(position)?.mailbox.as_mut().ok_or_else(|| no_mailbox(position))?;
+    pub(super) fn mailbox_take_counter(&mut self, position: u16) -> Result<u8> {
+        let mailbox = self.slave_entry_mut(position)?.mailbox.as_mut().ok_or_else(|| no_mailbox(position))?;
         mailbox.counter = codec::next_counter(mailbox.counter);
         Ok(mailbox.counter)
     }
@@ -167,7 +165,7 @@ impl Master {
     /// One attempt to write `buffer` (exactly SM0's length, counter in place) into the slave's
     /// SM0, for a cycle thread that must not wait: `true` when the slave took it, `false` when
     /// SM0 still held an earlier message or the frame was lost (try again with the same bytes).
-    pub fn mailbox_try_send(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
+    pub(super) fn mailbox_try_send(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
         let (station, out_start) = self.mailbox_address(position, |mb| mb.out_start)?;
         // Writing the whole buffer fills SM0; WKC 0 means it is still full with an earlier
         // message. A frame lost on the way is written again with the same counter, which the
@@ -183,7 +181,7 @@ impl Master {
     /// that saw SM1 full and must not wait: `true` when a message was read. A lost reply is
     /// asked for again with SM1's repeat request, without waiting for it; SM1 shows full again
     /// once the slave has put it back.
-    pub fn mailbox_try_read(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
+    pub(super) fn mailbox_try_read(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
         let (station, in_start) = self.mailbox_address(position, |mb| mb.in_start)?;
         match self.datagram(Command::Fprd, station, in_start, buffer) {
             Ok(wkc) => Ok(wkc == 1),
@@ -244,17 +242,15 @@ impl Master {
         match header.protocol() {
             Some(MailboxType::Error) => {
                 let detail = codec::parse_error_reply(header.body(&buffer))?;
-                Err(Error::Mailbox(format!(
-                    "slave {position} answered with mailbox error 0x{detail:04X} ({})",
-                    codec::error_detail_name(detail)
-                )))
+                Err(MailboxError::ErrorReply { slave: position, detail, detail_name: codec::error_detail_name(detail) }
+                    .into())
             }
             Some(MailboxType::Coe) => {
                 let (_, coe_header, body) = coe::split_message(&buffer)?;
-                if coe_header.service == service::EMERGENCY {
+                if coe_header.service == CoeService::Emergency {
                     let emergency = Emergency::decode(body)?;
                     self.stats.emergencies += 1;
-                    self.slave_mut(position)?.emergencies.push_back(emergency);
+                    self.slave_entry_mut(position)?.emergencies.push_back(emergency);
                     return Ok(None);
                 }
                 // The AKD answers with the counter of the request. Another counter is the late
@@ -266,10 +262,7 @@ impl Master {
                 buffer.truncate(codec::HEADER_LEN + header.length as usize);
                 Ok(Some(buffer))
             }
-            _ => Err(Error::Mailbox(format!(
-                "slave {position} sent a mailbox message of type {} that this master does not speak (CoE is 3)",
-                header.mailbox_type
-            ))),
+            _ => Err(MailboxError::UnsupportedType { slave: position, mailbox_type: header.mailbox_type }.into()),
         }
     }
 

@@ -11,11 +11,11 @@ use std::collections::VecDeque;
 
 use crate::al::AlState;
 use crate::coe::{
-    abort, access, info_opcode, od_list, service, write_info_message, write_message, write_sdo_response, CoeHeader,
-    Emergency, EntryDescription, ObjectDescription, SdoInfoHeader, SdoRequest, SdoResponse, COE_HEADER_LEN,
+    access, write_info_message, write_message, write_sdo_response, CoeHeader, CoeService, Emergency, EntryDescription,
+    ObjectDescription, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse, COE_HEADER_LEN,
     SDO_INFO_HEADER_LEN, SDO_LEN,
 };
-use crate::mailbox::{error_detail, next_counter, write_error_reply, MailboxHeader, MailboxType, HEADER_LEN};
+use crate::mailbox::{next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN};
 use crate::sim::od::ObjectDictionary;
 
 /// A segmented upload in progress.
@@ -79,7 +79,7 @@ impl MailboxServer {
     pub fn emergency(&mut self, emergency: &Emergency, mailbox_size: usize) {
         self.counter = next_counter(self.counter);
         let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + COE_HEADER_LEN + 8)];
-        let len = write_message(&mut out, self.counter, service::EMERGENCY, |b| emergency.encode(b));
+        let len = write_message(&mut out, self.counter, CoeService::Emergency, |b| emergency.encode(b));
         out.truncate(len);
         self.replies.push_back(out);
     }
@@ -95,20 +95,24 @@ impl MailboxServer {
         self.accepted_counter = counter;
         let mut out = vec![0u8; mailbox_size];
         let header = match MailboxHeader::decode(message) {
-            Ok(h) if h.length == 0 => return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size),
+            Ok(h) if h.length == 0 => return self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size),
             Ok(h) => h,
-            Err(_) => return self.error(counter, error_detail::INVALID_SIZE, mailbox_size),
+            Err(_) => return self.error(counter, MailboxErrorDetail::InvalidSize, mailbox_size),
         };
         if header.protocol() != Some(MailboxType::Coe) {
-            return self.error(counter, error_detail::UNSUPPORTED_PROTOCOL, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::UnsupportedProtocol, mailbox_size);
         }
         let body = header.body(message);
+        if body.len() < COE_HEADER_LEN {
+            return self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size);
+        }
+        // Long enough, so only a service outside the standard's set fails to decode.
         let Ok(coe) = CoeHeader::decode(body) else {
-            return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size);
         };
         let body = &body[COE_HEADER_LEN..];
         match coe.service {
-            service::SDO_REQUEST => {
+            CoeService::SdoRequest => {
                 let len = match SdoRequest::decode(body) {
                     Ok(request) => self.sdo(&request, od, state, &mut out, header.counter),
                     Err(_) => {
@@ -116,7 +120,7 @@ impl MailboxServer {
                             [_, lo, hi, sub, ..] => (u16::from_le_bytes([*lo, *hi]), *sub),
                             _ => (0, 0),
                         };
-                        let response = SdoResponse::Abort { index, subindex, code: abort::BAD_COMMAND };
+                        let response = SdoResponse::Abort { index, subindex, code: SdoAbortCode::BAD_COMMAND };
                         write_sdo_response(&mut out, header.counter, &response)
                     }
                 };
@@ -126,12 +130,12 @@ impl MailboxServer {
                     self.replies.push_back(out);
                 }
             }
-            service::SDO_INFORMATION => self.information(body, od, header.counter, mailbox_size),
-            _ => self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
+            CoeService::SdoInformation => self.information(body, od, header.counter, mailbox_size),
+            _ => self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
         }
     }
 
-    fn error(&mut self, counter: u8, detail: u16, mailbox_size: usize) {
+    fn error(&mut self, counter: u8, detail: MailboxErrorDetail, mailbox_size: usize) {
         let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + 4)];
         let len = write_error_reply(&mut out, counter, detail);
         out.truncate(len);
@@ -152,7 +156,9 @@ impl MailboxServer {
             SdoRequest::Upload { index, subindex, complete_access } => {
                 self.upload = None;
                 match od.read(index, subindex) {
-                    _ if complete_access => SdoResponse::Abort { index, subindex, code: abort::UNSUPPORTED_ACCESS },
+                    _ if complete_access => {
+                        SdoResponse::Abort { index, subindex, code: SdoAbortCode::UNSUPPORTED_ACCESS }
+                    }
                     Err(code) => SdoResponse::Abort { index, subindex, code },
                     Ok(data) if data.len() <= 4 => {
                         return write_sdo_response(
@@ -179,11 +185,11 @@ impl MailboxServer {
                 }
             }
             SdoRequest::UploadSegment { toggle } => match self.upload.as_mut() {
-                None => SdoResponse::Abort { index: 0, subindex: 0, code: abort::BAD_COMMAND },
+                None => SdoResponse::Abort { index: 0, subindex: 0, code: SdoAbortCode::BAD_COMMAND },
                 Some(u) if u.toggle != toggle => {
                     let (index, subindex) = (u.index, u.subindex);
                     self.upload = None;
-                    SdoResponse::Abort { index, subindex, code: abort::TOGGLE_BIT }
+                    SdoResponse::Abort { index, subindex, code: SdoAbortCode::TOGGLE_BIT }
                 }
                 Some(u) => {
                     let n = (u.data.len() - u.sent).min(room - 1);
@@ -202,7 +208,7 @@ impl MailboxServer {
                 if complete_access =>
             {
                 let _ = data;
-                SdoResponse::Abort { index, subindex, code: abort::UNSUPPORTED_ACCESS }
+                SdoResponse::Abort { index, subindex, code: SdoAbortCode::UNSUPPORTED_ACCESS }
             }
             SdoRequest::DownloadExpedited { index, subindex, data, .. } => {
                 self.download = None;
@@ -225,11 +231,11 @@ impl MailboxServer {
                 }
             }
             SdoRequest::DownloadSegment { toggle, last, data } => match self.download.as_mut() {
-                None => SdoResponse::Abort { index: 0, subindex: 0, code: abort::BAD_COMMAND },
+                None => SdoResponse::Abort { index: 0, subindex: 0, code: SdoAbortCode::BAD_COMMAND },
                 Some(d) if d.toggle != toggle => {
                     let (index, subindex) = (d.index, d.subindex);
                     self.download = None;
-                    SdoResponse::Abort { index, subindex, code: abort::TOGGLE_BIT }
+                    SdoResponse::Abort { index, subindex, code: SdoAbortCode::TOGGLE_BIT }
                 }
                 Some(d) => {
                     d.data.extend_from_slice(data);
@@ -241,7 +247,7 @@ impl MailboxServer {
                     let result = if d.data.len() == d.size {
                         od.write(d.index, d.subindex, &d.data, state_write_access(state))
                     } else {
-                        Err(abort::LENGTH_MISMATCH)
+                        Err(SdoAbortCode::LENGTH_MISMATCH)
                     };
                     match result {
                         Ok(()) => SdoResponse::DownloadSegment { toggle },
@@ -262,44 +268,42 @@ impl MailboxServer {
     /// SDO information: OD lists, object and entry descriptions, split into fragments when a
     /// reply does not fit the mailbox.
     fn information(&mut self, body: &[u8], od: &ObjectDictionary, counter: u8, mailbox_size: usize) {
+        if body.len() < SDO_INFO_HEADER_LEN {
+            return self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size);
+        }
+        // Long enough, so only an opcode outside the standard's set fails to decode.
         let Ok(header) = SdoInfoHeader::decode(body) else {
-            return self.error(counter, error_detail::SIZE_TOO_SHORT, mailbox_size);
+            return self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size);
         };
         let request = &body[SDO_INFO_HEADER_LEN..];
         let word = |at: usize| request.get(at..at + 2).map(|b| u16::from_le_bytes([b[0], b[1]]));
         let mut data = Vec::new();
         let opcode = match header.opcode {
-            info_opcode::GET_OD_LIST_REQUEST => {
-                let Some(list) = word(0) else {
-                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+            SdoInfoOpcode::GetOdListRequest => {
+                let Some(raw) = word(0) else {
+                    return self.info_error(counter, SdoAbortCode::GENERAL, mailbox_size);
                 };
-                let lists = [
-                    od_list::ALL,
-                    od_list::RX_PDO_MAPPABLE,
-                    od_list::TX_PDO_MAPPABLE,
-                    od_list::BACKUP,
-                    od_list::STARTUP,
-                ];
-                data.extend_from_slice(&list.to_le_bytes());
-                if list == od_list::LENGTHS {
-                    for l in lists {
+                let Ok(list) = OdListType::try_from(raw) else {
+                    return self.info_error(counter, SdoAbortCode::VALUE_RANGE, mailbox_size);
+                };
+                data.extend_from_slice(&raw.to_le_bytes());
+                if list == OdListType::Lengths {
+                    for &l in OdListType::ALL.iter().filter(|&&l| l != OdListType::Lengths) {
                         data.extend_from_slice(&(object_list(od, l).count() as u16).to_le_bytes());
                     }
-                } else if lists.contains(&list) {
+                } else {
                     for index in object_list(od, list) {
                         data.extend_from_slice(&index.to_le_bytes());
                     }
-                } else {
-                    return self.info_error(counter, abort::VALUE_RANGE, mailbox_size);
                 }
-                info_opcode::GET_OD_LIST_RESPONSE
+                SdoInfoOpcode::GetOdListResponse
             }
-            info_opcode::GET_OBJECT_DESCRIPTION_REQUEST => {
+            SdoInfoOpcode::GetObjectDescriptionRequest => {
                 let Some(index) = word(0) else {
-                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::GENERAL, mailbox_size);
                 };
                 let Some(o) = od.object(index) else {
-                    return self.info_error(counter, abort::NO_SUCH_OBJECT, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::NO_SUCH_OBJECT, mailbox_size);
                 };
                 let d = ObjectDescription {
                     index,
@@ -310,18 +314,18 @@ impl MailboxServer {
                 };
                 data.resize(6 + o.name.len(), 0);
                 d.encode(&mut data);
-                info_opcode::GET_OBJECT_DESCRIPTION_RESPONSE
+                SdoInfoOpcode::GetObjectDescriptionResponse
             }
-            info_opcode::GET_ENTRY_DESCRIPTION_REQUEST => {
+            SdoInfoOpcode::GetEntryDescriptionRequest => {
                 let (Some(index), Some(&subindex), Some(_value_info)) = (word(0), request.get(2), request.get(3))
                 else {
-                    return self.info_error(counter, abort::GENERAL, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::GENERAL, mailbox_size);
                 };
                 let Some(o) = od.object(index) else {
-                    return self.info_error(counter, abort::NO_SUCH_OBJECT, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::NO_SUCH_OBJECT, mailbox_size);
                 };
                 let Some(e) = o.entry(subindex) else {
-                    return self.info_error(counter, abort::NO_SUCH_SUBINDEX, mailbox_size);
+                    return self.info_error(counter, SdoAbortCode::NO_SUCH_SUBINDEX, mailbox_size);
                 };
                 // The AKD sends no unit, default, minimum or maximum, so no value information.
                 let d = EntryDescription {
@@ -335,9 +339,9 @@ impl MailboxServer {
                 };
                 data.resize(10 + e.name.len(), 0);
                 d.encode(&mut data);
-                info_opcode::GET_ENTRY_DESCRIPTION_RESPONSE
+                SdoInfoOpcode::GetEntryDescriptionResponse
             }
-            _ => return self.error(counter, error_detail::SERVICE_NOT_SUPPORTED, mailbox_size),
+            _ => return self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
         };
         let room = mailbox_size - HEADER_LEN - COE_HEADER_LEN - SDO_INFO_HEADER_LEN;
         let fragments = data.len().div_ceil(room).max(1);
@@ -351,10 +355,10 @@ impl MailboxServer {
         }
     }
 
-    fn info_error(&mut self, counter: u8, code: u32, mailbox_size: usize) {
+    fn info_error(&mut self, counter: u8, code: SdoAbortCode, mailbox_size: usize) {
         let mut out = vec![0u8; mailbox_size];
-        let h = SdoInfoHeader { opcode: info_opcode::ERROR, incomplete: false, fragments_left: 0 };
-        let len = write_info_message(&mut out, counter, h, &code.to_le_bytes());
+        let h = SdoInfoHeader { opcode: SdoInfoOpcode::SdoInfoErrorRequest, incomplete: false, fragments_left: 0 };
+        let len = write_info_message(&mut out, counter, h, &code.0.to_le_bytes());
         out.truncate(len);
         self.replies.push_back(out);
     }
@@ -362,12 +366,12 @@ impl MailboxServer {
 
 /// The indices of one OD list: all, Rx- or Tx-mappable; the AKD marks none for backup or
 /// start-up.
-fn object_list(od: &ObjectDictionary, list: u16) -> impl Iterator<Item = u16> + '_ {
+fn object_list(od: &ObjectDictionary, list: OdListType) -> impl Iterator<Item = u16> + '_ {
     let wanted = match list {
-        od_list::ALL => 0,
-        od_list::RX_PDO_MAPPABLE => access::RX_PDO,
-        od_list::TX_PDO_MAPPABLE => access::TX_PDO,
-        _ => u16::MAX,
+        OdListType::All => 0,
+        OdListType::RxPdoMappable => access::RX_PDO,
+        OdListType::TxPdoMappable => access::TX_PDO,
+        OdListType::Lengths | OdListType::Backup | OdListType::Startup => u16::MAX,
     };
     od.objects()
         .iter()
@@ -449,14 +453,17 @@ mod tests {
     #[test]
     fn aborts_by_the_rules() {
         let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
-        let cases: [(SdoRequest<'_>, u32); 4] = [
-            (SdoRequest::Upload { index: 0x1234, subindex: 0, complete_access: false }, abort::NO_SUCH_OBJECT),
-            (SdoRequest::Upload { index: 0x1C12, subindex: 0, complete_access: true }, abort::UNSUPPORTED_ACCESS),
+        let cases: [(SdoRequest<'_>, SdoAbortCode); 4] = [
+            (SdoRequest::Upload { index: 0x1234, subindex: 0, complete_access: false }, SdoAbortCode::NO_SUCH_OBJECT),
+            (
+                SdoRequest::Upload { index: 0x1C12, subindex: 0, complete_access: true },
+                SdoAbortCode::UNSUPPORTED_ACCESS,
+            ),
             (
                 SdoRequest::DownloadExpedited { index: 0x6041, subindex: 0, complete_access: false, data: &[0, 0] },
-                abort::READ_ONLY,
+                SdoAbortCode::READ_ONLY,
             ),
-            (SdoRequest::UploadSegment { toggle: false }, abort::BAD_COMMAND),
+            (SdoRequest::UploadSegment { toggle: false }, SdoAbortCode::BAD_COMMAND),
         ];
         for (request, code) in cases {
             let reply = ask(&mut server, &mut od, &request);
@@ -481,7 +488,7 @@ mod tests {
         let mut indices = Vec::new();
         while let Some(reply) = server.next_reply() {
             let (_, coe, body) = split_message(reply).unwrap();
-            assert_eq!(coe.service, service::SDO_INFORMATION);
+            assert_eq!(coe.service, CoeService::SdoInformation);
             let h = SdoInfoHeader::decode(body).unwrap();
             indices.extend_from_slice(&body[SDO_INFO_HEADER_LEN..]);
             if !h.incomplete {

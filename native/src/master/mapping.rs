@@ -7,8 +7,8 @@
 //! PDOs, write the assignment counts. Before SafeOp, SM2/SM3 and FMMU0/FMMU1 are set from the
 //! mapping's lengths and the slave's place in the process image.
 
-use crate::error::{Error, Result};
-use crate::master::mailbox::sm_registers;
+use crate::error::{PdoError, Result};
+use crate::master::mailbox_client::sm_registers;
 use crate::master::Master;
 use crate::pdo::{self, Direction, PdoEntry};
 use crate::registers::{self, fmmu_reg};
@@ -34,16 +34,12 @@ impl Mapping {
         match self {
             Mapping::Fixed(index) => match pdo::fixed(*index) {
                 Some(fixed) if fixed.direction == direction => Ok(fixed.entries.to_vec()),
-                _ => Err(Error::Pdo(format!(
-                    "0x{index:04X} is not a fixed {} of the AKD (allowed: {})",
-                    direction.name(),
-                    pdo::FIXED
-                        .iter()
-                        .filter(|p| p.direction == direction)
-                        .map(|p| format!("0x{:04X}", p.index))
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ))),
+                _ => Err(PdoError::NotFixed {
+                    direction: direction.name(),
+                    index: *index,
+                    allowed: pdo::FIXED.iter().filter(|p| p.direction == direction).map(|p| p.index).collect(),
+                }
+                .into()),
             },
             Mapping::Flexible(pdos) => {
                 let indexed: Vec<(u16, &[PdoEntry])> = pdos
@@ -51,7 +47,7 @@ impl Mapping {
                     .enumerate()
                     .map(|(i, e)| (direction.flexible_base() + i as u16, e.as_slice()))
                     .collect();
-                pdo::check_flexible(direction, &indexed).map_err(|refused| Error::Pdo(refused.reason))?;
+                pdo::check_flexible(direction, &indexed)?;
                 Ok(pdos.iter().flatten().copied().collect())
             }
         }
@@ -86,12 +82,12 @@ impl SlaveMapping {
 impl Master {
     /// Gives the slave at `position` (in PreOp) the mappings `rx` and `tx`. Both are checked
     /// first, so a refused mapping writes nothing.
-    pub fn configure_pdo(&mut self, position: u16, rx: Mapping, tx: Mapping) -> Result<()> {
+    pub(super) fn configure_pdo(&mut self, position: u16, rx: Mapping, tx: Mapping) -> Result<()> {
         let rx_entries = rx.entries(Direction::Rx)?;
         let tx_entries = tx.entries(Direction::Tx)?;
         self.write_mapping(position, Direction::Rx, &rx)?;
         self.write_mapping(position, Direction::Tx, &tx)?;
-        self.slave_mut(position)?.mapping = Some(SlaveMapping { rx, tx, rx_entries, tx_entries });
+        self.slave_entry_mut(position)?.mapping = Some(SlaveMapping { rx, tx, rx_entries, tx_entries });
         // A new mapping changes the process image; it is laid out again before SafeOp.
         self.process = None;
         Ok(())
@@ -124,7 +120,7 @@ impl Master {
 
     /// Sets the drive's cycle time (interpolation time period 0x60C2) of the slave at
     /// `position`, e.g. 2 ms as (2, -3).
-    pub fn set_cycle_time(&mut self, position: u16, cycle_ns: u32) -> Result<()> {
+    pub(super) fn set_cycle_time(&mut self, position: u16, cycle_ns: u32) -> Result<()> {
         let (units, exponent) = crate::dc::interpolation_time_period(cycle_ns)?;
         self.sdo_write(position, 0x60C2, 1, &[units])?;
         self.sdo_write(position, 0x60C2, 2, &[exponent as u8])
@@ -140,8 +136,7 @@ impl Master {
     ) -> Result<()> {
         let slave = self.slave(position)?;
         let station = slave.station_address;
-        let mapping =
-            slave.mapping.clone().ok_or_else(|| Error::Pdo(format!("slave {position} has no process-data mapping")))?;
+        let mapping = slave.mapping.clone().ok_or(PdoError::NoMapping { slave: position })?;
         let sm = |n: usize, default: (u16, u8)| {
             slave.sii.sync_managers().get(n).map_or(default, |sm| (sm.start_address, sm.control))
         };

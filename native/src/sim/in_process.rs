@@ -1,7 +1,9 @@
 //! The in-process link: frames go straight through a [`VirtualBus`] of virtual AKDs, with no
 //! socket in between, so tests are fast and deterministic. The bus takes commands from
 //! [`SimControl`] handles at each frame (see [`crate::sim::control`]), so a test can inject
-//! faults while the master, or its cycle thread, owns the link.
+//! faults while the master, or its cycle thread, owns the link. It lives beside the simulator,
+//! not among the links, so that the link layer knows only frames and the simulator serves them
+//! through the same [`Link`] trait as any other line.
 
 use std::time::{Duration, Instant};
 

@@ -21,7 +21,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 
 use crate::cycle::image::{i32_at, u16_at};
 use crate::ds402::{self, controlword as cw, statusword as sw, State};
-use crate::error::{Error, Result};
+use crate::error::{Result, Unavailable};
 use crate::pdo::{self, PdoEntry};
 
 /// What a caller asks of a drive.
@@ -97,7 +97,7 @@ pub struct Offsets {
 impl Offsets {
     /// Finds the objects in a drive's mapping; a mapping without controlword or statusword
     /// cannot be sequenced and is refused, naming what is missing.
-    pub fn find(rx: &[PdoEntry], tx: &[PdoEntry]) -> Result<Offsets> {
+    pub fn find(rx: &[PdoEntry], tx: &[PdoEntry]) -> Result<Offsets, Unavailable> {
         let at = |entries: &[PdoEntry], index: u16, subindex: u8| {
             pdo::layout(entries.iter().copied())
                 .find(|(_, e)| (e.index, e.subindex) == (index, subindex))
@@ -106,17 +106,14 @@ impl Offsets {
         let controlword = at(rx, 0x6040, 0);
         let statusword = at(tx, 0x6041, 0);
         let (Some(controlword), Some(statusword)) = (controlword, statusword) else {
-            let missing: Vec<&str> = [
+            let missing: Vec<&'static str> = [
                 controlword.is_none().then_some("controlword 0x6040 in the outputs (RxPDO)"),
                 statusword.is_none().then_some("statusword 0x6041 in the inputs (TxPDO)"),
             ]
             .into_iter()
             .flatten()
             .collect();
-            return Err(Error::Config(format!(
-                "the drive cannot be sequenced: its mapping lacks {}",
-                missing.join(" and ")
-            )));
+            return Err(Unavailable::NotSequenced { slave: None, missing });
         };
         let targets = [at(rx, 0x607A, 0), at(rx, 0x60C1, 1)];
         let actual = at(tx, 0x6064, 0).or_else(|| at(tx, 0x6063, 0));

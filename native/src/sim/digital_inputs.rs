@@ -15,6 +15,7 @@
 //! The CiA 402 touch probes ([`TouchProbe`], 0x60B8–0x60BD) are the same capture seen through
 //! the standard objects: probe 1 on input 1, probe 2 on input 2, single-shot (bit 1/9 = 0).
 
+use crate::error::SettingError;
 use crate::sim::od::ObjectDictionary;
 
 /// Digital inputs of the AKD (DIN1..DIN7).
@@ -31,12 +32,12 @@ pub struct Inputs {
 impl Inputs {
     /// Input `input` (1..=7) toggles at `positions` (counts); it is low below all of them.
     /// Refuses an input number out of range or a position that is not finite.
-    pub fn set_toggles(&mut self, input: usize, positions: &[f64]) -> Result<(), String> {
+    pub fn set_toggles(&mut self, input: usize, positions: &[f64]) -> Result<(), SettingError> {
         if !(1..=INPUT_COUNT).contains(&input) {
-            return Err(format!("digital input {input}: the AKD has inputs 1 to {INPUT_COUNT}"));
+            return Err(SettingError::DigitalInput { input, count: INPUT_COUNT });
         }
-        if let Some(p) = positions.iter().find(|p| !p.is_finite()) {
-            return Err(format!("toggle position {p} of digital input {input} is not a finite number of counts"));
+        if let Some(&position) = positions.iter().find(|p| !p.is_finite()) {
+            return Err(SettingError::TogglePosition { input, position });
         }
         let mut sorted = positions.to_vec();
         sorted.sort_by(f64::total_cmp);
@@ -178,8 +179,8 @@ mod tests {
         assert_eq!(inputs.levels(100.0), 1);
         assert_eq!(inputs.levels(299.5), 1);
         assert_eq!(inputs.levels(300.0), 0);
-        assert!(inputs.set_toggles(8, &[]).unwrap_err().contains("inputs 1 to 7"));
-        assert!(inputs.set_toggles(2, &[f64::NAN]).unwrap_err().contains("not a finite"));
+        assert!(inputs.set_toggles(8, &[]).unwrap_err().to_string().contains("inputs 1 to 7"));
+        assert!(inputs.set_toggles(2, &[f64::NAN]).unwrap_err().to_string().contains("not a finite"));
     }
 
     #[test]

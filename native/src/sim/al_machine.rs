@@ -6,14 +6,14 @@
 //! and leaves the state where it was. While the error flag is set, requests for a higher state
 //! are ignored until the master acknowledges with AL control bit 4.
 
-use crate::al::{code, AlState, AL_ERROR_ACK, AL_ERROR_FLAG};
+use crate::al::{AlState, AlStatusCode, AL_ERROR_ACK, AL_ERROR_FLAG};
 
 /// The AL status of one virtual AKD.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct AlMachine {
     state: AlState,
     error: bool,
-    status_code: u16,
+    status_code: AlStatusCode,
 }
 
 /// A state change that happened, for the caller to start or stop what the new state runs.
@@ -34,7 +34,7 @@ impl Default for AlMachine {
 impl AlMachine {
     /// The state after power-up: Init, no error (AL status 0x0001, code 0).
     pub const fn power_up() -> Self {
-        AlMachine { state: AlState::Init, error: false, status_code: code::NO_ERROR }
+        AlMachine { state: AlState::Init, error: false, status_code: AlStatusCode::NO_ERROR }
     }
 
     /// The current state.
@@ -54,7 +54,7 @@ impl AlMachine {
 
     /// The AL status code register value.
     pub fn status_code(&self) -> u16 {
-        self.status_code
+        self.status_code.0
     }
 
     /// Handles an AL control value. `check(from, to)` runs the drive's checks of an upward
@@ -62,14 +62,14 @@ impl AlMachine {
     pub fn request(
         &mut self,
         control: u16,
-        check: impl FnOnce(AlState, AlState) -> Result<(), u16>,
+        check: impl FnOnce(AlState, AlState) -> Result<(), AlStatusCode>,
     ) -> Option<Transition> {
         if control & AL_ERROR_ACK != 0 {
             self.error = false;
-            self.status_code = code::NO_ERROR;
+            self.status_code = AlStatusCode::NO_ERROR;
         }
         let Some(to) = AlState::from_bits(control) else {
-            self.fail(self.state, code::INVALID_STATE_CHANGE);
+            self.fail(self.state, AlStatusCode::INVALID_STATE_CHANGE);
             return None;
         };
         let from = self.state;
@@ -88,7 +88,7 @@ impl AlMachine {
                 | (AlState::Op, AlState::PreOp)
         );
         if !allowed {
-            self.fail(from, code::INVALID_STATE_CHANGE);
+            self.fail(from, AlStatusCode::INVALID_STATE_CHANGE);
             return None;
         }
         if to > from && to != AlState::Bootstrap {
@@ -103,7 +103,7 @@ impl AlMachine {
 
     /// Falls back to `state` with the error flag and `status_code` (a refused request, or the
     /// drive dropping out of Op on its own, e.g. the process-data watchdog).
-    pub fn fail(&mut self, state: AlState, status_code: u16) {
+    pub fn fail(&mut self, state: AlState, status_code: AlStatusCode) {
         self.state = state;
         self.error = true;
         self.status_code = status_code;
@@ -114,7 +114,7 @@ impl AlMachine {
 mod tests {
     use super::*;
 
-    fn ok(_: AlState, _: AlState) -> Result<(), u16> {
+    fn ok(_: AlState, _: AlState) -> Result<(), AlStatusCode> {
         Ok(())
     }
 
@@ -142,7 +142,7 @@ mod tests {
     fn a_failed_check_keeps_the_state_until_acknowledged() {
         let mut al = AlMachine::power_up();
         al.request(0x02, ok);
-        al.request(0x04, |_, _| Err(code::INVALID_OUTPUT_CONFIG));
+        al.request(0x04, |_, _| Err(AlStatusCode::INVALID_OUTPUT_CONFIG));
         assert_eq!((al.status(), al.status_code()), (0x12, 0x001D));
         // Without acknowledge a higher state is ignored; with it the request is handled.
         assert_eq!(al.request(0x04, ok), None);

@@ -13,12 +13,12 @@ use std::sync::atomic::{AtomicU16, AtomicU32, AtomicU8, Ordering};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use crate::coe::{self, service, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::coe::{self, CoeService, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::cycle::events::{Action, Event, Events, FaultSource};
-use crate::error::{Error, Result};
+use crate::error::{Error, MailboxError, Result, SettingError};
 use crate::mailbox::{MailboxHeader, MailboxType};
 use crate::master::cyclic::SlaveWatch;
-use crate::master::mailbox::Mailbox;
+use crate::master::mailbox_client::Mailbox;
 use crate::master::Master;
 
 /// Largest value a transfer beside the cycle carries.
@@ -91,11 +91,9 @@ impl SdoSlot {
         let what = || format!("0x{index:04X}:{subindex:02X} of slave {slave}");
         if let Some(data) = write {
             if data.is_empty() || data.len() > MAX_DATA {
-                return Err(Error::Config(format!(
-                    "SDO write of {} bytes to {}: 1 ..= {MAX_DATA} bytes while cycling",
-                    data.len(),
-                    what()
-                )));
+                return Err(
+                    SettingError::SdoWriteLength { slave, index, subindex, len: data.len(), max: MAX_DATA }.into()
+                );
             }
         }
         let _turn = self.callers.lock().unwrap_or_else(|p| p.into_inner());
@@ -125,22 +123,26 @@ impl SdoSlot {
         let verb = if write.is_some() { "write" } else { "read" };
         match outcome {
             o if o == Outcome::Done as u8 => Ok(value),
-            o if o == Outcome::Aborted as u8 => Err(coe::abort_error(index, subindex, code)),
+            o if o == Outcome::Aborted as u8 => Err(coe::abort_error(index, subindex, coe::SdoAbortCode(code))),
             o if o == Outcome::TimedOut as u8 => Err(Error::Timeout {
                 what: format!("slave {slave} to answer the SDO {verb} of 0x{index:04X}:{subindex:02X}").into(),
             }),
-            o if o == Outcome::TooLarge as u8 => Err(Error::Mailbox(format!(
-                "SDO {verb} of {} needs a segmented transfer, which runs only with the cycle stopped",
-                what()
-            ))),
-            o if o == Outcome::MailboxError as u8 => Err(Error::Mailbox(format!(
-                "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} with mailbox error 0x{code:04X} ({})",
-                crate::mailbox::error_detail_name(code as u16)
-            ))),
-            o if o == Outcome::NoMailbox as u8 => {
-                Err(Error::Mailbox(format!("slave {slave} has no CoE mailbox for the SDO {verb} of {}", what())))
+            o if o == Outcome::TooLarge as u8 => {
+                Err(MailboxError::NeedsSegments { verb, slave, index, subindex }.into())
             }
-            _ => Err(Error::Mailbox(format!("slave {slave} answered the SDO {verb} of {} with something else", what()))),
+            o if o == Outcome::MailboxError as u8 => Err(MailboxError::TransferErrorReply {
+                verb,
+                slave,
+                index,
+                subindex,
+                detail: code as u16,
+                detail_name: crate::mailbox::error_detail_name(code as u16),
+            }
+            .into()),
+            o if o == Outcome::NoMailbox as u8 => {
+                Err(MailboxError::NoCoeForTransfer { verb, slave, index, subindex }.into())
+            }
+            _ => Err(MailboxError::TransferUnexpected { verb, slave, index, subindex }.into()),
         }
     }
 }
@@ -235,7 +237,7 @@ impl MailboxService {
         }
         if let Phase::Sending { slave, origin, deadline_ns } = self.phase {
             let len = mailbox_of(master, slave).map_or(0, |m| m.out_len as usize);
-            match master.mailbox_try_send(slave, &mut self.send[..len]) {
+            match master.slave_mut(slave).and_then(|mut s| s.mailbox_try_send(&mut self.send[..len])) {
                 Ok(true) => {
                     let counter = self.send[5] >> 4;
                     self.phase = Phase::Awaiting { slave, counter, origin, deadline_ns };
@@ -266,7 +268,7 @@ impl MailboxService {
         if write_len > out_len - SDO_OFFSET - SDO_LEN {
             return self.finish(slot, events, origin, Outcome::TooLarge, 0, &[]);
         }
-        let Ok(counter) = master.mailbox_take_counter(slave) else {
+        let Ok(counter) = master.slave_mut(slave).and_then(|mut s| s.mailbox_take_counter()) else {
             return self.finish(slot, events, origin, Outcome::NoMailbox, 0, &[]);
         };
         let mut value = [0u8; MAX_DATA];
@@ -308,7 +310,7 @@ impl MailboxService {
         self.next_slave = (slave + 1) % count;
         let slave = slave as u16;
         let len = mailbox_of(master, slave).map_or(0, |m| m.in_len as usize);
-        if !matches!(master.mailbox_try_read(slave, &mut self.receive[..len]), Ok(true)) {
+        if !matches!(master.slave_mut(slave).and_then(|mut s| s.mailbox_try_read(&mut self.receive[..len])), Ok(true)) {
             return true;
         }
         let Ok(header) = MailboxHeader::decode(&self.receive[..len]) else { return true };
@@ -325,7 +327,7 @@ impl MailboxService {
             }
             Some(MailboxType::Coe) => {
                 let Ok((_, coe_header, body)) = coe::split_message(&self.receive[..len]) else { return true };
-                if coe_header.service == service::EMERGENCY {
+                if coe_header.service == CoeService::Emergency {
                     if let Ok(emergency) = Emergency::decode(body) {
                         events.push(Event::Fault {
                             cycle,
@@ -367,7 +369,7 @@ impl MailboxService {
                     Ok(SdoResponse::Download { index: i, subindex: s }) if (i, s) == (index, subindex) => {
                         (Outcome::Done, 0, 0)
                     }
-                    Ok(SdoResponse::Abort { code, .. }) => (Outcome::Aborted, code, 0),
+                    Ok(SdoResponse::Abort { code, .. }) => (Outcome::Aborted, code.0, 0),
                     _ => (Outcome::Unexpected, 0, 0),
                 };
                 self.finish(slot, events, origin, outcome, code, &value[..len]);

@@ -1,0 +1,99 @@
+//! The link spec: the one text that names a bus, as the node's `link` parameter, the command
+//! line and `Master(link)` take it. It is parsed here once, with no I/O, so every layer that
+//! checks a spec accepts and refuses the same ones; opening it is left to a layer that may see
+//! both the links and the simulator.
+
+use std::fmt;
+use std::str::FromStr;
+
+pub use crate::error::LinkSpecError;
+
+/// The most virtual AKDs one in-process bus may hold: far more drives than one node moves, and
+/// few enough that a mistyped count does not build a bus that takes seconds per frame.
+pub const MAX_SIM_COUNT: usize = 64;
+
+/// A bus named by a link spec.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LinkSpec {
+    /// `sim` (one) or `sim:N`: virtual AKDs in this process.
+    Sim {
+        /// How many virtual AKDs, 1..=[`MAX_SIM_COUNT`].
+        count: usize,
+    },
+    /// `udp://HOST:PORT`: EtherCAT over UDP, e.g. to an akd-sim server.
+    Udp {
+        /// `HOST:PORT`, resolved when the link opens.
+        address: String,
+    },
+    /// A network interface name (raw Ethernet, needs CAP_NET_RAW).
+    Interface {
+        /// The interface, e.g. `eth0`.
+        name: String,
+    },
+}
+
+impl FromStr for LinkSpec {
+    type Err = LinkSpecError;
+
+    fn from_str(spec: &str) -> Result<Self, Self::Err> {
+        if spec == "sim" {
+            return Ok(LinkSpec::Sim { count: 1 });
+        }
+        if let Some(count) = spec.strip_prefix("sim:") {
+            return count
+                .parse()
+                .ok()
+                .filter(|n| (1..=MAX_SIM_COUNT).contains(n))
+                .map(|count| LinkSpec::Sim { count })
+                .ok_or_else(|| LinkSpecError::SimCount { spec: spec.to_owned(), max: MAX_SIM_COUNT });
+        }
+        if let Some(address) = spec.strip_prefix("udp://") {
+            return Ok(LinkSpec::Udp { address: address.to_owned() });
+        }
+        // Interface names hold neither; anything with them is a mistyped path or address.
+        if spec.is_empty() || spec.contains(['/', ':']) {
+            return Err(LinkSpecError::Unknown { spec: spec.to_owned(), max_sim_count: MAX_SIM_COUNT });
+        }
+        Ok(LinkSpec::Interface { name: spec.to_owned() })
+    }
+}
+
+impl fmt::Display for LinkSpec {
+    /// The spec in the form it was parsed from (`sim:1` for `sim`).
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkSpec::Sim { count } => write!(f, "sim:{count}"),
+            LinkSpec::Udp { address } => write!(f, "udp://{address}"),
+            LinkSpec::Interface { name } => f.write_str(name),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_each_form() {
+        assert_eq!("sim".parse(), Ok(LinkSpec::Sim { count: 1 }));
+        assert_eq!("sim:64".parse(), Ok(LinkSpec::Sim { count: 64 }));
+        assert_eq!("udp://127.0.0.1:34980".parse(), Ok(LinkSpec::Udp { address: "127.0.0.1:34980".into() }));
+        assert_eq!("eth0".parse(), Ok(LinkSpec::Interface { name: "eth0".into() }));
+        for spec in ["sim:3", "udp://h:1", "veth0"] {
+            assert_eq!(spec.parse::<LinkSpec>().unwrap().to_string(), spec);
+        }
+    }
+
+    #[test]
+    fn names_the_allowed_forms() {
+        for spec in ["sim:0", "sim:65", "sim:x", "sim:"] {
+            let err = spec.parse::<LinkSpec>().unwrap_err();
+            assert_eq!(err, LinkSpecError::SimCount { spec: spec.into(), max: MAX_SIM_COUNT });
+            assert!(err.to_string().contains("1..=64"), "{err}");
+        }
+        for spec in ["", "/dev/x", "host:1"] {
+            let err = spec.parse::<LinkSpec>().unwrap_err();
+            assert!(err.to_string().contains("\"udp://HOST:PORT\""), "{err}");
+        }
+    }
+}
