@@ -594,6 +594,8 @@ pub fn abort_error(index: u16, subindex: u8, code: SdoAbortCode) -> Error {
 /// An emergency message (CoE service 1): CiA error code, error register, 5 bytes of
 /// manufacturer data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+// Python sees it as a dict of these fields (akd_ros._native).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Emergency {
     /// CiA 301 / 402 error code, also readable in 0x603F on the AKD.
     pub error_code: u16,

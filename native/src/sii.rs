@@ -97,6 +97,8 @@ pub struct Identity {
 
 /// A mailbox layout: where the master writes (SM0) and reads (SM1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+// Python sees it as a dict of these fields (akd_ros._native).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct MailboxLayout {
     /// Start of the mailbox the slave receives on (master to slave, SM0).
     pub receive_offset: u16,
@@ -204,6 +206,8 @@ pub struct General {
 
 /// One sync manager of the SM category (8 bytes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+// Python sees it as a dict of these fields (akd_ros._native).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObjectRef))]
 pub struct SyncManager {
     /// Physical start address.
     pub start_address: u16,
@@ -216,6 +220,7 @@ pub struct SyncManager {
     /// Enable byte: bit 0 enable, bit 1 fixed content, bit 2 virtual, bit 3 Op only.
     pub enable: u8,
     /// Type, one of [`sync_manager_type`].
+    #[cfg_attr(feature = "python", pyo3(item("type")))]
     pub sm_type: u8,
 }
 

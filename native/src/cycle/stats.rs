@@ -28,6 +28,8 @@ pub struct Histogram {
 
 /// Count, minimum, mean, 99th percentile and maximum of a histogram, in nanoseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+// Python sees it as a dict of these fields (akd_ros._native).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Summary {
     /// Samples recorded.
     pub count: u64,

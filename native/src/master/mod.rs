@@ -39,6 +39,8 @@ const REGISTER_RETRIES: u32 = 3;
 
 /// Counters of the bus, never reset: errors are counted, not hidden.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+// Python sees it as a dict of these fields (akd_ros._native).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Stats {
     /// Frames sent.
     pub frames: u64,

@@ -11,6 +11,8 @@ use crate::master::Master;
 
 /// An object's description, owned.
 #[derive(Clone, Debug, PartialEq, Eq)]
+// Python sees it as a dict of these fields (akd_ros._native).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct ObjectInfo {
     /// Object index.
     pub index: u16,
@@ -26,6 +28,8 @@ pub struct ObjectInfo {
 
 /// An entry's description, owned.
 #[derive(Clone, Debug, PartialEq, Eq)]
+// Python sees it as a dict of these fields (akd_ros._native).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct EntryInfo {
     /// Subindex.
     pub subindex: u8,

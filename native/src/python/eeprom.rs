@@ -1,67 +1,151 @@
 //! `parse_sii` and `akd_sii_image`: the SII codec for Python, as plain dicts and bytes.
 
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList};
+use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
-use crate::sii::{MailboxLayout, Sii, SiiPdo};
+use crate::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
 use crate::sim::sii_image;
 
-fn mailbox_dict<'py>(py: Python<'py>, m: &MailboxLayout) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("receive_offset", m.receive_offset)?;
-    d.set_item("receive_size", m.receive_size)?;
-    d.set_item("send_offset", m.send_offset)?;
-    d.set_item("send_size", m.send_size)?;
-    Ok(d)
+/// What identifies a drive in its SII: the identity words and the names (None where absent).
+/// Shared by `parse_sii` and the master's scan, so both speak of a drive in the same keys.
+#[derive(IntoPyObject)]
+pub(super) struct Identity {
+    vendor_id: u32,
+    product_code: u32,
+    revision: u32,
+    serial_number: u32,
+    name: Option<String>,
+    model: Option<String>,
+    firmware: Option<String>,
 }
 
-/// One dict per item, filled in by `fill`.
-fn dicts<'py, T>(
-    py: Python<'py>,
-    items: &[T],
-    fill: impl Fn(&Bound<'py, PyDict>, &T) -> PyResult<()>,
-) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    items
-        .iter()
-        .map(|item| {
-            let d = PyDict::new(py);
-            fill(&d, item)?;
-            Ok(d)
+impl Identity {
+    /// The identity `sii` holds.
+    pub(super) fn of(sii: &Sii) -> Self {
+        let id = sii.identity();
+        Identity {
+            vendor_id: id.vendor_id,
+            product_code: id.product_code,
+            revision: id.revision,
+            serial_number: id.serial_number,
+            name: sii.name().map(str::to_owned),
+            model: sii.model().map(str::to_owned),
+            firmware: sii.firmware().map(str::to_owned),
+        }
+    }
+}
+
+/// `rest`'s dict with the identity's keys added. The one dict merged by hand: pyo3's derive has
+/// no flattening, and the identity's keys are one list for both dicts that carry them.
+pub(super) struct WithIdentity<T> {
+    /// The drive's identity.
+    pub(super) identity: Identity,
+    /// The dict's own keys.
+    pub(super) rest: T,
+}
+
+impl<'py, T> IntoPyObject<'py> for WithIdentity<T>
+where
+    T: IntoPyObject<'py, Target = PyDict, Output = Bound<'py, PyDict>>,
+    PyErr: From<T::Error>,
+{
+    type Target = PyDict;
+    type Output = Bound<'py, PyDict>;
+    type Error = PyErr;
+
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let dict = self.rest.into_pyobject(py)?;
+        dict.update(self.identity.into_pyobject(py)?.as_mapping())?;
+        Ok(dict)
+    }
+}
+
+/// One entry of a PDO in the SII, its name resolved.
+#[derive(IntoPyObject)]
+struct PdoEntryView<'a> {
+    index: u16,
+    subindex: u8,
+    name: Option<&'a str>,
+    data_type: u8,
+    bit_len: u8,
+}
+
+/// One PDO in the SII, its names resolved.
+#[derive(IntoPyObject)]
+struct PdoView<'a> {
+    index: u16,
+    name: Option<&'a str>,
+    sync_manager: u8,
+    dc_sync: u8,
+    flags: u16,
+    entries: Vec<PdoEntryView<'a>>,
+}
+
+fn pdo_views<'a>(sii: &'a Sii, pdos: &'a [SiiPdo]) -> Vec<PdoView<'a>> {
+    pdos.iter()
+        .map(|p| PdoView {
+            index: p.index,
+            name: sii.string(p.name_idx),
+            sync_manager: p.sync_manager,
+            dc_sync: p.dc_sync,
+            flags: p.flags,
+            entries: p
+                .entries
+                .iter()
+                .map(|e| PdoEntryView {
+                    index: e.index,
+                    subindex: e.subindex,
+                    name: sii.string(e.name_idx),
+                    data_type: e.data_type,
+                    bit_len: e.bit_len,
+                })
+                .collect(),
         })
         .collect()
 }
 
-fn pdo_dicts<'py>(py: Python<'py>, sii: &Sii, pdos: &[SiiPdo]) -> PyResult<Vec<Bound<'py, PyDict>>> {
-    dicts(py, pdos, |d, p| {
-        d.set_item("index", p.index)?;
-        d.set_item("name", sii.string(p.name_idx))?;
-        d.set_item("sync_manager", p.sync_manager)?;
-        d.set_item("dc_sync", p.dc_sync)?;
-        d.set_item("flags", p.flags)?;
-        let entries = dicts(py, &p.entries, |e, entry| {
-            e.set_item("index", entry.index)?;
-            e.set_item("subindex", entry.subindex)?;
-            e.set_item("name", sii.string(entry.name_idx))?;
-            e.set_item("data_type", entry.data_type)?;
-            e.set_item("bit_len", entry.bit_len)
-        })?;
-        d.set_item("entries", entries)
-    })
+/// The general category's details (its string indices are resolved in the top-level names).
+#[derive(IntoPyObject)]
+struct GeneralView {
+    coe_details: u8,
+    foe_details: u8,
+    eoe_details: u8,
+    flags: u8,
+    current_on_ebus: i16,
+    physical_port: u16,
 }
 
-/// Puts what identifies a drive in its SII into `d`: vendor_id, product_code, revision,
-/// serial_number, and the names name, model and firmware (None where absent). Shared by
-/// `parse_sii` and the master's scan so both speak of a drive in the same keys.
-pub(super) fn set_identity(d: &Bound<'_, PyDict>, sii: &Sii) -> PyResult<()> {
-    let id = sii.identity();
-    d.set_item("vendor_id", id.vendor_id)?;
-    d.set_item("product_code", id.product_code)?;
-    d.set_item("revision", id.revision)?;
-    d.set_item("serial_number", id.serial_number)?;
-    d.set_item("name", sii.name())?;
-    d.set_item("model", sii.model())?;
-    d.set_item("firmware", sii.firmware())
+/// One DC operation mode, its name resolved.
+#[derive(IntoPyObject)]
+struct DcModeView<'a> {
+    name: Option<&'a str>,
+    assign_activate: u16,
+    cycle_time0: u32,
+    shift_time0: u32,
+    sync0_cycle_factor: i16,
+    sync1_cycle_factor: i16,
+}
+
+/// What `parse_sii` gives besides the identity.
+#[derive(IntoPyObject)]
+struct SiiView<'a> {
+    alias: u16,
+    group: Option<&'a str>,
+    order: Option<&'a str>,
+    mailbox_protocols: u16,
+    standard_mailbox: MailboxLayout,
+    bootstrap_mailbox: MailboxLayout,
+    eeprom_bytes: usize,
+    strings: &'a [String],
+    general: Option<GeneralView>,
+    /// FMMU usage codes (1 outputs, 2 inputs, 3 SM status), widened: pyo3 makes bytes of a
+    /// `u8` sequence, and Python reads a list of codes.
+    fmmu_usage: Vec<u16>,
+    sync_managers: &'a [SyncManager],
+    tx_pdos: Vec<PdoView<'a>>,
+    rx_pdos: Vec<PdoView<'a>>,
+    dc_modes: Vec<DcModeView<'a>>,
 }
 
 /// Decodes an SII EEPROM image (the whole EEPROM, or up to the end category) into a dict:
@@ -73,51 +157,41 @@ pub(super) fn set_identity(d: &Bound<'_, PyDict>, sii: &Sii) -> PyResult<()> {
 fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> {
     let sii = Sii::parse(data).py()?;
     let h = &sii.header;
-    let d = PyDict::new(py);
-    set_identity(&d, &sii)?;
-    d.set_item("alias", sii.alias())?;
-    d.set_item("group", sii.group())?;
-    d.set_item("order", sii.order())?;
-    d.set_item("mailbox_protocols", h.mailbox_protocols)?;
-    d.set_item("standard_mailbox", mailbox_dict(py, &h.standard_mailbox)?)?;
-    d.set_item("bootstrap_mailbox", mailbox_dict(py, &h.bootstrap_mailbox)?)?;
-    d.set_item("eeprom_bytes", h.eeprom_bytes())?;
-    d.set_item("strings", sii.strings())?;
-    if let Some(g) = sii.general() {
-        let gd = PyDict::new(py);
-        gd.set_item("coe_details", g.coe_details)?;
-        gd.set_item("foe_details", g.foe_details)?;
-        gd.set_item("eoe_details", g.eoe_details)?;
-        gd.set_item("flags", g.flags)?;
-        gd.set_item("current_on_ebus", g.current_on_ebus)?;
-        gd.set_item("physical_port", g.physical_port)?;
-        d.set_item("general", gd)?;
-    } else {
-        d.set_item("general", py.None())?;
-    }
-    // A list of codes, not bytes: each is an FMMU usage code (1 outputs, 2 inputs, 3 SM status).
-    d.set_item("fmmu_usage", PyList::new(py, sii.fmmu_usage())?)?;
-    let sms = dicts(py, sii.sync_managers(), |s, sm| {
-        s.set_item("start_address", sm.start_address)?;
-        s.set_item("length", sm.length)?;
-        s.set_item("control", sm.control)?;
-        s.set_item("status", sm.status)?;
-        s.set_item("enable", sm.enable)?;
-        s.set_item("type", sm.sm_type)
-    })?;
-    d.set_item("sync_managers", sms)?;
-    d.set_item("tx_pdos", pdo_dicts(py, &sii, sii.tx_pdos())?)?;
-    d.set_item("rx_pdos", pdo_dicts(py, &sii, sii.rx_pdos())?)?;
-    let modes = dicts(py, sii.dc_modes(), |s, m| {
-        s.set_item("name", sii.string(m.name_idx))?;
-        s.set_item("assign_activate", m.assign_activate)?;
-        s.set_item("cycle_time0", m.cycle_time0)?;
-        s.set_item("shift_time0", m.shift_time0)?;
-        s.set_item("sync0_cycle_factor", m.sync0_cycle_factor)?;
-        s.set_item("sync1_cycle_factor", m.sync1_cycle_factor)
-    })?;
-    d.set_item("dc_modes", modes)?;
-    Ok(d)
+    let rest = SiiView {
+        alias: sii.alias(),
+        group: sii.group(),
+        order: sii.order(),
+        mailbox_protocols: h.mailbox_protocols,
+        standard_mailbox: h.standard_mailbox,
+        bootstrap_mailbox: h.bootstrap_mailbox,
+        eeprom_bytes: h.eeprom_bytes(),
+        strings: sii.strings(),
+        general: sii.general().map(|g| GeneralView {
+            coe_details: g.coe_details,
+            foe_details: g.foe_details,
+            eoe_details: g.eoe_details,
+            flags: g.flags,
+            current_on_ebus: g.current_on_ebus,
+            physical_port: g.physical_port,
+        }),
+        fmmu_usage: sii.fmmu_usage().iter().map(|&u| u.into()).collect(),
+        sync_managers: sii.sync_managers(),
+        tx_pdos: pdo_views(&sii, sii.tx_pdos()),
+        rx_pdos: pdo_views(&sii, sii.rx_pdos()),
+        dc_modes: sii
+            .dc_modes()
+            .iter()
+            .map(|m| DcModeView {
+                name: sii.string(m.name_idx),
+                assign_activate: m.assign_activate,
+                cycle_time0: m.cycle_time0,
+                shift_time0: m.shift_time0,
+                sync0_cycle_factor: m.sync0_cycle_factor,
+                sync1_cycle_factor: m.sync1_cycle_factor,
+            })
+            .collect(),
+    };
+    WithIdentity { identity: Identity::of(&sii), rest }.into_pyobject(py)
 }
 
 /// The SII EEPROM image the virtual AKD serves: the real AKD-P00606-NBCC-E000's 2048 bytes.

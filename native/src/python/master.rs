@@ -7,13 +7,16 @@
 use std::sync::{Mutex, MutexGuard, TryLockError};
 
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList};
+use pyo3::types::PyInt;
 
+use super::eeprom::{Identity, WithIdentity};
 use super::IntoPyResult;
 use crate::al::AlState;
+use crate::coe::{Emergency, ObjectCode, OdListType};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
 use crate::link::{self, Link, LinkSpec};
-use crate::master::{self, Mapping};
+use crate::master::sdo_info::{EntryInfo, ObjectInfo};
+use crate::master::{self, Mapping, SlaveRef};
 use crate::pdo::PdoEntry;
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
@@ -74,6 +77,55 @@ impl PyMaster {
             Err(TryLockError::WouldBlock) => Err(super::to_py_err(Unavailable::MasterBusy.into())),
         }
     }
+
+    /// Runs `f` on the master, the GIL released: the master is taken for the call (ConfigError
+    /// when another thread uses it, when it is closed or while a Cycle holds it).
+    fn with_master<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&mut master::Master) -> crate::error::Result<T> + Send,
+    ) -> PyResult<T> {
+        let mut in_use = self.lock()?;
+        let master = in_use.get()?;
+        py.allow_threads(|| f(master)).py()
+    }
+
+    /// Runs `f` on the slave at `position`, as [`with_master`](Self::with_master) does.
+    fn with_slave<T: Send>(
+        &self,
+        py: Python<'_>,
+        position: u16,
+        f: impl FnOnce(&mut SlaveRef<'_>) -> crate::error::Result<T> + Send,
+    ) -> PyResult<T> {
+        self.with_master(py, |m| f(&mut m.slave_mut(position)?))
+    }
+}
+
+/// One slave as `scan` reports it, besides its identity.
+#[derive(IntoPyObject)]
+struct ScannedSlave {
+    position: u16,
+    station_address: u16,
+    alias: u16,
+    al_state: &'static str,
+    al_status_code: u16,
+    al_status_code_name: &'static str,
+    found_al_state: &'static str,
+    found_al_status_code: u16,
+    found_al_status_code_name: &'static str,
+    mailbox_protocols: u16,
+    dc: bool,
+}
+
+impl<'py> IntoPyObject<'py> for ObjectCode {
+    type Target = PyInt;
+    type Output = Bound<'py, PyInt>;
+    type Error = std::convert::Infallible;
+
+    /// Python reads an object code as its number (7 VAR, 8 ARRAY, 9 RECORD, ...).
+    fn into_pyobject(self, py: Python<'py>) -> Result<Bound<'py, PyInt>, Self::Error> {
+        u8::from(self).into_pyobject(py)
+    }
 }
 
 #[pymethods]
@@ -110,42 +162,42 @@ impl PyMaster {
     /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
     /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
     /// what the scan found before it reset the bus.
-    fn scan<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.scan()).py()?;
-        let list = PyList::empty(py);
-        for position in 0..m.slaves().len() as u16 {
-            let status = py.allow_threads(|| m.slave_mut(position)?.al_status()).py()?;
-            let slave = m.slave(position).py()?;
-            let d = PyDict::new(py);
-            d.set_item("position", slave.position)?;
-            d.set_item("station_address", slave.station_address)?;
-            d.set_item("alias", slave.alias)?;
-            super::eeprom::set_identity(&d, &slave.sii)?;
-            d.set_item("al_state", status.state_name())?;
-            d.set_item("al_status_code", status.code)?;
-            d.set_item("al_status_code_name", status.code_name())?;
-            d.set_item("found_al_state", slave.found.state_name())?;
-            d.set_item("found_al_status_code", slave.found.code)?;
-            d.set_item("found_al_status_code_name", slave.found.code_name())?;
-            d.set_item("mailbox_protocols", slave.sii.header.mailbox_protocols)?;
-            d.set_item("dc", slave.has_dc())?;
-            list.append(d)?;
-        }
-        Ok(list)
+    fn scan(&self, py: Python<'_>) -> PyResult<Vec<WithIdentity<ScannedSlave>>> {
+        self.with_master(py, |m| {
+            m.scan()?;
+            (0..m.slaves().len() as u16)
+                .map(|position| {
+                    let status = m.slave_mut(position)?.al_status()?;
+                    let slave = m.slave(position)?;
+                    let rest = ScannedSlave {
+                        position: slave.position,
+                        station_address: slave.station_address,
+                        alias: slave.alias,
+                        al_state: status.state_name(),
+                        al_status_code: status.code,
+                        al_status_code_name: status.code_name(),
+                        found_al_state: slave.found.state_name(),
+                        found_al_status_code: slave.found.code,
+                        found_al_status_code_name: slave.found.code_name(),
+                        mailbox_protocols: slave.sii.header.mailbox_protocols,
+                        dc: slave.has_dc(),
+                    };
+                    Ok(WithIdentity { identity: Identity::of(&slave.sii), rest })
+                })
+                .collect()
+        })
     }
 
     /// Number of slaves found by the last scan.
     #[getter]
-    fn slave_count(&self) -> PyResult<usize> {
-        Ok(self.lock()?.get()?.slaves().len())
+    fn slave_count(&self, py: Python<'_>) -> PyResult<usize> {
+        self.with_master(py, |m| Ok(m.slaves().len()))
     }
 
     /// The link's description.
     #[getter]
-    fn link(&self) -> PyResult<String> {
-        Ok(self.lock()?.get()?.describe())
+    fn link(&self, py: Python<'_>) -> PyResult<String> {
+        self.with_master(py, |m| Ok(m.describe()))
     }
 
     /// Takes the slave at `position` (every slave when None) to `state`.
@@ -153,111 +205,57 @@ impl PyMaster {
     fn request_state(&self, py: Python<'_>, state: &str, position: Option<u16>, timeout: f64) -> PyResult<()> {
         let target = parse_state(state).py()?;
         let timeout = super::seconds(timeout, "timeout")?;
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| match position {
-            Some(p) => m.slave_mut(p)?.request_state(target, timeout),
-            None => m.request_state(target, timeout),
-        })
-        .py()
+        match position {
+            Some(p) => self.with_slave(py, p, |s| s.request_state(target, timeout)),
+            None => self.with_master(py, |m| m.request_state(target, timeout)),
+        }
     }
 
     /// (state, AL status code, its name) of the slave at `position`.
-    fn al_status(&self, py: Python<'_>, position: u16) -> PyResult<(String, u16, String)> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        let s = py.allow_threads(|| m.slave_mut(position)?.al_status()).py()?;
-        Ok((s.state_name().to_owned(), s.code, s.code_name().to_owned()))
+    fn al_status(&self, py: Python<'_>, position: u16) -> PyResult<(&'static str, u16, &'static str)> {
+        let s = self.with_slave(py, position, |s| s.al_status())?;
+        Ok((s.state_name(), s.code, s.code_name()))
     }
 
     /// Reads `length` bytes of ESC registers from `address` of the slave at `position`.
-    fn read_register<'py>(
-        &self,
-        py: Python<'py>,
-        position: u16,
-        address: u16,
-        length: usize,
-    ) -> PyResult<Bound<'py, PyBytes>> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        let data = py.allow_threads(|| m.slave_mut(position)?.read_register(address, length)).py()?;
-        Ok(PyBytes::new(py, &data))
+    fn read_register(&self, py: Python<'_>, position: u16, address: u16, length: usize) -> PyResult<Vec<u8>> {
+        self.with_slave(py, position, |s| s.read_register(address, length))
     }
 
     /// Writes ESC registers from `address` of the slave at `position`.
     fn write_register(&self, py: Python<'_>, position: u16, address: u16, data: Vec<u8>) -> PyResult<()> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.slave_mut(position)?.write_register(address, &data)).py()
+        self.with_slave(py, position, |s| s.write_register(address, &data))
     }
 
     /// Reads an SDO.
-    fn sdo_read<'py>(&self, py: Python<'py>, position: u16, index: u16, subindex: u8) -> PyResult<Bound<'py, PyBytes>> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        let data = py.allow_threads(|| m.slave_mut(position)?.sdo_read(index, subindex)).py()?;
-        Ok(PyBytes::new(py, &data))
+    fn sdo_read(&self, py: Python<'_>, position: u16, index: u16, subindex: u8) -> PyResult<Vec<u8>> {
+        self.with_slave(py, position, |s| s.sdo_read(index, subindex))
     }
 
     /// Writes an SDO.
     fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.slave_mut(position)?.sdo_write(index, subindex, &data)).py()
+        self.with_slave(py, position, |s| s.sdo_write(index, subindex, &data))
     }
 
     /// Every object index of the slave's object dictionary (SDO information).
     fn sdo_object_list(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u16>> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.slave_mut(position)?.sdo_object_list(crate::coe::OdListType::All)).py()
+        self.with_slave(py, position, |s| s.sdo_object_list(OdListType::All))
     }
 
-    /// The description of object `index`.
-    fn sdo_object_description<'py>(&self, py: Python<'py>, position: u16, index: u16) -> PyResult<Bound<'py, PyDict>> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        let o = py.allow_threads(|| m.slave_mut(position)?.sdo_object_description(index)).py()?;
-        let d = PyDict::new(py);
-        d.set_item("index", o.index)?;
-        d.set_item("data_type", o.data_type)?;
-        d.set_item("max_subindex", o.max_subindex)?;
-        d.set_item("object_code", u8::from(o.object_code))?;
-        d.set_item("name", o.name)?;
-        Ok(d)
+    /// The description of object `index`: index, data_type, max_subindex, object_code, name.
+    fn sdo_object_description(&self, py: Python<'_>, position: u16, index: u16) -> PyResult<ObjectInfo> {
+        self.with_slave(py, position, |s| s.sdo_object_description(index))
     }
 
-    /// The description of entry `index:subindex`.
-    fn sdo_entry_description<'py>(
-        &self,
-        py: Python<'py>,
-        position: u16,
-        index: u16,
-        subindex: u8,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        let e = py.allow_threads(|| m.slave_mut(position)?.sdo_entry_description(index, subindex)).py()?;
-        let d = PyDict::new(py);
-        d.set_item("subindex", e.subindex)?;
-        d.set_item("data_type", e.data_type)?;
-        d.set_item("bit_length", e.bit_length)?;
-        d.set_item("access", e.access)?;
-        d.set_item("name", e.name)?;
-        Ok(d)
+    /// The description of entry `index:subindex`: subindex, data_type, bit_length, access, name.
+    fn sdo_entry_description(&self, py: Python<'_>, position: u16, index: u16, subindex: u8) -> PyResult<EntryInfo> {
+        self.with_slave(py, position, |s| s.sdo_entry_description(index, subindex))
     }
 
-    /// Takes the emergency messages received from the slave at `position`.
-    fn emergencies<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyList>> {
-        let list = PyList::empty(py);
-        for e in self.lock()?.get()?.slave_mut(position).py()?.take_emergencies().py()? {
-            let d = PyDict::new(py);
-            d.set_item("error_code", e.error_code)?;
-            d.set_item("error_register", e.error_register)?;
-            d.set_item("data", PyBytes::new(py, &e.data))?;
-            list.append(d)?;
-        }
-        Ok(list)
+    /// Takes the emergency messages received from the slave at `position`, each a dict of
+    /// error_code, error_register and data.
+    fn emergencies(&self, py: Python<'_>, position: u16) -> PyResult<Vec<Emergency>> {
+        self.with_slave(py, position, |s| s.take_emergencies())
     }
 
     /// Gives the slave at `position` (in PreOp) its outputs mapping `rx` and inputs mapping
@@ -271,67 +269,50 @@ impl PyMaster {
         tx: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let (rx, tx) = (parse_mapping(rx)?, parse_mapping(tx)?);
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.slave_mut(position)?.configure_pdo(rx, tx)).py()
+        self.with_slave(py, position, |s| s.configure_pdo(rx, tx))
     }
 
     /// Sets the drive's cycle time (interpolation time period 0x60C2) without distributed
     /// clocks, e.g. for a drive synchronised on the SM2 event (in PreOp).
     fn set_cycle_time(&self, py: Python<'_>, position: u16, cycle_time_ns: u32) -> PyResult<()> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.slave_mut(position)?.set_cycle_time(cycle_time_ns)).py()
+        self.with_slave(py, position, |s| s.set_cycle_time(cycle_time_ns))
     }
 
     /// Sets up distributed clocks and SYNC0 at `cycle_time_ns` (in PreOp).
     fn configure_dc(&self, py: Python<'_>, cycle_time_ns: u32) -> PyResult<()> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.configure_dc(cycle_time_ns)).py()
+        self.with_master(py, |m| m.configure_dc(cycle_time_ns))
     }
 
     /// One cyclic exchange; returns the working counter.
     fn exchange(&self, py: Python<'_>) -> PyResult<u16> {
-        let mut in_use = self.lock()?;
-        let m = in_use.get()?;
-        py.allow_threads(|| m.exchange()).py()
+        self.with_master(py, |m| m.exchange())
     }
 
     /// The working counter a good cycle comes back with.
     #[getter]
-    fn expected_wkc(&self) -> PyResult<u16> {
-        self.lock()?.get()?.expected_wkc().py()
+    fn expected_wkc(&self, py: Python<'_>) -> PyResult<u16> {
+        self.with_master(py, |m| m.expected_wkc())
     }
 
     /// The outputs of the slave at `position`.
-    fn outputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
-        Ok(PyBytes::new(py, self.lock()?.get()?.slave_mut(position).py()?.outputs().py()?))
+    fn outputs(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u8>> {
+        self.with_slave(py, position, |s| s.outputs().map(<[u8]>::to_vec))
     }
 
     /// Sets the outputs of the slave at `position` for the next cycles.
-    fn set_outputs(&self, position: u16, data: Vec<u8>) -> PyResult<()> {
-        self.lock()?.get()?.slave_mut(position).py()?.set_outputs(&data).py()
+    fn set_outputs(&self, py: Python<'_>, position: u16, data: Vec<u8>) -> PyResult<()> {
+        self.with_slave(py, position, |s| s.set_outputs(&data))
     }
 
     /// The inputs of the slave at `position` from the last good cycle.
-    fn inputs<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyBytes>> {
-        Ok(PyBytes::new(py, self.lock()?.get()?.slave_mut(position).py()?.inputs().py()?))
+    fn inputs(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u8>> {
+        self.with_slave(py, position, |s| s.inputs().map(<[u8]>::to_vec))
     }
 
     /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats,
     /// emergencies, stale_mailbox_replies.
-    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let s = self.lock()?.get()?.stats();
-        let d = PyDict::new(py);
-        d.set_item("frames", s.frames)?;
-        d.set_item("lost_frames", s.lost_frames)?;
-        d.set_item("wkc_errors", s.wkc_errors)?;
-        d.set_item("cycles", s.cycles)?;
-        d.set_item("mailbox_repeats", s.mailbox_repeats)?;
-        d.set_item("emergencies", s.emergencies)?;
-        d.set_item("stale_mailbox_replies", s.stale_mailbox_replies)?;
-        Ok(d)
+    fn stats(&self, py: Python<'_>) -> PyResult<master::Stats> {
+        self.with_master(py, |m| Ok(m.stats()))
     }
 
     /// Closes the link; later calls raise ConfigError.
