@@ -11,12 +11,12 @@
 use std::time::Duration;
 
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyList};
+use pyo3::types::{PyBytes, PyDict};
 
 use super::master::PyMaster;
 use super::IntoPyResult;
 use crate::akd_fault;
-use crate::cycle::events::{CommandTimeoutAction, Edge, Event};
+use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
 use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
@@ -31,14 +31,177 @@ pub struct PyCycle {
     cycle: CycleThread,
 }
 
-fn summary<'py>(py: Python<'py>, s: Summary) -> PyResult<Bound<'py, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("count", s.count)?;
-    d.set_item("min_ns", s.min_ns)?;
-    d.set_item("mean_ns", s.mean_ns)?;
-    d.set_item("p99_ns", s.p99_ns)?;
-    d.set_item("max_ns", s.max_ns)?;
-    Ok(d)
+/// What `snapshot` gives; a slave without process data has None.
+#[derive(IntoPyObject)]
+struct SnapshotView<'a> {
+    cycle: u64,
+    time_ns: u64,
+    wkc: u16,
+    fresh: bool,
+    inputs: Vec<Option<&'a [u8]>>,
+    outputs: Vec<Option<&'a [u8]>>,
+}
+
+/// What `stats` gives.
+#[derive(IntoPyObject)]
+struct StatsView {
+    cycles: u64,
+    overruns: u64,
+    lost_frames: u64,
+    wkc_errors: u64,
+    other_errors: u64,
+    setpoints_busy: u64,
+    period: Summary,
+    wake_latency: Summary,
+    exchange: Summary,
+}
+
+/// What `histograms` gives: (upper edge in ns, count) of each non-empty bucket.
+#[derive(IntoPyObject)]
+struct Histograms {
+    period: Vec<(u64, u64)>,
+    wake_latency: Vec<(u64, u64)>,
+    exchange: Vec<(u64, u64)>,
+}
+
+/// What `drive_status` gives.
+#[derive(IntoPyObject)]
+struct DriveStatusView {
+    state: Option<&'static str>,
+    statusword: u16,
+    request: Option<&'static str>,
+    progress: &'static str,
+    reason: Option<String>,
+    mode_display: Option<i8>,
+}
+
+/// What `wait_setpoint` and `setpoint_status` give.
+#[derive(IntoPyObject)]
+struct SetpointView {
+    request: u32,
+    bits: u16,
+    progress: &'static str,
+    reason: Option<String>,
+    statusword: u16,
+}
+
+impl From<handshake::Status> for SetpointView {
+    fn from(s: handshake::Status) -> Self {
+        let progress = match s.progress {
+            handshake::Progress::Idle => "idle",
+            handshake::Progress::InProgress => "in_progress",
+            handshake::Progress::Done => "done",
+            handshake::Progress::Stuck(_) => "stuck",
+        };
+        SetpointView { request: s.request, bits: s.bits, progress, reason: s.stuck_reason(), statusword: s.statusword }
+    }
+}
+
+/// What `command_timeout_status` gives.
+#[derive(IntoPyObject)]
+struct CommandTimeoutView {
+    timeout: f64,
+    policy: Option<&'static str>,
+    armed: bool,
+    halted: bool,
+    timeouts: u64,
+}
+
+/// What `mapping` gives: (index, subindex, bit length, byte offset) in wire order.
+#[derive(IntoPyObject)]
+struct MappingView {
+    outputs: Vec<(u16, u8, u8, usize)>,
+    inputs: Vec<(u16, u8, u8, usize)>,
+}
+
+/// One event as `events` gives it, "kind" first.
+#[derive(IntoPyObject)]
+enum EventView {
+    Latch {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        slave: u16,
+        channel: u8,
+        edge: &'static str,
+        position: i32,
+    },
+    Fault {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        slave: u16,
+        source: &'static str,
+        code: u16,
+        text: Option<String>,
+        statusword: u16,
+        ds402_state: Option<&'static str>,
+        al_status: u16,
+        al_state: Option<&'static str>,
+        al_status_code: u16,
+        al_status_code_name: &'static str,
+        action: &'static str,
+    },
+    CommandTimeout {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        slave: u16,
+        command: &'static str,
+        value: i32,
+        timeout: f64,
+        statusword: u16,
+        ds402_state: Option<&'static str>,
+        action: &'static str,
+        text: &'static str,
+    },
+}
+
+impl From<Event> for EventView {
+    fn from(event: Event) -> Self {
+        let ds402_state = |statusword| State::from_statusword(statusword).map(State::name);
+        match event {
+            Event::Latch { cycle, time_ns, slave, channel, edge, position } => {
+                EventView::Latch { kind: "latch", cycle, time_ns, slave, channel, edge: edge.name(), position }
+            }
+            Event::Fault { cycle, time_ns, slave, source, code, statusword, al_status, al_status_code, action } => {
+                let text = matches!(source, FaultSource::DriveFault | FaultSource::Emergency)
+                    .then(|| akd_fault::by_code(code).map(|f| format!("F{} {}", f.number, f.text)))
+                    .flatten();
+                EventView::Fault {
+                    kind: "fault",
+                    cycle,
+                    time_ns,
+                    slave,
+                    source: source.name(),
+                    code,
+                    text,
+                    statusword,
+                    ds402_state: ds402_state(statusword),
+                    al_status,
+                    al_state: (al_status != 0).then(|| crate::al::state_name(al_status)),
+                    al_status_code,
+                    al_status_code_name: crate::al::AlStatusCode(al_status_code).name(),
+                    action: action.describe(),
+                }
+            }
+            Event::CommandTimeout { cycle, time_ns, slave, target, value, timeout_us, statusword, action } => {
+                EventView::CommandTimeout {
+                    kind: "command_timeout",
+                    cycle,
+                    time_ns,
+                    slave,
+                    command: target.name(),
+                    value,
+                    timeout: timeout_us as f64 * 1e-6,
+                    statusword,
+                    ds402_state: ds402_state(statusword),
+                    action: action.name(),
+                    text: action.describe(),
+                }
+            }
+        }
+    }
 }
 
 /// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
@@ -115,54 +278,46 @@ impl PyCycle {
     fn snapshot<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let cycle = &self.cycle;
         let s = cycle.snapshot();
-        let d = PyDict::new(py);
-        d.set_item("cycle", s.cycle)?;
-        d.set_item("time_ns", s.time_ns)?;
-        d.set_item("wkc", s.wkc)?;
-        d.set_item("fresh", s.fresh)?;
-        let inputs = PyList::empty(py);
-        let outputs = PyList::empty(py);
-        for position in 0..cycle.slave_count() {
-            for (list, data) in [(&inputs, cycle.inputs_of(&s, position)), (&outputs, cycle.outputs_of(&s, position))] {
-                match data {
-                    Ok(data) => list.append(PyBytes::new(py, data))?,
-                    Err(_) => list.append(py.None())?,
-                }
-            }
+        let positions = 0..cycle.slave_count();
+        SnapshotView {
+            cycle: s.cycle,
+            time_ns: s.time_ns,
+            wkc: s.wkc,
+            fresh: s.fresh,
+            inputs: positions.clone().map(|p| cycle.inputs_of(&s, p).ok()).collect(),
+            outputs: positions.map(|p| cycle.outputs_of(&s, p).ok()).collect(),
         }
-        d.set_item("inputs", inputs)?;
-        d.set_item("outputs", outputs)?;
-        Ok(d)
+        .into_pyobject(py)
     }
 
     /// The statistics: cycles, overruns, lost_frames, wkc_errors, other_errors,
     /// setpoints_busy, and period, wake_latency (how late after its deadline the thread woke)
     /// and exchange, each {count, min_ns, mean_ns, p99_ns, max_ns}.
-    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn stats(&self) -> StatsView {
         use std::sync::atomic::Ordering::Relaxed;
         let s = self.cycle.stats();
-        let d = PyDict::new(py);
-        d.set_item("cycles", s.cycles.load(Relaxed))?;
-        d.set_item("overruns", s.overruns.load(Relaxed))?;
-        d.set_item("lost_frames", s.lost_frames.load(Relaxed))?;
-        d.set_item("wkc_errors", s.wkc_errors.load(Relaxed))?;
-        d.set_item("other_errors", s.other_errors.load(Relaxed))?;
-        d.set_item("setpoints_busy", s.setpoints_busy.load(Relaxed))?;
-        d.set_item("period", summary(py, s.period.summary())?)?;
-        d.set_item("wake_latency", summary(py, s.wake_latency.summary())?)?;
-        d.set_item("exchange", summary(py, s.exchange.summary())?)?;
-        Ok(d)
+        StatsView {
+            cycles: s.cycles.load(Relaxed),
+            overruns: s.overruns.load(Relaxed),
+            lost_frames: s.lost_frames.load(Relaxed),
+            wkc_errors: s.wkc_errors.load(Relaxed),
+            other_errors: s.other_errors.load(Relaxed),
+            setpoints_busy: s.setpoints_busy.load(Relaxed),
+            period: s.period.summary(),
+            wake_latency: s.wake_latency.summary(),
+            exchange: s.exchange.summary(),
+        }
     }
 
     /// The histograms "period", "wake_latency" and "exchange", each a list of (upper edge in ns, count) of its
     /// non-empty 1 µs buckets.
-    fn histograms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    fn histograms(&self) -> Histograms {
         let s = self.cycle.stats();
-        let d = PyDict::new(py);
-        d.set_item("period", s.period.buckets())?;
-        d.set_item("wake_latency", s.wake_latency.buckets())?;
-        d.set_item("exchange", s.exchange.buckets())?;
-        Ok(d)
+        Histograms {
+            period: s.period.buckets(),
+            wake_latency: s.wake_latency.buckets(),
+            exchange: s.exchange.buckets(),
+        }
     }
 
     /// Asks drive `position` for Operation enabled, stepping it through the CiA 402 states in
@@ -208,16 +363,16 @@ impl PyCycle {
     /// "disable", "quick_stop", "reset_fault" or None), "progress" ("idle", "in_progress",
     /// "done", "stuck", or "lost" when the drive left the state it had reached), "reason"
     /// (why stuck or lost, else None) and "mode_display" (0x6061 where mapped, else None).
-    fn drive_status<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
+    fn drive_status(&self, position: u16) -> PyResult<DriveStatusView> {
         let s = self.cycle.drive_status(position).py()?;
-        let d = PyDict::new(py);
-        d.set_item("state", s.state().map(|state| state.name()))?;
-        d.set_item("statusword", s.statusword)?;
-        d.set_item("request", s.request.map(Request::name))?;
-        d.set_item("progress", progress_name(s.progress))?;
-        d.set_item("reason", s.stuck_reason())?;
-        d.set_item("mode_display", s.mode_display)?;
-        Ok(d)
+        Ok(DriveStatusView {
+            state: s.state().map(State::name),
+            statusword: s.statusword,
+            request: s.request.map(Request::name),
+            progress: progress_name(s.progress),
+            reason: s.stuck_reason(),
+            mode_display: s.mode_display,
+        })
     }
 
     /// Waits, without holding the GIL, until drive `position` shows `state` (a CiA 402 state's
@@ -267,59 +422,8 @@ impl PyCycle {
     /// time-out adds "command" ("velocity", "torque"), "value" (its last value in drive units:
     /// counts/s, 0.1 % of peak torque), "timeout" (s), "statusword", "ds402_state", "action"
     /// ("hold" or "quick_stop") and "text" (what was done, for the log).
-    fn events<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let list = PyList::empty(py);
-        for event in self.cycle.events() {
-            let d = PyDict::new(py);
-            match event {
-                Event::Latch { cycle, time_ns, slave, channel, edge, position } => {
-                    d.set_item("kind", "latch")?;
-                    d.set_item("cycle", cycle)?;
-                    d.set_item("time_ns", time_ns)?;
-                    d.set_item("slave", slave)?;
-                    d.set_item("channel", channel)?;
-                    d.set_item("edge", edge.name())?;
-                    d.set_item("position", position)?;
-                }
-                Event::Fault { cycle, time_ns, slave, source, code, statusword, al_status, al_status_code, action } => {
-                    d.set_item("kind", "fault")?;
-                    d.set_item("cycle", cycle)?;
-                    d.set_item("time_ns", time_ns)?;
-                    d.set_item("slave", slave)?;
-                    d.set_item("source", source.name())?;
-                    d.set_item("code", code)?;
-                    let text = matches!(
-                        source,
-                        crate::cycle::events::FaultSource::DriveFault | crate::cycle::events::FaultSource::Emergency
-                    )
-                    .then(|| akd_fault::by_code(code).map(|f| format!("F{} {}", f.number, f.text)))
-                    .flatten();
-                    d.set_item("text", text)?;
-                    d.set_item("statusword", statusword)?;
-                    d.set_item("ds402_state", State::from_statusword(statusword).map(|s| s.name()))?;
-                    d.set_item("al_status", al_status)?;
-                    d.set_item("al_state", (al_status != 0).then(|| crate::al::state_name(al_status)))?;
-                    d.set_item("al_status_code", al_status_code)?;
-                    d.set_item("al_status_code_name", crate::al::AlStatusCode(al_status_code).name())?;
-                    d.set_item("action", action.describe())?;
-                }
-                Event::CommandTimeout { cycle, time_ns, slave, target, value, timeout_us, statusword, action } => {
-                    d.set_item("kind", "command_timeout")?;
-                    d.set_item("cycle", cycle)?;
-                    d.set_item("time_ns", time_ns)?;
-                    d.set_item("slave", slave)?;
-                    d.set_item("command", target.name())?;
-                    d.set_item("value", value)?;
-                    d.set_item("timeout", timeout_us as f64 * 1e-6)?;
-                    d.set_item("statusword", statusword)?;
-                    d.set_item("ds402_state", State::from_statusword(statusword).map(|s| s.name()))?;
-                    d.set_item("action", action.name())?;
-                    d.set_item("text", action.describe())?;
-                }
-            }
-            list.append(d)?;
-        }
-        Ok(list)
+    fn events(&self) -> Vec<EventView> {
+        self.cycle.events().into_iter().map(EventView::from).collect()
     }
 
     /// One record per cycle and sequenced drive since the last call, oldest first, as columns:
@@ -330,6 +434,8 @@ impl PyCycle {
     /// 8192 records; take them at least that often (`samples_dropped` counts the rest).
     fn samples<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let samples = self.cycle.samples();
+        // Columns of Sample's fields, one list each, filled by hand: pyo3's derive converts one
+        // record, and a struct of columns would list every field a second time.
         let d = PyDict::new(py);
         macro_rules! column {
             ($($field:ident),*) => {
@@ -428,18 +534,17 @@ impl PyCycle {
     /// `position` is done. Raises TimeoutError saying why at once when it is stuck, and when
     /// `timeout` seconds pass first (None: until the handshake's own time-out ends it).
     #[pyo3(signature = (position, timeout = None))]
-    fn wait_setpoint<'py>(&self, py: Python<'py>, position: u16, timeout: Option<f64>) -> PyResult<Bound<'py, PyDict>> {
+    fn wait_setpoint(&self, py: Python<'_>, position: u16, timeout: Option<f64>) -> PyResult<SetpointView> {
         let timeout = timeout.map(|t| duration("timeout", t, SECONDS)).transpose()?;
         let cycle = &self.cycle;
-        let status = py.allow_threads(|| cycle.wait_setpoint(position, timeout)).py()?;
-        setpoint_dict(py, status)
+        Ok(py.allow_threads(|| cycle.wait_setpoint(position, timeout)).py()?.into())
     }
 
     /// The set-point handshake last started on drive `position`: "request" (its number, 0
     /// before any), "bits", "progress" ("idle", "in_progress", "done", "stuck"), "reason" (why
     /// stuck, else None) and "statusword" (the last seen while under way, at its end after).
-    fn setpoint_status<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
-        setpoint_dict(py, self.cycle.setpoint_status(position).py()?)
+    fn setpoint_status(&self, position: u16) -> PyResult<SetpointView> {
+        Ok(self.cycle.setpoint_status(position).py()?.into())
     }
 
     /// Sets the command time-out of drive `position`: when a non-zero velocity (profile
@@ -463,15 +568,15 @@ impl PyCycle {
     /// The command time-out of drive `position`: "timeout" (s, 0 when off), "policy" ("hold",
     /// "quick_stop", None when off), "armed" (a non-zero stream is watched), "halted" (its
     /// hold is on) and "timeouts" (how many so far).
-    fn command_timeout_status<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
+    fn command_timeout_status(&self, position: u16) -> PyResult<CommandTimeoutView> {
         let s = self.cycle.command_timeout_status(position).py()?;
-        let d = PyDict::new(py);
-        d.set_item("timeout", s.config.map_or(0.0, |(t, _)| t.as_secs_f64()))?;
-        d.set_item("policy", s.config.map(|(_, a)| a.name()))?;
-        d.set_item("armed", s.armed)?;
-        d.set_item("halted", s.halted)?;
-        d.set_item("timeouts", s.timeouts)?;
-        Ok(d)
+        Ok(CommandTimeoutView {
+            timeout: s.config.map_or(0.0, |(t, _)| t.as_secs_f64()),
+            policy: s.config.map(|(_, a)| a.name()),
+            armed: s.armed,
+            halted: s.halted,
+            timeouts: s.timeouts,
+        })
     }
 
     /// Sets one mapped output object of slave `position` from the next cycle on (its exact
@@ -482,16 +587,14 @@ impl PyCycle {
 
     /// The mapping of slave `position`: {"outputs": [...], "inputs": [...]}, each a list of
     /// (index, subindex, bit length, byte offset within the slave's data) in wire order.
-    fn mapping<'py>(&self, py: Python<'py>, position: u16) -> PyResult<Bound<'py, PyDict>> {
+    fn mapping(&self, position: u16) -> PyResult<MappingView> {
         let (rx, tx) = self.cycle.mapping(position).py()?;
-        let d = PyDict::new(py);
-        for (name, entries) in [("outputs", rx), ("inputs", tx)] {
-            let list: Vec<(u16, u8, u8, usize)> = crate::pdo::layout(entries.iter().copied())
+        let layout = |entries: &[crate::pdo::PdoEntry]| {
+            crate::pdo::layout(entries.iter().copied())
                 .map(|(offset, e)| (e.index, e.subindex, e.bits, offset))
-                .collect();
-            d.set_item(name, list)?;
-        }
-        Ok(d)
+                .collect()
+        };
+        Ok(MappingView { outputs: layout(rx), inputs: layout(tx) })
     }
 
     /// The real-time settings asked for and not permitted, one sentence each.
@@ -554,22 +657,6 @@ fn progress_name(progress: Progress) -> &'static str {
         Progress::Stuck => "stuck",
         Progress::Lost => "lost",
     }
-}
-
-fn setpoint_dict(py: Python<'_>, s: handshake::Status) -> PyResult<Bound<'_, PyDict>> {
-    let d = PyDict::new(py);
-    d.set_item("request", s.request)?;
-    d.set_item("bits", s.bits)?;
-    let progress = match s.progress {
-        handshake::Progress::Idle => "idle",
-        handshake::Progress::InProgress => "in_progress",
-        handshake::Progress::Done => "done",
-        handshake::Progress::Stuck(_) => "stuck",
-    };
-    d.set_item("progress", progress)?;
-    d.set_item("reason", s.stuck_reason())?;
-    d.set_item("statusword", s.statusword)?;
-    Ok(d)
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

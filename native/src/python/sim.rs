@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict};
+use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable};
@@ -15,18 +15,30 @@ use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, Q
 use crate::sim::faults::Fault;
 use crate::sim::{server, Timing, VirtualBus};
 
-/// The dict `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active
-/// fault's name, or None), "fault_number" (e.g. 125, or None), and the motor's "position"
-/// (counts), "velocity" (counts/s) and "torque" (N·m).
-fn state_dict<'py>(py: Python<'py>, drive: &DriveState) -> PyResult<Bound<'py, PyDict>> {
-    let state = PyDict::new(py);
-    state.set_item("state", drive.state.name())?;
-    state.set_item("fault", drive.fault.map(Fault::name))?;
-    state.set_item("fault_number", drive.fault.map(Fault::number))?;
-    state.set_item("position", drive.position)?;
-    state.set_item("velocity", drive.velocity)?;
-    state.set_item("torque", drive.torque)?;
-    Ok(state)
+/// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
+/// name, or None), "fault_number" (e.g. 125, or None), and the motor's "position" (counts),
+/// "velocity" (counts/s) and "torque" (N·m).
+#[derive(IntoPyObject)]
+struct DriveStateView {
+    state: &'static str,
+    fault: Option<&'static str>,
+    fault_number: Option<u16>,
+    position: f64,
+    velocity: f64,
+    torque: f64,
+}
+
+impl From<DriveState> for DriveStateView {
+    fn from(drive: DriveState) -> Self {
+        DriveStateView {
+            state: drive.state.name(),
+            fault: drive.fault.map(Fault::name),
+            fault_number: drive.fault.map(Fault::number),
+            position: drive.position,
+            velocity: drive.velocity,
+            torque: drive.torque,
+        }
+    }
 }
 
 /// A line of virtual AKDs serving EtherCAT payloads (frame header and datagrams) in place.
@@ -91,9 +103,9 @@ impl PyVirtualBus {
     /// The drive firmware of drive `position` as a dict: "state" (the CiA 402 state's name),
     /// "fault" (the active fault's name, or None), "fault_number" (e.g. 125, or None), and the
     /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m).
-    fn drive_state<'py>(&self, py: Python<'py>, position: usize) -> PyResult<Bound<'py, PyDict>> {
+    fn drive_state(&self, position: usize) -> PyResult<DriveStateView> {
         self.check(position)?;
-        state_dict(py, &DriveState::of(self.bus.slave(position).drive()))
+        Ok(DriveState::of(self.bus.slave(position).drive()).into())
     }
 
     fn __len__(&self) -> usize {
@@ -150,11 +162,10 @@ impl PySimulator {
     /// The drive firmware of drive `position` after the next frame, as `VirtualBus.drive_state`
     /// gives it; waits up to `timeout` seconds for that frame.
     #[pyo3(signature = (position, timeout = QUERY_TIMEOUT.as_secs_f64()))]
-    fn drive_state<'py>(&self, py: Python<'py>, position: usize, timeout: f64) -> PyResult<Bound<'py, PyDict>> {
+    fn drive_state(&self, py: Python<'_>, position: usize, timeout: f64) -> PyResult<DriveStateView> {
         let timeout = super::seconds(timeout, "timeout")?;
         let control = &self.control;
-        let state = py.allow_threads(|| control.drive_state(position, timeout)).py()?;
-        state_dict(py, &state)
+        Ok(py.allow_threads(|| control.drive_state(position, timeout)).py()?.into())
     }
 
     fn __len__(&self) -> usize {
