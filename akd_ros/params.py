@@ -424,23 +424,20 @@ def settings(values: dict[str, object]) -> Settings:
 
 
 def check_link(link: str) -> str:
-    """`link` if the node can open it: 'sim', 'sim:N', 'udp://HOST:PORT' or an interface of this machine."""
+    """`link` if the node can open it: a link spec the extension accepts (`_native.LINK_FORMS`) that, where it names a
+    network interface, names one of this machine."""
+    from akd_ros import _native
+
+    try:
+        spec = _native.parse_link(link)
+    except _native.ConfigError as e:
+        raise ParameterError(f"parameter {e}") from None
     interfaces = sorted(name for _, name in socket.if_nameindex())
-    allowed = (
-        f"'sim', 'sim:N' (N >= 1), 'udp://HOST:PORT', or a network interface of this machine ({', '.join(interfaces)})"
-    )
-    if link == "sim" or re.fullmatch(r"sim:[1-9][0-9]*", link):
-        return link
-    if link.startswith("udp://"):
-        if not re.fullmatch(r"udp://(\[[0-9A-Fa-f:]+\]|[^:/\s]+):([0-9]{1,5})", link) or not (
-            0 < int(link.rsplit(":", 1)[1]) < 65536
-        ):
-            raise ParameterError(
-                f"parameter link {link!r} is no udp://HOST:PORT with a port in 1..65535; allowed: {allowed}"
-            )
-        return link
-    if link not in interfaces:
-        raise ParameterError(f"parameter link: network interface {link!r} does not exist; allowed: {allowed}")
+    if spec.kind == "interface" and spec.name not in interfaces:
+        raise ParameterError(
+            f"parameter link: network interface {link!r} does not exist; allowed: {_native.LINK_FORMS} of this "
+            f"machine ({', '.join(interfaces)})"
+        )
     return link
 
 

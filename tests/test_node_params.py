@@ -99,6 +99,10 @@ BAD_FILES = {
         ["parameter link", "'akd_missing0' does not exist", "'sim'", "udp://HOST:PORT", "lo"],
     ),
     "udp without port": ("link: udp://127.0.0.1", ["parameter link", "udp://HOST:PORT", "1..65535"]),
+    "more virtual AKDs than a bus holds": (
+        "link: sim:100",
+        ["parameter link", "sim:100", "the number of virtual AKDs must be 1..=64"],
+    ),
     "unknown parameter": ("cycle_tme: 0.001", ["unknown parameter cycle_tme", "cycle_time"]),
     "direction": ("direction: 0", ["parameter direction must be one of 1, -1"]),
     "linear without lead": ("axis: linear", ["axis/lead", "lead", "linear"]),

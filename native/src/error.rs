@@ -81,6 +81,11 @@ pub enum LinkSpecError {
         /// The most virtual AKDs a bus may hold (the link spec's `MAX_SIM_COUNT`).
         max: usize,
     },
+    /// `udp://` without `HOST:PORT`, or with a port outside 1..=65535.
+    UdpAddress {
+        /// The spec as given.
+        spec: String,
+    },
     /// None of the forms (empty, or a path or an address without `udp://`).
     Unknown {
         /// The spec as given.
@@ -90,17 +95,27 @@ pub enum LinkSpecError {
     },
 }
 
+impl LinkSpecError {
+    /// The forms a link spec takes, with N's range up to `max_sim_count`: what a spec that is
+    /// none of them is told, and what the node's parameter check names as allowed.
+    pub fn allowed_forms(max_sim_count: usize) -> String {
+        format!("'sim', 'sim:N' (N 1..={max_sim_count}), 'udp://HOST:PORT' or a network interface name")
+    }
+}
+
 impl fmt::Display for LinkSpecError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             LinkSpecError::SimCount { spec, max } => {
                 write!(f, "link {spec:?}: the number of virtual AKDs must be 1..={max}")
             }
-            LinkSpecError::Unknown { spec, max_sim_count } => write!(
-                f,
-                "link {spec:?} is none of \"sim\", \"sim:N\" (N 1..={max_sim_count}), \"udp://HOST:PORT\" or a network \
-                 interface name"
-            ),
+            // The port range as the node's parameter check has always named it.
+            LinkSpecError::UdpAddress { spec } => {
+                write!(f, "link {spec:?} is no udp://HOST:PORT with a port in 1..65535")
+            }
+            LinkSpecError::Unknown { spec, max_sim_count } => {
+                write!(f, "link {spec:?} is none of {}", LinkSpecError::allowed_forms(*max_sim_count))
+            }
         }
     }
 }

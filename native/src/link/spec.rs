@@ -22,7 +22,8 @@ pub enum LinkSpec {
     },
     /// `udp://HOST:PORT`: EtherCAT over UDP, e.g. to an akd-sim server.
     Udp {
-        /// `HOST:PORT`, resolved when the link opens.
+        /// `HOST:PORT` (an IPv6 address in brackets, the port 1..=65535), resolved when the link
+        /// opens.
         address: String,
     },
     /// A network interface name (raw Ethernet, needs CAP_NET_RAW).
@@ -48,6 +49,9 @@ impl FromStr for LinkSpec {
                 .ok_or_else(|| LinkSpecError::SimCount { spec: spec.to_owned(), max: MAX_SIM_COUNT });
         }
         if let Some(address) = spec.strip_prefix("udp://") {
+            if !is_host_and_port(address) {
+                return Err(LinkSpecError::UdpAddress { spec: spec.to_owned() });
+            }
             return Ok(LinkSpec::Udp { address: address.to_owned() });
         }
         // Interface names hold neither; anything with them is a mistyped path or address.
@@ -56,6 +60,25 @@ impl FromStr for LinkSpec {
         }
         Ok(LinkSpec::Interface { name: spec.to_owned() })
     }
+}
+
+/// The forms a link spec takes, as [`LinkSpecError`] names them.
+pub fn allowed_forms() -> String {
+    LinkSpecError::allowed_forms(MAX_SIM_COUNT)
+}
+
+/// Whether `address` is `HOST:PORT`: a host name or IPv4 address (no `:`, `/` or white space)
+/// or an IPv6 address in brackets, and a port 1..=65535 in decimal digits.
+fn is_host_and_port(address: &str) -> bool {
+    let Some((host, port)) = address.rsplit_once(':') else {
+        return false;
+    };
+    let host_ok = match host.strip_prefix('[').and_then(|h| h.strip_suffix(']')) {
+        Some(v6) => !v6.is_empty() && v6.chars().all(|c| c.is_ascii_hexdigit() || c == ':'),
+        None => !host.is_empty() && !host.contains([':', '/']) && !host.chars().any(char::is_whitespace),
+    };
+    let port_ok = port.bytes().all(|b| b.is_ascii_digit()) && port.parse::<u16>().is_ok_and(|p| p != 0);
+    host_ok && port_ok
 }
 
 impl fmt::Display for LinkSpec {
@@ -93,7 +116,18 @@ mod tests {
         }
         for spec in ["", "/dev/x", "host:1"] {
             let err = spec.parse::<LinkSpec>().unwrap_err();
-            assert!(err.to_string().contains("\"udp://HOST:PORT\""), "{err}");
+            assert!(err.to_string().contains("'udp://HOST:PORT'"), "{err}");
+            assert!(err.to_string().contains(&allowed_forms()), "{err}");
+        }
+        for spec in
+            ["udp://127.0.0.1", "udp://:1", "udp://h:0", "udp://h:65536", "udp://h:+1", "udp://a b:1", "udp://[]:1"]
+        {
+            let err = spec.parse::<LinkSpec>().unwrap_err();
+            assert_eq!(err, LinkSpecError::UdpAddress { spec: spec.into() });
+            assert!(err.to_string().contains("udp://HOST:PORT with a port in 1..65535"), "{err}");
+        }
+        for spec in ["udp://localhost:65535", "udp://[::1]:34980", "udp://10.0.0.2:1"] {
+            assert!(spec.parse::<LinkSpec>().is_ok(), "{spec}");
         }
     }
 }

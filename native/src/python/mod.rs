@@ -13,6 +13,7 @@ use crate::error::Error;
 mod cycle;
 mod drive;
 mod eeprom;
+mod link_spec;
 mod master;
 mod sim;
 
@@ -145,5 +146,6 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     eeprom::register(m)?;
     cycle::register(m)?;
     drive::register(m)?;
+    link_spec::register(m)?;
     Ok(())
 }

@@ -1,0 +1,66 @@
+"""The link spec as the extension parses it (`_native.parse_link`), and that `Master(link)` and the node's parameter
+check accept and refuse the same specs with the same message."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from akd_ros import _native, params
+
+
+@pytest.mark.parametrize(
+    ("spec", "kind", "count", "address", "name", "text"),
+    [
+        ("sim", "sim", 1, None, None, "sim:1"),
+        ("sim:64", "sim", 64, None, None, "sim:64"),
+        ("udp://127.0.0.1:34980", "udp", None, "127.0.0.1:34980", None, "udp://127.0.0.1:34980"),
+        ("udp://[::1]:7000", "udp", None, "[::1]:7000", None, "udp://[::1]:7000"),
+        ("eth0", "interface", None, None, "eth0", "eth0"),
+    ],
+)
+def test_each_form_parses_into_its_kind_and_field(spec, kind, count, address, name, text):
+    parsed = _native.parse_link(spec)
+    assert (parsed.kind, parsed.count, parsed.address, parsed.name) == (kind, count, address, name)
+    assert str(parsed) == text and _native.parse_link(text).kind == kind
+
+
+@pytest.mark.parametrize(
+    ("spec", "expected"),
+    [
+        ("sim:0", "the number of virtual AKDs must be 1..=64"),
+        ("sim:65", "the number of virtual AKDs must be 1..=64"),
+        ("sim:100", "the number of virtual AKDs must be 1..=64"),
+        ("sim:x", "the number of virtual AKDs must be 1..=64"),
+        ("udp://127.0.0.1", "udp://HOST:PORT with a port in 1..65535"),
+        ("udp://127.0.0.1:0", "udp://HOST:PORT with a port in 1..65535"),
+        ("udp://127.0.0.1:65536", "udp://HOST:PORT with a port in 1..65535"),
+        ("", _native.LINK_FORMS),
+        ("/dev/eth0", _native.LINK_FORMS),
+        ("127.0.0.1:34980", _native.LINK_FORMS),
+    ],
+)
+def test_a_bad_spec_is_refused_alike_by_the_parser_the_master_and_the_parameter_check(spec, expected):
+    with pytest.raises(_native.ConfigError) as parsed:
+        _native.parse_link(spec)
+    message = str(parsed.value)
+    assert message.startswith(f'link "{spec}"') and expected in message, message
+    with pytest.raises(_native.ConfigError) as opened:
+        _native.Master(spec)
+    assert str(opened.value) == f"configuration: {message}"
+    with pytest.raises(params.ParameterError) as checked:
+        params.check_link(spec)
+    assert str(checked.value) == f"parameter {message}"
+
+
+def test_the_allowed_forms_name_every_form_and_the_range_of_n():
+    for form in ("'sim'", "'sim:N' (N 1..=64)", "'udp://HOST:PORT'", "network interface name"):
+        assert form in _native.LINK_FORMS
+
+
+def test_the_parameter_check_takes_an_interface_of_this_machine_only():
+    here = socket.if_nameindex()[0][1]
+    assert params.check_link(here) == here
+    with pytest.raises(params.ParameterError, match="'akd_missing0' does not exist; allowed: 'sim'"):
+        params.check_link("akd_missing0")
