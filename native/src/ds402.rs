@@ -455,12 +455,14 @@ mod tests {
         for mode in Mode::ALL {
             assert_eq!(mode.command().is_none(), mode.command_objects().is_empty(), "{}", mode.name());
             for &(index, subindex) in mode.command_objects() {
-                assert!(crate::pdo::MAPPABLE_RX.iter().any(|e| (e.index, e.subindex) == (index, subindex)));
-                let object = crate::objects::mappable_object(index, subindex).expect("a typed object");
-                assert_eq!(data_type::kind(object.data_type), ValueKind::SignedInteger, "{}", object.name);
+                assert!(
+                    crate::pdo::mappable(crate::pdo::Direction::Rx).any(|e| (e.index, e.subindex) == (index, subindex))
+                );
+                let (object, code) = crate::objects::mappable_object(index, subindex).expect("a typed object");
+                assert_eq!(data_type::kind(code), ValueKind::SignedInteger, "{}", object.name);
                 // Torque counts in 0.1 % of peak (16 bits); positions and velocities in counts (32).
                 let bits = if mode.command() == Some(Command::Torque) { 16 } else { 32 };
-                assert_eq!(data_type::bit_len(object.data_type), Some(bits), "{}", object.name);
+                assert_eq!(data_type::bit_len(code), Some(bits), "{}", object.name);
             }
         }
     }

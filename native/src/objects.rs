@@ -5,84 +5,18 @@
 //! bits are (signed or not, how wide), so that the master, the virtual AKD's SII image and the
 //! Python package read an object the same way, from one table.
 
-use crate::coe::data_type::{self, *};
+use crate::coe::data_type;
 use crate::pdo::{self, PdoEntry};
 
-/// One object the AKD can map: its address, its name as the drive's SII gives it, and its
-/// CoE data type (see [`data_type`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct MappableObject {
-    /// Object index.
-    pub index: u16,
-    /// Subindex.
-    pub subindex: u8,
-    /// Name.
-    pub name: &'static str,
-    /// CoE data type code.
-    pub data_type: u16,
-}
+pub use crate::pdo::{MappableObject, MAPPABLE_OBJECTS};
 
-const fn object(index: u16, subindex: u8, name: &'static str, data_type: u16) -> MappableObject {
-    MappableObject { index, subindex, name, data_type }
-}
-
-/// Every object of [`pdo::MAPPABLE_RX`] and [`pdo::MAPPABLE_TX`] but the padding entries and
-/// the two the manual lists with lengths of no CoE type (0x3470:00 with 16 bits, 0x60E4:00 with
-/// 48), outputs first.
-pub const MAPPABLE_OBJECTS: &[MappableObject] = &[
-    object(0x60C1, 1, "1st set-point", INTEGER32),
-    object(0x60FF, 0, "Target velocity", INTEGER32),
-    object(0x6040, 0, "Controlword", UNSIGNED16),
-    object(0x20A4, 0, "Latch controlword", UNSIGNED16),
-    object(0x60B2, 0, "Torque offset", INTEGER16),
-    object(0x60FE, 1, "Physical outputs", UNSIGNED32),
-    object(0x2071, 0, "Current command", INTEGER32),
-    object(0x6060, 0, "Modes of operation", INTEGER8),
-    object(0x606D, 0, "Velocity window", UNSIGNED16),
-    object(0x606E, 0, "Velocity window time", UNSIGNED16),
-    object(0x6071, 0, "Target torque", INTEGER16),
-    object(0x6072, 0, "Max torque", UNSIGNED16),
-    object(0x6081, 0, "Profile velocity", UNSIGNED32),
-    object(0x6083, 0, "Profile acceleration", UNSIGNED32),
-    object(0x6084, 0, "Profile deceleration", UNSIGNED32),
-    object(0x60B1, 0, "Velocity offset", INTEGER32),
-    object(0x60B8, 0, "Touch probe function", UNSIGNED16),
-    object(0x3470, 3, "AOUT.VALUE write", INTEGER16),
-    object(0x3497, 0, "Position offset", INTEGER32),
-    object(0x20B8, 0, "ClearDigInputChangedBit", UNSIGNED16),
-    object(0x607A, 0, "Target position", INTEGER32),
-    object(0x6063, 0, "Position actual internal value", INTEGER32),
-    object(0x606C, 0, "Velocity actual value", INTEGER32),
-    object(0x6041, 0, "Statusword", UNSIGNED16),
-    object(0x2050, 0, "Second position feedback", INTEGER32),
-    object(0x60FD, 0, "Digital inputs", UNSIGNED32),
-    object(0x60F4, 0, "Following error actual value", INTEGER32),
-    object(0x20A0, 0, "Latch 1p", INTEGER32),
-    object(0x6077, 0, "Torque actual value", INTEGER16),
-    object(0x20A5, 0, "Latch statusword", UNSIGNED16),
-    object(0x3470, 4, "AIN.VALUE", INTEGER16),
-    object(0x2077, 0, "Current actual value", INTEGER32),
-    object(0x20A1, 0, "Latch 1n", INTEGER32),
-    object(0x20A2, 0, "Latch 2p", INTEGER32),
-    object(0x20A3, 0, "Latch 2n", INTEGER32),
-    object(0x20A6, 0, "Latch 1 pn", INTEGER32),
-    object(0x20A7, 0, "Latch 2 pn", INTEGER32),
-    object(0x6061, 0, "Modes of operation display", INTEGER8),
-    object(0x6064, 0, "Position actual value", INTEGER32),
-    object(0x60B9, 0, "Touch probe status", UNSIGNED16),
-    object(0x60BA, 0, "Touch probe pos1 pos value", INTEGER32),
-    object(0x60BB, 0, "Touch probe pos1 neg value", INTEGER32),
-    object(0x60BC, 0, "Touch probe pos2 pos value", INTEGER32),
-    object(0x60BD, 0, "Touch probe pos2 neg value", INTEGER32),
-    object(0x60E4, 1, "1st additional position actual value", INTEGER32),
-    object(0x3427, 3, "Feedback position 3", UNSIGNED32),
-    object(0x3470, 2, "AOUT.VALUE", INTEGER16),
-    object(0x1002, 0, "Manufacturer status register", UNSIGNED32),
-];
-
-/// The mappable object at `index:subindex`, if the AKD has one.
-pub fn mappable_object(index: u16, subindex: u8) -> Option<&'static MappableObject> {
-    MAPPABLE_OBJECTS.iter().find(|o| (o.index, o.subindex) == (index, subindex))
+/// The mappable object at `index:subindex` with its CoE data type, if the AKD maps one of a
+/// known type there.
+pub fn mappable_object(index: u16, subindex: u8) -> Option<(&'static MappableObject, u16)> {
+    MAPPABLE_OBJECTS
+        .iter()
+        .filter(|o| (o.entry.index, o.entry.subindex) == (index, subindex))
+        .find_map(|o| Some((o, o.data_type?)))
 }
 
 /// The value of `index:subindex` in `image`, a drive's process data laid out by `entries`
@@ -94,7 +28,7 @@ pub fn read(entries: &[PdoEntry], image: &[u8], index: u16, subindex: u8) -> Opt
     let bytes = image.get(at..at + entry.byte_len())?;
     let raw = bytes.iter().rev().fold(0u64, |v, b| (v << 8) | *b as u64);
     let bits = u32::from(entry.bits).min(64);
-    let signed = mappable_object(index, subindex).is_some_and(|o| data_type::is_signed(o.data_type));
+    let signed = mappable_object(index, subindex).is_some_and(|(_, code)| data_type::is_signed(code));
     Some(if signed && (1..64).contains(&bits) {
         // Shift the sign bit to the top and back: an arithmetic shift extends it.
         ((raw << (64 - bits)) as i64) >> (64 - bits)
@@ -172,10 +106,10 @@ impl std::fmt::Display for EncodeError {
             EncodeError::OutOfRange { object, value, min, max } => write!(
                 f,
                 "{value} is outside the range of 0x{:04X}:{:02X} {} ({}: {min}..={max})",
-                object.index,
-                object.subindex,
+                object.entry.index,
+                object.entry.subindex,
                 object.name,
-                data_type::name(object.data_type)
+                object.data_type.map_or("no CoE type", data_type::name)
             ),
         }
     }
@@ -186,10 +120,10 @@ impl std::error::Error for EncodeError {}
 /// `value` as mappable object `index:subindex` holds it: little-endian in its data type's
 /// length, after checking it is within the type's range.
 pub fn encode(index: u16, subindex: u8, value: i64) -> Result<Vec<u8>, EncodeError> {
-    let object = mappable_object(index, subindex).ok_or(EncodeError::NotMappable { index, subindex })?;
-    // Every mappable object is an integer of at most 32 bits (see the tests), so the range fits an i64.
-    let bits = u32::from(data_type::bit_len(object.data_type).unwrap_or(32));
-    let (min, max) = if data_type::is_signed(object.data_type) {
+    let (object, code) = mappable_object(index, subindex).ok_or(EncodeError::NotMappable { index, subindex })?;
+    // Every typed mappable object is an integer of at most 32 bits (see the tests), so the range fits an i64.
+    let bits = u32::from(data_type::bit_len(code).unwrap_or(32));
+    let (min, max) = if data_type::is_signed(code) {
         (-(1i64 << (bits - 1)), (1i64 << (bits - 1)) - 1)
     } else {
         (0, (1i64 << bits) - 1)
@@ -203,38 +137,41 @@ pub fn encode(index: u16, subindex: u8, value: i64) -> Result<Vec<u8>, EncodeErr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pdo::Direction;
+    use crate::coe::data_type::*;
     use crate::sim::od::ObjectDictionary;
 
+    /// The typed objects, as (object, data type).
+    fn typed() -> impl Iterator<Item = (&'static MappableObject, u16)> {
+        MAPPABLE_OBJECTS.iter().filter_map(|o| Some((o, o.data_type?)))
+    }
+
     #[test]
-    fn every_mappable_entry_has_its_type_with_the_bits_it_is_mapped_with() {
-        for direction in [Direction::Rx, Direction::Tx] {
-            for entry in pdo::mappable(direction).iter().filter(|e| !e.is_padding()) {
-                let Some(object) = mappable_object(entry.index, entry.subindex) else {
-                    assert!(
-                        [(0x3470, 0, 16), (0x60E4, 0, 48)].contains(&(entry.index, entry.subindex, entry.bits)),
-                        "0x{:04X}:{:02X} has no type",
-                        entry.index,
-                        entry.subindex
-                    );
-                    continue;
-                };
-                assert_eq!(data_type::bit_len(object.data_type), Some(entry.bits.into()), "{}", object.name);
-            }
+    fn every_mappable_object_has_its_type_with_the_bits_it_is_mapped_with() {
+        for o in MAPPABLE_OBJECTS {
+            let Some(code) = o.data_type else {
+                let e = o.entry;
+                assert!(
+                    [(0x3470, 0, 16), (0x60E4, 0, 48)].contains(&(e.index, e.subindex, e.bits)),
+                    "0x{:04X}:{:02X} has no type",
+                    e.index,
+                    e.subindex
+                );
+                continue;
+            };
+            assert_eq!(data_type::bit_len(code), Some(o.entry.bits.into()), "{}", o.name);
+            assert_eq!(mappable_object(o.entry.index, o.entry.subindex), Some((o, code)), "{}", o.name);
         }
-        let listed = pdo::MAPPABLE_RX.len() + pdo::MAPPABLE_TX.len();
-        let padding = pdo::MAPPABLE_RX.iter().chain(pdo::MAPPABLE_TX).filter(|e| e.is_padding()).count();
-        assert_eq!(MAPPABLE_OBJECTS.len(), listed - padding - 2, "an object the mappable tables do not list");
     }
 
     #[test]
     fn the_types_agree_with_the_virtual_akds_dictionary() {
         let od = ObjectDictionary::default();
-        for o in MAPPABLE_OBJECTS {
-            let entry = od.object(o.index).and_then(|object| object.entry(o.subindex));
-            let entry = entry.unwrap_or_else(|| panic!("the virtual AKD lacks 0x{:04X}:{:02X}", o.index, o.subindex));
-            assert_eq!(entry.data_type, o.data_type, "0x{:04X}:{:02X} {}", o.index, o.subindex, o.name);
-            assert_eq!(Some(entry.bits), data_type::bit_len(o.data_type), "{}", o.name);
+        for (o, code) in typed() {
+            let PdoEntry { index, subindex, .. } = o.entry;
+            let entry = od.object(index).and_then(|object| object.entry(subindex));
+            let entry = entry.unwrap_or_else(|| panic!("the virtual AKD lacks 0x{index:04X}:{subindex:02X}"));
+            assert_eq!(entry.data_type, code, "0x{index:04X}:{subindex:02X} {}", o.name);
+            assert_eq!(Some(entry.bits), data_type::bit_len(code), "{}", o.name);
         }
     }
 
@@ -314,20 +251,21 @@ mod tests {
         );
         assert!(matches!(encode(0x6040, 0, -1), Err(EncodeError::OutOfRange { min: 0, max: 0xFFFF, .. })));
         assert_eq!(encode(0x1234, 5, 0), Err(EncodeError::NotMappable { index: 0x1234, subindex: 5 }));
-        for o in MAPPABLE_OBJECTS {
-            assert!(data_type::bit_len(o.data_type).is_some_and(|bits| bits <= 32), "{}", o.name);
+        for (o, code) in typed() {
+            assert!(data_type::bit_len(code).is_some_and(|bits| bits <= 32), "{}", o.name);
         }
         // What encode writes, read reads back, for every object at both ends of its range.
-        for o in MAPPABLE_OBJECTS {
-            let bits = data_type::bit_len(o.data_type).unwrap() as u8;
-            let entries = [PdoEntry::new(o.index, o.subindex, bits)];
-            let (min, max) = match encode(o.index, o.subindex, i64::MIN).unwrap_err() {
+        for (o, code) in typed() {
+            let PdoEntry { index, subindex, .. } = o.entry;
+            let bits = data_type::bit_len(code).unwrap() as u8;
+            let entries = [PdoEntry::new(index, subindex, bits)];
+            let (min, max) = match encode(index, subindex, i64::MIN).unwrap_err() {
                 EncodeError::OutOfRange { min, max, .. } => (min, max),
                 other => panic!("{other}"),
             };
             for value in [min, max, 0] {
-                let image = encode(o.index, o.subindex, value).unwrap();
-                assert_eq!(read(&entries, &image, o.index, o.subindex), Some(value), "{}", o.name);
+                let image = encode(index, subindex, value).unwrap();
+                assert_eq!(read(&entries, &image, index, subindex), Some(value), "{}", o.name);
             }
         }
     }

@@ -9,6 +9,7 @@
 //! Where the manual and the real drive differ, the real drive's SII wins: 0x1B01 carries the
 //! internal position 0x6063, digital outputs 0x60FE:01 are 32 bits, and 0x1725/0x1B26 exist.
 
+use crate::coe::data_type::{INTEGER16, INTEGER32, INTEGER8, UNSIGNED16, UNSIGNED32};
 use crate::coe::SdoAbortCode;
 
 /// One mapped object: index, subindex and bit length, as written to a mapping object's
@@ -264,75 +265,107 @@ pub const POWER_UP_TX: [&[PdoEntry]; FLEXIBLE_PDO_COUNT] = [
     &[STATUSWORD, VELOCITY_ACTUAL],
 ];
 
-/// Objects the AKD can map cyclically (§5.7), with their bit lengths.
-pub const MAPPABLE_RX: &[PdoEntry] = &[
-    IP_SETPOINT,
-    TARGET_VELOCITY,
-    CONTROLWORD,
-    LATCH_CONTROLWORD,
-    TORQUE_OFFSET,
-    PHYSICAL_OUTPUTS,
-    PdoEntry::new(0x2071, 0, 32),
-    PdoEntry::new(0x6060, 0, 8),
-    PdoEntry::new(0x606D, 0, 16),
-    PdoEntry::new(0x606E, 0, 16),
-    PdoEntry::new(0x6071, 0, 16),
-    MAX_TORQUE,
-    PdoEntry::new(0x6081, 0, 32),
-    PdoEntry::new(0x6083, 0, 32),
-    PdoEntry::new(0x6084, 0, 32),
-    PdoEntry::new(0x60B1, 0, 32),
-    PdoEntry::new(0x60B8, 0, 16),
-    ANALOG_OUTPUT,
-    PdoEntry::new(0x3497, 0, 32),
-    CLEAR_INPUT_CHANGED,
-    TARGET_POSITION,
-    PdoEntry::new(RX_PADDING_INDEX, 0, 8),
+/// One object the AKD can map cyclically (§5.7): the direction it travels, its entry with the
+/// bit length the drive maps it with, its name as the drive's SII gives it, and its CoE data
+/// type — `None` for the two the manual lists with lengths of no CoE type (0x3470:00 with 16
+/// bits, 0x60E4:00 with 48). The one table of mappable objects: the mapping rules, the virtual
+/// AKD's dictionary and SII, and reading values from a process image all use it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MappableObject {
+    /// RxPDO (outputs) or TxPDO (inputs).
+    pub direction: Direction,
+    /// Index, subindex and mapped bit length.
+    pub entry: PdoEntry,
+    /// Name.
+    pub name: &'static str,
+    /// CoE data type code, where the object has one.
+    pub data_type: Option<u16>,
+}
+
+const fn output(entry: PdoEntry, name: &'static str, data_type: Option<u16>) -> MappableObject {
+    MappableObject { direction: Direction::Rx, entry, name, data_type }
+}
+
+const fn input(entry: PdoEntry, name: &'static str, data_type: Option<u16>) -> MappableObject {
+    MappableObject { direction: Direction::Tx, entry, name, data_type }
+}
+
+/// Every object the AKD maps, outputs first, in the manual's order.
+pub const MAPPABLE_OBJECTS: &[MappableObject] = &[
+    output(IP_SETPOINT, "1st set-point", Some(INTEGER32)),
+    output(TARGET_VELOCITY, "Target velocity", Some(INTEGER32)),
+    output(CONTROLWORD, "Controlword", Some(UNSIGNED16)),
+    output(LATCH_CONTROLWORD, "Latch controlword", Some(UNSIGNED16)),
+    output(TORQUE_OFFSET, "Torque offset", Some(INTEGER16)),
+    output(PHYSICAL_OUTPUTS, "Physical outputs", Some(UNSIGNED32)),
+    output(PdoEntry::new(0x2071, 0, 32), "Current command", Some(INTEGER32)),
+    output(PdoEntry::new(0x6060, 0, 8), "Modes of operation", Some(INTEGER8)),
+    output(PdoEntry::new(0x606D, 0, 16), "Velocity window", Some(UNSIGNED16)),
+    output(PdoEntry::new(0x606E, 0, 16), "Velocity window time", Some(UNSIGNED16)),
+    output(PdoEntry::new(0x6071, 0, 16), "Target torque", Some(INTEGER16)),
+    output(MAX_TORQUE, "Max torque", Some(UNSIGNED16)),
+    output(PdoEntry::new(0x6081, 0, 32), "Profile velocity", Some(UNSIGNED32)),
+    output(PdoEntry::new(0x6083, 0, 32), "Profile acceleration", Some(UNSIGNED32)),
+    output(PdoEntry::new(0x6084, 0, 32), "Profile deceleration", Some(UNSIGNED32)),
+    output(PdoEntry::new(0x60B1, 0, 32), "Velocity offset", Some(INTEGER32)),
+    output(PdoEntry::new(0x60B8, 0, 16), "Touch probe function", Some(UNSIGNED16)),
+    output(ANALOG_OUTPUT, "AOUT.VALUE write", Some(INTEGER16)),
+    output(PdoEntry::new(0x3497, 0, 32), "Position offset", Some(INTEGER32)),
+    output(CLEAR_INPUT_CHANGED, "ClearDigInputChangedBit", Some(UNSIGNED16)),
+    output(TARGET_POSITION, "Target position", Some(INTEGER32)),
+    input(POSITION_INTERNAL, "Position actual internal value", Some(INTEGER32)),
+    input(VELOCITY_ACTUAL, "Velocity actual value", Some(INTEGER32)),
+    input(STATUSWORD, "Statusword", Some(UNSIGNED16)),
+    input(SECOND_FEEDBACK, "Second position feedback", Some(INTEGER32)),
+    input(DIGITAL_INPUTS, "Digital inputs", Some(UNSIGNED32)),
+    input(FOLLOWING_ERROR, "Following error actual value", Some(INTEGER32)),
+    input(PdoEntry::new(0x20A0, 0, 32), "Latch 1p", Some(INTEGER32)),
+    input(TORQUE_ACTUAL, "Torque actual value", Some(INTEGER16)),
+    input(LATCH_STATUSWORD, "Latch statusword", Some(UNSIGNED16)),
+    input(PdoEntry::new(0x3470, 0, 16), "Analog I/O", None),
+    input(ANALOG_INPUT, "AIN.VALUE", Some(INTEGER16)),
+    input(PdoEntry::new(0x2077, 0, 32), "Current actual value", Some(INTEGER32)),
+    input(PdoEntry::new(0x20A1, 0, 32), "Latch 1n", Some(INTEGER32)),
+    input(PdoEntry::new(0x20A2, 0, 32), "Latch 2p", Some(INTEGER32)),
+    input(PdoEntry::new(0x20A3, 0, 32), "Latch 2n", Some(INTEGER32)),
+    input(PdoEntry::new(0x20A6, 0, 32), "Latch 1 pn", Some(INTEGER32)),
+    input(PdoEntry::new(0x20A7, 0, 32), "Latch 2 pn", Some(INTEGER32)),
+    input(PdoEntry::new(0x6061, 0, 8), "Modes of operation display", Some(INTEGER8)),
+    input(POSITION_ACTUAL, "Position actual value", Some(INTEGER32)),
+    input(PdoEntry::new(0x60B9, 0, 16), "Touch probe status", Some(UNSIGNED16)),
+    input(PdoEntry::new(0x60BA, 0, 32), "Touch probe pos1 pos value", Some(INTEGER32)),
+    input(PdoEntry::new(0x60BB, 0, 32), "Touch probe pos1 neg value", Some(INTEGER32)),
+    input(PdoEntry::new(0x60BC, 0, 32), "Touch probe pos2 pos value", Some(INTEGER32)),
+    input(PdoEntry::new(0x60BD, 0, 32), "Touch probe pos2 neg value", Some(INTEGER32)),
+    input(PdoEntry::new(0x60E4, 0, 48), "Additional position actual value", None),
+    input(PdoEntry::new(0x60E4, 1, 32), "1st additional position actual value", Some(INTEGER32)),
+    input(PdoEntry::new(0x3427, 3, 32), "Feedback position 3", Some(UNSIGNED32)),
+    input(PdoEntry::new(0x3470, 2, 16), "AOUT.VALUE", Some(INTEGER16)),
+    input(PdoEntry::new(0x1002, 0, 32), "Manufacturer status register", Some(UNSIGNED32)),
 ];
 
-/// TxPDO counterpart of [`MAPPABLE_RX`].
-pub const MAPPABLE_TX: &[PdoEntry] = &[
-    POSITION_INTERNAL,
-    VELOCITY_ACTUAL,
-    STATUSWORD,
-    SECOND_FEEDBACK,
-    DIGITAL_INPUTS,
-    FOLLOWING_ERROR,
-    PdoEntry::new(0x20A0, 0, 32),
-    TORQUE_ACTUAL,
-    LATCH_STATUSWORD,
-    PdoEntry::new(0x3470, 0, 16),
-    ANALOG_INPUT,
-    PdoEntry::new(0x2077, 0, 32),
-    PdoEntry::new(0x20A1, 0, 32),
-    PdoEntry::new(0x20A2, 0, 32),
-    PdoEntry::new(0x20A3, 0, 32),
-    PdoEntry::new(0x20A6, 0, 32),
-    PdoEntry::new(0x20A7, 0, 32),
-    PdoEntry::new(0x6061, 0, 8),
-    POSITION_ACTUAL,
-    PdoEntry::new(0x60B9, 0, 16),
-    PdoEntry::new(0x60BA, 0, 32),
-    PdoEntry::new(0x60BB, 0, 32),
-    PdoEntry::new(0x60BC, 0, 32),
-    PdoEntry::new(0x60BD, 0, 32),
-    PdoEntry::new(0x60E4, 0, 48),
-    PdoEntry::new(0x60E4, 1, 32),
-    PdoEntry::new(0x3427, 3, 32),
-    PdoEntry::new(0x3470, 2, 16),
-    PdoEntry::new(0x1002, 0, 32),
+/// The padding entries a flexible PDO may carry, per direction (not objects of the drive).
+const RX_PADDING: &[PdoEntry] = &[PdoEntry::new(RX_PADDING_INDEX, 0, 8)];
+const TX_PADDING: &[PdoEntry] = &[
     PdoEntry::new(TX_PADDING_INDEX, 1, 8),
     PdoEntry::new(TX_PADDING_INDEX, 2, 8),
     PdoEntry::new(TX_PADDING_INDEX, 3, 8),
     PdoEntry::new(TX_PADDING_INDEX, 4, 8),
 ];
 
-/// The mappable-object table of a direction.
-pub fn mappable(direction: Direction) -> &'static [PdoEntry] {
-    match direction {
-        Direction::Rx => MAPPABLE_RX,
-        Direction::Tx => MAPPABLE_TX,
-    }
+/// What a flexible PDO of `direction` may carry: the drive's objects of that direction and the
+/// padding entries.
+pub fn mappable(direction: Direction) -> impl Iterator<Item = PdoEntry> {
+    let padding = match direction {
+        Direction::Rx => RX_PADDING,
+        Direction::Tx => TX_PADDING,
+    };
+    MAPPABLE_OBJECTS.iter().filter(move |o| o.direction == direction).map(|o| o.entry).chain(padding.iter().copied())
+}
+
+/// Whether `entry` (with its bit length) may go in a flexible PDO of `direction`.
+pub fn is_mappable(direction: Direction, entry: PdoEntry) -> bool {
+    mappable(direction).any(|e| e == entry)
 }
 
 /// Total bit length of `entries`.
@@ -360,7 +393,7 @@ impl PdoError {
 /// length, and the PDO at most 8 bytes.
 pub fn check_flexible_pdo(direction: Direction, pdo_index: u16, entries: &[PdoEntry]) -> Result<(), PdoError> {
     for entry in entries {
-        if !mappable(direction).contains(entry) {
+        if !is_mappable(direction, *entry) {
             return Err(PdoError::NotMappable {
                 direction: direction.name(),
                 pdo: pdo_index,

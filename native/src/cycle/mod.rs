@@ -664,11 +664,14 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
         let now = (stats.cycles.load(Ordering::Relaxed) + 1, wake);
         for d in drives.iter_mut() {
             d.target_writes = Some(shared.command_timeouts[d.position as usize].writes());
+            d.drive.before_copy(&shared.drives[d.position as usize]);
         }
         if let Ok(outputs) = master.output_image_mut() {
             if shared.setpoints.try_read(outputs).is_none() {
                 CycleStats::add(&stats.setpoints_busy, 1);
                 drives.iter_mut().for_each(|d| d.target_writes = None);
+            } else {
+                drives.iter_mut().for_each(|d| d.drive.copied());
             }
         }
         // The sequencer and the latches read the inputs of the last exchange and write over

@@ -450,6 +450,12 @@ pub struct Drive {
     pub command: Command,
     /// Whether halt (bit 8) goes out.
     halt: bool,
+    /// The set-point writes counted before this cycle's copy of the set-points began.
+    writes_before_copy: u64,
+    /// The set-point writes whose values are in the outputs: those counted before the last
+    /// copy that succeeded. A write that lands during a copy is counted in the next cycle, so
+    /// a held target is never released while the outputs still carry the old set-point.
+    writes_in_outputs: u64,
 }
 
 impl Drive {
@@ -460,7 +466,19 @@ impl Drive {
             sequencer: Sequencer::default(),
             command: Command { controlword: None, target: None },
             halt: false,
+            writes_before_copy: 0,
+            writes_in_outputs: 0,
         }
+    }
+
+    /// Counts the set-point writes before the cycle copies the set-points into the outputs.
+    pub fn before_copy(&mut self, shared: &Shared) {
+        self.writes_before_copy = shared.setpoint_writes.load(Ordering::Acquire);
+    }
+
+    /// The copy succeeded: the writes counted before it are in the outputs.
+    pub fn copied(&mut self) {
+        self.writes_in_outputs = self.writes_before_copy;
     }
 
     /// The first half of a cycle: reads the statusword and actual position from `inputs`,
@@ -472,7 +490,7 @@ impl Drive {
             statusword,
             actual: o.actual.map(|at| i32_at(inputs, at)),
             now_ns,
-            setpoint_writes: shared.setpoint_writes.load(Ordering::Acquire),
+            setpoint_writes: self.writes_in_outputs,
             rehold: shared.rehold.swap(0, Ordering::AcqRel).checked_sub(1),
         };
         self.halt = shared.halted();

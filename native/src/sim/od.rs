@@ -485,10 +485,10 @@ impl ObjectDictionary {
         for o in &mut od.objects {
             for e in &mut o.entries {
                 let p = PdoEntry::new(o.index, e.subindex, e.bits as u8);
-                if pdo::MAPPABLE_RX.contains(&p) {
+                if pdo::is_mappable(Direction::Rx, p) {
                     e.access |= access::RX_PDO;
                 }
-                if pdo::MAPPABLE_TX.contains(&p) {
+                if pdo::is_mappable(Direction::Tx, p) {
                     e.access |= access::TX_PDO;
                 }
             }

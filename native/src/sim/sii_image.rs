@@ -71,7 +71,7 @@ fn header() -> Header {
 }
 
 fn sii_entry(b: &mut Builder, entry: PdoEntry) -> Result<SiiPdoEntry> {
-    let &MappableObject { name, data_type, .. } = objects::mappable_object(entry.index, entry.subindex)
+    let (&MappableObject { name, .. }, data_type) = objects::mappable_object(entry.index, entry.subindex)
         .ok_or_else(|| Error::from(SiiError::NoPdoName { index: entry.index, subindex: entry.subindex }))?;
     Ok(SiiPdoEntry {
         index: entry.index,
