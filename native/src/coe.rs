@@ -594,7 +594,7 @@ pub fn abort_error(index: u16, subindex: u8, code: SdoAbortCode) -> Error {
 /// An emergency message (CoE service 1): CiA error code, error register, 5 bytes of
 /// manufacturer data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-// Python sees it as a dict of these fields (akd_ros._native).
+// Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
 #[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Emergency {
     /// CiA 301 / 402 error code, also readable in 0x603F on the AKD.

@@ -97,7 +97,7 @@ pub struct Identity {
 
 /// A mailbox layout: where the master writes (SM0) and reads (SM1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-// Python sees it as a dict of these fields (akd_ros._native).
+// Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
 #[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct MailboxLayout {
     /// Start of the mailbox the slave receives on (master to slave, SM0).
@@ -206,7 +206,7 @@ pub struct General {
 
 /// One sync manager of the SM category (8 bytes).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-// Python sees it as a dict of these fields (akd_ros._native).
+// Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
 #[cfg_attr(feature = "python", derive(pyo3::IntoPyObjectRef))]
 pub struct SyncManager {
     /// Physical start address.

@@ -28,7 +28,7 @@ pub struct Histogram {
 
 /// Count, minimum, mean, 99th percentile and maximum of a histogram, in nanoseconds.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-// Python sees it as a dict of these fields (akd_ros._native).
+// Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
 #[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Summary {
     /// Samples recorded.

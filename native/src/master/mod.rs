@@ -39,7 +39,7 @@ const REGISTER_RETRIES: u32 = 3;
 
 /// Counters of the bus, never reset: errors are counted, not hidden.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-// Python sees it as a dict of these fields (akd_ros._native).
+// Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
 #[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Stats {
     /// Frames sent.

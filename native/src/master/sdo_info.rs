@@ -11,7 +11,7 @@ use crate::master::Master;
 
 /// An object's description, owned.
 #[derive(Clone, Debug, PartialEq, Eq)]
-// Python sees it as a dict of these fields (akd_ros._native).
+// Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
 #[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct ObjectInfo {
     /// Object index.
@@ -28,7 +28,7 @@ pub struct ObjectInfo {
 
 /// An entry's description, owned.
 #[derive(Clone, Debug, PartialEq, Eq)]
-// Python sees it as a dict of these fields (akd_ros._native).
+// Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
 #[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct EntryInfo {
     /// Subindex.
