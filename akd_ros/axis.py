@@ -218,6 +218,8 @@ class Axis:
             lock_memory=lock_memory,
             request_timeout=request_timeout,
             frame_timeout=frame_timeout,
+            # Alone on its bus, the drive reacts to its own faults only, as it always did.
+            fault_reaction="joint",
         )
         self._owns_bus = True
 

@@ -99,9 +99,13 @@ def _check(drives: Sequence, fault_reaction: str) -> None:
         twice = sorted({v for v in given if given.count(v) > 1}, key=str)
         if twice:
             raise CommandError(f"{key} {', '.join(map(str, twice))} given to several drives; each drive once")
-    for d in drives:
+    for i, d in enumerate(drives):
         if (d.slave is None) == (d.alias is None):
-            raise CommandError(f"drive {d.name or ''}: give its slave (position on the bus) or its alias, one of them")
+            which = "both given" if d.slave is not None else "neither given"
+            raise CommandError(
+                f"drive {i}{f' ({d.name})' if d.name else ''}: give its slave (position on the bus) or its alias, "
+                f"one of them ({which})"
+            )
         check_mode(d.mode)
 
 
@@ -150,8 +154,13 @@ class Bus:
         self._events: dict[int, list[dict]] = {p: [] for p in positions}
         self._samples: dict[int, dict[str, list]] = {p: {} for p in positions}
         self._samples_dropped = dict.fromkeys(positions, 0)
-        self.axes = [d.attach(self, p) for d, p in zip(drives, positions, strict=True)]
+        self.axes = []
         """One `Axis` per drive, in the order given."""
+        try:
+            self.axes.extend(d.attach(self, p) for d, p in zip(drives, positions, strict=True))
+        except BaseException:
+            self.close()
+            raise
 
     # --- life cycle ---------------------------------------------------------------------------------------------
 
@@ -210,18 +219,23 @@ class Bus:
 
     def _every(self, request: str, timeout: float) -> None:
         self.cycle  # noqa: B018  (a closed bus refuses before any drive is asked)
+        refusals = (TimeoutError, ValueError, _native.EtherCatError)
+        failed, asked, done = {}, [], []
         for axis in self.axes:
-            axis.request(request)
+            try:
+                axis.request(request)
+                asked.append(axis)
+            except refusals as e:
+                failed[axis.name] = str(e)
         deadline = time.monotonic() + timeout
-        failed, done = {}, []
-        for axis in self.axes:
+        for axis in asked:
             try:
                 axis.wait(request, max(deadline - time.monotonic(), 0.0))
                 done.append(axis.name)
-            except (TimeoutError, ValueError, _native.EtherCatError) as e:
+            except refusals as e:
                 failed[axis.name] = str(e)
         if failed:
-            raise BusRequestError(request, failed, done)
+            raise BusRequestError(request, {a.name: failed[a.name] for a in self.axes if a.name in failed}, done)
 
     def enable(self, timeout: float = 5.0) -> None:
         """Brings every drive to Operation enabled together; each target holds its actual position until commanded."""
