@@ -136,8 +136,11 @@ class Bus:
         self._cycle = None
         try:
             positions = _picked(drives, self._master.scan())
-            self.simulator = self._master.simulator if link == "sim" or link.startswith("sim:") else None
+            self.simulator = None
             """For built-in virtual AKDs: their `Simulator` (fault injection, hardware enable, input toggles)."""
+            # The extension knows which links are virtual: the others have no simulator.
+            with contextlib.suppress(_native.ConfigError):
+                self.simulator = self._master.simulator
             self._master.request_state("preop")
             for drive, position in zip(drives, positions, strict=True):
                 rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
@@ -173,6 +176,7 @@ class Bus:
 
     @property
     def closed(self) -> bool:
+        """Whether `close()` was called."""
         return self._cycle is None
 
     @property
