@@ -1,9 +1,10 @@
 """`Axis`: one AKD on EtherCAT from Python, without ROS.
 
-An Axis opens a link (``"sim"`` for the built-in virtual AKD, ``"udp://HOST:PORT"`` for `akd-sim`, or a network
-interface), brings the drive to Op with a process-data mapping that carries what it needs, and starts the native
-cycle thread. Everything at its surface is in SI units of the load (`akd_ros.units.Units`): positions in rad (m on a
-linear axis), velocities in rad/s (m/s), torques in N·m (N).
+An Axis is one drive of an `akd_ros.Bus` (`bus.axes`), which owns the master and the one cycle thread.
+`Axis(link, slave=...)` is a bus of one that the Axis owns: it opens a link (``"sim"`` for the built-in virtual AKD,
+``"udp://HOST:PORT"`` for `akd-sim`, or a network interface), brings the drive to Op with a process-data mapping that
+carries what it needs, and starts the native cycle thread. Everything at its surface is in SI units of the load
+(`akd_ros.units.Units`): positions in rad (m on a linear axis), velocities in rad/s (m/s), torques in N·m (N).
 
 Nothing moves unless commanded: enabling holds the target at the actual position, and so does every mode change,
 until a command is written. Commands are checked before they reach the drive: NaN and infinite values are refused,
@@ -24,13 +25,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 
 from akd_ros import _native
+from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
 from akd_ros.units import Limits, Units, unwrap_position
-
-_MODES = {mode.name: mode for mode in _native.MODES_OF_OPERATION}
-MODES: dict[str, int] = {name: mode.code for name, mode in _MODES.items()}
-"""The CiA 402 modes the AKD offers over EtherCAT, by name, with their 0x6060 values (from the extension's table,
-`_native.MODES_OF_OPERATION`, which also gives each mode's command, the objects it is written to and the handshake
-that starts it)."""
 
 MODE_NAMES = {code: name for name, code in MODES.items()}
 
@@ -42,8 +38,36 @@ DEFAULT_RX, DEFAULT_TX = _native.DEFAULT_MAPPING
 STANDSTILL_COUNTS_PER_S = 1000
 
 
-class CommandError(ValueError):
-    """A command or request was refused before anything reached the drive."""
+@dataclass(frozen=True)
+class DriveConfig:
+    """One drive of a `Bus`: where it is (`slave`, its position on the line, or `alias`, its station alias: one of
+    them), its name (``"slave_<position>"`` unless given), its mode of operation at the start, its `Units` and
+    `Limits`, and its process-data mapping (`DEFAULT_RX`, `DEFAULT_TX` unless given)."""
+
+    slave: int | None = None
+    alias: int | None = None
+    name: str | None = None
+    mode: str = "interpolated_position"
+    units: Units | None = None
+    limits: Limits | None = None
+    mapping: tuple[object, object] | None = None
+
+    def attach(self, bus: Bus, slave: int) -> Axis:
+        """The Axis of this drive on `bus`, at position `slave`; the Bus calls it once the line is in Op."""
+        axis = Axis.__new__(Axis)
+        axis._attach(bus, slave, self)
+        return axis
+
+
+@dataclass(frozen=True)
+class _ThisAxis(DriveConfig):
+    """The one drive of `Axis(link, ...)`: the Bus attaches the Axis being made rather than a new one."""
+
+    axis: Axis | None = None
+
+    def attach(self, bus: Bus, slave: int) -> Axis:
+        self.axis._attach(bus, slave, self)
+        return self.axis
 
 
 @dataclass(frozen=True)
@@ -153,9 +177,10 @@ class CommandTimeoutEvent:
 
 
 class Axis:
-    """One AKD axis: opens the bus, cycles it, and commands the drive in SI units.
+    """One AKD axis, commanded in SI units: a drive of a `Bus`, or with `Axis(link, ...)` a bus of one of its own.
 
-    Use as a context manager or call `close()`: it disables the drive, stops the cycle and returns the bus to Init.
+    Use as a context manager or call `close()`: it disables the drive and, for a bus of its own, stops the cycle and
+    returns the bus to Init.
     """
 
     def __init__(
@@ -175,40 +200,43 @@ class Axis:
         request_timeout: float = 1.0,
         frame_timeout: float = 0.1,
     ) -> None:
-        if mode not in MODES:
-            raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
-        self.units = units or Units()
-        self.limits = limits or Limits()
-        self._master = _native.Master(link, timeout=frame_timeout)
-        self._cycle = None
-        try:
-            slaves = self._master.scan()
-            if alias is not None:
-                found = [s["position"] for s in slaves if s["alias"] == alias]
-                if len(found) != 1:
-                    aliases = ", ".join(f"{s['position']}: {s['alias']}" for s in slaves)
-                    raise CommandError(
-                        f"station alias {alias} is on {len(found)} slaves, not one (position: alias of each: {aliases})"
-                    )
-                slave = found[0]
-            if not 0 <= slave < len(slaves):
-                raise CommandError(f"slave {slave} is not on the bus (slaves 0..{len(slaves) - 1})")
-            self.slave = slave
-            """The drive's position on the bus (found from `alias` when given)."""
-            self.simulator = self._master.simulator if link == "sim" or link.startswith("sim:") else None
-            """For the built-in virtual AKD: its `Simulator` (fault injection, hardware enable, input toggles)."""
-            self._master.request_state("preop")
-            rx, tx = mapping if mapping is not None else (DEFAULT_RX, DEFAULT_TX)
-            self._master.configure_pdo(slave, rx, tx)
-            self._master.sdo_write(slave, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[mode]))
-            self._master.request_state("op")
-            self._cycle = _native.Cycle(self._master, period, priority=priority, cpu=cpu, lock_memory=lock_memory)
-        except BaseException:
-            self._master.close()
-            raise
-        self._cycle.request_timeout = request_timeout
-        self._outputs = {(index, subindex) for index, subindex, _, _ in self._cycle.mapping(slave)["outputs"]}
-        self._mode = mode
+        drive = _ThisAxis(
+            slave=None if alias is not None else slave,
+            alias=alias,
+            mode=mode,
+            units=units,
+            limits=limits,
+            mapping=mapping,
+            axis=self,
+        )
+        Bus(
+            link,
+            [drive],
+            period=period,
+            priority=priority,
+            cpu=cpu,
+            lock_memory=lock_memory,
+            request_timeout=request_timeout,
+            frame_timeout=frame_timeout,
+            # Alone on its bus, the drive reacts to its own faults only, as it always did.
+            fault_reaction="joint",
+        )
+        self._owns_bus = True
+
+    def _attach(self, bus: Bus, slave: int, drive: DriveConfig) -> None:
+        self._bus = bus
+        self._owns_bus = False
+        self._closed = False
+        self.slave = slave
+        """The drive's position on the bus (found from `alias` when given)."""
+        self.name = drive.name or f"slave_{slave}"
+        """The drive's name on its bus."""
+        self.units = drive.units or Units()
+        self.limits = drive.limits or Limits()
+        self.simulator = bus.simulator
+        """For the built-in virtual AKD: its `Simulator` (fault injection, hardware enable, input toggles)."""
+        self._outputs = {(index, subindex) for index, subindex, _, _ in bus.cycle.mapping(slave)["outputs"]}
+        self._mode = drive.mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
         self._command_timeouts: collections.deque[CommandTimeoutEvent] = collections.deque()
@@ -218,27 +246,30 @@ class Axis:
     # --- life cycle ---------------------------------------------------------------------------------------------
 
     @property
+    def bus(self) -> Bus:
+        """The bus the drive is on."""
+        return self._bus
+
+    @property
     def warnings(self) -> list[str]:
         """Real-time settings asked for and not permitted, one sentence each."""
-        return list(self._cycle.warnings)
+        return self._bus.warnings
 
     def close(self) -> None:
-        """Disables the drive (waiting up to a second), stops the cycle and returns the bus to Init."""
-        if self._cycle is None:
+        """Disables the drive (waiting up to a second); an Axis with a bus of its own then closes the bus (cycle
+        stopped, bus to Init). An Axis of a shared bus is unusable from then on; the bus runs on until closed."""
+        if self._owns_bus:
+            self._closed = True
+            self._bus.close()
             return
-        cycle, self._cycle = self._cycle, None
-        try:
-            if cycle.running:
-                cycle.disable(self.slave)
-                # A drive in Fault or unreachable stays as it is: powerless.
-                with contextlib.suppress(Exception):
-                    cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
-        finally:
-            cycle.stop()
-            try:
-                self._master.request_state("init")
-            finally:
-                self._master.close()
+        if self._closed or self._bus.closed:
+            return
+        self._closed = True
+        cycle = self._bus.cycle
+        cycle.disable(self.slave)
+        # A drive in Fault or unreachable stays as it is: powerless.
+        with contextlib.suppress(_native.EtherCatError):
+            cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
 
     def __enter__(self) -> Axis:
         return self
@@ -255,37 +286,51 @@ class Axis:
             raise TimeoutError(str(e)) from None
 
     def _running(self):
-        if self._cycle is None:
+        if self._closed or self._bus.closed:
             raise CommandError("the axis is closed")
-        return self._cycle
+        return self._bus.cycle
 
     # --- DS402 ----------------------------------------------------------------------------------------------------
+
+    def request(self, request: str) -> None:
+        """Asks the drive for `request` ("enable", "disable", "quick_stop", "reset_fault") and returns at once;
+        `wait(request)` waits for it. The methods of the same names do both."""
+        if request not in REQUESTS:
+            raise CommandError(f"request {request!r} is not one of {', '.join(REQUESTS)}")
+        cycle = self._running()
+        if request == "enable":
+            self._commanded.clear()
+        getattr(cycle, request)(self.slave)
+
+    def wait(self, request: str, timeout: float = 5.0) -> None:
+        """Waits until the drive carried out `request`; TimeoutError saying in which state it is stuck and why."""
+        if request == "quick_stop":
+            done = ("Quick stop active", "Switch on disabled")
+            self._wait_for(lambda s: s["state"] in done, "the quick stop", timeout)
+        else:
+            self._wait_state("Operation enabled" if request == "enable" else "Switch on disabled", timeout)
 
     def enable(self, timeout: float = 5.0) -> None:
         """Brings the drive to Operation enabled and waits; the target holds the actual position until commanded.
         Raises TimeoutError saying in which state it is stuck and why (fault, hardware enable low, ...)."""
-        cycle = self._running()
-        self._commanded.clear()
-        cycle.enable(self.slave)
-        self._wait_state("Operation enabled", timeout)
+        self.request("enable")
+        self.wait("enable", timeout)
 
     def disable(self, timeout: float = 5.0) -> None:
         """Switches the power stage off (Switch on disabled) and waits."""
-        cycle = self._running()
-        cycle.disable(self.slave)
-        self._wait_state("Switch on disabled", timeout)
+        self.request("disable")
+        self.wait("disable", timeout)
 
     def quick_stop(self, timeout: float = 5.0) -> None:
         """Brakes with the quick-stop deceleration and holds in Quick stop active (Switch on disabled if off)."""
-        self._running().quick_stop(self.slave)
-        self._wait_for(lambda s: s["state"] in ("Quick stop active", "Switch on disabled"), "the quick stop", timeout)
+        self.request("quick_stop")
+        self.wait("quick_stop", timeout)
 
     def reset_fault(self, timeout: float = 5.0) -> None:
         """Resets a fault by a rising edge of controlword bit 7 and waits for Switch on disabled. Raises
         TimeoutError when the fault persists (its cause is still there)."""
-        cycle = self._running()
-        cycle.reset_fault(self.slave)
-        self._wait_state("Switch on disabled", timeout)
+        self.request("reset_fault")
+        self.wait("reset_fault", timeout)
 
     def halt(self, on: bool = True) -> None:
         """Halt (controlword bit 8): the drive stops and stays enabled; `halt(False)` lets it go on."""
@@ -300,8 +345,7 @@ class Axis:
         """Changes the mode of operation. Allowed while disabled, or enabled at standstill; the target then holds the
         actual position until the first command of the new mode."""
         cycle = self._running()
-        if mode not in MODES:
-            raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+        check_mode(mode)
         targets = _MODES[mode].command_objects
         # A mode started by a handshake takes its command by SDO where it is not mapped; the others need it mapped.
         if _MODES[mode].handshake_controlword is None and targets and not self._outputs.intersection(targets):
@@ -453,11 +497,9 @@ class Axis:
         self._running().arm_latch(self.slave, channel, edge, arm)
 
     def _poll(self) -> None:
-        if self._cycle is None:
+        if self._closed or self._bus.closed:
             return
-        for e in self._cycle.events():
-            if e["slave"] != self.slave:
-                continue
+        for e in self._bus.events_of(self.slave):
             if e["kind"] == "latch":
                 counts = e["position"]
                 self._latches.append(
@@ -519,11 +561,8 @@ class Axis:
     def samples(self) -> dict[str, list]:
         """Every cycle's record of this drive since the last call, as columns in drive units (see
         `_native.Cycle.samples`); `units` converts them. For recording: take them at least every few seconds."""
-        columns = self._running().samples()
-        keep = [i for i, slave in enumerate(columns["slave"]) if slave == self.slave]
-        if len(keep) == len(columns["slave"]):
-            return columns
-        return {name: [values[i] for i in keep] for name, values in columns.items()}
+        self._running()
+        return self._bus.samples_of(self.slave)
 
     # --- mailbox and statistics -----------------------------------------------------------------------------------
 
@@ -536,11 +575,9 @@ class Axis:
         self._running().sdo_write(self.slave, index, subindex, data)
 
     def stats(self) -> dict:
-        """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped."""
-        cycle = self._running()
-        stats = cycle.stats()
-        stats["events_dropped"] = cycle.events_dropped
-        return stats
+        """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped: those of the whole bus."""
+        self._running()
+        return self._bus.stats()
 
     @property
     def cycle(self):

@@ -117,3 +117,46 @@ fn a_fault_while_enabled_is_not_retried_and_the_reset_clears_it() {
     cycle.request(0, Request::Enable).unwrap();
     wait_state(&cycle, State::OperationEnabled);
 }
+
+/// Three virtual AKDs in cyclic synchronous position, enabled, with a fault on the middle one:
+/// the states the other two end in.
+fn others_after_a_fault(quick_stop_on_fault: bool) -> [Option<State>; 2] {
+    use akd_native::al::AlState;
+    use akd_native::cycle::Config;
+    use akd_native::master::{Mapping, Master};
+
+    let bus = Arc::new(Mutex::new(VirtualBus::with_timing(3, Timing::IMMEDIATE)));
+    let mut m = Master::new(Box::new(Shared { bus: bus.clone(), start: Instant::now() }), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, csp::STEP).unwrap();
+    for position in 0..3 {
+        m.slave_mut(position).unwrap().configure_pdo(Mapping::Fixed(0x1724), Mapping::Fixed(0x1B24)).unwrap();
+        m.slave_mut(position).unwrap().sdo_write(0x6060, 0, &[8]).unwrap();
+    }
+    m.request_state(AlState::Op, csp::STEP).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    cycle.set_quick_stop_on_fault(quick_stop_on_fault);
+    let state = |p| cycle.drive_status(p).unwrap().state();
+    for position in 0..3 {
+        cycle.request(position, Request::Enable).unwrap();
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while (0..3).any(|p| state(p) != Some(State::OperationEnabled)) {
+        assert!(Instant::now() < deadline, "not all enabled");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    bus.lock().unwrap().slave_mut(1).drive_mut().inject(Fault::OverTemperature);
+    while state(1) != Some(State::Fault) {
+        assert!(Instant::now() < deadline, "no fault");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    // The quick stop is asked for in the cycle that saw the fault; a few cycles bring it about.
+    cycles(&cycle, 20);
+    [state(0), state(2)]
+}
+
+#[test]
+fn a_fault_on_one_drive_quick_stops_the_others_when_asked_to() {
+    assert_eq!(others_after_a_fault(true), [Some(State::QuickStopActive); 2]);
+    assert_eq!(others_after_a_fault(false), [Some(State::OperationEnabled); 2]);
+}

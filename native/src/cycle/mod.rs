@@ -121,6 +121,8 @@ struct Shared {
     events: Events,
     samples: Samples,
     sdo: SdoSlot,
+    /// Whether a fault on one drive quick-stops the others ([`CycleThread::set_quick_stop_on_fault`]).
+    quick_stop_on_fault: AtomicBool,
 }
 
 /// How long a drive request may take by default before it is reported stuck.
@@ -246,6 +248,7 @@ impl CycleThread {
             events: Events::default(),
             samples: Samples::default(),
             sdo: SdoSlot::default(),
+            quick_stop_on_fault: AtomicBool::new(false),
         });
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
@@ -560,6 +563,16 @@ impl CycleThread {
         Ok(self.sequenced(position)?.status())
     }
 
+    /// Whether a fault on one drive quick-stops the others (off by default: each drive on its
+    /// own). On, the cycle that sees a drive enter Fault or leave Op asks every other drive
+    /// being enabled or enabled, and not in Fault itself, for a quick stop, as an arm needs:
+    /// its joints stop together in that cycle rather than when some other thread gets to it.
+    /// The faulting drive's own event is the only one reported; the others show the request
+    /// in their status (`drive_status`), and nothing re-enables them.
+    pub fn set_quick_stop_on_fault(&self, on: bool) {
+        self.shared.quick_stop_on_fault.store(on, Ordering::Relaxed);
+    }
+
     /// Sets how long a drive request may take before it is reported stuck (from the next
     /// request on).
     pub fn set_request_timeout(&self, timeout: Duration) {
@@ -816,12 +829,14 @@ fn supervise(
     let enabled = drives.iter().any(|d| d.drive.enabled());
     let gap = gaps.observe(exchange, enabled, now);
     let (Ok(inputs), watch) = (master.input_image(), master.watch().ok()) else { return };
+    let mut faulted = false;
     for d in drives.iter_mut() {
         let slave = d.position;
         let o = d.drive.offsets;
         let statusword = (exchange == Exchange::Good).then(|| image::u16_at(inputs, o.statusword));
         let al_status = watch.and_then(|w| w.get(slave as usize)).filter(|w| w.answered).map(|w| w.al_status);
         let seen = d.watch.observe(slave, statusword, al_status, d.drive.sequenced(), now);
+        faulted |= seen.fault.is_some() || seen.left_op.is_some();
         if let Some(event) = seen.fault {
             mailbox.read_error_code(master, slave, event, &shared.events);
         }
@@ -844,6 +859,22 @@ fn supervise(
             if report.action == events::Action::Disabled {
                 shared.drives[slave as usize].request(sequencer::Request::Disable);
             }
+        }
+    }
+    if faulted && shared.quick_stop_on_fault.load(Ordering::Relaxed) {
+        quick_stop_the_others(shared, drives, inputs);
+    }
+}
+
+/// Asks every drive being enabled or enabled, and not in Fault, for a quick stop: the drive
+/// that faulted is in Fault, and one that left Op was asked for Switch on disabled.
+fn quick_stop_the_others(shared: &Shared, drives: &[DriveLoop], inputs: &[u8]) {
+    for d in drives {
+        let in_fault = image::u16_at(inputs, d.drive.offsets.statusword) & crate::ds402::statusword::FAULT != 0;
+        let position = d.position as usize;
+        if !in_fault && shared.drives[position].status().request == Some(sequencer::Request::Enable) {
+            shared.drives[position].request(sequencer::Request::QuickStop);
+            shared.command_timeouts[position].release();
         }
     }
 }

@@ -636,6 +636,13 @@ impl PyCycle {
     fn drive_inputs(&self, position: u16) -> PyResult<super::drive::PyDriveInputs> {
         super::drive::drive_inputs(&self.cycle, position)
     }
+
+    /// With `on`, a drive entering Fault or leaving Op quick-stops, in the same cycle, every
+    /// other drive being enabled or enabled (and not in Fault): a bus of joints stops together.
+    /// Off (the default), each drive reacts alone. The faulting drive's event is the only one.
+    fn set_quick_stop_on_fault(&self, on: bool) {
+        self.cycle.set_quick_stop_on_fault(on)
+    }
 }
 
 impl Drop for PyCycle {

@@ -1,0 +1,305 @@
+"""`Bus`: one EtherCAT line of AKDs from Python, without ROS: the one master and the one cycle thread.
+
+A Bus opens a link (``"sim"``/``"sim:N"`` for built-in virtual AKDs, ``"udp://HOST:PORT"`` for `akd-sim`, or a
+network interface), scans it, picks its drives by position or station alias, gives each its process-data mapping and
+mode of operation in PreOp, takes the line to Op and starts one native cycle for all of them. Each drive is commanded
+through its `akd_ros.Axis` (`bus.axes`, `bus["name"]`), with its own units, limits, mode, latches and events; the Bus
+takes the cycle's events and per-cycle records and hands each to the Axis of its drive, once.
+
+With ``fault_reaction="all"`` (the default, as an arm needs) a drive entering Fault or leaving Op quick-stops every
+other drive in the same cycle: the cycle thread sees the fault first and asks for the quick stops there, so they do
+not wait for Python to poll. ``"joint"`` leaves the others as they are.
+
+`enable`, `disable`, `quick_stop` and `reset_fault` ask every drive at once and wait for all; a `BusRequestError`
+names each drive that did not get there and why.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import threading
+import time
+from collections.abc import Iterator, Sequence
+
+from akd_ros import _native
+
+_MODES = {mode.name: mode for mode in _native.MODES_OF_OPERATION}
+MODES: dict[str, int] = {name: mode.code for name, mode in _MODES.items()}
+"""The CiA 402 modes the AKD offers over EtherCAT, by name, with their 0x6060 values (from the extension's table,
+`_native.MODES_OF_OPERATION`, which also gives each mode's command, the objects it is written to and the handshake
+that starts it)."""
+
+FAULT_REACTIONS = ("all", "joint")
+"""What a fault on one drive does to the others: "all" quick-stops them, "joint" leaves them."""
+
+REQUESTS = ("enable", "disable", "quick_stop", "reset_fault")
+"""The requests a Bus makes of every drive at once."""
+
+SAMPLES_KEPT = 8192
+"""Per-cycle records a Bus keeps for each drive until they are taken (as many as the cycle's own ring holds)."""
+
+
+class CommandError(ValueError):
+    """A command or request was refused before anything reached the drive."""
+
+
+class BusRequestError(TimeoutError):
+    """A request to every drive that some did not carry out: `failed` maps each such drive's name to why,
+    `done` lists the others."""
+
+    def __init__(self, request: str, failed: dict[str, str], done: list[str]) -> None:
+        self.request, self.failed, self.done = request, failed, done
+        why = "; ".join(f"{name}: {reason}" for name, reason in failed.items())
+        super().__init__(
+            f"{request}: {len(failed)} of {len(failed) + len(done)} drives refused ({why}); done: "
+            f"{', '.join(done) or 'none'}"
+        )
+
+
+def check_mode(mode: str) -> None:
+    """CommandError unless `mode` is one of the AKD's modes."""
+    if mode not in MODES:
+        raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+
+
+def _picked(drives: Sequence, slaves: list[dict]) -> list[int]:
+    """The bus position of each drive (by `slave` or `alias`), or CommandError naming what is wrong."""
+    positions = []
+    for drive in drives:
+        if drive.alias is not None:
+            found = [s["position"] for s in slaves if s["alias"] == drive.alias]
+            if len(found) != 1:
+                aliases = ", ".join(f"{s['position']}: {s['alias']}" for s in slaves)
+                raise CommandError(
+                    f"station alias {drive.alias} is on {len(found)} slaves, not one (position: alias of each: "
+                    f"{aliases})"
+                )
+            position = found[0]
+        else:
+            position = drive.slave
+        if not 0 <= position < len(slaves):
+            raise CommandError(f"slave {position} is not on the bus (slaves 0..{len(slaves) - 1})")
+        if position in positions:
+            raise CommandError(
+                f"slave {position} is given twice (drives {positions.index(position)} and "
+                f"{len(positions)}); each drive once"
+            )
+        positions.append(position)
+    return positions
+
+
+def _check(drives: Sequence, fault_reaction: str) -> None:
+    """CommandError for what can be told wrong before the bus is touched."""
+    if fault_reaction not in FAULT_REACTIONS:
+        raise CommandError(f"fault_reaction {fault_reaction!r} is not one of {', '.join(FAULT_REACTIONS)}")
+    if not drives:
+        raise CommandError("a bus needs at least one drive")
+    for key in ("slave", "alias", "name"):
+        given = [getattr(d, key) for d in drives if getattr(d, key) is not None]
+        twice = sorted({v for v in given if given.count(v) > 1}, key=str)
+        if twice:
+            raise CommandError(f"{key} {', '.join(map(str, twice))} given to several drives; each drive once")
+    for i, d in enumerate(drives):
+        if (d.slave is None) == (d.alias is None):
+            which = "both given" if d.slave is not None else "neither given"
+            raise CommandError(
+                f"drive {i}{f' ({d.name})' if d.name else ''}: give its slave (position on the bus) or its alias, "
+                f"one of them ({which})"
+            )
+        check_mode(d.mode)
+
+
+class Bus:
+    """One EtherCAT line: its master, its one cycle thread and an `Axis` per drive.
+
+    `drives` are `akd_ros.DriveConfig`s, one per drive to command. Use as a context manager or call `close()`: it
+    disables every drive, stops the cycle and returns the line to Init.
+    """
+
+    def __init__(
+        self,
+        link: str = "sim",
+        drives: Sequence = (),
+        *,
+        period: float = 0.001,
+        priority: int | None = None,
+        cpu: int | None = None,
+        lock_memory: bool = False,
+        request_timeout: float = 1.0,
+        frame_timeout: float = 0.1,
+        fault_reaction: str = "all",
+    ) -> None:
+        _check(drives, fault_reaction)
+        self.link = link
+        self.fault_reaction = fault_reaction
+        self._master = _native.Master(link, timeout=frame_timeout)
+        self._cycle = None
+        try:
+            positions = _picked(drives, self._master.scan())
+            self.simulator = None
+            """For built-in virtual AKDs: their `Simulator` (fault injection, hardware enable, input toggles)."""
+            # The extension knows which links are virtual: the others have no simulator.
+            with contextlib.suppress(_native.ConfigError):
+                self.simulator = self._master.simulator
+            self._master.request_state("preop")
+            for drive, position in zip(drives, positions, strict=True):
+                rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
+                self._master.configure_pdo(position, rx, tx)
+                self._master.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[drive.mode]))
+            self._master.request_state("op")
+            self._cycle = _native.Cycle(self._master, period, priority=priority, cpu=cpu, lock_memory=lock_memory)
+        except BaseException:
+            self._master.close()
+            raise
+        self._cycle.request_timeout = request_timeout
+        self._cycle.set_quick_stop_on_fault(fault_reaction == "all")
+        self._poll_lock = threading.Lock()
+        self._events: dict[int, list[dict]] = {p: [] for p in positions}
+        self._samples: dict[int, dict[str, list]] = {p: {} for p in positions}
+        self._samples_dropped = dict.fromkeys(positions, 0)
+        self.axes = []
+        """One `Axis` per drive, in the order given."""
+        try:
+            self.axes.extend(d.attach(self, p) for d, p in zip(drives, positions, strict=True))
+        except BaseException:
+            self.close()
+            raise
+
+    # --- life cycle ---------------------------------------------------------------------------------------------
+
+    @property
+    def cycle(self):
+        """The native cycle, for what the Bus and its axes do not wrap (histograms, raw snapshots)."""
+        if self._cycle is None:
+            raise CommandError("the bus is closed")
+        return self._cycle
+
+    @property
+    def closed(self) -> bool:
+        """Whether `close()` was called."""
+        return self._cycle is None
+
+    @property
+    def warnings(self) -> list[str]:
+        """Real-time settings asked for and not permitted, one sentence each."""
+        return list(self.cycle.warnings)
+
+    def close(self) -> None:
+        """Disables every drive (waiting up to a second), stops the cycle and returns the line to Init."""
+        if self._cycle is None:
+            return
+        cycle = self._cycle
+        try:
+            if cycle.running:
+                for axis in self.axes:
+                    cycle.disable(axis.slave)
+                deadline = time.monotonic() + 1.0
+                for axis in self.axes:
+                    # A drive in Fault or unreachable stays as it is: powerless.
+                    with contextlib.suppress(_native.EtherCatError):
+                        cycle.wait_state(axis.slave, "Switch on disabled", timeout=max(deadline - time.monotonic(), 0))
+        finally:
+            self._cycle = None
+            cycle.stop()
+            try:
+                self._master.request_state("init")
+            finally:
+                self._master.close()
+
+    def __enter__(self) -> Bus:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __getitem__(self, name: str):
+        """The Axis named `name`."""
+        for axis in self.axes:
+            if axis.name == name:
+                return axis
+        raise KeyError(f"no axis named {name!r} on this bus (axes: {', '.join(a.name for a in self.axes)})")
+
+    # --- every drive at once --------------------------------------------------------------------------------------
+
+    def _every(self, request: str, timeout: float) -> None:
+        self.cycle  # noqa: B018  (a closed bus refuses before any drive is asked)
+        refusals = (TimeoutError, ValueError, _native.EtherCatError)
+        failed, asked, done = {}, [], []
+        for axis in self.axes:
+            try:
+                axis.request(request)
+                asked.append(axis)
+            except refusals as e:
+                failed[axis.name] = str(e)
+        deadline = time.monotonic() + timeout
+        for axis in asked:
+            try:
+                axis.wait(request, max(deadline - time.monotonic(), 0.0))
+                done.append(axis.name)
+            except refusals as e:
+                failed[axis.name] = str(e)
+        if failed:
+            raise BusRequestError(request, {a.name: failed[a.name] for a in self.axes if a.name in failed}, done)
+
+    def enable(self, timeout: float = 5.0) -> None:
+        """Brings every drive to Operation enabled together; each target holds its actual position until commanded."""
+        self._every("enable", timeout)
+
+    def disable(self, timeout: float = 5.0) -> None:
+        """Switches every drive's power stage off (Switch on disabled)."""
+        self._every("disable", timeout)
+
+    def quick_stop(self, timeout: float = 5.0) -> None:
+        """Quick-stops every drive (Quick stop active, Switch on disabled where off)."""
+        self._every("quick_stop", timeout)
+
+    def reset_fault(self, timeout: float = 5.0) -> None:
+        """Resets every drive's fault, to Switch on disabled."""
+        self._every("reset_fault", timeout)
+
+    # --- what the cycle reports, filed under each drive -------------------------------------------------------------
+
+    def events_of(self, slave: int) -> Iterator[dict]:
+        """The cycle's events (`_native.Cycle.events`) of drive `slave` since the last call, oldest first, each once;
+        those of slaves that are not the bus's drives are dropped."""
+        with self._poll_lock:
+            if self._cycle is not None:
+                for e in self._cycle.events():
+                    if e["slave"] in self._events:
+                        self._events[e["slave"]].append(e)
+            taken, self._events[slave] = self._events[slave], []
+        yield from taken
+
+    def samples_of(self, slave: int) -> dict[str, list]:
+        """Every cycle's record of drive `slave` since the last call (see `_native.Cycle.samples`), each once."""
+        with self._poll_lock:
+            columns = self.cycle.samples()
+            for position, kept in self._samples.items():
+                rows = [i for i, s in enumerate(columns["slave"]) if s == position]
+                for name, values in columns.items():
+                    kept.setdefault(name, []).extend(values[i] for i in rows)
+                excess = len(kept["slave"]) - SAMPLES_KEPT
+                if excess > 0:
+                    for values in kept.values():
+                        del values[:excess]
+                    self._samples_dropped[position] += excess
+            taken, self._samples[slave] = self._samples[slave], {}
+        return taken
+
+    def samples(self) -> dict[str, list]:
+        """Every drive's records since they were last taken, as `samples_of` gives them, in cycle order."""
+        per_drive = [self.samples_of(axis.slave) for axis in self.axes]
+        order = sorted((cycle, k, i) for k, columns in enumerate(per_drive) for i, cycle in enumerate(columns["cycle"]))
+        return {name: [per_drive[k][name][i] for _, k, i in order] for name in per_drive[0]}
+
+    def samples_dropped(self, slave: int) -> int:
+        """Records of drive `slave` dropped because they were not taken in time (beyond the cycle's own
+        `samples_dropped`)."""
+        return self._samples_dropped[slave]
+
+    def stats(self) -> dict:
+        """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped."""
+        cycle = self.cycle
+        stats = cycle.stats()
+        stats["events_dropped"] = cycle.events_dropped
+        return stats

@@ -1,0 +1,190 @@
+"""`akd_ros.Bus` against three in-process virtual AKDs (``sim:3``): one master and one cycle, an Axis per drive, each
+in its own mode and moving only as commanded; events filed under the drive they came from; a fault on one drive
+quick-stopping the others or not, as `fault_reaction` says; bus-wide requests naming the drive that refused; bad
+configurations refused before anything is set up.
+
+The waits have deadlines only so that a failure does not hang; no test asserts how fast anything happens.
+"""
+
+from __future__ import annotations
+
+import time
+
+import pytest
+
+from akd_ros import Axis, Bus, BusRequestError, CommandError, DriveConfig, Limits
+from support.waiting import wait_for
+
+THREE = [
+    DriveConfig(slave=0, name="ip", mode="interpolated_position"),
+    DriveConfig(slave=1, name="velocity", mode="profile_velocity"),
+    DriveConfig(slave=2, name="torque", mode="profile_torque"),
+]
+
+
+def still(axis: Axis, cycles: int = 100) -> int:
+    """How far (counts) the axis moved over the next `cycles` cycles, sampled every few ms."""
+    seen = []
+    end = axis.state().cycle + cycles
+    while (s := axis.state()).cycle < end:
+        seen.append(s.position_counts)
+        time.sleep(0.002)
+    return max(seen) - min(seen)
+
+
+def cycles_later(axis: Axis, count: int) -> bool:
+    """Waits `count` cycles."""
+    end = axis.state().cycle + count
+    return wait_for(f"{count} cycles", lambda: axis.state().cycle >= end)
+
+
+@pytest.fixture
+def bus():
+    with Bus("sim:3", THREE) as b:
+        yield b
+
+
+def test_three_axes_in_three_modes_move_each_as_commanded_and_only_then(bus: Bus) -> None:
+    ip, velocity, torque = bus.axes
+    assert bus["velocity"] is velocity and [a.slave for a in bus.axes] == [0, 1, 2]
+    assert [a.mode for a in bus.axes] == ["interpolated_position", "profile_velocity", "profile_torque"]
+    bus.enable()
+    assert [a.state().state for a in bus.axes] == ["Operation enabled"] * 3
+    # Enabled together, nothing moves before its command.
+    assert [still(a) for a in bus.axes] == [0, 0, 0]
+    start = {a.name: a.state().position_counts for a in bus.axes}
+    ip.command_position(ip.state().position + 1.0)
+    wait_for("the position", lambda: abs(ip.state().position - ip.command) < 1e-3 and still(ip, 50) <= 1)
+    ip_at = ip.state().position_counts
+    # The other two stand where they were.
+    assert abs(velocity.state().position_counts - start["velocity"]) <= 1
+    assert abs(torque.state().position_counts - start["torque"]) <= 1
+    velocity.command_velocity(-8.0)
+
+    # The drive model overshoots a step in velocity a little: -8 rad/s is reached when it holds over 50 cycles.
+    def at_speed() -> bool:
+        return abs(velocity.state().velocity + 8.0) < 0.08
+
+    wait_for("-8 rad/s", lambda: at_speed() and (cycles_later(velocity, 50) and at_speed()))
+    assert abs(ip.state().position_counts - ip_at) <= 1
+    assert abs(torque.state().position_counts - start["torque"]) <= 1
+    torque.command_torque(0.3)
+    wait_for("0.3 N·m", lambda: abs(torque.state().torque - 0.3) <= 3.0 / 1000)
+    assert wait_for("the torque axis to turn", lambda: torque.state().velocity > 0.0)
+    # Each axis keeps its own: the velocity axis still at -8 rad/s, the position axis still where it went.
+    assert at_speed()
+    assert abs(ip.state().position_counts - ip_at) <= 1
+    # Every cycle recorded once per drive, from the one cycle.
+    columns = bus.samples()
+    assert set(columns["slave"]) == {0, 1, 2}
+    cycles = [c for c, s in zip(columns["cycle"], columns["slave"], strict=True) if s == 1]
+    assert cycles == list(range(cycles[0], cycles[0] + len(cycles)))
+    time.sleep(0.01)
+    assert set(velocity.samples()["slave"]) == {1}
+
+
+def test_a_latch_and_a_fault_arrive_only_at_their_axis(bus: Bus) -> None:
+    ip, velocity, torque = bus.axes
+    bus.simulator.set_input_toggles(0, 1, [300_000.4])
+    bus.enable()
+    ip.arm_latch(1, "rising")
+    ip.command_position(2.0)  # about 334,000 counts: across the toggle
+    wait_for("the position axis past the toggle", lambda: ip.state().position_counts > 310_000)
+    # The other axes take the cycle's events first; the capture waits for its own axis, and comes once.
+    assert list(torque.latch_events()) == [] and list(velocity.fault_events()) == []
+    captures = wait_for("the capture", lambda: list(ip.latch_events()))
+    assert [(e.channel, e.edge) for e in captures] == [(1, "rising")]
+    assert abs(captures[0].position_counts - 300_000.4) <= 1
+    bus.simulator.inject_fault(1, "F439")
+    faults = wait_for("the fault", lambda: [e for e in velocity.fault_events() if e.source == "drive_fault"])
+    assert len(faults) == 1 and faults[0].text == "F439 Following error"
+    time.sleep(0.05)
+    for other in (ip, torque):
+        assert list(other.latch_events()) == [] and list(other.fault_events()) == []
+    assert list(velocity.latch_events()) == []
+
+
+@pytest.mark.parametrize(("reaction", "others"), [("all", "Quick stop active"), ("joint", "Operation enabled")])
+def test_a_fault_on_one_drive_stops_the_others_as_fault_reaction_says(reaction: str, others: str) -> None:
+    with Bus("sim:3", THREE, fault_reaction=reaction) as bus:
+        ip, velocity, torque = bus.axes
+        bus.enable()
+        velocity.command_velocity(2.0)
+        ip.command_position(0.5)
+        bus.simulator.inject_fault(1, "F439")
+        wait_for("the fault", lambda: velocity.state().state in ("Fault", "Fault reaction active"))
+        for axis in (ip, torque):
+            wait_for(f"{axis.name} in {others}", lambda a=axis: a.state().state == others)
+        time.sleep(0.1)
+        assert [ip.state().state, torque.state().state] == [others, others]
+        # Only the faulting drive reports a fault.
+        assert {e.source for e in velocity.fault_events()} >= {"drive_fault"}
+        assert list(ip.fault_events()) == [] and list(torque.fault_events()) == []
+        if reaction == "all":
+            # Quick-stopped, not faulted: enabling again is the user's call, and it works.
+            ip.enable()
+            assert ip.state().state == "Operation enabled"
+
+
+def test_bus_wide_enable_names_the_drive_whose_hardware_enable_is_low(bus: Bus) -> None:
+    bus.simulator.set_hardware_enable(2, False)
+    with pytest.raises(BusRequestError, match=r"torque: .*hardware enable") as refused:
+        bus.enable()
+    assert list(refused.value.failed) == ["torque"] and refused.value.done == ["ip", "velocity"]
+    bus.simulator.set_hardware_enable(2, True)
+    bus.enable()
+    bus.disable()
+    assert {a.state().state for a in bus.axes} == {"Switch on disabled"}
+
+
+@pytest.mark.parametrize(
+    ("drives", "settings", "message"),
+    [
+        (
+            [DriveConfig(slave=0, mode="spin")],
+            {},
+            "mode 'spin' is not one of profile_position, .*, cyclic_synchronous_position",
+        ),
+        ([DriveConfig(slave=5)], {}, r"slave 5 is not on the bus \(slaves 0..2\)"),
+        ([DriveConfig(slave=1), DriveConfig(slave=1)], {}, "slave 1 given to several drives"),
+        ([DriveConfig(slave=0, name="a"), DriveConfig(slave=1, name="a")], {}, "name a given to several drives"),
+        ([DriveConfig(alias=0)], {}, "station alias 0 is on 3 slaves, not one"),
+        ([DriveConfig(slave=0), DriveConfig(alias=0)], {}, "station alias 0 is on 3 slaves"),
+        ([DriveConfig(slave=0, alias=3)], {}, r"drive 0: give its slave .* or its alias, one of them \(both given\)"),
+        ([DriveConfig(slave=0), DriveConfig(name="x")], {}, r"drive 1 \(x\): give its slave .* \(neither given\)"),
+        ([], {}, "at least one drive"),
+        (THREE, {"fault_reaction": "some"}, "fault_reaction 'some' is not one of all, joint"),
+    ],
+)
+def test_a_bad_bus_is_refused_naming_the_problem(drives, settings, message) -> None:
+    with pytest.raises(CommandError, match=message):
+        Bus("sim:3", drives, **settings)
+    # Nothing was left open: the same line opens again.
+    with pytest.raises(CommandError, match=r"slave 0 is given twice \(drives 0 and 1\); each drive once"):
+        Bus("sim", [DriveConfig(slave=0), DriveConfig(alias=0)])
+    with Bus("sim:3", [DriveConfig(slave=0)]) as bus:
+        assert bus.axes[0].name == "slave_0"
+
+
+def test_an_axis_of_a_shared_bus_closes_alone_and_a_closed_bus_refuses(bus: Bus) -> None:
+    ip, velocity, _ = bus.axes
+    bus.enable()
+    velocity.close()
+    assert ip.state().state == "Operation enabled"
+    assert bus.cycle.drive_status(1)["state"] == "Switch on disabled"
+    with pytest.raises(CommandError, match="the axis is closed"):
+        velocity.command_velocity(1.0)
+    bus.close()
+    with pytest.raises(CommandError, match="the axis is closed"):
+        ip.command_position(0.0)
+    with pytest.raises(CommandError, match="the bus is closed"):
+        bus.enable()
+
+
+def test_limits_and_units_are_each_axis_own() -> None:
+    drives = [DriveConfig(slave=0, limits=Limits(max_position=1.0)), DriveConfig(slave=1)]
+    with Bus("sim:2", drives) as bus:
+        bus.enable()
+        with pytest.raises(CommandError, match="position"):
+            bus.axes[0].command_position(2.0)
+        bus.axes[1].command_position(2.0)
