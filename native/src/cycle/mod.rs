@@ -20,8 +20,8 @@
 //!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
-//! fault supervision, [`latch`] the position latch and [`acyclic`] the mailbox traffic beside
-//! the cycle.
+//! fault supervision, [`latch`] the position latch, [`acyclic`] the mailbox traffic beside
+//! the cycle and [`dc_status`] the distributed clocks ([`CycleThread::dc_status`]).
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
@@ -35,6 +35,7 @@ use crate::pdo::PdoEntry;
 
 pub mod acyclic;
 pub mod command_timeout;
+pub mod dc_status;
 pub mod events;
 pub mod handshake;
 pub mod image;
@@ -121,6 +122,7 @@ struct Shared {
     events: Events,
     samples: Samples,
     sdo: SdoSlot,
+    dc: dc_status::Shared,
 }
 
 /// How long a drive request may take by default before it is reported stuck.
@@ -246,6 +248,7 @@ impl CycleThread {
             events: Events::default(),
             samples: Samples::default(),
             sdo: SdoSlot::default(),
+            dc: dc_status::Shared::new(master.clock()),
         });
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
@@ -608,6 +611,12 @@ impl CycleThread {
         Ok(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_len])
     }
 
+    /// The distributed clocks: SYNC0's set-up and every drive's last system-time difference;
+    /// `None` when the bus runs without them. Lock-free.
+    pub fn dc_status(&self) -> Option<dc_status::DcStatus> {
+        self.shared.dc.status()
+    }
+
     /// The statistics, updated by the thread every cycle.
     pub fn stats(&self) -> &CycleStats {
         &self.shared.stats
@@ -725,6 +734,7 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
                 (0, Exchange::Lost)
             }
         };
+        shared.dc.publish(master.clock());
         supervise(master, shared, drives, mailbox, &mut gaps, exchange, now);
         if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
             let timing = (period.min(u32::MAX as u64) as u32, exchange_ns.min(u32::MAX as u64) as u32);

@@ -533,6 +533,13 @@ impl PyCycle {
     fn drive_inputs(&self, position: u16) -> PyResult<super::drive::PyDriveInputs> {
         super::drive::drive_inputs(&self.cycle, position)
     }
+
+    /// The distributed clocks while the cycle runs: SYNC0's cycle and shift, the reference
+    /// clock's position and each drive's FBUS.PARAM02 and last system-time difference (read
+    /// in the cyclic frame, one drive per cycle in turn); {"active": False} without them.
+    fn dc_status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        super::clocks::dc_status(py, &self.cycle)
+    }
 }
 
 impl Drop for PyCycle {

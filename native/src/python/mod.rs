@@ -10,6 +10,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::error::Error;
 
+mod clocks;
 mod cycle;
 mod drive;
 mod eeprom;
@@ -145,5 +146,6 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     eeprom::register(m)?;
     cycle::register(m)?;
     drive::register(m)?;
+    clocks::register(m)?;
     Ok(())
 }

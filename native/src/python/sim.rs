@@ -17,7 +17,9 @@ use crate::sim::{server, Timing, VirtualBus};
 
 /// The dict `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active
 /// fault's name, or None), "fault_number" (e.g. 125, or None), and the motor's "position"
-/// (counts), "velocity" (counts/s) and "torque" (N·m).
+/// (counts), "velocity" (counts/s) and "torque" (N·m); "dc" what its synchronisation was told:
+/// "sync0_active", "sync0_cycle_ns", "sync0_start_ns", "fbus_param02", "cycle_ns" (0x60C2),
+/// "source" ("sync0" or "sm2") and "pll_locked".
 fn state_dict<'py>(py: Python<'py>, drive: &DriveState) -> PyResult<Bound<'py, PyDict>> {
     let state = PyDict::new(py);
     state.set_item("state", drive.state.name())?;
@@ -26,6 +28,16 @@ fn state_dict<'py>(py: Python<'py>, drive: &DriveState) -> PyResult<Bound<'py, P
     state.set_item("position", drive.position)?;
     state.set_item("velocity", drive.velocity)?;
     state.set_item("torque", drive.torque)?;
+    let sync = &drive.sync;
+    let dc = PyDict::new(py);
+    dc.set_item("sync0_active", sync.sync0_active)?;
+    dc.set_item("sync0_cycle_ns", sync.sync0_cycle_ns)?;
+    dc.set_item("sync0_start_ns", sync.sync0_start_ns)?;
+    dc.set_item("fbus_param02", sync.fbus_param02)?;
+    dc.set_item("cycle_ns", sync.cycle_ns)?;
+    dc.set_item("source", sync.source.name())?;
+    dc.set_item("pll_locked", sync.pll_locked)?;
+    state.set_item("dc", dc)?;
     Ok(state)
 }
 
@@ -93,7 +105,7 @@ impl PyVirtualBus {
     /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m).
     fn drive_state<'py>(&self, py: Python<'py>, position: usize) -> PyResult<Bound<'py, PyDict>> {
         self.check(position)?;
-        state_dict(py, &DriveState::of(self.bus.slave(position).drive()))
+        state_dict(py, &DriveState::of(self.bus.slave(position)))
     }
 
     fn __len__(&self) -> usize {
