@@ -13,12 +13,17 @@ refused. Each refusal is a `CommandError` naming the problem and what is allowed
 Latch captures and faults arrive as events from the cycle thread, stamped with the cycle that saw them; `latch_events`
 and `fault_events` hand them out once each. The set-point handshake of profile position and homing, and the command
 time-out (`set_command_timeout`), run in the cycle thread too; `command_timeout_events` hands out each time-out once.
+
+Distributed clocks (`dc`): on, the drives' PLL follows SYNC0 at the period (moved by `dc_shift` seconds); off, it
+follows each frame's SM2 event. By default they are on for a network interface and off for the virtual AKDs and UDP,
+whose frames' timing is not a wire's (`_native.dc_by_default`); `cycle.dc_status()` tells what runs.
 """
 
 from __future__ import annotations
 
 import collections
 import contextlib
+import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -174,6 +179,8 @@ class Axis:
         lock_memory: bool = False,
         request_timeout: float = 1.0,
         frame_timeout: float = 0.1,
+        dc: bool | None = None,
+        dc_shift: float = 0.0,
     ) -> None:
         if mode not in MODES:
             raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
@@ -201,6 +208,12 @@ class Axis:
             rx, tx = mapping if mapping is not None else (DEFAULT_RX, DEFAULT_TX)
             self._master.configure_pdo(slave, rx, tx)
             self._master.sdo_write(slave, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[mode]))
+            if not all(math.isfinite(x) for x in (period, dc_shift)):
+                raise CommandError(f"period and dc_shift must be finite seconds, got {period!r} and {dc_shift!r}")
+            if _native.dc_by_default(link) if dc is None else dc:
+                self._master.configure_dc(round(period * 1e9), round(dc_shift * 1e9))
+            else:
+                self._master.configure_sm2_sync(round(period * 1e9))
             self._master.request_state("op")
             self._cycle = _native.Cycle(self._master, period, priority=priority, cpu=cpu, lock_memory=lock_memory)
         except BaseException:

@@ -159,7 +159,7 @@ fn the_cycle_thread_publishes_every_drives_system_time_difference() {
     assert_eq!(status.drives.iter().map(|d| d.position).collect::<Vec<_>>(), [0, 1, 2]);
     for drive in &status.drives {
         assert_eq!(drive.fbus_param02, Some(1));
-        let d = drive.system_time_difference_ns.expect("read within two rounds");
+        let d = drive.time_difference_ns.expect("read within two rounds");
         assert!(d.abs() < 10_000, "drive {} is {d} ns off", drive.position);
     }
     cycle.stop().unwrap();

@@ -5,21 +5,10 @@
 
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 
-use crate::master::clocks::Clock;
+use crate::master::clocks::{Clock, DcSlave};
 
 /// A difference not read yet.
 const UNREAD: i64 = i64::MIN;
-
-/// One slave with a distributed clock.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct DcDrive {
-    /// Position on the bus.
-    pub position: u16,
-    /// FBUS.PARAM02 as the set-up wrote it (`None`: no CoE, or the drive has no such object).
-    pub fbus_param02: Option<u32>,
-    /// The last system-time difference read (0x092C), ns; `None` before the first read.
-    pub system_time_difference_ns: Option<i64>,
-}
 
 /// The bus's distributed clocks while the cycle runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -30,8 +19,8 @@ pub struct DcStatus {
     pub shift_ns: i32,
     /// Position of the reference clock.
     pub reference_position: u16,
-    /// Every slave with DC, in bus order.
-    pub drives: Vec<DcDrive>,
+    /// Every slave with DC, in bus order, with its last system-time difference.
+    pub drives: Vec<DcSlave>,
     /// System-time difference reads the cyclic frames carried since the set-up.
     pub difference_reads: u64,
     /// Of those, the ones a slave did not answer.
@@ -77,11 +66,7 @@ impl Shared {
             .zip(self.differences.iter())
             .map(|(slave, difference)| {
                 let d = difference.load(Ordering::Relaxed);
-                DcDrive {
-                    position: slave.position,
-                    fbus_param02: slave.fbus_param02,
-                    system_time_difference_ns: (d != UNREAD).then_some(d),
-                }
+                DcSlave { time_difference_ns: (d != UNREAD).then_some(d), ..*slave }
             })
             .collect();
         Some(DcStatus {

@@ -37,7 +37,7 @@ pub(super) fn dc_status<'py>(py: Python<'py>, cycle: &CycleThread) -> PyResult<B
         let entry = PyDict::new(py);
         entry.set_item("position", drive.position)?;
         entry.set_item("fbus_param02", drive.fbus_param02)?;
-        entry.set_item("system_time_difference_ns", drive.system_time_difference_ns)?;
+        entry.set_item("system_time_difference_ns", drive.time_difference_ns)?;
         drives.append(entry)?;
     }
     d.set_item("drives", drives)?;

@@ -102,7 +102,8 @@ impl PyVirtualBus {
 
     /// The drive firmware of drive `position` as a dict: "state" (the CiA 402 state's name),
     /// "fault" (the active fault's name, or None), "fault_number" (e.g. 125, or None), and the
-    /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m).
+    /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m), and "dc", what its
+    /// synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2, whether its PLL would lock).
     fn drive_state<'py>(&self, py: Python<'py>, position: usize) -> PyResult<Bound<'py, PyDict>> {
         self.check(position)?;
         state_dict(py, &DriveState::of(self.bus.slave(position)))
