@@ -14,6 +14,9 @@ refused. Each refusal is a `CommandError` naming the problem and what is allowed
 Latch captures and faults arrive as events from the cycle thread, stamped with the cycle that saw them; `latch_events`
 and `fault_events` hand them out once each. The set-point handshake of profile position and homing, and the command
 time-out (`set_command_timeout`), run in the cycle thread too; `command_timeout_events` hands out each time-out once.
+
+Distributed clocks (`dc`, `dc_shift`) are set for the whole line by its `Bus`; `Axis(link, ...)` hands them to its bus
+of one, as it does `period`.
 """
 
 from __future__ import annotations
@@ -199,6 +202,8 @@ class Axis:
         lock_memory: bool = False,
         request_timeout: float = 1.0,
         frame_timeout: float = 0.1,
+        dc: bool | None = None,
+        dc_shift: float = 0.0,
     ) -> None:
         drive = _ThisAxis(
             slave=None if alias is not None else slave,
@@ -218,6 +223,8 @@ class Axis:
             lock_memory=lock_memory,
             request_timeout=request_timeout,
             frame_timeout=frame_timeout,
+            dc=dc,
+            dc_shift=dc_shift,
             # Alone on its bus, the drive reacts to its own faults only, as it always did.
             fault_reaction="joint",
         )

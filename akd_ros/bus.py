@@ -12,11 +12,17 @@ not wait for Python to poll. ``"joint"`` leaves the others as they are.
 
 `enable`, `disable`, `quick_stop` and `reset_fault` ask every drive at once and wait for all; a `BusRequestError`
 names each drive that did not get there and why.
+
+Distributed clocks (`dc`), set once for the whole line in PreOp: on, every drive's PLL follows SYNC0 at the period
+(moved by `dc_shift` seconds); off, it follows each frame's SM2 event. By default (None) they are on for a network
+interface and off for the virtual AKDs and UDP, whose frames' timing is not a wire's (`_native.dc_by_default`);
+`bus.cycle.dc_status()` tells what runs, and which drives' FBUS.PARAM02 could not be confirmed and was left alone.
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections.abc import Iterator, Sequence
@@ -88,8 +94,10 @@ def _picked(drives: Sequence, slaves: list[dict]) -> list[int]:
     return positions
 
 
-def _check(drives: Sequence, fault_reaction: str) -> None:
+def _check(drives: Sequence, fault_reaction: str, period: float, dc_shift: float) -> None:
     """CommandError for what can be told wrong before the bus is touched."""
+    if not all(math.isfinite(x) for x in (period, dc_shift)):
+        raise CommandError(f"period and dc_shift must be finite seconds, got {period!r} and {dc_shift!r}")
     if fault_reaction not in FAULT_REACTIONS:
         raise CommandError(f"fault_reaction {fault_reaction!r} is not one of {', '.join(FAULT_REACTIONS)}")
     if not drives:
@@ -128,8 +136,10 @@ class Bus:
         request_timeout: float = 1.0,
         frame_timeout: float = 0.1,
         fault_reaction: str = "all",
+        dc: bool | None = None,
+        dc_shift: float = 0.0,
     ) -> None:
-        _check(drives, fault_reaction)
+        _check(drives, fault_reaction, period, dc_shift)
         self.link = link
         self.fault_reaction = fault_reaction
         self._master = _native.Master(link, timeout=frame_timeout)
@@ -146,6 +156,11 @@ class Bus:
                 rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
                 self._master.configure_pdo(position, rx, tx)
                 self._master.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[drive.mode]))
+            # One clock set-up for the line: every drive with DC follows the same SYNC0 (or each its SM2 event).
+            if _native.dc_by_default(link) if dc is None else dc:
+                self._master.configure_dc(round(period * 1e9), round(dc_shift * 1e9))
+            else:
+                self._master.configure_sm2_sync(round(period * 1e9))
             self._master.request_state("op")
             self._cycle = _native.Cycle(self._master, period, priority=priority, cpu=cpu, lock_memory=lock_memory)
         except BaseException:

@@ -43,6 +43,8 @@ FAULT_RESET_POLICIES = ("manual", "auto_once")
 """Values of fault_reset."""
 COMMAND_TIMEOUT_POLICIES = ("hold", "quick_stop")
 """Values of command_timeout_policy."""
+DC_CHOICES = {"auto": None, "on": True, "off": False}
+"""Values of dc, each with the Axis's `dc` (None: the link's default)."""
 _TYPE_WORDS = {
     Parameter.Type.BOOL: "a bool (true or false)",
     Parameter.Type.INTEGER: "an integer",
@@ -111,6 +113,9 @@ class Spec:
             value = float(value)
         if kind == Parameter.Type.STRING_ARRAY and value is None:
             value = []  # an empty YAML list arrives without a type
+        if kind == Parameter.Type.STRING and isinstance(value, bool) and {"on", "off"} <= set(self.choices or ()):
+            # YAML 1.1, as rcl reads a file or -p, takes unquoted on/off (yes/no, true/false) for a bool.
+            value = "on" if value else "off"
         if kind == Parameter.Type.STRING_ARRAY:
             typed = isinstance(value, list) and all(isinstance(v, str) for v in value)
         else:
@@ -146,6 +151,23 @@ SCHEMA: tuple[Spec, ...] = (
         0.001,
         "Period of the EtherCAT cycle in seconds (the AKD takes 250 µs to 10 ms).",
         *CYCLE_TIME_RANGE,
+    ),
+    Spec(
+        "dc",
+        "auto",
+        "Distributed clocks. 'on': SYNC0 at the cycle time and FBUS.PARAM02 = 1, the drive's PLL follows SYNC0 "
+        "(as TwinCAT runs the AKD), the clocks' drift compensated every cycle; 'off': SYNC0 off, the drive follows "
+        "each frame's SM2 event; 'auto': on for a network interface, off for 'sim', 'sim:N' and 'udp://', where a "
+        "frame's timing is the host's scheduling and the socket's, not the wire's.",
+        choices=tuple(DC_CHOICES),
+    ),
+    Spec(
+        "dc_shift",
+        0.0,
+        "With distributed clocks: SYNC0 moved from the cycle boundary, seconds (negative: earlier); "
+        "less than one cycle_time either way.",
+        -CYCLE_TIME_RANGE[1],
+        CYCLE_TIME_RANGE[1],
     ),
     Spec(
         "mode",
@@ -257,6 +279,9 @@ class Settings:
     alias: int | None
     """The station alias that finds the drive, None to use `slave`."""
     cycle_time: float
+    dc: bool | None
+    """The Axis's `dc`: True on, False off, None the link's default."""
+    dc_shift: float
     mode: str
     mapping: tuple[object, object] | None
     """(rx, tx) for `akd_ros.Axis`, None for its default mapping."""
@@ -391,11 +416,18 @@ def settings(values: dict[str, object]) -> Settings:
             f"parameter lead applies to a linear axis only; with axis 'rotary' it must be 0, got {lead}"
         )
     limits = parse_limits(values)
+    if not abs(values["dc_shift"]) < values["cycle_time"]:
+        raise ParameterError(
+            f"parameter dc_shift must be less than one cycle_time ({values['cycle_time']} s) either way, "
+            f"got {values['dc_shift']}"
+        )
     return Settings(
         link=link,
         slave=values["slave"],
         alias=None if values["alias"] < 0 else values["alias"],
         cycle_time=values["cycle_time"],
+        dc=DC_CHOICES[values["dc"]],
+        dc_shift=values["dc_shift"],
         mode=values["mode"],
         mapping=mapping,
         joint_name=values["joint_name"],

@@ -13,7 +13,7 @@ import time
 
 import pytest
 
-from akd_ros import Axis, CommandError, Limits, Units
+from akd_ros import Axis, CommandError, ConfigError, Limits, Units
 
 COUNTS = 2**20
 COUNT = 2 * math.pi / COUNTS
@@ -408,3 +408,45 @@ def test_a_bad_command_timeout_is_refused(axis: Axis, seconds: float, policy: st
     with pytest.raises(CommandError, match=message):
         axis.set_command_timeout(seconds, policy)
     assert axis.cycle.command_timeout_status(0)["policy"] is None
+
+
+def test_dc_on_runs_sync0_at_the_period_on_every_drive_with_the_shift() -> None:
+    with Axis("sim:3", period=0.001, dc=True, dc_shift=0.00025) as axis:
+        dc = wait_for(
+            "every drive's system-time difference", lambda: (d := axis.cycle.dc_status())["difference_reads"] >= 6 and d
+        )
+        assert (dc["active"], dc["cycle_ns"], dc["shift_ns"], dc["reference_position"]) == (True, 1_000_000, 250_000, 0)
+        assert [d["position"] for d in dc["drives"]] == [0, 1, 2] and dc["difference_misses"] == 0
+        for drive in dc["drives"]:
+            assert drive["fbus_param02"] == 1
+            # The virtual AKDs' clocks run on one host clock: after drift compensation only the latch's nanoseconds.
+            assert abs(drive["system_time_difference_ns"]) < 10_000, drive
+        for position in range(3):
+            sync = axis.simulator.drive_state(position)["dc"]
+            assert sync["sync0_active"] and sync["pll_locked"] and sync["source"] == "sync0", (position, sync)
+            assert (sync["sync0_cycle_ns"], sync["cycle_ns"], sync["fbus_param02"]) == (1_000_000, 1_000_000, 1)
+            assert sync["sync0_start_ns"] % 1_000_000 == 250_000
+
+
+def test_dc_is_off_by_default_on_the_virtual_bus_and_the_drive_follows_sm2() -> None:
+    with Axis("sim", period=0.002) as axis:
+        assert axis.cycle.dc_status() == {"active": False}
+        sync = axis.simulator.drive_state(0)["dc"]
+        assert (sync["sync0_active"], sync["fbus_param02"], sync["cycle_ns"], sync["source"]) == (
+            False,
+            0,
+            2_000_000,
+            "sm2",
+        )
+
+
+@pytest.mark.parametrize(
+    ("shift", "error", "message"),
+    [
+        (0.001, ConfigError, "SYNC0 shift 1000000 ns is not within the 1000000 ns cycle: allowed are -999999 to"),
+        (math.nan, CommandError, "dc_shift must be finite"),
+    ],
+)
+def test_a_bad_dc_shift_is_refused(shift: float, error: type, message: str) -> None:
+    with pytest.raises(error, match=message):
+        Axis("sim", period=0.001, dc=True, dc_shift=shift)

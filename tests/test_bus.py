@@ -154,6 +154,7 @@ def test_bus_wide_enable_names_the_drive_whose_hardware_enable_is_low(bus: Bus) 
         ([DriveConfig(slave=0), DriveConfig(name="x")], {}, r"drive 1 \(x\): give its slave .* \(neither given\)"),
         ([], {}, "at least one drive"),
         (THREE, {"fault_reaction": "some"}, "fault_reaction 'some' is not one of all, joint"),
+        (THREE, {"dc": True, "dc_shift": float("nan")}, "dc_shift must be finite"),
     ],
 )
 def test_a_bad_bus_is_refused_naming_the_problem(drives, settings, message) -> None:
@@ -188,3 +189,19 @@ def test_limits_and_units_are_each_axis_own() -> None:
         with pytest.raises(CommandError, match="position"):
             bus.axes[0].command_position(2.0)
         bus.axes[1].command_position(2.0)
+
+
+def test_dc_is_set_once_for_the_bus_and_every_drive_follows_the_one_sync0() -> None:
+    with Bus("sim:3", THREE, period=0.002, dc=True, dc_shift=-0.0005) as bus:
+        dc = bus.cycle.dc_status()
+        assert (dc["active"], dc["cycle_ns"], dc["shift_ns"]) == (True, 2_000_000, -500_000)
+        assert [(d["position"], d["fbus_param02"]) for d in dc["drives"]] == [(0, 1), (1, 1), (2, 1)]
+        starts = set()
+        for axis in bus.axes:
+            sync = bus.simulator.drive_state(axis.slave)["dc"]
+            assert sync["source"] == "sync0" and sync["pll_locked"], (axis.name, sync)
+            starts.add(sync["sync0_start_ns"])
+        assert len(starts) == 1 and starts.pop() % 2_000_000 == 1_500_000, "one SYNC0 for the line"
+    with Bus("sim:3", THREE) as bus:
+        assert bus.cycle.dc_status() == {"active": False}
+        assert {bus.simulator.drive_state(a.slave)["dc"]["source"] for a in bus.axes} == {"sm2"}

@@ -320,3 +320,31 @@ def test_a_fixed_mapping_without_velocity_or_torque_targets_runs_with_the_time_o
         assert "parameter command_timeout: not watched" in node.output()
         assert "0x60FF" in node.output()
         move_to(ros, ros.position() + 0.5)
+
+
+DC_PARAMS = """\
+akd_node:
+  ros__parameters:
+    link: udp://127.0.0.1:{port}
+    cycle_time: 0.002
+    dc: on
+    dc_shift: -0.0002
+    joint_name: test_axis
+    joint_states_rate: 50.0
+    diagnostics_rate: 5.0
+"""
+
+
+def test_dc_on_over_udp_runs_sync0_at_the_cycle_time_and_diagnostics_show_it(tmp_path, ros_domain):
+    """`dc: on` (unquoted, which YAML reads as a bool) switches distributed clocks on over UDP, where 'auto' would
+    not: the virtual AKD runs SYNC0 at the cycle time, moved by dc_shift, with FBUS.PARAM02 = 1 and its PLL locked."""
+    with node_on_sim(DC_PARAMS, tmp_path, ros_domain + SECOND_DOMAIN_OFFSET) as (sim, _node, ros):
+        dc = sim.state()["dc"]
+        assert dc["sync0_active"] and dc["pll_locked"] and dc["source"] == "sync0", dc
+        assert (dc["sync0_cycle_ns"], dc["cycle_ns"], dc["fbus_param02"]) == (2_000_000, 2_000_000, 1), dc
+        assert dc["sync0_start_ns"] % 2_000_000 == 1_800_000, dc
+        values = {v.key: v.value for v in ros.latest("/diagnostics").status[0].values}
+        assert (values["dc"], values["dc_cycle_s"], values["dc_shift_s"]) == ("on (SYNC0)", "0.002", "-0.0002")
+        assert (values["fbus_param02"], values["dc_reference_slave"]) == ("1", "0"), values
+        # Read in the cyclic frame from the first cycles on; the only drive is the reference clock itself.
+        assert abs(int(values["system_time_difference_ns"])) < 1_000_000, values

@@ -120,6 +120,13 @@ BAD_FILES = {
     ),
     "rate": ("joint_states_rate: 0.0", ["parameter joint_states_rate", "[1.0, 1000.0]"]),
     "bool": ("autostart: 1", ["parameter autostart must be a bool"]),
+    "dc": ("dc: sometimes", ["parameter dc must be one of auto, on, off", "'sometimes'"]),
+    "dc as a number": ("dc: 1", ["parameter dc must be one of auto, on, off", "got 1"]),
+    "dc shift of a cycle": (
+        "cycle_time: 0.001\ndc_shift: 0.001",
+        ["parameter dc_shift must be less than one cycle_time (0.001 s) either way", "0.001"],
+    ),
+    "dc shift out of range": ("dc_shift: 0.5", ["parameter dc_shift must be a number in [-0.01, 0.01]", "0.5"]),
 }
 
 
@@ -208,6 +215,8 @@ def test_every_parameter_is_declared_with_type_description_and_range(node_in_pro
     assert (cycle.floating_point_range[0].from_value, cycle.floating_point_range[0].to_value) == (0.00025, 0.01)
     assert descriptors["slave"].integer_range[0].to_value == 65535
     assert "cyclic_synchronous_position" in descriptors["mode"].additional_constraints
+    assert descriptors["dc"].additional_constraints == "one of auto, on, off"
+    assert "'udp://'" in descriptors["dc"].description and node_in_process.settings.dc is None
     direction = descriptors["direction"].integer_range[0]
     assert (direction.from_value, direction.to_value, direction.step) == (-1, 1, 2)
     assert node_in_process.get_parameter("mode").value == "interpolated_position"

@@ -11,7 +11,8 @@ stdout, 'ok ...' or 'error: ...':
   hardware_enable POSITION high|low   set the hardware enable input
   toggles POSITION INPUT P1,P2,...    digital input 1..7 toggles at these positions (counts);
                                       without positions it stays low
-  state POSITION                      the drive firmware's state as JSON
+  state POSITION                      the drive firmware's state as JSON, with "dc": what its
+                                      synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2)
   help                                the commands
 
 A change reaches the drive at once; the drive firmware acts on it when it next runs, at the

@@ -1,8 +1,8 @@
 """Diagnostics: /diagnostics (diagnostic_msgs/DiagnosticArray) at `diagnostics_rate`, one status of the axis.
 
 ERROR in a fault state; WARN when a fault counter grew since the last report, the state is not fresh, a request is
-stuck or lost, or in Quick stop active; OK otherwise. The values carry the state, the cycle statistics and the last
-fault."""
+stuck or lost, in Quick stop active, or with distributed clocks on a drive whose FBUS.PARAM02 could not be set; OK
+otherwise. The values carry the state, the cycle statistics, the distributed clocks and the last fault."""
 
 from __future__ import annotations
 
@@ -11,6 +11,25 @@ from rclpy.qos import QoSProfile
 
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
+
+
+def dc_values(dc: dict, slave: int) -> dict[str, object]:
+    """The key/values of `Cycle.dc_status()` for the drive at `slave`: whether SYNC0 runs, its cycle and shift, the
+    reference clock, the drive's FBUS.PARAM02 and its last system-time difference."""
+    if not dc["active"]:
+        return {"dc": "off (the drive follows SM2)"}
+    drive = next((d for d in dc["drives"] if d["position"] == slave), {})
+    param02 = drive.get("fbus_param02")
+    difference = drive.get("system_time_difference_ns")
+    return {
+        "dc": "on (SYNC0)",
+        "dc_cycle_s": f"{dc['cycle_ns'] * 1e-9:.6g}",
+        "dc_shift_s": f"{dc['shift_ns'] * 1e-9:.6g}",
+        "dc_reference_slave": dc["reference_position"],
+        "fbus_param02": "not settable by CoE: set it to 1 on the drive" if param02 is None else param02,
+        "system_time_difference_ns": "not read yet" if difference is None else difference,
+        "dc_difference_misses": dc["difference_misses"],
+    }
 
 
 class Diagnostics:
@@ -44,9 +63,19 @@ class Diagnostics:
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
         self._counters_seen = counters
         fault = self._publishing.last_fault
+        dc_status = axis.cycle.dc_status()
+        dc = dc_values(dc_status, axis.slave)
+        drives = dc_status.get("drives", ())
+        param02_unset = any(d["position"] == axis.slave and d["fbus_param02"] is None for d in drives)
         if state.state in FAULT_STATES:
             level = DiagnosticStatus.ERROR
-        elif grown or not state.fresh or state.progress in ("stuck", "lost") or state.state == "Quick stop active":
+        elif (
+            grown
+            or not state.fresh
+            or state.progress in ("stuck", "lost")
+            or state.state == "Quick stop active"
+            or param02_unset
+        ):
             level = DiagnosticStatus.WARN
         else:
             level = DiagnosticStatus.OK
@@ -69,6 +98,7 @@ class Diagnostics:
             "period_mean_s": f"{stats['period']['mean_ns'] * 1e-9:.6g}",
             "period_max_s": f"{stats['period']['max_ns'] * 1e-9:.6g}",
             "exchange_p99_s": f"{stats['exchange']['p99_ns'] * 1e-9:.6g}",
+            **dc,
             "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
             "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
             "last_fault_action": "" if fault is None else fault.action,

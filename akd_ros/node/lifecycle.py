@@ -84,6 +84,8 @@ class AkdNode(LifecycleNode):
                 priority=s.rt_priority,
                 cpu=s.rt_cpu,
                 lock_memory=s.rt_lock_memory,
+                dc=s.dc,
+                dc_shift=s.dc_shift,
             )
         except AXIS_ERRORS as e:
             return self._fail(f"configure: the drive at slave {s.slave} on link {s.link!r} did not open: {e}")

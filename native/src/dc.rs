@@ -15,6 +15,17 @@ pub const EPOCH_OFFSET_S: u64 = 946_684_800;
 /// The AKD's shortest cycle (AKD manual §5.9): 250 µs.
 pub const MIN_CYCLE_NS: u32 = 250_000;
 
+/// FBUS.PARAM02, the AKD's switch of its PLL (manual §5.11, §5.14): bit 0 set, the drive's
+/// 62.5 µs task follows SYNC0; clear, it does not wait for DC events and follows the SM2
+/// event (§5.11.2). The manual names the parameter but gives no CoE index for it; it is
+/// modelled here as manufacturer object 0x3E02:00 (UNSIGNED32, in the AKD's 0x2000-0x5FFF
+/// manufacturer range where its other drive parameters sit, e.g. 0x3470, 0x3497). The virtual
+/// AKD holds it there. A real drive without this object answers "object does not exist",
+/// which the master reports instead of failing (see [`crate::master::clocks::DcSlave`]).
+pub const FBUS_PARAM02: u16 = 0x3E02;
+/// FBUS.PARAM02 bit 0: the drive's PLL follows SYNC0.
+pub const FBUS_PARAM02_PLL: u32 = 0x0000_0001;
+
 /// EtherCAT system time (ns since 2000-01-01) of a time given as elapsed since the Unix epoch.
 pub fn system_time(since_unix_epoch: Duration) -> u64 {
     (since_unix_epoch.as_nanos() as u64).wrapping_sub(EPOCH_OFFSET_S * 1_000_000_000)
@@ -71,6 +82,24 @@ pub fn system_time_offset(master_time_ns: u64, delay_ns: u32, local_receive_ns: 
 pub fn sync0_start(system_time_ns: u64, cycle_ns: u32, margin_ns: u64) -> u64 {
     let cycle = cycle_ns.max(1) as u64;
     (system_time_ns.saturating_add(margin_ns) / cycle + 1) * cycle
+}
+
+/// Checks a SYNC0 shift against the cycle: the first pulse, and with it every pulse, moves by
+/// `shift_ns` from the cycle boundary; a shift of a whole cycle or more would name the same
+/// pulses as a smaller one, so it is refused as a mistake (a wrong unit, most often).
+pub fn check_sync0_shift(shift_ns: i64, cycle_ns: u32) -> Result<i32> {
+    let max = cycle_ns as i64 - 1;
+    if (-max..=max).contains(&shift_ns) {
+        return Ok(shift_ns as i32);
+    }
+    Err(SettingError::Sync0Shift { shift_ns, cycle_ns }.into())
+}
+
+/// First SYNC0 pulse moved by `shift_ns` (checked by [`check_sync0_shift`]) from the cycle
+/// boundary [`sync0_start`] gives; a negative shift fires before it, still after the margin
+/// less one cycle.
+pub fn shifted_sync0_start(system_time_ns: u64, cycle_ns: u32, margin_ns: u64, shift_ns: i32) -> u64 {
+    sync0_start(system_time_ns, cycle_ns, margin_ns).wrapping_add_signed(shift_ns as i64)
 }
 
 /// Signed difference of a slave's clock to the reference (register 0x092C: bit 31 set when the
@@ -146,6 +175,17 @@ mod tests {
     fn sync0_starts_on_a_boundary_after_the_margin() {
         assert_eq!(sync0_start(1_000_500, 1_000, 10_000), 1_011_000);
         assert_eq!(sync0_start(0, 250_000, 0), 250_000);
+    }
+
+    #[test]
+    fn a_shift_moves_sync0_within_the_cycle() {
+        assert_eq!(shifted_sync0_start(1_000_500, 1_000, 10_000, 250), 1_011_250);
+        assert_eq!(shifted_sync0_start(1_000_500, 1_000, 10_000, -250), 1_010_750);
+        assert_eq!(check_sync0_shift(-999, 1_000).unwrap(), -999);
+        for shift in [1_000, -1_000, i64::MAX] {
+            let err = check_sync0_shift(shift, 1_000).unwrap_err().to_string();
+            assert!(err.contains(&format!("SYNC0 shift {shift} ns")) && err.contains("-999 to 999 ns"), "{err}");
+        }
     }
 
     #[test]

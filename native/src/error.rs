@@ -855,6 +855,13 @@ pub enum SettingError {
         /// The cycle time, ns.
         cycle_ns: u32,
     },
+    /// A SYNC0 shift of a whole cycle or more.
+    Sync0Shift {
+        /// The shift asked for, ns.
+        shift_ns: i64,
+        /// The cycle time, ns.
+        cycle_ns: u32,
+    },
     /// A duration that is not a non-negative number of seconds.
     Seconds {
         /// The setting, e.g. "timeout".
@@ -1005,6 +1012,13 @@ impl fmt::Display for SettingError {
                 f,
                 "cycle time {cycle_ns} ns has no exact encoding as units (0..=255) times a power of ten for 0x60C2"
             ),
+            SettingError::Sync0Shift { shift_ns, cycle_ns } => {
+                let max = *cycle_ns as i64 - 1;
+                write!(
+                    f,
+                    "SYNC0 shift {shift_ns} ns is not within the {cycle_ns} ns cycle: allowed are -{max} to {max} ns"
+                )
+            }
             SettingError::Seconds { what, value } => {
                 write!(f, "{what} must be a non-negative number of seconds, got {value}")
             }

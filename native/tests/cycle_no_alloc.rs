@@ -90,7 +90,7 @@ fn cycle_loop_allocates_nothing() {
         assert!(Instant::now() < deadline, "no simulator on {address}");
     }
     m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
-    m.configure_dc(1_000_000).unwrap();
+    m.configure_dc(1_000_000, 0).unwrap();
     let (rx, tx) = profile::profile_mapping();
     m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
     m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();

@@ -357,7 +357,7 @@ fn a_late_reply_to_a_request_given_up_is_not_taken_for_the_next_ones() {
 fn distributed_clocks_run_sync0_and_the_drift_datagram_rides_in_the_cycle() {
     let mut m = master(2);
     m.request_state(AlState::PreOp, STEP).unwrap();
-    m.configure_dc(1_000_000).unwrap();
+    m.configure_dc(1_000_000, 0).unwrap();
     for position in 0..2 {
         assert_eq!(m.slave_mut(position).unwrap().read_register(0x0981, 1).unwrap(), [0x03]);
         assert_eq!(m.slave_mut(position).unwrap().read_register(0x09A0, 4).unwrap(), 1_000_000u32.to_le_bytes());
@@ -398,14 +398,14 @@ fn an_empty_position_is_named() {
         Error::NoSuchSlave { position: 3, count: 1 } => {}
         other => panic!("{other}"),
     }
-    assert!(m.configure_dc(100_000).is_err(), "below the AKD's 250 µs");
+    assert!(m.configure_dc(100_000, 0).is_err(), "below the AKD's 250 µs");
 }
 
 #[test]
 fn clocks_read_the_masters_time_and_follow_the_reference() {
     let mut m = master(3);
     m.request_state(AlState::PreOp, STEP).unwrap();
-    m.configure_dc(1_000_000).unwrap();
+    m.configure_dc(1_000_000, 0).unwrap();
     // The reference clock was set to the master's time (ns since 2000).
     let reference = u64::from_le_bytes(m.slave_mut(0).unwrap().read_register(0x0910, 8).unwrap().try_into().unwrap());
     let now = akd_native::dc::system_time(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap());

@@ -34,7 +34,7 @@ fn exchange_allocates_nothing() {
         assert!(std::time::Instant::now() < deadline, "no simulator on {address}");
     }
     m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
-    m.configure_dc(1_000_000).unwrap();
+    m.configure_dc(1_000_000, 0).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
     m.slave_mut(1).unwrap().set_outputs(&[1, 2, 3, 4, 5, 6]).unwrap();
     assert_eq!(m.exchange().unwrap(), 6);

@@ -20,8 +20,8 @@
 //!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
-//! fault supervision, [`latch`] the position latch and [`acyclic`] the mailbox traffic beside
-//! the cycle.
+//! fault supervision, [`latch`] the position latch, [`acyclic`] the mailbox traffic beside
+//! the cycle and [`dc_status`] the distributed clocks ([`CycleThread::dc_status`]).
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
@@ -35,6 +35,7 @@ use crate::pdo::PdoEntry;
 
 pub mod acyclic;
 pub mod command_timeout;
+pub mod dc_status;
 pub mod events;
 pub mod handshake;
 pub mod image;
@@ -123,6 +124,7 @@ struct Shared {
     sdo: SdoSlot,
     /// Whether a fault on one drive quick-stops the others ([`CycleThread::set_quick_stop_on_fault`]).
     quick_stop_on_fault: AtomicBool,
+    dc: dc_status::Shared,
 }
 
 /// How long a drive request may take by default before it is reported stuck.
@@ -249,6 +251,7 @@ impl CycleThread {
             samples: Samples::default(),
             sdo: SdoSlot::default(),
             quick_stop_on_fault: AtomicBool::new(false),
+            dc: dc_status::Shared::new(master.clock()),
         });
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
@@ -621,6 +624,12 @@ impl CycleThread {
         Ok(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_len])
     }
 
+    /// The distributed clocks: SYNC0's set-up and every drive's last system-time difference;
+    /// `None` when the bus runs without them. Lock-free.
+    pub fn dc_status(&self) -> Option<dc_status::DcStatus> {
+        self.shared.dc.status()
+    }
+
     /// The statistics, updated by the thread every cycle.
     pub fn stats(&self) -> &CycleStats {
         &self.shared.stats
@@ -738,6 +747,7 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
                 (0, Exchange::Lost)
             }
         };
+        shared.dc.publish(master.clock());
         supervise(master, shared, drives, mailbox, &mut gaps, exchange, now);
         if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
             let timing = (period.min(u32::MAX as u64) as u32, exchange_ns.min(u32::MAX as u64) as u32);

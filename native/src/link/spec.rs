@@ -33,6 +33,16 @@ pub enum LinkSpec {
     },
 }
 
+impl LinkSpec {
+    /// Whether a bus on this link runs distributed clocks unless told otherwise: on a network
+    /// interface, as TwinCAT runs the AKD; not in-process nor over UDP, where a frame's timing
+    /// is the host's scheduling and the socket's, not the wire's, so SYNC0 would promise a
+    /// timing the set-points do not keep.
+    pub fn runs_dc_by_default(&self) -> bool {
+        matches!(self, LinkSpec::Interface { .. })
+    }
+}
+
 impl FromStr for LinkSpec {
     type Err = LinkSpecError;
 

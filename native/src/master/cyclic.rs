@@ -7,6 +7,13 @@
 //! counted. The process image and the frame buffers are allocated when the image is laid out,
 //! never per cycle.
 //!
+//! With distributed clocks the frame also reads one slave's system-time difference (0x092C),
+//! a different slave each cycle in turn: every slave's is then at most as many cycles old as
+//! there are slaves with DC (6 ms for six drives at 1 kHz), at the price of one 4-byte FPRD
+//! (16 bytes, 1.3 µs on a 100 Mbit/s wire) per frame instead of one per slave, and the frame
+//! keeps the same length every cycle, so its time on the wire does not change from one cycle to
+//! the next. Reads and unanswered reads are counted in the [`Clock`](super::clocks::Clock).
+//!
 //! Layout of the logical address space: every slave's outputs one after the other from
 //! address 0, then every slave's inputs.
 
@@ -16,7 +23,11 @@ use crate::master::mapping::Mapping;
 use crate::master::state::AlStatus;
 use crate::master::{Master, Slave};
 use crate::pdo::DEFAULT_FIXED;
-use crate::registers::{self, sm_reg, AL_STATUS, DC_SYSTEM_TIME};
+use crate::registers::{self, sm_reg, AL_STATUS, DC_SYSTEM_TIME, DC_SYSTEM_TIME_DIFFERENCE};
+
+/// Frame bytes the DC datagrams take: the FRMW of the system time (8 bytes) and the FPRD of
+/// one slave's system-time difference (4 bytes), each with its header and working counter.
+const DC_DATAGRAMS_LEN: usize = 8 + 4 + 2 * (frame::DATAGRAM_HEADER_LEN + frame::WKC_LEN);
 
 /// Where one slave's data sits in the process image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -69,7 +80,7 @@ impl ProcessImage {
     fn layout(lens: &[Option<(usize, usize)>]) -> Result<Self> {
         let out_total: usize = lens.iter().flatten().map(|l| l.0).sum();
         let in_total: usize = lens.iter().flatten().map(|l| l.1).sum();
-        if out_total + in_total > frame::MAX_DATAGRAM_DATA - 8 - frame::DATAGRAM_HEADER_LEN - frame::WKC_LEN {
+        if out_total + in_total > frame::MAX_DATAGRAM_DATA - DC_DATAGRAMS_LEN {
             return Err(SettingError::ImageTooLarge { bytes: out_total + in_total }.into());
         }
         let (mut out_at, mut in_at, mut expected_wkc) = (0, 0, 0);
@@ -195,8 +206,12 @@ impl Master {
         let mut builder = FrameBuilder::new(&mut self.tx[..]);
         let lrw = builder.push_zeroed(Command::Lrw, index, 0, 0, out_len + image.inputs.len())?;
         builder.bytes_mut()[lrw.data_offset..lrw.data_offset + out_len].copy_from_slice(&image.outputs);
-        let clock: Option<Slot> = match &self.clock {
-            Some(c) => Some(builder.push_zeroed(Command::Frmw, index, c.reference_station, DC_SYSTEM_TIME, 8)?),
+        let clock: Option<(Slot, Slot)> = match &self.clock {
+            Some(c) => {
+                let frmw = builder.push_zeroed(Command::Frmw, index, c.reference_station, DC_SYSTEM_TIME, 8)?;
+                let station = c.slaves[c.next_difference].station;
+                Some((frmw, builder.push_zeroed(Command::Fprd, index, station, DC_SYSTEM_TIME_DIFFERENCE, 4)?))
+            }
             None => None,
         };
         // Two reads per slave: their slots follow each other in the frame, so the reply is
@@ -214,9 +229,10 @@ impl Master {
         }
         let wkc = lrw.wkc(reply)?;
         let mut clock_time = None;
-        if let Some(slot) = clock {
+        if let (Some((slot, difference)), Some(c)) = (clock, self.clock.as_mut()) {
             let data = slot.data(reply)?;
             clock_time = Some((u64::from_le_bytes(data.try_into().expect("8 bytes")), slot.wkc(reply)?));
+            read_difference(c, difference, reply)?;
         }
         if wkc != expected {
             if !judge {
@@ -245,6 +261,21 @@ impl Master {
     }
 }
 
+/// Takes the system-time difference the frame read of the slave whose turn it was, and moves
+/// the turn on.
+fn read_difference(clock: &mut super::clocks::Clock, slot: Slot, reply: &[u8]) -> Result<()> {
+    let n = clock.next_difference;
+    clock.difference_reads += 1;
+    if slot.wkc(reply)? == 1 {
+        let raw = u32::from_le_bytes(slot.data(reply)?.try_into().expect("4 bytes"));
+        clock.slaves[n].time_difference_ns = Some(crate::dc::time_difference(raw));
+    } else {
+        clock.difference_misses += 1;
+    }
+    clock.next_difference = (n + 1) % clock.slaves.len();
+    Ok(())
+}
+
 /// Bytes of AL status (0x0130) through AL status code (0x0134..0x0135).
 const AL_STATUS_LEN: usize = 6;
 /// Frame bytes each datagram takes besides its data.
@@ -269,7 +300,7 @@ impl Master {
         let slaves = self.slaves.len();
         let image = self.image_mut()?;
         let watch_len = slaves * (AL_STATUS_LEN + 1 + 2 * DATAGRAM_OVERHEAD);
-        let room = frame::MAX_DATAGRAM_DATA - 8 - DATAGRAM_OVERHEAD;
+        let room = frame::MAX_DATAGRAM_DATA - DC_DATAGRAMS_LEN;
         if on && image.outputs.len() + image.inputs.len() + watch_len > room {
             return Err(SettingError::SupervisionTooLarge {
                 image: image.outputs.len() + image.inputs.len(),

@@ -643,6 +643,13 @@ impl PyCycle {
     fn set_quick_stop_on_fault(&self, on: bool) {
         self.cycle.set_quick_stop_on_fault(on)
     }
+
+    /// The distributed clocks while the cycle runs: SYNC0's cycle and shift, the reference
+    /// clock's position and each drive's FBUS.PARAM02 and last system-time difference (read
+    /// in the cyclic frame, one drive per cycle in turn); {"active": False} without them.
+    fn dc_status(&self) -> super::clocks::DcStatusView {
+        self.cycle.dc_status().into()
+    }
 }
 
 impl Drop for PyCycle {

@@ -278,9 +278,18 @@ impl PyMaster {
         self.with_slave(py, position, |s| s.set_cycle_time(cycle_time_ns))
     }
 
-    /// Sets up distributed clocks and SYNC0 at `cycle_time_ns` (in PreOp).
-    fn configure_dc(&self, py: Python<'_>, cycle_time_ns: u32) -> PyResult<()> {
-        self.with_master(py, |m| m.configure_dc(cycle_time_ns))
+    /// Sets up distributed clocks and SYNC0 at `cycle_time_ns`, moved by `shift_ns` (less than
+    /// a cycle either way), with FBUS.PARAM02 = 1 on every AKD (in PreOp).
+    #[pyo3(signature = (cycle_time_ns, shift_ns = 0))]
+    fn configure_dc(&self, py: Python<'_>, cycle_time_ns: u32, shift_ns: i64) -> PyResult<()> {
+        self.with_master(py, |m| m.configure_dc(cycle_time_ns, shift_ns))
+    }
+
+    /// Runs the drives without distributed clocks at `cycle_time_ns`: SYNC0 off,
+    /// FBUS.PARAM02 = 0 and the cycle time 0x60C2 on every AKD, which then follows the SM2
+    /// event (in PreOp).
+    fn configure_sm2_sync(&self, py: Python<'_>, cycle_time_ns: u32) -> PyResult<()> {
+        self.with_master(py, |m| m.configure_sm2_sync(cycle_time_ns))
     }
 
     /// One cyclic exchange; returns the working counter.

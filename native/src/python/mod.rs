@@ -10,6 +10,7 @@ use pyo3::IntoPyObjectExt;
 
 use crate::error::Error;
 
+mod clocks;
 mod cycle;
 mod drive;
 mod eeprom;
@@ -147,5 +148,6 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     cycle::register(m)?;
     drive::register(m)?;
     link_spec::register(m)?;
+    clocks::register(m)?;
     Ok(())
 }

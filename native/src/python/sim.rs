@@ -13,11 +13,13 @@ use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
+use crate::sim::sync::SyncState;
 use crate::sim::{server, Timing, VirtualBus};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
-/// name, or None), "fault_number" (e.g. 125, or None), and the motor's "position" (counts),
-/// "velocity" (counts/s) and "torque" (N·m).
+/// name, or None), "fault_number" (e.g. 125, or None), the motor's "position" (counts),
+/// "velocity" (counts/s) and "torque" (N·m), and "dc", what its synchronisation was told
+/// ([`SyncView`]).
 #[derive(IntoPyObject)]
 struct DriveStateView {
     state: &'static str,
@@ -26,6 +28,7 @@ struct DriveStateView {
     position: f64,
     velocity: f64,
     torque: f64,
+    dc: SyncView,
 }
 
 impl From<DriveState> for DriveStateView {
@@ -37,6 +40,34 @@ impl From<DriveState> for DriveStateView {
             position: drive.position,
             velocity: drive.velocity,
             torque: drive.torque,
+            dc: drive.sync.into(),
+        }
+    }
+}
+
+/// `drive_state()["dc"]`: "sync0_active", "sync0_cycle_ns", "sync0_start_ns", "fbus_param02",
+/// "cycle_ns" (0x60C2), "source" ("sync0" or "sm2") and "pll_locked".
+#[derive(IntoPyObject)]
+struct SyncView {
+    sync0_active: bool,
+    sync0_cycle_ns: u32,
+    sync0_start_ns: u64,
+    fbus_param02: u32,
+    cycle_ns: Option<u64>,
+    source: &'static str,
+    pll_locked: bool,
+}
+
+impl From<SyncState> for SyncView {
+    fn from(sync: SyncState) -> Self {
+        SyncView {
+            sync0_active: sync.sync0_active,
+            sync0_cycle_ns: sync.sync0_cycle_ns,
+            sync0_start_ns: sync.sync0_start_ns,
+            fbus_param02: sync.fbus_param02,
+            cycle_ns: sync.cycle_ns,
+            source: sync.source.name(),
+            pll_locked: sync.pll_locked,
         }
     }
 }
@@ -102,10 +133,11 @@ impl PyVirtualBus {
 
     /// The drive firmware of drive `position` as a dict: "state" (the CiA 402 state's name),
     /// "fault" (the active fault's name, or None), "fault_number" (e.g. 125, or None), and the
-    /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m).
+    /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m), and "dc", what its
+    /// synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2, whether its PLL would lock).
     fn drive_state(&self, position: usize) -> PyResult<DriveStateView> {
         self.check(position)?;
-        Ok(DriveState::of(self.bus.slave(position).drive()).into())
+        Ok(DriveState::of(self.bus.slave(position)).into())
     }
 
     fn __len__(&self) -> usize {

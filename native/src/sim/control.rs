@@ -26,9 +26,9 @@ use std::time::Duration;
 use crate::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
-use crate::sim::drive::Drive;
 use crate::sim::faults::Fault;
-use crate::sim::VirtualBus;
+use crate::sim::sync::SyncState;
+use crate::sim::{VirtualAkd, VirtualBus};
 
 /// How long a [`SimControl::drive_state`] query waits for the owner by default.
 pub const QUERY_TIMEOUT: Duration = Duration::from_secs(1);
@@ -46,11 +46,14 @@ pub struct DriveState {
     pub velocity: f64,
     /// Motor torque, N·m.
     pub torque: f64,
+    /// What its synchronisation was told (SYNC0, FBUS.PARAM02, cycle time).
+    pub sync: SyncState,
 }
 
 impl DriveState {
-    /// The state of `drive` now.
-    pub fn of(drive: &Drive) -> Self {
+    /// The state of `akd` now.
+    pub fn of(akd: &VirtualAkd) -> Self {
+        let drive = akd.drive();
         let shaft = drive.shaft();
         DriveState {
             state: drive.state(),
@@ -58,6 +61,7 @@ impl DriveState {
             position: drive.position(),
             velocity: shaft.velocity,
             torque: shaft.torque,
+            sync: akd.sync_state(),
         }
     }
 }
@@ -262,7 +266,7 @@ impl ControlledBus {
     fn answer_queries(&mut self) {
         for (position, reply) in self.queries.drain(..) {
             // A query that timed out has dropped its receiver; there is nobody left to tell.
-            let _ = reply.try_send(DriveState::of(self.bus.slave(position).drive()));
+            let _ = reply.try_send(DriveState::of(self.bus.slave(position)));
         }
     }
 }

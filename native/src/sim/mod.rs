@@ -5,7 +5,8 @@
 //! state machine ([`al_machine`]), the mailbox server ([`mailbox_server`]) over the object dictionary ([`od`]), the
 //! process image ([`process_data`]), the process-data watchdog ([`watchdog`]), and the drive firmware
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
-//! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]). A [`VirtualBus`] is a
+//! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`sync`] tells
+//! what its synchronisation (SYNC0 or SM2) was told. A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
 //! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
 //! the link trait; [`server`] serves one on UDP or on a network interface.
@@ -28,6 +29,7 @@ pub mod od;
 pub mod process_data;
 pub mod server;
 pub mod sii_image;
+pub mod sync;
 pub mod sync_manager;
 pub mod watchdog;
 
@@ -167,6 +169,11 @@ impl VirtualAkd {
     /// The object dictionary, to set what the drive reports (tests, fault injection).
     pub fn od_mut(&mut self) -> &mut od::ObjectDictionary {
         &mut self.od
+    }
+
+    /// What the drive's synchronisation was told: SYNC0, FBUS.PARAM02, its cycle time.
+    pub fn sync_state(&self) -> sync::SyncState {
+        sync::SyncState::of(self.esc.memory(), &self.od)
     }
 
     /// The drive firmware: CiA 402 state, motor, inputs.

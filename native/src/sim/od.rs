@@ -377,6 +377,8 @@ impl ObjectDictionary {
             (0x20A7, "Latch 2 pn", INTEGER32, RO),
             (0x20B8, "ClearDigInputChangedBit", UNSIGNED16, RW),
             (0x3497, "Position offset", INTEGER32, RW),
+            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::dc::FBUS_PARAM02).
+            (crate::dc::FBUS_PARAM02, "FBUS.PARAM02", UNSIGNED32, RW),
             (0x603F, "Error code", UNSIGNED16, RO),
             (0x6040, "Controlword", UNSIGNED16, RW),
             (0x6041, "Statusword", UNSIGNED16, RO),
