@@ -15,7 +15,9 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 from std_srvs.srv import Trigger
 
+from akd_ros import Axis
 from akd_ros.msg import LatchEvent
+from akd_ros.node.diagnostics import dc_values, fbus_param02_unknown
 from akd_ros.srv import SdoRead, SdoWrite, SetMode
 from support.ros import (
     COUNTS_PER_RAD,
@@ -348,3 +350,17 @@ def test_dc_on_over_udp_runs_sync0_at_the_cycle_time_and_diagnostics_show_it(tmp
         assert (values["fbus_param02"], values["dc_reference_slave"]) == ("1", "0"), values
         # Read in the cyclic frame from the first cycles on; the only drive is the reference clock itself.
         assert abs(int(values["system_time_difference_ns"])) < 1_000_000, values
+
+
+def test_an_unknown_fbus_param02_warns_to_set_it_on_the_drive() -> None:
+    """The master writes FBUS.PARAM02 only where the drive's SDO information names the object so, and leaves it
+    unknown (None) elsewhere (native/tests/distributed_clocks.rs: a drive without the object, one naming it
+    otherwise); /diagnostics then warns and says what to do on the drive."""
+    with Axis("sim:2", dc=True) as axis:
+        dc = axis.cycle.dc_status()
+    assert not fbus_param02_unknown(dc, 0) and dc_values(dc, 0)["fbus_param02"] == 1
+    unknown = {**dc, "drives": [{**dc["drives"][0], "fbus_param02": None}, dc["drives"][1]]}
+    assert fbus_param02_unknown(unknown, 0) and not fbus_param02_unknown(unknown, 1)
+    advice = dc_values(unknown, 0)["fbus_param02"]
+    assert "not confirm" in advice and "set FBUS.PARAM02 = 1 on the drive (WorkBench)" in advice, advice
+    assert not fbus_param02_unknown({"active": False}, 0)

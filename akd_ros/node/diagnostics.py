@@ -1,7 +1,8 @@
 """Diagnostics: /diagnostics (diagnostic_msgs/DiagnosticArray) at `diagnostics_rate`, one status of the axis.
 
 ERROR in a fault state; WARN when a fault counter grew since the last report, the state is not fresh, a request is
-stuck or lost, in Quick stop active, or with distributed clocks on a drive whose FBUS.PARAM02 could not be set; OK
+stuck or lost, in Quick stop active, or with distributed clocks on a drive whose FBUS.PARAM02 is unknown (the
+master writes it only where the drive's SDO information confirms the object, see `Master.configure_dc`); OK
 otherwise. The values carry the state, the cycle statistics, the distributed clocks and the last fault."""
 
 from __future__ import annotations
@@ -12,6 +13,18 @@ from rclpy.qos import QoSProfile
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
 
+FBUS_PARAM02_UNKNOWN = (
+    "FBUS.PARAM02 unknown: the drive's SDO information does not confirm the object, so nothing was written; "
+    "set FBUS.PARAM02 = 1 on the drive (WorkBench) for its PLL to follow SYNC0"
+)
+"""What /diagnostics says of a drive with distributed clocks whose FBUS.PARAM02 the master left alone."""
+
+
+def fbus_param02_unknown(dc: dict, slave: int) -> bool:
+    """Whether, with distributed clocks on, the drive at `slave` has an unknown FBUS.PARAM02 in `Cycle.dc_status()`
+    (not written, because its SDO information did not name the object FBUS.PARAM02)."""
+    return any(d["position"] == slave and d["fbus_param02"] is None for d in dc.get("drives", ()))
+
 
 def dc_values(dc: dict, slave: int) -> dict[str, object]:
     """The key/values of `Cycle.dc_status()` for the drive at `slave`: whether SYNC0 runs, its cycle and shift, the
@@ -19,14 +32,13 @@ def dc_values(dc: dict, slave: int) -> dict[str, object]:
     if not dc["active"]:
         return {"dc": "off (the drive follows SM2)"}
     drive = next((d for d in dc["drives"] if d["position"] == slave), {})
-    param02 = drive.get("fbus_param02")
     difference = drive.get("system_time_difference_ns")
     return {
         "dc": "on (SYNC0)",
         "dc_cycle_s": f"{dc['cycle_ns'] * 1e-9:.6g}",
         "dc_shift_s": f"{dc['shift_ns'] * 1e-9:.6g}",
         "dc_reference_slave": dc["reference_position"],
-        "fbus_param02": "not settable by CoE: set it to 1 on the drive" if param02 is None else param02,
+        "fbus_param02": FBUS_PARAM02_UNKNOWN if fbus_param02_unknown(dc, slave) else drive.get("fbus_param02"),
         "system_time_difference_ns": "not read yet" if difference is None else difference,
         "dc_difference_misses": dc["difference_misses"],
     }
@@ -65,8 +77,7 @@ class Diagnostics:
         fault = self._publishing.last_fault
         dc_status = axis.cycle.dc_status()
         dc = dc_values(dc_status, axis.slave)
-        drives = dc_status.get("drives", ())
-        param02_unset = any(d["position"] == axis.slave and d["fbus_param02"] is None for d in drives)
+        param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
         if state.state in FAULT_STATES:
             level = DiagnosticStatus.ERROR
         elif (
@@ -74,7 +85,7 @@ class Diagnostics:
             or not state.fresh
             or state.progress in ("stuck", "lost")
             or state.state == "Quick stop active"
-            or param02_unset
+            or param02_unknown
         ):
             level = DiagnosticStatus.WARN
         else:
@@ -84,6 +95,8 @@ class Diagnostics:
             summary += f": {state.reason}"
         if grown:
             summary += f" ({', '.join(grown)} since the last report)"
+        if param02_unknown:
+            summary += f"; {FBUS_PARAM02_UNKNOWN}"
         if level == DiagnosticStatus.ERROR and fault is not None:
             summary += f"; last fault {fault.text or hex(fault.code)}"
         values = {

@@ -20,9 +20,26 @@ pub const MIN_CYCLE_NS: u32 = 250_000;
 /// event (§5.11.2). The manual names the parameter but gives no CoE index for it; it is
 /// modelled here as manufacturer object 0x3E02:00 (UNSIGNED32, in the AKD's 0x2000-0x5FFF
 /// manufacturer range where its other drive parameters sit, e.g. 0x3470, 0x3497). The virtual
-/// AKD holds it there. A real drive without this object answers "object does not exist",
-/// which the master reports instead of failing (see [`crate::master::clocks::DcSlave`]).
+/// AKD holds it there.
+///
+/// The index is a guess, and on a real drive 0x3E02 could be another, writable parameter. A
+/// master must not write an object whose identity it cannot confirm, so the master first asks
+/// the drive's SDO information for the object's description and writes only when its name
+/// names FBUS.PARAM02 ([`names_fbus_param02`]); otherwise it writes nothing and records the
+/// parameter as unknown ([`crate::master::clocks::DcSlave::fbus_param02`]), and the node's
+/// /diagnostics warns to set FBUS.PARAM02 = 1 on the drive (WorkBench).
 pub const FBUS_PARAM02: u16 = 0x3E02;
+/// The parameter's name as the AKD names its parameters (manual, WorkBench), and as the
+/// virtual AKD's SDO information names object [`FBUS_PARAM02`].
+pub const FBUS_PARAM02_NAME: &str = "FBUS.PARAM02";
+
+/// Whether `name`, an object's name in a drive's SDO information, names FBUS.PARAM02: it holds
+/// [`FBUS_PARAM02_NAME`] (in any case) as a word of its own, so "FBUS.PARAM02" and
+/// "FBUS.PARAM02 PLL mode" do, "FBUS.PARAM020" or "Sync mode" do not.
+pub fn names_fbus_param02(name: &str) -> bool {
+    name.split(|c: char| !(c.is_ascii_alphanumeric() || c == '.' || c == '_'))
+        .any(|word| word.eq_ignore_ascii_case(FBUS_PARAM02_NAME))
+}
 /// FBUS.PARAM02 bit 0: the drive's PLL follows SYNC0.
 pub const FBUS_PARAM02_PLL: u32 = 0x0000_0001;
 
@@ -185,6 +202,16 @@ mod tests {
         for shift in [1_000, -1_000, i64::MAX] {
             let err = check_sync0_shift(shift, 1_000).unwrap_err().to_string();
             assert!(err.contains(&format!("SYNC0 shift {shift} ns")) && err.contains("-999 to 999 ns"), "{err}");
+        }
+    }
+
+    #[test]
+    fn only_a_name_that_names_fbus_param02_confirms_the_object() {
+        for name in ["FBUS.PARAM02", "fbus.param02", "FBUS.PARAM02 PLL mode", "(FBUS.PARAM02)"] {
+            assert!(names_fbus_param02(name), "{name}");
+        }
+        for name in ["", "FBUS.PARAM020", "FBUS.PARAM03", "XFBUS.PARAM02", "Sync mode", "FBUS PARAM02"] {
+            assert!(!names_fbus_param02(name), "{name}");
         }
     }
 

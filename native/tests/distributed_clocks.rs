@@ -2,13 +2,15 @@
 //! time with the shift asked for, FBUS.PARAM02 = 1 and its PLL following SYNC0, and every
 //! cyclic frame carries the drift FRMW and one drive's system-time difference read; with DC
 //! off, SYNC0 stays off and FBUS.PARAM02 = 0, the drives follow SM2; a shift of a cycle or more
-//! is refused. The drives' own view comes from the bus behind the link, not from the master.
+//! is refused; FBUS.PARAM02 is written only to a drive whose SDO information names the object
+//! so. The drives' own view comes from the bus behind the link, not from the master.
 
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
+use akd_native::dc;
 use akd_native::error::Result;
 use akd_native::frame::{self, Command};
 use akd_native::link::Link;
@@ -163,4 +165,30 @@ fn the_cycle_thread_publishes_every_drives_system_time_difference() {
         assert!(d.abs() < 10_000, "drive {} is {d} ns off", drive.position);
     }
     cycle.stop().unwrap();
+}
+
+#[test]
+fn fbus_param02_is_left_alone_on_a_drive_without_the_object_or_naming_it_otherwise() {
+    let mut rig = Rig::new();
+    {
+        let mut bus = rig.bus.lock().unwrap();
+        // Drive 1 has another parameter at the modelled index; drive 2 has no object there.
+        let od = bus.bus_mut().slave_mut(1).od_mut();
+        let mut other = od.object(dc::FBUS_PARAM02).unwrap().clone();
+        (other.name, other.entries[0].name) = ("DRV.OTHER", "DRV.OTHER");
+        od.insert(other);
+        bus.bus_mut().slave_mut(2).od_mut().remove(dc::FBUS_PARAM02).unwrap();
+    }
+    rig.m.configure_dc(CYCLE_NS, 0).unwrap();
+    let param02: Vec<_> = rig.m.clock().unwrap().slaves.iter().map(|s| s.fbus_param02).collect();
+    assert_eq!(param02, [Some(1), None, None], "unknown where not confirmed");
+    let drive_1 = rig.bus.lock().unwrap().bus().slave(1).od().get(dc::FBUS_PARAM02, 0).unwrap().to_vec();
+    assert_eq!(drive_1, [0; 4], "the object named otherwise was not written");
+    // SYNC0 and the cycle time are still set on every drive; only drive 0's PLL follows SYNC0.
+    let sources: Vec<_> = (0..DRIVES).map(|p| rig.sync(p)).map(|s| (s.sync0_active, s.source)).collect();
+    assert_eq!(sources, [(true, SyncSource::Sync0), (true, SyncSource::Sm2), (true, SyncSource::Sm2)]);
+    assert!((0..DRIVES).all(|p| rig.sync(p).cycle_ns == Some(CYCLE_NS as u64)));
+    rig.m.configure_sm2_sync(CYCLE_NS).unwrap();
+    let drive_1 = rig.bus.lock().unwrap().bus().slave(1).od().get(dc::FBUS_PARAM02, 0).unwrap().to_vec();
+    assert_eq!(drive_1, [0; 4], "nor written with DC off");
 }

@@ -2,7 +2,8 @@
 //! clock's propagation delay and offset so that all read the master's time, let the clocks
 //! settle with a burst of drift-compensation frames, and start SYNC0 at the cycle time on a
 //! common cycle boundary, moved by a configurable shift. Every AKD gets FBUS.PARAM02 = 1, so
-//! its PLL follows SYNC0 (AKD manual §5.11), and its cycle time 0x60C2. Without DC
+//! its PLL follows SYNC0 (AKD manual §5.11), once its SDO information confirms the object
+//! (see [`dc::FBUS_PARAM02`]), and its cycle time 0x60C2. Without DC
 //! ([`configure_sm2_sync`](Master::configure_sm2_sync)) SYNC0 stays off, FBUS.PARAM02 = 0,
 //! and the drives follow the SM2 event (§5.11.2). The arithmetic is in [`crate::dc`]; the
 //! per-cycle drift datagram and the system-time difference reads are sent by
@@ -10,10 +11,10 @@
 
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use crate::coe::SdoAbortCode;
 use crate::dc::{self, PortReceiveTimes};
 use crate::error::{Error, Result, Unavailable};
 use crate::frame::{self, Command};
+use crate::master::sdo_info::ObjectInfo;
 use crate::master::Master;
 use crate::registers;
 
@@ -31,9 +32,10 @@ pub struct DcSlave {
     pub position: u16,
     /// Station address.
     pub station: u16,
-    /// FBUS.PARAM02 as written (1), or `None` for a slave without CoE or a drive that has no
-    /// such object ([`dc::FBUS_PARAM02`]): its PLL must then be switched on another way
-    /// (WorkBench), or it does not follow SYNC0.
+    /// FBUS.PARAM02 as written (1), or `None`, unknown: a slave without CoE, or a drive whose
+    /// SDO information does not confirm that object [`dc::FBUS_PARAM02`] is FBUS.PARAM02 (no
+    /// such object, or named otherwise), so nothing was written. Its PLL must then be switched
+    /// on the drive (FBUS.PARAM02 = 1 in WorkBench), or it does not follow SYNC0.
     pub fbus_param02: Option<u32>,
     /// The last system-time difference read (register 0x092C, ns, positive when the slave's
     /// copy is behind), `None` before the first read.
@@ -65,6 +67,18 @@ pub struct Clock {
     pub difference_reads: u64,
     /// Of [`difference_reads`](Self::difference_reads), those the slave did not answer.
     pub difference_misses: u64,
+}
+
+/// Whether a drive's answer to the object description of [`dc::FBUS_PARAM02`] confirms that
+/// the object is FBUS.PARAM02, so that it may be written: only a description whose name names
+/// it ([`dc::names_fbus_param02`]). An SDO abort (no such object, or no SDO information) leaves
+/// it unconfirmed; any other error (the mailbox failing) is the set-up's error.
+pub fn fbus_param02_confirmed(description: Result<ObjectInfo>) -> Result<bool> {
+    match description {
+        Ok(object) => Ok(dc::names_fbus_param02(&object.name)),
+        Err(Error::SdoAbort { .. }) => Ok(false),
+        Err(e) => Err(e),
+    }
 }
 
 /// The master's clock as EtherCAT system time.
@@ -159,18 +173,18 @@ impl Master {
         Ok(())
     }
 
-    /// Writes FBUS.PARAM02 = `param02` and the cycle time to every slave with CoE; per slave,
-    /// the FBUS.PARAM02 now in the drive (`None`: no CoE, or a drive without the object).
+    /// Writes FBUS.PARAM02 = `param02` to every slave with CoE whose SDO information confirms
+    /// the object ([`dc::FBUS_PARAM02`] explains why), and the cycle time to every slave with
+    /// CoE; per slave, the FBUS.PARAM02 now in the drive (`None`: unknown, nothing written).
     fn set_drive_sync(&mut self, cycle_ns: u32, param02: u32) -> Result<Vec<Option<u32>>> {
         let mut written = vec![None; self.slaves.len()];
         for position in 0..self.slaves.len() as u16 {
             if !self.slaves[position as usize].mailbox.as_ref().is_some_and(|m| m.has_coe()) {
                 continue;
             }
-            match self.sdo_write(position, dc::FBUS_PARAM02, 0, &param02.to_le_bytes()) {
-                Ok(()) => written[position as usize] = Some(param02),
-                Err(Error::SdoAbort { code, .. }) if code == SdoAbortCode::NO_SUCH_OBJECT.0 => {}
-                Err(e) => return Err(e),
+            if fbus_param02_confirmed(self.sdo_object_description(position, dc::FBUS_PARAM02))? {
+                self.sdo_write(position, dc::FBUS_PARAM02, 0, &param02.to_le_bytes())?;
+                written[position as usize] = Some(param02);
             }
             self.set_cycle_time(position, cycle_ns)?;
         }
@@ -180,5 +194,32 @@ impl Master {
     /// The distributed-clock set-up, if any.
     pub fn clock(&self) -> Option<&Clock> {
         self.clock.as_ref()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::coe::{self, ObjectCode, SdoAbortCode};
+    use crate::error::MailboxError;
+
+    fn described(name: &str) -> Result<ObjectInfo> {
+        Ok(ObjectInfo {
+            index: dc::FBUS_PARAM02,
+            data_type: 0x0007,
+            max_subindex: 0,
+            object_code: ObjectCode::Var,
+            name: name.into(),
+        })
+    }
+
+    #[test]
+    fn fbus_param02_is_written_only_where_the_drive_names_the_object_so() {
+        assert!(fbus_param02_confirmed(described("FBUS.PARAM02")).unwrap());
+        assert!(!fbus_param02_confirmed(described("Position offset")).unwrap());
+        let no_object = coe::abort_error(dc::FBUS_PARAM02, 0, SdoAbortCode::NO_SUCH_OBJECT);
+        assert!(!fbus_param02_confirmed(Err(no_object)).unwrap());
+        let mailbox_failed = Err(MailboxError::InfoErrorWithoutCode.into());
+        assert!(fbus_param02_confirmed(mailbox_failed).is_err(), "not a drive's answer: the set-up fails");
     }
 }

@@ -377,8 +377,9 @@ impl ObjectDictionary {
             (0x20A7, "Latch 2 pn", INTEGER32, RO),
             (0x20B8, "ClearDigInputChangedBit", UNSIGNED16, RW),
             (0x3497, "Position offset", INTEGER32, RW),
-            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::dc::FBUS_PARAM02).
-            (crate::dc::FBUS_PARAM02, "FBUS.PARAM02", UNSIGNED32, RW),
+            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::dc::FBUS_PARAM02);
+            // named as the AKD names the parameter, which the master's SDO information check reads.
+            (crate::dc::FBUS_PARAM02, crate::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
             (0x603F, "Error code", UNSIGNED16, RO),
             (0x6040, "Controlword", UNSIGNED16, RW),
             (0x6041, "Statusword", UNSIGNED16, RO),
@@ -516,6 +517,13 @@ impl ObjectDictionary {
             Ok(i) => self.objects[i] = object,
             Err(i) => self.objects.insert(i, object),
         }
+    }
+
+    /// Removes the object at `index`, if any: for tests of a drive that lacks an object the
+    /// virtual AKD has (e.g. [`crate::dc::FBUS_PARAM02`], whose index is not documented).
+    pub fn remove(&mut self, index: u16) -> Option<Object> {
+        let i = self.objects.binary_search_by_key(&index, |o| o.index).ok()?;
+        Some(self.objects.remove(i))
     }
 
     fn object_mut(&mut self, index: u16) -> Option<&mut Object> {
