@@ -324,17 +324,11 @@ def test_a_fixed_mapping_without_velocity_or_torque_targets_runs_with_the_time_o
         move_to(ros, ros.position() + 0.5)
 
 
-DC_PARAMS = """\
-akd_node:
-  ros__parameters:
-    link: udp://127.0.0.1:{port}
-    cycle_time: 0.002
-    dc: on
-    dc_shift: -0.0002
-    joint_name: test_axis
-    joint_states_rate: 50.0
-    diagnostics_rate: 5.0
-"""
+# The first node's parameters (its {port} left for node_on_sim) with distributed clocks on, `on` unquoted.
+DC_PARAMS = (
+    PARAMS.format(port="{port}", joint=JOINT, max_position=MAX_POSITION, rate=JOINT_STATES_RATE)
+    + "    dc: on\n    dc_shift: -0.0002\n"
+)
 
 
 def test_dc_on_over_udp_runs_sync0_at_the_cycle_time_and_diagnostics_show_it(tmp_path, ros_domain):
