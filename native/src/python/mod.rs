@@ -72,7 +72,8 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             | Error::UnknownName(_)
             | Error::Unavailable(_)
             | Error::AliasNotUnique { .. }
-            | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
+            | Error::NoSuchSlave { .. }
+            | Error::Trajectory(_) => ConfigError::new_err(message),
         };
         let value = err.value(py);
         let set = |name: &str, v: PyResult<PyObject>| {
