@@ -1151,6 +1151,13 @@ pub enum Unavailable {
         /// Edge bits readable.
         readable: u8,
     },
+    /// A trajectory id that was never given, or whose status is no longer kept.
+    NoSuchTrajectory {
+        /// The id asked for.
+        id: u32,
+        /// The first and last ids whose statuses are kept, if any.
+        kept: Option<(u32, u32)>,
+    },
     /// A set-point handshake waited for where none was asked.
     NoHandshake {
         /// Drive position.
@@ -1226,6 +1233,10 @@ impl fmt::Display for Unavailable {
                 "slave {slave}'s mapping carries no latched position for edge bits 0x{missing:X} (readable: \
                  0x{readable:X}; bit 0 latch 1 rising, 1 latch 1 falling, 2 latch 2 rising, 3 latch 2 falling)"
             ),
+            Unavailable::NoSuchTrajectory { id, kept: Some((first, last)) } => {
+                write!(f, "no trajectory {id}: the statuses of trajectories {first} ..= {last} are kept")
+            }
+            Unavailable::NoSuchTrajectory { id, kept: None } => write!(f, "no trajectory {id}: none was played"),
             Unavailable::NoHandshake { position } => {
                 write!(f, "drive {position}: no set-point handshake was asked for")
             }

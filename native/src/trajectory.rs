@@ -89,7 +89,7 @@ impl Interpolation {
     }
 }
 
-/// One joint's polynomial over one segment: position = Σ c[i]·sⁱ, s in seconds from the
+/// One joint's polynomial over one segment: position = Σ cᵢ·sⁱ, s in seconds from the
 /// segment's start.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Segment {

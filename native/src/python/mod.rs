@@ -15,6 +15,7 @@ mod drive;
 mod eeprom;
 mod master;
 mod sim;
+mod trajectory;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
 create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
