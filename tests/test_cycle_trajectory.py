@@ -153,15 +153,21 @@ def knots_of(status: dict, times: list[int], points: list[list[float]], joint: i
     return [(t0, start)] + [(t0 + t, p[joint]) for t, p in zip(times, points, strict=True)]
 
 
+def play_three_points(cycle, records: Records, start_ns: int | None = None):
+    """Plays `three_points` from where the drives are: their targets, the times, the points and
+    the trajectory's id."""
+    records.wait(20)
+    base = records.last_targets()
+    times, points = three_points(base)
+    return base, times, points, cycle.play_trajectory(DRIVES, times, points, start_ns=start_ns)
+
+
 def test_a_three_point_trajectory_is_followed_continuously_and_ends_on_its_last_point():
     on_a_steady_host(followed)
 
 
 def followed(cycle, _simulator, records):
-    records.wait(20)
-    base = records.last_targets()
-    times, points = three_points(base)
-    trajectory = cycle.play_trajectory(DRIVES, times, points)
+    base, times, points, trajectory = play_three_points(cycle, records)
     status = records.until_ended(trajectory)
     assert (status["state"], status["point"], status["points"]) == ("done", 3, 3), status
     assert status["elapsed_ns"] >= status["duration_ns"] == 2 * S
@@ -183,10 +189,7 @@ def test_a_trajectory_replaced_half_way_continues_without_a_step():
 
 
 def replaced_half_way(cycle, _simulator, records):
-    records.wait(20)
-    base = records.last_targets()
-    times, points = three_points(base)
-    first = cycle.play_trajectory(DRIVES, times, points)
+    base, times, points, first = play_three_points(cycle, records)
     records.wait(1000)
     back = [[float(b) for b in base]]
     second = cycle.play_trajectory(DRIVES, [S], back)
@@ -260,10 +263,7 @@ def test_a_drive_faulted_mid_trajectory_aborts_it_and_the_others_hold():
 
 
 def faulted(cycle, simulator, records):
-    records.wait(20)
-    base = records.last_targets()
-    times, points = three_points(base)
-    trajectory = cycle.play_trajectory(DRIVES, times, points, start_ns=time.monotonic_ns() + S // 10)
+    base, _, _, trajectory = play_three_points(cycle, records, time.monotonic_ns() + S // 10)
     assert cycle.trajectory_status(trajectory)["state"] == "pending"
     records.wait(700)
     simulator.inject_fault(1, "F235")
