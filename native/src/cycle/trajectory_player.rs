@@ -109,6 +109,7 @@ impl Status {
 }
 
 /// A trajectory with its drives, as handed to the cycle thread.
+#[derive(Debug)]
 pub struct Plan {
     start_ns: Option<u64>,
     joints: Vec<Joint>,
@@ -396,10 +397,12 @@ impl Caller {
         self.last_id.fetch_add(1, Ordering::Relaxed) + 1
     }
 
-    /// Notes a trajectory handed over (pending) or ended.
+    /// Notes a trajectory handed over (pending) or ended; an end noted first (by another
+    /// caller's collect) stays.
     pub fn note(&self, status: Status) {
         let mut known = self.known.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         match known.iter_mut().find(|s| s.id == status.id) {
+            Some(s) if s.state.ended() && !status.state.ended() => {}
             Some(s) => *s = status,
             None => {
                 if known.len() == KEPT {
@@ -432,4 +435,109 @@ impl Caller {
 /// `why` as the refusal of joint `joint` on drive `slave`.
 pub fn not_ready(joint: usize, slave: u16, why: impl Into<String>) -> Error {
     TrajectoryError::DriveNotReady { joint, slave, why: why.into() }.into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trajectory::Knot;
+
+    const MS: u64 = 1_000_000;
+
+    /// One drive: its target at output 0, its statusword at input 0.
+    const JOINT: Joint = Joint { slave: 0, targets: [Some(0), None], statusword: 0 };
+
+    fn plan(id: u32, start_ns: Option<u64>, to: f64, after_ns: u64) -> Box<Plan> {
+        let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
+        Plan::new(id, start_ns, vec![JOINT], trajectory)
+    }
+
+    /// A cycle at `now` ms: the player's steps around the copy, returning the target sent.
+    fn cycle(
+        player: &mut Player,
+        shared: &Shared,
+        events: &Events,
+        image: &mut [u8; 4],
+        now: u64,
+        enabled: bool,
+    ) -> i32 {
+        let inputs = if enabled { State::OperationEnabled } else { State::Fault }.statusword_bits().to_le_bytes();
+        let setpoints = SeqBytes::new(4, image);
+        let at = (now, now * MS);
+        player.before_copy(shared, events, image, at);
+        player.observe(shared, events, &inputs, at);
+        player.apply(shared, &setpoints, image);
+        let mut kept = [0; 4];
+        setpoints.read(&mut kept);
+        assert_eq!(&kept, image, "the set-point buffer keeps what went out");
+        i32::from_le_bytes(*image)
+    }
+
+    fn trajectory_events(events: &Events) -> Vec<(u32, TrajectoryState)> {
+        events
+            .drain()
+            .into_iter()
+            .filter_map(|e| match e {
+                Event::Trajectory { id, state, .. } => Some((id, state)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_plan_starts_from_the_target_sent_ends_on_its_point_and_comes_back() {
+        let (shared, events, mut player) = (Shared::default(), Events::default(), Player::new(1));
+        let mut image = 1000i32.to_le_bytes();
+        shared.give(plan(1, Some(3 * MS), 2000.0, 10 * MS)).unwrap();
+        // A second one cannot be handed before the first is taken.
+        assert!(shared.give(plan(2, None, 0.0, MS)).is_err());
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 1, true), 1000);
+        assert_eq!(shared.live()[1].map(|s| s.state), Some(TrajectoryState::Pending));
+        let sent: Vec<i32> = (3..=14).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        // From where it was, at rest, 100 counts per ms, then held.
+        assert_eq!(sent, [1000, 1100, 1200, 1300, 1400, 1500, 1600, 1700, 1800, 1900, 2000, 2000]);
+        assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Running), (1, TrajectoryState::Done)]);
+        let mut ended = Vec::new();
+        shared.collect(|s| ended.push((s.id, s.state, s.point, s.elapsed_ns)));
+        assert_eq!(ended, [(1, TrajectoryState::Done, 1, 10 * MS)]);
+        assert_eq!(shared.live(), [None, None]);
+    }
+
+    #[test]
+    fn a_newer_plan_replaces_the_pending_one_then_the_running_one_and_a_drive_out_of_operation_aborts() {
+        let (shared, events, mut player) = (Shared::default(), Events::default(), Player::new(1));
+        let mut image = 0i32.to_le_bytes();
+        shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
+        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        shared.give(plan(2, Some(100 * MS), 0.0, MS)).unwrap();
+        cycle(&mut player, &shared, &events, &mut image, 2, true);
+        shared.give(plan(3, Some(5 * MS), -1000.0, 10 * MS)).unwrap();
+        let sent: Vec<i32> = (3..=6).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        // Plan 1 at 100 counts/ms until plan 3 takes over at 5 ms from 400, toward -1000 in 10 ms.
+        assert_eq!(sent, [200, 300, 400, 260]);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 7, false), 260, "aborted: nothing written");
+        assert_eq!(
+            trajectory_events(&events),
+            [
+                (1, TrajectoryState::Running),
+                (2, TrajectoryState::Replaced { by: 3 }),
+                (1, TrajectoryState::Replaced { by: 3 }),
+                (3, TrajectoryState::Running),
+                (3, TrajectoryState::Aborted { slave: 0, statusword: State::Fault.statusword_bits() }),
+            ]
+        );
+        let caller = Caller::default();
+        let mut returned = 0;
+        shared.collect(|s| {
+            returned += 1;
+            caller.note(s)
+        });
+        assert_eq!(returned, 3);
+        // A pending note that comes late does not hide the end.
+        caller.note(plan(3, None, 0.0, MS).status());
+        assert!(matches!(caller.status(&shared, 3).unwrap().state, TrajectoryState::Aborted { .. }));
+        assert_eq!(caller.status(&shared, 2).unwrap().state, TrajectoryState::Replaced { by: 3 });
+        let e = caller.status(&shared, 9).unwrap_err().to_string();
+        assert!(e.contains("no trajectory 9: the statuses of trajectories 2 ..= 3 are kept"), "{e}");
+    }
 }
