@@ -155,6 +155,17 @@ enum EventView {
         action: &'static str,
         text: &'static str,
     },
+    Trajectory {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        id: u32,
+        state: &'static str,
+        replaced_by: Option<u32>,
+        slave: Option<u16>,
+        statusword: Option<u16>,
+        ds402_state: Option<&'static str>,
+    },
 }
 
 impl From<Event> for EventView {
@@ -198,6 +209,20 @@ impl From<Event> for EventView {
                     ds402_state: ds402_state(statusword),
                     action: action.name(),
                     text: action.describe(),
+                }
+            }
+            Event::Trajectory { cycle, time_ns, id, state } => {
+                let super::trajectory::StateView { state, replaced_by, slave, statusword, ds402_state } = state.into();
+                EventView::Trajectory {
+                    kind: "trajectory",
+                    cycle,
+                    time_ns,
+                    id,
+                    state,
+                    replaced_by,
+                    slave,
+                    statusword,
+                    ds402_state,
                 }
             }
         }
@@ -412,16 +437,20 @@ impl PyCycle {
         }
     }
 
-    /// Latch, fault and command time-out events since the last call, oldest first, each a dict.
-    /// Every event has "kind" ("latch", "fault" or "command_timeout"), "cycle", "time_ns" (the cycle's monotonic wake-up time) and
-    /// "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
+    /// Latch, fault, command time-out and trajectory events since the last call, oldest first,
+    /// each a dict. Every event has "kind" ("latch", "fault", "command_timeout" or
+    /// "trajectory"), "cycle" and "time_ns" (the cycle's monotonic wake-up time); all but
+    /// trajectory events have "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
     /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
     /// "working_counter", "al_state"), "code" (CiA error code; for lost frames and working
     /// counter errors the cycles in a row), "text" (the AKD's text where known, else None),
     /// "statusword", "al_status", "al_status_code" and "action" (what the loop did). A command
     /// time-out adds "command" ("velocity", "torque"), "value" (its last value in drive units:
     /// counts/s, 0.1 % of peak torque), "timeout" (s), "statusword", "ds402_state", "action"
-    /// ("hold" or "quick_stop") and "text" (what was done, for the log).
+    /// ("hold" or "quick_stop") and "text" (what was done, for the log). A trajectory event
+    /// (one when it starts, one when it ends) has "id" and what `trajectory_status` gives of
+    /// its state: "state" ("running", "done", "replaced", "aborted"), "replaced_by", "slave",
+    /// "statusword", "ds402_state".
     fn events(&self) -> Vec<EventView> {
         self.cycle.events().into_iter().map(EventView::from).collect()
     }
@@ -642,6 +671,38 @@ impl PyCycle {
     /// Off (the default), each drive reacts alone. The faulting drive's event is the only one.
     fn set_quick_stop_on_fault(&self, on: bool) {
         self.cycle.set_quick_stop_on_fault(on)
+    }
+
+    /// Plays a joint trajectory in the cycle thread: joint j on drive `positions[j]`, point k
+    /// at `times_ns[k]` from the start (strictly increasing, the first > 0), `points[k]` one
+    /// entry per joint, a position (counts) or (position, velocity counts/s or None,
+    /// acceleration counts/s² or None) — quintic where both ends of a segment give
+    /// accelerations, cubic where they give velocities, linear otherwise — within `limits`
+    /// ((min, max) counts per joint; a 32-bit target's range when None), from `start_ns`
+    /// (time.monotonic_ns(); None: now). Every drive must be in Operation enabled in
+    /// interpolated position or cyclic synchronous position. Takes over from the trajectory in
+    /// force without a step; a bad one raises ConfigError saying why before anything moves.
+    /// Returns its id.
+    #[pyo3(signature = (positions, times_ns, points, start_ns = None, limits = None))]
+    fn play_trajectory(
+        &self,
+        py: Python<'_>,
+        positions: Vec<u16>,
+        times_ns: Vec<u64>,
+        points: Vec<Vec<super::trajectory::PyKnot>>,
+        start_ns: Option<u64>,
+        limits: Option<Vec<(f64, f64)>>,
+    ) -> PyResult<u32> {
+        super::trajectory::play(py, &self.cycle, positions, times_ns, points, start_ns, limits)
+    }
+
+    /// Trajectory `id` as the cycle thread last published it: "id", "state" ("pending",
+    /// "running", "done", "replaced", "aborted"), "replaced_by" (the newer id), "slave",
+    /// "statusword" and "ds402_state" (of the drive that aborted it), "point" (the point
+    /// approached; "points" once past the last), "started_ns" (None while pending),
+    /// "elapsed_ns", "duration_ns". The last 64 are kept.
+    fn trajectory_status(&self, id: u32) -> PyResult<super::trajectory::StatusView> {
+        Ok(self.cycle.trajectory_status(id).py()?.into())
     }
 }
 

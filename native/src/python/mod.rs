@@ -16,6 +16,7 @@ mod eeprom;
 mod link_spec;
 mod master;
 mod sim;
+mod trajectory;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
 create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
@@ -73,7 +74,8 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             | Error::UnknownName(_)
             | Error::Unavailable(_)
             | Error::AliasNotUnique { .. }
-            | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
+            | Error::NoSuchSlave { .. }
+            | Error::Trajectory(_) => ConfigError::new_err(message),
         };
         let value = err.value(py);
         let set = |name: &str, v: PyResult<PyObject>| {
