@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use super::master::PyMaster;
-use super::IntoPyResult;
+use super::{IntoPyResult, Merged};
 use crate::akd_fault;
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
 use crate::cycle::sequencer::{Progress, Request};
@@ -155,17 +155,17 @@ enum EventView {
         action: &'static str,
         text: &'static str,
     },
-    Trajectory {
-        kind: &'static str,
-        cycle: u64,
-        time_ns: u64,
-        id: u32,
-        state: &'static str,
-        replaced_by: Option<u32>,
-        slave: Option<u16>,
-        statusword: Option<u16>,
-        ds402_state: Option<&'static str>,
-    },
+    /// A trajectory's start or end: its kind, cycle, time and id, then its state's keys.
+    Trajectory(Merged<TrajectoryEventView, super::trajectory::StateView>),
+}
+
+/// The head of a trajectory event, before its state's keys.
+#[derive(IntoPyObject)]
+struct TrajectoryEventView {
+    kind: &'static str,
+    cycle: u64,
+    time_ns: u64,
+    id: u32,
 }
 
 impl From<Event> for EventView {
@@ -211,20 +211,10 @@ impl From<Event> for EventView {
                     text: action.describe(),
                 }
             }
-            Event::Trajectory { cycle, time_ns, id, state } => {
-                let super::trajectory::StateView { state, replaced_by, slave, statusword, ds402_state } = state.into();
-                EventView::Trajectory {
-                    kind: "trajectory",
-                    cycle,
-                    time_ns,
-                    id,
-                    state,
-                    replaced_by,
-                    slave,
-                    statusword,
-                    ds402_state,
-                }
-            }
+            Event::Trajectory { cycle, time_ns, id, state } => EventView::Trajectory(Merged(
+                TrajectoryEventView { kind: "trajectory", cycle, time_ns, id },
+                state.into(),
+            )),
         }
     }
 }
@@ -702,7 +692,7 @@ impl PyCycle {
     /// approached; "points" once past the last), "started_ns" (None while pending),
     /// "elapsed_ns", "duration_ns". The last 64 are kept.
     fn trajectory_status(&self, id: u32) -> PyResult<super::trajectory::StatusView> {
-        Ok(self.cycle.trajectory_status(id).py()?.into())
+        Ok(super::trajectory::status_view(self.cycle.trajectory_status(id).py()?))
     }
 }
 

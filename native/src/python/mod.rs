@@ -114,6 +114,28 @@ pub(crate) fn seconds(value: f64, what: &'static str) -> PyResult<std::time::Dur
         .map_err(|_| to_py_err(crate::error::SettingError::Seconds { what, value }.into()))
 }
 
+/// Two derived dicts as one, the second's keys added to the first's. pyo3's derive has no
+/// flattening, and some keys are one list for several results (a drive's identity in `scan` and
+/// `parse_sii`, a trajectory's state in its status and its events).
+pub(crate) struct Merged<A, B>(pub(crate) A, pub(crate) B);
+
+impl<'py, A, B> IntoPyObject<'py> for Merged<A, B>
+where
+    A: IntoPyObject<'py, Target = pyo3::types::PyDict, Output = Bound<'py, pyo3::types::PyDict>>,
+    B: IntoPyObject<'py, Target = pyo3::types::PyDict, Output = Bound<'py, pyo3::types::PyDict>>,
+    PyErr: From<A::Error> + From<B::Error>,
+{
+    type Target = pyo3::types::PyDict;
+    type Output = Bound<'py, pyo3::types::PyDict>;
+    type Error = PyErr;
+
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Self::Output> {
+        let dict = self.0.into_pyobject(py)?;
+        dict.update(self.1.into_pyobject(py)?.as_mapping())?;
+        Ok(dict)
+    }
+}
+
 /// Extension trait: `.py()?` converts a crate result into a Python one.
 pub(crate) trait IntoPyResult<T> {
     fn py(self) -> PyResult<T>;

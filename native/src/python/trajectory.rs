@@ -4,7 +4,7 @@
 
 use pyo3::prelude::*;
 
-use super::IntoPyResult;
+use super::{IntoPyResult, Merged};
 use crate::cycle::events::TrajectoryState;
 use crate::cycle::trajectory_player::Status;
 use crate::cycle::CycleThread;
@@ -50,12 +50,13 @@ pub(super) fn play(
 /// How a trajectory stands, as Python sees it in its status and its events: "state",
 /// "replaced_by" (the newer id), and for an abort the drive, its statusword and its CiA 402
 /// state.
+#[derive(IntoPyObject)]
 pub(super) struct StateView {
-    pub(super) state: &'static str,
-    pub(super) replaced_by: Option<u32>,
-    pub(super) slave: Option<u16>,
-    pub(super) statusword: Option<u16>,
-    pub(super) ds402_state: Option<&'static str>,
+    state: &'static str,
+    replaced_by: Option<u32>,
+    slave: Option<u16>,
+    statusword: Option<u16>,
+    ds402_state: Option<&'static str>,
 }
 
 impl From<TrajectoryState> for StateView {
@@ -75,15 +76,10 @@ impl From<TrajectoryState> for StateView {
     }
 }
 
-/// `Cycle.trajectory_status`: the id, its state and its progress.
+/// A trajectory's progress: its id, the point approached, when it started.
 #[derive(IntoPyObject)]
-pub(super) struct StatusView {
+pub(super) struct ProgressView {
     id: u32,
-    state: &'static str,
-    replaced_by: Option<u32>,
-    slave: Option<u16>,
-    statusword: Option<u16>,
-    ds402_state: Option<&'static str>,
     point: u32,
     points: u32,
     started_ns: Option<u64>,
@@ -91,21 +87,17 @@ pub(super) struct StatusView {
     duration_ns: u64,
 }
 
-impl From<Status> for StatusView {
-    fn from(s: Status) -> Self {
-        let StateView { state, replaced_by, slave, statusword, ds402_state } = s.state.into();
-        StatusView {
-            id: s.id,
-            state,
-            replaced_by,
-            slave,
-            statusword,
-            ds402_state,
-            point: s.point,
-            points: s.points,
-            started_ns: (s.started_ns != 0).then_some(s.started_ns),
-            elapsed_ns: s.elapsed_ns,
-            duration_ns: s.duration_ns,
-        }
-    }
+/// `Cycle.trajectory_status`: its progress and its state.
+pub(super) type StatusView = Merged<ProgressView, StateView>;
+
+pub(super) fn status_view(s: Status) -> StatusView {
+    let progress = ProgressView {
+        id: s.id,
+        point: s.point,
+        points: s.points,
+        started_ns: (s.started_ns != 0).then_some(s.started_ns),
+        elapsed_ns: s.elapsed_ns,
+        duration_ns: s.duration_ns,
+    };
+    Merged(progress, s.state.into())
 }
