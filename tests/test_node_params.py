@@ -140,16 +140,21 @@ def test_a_bad_parameters_file_stops_the_node_with_its_message(case, tmp_path):
         assert text in result.stderr, f"{text!r} not in:\n{result.stderr}"
 
 
-def run_until_configured(path: Path, stop: int = signal.SIGINT) -> tuple[int, str]:
-    """Starts akd_node with `path`, waits until it is active (or fails), sends `stop`; its exit status and
-    output."""
-    process = subprocess.Popen(
+def start_node(path: Path) -> subprocess.Popen:
+    """akd_node on `path`, its output (stderr too) on a text pipe."""
+    return subprocess.Popen(
         [str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
         env=dict(os.environ),
     )
+
+
+def run_until_configured(path: Path, stop: int = signal.SIGINT) -> tuple[int, str]:
+    """Starts akd_node with `path`, waits until it is active (or fails), sends `stop`; its exit status and
+    output."""
+    process = start_node(path)
     try:
         output = []
         for line in process.stdout:
@@ -230,13 +235,7 @@ def test_without_autostart_the_lifecycle_services_walk_the_node(tmp_path):
     from sensor_msgs.msg import JointState
 
     path = params_file(tmp_path, "autostart: false\njoint_states_rate: 50.0")
-    process = subprocess.Popen(
-        [str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        env=dict(os.environ),
-    )
+    process = start_node(path)
     context = rclpy.Context()
     rclpy.init(context=context, domain_id=int(os.environ["ROS_DOMAIN_ID"]))
     client = rclpy.create_node("akd_lifecycle_test", context=context)

@@ -1180,6 +1180,13 @@ pub enum Unavailable {
         /// Edge bits readable.
         readable: u8,
     },
+    /// A trajectory id that was never given, or whose status is no longer kept.
+    NoSuchTrajectory {
+        /// The id asked for.
+        id: u32,
+        /// The first and last ids whose statuses are kept, if any.
+        kept: Option<(u32, u32)>,
+    },
     /// A set-point handshake waited for where none was asked.
     NoHandshake {
         /// Drive position.
@@ -1255,6 +1262,10 @@ impl fmt::Display for Unavailable {
                 "slave {slave}'s mapping carries no latched position for edge bits 0x{missing:X} (readable: \
                  0x{readable:X}; bit 0 latch 1 rising, 1 latch 1 falling, 2 latch 2 rising, 3 latch 2 falling)"
             ),
+            Unavailable::NoSuchTrajectory { id, kept: Some((first, last)) } => {
+                write!(f, "no trajectory {id}: the statuses of trajectories {first} ..= {last} are kept")
+            }
+            Unavailable::NoSuchTrajectory { id, kept: None } => write!(f, "no trajectory {id}: none was played"),
             Unavailable::NoHandshake { position } => {
                 write!(f, "drive {position}: no set-point handshake was asked for")
             }
@@ -1285,6 +1296,156 @@ impl fmt::Display for Unavailable {
                  their bus serves a frame and none passed (an idle in-process master exchanges no frames: start a \
                  Cycle, or query while a master call runs)"
             ),
+        }
+    }
+}
+
+/// Why a trajectory is refused before anything moves. Points and joints count from 0, in the
+/// order given; positions are counts, velocities counts/s, accelerations counts/s².
+#[derive(Clone, Debug, PartialEq)]
+pub enum TrajectoryError {
+    /// A trajectory for no joint.
+    NoJoints,
+    /// A trajectory of no point.
+    NoPoints,
+    /// Points and their times of different numbers.
+    TimesCount {
+        /// Points given.
+        points: usize,
+        /// Times given.
+        times: usize,
+    },
+    /// A point with another number of values than the trajectory has joints.
+    JointCount {
+        /// The point.
+        point: usize,
+        /// Values it gives.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
+    /// Limits for another number of joints than the trajectory has.
+    LimitsCount {
+        /// Limits given.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
+    /// A joint's limits that are not finite or whose minimum is above the maximum.
+    BadLimits {
+        /// The joint.
+        joint: usize,
+        /// The minimum given.
+        min: f64,
+        /// The maximum given.
+        max: f64,
+    },
+    /// A point's time from the start that is not after the previous point's (or, for the first
+    /// point, after the start).
+    TimeNotIncreasing {
+        /// The point.
+        point: usize,
+        /// Its time from the start, ns.
+        time_ns: u64,
+        /// The time it must be after, ns (0: the start).
+        after_ns: u64,
+    },
+    /// A position, velocity or acceleration that is NaN or infinite.
+    NotFinite {
+        /// The point.
+        point: usize,
+        /// The joint.
+        joint: usize,
+        /// "position", "velocity" or "acceleration".
+        what: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A position outside the joint's limits.
+    OutOfLimits {
+        /// The point.
+        point: usize,
+        /// The joint.
+        joint: usize,
+        /// The position given.
+        position: f64,
+        /// The joint's minimum.
+        min: f64,
+        /// The joint's maximum.
+        max: f64,
+    },
+    /// An acceleration given without a velocity (a quintic segment needs both).
+    AccelerationWithoutVelocity {
+        /// The point.
+        point: usize,
+        /// The joint.
+        joint: usize,
+    },
+    /// A drive named for two joints.
+    DriveTwice {
+        /// The drive's position on the bus.
+        slave: u16,
+        /// The first joint it was named for.
+        first: usize,
+        /// The second.
+        second: usize,
+    },
+    /// A drive that cannot follow a trajectory now: not on the bus, not sequenced, not in
+    /// Operation enabled, not in a cyclic position mode, or without its position target mapped.
+    DriveNotReady {
+        /// The joint.
+        joint: usize,
+        /// The drive's position on the bus.
+        slave: u16,
+        /// Why, with what it would need.
+        why: String,
+    },
+}
+
+impl fmt::Display for TrajectoryError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "trajectory refused, nothing moved: ")?;
+        match self {
+            TrajectoryError::NoJoints => write!(f, "it names no joint; at least one is needed"),
+            TrajectoryError::NoPoints => write!(f, "it has no point; at least one is needed"),
+            TrajectoryError::TimesCount { points, times } => {
+                write!(f, "{points} point(s) but {times} time(s) from the start; one time per point is needed")
+            }
+            TrajectoryError::JointCount { point, given, joints } => {
+                write!(f, "point {point} gives {given} joint value(s); the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::LimitsCount { given, joints } => {
+                write!(f, "{given} joint limit(s) given; the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::BadLimits { joint, min, max } => {
+                write!(f, "joint {joint}: limits {min} ..= {max} counts; they must be finite with min <= max")
+            }
+            TrajectoryError::TimeNotIncreasing { point, time_ns, after_ns: 0 } => write!(
+                f,
+                "point {point}: time from the start {time_ns} ns; the first point's must be after the start (> 0 ns)"
+            ),
+            TrajectoryError::TimeNotIncreasing { point, time_ns, after_ns } => write!(
+                f,
+                "point {point}: time from the start {time_ns} ns is not after the previous point's {after_ns} ns; \
+                 times must increase strictly"
+            ),
+            TrajectoryError::NotFinite { point, joint, what, value } => {
+                write!(f, "point {point}, joint {joint}: {what} {value}; it must be a finite number")
+            }
+            TrajectoryError::OutOfLimits { point, joint, position, min, max } => write!(
+                f,
+                "point {point}, joint {joint}: position {position} counts is outside the joint's limits \
+                 {min} ..= {max} counts"
+            ),
+            TrajectoryError::AccelerationWithoutVelocity { point, joint } => write!(
+                f,
+                "point {point}, joint {joint}: an acceleration without a velocity; give both (quintic), the \
+                 velocity alone (cubic) or neither (linear)"
+            ),
+            TrajectoryError::DriveTwice { slave, first, second } => {
+                write!(f, "drive {slave} is named for joints {first} and {second}; each drive may be one joint")
+            }
+            TrajectoryError::DriveNotReady { joint, slave, why } => write!(f, "joint {joint} (drive {slave}): {why}"),
         }
     }
 }
@@ -1368,6 +1529,8 @@ pub enum Error {
         /// Slaves found.
         count: u16,
     },
+    /// A trajectory refused before anything moved.
+    Trajectory(TrajectoryError),
 }
 
 impl fmt::Display for Error {
@@ -1399,6 +1562,7 @@ impl fmt::Display for Error {
             Error::NoSuchSlave { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
             }
+            Error::Trajectory(e) => write!(f, "{e}"),
         }
     }
 }
@@ -1425,6 +1589,7 @@ error_from! {
     Unavailable => Unavailable,
     LinkSpecError => LinkSpec,
     FrameError => Frame,
+    TrajectoryError => Trajectory,
 }
 
 impl From<UnknownCode> for Error {
@@ -1454,3 +1619,4 @@ impl std::error::Error for PdoError {}
 impl std::error::Error for SettingError {}
 impl std::error::Error for UnknownName {}
 impl std::error::Error for Unavailable {}
+impl std::error::Error for TrajectoryError {}

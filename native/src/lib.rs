@@ -11,7 +11,8 @@
 //!    [`al`] (AL states and status codes), [`mailbox`] and [`coe`] (mailbox header, CoE SDO,
 //!    SDO information, emergency), [`pdo`] (the AKD's process-data mappings and their rules),
 //!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine) and
-//!    [`akd_fault`] (the AKD's fault numbers). Closed sets of wire codes are enums (e.g.
+//!    [`akd_fault`] (the AKD's fault numbers), and [`trajectory`] (joint trajectories, validated
+//!    and interpolated). Closed sets of wire codes are enums (e.g.
 //!    [`coe::CoeService`]); open ones are newtypes with a `name()` (e.g. [`coe::SdoAbortCode`]).
 //! 3. [`link`]: the [`link::Link`] trait that moves frames, the [`link::LinkSpec`] that names
 //!    one, and the links to a real line (UDP, raw interface) with the pcapng recorder.
@@ -49,6 +50,7 @@ pub mod pdo;
 pub mod registers;
 pub mod sii;
 pub mod sim;
+pub mod trajectory;
 
 #[cfg(feature = "python")]
 mod python;

@@ -2,7 +2,9 @@
 //! the thread named `akd-cycle` (found by its kernel thread id in /proc), while the virtual
 //! AKDs are served over UDP by another thread whose allocations are not counted. Drive 2 is
 //! mapped for the profile modes, so that the set-point handshake and the command time-out (its
-//! halt, its release and its quick stop) run in the watched cycles too.
+//! halt, its release and its quick stop) run in the watched cycles too; drive 1 (its
+//! interpolation set-point 0x60C1:01 mapped) follows a trajectory that another replaces half-way (both allocated in
+//! this thread, handed over and returned by the loop).
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::net::{SocketAddr, UdpSocket};
@@ -11,13 +13,15 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
-use akd_native::cycle::events::CommandTimeoutAction;
+use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
+use akd_native::cycle::trajectory_player::Status;
 use akd_native::cycle::{handshake, Config, CycleThread, Snapshot};
 use akd_native::ds402::{Mode, State};
 use akd_native::link::udp::Udp;
 use akd_native::master::Master;
 use akd_native::sim::{server, Timing, VirtualBus};
+use akd_native::trajectory::Knot;
 
 #[path = "support/profile.rs"]
 mod profile;
@@ -104,14 +108,11 @@ fn cycle_loop_allocates_nothing() {
     let before = ALLOCATIONS.load(Ordering::SeqCst);
     // Set-points written, drives sequenced and snapshots read meanwhile, as a user would.
     cycle.request(1, Request::Enable).unwrap();
-    for n in 0..200u32 {
-        cycle.set_outputs(0, &[n as u8, 0, 0, 0, 0x06, 0]).unwrap();
-        if n % 50 == 0 {
-            let request = [Request::Enable, Request::QuickStop, Request::Disable, Request::FaultReset][n as usize / 50];
-            cycle.request(0, request).unwrap();
-        }
-        std::hint::black_box((cycle.snapshot(), cycle.drive_status(1).unwrap()));
-    }
+    let trajectories = std::thread::scope(|scope| {
+        let trajectories = scope.spawn(|| trajectories(&cycle));
+        set_points_and_requests(&cycle);
+        trajectories.join().unwrap()
+    });
     let handshake = set_point_and_command_timeouts(&cycle);
     let last = wait_for_cycle(&cycle, armed.cycle + 300);
     let during = ALLOCATIONS.load(Ordering::SeqCst) - before;
@@ -133,13 +134,47 @@ fn cycle_loop_allocates_nothing() {
         sequenced.progress == Progress::Done || (sequenced.progress == Progress::Lost && lost > 0),
         "{sequenced:?}"
     );
-    // Drive 2 went through the handshake and both time-outs, unless lost frames faulted it.
+    // Drive 2 went through the handshake and both time-outs, and drive 1 through both
+    // trajectories, unless lost frames faulted them.
     if lost == 0 {
+        let states = trajectories.map(|t| t.map(|s| s.map(|s| s.state)));
+        assert_eq!(states, Some([Some(TrajectoryState::Replaced { by: 2 }), Some(TrajectoryState::Done)]));
         assert_eq!(handshake.map(|s| s.progress), Some(handshake::Progress::Done), "{handshake:?}");
         assert_eq!(command_timeouts, 2);
     }
     assert_eq!(during, 0, "allocations in {} cycles", last.cycle - armed.cycle);
     drop(master);
+}
+
+/// Drive 0's set-points written and its requests made, as a user would.
+fn set_points_and_requests(cycle: &CycleThread) {
+    for n in 0..200u32 {
+        cycle.set_outputs(0, &[n as u8, 0, 0, 0, 0x06, 0]).unwrap();
+        if n % 50 == 0 {
+            let request = [Request::Enable, Request::QuickStop, Request::Disable, Request::FaultReset][n as usize / 50];
+            cycle.request(0, request).unwrap();
+        }
+        std::hint::black_box((cycle.snapshot(), cycle.drive_status(1).unwrap()));
+    }
+}
+
+/// Drive 1 enabled follows a trajectory of 100 ms that another replaces half-way; their final
+/// statuses, `None` when the drive could not be enabled.
+fn trajectories(cycle: &CycleThread) -> Option<[Option<Status>; 2]> {
+    let enabled = || cycle.drive_status(1).unwrap().state() == Some(State::OperationEnabled);
+    wait_until("drive 1 enabled", || enabled() || cycle.drive_status(1).unwrap().progress != Progress::InProgress);
+    if !enabled() {
+        return None;
+    }
+    let at = |ms: u64, position: f64| (ms * 1_000_000, vec![Knot { velocity: Some(0.0), ..Knot::position(position) }]);
+    let ((t0, p0), (t1, p1)) = (at(50, 5000.0), at(100, -5000.0));
+    let first = cycle.play_trajectory(&[1], &[t0, t1], &[p0, p1], None, None).unwrap();
+    std::thread::sleep(Duration::from_millis(50));
+    let (t, p) = at(100, 0.0);
+    let second = cycle.play_trajectory(&[1], &[t], &[p], None, None).unwrap();
+    let ended = |id| cycle.trajectory_status(id).ok().filter(|s| s.state.ended());
+    wait_until("the second trajectory's end", || ended(second).is_some() || !enabled());
+    Some([ended(first), ended(second)])
 }
 
 fn wait_until(what: &str, done: impl Fn() -> bool) {

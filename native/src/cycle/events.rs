@@ -1,5 +1,5 @@
-//! Events the cycle thread reports — latch captures, faults and command time-outs — as four
-//! words each through a
+//! Events the cycle thread reports — latch captures, faults, command time-outs and what became
+//! of trajectories — as four words each through a
 //! [`Ring`], so that the thread never waits for whoever reads them; a full ring drops and
 //! counts, so what was missed is known.
 
@@ -146,6 +146,71 @@ impl CommandedTarget {
     }
 }
 
+/// Where a trajectory handed to the cycle thread stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TrajectoryState {
+    /// Handed over, waiting for its start.
+    Pending,
+    /// Being followed.
+    Running,
+    /// Past its last point: its drives hold the last point's positions.
+    Done,
+    /// A newer trajectory took over.
+    Replaced {
+        /// The newer trajectory's id.
+        by: u32,
+    },
+    /// A drive left Operation enabled (fault, disable, quick stop, hardware enable low): the
+    /// trajectory stopped, its other drives holding where they were.
+    Aborted {
+        /// The drive's position on the bus.
+        slave: u16,
+        /// Its statusword then.
+        statusword: u16,
+    },
+}
+
+impl TrajectoryState {
+    /// The state's name as the Python API spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            TrajectoryState::Pending => "pending",
+            TrajectoryState::Running => "running",
+            TrajectoryState::Done => "done",
+            TrajectoryState::Replaced { .. } => "replaced",
+            TrajectoryState::Aborted { .. } => "aborted",
+        }
+    }
+
+    /// Whether the trajectory is over.
+    pub fn ended(self) -> bool {
+        !matches!(self, TrajectoryState::Pending | TrajectoryState::Running)
+    }
+
+    /// The state in 40 bits: a code, then the replacing id or the drive and its statusword.
+    pub fn pack(self) -> u64 {
+        match self {
+            TrajectoryState::Pending => 1,
+            TrajectoryState::Running => 2,
+            TrajectoryState::Done => 3,
+            TrajectoryState::Replaced { by } => 4 | (by as u64) << 8,
+            TrajectoryState::Aborted { slave, statusword } => 5 | (slave as u64) << 8 | (statusword as u64) << 24,
+        }
+    }
+
+    /// The state [`pack`](Self::pack) gave.
+    pub fn unpack(v: u64) -> Option<TrajectoryState> {
+        match v as u8 {
+            1 => Some(TrajectoryState::Pending),
+            2 => Some(TrajectoryState::Running),
+            3 => Some(TrajectoryState::Done),
+            4 => Some(TrajectoryState::Replaced { by: (v >> 8) as u32 }),
+            5 => Some(TrajectoryState::Aborted { slave: (v >> 8) as u16, statusword: (v >> 24) as u16 }),
+            _ => None,
+        }
+    }
+}
+
 /// One event.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Event {
@@ -205,6 +270,17 @@ pub enum Event {
         /// What was done.
         action: CommandTimeoutAction,
     },
+    /// A trajectory started ([`TrajectoryState::Running`]) or ended.
+    Trajectory {
+        /// The cycle that saw it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The trajectory's id.
+        id: u32,
+        /// Where it stands now.
+        state: TrajectoryState,
+    },
 }
 
 impl Event {
@@ -228,6 +304,7 @@ impl Event {
                 3 | (slave as u64) << 8 | (action as u64) << 24 | (target as u64) << 32 | (statusword as u64) << 40,
                 value as u32 as u64 | (timeout_us as u64) << 32,
             ],
+            Event::Trajectory { cycle, time_ns, id, state } => [cycle, time_ns, 4 | state.pack() << 8, id as u64],
         }
     }
 
@@ -264,6 +341,9 @@ impl Event {
                 statusword: (what >> 40) as u16,
                 action: *CommandTimeoutAction::ALL.iter().find(|a| **a as u8 == (what >> 24) as u8)?,
             }),
+            4 => {
+                Some(Event::Trajectory { cycle, time_ns, id: data as u32, state: TrajectoryState::unpack(what >> 8)? })
+            }
             _ => None,
         }
     }
@@ -329,7 +409,16 @@ mod tests {
         events.push(latch);
         events.push(fault);
         events.push(timeout);
-        assert_eq!(events.drain(), [latch, fault, timeout]);
+        let trajectories = [
+            TrajectoryState::Running,
+            TrajectoryState::Done,
+            TrajectoryState::Replaced { by: u32::MAX },
+            TrajectoryState::Aborted { slave: 0xFFFE, statusword: 0x0218 },
+        ]
+        .map(|state| Event::Trajectory { cycle: 10, time_ns: 12, id: 7, state });
+        trajectories.iter().for_each(|t| events.push(*t));
+        assert_eq!(events.drain(), [[latch, fault, timeout].as_slice(), &trajectories].concat());
+        assert_eq!(TrajectoryState::unpack(TrajectoryState::Pending.pack()), Some(TrajectoryState::Pending));
         assert!(events.drain().is_empty());
         for _ in 0..CAPACITY + 3 {
             events.push(latch);

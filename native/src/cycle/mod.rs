@@ -16,7 +16,8 @@
 //! [`CycleThread::drive_status`] tells how far it is. The set-point handshake of profile
 //! position and the start of homing run there too ([`handshake`],
 //! [`CycleThread::start_setpoint`]), and so does the command time-out of velocity and torque
-//! streams ([`command_timeout`], [`CycleThread::set_command_timeout`]).
+//! streams ([`command_timeout`], [`CycleThread::set_command_timeout`]), and joint trajectories
+//! are followed there ([`trajectory_player`], [`CycleThread::play_trajectory`]).
 //!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
@@ -28,10 +29,11 @@ use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::error::{Error, Result, SettingError, Unavailable};
+use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
 use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
 use crate::pdo::PdoEntry;
+use crate::trajectory::{Knot, Limits, Trajectory};
 
 pub mod acyclic;
 pub mod command_timeout;
@@ -48,6 +50,7 @@ pub mod sequencer;
 pub mod stats;
 pub mod supervision;
 pub mod timing;
+pub mod trajectory_player;
 
 use acyclic::{MailboxService, SdoSlot};
 use events::{CommandTimeoutAction, Event, Events};
@@ -125,6 +128,7 @@ struct Shared {
     /// Whether a fault on one drive quick-stops the others ([`CycleThread::set_quick_stop_on_fault`]).
     quick_stop_on_fault: AtomicBool,
     dc: dc_status::Shared,
+    trajectories: trajectory_player::Shared,
 }
 
 /// How long a drive request may take by default before it is reported stuck.
@@ -186,6 +190,7 @@ pub struct CycleThread {
     offsets: Vec<Option<sequencer::Offsets>>,
     /// Per slave: the mapping's entries, outputs and inputs, where mapped.
     mappings: Vec<Option<(Vec<PdoEntry>, Vec<PdoEntry>)>>,
+    trajectories: trajectory_player::Caller,
 }
 
 impl CycleThread {
@@ -252,6 +257,7 @@ impl CycleThread {
             sdo: SdoSlot::default(),
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::Shared::new(master.clock()),
+            trajectories: trajectory_player::Shared::default(),
         });
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
@@ -260,6 +266,7 @@ impl CycleThread {
             let shared = shared.clone();
             let mut drives = drives;
             let mut mailbox = mailbox;
+            let mut player = trajectory_player::Player::new(master.slaves().len());
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
@@ -271,7 +278,7 @@ impl CycleThread {
                 // The starting thread waits for this message; it cannot be gone.
                 let _ = ready_tx.send(warnings);
                 let timeout = master.replace_timeout(config.period);
-                run(&mut master, &shared, &mut drives, &mut mailbox, period_ns);
+                run(&mut master, &shared, &mut drives, &mut mailbox, &mut player, period_ns);
                 master.replace_timeout(timeout);
                 // The master goes on without the thread: plain exchanges, no status reads.
                 let _ = master.set_supervision(false);
@@ -297,6 +304,7 @@ impl CycleThread {
             latch_objects,
             offsets,
             mappings,
+            trajectories: trajectory_player::Caller::default(),
         })
     }
 
@@ -554,6 +562,95 @@ impl CycleThread {
         Ok(())
     }
 
+    /// Plays a joint trajectory in the cycle thread: joint j on the drive at `slaves[j]`,
+    /// `points` at `times_ns` from the start (one knot per joint each; see
+    /// [`Trajectory::new`]), within `limits` (counts, one per joint; an INT32 target's range
+    /// when `None`), from `start_ns` on the monotonic clock (`None`: now). Every drive must be
+    /// sequenced, in Operation enabled, and in interpolated position (0x60C1:01) or cyclic
+    /// synchronous position (0x607A) with that target mapped (without a mode display mapped,
+    /// every position target mapped is written). The trajectory is validated and its plan
+    /// allocated here; a bad one is refused before anything moves. It takes over from the
+    /// trajectory in force at its start, without a step. Returns its id; waits (the caller,
+    /// not the cycle) at most a few cycles for the thread to take the one handed before.
+    pub fn play_trajectory(
+        &self,
+        slaves: &[u16],
+        times_ns: &[u64],
+        points: &[Vec<Knot>],
+        limits: Option<&[Limits]>,
+        start_ns: Option<u64>,
+    ) -> Result<u32> {
+        if self.stopped() {
+            return Err(Unavailable::CycleStopped { consequence: "no trajectory can play".into() }.into());
+        }
+        let trajectory = Trajectory::new(slaves.len(), times_ns, points, limits)?;
+        let joints = slaves
+            .iter()
+            .enumerate()
+            .map(|(joint, &slave)| {
+                if let Some(first) = slaves[..joint].iter().position(|&s| s == slave) {
+                    return Err(TrajectoryError::DriveTwice { slave, first, second: joint }.into());
+                }
+                self.trajectory_joint(joint, slave)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let mut plan = trajectory_player::Plan::new(self.trajectories.next_id(), start_ns, joints, trajectory);
+        let status = plan.status();
+        let deadline = std::time::Instant::now() + 10 * self.period + Duration::from_millis(100);
+        loop {
+            self.shared.trajectories.collect(|ended| self.trajectories.note(ended));
+            plan = match self.shared.trajectories.give(plan) {
+                Ok(()) => break,
+                Err(plan) => plan,
+            };
+            if !self.running() || std::time::Instant::now() >= deadline {
+                return Err(Error::Timeout { what: "the cycle thread to take the trajectory handed before".into() });
+            }
+            std::thread::sleep(Duration::from_micros(100));
+        }
+        self.trajectories.note(status);
+        Ok(status.id)
+    }
+
+    /// The drive at `slave` as joint `joint` of a trajectory, or why it cannot be one.
+    fn trajectory_joint(&self, joint: usize, slave: u16) -> Result<trajectory_player::Joint> {
+        let not_ready = |why: String| trajectory_player::not_ready(joint, slave, why);
+        let status = self.sequenced(slave).map_err(|e| not_ready(e.to_string()))?.status();
+        if status.state() != Some(crate::ds402::State::OperationEnabled) {
+            let state = status.state().map_or("no valid state", crate::ds402::State::name);
+            return Err(not_ready(format!("it is in {state}, not Operation enabled; enable it first")));
+        }
+        let o = self.offsets[slave as usize].unwrap_or_default();
+        let [target_position, ip_setpoint] = o.targets;
+        let targets = match status.mode_display.map(crate::ds402::Mode::from_i8) {
+            None => o.targets,
+            Some(Some(crate::ds402::Mode::InterpolatedPosition)) => [ip_setpoint, None],
+            Some(Some(crate::ds402::Mode::CyclicSynchronousPosition)) => [target_position, None],
+            Some(mode) => {
+                let mode =
+                    mode.map_or_else(|| format!("mode {}", status.mode_display.unwrap_or(0)), |m| m.name().into());
+                return Err(not_ready(format!(
+                    "it is in {mode}; a trajectory needs interpolated position (7) or cyclic synchronous position (8)"
+                )));
+            }
+        };
+        if targets.iter().all(Option::is_none) {
+            return Err(not_ready(
+                "its outputs carry no position target of its mode (0x60C1:01 for interpolated position, 0x607A for \
+                 cyclic synchronous position)"
+                    .into(),
+            ));
+        }
+        Ok(trajectory_player::Joint { slave, targets, statusword: o.statusword })
+    }
+
+    /// The trajectory `id` (from [`play_trajectory`](Self::play_trajectory)) as the cycle
+    /// thread last published it: pending, running (the point approached, the time since its
+    /// start) or how it ended. The statuses of the last [`trajectory_player::KEPT`] are kept.
+    pub fn trajectory_status(&self, id: u32) -> Result<trajectory_player::Status> {
+        self.trajectories.status(&self.shared.trajectories, id)
+    }
+
     /// The mapping of the slave at `position`: its output entries and input entries, in wire
     /// order.
     pub fn mapping(&self, position: u16) -> Result<&(Vec<PdoEntry>, Vec<PdoEntry>)> {
@@ -668,7 +765,14 @@ impl Drop for CycleThread {
 }
 
 /// The loop. Everything it touches was allocated before it starts.
-fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: &mut MailboxService, period_ns: u64) {
+fn run(
+    master: &mut Master,
+    shared: &Shared,
+    drives: &mut [DriveLoop],
+    mailbox: &mut MailboxService,
+    player: &mut trajectory_player::Player,
+    period_ns: u64,
+) {
     let stats = &shared.stats;
     let base = master.stats();
     let mut schedule = timing::Schedule::new(timing::now_ns() + period_ns, period_ns);
@@ -688,6 +792,9 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
             d.target_writes = Some(shared.command_timeouts[d.position as usize].writes());
             d.drive.before_copy(&shared.drives[d.position as usize]);
         }
+        if let Ok(sent) = master.output_image() {
+            player.before_copy(&shared.trajectories, &shared.events, sent, now);
+        }
         if let Ok(outputs) = master.output_image_mut() {
             if shared.setpoints.try_read(outputs).is_none() {
                 CycleStats::add(&stats.setpoints_busy, 1);
@@ -696,9 +803,13 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
                 drives.iter_mut().for_each(|d| d.drive.copied());
             }
         }
-        // The sequencer and the latches read the inputs of the last exchange and write over
-        // the set-points.
+        // The trajectory, the sequencer and the latches read the inputs of the last exchange
+        // and write over the set-points; the trajectory's targets are set-point writes.
         if let Ok(inputs) = master.input_image() {
+            player.observe(&shared.trajectories, &shared.events, inputs, now);
+            for d in drives.iter_mut().filter(|d| player.wrote(d.position)) {
+                d.drive.written_in_loop(&shared.drives[d.position as usize]);
+            }
             let timeout_ns = shared.request_timeout_ns.load(Ordering::Relaxed);
             for d in drives.iter_mut() {
                 d.drive.observe(&shared.drives[d.position as usize], inputs, wake, timeout_ns);
@@ -723,6 +834,7 @@ fn run(master: &mut Master, shared: &Shared, drives: &mut [DriveLoop], mailbox: 
             }
         }
         if let Ok(outputs) = master.output_image_mut() {
+            player.apply(&shared.trajectories, &shared.setpoints, outputs);
             for d in drives.iter() {
                 d.drive.apply(outputs);
                 d.handshake.apply(outputs, d.drive.offsets.controlword);

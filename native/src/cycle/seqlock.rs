@@ -82,6 +82,18 @@ impl SeqBytes {
         }
     }
 
+    /// Starts a write unless another writer is under way (`None` then). For the cycle thread,
+    /// which must not wait.
+    pub fn try_write(&self) -> Option<Writer<'_>> {
+        let sequence = self.sequence.load(Ordering::Relaxed);
+        let taken = sequence.is_multiple_of(2)
+            && self.sequence.compare_exchange(sequence, sequence + 1, Ordering::Acquire, Ordering::Relaxed).is_ok();
+        taken.then(|| {
+            fence(Ordering::Release);
+            Writer { buffer: self, sequence }
+        })
+    }
+
     /// One attempt at a consistent copy into `out` (the buffer's length): the write count
     /// when it succeeded, `None` when a write was under way.
     fn read_once(&self, out: &mut [u8]) -> Option<u64> {
@@ -131,6 +143,18 @@ mod tests {
         assert_eq!(b.try_read(&mut out), Some(1));
         assert_eq!(out, [1, 2, 7, 8, 0, 0]);
         assert_eq!(b.writes(), 1);
+    }
+
+    #[test]
+    fn a_write_tried_during_another_is_refused() {
+        let b = SeqBytes::new(2, &[]);
+        let w = b.write();
+        assert!(b.try_write().is_none());
+        drop(w);
+        b.try_write().unwrap().write(0, &[5, 6]);
+        let mut out = [0; 2];
+        assert_eq!(b.read(&mut out), 2);
+        assert_eq!(out, [5, 6]);
     }
 
     #[test]

@@ -481,6 +481,14 @@ impl Drive {
         self.writes_in_outputs = self.writes_before_copy;
     }
 
+    /// Counts a set-point the cycle thread itself wrote into this cycle's outputs (a
+    /// trajectory's) as a set-point write already in them, so a held target is released in
+    /// this cycle.
+    pub fn written_in_loop(&mut self, shared: &Shared) {
+        shared.setpoint_written();
+        self.writes_in_outputs += 1;
+    }
+
     /// The first half of a cycle: reads the statusword and actual position from `inputs`,
     /// takes a request from `shared`, decides what to write and publishes the status.
     pub fn observe(&mut self, shared: &Shared, inputs: &[u8], now_ns: u64, timeout_ns: u64) {

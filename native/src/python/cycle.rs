@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use super::master::PyMaster;
-use super::IntoPyResult;
+use super::{IntoPyResult, Merged};
 use crate::akd_fault;
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
 use crate::cycle::sequencer::{Progress, Request};
@@ -155,6 +155,17 @@ enum EventView {
         action: &'static str,
         text: &'static str,
     },
+    /// A trajectory's start or end: its kind, cycle, time and id, then its state's keys.
+    Trajectory(Merged<TrajectoryEventView, super::trajectory::StateView>),
+}
+
+/// The head of a trajectory event, before its state's keys.
+#[derive(IntoPyObject)]
+struct TrajectoryEventView {
+    kind: &'static str,
+    cycle: u64,
+    time_ns: u64,
+    id: u32,
 }
 
 impl From<Event> for EventView {
@@ -200,6 +211,10 @@ impl From<Event> for EventView {
                     text: action.describe(),
                 }
             }
+            Event::Trajectory { cycle, time_ns, id, state } => EventView::Trajectory(Merged(
+                TrajectoryEventView { kind: "trajectory", cycle, time_ns, id },
+                state.into(),
+            )),
         }
     }
 }
@@ -412,16 +427,20 @@ impl PyCycle {
         }
     }
 
-    /// Latch, fault and command time-out events since the last call, oldest first, each a dict.
-    /// Every event has "kind" ("latch", "fault" or "command_timeout"), "cycle", "time_ns" (the cycle's monotonic wake-up time) and
-    /// "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
+    /// Latch, fault, command time-out and trajectory events since the last call, oldest first,
+    /// each a dict. Every event has "kind" ("latch", "fault", "command_timeout" or
+    /// "trajectory"), "cycle" and "time_ns" (the cycle's monotonic wake-up time); all but
+    /// trajectory events have "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
     /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
     /// "working_counter", "al_state"), "code" (CiA error code; for lost frames and working
     /// counter errors the cycles in a row), "text" (the AKD's text where known, else None),
     /// "statusword", "al_status", "al_status_code" and "action" (what the loop did). A command
     /// time-out adds "command" ("velocity", "torque"), "value" (its last value in drive units:
     /// counts/s, 0.1 % of peak torque), "timeout" (s), "statusword", "ds402_state", "action"
-    /// ("hold" or "quick_stop") and "text" (what was done, for the log).
+    /// ("hold" or "quick_stop") and "text" (what was done, for the log). A trajectory event
+    /// (one when it starts, one when it ends) has "id" and what `trajectory_status` gives of
+    /// its state: "state" ("running", "done", "replaced", "aborted"), "replaced_by", "slave",
+    /// "statusword", "ds402_state".
     fn events(&self) -> Vec<EventView> {
         self.cycle.events().into_iter().map(EventView::from).collect()
     }
@@ -649,6 +668,38 @@ impl PyCycle {
     /// in the cyclic frame, one drive per cycle in turn); {"active": False} without them.
     fn dc_status(&self) -> super::clocks::DcStatusView {
         self.cycle.dc_status().into()
+    }
+
+    /// Plays a joint trajectory in the cycle thread: joint j on drive `positions[j]`, point k
+    /// at `times_ns[k]` from the start (strictly increasing, the first > 0), `points[k]` one
+    /// entry per joint, a position (counts) or (position, velocity counts/s or None,
+    /// acceleration counts/s² or None) — quintic where both ends of a segment give
+    /// accelerations, cubic where they give velocities, linear otherwise — within `limits`
+    /// ((min, max) counts per joint; a 32-bit target's range when None), from `start_ns`
+    /// (time.monotonic_ns(); None: now). Every drive must be in Operation enabled in
+    /// interpolated position or cyclic synchronous position. Takes over from the trajectory in
+    /// force without a step; a bad one raises ConfigError saying why before anything moves.
+    /// Returns its id.
+    #[pyo3(signature = (positions, times_ns, points, start_ns = None, limits = None))]
+    fn play_trajectory(
+        &self,
+        py: Python<'_>,
+        positions: Vec<u16>,
+        times_ns: Vec<u64>,
+        points: Vec<Vec<super::trajectory::PyKnot>>,
+        start_ns: Option<u64>,
+        limits: Option<Vec<(f64, f64)>>,
+    ) -> PyResult<u32> {
+        super::trajectory::play(py, &self.cycle, positions, times_ns, points, start_ns, limits)
+    }
+
+    /// Trajectory `id` as the cycle thread last published it: "id", "state" ("pending",
+    /// "running", "done", "replaced", "aborted"), "replaced_by" (the newer id), "slave",
+    /// "statusword" and "ds402_state" (of the drive that aborted it), "point" (the point
+    /// approached; "points" once past the last), "started_ns" (None while pending),
+    /// "elapsed_ns", "duration_ns". The last 64 are kept.
+    fn trajectory_status(&self, id: u32) -> PyResult<super::trajectory::StatusView> {
+        Ok(super::trajectory::status_view(self.cycle.trajectory_status(id).py()?))
     }
 }
 

@@ -36,31 +36,6 @@ impl Identity {
     }
 }
 
-/// `rest`'s dict with the identity's keys added. The one dict merged by hand: pyo3's derive has
-/// no flattening, and the identity's keys are one list for both dicts that carry them.
-pub(super) struct WithIdentity<T> {
-    /// The drive's identity.
-    pub(super) identity: Identity,
-    /// The dict's own keys.
-    pub(super) rest: T,
-}
-
-impl<'py, T> IntoPyObject<'py> for WithIdentity<T>
-where
-    T: IntoPyObject<'py, Target = PyDict, Output = Bound<'py, PyDict>>,
-    PyErr: From<T::Error>,
-{
-    type Target = PyDict;
-    type Output = Bound<'py, PyDict>;
-    type Error = PyErr;
-
-    fn into_pyobject(self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let dict = self.rest.into_pyobject(py)?;
-        dict.update(self.identity.into_pyobject(py)?.as_mapping())?;
-        Ok(dict)
-    }
-}
-
 /// One entry of a PDO in the SII, its name resolved.
 #[derive(IntoPyObject)]
 struct PdoEntryView<'a> {
@@ -191,7 +166,7 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
             })
             .collect(),
     };
-    WithIdentity { identity: Identity::of(&sii), rest }.into_pyobject(py)
+    super::Merged(rest, Identity::of(&sii)).into_pyobject(py)
 }
 
 /// The SII EEPROM image the virtual AKD serves: the real AKD-P00606-NBCC-E000's 2048 bytes.

@@ -9,8 +9,9 @@ use std::sync::{Mutex, MutexGuard, TryLockError};
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use super::eeprom::{Identity, WithIdentity};
+use super::eeprom::Identity;
 use super::IntoPyResult;
+use super::Merged;
 use crate::al::AlState;
 use crate::coe::{Emergency, ObjectCode, OdListType};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
@@ -162,7 +163,7 @@ impl PyMaster {
     /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
     /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
     /// what the scan found before it reset the bus.
-    fn scan(&self, py: Python<'_>) -> PyResult<Vec<WithIdentity<ScannedSlave>>> {
+    fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, Identity>>> {
         self.with_master(py, |m| {
             m.scan()?;
             (0..m.slaves().len() as u16)
@@ -182,7 +183,7 @@ impl PyMaster {
                         mailbox_protocols: slave.sii.header.mailbox_protocols,
                         dc: slave.has_dc(),
                     };
-                    Ok(WithIdentity { identity: Identity::of(&slave.sii), rest })
+                    Ok(Merged(rest, Identity::of(&slave.sii)))
                 })
                 .collect()
         })

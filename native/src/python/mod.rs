@@ -17,6 +17,7 @@ mod eeprom;
 mod link_spec;
 mod master;
 mod sim;
+mod trajectory;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
 create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
@@ -74,7 +75,8 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             | Error::UnknownName(_)
             | Error::Unavailable(_)
             | Error::AliasNotUnique { .. }
-            | Error::NoSuchSlave { .. } => ConfigError::new_err(message),
+            | Error::NoSuchSlave { .. }
+            | Error::Trajectory(_) => ConfigError::new_err(message),
         };
         let value = err.value(py);
         let set = |name: &str, v: PyResult<PyObject>| {
@@ -111,6 +113,28 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
 pub(crate) fn seconds(value: f64, what: &'static str) -> PyResult<std::time::Duration> {
     std::time::Duration::try_from_secs_f64(value)
         .map_err(|_| to_py_err(crate::error::SettingError::Seconds { what, value }.into()))
+}
+
+/// Two derived dicts as one, the second's keys added to the first's. pyo3's derive has no
+/// flattening, and some keys are one list for several results (a drive's identity in `scan` and
+/// `parse_sii`, a trajectory's state in its status and its events).
+pub(crate) struct Merged<A, B>(pub(crate) A, pub(crate) B);
+
+impl<'py, A, B> IntoPyObject<'py> for Merged<A, B>
+where
+    A: IntoPyObject<'py, Target = pyo3::types::PyDict, Output = Bound<'py, pyo3::types::PyDict>>,
+    B: IntoPyObject<'py, Target = pyo3::types::PyDict, Output = Bound<'py, pyo3::types::PyDict>>,
+    PyErr: From<A::Error> + From<B::Error>,
+{
+    type Target = pyo3::types::PyDict;
+    type Output = Bound<'py, pyo3::types::PyDict>;
+    type Error = PyErr;
+
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Self::Output> {
+        let dict = self.0.into_pyobject(py)?;
+        dict.update(self.1.into_pyobject(py)?.as_mapping())?;
+        Ok(dict)
+    }
 }
 
 /// Extension trait: `.py()?` converts a crate result into a Python one.

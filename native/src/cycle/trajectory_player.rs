@@ -1,0 +1,543 @@
+//! Joint trajectories followed by the cycle thread: every cycle it evaluates the trajectory in
+//! force at the cycle's wake-up time and writes each joint's position target into its drive's
+//! outputs, so the set-points come at the cycle rate whatever Python's scheduling does.
+//!
+//! The handoff never makes the loop allocate, free or wait. A [`Plan`] (the validated
+//! [`Trajectory`], its drives and where their targets are) is built and boxed in the caller's
+//! thread and handed over through one atomic pointer ([`Shared::give`]); the loop takes it
+//! ([`Player::before_copy`]) and, once done with it (done, replaced, aborted), puts the box
+//! into one of [`OUTBOX`] return slots, from which the caller's next call takes and drops it
+//! ([`Shared::collect`]), reading its final [`Status`]. The loop takes a new plan only when
+//! nothing of its own waits to be returned; from one take to the next it retires at most
+//! three plans (the one waiting to start, the one running, the new one), so its own waiting
+//! room of three never overflows when the caller does not collect.
+//!
+//! A plan waits for its start (`None`: the cycle that takes it; a start already past starts
+//! then, the whole trajectory shifted, never cut short). At its start it takes over from each
+//! drive's set-point: where the trajectory in force drives the same drive, from that one's
+//! position, velocity and acceleration at that instant; else from the target the drive was
+//! last sent, at rest. So there is no step. Each joint's target is rounded to counts and
+//! written as a set-point write of the user's would be (it releases a held target), and into
+//! the set-point buffer too, so the drives keep it once the trajectory ends. A drive of the
+//! trajectory that leaves Operation enabled aborts it; that drive is the sequencer's from then
+//! on, and the others hold where they were.
+
+use std::collections::VecDeque;
+use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
+use std::sync::Mutex;
+
+use crate::cycle::events::{Event, Events, TrajectoryState};
+use crate::cycle::image::{i32_at, u16_at};
+use crate::cycle::seqlock::SeqBytes;
+use crate::ds402::State;
+use crate::error::{Error, Result, TrajectoryError, Unavailable};
+use crate::trajectory::{Segment, Setpoint, Trajectory};
+
+/// Return slots for plans the loop is done with.
+pub const OUTBOX: usize = 4;
+
+/// Statuses of ended trajectories the caller side keeps for [`Caller::status`].
+pub const KEPT: usize = 64;
+
+/// Plans retired between two takes at most: the one waiting to start, the one running and
+/// the one taken.
+const WAITING: usize = 3;
+
+/// One joint: its drive and where its objects are in the whole images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Joint {
+    /// The drive's position on the bus.
+    pub slave: u16,
+    /// The position targets written (0x607A or 0x60C1:01, or both), in the outputs; the first
+    /// is read as the target last sent.
+    pub targets: [Option<usize>; 2],
+    /// Statusword 0x6041 in the inputs.
+    pub statusword: usize,
+}
+
+impl Joint {
+    fn sent(&self, outputs: &[u8]) -> i32 {
+        self.targets.into_iter().flatten().next().map_or(0, |at| i32_at(outputs, at))
+    }
+}
+
+/// Where a trajectory stands, as the cycle thread last published it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Status {
+    /// The trajectory's id (from 1).
+    pub id: u32,
+    /// Pending, running or how it ended.
+    pub state: TrajectoryState,
+    /// The point approached (from 0); `points` once past the last.
+    pub point: u32,
+    /// Its points.
+    pub points: u32,
+    /// When it started on the monotonic clock (ns; 0 while pending).
+    pub started_ns: u64,
+    /// Time since its start (ns).
+    pub elapsed_ns: u64,
+    /// Its last point's time from the start (ns).
+    pub duration_ns: u64,
+}
+
+/// A status in words.
+const STATUS_WORDS: usize = 6;
+
+impl Status {
+    fn pack(&self) -> [u64; STATUS_WORDS] {
+        [
+            self.state.pack(),
+            self.id as u64,
+            self.point as u64 | (self.points as u64) << 32,
+            self.started_ns,
+            self.elapsed_ns,
+            self.duration_ns,
+        ]
+    }
+
+    fn unpack(w: [u64; STATUS_WORDS]) -> Option<Status> {
+        Some(Status {
+            state: TrajectoryState::unpack(w[0])?,
+            id: w[1] as u32,
+            point: w[2] as u32,
+            points: (w[2] >> 32) as u32,
+            started_ns: w[3],
+            elapsed_ns: w[4],
+            duration_ns: w[5],
+        })
+    }
+}
+
+/// A trajectory with its drives, as handed to the cycle thread.
+#[derive(Debug)]
+pub struct Plan {
+    start_ns: Option<u64>,
+    joints: Vec<Joint>,
+    trajectory: Trajectory,
+    /// Per joint: the segment from the set-point at the start to the first point.
+    lead_in: Vec<Segment>,
+    status: Status,
+}
+
+impl Plan {
+    /// A plan of `trajectory` (one joint per entry of `joints`) with id `id`, starting at
+    /// `start_ns` on the monotonic clock (`None`: as soon as the cycle takes it).
+    pub fn new(id: u32, start_ns: Option<u64>, joints: Vec<Joint>, trajectory: Trajectory) -> Box<Plan> {
+        let status = Status {
+            id,
+            state: TrajectoryState::Pending,
+            point: 0,
+            points: trajectory.points() as u32,
+            started_ns: 0,
+            elapsed_ns: 0,
+            duration_ns: trajectory.duration_ns(),
+        };
+        let lead_in = vec![Segment::default(); joints.len()];
+        Box::new(Plan { start_ns, joints, trajectory, lead_in, status })
+    }
+
+    /// The status.
+    pub fn status(&self) -> Status {
+        self.status
+    }
+
+    /// Joint `j`'s set-point at `now_ns` (started).
+    fn at(&self, j: usize, now_ns: u64) -> Setpoint {
+        self.trajectory.at(&self.lead_in[j], now_ns.saturating_sub(self.status.started_ns), j)
+    }
+
+    fn due(&self, now_ns: u64) -> bool {
+        self.start_ns.is_none_or(|start| now_ns >= start)
+    }
+}
+
+/// What the cycle thread and the callers share: the handoff and the published statuses.
+pub struct Shared {
+    inbox: AtomicPtr<Plan>,
+    outbox: [AtomicPtr<Plan>; OUTBOX],
+    /// The running trajectory's status, then the pending one's (zeros where none).
+    live: SeqBytes,
+}
+
+impl Default for Shared {
+    fn default() -> Self {
+        Shared {
+            inbox: AtomicPtr::new(std::ptr::null_mut()),
+            outbox: std::array::from_fn(|_| AtomicPtr::new(std::ptr::null_mut())),
+            live: SeqBytes::new(2 * STATUS_WORDS * 8, &[]),
+        }
+    }
+}
+
+impl Shared {
+    /// Hands `plan` to the cycle thread; gives it back when the last one was not taken yet.
+    pub fn give(&self, plan: Box<Plan>) -> std::result::Result<(), Box<Plan>> {
+        let raw = Box::into_raw(plan);
+        match self.inbox.compare_exchange(std::ptr::null_mut(), raw, Ordering::AcqRel, Ordering::Acquire) {
+            Ok(_) => Ok(()),
+            // SAFETY: `raw` came from Box::into_raw above and was not published.
+            Err(_) => Err(unsafe { Box::from_raw(raw) }),
+        }
+    }
+
+    /// Drops the plans the cycle thread is done with, passing each one's final status to
+    /// `ended`.
+    pub fn collect(&self, mut ended: impl FnMut(Status)) {
+        for slot in &self.outbox {
+            let raw = slot.swap(std::ptr::null_mut(), Ordering::AcqRel);
+            if !raw.is_null() {
+                // SAFETY: only Player::flush stores into the outbox, a pointer from
+                // Box::into_raw whose box it gave up; the swap made this thread its only owner.
+                let plan = unsafe { Box::from_raw(raw) };
+                ended(plan.status);
+            }
+        }
+    }
+
+    /// The running and the pending trajectory's statuses, as last published.
+    pub fn live(&self) -> [Option<Status>; 2] {
+        let mut bytes = [0u8; 2 * STATUS_WORDS * 8];
+        self.live.read(&mut bytes);
+        let word = |n: usize| u64::from_le_bytes(bytes[n * 8..n * 8 + 8].try_into().expect("8 bytes"));
+        [0, 1].map(|r| Status::unpack(std::array::from_fn(|w| word(r * STATUS_WORDS + w))))
+    }
+
+    fn take(&self) -> Option<Box<Plan>> {
+        let raw = self.inbox.swap(std::ptr::null_mut(), Ordering::AcqRel);
+        // SAFETY: only `give` stores into the inbox, a pointer from Box::into_raw it gave up;
+        // the swap made this thread its only owner.
+        (!raw.is_null()).then(|| unsafe { Box::from_raw(raw) })
+    }
+}
+
+impl Drop for Shared {
+    /// Plans still handed over or returned are dropped with the last owner, after the loop.
+    fn drop(&mut self) {
+        drop(self.take());
+        self.collect(|_| {});
+    }
+}
+
+/// The cycle thread's side: the trajectory in force, the one waiting for its start, and per
+/// drive the target a trajectory gave it that the set-point buffer does not carry yet.
+pub struct Player {
+    current: Option<Box<Plan>>,
+    pending: Option<Box<Plan>>,
+    /// Plans retired while the outbox was full.
+    waiting: [Option<Box<Plan>>; WAITING],
+    /// Per slave: the target to write and where, until the set-point buffer has it.
+    owned: Vec<Option<(i32, [Option<usize>; 2])>>,
+    /// Per slave: whether a target was written into the outputs this cycle.
+    wrote: Vec<bool>,
+    /// Per joint of the pending plan: the target its drive was last sent.
+    sent: Vec<i32>,
+}
+
+impl Player {
+    /// A player for a bus of `slaves` slaves; allocates here, never in the loop.
+    pub fn new(slaves: usize) -> Self {
+        Player {
+            current: None,
+            pending: None,
+            waiting: std::array::from_fn(|_| None),
+            owned: vec![None; slaves],
+            wrote: vec![false; slaves],
+            sent: vec![0; slaves],
+        }
+    }
+
+    /// Whether a target for drive `slave` was written into this cycle's outputs.
+    pub fn wrote(&self, slave: u16) -> bool {
+        self.wrote.get(slave as usize).copied().unwrap_or(false)
+    }
+
+    /// Before the set-points are copied into the outputs, which still hold what the last cycle
+    /// sent: returns retired plans, takes one handed over (the one waiting for its start is
+    /// replaced) and, for a plan due to start, notes the targets its drives were last sent.
+    pub fn before_copy(&mut self, shared: &Shared, events: &Events, outputs: &[u8], now: (u64, u64)) {
+        self.flush(shared);
+        if self.waiting.iter().all(Option::is_none) {
+            if let Some(plan) = shared.take() {
+                if let Some(old) = self.pending.take() {
+                    self.end(shared, events, old, TrajectoryState::Replaced { by: plan.status.id }, now);
+                }
+                self.pending = Some(plan);
+            }
+        }
+        if let Some(plan) = self.pending.as_ref().filter(|p| p.due(now.1)) {
+            for (sent, joint) in self.sent.iter_mut().zip(&plan.joints) {
+                *sent = joint.sent(outputs);
+            }
+        }
+    }
+
+    /// After the copy, before the sequencer: starts a plan that is due and follows the one in
+    /// force from the drives' `inputs`, or aborts it; [`wrote`](Self::wrote) then tells which
+    /// drives get a target from it in this cycle.
+    pub fn observe(&mut self, shared: &Shared, events: &Events, inputs: &[u8], now: (u64, u64)) {
+        if self.pending.as_ref().is_some_and(|p| p.due(now.1)) {
+            self.start(shared, events, now);
+        }
+        if let Some(plan) = self.current.take() {
+            self.follow(shared, events, plan, inputs, now);
+        }
+        for (wrote, owned) in self.wrote.iter_mut().zip(&self.owned) {
+            *wrote = owned.is_some();
+        }
+    }
+
+    /// Writes the targets into `outputs` and, where it can without waiting, into `setpoints`
+    /// (so they stay once no trajectory writes them); publishes the statuses.
+    pub fn apply(&mut self, shared: &Shared, setpoints: &SeqBytes, outputs: &mut [u8]) {
+        for (value, targets) in self.owned.iter().flatten() {
+            for at in targets.iter().flatten() {
+                outputs[*at..*at + 4].copy_from_slice(&value.to_le_bytes());
+            }
+        }
+        if self.owned.iter().any(Option::is_some) {
+            if let Some(mut w) = setpoints.try_write() {
+                for (value, targets) in self.owned.iter().flatten() {
+                    for at in targets.iter().flatten() {
+                        w.write(*at, &value.to_le_bytes());
+                    }
+                }
+                drop(w);
+                // The buffer carries them now; the running trajectory writes its own again.
+                self.owned.fill(None);
+            }
+        }
+        // The only writer of `live`: this never waits.
+        let mut live = shared.live.write();
+        for (r, plan) in [&self.current, &self.pending].into_iter().enumerate() {
+            let words = plan.as_ref().map_or([0; STATUS_WORDS], |p| p.status.pack());
+            for (w, word) in words.iter().enumerate() {
+                live.write((r * STATUS_WORDS + w) * 8, &word.to_le_bytes());
+            }
+        }
+    }
+
+    /// The pending plan takes over from each drive's set-point.
+    fn start(&mut self, shared: &Shared, events: &Events, now: (u64, u64)) {
+        let Some(mut plan) = self.pending.take() else { return };
+        for j in 0..plan.joints.len() {
+            let slave = plan.joints[j].slave;
+            let running = self.current.as_ref().and_then(|c| {
+                let i = c.joints.iter().position(|joint| joint.slave == slave)?;
+                Some(c.at(i, now.1))
+            });
+            let from = running.unwrap_or(Setpoint { position: self.sent[j] as f64, ..Setpoint::default() });
+            plan.lead_in[j] = plan.trajectory.lead_in(j, from);
+        }
+        plan.status.started_ns = now.1;
+        plan.status.state = TrajectoryState::Running;
+        if let Some(old) = self.current.take() {
+            self.end(shared, events, old, TrajectoryState::Replaced { by: plan.status.id }, now);
+        }
+        events.push(Event::Trajectory { cycle: now.0, time_ns: now.1, id: plan.status.id, state: plan.status.state });
+        self.current = Some(plan);
+    }
+
+    fn follow(&mut self, shared: &Shared, events: &Events, mut plan: Box<Plan>, inputs: &[u8], now: (u64, u64)) {
+        let left = plan.joints.iter().find_map(|joint| {
+            let statusword = u16_at(inputs, joint.statusword);
+            (State::from_statusword(statusword) != Some(State::OperationEnabled)).then_some((joint.slave, statusword))
+        });
+        if let Some((slave, statusword)) = left {
+            // The sequencer holds that drive where it is.
+            self.owned[slave as usize] = None;
+            return self.end(shared, events, plan, TrajectoryState::Aborted { slave, statusword }, now);
+        }
+        let elapsed_ns = now.1.saturating_sub(plan.status.started_ns);
+        for (j, joint) in plan.joints.iter().enumerate() {
+            let position = plan.at(j, now.1).position.round().clamp(i32::MIN as f64, i32::MAX as f64) as i32;
+            self.owned[joint.slave as usize] = Some((position, joint.targets));
+        }
+        plan.status.elapsed_ns = elapsed_ns;
+        plan.status.point = plan.trajectory.segment(elapsed_ns) as u32;
+        if elapsed_ns >= plan.status.duration_ns {
+            return self.end(shared, events, plan, TrajectoryState::Done, now);
+        }
+        self.current = Some(plan);
+    }
+
+    fn end(&mut self, shared: &Shared, events: &Events, mut plan: Box<Plan>, state: TrajectoryState, now: (u64, u64)) {
+        plan.status.state = state;
+        events.push(Event::Trajectory { cycle: now.0, time_ns: now.1, id: plan.status.id, state });
+        match self.waiting.iter_mut().find(|w| w.is_none()) {
+            Some(slot) => *slot = Some(plan),
+            // Cannot happen: a plan is taken only when none waits, and at most three are
+            // retired before the next take. Were it to, leaking beats freeing in the loop.
+            None => std::mem::forget(plan),
+        }
+        self.flush(shared);
+    }
+
+    /// Moves retired plans into free return slots.
+    fn flush(&mut self, shared: &Shared) {
+        for waiting in self.waiting.iter_mut().filter(|w| w.is_some()) {
+            let Some(slot) = shared.outbox.iter().find(|s| s.load(Ordering::Acquire).is_null()) else { return };
+            let Some(plan) = waiting.take() else { continue };
+            // Only this thread fills return slots, so the one found empty stays empty.
+            slot.store(Box::into_raw(plan), Ordering::Release);
+        }
+    }
+}
+
+/// The callers' side: trajectory ids and the statuses of the last [`KEPT`] trajectories.
+#[derive(Default)]
+pub struct Caller {
+    last_id: AtomicU32,
+    /// Oldest first; the cycle thread never takes this lock.
+    known: Mutex<VecDeque<Status>>,
+}
+
+impl Caller {
+    /// The next trajectory id.
+    pub fn next_id(&self) -> u32 {
+        self.last_id.fetch_add(1, Ordering::Relaxed) + 1
+    }
+
+    /// Notes a trajectory handed over (pending) or ended; an end noted first (by another
+    /// caller's collect) stays.
+    pub fn note(&self, status: Status) {
+        let mut known = self.known.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        match known.iter_mut().find(|s| s.id == status.id) {
+            Some(s) if s.state.ended() && !status.state.ended() => {}
+            Some(s) => *s = status,
+            None => {
+                if known.len() == KEPT {
+                    known.pop_front();
+                }
+                known.push_back(status);
+            }
+        }
+    }
+
+    /// Trajectory `id` as the cycle thread last published it.
+    pub fn status(&self, shared: &Shared, id: u32) -> Result<Status> {
+        // Live first: a plan that ends meanwhile is in the outbox when collected after.
+        let live = shared.live().into_iter().flatten().find(|s| s.id == id);
+        shared.collect(|status| self.note(status));
+        let known = self.known.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let kept = known.iter().find(|s| s.id == id).copied();
+        match (kept, live) {
+            (Some(kept), _) if kept.state.ended() => Ok(kept),
+            (_, Some(live)) => Ok(live),
+            (Some(kept), None) => Ok(kept),
+            (None, None) => {
+                let ids = known.front().map(|f| (f.id, known.back().map_or(f.id, |b| b.id)));
+                Err(Error::from(Unavailable::NoSuchTrajectory { id, kept: ids }))
+            }
+        }
+    }
+}
+
+/// `why` as the refusal of joint `joint` on drive `slave`.
+pub fn not_ready(joint: usize, slave: u16, why: impl Into<String>) -> Error {
+    TrajectoryError::DriveNotReady { joint, slave, why: why.into() }.into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trajectory::Knot;
+
+    const MS: u64 = 1_000_000;
+
+    /// One drive: its target at output 0, its statusword at input 0.
+    const JOINT: Joint = Joint { slave: 0, targets: [Some(0), None], statusword: 0 };
+
+    fn plan(id: u32, start_ns: Option<u64>, to: f64, after_ns: u64) -> Box<Plan> {
+        let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
+        Plan::new(id, start_ns, vec![JOINT], trajectory)
+    }
+
+    /// A cycle at `now` ms: the player's steps around the copy, returning the target sent.
+    fn cycle(
+        player: &mut Player,
+        shared: &Shared,
+        events: &Events,
+        image: &mut [u8; 4],
+        now: u64,
+        enabled: bool,
+    ) -> i32 {
+        let inputs = if enabled { State::OperationEnabled } else { State::Fault }.statusword_bits().to_le_bytes();
+        let setpoints = SeqBytes::new(4, image);
+        let at = (now, now * MS);
+        player.before_copy(shared, events, image, at);
+        player.observe(shared, events, &inputs, at);
+        player.apply(shared, &setpoints, image);
+        let mut kept = [0; 4];
+        setpoints.read(&mut kept);
+        assert_eq!(&kept, image, "the set-point buffer keeps what went out");
+        i32::from_le_bytes(*image)
+    }
+
+    fn trajectory_events(events: &Events) -> Vec<(u32, TrajectoryState)> {
+        events
+            .drain()
+            .into_iter()
+            .filter_map(|e| match e {
+                Event::Trajectory { id, state, .. } => Some((id, state)),
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_plan_starts_from_the_target_sent_ends_on_its_point_and_comes_back() {
+        let (shared, events, mut player) = (Shared::default(), Events::default(), Player::new(1));
+        let mut image = 1000i32.to_le_bytes();
+        shared.give(plan(1, Some(3 * MS), 2000.0, 10 * MS)).unwrap();
+        // A second one cannot be handed before the first is taken.
+        assert!(shared.give(plan(2, None, 0.0, MS)).is_err());
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 1, true), 1000);
+        assert_eq!(shared.live()[1].map(|s| s.state), Some(TrajectoryState::Pending));
+        let sent: Vec<i32> = (3..=14).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        // From where it was, at rest, 100 counts per ms, then held.
+        assert_eq!(sent, [1000, 1100, 1200, 1300, 1400, 1500, 1600, 1700, 1800, 1900, 2000, 2000]);
+        assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Running), (1, TrajectoryState::Done)]);
+        let mut ended = Vec::new();
+        shared.collect(|s| ended.push((s.id, s.state, s.point, s.elapsed_ns)));
+        assert_eq!(ended, [(1, TrajectoryState::Done, 1, 10 * MS)]);
+        assert_eq!(shared.live(), [None, None]);
+    }
+
+    #[test]
+    fn a_newer_plan_replaces_the_pending_one_then_the_running_one_and_a_drive_out_of_operation_aborts() {
+        let (shared, events, mut player) = (Shared::default(), Events::default(), Player::new(1));
+        let mut image = 0i32.to_le_bytes();
+        shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
+        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        shared.give(plan(2, Some(100 * MS), 0.0, MS)).unwrap();
+        cycle(&mut player, &shared, &events, &mut image, 2, true);
+        shared.give(plan(3, Some(5 * MS), -1000.0, 10 * MS)).unwrap();
+        let sent: Vec<i32> = (3..=6).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        // Plan 1 at 100 counts/ms until plan 3 takes over at 5 ms from 400, toward -1000 in 10 ms.
+        assert_eq!(sent, [200, 300, 400, 260]);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 7, false), 260, "aborted: nothing written");
+        assert_eq!(
+            trajectory_events(&events),
+            [
+                (1, TrajectoryState::Running),
+                (2, TrajectoryState::Replaced { by: 3 }),
+                (1, TrajectoryState::Replaced { by: 3 }),
+                (3, TrajectoryState::Running),
+                (3, TrajectoryState::Aborted { slave: 0, statusword: State::Fault.statusword_bits() }),
+            ]
+        );
+        let caller = Caller::default();
+        let mut returned = 0;
+        shared.collect(|s| {
+            returned += 1;
+            caller.note(s)
+        });
+        assert_eq!(returned, 3);
+        // A pending note that comes late does not hide the end.
+        caller.note(plan(3, None, 0.0, MS).status());
+        assert!(matches!(caller.status(&shared, 3).unwrap().state, TrajectoryState::Aborted { .. }));
+        assert_eq!(caller.status(&shared, 2).unwrap().state, TrajectoryState::Replaced { by: 3 });
+        let e = caller.status(&shared, 9).unwrap_err().to_string();
+        assert!(e.contains("no trajectory 9: the statuses of trajectories 2 ..= 3 are kept"), "{e}");
+    }
+}

@@ -1,0 +1,103 @@
+//! Joint trajectories for Python: `Cycle.play_trajectory`, `Cycle.trajectory_status` and the
+//! "trajectory" events, converted here; the validation, the handoff and the interpolation are
+//! the crate's ([`crate::trajectory`], [`crate::cycle::trajectory_player`]).
+
+use pyo3::prelude::*;
+
+use super::{IntoPyResult, Merged};
+use crate::cycle::events::TrajectoryState;
+use crate::cycle::trajectory_player::Status;
+use crate::cycle::CycleThread;
+use crate::ds402::State;
+use crate::trajectory::{Knot, Limits};
+
+/// One joint at one point as Python gives it: a position, or (position, velocity or None,
+/// acceleration or None).
+#[derive(FromPyObject)]
+pub(super) enum PyKnot {
+    /// (position, velocity, acceleration).
+    Full((f64, Option<f64>, Option<f64>)),
+    /// A position alone.
+    Position(f64),
+}
+
+impl From<&PyKnot> for Knot {
+    fn from(k: &PyKnot) -> Knot {
+        match *k {
+            PyKnot::Full((position, velocity, acceleration)) => Knot { position, velocity, acceleration },
+            PyKnot::Position(position) => Knot::position(position),
+        }
+    }
+}
+
+/// Validates and hands over a trajectory, the GIL released while the cycle thread takes it.
+pub(super) fn play(
+    py: Python<'_>,
+    cycle: &CycleThread,
+    positions: Vec<u16>,
+    times_ns: Vec<u64>,
+    points: Vec<Vec<PyKnot>>,
+    start_ns: Option<u64>,
+    limits: Option<Vec<(f64, f64)>>,
+) -> PyResult<u32> {
+    let points: Vec<Vec<Knot>> = points.iter().map(|p| p.iter().map(Knot::from).collect()).collect();
+    let limits: Option<Vec<Limits>> = limits.map(|l| l.into_iter().map(|(min, max)| Limits { min, max }).collect());
+    py.allow_threads(|| cycle.play_trajectory(&positions, &times_ns, &points, limits.as_deref(), start_ns)).py()
+}
+
+/// Adds what `state` says to `d`: "state", and "replaced_by", "slave", "statusword",
+/// "ds402_state" (None where they do not apply).
+/// How a trajectory stands, as Python sees it in its status and its events: "state",
+/// "replaced_by" (the newer id), and for an abort the drive, its statusword and its CiA 402
+/// state.
+#[derive(IntoPyObject)]
+pub(super) struct StateView {
+    state: &'static str,
+    replaced_by: Option<u32>,
+    slave: Option<u16>,
+    statusword: Option<u16>,
+    ds402_state: Option<&'static str>,
+}
+
+impl From<TrajectoryState> for StateView {
+    fn from(state: TrajectoryState) -> Self {
+        let (replaced_by, aborted) = match state {
+            TrajectoryState::Replaced { by } => (Some(by), None),
+            TrajectoryState::Aborted { slave, statusword } => (None, Some((slave, statusword))),
+            _ => (None, None),
+        };
+        StateView {
+            state: state.name(),
+            replaced_by,
+            slave: aborted.map(|a| a.0),
+            statusword: aborted.map(|a| a.1),
+            ds402_state: aborted.and_then(|a| State::from_statusword(a.1)).map(State::name),
+        }
+    }
+}
+
+/// A trajectory's progress: its id, the point approached, when it started.
+#[derive(IntoPyObject)]
+pub(super) struct ProgressView {
+    id: u32,
+    point: u32,
+    points: u32,
+    started_ns: Option<u64>,
+    elapsed_ns: u64,
+    duration_ns: u64,
+}
+
+/// `Cycle.trajectory_status`: its progress and its state.
+pub(super) type StatusView = Merged<ProgressView, StateView>;
+
+pub(super) fn status_view(s: Status) -> StatusView {
+    let progress = ProgressView {
+        id: s.id,
+        point: s.point,
+        points: s.points,
+        started_ns: (s.started_ns != 0).then_some(s.started_ns),
+        elapsed_ns: s.elapsed_ns,
+        duration_ns: s.duration_ns,
+    };
+    Merged(progress, s.state.into())
+}
