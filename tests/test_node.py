@@ -55,7 +55,9 @@ akd_node:
     joint_states_rate: {rate}
     status_rate: 10.0
     diagnostics_rate: 5.0
-    command_timeout: 0.3
+    # Longer than the node's rare Python stalls on this shared machine (the cycle thread times
+    # the stream at the drive, so a stall that holds the commands back counts as a stop).
+    command_timeout: 1.0
     command_timeout_policy: hold
 """
 
@@ -242,7 +244,7 @@ akd_node:
     joint_name: {joint}
     joint_states_rate: 50.0
     fault_reset: auto_once
-    command_timeout: 0.3
+    command_timeout: 1.0
     command_timeout_policy: quick_stop
     enable_on_start: true
     record.enabled: true
