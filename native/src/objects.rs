@@ -24,7 +24,7 @@ pub fn mappable_object(index: u16, subindex: u8) -> Option<(&'static MappableObj
 /// an object of no known type as unsigned. `None` when the mapping lacks the object or the
 /// image is shorter than the mapping.
 pub fn read(entries: &[PdoEntry], image: &[u8], index: u16, subindex: u8) -> Option<i64> {
-    let (at, entry) = pdo::layout(entries.iter().copied()).find(|(_, e)| (e.index, e.subindex) == (index, subindex))?;
+    let (at, entry) = pdo::find(entries, index, subindex)?;
     let bytes = image.get(at..at + entry.byte_len())?;
     let raw = bytes.iter().rev().fold(0u64, |v, b| (v << 8) | *b as u64);
     let bits = u32::from(entry.bits).min(64);
@@ -37,6 +37,10 @@ pub fn read(entries: &[PdoEntry], image: &[u8], index: u16, subindex: u8) -> Opt
     })
 }
 
+/// Where a drive's actual position is, in the order looked for: position actual value 0x6064,
+/// else the internal value 0x6063 (which the fixed mapping 0x1B01 carries instead).
+pub const POSITION_ACTUAL: [(u16, u8); 2] = [(0x6064, 0), (0x6063, 0)];
+
 /// What one drive's inputs say, read by its mapping: each value `None` where the mapping lacks
 /// its object. The values a caller of one axis shows every cycle.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -45,8 +49,7 @@ pub struct DriveInputs {
     pub statusword: Option<u16>,
     /// Modes of operation display 0x6061.
     pub mode_display: Option<i8>,
-    /// Actual position in counts: position actual value 0x6064, else the internal value 0x6063
-    /// (which the fixed mapping 0x1B01 carries instead).
+    /// Actual position in counts, from the first of [`POSITION_ACTUAL`] mapped.
     pub position_actual: Option<i32>,
     /// Velocity actual value 0x606C.
     pub velocity_actual: Option<i32>,
@@ -65,7 +68,10 @@ impl DriveInputs {
         DriveInputs {
             statusword: value(0x6041).map(|v| v as u16),
             mode_display: value(0x6061).map(|v| v as i8),
-            position_actual: value(0x6064).or_else(|| value(0x6063)).map(|v| v as i32),
+            position_actual: POSITION_ACTUAL
+                .iter()
+                .find_map(|&(index, subindex)| read(entries, inputs, index, subindex))
+                .map(|v| v as i32),
             velocity_actual: value(0x606C).map(|v| v as i32),
             torque_actual: value(0x6077).map(|v| v as i16),
             following_error: value(0x60F4).map(|v| v as i32),

@@ -461,6 +461,12 @@ pub fn layout(entries: impl IntoIterator<Item = PdoEntry>) -> impl Iterator<Item
     })
 }
 
+/// Where object `index:subindex` sits in a mapping's process data (byte offset) and how it is
+/// mapped, if the mapping carries it.
+pub fn find(entries: &[PdoEntry], index: u16, subindex: u8) -> Option<(usize, PdoEntry)> {
+    layout(entries.iter().copied()).find(|(_, e)| (e.index, e.subindex) == (index, subindex))
+}
+
 /// akd_ros's default mapping, outputs: everything every mode of operation needs within the
 /// AKD's flexible limits (22 bytes out, 32 in, 8 per PDO). Controlword, interpolation set-point
 /// 0x60C1:01, modes of operation 0x6060, padding | target velocity 0x60FF, target torque 0x6071,

@@ -56,11 +56,7 @@ impl LatchObjects {
     /// Finds the latch objects in a drive's mapping, offsets moved by `out_base`/`in_base`;
     /// `None` when it carries neither the AKD's latch nor a touch probe with a position.
     pub fn find(rx: &[PdoEntry], tx: &[PdoEntry], out_base: usize, in_base: usize) -> Option<LatchObjects> {
-        let at = |entries: &[PdoEntry], base: usize, index: u16| {
-            pdo::layout(entries.iter().copied())
-                .find(|(_, e)| (e.index, e.subindex) == (index, 0))
-                .map(|(o, _)| base + o)
-        };
+        let at = |entries: &[PdoEntry], base: usize, index: u16| pdo::find(entries, index, 0).map(|(o, _)| base + o);
         let input = |index| at(tx, in_base, index);
         if let (Some(control), Some(status)) = (at(rx, out_base, 0x20A4), input(0x20A5)) {
             let direct = std::array::from_fn(|b| input(0x20A0 + b as u16));

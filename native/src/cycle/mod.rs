@@ -544,8 +544,7 @@ impl CycleThread {
         }
         let slot = self.slot(position)?;
         let (rx, _) = self.mapping(position)?;
-        let (offset, entry) = crate::pdo::layout(rx.iter().copied())
-            .find(|(_, e)| (e.index, e.subindex) == (index, subindex))
+        let (offset, entry) = crate::pdo::find(rx, index, subindex)
             .ok_or_else(|| Error::from(Unavailable::NotInOutputs { slave: position, index, subindex }))?;
         if entry.byte_len() != data.len() {
             return Err(

@@ -22,6 +22,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 use crate::cycle::image::{i32_at, u16_at};
 use crate::ds402::{self, controlword as cw, statusword as sw, State};
 use crate::error::{Result, Unavailable};
+use crate::objects::POSITION_ACTUAL;
 use crate::pdo::{self, PdoEntry};
 
 /// What a caller asks of a drive.
@@ -76,7 +77,7 @@ pub struct Offsets {
     pub statusword: usize,
     /// Position targets held while not enabled: 0x607A and 0x60C1:01, where mapped.
     pub targets: [Option<usize>; 2],
-    /// Actual position in the inputs: 0x6064, else 0x6063.
+    /// Actual position in the inputs: the first of [`POSITION_ACTUAL`] mapped.
     pub actual: Option<usize>,
     /// Modes of operation display 0x6061 in the inputs, where mapped.
     pub mode_display: Option<usize>,
@@ -98,11 +99,7 @@ impl Offsets {
     /// Finds the objects in a drive's mapping; a mapping without controlword or statusword
     /// cannot be sequenced and is refused, naming what is missing.
     pub fn find(rx: &[PdoEntry], tx: &[PdoEntry]) -> Result<Offsets, Unavailable> {
-        let at = |entries: &[PdoEntry], index: u16, subindex: u8| {
-            pdo::layout(entries.iter().copied())
-                .find(|(_, e)| (e.index, e.subindex) == (index, subindex))
-                .map(|(o, _)| o)
-        };
+        let at = |entries: &[PdoEntry], index: u16, subindex: u8| pdo::find(entries, index, subindex).map(|(o, _)| o);
         let controlword = at(rx, 0x6040, 0);
         let statusword = at(tx, 0x6041, 0);
         let (Some(controlword), Some(statusword)) = (controlword, statusword) else {
@@ -116,7 +113,7 @@ impl Offsets {
             return Err(Unavailable::NotSequenced { slave: None, missing });
         };
         let targets = [at(rx, 0x607A, 0), at(rx, 0x60C1, 1)];
-        let actual = at(tx, 0x6064, 0).or_else(|| at(tx, 0x6063, 0));
+        let actual = POSITION_ACTUAL.iter().find_map(|&(index, subindex)| at(tx, index, subindex));
         Ok(Offsets {
             controlword,
             statusword,
