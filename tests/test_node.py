@@ -130,7 +130,8 @@ def test_a_velocity_command_turns_the_axis_and_a_stopped_stream_halts_it(ros, si
     assert sim.state()["velocity"] == pytest.approx(2.0 * COUNTS_PER_RAD, rel=0.05)
     # No more commands: after command_timeout the node halts the axis (policy hold) and it stays enabled.
     ros.spin_until(lambda: abs(ros.latest("/joint_states").velocity[0]) < 0.01, "axis halted")
-    assert sim.state()["state"] == "Operation enabled"
+    drive = sim.state()
+    assert drive["state"] == "Operation enabled", (drive, node.output())
     assert "command_timeout" in node.output()
 
 
