@@ -25,7 +25,7 @@ import collections
 import contextlib
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from akd_ros import _native
 from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
@@ -71,6 +71,20 @@ class _ThisAxis(DriveConfig):
     def attach(self, bus: Bus, slave: int) -> Axis:
         self.axis._attach(bus, slave, self)
         return self.axis
+
+
+@dataclass(frozen=True)
+class CheckedCommand:
+    """A command `Axis.check_command` accepted, ready for `Axis.send_command`: the mode it was checked in, its kind,
+    its value (SI, after the limits), the object it goes to and that object's bytes, and whether the object is mapped
+    (else it goes by SDO)."""
+
+    mode: str
+    kind: str
+    value: float
+    target: tuple[int, int]
+    data: bytes
+    mapped: bool
 
 
 @dataclass(frozen=True)
@@ -238,6 +252,8 @@ class Axis:
         """The drive's position on the bus (found from `alias` when given)."""
         self.name = drive.name or f"slave_{slave}"
         """The drive's name on its bus."""
+        self.serial_number: int = bus.slaves[slave]["serial_number"]
+        """The drive's serial number, from its SII."""
         self.units = drive.units or Units()
         self.limits = drive.limits or Limits()
         self.simulator = bus.simulator
@@ -389,8 +405,10 @@ class Axis:
 
     # --- commands -------------------------------------------------------------------------------------------------
 
-    def _command(self, kind: str, value: float) -> None:
-        cycle = self._running()
+    def check_command(self, kind: str, value: float) -> CheckedCommand:
+        """`value` as a `kind` ("position", "velocity", "torque") command of this axis, checked against its mode and
+        limits and converted for the drive; nothing is sent (`send_command` sends it). CommandError says why not."""
+        self._running()
         mode = _MODES[self._mode]
         if mode.command != kind:
             modes = [name for name, m in _MODES.items() if m.command == kind]
@@ -411,13 +429,27 @@ class Axis:
         mapped = [t for t in mode.command_objects if t in self._outputs]
         target = (mapped or mode.command_objects)[0]
         data = _native.encode_value(*target, drive_value)
-        if mapped:
-            cycle.set_object(self.slave, *target, data)
+        return CheckedCommand(self._mode, kind, checked, target, data, bool(mapped))
+
+    def send_command(self, command: CheckedCommand) -> None:
+        """Sends a command `check_command` gave, in the cycle's next frame (or by SDO where its object is not mapped);
+        CommandError if the mode changed since it was checked."""
+        cycle = self._running()
+        if command.mode != self._mode:
+            raise CommandError(
+                f"{command.kind} command refused: it was checked in mode {command.mode}, the axis is in {self._mode}"
+            )
+        if command.mapped:
+            cycle.set_object(self.slave, *command.target, command.data)
         else:
-            cycle.sdo_write(self.slave, *target, data)
-        if mode.handshake_controlword is not None:
-            self._start(mode.handshake_controlword, "the new position set-point")
-        self._commanded[kind] = checked
+            cycle.sdo_write(self.slave, *command.target, command.data)
+        handshake = _MODES[self._mode].handshake_controlword
+        if handshake is not None:
+            self._start(handshake, "the new position set-point")
+        self._commanded[command.kind] = command.value
+
+    def _command(self, kind: str, value: float) -> None:
+        self.send_command(self.check_command(kind, value))
 
     def _start(self, bits: int, what: str, timeout: float = 1.0) -> None:
         """Runs the set-point handshake in the cycle thread and waits for it: controlword `bits` (bit 4 starts a
@@ -450,6 +482,34 @@ class Axis:
         """Commands a torque (N·m, or N on a linear axis) in profile torque mode."""
         self._command("torque", torque)
 
+    def trajectory_knot(
+        self, position: float, velocity: float | None = None, acceleration: float | None = None, *, point: int = 0
+    ) -> tuple[int, int | None, float | None]:
+        """A trajectory point of this axis (SI) in the drive's counts, counts/s and counts/s², as
+        `Cycle.play_trajectory` takes it; CommandError naming the axis and `point` for NaN or a value past the
+        limits (refused whatever the limits' policy: a trajectory is not bent to fit)."""
+        refuse = replace(self.limits, policy="refuse")
+        try:
+            counts = self.units.position_to_counts(refuse.check("position", position))
+            per_s = None if velocity is None else self.units.velocity_to_counts(refuse.check("velocity", velocity))
+            per_s2 = None if acceleration is None else self.units.acceleration_to_counts(acceleration)
+        except ValueError as e:
+            raise CommandError(f"trajectory refused: joint {self.name}, point {point}: {e}") from None
+        return counts, per_s, per_s2
+
+    def position_limits_counts(self) -> tuple[float, float]:
+        """The position limits in counts (low, high), a 32-bit target's range where open."""
+        ends = []
+        for limit in (self.limits.min_position, self.limits.max_position):
+            try:
+                ends.append(None if limit is None else self.units.position_to_counts(limit))
+            except ValueError:
+                ends.append(None)  # beyond what a 32-bit target reaches: no narrower than that
+        if self.units.direction < 0:
+            ends.reverse()
+        low, high = ends
+        return (-(2.0**31) if low is None else low, 2.0**31 - 1 if high is None else high)
+
     def set_command_timeout(self, seconds: float, policy: str = "hold") -> None:
         """Stops the axis in the cycle thread when a non-zero velocity (profile velocity) or torque (profile torque)
         command is not sent again within `seconds` while it is enabled: policy "hold" halts it (controlword bit 8)
@@ -463,6 +523,11 @@ class Axis:
             raise CommandError(str(e)) from None
 
     @property
+    def command_kind(self) -> str | None:
+        """What the mode's command sets: "position", "velocity", "torque", or None (homing)."""
+        return _MODES[self._mode].command
+
+    @property
     def command(self) -> float | None:
         """The last command accepted in the current mode (SI), None before one."""
         return self._commanded.get(_MODES[self._mode].command or "")
@@ -473,10 +538,12 @@ class Axis:
         self._unwrapped = raw if self._unwrapped is None else unwrap_position(self._unwrapped, raw)
         return self._unwrapped
 
-    def state(self) -> AxisState:
-        """The last cycle's state of the axis."""
+    def state(self, inputs=None) -> AxisState:
+        """The last cycle's state of the axis; from `inputs` (this drive's `_native.DriveInputs`) where given, as
+        `Bus.states` reads every drive's from one cycle."""
         cycle = self._running()
-        inputs = cycle.drive_inputs(self.slave)
+        if inputs is None:
+            inputs = cycle.drive_inputs(self.slave)
         status = cycle.drive_status(self.slave)
         counts = self._position_counts(inputs.position_actual or 0)
         velocity, torque, following = inputs.velocity_actual, inputs.torque_actual, inputs.following_error

@@ -94,8 +94,8 @@ def _picked(drives: Sequence, slaves: list[dict]) -> list[int]:
     return positions
 
 
-def _check(drives: Sequence, fault_reaction: str, period: float, dc_shift: float) -> None:
-    """CommandError for what can be told wrong before the bus is touched."""
+def check(drives: Sequence, fault_reaction: str, period: float, dc_shift: float) -> None:
+    """CommandError for what can be told wrong of a Bus's settings before the bus is touched."""
     if not all(math.isfinite(x) for x in (period, dc_shift)):
         raise CommandError(f"period and dc_shift must be finite seconds, got {period!r} and {dc_shift!r}")
     if fault_reaction not in FAULT_REACTIONS:
@@ -139,13 +139,16 @@ class Bus:
         dc: bool | None = None,
         dc_shift: float = 0.0,
     ) -> None:
-        _check(drives, fault_reaction, period, dc_shift)
+        check(drives, fault_reaction, period, dc_shift)
         self.link = link
         self.fault_reaction = fault_reaction
         self._master = _native.Master(link, timeout=frame_timeout)
         self._cycle = None
         try:
-            positions = _picked(drives, self._master.scan())
+            self.slaves: list[dict] = self._master.scan()
+            """What the scan found of each slave on the line (`_native.Master.scan`), by position: identity (vendor,
+            product, revision, serial number), name, model, firmware, station alias."""
+            positions = _picked(drives, self.slaves)
             self.simulator = None
             """For built-in virtual AKDs: their `Simulator` (fault injection, hardware enable, input toggles)."""
             # The extension knows which links are virtual: the others have no simulator.
@@ -170,6 +173,7 @@ class Bus:
         self._cycle.set_quick_stop_on_fault(fault_reaction == "all")
         self._poll_lock = threading.Lock()
         self._events: dict[int, list[dict]] = {p: [] for p in positions}
+        self._trajectory_events: list[dict] = []
         self._samples: dict[int, dict[str, list]] = {p: {} for p in positions}
         self._samples_dropped = dict.fromkeys(positions, 0)
         self.axes = []
@@ -227,6 +231,11 @@ class Bus:
     def __exit__(self, *exc) -> None:
         self.close()
 
+    @property
+    def names(self) -> list[str]:
+        """The axes' names, in order."""
+        return [axis.name for axis in self.axes]
+
     def __getitem__(self, name: str):
         """The Axis named `name`."""
         for axis in self.axes:
@@ -278,12 +287,67 @@ class Bus:
         """The cycle's events (`_native.Cycle.events`) of drive `slave` since the last call, oldest first, each once;
         those of slaves that are not the bus's drives are dropped."""
         with self._poll_lock:
-            if self._cycle is not None:
-                for e in self._cycle.events():
-                    if e["slave"] in self._events:
-                        self._events[e["slave"]].append(e)
+            self._take_events()
             taken, self._events[slave] = self._events[slave], []
         yield from taken
+
+    def trajectory_events(self) -> Iterator[dict]:
+        """The cycle's trajectory events (a trajectory started, done, replaced or aborted; see
+        `_native.Cycle.events`) since the last call, oldest first, each once."""
+        with self._poll_lock:
+            self._take_events()
+            taken, self._trajectory_events = self._trajectory_events, []
+        yield from taken
+
+    def _take_events(self) -> None:
+        if self._cycle is None:
+            return
+        for e in self._cycle.events():
+            if e["kind"] == "trajectory":
+                self._trajectory_events.append(e)
+            elif e["slave"] in self._events:
+                self._events[e["slave"]].append(e)
+
+    # --- trajectories -----------------------------------------------------------------------------------------------
+
+    def play_trajectory(
+        self,
+        joints: Sequence[str],
+        times: Sequence[float],
+        points: Sequence[Sequence[tuple[float, float | None, float | None]]],
+        start_ns: int | None = None,
+    ) -> int:
+        """Plays a trajectory in the cycle thread: axis `joints[j]` through `points[k][j]` = (position, velocity or
+        None, acceleration or None) in SI units at `times[k]` seconds from the start (strictly increasing, the first
+        > 0), from `start_ns` (time.monotonic_ns(); None: now); quintic where accelerations are given, cubic where
+        velocities are, linear otherwise. Each axis must be enabled in interpolated or cyclic synchronous position.
+        It takes over from the trajectory in force without a step. CommandError, before anything moves, for an
+        unknown joint, a point past an axis's limits (always refused, whatever the policy), NaN or bad times.
+        Returns its id (see `cycle.trajectory_status` and `trajectory_events`)."""
+        axes = [self[name] for name in joints] if all(n in self.names for n in joints) else None
+        if axes is None:
+            unknown = [n for n in joints if n not in self.names]
+            raise CommandError(
+                f"trajectory refused: unknown joint {', '.join(unknown)} (joints: {', '.join(self.names)})"
+            )
+        if len(set(joints)) != len(joints):
+            raise CommandError(f"trajectory refused: a joint is named twice in {', '.join(joints)}")
+        times_ns = []
+        for k, t in enumerate(times):
+            if not math.isfinite(t):
+                raise CommandError(f"trajectory refused: point {k}'s time is {t}, not a finite number of seconds")
+            times_ns.append(round(t * 1e9))
+        knots = []
+        for k, point in enumerate(points):
+            if len(point) != len(axes):
+                raise CommandError(f"trajectory refused: point {k} has {len(point)} values for {len(axes)} joints")
+            knots.append([axis.trajectory_knot(*knot, point=k) for axis, knot in zip(axes, point, strict=True)])
+        try:
+            return self.cycle.play_trajectory(
+                [a.slave for a in axes], times_ns, knots, start_ns, [a.position_limits_counts() for a in axes]
+            )
+        except (_native.ConfigError, OverflowError) as e:
+            raise CommandError(f"trajectory refused: {e}") from None
 
     def samples_of(self, slave: int) -> dict[str, list]:
         """Every cycle's record of drive `slave` since the last call (see `_native.Cycle.samples`), each once."""
@@ -311,6 +375,11 @@ class Bus:
         """Records of drive `slave` dropped because they were not taken in time (beyond the cycle's own
         `samples_dropped`)."""
         return self._samples_dropped[slave]
+
+    def states(self) -> dict:
+        """Every axis's state (`Axis.state`) by name, the drives' values all of the same cycle."""
+        inputs = self.cycle.drives_inputs([axis.slave for axis in self.axes])
+        return {axis.name: axis.state(i) for axis, i in zip(self.axes, inputs, strict=True)}
 
     def stats(self) -> dict:
         """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped."""

@@ -25,14 +25,15 @@ from __future__ import annotations
 import math
 import re
 import socket
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import yaml
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.exceptions import ParameterUninitializedException
 from rclpy.parameter import Parameter
 
-from akd_ros.axis import MODES
+from akd_ros.axis import MODES, DriveConfig
+from akd_ros.bus import FAULT_REACTIONS, CommandError, check
 from akd_ros.units import Limits, Units
 
 CYCLE_TIME_RANGE = (0.00025, 0.01)
@@ -68,6 +69,14 @@ class Spec:
     low: float | None = None
     high: float | None = None
     choices: tuple | None = None
+    per_joint: bool = False
+    """Whether each joint of `joints` has it in its block, as joints.<name>.<parameter>."""
+
+    def of_joint(self, joint: str, default: object) -> Spec:
+        """This parameter in the block of `joint`, with `default` (the top-level value)."""
+        return replace(
+            self, name=f"joints.{joint}.{self.name}", default=default, description=f"Joint {joint}: {self.description}"
+        )
 
     @property
     def type(self) -> Parameter.Type:
@@ -137,7 +146,30 @@ SCHEMA: tuple[Spec, ...] = (
         "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW).",
     ),
-    Spec("slave", 0, "Position of the drive on the bus, counted from 0 nearest the master.", 0, 65535),
+    Spec(
+        "joints",
+        [],
+        "Names of the joints on the bus, each with its own block joints.<name>.* of the joint parameters (slave, "
+        "mode, mapping, units, limits, latches, fault reset, command time-out), whose defaults are the top-level "
+        "values; its topics and services go under ~/<name>/. Empty: one joint, joint_name, with the top-level joint "
+        "parameters and its topics and services under ~/.",
+    ),
+    Spec(
+        "fault_reaction",
+        "all",
+        "What a fault on one joint's drive does to the others: 'all' quick-stops them in the same cycle (as an arm "
+        "needs), 'joint' leaves them as they are.",
+        choices=FAULT_REACTIONS,
+    ),
+    Spec(
+        "slave",
+        0,
+        "Position of the drive on the bus, counted from 0 nearest the master; in a joint's block its default is the "
+        "joint's place in joints.",
+        0,
+        65535,
+        per_joint=True,
+    ),
     Spec(
         "alias",
         -1,
@@ -145,6 +177,7 @@ SCHEMA: tuple[Spec, ...] = (
         "finds the drive instead of slave.",
         -1,
         65535,
+        per_joint=True,
     ),
     Spec(
         "cycle_time",
@@ -174,39 +207,69 @@ SCHEMA: tuple[Spec, ...] = (
         "interpolated_position",
         "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
         choices=tuple(MODES),
+        per_joint=True,
     ),
     Spec(
         "mapping",
         "default",
         "PDO mapping: 'default', fixed mappings 'RX/TX' such as '0x1724/0x1B26', or "
         "'flexible' (then mapping.rx and mapping.tx).",
+        per_joint=True,
     ),
     Spec(
         "mapping.rx",
         [],
         "With mapping 'flexible': the RxPDOs (set-points), one string per PDO of entries "
         "'INDEX:SUB/BITS' separated by spaces, e.g. '0x6040:00/16 0x60C1:01/32'.",
+        per_joint=True,
     ),
-    Spec("mapping.tx", [], "With mapping 'flexible': the TxPDOs (actual values), as mapping.rx."),
+    Spec("mapping.tx", [], "With mapping 'flexible': the TxPDOs (actual values), as mapping.rx.", per_joint=True),
     Spec("joint_name", "akd_axis", "Name of the joint in joint_states and in the package's messages."),
-    Spec("counts_per_revolution", 2**20, "Feedback counts per motor revolution.", 1, 2**31 - 1),
-    Spec("gear_ratio", 1.0, "Motor revolutions per load revolution.", 1e-9, 1e9),
-    Spec("direction", 1, "+1 when the load turns with the motor's positive sense, -1 against it.", choices=(1, -1)),
-    Spec("offset", 0.0, "Load position at motor count 0: rad (m on a linear axis)."),
-    Spec("axis", "rotary", "'rotary' (rad, rad/s, N·m) or 'linear' (m, m/s, N).", choices=("rotary", "linear")),
-    Spec("lead", 0.0, "Linear axis only: metres of travel per load revolution (0 on a rotary axis).", 0.0, 1e6),
+    Spec("counts_per_revolution", 2**20, "Feedback counts per motor revolution.", 1, 2**31 - 1, per_joint=True),
+    Spec("gear_ratio", 1.0, "Motor revolutions per load revolution.", 1e-9, 1e9, per_joint=True),
     Spec(
-        "peak_torque", 3.0, "The drive's peak torque at the motor in N·m, which torque command 100 % means.", 1e-9, 1e6
+        "direction",
+        1,
+        "+1 when the load turns with the motor's positive sense, -1 against it.",
+        choices=(1, -1),
+        per_joint=True,
     ),
-    Spec("limits.min_position", -_INF, "Lowest position command, rad (m); -.inf for none."),
-    Spec("limits.max_position", _INF, "Highest position command, rad (m); .inf for none."),
-    Spec("limits.max_velocity", _INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none."),
-    Spec("limits.max_torque", _INF, "Largest torque command magnitude, N·m (N); .inf for none."),
+    Spec("offset", 0.0, "Load position at motor count 0: rad (m on a linear axis).", per_joint=True),
+    Spec(
+        "axis",
+        "rotary",
+        "'rotary' (rad, rad/s, N·m) or 'linear' (m, m/s, N).",
+        choices=("rotary", "linear"),
+        per_joint=True,
+    ),
+    Spec(
+        "lead",
+        0.0,
+        "Linear axis only: metres of travel per load revolution (0 on a rotary axis).",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "peak_torque",
+        3.0,
+        "The drive's peak torque at the motor in N·m, which torque command 100 % means.",
+        1e-9,
+        1e6,
+        per_joint=True,
+    ),
+    Spec("limits.min_position", -_INF, "Lowest position command, rad (m); -.inf for none.", per_joint=True),
+    Spec("limits.max_position", _INF, "Highest position command, rad (m); .inf for none.", per_joint=True),
+    Spec(
+        "limits.max_velocity", _INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none.", per_joint=True
+    ),
+    Spec("limits.max_torque", _INF, "Largest torque command magnitude, N·m (N); .inf for none.", per_joint=True),
     Spec(
         "limits.policy",
         "refuse",
         "A command past a limit is refused, or clamped to the limit.",
         choices=("refuse", "clamp"),
+        per_joint=True,
     ),
     Spec("joint_states_rate", 100.0, "Rate of /joint_states in Hz.", 1.0, 1000.0),
     Spec("status_rate", 10.0, "Rate of ~/status in Hz.", 0.1, 100.0),
@@ -216,6 +279,7 @@ SCHEMA: tuple[Spec, ...] = (
         [],
         "Latches armed at activate, each 'CHANNEL/EDGE' with channel 1 or 2 and edge rising "
         "or falling, e.g. ['1/rising', '2/falling'].",
+        per_joint=True,
     ),
     Spec(
         "fault_reset",
@@ -223,6 +287,7 @@ SCHEMA: tuple[Spec, ...] = (
         "'manual': a fault stays until ~/reset_fault; 'auto_once': each fault is reset "
         "once automatically (the drive is left disabled, never re-enabled).",
         choices=FAULT_RESET_POLICIES,
+        per_joint=True,
     ),
     Spec(
         "command_timeout",
@@ -231,6 +296,7 @@ SCHEMA: tuple[Spec, ...] = (
         "after which command_timeout_policy acts; 0 for never.",
         0.0,
         60.0,
+        per_joint=True,
     ),
     Spec(
         "command_timeout_policy",
@@ -238,6 +304,7 @@ SCHEMA: tuple[Spec, ...] = (
         "'hold': halt (controlword bit 8) and stay enabled until the next "
         "command; 'quick_stop': quick stop, ~/enable to go on.",
         choices=COMMAND_TIMEOUT_POLICIES,
+        per_joint=True,
     ),
     Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
@@ -271,31 +338,55 @@ SPECS = {spec.name: spec for spec in SCHEMA}
 
 
 @dataclass(frozen=True)
-class Settings:
-    """The node's checked parameters, in the forms the Axis takes."""
+class JointSettings:
+    """One joint's checked parameters, in the forms the Bus and its Axis take."""
 
-    link: str
-    slave: int
+    name: str
+    slave: int | None
+    """The drive's position on the bus; None when `alias` finds it."""
     alias: int | None
     """The station alias that finds the drive, None to use `slave`."""
-    cycle_time: float
-    dc: bool | None
-    """The Axis's `dc`: True on, False off, None the link's default."""
-    dc_shift: float
     mode: str
     mapping: tuple[object, object] | None
-    """(rx, tx) for `akd_ros.Axis`, None for its default mapping."""
-    joint_name: str
+    """(rx, tx) for `akd_ros.DriveConfig`, None for its default mapping."""
     units: Units
     limits: Limits
-    joint_states_rate: float
-    status_rate: float
-    diagnostics_rate: float
     latch_arm: tuple[tuple[int, str], ...]
     """(channel, edge) of each latch armed at activate."""
     fault_reset: str
     command_timeout: float
     command_timeout_policy: str
+
+    def drive(self) -> DriveConfig:
+        """The joint's drive as a Bus takes it."""
+        return DriveConfig(
+            slave=self.slave,
+            alias=self.alias,
+            name=self.name,
+            mode=self.mode,
+            units=self.units,
+            limits=self.limits,
+            mapping=self.mapping,
+        )
+
+
+@dataclass(frozen=True)
+class Settings:
+    """The node's checked parameters, in the forms the Bus takes."""
+
+    link: str
+    cycle_time: float
+    dc: bool | None
+    """The Bus's `dc`: True on, False off, None the link's default."""
+    dc_shift: float
+    fault_reaction: str
+    joints: tuple[JointSettings, ...]
+    """Every joint, in the order of the joints parameter (one, joint_name, without it)."""
+    joint_namespaces: bool
+    """Whether each joint's topics and services go under ~/<joint>/ (joints given) rather than ~/ (one joint)."""
+    joint_states_rate: float
+    status_rate: float
+    diagnostics_rate: float
     rt_priority: int | None
     rt_cpu: int | None
     rt_lock_memory: bool
@@ -305,23 +396,39 @@ class Settings:
     enable_on_start: bool
 
 
+def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
+    """The parameters of each joint's block, with the top-level values `top` as defaults (slave: the joint's place in
+    `joints`)."""
+    return [
+        spec.of_joint(joint, position if spec.name == "slave" else top[spec.name])
+        for position, joint in enumerate(joints)
+        for spec in SCHEMA
+        if spec.per_joint
+    ]
+
+
 def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Settings:
-    """Declares every parameter on `node` (what the ROS arguments gave each checked first) and gives the checked
-    settings; raises ParameterError naming the first parameter that is wrong and what it allows.
+    """Declares every parameter on `node` (what the ROS arguments gave each checked first), with every joint's block
+    (joints.<name>.*), and gives the checked settings; raises ParameterError naming the first parameter that is wrong
+    and what it allows.
 
     `arguments` are the command lines rcl read for the node (rclpy.init's and the node's own cli_args) and
     `overrides` the node's parameter_overrides: they tell which names were given, so that a name given but not
     declared is reported as unknown."""
     named = {**_named_in(arguments), **{parameter.name: parameter.value for parameter in overrides}}
-    for spec in SCHEMA:
-        given = _given(node, spec.name)
-        # An empty YAML list arrives without a type, as nothing does.
-        unset = given.type_ == Parameter.Type.NOT_SET and named.get(spec.name) != []
-        value = spec.check(spec.default if unset else given.value)
-        if value == []:
-            node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor(), ignore_override=True)
-        else:
-            node.declare_parameter(spec.name, value, spec.descriptor(), ignore_override=True)
+    top = {spec.name: _declare(node, spec, named) for spec in SCHEMA}
+    joints = check_joint_names(top["joints"])
+    if joints:
+        given_once = sorted(n for n in ("joint_name", "slave", "alias") if n in named)
+        if given_once:
+            raise ParameterError(
+                f"parameter {', '.join(given_once)} applies to a file without joints; with joints, each joint is "
+                "named in joints and found by joints.<name>.slave (default: its place in joints) or "
+                "joints.<name>.alias"
+            )
+    values = dict(top)
+    for spec in joint_specs(joints, top):
+        values[spec.name] = _declare(node, spec, named)
     unknown = sorted(
         n
         for n in named
@@ -330,8 +437,44 @@ def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Sett
         and _given(node, n).type_ != Parameter.Type.NOT_SET
     )
     if unknown:
-        raise ParameterError(f"unknown parameter {', '.join(unknown)}; the parameters are: {', '.join(SPECS)}")
-    return settings({spec.name: _value(node, spec.name) for spec in SCHEMA})
+        raise ParameterError(
+            f"unknown parameter {', '.join(unknown)}; the parameters are: {', '.join(SPECS)}, and for each joint "
+            f"of joints ({', '.join(joints) or 'none given'}) joints.<name>.<one of "
+            f"{', '.join(s.name for s in SCHEMA if s.per_joint)}>"
+        )
+    return settings(values)
+
+
+def _declare(node, spec: Spec, named: dict[str, object]) -> object:
+    """Declares `spec` on `node` with what the ROS arguments gave it, checked; its value."""
+    given = _given(node, spec.name)
+    # An empty YAML list arrives without a type, as nothing does.
+    unset = given.type_ == Parameter.Type.NOT_SET and named.get(spec.name) != []
+    value = spec.check(spec.default if unset else given.value)
+    if value == []:
+        node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor(), ignore_override=True)
+    else:
+        node.declare_parameter(spec.name, value, spec.descriptor(), ignore_override=True)
+    return value
+
+
+JOINT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]*(_[A-Za-z0-9]+)*")
+"""A joint name of `joints`: one ROS name token (letters, digits, single underscores inside; a letter first), so that
+~/<joint>/ is a valid namespace and joints.<name>.* a valid parameter name."""
+
+
+def check_joint_names(joints: list[str]) -> list[str]:
+    """`joints` if every name is a ROS name token and none is given twice; ParameterError otherwise."""
+    for joint in joints:
+        if not JOINT_NAME.fullmatch(joint):
+            raise ParameterError(
+                f"parameter joints: {joint!r} is not a joint name; allowed: letters, digits and single underscores "
+                "between them, a letter first (e.g. joint_1, shoulder_pan)"
+            )
+    twice = sorted({j for j in joints if joints.count(j) > 1})
+    if twice:
+        raise ParameterError(f"parameter joints names {', '.join(twice)} more than once; each joint once")
+    return joints
 
 
 def _given(node, name: str) -> Parameter:
@@ -391,67 +534,93 @@ def _value(node, name: str) -> object:
 
 
 def settings(values: dict[str, object]) -> Settings:
-    """The settings for `values` (every parameter of SCHEMA by name, each of its type); raises ParameterError."""
-    values = {name: SPECS[name].check(value) for name, value in values.items()}
-    link = check_link(values["link"])
-    rx, tx = values["mapping.rx"], values["mapping.tx"]
-    mapping = parse_mapping(values["mapping"], rx, tx)
-    if mapping is not None:
-        check_mapping(mapping)
+    """The settings for `values` (every parameter of SCHEMA by name, and with joints each joint's block
+    joints.<name>.<parameter>, missing ones taking their defaults); raises ParameterError."""
+    top = {spec.name: spec.check(values[spec.name]) for spec in SCHEMA}
+    link = check_link(top["link"])
+    if not abs(top["dc_shift"]) < top["cycle_time"]:
+        raise ParameterError(
+            f"parameter dc_shift must be less than one cycle_time ({top['cycle_time']} s) either way, "
+            f"got {top['dc_shift']}"
+        )
+    names = check_joint_names(top["joints"])
+    if names:
+        blocks = {}
+        for spec in joint_specs(names, top):
+            blocks[spec.name] = spec.check(values.get(spec.name, spec.default))
+        joints = tuple(
+            joint_settings(name, f"joints.{name}.", {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA})
+            for name in names
+        )
+    else:
+        joints = (joint_settings(top["joint_name"], "", top),)
     try:
-        lead = values["lead"] or None
+        check([j.drive() for j in joints], top["fault_reaction"], top["cycle_time"], top["dc_shift"])
+    except CommandError as e:
+        raise ParameterError(f"parameters joints.<name>.slave/alias: {e}") from None
+    return Settings(
+        link=link,
+        cycle_time=top["cycle_time"],
+        dc=DC_CHOICES[top["dc"]],
+        dc_shift=top["dc_shift"],
+        fault_reaction=top["fault_reaction"],
+        joints=joints,
+        joint_namespaces=bool(names),
+        joint_states_rate=top["joint_states_rate"],
+        status_rate=top["status_rate"],
+        diagnostics_rate=top["diagnostics_rate"],
+        rt_priority=top["rt.priority"] or None,
+        rt_cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
+        rt_lock_memory=top["rt.lock_memory"],
+        record={
+            "folder": top["record.folder"],
+            "decimation": top["record.decimation"],
+            "black_box_seconds": top["record.black_box_seconds"],
+        }
+        if top["record.enabled"]
+        else None,
+        autostart=top["autostart"],
+        enable_on_start=top["enable_on_start"],
+    )
+
+
+def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSettings:
+    """The joint `name` of its checked parameters `values` (by their top-level names), whose messages name each
+    parameter with `prefix` ("" at the top level, "joints.<name>." in a block); raises ParameterError."""
+    mapping = parse_mapping(values["mapping"], values["mapping.rx"], values["mapping.tx"], prefix)
+    if mapping is not None:
+        check_mapping(mapping, prefix)
+    lead = values["lead"] or None
+    if values["axis"] == "rotary" and lead is not None:
+        raise ParameterError(
+            f"parameter {prefix}lead applies to a linear axis only; with {prefix}axis 'rotary' it must be 0, got {lead}"
+        )
+    try:
         units = Units(
             values["counts_per_revolution"],
             values["gear_ratio"],
             values["direction"],
             values["offset"],
             values["axis"],
-            lead if values["axis"] == "linear" else None,
+            lead,
             values["peak_torque"],
         )
     except ValueError as e:
-        raise ParameterError(f"parameters axis/lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')") from None
-    if values["axis"] == "rotary" and lead is not None:
         raise ParameterError(
-            f"parameter lead applies to a linear axis only; with axis 'rotary' it must be 0, got {lead}"
-        )
-    limits = parse_limits(values)
-    if not abs(values["dc_shift"]) < values["cycle_time"]:
-        raise ParameterError(
-            f"parameter dc_shift must be less than one cycle_time ({values['cycle_time']} s) either way, "
-            f"got {values['dc_shift']}"
-        )
-    return Settings(
-        link=link,
-        slave=values["slave"],
+            f"parameters {prefix}axis/{prefix}lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')"
+        ) from None
+    return JointSettings(
+        name=name,
+        slave=None if values["alias"] >= 0 else values["slave"],
         alias=None if values["alias"] < 0 else values["alias"],
-        cycle_time=values["cycle_time"],
-        dc=DC_CHOICES[values["dc"]],
-        dc_shift=values["dc_shift"],
         mode=values["mode"],
         mapping=mapping,
-        joint_name=values["joint_name"],
         units=units,
-        limits=limits,
-        joint_states_rate=values["joint_states_rate"],
-        status_rate=values["status_rate"],
-        diagnostics_rate=values["diagnostics_rate"],
-        latch_arm=parse_latches(values["latch.arm"]),
+        limits=parse_limits(values, prefix),
+        latch_arm=parse_latches(values["latch.arm"], prefix),
         fault_reset=values["fault_reset"],
         command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
-        rt_priority=values["rt.priority"] or None,
-        rt_cpu=None if values["rt.cpu"] < 0 else values["rt.cpu"],
-        rt_lock_memory=values["rt.lock_memory"],
-        record={
-            "folder": values["record.folder"],
-            "decimation": values["record.decimation"],
-            "black_box_seconds": values["record.black_box_seconds"],
-        }
-        if values["record.enabled"]
-        else None,
-        autostart=values["autostart"],
-        enable_on_start=values["enable_on_start"],
     )
 
 
@@ -473,25 +642,27 @@ def check_link(link: str) -> str:
     return link
 
 
-def parse_mapping(mapping: str, rx: list[str], tx: list[str]) -> tuple[object, object] | None:
-    """(rx, tx) in the form `_native.Master.configure_pdo` takes, None for 'default'; raises ParameterError."""
+def parse_mapping(mapping: str, rx: list[str], tx: list[str], prefix: str = "") -> tuple[object, object] | None:
+    """(rx, tx) in the form `_native.Master.configure_pdo` takes, None for 'default'; raises ParameterError naming
+    the parameters with `prefix`."""
     allowed = "'default', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
     if (rx or tx) and mapping != "flexible":
         raise ParameterError(
-            f"parameters mapping.rx and mapping.tx apply to mapping 'flexible' only; mapping is {mapping!r}"
+            f"parameters {prefix}mapping.rx and {prefix}mapping.tx apply to mapping 'flexible' only; "
+            f"{prefix}mapping is {mapping!r}"
         )
     if mapping == "default":
         return None
     if mapping == "flexible":
         if not rx or not tx:
             raise ParameterError(
-                "parameter mapping 'flexible' needs both mapping.rx and mapping.tx, each a list of "
-                "PDOs such as ['0x6040:00/16 0x60C1:01/32']"
+                f"parameter {prefix}mapping 'flexible' needs both {prefix}mapping.rx and {prefix}mapping.tx, each a "
+                "list of PDOs such as ['0x6040:00/16 0x60C1:01/32']"
             )
-        return [_pdo("mapping.rx", p) for p in rx], [_pdo("mapping.tx", p) for p in tx]
+        return [_pdo(f"{prefix}mapping.rx", p) for p in rx], [_pdo(f"{prefix}mapping.tx", p) for p in tx]
     found = re.fullmatch(r"0x([0-9A-Fa-f]{4})/0x([0-9A-Fa-f]{4})", mapping)
     if not found:
-        raise ParameterError(f"parameter mapping {mapping!r} is not a mapping; allowed: {allowed}")
+        raise ParameterError(f"parameter {prefix}mapping {mapping!r} is not a mapping; allowed: {allowed}")
     return int(found[1], 16), int(found[2], 16)
 
 
@@ -510,7 +681,7 @@ def _pdo(name: str, text: str) -> list[int]:
     return entries
 
 
-def check_mapping(mapping: tuple[object, object]) -> None:
+def check_mapping(mapping: tuple[object, object], prefix: str = "") -> None:
     """Checks `mapping` against the AKD's mapping rules (the extension's, without a drive); ParameterError with the
     reason (and the allowed fixed mappings) when a drive would refuse it."""
     from akd_ros import _native
@@ -518,16 +689,16 @@ def check_mapping(mapping: tuple[object, object]) -> None:
     try:
         _native.check_mapping(*mapping)
     except _native.PdoError as e:
-        raise ParameterError(f"parameter mapping: {e}") from None
+        raise ParameterError(f"parameter {prefix}mapping: {e}") from None
 
 
-def parse_limits(values: dict[str, object]) -> Limits:
-    """The Limits of the limits.* parameters (an infinite one is no limit)."""
+def parse_limits(values: dict[str, object], prefix: str = "") -> Limits:
+    """The Limits of the limits.* parameters (an infinite one is no limit), named with `prefix` in messages."""
 
     def bound(name: str) -> float | None:
         value = values["limits." + name]
         if math.isnan(value):
-            raise ParameterError(f"parameter limits.{name} must be a number or .inf/-.inf for none, got NaN")
+            raise ParameterError(f"parameter {prefix}limits.{name} must be a number or .inf/-.inf for none, got NaN")
         return None if math.isinf(value) else value
 
     try:
@@ -539,17 +710,18 @@ def parse_limits(values: dict[str, object]) -> Limits:
             values["limits.policy"],
         )
     except ValueError as e:
-        raise ParameterError(f"parameters limits.*: {e}") from None
+        raise ParameterError(f"parameters {prefix}limits.*: {e}") from None
 
 
-def parse_latches(items: list[str]) -> tuple[tuple[int, str], ...]:
-    """(channel, edge) of each 'CHANNEL/EDGE' of latch.arm; raises ParameterError."""
+def parse_latches(items: list[str], prefix: str = "") -> tuple[tuple[int, str], ...]:
+    """(channel, edge) of each 'CHANNEL/EDGE' of latch.arm; raises ParameterError naming it with `prefix`."""
     latches = []
     for item in items:
         channel, _, edge = item.partition("/")
         if channel not in ("1", "2") or edge not in EDGES:
             raise ParameterError(
-                f"parameter latch.arm: {item!r} is not CHANNEL/EDGE; allowed: 1/rising, 1/falling, 2/rising, 2/falling"
+                f"parameter {prefix}latch.arm: {item!r} is not CHANNEL/EDGE; allowed: 1/rising, 1/falling, 2/rising, "
+                "2/falling"
             )
         latches.append((int(channel), edge))
     return tuple(latches)

@@ -403,13 +403,15 @@ class Recorder:
     after the local time it was opened at. A recorder not closed is closed at interpreter exit.
     Arguments:
 
-    - ``cycle_rate_hz``: the rate of :meth:`cycle_sample` calls, which sizes the black box ring.
+    - ``cycle_rate_hz``: the rate of cycles, which sizes the black box ring.
+    - ``samples_per_cycle``: :meth:`cycle_sample` calls per cycle (one per drive of a bus, in
+      turn), which also size the ring; decimation keeps or drops a cycle's samples together.
     - ``split_size`` (bytes) / ``split_duration`` (seconds): start a new MCAP file when the
       current one has reached this size, or spans this long; None never splits.
     - ``chunk_size`` (bytes) / ``flush_interval`` (seconds): a chunk is closed, compressed and
       written when it holds this much, or is this old; a killed process loses at most that.
     - ``compression``: ``'zstd'``, ``'lz4'`` or ``'none'`` for the chunks.
-    - ``decimation``: record every n-th cycle sample on the cycle topic; 0 records none (the
+    - ``decimation``: record every n-th cycle's samples on the cycle topic; 0 records none (the
       black box still keeps them all).
     - ``black_box_seconds``: how much of the past :meth:`fault` writes to the black box topic.
     - ``queue_size``: messages waiting for the writer thread beyond which :meth:`write` drops.
@@ -431,6 +433,7 @@ class Recorder:
         compression: str = "zstd",
         decimation: int = 1,
         black_box_seconds: float = 5.0,
+        samples_per_cycle: int = 1,
         queue_size: int = 100_000,
         prefix: str = "akd",
         on_error: Callable[[str], None] | None = None,
@@ -441,6 +444,7 @@ class Recorder:
         _check_positive("chunk_size", chunk_size, integer=True)
         _check_positive("flush_interval", flush_interval)
         _check_positive("queue_size", queue_size, integer=True)
+        _check_positive("samples_per_cycle", samples_per_cycle, integer=True)
         if split_size is not None:
             _check_positive("split_size", split_size, integer=True)
         if split_duration is not None:
@@ -466,7 +470,8 @@ class Recorder:
         self._cycle_topic: str | None = None
         self._black_box_topic: str | None = None
         self._cycle_class: type | None = None
-        ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz))
+        self._samples_per_cycle = samples_per_cycle
+        ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz) * samples_per_cycle)
         self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
         self._black_box_ns = int(black_box_seconds * 1e9)
@@ -569,7 +574,7 @@ class Recorder:
             expected, got = self._cycle_class.__qualname__, type(msg).__qualname__
             raise ValueError(f"the cycle topic takes {expected}, not {got}")
         self._ring.append((time_ns, msg))
-        if self._decimation and self._cycle_count % self._decimation == 0:
+        if self._decimation and (self._cycle_count // self._samples_per_cycle) % self._decimation == 0:
             self._enqueue((self._cycle_topic, msg, time_ns))
         self._cycle_count += 1
 

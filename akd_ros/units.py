@@ -152,6 +152,10 @@ class Units:
         unit = self.position_unit + "/s"
         return _drive_value("velocity", velocity, counts, (INT32_MIN, INT32_MAX), self.velocity_to_si, unit)
 
+    def acceleration_to_counts(self, acceleration: float) -> float:
+        """Motor counts/s² for the load acceleration `acceleration` (rad/s² or m/s²)."""
+        return _finite("acceleration", acceleration) / self.si_per_count
+
     def torque_to_si(self, value: int) -> float:
         """The load torque (N·m) or force (N) for the drive torque `value` (0x6077, 0.1 % of peak)."""
         return value * self.si_per_torque_unit

@@ -296,6 +296,9 @@ def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself_all_rec
         NODE + "position_command",
         NODE + "velocity_command",
         NODE + "torque_command",
+        NODE + "joint_commands",
+        NODE + "joint_trajectory",
+        NODE + "trajectory_status",
         NODE + "cycle",
         NODE + "black_box",
     }, counts

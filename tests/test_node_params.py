@@ -192,8 +192,9 @@ def test_the_real_drive_template_names_only_known_parameters_with_good_values():
     # Its link names an interface of the target machine, which this one need not have.
     values["link"] = "sim"
     settings = params.settings(values)
-    assert (settings.rt_priority, settings.rt_cpu, settings.limits.max_velocity) == (80, 1, 50.0)
-    assert math.isinf(template["limits.max_position"]) and settings.limits.max_position is None
+    (joint,) = settings.joints
+    assert (settings.rt_priority, settings.rt_cpu, joint.limits.max_velocity) == (80, 1, 50.0)
+    assert math.isinf(template["limits.max_position"]) and joint.limits.max_position is None
 
 
 @pytest.fixture
@@ -225,7 +226,8 @@ def test_every_parameter_is_declared_with_type_description_and_range(node_in_pro
     direction = descriptors["direction"].integer_range[0]
     assert (direction.from_value, direction.to_value, direction.step) == (-1, 1, 2)
     assert node_in_process.get_parameter("mode").value == "interpolated_position"
-    assert node_in_process.settings.latch_arm == () and node_in_process.settings.mapping is None
+    (joint,) = node_in_process.settings.joints
+    assert joint.latch_arm == () and joint.mapping is None and joint.name == "akd_axis"
 
 
 def test_without_autostart_the_lifecycle_services_walk_the_node(tmp_path):

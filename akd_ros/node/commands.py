@@ -1,74 +1,152 @@
-"""Commands: ~/position_command, ~/velocity_command and ~/torque_command (std_msgs/Float64, SI), their refusal, the
-command time-out and the automatic fault reset, and the drive requests that the services and the transitions make
-(enable, disable, reset_fault, quick_stop).
+"""Commands: each joint's position_command, velocity_command and torque_command (std_msgs/Float64, SI), the set-points
+of several joints by name on ~/joint_commands (sensor_msgs/JointState), their refusal, the command time-out and the
+automatic fault reset, and the drive requests that the services and the transitions make (enable, disable,
+reset_fault, quick_stop, of one joint or of every joint).
 
 A refused command never reaches the drive; each kind is logged as a warning at most once per
-_REFUSAL_LOG_PERIOD_S, with the count of those not logged. A velocity or torque command that is not zero and not
-renewed for `command_timeout` seconds is handled by `command_timeout_policy` (hold: halt until the next command;
-quick_stop) in the cycle thread, which sees the stream stop to the cycle (`Axis.set_command_timeout`); the node
-logs what it did. Every command received is recorded, refused ones too, at its arrival."""
+_REFUSAL_LOG_PERIOD_S, with the count of those not logged. A JointState on ~/joint_commands is checked whole before
+any of it is sent: an unknown joint, a missing value, NaN or a value past a limit refuses all of it. Each named joint
+takes the value its mode commands (position, velocity, or effort for torque). A velocity or torque command that is not
+zero and not renewed for the joint's `command_timeout` seconds is handled by its `command_timeout_policy` (hold: halt
+until the next command; quick_stop) in the cycle thread, which sees the stream stop to the cycle
+(`Axis.set_command_timeout`); the node logs what it did. Every command received is recorded, refused ones too, at
+its arrival."""
 
 from __future__ import annotations
 
 import math
 import re
 import time
-from collections.abc import Callable
 
 from rclpy.qos import QoSProfile
+from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 
-from akd_ros.axis import Axis, CommandError
-from akd_ros.node.session import AXIS_ERRORS, FAULT_STATES, Session
+from akd_ros.axis import Axis, CheckedCommand, CommandError
+from akd_ros.bus import BusRequestError
+from akd_ros.node.session import AXIS_ERRORS, FAULT_STATES, Session, namespace
 
 _SUPERVISOR_PERIOD_S = 0.02
 # How often one kind of refused command is logged.
 _REFUSAL_LOG_PERIOD_S = 1.0
 _NUMBER = re.compile(r"[-+]?(\d+\.?\d*(e[-+]?\d+)?|nan|inf)")
+COMMAND_KINDS = ("position", "velocity", "torque")
+"""The kinds of command, each with its topic per joint."""
+_JOINT_STATE_FIELD = {"position": "position", "velocity": "velocity", "torque": "effort"}
+_REQUEST_WORDS = {
+    "enable": ("not enabled", "Operation enabled; the target holds the actual position until commanded"),
+    "disable": ("not disabled", "Switch on disabled (power stage off)"),
+    "reset_fault": ("fault not reset", "fault reset: Switch on disabled; call ~/enable to go on"),
+    "quick_stop": ("quick stop failed", "Quick stop active; call ~/enable to go on"),
+}
 
 
 class Commands:
     """The command subscriptions (in `group`, `qos`), the supervisor timer (in `supervisor_group`: it may wait on
-    the drive) that resets a fault under auto_once, and whether such a reset is due."""
+    the drive) that resets a fault under auto_once, and which joints such a reset is due for."""
 
     def __init__(self, node, session: Session, group, qos: QoSProfile, supervisor_group) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
         self._logger = node.get_logger()
         self.qos = qos
-        self._reset_pending = False
+        self._reset_pending: set[str] = set()
         self._refusals: dict[str, tuple[float, int]] = {}
-        self.topics: dict[str, str] = {}
-        """The command topics' names by kind (position, velocity, torque)."""
-        for kind in ("position", "velocity", "torque"):
-            subscription = node.create_subscription(
-                Float64, f"~/{kind}_command", lambda m, k=kind: self._on_command(k, m), qos, callback_group=group
-            )
-            self.topics[kind] = subscription.topic_name
+        self.topics: dict[tuple[str, str], str] = {}
+        """The command topics' names by (joint, kind)."""
+        for joint in session.joints:
+            ns = namespace(session.settings, joint.name)
+            for kind in COMMAND_KINDS:
+                subscription = node.create_subscription(
+                    Float64,
+                    f"{ns}{kind}_command",
+                    lambda m, j=joint.name, k=kind: self._on_command(j, k, m),
+                    qos,
+                    callback_group=group,
+                )
+                self.topics[joint.name, kind] = subscription.topic_name
+        subscription = node.create_subscription(
+            JointState, "~/joint_commands", self._on_joint_commands, qos, callback_group=group
+        )
+        self.joint_commands_topic: str = subscription.topic_name
         node.create_timer(_SUPERVISOR_PERIOD_S, self._supervise, supervisor_group)
 
-    def fault_seen(self) -> None:
-        """A fault was published: under fault_reset auto_once the supervisor resets it."""
-        self._reset_pending = self._settings.fault_reset == "auto_once"
+    def recorded_topics(self) -> list[tuple[str, type]]:
+        """Every command topic with its message type, for the recorder."""
+        return [(topic, Float64) for topic in self.topics.values()] + [(self.joint_commands_topic, JointState)]
 
-    def _on_command(self, kind: str, message: Float64) -> None:
+    def fault_seen(self, joint: str) -> None:
+        """A fault of `joint` was published: under its fault_reset auto_once the supervisor resets it."""
+        if next(j for j in self._session.joints if j.name == joint).fault_reset == "auto_once":
+            self._reset_pending.add(joint)
+
+    def _enabled_axis(self, joint: str, what: str) -> Axis:
+        """The Axis of `joint` if the node is active and its drive in Operation enabled; CommandError otherwise.
+        Called with the session's lock held."""
+        session = self._session
+        if session.bus is None or not session.active:
+            raise CommandError(f"{what} refused: the node is not active (activate it first)")
+        axis = session.bus[joint]
+        drive_state = axis.cycle.drive_status(axis.slave)["state"]
+        if drive_state != "Operation enabled":
+            raise CommandError(
+                f"{what} refused: the drive of {joint} is in {drive_state}, not Operation enabled; call ~/enable first"
+            )
+        return axis
+
+    def _on_command(self, joint: str, kind: str, message: Float64) -> None:
         session = self._session
         recorder = session.recorder
         if recorder is not None:
-            recorder.write(self.topics[kind], message, self._clock.now_ns())
-        value = message.data
+            recorder.write(self.topics[joint, kind], message, self._clock.now_ns())
         try:
             with session.lock:
-                if session.axis is None or not session.active:
-                    raise CommandError(f"{kind} command refused: the node is not active (activate it first)")
-                drive_state = session.axis.cycle.drive_status(session.axis.slave)["state"]
-                if drive_state != "Operation enabled":
-                    raise CommandError(
-                        f"{kind} command refused: the drive is in {drive_state}, not Operation "
-                        "enabled; call ~/enable first"
-                    )
-                getattr(session.axis, f"command_{kind}")(value)
+                axis = self._enabled_axis(joint, f"{kind} command")
+                axis.send_command(axis.check_command(kind, message.data))
         except CommandError as e:
-            self._warn_refused(str(e))
+            self._warn_refused(f"{joint}: {e}")
+
+    def _on_joint_commands(self, message: JointState) -> None:
+        session = self._session
+        recorder = session.recorder
+        if recorder is not None:
+            recorder.write(self.joint_commands_topic, message, self._clock.now_ns())
+        try:
+            with session.lock:
+                checked = self._check_joint_commands(message)
+                for axis, command in checked:
+                    axis.send_command(command)
+        except CommandError as e:
+            self._warn_refused(f"~/joint_commands refused, nothing sent: {e}")
+
+    def _check_joint_commands(self, message: JointState) -> list[tuple[Axis, CheckedCommand]]:
+        """Each named joint's command of `message`, all checked; CommandError naming the first problem."""
+        names = list(message.name)
+        known = [j.name for j in self._session.joints]
+        unknown = [n for n in names if n not in known]
+        if unknown:
+            raise CommandError(f"unknown joint {', '.join(unknown)} (joints: {', '.join(known)})")
+        if len(set(names)) != len(names):
+            raise CommandError(f"a joint is named twice in {', '.join(names)}")
+        if not names:
+            raise CommandError("no joint named (name is empty)")
+        checked = []
+        for i, joint in enumerate(names):
+            axis = self._enabled_axis(joint, f"the command of {joint}")
+            kind = axis.command_kind
+            if kind is None:
+                raise CommandError(f"joint {joint} is in mode {axis.mode}, which takes no command")
+            field = _JOINT_STATE_FIELD[kind]
+            values = getattr(message, field)
+            if len(values) != len(names):
+                raise CommandError(
+                    f"joint {joint} in mode {axis.mode} takes its {kind} from {field}, which "
+                    f"has {len(values)} values for {len(names)} names"
+                )
+            try:
+                checked.append((axis, axis.check_command(kind, values[i])))
+            except CommandError as e:
+                raise CommandError(f"joint {joint}: {e}") from None
+        return checked
 
     def _warn_refused(self, message: str) -> None:
         """Logs a refusal, each kind (its text without the numbers) at most once per _REFUSAL_LOG_PERIOD_S, with the
@@ -85,48 +163,43 @@ class Commands:
 
     def _supervise(self) -> None:
         """Resets a fault once under fault_reset auto_once."""
-        axis = self._session.axis
-        if axis is None or not self._session.active:
+        bus = self._session.bus
+        if bus is None or not self._session.active:
             return
-        if self._reset_pending:
-            self._reset_pending = False
+        while self._reset_pending:
+            joint = self._reset_pending.pop()
+            axis = bus[joint]
             if axis.cycle.drive_status(axis.slave)["state"] in FAULT_STATES:
-                _, message = self.reset_fault()
-                self._logger.warning(f"fault_reset auto_once: {message}")
+                _, message = self.request(joint, "reset_fault")
+                self._logger.warning(f"fault_reset auto_once: {message} (joint {joint})")
 
-    def enable(self) -> tuple[bool, str]:
-        """Enables the drive: (done, what happened)."""
-        return self._request(
-            Axis.enable, "not enabled", "Operation enabled; the target holds the actual position until commanded"
-        )
-
-    def disable(self) -> tuple[bool, str]:
-        """Disables the drive (also when the node is configured but inactive): (done, what happened)."""
-        axis = self._session.axis
-        if axis is None:
-            return False, "not disabled: the node is not configured"
+    def request(self, joint: str, request: str) -> tuple[bool, str]:
+        """`request` ("enable", "disable", "reset_fault", "quick_stop") of `joint`'s drive and waits: (done, what
+        happened). Disable also works on a node configured but inactive."""
+        failed, done = _REQUEST_WORDS[request]
         try:
-            axis.disable()
-        except AXIS_ERRORS as e:
-            return False, f"not disabled: {e}"
-        return True, "Switch on disabled (power stage off)"
-
-    def reset_fault(self) -> tuple[bool, str]:
-        """Resets a fault: (done, what happened)."""
-        try:
-            self._session.axis_for_request().reset_fault()
-        except AXIS_ERRORS as e:
-            return False, f"fault not reset: {e}"
-        return True, "fault reset: Switch on disabled; call ~/enable to go on"
-
-    def quick_stop(self) -> tuple[bool, str]:
-        """Quick stop: (done, what happened)."""
-        return self._request(Axis.quick_stop, "quick stop failed", "Quick stop active; call ~/enable to go on")
-
-    def _request(self, request: Callable[[Axis], None], failed: str, done: str) -> tuple[bool, str]:
-        """`request` of the active node's Axis: (True, done) or (False, failed and why)."""
-        try:
-            request(self._session.axis_for_request())
+            if request == "disable" and self._session.bus is not None:
+                axis = self._session.bus[joint]
+            else:
+                axis = self._session.axis_for_request(joint)
+            getattr(axis, request)()
         except AXIS_ERRORS as e:
             return False, f"{failed}: {e}"
         return True, done
+
+    def request_all(self, request: str) -> tuple[bool, str]:
+        """`request` of every joint's drive at once and waits for all: (done, what happened, naming each joint that
+        refused and why)."""
+        failed, done = _REQUEST_WORDS[request]
+        bus = self._session.bus
+        try:
+            if bus is None or (request != "disable" and not self._session.active):
+                bus = self._session.bus_for_request()
+            getattr(bus, request)()
+        except BusRequestError as e:
+            why = "; ".join(f"joint {joint}: {reason}" for joint, reason in e.failed.items())
+            return False, f"{failed}: {why}; done: {', '.join(e.done) or 'none'}"
+        except AXIS_ERRORS as e:
+            return False, f"{failed}: {e}"
+        joints = ", ".join(bus.names)
+        return True, f"{joints}: {done}" if self._settings.joint_namespaces else done

@@ -1,9 +1,13 @@
-"""Diagnostics: /diagnostics (diagnostic_msgs/DiagnosticArray) at `diagnostics_rate`, one status of the axis.
+"""Diagnostics: /diagnostics (diagnostic_msgs/DiagnosticArray) at `diagnostics_rate`, a status per joint and one of
+the bus, in one message.
 
-ERROR in a fault state; WARN when a fault counter grew since the last report, the state is not fresh, a request is
-stuck or lost, in Quick stop active, or with distributed clocks on a drive whose FBUS.PARAM02 is unknown (the
-master writes it only where the drive's SDO information confirms the object, see `Master.configure_dc`); OK
-otherwise. The values carry the state, the cycle statistics, the distributed clocks and the last fault."""
+A joint's status (`akd_node: <joint>`, hardware id naming its drive's position and serial number) is ERROR in a fault
+state; WARN when its state is not fresh, a request is stuck or lost, in Quick stop active, or with distributed clocks
+on a drive whose FBUS.PARAM02 is unknown (the master writes it only where the drive's SDO information confirms the
+object, see `Master.configure_dc`); OK otherwise. Its values carry the state, its distributed clock and its last
+fault. The bus's status (`akd_node: bus`) is ERROR while a joint is in Fault, WARN when a fault counter grew since the
+last report or the last frame did not come back; its values carry the link, the cycle statistics and the
+distributed clocks."""
 
 from __future__ import annotations
 
@@ -45,19 +49,12 @@ def dc_values(dc: dict, slave: int) -> dict[str, object]:
 
 
 class Diagnostics:
-    """The /diagnostics publisher and its timer; `name` names the status, `publishing` has the last fault."""
+    """The /diagnostics publisher and its timer: one status per joint (`akd_node: <joint>`) and one of the bus
+    (`akd_node: bus`); `publishing` has each joint's last fault."""
 
-    def __init__(
-        self,
-        node,
-        session: Session,
-        group,
-        qos: QoSProfile,
-        name: str,
-        publishing: Publishing,
-    ) -> None:
+    def __init__(self, node, session: Session, group, qos: QoSProfile, node_name: str, publishing: Publishing) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
-        self._name, self._publishing = name, publishing
+        self._node_name, self._publishing = node_name, publishing
         self.publisher = RecordedPublisher(node, DiagnosticArray, "/diagnostics", qos, session)
         self._counters_seen: dict[str, int] = {}
         node.create_timer(1.0 / session.settings.diagnostics_rate, self._publish, group)
@@ -67,25 +64,31 @@ class Diagnostics:
         self._counters_seen = {}
 
     def _publish(self) -> None:
-        taken = self._session.state()
+        taken = self._session.states()
         if taken is None:
             return
-        axis, state, stats = taken
+        bus, states, stats = taken
         counters = {k: stats[k] for k in ("overruns", "lost_frames", "wkc_errors", "events_dropped")}
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
         self._counters_seen = counters
-        fault = self._publishing.last_fault
-        dc_status = axis.cycle.dc_status()
-        dc = dc_values(dc_status, axis.slave)
+        dc_status = bus.cycle.dc_status()
+        statuses = [self._joint_status(bus[joint], state, dc_status) for joint, state in states.items()]
+        statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status))
+        message = DiagnosticArray(status=statuses)
+        message.header.stamp = self._clock.stamp()
+        self.publisher.publish(message)
+
+    def _joint_status(self, axis, state, dc_status: dict) -> DiagnosticStatus:
+        """The status of one joint: its drive's state, mode, position, DC and last fault."""
+        fault = self._publishing.last_fault.get(axis.name)
         param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
         if state.state in FAULT_STATES:
             level = DiagnosticStatus.ERROR
         elif (
-            grown
-            or not state.fresh
+            not state.fresh
             or state.progress in ("stuck", "lost")
             or state.state == "Quick stop active"
-            or param02_unknown
+            or (param02_unknown)
         ):
             level = DiagnosticStatus.WARN
         else:
@@ -93,36 +96,69 @@ class Diagnostics:
         summary = state.state or "no valid DS402 state"
         if state.reason:
             summary += f": {state.reason}"
-        if grown:
-            summary += f" ({', '.join(grown)} since the last report)"
         if param02_unknown:
             summary += f"; {FBUS_PARAM02_UNKNOWN}"
         if level == DiagnosticStatus.ERROR and fault is not None:
             summary += f"; last fault {fault.text or hex(fault.code)}"
         values = {
+            "joint": axis.name,
+            "slave": axis.slave,
+            "serial_number": axis.serial_number,
             "ds402_state": state.state or "unknown",
             "statusword": f"0x{state.statusword:04X}",
             "mode": state.mode or axis.mode,
             "request": state.request or "",
             "progress": state.progress,
             "position": f"{state.position:.9g}",
+            **dc_values(dc_status, axis.slave),
+            "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
+            "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
+            "last_fault_action": "" if fault is None else fault.action,
+        }
+        return DiagnosticStatus(
+            level=level,
+            name=f"{self._node_name}: {axis.name}",
+            message=summary,
+            hardware_id=f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}",
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+        )
+
+    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict) -> DiagnosticStatus:
+        """The status of the bus: the link, the cycle's counters and timing, distributed clocks, the joints' worst."""
+        faulted = [j for j, s in states.items() if s.state in FAULT_STATES]
+        stale = not all(s.fresh for s in states.values())
+        if faulted:
+            level, summary = DiagnosticStatus.ERROR, f"fault on {', '.join(faulted)}"
+        elif grown or stale:
+            level = DiagnosticStatus.WARN
+            summary = "the last frame did not come back" if stale else "cycle running"
+        else:
+            level, summary = DiagnosticStatus.OK, "cycle running"
+        if grown:
+            summary += f" ({', '.join(grown)} since the last report)"
+        values = {
+            "link": self._settings.link,
+            "joints": ", ".join(bus.names),
+            "fault_reaction": bus.fault_reaction,
+            "cycle_time_s": f"{self._settings.cycle_time:.6g}",
             "cycles": stats["cycles"],
             **counters,
             "period_mean_s": f"{stats['period']['mean_ns'] * 1e-9:.6g}",
             "period_max_s": f"{stats['period']['max_ns'] * 1e-9:.6g}",
             "exchange_p99_s": f"{stats['exchange']['p99_ns'] * 1e-9:.6g}",
-            **dc,
-            "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
-            "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
-            "last_fault_action": "" if fault is None else fault.action,
+            "dc": "on (SYNC0)" if dc_status["active"] else "off (the drives follow SM2)",
         }
-        status = DiagnosticStatus(
+        if dc_status["active"]:
+            values |= {
+                "dc_cycle_s": f"{dc_status['cycle_ns'] * 1e-9:.6g}",
+                "dc_shift_s": f"{dc_status['shift_ns'] * 1e-9:.6g}",
+                "dc_reference_slave": dc_status["reference_position"],
+                "dc_difference_misses": dc_status["difference_misses"],
+            }
+        return DiagnosticStatus(
             level=level,
-            name=self._name,
+            name=f"{self._node_name}: bus",
             message=summary,
-            hardware_id=f"AKD slave {self._settings.slave} on {self._settings.link}",
+            hardware_id=f"EtherCAT line {self._settings.link}",
             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
         )
-        message = DiagnosticArray(status=[status])
-        message.header.stamp = self._clock.stamp()
-        self.publisher.publish(message)

@@ -1,5 +1,6 @@
-"""Publishing: /joint_states (sensor_msgs/JointState, SI), ~/status (DriveStatus), ~/latch (LatchEvent) and ~/fault
-(DriveFault), each message recorded at its stamp when recording, and the cycle records taken with the events.
+"""Publishing: /joint_states (sensor_msgs/JointState, SI: every joint, all of one cycle), and per joint its status
+(DriveStatus), latch (LatchEvent) and fault (DriveFault) topics, each message recorded at its stamp when recording,
+and the cycle records taken with the events.
 
 The timers run in every state and do nothing unless the node is active: cancelling a timer the executor has already
 taken as ready makes rclpy raise in the executor."""
@@ -17,7 +18,7 @@ from akd_ros.axis import MODES
 from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.recording import record_cycles
-from akd_ros.node.session import Session
+from akd_ros.node.session import Session, namespace
 
 EDGE_NAMES = {LatchEvent.EDGE_RISING: "rising", LatchEvent.EDGE_FALLING: "falling"}
 """Latch edges by their LatchEvent code."""
@@ -50,9 +51,19 @@ class RecordedPublisher:
             recorder.write(self.topic_name, message, nanoseconds(message.header.stamp))
 
 
+class JointPublishers:
+    """One joint's status, latch and fault publishers."""
+
+    def __init__(self, node, session: Session, joint: str, reliable: QoSProfile, events: QoSProfile) -> None:
+        ns = namespace(session.settings, joint)
+        self.status = RecordedPublisher(node, DriveStatus, f"{ns}status", reliable, session)
+        self.latch = RecordedPublisher(node, LatchEvent, f"{ns}latch", events, session)
+        self.fault = RecordedPublisher(node, DriveFault, f"{ns}fault", events, session)
+
+
 class Publishing:
-    """The periodic joint_states and status, and the events (latches, faults) with the cycle records; `on_fault` is
-    called for each fault published."""
+    """The periodic joint_states and statuses, and the events (latches, faults, command time-outs) with the cycle
+    records; `on_fault(joint)` is called for each fault published."""
 
     def __init__(
         self,
@@ -61,96 +72,108 @@ class Publishing:
         group,
         reliable: QoSProfile,
         events: QoSProfile,
-        on_fault: Callable[[], None],
+        on_fault: Callable[[str], None],
     ) -> None:
         self._session, self._clock, self._settings, self._on_fault = session, session.clock, session.settings, on_fault
         self._logger = node.get_logger()
         self.joint_states = RecordedPublisher(node, JointState, "/joint_states", reliable, session)
-        self.status = RecordedPublisher(node, DriveStatus, "~/status", reliable, session)
-        self.latch = RecordedPublisher(node, LatchEvent, "~/latch", events, session)
-        self.fault = RecordedPublisher(node, DriveFault, "~/fault", events, session)
-        self.last_fault: DriveFault | None = None
-        """The last fault published, for /diagnostics."""
+        self.joints = {j.name: JointPublishers(node, session, j.name, reliable, events) for j in session.joints}
+        """Each joint's publishers by its name."""
+        self.last_fault: dict[str, DriveFault] = {}
+        """The last fault published of each joint, for /diagnostics."""
         node.create_timer(1.0 / session.settings.joint_states_rate, self._publish_joint_states, group)
         node.create_timer(1.0 / session.settings.status_rate, self._publish_status, group)
         node.create_timer(_EVENT_POLL_S, self._publish_events, group)
 
+    def publishers(self) -> list[RecordedPublisher]:
+        """Every publisher of this part, for the recorder."""
+        return [self.joint_states] + [p for j in self.joints.values() for p in (j.status, j.latch, j.fault)]
+
     def _publish_joint_states(self) -> None:
-        taken = self._session.state()
+        taken = self._session.states()
         if taken is None:
             return
-        _, state, _ = taken
-        message = JointState(name=[self._settings.joint_name], position=[state.position])
+        _, states, _ = taken
+        message = JointState(name=list(states))
         message.header.stamp = self._clock.stamp()
-        if state.velocity is not None:
-            message.velocity = [state.velocity]
-        if state.torque is not None:
-            message.effort = [state.torque]
+        values = list(states.values())
+        message.position = [s.position for s in values]
+        # JointState leaves velocity or effort empty when they are not all known.
+        if all(s.velocity is not None for s in values):
+            message.velocity = [s.velocity for s in values]
+        if all(s.torque is not None for s in values):
+            message.effort = [s.torque for s in values]
         self.joint_states.publish(message)
 
     def _publish_status(self) -> None:
-        taken = self._session.state()
+        taken = self._session.states()
         if taken is None:
             return
-        axis, state, stats = taken
-        message = DriveStatus(
-            joint=self._settings.joint_name,
-            ds402_state=snake(state.state),
-            statusword=state.statusword,
-            mode=state.mode or axis.mode,
-            mode_of_operation=MODES.get(state.mode, 0),
-            following_error=math.nan if state.following_error is None else state.following_error,
-            cycles=stats["cycles"],
-            overruns=stats["overruns"],
-            lost_frames=stats["lost_frames"],
-            wkc_errors=stats["wkc_errors"],
-            period_mean=stats["period"]["mean_ns"] * 1e-9,
-            period_max=stats["period"]["max_ns"] * 1e-9,
-            exchange_p99=stats["exchange"]["p99_ns"] * 1e-9,
-        )
-        message.header.stamp = self._clock.stamp()
-        self.status.publish(message)
+        bus, states, stats = taken
+        stamp = self._clock.stamp()
+        for joint, state in states.items():
+            message = DriveStatus(
+                joint=joint,
+                ds402_state=snake(state.state),
+                statusword=state.statusword,
+                mode=state.mode or bus[joint].mode,
+                mode_of_operation=MODES.get(state.mode, 0),
+                following_error=math.nan if state.following_error is None else state.following_error,
+                cycles=stats["cycles"],
+                overruns=stats["overruns"],
+                lost_frames=stats["lost_frames"],
+                wkc_errors=stats["wkc_errors"],
+                period_mean=stats["period"]["mean_ns"] * 1e-9,
+                period_max=stats["period"]["max_ns"] * 1e-9,
+                exchange_p99=stats["exchange"]["p99_ns"] * 1e-9,
+            )
+            message.header.stamp = stamp
+            self.joints[joint].status.publish(message)
 
     def _publish_events(self) -> None:
         session = self._session
         with session.lock:
-            if session.axis is None or not session.active:
+            if session.bus is None or not session.active:
                 return
-            latches, faults = list(session.axis.latch_events()), list(session.axis.fault_events())
-            timeouts = list(session.axis.command_timeout_events())
+            taken = [
+                (a, list(a.latch_events()), list(a.fault_events()), list(a.command_timeout_events()))
+                for a in session.bus.axes
+            ]
             # Taken with the events, so the black box holds the cycles up to a fault when it is written.
             recorder = session.recorder
-            columns = session.axis.samples() if recorder is not None else None
+            columns = [(a, a.samples()) for a in session.bus.axes] if recorder is not None else None
         if columns is not None:
-            record_cycles(recorder, columns, self._settings.units, self._clock.ros_minus_monotonic_ns())
-        for e in timeouts:
-            self._logger.warning(e.describe("call ~/enable to go on"))
-        joint = self._settings.joint_name
-        for e in latches:
-            message = LatchEvent(
-                joint=joint,
-                channel=e.channel,
-                edge=_EDGE_CODES[e.edge],
-                position=e.position,
-                position_counts=e.position_counts,
-            )
-            message.header.stamp = self._clock.stamp(e.time_ns)
-            self.latch.publish(message)
-        for e in faults:
-            self._logger.error(f"fault: {e.describe()}")
-            message = DriveFault(
-                joint=joint,
-                source=e.source,
-                code=min(e.code, 0xFFFF),
-                text=e.text or "",
-                ds402_state=snake(e.ds402_state),
-                al_state=snake(e.al_state),
-                al_status_code=e.al_status_code,
-                action=e.action,
-            )
-            message.header.stamp = self._clock.stamp(e.time_ns)
-            self.last_fault = message
-            self.fault.publish(message)
-            if recorder is not None:
-                recorder.fault(nanoseconds(message.header.stamp))
-            self._on_fault()
+            record_cycles(recorder, columns, self._clock.ros_minus_monotonic_ns())
+        how_to_enable = "call ~/enable to go on"
+        for axis, latches, faults, timeouts in taken:
+            joint = axis.name
+            for e in timeouts:
+                self._logger.warning(f"{joint}: {e.describe(how_to_enable)}")
+            for e in latches:
+                message = LatchEvent(
+                    joint=joint,
+                    channel=e.channel,
+                    edge=_EDGE_CODES[e.edge],
+                    position=e.position,
+                    position_counts=e.position_counts,
+                )
+                message.header.stamp = self._clock.stamp(e.time_ns)
+                self.joints[joint].latch.publish(message)
+            for e in faults:
+                self._logger.error(f"fault of {joint}: {e.describe()}")
+                message = DriveFault(
+                    joint=joint,
+                    source=e.source,
+                    code=min(e.code, 0xFFFF),
+                    text=e.text or "",
+                    ds402_state=snake(e.ds402_state),
+                    al_state=snake(e.al_state),
+                    al_status_code=e.al_status_code,
+                    action=e.action,
+                )
+                message.header.stamp = self._clock.stamp(e.time_ns)
+                self.last_fault[joint] = message
+                self.joints[joint].fault.publish(message)
+                if recorder is not None:
+                    recorder.fault(nanoseconds(message.header.stamp))
+                self._on_fault(joint)

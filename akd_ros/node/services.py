@@ -1,6 +1,7 @@
-"""Services: ~/enable, ~/disable, ~/reset_fault, ~/quick_stop (std_srvs/Trigger), ~/set_mode, ~/arm_latch,
-~/sdo_read and ~/sdo_write (the package's own). Each answers with success and a message saying what happened or
-why not; none raises."""
+"""Services: bus-wide ~/enable, ~/disable, ~/reset_fault, ~/quick_stop (std_srvs/Trigger) on every joint at once,
+and per joint the same four and set_mode, arm_latch, sdo_read and sdo_write (the package's own) under ~/<joint>/
+(on a node of one axis they are all under ~/, the four bus-wide ones serving its joint). Each answers with success
+and a message saying what happened or why not, naming the joints that refused; none raises."""
 
 from __future__ import annotations
 
@@ -12,8 +13,11 @@ from akd_ros.axis import MODES, CommandError
 from akd_ros.msg import LatchEvent
 from akd_ros.node.commands import Commands
 from akd_ros.node.publishing import EDGE_NAMES
-from akd_ros.node.session import AXIS_ERRORS, Session
+from akd_ros.node.session import AXIS_ERRORS, Session, namespace
 from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
+
+REQUESTS = ("enable", "disable", "reset_fault", "quick_stop")
+"""The Trigger services, bus-wide and per joint."""
 
 
 class Services:
@@ -22,33 +26,43 @@ class Services:
     def __init__(self, node, session: Session, commands: Commands, group) -> None:
         self._session = session
         self._logger = node.get_logger()
-        for name, handler in (
-            ("enable", commands.enable),
-            ("disable", commands.disable),
-            ("reset_fault", commands.reset_fault),
-            ("quick_stop", commands.quick_stop),
-        ):
-            node.create_service(Trigger, f"~/{name}", self._trigger(name, handler), callback_group=group)
-        node.create_service(SetMode, "~/set_mode", self._set_mode, callback_group=group)
-        node.create_service(ArmLatch, "~/arm_latch", self._arm_latch, callback_group=group)
-        node.create_service(SdoRead, "~/sdo_read", self._sdo_read, callback_group=group)
-        node.create_service(SdoWrite, "~/sdo_write", self._sdo_write, callback_group=group)
+        for request in REQUESTS:
+            node.create_service(
+                Trigger,
+                f"~/{request}",
+                self._trigger(f"~/{request}", lambda r=request: commands.request_all(r)),
+                callback_group=group,
+            )
+        for joint in session.joints:
+            ns, name = namespace(session.settings, joint.name), joint.name
+            if session.settings.joint_namespaces:
+                for request in REQUESTS:
+                    handler = self._trigger(f"{ns}{request}", lambda j=name, r=request: commands.request(j, r))
+                    node.create_service(Trigger, f"{ns}{request}", handler, callback_group=group)
+            for kind, service, handler in (
+                (SetMode, "set_mode", self._set_mode),
+                (ArmLatch, "arm_latch", self._arm_latch),
+                (SdoRead, "sdo_read", self._sdo_read),
+                (SdoWrite, "sdo_write", self._sdo_write),
+            ):
+                callback = (lambda h, j: lambda request, response: h(j, request, response))(handler, name)
+                node.create_service(kind, f"{ns}{service}", callback, callback_group=group)
 
     def _trigger(self, name: str, handler: Callable[[], tuple[bool, str]]):
         def callback(request, response):
             response.success, response.message = handler()
             # rclpy ties a severity to each logging call site: one call per severity.
             if response.success:
-                self._logger.info(f"~/{name}: {response.message}")
+                self._logger.info(f"{name}: {response.message}")
             else:
-                self._logger.warning(f"~/{name}: {response.message}")
+                self._logger.warning(f"{name}: {response.message}")
             return response
 
         return callback
 
-    def _set_mode(self, request, response):
+    def _set_mode(self, joint: str, request, response):
         try:
-            axis = self._session.axis_for_request()
+            axis = self._session.axis_for_request(joint)
             if request.mode not in MODES:
                 raise CommandError(f"mode {request.mode!r} is not one of {', '.join(MODES)}")
             with self._session.lock:
@@ -56,12 +70,12 @@ class Services:
             response.success, response.message = True, f"mode {request.mode}"
         except AXIS_ERRORS as e:
             response.success, response.message = False, f"mode not changed: {e}"
-        self._logger.info(f"~/set_mode: {response.message}")
+        self._logger.info(f"set_mode of {joint}: {response.message}")
         return response
 
-    def _arm_latch(self, request, response):
+    def _arm_latch(self, joint: str, request, response):
         try:
-            axis = self._session.axis_for_request()
+            axis = self._session.axis_for_request(joint)
             if request.edge not in EDGE_NAMES:
                 raise CommandError(
                     f"latch edge {request.edge}: allowed {LatchEvent.EDGE_RISING} (rising) or "
@@ -77,17 +91,17 @@ class Services:
             response.success, response.message = False, f"latch not changed: {e}"
         return response
 
-    def _sdo_read(self, request, response):
+    def _sdo_read(self, joint: str, request, response):
         try:
-            response.data = list(self._session.axis_for_request().sdo_read(request.index, request.subindex))
+            response.data = list(self._session.axis_for_request(joint).sdo_read(request.index, request.subindex))
             response.success, response.message = True, ""
         except AXIS_ERRORS as e:
             response.success, response.message = False, f"0x{request.index:04X}:{request.subindex:02X}: {e}"
         return response
 
-    def _sdo_write(self, request, response):
+    def _sdo_write(self, joint: str, request, response):
         try:
-            self._session.axis_for_request().sdo_write(request.index, request.subindex, bytes(request.data))
+            self._session.axis_for_request(joint).sdo_write(request.index, request.subindex, bytes(request.data))
             response.success, response.message = True, ""
         except AXIS_ERRORS as e:
             response.success, response.message = False, f"0x{request.index:04X}:{request.subindex:02X}: {e}"

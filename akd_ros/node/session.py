@@ -1,6 +1,6 @@
-"""What the node's parts share: the settings and the clock, and from a configure to its cleanup the Axis, the
-Recorder, whether the node is active, and the lock that guards the Axis's Python-side state (position unwrapping,
-event queues, the last command) between the callback groups."""
+"""What the node's parts share: the settings and the clock, and from a configure to its cleanup the Bus with an Axis
+per joint, the Recorder, whether the node is active, and the lock that guards the axes' Python-side state (position
+unwrapping, event queues, the last command) between the callback groups."""
 
 from __future__ import annotations
 
@@ -8,37 +8,52 @@ import threading
 
 from akd_ros import _native
 from akd_ros.axis import Axis, CommandError
+from akd_ros.bus import Bus
 from akd_ros.node.clock import CycleClock
-from akd_ros.params import Settings
+from akd_ros.params import JointSettings, Settings
 from akd_ros.recorder import Recorder
 
 AXIS_ERRORS = (ValueError, TimeoutError, _native.EtherCatError)
-"""What the Axis raises for a request it cannot carry out; the node answers with the text."""
+"""What the Bus and an Axis raise for a request they cannot carry out; the node answers with the text."""
 FAULT_STATES = ("Fault", "Fault reaction active")
 """The DS402 states of a fault."""
 
 
+def namespace(settings: Settings, joint: str) -> str:
+    """Where `joint`'s topics and services go: ``~/<joint>/`` on a node of joints, ``~/`` on a node of one axis."""
+    return f"~/{joint}/" if settings.joint_namespaces else "~/"
+
+
 class Session:
-    """The node's settings and clock; the Axis (None until configured), the Recorder (None unless recording),
-    whether the node is active, and the lock that guards the Axis between the callback groups."""
+    """The node's settings and clock; the Bus (None until configured), the Recorder (None unless recording),
+    whether the node is active, and the lock that guards the axes between the callback groups."""
 
     def __init__(self, settings: Settings, clock: CycleClock) -> None:
         self.settings, self.clock = settings, clock
         self.lock = threading.Lock()
-        self.axis: Axis | None = None
+        self.bus: Bus | None = None
         self.active = False
         self.recorder: Recorder | None = None
 
-    def state(self):
-        """(axis, its state and statistics), or None when the axis is closed or the node inactive."""
-        with self.lock:
-            if self.axis is None or not self.active:
-                return None
-            return self.axis, self.axis.state(), self.axis.stats()
+    @property
+    def joints(self) -> tuple[JointSettings, ...]:
+        """Every joint's settings, in order."""
+        return self.settings.joints
 
-    def axis_for_request(self) -> Axis:
-        """The Axis of an active node; CommandError otherwise."""
-        axis = self.axis
-        if axis is None or not self.active:
+    def states(self):
+        """(bus, every axis's state by joint from one cycle, the statistics), or None when closed or inactive."""
+        with self.lock:
+            if self.bus is None or not self.active:
+                return None
+            return self.bus, self.bus.states(), self.bus.stats()
+
+    def bus_for_request(self) -> Bus:
+        """The Bus of an active node; CommandError otherwise."""
+        bus = self.bus
+        if bus is None or not self.active:
             raise CommandError("the node is not active; configure and activate it first")
-        return axis
+        return bus
+
+    def axis_for_request(self, joint: str) -> Axis:
+        """The Axis of `joint` on an active node; CommandError otherwise."""
+        return self.bus_for_request()[joint]

@@ -28,7 +28,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
+from akd_ros.msg import DriveFault, DriveStatus, LatchEvent, TrajectoryStatus
 from akd_ros.srv import ArmLatch, SetMode
 
 BIN = Path(sys.executable).parent
@@ -44,6 +44,7 @@ NODE_TOPICS = {
     NODE + "status": DriveStatus,
     NODE + "latch": LatchEvent,
     NODE + "fault": DriveFault,
+    NODE + "trajectory_status": TrajectoryStatus,
 }
 
 

@@ -656,6 +656,12 @@ impl PyCycle {
         super::drive::drive_inputs(&self.cycle, position)
     }
 
+    /// The inputs of each drive of `positions` (DriveInputs, as `drive_inputs` gives them),
+    /// all from the same snapshot: every joint's values of one cycle.
+    fn drives_inputs(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveInputs>> {
+        super::drive::drives_inputs(&self.cycle, &positions)
+    }
+
     /// With `on`, a drive entering Fault or leaving Op quick-stops, in the same cycle, every
     /// other drive being enabled or enabled (and not in Fault): a bus of joints stops together.
     /// Off (the default), each drive reacts alone. The faulting drive's event is the only one.

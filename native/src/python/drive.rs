@@ -11,7 +11,7 @@ use pyo3::types::{PyBytes, PyTuple};
 
 use super::IntoPyResult;
 use crate::coe::data_type;
-use crate::cycle::CycleThread;
+use crate::cycle::{CycleThread, Snapshot};
 use crate::ds402::{self, Mode, State};
 use crate::objects::{self, DriveInputs};
 use crate::pdo::{self, Direction, PdoEntry};
@@ -91,9 +91,19 @@ impl PyDriveInputs {
 
 /// Drive `position`'s inputs in `cycle`'s last snapshot (for `Cycle.drive_inputs`).
 pub(super) fn drive_inputs(cycle: &CycleThread, position: u16) -> PyResult<PyDriveInputs> {
+    inputs_in(cycle, &cycle.snapshot(), position)
+}
+
+/// The inputs of each drive of `positions`, all from the same snapshot: one cycle's values of
+/// the whole bus (for `Cycle.drives_inputs`).
+pub(super) fn drives_inputs(cycle: &CycleThread, positions: &[u16]) -> PyResult<Vec<PyDriveInputs>> {
     let snapshot = cycle.snapshot();
+    positions.iter().map(|&position| inputs_in(cycle, &snapshot, position)).collect()
+}
+
+fn inputs_in(cycle: &CycleThread, snapshot: &Snapshot, position: u16) -> PyResult<PyDriveInputs> {
     let (_, tx) = cycle.mapping(position).py()?;
-    let inputs = DriveInputs::read(tx, cycle.inputs_of(&snapshot, position).py()?);
+    let inputs = DriveInputs::read(tx, cycle.inputs_of(snapshot, position).py()?);
     Ok(PyDriveInputs {
         cycle: snapshot.cycle,
         time_ns: snapshot.time_ns,
