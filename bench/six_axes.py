@@ -7,7 +7,8 @@ drives (`joint_1`..`joint_6`, interpolated position) on the in-process virtual l
 (a velocity at each point, zero at the last), is played through the cycle thread (`bus.cycle.play_trajectory`), and
 every cycle's record (`bus.samples()`) is compared: |position - target_position| during the trajectory, on its last
 point's time, and after settling. The CPU time is that of this process's `akd-cycle` thread (/proc schedstat) over
-the cycles run, the period p50/p99/max from the cycle's own period histogram.
+the cycles run (on "sim:6" the virtual AKDs serve each frame inside the cycle thread's exchange, so their work is
+counted in; over UDP it is akd-sim's), the period p50/p99/max from the cycle's own period histogram since the start.
 
     .venv/bin/python bench/six_axes.py [--periods 0.001,0.00025] [--udp] [--priority 80] [--settle 0.5]
 """
