@@ -10,12 +10,17 @@ point's time, and after settling. The CPU time is that of this process's `akd-cy
 the cycles run (on "sim:6" the virtual AKDs serve each frame inside the cycle thread's exchange, so their work is
 counted in; over UDP it is akd-sim's), the period p50/p99/max from the cycle's own period histogram since the start.
 
-    .venv/bin/python bench/six_axes.py [--periods 0.001,0.00025] [--udp] [--priority 80] [--settle 0.5]
+    .venv/bin/python bench/six_axes.py [--periods 0.001,0.00025] [--udp] [--priority 80] [--sim-priority 0]
+        [--settle 0.5]
+
+Over UDP the cycle waits for akd-sim's reply in every exchange, so akd-sim's scheduling is the cycle's: --sim-priority
+gives its threads SCHED_FIFO too, as a real drive answers in hardware.
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -61,6 +66,15 @@ class Recorded:
         """Drive `slave`'s target in the latest cycle recorded."""
         c = self.columns
         return next(t for s, t in zip(reversed(c["slave"]), reversed(c["target_position"]), strict=True) if s == slave)
+
+
+def real_time(pid: int, priority: int) -> None:
+    """Gives every thread of process `pid` SCHED_FIFO `priority`, or says why it could not."""
+    try:
+        for task in Path(f"/proc/{pid}/task").iterdir():
+            os.sched_setscheduler(int(task.name), os.SCHED_FIFO, os.sched_param(priority))
+    except OSError as e:
+        print(f"  warning: akd-sim not given SCHED_FIFO {priority}: {e}")
 
 
 def run(link: str, period: float, args) -> dict:
@@ -122,6 +136,7 @@ def main() -> None:
     parser.add_argument("--periods", default="0.001,0.00025", help="cycle periods in s, comma-separated")
     parser.add_argument("--udp", action="store_true", help="also on akd-sim --count 6 over UDP on loopback")
     parser.add_argument("--priority", type=int, default=80, help="the cycle thread's SCHED_FIFO priority (0: none)")
+    parser.add_argument("--sim-priority", type=int, default=0, help="akd-sim's SCHED_FIFO priority (0: none)")
     parser.add_argument("--settle", type=float, default=0.5, help="s recorded after the trajectory's end")
     args = parser.parse_args()
     args.priority = args.priority or None
@@ -130,14 +145,16 @@ def main() -> None:
     print(
         f"six_axes: {COUNT} axes in interpolated_position, one cubic trajectory of {len(POINTS)} points over "
         f"{duration:.1f} s (offsets {', '.join(f'{o:+.2f}' for _, o, _ in POINTS)} rad), settle {args.settle} s, "
-        f"priority {args.priority}"
+        f"priority {args.priority}, akd-sim priority {args.sim_priority or None}"
     )
     results = []
     for period in periods:
         results.append(run(f"sim:{COUNT}", period, args))
         if args.udp:
             port = free_udp_port()
-            with akd_sim_udp(port, count=COUNT):
+            with akd_sim_udp(port, count=COUNT) as sim:
+                if args.sim_priority:
+                    real_time(sim.pid, args.sim_priority)
                 results.append(run(f"udp://127.0.0.1:{port}", period, args))
     print(
         f"{'link':24s} {'rate':>6s} {'axes':>4s} {'cycles':>6s} {'outcome':>7s} {'cpu/cycle':>9s} "
@@ -147,6 +164,9 @@ def main() -> None:
     for r in results:
 
         def both(counts: int, r=r) -> str:
+            # A trajectory that did not end as played has no tracking error to speak of.
+            if r["state"] != "done":
+                return "n/a"
             return f"{counts:6d} c {counts * r['rad_per_count'] * 1e3:8.3f} mrad"
 
         print(
