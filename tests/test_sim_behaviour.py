@@ -1,8 +1,10 @@
 """The virtual AKD answers wrong requests as the AKD does: AL status codes 0x0011, 0x0017 and
-0x001D, SDO abort codes, mailbox errors, and malformed frames refused with FrameError."""
+0x001D, SDO abort codes, mailbox errors, and malformed frames refused with FrameError; and the
+drives of one virtual line tell themselves apart by their serial numbers, as real ones do."""
 
 from __future__ import annotations
 
+import contextlib
 import struct
 
 import pytest
@@ -10,11 +12,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from support.ethercat import COMMANDS, Datagram, VirtualAkdSession, build, datagram, exchange, parse
+from support.netns import akd_sim_udp
 
 akd = pytest.importorskip("akd_ros._native")
 
 INIT, PREOP, SAFEOP, OP = 0x01, 0x02, 0x04, 0x08
 ACK, ERROR = 0x10, 0x10
+# The real AKD's serial number (AKD_FACTS.md, its SII dump).
+REAL_SERIAL = 0x99830093
 
 
 @pytest.fixture
@@ -161,3 +166,30 @@ def test_sim_mailbox_garbage_gets_an_answer(message):
     # the garbage's mailbox counter, as a master's would (the same counter is a repetition).
     session.counter = padded[5] >> 4 & 0x07
     assert session.sdo_upload(0x1018, 1) == (0x43, b"\x6a\0\0\0")
+
+
+@contextlib.contextmanager
+def three_drives(link: str, udp_port: int):
+    """The link to a line of three virtual AKDs: in this process, or `akd-sim --count 3` over UDP."""
+    if link == "sim:3":
+        yield link
+    else:
+        with akd_sim_udp(udp_port, count=3):
+            yield f"udp://127.0.0.1:{udp_port}"
+
+
+@pytest.mark.parametrize("link", ["sim:3", "udp"])
+def test_sim_drives_on_one_line_report_distinct_serials_in_sii_and_0x1018(link, udp_port):
+    serials = []
+    for _run in range(2):
+        with three_drives(link, udp_port) as url, akd.Master(url, timeout=0.5) as master:
+            # The scan's identity comes from each drive's SII.
+            from_sii = [slave["serial_number"] for slave in master.scan()]
+            master.request_state("preop")
+            from_od = [int.from_bytes(master.sdo_read(p, 0x1018, 4), "little") for p in range(3)]
+        assert from_od == from_sii, (from_od, from_sii)
+        serials.append(from_sii)
+    # The first drive is the real drive; the others differ from it and from each other, the same each run.
+    assert serials[0][0] == REAL_SERIAL
+    assert len(set(serials[0])) == 3, [hex(s) for s in serials[0]]
+    assert serials[1] == serials[0]

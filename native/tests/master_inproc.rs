@@ -179,6 +179,25 @@ fn sdo_round_trips_of_every_size() {
 }
 
 #[test]
+fn drives_on_one_line_report_distinct_serials_in_the_sii_and_0x1018() {
+    let mut m = master(3);
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let mut serials = Vec::new();
+    for position in 0..3 {
+        let sii_serial = m.slave(position).unwrap().sii.identity().serial_number;
+        let od_serial = m.slave_mut(position).unwrap().sdo_read(0x1018, 4).unwrap();
+        assert_eq!(od_serial, sii_serial.to_le_bytes(), "drive {position}");
+        serials.push(sii_serial);
+    }
+    // The first drive keeps the real drive's serial, the others count up from it.
+    assert_eq!(serials, [0x9983_0093, 0x9983_0094, 0x9983_0095]);
+    // The same on the next run.
+    let again = master(3);
+    let again: Vec<_> = (0..3).map(|p| again.slave(p).unwrap().sii.identity().serial_number).collect();
+    assert_eq!(again, serials);
+}
+
+#[test]
 fn sdo_aborts_come_back_by_name() {
     let mut m = master(1);
     m.request_state(AlState::PreOp, STEP).unwrap();

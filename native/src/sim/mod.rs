@@ -38,6 +38,7 @@ use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
 use crate::mailbox::HEADER_LEN;
 use crate::registers as reg;
+use crate::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};
 use crate::sim::sync_manager::{SyncManager, ACTIVATE_REPEAT, MIN_MAILBOX_SIZE, PDI_REPEAT_ACK, SM_COUNT};
 
@@ -72,10 +73,10 @@ const FORWARD_DELAY_NS: u64 = 500;
 /// The real AKD's standard mailbox: 1 KiB each way.
 pub const AKD_MAILBOX_SIZE: u16 = 0x0400;
 
-/// The AKD's SII image declaring a standard mailbox of `size` bytes each way (the sync manager
-/// category says the same), everything else as the real drive's.
-fn sii_with_mailbox_size(size: u16) -> Result<Vec<u8>> {
-    let mut sii = crate::sii::Sii::parse(&sii_image::akd_sii())?;
+/// The SII image of the AKD with `identity` declaring a standard mailbox of `size` bytes each
+/// way (the sync manager category says the same), everything else as the real drive's.
+fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>> {
+    let mut sii = crate::sii::Sii::parse(&sii_image::akd_sii_of(identity))?;
     let mailbox = &mut sii.header.standard_mailbox;
     (mailbox.receive_size, mailbox.send_size) = (size, size);
     for category in &mut sii.categories {
@@ -108,9 +109,10 @@ pub struct VirtualAkd {
 }
 
 impl VirtualAkd {
-    /// A drive at power-up; `has_successor` tells whether another drive follows on port 1.
-    pub fn new(has_successor: bool, timing: Timing) -> Self {
-        Self::with_sii(sii_image::akd_sii(), AKD_MAILBOX_SIZE, has_successor, timing)
+    /// A drive at power-up reporting `identity` in its SII and its object 0x1018;
+    /// `has_successor` tells whether another drive follows on port 1.
+    pub fn new(identity: Identity, has_successor: bool, timing: Timing) -> Self {
+        Self::with_sii(sii_image::akd_sii_of(identity), identity, AKD_MAILBOX_SIZE, has_successor, timing)
     }
 
     /// A drive at power-up that declares a standard mailbox of `mailbox_size` bytes each way
@@ -118,17 +120,22 @@ impl VirtualAkd {
     /// than a mailbox go in segments and fragments. The drive then expects sync managers 0 and
     /// 1 of at most that size. `mailbox_size` is 64 ([`MIN_MAILBOX_SIZE`]) to 1024
     /// ([`AKD_MAILBOX_SIZE`]).
-    pub fn with_mailbox_size(mailbox_size: u16, has_successor: bool, timing: Timing) -> Result<Self> {
+    pub fn with_mailbox_size(
+        identity: Identity,
+        mailbox_size: u16,
+        has_successor: bool,
+        timing: Timing,
+    ) -> Result<Self> {
         if !(MIN_MAILBOX_SIZE..=AKD_MAILBOX_SIZE).contains(&mailbox_size) {
             return Err(
                 SettingError::MailboxSize { size: mailbox_size, min: MIN_MAILBOX_SIZE, max: AKD_MAILBOX_SIZE }.into()
             );
         }
-        let sii = sii_with_mailbox_size(mailbox_size)?;
-        Ok(Self::with_sii(sii, mailbox_size, has_successor, timing))
+        let sii = sii_with_mailbox_size(identity, mailbox_size)?;
+        Ok(Self::with_sii(sii, identity, mailbox_size, has_successor, timing))
     }
 
-    fn with_sii(sii: Vec<u8>, mailbox_size: u16, has_successor: bool, timing: Timing) -> Self {
+    fn with_sii(sii: Vec<u8>, identity: Identity, mailbox_size: u16, has_successor: bool, timing: Timing) -> Self {
         let mut esc = Esc::new(sii, has_successor);
         for n in 0..SM_COUNT {
             sync_manager::set_pdi_deactivated(esc.memory_mut(), n, true);
@@ -136,7 +143,7 @@ impl VirtualAkd {
         VirtualAkd {
             esc,
             al: al_machine::AlMachine::power_up(),
-            od: od::ObjectDictionary::akd(),
+            od: od::ObjectDictionary::akd_of(identity),
             mailbox: mailbox_server::MailboxServer::default(),
             watchdog: watchdog::Watchdog::default(),
             timing,
@@ -357,7 +364,9 @@ impl VirtualAkd {
     }
 }
 
-/// A line of virtual AKDs, as a real bus: frames pass drive 0, 1, ... in order.
+/// A line of virtual AKDs, as a real bus: frames pass drive 0, 1, ... in order. Drive `i`
+/// reports the identity [`sii_image::identity`]`(i)`: the real drive's, with a serial number of
+/// its own.
 pub struct VirtualBus {
     slaves: Vec<VirtualAkd>,
 }
@@ -370,14 +379,16 @@ impl VirtualBus {
 
     /// `count` virtual AKDs reacting with `timing`.
     pub fn with_timing(count: usize, timing: Timing) -> Self {
-        VirtualBus { slaves: (0..count).map(|i| VirtualAkd::new(i + 1 < count, timing)).collect() }
+        let slaves = (0..count).map(|i| VirtualAkd::new(sii_image::identity(i), i + 1 < count, timing));
+        VirtualBus { slaves: slaves.collect() }
     }
 
     /// `count` virtual AKDs reacting with `timing` whose SII declares a standard mailbox of
     /// `mailbox_size` bytes (see [`VirtualAkd::with_mailbox_size`]): a master reading the SII
     /// as usual then transfers long SDO values in segments and SDO information in fragments.
     pub fn with_mailbox_size(count: usize, timing: Timing, mailbox_size: u16) -> Result<Self> {
-        let slaves = (0..count).map(|i| VirtualAkd::with_mailbox_size(mailbox_size, i + 1 < count, timing));
+        let slaves = (0..count)
+            .map(|i| VirtualAkd::with_mailbox_size(sii_image::identity(i), mailbox_size, i + 1 < count, timing));
         Ok(VirtualBus { slaves: slaves.collect::<Result<_>>()? })
     }
 
@@ -504,8 +515,9 @@ mod tests {
     #[test]
     fn a_small_mailbox_is_declared_in_the_sii_and_expected_at_init_to_preop() {
         // Re-encoding with the real size gives the real image: only the mailbox size changes.
-        assert_eq!(sii_with_mailbox_size(AKD_MAILBOX_SIZE).unwrap(), sii_image::akd_sii());
-        let sii = crate::sii::Sii::parse(&sii_with_mailbox_size(64).unwrap()).unwrap();
+        assert_eq!(sii_with_mailbox_size(sii_image::IDENTITY, AKD_MAILBOX_SIZE).unwrap(), sii_image::akd_sii());
+        let sii = crate::sii::Sii::parse(&sii_with_mailbox_size(sii_image::identity(3), 64).unwrap()).unwrap();
+        assert_eq!(sii.identity(), sii_image::identity(3));
         let mb = sii.header.standard_mailbox;
         assert_eq!((mb.receive_offset, mb.receive_size, mb.send_offset, mb.send_size), (0x1800, 64, 0x1C00, 64));
         let sms: Vec<_> = sii.sync_managers().iter().map(|sm| sm.length).collect();

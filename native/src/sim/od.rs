@@ -9,6 +9,7 @@
 
 use crate::coe::{access, data_type, ObjectCode, SdoAbortCode};
 use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
+use crate::sii::Identity;
 use crate::sim::sii_image;
 
 /// Power-up following error window 0x6065: five revolutions.
@@ -281,10 +282,15 @@ impl Default for ObjectDictionary {
 
 impl ObjectDictionary {
     /// The AKD's dictionary with its power-up values (the flexible mapping the real drive
-    /// reports in the SOEM capture, cycle time 2 ms).
+    /// reports in the SOEM capture, cycle time 2 ms) and the real drive's identity.
     pub fn akd() -> Self {
+        Self::akd_of(sii_image::IDENTITY)
+    }
+
+    /// The AKD's dictionary at power-up with `id` in the identity object 0x1018, as the drive's
+    /// SII holds it.
+    pub fn akd_of(id: Identity) -> Self {
         use data_type::*;
-        let id = sii_image::IDENTITY;
         let mut objects = vec![
             var(0x1000, "Device type", UNSIGNED32, RO, 0x0002_0192),
             var(0x1001, "Error register", UNSIGNED8, RO, 0),
@@ -628,6 +634,14 @@ mod tests {
         assert_eq!(rx, 17 * 8);
         assert_eq!(od.cycle_time_ns(), Some(2_000_000));
         assert!(od.objects().windows(2).all(|w| w[0].index < w[1].index));
+    }
+
+    #[test]
+    fn the_identity_object_holds_the_identity_it_was_given() {
+        assert_eq!(ObjectDictionary::akd().read(0x1018, 4).unwrap(), &0x9983_0093u32.to_le_bytes());
+        let od = ObjectDictionary::akd_of(sii_image::identity(2));
+        assert_eq!(od.read(0x1018, 4).unwrap(), &0x9983_0095u32.to_le_bytes());
+        assert_eq!(od.read(0x1018, 2).unwrap(), &0x0041_4B44u32.to_le_bytes());
     }
 
     #[test]

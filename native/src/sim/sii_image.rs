@@ -26,6 +26,15 @@ pub const NAME: &str = "AKD EtherCAT Drive (CoE)";
 pub const IDENTITY: Identity =
     Identity { vendor_id: 0x0000_006A, product_code: 0x0041_4B44, revision: 2, serial_number: 0x9983_0093 };
 
+/// The identity of the virtual AKD at `position` on its line: the real drive's, its serial
+/// number counted up by the position. Drives on one line then tell themselves apart as real ones
+/// do (a master or an integrator names a drive by its serial), the same on every run, and the
+/// first drive stays the real drive whose captures the replay tests compare with.
+pub fn identity(position: usize) -> Identity {
+    // Positions are below 65536 on any EtherCAT line.
+    Identity { serial_number: IDENTITY.serial_number.wrapping_add(position as u32), ..IDENTITY }
+}
+
 /// Both mailboxes (bootstrap and standard) of the AKD: 1 KiB each at 0x1800 and 0x1C00.
 const MAILBOX: MailboxLayout =
     MailboxLayout { receive_offset: 0x1800, receive_size: 0x0400, send_offset: 0x1C00, send_size: 0x0400 };
@@ -44,7 +53,7 @@ const PDO_FIXED_CONTENT: u16 = 0x0010;
 /// Sync manager of a PDO not assigned by default.
 const NO_SYNC_MANAGER: u8 = 0xFF;
 
-fn header() -> Header {
+fn header(identity: Identity) -> Header {
     Header {
         pdi_control: 0x0009,
         pdi_configuration: 0x0800,
@@ -53,7 +62,7 @@ fn header() -> Header {
         configured_station_alias: 0,
         reserved_05: [0; 2],
         checksum_reserved: 0,
-        identity: IDENTITY,
+        identity,
         execution_delay: 0,
         port0_delay: 0,
         port1_delay: 0,
@@ -109,8 +118,8 @@ fn sync_manager(start_address: u16, length: u16, control: u8, sm_type: u8) -> Sy
     SyncManager { start_address, length, control, status: 0, enable: 1, sm_type }
 }
 
-fn describe() -> Result<Vec<u8>> {
-    let mut b = Builder::new(header());
+fn describe(identity: Identity) -> Result<Vec<u8>> {
+    let mut b = Builder::new(header(identity));
     b.push(Category::AkdModel(MODEL.into()));
     b.push(Category::AkdFirmware(FIRMWARE.into()));
     b.strings_here();
@@ -169,8 +178,16 @@ fn describe() -> Result<Vec<u8>> {
 
 /// The real AKD's 2 KiB SII image: the content above, 0xFF after the end category.
 pub fn akd_sii() -> Vec<u8> {
-    // The description is constant; `describes_the_real_drive` proves it encodes.
-    describe().expect("the AKD's SII description encodes")
+    akd_sii_of(IDENTITY)
+}
+
+/// The real AKD's SII image with `identity` in its header: the image of the drive at a position
+/// of its own on a line ([`identity`]). The header checksum covers words 0 to 6 only, before the
+/// identity, so it stays the real image's.
+pub fn akd_sii_of(identity: Identity) -> Vec<u8> {
+    // Only the identity varies, and no identity can fail to encode; `describes_the_real_drive`
+    // proves the rest encodes.
+    describe(identity).expect("the AKD's SII description encodes")
 }
 
 #[cfg(test)]
@@ -181,7 +198,7 @@ mod tests {
 
     #[test]
     fn describes_the_real_drive() {
-        let image = describe().unwrap();
+        let image = describe(IDENTITY).unwrap();
         assert_eq!(image.len(), 2048);
         let sii = Sii::parse(&image).unwrap();
         let id = sii.identity();
@@ -198,6 +215,28 @@ mod tests {
         let statusword = &sii.tx_pdos()[0].entries[0];
         assert_eq!(sii.string(statusword.name_idx), Some("Statusword"));
         assert_eq!(u16::from(statusword.data_type), data_type::UNSIGNED16);
+    }
+
+    #[test]
+    fn each_position_has_a_serial_of_its_own_and_the_first_is_the_real_drives() {
+        assert_eq!(identity(0), IDENTITY);
+        assert_eq!(akd_sii_of(identity(0)), akd_sii());
+        let serials: Vec<_> = (0..64).map(|p| identity(p).serial_number).collect();
+        assert_eq!(serials[..3], [0x9983_0093, 0x9983_0094, 0x9983_0095]);
+        let mut distinct = serials.clone();
+        distinct.sort_unstable();
+        distinct.dedup();
+        assert_eq!(distinct.len(), 64);
+        for position in [1, 5, 63] {
+            let image = akd_sii_of(identity(position));
+            // Sii::parse checks the header checksum.
+            let sii = Sii::parse(&image).unwrap();
+            assert_eq!(sii.identity(), identity(position));
+            // Nothing but the serial number (words 0x0E..0x0F) differs from the real image.
+            let real = akd_sii();
+            let differing: Vec<_> = (0..image.len()).filter(|&i| image[i] != real[i]).collect();
+            assert!(!differing.is_empty() && differing.iter().all(|i| (0x1C..0x20).contains(i)), "{differing:02X?}");
+        }
     }
 
     // The byte-for-byte comparison with the real drive's EEPROM is
