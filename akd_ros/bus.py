@@ -347,7 +347,8 @@ class Bus:
                 [a.slave for a in axes], times_ns, knots, start_ns, [a.position_limits_counts() for a in axes]
             )
         except (_native.ConfigError, OverflowError) as e:
-            raise CommandError(f"trajectory refused: {e}") from None
+            # The crate's refusal says "trajectory refused, nothing moved: " and why.
+            raise CommandError(str(e)) from None
 
     def samples_of(self, slave: int) -> dict[str, list]:
         """Every cycle's record of drive `slave` since the last call (see `_native.Cycle.samples`), each once."""

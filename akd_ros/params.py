@@ -549,7 +549,9 @@ def settings(values: dict[str, object]) -> Settings:
         for spec in joint_specs(names, top):
             blocks[spec.name] = spec.check(values.get(spec.name, spec.default))
         joints = tuple(
-            joint_settings(name, f"joints.{name}.", {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA})
+            joint_settings(
+                name, f"joints.{name}.", {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA if s.per_joint}
+            )
             for name in names
         )
     else:

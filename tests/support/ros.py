@@ -80,14 +80,14 @@ def stop(process: subprocess.Popen) -> None:
 
 
 class Sim:
-    """An akd-sim --udp process on 127.0.0.1:`port` and its command line on stdin."""
+    """An akd-sim --udp process of `count` virtual AKDs on 127.0.0.1:`port` and its command line on stdin."""
 
-    def __init__(self, port: int):
+    def __init__(self, port: int, count: int = 1):
         self.port = port
         self.log: list[str] = []
         self.lines: queue.Queue = queue.Queue()
         self.process = subprocess.Popen(
-            [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}"],
+            [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}", "--count", str(count)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
@@ -117,9 +117,10 @@ class Sim:
         self.process.stdin.flush()
         return self.reply("ok")
 
-    def state(self) -> dict:
-        """The virtual drive's firmware state (state, fault, position in counts, velocity, torque)."""
-        return json.loads(self.command("state 0")[3:])
+    def state(self, position: int = 0) -> dict:
+        """The firmware state of the virtual drive at `position` (state, fault, position in counts, velocity, torque,
+        dc)."""
+        return json.loads(self.command(f"state {position}")[3:])
 
     def stop(self) -> None:
         """Ends the simulator."""
