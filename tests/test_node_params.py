@@ -127,6 +127,41 @@ BAD_FILES = {
         ["parameter dc_shift must be less than one cycle_time (0.001 s) either way", "0.001"],
     ),
     "dc shift out of range": ("dc_shift: 0.5", ["parameter dc_shift must be a number in [-0.01, 0.01]", "0.5"]),
+    "fault reaction": ("fault_reaction: some", ["parameter fault_reaction must be one of all, joint", "'some'"]),
+    "joint name not a name token": ("joints: [arm/1]", ["parameter joints: 'arm/1' is not a joint name", "joint_1"]),
+    "joint named twice": ("link: sim:2\njoints: [a, a]", ["parameter joints names a more than once"]),
+    "joint_name beside joints": (
+        "link: sim:2\njoints: [a, b]\njoint_name: c",
+        ["parameter joint_name applies to a file without joints", "joints.<name>.slave"],
+    ),
+    "a block of a joint not in joints": (
+        "link: sim:2\njoints: [a, b]\njoints.c.mode: homing",
+        ["unknown parameter joints.c.mode", "joints.<name>.<one of slave, alias, mode"],
+    ),
+    "a parameter no joint block has": (
+        "link: sim:2\njoints: [a, b]\njoints.a.cycle_time: 0.002",
+        ["unknown parameter joints.a.cycle_time"],
+    ),
+    "a bad value in a joint block": (
+        "link: sim:2\njoints: [a, b]\njoints.b.mode: fast",
+        ["parameter joints.b.mode must be one of profile_position", "'fast'"],
+    ),
+    "a bad mapping in a joint block": (
+        "link: sim:2\njoints: [a, b]\njoints.b.mapping: 0x1799/0x1B01",
+        ["parameter joints.b.mapping", "0x1799 is not a fixed RxPDO"],
+    ),
+    "a bad latch in a joint block": (
+        'link: sim:2\njoints: [a, b]\njoints.a.latch.arm: ["1/up"]',
+        ["parameter joints.a.latch.arm: '1/up' is not CHANNEL/EDGE"],
+    ),
+    "two joints on one drive": (
+        "link: sim:2\njoints: [a, b]\njoints.b.slave: 0",
+        ["parameters joints.<name>.slave/alias", "slave 0 given to several drives"],
+    ),
+    "a joint past the last drive": (
+        "link: sim:2\njoints: [a, b, c]",
+        ["the drives (a (slave 0), b (slave 1), c (slave 2))", "slave 2 is not on the bus (slaves 0..1)"],
+    ),
 }
 
 
@@ -174,6 +209,57 @@ def test_the_simulator_config_runs_and_sigint_ends_it_cleanly():
     status, output = run_until_configured(REPO / "config" / "akd_sim.yaml")
     assert status == 0, output
     assert "configured: slave 0 on sim in Op" in output and "closed: drive disabled, bus in Init" in output
+
+
+def test_the_six_axis_simulator_config_runs_six_joints_with_their_own_blocks(tmp_path):
+    status, output = run_until_configured(REPO / "config" / "akd_sim_6axis.yaml")
+    assert status == 0, output
+    assert "configured: joint_1 (slave 0), joint_2 (slave 1)" in output and "joint_6 (slave 5) on sim:6" in output
+    assert "closed: drives disabled, bus in Init" in output
+
+
+def test_a_joint_block_overrides_the_top_level_defaults():
+    values = {spec.name: spec.default for spec in params.SCHEMA}
+    values |= {
+        "link": "sim:3",
+        "joints": ["shoulder", "elbow", "wrist"],
+        "mode": "cyclic_synchronous_position",
+        "limits.max_velocity": 4.0,
+        "joints.elbow.mode": "profile_velocity",
+        "joints.elbow.gear_ratio": 50.0,
+        "joints.wrist.alias": 7,
+        "joints.wrist.latch.arm": ["2/falling"],
+    }
+    settings = params.settings(values)
+    assert settings.joint_namespaces and [j.name for j in settings.joints] == ["shoulder", "elbow", "wrist"]
+    shoulder, elbow, wrist = settings.joints
+    assert (shoulder.slave, shoulder.mode, shoulder.limits.max_velocity) == (0, "cyclic_synchronous_position", 4.0)
+    assert (elbow.slave, elbow.mode, elbow.units.gear_ratio, elbow.limits.max_velocity) == (
+        1,
+        "profile_velocity",
+        50.0,
+        4.0,
+    )
+    assert (wrist.slave, wrist.alias, wrist.latch_arm) == (None, 7, ((2, "falling"),))
+
+
+def test_the_real_six_axis_template_names_only_joint_parameters_in_its_blocks():
+    template = yaml.safe_load((REPO / "config" / "akd_6axis.yaml").read_text())["akd_node"]["ros__parameters"]
+    values = {spec.name: spec.default for spec in params.SCHEMA}
+    for name, value in template.items():
+        if name.startswith("joints."):
+            for key, v in value.items():
+                values[f"{name}.{key}"] = v
+        else:
+            assert name in params.SPECS, name
+            values[name] = value
+    per_joint = {spec.name for spec in params.SCHEMA if spec.per_joint}
+    blocks = {key for name, block in template.items() if name.startswith("joints.") for key in block}
+    assert blocks <= per_joint, blocks - per_joint
+    values["link"] = "sim:6"  # its link names an interface of the target machine
+    settings = params.settings(values)
+    assert [j.name for j in settings.joints] == [f"joint_{i}" for i in range(1, 7)]
+    assert settings.joints[2].units.direction == -1 and settings.joints[5].latch_arm == ((1, "rising"),)
 
 
 def test_cyclic_synchronous_position_with_fixed_mappings_and_whole_numbers_for_reals(tmp_path):
@@ -228,6 +314,34 @@ def test_every_parameter_is_declared_with_type_description_and_range(node_in_pro
     assert node_in_process.get_parameter("mode").value == "interpolated_position"
     (joint,) = node_in_process.settings.joints
     assert joint.latch_arm == () and joint.mapping is None and joint.name == "akd_axis"
+
+
+def test_every_joint_block_parameter_is_declared_with_its_description_and_range():
+    from rclpy.parameter import Parameter
+
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=int(os.environ["ROS_DOMAIN_ID"]) + IN_PROCESS_DOMAIN_OFFSET)
+    overrides = [
+        Parameter("link", value="sim:2"),
+        Parameter("joints", value=["a", "b"]),
+        Parameter("joints.b.slave", value=0),
+        Parameter("joints.a.slave", value=1),
+    ]
+    try:
+        node = AkdNode(context=context, parameter_overrides=overrides)
+        names = [f"joints.{j}.{spec.name}" for j in ("a", "b") for spec in params.SCHEMA if spec.per_joint]
+        for name, descriptor in zip(names, node.describe_parameters(names), strict=True):
+            assert descriptor.description.startswith(f"Joint {name.split('.')[1]}: ") and descriptor.read_only, name
+        assert (
+            node.get_parameter("joints.a.slave").value == 1
+            and node.get_parameter("joints.b.mode").value == "interpolated_position"
+        )
+        mode = node.describe_parameters(["joints.b.mode"])[0]
+        assert "cyclic_synchronous_position" in mode.additional_constraints
+        assert [(j.name, j.slave) for j in node.settings.joints] == [("a", 1), ("b", 0)]
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
 
 
 def test_without_autostart_the_lifecycle_services_walk_the_node(tmp_path):
