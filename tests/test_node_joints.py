@@ -422,6 +422,7 @@ class Recorded:
     """What `recorded_run` did and got: the trajectories' points (joint: [(time, position rad)] from the start of
     each), the statuses, the JointStates received, and the bag's per-cycle records by joint."""
 
+    bag: Path
     statuses: list
     joint_states: list
     cycles: dict[str, list]
@@ -497,7 +498,7 @@ def recorded_run(ros_domain, tmp_path_factory):
         for connection, _, raw in reader.messages(connections=connections):
             sample = reader.deserialize(raw, connection.msgtype)
             cycles[sample.joint].append(sample)
-    return Recorded(statuses, joint_states, cycles, ends, [replaced], slopes)
+    return Recorded(bag, statuses, joint_states, cycles, ends, [replaced], slopes)
 
 
 def test_every_joint_states_message_holds_the_values_of_one_cycle(recorded_run):
@@ -539,3 +540,29 @@ def test_the_trajectory_status_tells_the_story(recorded_run):
     assert outcome[second][-1] == "replaced" and outcome[third][-1] == "done", outcome
     (replaced,) = recorded_run.replaced
     assert replaced.replaced_by == third and "replaced by trajectory" in replaced.message
+
+
+def test_akd_plot_draws_one_joint_of_the_bag_and_names_the_joints_it_has(recorded_run, tmp_path):
+    import subprocess
+
+    from support.ros import BIN
+
+    picture = tmp_path / "joint_3.png"
+    done = subprocess.run(
+        [str(BIN / "akd-plot"), str(recorded_run.bag), "--joint", "joint_3", "-o", str(picture)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    done = subprocess.run(
+        [str(BIN / "akd-plot"), str(recorded_run.bag), "--joint", "elbow", "-o", str(picture)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert done.returncode == 1 and "no cycle samples of joint 'elbow'" in done.stderr, done.stderr
+    assert "joint_1, joint_2, joint_3, joint_4, joint_5, joint_6" in done.stderr and "Traceback" not in done.stderr

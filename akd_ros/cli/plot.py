@@ -1,6 +1,7 @@
 """akd-plot BAG -o FILE.png: one picture of a recorded run, to see what happened around a fault.
 
-BAG is a rosbag2 directory written by akd_ros (akd_ros.recorder). The picture has, against the
+BAG is a rosbag2 directory written by akd_ros (akd_ros.recorder); of a bag of several joints it draws one,
+--joint NAME or the first. The picture has, against the
 time since the first cycle sample: position and command, following error, torque and the DS402
 state read from the statusword, each with the faults (red, with code, text and what the driver
 did) and latch captures (green, with channel, edge and position) drawn across; and a histogram of
@@ -41,16 +42,20 @@ class Run:
     """
 
     samples: dict = field(default_factory=dict)
+    joint: str = ""
+    """The joint drawn (a bag of a bus of joints has each cycle once per joint)."""
+    joints: list = field(default_factory=list)
+    """Every joint the bag's cycle samples name, in their order."""
     black_box: list = field(default_factory=list)
     latches: list = field(default_factory=list)
     faults: list = field(default_factory=list)
     topics: dict = field(default_factory=dict)
 
 
-def read_run(bag: Path) -> Run:
-    """Reads a bag's cycle samples, latch events and faults.
+def read_run(bag: Path, joint: str | None = None) -> Run:
+    """Reads a bag's cycle samples, latch events and faults of `joint` (None: the first joint in the bag).
 
-    Raises FileNotFoundError for no bag, ValueError for one that rosbags cannot read."""
+    Raises FileNotFoundError for no bag, ValueError for one that rosbags cannot read or a joint it does not have."""
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_typestore
 
@@ -67,21 +72,37 @@ def read_run(bag: Path) -> Run:
             kinds = (CYCLE_SAMPLE, LATCH_EVENT, DRIVE_FAULT)
             wanted = [c for c in connections if c.msgtype in kinds]
             dump: list = []
+            samples: dict = {}
+            latches: list = []
+            faults: list = []
             for connection, time_ns, raw in reader.messages(connections=wanted):
                 msg = reader.deserialize(raw, connection.msgtype)
+                # Bags of a single axis recorded before CycleSample named its joint have none.
+                name = getattr(msg, "joint", "")
                 if connection.msgtype == CYCLE_SAMPLE:
-                    result.samples[msg.cycle] = (time_ns, msg)
+                    if name not in samples:
+                        samples[name] = {}
+                    samples[name][msg.cycle] = (time_ns, msg)
                     if connection.topic in black_box_topics:
-                        dump.append(time_ns)
+                        dump.append((name, time_ns))
                 elif connection.msgtype == LATCH_EVENT:
-                    result.latches.append((time_ns, msg))
+                    latches.append((time_ns, msg))
                 else:
-                    result.faults.append((time_ns, msg))
-            result.black_box = _spans(sorted(dump))
+                    faults.append((time_ns, msg))
     except Exception as err:
         raise ValueError(
             f"cannot read bag {bag}: {err} (if its recorder was killed, run akd-plot with --reindex)"
         ) from err
+    result.joints = list(samples)
+    if joint is not None and joint not in samples:
+        raise ValueError(
+            f"bag {bag} has no cycle samples of joint {joint!r} (its joints: {', '.join(samples) or 'none'})"
+        )
+    result.joint = joint if joint is not None else next(iter(samples), "")
+    result.samples = samples.get(result.joint, {})
+    result.latches = [(t, m) for t, m in latches if len(samples) < 2 or m.joint == result.joint]
+    result.faults = [(t, m) for t, m in faults if len(samples) < 2 or m.joint == result.joint]
+    result.black_box = _spans(sorted(t for name, t in dump if name == result.joint))
     return result
 
 
@@ -241,6 +262,9 @@ def main(argv: list[str] | None = None) -> int:
         help=f"picture to write ({', '.join(FORMATS)})",
     )
     parser.add_argument(
+        "--joint", metavar="NAME", help="the joint to draw, of a bag of several (default: the first in the bag)"
+    )
+    parser.add_argument(
         "--reindex",
         action="store_true",
         help="first rebuild the bag's summaries and metadata.yaml (after a killed recording)",
@@ -252,7 +276,7 @@ def main(argv: list[str] | None = None) -> int:
             from akd_ros.recorder import reindex
 
             reindex(args.bag)
-        run_data = read_run(args.bag)
+        run_data = read_run(args.bag, args.joint)
         if not run_data.samples:
             topics = ", ".join(f"{name} ({kind})" for name, kind in sorted(run_data.topics.items())) or "none"
             print(
@@ -260,8 +284,9 @@ def main(argv: list[str] | None = None) -> int:
                 file=sys.stderr,
             )
             return EXIT_FAILURE
+        of_joint = f" of {run_data.joint}" if run_data.joint else ""
         title = (
-            f"{args.bag.name}: {len(run_data.samples)} cycle samples, "
+            f"{args.bag.name}: {len(run_data.samples)} cycle samples{of_joint}, "
             f"{len(run_data.faults)} fault(s), {len(run_data.latches)} latch capture(s)"
         )
         plot(run_data, title, args.output)
