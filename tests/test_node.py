@@ -46,6 +46,8 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{port}
     cycle_time: 0.002
+    # As an integrator runs it: the cycle thread under SCHED_FIFO where permitted (else a warning).
+    rt.priority: 30
     mode: interpolated_position
     joint_name: {joint}
     limits.min_position: -{max_position}
@@ -241,6 +243,8 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{{port}}
     cycle_time: 0.002
+    # As an integrator runs it: the cycle thread under SCHED_FIFO where permitted (else a warning).
+    rt.priority: 30
     mode: profile_velocity
     joint_name: {joint}
     joint_states_rate: 50.0
@@ -312,6 +316,8 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{port}
     cycle_time: 0.002
+    # As an integrator runs it: the cycle thread under SCHED_FIFO where permitted (else a warning).
+    rt.priority: 30
     mode: cyclic_synchronous_position
     mapping: 0x1724/0x1B26
     joint_name: test_axis

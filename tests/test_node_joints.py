@@ -57,6 +57,8 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{port}
     cycle_time: {cycle_time}
+    # As an integrator runs it: the cycle thread under SCHED_FIFO where permitted (else a warning).
+    rt.priority: 30
     dc: '{dc}'
     fault_reaction: {fault_reaction}
     mode: cyclic_synchronous_position

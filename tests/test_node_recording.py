@@ -63,6 +63,8 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{{port}}
     cycle_time: {cycle_time}
+    # As an integrator runs it: the cycle thread under SCHED_FIFO where permitted (else a warning).
+    rt.priority: 30
     mode: interpolated_position
     joint_name: recorded_axis
     joint_states_rate: 50.0

@@ -1,26 +1,32 @@
-"""`akd_node`: one AKD axis in ROS 2, a lifecycle (managed) node over `akd_ros.Axis`.
+"""`akd_node`: the AKD axes of one EtherCAT line in ROS 2, a lifecycle (managed) node over `akd_ros.Bus`.
 
-Topics: /joint_states (sensor_msgs/JointState, SI), /diagnostics, ~/status (DriveStatus), ~/latch (LatchEvent),
-~/fault (DriveFault); commands on ~/position_command, ~/velocity_command and ~/torque_command (std_msgs/Float64, SI).
-Services: ~/enable, ~/disable, ~/reset_fault, ~/quick_stop (std_srvs/Trigger), ~/set_mode, ~/arm_latch, ~/sdo_read,
-~/sdo_write (the package's own).
+One joint (no `joints` parameter: its topics and services under ~/) or a robot of several (`joints`, each with its
+block joints.<name>.* and its topics and services under ~/<joint>/). Topics: /joint_states (sensor_msgs/JointState,
+SI, every joint of one cycle), /diagnostics (a status per joint and one of the bus), per joint status (DriveStatus),
+latch (LatchEvent) and fault (DriveFault) and the commands position_command, velocity_command and torque_command
+(std_msgs/Float64, SI); ~/joint_commands (sensor_msgs/JointState by name), ~/joint_trajectory
+(trajectory_msgs/JointTrajectory, interpolated by the cycle thread) and ~/trajectory_status (TrajectoryStatus).
+Services: ~/enable, ~/disable, ~/reset_fault, ~/quick_stop (std_srvs/Trigger, every joint at once), and per joint the
+same four, set_mode, arm_latch, sdo_read and sdo_write (the package's own).
 
 One module per job, each a part that `AkdNode` is made of:
 
-- `lifecycle`: `AkdNode` itself, its parts and its transitions (configure opens the Axis, cleanup closes it);
-- `publishing`: /joint_states, ~/status and the events ~/latch and ~/fault;
+- `lifecycle`: `AkdNode` itself, its parts and its transitions (configure opens the Bus, cleanup closes it);
+- `publishing`: /joint_states, each joint's status and its events (latch, fault);
 - `diagnostics`: /diagnostics;
 - `commands`: the command topics, their refusal and time-out, the automatic fault reset, the drive requests;
+- `trajectories`: ~/joint_trajectory and ~/trajectory_status;
 - `services`: the services over those requests;
-- `recording`: the bag of everything published and received, and of every cycle (`record.*`);
+- `recording`: the bag of everything published and received, and of every cycle of every joint (`record.*`);
 - `clock`: stamps, the cycle thread's monotonic times moved onto the ROS clock;
-- `session`: what the parts share (the settings, the clock; from configure to cleanup the Axis, the Recorder, the lock).
+- `session`: what the parts share (the settings, the clock; from configure to cleanup the Bus, the Recorder, the
+  lock).
 
 Threads: a MultiThreadedExecutor runs three callback groups. The periodic group (publishing timers) and the command
 group (the command subscriptions, queued 100 deep so a stall of the Python side delays commands rather than drops
 them) never wait on the drive; the request group (services, the supervisor that handles command time-outs and
-automatic fault resets) may wait up to the Axis's time-outs without stopping the periodic topics. The session's lock
-guards the Axis's Python-side state (position unwrapping, event queues, the last command) between them.
+automatic fault resets) may wait up to the axes' time-outs without stopping the periodic topics. The session's lock
+guards the axes' Python-side state (position unwrapping, event queues, the last command) between them.
 """
 
 from __future__ import annotations

@@ -145,6 +145,13 @@ class Publishing:
         if columns is not None:
             record_cycles(recorder, columns, self._clock.ros_minus_monotonic_ns())
         how_to_enable = "call ~/enable to go on"
+        # A fault of the link (a lost frame, a working counter) is every drive's in the same cycle: one line for all.
+        logged: dict[tuple, list[str]] = {}
+        for axis, _, faults, _ in taken:
+            for e in faults:
+                logged.setdefault((e.cycle, e.source, e.code, e.describe()), []).append(axis.name)
+        for (_, _, _, text), joints in logged.items():
+            self._logger.error(f"fault of {', '.join(joints)}: {text}")
         for axis, latches, faults, timeouts in taken:
             joint = axis.name
             for e in timeouts:
@@ -160,7 +167,6 @@ class Publishing:
                 message.header.stamp = self._clock.stamp(e.time_ns)
                 self.joints[joint].latch.publish(message)
             for e in faults:
-                self._logger.error(f"fault of {joint}: {e.describe()}")
                 message = DriveFault(
                     joint=joint,
                     source=e.source,

@@ -6,6 +6,7 @@ over rmw_fastrtps_cpp in an rclpy.Context of its own, so several can live in one
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -79,8 +80,21 @@ def stop(process: subprocess.Popen) -> None:
             process.wait()
 
 
+SIM_PRIORITY = 40
+"""SCHED_FIFO priority of akd-sim's threads where the system permits it. A real AKD has a processor of its own; on a
+loaded test host a virtual one descheduled for more than seven cycles would fault with F125 (synchronization lost)
+as the real one does when its master falls silent, which is not what the node's tests are about."""
+
+
+def _realtime(priority: int) -> None:
+    """In a child before it executes: SCHED_FIFO at `priority` for it and every thread it starts, if permitted."""
+    with contextlib.suppress(PermissionError, OSError):
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+
+
 class Sim:
-    """An akd-sim --udp process of `count` virtual AKDs on 127.0.0.1:`port` and its command line on stdin."""
+    """An akd-sim --udp process of `count` virtual AKDs on 127.0.0.1:`port` and its command line on stdin; under
+    SCHED_FIFO (SIM_PRIORITY) where permitted."""
 
     def __init__(self, port: int, count: int = 1):
         self.port = port
@@ -88,6 +102,7 @@ class Sim:
         self.lines: queue.Queue = queue.Queue()
         self.process = subprocess.Popen(
             [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}", "--count", str(count)],
+            preexec_fn=lambda: _realtime(SIM_PRIORITY),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
