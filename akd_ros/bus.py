@@ -68,19 +68,17 @@ def check_mode(mode: str) -> None:
         raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
 
 
-def _picked(drives: Sequence, slaves: list[dict]) -> list[int]:
-    """The bus position of each drive (by `slave` or `alias`), or CommandError naming what is wrong."""
+def _picked(drives: Sequence, master, slaves: list[dict]) -> list[int]:
+    """The bus position of each drive (by `slave` or, through the master, `alias`) among the `slaves` its scan found,
+    or CommandError naming what is wrong."""
     positions = []
     for drive in drives:
         if drive.alias is not None:
-            found = [s["position"] for s in slaves if s["alias"] == drive.alias]
-            if len(found) != 1:
+            try:
+                position = master.position_of_alias(drive.alias)
+            except _native.ConfigError as e:
                 aliases = ", ".join(f"{s['position']}: {s['alias']}" for s in slaves)
-                raise CommandError(
-                    f"station alias {drive.alias} is on {len(found)} slaves, not one (position: alias of each: "
-                    f"{aliases})"
-                )
-            position = found[0]
+                raise CommandError(f"{e} (position: alias of each: {aliases})") from None
         else:
             position = drive.slave
         if not 0 <= position < len(slaves):
@@ -148,7 +146,7 @@ class Bus:
             self.slaves: list[dict] = self._master.scan()
             """What the scan found of each slave on the line (`_native.Master.scan`), by position: identity (vendor,
             product, revision, serial number), name, model, firmware, station alias."""
-            positions = _picked(drives, self.slaves)
+            positions = _picked(drives, self._master, self.slaves)
             self.simulator = None
             """For built-in virtual AKDs: their `Simulator` (fault injection, hardware enable, input toggles)."""
             # The extension knows which links are virtual: the others have no simulator.

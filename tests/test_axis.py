@@ -292,7 +292,7 @@ def test_opening_refuses_what_cannot_work() -> None:
     with pytest.raises(CommandError, match="slave 2 is not on the bus"):
         Axis("sim", slave=2)
     # The virtual AKDs keep the alias 0 of a fresh drive: an alias must name exactly one.
-    with pytest.raises(CommandError, match="station alias 0 is on 2 slaves, not one"):
+    with pytest.raises(CommandError, match=r"station alias 0 is on 2 slave\(s\), not one"):
         Axis("sim:2", alias=0)
     with pytest.raises(CommandError, match="station alias 7 is on 0 slaves"):
         Axis("sim", alias=7)

@@ -189,6 +189,12 @@ impl PyMaster {
         })
     }
 
+    /// The position of the one slave of the last scan whose station alias is `alias`; raises
+    /// ConfigError saying on how many slaves it is when that is not one.
+    fn position_of_alias(&self, py: Python<'_>, alias: u16) -> PyResult<u16> {
+        self.with_master(py, |m| Ok(m.slave_by_alias(alias)?.position()))
+    }
+
     /// Number of slaves found by the last scan.
     #[getter]
     fn slave_count(&self, py: Python<'_>) -> PyResult<usize> {
