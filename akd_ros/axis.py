@@ -326,12 +326,19 @@ class Axis:
         getattr(cycle, request)(self.slave)
 
     def wait(self, request: str, timeout: float = 5.0) -> None:
-        """Waits until the drive carried out `request`; TimeoutError saying in which state it is stuck and why."""
-        if request == "quick_stop":
-            done = ("Quick stop active", "Switch on disabled")
-            self._wait_for(lambda s: s["state"] in done, "the quick stop", timeout)
-        else:
-            self._wait_state("Operation enabled" if request == "enable" else "Switch on disabled", timeout)
+        """Waits until the drive carried out `request`; TimeoutError saying in which state it is stuck and why, or
+        that another request took its place (a quick stop of the whole bus after another drive's fault)."""
+        try:
+            if request == "quick_stop":
+                done = ("Quick stop active", "Switch on disabled")
+                self._wait_for(lambda s: s["state"] in done, "the quick stop", timeout)
+            else:
+                self._wait_state("Operation enabled" if request == "enable" else "Switch on disabled", timeout)
+        except TimeoutError as e:
+            in_force = self._running().drive_status(self.slave)["request"]
+            if in_force is not None and in_force != request:
+                raise TimeoutError(f"{e}; the {request} was replaced by a {in_force} request") from None
+            raise
 
     def enable(self, timeout: float = 5.0) -> None:
         """Brings the drive to Operation enabled and waits; the target holds the actual position until commanded.

@@ -126,6 +126,19 @@ def test_a_fault_on_one_drive_stops_the_others_as_fault_reaction_says(reaction: 
             assert ip.state().state == "Operation enabled"
 
 
+def test_an_enable_a_fault_elsewhere_replaces_with_a_quick_stop_says_so() -> None:
+    # Drive 2's enable cannot finish (hardware enable low) and stays under way for its 3 s request time-out; drive 0's
+    # fault meanwhile quick-stops every drive being enabled, drive 2 too.
+    with Bus("sim:3", THREE, request_timeout=3.0) as bus:
+        ip, _, torque = bus.axes
+        bus.simulator.set_hardware_enable(2, False)
+        ip.enable()
+        torque.request("enable")
+        bus.simulator.inject_fault(0, "F439")
+        with pytest.raises(TimeoutError, match="the enable was replaced by a quick_stop request"):
+            torque.wait("enable", timeout=1.5)
+
+
 def test_bus_wide_enable_names_the_drive_whose_hardware_enable_is_low(bus: Bus) -> None:
     bus.simulator.set_hardware_enable(2, False)
     with pytest.raises(BusRequestError, match=r"torque: .*hardware enable") as refused:
