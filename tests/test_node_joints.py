@@ -368,6 +368,40 @@ def test_a_trajectory_with_bad_times_or_nan_is_refused(robot, points, why):
     assert why in refused.message, refused.message
 
 
+@pytest.mark.parametrize("kind", ["cubic", "quintic"])
+def test_a_trajectory_with_velocities_or_accelerations_ends_on_its_last_point(robot, kind):
+    robot.enable_all()
+    here = robot.arm.positions()
+    message = JointTrajectory(joint_names=JOINTS)
+    for t, offset, velocity in ((0.4, 0.2, 0.5), (0.8, 0.3, 0.0)):
+        message.points.append(
+            JointTrajectoryPoint(
+                positions=[here[j] + offset for j in JOINTS],
+                velocities=[velocity] * 6,
+                accelerations=[0.0] * 6 if kind == "quintic" else [],
+                time_from_start=Duration(sec=0, nanosec=round(t * 1e9)),
+            )
+        )
+    since = len(robot.arm.received[NODE + "trajectory_status"])
+    robot.arm.publish(robot.arm.joint_trajectory, message)
+    robot.arm.status_of_next("done", since)
+    robot.arm.spin_for(0.2)
+    for i, j in enumerate(JOINTS):
+        assert abs(robot.sim.state(i)["position"] - (here[j] + 0.3) * COUNTS_PER_RAD) <= SETTLED_COUNTS, j
+
+
+def test_accelerations_without_velocities_refuse_the_trajectory(robot):
+    robot.enable_all()
+    here = robot.arm.positions()
+    point = JointTrajectoryPoint(
+        positions=[here[j] + 0.1 for j in JOINTS], accelerations=[0.0] * 6, time_from_start=Duration(sec=1)
+    )
+    since = len(robot.arm.received[NODE + "trajectory_status"])
+    robot.arm.publish(robot.arm.joint_trajectory, JointTrajectory(joint_names=JOINTS, points=[point]))
+    refused = robot.arm.status_of_next("refused", since)
+    assert "accelerations without velocities" in refused.message, refused.message
+
+
 def test_bus_wide_enable_with_one_hardware_enable_low_names_that_joint(robot):
     robot.enable_all()
     robot.arm.trigger("disable")
