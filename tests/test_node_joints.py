@@ -544,7 +544,8 @@ def test_every_joint_states_message_holds_the_values_of_one_cycle(recorded_run):
             by_cycle.setdefault(s.cycle, {})[joint] = s.position
     positions_of_cycles = {tuple(v[j] for j in JOINTS) for v in by_cycle.values() if len(v) == len(JOINTS)}
     moving = [m for m in recorded_run.joint_states if len(set(m.position)) > 1]
-    assert len(moving) > 50, len(moving)
+    # At 50 Hz over 3.5 s of motion; enough to tell one cycle from several, however slowly a loaded host publishes.
+    assert len(moving) > 20, len(moving)
     for message in moving:
         assert tuple(message.position) in positions_of_cycles, f"no cycle had the positions {message.position}"
 
