@@ -224,6 +224,10 @@ def test_serialization_round_trips_every_request_and_response(name):
 
 def test_latch_edge_constants():
     assert (LatchEvent.EDGE_RISING, LatchEvent.EDGE_FALLING) == (1, 2)
+    # The node's parts name the edges without the message classes, which a Zenoh transport builds otherwise.
+    from akd_ros.node.publishing import EDGE_NAMES
+
+    assert EDGE_NAMES == {LatchEvent.EDGE_RISING: "rising", LatchEvent.EDGE_FALLING: "falling"}
 
 
 class MessageTypeSupport(ctypes.Structure):

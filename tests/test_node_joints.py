@@ -289,7 +289,10 @@ def test_joint_commands_move_exactly_the_named_joints(robot):
         message = JointState(name=list(targets), position=[here[j] + (t - here[j]) * step for j, t in targets.items()])
         robot.arm.publish(robot.arm.joint_commands, message)
         robot.arm.spin_for(0.01)
-    robot.arm.spin_for(0.3)
+    moved = {JOINTS.index(j): t * COUNTS_PER_RAD for j, t in targets.items()}
+    robot.arm.spin_until(
+        lambda: all(abs(robot.sim.state(i)["position"] - c) <= 20 for i, c in moved.items()), "the named joints there"
+    )
     after = robot.drive_counts()
     for i, joint in enumerate(JOINTS):
         if joint in targets:

@@ -18,13 +18,13 @@ import math
 import re
 import time
 
-from rclpy.qos import QoSProfile
-from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64
-
 from akd_ros.axis import Axis, CheckedCommand, CommandError
 from akd_ros.bus import BusRequestError
 from akd_ros.node.session import AXIS_ERRORS, FAULT_STATES, Session, namespace
+from akd_ros.node.transport import Qos, Transport
+
+FLOAT64 = "std_msgs/msg/Float64"
+JOINT_STATE = "sensor_msgs/msg/JointState"
 
 _SUPERVISOR_PERIOD_S = 0.02
 # How often one kind of refused command is logged.
@@ -45,9 +45,9 @@ class Commands:
     """The command subscriptions (in `group`, `qos`), the supervisor timer (in `supervisor_group`: it may wait on
     the drive) that resets a fault under auto_once, and which joints such a reset is due for."""
 
-    def __init__(self, node, session: Session, group, qos: QoSProfile, supervisor_group) -> None:
+    def __init__(self, transport: Transport, session: Session, group, qos: Qos, supervisor_group) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
-        self._logger = node.get_logger()
+        self._logger = transport.logger
         self.qos = qos
         self._reset_pending: set[str] = set()
         self._refusals: dict[str, tuple[float, int]] = {}
@@ -56,23 +56,21 @@ class Commands:
         for joint in session.joints:
             ns = namespace(session.settings, joint.name)
             for kind in COMMAND_KINDS:
-                subscription = node.create_subscription(
-                    Float64,
+                self.topics[joint.name, kind] = transport.subscription(
+                    FLOAT64,
                     f"{ns}{kind}_command",
                     lambda m, j=joint.name, k=kind: self._on_command(j, k, m),
                     qos,
-                    callback_group=group,
+                    group,
                 )
-                self.topics[joint.name, kind] = subscription.topic_name
-        subscription = node.create_subscription(
-            JointState, "~/joint_commands", self._on_joint_commands, qos, callback_group=group
+        self.joint_commands_topic: str = transport.subscription(
+            JOINT_STATE, "~/joint_commands", self._on_joint_commands, qos, group
         )
-        self.joint_commands_topic: str = subscription.topic_name
-        node.create_timer(_SUPERVISOR_PERIOD_S, self._supervise, supervisor_group)
+        transport.timer(_SUPERVISOR_PERIOD_S, self._supervise, supervisor_group)
 
-    def recorded_topics(self) -> list[tuple[str, type]]:
-        """Every command topic with its message type, for the recorder."""
-        return [(topic, Float64) for topic in self.topics.values()] + [(self.joint_commands_topic, JointState)]
+    def recorded_topics(self) -> list[tuple[str, str]]:
+        """Every command topic with its message type's name, for the recorder."""
+        return [(topic, FLOAT64) for topic in self.topics.values()] + [(self.joint_commands_topic, JOINT_STATE)]
 
     def fault_seen(self, joint: str) -> None:
         """A fault of `joint` was published: under its fault_reset auto_once the supervisor resets it."""
@@ -93,7 +91,7 @@ class Commands:
             )
         return axis
 
-    def _on_command(self, joint: str, kind: str, message: Float64) -> None:
+    def _on_command(self, joint: str, kind: str, message) -> None:
         session = self._session
         recorder = session.recorder
         if recorder is not None:
@@ -105,7 +103,7 @@ class Commands:
         except CommandError as e:
             self._warn_refused(f"{joint}: {e}")
 
-    def _on_joint_commands(self, message: JointState) -> None:
+    def _on_joint_commands(self, message) -> None:
         session = self._session
         recorder = session.recorder
         if recorder is not None:
@@ -118,7 +116,7 @@ class Commands:
         except CommandError as e:
             self._warn_refused(f"~/joint_commands refused, nothing sent: {e}")
 
-    def _check_joint_commands(self, message: JointState) -> list[tuple[Axis, CheckedCommand]]:
+    def _check_joint_commands(self, message) -> list[tuple[Axis, CheckedCommand]]:
         """Each named joint's command of `message`, all checked; CommandError naming the first problem."""
         names = list(message.name)
         known = [j.name for j in self._session.joints]
@@ -143,7 +141,7 @@ class Commands:
                     f"has {len(values)} values for {len(names)} names"
                 )
             try:
-                checked.append((axis, axis.check_command(kind, values[i])))
+                checked.append((axis, axis.check_command(kind, float(values[i]))))
             except CommandError as e:
                 raise CommandError(f"joint {joint}: {e}") from None
         return checked

@@ -11,11 +11,9 @@ distributed clocks."""
 
 from __future__ import annotations
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from rclpy.qos import QoSProfile
-
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
+from akd_ros.node.transport import Qos, Transport
 
 FBUS_PARAM02_UNKNOWN = (
     "FBUS.PARAM02 unknown: the drive's SDO information does not confirm the object, so nothing was written; "
@@ -52,12 +50,22 @@ class Diagnostics:
     """The /diagnostics publisher and its timer: one status per joint (`akd_node: <joint>`) and one of the bus
     (`akd_node: bus`); `publishing` has each joint's last fault."""
 
-    def __init__(self, node, session: Session, group, qos: QoSProfile, node_name: str, publishing: Publishing) -> None:
+    def __init__(
+        self, transport: Transport, session: Session, group, qos: Qos, node_name: str, publishing: Publishing
+    ) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
         self._node_name, self._publishing = node_name, publishing
-        self.publisher = RecordedPublisher(node, DiagnosticArray, "/diagnostics", qos, session)
+        self._array = transport.message_class("diagnostic_msgs/msg/DiagnosticArray")
+        self._status = transport.message_class("diagnostic_msgs/msg/DiagnosticStatus")
+        # The levels as the transport's messages spell them (a byte in rclpy's, an int in rosbags').
+        self._ok, self._warn, self._error = self._status.OK, self._status.WARN, self._status.ERROR
+        self._key_value = transport.message_class("diagnostic_msgs/msg/KeyValue")
+        self._header = transport.message_class("std_msgs/msg/Header")
+        self.publisher = RecordedPublisher(
+            transport, "diagnostic_msgs/msg/DiagnosticArray", "/diagnostics", qos, session
+        )
         self._counters_seen: dict[str, int] = {}
-        node.create_timer(1.0 / session.settings.diagnostics_rate, self._publish, group)
+        transport.timer(1.0 / session.settings.diagnostics_rate, self._publish, group)
 
     def restart_counters(self) -> None:
         """Counts the fault counters' growth from the next report on (at activate)."""
@@ -74,31 +82,29 @@ class Diagnostics:
         dc_status = bus.cycle.dc_status()
         statuses = [self._joint_status(bus[joint], state, dc_status) for joint, state in states.items()]
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status))
-        message = DiagnosticArray(status=statuses)
-        message.header.stamp = self._clock.stamp()
-        self.publisher.publish(message)
+        self.publisher.publish(self._array(header=self._header(stamp=self._clock.stamp()), status=statuses))
 
-    def _joint_status(self, axis, state, dc_status: dict) -> DiagnosticStatus:
+    def _joint_status(self, axis, state, dc_status: dict) -> object:
         """The status of one joint: its drive's state, mode, position, DC and last fault."""
         fault = self._publishing.last_fault.get(axis.name)
         param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
         if state.state in FAULT_STATES:
-            level = DiagnosticStatus.ERROR
+            level = self._error
         elif (
             not state.fresh
             or state.progress in ("stuck", "lost")
             or state.state == "Quick stop active"
             or (param02_unknown)
         ):
-            level = DiagnosticStatus.WARN
+            level = self._warn
         else:
-            level = DiagnosticStatus.OK
+            level = self._ok
         summary = state.state or "no valid DS402 state"
         if state.reason:
             summary += f": {state.reason}"
         if param02_unknown:
             summary += f"; {FBUS_PARAM02_UNKNOWN}"
-        if level == DiagnosticStatus.ERROR and fault is not None:
+        if level == self._error and fault is not None:
             summary += f"; last fault {fault.text or hex(fault.code)}"
         values = {
             "joint": axis.name,
@@ -115,25 +121,25 @@ class Diagnostics:
             "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
             "last_fault_action": "" if fault is None else fault.action,
         }
-        return DiagnosticStatus(
+        return self._status(
             level=level,
             name=f"{self._node_name}: {axis.name}",
             message=summary,
             hardware_id=f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}",
-            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+            values=[self._key_value(key=k, value=str(v)) for k, v in values.items()],
         )
 
-    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict) -> DiagnosticStatus:
+    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict) -> object:
         """The status of the bus: the link, the cycle's counters and timing, distributed clocks, the joints' worst."""
         faulted = [j for j, s in states.items() if s.state in FAULT_STATES]
         stale = not all(s.fresh for s in states.values())
         if faulted:
-            level, summary = DiagnosticStatus.ERROR, f"fault on {', '.join(faulted)}"
+            level, summary = self._error, f"fault on {', '.join(faulted)}"
         elif grown or stale:
-            level = DiagnosticStatus.WARN
+            level = self._warn
             summary = "the last frame did not come back" if stale else "cycle running"
         else:
-            level, summary = DiagnosticStatus.OK, "cycle running"
+            level, summary = self._ok, "cycle running"
         if grown:
             summary += f" ({', '.join(grown)} since the last report)"
         values = {
@@ -155,10 +161,10 @@ class Diagnostics:
                 "dc_reference_slave": dc_status["reference_position"],
                 "dc_difference_misses": dc_status["difference_misses"],
             }
-        return DiagnosticStatus(
+        return self._status(
             level=level,
             name=f"{self._node_name}: bus",
             message=summary,
             hardware_id=f"EtherCAT line {self._settings.link}",
-            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()],
+            values=[self._key_value(key=k, value=str(v)) for k, v in values.items()],
         )

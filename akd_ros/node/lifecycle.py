@@ -10,10 +10,7 @@ from __future__ import annotations
 
 import sys
 
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
-from rclpy.qos import QoSProfile, ReliabilityPolicy
-from trajectory_msgs.msg import JointTrajectory
 
 from akd_ros.axis import CommandError
 from akd_ros.bus import Bus
@@ -22,9 +19,11 @@ from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
 from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
+from akd_ros.node.ros_transport import RosTransport, qos_profile
 from akd_ros.node.services import Services
 from akd_ros.node.session import AXIS_ERRORS, Session
-from akd_ros.node.trajectories import Trajectories
+from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
+from akd_ros.node.transport import Qos
 from akd_ros.params import Settings, declare
 
 NODE_NAME = "akd_node"
@@ -43,20 +42,25 @@ class AkdNode(LifecycleNode):
         self.settings: Settings = declare(self, arguments, kwargs.get("parameter_overrides") or [])
         self.failure: str | None = None
         """Why the last transition failed, for the log and the exit message."""
-        self._session = Session(self.settings, CycleClock(self.get_clock()))
-        periodic = MutuallyExclusiveCallbackGroup()
-        requests = MutuallyExclusiveCallbackGroup()
+        transport = RosTransport(self)
+        self._transport = transport
+        self._session = Session(
+            self.settings, CycleClock(transport.now_ns, transport.message_class("builtin_interfaces/msg/Time"))
+        )
+        periodic, requests = transport.group(), transport.group()
         # Commands have a group of their own, so a slow timer callback (a batch of cycles to record) does not hold
         # them up, and a deep queue, so a stall of the node's Python side delays commands instead of dropping them.
-        commands = MutuallyExclusiveCallbackGroup()
-        command_qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        self._reliable = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
-        events = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        self._commands = Commands(self, self._session, commands, command_qos, requests)
-        self._publishing = Publishing(self, self._session, periodic, self._reliable, events, self._commands.fault_seen)
-        self._trajectories = Trajectories(self, self._session, commands, periodic, command_qos, events)
-        self._diagnostics = Diagnostics(self, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
-        Services(self, self._session, self._commands, requests)
+        commands = transport.group()
+        command_qos = Qos(depth=100)
+        self._reliable = Qos(depth=10)
+        events = Qos(depth=100)
+        self._commands = Commands(transport, self._session, commands, command_qos, requests)
+        self._publishing = Publishing(
+            transport, self._session, periodic, self._reliable, events, self._commands.fault_seen
+        )
+        self._trajectories = Trajectories(transport, self._session, commands, periodic, command_qos, events)
+        self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
+        Services(transport, self._session, self._commands, requests)
 
     @property
     def bus(self) -> Bus | None:
@@ -115,10 +119,13 @@ class AkdNode(LifecycleNode):
             topics += [
                 (p.topic_name, p.msg_type, p.qos) for p in (self._diagnostics.publisher, self._trajectories.status)
             ]
-            topics += [(topic, kind, self._commands.qos) for topic, kind in self._commands.recorded_topics()]
-            topics.append((self._trajectories.topic, JointTrajectory, self._commands.qos))
+            commanded = [*self._commands.recorded_topics(), (self._trajectories.topic, JOINT_TRAJECTORY)]
+            topics += [
+                (topic, self._transport.message_class(kind), qos_profile(self._commands.qos))
+                for topic, kind in commanded
+            ]
             try:
-                self._session.recorder = open_recorder(self, s, topics, self._reliable)
+                self._session.recorder = open_recorder(self._transport, s, topics, qos_profile(self._reliable))
             except (ValueError, OSError) as e:
                 bus.close()
                 return self._fail(f"parameters record.*: the recorder did not start: {e}")

@@ -11,16 +11,15 @@ import math
 import re
 from collections.abc import Callable
 
-from rclpy.qos import QoSProfile
-from sensor_msgs.msg import JointState
-
 from akd_ros.axis import MODES
-from akd_ros.msg import DriveFault, DriveStatus, LatchEvent
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.recording import record_cycles
 from akd_ros.node.session import Session, namespace
+from akd_ros.node.transport import Qos, Transport
 
-EDGE_NAMES = {LatchEvent.EDGE_RISING: "rising", LatchEvent.EDGE_FALLING: "falling"}
+EDGE_RISING, EDGE_FALLING = 1, 2
+"""LatchEvent's edge codes (its EDGE_RISING and EDGE_FALLING constants)."""
+EDGE_NAMES = {EDGE_RISING: "rising", EDGE_FALLING: "falling"}
 """Latch edges by their LatchEvent code."""
 _EDGE_CODES = {name: code for code, name in EDGE_NAMES.items()}
 # Events are taken from the cycle thread at this rate; its queue holds 256, far more than arrive in 20 ms.
@@ -34,13 +33,16 @@ def snake(name: str | None) -> str:
 
 
 class RecordedPublisher:
-    """A lifecycle publisher of `msg_type` on `topic` whose messages are also recorded, at their stamp, while the
-    session records."""
+    """A publisher of `type_name` on `topic` whose messages are also recorded, at their stamp, while the session
+    records."""
 
-    def __init__(self, node, msg_type: type, topic: str, qos: QoSProfile, session: Session) -> None:
-        self.msg_type, self.qos = msg_type, qos
-        self._publisher = node.create_lifecycle_publisher(msg_type, topic, qos)
-        self.topic_name: str = self._publisher.topic_name
+    def __init__(self, transport: Transport, type_name: str, topic: str, qos: Qos, session: Session) -> None:
+        self._publisher = transport.publisher(type_name, topic, qos)
+        self.msg_type, self.qos, self.topic_name = (
+            self._publisher.msg_type,
+            self._publisher.qos,
+            self._publisher.topic_name,
+        )
         self._session = session
 
     def publish(self, message) -> None:
@@ -54,11 +56,11 @@ class RecordedPublisher:
 class JointPublishers:
     """One joint's status, latch and fault publishers."""
 
-    def __init__(self, node, session: Session, joint: str, reliable: QoSProfile, events: QoSProfile) -> None:
+    def __init__(self, transport: Transport, session: Session, joint: str, reliable: Qos, events: Qos) -> None:
         ns = namespace(session.settings, joint)
-        self.status = RecordedPublisher(node, DriveStatus, f"{ns}status", reliable, session)
-        self.latch = RecordedPublisher(node, LatchEvent, f"{ns}latch", events, session)
-        self.fault = RecordedPublisher(node, DriveFault, f"{ns}fault", events, session)
+        self.status = RecordedPublisher(transport, "akd_ros/msg/DriveStatus", f"{ns}status", reliable, session)
+        self.latch = RecordedPublisher(transport, "akd_ros/msg/LatchEvent", f"{ns}latch", events, session)
+        self.fault = RecordedPublisher(transport, "akd_ros/msg/DriveFault", f"{ns}fault", events, session)
 
 
 class Publishing:
@@ -67,23 +69,31 @@ class Publishing:
 
     def __init__(
         self,
-        node,
+        transport: Transport,
         session: Session,
         group,
-        reliable: QoSProfile,
-        events: QoSProfile,
+        reliable: Qos,
+        events: Qos,
         on_fault: Callable[[str], None],
     ) -> None:
         self._session, self._clock, self._settings, self._on_fault = session, session.clock, session.settings, on_fault
-        self._logger = node.get_logger()
-        self.joint_states = RecordedPublisher(node, JointState, "/joint_states", reliable, session)
-        self.joints = {j.name: JointPublishers(node, session, j.name, reliable, events) for j in session.joints}
+        self._logger = transport.logger
+        self._header = transport.message_class("std_msgs/msg/Header")
+        self._joint_state = transport.message_class("sensor_msgs/msg/JointState")
+        self._drive_status = transport.message_class("akd_ros/msg/DriveStatus")
+        self._latch_event = transport.message_class("akd_ros/msg/LatchEvent")
+        self._drive_fault = transport.message_class("akd_ros/msg/DriveFault")
+        self._cycle_sample = transport.message_class("akd_ros/msg/CycleSample")
+        self.joint_states = RecordedPublisher(
+            transport, "sensor_msgs/msg/JointState", "/joint_states", reliable, session
+        )
+        self.joints = {j.name: JointPublishers(transport, session, j.name, reliable, events) for j in session.joints}
         """Each joint's publishers by its name."""
-        self.last_fault: dict[str, DriveFault] = {}
+        self.last_fault: dict[str, object] = {}
         """The last fault published of each joint, for /diagnostics."""
-        node.create_timer(1.0 / session.settings.joint_states_rate, self._publish_joint_states, group)
-        node.create_timer(1.0 / session.settings.status_rate, self._publish_status, group)
-        node.create_timer(_EVENT_POLL_S, self._publish_events, group)
+        transport.timer(1.0 / session.settings.joint_states_rate, self._publish_joint_states, group)
+        transport.timer(1.0 / session.settings.status_rate, self._publish_status, group)
+        transport.timer(_EVENT_POLL_S, self._publish_events, group)
 
     def publishers(self) -> list[RecordedPublisher]:
         """Every publisher of this part, for the recorder."""
@@ -94,15 +104,15 @@ class Publishing:
         if taken is None:
             return
         _, states, _ = taken
-        message = JointState(name=list(states))
-        message.header.stamp = self._clock.stamp()
         values = list(states.values())
-        message.position = [s.position for s in values]
         # JointState leaves velocity or effort empty when they are not all known.
-        if all(s.velocity is not None for s in values):
-            message.velocity = [s.velocity for s in values]
-        if all(s.torque is not None for s in values):
-            message.effort = [s.torque for s in values]
+        message = self._joint_state(
+            header=self._header(stamp=self._clock.stamp()),
+            name=list(states),
+            position=[s.position for s in values],
+            velocity=[s.velocity for s in values] if all(s.velocity is not None for s in values) else [],
+            effort=[s.torque for s in values] if all(s.torque is not None for s in values) else [],
+        )
         self.joint_states.publish(message)
 
     def _publish_status(self) -> None:
@@ -112,7 +122,8 @@ class Publishing:
         bus, states, stats = taken
         stamp = self._clock.stamp()
         for joint, state in states.items():
-            message = DriveStatus(
+            message = self._drive_status(
+                header=self._header(stamp=stamp),
                 joint=joint,
                 ds402_state=snake(state.state),
                 statusword=state.statusword,
@@ -127,7 +138,6 @@ class Publishing:
                 period_max=stats["period"]["max_ns"] * 1e-9,
                 exchange_p99=stats["exchange"]["p99_ns"] * 1e-9,
             )
-            message.header.stamp = stamp
             self.joints[joint].status.publish(message)
 
     def _publish_events(self) -> None:
@@ -143,7 +153,7 @@ class Publishing:
             recorder = session.recorder
             columns = [(a, a.samples()) for a in session.bus.axes] if recorder is not None else None
         if columns is not None:
-            record_cycles(recorder, columns, self._clock.ros_minus_monotonic_ns())
+            record_cycles(recorder, self._cycle_sample, self._clock, columns, self._clock.ros_minus_monotonic_ns())
         how_to_enable = "call ~/enable to go on"
         # A fault of the link (a lost frame, a working counter) is every drive's in the same cycle: one line for all.
         logged: dict[tuple, list[str]] = {}
@@ -157,17 +167,18 @@ class Publishing:
             for e in timeouts:
                 self._logger.warning(f"{joint}: {e.describe(how_to_enable)}")
             for e in latches:
-                message = LatchEvent(
+                message = self._latch_event(
+                    header=self._header(stamp=self._clock.stamp(e.time_ns)),
                     joint=joint,
                     channel=e.channel,
                     edge=_EDGE_CODES[e.edge],
                     position=e.position,
                     position_counts=e.position_counts,
                 )
-                message.header.stamp = self._clock.stamp(e.time_ns)
                 self.joints[joint].latch.publish(message)
             for e in faults:
-                message = DriveFault(
+                message = self._drive_fault(
+                    header=self._header(stamp=self._clock.stamp(e.time_ns)),
                     joint=joint,
                     source=e.source,
                     code=min(e.code, 0xFFFF),
@@ -177,7 +188,6 @@ class Publishing:
                     al_status_code=e.al_status_code,
                     action=e.action,
                 )
-                message.header.stamp = self._clock.stamp(e.time_ns)
                 self.last_fault[joint] = message
                 self.joints[joint].fault.publish(message)
                 if recorder is not None:

@@ -7,12 +7,9 @@ from __future__ import annotations
 
 import math
 
-from rclpy.qos import QoSProfile
-from rclpy.time import Time
-
 from akd_ros import _native
 from akd_ros.axis import Axis
-from akd_ros.msg import CycleSample
+from akd_ros.node.clock import CycleClock
 from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 from akd_ros.units import Units
@@ -22,9 +19,7 @@ _TARGET_OF_MODE = {mode.code: f"target_{mode.command}" for mode in _native.MODES
 _UINT32_MAX = 2**32 - 1
 
 
-def open_recorder(
-    node, settings: Settings, topics: list[tuple[str, type, QoSProfile]], cycle_qos: QoSProfile
-) -> Recorder:
+def open_recorder(transport, settings: Settings, topics: list[tuple[str, type, object]], cycle_qos: object) -> Recorder:
     """A Recorder of `topics` (name, message class, QoS: what the node publishes and the commands it receives) and
     of the node's cycles on ~/cycle (one CycleSample per joint and cycle); raises ValueError or OSError when it
     cannot start."""
@@ -35,20 +30,24 @@ def open_recorder(
         samples_per_cycle=len(settings.joints),
         decimation=record["decimation"],
         black_box_seconds=record["black_box_seconds"],
-        on_error=lambda text: node.get_logger().error(f"recording stopped: {text}"),
+        on_error=lambda text: transport.logger.error(f"recording stopped: {text}"),
     )
     try:
         for topic, kind, qos in topics:
             recorder.add_topic(topic, kind, qos)
-        recorder.add_cycle_topic(node.resolve_topic_name("~/cycle"), CycleSample, cycle_qos)
+        recorder.add_cycle_topic(
+            transport.resolve("~/cycle"), transport.message_class("akd_ros/msg/CycleSample"), cycle_qos
+        )
     except ValueError:
         recorder.close()
         raise
-    node.get_logger().info(f"recording to {recorder.bag_path}")
+    transport.logger.info(f"recording to {recorder.bag_path}")
     return recorder
 
 
-def record_cycles(recorder: Recorder, taken: list[tuple[Axis, dict[str, list]]], offset_ns: int) -> None:
+def record_cycles(
+    recorder: Recorder, sample_class, clock: CycleClock, taken: list[tuple[Axis, dict[str, list]]], offset_ns: int
+) -> None:
     """Hands each cycle record of each axis's `columns` (`Axis.samples`, taken for every axis at once) to `recorder`
     as a CycleSample, cycle by cycle and in each cycle joint by joint; cycle times are monotonic, and `offset_ns`
     (ROS minus monotonic time) moves them onto the bag's ROS times."""
@@ -57,11 +56,18 @@ def record_cycles(recorder: Recorder, taken: list[tuple[Axis, dict[str, list]]],
     )
     for _, k, i in rows:
         axis, columns = taken[k]
-        _record_sample(recorder, axis.name, axis.units, columns, i, offset_ns)
+        _record_sample(recorder, sample_class, clock, axis.name, axis.units, columns, i, offset_ns)
 
 
 def _record_sample(
-    recorder: Recorder, joint: str, units: Units, columns: dict[str, list], i: int, offset_ns: int
+    recorder: Recorder,
+    sample_class,
+    clock: CycleClock,
+    joint: str,
+    units: Units,
+    columns: dict[str, list],
+    i: int,
+    offset_ns: int,
 ) -> None:
     """Row `i` of `columns` (of `joint`, in `units`) to `recorder` as a CycleSample."""
     mode = columns["mode"][i]
@@ -75,8 +81,8 @@ def _record_sample(
     else:
         command = math.nan
     time_ns = columns["time_ns"][i] + offset_ns
-    sample = CycleSample(
-        stamp=Time(nanoseconds=time_ns).to_msg(),
+    sample = sample_class(
+        stamp=clock.time(time_ns),
         cycle=columns["cycle"][i],
         joint=joint,
         position=units.position_to_si(columns["position"][i]),

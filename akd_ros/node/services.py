@@ -7,14 +7,11 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
-from std_srvs.srv import Trigger
-
 from akd_ros.axis import MODES, CommandError
-from akd_ros.msg import LatchEvent
 from akd_ros.node.commands import Commands
-from akd_ros.node.publishing import EDGE_NAMES
+from akd_ros.node.publishing import EDGE_FALLING, EDGE_NAMES, EDGE_RISING
 from akd_ros.node.session import AXIS_ERRORS, Session, namespace
-from akd_ros.srv import ArmLatch, SdoRead, SdoWrite, SetMode
+from akd_ros.node.transport import Transport
 
 REQUESTS = ("enable", "disable", "reset_fault", "quick_stop")
 """The Trigger services, bus-wide and per joint."""
@@ -23,30 +20,30 @@ REQUESTS = ("enable", "disable", "reset_fault", "quick_stop")
 class Services:
     """The node's services, in `group` (they may wait up to the Axis's time-outs)."""
 
-    def __init__(self, node, session: Session, commands: Commands, group) -> None:
+    def __init__(self, transport: Transport, session: Session, commands: Commands, group) -> None:
         self._session = session
-        self._logger = node.get_logger()
+        self._logger = transport.logger
         for request in REQUESTS:
-            node.create_service(
-                Trigger,
+            transport.service(
+                "std_srvs/srv/Trigger",
                 f"~/{request}",
                 self._trigger(f"~/{request}", lambda r=request: commands.request_all(r)),
-                callback_group=group,
+                group,
             )
         for joint in session.joints:
             ns, name = namespace(session.settings, joint.name), joint.name
             if session.settings.joint_namespaces:
                 for request in REQUESTS:
                     handler = self._trigger(f"{ns}{request}", lambda j=name, r=request: commands.request(j, r))
-                    node.create_service(Trigger, f"{ns}{request}", handler, callback_group=group)
+                    transport.service("std_srvs/srv/Trigger", f"{ns}{request}", handler, group)
             for kind, service, handler in (
-                (SetMode, "set_mode", self._set_mode),
-                (ArmLatch, "arm_latch", self._arm_latch),
-                (SdoRead, "sdo_read", self._sdo_read),
-                (SdoWrite, "sdo_write", self._sdo_write),
+                ("akd_ros/srv/SetMode", "set_mode", self._set_mode),
+                ("akd_ros/srv/ArmLatch", "arm_latch", self._arm_latch),
+                ("akd_ros/srv/SdoRead", "sdo_read", self._sdo_read),
+                ("akd_ros/srv/SdoWrite", "sdo_write", self._sdo_write),
             ):
                 callback = (lambda h, j: lambda request, response: h(j, request, response))(handler, name)
-                node.create_service(kind, f"{ns}{service}", callback, callback_group=group)
+                transport.service(kind, f"{ns}{service}", callback, group)
 
     def _trigger(self, name: str, handler: Callable[[], tuple[bool, str]]):
         def callback(request, response):
@@ -78,8 +75,7 @@ class Services:
             axis = self._session.axis_for_request(joint)
             if request.edge not in EDGE_NAMES:
                 raise CommandError(
-                    f"latch edge {request.edge}: allowed {LatchEvent.EDGE_RISING} (rising) or "
-                    f"{LatchEvent.EDGE_FALLING} (falling)"
+                    f"latch edge {request.edge}: allowed {EDGE_RISING} (rising) or {EDGE_FALLING} (falling)"
                 )
             axis.arm_latch(request.channel, EDGE_NAMES[request.edge], request.arm)
             response.success = True

@@ -12,14 +12,13 @@ runs."""
 
 from __future__ import annotations
 
-from rclpy.qos import QoSProfile
-from trajectory_msgs.msg import JointTrajectory
-
 from akd_ros.axis import CommandError
-from akd_ros.msg import TrajectoryStatus
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.publishing import RecordedPublisher
 from akd_ros.node.session import Session
+from akd_ros.node.transport import Qos, Transport
+
+JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 
 _ENDED = ("done", "replaced", "aborted")
 
@@ -32,21 +31,24 @@ class Trajectories:
     """The ~/joint_trajectory subscription (in `command_group`) and the ~/trajectory_status publisher, with the timer
     (in `periodic_group`) that publishes the cycle thread's trajectory events and the progress of the one running."""
 
-    def __init__(self, node, session: Session, command_group, periodic_group, qos: QoSProfile, events: QoSProfile):
+    def __init__(self, transport: Transport, session: Session, command_group, periodic_group, qos: Qos, events: Qos):
         self._session, self._clock = session, session.clock
-        self._logger = node.get_logger()
-        subscription = node.create_subscription(
-            JointTrajectory, "~/joint_trajectory", self._on_trajectory, qos, callback_group=command_group
+        self._logger = transport.logger
+        self._header = transport.message_class("std_msgs/msg/Header")
+        self._trajectory_status = transport.message_class("akd_ros/msg/TrajectoryStatus")
+        self.topic: str = transport.subscription(
+            JOINT_TRAJECTORY, "~/joint_trajectory", self._on_trajectory, qos, command_group
         )
-        self.topic: str = subscription.topic_name
         """The trajectory topic's name, for the recorder."""
-        self.status = RecordedPublisher(node, TrajectoryStatus, "~/trajectory_status", events, session)
+        self.status = RecordedPublisher(
+            transport, "akd_ros/msg/TrajectoryStatus", "~/trajectory_status", events, session
+        )
         self._joints: dict[int, list[str]] = {}
         self._running: int | None = None
-        node.create_timer(0.02, self._publish_events, periodic_group)
-        node.create_timer(1.0 / session.settings.status_rate, self._publish_progress, periodic_group)
+        transport.timer(0.02, self._publish_events, periodic_group)
+        transport.timer(1.0 / session.settings.status_rate, self._publish_progress, periodic_group)
 
-    def _on_trajectory(self, message: JointTrajectory) -> None:
+    def _on_trajectory(self, message) -> None:
         session = self._session
         recorder = session.recorder
         if recorder is not None:
@@ -65,7 +67,7 @@ class Trajectories:
         except CommandError as e:
             text = str(e) if str(e).startswith("trajectory refused") else f"trajectory refused: {e}"
             self._logger.warning(f"~/joint_trajectory: {text}")
-            self._publish(TrajectoryStatus(state="refused", joints=joints, points=len(message.points), message=text))
+            self._publish(state="refused", joints=joints, points=len(message.points), message=text)
             return
         self._logger.info(
             f"~/joint_trajectory: trajectory {identifier} of {', '.join(joints)}, {len(points)} points over "
@@ -73,7 +75,7 @@ class Trajectories:
         )
 
     @staticmethod
-    def _points(message: JointTrajectory, joints: list[str]):
+    def _points(message, joints: list[str]):
         """(times in s, points of (position, velocity, acceleration) per joint); CommandError for a malformed one."""
         if not joints:
             raise CommandError("joint_names is empty")
@@ -97,14 +99,18 @@ class Trajectories:
             velocities = list(point.velocities) or [None] * len(joints)
             accelerations = list(point.accelerations) or [None] * len(joints)
             times.append(_seconds(point.time_from_start))
-            points.append(list(zip(point.positions, velocities, accelerations, strict=True)))
+            points.append(
+                [
+                    (float(p), None if v is None else float(v), None if a is None else float(a))
+                    for p, v, a in zip(point.positions, velocities, accelerations, strict=True)
+                ]
+            )
         return times, points
 
-    def _publish(self, message: TrajectoryStatus) -> None:
-        message.header.stamp = self._clock.stamp()
-        self.status.publish(message)
+    def _publish(self, **fields) -> None:
+        self.status.publish(self._trajectory_status(header=self._header(stamp=self._clock.stamp()), **fields))
 
-    def _status_message(self, status: dict, bus) -> TrajectoryStatus:
+    def _status_fields(self, status: dict, bus) -> dict:
         identifier = status["id"]
         text = ""
         if status["state"] == "aborted":
@@ -112,17 +118,17 @@ class Trajectories:
             text = f"aborted: the drive of {joint} left Operation enabled ({status['ds402_state']})"
         elif status["state"] == "replaced":
             text = f"replaced by trajectory {status['replaced_by']}"
-        return TrajectoryStatus(
-            id=identifier,
-            state=status["state"],
-            joints=self._joints.get(identifier, []),
-            point=status["point"],
-            points=status["points"],
-            elapsed=status["elapsed_ns"] * 1e-9,
-            duration=status["duration_ns"] * 1e-9,
-            replaced_by=status["replaced_by"] or 0,
-            message=text,
-        )
+        return {
+            "id": identifier,
+            "state": status["state"],
+            "joints": self._joints.get(identifier, []),
+            "point": status["point"],
+            "points": status["points"],
+            "elapsed": status["elapsed_ns"] * 1e-9,
+            "duration": status["duration_ns"] * 1e-9,
+            "replaced_by": status["replaced_by"] or 0,
+            "message": text,
+        }
 
     def _publish_events(self) -> None:
         session = self._session
@@ -136,7 +142,7 @@ class Trajectories:
                 # The event's own state: the status may already be a later one.
                 statuses.append({**status, **{k: event[k] for k in ("state", "replaced_by", "slave", "ds402_state")}})
         for status in statuses:
-            message = self._status_message(status, bus)
+            fields = self._status_fields(status, bus)
             if status["state"] == "running":
                 self._running = status["id"]
             elif status["state"] in _ENDED:
@@ -144,8 +150,8 @@ class Trajectories:
                     self._running = None
                 self._joints.pop(status["id"], None)
                 if status["state"] == "aborted":
-                    self._logger.error(f"trajectory {status['id']} {message.message}")
-            self._publish(message)
+                    self._logger.error(f"trajectory {status['id']} {fields['message']}")
+            self._publish(**fields)
 
     def _publish_progress(self) -> None:
         session = self._session
@@ -155,4 +161,4 @@ class Trajectories:
                 return
             status = bus.cycle.trajectory_status(self._running)
         if status["state"] == "running":
-            self._publish(self._status_message(status, bus))
+            self._publish(**self._status_fields(status, bus))

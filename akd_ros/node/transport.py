@@ -1,0 +1,73 @@
+"""What the node's parts need of a middleware, so the same parts run over rclpy (DDS), over Zenoh in rmw_zenoh's wire
+format without any ROS install, or over both.
+
+A transport builds messages of a ROS type by name (`message_class`), makes publishers, subscriptions, services and
+timers, logs, and tells the ROS time. The parts never import a middleware: they ask their transport. Messages are
+built whole, every field given to the constructor (a Zenoh transport's message classes convert sequences there).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+TRANSPORTS = ("rclpy", "zenoh", "both")
+"""Values of the transport parameter."""
+
+
+@dataclass(frozen=True)
+class Qos:
+    """The QoS of a topic as the node uses it: keep-last `depth`, reliable or best effort, volatile or transient
+    local."""
+
+    depth: int
+    reliable: bool = True
+    transient_local: bool = False
+
+
+class Publisher(Protocol):
+    """A publisher of one topic."""
+
+    topic_name: str
+    """The topic's absolute name."""
+    msg_type: type
+    """The class of its messages."""
+    qos: Any
+    """Its QoS as the recorder takes it."""
+
+    def publish(self, message: Any) -> None:
+        """Sends `message`."""
+
+
+class Transport(Protocol):
+    """A middleware the node's parts run on (see the module doc)."""
+
+    logger: Any
+    """With info, warning and error(text)."""
+
+    def message_class(self, type_name: str) -> Callable[..., Any]:
+        """The class (or factory) of ROS type `type_name`, e.g. "sensor_msgs/msg/JointState"; called with fields as
+        keyword arguments, the others take their defaults."""
+
+    def publisher(self, type_name: str, topic: str, qos: Qos) -> Publisher:
+        """A publisher of `type_name` on `topic` (absolute, or ~/ for the node's own)."""
+
+    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: Any) -> str:
+        """Calls `callback(message)` for each message on `topic`; gives the topic's absolute name."""
+
+    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: Any) -> None:
+        """Serves `name` of service type `type_name` ("pkg/srv/Name"): `handler(request, response)` fills and returns
+        the response."""
+
+    def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
+        """Calls `callback` every `period` seconds."""
+
+    def group(self) -> Any:
+        """A callback group: callbacks of one group never run at the same time; of different groups they may."""
+
+    def now_ns(self) -> int:
+        """ROS time now, in nanoseconds."""
+
+    def resolve(self, name: str) -> str:
+        """The absolute name of topic `name`."""
