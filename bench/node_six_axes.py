@@ -59,8 +59,9 @@ DOMAINS = range(40, 50)
 """ROS_DOMAIN_IDs of this benchmark, apart from the tests' (Fast DDS takes none above 232)."""
 STEP = 1e-4
 """rad: how far each ~/joint_commands message moves every joint, many counts, so each value is told apart."""
-FAULT_LINE = re.compile(r"fault of (\w+): \w+: (\S+)")
-"""akd_node's log line of a joint's fault: the joint and the fault's code (e.g. F125)."""
+FAULT_LINE = re.compile(r"fault of (\w+): ([^;]+);")
+"""akd_node's log line of a joint's fault: the joint and what the fault is (its source and text, e.g. "emergency:
+F125 Synchronization lost", "lost_frames: 1 cycles in a row")."""
 TICK = os.sysconf("SC_CLK_TCK")
 S = 1_000_000_000
 
@@ -195,11 +196,11 @@ def latencies(sent: list[tuple[int, float]], cycles: list[tuple[int, float]]) ->
 
 
 def faults(output: str) -> dict[str, list[str]]:
-    """The joints each fault code was logged for in akd_node's `output`."""
+    """The joints each fault was logged for in akd_node's `output`, by what the fault is."""
     found: dict[str, list[str]] = {}
-    for joint, code in FAULT_LINE.findall(output):
-        if joint not in found.setdefault(code, []):
-            found[code].append(joint)
+    for joint, what in FAULT_LINE.findall(output):
+        if joint not in found.setdefault(what, []):
+            found[what].append(joint)
     return found
 
 
@@ -279,7 +280,7 @@ def main() -> None:
     print(
         f"{'cycle':>7s} {'rate':>6s} {'recording':>9s} {'link':24s} {'load 1/5/15 min':>15s} {'node cpu':>8s} "
         f"{'akd-sim':>7s} {'joint_states':>12s} {'latency p50':>11s} {'p99':>9s} {'max':>9s} {'goal p99':>9s} "
-        f"{'matched':>7s} {'taken in p50':>12s} {'p99':>9s}"
+        f"{'matched':>7s} {'taken in p50':>12s} {'p99':>9s} {'faulted':>7s}"
     )
     for r in results:
         load = "/".join(f"{x:.1f}" for x in r["load"])
@@ -287,16 +288,19 @@ def main() -> None:
             f"{r['cycle_time'] * 1e3:5.2f}ms {1 / r['cycle_time']:4.0f}Hz {'every' if r['record'] else 'off':>9s} "
             f"{r['link']:24s} {load:>15s} {r['cpu']:7.1f}% {r['sim_cpu']:6.1f}% {r['joint_states']:10.1f}/s"
         )
-        if r["record"]:
+        faulted = len({joint for joints in r["faults"].values() for joint in joints})
+        if not r["record"]:
+            line += f" {'':11s} {'':9s} {'':9s} {'':9s} {'':7s} {'':12s} {'':9s}"
+        else:
             line += (
                 f" {ms(r['latencies'], 0.5):>11s} {ms(r['latencies'], 0.99):>9s} {ms(r['latencies'], 1.0):>9s} "
                 f"{r['cycle_time'] * 1e3 + 1:7.2f}ms {r['matched']:3d}/{r['sent']:<3d} "
                 f"{ms(r['arrivals'], 0.5):>12s} {ms(r['arrivals'], 0.99):>9s}"
             )
-        print(line)
+        print(f"{line} {faulted:7d}")
     for r in results:
         if r["faults"]:
-            text = "; ".join(f"{code} on {', '.join(joints)}" for code, joints in r["faults"].items())
+            text = "; ".join(f"{what} on {', '.join(joints)}" for what, joints in r["faults"].items())
             recording = "recording" if r["record"] else "not recording"
             print(f"faults at {1 / r['cycle_time']:.0f} Hz, {recording}: {text}")
     print(
@@ -305,7 +309,8 @@ def main() -> None:
         f"~/joint_commands message's send time to the stamp of the first cycle that sent its joint_1 position "
         f"(recording runs; goal p99 within one cycle plus 1 ms); matched: values found in the bag / sent; taken in: "
         f"send time to the node's taking the message in (its log time in the bag), the part of the latency before the "
-        f"node's callback; recording: record.decimation 1; waits bounded by {WAIT_S:g} s"
+        f"node's callback; faulted: joints that logged a fault in the run (listed below; a faulted run measured joints "
+        f"that were not all holding or commanded); recording: record.decimation 1; waits bounded by {WAIT_S:g} s"
     )
 
 
