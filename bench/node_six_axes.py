@@ -107,35 +107,33 @@ def params(port: int, cycle_time: float, rate: float, folder: Path | None, prior
     return yaml.safe_dump(document)
 
 
-def cpu_ticks(pid: int) -> int:
-    """utime + stime of process `pid` so far, in clock ticks (its threads together)."""
+def cpu_ticks(stat: Path) -> int:
+    """utime + stime in a /proc stat file (of a process: its threads together; of a task: that thread), in clock
+    ticks."""
     # The command name in parentheses may hold spaces: the fields are counted after its closing one.
-    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    fields = stat.read_text().rsplit(")", 1)[1].split()
     return int(fields[11]) + int(fields[12])
 
 
+def cpu_of(pid: int) -> tuple[int, int]:
+    """(the whole process's, its akd-cycle thread's) CPU time so far, clock ticks; the thread's 0 if it has none."""
+    cycle = [t for t in Path(f"/proc/{pid}/task").iterdir() if (t / "comm").read_text().strip() == "akd-cycle"]
+    return cpu_ticks(Path(f"/proc/{pid}/stat")), sum(cpu_ticks(t / "stat") for t in cycle)
+
+
 def hold(client: Client, node: NodeProcess, sim: Sim, seconds: float) -> dict:
-    """Over `seconds` of every joint holding: the node's and akd-sim's CPU share (% of one core) and the
-    /joint_states messages received per second."""
+    """Over `seconds` of every joint holding: the node's, its cycle thread's and akd-sim's CPU share (% of one core)
+    and the /joint_states messages received per second."""
     client.spin_for(1.0)  # past the enable's transients
-    ticks0, sim0, count0, t0 = (
-        cpu_ticks(node.process.pid),
-        cpu_ticks(sim.process.pid),
-        len(client.joint_states),
-        time.monotonic(),
-    )
+    before = (*cpu_of(node.process.pid), *cpu_of(sim.process.pid), len(client.joint_states), time.monotonic())
     client.spin_for(seconds)
-    ticks1, sim1, count1, t1 = (
-        cpu_ticks(node.process.pid),
-        cpu_ticks(sim.process.pid),
-        len(client.joint_states),
-        time.monotonic(),
-    )
-    elapsed = t1 - t0
+    after = (*cpu_of(node.process.pid), *cpu_of(sim.process.pid), len(client.joint_states), time.monotonic())
+    node_ticks, cycle_ticks, sim_ticks, _, messages, elapsed = (b - a for a, b in zip(before, after, strict=True))
     return {
-        "cpu": 100 * (ticks1 - ticks0) / TICK / elapsed,
-        "sim_cpu": 100 * (sim1 - sim0) / TICK / elapsed,
-        "joint_states": (count1 - count0) / elapsed,
+        "cpu": 100 * node_ticks / TICK / elapsed,
+        "cycle_cpu": 100 * cycle_ticks / TICK / elapsed,
+        "sim_cpu": 100 * sim_ticks / TICK / elapsed,
+        "joint_states": messages / elapsed,
     }
 
 
@@ -279,14 +277,15 @@ def main() -> None:
                 results.append(run(cycle_time, record, domain, args))
     print(
         f"{'cycle':>7s} {'rate':>6s} {'recording':>9s} {'link':24s} {'load 1/5/15 min':>15s} {'node cpu':>8s} "
-        f"{'akd-sim':>7s} {'joint_states':>12s} {'latency p50':>11s} {'p99':>9s} {'max':>9s} {'goal p99':>9s} "
-        f"{'matched':>7s} {'taken in p50':>12s} {'p99':>9s} {'faulted':>7s}"
+        f"{'of it cycle':>11s} {'akd-sim':>7s} {'joint_states':>12s} {'latency p50':>11s} {'p99':>9s} {'max':>9s} "
+        f"{'goal p99':>9s} {'matched':>7s} {'taken in p50':>12s} {'p99':>9s} {'faulted':>7s}"
     )
     for r in results:
         load = "/".join(f"{x:.1f}" for x in r["load"])
         line = (
             f"{r['cycle_time'] * 1e3:5.2f}ms {1 / r['cycle_time']:4.0f}Hz {'every' if r['record'] else 'off':>9s} "
-            f"{r['link']:24s} {load:>15s} {r['cpu']:7.1f}% {r['sim_cpu']:6.1f}% {r['joint_states']:10.1f}/s"
+            f"{r['link']:24s} {load:>15s} {r['cpu']:7.1f}% {r['cycle_cpu']:10.1f}% {r['sim_cpu']:6.1f}% "
+            f"{r['joint_states']:10.1f}/s"
         )
         faulted = len({joint for joints in r["faults"].values() for joint in joints})
         if not r["record"]:
@@ -303,15 +302,20 @@ def main() -> None:
             text = "; ".join(f"{what} on {', '.join(joints)}" for what, joints in r["faults"].items())
             recording = "recording" if r["record"] else "not recording"
             print(f"faults at {1 / r['cycle_time']:.0f} Hz, {recording}: {text}")
-    print(
-        f"node cpu, akd-sim: utime + stime of the process over the window, % of one core (goal: node at most 15 % at "
-        f"1 kHz); joint_states: messages/s this client received (configured {args.joint_states_rate:g}); latency: a "
-        f"~/joint_commands message's send time to the stamp of the first cycle that sent its joint_1 position "
-        f"(recording runs; goal p99 within one cycle plus 1 ms); matched: values found in the bag / sent; taken in: "
-        f"send time to the node's taking the message in (its log time in the bag), the part of the latency before the "
-        f"node's callback; faulted: joints that logged a fault in the run (listed below; a faulted run measured joints "
-        f"that were not all holding or commanded); recording: record.decimation 1; waits bounded by {WAIT_S:g} s"
-    )
+    notes = [
+        "node cpu, akd-sim: utime + stime of the process over the window, % of one core (goal: node at most 15 % at"
+        " 1 kHz), of it cycle: the node's akd-cycle thread",
+        f"joint_states: messages/s this client received (configured {args.joint_states_rate:g})",
+        "latency: a ~/joint_commands message's send time to the stamp of the first cycle that sent its joint_1"
+        " position (recording runs; goal p99 within one cycle plus 1 ms)",
+        "matched: values found in the bag / sent",
+        "taken in: send time to the node's taking the message in (its log time in the bag), the part of the latency"
+        " before the node's callback",
+        "faulted: joints that logged a fault in the run (listed above; a faulted run measured joints that were not all"
+        " holding or commanded)",
+        f"recording: record.decimation 1; waits bounded by {WAIT_S:g} s",
+    ]
+    print("; ".join(notes))
 
 
 def ms(values_ns: list[int], fraction: float) -> str:
