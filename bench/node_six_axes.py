@@ -185,11 +185,10 @@ def latencies(sent: list[tuple[int, float]], cycles: list[tuple[int, float]]) ->
     rise by STEP, far more than a count, so STEP / 4 tells them apart; sent values never seen are left out."""
     found, i = [], 0
     for sent_ns, value in sent:
-        while i < len(cycles) and abs(cycles[i][1] - value) > STEP / 4:
-            i += 1
-        if i == len(cycles):
-            break
-        found.append((sent_ns, value, cycles[i][0] - sent_ns))
+        at = next((k for k in range(i, len(cycles)) if abs(cycles[k][1] - value) <= STEP / 4), None)
+        if at is not None:
+            found.append((sent_ns, value, cycles[at][0] - sent_ns))
+            i = at
     return found
 
 
@@ -249,6 +248,10 @@ def run(cycle_time: float, record: bool, domain: int, args) -> dict:
                 "latencies": [latency for _, _, latency in found],
                 # Of each latency, the part before the node took the message in (DDS, the node's executor).
                 "arrivals": [arrivals[value] - sent_ns for sent_ns, value, _ in found if value in arrivals],
+                # And the rest: from the node's callback to the first cycle that sent the value.
+                "in_node": [
+                    sent_ns + latency - arrivals[value] for sent_ns, value, latency in found if value in arrivals
+                ],
             }
         return result
 
@@ -278,7 +281,8 @@ def main() -> None:
     print(
         f"{'cycle':>7s} {'rate':>6s} {'recording':>9s} {'link':24s} {'load 1/5/15 min':>15s} {'node cpu':>8s} "
         f"{'of it cycle':>11s} {'akd-sim':>7s} {'joint_states':>12s} {'latency p50':>11s} {'p99':>9s} {'max':>9s} "
-        f"{'goal p99':>9s} {'matched':>7s} {'taken in p50':>12s} {'p99':>9s} {'faulted':>7s}"
+        f"{'goal p99':>9s} {'matched':>7s} {'taken in p50':>12s} {'p99':>9s} {'then p50':>9s} {'p99':>9s} "
+        f"{'faulted':>7s}"
     )
     for r in results:
         load = "/".join(f"{x:.1f}" for x in r["load"])
@@ -289,12 +293,13 @@ def main() -> None:
         )
         faulted = len({joint for joints in r["faults"].values() for joint in joints})
         if not r["record"]:
-            line += f" {'':11s} {'':9s} {'':9s} {'':9s} {'':7s} {'':12s} {'':9s}"
+            line += f" {'':11s} {'':9s} {'':9s} {'':9s} {'':7s} {'':12s} {'':9s} {'':9s} {'':9s}"
         else:
             line += (
                 f" {ms(r['latencies'], 0.5):>11s} {ms(r['latencies'], 0.99):>9s} {ms(r['latencies'], 1.0):>9s} "
                 f"{r['cycle_time'] * 1e3 + 1:7.2f}ms {r['matched']:3d}/{r['sent']:<3d} "
-                f"{ms(r['arrivals'], 0.5):>12s} {ms(r['arrivals'], 0.99):>9s}"
+                f"{ms(r['arrivals'], 0.5):>12s} {ms(r['arrivals'], 0.99):>9s} {ms(r['in_node'], 0.5):>9s} "
+                f"{ms(r['in_node'], 0.99):>9s}"
             )
         print(f"{line} {faulted:7d}")
     for r in results:
@@ -310,7 +315,7 @@ def main() -> None:
         " position (recording runs; goal p99 within one cycle plus 1 ms)",
         "matched: values found in the bag / sent",
         "taken in: send time to the node's taking the message in (its log time in the bag), the part of the latency"
-        " before the node's callback",
+        " before the node's callback; then: from that callback to the first cycle that sent the value",
         "faulted: joints that logged a fault in the run (listed above; a faulted run measured joints that were not all"
         " holding or commanded)",
         f"recording: record.decimation 1; waits bounded by {WAIT_S:g} s",
