@@ -12,7 +12,9 @@ and this process is the rclpy client on a ROS_DOMAIN_ID of its own. Two runs per
   for --command-seconds, each message moving all six joints a small step to values not sent before, its send time
   taken from the system clock (time.time_ns(), the clock the bag's stamps are on). The node is stopped (SIGINT), the
   bag read with rosbags, and for each message the first cycle whose command for joint_1 is its value found: the
-  latency is that cycle's stamp (the cycle's frame back) minus the send time.
+  latency is that cycle's stamp (its wake-up time, right before the frame with the set-point is sent) minus the
+  send time. The bag's log time of the message (the node records a command as its callback takes it) splits the
+  latency in two: before the node's callback (DDS, the node's executor) and after it (to the cycle).
 
     .venv/bin/python bench/node_six_axes.py [--cycle-times 0.001,0.00025] [--joint-states-rate 250] [--window 10]
         [--command-rate 100] [--command-seconds 5] [--priority 80] [--sim-priority 70]
