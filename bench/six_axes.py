@@ -20,7 +20,6 @@ gives its threads SCHED_FIFO too, as a real drive answers in hardware.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 from pathlib import Path
@@ -28,6 +27,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from cycle_jitter import cycle_thread_cpu_ns, percentile
+from scheduling import real_time
 
 from akd_ros import Bus, DriveConfig
 from support.netns import akd_sim_udp, free_udp_port
@@ -66,15 +66,6 @@ class Recorded:
         """Drive `slave`'s target in the latest cycle recorded."""
         c = self.columns
         return next(t for s, t in zip(reversed(c["slave"]), reversed(c["target_position"]), strict=True) if s == slave)
-
-
-def real_time(pid: int, priority: int) -> None:
-    """Gives every thread of process `pid` SCHED_FIFO `priority`, or says why it could not."""
-    try:
-        for task in Path(f"/proc/{pid}/task").iterdir():
-            os.sched_setscheduler(int(task.name), os.SCHED_FIFO, os.sched_param(priority))
-    except OSError as e:
-        print(f"  warning: akd-sim not given SCHED_FIFO {priority}: {e}")
 
 
 def run(link: str, period: float, args) -> dict:
