@@ -41,8 +41,9 @@ FAULT_REACTIONS = ("all", "joint")
 REQUESTS = ("enable", "disable", "quick_stop", "reset_fault")
 """The requests a Bus makes of every drive at once."""
 
-SAMPLES_KEPT = 8192
-"""Per-cycle records a Bus keeps for each drive until they are taken (as many as the cycle's own ring holds)."""
+SAMPLES_KEPT = _native.SAMPLES_PER_DRIVE
+"""Per-cycle records a Bus keeps for each drive until they are taken (as many as the cycle's own ring holds for each
+drive)."""
 
 
 class CommandError(ValueError):
@@ -381,8 +382,10 @@ class Bus:
         return {axis.name: axis.state(i) for axis, i in zip(self.axes, inputs, strict=True)}
 
     def stats(self) -> dict:
-        """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped."""
+        """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped and per-cycle records dropped
+        (by the cycle's ring or here) because they were not taken in time."""
         cycle = self.cycle
         stats = cycle.stats()
         stats["events_dropped"] = cycle.events_dropped
+        stats["samples_dropped"] = cycle.samples_dropped + sum(self._samples_dropped.values())
         return stats

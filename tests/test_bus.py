@@ -218,3 +218,14 @@ def test_dc_is_set_once_for_the_bus_and_every_drive_follows_the_one_sync0() -> N
     with Bus("sim:3", THREE) as bus:
         assert bus.cycle.dc_status() == {"active": False}
         assert {bus.simulator.drive_state(a.slave)["dc"]["source"] for a in bus.axes} == {"sm2"}
+
+
+def test_the_cycle_keeps_as_many_records_for_each_drive_as_for_one() -> None:
+    # 5000 cycles of three drives: more than one drive's 8192 records in all, fewer than 8192 for each.
+    with Bus("sim:3", THREE, period=0.00025) as bus:
+        wait_for("5000 cycles", lambda: bus.stats()["cycles"] >= 5000, timeout=20.0)
+        columns = bus.samples()
+        stats = bus.stats()
+    assert stats["samples_dropped"] == 0, stats
+    per_drive = [columns["slave"].count(axis.slave) for axis in bus.axes]
+    assert min(per_drive) >= 5000, per_drive

@@ -76,7 +76,11 @@ class Diagnostics:
         if taken is None:
             return
         bus, states, stats = taken
-        counters = {k: stats[k] for k in ("overruns", "lost_frames", "wkc_errors", "events_dropped")}
+        counted = ["overruns", "lost_frames", "wkc_errors", "events_dropped"]
+        # Cycle records are taken only while recording; then each one lost is a cycle missing from the bag.
+        if self._session.recorder is not None:
+            counted.append("samples_dropped")
+        counters = {k: stats[k] for k in counted}
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
         self._counters_seen = counters
         dc_status = bus.cycle.dc_status()

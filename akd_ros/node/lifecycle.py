@@ -187,14 +187,15 @@ class AkdNode(LifecycleNode):
         session.active = False
         with session.lock:
             bus, session.bus = session.bus, None
-        if bus is not None:
-            bus.close()
-            self.get_logger().info(
-                "closed: drives disabled, bus in Init"
-                if self.settings.joint_namespaces
-                else "closed: drive disabled, bus in Init"
-            )
         recorder, session.recorder = session.recorder, None
+        if bus is not None:
+            # Records the ring or the bus dropped before the node took them are cycles the bag lacks.
+            lost = bus.stats()["samples_dropped"] if recorder is not None else 0
+            bus.close()
+            closed = "closed: drives disabled, bus in Init"
+            self.get_logger().info(closed if self.settings.joint_namespaces else "closed: drive disabled, bus in Init")
+            if lost:
+                self.get_logger().warning(f"recording: {lost} per-cycle records were not taken in time, not in the bag")
         if recorder is not None:
             stats = recorder.close()
             self.get_logger().info(

@@ -211,6 +211,7 @@ impl CycleThread {
         };
         let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
         let found = sequenced_drives(&master);
+        let sequenced_count = found.iter().filter(|f| f.is_ok()).count();
         let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
         let latch_objects = found.iter().map(|f| f.as_ref().ok().and_then(|f| f.1)).collect();
         let offsets = found.iter().map(|f| f.as_ref().ok().map(|f| f.0)).collect();
@@ -253,7 +254,7 @@ impl CycleThread {
             handshakes: (0..master.slaves().len()).map(|_| handshake::Shared::default()).collect(),
             command_timeouts: (0..master.slaves().len()).map(|_| command_timeout::Shared::default()).collect(),
             events: Events::default(),
-            samples: Samples::default(),
+            samples: Samples::for_drives(sequenced_count),
             sdo: SdoSlot::default(),
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::Shared::new(master.clock()),

@@ -4,7 +4,7 @@
 
 use crate::cycle::ring::Ring;
 
-/// Records the ring holds: at 4 kHz, two seconds of one drive.
+/// Records the ring holds per drive: at 4 kHz, two seconds.
 pub const CAPACITY: usize = 8192;
 const WORDS: usize = 8;
 
@@ -91,13 +91,13 @@ pub struct Samples {
     ring: Ring<WORDS>,
 }
 
-impl Default for Samples {
-    fn default() -> Self {
-        Samples { ring: Ring::new(CAPACITY) }
-    }
-}
-
 impl Samples {
+    /// A ring of [`CAPACITY`] records for each of `drives` drives (at least one), so a bus of many drives keeps as
+    /// many seconds as a bus of one.
+    pub fn for_drives(drives: usize) -> Self {
+        Samples { ring: Ring::new(CAPACITY * drives.max(1)) }
+    }
+
     /// Adds `sample` (the cycle thread only); counts it as dropped when the ring is full.
     pub fn push(&self, sample: &Sample) {
         self.ring.push(sample.encode());
@@ -138,7 +138,7 @@ mod tests {
             target_velocity: i32::MAX,
             target_torque: i16::MIN,
         };
-        let samples = Samples::default();
+        let samples = Samples::for_drives(1);
         samples.push(&sample);
         assert_eq!(samples.drain(), [sample]);
         for _ in 0..CAPACITY + 2 {

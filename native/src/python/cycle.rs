@@ -731,5 +731,7 @@ fn progress_name(progress: Progress) -> &'static str {
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyCycle>()
+    m.add_class::<PyCycle>()?;
+    // Per-cycle records the cycle keeps for each drive until `samples()` takes them.
+    m.add("SAMPLES_PER_DRIVE", crate::cycle::samples::CAPACITY)
 }
