@@ -9,9 +9,11 @@ latch (LatchEvent) and fault (DriveFault) and the commands position_command, vel
 Services: ~/enable, ~/disable, ~/reset_fault, ~/quick_stop (std_srvs/Trigger, every joint at once), and per joint the
 same four, set_mode, arm_latch, sdo_read and sdo_write (the package's own).
 
-One module per job, each a part that `AkdNode` is made of:
+One module per job, each a part that the node's `Core` is made of:
 
-- `lifecycle`: `AkdNode` itself, its parts and its transitions (configure opens the Bus, cleanup closes it);
+- `core`: `Core`, the parts over a transport and the transitions (configure opens the Bus, close closes it);
+- `lifecycle`: `AkdNode`, the rclpy LifecycleNode that runs a Core on rclpy (`ros_transport`);
+- `transport`: what the parts need of a middleware (`Transport`, `Qos`);
 - `publishing`: /joint_states, each joint's status and its events (latch, fault);
 - `diagnostics`: /diagnostics;
 - `commands`: the command topics, their refusal and time-out, the automatic fault reset, the drive requests;

@@ -75,3 +75,6 @@ class RosTransport:
 
     def resolve(self, name: str) -> str:
         return self._node.resolve_topic_name(name)
+
+    def recorded_qos(self, qos: Qos) -> QoSProfile:
+        return qos_profile(qos)

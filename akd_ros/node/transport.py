@@ -34,7 +34,7 @@ class Publisher(Protocol):
     msg_type: type
     """The class of its messages."""
     qos: Any
-    """Its QoS as the recorder takes it."""
+    """Its QoS as the recorder takes it (`Transport.recorded_qos`)."""
 
     def publish(self, message: Any) -> None:
         """Sends `message`."""
@@ -71,3 +71,6 @@ class Transport(Protocol):
 
     def resolve(self, name: str) -> str:
         """The absolute name of topic `name`."""
+
+    def recorded_qos(self, qos: Qos) -> Any:
+        """`qos` as `akd_ros.recorder.Recorder.add_topic` takes it."""
