@@ -226,9 +226,15 @@ def _duration_yaml(duration: Any) -> dict:
 
 
 def _qos_profile(qos: Any) -> dict:
-    """rosbag2's v9 dictionary of an rclpy QoSProfile (None: the rmw default profile)."""
+    """rosbag2's v9 dictionary of an rclpy QoSProfile (None: the rmw default profile; a dict: those of its keys over
+    the default profile's)."""
     if qos is None:
         return dict(_DEFAULT_QOS)
+    if isinstance(qos, dict):
+        unknown = sorted(set(qos) - set(_DEFAULT_QOS))
+        if unknown:
+            raise ValueError(f"qos keys {', '.join(unknown)} are not rosbag2's; allowed: {', '.join(_DEFAULT_QOS)}")
+        return {**_DEFAULT_QOS, **qos}
     try:
         return {
             "history": qos.history.name.lower(),

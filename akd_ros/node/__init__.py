@@ -33,58 +33,45 @@ guards the axes' Python-side state (position unwrapping, event queues, the last 
 
 from __future__ import annotations
 
-import signal
 import sys
-
-import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
-from rclpy.lifecycle import TransitionCallbackReturn
-from rclpy.signals import SignalHandlerOptions
-
-from akd_ros.node.lifecycle import NODE_NAME, AkdNode
-from akd_ros.params import ParameterError
 
 __all__ = ["NODE_NAME", "AkdNode", "main"]
 
-_SIGNAL_CHECK_S = 0.1
+NODE_NAME = "akd_node"
+"""The node's name, under which its ~/ topics and services are."""
+
+
+def __getattr__(name: str):
+    # AkdNode is rclpy's; a node on Zenoh alone never imports it.
+    if name == "AkdNode":
+        from akd_ros.node.lifecycle import AkdNode
+
+        return AkdNode
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def main(args: list[str] | None = None) -> int:
-    """Entry point of `akd_node`: runs the node until SIGINT/SIGTERM, then disables the drive, returns the bus to
-    Init and exits 0. A bad parameter or a failed autostart exits 1 with the reason on stderr."""
-    # The signals end spin() here rather than shutting the context down at once, so the drive is disabled and the
-    # bus closed while the node can still log it.
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    # SIGINT too: a shell starts background jobs with it ignored, and it must still stop the node cleanly.
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, signal.default_int_handler)
+    """Entry point of `akd_node`: runs the node on the transport its parameters name (rclpy where it imports, else
+    Zenoh) until SIGINT/SIGTERM, then disables the drives, returns the bus to Init and exits 0. A bad parameter or a
+    failed start exits 1 with the reason on stderr, one line."""
+    from akd_ros import params
+
+    arguments = sys.argv if args is None else args
     try:
-        node = AkdNode(args)
-    except ParameterError as e:
+        given = params.read_arguments(arguments, NODE_NAME)
+        transport = params.transport_of(given)
+        if transport == "zenoh":
+            settings = params.settings({**params.defaults(), **given})
+    except params.ParameterError as e:
         print(f"{NODE_NAME}: error: {e}", file=sys.stderr)
-        rclpy.try_shutdown()
         return 1
-    executor = MultiThreadedExecutor(num_threads=4)
-    executor.add_node(node)
-    status = 0
-    try:
-        if node.settings.autostart:
-            for step in (node.trigger_configure, node.trigger_activate):
-                if step() != TransitionCallbackReturn.SUCCESS:
-                    print(f"{NODE_NAME}: error: {node.failure}", file=sys.stderr)
-                    status = 1
-                    break
-        while status == 0 and rclpy.ok():
-            # Bounded waits: a signal's handler runs only when the wait returns to Python.
-            executor.spin_once(timeout_sec=_SIGNAL_CHECK_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.close()
-        executor.shutdown()
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return status
+    if transport == "zenoh":
+        from akd_ros.node.zenoh_node import run
+
+        return run(settings)
+    from akd_ros.node.ros_node import run
+
+    return run(args)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from akd_ros.axis import CommandError
 from akd_ros.bus import Bus
+from akd_ros.node import NODE_NAME
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
@@ -18,9 +19,6 @@ from akd_ros.node.session import AXIS_ERRORS, Session
 from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import Settings
-
-NODE_NAME = "akd_node"
-"""The node's name, under which its ~/ topics and services are."""
 
 
 class Core:
@@ -110,7 +108,7 @@ class Core:
             ]
             commanded = [*self._commands.recorded_topics(), (self._trajectories.topic, JOINT_TRAJECTORY)]
             topics += [
-                (topic, self._transport.message_class(kind), self._transport.recorded_qos(self._commands.qos))
+                (topic, self._transport.recorded_class(kind), self._transport.recorded_qos(self._commands.qos))
                 for topic, kind in commanded
             ]
             try:

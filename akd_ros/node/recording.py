@@ -32,11 +32,16 @@ def open_recorder(transport, settings: Settings, topics: list[tuple[str, type, o
         black_box_seconds=record["black_box_seconds"],
         on_error=lambda text: transport.logger.error(f"recording stopped: {text}"),
     )
+    # rosbags' classes (a Zenoh transport's) are described by their typestore; rclpy's by their .msg files.
+    typestore = transport.typestore
     try:
         for topic, kind, qos in topics:
-            recorder.add_topic(topic, kind, qos)
+            recorder.add_topic(topic, kind, qos, typestore=typestore)
         recorder.add_cycle_topic(
-            transport.resolve("~/cycle"), transport.message_class("akd_ros/msg/CycleSample"), cycle_qos
+            transport.resolve("~/cycle"),
+            transport.recorded_class("akd_ros/msg/CycleSample"),
+            cycle_qos,
+            typestore=typestore,
         )
     except ValueError:
         recorder.close()

@@ -44,6 +44,7 @@ class RosTransport:
     """The transport of a LifecycleNode `node` (see `akd_ros.node.transport.Transport`)."""
 
     name = "rclpy"
+    typestore = None
 
     def __init__(self, node) -> None:
         self._node = node
@@ -75,6 +76,9 @@ class RosTransport:
 
     def resolve(self, name: str) -> str:
         return self._node.resolve_topic_name(name)
+
+    def recorded_class(self, type_name: str) -> type:
+        return message_class(type_name)
 
     def recorded_qos(self, qos: Qos) -> QoSProfile:
         return qos_profile(qos)

@@ -45,6 +45,8 @@ class Transport(Protocol):
 
     logger: Any
     """With info, warning and error(text)."""
+    typestore: Any
+    """The rosbags typestore its messages are of, for the recorder; None for rosidl-generated ones."""
 
     def message_class(self, type_name: str) -> Callable[..., Any]:
         """The class (or factory) of ROS type `type_name`, e.g. "sensor_msgs/msg/JointState"; called with fields as
@@ -71,6 +73,9 @@ class Transport(Protocol):
 
     def resolve(self, name: str) -> str:
         """The absolute name of topic `name`."""
+
+    def recorded_class(self, type_name: str) -> type:
+        """The class of `type_name`'s messages (what `message_class` makes), as the recorder checks them."""
 
     def recorded_qos(self, qos: Qos) -> Any:
         """`qos` as `akd_ros.recorder.Recorder.add_topic` takes it."""

@@ -1,0 +1,226 @@
+"""The node's parts over Zenoh in rmw_zenoh's wire format, without rclpy: `ZenohTransport`, on an
+`akd_ros.zenoh.ZenohNode`.
+
+Messages are rosbags' classes of `akd_ros.zenoh.types.Types` (ROS 2 Jazzy's and the package's own), serialised to CDR
+by rosbags. Zenoh calls back on its own threads; here each callback group is a worker thread that runs its timers
+and the callbacks handed to it one at a time, as rclpy's mutually exclusive callback groups do, so the parts see
+the same concurrency on either transport. A service's handler runs on its group's thread while Zenoh's thread
+waits for the reply.
+"""
+
+from __future__ import annotations
+
+import concurrent.futures
+import heapq
+import itertools
+import queue
+import threading
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from rosbags.typesys.store import Nodetype
+
+from akd_ros.node.transport import Qos
+from akd_ros.zenoh.wire import Durability, QoS, Reliability
+
+# rosbags' numeric base types and their numpy dtypes, for sequences given as Python lists.
+_DTYPES = {
+    "bool": np.bool_,
+    "byte": np.uint8,
+    "char": np.uint8,
+    "int8": np.int8,
+    "uint8": np.uint8,
+    "int16": np.int16,
+    "uint16": np.uint16,
+    "int32": np.int32,
+    "uint32": np.uint32,
+    "int64": np.int64,
+    "uint64": np.uint64,
+    "float32": np.float32,
+    "float64": np.float64,
+}
+
+
+def zenoh_qos(qos: Qos) -> QoS:
+    """rmw_zenoh's QoS profile of `qos`."""
+    return QoS(
+        reliability=Reliability.RELIABLE if qos.reliable else Reliability.BEST_EFFORT,
+        durability=Durability.TRANSIENT_LOCAL if qos.transient_local else Durability.VOLATILE,
+        depth=qos.depth,
+    )
+
+
+class _Group:
+    """A callback group: one thread that runs its timers and the callbacks submitted to it, one at a time."""
+
+    def __init__(self, name: str, logger) -> None:
+        self._queue: queue.Queue = queue.Queue()
+        self._timers: list[tuple[float, int, float, Callable[[], None]]] = []
+        self._order = itertools.count()
+        self._stopped = False
+        self._logger = logger
+        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def add_timer(self, period: float, callback: Callable[[], None]) -> None:
+        heapq.heappush(self._timers, (time.monotonic() + period, next(self._order), period, callback))
+
+    def submit(self, callback: Callable[..., Any], *args) -> concurrent.futures.Future:
+        future: concurrent.futures.Future = concurrent.futures.Future()
+        self._queue.put((future, callback, args))
+        return future
+
+    def stop(self) -> None:
+        self._stopped = True
+        self._queue.put(None)
+        if self._thread.is_alive() and self._thread is not threading.current_thread():
+            self._thread.join(timeout=5.0)
+
+    def _run(self) -> None:
+        while not self._stopped:
+            timeout = max(0.0, self._timers[0][0] - time.monotonic()) if self._timers else None
+            try:
+                item = self._queue.get(timeout=timeout)
+            except queue.Empty:
+                item = False
+            if item is None:
+                return
+            if item:
+                future, callback, args = item
+                try:
+                    future.set_result(callback(*args))
+                except Exception as e:  # noqa: BLE001  (a callback's failure is logged, the group goes on)
+                    self._logger.error(f"callback failed: {type(e).__name__}: {e}")
+                    future.set_exception(e)
+            now = time.monotonic()
+            while self._timers and self._timers[0][0] <= now:
+                due, order, period, callback = heapq.heappop(self._timers)
+                # Absolute deadlines; a late run does not push the next one back, a very late one skips.
+                heapq.heappush(self._timers, (max(due + period, now), order, period, callback))
+                try:
+                    callback()
+                except Exception as e:  # noqa: BLE001
+                    self._logger.error(f"timer callback failed: {type(e).__name__}: {e}")
+
+
+class _Publisher:
+    def __init__(self, transport: ZenohTransport, type_name: str, topic: str, qos: Qos) -> None:
+        self._transport, self._type_name = transport, type_name
+        self.topic_name = transport.resolve(topic)
+        self.msg_type = transport.types.store.types[type_name]
+        self.qos = transport.recorded_qos(qos)
+        self._publisher = transport.zenoh_node.publisher(topic, type_name, zenoh_qos(qos))
+
+    def publish(self, message: Any) -> None:
+        self._publisher.publish(self._transport.to_cdr(message, self._type_name))
+
+
+class ZenohTransport:
+    """The transport of `zenoh_node` (an `akd_ros.zenoh.ZenohNode` named `name`), logging to `logger` (see
+    `akd_ros.node.transport.Transport`). `start()` runs the groups' threads once the parts are made; `close()` stops
+    them."""
+
+    name = "zenoh"
+
+    def __init__(self, zenoh_node, logger) -> None:
+        self.zenoh_node = zenoh_node
+        self.types = zenoh_node.types
+        self.typestore = self.types.store
+        self.logger = logger
+        self._groups: list[_Group] = []
+
+    def start(self) -> None:
+        for group in self._groups:
+            group.start()
+
+    def close(self) -> None:
+        for group in self._groups:
+            group.stop()
+
+    def message_class(self, type_name: str) -> Callable[..., Any]:
+        cls = self.types.store.types[type_name]
+
+        def make(**fields):
+            return self.types.message(type_name, **fields)
+
+        # The message's constants (DiagnosticStatus.OK, LatchEvent.EDGE_RISING), as its class has them.
+        for constant, _, value in self.types.store.fielddefs[type_name][0]:
+            setattr(make, constant, value)
+        make.__name__ = cls.__name__
+        return make
+
+    def to_cdr(self, message: Any, type_name: str) -> bytes:
+        """`message` as CDR, its sequences given as lists first turned into the arrays rosbags serialises."""
+        return self.types.to_cdr(self._normalized(message, type_name), type_name)
+
+    def _normalized(self, message: Any, type_name: str) -> Any:
+        _, fields = self.types.store.fielddefs[type_name]
+        for name, (kind, argument) in fields:
+            value = getattr(message, name)
+            if kind == Nodetype.NAME:
+                self._normalized(value, argument)
+            elif kind in (Nodetype.SEQUENCE, Nodetype.ARRAY):
+                (element_kind, element), _ = argument
+                if element_kind == Nodetype.NAME:
+                    for item in value:
+                        self._normalized(item, element)
+                elif element[0] in _DTYPES and not isinstance(value, np.ndarray):
+                    setattr(message, name, np.asarray(value, dtype=_DTYPES[element[0]]))
+        return message
+
+    def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
+        return _Publisher(self, type_name, topic, qos)
+
+    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: _Group) -> str:
+        self.zenoh_node.subscription(
+            topic,
+            type_name,
+            lambda message: group.submit(callback, message),
+            zenoh_qos(qos),
+            deserialize=lambda data: self.types.from_cdr(data, type_name),
+        )
+        return self.resolve(topic)
+
+    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: _Group) -> None:
+        response_type = f"{type_name}_Response"
+
+        def answer(request) -> bytes:
+            def run():
+                return self.to_cdr(handler(request, self.types.message(response_type)), response_type)
+
+            return group.submit(run).result()
+
+        self.zenoh_node.service(
+            name, type_name, answer, deserialize_request=lambda data: self.types.from_cdr(data, f"{type_name}_Request")
+        )
+
+    def timer(self, period: float, callback: Callable[[], None], group: _Group) -> None:
+        group.add_timer(period, callback)
+
+    def group(self) -> _Group:
+        group = _Group(f"akd-node-{len(self._groups)}", self.logger)
+        self._groups.append(group)
+        return group
+
+    def now_ns(self) -> int:
+        return time.time_ns()
+
+    def resolve(self, name: str) -> str:
+        if name.startswith("~/"):
+            return f"/{self.zenoh_node.info.name}/{name[2:]}"
+        return name if name.startswith("/") else f"/{name}"
+
+    def recorded_class(self, type_name: str) -> type:
+        return self.types.store.types[type_name]
+
+    def recorded_qos(self, qos: Qos) -> dict:
+        return {
+            "history": "keep_last",
+            "depth": qos.depth,
+            "reliability": "reliable" if qos.reliable else "best_effort",
+            "durability": "transient_local" if qos.transient_local else "volatile",
+        }
