@@ -47,6 +47,8 @@ from akd_ros.zenoh.wire import (
 Log = Callable[[str], None]
 # The period rmw_zenoh gives a reliable transient-local publisher's sporadic heartbeat (500 ms).
 HEARTBEAT_PERIOD = 0.5
+# How many queries a keep-all service holds while its handler is busy (the client then waits, as Zenoh blocks).
+KEEP_ALL_QUERIES = 1024
 
 
 def publisher_options(qos: QoS) -> dict[str, object]:
@@ -215,9 +217,9 @@ class Service:
         self._handler = handler
         self._deserialize_request = deserialize_request
         qos = entity.topic.qos
-        channel = (
-            zenoh.handlers.FifoChannel(1024) if qos.history is History.KEEP_ALL else zenoh.handlers.RingChannel(qos.depth)
-        )
+        # Keep-all queues without dropping (to a bound, where rmw_zenoh has none); keep-last drops the oldest.
+        keep_all = qos.history is History.KEEP_ALL
+        channel = zenoh.handlers.FifoChannel(KEEP_ALL_QUERIES) if keep_all else zenoh.handlers.RingChannel(qos.depth)
         self._queryable = session.declare_queryable(self.key_expr, channel, complete=True)
         self._token = session.liveliness().declare_token(entity.liveliness_key())
         self._thread = threading.Thread(target=self._serve, name=f"zenoh service {entity.topic.name}", daemon=True)

@@ -76,9 +76,7 @@ def open_session(config: zenoh.Config) -> zenoh.Session:
     return zenoh.open(config)
 
 
-def router_warning(
-    session: zenoh.Session, config: zenoh.Config, timeout: float = ROUTER_CHECK_TIMEOUT
-) -> str | None:
+def router_warning(session: zenoh.Session, config: zenoh.Config, timeout: float = ROUTER_CHECK_TIMEOUT) -> str | None:
     """None once a router is connected to the session (waiting up to timeout), else the warning to log, naming
     the addresses tried."""
     deadline = time.monotonic() + timeout

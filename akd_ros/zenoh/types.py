@@ -14,9 +14,9 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import numpy as np
-from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.interfaces import Nodetype
 from rosbags.serde import SerdeError
+from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
 # Where the package's own definitions are: beside akd_ros/ in the source tree.
@@ -119,14 +119,17 @@ class Types:
 
     def message(self, typename: str, **fields: object) -> object:
         """A message of the type with the given fields and every other field at its default (zero, empty, or
-        a nested message of defaults), since rosbags' message classes want every field."""
+        a nested message of defaults), since rosbags' message classes want every field. Numeric arrays and
+        sequences may be given as any sequence of numbers (rosbags wants numpy arrays)."""
         _, definitions = self.store.fielddefs[self._known(typename)]
         names = {name for name, _ in definitions}
         if unknown := sorted(set(fields) - names):
             raise UnknownTypeError(
                 f"{typename} has no field {', '.join(unknown)}; its fields: {', '.join(sorted(names))}"
             )
-        values = {name: fields[name] if name in fields else self._default(desc) for name, desc in definitions}
+        values = {
+            name: _given(fields[name], desc) if name in fields else self._default(desc) for name, desc in definitions
+        }
         return self.store.types[typename](**values)
 
     def _default(self, desc: tuple) -> object:
@@ -174,6 +177,15 @@ def _renamed(typesdict: Mapping[str, tuple], renames: Mapping[str, str]) -> dict
         )
         for typename, definition in typesdict.items()
     }
+
+
+def _given(value: object, desc: tuple) -> object:
+    kind, argument = desc
+    if kind in (Nodetype.ARRAY, Nodetype.SEQUENCE) and not isinstance(value, np.ndarray):
+        element_kind, element = argument[0]
+        if element_kind == Nodetype.BASE and (dtype := _numpy_dtype(element[0])):
+            return np.asarray(value, dtype=dtype)
+    return value
 
 
 def _base_default(base: str) -> object:
