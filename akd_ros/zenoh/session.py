@@ -65,7 +65,7 @@ def session_config(config_file: str | Path | None = None, connect: Sequence[str]
 
 def connect_endpoints(config: zenoh.Config) -> list[str]:
     """The endpoints the configuration connects to (a per-mode mapping flattened)."""
-    endpoints = config.get_json("connect/endpoints")
+    endpoints = json.loads(config.get_json("connect/endpoints"))
     if isinstance(endpoints, dict):
         return [endpoint for listed in endpoints.values() for endpoint in listed]
     return list(endpoints or [])
