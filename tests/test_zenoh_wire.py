@@ -275,3 +275,40 @@ def test_token_parse_names_the_problem(key, problem):
 def test_entity_refuses_an_empty_field():
     with pytest.raises(ValueError, match="field 6 is empty"):
         node_entity(ZID, 0, NodeInfo("akd_node", enclave="")).liveliness_key()
+
+
+NO_ROS_SCRIPT = """
+import importlib.abc, sys
+
+ROS = ("rclpy", "rcl", "rmw", "rosidl", "rpyutils", "ament", "builtin_interfaces", "std_srvs", "service_msgs")
+
+
+class NoRos(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        top = name.split(".")[0]
+        if top.startswith(ROS) or top.endswith("_msgs") or name in ("akd_ros.msg", "akd_ros.srv"):
+            raise ImportError(f"{name} is a ROS module")
+
+
+sys.meta_path.insert(0, NoRos())
+from akd_ros.zenoh import entities, session, types, wire
+
+store = types.Types()
+message = store.message("sensor_msgs/msg/JointState", name=["j"], position=[1.0])
+data = store.to_cdr(message, "sensor_msgs/msg/JointState")
+print(store.rihs01("sensor_msgs/msg/JointState"), store.rihs01("akd_ros/srv/SetMode"), data.hex())
+"""
+
+
+def test_the_zenoh_side_needs_no_ros_module(types):
+    """akd_ros.zenoh imports and works where every ROS module (rclpy, rosidl, message packages) is refused."""
+    import subprocess
+
+    result = subprocess.run(
+        [sys.executable, "-c", NO_ROS_SCRIPT], capture_output=True, text=True, timeout=120, check=False
+    )
+    assert result.returncode == 0, result.stderr
+    data = types.to_cdr(
+        types.message("sensor_msgs/msg/JointState", name=["j"], position=[1.0]), "sensor_msgs/msg/JointState"
+    )
+    assert result.stdout.split() == [JOINT_STATE_HASH, types.rihs01("akd_ros/srv/SetMode"), data.hex()]

@@ -19,14 +19,23 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from rosbags.typesys.store import Typestore
 
-# Where the package's own definitions are: beside akd_ros/ in the source tree.
-INTERFACE_DIR = Path(__file__).resolve().parents[2]
 PACKAGE = "akd_ros"
 # Standard services the node serves whose definitions rosbags' Jazzy store lacks (it holds messages only);
 # field names and types are all a hash depends on.
 STANDARD_SERVICES = {
     "std_srvs/srv/Trigger": "---\nbool success\nstring message\n",
 }
+
+
+def interface_dir() -> Path:
+    """Where this package's msg/ and srv/ are: beside akd_ros/ in a source tree (an editable install), else in
+    share/akd_ros of the installation prefix the package sits under (setup.py's data_files, colcon's install)."""
+    package = Path(__file__).resolve().parents[1]
+    candidates = [package.parent, *(prefix / "share" / PACKAGE for prefix in package.parents)]
+    for candidate in candidates:
+        if (candidate / "msg").is_dir() and (candidate / "srv").is_dir():
+            return candidate
+    raise FileNotFoundError(f"{PACKAGE}'s msg/ and srv/ are neither beside {package} nor in a share/{PACKAGE} above it")
 
 
 class UnknownTypeError(ValueError):
@@ -49,7 +58,7 @@ class Types:
             self.store.fielddefs[typename] = _char_as_uint8(definition)
         for name, text in STANDARD_SERVICES.items():
             self.register_service(name, text)
-        for package, directory in (package_dirs or {PACKAGE: INTERFACE_DIR}).items():
+        for package, directory in (package_dirs or {PACKAGE: interface_dir()}).items():
             self.register_package(package, Path(directory))
 
     def register_package(self, package: str, directory: Path) -> None:
