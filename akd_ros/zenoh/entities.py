@@ -84,15 +84,24 @@ class Dropped:
             self._log(f"{self._what}: dropped {detail}; later drops are counted, not logged")
 
 
-def _attachment(carrier: zenoh.Sample | zenoh.Query, dropped: Dropped, what: str) -> Attachment | None:
+def _accepted(
+    carrier: zenoh.Sample | zenoh.Query, deserialize: Callable[[bytes], object], dropped: Dropped, what: str
+) -> tuple[Attachment, object] | None:
+    """A sample's or query's attachment and deserialized payload, or None when it is dropped (and counted)."""
     raw = carrier.attachment
     if raw is None:
         dropped("no_attachment", f"a {what} without an attachment")
         return None
     try:
-        return Attachment.decode(raw.to_bytes())
+        attachment = Attachment.decode(raw.to_bytes())
     except ValueError as error:
         dropped("bad_attachment", f"a {what} with a malformed attachment ({error})")
+        return None
+    payload = carrier.payload
+    try:
+        return attachment, deserialize(b"" if payload is None else payload.to_bytes())
+    except ValueError as error:
+        dropped("bad_payload", f"a {what} whose payload is not valid ({error})")
         return None
 
 
@@ -177,15 +186,9 @@ class Subscription:
         self._token = session.liveliness().declare_token(entity.liveliness_key())
 
     def _on_sample(self, sample: zenoh.Sample) -> None:
-        if _attachment(sample, self.dropped, "sample") is None:
-            return
-        try:
-            message = self._deserialize(sample.payload.to_bytes())
-        except ValueError as error:
-            self.dropped("bad_payload", f"a sample whose payload is not valid ({error})")
-            return
-        self.received += 1
-        self._callback(message)
+        if accepted := _accepted(sample, self._deserialize, self.dropped, "sample"):
+            self.received += 1
+            self._callback(accepted[1])
 
     def close(self) -> None:
         """Withdraws the token and the subscriber."""
@@ -233,15 +236,10 @@ class Service:
                 self._answer(query)
 
     def _answer(self, query: zenoh.Query) -> None:
-        attachment = _attachment(query, self.dropped, "request")
-        if attachment is None:
+        accepted = _accepted(query, self._deserialize_request, self.dropped, "request")
+        if accepted is None:
             return
-        payload = query.payload
-        try:
-            request = self._deserialize_request(b"" if payload is None else payload.to_bytes())
-        except ValueError as error:
-            self.dropped("bad_payload", f"a request whose payload is not valid ({error})")
-            return
+        attachment, request = accepted
         try:
             reply = self._handler(request)
         except Exception as error:  # noqa: BLE001  (a failing handler must not end the service's thread)
