@@ -72,7 +72,7 @@ setup(
         (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
         *rosidl_build.data_files(),
     ],
-    install_requires=["setuptools"],
+    install_requires=["setuptools", "eclipse-zenoh>=1.5,<2", "rosbags", "xxhash"],
     zip_safe=False,
     entry_points={
         "console_scripts": [

@@ -67,7 +67,7 @@ ROS_WHEELS=(
 )
 say "installing ROS 2 Jazzy wheels and the recording tools into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check \
-    "${ROS_WHEELS[@]}" mcap rosbags matplotlib eclipse-zenoh
+    "${ROS_WHEELS[@]}" mcap rosbags matplotlib eclipse-zenoh xxhash
 
 say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and the messages"
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation -e .

@@ -1,0 +1,342 @@
+"""A ROS node's publishers, subscriptions and services over one Zenoh session, as rmw_zenoh puts them on the wire.
+
+Each entity declares its liveliness token (so graph tools on an rmw_zenoh system list it) and uses its data key
+expression; every sample, query and reply carries rmw_zenoh's attachment. What arrives without a valid
+attachment, or with a payload its type rejects, is dropped as rmw_zenoh drops it; here it is also counted per
+reason and logged once per entity, so that a misbehaving peer is visible without flooding the log.
+
+QoS maps as rmw_zenoh maps it: reliability to Zenoh's, congestion control `block` only for reliable keep-all
+(`drop` otherwise, so a slow subscriber never stalls the publisher), and transient-local topics through
+zenoh-ext's advanced publisher (a cache of the history depth, publisher detection, and for reliable ones
+sporadic heartbeats for miss detection) and advanced subscriber (late-publisher detection querying that history,
+heartbeat recovery when reliable).
+
+The payloads are plain bytes (CDR with its encapsulation header); `akd_ros.zenoh.types` makes and reads them.
+One `ZenohNode` per session: rmw_zenoh numbers the nodes and entities of a session from one counter, which the
+node owns here.
+"""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+from collections import Counter
+from collections.abc import Callable
+
+import zenoh
+import zenoh.ext
+
+from akd_ros.zenoh.types import Types
+from akd_ros.zenoh.wire import (
+    SERVICES_QOS,
+    Attachment,
+    Durability,
+    Entity,
+    EntityKind,
+    History,
+    NodeInfo,
+    QoS,
+    Reliability,
+    TopicInfo,
+    dds_type_name,
+    fully_qualified_name,
+    node_entity,
+)
+
+Log = Callable[[str], None]
+# The period rmw_zenoh gives a reliable transient-local publisher's sporadic heartbeat (500 ms).
+HEARTBEAT_PERIOD = 0.5
+# How many queries a keep-all service holds while its handler is busy (the client then waits, as Zenoh blocks).
+KEEP_ALL_QUERIES = 1024
+
+
+def publisher_options(qos: QoS) -> dict[str, object]:
+    """Zenoh's publisher options for a ROS QoS profile, as rmw_zenoh chooses them."""
+    reliable = qos.reliability is Reliability.RELIABLE
+    return {
+        "reliability": zenoh.Reliability.RELIABLE if reliable else zenoh.Reliability.BEST_EFFORT,
+        "congestion_control": (
+            zenoh.CongestionControl.BLOCK
+            if reliable and qos.history is History.KEEP_ALL
+            else zenoh.CongestionControl.DROP
+        ),
+    }
+
+
+class Dropped:
+    """What an entity dropped, by reason, logging only the first drop."""
+
+    def __init__(self, what: str, log: Log) -> None:
+        self.counts: Counter[str] = Counter()
+        self._what = what
+        self._log = log
+
+    @property
+    def total(self) -> int:
+        """All drops so far."""
+        return sum(self.counts.values())
+
+    def __call__(self, reason: str, detail: str) -> None:
+        first = not self.counts
+        self.counts[reason] += 1
+        if first:
+            self._log(f"{self._what}: dropped {detail}; later drops are counted, not logged")
+
+
+def _accepted(
+    carrier: zenoh.Sample | zenoh.Query, deserialize: Callable[[bytes], object], dropped: Dropped, what: str
+) -> tuple[Attachment, object] | None:
+    """A sample's or query's attachment and deserialized payload, or None when it is dropped (and counted)."""
+    raw = carrier.attachment
+    if raw is None:
+        dropped("no_attachment", f"a {what} without an attachment")
+        return None
+    try:
+        attachment = Attachment.decode(raw.to_bytes())
+    except ValueError as error:
+        dropped("bad_attachment", f"a {what} with a malformed attachment ({error})")
+        return None
+    payload = carrier.payload
+    try:
+        return attachment, deserialize(b"" if payload is None else payload.to_bytes())
+    except ValueError as error:
+        dropped("bad_payload", f"a {what} whose payload is not valid ({error})")
+        return None
+
+
+class Publisher:
+    """A topic's publisher: `publish` puts CDR bytes with the attachment (sequence numbers from 1, the system
+    clock's time, the publisher's GID)."""
+
+    def __init__(self, session: zenoh.Session, entity: Entity) -> None:
+        assert entity.topic is not None
+        self.entity = entity
+        self.key_expr = entity.data_key_expr()
+        self.gid = entity.gid
+        qos = entity.topic.qos
+        options = publisher_options(qos)
+        if qos.durability is Durability.TRANSIENT_LOCAL:
+            reliable = qos.reliability is Reliability.RELIABLE
+            self._publisher = zenoh.ext.declare_advanced_publisher(
+                session,
+                self.key_expr,
+                cache=zenoh.ext.CacheConfig(max_samples=qos.depth),
+                publisher_detection=True,
+                sample_miss_detection=(
+                    zenoh.ext.MissDetectionConfig(heartbeat=None, sporadic_heartbeat=HEARTBEAT_PERIOD)
+                    if reliable
+                    else None
+                ),
+                **options,
+            )
+        else:
+            self._publisher = session.declare_publisher(self.key_expr, **options)
+        self._token = session.liveliness().declare_token(entity.liveliness_key())
+        self._lock = threading.Lock()
+        self._sequence_number = 0
+
+    def publish(self, cdr: bytes) -> int:
+        """Puts one sample; returns its sequence number."""
+        with self._lock:
+            self._sequence_number += 1
+            attachment = Attachment(self._sequence_number, time.time_ns(), self.gid)
+            self._publisher.put(bytes(cdr), attachment=attachment.encode())
+            return self._sequence_number
+
+    def close(self) -> None:
+        """Withdraws the token and the publisher."""
+        self._token.undeclare()
+        self._publisher.undeclare()
+
+
+class Subscription:
+    """A topic's subscription: callback(message) for each sample with a valid attachment whose payload
+    `deserialize` accepts (raising ValueError otherwise); message is what deserialize returns, by default the
+    CDR bytes themselves."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        entity: Entity,
+        callback: Callable[[object], None],
+        deserialize: Callable[[bytes], object],
+        log: Log,
+    ) -> None:
+        assert entity.topic is not None
+        self.entity = entity
+        self.key_expr = entity.data_key_expr()
+        self.dropped = Dropped(f"subscription {entity.topic.name}", log)
+        self.received = 0
+        self._callback = callback
+        self._deserialize = deserialize
+        qos = entity.topic.qos
+        if qos.durability is Durability.TRANSIENT_LOCAL:
+            reliable = qos.reliability is Reliability.RELIABLE
+            self._subscriber = zenoh.ext.declare_advanced_subscriber(
+                session,
+                self.key_expr,
+                self._on_sample,
+                history=zenoh.ext.HistoryConfig(detect_late_publishers=True, max_samples=qos.depth),
+                recovery=zenoh.ext.RecoveryConfig(periodic_queries=None, heartbeat=True) if reliable else None,
+                subscriber_detection=True,
+            )
+        else:
+            self._subscriber = session.declare_subscriber(self.key_expr, self._on_sample)
+        self._token = session.liveliness().declare_token(entity.liveliness_key())
+
+    def _on_sample(self, sample: zenoh.Sample) -> None:
+        if accepted := _accepted(sample, self._deserialize, self.dropped, "sample"):
+            self.received += 1
+            self._callback(accepted[1])
+
+    def close(self) -> None:
+        """Withdraws the token and the subscriber."""
+        self._token.undeclare()
+        self._subscriber.undeclare()
+
+
+class Service:
+    """A service server: a complete queryable whose queries, each with a client's attachment, are answered by
+    handler(request) -> reply CDR bytes on a thread of the service's own (a handler may wait for the drive
+    without holding up Zenoh's threads). The reply carries the request's sequence number and the client's GID,
+    which is how an rmw_zenoh client matches it to its request. request is what deserialize_request returns, by
+    default the CDR bytes. Queries beyond the history depth waiting for the handler drop the oldest, as rmw_zenoh
+    does."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        entity: Entity,
+        handler: Callable[[object], bytes],
+        deserialize_request: Callable[[bytes], object],
+        log: Log,
+    ) -> None:
+        assert entity.topic is not None
+        self.entity = entity
+        self.key_expr = entity.data_key_expr()
+        self.dropped = Dropped(f"service {entity.topic.name}", log)
+        self.answered = 0
+        self._handler = handler
+        self._deserialize_request = deserialize_request
+        qos = entity.topic.qos
+        # Keep-all queues without dropping (to a bound, where rmw_zenoh has none); keep-last drops the oldest.
+        keep_all = qos.history is History.KEEP_ALL
+        channel = zenoh.handlers.FifoChannel(KEEP_ALL_QUERIES) if keep_all else zenoh.handlers.RingChannel(qos.depth)
+        self._queryable = session.declare_queryable(self.key_expr, channel, complete=True)
+        self._token = session.liveliness().declare_token(entity.liveliness_key())
+        self._thread = threading.Thread(target=self._serve, name=f"zenoh service {entity.topic.name}", daemon=True)
+        self._thread.start()
+
+    def _serve(self) -> None:
+        # The channel ends (the iteration stops) when the queryable is undeclared. Leaving a query's context
+        # sends its final message at once, which a client's get waits for after the reply.
+        for query in self._queryable:
+            with query:
+                self._answer(query)
+
+    def _answer(self, query: zenoh.Query) -> None:
+        accepted = _accepted(query, self._deserialize_request, self.dropped, "request")
+        if accepted is None:
+            return
+        attachment, request = accepted
+        try:
+            reply = self._handler(request)
+        except Exception as error:  # noqa: BLE001  (a failing handler must not end the service's thread)
+            self.dropped("handler_failed", f"a request its handler failed on ({type(error).__name__}: {error})")
+            return
+        reply_attachment = Attachment(attachment.sequence_number, time.time_ns(), attachment.gid)
+        query.reply(self.key_expr, bytes(reply), attachment=reply_attachment.encode())
+        self.answered += 1
+
+    def close(self) -> None:
+        """Withdraws the token and the queryable, and waits for the service's thread."""
+        self._token.undeclare()
+        self._queryable.undeclare()
+        self._thread.join(timeout=5)
+
+
+class ZenohNode:
+    """A ROS node on one Zenoh session: its liveliness token and the entities it declares, named and typed as
+    an rmw_zenoh node would name them (relative names under the namespace, `~` for the node's own)."""
+
+    def __init__(
+        self,
+        session: zenoh.Session,
+        types: Types,
+        name: str,
+        namespace: str = "/",
+        domain: int = 0,
+        enclave: str = "/",
+        log: Log = print,
+    ) -> None:
+        self.session = session
+        self.types = types
+        self.info = NodeInfo(name=name, namespace=namespace, domain=domain, enclave=enclave)
+        self.zid = str(session.zid())
+        self._log = log
+        self._ids = itertools.count()
+        self.node_id = next(self._ids)
+        self.entity = node_entity(self.zid, self.node_id, self.info)
+        self._token = session.liveliness().declare_token(self.entity.liveliness_key())
+        self._entities: list[Publisher | Subscription | Service] = []
+
+    def _entity(self, kind: EntityKind, name: str, ros_type: str, qos: QoS) -> Entity:
+        topic = TopicInfo(
+            name=fully_qualified_name(name, self.info.namespace, self.info.name),
+            dds_type=dds_type_name(ros_type),
+            type_hash=self.types.rihs01(ros_type),
+            qos=qos.adapted(),
+        )
+        return Entity(self.zid, self.node_id, next(self._ids), kind, self.info, topic)
+
+    def publisher(self, topic: str, ros_type: str, qos: QoS | None = None) -> Publisher:
+        """A publisher of `ros_type` (e.g. sensor_msgs/msg/JointState) on topic."""
+        publisher = Publisher(self.session, self._entity(EntityKind.PUBLISHER, topic, ros_type, qos or QoS()))
+        self._entities.append(publisher)
+        return publisher
+
+    def subscription(
+        self,
+        topic: str,
+        ros_type: str,
+        callback: Callable[[object], None],
+        qos: QoS | None = None,
+        deserialize: Callable[[bytes], object] = bytes,
+    ) -> Subscription:
+        """A subscription to topic calling callback(deserialize(cdr)) for each valid sample."""
+        subscription = Subscription(
+            self.session,
+            self._entity(EntityKind.SUBSCRIPTION, topic, ros_type, qos or QoS()),
+            callback,
+            deserialize,
+            self._log,
+        )
+        self._entities.append(subscription)
+        return subscription
+
+    def service(
+        self,
+        name: str,
+        ros_type: str,
+        handler: Callable[[object], bytes],
+        qos: QoS | None = None,
+        deserialize_request: Callable[[bytes], object] = bytes,
+    ) -> Service:
+        """A server of the service `ros_type` (e.g. std_srvs/srv/Trigger) answering with handler's CDR bytes."""
+        service = Service(
+            self.session,
+            self._entity(EntityKind.SERVICE, name, ros_type, qos or SERVICES_QOS),
+            handler,
+            deserialize_request,
+            self._log,
+        )
+        self._entities.append(service)
+        return service
+
+    def close(self) -> None:
+        """Withdraws every entity and the node's token (the session stays open: its owner closes it)."""
+        for entity in reversed(self._entities):
+            entity.close()
+        self._entities.clear()
+        self._token.undeclare()
