@@ -19,28 +19,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
-from rosbags.typesys.store import Nodetype
-
 from akd_ros.node.transport import Qos
 from akd_ros.zenoh.wire import Durability, QoS, Reliability
-
-# rosbags' numeric base types and their numpy dtypes, for sequences given as Python lists.
-_DTYPES = {
-    "bool": np.bool_,
-    "byte": np.uint8,
-    "char": np.uint8,
-    "int8": np.int8,
-    "uint8": np.uint8,
-    "int16": np.int16,
-    "uint16": np.uint16,
-    "int32": np.int32,
-    "uint32": np.uint32,
-    "int64": np.int64,
-    "uint64": np.uint64,
-    "float32": np.float32,
-    "float64": np.float64,
-}
 
 
 def zenoh_qos(qos: Qos) -> QoS:
@@ -116,7 +96,7 @@ class _Publisher:
         self._publisher = transport.zenoh_node.publisher(topic, type_name, zenoh_qos(qos))
 
     def publish(self, message: Any) -> None:
-        self._publisher.publish(self._transport.to_cdr(message, self._type_name))
+        self._publisher.publish(self._transport.types.to_cdr(message, self._type_name))
 
 
 class ZenohTransport:
@@ -153,25 +133,6 @@ class ZenohTransport:
         make.__name__ = cls.__name__
         return make
 
-    def to_cdr(self, message: Any, type_name: str) -> bytes:
-        """`message` as CDR, its sequences given as lists first turned into the arrays rosbags serialises."""
-        return self.types.to_cdr(self._normalized(message, type_name), type_name)
-
-    def _normalized(self, message: Any, type_name: str) -> Any:
-        _, fields = self.types.store.fielddefs[type_name]
-        for name, (kind, argument) in fields:
-            value = getattr(message, name)
-            if kind == Nodetype.NAME:
-                self._normalized(value, argument)
-            elif kind in (Nodetype.SEQUENCE, Nodetype.ARRAY):
-                (element_kind, element), _ = argument
-                if element_kind == Nodetype.NAME:
-                    for item in value:
-                        self._normalized(item, element)
-                elif element[0] in _DTYPES and not isinstance(value, np.ndarray):
-                    setattr(message, name, np.asarray(value, dtype=_DTYPES[element[0]]))
-        return message
-
     def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
         return _Publisher(self, type_name, topic, qos)
 
@@ -190,7 +151,7 @@ class ZenohTransport:
 
         def answer(request) -> bytes:
             def run():
-                return self.to_cdr(handler(request, self.types.message(response_type)), response_type)
+                return self.types.to_cdr(handler(request, self.types.message(response_type)), response_type)
 
             return group.submit(run).result()
 

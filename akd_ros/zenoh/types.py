@@ -115,8 +115,27 @@ class Types:
         return self.store.hash_rihs01(self._known(typename))
 
     def to_cdr(self, message: object, typename: str) -> bytes:
-        """The message as little-endian CDR with its 4-byte encapsulation header."""
-        return bytes(self.store.serialize_cdr(message, self._known(typename), little_endian=True))
+        """The message as little-endian CDR with its 4-byte encapsulation header; numeric sequences set as Python
+        lists after it was made (a service's response filled in by its handler) are taken as the arrays rosbags
+        serialises."""
+        typename = self._known(typename)
+        return bytes(self.store.serialize_cdr(self._normalized(message, typename), typename, little_endian=True))
+
+    def _normalized(self, message: object, typename: str) -> object:
+        _, definitions = self.store.fielddefs[typename]
+        for name, desc in definitions:
+            kind, argument = desc
+            value = getattr(message, name)
+            if kind == Nodetype.NAME:
+                self._normalized(value, argument)
+            elif kind in (Nodetype.ARRAY, Nodetype.SEQUENCE):
+                element_kind, element = argument[0]
+                if element_kind == Nodetype.NAME:
+                    for item in value:
+                        self._normalized(item, element)
+                else:
+                    setattr(message, name, _given(value, desc))
+        return message
 
     def from_cdr(self, data: bytes, typename: str) -> object:
         """The message from CDR bytes; PayloadError when they are not a valid `typename`."""

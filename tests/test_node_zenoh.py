@@ -1,0 +1,238 @@
+"""akd_node with `transport: zenoh` in a Python without ROS, seen from an independent Zenoh session.
+
+A Zenoh router in its own process listens on a loopback port the test picks; `akd-sim --count 2 --udp` serves two
+virtual AKDs; the node runs as `akd_node --ros-args --params-file FILE` with `tests/support/no_ros` on its path,
+which refuses every ROS import (rclpy, rosidl, the message packages and akd_ros's generated ones), so it runs as on a
+controller with no ROS install. This process talks to it over Zenoh only, as an rmw_zenoh node would: exact key
+expressions, rmw_zenoh's attachments, liveliness tokens, and payloads decoded with rosbags.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from akd_ros.zenoh.types import Types
+from akd_ros.zenoh.wire import Attachment, Entity, EntityKind, data_key_expr, dds_type_name, gid_of
+from support.ros import BIN, COUNTS_PER_RAD, Sim, stop
+from support.waiting import wait_for
+from support.zenoh import WAIT_S, liveliness_keys, zenoh_router, zenoh_session
+
+REPO = Path(__file__).resolve().parents[1]
+NO_ROS = Path(__file__).resolve().parent / "support" / "no_ros"
+DOMAIN = 0
+JOINTS = ["joint_1", "joint_2"]
+JOINT_STATE = "sensor_msgs/msg/JointState"
+TRIGGER = "std_srvs/srv/Trigger"
+
+PARAMS = """\
+akd_node:
+  ros__parameters:
+    transport: zenoh
+    zenoh.connect: ["{endpoint}"]
+    link: udp://127.0.0.1:{port}
+    cycle_time: 0.002
+    rt.priority: 30
+    mode: cyclic_synchronous_position
+    joint_states_rate: 50.0
+    joints: [joint_1, joint_2]
+"""
+
+
+@pytest.fixture(scope="module")
+def types():
+    return Types()
+
+
+@pytest.fixture(scope="module")
+def router():
+    with zenoh_router() as endpoint:
+        yield endpoint
+
+
+@pytest.fixture(scope="module")
+def peer(router):
+    """The test's own Zenoh session, independent of the node's."""
+    with zenoh_session(router) as session:
+        yield session
+
+
+class Collected:
+    """Every joint_states sample the peer receives: (attachment, payload), from before the node starts."""
+
+    def __init__(self, peer, types: Types) -> None:
+        self.key = data_key_expr(DOMAIN, "/joint_states", dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
+        self.samples: list[tuple[bytes | None, bytes]] = []
+        self._lock = threading.Lock()
+        self._subscriber = peer.declare_subscriber(self.key, self._on_sample)
+
+    def _on_sample(self, sample) -> None:
+        with self._lock:
+            attachment = None if sample.attachment is None else sample.attachment.to_bytes()
+            self.samples.append((attachment, sample.payload.to_bytes()))
+
+    def taken(self) -> list[tuple[bytes | None, bytes]]:
+        with self._lock:
+            return list(self.samples)
+
+
+@pytest.fixture(scope="module")
+def node(peer, router, types, tmp_path_factory):
+    """The simulator, the collector of joint_states (declared first, so it sees the first sample), and the node."""
+    from support.netns import free_udp_port
+
+    collected = Collected(peer, types)
+    sim = Sim(free_udp_port(), count=len(JOINTS))
+    path = tmp_path_factory.mktemp("zenoh") / "akd_node.yaml"
+    path.write_text(PARAMS.format(endpoint=router, port=sim.port))
+    env = {**os.environ, "PYTHONPATH": str(NO_ROS), "ROS_DOMAIN_ID": str(DOMAIN)}
+    process = subprocess.Popen(
+        [str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        bufsize=1,
+    )
+    log: list[str] = []
+    threading.Thread(target=lambda: log.extend(process.stdout), daemon=True).start()
+    try:
+        wait_for("joint_states over Zenoh", lambda: collected.taken() or process.poll() is not None, WAIT_S)
+        assert process.poll() is None, "".join(log)
+        yield sim, process, log, collected
+    finally:
+        stop(process)
+        sim.stop()
+        print("akd_node output:\n" + "".join(log))
+
+
+def output(node) -> str:
+    return "".join(node[2])
+
+
+def test_the_node_ran_without_any_ros_module(node):
+    text = output(node)
+    assert "active: publishing /joint_states of joint_1, joint_2" in text, text
+    assert "Traceback" not in text
+
+
+def test_joint_states_arrive_on_the_exact_key_decoded_by_rosbags(node, types):
+    _, _, _, collected = node
+    wait_for("three samples", lambda: len(collected.taken()) >= 3, WAIT_S)
+    _, payload = collected.taken()[-1]
+    message = types.from_cdr(payload, JOINT_STATE)
+    assert list(message.name) == JOINTS and len(message.position) == 2
+    assert collected.key == (
+        "0/joint_states/sensor_msgs::msg::dds_::JointState_/"
+        "RIHS01_a13ee3a330e346c9d87b5aa18d24e11690752bd33a0350f11c5882bc9179260e"
+    )
+
+
+def test_every_sample_carries_rmw_zenohs_attachment(node, peer):
+    _, _, _, collected = node
+    wait_for("ten samples", lambda: len(collected.taken()) >= 10, WAIT_S)
+    attachments = [Attachment.decode(a) for a, _ in collected.taken()]
+    numbers = [a.sequence_number for a in attachments]
+    assert numbers == list(range(1, len(numbers) + 1)), numbers[:20]
+    stamps = [a.source_timestamp for a in attachments]
+    assert stamps == sorted(stamps) and abs(stamps[-1] - time.time_ns()) < 60e9
+    (gid,) = {a.gid for a in attachments}
+    publishers = [Entity.parse(k) for k in liveliness_keys(peer, DOMAIN)]
+    (token,) = [
+        e
+        for e in publishers
+        if e.kind is EntityKind.PUBLISHER and e.topic is not None and e.topic.name == "/joint_states"
+    ]
+    assert gid == gid_of(token.liveliness_key())
+
+
+def test_the_liveliness_tokens_name_the_node_its_topics_types_and_qos(node, peer, types):
+    entities = [Entity.parse(k) for k in liveliness_keys(peer, DOMAIN)]
+    (node_token,) = [e for e in entities if e.kind is EntityKind.NODE]
+    assert (node_token.node.name, node_token.node.namespace) == ("akd_node", "/")
+    topics = {(e.kind, e.topic.name): e.topic for e in entities if e.topic is not None}
+    joint_states = topics[EntityKind.PUBLISHER, "/joint_states"]
+    assert (joint_states.dds_type, joint_states.type_hash) == (dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
+    assert joint_states.qos.depth == 10
+    assert topics[EntityKind.SUBSCRIPTION, "/akd_node/joint_commands"].qos.depth == 100
+    assert (EntityKind.PUBLISHER, "/akd_node/joint_1/status") in topics
+    assert (EntityKind.SERVICE, "/akd_node/enable") in topics and (
+        EntityKind.SERVICE,
+        "/akd_node/joint_2/set_mode",
+    ) in topics
+
+
+def call(peer, types, name: str, sequence_number: int, gid: bytes):
+    """Calls the Trigger service `name` with rmw_zenoh's attachment; its reply."""
+    key = data_key_expr(DOMAIN, name, dds_type_name(TRIGGER), types.rihs01(TRIGGER))
+    request = types.to_cdr(types.message(f"{TRIGGER}_Request"), f"{TRIGGER}_Request")
+    attachment = Attachment(sequence_number, time.time_ns(), gid).encode()
+    replies = list(peer.get(key, payload=request, attachment=attachment, timeout=WAIT_S))
+    assert len(replies) == 1 and replies[0].ok is not None, replies
+    return replies[0].ok
+
+
+def test_a_bus_wide_enable_is_answered_with_the_replys_attachment_right(node, peer, types):
+    sim = node[0]
+    gid = bytes(range(16))
+    reply = call(peer, types, "/akd_node/enable", 7, gid)
+    response = types.from_cdr(reply.payload.to_bytes(), f"{TRIGGER}_Response")
+    assert response.success, response.message
+    attachment = Attachment.decode(reply.attachment.to_bytes())
+    assert (attachment.sequence_number, attachment.gid) == (7, gid)
+    assert [sim.state(i)["state"] for i in range(2)] == ["Operation enabled"] * 2
+
+
+def joint_commands_key(types) -> str:
+    return data_key_expr(DOMAIN, "/akd_node/joint_commands", dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
+
+
+def test_a_joint_commands_put_with_an_attachment_moves_the_joint(node, peer, types):
+    sim = node[0]
+    call(peer, types, "/akd_node/enable", 8, bytes(16))
+    start = sim.state(0)["position"] / COUNTS_PER_RAD
+    target = start + 0.01
+    gid = bytes(range(32, 48))
+    for number in range(1, 21):
+        message = types.message(JOINT_STATE, name=["joint_1"], position=[start + 0.01 * number / 20])
+        payload = types.to_cdr(message, JOINT_STATE)
+        peer.put(joint_commands_key(types), payload, attachment=Attachment(number, time.time_ns(), gid).encode())
+        time.sleep(0.02)
+    wait_for("joint_1 at its target", lambda: abs(sim.state(0)["position"] - target * COUNTS_PER_RAD) < 20, WAIT_S)
+
+
+@pytest.mark.parametrize(
+    ("attachment", "payload", "why"),
+    [
+        (None, "good", "no attachment"),
+        (b"\x01\x02\x03", "good", "attachment"),
+        ("good", b"\x00\x01\x00\x00\xff\xff", "payload"),
+    ],
+    ids=["no_attachment", "malformed_attachment", "bad_cdr"],
+)
+def test_a_bad_put_is_dropped_counted_logged_once_and_nothing_moves(node, peer, types, attachment, payload, why):
+    sim = node[0]
+    call(peer, types, "/akd_node/enable", 9, bytes(16))
+    before = sim.state(0)["position"]
+    good = types.to_cdr(
+        types.message(JOINT_STATE, name=["joint_1"], position=[before / COUNTS_PER_RAD + 0.5]), JOINT_STATE
+    )
+    payload = good if payload == "good" else payload
+    for number in range(3):
+        attached = Attachment(100 + number, time.time_ns(), bytes(16)).encode() if attachment == "good" else attachment
+        if attached is None:
+            peer.put(joint_commands_key(types), payload)
+        else:
+            peer.put(joint_commands_key(types), payload, attachment=attached)
+    wait_for(
+        "the drop logged", lambda: "dropped" in output(node) and why in output(node).split("dropped", 1)[1], WAIT_S
+    )
+    time.sleep(0.3)
+    assert abs(sim.state(0)["position"] - before) <= 1
+    logged = [line for line in output(node).splitlines() if "dropped" in line and why in line]
+    assert len(logged) == 1, logged
