@@ -34,7 +34,19 @@ class AkdNode(LifecycleNode):
         super().__init__(NODE_NAME, **kwargs)
         arguments = [*(sys.argv if args is None else args), *(kwargs.get("cli_args") or [])]
         self.settings: Settings = declare(self, arguments, kwargs.get("parameter_overrides") or [])
-        self._core = Core(RosTransport(self), self.settings)
+        transport = RosTransport(self)
+        self._zenoh = None
+        if self.settings.transport == "both":
+            from akd_ros.node.both_transport import BothTransport
+            from akd_ros.node.zenoh_node import open_zenoh
+            from akd_ros.node.zenoh_transport import ZenohTransport
+
+            self._zenoh = open_zenoh(self.settings, transport.logger)
+            transport = BothTransport(transport, ZenohTransport(self._zenoh[1], transport.logger))
+        self._core = Core(transport, self.settings)
+        if self._zenoh is not None:
+            transport.start()
+        self._transport = transport
 
     @property
     def failure(self) -> str | None:
@@ -79,3 +91,13 @@ class AkdNode(LifecycleNode):
     def close(self) -> None:
         """Stops publishing, disables the drives and returns the line to Init (does nothing when not configured)."""
         self._core.close()
+
+    def destroy_node(self) -> None:
+        """Also withdraws the node from Zenoh (transport both)."""
+        if self._zenoh is not None:
+            session, zenoh_node = self._zenoh
+            self._zenoh = None
+            self._transport.close()
+            zenoh_node.close()
+            session.close()
+        super().destroy_node()

@@ -52,29 +52,41 @@ def domain_id() -> int:
     return int(text)
 
 
-def run(settings: Settings) -> int:
-    """Runs the node on Zenoh until SIGINT/SIGTERM; its exit status (1 when configure or activate failed)."""
-    from akd_ros.node.zenoh_transport import ZenohTransport
+def open_zenoh(settings: Settings, logger):
+    """The session (`zenoh.config`, `zenoh.connect` or rmw_zenoh's default) and the node's ZenohNode on it, the
+    router's absence warned about through `logger`; the caller closes both."""
     from akd_ros.zenoh.entities import ZenohNode
     from akd_ros.zenoh.session import open_session, router_warning, session_config
     from akd_ros.zenoh.types import Types
 
-    logger = Logger(NODE_NAME)
-    stop = threading.Event()
-    for number in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(number, lambda *_: stop.set())
     config = session_config(settings.zenoh_config, settings.zenoh_connect)
     session = open_session(config)
-    status = 0
     try:
         warning = router_warning(session, config)
         if warning:
             logger.warning(warning)
         zenoh_node = ZenohNode(session, Types(), NODE_NAME, domain=domain_id(), log=logger.warning)
+    except BaseException:
+        session.close()
+        raise
+    logger.info(f"on Zenoh as session {zenoh_node.zid}, domain {zenoh_node.info.domain}")
+    return session, zenoh_node
+
+
+def run(settings: Settings) -> int:
+    """Runs the node on Zenoh until SIGINT/SIGTERM; its exit status (1 when configure or activate failed)."""
+    from akd_ros.node.zenoh_transport import ZenohTransport
+
+    logger = Logger(NODE_NAME)
+    stop = threading.Event()
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda *_: stop.set())
+    session, zenoh_node = open_zenoh(settings, logger)
+    status = 0
+    try:
         transport = ZenohTransport(zenoh_node, logger)
         core = Core(transport, settings)
         transport.start()
-        logger.info(f"on Zenoh as session {zenoh_node.zid}, domain {zenoh_node.info.domain}")
         try:
             if not (core.configure() and core.activate()):
                 print(f"{NODE_NAME}: error: {core.failure}", file=sys.stderr)

@@ -1,0 +1,100 @@
+"""The node's parts over rclpy and Zenoh at once (`transport: both`): `BothTransport`.
+
+rclpy's messages, timers and executor, as `RosTransport`; every publisher, subscription and service is also
+declared on Zenoh in rmw_zenoh's wire format (`akd_ros.zenoh`). A message published goes out on both, as CDR on
+Zenoh (the recorder's serialiser: rclpy's, trimmed to the CDR written); one arriving on Zenoh is read into rclpy's
+class and handed to the same callback, on a worker thread of its callback group (`ZenohTransport`'s groups), so
+callbacks of one group never overlap among those that came by Zenoh.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.serialization import deserialize_message, serialize_message
+
+from akd_ros.node.ros_transport import RosTransport, message_class
+from akd_ros.node.transport import Qos
+from akd_ros.node.zenoh_transport import ZenohTransport, zenoh_qos
+from akd_ros.recorder import message_type
+
+
+class _Group:
+    def __init__(self, ros, zenoh) -> None:
+        self.ros, self.zenoh = ros, zenoh
+
+
+class _Publisher:
+    def __init__(self, both: BothTransport, type_name: str, topic: str, qos: Qos) -> None:
+        self._ros = both.ros.publisher(type_name, topic, qos)
+        self.topic_name, self.msg_type, self.qos = self._ros.topic_name, self._ros.msg_type, self._ros.qos
+        self._serialize = message_type(self.msg_type).serialize
+        self._zenoh = both.zenoh.zenoh_node.publisher(topic, type_name, zenoh_qos(qos))
+
+    def publish(self, message: Any) -> None:
+        self._ros.publish(message)
+        self._zenoh.publish(self._serialize(message))
+
+
+class BothTransport:
+    """`ros` (on the node's LifecycleNode) with `zenoh` beside it (see the module doc)."""
+
+    name = "both"
+    typestore = None
+
+    def __init__(self, ros: RosTransport, zenoh: ZenohTransport) -> None:
+        self.ros, self.zenoh = ros, zenoh
+        self.logger = ros.logger
+
+    def start(self) -> None:
+        self.zenoh.start()
+
+    def close(self) -> None:
+        self.zenoh.close()
+
+    def message_class(self, type_name: str) -> type:
+        return self.ros.message_class(type_name)
+
+    def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
+        return _Publisher(self, type_name, topic, qos)
+
+    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: _Group) -> str:
+        cls = message_class(type_name)
+        self.zenoh.zenoh_node.subscription(
+            topic,
+            type_name,
+            lambda message: group.zenoh.submit(callback, message),
+            zenoh_qos(qos),
+            deserialize=lambda data: deserialize_message(bytes(data), cls),
+        )
+        return self.ros.subscription(type_name, topic, callback, qos, group.ros)
+
+    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: _Group) -> None:
+        cls = message_class(type_name)
+
+        def answer(request) -> bytes:
+            return group.zenoh.submit(lambda: serialize_message(handler(request, cls.Response()))).result()
+
+        self.zenoh.zenoh_node.service(
+            name, type_name, answer, deserialize_request=lambda data: deserialize_message(bytes(data), cls.Request)
+        )
+        self.ros.service(type_name, name, handler, group.ros)
+
+    def timer(self, period: float, callback: Callable[[], None], group: _Group) -> None:
+        self.ros.timer(period, callback, group.ros)
+
+    def group(self) -> _Group:
+        return _Group(self.ros.group(), self.zenoh.group())
+
+    def now_ns(self) -> int:
+        return self.ros.now_ns()
+
+    def resolve(self, name: str) -> str:
+        return self.ros.resolve(name)
+
+    def recorded_class(self, type_name: str) -> type:
+        return self.ros.recorded_class(type_name)
+
+    def recorded_qos(self, qos: Qos) -> Any:
+        return self.ros.recorded_qos(qos)
