@@ -22,7 +22,7 @@ import yaml
 from rcl_interfaces.msg import ParameterType
 
 from akd_ros import params
-from akd_ros.node import AkdNode
+from akd_ros.node import AkdNode, ros_parameters
 
 BIN = Path(sys.executable).parent
 REPO = Path(__file__).resolve().parents[1]
@@ -301,7 +301,7 @@ def test_every_parameter_is_declared_with_type_description_and_range(node_in_pro
     for spec in params.SCHEMA:
         descriptor = descriptors[spec.name]
         assert descriptor.description and descriptor.read_only, spec.name
-        assert descriptor.type == spec.type.value, spec.name
+        assert descriptor.type == ros_parameters.parameter_type(spec).value, spec.name
     cycle = descriptors["cycle_time"]
     assert cycle.type == ParameterType.PARAMETER_DOUBLE
     assert (cycle.floating_point_range[0].from_value, cycle.floating_point_range[0].to_value) == (0.00025, 0.01)

@@ -22,10 +22,11 @@ from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
 from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
+from akd_ros.node.ros_parameters import declare
 from akd_ros.node.services import Services
 from akd_ros.node.session import AXIS_ERRORS, Session
 from akd_ros.node.trajectories import Trajectories
-from akd_ros.params import Settings, declare
+from akd_ros.params import Settings
 
 NODE_NAME = "akd_node"
 """The node's name, under which its ~/ topics and services are."""
