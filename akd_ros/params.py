@@ -505,14 +505,20 @@ def _add_file(sections: dict[str, dict[str, object]], path: str) -> None:
     except OSError as e:
         raise ParameterError(f"parameters file {path}: {e.strerror}") from None
     except yaml.MarkedYAMLError as e:
-        mark = e.problem_mark or e.context_mark
-        raise ParameterError(
-            f"parameters file {path}, line {mark.line + 1}, column {mark.column + 1}: {e.problem or e.context}"
-        ) from None
+        raise ParameterError(f"parameters file {path}, {_yaml_problem(e)}") from None
     except yaml.YAMLError as e:
         raise ParameterError(f"parameters file {path}: {' '.join(str(e).split())}") from None
     for section, parameters in _sections_of(tree, path):
         sections.setdefault(section, {}).update(parameters)
+
+
+def _yaml_problem(error: yaml.MarkedYAMLError) -> str:
+    """'line L, column C: problem (context, line L, column C)' of a YAML error, on one line."""
+    mark = error.problem_mark or error.context_mark
+    text = f"line {mark.line + 1}, column {mark.column + 1}: {error.problem or error.context}"
+    if error.problem and error.context and error.context_mark:
+        text += f" ({error.context}, line {error.context_mark.line + 1}, column {error.context_mark.column + 1})"
+    return " ".join(text.split())
 
 
 def _sections_of(tree: object, path: str, node: tuple[str, ...] = ()) -> list[tuple[str, dict[str, object]]]:
