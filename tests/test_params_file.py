@@ -43,21 +43,22 @@ for blocked in ("rclpy", "rcl_interfaces.msg", "rosidl_runtime_py", "std_msgs.ms
 """
 
 
-def no_ros_environment() -> dict[str, str]:
-    """The environment of a Python whose ROS imports are refused."""
-    return {**os.environ, "PYTHONPATH": os.pathsep.join(filter(None, [str(NO_ROS), os.environ.get("PYTHONPATH")]))}
-
-
-def test_the_package_and_a_parameters_file_need_no_ros():
-    result = subprocess.run(
-        [sys.executable, "-c", IMPORTS_WITHOUT_ROS],
+def run_without_ros(*arguments: str) -> subprocess.CompletedProcess:
+    """This Python with `arguments`, in the repository, its ROS imports refused; to its end."""
+    path = os.pathsep.join(filter(None, [str(NO_ROS), os.environ.get("PYTHONPATH")]))
+    return subprocess.run(
+        [sys.executable, *arguments],
         cwd=REPO,
-        env=no_ros_environment(),
+        env={**os.environ, "PYTHONPATH": path},
         capture_output=True,
         text=True,
         timeout=RUN_TIMEOUT_S,
         check=False,
     )
+
+
+def test_the_package_and_a_parameters_file_need_no_ros():
+    result = run_without_ros("-c", IMPORTS_WITHOUT_ROS)
     assert result.returncode == 0, result.stderr
     joints, ros_modules = result.stdout.splitlines()
     assert joints == ",".join(f"joint_{i}" for i in range(1, 7))
@@ -67,15 +68,7 @@ def test_the_package_and_a_parameters_file_need_no_ros():
 def test_these_tests_pass_with_ros_blocked():
     if ROS_BLOCKED:
         pytest.skip("this is the run with ROS blocked")
-    result = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", __file__],
-        cwd=REPO,
-        env=no_ros_environment(),
-        capture_output=True,
-        text=True,
-        timeout=RUN_TIMEOUT_S,
-        check=False,
-    )
+    result = run_without_ros("-m", "pytest", "-q", "-p", "no:cacheprovider", __file__)
     assert result.returncode == 0, result.stdout + result.stderr
     # Every test but this one ran there.
     assert re.search(r"\b\d+ passed, 1 skipped in ", result.stdout), result.stdout
