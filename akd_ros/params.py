@@ -1,8 +1,11 @@
 """The parameters of `akd_node`: their schema (type, default, range, description) and their checks.
 
-Every parameter is declared on the node with a `ParameterDescriptor` carrying its description, its range (numbers)
-or its allowed values (strings, in `additional_constraints`), so `ros2 param describe /akd_node NAME` tells what a
-file may say. All are read-only: they are read once, at start-up; change the file and restart the node.
+This module imports no ROS package: `read_parameters_file` and `read_arguments` read a parameters file and -p
+overrides as rcl does (with PyYAML), and `settings` checks them, so the node runs without ROS (transport zenoh).
+Over rclpy, `akd_ros.node.ros_parameters.declare` declares every parameter on the node with a `ParameterDescriptor`
+carrying its description, its range (numbers) or its allowed values (strings, in `additional_constraints`), so
+`ros2 param describe /akd_node NAME` tells what a file may say. All are read-only: they are read once, at start-up;
+change the file and restart the node.
 
 A parameters file is checked before anything reaches the bus: an unknown name, a wrong type, a value outside its
 range or its allowed values, an unknown PDO mapping, a cycle time below the AKD's 250 µs or a network interface
@@ -28,9 +31,6 @@ import socket
 from dataclasses import dataclass, replace
 
 import yaml
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
-from rclpy.exceptions import ParameterUninitializedException
-from rclpy.parameter import Parameter
 
 from akd_ros.axis import MODES, DriveConfig
 from akd_ros.bus import FAULT_REACTIONS, CommandError, check
@@ -47,12 +47,13 @@ COMMAND_TIMEOUT_POLICIES = ("hold", "quick_stop")
 DC_CHOICES = {"auto": None, "on": True, "off": False}
 """Values of dc, each with the Axis's `dc` (None: the link's default)."""
 _TYPE_WORDS = {
-    Parameter.Type.BOOL: "a bool (true or false)",
-    Parameter.Type.INTEGER: "an integer",
-    Parameter.Type.DOUBLE: "a number",
-    Parameter.Type.STRING: "a string",
-    Parameter.Type.STRING_ARRAY: "a list of strings",
+    bool: "a bool (true or false)",
+    int: "an integer",
+    float: "a number",
+    str: "a string",
+    list: "a list of strings",
 }
+"""The words for each kind of value (`Spec.kind`)."""
 
 
 class ParameterError(ValueError):
@@ -79,56 +80,33 @@ class Spec:
         )
 
     @property
-    def type(self) -> Parameter.Type:
-        """The ROS parameter type, from the default."""
-        if isinstance(self.default, list):
-            return Parameter.Type.STRING_ARRAY
-        return Parameter.Type.from_parameter_value(self.default)
+    def kind(self) -> type:
+        """The Python type of its values, from the default: bool, int, float, str or list (of strings)."""
+        return type(self.default)
 
     def allowed(self) -> str:
         """What the parameter allows, in words."""
         if self.choices is not None:
             return "one of " + ", ".join(str(c) for c in self.choices)
         if self.low is not None:
-            return f"{_TYPE_WORDS[self.type]} in [{self.low}, {self.high}]"
-        return _TYPE_WORDS[self.type]
-
-    def descriptor(self) -> ParameterDescriptor:
-        """The descriptor it is declared with (read-only: read once at start-up)."""
-        descriptor = ParameterDescriptor(
-            name=self.name, type=self.type.value, description=self.description, read_only=True
-        )
-        if self.choices is not None:
-            descriptor.additional_constraints = self.allowed()
-            if self.type == Parameter.Type.INTEGER:
-                # The only integer choice set is direction's {-1, +1}: a range of step 2.
-                descriptor.integer_range = [
-                    IntegerRange(
-                        from_value=min(self.choices),
-                        to_value=max(self.choices),
-                        step=max(self.choices) - min(self.choices),
-                    )
-                ]
-        elif self.low is not None and self.type == Parameter.Type.INTEGER:
-            descriptor.integer_range = [IntegerRange(from_value=int(self.low), to_value=int(self.high), step=1)]
-        elif self.low is not None:
-            descriptor.floating_point_range = [FloatingPointRange(from_value=self.low, to_value=self.high, step=0.0)]
-        return descriptor
+            return f"{_TYPE_WORDS[self.kind]} in [{self.low}, {self.high}]"
+        return _TYPE_WORDS[self.kind]
 
     def check(self, value: object) -> object:
         """`value` as this parameter's type (a whole number taken for a real one), or ParameterError."""
-        kind = self.type
-        if kind == Parameter.Type.DOUBLE and isinstance(value, int) and not isinstance(value, bool):
+        kind = self.kind
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
-        if kind == Parameter.Type.STRING_ARRAY and value is None:
+        if kind is list and value is None:
             value = []  # an empty YAML list arrives without a type
-        if kind == Parameter.Type.STRING and isinstance(value, bool) and {"on", "off"} <= set(self.choices or ()):
+        if kind is str and isinstance(value, bool) and {"on", "off"} <= set(self.choices or ()):
             # YAML 1.1, as rcl reads a file or -p, takes unquoted on/off (yes/no, true/false) for a bool.
             value = "on" if value else "off"
-        if kind == Parameter.Type.STRING_ARRAY:
+        if kind is list:
             typed = isinstance(value, list) and all(isinstance(v, str) for v in value)
         else:
-            typed = isinstance(value, (bool, int, float, str)) and Parameter.Type.from_parameter_value(value) == kind
+            # The first that matches, as rclpy types a value: a bool is an int to isinstance.
+            typed = next((t for t in (bool, int, float, str) if isinstance(value, t)), None) is kind
         if not typed:
             raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
         if self.choices is not None and value not in self.choices:
@@ -407,57 +385,6 @@ def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
     ]
 
 
-def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Settings:
-    """Declares every parameter on `node` (what the ROS arguments gave each checked first), with every joint's block
-    (joints.<name>.*), and gives the checked settings; raises ParameterError naming the first parameter that is wrong
-    and what it allows.
-
-    `arguments` are the command lines rcl read for the node (rclpy.init's and the node's own cli_args) and
-    `overrides` the node's parameter_overrides: they tell which names were given, so that a name given but not
-    declared is reported as unknown."""
-    named = {**_named_in(arguments), **{parameter.name: parameter.value for parameter in overrides}}
-    top = {spec.name: _declare(node, spec, named) for spec in SCHEMA}
-    joints = check_joint_names(top["joints"])
-    if joints:
-        given_once = sorted(n for n in ("joint_name", "slave", "alias") if n in named)
-        if given_once:
-            raise ParameterError(
-                f"parameter {', '.join(given_once)} applies to a file without joints; with joints, each joint is "
-                "named in joints and found by joints.<name>.slave (default: its place in joints) or "
-                "joints.<name>.alias"
-            )
-    values = dict(top)
-    for spec in joint_specs(joints, top):
-        values[spec.name] = _declare(node, spec, named)
-    unknown = sorted(
-        n
-        for n in named
-        if not node.has_parameter(n)
-        and not n.startswith("qos_overrides.")
-        and _given(node, n).type_ != Parameter.Type.NOT_SET
-    )
-    if unknown:
-        raise ParameterError(
-            f"unknown parameter {', '.join(unknown)}; the parameters are: {', '.join(SPECS)}, and for each joint "
-            f"of joints ({', '.join(joints) or 'none given'}) joints.<name>.<one of "
-            f"{', '.join(s.name for s in SCHEMA if s.per_joint)}>"
-        )
-    return settings(values)
-
-
-def _declare(node, spec: Spec, named: dict[str, object]) -> object:
-    """Declares `spec` on `node` with what the ROS arguments gave it, checked; its value."""
-    given = _given(node, spec.name)
-    # An empty YAML list arrives without a type, as nothing does.
-    unset = given.type_ == Parameter.Type.NOT_SET and named.get(spec.name) != []
-    value = spec.check(spec.default if unset else given.value)
-    if value == []:
-        node.declare_parameter(spec.name, Parameter.Type.STRING_ARRAY, spec.descriptor(), ignore_override=True)
-    else:
-        node.declare_parameter(spec.name, value, spec.descriptor(), ignore_override=True)
-    return value
-
-
 JOINT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]*(_[A-Za-z0-9]+)*")
 """A joint name of `joints`: one ROS name token (letters, digits, single underscores inside; a letter first), so that
 ~/<joint>/ is a valid namespace and joints.<name>.* a valid parameter name."""
@@ -477,20 +404,67 @@ def check_joint_names(joints: list[str]) -> list[str]:
     return joints
 
 
-def _given(node, name: str) -> Parameter:
-    """What the ROS arguments gave `name` on `node`, whatever its type (NOT_SET for nothing).
+def refuse_single_joint_parameters(named: dict[str, object], joints: list[str]) -> None:
+    """Refuses joint_name, slave and alias among the `named` parameters when `joints` names the joints."""
+    given_once = sorted(n for n in ("joint_name", "slave", "alias") if n in named)
+    if joints and given_once:
+        raise ParameterError(
+            f"parameter {', '.join(given_once)} applies to a file without joints; with joints, each joint is "
+            "named in joints and found by joints.<name>.slave (default: its place in joints) or "
+            "joints.<name>.alias"
+        )
 
-    rclpy hands a parameter's override to its declaration: declared with dynamic typing, it takes the value as the
-    file spelt it, which this package then checks with its own messages; it is undeclared again at once."""
-    parameter = node.declare_parameter(name, None, ParameterDescriptor(dynamic_typing=True))
-    node.undeclare_parameter(name)
-    return parameter
+
+def refuse_unknown(unknown: list[str], joints: list[str]) -> None:
+    """Refuses the `unknown` parameter names, if any, naming what the node has with `joints`."""
+    if unknown:
+        raise ParameterError(
+            f"unknown parameter {', '.join(sorted(unknown))}; the parameters are: {', '.join(SPECS)}, and for each "
+            f"joint of joints ({', '.join(joints) or 'none given'}) joints.<name>.<one of "
+            f"{', '.join(s.name for s in SCHEMA if s.per_joint)}>"
+        )
 
 
-def _named_in(arguments: list[str]) -> dict[str, object]:
-    """The parameters that ROS arguments set, by name, as YAML values: each -p NAME:=VALUE and every parameter of
-    every --params-file, in all its nodes' sections (rcl decides which apply to this node; _given tells)."""
-    named = {}
+def check_names(named: dict[str, object]) -> None:
+    """Refuses, as `akd_ros.node.ros_parameters.declare` does, names given that the node does not have: neither in
+    SCHEMA nor in the block of a joint of `joints` (rclpy's qos_overrides.* aside), and joint_name, slave or alias
+    beside joints; ParameterError."""
+    joints = check_joint_names(SPECS["joints"].check(named.get("joints", [])))
+    refuse_single_joint_parameters(named, joints)
+    blocks = {spec.name for spec in joint_specs(joints, {spec.name: spec.default for spec in SCHEMA})}
+    refuse_unknown(
+        [n for n in named if n not in SPECS and n not in blocks and not n.startswith("qos_overrides.")], joints
+    )
+
+
+def read_parameters_file(path: str, node_name: str = "akd_node") -> dict[str, object]:
+    """The parameters the ROS parameters file `path` gives the node `node_name`, by dotted name, read as rcl reads
+    a --params-file; unknown names refused (`check_names`); raises ParameterError naming the file.
+
+    Its sections apply to the node as rcl applies them: the node's own (``akd_node:``, ``/akd_node:``, or nested
+    under its namespace) and the wildcards (``/**:``, ``/*:``, ``/**/akd_node:``), each one's ros__parameters by
+    name, nested maps and dotted keys alike (``limits: {max_velocity: 6.0}`` is ``limits.max_velocity``); a later
+    section wins over an earlier one for a name both give."""
+    sections: dict[str, dict[str, object]] = {}
+    _add_file(sections, path)
+    return _checked_for(sections, node_name)
+
+
+def read_arguments(arguments: list[str], node_name: str = "akd_node") -> dict[str, object]:
+    """The parameters the ROS arguments of a command line give the node `node_name` (each --params-file FILE and
+    -p NAME:=VALUE of its --ros-args, as `read_parameters_file` reads a file), by dotted name; unknown names
+    refused; raises ParameterError.
+
+    As rcl merges them: all of them, in order, into one set of sections (-p is ``/**``), a later value of a name
+    replacing an earlier one in its section; the sections then apply to the node in the order each first
+    appeared."""
+    return _checked_for(argument_sections(arguments), node_name)
+
+
+def argument_sections(arguments: list[str]) -> dict[str, dict[str, object]]:
+    """The parameters ROS arguments set, as rcl merges them: by section (a node name or a wildcard, fully
+    qualified) in the order each first appears, then by dotted name; ParameterError for a file it cannot read."""
+    sections: dict[str, dict[str, object]] = {}
     ros = False
     for argument, following in zip(arguments, [*arguments[1:], None], strict=True):
         if argument in ("--ros-args", "--"):
@@ -498,11 +472,82 @@ def _named_in(arguments: list[str]) -> dict[str, object]:
         elif ros and following is not None and argument in ("-p", "--param"):
             name, _, text = following.partition(":=")
             if name:  # rcl refuses -p without a name
-                named[name] = _yaml_value(text)
+                sections.setdefault("/**", {})[name] = _yaml_value(text)
         elif ros and following is not None and argument == "--params-file":
-            with open(following, encoding="utf-8") as stream:
-                named.update(_parameters_in(yaml.safe_load(stream)))
+            _add_file(sections, following)
+    return sections
+
+
+def _checked_for(sections: dict[str, dict[str, object]], node_name: str) -> dict[str, object]:
+    """What `sections` give the node `node_name` (a later section wins), its names checked."""
+    node = node_name if node_name.startswith("/") else f"/{node_name}"
+    named: dict[str, object] = {}
+    for section, parameters in sections.items():
+        if _applies(section, node):
+            named.update(parameters)
+    check_names(named)
     return named
+
+
+def _applies(section: str, node: str) -> bool:
+    """Whether the section `section` (a fully qualified node name, where ``*`` is one name and ``**`` any number)
+    applies to the node `node` (fully qualified)."""
+    tokens = {"**": "(/[^/]+)*", "*": "/[^/]+"}
+    return re.fullmatch("".join(tokens.get(t, "/" + re.escape(t)) for t in section[1:].split("/")), node) is not None
+
+
+def _add_file(sections: dict[str, dict[str, object]], path: str) -> None:
+    """Adds the parameters of the parameters file `path` to `sections`; ParameterError naming the file (and the line
+    and column of a YAML error)."""
+    try:
+        with open(path, encoding="utf-8") as stream:
+            tree = yaml.safe_load(stream)
+    except OSError as e:
+        raise ParameterError(f"parameters file {path}: {e.strerror}") from None
+    except yaml.MarkedYAMLError as e:
+        raise ParameterError(f"parameters file {path}, {_yaml_problem(e)}") from None
+    except yaml.YAMLError as e:
+        raise ParameterError(f"parameters file {path}: {' '.join(str(e).split())}") from None
+    for section, parameters in _sections_of(tree, path):
+        sections.setdefault(section, {}).update(parameters)
+
+
+def _yaml_problem(error: yaml.MarkedYAMLError) -> str:
+    """'line L, column C: problem (context, line L, column C)' of a YAML error, on one line."""
+    mark = error.problem_mark or error.context_mark
+    text = f"line {mark.line + 1}, column {mark.column + 1}: {error.problem or error.context}"
+    if error.problem and error.context and error.context_mark:
+        text += f" ({error.context}, line {error.context_mark.line + 1}, column {error.context_mark.column + 1})"
+    return " ".join(text.split())
+
+
+def _sections_of(tree: object, path: str, node: tuple[str, ...] = ()) -> list[tuple[str, dict[str, object]]]:
+    """(fully qualified node name, its ros__parameters by dotted name) of each section of a parameters file's tree,
+    in order; `node` is the names of the maps above `tree`."""
+    if tree is None and not node:
+        return []  # an empty file
+    if not isinstance(tree, dict):
+        where = "/".join(node) or "the top level"
+        raise ParameterError(
+            f"parameters file {path}: {where} must be a map of node names, each with its ros__parameters"
+        )
+    found = []
+    for key, value in tree.items():
+        if key == "ros__parameters" and node:
+            found.append(("/" + "/".join(n.strip("/") for n in node), _parameters_of(value)))
+        else:
+            found += _sections_of(value, path, (*node, str(key)))
+    return found
+
+
+def _parameters_of(tree: object, prefix: str = "") -> dict[str, object]:
+    """The parameters of a ros__parameters map by dotted name: a nested map's keys joined to its own with '.'."""
+    if not isinstance(tree, dict):
+        return {prefix: tree} if prefix else {}
+    found = {}
+    for key, value in tree.items():
+        found.update(_parameters_of(value, f"{prefix}.{key}" if prefix else str(key)))
+    return found
 
 
 def _yaml_value(text: str) -> object:
@@ -512,31 +557,11 @@ def _yaml_value(text: str) -> object:
         return text  # rcl takes what YAML cannot read as a string
 
 
-def _parameters_in(tree: object, prefix: str | None = None) -> dict[str, object]:
-    """The parameters of a parameters file's tree by dotted name, from every ros__parameters in it (under any node
-    name or namespace)."""
-    if prefix is not None and not isinstance(tree, dict):
-        return {prefix: tree} if prefix else {}  # no name: not a parameter (rcl refuses such a file)
-    found = {}
-    for key, value in tree.items() if isinstance(tree, dict) else ():
-        if prefix is not None:
-            found.update(_parameters_in(value, f"{prefix}.{key}" if prefix else str(key)))
-        else:
-            found.update(_parameters_in(value, "" if key == "ros__parameters" else None))
-    return found
-
-
-def _value(node, name: str) -> object:
-    try:
-        return node.get_parameter(name).value
-    except ParameterUninitializedException:
-        return []
-
-
 def settings(values: dict[str, object]) -> Settings:
-    """The settings for `values` (every parameter of SCHEMA by name, and with joints each joint's block
-    joints.<name>.<parameter>, missing ones taking their defaults); raises ParameterError."""
-    top = {spec.name: spec.check(values[spec.name]) for spec in SCHEMA}
+    """The settings for `values` (the parameters of SCHEMA by name, and with joints each joint's block
+    joints.<name>.<parameter>, missing ones taking their defaults: what `read_parameters_file` or `read_arguments`
+    gives); raises ParameterError."""
+    top = {spec.name: spec.check(values.get(spec.name, spec.default)) for spec in SCHEMA}
     link = check_link(top["link"])
     if not abs(top["dc_shift"]) < top["cycle_time"]:
         raise ParameterError(

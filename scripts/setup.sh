@@ -2,8 +2,8 @@
 # Sets up this repository on a fresh Debian 12 machine (root, Python >= 3.10, rustup's cargo):
 # the apt tools the tests use, a virtual environment at .venv with the test and interop
 # packages and ROS 2 Jazzy from PyPI's ROS wheels, and akd_ros itself installed editable, which
-# compiles the Rust extension and the package's messages. Idempotent: a second run only rebuilds
-# what changed.
+# compiles the Rust extension and the package's messages; and .venv-noros, akd_ros without ROS.
+# Idempotent: a second run only rebuilds what changed.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -74,4 +74,19 @@ say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and t
 
 .venv/bin/python -c 'import akd_ros._native' || die "akd_ros._native does not import after the build"
 .venv/bin/python -c 'from akd_ros.msg import LatchEvent' || die "akd_ros.msg does not import after the build"
+
+# .venv-noros: akd_ros without any ROS wheel, as a controller without ROS runs the node over Zenoh alone
+# (transport zenoh), for the tests of that: eclipse-zenoh, rosbags and PyYAML beside the build and test tools.
+# Without the rosidl generators setup.py builds no messages; the extension builds in a cargo target directory of
+# its own, so that neither environment's build makes cargo rebuild the other's (about 35 s the first time).
+if [[ ! -x .venv-noros/bin/python ]]; then
+    say "creating .venv-noros (no ROS) with $("$PYTHON" --version)"
+    "$PYTHON" -m venv .venv-noros
+fi
+say "installing akd_ros into .venv-noros, without ROS"
+.venv-noros/bin/python -m pip install -q --disable-pip-version-check \
+    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest eclipse-zenoh rosbags PyYAML
+CARGO_TARGET_DIR=native/target/noros .venv-noros/bin/python -m pip install -q --disable-pip-version-check \
+    --no-build-isolation -e .
+.venv-noros/bin/python -c 'from akd_ros import _native, params' || die "akd_ros does not import in .venv-noros"
 say "ready: .venv/bin/akd_node --ros-args --params-file config/akd_sim.yaml, bash scripts/test.sh"

@@ -321,6 +321,23 @@ def test_the_build_stops_naming_the_generators_it_cannot_import():
     assert "rosidl_generator_py" in build.stderr and "scripts/setup.sh" in build.stderr, build.stderr
 
 
+def test_without_any_generator_the_build_goes_on_without_the_messages_saying_so():
+    # No ROS at all (the node over Zenoh alone): setup.py's command generates nothing, and no interface library or
+    # package is built.
+    script = (
+        "import runpy, sys, rosidl_build; sys.modules.update(dict.fromkeys(rosidl_build.GENERATOR_MODULES)); "
+        "assert rosidl_build.extensions() == [] and rosidl_build.interface_packages() == []; "
+        "sys.argv = ['setup.py', 'generate_interfaces']; "
+        "runpy.run_path('setup.py', run_name='__main__')"
+    )
+    build = subprocess.run(
+        [sys.executable, "-c", script], cwd=REPO, capture_output=True, text=True, timeout=120, check=False
+    )
+    assert build.returncode == 0, build.stderr
+    assert "akd_ros: building without its messages and services" in build.stderr, build.stderr
+    assert "rosidl_adapter" in build.stderr and "rosidl_generator_py" in build.stderr, build.stderr
+
+
 def test_messages_from_another_process_arrive_with_every_field(ros, peer_process):
     received: dict[str, object] = {}
     qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)

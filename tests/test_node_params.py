@@ -22,7 +22,8 @@ import yaml
 from rcl_interfaces.msg import ParameterType
 
 from akd_ros import params
-from akd_ros.node import AkdNode
+from akd_ros.node import NODE_NAME, AkdNode, ros_parameters
+from support.params_files import BAD_FILES, params_file
 
 BIN = Path(sys.executable).parent
 REPO = Path(__file__).resolve().parents[1]
@@ -42,14 +43,6 @@ def ros_domain():
         yield
 
 
-def params_file(directory: Path, body: str) -> Path:
-    """A parameters file for akd_node whose ros__parameters are `body` (YAML lines)."""
-    path = directory / "params.yaml"
-    lines = "".join(f"    {line}\n" for line in body.strip().splitlines())
-    path.write_text(f"akd_node:\n  ros__parameters:\n{lines}")
-    return path
-
-
 def run_node(path: Path) -> subprocess.CompletedProcess:
     """akd_node with `path`, to its end."""
     return subprocess.run(
@@ -60,109 +53,6 @@ def run_node(path: Path) -> subprocess.CompletedProcess:
         env=dict(os.environ),
         check=False,
     )
-
-
-BAD_FILES = {
-    "wrong type": ("cycle_time: fast", ["parameter cycle_time must be a number in [0.00025, 0.01]", "'fast'"]),
-    "real for an integer": ("slave: 1.5", ["parameter slave must be an integer in [0, 65535]"]),
-    "cycle below 250 us": ("cycle_time: 0.0001", ["parameter cycle_time", "[0.00025, 0.01]", "0.0001"]),
-    "cycle above 10 ms": ("cycle_time: 0.02", ["parameter cycle_time", "[0.00025, 0.01]"]),
-    "unknown mode": (
-        "mode: cyclic_synchronous_velocity",
-        [
-            "parameter mode must be one of profile_position",
-            "cyclic_synchronous_position",
-            "'cyclic_synchronous_velocity'",
-        ],
-    ),
-    "unknown fixed mapping": (
-        "mapping: 0x1799/0x1B01",
-        ["parameter mapping", "0x1799 is not a fixed RxPDO", "0x1701", "0x1725"],
-    ),
-    "unknown fixed tx mapping": ("mapping: 0x1724/0x1B99", ["parameter mapping", "0x1B99", "0x1B26"]),
-    "mapping no mapping": ("mapping: csp", ["parameter mapping 'csp' is not a mapping", "'default'", "'flexible'"]),
-    "flexible entry unmappable": (
-        'mapping: flexible\nmapping.rx: ["0x6040:00/16 0x1234:56/32"]\nmapping.tx: ["0x6041:00/16 0x6064:00/32"]',
-        ["parameter mapping", "0x1234:56"],
-    ),
-    "flexible entry malformed": (
-        'mapping: flexible\nmapping.rx: ["6040-16"]\nmapping.tx: ["0x6041:00/16"]',
-        ["parameter mapping.rx", "'6040-16'", "INDEX:SUB/BITS"],
-    ),
-    "flexible lists without flexible": ('mapping.rx: ["0x6040:00/16"]', ["mapping.rx", "'flexible' only"]),
-    "mode the mapping cannot carry": (
-        "mode: cyclic_synchronous_position\nmapping: 0x1701/0x1B01",
-        ["parameters mode/mapping", "0x607A", "lacks"],
-    ),
-    "missing interface": (
-        "link: akd_missing0",
-        ["parameter link", "'akd_missing0' does not exist", "'sim'", "udp://HOST:PORT", "lo"],
-    ),
-    "udp without port": ("link: udp://127.0.0.1", ["parameter link", "udp://HOST:PORT", "1..65535"]),
-    "more virtual AKDs than a bus holds": (
-        "link: sim:100",
-        ["parameter link", "sim:100", "the number of virtual AKDs must be 1..=64"],
-    ),
-    "unknown parameter": ("cycle_tme: 0.001", ["unknown parameter cycle_tme", "cycle_time"]),
-    "direction": ("direction: 0", ["parameter direction must be one of 1, -1"]),
-    "linear without lead": ("axis: linear", ["axis/lead", "lead", "linear"]),
-    "lead on a rotary axis": ("lead: 0.005", ["parameter lead", "rotary", "0"]),
-    "limits crossed": (
-        "limits.min_position: 2.0\nlimits.max_position: 1.0",
-        ["limits", "min_position", "max_position"],
-    ),
-    "limit policy": ("limits.policy: wrap", ["parameter limits.policy must be one of refuse, clamp"]),
-    "latch": ('latch.arm: ["3/rising"]', ["parameter latch.arm", "'3/rising'", "1/rising", "2/falling"]),
-    "fault reset policy": ("fault_reset: always", ["parameter fault_reset must be one of manual, auto_once"]),
-    "command timeout policy": (
-        "command_timeout_policy: coast",
-        ["parameter command_timeout_policy must be one of hold, quick_stop"],
-    ),
-    "rate": ("joint_states_rate: 0.0", ["parameter joint_states_rate", "[1.0, 1000.0]"]),
-    "bool": ("autostart: 1", ["parameter autostart must be a bool"]),
-    "dc": ("dc: sometimes", ["parameter dc must be one of auto, on, off", "'sometimes'"]),
-    "dc as a number": ("dc: 1", ["parameter dc must be one of auto, on, off", "got 1"]),
-    "dc shift of a cycle": (
-        "cycle_time: 0.001\ndc_shift: 0.001",
-        ["parameter dc_shift must be less than one cycle_time (0.001 s) either way", "0.001"],
-    ),
-    "dc shift out of range": ("dc_shift: 0.5", ["parameter dc_shift must be a number in [-0.01, 0.01]", "0.5"]),
-    "fault reaction": ("fault_reaction: some", ["parameter fault_reaction must be one of all, joint", "'some'"]),
-    "joint name not a name token": ("joints: [arm/1]", ["parameter joints: 'arm/1' is not a joint name", "joint_1"]),
-    "joint named twice": ("link: sim:2\njoints: [a, a]", ["parameter joints names a more than once"]),
-    "joint_name beside joints": (
-        "link: sim:2\njoints: [a, b]\njoint_name: c",
-        ["parameter joint_name applies to a file without joints", "joints.<name>.slave"],
-    ),
-    "a block of a joint not in joints": (
-        "link: sim:2\njoints: [a, b]\njoints.c.mode: homing",
-        ["unknown parameter joints.c.mode", "joints.<name>.<one of slave, alias, mode"],
-    ),
-    "a parameter no joint block has": (
-        "link: sim:2\njoints: [a, b]\njoints.a.cycle_time: 0.002",
-        ["unknown parameter joints.a.cycle_time"],
-    ),
-    "a bad value in a joint block": (
-        "link: sim:2\njoints: [a, b]\njoints.b.mode: fast",
-        ["parameter joints.b.mode must be one of profile_position", "'fast'"],
-    ),
-    "a bad mapping in a joint block": (
-        "link: sim:2\njoints: [a, b]\njoints.b.mapping: 0x1799/0x1B01",
-        ["parameter joints.b.mapping", "0x1799 is not a fixed RxPDO"],
-    ),
-    "a bad latch in a joint block": (
-        'link: sim:2\njoints: [a, b]\njoints.a.latch.arm: ["1/up"]',
-        ["parameter joints.a.latch.arm: '1/up' is not CHANNEL/EDGE"],
-    ),
-    "two joints on one drive": (
-        "link: sim:2\njoints: [a, b]\njoints.b.slave: 0",
-        ["parameters joints.<name>.slave/alias", "slave 0 given to several drives"],
-    ),
-    "a joint past the last drive": (
-        "link: sim:2\njoints: [a, b, c]",
-        ["the drives (a (slave 0), b (slave 1), c (slave 2))", "slave 2 is not on the bus (slaves 0..1)"],
-    ),
-}
 
 
 @pytest.mark.parametrize("case", sorted(BAD_FILES))
@@ -301,7 +191,7 @@ def test_every_parameter_is_declared_with_type_description_and_range(node_in_pro
     for spec in params.SCHEMA:
         descriptor = descriptors[spec.name]
         assert descriptor.description and descriptor.read_only, spec.name
-        assert descriptor.type == spec.type.value, spec.name
+        assert descriptor.type == ros_parameters.parameter_type(spec).value, spec.name
     cycle = descriptors["cycle_time"]
     assert cycle.type == ParameterType.PARAMETER_DOUBLE
     assert (cycle.floating_point_range[0].from_value, cycle.floating_point_range[0].to_value) == (0.00025, 0.01)
@@ -407,3 +297,48 @@ def test_without_autostart_the_lifecycle_services_walk_the_node(tmp_path):
         executor.shutdown()
         client.destroy_node()
         rclpy.shutdown(context=context)
+
+
+RCL_ORDER_FILES = {
+    "own.yaml": "akd_node:\n  ros__parameters:\n    cycle_time: 0.002\n    mode: homing\n    limits:\n"
+    "      max_velocity: 2.0\n",
+    "wildcard.yaml": "/**:\n  ros__parameters:\n    cycle_time: 0.004\n    status_rate: 5.0\n/ns:\n  akd_node:\n"
+    "    ros__parameters:\n      dc: 'off'\n/*:\n  ros__parameters:\n    limits.max_velocity: 3.0\n",
+    "both.yaml": "/**/akd_node:\n  ros__parameters:\n    status_rate: 20.0\nakd_node:\n  ros__parameters:\n"
+    "    joint_name: elbow\n/**:\n  ros__parameters:\n    mode: profile_torque\n",
+}
+
+
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        ["own.yaml"],
+        ["own.yaml", "wildcard.yaml"],
+        ["wildcard.yaml", "own.yaml"],
+        ["both.yaml", "own.yaml", "wildcard.yaml"],
+        ["-p", "mode:=profile_velocity", "own.yaml"],
+        ["own.yaml", "-p", "mode:=profile_velocity", "-p", "dc:=on", "-p", "latch.arm:=[1/rising]"],
+    ],
+    ids=" ".join,
+)
+def test_read_arguments_gives_what_rcl_gives_the_node(arguments, tmp_path):
+    """akd_ros.params reads the files and -p as rcl does: the same values for the node, the same one winning."""
+    from rclpy.node import Node
+
+    for name, text in RCL_ORDER_FILES.items():
+        (tmp_path / name).write_text(text)
+    ros_args = ["--ros-args"]
+    for argument in arguments:
+        ros_args += ["--params-file", str(tmp_path / argument)] if argument.endswith(".yaml") else [argument]
+    context = rclpy.Context()
+    rclpy.init(args=ros_args, context=context, domain_id=int(os.environ["ROS_DOMAIN_ID"]) + IN_PROCESS_DOMAIN_OFFSET)
+    try:
+        node = Node(NODE_NAME, context=context, automatically_declare_parameters_from_overrides=True)
+        names = [
+            n for n in node.list_parameters([], 0).names if n not in ("use_sim_time", "start_type_description_service")
+        ]
+        given = {parameter.name: parameter.value for parameter in node.get_parameters(names)}
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+    assert given and params.read_arguments(ros_args, NODE_NAME) == given

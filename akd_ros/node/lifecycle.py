@@ -14,8 +14,9 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 
 from akd_ros.bus import Bus
 from akd_ros.node.core import NODE_NAME, Core
+from akd_ros.node.ros_parameters import declare
 from akd_ros.node.ros_transport import RosTransport
-from akd_ros.params import Settings, declare
+from akd_ros.params import Settings
 
 __all__ = ["NODE_NAME", "AkdNode"]
 
