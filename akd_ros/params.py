@@ -25,6 +25,7 @@ fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths).
 
 from __future__ import annotations
 
+import importlib.util
 import math
 import re
 import socket
@@ -35,6 +36,9 @@ import yaml
 from akd_ros.axis import MODES, DriveConfig
 from akd_ros.bus import FAULT_REACTIONS, CommandError, check
 from akd_ros.units import Limits, Units
+
+TRANSPORTS = ("rclpy", "zenoh", "both")
+"""Values of transport."""
 
 CYCLE_TIME_RANGE = (0.00025, 0.01)
 """Cycle times the AKD takes, in seconds: 250 µs (4 kHz) to 10 ms."""
@@ -309,6 +313,25 @@ SCHEMA: tuple[Spec, ...] = (
     ),
     Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
     Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
+    Spec(
+        "transport",
+        "rclpy",
+        "The middleware: 'rclpy' (DDS; where rclpy does not import and the file does not say, 'zenoh'), 'zenoh' "
+        "(rmw_zenoh's wire format, with no ROS install needed) or 'both' (every topic and service on each).",
+        choices=TRANSPORTS,
+    ),
+    Spec(
+        "zenoh.config",
+        "",
+        "Over Zenoh: a Zenoh JSON5 configuration file for the session instead of rmw_zenoh's default (peer mode, a "
+        "router at tcp/localhost:7447, multicast scouting off); empty for the default.",
+    ),
+    Spec(
+        "zenoh.connect",
+        [],
+        "Over Zenoh: the endpoints the session connects to, e.g. ['tcp/192.168.1.10:7447'], instead of the "
+        "default's or the file's; empty to keep those.",
+    ),
 )
 """Every parameter of akd_node, in the order the README's table lists them."""
 SPECS = {spec.name: spec for spec in SCHEMA}
@@ -372,6 +395,12 @@ class Settings:
     """The Recorder's folder, decimation and black_box_seconds; None when recording is off."""
     autostart: bool
     enable_on_start: bool
+    transport: str
+    """"rclpy", "zenoh" or "both" (`transport_of` picks it for the node)."""
+    zenoh_config: str | None
+    """The Zenoh JSON5 file of the session, None for rmw_zenoh's default."""
+    zenoh_connect: tuple[str, ...]
+    """The endpoints the Zenoh session connects to, none to keep the configuration's."""
 
 
 def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
@@ -608,7 +637,22 @@ def settings(values: dict[str, object]) -> Settings:
         else None,
         autostart=top["autostart"],
         enable_on_start=top["enable_on_start"],
+        transport=top["transport"],
+        zenoh_config=top["zenoh.config"] or None,
+        zenoh_connect=tuple(top["zenoh.connect"]),
     )
+
+
+def transport_of(given: dict[str, object]) -> str:
+    """The transport the parameters `given` (`read_arguments`) choose: theirs, checked; without one, rclpy where it
+    imports and zenoh where it does not (a controller with no ROS install)."""
+    if "transport" in given:
+        return SPECS["transport"].check(given["transport"])
+    try:
+        found = importlib.util.find_spec("rclpy") is not None
+    except ImportError:
+        found = False
+    return "rclpy" if found else "zenoh"
 
 
 def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSettings:

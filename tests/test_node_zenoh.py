@@ -115,6 +115,19 @@ def output(node) -> str:
     return "".join(node[2])
 
 
+def entities(peer) -> list[Entity]:
+    """The entities of the graph's liveliness tokens, once the node's own and its joint_states publisher are among
+    them (a query may reach the router before every token the node declared)."""
+
+    def listed():
+        found = [Entity.parse(k) for k in liveliness_keys(peer, DOMAIN)]
+        kinds = {(e.kind, e.topic.name if e.topic else e.node.name) for e in found}
+        wanted = {(EntityKind.NODE, "akd_node"), (EntityKind.PUBLISHER, "/joint_states")}
+        return found if wanted <= kinds else None
+
+    return wait_for("the node's liveliness tokens", listed, WAIT_S, 0.2)
+
+
 def test_the_node_ran_without_any_ros_module(node):
     text = output(node)
     assert "active: publishing /joint_states of joint_1, joint_2" in text, text
@@ -142,20 +155,15 @@ def test_every_sample_carries_rmw_zenohs_attachment(node, peer):
     stamps = [a.source_timestamp for a in attachments]
     assert stamps == sorted(stamps) and abs(stamps[-1] - time.time_ns()) < 60e9
     (gid,) = {a.gid for a in attachments}
-    publishers = [Entity.parse(k) for k in liveliness_keys(peer, DOMAIN)]
-    (token,) = [
-        e
-        for e in publishers
-        if e.kind is EntityKind.PUBLISHER and e.topic is not None and e.topic.name == "/joint_states"
-    ]
+    (token,) = [e for e in entities(peer) if e.kind is EntityKind.PUBLISHER and e.topic.name == "/joint_states"]
     assert gid == gid_of(token.liveliness_key())
 
 
 def test_the_liveliness_tokens_name_the_node_its_topics_types_and_qos(node, peer, types):
-    entities = [Entity.parse(k) for k in liveliness_keys(peer, DOMAIN)]
-    (node_token,) = [e for e in entities if e.kind is EntityKind.NODE]
+    found = entities(peer)
+    (node_token,) = [e for e in found if e.kind is EntityKind.NODE]
     assert (node_token.node.name, node_token.node.namespace) == ("akd_node", "/")
-    topics = {(e.kind, e.topic.name): e.topic for e in entities if e.topic is not None}
+    topics = {(e.kind, e.topic.name): e.topic for e in found if e.topic is not None}
     joint_states = topics[EntityKind.PUBLISHER, "/joint_states"]
     assert (joint_states.dds_type, joint_states.type_hash) == (dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
     assert joint_states.qos.depth == 10
@@ -209,9 +217,9 @@ def test_a_joint_commands_put_with_an_attachment_moves_the_joint(node, peer, typ
 @pytest.mark.parametrize(
     ("attachment", "payload", "why"),
     [
-        (None, "good", "no attachment"),
-        (b"\x01\x02\x03", "good", "attachment"),
-        ("good", b"\x00\x01\x00\x00\xff\xff", "payload"),
+        (None, "good", "without an attachment"),
+        (b"\x01\x02\x03", "good", "with a malformed attachment"),
+        ("good", b"\x00\x01\x00\x00\xff\xff", "whose payload is not valid"),
     ],
     ids=["no_attachment", "malformed_attachment", "bad_cdr"],
 )
@@ -230,9 +238,13 @@ def test_a_bad_put_is_dropped_counted_logged_once_and_nothing_moves(node, peer, 
         else:
             peer.put(joint_commands_key(types), payload, attachment=attached)
     wait_for(
-        "the drop logged", lambda: "dropped" in output(node) and why in output(node).split("dropped", 1)[1], WAIT_S
+        "the drop logged",
+        lambda: [line for line in output(node).splitlines() if "dropped" in line and why in line],
+        WAIT_S,
     )
     time.sleep(0.3)
-    assert abs(sim.state(0)["position"] - before) <= 1
+    # Had a command of them reached the drive, joint_1 would be well on its way to 0.5 rad (83 000 counts) away; it
+    # may still settle by a few counts onto its last target.
+    assert abs(sim.state(0)["position"] - before) < 50
     logged = [line for line in output(node).splitlines() if "dropped" in line and why in line]
     assert len(logged) == 1, logged

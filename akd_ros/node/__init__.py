@@ -61,7 +61,7 @@ def main(args: list[str] | None = None) -> int:
         given = params.read_arguments(arguments, NODE_NAME)
         transport = params.transport_of(given)
         if transport == "zenoh":
-            settings = params.settings({**params.defaults(), **given})
+            settings = params.settings({**given, "transport": "zenoh"})
     except params.ParameterError as e:
         print(f"{NODE_NAME}: error: {e}", file=sys.stderr)
         return 1

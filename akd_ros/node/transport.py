@@ -12,9 +12,6 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any, Protocol
 
-TRANSPORTS = ("rclpy", "zenoh", "both")
-"""Values of the transport parameter."""
-
 
 @dataclass(frozen=True)
 class Qos:

@@ -78,10 +78,10 @@ class Dropped:
         return sum(self.counts.values())
 
     def __call__(self, reason: str, detail: str) -> None:
-        first = not self.counts
+        first = reason not in self.counts
         self.counts[reason] += 1
         if first:
-            self._log(f"{self._what}: dropped {detail}; later drops are counted, not logged")
+            self._log(f"{self._what}: dropped {detail}; later drops like it are counted, not logged")
 
 
 def _accepted(
