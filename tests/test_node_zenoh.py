@@ -248,3 +248,41 @@ def test_a_bad_put_is_dropped_counted_logged_once_and_nothing_moves(node, peer, 
     assert abs(sim.state(0)["position"] - before) < 50
     logged = [line for line in output(node).splitlines() if "dropped" in line and why in line]
     assert len(logged) == 1, logged
+
+
+BOTH_DOMAIN = 35
+"""The ROS_DOMAIN_ID of the `transport: both` run (DDS and the Zenoh keys alike); test_node_joints has 20-29."""
+
+
+def test_transport_both_delivers_the_same_joint_states_to_rclpy_and_to_zenoh(router, peer, types, tmp_path):
+    from sensor_msgs.msg import JointState
+
+    from support.netns import free_udp_port
+    from support.ros import NodeProcess, Participant, ros_environment
+
+    key = data_key_expr(BOTH_DOMAIN, "/joint_states", dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
+    over_zenoh: list = []
+    subscriber = peer.declare_subscriber(
+        key, lambda s: over_zenoh.append(types.from_cdr(s.payload.to_bytes(), JOINT_STATE))
+    )
+    sim = Sim(free_udp_port(), count=len(JOINTS))
+    path = tmp_path / "akd_node.yaml"
+    path.write_text(PARAMS.format(endpoint=router, port=sim.port).replace("transport: zenoh", "transport: both"))
+    with ros_environment(range(BOTH_DOMAIN, BOTH_DOMAIN + 1)):
+        node = NodeProcess(path, BOTH_DOMAIN)
+        client = Participant(BOTH_DOMAIN, "both_test")
+        over_dds: list = []
+        client.node.create_subscription(JointState, "/joint_states", over_dds.append, 100)
+        try:
+            client.spin_until(lambda: len(over_dds) >= 20 and len(over_zenoh) >= 20, "joint_states on both")
+        finally:
+            client.close()
+            stop(node.process)
+            sim.stop()
+            subscriber.undeclare()
+            print("akd_node output:\n" + node.output())
+    stamps = {(m.header.stamp.sec, m.header.stamp.nanosec): list(m.position) for m in over_dds}
+    common = [m for m in over_zenoh if (m.header.stamp.sec, m.header.stamp.nanosec) in stamps]
+    assert len(common) >= 10, (len(over_dds), len(over_zenoh))
+    for m in common:
+        assert list(m.name) == JOINTS and list(m.position) == stamps[m.header.stamp.sec, m.header.stamp.nanosec]
