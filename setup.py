@@ -73,7 +73,7 @@ setup(
         (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
         *rosidl_build.data_files(),
     ],
-    install_requires=["setuptools", "eclipse-zenoh>=1.5,<2", "rosbags", "xxhash"],
+    install_requires=["setuptools", "eclipse-zenoh>=1.5,<2", "rosbags", "mcap", "xxhash", "PyYAML"],
     zip_safe=False,
     entry_points={
         "console_scripts": [

@@ -67,7 +67,7 @@ ROS_WHEELS=(
 )
 say "installing ROS 2 Jazzy wheels and the recording tools into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check \
-    "${ROS_WHEELS[@]}" mcap rosbags matplotlib eclipse-zenoh xxhash
+    "${ROS_WHEELS[@]}" mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash
 
 say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and the messages"
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation -e .
@@ -76,7 +76,7 @@ say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and t
 .venv/bin/python -c 'from akd_ros.msg import LatchEvent' || die "akd_ros.msg does not import after the build"
 
 # .venv-noros: akd_ros without any ROS wheel, as a controller without ROS runs the node over Zenoh alone
-# (transport zenoh), for the tests of that: eclipse-zenoh, rosbags and PyYAML beside the build and test tools.
+# (transport zenoh), for the tests of that: eclipse-zenoh, rosbags, mcap and PyYAML beside the build and test tools.
 # Without the rosidl generators setup.py builds no messages; the extension builds in a cargo target directory of
 # its own, so that neither environment's build makes cargo rebuild the other's (about 35 s the first time).
 if [[ ! -x .venv-noros/bin/python ]]; then
@@ -85,7 +85,7 @@ if [[ ! -x .venv-noros/bin/python ]]; then
 fi
 say "installing akd_ros into .venv-noros, without ROS"
 .venv-noros/bin/python -m pip install -q --disable-pip-version-check \
-    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest eclipse-zenoh rosbags PyYAML
+    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest "eclipse-zenoh>=1.5,<2" rosbags mcap PyYAML
 CARGO_TARGET_DIR=native/target/noros .venv-noros/bin/python -m pip install -q --disable-pip-version-check \
     --no-build-isolation -e .
 .venv-noros/bin/python -c 'from akd_ros import _native, params' || die "akd_ros does not import in .venv-noros"

@@ -1,9 +1,10 @@
 """akd_node with `transport: zenoh` in a Python without ROS, seen from an independent Zenoh session.
 
 A Zenoh router in its own process listens on a loopback port the test picks; `akd-sim --count 2 --udp` serves two
-virtual AKDs; the node runs as `akd_node --ros-args --params-file FILE` with `tests/support/no_ros` on its path,
-which refuses every ROS import (rclpy, rosidl, the message packages and akd_ros's generated ones), so it runs as on a
-controller with no ROS install. This process talks to it over Zenoh only, as an rmw_zenoh node would: exact key
+virtual AKDs; the node runs as `akd_node --ros-args --params-file FILE` from `.venv-noros` (scripts/setup.sh makes it
+without any ROS wheel; where it is missing, from `.venv`), with `tests/support/no_ros` on its path, which refuses
+every ROS import (rclpy, rosidl, the message packages and akd_ros's generated ones), so it runs as on a controller
+with no ROS install. This process talks to it over Zenoh only, as an rmw_zenoh node would: exact key
 expressions, rmw_zenoh's attachments, liveliness tokens, and payloads decoded with rosbags.
 """
 
@@ -25,6 +26,8 @@ from support.zenoh import WAIT_S, liveliness_keys, zenoh_router, zenoh_session
 
 REPO = Path(__file__).resolve().parents[1]
 NO_ROS = Path(__file__).resolve().parent / "support" / "no_ros"
+NO_ROS_NODE = REPO / ".venv-noros" / "bin" / "akd_node"
+"""akd_node of the environment without ROS wheels."""
 DOMAIN = 0
 JOINTS = ["joint_1", "joint_2"]
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -91,8 +94,10 @@ def node(peer, router, types, tmp_path_factory):
     path = tmp_path_factory.mktemp("zenoh") / "akd_node.yaml"
     path.write_text(PARAMS.format(endpoint=router, port=sim.port))
     env = {**os.environ, "PYTHONPATH": str(NO_ROS), "ROS_DOMAIN_ID": str(DOMAIN)}
+    program = NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"
+    print(f"running {program}")
     process = subprocess.Popen(
-        [str(BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
+        [str(program), "--ros-args", "--params-file", str(path)],
         env=env,
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
