@@ -255,6 +255,27 @@ def test_a_bad_put_is_dropped_counted_logged_once_and_nothing_moves(node, peer, 
     assert len(logged) == 1, logged
 
 
+def test_diagnostics_over_zenoh_count_the_dropped_samples(node, peer, types):
+    array = "diagnostic_msgs/msg/DiagnosticArray"
+    key = data_key_expr(DOMAIN, "/diagnostics", dds_type_name(array), types.rihs01(array))
+    seen: list = []
+    subscriber = peer.declare_subscriber(key, lambda s: seen.append(types.from_cdr(s.payload.to_bytes(), array)))
+    try:
+
+        def dropped():
+            for message in list(seen):
+                for status in message.status:
+                    values = {v.key: v.value for v in status.values}
+                    if status.name == "akd_node: bus" and "zenoh_dropped" in values:
+                        return int(values["zenoh_dropped"])
+            return None
+
+        # The three bad-put tests dropped three samples each.
+        assert wait_for("a bus status with zenoh_dropped", dropped, WAIT_S) >= 9
+    finally:
+        subscriber.undeclare()
+
+
 BOTH_DOMAIN = 35
 """The ROS_DOMAIN_ID of the `transport: both` run (DDS and the Zenoh keys alike); test_node_joints has 20-29."""
 

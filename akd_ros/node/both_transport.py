@@ -93,6 +93,9 @@ class BothTransport:
     def resolve(self, name: str) -> str:
         return self.ros.resolve(name)
 
+    def counters(self) -> dict[str, int]:
+        return self.zenoh.counters()
+
     def recorded_class(self, type_name: str) -> type:
         return self.ros.recorded_class(type_name)
 

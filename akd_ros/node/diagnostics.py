@@ -55,6 +55,7 @@ class Diagnostics:
     ) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
         self._node_name, self._publishing = node_name, publishing
+        self._transport = transport
         self._array = transport.message_class("diagnostic_msgs/msg/DiagnosticArray")
         self._status = transport.message_class("diagnostic_msgs/msg/DiagnosticStatus")
         # The levels as the transport's messages spell them (a byte in rclpy's, an int in rosbags').
@@ -81,6 +82,8 @@ class Diagnostics:
         if self._session.recorder is not None:
             counted.append("samples_dropped")
         counters = {k: stats[k] for k in counted}
+        # The middleware's drops (a Zenoh sample without rmw_zenoh's attachment) grow the bus's WARN as the cycle's do.
+        counters |= self._transport.counters()
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
         self._counters_seen = counters
         dc_status = bus.cycle.dc_status()

@@ -77,6 +77,9 @@ class RosTransport:
     def resolve(self, name: str) -> str:
         return self._node.resolve_topic_name(name)
 
+    def counters(self) -> dict[str, int]:
+        return {}
+
     def recorded_class(self, type_name: str) -> type:
         return message_class(type_name)
 

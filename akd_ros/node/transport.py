@@ -71,6 +71,9 @@ class Transport(Protocol):
     def resolve(self, name: str) -> str:
         """The absolute name of topic `name`."""
 
+    def counters(self) -> dict[str, int]:
+        """The middleware's own counters for /diagnostics (e.g. samples dropped), by name."""
+
     def recorded_class(self, type_name: str) -> type:
         """The class of `type_name`'s messages (what `message_class` makes), as the recorder checks them."""
 

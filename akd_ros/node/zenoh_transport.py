@@ -175,6 +175,9 @@ class ZenohTransport:
             return f"/{self.zenoh_node.info.name}/{name[2:]}"
         return name if name.startswith("/") else f"/{name}"
 
+    def counters(self) -> dict[str, int]:
+        return {"zenoh_dropped": self.zenoh_node.dropped()}
+
     def recorded_class(self, type_name: str) -> type:
         return self.types.store.types[type_name]
 

@@ -334,6 +334,11 @@ class ZenohNode:
         self._entities.append(service)
         return service
 
+    def dropped(self) -> int:
+        """Samples and requests its subscriptions and services dropped so far (no or a malformed attachment, a
+        payload its type rejects, a failed handler)."""
+        return sum(e.dropped.total for e in self._entities if isinstance(e, Subscription | Service))
+
     def close(self) -> None:
         """Withdraws every entity and the node's token (the session stays open: its owner closes it)."""
         for entity in reversed(self._entities):
