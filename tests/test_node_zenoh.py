@@ -312,3 +312,43 @@ def test_transport_both_delivers_the_same_joint_states_to_rclpy_and_to_zenoh(rou
     assert len(common) >= 10, (len(over_dds), len(over_zenoh))
     for m in common:
         assert list(m.name) == JOINTS and list(m.position) == stamps[m.header.stamp.sec, m.header.stamp.nanosec]
+
+
+def test_without_a_router_the_node_warns_naming_it_runs_on_and_records_a_bag_rosbags_reads(tmp_path):
+    from rosbags.highlevel import AnyReader
+
+    from support.zenoh import free_tcp_port
+
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+    path = tmp_path / "akd_node.yaml"
+    path.write_text(
+        "akd_node:\n  ros__parameters:\n    transport: zenoh\n"
+        f'    zenoh.connect: ["{endpoint}"]\n    link: sim:2\n    joints: [a, b]\n    cycle_time: 0.002\n'
+        f"    record.enabled: true\n    record.folder: {tmp_path / 'bags'}\n"
+    )
+    program = NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"
+    process = subprocess.Popen(
+        [str(program), "--ros-args", "--params-file", str(path)],
+        env={**os.environ, "PYTHONPATH": str(NO_ROS)},
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    log: list[str] = []
+    threading.Thread(target=lambda: log.extend(process.stdout), daemon=True).start()
+    try:
+        wait_for("the node active", lambda: "active: publishing" in "".join(log) or process.poll() is not None, WAIT_S)
+        time.sleep(1.0)
+    finally:
+        stop(process)
+    text = "".join(log)
+    assert process.returncode == 0, text
+    assert f"no Zenoh router reachable at {endpoint}" in text and "keeps running" in text, text
+    (bag,) = (tmp_path / "bags").iterdir()
+    with AnyReader([bag]) as reader:
+        counts = {c.topic: c.msgcount for c in reader.connections}
+        joints = {
+            reader.deserialize(raw, c.msgtype).joint for c, _, raw in reader.messages() if c.topic.endswith("/cycle")
+        }
+    assert counts["/joint_states"] > 10 and counts["/akd_node/cycle"] > 100, counts
+    assert joints == {"a", "b"}
