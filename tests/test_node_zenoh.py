@@ -352,3 +352,19 @@ def test_without_a_router_the_node_warns_naming_it_runs_on_and_records_a_bag_ros
         }
     assert counts["/joint_states"] > 10 and counts["/akd_node/cycle"] > 100, counts
     assert joints == {"a", "b"}
+
+
+def test_transport_both_without_rclpy_is_one_line_naming_the_way_out(tmp_path):
+    path = tmp_path / "akd_node.yaml"
+    path.write_text("akd_node:\n  ros__parameters:\n    transport: both\n    link: sim\n")
+    program = NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"
+    done = subprocess.run(
+        [str(program), "--ros-args", "--params-file", str(path)],
+        env={**os.environ, "PYTHONPATH": str(NO_ROS)},
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
+    assert "parameter transport 'both' needs rclpy" in done.stderr and "use transport zenoh" in done.stderr

@@ -69,8 +69,15 @@ def main(args: list[str] | None = None) -> int:
         from akd_ros.node.zenoh_node import run
 
         return run(settings)
-    from akd_ros.node.ros_node import run
-
+    try:
+        from akd_ros.node.ros_node import run
+    except ImportError as e:
+        print(
+            f"{NODE_NAME}: error: parameter transport {transport!r} needs rclpy, which does not import here ({e}); "
+            "use transport zenoh on a machine without ROS",
+            file=sys.stderr,
+        )
+        return 1
     return run(args)
 
 
