@@ -14,15 +14,10 @@ from typing import Any
 
 from rclpy.serialization import deserialize_message, serialize_message
 
-from akd_ros.node.ros_transport import RosTransport, message_class
+from akd_ros.node.ros_transport import RosGroup, RosTransport, message_class
 from akd_ros.node.transport import Qos
 from akd_ros.node.zenoh_transport import ZenohTransport, zenoh_qos
 from akd_ros.recorder import message_type
-
-
-class _Group:
-    def __init__(self, ros, zenoh) -> None:
-        self.ros, self.zenoh = ros, zenoh
 
 
 class _Publisher:
@@ -48,10 +43,10 @@ class BothTransport:
         self.logger = ros.logger
 
     def start(self) -> None:
-        self.zenoh.start()
+        self.ros.start()
 
     def close(self) -> None:
-        self.zenoh.close()
+        self.ros.close()
 
     def message_class(self, type_name: str) -> type:
         return self.ros.message_class(type_name)
@@ -59,33 +54,35 @@ class BothTransport:
     def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
         return _Publisher(self, type_name, topic, qos)
 
-    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: _Group) -> str:
+    def subscription(
+        self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: RosGroup
+    ) -> str:
         cls = message_class(type_name)
         self.zenoh.zenoh_node.subscription(
             topic,
             type_name,
-            lambda message: group.zenoh.submit(callback, message),
+            lambda message: group.worker.submit(callback, message),
             zenoh_qos(qos),
             deserialize=lambda data: deserialize_message(bytes(data), cls),
         )
-        return self.ros.subscription(type_name, topic, callback, qos, group.ros)
+        return self.ros.subscription(type_name, topic, callback, qos, group)
 
-    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: _Group) -> None:
+    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: RosGroup) -> None:
         cls = message_class(type_name)
 
         def answer(request) -> bytes:
-            return group.zenoh.submit(lambda: serialize_message(handler(request, cls.Response()))).result()
+            return group.worker.submit(lambda: serialize_message(handler(request, cls.Response()))).result()
 
         self.zenoh.zenoh_node.service(
             name, type_name, answer, deserialize_request=lambda data: deserialize_message(bytes(data), cls.Request)
         )
-        self.ros.service(type_name, name, handler, group.ros)
+        self.ros.service(type_name, name, handler, group)
 
-    def timer(self, period: float, callback: Callable[[], None], group: _Group) -> None:
-        self.ros.timer(period, callback, group.ros)
+    def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
+        self.ros.timer(period, callback, group)
 
-    def group(self) -> _Group:
-        return _Group(self.ros.group(), self.zenoh.group())
+    def group(self) -> RosGroup:
+        return self.ros.group()
 
     def now_ns(self) -> int:
         return self.ros.now_ns()

@@ -45,8 +45,7 @@ class AkdNode(LifecycleNode):
             self._zenoh = open_zenoh(self.settings, transport.logger)
             transport = BothTransport(transport, ZenohTransport(self._zenoh[1], transport.logger))
         self._core = Core(transport, self.settings)
-        if self._zenoh is not None:
-            transport.start()
+        transport.start()
         self._transport = transport
 
     @property
@@ -94,11 +93,11 @@ class AkdNode(LifecycleNode):
         self._core.close()
 
     def destroy_node(self) -> None:
-        """Also withdraws the node from Zenoh (transport both)."""
+        """Also stops the timer threads and withdraws the node from Zenoh (transport both)."""
+        self._transport.close()
         if self._zenoh is not None:
             session, zenoh_node = self._zenoh
             self._zenoh = None
-            self._transport.close()
             zenoh_node.close()
             session.close()
         super().destroy_node()

@@ -1,6 +1,8 @@
 """The node's parts over rclpy (DDS through rmw_fastrtps_cpp): `RosTransport`, on the node's LifecycleNode.
 
 Publishers are lifecycle publishers, so nothing goes out before activate; messages are the rosidl-generated classes.
+Subscriptions and services run in the executor, in their rclpy callback group; timers run on a `Worker` thread of
+the group (see `akd_ros.node.worker` for why), which `start()` starts and `close()` stops.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from akd_ros.node.transport import Qos
+from akd_ros.node.worker import Worker
 
 
 def message_class(type_name: str) -> type:
@@ -40,6 +43,14 @@ class _Publisher:
         self._publisher.publish(message)
 
 
+class RosGroup:
+    """A callback group of the rclpy transport: the executor's for subscriptions and services, a worker thread for
+    timers (and, with transport both, for what arrives by Zenoh)."""
+
+    def __init__(self, callbacks: MutuallyExclusiveCallbackGroup, worker: Worker) -> None:
+        self.callbacks, self.worker = callbacks, worker
+
+
 class RosTransport:
     """The transport of a LifecycleNode `node` (see `akd_ros.node.transport.Transport`)."""
 
@@ -49,6 +60,17 @@ class RosTransport:
     def __init__(self, node) -> None:
         self._node = node
         self.logger = node.get_logger()
+        self._workers: list[Worker] = []
+
+    def start(self) -> None:
+        """Starts the groups' timer threads (once the parts are made)."""
+        for worker in self._workers:
+            worker.start()
+
+    def close(self) -> None:
+        """Stops them."""
+        for worker in self._workers:
+            worker.stop()
 
     def message_class(self, type_name: str) -> type:
         return message_class(type_name)
@@ -56,20 +78,24 @@ class RosTransport:
     def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
         return _Publisher(self._node, message_class(type_name), topic, qos_profile(qos))
 
-    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: Any) -> str:
+    def subscription(
+        self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: RosGroup
+    ) -> str:
         subscription = self._node.create_subscription(
-            message_class(type_name), topic, callback, qos_profile(qos), callback_group=group
+            message_class(type_name), topic, callback, qos_profile(qos), callback_group=group.callbacks
         )
         return subscription.topic_name
 
-    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: Any) -> None:
-        self._node.create_service(message_class(type_name), name, handler, callback_group=group)
+    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: RosGroup) -> None:
+        self._node.create_service(message_class(type_name), name, handler, callback_group=group.callbacks)
 
-    def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
-        self._node.create_timer(period, callback, group)
+    def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
+        group.worker.add_timer(period, callback)
 
-    def group(self) -> MutuallyExclusiveCallbackGroup:
-        return MutuallyExclusiveCallbackGroup()
+    def group(self) -> RosGroup:
+        worker = Worker(f"akd-node-{len(self._workers)}", self.logger)
+        self._workers.append(worker)
+        return RosGroup(MutuallyExclusiveCallbackGroup(), worker)
 
     def now_ns(self) -> int:
         return self._node.get_clock().now().nanoseconds

@@ -45,6 +45,12 @@ class Transport(Protocol):
     typestore: Any
     """The rosbags typestore its messages are of, for the recorder; None for rosidl-generated ones."""
 
+    def start(self) -> None:
+        """Starts what runs the callbacks (the groups' threads), once the parts are made."""
+
+    def close(self) -> None:
+        """Stops it."""
+
     def message_class(self, type_name: str) -> Callable[..., Any]:
         """The class (or factory) of ROS type `type_name`, e.g. "sensor_msgs/msg/JointState"; called with fields as
         keyword arguments, the others take their defaults."""

@@ -2,7 +2,7 @@
 `akd_ros.zenoh.ZenohNode`.
 
 Messages are rosbags' classes of `akd_ros.zenoh.types.Types` (ROS 2 Jazzy's and the package's own), serialised to CDR
-by rosbags. Zenoh calls back on its own threads; here each callback group is a worker thread that runs its timers
+by rosbags. Zenoh calls back on its own threads; here each callback group is a `Worker` thread that runs its timers
 and the callbacks handed to it one at a time, as rclpy's mutually exclusive callback groups do, so the parts see
 the same concurrency on either transport. A service's handler runs on its group's thread while Zenoh's thread
 waits for the reply.
@@ -10,16 +10,12 @@ waits for the reply.
 
 from __future__ import annotations
 
-import concurrent.futures
-import heapq
-import itertools
-import queue
-import threading
 import time
 from collections.abc import Callable
 from typing import Any
 
 from akd_ros.node.transport import Qos
+from akd_ros.node.worker import Worker
 from akd_ros.zenoh.wire import Durability, QoS, Reliability
 
 
@@ -30,61 +26,6 @@ def zenoh_qos(qos: Qos) -> QoS:
         durability=Durability.TRANSIENT_LOCAL if qos.transient_local else Durability.VOLATILE,
         depth=qos.depth,
     )
-
-
-class _Group:
-    """A callback group: one thread that runs its timers and the callbacks submitted to it, one at a time."""
-
-    def __init__(self, name: str, logger) -> None:
-        self._queue: queue.Queue = queue.Queue()
-        self._timers: list[tuple[float, int, float, Callable[[], None]]] = []
-        self._order = itertools.count()
-        self._stopped = False
-        self._logger = logger
-        self._thread = threading.Thread(target=self._run, name=name, daemon=True)
-
-    def start(self) -> None:
-        self._thread.start()
-
-    def add_timer(self, period: float, callback: Callable[[], None]) -> None:
-        heapq.heappush(self._timers, (time.monotonic() + period, next(self._order), period, callback))
-
-    def submit(self, callback: Callable[..., Any], *args) -> concurrent.futures.Future:
-        future: concurrent.futures.Future = concurrent.futures.Future()
-        self._queue.put((future, callback, args))
-        return future
-
-    def stop(self) -> None:
-        self._stopped = True
-        self._queue.put(None)
-        if self._thread.is_alive() and self._thread is not threading.current_thread():
-            self._thread.join(timeout=5.0)
-
-    def _run(self) -> None:
-        while not self._stopped:
-            timeout = max(0.0, self._timers[0][0] - time.monotonic()) if self._timers else None
-            try:
-                item = self._queue.get(timeout=timeout)
-            except queue.Empty:
-                item = False
-            if item is None:
-                return
-            if item:
-                future, callback, args = item
-                try:
-                    future.set_result(callback(*args))
-                except Exception as e:  # noqa: BLE001  (a callback's failure is logged, the group goes on)
-                    self._logger.error(f"callback failed: {type(e).__name__}: {e}")
-                    future.set_exception(e)
-            now = time.monotonic()
-            while self._timers and self._timers[0][0] <= now:
-                due, order, period, callback = heapq.heappop(self._timers)
-                # Absolute deadlines; a late run does not push the next one back, a very late one skips.
-                heapq.heappush(self._timers, (max(due + period, now), order, period, callback))
-                try:
-                    callback()
-                except Exception as e:  # noqa: BLE001
-                    self._logger.error(f"timer callback failed: {type(e).__name__}: {e}")
 
 
 class _Publisher:
@@ -111,7 +52,7 @@ class ZenohTransport:
         self.types = zenoh_node.types
         self.typestore = self.types.store
         self.logger = logger
-        self._groups: list[_Group] = []
+        self._groups: list[Worker] = []
 
     def start(self) -> None:
         for group in self._groups:
@@ -136,7 +77,7 @@ class ZenohTransport:
     def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
         return _Publisher(self, type_name, topic, qos)
 
-    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: _Group) -> str:
+    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: Worker) -> str:
         self.zenoh_node.subscription(
             topic,
             type_name,
@@ -146,7 +87,7 @@ class ZenohTransport:
         )
         return self.resolve(topic)
 
-    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: _Group) -> None:
+    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: Worker) -> None:
         response_type = f"{type_name}_Response"
 
         def answer(request) -> bytes:
@@ -159,11 +100,11 @@ class ZenohTransport:
             name, type_name, answer, deserialize_request=lambda data: self.types.from_cdr(data, f"{type_name}_Request")
         )
 
-    def timer(self, period: float, callback: Callable[[], None], group: _Group) -> None:
+    def timer(self, period: float, callback: Callable[[], None], group: Worker) -> None:
         group.add_timer(period, callback)
 
-    def group(self) -> _Group:
-        group = _Group(f"akd-node-{len(self._groups)}", self.logger)
+    def group(self) -> Worker:
+        group = Worker(f"akd-node-{len(self._groups)}", self.logger)
         self._groups.append(group)
         return group
 
