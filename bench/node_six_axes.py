@@ -32,18 +32,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import re
 import signal
-import statistics
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import yaml
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from node_bench import CONFIG, COUNT, JOINTS, ROOT, faults, hold, ms, params
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from scheduling import real_time
 from sensor_msgs.msg import JointState
@@ -52,31 +49,29 @@ from std_srvs.srv import Trigger
 from support.netns import free_udp_port
 from support.ros import WAIT_S, NodeProcess, Participant, Sim, ros_environment, stop
 
-ROOT = Path(__file__).resolve().parents[1]
-COUNT = 6
-JOINTS = [f"joint_{i}" for i in range(1, COUNT + 1)]
 NODE = "/akd_node/"
-CONFIG = ROOT / "config" / "akd_sim_6axis.yaml"
 DOMAINS = range(40, 50)
 """ROS_DOMAIN_IDs of this benchmark, apart from the tests' (Fast DDS takes none above 232)."""
 STEP = 1e-4
 """rad: how far each ~/joint_commands message moves every joint, many counts, so each value is told apart."""
-FAULT_LINE = re.compile(r"fault of (\w+): ([^;]+);")
-"""akd_node's log line of a joint's fault: the joint and what the fault is (its source and text, e.g. "emergency:
-F125 Synchronization lost", "lost_frames: 1 cycles in a row")."""
-TICK = os.sysconf("SC_CLK_TCK")
 S = 1_000_000_000
 
 
 class Client(Participant):
-    """The bench's side: /joint_states counted, ~/joint_commands published, the node's services called."""
+    """The bench's side: /joint_states counted, each with the system-clock time its callback took it
+    (`arrivals_ns`), ~/joint_commands published, the node's services called."""
 
     def __init__(self, domain: int) -> None:
         super().__init__(domain, "akd_node_bench")
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.joint_states: list[JointState] = []
-        self.node.create_subscription(JointState, "/joint_states", self.joint_states.append, qos)
+        self.arrivals_ns: list[int] = []
+        self.node.create_subscription(JointState, "/joint_states", self._take, qos)
         self.joint_commands = self.node.create_publisher(JointState, NODE + "joint_commands", qos)
+
+    def _take(self, message: JointState) -> None:
+        self.arrivals_ns.append(time.time_ns())
+        self.joint_states.append(message)
 
     def trigger(self, name: str) -> str:
         client = self.node.create_client(Trigger, NODE + name)
@@ -94,49 +89,6 @@ class Client(Participant):
         self.spin_until(lambda: len(self.joint_states) > count, "a fresh /joint_states")
         message = self.joint_states[-1]
         return dict(zip(message.name, message.position, strict=True))
-
-
-def params(port: int, cycle_time: float, rate: float, folder: Path | None, priority: int) -> str:
-    """config/akd_sim_6axis.yaml's parameters on udp://127.0.0.1:`port` at `cycle_time` and /joint_states at `rate`,
-    recording every cycle into `folder` unless it is None."""
-    document = yaml.safe_load(CONFIG.read_text())
-    values = document["akd_node"]["ros__parameters"]
-    values |= {"link": f"udp://127.0.0.1:{port}", "cycle_time": cycle_time, "joint_states_rate": rate}
-    if priority:
-        values["rt.priority"] = priority
-    if folder is not None:
-        values |= {"record.enabled": True, "record.folder": str(folder), "record.decimation": 1}
-    return yaml.safe_dump(document)
-
-
-def cpu_ticks(stat: Path) -> int:
-    """utime + stime in a /proc stat file (of a process: its threads together; of a task: that thread), in clock
-    ticks."""
-    # The command name in parentheses may hold spaces: the fields are counted after its closing one.
-    fields = stat.read_text().rsplit(")", 1)[1].split()
-    return int(fields[11]) + int(fields[12])
-
-
-def cpu_of(pid: int) -> tuple[int, int]:
-    """(the whole process's, its akd-cycle thread's) CPU time so far, clock ticks; the thread's 0 if it has none."""
-    cycle = [t for t in Path(f"/proc/{pid}/task").iterdir() if (t / "comm").read_text().strip() == "akd-cycle"]
-    return cpu_ticks(Path(f"/proc/{pid}/stat")), sum(cpu_ticks(t / "stat") for t in cycle)
-
-
-def hold(client: Client, node: NodeProcess, sim: Sim, seconds: float) -> dict:
-    """Over `seconds` of every joint holding: the node's, its cycle thread's and akd-sim's CPU share (% of one core)
-    and the /joint_states messages received per second."""
-    client.spin_for(1.0)  # past the enable's transients
-    before = (*cpu_of(node.process.pid), *cpu_of(sim.process.pid), len(client.joint_states), time.monotonic())
-    client.spin_for(seconds)
-    after = (*cpu_of(node.process.pid), *cpu_of(sim.process.pid), len(client.joint_states), time.monotonic())
-    node_ticks, cycle_ticks, sim_ticks, _, messages, elapsed = (b - a for a, b in zip(before, after, strict=True))
-    return {
-        "cpu": 100 * node_ticks / TICK / elapsed,
-        "cycle_cpu": 100 * cycle_ticks / TICK / elapsed,
-        "sim_cpu": 100 * sim_ticks / TICK / elapsed,
-        "joint_states": messages / elapsed,
-    }
 
 
 def stream_commands(client: Client, rate: float, seconds: float) -> list[tuple[int, float]]:
@@ -194,15 +146,6 @@ def latencies(sent: list[tuple[int, float]], cycles: list[tuple[int, float]]) ->
     return found
 
 
-def faults(output: str) -> dict[str, list[str]]:
-    """The joints each fault was logged for in akd_node's `output`, by what the fault is."""
-    found: dict[str, list[str]] = {}
-    for joint, what in FAULT_LINE.findall(output):
-        if joint not in found.setdefault(what, []):
-            found[what].append(joint)
-    return found
-
-
 def run(cycle_time: float, record: bool, domain: int, args) -> dict:
     with tempfile.TemporaryDirectory(prefix="node_six_axes-") as temp:
         folder = Path(temp) / "bags" if record else None
@@ -210,7 +153,8 @@ def run(cycle_time: float, record: bool, domain: int, args) -> dict:
         if args.sim_priority:
             real_time(sim.process.pid, args.sim_priority)
         path = Path(temp) / "akd_node.yaml"
-        path.write_text(params(sim.port, cycle_time, args.joint_states_rate, folder, args.priority))
+        recording = {"record.enabled": True, "record.folder": str(folder), "record.decimation": 1} if record else None
+        path.write_text(params(sim.port, cycle_time, args.joint_states_rate, args.priority, recording))
         link = f"udp://127.0.0.1:{sim.port}"
         node = NodeProcess(path, domain)
         client = None
@@ -222,7 +166,7 @@ def run(cycle_time: float, record: bool, domain: int, args) -> dict:
             if node.process.poll() is not None:
                 raise RuntimeError(f"akd_node exited:\n{node.output()}")
             client.trigger("enable")
-            result = hold(client, node, sim, args.window)
+            result = hold(node.process.pid, sim.process.pid, client.spin_for, client.joint_states, args.window)
             sent = stream_commands(client, args.command_rate, args.command_seconds) if record else []
             node.process.send_signal(signal.SIGINT)
             client.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
@@ -323,15 +267,6 @@ def main() -> None:
         f"recording: record.decimation 1; waits bounded by {WAIT_S:g} s",
     ]
     print("; ".join(notes))
-
-
-def ms(values_ns: list[int], fraction: float) -> str:
-    """The `fraction` quantile (1.0: the largest) of `values_ns` in ms, or n/a for fewer than two."""
-    if len(values_ns) < 2:
-        return "n/a"
-    if fraction == 1.0:
-        return f"{max(values_ns) / 1e6:.2f}ms"
-    return f"{statistics.quantiles(values_ns, n=100)[round(fraction * 100) - 1] / 1e6:.2f}ms"
 
 
 if __name__ == "__main__":
