@@ -1,5 +1,6 @@
-"""What the akd_node benchmarks share: the six-joint parameter file they run the node with, the CPU time of a
-process and of its cycle thread from /proc, the faults the node logged, and quantiles in ms."""
+"""What the akd_node benchmarks share: the six-joint parameter file they run the node with, the node and akd-sim
+started and ended, the CPU time of a process and of its cycle thread from /proc over a window of holding, the faults
+the node logged, and quantiles in ms. Imported by the scripts in bench/ once tests/ is on sys.path (support.ros)."""
 
 from __future__ import annotations
 
@@ -7,10 +8,15 @@ import os
 import re
 import statistics
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 
 import yaml
+from scheduling import real_time
+
+from support.netns import free_udp_port
+from support.ros import NodeProcess, Sim, stop
 
 ROOT = Path(__file__).resolve().parents[1]
 COUNT = 6
@@ -48,24 +54,47 @@ def cpu_of(pid: int) -> tuple[int, int]:
     return cpu_ticks(Path(f"/proc/{pid}/stat")), sum(cpu_ticks(t / "stat") for t in cycle)
 
 
+@contextmanager
+def node_on_sim(
+    folder: Path, start_node: Callable[[Path], NodeProcess], cycle_time: float, args, changes: dict | None = None
+) -> Iterator[tuple[Sim, NodeProcess]]:
+    """`akd-sim --count COUNT` (its threads at SCHED_FIFO args.sim_priority unless 0) and akd_node on it, started by
+    start_node(the parameter file in `folder`: params() at `cycle_time`, args.joint_states_rate, args.priority and
+    `changes`); yields (sim, node) and ends both afterwards, printing the node's output if the block failed."""
+    sim = Sim(free_udp_port(), count=COUNT)
+    if args.sim_priority:
+        real_time(sim.process.pid, args.sim_priority)
+    path = folder / "akd_node.yaml"
+    path.write_text(params(sim.port, cycle_time, args.joint_states_rate, args.priority, changes))
+    node = start_node(path)
+    try:
+        yield sim, node
+    except Exception:
+        print(f"akd_node output:\n{node.output()}")
+        raise
+    finally:
+        stop(node.process)
+        sim.stop()
+
+
 def hold(
     node_pid: int,
     sim_pid: int,
     wait: Callable[[float], None],
-    received: Sequence,
+    count: Callable[[], int],
     seconds: float,
     others: Mapping[str, int] | None = None,
 ) -> dict:
-    """Over `seconds` of every joint holding, the client waiting with wait(seconds) while messages arrive in
-    `received`: the CPU share (% of one core) of the node, of its cycle thread, of akd-sim and of each of `others`
-    (name: pid, as "<name>_cpu"), the /joint_states messages received per second, and the slice of `received` that
-    arrived in the window ("window")."""
+    """Over `seconds` of every joint holding, the client waiting with wait(seconds) while count() tells how many
+    /joint_states messages it has received: the CPU share (% of one core) of the node, of its cycle thread, of
+    akd-sim and of each of `others` (name: pid, as "<name>_cpu"), the messages received per second, and the slice of
+    the client's messages that arrived in the window ("window")."""
     others = dict(others or {})
     wait(1.0)  # past the enable's transients
 
     def now() -> tuple:
         other_ticks = (cpu_ticks(Path(f"/proc/{pid}/stat")) for pid in others.values())
-        return (*cpu_of(node_pid), *cpu_of(sim_pid), *other_ticks, len(received), time.monotonic())
+        return (*cpu_of(node_pid), *cpu_of(sim_pid), *other_ticks, count(), time.monotonic())
 
     before = now()
     wait(seconds)

@@ -31,6 +31,7 @@ The issue's goals, printed beside the figures: at most 15 % of a core at 1 kHz; 
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import signal
 import sys
@@ -40,14 +41,12 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from node_bench import CONFIG, COUNT, JOINTS, ROOT, faults, hold, ms, params
+from node_bench import CONFIG, COUNT, JOINTS, ROOT, faults, hold, ms, node_on_sim
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from scheduling import real_time
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from support.netns import free_udp_port
-from support.ros import WAIT_S, NodeProcess, Participant, Sim, ros_environment, stop
+from support.ros import WAIT_S, NodeProcess, Participant, ros_environment
 
 NODE = "/akd_node/"
 DOMAINS = range(40, 50)
@@ -72,6 +71,10 @@ class Client(Participant):
     def _take(self, message: JointState) -> None:
         self.arrivals_ns.append(time.time_ns())
         self.joint_states.append(message)
+
+    def count(self) -> int:
+        """The /joint_states messages received so far."""
+        return len(self.joint_states)
 
     def trigger(self, name: str) -> str:
         client = self.node.create_client(Trigger, NODE + name)
@@ -149,35 +152,24 @@ def latencies(sent: list[tuple[int, float]], cycles: list[tuple[int, float]]) ->
 def run(cycle_time: float, record: bool, domain: int, args) -> dict:
     with tempfile.TemporaryDirectory(prefix="node_six_axes-") as temp:
         folder = Path(temp) / "bags" if record else None
-        sim = Sim(free_udp_port(), count=COUNT)
-        if args.sim_priority:
-            real_time(sim.process.pid, args.sim_priority)
-        path = Path(temp) / "akd_node.yaml"
         recording = {"record.enabled": True, "record.folder": str(folder), "record.decimation": 1} if record else None
-        path.write_text(params(sim.port, cycle_time, args.joint_states_rate, args.priority, recording))
-        link = f"udp://127.0.0.1:{sim.port}"
-        node = NodeProcess(path, domain)
-        client = None
-        try:
+        start = functools.partial(NodeProcess, domain=domain)
+        with node_on_sim(Path(temp), start, cycle_time, args, recording) as (sim, node):
             client = Client(domain)
-            client.spin_until(
-                lambda: client.joint_states or node.process.poll() is not None, "/joint_states from akd_node"
-            )
-            if node.process.poll() is not None:
-                raise RuntimeError(f"akd_node exited:\n{node.output()}")
-            client.trigger("enable")
-            result = hold(node.process.pid, sim.process.pid, client.spin_for, client.joint_states, args.window)
-            sent = stream_commands(client, args.command_rate, args.command_seconds) if record else []
-            node.process.send_signal(signal.SIGINT)
-            client.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
-        except Exception:
-            print(f"akd_node output:\n{node.output()}")
-            raise
-        finally:
-            if client is not None:
+            try:
+                client.spin_until(
+                    lambda: client.joint_states or node.process.poll() is not None, "/joint_states from akd_node"
+                )
+                if node.process.poll() is not None:
+                    raise RuntimeError(f"akd_node exited:\n{node.output()}")
+                client.trigger("enable")
+                result = hold(node.process.pid, sim.process.pid, client.spin_for, client.count, args.window)
+                sent = stream_commands(client, args.command_rate, args.command_seconds) if record else []
+                node.process.send_signal(signal.SIGINT)
+                client.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
+            finally:
                 client.close()
-            stop(node.process)
-            sim.stop()
+        link = f"udp://127.0.0.1:{sim.port}"
         result |= {
             "cycle_time": cycle_time,
             "record": record,

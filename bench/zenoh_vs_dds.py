@@ -27,6 +27,7 @@ The node's cycle thread gets rt.priority 80 and akd-sim's threads SCHED_FIFO 70,
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import queue
 import statistics
@@ -35,18 +36,18 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
+from types import MappingProxyType
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from node_bench import CONFIG, COUNT, ROOT, faults, hold, ms, params, quantile
+from node_bench import CONFIG, COUNT, ROOT, faults, hold, ms, node_on_sim, quantile
 from node_six_axes import NODE, Client
-from scheduling import real_time
 
 from akd_ros.zenoh.types import Types
 from akd_ros.zenoh.wire import Attachment, data_key_expr, dds_type_name
-from support.netns import free_udp_port
-from support.ros import WAIT_S, NodeProcess, Sim, lines_of, ros_environment, stop
+from support.ros import WAIT_S, NodeProcess, lines_of, ros_environment
 from support.waiting import wait_for
 from support.zenoh import zenoh_router, zenoh_session
 
@@ -85,12 +86,31 @@ class ZenohNode:
         return "".join(self.log)
 
 
+class DdsClient(Client):
+    """This process's rclpy side (bench/node_six_axes.py's client) with the same methods as ZenohClient."""
+
+    others: Mapping[str, int] = MappingProxyType({})
+    """Processes of the transport besides the node whose CPU is measured: none, DDS has no broker."""
+
+    def wait(self, seconds: float) -> None:
+        self.spin_for(seconds)
+
+    def wait_until(self, done, what: str) -> None:
+        self.spin_until(done, what)
+
+    def taken(self, window: slice) -> list[tuple[int, int]]:
+        """(receive time ns, stamp ns) of the messages in `window`."""
+        taken = zip(self.arrivals_ns[window], self.joint_states[window], strict=True)
+        return [(t, m.header.stamp.sec * S + m.header.stamp.nanosec) for t, m in taken]
+
+
 class ZenohClient:
     """This process's Zenoh side: joint_states on rmw_zenoh's key, each as (receive time ns, stamp ns) once decoded;
     the node's Trigger services called as queries with rmw_zenoh's attachment."""
 
-    def __init__(self, session, types: Types, domain: int) -> None:
+    def __init__(self, session, types: Types, domain: int, router_pid: int) -> None:
         self.session, self.types, self.domain = session, types, domain
+        self.others = {"router": router_pid}
         self.received: list[tuple[int, int]] = []
         key = data_key_expr(domain, "/joint_states", dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
         self.subscriber = session.declare_subscriber(key, self._take)
@@ -99,6 +119,18 @@ class ZenohClient:
     def _take(self, sample) -> None:
         message = self.types.from_cdr(sample.payload.to_bytes(), JOINT_STATE)
         self.received.append((time.time_ns(), message.header.stamp.sec * S + message.header.stamp.nanosec))
+
+    def count(self) -> int:
+        return len(self.received)
+
+    def wait(self, seconds: float) -> None:
+        time.sleep(seconds)
+
+    def wait_until(self, done, what: str) -> None:
+        wait_for(what, done, WAIT_S)
+
+    def taken(self, window: slice) -> list[tuple[int, int]]:
+        return self.received[window]
 
     def trigger(self, name: str) -> str:
         key = data_key_expr(self.domain, NODE + name, dds_type_name(TRIGGER), self.types.rihs01(TRIGGER))
@@ -133,46 +165,21 @@ def children() -> list[int]:
 
 def run(transport: str, domain: int, endpoint: str, router_pid: int, session, types: Types, args) -> dict:
     with tempfile.TemporaryDirectory(prefix="zenoh_vs_dds-") as temp:
-        sim = Sim(free_udp_port(), count=COUNT)
-        if args.sim_priority:
-            real_time(sim.process.pid, args.sim_priority)
         changes = {"transport": transport}
         if transport == "zenoh":
             changes["zenoh.connect"] = [endpoint]
-        path = Path(temp) / "akd_node.yaml"
-        path.write_text(params(sim.port, args.cycle_time, args.joint_states_rate, args.priority, changes))
-        node = NodeProcess(path, domain) if transport == "rclpy" else ZenohNode(path, domain)
-        client = None
-        try:
-            if transport == "rclpy":
-                client = Client(domain)
-                client.spin_until(
-                    lambda: client.joint_states or node.process.poll() is not None, "/joint_states from akd_node"
-                )
-                wait, others = client.spin_for, {}
-            else:
-                client = ZenohClient(session, types, domain)
-                wait_for("joint_states over Zenoh", lambda: client.received or node.process.poll() is not None, WAIT_S)
-                wait, others = time.sleep, {"router": router_pid}
-            if node.process.poll() is not None:
-                raise RuntimeError(f"akd_node exited:\n{node.output()}")
-            client.trigger("enable")
-            if transport == "rclpy":
-                received = client.joint_states
-                result = hold(node.process.pid, sim.process.pid, wait, received, args.window, others)
-                arrivals = list(zip(client.arrivals_ns, client.joint_states, strict=True))[result["window"]]
-                taken = [(t, m.header.stamp.sec * S + m.header.stamp.nanosec) for t, m in arrivals]
-            else:
-                result = hold(node.process.pid, sim.process.pid, wait, client.received, args.window, others)
-                taken = client.received[result["window"]]
-        except Exception:
-            print(f"akd_node output:\n{node.output()}")
-            raise
-        finally:
-            if client is not None:
+        start = functools.partial(NodeProcess if transport == "rclpy" else ZenohNode, domain=domain)
+        with node_on_sim(Path(temp), start, args.cycle_time, args, changes) as (sim, node):
+            client = DdsClient(domain) if transport == "rclpy" else ZenohClient(session, types, domain, router_pid)
+            try:
+                client.wait_until(lambda: client.count() or node.process.poll() is not None, "/joint_states")
+                if node.process.poll() is not None:
+                    raise RuntimeError(f"akd_node exited:\n{node.output()}")
+                client.trigger("enable")
+                result = hold(node.process.pid, sim.process.pid, client.wait, client.count, args.window, client.others)
+                taken = client.taken(result["window"])
+            finally:
                 client.close()
-            stop(node.process)
-            sim.stop()
         return result | {
             "transport": transport,
             "program": os.path.relpath(node.process.args[0], ROOT),
