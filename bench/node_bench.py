@@ -4,6 +4,7 @@ the node logged, and quantiles in ms. Imported by the scripts in bench/ once tes
 
 from __future__ import annotations
 
+import argparse
 import os
 import re
 import statistics
@@ -52,6 +53,15 @@ def cpu_of(pid: int) -> tuple[int, int]:
     """(the whole process's, its akd-cycle thread's) CPU time so far, clock ticks; the thread's 0 if it has none."""
     cycle = [t for t in Path(f"/proc/{pid}/task").iterdir() if (t / "comm").read_text().strip() == "akd-cycle"]
     return cpu_ticks(Path(f"/proc/{pid}/stat")), sum(cpu_ticks(t / "stat") for t in cycle)
+
+
+def node_arguments(parser: argparse.ArgumentParser) -> None:
+    """The options of the node's run every node benchmark has: /joint_states rate, the measuring window, the cycle
+    thread's and akd-sim's priorities."""
+    parser.add_argument("--joint-states-rate", type=float, default=250.0, help="/joint_states rate, Hz")
+    parser.add_argument("--window", type=float, default=10.0, help="s over which CPU and /joint_states are counted")
+    parser.add_argument("--priority", type=int, default=80, help="the node's rt.priority (0: the config's, none)")
+    parser.add_argument("--sim-priority", type=int, default=70, help="akd-sim's SCHED_FIFO priority (0: none)")
 
 
 @contextmanager

@@ -41,7 +41,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from node_bench import CONFIG, COUNT, JOINTS, ROOT, faults, hold, ms, node_on_sim
+from node_bench import CONFIG, COUNT, JOINTS, ROOT, faults, hold, ms, node_arguments, node_on_sim
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -197,12 +197,9 @@ def run(cycle_time: float, record: bool, domain: int, args) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cycle-times", default="0.001,0.00025", help="cycle times in s, comma-separated")
-    parser.add_argument("--joint-states-rate", type=float, default=250.0, help="/joint_states rate, Hz")
-    parser.add_argument("--window", type=float, default=10.0, help="s over which CPU and /joint_states are counted")
     parser.add_argument("--command-rate", type=float, default=100.0, help="~/joint_commands messages per s")
     parser.add_argument("--command-seconds", type=float, default=5.0, help="s of ~/joint_commands")
-    parser.add_argument("--priority", type=int, default=80, help="the node's rt.priority (0: the config's, none)")
-    parser.add_argument("--sim-priority", type=int, default=70, help="akd-sim's SCHED_FIFO priority (0: none)")
+    node_arguments(parser)
     args = parser.parse_args()
     cycle_times = [float(c) for c in args.cycle_times.split(",")]
     print(

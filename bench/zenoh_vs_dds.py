@@ -42,7 +42,7 @@ from types import MappingProxyType
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from node_bench import CONFIG, COUNT, ROOT, faults, hold, ms, node_on_sim, quantile
+from node_bench import CONFIG, COUNT, ROOT, faults, hold, ms, node_arguments, node_on_sim, quantile
 from node_six_axes import NODE, Client
 
 from akd_ros.zenoh.types import Types
@@ -192,11 +192,8 @@ def run(transport: str, domain: int, endpoint: str, router_pid: int, session, ty
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rounds", type=int, default=2, help="runs of each transport, alternating")
-    parser.add_argument("--window", type=float, default=10.0, help="s over which CPU and /joint_states are counted")
     parser.add_argument("--cycle-time", type=float, default=0.001, help="the node's cycle time, s")
-    parser.add_argument("--joint-states-rate", type=float, default=250.0, help="/joint_states rate, Hz")
-    parser.add_argument("--priority", type=int, default=80, help="the node's rt.priority (0: the config's, none)")
-    parser.add_argument("--sim-priority", type=int, default=70, help="akd-sim's SCHED_FIFO priority (0: none)")
+    node_arguments(parser)
     args = parser.parse_args()
     types = Types()
     results = []
