@@ -31,52 +31,50 @@ The issue's goals, printed beside the figures: at most 15 % of a core at 1 kHz; 
 from __future__ import annotations
 
 import argparse
+import functools
 import os
-import re
 import signal
-import statistics
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-import yaml
-
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from node_bench import CONFIG, COUNT, JOINTS, ROOT, faults, hold, ms, node_arguments, node_on_sim
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from scheduling import real_time
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from support.netns import free_udp_port
-from support.ros import WAIT_S, NodeProcess, Participant, Sim, ros_environment, stop
+from support.ros import WAIT_S, NodeProcess, Participant, ros_environment
 
-ROOT = Path(__file__).resolve().parents[1]
-COUNT = 6
-JOINTS = [f"joint_{i}" for i in range(1, COUNT + 1)]
 NODE = "/akd_node/"
-CONFIG = ROOT / "config" / "akd_sim_6axis.yaml"
 DOMAINS = range(40, 50)
 """ROS_DOMAIN_IDs of this benchmark, apart from the tests' (Fast DDS takes none above 232)."""
 STEP = 1e-4
 """rad: how far each ~/joint_commands message moves every joint, many counts, so each value is told apart."""
-FAULT_LINE = re.compile(r"fault of (\w+): ([^;]+);")
-"""akd_node's log line of a joint's fault: the joint and what the fault is (its source and text, e.g. "emergency:
-F125 Synchronization lost", "lost_frames: 1 cycles in a row")."""
-TICK = os.sysconf("SC_CLK_TCK")
 S = 1_000_000_000
 
 
 class Client(Participant):
-    """The bench's side: /joint_states counted, ~/joint_commands published, the node's services called."""
+    """The bench's side: /joint_states counted, each with the system-clock time its callback took it
+    (`arrivals_ns`), ~/joint_commands published, the node's services called."""
 
     def __init__(self, domain: int) -> None:
         super().__init__(domain, "akd_node_bench")
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.joint_states: list[JointState] = []
-        self.node.create_subscription(JointState, "/joint_states", self.joint_states.append, qos)
+        self.arrivals_ns: list[int] = []
+        self.node.create_subscription(JointState, "/joint_states", self._take, qos)
         self.joint_commands = self.node.create_publisher(JointState, NODE + "joint_commands", qos)
+
+    def _take(self, message: JointState) -> None:
+        self.arrivals_ns.append(time.time_ns())
+        self.joint_states.append(message)
+
+    def count(self) -> int:
+        """The /joint_states messages received so far."""
+        return len(self.joint_states)
 
     def trigger(self, name: str) -> str:
         client = self.node.create_client(Trigger, NODE + name)
@@ -94,49 +92,6 @@ class Client(Participant):
         self.spin_until(lambda: len(self.joint_states) > count, "a fresh /joint_states")
         message = self.joint_states[-1]
         return dict(zip(message.name, message.position, strict=True))
-
-
-def params(port: int, cycle_time: float, rate: float, folder: Path | None, priority: int) -> str:
-    """config/akd_sim_6axis.yaml's parameters on udp://127.0.0.1:`port` at `cycle_time` and /joint_states at `rate`,
-    recording every cycle into `folder` unless it is None."""
-    document = yaml.safe_load(CONFIG.read_text())
-    values = document["akd_node"]["ros__parameters"]
-    values |= {"link": f"udp://127.0.0.1:{port}", "cycle_time": cycle_time, "joint_states_rate": rate}
-    if priority:
-        values["rt.priority"] = priority
-    if folder is not None:
-        values |= {"record.enabled": True, "record.folder": str(folder), "record.decimation": 1}
-    return yaml.safe_dump(document)
-
-
-def cpu_ticks(stat: Path) -> int:
-    """utime + stime in a /proc stat file (of a process: its threads together; of a task: that thread), in clock
-    ticks."""
-    # The command name in parentheses may hold spaces: the fields are counted after its closing one.
-    fields = stat.read_text().rsplit(")", 1)[1].split()
-    return int(fields[11]) + int(fields[12])
-
-
-def cpu_of(pid: int) -> tuple[int, int]:
-    """(the whole process's, its akd-cycle thread's) CPU time so far, clock ticks; the thread's 0 if it has none."""
-    cycle = [t for t in Path(f"/proc/{pid}/task").iterdir() if (t / "comm").read_text().strip() == "akd-cycle"]
-    return cpu_ticks(Path(f"/proc/{pid}/stat")), sum(cpu_ticks(t / "stat") for t in cycle)
-
-
-def hold(client: Client, node: NodeProcess, sim: Sim, seconds: float) -> dict:
-    """Over `seconds` of every joint holding: the node's, its cycle thread's and akd-sim's CPU share (% of one core)
-    and the /joint_states messages received per second."""
-    client.spin_for(1.0)  # past the enable's transients
-    before = (*cpu_of(node.process.pid), *cpu_of(sim.process.pid), len(client.joint_states), time.monotonic())
-    client.spin_for(seconds)
-    after = (*cpu_of(node.process.pid), *cpu_of(sim.process.pid), len(client.joint_states), time.monotonic())
-    node_ticks, cycle_ticks, sim_ticks, _, messages, elapsed = (b - a for a, b in zip(before, after, strict=True))
-    return {
-        "cpu": 100 * node_ticks / TICK / elapsed,
-        "cycle_cpu": 100 * cycle_ticks / TICK / elapsed,
-        "sim_cpu": 100 * sim_ticks / TICK / elapsed,
-        "joint_states": messages / elapsed,
-    }
 
 
 def stream_commands(client: Client, rate: float, seconds: float) -> list[tuple[int, float]]:
@@ -194,46 +149,27 @@ def latencies(sent: list[tuple[int, float]], cycles: list[tuple[int, float]]) ->
     return found
 
 
-def faults(output: str) -> dict[str, list[str]]:
-    """The joints each fault was logged for in akd_node's `output`, by what the fault is."""
-    found: dict[str, list[str]] = {}
-    for joint, what in FAULT_LINE.findall(output):
-        if joint not in found.setdefault(what, []):
-            found[what].append(joint)
-    return found
-
-
 def run(cycle_time: float, record: bool, domain: int, args) -> dict:
     with tempfile.TemporaryDirectory(prefix="node_six_axes-") as temp:
         folder = Path(temp) / "bags" if record else None
-        sim = Sim(free_udp_port(), count=COUNT)
-        if args.sim_priority:
-            real_time(sim.process.pid, args.sim_priority)
-        path = Path(temp) / "akd_node.yaml"
-        path.write_text(params(sim.port, cycle_time, args.joint_states_rate, folder, args.priority))
-        link = f"udp://127.0.0.1:{sim.port}"
-        node = NodeProcess(path, domain)
-        client = None
-        try:
+        recording = {"record.enabled": True, "record.folder": str(folder), "record.decimation": 1} if record else None
+        start = functools.partial(NodeProcess, domain=domain)
+        with node_on_sim(Path(temp), start, cycle_time, args, recording) as (sim, node):
             client = Client(domain)
-            client.spin_until(
-                lambda: client.joint_states or node.process.poll() is not None, "/joint_states from akd_node"
-            )
-            if node.process.poll() is not None:
-                raise RuntimeError(f"akd_node exited:\n{node.output()}")
-            client.trigger("enable")
-            result = hold(client, node, sim, args.window)
-            sent = stream_commands(client, args.command_rate, args.command_seconds) if record else []
-            node.process.send_signal(signal.SIGINT)
-            client.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
-        except Exception:
-            print(f"akd_node output:\n{node.output()}")
-            raise
-        finally:
-            if client is not None:
+            try:
+                client.spin_until(
+                    lambda: client.joint_states or node.process.poll() is not None, "/joint_states from akd_node"
+                )
+                if node.process.poll() is not None:
+                    raise RuntimeError(f"akd_node exited:\n{node.output()}")
+                client.trigger("enable")
+                result = hold(node.process.pid, sim.process.pid, client.spin_for, client.count, args.window)
+                sent = stream_commands(client, args.command_rate, args.command_seconds) if record else []
+                node.process.send_signal(signal.SIGINT)
+                client.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
+            finally:
                 client.close()
-            stop(node.process)
-            sim.stop()
+        link = f"udp://127.0.0.1:{sim.port}"
         result |= {
             "cycle_time": cycle_time,
             "record": record,
@@ -261,12 +197,9 @@ def run(cycle_time: float, record: bool, domain: int, args) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cycle-times", default="0.001,0.00025", help="cycle times in s, comma-separated")
-    parser.add_argument("--joint-states-rate", type=float, default=250.0, help="/joint_states rate, Hz")
-    parser.add_argument("--window", type=float, default=10.0, help="s over which CPU and /joint_states are counted")
     parser.add_argument("--command-rate", type=float, default=100.0, help="~/joint_commands messages per s")
     parser.add_argument("--command-seconds", type=float, default=5.0, help="s of ~/joint_commands")
-    parser.add_argument("--priority", type=int, default=80, help="the node's rt.priority (0: the config's, none)")
-    parser.add_argument("--sim-priority", type=int, default=70, help="akd-sim's SCHED_FIFO priority (0: none)")
+    node_arguments(parser)
     args = parser.parse_args()
     cycle_times = [float(c) for c in args.cycle_times.split(",")]
     print(
@@ -323,15 +256,6 @@ def main() -> None:
         f"recording: record.decimation 1; waits bounded by {WAIT_S:g} s",
     ]
     print("; ".join(notes))
-
-
-def ms(values_ns: list[int], fraction: float) -> str:
-    """The `fraction` quantile (1.0: the largest) of `values_ns` in ms, or n/a for fewer than two."""
-    if len(values_ns) < 2:
-        return "n/a"
-    if fraction == 1.0:
-        return f"{max(values_ns) / 1e6:.2f}ms"
-    return f"{statistics.quantiles(values_ns, n=100)[round(fraction * 100) - 1] / 1e6:.2f}ms"
 
 
 if __name__ == "__main__":
