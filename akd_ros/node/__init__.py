@@ -24,10 +24,12 @@ One module per job, each a part that the node's `Core` is made of:
 - `session`: what the parts share (the settings, the clock; from configure to cleanup the Bus, the Recorder, the
   lock).
 
-Threads: a MultiThreadedExecutor runs three callback groups. The periodic group (publishing timers) and the command
-group (the command subscriptions, queued 100 deep so a stall of the Python side delays commands rather than drops
-them) never wait on the drive; the request group (services, the supervisor that handles command time-outs and
-automatic fault resets) may wait up to the axes' time-outs without stopping the periodic topics. The session's lock
+Threads: three callback groups. The periodic group (publishing timers) and the command group (the command
+subscriptions, queued 100 deep so a stall of the Python side delays commands rather than drops them) never wait on
+the drive; the request group (services, the supervisor that handles automatic fault resets) may wait up to the axes'
+time-outs without stopping the periodic topics. Over rclpy a MultiThreadedExecutor runs the subscriptions and
+services and each group's timers run on a thread of the group's own (`worker`), so timers do not wake the executor;
+over Zenoh each group is such a thread. The session's lock
 guards the axes' Python-side state (position unwrapping, event queues, the last command) between them.
 """
 
