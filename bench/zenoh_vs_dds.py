@@ -29,12 +29,9 @@ from __future__ import annotations
 import argparse
 import functools
 import os
-import queue
 import statistics
-import subprocess
 import sys
 import tempfile
-import threading
 import time
 from collections.abc import Mapping
 from pathlib import Path
@@ -47,43 +44,19 @@ from node_six_axes import NODE, Client
 
 from akd_ros.zenoh.types import Types
 from akd_ros.zenoh.wire import Attachment, data_key_expr, dds_type_name
-from support.ros import WAIT_S, NodeProcess, lines_of, ros_environment
+from support.ros import WAIT_S, NodeProcess, ros_environment
 from support.waiting import wait_for
 from support.zenoh import zenoh_router, zenoh_session
 
 DOMAINS = range(50, 60)
 """ROS_DOMAIN_IDs of this benchmark (DDS, and the domain in the Zenoh keys), apart from the tests' and
 node_six_axes.py's."""
-NO_ROS = ROOT / "tests" / "support" / "no_ros"
-NO_ROS_NODE = ROOT / ".venv-noros" / "bin" / "akd_node"
 JOINT_STATE = "sensor_msgs/msg/JointState"
 TRIGGER = "std_srvs/srv/Trigger"
 TRANSPORTS = ("rclpy", "zenoh")
 S = 1_000_000_000
 BENCH_GID = bytes(range(16))
 """The GID of this process's Zenoh service client in the enable request's attachment."""
-
-
-class ZenohNode:
-    """akd_node with transport zenoh as on a controller without ROS (`.venv-noros`, every ROS import refused),
-    its output collected."""
-
-    def __init__(self, path: Path, domain: int) -> None:
-        program = NO_ROS_NODE if NO_ROS_NODE.exists() else Path(sys.executable).parent / "akd_node"
-        self.log: list[str] = []
-        env = {**os.environ, "PYTHONPATH": str(NO_ROS), "ROS_DOMAIN_ID": str(domain)}
-        self.process = subprocess.Popen(
-            [str(program), "--ros-args", "--params-file", str(path)],
-            env=env,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-            bufsize=1,
-        )
-        threading.Thread(target=lines_of, args=(self.process.stdout, queue.Queue(), self.log), daemon=True).start()
-
-    def output(self) -> str:
-        return "".join(self.log)
 
 
 class DdsClient(Client):
@@ -168,7 +141,7 @@ def run(transport: str, domain: int, endpoint: str, router_pid: int, session, ty
         changes = {"transport": transport}
         if transport == "zenoh":
             changes["zenoh.connect"] = [endpoint]
-        start = functools.partial(NodeProcess if transport == "rclpy" else ZenohNode, domain=domain)
+        start = functools.partial(NodeProcess, domain=domain, without_ros=transport == "zenoh")
         with node_on_sim(Path(temp), start, args.cycle_time, args, changes) as (sim, node):
             client = DdsClient(domain) if transport == "rclpy" else ZenohClient(session, types, domain, router_pid)
             try:

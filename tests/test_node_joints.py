@@ -104,30 +104,11 @@ class Arm(Participant):
             NODE + "trajectory_status": TrajectoryStatus,
         }
         topics |= {f"{NODE}{joint}/fault": DriveFault for joint in JOINTS}
-        self.received: dict[str, list] = {}
         for topic, kind in topics.items():
             self.received[topic] = []
             self.node.create_subscription(kind, topic, self.received[topic].append, qos)
         self.joint_commands = self.node.create_publisher(JointState, NODE + "joint_commands", qos)
         self.joint_trajectory = self.node.create_publisher(JointTrajectory, NODE + "joint_trajectory", qos)
-
-    def call(self, kind, name: str, request=None):
-        client = self.node.create_client(kind, NODE + name)
-        self.spin_until(client.service_is_ready, f"service {NODE}{name}")
-        future = client.call_async(request or kind.Request())
-        self.spin_until(future.done, f"answer of {NODE}{name}")
-        self.node.destroy_client(client)
-        return future.result()
-
-    def trigger(self, name: str) -> str:
-        response = self.call(Trigger, name)
-        assert response.success, f"{name}: {response.message}"
-        return response.message
-
-    def latest(self, topic: str):
-        count = len(self.received[topic])
-        self.spin_until(lambda: len(self.received[topic]) > count, f"message on {topic}")
-        return self.received[topic][-1]
 
     def positions(self) -> dict[str, float]:
         message = self.latest("/joint_states")

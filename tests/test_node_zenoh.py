@@ -20,14 +20,11 @@ import pytest
 
 from akd_ros.zenoh.types import Types
 from akd_ros.zenoh.wire import Attachment, Entity, EntityKind, data_key_expr, dds_type_name, gid_of
-from support.ros import BIN, COUNTS_PER_RAD, Sim, stop
+from support.ros import BIN, COUNTS_PER_RAD, NO_ROS, NO_ROS_NODE, NodeProcess, Sim, stop
 from support.waiting import wait_for
 from support.zenoh import WAIT_S, liveliness_keys, zenoh_router, zenoh_session
 
 REPO = Path(__file__).resolve().parents[1]
-NO_ROS = Path(__file__).resolve().parent / "support" / "no_ros"
-NO_ROS_NODE = REPO / ".venv-noros" / "bin" / "akd_node"
-"""akd_node of the environment without ROS wheels."""
 DOMAIN = 0
 JOINTS = ["joint_1", "joint_2"]
 JOINT_STATE = "sensor_msgs/msg/JointState"
@@ -93,19 +90,9 @@ def node(peer, router, types, tmp_path_factory):
     sim = Sim(free_udp_port(), count=len(JOINTS))
     path = tmp_path_factory.mktemp("zenoh") / "akd_node.yaml"
     path.write_text(PARAMS.format(endpoint=router, port=sim.port))
-    env = {**os.environ, "PYTHONPATH": str(NO_ROS), "ROS_DOMAIN_ID": str(DOMAIN)}
-    program = NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"
-    print(f"running {program}")
-    process = subprocess.Popen(
-        [str(program), "--ros-args", "--params-file", str(path)],
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-        bufsize=1,
-    )
-    log: list[str] = []
-    threading.Thread(target=lambda: log.extend(process.stdout), daemon=True).start()
+    node = NodeProcess(path, DOMAIN, without_ros=True)
+    print(f"running {node.program}")
+    process, log = node.process, node.log
     try:
         wait_for("joint_states over Zenoh", lambda: collected.taken() or process.poll() is not None, WAIT_S)
         assert process.poll() is None, "".join(log)
@@ -326,16 +313,8 @@ def test_without_a_router_the_node_warns_naming_it_runs_on_and_records_a_bag_ros
         f'    zenoh.connect: ["{endpoint}"]\n    link: sim:2\n    joints: [a, b]\n    cycle_time: 0.002\n'
         f"    record.enabled: true\n    record.folder: {tmp_path / 'bags'}\n"
     )
-    program = NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"
-    process = subprocess.Popen(
-        [str(program), "--ros-args", "--params-file", str(path)],
-        env={**os.environ, "PYTHONPATH": str(NO_ROS)},
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
-    log: list[str] = []
-    threading.Thread(target=lambda: log.extend(process.stdout), daemon=True).start()
+    node = NodeProcess(path, without_ros=True)
+    process, log = node.process, node.log
     try:
         wait_for("the node active", lambda: "active: publishing" in "".join(log) or process.poll() is not None, WAIT_S)
         time.sleep(1.0)
@@ -357,9 +336,8 @@ def test_without_a_router_the_node_warns_naming_it_runs_on_and_records_a_bag_ros
 def test_transport_both_without_rclpy_is_one_line_naming_the_way_out(tmp_path):
     path = tmp_path / "akd_node.yaml"
     path.write_text("akd_node:\n  ros__parameters:\n    transport: both\n    link: sim\n")
-    program = NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"
     done = subprocess.run(
-        [str(program), "--ros-args", "--params-file", str(path)],
+        [str(NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
         env={**os.environ, "PYTHONPATH": str(NO_ROS)},
         capture_output=True,
         text=True,

@@ -142,17 +142,30 @@ class Sim:
         stop(self.process)
 
 
+NO_ROS = Path(__file__).resolve().parent / "no_ros"
+"""The folder whose sitecustomize makes a Python refuse every ROS import (PYTHONPATH)."""
+NO_ROS_NODE = Path(__file__).resolve().parents[2] / ".venv-noros" / "bin" / "akd_node"
+"""akd_node of the environment scripts/setup.sh makes without any ROS wheel."""
+
+
 class NodeProcess:
     """akd_node running as `akd_node --ros-args --params-file FILE`, its output collected; `domain` overrides the
-    environment's ROS_DOMAIN_ID."""
+    environment's ROS_DOMAIN_ID. `without_ros` runs it as on a controller without ROS: from `.venv-noros` where it
+    exists (else from .venv), every ROS import refused (NO_ROS)."""
 
-    def __init__(self, params: Path, domain: int | None = None):
+    def __init__(self, params: Path, domain: int | None = None, *, without_ros: bool = False):
         self.log: list[str] = []
         env = dict(os.environ)
         if domain is not None:
             env["ROS_DOMAIN_ID"] = str(domain)
+        program = BIN / "akd_node"
+        if without_ros:
+            env["PYTHONPATH"] = str(NO_ROS)
+            program = NO_ROS_NODE if NO_ROS_NODE.exists() else program
+        self.program = program
+        """The akd_node it runs."""
         self.process = subprocess.Popen(
-            [str(BIN / "akd_node"), "--ros-args", "--params-file", str(params)],
+            [str(program), "--ros-args", "--params-file", str(params)],
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
@@ -167,9 +180,11 @@ class NodeProcess:
 
 
 class Participant:
-    """A node of this process in a context of its own on `domain`, with the executor that spins it."""
+    """A node of this process in a context of its own on `domain`, with the executor that spins it; it calls the
+    node's services and keeps what it receives by topic in `received`."""
 
     def __init__(self, domain: int, name: str):
+        self.received: dict[str, list] = {}
         self.context = rclpy.Context()
         rclpy.init(context=self.context, domain_id=domain)
         self.node = rclpy.create_node(name, context=self.context)
@@ -188,29 +203,6 @@ class Participant:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.02)
-
-    def close(self) -> None:
-        """Destroys the node and shuts the context down."""
-        self.executor.shutdown()
-        self.node.destroy_node()
-        rclpy.shutdown(context=self.context)
-
-
-class Client(Participant):
-    """The ROS side of akd_node's tests: every topic of the node collected in `received`, its services called, and
-    the commands published, each counted in `sent`."""
-
-    def __init__(self, domain: int):
-        super().__init__(domain, "akd_node_test")
-        self.received: dict[str, list] = {}
-        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-        for topic, kind in NODE_TOPICS.items():
-            self.received[topic] = []
-            self.node.create_subscription(kind, topic, self.received[topic].append, qos)
-        self.commands = {
-            kind: self.node.create_publisher(Float64, f"{NODE}{kind}_command", qos) for kind in COMMAND_KINDS
-        }
-        self.sent = dict.fromkeys(COMMAND_KINDS, 0)
 
     def call(self, kind, name: str, request=None):
         """Calls service ~/name of the node and gives its response."""
@@ -232,6 +224,28 @@ class Client(Participant):
         count = len(self.received[topic])
         self.spin_until(lambda: len(self.received[topic]) > count, f"message on {topic}")
         return self.received[topic][-1]
+
+    def close(self) -> None:
+        """Destroys the node and shuts the context down."""
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.shutdown(context=self.context)
+
+
+class Client(Participant):
+    """The ROS side of akd_node's tests: every topic of the node collected in `received`, its services called, and
+    the commands published, each counted in `sent`."""
+
+    def __init__(self, domain: int):
+        super().__init__(domain, "akd_node_test")
+        qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        for topic, kind in NODE_TOPICS.items():
+            self.received[topic] = []
+            self.node.create_subscription(kind, topic, self.received[topic].append, qos)
+        self.commands = {
+            kind: self.node.create_publisher(Float64, f"{NODE}{kind}_command", qos) for kind in COMMAND_KINDS
+        }
+        self.sent = dict.fromkeys(COMMAND_KINDS, 0)
 
     def position(self) -> float:
         """The joint's position from a fresh joint_states message."""
