@@ -10,7 +10,8 @@ import subprocess
 import pytest
 
 import akd_ros
-from support.netns import akd_sim_in_netns, akd_sim_udp, console_script, run_in_netns
+from support.netns import akd_sim_in_netns, akd_sim_udp, console_script, run_in_netns, udp_port_bound
+from support.waiting import wait_for
 
 # One line of akd-scan for a virtual AKD: the real drive's identity from its SII.
 AKD_LINE = re.compile(
@@ -179,6 +180,27 @@ def test_sim_stops_cleanly_on_sigint(udp_port):
         out, _ = sim.communicate(timeout=10)
     assert sim.returncode == 0
     assert out.strip().splitlines()[-1] == "akd-sim: stopped"
+
+
+def test_sim_stops_on_sigint_even_when_started_with_it_ignored(udp_port):
+    # As a shell's background job or a CI runner starts it: SIGINT ignored, which Python would keep.
+    argv = [*console_script("akd-sim"), "--udp", f"127.0.0.1:{udp_port}"]
+    sim = subprocess.Popen(
+        argv,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN),
+    )
+    try:
+        wait_for("akd-sim's port", lambda: udp_port_bound(udp_port), 10.0)
+        sim.send_signal(signal.SIGINT)
+        out, _ = sim.communicate(timeout=10)
+    finally:
+        if sim.poll() is None:
+            sim.kill()
+            sim.wait()
+    assert sim.returncode == 0 and out.strip().splitlines()[-1] == "akd-sim: stopped", out
 
 
 def test_sim_refuses_bad_arguments():

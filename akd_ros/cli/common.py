@@ -34,13 +34,16 @@ def open_master(args: argparse.Namespace):
     return Master(args.link, pcap=args.pcap, timeout=args.timeout)
 
 
-def stop_on_sigterm() -> None:
-    """Makes SIGTERM end the tool like SIGINT does, through Python, so it cleans up."""
+def stop_on_signals() -> None:
+    """Makes SIGINT and SIGTERM end the tool through Python, so it cleans up. SIGINT's too: a process started with
+    it ignored (a shell's background job, a CI runner) inherits that, and Python then leaves it ignored, so the tool
+    would not stop on it at all."""
 
     def handler(signum, frame):
         raise KeyboardInterrupt(f"signal {signum}")
 
-    signal.signal(signal.SIGTERM, handler)
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, handler)
 
 
 def run(prog: str, body: Callable[[], int]) -> int:
@@ -48,7 +51,7 @@ def run(prog: str, body: Callable[[], int]) -> int:
     non-zero status, SIGINT/SIGTERM a quiet stop."""
     from akd_ros import EtherCatError
 
-    stop_on_sigterm()
+    stop_on_signals()
     try:
         return body()
     except (EtherCatError, ValueError, OSError) as error:
