@@ -278,21 +278,22 @@ class Axis:
         """Real-time settings asked for and not permitted, one sentence each."""
         return self._bus.warnings
 
-    def close(self) -> None:
+    def close(self) -> str | None:
         """Disables the drive (waiting up to a second); an Axis with a bus of its own then closes the bus (cycle
-        stopped, bus to Init). An Axis of a shared bus is unusable from then on; the bus runs on until closed."""
+        stopped, bus to Init) and gives back, as `Bus.close` does, what it could not do (None when all went well).
+        An Axis of a shared bus is unusable from then on; the bus runs on until closed."""
         if self._owns_bus:
             self._closed = True
-            self._bus.close()
-            return
+            return self._bus.close()
         if self._closed or self._bus.closed:
-            return
+            return None
         self._closed = True
         cycle = self._bus.cycle
         cycle.disable(self.slave)
         # A drive in Fault or unreachable stays as it is: powerless.
         with contextlib.suppress(_native.EtherCatError):
             cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
+        return None
 
     def __enter__(self) -> Axis:
         return self

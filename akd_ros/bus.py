@@ -202,11 +202,14 @@ class Bus:
         """Real-time settings asked for and not permitted, one sentence each."""
         return list(self.cycle.warnings)
 
-    def close(self) -> None:
-        """Disables every drive (waiting up to a second), stops the cycle and returns the line to Init."""
+    def close(self) -> str | None:
+        """Disables every drive (waiting up to a second), stops the cycle and returns the line to Init. What it could
+        not do (a line that is gone: the drives are then left to their own reaction, F125 on an AKD) is given back as
+        one sentence rather than raised, so that closing always ends; None when all went well."""
         if self._cycle is None:
-            return
+            return None
         cycle = self._cycle
+        problem = None
         try:
             if cycle.running:
                 for axis in self.axes:
@@ -221,8 +224,11 @@ class Bus:
             cycle.stop()
             try:
                 self._master.request_state("init")
+            except _native.EtherCatError as e:
+                problem = f"the line did not go back to Init ({e}); the drives are left to their own reaction"
             finally:
                 self._master.close()
+        return problem
 
     def __enter__(self) -> Bus:
         return self

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import signal
+import time
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -341,6 +342,27 @@ DC_PARAMS = (
     PARAMS.format(port="{port}", joint=JOINT, max_position=MAX_POSITION, rate=JOINT_STATES_RATE)
     + "    dc: on\n    dc_shift: -0.0002\n"
 )
+
+
+def test_stopping_after_the_drives_vanished_says_so_in_one_line_and_exits_0(tmp_path, ros_domain):
+    from support.netns import free_udp_port
+
+    sim = Sim(free_udp_port())
+    path = tmp_path / "akd_node.yaml"
+    path.write_text(PARAMS.format(port=sim.port, joint=JOINT, max_position=MAX_POSITION, rate=JOINT_STATES_RATE))
+    node = NodeProcess(path, ros_domain + SECOND_DOMAIN_OFFSET)
+    try:
+        deadline = time.monotonic() + WAIT_S
+        while "active: publishing" not in node.output():
+            assert node.process.poll() is None and time.monotonic() < deadline, node.output()
+            time.sleep(0.05)
+    finally:
+        sim.stop()  # the drive's power and cable gone at once
+    time.sleep(0.5)
+    stop(node.process)
+    output = node.output()
+    assert node.process.returncode == 0, output
+    assert "Traceback" not in output and "the line did not go back to Init" in output, output
 
 
 def test_dc_on_over_udp_runs_sync0_at_the_cycle_time_and_diagnostics_show_it(tmp_path, ros_domain):

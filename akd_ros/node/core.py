@@ -163,9 +163,12 @@ class Core:
         if bus is not None:
             # Records the ring or the bus dropped before the node took them are cycles the bag lacks.
             lost = bus.stats()["samples_dropped"] if recorder is not None else 0
-            bus.close()
-            closed = "closed: drives disabled, bus in Init"
-            self._logger.info(closed if self.settings.joint_namespaces else "closed: drive disabled, bus in Init")
+            problem = bus.close()
+            if problem is not None:
+                self._logger.warning(f"closed: the cycle stopped, but {problem}")
+            else:
+                closed = "closed: drives disabled, bus in Init"
+                self._logger.info(closed if self.settings.joint_namespaces else "closed: drive disabled, bus in Init")
             if lost:
                 self._logger.warning(f"recording: {lost} per-cycle records were not taken in time, not in the bag")
         if recorder is not None:
