@@ -61,6 +61,49 @@ fn scan_finds_the_virtual_akds_with_the_real_identity() {
 }
 
 #[test]
+fn esc_information_and_dl_control_read_as_the_real_drives() {
+    let mut m = master(2);
+    for position in 0..2 {
+        let mut slave = m.slave_mut(position).unwrap();
+        // Type 0x04, revision 0x02, build 0x0043, 3 FMMUs, 4 SMs, 4 KiB, ports 0x0F, features 0x0184.
+        assert_eq!(
+            slave.read_register(0x0000, 10).unwrap(),
+            [0x04, 0x02, 0x43, 0x00, 0x03, 0x04, 0x04, 0x0F, 0x84, 0x01]
+        );
+        assert_eq!(slave.read_register(0x0102, 1).unwrap(), [0x07]);
+    }
+    // Three FMMUs are enough: the master maps outputs and inputs with two of them.
+    m.request_state(AlState::Op, STEP).unwrap();
+    assert_eq!(m.exchange().unwrap(), 6);
+}
+
+/// Time from the request of PreOp until the master sees it, against a drive whose firmware
+/// takes `init_to_preop_ns` for it.
+fn init_to_preop_duration(init_to_preop_ns: u64) -> Duration {
+    let timing = Timing { init_to_preop_ns, ..Timing::REAL_DRIVE };
+    let link = InProcess::with_bus(VirtualBus::with_timing(1, timing));
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    let start = std::time::Instant::now();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let took = start.elapsed();
+    m.request_state(AlState::Op, STEP).unwrap();
+    assert_eq!(m.exchange().unwrap(), 3);
+    took
+}
+
+#[test]
+fn init_to_preop_takes_the_firmwares_time_and_the_master_waits_for_it() {
+    // The real drive's pace in the SOEM capture (4.2-6.2 ms) and under TwinCAT (about 16 ms
+    // reading Init after the request); the bound leaves room for a loaded machine.
+    for (firmware_ns, bound) in [(Timing::REAL_DRIVE.init_to_preop_ns, 50), (16_000_000, 100)] {
+        let took = init_to_preop_duration(firmware_ns);
+        assert!(took >= Duration::from_nanos(firmware_ns), "{took:?} for {firmware_ns} ns");
+        assert!(took < Duration::from_millis(bound), "{took:?} for {firmware_ns} ns");
+    }
+}
+
+#[test]
 fn reaches_op_with_the_default_mapping_and_three_wkc_per_slave() {
     let mut m = master(2);
     m.request_state(AlState::Op, STEP).unwrap();
@@ -358,7 +401,7 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
 #[test]
 fn a_late_reply_to_a_request_given_up_is_not_taken_for_the_next_ones() {
     // A drive whose firmware takes 50 ms per mailbox message, asked with a 1 ms time-out.
-    let slow = Timing { al_request_ns: 0, mailbox_ns: 50_000_000 };
+    let slow = Timing { al_request_ns: 0, init_to_preop_ns: 0, mailbox_ns: 50_000_000 };
     let link = InProcess::with_bus(VirtualBus::with_timing(1, slow));
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();

@@ -2,10 +2,11 @@
 //! datagram service as the hardware does it, without the drive's firmware (the PDI side, in
 //! [`super::VirtualAkd`]).
 //!
-//! The register values at power-up are the real drive's, read in the SOEM capture: type 0x04
-//! revision 0x02 (an ESC20-class controller with 4 KiB of RAM at 0x1000–0x1FFF), port
-//! descriptor 0x0F, features 0x0184, DL status 0x5613, PDI control 0x0C08, SII control 0x0020
-//! (EEPROM emulated by the PDI, 4-byte reads). What the hardware does by itself is here: the
+//! The register values at power-up are the real drive's, read in the SOEM capture and under
+//! TwinCAT: type 0x04 revision 0x02 build 0x0043 (an ESC20-class controller with 3 FMMUs,
+//! 4 sync managers and 4 KiB of RAM at 0x1000–0x1FFF), port descriptor 0x0F, features 0x0184,
+//! DL control byte 2 (RX FIFO size) 0x07, DL status 0x5613, PDI control 0x0C08, SII control
+//! 0x0020 (EEPROM emulated by the PDI, 4-byte reads). What the hardware does by itself is here: the
 //! SII interface reading the EEPROM image, DC receive-time latching and the system time, the
 //! sync managers' buffer protection, FMMU mapping of logical datagrams, and the AL control
 //! register behaving like a mailbox (a second write before the firmware read the first is
@@ -15,8 +16,13 @@ use crate::frame::{Addressing, Command, DatagramMut};
 use crate::registers::{self as reg, fmmu_reg, sii_reg};
 use crate::sim::sync_manager::{self, SyncManager, ACTIVATE_REPEAT, CONTROL_WATCHDOG, SM_COUNT};
 
-/// Number of FMMUs of the AKD's ESC.
-pub const FMMU_COUNT: u8 = 4;
+/// Number of FMMUs of the AKD's ESC: a master needs two for process data (outputs, inputs)
+/// and may use the third for the mailbox-in status bit.
+pub const FMMU_COUNT: u8 = 3;
+/// ESC build (register 0x0002) of the real drive.
+pub const ESC_BUILD: u16 = 0x0043;
+/// DL control byte 2 at power-up: the RX FIFO size, 7 (the ESC's default, no reduction).
+const DL_CONTROL_FIFO_SIZE: u8 = 0x07;
 /// First byte of process RAM.
 pub const RAM_START: usize = 0x1000;
 /// One past the last byte of process RAM (4 KiB).
@@ -87,11 +93,13 @@ impl Esc {
         let mut memory = vec![0u8; SPACE].into_boxed_slice();
         memory[0x0000] = 0x04;
         memory[0x0001] = 0x02;
+        memory[0x0002..0x0004].copy_from_slice(&ESC_BUILD.to_le_bytes());
         memory[0x0004] = FMMU_COUNT;
         memory[0x0005] = SM_COUNT;
         memory[0x0006] = ((RAM_END - RAM_START) / 1024) as u8;
         memory[0x0007] = 0x0F;
         memory[0x0008..0x000A].copy_from_slice(&0x0184u16.to_le_bytes());
+        memory[reg::DL_CONTROL as usize + 2] = DL_CONTROL_FIFO_SIZE;
         let alias = sii.get(8..10).map_or(0, |w| u16::from_le_bytes([w[0], w[1]]));
         memory[0x0012..0x0014].copy_from_slice(&alias.to_le_bytes());
         let dl_status = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
@@ -442,7 +450,10 @@ mod tests {
     fn power_up_registers_are_the_real_drives() {
         let mut e = esc();
         assert_eq!(run(&mut e, Command::Brd, 0, 0x0000, &[0, 0]), (vec![0x04, 0x02], 1));
-        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0007, &[0, 0]).0, vec![0x0F, 0x84]);
+        // The ESC information registers as a real AKD answered TwinCAT.
+        let information = [0x04, 0x02, 0x43, 0x00, 0x03, 0x04, 0x04, 0x0F, 0x84, 0x01];
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0000, &[0; 10]).0, information);
+        assert_eq!(run(&mut e, Command::Aprd, 0, 0x0102, &[0]).0, vec![0x07]);
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x0140, &[0, 0]).0, vec![0x08, 0x0C]);
         assert_eq!(run(&mut e, Command::Aprd, 0, 0x0130, &[0; 6]).0, vec![1, 0, 0, 0, 0, 0]);

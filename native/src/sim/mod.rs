@@ -48,6 +48,9 @@ pub struct Timing {
     /// From a write of AL control until the firmware handles the request (and the master may
     /// write AL control again).
     pub al_request_ns: u64,
+    /// The same for a request of PreOp in Init: the firmware sets up its mailbox and object
+    /// dictionary first, AL status reading Init all that time.
+    pub init_to_preop_ns: u64,
     /// From a complete mailbox write until the reply is in the mailbox-in buffer.
     pub mailbox_ns: u64,
 }
@@ -56,9 +59,15 @@ impl Timing {
     /// The real drive's typical delays in the SOEM capture: Init→PreOp shows after 4.2–6.2 ms
     /// and PreOp→SafeOp within 4.9 ms; most mailbox replies are there 0.65–1.4 ms after the
     /// request (some take up to 2.9 ms).
-    pub const REAL_DRIVE: Timing = Timing { al_request_ns: 4_500_000, mailbox_ns: 1_000_000 };
+    ///
+    /// Init→PreOp has a delay of its own because real drives differ there: under TwinCAT a real
+    /// AKD read Init for about 16 ms after the request (about 19 ms for the whole transition),
+    /// while the drive of the SOEM capture is in PreOp within 6.2 ms, and the replay of that
+    /// capture holds the virtual AKD to it. What makes the difference is not known yet.
+    pub const REAL_DRIVE: Timing =
+        Timing { al_request_ns: 4_500_000, init_to_preop_ns: 4_500_000, mailbox_ns: 1_000_000 };
     /// No delay: each request is handled before the next frame.
-    pub const IMMEDIATE: Timing = Timing { al_request_ns: 0, mailbox_ns: 0 };
+    pub const IMMEDIATE: Timing = Timing { al_request_ns: 0, init_to_preop_ns: 0, mailbox_ns: 0 };
 }
 
 impl Default for Timing {
@@ -215,7 +224,9 @@ impl VirtualAkd {
 
     fn schedule(&mut self, events: Events, now_ns: u64) {
         if let Some(control) = events.al_control {
-            self.pending_al = Some((control, now_ns + self.timing.al_request_ns));
+            let to_preop = self.al.state() == AlState::Init && AlState::from_bits(control) == Some(AlState::PreOp);
+            let delay = if to_preop { self.timing.init_to_preop_ns } else { self.timing.al_request_ns };
+            self.pending_al = Some((control, now_ns + delay));
         }
         if events.mailbox_written {
             self.pending_mailbox = Some(now_ns + self.timing.mailbox_ns);
@@ -482,6 +493,22 @@ mod tests {
         exchange(&mut bus, 5_000_000, Command::Bwr, 0, 0x0120, &[0x04, 0x00]);
         let (status, _) = exchange(&mut bus, 10_000_000, Command::Brd, 0, 0x0130, &[0; 6]);
         assert_eq!(status, vec![0x12, 0, 0, 0, 0x1D, 0]);
+    }
+
+    #[test]
+    fn init_to_preop_runs_at_a_pace_of_its_own() {
+        // A drive as under TwinCAT: Init for 16 ms after the request, other requests as usual.
+        let mut bus = VirtualBus::with_timing(1, Timing { init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE });
+        to_preop(&mut bus);
+        for t in [4_500_000, 10_000_000, 15_999_999] {
+            assert_eq!(exchange(&mut bus, t, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00], "at {t} ns");
+        }
+        // AL control stays the firmware's until then: a second write is refused.
+        assert_eq!(exchange(&mut bus, 15_999_999, Command::Bwr, 0, 0x0120, &[0x02, 0x00]).1, 0);
+        assert_eq!(exchange(&mut bus, 16_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        exchange(&mut bus, 16_000_000, Command::Bwr, 0, 0x0120, &[0x01, 0x00]);
+        assert_eq!(exchange(&mut bus, 20_499_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 20_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
     }
 
     #[test]
