@@ -80,6 +80,10 @@ BAD_FILES = {
         ["parameter dc_shift must be less than one cycle_time (0.001 s) either way", "0.001"],
     ),
     "dc shift out of range": ("dc_shift: 0.5", ["parameter dc_shift must be a number in [-0.01, 0.01]", "0.5"]),
+    "YAML syntax error": (
+        "link: [sim\nmode: x",
+        ["parameters file", "line 4, column 9", "expected ',' or ']'", "while parsing a flow sequence"],
+    ),
     "fault reaction": ("fault_reaction: some", ["parameter fault_reaction must be one of all, joint", "'some'"]),
     "joint name not a name token": ("joints: [arm/1]", ["parameter joints: 'arm/1' is not a joint name", "joint_1"]),
     "joint named twice": ("link: sim:2\njoints: [a, a]", ["parameter joints names a more than once"]),
