@@ -564,26 +564,12 @@ def test_the_trajectory_status_tells_the_story(recorded_run):
 
 
 def test_akd_plot_draws_one_joint_of_the_bag_and_names_the_joints_it_has(recorded_run, tmp_path):
-    import subprocess
-
-    from support.ros import BIN
+    from support.ros import akd_plot
 
     picture = tmp_path / "joint_3.png"
-    done = subprocess.run(
-        [str(BIN / "akd-plot"), str(recorded_run.bag), "--joint", "joint_3", "-o", str(picture)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = akd_plot(str(recorded_run.bag), "--joint", "joint_3", "-o", str(picture))
     assert done.returncode == 0, done.stderr
     assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
-    done = subprocess.run(
-        [str(BIN / "akd-plot"), str(recorded_run.bag), "--joint", "elbow", "-o", str(picture)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = akd_plot(str(recorded_run.bag), "--joint", "elbow", "-o", str(picture))
     assert done.returncode == 1 and "no cycle samples of joint 'elbow'" in done.stderr, done.stderr
     assert "joint_1, joint_2, joint_3, joint_4, joint_5, joint_6" in done.stderr and "Traceback" not in done.stderr

@@ -31,6 +31,7 @@ from support.ros import (
     NODE,
     NODE_TOPICS,
     WAIT_S,
+    akd_plot,
     latch_across,
     move_to,
     node_on_sim,
@@ -301,13 +302,7 @@ def test_type_hashes_agree_between_metadata_mcap_the_live_node_and_the_message_d
 
 def test_akd_plot_draws_the_fault_run(fault_run, tmp_path):
     picture = tmp_path / "fault.png"
-    done = subprocess.run(
-        [str(BIN / "akd-plot"), str(fault_run.bag), "-o", str(picture)],
-        capture_output=True,
-        text=True,
-        timeout=120,
-        check=False,
-    )
+    done = akd_plot(str(fault_run.bag), "-o", str(picture))
     assert done.returncode == 0, done.stderr
     assert picture.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert picture.stat().st_size > 20_000

@@ -128,13 +128,8 @@ class Diagnostics:
             "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
             "last_fault_action": "" if fault is None else fault.action,
         }
-        return self._status(
-            level=level,
-            name=f"{self._node_name}: {axis.name}",
-            message=summary,
-            hardware_id=f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}",
-            values=[self._key_value(key=k, value=str(v)) for k, v in values.items()],
-        )
+        hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
+        return self._status_message(level, axis.name, summary, hardware_id, values)
 
     def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict) -> object:
         """The status of the bus: the link, the cycle's counters and timing, distributed clocks, the joints' worst."""
@@ -168,10 +163,14 @@ class Diagnostics:
                 "dc_reference_slave": dc_status["reference_position"],
                 "dc_difference_misses": dc_status["difference_misses"],
             }
+        return self._status_message(level, "bus", summary, f"EtherCAT line {self._settings.link}", values)
+
+    def _status_message(self, level, what: str, summary: str, hardware_id: str, values: dict) -> object:
+        """A DiagnosticStatus `<node>: <what>` of `values` (each shown as text)."""
         return self._status(
             level=level,
-            name=f"{self._node_name}: bus",
+            name=f"{self._node_name}: {what}",
             message=summary,
-            hardware_id=f"EtherCAT line {self._settings.link}",
+            hardware_id=hardware_id,
             values=[self._key_value(key=k, value=str(v)) for k, v in values.items()],
         )

@@ -92,6 +92,11 @@ def _realtime(priority: int) -> None:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
 
 
+def akd_plot(*args: str) -> subprocess.CompletedProcess:
+    """`akd-plot ARGS` run to its end, its output captured."""
+    return subprocess.run([str(BIN / "akd-plot"), *args], capture_output=True, text=True, timeout=120, check=False)
+
+
 class Sim:
     """An akd-sim --udp process of `count` virtual AKDs on 127.0.0.1:`port` and its command line on stdin; under
     SCHED_FIFO (SIM_PRIORITY) where permitted."""
