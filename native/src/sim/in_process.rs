@@ -7,9 +7,10 @@
 
 use std::time::{Duration, Instant};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::link::{copy_reply, Link};
 use crate::sim::control::{ControlledBus, SimControl};
+use crate::sim::line::Delivery;
 use crate::sim::VirtualBus;
 
 /// A link to virtual AKDs in this process.
@@ -50,8 +51,13 @@ impl Link for InProcess {
         let len = copy_reply(tx, rx)?;
         // Monotonic time since the link opened: the bus's clocks run from there.
         let now_ns = self.start.elapsed().as_nanos() as u64;
-        self.bus.process(&mut rx[..len], now_ns)?;
-        Ok(len)
+        match self.bus.process(&mut rx[..len], now_ns)? {
+            Delivery::Returned => Ok(len),
+            // Not waited out: the frame is known lost, and the drives' time runs on anyway.
+            Delivery::Lost => {
+                Err(Error::Timeout { what: "a frame to come back from the virtual AKDs (lost on the line)".into() })
+            }
+        }
     }
 
     fn describe(&self) -> String {
