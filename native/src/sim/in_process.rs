@@ -8,7 +8,7 @@
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result};
-use crate::link::{copy_reply, Link};
+use crate::link::{copy_reply, is_reply_to, Link};
 use crate::sim::control::{ControlledBus, SimControl};
 use crate::sim::line::Delivery;
 use crate::sim::VirtualBus;
@@ -51,12 +51,12 @@ impl Link for InProcess {
         let len = copy_reply(tx, rx)?;
         // Monotonic time since the link opened: the bus's clocks run from there.
         let now_ns = self.start.elapsed().as_nanos() as u64;
+        // As the UDP and raw links do, a reply that is not the frame sent (a corrupted one) is
+        // dropped, and so the frame is lost. Neither is waited out: the link knows at once, and
+        // the drives' time runs on anyway.
         match self.bus.process(&mut rx[..len], now_ns)? {
-            Delivery::Returned => Ok(len),
-            // Not waited out: the frame is known lost, and the drives' time runs on anyway.
-            Delivery::Lost => {
-                Err(Error::Timeout { what: "a frame to come back from the virtual AKDs (lost on the line)".into() })
-            }
+            Delivery::Returned if is_reply_to(tx, &rx[..len]) => Ok(len),
+            _ => Err(Error::Timeout { what: "a frame to come back from the virtual AKDs (lost on the line)".into() }),
         }
     }
 

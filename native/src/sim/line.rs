@@ -31,6 +31,13 @@ pub enum Burst {
     WrongWkc(u64),
 }
 
+impl Burst {
+    /// A count of frames as a caller gives it; refused when negative.
+    pub fn frames(frames: i64) -> crate::error::Result<u64> {
+        u64::try_from(frames).map_err(|_| crate::error::SettingError::FrameCount { frames }.into())
+    }
+}
+
 /// The state of the line: bursts still pending and which cables are out.
 #[derive(Clone, Debug, Default)]
 pub struct Line {
@@ -114,6 +121,13 @@ mod tests {
         line.start(Burst::WrongWkc(1));
         line.start(Burst::Corrupted(0));
         assert_eq!(line.pending(), (0, 0, 1));
+    }
+
+    #[test]
+    fn a_negative_count_is_named() {
+        assert_eq!(Burst::frames(3).unwrap(), 3);
+        let e = Burst::frames(-1).unwrap_err().to_string();
+        assert!(e.contains("-1 frames: allowed are 0 (ends the burst) or more"), "{e}");
     }
 
     #[test]
