@@ -189,7 +189,8 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
             ("state", "usage: state POSITION"),
             (
                 "jog 0",
-                "allowed are fault, hardware_enable, toggles, state, power_cycle, cable, drop, corrupt, wrong_wkc, help",
+                "allowed are fault, hardware_enable, toggles, state, power_cycle, cable, drop, corrupt, wrong_wkc, "
+                "help",
             ),
         ):
             reply = command(bad)

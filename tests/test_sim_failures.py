@@ -48,7 +48,7 @@ def after_burst(cycle, simulator_call, frames: int) -> tuple[int, int, int]:
     simulator_call(frames)
     cycles = cycle.stats()["cycles"]
     wait_for("the cycle to run past the burst", lambda: cycle.stats()["cycles"] > cycles + 4 * frames + 50)
-    return tuple(now - before for now, before in zip(counts(cycle), base))
+    return tuple(now - before for now, before in zip(counts(cycle), base, strict=True))
 
 
 def test_dropped_frames_are_lost_to_the_cycle_exactly_as_many_as_asked(op_rig):

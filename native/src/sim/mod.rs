@@ -643,7 +643,7 @@ mod tests {
     fn bursts_lose_corrupt_and_miscount_exactly_the_frames_asked() {
         let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
         let (sent, slot) = al_status_frame();
-        let mut serve = |bus: &mut VirtualBus| {
+        let serve = |bus: &mut VirtualBus| {
             let mut frame = sent.clone();
             let delivery = bus.process(&mut frame, 0).unwrap();
             (delivery, frame::validate(&frame).is_ok(), slot.wkc(&frame).unwrap())
