@@ -67,32 +67,50 @@ def test_corrupted_replies_are_refused_by_the_masters_codec(op_rig):
     assert after_burst(cycle, simulator.corrupt_frames, 2) == (2, 0, 0)
 
 
-def test_a_pulled_cable_silences_the_drives_behind_it_until_replugged():
+@pytest.fixture
+def preop_master():
+    """A Master("sim:3") with every drive in PreOp."""
     with _native.Master(f"sim:{DRIVES}") as master:
         master.scan()
         master.request_state("preop")
-        master.simulator.pull_cable(1)
-        assert master.al_status(0)[0] == "PreOp"
-        for behind in (1, 2):
-            with pytest.raises(_native.WorkingCounterError):
-                master.al_status(behind)
-        assert len(master.scan()) == 1
-        master.simulator.replug_cable(1)
-        # Behind the cable the drives kept their power and their state.
-        assert [s["found_al_state"] for s in master.scan()] == ["Init", "PreOp", "PreOp"]
+        yield master
 
 
-def test_a_power_cycled_drive_is_back_in_init_without_its_station_address():
-    with _native.Master(f"sim:{DRIVES}") as master:
-        master.scan()
-        master.request_state("preop")
-        master.simulator.power_cycle(1)
-        assert master.al_status(0)[0] == "PreOp"
-        # Its station address is gone: nothing answers at it any more.
+def silent(master, positions) -> bool:
+    """Whether none of the drives at `positions` answers at its station address."""
+    for position in positions:
         with pytest.raises(_native.WorkingCounterError):
-            master.al_status(1)
-        slaves = master.scan()
-        assert [s["found_al_state"] for s in slaves] == ["PreOp", "Init", "PreOp"]
+            master.al_status(position)
+    return True
+
+
+def test_an_enabled_drive_behind_a_pulled_cable_misses_its_frames_and_faults(op_rig):
+    simulator, cycle = op_rig
+    cycle.enable(2)
+    cycle.wait_state(2, "Operation enabled")
+    simulator.pull_cable(1)
+    # Its firmware runs on without frames: after more than seven missed, F125.
+    wait_for("F125 behind the cable", lambda: simulator.drive_state(2)["fault_number"] == 125)
+    assert simulator.drive_state(0)["fault"] is None
+    simulator.replug_cable(1)
+
+
+def test_a_pulled_cable_silences_the_drives_behind_it_until_replugged(preop_master):
+    master = preop_master
+    master.simulator.pull_cable(1)
+    assert master.al_status(0)[0] == "PreOp" and silent(master, (1, 2))
+    assert len(master.scan()) == 1
+    master.simulator.replug_cable(1)
+    # Behind the cable the drives kept their power and their state.
+    assert [s["found_al_state"] for s in master.scan()] == ["Init", "PreOp", "PreOp"]
+
+
+def test_a_power_cycled_drive_is_back_in_init_without_its_station_address(preop_master):
+    master = preop_master
+    master.simulator.power_cycle(1)
+    # Its station address is gone: nothing answers at it any more.
+    assert master.al_status(0)[0] == "PreOp" and silent(master, (1,))
+    assert [s["found_al_state"] for s in master.scan()] == ["PreOp", "Init", "PreOp"]
 
 
 def test_bad_failures_are_refused_naming_the_allowed_values():
