@@ -12,7 +12,7 @@
 //! the link trait; [`server`] serves one on UDP or on a network interface.
 //! [`control`] lets tests and the simulator command inject faults, set inputs and query a
 //! drive while another thread owns the bus and serves its frames, and make the bus fail as
-//! in the field: a drive power-cycled ([`VirtualAkd::power_cycle`]), and on the [`line`]
+//! in the field: a drive power-cycled ([`VirtualAkd::power_cycle`]), and on the [`line`](mod@line)
 //! frames lost or corrupted, wrong working counters, a cable pulled out.
 //! [`VirtualBus::with_mailbox_size`] builds drives whose SII declares a smaller mailbox than
 //! the real drive's 1 KiB, so that segmented SDO transfers and fragmented SDO information,
@@ -459,7 +459,7 @@ impl VirtualBus {
     }
 
     /// Serves an EtherCAT payload (frame header and datagrams) in place at bus time `now_ns`,
-    /// through the drives its line reaches, and tells whether it comes back (see [`line`]).
+    /// through the drives its line reaches, and tells whether it comes back (see [`line`](mod@line)).
     /// A malformed frame is refused untouched.
     pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
         frame::validate(payload)?;
