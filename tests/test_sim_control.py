@@ -187,7 +187,11 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
             ("toggles 0 1 1,x", "counts separated by commas"),
             ("state x", "POSITION must be a whole number 0..0"),
             ("state", "usage: state POSITION"),
-            ("jog 0", "allowed are fault, hardware_enable, toggles, state, help"),
+            (
+                "jog 0",
+                "allowed are fault, hardware_enable, toggles, state, power_cycle, cable, drop, corrupt, wrong_wkc, "
+                "help",
+            ),
         ):
             reply = command(bad)
             assert reply.startswith("error: ") and named in reply, (bad, reply)

@@ -13,6 +13,14 @@ stdout, 'ok ...' or 'error: ...':
                                       without positions it stays low
   state POSITION                      the drive firmware's state as JSON, with "dc": what its
                                       synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2)
+  power_cycle POSITION                the drive loses power and comes back as at power-up
+                                      (AL Init, station address 0, Not ready to switch on)
+  cable POSITION pulled|plugged       pull the cable in front of the drive out (frames reach
+                                      only the drives before it), or plug it back in
+  drop FRAMES                         the next FRAMES frames get no reply at all
+  corrupt FRAMES                      the next FRAMES replies come back corrupted
+  wrong_wkc FRAMES                    the next FRAMES replies carry a wrong working counter
+                                      (FRAMES 0 ends a burst still pending)
   help                                the commands
 
 A change reaches the drive at once; the drive firmware acts on it when it next runs, at the
@@ -35,8 +43,16 @@ USAGE = {
     "hardware_enable": "hardware_enable POSITION high|low",
     "toggles": "toggles POSITION INPUT P1,P2,...",
     "state": "state POSITION",
+    "power_cycle": "power_cycle POSITION",
+    "cable": "cable POSITION pulled|plugged",
+    "drop": "drop FRAMES",
+    "corrupt": "corrupt FRAMES",
+    "wrong_wkc": "wrong_wkc FRAMES",
     "help": "help",
 }
+
+# The commands that take a count of frames, and the Simulator method each calls.
+BURSTS = {"drop": "drop_frames", "corrupt": "corrupt_frames", "wrong_wkc": "wrong_wkc"}
 
 
 class CommandError(ValueError):
@@ -86,9 +102,12 @@ def execute(simulator, line: str) -> str | None:
         raise CommandError(f"unknown command {name!r}: allowed are {', '.join(USAGE)}")
     if name == "help":
         return "ok commands: " + " | ".join(USAGE.values())
-    arity = {"fault": (2,), "hardware_enable": (2,), "toggles": (2, 3), "state": (1,)}[name]
+    arity = {"fault": (2,), "hardware_enable": (2,), "toggles": (2, 3), "cable": (2,)}.get(name, (1,))
     if len(args) not in arity:
         raise CommandError(f"usage: {USAGE[name]}")
+    if name in BURSTS:
+        getattr(simulator, BURSTS[name])(_whole_number(args[0], "FRAMES", "0 or more"))
+        return "ok " + " ".join(words)
     position = _whole_number(args[0], "POSITION", f"0..{len(simulator) - 1}")
     if name == "fault":
         simulator.inject_fault(position, args[1])
@@ -101,6 +120,12 @@ def execute(simulator, line: str) -> str | None:
         digital_input = _whole_number(args[1], "INPUT", "1..7")
         positions = _toggle_positions(args[2]) if len(args) == 3 else []
         simulator.set_input_toggles(position, digital_input, positions)
+    elif name == "power_cycle":
+        simulator.power_cycle(position)
+    elif name == "cable":
+        if args[1] not in ("pulled", "plugged"):
+            raise CommandError(f"cable takes pulled or plugged, got {args[1]!r}")
+        (simulator.pull_cable if args[1] == "pulled" else simulator.replug_cable)(position)
     else:
         return "ok " + json.dumps(simulator.drive_state(position))
     return "ok " + " ".join(words)

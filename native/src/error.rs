@@ -981,6 +981,11 @@ pub enum SettingError {
         /// Drives on the bus.
         count: usize,
     },
+    /// A burst of simulated line faults of a negative number of frames.
+    FrameCount {
+        /// The number asked for.
+        frames: i64,
+    },
     /// An interface name with a NUL byte, which the OS cannot take.
     InterfaceName {
         /// The name.
@@ -1068,6 +1073,9 @@ impl fmt::Display for SettingError {
             ),
             SettingError::DrivePosition { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
+            }
+            SettingError::FrameCount { frames } => {
+                write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")
             }
             SettingError::InterfaceName { name } => write!(f, "interface name {name:?} contains a NUL byte"),
         }

@@ -13,6 +13,7 @@ use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
+use crate::sim::line::{Burst, Delivery};
 use crate::sim::sync::SyncState;
 use crate::sim::{server, Timing, VirtualBus};
 
@@ -90,12 +91,12 @@ impl PyVirtualBus {
         }
     }
 
-    /// Serves `payload` at bus time `time_ns` and returns the frame as it comes back; raises
-    /// FrameError for a malformed frame.
-    fn process<'py>(&mut self, py: Python<'py>, payload: &[u8], time_ns: u64) -> PyResult<Bound<'py, PyBytes>> {
+    /// Serves `payload` at bus time `time_ns` and returns the frame as it comes back, or None
+    /// when it is lost on the line; raises FrameError for a malformed frame.
+    fn process<'py>(&mut self, py: Python<'py>, payload: &[u8], time_ns: u64) -> PyResult<Option<Bound<'py, PyBytes>>> {
         let mut frame = payload.to_vec();
-        self.bus.process(&mut frame, time_ns).map_err(Error::from).py()?;
-        Ok(PyBytes::new(py, &frame))
+        let delivery = self.bus.process(&mut frame, time_ns).map_err(Error::from).py()?;
+        Ok((delivery == Delivery::Returned).then(|| PyBytes::new(py, &frame)))
     }
 
     /// AL state bits with the error flag, and the AL status code, of drive `position`.
@@ -189,6 +190,41 @@ impl PySimulator {
     /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
     fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
         self.control.set_input_toggles(position, input, positions).py()
+    }
+
+    /// Power-cycles drive `position` before the next frame: it comes back as at power-up (AL
+    /// Init, station address 0, mailbox and mappings reset, Not ready to switch on).
+    fn power_cycle(&self, position: usize) -> PyResult<()> {
+        self.control.power_cycle(position).py()
+    }
+
+    /// Pulls the cable in front of drive `position` out: frames stop reaching it and every
+    /// drive behind it, and come back with the working counters of the drives before it only
+    /// (with position 0, not at all), until `replug_cable`.
+    fn pull_cable(&self, position: usize) -> PyResult<()> {
+        self.control.set_cable(position, false).py()
+    }
+
+    /// Plugs the cable in front of drive `position` back in.
+    fn replug_cable(&self, position: usize) -> PyResult<()> {
+        self.control.set_cable(position, true).py()
+    }
+
+    /// The next `frames` frames get no reply at all; 0 ends a burst still pending.
+    fn drop_frames(&self, frames: i64) -> PyResult<()> {
+        self.control.start_burst(Burst::Lost(Burst::frames(frames).py()?)).py()
+    }
+
+    /// The next `frames` replies come back corrupted (the frame header's length one short),
+    /// so the master's codec refuses them; 0 ends a burst still pending.
+    fn corrupt_frames(&self, frames: i64) -> PyResult<()> {
+        self.control.start_burst(Burst::Corrupted(Burst::frames(frames).py()?)).py()
+    }
+
+    /// The next `frames` replies carry a wrong working counter in every datagram; 0 ends a
+    /// burst still pending.
+    fn wrong_wkc(&self, frames: i64) -> PyResult<()> {
+        self.control.start_burst(Burst::WrongWkc(Burst::frames(frames).py()?)).py()
     }
 
     /// The drive firmware of drive `position` after the next frame, as `VirtualBus.drive_state`

@@ -1,5 +1,7 @@
 //! Control of virtual AKDs whose bus another thread owns: fault injection, the hardware enable
-//! input, digital input toggles, and a query of the drive firmware's state.
+//! input, digital input toggles, the failures of the field (a drive power-cycled, a cable
+//! pulled, frames lost or corrupted, wrong working counters: see [`crate::sim::line`]), and a
+//! query of the drive firmware's state.
 //!
 //! The bus is owned by whoever serves its frames: the in-process link inside a master (and so
 //! the cycle thread while a cycle runs), or the `akd-sim` server loop. A [`SimControl`] handle
@@ -27,6 +29,7 @@ use crate::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
+use crate::sim::line::{Burst, Delivery};
 use crate::sim::sync::SyncState;
 use crate::sim::{VirtualAkd, VirtualBus};
 
@@ -103,6 +106,20 @@ pub enum Change {
         /// Toggle positions, counts, each finite.
         positions: Vec<f64>,
     },
+    /// Power-cycle the drive ([`VirtualAkd::power_cycle`]).
+    PowerCycle {
+        /// Drive position.
+        position: usize,
+    },
+    /// Pull the cable in front of the drive out, or plug it back in.
+    Cable {
+        /// Drive position.
+        position: usize,
+        /// Whether it is in.
+        plugged: bool,
+    },
+    /// Lose, corrupt or give a wrong working counter to the next frames.
+    Burst(Burst),
 }
 
 impl Change {
@@ -129,6 +146,18 @@ impl Change {
         Ok(Change::InputToggles { position, input, positions })
     }
 
+    /// Power-cycle drive `position` of a bus of `count` drives.
+    pub fn power_cycle(count: usize, position: usize) -> Result<Self> {
+        check_position(count, position)?;
+        Ok(Change::PowerCycle { position })
+    }
+
+    /// Pull the cable in front of drive `position` of a bus of `count` drives out, or plug it in.
+    pub fn cable(count: usize, position: usize, plugged: bool) -> Result<Self> {
+        check_position(count, position)?;
+        Ok(Change::Cable { position, plugged })
+    }
+
     /// Applies the change to `bus` (the bus it was checked against).
     pub fn apply(self, bus: &mut VirtualBus) {
         match self {
@@ -138,6 +167,11 @@ impl Change {
                 let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_toggles(input, &positions);
                 debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
             }
+            // A test's rare event: the fresh drive's allocation on the owner's side is the
+            // power-up's, not the exchange path's.
+            Change::PowerCycle { position } => bus.slave_mut(position).power_cycle(),
+            Change::Cable { position, plugged } => bus.set_cable(position, plugged),
+            Change::Burst(burst) => bus.start_burst(burst),
         }
     }
 }
@@ -185,6 +219,23 @@ impl SimControl {
     /// (counts) crosses one of `positions` from the next frame on; it is low below all of them.
     pub fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> Result<()> {
         self.send(Message::Change(Change::input_toggles(self.count, position, input, positions)?))
+    }
+
+    /// Power-cycles drive `position` before the next frame: it answers as at power-up.
+    pub fn power_cycle(&self, position: usize) -> Result<()> {
+        self.send(Message::Change(Change::power_cycle(self.count, position)?))
+    }
+
+    /// Pulls the cable in front of drive `position` out (`plugged` false) before the next
+    /// frame, or plugs it back in: frames reach only the drives in front of it.
+    pub fn set_cable(&self, position: usize, plugged: bool) -> Result<()> {
+        self.send(Message::Change(Change::cable(self.count, position, plugged)?))
+    }
+
+    /// Starts `burst` at the next frame: lost frames, corrupted replies or wrong working
+    /// counters, as many as it counts.
+    pub fn start_burst(&self, burst: Burst) -> Result<()> {
+        self.send(Message::Change(Change::Burst(burst)))
     }
 
     /// The drive firmware's state of drive `position` after the owner's next frame; waits up
@@ -240,7 +291,7 @@ impl ControlledBus {
 
     /// Serves an EtherCAT payload in place at bus time `now_ns` as [`VirtualBus::process`]
     /// does, with the changes sent before it applied first and the queries answered after it.
-    pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> std::result::Result<(), FrameError> {
+    pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> std::result::Result<Delivery, FrameError> {
         self.take_commands();
         let served = self.bus.process(payload, now_ns);
         self.answer_queries();
@@ -298,6 +349,10 @@ mod tests {
         assert!(e.contains("digital input 8: the AKD has inputs 1 to 7"), "{e}");
         let e = control.set_input_toggles(1, 1, vec![1.0, f64::INFINITY]).unwrap_err().to_string();
         assert!(e.contains("toggle position inf of digital input 1 is not a finite"), "{e}");
+        let e = control.power_cycle(2).unwrap_err().to_string();
+        assert!(e.contains("no slave at position 2: the bus has 2 slave(s)"), "{e}");
+        let e = control.set_cable(3, false).unwrap_err().to_string();
+        assert!(e.contains("no slave at position 3: the bus has 2 slave(s)"), "{e}");
         let e = control.set_hardware_enable(usize::MAX, false).unwrap_err().to_string();
         assert!(e.contains(&format!("no slave at position {}: the bus has 2", usize::MAX)), "{e}");
         // Nothing refused reached the owner.

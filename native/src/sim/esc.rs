@@ -102,14 +102,26 @@ impl Esc {
         memory[reg::DL_CONTROL as usize + 2] = DL_CONTROL_FIFO_SIZE;
         let alias = sii.get(8..10).map_or(0, |w| u16::from_le_bytes([w[0], w[1]]));
         memory[0x0012..0x0014].copy_from_slice(&alias.to_le_bytes());
-        let dl_status = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
-        memory[0x0110..0x0112].copy_from_slice(&dl_status.to_le_bytes());
         memory[0x0130] = 0x01;
         memory[0x0140..0x0142].copy_from_slice(&0x0C08u16.to_le_bytes());
         memory[0x0400..0x0402].copy_from_slice(&0x09C2u16.to_le_bytes());
         memory[0x0420..0x0422].copy_from_slice(&1000u16.to_le_bytes());
         memory[0x0502..0x0504].copy_from_slice(&sii_reg::EMULATION.to_le_bytes());
-        Esc { memory, sii, al_control_locked: false, events: Events::default() }
+        let mut esc = Esc { memory, sii, al_control_locked: false, events: Events::default() };
+        esc.set_successor(has_successor);
+        esc
+    }
+
+    /// The EEPROM it serves.
+    pub fn sii(&self) -> &[u8] {
+        &self.sii
+    }
+
+    /// Whether a drive answers on port 1 (a cable pulled out behind it, or plugged back in):
+    /// the DL status shows port 1's link and whether its loop is closed.
+    pub fn set_successor(&mut self, has_successor: bool) {
+        let dl_status = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
+        self.memory[0x0110..0x0112].copy_from_slice(&dl_status.to_le_bytes());
     }
 
     /// The whole space, as the firmware (PDI) sees it.

@@ -7,9 +7,10 @@
 
 use std::time::{Duration, Instant};
 
-use crate::error::Result;
-use crate::link::{copy_reply, Link};
+use crate::error::{Error, Result};
+use crate::link::{copy_reply, is_reply_to, Link};
 use crate::sim::control::{ControlledBus, SimControl};
+use crate::sim::line::Delivery;
 use crate::sim::VirtualBus;
 
 /// A link to virtual AKDs in this process.
@@ -50,8 +51,13 @@ impl Link for InProcess {
         let len = copy_reply(tx, rx)?;
         // Monotonic time since the link opened: the bus's clocks run from there.
         let now_ns = self.start.elapsed().as_nanos() as u64;
-        self.bus.process(&mut rx[..len], now_ns)?;
-        Ok(len)
+        // As the UDP and raw links do, a reply that is not the frame sent (a corrupted one) is
+        // dropped, and so the frame is lost. Neither is waited out: the link knows at once, and
+        // the drives' time runs on anyway.
+        match self.bus.process(&mut rx[..len], now_ns)? {
+            Delivery::Returned if is_reply_to(tx, &rx[..len]) => Ok(len),
+            _ => Err(Error::Timeout { what: "a frame to come back from the virtual AKDs (lost on the line)".into() }),
+        }
     }
 
     fn describe(&self) -> String {

@@ -11,7 +11,9 @@
 //! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
 //! the link trait; [`server`] serves one on UDP or on a network interface.
 //! [`control`] lets tests and the simulator command inject faults, set inputs and query a
-//! drive while another thread owns the bus and serves its frames.
+//! drive while another thread owns the bus and serves its frames, and make the bus fail as
+//! in the field: a drive power-cycled ([`VirtualAkd::power_cycle`]), and on the [`line`](mod@line)
+//! frames lost or corrupted, wrong working counters, a cable pulled out.
 //! [`VirtualBus::with_mailbox_size`] builds drives whose SII declares a smaller mailbox than
 //! the real drive's 1 KiB, so that segmented SDO transfers and fragmented SDO information,
 //! which the real drive's objects never need, can be exercised.
@@ -23,6 +25,7 @@ pub mod drive;
 pub mod esc;
 pub mod faults;
 pub mod in_process;
+pub mod line;
 pub mod mailbox_server;
 pub mod motion;
 pub mod od;
@@ -112,6 +115,8 @@ pub struct VirtualAkd {
     outputs_fresh: bool,
     /// Bus time of the last complete write of the outputs.
     outputs_at_ns: u64,
+    identity: Identity,
+    has_successor: bool,
     drive: drive::Drive,
     rx_image: process_data::Image,
     tx_image: process_data::Image,
@@ -161,10 +166,21 @@ impl VirtualAkd {
             pending_mailbox: None,
             outputs_fresh: false,
             outputs_at_ns: 0,
+            identity,
+            has_successor,
             drive: drive::Drive::default(),
             rx_image: Vec::new(),
             tx_image: Vec::new(),
         }
+    }
+
+    /// The drive loses its power and comes back, as a real AKD does: ESC and firmware at
+    /// power-up (AL Init, station address 0, sync managers, FMMUs and mailbox cleared, the
+    /// object dictionary and its mappings at their defaults, CiA 402 Not ready to switch on),
+    /// with the same EEPROM, identity and timing.
+    pub fn power_cycle(&mut self) {
+        let sii = self.esc.sii().to_vec();
+        *self = Self::with_sii(sii, self.identity, self.mailbox_size, self.has_successor, self.timing);
     }
 
     /// The AL state, the error flag and the AL status code.
@@ -380,6 +396,7 @@ impl VirtualAkd {
 /// its own.
 pub struct VirtualBus {
     slaves: Vec<VirtualAkd>,
+    line: line::Line,
 }
 
 impl VirtualBus {
@@ -391,7 +408,7 @@ impl VirtualBus {
     /// `count` virtual AKDs reacting with `timing`.
     pub fn with_timing(count: usize, timing: Timing) -> Self {
         let slaves = (0..count).map(|i| VirtualAkd::new(sii_image::identity(i), i + 1 < count, timing));
-        VirtualBus { slaves: slaves.collect() }
+        VirtualBus { slaves: slaves.collect(), line: line::Line::new(count) }
     }
 
     /// `count` virtual AKDs reacting with `timing` whose SII declares a standard mailbox of
@@ -400,7 +417,7 @@ impl VirtualBus {
     pub fn with_mailbox_size(count: usize, timing: Timing, mailbox_size: u16) -> Result<Self> {
         let slaves = (0..count)
             .map(|i| VirtualAkd::with_mailbox_size(sii_image::identity(i), mailbox_size, i + 1 < count, timing));
-        Ok(VirtualBus { slaves: slaves.collect::<Result<_>>()? })
+        Ok(VirtualBus { slaves: slaves.collect::<Result<_>>()?, line: line::Line::new(count) })
     }
 
     /// Number of drives.
@@ -423,6 +440,27 @@ impl VirtualBus {
         &mut self.slaves[i]
     }
 
+    /// The line in front of the drives, as its faults left it.
+    pub fn line(&self) -> &line::Line {
+        &self.line
+    }
+
+    /// Starts a burst of lost frames, corrupted replies or wrong working counters.
+    pub fn start_burst(&mut self, burst: line::Burst) {
+        self.line.start(burst);
+    }
+
+    /// Pulls the cable in front of drive `position` out, or plugs it back in: frames reach
+    /// only the drives in front of the first cable out, and the last of those closes its port
+    /// 1. Panics when `position` is not below [`len`](Self::len).
+    pub fn set_cable(&mut self, position: usize, plugged: bool) {
+        self.line.set_cable(position, plugged);
+        let reach = self.line.reach();
+        for (i, slave) in self.slaves.iter_mut().enumerate() {
+            slave.esc.set_successor(slave.has_successor && i + 1 < reach);
+        }
+    }
+
     /// Lets bus time `now_ns` pass with no frame: every drive's firmware runs up to it (the
     /// motors move, supervision counts missed frames).
     pub fn advance(&mut self, now_ns: u64) {
@@ -431,13 +469,22 @@ impl VirtualBus {
         }
     }
 
-    /// Serves an EtherCAT payload (frame header and datagrams) in place at bus time `now_ns`.
+    /// Serves an EtherCAT payload (frame header and datagrams) in place at bus time `now_ns`,
+    /// through the drives its line reaches, and tells whether it comes back (see [`line`](mod@line)).
     /// A malformed frame is refused untouched.
-    pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> Result<(), FrameError> {
+    pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
         frame::validate(payload)?;
-        let last = self.slaves.len().saturating_sub(1) as u64;
+        let reach = self.line.reach();
+        if self.line.take_lost() || reach == 0 {
+            self.advance(now_ns);
+            return Ok(line::Delivery::Lost);
+        }
+        let last = reach as u64 - 1;
         for (i, slave) in self.slaves.iter_mut().enumerate() {
             slave.poll(now_ns);
+            if i >= reach {
+                continue;
+            }
             let i = i as u64;
             let arrival = Arrival {
                 port0_ns: now_ns + i * FORWARD_DELAY_NS,
@@ -445,7 +492,8 @@ impl VirtualBus {
             };
             frame::for_each_datagram_mut(payload, |dg| slave.serve(dg, now_ns, arrival))?;
         }
-        Ok(())
+        self.line.spoil(payload);
+        Ok(line::Delivery::Returned)
     }
 }
 
@@ -566,6 +614,78 @@ mod tests {
             let Err(e) = VirtualBus::with_mailbox_size(1, Timing::IMMEDIATE, size) else { panic!("{size} accepted") };
             assert!(e.to_string().contains(&format!("{size} bytes: allowed are 64 to 1024")), "{e}");
         }
+    }
+
+    /// Payload of one BRD of the AL status.
+    fn al_status_frame() -> (Vec<u8>, crate::frame::Slot) {
+        let mut buf = vec![0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf);
+        let slot = b.push(Command::Brd, 0, 0, 0x0130, &[0, 0]).unwrap();
+        let len = b.finish();
+        buf.truncate(len);
+        (buf, slot)
+    }
+
+    #[test]
+    fn a_power_cycled_drive_answers_as_at_power_up() {
+        let mut bus = VirtualBus::with_timing(2, Timing::IMMEDIATE);
+        exchange(&mut bus, 0, Command::Apwr, 0xFFFF, 0x0010, &0x1002u16.to_le_bytes());
+        to_preop(&mut bus);
+        exchange(&mut bus, 1, Command::Brd, 0, 0x0130, &[0, 0]);
+        bus.slave_mut(1).drive_mut().inject(faults::Fault::SyncLost);
+        bus.advance(2);
+        assert_eq!(bus.slave(1).al_status().0, AlState::PreOp);
+        bus.slave_mut(1).power_cycle();
+        assert_eq!(bus.slave(1).al_status(), (AlState::Init, false, 0));
+        assert_eq!(bus.slave(1).drive().state(), crate::ds402::State::NotReadyToSwitchOn);
+        assert_eq!(bus.slave(1).drive().fault(), None);
+        assert_eq!(exchange(&mut bus, 3, Command::Aprd, 0xFFFF, 0x0010, &[0, 0]), (vec![0, 0], 1));
+        let fresh = VirtualBus::new(2);
+        assert_eq!(bus.slave(1).registers()[0x0800..0x0820], fresh.slave(1).registers()[0x0800..0x0820]);
+        assert_ne!(bus.slave(0).registers()[0x0800..0x0820], fresh.slave(0).registers()[0x0800..0x0820]);
+        // The other drive kept its state, and the drive its identity and place on the line.
+        assert_eq!(bus.slave(0).al_status().0, AlState::PreOp);
+        assert_eq!(bus.slave(1).od().get(0x1018, 4), fresh.slave(1).od().get(0x1018, 4));
+        assert_eq!(exchange(&mut bus, 3, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+    }
+
+    #[test]
+    fn a_pulled_cable_ends_the_line_until_plugged_back() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        bus.set_cable(1, false);
+        assert_eq!(exchange(&mut bus, 0, Command::Brd, 0, 0x0000, &[0, 0]).1, 1);
+        // Drive 0 closed its port 1 (loop closed, no link).
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0000, &[0, 0]).1, 0);
+        bus.set_cable(1, true);
+        assert_eq!(exchange(&mut bus, 0, Command::Brd, 0, 0x0000, &[0, 0]).1, 3);
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
+        // With the first cable out no ESC returns anything.
+        bus.set_cable(0, false);
+        let (mut frame, _) = al_status_frame();
+        assert_eq!(bus.process(&mut frame, 0), Ok(line::Delivery::Lost));
+    }
+
+    #[test]
+    fn bursts_lose_corrupt_and_miscount_exactly_the_frames_asked() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        let (sent, slot) = al_status_frame();
+        let serve = |bus: &mut VirtualBus| {
+            let mut frame = sent.clone();
+            let delivery = bus.process(&mut frame, 0).unwrap();
+            (delivery, frame::validate(&frame).is_ok(), slot.wkc(&frame).unwrap())
+        };
+        bus.start_burst(line::Burst::Lost(2));
+        bus.start_burst(line::Burst::Corrupted(1));
+        bus.start_burst(line::Burst::WrongWkc(2));
+        use line::Delivery::{Lost, Returned};
+        assert_eq!(serve(&mut bus), (Lost, true, 0));
+        assert_eq!(serve(&mut bus), (Lost, true, 0));
+        // The master's codec refuses the corrupted reply: its length no longer adds up.
+        assert_eq!(serve(&mut bus), (Returned, false, 2));
+        assert_eq!(serve(&mut bus), (Returned, true, 2));
+        assert_eq!(serve(&mut bus), (Returned, true, 3));
+        assert_eq!(bus.line().pending(), (0, 0, 0));
     }
 
     #[test]

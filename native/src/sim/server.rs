@@ -2,7 +2,8 @@
 //! the UDP datagram) or raw Ethernet on a network interface (e.g. one end of a veth pair).
 //!
 //! Each request is processed at the monotonic time since the server started and sent back at
-//! once; a malformed request is counted and dropped, as a real line drops a corrupt frame. The
+//! once; a malformed request is counted and dropped, as a real line drops a corrupt frame, and
+//! a frame lost on the simulated line is counted and not answered. The
 //! loops wake at least every 100 ms to see `stop`. The bus takes commands from its
 //! [`SimControl`](crate::sim::control::SimControl) handles at each frame and, with no frame,
 //! at each wake-up, so a query is answered within 100 ms whether a master runs or not.
@@ -15,6 +16,7 @@ use crate::error::{Error, Result};
 use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
 use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
+use crate::sim::line::Delivery;
 
 /// How often a server looks at its stop flag.
 pub const POLL_INTERVAL: Duration = Duration::from_millis(100);
@@ -26,6 +28,21 @@ pub struct ServerStats {
     pub served: u64,
     /// Frames dropped because they were not valid EtherCAT frames.
     pub malformed: u64,
+    /// Frames lost on the simulated line (see [`crate::sim::line`]): never answered.
+    pub lost: u64,
+}
+
+impl ServerStats {
+    /// Serves `payload` through `bus` at `now_ns`; whether it goes back. What does not is
+    /// counted, malformed or lost.
+    fn serve(&mut self, bus: &mut ControlledBus, payload: &mut [u8], now_ns: u64) -> bool {
+        match bus.process(payload, now_ns) {
+            Ok(Delivery::Returned) => return true,
+            Ok(Delivery::Lost) => self.lost += 1,
+            Err(_) => self.malformed += 1,
+        }
+        false
+    }
 }
 
 fn elapsed_ns(start: Instant) -> u64 {
@@ -56,8 +73,7 @@ pub fn serve_udp(bind: SocketAddr, bus: impl Into<ControlledBus>, stop: &AtomicB
             }
             Err(e) => return Err(Error::io(format!("receiving on UDP {bind}"), e)),
         };
-        if bus.process(&mut buf[..len], elapsed_ns(start)).is_err() {
-            stats.malformed += 1;
+        if !stats.serve(&mut bus, &mut buf[..len], elapsed_ns(start)) {
             continue;
         }
         socket.send_to(&buf[..len], peer).map_err(|e| Error::io(format!("replying to {peer}"), e))?;
@@ -89,8 +105,7 @@ pub fn serve_iface(iface: &str, bus: impl Into<ControlledBus>, stop: &AtomicBool
             bus.serve_commands();
             continue;
         }
-        if bus.process(&mut buf[ETH_HEADER_LEN..len], elapsed_ns(start)).is_err() {
-            stats.malformed += 1;
+        if !stats.serve(&mut bus, &mut buf[ETH_HEADER_LEN..len], elapsed_ns(start)) {
             continue;
         }
         buf[6] |= RETURNED_MAC_BIT;

@@ -1,0 +1,145 @@
+//! The line between the master and the drives, and what goes wrong on it as in the field:
+//! frames lost on the way, replies corrupted, working counters that do not add up, and a cable
+//! pulled out in front of a drive.
+//!
+//! Each fault is a count of frames still to hit, so a test asks for exactly the burst it
+//! wants; a count of 0 ends one. A pulled cable ends the line in front of its drive: frames
+//! stop there, the drive before it closes its port 1 and returns them, so they come back with
+//! the working counters of the drives before it only. The drives behind it keep their power:
+//! their firmware keeps running on bus time and misses the frames (the watchdog and the
+//! drive's own supervision see that), and they carry on where they were when replugged. With
+//! the cable in front of the first drive pulled no ESC returns anything: every frame is lost.
+
+/// What became of a frame sent down the line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Delivery {
+    /// It came back (served, possibly corrupted or with a wrong working counter).
+    Returned,
+    /// It did not come back: no reply at all.
+    Lost,
+}
+
+/// A burst of frames a fault hits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Burst {
+    /// The next frames the line receives are lost before the first drive.
+    Lost(u64),
+    /// The next replies come back with the EtherCAT frame header's length one short, so a
+    /// master's codec refuses them.
+    Corrupted(u64),
+    /// The next replies carry a wrong working counter in every datagram.
+    WrongWkc(u64),
+}
+
+impl Burst {
+    /// A count of frames as a caller gives it; refused when negative.
+    pub fn frames(frames: i64) -> crate::error::Result<u64> {
+        u64::try_from(frames).map_err(|_| crate::error::SettingError::FrameCount { frames }.into())
+    }
+}
+
+/// The state of the line: bursts still pending and which cables are out.
+#[derive(Clone, Debug, Default)]
+pub struct Line {
+    lost: u64,
+    corrupted: u64,
+    wrong_wkc: u64,
+    /// `pulled[i]`: the cable in front of drive `i` is out.
+    pulled: Vec<bool>,
+}
+
+impl Line {
+    /// A line in front of `count` drives, every cable in.
+    pub fn new(count: usize) -> Self {
+        Line { pulled: vec![false; count], ..Line::default() }
+    }
+
+    /// Starts `burst`, replacing one of the same kind still pending.
+    pub fn start(&mut self, burst: Burst) {
+        match burst {
+            Burst::Lost(n) => self.lost = n,
+            Burst::Corrupted(n) => self.corrupted = n,
+            Burst::WrongWkc(n) => self.wrong_wkc = n,
+        }
+    }
+
+    /// Pulls the cable in front of drive `position` out (`plugged` false) or back in.
+    /// Panics when `position` is not on the line (checked by the caller).
+    pub fn set_cable(&mut self, position: usize, plugged: bool) {
+        self.pulled[position] = !plugged;
+    }
+
+    /// How many drives a frame reaches: those in front of the first pulled cable.
+    pub fn reach(&self) -> usize {
+        self.pulled.iter().position(|&p| p).unwrap_or(self.pulled.len())
+    }
+
+    /// Frames still to lose, to corrupt, and to give a wrong working counter.
+    pub fn pending(&self) -> (u64, u64, u64) {
+        (self.lost, self.corrupted, self.wrong_wkc)
+    }
+
+    /// Whether the next frame is lost before the first drive (and counts it).
+    pub fn take_lost(&mut self) -> bool {
+        take(&mut self.lost)
+    }
+
+    /// Spoils a served `payload` as the pending bursts ask: a wrong working counter first, then
+    /// the frame header's length one short. `payload` is a valid frame.
+    pub fn spoil(&mut self, payload: &mut [u8]) {
+        if take(&mut self.wrong_wkc) {
+            // One less than the drives gave, or 1 where none answered: wrong either way.
+            let wrong = crate::frame::for_each_datagram_mut(payload, |dg| {
+                dg.wkc = if dg.wkc == 0 { 1 } else { dg.wkc - 1 };
+            });
+            debug_assert!(wrong.is_ok(), "a served frame is valid: {wrong:?}");
+        }
+        if take(&mut self.corrupted) {
+            let header = u16::from_le_bytes([payload[0], payload[1]]);
+            let len = header & 0x07FF;
+            payload[..2].copy_from_slice(&((header & !0x07FF) | (len.wrapping_sub(1) & 0x07FF)).to_le_bytes());
+        }
+    }
+}
+
+fn take(count: &mut u64) -> bool {
+    let hit = *count > 0;
+    *count = count.saturating_sub(1);
+    hit
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn bursts_count_down_and_replace_each_other() {
+        let mut line = Line::new(2);
+        line.start(Burst::Lost(2));
+        assert_eq!((line.take_lost(), line.take_lost(), line.take_lost()), (true, true, false));
+        line.start(Burst::WrongWkc(5));
+        line.start(Burst::WrongWkc(1));
+        line.start(Burst::Corrupted(0));
+        assert_eq!(line.pending(), (0, 0, 1));
+    }
+
+    #[test]
+    fn a_negative_count_is_named() {
+        assert_eq!(Burst::frames(3).unwrap(), 3);
+        let e = Burst::frames(-1).unwrap_err().to_string();
+        assert!(e.contains("-1 frames: allowed are 0 (ends the burst) or more"), "{e}");
+    }
+
+    #[test]
+    fn the_first_pulled_cable_ends_the_line() {
+        let mut line = Line::new(3);
+        assert_eq!(line.reach(), 3);
+        line.set_cable(2, false);
+        line.set_cable(1, false);
+        assert_eq!(line.reach(), 1);
+        line.set_cable(1, true);
+        assert_eq!(line.reach(), 2);
+        line.set_cable(2, true);
+        assert_eq!(line.reach(), 3);
+    }
+}
