@@ -73,7 +73,7 @@ class Diagnostics:
         self._counters_seen = {}
 
     def _publish(self) -> None:
-        taken = self._session.states()
+        taken = self._session.states(with_stats=True)
         if taken is None:
             return
         bus, states, stats = taken

@@ -116,7 +116,7 @@ class Publishing:
         self.joint_states.publish(message)
 
     def _publish_status(self) -> None:
-        taken = self._session.states()
+        taken = self._session.states(with_stats=True)
         if taken is None:
             return
         bus, states, stats = taken

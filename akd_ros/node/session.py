@@ -40,12 +40,13 @@ class Session:
         """Every joint's settings, in order."""
         return self.settings.joints
 
-    def states(self):
-        """(bus, every axis's state by joint from one cycle, the statistics), or None when closed or inactive."""
+    def states(self, with_stats: bool = False):
+        """(bus, every axis's state by joint from one cycle, the cycle's statistics where `with_stats`, else None), or
+        None when closed or inactive. /joint_states, the most frequent caller, needs no statistics."""
         with self.lock:
             if self.bus is None or not self.active:
                 return None
-            return self.bus, self.bus.states(), self.bus.stats()
+            return self.bus, self.bus.states(), self.bus.stats() if with_stats else None
 
     def bus_for_request(self) -> Bus:
         """The Bus of an active node; CommandError otherwise."""
