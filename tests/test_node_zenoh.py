@@ -10,7 +10,6 @@ expressions, rmw_zenoh's attachments, liveliness tokens, and payloads decoded wi
 
 from __future__ import annotations
 
-import os
 import subprocess
 import threading
 import time
@@ -20,7 +19,7 @@ import pytest
 
 from akd_ros.zenoh.types import Types
 from akd_ros.zenoh.wire import Attachment, Entity, EntityKind, data_key_expr, dds_type_name, gid_of
-from support.ros import BIN, COUNTS_PER_RAD, NO_ROS, NO_ROS_NODE, NodeProcess, Sim, stop
+from support.ros import COUNTS_PER_RAD, NodeProcess, Sim, node_command, stop
 from support.waiting import wait_for
 from support.zenoh import WAIT_S, liveliness_keys, zenoh_router, zenoh_session
 
@@ -336,9 +335,10 @@ def test_without_a_router_the_node_warns_naming_it_runs_on_and_records_a_bag_ros
 def test_transport_both_without_rclpy_is_one_line_naming_the_way_out(tmp_path):
     path = tmp_path / "akd_node.yaml"
     path.write_text("akd_node:\n  ros__parameters:\n    transport: both\n    link: sim\n")
+    argv, env = node_command(path, without_ros=True)
     done = subprocess.run(
-        [str(NO_ROS_NODE if NO_ROS_NODE.exists() else BIN / "akd_node"), "--ros-args", "--params-file", str(path)],
-        env={**os.environ, "PYTHONPATH": str(NO_ROS)},
+        argv,
+        env=env,
         capture_output=True,
         text=True,
         timeout=60,

@@ -153,24 +153,30 @@ NO_ROS_NODE = Path(__file__).resolve().parents[2] / ".venv-noros" / "bin" / "akd
 """akd_node of the environment scripts/setup.sh makes without any ROS wheel."""
 
 
-class NodeProcess:
-    """akd_node running as `akd_node --ros-args --params-file FILE`, its output collected; `domain` overrides the
-    environment's ROS_DOMAIN_ID. `without_ros` runs it as on a controller without ROS: from `.venv-noros` where it
+def node_command(params: Path, domain: int | None = None, *, without_ros: bool = False) -> tuple[list[str], dict]:
+    """The command line and environment of `akd_node --ros-args --params-file FILE`: `domain` overrides the
+    environment's ROS_DOMAIN_ID; `without_ros` runs it as on a controller without ROS, from `.venv-noros` where it
     exists (else from .venv), every ROS import refused (NO_ROS)."""
+    env = dict(os.environ)
+    if domain is not None:
+        env["ROS_DOMAIN_ID"] = str(domain)
+    program = BIN / "akd_node"
+    if without_ros:
+        env["PYTHONPATH"] = str(NO_ROS)
+        program = NO_ROS_NODE if NO_ROS_NODE.exists() else program
+    return [str(program), "--ros-args", "--params-file", str(params)], env
+
+
+class NodeProcess:
+    """akd_node running as `node_command` gives it, its output collected."""
 
     def __init__(self, params: Path, domain: int | None = None, *, without_ros: bool = False):
         self.log: list[str] = []
-        env = dict(os.environ)
-        if domain is not None:
-            env["ROS_DOMAIN_ID"] = str(domain)
-        program = BIN / "akd_node"
-        if without_ros:
-            env["PYTHONPATH"] = str(NO_ROS)
-            program = NO_ROS_NODE if NO_ROS_NODE.exists() else program
-        self.program = program
+        argv, env = node_command(params, domain, without_ros=without_ros)
+        self.program = Path(argv[0])
         """The akd_node it runs."""
         self.process = subprocess.Popen(
-            [str(program), "--ros-args", "--params-file", str(params)],
+            argv,
             env=env,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
