@@ -139,9 +139,11 @@ class FaultEvent:
     cycle: int
     time_ns: int
     source: str
-    """"drive_fault", "emergency", "lost_frames", "working_counter" or "al_state"."""
+    """"drive_fault", "emergency", "lost_frames", "working_counter", "al_state", "unreachable" (the drive stopped
+    answering: power, cable or line; it is being brought back) or "recovered" (back in Op, its power stage off)."""
     code: int
-    """CiA error code (0x603F or the emergency's); cycles in a row for lost frames and working counter errors."""
+    """CiA error code (0x603F or the emergency's); cycles in a row for lost frames, working counter errors and an
+    unreachable drive; how long it was gone (ms) for a recovered one."""
     text: str | None
     """The AKD's text for the code where known, e.g. "F439 Following error"."""
     statusword: int
@@ -156,6 +158,10 @@ class FaultEvent:
         what = self.text or (f"code 0x{self.code:04X}" if self.source in ("drive_fault", "emergency") else "")
         if self.source in ("lost_frames", "working_counter"):
             what = f"{self.code} cycles in a row"
+        if self.source == "unreachable":
+            what = f"no answer for {self.code} cycles (power, cable or line); being brought back"
+        if self.source == "recovered":
+            what = f"back after {self.code} ms"
         if self.source == "al_state":
             what = (
                 f"slave now in {self.al_state}, AL status code 0x{self.al_status_code:04X} ({self.al_status_code_name})"
@@ -573,6 +579,11 @@ class Axis:
             reason=status["reason"],
             digital_inputs=inputs.digital_inputs,
         )
+
+    def recovery(self) -> dict:
+        """Where the recovery of this drive stands (`_native.Cycle.recovery_status`): "recovering" while it is lost and
+        being brought back, "attempts", "recoveries" and "last_error"."""
+        return self._running().recovery_status(self.slave)
 
     def arm_latch(self, channel: int, edge: str, arm: bool = True) -> None:
         """Arms latch `channel` (1 or 2) on `edge` ("rising" or "falling"); every capture becomes a LatchEvent."""

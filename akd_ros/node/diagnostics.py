@@ -2,12 +2,13 @@
 the bus, in one message.
 
 A joint's status (`akd_node: <joint>`, hardware id naming its drive's position and serial number) is ERROR in a fault
-state; WARN when its state is not fresh, a request is stuck or lost, in Quick stop active, or with distributed clocks
-on a drive whose FBUS.PARAM02 is unknown (the master writes it only where the drive's SDO information confirms the
-object, see `Master.configure_dc`); OK otherwise. Its values carry the state, its distributed clock and its last
-fault. The bus's status (`akd_node: bus`) is ERROR while a joint is in Fault, WARN when a fault counter grew since the
-last report or the last frame did not come back; its values carry the link, the cycle statistics and the
-distributed clocks."""
+state or while its drive is unreachable and being brought back (with the attempts and why the last failed); WARN when
+its state is not fresh, a request is stuck or lost, in Quick stop active, or with distributed clocks on a drive whose
+FBUS.PARAM02 is unknown (the master writes it only where the drive's SDO information confirms the object, see
+`Master.configure_dc`); OK otherwise. Its values carry the state, its distributed clock, its recovery and its last
+fault. The bus's status (`akd_node: bus`) is ERROR while a joint is in Fault or unreachable, WARN when a fault counter
+grew since the last report or the last frame did not come back; its values carry the link, the cycle statistics and
+the distributed clocks."""
 
 from __future__ import annotations
 
@@ -87,15 +88,17 @@ class Diagnostics:
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
         self._counters_seen = counters
         dc_status = bus.cycle.dc_status()
-        statuses = [self._joint_status(bus[joint], state, dc_status) for joint, state in states.items()]
-        statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status))
+        recovery = {joint: bus[joint].recovery() for joint in states}
+        statuses = [self._joint_status(bus[j], state, dc_status, recovery[j]) for j, state in states.items()]
+        lost = [joint for joint, r in recovery.items() if r["recovering"]]
+        statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
         self.publisher.publish(self._array(header=self._header(stamp=self._clock.stamp()), status=statuses))
 
-    def _joint_status(self, axis, state, dc_status: dict) -> object:
-        """The status of one joint: its drive's state, mode, position, DC and last fault."""
+    def _joint_status(self, axis, state, dc_status: dict, recovery: dict) -> object:
+        """The status of one joint: its drive's state, mode, position, DC, recovery and last fault."""
         fault = self._publishing.last_fault.get(axis.name)
         param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
-        if state.state in FAULT_STATES:
+        if recovery["recovering"] or state.state in FAULT_STATES:
             level = self._error
         elif (
             not state.fresh
@@ -109,6 +112,9 @@ class Diagnostics:
         summary = state.state or "no valid DS402 state"
         if state.reason:
             summary += f": {state.reason}"
+        if recovery["recovering"]:
+            summary = f"unreachable, being brought back (attempt {recovery['attempts']}"
+            summary += f": {recovery['last_error']})" if recovery["last_error"] else ")"
         if param02_unknown:
             summary += f"; {FBUS_PARAM02_UNKNOWN}"
         if level == self._error and fault is not None:
@@ -127,15 +133,19 @@ class Diagnostics:
             "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
             "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
             "last_fault_action": "" if fault is None else fault.action,
+            "recovering": recovery["recovering"],
+            "recoveries": recovery["recoveries"],
         }
         hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
         return self._status_message(level, axis.name, summary, hardware_id, values)
 
-    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict) -> object:
+    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict, lost: list) -> object:
         """The status of the bus: the link, the cycle's counters and timing, distributed clocks, the joints' worst."""
         faulted = [j for j, s in states.items() if s.state in FAULT_STATES]
         stale = not all(s.fresh for s in states.values())
-        if faulted:
+        if lost:
+            level, summary = self._error, f"unreachable: {', '.join(lost)} (being brought back)"
+        elif faulted:
             level, summary = self._error, f"fault on {', '.join(faulted)}"
         elif grown or stale:
             level = self._warn
@@ -154,6 +164,8 @@ class Diagnostics:
             "period_mean_s": f"{stats['period']['mean_ns'] * 1e-9:.6g}",
             "period_max_s": f"{stats['period']['max_ns'] * 1e-9:.6g}",
             "exchange_p99_s": f"{stats['exchange']['p99_ns'] * 1e-9:.6g}",
+            "relayed_frames": stats["relayed_frames"],
+            "relayed_lost": stats["relayed_lost"],
             "dc": "on (SYNC0)" if dc_status["active"] else "off (the drives follow SM2)",
         }
         if dc_status["active"]:

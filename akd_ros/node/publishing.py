@@ -160,8 +160,11 @@ class Publishing:
         for axis, _, faults, _ in taken:
             for e in faults:
                 logged.setdefault((e.cycle, e.source, e.code, e.describe()), []).append(axis.name)
-        for (_, _, _, text), joints in logged.items():
-            self._logger.error(f"fault of {', '.join(joints)}: {text}")
+        for (_, source, _, text), joints in logged.items():
+            if source == "recovered":
+                self._logger.warning(f"{', '.join(joints)}: {text}; {how_to_enable}")
+            else:
+                self._logger.error(f"fault of {', '.join(joints)}: {text}")
         for axis, latches, faults, timeouts in taken:
             joint = axis.name
             for e in timeouts:

@@ -1530,6 +1530,16 @@ pub enum Error {
         /// Slaves that have it.
         count: usize,
     },
+    /// Another device answers at a slave's position than the scan found there (a drive swapped
+    /// while the bus ran): it is not configured as if it were the old one.
+    Replaced {
+        /// The position.
+        slave: u16,
+        /// What the scan found there.
+        expected: crate::sii::Identity,
+        /// What answers now.
+        found: crate::sii::Identity,
+    },
     /// A slave position that is not on the bus.
     NoSuchSlave {
         /// The position asked for.
@@ -1567,6 +1577,13 @@ impl fmt::Display for Error {
             Error::AliasNotUnique { alias, count } => {
                 write!(f, "station alias {alias} is on {count} slave(s), not one")
             }
+            Error::Replaced { slave, expected: e, found: n } => write!(
+                f,
+                "another device is at position {slave}: vendor 0x{:X}, product 0x{:X}, serial {} where the scan found \
+                 vendor 0x{:X}, product 0x{:X}, serial {}; it is not configured as the old one (restart the bus to \
+                 take it)",
+                n.vendor_id, n.product_code, n.serial_number, e.vendor_id, e.product_code, e.serial_number
+            ),
             Error::NoSuchSlave { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
             }

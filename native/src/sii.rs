@@ -95,6 +95,14 @@ pub struct Identity {
     pub serial_number: u32,
 }
 
+impl Identity {
+    /// The identity in SII words 8..0xF, given as their 16 bytes.
+    pub fn from_words(words: &[u8]) -> Identity {
+        let dword = |i: usize| u32::from_le_bytes([words[i], words[i + 1], words[i + 2], words[i + 3]]);
+        Identity { vendor_id: dword(0), product_code: dword(4), revision: dword(8), serial_number: dword(12) }
+    }
+}
+
 /// A mailbox layout: where the master writes (SM0) and reads (SM1).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 // Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.
@@ -553,10 +561,6 @@ fn word(data: &[u8], w: usize) -> u16 {
     u16::from_le_bytes([data[2 * w], data[2 * w + 1]])
 }
 
-fn dword(data: &[u8], w: usize) -> u32 {
-    u32::from(word(data, w)) | (u32::from(word(data, w + 1)) << 16)
-}
-
 fn decode_header(data: &[u8]) -> Result<Header> {
     if data.len() < HEADER_BYTES {
         return Err(SiiError::ShortImage { len: data.len(), header: HEADER_BYTES }.into());
@@ -585,12 +589,7 @@ fn decode_header(data: &[u8]) -> Result<Header> {
         configured_station_alias: word(data, 4),
         reserved_05: [word(data, 5), word(data, 6)],
         checksum_reserved: data[15],
-        identity: Identity {
-            vendor_id: dword(data, 8),
-            product_code: dword(data, 0xA),
-            revision: dword(data, 0xC),
-            serial_number: dword(data, 0xE),
-        },
+        identity: Identity::from_words(&data[16..32]),
         execution_delay: word(data, 0x10),
         port0_delay: word(data, 0x11),
         port1_delay: word(data, 0x12),

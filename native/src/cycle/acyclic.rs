@@ -214,17 +214,19 @@ impl MailboxService {
     }
 
     /// One cycle's mailbox work, after the exchange: reads one waiting message, else starts
-    /// or continues one transfer. `statusword(slave)` gives a drive's statusword for events.
+    /// or continues one transfer. `statusword(slave)` gives a drive's statusword for events;
+    /// the mailbox of a slave `recovering` is the recovery's, and left alone.
     pub fn run(
         &mut self,
         master: &mut Master,
         slot: &SdoSlot,
         events: &Events,
         context: (u64, u64),
+        recovering: impl Fn(u16) -> bool,
         statusword: impl Fn(u16) -> u16,
     ) {
         let now_ns = context.1;
-        if self.read_one(master, slot, events, context, &statusword) {
+        if self.read_one(master, slot, events, context, (&recovering, &statusword)) {
             return;
         }
         if let Phase::Sending { deadline_ns, origin, .. } | Phase::Awaiting { deadline_ns, origin, .. } = self.phase {
@@ -299,11 +301,12 @@ impl MailboxService {
         slot: &SdoSlot,
         events: &Events,
         (cycle, time_ns): (u64, u64),
-        statusword: &impl Fn(u16) -> u16,
+        (recovering, statusword): (&impl Fn(u16) -> bool, &impl Fn(u16) -> u16),
     ) -> bool {
         let Ok(watch) = master.watch() else { return false };
         let count = watch.len();
-        let Some(slave) = (0..count).map(|n| (self.next_slave + n) % count).find(|&s| watch[s].mailbox_full) else {
+        let waiting = |s: &usize| watch[*s].mailbox_full && !recovering(*s as u16);
+        let Some(slave) = (0..count).map(|n| (self.next_slave + n) % count).find(waiting) else {
             return false;
         };
         let SlaveWatch { al_status, .. } = watch[slave];

@@ -42,15 +42,23 @@ pub enum FaultSource {
     WorkingCounter = 4,
     /// The slave left Op; the AL status says where it went and why.
     AlState = 5,
+    /// The slave stopped answering (power, cable, line); the code is how many cycles in a
+    /// row. It is being brought back ([`recovery`](crate::cycle::recovery)).
+    Unreachable = 6,
+    /// The slave is back in Op after it was lost or left Op, its power stage off; the code is
+    /// how long it was gone (ms, saturating).
+    Recovered = 7,
 }
 
 impl FaultSource {
-    const ALL: [FaultSource; 5] = [
+    const ALL: [FaultSource; 7] = [
         FaultSource::DriveFault,
         FaultSource::Emergency,
         FaultSource::LostFrames,
         FaultSource::WorkingCounter,
         FaultSource::AlState,
+        FaultSource::Unreachable,
+        FaultSource::Recovered,
     ];
 
     /// The source's name as the Python API and the DriveFault message spell it.
@@ -61,6 +69,8 @@ impl FaultSource {
             FaultSource::LostFrames => "lost_frames",
             FaultSource::WorkingCounter => "working_counter",
             FaultSource::AlState => "al_state",
+            FaultSource::Unreachable => "unreachable",
+            FaultSource::Recovered => "recovered",
         }
     }
 }
@@ -75,10 +85,13 @@ pub enum Action {
     Disabled = 2,
     /// Counted: the drive held its last set-point through a short gap and went on.
     Counted = 3,
+    /// Restored: the slave is back in Op (with its address, mapping, mode and clock set again
+    /// where it had lost them), its power stage off and its target held at the actual position.
+    Restored = 4,
 }
 
 impl Action {
-    const ALL: [Action; 3] = [Action::Reported, Action::Disabled, Action::Counted];
+    const ALL: [Action; 4] = [Action::Reported, Action::Disabled, Action::Counted, Action::Restored];
 
     /// One sentence for the fault message and the log.
     pub fn describe(self) -> &'static str {
@@ -89,6 +102,10 @@ impl Action {
                  nothing moves until it is reset, enabled and commanded again"
             }
             Action::Counted => "counted; the drive held its last set-point through the gap and no more than that",
+            Action::Restored => {
+                "back in Op (readdressed and reconfigured where it had lost its configuration), its power stage off \
+                 and its target held at the actual position; nothing moves until it is enabled and commanded again"
+            }
         }
     }
 }

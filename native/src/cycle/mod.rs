@@ -23,6 +23,10 @@
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
 //! fault supervision, [`latch`] the position latch, [`acyclic`] the mailbox traffic beside
 //! the cycle and [`dc_status`] the distributed clocks ([`CycleThread::dc_status`]).
+//!
+//! A slave the loop loses (no answer, or out of Op) is reported and its drive disabled there;
+//! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
+//! stage off, while the other drives cycle on.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
@@ -42,6 +46,7 @@ pub mod events;
 pub mod handshake;
 pub mod image;
 pub mod latch;
+pub mod recovery;
 pub mod ring;
 pub mod rt;
 pub mod samples;
@@ -52,8 +57,9 @@ pub mod supervision;
 pub mod timing;
 pub mod trajectory_player;
 
+use crate::al::AlState;
 use acyclic::{MailboxService, SdoSlot};
-use events::{CommandTimeoutAction, Event, Events};
+use events::{CommandTimeoutAction, Event, Events, FaultSource};
 use samples::{Sample, Samples};
 use seqlock::SeqBytes;
 use stats::CycleStats;
@@ -129,6 +135,10 @@ struct Shared {
     quick_stop_on_fault: AtomicBool,
     dc: dc_status::Shared,
     trajectories: trajectory_player::Shared,
+    /// Frames of the recovery thread, sent by the cycle thread.
+    relay: Arc<recovery::Relay>,
+    /// One per slave: its recovery.
+    recovery: Vec<recovery::SlaveRecovery>,
 }
 
 /// How long a drive request may take by default before it is reported stuck.
@@ -142,6 +152,7 @@ struct DriveLoop {
     watch: supervision::DriveWatch,
     handshake: handshake::Handshake,
     command_timeout: command_timeout::CommandTimeout,
+    presence: recovery::Presence,
     /// The command time-out's target writes counted before this cycle's copy of the
     /// set-points; `None` when the copy did not succeed.
     target_writes: Option<u64>,
@@ -179,6 +190,7 @@ fn sequenced_drives(
 pub struct CycleThread {
     shared: Arc<Shared>,
     thread: Option<JoinHandle<Option<Master>>>,
+    recovery: Option<JoinHandle<()>>,
     slots: Vec<Option<ImageSlot>>,
     warnings: Vec<String>,
     period: Duration,
@@ -227,6 +239,7 @@ impl CycleThread {
                     watch: supervision::DriveWatch::default(),
                     handshake: handshake::Handshake::default(),
                     command_timeout: command_timeout::CommandTimeout::default(),
+                    presence: recovery::Presence::default(),
                     target_writes: None,
                 })
             })
@@ -259,7 +272,10 @@ impl CycleThread {
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::Shared::new(master.clock()),
             trajectories: trajectory_player::Shared::default(),
+            relay: Arc::default(),
+            recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
         });
+        let recoverer = recoverer(&mut master, &shared, &drives, period_ns, config.period);
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
         let (ready_tx, ready_rx) = mpsc::sync_channel(1);
@@ -268,6 +284,7 @@ impl CycleThread {
             let mut drives = drives;
             let mut mailbox = mailbox;
             let mut player = trajectory_player::Player::new(master.slaves().len());
+            let mut relay_buffers = recovery::RelayBuffers::default();
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
@@ -279,7 +296,8 @@ impl CycleThread {
                 // The starting thread waits for this message; it cannot be gone.
                 let _ = ready_tx.send(warnings);
                 let timeout = master.replace_timeout(config.period);
-                run(&mut master, &shared, &mut drives, &mut mailbox, &mut player, period_ns);
+                run(&mut master, &shared, &mut drives, (&mut mailbox, &mut relay_buffers), &mut player, period_ns);
+                shared.relay.end();
                 master.replace_timeout(timeout);
                 // The master goes on without the thread: plain exchanges, no status reads.
                 let _ = master.set_supervision(false);
@@ -295,9 +313,17 @@ impl CycleThread {
         // The thread is waiting for it.
         let _ = master_tx.send(master);
         let warnings = ready_rx.recv().unwrap_or_default();
+        let recovery = {
+            let shared = shared.clone();
+            std::thread::Builder::new()
+                .name("akd-recovery".into())
+                .spawn(move || recoverer.run(&shared.recovery, &shared.stop))
+                .ok()
+        };
         Ok(CycleThread {
             shared,
             thread: Some(thread),
+            recovery,
             slots,
             warnings,
             period: config.period,
@@ -425,10 +451,7 @@ impl CycleThread {
         if self.stopped() {
             return Err(Unavailable::CycleStopped { consequence: "use the master's own SDO access".into() }.into());
         }
-        if position >= self.slave_count() {
-            return Err(Error::NoSuchSlave { position, count: self.slave_count() });
-        }
-        Ok(())
+        self.check_position(position)
     }
 
     /// Sets the mode of operation of the drive at `position` — through 0x6060 in the outputs
@@ -438,7 +461,10 @@ impl CycleThread {
         let drive = self.sequenced(position)?;
         match self.offsets[position as usize].and_then(|o| o.mode) {
             Some(at) => self.shared.setpoints.write().write(at, &[mode as u8]),
-            None => self.sdo_write(position, 0x6060, 0, &[mode as u8])?,
+            None => {
+                self.sdo_write(position, 0x6060, 0, &[mode as u8])?;
+                self.shared.recovery[position as usize].set_mode(mode);
+            }
         }
         drive.hold();
         self.shared.command_timeouts[position as usize].release();
@@ -658,6 +684,25 @@ impl CycleThread {
         self.mappings[position as usize].as_ref().ok_or(Unavailable::NoMapping { slave: position }.into())
     }
 
+    /// Where the recovery of the slave at `position` stands: whether it is lost and being
+    /// brought back, the attempts, the recoveries so far and why the last attempt failed.
+    pub fn recovery_status(&self, position: u16) -> Result<recovery::RecoveryStatus> {
+        self.check_position(position)?;
+        Ok(self.shared.recovery[position as usize].status())
+    }
+
+    /// Frames the recovery thread had the cycle thread send, and those lost.
+    pub fn relayed_frames(&self) -> (u64, u64) {
+        self.shared.relay.counts()
+    }
+
+    fn check_position(&self, position: u16) -> Result<()> {
+        if position >= self.slave_count() {
+            return Err(Error::NoSuchSlave { position, count: self.slave_count() });
+        }
+        Ok(())
+    }
+
     /// The drive's status as the cycle thread last published it. Lock-free.
     pub fn drive_status(&self, position: u16) -> Result<sequencer::Status> {
         Ok(self.sequenced(position)?.status())
@@ -753,7 +798,11 @@ impl CycleThread {
 
     fn halt(&mut self) -> Option<Master> {
         self.shared.stop.store(true, Ordering::Release);
-        self.thread.take()?.join().ok().flatten()
+        let master = self.thread.take()?.join().ok().flatten();
+        if let Some(recovery) = self.recovery.take() {
+            let _ = recovery.join();
+        }
+        master
     }
 }
 
@@ -764,12 +813,34 @@ impl Drop for CycleThread {
     }
 }
 
+/// The recovery thread's work, made while the master is still this thread's: each sequenced
+/// drive's clock as set up, and its mode where its outputs do not carry it (read now).
+fn recoverer(
+    master: &mut Master,
+    shared: &Shared,
+    drives: &[DriveLoop],
+    period_ns: u64,
+    period: Duration,
+) -> recovery::Recoverer {
+    let mut syncs = vec![None; master.slaves().len()];
+    for d in drives {
+        let position = d.position as usize;
+        if d.drive.offsets.mode.is_none() {
+            if let Ok([mode]) = master.slave_mut(d.position).and_then(|mut s| s.sdo_read(0x6060, 0)).as_deref() {
+                shared.recovery[position].set_mode(*mode as i8);
+            }
+        }
+        syncs[position] = master.restore_sync(d.position, period_ns as u32).ok();
+    }
+    recovery::Recoverer::new(master, shared.relay.clone(), period, syncs)
+}
+
 /// The loop. Everything it touches was allocated before it starts.
 fn run(
     master: &mut Master,
     shared: &Shared,
     drives: &mut [DriveLoop],
-    mailbox: &mut MailboxService,
+    (mailbox, relay_buffers): (&mut MailboxService, &mut recovery::RelayBuffers),
     player: &mut trajectory_player::Player,
     period_ns: u64,
 ) {
@@ -867,10 +938,12 @@ fn run(
                 shared.samples.push(&sample(d, inputs, outputs, now, timing, (wkc, result.is_ok())));
             }
         }
-        mailbox.run(master, &shared.sdo, &shared.events, now, |slave| {
+        let recovering = |slave: u16| shared.recovery.get(slave as usize).is_some_and(recovery::busy);
+        mailbox.run(master, &shared.sdo, &shared.events, now, recovering, |slave| {
             let status = shared.drives.get(slave as usize).map(|d| d.status());
             status.map_or(0, |s| s.statusword)
         });
+        shared.relay.serve(master, relay_buffers);
         let now_stats = master.stats();
         stats.lost_frames.store(now_stats.lost_frames - base.lost_frames, Ordering::Relaxed);
         stats.wkc_errors.store(now_stats.wkc_errors - base.wkc_errors, Ordering::Relaxed);
@@ -952,21 +1025,35 @@ fn supervise(
     let gap = gaps.observe(exchange, enabled, now);
     let (Ok(inputs), watch) = (master.input_image(), master.watch().ok()) else { return };
     let mut faulted = false;
+    let answered = |slave: u16| {
+        exchange != Exchange::Lost && watch.and_then(|w| w.get(slave as usize)).is_some_and(|w| w.answered)
+    };
+    let all_answered = drives.iter().all(|d| answered(d.position));
     for d in drives.iter_mut() {
         let slave = d.position;
         let o = d.drive.offsets;
         let statusword = (exchange == Exchange::Good).then(|| image::u16_at(inputs, o.statusword));
         let al_status = watch.and_then(|w| w.get(slave as usize)).filter(|w| w.answered).map(|w| w.al_status);
+        let in_op = al_status.is_some_and(|a| a.state() == Some(AlState::Op) && !a.error());
         let seen = d.watch.observe(slave, statusword, al_status, d.drive.sequenced(), now);
         faulted |= seen.fault.is_some() || seen.left_op.is_some();
         if let Some(event) = seen.fault {
             mailbox.read_error_code(master, slave, event, &shared.events);
         }
         if let Some(event) = seen.left_op {
-            shared.events.push(event);
+            // A slave lost before answers again out of Op while it is being restored.
+            if !d.presence.lost() {
+                shared.events.push(event);
+            }
             shared.drives[slave as usize].request(sequencer::Request::Disable);
         }
-        if let Some(report) = gap.filter(|_| d.drive.enabled()) {
+        // A wrong working counter while some drive did not answer is that drive's: the others,
+        // which did, exchanged their process data and go on.
+        let spared = gap.is_some_and(|g| g.source == FaultSource::WorkingCounter) && !all_answered && answered(slave);
+        // A drive that did not answer in a frame that came back is reported as unreachable.
+        let own = exchange == Exchange::Lost || answered(slave);
+        let gap_reported = gap.filter(|_| d.drive.enabled() && own && !spared && !d.presence.lost());
+        if let Some(report) = gap_reported {
             shared.events.push(Event::Fault {
                 cycle: report.began.0,
                 time_ns: report.began.1,
@@ -982,9 +1069,56 @@ fn supervise(
                 shared.drives[slave as usize].request(sequencer::Request::Disable);
             }
         }
+        let reported = gap_reported.is_some_and(|r| r.action == events::Action::Disabled);
+        faulted |= presence(shared, d, (answered(slave), in_op, reported), (statusword, al_status), now);
     }
     if faulted && shared.quick_stop_on_fault.load(Ordering::Relaxed) {
         quick_stop_the_others(shared, drives, inputs);
+    }
+}
+
+/// Moves drive `d`'s presence on (whether it answered, whether in Op); when it is lost,
+/// disables it, reports it unless its leaving Op or the gap was reported (`reported`), and asks
+/// for its recovery; when it is back, reports it and holds its target at the actual position.
+/// Returns whether it was lost this cycle.
+fn presence(
+    shared: &Shared,
+    d: &mut DriveLoop,
+    (answered, in_op, reported): (bool, bool, bool),
+    (statusword, al_status): (Option<u16>, Option<crate::master::state::AlStatus>),
+    now: (u64, u64),
+) -> bool {
+    let slave = d.position;
+    let fault = |source, code, action| Event::Fault {
+        cycle: now.0,
+        time_ns: now.1,
+        slave,
+        source,
+        code,
+        statusword: statusword.unwrap_or(0),
+        al_status: al_status.map_or(0, |a| a.status),
+        al_status_code: al_status.map_or(0, |a| a.code),
+        action,
+    };
+    let recovery = &shared.recovery[slave as usize];
+    match d.presence.observe(answered, in_op, now) {
+        None => false,
+        Some(recovery::Change::Lost { report, missing }) => {
+            shared.drives[slave as usize].request(sequencer::Request::Disable);
+            if report && !reported {
+                let action = if d.drive.enabled() { events::Action::Disabled } else { events::Action::Reported };
+                shared.events.push(fault(FaultSource::Unreachable, missing.min(u16::MAX as u32) as u16, action));
+            }
+            recovery::want(recovery);
+            true
+        }
+        Some(recovery::Change::Back { since }) => {
+            recovery::done(recovery);
+            shared.drives[slave as usize].hold();
+            let gone_ms = (now.1.saturating_sub(since.1) / 1_000_000).min(u16::MAX as u64) as u16;
+            shared.events.push(fault(FaultSource::Recovered, gone_ms, events::Action::Restored));
+            false
+        }
     }
 }
 

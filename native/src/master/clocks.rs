@@ -21,9 +21,9 @@ use crate::registers;
 /// Drift-compensation frames sent before SYNC0 starts, so the clocks have converged.
 const STATIC_DRIFT_FRAMES: usize = 1000;
 /// Time from "now" to the first SYNC0 pulse: enough for every slave to be armed.
-const SYNC0_MARGIN_NS: u64 = 100_000_000;
+pub(crate) const SYNC0_MARGIN_NS: u64 = 100_000_000;
 /// DC activation: cyclic unit and SYNC0 on.
-const ACTIVATE_SYNC0: u8 = 0x03;
+pub(crate) const ACTIVATE_SYNC0: u8 = 0x03;
 
 /// One slave with a distributed clock, as the set-up left it and the cycle reads it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,6 +37,8 @@ pub struct DcSlave {
     /// such object, or named otherwise), so nothing was written. Its PLL must then be switched
     /// on the drive (FBUS.PARAM02 = 1 in WorkBench), or it does not follow SYNC0.
     pub fbus_param02: Option<u32>,
+    /// Its propagation delay from the reference (register 0x0928), ns, as set up.
+    pub delay_ns: u32,
     /// The last system-time difference read (register 0x092C, ns, positive when the slave's
     /// copy is behind), `None` before the first read.
     pub time_difference_ns: Option<i64>,
@@ -140,6 +142,7 @@ impl Master {
                 position,
                 station,
                 fbus_param02: param02[position as usize],
+                delay_ns: delays[dc_positions.iter().position(|&p| p == position).unwrap_or(0)],
                 time_difference_ns: None,
             })
             .collect();
@@ -177,17 +180,20 @@ impl Master {
     /// the object ([`dc::FBUS_PARAM02`] explains why), and the cycle time to every slave with
     /// CoE; per slave, the FBUS.PARAM02 now in the drive (`None`: unknown, nothing written).
     fn set_drive_sync(&mut self, cycle_ns: u32, param02: u32) -> Result<Vec<Option<u32>>> {
-        let mut written = vec![None; self.slaves.len()];
-        for position in 0..self.slaves.len() as u16 {
-            if !self.slaves[position as usize].mailbox.as_ref().is_some_and(|m| m.has_coe()) {
-                continue;
-            }
-            if fbus_param02_confirmed(self.sdo_object_description(position, dc::FBUS_PARAM02))? {
-                self.sdo_write(position, dc::FBUS_PARAM02, 0, &param02.to_le_bytes())?;
-                written[position as usize] = Some(param02);
-            }
-            self.set_cycle_time(position, cycle_ns)?;
+        (0..self.slaves.len() as u16).map(|position| self.set_slave_sync(position, cycle_ns, param02)).collect()
+    }
+
+    /// [`set_drive_sync`](Self::set_drive_sync) for the slave at `position` alone.
+    pub(crate) fn set_slave_sync(&mut self, position: u16, cycle_ns: u32, param02: u32) -> Result<Option<u32>> {
+        if !self.slave(position)?.mailbox.as_ref().is_some_and(|m| m.has_coe()) {
+            return Ok(None);
         }
+        let mut written = None;
+        if fbus_param02_confirmed(self.sdo_object_description(position, dc::FBUS_PARAM02))? {
+            self.sdo_write(position, dc::FBUS_PARAM02, 0, &param02.to_le_bytes())?;
+            written = Some(param02);
+        }
+        self.set_cycle_time(position, cycle_ns)?;
         Ok(written)
     }
 

@@ -17,6 +17,7 @@
 //! Layout of the logical address space: every slave's outputs one after the other from
 //! address 0, then every slave's inputs.
 
+use crate::al::AlState;
 use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::frame::{self, Command, FrameBuilder, Slot};
 use crate::master::mapping::Mapping;
@@ -239,6 +240,19 @@ impl Master {
                 return Ok(wkc);
             }
             self.stats.wkc_errors += 1;
+            // A slave that answered its supervision reads in SafeOp or Op took the LRW in the
+            // same frame: its inputs are good though another slave's are not (one that is
+            // gone or being restored), so the slaves still there go on with fresh inputs.
+            let data = &self.rx[lrw.data_offset + out_len..lrw.data_offset + lrw.len];
+            if let Some(image) = self.process.as_mut().filter(|i| i.supervised) {
+                for (slot, watch) in image.slots.iter().zip(&image.watch) {
+                    let exchanged = matches!(watch.al_status.state(), Some(AlState::SafeOp | AlState::Op));
+                    if let (Some(slot), true) = (slot, watch.answered && exchanged) {
+                        let at = slot.in_offset..slot.in_offset + slot.in_len;
+                        image.inputs[at.clone()].copy_from_slice(&data[at]);
+                    }
+                }
+            }
             return Err(Error::WorkingCounter { what: "the cyclic LRW".into(), expected, got: wkc });
         }
         let data = &self.rx[lrw.data_offset + out_len..lrw.data_offset + lrw.len];

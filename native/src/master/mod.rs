@@ -4,7 +4,8 @@
 //! [`sii_read`] reads their EEPROM, [`state`] moves them through the AL state machine,
 //! [`mailbox_client`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
 //! the CoE client, [`mapping`] selects the process-data mapping, [`clocks`] sets up distributed
-//! clocks and [`cyclic`] exchanges the process image. This file holds the bus-wide state and
+//! clocks and [`cyclic`] exchanges the process image and [`restore`] brings one slave back while the
+//! others cycle. This file holds the bus-wide state and
 //! the register access all of them share.
 
 use std::collections::VecDeque;
@@ -20,6 +21,7 @@ pub mod clocks;
 pub mod cyclic;
 pub mod mailbox_client;
 pub mod mapping;
+pub mod restore;
 pub mod scan;
 pub mod sdo;
 pub mod sdo_info;
@@ -168,6 +170,13 @@ impl Master {
                 Err(e)
             }
         }
+    }
+
+    /// Sends a frame built by another master of the same bus (a [`sibling`](Self::sibling)
+    /// restoring a slave) and gives its return in `rx`; not counted in this master's
+    /// statistics, which are the cycle's.
+    pub fn relay(&mut self, tx: &[u8], rx: &mut [u8]) -> Result<usize> {
+        self.link.exchange(tx, rx, self.timeout)
     }
 
     fn next_index(&mut self) -> u8 {

@@ -54,7 +54,7 @@ impl Master {
     }
 
     /// Reads `words` words of the SII of `station` from `word` on.
-    fn read_sii_words(&mut self, station: u16, word: u32, words: u32) -> Result<Vec<u8>> {
+    pub(crate) fn read_sii_words(&mut self, station: u16, word: u32, words: u32) -> Result<Vec<u8>> {
         let mut out = Vec::with_capacity(words as usize * 2 + 8);
         while (out.len() as u32) < words * 2 {
             self.read_sii_chunk(station, word + out.len() as u32 / 2, &mut out)?;

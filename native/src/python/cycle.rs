@@ -51,6 +51,8 @@ struct StatsView {
     wkc_errors: u64,
     other_errors: u64,
     setpoints_busy: u64,
+    relayed_frames: u64,
+    relayed_lost: u64,
     period: Summary,
     wake_latency: Summary,
     exchange: Summary,
@@ -306,12 +308,16 @@ impl PyCycle {
     }
 
     /// The statistics: cycles, overruns, lost_frames, wkc_errors, other_errors,
-    /// setpoints_busy, and period, wake_latency (how late after its deadline the thread woke)
+    /// setpoints_busy, relayed_frames and relayed_lost (frames a slave's recovery sent beside
+    /// the cycle, and those lost: not the cycle's own), and period, wake_latency (how late after its deadline the thread woke)
     /// and exchange, each {count, min_ns, mean_ns, p99_ns, max_ns}.
     fn stats(&self) -> StatsView {
         use std::sync::atomic::Ordering::Relaxed;
         let s = self.cycle.stats();
+        let (relayed_frames, relayed_lost) = self.cycle.relayed_frames();
         StatsView {
+            relayed_frames,
+            relayed_lost,
             cycles: s.cycles.load(Relaxed),
             overruns: s.overruns.load(Relaxed),
             lost_frames: s.lost_frames.load(Relaxed),
@@ -667,6 +673,13 @@ impl PyCycle {
     /// Off (the default), each drive reacts alone. The faulting drive's event is the only one.
     fn set_quick_stop_on_fault(&self, on: bool) {
         self.cycle.set_quick_stop_on_fault(on)
+    }
+
+    /// Where the recovery of slave `position` stands: "recovering" (lost, being brought back),
+    /// "attempts" since it was lost, "recoveries" since the cycle started, "last_error" (why the
+    /// last attempt failed, or None).
+    fn recovery_status(&self, position: u16) -> PyResult<crate::cycle::recovery::RecoveryStatus> {
+        self.cycle.recovery_status(position).py()
     }
 
     /// The distributed clocks while the cycle runs: SYNC0's cycle and shift, the reference

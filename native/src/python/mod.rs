@@ -68,7 +68,7 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             Error::AlState { .. } => AlStateError::new_err(message),
             Error::SdoAbort { .. } => SdoAbortError::new_err(message),
             Error::Mailbox(_) => MailboxError::new_err(message),
-            Error::Sii(_) => SiiError::new_err(message),
+            Error::Sii(_) | Error::Replaced { .. } => SiiError::new_err(message),
             Error::Pdo(_) => PdoError::new_err(message),
             Error::LinkSpec(_)
             | Error::Setting(_)

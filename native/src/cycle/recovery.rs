@@ -1,0 +1,329 @@
+//! Recovery of a slave the cycle lost: one that stopped answering (power cycled, its cable
+//! pulled, the line down) or left Op. The cycle thread notices it ([`Presence`]), asks the drive
+//! for Switch on disabled and reports it; a recovery thread beside the cycle then brings the
+//! slave back with [`Master::restore_slave`] on a [`sibling`](Master::sibling) master whose
+//! frames the cycle thread sends for it, one per cycle after its own exchange ([`Relay`]), so
+//! the other drives cycle on. When the slave is back in Op the cycle thread reports it and holds
+//! its target at the actual position; its power stage stays off until it is enabled again.
+//! Attempts repeat while the slave does not answer, and a slave that comes back in Op by itself
+//! (a short cut of the line) is taken back without a restore.
+
+use std::sync::atomic::{AtomicBool, AtomicU16, AtomicU32, AtomicU64, AtomicU8, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use crate::cycle::seqlock::SeqBytes;
+use crate::error::{Error, Result};
+use crate::frame::MAX_PAYLOAD_LEN;
+use crate::link::Link;
+use crate::master::restore::{Restore, SlaveSync};
+use crate::master::Master;
+
+/// Cycles without an answer after which a slave is taken as lost (the AKD's own limit).
+pub const LOST_AFTER: u32 = crate::cycle::supervision::DRIVE_MISSED_FRAME_LIMIT;
+/// How long the recovery thread waits after a failed attempt before the next.
+pub const RETRY_INTERVAL: Duration = Duration::from_millis(200);
+
+const FREE: u8 = 0;
+const ASKED: u8 = 1;
+const TAKEN: u8 = 2;
+const DONE: u8 = 3;
+
+/// The hand-over of one frame between the recovery thread and the cycle thread.
+pub struct Relay {
+    state: AtomicU8,
+    request: SeqBytes,
+    request_len: AtomicU16,
+    reply: SeqBytes,
+    /// The reply's length; 0 when the frame was lost.
+    reply_len: AtomicU16,
+    /// Set when the cycle thread ends: nobody serves frames any more.
+    ended: AtomicBool,
+    /// Frames sent for the recovery thread, and those that did not come back.
+    frames: AtomicU64,
+    lost: AtomicU64,
+}
+
+impl Default for Relay {
+    fn default() -> Self {
+        Relay {
+            state: AtomicU8::new(FREE),
+            request: SeqBytes::new(MAX_PAYLOAD_LEN, &[]),
+            request_len: AtomicU16::new(0),
+            reply: SeqBytes::new(MAX_PAYLOAD_LEN, &[]),
+            reply_len: AtomicU16::new(0),
+            ended: AtomicBool::new(false),
+            frames: AtomicU64::new(0),
+            lost: AtomicU64::new(0),
+        }
+    }
+}
+
+/// The cycle thread's buffers for relayed frames, allocated before it starts.
+pub struct RelayBuffers {
+    tx: Box<[u8; MAX_PAYLOAD_LEN]>,
+    rx: Box<[u8; MAX_PAYLOAD_LEN]>,
+}
+
+impl Default for RelayBuffers {
+    fn default() -> Self {
+        RelayBuffers { tx: Box::new([0; MAX_PAYLOAD_LEN]), rx: Box::new([0; MAX_PAYLOAD_LEN]) }
+    }
+}
+
+impl Relay {
+    /// In the cycle thread, after its exchange: sends the frame waiting, if any, and hands its
+    /// reply back. Its loss is counted here, not in the cycle's lost frames.
+    pub fn serve(&self, master: &mut Master, buffers: &mut RelayBuffers) {
+        if self.state.compare_exchange(ASKED, TAKEN, Ordering::AcqRel, Ordering::Acquire).is_err() {
+            return;
+        }
+        let len = (self.request_len.load(Ordering::Relaxed) as usize).min(MAX_PAYLOAD_LEN);
+        self.request.read(&mut buffers.tx[..]);
+        self.frames.fetch_add(1, Ordering::Relaxed);
+        let n = match master.relay(&buffers.tx[..len], &mut buffers.rx[..]) {
+            Ok(n) => n,
+            Err(_) => {
+                self.lost.fetch_add(1, Ordering::Relaxed);
+                0
+            }
+        };
+        self.reply.write().write(0, &buffers.rx[..n]);
+        self.reply_len.store(n as u16, Ordering::Relaxed);
+        self.state.store(DONE, Ordering::Release);
+    }
+
+    /// The cycle thread ended.
+    pub fn end(&self) {
+        self.ended.store(true, Ordering::Release);
+    }
+
+    /// Frames relayed, and those lost.
+    pub fn counts(&self) -> (u64, u64) {
+        (self.frames.load(Ordering::Relaxed), self.lost.load(Ordering::Relaxed))
+    }
+}
+
+/// A link whose frames the cycle thread sends between its exchanges.
+pub struct RelayLink {
+    relay: Arc<Relay>,
+    describe: String,
+    /// The cycle's period: a frame waits at most a few for its turn.
+    period: Duration,
+}
+
+impl RelayLink {
+    /// A link through `relay`, described as the cycle's own link `describe` is.
+    pub fn new(relay: Arc<Relay>, describe: String, period: Duration) -> Self {
+        RelayLink { relay, describe: format!("{describe} (beside the cycle)"), period }
+    }
+}
+
+impl Link for RelayLink {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        let lost = || Error::Timeout { what: "a frame sent beside the cycle".into() };
+        if self.relay.ended.load(Ordering::Acquire) {
+            return Err(lost());
+        }
+        let len = tx.len().min(MAX_PAYLOAD_LEN);
+        self.relay.request.write().write(0, &tx[..len]);
+        self.relay.request_len.store(len as u16, Ordering::Relaxed);
+        self.relay.state.store(ASKED, Ordering::Release);
+        let deadline = Instant::now() + timeout + 4 * self.period;
+        loop {
+            match self.relay.state.load(Ordering::Acquire) {
+                DONE => break,
+                ASKED
+                    if (Instant::now() >= deadline || self.relay.ended.load(Ordering::Acquire))
+                        && self
+                            .relay
+                            .state
+                            .compare_exchange(ASKED, FREE, Ordering::AcqRel, Ordering::Acquire)
+                            .is_ok() =>
+                {
+                    return Err(lost());
+                }
+                _ => {}
+            }
+            std::thread::sleep(Duration::from_micros(50));
+        }
+        let n = self.relay.reply_len.load(Ordering::Relaxed) as usize;
+        let mut reply = [0u8; MAX_PAYLOAD_LEN];
+        self.relay.reply.read(&mut reply);
+        self.relay.state.store(FREE, Ordering::Release);
+        if n == 0 {
+            return Err(lost());
+        }
+        crate::link::copy_reply(&reply[..n], rx)
+    }
+
+    fn describe(&self) -> String {
+        self.describe.clone()
+    }
+}
+
+/// A slave's recovery as the cycle thread and the recovery thread share it.
+#[derive(Default)]
+pub struct SlaveRecovery {
+    wanted: AtomicBool,
+    attempts: AtomicU32,
+    recoveries: AtomicU32,
+    /// The mode of operation written to 0x6060 by SDO, for a drive whose outputs do not carry
+    /// it; the cycle thread never takes this lock.
+    mode: Mutex<Option<i8>>,
+    /// Why the last attempt failed; the cycle thread never takes this lock.
+    last_error: Mutex<Option<String>>,
+}
+
+/// Where a slave's recovery stands, for callers.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
+pub struct RecoveryStatus {
+    /// Whether the slave is lost and being brought back.
+    pub recovering: bool,
+    /// Attempts to restore it since it was lost.
+    pub attempts: u32,
+    /// Times a restore brought it back since the cycle started (one that came back by itself
+    /// is not counted).
+    pub recoveries: u32,
+    /// Why the last attempt failed, if it did.
+    pub last_error: Option<String>,
+}
+
+impl SlaveRecovery {
+    /// Notes the mode written to 0x6060 by SDO, which a restore writes again.
+    pub fn set_mode(&self, mode: i8) {
+        *self.mode.lock().unwrap_or_else(|p| p.into_inner()) = Some(mode);
+    }
+
+    /// Where it stands.
+    pub fn status(&self) -> RecoveryStatus {
+        RecoveryStatus {
+            recovering: self.wanted.load(Ordering::Acquire),
+            attempts: self.attempts.load(Ordering::Relaxed),
+            recoveries: self.recoveries.load(Ordering::Relaxed),
+            last_error: self.last_error.lock().unwrap_or_else(|p| p.into_inner()).clone(),
+        }
+    }
+}
+
+/// What [`Presence::observe`] saw change.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Change {
+    /// The slave is lost from this cycle on: `report` when nothing else reported it yet (a
+    /// slave that left Op was reported as such).
+    Lost {
+        /// Whether to report it.
+        report: bool,
+        /// Cycles it went unanswered.
+        missing: u32,
+    },
+    /// The slave is back in Op, lost since `since` (cycle, time ns).
+    Back {
+        /// When it was lost.
+        since: (u64, u64),
+    },
+}
+
+/// One slave's presence, as the cycle thread judges it every cycle.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Presence {
+    missing: u32,
+    lost: Option<(u64, u64)>,
+}
+
+impl Presence {
+    /// Takes one cycle: whether the slave answered its supervision reads, and whether it is in
+    /// Op. Lost after [`LOST_AFTER`] cycles unanswered or when it answers out of Op; back when
+    /// it answers in Op again.
+    pub fn observe(&mut self, answered: bool, in_op: bool, now: (u64, u64)) -> Option<Change> {
+        if let Some(since) = self.lost {
+            if in_op {
+                *self = Presence::default();
+                return Some(Change::Back { since });
+            }
+            return None;
+        }
+        if in_op {
+            self.missing = 0;
+            return None;
+        }
+        if answered {
+            self.lost = Some(now);
+            return Some(Change::Lost { report: false, missing: self.missing });
+        }
+        self.missing += 1;
+        if self.missing >= LOST_AFTER {
+            self.lost = Some(now);
+            return Some(Change::Lost { report: true, missing: self.missing });
+        }
+        None
+    }
+
+    /// Whether the slave is lost.
+    pub fn lost(&self) -> bool {
+        self.lost.is_some()
+    }
+}
+
+/// The recovery thread's side: the sibling master and what each slave gets back.
+pub struct Recoverer {
+    master: Master,
+    syncs: Vec<Option<SlaveSync>>,
+}
+
+impl Recoverer {
+    /// A recoverer of `master`'s slaves, each with the clock it gets back (`None` for a slave
+    /// not recovered), whose frames go through `relay`.
+    pub fn new(master: &Master, relay: Arc<Relay>, period: Duration, syncs: Vec<Option<SlaveSync>>) -> Self {
+        let link = RelayLink::new(relay, master.describe(), period);
+        Recoverer { master: master.sibling(Box::new(link)), syncs }
+    }
+
+    /// Runs until `stop`: restores every slave the cycle thread asks for, one at a time.
+    pub fn run(mut self, slaves: &[SlaveRecovery], stop: &AtomicBool) {
+        let mut next_try = vec![Instant::now(); slaves.len()];
+        while !stop.load(Ordering::Acquire) {
+            for (position, slave) in slaves.iter().enumerate() {
+                let Some(sync) = self.syncs.get(position).copied().flatten() else { continue };
+                if !slave.wanted.load(Ordering::Acquire) || Instant::now() < next_try[position] {
+                    continue;
+                }
+                let mode = *slave.mode.lock().unwrap_or_else(|p| p.into_inner());
+                let restore = Restore { mode, sync };
+                slave.attempts.fetch_add(1, Ordering::Relaxed);
+                let outcome = self.master.restore_slave(position as u16, &restore);
+                let mut last_error = slave.last_error.lock().unwrap_or_else(|p| p.into_inner());
+                match outcome {
+                    Ok(()) => {
+                        *last_error = None;
+                        slave.recoveries.fetch_add(1, Ordering::Relaxed);
+                        // Not asked again until the cycle thread sees it back or lost anew.
+                        next_try[position] = Instant::now() + RETRY_INTERVAL;
+                    }
+                    Err(e) => {
+                        *last_error = Some(e.to_string());
+                        next_try[position] = Instant::now() + RETRY_INTERVAL;
+                    }
+                }
+            }
+            std::thread::sleep(Duration::from_millis(2));
+        }
+    }
+}
+
+/// The cycle thread lost the slave: the recovery thread brings it back.
+pub fn want(slave: &SlaveRecovery) {
+    slave.attempts.store(0, Ordering::Relaxed);
+    slave.wanted.store(true, Ordering::Release);
+}
+
+/// The cycle thread sees the slave back in Op: no more attempts.
+pub fn done(slave: &SlaveRecovery) {
+    slave.wanted.store(false, Ordering::Release);
+}
+
+/// Whether the slave is being brought back (its mailbox is the recovery's then).
+pub fn busy(slave: &SlaveRecovery) -> bool {
+    slave.wanted.load(Ordering::Acquire)
+}
