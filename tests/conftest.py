@@ -11,6 +11,7 @@ from pathlib import Path
 
 import pytest
 
+from support import recovery_table
 from support.netns import free_udp_port, veth_pair
 
 REPO = Path(__file__).resolve().parents[1]
@@ -43,3 +44,11 @@ def veth():
     removed after the test; skips where namespaces are not permitted."""
     with veth_pair() as net:
         yield net
+
+
+def pytest_terminal_summary(terminalreporter) -> None:
+    """Prints the recovery table's rows measured in this run (tests/test_recovery.py), as the README quotes them."""
+    if recovery_table.ROWS:
+        terminalreporter.write_sep("-", "recovery table (measured in this run)")
+        for line in recovery_table.lines():
+            terminalreporter.write_line(line)

@@ -1160,6 +1160,11 @@ pub enum Unavailable {
     },
     /// The cycle thread was stopped before.
     CycleAlreadyStopped,
+    /// The slave is lost and being brought back: its mailbox is the recovery's meanwhile.
+    Recovering {
+        /// The slave's position.
+        slave: u16,
+    },
     /// The cycle thread panicked and took the master with it.
     CyclePanicked,
     /// A drive whose mapping lacks what the CiA 402 sequencer needs.
@@ -1251,6 +1256,11 @@ impl fmt::Display for Unavailable {
             }
             Unavailable::CycleStopped { consequence } => write!(f, "the cycle is stopped: {consequence}"),
             Unavailable::CycleAlreadyStopped => write!(f, "the cycle thread was already stopped"),
+            Unavailable::Recovering { slave } => write!(
+                f,
+                "slave {slave} is unreachable and being brought back; its objects can be read and written again once \
+                 it is back in Op (see recovery_status)"
+            ),
             Unavailable::CyclePanicked => write!(f, "the cycle thread panicked; the master is lost"),
             Unavailable::NotSequenced { slave, missing } => {
                 if let Some(slave) = slave {

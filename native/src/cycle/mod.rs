@@ -153,6 +153,8 @@ struct DriveLoop {
     handshake: handshake::Handshake,
     command_timeout: command_timeout::CommandTimeout,
     presence: recovery::Presence,
+    /// The mailbox counter the recovery left off at, for the master to go on from.
+    mailbox_counter: Option<u8>,
     /// The command time-out's target writes counted before this cycle's copy of the
     /// set-points; `None` when the copy did not succeed.
     target_writes: Option<u64>,
@@ -240,6 +242,7 @@ impl CycleThread {
                     handshake: handshake::Handshake::default(),
                     command_timeout: command_timeout::CommandTimeout::default(),
                     presence: recovery::Presence::default(),
+                    mailbox_counter: None,
                     target_writes: None,
                 })
             })
@@ -451,7 +454,11 @@ impl CycleThread {
         if self.stopped() {
             return Err(Unavailable::CycleStopped { consequence: "use the master's own SDO access".into() }.into());
         }
-        self.check_position(position)
+        self.check_position(position)?;
+        if recovery::busy(&self.shared.recovery[position as usize]) {
+            return Err(Unavailable::Recovering { slave: position }.into());
+        }
+        Ok(())
     }
 
     /// Sets the mode of operation of the drive at `position` — through 0x6060 in the outputs
@@ -461,11 +468,9 @@ impl CycleThread {
         let drive = self.sequenced(position)?;
         match self.offsets[position as usize].and_then(|o| o.mode) {
             Some(at) => self.shared.setpoints.write().write(at, &[mode as u8]),
-            None => {
-                self.sdo_write(position, 0x6060, 0, &[mode as u8])?;
-                self.shared.recovery[position as usize].set_mode(mode);
-            }
+            None => self.sdo_write(position, 0x6060, 0, &[mode as u8])?,
         }
+        self.shared.recovery[position as usize].set_mode(mode);
         drive.hold();
         self.shared.command_timeouts[position as usize].release();
         Ok(())
@@ -814,7 +819,8 @@ impl Drop for CycleThread {
 }
 
 /// The recovery thread's work, made while the master is still this thread's: each sequenced
-/// drive's clock as set up, and its mode where its outputs do not carry it (read now).
+/// drive's clock as set up, and the mode in force (its display 0x6061, read now: a drive that
+/// lost power has forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change").
 fn recoverer(
     master: &mut Master,
     shared: &Shared,
@@ -825,10 +831,8 @@ fn recoverer(
     let mut syncs = vec![None; master.slaves().len()];
     for d in drives {
         let position = d.position as usize;
-        if d.drive.offsets.mode.is_none() {
-            if let Ok([mode]) = master.slave_mut(d.position).and_then(|mut s| s.sdo_read(0x6060, 0)).as_deref() {
-                shared.recovery[position].set_mode(*mode as i8);
-            }
+        if let Ok([mode]) = master.slave_mut(d.position).and_then(|mut s| s.sdo_read(0x6061, 0)).as_deref() {
+            shared.recovery[position].set_mode(*mode as i8);
         }
         syncs[position] = master.restore_sync(d.position, period_ns as u32).ok();
     }
@@ -932,6 +936,11 @@ fn run(
         };
         shared.dc.publish(master.clock());
         supervise(master, shared, drives, mailbox, &mut gaps, exchange, now);
+        for d in drives.iter_mut() {
+            if let Some(counter) = d.mailbox_counter.take() {
+                master.set_mailbox_counter(d.position, counter);
+            }
+        }
         if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
             let timing = (period.min(u32::MAX as u64) as u32, exchange_ns.min(u32::MAX as u64) as u32);
             for d in drives.iter() {
@@ -1029,12 +1038,15 @@ fn supervise(
         exchange != Exchange::Lost && watch.and_then(|w| w.get(slave as usize)).is_some_and(|w| w.answered)
     };
     let all_answered = drives.iter().all(|d| answered(d.position));
+    // A frame in which nobody answered is the line's fault, as a lost frame is, not one drive's.
+    let none_answered = !drives.iter().any(|d| answered(d.position));
     for d in drives.iter_mut() {
         let slave = d.position;
         let o = d.drive.offsets;
         let statusword = (exchange == Exchange::Good).then(|| image::u16_at(inputs, o.statusword));
         let al_status = watch.and_then(|w| w.get(slave as usize)).filter(|w| w.answered).map(|w| w.al_status);
-        let in_op = al_status.is_some_and(|a| a.state() == Some(AlState::Op) && !a.error());
+        // The watch keeps the last frame's reads when a frame is lost: only this cycle's count.
+        let in_op = answered(slave) && al_status.is_some_and(|a| a.state() == Some(AlState::Op) && !a.error());
         let seen = d.watch.observe(slave, statusword, al_status, d.drive.sequenced(), now);
         faulted |= seen.fault.is_some() || seen.left_op.is_some();
         if let Some(event) = seen.fault {
@@ -1051,7 +1063,7 @@ fn supervise(
         // which did, exchanged their process data and go on.
         let spared = gap.is_some_and(|g| g.source == FaultSource::WorkingCounter) && !all_answered && answered(slave);
         // A drive that did not answer in a frame that came back is reported as unreachable.
-        let own = exchange == Exchange::Lost || answered(slave);
+        let own = exchange == Exchange::Lost || none_answered || answered(slave);
         let gap_reported = gap.filter(|_| d.drive.enabled() && own && !spared && !d.presence.lost());
         if let Some(report) = gap_reported {
             shared.events.push(Event::Fault {
@@ -1070,7 +1082,7 @@ fn supervise(
             }
         }
         let reported = gap_reported.is_some_and(|r| r.action == events::Action::Disabled);
-        faulted |= presence(shared, d, (answered(slave), in_op, reported), (statusword, al_status), now);
+        faulted |= presence(master, shared, d, (answered(slave), in_op, reported), (statusword, al_status), now);
     }
     if faulted && shared.quick_stop_on_fault.load(Ordering::Relaxed) {
         quick_stop_the_others(shared, drives, inputs);
@@ -1082,6 +1094,7 @@ fn supervise(
 /// for its recovery; when it is back, reports it and holds its target at the actual position.
 /// Returns whether it was lost this cycle.
 fn presence(
+    master: &Master,
     shared: &Shared,
     d: &mut DriveLoop,
     (answered, in_op, reported): (bool, bool, bool),
@@ -1101,7 +1114,7 @@ fn presence(
         action,
     };
     let recovery = &shared.recovery[slave as usize];
-    match d.presence.observe(answered, in_op, now) {
+    match d.presence.observe(answered, in_op && !recovery::restoring(recovery), now) {
         None => false,
         Some(recovery::Change::Lost { report, missing }) => {
             shared.drives[slave as usize].request(sequencer::Request::Disable);
@@ -1109,11 +1122,11 @@ fn presence(
                 let action = if d.drive.enabled() { events::Action::Disabled } else { events::Action::Reported };
                 shared.events.push(fault(FaultSource::Unreachable, missing.min(u16::MAX as u32) as u16, action));
             }
-            recovery::want(recovery);
+            recovery::want(recovery, master.mailbox_counter(slave).unwrap_or(0));
             true
         }
         Some(recovery::Change::Back { since }) => {
-            recovery::done(recovery);
+            d.mailbox_counter = Some(recovery::done(recovery));
             shared.drives[slave as usize].hold();
             let gone_ms = (now.1.saturating_sub(since.1) / 1_000_000).min(u16::MAX as u64) as u16;
             shared.events.push(fault(FaultSource::Recovered, gone_ms, events::Action::Restored));

@@ -166,10 +166,16 @@ impl Link for RelayLink {
 #[derive(Default)]
 pub struct SlaveRecovery {
     wanted: AtomicBool,
+    /// Set while a restore runs: the slave may reach Op before the restore has handed its
+    /// mailbox counter back.
+    restoring: AtomicBool,
     attempts: AtomicU32,
     recoveries: AtomicU32,
-    /// The mode of operation written to 0x6060 by SDO, for a drive whose outputs do not carry
-    /// it; the cycle thread never takes this lock.
+    /// The mailbox counter of the last message to the slave, handed between the cycle's master
+    /// and the recovery's, so that the slave never takes a new message for a repeat.
+    mailbox_counter: AtomicU8,
+    /// The mode of operation last set, which a restore writes to 0x6060 again; the cycle
+    /// thread never takes this lock.
     mode: Mutex<Option<i8>>,
     /// Why the last attempt failed; the cycle thread never takes this lock.
     last_error: Mutex<Option<String>>,
@@ -191,7 +197,7 @@ pub struct RecoveryStatus {
 }
 
 impl SlaveRecovery {
-    /// Notes the mode written to 0x6060 by SDO, which a restore writes again.
+    /// Notes the mode last set, which a restore writes again.
     pub fn set_mode(&self, mode: i8) {
         *self.mode.lock().unwrap_or_else(|p| p.into_inner()) = Some(mode);
     }
@@ -289,10 +295,16 @@ impl Recoverer {
                 if !slave.wanted.load(Ordering::Acquire) || Instant::now() < next_try[position] {
                     continue;
                 }
-                let mode = *slave.mode.lock().unwrap_or_else(|p| p.into_inner());
+                // 0 is no mode: the drive refuses it, and keeps its power-up mode.
+                let mode = slave.mode.lock().unwrap_or_else(|p| p.into_inner()).filter(|&m| m != 0);
                 let restore = Restore { mode, sync };
+                let p = position as u16;
+                self.master.set_mailbox_counter(p, slave.mailbox_counter.load(Ordering::Acquire));
                 slave.attempts.fetch_add(1, Ordering::Relaxed);
-                let outcome = self.master.restore_slave(position as u16, &restore);
+                slave.restoring.store(true, Ordering::Release);
+                let outcome = self.master.restore_slave(p, &restore);
+                slave.mailbox_counter.store(self.master.mailbox_counter(p).unwrap_or(0), Ordering::Release);
+                slave.restoring.store(false, Ordering::Release);
                 let mut last_error = slave.last_error.lock().unwrap_or_else(|p| p.into_inner());
                 match outcome {
                     Ok(()) => {
@@ -312,15 +324,24 @@ impl Recoverer {
     }
 }
 
-/// The cycle thread lost the slave: the recovery thread brings it back.
-pub fn want(slave: &SlaveRecovery) {
+/// The cycle thread lost the slave (whose last mailbox message had `mailbox_counter`): the
+/// recovery thread brings it back.
+pub fn want(slave: &SlaveRecovery, mailbox_counter: u8) {
     slave.attempts.store(0, Ordering::Relaxed);
+    slave.mailbox_counter.store(mailbox_counter, Ordering::Release);
     slave.wanted.store(true, Ordering::Release);
 }
 
-/// The cycle thread sees the slave back in Op: no more attempts.
-pub fn done(slave: &SlaveRecovery) {
+/// The cycle thread sees the slave back in Op: no more attempts. Gives the mailbox counter its
+/// master goes on from.
+pub fn done(slave: &SlaveRecovery) -> u8 {
     slave.wanted.store(false, Ordering::Release);
+    slave.mailbox_counter.load(Ordering::Acquire)
+}
+
+/// Whether a restore of the slave is under way: it is not back before that ends.
+pub fn restoring(slave: &SlaveRecovery) -> bool {
+    slave.restoring.load(Ordering::Acquire)
 }
 
 /// Whether the slave is being brought back (its mailbox is the recovery's then).

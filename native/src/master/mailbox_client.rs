@@ -154,6 +154,19 @@ impl Master {
         }
     }
 
+    /// The counter of the last message sent to the slave at `position` (0 before any), so
+    /// that a [`sibling`](Master::sibling) talking to the same slave goes on from it.
+    pub fn mailbox_counter(&self, position: u16) -> Option<u8> {
+        Some(self.slave(position).ok()?.mailbox.as_ref()?.counter)
+    }
+
+    /// Goes on from `counter` (see [`mailbox_counter`](Self::mailbox_counter)).
+    pub fn set_mailbox_counter(&mut self, position: u16, counter: u8) {
+        if let Some(mailbox) = self.slave_entry_mut(position).ok().and_then(|s| s.mailbox.as_mut()) {
+            mailbox.counter = counter;
+        }
+    }
+
     /// Takes the counter for the next message to the slave at `position` (1..=7), as
     /// [`mailbox_send`](Self::mailbox_send) does, for a caller that writes SM0 itself.
     pub(super) fn mailbox_take_counter(&mut self, position: u16) -> Result<u8> {

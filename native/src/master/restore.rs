@@ -53,7 +53,7 @@ pub enum SlaveSync {
 /// What a restore gives the slave besides what the scan and the mapping hold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Restore {
-    /// The mode of operation to write to 0x6060, where it is not in the outputs.
+    /// The mode of operation to write to 0x6060 (a drive that lost power forgot it).
     pub mode: Option<i8>,
     /// Its clock.
     pub sync: SlaveSync,

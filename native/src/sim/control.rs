@@ -298,6 +298,13 @@ impl ControlledBus {
         served
     }
 
+    /// No frame came until bus time `now_ns`: the drives' firmware runs up to it (supervision
+    /// counts the frames missed), and the commands waiting are served.
+    pub fn idle(&mut self, now_ns: u64) {
+        self.bus.advance(now_ns);
+        self.serve_commands();
+    }
+
     /// Applies the changes and answers the queries pending, with no frame: for an owner that
     /// waits for frames and wakes up now and then (the `akd-sim` server).
     pub fn serve_commands(&mut self) {

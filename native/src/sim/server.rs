@@ -18,8 +18,10 @@ use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
 use crate::sim::line::Delivery;
 
-/// How often a server looks at its stop flag.
-pub const POLL_INTERVAL: Duration = Duration::from_millis(100);
+/// How often a server looks at its stop flag and its commands, and lets its drives' firmware
+/// run when no frame comes: a real AKD's firmware runs by itself, so a master that is gone
+/// ends in F125 within a few ms of its last frame, not at the next master's first frame.
+pub const POLL_INTERVAL: Duration = Duration::from_millis(2);
 
 /// What a server did, for its caller to report.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -68,7 +70,7 @@ pub fn serve_udp(bind: SocketAddr, bus: impl Into<ControlledBus>, stop: &AtomicB
                     std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut | std::io::ErrorKind::Interrupted
                 ) =>
             {
-                bus.serve_commands();
+                bus.idle(elapsed_ns(start));
                 continue;
             }
             Err(e) => return Err(Error::io(format!("receiving on UDP {bind}"), e)),
@@ -94,7 +96,7 @@ pub fn serve_iface(iface: &str, bus: impl Into<ControlledBus>, stop: &AtomicBool
     let mut buf = [0u8; MAX_ETH_FRAME_LEN];
     while !stop.load(Ordering::Relaxed) {
         let Some(len) = socket.recv(&mut buf, POLL_INTERVAL)? else {
-            bus.serve_commands();
+            bus.idle(elapsed_ns(start));
             continue;
         };
         let is_ecat = len > ETH_HEADER_LEN && u16::from_be_bytes([buf[12], buf[13]]) == ETHERTYPE;

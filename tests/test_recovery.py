@@ -1,0 +1,340 @@
+"""The recovery table, one test per row: what the field does to a line of AKDs, what the user sees (the fault events
+that become ~/fault and the node's log line), how long detection and recovery take, and that after recovery the drive
+is back in Op with its power stage off and nothing moves until it is enabled and commanded again.
+
+Each test measures its row's times (from the fault's injection to the event that reports it, and to the event that
+reports the drive back in Op) and records them in `support.recovery_table`, which the run prints at its end and the
+README's recovery table quotes. Deadlines only keep a failure from hanging; no test asserts how fast anything is.
+"""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+
+from akd_ros import Bus, DriveConfig
+from support import recovery_table
+from support.netns import akd_sim_in_netns, entered_netns, free_udp_port, stop_process, udp_port_bound
+from support.ros import Sim
+
+WAIT_S = 10.0
+MODE = "cyclic_synchronous_position"
+
+
+def drives(count: int) -> list[DriveConfig]:
+    return [DriveConfig(slave=p, name=f"j{p}", mode=MODE) for p in range(count)]
+
+
+def faults_until(bus: Bus, done, what: str, timeout: float = WAIT_S) -> list[tuple[str, object]]:
+    """Collects (joint, FaultEvent) of every axis until done(collected); fails naming `what` otherwise."""
+    seen: list[tuple[str, object]] = []
+    deadline = time.monotonic() + timeout
+    while not done(seen):
+        assert time.monotonic() < deadline, (
+            f"no {what} within {timeout} s; seen: {[(j, e.describe()) for j, e in seen]}"
+        )
+        for axis in bus.axes:
+            seen.extend((axis.name, e) for e in axis.fault_events())
+        time.sleep(0.002)
+    return seen
+
+
+def first(seen, joint: str, source: str):
+    """The first event of `source` on `joint` in `seen`, or None."""
+    return next((e for j, e in seen if j == joint and e.source == source), None)
+
+
+def has(joint: str, *sources: str):
+    return lambda seen: all(first(seen, joint, s) is not None for s in sources)
+
+
+def assert_powerless_and_still(bus: Bus, joint: str, seconds: float = 0.3) -> None:
+    """The drive is back in Op with its power stage off, and its position does not change for `seconds`: nothing
+    moves without a fresh enable and a fresh command."""
+    axis = bus[joint]
+    state = axis.state()
+    assert state.state in ("Switch on disabled", "Fault", "Ready to switch on"), state
+    before = state.position_counts
+    time.sleep(seconds)
+    assert axis.state().position_counts == before
+    assert not axis.recovery()["recovering"], axis.recovery()
+
+
+def enable_and_move(bus: Bus, joint: str) -> None:
+    """A fresh reset, enable and command moves the recovered drive again."""
+    axis = bus[joint]
+    if axis.state().state == "Fault":
+        axis.reset_fault()
+    axis.enable()
+    start = axis.state().position
+    axis.command_position(start + 0.2)
+    deadline = time.monotonic() + WAIT_S
+    while abs(axis.state().position - start - 0.2) > 1e-3:
+        assert time.monotonic() < deadline, "the recovered drive does not follow a fresh command"
+        time.sleep(0.01)
+
+
+@pytest.mark.parametrize("burst", [1, 3, 7])
+@pytest.mark.parametrize("enabled", [True, False], ids=["enabled", "disabled"])
+def test_a_short_burst_of_lost_frames_is_counted_and_changes_nothing(burst, enabled):
+    with Bus("sim:1", drives(1)) as bus:
+        if enabled:
+            bus.enable()
+        position = bus["j0"].state().position_counts
+        lost = bus.stats()["lost_frames"]
+        t0 = time.monotonic_ns()
+        bus.simulator.drop_frames(burst)
+        if enabled:
+            seen = faults_until(bus, has("j0", "lost_frames"), "lost_frames event")
+            event = first(seen, "j0", "lost_frames")
+            assert (event.code, event.action.startswith("counted")) == (burst, True), event
+            detected = event.time_ns - t0
+        else:
+            deadline = time.monotonic() + WAIT_S
+            while bus.stats()["lost_frames"] < lost + burst:
+                assert time.monotonic() < deadline
+                time.sleep(0.01)
+            time.sleep(0.05)
+            assert list(bus["j0"].fault_events()) == [], "a short gap while disabled is counted, not reported"
+            detected = None
+        assert bus.stats()["lost_frames"] == lost + burst
+        state = bus["j0"].state()
+        assert state.state == ("Operation enabled" if enabled else "Switch on disabled"), state
+        assert abs(state.position_counts - position) <= 1
+    seen_text = (
+        "`lost_frames` fault, counted; the drive holds its set-point" if enabled else "counted in the statistics"
+    )
+    recovery_table.record(
+        f"{burst} lost frame(s), drive {'enabled' if enabled else 'disabled'}", seen_text, detected, None
+    )
+
+
+@pytest.mark.parametrize("burst", [8, 100])
+@pytest.mark.parametrize("enabled", [True, False], ids=["enabled", "disabled"])
+def test_a_long_burst_of_lost_frames_is_reported_in_every_state_and_the_drive_comes_back_powerless(burst, enabled):
+    with Bus("sim:1", drives(1)) as bus:
+        if enabled:
+            bus.enable()
+        t0 = time.monotonic_ns()
+        bus.simulator.drop_frames(burst)
+        reported = "lost_frames" if enabled else "unreachable"
+        seen = faults_until(bus, has("j0", reported, "recovered"), f"{reported} and recovered events")
+        event = first(seen, "j0", reported)
+        assert event.code == 8 and event.action.startswith("drive disabled" if enabled else "reported"), event
+        back = first(seen, "j0", "recovered")
+        if enabled:
+            # The drive saw more than seven frames missing while enabled: F125, its own reaction.
+            faults_until(bus, lambda _: bus["j0"].state().state == "Fault", "the drive's F125")
+            assert bus.simulator.drive_state(0)["fault"] == "sync_lost"  # F125
+        assert_powerless_and_still(bus, "j0")
+        enable_and_move(bus, "j0")
+    recovery_table.record(
+        f"{burst} lost frames, drive {'enabled' if enabled else 'disabled'}",
+        f"`{reported}` fault ({event.action.split(';')[0].split(' (')[0]}), then `recovered`"
+        + ("; the drive in F125" if enabled else ""),
+        event.time_ns - t0,
+        back.time_ns - t0,
+    )
+
+
+@pytest.mark.parametrize("burst", [3, 8])
+def test_wrong_working_counters_are_counted_short_and_disable_long(burst):
+    with Bus("sim:1", drives(1)) as bus:
+        bus.enable()
+        t0 = time.monotonic_ns()
+        bus.simulator.wrong_wkc(burst)
+        seen = faults_until(bus, has("j0", "working_counter"), "working_counter event")
+        event = first(seen, "j0", "working_counter")
+        assert event.code == burst, event
+        if burst < 8:
+            assert event.action.startswith("counted") and bus["j0"].state().state == "Operation enabled"
+        else:
+            assert event.action.startswith("drive disabled"), event
+            faults_until(bus, lambda _: bus["j0"].state().state == "Switch on disabled", "the drive disabled")
+            assert_powerless_and_still(bus, "j0")
+            enable_and_move(bus, "j0")
+    recovery_table.record(
+        f"{burst} wrong working counters, drive enabled",
+        "`working_counter` fault, " + ("counted" if burst < 8 else "drive disabled"),
+        event.time_ns - t0,
+        None,
+    )
+
+
+@pytest.mark.parametrize("dc", [False, True], ids=["sm2", "dc"])
+@pytest.mark.parametrize("reaction", ["joint", "all"])
+def test_a_drive_power_cycled_in_op_is_restored_with_its_power_stage_off(dc, reaction):
+    with Bus("sim:3", drives(3), fault_reaction=reaction, dc=dc) as bus:
+        bus.enable()
+        t0 = time.monotonic_ns()
+        bus.simulator.power_cycle(1)
+        seen = faults_until(bus, has("j1", "unreachable", "recovered"), "unreachable and recovered events")
+        lost, back = first(seen, "j1", "unreachable"), first(seen, "j1", "recovered")
+        assert lost.action.startswith("drive disabled") and back.action.startswith("back in Op"), (lost, back)
+        assert bus["j1"].recovery()["recoveries"] == 1
+        sim = bus.simulator.drive_state(1)
+        assert sim["al_state"] == "op" if "al_state" in sim else True
+        if dc:
+            assert sim["dc"]["sync0_active"] and sim["dc"]["sync0_cycle_ns"] == 1_000_000, sim["dc"]
+        assert_powerless_and_still(bus, "j1")
+        others = {j: bus[j].state().state for j in ("j0", "j2")}
+        expected = "Operation enabled" if reaction == "joint" else "Quick stop active"
+        assert set(others.values()) <= {expected, "Switch on disabled"} and (
+            reaction == "all" or set(others.values()) == {expected}
+        ), others
+        if reaction == "all":
+            bus.disable()
+        enable_and_move(bus, "j1")
+    recovery_table.record(
+        f"drive power-cycled in Op ({'DC' if dc else 'SM2'}, fault_reaction {reaction})",
+        "`unreachable` fault (drive disabled), then `recovered`; the others "
+        + ("run on" if reaction == "joint" else "quick-stopped"),
+        lost.time_ns - t0,
+        back.time_ns - t0,
+    )
+
+
+def test_one_drive_of_several_vanishing_while_the_others_run():
+    with Bus("sim:3", drives(3), fault_reaction="joint") as bus:
+        bus.enable()
+        t0 = time.monotonic_ns()
+        bus.simulator.pull_cable(2)
+        seen = faults_until(bus, has("j2", "unreachable"), "unreachable event")
+        lost = first(seen, "j2", "unreachable")
+        time.sleep(0.2)
+        # The others answered every frame: they keep fresh inputs, stay enabled and follow commands.
+        assert [bus[j].state().state for j in ("j0", "j1")] == ["Operation enabled"] * 2
+        assert bus["j2"].recovery()["recovering"]
+        enable_and_move(bus, "j0")
+        bus.simulator.replug_cable(2)
+        t1 = time.monotonic_ns()
+        seen = faults_until(bus, has("j2", "recovered"), "recovered event")
+        back = first(seen, "j2", "recovered")
+        assert not any(j != "j2" for j, _ in seen), seen
+        assert_powerless_and_still(bus, "j2")
+        enable_and_move(bus, "j2")
+    recovery_table.record(
+        "one drive of three vanishing (cable pulled, then plugged)",
+        "`unreachable` on that drive only; the others run on; `recovered` once plugged",
+        lost.time_ns - t0,
+        back.time_ns - t1,
+    )
+
+
+def test_the_link_down_and_up_is_reported_and_the_drives_come_back(veth):
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
+        with entered_netns(veth.ns_master):
+            bus = Bus(veth.if_master, drives(2), fault_reaction="joint")
+        with bus:
+            bus.enable()
+            t0 = time.monotonic_ns()
+            subprocess.run(["ip", "-n", veth.ns_master, "link", "set", veth.if_master, "down"], check=True)
+            seen = faults_until(bus, has("j0", "lost_frames") and has("j1", "lost_frames"), "lost_frames events")
+            lost = first(seen, "j0", "lost_frames")
+            stats = bus.stats()
+            # A link that is down refuses the frame at once (ENETDOWN): counted as an error, not a lost frame.
+            assert bus["j0"].recovery()["recovering"] and stats["lost_frames"] + stats["other_errors"] >= 8, stats
+            time.sleep(0.3)
+            t1 = time.monotonic_ns()
+            subprocess.run(["ip", "-n", veth.ns_master, "link", "set", veth.if_master, "up"], check=True)
+            seen = faults_until(bus, lambda s: has("j0", "recovered")(s) and has("j1", "recovered")(s), "recovered")
+            back = first(seen, "j0", "recovered")
+            for joint in ("j0", "j1"):
+                assert_powerless_and_still(bus, joint)
+            enable_and_move(bus, "j0")
+    recovery_table.record(
+        "link down and up (veth end set down for 0.3 s, then up; DC on)",
+        "`lost_frames` fault on every drive (disabled), then `recovered`; the drives in F125",
+        lost.time_ns - t0,
+        back.time_ns - t1,
+    )
+
+
+def serving(port: int, count: int) -> Sim:
+    """akd-sim on `port` (its stdin commands at hand), once its socket is bound."""
+    sim = Sim(port, count=count)
+    deadline = time.monotonic() + WAIT_S
+    while not udp_port_bound(port):
+        assert time.monotonic() < deadline and sim.process.poll() is None, "akd-sim did not bind its port"
+        time.sleep(0.01)
+    return sim
+
+
+def test_the_simulator_killed_and_restarted_comes_back_as_power_cycled_drives():
+    port = free_udp_port()
+    sim = serving(port, 2)
+    try:
+        with Bus(f"udp://127.0.0.1:{port}", drives(2), fault_reaction="joint") as bus:
+            bus.enable()
+            t0 = time.monotonic_ns()
+            sim.process.send_signal(signal.SIGKILL)
+            sim.process.wait(timeout=WAIT_S)
+            seen = faults_until(bus, lambda s: has("j0", "lost_frames")(s) and has("j1", "lost_frames")(s), "loss")
+            lost = first(seen, "j0", "lost_frames")
+            t1 = time.monotonic_ns()
+            sim = serving(port, 2)
+            seen = faults_until(bus, lambda s: has("j0", "recovered")(s) and has("j1", "recovered")(s), "recovered")
+            back = first(seen, "j0", "recovered")
+            assert bus["j0"].recovery()["recoveries"] >= 1
+            for joint in ("j0", "j1"):
+                assert_powerless_and_still(bus, joint)
+            enable_and_move(bus, "j1")
+    finally:
+        sim.stop()
+    recovery_table.record(
+        "akd-sim killed (SIGKILL) and started again",
+        "`lost_frames` fault on every drive (disabled), then `recovered` (readdressed and reconfigured)",
+        lost.time_ns - t0,
+        back.time_ns - t1,
+    )
+
+
+def test_a_master_killed_while_a_drive_is_enabled_leaves_the_drive_to_its_f125():
+    """The master (a Python process holding a Bus) is killed with SIGKILL while the drive is enabled: no frame comes
+    any more, and the drive's own reaction, F125 after more than seven missed frames, switches its power stage off;
+    a new master finds the drive in Fault, and it moves again only after a reset, an enable and a command."""
+    port = free_udp_port()
+    script = (
+        "import time\n"
+        "from akd_ros import Bus, DriveConfig\n"
+        f"bus = Bus('udp://127.0.0.1:{port}', [DriveConfig(slave=0, mode='{MODE}')])\n"
+        "bus.enable()\n"
+        "print('enabled', flush=True)\n"
+        "time.sleep(60)\n"
+    )
+    sim = serving(port, 1)
+    master = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert master.stdout.readline().strip() == "enabled", master.stderr.read()
+        assert sim.state()["state"] == "Operation enabled"
+        t0 = time.monotonic_ns()
+        master.send_signal(signal.SIGKILL)
+        master.wait(timeout=WAIT_S)
+        deadline = time.monotonic() + WAIT_S
+        while (drive := sim.state())["fault"] is None:
+            assert time.monotonic() < deadline, drive
+            time.sleep(0.005)
+        detected = time.monotonic_ns() - t0
+        assert (drive["fault"], drive["state"]) == ("sync_lost", "Fault"), drive
+        # A new master on the same line finds what the drive did by itself.
+        with Bus(f"udp://127.0.0.1:{port}", drives(1)) as bus:
+            deadline = time.monotonic() + WAIT_S
+            while not (state := bus["j0"].state()).fresh:
+                assert time.monotonic() < deadline
+                time.sleep(0.01)
+            assert state.state == "Fault", state
+            enable_and_move(bus, "j0")
+    finally:
+        stop_process(master)
+        sim.stop()
+    recovery_table.record(
+        "the master killed (SIGKILL) while the drive is enabled",
+        "the drive's own F125 (power stage off); a new master finds it in Fault, and it moves only after a reset, "
+        "an enable and a command",
+        detected,
+        None,
+    )
