@@ -348,3 +348,43 @@ pub fn restoring(slave: &SlaveRecovery) -> bool {
 pub fn busy(slave: &SlaveRecovery) -> bool {
     slave.wanted.load(Ordering::Acquire)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_slave_is_lost_after_the_limit_unanswered_and_back_when_it_answers_in_op() {
+        let mut p = Presence::default();
+        for cycle in 1..LOST_AFTER as u64 {
+            assert_eq!(p.observe(false, false, (cycle, cycle)), None);
+        }
+        assert_eq!(p.observe(false, false, (8, 8)), Some(Change::Lost { report: true, missing: LOST_AFTER }));
+        assert!(p.lost());
+        // Answering out of Op (being restored) keeps it lost; Op brings it back.
+        assert_eq!(p.observe(true, false, (9, 9)), None);
+        assert_eq!(p.observe(true, true, (10, 10)), Some(Change::Back { since: (8, 8) }));
+        assert!(!p.lost());
+    }
+
+    #[test]
+    fn a_short_gap_is_forgotten_and_leaving_op_is_lost_at_once_without_a_second_report() {
+        let mut p = Presence::default();
+        assert_eq!(p.observe(false, false, (1, 1)), None);
+        assert_eq!(p.observe(true, true, (2, 2)), None);
+        for cycle in 3..3 + LOST_AFTER as u64 - 1 {
+            assert_eq!(p.observe(false, false, (cycle, cycle)), None);
+        }
+        assert_eq!(p.observe(true, false, (20, 20)), Some(Change::Lost { report: false, missing: LOST_AFTER - 1 }));
+    }
+
+    #[test]
+    fn a_relayed_frame_without_a_cycle_to_send_it_is_lost_not_waited_for() {
+        let relay = Arc::new(Relay::default());
+        relay.end();
+        let mut link = RelayLink::new(relay, "sim".into(), Duration::from_millis(1));
+        let err = link.exchange(&[0; 16], &mut [0; 64], Duration::from_millis(1)).unwrap_err();
+        assert!(err.to_string().contains("beside the cycle"), "{err}");
+        assert_eq!(link.describe(), "sim (beside the cycle)");
+    }
+}
