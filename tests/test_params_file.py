@@ -23,9 +23,14 @@ REPO = Path(__file__).resolve().parents[1]
 NO_ROS = REPO / "tests" / "support" / "no_ros"
 ROS_BLOCKED = getattr(sys.modules.get("sitecustomize"), "BLOCKED", False)
 RUN_TIMEOUT_S = 120.0
-REFUSED_AT_CONFIGURE = {"a joint past the last drive", "mode the mapping cannot carry"}
+REFUSED_AT_CONFIGURE = {
+    "a joint past the last drive",
+    "mode the mapping cannot carry",
+    "a line with no drives listening",
+}
 """Bad files of BAD_FILES that the parameters' checks pass: the node refuses them at configure, when the Bus opens
-(a slave that is not on the bus) or when it checks each joint's mode against its drive's mapping."""
+(a slave that is not on the bus, a line where nothing answers) or when it checks each joint's mode against its
+drive's mapping."""
 # What the package and the node's parameters need without ROS, checked where ROS cannot be imported.
 IMPORTS_WITHOUT_ROS = """
 import sys

@@ -119,5 +119,10 @@ BAD_FILES = {
         "link: sim:2\njoints: [a, b, c]",
         ["the drives (a (slave 0), b (slave 1), c (slave 2))", "slave 2 is not on the bus (slaves 0..1)"],
     ),
+    # Port 9 (discard) on loopback: nothing listens, so the configure fails and the node ends.
+    "a line with no drives listening": (
+        "link: udp://127.0.0.1:9",
+        ["configure: the drives (slave 0) on link 'udp://127.0.0.1:9' did not open", "no simulator listening"],
+    ),
 }
 """Each bad file's ros__parameters lines and the texts its refusal contains, by case."""
