@@ -351,3 +351,31 @@ def test_a_master_killed_while_a_drive_is_enabled_leaves_the_drive_to_its_f125()
         detected,
         None,
     )
+
+
+def test_stopping_the_cycle_while_another_thread_waits_on_it_ends_the_wait_with_its_reason():
+    """A node shutting down while a service thread waits in the cycle (a state, an SDO) stops cleanly: the waiter
+    is told the cycle stopped, and stop() raises nothing."""
+    import threading
+
+    from akd_ros import _native
+
+    with _native.Master("sim:1") as master:
+        master.scan()
+        master.request_state("op")
+        cycle = _native.Cycle(master, 0.001)
+        outcome = []
+
+        def wait():
+            try:
+                cycle.wait_state(0, "Operation enabled", timeout=WAIT_S)
+            except _native.EtherCatError as e:
+                outcome.append(str(e))
+
+        waiter = threading.Thread(target=wait)
+        waiter.start()
+        time.sleep(0.05)
+        cycle.stop()
+        waiter.join(timeout=WAIT_S)
+        assert not waiter.is_alive() and outcome and "stopped" in outcome[0], outcome
+        master.request_state("init")

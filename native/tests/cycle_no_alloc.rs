@@ -99,7 +99,7 @@ fn cycle_loop_allocates_nothing() {
     m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
     m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
-    let mut cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);
     // The counter sees the watched thread only: this thread's allocation is not counted.

@@ -148,7 +148,7 @@ fn the_cycle_thread_publishes_every_drives_system_time_difference() {
     let mut rig = Rig::new();
     rig.m.configure_dc(CYCLE_NS, 100_000).unwrap();
     rig.m.request_state(AlState::Op, STEP).unwrap();
-    let mut cycle = CycleThread::start(rig.m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let cycle = CycleThread::start(rig.m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
     let deadline = std::time::Instant::now() + STEP;
     let status = loop {
         let status = cycle.dc_status().unwrap();

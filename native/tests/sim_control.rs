@@ -38,7 +38,7 @@ fn statusword_of(inputs: &[u8]) -> u16 {
 #[test]
 fn a_fault_injected_while_the_cycle_thread_owns_the_link_shows_in_the_statusword() {
     let (m, control) = master_in_op();
-    let mut cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
     assert_eq!(control.drive_state(0, STEP).unwrap().fault, None);
     control.inject_fault(0, "F439").unwrap();
     let deadline = Instant::now() + Duration::from_secs(10);

@@ -191,8 +191,11 @@ fn sequenced_drives(
 /// A cycle thread: it runs from [`start`](CycleThread::start) to [`stop`](CycleThread::stop).
 pub struct CycleThread {
     shared: Arc<Shared>,
-    thread: Option<JoinHandle<Option<Master>>>,
-    recovery: Option<JoinHandle<()>>,
+    /// Taken by [`stop`](CycleThread::stop), which may come from another thread than callers
+    /// waiting on the cycle (they see it stopped and end); the cycle thread never locks these.
+    thread: std::sync::Mutex<Option<JoinHandle<Option<Master>>>>,
+    recovery: std::sync::Mutex<Option<JoinHandle<()>>>,
+    halted: AtomicBool,
     slots: Vec<Option<ImageSlot>>,
     warnings: Vec<String>,
     period: Duration,
@@ -325,8 +328,9 @@ impl CycleThread {
         };
         Ok(CycleThread {
             shared,
-            thread: Some(thread),
-            recovery,
+            thread: std::sync::Mutex::new(Some(thread)),
+            recovery: std::sync::Mutex::new(recovery),
+            halted: AtomicBool::new(false),
             slots,
             warnings,
             period: config.period,
@@ -784,12 +788,12 @@ impl CycleThread {
 
     /// Whether the thread still runs.
     pub fn running(&self) -> bool {
-        self.thread.as_ref().is_some_and(|t| !t.is_finished())
+        !self.stopped() && lock(&self.thread).as_ref().is_some_and(|t| !t.is_finished())
     }
 
     /// Stops the thread after its current cycle and hands the master back. The last snapshot
     /// and the statistics stay readable; set-points are refused from then on.
-    pub fn stop(&mut self) -> Result<Master> {
+    pub fn stop(&self) -> Result<Master> {
         if self.stopped() {
             return Err(Unavailable::CycleAlreadyStopped.into());
         }
@@ -798,17 +802,24 @@ impl CycleThread {
 
     /// Whether [`stop`](Self::stop) was called.
     pub fn stopped(&self) -> bool {
-        self.thread.is_none()
+        self.halted.load(Ordering::Acquire)
     }
 
-    fn halt(&mut self) -> Option<Master> {
+    fn halt(&self) -> Option<Master> {
+        self.halted.store(true, Ordering::Release);
         self.shared.stop.store(true, Ordering::Release);
-        let master = self.thread.take()?.join().ok().flatten();
-        if let Some(recovery) = self.recovery.take() {
+        let thread = lock(&self.thread).take();
+        let master = thread?.join().ok().flatten();
+        if let Some(recovery) = lock(&self.recovery).take() {
             let _ = recovery.join();
         }
         master
     }
+}
+
+/// A lock that a panicking holder left is still the same handle.
+fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 impl Drop for CycleThread {
@@ -1196,7 +1207,7 @@ mod tests {
         let mut master = master_in_op(2);
         // Outputs set before the start go on unchanged.
         master.slave_mut(1).unwrap().set_outputs(&[0x44, 0x33, 0x22, 0x11, 0x0F, 0]).unwrap();
-        let mut cycle = CycleThread::start(master, Config::new(Duration::from_micros(500))).map_err(|e| e.0).unwrap();
+        let cycle = CycleThread::start(master, Config::new(Duration::from_micros(500))).map_err(|e| e.0).unwrap();
         assert!(cycle.running());
         assert_eq!(cycle.outputs(1).unwrap(), [0x44, 0x33, 0x22, 0x11, 0x0F, 0]);
         cycle.set_outputs(0, &[0x78, 0x56, 0x34, 0x12, 0x06, 0]).unwrap();

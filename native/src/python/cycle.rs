@@ -25,7 +25,8 @@ use crate::ds402::State;
 use crate::error::{Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
-#[pyclass(name = "Cycle", module = "akd_ros._native")]
+// Frozen: stop() may come while another thread waits inside a method (an SDO, a state).
+#[pyclass(name = "Cycle", module = "akd_ros._native", frozen)]
 pub struct PyCycle {
     master: Py<PyMaster>,
     cycle: CycleThread,
@@ -237,11 +238,11 @@ impl PyCycle {
         self.cycle.request(position, request).py()
     }
 
-    fn halt(&mut self, py: Python<'_>) -> PyResult<()> {
+    fn halt(&self, py: Python<'_>) -> PyResult<()> {
         if self.cycle.stopped() {
             return Ok(());
         }
-        let cycle = &mut self.cycle;
+        let cycle = &self.cycle;
         let master = py.allow_threads(|| cycle.stop()).py()?;
         self.master.borrow(py).put_back(master);
         Ok(())
@@ -417,7 +418,11 @@ impl PyCycle {
                 let stuck = status.progress == Progress::Stuck;
                 if stuck || std::time::Instant::now() >= deadline || !cycle.running() {
                     let seen = status.state().map_or("no valid state", |s| s.name());
-                    let why = status.stuck_reason().map_or(String::new(), |r| format!(": {r}"));
+                    let why = match status.stuck_reason() {
+                        _ if !cycle.running() => ": cut short, the cycle stopped".to_owned(),
+                        Some(r) => format!(": {r}"),
+                        None => String::new(),
+                    };
                     return Ok(Some(format!(
                         "drive {position} to reach {} (it is in {seen}, statusword 0x{:04X}){why}",
                         wanted.name(),
@@ -438,8 +443,9 @@ impl PyCycle {
     /// "trajectory"), "cycle" and "time_ns" (the cycle's monotonic wake-up time); all but
     /// trajectory events have "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
     /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
-    /// "working_counter", "al_state"), "code" (CiA error code; for lost frames and working
-    /// counter errors the cycles in a row), "text" (the AKD's text where known, else None),
+    /// "working_counter", "al_state", "unreachable", "recovered"), "code" (CiA error code; for
+    /// lost frames, working counter errors and an unreachable drive the cycles in a row; for a
+    /// recovered one the ms it was gone), "text" (the AKD's text where known, else None),
     /// "statusword", "al_status", "al_status_code" and "action" (what the loop did). A command
     /// time-out adds "command" ("velocity", "torque"), "value" (its last value in drive units:
     /// counts/s, 0.1 % of peak torque), "timeout" (s), "statusword", "ds402_state", "action"
@@ -642,7 +648,7 @@ impl PyCycle {
 
     /// Stops the thread after its current cycle and hands the master back to its Master object;
     /// snapshot, stats and histograms stay readable (the final ones). A second stop does nothing.
-    fn stop(&mut self, py: Python<'_>) -> PyResult<()> {
+    fn stop(&self, py: Python<'_>) -> PyResult<()> {
         self.halt(py)
     }
 
@@ -650,7 +656,7 @@ impl PyCycle {
         slf
     }
 
-    fn __exit__(&mut self, py: Python<'_>, _exc_type: PyObject, _exc: PyObject, _tb: PyObject) -> PyResult<()> {
+    fn __exit__(&self, py: Python<'_>, _exc_type: PyObject, _exc: PyObject, _tb: PyObject) -> PyResult<()> {
         self.halt(py)
     }
 
