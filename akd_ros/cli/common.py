@@ -47,10 +47,12 @@ def stop_on_signals() -> None:
 
 
 def run(prog: str, body: Callable[[], int]) -> int:
-    """Runs a tool's body: EtherCAT errors and bad values become one line on stderr and a
-    non-zero status, SIGINT/SIGTERM a quiet stop."""
+    """Runs a tool's body: a warning first when run as root, EtherCAT errors and bad values
+    become one line on stderr and a non-zero status, SIGINT/SIGTERM a quiet stop."""
     from akd_ros import EtherCatError
+    from akd_ros.privilege import warn_if_root
 
+    warn_if_root(prog)
     stop_on_signals()
     try:
         return body()
