@@ -131,6 +131,33 @@ def test_scan_with_cap_net_raw_alone_works_without_the_root_warning(veth, tmp_pa
     assert scan.stderr == ""
 
 
+def test_scan_with_setcap_on_the_interpreter_works(veth, tmp_path):
+    # On a copy of the interpreter (`python -m venv --copies`), as the README advises: setcap on the venv's usual
+    # symlink would give every user of the shared interpreter CAP_NET_RAW.
+    if shutil.which("setcap") is None:
+        pytest.skip("needs setcap (Debian package libcap2-bin)")
+    venv = Path(tempfile.mkdtemp(prefix="akd-setcap-"))
+    try:
+        venv.chmod(0o755)
+        subprocess.run(
+            [sys.base_prefix + "/bin/python3", "-m", "venv", "--copies", "--without-pip", str(venv)], check=True
+        )
+        python = venv / "bin" / "python3"
+        made = run(["setcap", "cap_net_raw+ep", str(python.resolve())])
+        if made.returncode != 0:
+            pytest.skip(f"setcap is refused here (a filesystem without extended attributes?): {made.stderr.strip()}")
+        # The tree and the installed packages of this venv, on the path of the copy.
+        site = next(p for p in sys.path if p.endswith("site-packages"))
+        argv = ["env", f"PYTHONPATH={REPO}:{site}", str(python), "-m", "akd_ros.cli.scan", veth.if_master]
+        with akd_sim_in_netns(veth.ns_sim, veth.if_sim):
+            scan = run(as_nobody(veth.ns_master, argv, tmp_path))
+    finally:
+        shutil.rmtree(venv)
+    assert scan.returncode == 0, scan.stderr
+    assert scan.stdout.startswith("0 vendor=0x0000006A product=0x00414B44"), scan.stdout
+    assert scan.stderr == ""
+
+
 # Threads of its own start before the bus opens, as a node's executor and middleware threads do: capabilities are per
 # thread, so they must give theirs up too. The script reports its capabilities before the open, opens a Bus of one
 # drive, waits for the test to look at /proc/<pid>, closes and tries to open a second master.
