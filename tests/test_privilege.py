@@ -139,9 +139,8 @@ def test_scan_with_setcap_on_the_interpreter_works(veth, tmp_path):
     venv = Path(tempfile.mkdtemp(prefix="akd-setcap-"))
     try:
         venv.chmod(0o755)
-        subprocess.run(
-            [sys.base_prefix + "/bin/python3", "-m", "venv", "--copies", "--without-pip", str(venv)], check=True
-        )
+        base = Path(sys.base_prefix) / "bin" / "python3"
+        subprocess.run([str(base), "-m", "venv", "--copies", "--without-pip", str(venv)], check=True, timeout=60)
         python = venv / "bin" / "python3"
         made = run(["setcap", "cap_net_raw+ep", str(python.resolve())])
         if made.returncode != 0:
