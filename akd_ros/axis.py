@@ -281,7 +281,7 @@ class Axis:
 
     @property
     def warnings(self) -> list[str]:
-        """Real-time settings asked for and not permitted, one sentence each."""
+        """The bus's warnings (`Bus.warnings`)."""
         return self._bus.warnings
 
     def close(self) -> str | None:

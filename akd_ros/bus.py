@@ -199,8 +199,9 @@ class Bus:
 
     @property
     def warnings(self) -> list[str]:
-        """Real-time settings asked for and not permitted, one sentence each."""
-        return list(self.cycle.warnings)
+        """What was asked for and not permitted, one sentence each: the threads that kept their capabilities after
+        the raw socket was open (`_native.Master.warnings`), real-time settings of the cycle."""
+        return [*self._master.warnings, *self.cycle.warnings]
 
     def close(self) -> str | None:
         """Disables every drive (waiting up to a second), stops the cycle and returns the line to Init. What it could

@@ -46,11 +46,15 @@ def stop_on_signals() -> None:
         signal.signal(number, handler)
 
 
-def run(prog: str, body: Callable[[], int]) -> int:
-    """Runs a tool's body: EtherCAT errors and bad values become one line on stderr and a
-    non-zero status, SIGINT/SIGTERM a quiet stop."""
+def run(prog: str, body: Callable[[], int], *, opens_a_link: bool = True) -> int:
+    """Runs a tool's body: a warning first when a tool that opens a link runs as root, EtherCAT
+    errors and bad values become one line on stderr and a non-zero status, SIGINT/SIGTERM a
+    quiet stop."""
     from akd_ros import EtherCatError
+    from akd_ros.privilege import warn_if_root
 
+    if opens_a_link:
+        warn_if_root(prog)
     stop_on_signals()
     try:
         return body()

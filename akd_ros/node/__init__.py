@@ -57,7 +57,9 @@ def main(args: list[str] | None = None) -> int:
     Zenoh) until SIGINT/SIGTERM, then disables the drives, returns the bus to Init and exits 0. A bad parameter or a
     failed start exits 1 with the reason on stderr, one line."""
     from akd_ros import params
+    from akd_ros.privilege import warn_if_root
 
+    warn_if_root(NODE_NAME)
     arguments = sys.argv if args is None else args
     try:
         given = params.read_arguments(arguments, NODE_NAME)

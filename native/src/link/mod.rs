@@ -12,6 +12,7 @@ use crate::error::Result;
 pub use spec::LinkSpec;
 
 pub mod pcap;
+pub mod privilege;
 pub mod raw;
 pub mod spec;
 pub mod udp;

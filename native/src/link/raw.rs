@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use crate::error::{Error, FrameError, Result, SettingError};
 use crate::frame::{self, ETHERTYPE, ETH_HEADER_LEN, MIN_ETH_FRAME_LEN};
-use crate::link::{copy_reply, is_reply_to, Link};
+use crate::link::{copy_reply, is_reply_to, privilege, Link};
 
 /// Source MAC of the master's frames: the one SOEM uses, so captures of both look alike.
 pub const MASTER_MAC: [u8; 6] = [0x01, 0x01, 0x01, 0x01, 0x01, 0x01];
@@ -27,12 +27,14 @@ pub struct RawSocket {
     fd: OwnedFd,
     ifindex: i32,
     iface: String,
+    kept_capabilities: Option<String>,
 }
 
 impl RawSocket {
-    /// Opens a raw socket on `iface`. Frames are broadcast, so no promiscuous mode is needed.
-    /// Fails with an error naming the interface when it does not exist or when the process
-    /// lacks CAP_NET_RAW.
+    /// Opens a raw socket on `iface`, then gives up the capabilities the process no longer needs
+    /// (see [`privilege`]). Frames are broadcast, so no promiscuous mode is needed. Fails with an
+    /// error naming the interface when it does not exist, and saying how to grant CAP_NET_RAW
+    /// when the process lacks it.
     pub fn open(iface: &str) -> Result<Self> {
         let name = CString::new(iface).map_err(|_| SettingError::InterfaceName { name: iface.to_owned() })?;
         // SAFETY: `name` is a valid NUL-terminated string.
@@ -48,11 +50,7 @@ impl RawSocket {
         let raw = unsafe { libc::socket(libc::AF_PACKET, libc::SOCK_RAW | libc::SOCK_CLOEXEC, protocol) };
         if raw < 0 {
             let err = io::Error::last_os_error();
-            let hint = if err.kind() == io::ErrorKind::PermissionDenied {
-                " (raw Ethernet needs root or CAP_NET_RAW)"
-            } else {
-                ""
-            };
+            let hint = if err.kind() == io::ErrorKind::PermissionDenied { missing_net_raw() } else { String::new() };
             return Err(Error::io(format!("opening an AF_PACKET socket on {iface:?}{hint}"), err));
         }
         // SAFETY: `raw` is a fresh descriptor owned by nobody else.
@@ -69,7 +67,13 @@ impl RawSocket {
         if rc < 0 {
             return Err(Error::last_os(format!("binding the raw socket to interface {iface:?}")));
         }
-        Ok(RawSocket { fd, ifindex: ifindex as i32, iface: iface.to_owned() })
+        let kept_capabilities = privilege::drop_after_open(iface)?;
+        Ok(RawSocket { fd, ifindex: ifindex as i32, iface: iface.to_owned(), kept_capabilities })
+    }
+
+    /// Which threads of the process kept their capabilities after the socket was open, when some did.
+    pub fn kept_capabilities(&self) -> Option<&str> {
+        self.kept_capabilities.as_deref()
     }
 
     /// The interface name.
@@ -150,6 +154,22 @@ impl RawSocket {
     }
 }
 
+/// Why an AF_PACKET socket was refused and how to grant CAP_NET_RAW, on one line.
+fn missing_net_raw() -> String {
+    if let Some(first) = privilege::dropped_after() {
+        return format!(
+            " (this process gave up CAP_NET_RAW after it opened its raw socket on {first:?}: \
+             open another interface from a new process)"
+        );
+    }
+    let program = std::env::current_exe().map_or_else(|_| "the program".to_owned(), |p| p.display().to_string());
+    format!(
+        " (raw Ethernet needs CAP_NET_RAW, which this process lacks: grant it with \
+         `setcap cap_net_raw+ep {program}` or as an ambient capability, e.g. systemd \
+         AmbientCapabilities=CAP_NET_RAW or `setpriv --inh-caps=+net_raw --ambient-caps=+net_raw`)"
+    )
+}
+
 fn sockaddr_ll(ifindex: i32) -> libc::sockaddr_ll {
     // SAFETY: zeroed sockaddr_ll is a valid value; the fields that matter are set below.
     let mut address: libc::sockaddr_ll = unsafe { std::mem::zeroed() };
@@ -177,6 +197,11 @@ impl RawLink {
     /// The interface index the socket is bound to.
     pub fn ifindex(&self) -> i32 {
         self.socket.ifindex
+    }
+
+    /// See [`RawSocket::kept_capabilities`].
+    pub fn kept_capabilities(&self) -> Option<&str> {
+        self.socket.kept_capabilities()
     }
 }
 

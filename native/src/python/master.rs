@@ -22,17 +22,30 @@ use crate::pdo::PdoEntry;
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
 
-/// Opens the link named by `spec` (a [`LinkSpec`]), with the handle that controls its virtual
-/// AKDs for the in-process links.
-fn open_link(spec: &str) -> crate::error::Result<(Box<dyn Link>, Option<SimControl>)> {
+/// An opened link with the handle that controls its virtual AKDs (the in-process links) and
+/// what opening it could not do as asked.
+struct Opened {
+    link: Box<dyn Link>,
+    simulator: Option<SimControl>,
+    warnings: Vec<String>,
+}
+
+/// Opens the link named by `spec` (a [`LinkSpec`]).
+fn open_link(spec: &str) -> crate::error::Result<Opened> {
     Ok(match spec.parse::<LinkSpec>()? {
         LinkSpec::Sim { count } => {
             let link = InProcess::new(count);
-            let control = link.control();
-            (Box::new(link), Some(control))
+            let simulator = Some(link.control());
+            Opened { link: Box::new(link), simulator, warnings: Vec::new() }
         }
-        LinkSpec::Udp { address } => (Box::new(link::udp::Udp::connect(&address)?), None),
-        LinkSpec::Interface { name } => (Box::new(link::raw::RawLink::open(&name)?), None),
+        LinkSpec::Udp { address } => {
+            Opened { link: Box::new(link::udp::Udp::connect(&address)?), simulator: None, warnings: Vec::new() }
+        }
+        LinkSpec::Interface { name } => {
+            let link = link::raw::RawLink::open(&name)?;
+            let warnings = link.kept_capabilities().map(str::to_owned).into_iter().collect();
+            Opened { link: Box::new(link), simulator: None, warnings }
+        }
     })
 }
 
@@ -58,6 +71,7 @@ pub struct PyMaster {
     /// The in-process link's virtual AKDs, apart from the master so that a Cycle holding it
     /// does not hold them.
     simulator: Option<SimControl>,
+    warnings: Vec<String>,
 }
 
 /// The master while one call uses it.
@@ -138,17 +152,23 @@ impl PyMaster {
     #[pyo3(signature = (link, *, pcap = None, timeout = 0.1))]
     fn new(py: Python<'_>, link: &str, pcap: Option<&str>, timeout: f64) -> PyResult<Self> {
         let timeout = super::seconds(timeout, "timeout")?;
-        let (master, simulator) = py
-            .allow_threads(|| -> crate::error::Result<(master::Master, Option<SimControl>)> {
-                let (inner, simulator) = open_link(link)?;
-                let inner: Box<dyn Link> = match pcap {
-                    Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
-                    None => inner,
-                };
-                Ok((master::Master::new(inner, timeout), simulator))
-            })
-            .py()?;
-        Ok(PyMaster { master: Mutex::new(Some(master)), simulator })
+        py.allow_threads(|| -> crate::error::Result<PyMaster> {
+            let Opened { link: inner, simulator, warnings } = open_link(link)?;
+            let inner: Box<dyn Link> = match pcap {
+                Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
+                None => inner,
+            };
+            Ok(PyMaster { master: Mutex::new(Some(master::Master::new(inner, timeout))), simulator, warnings })
+        })
+        .py()
+    }
+
+    /// What opening the link could not do as asked, one sentence each: on a raw interface, the
+    /// threads of this process that kept their capabilities after the socket was open (those
+    /// that block every signal; see the README's "Running without root").
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        self.warnings.clone()
     }
 
     /// The `Simulator` of link "sim" or "sim:N": injects faults, sets inputs and queries the
