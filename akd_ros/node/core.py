@@ -100,7 +100,7 @@ class Core:
                 # Velocity and torque commands then go by SDO, which the cycle thread does not watch.
                 self._logger.warning(f"parameter {prefix}command_timeout: not watched: {e}")
         for warning in bus.warnings:
-            self._logger.warning(f"real-time settings (rt.*): {warning}")
+            self._logger.warning(f"configure: not permitted: {warning}")
         if s.record is not None:
             topics = [(p.topic_name, p.msg_type, p.qos) for p in self._publishing.publishers()]
             topics += [
