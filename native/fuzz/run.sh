@@ -1,8 +1,11 @@
 #!/usr/bin/env bash
-# Builds every fuzz target and runs each, one after another, for EXECS executions (default ten
-# million; libFuzzer's -runs=), single job, under nice -n 10, from corpus/<target>/ (seeded by
-# seed.sh when missing). Prints per target the executions, seconds, executions per second and
-# crashes (inputs saved under artifacts/<target>/). Exits non-zero when any target crashed.
+# run.sh [EXECS [TARGET...]]
+# Builds every fuzz target and runs each (or the TARGETs named), one after another, for EXECS
+# executions (default ten million; libFuzzer's -runs=), single job, under nice -n 10, from
+# corpus/<target>/ (seeded by seed.sh when missing). Prints per target the executions, seconds,
+# executions per second and crashes (inputs saved under artifacts/<target>/, the run's output in
+# logs/<target>.log). Exits non-zero when a target crashed, hung (-timeout=10 s per input) or
+# stopped short of EXECS.
 #
 # Rust targets: cargo-fuzz (libFuzzer) on the installed stable toolchain with RUSTC_BOOTSTRAP=1,
 # release with debug assertions and overflow checks, no sanitizer (the fuzzed code has no
@@ -11,6 +14,7 @@
 # The pcapng reader is Python: atheris (libFuzzer's engine) in a venv of its own, .venv/.
 set -euo pipefail
 execs=${1:-10000000}
+shift || true
 here=$(cd "$(dirname "$0")" && pwd)
 cd "$here"
 export RUSTC_BOOTSTRAP=1
@@ -18,6 +22,7 @@ export RUSTC_BOOTSTRAP=1
 mkdir -p logs
 
 rust_targets=(frame mailbox coe sii virtual_akd)
+if [ $# -gt 0 ]; then targets=("$@"); else targets=("${rust_targets[@]}" pcapng_reader); fi
 nice -n 10 cargo fuzz build -O -a -s none >logs/build.log 2>&1 || { cat logs/build.log; exit 1; }
 nice -n 10 cargo fuzz build -O -a -s none --no-trace-compares --target-dir target/no-trace-compares virtual_akd \
   >>logs/build.log 2>&1 || { cat logs/build.log; exit 1; }
@@ -35,7 +40,7 @@ command_of() {
 
 failed=0
 printf '%-14s %12s %9s %10s %8s\n' target executions seconds exec/s crashes
-for target in "${rust_targets[@]}" pcapng_reader; do
+for target in "${targets[@]}"; do
   mkdir -p "corpus/$target" "artifacts/$target"
   before=$(find "artifacts/$target" -type f | wc -l)
   start=$(date +%s.%N)

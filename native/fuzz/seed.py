@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
-from support.pcapng_reader import read_packets  # noqa: E402
+from support.pcapng_reader import read_packets
 
 ETH_HEADER_LEN = 14
 RETURNED_MAC_BIT = 0x02
@@ -46,7 +46,8 @@ def datagrams(frame: bytes):
     """(command, ado, data) of each datagram of a well-formed payload."""
     pos, end = 2, len(frame)
     while pos + 10 <= end:
-        command, ado, word = frame[pos], struct.unpack_from("<H", frame, pos + 4)[0], struct.unpack_from("<H", frame, pos + 6)[0]
+        command = frame[pos]
+        ado, word = struct.unpack_from("<HH", frame, pos + 4)
         length = word & 0x07FF
         yield command, ado, frame[pos + 10 : pos + 10 + length]
         pos += 12 + length
@@ -82,7 +83,9 @@ def main(real: Path, out: Path) -> None:
         if not returned:
             requests.append((packet.time_ns, frame))
         for command, ado, data in datagrams(frame):
-            if (command == FPWR and ado == MAILBOX_OUT and not returned) or (command == FPRD and ado == MAILBOX_IN and returned):
+            written = command == FPWR and ado == MAILBOX_OUT and not returned
+            read = command == FPRD and ado == MAILBOX_IN and returned
+            if written or read:
                 message = mailbox_message(data)
                 if message:
                     write(out / "mailbox", message)

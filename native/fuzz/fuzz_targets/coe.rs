@@ -5,8 +5,8 @@
 #![no_main]
 
 use akd_native::coe::{
-    self, data_type, CoeHeader, CoeService, Emergency, EntryDescription, ObjectDescription, SdoInfoHeader,
-    SdoRequest, SdoResponse, SDO_INFO_HEADER_LEN,
+    self, data_type, CoeHeader, CoeService, Emergency, EntryDescription, ObjectDescription, SdoInfoHeader, SdoRequest,
+    SdoResponse, SDO_INFO_HEADER_LEN,
 };
 use akd_native::mailbox::HEADER_LEN;
 use libfuzzer_sys::fuzz_target;

@@ -4,9 +4,7 @@
 //! every byte as it was.
 #![no_main]
 
-use akd_native::frame::{
-    self, Command, FrameBuilder, DATAGRAM_HEADER_LEN, FRAME_HEADER_LEN, MAX_PAYLOAD_LEN,
-};
+use akd_native::frame::{self, Command, FrameBuilder, DATAGRAM_HEADER_LEN, FRAME_HEADER_LEN, MAX_PAYLOAD_LEN};
 use libfuzzer_sys::fuzz_target;
 
 /// Bits 11–13 of a datagram's length word, which the standard reserves and the codec drops.
@@ -43,8 +41,14 @@ fuzz_target!(|data: &[u8]| {
     let rebuilt: Vec<_> = frame::parse(&buf[..built_len]).unwrap().map(Result::unwrap).collect();
     assert_eq!(rebuilt.len(), datagrams.len());
     for (a, b) in datagrams.iter().zip(&rebuilt) {
-        assert_eq!((a.header.command, a.header.index, a.header.adp, a.header.ado), (b.header.command, b.header.index, b.header.adp, b.header.ado));
-        assert_eq!((a.header.len, a.header.more, a.data, a.data_offset), (b.header.len, b.header.more, b.data, b.data_offset));
+        assert_eq!(
+            (a.header.command, a.header.index, a.header.adp, a.header.ado),
+            (b.header.command, b.header.index, b.header.adp, b.header.ado)
+        );
+        assert_eq!(
+            (a.header.len, a.header.more, a.data, a.data_offset),
+            (b.header.len, b.header.more, b.data, b.data_offset)
+        );
     }
 
     let mut served = data.to_vec();

@@ -39,7 +39,10 @@ fuzz_target!(|data: &[u8]| {
         let mut reply = request.to_vec();
         match bus.process(&mut reply, now_ns) {
             Ok(Delivery::Returned) => {
-                assert!(is_reply_to(request, &reply), "a reply that is not the frame sent:\n{request:02X?}\n{reply:02X?}");
+                assert!(
+                    is_reply_to(request, &reply),
+                    "a reply that is not the frame sent:\n{request:02X?}\n{reply:02X?}"
+                );
                 frame::validate(&reply).expect("a returned frame is valid");
             }
             Ok(Delivery::Lost) => panic!("a frame lost on a line without faults"),
