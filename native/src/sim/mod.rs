@@ -350,7 +350,7 @@ impl VirtualAkd {
         let out = SyncManager::read(self.esc.memory(), 0);
         let size = SyncManager::read(self.esc.memory(), 1).length as usize;
         let memory = self.esc.memory();
-        let buffer = &memory[out.range()];
+        let buffer = &memory[out.range_within(memory.len())];
         let announced = buffer.get(..2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
         let message = buffer[..(HEADER_LEN + announced).min(buffer.len())].to_vec();
         sync_manager::mark_read(self.esc.memory_mut(), 0);
@@ -364,10 +364,10 @@ impl VirtualAkd {
             return;
         }
         if let Some(reply) = self.mailbox.next_reply() {
-            let n = reply.len().min(sm.length as usize);
-            let start = sm.start as usize;
             let memory = self.esc.memory_mut();
-            memory[start..start + n].copy_from_slice(&reply[..n]);
+            let buffer = sm.range_within(memory.len());
+            let n = reply.len().min(buffer.len());
+            memory[buffer.start..buffer.start + n].copy_from_slice(&reply[..n]);
             sync_manager::mark_written(memory, 1);
         }
     }
@@ -377,11 +377,11 @@ impl VirtualAkd {
     fn repeat_mailbox(&mut self) {
         let sm = SyncManager::read(self.esc.memory(), 1);
         if let Some(reply) = self.mailbox.last_reply() {
-            let n = reply.len().min(sm.length as usize);
-            let start = sm.start as usize;
+            let buffer = sm.range_within(self.esc.memory().len());
+            let n = reply.len().min(buffer.len());
             let reply = reply[..n].to_vec();
             let memory = self.esc.memory_mut();
-            memory[start..start + n].copy_from_slice(&reply);
+            memory[buffer.start..buffer.start + n].copy_from_slice(&reply);
             sync_manager::mark_written(memory, 1);
         }
         let memory = self.esc.memory_mut();
@@ -527,6 +527,20 @@ mod tests {
         assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1003, 0x0010, &[0, 0]), (vec![0x03, 0x10], 1));
         assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
         assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFE, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+    }
+
+    #[test]
+    fn a_mailbox_moved_past_the_end_of_memory_is_read_as_far_as_it_exists() {
+        // Found by fuzzing (native/fuzz, virtual_akd): SM0 set to start 0xFFFF, 0xFFFF bytes
+        // after a message was written and before the firmware took it.
+        let mut bus = VirtualBus::new(1);
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        let mut message = [0u8; 0x400];
+        message[..16].copy_from_slice(&[10, 0, 0, 0, 0, 0x13, 0x00, 0x20, 0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Bwr, 0, 0x1800, &message).1, 1);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Bwr, 0, 0x0800, &[0xFF, 0xFF, 0xFF, 0xFF]).1, 1);
+        assert_eq!(exchange(&mut bus, 20_000_000, Command::Brd, 0, 0x0130, &[0, 0]), (vec![0x02, 0x00], 1));
     }
 
     #[test]
