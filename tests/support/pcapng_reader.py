@@ -18,6 +18,10 @@ SIMPLE_PACKET = 0x00000003
 ENHANCED_PACKET = 0x00000006
 BYTE_ORDER_MAGIC = 0x1A2B3C4D
 OPTION_IF_TSRESOL = 9
+# Fields of a packet block before its packet data: interface, timestamp (2), captured and
+# original lengths for an enhanced one; the original length for a simple one.
+ENHANCED_PACKET_FIXED_LEN = 20
+SIMPLE_PACKET_FIXED_LEN = 4
 
 
 @dataclass(frozen=True)
@@ -51,7 +55,11 @@ def _resolution_ns(options: bytes, endian: str) -> float:
 
 def read_packets(path: str | Path) -> Iterator[Packet]:
     """Yields every packet of the capture at `path` in file order."""
-    data = Path(path).read_bytes()
+    return parse_packets(Path(path).read_bytes())
+
+
+def parse_packets(data: bytes) -> Iterator[Packet]:
+    """Yields every packet of the capture `data` (a whole pcapng file) in file order."""
     pos = 0
     endian = "<"
     resolutions: list[float] = []
@@ -74,11 +82,18 @@ def read_packets(path: str | Path) -> Iterator[Packet]:
         if block_type == INTERFACE_DESCRIPTION:
             resolutions.append(_resolution_ns(body[8:], endian))
         elif block_type == ENHANCED_PACKET:
+            if len(body) < ENHANCED_PACKET_FIXED_LEN:
+                raise PcapngError(f"enhanced packet block at offset {pos} is {length} bytes, shorter than its fields")
             interface, high, low, captured = struct.unpack_from(endian + "IIII", body, 0)
+            if captured > len(body) - ENHANCED_PACKET_FIXED_LEN:
+                raise PcapngError(f"enhanced packet block at offset {pos} captured {captured} bytes, past its end")
             number += 1
             resolution = resolutions[interface] if interface < len(resolutions) else 1000.0
-            yield Packet(number, int(((high << 32) | low) * resolution), body[20 : 20 + captured])
+            start = ENHANCED_PACKET_FIXED_LEN
+            yield Packet(number, int(((high << 32) | low) * resolution), body[start : start + captured])
         elif block_type == SIMPLE_PACKET:
+            if len(body) < SIMPLE_PACKET_FIXED_LEN:
+                raise PcapngError(f"simple packet block at offset {pos} is {length} bytes, shorter than its fields")
             number += 1
             yield Packet(number, 0, body[4:])
         pos += length

@@ -27,8 +27,9 @@ const DL_CONTROL_FIFO_SIZE: u8 = 0x07;
 pub const RAM_START: usize = 0x1000;
 /// One past the last byte of process RAM (4 KiB).
 pub const RAM_END: usize = 0x2000;
-/// Size of the address space a datagram can reach (ADO up to 0xFFFF plus its length).
-const SPACE: usize = 0x10000 + crate::frame::MAX_DATAGRAM_DATA;
+/// Size of the address space a datagram can reach: ADO up to 0xFFFF plus its length, which
+/// the frame header's 11-bit length bounds (a link may bring a frame longer than Ethernet's).
+const SPACE: usize = 0x10000 + 0x07FF;
 /// DL status of the last drive of a line: port 0 link and communication, port 1 loop closed.
 const DL_STATUS_LAST: u16 = 0x5613;
 /// DL status of a drive with a successor: port 1 also has link and communication, loop open.
@@ -413,7 +414,10 @@ impl Esc {
                     let d = (logical - start) as usize;
                     let p = p_from + i;
                     if pass_reads {
-                        dg.data[d] = (dg.data[d] & !mask) | (self.memory[p] & mask);
+                        // An FMMU may map past the end of the memory: nothing answers there.
+                        if let Some(&byte) = self.memory.get(p) {
+                            dg.data[d] = (dg.data[d] & !mask) | (byte & mask);
+                        }
                     } else if (RAM_START..RAM_END).contains(&p) {
                         self.memory[p] = (self.memory[p] & !mask) | (dg.data[d] & mask);
                     }
@@ -456,6 +460,29 @@ mod tests {
 
     fn esc() -> Esc {
         Esc::new(crate::sim::sii_image::akd_sii(), false)
+    }
+
+    #[test]
+    fn an_fmmu_mapping_past_the_end_of_memory_reads_nothing_there() {
+        // Found by fuzzing (native/fuzz, virtual_akd): a read FMMU of 0xFFFF bytes from physical
+        // 0xFFFF, read at logical offset 0x8000, points far past the ESC's memory.
+        let mut e = esc();
+        let fmmu = [0, 0, 0, 0, 0xFF, 0xFF, 0, 7, 0xFF, 0xFF, 0, fmmu_reg::TYPE_READ, 0x01, 0, 0, 0];
+        assert_eq!(run(&mut e, Command::Apwr, 0, reg::fmmu(0), &fmmu).1, 1);
+        assert_eq!(run(&mut e, Command::Lrd, 0x8000, 0x0000, &[0xAB, 0xCD]), (vec![0xAB, 0xCD], 1));
+    }
+
+    #[test]
+    fn a_datagram_longer_than_ethernet_carries_is_served_to_its_end() {
+        // A frame header announces up to 2047 bytes, more than an Ethernet frame carries, and a
+        // link may bring such a frame all the same: its datagram at ADO 0xFFFF ends 2035 bytes on.
+        let len = 0x07FF - crate::frame::DATAGRAM_HEADER_LEN - crate::frame::WKC_LEN;
+        let mut frame = vec![0u8; 2 + 0x07FF];
+        frame[..2].copy_from_slice(&(0x1000u16 | 0x07FF).to_le_bytes());
+        frame[2..12].copy_from_slice(&[Command::Aprd as u8, 0, 0, 0, 0xFF, 0xFF, len as u8, (len >> 8) as u8, 0, 0]);
+        let mut e = esc();
+        for_each_datagram_mut(&mut frame, |dg| e.serve(dg, NOW)).unwrap();
+        assert_eq!(u16::from_le_bytes([frame[12 + len], frame[13 + len]]), 1);
     }
 
     #[test]

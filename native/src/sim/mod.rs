@@ -348,9 +348,12 @@ impl VirtualAkd {
     /// Takes the master's message out of the mailbox-out buffer and answers it.
     fn read_mailbox(&mut self) {
         let out = SyncManager::read(self.esc.memory(), 0);
-        let size = SyncManager::read(self.esc.memory(), 1).length as usize;
+        // Replies are sized for SM1 as the master set it, but never for less than the smallest
+        // mailbox the drive accepts at Init→PreOp: a master may shrink SM1 afterwards (even below
+        // a reply's headers), and then reads what fits of each reply.
+        let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
         let memory = self.esc.memory();
-        let buffer = &memory[out.range()];
+        let buffer = &memory[out.range_within(memory.len())];
         let announced = buffer.get(..2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
         let message = buffer[..(HEADER_LEN + announced).min(buffer.len())].to_vec();
         sync_manager::mark_read(self.esc.memory_mut(), 0);
@@ -364,10 +367,10 @@ impl VirtualAkd {
             return;
         }
         if let Some(reply) = self.mailbox.next_reply() {
-            let n = reply.len().min(sm.length as usize);
-            let start = sm.start as usize;
             let memory = self.esc.memory_mut();
-            memory[start..start + n].copy_from_slice(&reply[..n]);
+            let buffer = sm.range_within(memory.len());
+            let n = reply.len().min(buffer.len());
+            memory[buffer.start..buffer.start + n].copy_from_slice(&reply[..n]);
             sync_manager::mark_written(memory, 1);
         }
     }
@@ -377,11 +380,11 @@ impl VirtualAkd {
     fn repeat_mailbox(&mut self) {
         let sm = SyncManager::read(self.esc.memory(), 1);
         if let Some(reply) = self.mailbox.last_reply() {
-            let n = reply.len().min(sm.length as usize);
-            let start = sm.start as usize;
+            let buffer = sm.range_within(self.esc.memory().len());
+            let n = reply.len().min(buffer.len());
             let reply = reply[..n].to_vec();
             let memory = self.esc.memory_mut();
-            memory[start..start + n].copy_from_slice(&reply);
+            memory[buffer.start..buffer.start + n].copy_from_slice(&reply);
             sync_manager::mark_written(memory, 1);
         }
         let memory = self.esc.memory_mut();
@@ -527,6 +530,36 @@ mod tests {
         assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1003, 0x0010, &[0, 0]), (vec![0x03, 0x10], 1));
         assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
         assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFE, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+    }
+
+    #[test]
+    fn a_mailbox_moved_past_the_end_of_memory_is_read_as_far_as_it_exists() {
+        // Found by fuzzing (native/fuzz, virtual_akd): SM0 set to start 0xFFFF, 0xFFFF bytes
+        // after a message was written and before the firmware took it.
+        let mut bus = VirtualBus::new(1);
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        let mut message = [0u8; 0x400];
+        message[..16].copy_from_slice(&[10, 0, 0, 0, 0, 0x13, 0x00, 0x20, 0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0]);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Bwr, 0, 0x1800, &message).1, 1);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Bwr, 0, 0x0800, &[0xFF, 0xFF, 0xFF, 0xFF]).1, 1);
+        assert_eq!(exchange(&mut bus, 20_000_000, Command::Brd, 0, 0x0130, &[0, 0]), (vec![0x02, 0x00], 1));
+    }
+
+    #[test]
+    fn a_mailbox_in_shrunk_after_preop_gets_replies_cut_to_it() {
+        // Found by fuzzing (native/fuzz, virtual_akd): SM1 set to 4 bytes in PreOp, then an SDO
+        // upload; the reply was sized for a mailbox smaller than its headers.
+        let mut bus = VirtualBus::new(1);
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Bwr, 0, 0x080A, &[4, 0]).1, 1);
+        let mut message = [0u8; 0x400];
+        message[..16].copy_from_slice(&[10, 0, 0, 0, 0, 0x13, 0x00, 0x20, 0x40, 0x08, 0x10, 0x00, 0, 0, 0, 0]);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Bwr, 0, 0x1800, &message).1, 1);
+        assert_eq!(exchange(&mut bus, 20_000_000, Command::Brd, 0, 0x0130, &[0, 0]), (vec![0x02, 0x00], 1));
+        // The reply's first four bytes, all that SM1 holds: the mailbox header's length and address.
+        assert_eq!(exchange(&mut bus, 20_000_000, Command::Brd, 0, 0x1C00, &[0; 4]), (vec![0x0A, 0, 0, 0], 1));
     }
 
     #[test]

@@ -85,6 +85,14 @@ impl SyncManager {
         self.start as usize..self.start as usize + self.length as usize
     }
 
+    /// The part of the buffer's range that lies in a register space of `len` bytes. A master
+    /// may set a buffer running past the end of the ESC's memory (start and length are any
+    /// 16-bit values), and the firmware can only read and fill what exists.
+    pub fn range_within(&self, len: usize) -> std::ops::Range<usize> {
+        let r = self.range();
+        r.start.min(len)..r.end.min(len)
+    }
+
     /// Whether `[at, at + len)` overlaps the buffer.
     pub fn overlaps(&self, at: usize, len: usize) -> bool {
         let r = self.range();
