@@ -73,7 +73,8 @@ impl Default for RelayBuffers {
 
 impl Relay {
     /// In the cycle thread, after its exchange: sends the frame waiting, if any, and hands its
-    /// reply back. Its loss is counted here, not in the cycle's lost frames.
+    /// reply back. It is counted here and with the master's frames (a loss too), as the mailbox
+    /// frames beside the cycle are.
     pub fn serve(&self, master: &mut Master, buffers: &mut RelayBuffers) {
         if self.state.compare_exchange(ASKED, TAKEN, Ordering::AcqRel, Ordering::Acquire).is_err() {
             return;

@@ -173,10 +173,12 @@ impl Master {
     }
 
     /// Sends a frame built by another master of the same bus (a [`sibling`](Self::sibling)
-    /// restoring a slave) and gives its return in `rx`; not counted in this master's
-    /// statistics, which are the cycle's.
+    /// restoring a slave) and gives its return in `rx`; counted with this master's frames, as
+    /// every frame on its link is.
     pub fn relay(&mut self, tx: &[u8], rx: &mut [u8]) -> Result<usize> {
-        self.link.exchange(tx, rx, self.timeout)
+        self.tx[..tx.len()].copy_from_slice(tx);
+        let n = self.send_frame(tx.len())?;
+        crate::link::copy_reply(&self.rx[..n], rx)
     }
 
     fn next_index(&mut self) -> u8 {

@@ -310,7 +310,8 @@ impl PyCycle {
 
     /// The statistics: cycles, overruns, lost_frames, wkc_errors, other_errors,
     /// setpoints_busy, relayed_frames and relayed_lost (frames a slave's recovery sent beside
-    /// the cycle, and those lost: not the cycle's own), and period, wake_latency (how late after its deadline the thread woke)
+    /// the cycle, and those lost, which lost_frames counts too, as it counts the mailbox's),
+    /// and period, wake_latency (how late after its deadline the thread woke)
     /// and exchange, each {count, min_ns, mean_ns, p99_ns, max_ns}.
     fn stats(&self) -> StatsView {
         use std::sync::atomic::Ordering::Relaxed;
