@@ -41,6 +41,7 @@ corrupted.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import faulthandler
 import os
 import random
@@ -85,6 +86,25 @@ DRAIN_EVERY = 0.05
 STALL = 0.2
 """Seconds without a good exchange, no burst pending, after which the bus is brought up again."""
 MIB = 1024 * 1024
+
+
+class _Mallinfo2(ctypes.Structure):
+    _fields_ = [
+        (name, ctypes.c_size_t)
+        for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks", "fsmblks", "uordblks", "fordblks")
+    ] + [("keepcost", ctypes.c_size_t)]
+
+
+def heap_in_use() -> int | None:
+    """Bytes the C allocator has handed out and not taken back (glibc's mallinfo2: uordblks + hblkhd), or None
+    without it: growing with a flat count here is fragmentation, growing with it is a leak."""
+    try:
+        mallinfo2 = ctypes.CDLL(None).mallinfo2
+    except (AttributeError, OSError):
+        return None
+    mallinfo2.restype = _Mallinfo2
+    info = mallinfo2()
+    return info.uordblks + info.hblkhd
 
 
 def rss_bytes() -> int:
@@ -360,10 +380,12 @@ class Soak:
         return status
 
     def report(self, label: str) -> int:
-        cycles, rss = self.cycles(), rss_bytes()
+        cycles, rss, heap = self.cycles(), rss_bytes(), heap_in_use()
         stats = self.segment.cycle.stats() if self.segment else {}
+        heap = "?" if heap is None else f"{heap / MIB:.2f}"
         print(
-            f"soak: {label}: cycles {cycles}, {time.monotonic() - self.t0:.0f} s, RSS {rss / MIB:.2f} MiB, "
+            f"soak: {label}: cycles {cycles}, {time.monotonic() - self.t0:.0f} s, RSS {rss / MIB:.2f} MiB "
+            f"(heap in use {heap} MiB, Python blocks {sys.getallocatedblocks()}), "
             f"segments {self.totals['segments'] + (self.segment is not None)}, "
             f"lost {self.done['lost_frames'] + stats.get('lost_frames', 0)}, "
             f"wkc {self.done['wkc_errors'] + stats.get('wkc_errors', 0)}, "
