@@ -67,6 +67,24 @@ def test_corrupted_replies_are_refused_by_the_masters_codec(op_rig):
     assert after_burst(cycle, simulator.corrupt_frames, 2) == (2, 0, 0)
 
 
+def test_the_line_counts_what_it_did_to_the_frames_as_the_master_counts_them(op_rig):
+    simulator, cycle = op_rig
+    before = simulator.line_counts()
+    cycles = cycle.stats()["cycles"]
+    assert after_burst(cycle, simulator.drop_frames, 3) == (3, 0, 0)
+    assert after_burst(cycle, simulator.corrupt_frames, 2) == (2, 0, 0)
+    assert after_burst(cycle, simulator.wrong_wkc, 4) == (0, 4, 0)
+    cycles = cycle.stats()["cycles"] - cycles
+    after = simulator.line_counts()
+    assert {key: after[key] - before[key] for key in ("lost", "corrupted", "wrong_wkc")} == {
+        "lost": 3,
+        "corrupted": 2,
+        "wrong_wkc": 4,
+    }
+    # Every cycle between the two answers sent its frame down the line, and the line counted it.
+    assert after["frames"] - before["frames"] >= cycles > 0
+
+
 @pytest.fixture
 def preop_master():
     """A Master("sim:3") with every drive in PreOp."""

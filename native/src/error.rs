@@ -1233,8 +1233,8 @@ pub enum Unavailable {
     SimulatorGone,
     /// A virtual AKD whose bus served no frame in time to answer a query.
     SimulatorSilent {
-        /// Drive position.
-        position: usize,
+        /// Drive position, or `None` for a query of the line's counts.
+        position: Option<usize>,
         /// How long the query waited.
         timeout: std::time::Duration,
     },
@@ -1310,9 +1310,12 @@ impl fmt::Display for Unavailable {
             }
             Unavailable::SimulatorSilent { position, timeout } => write!(
                 f,
-                "the state of virtual AKD {position} was not answered within {timeout:?}: the drives answer when \
-                 their bus serves a frame and none passed (an idle in-process master exchanges no frames: start a \
-                 Cycle, or query while a master call runs)"
+                "{} not answered within {timeout:?}: the drives answer when their bus serves a frame and none passed \
+                 (an idle in-process master exchanges no frames: start a Cycle, or query while a master call runs)",
+                match position {
+                    Some(position) => format!("the state of virtual AKD {position} was"),
+                    None => "the line's counts were".to_owned(),
+                }
             ),
         }
     }

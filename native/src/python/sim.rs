@@ -13,7 +13,7 @@ use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
-use crate::sim::line::{Burst, Delivery};
+use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::sync::SyncState;
 use crate::sim::{server, Timing, VirtualBus};
 
@@ -234,6 +234,17 @@ impl PySimulator {
         let timeout = super::seconds(timeout, "timeout")?;
         let control = &self.control;
         Ok(py.allow_threads(|| control.drive_state(position, timeout)).py()?.into())
+    }
+
+    /// What the line did to the frames it carried since the drives were laid out, counted by
+    /// the virtual AKDs themselves, after the next frame (counted in): "frames" (that reached
+    /// the line), "lost" (before the first drive: dropped, or the first cable out),
+    /// "corrupted" and "wrong_wkc" (replies spoiled so). Waits up to `timeout` seconds.
+    #[pyo3(signature = (timeout = QUERY_TIMEOUT.as_secs_f64()))]
+    fn line_counts(&self, py: Python<'_>, timeout: f64) -> PyResult<LineCounts> {
+        let timeout = super::seconds(timeout, "timeout")?;
+        let control = &self.control;
+        py.allow_threads(|| control.line_counts(timeout)).py()
     }
 
     fn __len__(&self) -> usize {

@@ -29,7 +29,7 @@ use crate::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
-use crate::sim::line::{Burst, Delivery};
+use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::sync::SyncState;
 use crate::sim::{VirtualAkd, VirtualBus};
 
@@ -180,6 +180,7 @@ impl Change {
 enum Message {
     Change(Change),
     DriveState { position: usize, reply: SyncSender<DriveState> },
+    LineCounts { reply: SyncSender<LineCounts> },
 }
 
 /// A handle that controls virtual AKDs whose bus another thread serves.
@@ -246,7 +247,18 @@ impl SimControl {
         self.send(Message::DriveState { position, reply })?;
         answer.recv_timeout(timeout).map_err(|e| match e {
             RecvTimeoutError::Disconnected => gone(),
-            RecvTimeoutError::Timeout => Unavailable::SimulatorSilent { position, timeout }.into(),
+            RecvTimeoutError::Timeout => Unavailable::SimulatorSilent { position: Some(position), timeout }.into(),
+        })
+    }
+
+    /// What the line did to the frames it carried ([`LineCounts`]), after the owner's next
+    /// frame (counted in); waits up to `timeout` for it.
+    pub fn line_counts(&self, timeout: Duration) -> Result<LineCounts> {
+        let (reply, answer) = mpsc::sync_channel(1);
+        self.send(Message::LineCounts { reply })?;
+        answer.recv_timeout(timeout).map_err(|e| match e {
+            RecvTimeoutError::Disconnected => gone(),
+            RecvTimeoutError::Timeout => Unavailable::SimulatorSilent { position: None, timeout }.into(),
         })
     }
 }
@@ -263,13 +275,15 @@ pub struct ControlledBus {
     /// Queries taken before a frame, answered after it. Its capacity stays once a query came,
     /// so later queries do not allocate on the owner's side either.
     queries: Vec<(usize, SyncSender<DriveState>)>,
+    /// Queries of the line's counts, likewise.
+    line_queries: Vec<SyncSender<LineCounts>>,
 }
 
 impl From<VirtualBus> for ControlledBus {
     fn from(bus: VirtualBus) -> Self {
         let (sender, receiver) = mpsc::channel();
         let control = SimControl { sender, count: bus.len() };
-        ControlledBus { bus, receiver, control, queries: Vec::new() }
+        ControlledBus { bus, receiver, control, queries: Vec::new(), line_queries: Vec::new() }
     }
 }
 
@@ -317,6 +331,7 @@ impl ControlledBus {
             match message {
                 Message::Change(change) => change.apply(&mut self.bus),
                 Message::DriveState { position, reply } => self.queries.push((position, reply)),
+                Message::LineCounts { reply } => self.line_queries.push(reply),
             }
         }
     }
@@ -325,6 +340,9 @@ impl ControlledBus {
         for (position, reply) in self.queries.drain(..) {
             // A query that timed out has dropped its receiver; there is nobody left to tell.
             let _ = reply.try_send(DriveState::of(self.bus.slave(position)));
+        }
+        for reply in self.line_queries.drain(..) {
+            let _ = reply.try_send(self.bus.line().counts());
         }
     }
 }
@@ -382,6 +400,19 @@ mod tests {
         }
         let state = asking.join().unwrap().unwrap();
         assert_eq!((state.state, state.fault), (State::Fault, Some(Fault::SyncLost)));
+        let counting = std::thread::spawn({
+            let control = bus.control();
+            move || control.line_counts(Duration::from_secs(30))
+        });
+        let mut frames = bus.bus().line().counts().frames;
+        while !counting.is_finished() {
+            frame(&mut bus, 2_000_000);
+            frames += 1;
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // Answered after the frame it reached the owner before, that frame counted in.
+        let counts = counting.join().unwrap().unwrap();
+        assert!(counts.frames <= frames && counts.frames > 1, "{counts:?}, {frames} served");
         assert_eq!(bus.bus().slave(0).drive().fault(), None);
         // Input 1 is high above -10 counts: the toggles arrived.
         assert_eq!(bus.bus().slave(0).od().get(0x20A5, 0).unwrap()[1] & 0x80, 0x80);
@@ -393,10 +424,13 @@ mod tests {
         let control = bus.control();
         let e = control.drive_state(0, Duration::from_millis(10)).unwrap_err().to_string();
         assert!(e.contains("not answered within 10ms") && e.contains("idle in-process master"), "{e}");
+        let e = control.line_counts(Duration::from_millis(10)).unwrap_err().to_string();
+        assert!(e.contains("the line's counts were not answered within 10ms"), "{e}");
         drop(bus);
         let e = control.set_hardware_enable(0, true).unwrap_err().to_string();
         assert!(e.contains("the virtual AKDs are gone"), "{e}");
         assert!(control.drive_state(0, QUERY_TIMEOUT).unwrap_err().to_string().contains("gone"));
+        assert!(control.line_counts(QUERY_TIMEOUT).unwrap_err().to_string().contains("gone"));
     }
 
     #[test]

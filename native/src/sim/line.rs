@@ -38,7 +38,23 @@ impl Burst {
     }
 }
 
-/// The state of the line: bursts still pending and which cables are out.
+/// What the line did to the frames it carried since it was laid, never reset: the virtual
+/// AKDs' own count, for a master's counts to be checked against.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+// Python gets a dict keyed by the field names (Simulator.line_counts).
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
+pub struct LineCounts {
+    /// Frames that reached the line (a malformed one, refused untouched, is not carried).
+    pub frames: u64,
+    /// Frames lost before the first drive: a burst, or the cable in front of it out.
+    pub lost: u64,
+    /// Replies corrupted (a frame lost too, for a master whose link refuses them).
+    pub corrupted: u64,
+    /// Replies given a wrong working counter.
+    pub wrong_wkc: u64,
+}
+
+/// The state of the line: bursts still pending, which cables are out, and its counts.
 #[derive(Clone, Debug, Default)]
 pub struct Line {
     lost: u64,
@@ -46,6 +62,7 @@ pub struct Line {
     wrong_wkc: u64,
     /// `pulled[i]`: the cable in front of drive `i` is out.
     pulled: Vec<bool>,
+    counts: LineCounts,
 }
 
 impl Line {
@@ -79,15 +96,25 @@ impl Line {
         (self.lost, self.corrupted, self.wrong_wkc)
     }
 
-    /// Whether the next frame is lost before the first drive (and counts it).
-    pub fn take_lost(&mut self) -> bool {
-        take(&mut self.lost)
+    /// What the line did so far.
+    pub fn counts(&self) -> LineCounts {
+        self.counts
+    }
+
+    /// Takes the next frame onto the line: whether it is lost before the first drive, by a
+    /// burst or because no drive is reached. Counts it.
+    pub fn carry(&mut self) -> bool {
+        self.counts.frames += 1;
+        let lost = take(&mut self.lost) || self.reach() == 0;
+        self.counts.lost += u64::from(lost);
+        lost
     }
 
     /// Spoils a served `payload` as the pending bursts ask: a wrong working counter first, then
     /// the frame header's length one short. `payload` is a valid frame.
     pub fn spoil(&mut self, payload: &mut [u8]) {
         if take(&mut self.wrong_wkc) {
+            self.counts.wrong_wkc += 1;
             // One less than the drives gave, or 1 where none answered: wrong either way.
             let wrong = crate::frame::for_each_datagram_mut(payload, |dg| {
                 dg.wkc = if dg.wkc == 0 { 1 } else { dg.wkc - 1 };
@@ -95,6 +122,7 @@ impl Line {
             debug_assert!(wrong.is_ok(), "a served frame is valid: {wrong:?}");
         }
         if take(&mut self.corrupted) {
+            self.counts.corrupted += 1;
             let header = u16::from_le_bytes([payload[0], payload[1]]);
             let len = header & 0x07FF;
             payload[..2].copy_from_slice(&((header & !0x07FF) | (len.wrapping_sub(1) & 0x07FF)).to_le_bytes());
@@ -116,7 +144,7 @@ mod tests {
     fn bursts_count_down_and_replace_each_other() {
         let mut line = Line::new(2);
         line.start(Burst::Lost(2));
-        assert_eq!((line.take_lost(), line.take_lost(), line.take_lost()), (true, true, false));
+        assert_eq!((line.carry(), line.carry(), line.carry()), (true, true, false));
         line.start(Burst::WrongWkc(5));
         line.start(Burst::WrongWkc(1));
         line.start(Burst::Corrupted(0));

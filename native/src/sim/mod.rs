@@ -477,11 +477,11 @@ impl VirtualBus {
     /// A malformed frame is refused untouched.
     pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
         frame::validate(payload)?;
-        let reach = self.line.reach();
-        if self.line.take_lost() || reach == 0 {
+        if self.line.carry() {
             self.advance(now_ns);
             return Ok(line::Delivery::Lost);
         }
+        let reach = self.line.reach();
         let last = reach as u64 - 1;
         for (i, slave) in self.slaves.iter_mut().enumerate() {
             slave.poll(now_ns);
@@ -719,6 +719,13 @@ mod tests {
         assert_eq!(serve(&mut bus), (Returned, true, 2));
         assert_eq!(serve(&mut bus), (Returned, true, 3));
         assert_eq!(bus.line().pending(), (0, 0, 0));
+        // The line counts what it did; the wrong working counter and the corruption hit the
+        // same (third) reply.
+        let counts = line::LineCounts { frames: 5, lost: 2, corrupted: 1, wrong_wkc: 2 };
+        assert_eq!(bus.line().counts(), counts);
+        bus.set_cable(0, false);
+        assert_eq!(serve(&mut bus), (Lost, true, 0));
+        assert_eq!(bus.line().counts(), line::LineCounts { frames: 6, lost: 3, ..counts });
     }
 
     #[test]
@@ -728,5 +735,6 @@ mod tests {
         let before = garbage;
         assert!(bus.process(&mut garbage, 0).is_err());
         assert_eq!(garbage, before);
+        assert_eq!(bus.line().counts().frames, 0, "not carried");
     }
 }
