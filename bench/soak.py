@@ -18,9 +18,10 @@ action every 1..8 ms) asks for enable, disable, quick stop and fault reset, writ
 within ±0.5 rev/s; a torque within ±5 % of peak), plays trajectories; a thread beside it reads objects by SDO through
 the cycle. About every `--fault-every` seconds one fault is injected (`Master.simulator`): frames dropped (1, 3, 7, 8
 or 100), replies corrupted or with wrong working counters (1..10), a drive fault (F439, F235, F125, F706), a drive
-power-cycled, or a cable pulled and replugged 5..200 ms later. A drive power-cycled (or any stall of the bus: no good
-exchange for 0.2 s with no burst pending) ends the cycle's segment: the cycle is stopped, the line re-scanned,
-re-mapped and taken to Op, a new Cycle started. A stall that no power cycle or pulled cable explains is a finding.
+power-cycled, or a cable pulled and replugged 5..200 ms later. A drive power-cycled or unplugged is left to the
+master's own recovery (`cycle/recovery.rs`: readdressed, re-mapped, back in Op beside the running cycle); one not back
+within 5 s, or any other stall of the bus (no good exchange for 0.2 s with no burst pending), is a finding and ends
+the cycle's segment: the cycle is stopped, the line re-scanned, re-mapped and taken to Op, a new Cycle started.
 The seed (printed) makes the sequence of commands and faults the same again; their interleaving with the cycle thread
 is the machine's.
 
@@ -84,6 +85,10 @@ FAULT_NAMES = ["following_error", "over_temperature", "sync_lost", "setpoints_mi
 DRAIN_EVERY = 0.05
 """Seconds between takes of the per-cycle records: the ring holds 8192 records, 1365 cycles of six drives."""
 STALL = 0.2
+LOST_SEEN = 0.02
+RECOVERY_WAIT = 5.0
+"""How long a power-cycled or unplugged drive may take to be brought back by the master's own recovery (a restore
+takes ~0.25 s at 1 kHz, one mailbox frame a cycle) before the soak counts it as not recovered and restarts the line."""
 """Seconds without a good exchange, no burst pending, after which the bus is brought up again."""
 MIB = 1024 * 1024
 
@@ -201,6 +206,9 @@ class Soak:
         self.cable_pulled = False
         """A cable was pulled and no good exchange was seen since it was replugged."""
         self.last_good = time.monotonic()
+        self.lost_at = 0.0
+        """When the last drive was power-cycled or unplugged: a fresh exchange in the first LOST_SEEN after it is of a
+        cycle before the drive was found gone, not its recovery."""
         self.heartbeat = time.monotonic()
 
     # --- the bus ----------------------------------------------------------------------------------------------------
@@ -360,6 +368,7 @@ class Soak:
         elif kind == "power_cycle":
             sim.power_cycle(rng.randrange(COUNT))
             self.power_cycled = True
+            self.lost_at = now
             frames = 0
         else:
             if self.cable_out is not None:
@@ -368,6 +377,7 @@ class Soak:
             sim.pull_cable(position)
             self.cable_out = (position, now + rng.uniform(0.005, 0.2))
             self.cable_pulled = True
+            self.lost_at = now
             frames = 0
         # Frames go at 1 per period at least; give the burst time to pass before judging a stall.
         self.burst_until = max(self.burst_until, now + frames * self.args.period * 4 + 0.05)
@@ -434,11 +444,19 @@ class Soak:
                 self.burst_until = max(self.burst_until, now + 0.05)
             self.command()
             if self.segment.cycle.snapshot()["fresh"]:
+                if (self.power_cycled or self.cable_pulled) and now - self.lost_at > LOST_SEEN:
+                    why = "power cycle" if self.power_cycled else "cable pulled"
+                    self.recoveries[f"{why}, by the master"] = self.recoveries.get(f"{why}, by the master", 0) + 1
+                    self.power_cycled = False
                 self.last_good = now
                 self.cable_pulled = self.cable_pulled and self.cable_out is not None
+            elif (self.power_cycled or self.cable_pulled) and now - self.last_good <= RECOVERY_WAIT:
+                pass  # the master's recovery brings the drive back beside the cycle
             elif now - self.last_good > STALL and now > self.burst_until and self.cable_out is None:
                 if self.power_cycled or self.cable_pulled:
-                    self.recover("power cycle" if self.power_cycled else "cable pulled")
+                    why = "power cycle" if self.power_cycled else "cable pulled"
+                    self.problems.append(f"a drive was not back {RECOVERY_WAIT} s after a {why} at cycle {cycles}")
+                    self.recover(why)
                 else:
                     self.problems.append(f"the bus stalled at cycle {cycles} with nothing injected to explain it")
                     self.recover("unexplained stall")
