@@ -9,12 +9,11 @@ from __future__ import annotations
 import signal
 import time
 
-import pytest
 from diagnostic_msgs.msg import DiagnosticStatus
 
 from support import recovery_table
 from support.netns import udp_port_bound
-from support.ros import NODE, WAIT_S, Sim, move_to, node_on_sim, ros_environment
+from support.ros import NODE, WAIT_S, Sim, module_domain, move_to, node_on_sim
 
 DOMAINS = range(10, 20)
 JOINT = "axis"
@@ -32,10 +31,7 @@ akd_node:
 """
 
 
-@pytest.fixture(scope="module")
-def ros_domain():
-    with ros_environment(DOMAINS) as domain:
-        yield domain
+ros_domain = module_domain(DOMAINS)
 
 
 def faults(ros) -> list:

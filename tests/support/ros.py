@@ -62,6 +62,19 @@ def ros_environment(domains: range) -> Iterator[int]:
         yield domain
 
 
+def module_domain(domains: range):
+    """A module-scoped fixture `ros_domain`: a ROS_DOMAIN_ID from `domains` (see `ros_environment`), set for the
+    module."""
+    import pytest
+
+    @pytest.fixture(scope="module")
+    def ros_domain():
+        with ros_environment(domains) as domain:
+            yield domain
+
+    return ros_domain
+
+
 def lines_of(stream, into: queue.Queue, log: list[str]) -> None:
     """Copies a process's output lines into a queue and a log, until its end."""
     for line in stream:
