@@ -23,6 +23,10 @@ from support.ros import Sim
 
 WAIT_S = 10.0
 MODE = "cyclic_synchronous_position"
+BURST_PERIOD = 0.004
+"""The bursts' cycle: the AKD counts a frame missed once half a cycle passed after it was due, so at 1 kHz a burst of
+seven is one late frame (this shared machine's cycles run up to ~0.5 ms late) from F125; at 4 ms the rows test what
+they name, the count of frames, not the machine's jitter."""
 
 
 def drives(count: int) -> list[DriveConfig]:
@@ -94,7 +98,7 @@ def enable_and_move(bus: Bus, joint: str) -> None:
 @pytest.mark.parametrize("burst", [1, 3, 7])
 @pytest.mark.parametrize("enabled", [True, False], ids=["enabled", "disabled"])
 def test_a_short_burst_of_lost_frames_is_counted_and_changes_nothing(burst, enabled):
-    with Bus("sim:1", drives(1)) as bus:
+    with Bus("sim:1", drives(1), period=BURST_PERIOD) as bus:
         if enabled:
             bus.enable()
         position = bus["j0"].state().position_counts
@@ -122,14 +126,14 @@ def test_a_short_burst_of_lost_frames_is_counted_and_changes_nothing(burst, enab
         "`lost_frames` fault, counted; the drive holds its set-point" if enabled else "counted in the statistics"
     )
     recovery_table.record(
-        f"{burst} lost frame(s), drive {'enabled' if enabled else 'disabled'}", seen_text, detected, None
+        f"{burst} lost frame(s) at 4 ms, drive {'enabled' if enabled else 'disabled'}", seen_text, detected, None
     )
 
 
 @pytest.mark.parametrize("burst", [8, 100])
 @pytest.mark.parametrize("enabled", [True, False], ids=["enabled", "disabled"])
 def test_a_long_burst_of_lost_frames_is_reported_in_every_state_and_the_drive_comes_back_powerless(burst, enabled):
-    with Bus("sim:1", drives(1)) as bus:
+    with Bus("sim:1", drives(1), period=BURST_PERIOD) as bus:
         if enabled:
             bus.enable()
         t0 = time.monotonic_ns()
@@ -146,7 +150,7 @@ def test_a_long_burst_of_lost_frames_is_reported_in_every_state_and_the_drive_co
         assert_powerless_and_still(bus, "j0")
         enable_and_move(bus, "j0")
     recovery_table.record(
-        f"{burst} lost frames, drive {'enabled' if enabled else 'disabled'}",
+        f"{burst} lost frames at 4 ms, drive {'enabled' if enabled else 'disabled'}",
         f"`{reported}` fault ({event.action.split(';')[0].split(' (')[0]}), then `recovered`"
         + ("; the drive in F125" if enabled else ""),
         at(event) - t0,
@@ -156,7 +160,7 @@ def test_a_long_burst_of_lost_frames_is_reported_in_every_state_and_the_drive_co
 
 @pytest.mark.parametrize("burst", [3, 8])
 def test_wrong_working_counters_are_counted_short_and_disable_long(burst):
-    with Bus("sim:1", drives(1)) as bus:
+    with Bus("sim:1", drives(1), period=BURST_PERIOD) as bus:
         bus.enable()
         t0 = time.monotonic_ns()
         bus.simulator.wrong_wkc(burst)
@@ -171,7 +175,7 @@ def test_wrong_working_counters_are_counted_short_and_disable_long(burst):
             assert_powerless_and_still(bus, "j0")
             enable_and_move(bus, "j0")
     recovery_table.record(
-        f"{burst} wrong working counters, drive enabled",
+        f"{burst} wrong working counters at 4 ms, drive enabled",
         "`working_counter` fault, " + ("counted" if burst < 8 else "drive disabled"),
         at(event) - t0,
         None,
@@ -198,7 +202,11 @@ def test_a_drive_power_cycled_in_op_is_restored_with_its_power_stage_off(dc, rea
         expected = "Operation enabled" if reaction == "joint" else "Quick stop active"
         assert set(others.values()) <= {expected, "Switch on disabled"} and (
             reaction == "all" or set(others.values()) == {expected}
-        ), others
+        ), (
+            others,
+            [(j, e.describe()) for j, e in seen if j != "j1"],
+            [(a.name, e.describe()) for a in bus.axes for e in a.fault_events()],
+        )
         if reaction == "all":
             bus.disable()
         enable_and_move(bus, "j1")

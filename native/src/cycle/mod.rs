@@ -139,6 +139,9 @@ struct Shared {
     relay: Arc<recovery::Relay>,
     /// One per slave: its recovery.
     recovery: Vec<recovery::SlaveRecovery>,
+    /// Whether the cyclic frame reads every slave's AL status: without, no drive's presence can
+    /// be judged, and none is taken as lost.
+    supervised: bool,
 }
 
 /// How long a drive request may take by default before it is reported stuck.
@@ -253,8 +256,12 @@ impl CycleThread {
         // AL status and mailbox status ride in the cyclic frame; without room for them the
         // cycle runs on, unsupervised, and says so.
         let mut start_warnings = Vec::new();
-        if let Err(e) = master.set_supervision(true) {
-            start_warnings.push(format!("AL state and mailbox supervision is off: {e}"));
+        let supervised = master.set_supervision(true);
+        if let Err(e) = &supervised {
+            start_warnings.push(format!(
+                "AL state and mailbox supervision is off: {e}; a lost drive is seen by its frames only, and not \
+                 brought back"
+            ));
         }
         let mailbox = MailboxService::new(&master);
         let mappings = master
@@ -280,6 +287,7 @@ impl CycleThread {
             trajectories: trajectory_player::Shared::default(),
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
+            supervised: supervised.is_ok(),
         });
         let recoverer = recoverer(&mut master, &shared, &drives, period_ns, config.period);
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
@@ -1074,7 +1082,7 @@ fn supervise(
         // which did, exchanged their process data and go on.
         let spared = gap.is_some_and(|g| g.source == FaultSource::WorkingCounter) && !all_answered && answered(slave);
         // A drive that did not answer in a frame that came back is reported as unreachable.
-        let own = exchange == Exchange::Lost || none_answered || answered(slave);
+        let own = exchange == Exchange::Lost || none_answered || answered(slave) || !shared.supervised;
         let gap_reported = gap.filter(|_| d.drive.enabled() && own && !spared && !d.presence.lost());
         if let Some(report) = gap_reported {
             shared.events.push(Event::Fault {
@@ -1093,7 +1101,9 @@ fn supervise(
             }
         }
         let reported = gap_reported.is_some_and(|r| r.action == events::Action::Disabled);
-        faulted |= presence(master, shared, d, (answered(slave), in_op, reported), (statusword, al_status), now);
+        if shared.supervised {
+            faulted |= presence(master, shared, d, (answered(slave), in_op, reported), (statusword, al_status), now);
+        }
     }
     if faulted && shared.quick_stop_on_fault.load(Ordering::Relaxed) {
         quick_stop_the_others(shared, drives, inputs);
