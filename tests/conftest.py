@@ -7,8 +7,6 @@ it skip with the reason where it is absent (a user's clone).
 
 from __future__ import annotations
 
-import contextlib
-import os
 from pathlib import Path
 
 import pytest
@@ -18,22 +16,6 @@ from support.netns import free_udp_port, veth_pair
 
 REPO = Path(__file__).resolve().parents[1]
 REAL_AKD = REPO.parent / "shared" / "real-akd"
-
-
-CYCLE_PRIORITY = 20
-"""SCHED_FIFO priority of the pytest thread where permitted, which the cycle threads it starts inherit."""
-
-
-@pytest.fixture(scope="session", autouse=True)
-def cycle_threads_under_sched_fifo():
-    """The suite's in-process cycle threads (every Cycle, Axis and Bus a test opens here) start from the pytest thread
-    and inherit its scheduler: SCHED_FIFO where permitted, as a controller runs them (`rt.priority`), so that the other
-    processes on these shared cores do not starve one past the AKD's seven missed frames into F125. The processes the
-    tests start (akd-sim, akd_node) go back to the normal scheduler at fork and choose their own. Where it is not
-    permitted the suite runs as it is."""
-    with contextlib.suppress(PermissionError):
-        os.sched_setscheduler(0, os.SCHED_FIFO | os.SCHED_RESET_ON_FORK, os.sched_param(CYCLE_PRIORITY))
-    yield
 
 
 @pytest.fixture(scope="session")
