@@ -17,14 +17,12 @@ use crate::error::{Error, Result};
 use crate::frame::Command;
 use crate::link::Link;
 use crate::master::clocks::{ACTIVATE_SYNC0, SYNC0_MARGIN_NS};
+use crate::master::scan::{FMMUS_CLEARED, SMS_CLEARED};
 use crate::master::Master;
 use crate::registers::{self, FMMU0, SM0};
 
 /// How long each AL step of a restore may take (the AKD's firmware takes ~5 ms to PreOp).
 const STEP_TIMEOUT: std::time::Duration = std::time::Duration::from_secs(5);
-/// The FMMUs and sync managers a restore clears before configuring them again.
-const FMMUS_CLEARED: usize = 3;
-const SMS_CLEARED: usize = 4;
 
 /// How the slave's clock is set again.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -13,9 +13,9 @@ use crate::sii::Sii;
 /// How long the slaves may take to fall back to Init at the start of a scan.
 const INIT_TIMEOUT: Duration = Duration::from_secs(5);
 /// FMMUs the scan clears: a master of the AKD uses FMMU 0 (outputs), 1 (inputs), 2 (mailbox).
-const FMMUS_CLEARED: usize = 3;
+pub(crate) const FMMUS_CLEARED: usize = 3;
 /// Sync managers the scan clears: the AKD's two mailbox and two process-data ones.
-const SMS_CLEARED: usize = 4;
+pub(crate) const SMS_CLEARED: usize = 4;
 
 impl Master {
     /// Finds the slaves on the bus, in order, and returns how many there are. Each slave's AL
