@@ -4,6 +4,9 @@ quick-stopping the others or not, as `fault_reaction` says; bus-wide requests na
 configurations refused before anything is set up.
 
 The waits have deadlines only so that a failure does not hang; no test asserts how fast anything happens.
+
+The virtual AKDs judge missed frames by the frames the line lost (`?missed=lost`): nothing here is about this shared
+host's scheduling, so a cycle it runs late must not fault them (F125) as it would a real drive.
 """
 
 from __future__ import annotations
@@ -40,7 +43,7 @@ def cycles_later(axis: Axis, count: int) -> bool:
 
 @pytest.fixture
 def bus():
-    with Bus("sim:3", THREE) as b:
+    with Bus("sim:3?missed=lost", THREE) as b:
         yield b
 
 
@@ -106,7 +109,7 @@ def test_a_latch_and_a_fault_arrive_only_at_their_axis(bus: Bus) -> None:
 
 @pytest.mark.parametrize(("reaction", "others"), [("all", "Quick stop active"), ("joint", "Operation enabled")])
 def test_a_fault_on_one_drive_stops_the_others_as_fault_reaction_says(reaction: str, others: str) -> None:
-    with Bus("sim:3", THREE, fault_reaction=reaction) as bus:
+    with Bus("sim:3?missed=lost", THREE, fault_reaction=reaction) as bus:
         ip, velocity, torque = bus.axes
         bus.enable()
         velocity.command_velocity(2.0)
@@ -129,7 +132,7 @@ def test_a_fault_on_one_drive_stops_the_others_as_fault_reaction_says(reaction: 
 def test_an_enable_a_fault_elsewhere_replaces_with_a_quick_stop_says_so() -> None:
     # Drive 2's enable cannot finish (hardware enable low) and stays under way for its 3 s request time-out; drive 0's
     # fault meanwhile quick-stops every drive being enabled, drive 2 too.
-    with Bus("sim:3", THREE, request_timeout=3.0) as bus:
+    with Bus("sim:3?missed=lost", THREE, request_timeout=3.0) as bus:
         ip, _, torque = bus.axes
         bus.simulator.set_hardware_enable(2, False)
         ip.enable()
@@ -172,11 +175,11 @@ def test_bus_wide_enable_names_the_drive_whose_hardware_enable_is_low(bus: Bus) 
 )
 def test_a_bad_bus_is_refused_naming_the_problem(drives, settings, message) -> None:
     with pytest.raises(CommandError, match=message):
-        Bus("sim:3", drives, **settings)
+        Bus("sim:3?missed=lost", drives, **settings)
     # Nothing was left open: the same line opens again.
     with pytest.raises(CommandError, match=r"slave 0 is given twice \(drives 0 and 1\); each drive once"):
-        Bus("sim", [DriveConfig(slave=0), DriveConfig(alias=0)])
-    with Bus("sim:3", [DriveConfig(slave=0)]) as bus:
+        Bus("sim?missed=lost", [DriveConfig(slave=0), DriveConfig(alias=0)])
+    with Bus("sim:3?missed=lost", [DriveConfig(slave=0)]) as bus:
         assert bus.axes[0].name == "slave_0"
 
 
@@ -197,7 +200,7 @@ def test_an_axis_of_a_shared_bus_closes_alone_and_a_closed_bus_refuses(bus: Bus)
 
 def test_limits_and_units_are_each_axis_own() -> None:
     drives = [DriveConfig(slave=0, limits=Limits(max_position=1.0)), DriveConfig(slave=1)]
-    with Bus("sim:2", drives) as bus:
+    with Bus("sim:2?missed=lost", drives) as bus:
         bus.enable()
         with pytest.raises(CommandError, match="position"):
             bus.axes[0].command_position(2.0)
@@ -205,7 +208,7 @@ def test_limits_and_units_are_each_axis_own() -> None:
 
 
 def test_dc_is_set_once_for_the_bus_and_every_drive_follows_the_one_sync0() -> None:
-    with Bus("sim:3", THREE, period=0.002, dc=True, dc_shift=-0.0005) as bus:
+    with Bus("sim:3?missed=lost", THREE, period=0.002, dc=True, dc_shift=-0.0005) as bus:
         dc = bus.cycle.dc_status()
         assert (dc["active"], dc["cycle_ns"], dc["shift_ns"]) == (True, 2_000_000, -500_000)
         assert [(d["position"], d["fbus_param02"]) for d in dc["drives"]] == [(0, 1), (1, 1), (2, 1)]
@@ -215,14 +218,14 @@ def test_dc_is_set_once_for_the_bus_and_every_drive_follows_the_one_sync0() -> N
             assert sync["source"] == "sync0" and sync["pll_locked"], (axis.name, sync)
             starts.add(sync["sync0_start_ns"])
         assert len(starts) == 1 and starts.pop() % 2_000_000 == 1_500_000, "one SYNC0 for the line"
-    with Bus("sim:3", THREE) as bus:
+    with Bus("sim:3?missed=lost", THREE) as bus:
         assert bus.cycle.dc_status() == {"active": False}
         assert {bus.simulator.drive_state(a.slave)["dc"]["source"] for a in bus.axes} == {"sm2"}
 
 
 def test_the_cycle_keeps_as_many_records_for_each_drive_as_for_one() -> None:
     # 5000 cycles of three drives: more than one drive's 8192 records in all, fewer than 8192 for each.
-    with Bus("sim:3", THREE, period=0.00025) as bus:
+    with Bus("sim:3?missed=lost", THREE, period=0.00025) as bus:
         wait_for("5000 cycles", lambda: bus.stats()["cycles"] >= 5000, timeout=20.0)
         columns = bus.samples()
         stats = bus.stats()

@@ -9,10 +9,10 @@ the points alone: each cycle's step in the per-cycle records (Cycle.samples()) m
 it times the time between the two cycles, plus one count. The waits have deadlines only so
 that a failure does not hang.
 
-A host loaded beyond its cores can stall the cycle thread for more than seven cycles; the
-virtual AKDs then fault with F125 (synchronization lost) as real ones would, which aborts or
-ends a trajectory for a reason that is not the one under test. Such a run is repeated, up to
-three times, and the test fails if no run was steady.
+A host loaded beyond its cores can stall the cycle thread for more than seven cycles, which
+would fault real drives with F125 (synchronization lost) and end a trajectory for a reason
+that is not the one under test: the virtual AKDs here judge missed frames by the frames the
+line lost (`?missed=lost`), not by this shared host's scheduling.
 """
 
 from __future__ import annotations
@@ -37,7 +37,7 @@ def rig():
     """The enabled Cycle of the three drives and the Simulator that controls them."""
     rx, tx = _native.DEFAULT_MAPPING
     setups = [((rx, tx), 7), ((rx, tx), 8), ((0x1724, 0x1B24), 8)]
-    with _native.Master("sim:3") as m:
+    with _native.Master("sim:3?missed=lost") as m:
         m.scan()
         m.request_state("preop")
         for slave, ((out, inp), mode) in enumerate(setups):
@@ -53,19 +53,10 @@ def rig():
             yield c, simulator
 
 
-class StalledError(Exception):
-    """The host stalled the cycle thread: a drive lost synchronization (F125)."""
-
-
-def on_a_steady_host(scenario) -> None:
-    """Runs `scenario(cycle, simulator, records)` on a fresh rig until a run is steady."""
-    for _ in range(3):
-        with rig() as (cycle, simulator):
-            try:
-                return scenario(cycle, simulator, Records(cycle))
-            except StalledError:
-                continue
-    pytest.fail("the host stalled the cycle thread (F125, synchronization lost) in each of 3 runs")
+def on_the_rig(scenario) -> None:
+    """Runs `scenario(cycle, simulator, records)` on a fresh rig."""
+    with rig() as (cycle, simulator):
+        scenario(cycle, simulator, Records(cycle))
 
 
 class Records:
@@ -80,8 +71,6 @@ class Records:
         for name, values in self.cycle.samples().items():
             self.columns.setdefault(name, []).extend(values)
         self.events.extend(self.cycle.events())
-        if any((e.get("text") or "").startswith("F125") for e in self.events):
-            raise StalledError
 
     def trajectory_events(self) -> list[dict]:
         self.take()
@@ -163,7 +152,7 @@ def play_three_points(cycle, records: Records, start_ns: int | None = None):
 
 
 def test_a_three_point_trajectory_is_followed_continuously_and_ends_on_its_last_point():
-    on_a_steady_host(followed)
+    on_the_rig(followed)
 
 
 def followed(cycle, _simulator, records):
@@ -185,7 +174,7 @@ def followed(cycle, _simulator, records):
 
 
 def test_a_trajectory_replaced_half_way_continues_without_a_step():
-    on_a_steady_host(replaced_half_way)
+    on_the_rig(replaced_half_way)
 
 
 def replaced_half_way(cycle, _simulator, records):
@@ -221,7 +210,7 @@ def replaced_half_way(cycle, _simulator, records):
     ids=["limit", "non-increasing", "nan", "joint-count", "times"],
 )
 def test_a_refused_trajectory_leaves_every_axis_still(change, why):
-    on_a_steady_host(lambda cycle, _simulator, records: refused(cycle, records, change, why))
+    on_the_rig(lambda cycle, _simulator, records: refused(cycle, records, change, why))
 
 
 def refused(cycle, records, change, why):
@@ -259,7 +248,7 @@ def unready(cycle):
 
 
 def test_a_drive_faulted_mid_trajectory_aborts_it_and_the_others_hold():
-    on_a_steady_host(faulted)
+    on_the_rig(faulted)
 
 
 def faulted(cycle, simulator, records):

@@ -11,18 +11,27 @@ from akd_ros import _native, params
 
 
 @pytest.mark.parametrize(
-    ("spec", "kind", "count", "address", "name", "text"),
+    ("spec", "kind", "count", "missed", "address", "name", "text"),
     [
-        ("sim", "sim", 1, None, None, "sim:1"),
-        ("sim:64", "sim", 64, None, None, "sim:64"),
-        ("udp://127.0.0.1:34980", "udp", None, "127.0.0.1:34980", None, "udp://127.0.0.1:34980"),
-        ("udp://[::1]:7000", "udp", None, "[::1]:7000", None, "udp://[::1]:7000"),
-        ("eth0", "interface", None, None, "eth0", "eth0"),
+        ("sim", "sim", 1, "late", None, None, "sim:1"),
+        ("sim:64", "sim", 64, "late", None, None, "sim:64"),
+        ("sim:2?missed=late", "sim", 2, "late", None, None, "sim:2"),
+        ("sim?missed=lost", "sim", 1, "lost", None, None, "sim:1?missed=lost"),
+        ("sim:6?missed=lost", "sim", 6, "lost", None, None, "sim:6?missed=lost"),
+        ("udp://127.0.0.1:34980", "udp", None, None, "127.0.0.1:34980", None, "udp://127.0.0.1:34980"),
+        ("udp://[::1]:7000", "udp", None, None, "[::1]:7000", None, "udp://[::1]:7000"),
+        ("eth0", "interface", None, None, None, "eth0", "eth0"),
     ],
 )
-def test_each_form_parses_into_its_kind_and_field(spec, kind, count, address, name, text):
+def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, address, name, text):
     parsed = _native.parse_link(spec)
-    assert (parsed.kind, parsed.count, parsed.address, parsed.name) == (kind, count, address, name)
+    assert (parsed.kind, parsed.count, parsed.missed, parsed.address, parsed.name) == (
+        kind,
+        count,
+        missed,
+        address,
+        name,
+    )
     assert str(parsed) == text and _native.parse_link(text).kind == kind
 
 
@@ -33,6 +42,9 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, address, na
         ("sim:65", "the number of virtual AKDs must be 1..=64"),
         ("sim:100", "the number of virtual AKDs must be 1..=64"),
         ("sim:x", "the number of virtual AKDs must be 1..=64"),
+        ("sim:0?missed=lost", "the number of virtual AKDs must be 1..=64"),
+        ("sim:2?missed=soon", "?missed=late (the default"),
+        ("sim?lost", "?missed=lost (only frames lost on the line"),
         ("udp://127.0.0.1", "udp://HOST:PORT with a port in 1..65535"),
         ("udp://127.0.0.1:0", "udp://HOST:PORT with a port in 1..65535"),
         ("udp://127.0.0.1:65536", "udp://HOST:PORT with a port in 1..65535"),
@@ -55,7 +67,7 @@ def test_a_bad_spec_is_refused_alike_by_the_parser_the_master_and_the_parameter_
 
 
 def test_the_allowed_forms_name_every_form_and_the_range_of_n():
-    for form in ("'sim'", "'sim:N' (N 1..=64)", "'udp://HOST:PORT'", "network interface name"):
+    for form in ("'sim'", "'sim:N' (N 1..=64", "'?missed=lost'", "'udp://HOST:PORT'", "network interface name"):
         assert form in _native.LINK_FORMS
 
 

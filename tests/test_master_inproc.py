@@ -3,6 +3,9 @@
 Each test drives the real master code against the real virtual AKD: scan, AL states, SDO of
 every size, SDO information, every fixed mapping, process data with the expected working
 counter, and errors by name.
+
+The virtual AKDs judge missed frames by the frames the line lost (`?missed=lost`): nothing here is about this shared
+host's scheduling, so a cycle it runs late must not fault them (F125) as it would a real drive.
 """
 
 from __future__ import annotations
@@ -40,13 +43,13 @@ def wait_for(condition, what: str, timeout: float = 5.0):
 
 @pytest.fixture
 def master():
-    with _native.Master("sim") as m:
+    with _native.Master("sim?missed=lost") as m:
         m.scan()
         yield m
 
 
 def test_scan_finds_the_virtual_akd():
-    with _native.Master("sim:2") as m:
+    with _native.Master("sim:2?missed=lost") as m:
         slaves = m.scan()
         assert m.slave_count == 2
         for position, slave in enumerate(slaves):
@@ -174,7 +177,7 @@ def test_refused_state_change_is_named(master):
 
 
 def test_wrong_wkc_is_counted_and_raised():
-    with _native.Master("sim:2") as m:
+    with _native.Master("sim:2?missed=lost") as m:
         m.scan()
         m.request_state("op")
         assert m.exchange() == 6
@@ -203,7 +206,7 @@ def test_bad_arguments_raise_clear_errors(master):
 
 
 def test_distributed_clocks():
-    with _native.Master("sim:2") as m:
+    with _native.Master("sim:2?missed=lost") as m:
         m.scan()
         m.request_state("preop")
         m.configure_dc(2_000_000)

@@ -384,7 +384,7 @@ def test_an_unknown_fbus_param02_warns_to_set_it_on_the_drive() -> None:
     """The master writes FBUS.PARAM02 only where the drive's SDO information names the object so, and leaves it
     unknown (None) elsewhere (native/tests/distributed_clocks.rs: a drive without the object, one naming it
     otherwise); /diagnostics then warns and says what to do on the drive."""
-    with Axis("sim:2", dc=True) as axis:
+    with Axis("sim:2?missed=lost", dc=True) as axis:
         dc = axis.cycle.dc_status()
     assert not fbus_param02_unknown(dc, 0) and dc_values(dc, 0)["fbus_param02"] == 1
     unknown = {**dc, "drives": [{**dc["drives"][0], "fbus_param02": None}, dc["drives"][1]]}

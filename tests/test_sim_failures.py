@@ -9,6 +9,7 @@ anything happens. Recovery is not the subject: each test shows what the master s
 
 from __future__ import annotations
 
+import contextlib
 import subprocess
 import time
 
@@ -22,17 +23,24 @@ DRIVES = 3
 INPUT_ENTRIES = [[0x60640020, 0x60410010]]
 
 
-@pytest.fixture
-def op_rig():
-    """A Master("sim:3") with every drive in Op, its Simulator, and a Cycle at 1 kHz."""
-    with _native.Master(f"sim:{DRIVES}") as master:
-        master.scan()
+@contextlib.contextmanager
+def in_op(link: str):
+    """A Master(`link`) with every drive in Op, its Simulator, and a Cycle at 1 kHz."""
+    with _native.Master(link) as master:
+        drives = len(master.scan())
         master.request_state("preop")
-        for position in range(DRIVES):
+        for position in range(drives):
             master.configure_pdo(position, 0x1724, INPUT_ENTRIES)
         master.request_state("op")
         with _native.Cycle(master, 0.001) as cycle:
             yield master.simulator, cycle
+
+
+@pytest.fixture
+def op_rig():
+    """A Master("sim:3") with every drive in Op, its Simulator, and a Cycle at 1 kHz."""
+    with in_op(f"sim:{DRIVES}") as rig:
+        yield rig
 
 
 def counts(cycle) -> tuple[int, int, int]:
@@ -111,6 +119,27 @@ def test_an_enabled_drive_behind_a_pulled_cable_misses_its_frames_and_faults(op_
     wait_for("F125 behind the cable", lambda: simulator.drive_state(2)["fault_number"] == 125)
     assert simulator.drive_state(0)["fault"] is None
     simulator.replug_cable(1)
+
+
+@pytest.mark.parametrize("burst", [7, 8])
+def test_a_drive_judging_by_frames_lost_faults_after_more_than_seven_lost_on_the_line(burst):
+    # `?missed=lost`: a frame the line lost counts, however late the next one comes; eight in a row raise F125.
+    with in_op("sim:1?missed=lost") as (simulator, cycle):
+        cycle.enable(0)
+        cycle.wait_state(0, "Operation enabled")
+        assert after_burst(cycle, simulator.drop_frames, burst) == (burst, 0, 0)
+        assert simulator.drive_state(0)["fault"] == (None if burst == 7 else "sync_lost")
+
+
+def test_a_drive_judging_by_frames_lost_behind_a_pulled_cable_faults():
+    with in_op(f"sim:{DRIVES}?missed=lost") as (simulator, cycle):
+        cycle.enable(2)
+        cycle.wait_state(2, "Operation enabled")
+        simulator.pull_cable(2)
+        # Every frame the line carries is one it misses.
+        wait_for("F125 behind the cable", lambda: simulator.drive_state(2)["fault_number"] == 125)
+        assert simulator.drive_state(0)["fault"] is None
+        simulator.replug_cable(2)
 
 
 def test_a_pulled_cable_silences_the_drives_behind_it_until_replugged(preop_master):

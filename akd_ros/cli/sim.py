@@ -36,6 +36,7 @@ import signal
 import sys
 import threading
 
+from akd_ros import _native
 from akd_ros.cli.common import run
 
 USAGE = {
@@ -181,6 +182,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--count", type=count_argument, default=1, metavar="N", help="number of virtual AKDs in the line (default 1)"
     )
+    parser.add_argument(
+        "--missed",
+        choices=_native.MISSED_FRAMES,
+        default="late",
+        help="how the drives judge missed frames (F125 after more than 7): 'late' (default), as the real drive, "
+        "by time; 'lost', only frames lost on the line, for a host whose master thread is not real-time",
+    )
     args = parser.parse_args(argv)
 
     def body() -> int:
@@ -191,10 +199,10 @@ def main(argv: list[str] | None = None) -> int:
             if args.udp:
                 host, port = parse_host_port(args.udp)
                 print(f"akd-sim: starting {drives} on udp {host}:{port}", flush=True)
-                serve_udp(host, port, args.count, on_start=start_commands)
+                serve_udp(host, port, args.count, on_start=start_commands, missed=args.missed)
             else:
                 print(f"akd-sim: starting {drives} on interface {args.iface}", flush=True)
-                serve_iface(args.iface, args.count, on_start=start_commands)
+                serve_iface(args.iface, args.count, on_start=start_commands, missed=args.missed)
         except KeyboardInterrupt:
             # SIGINT and SIGTERM are how a simulator is meant to stop; a second signal while
             # it stops must not turn the clean stop into an interrupted one.

@@ -13,6 +13,35 @@ pub struct AkdFault {
     pub text: &'static str,
 }
 
+/// How a virtual AKD judges that it missed frames (F125, "Synchronization lost", after more
+/// than seven): the link spec names it (`sim:N?missed=lost`) and the virtual AKD applies it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MissedFrames {
+    /// By time, as the real AKD does: a frame is missed once half a cycle passed after it was
+    /// due, so a master thread the host runs late faults the drive.
+    #[default]
+    Late,
+    /// By the frames the line lost before they reached the drive (a lost burst, a pulled
+    /// cable): a late frame is not a missed one. For development and tests on a host whose
+    /// master thread is not real-time; it cannot see a master that stopped sending.
+    Lost,
+}
+
+impl MissedFrames {
+    /// The option's values as the link spec writes them.
+    pub const NAMES: [(&'static str, MissedFrames); 2] = [("late", MissedFrames::Late), ("lost", MissedFrames::Lost)];
+
+    /// "late" or "lost".
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, m)| *m == self).map_or("late", |(name, _)| name)
+    }
+
+    /// The judgement named `name` ("late" or "lost").
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
+    }
+}
+
 /// Faults this package knows by code.
 pub const KNOWN: &[AkdFault] = &[
     AkdFault { number: 439, error_code: 0x8611, text: "Following error" },

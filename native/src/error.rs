@@ -81,6 +81,11 @@ pub enum LinkSpecError {
         /// The most virtual AKDs a bus may hold (the link spec's `MAX_SIM_COUNT`).
         max: usize,
     },
+    /// `sim...?` with an option other than `missed=late` or `missed=lost`.
+    SimOption {
+        /// The spec as given.
+        spec: String,
+    },
     /// `udp://` without `HOST:PORT`, or with a port outside 1..=65535.
     UdpAddress {
         /// The spec as given.
@@ -99,7 +104,10 @@ impl LinkSpecError {
     /// The forms a link spec takes, with N's range up to `max_sim_count`: what a spec that is
     /// none of them is told, and what the node's parameter check names as allowed.
     pub fn allowed_forms(max_sim_count: usize) -> String {
-        format!("'sim', 'sim:N' (N 1..={max_sim_count}), 'udp://HOST:PORT' or a network interface name")
+        format!(
+            "'sim', 'sim:N' (N 1..={max_sim_count}; either with '?missed=lost'), 'udp://HOST:PORT' or a network \
+             interface name"
+        )
     }
 }
 
@@ -109,6 +117,12 @@ impl fmt::Display for LinkSpecError {
             LinkSpecError::SimCount { spec, max } => {
                 write!(f, "link {spec:?}: the number of virtual AKDs must be 1..={max}")
             }
+            LinkSpecError::SimOption { spec } => write!(
+                f,
+                "link {spec:?}: the virtual AKDs take one option, ?missed=late (the default: a frame \
+                 that comes late is missed, as the real drive judges) or ?missed=lost (only frames \
+                 lost on the line are missed, for a host whose master thread is not real-time)"
+            ),
             // The port range as the node's parameter check has always named it.
             LinkSpecError::UdpAddress { spec } => {
                 write!(f, "link {spec:?} is no udp://HOST:PORT with a port in 1..65535")
@@ -1114,6 +1128,11 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
+    /// How virtual AKDs judge missed frames.
+    MissedFrames {
+        /// The name given.
+        name: String,
+    },
 }
 
 impl fmt::Display for UnknownName {
@@ -1132,6 +1151,11 @@ impl fmt::Display for UnknownName {
             UnknownName::CommandTimeoutPolicy { name } => {
                 write!(f, "command timeout policy {name:?}: allowed \"hold\" or \"quick_stop\"")
             }
+            UnknownName::MissedFrames { name } => write!(
+                f,
+                "missed frames judged {name:?}: allowed \"late\" (as the real drive) or \"lost\" (only frames lost on \
+                 the line)"
+            ),
         }
     }
 }

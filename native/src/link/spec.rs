@@ -6,6 +6,7 @@
 use std::fmt;
 use std::str::FromStr;
 
+pub use crate::akd_fault::MissedFrames;
 pub use crate::error::LinkSpecError;
 
 /// The most virtual AKDs one in-process bus may hold: far more drives than one node moves, and
@@ -15,10 +16,12 @@ pub const MAX_SIM_COUNT: usize = 64;
 /// A bus named by a link spec.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum LinkSpec {
-    /// `sim` (one) or `sim:N`: virtual AKDs in this process.
+    /// `sim` (one) or `sim:N`, optionally `?missed=lost`: virtual AKDs in this process.
     Sim {
         /// How many virtual AKDs, 1..=[`MAX_SIM_COUNT`].
         count: usize,
+        /// How they judge missed frames: `late` (the default, as the real drive) or `lost`.
+        missed: MissedFrames,
     },
     /// `udp://HOST:PORT`: EtherCAT over UDP, e.g. to an akd-sim server.
     Udp {
@@ -47,16 +50,8 @@ impl FromStr for LinkSpec {
     type Err = LinkSpecError;
 
     fn from_str(spec: &str) -> Result<Self, Self::Err> {
-        if spec == "sim" {
-            return Ok(LinkSpec::Sim { count: 1 });
-        }
-        if let Some(count) = spec.strip_prefix("sim:") {
-            return count
-                .parse()
-                .ok()
-                .filter(|n| (1..=MAX_SIM_COUNT).contains(n))
-                .map(|count| LinkSpec::Sim { count })
-                .ok_or_else(|| LinkSpecError::SimCount { spec: spec.to_owned(), max: MAX_SIM_COUNT });
+        if spec == "sim" || spec.starts_with("sim:") || spec.starts_with("sim?") {
+            return parse_sim(spec);
         }
         if let Some(address) = spec.strip_prefix("udp://") {
             if !is_host_and_port(address) {
@@ -70,6 +65,25 @@ impl FromStr for LinkSpec {
         }
         Ok(LinkSpec::Interface { name: spec.to_owned() })
     }
+}
+
+/// `sim`, `sim:N`, each optionally followed by `?missed=late` or `?missed=lost`.
+fn parse_sim(spec: &str) -> Result<LinkSpec, LinkSpecError> {
+    let (bus, option) = spec.split_once('?').map_or((spec, None), |(bus, option)| (bus, Some(option)));
+    let missed = match option.map(|o| o.strip_prefix("missed=").and_then(MissedFrames::parse)) {
+        None => MissedFrames::default(),
+        Some(Some(missed)) => missed,
+        Some(None) => return Err(LinkSpecError::SimOption { spec: spec.to_owned() }),
+    };
+    let count = match bus.strip_prefix("sim:") {
+        None => 1,
+        Some(count) => count
+            .parse()
+            .ok()
+            .filter(|n| (1..=MAX_SIM_COUNT).contains(n))
+            .ok_or_else(|| LinkSpecError::SimCount { spec: spec.to_owned(), max: MAX_SIM_COUNT })?,
+    };
+    Ok(LinkSpec::Sim { count, missed })
 }
 
 /// The forms a link spec takes, as [`LinkSpecError`] names them.
@@ -95,7 +109,8 @@ impl fmt::Display for LinkSpec {
     /// The spec in the form it was parsed from (`sim:1` for `sim`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            LinkSpec::Sim { count } => write!(f, "sim:{count}"),
+            LinkSpec::Sim { count, missed: MissedFrames::Late } => write!(f, "sim:{count}"),
+            LinkSpec::Sim { count, missed } => write!(f, "sim:{count}?missed={}", missed.name()),
             LinkSpec::Udp { address } => write!(f, "udp://{address}"),
             LinkSpec::Interface { name } => f.write_str(name),
         }
@@ -108,11 +123,16 @@ mod tests {
 
     #[test]
     fn parses_each_form() {
-        assert_eq!("sim".parse(), Ok(LinkSpec::Sim { count: 1 }));
-        assert_eq!("sim:64".parse(), Ok(LinkSpec::Sim { count: 64 }));
+        let late = MissedFrames::Late;
+        assert_eq!("sim".parse(), Ok(LinkSpec::Sim { count: 1, missed: late }));
+        assert_eq!("sim:64".parse(), Ok(LinkSpec::Sim { count: 64, missed: late }));
+        assert_eq!("sim:2?missed=late".parse(), Ok(LinkSpec::Sim { count: 2, missed: late }));
+        let lost = MissedFrames::Lost;
+        assert_eq!("sim?missed=lost".parse(), Ok(LinkSpec::Sim { count: 1, missed: lost }));
+        assert_eq!("sim:6?missed=lost".parse(), Ok(LinkSpec::Sim { count: 6, missed: lost }));
         assert_eq!("udp://127.0.0.1:34980".parse(), Ok(LinkSpec::Udp { address: "127.0.0.1:34980".into() }));
         assert_eq!("eth0".parse(), Ok(LinkSpec::Interface { name: "eth0".into() }));
-        for spec in ["sim:3", "udp://h:1", "veth0"] {
+        for spec in ["sim:3", "sim:3?missed=lost", "udp://h:1", "veth0"] {
             assert_eq!(spec.parse::<LinkSpec>().unwrap().to_string(), spec);
         }
     }
@@ -123,6 +143,11 @@ mod tests {
             let err = spec.parse::<LinkSpec>().unwrap_err();
             assert_eq!(err, LinkSpecError::SimCount { spec: spec.into(), max: MAX_SIM_COUNT });
             assert!(err.to_string().contains("1..=64"), "{err}");
+        }
+        for spec in ["sim?missed", "sim:2?missed=soon", "sim:2?lost", "sim:2?missed=lost?"] {
+            let err = spec.parse::<LinkSpec>().unwrap_err();
+            assert_eq!(err, LinkSpecError::SimOption { spec: spec.into() });
+            assert!(err.to_string().contains("?missed=late") && err.to_string().contains("?missed=lost"), "{err}");
         }
         for spec in ["", "/dev/x", "host:1"] {
             let err = spec.parse::<LinkSpec>().unwrap_err();

@@ -28,7 +28,16 @@ impl PyLinkSpec {
     #[getter]
     fn count(&self) -> Option<usize> {
         match self.spec {
-            LinkSpec::Sim { count } => Some(count),
+            LinkSpec::Sim { count, .. } => Some(count),
+            _ => None,
+        }
+    }
+
+    /// How the virtual AKDs judge missed frames, "late" or "lost" (sim), else None.
+    #[getter]
+    fn missed(&self) -> Option<&'static str> {
+        match self.spec {
+            LinkSpec::Sim { missed, .. } => Some(missed.name()),
             _ => None,
         }
     }

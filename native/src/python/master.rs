@@ -21,6 +21,7 @@ use crate::master::{self, Mapping, SlaveRef};
 use crate::pdo::PdoEntry;
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
+use crate::sim::{Timing, VirtualBus};
 
 /// An opened link with the handle that controls its virtual AKDs (the in-process links) and
 /// what opening it could not do as asked.
@@ -33,8 +34,11 @@ struct Opened {
 /// Opens the link named by `spec` (a [`LinkSpec`]).
 fn open_link(spec: &str) -> crate::error::Result<Opened> {
     Ok(match spec.parse::<LinkSpec>()? {
-        LinkSpec::Sim { count } => {
-            let link = InProcess::new(count);
+        LinkSpec::Sim { count, missed } => {
+            let link = InProcess::with_bus(VirtualBus::with_timing(
+                count,
+                Timing { missed_frames: missed, ..Timing::REAL_DRIVE },
+            ));
             let simulator = Some(link.control());
             Opened { link: Box::new(link), simulator, warnings: Vec::new() }
         }

@@ -10,7 +10,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
-use crate::error::{Error, Result, SettingError, Unavailable};
+use crate::akd_fault::MissedFrames;
+use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
@@ -254,8 +255,11 @@ impl PySimulator {
 
 /// A bus of `count` virtual AKDs for a server; `on_start`, if given, is called with its
 /// Simulator before serving starts.
-fn controlled_bus(count: usize, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<ControlledBus> {
-    let bus = ControlledBus::from(VirtualBus::new(count));
+fn controlled_bus(count: usize, missed: &str, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<ControlledBus> {
+    let missed_frames = MissedFrames::parse(missed)
+        .ok_or_else(|| Error::from(UnknownName::MissedFrames { name: missed.to_owned() }))
+        .py()?;
+    let bus = ControlledBus::from(VirtualBus::with_timing(count, Timing { missed_frames, ..Timing::REAL_DRIVE }));
     if let Some(on_start) = on_start {
         on_start.call1((PySimulator::new(bus.control()),))?;
     }
@@ -290,27 +294,42 @@ fn run_until_signal(
 }
 
 /// Serves `count` virtual AKDs on UDP `host:port` until SIGINT/SIGTERM. `on_start(simulator)`
-/// is called first with the `Simulator` that controls them while they serve.
+/// is called first with the `Simulator` that controls them while they serve. `missed`: how
+/// they judge missed frames, "late" (as the real drive) or "lost" (only frames lost on the line).
 #[pyfunction]
-#[pyo3(signature = (host, port, count = 1, on_start = None))]
-fn serve_udp(py: Python<'_>, host: &str, port: u16, count: usize, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late"))]
+fn serve_udp(
+    py: Python<'_>,
+    host: &str,
+    port: u16,
+    count: usize,
+    on_start: Option<&Bound<'_, PyAny>>,
+    missed: &str,
+) -> PyResult<()> {
     let address: SocketAddr = (host, port)
         .to_socket_addrs()
         .ok()
         .and_then(|mut a| a.next())
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
-    let bus = controlled_bus(count, on_start)?;
+    let bus = controlled_bus(count, missed, on_start)?;
     run_until_signal(py, move |stop| server::serve_udp(address, bus, stop))
 }
 
 /// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
-/// `on_start(simulator)` is called first with the `Simulator` that controls them.
+/// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed` as
+/// for `serve_udp`.
 #[pyfunction]
-#[pyo3(signature = (iface, count = 1, on_start = None))]
-fn serve_iface(py: Python<'_>, iface: &str, count: usize, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<()> {
+#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late"))]
+fn serve_iface(
+    py: Python<'_>,
+    iface: &str,
+    count: usize,
+    on_start: Option<&Bound<'_, PyAny>>,
+    missed: &str,
+) -> PyResult<()> {
     let iface = iface.to_owned();
-    let bus = controlled_bus(count, on_start)?;
+    let bus = controlled_bus(count, missed, on_start)?;
     run_until_signal(py, move |stop| server::serve_iface(&iface, bus, stop))
 }
 
@@ -319,5 +338,6 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySimulator>()?;
     m.add_function(wrap_pyfunction!(serve_udp, m)?)?;
     m.add_function(wrap_pyfunction!(serve_iface, m)?)?;
+    m.add("MISSED_FRAMES", MissedFrames::NAMES.map(|(name, _)| name))?;
     Ok(())
 }

@@ -120,6 +120,9 @@ pub struct Bus<'a> {
     pub process_data_expected: bool,
     /// The process-data watchdog time the master configured, if any (F706's time-out).
     pub watchdog_ns: Option<u64>,
+    /// Frames in a row the line lost before they reached the drive, when missed frames are
+    /// judged that way ([`MissedFrames::Lost`](crate::akd_fault::MissedFrames::Lost)); `None`: judged by time, as the real drive does.
+    pub frames_lost: Option<u64>,
 }
 
 /// The drive firmware of one virtual AKD.
@@ -265,7 +268,8 @@ impl Drive {
         let window = u32_of(od, 0x6065) as f64;
         while t + STEP_NS <= now_ns {
             t += STEP_NS;
-            if let Some(fault) = self.injected.take().or_else(|| self.supervise(t, cycle_ns, timeout)) {
+            if let Some(fault) = self.injected.take().or_else(|| self.supervise(t, cycle_ns, timeout, bus.frames_lost))
+            {
                 raised = raised.or(self.raise(fault));
             }
             if self.shaft.at_rest() && !self.state.is_power_stage_on() {
@@ -424,16 +428,18 @@ impl Drive {
     }
 
     /// The fault the firmware's supervision finds at time `t`, if any.
-    fn supervise(&self, t: u64, cycle_ns: u64, timeout_ns: u64) -> Option<Fault> {
+    fn supervise(&self, t: u64, cycle_ns: u64, timeout_ns: u64, frames_lost: Option<u64>) -> Option<Fault> {
         if self.fault.is_some() || !matches!(self.state, State::OperationEnabled | State::QuickStopActive) {
             return None;
         }
-        if let (Some(last), true) = (self.last_process_data_ns, cycle_ns > 0) {
+        let missed = match (frames_lost, self.last_process_data_ns) {
+            (Some(lost), _) => lost,
             // A frame is missed once half a cycle passed after it was due.
-            let missed = t.saturating_sub(last).saturating_sub(cycle_ns / 2) / cycle_ns;
-            if missed > MISSED_FRAMES_TOLERATED {
-                return Some(Fault::SyncLost);
-            }
+            (None, Some(last)) if cycle_ns > 0 => t.saturating_sub(last).saturating_sub(cycle_ns / 2) / cycle_ns,
+            (None, _) => 0,
+        };
+        if missed > MISSED_FRAMES_TOLERATED {
+            return Some(Fault::SyncLost);
         }
         let cyclic = matches!(self.mode, Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition));
         if cyclic && self.state == State::OperationEnabled {
@@ -698,7 +704,8 @@ mod tests {
         for (silence, faults) in [(17 * MS - STEP_NS, false), (17 * MS, true)] {
             let mut b = Bench::new();
             let image = [PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x607A, 0, 32)];
-            let expected = |received| Bus { received, process_data_expected: true, watchdog_ns: None };
+            let expected =
+                |received| Bus { received, process_data_expected: true, watchdog_ns: None, frames_lost: None };
             b.write(0x60C2, 2, &[(-3i8) as u8]);
             b.enable(8);
             for _ in 0..5 {
@@ -708,6 +715,28 @@ mod tests {
             b.run_with(last + silence - b.now, expected(None));
             assert_eq!(b.drive.fault() == Some(Fault::SyncLost), faults, "{silence} ns of silence");
             assert_eq!(b.emergencies, if faults { vec![0x8700] } else { vec![] });
+        }
+    }
+
+    #[test]
+    fn f125_judged_by_frames_lost_ignores_a_late_frame_and_counts_lost_ones() {
+        for (lost, faults) in [(0, false), (7, false), (8, true)] {
+            let mut b = Bench::new();
+            let image = [PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x607A, 0, 32)];
+            let bus = |received, frames_lost| Bus {
+                received,
+                process_data_expected: true,
+                watchdog_ns: None,
+                frames_lost: Some(frames_lost),
+            };
+            b.write(0x60C2, 2, &[(-3i8) as u8]);
+            b.enable(8);
+            for _ in 0..5 {
+                b.run_with(2 * MS, bus(Some(Received { at_ns: b.now, image: &image }), 0));
+            }
+            // 25 cycles' silence (F125 by time), `lost` frames of them lost on the line.
+            b.run_with(50 * MS, bus(None, lost));
+            assert_eq!(b.drive.fault() == Some(Fault::SyncLost), faults, "{lost} frames lost");
         }
     }
 

@@ -36,6 +36,7 @@ pub mod sync;
 pub mod sync_manager;
 pub mod watchdog;
 
+use crate::akd_fault::MissedFrames;
 use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
@@ -56,6 +57,8 @@ pub struct Timing {
     pub init_to_preop_ns: u64,
     /// From a complete mailbox write until the reply is in the mailbox-in buffer.
     pub mailbox_ns: u64,
+    /// How the firmware judges missed frames: by time, as the real drive, or by frames lost.
+    pub missed_frames: MissedFrames,
 }
 
 impl Timing {
@@ -67,10 +70,15 @@ impl Timing {
     /// AKD read Init for about 16 ms after the request (about 19 ms for the whole transition),
     /// while the drive of the SOEM capture is in PreOp within 6.2 ms, and the replay of that
     /// capture holds the virtual AKD to it. What makes the difference is not known yet.
-    pub const REAL_DRIVE: Timing =
-        Timing { al_request_ns: 4_500_000, init_to_preop_ns: 4_500_000, mailbox_ns: 1_000_000 };
+    pub const REAL_DRIVE: Timing = Timing {
+        al_request_ns: 4_500_000,
+        init_to_preop_ns: 4_500_000,
+        mailbox_ns: 1_000_000,
+        missed_frames: MissedFrames::Late,
+    };
     /// No delay: each request is handled before the next frame.
-    pub const IMMEDIATE: Timing = Timing { al_request_ns: 0, init_to_preop_ns: 0, mailbox_ns: 0 };
+    pub const IMMEDIATE: Timing =
+        Timing { al_request_ns: 0, init_to_preop_ns: 0, mailbox_ns: 0, missed_frames: MissedFrames::Late };
 }
 
 impl Default for Timing {
@@ -115,6 +123,8 @@ pub struct VirtualAkd {
     outputs_fresh: bool,
     /// Bus time of the last complete write of the outputs.
     outputs_at_ns: u64,
+    /// Frames in a row the line lost before they reached this drive.
+    frames_lost: u64,
     identity: Identity,
     has_successor: bool,
     drive: drive::Drive,
@@ -166,6 +176,7 @@ impl VirtualAkd {
             pending_mailbox: None,
             outputs_fresh: false,
             outputs_at_ns: 0,
+            frames_lost: 0,
             identity,
             has_successor,
             drive: drive::Drive::default(),
@@ -223,6 +234,11 @@ impl VirtualAkd {
         self.timing = timing;
     }
 
+    /// A frame the line carried did not reach the drive.
+    fn miss_frame(&mut self) {
+        self.frames_lost += 1;
+    }
+
     /// Queues an emergency message, as the drive sends on a fault.
     pub fn emergency(&mut self, emergency: &crate::coe::Emergency) {
         let size = SyncManager::read(self.esc.memory(), 1).length as usize;
@@ -253,6 +269,7 @@ impl VirtualAkd {
         if events.outputs_written {
             self.outputs_fresh = true;
             self.outputs_at_ns = now_ns;
+            self.frames_lost = 0;
         }
         if events.repeat_request {
             self.repeat_mailbox();
@@ -289,6 +306,7 @@ impl VirtualAkd {
             received: fresh.then_some(drive::Received { at_ns: self.outputs_at_ns, image: &self.rx_image }),
             process_data_expected: matches!(self.al.state(), AlState::SafeOp | AlState::Op),
             watchdog_ns: watchdog::timeout_ns(self.esc.memory()),
+            frames_lost: (self.timing.missed_frames == MissedFrames::Lost).then_some(self.frames_lost),
         };
         if let Some(emergency) = self.drive.run(&mut self.od, now_ns, bus) {
             self.emergency(&emergency);
@@ -478,16 +496,21 @@ impl VirtualBus {
     pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
         frame::validate(payload)?;
         if self.line.carry() {
+            for slave in &mut self.slaves {
+                slave.miss_frame();
+            }
             self.advance(now_ns);
             return Ok(line::Delivery::Lost);
         }
         let reach = self.line.reach();
         let last = reach as u64 - 1;
         for (i, slave) in self.slaves.iter_mut().enumerate() {
-            slave.poll(now_ns);
             if i >= reach {
+                slave.miss_frame();
+                slave.poll(now_ns);
                 continue;
             }
+            slave.poll(now_ns);
             let i = i as u64;
             let arrival = Arrival {
                 port0_ns: now_ns + i * FORWARD_DELAY_NS,
