@@ -6,7 +6,6 @@ over rmw_fastrtps_cpp in an rclpy.Context of its own, so several can live in one
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
@@ -31,6 +30,7 @@ from std_srvs.srv import Trigger
 
 from akd_ros.msg import DriveFault, DriveStatus, LatchEvent, TrajectoryStatus
 from akd_ros.srv import ArmLatch, SetMode
+from support.netns import SIM_PRIORITY, free_udp_port, realtime
 
 BIN = Path(sys.executable).parent
 RMW = "rmw_fastrtps_cpp"
@@ -93,18 +93,6 @@ def stop(process: subprocess.Popen) -> None:
             process.wait()
 
 
-SIM_PRIORITY = 40
-"""SCHED_FIFO priority of akd-sim's threads where the system permits it. A real AKD has a processor of its own; on a
-loaded test host a virtual one descheduled for more than seven cycles would fault with F125 (synchronization lost)
-as the real one does when its master falls silent, which is not what the node's tests are about."""
-
-
-def _realtime(priority: int) -> None:
-    """In a child before it executes: SCHED_FIFO at `priority` for it and every thread it starts, if permitted."""
-    with contextlib.suppress(PermissionError, OSError):
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-
-
 def akd_plot(*args: str) -> subprocess.CompletedProcess:
     """`akd-plot ARGS` run to its end, its output captured."""
     return subprocess.run([str(BIN / "akd-plot"), *args], capture_output=True, text=True, timeout=120, check=False)
@@ -124,7 +112,7 @@ class Sim:
         self.lines: queue.Queue = queue.Queue()
         self.process = subprocess.Popen(
             [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}", "--count", str(count), "--missed", missed],
-            preexec_fn=lambda: _realtime(SIM_PRIORITY),
+            preexec_fn=lambda: realtime(SIM_PRIORITY),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT,
@@ -329,8 +317,6 @@ def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
 def node_on_sim(params: str, folder: Path, domain: int) -> Iterator[tuple[Sim, NodeProcess, Client]]:
     """A fresh simulator, akd_node on it with `params` (a template whose {port} is the simulator's) on `domain`, and
     a client there once joint_states arrive; all ended afterwards, the node's output printed."""
-    from support.netns import free_udp_port
-
     sim = Sim(free_udp_port())
     path = folder / "akd_node.yaml"
     path.write_text(params.format(port=sim.port))

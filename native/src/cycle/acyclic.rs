@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use crate::coe::{self, CoeService, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::cycle::events::{Action, Event, Events, FaultSource};
-use crate::error::{Error, MailboxError, Result, SettingError};
+use crate::error::{Error, MailboxError, Result, SettingError, Unavailable};
 use crate::mailbox::{MailboxHeader, MailboxType};
 use crate::master::cyclic::SlaveWatch;
 use crate::master::mailbox_client::Mailbox;
@@ -42,6 +42,8 @@ enum Outcome {
     Unexpected = 4,
     MailboxError = 5,
     NoMailbox = 6,
+    /// The slave was lost while its transfer was under way; its mailbox is the recovery's.
+    Lost = 7,
 }
 
 /// The hand-over of one SDO transfer between another thread and the cycle thread.
@@ -142,6 +144,7 @@ impl SdoSlot {
             o if o == Outcome::NoMailbox as u8 => {
                 Err(MailboxError::NoCoeForTransfer { verb, slave, index, subindex }.into())
             }
+            o if o == Outcome::Lost as u8 => Err(Unavailable::Recovering { slave }.into()),
             _ => Err(MailboxError::TransferUnexpected { verb, slave, index, subindex }.into()),
         }
     }
@@ -229,8 +232,13 @@ impl MailboxService {
         if self.read_one(master, slot, events, context, (&recovering, &statusword)) {
             return;
         }
-        if let Phase::Sending { deadline_ns, origin, .. } | Phase::Awaiting { deadline_ns, origin, .. } = self.phase {
-            if now_ns > deadline_ns {
+        if let Phase::Sending { slave, deadline_ns, origin } | Phase::Awaiting { slave, deadline_ns, origin, .. } =
+            self.phase
+        {
+            if recovering(slave) {
+                // No answer is coming before the slave is back, if ever: the caller hears so now.
+                self.finish(slot, events, origin, Outcome::Lost, 0, &[]);
+            } else if now_ns > deadline_ns {
                 self.finish(slot, events, origin, Outcome::TimedOut, 0, &[]);
             }
         }
