@@ -207,7 +207,7 @@ def main() -> int:
                 | {f"cycle wake {k} µs": v for k, v in ours.items()}
                 | {f"cyclictest wake {k} µs": v for k, v in theirs.items()}
                 | {"ratio p99": ours["p99"] / theirs["p99"], "ratio p99.9": ours["p99.9"] / theirs["p99.9"]}
-                | {"cycle period jitter p99 µs": jitter["p99"], "p99.9 µs": jitter["p99.9"]}
+                | {"cycle period jitter p99 µs": jitter["p99"], "period jitter p99.9 µs": jitter["p99.9"]}
             )
             series[f"cycle {rate} Hz"] = merged([r["wake"] for r in runs(rate, "idle")])
             series[f"cyclictest {rate} Hz"] = merged([p["wake"] for p in mine])

@@ -129,8 +129,10 @@ class Figures:
 
 
 def cell(value) -> str:
-    """A value as a table shows it: floats to three significant places past the point as their size needs."""
+    """A value as a table shows it: floats with two decimals below 100, none above, small ones as they are."""
     if isinstance(value, float):
+        if value and abs(value) < 0.01:
+            return f"{value:g}"
         return f"{value:.2f}" if abs(value) < 100 else f"{value:.0f}"
     if isinstance(value, list | tuple):
         return "/".join(cell(v) for v in value)

@@ -360,6 +360,7 @@ def run(count: int, record: bool, transport: str, context: dict, args) -> dict:
                 "command_to_node": [arrivals[v] - t for t, v in sent if v in arrivals],
                 "command_to_wire": command_to_wire(sent, cycles),
                 "cycle_to_delivery": cycle_to_delivery(moving, cycles),
+                "moving": len(moving),
             }
         return result
 
@@ -440,7 +441,10 @@ def main() -> int:
                     f" {' / '.join(r['log_tail'])}"
                 )
             if len(cycle) < 2:
-                figures.missing(f"cycle→delivery, {r['axes']} axes over {r['transport']}: {len(cycle)} matched")
+                figures.missing(
+                    f"cycle→delivery, {r['axes']} axes over {r['transport']}: {len(cycle)} matched of"
+                    f" {r['moving']} /joint_states received while the joints moved"
+                )
         row["faulted joints"] = len({j for joints in r["faults"].values() for j in joints})
         row["attempt"] = r["attempt"]
         if row["faulted joints"]:

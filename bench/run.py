@@ -224,6 +224,7 @@ def main() -> int:
         records = {}
         for name in SECTIONS:
             records[name] = {"status": "skipped"} if name in skipped else run_section(name)
+            records[name].setdefault("command", shlex.join(["bench/" + SECTIONS[name][0][0], *SECTIONS[name][0][1:]]))
         command = shlex.join([".venv/bin/python", "bench/run.py", *(f"--skip={s}" for s in sorted(skipped))])
         summary = {
             "command": command,
