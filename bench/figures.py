@@ -132,7 +132,7 @@ def cell(value) -> str:
     """A value as a table shows it: floats with two decimals below 100, none above, small ones as they are."""
     if isinstance(value, float):
         if value and abs(value) < 0.01:
-            return f"{value:g}"
+            return f"{value:.2g}"
         return f"{value:.2f}" if abs(value) < 100 else f"{value:.0f}"
     if isinstance(value, list | tuple):
         return "/".join(cell(v) for v in value)

@@ -422,13 +422,13 @@ def main() -> int:
         row |= {k: r.get(k) for k in ("node CPU %", "of it cycle %", "akd-sim CPU %", "router CPU %")}
         row |= {"joint_states/s": r["joint_states/s"]}
         delivered = r["publication_to_delivery"]
-        row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "p99 ms": ms(delivered, 0.99)}
+        row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "publication→delivery p99 ms": ms(delivered, 0.99)}
         wire, cycle = r.get("command_to_wire", []), r.get("cycle_to_delivery", [])
         row |= {
             "command→wire p50 ms": ms(wire, 0.5),
             "command→wire p99 ms": ms(wire, 0.99),
-            "of it to the node p50 ms": ms(r.get("command_to_node", []), 0.5),
-            "to the node p99 ms": ms(r.get("command_to_node", []), 0.99),
+            "of it command→node p50 ms": ms(r.get("command_to_node", []), 0.5),
+            "command→node p99 ms": ms(r.get("command_to_node", []), 0.99),
             "matched": f"{len(wire)}/{r['sent']}" if "sent" in r else None,
             "cycle→delivery p50 ms": ms(cycle, 0.5),
             "cycle→delivery p99 ms": ms(cycle, 0.99),
@@ -466,7 +466,7 @@ def main() -> int:
                     for key in (
                         "node CPU %",
                         "publication→delivery p50 ms",
-                        "p99 ms",
+                        "publication→delivery p99 ms",
                         "command→wire p50 ms",
                         "command→wire p99 ms",
                         "cycle→delivery p50 ms",
@@ -487,7 +487,7 @@ def main() -> int:
         " Zenoh router process (DDS has none); recording: record.decimation 1; publication→delivery: delivery minus"
         " header.stamp (the node stamps /joint_states with its time of publication); command→wire: send time to the"
         " stamp of the first cycle sending the value (its wake-up, right before the frame goes out), not a time taken"
-        " inside the virtual AKD; of it to the node: send time to the node's taking the message in (its log time in"
+        " inside the virtual AKD; command→node: send time to the node's taking the message in (its log time in"
         " the bag); cycle→delivery: that cycle's stamp to the delivery of the message carrying its"
         f" position; waits bounded by {WAIT_S:g} s"
     )

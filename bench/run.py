@@ -38,12 +38,12 @@ BENCH = Path(__file__).resolve().parent
 ROOT = BENCH.parent
 RESULTS = BENCH / "results"
 SECTIONS = {
-    "master_cycle": (["master_cycle.py", "--counts", "1,4,16,64", "--cycles", "5000"], 120),
-    "roundtrip": (["roundtrip.py", "--quick"], 300),
-    "jitter": (["cycle_jitter.py", "--loads", "idle", "--rates", "1000,4000", "--seconds", "4", "--rounds", "2"], 180),
+    "master_cycle": (shlex.split("master_cycle.py --counts 1,4,16,64 --cycles 5000"), 120),
+    "roundtrip": (shlex.split("roundtrip.py --quick"), 300),
+    "jitter": (shlex.split("cycle_jitter.py --loads idle --rates 1000,4000 --seconds 4 --rounds 4"), 240),
     "python": (
-        ["cycle_jitter.py", "--loads", "idle,busy,sdo", "--no-cyclictest", "--rates", "4000", "--seconds", "4"],
-        120,
+        shlex.split("cycle_jitter.py --loads idle,busy,sdo --no-cyclictest --rates 4000 --seconds 4 --rounds 4"),
+        180,
     ),
     "ros": (["node_ros.py"], 420),
 }
