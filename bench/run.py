@@ -1,9 +1,10 @@
 """Runs the benchmark suite end to end and writes bench/RESULTS.md and bench/results.png from that run's figures.
 
 Each section is one script of bench/ run as its own process with --json; its figures (tables, distributions, what
-it could not measure, settings, machine, how long it ran) are kept in bench/results/SECTION.json and rendered: the
-tables into RESULTS.md, the distributions into results.png (matplotlib, Agg) as tail plots, 1 - CDF on log axes.
-Nothing in RESULTS.md is typed in: every figure comes from those files.
+it could not measure, settings, machine, how long it ran) are kept together in bench/results/run.json, its output in
+bench/results/SECTION.log, and rendered: the tables into RESULTS.md, the distributions into results.png
+(matplotlib, Agg) as tail plots, 1 - CDF on log axes. Nothing in RESULTS.md is typed in: every figure comes from
+those files.
 
     .venv/bin/python bench/run.py [--skip SECTION[,SECTION]] [--render]
 
@@ -86,6 +87,7 @@ def run_section(name: str) -> dict:
     record = {"command": shown, "exit": code, "wall_seconds": seconds}
     if out.exists():
         record |= json.loads(out.read_text())
+        out.unlink()  # kept in results/run.json with the run's other sections
     if code is None:
         record |= {"status": "failed", "why": f"ended after the {limit} s it may take"}
     elif code != 0 and "tables" not in record and "rows" not in record:
@@ -121,7 +123,8 @@ def render(records: dict, total: dict) -> str:
         "# Benchmark results",
         "",
         f"Written by `{total['command']}` on {total['date']} in {total['seconds']:.0f} s; every figure below comes"
-        " from the scripts of that run (their JSON is in `bench/results/`, their output in `bench/results/*.log`).",
+        " from the scripts of that run (their JSON together in `bench/results/run.json`, their output in"
+        " `bench/results/SECTION.log`).",
         "",
         "**The machine is shared and noisy**: other jobs ran on its cores during the run, so absolute times"
         " vary from run to run; the ratios, taken against a peer measured in the same run with the contenders"
