@@ -19,7 +19,8 @@ With recording (record.enabled, record.decimation 1, every cycle in the bag), ~/
 --command-rate for --command-seconds, each message moving every joint a small step to values not sent before. The
 node is stopped (SIGINT) and the bag read with rosbags (akd_ros/msg/CycleSample records):
 - command to wire: a message's send time (system clock) to the stamp of the first cycle whose command for joint_1 is
-  its value; that stamp is the cycle's wake-up time, taken right before its frame with the set-point goes out;
+  its value; that stamp is the cycle's wake-up time, taken right before its frame with the set-point goes out; of it,
+  command to node: to the bag's log time of the message (the node records a command as its callback takes it in);
 - cycle to delivery: for each /joint_states message received while the joints move, the cycle whose joint_1
   position it carries (the last one at or before its publication with that very value; a value two cycles within
   10 ms share is left out) to the message's delivery in this process.
@@ -29,7 +30,9 @@ node is stopped (SIGINT) and the bag read with rosbags (akd_ros/msg/CycleSample 
         [--sim-priority 70] [--attempts 3] [--json PATH]
 
 The node's cycle thread runs at rt.priority 80 and akd-sim's threads at SCHED_FIFO 70: on a loaded 2-core machine
-the virtual AKDs otherwise miss more than seven frames and fault (F125), and a faulted run measures nothing.
+the virtual AKDs otherwise miss more than seven frames and fault (F125). Even so the machine's other load faults some
+runs; a faulted run measures joints that are not holding, so it is run again, up to --attempts times, and the table
+gives each case's attempt.
 """
 
 from __future__ import annotations
