@@ -135,7 +135,10 @@ def cell(value) -> str:
             return f"{value:.2g}"
         return f"{value:.2f}" if abs(value) < 100 else f"{value:.0f}"
     if isinstance(value, list | tuple):
-        return "/".join(cell(v) for v in value)
+        # A few values (load averages, a pair) side by side; a script's raw samples are no cell's business.
+        return "/".join(cell(v) for v in value) if len(value) <= 4 else f"({len(value)} values)"
+    if isinstance(value, dict):
+        return ", ".join(f"{k} {cell(v)}" for k, v in value.items())
     return "" if value is None else str(value)
 
 

@@ -27,6 +27,7 @@ json_argument(parser)
 args = parser.parse_args()
 figures = Figures("fake.py", "a fake section", args)
 figures.table("Fake rows", [{{"name": "first", "p50 µs": 1.25}}, {{"name": "second", "p50 µs": 250.0}}])
+figures.table("Raw", [{{"samples": list(range(50)), "load": [0.5, 1.0, 1.5]}}])
 figures.distribution("fake samples", {{"fake": [(1.0, 5), (2.0, 3), (4.0, 2)]}})
 if args.missing:
     figures.missing(args.missing)
@@ -59,6 +60,7 @@ def test_a_section_that_measured_everything_is_rendered_and_the_run_exits_0(suit
     assert code == 0
     assert "| fake | measured |" in text
     assert "| first | 1.25 |" in text and "| second | 250 |" in text
+    assert "| (50 values) | 0.50/1.00/1.50 |" in text  # a script's raw samples are counted, not printed
     assert (suite.folder / "results.png").stat().st_size > 0
     assert (suite.folder / "results" / "fake.log").exists()
 
