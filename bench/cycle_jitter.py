@@ -1,14 +1,20 @@
-"""Measures the cycle thread (akd_ros._native.Cycle): period jitter, wake-up latency, exchange
-time and CPU time per cycle at 1 kHz and 4 kHz, each beside `cyclictest` (Debian rt-tests) run
-right after it in the same conditions (same interval, loop count, priority, CPU, and the same
-Python busy threads running).
+"""Measures the cycle thread (akd_ros._native.Cycle): its period jitter and wake-up latency beside `cyclictest`
+(Debian rt-tests) at the same interval and priority, and what Python costs it: busy Python threads and SDO traffic
+beside the cycle, against an idle run.
 
-Not a test: timing depends on the machine and its load. The cycle's wake-up latency is what
-cyclictest measures (how late after the deadline the thread woke); period jitter is the
-deviation of the wake-to-wake time from the nominal period.
+Not a test: timing depends on the machine and its load. Each round runs, for each rate, the cycle thread on the
+in-process virtual AKD ("sim") once under each load, then cyclictest (one thread, the same interval, priority and
+number of loops, memory locked as the cycle is told to); rounds alternate, so a change of the machine's load over the
+run falls on both. The loads:
+- idle: this process does nothing but wait;
+- busy: --busy Python threads doing pure-Python work, holding the GIL as much as the interpreter lets them;
+- sdo: one Python thread reading an object by SDO through the cycle (`Cycle.sdo_read`) back to back.
 
-    .venv/bin/python bench/cycle_jitter.py [--cycles 100000] [--rates 1000,4000]
-        [--priority 80] [--cpu 1] [--lock-memory] [--busy 2] [--udp]
+Wake-up latency is what cyclictest measures: how late after its deadline the thread woke. Period jitter is
+|wake-to-wake time - period|. Both come from the cycle's own 1 µs histograms; cyclictest's from its -h histogram.
+
+    .venv/bin/python bench/cycle_jitter.py [--rates 1000,4000] [--seconds 4] [--rounds 2] [--loads idle,busy,sdo]
+        [--priority 80] [--busy 2] [--no-cyclictest] [--json PATH]
 """
 
 from __future__ import annotations
@@ -22,26 +28,37 @@ import threading
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+from figures import Figures, histogram_quantile, json_argument
 
 from akd_ros import _native
-from support.netns import akd_sim_udp, free_udp_port
+
+LOADS = ("idle", "busy", "sdo")
+STATUSWORD = (0x6041, 0)
 
 
-def busy_work(stop: threading.Event) -> None:
+def busy_work(stop: threading.Event, done: list[int]) -> None:
     """Pure-Python work holding the GIL as much as the interpreter lets it."""
     while not stop.is_set():
         sum(i * i for i in range(2000))
+        done[0] += 1
 
 
-class Busy:
-    """`count` Python threads busy for the duration of the block."""
+def sdo_work(cycle: _native.Cycle, stop: threading.Event, done: list[int]) -> None:
+    """SDO reads through the cycle, back to back."""
+    while not stop.is_set():
+        cycle.sdo_read(0, *STATUSWORD)
+        done[0] += 1
 
-    def __init__(self, count: int) -> None:
-        self.stop = threading.Event()
-        self.threads = [threading.Thread(target=busy_work, args=(self.stop,)) for _ in range(count)]
 
-    def __enter__(self) -> Busy:
+class Load:
+    """The load of one run, running for the duration of the block; `done` counts its iterations."""
+
+    def __init__(self, name: str, args, cycle: _native.Cycle | None = None) -> None:
+        self.stop, self.done = threading.Event(), [0]
+        work = {"idle": [], "busy": [(busy_work, ())] * args.busy, "sdo": [(sdo_work, (cycle,))]}[name]
+        self.threads = [threading.Thread(target=f, args=(*a, self.stop, self.done)) for f, a in work]
+
+    def __enter__(self) -> Load:
         for t in self.threads:
             t.start()
         return self
@@ -60,113 +77,184 @@ def cycle_thread_cpu_ns() -> int:
     raise RuntimeError("no akd-cycle thread")
 
 
-def percentile(histogram: list[tuple[int, int]], fraction: float) -> int:
-    """Upper bucket edge (ns) under which `fraction` of the samples lie."""
-    total = sum(c for _, c in histogram)
-    rank, seen = max(1, round(fraction * total)), 0
-    for edge, count in histogram:
-        seen += count
-        if seen >= rank:
-            return edge
-    return histogram[-1][0]
+def jitter_histogram(period: list[tuple[int, int]], period_ns: int) -> list[tuple[float, int]]:
+    """The period histogram (upper edge ns, count) as one of |period - nominal| (µs, count)."""
+    counts: dict[float, int] = {}
+    for edge, count in period:
+        key = abs(edge - period_ns) / 1000
+        counts[key] = counts.get(key, 0) + count
+    return sorted(counts.items())
 
 
-def us(ns: float) -> str:
-    return f"{ns / 1000:8.1f}"
-
-
-def run_cycle(link: str, rate: int, args) -> None:
+def run_cycle(rate: int, load: str, args) -> dict:
     period_ns = 1_000_000_000 // rate
-    with _native.Master(link, timeout=0.5) as master:
+    cycles = rate * args.seconds
+    with _native.Master("sim", timeout=0.5) as master:
         master.scan()
         master.request_state("op")
-        with Busy(args.busy):
-            cycle = _native.Cycle(
-                master, period_ns / 1e9, priority=args.priority, cpu=args.cpu, lock_memory=args.lock_memory
-            )
-            for w in cycle.warnings:
-                print(f"  warning: {w}")
-            while cycle.snapshot()["cycle"] < 10:
-                time.sleep(0.01)
+        cycle = _native.Cycle(master, period_ns / 1e9, priority=args.priority, lock_memory=True)
+        with Load(load, args, cycle) as running:
             cpu0, cycles0 = cycle_thread_cpu_ns(), cycle.snapshot()["cycle"]
-            while cycle.snapshot()["cycle"] < args.cycles:
+            while cycle.snapshot()["cycle"] < cycles:
                 time.sleep(0.05)
             cpu1, cycles1 = cycle_thread_cpu_ns(), cycle.snapshot()["cycle"]
-            cycle.stop()
-        s, h = cycle.stats(), cycle.histograms()
-        assert master.al_status(0)[0] == "Op", master.al_status(0)
-        master.request_state("init")
-    period, latency, exchange = s["period"], s["wake_latency"], s["exchange"]
-    jitter = max(period["max_ns"] - period_ns, period_ns - period["min_ns"])
-    print(f"  cycle   {rate} Hz, {s['cycles']} cycles on {link}, {args.busy} Python threads busy")
-    print(
-        f"    period       min {us(period['min_ns'])}  mean {us(period['mean_ns'])}  "
-        f"p99 {us(period['p99_ns'])}  max {us(period['max_ns'])} us;  jitter (max |period - "
-        f"{period_ns / 1000:.0f}|) {us(jitter)} us"
-    )
-    print(
-        f"    wake latency min {us(latency['min_ns'])}  mean {us(latency['mean_ns'])}  "
-        f"p99 {us(latency['p99_ns'])}  p99.9 {us(percentile(h['wake_latency'], 0.999))}  "
-        f"max {us(latency['max_ns'])} us"
-    )
-    print(
-        f"    exchange     min {us(exchange['min_ns'])}  mean {us(exchange['mean_ns'])}  "
-        f"p99 {us(exchange['p99_ns'])}  max {us(exchange['max_ns'])} us"
-    )
-    print(
-        f"    CPU time per cycle {(cpu1 - cpu0) / max(1, cycles1 - cycles0) / 1000:.1f} us; "
-        f"overruns {s['overruns']}, lost frames {s['lost_frames']}, wkc errors {s['wkc_errors']}, "
-        f"other errors {s['other_errors']}, set-points busy {s['setpoints_busy']}"
-    )
+            done = running.done[0]
+        cycle.stop()
+        stats, h = cycle.stats(), cycle.histograms()
+        state = master.al_status(0)[0]
+    jitter = jitter_histogram(h["period"], period_ns)
+    wake = [(edge / 1000, count) for edge, count in h["wake_latency"]]
+    return {
+        "rate": rate,
+        "load": load,
+        "cycles": stats["cycles"],
+        "warnings": cycle.warnings,
+        "state": state,
+        "jitter": jitter,
+        "wake": wake,
+        "exchange p99 µs": stats["exchange"]["p99_ns"] / 1000,
+        "CPU/cycle µs": (cpu1 - cpu0) / max(1, cycles1 - cycles0) / 1000,
+        "overruns": stats["overruns"],
+        "lost": stats["lost_frames"],
+        "work/s": done / args.seconds,
+    }
 
 
-def run_cyclictest(rate: int, args) -> None:
-    if shutil.which("cyclictest") is None:
-        print("  cyclictest: not installed (Debian package rt-tests; scripts/setup.sh installs it)")
-        return
-    argv = ["cyclictest", "-q", "-t1", f"-i{1_000_000 // rate}", f"-l{args.cycles}"]
-    if args.priority is not None:
+def run_cyclictest(rate: int, args) -> dict:
+    loops = rate * args.seconds
+    argv = ["cyclictest", "-q", "-m", "-t1", f"-i{1_000_000 // rate}", f"-l{loops}", "-h10000"]
+    if args.priority:
         argv.append(f"-p{args.priority}")
-    if args.cpu is not None:
-        argv.append(f"-a{args.cpu}")
-    if args.lock_memory:
-        argv.append("-m")
-    with Busy(args.busy):
-        result = subprocess.run(argv, capture_output=True, text=True, timeout=args.cycles / rate * 3 + 30)
-    m = re.search(r"C:\s*(\d+)\s+Min:\s*(\d+)\s+Act:\s*\d+\s+Avg:\s*(\d+)\s+Max:\s*(\d+)", result.stdout)
-    if result.returncode != 0 or m is None:
-        print(f"  cyclictest failed ({result.returncode}): {result.stderr.strip()} {result.stdout.strip()}")
-        return
-    count, low, avg, high = m.groups()
-    print(f"  cyclictest {rate} Hz, {count} loops ({' '.join(argv[1:])})")
-    print(f"    wake latency min {float(low):8.1f}  mean {float(avg):8.1f}  max {float(high):8.1f} us")
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=args.seconds * 3 + 30, check=False)
+    buckets = [(int(us) + 1.0, int(n)) for us, n in re.findall(r"^(\d+) (\d+)$", result.stdout, re.MULTILINE) if int(n)]
+    overflows = re.search(r"# Histogram Overflows: (\d+)", result.stdout)
+    worst = re.search(r"# Max Latencies: (\d+)", result.stdout)
+    if result.returncode != 0 or not buckets or overflows is None or worst is None:
+        raise RuntimeError(f"cyclictest failed ({result.returncode}): {result.stderr.strip()[:200]}")
+    if int(overflows.group(1)):
+        buckets.append((float(worst.group(1)), int(overflows.group(1))))
+    return {"rate": rate, "argv": " ".join(argv), "wake": buckets}
 
 
-def main() -> None:
+def quantiles(histogram: list[tuple[float, int]]) -> dict:
+    return {
+        "p50": histogram_quantile(histogram, 0.5),
+        "p99": histogram_quantile(histogram, 0.99),
+        "p99.9": histogram_quantile(histogram, 0.999),
+        "max": histogram[-1][0],
+    }
+
+
+def merged(histograms: list[list[tuple[float, int]]]) -> list[tuple[float, int]]:
+    counts: dict[float, int] = {}
+    for histogram in histograms:
+        for edge, count in histogram:
+            counts[edge] = counts.get(edge, 0) + count
+    return sorted(counts.items())
+
+
+def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cycles", type=int, default=100_000)
     parser.add_argument("--rates", default="1000,4000", help="cycle rates in Hz, comma-separated")
-    parser.add_argument("--priority", type=int, default=80, help="SCHED_FIFO priority (0: none)")
-    parser.add_argument("--cpu", type=int, default=None, help="bind the cycle thread to this CPU")
-    parser.add_argument("--lock-memory", action="store_true")
-    parser.add_argument("--busy", type=int, default=2, help="Python threads doing busy work meanwhile")
-    parser.add_argument("--udp", action="store_true", help="akd-sim over UDP on loopback instead of in-process")
+    parser.add_argument("--seconds", type=int, default=4, help="s of each run")
+    parser.add_argument("--rounds", type=int, default=2, help="rounds, alternating the contenders")
+    parser.add_argument("--loads", default="idle,busy,sdo", help=f"loads of the cycle's runs, of {', '.join(LOADS)}")
+    parser.add_argument("--priority", type=int, default=80, help="SCHED_FIFO priority of both (0: none)")
+    parser.add_argument("--busy", type=int, default=2, help="Python threads of the busy load")
+    parser.add_argument("--no-cyclictest", action="store_true", help="the cycle's runs only")
+    json_argument(parser)
     args = parser.parse_args()
-    args.priority = args.priority or None
     rates = [int(r) for r in args.rates.split(",")]
-    print(
-        f"cycle_jitter: {args.cycles} cycles per rate, priority {args.priority}, cpu {args.cpu}, "
-        f"lock memory {args.lock_memory}"
+    loads = args.loads.split(",")
+    if unknown := set(loads) - set(LOADS):
+        parser.error(f"--loads: {', '.join(sorted(unknown))} unknown; allowed: {', '.join(LOADS)}")
+    args.priority = args.priority or None
+    figures = Figures("cycle_jitter.py", "the cycle thread's jitter beside cyclictest, and Python's cost on it", args)
+    with_cyclictest = not args.no_cyclictest
+    if with_cyclictest and shutil.which("cyclictest") is None:
+        figures.missing("cyclictest: not installed (Debian package rt-tests; scripts/setup.sh installs it)")
+        with_cyclictest = False
+    cycles, peers = [], []
+    for _ in range(args.rounds):
+        for rate in rates:
+            for load in loads:
+                cycles.append(run_cycle(rate, load, args))
+            if with_cyclictest:
+                try:
+                    peers.append(run_cyclictest(rate, args))
+                except (RuntimeError, subprocess.TimeoutExpired) as e:
+                    figures.missing(f"cyclictest at {rate} Hz: {e}")
+    for run in cycles:
+        if run["state"] != "Op" or run["lost"]:
+            figures.missing(f"cycle at {run['rate']} Hz, {run['load']}: {run['lost']} lost frames, in {run['state']}")
+    for warning in sorted({w for run in cycles for w in run["warnings"]}):
+        figures.note(f"cycle warning: {warning}")
+
+    def runs(rate: int, load: str) -> list[dict]:
+        return [r for r in cycles if r["rate"] == rate and r["load"] == load]
+
+    if with_cyclictest and "idle" in loads:
+        rows, series = [], {}
+        for rate in rates:
+            ours = quantiles(merged([r["wake"] for r in runs(rate, "idle")]))
+            mine = [p for p in peers if p["rate"] == rate]
+            if not mine:
+                continue
+            theirs = quantiles(merged([p["wake"] for p in mine]))
+            jitter = quantiles(merged([r["jitter"] for r in runs(rate, "idle")]))
+            rows.append(
+                {"rate Hz": rate}
+                | {f"cycle wake {k} µs": v for k, v in ours.items()}
+                | {f"cyclictest wake {k} µs": v for k, v in theirs.items()}
+                | {"ratio p99": ours["p99"] / theirs["p99"], "ratio p99.9": ours["p99.9"] / theirs["p99.9"]}
+                | {"cycle period jitter p99 µs": jitter["p99"], "period jitter p99.9 µs": jitter["p99.9"]}
+            )
+            series[f"cycle {rate} Hz"] = merged([r["wake"] for r in runs(rate, "idle")])
+            series[f"cyclictest {rate} Hz"] = merged([p["wake"] for p in mine])
+            figures.note(f"cyclictest at {rate} Hz: {mine[0]['argv']}")
+        figures.table(
+            "Cycle thread against cyclictest (same interval and priority, alternating; ratio = cycle / cyclictest)",
+            rows,
+        )
+        figures.distribution("wake-up latency: cycle thread and cyclictest", series)
+    if len(loads) > 1 and "idle" in loads:
+        rows, series = [], {}
+        for rate in rates:
+            idle = quantiles(merged([r["jitter"] for r in runs(rate, "idle")]))
+            for load in loads:
+                these = runs(rate, load)
+                jitter = quantiles(merged([r["jitter"] for r in these]))
+                wake = quantiles(merged([r["wake"] for r in these]))
+                rows.append(
+                    {
+                        "rate Hz": rate,
+                        "load": load,
+                        "work/s": sum(r["work/s"] for r in these) / len(these),
+                        "jitter p99 µs": jitter["p99"],
+                        "jitter p99.9 µs": jitter["p99.9"],
+                        "jitter max µs": jitter["max"],
+                        "wake p99 µs": wake["p99"],
+                        "wake p99.9 µs": wake["p99.9"],
+                        "exchange p99 µs": max(r["exchange p99 µs"] for r in these),
+                        "CPU/cycle µs": sum(r["CPU/cycle µs"] for r in these) / len(these),
+                        "overruns": sum(r["overruns"] for r in these),
+                        "p99 / idle": jitter["p99"] / idle["p99"],
+                        "p99.9 / idle": jitter["p99.9"] / idle["p99.9"],
+                    }
+                )
+                series[f"{load} {rate} Hz"] = merged([r["jitter"] for r in these])
+        figures.table("Python's cost on the cycle: period jitter |period - nominal| by load (ratios to idle)", rows)
+        figures.distribution("cycle period jitter by Python load", series)
+        figures.note(
+            f"loads: idle (nothing), busy ({args.busy} pure-Python threads), sdo (Cycle.sdo_read of 0x6041 back to"
+            " back); work/s: the load's iterations per second"
+        )
+    figures.note(
+        f"cycle on the in-process virtual AKD (sim), SCHED_FIFO {args.priority}, memory locked; {args.rounds} rounds of"
+        f" {args.seconds} s per run, alternating; latencies from 1 µs histograms (upper edges)"
     )
-    for rate in rates:
-        if args.udp:
-            port = free_udp_port()
-            with akd_sim_udp(port):
-                run_cycle(f"udp://127.0.0.1:{port}", rate, args)
-        else:
-            run_cycle("sim", rate, args)
-        run_cyclictest(rate, args)
+    return figures.finish()
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

@@ -26,8 +26,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
-from cycle_jitter import cycle_thread_cpu_ns, percentile
-from scheduling import real_time
+from cycle_jitter import cycle_thread_cpu_ns
+from figures import histogram_quantile, real_time
 
 from akd_ros import Bus, BusRequestError, DriveConfig, _native
 from support.netns import akd_sim_udp, free_udp_port
@@ -110,8 +110,8 @@ def run(link: str, period: float, args) -> dict:
         "state": status["state"],
         "faults": faults,
         "cpu_us": (cpu1 - cpu0) / max(1, cycles1 - cycles0) / 1000,
-        "p50_us": percentile(histograms["period"], 0.5) / 1000,
-        "p99_us": percentile(histograms["period"], 0.99) / 1000,
+        "p50_us": histogram_quantile(histograms["period"], 0.5) / 1000,
+        "p99_us": histogram_quantile(histograms["period"], 0.99) / 1000,
         "max_us": stats["period"]["max_ns"] / 1000,
         "overruns": stats["overruns"],
         "lost": stats["lost_frames"],

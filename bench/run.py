@@ -1,0 +1,251 @@
+"""Runs the benchmark suite end to end and writes bench/RESULTS.md and bench/results.png from that run's figures.
+
+Each section is one script of bench/ run as its own process with --json; its figures (tables, distributions, what
+it could not measure, settings, machine, how long it ran) are kept together in bench/results/run.json, its output in
+bench/results/SECTION.log, and rendered: the tables into RESULTS.md, the distributions into results.png
+(matplotlib, Agg) as tail plots, 1 - CDF on log axes. Nothing in RESULTS.md is typed in: every figure comes from
+those files.
+
+    .venv/bin/python bench/run.py [--skip SECTION[,SECTION]] [--render]
+
+Sections, in the order they run (sudo or root: roundtrip's veth pair, the SCHED_FIFO priorities):
+  master_cycle  cost of one cyclic exchange in-process, 1/4/16/64 AKDs, frame size (master_cycle.py)
+  roundtrip     this master, SOEM and KickCAT over one veth pair to one akd-sim (roundtrip.py --quick)
+  jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
+  python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
+  ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh (node_ros.py)
+
+--skip leaves sections out (RESULTS.md says skipped); --render writes RESULTS.md and results.png again from the
+JSON files of the last run, running nothing. Exit status: 0 when every section that ran measured every figure,
+1 when any could not be measured (a script missing, failing, timing out, or saying so), 2 on a bad option.
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import shlex
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+from figures import cell, columns_of, machine
+
+BENCH = Path(__file__).resolve().parent
+ROOT = BENCH.parent
+RESULTS = BENCH / "results"
+SECTIONS = {
+    "master_cycle": (shlex.split("master_cycle.py --counts 1,4,16,64 --cycles 5000"), 120),
+    "roundtrip": (shlex.split("roundtrip.py --quick"), 300),
+    "jitter": (shlex.split("cycle_jitter.py --loads idle --rates 1000,4000 --seconds 4 --rounds 4"), 240),
+    "python": (
+        shlex.split("cycle_jitter.py --loads idle,busy,sdo --no-cyclictest --rates 4000 --seconds 4 --rounds 4"),
+        180,
+    ),
+    "ros": (["node_ros.py"], 420),
+}
+"""Each section's script and arguments (--json added), and the seconds it may take before it is ended."""
+TITLES = {
+    "master_cycle": "Cost per cycle in-process, by drives on the bus",
+    "roundtrip": "Round trip over veth: this master, SOEM and KickCAT",
+    "jitter": "Cycle thread beside cyclictest",
+    "python": "Python's cost on the loop",
+    "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
+}
+
+
+def run_section(name: str) -> dict:
+    """Runs section `name`'s script; gives its JSON, or a record of why there is none."""
+    argv, limit = SECTIONS[name]
+    script = BENCH / argv[0]
+    out = RESULTS / f"{name}.json"
+    out.unlink(missing_ok=True)  # a figure of an earlier run is never taken for this one's
+    command = [sys.executable, str(script), *argv[1:], "--json", str(out)]
+    shown = shlex.join([".venv/bin/python", f"bench/{argv[0]}", *argv[1:], "--json", f"bench/results/{name}.json"])
+    if not script.exists():
+        return {"status": "missing", "why": f"bench/{argv[0]} missing", "command": shown}
+    print(f"run.py: {name}: {shown}", flush=True)
+    log = RESULTS / f"{name}.log"
+    started = time.monotonic()
+    with log.open("w") as output:
+        process = subprocess.Popen(command, stdout=output, stderr=subprocess.STDOUT, cwd=ROOT, start_new_session=True)
+        try:
+            code = process.wait(timeout=limit)
+        except subprocess.TimeoutExpired:
+            os.killpg(process.pid, signal.SIGTERM)
+            try:
+                process.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                os.killpg(process.pid, signal.SIGKILL)
+                process.wait()
+            code = None
+    seconds = round(time.monotonic() - started, 1)
+    record = {"command": shown, "exit": code, "wall_seconds": seconds}
+    if out.exists():
+        record |= json.loads(out.read_text())
+        out.unlink()  # kept in results/run.json with the run's other sections
+    if code is None:
+        record |= {"status": "failed", "why": f"ended after the {limit} s it may take"}
+    elif code != 0 and "tables" not in record and "rows" not in record:
+        tail = log.read_text().strip().splitlines()[-3:]
+        record |= {"status": "failed", "why": f"exit {code}: " + " / ".join(tail)[:400]}
+    else:
+        record["status"] = "measured" if code == 0 else "partly measured"
+    print(f"run.py: {name}: {record['status']} in {seconds} s", flush=True)
+    return record
+
+
+def markdown_table(rows: list) -> list[str]:
+    if not rows:
+        return ["(no rows)"]
+    if not all(isinstance(r, dict) for r in rows):
+        return [f"- {json.dumps(r)}" for r in rows]
+    columns = columns_of(rows)
+    lines = ["| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
+    lines += ["| " + " | ".join(cell(r.get(c)) for c in columns) + " |" for r in rows]
+    return lines
+
+
+def tables_of(record: dict) -> list[dict]:
+    """The tables of a section: its own ("tables"), or a script's top-level "rows" as one table."""
+    tables = list(record.get("tables", []))
+    if "rows" in record:
+        tables.insert(0, {"title": record.get("title", "rows"), "rows": record["rows"]})
+    return tables
+
+
+def render(records: dict, total: dict) -> str:
+    lines = [
+        "# Benchmark results",
+        "",
+        f"Written by `{total['command']}` on {total['date']} in {total['seconds']:.0f} s; every figure below comes"
+        " from the scripts of that run (their JSON together in `bench/results/run.json`, their output in"
+        " `bench/results/SECTION.log`).",
+        "",
+        "**The machine is shared and noisy**: other jobs ran on its cores during the run, so absolute times"
+        " vary from run to run; the ratios, taken against a peer measured in the same run with the contenders"
+        " alternating, are the figures to compare.",
+        "",
+        f"Machine: `{total['machine']['uname']}`, {total['machine']['cpu']}, {total['machine']['cores']} cores;"
+        f" load (1/5/15 min) {cell(total['machine']['load'])} at the start, {cell(total['machine_at_end']['load'])}"
+        " at the end.",
+        "",
+        "![distributions](results.png)",
+        "",
+        "| section | status | ran | command |",
+        "|---|---|---|---|",
+    ]
+    for name, record in records.items():
+        ran = f"{record['wall_seconds']} s" if "wall_seconds" in record else ""
+        status = record["status"] + (f": {record['why']}" if "why" in record else "")
+        lines.append(f"| {name} | {status} | {ran} | `{record.get('command', '')}` |")
+    for name, record in records.items():
+        lines += ["", f"## {TITLES[name]}", ""]
+        if record["status"] == "skipped":
+            lines.append("**skipped (--skip)**")
+            continue
+        if "why" in record:
+            lines.append(f"**not measured: {record['why']}**")
+            if not tables_of(record):
+                continue
+        lines.append(
+            f"`{record['command']}`, {record.get('seconds', record.get('wall_seconds'))} s; load at its start"
+            f" {cell(record.get('machine', {}).get('load'))}."
+        )
+        if settings := record.get("settings"):
+            lines += ["", "Settings: " + ", ".join(f"{k} {cell(v)}" for k, v in settings.items()) + "."]
+        for table in tables_of(record):
+            lines += ["", f"**{table['title']}**", "", *markdown_table(table["rows"])]
+        if record.get("not_measured"):
+            lines += ["", "Not measured:", *(f"- {what}" for what in record["not_measured"])]
+        if record.get("notes"):
+            lines += ["", *(f"- {note}" for note in record["notes"])]
+    return "\n".join(lines) + "\n"
+
+
+def plot(records: dict, path: Path) -> None:
+    """Every distribution of the run as 1 - CDF (the share of samples above a value) on log axes, one panel each."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    panels = [(name, d) for name, r in records.items() for d in r.get("distributions", []) if d["series"]]
+    if not panels:
+        return
+    columns = 2
+    rows = -(-len(panels) // columns)
+    figure, axes = plt.subplots(rows, columns, figsize=(7 * columns, 4.2 * rows), squeeze=False)
+    for ax, (name, distribution) in zip(axes.flat, panels, strict=False):
+        for label, histogram in distribution["series"].items():
+            total = sum(c for _, c in histogram)
+            xs, tail, seen = [], [], 0
+            for edge, count in histogram:
+                seen += count
+                if seen < total:
+                    xs.append(edge)
+                    tail.append((total - seen) / total)
+            ax.step(xs, tail, where="post", label=f"{label} (n={total})")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("µs")
+        ax.set_ylabel("share of samples above")
+        ax.set_title(f"{name}: {distribution['title']}", fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=7)
+    for ax in list(axes.flat)[len(panels) :]:
+        ax.set_visible(False)
+    figure.suptitle("akd_ros bench/run.py: distributions (tails: 1 - CDF); a shared, noisy machine")
+    figure.tight_layout()
+    figure.savefig(path, dpi=90)
+    plt.close(figure)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--skip", action="append", default=[], help=f"sections to leave out, of {', '.join(SECTIONS)}")
+    parser.add_argument("--render", action="store_true", help="only render RESULTS.md and results.png again")
+    args = parser.parse_args()
+    skipped = {s for value in args.skip for s in value.split(",") if s}
+    if unknown := skipped - set(SECTIONS):
+        parser.error(f"--skip: no section {', '.join(sorted(unknown))}; the sections: {', '.join(SECTIONS)}")
+    RESULTS.mkdir(exist_ok=True)
+    summary_path = RESULTS / "run.json"
+    if args.render:
+        if not summary_path.exists():
+            print(f"run.py: nothing to render: {summary_path.relative_to(ROOT)} missing (run the suite first)")
+            return 1
+        summary = json.loads(summary_path.read_text())
+        records = summary.pop("records")
+    else:
+        started, at_start = time.monotonic(), machine()
+        date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        records = {}
+        for name in SECTIONS:
+            records[name] = {"status": "skipped"} if name in skipped else run_section(name)
+            records[name].setdefault("command", shlex.join(["bench/" + SECTIONS[name][0][0], *SECTIONS[name][0][1:]]))
+        command = shlex.join([".venv/bin/python", "bench/run.py", *(f"--skip={s}" for s in sorted(skipped))])
+        summary = {
+            "command": command,
+            "date": date,
+            "seconds": time.monotonic() - started,
+            "machine": at_start,
+            "machine_at_end": machine(),
+        }
+        summary_path.write_text(json.dumps(summary | {"records": records}, indent=1))
+    (BENCH / "RESULTS.md").write_text(render(records, summary))
+    plot(records, BENCH / "results.png")
+    bad = [n for n, r in records.items() if r["status"] not in ("measured", "skipped")]
+    print(f"run.py: RESULTS.md and results.png written; {len(records) - len(bad)} of {len(records)} sections fine")
+    for name in bad:
+        record = records[name]
+        print(f"run.py: {name}: {record['status']}: {record.get('why') or '; '.join(record.get('not_measured', []))}")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
