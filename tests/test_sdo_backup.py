@@ -12,7 +12,6 @@ import pytest
 import yaml
 
 import akd_ros
-
 from support.netns import akd_sim_udp, console_script, free_udp_port
 
 # A bound on one run of the tool, not a timing expectation: a dump reads some 200 entries over loopback.

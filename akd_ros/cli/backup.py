@@ -148,7 +148,8 @@ def dump(master, position: int, progress: Callable[[Iterable, int], Iterable] = 
 def write_file(path: str, drive: dict, records: list[dict]) -> None:
     """Writes the dump file: the drive it came from, then the records."""
     document = {"format": FILE_FORMAT, "drive": drive, "objects": records}
-    Path(path).write_text(yaml.safe_dump(document, sort_keys=False, allow_unicode=True, width=120, default_flow_style=None))
+    text = yaml.safe_dump(document, sort_keys=False, allow_unicode=True, width=120, default_flow_style=None)
+    Path(path).write_text(text)
 
 
 def read_file(path: str) -> list[dict]:

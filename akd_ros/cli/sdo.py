@@ -193,8 +193,7 @@ def _restore(master, position: int, records: list[dict], dry_run: bool) -> int:
         print(f"refused: {refusal}")
     written = sum(not w.step for w in plan.writes) - sum(not w.step for w, _ in failed)
     print(
-        f"restored: {written} written, {plan.unchanged} unchanged, {len(plan.skipped)} skipped, "
-        f"{len(refused)} refused"
+        f"restored: {written} written, {plan.unchanged} unchanged, {len(plan.skipped)} skipped, {len(refused)} refused"
     )
     return EXIT_FAILURE if refused else 0
 
