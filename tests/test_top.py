@@ -45,6 +45,19 @@ async def enable_with_confirmation(pilot, app: Top, joint: str) -> None:
     await until(pilot, lambda: shown(app, joint, "state") == "Operation enabled", f"{joint} Operation enabled")
 
 
+async def fault_then_reset(pilot, app: Top, joint: str, inject_f439) -> None:
+    """inject_f439() faults `joint`'s drive with F439; waits for its row to show the fault with its text and the
+    Fault state, then resets it with r and the confirmation's y, to Switch on disabled."""
+    inject_f439()
+    await until(pilot, lambda: "F439" in shown(app, joint, "fault"), f"F439 in {joint}'s row")
+    assert shown(app, joint, "fault") == "drive_fault: F439 Following error"
+    await until(pilot, lambda: shown(app, joint, "state") == "Fault", f"{joint} in Fault")
+    await pilot.press("r")
+    assert isinstance(app.screen, Confirm) and app.screen.question == f"Reset the fault of {joint}?"
+    await pilot.press("y")
+    await until(pilot, lambda: shown(app, joint, "state") == "Switch on disabled", f"{joint} reset")
+
+
 async def direct_scenario(source: DirectSource, inject_fault) -> None:
     app = Top(source, refresh_s=0.05)
     async with app.run_test(size=(200, 30)) as pilot:
@@ -75,16 +88,8 @@ async def direct_scenario(source: DirectSource, inject_fault) -> None:
         await pilot.press("y")
         await until(pilot, lambda: "latch 2 armed" in app.last_outcome, "latch armed")
 
-        # A fault injected in the virtual AKD appears in its joint's row, with its text.
-        inject_fault(1, "F439")
-        await until(pilot, lambda: "F439" in shown(app, "slave_1", "fault"), "F439 in slave_1's row")
-        assert shown(app, "slave_1", "fault") == "drive_fault: F439 Following error"
-        await until(pilot, lambda: shown(app, "slave_1", "state") == "Fault", "slave_1 in Fault")
-
-        # Reset, then enable again.
-        await pilot.press("r")
-        await pilot.press("y")
-        await until(pilot, lambda: shown(app, "slave_1", "state") == "Switch on disabled", "slave_1 reset")
+        # A fault injected in the virtual AKD appears in its joint's row, with its text; reset, then enable again.
+        await fault_then_reset(pilot, app, "slave_1", lambda: inject_fault(1, "F439"))
         await enable_with_confirmation(pilot, app, "slave_1")
         await pilot.press("s")
         await pilot.press("y")
@@ -127,6 +132,8 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{port}
     cycle_time: 0.002
+    # As test_node.py runs it, as an integrator would: the cycle thread under SCHED_FIFO where permitted.
+    rt.priority: 30
     mode: interpolated_position
     joints: [arm, wrist]
     joint_states_rate: 20.0
@@ -145,13 +152,7 @@ async def ros_scenario(source, sim) -> None:
         await pilot.press("down")
         await enable_with_confirmation(pilot, app, "wrist")
         assert shown(app, "arm", "state") == "Switch on disabled"
-        sim.command("fault 1 F439")
-        await until(pilot, lambda: "F439" in shown(app, "wrist", "fault"), "F439 in wrist's row")
-        assert shown(app, "wrist", "fault") == "drive_fault: F439 Following error"
-        await until(pilot, lambda: shown(app, "wrist", "state") == "Fault", "wrist in Fault")
-        await pilot.press("r")
-        await pilot.press("y")
-        await until(pilot, lambda: shown(app, "wrist", "state") == "Switch on disabled", "wrist reset")
+        await fault_then_reset(pilot, app, "wrist", lambda: sim.command("fault 1 F439"))
         await pilot.press("q")
 
 

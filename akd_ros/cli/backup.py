@@ -28,8 +28,8 @@ import yaml
 
 from akd_ros import _native
 
-# IEEE 754 numbers by their size in bytes (REAL32, REAL64).
-_REAL_FORMATS = {4: "<f", 8: "<d"}
+REAL_FORMATS = {4: "<f", 8: "<d"}
+"""IEEE 754 numbers by their size in bytes (REAL32, REAL64), as struct formats."""
 _ASSIGNMENTS = (0x1C12, 0x1C13)
 WHOLE = (0x60C2,)
 """Objects the drive checks as a whole when their last entry is written (0x60C2: units and index give the cycle
@@ -55,8 +55,8 @@ def decode(data: bytes, data_type: int) -> int | float | str:
     kind = _native.data_type_kind(data_type)
     if kind in ("signed_integer", "unsigned_integer"):
         return int.from_bytes(data, "little", signed=kind == "signed_integer")
-    if kind == "real" and len(data) in _REAL_FORMATS:
-        return struct.unpack(_REAL_FORMATS[len(data)], data)[0]
+    if kind == "real" and len(data) in REAL_FORMATS:
+        return struct.unpack(REAL_FORMATS[len(data)], data)[0]
     if kind == "visible_string":
         return data.rstrip(b"\0").decode("latin-1")
     return data.hex()
@@ -76,10 +76,10 @@ def encode(value, data_type: int, size: int) -> bytes:
         if not low <= value <= high:
             raise ValueError(f"{value} is out of range for {name} ({low}..{high})")
         return value.to_bytes(size, "little", signed=signed)
-    if kind == "real" and size in _REAL_FORMATS:
+    if kind == "real" and size in REAL_FORMATS:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ValueError(f"expected a number for {name}, got {value!r}")
-        return struct.pack(_REAL_FORMATS[size], value)
+        return struct.pack(REAL_FORMATS[size], value)
     if not isinstance(value, str):
         raise ValueError(f"expected a {'text' if kind == 'visible_string' else 'hex string'} for {name}, got {value!r}")
     if kind == "visible_string":

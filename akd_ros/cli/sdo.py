@@ -19,6 +19,7 @@ import sys
 
 from akd_ros import _native
 from akd_ros.cli import backup
+from akd_ros.cli.backup import REAL_FORMATS
 from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run
 
 EXAMPLES = """examples:
@@ -28,8 +29,6 @@ EXAMPLES = """examples:
   akd-sdo enp3s0 --position 1 restore drive.yaml --dry-run
 """
 
-# IEEE 754 numbers by their size in bytes (REAL32, REAL64).
-_REAL_FORMATS = {4: "<f", 8: "<d"}
 _INTEGER_KINDS = ("signed_integer", "unsigned_integer")
 
 
@@ -56,8 +55,8 @@ def format_value(data: bytes, data_type: int | None) -> str:
     if kind in _INTEGER_KINDS:
         value = int.from_bytes(data, "little", signed=kind == "signed_integer")
         return f"{value} (0x{data[::-1].hex().upper()})"
-    if kind == "real" and len(data) in _REAL_FORMATS:
-        return repr(struct.unpack(_REAL_FORMATS[len(data)], data)[0])
+    if kind == "real" and len(data) in REAL_FORMATS:
+        return repr(struct.unpack(REAL_FORMATS[len(data)], data)[0])
     if kind == "visible_string":
         return repr(data.rstrip(b"\0").decode("latin-1"))
     return data.hex(" ") if data else "(empty)"
@@ -68,8 +67,8 @@ def encode_value(text: str, data_type: int | None, size: int) -> bytes:
     kind = _kind(data_type)
     if kind == "visible_string":
         return text.encode("latin-1")
-    if kind == "real" and size in _REAL_FORMATS:
-        return struct.pack(_REAL_FORMATS[size], float(text))
+    if kind == "real" and size in REAL_FORMATS:
+        return struct.pack(REAL_FORMATS[size], float(text))
     try:
         value = int(text, 0)
     except ValueError:
