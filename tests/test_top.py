@@ -6,8 +6,11 @@ and enable with its confirmation brings the selected joint (and only it) to Oper
 from __future__ import annotations
 
 import asyncio
+import os
 import subprocess
+import sys
 import time
+from pathlib import Path
 
 import pytest
 
@@ -177,3 +180,42 @@ def test_attached_over_ros_shows_faults_and_enables_with_confirmation(tmp_path):
             stop(node.process)
             sim.stop()
             print(f"ROS domain {domain}; akd_node output:\n{node.output()}")
+
+
+# akd-top on a link, in an interpreter whose every ROS import is refused (tests/support/no_ros): the view comes up and
+# shows the drive; it prints the ROS modules that were loaded (none may be).
+WITHOUT_ROS = """
+import asyncio, sys
+from akd_ros.top.app import Top
+from akd_ros.top.direct import DirectSource
+
+async def main(source):
+    app = Top(source, refresh_s=0.05)
+    async with app.run_test(size=(200, 30)) as pilot:
+        while not app.table.row_count:
+            await pilot.pause(0.05)
+        print(app.table.get_cell("slave_0", "joint"))
+        await pilot.press("q")
+
+source = DirectSource("sim")
+try:
+    asyncio.run(main(source))
+finally:
+    source.close()
+print(",".join(sorted(m for m in sys.modules if __import__("sitecustomize").is_ros(m))))
+"""
+
+
+def test_the_view_of_a_link_needs_no_ros():
+    repo = Path(__file__).resolve().parents[1]
+    python = repo / ".venv-noros" / "bin" / "python"
+    result = subprocess.run(
+        [str(python if python.exists() else sys.executable), "-c", WITHOUT_ROS],
+        env={**os.environ, "PYTHONPATH": str(repo / "tests" / "support" / "no_ros")},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines()[-2:] == ["slave_0", ""], result.stdout
