@@ -13,7 +13,7 @@ from textual.containers import Grid
 from textual.screen import ModalScreen
 from textual.widgets import Button, DataTable, Footer, Header, Label, Static
 
-from akd_ros.top.source import JointRow, Source
+from akd_ros.top.source import Source
 
 COLUMNS = (
     ("joint", "joint"),
@@ -137,16 +137,21 @@ class Top(App):
         self.set_interval(self.refresh_s, self.show)
 
     def show(self) -> None:
-        """Reads the source once and shows what it gives."""
+        """Reads the source once and shows what it gives; what reading fails with goes to the status line (the view
+        keeps showing what it had, and tries again at the next refresh)."""
+        try:
+            rows, bus = self.source.rows(), self.source.bus_row()
+        except Exception as error:  # noqa: BLE001  (a view shows its source's failure, whatever it is, and goes on)
+            self.outcome(f"reading the bus failed: {error}")
+            return
         table = self.table
-        for row in self.source.rows():
+        for row in rows:
             cells = {key: cell(getattr(row, key)) for key, _ in COLUMNS if key != "joint"}
             if row.name not in table.rows:
                 table.add_row(row.name, *cells.values(), key=row.name)
                 continue
             for key, text in cells.items():
                 table.update_cell(row.name, key, text, update_width=True)
-        bus = self.source.bus_row()
         stats = "  ".join(f"{k} {v}" for k, v in bus.stats.items())
         self.bus_text = f"bus {bus.link}: {stats}\nDC: {bus.dc}"
         self.bus_line.update(self.bus_text)
@@ -157,10 +162,6 @@ class Top(App):
         if not table.row_count:
             return None
         return table.coordinate_to_cell_key(table.cursor_coordinate).row_key.value
-
-    def row_of(self, joint: str) -> JointRow | None:
-        """The joint's row as last read (for tests and the status line)."""
-        return next((r for r in self.source.rows() if r.name == joint), None)
 
     def outcome(self, text: str) -> None:
         self.last_outcome = text
@@ -204,7 +205,7 @@ class Top(App):
         """Asks the source in a thread of its own (it may wait for the drive); shows the outcome."""
         try:
             text = self.source.request(joint, action)
-        except RuntimeError as e:
+        except Exception as e:  # noqa: BLE001  (refused or failed, the view shows why and goes on)
             text = f"refused: {e}"
         self.call_from_thread(self.outcome, text)
 
@@ -212,6 +213,6 @@ class Top(App):
     def run_latch(self, joint: str, channel: int, edge: str) -> None:
         try:
             text = self.source.arm_latch(joint, channel, edge)
-        except RuntimeError as e:
+        except Exception as e:  # noqa: BLE001  (refused or failed, the view shows why and goes on)
             text = f"refused: {e}"
         self.call_from_thread(self.outcome, text)

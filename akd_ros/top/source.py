@@ -8,7 +8,6 @@ from dataclasses import dataclass, field
 
 ACTIONS = ("enable", "disable", "quick_stop", "reset_fault")
 """The requests of one joint, as the node's services and `Axis` name them."""
-LATCH_EDGES = ("rising", "falling")
 
 
 @dataclass(frozen=True)
@@ -54,7 +53,7 @@ class Source(ABC):
 
     @abstractmethod
     def arm_latch(self, joint: str, channel: int, edge: str) -> str:
-        """Arms latch `channel` (1 or 2) of `joint` on `edge` (one of LATCH_EDGES); as `request`."""
+        """Arms latch `channel` (1 or 2) of `joint` on `edge` ("rising" or "falling"); as `request`."""
 
     @abstractmethod
     def close(self) -> None:
