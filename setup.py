@@ -81,6 +81,7 @@ setup(
             "akd-scan = akd_ros.cli.scan:main",
             "akd-sdo = akd_ros.cli.sdo:main",
             "akd-plot = akd_ros.cli.plot:main",
+            "akd-top = akd_ros.cli.top:main",
             "akd_node = akd_ros.node:main",
         ]
     },

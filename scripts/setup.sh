@@ -57,7 +57,8 @@ say "installing build, test and interop packages into .venv"
 # in, restarts .venv's python with LD_LIBRARY_PATH pointing at the wheels' libraries). The node
 # needs rclpy over Fast DDS and these interfaces; the rosidl generators and type supports build
 # akd_ros's own messages (rosidl_build.py). mcap, rosbags, matplotlib and eclipse-zenoh serve
-# the node's recording, plotting and Zenoh work and its tests.
+# the node's recording, plotting and Zenoh work and its tests; textual draws akd-top and rich
+# (textual's own renderer) akd-sdo's progress bar.
 ROS_WHEELS=(
     ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-common-interfaces ros-jazzy-std-srvs
     ros-jazzy-diagnostic-msgs ros-jazzy-sensor-msgs ros-jazzy-lifecycle-msgs
@@ -67,7 +68,7 @@ ROS_WHEELS=(
 )
 say "installing ROS 2 Jazzy wheels and the recording tools into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check \
-    "${ROS_WHEELS[@]}" mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash
+    "${ROS_WHEELS[@]}" mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash textual rich
 
 say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and the messages"
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation -e .
@@ -76,7 +77,8 @@ say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and t
 .venv/bin/python -c 'from akd_ros.msg import LatchEvent' || die "akd_ros.msg does not import after the build"
 
 # .venv-noros: akd_ros without any ROS wheel, as a controller without ROS runs the node over Zenoh alone
-# (transport zenoh), for the tests of that: eclipse-zenoh, rosbags, mcap and PyYAML beside the build and test tools.
+# (transport zenoh), for the tests of that: eclipse-zenoh, rosbags, mcap, PyYAML, textual and rich beside the build and
+# test tools.
 # Without the rosidl generators setup.py builds no messages; the extension builds in a cargo target directory of
 # its own, so that neither environment's build makes cargo rebuild the other's (about 35 s the first time).
 if [[ ! -x .venv-noros/bin/python ]]; then
@@ -85,7 +87,7 @@ if [[ ! -x .venv-noros/bin/python ]]; then
 fi
 say "installing akd_ros into .venv-noros, without ROS"
 .venv-noros/bin/python -m pip install -q --disable-pip-version-check \
-    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest "eclipse-zenoh>=1.5,<2" rosbags mcap PyYAML
+    "setuptools>=64" wheel "setuptools-rust>=1.7" pytest "eclipse-zenoh>=1.5,<2" rosbags mcap PyYAML textual rich
 CARGO_TARGET_DIR=native/target/noros .venv-noros/bin/python -m pip install -q --disable-pip-version-check \
     --no-build-isolation -e .
 .venv-noros/bin/python -c 'from akd_ros import _native, params' || die "akd_ros does not import in .venv-noros"

@@ -6,6 +6,8 @@ import re
 import shutil
 import signal
 import subprocess
+import sys
+from pathlib import Path
 
 import pytest
 
@@ -223,3 +225,41 @@ def test_scan_over_raw_ethernet_in_netns(veth):
         scan = run_in_netns(veth.ns_master, [*console_script("akd-scan"), veth.if_master])
     assert scan.returncode == 0, scan.stderr
     assert scanned_positions(scan.stdout) == [0, 1]
+
+
+HELPED_TOOLS = ("akd-sim", "akd-scan", "akd-sdo", "akd-plot", "akd_node", "akd-top")
+
+
+@pytest.mark.parametrize("tool", HELPED_TOOLS)
+def test_every_tools_help_shows_an_example(tool):
+    result = subprocess.run(
+        [shutil.which(tool, path=str(Path(sys.executable).parent)), "--help"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert "examples:" in result.stdout, result.stdout
+    examples = result.stdout.split("examples:", 1)[1].splitlines()
+    # Each example is a command line of the tool itself.
+    assert [line.split()[0] for line in examples if line.strip()] == [tool] * sum(1 for x in examples if x.strip())
+
+
+def test_a_yaml_syntax_error_in_a_parameters_file_is_the_nodes_one_line(tmp_path):
+    path = tmp_path / "params.yaml"
+    path.write_text("akd_node:\n  ros__parameters:\n    link: [sim\n    mode: homing\n")
+    result = subprocess.run(
+        [str(Path(sys.executable).parent / "akd_node"), "--ros-args", "--params-file", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 1
+    lines = [line for line in result.stderr.splitlines() if "running as root is not needed" not in line]
+    assert lines == [
+        f"akd_node: error: parameters file {path}, line 4, column 9: expected ',' or ']', but got ':' "
+        "(while parsing a flow sequence, line 3, column 11)"
+    ], result.stderr
+    assert "Traceback" not in result.stdout + result.stderr

@@ -247,11 +247,23 @@ def _output(text: str) -> Path:
     return path
 
 
+EXAMPLES = """examples:
+  akd-plot bags/run_2026-01-01 -o run.png
+  akd-plot bags/arm --joint joint_2 -o joint_2.svg
+  akd-plot bags/killed --reindex -o killed.png   a bag whose recorder was killed
+"""
+
+
 def main(argv: list[str] | None = None) -> int:
     """akd-plot's entry point; returns the exit status: 0, or 1 for a bag it cannot plot.
 
     argparse exits with 2 for bad arguments (e.g. an output type not in FORMATS)."""
-    parser = argparse.ArgumentParser(prog="akd-plot", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="akd-plot",
+        description=__doc__.splitlines()[0],
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     parser.add_argument("bag", metavar="BAG", type=Path, help="rosbag2 directory recorded by akd_ros")
     parser.add_argument(
         "-o",

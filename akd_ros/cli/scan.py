@@ -12,6 +12,12 @@ import sys
 
 from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run
 
+EXAMPLES = """examples:
+  akd-scan sim:2                      two virtual AKDs in this process
+  akd-scan udp://127.0.0.1:34980      the virtual AKDs of akd-sim --udp 127.0.0.1:34980
+  akd-scan enp3s0 --pcap scan.pcapng  the drives on an interface, every frame written for Wireshark
+"""
+
 
 def format_slave(slave: dict) -> str:
     """One line describing a slave as `Master.scan()` reports it."""
@@ -31,7 +37,12 @@ def format_slave(slave: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-scan."""
-    parser = argparse.ArgumentParser(prog="akd-scan", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog="akd-scan",
+        description=__doc__.splitlines()[0],
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     add_master_arguments(parser)
     args = parser.parse_args(argv)
 

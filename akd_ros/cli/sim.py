@@ -168,12 +168,19 @@ def start_commands(simulator) -> None:
     threading.Thread(target=serve_commands, args=(simulator,), name="akd-sim commands", daemon=True).start()
 
 
+EXAMPLES = """
+examples:
+  akd-sim --udp 127.0.0.1:34980 --count 2   two virtual AKDs for the link udp://127.0.0.1:34980
+  akd-sim --iface veth-sim --count 6        six on a veth end, for a master on its peer
+"""
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-sim."""
     parser = argparse.ArgumentParser(
         prog="akd-sim",
         description=__doc__.splitlines()[0],
-        epilog=__doc__.split("\n\n", 2)[2],
+        epilog=__doc__.split("\n\n", 2)[2] + EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     where = parser.add_mutually_exclusive_group(required=True)

@@ -40,6 +40,11 @@ import sys
 __all__ = ["NODE_NAME", "AkdNode", "main"]
 
 NODE_NAME = "akd_node"
+EXAMPLES = """examples:
+  akd_node --ros-args --params-file config/akd_sim.yaml
+  akd_node --ros-args --params-file config/akd_sim_6axis.yaml -p link:=udp://127.0.0.1:34980
+  akd_node --ros-args -p link:=enp3s0 -p mode:=cyclic_synchronous_position -r __ns:=/arm
+"""
 """The node's name, under which its ~/ topics and services are."""
 
 
@@ -52,6 +57,28 @@ def __getattr__(name: str):
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
+def _asked_for_help(arguments: list[str]) -> bool:
+    """Prints the node's help when its own arguments (those before --ros-args) ask for it: what it is, the parameters
+    file and -p arguments it takes (README: Parameters), examples."""
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog=NODE_NAME,
+        usage=f"{NODE_NAME} [-h] --ros-args [--params-file FILE] [-p NAME:=VALUE ...] [-r __ns:=NAMESPACE]",
+        description="The AKD drives of one EtherCAT line as a ROS 2 lifecycle node. Its parameters come from a\n"
+        "parameters file and -p arguments after --ros-args (README: Parameters). A bad parameter or a\n"
+        "failed start exits 1 with one line on stderr.",
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    own = arguments[1:]
+    own = own[: own.index("--ros-args")] if "--ros-args" in own else own
+    if not {"-h", "--help"} & set(own):
+        return False
+    parser.print_help()
+    return True
+
+
 def main(args: list[str] | None = None) -> int:
     """Entry point of `akd_node`: runs the node on the transport its parameters name (rclpy where it imports, else
     Zenoh) until SIGINT/SIGTERM, then disables the drives, returns the bus to Init and exits 0. A bad parameter or a
@@ -59,8 +86,10 @@ def main(args: list[str] | None = None) -> int:
     from akd_ros import params
     from akd_ros.privilege import warn_if_root
 
-    warn_if_root(NODE_NAME)
     arguments = sys.argv if args is None else args
+    if _asked_for_help(arguments):
+        return 0
+    warn_if_root(NODE_NAME)
     try:
         given = params.read_arguments(arguments, NODE_NAME)
         transport = params.transport_of(given)

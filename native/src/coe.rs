@@ -823,6 +823,23 @@ pub mod access {
     pub const READ: u16 = READ_PREOP | READ_SAFEOP | READ_OP;
     /// Writable in every state.
     pub const WRITE: u16 = WRITE_PREOP | WRITE_SAFEOP | WRITE_OP;
+
+    /// Each access bit with its name, in bit order.
+    pub const NAMES: [(u16, &str); 8] = [
+        (READ_PREOP, "read_preop"),
+        (READ_SAFEOP, "read_safeop"),
+        (READ_OP, "read_op"),
+        (WRITE_PREOP, "write_preop"),
+        (WRITE_SAFEOP, "write_safeop"),
+        (WRITE_OP, "write_op"),
+        (RX_PDO, "rx_pdo"),
+        (TX_PDO, "tx_pdo"),
+    ];
+
+    /// The names of the bits set in `bits`, in bit order.
+    pub fn names(bits: u16) -> impl Iterator<Item = &'static str> {
+        NAMES.into_iter().filter(move |(bit, _)| bits & bit != 0).map(|(_, name)| name)
+    }
 }
 
 /// An entry description (Get entry description response data), without the optional
@@ -1052,6 +1069,14 @@ mod tests {
         assert!(err.starts_with("CoE service 9 is none of 1 (Emergency), 2 (SDO Request)"), "{err}");
         assert_eq!(SdoInfoOpcode::GetOdListRequest.response(), Some(SdoInfoOpcode::GetOdListResponse));
         assert!(SdoRequest::decode(&[0xA0, 0, 0, 0, 0, 0, 0, 0]).unwrap_err().to_string().contains("specifier 5"));
+    }
+
+    #[test]
+    fn access_bits_are_named_in_bit_order() {
+        let names: Vec<_> = access::names(access::READ | access::WRITE_PREOP | access::TX_PDO).collect();
+        assert_eq!(names, ["read_preop", "read_safeop", "read_op", "write_preop", "tx_pdo"]);
+        assert_eq!(access::names(0).count(), 0);
+        assert_eq!(access::NAMES.iter().fold(0, |all, (bit, _)| all | bit), 0x00FF);
     }
     use proptest::prelude::*;
 

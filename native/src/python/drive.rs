@@ -1,16 +1,17 @@
 //! The drive's knowledge for Python, as the crate holds it, so that the package keeps no copy:
 //! the modes of operation (`MODES_OF_OPERATION`), akd_ros's default mapping
 //! (`DEFAULT_MAPPING`), the AKD's mapping rules (`check_mapping`) and entry syntax
-//! (`parse_pdo_entry`), CoE data types (`data_type_name`, `data_type_kind`), mapped objects'
-//! values as bytes (`encode_value`) and one drive's inputs read by its mapping (`DriveInputs`,
-//! from `Cycle.drive_inputs`), and the CiA 402 states (`DS402_STATES`, `ds402_state`).
+//! (`parse_pdo_entry`), CoE data types (`data_type_name`, `data_type_kind`), an entry's access
+//! bits by name (`access_names`), mapped objects' values as bytes (`encode_value`) and one
+//! drive's inputs read by its mapping (`DriveInputs`, from `Cycle.drive_inputs`), and the CiA
+//! 402 states (`DS402_STATES`, `ds402_state`).
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
 
 use super::IntoPyResult;
-use crate::coe::data_type;
+use crate::coe::{access, data_type};
 use crate::cycle::{CycleThread, Snapshot};
 use crate::ds402::{self, Mode, State};
 use crate::objects::{self, DriveInputs};
@@ -149,6 +150,14 @@ fn data_type_kind(code: u16) -> &'static str {
     data_type::kind(code).name()
 }
 
+/// The names of the access bits `bits` of an entry description holds
+/// (`Master.sdo_entry_description`'s "access"), in bit order: "read_preop", "read_safeop",
+/// "read_op", "write_preop", "write_safeop", "write_op", "rx_pdo", "tx_pdo".
+#[pyfunction]
+fn access_names(bits: u16) -> Vec<&'static str> {
+    access::names(bits).collect()
+}
+
 /// `value` as the bytes of mappable object `index:subindex` (e.g. a set-point for
 /// `Cycle.set_object`): little-endian in its data type's length; raises ValueError for a value
 /// outside the type's range or an object the AKD does not map.
@@ -179,6 +188,7 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(parse_pdo_entry, m)?)?;
     m.add_function(wrap_pyfunction!(data_type_name, m)?)?;
     m.add_function(wrap_pyfunction!(data_type_kind, m)?)?;
+    m.add_function(wrap_pyfunction!(access_names, m)?)?;
     m.add_function(wrap_pyfunction!(encode_value, m)?)?;
     m.add_function(wrap_pyfunction!(ds402_state, m)?)?;
     m.add("DS402_STATES", PyTuple::new(m.py(), State::ALL.map(State::name))?)?;

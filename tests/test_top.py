@@ -1,0 +1,253 @@
+"""akd-top driven through Textual's own pilot (`App.run_test`, headless) against the virtual AKDs: once over a link it
+runs itself (`sim:2`, no ROS) and attached to akd_node on akd-sim --udp with two joints, over ROS (ROS domains 0-8)
+and over Zenoh (a router of the test's own, no ROS import). What is checked is what the view's table shows: a fault
+injected in a virtual AKD appears in its joint's row, and enable with its confirmation brings the selected joint (and
+only it) to Operation enabled."""
+
+from __future__ import annotations
+
+import asyncio
+import os
+import random
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from akd_ros.top.app import COLUMNS, ChooseLatch, Confirm, Top
+from akd_ros.top.direct import DirectSource
+from support.netns import console_script
+
+# A bound on each wait, not a timing expectation: requests, discovery and diagnostics take seconds on a loaded machine.
+WAIT_S = 30.0
+DOMAINS = range(9)
+
+
+async def until(pilot, done, what: str) -> None:
+    """Lets the app run until done() is true; fails naming what did not happen."""
+    deadline = time.monotonic() + WAIT_S
+    while not done():
+        if time.monotonic() > deadline:
+            table = pilot.app.table
+            rows = [[table.get_cell(r, c) for c, _ in COLUMNS] for r in table.rows]
+            pytest.fail(f"no {what} within {WAIT_S} s; outcome: {pilot.app.last_outcome!r}; rows: {rows}")
+        await pilot.pause(0.05)
+
+
+def shown(app: Top, joint: str, column: str) -> str:
+    """What the view's table shows in `joint`'s row under `column`."""
+    return app.table.get_cell(joint, column)
+
+
+async def enable_with_confirmation(pilot, app: Top, joint: str) -> None:
+    """e, then the confirmation's y, on the selected `joint`; waits for its row to show Operation enabled."""
+    assert app.selected() == joint
+    await pilot.press("e")
+    assert isinstance(app.screen, Confirm) and app.screen.question == f"Enable {joint}?"
+    await pilot.press("y")
+    await until(pilot, lambda: shown(app, joint, "state") == "Operation enabled", f"{joint} Operation enabled")
+
+
+async def fault_then_reset(pilot, app: Top, joint: str, inject_f439) -> None:
+    """inject_f439() faults `joint`'s drive with F439; waits for its row to show the fault with its text and the
+    Fault state, then resets it with r and the confirmation's y, to Switch on disabled."""
+    inject_f439()
+    await until(pilot, lambda: "F439" in shown(app, joint, "fault"), f"F439 in {joint}'s row")
+    # The drive's 0x603F and its emergency both report it; the row shows the later of the two.
+    assert shown(app, joint, "fault") in ("drive_fault: F439 Following error", "emergency: F439 Following error")
+    await until(pilot, lambda: shown(app, joint, "state") == "Fault", f"{joint} in Fault")
+    await pilot.press("r")
+    assert isinstance(app.screen, Confirm) and app.screen.question == f"Reset the fault of {joint}?"
+    await pilot.press("y")
+    await until(pilot, lambda: shown(app, joint, "state") == "Switch on disabled", f"{joint} reset")
+
+
+async def direct_scenario(source: DirectSource, inject_fault) -> None:
+    app = Top(source, refresh_s=0.05)
+    async with app.run_test(size=(200, 30)) as pilot:
+        await until(pilot, lambda: app.table.row_count == 2, "two rows")
+        assert [shown(app, j, "state") for j in ("slave_0", "slave_1")] == ["Switch on disabled"] * 2
+        assert shown(app, "slave_0", "mode") == "interpolated_position"
+        assert "cycles" in app.bus_text and "DC: " in app.bus_text
+
+        # Answering no asks nothing.
+        await pilot.press("e")
+        assert isinstance(app.screen, Confirm)
+        await pilot.press("n")
+        assert app.last_outcome == "slave_0: enable not asked"
+        await pilot.pause(0.3)
+        assert shown(app, "slave_0", "state") == "Switch on disabled"
+
+        # The second joint, selected with the cursor, enabled with confirmation; the first stays disabled.
+        await pilot.press("down")
+        await enable_with_confirmation(pilot, app, "slave_1")
+        assert shown(app, "slave_0", "state") == "Switch on disabled"
+        assert shown(app, "slave_1", "fault") == "-"
+
+        # A latch armed through its screen and the confirmation.
+        await pilot.press("l")
+        assert isinstance(app.screen, ChooseLatch)
+        await pilot.press("3")
+        assert isinstance(app.screen, Confirm) and "latch 2 of slave_1 on the rising edge" in app.screen.question
+        await pilot.press("y")
+        await until(pilot, lambda: "latch 2 armed" in app.last_outcome, "latch armed")
+
+        # A fault injected in the virtual AKD appears in its joint's row, with its text; reset, then enable again.
+        await fault_then_reset(pilot, app, "slave_1", lambda: inject_fault(1, "F439"))
+        await enable_with_confirmation(pilot, app, "slave_1")
+        await pilot.press("s")
+        await pilot.press("y")
+        await until(pilot, lambda: shown(app, "slave_1", "state") == "Quick stop active", "slave_1 quick-stopped")
+        await pilot.press("q")
+
+
+def test_direct_link_shows_faults_and_enables_with_confirmation():
+    # As an integrator runs it, the cycle thread under SCHED_FIFO where permitted: the virtual AKDs fault with F125
+    # after seven cycles without a frame, as the real ones do, and a loaded machine holds a normal thread up longer.
+    source = DirectSource("sim:2", period=0.004, priority=30)
+    try:
+        asyncio.run(direct_scenario(source, source.bus.simulator.inject_fault))
+    finally:
+        source.close()
+
+
+def test_help_and_a_bad_link_are_one_line():
+    result = subprocess.run(
+        [*console_script("akd-top"), "--help"], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 0 and "examples:" in result.stdout and "akd-top sim:6" in result.stdout
+    result = subprocess.run(
+        [*console_script("akd-top"), "udp://127.0.0.1"], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 1
+    # The one line, after root's warning where the tests run as root.
+    lines = [line for line in result.stderr.splitlines() if "running as root is not needed" not in line]
+    assert lines == [
+        'akd-top: error: configuration: link "udp://127.0.0.1" is no udp://HOST:PORT with a port in 1..65535'
+    ]
+    result = subprocess.run(
+        [*console_script("akd-top"), "sim", "--attach", "ros"], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert result.returncode == 2 and "give either a LINK or --attach ros|zenoh" in result.stderr
+
+
+NODE_PARAMS = """\
+akd_node:
+  ros__parameters:
+    link: udp://127.0.0.1:{port}
+    cycle_time: 0.002
+    # As test_node.py runs it, as an integrator would: the cycle thread under SCHED_FIFO where permitted.
+    rt.priority: 30
+    mode: interpolated_position
+    joints: [arm, wrist]
+    joint_states_rate: 20.0
+    status_rate: 10.0
+    diagnostics_rate: 5.0
+"""
+
+
+async def attached_scenario(source, sim) -> None:
+    app = Top(source, refresh_s=0.1)
+    async with app.run_test(size=(200, 30)) as pilot:
+        await until(pilot, lambda: app.table.row_count == 2, "both joints' rows")
+        await until(pilot, lambda: shown(app, "wrist", "state") == "Switch on disabled", "wrist's state")
+        await until(pilot, lambda: "cycles" in app.bus_text, "the bus's statistics")
+        assert "udp://127.0.0.1" in app.bus_text
+        await pilot.press("down")
+        await enable_with_confirmation(pilot, app, "wrist")
+        assert shown(app, "arm", "state") == "Switch on disabled"
+        await fault_then_reset(pilot, app, "wrist", lambda: sim.command("fault 1 F439"))
+        await pilot.press("q")
+
+
+def test_attached_over_ros_shows_faults_and_enables_with_confirmation(tmp_path):
+    pytest.importorskip("rclpy", reason="the ROS attach needs rclpy (.venv has it)")
+    from akd_ros.top.ros_source import RosSource
+    from support.netns import free_udp_port
+    from support.ros import NodeProcess, Sim, ros_environment, stop
+
+    with ros_environment(DOMAINS) as domain:
+        sim = Sim(free_udp_port(), count=2)
+        params = tmp_path / "akd_node.yaml"
+        params.write_text(NODE_PARAMS.format(port=sim.port))
+        node = NodeProcess(params)
+        source = None
+        try:
+            source = RosSource("/akd_node")
+            asyncio.run(attached_scenario(source, sim))
+        finally:
+            if source is not None:
+                source.close()
+            stop(node.process)
+            sim.stop()
+            print(f"ROS domain {domain}; akd_node output:\n{node.output()}")
+
+
+# akd-top on a link, in an interpreter whose every ROS import is refused (tests/support/no_ros): the view comes up and
+# shows the drive; it prints the ROS modules that were loaded (none may be).
+WITHOUT_ROS = """
+import asyncio, sys
+from akd_ros.top.app import Top
+from akd_ros.top.direct import DirectSource
+
+async def main(source):
+    app = Top(source, refresh_s=0.05)
+    async with app.run_test(size=(200, 30)) as pilot:
+        while not app.table.row_count:
+            await pilot.pause(0.05)
+        print(app.table.get_cell("slave_0", "joint"))
+        await pilot.press("q")
+
+source = DirectSource("sim")
+try:
+    asyncio.run(main(source))
+finally:
+    source.close()
+print(",".join(sorted(m for m in sys.modules if __import__("sitecustomize").is_ros(m))))
+"""
+
+
+def test_the_view_of_a_link_needs_no_ros():
+    repo = Path(__file__).resolve().parents[1]
+    python = repo / ".venv-noros" / "bin" / "python"
+    result = subprocess.run(
+        [str(python if python.exists() else sys.executable), "-c", WITHOUT_ROS],
+        env={**os.environ, "PYTHONPATH": str(repo / "tests" / "support" / "no_ros")},
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    )
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.splitlines()[-2:] == ["slave_0", ""], result.stdout
+
+
+ZENOH_NODE_PARAMS = NODE_PARAMS.replace(
+    "  ros__parameters:\n", '  ros__parameters:\n    transport: zenoh\n    zenoh.connect: ["{endpoint}"]\n'
+)
+
+
+def test_attached_over_zenoh_shows_faults_and_enables_with_confirmation(tmp_path, monkeypatch):
+    from akd_ros.top.zenoh_source import ZenohSource
+    from support.netns import free_udp_port
+    from support.ros import NodeProcess, Sim, stop
+    from support.zenoh import zenoh_router
+
+    monkeypatch.setenv("ROS_DOMAIN_ID", str(random.choice(DOMAINS)))
+    with zenoh_router() as endpoint:
+        sim = Sim(free_udp_port(), count=2)
+        params = tmp_path / "akd_node.yaml"
+        params.write_text(ZENOH_NODE_PARAMS.format(port=sim.port, endpoint=endpoint))
+        node = NodeProcess(params, without_ros=True)
+        source = None
+        try:
+            source = ZenohSource("/akd_node", [endpoint])
+            asyncio.run(attached_scenario(source, sim))
+        finally:
+            if source is not None:
+                source.close()
+            stop(node.process)
+            sim.stop()
+            print(f"akd_node output:\n{node.output()}")
