@@ -81,8 +81,9 @@ GENERATOR_MODULES = (
     "rosidl_typesupport_introspection_cpp",
     "rosidl_generator_py",
 )
-# The generators whose headers are installed (include/akd_ros/akd_ros), in the order their output
-# directories are searched when the libraries compile.
+# The generators whose output directories are searched for headers when the libraries compile, in
+# this order; the headers in them are installed (include/akd_ros/akd_ros; rosidl_generator_py's
+# output has none).
 HEADER_GENERATORS = (
     "rosidl_generator_c",
     "rosidl_typesupport_fastrtps_c",
@@ -234,9 +235,10 @@ def _sync_python_modules(generated: Path, package_dir: Path) -> None:
 def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, list[str]]:
     """Runs every generator over source_dir's interfaces; the Python modules go to package_dir.
 
-    Returns the generated sources of each library (keys: 'generator_c', the TYPESUPPORTS,
-    'typesupport_c', 'python'), the include directories ('include') and the ROS library
-    directories ('library_dirs') to compile them with.
+    Returns the generated sources of each library (keys: 'generator_c', the TYPESUPPORTS and
+    TYPESUPPORTS_CPP, 'typesupport_c', 'typesupport_cpp', 'python'; 'generator_cpp' has none), the
+    include directories ('include') and the ROS library directories ('library_dirs') to compile
+    them with, and the generated files to install ('data_files', setup() data_files entries).
     """
     files = interface_files(source_dir)
     if not files:
