@@ -2,15 +2,24 @@
 
 This does what `rosidl_generate_interfaces()` does in a CMake package, without CMake: the .msg and
 .srv files become .idl (rosidl_adapter), the rosidl generators' Python APIs write the C structs
-(rosidl_generator_c), the Fast DDS and introspection type supports, the C dispatch between them
-(rosidl_typesupport_c) and the Python classes (rosidl_generator_py), and setuptools compiles five
+(rosidl_generator_c) and C++ classes (rosidl_generator_cpp, headers only), the Fast DDS and
+introspection type supports of each language, the dispatch between them (rosidl_typesupport_c,
+rosidl_typesupport_cpp) and the Python classes (rosidl_generator_py), and setuptools compiles eight
 libraries into the akd_ros package directory:
 
-    libakd_ros__rosidl_generator_c.so                 C structs, init/fini, type hashes
-    libakd_ros__rosidl_typesupport_fastrtps_c.so      CDR (de)serialisation for rmw_fastrtps_cpp
-    libakd_ros__rosidl_typesupport_introspection_c.so member layout, for tools that walk a message
-    libakd_ros__rosidl_typesupport_c.so               the dispatch rclpy hands to the rmw
-    akd_ros_s__rosidl_typesupport_c.<ext>             the Python <-> C conversion rclpy imports
+    libakd_ros__rosidl_generator_c.so                   C structs, init/fini, type hashes
+    libakd_ros__rosidl_typesupport_fastrtps_c.so        CDR (de)serialisation for rmw_fastrtps_cpp
+    libakd_ros__rosidl_typesupport_introspection_c.so   member layout, for tools that walk a message
+    libakd_ros__rosidl_typesupport_c.so                 the C dispatch rclpy hands to the rmw
+    libakd_ros__rosidl_typesupport_fastrtps_cpp.so      the same three for the C++ classes, which
+    libakd_ros__rosidl_typesupport_introspection_cpp.so rclcpp nodes and C++ tools (rosbag2) load
+    libakd_ros__rosidl_typesupport_cpp.so
+    akd_ros_s__rosidl_typesupport_c.<ext>               the Python <-> C conversion rclpy imports
+
+Installed beside them as a CMake package installs them (setup.py's data files, added once they are
+generated): the .idl and type description .json files under share/akd_ros/msg|srv, the C and C++
+headers under include/akd_ros/akd_ros, and the ament index's rosidl_interfaces/akd_ros entry that
+`ros2 interface` lists the interfaces from.
 
 The generated Python modules go into akd_ros/msg and akd_ros/srv in the source tree (git-ignored),
 so an editable install imports them where they are and a normal build copies them like any module.
@@ -29,7 +38,7 @@ import sys
 from pathlib import Path
 from typing import ClassVar
 
-from setuptools import Command, Extension
+from setuptools import Command, Distribution, Extension
 from setuptools.command.build_ext import build_ext
 from setuptools.command.build_py import build_py
 from setuptools.command.egg_info import egg_info
@@ -41,6 +50,7 @@ INTERFACE_DEPENDENCIES = ("builtin_interfaces", "std_msgs", "service_msgs")
 # rmw_fastrtps_cpp takes Fast DDS type support only; introspection is there for tools (and for
 # rmws that want it). Two of them means the dispatch library picks one at run time.
 TYPESUPPORTS = ("rosidl_typesupport_fastrtps_c", "rosidl_typesupport_introspection_c")
+TYPESUPPORTS_CPP = ("rosidl_typesupport_fastrtps_cpp", "rosidl_typesupport_introspection_cpp")
 # Packages whose headers the generated C and C++ include.
 HEADER_PACKAGES = (
     "rcutils",
@@ -51,6 +61,8 @@ HEADER_PACKAGES = (
     "rosidl_typesupport_fastrtps_cpp",
     "rosidl_runtime_cpp",
     "rosidl_typesupport_introspection_c",
+    "rosidl_typesupport_cpp",
+    "rosidl_typesupport_introspection_cpp",
     "rosidl_dynamic_typesupport",
     "fastcdr",
     "rmw",
@@ -63,6 +75,22 @@ GENERATOR_MODULES = (
     "rosidl_typesupport_c",
     "rosidl_typesupport_fastrtps_c",
     "rosidl_typesupport_introspection_c",
+    "rosidl_generator_cpp",
+    "rosidl_typesupport_cpp",
+    "rosidl_typesupport_fastrtps_cpp",
+    "rosidl_typesupport_introspection_cpp",
+    "rosidl_generator_py",
+)
+# The generators whose output directories are searched for headers when the libraries compile, in
+# this order; the headers in them are installed (include/akd_ros/akd_ros; rosidl_generator_py's
+# output has none).
+HEADER_GENERATORS = (
+    "rosidl_generator_c",
+    "rosidl_typesupport_fastrtps_c",
+    "rosidl_typesupport_introspection_c",
+    "rosidl_generator_cpp",
+    "rosidl_typesupport_fastrtps_cpp",
+    "rosidl_typesupport_introspection_cpp",
     "rosidl_generator_py",
 )
 INTERFACE_KINDS = ("msg", "srv")
@@ -207,9 +235,10 @@ def _sync_python_modules(generated: Path, package_dir: Path) -> None:
 def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, list[str]]:
     """Runs every generator over source_dir's interfaces; the Python modules go to package_dir.
 
-    Returns the generated sources of each library (keys: 'generator_c', the TYPESUPPORTS,
-    'typesupport_c', 'python'), the include directories ('include') and the ROS library
-    directories ('library_dirs') to compile them with.
+    Returns the generated sources of each library (keys: 'generator_c', the TYPESUPPORTS and
+    TYPESUPPORTS_CPP, 'typesupport_c', 'typesupport_cpp', 'python'; 'generator_cpp' has none), the
+    include directories ('include') and the ROS library directories ('library_dirs') to compile
+    them with, and the generated files to install ('data_files', setup() data_files entries).
     """
     files = interface_files(source_dir)
     if not files:
@@ -256,8 +285,8 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
             build_dir / f"{generator}.json", output_dir=str(output), template_dir=template_dir(generator), **common
         )
         generated = getattr(generators[generator], function)(arguments, *extra)
-        header = Path(template_dir(generator)) / f"{generator}__visibility_control.h.in"
-        if header.exists():
+        # visibility_control.h (C) or .hpp (rosidl_generator_cpp), where the generator has one.
+        for header in Path(template_dir(generator)).glob(f"{generator}__visibility_control.*.in"):
             _configure_visibility_header(header, output / "msg" / header.name[:-3])
         return sorted(str(path) for path in generated if path.endswith((".c", ".cpp")))
 
@@ -266,6 +295,11 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
         "rosidl_typesupport_fastrtps_c": run("rosidl_typesupport_fastrtps_c", "generate_typesupport_fastrtps_c"),
         "rosidl_typesupport_introspection_c": run("rosidl_typesupport_introspection_c", "generate_c"),
         "typesupport_c": run("rosidl_typesupport_c", "generate_c", list(TYPESUPPORTS)),
+        # Headers only: the C++ classes are templates and inline functions, as in a CMake package.
+        "generator_cpp": run("rosidl_generator_cpp", "generate_cpp"),
+        "rosidl_typesupport_fastrtps_cpp": run("rosidl_typesupport_fastrtps_cpp", "generate_cpp"),
+        "rosidl_typesupport_introspection_cpp": run("rosidl_typesupport_introspection_cpp", "generate_cpp"),
+        "typesupport_cpp": run("rosidl_typesupport_cpp", "generate_cpp", list(TYPESUPPORTS_CPP)),
         "python": run("rosidl_generator_py", "generate_py", ["rosidl_typesupport_c"]),
     }
     _sync_python_modules(build_dir / "rosidl_generator_py" / PACKAGE, package_dir)
@@ -279,22 +313,44 @@ def generate(source_dir: Path, build_dir: Path, package_dir: Path) -> dict[str, 
             "install python3-numpy"
         ) from None
 
-    include = [
-        str(build_dir / generator)
-        for generator in (
-            "rosidl_generator_c",
-            "rosidl_typesupport_fastrtps_c",
-            "rosidl_typesupport_introspection_c",
-            "rosidl_generator_py",
-        )
-    ]
+    include = [str(build_dir / generator) for generator in HEADER_GENERATORS]
     for package in HEADER_PACKAGES:
         include += [str(header_dir(package, prefixes))]
     include += [str(prefix / "include") for prefix in prefixes if (prefix / "include").is_dir()]
     include.append(numpy.get_include())
     sources["include"] = list(dict.fromkeys(include))
     sources["library_dirs"] = [str(prefix / "lib") for prefix in prefixes if (prefix / "lib").is_dir()]
+    sources["data_files"] = _installed_files(build_dir, files, idl_dir, description_dir)
     return sources
+
+
+def _installed_files(
+    build_dir: Path, files: list[Path], idl_dir: Path, description_dir: Path
+) -> list[tuple[str, list[str]]]:
+    """setup() data_files entries for what a CMake package installs beside its libraries.
+
+    The .idl and type description .json files go beside the .msg and .srv in share/akd_ros/<kind>
+    (where `ros2 interface show` and rosbag2 read a definition from), the generated headers to
+    include/akd_ros/akd_ros (ROS's include layout since Humble), and the ament index's
+    rosidl_interfaces/akd_ros lists every interface as <kind>/<Name>.idl and .msg|.srv, as
+    rosidl_generate_interfaces() writes it.
+    """
+    installed: dict[str, list[str]] = {}
+    for relative in files:
+        share = f"share/{PACKAGE}/{relative.parent}"
+        for directory, suffix in ((idl_dir, ".idl"), (description_dir, ".json")):
+            installed.setdefault(share, []).append(str(directory / relative.with_suffix(suffix)))
+    for generator in HEADER_GENERATORS:
+        root = build_dir / generator / PACKAGE
+        for header in sorted(path for path in root.rglob("*") if path.suffix in (".h", ".hpp")):
+            destination = f"include/{PACKAGE}/{PACKAGE}/{header.parent.relative_to(root)}"
+            installed.setdefault(destination, []).append(str(header))
+    index = build_dir / "ament_index" / "rosidl_interfaces" / PACKAGE
+    index.parent.mkdir(parents=True, exist_ok=True)
+    entries = sorted(str(path) for relative in files for path in (relative.with_suffix(".idl"), relative))
+    index.write_text("\n".join(entries) + "\n", encoding="utf-8")
+    installed["share/ament_index/resource_index/rosidl_interfaces"] = [str(index)]
+    return list(installed.items())
 
 
 class InterfaceLibrary(Extension):
@@ -348,7 +404,7 @@ def interface_packages() -> list[str]:
 
 
 def extensions() -> list[InterfaceLibrary]:
-    """The five interface libraries in build order (each links against those before it); none where the rosidl
+    """The eight interface libraries in build order (each links against those before it); none where the rosidl
     generators do not import."""
     if not generators_import():
         return []
@@ -392,6 +448,49 @@ def extensions() -> list[InterfaceLibrary]:
             language="c++",
             kept_libraries=tuple(_own(ts) for ts in TYPESUPPORTS),
         ),
+        # The C++ type supports hand the C structs' type hashes and descriptions to the rmw, as in
+        # a CMake package, so they link the C library too.
+        InterfaceLibrary(
+            f"{PACKAGE}.{_own('rosidl_typesupport_fastrtps_cpp')}",
+            "rosidl_typesupport_fastrtps_cpp",
+            [
+                _own("rosidl_generator_c"),
+                "rosidl_typesupport_fastrtps_cpp",
+                "rosidl_runtime_c",
+                "fastcdr",
+                "rmw",
+                "rcutils",
+                *_deps("rosidl_typesupport_fastrtps_cpp"),
+                *_deps("rosidl_generator_c"),
+            ],
+            language="c++",
+        ),
+        InterfaceLibrary(
+            f"{PACKAGE}.{_own('rosidl_typesupport_introspection_cpp')}",
+            "rosidl_typesupport_introspection_cpp",
+            [
+                _own("rosidl_generator_c"),
+                "rosidl_typesupport_introspection_cpp",
+                "rosidl_runtime_c",
+                *_deps("rosidl_typesupport_introspection_cpp"),
+                *_deps("rosidl_generator_c"),
+            ],
+            language="c++",
+        ),
+        InterfaceLibrary(
+            f"{PACKAGE}.{_own('rosidl_typesupport_cpp')}",
+            "typesupport_cpp",
+            [
+                _own("rosidl_generator_c"),
+                "rosidl_typesupport_cpp",
+                "rosidl_typesupport_c",
+                "rosidl_runtime_c",
+                *_deps("rosidl_typesupport_cpp"),
+                *_deps("rosidl_generator_c"),
+            ],
+            language="c++",
+            kept_libraries=tuple(_own(ts) for ts in TYPESUPPORTS_CPP),
+        ),
         InterfaceLibrary(
             f"{PACKAGE}.{PACKAGE}_s__rosidl_typesupport_c",
             "python",
@@ -426,7 +525,11 @@ class GenerateInterfaces(Command):
 
     def run(self) -> None:
         """Generates into build_temp/rosidl and the Python modules into akd_ros/msg|srv; where the generators do not
-        import, says so and generates nothing (akd_ros.msg and akd_ros.srv stay empty)."""
+        import, says so and generates nothing (akd_ros.msg and akd_ros.srv stay empty).
+
+        The generated files to install join the distribution's data files: install_data (pip, colcon) and colcon's
+        symlink_data (--symlink-install) hold that same list, and run after the build that runs this.
+        """
         try:
             self.generated = generate(HERE, Path(self.build_temp).resolve() / "rosidl", HERE / PACKAGE)
         except GeneratorImportError as error:
@@ -437,6 +540,21 @@ class GenerateInterfaces(Command):
             )
         except InterfaceBuildError as error:
             raise SystemExit(f"error: {error}") from None
+        else:
+            self.distribution.data_files.extend(self.generated["data_files"])
+
+
+class InterfaceDistribution(Distribution):
+    """A Distribution whose data files an editable install (pip install -e) installs too.
+
+    setuptools' editable wheel installs the data files only where the distribution answers has_data(), which
+    setuptools' own Distribution does not define (it has has_data_files()), so without this an editable install
+    would have no ament index entries, package.xml, launch files or generated headers in its prefix.
+    """
+
+    def has_data(self) -> bool:
+        """Whether there are data files: the same answer as has_data_files()."""
+        return self.has_data_files()
 
 
 class EggInfoInterfaces(egg_info):
@@ -485,7 +603,12 @@ class BuildInterfacesExt(build_ext):
             ext.libraries = ext.ros_libraries
             ext.define_macros = [
                 (f"ROSIDL_{generator}_BUILDING_DLL_{PACKAGE}", None)
-                for generator in ("GENERATOR_C", "TYPESUPPORT_FASTRTPS_C", "TYPESUPPORT_INTROSPECTION_C")
+                for generator in (
+                    "GENERATOR_C",
+                    "TYPESUPPORT_FASTRTPS_C",
+                    "TYPESUPPORT_INTROSPECTION_C",
+                    "TYPESUPPORT_FASTRTPS_CPP",
+                )
             ]
             ext.extra_compile_args = ["-std=c++17"] if ext.language == "c++" else []
             ext.extra_link_args = self.link_arguments(ext)

@@ -55,6 +55,7 @@ setup(
     ),
     ext_modules=rosidl_build.extensions(),
     cmdclass=rosidl_build.COMMANDS,
+    distclass=rosidl_build.InterfaceDistribution,
     rust_extensions=[
         LiteralReprRustExtension(
             f"{PACKAGE}._native",
