@@ -14,39 +14,17 @@ from __future__ import annotations
 
 import pytest
 
+from support.kickcat_script import KICKCAT_HELPERS
 from support.netns import master_script_report
 
 kickcat = pytest.importorskip("kickcat", reason="kickcat is installed by scripts/setup.sh")
 
-KICKCAT_SCRIPT = r"""
-import json, struct, sys, time
-import kickcat
-from kickcat import State
-from kickcat.mailbox.request import MessageStatus
-
+KICKCAT_SCRIPT = (
+    KICKCAT_HELPERS
+    + r"""
 iface, mapping = sys.argv[1], sys.argv[2]
 report = {}
-# kickcat's default frame time-out is 2 ms; a 2-core machine sometimes delays a reply longer, and
-# Bus.init gives up at the first late reply (seen on a quiet fresh-clone CI run too: "Error while
-# fetching eeprom data"). Without a redundancy interface every broadcast exchange (one per SII
-# read in Bus.init) lasts the whole time-out, so it is kept short and Bus.init is tried again
-# from a new link, up to three times; the report says how often, and the test prints it.
-for attempt in range(1, 4):
-    link = kickcat.create_link(iface, "")
-    link.set_timeout(0.01)
-    bus = kickcat.Bus(link)
-    try:
-        # Detects the slaves, reads their SII, sets the mailboxes up from it, requests PreOp and
-        # waits; the argument is the process-data watchdog written to the slaves (2 s: a slow
-        # cycle in a loaded test must not trip it).
-        bus.init(2.0)
-        break
-    except RuntimeError as error:
-        report.setdefault("init_errors", []).append(str(error))
-        del bus, link
-else:
-    raise RuntimeError(f"Bus.init failed three times: {report['init_errors']}")
-report["init_attempts"] = attempt
+link, bus, report["init_attempts"], report["init_errors"] = open_bus(iface)
 slaves = bus.slaves()
 report["found"] = len(slaves)
 report["state_after_init"] = [str(bus.get_state(s)) for s in slaves]
@@ -54,15 +32,6 @@ report["state_after_init"] = [str(bus.get_state(s)) for s in slaves]
 
 def read(slave, index, subindex, size=4):
     return bus.read_sdo(slave, index, subindex, kickcat.Access.PARTIAL, size, 1.0)
-
-
-def write(slave, index, subindex, data):
-    message = slave.mailbox.write_sdo(index, subindex, False, data, 1.0)
-    deadline = time.monotonic() + 2.0
-    while message.status() == MessageStatus.RUNNING and time.monotonic() < deadline:
-        bus.process_mailboxes()
-    if message.status() != MessageStatus.SUCCESS:
-        raise RuntimeError(f"SDO write 0x{index:04X}:{subindex:02X} failed: {message.status()}")
 
 
 first = slaves[0]
@@ -73,12 +42,7 @@ report["descriptions"] = {hex(index): list(bus.read_object_description(first, in
 report["entry_6041"] = list(bus.read_entry_description(first, 0x6041, 0))
 
 if mapping == "fixed":
-    for slave in slaves:
-        # AKD_FACTS 6: fixed mappings 0x1701 / 0x1B01, written to both assignment objects.
-        for assign, pdo in ((0x1C12, 0x1701), (0x1C13, 0x1B01)):
-            write(slave, assign, 0, bytes([0]))
-            write(slave, assign, 1, struct.pack("<H", pdo))
-            write(slave, assign, 0, bytes([1]))
+    select_fixed_mappings(bus, slaves)
 bus.create_mapping()
 report["sizes"] = [[s.output_size, s.input_size] for s in slaves]
 
@@ -113,12 +77,13 @@ report["inputs"] = [s.input_data.hex() for s in slaves]
 bus.request_state(State.INIT)
 print(json.dumps(report))
 """
+)
 
 
 def run_kickcat(net, count: int, mapping: str) -> dict:
     """Serves `count` virtual AKDs and runs the script against them; returns its report."""
     report = master_script_report(net, KICKCAT_SCRIPT, [mapping], count=count)
-    print(f"kickcat Bus.init attempts: {report['init_attempts']}, errors: {report.get('init_errors', [])}")
+    print(f"kickcat Bus.init attempts: {report['init_attempts']}, errors: {report['init_errors']}")
     return report
 
 

@@ -67,6 +67,15 @@ impl RawSocket {
         if rc < 0 {
             return Err(Error::last_os(format!("binding the raw socket to interface {iface:?}")));
         }
+        // A socket bound to one EtherType is not handed the frames it sends (only ETH_P_ALL taps
+        // are); PACKET_IGNORE_OUTGOING (Linux 4.20) makes that the kernel's promise, so no
+        // received frame needs its packet type checked. PACKET_QDISC_BYPASS sends straight to
+        // the driver: the frame is due now, and a queueing discipline (a NIC's fq_codel) could
+        // only hold it back behind other traffic. Both are best effort: an older kernel without
+        // them still delivers no frame of ours and still sends, through the queue.
+        for option in [libc::PACKET_IGNORE_OUTGOING, libc::PACKET_QDISC_BYPASS] {
+            set_packet_option(&fd, option);
+        }
         let kept_capabilities = privilege::drop_after_open(iface)?;
         Ok(RawSocket { fd, ifindex: ifindex as i32, iface: iface.to_owned(), kept_capabilities })
     }
@@ -99,42 +108,64 @@ impl RawSocket {
         Ok(())
     }
 
-    /// Waits up to `timeout` for an incoming Ethernet frame and writes it to `buf`; `None` when
-    /// nothing came. The socket's own outgoing frames, which AF_PACKET also delivers, are
-    /// skipped.
-    pub fn recv(&self, buf: &mut [u8], timeout: Duration) -> Result<Option<usize>> {
-        let deadline = Instant::now() + timeout;
+    /// Waits until `deadline` for an incoming Ethernet frame and writes it to `buf`; `None` when
+    /// nothing came. One ppoll(2) and one recv(2) per frame: ppoll's time-out is exact to the
+    /// microsecond (SO_RCVTIMEO counts in scheduler ticks, up to 4 ms), so a lost frame costs
+    /// a cycle thread one period and not several.
+    pub fn recv_until(&self, buf: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if !self.wait_readable(left)? {
+            if !self.wait_readable(deadline.saturating_duration_since(Instant::now()))? {
                 return Ok(None);
             }
-            // SAFETY: zeroed sockaddr_ll is a valid value.
-            let mut from: libc::sockaddr_ll = unsafe { std::mem::zeroed() };
-            let mut from_len = std::mem::size_of::<libc::sockaddr_ll>() as libc::socklen_t;
-            // SAFETY: `buf` and `from` are valid for the lengths passed.
+            // SAFETY: `buf` is valid for the length passed.
             let got = unsafe {
-                libc::recvfrom(
-                    self.fd.as_raw_fd(),
-                    buf.as_mut_ptr() as *mut libc::c_void,
-                    buf.len(),
-                    libc::MSG_DONTWAIT,
-                    &mut from as *mut libc::sockaddr_ll as *mut libc::sockaddr,
-                    &mut from_len,
-                )
+                libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), libc::MSG_DONTWAIT)
             };
-            if got < 0 {
-                let err = io::Error::last_os_error();
-                if matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
-                    continue;
-                }
+            if got >= 0 {
+                return Ok(Some(got as usize));
+            }
+            let err = io::Error::last_os_error();
+            if !matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
                 return Err(Error::io(format!("receiving on interface {:?}", self.iface), err));
             }
-            if from.sll_pkttype == libc::PACKET_OUTGOING {
-                continue;
-            }
+        }
+    }
+
+    /// Sets how long [`recv_blocking`](Self::recv_blocking) waits, as
+    /// [`UdpSocket::set_read_timeout`](std::net::UdpSocket::set_read_timeout) does (SO_RCVTIMEO,
+    /// counted in scheduler ticks: at least one, so a short time-out may last up to 4 ms).
+    pub fn set_read_timeout(&self, timeout: Duration) -> Result<()> {
+        let tv = libc::timeval { tv_sec: timeout.as_secs() as libc::time_t, tv_usec: timeout.subsec_micros() as _ };
+        // SAFETY: a valid descriptor and a timeval of the size passed.
+        let rc = unsafe {
+            libc::setsockopt(
+                self.fd.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_RCVTIMEO,
+                &tv as *const libc::timeval as *const libc::c_void,
+                std::mem::size_of::<libc::timeval>() as libc::socklen_t,
+            )
+        };
+        if rc < 0 {
+            return Err(Error::last_os(format!("setting the read time-out on interface {:?}", self.iface)));
+        }
+        Ok(())
+    }
+
+    /// Waits for an incoming frame up to the [read time-out](Self::set_read_timeout) and writes
+    /// it to `buf`; `None` when nothing came. One recv(2) per frame, for a server, which needs
+    /// no exact time-out: half the system calls of [`recv_until`](Self::recv_until).
+    pub fn recv_blocking(&self, buf: &mut [u8]) -> Result<Option<usize>> {
+        // SAFETY: `buf` is valid for the length passed.
+        let got = unsafe { libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), 0) };
+        if got >= 0 {
             return Ok(Some(got as usize));
         }
+        let err = io::Error::last_os_error();
+        if matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
+            return Ok(None);
+        }
+        Err(Error::io(format!("receiving on interface {:?}", self.iface), err))
     }
 
     /// Waits until a frame can be read or `timeout` passes; `false` on time-out.
@@ -151,6 +182,21 @@ impl RawSocket {
             return Err(Error::io(format!("waiting on interface {:?}", self.iface), err));
         }
         Ok(rc > 0)
+    }
+}
+
+/// Sets a SOL_PACKET option to 1, leaving the socket as it was where the kernel lacks it.
+fn set_packet_option(fd: &OwnedFd, option: libc::c_int) {
+    let on: libc::c_int = 1;
+    // SAFETY: a valid descriptor and a c_int of the size passed.
+    unsafe {
+        libc::setsockopt(
+            fd.as_raw_fd(),
+            libc::SOL_PACKET,
+            option,
+            &on as *const libc::c_int as *const libc::c_void,
+            std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+        );
     }
 }
 
@@ -241,8 +287,7 @@ impl Link for RawLink {
         self.socket.send(&self.tx[..len])?;
         let deadline = Instant::now() + timeout;
         loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            let Some(got) = self.socket.recv(&mut self.rx, left)? else {
+            let Some(got) = self.socket.recv_until(&mut self.rx, deadline)? else {
                 return Err(Error::Timeout { what: "a frame to come back on the interface".into() });
             };
             if let Some(payload) = unwrap_returned(&self.rx[..got]) {
@@ -304,8 +349,8 @@ mod tests {
     #[test]
     #[ignore = "needs CAP_NET_RAW: scripts/test.sh runs it with --include-ignored as root"]
     fn skips_its_own_outgoing_frames() {
-        // On loopback every sent frame also comes back once as an incoming one; without the
-        // PACKET_OUTGOING filter the socket would see it twice.
+        // On loopback every sent frame comes back once as an incoming one, and only once: the
+        // socket is handed no copy of what it sent (PACKET_IGNORE_OUTGOING).
         let socket = RawSocket::open("lo").unwrap();
         let mut out = [0u8; MAX_ETH_FRAME_LEN];
         let n = wrap(&payload(), &mut out).unwrap();
@@ -314,7 +359,7 @@ mod tests {
         let mut buf = [0u8; MAX_ETH_FRAME_LEN];
         let mut copies = 0;
         let deadline = Instant::now() + Duration::from_millis(200);
-        while let Some(got) = socket.recv(&mut buf, deadline.saturating_duration_since(Instant::now())).unwrap() {
+        while let Some(got) = socket.recv_until(&mut buf, deadline).unwrap() {
             copies += (buf[..got] == out[..n]) as usize;
         }
         assert_eq!(copies, 1);

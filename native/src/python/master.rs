@@ -136,6 +136,28 @@ struct ScannedSlave {
     dc: bool,
 }
 
+/// One slave as `watch` reports it.
+#[derive(IntoPyObject)]
+struct WatchedSlave {
+    answered: bool,
+    al_state: &'static str,
+    al_status_code: u16,
+    al_status_code_name: &'static str,
+    mailbox_full: bool,
+}
+
+impl From<&master::cyclic::SlaveWatch> for WatchedSlave {
+    fn from(w: &master::cyclic::SlaveWatch) -> Self {
+        WatchedSlave {
+            answered: w.answered,
+            al_state: w.al_status.state_name(),
+            al_status_code: w.al_status.code,
+            al_status_code_name: w.al_status.code_name(),
+            mailbox_full: w.mailbox_full,
+        }
+    }
+}
+
 impl<'py> IntoPyObject<'py> for ObjectCode {
     type Target = PyInt;
     type Output = Bound<'py, PyInt>;
@@ -326,6 +348,20 @@ impl PyMaster {
     /// One cyclic exchange; returns the working counter.
     fn exchange(&self, py: Python<'_>) -> PyResult<u16> {
         self.with_master(py, |m| m.exchange())
+    }
+
+    /// Adds (True) or removes (False) the reads of every slave's AL status and mailbox status
+    /// that a Cycle's frame carries to each `exchange`, to supervise the bus from a loop of
+    /// one's own (`watch`); raises ConfigError when they would not fit in the frame.
+    fn set_supervision(&self, py: Python<'_>, on: bool) -> PyResult<()> {
+        self.with_master(py, |m| m.set_supervision(on))
+    }
+
+    /// What the last `exchange` read of every slave with supervision on, one dict per slave:
+    /// answered, al_state, al_status_code, al_status_code_name, mailbox_full (all unanswered
+    /// while supervision is off).
+    fn watch(&self, py: Python<'_>) -> PyResult<Vec<WatchedSlave>> {
+        self.with_master(py, |m| Ok(m.watch()?.iter().map(WatchedSlave::from).collect()))
     }
 
     /// The working counter a good cycle comes back with.

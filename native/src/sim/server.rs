@@ -91,11 +91,12 @@ pub fn serve_udp(bind: SocketAddr, bus: impl Into<ControlledBus>, stop: &AtomicB
 pub fn serve_iface(iface: &str, bus: impl Into<ControlledBus>, stop: &AtomicBool) -> Result<ServerStats> {
     let mut bus = bus.into();
     let socket = RawSocket::open(iface)?;
+    socket.set_read_timeout(POLL_INTERVAL)?;
     let start = Instant::now();
     let mut stats = ServerStats::default();
     let mut buf = [0u8; MAX_ETH_FRAME_LEN];
     while !stop.load(Ordering::Relaxed) {
-        let Some(len) = socket.recv(&mut buf, POLL_INTERVAL)? else {
+        let Some(len) = socket.recv_blocking(&mut buf)? else {
             bus.idle(elapsed_ns(start));
             continue;
         };

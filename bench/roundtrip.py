@@ -1,0 +1,412 @@
+"""Round trip of one cyclic frame, this master beside SOEM (pysoem) and KickCAT, on the same wire.
+
+Not a test: timing depends on the machine and its load, so only the ratios to SOEM measured in this
+run count. One veth pair between two network namespaces, one `akd-sim --iface` process serving the
+virtual AKDs on one end for every run of every master; each master runs in its own process in the
+other namespace, brings the drives to Op with the fixed mappings 0x1701/0x1B01 and runs a paced loop
+(sleep to an absolute deadline, then one cyclic exchange) at each rate. Runs alternate A/B/C/A/B/C,
+so a change in the machine's load falls on every master alike.
+
+Besides the frame SOEM and KickCAT send (one LRW), this master is also measured with the frame its
+cycle thread sends, `akd_ros+watch`: the LRW and, per slave, the reads of AL status and mailbox
+status that supervise the bus (`Master.set_supervision`), in the same process right after.
+
+Per master, drive count and rate: the round trip of the cyclic exchange (the call, as a Python
+program makes it, from before the frame is sent to after its return is taken: `Master.exchange()`,
+pysoem `send_processdata` + `receive_processdata`, kickcat `Bus.process_data`) at p50, p99, p99.9
+and max, pooled over the runs, and CPU per cycle (the loop thread's CPU time over the measured
+cycles, pacing included, which is the same code for every master), with the ratios to SOEM. Every
+cycle's working counter is checked; a wrong one, a frame lost, or a master that does not reach Op
+leaves a figure unmeasured and the script exits with status 1. Needs root (network namespaces).
+
+    sudo .venv/bin/python bench/roundtrip.py [--quick] [--json PATH] [--rounds 3] [--cycles 5000]
+        [--counts 1,4] [--rates 1000,4000] [--baseline DIR]
+
+`--baseline DIR` adds one more master: the akd_ros package in DIR (a copy of an earlier build,
+`akd_ros/` with its `_native` extension), to measure a change before and after in one run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+from support.kickcat_script import KICKCAT_HELPERS
+from support.netns import akd_sim_in_netns, netns_unavailable_reason, run_python_in_netns, veth_pair
+from support.soem_script import SOEM_HELPERS
+
+# How long every master waits for a frame: long enough that a frame the loaded machine delays is
+# measured as a slow round trip rather than counted lost.
+FRAME_TIMEOUT_S = 0.1
+
+# The paced loop every master runs, the same text for all: `exchange()` is one cyclic round trip
+# that returns whether the working counter was the expected one.
+PACED_LOOP = (
+    f"TIMEOUT_S = {FRAME_TIMEOUT_S}\n"
+    + r"""
+import gc, json, sys, time
+
+
+def paced(exchange, rate, cycles, warmup):
+    period = 1_000_000_000 // rate
+    clock = time.perf_counter_ns
+    times, bad, late = [0] * cycles, 0, 0
+    gc.disable()
+    deadline = clock() + period
+    for n in range(warmup + cycles):
+        if n == warmup:
+            cpu_start = time.thread_time_ns()
+        now = clock()
+        if deadline > now:
+            time.sleep((deadline - now) / 1e9)
+        elif now - deadline > period:
+            late += n >= warmup
+            deadline = now
+        start = clock()
+        good = exchange()
+        took = clock() - start
+        if n >= warmup:
+            times[n - warmup] = took
+            bad += not good
+        deadline += period
+    cpu = time.thread_time_ns() - cpu_start
+    gc.enable()
+    return {"times_ns": times, "cpu_ns": cpu, "bad_wkc": bad, "late": late}
+
+
+def run_rates(exchange, rates, cycles, warmup):
+    return {str(rate): paced(exchange, rate, cycles, warmup) for rate in rates}
+"""
+)
+
+AKD_ROS_SCRIPT = (
+    PACED_LOOP
+    + r"""
+iface, rates, cycles, warmup = sys.argv[1], json.loads(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+from akd_ros import _native
+
+with _native.Master(iface, timeout=TIMEOUT_S) as master:
+    found = len(master.scan())
+    master.request_state("preop")
+    master.request_state("op")
+    expected = master.expected_wkc
+
+    def exchange():
+        try:
+            return master.exchange() == expected
+        except _native.EtherCatError:
+            return False
+
+    variants = {"": run_rates(exchange, rates, cycles, warmup)}
+    # The frame a Cycle sends: the LRW and two reads of every slave's AL status and mailbox
+    # (not in a --baseline build older than Master.set_supervision).
+    if hasattr(master, "set_supervision"):
+        master.set_supervision(True)
+        variants["+watch"] = run_rates(exchange, rates, cycles, warmup)
+        if not all(w["answered"] and w["al_state"] == "Op" for w in master.watch()):
+            raise RuntimeError(f"akd_ros: supervision did not see every drive in Op: {master.watch()}")
+    stats = master.stats()
+    master.request_state("init")
+print(json.dumps({"found": found, "lost": stats["lost_frames"], "variants": variants,
+                  "version": _native.__file__}))
+"""
+)
+
+SOEM_SCRIPT = (
+    SOEM_HELPERS
+    + PACED_LOOP
+    + r"""
+iface, rates, cycles, warmup = sys.argv[1], json.loads(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+master, found, _ = open_master(iface)
+try:
+    use_mappings(master, select_fixed_mappings)
+    master.config_map()
+    if not (reach_safeop(master) and reach_op(master)):
+        raise RuntimeError("SOEM: the drives did not reach Op")
+    expected = master.expected_wkc
+
+    def exchange():
+        master.send_processdata()
+        return master.receive_processdata(int(TIMEOUT_S * 1e6)) == expected
+
+    report = run_rates(exchange, rates, cycles, warmup)
+    master.state = pysoem.INIT_STATE
+    master.write_state()
+finally:
+    master.close()
+print(json.dumps({"found": found, "lost": None, "variants": {"": report}, "version": pysoem.__version__}))
+"""
+)
+
+KICKCAT_SCRIPT = (
+    KICKCAT_HELPERS
+    + PACED_LOOP
+    + r"""
+iface, rates, cycles, warmup = sys.argv[1], json.loads(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
+from importlib.metadata import version
+
+link, bus, _, _ = open_bus(iface, attempts=5)
+link.set_timeout(TIMEOUT_S)
+slaves = bus.slaves()
+select_fixed_mappings(bus, slaves)
+bus.create_mapping()
+bus.request_state(State.SAFE_OP)
+bus.wait_for_state(State.SAFE_OP, 2.0)
+for slave in slaves:
+    slave.set_output_bytes(struct.pack("<iH", 0, 0x0006))
+bus.process_data()
+bus.request_state(State.OPERATIONAL)
+bus.wait_for_state(State.OPERATIONAL, 2.0, bus.process_data)
+
+
+def exchange():
+    # process_data raises when a datagram's working counter is not the expected one.
+    try:
+        bus.process_data()
+        return True
+    except Exception:
+        return False
+
+
+report = run_rates(exchange, rates, cycles, warmup)
+bus.request_state(State.INIT)
+print(json.dumps({"found": len(slaves), "lost": None, "variants": {"": report}, "version": version("kickcat")}))
+"""
+)
+
+SOEM = "SOEM"
+CONTENDERS = {"akd_ros": AKD_ROS_SCRIPT, SOEM: SOEM_SCRIPT, "KickCAT": KICKCAT_SCRIPT}
+
+
+def machine() -> dict:
+    """What the figures were measured on."""
+    model = "unknown"
+    with open("/proc/cpuinfo") as info:
+        for line in info:
+            if line.startswith("model name"):
+                model = line.split(":", 1)[1].strip()
+                break
+    return {
+        "uname": " ".join(platform.uname()),
+        "cpu_model": model,
+        "cores": os.cpu_count(),
+        "python": platform.python_version(),
+    }
+
+
+def percentile(sorted_ns: list[int], q: float) -> float:
+    """The q-quantile of sorted samples (nearest rank), in µs."""
+    return sorted_ns[min(len(sorted_ns) - 1, int(q * len(sorted_ns)))] / 1000
+
+
+def summarise(runs: list[dict]) -> dict:
+    """Pools the runs of one master at one count and rate into the reported figures (µs)."""
+    times = sorted(t for run in runs for t in run["times_ns"])
+    cycles = len(times)
+    return {
+        "runs": len(runs),
+        "cycles": cycles,
+        "p50_us": percentile(times, 0.5),
+        "p99_us": percentile(times, 0.99),
+        "p99.9_us": percentile(times, 0.999),
+        "max_us": times[-1] / 1000,
+        "cpu_per_cycle_us": sum(run["cpu_ns"] for run in runs) / cycles / 1000,
+        "bad_wkc": sum(run["bad_wkc"] for run in runs),
+        "late": sum(run["late"] for run in runs),
+        # Each run's own median: how far the machine's load moved the figures from run to run.
+        "run_p50_us": [percentile(sorted(run["times_ns"]), 0.5) for run in runs],
+    }
+
+
+FIGURES = ("p50_us", "p99_us", "p99.9_us", "max_us", "cpu_per_cycle_us")
+
+
+def run_master(net, name: str, script: str, rates: list[int], cycles: int, warmup: int) -> dict:
+    """One run of one master in the master namespace; its report, or {"error": ...}."""
+    timeout = 60 + len(rates) * (cycles + warmup) * 2 / min(rates)
+    try:
+        result = run_python_in_netns(
+            net.ns_master,
+            script,
+            args=[net.if_master, json.dumps(rates), str(cycles), str(warmup)],
+            timeout=timeout,
+        )
+    except subprocess.TimeoutExpired as error:  # a hung master: its figures are unmeasured, the others count
+        return {"error": f"{name}: {type(error).__name__}: {error}"}
+    if result.returncode != 0:
+        last = (result.stderr.strip() or result.stdout.strip()).splitlines()[-1:] or ["no output"]
+        return {"error": f"{name} exited with status {result.returncode}: {last[0]}"}
+    try:
+        return json.loads(result.stdout.strip().splitlines()[-1])
+    except (IndexError, json.JSONDecodeError):
+        return {"error": f"{name} printed no report: {result.stdout.strip()[-200:]!r}"}
+
+
+# More cycles than this share without their round trip (a frame lost, a wrong working counter)
+# and the master's figures do not count: it was not exchanging process data with every drive.
+BAD_SHARE = 0.001
+
+
+def measure(args, contenders: dict[str, str]) -> tuple[dict, list[str]]:
+    """Every count: one akd-sim, `rounds` rounds of every master in turn. Returns the figures
+    {count: {rate: {master: summary}}} and the problems met."""
+    results, problems = {}, []
+    for count in args.counts:
+        runs: dict[str, list[dict]] = {}
+        with veth_pair() as net, akd_sim_in_netns(net.ns_sim, net.if_sim, count=count):
+            for round_ in range(args.rounds):
+                for name, script in contenders.items():
+                    report = run_master(net, name, script, args.rates, args.cycles, args.warmup)
+                    if "error" in report:
+                        problems.append(f"{count} AKD(s), round {round_ + 1}: {report['error']}")
+                        continue
+                    if report["found"] != count:
+                        problems.append(f"{count} AKD(s): {name} found {report['found']} slaves")
+                        continue
+                    for suffix, by_rate in report["variants"].items():
+                        runs.setdefault(name + suffix, []).append(by_rate)
+                    print(
+                        f"  {count} AKD(s) round {round_ + 1}: {name} ({report['version']})",
+                        file=sys.stderr,
+                        flush=True,
+                    )
+        results[count] = {}
+        for rate in args.rates:
+            row = {}
+            for name, reports in runs.items():
+                summary = summarise([r[str(rate)] for r in reports])
+                if summary["bad_wkc"] > BAD_SHARE * summary["cycles"]:
+                    problems.append(
+                        f"{count} AKD(s) at {rate} Hz: {name} had {summary['bad_wkc']} of {summary['cycles']} "
+                        "cycles without a good return"
+                    )
+                else:
+                    row[name] = summary
+            results[count][rate] = row
+    return results, problems
+
+
+def ratios(row: dict) -> dict:
+    """Each master's figures over SOEM's, where both were measured."""
+    soem = row.get(SOEM)
+    if soem is None:
+        return {}
+    return {name: {f: s[f] / soem[f] for f in FIGURES if soem[f] > 0} for name, s in row.items() if name != SOEM}
+
+
+def print_table(results: dict) -> None:
+    head = f"{'AKDs':>4} {'rate':>6} {'master':<14}" + "".join(f"{f.removesuffix('_us'):>16}" for f in FIGURES)
+    print(head + f"{'bad':>6}{'late':>6}   (us; x SOEM)")
+    for count, by_rate in results.items():
+        for rate, row in by_rate.items():
+            rel = ratios(row)
+            for name, s in row.items():
+                cells = []
+                for f in FIGURES:
+                    r = rel.get(name, {}).get(f)
+                    cells.append(f"{s[f]:8.1f}" + (f" ({r:4.2f}x)" if r is not None else " " * 8))
+                print(
+                    f"{count:>4} {rate:>6} {name:<14}"
+                    + "".join(f"{c:>16}" for c in cells)
+                    + f"{s['bad_wkc']:>6}{s['late']:>6}"
+                )
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="2 rounds of 2000 cycles (about 3 minutes)")
+    parser.add_argument("--rounds", type=int, default=3, help="runs of each master, alternating (default 3)")
+    parser.add_argument("--cycles", type=int, default=5000, help="measured cycles per run and rate (default 5000)")
+    parser.add_argument("--warmup", type=int, default=200, help="cycles before the measured ones (default 200)")
+    parser.add_argument("--counts", default="1,4", help="virtual AKDs on the line, comma-separated (default 1,4)")
+    parser.add_argument("--rates", default="1000,4000", help="loop rates in Hz, comma-separated (default 1000,4000)")
+    parser.add_argument(
+        "--masters", default=",".join(CONTENDERS), help=f"masters to run (default {','.join(CONTENDERS)})"
+    )
+    parser.add_argument("--baseline", type=Path, help="a directory holding another build's akd_ros/ to measure too")
+    parser.add_argument("--json", type=Path, help="also write the figures to this file as JSON")
+    args = parser.parse_args()
+    if args.quick:
+        args.rounds, args.cycles = 2, 2000
+    try:
+        args.counts = [int(c) for c in args.counts.split(",")]
+        args.rates = [int(r) for r in args.rates.split(",")]
+    except ValueError:
+        parser.error("--counts and --rates take comma-separated whole numbers, e.g. 1,4 and 1000,4000")
+    if min(args.counts) < 1 or min(args.rates) < 1 or args.rounds < 1 or args.cycles < 1:
+        parser.error("--counts, --rates, --rounds and --cycles must be at least 1")
+    # A stopped run still removes its namespaces and stops its akd-sim (the context managers).
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    reason = netns_unavailable_reason()
+    if reason:
+        print(f"roundtrip: {reason} (run as root)", file=sys.stderr)
+        return 2
+    chosen = args.masters.split(",")
+    unknown = [name for name in chosen if name not in CONTENDERS]
+    if unknown or SOEM not in chosen:
+        parser.error(
+            f"--masters: {', '.join(unknown) or 'SOEM missing'}; choose from {', '.join(CONTENDERS)}, SOEM always"
+        )
+    contenders = {name: CONTENDERS[name] for name in chosen}
+    if args.baseline:
+        if not (args.baseline / "akd_ros").is_dir():
+            parser.error(f"--baseline {args.baseline}: no akd_ros/ package in it")
+        # First on sys.path, ahead of the working directory `python -c` puts there.
+        first = f"import sys; sys.path.insert(0, {str(args.baseline.resolve())!r})\n"
+        contenders = {"baseline": first + AKD_ROS_SCRIPT, **contenders}
+
+    settings = {
+        "rounds": args.rounds,
+        "cycles_per_run": args.cycles,
+        "warmup_cycles": args.warmup,
+        "counts": args.counts,
+        "rates_hz": args.rates,
+        "masters": list(contenders),
+        "link": "veth pair between two network namespaces, one akd-sim --iface process per count",
+        "mappings": "fixed 0x1701/0x1B01 (6 bytes each way per AKD)",
+        "frame_timeout_s": FRAME_TIMEOUT_S,
+        "pacing": "Python loop, sleep to an absolute deadline on the monotonic clock, normal scheduler",
+    }
+    info = machine()
+    print(f"machine: {info['uname']}; {info['cpu_model']}, {info['cores']} cores; Python {info['python']}")
+    print(f"settings: {json.dumps(settings)}")
+    started, load_before = time.monotonic(), os.getloadavg()
+    results, problems = measure(args, contenders)
+    duration, load_after = time.monotonic() - started, os.getloadavg()
+    info["load_average_1min"] = {"before": load_before[0], "after": load_after[0]}
+    print_table(results)
+    print(f"duration: {duration:.0f} s; load average (1 min) {load_before[0]:.1f} before, {load_after[0]:.1f} after")
+    # Every master at every count and rate must have its figures, or the run does not count.
+    for count in args.counts:
+        for rate in args.rates:
+            missing = [name for name in contenders if name not in results[count][rate]]
+            if missing:
+                problems.append(f"{count} AKD(s) at {rate} Hz: no figures for {', '.join(missing)}")
+    for problem in problems:
+        print(f"unmeasured: {problem}", file=sys.stderr)
+    if args.json:
+        document = {
+            "machine": info,
+            "settings": settings,
+            "duration_s": duration,
+            "results": {
+                str(count): {str(rate): {"figures": row, "ratio_to_soem": ratios(row)} for rate, row in by_rate.items()}
+                for count, by_rate in results.items()
+            },
+            "problems": problems,
+        }
+        args.json.write_text(json.dumps(document, indent=2) + "\n")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
