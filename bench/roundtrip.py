@@ -303,6 +303,20 @@ def ratios(row: dict) -> dict:
     return {name: {f: s[f] / soem[f] for f in FIGURES if soem[f] > 0} for name, s in row.items() if name != SOEM}
 
 
+def flat_rows(results: dict) -> list[dict]:
+    """One row per count, rate and master: the figures in µs and each as a ratio to SOEM's."""
+    rows = []
+    for count, by_rate in results.items():
+        for rate, row in by_rate.items():
+            rel = ratios(row)
+            for name, s in row.items():
+                cells = {"AKDs": count, "loop Hz": rate, "master": name}
+                cells |= {f: round(s[f], 1) for f in FIGURES}
+                cells |= {f"{f.removesuffix('_us')} x SOEM": round(r, 2) for f, r in rel.get(name, {}).items()}
+                rows.append(cells)
+    return rows
+
+
 def print_table(results: dict) -> None:
     head = f"{'AKDs':>4} {'rate':>6} {'master':<14}" + "".join(f"{f.removesuffix('_us'):>16}" for f in FIGURES)
     print(head + f"{'bad':>6}{'late':>6}   (us; x SOEM)")
@@ -403,6 +417,9 @@ def main() -> int:
                 for count, by_rate in results.items()
             },
             "problems": problems,
+            # bench/run.py's table and list of what could not be measured.
+            "rows": flat_rows(results),
+            "not_measured": problems,
         }
         args.json.write_text(json.dumps(document, indent=2) + "\n")
     return 1 if problems else 0
