@@ -320,9 +320,10 @@ pub fn write_set_ip_request(out: &mut [u8], counter: u8, parameters: &IpParamete
     Ok(write_headers(out, counter, EoeFrameType::SetIpRequest as u16, 0, len))
 }
 
-/// Writes a whole Set IP Parameter response with `result` into `out`; returns its length.
-pub fn write_set_ip_response(out: &mut [u8], counter: u8, result: EoeResult) -> usize {
-    write_headers(out, counter, EoeFrameType::SetIpResponse as u16, result.0, 0)
+/// Writes a whole response of `frame_type` (Set IP Parameter response, ...) with `result`
+/// into `out`; returns its length.
+pub fn write_response(out: &mut [u8], counter: u8, frame_type: EoeFrameType, result: EoeResult) -> usize {
+    write_headers(out, counter, frame_type as u16, result.0, 0)
 }
 
 /// Cuts one Ethernet frame into the fragments that fit a mailbox of a given size.
@@ -528,10 +529,10 @@ mod tests {
     #[test]
     fn set_ip_response_carries_its_result() {
         let mut out = [0u8; 16];
-        let len = write_set_ip_response(&mut out, 1, EoeResult::SUCCESS);
+        let len = write_response(&mut out, 1, EoeFrameType::SetIpResponse, EoeResult::SUCCESS);
         assert_eq!(&out[..len], &[0x04, 0, 0, 0, 0, 0x12, 0x03, 0x00, 0x00, 0x00]);
         assert_eq!(EoeMessage::decode(&out[6..len]).unwrap(), EoeMessage::SetIpResponse(EoeResult::SUCCESS));
-        write_set_ip_response(&mut out, 1, EoeResult::NO_IP_SUPPORT);
+        write_response(&mut out, 1, EoeFrameType::SetIpResponse, EoeResult::NO_IP_SUPPORT);
         let EoeMessage::SetIpResponse(result) = EoeMessage::decode(&out[6..10]).unwrap() else { panic!() };
         assert_eq!((result, result.name()), (EoeResult(0x0201), "no IP support"));
     }

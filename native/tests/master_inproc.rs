@@ -401,7 +401,7 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
 #[test]
 fn a_late_reply_to_a_request_given_up_is_not_taken_for_the_next_ones() {
     // A drive whose firmware takes 50 ms per mailbox message, asked with a 1 ms time-out.
-    let slow = Timing { al_request_ns: 0, init_to_preop_ns: 0, mailbox_ns: 50_000_000 };
+    let slow = Timing { mailbox_ns: 50_000_000, ..Timing::IMMEDIATE };
     let link = InProcess::with_bus(VirtualBus::with_timing(1, slow));
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();

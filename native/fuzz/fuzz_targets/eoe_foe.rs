@@ -30,7 +30,7 @@ fn eoe_body(body: &[u8], reassembler: &mut Reassembler) {
         }
         EoeMessage::SetIpResponse(result) => {
             let _ = result.name();
-            let n = eoe::write_set_ip_response(&mut out, 3, *result);
+            let n = eoe::write_response(&mut out, 3, eoe::EoeFrameType::SetIpResponse, *result);
             assert_eq!(EoeMessage::decode(&out[HEADER_LEN..n]).unwrap(), message);
         }
         _ => {}
