@@ -9,8 +9,8 @@
 //! that tells one frame's fragments from the next's; in a Set IP Parameter response it is the
 //! result. Every fragment but the last carries a multiple of 32 bytes.
 //!
-//! A Set IP Parameter request carries a 32-bit word of flags and then every field at a fixed
-//! place, present or not: MAC (6 bytes), IP address, subnet mask, default gateway, DNS server
+//! A Set IP Parameter request carries a 32-bit word of flags and then each field at a fixed
+//! place, present or not, up to the last one present: MAC (6 bytes), IP address, subnet mask, default gateway, DNS server
 //! (4 bytes each, a little-endian 32-bit word as all EtherCAT words are, so `192.168.0.1` goes
 //! as `01 00 A8 C0`) and the DNS name (32 bytes, zero-padded; TwinCAT sends all 32 however short
 //! the name is).
@@ -30,7 +30,7 @@ pub const TIMESTAMP_LEN: usize = 4;
 pub const MAX_FRAME_LEN: usize = 1518;
 /// Length of the DNS name field.
 pub const DNS_NAME_LEN: usize = 32;
-/// Length of a Set IP Parameter request's body after the EoE header: flags and all fields.
+/// Length of a Set IP Parameter request's body after the EoE header with all fields.
 pub const SET_IP_LEN: usize = 4 + 6 + 4 * 4 + DNS_NAME_LEN;
 
 wire_codes! {
@@ -165,8 +165,9 @@ impl IpParameters {
         flags
     }
 
-    /// Encodes flags and all fields ([`SET_IP_LEN`] bytes) into `out`; an error for a DNS
-    /// name longer than its field.
+    /// Encodes flags and the fields up to the last one present into `out` (at least
+    /// [`SET_IP_LEN`] bytes), so that a request without a DNS name fits a small mailbox; returns
+    /// the length. An error for a DNS name longer than its field.
     pub fn encode(&self, out: &mut [u8]) -> Result<usize, EoeError> {
         let out = &mut out[..SET_IP_LEN];
         out.fill(0);
@@ -185,7 +186,10 @@ impl IpParameters {
             }
             out[26..26 + name.len()].copy_from_slice(name.as_bytes());
         }
-        Ok(SET_IP_LEN)
+        // Where each field ends, in flag order.
+        let ends = [10, 14, 18, 22, 26, SET_IP_LEN];
+        let last = (0..ends.len()).rev().find(|bit| self.flags() & (1 << bit) != 0);
+        Ok(last.map_or(4, |bit| ends[bit]))
     }
 
     /// Decodes a request's body after the EoE header. A field whose flag is clear may be
@@ -515,13 +519,14 @@ mod tests {
     fn set_ip_request_with_fewer_fields() {
         let only_ip = IpParameters { ip: Some(Ipv4Addr::new(10, 0, 0, 7)), ..IpParameters::default() };
         let mut body = [0u8; SET_IP_LEN];
-        only_ip.encode(&mut body).unwrap();
+        assert_eq!(only_ip.encode(&mut body).unwrap(), 14, "up to the IP address");
         assert_eq!(body[0], 0x02);
         assert_eq!(IpParameters::decode(&body).unwrap(), only_ip);
         // Cut after the IP address: the fields whose flags are clear may be missing.
         assert_eq!(IpParameters::decode(&body[..14]).unwrap(), only_ip);
         let err = IpParameters::decode(&body[..12]).unwrap_err();
         assert_eq!(err, EoeError::Truncated { what: "IP address", len: 12, needed: 14 });
+        assert_eq!(IpParameters::default().encode(&mut body).unwrap(), 4, "flags alone");
         let long = IpParameters { dns_name: Some("x".repeat(33)), ..IpParameters::default() };
         assert_eq!(long.encode(&mut body).unwrap_err(), EoeError::DnsNameTooLong { len: 33, max: 32 });
     }

@@ -204,6 +204,20 @@ pub enum EoeError {
         /// Its length.
         len: usize,
     },
+    /// The slave's SII does not list EoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave answered Set IP Parameter with another result than success.
+    Refused {
+        /// Slave position.
+        slave: u16,
+        /// The result code.
+        result: u16,
+        /// Its name in the standard.
+        result_name: &'static str,
+    },
     /// A frame whose length does not round to the size its fragment 0 announced.
     SizeMismatch {
         /// The size announced, in 32-byte units.
@@ -235,6 +249,12 @@ impl fmt::Display for EoeError {
             EoeError::FragmentNotWholeUnits { len } => {
                 write!(f, "EoE fragment of {len} bytes is not the last but not a multiple of 32 bytes")
             }
+            EoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak EoE (SII mailbox protocols)")
+            }
+            EoeError::Refused { slave, result, result_name } => {
+                write!(f, "slave {slave} answered Set IP Parameter with result 0x{result:04X} ({result_name})")
+            }
             EoeError::SizeMismatch { announced_units, received } => write!(
                 f,
                 "EoE frame of {received} bytes where fragment 0 announced {announced_units} units of 32 bytes"
@@ -259,6 +279,11 @@ pub enum FoeError {
     UnknownCode(UnknownCode),
     /// A file name that is not UTF-8 text.
     NameNotText,
+    /// The slave's SII does not list FoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
     /// The slave ended the transfer of `name` with a FoE error.
     Refused {
         /// Slave position.
@@ -309,6 +334,9 @@ impl fmt::Display for FoeError {
             }
             FoeError::UnknownCode(e) => write!(f, "{e}"),
             FoeError::NameNotText => write!(f, "FoE file name is not valid text"),
+            FoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak FoE (SII mailbox protocols)")
+            }
             FoeError::Refused { slave, name, code, code_name, text } => {
                 write!(f, "slave {slave} refused file {name:?}: FoE error 0x{code:04X} ({code_name})")?;
                 if !text.is_empty() && text != code_name {
