@@ -6,23 +6,23 @@
 use std::net::Ipv4Addr;
 use std::time::Duration;
 
+use std::sync::atomic::Ordering;
+
 use akd_native::al::AlState;
+use akd_native::cycle::{Config, CycleThread};
 use akd_native::eoe::IpParameters;
 use akd_native::error::{Error, FoeError};
 use akd_native::master::eoe::default_mac;
 use akd_native::master::Master;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
-use smoltcp::phy::ChecksumCapabilities;
-use smoltcp::wire::{
-    ArpOperation, ArpPacket, ArpRepr, EthernetAddress, EthernetFrame, EthernetProtocol, EthernetRepr, Icmpv4Packet,
-    Icmpv4Repr, IpProtocol, Ipv4Packet, Ipv4Repr,
-};
+use smoltcp::wire::{ArpOperation, ArpPacket, ArpRepr, EthernetAddress, EthernetFrame, EthernetProtocol};
+
+#[path = "support/ethernet.rs"]
+mod ethernet;
+use ethernet::{check_echo_reply, ping, who_has, HOST};
 
 const STEP: Duration = Duration::from_secs(5);
-const HOST_MAC: [u8; 6] = [0x02, 0xAA, 0, 0, 0, 1];
-const HOST: Ipv4Addr = Ipv4Addr::new(192, 168, 0, 1);
-
 fn master(bus: VirtualBus) -> Master {
     let count = bus.len();
     let mut m = Master::new(Box::new(InProcess::with_bus(bus)), Duration::from_millis(100));
@@ -51,43 +51,6 @@ fn set_ip(m: &mut Master, position: u16, with_name: bool) -> [u8; 6] {
     mac
 }
 
-fn frame(ethertype: EthernetProtocol, dst: [u8; 6], payload_len: usize, fill: impl FnOnce(&mut [u8])) -> Vec<u8> {
-    let ethernet = EthernetRepr { src_addr: EthernetAddress(HOST_MAC), dst_addr: EthernetAddress(dst), ethertype };
-    let mut frame = vec![0u8; ethernet.buffer_len() + payload_len];
-    let mut e = EthernetFrame::new_unchecked(&mut frame[..]);
-    ethernet.emit(&mut e);
-    fill(e.payload_mut());
-    frame
-}
-
-fn ping(to: Ipv4Addr, mac: [u8; 6], data: &[u8], seq_no: u16) -> Vec<u8> {
-    let icmp = Icmpv4Repr::EchoRequest { ident: 0x42, seq_no, data };
-    let ip = Ipv4Repr {
-        src_addr: HOST,
-        dst_addr: to,
-        next_header: IpProtocol::Icmp,
-        payload_len: icmp.buffer_len(),
-        hop_limit: 64,
-    };
-    frame(EthernetProtocol::Ipv4, mac, ip.buffer_len() + icmp.buffer_len(), |payload| {
-        let mut p = Ipv4Packet::new_unchecked(payload);
-        ip.emit(&mut p, &ChecksumCapabilities::default());
-        icmp.emit(&mut Icmpv4Packet::new_unchecked(p.payload_mut()), &ChecksumCapabilities::default());
-    })
-}
-
-/// The host's ARP request for `ip`, from which the drive also learns the host's MAC.
-fn who_has(ip: Ipv4Addr) -> Vec<u8> {
-    let request = ArpRepr::EthernetIpv4 {
-        operation: ArpOperation::Request,
-        source_hardware_addr: EthernetAddress(HOST_MAC),
-        source_protocol_addr: HOST,
-        target_hardware_addr: EthernetAddress([0; 6]),
-        target_protocol_addr: ip,
-    };
-    frame(EthernetProtocol::Arp, [0xFF; 6], request.buffer_len(), |p| request.emit(&mut ArpPacket::new_unchecked(p)))
-}
-
 fn receive(m: &mut Master, position: u16) -> Vec<u8> {
     m.slave_mut(position).unwrap().eoe_receive(STEP).unwrap().expect("a frame from the drive")
 }
@@ -96,15 +59,6 @@ fn arp_of(frame: &[u8]) -> ArpRepr {
     let e = EthernetFrame::new_checked(frame).unwrap();
     assert_eq!(e.ethertype(), EthernetProtocol::Arp);
     ArpRepr::parse(&ArpPacket::new_checked(e.payload()).unwrap()).unwrap()
-}
-
-fn check_echo_reply(frame: &[u8], from: Ipv4Addr, data: &[u8], seq_no: u16) {
-    let e = EthernetFrame::new_checked(frame).unwrap();
-    let ip = Ipv4Packet::new_checked(e.payload()).unwrap();
-    assert_eq!((ip.src_addr(), ip.dst_addr()), (from, HOST));
-    let icmp = Icmpv4Packet::new_checked(ip.payload()).unwrap();
-    let reply = Icmpv4Repr::parse(&icmp, &ChecksumCapabilities::default()).unwrap();
-    assert_eq!(reply, Icmpv4Repr::EchoReply { ident: 0x42, seq_no, data });
 }
 
 #[test]
@@ -177,4 +131,33 @@ fn a_file_written_reads_back_and_a_missing_one_is_refused_by_name() {
     assert_eq!(err.to_string(), "FoE: slave 0 refused file \"missing.bin\": FoE error 0x8001 (not found)");
     // SDO still works between transfers.
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x6060, 0).unwrap().len(), 1);
+}
+
+#[test]
+fn pings_go_beside_the_running_cycle_without_losing_one() {
+    let mut m = master(VirtualBus::new(2));
+    let macs = [set_ip(&mut m, 0, true), set_ip(&mut m, 1, true)];
+    for position in 0..2 {
+        arp_of(&receive(&mut m, position));
+        m.slave_mut(position).unwrap().eoe_send(&who_has(drive_ip(position))).unwrap();
+        arp_of(&receive(&mut m, position));
+    }
+    m.request_state(AlState::Op, STEP).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    for seq_no in 0..40u16 {
+        let position = seq_no % 2;
+        let data: Vec<u8> = vec![seq_no as u8; if seq_no % 4 < 2 { 56 } else { 1400 }];
+        let ip = drive_ip(position);
+        assert!(cycle.eoe_send(position, &ping(ip, macs[position as usize], &data, seq_no)).unwrap());
+        let (from, reply) = cycle.eoe_receive(STEP).expect("an echo reply");
+        assert_eq!(from, position);
+        check_echo_reply(&reply, ip, &data, seq_no);
+    }
+    // An SDO transfer shares the mailbox with the pings.
+    assert_eq!(cycle.sdo_read(1, 0x6060, 0).unwrap().len(), 1);
+    let stats = cycle.stats();
+    let (lost, wkc) = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
+    assert_eq!((lost, wkc, cycle.eoe_dropped()), (0, 0, (0, 0)));
+    assert!(cycle.stats().cycles.load(Ordering::Relaxed) > 40);
+    cycle.stop().unwrap();
 }
