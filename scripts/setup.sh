@@ -11,8 +11,9 @@ say() { printf 'setup: %s\n' "$*"; }
 die() { printf 'setup: error: %s\n' "$*" >&2; exit 1; }
 
 # tshark decodes captures in the tests, iproute2 makes the test namespaces, rt-tests measures
-# scheduling latency for the benchmarks, g++ compiles the messages' generated C and C++.
-APT_PACKAGES=(tshark iproute2 rt-tests g++)
+# scheduling latency for the benchmarks, g++ compiles the messages' generated C and C++, ping
+# (iputils-ping) pings the virtual drives through akd-eoe's TAP interface in the EoE tests.
+APT_PACKAGES=(tshark iproute2 rt-tests g++ iputils-ping)
 missing=()
 for package in "${APT_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" || missing+=("$package")
@@ -57,7 +58,7 @@ say "installing build, test and interop packages into .venv"
 # in, restarts .venv's python with LD_LIBRARY_PATH pointing at the wheels' libraries). The node
 # needs rclpy over Fast DDS and these interfaces; the rosidl generators and type supports build
 # akd_ros's own messages (rosidl_build.py). mcap, rosbags, matplotlib and eclipse-zenoh serve
-# the node's recording, plotting and Zenoh work and its tests.
+# the node's recording, plotting and Zenoh work and its tests; rich draws akd-foe's progress bar.
 ROS_WHEELS=(
     ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-common-interfaces ros-jazzy-std-srvs
     ros-jazzy-diagnostic-msgs ros-jazzy-sensor-msgs ros-jazzy-lifecycle-msgs
@@ -67,7 +68,7 @@ ROS_WHEELS=(
 )
 say "installing ROS 2 Jazzy wheels and the recording tools into .venv"
 .venv/bin/python -m pip install -q --disable-pip-version-check \
-    "${ROS_WHEELS[@]}" mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash
+    "${ROS_WHEELS[@]}" mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash rich
 
 say "building akd_ros: the Rust extension akd_ros._native (cargo, release) and the messages"
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-build-isolation -e .

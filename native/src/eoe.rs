@@ -17,7 +17,7 @@
 
 use std::net::Ipv4Addr;
 
-use crate::error::EoeError;
+use crate::error::{EoeError, SettingError};
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
 
 /// Length of the EoE header (the two words after the mailbox header).
@@ -221,6 +221,26 @@ impl IpParameters {
             dns_name,
         })
     }
+}
+
+/// A MAC address written as six hexadecimal bytes separated by colons (`02:01:05:30:03:e9`).
+pub fn parse_mac(text: &str) -> Result<[u8; 6], SettingError> {
+    let error = || SettingError::Address { what: "MAC address", value: text.into(), form: "aa:bb:cc:dd:ee:ff" };
+    let mut mac = [0u8; 6];
+    let mut parts = text.split(':');
+    for byte in &mut mac {
+        let part = parts.next().filter(|p| p.len() == 2).ok_or_else(error)?;
+        *byte = u8::from_str_radix(part, 16).map_err(|_| error())?;
+    }
+    if parts.next().is_some() {
+        return Err(error());
+    }
+    Ok(mac)
+}
+
+/// An IPv4 address in dotted form; `what` names the field in the error.
+pub fn parse_ipv4(what: &'static str, text: &str) -> Result<Ipv4Addr, SettingError> {
+    text.parse().map_err(|_| SettingError::Address { what, value: text.into(), form: "a.b.c.d (IPv4)" })
 }
 
 /// `len` bytes of `body` at `at`, or the error that names what was cut short.
@@ -529,6 +549,18 @@ mod tests {
         assert_eq!(IpParameters::default().encode(&mut body).unwrap(), 4, "flags alone");
         let long = IpParameters { dns_name: Some("x".repeat(33)), ..IpParameters::default() };
         assert_eq!(long.encode(&mut body).unwrap_err(), EoeError::DnsNameTooLong { len: 33, max: 32 });
+    }
+
+    #[test]
+    fn addresses_are_read_in_their_forms() {
+        assert_eq!(parse_mac("02:01:05:30:03:e9").unwrap(), [0x02, 0x01, 0x05, 0x30, 0x03, 0xE9]);
+        for bad in ["02:01:05:30:03", "02:01:05:30:03:e9:00", "2:01:05:30:03:e9", "xx:01:05:30:03:e9"] {
+            let err = parse_mac(bad).unwrap_err();
+            assert_eq!(err.to_string(), format!("MAC address {bad:?} is not of the form aa:bb:cc:dd:ee:ff"));
+        }
+        assert_eq!(parse_ipv4("IP address", "192.168.0.10").unwrap(), Ipv4Addr::new(192, 168, 0, 10));
+        let err = parse_ipv4("gateway", "192.168.0").unwrap_err();
+        assert_eq!(err.to_string(), "gateway \"192.168.0\" is not of the form a.b.c.d (IPv4)");
     }
 
     #[test]

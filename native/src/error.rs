@@ -1201,6 +1201,15 @@ pub enum SettingError {
         /// The name.
         name: String,
     },
+    /// An address for EoE that is not in its form.
+    Address {
+        /// The field ("IP address", "MAC address", ...).
+        what: &'static str,
+        /// The text given.
+        value: String,
+        /// The form it must have.
+        form: &'static str,
+    },
 }
 
 impl fmt::Display for SettingError {
@@ -1288,6 +1297,7 @@ impl fmt::Display for SettingError {
                 write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")
             }
             SettingError::InterfaceName { name } => write!(f, "interface name {name:?} contains a NUL byte"),
+            SettingError::Address { what, value, form } => write!(f, "{what} {value:?} is not of the form {form}"),
         }
     }
 }

@@ -223,12 +223,12 @@ impl From<Event> for EventView {
 }
 
 /// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
-fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
+pub(super) fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
     Duration::try_from_secs_f64(seconds)
         .map_err(|_| super::to_py_err(SettingError::Duration { what, seconds, allowed }.into()))
 }
 
-const SECONDS: &str = "a finite number of seconds >= 0";
+pub(super) const SECONDS: &str = "a finite number of seconds >= 0";
 
 /// How often `wait_state` looks at the drive's status.
 const WAIT_POLL: Duration = Duration::from_millis(1);
@@ -534,6 +534,26 @@ impl PyCycle {
     fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
         let cycle = &self.cycle;
         py.allow_threads(|| cycle.sdo_write(position, index, subindex, &data)).py()
+    }
+
+    /// Queues one Ethernet frame for drive `position`'s IP stack, carried through EoE beside
+    /// the process data; `False` when the queue was full and the frame was dropped.
+    fn eoe_send(&self, position: u16, frame: Vec<u8>) -> PyResult<bool> {
+        self.cycle.eoe_send(position, &frame).py()
+    }
+
+    /// The next Ethernet frame a drive's IP stack sent, waiting up to `timeout` s (the GIL
+    /// released): `(position, frame)`, or `None`.
+    fn eoe_receive<'py>(&self, py: Python<'py>, timeout: f64) -> PyResult<Option<(u16, Bound<'py, PyBytes>)>> {
+        let timeout = duration("timeout", timeout, SECONDS)?;
+        let cycle = &self.cycle;
+        let frame = py.allow_threads(|| cycle.eoe_receive(timeout));
+        Ok(frame.map(|(position, f)| (position, PyBytes::new(py, &f))))
+    }
+
+    /// Ethernet frames dropped because a queue was full: `(to the drives, from the drives)`.
+    fn eoe_dropped(&self) -> (u64, u64) {
+        self.cycle.eoe_dropped()
     }
 
     /// Sets the mode of operation (0x6060) of drive `position` and holds its target at the
