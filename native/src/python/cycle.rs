@@ -223,12 +223,12 @@ impl From<Event> for EventView {
 }
 
 /// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
-pub(super) fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
+fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
     Duration::try_from_secs_f64(seconds)
         .map_err(|_| super::to_py_err(SettingError::Duration { what, seconds, allowed }.into()))
 }
 
-pub(super) const SECONDS: &str = "a finite number of seconds >= 0";
+const SECONDS: &str = "a finite number of seconds >= 0";
 
 /// How often `wait_state` looks at the drive's status.
 const WAIT_POLL: Duration = Duration::from_millis(1);

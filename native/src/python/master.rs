@@ -323,7 +323,7 @@ impl PyMaster {
         position: u16,
         timeout: f64,
     ) -> PyResult<Option<Bound<'py, pyo3::types::PyBytes>>> {
-        let timeout = super::cycle::duration("timeout", timeout, super::cycle::SECONDS)?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let frame = self.with_slave(py, position, |s| s.eoe_receive(timeout))?;
         Ok(frame.map(|f| pyo3::types::PyBytes::new(py, &f)))
     }

@@ -219,7 +219,7 @@ impl EoeServer {
                 }
                 Due::Announce { at_ns } if at_ns <= now_ns => {
                     if let Some(ip) = self.parameters.ip {
-                        let frame = announcement(self.mac(), ip);
+                        let frame = arp_request(self.mac(), ip, ip);
                         self.queues.sent.push_back(frame);
                     }
                 }
@@ -243,14 +243,15 @@ impl EoeServer {
     }
 }
 
-/// A broadcast ARP request from `mac` for its own address `ip` (a gratuitous ARP).
-fn announcement(mac: [u8; 6], ip: Ipv4Addr) -> Vec<u8> {
+/// A broadcast ARP request from `mac` at `sender` for `target`; for its own address
+/// (`sender == target`) a gratuitous ARP, with which the drive announces itself.
+pub fn arp_request(mac: [u8; 6], sender: Ipv4Addr, target: Ipv4Addr) -> Vec<u8> {
     let arp = ArpRepr::EthernetIpv4 {
         operation: ArpOperation::Request,
         source_hardware_addr: EthernetAddress(mac),
-        source_protocol_addr: ip,
+        source_protocol_addr: sender,
         target_hardware_addr: EthernetAddress([0; 6]),
-        target_protocol_addr: ip,
+        target_protocol_addr: target,
     };
     let ethernet = EthernetRepr {
         src_addr: EthernetAddress(mac),
@@ -407,22 +408,7 @@ mod tests {
         drive.set_ip(0);
         drive.replies(50 * MS);
         // Who has 192.168.0.2?
-        let arp = ArpRepr::EthernetIpv4 {
-            operation: ArpOperation::Request,
-            source_hardware_addr: EthernetAddress(HOST_MAC),
-            source_protocol_addr: HOST,
-            target_hardware_addr: EthernetAddress([0; 6]),
-            target_protocol_addr: IP,
-        };
-        let ethernet = EthernetRepr {
-            src_addr: EthernetAddress(HOST_MAC),
-            dst_addr: EthernetAddress::BROADCAST,
-            ethertype: EthernetProtocol::Arp,
-        };
-        let mut frame = vec![0u8; 42];
-        let mut e = EthernetFrame::new_unchecked(&mut frame[..]);
-        ethernet.emit(&mut e);
-        arp.emit(&mut ArpPacket::new_unchecked(e.payload_mut()));
+        let frame = arp_request(HOST_MAC, HOST, IP);
         drive.send_frame(&frame, 0, 51 * MS);
         let answer = frames(&drive.replies(52 * MS));
         assert_eq!(answer.len(), 1);

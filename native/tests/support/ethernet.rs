@@ -5,8 +5,8 @@ use std::net::Ipv4Addr;
 
 use smoltcp::phy::ChecksumCapabilities;
 use smoltcp::wire::{
-    ArpOperation, ArpPacket, ArpRepr, EthernetAddress, EthernetFrame, EthernetProtocol, EthernetRepr, Icmpv4Packet,
-    Icmpv4Repr, IpProtocol, Ipv4Packet, Ipv4Repr,
+    EthernetAddress, EthernetFrame, EthernetProtocol, EthernetRepr, Icmpv4Packet, Icmpv4Repr, IpProtocol, Ipv4Packet,
+    Ipv4Repr,
 };
 
 pub const HOST_MAC: [u8; 6] = [0x02, 0xAA, 0, 0, 0, 1];
@@ -39,14 +39,7 @@ pub fn ping(to: Ipv4Addr, mac: [u8; 6], data: &[u8], seq_no: u16) -> Vec<u8> {
 
 /// The host's ARP request for `ip`, from which the drive also learns the host's MAC.
 pub fn who_has(ip: Ipv4Addr) -> Vec<u8> {
-    let request = ArpRepr::EthernetIpv4 {
-        operation: ArpOperation::Request,
-        source_hardware_addr: EthernetAddress(HOST_MAC),
-        source_protocol_addr: HOST,
-        target_hardware_addr: EthernetAddress([0; 6]),
-        target_protocol_addr: ip,
-    };
-    frame(EthernetProtocol::Arp, [0xFF; 6], request.buffer_len(), |p| request.emit(&mut ArpPacket::new_unchecked(p)))
+    akd_native::sim::eoe_server::arp_request(HOST_MAC, HOST, ip)
 }
 
 pub fn check_echo_reply(frame: &[u8], from: Ipv4Addr, data: &[u8], seq_no: u16) {
