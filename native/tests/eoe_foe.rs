@@ -161,3 +161,16 @@ fn pings_go_beside_the_running_cycle_without_losing_one() {
     assert!(cycle.stats().cycles.load(Ordering::Relaxed) > 40);
     cycle.stop().unwrap();
 }
+
+#[test]
+fn a_busy_drive_gets_the_same_packet_again_until_it_takes_it() {
+    let mut bus = VirtualBus::new(1);
+    bus.slave_mut(0).mailbox_mut().foe_mut().inject_busy(3);
+    let mut m = master(bus);
+    let file: Vec<u8> = (0..2500u32).map(|i| (i * 7) as u8).collect();
+    let started = std::time::Instant::now();
+    m.slave_mut(0).unwrap().foe_write("busy.bin", 0, &file, &mut |_, _| {}).unwrap();
+    // Three busy answers, each followed by the master's pause before it sends the packet again.
+    assert!(started.elapsed() >= Duration::from_millis(30), "{:?}", started.elapsed());
+    assert_eq!(m.slave_mut(0).unwrap().foe_read("busy.bin", 0, &mut |_| {}).unwrap(), file);
+}

@@ -22,12 +22,20 @@ enum Transfer {
 pub struct FoeServer {
     files: BTreeMap<String, Vec<u8>>,
     transfer: Option<Transfer>,
+    /// Data packets of a write still to be answered with busy (a test's fault injection).
+    busy_packets: u32,
 }
 
 impl FoeServer {
     /// A file written to the drive.
     pub fn file(&self, name: &str) -> Option<&[u8]> {
         self.files.get(name).map(Vec::as_slice)
+    }
+
+    /// Answers the next `packets` data packets of a write with busy instead of taking them, as
+    /// a drive does that cannot take a packet yet; a master sends each again.
+    pub fn inject_busy(&mut self, packets: u32) {
+        self.busy_packets = packets;
     }
 
     /// Forgets a transfer in progress (the mailbox stopped); the files stay.
@@ -69,6 +77,11 @@ impl FoeServer {
                 if packet != *next {
                     self.transfer = None;
                     return error(out, FoeErrorCode::PACKET_NUMBER_WRONG);
+                }
+                if self.busy_packets > 0 {
+                    self.busy_packets -= 1;
+                    let done = (file.len() / 1024).min(u16::MAX as usize) as u16;
+                    return FoeMessage::Busy { done, entire: 0, text: b"" }.write(out, counter);
                 }
                 file.extend_from_slice(data);
                 *next += 1;

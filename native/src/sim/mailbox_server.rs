@@ -95,6 +95,11 @@ impl MailboxServer {
         &self.foe
     }
 
+    /// The FoE side, to inject a busy drive.
+    pub fn foe_mut(&mut self) -> &mut FoeServer {
+        &mut self.foe
+    }
+
     /// The firmware's work at bus time `now_ns` beside the master's requests: EoE replies that
     /// are due and the frames the drive's IP stack sends, in messages of `mailbox_size` bytes.
     pub fn poll(&mut self, now_ns: u64, mailbox_size: usize) {

@@ -218,6 +218,11 @@ impl VirtualAkd {
         &self.mailbox
     }
 
+    /// The mailbox server, to inject faults into its protocols (a busy FoE).
+    pub fn mailbox_mut(&mut self) -> &mut mailbox_server::MailboxServer {
+        &mut self.mailbox
+    }
+
     /// The object dictionary, to set what the drive reports (tests, fault injection).
     pub fn od_mut(&mut self) -> &mut od::ObjectDictionary {
         &mut self.od
