@@ -7,10 +7,16 @@ from the documentation range (192.0.2.0/24) and exist only inside the test's nam
 from __future__ import annotations
 
 import re
+import socket
+import struct
 import subprocess
 import threading
+import time
+
+import pytest
 
 import akd_ros
+from akd_ros import params
 from akd_ros.cli.common import EXIT_INTERRUPTED
 from support.netns import akd_sim_in_netns, console_script, netns_argv, run_in_netns, stop_process
 
@@ -135,3 +141,34 @@ def test_akd_eoe_without_cap_net_admin_says_so():
     assert result.stderr.strip().splitlines()[-1] == (
         "akd-eoe: error: opening a TAP interface needs CAP_NET_ADMIN (run as root, or setcap cap_net_admin)"
     ), result.stderr
+
+
+def _who_has(ip: str) -> bytes:
+    """A host's ARP request for `ip`: from 02:aa:00:00:00:01 at 192.0.2.1, to everyone."""
+    host_mac, host_ip = bytes.fromhex("02aa00000001"), bytes([192, 0, 2, 1])
+    arp = struct.pack("!HHBBH", 1, 0x0800, 6, 4, 1) + host_mac + host_ip + b"\0" * 6 + socket.inet_aton(ip)
+    return b"\xff" * 6 + host_mac + b"\x08\x06" + arp
+
+
+def test_a_joints_eoe_ip_parameter_gives_the_drive_its_address():
+    values = {"link": "sim:2", "joints": ["a", "b"], "joints.b.eoe.ip": "192.0.2.11/24"}
+    joints = params.settings(values).joints
+    assert [j.eoe_ip for j in joints] == [None, "192.0.2.11/24"]
+    for bad in ("192.0.2.11", "192.0.2/24", "drive"):
+        with pytest.raises(params.ParameterError, match=r"parameter joints\.a\.eoe\.ip must be an IPv4 address"):
+            params.settings({**values, "joints.a.eoe.ip": bad})
+    bus = akd_ros.Bus("sim:2", [joint.drive() for joint in joints])
+    try:
+        # Drive 1 answers an ARP request for its address through the running cycle, from its MAC.
+        assert bus.cycle.eoe_send(1, _who_has("192.0.2.11"))
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline:
+            received = bus.cycle.eoe_receive(0.5)
+            if received and received[1][20:22] == b"\x00\x02":  # an ARP reply (the announcement is a request)
+                break
+        else:
+            raise AssertionError("no ARP reply from drive 1")
+        assert received[0] == 1 and received[1][22:28] == bytes.fromhex("020105301002")
+        assert socket.inet_ntoa(received[1][28:32]) == "192.0.2.11"
+    finally:
+        bus.close()
