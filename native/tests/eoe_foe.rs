@@ -174,3 +174,28 @@ fn a_busy_drive_gets_the_same_packet_again_until_it_takes_it() {
     assert!(started.elapsed() >= Duration::from_millis(30), "{:?}", started.elapsed());
     assert_eq!(m.slave_mut(0).unwrap().foe_read("busy.bin", 0, &mut |_| {}).unwrap(), file);
 }
+
+#[test]
+fn malformed_eoe_headers_are_answered_by_the_standard_and_change_nothing_else() {
+    let mut m = master(VirtualBus::new(1));
+    let mac = set_ip(&mut m, 0, true);
+    arp_of(&receive(&mut m, 0));
+    // An EoE header cut short (2 of 4 bytes), then frame type 12, which the standard does not define.
+    for (message, detail) in
+        [(&[0x02, 0, 0, 0, 0, 0x02, 0x00, 0x00][..], 0x0006), (&[0x04, 0, 0, 0, 0, 0x02, 0x0C, 0, 0, 0], 0x0004)]
+    {
+        let mut message = message.to_vec();
+        m.slave_mut(0).unwrap().mailbox_send(&mut message, STEP).unwrap();
+        let err = m.slave_mut(0).unwrap().mailbox_receive(STEP).unwrap_err();
+        let Error::Mailbox(akd_native::error::MailboxError::ErrorReply { detail: got, .. }) = err else {
+            panic!("{err}")
+        };
+        assert_eq!(got, detail);
+    }
+    // The drive's IP stack and its CoE go on as before.
+    m.slave_mut(0).unwrap().eoe_send(&who_has(drive_ip(0))).unwrap();
+    arp_of(&receive(&mut m, 0));
+    m.slave_mut(0).unwrap().eoe_send(&ping(drive_ip(0), mac, &[1, 2, 3], 5)).unwrap();
+    check_echo_reply(&receive(&mut m, 0), drive_ip(0), &[1, 2, 3], 5);
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x6060, 0).unwrap().len(), 1);
+}
