@@ -25,6 +25,9 @@ use crate::eoe::{
     MAX_FRAME_LEN,
 };
 
+/// Frames from the master the stack holds before it drops the next.
+const MAX_RECEIVED: usize = 32;
+
 /// The MAC a drive uses before a master gives it one (locally administered).
 const DEFAULT_MAC: [u8; 6] = [0x02, 0x00, 0x00, 0x00, 0x00, 0x00];
 
@@ -91,7 +94,8 @@ pub struct EoeServer {
     reassembler: Reassembler,
     due: VecDeque<Due>,
     frame_number: u8,
-    /// Fragments dropped because they did not continue a frame.
+    /// Fragments dropped because they did not continue a frame, and frames the stack had no
+    /// room for.
     pub dropped_fragments: u64,
 }
 
@@ -139,6 +143,8 @@ impl EoeServer {
         match EoeMessage::decode(body)? {
             EoeMessage::Fragment { header, data, .. } => {
                 match self.reassembler.push(&header, data) {
+                    // A stack that cannot keep up drops what it cannot queue, as a NIC does.
+                    Ok(Some(_)) if self.queues.received.len() >= MAX_RECEIVED => self.dropped_fragments += 1,
                     Ok(Some(frame)) => self.queues.received.push_back(frame.to_vec()),
                     Ok(None) => {}
                     Err(_) => self.dropped_fragments += 1,
