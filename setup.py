@@ -74,7 +74,7 @@ setup(
         (f"share/{PACKAGE}/config", sorted(glob("config/*.yaml"))),
         *rosidl_build.data_files(),
     ],
-    install_requires=["setuptools", "eclipse-zenoh>=1.5,<2", "rosbags", "mcap", "xxhash", "PyYAML"],
+    install_requires=["setuptools", "eclipse-zenoh>=1.5,<2", "rosbags", "mcap", "xxhash", "PyYAML", "rich", "textual"],
     zip_safe=False,
     entry_points={
         "console_scripts": [
@@ -83,6 +83,8 @@ setup(
             "akd-sdo = akd_ros.cli.sdo:main",
             "akd-plot = akd_ros.cli.plot:main",
             "akd-top = akd_ros.cli.top:main",
+            "akd-eoe = akd_ros.cli.eoe:main",
+            "akd-foe = akd_ros.cli.foe:main",
             "akd_node = akd_ros.node:main",
         ]
     },

@@ -45,7 +45,8 @@ STANDSTILL_COUNTS_PER_S = 1000
 class DriveConfig:
     """One drive of a `Bus`: where it is (`slave`, its position on the line, or `alias`, its station alias: one of
     them), its name (``"slave_<position>"`` unless given), its mode of operation at the start, its `Units` and
-    `Limits`, and its process-data mapping (`DEFAULT_RX`, `DEFAULT_TX` unless given)."""
+    `Limits`, its process-data mapping (`DEFAULT_RX`, `DEFAULT_TX` unless given) and its IP address for EoE
+    (``"A.B.C.D/N"``, set by Set IP Parameter in PreOp; None for none)."""
 
     slave: int | None = None
     alias: int | None = None
@@ -54,6 +55,7 @@ class DriveConfig:
     units: Units | None = None
     limits: Limits | None = None
     mapping: tuple[object, object] | None = None
+    eoe_ip: str | None = None
 
     def attach(self, bus: Bus, slave: int) -> Axis:
         """The Axis of this drive on `bus`, at position `slave`; the Bus calls it once the line is in Op."""

@@ -22,6 +22,7 @@ interface and off for the virtual AKDs and UDP, whose frames' timing is not a wi
 from __future__ import annotations
 
 import contextlib
+import ipaddress
 import math
 import threading
 import time
@@ -155,6 +156,9 @@ class Bus:
                 self.simulator = self._master.simulator
             self._master.request_state("preop")
             for drive, position in zip(drives, positions, strict=True):
+                if drive.eoe_ip is not None:
+                    address = ipaddress.IPv4Interface(drive.eoe_ip)
+                    self._master.eoe_set_ip(position, str(address.ip), subnet_mask=str(address.netmask))
                 rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
                 self._master.configure_pdo(position, rx, tx)
                 self._master.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[drive.mode]))

@@ -26,6 +26,7 @@ fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths).
 from __future__ import annotations
 
 import importlib.util
+import ipaddress
 import math
 import re
 import socket
@@ -288,6 +289,13 @@ SCHEMA: tuple[Spec, ...] = (
         choices=COMMAND_TIMEOUT_POLICIES,
         per_joint=True,
     ),
+    Spec(
+        "eoe.ip",
+        "",
+        "The drive's IP address and prefix (A.B.C.D/N), given it by EoE Set IP Parameter at configure so that its "
+        "IP stack answers there (akd-eoe bridges a machine to it); '' gives none.",
+        per_joint=True,
+    ),
     Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
     Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
@@ -357,6 +365,8 @@ class JointSettings:
     fault_reset: str
     command_timeout: float
     command_timeout_policy: str
+    eoe_ip: str | None = None
+    """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
 
     def drive(self) -> DriveConfig:
         """The joint's drive as a Bus takes it."""
@@ -368,6 +378,7 @@ class JointSettings:
             units=self.units,
             limits=self.limits,
             mapping=self.mapping,
+            eoe_ip=self.eoe_ip,
         )
 
 
@@ -680,6 +691,18 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         raise ParameterError(
             f"parameters {prefix}axis/{prefix}lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')"
         ) from None
+    eoe_ip = values["eoe.ip"] or None
+    if eoe_ip is not None:
+        try:
+            # The prefix is needed: a /32 address has no route back to the machine that talks to it.
+            if "/" not in eoe_ip:
+                raise ValueError(eoe_ip)
+            eoe_ip = str(ipaddress.IPv4Interface(eoe_ip))
+        except ValueError:
+            raise ParameterError(
+                f"parameter {prefix}eoe.ip must be an IPv4 address with its prefix such as 192.168.0.10/24, or '', "
+                f"got {values['eoe.ip']!r}"
+            ) from None
     return JointSettings(
         name=name,
         slave=None if values["alias"] >= 0 else values["slave"],
@@ -692,6 +715,7 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         fault_reset=values["fault_reset"],
         command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
+        eoe_ip=eoe_ip,
     )
 
 

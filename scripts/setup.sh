@@ -33,7 +33,7 @@ CONSTRAINTS=constraints.txt
 # interfaces; the rosidl generators and type supports, C and C++, build akd_ros's own messages
 # (rosidl_build.py). mcap, rosbags, matplotlib and eclipse-zenoh serve the node's recording,
 # plotting and Zenoh work and its tests; PyYAML reads parameter files; textual draws akd-top and
-# rich (textual's own renderer) akd-sdo's progress bar (akd_ros's own requirements, installed here
+# rich (textual's own renderer) akd-sdo's and akd-foe's progress bars (akd_ros's own requirements, installed here
 # so that they are pinned too).
 BUILD_PACKAGES=("setuptools>=64" wheel "setuptools-rust>=1.7")
 TEST_PACKAGES=(pytest hypothesis pysoem kickcat colcon-common-extensions ruff==0.17.6)
@@ -78,8 +78,9 @@ pip_install() {
 }
 
 # tshark decodes captures in the tests, iproute2 makes the test namespaces, rt-tests measures
-# scheduling latency for the benchmarks, g++ compiles the messages' generated C and C++.
-APT_PACKAGES=(tshark iproute2 rt-tests g++)
+# scheduling latency for the benchmarks, g++ compiles the messages' generated C and C++, ping
+# (iputils-ping) pings the virtual drives through akd-eoe's TAP interface in the EoE tests.
+APT_PACKAGES=(tshark iproute2 rt-tests g++ iputils-ping)
 missing=()
 for package in "${APT_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" || missing+=("$package")

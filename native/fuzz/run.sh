@@ -21,7 +21,7 @@ export RUSTC_BOOTSTRAP=1
 [ -d corpus ] || bash seed.sh
 mkdir -p logs
 
-rust_targets=(frame mailbox coe sii virtual_akd)
+rust_targets=(frame mailbox coe sii eoe_foe virtual_akd)
 if [ $# -gt 0 ]; then targets=("$@"); else targets=("${rust_targets[@]}" pcapng_reader); fi
 nice -n 10 cargo fuzz build -O -a -s none >logs/build.log 2>&1 || { cat logs/build.log; exit 1; }
 nice -n 10 cargo fuzz build -O -a -s none --no-trace-compares --target-dir target/no-trace-compares virtual_akd \

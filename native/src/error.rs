@@ -159,6 +159,216 @@ impl fmt::Display for UnknownCode {
 
 impl std::error::Error for UnknownCode {}
 
+/// An EoE message or fragment that does not fit the standard (ETG.1000.6 §5.7), or a frame
+/// that cannot be sent through EoE.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EoeError {
+    /// A message, or a field of one, cut short.
+    Truncated {
+        /// The structure or field.
+        what: &'static str,
+        /// Bytes there were.
+        len: usize,
+        /// Bytes it needs.
+        needed: usize,
+    },
+    /// A frame type outside the standard's set.
+    UnknownCode(UnknownCode),
+    /// A DNS name longer than its field.
+    DnsNameTooLong {
+        /// Its length in bytes.
+        len: usize,
+        /// The field's length.
+        max: usize,
+    },
+    /// A DNS name that is not UTF-8 text.
+    DnsNameNotText,
+    /// An Ethernet frame longer than EoE carries here, or than its fragment 0 announced.
+    FrameTooLong {
+        /// Its length.
+        len: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// A mailbox too small for one 32-byte unit of a fragment.
+    MailboxTooSmall {
+        /// The mailbox's length.
+        len: usize,
+        /// The least that carries a fragment.
+        min: usize,
+    },
+    /// A fragment other than the next one of the frame being put together.
+    OutOfOrder {
+        /// Its frame number.
+        frame_number: u8,
+        /// The fragment number expected.
+        expected: u8,
+        /// The fragment number received.
+        got: u8,
+    },
+    /// A fragment whose offset is not where the frame being put together has reached.
+    OffsetMismatch {
+        /// Its offset in bytes.
+        offset: usize,
+        /// Bytes received so far.
+        received: usize,
+    },
+    /// A fragment other than the last whose length is not a multiple of 32 bytes.
+    FragmentNotWholeUnits {
+        /// Its length.
+        len: usize,
+    },
+    /// The slave's SII does not list EoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave answered Set IP Parameter with another result than success.
+    Refused {
+        /// Slave position.
+        slave: u16,
+        /// The result code.
+        result: u16,
+        /// Its name in the standard.
+        result_name: &'static str,
+    },
+    /// A frame whose length does not round to the size its fragment 0 announced.
+    SizeMismatch {
+        /// The size announced, in 32-byte units.
+        announced_units: u8,
+        /// Bytes received.
+        received: usize,
+    },
+}
+
+impl fmt::Display for EoeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EoeError::Truncated { what, len, needed } => {
+                write!(f, "{what} cut short: the message has {len} bytes, it needs {needed}")
+            }
+            EoeError::UnknownCode(e) => write!(f, "{e}"),
+            EoeError::DnsNameTooLong { len, max } => write!(f, "DNS name of {len} bytes is longer than {max}"),
+            EoeError::DnsNameNotText => write!(f, "DNS name is not valid text"),
+            EoeError::FrameTooLong { len, max } => write!(f, "Ethernet frame of {len} bytes is longer than {max}"),
+            EoeError::MailboxTooSmall { len, min } => {
+                write!(f, "a {len}-byte mailbox cannot carry an EoE fragment (it needs {min} bytes)")
+            }
+            EoeError::OutOfOrder { frame_number, expected, got } => {
+                write!(f, "EoE fragment {got} of frame {frame_number} where fragment {expected} was expected")
+            }
+            EoeError::OffsetMismatch { offset, received } => {
+                write!(f, "EoE fragment at offset {offset} where {received} bytes were received")
+            }
+            EoeError::FragmentNotWholeUnits { len } => {
+                write!(f, "EoE fragment of {len} bytes is not the last but not a multiple of 32 bytes")
+            }
+            EoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak EoE (SII mailbox protocols)")
+            }
+            EoeError::Refused { slave, result, result_name } => {
+                write!(f, "slave {slave} answered Set IP Parameter with result 0x{result:04X} ({result_name})")
+            }
+            EoeError::SizeMismatch { announced_units, received } => write!(
+                f,
+                "EoE frame of {received} bytes where fragment 0 announced {announced_units} units of 32 bytes"
+            ),
+        }
+    }
+}
+
+/// A FoE message that does not fit the standard (ETG.1000.6 §5.9), or a transfer that failed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FoeError {
+    /// A message cut short.
+    Truncated {
+        /// The structure.
+        what: &'static str,
+        /// Bytes there were.
+        len: usize,
+        /// Bytes it needs.
+        needed: usize,
+    },
+    /// An opcode outside the standard's set.
+    UnknownCode(UnknownCode),
+    /// A file name that is not UTF-8 text.
+    NameNotText,
+    /// The slave's SII does not list FoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave ended the transfer of `name` with a FoE error.
+    Refused {
+        /// Slave position.
+        slave: u16,
+        /// The file.
+        name: String,
+        /// The error code.
+        code: u32,
+        /// Its name in the standard.
+        code_name: &'static str,
+        /// The slave's text.
+        text: String,
+    },
+    /// The slave answered with another message than the transfer allows.
+    Unexpected {
+        /// Slave position.
+        slave: u16,
+        /// The file.
+        name: String,
+        /// What was awaited.
+        expected: &'static str,
+        /// The opcode received.
+        got: &'static str,
+    },
+    /// A packet or acknowledge with another number than the transfer reached.
+    PacketNumber {
+        /// Slave position.
+        slave: u16,
+        /// The number expected.
+        expected: u32,
+        /// The number received.
+        got: u32,
+    },
+    /// A file longer than this master reads into memory.
+    TooLong {
+        /// The file.
+        name: String,
+        /// The most bytes read.
+        max: usize,
+    },
+}
+
+impl fmt::Display for FoeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FoeError::Truncated { what, len, needed } => {
+                write!(f, "{what} of {len} bytes is shorter than the {needed} bytes it needs")
+            }
+            FoeError::UnknownCode(e) => write!(f, "{e}"),
+            FoeError::NameNotText => write!(f, "FoE file name is not valid text"),
+            FoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak FoE (SII mailbox protocols)")
+            }
+            FoeError::Refused { slave, name, code, code_name, text } => {
+                write!(f, "slave {slave} refused file {name:?}: FoE error 0x{code:04X} ({code_name})")?;
+                if !text.is_empty() && text != code_name {
+                    write!(f, ": {text}")?;
+                }
+                Ok(())
+            }
+            FoeError::Unexpected { slave, name, expected, got } => {
+                write!(f, "slave {slave} answered the transfer of {name:?} with FoE {got} where {expected} was due")
+            }
+            FoeError::PacketNumber { slave, expected, got } => {
+                write!(f, "slave {slave} sent FoE packet number {got} where {expected} was due")
+            }
+            FoeError::TooLong { name, max } => write!(f, "file {name:?} is longer than {max} bytes"),
+        }
+    }
+}
+
 /// A mailbox message that does not fit the request or the protocol (ETG.1000.6 mailbox and
 /// CoE).
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -1005,6 +1215,15 @@ pub enum SettingError {
         /// The name.
         name: String,
     },
+    /// An address for EoE that is not in its form.
+    Address {
+        /// The field ("IP address", "MAC address", ...).
+        what: &'static str,
+        /// The text given.
+        value: String,
+        /// The form it must have.
+        form: &'static str,
+    },
 }
 
 impl fmt::Display for SettingError {
@@ -1092,6 +1311,7 @@ impl fmt::Display for SettingError {
                 write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")
             }
             SettingError::InterfaceName { name } => write!(f, "interface name {name:?} contains a NUL byte"),
+            SettingError::Address { what, value, form } => write!(f, "{what} {value:?} is not of the form {form}"),
         }
     }
 }
@@ -1586,6 +1806,10 @@ pub enum Error {
     },
     /// A trajectory refused before anything moved.
     Trajectory(TrajectoryError),
+    /// An Ethernet-over-EtherCAT message or frame that does not fit the standard.
+    Eoe(EoeError),
+    /// A file transfer over EtherCAT that failed or a message that does not fit the standard.
+    Foe(FoeError),
 }
 
 impl fmt::Display for Error {
@@ -1625,6 +1849,8 @@ impl fmt::Display for Error {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
             }
             Error::Trajectory(e) => write!(f, "{e}"),
+            Error::Eoe(e) => write!(f, "EoE: {e}"),
+            Error::Foe(e) => write!(f, "FoE: {e}"),
         }
     }
 }
@@ -1652,6 +1878,8 @@ error_from! {
     LinkSpecError => LinkSpec,
     FrameError => Frame,
     TrajectoryError => Trajectory,
+    EoeError => Eoe,
+    FoeError => Foe,
 }
 
 impl From<UnknownCode> for Error {
@@ -1682,3 +1910,5 @@ impl std::error::Error for SettingError {}
 impl std::error::Error for UnknownName {}
 impl std::error::Error for Unavailable {}
 impl std::error::Error for TrajectoryError {}
+impl std::error::Error for EoeError {}
+impl std::error::Error for FoeError {}

@@ -9,7 +9,8 @@
 //!    master and the virtual AKD share them without sharing any state: [`frame`] (datagrams
 //!    and working counters), [`registers`] (ESC register map), [`sii`] (SII EEPROM content),
 //!    [`al`] (AL states and status codes), [`mailbox`] and [`coe`] (mailbox header, CoE SDO,
-//!    SDO information, emergency), [`pdo`] (the AKD's process-data mappings and their rules),
+//!    SDO information, emergency), [`eoe`] (Ethernet over EtherCAT: fragments, Set IP
+//!    Parameter) and [`foe`] (file access over EtherCAT), [`pdo`] (the AKD's process-data mappings and their rules),
 //!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine) and
 //!    [`akd_fault`] (the AKD's fault numbers), and [`trajectory`] (joint trajectories, validated
 //!    and interpolated). Closed sets of wire codes are enums (e.g.
@@ -40,7 +41,9 @@ pub mod coe;
 pub mod cycle;
 pub mod dc;
 pub mod ds402;
+pub mod eoe;
 pub mod error;
+pub mod foe;
 pub mod frame;
 pub mod link;
 pub mod mailbox;

@@ -32,7 +32,7 @@ macro_rules! wire_codes {
         impl TryFrom<$raw> for $name {
             type Error = crate::error::UnknownCode;
 
-            fn try_from(value: $raw) -> Result<Self, Self::Error> {
+            fn try_from(value: $raw) -> Result<Self, crate::error::UnknownCode> {
                 match value {
                     $($value => Ok($name::$variant),)+
                     _ => Err(crate::error::UnknownCode {

@@ -159,7 +159,7 @@ def console_script(name: str) -> list[str]:
     installed = Path(sys.executable).with_name(name)
     if installed.exists():
         return [str(installed)]
-    module = {"akd-sim": "sim", "akd-scan": "scan", "akd-sdo": "sdo"}[name]
+    module = {"akd-sim": "sim", "akd-scan": "scan", "akd-sdo": "sdo", "akd-eoe": "eoe", "akd-foe": "foe"}[name]
     return [sys.executable, "-m", f"akd_ros.cli.{module}"]
 
 

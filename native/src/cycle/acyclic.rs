@@ -4,6 +4,10 @@
 //! is slow to answer an SDO never delays a cycle. The cyclic frame's supervision reads tell
 //! which slave has a message waiting in SM1.
 //!
+//! Ethernet frames for the drives' IP stacks ([`EoeFrames`]) go in EoE fragments in the cycles
+//! no SDO transfer needs, one fragment a cycle; the drives' fragments are put back together
+//! as they are read, by a reassembler per drive allocated before the cycle.
+//!
 //! A transfer travels in one mailbox message each way: expedited, or normal when the value
 //! fits the mailbox (the AKD's objects do); a value that would need segments is refused with
 //! an error saying so. Other threads hand a transfer over through [`SdoSlot`], a handshake on
@@ -14,7 +18,9 @@ use std::sync::Mutex;
 use std::time::Duration;
 
 use crate::coe::{self, CoeService, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::cycle::eoe_frames::EoeFrames;
 use crate::cycle::events::{Action, Event, Events, FaultSource};
+use crate::eoe::{self, EoeMessage, Fragmenter, Reassembler, MAX_FRAME_LEN};
 use crate::error::{Error, MailboxError, Result, SettingError, Unavailable};
 use crate::mailbox::{MailboxHeader, MailboxType};
 use crate::master::cyclic::SlaveWatch;
@@ -187,6 +193,20 @@ pub struct MailboxService {
     next_slave: usize,
     index: u16,
     subindex: u8,
+    eoe: EoeService,
+}
+
+/// The EoE part: the frame being sent and the fragment of it built, a reassembler and the
+/// next frame number per drive.
+struct EoeService {
+    frame: Vec<u8>,
+    /// The frame in `frame`: its slave, length, fragment to send next.
+    sending: Option<(u16, usize, usize)>,
+    /// The fragment built in `message` and not yet taken by SM0: its length.
+    built: Option<usize>,
+    message: Vec<u8>,
+    reassemblers: Vec<Reassembler>,
+    frame_numbers: Vec<u8>,
 }
 
 impl MailboxService {
@@ -203,6 +223,14 @@ impl MailboxService {
             next_slave: 0,
             index: 0,
             subindex: 0,
+            eoe: EoeService {
+                frame: vec![0; MAX_FRAME_LEN],
+                sending: None,
+                built: None,
+                message: vec![0; largest(|m| m.out_len)],
+                reassemblers: vec![Reassembler::default(); master.slaves().len()],
+                frame_numbers: vec![0; master.slaves().len()],
+            },
         }
     }
 
@@ -217,19 +245,20 @@ impl MailboxService {
     }
 
     /// One cycle's mailbox work, after the exchange: reads one waiting message, else starts
-    /// or continues one transfer. `statusword(slave)` gives a drive's statusword for events;
-    /// the mailbox of a slave `recovering` is the recovery's, and left alone.
+    /// or continues one transfer, else sends one EoE fragment. `statusword(slave)` gives a
+    /// drive's statusword for events; the mailbox of a slave `recovering` is the recovery's,
+    /// and left alone.
     pub fn run(
         &mut self,
         master: &mut Master,
-        slot: &SdoSlot,
+        (slot, frames): (&SdoSlot, &EoeFrames),
         events: &Events,
         context: (u64, u64),
         recovering: impl Fn(u16) -> bool,
         statusword: impl Fn(u16) -> u16,
     ) {
         let now_ns = context.1;
-        if self.read_one(master, slot, events, context, (&recovering, &statusword)) {
+        if self.read_one(master, slot, frames, events, context, (&recovering, &statusword)) {
             return;
         }
         if let Phase::Sending { slave, deadline_ns, origin } | Phase::Awaiting { slave, deadline_ns, origin, .. } =
@@ -255,6 +284,49 @@ impl MailboxService {
                 Ok(false) => {}
                 Err(_) => self.finish(slot, events, origin, Outcome::Unexpected, 0, &[]),
             }
+            return;
+        }
+        self.send_fragment(master, frames, &recovering);
+    }
+
+    /// Builds the next EoE fragment of the frame under way (taking the next frame when none
+    /// is) and offers it to the drive's SM0 once.
+    fn send_fragment(&mut self, master: &mut Master, frames: &EoeFrames, recovering: &impl Fn(u16) -> bool) {
+        let e = &mut self.eoe;
+        if e.sending.is_none() {
+            let Some((slave, len)) = frames.next_to_drive(&mut e.frame) else { return };
+            if mailbox_of(master, slave).is_none_or(|m| m.protocols & MailboxType::Eoe.sii_protocol_bit() == 0) {
+                return;
+            }
+            let number = &mut e.frame_numbers[slave as usize];
+            *number = (*number + 1) & 0x0F;
+            e.sending = Some((slave, len, 0));
+        }
+        let Some((slave, len, fragment)) = e.sending else { return };
+        if recovering(slave) {
+            return;
+        }
+        let out_len = mailbox_of(master, slave).map_or(0, |m| m.out_len as usize);
+        if e.built.is_none() {
+            let number = e.frame_numbers[slave as usize];
+            let next = Fragmenter::new(&e.frame[..len], number, out_len).ok().and_then(|mut f| f.nth(fragment));
+            let (Some((header, data)), Ok(counter)) =
+                (next, master.slave_mut(slave).and_then(|mut s| s.mailbox_take_counter()))
+            else {
+                e.sending = None;
+                return;
+            };
+            e.message[..out_len].fill(0);
+            eoe::write_fragment(&mut e.message[..out_len], counter, &header, data);
+            e.built = Some(usize::from(header.last_fragment));
+        }
+        match master.slave_mut(slave).and_then(|mut s| s.mailbox_try_send(&mut e.message[..out_len])) {
+            Ok(true) => {
+                let last = e.built.take() == Some(1);
+                e.sending = if last { None } else { Some((slave, len, fragment + 1)) };
+            }
+            Ok(false) => {}
+            Err(_) => (e.sending, e.built) = (None, None),
         }
     }
 
@@ -307,6 +379,7 @@ impl MailboxService {
         &mut self,
         master: &mut Master,
         slot: &SdoSlot,
+        frames: &EoeFrames,
         events: &Events,
         (cycle, time_ns): (u64, u64),
         (recovering, statusword): (&impl Fn(u16) -> bool, &impl Fn(u16) -> u16),
@@ -384,6 +457,15 @@ impl MailboxService {
                     _ => (Outcome::Unexpected, 0, 0),
                 };
                 self.finish(slot, events, origin, outcome, code, &value[..len]);
+            }
+            // Only fragments: the decoding of any other EoE message may allocate.
+            Some(MailboxType::Eoe) if header.body(&self.receive[..len]).first().is_some_and(|b| b & 0x0F == 0) => {
+                let body = header.body(&self.receive[..len]);
+                if let Ok(EoeMessage::Fragment { header, data, .. }) = EoeMessage::decode(body) {
+                    if let Ok(Some(frame)) = self.eoe.reassemblers[slave as usize].push(&header, data) {
+                        frames.drive_sent(slave, frame);
+                    }
+                }
             }
             _ => {}
         }

@@ -42,6 +42,7 @@ use crate::trajectory::{Knot, Limits, Trajectory};
 pub mod acyclic;
 pub mod command_timeout;
 pub mod dc_status;
+pub mod eoe_frames;
 pub mod events;
 pub mod handshake;
 pub mod image;
@@ -131,6 +132,8 @@ struct Shared {
     events: Events,
     samples: Samples,
     sdo: SdoSlot,
+    /// Ethernet frames to and from the drives' IP stacks (EoE beside the process data).
+    eoe: eoe_frames::EoeFrames,
     /// Whether a fault on one drive quick-stops the others ([`CycleThread::set_quick_stop_on_fault`]).
     quick_stop_on_fault: AtomicBool,
     dc: dc_status::Shared,
@@ -282,6 +285,7 @@ impl CycleThread {
             events: Events::default(),
             samples: Samples::for_drives(sequenced_count),
             sdo: SdoSlot::default(),
+            eoe: eoe_frames::EoeFrames::default(),
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::Shared::new(master.clock()),
             trajectories: trajectory_player::Shared::default(),
@@ -460,6 +464,30 @@ impl CycleThread {
     pub fn sdo_write(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         self.check_slave(position)?;
         self.shared.sdo.transfer(position, index, subindex, Some(data), || self.running()).map(|_| ())
+    }
+
+    /// Queues one Ethernet frame for the IP stack of the drive at `position`, carried in EoE
+    /// fragments in the cycles no SDO transfer needs; `false` when the queue was full and the
+    /// frame was dropped (counted in [`eoe_dropped`](Self::eoe_dropped)).
+    pub fn eoe_send(&self, position: u16, frame: &[u8]) -> Result<bool> {
+        self.check_slave(position)?;
+        if frame.len() > crate::eoe::MAX_FRAME_LEN {
+            return Err(
+                crate::error::EoeError::FrameTooLong { len: frame.len(), max: crate::eoe::MAX_FRAME_LEN }.into()
+            );
+        }
+        Ok(self.shared.eoe.send(position, frame))
+    }
+
+    /// The next Ethernet frame a drive's IP stack sent, waiting up to `timeout`: the drive's
+    /// position and the frame.
+    pub fn eoe_receive(&self, timeout: Duration) -> Option<(u16, Vec<u8>)> {
+        self.shared.eoe.receive(timeout)
+    }
+
+    /// Ethernet frames dropped because a queue was full: (to the drives, from the drives).
+    pub fn eoe_dropped(&self) -> (u64, u64) {
+        self.shared.eoe.dropped()
     }
 
     fn check_slave(&self, position: u16) -> Result<()> {
@@ -967,7 +995,7 @@ fn run(
             }
         }
         let recovering = |slave: u16| shared.recovery.get(slave as usize).is_some_and(recovery::busy);
-        mailbox.run(master, &shared.sdo, &shared.events, now, recovering, |slave| {
+        mailbox.run(master, (&shared.sdo, &shared.eoe), &shared.events, now, recovering, |slave| {
             let status = shared.drives.get(slave as usize).map(|d| d.status());
             status.map_or(0, |s| s.statusword)
         });

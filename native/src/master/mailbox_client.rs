@@ -6,7 +6,8 @@
 //! repeat request of SM1 (activate bit 1, acknowledged in PDI control bit 1). Emergency
 //! messages that arrive in between are queued on the slave, a reply with another counter than
 //! the request's is a stale one and dropped (and counted), and a mailbox error reply becomes an
-//! error naming its detail code.
+//! error naming its detail code. EoE fragments go to the slave's [`EoePort`](super::eoe::EoePort)
+//! whoever reads them; EoE responses and FoE messages go to the caller.
 
 use std::time::{Duration, Instant};
 
@@ -272,6 +273,18 @@ impl Master {
                     self.stats.stale_mailbox_replies += 1;
                     return Ok(None);
                 }
+                buffer.truncate(codec::HEADER_LEN + header.length as usize);
+                Ok(Some(buffer))
+            }
+            Some(MailboxType::Eoe) => {
+                buffer.truncate(codec::HEADER_LEN + header.length as usize);
+                // Fragments go to the slave's EoE port, whoever reads them; responses on.
+                if self.slave_entry_mut(position)?.eoe.take(header.body(&buffer)) {
+                    return Ok(None);
+                }
+                Ok(Some(buffer))
+            }
+            Some(MailboxType::Foe) => {
                 buffer.truncate(codec::HEADER_LEN + header.length as usize);
                 Ok(Some(buffer))
             }

@@ -3,7 +3,7 @@
 //! One module per concept: [`scan`] finds the slaves and gives them station addresses,
 //! [`sii_read`] reads their EEPROM, [`state`] moves them through the AL state machine,
 //! [`mailbox_client`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
-//! the CoE client, [`mapping`] selects the process-data mapping, [`clocks`] sets up distributed
+//! the CoE client, [`eoe`] and [`foe`] the EoE and FoE clients, [`mapping`] selects the process-data mapping, [`clocks`] sets up distributed
 //! clocks and [`cyclic`] exchanges the process image and [`restore`] brings one slave back while the
 //! others cycle. This file holds the bus-wide state and
 //! the register access all of them share.
@@ -19,6 +19,8 @@ use crate::sii::Sii;
 
 pub mod clocks;
 pub mod cyclic;
+pub mod eoe;
+pub mod foe;
 pub mod mailbox_client;
 pub mod mapping;
 pub mod restore;
@@ -80,6 +82,8 @@ pub struct Slave {
     pub mailbox: Option<mailbox_client::Mailbox>,
     /// Emergency messages received and not yet taken.
     pub emergencies: VecDeque<Emergency>,
+    /// Its end of EoE: Ethernet frames received, the next frame number.
+    pub eoe: eoe::EoePort,
     /// The process-data mapping chosen for this slave, if any.
     pub mapping: Option<mapping::SlaveMapping>,
 }

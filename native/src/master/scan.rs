@@ -82,6 +82,7 @@ impl Master {
             sii,
             mailbox,
             emergencies: VecDeque::new(),
+            eoe: Default::default(),
             mapping: None,
         })
     }

@@ -127,6 +127,37 @@ impl SlaveRef<'_> {
         self.master.mailbox_try_read(self.position, buffer)
     }
 
+    /// Gives this slave its IP parameters (EoE Set IP Parameter) and waits for its response.
+    pub fn eoe_set_ip(&mut self, parameters: &crate::eoe::IpParameters) -> Result<()> {
+        self.master.eoe_set_ip(self.position, parameters)
+    }
+
+    /// Sends one Ethernet frame to this slave's IP stack through EoE.
+    pub fn eoe_send(&mut self, frame: &[u8]) -> Result<()> {
+        self.master.eoe_send(self.position, frame)
+    }
+
+    /// The next Ethernet frame this slave's IP stack sent, waiting up to `timeout`.
+    pub fn eoe_receive(&mut self, timeout: Duration) -> Result<Option<Vec<u8>>> {
+        self.master.eoe_receive(self.position, timeout)
+    }
+
+    /// Writes `data` as the file `name` (FoE); `progress(sent, total)` after each packet.
+    pub fn foe_write(
+        &mut self,
+        name: &str,
+        password: u32,
+        data: &[u8],
+        progress: &mut dyn FnMut(usize, usize),
+    ) -> Result<()> {
+        self.master.foe_write(self.position, name, password, data, progress)
+    }
+
+    /// Reads the file `name` (FoE); `progress(received)` after each packet.
+    pub fn foe_read(&mut self, name: &str, password: u32, progress: &mut dyn FnMut(usize)) -> Result<Vec<u8>> {
+        self.master.foe_read(self.position, name, password, progress)
+    }
+
     /// Takes the emergency messages received from this slave.
     pub fn take_emergencies(&mut self) -> Result<Vec<Emergency>> {
         self.master.take_emergencies(self.position)

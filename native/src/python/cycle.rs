@@ -536,6 +536,26 @@ impl PyCycle {
         py.allow_threads(|| cycle.sdo_write(position, index, subindex, &data)).py()
     }
 
+    /// Queues one Ethernet frame for drive `position`'s IP stack, carried through EoE beside
+    /// the process data; `False` when the queue was full and the frame was dropped.
+    fn eoe_send(&self, position: u16, frame: Vec<u8>) -> PyResult<bool> {
+        self.cycle.eoe_send(position, &frame).py()
+    }
+
+    /// The next Ethernet frame a drive's IP stack sent, waiting up to `timeout` s (the GIL
+    /// released): `(position, frame)`, or `None`.
+    fn eoe_receive<'py>(&self, py: Python<'py>, timeout: f64) -> PyResult<Option<(u16, Bound<'py, PyBytes>)>> {
+        let timeout = duration("timeout", timeout, SECONDS)?;
+        let cycle = &self.cycle;
+        let frame = py.allow_threads(|| cycle.eoe_receive(timeout));
+        Ok(frame.map(|(position, f)| (position, PyBytes::new(py, &f))))
+    }
+
+    /// Ethernet frames dropped because a queue was full: `(to the drives, from the drives)`.
+    fn eoe_dropped(&self) -> (u64, u64) {
+        self.cycle.eoe_dropped()
+    }
+
     /// Sets the mode of operation (0x6060) of drive `position` and holds its target at the
     /// actual position until the next set-point.
     fn set_mode(&self, py: Python<'_>, position: u16, mode: i8) -> PyResult<()> {

@@ -120,6 +120,18 @@ impl PyMaster {
     }
 }
 
+/// Calls a Python progress callback from a thread without the GIL; what it raises is its own
+/// and does not stop the transfer.
+fn report(progress: &Option<PyObject>, args: &[usize]) {
+    if let Some(callback) = progress {
+        Python::with_gil(|py| {
+            if let Ok(args) = pyo3::types::PyTuple::new(py, args) {
+                let _ = callback.call1(py, args);
+            }
+        });
+    }
+}
+
 /// One slave as `scan` reports it, besides its identity.
 #[derive(IntoPyObject)]
 struct ScannedSlave {
@@ -288,6 +300,90 @@ impl PyMaster {
     /// Writes an SDO.
     fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
         self.with_slave(py, position, |s| s.sdo_write(index, subindex, &data))
+    }
+
+    /// Gives slave `position` its IP parameters through EoE (Set IP Parameter) and waits for
+    /// its response. Addresses are dotted IPv4 text, `mac` six colon-separated hex bytes; the
+    /// MAC defaults to 02:01:05:30 and the station address, as TwinCAT chose a real AKD's. A
+    /// field left `None` is not sent (the drive keeps what it had).
+    #[pyo3(signature = (position, ip, subnet_mask=None, gateway=None, dns_server=None, dns_name=None, mac=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn eoe_set_ip(
+        &self,
+        py: Python<'_>,
+        position: u16,
+        ip: &str,
+        subnet_mask: Option<&str>,
+        gateway: Option<&str>,
+        dns_server: Option<&str>,
+        dns_name: Option<String>,
+        mac: Option<&str>,
+    ) -> PyResult<String> {
+        use crate::eoe::{parse_ipv4, parse_mac, IpParameters};
+        let address = |what, text: Option<&str>| text.map(|t| parse_ipv4(what, t)).transpose();
+        let parameters = IpParameters {
+            mac: mac.map(parse_mac).transpose().map_err(Error::from).py()?,
+            ip: Some(parse_ipv4("IP address", ip).map_err(Error::from).py()?),
+            subnet_mask: address("subnet mask", subnet_mask).map_err(Error::from).py()?,
+            gateway: address("default gateway", gateway).map_err(Error::from).py()?,
+            dns_server: address("DNS server", dns_server).map_err(Error::from).py()?,
+            dns_name,
+        };
+        self.with_slave(py, position, |s| {
+            let mac = parameters.mac.unwrap_or_else(|| master::eoe::default_mac(s.info().station_address));
+            s.eoe_set_ip(&crate::eoe::IpParameters { mac: Some(mac), ..parameters })?;
+            Ok(mac.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(":"))
+        })
+    }
+
+    /// Sends one Ethernet frame to slave `position`'s IP stack through EoE (the bus stopped).
+    fn eoe_send(&self, py: Python<'_>, position: u16, frame: Vec<u8>) -> PyResult<()> {
+        self.with_slave(py, position, |s| s.eoe_send(&frame))
+    }
+
+    /// The next Ethernet frame slave `position`'s IP stack sent, waiting up to `timeout` s;
+    /// `None` when none came.
+    fn eoe_receive<'py>(
+        &self,
+        py: Python<'py>,
+        position: u16,
+        timeout: f64,
+    ) -> PyResult<Option<Bound<'py, pyo3::types::PyBytes>>> {
+        let timeout = super::seconds(timeout, "timeout")?;
+        let frame = self.with_slave(py, position, |s| s.eoe_receive(timeout))?;
+        Ok(frame.map(|f| pyo3::types::PyBytes::new(py, &f)))
+    }
+
+    /// Writes `data` as the file `name` to slave `position` through FoE; `progress(sent, total)`
+    /// after each packet the drive acknowledged. Raises FoeError with the drive's code by name.
+    #[pyo3(signature = (position, name, data, password=0, progress=None))]
+    fn foe_write(
+        &self,
+        py: Python<'_>,
+        position: u16,
+        name: &str,
+        data: Vec<u8>,
+        password: u32,
+        progress: Option<PyObject>,
+    ) -> PyResult<()> {
+        self.with_slave(py, position, |s| {
+            s.foe_write(name, password, &data, &mut |sent, total| report(&progress, &[sent, total]))
+        })
+    }
+
+    /// Reads the file `name` from slave `position` through FoE; `progress(received)` after each
+    /// packet. Raises FoeError with the drive's code by name (0x8001 "not found").
+    #[pyo3(signature = (position, name, password=0, progress=None))]
+    fn foe_read<'py>(
+        &self,
+        py: Python<'py>,
+        position: u16,
+        name: &str,
+        password: u32,
+        progress: Option<PyObject>,
+    ) -> PyResult<Bound<'py, pyo3::types::PyBytes>> {
+        let file = self.with_slave(py, position, |s| s.foe_read(name, password, &mut |n| report(&progress, &[n])))?;
+        Ok(pyo3::types::PyBytes::new(py, &file))
     }
 
     /// Every object index of the slave's object dictionary (SDO information).

@@ -52,6 +52,12 @@ create_exception!(
     EtherCatError,
     "A mailbox reply that does not fit the request or the protocol."
 );
+create_exception!(
+    _native,
+    FoeError,
+    MailboxError,
+    "A file transfer over EtherCAT refused or failed; attributes name, code, code_name where the slave refused."
+);
 create_exception!(_native, SiiError, EtherCatError, "The SII EEPROM content or interface is not as expected.");
 create_exception!(_native, PdoError, EtherCatError, "A process-data mapping the AKD would refuse, or an unknown one.");
 create_exception!(_native, ConfigError, EtherCatError, "A configuration value out of its allowed range.");
@@ -67,7 +73,8 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             Error::WorkingCounter { .. } => WorkingCounterError::new_err(message),
             Error::AlState { .. } => AlStateError::new_err(message),
             Error::SdoAbort { .. } => SdoAbortError::new_err(message),
-            Error::Mailbox(_) => MailboxError::new_err(message),
+            Error::Mailbox(_) | Error::Eoe(_) => MailboxError::new_err(message),
+            Error::Foe(_) => FoeError::new_err(message),
             Error::Sii(_) | Error::Replaced { .. } => SiiError::new_err(message),
             Error::Pdo(_) => PdoError::new_err(message),
             Error::LinkSpec(_)
@@ -100,6 +107,11 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             Error::SdoAbort { index, subindex, code, code_name } => {
                 set("index", index.into_py_any(py));
                 set("subindex", subindex.into_py_any(py));
+                set("code", code.into_py_any(py));
+                set("code_name", code_name.into_py_any(py));
+            }
+            Error::Foe(crate::error::FoeError::Refused { name, code, code_name, .. }) => {
+                set("name", name.into_py_any(py));
                 set("code", code.into_py_any(py));
                 set("code_name", code_name.into_py_any(py));
             }
@@ -160,6 +172,7 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
         ("AlStateError", py.get_type::<AlStateError>()),
         ("SdoAbortError", py.get_type::<SdoAbortError>()),
         ("MailboxError", py.get_type::<MailboxError>()),
+        ("FoeError", py.get_type::<FoeError>()),
         ("SiiError", py.get_type::<SiiError>()),
         ("PdoError", py.get_type::<PdoError>()),
         ("ConfigError", py.get_type::<ConfigError>()),

@@ -1,5 +1,6 @@
 //! The virtual AKD's mailbox server: CoE SDO transfers (expedited, normal, segmented), SDO
-//! information with fragmentation, emergencies, and mailbox error replies for anything else.
+//! information with fragmentation, emergencies, EoE ([`eoe_server`](crate::sim::eoe_server)) and
+//! FoE ([`foe_server`](crate::sim::foe_server)), and mailbox error replies for anything else.
 //!
 //! Replies echo the request's mailbox counter, as the real drive does (request counter 1 →
 //! reply counter 1 in the SOEM capture). A message with the same non-zero counter as the last
@@ -15,8 +16,15 @@ use crate::coe::{
     ObjectDescription, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse, COE_HEADER_LEN,
     SDO_INFO_HEADER_LEN, SDO_LEN,
 };
+use crate::error::EoeError;
 use crate::mailbox::{next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN};
+use crate::sim::eoe_server::EoeServer;
+use crate::sim::foe_server::FoeServer;
 use crate::sim::od::ObjectDictionary;
+
+/// Messages the drive queues for the master before its IP stack waits (a master that does not
+/// read its mailbox must not make the drive's memory grow).
+const MAX_QUEUED: usize = 32;
 
 /// A segmented upload in progress.
 struct Upload {
@@ -46,6 +54,11 @@ pub struct MailboxServer {
     counter: u8,
     /// Counter of the last message from the master that was served (0: none, or not counted).
     accepted_counter: u8,
+    eoe: EoeServer,
+    foe: FoeServer,
+    /// The firmware's delays before the Set IP Parameter response and after it, before the
+    /// announcement (see [`Timing`](crate::sim::Timing)).
+    eoe_delays: (u64, u64),
 }
 
 /// The write-access bit of the state the drive is in.
@@ -58,9 +71,51 @@ fn state_write_access(state: AlState) -> u16 {
 }
 
 impl MailboxServer {
-    /// Forgets transfers and queued replies (the mailbox stops when the drive goes to Init).
+    /// A server whose EoE answers Set IP Parameter after `set_ip_ns` and announces the drive's
+    /// address `announce_ns` after that.
+    pub fn with_eoe_delays(set_ip_ns: u64, announce_ns: u64) -> Self {
+        MailboxServer { eoe_delays: (set_ip_ns, announce_ns), ..MailboxServer::default() }
+    }
+
+    /// Forgets transfers, queued replies and the IP settings (the mailbox stops when the drive
+    /// goes to Init); files written by FoE stay.
     pub fn reset(&mut self) {
-        *self = MailboxServer::default();
+        let (mut foe, eoe_delays) = (std::mem::take(&mut self.foe), self.eoe_delays);
+        foe.stop();
+        *self = MailboxServer { foe, eoe_delays, ..MailboxServer::default() };
+    }
+
+    /// The EoE side (its IP parameters, fragments dropped).
+    pub fn eoe(&self) -> &EoeServer {
+        &self.eoe
+    }
+
+    /// The FoE side (the files written).
+    pub fn foe(&self) -> &FoeServer {
+        &self.foe
+    }
+
+    /// The FoE side, to inject a busy drive.
+    pub fn foe_mut(&mut self) -> &mut FoeServer {
+        &mut self.foe
+    }
+
+    /// The firmware's work at bus time `now_ns` beside the master's requests: EoE replies that
+    /// are due and the frames the drive's IP stack sends, in messages of `mailbox_size` bytes.
+    pub fn poll(&mut self, now_ns: u64, mailbox_size: usize) {
+        if self.replies.len() >= MAX_QUEUED {
+            return;
+        }
+        let (counter, replies) = (&mut self.counter, &mut self.replies);
+        self.eoe.poll(
+            now_ns,
+            mailbox_size,
+            || {
+                *counter = next_counter(*counter);
+                *counter
+            },
+            |message| replies.push_back(message),
+        );
     }
 
     /// The next reply for the mailbox-in buffer; it is kept for a repeat request.
@@ -84,9 +139,18 @@ impl MailboxServer {
         self.replies.push_back(out);
     }
 
-    /// Handles one message the master wrote to the mailbox-out buffer; `mailbox_size` is the
-    /// length of the mailbox-in buffer the replies must fit.
-    pub fn handle(&mut self, message: &[u8], od: &mut ObjectDictionary, state: AlState, mailbox_size: usize) {
+    /// Handles one message the master wrote to the mailbox-out buffer at bus time `now_ns`;
+    /// `mailbox_size` is the length of the mailbox-in buffer the replies must fit,
+    /// `request_size` that of the mailbox-out buffer (whose full FoE packets a master writes).
+    pub fn handle(
+        &mut self,
+        message: &[u8],
+        od: &mut ObjectDictionary,
+        state: AlState,
+        mailbox_size: usize,
+        request_size: usize,
+        now_ns: u64,
+    ) {
         let counter = message.get(5).map_or(0, |b| (b >> 4) & 0x07);
         // Counter 0 is the master's "not counting"; any other repeated value is a repetition.
         if counter != 0 && counter == self.accepted_counter {
@@ -99,10 +163,20 @@ impl MailboxServer {
             Ok(h) => h,
             Err(_) => return self.error(counter, MailboxErrorDetail::InvalidSize, mailbox_size),
         };
-        if header.protocol() != Some(MailboxType::Coe) {
-            return self.error(counter, MailboxErrorDetail::UnsupportedProtocol, mailbox_size);
-        }
         let body = header.body(message);
+        match header.protocol() {
+            Some(MailboxType::Coe) => {}
+            Some(MailboxType::Eoe) => return self.serve_eoe(body, counter, now_ns, mailbox_size),
+            Some(MailboxType::Foe) => {
+                let len = self.foe.handle(body, counter, request_size, &mut out);
+                if len > 0 {
+                    out.truncate(len);
+                    self.replies.push_back(out);
+                }
+                return;
+            }
+            _ => return self.error(counter, MailboxErrorDetail::UnsupportedProtocol, mailbox_size),
+        }
         if body.len() < COE_HEADER_LEN {
             return self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size);
         }
@@ -132,6 +206,23 @@ impl MailboxServer {
             }
             CoeService::SdoInformation => self.information(body, od, header.counter, mailbox_size),
             _ => self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
+        }
+    }
+
+    /// One EoE message: an EoE reply when the request has one, a mailbox error for a header
+    /// that is none (cut short: "data too short"; a frame type outside the standard's: "service
+    /// not supported"; a field that cannot be read: "invalid protocol header").
+    fn serve_eoe(&mut self, body: &[u8], counter: u8, now_ns: u64, mailbox_size: usize) {
+        let mut out = vec![0u8; mailbox_size];
+        match self.eoe.handle(body, counter, now_ns, self.eoe_delays, &mut out) {
+            Ok(0) => {}
+            Ok(len) => {
+                out.truncate(len);
+                self.replies.push_back(out);
+            }
+            Err(EoeError::Truncated { .. }) => self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size),
+            Err(EoeError::UnknownCode(_)) => self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
+            Err(_) => self.error(counter, MailboxErrorDetail::InvalidHeader, mailbox_size),
         }
     }
 
@@ -388,7 +479,7 @@ mod tests {
         let mut buf = [0u8; 64];
         // Each request a new one, as a master counts them.
         let len = write_sdo_request(&mut buf, next_counter(server.accepted_counter), request);
-        server.handle(&buf[..len], od, AlState::PreOp, 128);
+        server.handle(&buf[..len], od, AlState::PreOp, 128, 128, 0);
         server.next_reply().expect("a reply").to_vec()
     }
 
@@ -397,7 +488,7 @@ mod tests {
         let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
         // From the capture: upload 0x1C12:01 with counter 1 -> 4B 12 1C 01 00 16 00 00.
         let request = [0x0A, 0, 0, 0, 0, 0x13, 0x00, 0x20, 0x40, 0x12, 0x1C, 0x01, 0, 0, 0, 0];
-        server.handle(&request, &mut od, AlState::PreOp, 1024);
+        server.handle(&request, &mut od, AlState::PreOp, 1024, 1024, 0);
         let reply = server.next_reply().unwrap();
         assert_eq!(reply, &[0x0A, 0, 0, 0, 0, 0x13, 0x00, 0x30, 0x4B, 0x12, 0x1C, 0x01, 0x00, 0x16, 0x00, 0x00]);
     }
@@ -409,7 +500,7 @@ mod tests {
         let mut buf = [0u8; 32];
         let len =
             write_sdo_request(&mut buf, 1, &SdoRequest::Upload { index: 0x100A, subindex: 0, complete_access: false });
-        server.handle(&buf[..len], &mut od, AlState::PreOp, 24);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 24, 24, 0);
         let reply = server.next_reply().unwrap().to_vec();
         let (_, _, body) = split_message(&reply).unwrap();
         let SdoResponse::UploadNormal { complete_size: 12, data, .. } = SdoResponse::decode(body).unwrap() else {
@@ -420,7 +511,7 @@ mod tests {
         loop {
             let counter = next_counter(server.accepted_counter);
             let len = write_sdo_request(&mut buf, counter, &SdoRequest::UploadSegment { toggle });
-            server.handle(&buf[..len], &mut od, AlState::PreOp, 24);
+            server.handle(&buf[..len], &mut od, AlState::PreOp, 24, 24, 0);
             let reply = server.next_reply().unwrap().to_vec();
             let (_, _, body) = split_message(&reply).unwrap();
             let SdoResponse::UploadSegment { last, data, .. } = SdoResponse::decode(body).unwrap() else { panic!() };
@@ -475,7 +566,8 @@ mod tests {
     #[test]
     fn other_protocols_get_a_mailbox_error() {
         let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
-        server.handle(&[0x04, 0, 0, 0, 0, 0x22, 1, 2, 3, 4], &mut od, AlState::PreOp, 64);
+        // SoE (5): the AKD's SII lists CoE, EoE and FoE only.
+        server.handle(&[0x04, 0, 0, 0, 0, 0x25, 1, 2, 3, 4], &mut od, AlState::PreOp, 64, 64, 0);
         let reply = server.next_reply().unwrap();
         assert_eq!(reply, &[0x04, 0, 0, 0, 0, 0x20, 0x01, 0x00, 0x02, 0x00]);
     }
@@ -484,7 +576,7 @@ mod tests {
     fn od_list_is_fragmented_to_fit_the_mailbox() {
         let (mut server, mut od) = (MailboxServer::default(), ObjectDictionary::akd());
         let request = [0x08, 0, 0, 0, 0, 0x13, 0x00, 0x80, 0x01, 0x00, 0x00, 0x00, 0x01, 0x00];
-        server.handle(&request, &mut od, AlState::PreOp, 32);
+        server.handle(&request, &mut od, AlState::PreOp, 32, 32, 0);
         let mut indices = Vec::new();
         while let Some(reply) = server.next_reply() {
             let (_, coe, body) = split_message(reply).unwrap();
@@ -505,19 +597,19 @@ mod tests {
         let mut buf = [0u8; 32];
         let write = SdoRequest::DownloadExpedited { index: 0x607A, subindex: 0, complete_access: false, data: &[5; 4] };
         let len = write_sdo_request(&mut buf, 4, &write);
-        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128, 128, 0);
         // The master did not see its frame come back and writes the same message again.
-        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128, 128, 0);
         assert!(server.next_reply().is_some());
         assert_eq!(server.next_reply(), None, "the repetition was answered");
         // The next counter is a new request; counter 0 (a master that does not count) always is.
         let len = write_sdo_request(&mut buf, 5, &write);
-        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128, 128, 0);
         assert!(server.next_reply().is_some());
         let read = SdoRequest::Upload { index: 0x607A, subindex: 0, complete_access: false };
         let len = write_sdo_request(&mut buf, 0, &read);
-        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
-        server.handle(&buf[..len], &mut od, AlState::PreOp, 128);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128, 128, 0);
+        server.handle(&buf[..len], &mut od, AlState::PreOp, 128, 128, 0);
         assert!(server.next_reply().is_some() && server.next_reply().is_some());
         assert_eq!(server.next_reply(), None);
     }

@@ -22,8 +22,10 @@ pub mod al_machine;
 pub mod control;
 pub mod digital_inputs;
 pub mod drive;
+pub mod eoe_server;
 pub mod esc;
 pub mod faults;
+pub mod foe_server;
 pub mod in_process;
 pub mod line;
 pub mod mailbox_server;
@@ -59,6 +61,10 @@ pub struct Timing {
     pub mailbox_ns: u64,
     /// How the firmware judges missed frames: by time, as the real drive, or by frames lost.
     pub missed_frames: MissedFrames,
+    /// From an EoE Set IP Parameter request until the drive's response.
+    pub eoe_set_ip_ns: u64,
+    /// From that response until the drive announces its address (a broadcast ARP request).
+    pub eoe_announce_ns: u64,
 }
 
 impl Timing {
@@ -70,15 +76,26 @@ impl Timing {
     /// AKD read Init for about 16 ms after the request (about 19 ms for the whole transition),
     /// while the drive of the SOEM capture is in PreOp within 6.2 ms, and the replay of that
     /// capture holds the virtual AKD to it. What makes the difference is not known yet.
+    ///
+    /// Under TwinCAT a real AKD answered EoE Set IP Parameter about 25 ms after the request and
+    /// sent its gratuitous ARP about 18 ms after that (issue 15).
     pub const REAL_DRIVE: Timing = Timing {
         al_request_ns: 4_500_000,
         init_to_preop_ns: 4_500_000,
         mailbox_ns: 1_000_000,
         missed_frames: MissedFrames::Late,
+        eoe_set_ip_ns: 25_000_000,
+        eoe_announce_ns: 18_000_000,
     };
     /// No delay: each request is handled before the next frame.
-    pub const IMMEDIATE: Timing =
-        Timing { al_request_ns: 0, init_to_preop_ns: 0, mailbox_ns: 0, missed_frames: MissedFrames::Late };
+    pub const IMMEDIATE: Timing = Timing {
+        al_request_ns: 0,
+        init_to_preop_ns: 0,
+        mailbox_ns: 0,
+        missed_frames: MissedFrames::Late,
+        eoe_set_ip_ns: 0,
+        eoe_announce_ns: 0,
+    };
 }
 
 impl Default for Timing {
@@ -168,7 +185,7 @@ impl VirtualAkd {
             esc,
             al: al_machine::AlMachine::power_up(),
             od: od::ObjectDictionary::akd_of(identity),
-            mailbox: mailbox_server::MailboxServer::default(),
+            mailbox: mailbox_server::MailboxServer::with_eoe_delays(timing.eoe_set_ip_ns, timing.eoe_announce_ns),
             watchdog: watchdog::Watchdog::default(),
             timing,
             mailbox_size,
@@ -207,6 +224,16 @@ impl VirtualAkd {
     /// The object dictionary.
     pub fn od(&self) -> &od::ObjectDictionary {
         &self.od
+    }
+
+    /// The mailbox server: the IP settings EoE gave the drive, the files FoE wrote.
+    pub fn mailbox(&self) -> &mailbox_server::MailboxServer {
+        &self.mailbox
+    }
+
+    /// The mailbox server, to inject faults into its protocols (a busy FoE).
+    pub fn mailbox_mut(&mut self) -> &mut mailbox_server::MailboxServer {
+        &mut self.mailbox
     }
 
     /// The object dictionary, to set what the drive reports (tests, fault injection).
@@ -288,8 +315,12 @@ impl VirtualAkd {
         if let Some(due) = self.pending_mailbox {
             if due <= now_ns {
                 self.pending_mailbox = None;
-                self.read_mailbox();
+                self.read_mailbox(now_ns);
             }
+        }
+        if self.al.state() != AlState::Init && self.al.state() != AlState::Bootstrap {
+            let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
+            self.mailbox.poll(now_ns, size);
         }
         self.write_mailbox();
         if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
@@ -364,7 +395,7 @@ impl VirtualAkd {
     }
 
     /// Takes the master's message out of the mailbox-out buffer and answers it.
-    fn read_mailbox(&mut self) {
+    fn read_mailbox(&mut self, now_ns: u64) {
         let out = SyncManager::read(self.esc.memory(), 0);
         // Replies are sized for SM1 as the master set it, but never for less than the smallest
         // mailbox the drive accepts at Init→PreOp: a master may shrink SM1 afterwards (even below
@@ -375,7 +406,8 @@ impl VirtualAkd {
         let announced = buffer.get(..2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
         let message = buffer[..(HEADER_LEN + announced).min(buffer.len())].to_vec();
         sync_manager::mark_read(self.esc.memory_mut(), 0);
-        self.mailbox.handle(&message, &mut self.od, self.al.state(), size);
+        let request_size = usize::from(out.length);
+        self.mailbox.handle(&message, &mut self.od, self.al.state(), size, request_size, now_ns);
     }
 
     /// Puts the next queued reply into the mailbox-in buffer when the master emptied it.

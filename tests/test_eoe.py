@@ -1,0 +1,174 @@
+"""Ethernet over EtherCAT as a user runs it: akd-eoe sets the virtual drives' addresses, bridges them to a TAP
+interface, and `ping` through it gets replies from the drives' addresses, large pings fragmented in EoE both ways,
+with no lost process-data frame and no working-counter error meanwhile. akd-sim serves the drives in a network
+namespace of its own over a veth pair; akd-eoe, its TAP interface and ping run in the other one. The addresses are
+from the documentation range (192.0.2.0/24) and exist only inside the test's namespace."""
+
+from __future__ import annotations
+
+import re
+import socket
+import struct
+import subprocess
+import threading
+import time
+
+import pytest
+
+import akd_ros
+from akd_ros import params
+from akd_ros.cli.common import EXIT_INTERRUPTED
+from support.netns import akd_sim_in_netns, console_script, netns_argv, run_in_netns, stop_process
+
+DRIVES = ("192.0.2.10", "192.0.2.11")
+HOST = "192.0.2.1/24"
+SUMMARY = re.compile(
+    r"akd-eoe: (?P<cycles>\d+) cycles, (?P<lost>\d+) lost frames, (?P<wkc>\d+) WKC errors; "
+    r"frames to the drives (?P<to>\d+), from them (?P<from>\d+), dropped (?P<dropped_to>\d+) and (?P<dropped_from>\d+)"
+)
+
+
+def _ready_lines(process: subprocess.Popen, count: int, timeout: float) -> list[str]:
+    """The first `count` lines akd-eoe prints once its bridge is up; fails with its stderr otherwise."""
+    lines: list[str] = []
+
+    def read() -> None:
+        while len(lines) < count and (line := process.stdout.readline()):
+            lines.append(line.strip())
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(timeout)
+    if len(lines) < count:
+        _, err = stop_process(process)
+        raise AssertionError(f"akd-eoe did not come up within {timeout} s: {err.strip()}")
+    return lines
+
+
+def _received(ping: subprocess.CompletedProcess) -> int:
+    match = re.search(r"(\d+) received", ping.stdout)
+    assert match, ping.stdout + ping.stderr
+    return int(match[1])
+
+
+def test_ping_through_the_tap_reaches_each_drive_with_no_cycle_lost(veth):
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
+        argv = [*console_script("akd-eoe"), veth.if_master, "--host", HOST, "--tap", "akdeoe0", "--period", "0.004"]
+        for ip in DRIVES:
+            argv += ["--ip", f"{ip}/24"]
+        process = subprocess.Popen(
+            netns_argv(veth.ns_master, argv), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+        try:
+            lines = _ready_lines(process, 2, timeout=30)
+            assert lines[0] == "akd-eoe: drive 0 at 192.0.2.10 (MAC 02:01:05:30:10:01) through akdeoe0", lines
+            assert lines[1].startswith("akd-eoe: drive 1 at 192.0.2.11 (MAC 02:01:05:30:10:02)"), lines
+            for ip in DRIVES:
+                small = run_in_netns(veth.ns_master, ["ping", "-c", "5", "-i", "0.2", "-W", "2", ip], timeout=30)
+                assert _received(small) == 5, small.stdout
+                # 1400 bytes of data: a 1442-byte frame, two EoE fragments each way in the AKD's 1 KiB mailbox.
+                large = run_in_netns(
+                    veth.ns_master, ["ping", "-c", "3", "-i", "0.3", "-s", "1400", "-W", "2", ip], timeout=30
+                )
+                assert _received(large) == 3, large.stdout
+                assert "1408 bytes from " + ip in large.stdout, large.stdout
+            # An address no drive has is not answered.
+            nobody = run_in_netns(veth.ns_master, ["ping", "-c", "2", "-i", "0.2", "-W", "1", "192.0.2.99"], timeout=30)
+            assert _received(nobody) == 0
+        finally:
+            out, err = stop_process(process)
+    summary = SUMMARY.search(out)
+    assert summary, out + err
+    print(summary[0])
+    # SIGTERM ends the tool as SIGINT does: the summary, then status 130.
+    assert process.returncode == EXIT_INTERRUPTED, err
+    assert (int(summary["lost"]), int(summary["wkc"])) == (0, 0), summary[0]
+    assert (int(summary["dropped_to"]), int(summary["dropped_from"])) == (0, 0), summary[0]
+    # 16 pings answered and the ARP exchanges: frames went both ways.
+    assert int(summary["from"]) >= 16 and int(summary["to"]) >= 16, summary[0]
+
+
+def test_set_ip_is_answered_and_the_drive_announces_itself():
+    master = akd_ros.Master("sim")
+    try:
+        master.scan()
+        master.request_state("preop")
+        mac = master.eoe_set_ip(0, "192.0.2.10", subnet_mask="255.255.255.0", dns_name="Drive_1__AKD_")
+        assert mac == "02:01:05:30:10:01"
+        announcement = master.eoe_receive(0, 1.0)
+        assert announcement is not None
+        # A broadcast ARP request from the drive's MAC for its own address.
+        assert announcement[:6] == b"\xff" * 6 and announcement[6:12] == bytes.fromhex("020105301001")
+        assert announcement[12:14] == b"\x08\x06" and announcement[28:32] == announcement[38:42] == bytes(
+            [192, 0, 2, 10]
+        )
+    finally:
+        master.close()
+
+
+def test_bad_addresses_are_refused_with_their_form():
+    master = akd_ros.Master("sim")
+    try:
+        master.scan()
+        master.request_state("preop")
+        for kwargs, message in (
+            ({"ip": "192.0.2"}, 'IP address "192.0.2" is not of the form a.b.c.d (IPv4)'),
+            ({"ip": "192.0.2.10", "mac": "02:01"}, 'MAC address "02:01" is not of the form aa:bb:cc:dd:ee:ff'),
+        ):
+            try:
+                master.eoe_set_ip(0, **kwargs)
+            except akd_ros.ConfigError as error:
+                assert message in str(error)
+            else:
+                raise AssertionError(f"{kwargs} was taken")
+    finally:
+        master.close()
+
+
+def test_akd_eoe_without_cap_net_admin_says_so():
+    # setpriv drops every capability, as for a user without CAP_NET_ADMIN; the tool says what it needs, on one line.
+    argv = [
+        "setpriv",
+        "--inh-caps=-all",
+        "--bounding-set=-all",
+        *console_script("akd-eoe"),
+        "sim",
+        "--ip",
+        "192.0.2.10/24",
+    ]
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=60, check=False)
+    assert result.returncode == 1, result.stdout + result.stderr
+    assert result.stderr.strip().splitlines()[-1] == (
+        "akd-eoe: error: opening a TAP interface needs CAP_NET_ADMIN (run as root, or setcap cap_net_admin)"
+    ), result.stderr
+
+
+def _who_has(ip: str) -> bytes:
+    """A host's ARP request for `ip`: from 02:aa:00:00:00:01 at 192.0.2.1, to everyone."""
+    host_mac, host_ip = bytes.fromhex("02aa00000001"), bytes([192, 0, 2, 1])
+    arp = struct.pack("!HHBBH", 1, 0x0800, 6, 4, 1) + host_mac + host_ip + b"\0" * 6 + socket.inet_aton(ip)
+    return b"\xff" * 6 + host_mac + b"\x08\x06" + arp
+
+
+def test_a_joints_eoe_ip_parameter_gives_the_drive_its_address():
+    values = {"link": "sim:2", "joints": ["a", "b"], "joints.b.eoe.ip": "192.0.2.11/24"}
+    joints = params.settings(values).joints
+    assert [j.eoe_ip for j in joints] == [None, "192.0.2.11/24"]
+    for bad in ("192.0.2.11", "192.0.2/24", "drive"):
+        with pytest.raises(params.ParameterError, match=r"parameter joints\.a\.eoe\.ip must be an IPv4 address"):
+            params.settings({**values, "joints.a.eoe.ip": bad})
+    bus = akd_ros.Bus("sim:2", [joint.drive() for joint in joints])
+    try:
+        # Drive 1 answers an ARP request for its address through the running cycle, from its MAC.
+        assert bus.cycle.eoe_send(1, _who_has("192.0.2.11"))
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline:
+            received = bus.cycle.eoe_receive(0.5)
+            if received and received[1][20:22] == b"\x00\x02":  # an ARP reply (the announcement is a request)
+                break
+        else:
+            raise AssertionError("no ARP reply from drive 1")
+        assert received[0] == 1 and received[1][22:28] == bytes.fromhex("020105301002")
+        assert socket.inet_ntoa(received[1][28:32]) == "192.0.2.11"
+    finally:
+        bus.close()
