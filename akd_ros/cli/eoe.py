@@ -64,6 +64,9 @@ def main(argv: list[str] | None = None) -> int:
         "--period", type=_seconds, default=0.001, metavar="SECONDS", help="cycle period (default 0.001 s)"
     )
     parser.add_argument("--duration", type=_seconds, metavar="SECONDS", help="stop after this long (default: never)")
+    parser.add_argument(
+        "--priority", type=int, metavar="N", help="the cycle thread under SCHED_FIFO N (where permitted)"
+    )
     args = parser.parse_args(argv)
     gateway = args.gateway or (str(args.host.ip) if args.host else None)
 
@@ -88,7 +91,9 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 master.configure_sm2_sync(round(args.period * 1e9))
             master.request_state("op")
-            cycle = _native.Cycle(master, args.period)
+            cycle = _native.Cycle(master, args.period, priority=args.priority)
+            for warning in cycle.warnings:
+                print(f"akd-eoe: warning: {warning}", file=sys.stderr, flush=True)
         except BaseException:
             master.close()
             raise
