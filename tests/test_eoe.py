@@ -254,10 +254,16 @@ def test_the_node_with_eoe_tap_bridges_the_machine_to_each_drive(veth, tmp_path)
             out, _ = stop_process(node, timeout=20)
     log.append(out)
     text = "".join(log)
-    closed = re.search(r"EoE bridge closed: (\d+) frames to the drives, (\d+) from them", text)
+    closed = re.search(
+        r"EoE bridge closed: (?P<to>\d+) frames to the drives, (?P<from>\d+) from them, dropped (?P<dropped_to>\d+) "
+        r"and (?P<dropped_from>\d+); the cycle: \d+ cycles, (?P<lost>\d+) lost frames, (?P<wkc>\d+) WKC errors",
+        text,
+    )
     assert closed, text
-    # 12 pings answered, and the ARP exchanges.
-    assert int(closed[1]) >= 12 and int(closed[2]) >= 12, closed[0]
+    print(closed[0])
+    # 12 pings answered, and the ARP exchanges; nothing dropped, and no process-data frame lost meanwhile.
+    assert int(closed["to"]) >= 12 and int(closed["from"]) >= 12, closed[0]
+    assert [int(closed[k]) for k in ("dropped_to", "dropped_from", "lost", "wkc")] == [0, 0, 0, 0], closed[0]
     assert "closed: drives disabled, bus in Init" in text, text
     assert "Traceback" not in text, text
 

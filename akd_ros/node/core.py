@@ -180,8 +180,12 @@ class Core:
         bridge, self._eoe_bridge = self._eoe_bridge, None
         if bridge is not None:
             bridge.close()
+            stats, dropped = bus.stats(), bus.cycle.eoe_dropped()
+            # What the bridge carried, beside what the process data lost meanwhile.
             self._logger.info(
-                f"EoE bridge closed: {bridge.to_drives} frames to the drives, {bridge.from_drives} from them"
+                f"EoE bridge closed: {bridge.to_drives} frames to the drives, {bridge.from_drives} from them, "
+                f"dropped {dropped[0]} and {dropped[1]}; the cycle: {stats['cycles']} cycles, "
+                f"{stats['lost_frames']} lost frames, {stats['wkc_errors']} WKC errors"
             )
         if bus is not None:
             # Records the ring or the bus dropped before the node took them are cycles the bag lacks.
