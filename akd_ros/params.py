@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import importlib.util
 import ipaddress
+import itertools
 import math
 import re
 import socket
@@ -518,7 +519,8 @@ def argument_sections(arguments: list[str]) -> dict[str, dict[str, object]]:
     qualified) in the order each first appears, then by dotted name; ParameterError for a file it cannot read."""
     sections: dict[str, dict[str, object]] = {}
     ros = False
-    for argument, following in zip(arguments, [*arguments[1:], None], strict=True):
+    # Each with the one after it (None after the last): no argument at all is none.
+    for argument, following in itertools.pairwise([*arguments, None]):
         if argument in ("--ros-args", "--"):
             ros = argument == "--ros-args"
         elif ros and following is not None and argument in ("-p", "--param"):

@@ -6,6 +6,7 @@ from the documentation range (192.0.2.0/24) and exist only inside the test's nam
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import socket
@@ -21,7 +22,14 @@ import yaml
 import akd_ros
 from akd_ros import params
 from akd_ros.cli.common import EXIT_INTERRUPTED
-from support.netns import akd_sim_in_netns, console_script, netns_argv, run_in_netns, stop_process
+from support.netns import (
+    akd_sim_in_netns,
+    console_script,
+    netns_argv,
+    run_in_netns,
+    run_python_in_netns,
+    stop_process,
+)
 from support.ros import node_command
 
 DRIVES = ("192.0.2.10", "192.0.2.11")
@@ -308,3 +316,47 @@ def test_eoe_tap_and_host_are_refused_with_their_form():
         params.settings({**values, "eoe.tap": "", "eoe.host": HOST})
     with pytest.raises(params.ParameterError, match=r"give at least one joint an eoe\.ip"):
         params.settings({**values, "joints.a.eoe.ip": ""})
+
+
+_CLEANUP_SCRIPT = """
+import json, subprocess
+import rclpy
+from rclpy.parameter import Parameter
+from akd_ros.node.lifecycle import AkdNode
+
+def link_exists():
+    return subprocess.run(["ip", "link", "show", "akdeoe3"], capture_output=True).returncode == 0
+
+def pings():
+    done = subprocess.run(["ping", "-c", "2", "-i", "0.2", "-W", "2", "192.0.2.10"], capture_output=True, text=True)
+    return done.stdout.count("bytes from 192.0.2.10")
+
+rclpy.init()
+overrides = [
+    Parameter("link", value="sim:2"),
+    Parameter("joints", value=["a", "b"]),
+    Parameter("joints.a.eoe.ip", value="192.0.2.10/24"),
+    Parameter("eoe.tap", value="akdeoe3"),
+    Parameter("eoe.host", value="192.0.2.1/24"),
+]
+node = AkdNode(args=[], parameter_overrides=overrides)
+seen = []
+for transition in ("configure", "cleanup", "configure", "shutdown"):
+    getattr(node, "trigger_" + transition)()
+    seen.append([transition, link_exists(), pings() if link_exists() else 0])
+node.destroy_node()
+rclpy.shutdown()
+print(json.dumps(seen))
+"""
+
+
+def test_the_nodes_eoe_bridge_goes_with_cleanup_and_comes_back_with_configure(veth):
+    # In a namespace of the test's own (the TAP interface and its address go nowhere else), in-process on sim:2.
+    done = run_python_in_netns(veth.ns_master, _CLEANUP_SCRIPT, timeout=120, env=_node_env(NODE_DOMAIN))
+    assert done.returncode == 0, done.stdout + done.stderr
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    # (transition, whether the interface is there after it, pings answered through it)
+    assert seen == [["configure", True, 2], ["cleanup", False, 0], ["configure", True, 2], ["shutdown", False, 0]], (
+        seen,
+        done.stderr,
+    )
