@@ -155,10 +155,13 @@ class Bus:
             with contextlib.suppress(_native.ConfigError):
                 self.simulator = self._master.simulator
             self._master.request_state("preop")
+            self.eoe_drives: dict[bytes, int] = {}
+            """The MAC of each drive given an `eoe_ip`, with its position: where an `EoeBridge` sends frames."""
             for drive, position in zip(drives, positions, strict=True):
                 if drive.eoe_ip is not None:
                     address = ipaddress.IPv4Interface(drive.eoe_ip)
-                    self._master.eoe_set_ip(position, str(address.ip), subnet_mask=str(address.netmask))
+                    mac = self._master.eoe_set_ip(position, str(address.ip), subnet_mask=str(address.netmask))
+                    self.eoe_drives[bytes.fromhex(mac.replace(":", ""))] = position
                 rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
                 self._master.configure_pdo(position, rx, tx)
                 self._master.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[drive.mode]))

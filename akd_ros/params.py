@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import importlib.util
 import ipaddress
+import itertools
 import math
 import re
 import socket
@@ -293,9 +294,17 @@ SCHEMA: tuple[Spec, ...] = (
         "eoe.ip",
         "",
         "The drive's IP address and prefix (A.B.C.D/N), given it by EoE Set IP Parameter at configure so that its "
-        "IP stack answers there (akd-eoe bridges a machine to it); '' gives none.",
+        "IP stack answers there (eoe.tap or akd-eoe bridge a machine to it); '' gives none.",
         per_joint=True,
     ),
+    Spec(
+        "eoe.tap",
+        "",
+        "Name of a TAP interface (up to 15 characters, e.g. akd-eoe0) the node opens at configure and bridges to the "
+        "EoE of every joint with an eoe.ip, so that the machine reaches the drives' addresses (ping, WorkBench); "
+        "needs CAP_NET_ADMIN, without which the node warns and runs without it. '' for none.",
+    ),
+    Spec("eoe.host", "", "The TAP interface's own address and prefix (A.B.C.D/N), '' for none."),
     Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
     Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
@@ -412,6 +421,10 @@ class Settings:
     """The Zenoh JSON5 file of the session, None for rmw_zenoh's default."""
     zenoh_connect: tuple[str, ...]
     """The endpoints the Zenoh session connects to, none to keep the configuration's."""
+    eoe_tap: str | None = None
+    """The TAP interface bridged to the joints' EoE, None for none."""
+    eoe_host: str | None = None
+    """The TAP interface's address (A.B.C.D/N), None for none."""
 
 
 def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
@@ -506,7 +519,8 @@ def argument_sections(arguments: list[str]) -> dict[str, dict[str, object]]:
     qualified) in the order each first appears, then by dotted name; ParameterError for a file it cannot read."""
     sections: dict[str, dict[str, object]] = {}
     ros = False
-    for argument, following in zip(arguments, [*arguments[1:], None], strict=True):
+    # Each with the one after it (None after the last): no argument at all is none.
+    for argument, following in itertools.pairwise([*arguments, None]):
         if argument in ("--ros-args", "--"):
             ros = argument == "--ros-args"
         elif ros and following is not None and argument in ("-p", "--param"):
@@ -625,6 +639,7 @@ def settings(values: dict[str, object]) -> Settings:
         check([j.drive() for j in joints], top["fault_reaction"], top["cycle_time"], top["dc_shift"])
     except CommandError as e:
         raise ParameterError(f"parameters joints.<name>.slave/alias: {e}") from None
+    eoe_tap, eoe_host = check_eoe_bridge(top["eoe.tap"], top["eoe.host"], joints)
     return Settings(
         link=link,
         cycle_time=top["cycle_time"],
@@ -651,6 +666,8 @@ def settings(values: dict[str, object]) -> Settings:
         transport=top["transport"],
         zenoh_config=top["zenoh.config"] or None,
         zenoh_connect=tuple(top["zenoh.connect"]),
+        eoe_tap=eoe_tap,
+        eoe_host=eoe_host,
     )
 
 
@@ -691,18 +708,6 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         raise ParameterError(
             f"parameters {prefix}axis/{prefix}lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')"
         ) from None
-    eoe_ip = values["eoe.ip"] or None
-    if eoe_ip is not None:
-        try:
-            # The prefix is needed: a /32 address has no route back to the machine that talks to it.
-            if "/" not in eoe_ip:
-                raise ValueError(eoe_ip)
-            eoe_ip = str(ipaddress.IPv4Interface(eoe_ip))
-        except ValueError:
-            raise ParameterError(
-                f"parameter {prefix}eoe.ip must be an IPv4 address with its prefix such as 192.168.0.10/24, or '', "
-                f"got {values['eoe.ip']!r}"
-            ) from None
     return JointSettings(
         name=name,
         slave=None if values["alias"] >= 0 else values["slave"],
@@ -715,8 +720,39 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         fault_reset=values["fault_reset"],
         command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
-        eoe_ip=eoe_ip,
+        eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
     )
+
+
+def check_interface_address(name: str, text: str) -> str | None:
+    """Parameter `name`'s `text` as an IPv4 address with its prefix (A.B.C.D/N), None for ''; ParameterError."""
+    if not text:
+        return None
+    try:
+        # The prefix is needed: a /32 address has no route back to the machine that talks to it.
+        if "/" not in text:
+            raise ValueError(text)
+        return str(ipaddress.IPv4Interface(text))
+    except ValueError:
+        raise ParameterError(
+            f"parameter {name} must be an IPv4 address with its prefix such as 192.168.0.10/24, or '', got {text!r}"
+        ) from None
+
+
+def check_eoe_bridge(tap: str, host: str, joints: tuple[JointSettings, ...]) -> tuple[str | None, str | None]:
+    """(eoe.tap, eoe.host) checked, None for ''; ParameterError."""
+    # What Linux takes as an interface name (dev_valid_name), and "%d" for the kernel to number.
+    if tap and (len(tap.encode()) > 15 or tap in (".", "..") or any(c in "/:" or c.isspace() for c in tap)):
+        raise ParameterError(
+            "parameter eoe.tap must be a network interface name of 1 to 15 bytes without '/', ':' or blanks "
+            f"(e.g. akd-eoe0), or '', got {tap!r}"
+        )
+    address = check_interface_address("eoe.host", host)
+    if address is not None and not tap:
+        raise ParameterError("parameter eoe.host is the address of eoe.tap: give eoe.tap too, or eoe.host ''")
+    if tap and not any(j.eoe_ip for j in joints):
+        raise ParameterError("parameter eoe.tap bridges to the joints' eoe.ip: give at least one joint an eoe.ip")
+    return tap or None, address
 
 
 def check_link(link: str) -> str:

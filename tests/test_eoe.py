@@ -6,19 +6,31 @@ from the documentation range (192.0.2.0/24) and exist only inside the test's nam
 
 from __future__ import annotations
 
+import json
+import os
 import re
 import socket
 import struct
 import subprocess
 import threading
 import time
+from pathlib import Path
 
 import pytest
+import yaml
 
 import akd_ros
 from akd_ros import params
 from akd_ros.cli.common import EXIT_INTERRUPTED
-from support.netns import akd_sim_in_netns, console_script, netns_argv, run_in_netns, stop_process
+from support.netns import (
+    akd_sim_in_netns,
+    console_script,
+    netns_argv,
+    run_in_netns,
+    run_python_in_netns,
+    stop_process,
+)
+from support.ros import node_command
 
 DRIVES = ("192.0.2.10", "192.0.2.11")
 HOST = "192.0.2.1/24"
@@ -174,3 +186,177 @@ def test_a_joints_eoe_ip_parameter_gives_the_drive_its_address():
         assert socket.inet_ntoa(received[1][28:32]) == "192.0.2.11"
     finally:
         bus.close()
+
+
+NODE_DOMAIN, NODE_WITHOUT_CAP_DOMAIN = 231, 232
+"""The ROS domains of the node tests here (Fast DDS takes none above 232)."""
+
+
+def _node_parameters(path: Path, link: str, tap: str) -> Path:
+    """A parameters file of two joints on `link`, each drive given its address, the bridge on TAP `tap`."""
+    path.write_text(
+        yaml.safe_dump(
+            {
+                "akd_node": {
+                    "ros__parameters": {
+                        "link": link,
+                        "joints": ["a", "b"],
+                        "cycle_time": 0.004,
+                        "rt.priority": 50,
+                        "joints.a.eoe.ip": f"{DRIVES[0]}/24",
+                        "joints.b.eoe.ip": f"{DRIVES[1]}/24",
+                        "eoe.tap": tap,
+                        "eoe.host": HOST,
+                        "autostart": True,
+                    }
+                }
+            }
+        )
+    )
+    return path
+
+
+def _node_env(domain: int) -> dict:
+    env = dict(os.environ, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    env.pop("ROS_LOCALHOST_ONLY", None)
+    return env
+
+
+def _log_until(process: subprocess.Popen, log: list[str], text: str, timeout: float) -> None:
+    """Reads the node's output into `log` until a line holds `text`; fails with the log otherwise."""
+
+    def read() -> None:
+        while not any(text in line for line in log) and (line := process.stdout.readline()):
+            log.append(line)
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    reader.join(timeout)
+    assert any(text in line for line in log), f"no {text!r} from the node within {timeout} s:\n" + "".join(log)
+
+
+def test_the_node_with_eoe_tap_bridges_the_machine_to_each_drive(veth, tmp_path):
+    # The node in the master's namespace (DDS on its loopback), akd-sim's two drives in the other, over the veth.
+    parameters = _node_parameters(tmp_path / "eoe.yaml", veth.if_master, "akdeoe1")
+    argv, _ = node_command(parameters)
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
+        node = subprocess.Popen(
+            netns_argv(veth.ns_master, argv),
+            env=_node_env(NODE_DOMAIN),
+            stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT,
+            text=True,
+        )
+        log: list[str] = []
+        try:
+            _log_until(node, log, "active:", timeout=60)
+            assert any("EoE bridge: a at 192.0.2.10, b at 192.0.2.11 through akdeoe1" in line for line in log), log
+            for ip in DRIVES:
+                ping = run_in_netns(veth.ns_master, ["ping", "-c", "4", "-i", "0.2", "-W", "2", ip], timeout=30)
+                assert _received(ping) == 4, ping.stdout
+                large = run_in_netns(
+                    veth.ns_master, ["ping", "-c", "2", "-i", "0.3", "-s", "1400", "-W", "2", ip], timeout=30
+                )
+                assert _received(large) == 2, large.stdout
+        finally:
+            out, _ = stop_process(node, timeout=20)
+    log.append(out)
+    text = "".join(log)
+    closed = re.search(
+        r"EoE bridge closed: (?P<to>\d+) frames to the drives, (?P<from>\d+) from them, dropped (?P<dropped_to>\d+) "
+        r"and (?P<dropped_from>\d+); the cycle: \d+ cycles, (?P<lost>\d+) lost frames, (?P<wkc>\d+) WKC errors",
+        text,
+    )
+    assert closed, text
+    print(closed[0])
+    # 12 pings answered, and the ARP exchanges; nothing dropped, and no process-data frame lost meanwhile.
+    assert int(closed["to"]) >= 12 and int(closed["from"]) >= 12, closed[0]
+    assert [int(closed[k]) for k in ("dropped_to", "dropped_from", "lost", "wkc")] == [0, 0, 0, 0], closed[0]
+    assert "closed: drives disabled, bus in Init" in text, text
+    assert "Traceback" not in text, text
+
+
+def test_the_node_without_cap_net_admin_warns_and_runs_without_the_bridge(tmp_path):
+    parameters = _node_parameters(tmp_path / "eoe.yaml", "sim:2", "akdeoe2")
+    argv, _ = node_command(parameters)
+    # setpriv drops every capability, as for a user without CAP_NET_ADMIN.
+    node = subprocess.Popen(
+        ["setpriv", "--inh-caps=-all", "--bounding-set=-all", *argv],
+        env=_node_env(NODE_WITHOUT_CAP_DOMAIN),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
+    log: list[str] = []
+    try:
+        _log_until(node, log, "active:", timeout=60)
+    finally:
+        out, _ = stop_process(node, timeout=20)
+    text = "".join(log) + out
+    warnings = [line for line in text.splitlines() if "eoe.tap" in line]
+    assert len(warnings) == 1 and warnings[0].endswith(
+        "parameter eoe.tap: no EoE bridge: opening a TAP interface needs CAP_NET_ADMIN (run as root, or setcap "
+        "cap_net_admin)"
+    ), text
+    assert "EoE bridge" not in text.replace(warnings[0], ""), text
+
+
+def test_eoe_tap_and_host_are_refused_with_their_form():
+    values = {"link": "sim:2", "joints": ["a", "b"], "joints.a.eoe.ip": "192.0.2.10/24", "eoe.tap": "akd-eoe0"}
+    chosen = params.settings({**values, "eoe.host": HOST})
+    assert (chosen.eoe_tap, chosen.eoe_host) == ("akd-eoe0", HOST)
+    for name, bad, message in (
+        ("eoe.tap", "a-name-too-long-1", r"parameter eoe\.tap must be a network interface name of 1 to 15 bytes"),
+        ("eoe.tap", "akd/eoe", r"parameter eoe\.tap must be a network interface name"),
+        ("eoe.host", "192.0.2.1", r"parameter eoe\.host must be an IPv4 address with its prefix"),
+    ):
+        with pytest.raises(params.ParameterError, match=message):
+            params.settings({**values, name: bad})
+    with pytest.raises(params.ParameterError, match=r"parameter eoe\.host is the address of eoe\.tap"):
+        params.settings({**values, "eoe.tap": "", "eoe.host": HOST})
+    with pytest.raises(params.ParameterError, match=r"give at least one joint an eoe\.ip"):
+        params.settings({**values, "joints.a.eoe.ip": ""})
+
+
+_CLEANUP_SCRIPT = """
+import json, subprocess
+import rclpy
+from rclpy.parameter import Parameter
+from akd_ros.node.lifecycle import AkdNode
+
+def link_exists():
+    return subprocess.run(["ip", "link", "show", "akdeoe3"], capture_output=True).returncode == 0
+
+def pings():
+    done = subprocess.run(["ping", "-c", "2", "-i", "0.2", "-W", "2", "192.0.2.10"], capture_output=True, text=True)
+    return done.stdout.count("bytes from 192.0.2.10")
+
+rclpy.init()
+overrides = [
+    Parameter("link", value="sim:2"),
+    Parameter("joints", value=["a", "b"]),
+    Parameter("joints.a.eoe.ip", value="192.0.2.10/24"),
+    Parameter("eoe.tap", value="akdeoe3"),
+    Parameter("eoe.host", value="192.0.2.1/24"),
+]
+node = AkdNode(args=[], parameter_overrides=overrides)
+seen = []
+for transition in ("configure", "cleanup", "configure", "shutdown"):
+    getattr(node, "trigger_" + transition)()
+    seen.append([transition, link_exists(), pings() if link_exists() else 0])
+node.destroy_node()
+rclpy.shutdown()
+print(json.dumps(seen))
+"""
+
+
+def test_the_nodes_eoe_bridge_goes_with_cleanup_and_comes_back_with_configure(veth):
+    # In a namespace of the test's own (the TAP interface and its address go nowhere else), in-process on sim:2.
+    done = run_python_in_netns(veth.ns_master, _CLEANUP_SCRIPT, timeout=120, env=_node_env(NODE_DOMAIN))
+    assert done.returncode == 0, done.stdout + done.stderr
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    # (transition, whether the interface is there after it, pings answered through it)
+    assert seen == [["configure", True, 2], ["cleanup", False, 0], ["configure", True, 2], ["shutdown", False, 0]], (
+        seen,
+        done.stderr,
+    )

@@ -198,6 +198,8 @@ def test_a_later_file_and_p_override_as_rcl_merges_them(tmp_path):
     }
     # Arguments outside --ros-args are the program's own.
     assert params.read_arguments(["-p", "mode:=homing", "--ros-args", "--", "-p", "mode:=homing"]) == {}
+    # No arguments at all (AkdNode(args=[]), as a program that builds the node itself gives it): nothing set.
+    assert params.read_arguments([]) == {}
 
 
 @pytest.mark.parametrize("case", sorted(set(BAD_FILES) - REFUSED_AT_CONFIGURE))

@@ -15,7 +15,6 @@ import argparse
 import ipaddress
 import sys
 import threading
-import time
 
 from akd_ros.cli.common import add_master_arguments, open_master, run
 
@@ -72,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
 
     def body() -> int:
         from akd_ros import _native
-        from akd_ros.tap import Tap
+        from akd_ros.eoe_bridge import EoeBridge
 
         master = open_master(args)
         try:
@@ -97,48 +96,26 @@ def main(argv: list[str] | None = None) -> int:
         except BaseException:
             master.close()
             raise
-        carried = {"to drives": 0, "from drives": 0}
-        stop = threading.Event()
+        bridge = None
         try:
-            with Tap(args.tap, str(args.host) if args.host else None) as tap:
-
-                def to_drives() -> None:
-                    while not stop.is_set():
-                        frame = tap.read(0.1)
-                        if frame is None or len(frame) < 14:
-                            continue
-                        # Broadcast and multicast (bit 0 of the first byte) to every drive.
-                        targets = (
-                            drives.values() if frame[0] & 1 else [drives[frame[:6]]] if frame[:6] in drives else []
-                        )
-                        for position in targets:
-                            cycle.eoe_send(position, frame)
-                            carried["to drives"] += 1
-
-                forwarder = threading.Thread(target=to_drives, name="akd-eoe-tap", daemon=True)
-                forwarder.start()
-                for position, interface in enumerate(args.ip):
-                    mac = next(m for m, p in drives.items() if p == position)
-                    print(f"akd-eoe: drive {position} at {interface.ip} (MAC {_mac_text(mac)}) through {tap.name}")
-                sys.stdout.flush()
-                deadline = time.monotonic() + args.duration if args.duration else None
-                try:
-                    while deadline is None or time.monotonic() < deadline:
-                        received = cycle.eoe_receive(0.1)
-                        if received is not None:
-                            tap.write(received[1])
-                            carried["from drives"] += 1
-                finally:
-                    stop.set()
-                    forwarder.join()
+            bridge = EoeBridge(cycle, drives, args.tap, str(args.host) if args.host else None)
+            for position, interface in enumerate(args.ip):
+                mac = next(m for m, p in drives.items() if p == position)
+                print(f"akd-eoe: drive {position} at {interface.ip} (MAC {_mac_text(mac)}) through {bridge.name}")
+            sys.stdout.flush()
+            # Until SIGINT/SIGTERM (or --duration): the bridge's threads carry the frames.
+            threading.Event().wait(args.duration)
         finally:
+            if bridge is not None:
+                bridge.close()
             stats = cycle.stats()
             dropped = cycle.eoe_dropped()
             cycle.stop()
             master.close()
+            carried = (bridge.to_drives, bridge.from_drives) if bridge is not None else (0, 0)
             print(
                 f"akd-eoe: {stats['cycles']} cycles, {stats['lost_frames']} lost frames, {stats['wkc_errors']} WKC "
-                f"errors; frames to the drives {carried['to drives']}, from them {carried['from drives']}, "
+                f"errors; frames to the drives {carried[0]}, from them {carried[1]}, "
                 f"dropped {dropped[0]} and {dropped[1]}"
             )
         return 0

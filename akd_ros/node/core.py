@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from akd_ros.axis import CommandError
 from akd_ros.bus import Bus
+from akd_ros.eoe_bridge import EoeBridge
 from akd_ros.node import NODE_NAME
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
@@ -31,6 +32,7 @@ class Core:
         """Why the last transition failed, for the log and the exit message."""
         self._transport = transport
         self._logger = transport.logger
+        self._eoe_bridge: EoeBridge | None = None
         self._session = Session(
             self.settings, CycleClock(transport.now_ns, transport.message_class("builtin_interfaces/msg/Time"))
         )
@@ -118,6 +120,7 @@ class Core:
             except (ValueError, OSError) as e:
                 bus.close()
                 return self._fail(f"parameters record.*: the recorder did not start: {e}")
+        self._open_eoe_bridge(bus)
         with self._session.lock:
             self._session.bus = bus
         modes = ", ".join(sorted({j.mode for j in s.joints}))
@@ -125,6 +128,20 @@ class Core:
             f"configured: {self._where()} on {s.link} in Op, cycle {s.cycle_time * 1e3:g} ms, mode {modes}"
         )
         return True
+
+    def _open_eoe_bridge(self, bus: Bus) -> None:
+        """With eoe.tap, the TAP interface bridged to the joints' EoE; a warning, and none, where it cannot open
+        (without CAP_NET_ADMIN): the drives run as well without it."""
+        s = self.settings
+        if s.eoe_tap is None:
+            return
+        try:
+            self._eoe_bridge = EoeBridge(bus.cycle, bus.eoe_drives, s.eoe_tap, s.eoe_host)
+        except OSError as e:
+            self._logger.warning(f"parameter eoe.tap: no EoE bridge: {e}")
+            return
+        drives = ", ".join(f"{j.name} at {j.eoe_ip.split('/')[0]}" for j in s.joints if j.eoe_ip is not None)
+        self._logger.info(f"EoE bridge: {drives} through {self._eoe_bridge.name}")
 
     def activate(self) -> bool:
         """Arms the configured latches, starts publishing and accepting commands; enables with enable_on_start."""
@@ -160,6 +177,16 @@ class Core:
         with session.lock:
             bus, session.bus = session.bus, None
         recorder, session.recorder = session.recorder, None
+        bridge, self._eoe_bridge = self._eoe_bridge, None
+        if bridge is not None:
+            bridge.close()
+            stats, dropped = bus.stats(), bus.cycle.eoe_dropped()
+            # What the bridge carried, beside what the process data lost meanwhile.
+            self._logger.info(
+                f"EoE bridge closed: {bridge.to_drives} frames to the drives, {bridge.from_drives} from them, "
+                f"dropped {dropped[0]} and {dropped[1]}; the cycle: {stats['cycles']} cycles, "
+                f"{stats['lost_frames']} lost frames, {stats['wkc_errors']} WKC errors"
+            )
         if bus is not None:
             # Records the ring or the bus dropped before the node took them are cycles the bag lacks.
             lost = bus.stats()["samples_dropped"] if recorder is not None else 0

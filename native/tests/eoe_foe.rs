@@ -3,19 +3,22 @@
 //! (large ones fragmented both ways, also through the smallest mailbox), and files written,
 //! read back and refused by name.
 
-use std::net::Ipv4Addr;
-use std::time::Duration;
+use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::{Duration, Instant};
 
-use std::sync::atomic::Ordering;
-
+use akd_native::akd_fault::MissedFrames;
 use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::eoe::IpParameters;
 use akd_native::error::{Error, FoeError};
+use akd_native::frame::{Command, FrameBuilder};
+use akd_native::link::udp::Udp;
 use akd_native::master::eoe::default_mac;
 use akd_native::master::Master;
 use akd_native::sim::in_process::InProcess;
-use akd_native::sim::{Timing, VirtualBus};
+use akd_native::sim::{server, Timing, VirtualBus};
 use smoltcp::wire::{ArpOperation, ArpPacket, ArpRepr, EthernetAddress, EthernetFrame, EthernetProtocol};
 
 #[path = "support/ethernet.rs"]
@@ -198,4 +201,88 @@ fn malformed_eoe_headers_are_answered_by_the_standard_and_change_nothing_else() 
     m.slave_mut(0).unwrap().eoe_send(&ping(drive_ip(0), mac, &[1, 2, 3], 5)).unwrap();
     check_echo_reply(&receive(&mut m, 0), drive_ip(0), &[1, 2, 3], 5);
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x6060, 0).unwrap().len(), 1);
+}
+
+/// Writes `message` whole into SM0 of the drive at `station` from a socket of its own, as a
+/// second frame on the wire beside the cycle's: again while SM0 still holds the cycle's last
+/// message (working counter 0), up to `STEP`. The number of frames it took.
+fn write_sm0_beside(injector: &UdpSocket, station: u16, sm0: (u16, u16), message: &[u8]) -> usize {
+    let mut mailbox = vec![0u8; sm0.1 as usize];
+    mailbox[..message.len()].copy_from_slice(message);
+    let deadline = Instant::now() + STEP;
+    for sent in 1.. {
+        assert!(Instant::now() < deadline, "SM0 of station {station:#06x} never took the message");
+        let mut frame = [0u8; 1500];
+        let mut builder = FrameBuilder::new(&mut frame);
+        let slot = builder.push(Command::Fpwr, 0x7F, station, sm0.0, &mailbox).unwrap();
+        let len = builder.finish();
+        injector.send(&frame[..len]).unwrap();
+        let mut reply = [0u8; 1500];
+        let got = injector.recv(&mut reply).expect("the virtual bus answers the injected frame");
+        if slot.wkc(&reply[..got]).unwrap() == 1 {
+            return sent;
+        }
+        std::thread::sleep(Duration::from_micros(200));
+    }
+    unreachable!()
+}
+
+#[test]
+fn malformed_eoe_headers_beside_the_running_cycle_disturb_neither_it_nor_the_ip_stack() {
+    // Over UDP, so that a second sender's frames reach the same virtual drives as the cycle's.
+    let late_is_not_missed = Timing { missed_frames: MissedFrames::Lost, ..Timing::IMMEDIATE };
+    let address: SocketAddr = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let serving = {
+        let stop = stop.clone();
+        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(2, late_is_not_missed), &stop))
+    };
+    let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
+    let deadline = Instant::now() + STEP;
+    while m.scan().is_err() {
+        assert!(Instant::now() < deadline, "no virtual bus on {address}");
+    }
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let mac = set_ip(&mut m, 0, true);
+    arp_of(&receive(&mut m, 0));
+    let station = m.slave(0).unwrap().station_address;
+    let sm0 = m.slave(0).unwrap().mailbox.as_ref().map(|mb| (mb.out_start, mb.out_len)).unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let injector = UdpSocket::bind("127.0.0.1:0").unwrap();
+    injector.connect(address).unwrap();
+    injector.set_read_timeout(Some(Duration::from_secs(1))).unwrap();
+    // The drive learns the host's MAC from its ARP request, so its echo replies need no ARP of theirs.
+    assert!(cycle.eoe_send(0, &who_has(drive_ip(0))).unwrap());
+    arp_of(&cycle.eoe_receive(STEP).expect("an ARP reply").1);
+    // An EoE header cut short (2 of 4 bytes), an undefined frame type (12), and a last
+    // fragment numbered 5 of no frame under way; each followed by a ping through the cycle. The
+    // echo reply shows that the drive took the message out of SM0 (the cycle's fragment got in
+    // after it) and that the cycle read past the drive's mailbox error answer in SM1.
+    let malformed: [&[u8]; 3] = [
+        &[0x02, 0, 0, 0, 0, 0x02, 0x00, 0x00],
+        &[0x04, 0, 0, 0, 0, 0x02, 0x0C, 0, 0, 0],
+        &[0x08, 0, 0, 0, 0, 0x02, 0x00, 0x01, 0x05, 0x00, 0xDE, 0xAD, 0xBE, 0xEF],
+    ];
+    let mut frames = 0;
+    for (seq_no, message) in malformed.iter().enumerate() {
+        frames += write_sm0_beside(&injector, station, sm0, message);
+        // One fragment, so that the next message cannot fall between two of the cycle's.
+        let data = vec![seq_no as u8; 56];
+        assert!(cycle.eoe_send(0, &ping(drive_ip(0), mac, &data, seq_no as u16)).unwrap());
+        let (from, reply) = cycle.eoe_receive(STEP).expect("an echo reply");
+        assert_eq!(from, 0);
+        check_echo_reply(&reply, drive_ip(0), &data, seq_no as u16);
+    }
+    // The drive goes on: a ping fragmented both ways, and CoE through the cycle.
+    assert!(cycle.eoe_send(0, &ping(drive_ip(0), mac, &[7; 1400], 9)).unwrap());
+    check_echo_reply(&cycle.eoe_receive(STEP).expect("an echo reply").1, drive_ip(0), &[7; 1400], 9);
+    assert_eq!(cycle.sdo_read(0, 0x6060, 0).unwrap().len(), 1);
+    let stats = cycle.stats();
+    let (lost, wkc) = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
+    println!("{frames} injected frames for 3 messages; lost {lost}, WKC errors {wkc}");
+    assert_eq!((lost, wkc, cycle.eoe_dropped()), (0, 0, (0, 0)));
+    cycle.stop().unwrap();
+    stop.store(true, Ordering::Relaxed);
+    serving.join().unwrap().unwrap();
 }
