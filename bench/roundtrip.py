@@ -397,6 +397,7 @@ def main() -> int:
     results, problems = measure(args, contenders)
     duration, load_after = time.monotonic() - started, os.getloadavg()
     info["load_average_1min"] = {"before": load_before[0], "after": load_after[0]}
+    info["load"] = [round(x, 2) for x in load_before]  # as bench/run.py reads every section's
     print_table(results)
     print(f"duration: {duration:.0f} s; load average (1 min) {load_before[0]:.1f} before, {load_after[0]:.1f} after")
     # Every master at every count and rate must have its figures, or the run does not count.
