@@ -63,6 +63,17 @@ def _received(ping: subprocess.CompletedProcess) -> int:
     return int(match[1])
 
 
+def _ping_each_drive(ns: str, small: int, large: int) -> None:
+    """`small` pings and `large` ones of 1400 bytes of data (a 1442-byte frame, two EoE fragments each way in the
+    AKD's 1 KiB mailbox) to each drive from namespace `ns`, every one answered."""
+    for ip in DRIVES:
+        done = run_in_netns(ns, ["ping", "-c", str(small), "-i", "0.2", "-W", "2", ip], timeout=30)
+        assert _received(done) == small, done.stdout
+        done = run_in_netns(ns, ["ping", "-c", str(large), "-i", "0.3", "-s", "1400", "-W", "2", ip], timeout=30)
+        assert _received(done) == large, done.stdout
+        assert "1408 bytes from " + ip in done.stdout, done.stdout
+
+
 def test_ping_through_the_tap_reaches_each_drive_with_no_cycle_lost(veth):
     with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
         argv = [*console_script("akd-eoe"), veth.if_master, "--host", HOST, "--tap", "akdeoe0", "--period", "0.004"]
@@ -77,15 +88,7 @@ def test_ping_through_the_tap_reaches_each_drive_with_no_cycle_lost(veth):
             lines = _ready_lines(process, 2, timeout=30)
             assert lines[0] == "akd-eoe: drive 0 at 192.0.2.10 (MAC 02:01:05:30:10:01) through akdeoe0", lines
             assert lines[1].startswith("akd-eoe: drive 1 at 192.0.2.11 (MAC 02:01:05:30:10:02)"), lines
-            for ip in DRIVES:
-                small = run_in_netns(veth.ns_master, ["ping", "-c", "5", "-i", "0.2", "-W", "2", ip], timeout=30)
-                assert _received(small) == 5, small.stdout
-                # 1400 bytes of data: a 1442-byte frame, two EoE fragments each way in the AKD's 1 KiB mailbox.
-                large = run_in_netns(
-                    veth.ns_master, ["ping", "-c", "3", "-i", "0.3", "-s", "1400", "-W", "2", ip], timeout=30
-                )
-                assert _received(large) == 3, large.stdout
-                assert "1408 bytes from " + ip in large.stdout, large.stdout
+            _ping_each_drive(veth.ns_master, small=5, large=3)
             # An address no drive has is not answered.
             nobody = run_in_netns(veth.ns_master, ["ping", "-c", "2", "-i", "0.2", "-W", "1", "192.0.2.99"], timeout=30)
             assert _received(nobody) == 0
@@ -251,13 +254,7 @@ def test_the_node_with_eoe_tap_bridges_the_machine_to_each_drive(veth, tmp_path)
         try:
             _log_until(node, log, "active:", timeout=60)
             assert any("EoE bridge: a at 192.0.2.10, b at 192.0.2.11 through akdeoe1" in line for line in log), log
-            for ip in DRIVES:
-                ping = run_in_netns(veth.ns_master, ["ping", "-c", "4", "-i", "0.2", "-W", "2", ip], timeout=30)
-                assert _received(ping) == 4, ping.stdout
-                large = run_in_netns(
-                    veth.ns_master, ["ping", "-c", "2", "-i", "0.3", "-s", "1400", "-W", "2", ip], timeout=30
-                )
-                assert _received(large) == 2, large.stdout
+            _ping_each_drive(veth.ns_master, small=4, large=2)
         finally:
             out, _ = stop_process(node, timeout=20)
     log.append(out)
