@@ -40,12 +40,12 @@ import sys
 __all__ = ["NODE_NAME", "AkdNode", "main"]
 
 NODE_NAME = "akd_node"
+"""The node's name, under which its ~/ topics and services are."""
 EXAMPLES = """examples:
   akd_node --ros-args --params-file config/akd_sim.yaml
   akd_node --ros-args --params-file config/akd_sim_6axis.yaml -p link:=udp://127.0.0.1:34980
   akd_node --ros-args -p link:=enp3s0 -p mode:=cyclic_synchronous_position -r __ns:=/arm
 """
-"""The node's name, under which its ~/ topics and services are."""
 
 
 def __getattr__(name: str):
