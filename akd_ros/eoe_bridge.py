@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import threading
 
+from akd_ros import _native
 from akd_ros.tap import Tap
 
 _POLL = 0.1
@@ -27,6 +28,10 @@ class EoeBridge:
         """Frames handed to the cycle for the drives."""
         self.from_drives = 0
         """Frames from the drives written to the interface."""
+        self.refused = 0
+        """Frames the cycle refused to carry (longer than EoE takes), dropped."""
+        self.failure: str | None = None
+        """Why a thread stopped before `close()` (the interface or the cycle gone), if one did."""
         self._stop = threading.Event()
         self._tap = Tap(tap, host)
         self.name = self._tap.name
@@ -41,21 +46,37 @@ class EoeBridge:
     def _to_drives(self) -> None:
         every = tuple(self._drives.values())
         while not self._stop.is_set():
-            frame = self._tap.read(_POLL)
+            try:
+                frame = self._tap.read(_POLL)
+            except OSError as e:
+                self._failed(f"reading {self.name}: {e}")
+                return
             if frame is None or len(frame) < 14:
                 continue
             # Bit 0 of the first byte: a group (broadcast or multicast) address.
             position = self._drives.get(frame[:6])
             for target in every if frame[0] & 1 else () if position is None else (position,):
-                self._cycle.eoe_send(target, frame)
+                try:
+                    self._cycle.eoe_send(target, frame)
+                except _native.MailboxError:
+                    self.refused += 1
+                    continue
                 self.to_drives += 1
 
     def _from_drives(self) -> None:
         while not self._stop.is_set():
             received = self._cycle.eoe_receive(_POLL)
             if received is not None:
-                self._tap.write(received[1])
+                try:
+                    self._tap.write(received[1])
+                except OSError as e:
+                    self._failed(f"writing {self.name}: {e}")
+                    return
                 self.from_drives += 1
+
+    def _failed(self, why: str) -> None:
+        # A thread's exception would print a traceback; the owner reports this at close instead.
+        self.failure = why
 
     def close(self) -> None:
         """Stops both threads (within `_POLL`) and removes the interface; before the cycle stops."""

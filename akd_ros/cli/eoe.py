@@ -118,6 +118,10 @@ def main(argv: list[str] | None = None) -> int:
                 f"errors; frames to the drives {carried[0]}, from them {carried[1]}, "
                 f"dropped {dropped[0]} and {dropped[1]}"
             )
+            if bridge is not None and bridge.refused:
+                print(f"akd-eoe: {bridge.refused} frames from {bridge.name} too long for EoE, dropped", file=sys.stderr)
+            if bridge is not None and bridge.failure:
+                print(f"akd-eoe: the bridge had stopped: {bridge.failure}", file=sys.stderr)
         return 0
 
     return run("akd-eoe", body)

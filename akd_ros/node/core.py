@@ -186,6 +186,8 @@ class Core:
                 f"EoE bridge closed: {bridge.to_drives} frames to the drives, {bridge.from_drives} from them, "
                 f"dropped {dropped[0]} and {dropped[1]}; the cycle: {stats['cycles']} cycles, "
                 f"{stats['lost_frames']} lost frames, {stats['wkc_errors']} WKC errors"
+                + (f"; {bridge.refused} frames too long for EoE" if bridge.refused else "")
+                + (f"; it had stopped: {bridge.failure}" if bridge.failure else "")
             )
         if bus is not None:
             # Records the ring or the bus dropped before the node took them are cycles the bag lacks.
