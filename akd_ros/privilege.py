@@ -8,7 +8,10 @@ from __future__ import annotations
 import os
 import sys
 
-ROOT_WARNING = "running as root is not needed; CAP_NET_RAW is enough (README: Running without root)"
+ROOT_WARNING = (
+    "running as root is not needed; CAP_NET_RAW is enough, with CAP_NET_ADMIN for an EoE TAP interface "
+    "(README: Running without root)"
+)
 
 
 def warn_if_root(prog: str) -> None:
