@@ -18,11 +18,13 @@ _POLL = 0.1
 
 
 class EoeBridge:
-    """A TAP interface `tap` ("%d" lets the kernel number it), addressed `host` (CIDR) if given, bridged to the drives
-    of `drives` (MAC -> position) through `cycle`; `close()` stops it and removes the interface. Raises what `Tap`
-    raises (PermissionError without CAP_NET_ADMIN)."""
+    """The open TAP interface `tap` bridged to the drives of `drives` (MAC -> position) through `cycle`; `close()`
+    stops it and removes the interface.
 
-    def __init__(self, cycle, drives: dict[bytes, int], tap: str, host: str | None = None) -> None:
+    The interface is opened (`Tap`, which needs CAP_NET_ADMIN) before the master opens its link: on a network
+    interface the master gives up every capability it does not need once its raw socket is open."""
+
+    def __init__(self, cycle, drives: dict[bytes, int], tap: Tap) -> None:
         self._cycle, self._drives = cycle, dict(drives)
         self.to_drives = 0
         """Frames handed to the cycle for the drives."""
@@ -33,8 +35,8 @@ class EoeBridge:
         self.failure: str | None = None
         """Why a thread stopped before `close()` (the interface or the cycle gone), if one did."""
         self._stop = threading.Event()
-        self._tap = Tap(tap, host)
-        self.name = self._tap.name
+        self._tap = tap
+        self.name = tap.name
         """The interface's name, as the kernel gave it."""
         self._threads = [
             threading.Thread(target=self._to_drives, name="akd-eoe-tap", daemon=True),

@@ -30,6 +30,11 @@ class Tap:
             self._fd = os.open("/dev/net/tun", os.O_RDWR | os.O_CLOEXEC)
         except FileNotFoundError:
             raise OSError("/dev/net/tun is missing: this kernel or container has no TUN/TAP") from None
+        except PermissionError:
+            raise PermissionError(
+                "/dev/net/tun is not open to this user: the distributions make it mode 0666 and let CAP_NET_ADMIN "
+                "guard TAP interfaces; give this user access to it (a udev rule) or run as root"
+            ) from None
         try:
             ifreq = fcntl.ioctl(self._fd, _TUNSETIFF, struct.pack("16sH", name.encode(), _IFF_TAP | _IFF_NO_PI))
         except PermissionError:

@@ -72,8 +72,16 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         from akd_ros import _native
         from akd_ros.eoe_bridge import EoeBridge
+        from akd_ros.tap import Tap
 
-        master = open_master(args)
+        # The TAP interface first: on a network interface the master gives up CAP_NET_ADMIN with the rest once its
+        # raw socket is open.
+        tap = Tap(args.tap, str(args.host) if args.host else None)
+        try:
+            master = open_master(args)
+        except BaseException:
+            tap.close()
+            raise
         try:
             count = len(master.scan())
             if len(args.ip) > count:
@@ -95,10 +103,10 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"akd-eoe: warning: {warning}", file=sys.stderr, flush=True)
         except BaseException:
             master.close()
+            tap.close()
             raise
-        bridge = None
+        bridge = EoeBridge(cycle, drives, tap)
         try:
-            bridge = EoeBridge(cycle, drives, args.tap, str(args.host) if args.host else None)
             for position, interface in enumerate(args.ip):
                 mac = next(m for m, p in drives.items() if p == position)
                 print(f"akd-eoe: drive {position} at {interface.ip} (MAC {_mac_text(mac)}) through {bridge.name}")
@@ -106,21 +114,19 @@ def main(argv: list[str] | None = None) -> int:
             # Until SIGINT/SIGTERM (or --duration): the bridge's threads carry the frames.
             threading.Event().wait(args.duration)
         finally:
-            if bridge is not None:
-                bridge.close()
+            bridge.close()
             stats = cycle.stats()
             dropped = cycle.eoe_dropped()
             cycle.stop()
             master.close()
-            carried = (bridge.to_drives, bridge.from_drives) if bridge is not None else (0, 0)
             print(
                 f"akd-eoe: {stats['cycles']} cycles, {stats['lost_frames']} lost frames, {stats['wkc_errors']} WKC "
-                f"errors; frames to the drives {carried[0]}, from them {carried[1]}, "
+                f"errors; frames to the drives {bridge.to_drives}, from them {bridge.from_drives}, "
                 f"dropped {dropped[0]} and {dropped[1]}"
             )
-            if bridge is not None and bridge.refused:
+            if bridge.refused:
                 print(f"akd-eoe: {bridge.refused} frames from {bridge.name} too long for EoE, dropped", file=sys.stderr)
-            if bridge is not None and bridge.failure:
+            if bridge.failure:
                 print(f"akd-eoe: the bridge had stopped: {bridge.failure}", file=sys.stderr)
         return 0
 

@@ -20,6 +20,7 @@ from akd_ros.node.session import AXIS_ERRORS, Session
 from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import Settings
+from akd_ros.tap import Tap
 
 
 class Core:
@@ -72,7 +73,29 @@ class Core:
         )
 
     def configure(self) -> bool:
-        """Opens the Bus: the line to Op and the cycle thread running, every drive disabled."""
+        """Opens the Bus: the line to Op and the cycle thread running, every drive disabled; with eoe.tap, the EoE
+        bridge."""
+        tap = self._open_tap()
+        try:
+            configured = self._configure(tap)
+        finally:
+            if self._eoe_bridge is None and tap is not None:
+                tap.close()
+        return configured
+
+    def _open_tap(self) -> Tap | None:
+        """With eoe.tap, the TAP interface, opened before the link (whose raw socket gives up CAP_NET_ADMIN); a
+        warning, and none, where it cannot open (without CAP_NET_ADMIN): the drives run as well without it."""
+        s = self.settings
+        if s.eoe_tap is None:
+            return None
+        try:
+            return Tap(s.eoe_tap, s.eoe_host)
+        except OSError as e:
+            self._logger.warning(f"parameter eoe.tap: no EoE bridge: {e}")
+            return None
+
+    def _configure(self, tap: Tap | None) -> bool:
         s = self.settings
         try:
             bus = Bus(
@@ -120,7 +143,10 @@ class Core:
             except (ValueError, OSError) as e:
                 bus.close()
                 return self._fail(f"parameters record.*: the recorder did not start: {e}")
-        self._open_eoe_bridge(bus)
+        if tap is not None:
+            self._eoe_bridge = EoeBridge(bus.cycle, bus.eoe_drives, tap)
+            drives = ", ".join(f"{j.name} at {j.eoe_ip.split('/')[0]}" for j in s.joints if j.eoe_ip is not None)
+            self._logger.info(f"EoE bridge: {drives} through {tap.name}")
         with self._session.lock:
             self._session.bus = bus
         modes = ", ".join(sorted({j.mode for j in s.joints}))
@@ -128,20 +154,6 @@ class Core:
             f"configured: {self._where()} on {s.link} in Op, cycle {s.cycle_time * 1e3:g} ms, mode {modes}"
         )
         return True
-
-    def _open_eoe_bridge(self, bus: Bus) -> None:
-        """With eoe.tap, the TAP interface bridged to the joints' EoE; a warning, and none, where it cannot open
-        (without CAP_NET_ADMIN): the drives run as well without it."""
-        s = self.settings
-        if s.eoe_tap is None:
-            return
-        try:
-            self._eoe_bridge = EoeBridge(bus.cycle, bus.eoe_drives, s.eoe_tap, s.eoe_host)
-        except OSError as e:
-            self._logger.warning(f"parameter eoe.tap: no EoE bridge: {e}")
-            return
-        drives = ", ".join(f"{j.name} at {j.eoe_ip.split('/')[0]}" for j in s.joints if j.eoe_ip is not None)
-        self._logger.info(f"EoE bridge: {drives} through {self._eoe_bridge.name}")
 
     def activate(self) -> bool:
         """Arms the configured latches, starts publishing and accepting commands; enables with enable_on_start."""
