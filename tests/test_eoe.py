@@ -225,6 +225,11 @@ def _node_env(domain: int) -> dict:
     return env
 
 
+def _start_node(argv: list[str], domain: int) -> subprocess.Popen:
+    """The node started with `argv` on ROS domain `domain`, its output (stderr too) in one pipe."""
+    return subprocess.Popen(argv, env=_node_env(domain), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
 def _log_until(process: subprocess.Popen, log: list[str], text: str, timeout: float) -> None:
     """Reads the node's output into `log` until a line holds `text`; fails with the log otherwise."""
 
@@ -243,13 +248,7 @@ def test_the_node_with_eoe_tap_bridges_the_machine_to_each_drive(veth, tmp_path)
     parameters = _node_parameters(tmp_path / "eoe.yaml", veth.if_master, "akdeoe1")
     argv, _ = node_command(parameters)
     with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
-        node = subprocess.Popen(
-            netns_argv(veth.ns_master, argv),
-            env=_node_env(NODE_DOMAIN),
-            stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT,
-            text=True,
-        )
+        node = _start_node(netns_argv(veth.ns_master, argv), NODE_DOMAIN)
         log: list[str] = []
         try:
             _log_until(node, log, "active:", timeout=60)
@@ -277,13 +276,7 @@ def test_the_node_without_cap_net_admin_warns_and_runs_without_the_bridge(tmp_pa
     parameters = _node_parameters(tmp_path / "eoe.yaml", "sim:2", "akdeoe2")
     argv, _ = node_command(parameters)
     # setpriv drops every capability, as for a user without CAP_NET_ADMIN.
-    node = subprocess.Popen(
-        ["setpriv", "--inh-caps=-all", "--bounding-set=-all", *argv],
-        env=_node_env(NODE_WITHOUT_CAP_DOMAIN),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    node = _start_node(["setpriv", "--inh-caps=-all", "--bounding-set=-all", *argv], NODE_WITHOUT_CAP_DOMAIN)
     log: list[str] = []
     try:
         _log_until(node, log, "active:", timeout=60)

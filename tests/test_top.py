@@ -162,27 +162,36 @@ async def attached_scenario(source, sim) -> None:
         await pilot.press("q")
 
 
+def attached_to_a_node(tmp_path, template: str, source_of, label: str = "", without_ros: bool = False) -> None:
+    """`attached_scenario` with the source `source_of()` gives, on akd_node run with parameters `template` (its
+    {port} akd-sim's, two drives; `without_ros`: from .venv-noros), all ended afterwards, the node's output printed
+    after `label`."""
+    from support.netns import free_udp_port
+    from support.ros import NodeProcess, Sim, stop
+
+    sim = Sim(free_udp_port(), count=2)
+    params = tmp_path / "akd_node.yaml"
+    params.write_text(template.format(port=sim.port))
+    node = NodeProcess(params, without_ros=without_ros)
+    source = None
+    try:
+        source = source_of()
+        asyncio.run(attached_scenario(source, sim))
+    finally:
+        if source is not None:
+            source.close()
+        stop(node.process)
+        sim.stop()
+        print(f"{label}akd_node output:\n{node.output()}")
+
+
 def test_attached_over_ros_shows_faults_and_enables_with_confirmation(tmp_path):
     pytest.importorskip("rclpy", reason="the ROS attach needs rclpy (.venv has it)")
     from akd_ros.top.ros_source import RosSource
-    from support.netns import free_udp_port
-    from support.ros import NodeProcess, Sim, ros_environment, stop
+    from support.ros import ros_environment
 
     with ros_environment(DOMAINS) as domain:
-        sim = Sim(free_udp_port(), count=2)
-        params = tmp_path / "akd_node.yaml"
-        params.write_text(NODE_PARAMS.format(port=sim.port))
-        node = NodeProcess(params)
-        source = None
-        try:
-            source = RosSource("/akd_node")
-            asyncio.run(attached_scenario(source, sim))
-        finally:
-            if source is not None:
-                source.close()
-            stop(node.process)
-            sim.stop()
-            print(f"ROS domain {domain}; akd_node output:\n{node.output()}")
+        attached_to_a_node(tmp_path, NODE_PARAMS, lambda: RosSource("/akd_node"), f"ROS domain {domain}; ")
 
 
 # akd-top on a link, in an interpreter whose every ROS import is refused (tests/support/no_ros): the view comes up and
@@ -231,23 +240,13 @@ ZENOH_NODE_PARAMS = NODE_PARAMS.replace(
 
 def test_attached_over_zenoh_shows_faults_and_enables_with_confirmation(tmp_path, monkeypatch):
     from akd_ros.top.zenoh_source import ZenohSource
-    from support.netns import free_udp_port
-    from support.ros import NodeProcess, Sim, stop
     from support.zenoh import zenoh_router
 
     monkeypatch.setenv("ROS_DOMAIN_ID", str(random.choice(DOMAINS)))
     with zenoh_router() as endpoint:
-        sim = Sim(free_udp_port(), count=2)
-        params = tmp_path / "akd_node.yaml"
-        params.write_text(ZENOH_NODE_PARAMS.format(port=sim.port, endpoint=endpoint))
-        node = NodeProcess(params, without_ros=True)
-        source = None
-        try:
-            source = ZenohSource("/akd_node", [endpoint])
-            asyncio.run(attached_scenario(source, sim))
-        finally:
-            if source is not None:
-                source.close()
-            stop(node.process)
-            sim.stop()
-            print(f"akd_node output:\n{node.output()}")
+        attached_to_a_node(
+            tmp_path,
+            ZENOH_NODE_PARAMS.replace("{endpoint}", endpoint),
+            lambda: ZenohSource("/akd_node", [endpoint]),
+            without_ros=True,
+        )
