@@ -64,6 +64,11 @@ class BusRequestError(TimeoutError):
         )
 
 
+def _no_samples() -> dict[str, list]:
+    """`_native.Cycle.samples`' columns, empty."""
+    return {name: [] for name in _native.SAMPLE_COLUMNS}
+
+
 def check_mode(mode: str) -> None:
     """CommandError unless `mode` is one of the AKD's modes."""
     if mode not in MODES:
@@ -180,7 +185,7 @@ class Bus:
         self._poll_lock = threading.Lock()
         self._events: dict[int, list[dict]] = {p: [] for p in positions}
         self._trajectory_events: list[dict] = []
-        self._samples: dict[int, dict[str, list]] = {p: {} for p in positions}
+        self._samples: dict[int, dict[str, list]] = {p: _no_samples() for p in positions}
         self._samples_dropped = dict.fromkeys(positions, 0)
         self.axes = []
         """One `Axis` per drive, in the order given."""
@@ -366,17 +371,16 @@ class Bus:
     def samples_of(self, slave: int) -> dict[str, list]:
         """Every cycle's record of drive `slave` since the last call (see `_native.Cycle.samples`), each once."""
         with self._poll_lock:
-            columns = self.cycle.samples()
+            by_slave = self.cycle.samples(by_slave=True)
             for position, kept in self._samples.items():
-                rows = [i for i, s in enumerate(columns["slave"]) if s == position]
-                for name, values in columns.items():
-                    kept.setdefault(name, []).extend(values[i] for i in rows)
+                for name, values in by_slave.get(position, {}).items():
+                    kept[name].extend(values)
                 excess = len(kept["slave"]) - SAMPLES_KEPT
                 if excess > 0:
                     for values in kept.values():
                         del values[:excess]
                     self._samples_dropped[position] += excess
-            taken, self._samples[slave] = self._samples[slave], {}
+            taken, self._samples[slave] = self._samples[slave], _no_samples()
         return taken
 
     def samples(self) -> dict[str, list]:

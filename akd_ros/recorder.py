@@ -4,16 +4,19 @@ A :class:`Recorder` writes one rosbag2 bag directory (metadata.yaml version 9 an
 the ``ros2`` profile) as ``ros2 bag record -s mcap`` would, without needing rosbag2 itself: the
 node hands it messages, a writer thread of its own serialises them and does all the disk I/O.
 
-- Messages are serialised once, by rclpy's ``serialize_message`` (rclpy message classes) or by
+- Messages are serialised once (in the writer thread, but the per-cycle records, which come
+  serialised), by rclpy's ``serialize_message`` (rclpy message classes) or by
   rosbags' ``serialize_cdr`` (rosbags message classes with their typestore); the schemas are the
   complete ``ros2msg`` definitions, made of the packages' .msg files as rosbag2 makes them, and the
   type hashes their RIHS01 hashes, computed by rosbags' typestore from those definitions, so every
   reader decodes the bag without this package.
-- The per-cycle channel (:meth:`Recorder.cycle_sample`) is recorded every ``decimation``-th
-  cycle, or not at all with ``decimation=0``; the last ``black_box_seconds`` of every cycle are
-  kept in memory regardless, and :meth:`Recorder.fault` writes them to the black box topic (by
-  default ``black_box`` beside the cycle topic, e.g. ``/akd_node/black_box``) with their own
-  times, so the cycles before a fault are in the bag even when the cycle topic is not recorded.
+- The per-cycle channel (:meth:`Recorder.cycle_records`, already serialised, e.g. by
+  ``akd_ros._native.cycle_sample_records``; or :meth:`Recorder.cycle_sample`, one message) is
+  recorded every ``decimation``-th cycle, or not at all with ``decimation=0``; the last
+  ``black_box_seconds`` of every cycle are kept in memory regardless, and
+  :meth:`Recorder.fault` writes them to the black box topic (by default ``black_box`` beside
+  the cycle topic, e.g. ``/akd_node/black_box``) with their own times, so the cycles before a
+  fault are in the bag even when the cycle topic is not recorded.
 - Chunks are closed (and so safe from a crash of the process) every ``chunk_size`` bytes or
   ``flush_interval`` seconds, and metadata.yaml is rewritten each time to describe exactly what
   the closed chunks hold. A bag whose process was killed has MCAP files without a summary:
@@ -29,12 +32,15 @@ node hands it messages, a writer thread of its own serialises them and does all 
 from __future__ import annotations
 
 import atexit
+import bisect
 import collections
 import datetime
+import functools
 import importlib
 import logging
 import math
 import os
+import struct
 import threading
 import time
 from collections.abc import Callable
@@ -48,6 +54,8 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap.writer import CompressionType, Writer
+
+from akd_ros import _native
 
 __all__ = [
     "BAG_VERSION",
@@ -64,11 +72,7 @@ LOG = logging.getLogger("akd_ros.recorder")
 #: rosbag2 metadata version written (Jazzy's).
 BAG_VERSION = 9
 #: Chunk compressions, by the name used in the constructor and the ROS parameters.
-COMPRESSIONS = {
-    "zstd": CompressionType.ZSTD,
-    "lz4": CompressionType.LZ4,
-    "none": CompressionType.NONE,
-}
+COMPRESSIONS = ("zstd", "lz4", "none")
 _DEFINITION_DELIMITER = "=" * 80 + "\n"
 # The black box ring holds this much more than black_box_seconds: samples reach the recorder in
 # batches after the cycle that faulted, and the window before the fault must still be whole then.
@@ -251,8 +255,12 @@ def _qos_profile(qos: Any) -> dict:
         raise ValueError(f"qos must be an rclpy.qos.QoSProfile or None, not {qos!r}") from err
 
 
+# libyaml's emitter where PyYAML has it: metadata.yaml is rewritten at every closed chunk.
+_YAML_DUMPER = getattr(yaml, "CSafeDumper", yaml.SafeDumper)
+
+
 def _dump_yaml(data: Any) -> str:
-    return yaml.safe_dump(data, default_flow_style=False, sort_keys=False)
+    return yaml.dump(data, Dumper=_YAML_DUMPER, default_flow_style=False, sort_keys=False)
 
 
 @dataclass
@@ -263,6 +271,11 @@ class _Topic:
     msg_class: type | None = None
     message_count: int = 0
 
+    @functools.cached_property
+    def qos_profiles(self) -> Any:
+        """The offered QoS profiles as metadata.yaml lists them, read once."""
+        return yaml.safe_load(self.qos_yaml)
+
 
 @dataclass
 class _File:
@@ -271,10 +284,12 @@ class _File:
     end_ns: int | None = None
     message_count: int = 0
 
-    def add(self, time_ns: int) -> None:
-        self.start_ns = time_ns if self.start_ns is None else min(self.start_ns, time_ns)
-        self.end_ns = time_ns if self.end_ns is None else max(self.end_ns, time_ns)
-        self.message_count += 1
+    def add(self, first_ns: int, last_ns: int | None = None, count: int = 1) -> None:
+        """Counts `count` messages from `first_ns` to `last_ns` (the same by default)."""
+        last_ns = first_ns if last_ns is None else last_ns
+        self.start_ns = first_ns if self.start_ns is None else min(self.start_ns, first_ns)
+        self.end_ns = last_ns if self.end_ns is None else max(self.end_ns, last_ns)
+        self.message_count += count
 
 
 def _bag_metadata(topics: list[_Topic], files: list[_File]) -> dict:
@@ -295,7 +310,7 @@ def _bag_metadata(topics: list[_Topic], files: list[_File]) -> dict:
                         "name": t.name,
                         "type": t.msg_type.name,
                         "serialization_format": _SERIALIZATION,
-                        "offered_qos_profiles": yaml.safe_load(t.qos_yaml),
+                        "offered_qos_profiles": t.qos_profiles,
                         "type_description_hash": t.msg_type.type_hash,
                     },
                     "message_count": t.message_count,
@@ -329,16 +344,12 @@ def _write_metadata(bag: Path, metadata: dict) -> None:
 
 
 class _McapFile:
-    """One open MCAP file of the bag, with every topic's schema and channel."""
+    """One open MCAP file of the bag, with every topic's schema and channel, written by the crate's `BagFile`."""
 
-    def __init__(self, path: Path, topics: list[_Topic], compression: CompressionType):
+    def __init__(self, path: Path, topics: list[_Topic], compression: str):
         self.info = _File(path)
-        # Open for the life of the _McapFile, whose close() closes it.
-        self.stream = open(path, "wb")  # noqa: SIM115
-        # Chunks are closed by flush() from the recorder, so that each closed chunk reaches the
-        # OS at once; mcap's own size limit is set out of reach.
-        self.writer = Writer(self.stream, chunk_size=2**62, compression=compression, enable_crcs=True)
-        self.writer.start(profile="ros2", library=_LIBRARY)
+        # Chunks are closed by flush() from the recorder, so that each closed chunk reaches the OS at once.
+        self.file = _native.BagFile(path, compression, "ros2", _LIBRARY)
         self.schema_ids: dict[str, int] = {}
         self.channel_ids: dict[str, int] = {}
         for topic in topics:
@@ -347,38 +358,41 @@ class _McapFile:
     def add_topic(self, topic: _Topic) -> None:
         msg_type = topic.msg_type
         if msg_type.name not in self.schema_ids:
-            self.schema_ids[msg_type.name] = self.writer.register_schema(
-                msg_type.name, "ros2msg", msg_type.definition.encode()
-            )
-        self.channel_ids[topic.name] = self.writer.register_channel(
+            definition = msg_type.definition.encode()
+            self.schema_ids[msg_type.name] = self.file.add_schema(msg_type.name, "ros2msg", definition)
+        self.channel_ids[topic.name] = self.file.add_channel(
+            self.schema_ids[msg_type.name],
             topic.name,
             _SERIALIZATION,
-            self.schema_ids[msg_type.name],
             {"offered_qos_profiles": topic.qos_yaml, "topic_type_hash": msg_type.type_hash},
         )
 
     def add_message(self, topic: str, time_ns: int, data: bytes) -> None:
-        self.writer.add_message(self.channel_ids[topic], time_ns, data, time_ns)
+        self.file.add_message(self.channel_ids[topic], time_ns, data)
         self.info.add(time_ns)
 
-    def flush(self) -> None:
-        self.writer.flush()
+    def add_messages(self, topic: str, records: list[tuple[int, bytes]]) -> int:
+        """Adds `records` (time ns, data) of `topic`, in time order; their bytes in all."""
+        size = self.file.add_messages(self.channel_ids[topic], records)
+        self.info.add(records[0][0], records[-1][0], len(records))
+        return size
+
+    def flush(self, sync: bool = False) -> None:
+        self.file.flush()
+        if sync:
+            self.file.sync()
 
     def size(self) -> int:
-        return self.stream.tell()
+        return self.file.size()
 
     def close(self, metadata: dict) -> None:
-        self.writer.add_metadata(
+        self.file.finish(
             "rosbag2",
             {
                 "serialized_metadata": _dump_yaml(metadata["rosbag2_bagfile_information"]),
                 "ROS_DISTRO": metadata["rosbag2_bagfile_information"]["ros_distro"],
             },
         )
-        self.writer.finish()
-        self.stream.flush()
-        os.fsync(self.stream.fileno())
-        self.stream.close()
 
 
 @dataclass
@@ -410,8 +424,8 @@ class Recorder:
     Arguments:
 
     - ``cycle_rate_hz``: the rate of cycles, which sizes the black box ring.
-    - ``samples_per_cycle``: :meth:`cycle_sample` calls per cycle (one per drive of a bus, in
-      turn), which also size the ring; decimation keeps or drops a cycle's samples together.
+    - ``samples_per_cycle``: records per cycle (one per drive of a bus, in turn), which also
+      size the ring; decimation keeps or drops a cycle's records together.
     - ``split_size`` (bytes) / ``split_duration`` (seconds): start a new MCAP file when the
       current one has reached this size, or spans this long; None never splits.
     - ``chunk_size`` (bytes) / ``flush_interval`` (seconds): a chunk is closed, compressed and
@@ -420,7 +434,8 @@ class Recorder:
     - ``decimation``: record every n-th cycle's samples on the cycle topic; 0 records none (the
       black box still keeps them all).
     - ``black_box_seconds``: how much of the past :meth:`fault` writes to the black box topic.
-    - ``queue_size``: messages waiting for the writer thread beyond which :meth:`write` drops.
+    - ``queue_size``: items waiting for the writer thread (a message, or one call's cycle
+      records) beyond which the next is dropped.
     - ``on_error``: called once, from the writer thread, with the text of the first I/O error
       (without it, the error goes to the ``akd_ros.recorder`` logger).
 
@@ -461,7 +476,7 @@ class Recorder:
             raise ValueError(f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}")
 
         self._folder = Path(folder)
-        self._compression = COMPRESSIONS[compression]
+        self._compression = compression
         self._split_size = split_size
         self._split_duration_ns = None if split_duration is None else int(split_duration * 1e9)
         self._chunk_size = chunk_size
@@ -476,12 +491,13 @@ class Recorder:
         self._cycle_topic: str | None = None
         self._black_box_topic: str | None = None
         self._cycle_class: type | None = None
+        self._cycle_type: MessageType | None = None
         self._samples_per_cycle = samples_per_cycle
         ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz) * samples_per_cycle)
         self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
         self._black_box_ns = int(black_box_seconds * 1e9)
-        # Times of the samples in the ring that a fault wrote already (writer thread only).
+        # Serial numbers of the records in the ring that a fault wrote already (writer thread only).
         self._dumped: set[int] = set()
         self._cycle_count = 0
         self._lock = threading.Lock()
@@ -520,10 +536,12 @@ class Recorder:
         """
         if not (isinstance(topic, str) and topic.startswith("/") and not topic.endswith("/") and " " not in topic):
             raise ValueError(f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}")
+        self._add_topic(topic, message_type(msg_class, typestore), msg_class, qos)
+
+    def _add_topic(self, topic: str, msg_type: MessageType, msg_class: type, qos: Any) -> None:
         with self._lock:
             if topic in self._topics:
                 raise ValueError(f"topic {topic} was added before (topics: {sorted(self._topics)})")
-            msg_type = message_type(msg_class, typestore)
             entry = _Topic(topic, msg_type, _dump_yaml([_qos_profile(qos)]), msg_class)
             self._topics[topic] = entry
         self._enqueue(("topic", entry), control=True)
@@ -537,7 +555,7 @@ class Recorder:
         black_box_topic: str | None = None,
         typestore: Any = None,
     ) -> None:
-        """Adds the per-cycle topic that :meth:`cycle_sample` feeds, and its black box topic.
+        """Adds the per-cycle topic that :meth:`cycle_records` feeds, and its black box topic.
 
         The black box topic (default: ``black_box`` in the cycle topic's namespace) has the same
         type; it is only in the bag when the black box is on (``black_box_seconds > 0``), and
@@ -549,12 +567,13 @@ class Recorder:
             black_box_topic = topic.rsplit("/", 1)[0] + "/black_box"
         if black_box_topic == topic:
             raise ValueError(f"black_box_topic must differ from the cycle topic {topic}")
+        msg_type = message_type(msg_class, typestore)
         if self._decimation:
-            self.add_topic(topic, msg_class, qos, typestore=typestore)
+            self._add_topic(topic, msg_type, msg_class, qos)
         if self._black_box_on:
-            self.add_topic(black_box_topic, msg_class, qos, typestore=typestore)
+            self._add_topic(black_box_topic, msg_type, msg_class, qos)
         self._cycle_topic, self._black_box_topic = topic, black_box_topic
-        self._cycle_class = msg_class
+        self._cycle_class, self._cycle_type = msg_class, msg_type
 
     def write(self, topic: str, msg: Any, time_ns: int) -> None:
         """Queues msg for topic at time_ns (nanoseconds since the epoch); never blocks.
@@ -571,18 +590,31 @@ class Recorder:
         self._enqueue((topic, msg, time_ns))
 
     def cycle_sample(self, msg: Any, time_ns: int) -> None:
-        """Takes one cycle's sample: into the black box ring, and every decimation-th to the
-        cycle topic. Never blocks; raises ValueError before add_cycle_topic or for a message of
-        another type."""
+        """Takes one sample, a message of the cycle topic's class, serialised here and then taken
+        as :meth:`cycle_records` takes records. Raises ValueError before add_cycle_topic or for a
+        message of another type."""
         if type(msg) is not self._cycle_class:
             if self._cycle_topic is None:
                 raise ValueError("no cycle topic: call add_cycle_topic first")
             expected, got = self._cycle_class.__qualname__, type(msg).__qualname__
             raise ValueError(f"the cycle topic takes {expected}, not {got}")
-        self._ring.append((time_ns, msg))
-        if self._decimation and (self._cycle_count // self._samples_per_cycle) % self._decimation == 0:
-            self._enqueue((self._cycle_topic, msg, time_ns))
-        self._cycle_count += 1
+        self.cycle_records([(time_ns, self._cycle_type.serialize(msg))])
+
+    def cycle_records(self, records: list[tuple[int, bytes]]) -> None:
+        """Takes records of consecutive cycles, each (time ns, the cycle topic's message
+        serialised as a bag holds it, e.g. by ``akd_ros._native.cycle_sample_records``),
+        ``samples_per_cycle`` a cycle: all into the black box ring, every decimation-th cycle's
+        to the cycle topic. Never blocks; raises ValueError before add_cycle_topic."""
+        if self._cycle_topic is None:
+            raise ValueError("no cycle topic: call add_cycle_topic first")
+        first = self._cycle_count
+        self._cycle_count += len(records)
+        self._ring.extend((first + i, time_ns, data) for i, (time_ns, data) in enumerate(records))
+        if self._decimation:
+            per_cycle, decimation = self._samples_per_cycle, self._decimation
+            kept = [r for i, r in enumerate(records, first) if (i // per_cycle) % decimation == 0]
+            if kept:
+                self._enqueue(("cycle", kept))
 
     def fault(self, time_ns: int) -> None:
         """Writes the black box: the samples of the ``black_box_seconds`` up to time_ns (the
@@ -688,38 +720,45 @@ class Recorder:
             _, ring, fault_ns = item
             oldest = fault_ns - self._black_box_ns
             # Faults may come out of time order (an emergency before the Fault state seen in an
-            # earlier cycle): each writes its whole window but no sample written before.
+            # earlier cycle): each writes its whole window but no record written before.
             if ring:
-                self._dumped = {t for t in self._dumped if t >= ring[0][0]}
-            for time_ns, msg in ring:
-                if oldest < time_ns <= fault_ns and time_ns not in self._dumped:
-                    self._add(self._black_box_topic, msg, time_ns)
-                    self._dumped.add(time_ns)
+                self._dumped = {n for n in self._dumped if n >= ring[0][0]}
+            for serial, time_ns, data in ring:
+                if oldest < time_ns <= fault_ns and serial not in self._dumped:
+                    self._add_records(self._black_box_topic, [(time_ns, data)])
+                    self._dumped.add(serial)
             self.stats.black_box_dumps += 1
             self._flush(sync=True)
+        elif item[0] == "cycle":
+            self._add_records(self._cycle_topic, item[1])
         else:
-            self._add(*item)
+            topic, msg, time_ns = item
+            self._add_records(topic, [(time_ns, self._topics[topic].msg_type.serialize(msg))])
 
-    def _add(self, topic: str, msg: Any, time_ns: int) -> None:
+    def _add_records(self, topic: str, records: list[tuple[int, bytes]]) -> None:
+        """Writes `records` (time ns, data) of `topic`, in time order, into a new file where they reach the split
+        duration."""
         entry = self._topics[topic]
-        data = entry.msg_type.serialize(msg)
-        if (
-            self._split_duration_ns is not None
-            and self._file.info.start_ns is not None
-            and time_ns - self._file.info.start_ns >= self._split_duration_ns
-        ):
-            self._split()
-        self._file.add_message(topic, time_ns, data)
-        entry.message_count += 1
-        self.stats.written += 1
-        self._pending_bytes += len(data)
-        if self._pending_bytes >= self._chunk_size or self._flush_due():
-            self._flush()
+        start = 0
+        while start < len(records):
+            end = len(records)
+            if self._split_duration_ns is not None:
+                first_ns = self._file.info.start_ns
+                limit = (records[start][0] if first_ns is None else first_ns) + self._split_duration_ns
+                end = bisect.bisect_left(records, limit, lo=start, key=_time_of)
+                if end == start:
+                    self._split()
+                    continue
+            batch = records[start:end]
+            self._pending_bytes += self._file.add_messages(topic, batch)
+            entry.message_count += len(batch)
+            self.stats.written += len(batch)
+            start = end
+            if self._pending_bytes >= self._chunk_size or self._flush_due():
+                self._flush()
 
     def _flush(self, sync: bool = False) -> None:
-        self._file.flush()
-        if sync:
-            os.fsync(self._file.stream.fileno())
+        self._file.flush(sync)
         self._pending_bytes = 0
         self._last_flush = time.monotonic()
         self._save_metadata()
@@ -753,11 +792,15 @@ class Recorder:
             self._guarded(self._save_metadata)
 
 
+def _time_of(record: tuple[int, bytes]) -> int:
+    return record[0]
+
+
 def _messages_in(item: Any) -> int:
     """How many messages a queue item carries (topic additions and the close carry none)."""
     if item is _CLOSE or item[0] == "topic":
         return 0
-    return len(item[1]) if item[0] == "black_box" else 1  # a black box: its ring's samples
+    return len(item[1]) if item[0] in ("black_box", "cycle") else 1  # a black box: its ring's records
 
 
 def _check_positive(name: str, value: Any, integer: bool = False) -> None:
@@ -783,7 +826,8 @@ def _read_records(path: Path) -> tuple[list, bool]:
                 if isinstance(record, (Schema, Channel, Message)):
                     records.append(record)
             complete = True
-        except (McapError, EOFError, ValueError, OSError) as err:
+        # A file cut anywhere (struct.error: inside a record's length field) holds what precedes the cut.
+        except (McapError, EOFError, ValueError, OSError, struct.error) as err:
             LOG.info("%s ends early (%s); recovering what precedes", path.name, err)
     return records, complete
 

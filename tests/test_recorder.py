@@ -248,6 +248,31 @@ def test_a_second_fault_writes_only_the_samples_after_the_first(tmp_path):
     assert indices == list(range(501, 1701))
 
 
+def test_records_of_several_joints_a_cycle_are_decimated_and_kept_in_the_black_box_together(tmp_path):
+    # Two joints a cycle, both stamped with their cycle's time, handed over in batches as the node does.
+    serialize = message_type(JointState).serialize
+    joints = ("a", "b")
+    records = []
+    for i in range(1000):
+        for joint in joints:
+            msg = sample(i)
+            msg.name = [joint]
+            records.append((T0 + i * PERIOD_NS, serialize(msg)))
+    with Recorder(
+        tmp_path, cycle_rate_hz=RATE_HZ, samples_per_cycle=2, decimation=3, black_box_seconds=0.2
+    ) as recorder:
+        recorder.add_cycle_topic(CYCLE, JointState)
+        for start in range(0, len(records), 250):
+            recorder.cycle_records(records[start : start + 250])
+        recorder.fault(T0 + 900 * PERIOD_NS)
+    with AnyReader([recorder.bag_path]) as reader:
+        seen = {CYCLE: [], BLACK_BOX: []}
+        for c, t, raw in reader.messages():
+            seen[c.topic].append((cycle_index(t), reader.deserialize(raw, c.msgtype).name[0]))
+    assert seen[CYCLE] == [(i, joint) for i in range(0, 1000, 3) for joint in joints]
+    assert seen[BLACK_BOX] == [(i, joint) for i in range(701, 901) for joint in joints]
+
+
 @pytest.mark.parametrize("split", [{"split_size": 40_000}, {"split_duration": 0.7}])
 def test_split_files_are_each_complete_and_all_listed(tmp_path, split):
     bag, stats = record_run(tmp_path, chunk_size=8_000, compression="lz4", **split)

@@ -83,7 +83,6 @@ class Publishing:
         self._drive_status = transport.message_class("akd_ros/msg/DriveStatus")
         self._latch_event = transport.message_class("akd_ros/msg/LatchEvent")
         self._drive_fault = transport.message_class("akd_ros/msg/DriveFault")
-        self._cycle_sample = transport.message_class("akd_ros/msg/CycleSample")
         self.joint_states = RecordedPublisher(
             transport, "sensor_msgs/msg/JointState", "/joint_states", reliable, session
         )
@@ -153,7 +152,7 @@ class Publishing:
             recorder = session.recorder
             columns = [(a, a.samples()) for a in session.bus.axes] if recorder is not None else None
         if columns is not None:
-            record_cycles(recorder, self._cycle_sample, self._clock, columns, self._clock.ros_minus_monotonic_ns())
+            record_cycles(recorder, columns, self._clock.ros_minus_monotonic_ns())
         how_to_enable = "call ~/enable to go on"
         # A fault of the link (a lost frame, a working counter) is every drive's in the same cycle: one line for all.
         logged: dict[tuple, list[str]] = {}

@@ -29,6 +29,9 @@
 //! ([`sim::server`]), so the master cannot tell it from a real line. The Python bindings (feature
 //! `python`) sit on top of all of them and are the only place that opens a link spec, since
 //! only they may see both the links and the simulator.
+//!
+//! [`bag_file`] stands apart from the EtherCAT layers: it writes the MCAP files of the
+//! recorder's rosbag2 bags, whose per-cycle records [`cycle::record`] serialises.
 
 #![deny(missing_docs)]
 
@@ -37,6 +40,7 @@ mod wire_code;
 
 pub mod akd_fault;
 pub mod al;
+pub mod bag_file;
 pub mod coe;
 pub mod cycle;
 pub mod dc;

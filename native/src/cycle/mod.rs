@@ -22,7 +22,8 @@
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
 //! fault supervision, [`latch`] the position latch, [`acyclic`] the mailbox traffic beside
-//! the cycle and [`dc_status`] the distributed clocks ([`CycleThread::dc_status`]).
+//! the cycle, [`dc_status`] the distributed clocks ([`CycleThread::dc_status`]) and [`record`]
+//! the per-cycle records as the recorder writes them.
 //!
 //! A slave the loop loses (no answer, or out of Op) is reported and its drive disabled there;
 //! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
@@ -47,6 +48,7 @@ pub mod events;
 pub mod handshake;
 pub mod image;
 pub mod latch;
+pub mod record;
 pub mod recovery;
 pub mod ring;
 pub mod rt;

@@ -17,6 +17,7 @@ use super::master::PyMaster;
 use super::{IntoPyResult, Merged};
 use crate::akd_fault;
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
+use crate::cycle::samples::Sample;
 use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
@@ -31,6 +32,42 @@ pub struct PyCycle {
     master: Py<PyMaster>,
     cycle: CycleThread,
 }
+
+// The columns `Cycle.samples` gives, one list per field of Sample, and their names in that
+// order; filled by hand: pyo3's derive converts one record, and a struct of columns would list
+// every field a second time.
+macro_rules! sample_columns {
+    ($($field:ident),*) => {
+        /// The names of `Cycle.samples`' columns.
+        const SAMPLE_COLUMNS: &[&str] = &[$(stringify!($field)),*];
+
+        /// `samples` as columns.
+        fn columns<'py>(py: Python<'py>, samples: &[Sample]) -> PyResult<Bound<'py, PyDict>> {
+            let d = PyDict::new(py);
+            $( d.set_item(stringify!($field), samples.iter().map(|s| s.$field).collect::<Vec<_>>())?; )*
+            Ok(d)
+        }
+    };
+}
+
+sample_columns!(
+    cycle,
+    time_ns,
+    slave,
+    period_ns,
+    exchange_ns,
+    wkc,
+    fresh,
+    statusword,
+    mode,
+    position,
+    velocity,
+    torque,
+    following_error,
+    target_position,
+    target_velocity,
+    target_torque
+);
 
 /// What `snapshot` gives; a slave without process data has None.
 #[derive(IntoPyObject)]
@@ -464,34 +501,21 @@ impl PyCycle {
     /// "following_error", "target_position", "target_velocity", "target_torque" (drive units:
     /// counts, counts/s, 0.1 % of peak torque; 0 for objects the mapping lacks). The ring holds
     /// 8192 records; take them at least that often (`samples_dropped` counts the rest).
-    fn samples<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    /// With `by_slave`, a dict of such columns for each slave that has records, by its position.
+    #[pyo3(signature = (by_slave = false))]
+    fn samples<'py>(&self, py: Python<'py>, by_slave: bool) -> PyResult<Bound<'py, PyDict>> {
         let samples = self.cycle.samples();
-        // Columns of Sample's fields, one list each, filled by hand: pyo3's derive converts one
-        // record, and a struct of columns would list every field a second time.
-        let d = PyDict::new(py);
-        macro_rules! column {
-            ($($field:ident),*) => {
-                $( d.set_item(stringify!($field), samples.iter().map(|s| s.$field).collect::<Vec<_>>())?; )*
-            };
+        if !by_slave {
+            return columns(py, &samples);
         }
-        column!(
-            cycle,
-            time_ns,
-            slave,
-            period_ns,
-            exchange_ns,
-            wkc,
-            fresh,
-            statusword,
-            mode,
-            position,
-            velocity,
-            torque,
-            following_error,
-            target_position,
-            target_velocity,
-            target_torque
-        );
+        let mut slaves: Vec<u16> = samples.iter().map(|s| s.slave).collect();
+        slaves.sort_unstable();
+        slaves.dedup();
+        let d = PyDict::new(py);
+        for slave in slaves {
+            let of_slave: Vec<Sample> = samples.iter().filter(|s| s.slave == slave).copied().collect();
+            d.set_item(slave, columns(py, &of_slave)?)?;
+        }
         Ok(d)
     }
 
@@ -773,5 +797,6 @@ fn progress_name(progress: Progress) -> &'static str {
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCycle>()?;
     // Per-cycle records the cycle keeps for each drive until `samples()` takes them.
-    m.add("SAMPLES_PER_DRIVE", crate::cycle::samples::CAPACITY)
+    m.add("SAMPLES_PER_DRIVE", crate::cycle::samples::CAPACITY)?;
+    m.add("SAMPLE_COLUMNS", pyo3::types::PyTuple::new(m.py(), SAMPLE_COLUMNS)?)
 }

@@ -10,12 +10,14 @@ use pyo3::IntoPyObjectExt;
 
 use crate::error::Error;
 
+mod bag_file;
 mod clocks;
 mod cycle;
 mod drive;
 mod eeprom;
 mod link_spec;
 mod master;
+mod record;
 mod sim;
 mod trajectory;
 
@@ -186,5 +188,7 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     drive::register(m)?;
     link_spec::register(m)?;
     clocks::register(m)?;
+    record::register(m)?;
+    bag_file::register(m)?;
     Ok(())
 }

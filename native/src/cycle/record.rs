@@ -1,0 +1,154 @@
+//! A [`Sample`] as the ROS message `akd_ros/msg/CycleSample`, serialised as rosbag2 stores it
+//! (CDR, little endian, behind its 4-byte encapsulation header), so that recording every cycle
+//! of every drive costs the recorder one copy per record instead of a Python message built and
+//! serialised field by field.
+//!
+//! The message's fields and their order are those of `msg/CycleSample.msg`; `cdr-encoding`
+//! lays them out with CDR's alignment. A test in `tests/test_cycle_record.py` compares these
+//! bytes with rclpy's serialisation of the same message.
+
+use serde::Serialize;
+
+use crate::cycle::samples::Sample;
+use crate::ds402::{Command, Mode};
+
+/// The encapsulation header of CDR little endian (RTPS's `CDR_LE`, options 0).
+const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
+const NS_PER_S: i64 = 1_000_000_000;
+
+/// How one joint's drive units become SI, as the node's units give them.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointScale {
+    /// rad (or m) per count, for position, velocity and following error.
+    pub si_per_count: f64,
+    /// The position of count 0 (rad or m).
+    pub position_offset: f64,
+    /// N·m (or N) per torque unit (0.1 % of the drive's peak torque).
+    pub si_per_torque_unit: f64,
+}
+
+#[derive(Serialize)]
+struct Time {
+    sec: i32,
+    nanosec: u32,
+}
+
+#[derive(Serialize)]
+struct CycleSample<'a> {
+    stamp: Time,
+    cycle: u64,
+    joint: &'a str,
+    position: f64,
+    velocity: f64,
+    torque: f64,
+    command: f64,
+    following_error: f64,
+    position_counts: i32,
+    statusword: u16,
+    mode_of_operation: i8,
+    period_ns: u32,
+    exchange_ns: u32,
+    wkc: u16,
+}
+
+/// `sample` of `joint` as a serialised `akd_ros/msg/CycleSample` stamped `stamp_ns` (ROS time,
+/// ns); its command is the target of the mode the drive shows (NaN in a mode without one).
+pub fn encode(sample: &Sample, joint: &str, scale: &JointScale, stamp_ns: i64) -> Vec<u8> {
+    let position = |counts: i32| counts as f64 * scale.si_per_count + scale.position_offset;
+    let per_count = |counts: i32| counts as f64 * scale.si_per_count;
+    let torque = |value: i16| value as f64 * scale.si_per_torque_unit;
+    let command = match Mode::from_i8(sample.mode).and_then(Mode::command) {
+        Some(Command::Position) => position(sample.target_position),
+        Some(Command::Velocity) => per_count(sample.target_velocity),
+        Some(Command::Torque) => torque(sample.target_torque),
+        None => f64::NAN,
+    };
+    let message = CycleSample {
+        stamp: Time { sec: stamp_ns.div_euclid(NS_PER_S) as i32, nanosec: stamp_ns.rem_euclid(NS_PER_S) as u32 },
+        cycle: sample.cycle,
+        joint,
+        position: position(sample.position),
+        velocity: per_count(sample.velocity),
+        torque: torque(sample.torque),
+        command,
+        following_error: per_count(sample.following_error),
+        position_counts: sample.position,
+        statusword: sample.statusword,
+        mode_of_operation: sample.mode,
+        period_ns: sample.period_ns,
+        exchange_ns: sample.exchange_ns,
+        wkc: sample.wkc,
+    };
+    let mut data = Vec::with_capacity(CDR_LE_HEADER.len() + 96 + joint.len());
+    data.extend_from_slice(&CDR_LE_HEADER);
+    // Writing into a Vec cannot fail, and every field has a CDR type.
+    cdr_encoding::to_writer::<_, byteorder::LittleEndian, _>(&mut data, &message)
+        .expect("a CycleSample always serialises");
+    data
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCALE: JointScale = JointScale { si_per_count: 0.5, position_offset: 1.0, si_per_torque_unit: 0.25 };
+
+    fn sample(mode: Mode) -> Sample {
+        Sample {
+            cycle: 7,
+            time_ns: 0,
+            slave: 0,
+            period_ns: 250_000,
+            exchange_ns: 40_000,
+            wkc: 3,
+            fresh: true,
+            statusword: 0x1237,
+            mode: mode as i8,
+            position: 100,
+            velocity: -8,
+            torque: 40,
+            following_error: 2,
+            target_position: 104,
+            target_velocity: 12,
+            target_torque: -20,
+        }
+    }
+
+    fn f64_at(data: &[u8], at: usize) -> f64 {
+        f64::from_le_bytes(data[at..at + 8].try_into().unwrap())
+    }
+
+    #[test]
+    fn fields_sit_where_cdr_aligns_them_after_the_header() {
+        let data = encode(&sample(Mode::CyclicSynchronousPosition), "j1", &SCALE, -1);
+        assert_eq!(data[..4], CDR_LE_HEADER);
+        let body = &data[4..];
+        // One nanosecond before the epoch: second -1 and its last nanosecond.
+        assert_eq!(i32::from_le_bytes(body[0..4].try_into().unwrap()), -1);
+        assert_eq!(u32::from_le_bytes(body[4..8].try_into().unwrap()), 999_999_999);
+        assert_eq!(u64::from_le_bytes(body[8..16].try_into().unwrap()), 7);
+        // The string: its length with the NUL, its bytes, the NUL, then padding to 8.
+        assert_eq!(u32::from_le_bytes(body[16..20].try_into().unwrap()), 3);
+        assert_eq!(&body[20..23], b"j1\0");
+        assert_eq!(f64_at(body, 24), 51.0);
+        assert_eq!(f64_at(body, 32), -4.0);
+        assert_eq!(f64_at(body, 40), 10.0);
+        assert_eq!(f64_at(body, 48), 53.0);
+        assert_eq!(f64_at(body, 56), 1.0);
+        assert_eq!(i32::from_le_bytes(body[64..68].try_into().unwrap()), 100);
+        assert_eq!(u16::from_le_bytes(body[68..70].try_into().unwrap()), 0x1237);
+        assert_eq!(body[70] as i8, 8);
+        assert_eq!(u32::from_le_bytes(body[72..76].try_into().unwrap()), 250_000);
+        assert_eq!(u32::from_le_bytes(body[76..80].try_into().unwrap()), 40_000);
+        assert_eq!(u16::from_le_bytes(body[80..82].try_into().unwrap()), 3);
+        assert_eq!(body.len(), 82);
+    }
+
+    #[test]
+    fn the_command_is_the_target_of_the_mode_shown() {
+        let command = |mode| f64_at(&encode(&sample(mode), "j1", &SCALE, 0)[4..], 48);
+        assert_eq!(command(Mode::ProfileVelocity), 6.0);
+        assert_eq!(command(Mode::ProfileTorque), -5.0);
+        assert!(command(Mode::Homing).is_nan());
+    }
+}

@@ -1,0 +1,113 @@
+//! `akd_ros._native.cycle_sample_records`: per-cycle records, as `Cycle.samples` gives them,
+//! turned into serialised `akd_ros/msg/CycleSample` messages for the recorder in one call.
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
+
+use crate::cycle::record::{self, JointScale};
+use crate::cycle::samples::Sample;
+
+/// A column of `columns` by name, every row converted to T.
+fn column<'py, T: FromPyObject<'py>>(columns: &Bound<'py, PyDict>, name: &str) -> PyResult<Vec<T>> {
+    match columns.get_item(name)? {
+        Some(values) => values.extract(),
+        None => Err(PyValueError::new_err(format!("per-cycle records without their {name:?} column"))),
+    }
+}
+
+/// The rows of `columns` (`Cycle.samples`' columns of one drive; none at all for no rows) as Samples.
+fn samples_of(columns: &Bound<'_, PyDict>) -> PyResult<Vec<Sample>> {
+    if columns.is_empty() {
+        return Ok(Vec::new());
+    }
+    let cycle: Vec<u64> = column(columns, "cycle")?;
+    let time_ns: Vec<u64> = column(columns, "time_ns")?;
+    let period_ns: Vec<u32> = column(columns, "period_ns")?;
+    let exchange_ns: Vec<u32> = column(columns, "exchange_ns")?;
+    let wkc: Vec<u16> = column(columns, "wkc")?;
+    let statusword: Vec<u16> = column(columns, "statusword")?;
+    let mode: Vec<i8> = column(columns, "mode")?;
+    let position: Vec<i32> = column(columns, "position")?;
+    let velocity: Vec<i32> = column(columns, "velocity")?;
+    let torque: Vec<i16> = column(columns, "torque")?;
+    let following_error: Vec<i32> = column(columns, "following_error")?;
+    let target_position: Vec<i32> = column(columns, "target_position")?;
+    let target_velocity: Vec<i32> = column(columns, "target_velocity")?;
+    let target_torque: Vec<i16> = column(columns, "target_torque")?;
+    let rows = cycle.len();
+    let lengths = [
+        time_ns.len(),
+        period_ns.len(),
+        exchange_ns.len(),
+        wkc.len(),
+        statusword.len(),
+        mode.len(),
+        position.len(),
+        velocity.len(),
+        torque.len(),
+        following_error.len(),
+        target_position.len(),
+        target_velocity.len(),
+        target_torque.len(),
+    ];
+    if lengths.iter().any(|&n| n != rows) {
+        return Err(PyValueError::new_err("per-cycle records whose columns differ in length"));
+    }
+    Ok((0..rows)
+        .map(|i| Sample {
+            cycle: cycle[i],
+            time_ns: time_ns[i],
+            period_ns: period_ns[i],
+            exchange_ns: exchange_ns[i],
+            wkc: wkc[i],
+            statusword: statusword[i],
+            mode: mode[i],
+            position: position[i],
+            velocity: velocity[i],
+            torque: torque[i],
+            following_error: following_error[i],
+            target_position: target_position[i],
+            target_velocity: target_velocity[i],
+            target_torque: target_torque[i],
+            ..Sample::default()
+        })
+        .collect())
+}
+
+/// The records of `joints`, a list of (joint name, its `akd_ros.units.Units`, its columns as
+/// `Cycle.samples` gives them), as a list of (ROS time ns, serialised `akd_ros/msg/CycleSample`),
+/// cycle by cycle and within a cycle in the order of `joints`; `offset_ns` (ROS minus monotonic
+/// time) stamps each with its cycle's wake-up on the ROS clock.
+#[pyfunction]
+fn cycle_sample_records(
+    joints: Vec<(String, Bound<'_, PyAny>, Bound<'_, PyDict>)>,
+    offset_ns: i64,
+) -> PyResult<Vec<(i64, Py<PyBytes>)>> {
+    let mut rows = Vec::new();
+    for (k, (joint, units, columns)) in joints.iter().enumerate() {
+        let scale = JointScale {
+            si_per_count: units.getattr("si_per_count")?.extract()?,
+            position_offset: units.getattr("offset")?.extract()?,
+            si_per_torque_unit: units.getattr("si_per_torque_unit")?.extract()?,
+        };
+        rows.extend(samples_of(columns)?.into_iter().map(|s| (s.cycle, k, s, joint.as_str(), scale)));
+    }
+    // Stable: a drive's records of one cycle stay in the order they were taken.
+    rows.sort_by_key(|&(cycle, k, ..)| (cycle, k));
+    let py = joints.first().map(|(_, units, _)| units.py());
+    Ok(match py {
+        None => Vec::new(),
+        Some(py) => rows
+            .iter()
+            .map(|(_, _, sample, joint, scale)| {
+                let stamp_ns = sample.time_ns as i64 + offset_ns;
+                (stamp_ns, PyBytes::new(py, &record::encode(sample, joint, scale, stamp_ns)).unbind())
+            })
+            .collect(),
+    })
+}
+
+pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_function(wrap_pyfunction!(cycle_sample_records, m)?)
+}
