@@ -1,8 +1,9 @@
 """Kollmorgen AKD servo drives on EtherCAT, over the Rust EtherCAT master in `akd_ros._native`.
 
 From the native extension: the `Master`, the real-time `Cycle`, the virtual AKD (`VirtualBus`,
-`serve_udp`, `serve_iface`, and `Simulator`, which controls the virtual AKDs of a
-`Master("sim")` or a server while they serve) and the exceptions, all under `EtherCatError`.
+`serve_udp`, `serve_iface`, `Simulator`, which controls the virtual AKDs of a
+`Master("sim")` or a server while they serve, and `SetpointTrace`, the file a server traces their set-points to) and
+the exceptions, all under `EtherCatError`.
 In Python: `Bus`, one EtherCAT line with its master and cycle thread, and `Axis`, one drive on it commanded in SI
 units (`Units`, `Limits`), with its events; `Axis(link)` alone is a bus of one.
 """

@@ -1,10 +1,10 @@
-"""Measures akd_node through ROS: command topic to set-point on the wire, cycle to /joint_states delivery in a
-subscriber process, and the node's CPU share, with one and six axes, with and without recording, over DDS and over
-Zenoh in one run, alternating.
+"""Measures akd_node through ROS: command topic to set-point on the wire (stamped inside the virtual AKD), cycle to
+/joint_states delivery in a subscriber process, and the node's CPU share, with one and six axes, with and without
+recording, over DDS and over Zenoh in one run, alternating.
 
-Not a test: timing depends on the machine and its load. Each run starts `akd-sim --count N --udp 127.0.0.1:PORT`
-and akd_node on it (config/akd_sim_6axis.yaml, its first N joints, with link, cycle_time, joint_states_rate and
-record.* changed), both separate processes; this process is the client:
+Not a test: timing depends on the machine and its load. Each run starts `akd-sim --count N --udp 127.0.0.1:PORT
+--setpoint-trace FILE` and akd_node on it (config/akd_sim_6axis.yaml, its first N joints, with link, cycle_time,
+joint_states_rate and record.* changed), both separate processes; this process is the client:
 - transport rclpy: akd_node from .venv over rmw_fastrtps_cpp on a ROS_DOMAIN_ID of its own (localhost discovery);
   the client an rclpy node (reliable, depth 100);
 - transport zenoh: akd_node from .venv-noros (no ROS wheel; .venv where it is missing), ROS imports refused,
@@ -15,12 +15,16 @@ of the node, of its akd-cycle thread, of akd-sim and of the Zenoh router, as % o
 messages received per second with their publication-to-delivery time (the client's system clock when it holds the
 decoded message minus header.stamp, the node's ROS time of publication).
 
-With recording (record.enabled, record.decimation 1, every cycle in the bag), ~/joint_commands is then published at
---command-rate for --command-seconds, each message moving every joint a small step to values not sent before. The
-node is stopped (SIGINT) and the bag read with rosbags (akd_ros/msg/CycleSample records):
-- command to wire: a message's send time (system clock) to the stamp of the first cycle whose command for joint_1 is
-  its value; that stamp is the cycle's wake-up time, taken right before its frame with the set-point goes out; of it,
-  command to node: to the bag's log time of the message (the node records a command as its callback takes it in);
+Then ~/joint_commands is published at --command-rate for --command-seconds, each message moving every joint a small
+step to values not sent before. The node and akd-sim are stopped (SIGINT, SIGTERM) and akd-sim's set-point trace read:
+- command to wire, with and without recording: a message's send time (this process's system clock) to the
+  CLOCK_REALTIME stamp akd-sim took when it received the first frame whose target position 0x607A for joint_1's
+  drive is the message's value in counts, converted as the node converts it (its parameters file read by
+  akd_ros.params, Units.position_to_counts): an exact match, the values being STEP (about 1700 counts) apart.
+With recording (record.enabled, record.decimation 1, every cycle in the bag) the bag is read too, with rosbags
+(akd_ros/msg/CycleSample records):
+- of command to wire, command to node: to the bag's log time of the message (the node records a command as its
+  callback takes it in);
 - cycle to delivery: for each /joint_states message received while the joints move, the cycle whose joint_1
   position it carries (the last one at or before its publication with that very value; a value two cycles within
   10 ms share is left out) to the message's delivery in this process.
@@ -40,6 +44,7 @@ from __future__ import annotations
 import argparse
 import bisect
 import functools
+import json
 import os
 import re
 import signal
@@ -57,6 +62,8 @@ from figures import Figures, histogram_us, json_argument, quantile, real_time
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 
+from akd_ros.params import read_parameters_file, settings
+from akd_ros.units import Units
 from akd_ros.zenoh.entities import ZenohNode
 from akd_ros.zenoh.types import Types
 from akd_ros.zenoh.wire import Attachment, data_key_expr, dds_type_name
@@ -81,6 +88,11 @@ FAULT_LINE = re.compile(r"fault of (\w+): ([^;]+);")
 """akd_node's log line of a joint's fault: the joint and what the fault is."""
 BENCH_GID = bytes(range(16))
 """The GID of this process's Zenoh service client in the enable request's attachment."""
+
+
+PARAMS = "akd_node.yaml"
+TRACE = "setpoints.jsonl"
+"""The files of a run, in its folder: the node's parameters, akd-sim's set-point trace."""
 
 
 def joints_of(count: int) -> list[str]:
@@ -216,12 +228,13 @@ class ZenohClient:
 
 @contextmanager
 def node_on_sim(folder: Path, count: int, transport: str, domain: int, endpoint: str, args, record: Path | None):
-    """akd-sim --count `count` (SCHED_FIFO args.sim_priority) and akd_node on it over `transport`; yields both."""
-    sim = Sim(free_udp_port(), count=count)
+    """akd-sim --count `count` (SCHED_FIFO args.sim_priority), tracing its set-points to `folder`/TRACE, and akd_node
+    on it over `transport` with its parameters in `folder`/PARAMS; yields both."""
+    sim = Sim(free_udp_port(), count=count, setpoint_trace=folder / TRACE)
     if args.sim_priority:
         real_time(sim.process.pid, args.sim_priority)
     changes = {"transport": transport} | ({"zenoh.connect": [endpoint]} if transport == "zenoh" else {})
-    path = folder / "akd_node.yaml"
+    path = folder / PARAMS
     path.write_text(params(sim.port, count, args, record, changes))
     node = NodeProcess(path, domain=domain, without_ros=transport == "zenoh")
     try:
@@ -296,14 +309,35 @@ def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, 
     return sorted(cycles), arrivals
 
 
-def command_to_wire(sent: list[tuple[int, float]], cycles: list[tuple[int, float, float]]) -> list[int]:
-    """For each value sent, ns from its send time to the first cycle whose command is that value (values rise by
-    STEP, far more than a count, so STEP / 4 tells them apart); values never seen are left out."""
+def joint_1(params: Path) -> tuple[int, Units]:
+    """The drive position and units of joint_1 as the node reads them from its parameters file `params`."""
+    joint = settings(read_parameters_file(str(params))).joints[0]
+    return joint.slave, joint.units
+
+
+def read_trace(path: Path, drive: int) -> tuple[list[tuple[int, int]], int]:
+    """From akd-sim's set-point trace at `path`: (CLOCK_REALTIME ns of the frame's reception, target position) of
+    each change of drive `drive`'s target position, in the order the frames came, and the changes the trace dropped."""
+    lines = [json.loads(line) for line in path.read_text().splitlines()]
+    if not lines or "end" not in lines[-1]:
+        raise RuntimeError(f"akd-sim's set-point trace {path} has no end line: akd-sim did not stop cleanly")
+    changes = [
+        (r["realtime_ns"], r["target_position"])
+        for r in lines[:-1]
+        if r["drive"] == drive and "target_position" in r["changed"]
+    ]
+    return changes, lines[-1]["end"]["dropped"]
+
+
+def command_to_wire(sent: list[tuple[int, float]], changes: list[tuple[int, int]], units: Units) -> list[int]:
+    """For each value sent, ns from its send time to the reception of the first frame whose target position is that
+    value in counts (`units`, as the node converts it); values never seen are left out."""
     found, i = [], 0
     for sent_ns, value in sent:
-        at = next((k for k in range(i, len(cycles)) if abs(cycles[k][2] - value) <= STEP / 4), None)
+        counts = units.position_to_counts(value)
+        at = next((k for k in range(i, len(changes)) if changes[k][1] == counts), None)
         if at is not None:
-            found.append(cycles[at][0] - sent_ns)
+            found.append(changes[at][0] - sent_ns)
             i = at
     return found
 
@@ -339,12 +373,15 @@ def run(count: int, record: bool, transport: str, context: dict, args) -> dict:
                 result = hold(node.process.pid, sim.process.pid, client, args.window)
                 held = client.received[result.pop("window")]
                 moving_from = len(client.received)
-                sent = stream_commands(client, count, args.command_rate, args.command_seconds) if record else []
+                sent = stream_commands(client, count, args.command_rate, args.command_seconds)
                 moving = client.received[moving_from:]
                 node.process.send_signal(signal.SIGINT)
                 client.wait_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
             finally:
                 client.close()
+        # akd-sim has stopped: its trace is complete.
+        drive, units = joint_1(Path(temp) / PARAMS)
+        changes, dropped = read_trace(Path(temp) / TRACE, drive)
         faults: dict[str, set[str]] = {}
         for joint, what in FAULT_LINE.findall(node.output()):
             faults.setdefault(what, set()).add(joint)
@@ -355,17 +392,22 @@ def run(count: int, record: bool, transport: str, context: dict, args) -> dict:
             "publication_to_delivery": [d - p for d, p, _ in held],
             "faults": {what: sorted(joints) for what, joints in faults.items()},
             "log_tail": node.output().strip().splitlines()[-3:],
+            "sent": len(sent),
+            "command_to_wire": command_to_wire(sent, changes, units),
+            "trace_dropped": dropped,
         }
         if record:
             cycles, arrivals = read_bag(folder)
             result |= {
-                "sent": len(sent),
                 "command_to_node": [arrivals[v] - t for t, v in sent if v in arrivals],
-                "command_to_wire": command_to_wire(sent, cycles),
                 "cycle_to_delivery": cycle_to_delivery(moving, cycles),
                 "moving": len(moving),
             }
         return result
+
+
+WIRE_P50, WIRE_P99 = "command→wire (akd-sim) p50 ms", "command→wire (akd-sim) p99 ms"
+"""The table's labels of command to wire: the set-point's reception stamped inside the virtual AKD."""
 
 
 def ms(values: list[int], fraction: float) -> float | None:
@@ -426,28 +468,33 @@ def main() -> int:
         row |= {"joint_states/s": r["joint_states/s"]}
         delivered = r["publication_to_delivery"]
         row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "publication→delivery p99 ms": ms(delivered, 0.99)}
-        wire, cycle = r.get("command_to_wire", []), r.get("cycle_to_delivery", [])
+        wire, cycle = r["command_to_wire"], r.get("cycle_to_delivery", [])
+        recorded = "moving" in r
         row |= {
-            "command→wire p50 ms": ms(wire, 0.5),
-            "command→wire p99 ms": ms(wire, 0.99),
+            WIRE_P50: ms(wire, 0.5),
+            WIRE_P99: ms(wire, 0.99),
             "of it command→node p50 ms": ms(r.get("command_to_node", []), 0.5),
             "command→node p99 ms": ms(r.get("command_to_node", []), 0.99),
-            "matched": f"{len(wire)}/{r['sent']}" if "sent" in r else None,
+            "matched": f"{len(wire)}/{r['sent']}",
             "cycle→delivery p50 ms": ms(cycle, 0.5),
             "cycle→delivery p99 ms": ms(cycle, 0.99),
-            "cycle→delivery n": len(cycle) if "sent" in r else None,
+            "cycle→delivery n": len(cycle) if recorded else None,
         }
-        if "sent" in r:
-            if len(wire) < 2:
-                figures.missing(
-                    f"command→wire, {r['axes']} axes over {r['transport']}: {len(wire)} matched; the node's last lines:"
-                    f" {' / '.join(r['log_tail'])}"
-                )
-            if len(cycle) < 2:
-                figures.missing(
-                    f"cycle→delivery, {r['axes']} axes over {r['transport']}: {len(cycle)} matched of"
-                    f" {r['moving']} /joint_states received while the joints moved"
-                )
+        if len(wire) < 2:
+            figures.missing(
+                f"command→wire, {r['axes']} axes over {r['transport']} ({r['recording']}): {len(wire)} matched; the"
+                f" node's last lines: {' / '.join(r['log_tail'])}"
+            )
+        if r["trace_dropped"]:
+            figures.note(
+                f"{r['axes']} axes over {r['transport']} ({r['recording']}): akd-sim's set-point trace dropped"
+                f" {r['trace_dropped']} changes, unmatched"
+            )
+        if recorded and len(cycle) < 2:
+            figures.missing(
+                f"cycle→delivery, {r['axes']} axes over {r['transport']}: {len(cycle)} matched of"
+                f" {r['moving']} /joint_states received while the joints moved"
+            )
         row["faulted joints"] = len({j for joints in r["faults"].values() for j in joints})
         row["attempt"] = r["attempt"]
         if row["faulted joints"]:
@@ -470,8 +517,8 @@ def main() -> int:
                         "node CPU %",
                         "publication→delivery p50 ms",
                         "publication→delivery p99 ms",
-                        "command→wire p50 ms",
-                        "command→wire p99 ms",
+                        WIRE_P50,
+                        WIRE_P99,
                         "cycle→delivery p50 ms",
                         "cycle→delivery p99 ms",
                     ):
@@ -481,18 +528,20 @@ def main() -> int:
         figures.table("Zenoh against DDS (ratios, same run)", ratios)
     series = {}
     for r in results:
+        case = f"{r['axes']} axes {r['transport']} ({r['recording']})"
+        if r["command_to_wire"]:
+            series[f"{case}: command→wire"] = histogram_us(r["command_to_wire"], 10_000)
         if r.get("cycle_to_delivery"):
-            series[f"{r['axes']} axes {r['transport']}: cycle→delivery"] = histogram_us(r["cycle_to_delivery"], 10_000)
-            series[f"{r['axes']} axes {r['transport']}: command→wire"] = histogram_us(r["command_to_wire"], 10_000)
+            series[f"{case}: cycle→delivery"] = histogram_us(r["cycle_to_delivery"], 10_000)
     figures.distribution("through ROS: command→wire and cycle→/joint_states delivery", series)
     figures.note(
         "CPU: utime + stime over the window, % of one core; of it cycle: the node's akd-cycle thread; router: the"
         " Zenoh router process (DDS has none); recording: record.decimation 1; publication→delivery: delivery minus"
-        " header.stamp (the node stamps /joint_states with its time of publication); command→wire: send time to the"
-        " stamp of the first cycle sending the value (its wake-up, right before the frame goes out), not a time taken"
-        " inside the virtual AKD; command→node: send time to the node's taking the message in (its log time in"
-        " the bag); cycle→delivery: that cycle's stamp to the delivery of the message carrying its"
-        f" position; waits bounded by {WAIT_S:g} s"
+        " header.stamp (the node stamps /joint_states with its time of publication); command→wire (akd-sim): send time"
+        " (the client's system clock) to akd-sim's CLOCK_REALTIME stamp of the first frame it received carrying the"
+        " value as joint_1's target position 0x607A (akd-sim --setpoint-trace), with and without recording;"
+        " command→node: send time to the node's taking the message in (its log time in the bag); cycle→delivery:"
+        f" that cycle's stamp to the delivery of the message carrying its position; waits bounded by {WAIT_S:g} s"
     )
     return figures.finish()
 

@@ -25,6 +25,20 @@ stdout, 'ok ...' or 'error: ...':
 
 A change reaches the drive at once; the drive firmware acts on it when it next runs, at the
 next frame a master sends. The end of stdin ends the commands, not the simulator.
+
+--setpoint-trace FILE writes, for each drive in Op, every change of the set-points its RxPDO
+carries (target position 0x607A, target velocity 0x60FF, target torque 0x6071, controlword
+0x6040, modes of operation 0x6060, those mapped) as JSON lines, stamped when the frame carrying
+it was received:
+
+  {"drive":0,"frame":5231,"index":143,"realtime_ns":...,"monotonic_ns":...,"position":1234.5,
+   "changed":["target_position"],"target_position":1669,"controlword":15,"modes_of_operation":8}
+
+frame: the line's count of frames; index: the master's index in the frame's first datagram;
+realtime_ns, monotonic_ns: CLOCK_REALTIME and CLOCK_MONOTONIC at reception; position: the actual
+position 0x6064 (counts); changed: the values that changed. A thread of its own writes the file;
+changes it could not take in time are dropped and counted. The last line, written at SIGINT or
+SIGTERM, is {"end":{"changes":N,"dropped":M}}, also said on stdout.
 """
 
 from __future__ import annotations
@@ -196,25 +210,40 @@ def main(argv: list[str] | None = None) -> int:
         help="how the drives judge missed frames (F125 after more than 7): 'late' (default), as the real drive, "
         "by time; 'lost', only frames lost on the line, for a host whose master thread is not real-time",
     )
+    parser.add_argument(
+        "--setpoint-trace",
+        metavar="FILE",
+        help="write every change of the set-points the drives receive to FILE (JSON lines, see below)",
+    )
     args = parser.parse_args(argv)
 
     def body() -> int:
-        from akd_ros import serve_iface, serve_udp
+        from akd_ros import SetpointTrace, serve_iface, serve_udp
 
         drives = f"{args.count} virtual AKD{'s' if args.count > 1 else ''}"
+        trace = SetpointTrace(args.setpoint_trace) if args.setpoint_trace else None
+        options = {"on_start": start_commands, "missed": args.missed, "setpoint_trace": trace}
         try:
             if args.udp:
                 host, port = parse_host_port(args.udp)
                 print(f"akd-sim: starting {drives} on udp {host}:{port}", flush=True)
-                serve_udp(host, port, args.count, on_start=start_commands, missed=args.missed)
+                serve_udp(host, port, args.count, **options)
             else:
                 print(f"akd-sim: starting {drives} on interface {args.iface}", flush=True)
-                serve_iface(args.iface, args.count, on_start=start_commands, missed=args.missed)
+                serve_iface(args.iface, args.count, **options)
         except KeyboardInterrupt:
             # SIGINT and SIGTERM are how a simulator is meant to stop; a second signal while
             # it stops must not turn the clean stop into an interrupted one.
             signal.signal(signal.SIGINT, signal.SIG_IGN)
             signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        finally:
+            if trace is not None:
+                summary = trace.close()
+                print(
+                    f"akd-sim: set-point trace {args.setpoint_trace}: {summary['changes']} changes,"
+                    f" {summary['dropped']} dropped",
+                    flush=True,
+                )
         print("akd-sim: stopped", flush=True)
         return 0
 

@@ -1473,6 +1473,13 @@ pub enum Unavailable {
     NoSimulator,
     /// The simulator's server thread panicked.
     SimulatorPanicked,
+    /// A set-point trace that cannot take a server.
+    SetpointTrace {
+        /// The trace file.
+        path: String,
+        /// Why not: closed, or taken by another server.
+        why: &'static str,
+    },
     /// The virtual AKDs are gone with their master or server.
     SimulatorGone,
     /// A virtual AKD whose bus served no frame in time to answer a query.
@@ -1549,6 +1556,7 @@ impl fmt::Display for Unavailable {
                  takes its commands on stdin"
             ),
             Unavailable::SimulatorPanicked => write!(f, "the simulator thread panicked"),
+            Unavailable::SetpointTrace { path, why } => write!(f, "the set-point trace {path} {why}"),
             Unavailable::SimulatorGone => {
                 write!(f, "the virtual AKDs are gone: their master was closed or their server stopped")
             }

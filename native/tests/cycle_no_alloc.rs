@@ -94,7 +94,9 @@ fn cycle_loop_allocates_nothing() {
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
         let stop = stop.clone();
-        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(3, LATE_IS_NOT_MISSED), &stop))
+        std::thread::spawn(move || {
+            server::serve_udp(address, VirtualBus::with_timing(3, LATE_IS_NOT_MISSED), &stop, None)
+        })
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
     let deadline = Instant::now() + Duration::from_secs(5);

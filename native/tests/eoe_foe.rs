@@ -235,7 +235,9 @@ fn malformed_eoe_headers_beside_the_running_cycle_disturb_neither_it_nor_the_ip_
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
         let stop = stop.clone();
-        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(2, late_is_not_missed), &stop))
+        std::thread::spawn(move || {
+            server::serve_udp(address, VirtualBus::with_timing(2, late_is_not_missed), &stop, None)
+        })
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
     let deadline = Instant::now() + STEP;

@@ -25,7 +25,9 @@ fn exchange_allocates_nothing() {
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
         let stop = stop.clone();
-        std::thread::spawn(move || server::serve_udp(address, VirtualBus::with_timing(2, Timing::IMMEDIATE), &stop))
+        std::thread::spawn(move || {
+            server::serve_udp(address, VirtualBus::with_timing(2, Timing::IMMEDIATE), &stop, None)
+        })
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
     // The server may take a moment to bind.

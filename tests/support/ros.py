@@ -104,14 +104,17 @@ class Sim:
 
     Its drives judge missed frames as `missed` says: by default "lost", only frames lost on the line, because the
     node's tests are not about this shared host's scheduling and a node cycle it runs late must not fault them
-    (F125); a test of the drive's own reaction to a master that stops asks for "late", as the real drive judges."""
+    (F125); a test of the drive's own reaction to a master that stops asks for "late", as the real drive judges.
+    With `setpoint_trace` it traces the set-points its drives receive to that file (akd-sim --setpoint-trace), complete
+    once it stopped."""
 
-    def __init__(self, port: int, count: int = 1, missed: str = "lost"):
+    def __init__(self, port: int, count: int = 1, missed: str = "lost", setpoint_trace: Path | None = None):
         self.port = port
         self.log: list[str] = []
         self.lines: queue.Queue = queue.Queue()
+        trace = ["--setpoint-trace", str(setpoint_trace)] if setpoint_trace else []
         self.process = subprocess.Popen(
-            [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}", "--count", str(count), "--missed", missed],
+            [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}", "--count", str(count), "--missed", missed, *trace],
             preexec_fn=lambda: realtime(SIM_PRIORITY),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,

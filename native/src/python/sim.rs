@@ -1,10 +1,12 @@
 //! Python face of the virtual AKD: `VirtualBus` for tests that build their own frames,
 //! `serve_udp` / `serve_iface` for the `akd-sim` command, and `Simulator`, which controls
-//! virtual AKDs another thread serves (a `Master("sim")` and its Cycle, or a server).
+//! virtual AKDs another thread serves (a `Master("sim")` and its Cycle, or a server), and
+//! `SetpointTrace`, the file a server traces its drives' set-points to.
 
 use std::net::{SocketAddr, ToSocketAddrs};
+use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
@@ -15,6 +17,7 @@ use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
+use crate::sim::setpoint_trace::{Recorder, SetpointTrace, TraceSummary};
 use crate::sim::sync::SyncState;
 use crate::sim::{server, Timing, VirtualBus};
 
@@ -253,6 +256,36 @@ impl PySimulator {
     }
 }
 
+/// A file the set-points a server's virtual AKDs receive are traced to (JSON lines, see
+/// `akd-sim --help`): created (or truncated) here, a bad path raising LinkError naming it; given
+/// to one `serve_udp` or `serve_iface` (`setpoint_trace=`), and closed by `close()` once that
+/// server stopped.
+#[pyclass(name = "SetpointTrace", module = "akd_ros._native", frozen)]
+pub struct PySetpointTrace {
+    trace: Mutex<SetpointTrace>,
+}
+
+impl PySetpointTrace {
+    fn recorder(&self, drives: usize) -> PyResult<Recorder> {
+        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).recorder(drives).py()
+    }
+}
+
+#[pymethods]
+impl PySetpointTrace {
+    #[new]
+    fn new(path: PathBuf) -> PyResult<Self> {
+        Ok(PySetpointTrace { trace: Mutex::new(SetpointTrace::create(path).py()?) })
+    }
+
+    /// Waits for the server that recorded to have stopped, writes the rest and the end line, and
+    /// closes the file: {"changes": written, "dropped": because the writer fell behind}.
+    fn close(&self, py: Python<'_>) -> PyResult<TraceSummary> {
+        let trace = &self.trace;
+        py.allow_threads(|| trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).finish()).py()
+    }
+}
+
 /// A bus of `count` virtual AKDs for a server; `on_start`, if given, is called with its
 /// Simulator before serving starts.
 fn controlled_bus(count: usize, missed: &str, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<ControlledBus> {
@@ -296,8 +329,9 @@ fn run_until_signal(
 /// Serves `count` virtual AKDs on UDP `host:port` until SIGINT/SIGTERM. `on_start(simulator)`
 /// is called first with the `Simulator` that controls them while they serve. `missed`: how
 /// they judge missed frames, "late" (as the real drive) or "lost" (only frames lost on the line).
+/// `setpoint_trace`: a `SetpointTrace` the drives' set-points are traced to.
 #[pyfunction]
-#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late"))]
+#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late", setpoint_trace = None))]
 fn serve_udp(
     py: Python<'_>,
     host: &str,
@@ -305,6 +339,7 @@ fn serve_udp(
     count: usize,
     on_start: Option<&Bound<'_, PyAny>>,
     missed: &str,
+    setpoint_trace: Option<&PySetpointTrace>,
 ) -> PyResult<()> {
     let address: SocketAddr = (host, port)
         .to_socket_addrs()
@@ -313,29 +348,33 @@ fn serve_udp(
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
     let bus = controlled_bus(count, missed, on_start)?;
-    run_until_signal(py, move |stop| server::serve_udp(address, bus, stop))
+    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    run_until_signal(py, move |stop| server::serve_udp(address, bus, stop, trace))
 }
 
 /// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
-/// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed` as
-/// for `serve_udp`.
+/// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed` and
+/// `setpoint_trace` as for `serve_udp`.
 #[pyfunction]
-#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late"))]
+#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None))]
 fn serve_iface(
     py: Python<'_>,
     iface: &str,
     count: usize,
     on_start: Option<&Bound<'_, PyAny>>,
     missed: &str,
+    setpoint_trace: Option<&PySetpointTrace>,
 ) -> PyResult<()> {
     let iface = iface.to_owned();
     let bus = controlled_bus(count, missed, on_start)?;
-    run_until_signal(py, move |stop| server::serve_iface(&iface, bus, stop))
+    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    run_until_signal(py, move |stop| server::serve_iface(&iface, bus, stop, trace))
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyVirtualBus>()?;
     m.add_class::<PySimulator>()?;
+    m.add_class::<PySetpointTrace>()?;
     m.add_function(wrap_pyfunction!(serve_udp, m)?)?;
     m.add_function(wrap_pyfunction!(serve_iface, m)?)?;
     m.add("MISSED_FRAMES", MissedFrames::NAMES.map(|(name, _)| name))?;

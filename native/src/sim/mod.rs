@@ -33,6 +33,7 @@ pub mod motion;
 pub mod od;
 pub mod process_data;
 pub mod server;
+pub mod setpoint_trace;
 pub mod sii_image;
 pub mod sync;
 pub mod sync_manager;
@@ -43,6 +44,7 @@ use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
 use crate::mailbox::HEADER_LEN;
+use crate::pdo;
 use crate::registers as reg;
 use crate::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};
@@ -244,6 +246,17 @@ impl VirtualAkd {
     /// What the drive's synchronisation was told: SYNC0, FBUS.PARAM02, its cycle time.
     pub fn sync_state(&self) -> sync::SyncState {
         sync::SyncState::of(self.esc.memory(), &self.od)
+    }
+
+    /// The outputs the master's last frames wrote into SM2, laid out by the drive's RxPDO
+    /// mapping, while the drive takes them (Op); `None` in the other states.
+    pub fn received_outputs(&self) -> Option<(&[pdo::PdoEntry], &[u8])> {
+        if self.al.state() != AlState::Op {
+            return None;
+        }
+        let base = reg::AKD_PROCESS_OUT as usize;
+        let outputs = self.esc.memory().get(base..base + pdo::bit_len(&self.rx_image) / 8)?;
+        Some((&self.rx_image, outputs))
     }
 
     /// The drive firmware: CiA 402 state, motor, inputs.

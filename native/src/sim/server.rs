@@ -7,6 +7,9 @@
 //! loops wake at least every 100 ms to see `stop`. The bus takes commands from its
 //! [`SimControl`](crate::sim::control::SimControl) handles at each frame and, with no frame,
 //! at each wake-up, so a query is answered within 100 ms whether a master runs or not.
+//!
+//! Given a [`Recorder`], a server stamps each frame as it is received and, once the reply is
+//! out, traces the set-points it changed (see [`crate::sim::setpoint_trace`]).
 
 use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -17,6 +20,7 @@ use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
 use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
 use crate::sim::line::Delivery;
+use crate::sim::setpoint_trace::{Recorder, Stamps};
 
 /// How often a server looks at its stop flag and its commands, and lets its drives' firmware
 /// run when no frame comes: a real AKD's firmware runs by itself, so a master that is gone
@@ -51,10 +55,27 @@ fn elapsed_ns(start: Instant) -> u64 {
     start.elapsed().as_nanos() as u64
 }
 
+/// The stamps of a frame just received, when a trace wants them.
+fn stamp(trace: &Option<Recorder>) -> Option<Stamps> {
+    trace.as_ref().map(|_| Stamps::now())
+}
+
+/// Traces the set-points `payload`, served and answered, left in the drives.
+fn trace_frame(trace: &mut Option<Recorder>, bus: &ControlledBus, payload: &[u8], received: Option<Stamps>) {
+    if let (Some(recorder), Some(received)) = (trace, received) {
+        recorder.record_bus(bus.bus(), payload, received);
+    }
+}
+
 /// Serves `bus` (a [`VirtualBus`](crate::sim::VirtualBus), or a [`ControlledBus`] whose
 /// handles the caller kept) on UDP at `bind` until `stop` is set: each datagram is an EtherCAT
-/// payload, answered to its sender.
-pub fn serve_udp(bind: SocketAddr, bus: impl Into<ControlledBus>, stop: &AtomicBool) -> Result<ServerStats> {
+/// payload, answered to its sender. `trace`, if given, records the set-points the drives receive.
+pub fn serve_udp(
+    bind: SocketAddr,
+    bus: impl Into<ControlledBus>,
+    stop: &AtomicBool,
+    mut trace: Option<Recorder>,
+) -> Result<ServerStats> {
     let mut bus = bus.into();
     let socket = UdpSocket::bind(bind).map_err(|e| Error::io(format!("binding UDP {bind}"), e))?;
     socket.set_read_timeout(Some(POLL_INTERVAL)).map_err(|e| Error::io("setting the UDP read timeout", e))?;
@@ -75,11 +96,13 @@ pub fn serve_udp(bind: SocketAddr, bus: impl Into<ControlledBus>, stop: &AtomicB
             }
             Err(e) => return Err(Error::io(format!("receiving on UDP {bind}"), e)),
         };
+        let received = stamp(&trace);
         if !stats.serve(&mut bus, &mut buf[..len], elapsed_ns(start)) {
             continue;
         }
         socket.send_to(&buf[..len], peer).map_err(|e| Error::io(format!("replying to {peer}"), e))?;
         stats.served += 1;
+        trace_frame(&mut trace, &bus, &buf[..len], received);
     }
     Ok(stats)
 }
@@ -87,8 +110,13 @@ pub fn serve_udp(bind: SocketAddr, bus: impl Into<ControlledBus>, stop: &AtomicB
 /// Serves `bus` (as [`serve_udp`] takes it) on network interface `iface` until `stop` is set:
 /// each EtherCAT frame received is processed and sent back with the first byte of its source
 /// MAC ORed with 0x02, as the real ESC marks a frame it returns (01:01:01:01:01:01 →
-/// 03:01:01:01:01:01).
-pub fn serve_iface(iface: &str, bus: impl Into<ControlledBus>, stop: &AtomicBool) -> Result<ServerStats> {
+/// 03:01:01:01:01:01). `trace` as for [`serve_udp`].
+pub fn serve_iface(
+    iface: &str,
+    bus: impl Into<ControlledBus>,
+    stop: &AtomicBool,
+    mut trace: Option<Recorder>,
+) -> Result<ServerStats> {
     let mut bus = bus.into();
     let socket = RawSocket::open(iface)?;
     socket.set_read_timeout(POLL_INTERVAL)?;
@@ -100,6 +128,7 @@ pub fn serve_iface(iface: &str, bus: impl Into<ControlledBus>, stop: &AtomicBool
             bus.idle(elapsed_ns(start));
             continue;
         };
+        let received = stamp(&trace);
         let is_ecat = len > ETH_HEADER_LEN && u16::from_be_bytes([buf[12], buf[13]]) == ETHERTYPE;
         // Masters differ in their source MAC (SOEM 01:.., KickCAT 02:..), so the returned bit
         // cannot tell requests from replies; the socket already skips what this server sent.
@@ -114,6 +143,7 @@ pub fn serve_iface(iface: &str, bus: impl Into<ControlledBus>, stop: &AtomicBool
         buf[6] |= RETURNED_MAC_BIT;
         socket.send(&buf[..len])?;
         stats.served += 1;
+        trace_frame(&mut trace, &bus, &buf[ETH_HEADER_LEN..len], received);
     }
     Ok(stats)
 }
@@ -132,7 +162,7 @@ mod tests {
         drop(probe);
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        let server = std::thread::spawn(move || serve_udp(address, VirtualBus::new(2), &flag));
+        let server = std::thread::spawn(move || serve_udp(address, VirtualBus::new(2), &flag, None));
         let client = UdpSocket::bind("127.0.0.1:0").unwrap();
         client.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
         let mut buf = [0u8; 64];
@@ -162,7 +192,7 @@ mod tests {
         let control = bus.control();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        let server = std::thread::spawn(move || serve_udp(address, bus, &flag));
+        let server = std::thread::spawn(move || serve_udp(address, bus, &flag, None));
         // No master: the server answers at its next wake-up.
         let idle = control.drive_state(0, Duration::from_secs(5)).unwrap();
         assert_eq!(idle.fault, None);
@@ -187,7 +217,7 @@ mod tests {
     #[test]
     fn names_a_missing_interface() {
         let stop = AtomicBool::new(false);
-        let err = serve_iface("akd-no-such-if", VirtualBus::new(1), &stop).unwrap_err();
+        let err = serve_iface("akd-no-such-if", VirtualBus::new(1), &stop, None).unwrap_err();
         assert!(err.to_string().contains("akd-no-such-if"), "{err}");
     }
 }
