@@ -30,10 +30,11 @@ What is checked, for every segment (one Cycle's life):
   records == cycles;
 - every cycle is either fresh (exchanged, working counter right) or stale, and every stale cycle is counted:
   stale cycles with working counter 0 <= lost_frames + other_errors, stale cycles with one >= 1 <= wkc_errors, and
-  the counts beyond the stale cycles are of mailbox frames (SDO, error code) beside the cycle:
-  lost_frames + wkc_errors + other_errors - stale <= the master's frames - its cyclic exchanges;
+  no cyclic count beyond the stale cycles: lost_frames + wkc_errors + other_errors <= stale; the mailbox frames
+  (SDO, error code) beside the cycle are counted apart: acyclic_lost_frames + acyclic_wkc_errors <= the master's
+  frames - its cyclic exchanges;
 - the master's own counters (`Master.stats`, before and after) moved as the cycle's: one cyclic exchange per cycle,
-  the same lost frames and wrong working counters;
+  its lost frames and wrong working counters those of the cyclic frame and the frames beside it together;
 and at the end, over the whole run, the virtual AKDs' own count (`Simulator.line_counts`) against the master's:
 every frame the master sent reached the line, and every frame the master counted lost was one the line lost or
 corrupted.
@@ -159,6 +160,7 @@ class Segment:
         """What does not add up in this finished segment, one sentence each."""
         s = self.cycle.stats()
         cycles, lost, wkc, other = s["cycles"], s["lost_frames"], s["wkc_errors"], s["other_errors"]
+        acyclic = (s["acyclic_lost_frames"], s["acyclic_wkc_errors"])
         before, after = self.master_before, master_after
         stale = self.stale_lost + self.stale_wkc
         acyclic_frames = (after["frames"] - before["frames"]) - (after["cycles"] - before["cycles"])
@@ -173,13 +175,18 @@ class Segment:
             problems.append(f"{self.stale_lost} stale cycles without reply > lost {lost} + other errors {other}")
         if self.stale_wkc > wkc:
             problems.append(f"{self.stale_wkc} stale cycles with a wrong working counter > wkc_errors {wkc}")
-        if lost + wkc + other - stale > acyclic_frames:
+        if sum(acyclic) > acyclic_frames:
+            problems.append(f"{sum(acyclic)} lost or wrong frames beside the cycle > {acyclic_frames} sent")
+        if lost + wkc + other - stale > 0:
             problems.append(
-                f"lost {lost} + wkc {wkc} + other {other} - stale {stale} > {acyclic_frames} frames beside the cycle"
+                f"lost {lost} + wkc {wkc} + other {other} > stale {stale}: errors in cycles that were fresh"
             )
         if after["cycles"] - before["cycles"] != cycles:
             problems.append(f"the master exchanged {after['cycles'] - before['cycles']} times in {cycles} cycles")
-        if (after["lost_frames"] - before["lost_frames"], after["wkc_errors"] - before["wkc_errors"]) != (lost, wkc):
+        if (after["lost_frames"] - before["lost_frames"], after["wkc_errors"] - before["wkc_errors"]) != (
+            lost + acyclic[0],
+            wkc + acyclic[1],
+        ):
             problems.append("the master's lost frames or wrong working counters are not the cycle's")
         return problems
 

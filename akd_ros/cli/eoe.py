@@ -6,7 +6,8 @@ then runs in Op with the cycle thread, which carries the Ethernet frames in EoE 
 and a TAP interface (--tap, addressed --host) bridges the machine to them: `ping`, or WorkBench connecting by IP.
 Frames for a broadcast or multicast address go to every drive, others to the drive with that MAC. Opening the TAP
 interface needs CAP_NET_ADMIN. The tool runs until SIGINT/SIGTERM (or --duration) and prints the cycle's lost
-frames and working-counter errors and the frames carried when it stops.
+process-data frames and working-counter errors, the frames carried and, counted apart, the mailbox frames lost
+beside the process data (each sent again) when it stops.
 """
 
 from __future__ import annotations
@@ -38,6 +39,16 @@ def _seconds(text: str) -> float:
     return value
 
 
+def _cpu(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a CPU number (0, 1, ...), got {text!r}")
+    return value
+
+
 def _mac_text(mac: bytes) -> str:
     return ":".join(f"{b:02x}" for b in mac)
 
@@ -66,6 +77,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--priority", type=int, metavar="N", help="the cycle thread under SCHED_FIFO N (where permitted)"
     )
+    parser.add_argument("--cpu", type=_cpu, metavar="N", help="the cycle thread bound to CPU N (where permitted)")
     args = parser.parse_args(argv)
     gateway = args.gateway or (str(args.host.ip) if args.host else None)
 
@@ -98,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 master.configure_sm2_sync(round(args.period * 1e9))
             master.request_state("op")
-            cycle = _native.Cycle(master, args.period, priority=args.priority)
+            cycle = _native.Cycle(master, args.period, priority=args.priority, cpu=args.cpu)
             for warning in cycle.warnings:
                 print(f"akd-eoe: warning: {warning}", file=sys.stderr, flush=True)
         except BaseException:
@@ -122,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
             print(
                 f"akd-eoe: {stats['cycles']} cycles, {stats['lost_frames']} lost frames, {stats['wkc_errors']} WKC "
                 f"errors; frames to the drives {bridge.to_drives}, from them {bridge.from_drives}, "
-                f"dropped {dropped[0]} and {dropped[1]}"
+                f"dropped {dropped[0]} and {dropped[1]}; beside the process data {stats['acyclic_lost_frames']} "
+                f"mailbox frames lost"
             )
             if bridge.refused:
                 print(f"akd-eoe: {bridge.refused} frames from {bridge.name} too long for EoE, dropped", file=sys.stderr)

@@ -22,12 +22,13 @@ use akd_native::sim::in_process::InProcess;
 mod csp;
 use csp::csp_cycle;
 
-/// The in-process link, losing the next `drop` frames (the frame never reaches the drives),
-/// and, when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a
+/// The in-process link, losing the next `drop` frames (the frame never reaches the drives)
+/// and the next `drop_mailbox` frames beside the cyclic LRW, and, when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a
 /// drive leaving Op by itself, as far as the master can tell.
 struct Lossy {
     inner: InProcess,
     drop: Arc<AtomicU32>,
+    drop_mailbox: Arc<AtomicU32>,
     to_safeop: Arc<AtomicU32>,
 }
 
@@ -41,8 +42,10 @@ impl Link for Lossy {
             let mut reply = [0u8; 64];
             self.inner.exchange(&frame[..len], &mut reply, timeout)?;
         }
-        if self.drop.load(Ordering::Acquire) > 0 {
-            self.drop.fetch_sub(1, Ordering::AcqRel);
+        let cyclic = tx.get(2) == Some(&(Command::Lrw as u8));
+        let lose =
+            |count: &AtomicU32| count.fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| n.checked_sub(1)).is_ok();
+        if lose(&self.drop) || (!cyclic && lose(&self.drop_mailbox)) {
             return Err(Error::Timeout { what: "a frame the test lost".into() });
         }
         self.inner.exchange(tx, rx, timeout)
@@ -56,14 +59,19 @@ impl Link for Lossy {
 struct Rig {
     cycle: CycleThread,
     drop: Arc<AtomicU32>,
+    drop_mailbox: Arc<AtomicU32>,
     to_safeop: Arc<AtomicU32>,
 }
 
 fn rig() -> Rig {
-    let drop = Arc::new(AtomicU32::new(0));
-    let to_safeop = Arc::new(AtomicU32::new(0));
-    let link = Lossy { inner: InProcess::new(1), drop: drop.clone(), to_safeop: to_safeop.clone() };
-    Rig { cycle: csp_cycle(Box::new(link)), drop, to_safeop }
+    let (drop, drop_mailbox, to_safeop) = Default::default();
+    let link = Lossy {
+        inner: InProcess::new(1),
+        drop: Arc::clone(&drop),
+        drop_mailbox: Arc::clone(&drop_mailbox),
+        to_safeop: Arc::clone(&to_safeop),
+    };
+    Rig { cycle: csp_cycle(Box::new(link)), drop, drop_mailbox, to_safeop }
 }
 
 fn enable(cycle: &CycleThread) {
@@ -166,4 +174,24 @@ fn sdo_beside_the_cycle_reads_writes_and_names_aborts() {
     assert!(cycle.sdo_read(3, 0x1018, 1).is_err());
     let stats = cycle.stats();
     assert_eq!(stats.lost_frames.load(Ordering::Relaxed), 0);
+}
+
+#[test]
+fn a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame() {
+    let Rig { cycle, drop, drop_mailbox, .. } = rig();
+    drop_mailbox.store(1, Ordering::Release);
+    // The transfer goes on after its lost frame: sent again, or its reply fetched again.
+    assert_eq!(cycle.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    let stats = cycle.stats();
+    assert_eq!(drop_mailbox.load(Ordering::Acquire), 0);
+    assert_eq!(stats.lost_frames.load(Ordering::Relaxed), 0, "no process-data frame was lost");
+    assert_eq!(stats.acyclic_lost_frames.load(Ordering::Relaxed), 1);
+    drop.store(1, Ordering::Release);
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while stats.lost_frames.load(Ordering::Relaxed) == 0 {
+        assert!(Instant::now() < deadline, "the cyclic frame's loss not counted");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(stats.lost_frames.load(Ordering::Relaxed), 1);
+    assert_eq!(stats.acyclic_lost_frames.load(Ordering::Relaxed), 1);
 }

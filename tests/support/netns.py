@@ -217,19 +217,25 @@ loaded test host a virtual one descheduled for more than seven cycles would faul
 as the real one does when its master falls silent, which is not what the tests are about."""
 
 
-def realtime(priority: int) -> None:
-    """In a child before it executes: SCHED_FIFO at `priority` for it and every thread it starts, if permitted."""
+def realtime(priority: int, cpu: int | None = None) -> None:
+    """In a child before it executes: SCHED_FIFO at `priority` for it and every thread it starts, and bound to `cpu`
+    when one is given, each if permitted."""
     with contextlib.suppress(PermissionError, OSError):
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+    if cpu is not None:
+        with contextlib.suppress(PermissionError, OSError):
+            os.sched_setaffinity(0, {cpu})
 
 
 @contextmanager
-def _serving(argv: list[str], ready, what: str, ready_timeout: float) -> Iterator[subprocess.Popen]:
-    """Starts a simulator process (under SCHED_FIFO SIM_PRIORITY where permitted), yields it once `ready()` holds,
-    stops it with SIGTERM on exit and checks it stopped cleanly (status 0). Its output is then in
-    `process.output_text`."""
+def _serving(
+    argv: list[str], ready, what: str, ready_timeout: float, cpu: int | None = None
+) -> Iterator[subprocess.Popen]:
+    """Starts a simulator process (under SCHED_FIFO SIM_PRIORITY, and on `cpu` when given, where permitted), yields it
+    once `ready()` holds, stops it with SIGTERM on exit and checks it stopped cleanly (status 0). Its output is then
+    in `process.output_text`."""
     process = subprocess.Popen(
-        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=lambda: realtime(SIM_PRIORITY)
+        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=lambda: realtime(SIM_PRIORITY, cpu)
     )
     _wait_until(ready, process, what, ready_timeout)
     try:
@@ -243,11 +249,12 @@ def _serving(argv: list[str], ready, what: str, ready_timeout: float) -> Iterato
         )
 
 
-def akd_sim_in_netns(ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0):
+def akd_sim_in_netns(ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0, cpu: int | None = None):
     """Runs `akd-sim --iface IFNAME --count N` in `ns` (context manager yielding the process once
-    its packet socket is bound; stopped with SIGTERM on exit)."""
+    its packet socket is bound; stopped with SIGTERM on exit), bound to `cpu` when one is given."""
     argv = netns_argv(ns, [*console_script("akd-sim"), "--iface", ifname, "--count", str(count)])
-    return _serving(argv, lambda: _packet_socket_open(ns, ifname), f"akd-sim on {ifname} in {ns}", ready_timeout)
+    what = f"akd-sim on {ifname} in {ns}"
+    return _serving(argv, lambda: _packet_socket_open(ns, ifname), what, ready_timeout, cpu)
 
 
 def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeout: float = 10.0):

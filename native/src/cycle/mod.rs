@@ -969,11 +969,16 @@ fn run(
             }
         }
         let sent = timing::now_ns();
+        let before = master.stats();
         let result = master.exchange();
         let exchange_ns = timing::now_ns() - sent;
         stats.exchange.record(exchange_ns);
-        // Lost frames and wrong working counters are the master's own counts; other failures
-        // are counted here. None of them stops the cycle: supervise() judges them.
+        // Lost frames and wrong working counters are the master's own counts, the cyclic
+        // frame's kept apart from the mailbox's; other failures are counted here. None of them
+        // stops the cycle: supervise() judges them.
+        let after = master.stats();
+        CycleStats::add(&stats.lost_frames, after.lost_frames - before.lost_frames);
+        CycleStats::add(&stats.wkc_errors, after.wkc_errors - before.wkc_errors);
         let (wkc, exchange) = match &result {
             Ok(wkc) => (*wkc, Exchange::Good),
             Err(Error::WorkingCounter { got, .. }) => (*got, Exchange::WrongWkc),
@@ -1003,8 +1008,10 @@ fn run(
         });
         shared.relay.serve(master, relay_buffers);
         let now_stats = master.stats();
-        stats.lost_frames.store(now_stats.lost_frames - base.lost_frames, Ordering::Relaxed);
-        stats.wkc_errors.store(now_stats.wkc_errors - base.wkc_errors, Ordering::Relaxed);
+        let cyclic = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
+        let acyclic_lost = now_stats.lost_frames - base.lost_frames - cyclic.0;
+        stats.acyclic_lost_frames.store(acyclic_lost, Ordering::Relaxed);
+        stats.acyclic_wkc_errors.store(now_stats.wkc_errors - base.wkc_errors - cyclic.1, Ordering::Relaxed);
         CycleStats::add(&stats.cycles, 1);
         {
             let mut w = shared.snapshot.write();

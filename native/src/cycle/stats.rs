@@ -167,10 +167,17 @@ pub struct CycleStats {
     pub cycles: AtomicU64,
     /// Deadlines missed because a cycle ended after the next one.
     pub overruns: AtomicU64,
-    /// Cyclic frames that did not come back (the master's count, since the thread started).
+    /// Cyclic frames (the process data) that did not come back (the master's count, since the
+    /// thread started).
     pub lost_frames: AtomicU64,
     /// Cycles whose working counter was wrong (the master's count, since the thread started).
     pub wkc_errors: AtomicU64,
+    /// Frames the thread sent beside the process data (mailbox: SDO, EoE, emergencies; a
+    /// recovery's relayed frames) that did not come back: counted apart, a mailbox frame lost is
+    /// sent again and costs no process data.
+    pub acyclic_lost_frames: AtomicU64,
+    /// Wrong working counters of the register accesses beside the process data.
+    pub acyclic_wkc_errors: AtomicU64,
     /// Cycles whose exchange failed otherwise (a malformed reply, a link error).
     pub other_errors: AtomicU64,
     /// Cycles that went out with the previous cycle's set-points because a writer was
@@ -189,6 +196,8 @@ impl CycleStats {
             overruns: AtomicU64::new(0),
             lost_frames: AtomicU64::new(0),
             wkc_errors: AtomicU64::new(0),
+            acyclic_lost_frames: AtomicU64::new(0),
+            acyclic_wkc_errors: AtomicU64::new(0),
             other_errors: AtomicU64::new(0),
             setpoints_busy: AtomicU64::new(0),
         }

@@ -87,6 +87,8 @@ struct StatsView {
     overruns: u64,
     lost_frames: u64,
     wkc_errors: u64,
+    acyclic_lost_frames: u64,
+    acyclic_wkc_errors: u64,
     other_errors: u64,
     setpoints_busy: u64,
     relayed_frames: u64,
@@ -345,9 +347,10 @@ impl PyCycle {
         .into_pyobject(py)
     }
 
-    /// The statistics: cycles, overruns, lost_frames, wkc_errors, other_errors,
-    /// setpoints_busy, relayed_frames and relayed_lost (frames a slave's recovery sent beside
-    /// the cycle, and those lost, which lost_frames counts too, as it counts the mailbox's),
+    /// The statistics: cycles, overruns, lost_frames and wkc_errors (the cyclic frame's),
+    /// acyclic_lost_frames and acyclic_wkc_errors (the frames beside it: mailbox, and a
+    /// recovery's), other_errors, setpoints_busy, relayed_frames and relayed_lost (frames a
+    /// slave's recovery sent beside the cycle, and those lost, which acyclic_lost_frames counts too),
     /// and period, wake_latency (how late after its deadline the thread woke)
     /// and exchange, each {count, min_ns, mean_ns, p99_ns, max_ns}.
     fn stats(&self) -> StatsView {
@@ -361,6 +364,8 @@ impl PyCycle {
             overruns: s.overruns.load(Relaxed),
             lost_frames: s.lost_frames.load(Relaxed),
             wkc_errors: s.wkc_errors.load(Relaxed),
+            acyclic_lost_frames: s.acyclic_lost_frames.load(Relaxed),
+            acyclic_wkc_errors: s.acyclic_wkc_errors.load(Relaxed),
             other_errors: s.other_errors.load(Relaxed),
             setpoints_busy: s.setpoints_busy.load(Relaxed),
             period: s.period.summary(),

@@ -306,10 +306,23 @@ impl ControlledBus {
     /// Serves an EtherCAT payload in place at bus time `now_ns` as [`VirtualBus::process`]
     /// does, with the changes sent before it applied first and the queries answered after it.
     pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> std::result::Result<Delivery, FrameError> {
+        let served = self.answer(payload, now_ns);
+        self.bus.run_ip_stacks(now_ns);
+        served
+    }
+
+    /// [`process`](Self::process) without the drives' IP stacks ([`VirtualBus::answer`]), for a
+    /// server that sends the frame back before it runs them ([`run_ip_stacks`](Self::run_ip_stacks)).
+    pub fn answer(&mut self, payload: &mut [u8], now_ns: u64) -> std::result::Result<Delivery, FrameError> {
         self.take_commands();
-        let served = self.bus.process(payload, now_ns);
+        let served = self.bus.answer(payload, now_ns);
         self.answer_queries();
         served
+    }
+
+    /// The drives' IP stacks at bus time `now_ns`, after a frame [`answer`](Self::answer) served.
+    pub fn run_ip_stacks(&mut self, now_ns: u64) {
+        self.bus.run_ip_stacks(now_ns);
     }
 
     /// No frame came until bus time `now_ns`: the drives' firmware runs up to it (supervision

@@ -331,10 +331,6 @@ impl VirtualAkd {
                 self.read_mailbox(now_ns);
             }
         }
-        if self.al.state() != AlState::Init && self.al.state() != AlState::Bootstrap {
-            let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
-            self.mailbox.poll(now_ns, size);
-        }
         self.write_mailbox();
         if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
             self.al.fail(AlState::SafeOp, AlStatusCode::SM_WATCHDOG);
@@ -357,6 +353,17 @@ impl VirtualAkd {
         }
         if self.al.state() >= AlState::SafeOp && self.al.state() != AlState::Bootstrap {
             process_data::refresh_inputs(&self.od, self.esc.memory_mut(), &self.tx_image);
+        }
+    }
+
+    /// The firmware's IP stack (EoE) at bus time `now_ns`: the replies due and the frames it
+    /// sends, into the mailbox. It runs once a frame has gone back, never in front of one: the
+    /// real drive's ESC answers a frame in hardware while its processor does this work.
+    pub fn run_ip_stack(&mut self, now_ns: u64) {
+        if self.al.state() != AlState::Init && self.al.state() != AlState::Bootstrap {
+            let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
+            self.mailbox.poll(now_ns, size);
+            self.write_mailbox();
         }
     }
 
@@ -532,13 +539,29 @@ impl VirtualBus {
     pub fn advance(&mut self, now_ns: u64) {
         for slave in &mut self.slaves {
             slave.poll(now_ns);
+            slave.run_ip_stack(now_ns);
         }
     }
 
     /// Serves an EtherCAT payload (frame header and datagrams) in place at bus time `now_ns`,
-    /// through the drives its line reaches, and tells whether it comes back (see [`line`](mod@line)).
-    /// A malformed frame is refused untouched.
+    /// through the drives its line reaches, and tells whether it comes back (see [`line`](mod@line)),
+    /// then lets the drives' IP stacks run. A malformed frame is refused untouched.
     pub fn process(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
+        let delivery = self.answer(payload, now_ns)?;
+        self.run_ip_stacks(now_ns);
+        Ok(delivery)
+    }
+
+    /// The drives' IP stacks at bus time `now_ns` (see [`VirtualAkd::run_ip_stack`]): for a
+    /// server to run once it has sent back the frame [`answer`](Self::answer) served.
+    pub fn run_ip_stacks(&mut self, now_ns: u64) {
+        for slave in &mut self.slaves {
+            slave.run_ip_stack(now_ns);
+        }
+    }
+
+    /// [`process`](Self::process) without the IP stacks' work: the frame as the ESCs answer it.
+    pub fn answer(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
         frame::validate(payload)?;
         if self.line.carry() {
             for slave in &mut self.slaves {
@@ -574,11 +597,24 @@ mod tests {
     use crate::frame::{Command, FrameBuilder};
 
     fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+        served(VirtualBus::process, bus, now, (command, adp, ado), data)
+    }
+
+    type Serve = fn(&mut VirtualBus, &mut [u8], u64) -> Result<line::Delivery, FrameError>;
+
+    /// One datagram in a frame that `serve` takes through `bus`: its data and working counter.
+    fn served(
+        serve: Serve,
+        bus: &mut VirtualBus,
+        now: u64,
+        (command, adp, ado): (Command, u16, u16),
+        data: &[u8],
+    ) -> (Vec<u8>, u16) {
         let mut buf = [0u8; 1500];
         let mut b = FrameBuilder::new(&mut buf);
         let slot = b.push(command, 0, adp, ado, data).unwrap();
         let len = b.finish();
-        bus.process(&mut buf[..len], now).unwrap();
+        serve(bus, &mut buf[..len], now).unwrap();
         (slot.data(&buf[..len]).unwrap().to_vec(), slot.wkc(&buf[..len]).unwrap())
     }
 
@@ -686,6 +722,26 @@ mod tests {
             (&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0][..], 1)
         );
         assert_eq!(exchange(&mut bus, t + 2_500_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+    }
+
+    #[test]
+    fn a_frame_is_answered_before_the_ip_stack_works() {
+        let mut bus = VirtualBus::with_timing(1, Timing::IMMEDIATE);
+        to_preop(&mut bus);
+        let mut request = vec![0u8; 0x400];
+        let parameters = crate::eoe::IpParameters { ip: Some([192, 0, 2, 10].into()), ..Default::default() };
+        crate::eoe::write_set_ip_request(&mut request, 1, &parameters).unwrap();
+        exchange(&mut bus, 1, Command::Bwr, 0, 0x1800, &request);
+        // The frame that lets the firmware take the request finds SM1 empty (status bit 3 clear):
+        // the response is the IP stack's, which runs after the frame went back.
+        let sm1_status = (Command::Brd, 0, 0x080D);
+        assert_eq!(served(VirtualBus::answer, &mut bus, 2, sm1_status, &[0]).0, [0x00]);
+        assert_eq!(served(VirtualBus::answer, &mut bus, 3, sm1_status, &[0]).0, [0x00]);
+        bus.run_ip_stacks(3);
+        assert_eq!(served(VirtualBus::answer, &mut bus, 4, sm1_status, &[0]).0[0] & 0x08, 0x08);
+        // An EoE Set IP Parameter response (frame type 3), result 0.
+        let (reply, _) = exchange(&mut bus, 5, Command::Brd, 0, 0x1C00, &[0; 0x400]);
+        assert_eq!((reply[5] & 0x0F, reply[6] & 0x0F, &reply[8..10]), (0x02, 0x03, &[0, 0][..]));
     }
 
     #[test]

@@ -2,8 +2,9 @@
 //! the UDP datagram) or raw Ethernet on a network interface (e.g. one end of a veth pair).
 //!
 //! Each request is processed at the monotonic time since the server started and sent back at
-//! once; a malformed request is counted and dropped, as a real line drops a corrupt frame, and
-//! a frame lost on the simulated line is counted and not answered. The
+//! once, before the drives' IP stacks (EoE) do their work, as the ESC answers in hardware; a
+//! malformed request is counted and dropped, as a real line drops a corrupt frame, and a frame
+//! lost on the simulated line is counted and not answered. The
 //! loops wake at least every 100 ms to see `stop`. The bus takes commands from its
 //! [`SimControl`](crate::sim::control::SimControl) handles at each frame and, with no frame,
 //! at each wake-up, so a query is answered within 100 ms whether a master runs or not.
@@ -39,10 +40,11 @@ pub struct ServerStats {
 }
 
 impl ServerStats {
-    /// Serves `payload` through `bus` at `now_ns`; whether it goes back. What does not is
-    /// counted, malformed or lost.
+    /// Serves `payload` through `bus` at `now_ns` as the ESCs answer it (the drives' IP stacks
+    /// run once it has gone back); whether it goes back. What does not is counted, malformed or
+    /// lost.
     fn serve(&mut self, bus: &mut ControlledBus, payload: &mut [u8], now_ns: u64) -> bool {
-        match bus.process(payload, now_ns) {
+        match bus.answer(payload, now_ns) {
             Ok(Delivery::Returned) => return true,
             Ok(Delivery::Lost) => self.lost += 1,
             Err(_) => self.malformed += 1,
@@ -97,12 +99,13 @@ pub fn serve_udp(
             Err(e) => return Err(Error::io(format!("receiving on UDP {bind}"), e)),
         };
         let received = stamp(&trace);
-        if !stats.serve(&mut bus, &mut buf[..len], elapsed_ns(start)) {
-            continue;
+        let now_ns = elapsed_ns(start);
+        if stats.serve(&mut bus, &mut buf[..len], now_ns) {
+            socket.send_to(&buf[..len], peer).map_err(|e| Error::io(format!("replying to {peer}"), e))?;
+            stats.served += 1;
+            trace_frame(&mut trace, &bus, &buf[..len], received);
         }
-        socket.send_to(&buf[..len], peer).map_err(|e| Error::io(format!("replying to {peer}"), e))?;
-        stats.served += 1;
-        trace_frame(&mut trace, &bus, &buf[..len], received);
+        bus.run_ip_stacks(now_ns);
     }
     Ok(stats)
 }
@@ -137,13 +140,14 @@ pub fn serve_iface(
             bus.serve_commands();
             continue;
         }
-        if !stats.serve(&mut bus, &mut buf[ETH_HEADER_LEN..len], elapsed_ns(start)) {
-            continue;
+        let now_ns = elapsed_ns(start);
+        if stats.serve(&mut bus, &mut buf[ETH_HEADER_LEN..len], now_ns) {
+            buf[6] |= RETURNED_MAC_BIT;
+            socket.send(&buf[..len])?;
+            stats.served += 1;
+            trace_frame(&mut trace, &bus, &buf[ETH_HEADER_LEN..len], received);
         }
-        buf[6] |= RETURNED_MAC_BIT;
-        socket.send(&buf[..len])?;
-        stats.served += 1;
-        trace_frame(&mut trace, &bus, &buf[ETH_HEADER_LEN..len], received);
+        bus.run_ip_stacks(now_ns);
     }
     Ok(stats)
 }
