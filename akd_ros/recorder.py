@@ -39,6 +39,7 @@ import functools
 import importlib
 import logging
 import math
+import operator
 import os
 import struct
 import threading
@@ -366,10 +367,6 @@ class _McapFile:
             _SERIALIZATION,
             {"offered_qos_profiles": topic.qos_yaml, "topic_type_hash": msg_type.type_hash},
         )
-
-    def add_message(self, topic: str, time_ns: int, data: bytes) -> None:
-        self.file.add_message(self.channel_ids[topic], time_ns, data)
-        self.info.add(time_ns)
 
     def add_messages(self, topic: str, records: list[tuple[int, bytes]]) -> int:
         """Adds `records` (time ns, data) of `topic`, in time order; their bytes in all."""
@@ -745,7 +742,7 @@ class Recorder:
             if self._split_duration_ns is not None:
                 first_ns = self._file.info.start_ns
                 limit = (records[start][0] if first_ns is None else first_ns) + self._split_duration_ns
-                end = bisect.bisect_left(records, limit, lo=start, key=_time_of)
+                end = bisect.bisect_left(records, limit, lo=start, key=operator.itemgetter(0))
                 if end == start:
                     self._split()
                     continue
@@ -790,10 +787,6 @@ class Recorder:
         self._guarded(self._file.close, self._metadata())
         if not self._failed:
             self._guarded(self._save_metadata)
-
-
-def _time_of(record: tuple[int, bytes]) -> int:
-    return record[0]
 
 
 def _messages_in(item: Any) -> int:

@@ -70,11 +70,6 @@ impl PyBagFile {
         self.with(|f| f.add_channel(schema_id, topic, message_encoding, &metadata))
     }
 
-    /// Adds one message at `time_ns` (log and publish time).
-    fn add_message(&self, channel_id: u16, time_ns: u64, data: &[u8]) -> PyResult<()> {
-        self.with(|f| f.add_message(channel_id, time_ns, data))
-    }
-
     /// Adds `records`, a list of (time_ns, data), to one channel; their bytes in all.
     fn add_messages(&self, channel_id: u16, records: Vec<(u64, Bound<'_, PyBytes>)>) -> PyResult<usize> {
         self.with(|f| {

@@ -81,6 +81,7 @@ fn samples_of(columns: &Bound<'_, PyDict>) -> PyResult<Vec<Sample>> {
 /// time) stamps each with its cycle's wake-up on the ROS clock.
 #[pyfunction]
 fn cycle_sample_records(
+    py: Python<'_>,
     joints: Vec<(String, Bound<'_, PyAny>, Bound<'_, PyDict>)>,
     offset_ns: i64,
 ) -> PyResult<Vec<(i64, Py<PyBytes>)>> {
@@ -95,17 +96,13 @@ fn cycle_sample_records(
     }
     // Stable: a drive's records of one cycle stay in the order they were taken.
     rows.sort_by_key(|&(cycle, k, ..)| (cycle, k));
-    let py = joints.first().map(|(_, units, _)| units.py());
-    Ok(match py {
-        None => Vec::new(),
-        Some(py) => rows
-            .iter()
-            .map(|(_, _, sample, joint, scale)| {
-                let stamp_ns = sample.time_ns as i64 + offset_ns;
-                (stamp_ns, PyBytes::new(py, &record::encode(sample, joint, scale, stamp_ns)).unbind())
-            })
-            .collect(),
-    })
+    Ok(rows
+        .iter()
+        .map(|(_, _, sample, joint, scale)| {
+            let stamp_ns = sample.time_ns as i64 + offset_ns;
+            (stamp_ns, PyBytes::new(py, &record::encode(sample, joint, scale, stamp_ns)).unbind())
+        })
+        .collect())
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
