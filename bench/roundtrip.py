@@ -9,7 +9,15 @@ so a change in the machine's load falls on every master alike.
 
 Besides the frame SOEM and KickCAT send (one LRW), this master is also measured with the frame its
 cycle thread sends, `akd_ros+watch`: the LRW and, per slave, the reads of AL status and mailbox
-status that supervise the bus (`Master.set_supervision`), in the same process right after.
+status that supervise the bus (`Master.set_supervision`), in the same process right after; and
+both again on the link `IFACE?busy_poll=200` (`+busy_poll`): the master busy-polls the socket for
+the returning frame for up to 200 µs before it sleeps, where the default sleeps at once.
+
+akd-sim runs `--busy-poll` on the last CPU under the normal scheduler, and every master on the
+other CPUs: a real AKD's ESC answers in hardware as the frame passes, and a server woken by each
+frame would add the scheduler's wake-up (tens of µs on a virtual machine, the same for every
+master) to every round trip. `--sim-wakes` runs akd-sim as the tests do (SCHED_FIFO, woken by
+each frame, no CPU of its own) instead.
 
 Per master, drive count and rate: the round trip of the cyclic exchange (the call, as a Python
 program makes it, from before the frame is sent to after its return is taken: `Master.exchange()`,
@@ -48,12 +56,20 @@ from support.soem_script import SOEM_HELPERS
 # measured as a slow round trip rather than counted lost.
 FRAME_TIMEOUT_S = 0.1
 
+# How long this master busy-polls in its `+busy_poll` rows, µs: past the p99.9 of a round trip to
+# a busy-polling akd-sim here, and within a 4 kHz cycle.
+BUSY_POLL_US = 200
+
 # The paced loop every master runs, the same text for all: `exchange()` is one cyclic round trip
 # that returns whether the working counter was the expected one.
 PACED_LOOP = (
-    f"TIMEOUT_S = {FRAME_TIMEOUT_S}\n"
+    f"TIMEOUT_S = {FRAME_TIMEOUT_S}\nBUSY_POLL_US = {BUSY_POLL_US}\n"
     + r"""
-import gc, json, sys, time
+import gc, json, os, sys, time
+
+# The CPUs measure() leaves to the masters, the same for every one.
+if os.environ.get("ROUNDTRIP_CPUS"):
+    os.sched_setaffinity(0, {int(cpu) for cpu in os.environ["ROUNDTRIP_CPUS"].split(",")})
 
 
 def paced(exchange, rate, cycles, warmup):
@@ -94,29 +110,41 @@ AKD_ROS_SCRIPT = (
 iface, rates, cycles, warmup = sys.argv[1], json.loads(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 from akd_ros import _native
 
-with _native.Master(iface, timeout=TIMEOUT_S) as master:
-    found = len(master.scan())
-    master.request_state("preop")
-    master.request_state("op")
-    expected = master.expected_wkc
 
-    def exchange():
-        try:
-            return master.exchange() == expected
-        except _native.EtherCatError:
-            return False
+# The plain and the supervised frame's variants on `link`; the drives found, the frames lost.
+def measure_link(link, prefix):
+    with _native.Master(link, timeout=TIMEOUT_S) as master:
+        found = len(master.scan())
+        master.request_state("preop")
+        master.request_state("op")
+        expected = master.expected_wkc
 
-    variants = {"": run_rates(exchange, rates, cycles, warmup)}
-    # The frame a Cycle sends: the LRW and two reads of every slave's AL status and mailbox
-    # (not in a --baseline build older than Master.set_supervision).
-    if hasattr(master, "set_supervision"):
-        master.set_supervision(True)
-        variants["+watch"] = run_rates(exchange, rates, cycles, warmup)
-        if not all(w["answered"] and w["al_state"] == "Op" for w in master.watch()):
-            raise RuntimeError(f"akd_ros: supervision did not see every drive in Op: {master.watch()}")
-    stats = master.stats()
-    master.request_state("init")
-print(json.dumps({"found": found, "lost": stats["lost_frames"], "variants": variants,
+        def exchange():
+            try:
+                return master.exchange() == expected
+            except _native.EtherCatError:
+                return False
+
+        variants = {prefix: run_rates(exchange, rates, cycles, warmup)}
+        # The frame a Cycle sends: the LRW and two reads of every slave's AL status and mailbox
+        # (not in a --baseline build older than Master.set_supervision).
+        if hasattr(master, "set_supervision"):
+            master.set_supervision(True)
+            variants[prefix + "+watch"] = run_rates(exchange, rates, cycles, warmup)
+            if not all(w["answered"] and w["al_state"] == "Op" for w in master.watch()):
+                raise RuntimeError(f"akd_ros: supervision did not see every drive in Op: {master.watch()}")
+        lost = master.stats()["lost_frames"]
+        master.request_state("init")
+    return found, lost, variants
+
+
+found, lost, variants = measure_link(iface, "")
+# Not in a --baseline build older than the busy poll.
+if getattr(_native.parse_link(iface), "busy_poll_us", None) is not None:
+    _, lost_busy, busy = measure_link(f"{iface}?busy_poll={BUSY_POLL_US}", "+busy_poll")
+    variants.update(busy)
+    lost += lost_busy
+print(json.dumps({"found": found, "lost": lost, "variants": variants,
                   "version": _native.__file__}))
 """
 )
@@ -230,15 +258,17 @@ def summarise(runs: list[dict]) -> dict:
 FIGURES = ("p50_us", "p99_us", "p99.9_us", "max_us", "cpu_per_cycle_us")
 
 
-def run_master(net, name: str, script: str, rates: list[int], cycles: int, warmup: int) -> dict:
-    """One run of one master in the master namespace; its report, or {"error": ...}."""
-    timeout = 60 + len(rates) * (cycles + warmup) * 2 / min(rates)
+def run_master(net, name: str, script: str, rates: list[int], cycles: int, warmup: int, cpus: list[int]) -> dict:
+    """One run of one master in the master namespace, on `cpus` (all, if empty); its report, or {"error": ...}."""
+    timeout = 60 + 2 * len(rates) * (cycles + warmup) * 2 / min(rates)
+    env = {**os.environ, "ROUNDTRIP_CPUS": ",".join(map(str, cpus))}
     try:
         result = run_python_in_netns(
             net.ns_master,
             script,
             args=[net.if_master, json.dumps(rates), str(cycles), str(warmup)],
             timeout=timeout,
+            env=env,
         )
     except subprocess.TimeoutExpired as error:  # a hung master: its figures are unmeasured, the others count
         return {"error": f"{name}: {type(error).__name__}: {error}"}
@@ -256,16 +286,28 @@ def run_master(net, name: str, script: str, rates: list[int], cycles: int, warmu
 BAD_SHARE = 0.001
 
 
+def cpu_split(sim_wakes: bool) -> tuple[int | None, list[int]]:
+    """akd-sim's CPU and the masters': a busy-polling akd-sim takes the last CPU this process may
+    use, the masters the others; with `sim_wakes`, none for akd-sim and all for the masters."""
+    cpus = sorted(os.sched_getaffinity(0))
+    if sim_wakes or len(cpus) < 2:
+        return None, []
+    return cpus[-1], cpus[:-1]
+
+
 def measure(args, contenders: dict[str, str]) -> tuple[dict, list[str]]:
     """Every count: one akd-sim, `rounds` rounds of every master in turn. Returns the figures
     {count: {rate: {master: summary}}} and the problems met."""
     results, problems = {}, []
     for count in args.counts:
         runs: dict[str, list[dict]] = {}
-        with veth_pair() as net, akd_sim_in_netns(net.ns_sim, net.if_sim, count=count):
+        with (
+            veth_pair() as net,
+            akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, cpu=args.sim_cpu, busy_poll=args.sim_cpu is not None),
+        ):
             for round_ in range(args.rounds):
                 for name, script in contenders.items():
-                    report = run_master(net, name, script, args.rates, args.cycles, args.warmup)
+                    report = run_master(net, name, script, args.rates, args.cycles, args.warmup, args.master_cpus)
                     if "error" in report:
                         problems.append(f"{count} AKD(s), round {round_ + 1}: {report['error']}")
                         continue
@@ -347,6 +389,12 @@ def main() -> int:
         "--masters", default=",".join(CONTENDERS), help=f"masters to run (default {','.join(CONTENDERS)})"
     )
     parser.add_argument("--baseline", type=Path, help="a directory holding another build's akd_ros/ to measure too")
+    parser.add_argument(
+        "--sim-wakes",
+        action="store_true",
+        help="akd-sim under SCHED_FIFO, woken by each frame, as the tests run it (default: --busy-poll on a CPU of "
+        "its own, answering as the drive's ESC does)",
+    )
     parser.add_argument("--json", type=Path, help="also write the figures to this file as JSON")
     args = parser.parse_args()
     if args.quick:
@@ -378,6 +426,7 @@ def main() -> int:
         first = f"import sys; sys.path.insert(0, {str(args.baseline.resolve())!r})\n"
         contenders = {"baseline": first + AKD_ROS_SCRIPT, **contenders}
 
+    args.sim_cpu, args.master_cpus = cpu_split(args.sim_wakes)
     settings = {
         "rounds": args.rounds,
         "cycles_per_run": args.cycles,
@@ -386,6 +435,13 @@ def main() -> int:
         "rates_hz": args.rates,
         "masters": list(contenders),
         "link": "veth pair between two network namespaces, one akd-sim --iface process per count",
+        "akd_sim": (
+            "woken by each frame, SCHED_FIFO 40, any CPU"
+            if args.sim_cpu is None
+            else f"--busy-poll on CPU {args.sim_cpu}, normal scheduler; masters on CPU(s) "
+            + ",".join(map(str, args.master_cpus))
+        ),
+        "busy_poll_us": BUSY_POLL_US,
         "mappings": "fixed 0x1701/0x1B01 (6 bytes each way per AKD)",
         "frame_timeout_s": FRAME_TIMEOUT_S,
         "pacing": "Python loop, sleep to an absolute deadline on the monotonic clock, normal scheduler",

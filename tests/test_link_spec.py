@@ -21,6 +21,8 @@ from akd_ros import _native, params
         ("udp://127.0.0.1:34980", "udp", None, None, "127.0.0.1:34980", None, "udp://127.0.0.1:34980"),
         ("udp://[::1]:7000", "udp", None, None, "[::1]:7000", None, "udp://[::1]:7000"),
         ("eth0", "interface", None, None, None, "eth0", "eth0"),
+        ("eth0?busy_poll=0", "interface", None, None, None, "eth0", "eth0"),
+        ("eth0?busy_poll=200", "interface", None, None, None, "eth0", "eth0?busy_poll=200"),
     ],
 )
 def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, address, name, text):
@@ -33,6 +35,8 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, add
         name,
     )
     assert str(parsed) == text and _native.parse_link(text).kind == kind
+    busy_poll = spec.partition("?busy_poll=")[2]
+    assert parsed.busy_poll_us == (int(busy_poll or 0) if kind == "interface" else None)
 
 
 @pytest.mark.parametrize(
@@ -48,6 +52,9 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, add
         ("udp://127.0.0.1", "udp://HOST:PORT with a port in 1..65535"),
         ("udp://127.0.0.1:0", "udp://HOST:PORT with a port in 1..65535"),
         ("udp://127.0.0.1:65536", "udp://HOST:PORT with a port in 1..65535"),
+        ("eth0?busy_poll=1001", "?busy_poll=US with US in 0..=1000"),
+        ("eth0?busy_poll=-1", "?busy_poll=US with US in 0..=1000"),
+        ("eth0?spin=5", "a network interface takes one option, ?busy_poll=US"),
         ("", _native.LINK_FORMS),
         ("/dev/eth0", _native.LINK_FORMS),
         ("127.0.0.1:34980", _native.LINK_FORMS),
@@ -67,7 +74,14 @@ def test_a_bad_spec_is_refused_alike_by_the_parser_the_master_and_the_parameter_
 
 
 def test_the_allowed_forms_name_every_form_and_the_range_of_n():
-    for form in ("'sim'", "'sim:N' (N 1..=64", "'?missed=lost'", "'udp://HOST:PORT'", "network interface name"):
+    for form in (
+        "'sim'",
+        "'sim:N' (N 1..=64",
+        "'?missed=lost'",
+        "'udp://HOST:PORT'",
+        "network interface name",
+        "'?busy_poll=US'",
+    ):
         assert form in _native.LINK_FORMS
 
 

@@ -3,10 +3,13 @@ Ethernet (AF_PACKET) over a veth pair to `akd-sim --iface` in a network namespac
 
 from __future__ import annotations
 
+import os
+import subprocess
+
 import pytest
 
 from akd_ros import _native
-from support.netns import akd_sim_in_netns, akd_sim_udp, entered_netns
+from support.netns import akd_sim_in_netns, akd_sim_udp, console_script, entered_netns, netns_argv, realtime
 
 
 def _bring_to_op_and_exchange(master: _native.Master, count: int) -> None:
@@ -46,3 +49,39 @@ def test_master_over_veth_with_af_packet(veth, count):
             _bring_to_op_and_exchange(master, count)
         finally:
             master.close()
+
+
+@pytest.mark.parametrize(("busy_poll_us", "sim_busy_polls"), [(300, True), (1, False)])
+def test_master_busy_polling_over_veth(veth, busy_poll_us, sim_busy_polls):
+    """The master busy-polls for each returning frame: against a busy-polling akd-sim (on a CPU of
+    its own where there are two) the frames come back within the poll; against one woken by each
+    frame, a poll of 1 µs ends before any frame is back and the master sleeps until it comes. Either
+    way every frame of a bring-up, mailbox traffic and exchanges comes back, none taken for another's."""
+    cpu = max(os.sched_getaffinity(0)) if sim_busy_polls else None
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2, cpu=cpu, busy_poll=sim_busy_polls) as sim:
+        with entered_netns(veth.ns_master):
+            master = _native.Master(f"{veth.if_master}?busy_poll={busy_poll_us}", timeout=0.5)
+        try:
+            assert master.link == veth.if_master
+            _bring_to_op_and_exchange(master, 2)
+            assert master.sdo_read(0, 0x1018, 1) == (0x6A).to_bytes(4, "little")
+        finally:
+            master.close()
+    assert ("--busy-poll" in sim.args) == sim_busy_polls
+
+
+def test_akd_sim_refuses_to_busy_poll_under_a_real_time_policy(veth):
+    """A spinning SCHED_FIFO thread is stopped by the kernel 50 ms a second and starves its CPU:
+    akd-sim says so and exits 1 without a traceback."""
+    argv = netns_argv(veth.ns_sim, [*console_script("akd-sim"), "--iface", veth.if_sim, "--busy-poll"])
+    result = subprocess.run(argv, capture_output=True, text=True, timeout=30, preexec_fn=lambda: realtime(10))
+    assert result.returncode == 1, result
+    assert "Traceback" not in result.stderr
+    assert "must run under the normal scheduler, not SCHED_FIFO or SCHED_RR" in result.stderr, result.stderr
+
+
+def test_akd_sim_busy_poll_needs_an_interface():
+    result = subprocess.run(
+        [*console_script("akd-sim"), "--udp", "127.0.0.1:1", "--busy-poll"], capture_output=True, text=True, timeout=30
+    )
+    assert result.returncode == 2 and "--busy-poll needs --iface" in result.stderr, result

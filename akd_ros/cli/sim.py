@@ -215,7 +215,15 @@ def main(argv: list[str] | None = None) -> int:
         metavar="FILE",
         help="write every change of the set-points the drives receive to FILE (JSON lines, see below)",
     )
+    parser.add_argument(
+        "--busy-poll",
+        action="store_true",
+        help="with --iface: never sleep between frames, answering each as it arrives as the drive's ESC does, "
+        "so a master's round trip holds no wake-up of this process (a CPU of its own; the normal scheduler)",
+    )
     args = parser.parse_args(argv)
+    if args.busy_poll and not args.iface:
+        parser.error("--busy-poll needs --iface: over UDP the host's IP stack answers in its own time")
 
     def body() -> int:
         from akd_ros import SetpointTrace, serve_iface, serve_udp
@@ -230,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
                 serve_udp(host, port, args.count, **options)
             else:
                 print(f"akd-sim: starting {drives} on interface {args.iface}", flush=True)
-                serve_iface(args.iface, args.count, **options)
+                serve_iface(args.iface, args.count, busy_poll=args.busy_poll, **options)
         except KeyboardInterrupt:
             # SIGINT and SIGTERM are how a simulator is meant to stop; a second signal while
             # it stops must not turn the clean stop into an interrupted one.

@@ -86,6 +86,13 @@ pub enum LinkSpecError {
         /// The spec as given.
         spec: String,
     },
+    /// An interface name followed by an option other than `busy_poll=US` with US in 0..=`max`.
+    InterfaceOption {
+        /// The spec as given.
+        spec: String,
+        /// The longest busy poll (the link spec's `MAX_BUSY_POLL_US`).
+        max: u32,
+    },
     /// `udp://` without `HOST:PORT`, or with a port outside 1..=65535.
     UdpAddress {
         /// The spec as given.
@@ -106,7 +113,7 @@ impl LinkSpecError {
     pub fn allowed_forms(max_sim_count: usize) -> String {
         format!(
             "'sim', 'sim:N' (N 1..={max_sim_count}; either with '?missed=lost'), 'udp://HOST:PORT' or a network \
-             interface name"
+             interface name (with '?busy_poll=US' to busy-poll for the returning frame)"
         )
     }
 }
@@ -122,6 +129,12 @@ impl fmt::Display for LinkSpecError {
                 "link {spec:?}: the virtual AKDs take one option, ?missed=late (the default: a frame \
                  that comes late is missed, as the real drive judges) or ?missed=lost (only frames \
                  lost on the line are missed, for a host whose master thread is not real-time)"
+            ),
+            LinkSpecError::InterfaceOption { spec, max } => write!(
+                f,
+                "link {spec:?}: a network interface takes one option, ?busy_poll=US with US in 0..={max}: \
+                 how many µs the master busy-polls for the returning frame before it sleeps (0, the \
+                 default: it sleeps at once)"
             ),
             // The port range as the node's parameter check has always named it.
             LinkSpecError::UdpAddress { spec } => {
@@ -1041,6 +1054,8 @@ impl fmt::Display for PdoError {
 /// A value given for a setting outside what the setting allows.
 #[derive(Clone, Debug, PartialEq)]
 pub enum SettingError {
+    /// A simulator asked to busy-poll from a thread under a real-time policy.
+    BusyPollRealTime,
     /// A cycle period outside 250 µs (the AKD's minimum) ..= 10 ms.
     CyclePeriod {
         /// The period asked for, µs.
@@ -1311,6 +1326,11 @@ impl fmt::Display for SettingError {
                 write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")
             }
             SettingError::InterfaceName { name } => write!(f, "interface name {name:?} contains a NUL byte"),
+            SettingError::BusyPollRealTime => f.write_str(
+                "a busy-polling simulator must run under the normal scheduler, not SCHED_FIFO or SCHED_RR: \
+                 the kernel stops a real-time thread that never sleeps for 50 ms of every second \
+                 (sched_rt_runtime_us), and it would take its CPU from every other thread meanwhile",
+            ),
             SettingError::Address { what, value, form } => write!(f, "{what} {value:?} is not of the form {form}"),
         }
     }

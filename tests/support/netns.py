@@ -217,11 +217,12 @@ loaded test host a virtual one descheduled for more than seven cycles would faul
 as the real one does when its master falls silent, which is not what the tests are about."""
 
 
-def realtime(priority: int, cpu: int | None = None) -> None:
-    """In a child before it executes: SCHED_FIFO at `priority` for it and every thread it starts, and bound to `cpu`
-    when one is given, each if permitted."""
-    with contextlib.suppress(PermissionError, OSError):
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+def realtime(priority: int | None, cpu: int | None = None) -> None:
+    """In a child before it executes: SCHED_FIFO at `priority` (unless None) for it and every thread it starts, and
+    bound to `cpu` when one is given, each if permitted."""
+    if priority is not None:
+        with contextlib.suppress(PermissionError, OSError):
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
     if cpu is not None:
         with contextlib.suppress(PermissionError, OSError):
             os.sched_setaffinity(0, {cpu})
@@ -229,13 +230,13 @@ def realtime(priority: int, cpu: int | None = None) -> None:
 
 @contextmanager
 def _serving(
-    argv: list[str], ready, what: str, ready_timeout: float, cpu: int | None = None
+    argv: list[str], ready, what: str, ready_timeout: float, cpu: int | None = None, priority: int | None = SIM_PRIORITY
 ) -> Iterator[subprocess.Popen]:
-    """Starts a simulator process (under SCHED_FIFO SIM_PRIORITY, and on `cpu` when given, where permitted), yields it
-    once `ready()` holds, stops it with SIGTERM on exit and checks it stopped cleanly (status 0). Its output is then
-    in `process.output_text`."""
+    """Starts a simulator process (under SCHED_FIFO `priority` unless None, and on `cpu` when given, where permitted),
+    yields it once `ready()` holds, stops it with SIGTERM on exit and checks it stopped cleanly (status 0). Its output
+    is then in `process.output_text`."""
     process = subprocess.Popen(
-        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=lambda: realtime(SIM_PRIORITY, cpu)
+        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=lambda: realtime(priority, cpu)
     )
     _wait_until(ready, process, what, ready_timeout)
     try:
@@ -249,12 +250,18 @@ def _serving(
         )
 
 
-def akd_sim_in_netns(ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0, cpu: int | None = None):
+def akd_sim_in_netns(
+    ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0, cpu: int | None = None, busy_poll: bool = False
+):
     """Runs `akd-sim --iface IFNAME --count N` in `ns` (context manager yielding the process once
-    its packet socket is bound; stopped with SIGTERM on exit), bound to `cpu` when one is given."""
-    argv = netns_argv(ns, [*console_script("akd-sim"), "--iface", ifname, "--count", str(count)])
+    its packet socket is bound; stopped with SIGTERM on exit), bound to `cpu` when one is given;
+    with `busy_poll`, `--busy-poll` under the normal scheduler (which it needs), else SCHED_FIFO."""
+    argv = netns_argv(
+        ns, [*console_script("akd-sim"), "--iface", ifname, "--count", str(count), *(["--busy-poll"] * busy_poll)]
+    )
     what = f"akd-sim on {ifname} in {ns}"
-    return _serving(argv, lambda: _packet_socket_open(ns, ifname), what, ready_timeout, cpu)
+    priority = None if busy_poll else SIM_PRIORITY
+    return _serving(argv, lambda: _packet_socket_open(ns, ifname), what, ready_timeout, cpu, priority)
 
 
 def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeout: float = 10.0):

@@ -117,18 +117,27 @@ impl RawSocket {
             if !self.wait_readable(deadline.saturating_duration_since(Instant::now()))? {
                 return Ok(None);
             }
-            // SAFETY: `buf` is valid for the length passed.
-            let got = unsafe {
-                libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), libc::MSG_DONTWAIT)
-            };
-            if got >= 0 {
-                return Ok(Some(got as usize));
-            }
-            let err = io::Error::last_os_error();
-            if !matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
-                return Err(Error::io(format!("receiving on interface {:?}", self.iface), err));
+            if let Some(got) = self.try_recv(buf)? {
+                return Ok(Some(got));
             }
         }
+    }
+
+    /// Takes an incoming frame that is already there and writes it to `buf`, without waiting;
+    /// `None` when there is none. One recv(2).
+    pub fn try_recv(&self, buf: &mut [u8]) -> Result<Option<usize>> {
+        // SAFETY: `buf` is valid for the length passed.
+        let got = unsafe {
+            libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), libc::MSG_DONTWAIT)
+        };
+        if got >= 0 {
+            return Ok(Some(got as usize));
+        }
+        let err = io::Error::last_os_error();
+        if matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
+            return Ok(None);
+        }
+        Err(Error::io(format!("receiving on interface {:?}", self.iface), err))
     }
 
     /// Sets how long [`recv_blocking`](Self::recv_blocking) waits, as
@@ -227,17 +236,44 @@ fn sockaddr_ll(ifindex: i32) -> libc::sockaddr_ll {
 
 /// The master's link over a [`RawSocket`]: broadcast frames from [`MASTER_MAC`], replies
 /// recognised by the returned-frame bit in their source MAC and by their datagrams.
+///
+/// With a busy poll, the link asks the socket for the returning frame without sleeping, up to
+/// that long after the frame went out, and only then sleeps until it comes: a thread woken by
+/// the frame's arrival waits for the scheduler (on a virtual machine, for its halted vCPU to be
+/// woken too), which costs more than the round trip of a short line. The CPU spins meanwhile,
+/// so the busy poll is for a cycle thread on a core of its own; a peer process on the same CPU
+/// (a simulator) cannot answer while a real-time thread spins, and its frame then comes only
+/// after the busy poll.
 #[derive(Debug)]
 pub struct RawLink {
     socket: RawSocket,
+    busy_poll: Duration,
     tx: [u8; MAX_ETH_FRAME_LEN],
     rx: [u8; MAX_ETH_FRAME_LEN],
 }
 
 impl RawLink {
-    /// Opens the interface `iface` (see [`RawSocket::open`]).
-    pub fn open(iface: &str) -> Result<Self> {
-        Ok(RawLink { socket: RawSocket::open(iface)?, tx: [0; MAX_ETH_FRAME_LEN], rx: [0; MAX_ETH_FRAME_LEN] })
+    /// Opens the interface `iface` (see [`RawSocket::open`]), busy-polling for each returning
+    /// frame up to `busy_poll` (zero: none).
+    pub fn open(iface: &str, busy_poll: Duration) -> Result<Self> {
+        Ok(RawLink {
+            socket: RawSocket::open(iface)?,
+            busy_poll,
+            tx: [0; MAX_ETH_FRAME_LEN],
+            rx: [0; MAX_ETH_FRAME_LEN],
+        })
+    }
+
+    /// The next incoming frame in `self.rx`, busy-polled for until `spin_end` and then waited
+    /// for until `deadline`; `None` when nothing came.
+    fn next_frame(&mut self, spin_end: Instant, deadline: Instant) -> Result<Option<usize>> {
+        while Instant::now() < spin_end {
+            if let Some(got) = self.socket.try_recv(&mut self.rx)? {
+                return Ok(Some(got));
+            }
+            std::hint::spin_loop();
+        }
+        self.socket.recv_until(&mut self.rx, deadline)
     }
 
     /// The interface index the socket is bound to.
@@ -285,9 +321,11 @@ impl Link for RawLink {
     fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
         let len = wrap(tx, &mut self.tx)?;
         self.socket.send(&self.tx[..len])?;
-        let deadline = Instant::now() + timeout;
+        let sent = Instant::now();
+        let deadline = sent + timeout;
+        let spin_end = (sent + self.busy_poll).min(deadline);
         loop {
-            let Some(got) = self.socket.recv_until(&mut self.rx, deadline)? else {
+            let Some(got) = self.next_frame(spin_end, deadline)? else {
                 return Err(Error::Timeout { what: "a frame to come back on the interface".into() });
             };
             if let Some(payload) = unwrap_returned(&self.rx[..got]) {

@@ -13,6 +13,10 @@ pub use crate::error::LinkSpecError;
 /// few enough that a mistyped count does not build a bus that takes seconds per frame.
 pub const MAX_SIM_COUNT: usize = 64;
 
+/// The longest a raw link busy-polls for a frame to come back, in µs (`IFACE?busy_poll=US`):
+/// a round trip on a real line of many drives takes tens of µs, and a 1 kHz cycle has 1000.
+pub const MAX_BUSY_POLL_US: u32 = 1000;
+
 /// A bus named by a link spec.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum LinkSpec {
@@ -29,10 +33,16 @@ pub enum LinkSpec {
         /// opens.
         address: String,
     },
-    /// A network interface name (raw Ethernet, needs CAP_NET_RAW).
+    /// A network interface name (raw Ethernet, needs CAP_NET_RAW), optionally
+    /// `?busy_poll=US`.
     Interface {
         /// The interface, e.g. `eth0`.
         name: String,
+        /// How long, in µs (0..=[`MAX_BUSY_POLL_US`]), the master keeps asking the socket for
+        /// the returning frame before it sleeps until the frame comes; 0 (the default) sleeps at
+        /// once. Spinning spares the thread the wake-up when the frame arrives, at the cost of
+        /// the CPU it spins on (see [`RawLink`](crate::link::raw::RawLink)).
+        busy_poll_us: u32,
     },
 }
 
@@ -59,11 +69,21 @@ impl FromStr for LinkSpec {
             }
             return Ok(LinkSpec::Udp { address: address.to_owned() });
         }
+        let (name, option) = spec.split_once('?').map_or((spec, None), |(name, option)| (name, Some(option)));
         // Interface names hold neither; anything with them is a mistyped path or address.
-        if spec.is_empty() || spec.contains(['/', ':']) {
+        if name.is_empty() || name.contains(['/', ':']) {
             return Err(LinkSpecError::Unknown { spec: spec.to_owned(), max_sim_count: MAX_SIM_COUNT });
         }
-        Ok(LinkSpec::Interface { name: spec.to_owned() })
+        let busy_poll_us = match option {
+            None => 0,
+            Some(option) => option
+                .strip_prefix("busy_poll=")
+                .filter(|us| us.bytes().all(|b| b.is_ascii_digit()))
+                .and_then(|us| us.parse().ok())
+                .filter(|us| *us <= MAX_BUSY_POLL_US)
+                .ok_or_else(|| LinkSpecError::InterfaceOption { spec: spec.to_owned(), max: MAX_BUSY_POLL_US })?,
+        };
+        Ok(LinkSpec::Interface { name: name.to_owned(), busy_poll_us })
     }
 }
 
@@ -112,7 +132,8 @@ impl fmt::Display for LinkSpec {
             LinkSpec::Sim { count, missed: MissedFrames::Late } => write!(f, "sim:{count}"),
             LinkSpec::Sim { count, missed } => write!(f, "sim:{count}?missed={}", missed.name()),
             LinkSpec::Udp { address } => write!(f, "udp://{address}"),
-            LinkSpec::Interface { name } => f.write_str(name),
+            LinkSpec::Interface { name, busy_poll_us: 0 } => f.write_str(name),
+            LinkSpec::Interface { name, busy_poll_us } => write!(f, "{name}?busy_poll={busy_poll_us}"),
         }
     }
 }
@@ -131,8 +152,10 @@ mod tests {
         assert_eq!("sim?missed=lost".parse(), Ok(LinkSpec::Sim { count: 1, missed: lost }));
         assert_eq!("sim:6?missed=lost".parse(), Ok(LinkSpec::Sim { count: 6, missed: lost }));
         assert_eq!("udp://127.0.0.1:34980".parse(), Ok(LinkSpec::Udp { address: "127.0.0.1:34980".into() }));
-        assert_eq!("eth0".parse(), Ok(LinkSpec::Interface { name: "eth0".into() }));
-        for spec in ["sim:3", "sim:3?missed=lost", "udp://h:1", "veth0"] {
+        assert_eq!("eth0".parse(), Ok(LinkSpec::Interface { name: "eth0".into(), busy_poll_us: 0 }));
+        assert_eq!("eth0?busy_poll=0".parse(), Ok(LinkSpec::Interface { name: "eth0".into(), busy_poll_us: 0 }));
+        assert_eq!("eth0?busy_poll=1000".parse(), Ok(LinkSpec::Interface { name: "eth0".into(), busy_poll_us: 1000 }));
+        for spec in ["sim:3", "sim:3?missed=lost", "udp://h:1", "veth0", "veth0?busy_poll=80"] {
             assert_eq!(spec.parse::<LinkSpec>().unwrap().to_string(), spec);
         }
     }
@@ -149,7 +172,12 @@ mod tests {
             assert_eq!(err, LinkSpecError::SimOption { spec: spec.into() });
             assert!(err.to_string().contains("?missed=late") && err.to_string().contains("?missed=lost"), "{err}");
         }
-        for spec in ["", "/dev/x", "host:1"] {
+        for spec in ["eth0?busy_poll=1001", "eth0?busy_poll=", "eth0?busy_poll=+5", "eth0?spin=5", "eth0?"] {
+            let err = spec.parse::<LinkSpec>().unwrap_err();
+            assert_eq!(err, LinkSpecError::InterfaceOption { spec: spec.into(), max: MAX_BUSY_POLL_US });
+            assert!(err.to_string().contains("?busy_poll=US") && err.to_string().contains("0..=1000"), "{err}");
+        }
+        for spec in ["", "/dev/x", "host:1", "?busy_poll=5"] {
             let err = spec.parse::<LinkSpec>().unwrap_err();
             assert!(err.to_string().contains("'udp://HOST:PORT'"), "{err}");
             assert!(err.to_string().contains(&allowed_forms()), "{err}");

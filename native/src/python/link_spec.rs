@@ -55,7 +55,16 @@ impl PyLinkSpec {
     #[getter]
     fn name(&self) -> Option<&str> {
         match &self.spec {
-            LinkSpec::Interface { name } => Some(name),
+            LinkSpec::Interface { name, .. } => Some(name),
+            _ => None,
+        }
+    }
+
+    /// How many µs the master busy-polls for the returning frame (interface), else None.
+    #[getter]
+    fn busy_poll_us(&self) -> Option<u32> {
+        match self.spec {
+            LinkSpec::Interface { busy_poll_us, .. } => Some(busy_poll_us),
             _ => None,
         }
     }

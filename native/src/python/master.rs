@@ -5,6 +5,7 @@
 //! on a lock it cannot see.
 
 use std::sync::{Mutex, MutexGuard, TryLockError};
+use std::time::Duration;
 
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
@@ -45,8 +46,8 @@ fn open_link(spec: &str) -> crate::error::Result<Opened> {
         LinkSpec::Udp { address } => {
             Opened { link: Box::new(link::udp::Udp::connect(&address)?), simulator: None, warnings: Vec::new() }
         }
-        LinkSpec::Interface { name } => {
-            let link = link::raw::RawLink::open(&name)?;
+        LinkSpec::Interface { name, busy_poll_us } => {
+            let link = link::raw::RawLink::open(&name, Duration::from_micros(busy_poll_us.into()))?;
             let warnings = link.kept_capabilities().map(str::to_owned).into_iter().collect();
             Opened { link: Box::new(link), simulator: None, warnings }
         }

@@ -354,9 +354,12 @@ fn serve_udp(
 
 /// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
 /// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed` and
-/// `setpoint_trace` as for `serve_udp`.
+/// `setpoint_trace` as for `serve_udp`. `busy_poll`: never sleep between frames, answering each
+/// as it arrives as the drive's ESC does, on a CPU of its own (raises ConfigError under
+/// SCHED_FIFO or SCHED_RR).
 #[pyfunction]
-#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None))]
+#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false))]
+#[allow(clippy::too_many_arguments)]
 fn serve_iface(
     py: Python<'_>,
     iface: &str,
@@ -364,11 +367,12 @@ fn serve_iface(
     on_start: Option<&Bound<'_, PyAny>>,
     missed: &str,
     setpoint_trace: Option<&PySetpointTrace>,
+    busy_poll: bool,
 ) -> PyResult<()> {
     let iface = iface.to_owned();
     let bus = controlled_bus(count, missed, on_start)?;
     let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
-    run_until_signal(py, move |stop| server::serve_iface(&iface, bus, stop, trace))
+    run_until_signal(py, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

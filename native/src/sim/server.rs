@@ -16,7 +16,7 @@ use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Result, SettingError};
 use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
 use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
@@ -114,21 +114,37 @@ pub fn serve_udp(
 /// each EtherCAT frame received is processed and sent back with the first byte of its source
 /// MAC ORed with 0x02, as the real ESC marks a frame it returns (01:01:01:01:01:01 →
 /// 03:01:01:01:01:01). `trace` as for [`serve_udp`].
+///
+/// With `busy_poll` the server never sleeps: it asks the socket for the next frame again and
+/// again, and lets the firmware run every [`POLL_INTERVAL`]. A real ESC answers in hardware as
+/// the frame passes; a server woken by each frame's arrival adds the scheduler's wake-up (tens
+/// of µs on a virtual machine) to every round trip, the same for every master, which hides
+/// their differences in a benchmark. It takes a CPU of its own, under the normal scheduler.
 pub fn serve_iface(
     iface: &str,
     bus: impl Into<ControlledBus>,
     stop: &AtomicBool,
     mut trace: Option<Recorder>,
+    busy_poll: bool,
 ) -> Result<ServerStats> {
+    // SAFETY: sched_getscheduler(0) asks about the calling thread and touches no memory.
+    if busy_poll && matches!(unsafe { libc::sched_getscheduler(0) }, libc::SCHED_FIFO | libc::SCHED_RR) {
+        return Err(SettingError::BusyPollRealTime.into());
+    }
     let mut bus = bus.into();
     let socket = RawSocket::open(iface)?;
     socket.set_read_timeout(POLL_INTERVAL)?;
     let start = Instant::now();
     let mut stats = ServerStats::default();
     let mut buf = [0u8; MAX_ETH_FRAME_LEN];
+    let mut firmware_due = start + POLL_INTERVAL;
     while !stop.load(Ordering::Relaxed) {
-        let Some(len) = socket.recv_blocking(&mut buf)? else {
-            bus.idle(elapsed_ns(start));
+        let got = if busy_poll { socket.try_recv(&mut buf)? } else { socket.recv_blocking(&mut buf)? };
+        let Some(len) = got else {
+            if !busy_poll || Instant::now() >= firmware_due {
+                bus.idle(elapsed_ns(start));
+                firmware_due = Instant::now() + POLL_INTERVAL;
+            }
             continue;
         };
         let received = stamp(&trace);
@@ -221,7 +237,7 @@ mod tests {
     #[test]
     fn names_a_missing_interface() {
         let stop = AtomicBool::new(false);
-        let err = serve_iface("akd-no-such-if", VirtualBus::new(1), &stop, None).unwrap_err();
+        let err = serve_iface("akd-no-such-if", VirtualBus::new(1), &stop, None, false).unwrap_err();
         assert!(err.to_string().contains("akd-no-such-if"), "{err}");
     }
 }
