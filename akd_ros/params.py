@@ -128,7 +128,8 @@ SCHEMA: tuple[Spec, ...] = (
         "link",
         "sim",
         "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
-        "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW).",
+        "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW), "
+        "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame.",
     ),
     Spec(
         "joints",

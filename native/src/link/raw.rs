@@ -126,18 +126,7 @@ impl RawSocket {
     /// Takes an incoming frame that is already there and writes it to `buf`, without waiting;
     /// `None` when there is none. One recv(2).
     pub fn try_recv(&self, buf: &mut [u8]) -> Result<Option<usize>> {
-        // SAFETY: `buf` is valid for the length passed.
-        let got = unsafe {
-            libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), libc::MSG_DONTWAIT)
-        };
-        if got >= 0 {
-            return Ok(Some(got as usize));
-        }
-        let err = io::Error::last_os_error();
-        if matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
-            return Ok(None);
-        }
-        Err(Error::io(format!("receiving on interface {:?}", self.iface), err))
+        self.recv_flags(buf, libc::MSG_DONTWAIT)
     }
 
     /// Sets how long [`recv_blocking`](Self::recv_blocking) waits, as
@@ -165,8 +154,14 @@ impl RawSocket {
     /// it to `buf`; `None` when nothing came. One recv(2) per frame, for a server, which needs
     /// no exact time-out: half the system calls of [`recv_until`](Self::recv_until).
     pub fn recv_blocking(&self, buf: &mut [u8]) -> Result<Option<usize>> {
+        self.recv_flags(buf, 0)
+    }
+
+    /// One recv(2) with `flags` into `buf`; `None` when it came back with nothing (no frame
+    /// there, the read time-out passed, a signal).
+    fn recv_flags(&self, buf: &mut [u8], flags: libc::c_int) -> Result<Option<usize>> {
         // SAFETY: `buf` is valid for the length passed.
-        let got = unsafe { libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), 0) };
+        let got = unsafe { libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), flags) };
         if got >= 0 {
             return Ok(Some(got as usize));
         }
