@@ -49,7 +49,13 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from support.kickcat_script import KICKCAT_HELPERS
-from support.netns import akd_sim_in_netns, netns_unavailable_reason, run_python_in_netns, veth_pair
+from support.netns import (
+    SIM_PRIORITY,
+    akd_sim_in_netns,
+    netns_unavailable_reason,
+    run_python_in_netns,
+    veth_pair,
+)
 from support.soem_script import SOEM_HELPERS
 
 # How long every master waits for a frame: long enough that a frame the loaded machine delays is
@@ -436,7 +442,7 @@ def main() -> int:
         "masters": list(contenders),
         "link": "veth pair between two network namespaces, one akd-sim --iface process per count",
         "akd_sim": (
-            "woken by each frame, SCHED_FIFO 40, any CPU"
+            f"woken by each frame, SCHED_FIFO {SIM_PRIORITY}, any CPU"
             if args.sim_cpu is None
             else f"--busy-poll on CPU {args.sim_cpu}, normal scheduler; masters on CPU(s) "
             + ",".join(map(str, args.master_cpus))

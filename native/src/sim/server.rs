@@ -137,13 +137,16 @@ pub fn serve_iface(
     let start = Instant::now();
     let mut stats = ServerStats::default();
     let mut buf = [0u8; MAX_ETH_FRAME_LEN];
-    let mut firmware_due = start + POLL_INTERVAL;
+    // When the firmware last ran, by a frame or by itself: busy-polling, it runs by itself once
+    // no frame came for POLL_INTERVAL, as the blocking receive's time-out makes it.
+    let mut ran_ns = 0;
     while !stop.load(Ordering::Relaxed) {
         let got = if busy_poll { socket.try_recv(&mut buf)? } else { socket.recv_blocking(&mut buf)? };
         let Some(len) = got else {
-            if !busy_poll || Instant::now() >= firmware_due {
-                bus.idle(elapsed_ns(start));
-                firmware_due = Instant::now() + POLL_INTERVAL;
+            let now_ns = elapsed_ns(start);
+            if !busy_poll || now_ns - ran_ns >= POLL_INTERVAL.as_nanos() as u64 {
+                bus.idle(now_ns);
+                ran_ns = now_ns;
             }
             continue;
         };
@@ -157,6 +160,7 @@ pub fn serve_iface(
             continue;
         }
         let now_ns = elapsed_ns(start);
+        ran_ns = now_ns;
         if stats.serve(&mut bus, &mut buf[ETH_HEADER_LEN..len], now_ns) {
             buf[6] |= RETURNED_MAC_BIT;
             socket.send(&buf[..len])?;
