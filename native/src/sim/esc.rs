@@ -185,6 +185,7 @@ impl Esc {
             _ if addressed => (command.reads(), command.writes()),
             _ => return (false, false),
         };
+        let broadcast = command.addressing() == Addressing::Broadcast;
         let at = dg.header.ado as usize;
         let len = dg.data.len();
         let (read, write) = self.gate(at, len, read, write);
@@ -200,7 +201,9 @@ impl Esc {
                 self.memory[addr] = *byte;
             }
             if read {
-                *byte = old;
+                // A broadcast read ORs every slave's value into the datagram (ETG.1000.4:
+                // BRD, BRW), so a master reads in one datagram whether any slave has a bit set.
+                *byte = if broadcast { *byte | old } else { old };
             }
         }
         if write {

@@ -637,6 +637,23 @@ mod tests {
     }
 
     #[test]
+    fn a_broadcast_read_ors_every_drives_value_and_a_configured_read_gives_one() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        for i in 0..3u16 {
+            exchange(&mut bus, 0, Command::Apwr, 0u16.wrapping_sub(i), 0x0010, &(0x1001 + i).to_le_bytes());
+        }
+        // Drive 2 of 3 alone to PreOp (Init 0x01, PreOp 0x02).
+        exchange(&mut bus, 0, Command::Fpwr, 0x1002, 0x0800, &[0x00, 0x18, 0x00, 0x04, 0x26, 0x00, 0x01, 0x00]);
+        exchange(&mut bus, 0, Command::Fpwr, 0x1002, 0x0808, &[0x00, 0x1C, 0x00, 0x04, 0x22, 0x00, 0x01, 0x00]);
+        exchange(&mut bus, 0, Command::Fpwr, 0x1002, 0x0120, &[0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Brd, 0, 0x0130, &[0, 0]), (vec![0x03, 0x00], 3));
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Fprd, 0x1002, 0x0130, &[0, 0]), (vec![0x02, 0x00], 1));
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Fprd, 0x1003, 0x0130, &[0, 0]), (vec![0x01, 0x00], 1));
+        // What the datagram brought is ORed in too, as a later slave on the line finds it.
+        assert_eq!(exchange(&mut bus, 10_000_000, Command::Brd, 0, 0x0130, &[0x10, 0x00]), (vec![0x13, 0x00], 3));
+    }
+
+    #[test]
     fn a_mailbox_moved_past_the_end_of_memory_is_read_as_far_as_it_exists() {
         // Found by fuzzing (native/fuzz, virtual_akd): SM0 set to start 0xFFFF, 0xFFFF bytes
         // after a message was written and before the firmware took it.
