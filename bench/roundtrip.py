@@ -8,10 +8,13 @@ other namespace, brings the drives to Op with the fixed mappings 0x1701/0x1B01 a
 so a change in the machine's load falls on every master alike.
 
 Besides the frame SOEM and KickCAT send (one LRW), this master is also measured with the frame its
-cycle thread sends, `akd_ros+watch`: the LRW and, per slave, the reads of AL status and mailbox
-status that supervise the bus (`Master.set_supervision`), in the same process right after; and
-both again on the link `IFACE?busy_poll=200` (`+busy_poll`): the master busy-polls the socket for
-the returning frame for up to 200 µs before it sleeps, where the default sleeps at once.
+cycle thread sends, `akd_ros+watch`: the LRW and the reads of AL status and mailbox status that
+supervise the bus (`Master.set_supervision`: two broadcast reads while every drive is alike), in
+the same process right after; both again on the link `IFACE?busy_poll=200` (`+busy_poll`): the
+master busy-polls the socket for the returning frame for up to 200 µs before it sleeps, where the
+default sleeps at once; and, on each link, the node's own loop, a `Cycle` thread (` Cycle` rows):
+native pacing, the supervised frame and the drives' state machines, its round trips from its
+exchange histogram and its CPU from the thread's schedstat.
 
 akd-sim runs `--busy-poll` on the last CPU under the normal scheduler, and every master on the
 other CPUs: a real AKD's ESC answers in hardware as the frame passes, and a server woken by each
@@ -162,8 +165,8 @@ def measure_link(link, prefix):
                 return False
 
         variants = {prefix: run_rates(exchange, rates, cycles, warmup)}
-        # The frame a Cycle sends: the LRW and two reads of every slave's AL status and mailbox
-        # (not in a --baseline build older than Master.set_supervision).
+        # The frame a Cycle sends: the LRW and the reads of AL status and mailbox status (not in
+        # a --baseline build older than Master.set_supervision).
         if hasattr(master, "set_supervision"):
             master.set_supervision(True)
             variants[prefix + "+watch"] = run_rates(exchange, rates, cycles, warmup)

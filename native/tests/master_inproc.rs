@@ -2,7 +2,7 @@
 //! every fixed mapping and a flexible one, cyclic exchange with its working counter, DC, and
 //! the counting of lost frames and wrong working counters.
 
-use std::sync::atomic::{AtomicU32, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -539,4 +539,97 @@ fn several_drives_share_one_cyclic_frame_each_with_its_own_data() {
         let statusword = m.slave_mut(p).unwrap().sdo_read(0x6041, 0).unwrap();
         assert_eq!(&m.slave_mut(p).unwrap().inputs().unwrap()[at..at + 2], &statusword[..]);
     }
+}
+
+/// A link that keeps the commands of every frame's datagrams, and loses the next frame of
+/// configured reads alone when told to.
+struct Recording {
+    inner: InProcess,
+    frames: Arc<std::sync::Mutex<Vec<Vec<Command>>>>,
+    lose_reads: Arc<AtomicBool>,
+}
+
+impl Link for Recording {
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        let commands: Vec<Command> = frame::parse(tx).unwrap().map(|d| d.unwrap().header.command).collect();
+        let reads_alone = commands.iter().all(|&c| c == Command::Fprd);
+        self.frames.lock().unwrap().push(commands);
+        if reads_alone && self.lose_reads.swap(false, Ordering::SeqCst) {
+            return Err(Error::Timeout { what: "a frame (lost on purpose)".into() });
+        }
+        self.inner.exchange(tx, rx, timeout)
+    }
+
+    fn describe(&self) -> String {
+        "recording sim".into()
+    }
+}
+
+#[test]
+fn supervision_reads_the_whole_line_by_broadcast_until_a_drive_changes_and_then_each_in_that_cycle() {
+    let inner = InProcess::new(3);
+    let control = inner.control();
+    let frames = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let lose_reads = Arc::new(AtomicBool::new(false));
+    let link = Recording { inner, frames: frames.clone(), lose_reads: lose_reads.clone() };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
+    m.set_supervision(true).unwrap();
+    let cycle = |m: &mut Master| {
+        frames.lock().unwrap().clear();
+        let result = m.exchange().map_err(|e| e.to_string());
+        (result, std::mem::take(&mut *frames.lock().unwrap()))
+    };
+    let each = [vec![Command::Lrw], [Command::Fprd; 6].to_vec()].concat();
+    let whole = vec![Command::Lrw, Command::Brd, Command::Brd];
+    // Nothing seen yet: every drive read on its own; from then on the line as a whole.
+    assert_eq!(cycle(&mut m), (Ok(9), vec![each.clone()]));
+    for _ in 0..5 {
+        assert_eq!(cycle(&mut m), (Ok(9), vec![whole.clone()]));
+    }
+    let op = |m: &Master| m.watch().unwrap().iter().map(|w| (w.answered, w.al_status.state())).collect::<Vec<_>>();
+    assert_eq!(op(&m), vec![(true, Some(AlState::Op)); 3]);
+
+    // A fault puts an emergency in drive 1's mailbox: seen in the cycle it is there, by a
+    // second frame reading each drive, and then by the cyclic frame's own reads until the
+    // mail is taken. When that second frame is lost, so is the cycle, and the next one reads
+    // each drive again.
+    control.inject_fault(1, "F439").unwrap();
+    lose_reads.store(true, Ordering::SeqCst);
+    let deadline = std::time::Instant::now() + STEP;
+    loop {
+        assert!(std::time::Instant::now() < deadline, "the emergency was never seen");
+        let (result, sent) = cycle(&mut m);
+        if sent.len() == 2 {
+            assert_eq!(sent, vec![whole.clone(), [Command::Fprd; 6].to_vec()]);
+            assert!(result.as_ref().is_err_and(|e| e.contains("lost on purpose")), "{result:?}");
+            break;
+        }
+        assert_eq!((result, sent), (Ok(9), vec![whole.clone()]));
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(m.stats().lost_frames, 1);
+    assert_eq!(cycle(&mut m), (Ok(9), vec![whole.clone(), [Command::Fprd; 6].to_vec()]));
+    assert_eq!((m.stats().watch_frames, m.stats().wkc_errors), (2, 0));
+    let mail: Vec<bool> = m.watch().unwrap().iter().map(|w| w.mailbox_full).collect();
+    assert_eq!(mail, vec![false, true, false]);
+    assert_eq!(cycle(&mut m).1, vec![each.clone()]);
+
+    // A drive that leaves Op behind the master's back is seen in that cycle too.
+    let mut m2 = master(2);
+    m2.request_state(AlState::Op, STEP).unwrap();
+    m2.set_supervision(true).unwrap();
+    for _ in 0..3 {
+        m2.exchange().unwrap();
+    }
+    raw_al_request(&mut m2, 0, AlState::PreOp);
+    let deadline = std::time::Instant::now() + STEP;
+    while m2.watch().unwrap()[0].al_status.state() == Some(AlState::Op) {
+        assert!(std::time::Instant::now() < deadline, "drive 0 never left Op");
+        let _ = m2.exchange();
+    }
+    let states: Vec<_> = m2.watch().unwrap().iter().map(|w| (w.answered, w.al_status.state())).collect();
+    assert_eq!(states, vec![(true, Some(AlState::PreOp)), (true, Some(AlState::Op))]);
+    assert_eq!(m2.stats().lost_frames, 0);
 }

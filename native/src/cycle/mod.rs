@@ -979,6 +979,7 @@ fn run(
         let after = master.stats();
         CycleStats::add(&stats.lost_frames, after.lost_frames - before.lost_frames);
         CycleStats::add(&stats.wkc_errors, after.wkc_errors - before.wkc_errors);
+        CycleStats::add(&stats.watch_frames, after.watch_frames - before.watch_frames);
         let (wkc, exchange) = match &result {
             Ok(wkc) => (*wkc, Exchange::Good),
             Err(Error::WorkingCounter { got, .. }) => (*got, Exchange::WrongWkc),

@@ -170,8 +170,13 @@ pub struct CycleStats {
     /// Cyclic frames (the process data) that did not come back (the master's count, since the
     /// thread started).
     pub lost_frames: AtomicU64,
-    /// Cycles whose working counter was wrong (the master's count, since the thread started).
+    /// Cyclic frames that came back with a wrong working counter (the master's count, since
+    /// the thread started): the process data's, and a second frame's of a cycle that read
+    /// each slave apart (see `watch_frames`) in which a slave did not answer.
     pub wkc_errors: AtomicU64,
+    /// Cycles that sent a second frame to read each slave, their broadcast supervision reads
+    /// having seen a change (the master's count, since the thread started).
+    pub watch_frames: AtomicU64,
     /// Frames the thread sent beside the process data (mailbox: SDO, EoE, emergencies; a
     /// recovery's relayed frames) that did not come back: counted apart, a mailbox frame lost is
     /// sent again and costs no process data.
@@ -196,6 +201,7 @@ impl CycleStats {
             overruns: AtomicU64::new(0),
             lost_frames: AtomicU64::new(0),
             wkc_errors: AtomicU64::new(0),
+            watch_frames: AtomicU64::new(0),
             acyclic_lost_frames: AtomicU64::new(0),
             acyclic_wkc_errors: AtomicU64::new(0),
             other_errors: AtomicU64::new(0),

@@ -2,10 +2,20 @@
 //! and, when distributed clocks run, the FRMW that hands the reference clock's time to the
 //! others. With [supervision](Master::set_supervision) on, the same frame also reads every
 //! slave's AL status and mailbox status, so that a slave dropping out of Op or a message
-//! waiting in its mailbox (an emergency, an SDO reply) is seen in the cycle it happens, at no
-//! extra frame. The working counter is checked every cycle; lost frames and wrong counters are
-//! counted. The process image and the frame buffers are allocated when the image is laid out,
-//! never per cycle.
+//! waiting in its mailbox (an emergency, an SDO reply) is seen in the cycle it happens. The
+//! working counter is checked every cycle; lost frames and wrong counters are counted. The
+//! process image and the frame buffers are allocated when the image is laid out, never per
+//! cycle.
+//!
+//! While the slaves (two or more) were all last seen in one state, without an error or mail,
+//! the frame reads the whole line with two broadcast reads (BRD of AL status and of SM1
+//! status, which every slave answers with its value ORed in) instead of two reads per slave:
+//! 31 bytes in all instead of 31 per slave, 2.5 µs per slave less on a 100 Mbit/s wire. A
+//! slave that changes in any way sets a bit the others lack or does not answer, and then a
+//! second frame reads every slave on its own in the same cycle (counted in
+//! [`Stats::watch_frames`](super::Stats::watch_frames)); the cycles after it read each slave
+//! in the cyclic frame until they are all alike again (an SDO reply taken, a recovered drive
+//! back in Op). What a cycle reports of each slave is the same either way.
 //!
 //! With distributed clocks the frame also reads one slave's system-time difference (0x092C),
 //! a different slave each cycle in turn: every slave's is then at most as many cycles old as
@@ -215,19 +225,32 @@ impl Master {
             }
             None => None,
         };
-        // Two reads per slave: their slots follow each other in the frame, so the reply is
-        // walked with the same arithmetic (every slot's size is fixed).
-        let watch_first = match image.supervised {
-            true => Some(push_watch(&self.slaves, &mut builder, index)?),
-            false => None,
+        let watch = match (image.supervised, common_status(&image.watch)) {
+            (false, _) => None,
+            (true, Some(common)) => Some(Watch::Whole {
+                al: builder.push_zeroed(Command::Brd, index, 0, AL_STATUS, AL_STATUS_LEN)?,
+                sm1: builder.push_zeroed(Command::Brd, index, 0, sm1_status(), 1)?,
+                common,
+            }),
+            (true, None) => Some(Watch::Each(push_watch(&self.slaves, &mut builder, index)?)),
         };
         let len = builder.finish();
         self.stats.cycles += 1;
         let n = self.send_frame(len)?;
-        let reply = &self.rx[..n];
-        if let (Some(first), Some(image)) = (watch_first, self.process.as_mut()) {
-            read_watch(&mut image.watch, first, reply)?;
+        match watch {
+            Some(Watch::Each(first)) => {
+                if let Some(image) = self.process.as_mut() {
+                    read_watch(&mut image.watch, first, &self.rx[..n])?;
+                }
+            }
+            Some(Watch::Whole { al, sm1, common })
+                if !unchanged(al, sm1, common, self.slaves.len(), &self.rx[..n])? =>
+            {
+                self.watch_each(judge)?
+            }
+            _ => {}
         }
+        let reply = &self.rx[..n];
         let wkc = lrw.wkc(reply)?;
         let mut clock_time = None;
         if let (Some((slot, difference)), Some(c)) = (clock, self.clock.as_mut()) {
@@ -295,14 +318,76 @@ const AL_STATUS_LEN: usize = 6;
 /// Frame bytes each datagram takes besides its data.
 const DATAGRAM_OVERHEAD: usize = frame::DATAGRAM_HEADER_LEN + frame::WKC_LEN;
 
-/// Pushes the AL status and SM1 status reads of every slave; returns the first slot.
+/// How the cyclic frame reads what it supervises.
+#[derive(Clone, Copy)]
+enum Watch {
+    /// Every slave's AL status and SM1 status, its own two reads from the first slot on.
+    Each(Slot),
+    /// While every slave was last seen in the `common` state without an error or mail: one
+    /// broadcast read of each register, which every slave answers with its value ORed in.
+    Whole { al: Slot, sm1: Slot, common: AlStatus },
+}
+
+/// The SM1 (mailbox in) status register.
+fn sm1_status() -> u16 {
+    registers::sm(1) + sm_reg::STATUS as u16
+}
+
+/// The AL status every slave was last seen in, when they were all seen in the same one: a
+/// single state, no error flag, no AL status code, no mail waiting. From there a slave that
+/// changes, in any way, sets a bit of AL status, AL status code or SM1 status the others do
+/// not have (the states are 1, 2, 3, 4, 8 and an error sets 0x10), or does not answer. `None`
+/// for a single slave too: its own reads take no more room than the broadcast ones.
+fn common_status(watch: &[SlaveWatch]) -> Option<AlStatus> {
+    if watch.len() < 2 {
+        return None;
+    }
+    let common = watch[0].al_status;
+    let one_state = matches!(common.status, 0x01 | 0x02 | 0x04 | 0x08) && common.code == 0;
+    (one_state && watch.iter().all(|w| w.answered && !w.mailbox_full && w.al_status == common)).then_some(common)
+}
+
+/// Whether the broadcast reads say every one of `slaves` answered and is as it was.
+fn unchanged(al: Slot, sm1: Slot, common: AlStatus, slaves: usize, reply: &[u8]) -> Result<bool> {
+    if al.wkc(reply)? as usize != slaves || sm1.wkc(reply)? as usize != slaves {
+        return Ok(false);
+    }
+    let bytes: &[u8; AL_STATUS_LEN] = al.data(reply)?.try_into().expect("six bytes");
+    Ok(AlStatus::from_registers(bytes) == common && sm1.data(reply)?[0] & sm_reg::STATUS_MAILBOX_FULL == 0)
+}
+
+impl Master {
+    /// Reads every slave's AL status and SM1 status in a frame of their own, after the
+    /// broadcast reads of the cyclic frame saw a change: the watch is then this cycle's, as it
+    /// would have been with the reads in the cyclic frame. When it does not come back, the
+    /// cycle is lost as when its first frame does not: a watch this cycle did not read would
+    /// let the inputs of a slave just gone be taken. With `judge`, a frame in which a slave
+    /// did not answer is counted as one with a wrong working counter, as the cyclic frame is.
+    fn watch_each(&mut self, judge: bool) -> Result<()> {
+        let index = self.next_index();
+        let mut builder = FrameBuilder::new(&mut self.tx[..]);
+        let first = push_watch(&self.slaves, &mut builder, index)?;
+        let len = builder.finish();
+        let mut rx = [0u8; frame::MAX_PAYLOAD_LEN];
+        self.stats.watch_frames += 1;
+        let n = self.send_frame_into(len, &mut rx)?;
+        let watch = &mut self.image_mut()?.watch;
+        read_watch(watch, first, &rx[..n])?;
+        let unanswered = watch.iter().any(|w| !w.answered);
+        self.stats.wkc_errors += u64::from(judge && unanswered);
+        Ok(())
+    }
+}
+
+/// Pushes the AL status and SM1 status reads of every slave; returns the first slot. The
+/// slots follow each other in the frame, so the reply is walked with the same arithmetic
+/// (every slot's size is fixed).
 fn push_watch(slaves: &[Slave], builder: &mut FrameBuilder<'_>, index: u8) -> Result<Slot> {
     let mut first = None;
     for slave in slaves {
         let station = slave.station_address;
         let al = builder.push_zeroed(Command::Fprd, index, station, AL_STATUS, AL_STATUS_LEN)?;
-        let sm1 = registers::sm(1) + sm_reg::STATUS as u16;
-        builder.push_zeroed(Command::Fprd, index, station, sm1, 1)?;
+        builder.push_zeroed(Command::Fprd, index, station, sm1_status(), 1)?;
         first.get_or_insert(al);
     }
     first.ok_or(Unavailable::NoSlaves.into())

@@ -60,6 +60,9 @@ pub struct Stats {
     pub emergencies: u64,
     /// Mailbox replies dropped because their counter was not the request's (late answers).
     pub stale_mailbox_replies: u64,
+    /// Frames of their own that read every slave's AL status and mailbox status, in cycles
+    /// whose broadcast reads saw a slave change (see [`set_supervision`](Master::set_supervision)).
+    pub watch_frames: u64,
 }
 
 /// One slave as the scan found it.
@@ -93,6 +96,23 @@ impl Slave {
     pub fn has_dc(&self) -> bool {
         self.esc_features & 0x0004 != 0
     }
+}
+
+/// Sends `tx` on `link` and returns the length of its return in `rx`; counts the frame in
+/// `stats`, and counts it lost when it does not come back.
+fn counted_exchange(
+    link: &mut dyn Link,
+    stats: &mut Stats,
+    tx: &[u8],
+    rx: &mut [u8],
+    timeout: Duration,
+) -> Result<usize> {
+    stats.frames += 1;
+    link.exchange(tx, rx, timeout).inspect_err(|e| {
+        if matches!(e, Error::Timeout { .. }) {
+            stats.lost_frames += 1;
+        }
+    })
 }
 
 /// An EtherCAT master on one link.
@@ -164,16 +184,13 @@ impl Master {
     /// Sends the frame of `len` bytes in `tx` and returns the length of its return in `rx`.
     /// Counts the frame, and counts it lost when it does not come back.
     fn send_frame(&mut self, len: usize) -> Result<usize> {
-        self.stats.frames += 1;
-        match self.link.exchange(&self.tx[..len], &mut self.rx[..], self.timeout) {
-            Ok(n) => Ok(n),
-            Err(e) => {
-                if matches!(e, Error::Timeout { .. }) {
-                    self.stats.lost_frames += 1;
-                }
-                Err(e)
-            }
-        }
+        counted_exchange(&mut *self.link, &mut self.stats, &self.tx[..len], &mut self.rx[..], self.timeout)
+    }
+
+    /// As [`send_frame`](Self::send_frame), with the return in `rx`: for a second frame of a
+    /// cycle while the first one's return in `self.rx` is still being read.
+    pub(super) fn send_frame_into(&mut self, len: usize, rx: &mut [u8]) -> Result<usize> {
+        counted_exchange(&mut *self.link, &mut self.stats, &self.tx[..len], rx, self.timeout)
     }
 
     /// Sends a frame built by another master of the same bus (a [`sibling`](Self::sibling)

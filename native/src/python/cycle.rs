@@ -87,6 +87,7 @@ struct StatsView {
     overruns: u64,
     lost_frames: u64,
     wkc_errors: u64,
+    watch_frames: u64,
     acyclic_lost_frames: u64,
     acyclic_wkc_errors: u64,
     other_errors: u64,
@@ -348,6 +349,7 @@ impl PyCycle {
     }
 
     /// The statistics: cycles, overruns, lost_frames and wkc_errors (the cyclic frame's),
+    /// watch_frames (cycles that read each slave in a second frame, a change having been seen),
     /// acyclic_lost_frames and acyclic_wkc_errors (the frames beside it: mailbox, and a
     /// recovery's), other_errors, setpoints_busy, relayed_frames and relayed_lost (frames a
     /// slave's recovery sent beside the cycle, and those lost, which acyclic_lost_frames counts too),
@@ -364,6 +366,7 @@ impl PyCycle {
             overruns: s.overruns.load(Relaxed),
             lost_frames: s.lost_frames.load(Relaxed),
             wkc_errors: s.wkc_errors.load(Relaxed),
+            watch_frames: s.watch_frames.load(Relaxed),
             acyclic_lost_frames: s.acyclic_lost_frames.load(Relaxed),
             acyclic_wkc_errors: s.acyclic_wkc_errors.load(Relaxed),
             other_errors: s.other_errors.load(Relaxed),

@@ -483,7 +483,8 @@ impl PyMaster {
     }
 
     /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats,
-    /// emergencies, stale_mailbox_replies.
+    /// emergencies, stale_mailbox_replies, watch_frames (frames that read each slave in a
+    /// cycle whose broadcast supervision reads saw a change).
     fn stats(&self, py: Python<'_>) -> PyResult<master::Stats> {
         self.with_master(py, |m| Ok(m.stats()))
     }
