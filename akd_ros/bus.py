@@ -138,6 +138,7 @@ class Bus:
         priority: int | None = None,
         cpu: int | None = None,
         lock_memory: bool = False,
+        cpu_latency_us: int | None = None,
         request_timeout: float = 1.0,
         frame_timeout: float = 0.1,
         fault_reaction: str = "all",
@@ -176,7 +177,14 @@ class Bus:
             else:
                 self._master.configure_sm2_sync(round(period * 1e9))
             self._master.request_state("op")
-            self._cycle = _native.Cycle(self._master, period, priority=priority, cpu=cpu, lock_memory=lock_memory)
+            self._cycle = _native.Cycle(
+                self._master,
+                period,
+                priority=priority,
+                cpu=cpu,
+                lock_memory=lock_memory,
+                cpu_latency_us=cpu_latency_us,
+            )
         except BaseException:
             self._master.close()
             raise

@@ -310,6 +310,16 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
     Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
     Spec(
+        "rt.cpu_latency_us",
+        -1,
+        "Hold every CPU's wake-up latency from idle at this many µs while the cycle runs (PM QoS, "
+        "/dev/cpu_dma_latency, as cyclictest does), so that an idle CPU does not sleep too deeply to wake the cycle on "
+        "time; needs write access to /dev/cpu_dma_latency (root), without which the node warns and runs without it. "
+        "-1 leaves it to the system.",
+        -1,
+        1_000_000,
+    ),
+    Spec(
         "record.enabled",
         False,
         "Record the node's topics, its commands and every cycle to a rosbag2 bag (MCAP), from configure to cleanup.",
@@ -412,6 +422,7 @@ class Settings:
     rt_priority: int | None
     rt_cpu: int | None
     rt_lock_memory: bool
+    rt_cpu_latency_us: int | None
     record: dict[str, object] | None
     """The Recorder's folder, decimation and black_box_seconds; None when recording is off."""
     autostart: bool
@@ -655,6 +666,7 @@ def settings(values: dict[str, object]) -> Settings:
         rt_priority=top["rt.priority"] or None,
         rt_cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
         rt_lock_memory=top["rt.lock_memory"],
+        rt_cpu_latency_us=None if top["rt.cpu_latency_us"] < 0 else top["rt.cpu_latency_us"],
         record={
             "folder": top["record.folder"],
             "decimation": top["record.decimation"],

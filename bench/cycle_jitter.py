@@ -15,7 +15,8 @@ Wake-up latency is what cyclictest measures: how late after its deadline the thr
 
 cyclictest holds the CPUs' wake-up latency at 0 µs through PM QoS (/dev/cpu_dma_latency) while it runs, which keeps
 an idle CPU polling rather than halted: on a virtual machine a halted vCPU wakes tens of µs late. So that both run
-alike, this script holds it the same way during every run of the cycle (where it may: root), and says so.
+alike, every run of the cycle holds it the same way (`Cycle(..., cpu_latency_us=0)`; where it may not, the cycle's
+warning says so).
 
     .venv/bin/python bench/cycle_jitter.py [--rates 1000,4000] [--seconds 4] [--rounds 2] [--loads idle,busy,sdo]
         [--priority 80] [--busy 2] [--no-cyclictest] [--json PATH]
@@ -24,11 +25,8 @@ alike, this script holds it the same way during every run of the cycle (where it
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
 import re
 import shutil
-import struct
 import subprocess
 import sys
 import threading
@@ -93,32 +91,13 @@ def jitter_histogram(period: list[tuple[int, int]], period_ns: int) -> list[tupl
     return sorted(counts.items())
 
 
-# What cyclictest writes to hold the CPUs' wake-up latency while it runs.
-CPU_DMA_LATENCY = Path("/dev/cpu_dma_latency")
-
-
-@contextlib.contextmanager
-def cpu_latency_held(us: int):
-    """Holds every CPU's wake-up latency at `us` µs (PM QoS) while open, as cyclictest does; yields why not, or None."""
-    try:
-        fd = os.open(CPU_DMA_LATENCY, os.O_WRONLY)
-    except OSError as e:
-        yield f"{CPU_DMA_LATENCY}: {e.strerror}"
-        return
-    try:
-        os.write(fd, struct.pack("i", us))
-        yield None
-    finally:
-        os.close(fd)
-
-
 def run_cycle(rate: int, load: str, args) -> dict:
     period_ns = 1_000_000_000 // rate
     cycles = rate * args.seconds
     with _native.Master("sim", timeout=0.5) as master:
         master.scan()
         master.request_state("op")
-        cycle = _native.Cycle(master, period_ns / 1e9, priority=args.priority, lock_memory=True)
+        cycle = _native.Cycle(master, period_ns / 1e9, priority=args.priority, lock_memory=True, cpu_latency_us=0)
         with Load(load, args, cycle) as running:
             cpu0, cycles0 = cycle_thread_cpu_ns(), cycle.snapshot()["cycle"]
             while cycle.snapshot()["cycle"] < cycles:
@@ -200,13 +179,11 @@ def main() -> int:
     if with_cyclictest and shutil.which("cyclictest") is None:
         figures.missing("cyclictest: not installed (Debian package rt-tests; scripts/setup.sh installs it)")
         with_cyclictest = False
-    cycles, peers, held = [], [], None
+    cycles, peers = [], []
     for _ in range(args.rounds):
         for rate in rates:
             for load in loads:
-                with cpu_latency_held(0) as refused:
-                    cycles.append(run_cycle(rate, load, args))
-                    held = refused or held
+                cycles.append(run_cycle(rate, load, args))
             if with_cyclictest:
                 try:
                     peers.append(run_cyclictest(rate, args))
@@ -281,11 +258,9 @@ def main() -> int:
         f"cycle on the in-process virtual AKD (sim), SCHED_FIFO {args.priority}, memory locked; {args.rounds} rounds of"
         f" {args.seconds} s per run, alternating; latencies from 1 µs histograms (upper edges)"
     )
-    qos = f"CPU wake-up latency (PM QoS, {CPU_DMA_LATENCY})"
     figures.note(
-        f"{qos} not held during the cycle's runs ({held}); cyclictest holds it at 0 µs during its own"
-        if held
-        else f"{qos} held at 0 µs during the cycle's runs, as cyclictest holds it during its own"
+        "CPU wake-up latency held at 0 µs (PM QoS, /dev/cpu_dma_latency) during the cycle's runs (Cycle"
+        " cpu_latency_us=0) as cyclictest holds it during its own, unless a cycle warning above says it was not"
     )
     return figures.finish()
 

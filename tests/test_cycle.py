@@ -14,6 +14,7 @@ import itertools
 import struct
 import threading
 import time
+from pathlib import Path
 
 import pytest
 
@@ -175,3 +176,33 @@ def test_real_time_settings_apply_or_warn_by_name(master):
         for w in cycle.warnings:
             assert w.startswith(("SCHED_FIFO priority 10 not set", "CPU affinity to CPU 0 not set")), w
         assert cycle.stats()["lost_frames"] == 0
+
+
+def cpu_latency_target() -> int | None:
+    """The CPUs' wake-up latency the kernel's PM QoS holds now, µs; None where it cannot be read."""
+    try:
+        return struct.unpack("i", Path("/dev/cpu_dma_latency").read_bytes()[:4])[0]
+    except OSError:
+        return None
+
+
+def test_a_cpu_latency_is_held_while_the_cycle_runs_or_refused_by_name(master):
+    before = cpu_latency_target()
+    with _native.Cycle(master, 0.001, cpu_latency_us=7) as cycle:
+        wait_for_cycle(cycle, 10)
+        if cycle.warnings:
+            # Not permitted here (no write access): one warning naming the setting and the file; the cycle runs.
+            (warning,) = cycle.warnings
+            assert warning.startswith("CPU wake-up latency of 7 µs not held (/dev/cpu_dma_latency"), warning
+        else:
+            assert cpu_latency_target() == 7
+        assert cycle.stats()["lost_frames"] == 0
+    # Released with the cycle: the kernel's target is what it was (another holder's, or none).
+    assert cpu_latency_target() == before
+
+
+@pytest.mark.parametrize("us", [-1, 1_000_001])
+def test_a_cpu_latency_out_of_range_is_refused_with_the_range(master, us):
+    refused = rf"CPU wake-up latency {us} µs is outside the allowed range 0\.\.=1000000 µs"
+    with pytest.raises(_native.ConfigError, match=refused):
+        _native.Cycle(master, 0.001, cpu_latency_us=us)

@@ -170,6 +170,8 @@ def test_the_real_drive_template_names_only_known_parameters_with_good_values():
     settings = params.settings(values)
     (joint,) = settings.joints
     assert (settings.rt_priority, settings.rt_cpu, joint.limits.max_velocity) == (80, 1, 50.0)
+    assert settings.rt_cpu_latency_us == 0
+    assert params.settings({**values, "rt.cpu_latency_us": -1}).rt_cpu_latency_us is None
     assert math.isinf(template["limits.max_position"]) and joint.limits.max_position is None
 
 

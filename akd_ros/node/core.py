@@ -105,6 +105,7 @@ class Core:
                 priority=s.rt_priority,
                 cpu=s.rt_cpu,
                 lock_memory=s.rt_lock_memory,
+                cpu_latency_us=s.rt_cpu_latency_us,
                 fault_reaction=s.fault_reaction,
                 dc=s.dc,
                 dc_shift=s.dc_shift,

@@ -1082,6 +1082,13 @@ pub enum SettingError {
         /// CPUs of this machine.
         cpus: usize,
     },
+    /// A CPU wake-up latency outside what a cycle may hold.
+    CpuLatency {
+        /// The latency asked for, µs.
+        us: i64,
+        /// The longest allowed, µs.
+        max: u32,
+    },
     /// A drive cycle time below the AKD's minimum.
     CycleTimeBelowMinimum {
         /// The cycle time, ns.
@@ -1254,6 +1261,9 @@ impl fmt::Display for SettingError {
             }
             SettingError::Priority { priority, low, high } => {
                 write!(f, "SCHED_FIFO priority {priority} is outside {low}..={high}")
+            }
+            SettingError::CpuLatency { us, max } => {
+                write!(f, "CPU wake-up latency {us} µs is outside the allowed range 0..={max} µs")
             }
             SettingError::Cpu { cpu, cpus } => {
                 write!(f, "CPU {cpu} does not exist: this machine has CPUs 0..={}", cpus - 1)

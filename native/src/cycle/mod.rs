@@ -84,12 +84,15 @@ pub struct Config {
     pub cpu: Option<usize>,
     /// Whether to lock the process's memory (mlockall).
     pub lock_memory: bool,
+    /// The CPUs' wake-up latency to hold while the thread runs, µs (see
+    /// [`rt::hold_cpu_latency`]), 0..=[`rt::MAX_CPU_LATENCY_US`]; the system's when `None`.
+    pub cpu_latency_us: Option<u32>,
 }
 
 impl Config {
     /// A cycle of `period` with no real-time settings.
     pub fn new(period: Duration) -> Self {
-        Config { period, priority: None, cpu: None, lock_memory: false }
+        Config { period, priority: None, cpu: None, lock_memory: false, cpu_latency_us: None }
     }
 }
 
@@ -206,6 +209,8 @@ pub struct CycleThread {
     halted: AtomicBool,
     slots: Vec<Option<ImageSlot>>,
     warnings: Vec<String>,
+    /// Open while the thread runs: the CPUs' wake-up latency it holds (PM QoS).
+    cpu_latency: std::sync::Mutex<Option<std::fs::File>>,
     period: Duration,
     /// Per slave: whether it is sequenced, or why not.
     sequenced: Vec<std::result::Result<(), Unavailable>>,
@@ -332,7 +337,9 @@ impl CycleThread {
         };
         // The thread is waiting for it.
         let _ = master_tx.send(master);
-        let warnings = ready_rx.recv().unwrap_or_default();
+        let mut warnings = ready_rx.recv().unwrap_or_default();
+        let cpu_latency =
+            config.cpu_latency_us.and_then(|us| rt::hold_cpu_latency(us).map_err(|w| warnings.push(w)).ok());
         let recovery = {
             let shared = shared.clone();
             std::thread::Builder::new()
@@ -347,6 +354,7 @@ impl CycleThread {
             halted: AtomicBool::new(false),
             slots,
             warnings,
+            cpu_latency: std::sync::Mutex::new(cpu_latency),
             period: config.period,
             sequenced,
             latch_objects,
@@ -851,6 +859,7 @@ impl CycleThread {
         if let Some(recovery) = lock(&self.recovery).take() {
             let _ = recovery.join();
         }
+        lock(&self.cpu_latency).take();
         master
     }
 }

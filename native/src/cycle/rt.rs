@@ -1,5 +1,5 @@
-//! Real-time settings of the cycle thread: SCHED_FIFO priority, CPU affinity and locked
-//! memory. Each is optional. A value outside its range is an error; a setting the system does
+//! Real-time settings of the cycle thread: SCHED_FIFO priority, CPU affinity, locked memory
+//! and the CPUs' wake-up latency (PM QoS). Each is optional. A value outside its range is an error; a setting the system does
 //! not permit (no CAP_SYS_NICE, a CPU outside the container's set, a memlock limit) is a
 //! warning that names what was refused and why, and the cycle runs without it.
 
@@ -8,6 +8,21 @@ use crate::error::{Result, SettingError};
 /// The SCHED_FIFO priorities Linux allows.
 pub fn fifo_priorities() -> (i32, i32) {
     unsafe { (libc::sched_get_priority_min(libc::SCHED_FIFO), libc::sched_get_priority_max(libc::SCHED_FIFO)) }
+}
+
+/// The longest CPU wake-up latency a cycle may ask for, µs: a second, far past any cycle.
+pub const MAX_CPU_LATENCY_US: u32 = 1_000_000;
+
+/// Where a process asks the kernel to keep every CPU's wake-up from idle within a latency
+/// (PM QoS), for as long as it keeps the file open.
+const CPU_DMA_LATENCY: &str = "/dev/cpu_dma_latency";
+
+/// A CPU wake-up latency as a caller gives it, µs; refused outside 0..=[`MAX_CPU_LATENCY_US`].
+pub fn cpu_latency(us: i64) -> Result<u32> {
+    u32::try_from(us)
+        .ok()
+        .filter(|&us| us <= MAX_CPU_LATENCY_US)
+        .ok_or(SettingError::CpuLatency { us, max: MAX_CPU_LATENCY_US }.into())
 }
 
 /// Checks a SCHED_FIFO priority and a CPU number before anything starts.
@@ -53,6 +68,24 @@ pub fn set_affinity(cpu: usize) -> Option<String> {
             os_error(code)
         )
     })
+}
+
+/// Asks the kernel to wake every CPU from idle within `us` µs for as long as the returned file
+/// stays open, as cyclictest does while it runs: an idle CPU then polls or naps lightly
+/// instead of halting, and a halted CPU, above all a virtual machine's vCPU, wakes the cycle
+/// tens of µs late. A warning when not permitted (it needs write access to
+/// `/dev/cpu_dma_latency`, root's by default).
+pub fn hold_cpu_latency(us: u32) -> std::result::Result<std::fs::File, String> {
+    use std::io::Write;
+    let refused = |e: std::io::Error| {
+        format!(
+            "CPU wake-up latency of {us} µs not held ({CPU_DMA_LATENCY}: {e}): idle CPUs may sleep deeply and wake              the cycle late; it needs write access to {CPU_DMA_LATENCY}"
+        )
+    };
+    let mut file = std::fs::OpenOptions::new().write(true).open(CPU_DMA_LATENCY).map_err(refused)?;
+    // The kernel takes the latency as a native 32-bit integer.
+    file.write_all(&(us as i32).to_ne_bytes()).map_err(refused)?;
+    Ok(file)
 }
 
 /// Locks the process's memory, now and future, so page faults never stall the cycle; a

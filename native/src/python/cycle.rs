@@ -293,10 +293,12 @@ impl PyCycle {
 impl PyCycle {
     /// Starts cycling `master` (its slaves in Op) every `period` seconds (0.00025 to 0.01).
     /// `priority` asks for SCHED_FIFO (1..=99), `cpu` binds the thread to one CPU, and
-    /// `lock_memory` locks the process's memory; what the system does not permit is listed in
-    /// `warnings` and the cycle runs without it. The master is unusable until `stop()`.
+    /// `lock_memory` locks the process's memory, and `cpu_latency_us` (0..=1000000) holds every
+    /// CPU's wake-up latency from idle while the cycle runs (PM QoS, /dev/cpu_dma_latency, as
+    /// cyclictest does); what the system does not permit is listed in `warnings` and the cycle
+    /// runs without it. The master is unusable until `stop()`.
     #[new]
-    #[pyo3(signature = (master, period, *, priority = None, cpu = None, lock_memory = false))]
+    #[pyo3(signature = (master, period, *, priority = None, cpu = None, lock_memory = false, cpu_latency_us = None))]
     fn new(
         py: Python<'_>,
         master: Py<PyMaster>,
@@ -304,10 +306,12 @@ impl PyCycle {
         priority: Option<i32>,
         cpu: Option<usize>,
         lock_memory: bool,
+        cpu_latency_us: Option<i64>,
     ) -> PyResult<Self> {
         let period = Duration::try_from_secs_f64(period)
             .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
-        let config = Config { period, priority, cpu, lock_memory };
+        let cpu_latency_us = cpu_latency_us.map(crate::cycle::rt::cpu_latency).transpose().map_err(super::to_py_err)?;
+        let config = Config { period, priority, cpu, lock_memory, cpu_latency_us };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
             Ok(cycle) => Ok(PyCycle { master, cycle }),
