@@ -4,7 +4,9 @@ Ethernet (AF_PACKET) over a veth pair to `akd-sim --iface` in a network namespac
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
+import time
 
 import pytest
 
@@ -68,6 +70,38 @@ def test_master_busy_polling_over_veth(veth, busy_poll_us, sim_busy_polls):
         finally:
             master.close()
     assert ("--busy-poll" in sim.args) == sim_busy_polls
+
+
+def test_akd_sim_loses_a_reply_the_line_went_down_under_and_serves_on(veth):
+    """A frame akd-sim takes after the master's end of the line went down cannot go back (the kernel refuses the send):
+    lost, as on a real line, and akd-sim serves the frames that come once the line is up again. It exited on it, so a
+    test taking a link down could find no simulator when it came back. Made certain by stopping akd-sim (SIGSTOP) while
+    the frame waits in its socket and the line goes down."""
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=1) as sim:
+        with entered_netns(veth.ns_master):
+            master = _native.Master(veth.if_master, timeout=0.2)
+        try:
+            assert master.scan()
+            os.kill(sim.pid, signal.SIGSTOP)
+            try:
+                with pytest.raises(_native.TimeoutError):
+                    master.al_status(0)
+                subprocess.run(["ip", "-n", veth.ns_master, "link", "set", veth.if_master, "down"], check=True)
+            finally:
+                os.kill(sim.pid, signal.SIGCONT)
+            time.sleep(0.3)
+            assert sim.poll() is None, sim.communicate()
+            subprocess.run(["ip", "-n", veth.ns_master, "link", "set", veth.if_master, "up"], check=True)
+            deadline = time.monotonic() + 5
+            while True:
+                try:
+                    assert master.al_status(0)[0] == "Init"
+                    break
+                except (_native.TimeoutError, _native.EtherCatError):
+                    assert time.monotonic() < deadline, "akd-sim did not answer once the line was up again"
+                    time.sleep(0.05)
+        finally:
+            master.close()
 
 
 def test_akd_sim_refuses_to_busy_poll_under_a_real_time_policy(veth):

@@ -37,6 +37,9 @@ pub struct ServerStats {
     pub malformed: u64,
     /// Frames lost on the simulated line (see [`crate::sim::line`]): never answered.
     pub lost: u64,
+    /// Replies the interface could not send because the line went down under them (the
+    /// master's end of a veth pair taken down, a cable pulled): lost, as on a real line.
+    pub unsent: u64,
 }
 
 impl ServerStats {
@@ -163,13 +166,22 @@ pub fn serve_iface(
         ran_ns = now_ns;
         if stats.serve(&mut bus, &mut buf[ETH_HEADER_LEN..len], now_ns) {
             buf[6] |= RETURNED_MAC_BIT;
-            socket.send(&buf[..len])?;
-            stats.served += 1;
+            match socket.send(&buf[..len]) {
+                Ok(()) => stats.served += 1,
+                Err(Error::Io { source, .. }) if line_down(&source) => stats.unsent += 1,
+                Err(e) => return Err(e),
+            }
             trace_frame(&mut trace, &bus, &buf[ETH_HEADER_LEN..len], received);
         }
         bus.run_ip_stacks(now_ns);
     }
     Ok(stats)
+}
+
+/// Whether a send failed because the line is down: the interface's peer or carrier gone
+/// (ENOBUFS from a socket that bypasses the queue, ENETDOWN), or the interface itself (ENXIO).
+fn line_down(error: &std::io::Error) -> bool {
+    matches!(error.raw_os_error(), Some(libc::ENOBUFS | libc::ENETDOWN | libc::ENXIO))
 }
 
 #[cfg(test)]
