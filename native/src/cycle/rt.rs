@@ -1,7 +1,8 @@
 //! Real-time settings of the cycle thread: SCHED_FIFO priority, CPU affinity, locked memory
-//! and the CPUs' wake-up latency (PM QoS). Each is optional. A value outside its range is an error; a setting the system does
-//! not permit (no CAP_SYS_NICE, a CPU outside the container's set, a memlock limit) is a
-//! warning that names what was refused and why, and the cycle runs without it.
+//! and the CPUs' wake-up latency (PM QoS). Each is optional. A value outside its range is an
+//! error; a setting the system does not permit (no CAP_SYS_NICE, a CPU outside the
+//! container's set, a memlock limit, no write access to /dev/cpu_dma_latency) is a warning
+//! that names what was refused and why, and the cycle runs without it.
 
 use crate::error::{Result, SettingError};
 
@@ -79,7 +80,8 @@ pub fn hold_cpu_latency(us: u32) -> std::result::Result<std::fs::File, String> {
     use std::io::Write;
     let refused = |e: std::io::Error| {
         format!(
-            "CPU wake-up latency of {us} µs not held ({CPU_DMA_LATENCY}: {e}): idle CPUs may sleep deeply and wake              the cycle late; it needs write access to {CPU_DMA_LATENCY}"
+            "CPU wake-up latency of {us} µs not held ({CPU_DMA_LATENCY}: {e}): idle CPUs may sleep deeply \
+             and wake the cycle late; it needs write access to {CPU_DMA_LATENCY}"
         )
     };
     let mut file = std::fs::OpenOptions::new().write(true).open(CPU_DMA_LATENCY).map_err(refused)?;
