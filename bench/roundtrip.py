@@ -90,11 +90,12 @@ if os.environ.get("ROUNDTRIP_CPUS"):
 
 # The thread CPU, ns, that reading the CPU clock around a call costs by itself (a system call: the
 # vDSO has no thread CPU clock), taken off every master's figures alike.
+# The least of three passes of `samples` reads, each as the loop makes them around a call.
 def probe_cost(clock, cpu, samples=2000):
     def nothing():
         return True
-    best = None
-    for _ in range(3):
+
+    def one_pass():
         total = 0
         for _ in range(samples):
             before = cpu()
@@ -102,8 +103,9 @@ def probe_cost(clock, cpu, samples=2000):
             nothing()
             clock() - start
             total += cpu() - before
-        best = total / samples if best is None else min(best, total / samples)
-    return best
+        return total / samples
+
+    return min(one_pass() for _ in range(3))
 
 
 def paced(exchange, rate, cycles, warmup):
@@ -145,9 +147,12 @@ def run_rates(exchange, rates, cycles, warmup):
 
 AKD_ROS_SCRIPT = (
     PACED_LOOP
+    # The bench's own helpers, after whichever akd_ros (this one's, a --baseline's) comes first.
+    + f"sys.path.append({str(Path(__file__).resolve().parent)!r})\n"
     + r"""
 iface, rates, cycles, warmup = sys.argv[1], json.loads(sys.argv[2]), int(sys.argv[3]), int(sys.argv[4])
 from akd_ros import _native
+from cycle_jitter import cycle_thread_cpu_ns
 
 
 # The plain and the supervised frame's variants on `link`; the drives found, the frames lost.
@@ -177,15 +182,6 @@ def measure_link(link, prefix):
     if hasattr(_native, "Cycle"):
         variants[prefix + CYCLE] = {str(rate): cycle_thread(link, rate, cycles, warmup) for rate in rates}
     return found, lost, variants
-
-
-def cycle_thread_cpu_ns():
-    for task in os.listdir("/proc/self/task"):
-        with open(f"/proc/self/task/{task}/comm") as comm:
-            if comm.read().strip() == "akd-cycle":
-                with open(f"/proc/self/task/{task}/schedstat") as schedstat:
-                    return int(schedstat.read().split()[0])
-    raise RuntimeError("akd_ros: no akd-cycle thread")
 
 
 # The node's own loop on `link`: a Cycle thread, paced natively on the normal scheduler as the
