@@ -39,6 +39,9 @@ SUMMARY = re.compile(
     r"frames to the drives (?P<to>\d+), from them (?P<from>\d+), dropped (?P<dropped_to>\d+) and (?P<dropped_from>\d+)"
 )
 
+# akd-sim's count of replies it sent more than 2 ms late because it was not run (see akd_ros.cli.sim).
+LATE_HALF_PERIOD = re.compile(r"process-data replies late because akd-sim was not run: .*?(?P<count>\d+) over 2 ms")
+
 
 def _ready_lines(process: subprocess.Popen, count: int, timeout: float) -> list[str]:
     """The first `count` lines akd-eoe prints once its bridge is up; fails with its stderr otherwise."""
@@ -79,7 +82,7 @@ def test_ping_through_the_tap_reaches_each_drive_with_no_cycle_lost(veth):
     # does in hardware, whatever runs on the other CPUs (on a shared host a thread woken on one of them may wait there
     # for milliseconds).
     cpu = max(os.sched_getaffinity(0))
-    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2, cpu=cpu):
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2, cpu=cpu) as sim:
         argv = [*console_script("akd-eoe"), veth.if_master, "--host", HOST, "--tap", "akdeoe0", "--period", "0.004"]
         # As an integrator runs a line on an interface: the cycle thread under SCHED_FIFO, where permitted.
         argv += ["--priority", "50", "--cpu", str(cpu)]
@@ -100,10 +103,16 @@ def test_ping_through_the_tap_reaches_each_drive_with_no_cycle_lost(veth):
             out, err = stop_process(process)
     summary = SUMMARY.search(out)
     assert summary, out + err
-    print(summary[0])
+    late = LATE_HALF_PERIOD.search(sim.output_text)
+    assert late, sim.output_text
+    print(summary[0], sim.output_text, sep="\n")
     # SIGTERM ends the tool as SIGINT does: the summary, then status 130.
     assert process.returncode == EXIT_INTERRUPTED, err
-    assert (int(summary["lost"]), int(summary["wkc"])) == (0, 0), summary[0]
+    # The EoE traffic costs no cycle: a frame is lost only where akd-sim itself, not run, sent its reply more than
+    # half the 4 ms period late (a virtual CPU its host held for milliseconds, seen on shared test machines; a real
+    # drive's ESC answers in hardware).
+    assert int(summary["lost"]) <= int(late["count"]), (summary[0], sim.output_text)
+    assert int(summary["wkc"]) == 0, summary[0]
     assert (int(summary["dropped_to"]), int(summary["dropped_from"])) == (0, 0), summary[0]
     # 16 pings answered and the ARP exchanges: frames went both ways.
     assert int(summary["from"]) >= 16 and int(summary["to"]) >= 16, summary[0]

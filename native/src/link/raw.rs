@@ -126,10 +126,14 @@ impl RawSocket {
     /// Takes an incoming frame that is already there and writes it to `buf`, without waiting;
     /// `None` when there is none. One recv(2).
     pub fn try_recv(&self, buf: &mut [u8]) -> Result<Option<usize>> {
-        self.recv_flags(buf, libc::MSG_DONTWAIT)
+        // SAFETY: `buf` is valid for the length passed.
+        let got = unsafe {
+            libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), libc::MSG_DONTWAIT)
+        };
+        self.received(got)
     }
 
-    /// Sets how long [`recv_blocking`](Self::recv_blocking) waits, as
+    /// Sets how long [`recv_stamped`](Self::recv_stamped) waits, as
     /// [`UdpSocket::set_read_timeout`](std::net::UdpSocket::set_read_timeout) does (SO_RCVTIMEO,
     /// counted in scheduler ticks: at least one, so a short time-out may last up to 4 ms).
     pub fn set_read_timeout(&self, timeout: Duration) -> Result<()> {
@@ -150,18 +154,9 @@ impl RawSocket {
         Ok(())
     }
 
-    /// Waits for an incoming frame up to the [read time-out](Self::set_read_timeout) and writes
-    /// it to `buf`; `None` when nothing came. One recv(2) per frame, for a server, which needs
-    /// no exact time-out: half the system calls of [`recv_until`](Self::recv_until).
-    pub fn recv_blocking(&self, buf: &mut [u8]) -> Result<Option<usize>> {
-        self.recv_flags(buf, 0)
-    }
-
-    /// One recv(2) with `flags` into `buf`; `None` when it came back with nothing (no frame
-    /// there, the read time-out passed, a signal).
-    fn recv_flags(&self, buf: &mut [u8], flags: libc::c_int) -> Result<Option<usize>> {
-        // SAFETY: `buf` is valid for the length passed.
-        let got = unsafe { libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), flags) };
+    /// What a receive call's result `got` says: a frame's length, or `None` for nothing there
+    /// (no frame, the read time-out passed, a signal).
+    fn received(&self, got: isize) -> Result<Option<usize>> {
         if got >= 0 {
             return Ok(Some(got as usize));
         }
@@ -170,6 +165,47 @@ impl RawSocket {
             return Ok(None);
         }
         Err(Error::io(format!("receiving on interface {:?}", self.iface), err))
+    }
+
+    /// Has the kernel stamp each incoming frame with its arrival (SO_TIMESTAMPNS), for
+    /// [`recv_stamped`](Self::recv_stamped); `false` where the kernel refuses.
+    pub fn stamp_arrivals(&self) -> bool {
+        let on: libc::c_int = 1;
+        // SAFETY: a valid descriptor and a c_int of the size passed.
+        let rc = unsafe {
+            libc::setsockopt(
+                self.fd.as_raw_fd(),
+                libc::SOL_SOCKET,
+                libc::SO_TIMESTAMPNS,
+                &on as *const libc::c_int as *const libc::c_void,
+                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
+            )
+        };
+        rc == 0
+    }
+
+    /// Takes the next incoming frame into `buf`, waiting for it up to the [read
+    /// time-out](Self::set_read_timeout) when `wait`, else as [`try_recv`](Self::try_recv); with
+    /// the frame's arrival on the interface as the kernel stamped it (CLOCK_REALTIME, ns) once
+    /// [`stamp_arrivals`](Self::stamp_arrivals) is on. One recvmsg(2) per frame, for a server,
+    /// which needs no exact time-out: half the system calls of [`recv_until`](Self::recv_until).
+    pub fn recv_stamped(&self, buf: &mut [u8], wait: bool) -> Result<Option<(usize, Option<u64>)>> {
+        let mut iov = libc::iovec { iov_base: buf.as_mut_ptr() as *mut libc::c_void, iov_len: buf.len() };
+        // Room for one control message carrying a timespec, aligned as cmsghdr wants.
+        let mut control = [0u64; 8];
+        // SAFETY: zeroed msghdr is a valid value; the fields that matter are set below.
+        let mut message: libc::msghdr = unsafe { std::mem::zeroed() };
+        message.msg_iov = &mut iov;
+        message.msg_iovlen = 1;
+        message.msg_control = control.as_mut_ptr() as *mut libc::c_void;
+        message.msg_controllen = std::mem::size_of_val(&control) as _;
+        let flags = if wait { 0 } else { libc::MSG_DONTWAIT };
+        // SAFETY: `message` describes `buf` and `control`, both valid for their lengths.
+        let got = unsafe { libc::recvmsg(self.fd.as_raw_fd(), &mut message, flags) };
+        let Some(len) = self.received(got)? else {
+            return Ok(None);
+        };
+        Ok(Some((len, arrival_stamp(&message))))
     }
 
     /// Waits until a frame can be read or `timeout` passes; `false` on time-out.
@@ -187,6 +223,23 @@ impl RawSocket {
         }
         Ok(rc > 0)
     }
+}
+
+/// The SO_TIMESTAMPNS stamp among the control messages recvmsg(2) filled in, in ns.
+fn arrival_stamp(message: &libc::msghdr) -> Option<u64> {
+    // SAFETY: `message` was filled in by recvmsg(2); the CMSG_* walk stays within its control
+    // buffer, and a SCM_TIMESTAMPNS message's data is one timespec, read unaligned.
+    unsafe {
+        let mut header = libc::CMSG_FIRSTHDR(message);
+        while !header.is_null() {
+            if (*header).cmsg_level == libc::SOL_SOCKET && (*header).cmsg_type == libc::SCM_TIMESTAMPNS {
+                let stamp = std::ptr::read_unaligned(libc::CMSG_DATA(header) as *const libc::timespec);
+                return Some(stamp.tv_sec as u64 * 1_000_000_000 + stamp.tv_nsec as u64);
+            }
+            header = libc::CMSG_NXTHDR(message, header);
+        }
+    }
+    None
 }
 
 /// Sets a SOL_PACKET option to 1, leaving the socket as it was where the kernel lacks it.
@@ -377,6 +430,31 @@ mod tests {
     fn names_a_missing_interface() {
         let err = RawSocket::open("nosuchif0").unwrap_err().to_string();
         assert!(err.contains("nosuchif0") && err.contains("no such interface"), "{err}");
+    }
+
+    #[test]
+    #[ignore = "needs CAP_NET_RAW: scripts/test.sh runs it with --include-ignored as root"]
+    fn stamps_a_frames_arrival_on_the_interface() {
+        let socket = RawSocket::open("lo").unwrap();
+        assert!(socket.stamp_arrivals());
+        socket.set_read_timeout(Duration::from_millis(200)).unwrap();
+        let mut out = [0u8; MAX_ETH_FRAME_LEN];
+        let n = wrap(&payload(), &mut out).unwrap();
+        // Told apart from the frames other tests send on loopback meanwhile.
+        out[n - 1] = 0xA5;
+        let now_ns = || std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap().as_nanos() as u64;
+        let before = now_ns();
+        socket.send(&out[..n]).unwrap();
+        std::thread::sleep(Duration::from_millis(20));
+        let mut buf = [0u8; MAX_ETH_FRAME_LEN];
+        let arrived = loop {
+            let (got, arrived) = socket.recv_stamped(&mut buf, true).unwrap().expect("the frame came back");
+            if buf[..got] == out[..n] {
+                break arrived.unwrap();
+            }
+        };
+        // Stamped as it arrived, not when it was taken 20 ms later.
+        assert!(before <= arrived && arrived < before + 10_000_000, "{before} {arrived}");
     }
 
     #[test]

@@ -299,39 +299,83 @@ fn controlled_bus(count: usize, missed: &str, on_start: Option<&Bound<'_, PyAny>
     Ok(bus)
 }
 
+/// What a server did, for `on_stop`: "served", "malformed", "lost" (on the simulated line),
+/// "unsent" (the line went down under the reply) and "late", how late replies went back
+/// because the server was not run ([`LateView`]; None over UDP).
+#[derive(IntoPyObject)]
+struct ServerStatsView {
+    served: u64,
+    malformed: u64,
+    lost: u64,
+    unsent: u64,
+    late: Option<LateView>,
+}
+
+/// [`server::LateReplies`]: "over", the count of replies later than each bound (µs → count),
+/// and "longest_us".
+#[derive(IntoPyObject)]
+struct LateView {
+    over: std::collections::BTreeMap<u64, u64>,
+    longest_us: u64,
+}
+
+impl From<server::ServerStats> for ServerStatsView {
+    fn from(stats: server::ServerStats) -> Self {
+        ServerStatsView {
+            served: stats.served,
+            malformed: stats.malformed,
+            lost: stats.lost,
+            unsent: stats.unsent,
+            late: stats.late.map(|late| LateView {
+                over: server::LATE_AFTER_US.into_iter().zip(late.over).collect(),
+                longest_us: late.longest_us,
+            }),
+        }
+    }
+}
+
 /// Runs `serve` on a thread until it ends or a Python signal handler raises (SIGINT gives
 /// KeyboardInterrupt): the GIL is released while waiting, signals are checked every 100 ms.
+/// `on_stop(stats)`, if given, is called with what the server did once it has stopped.
 fn run_until_signal(
     py: Python<'_>,
+    on_stop: Option<&Bound<'_, PyAny>>,
     serve: impl FnOnce(&AtomicBool) -> Result<server::ServerStats> + Send + 'static,
 ) -> PyResult<()> {
     let stop = Arc::new(AtomicBool::new(false));
     let flag = stop.clone();
     let worker = std::thread::spawn(move || serve(&flag));
+    let mut interrupt = None;
     loop {
         py.allow_threads(|| std::thread::sleep(server::POLL_INTERVAL));
         if worker.is_finished() {
             break;
         }
-        if let Err(interrupt) = py.check_signals() {
-            stop.store(true, Ordering::Relaxed);
+        if let Err(signalled) = py.check_signals() {
             // The worker sees the flag within one poll interval.
-            let _ = py.allow_threads(|| worker.join());
-            return Err(interrupt);
+            stop.store(true, Ordering::Relaxed);
+            interrupt = Some(signalled);
+            break;
         }
     }
-    match py.allow_threads(|| worker.join()) {
-        Ok(result) => result.map(|_| ()).py(),
-        Err(_) => Err(Unavailable::SimulatorPanicked.into()).py(),
+    let stats = match py.allow_threads(|| worker.join()) {
+        Ok(result) => result.py()?,
+        Err(_) => return Err(Unavailable::SimulatorPanicked.into()).py(),
+    };
+    if let Some(on_stop) = on_stop {
+        on_stop.call1((ServerStatsView::from(stats),))?;
     }
+    interrupt.map_or(Ok(()), Err)
 }
 
 /// Serves `count` virtual AKDs on UDP `host:port` until SIGINT/SIGTERM. `on_start(simulator)`
 /// is called first with the `Simulator` that controls them while they serve. `missed`: how
 /// they judge missed frames, "late" (as the real drive) or "lost" (only frames lost on the line).
-/// `setpoint_trace`: a `SetpointTrace` the drives' set-points are traced to.
+/// `setpoint_trace`: a `SetpointTrace` the drives' set-points are traced to. `on_stop(stats)`
+/// is called once serving has stopped, with what the server did ([`ServerStatsView`]).
 #[pyfunction]
-#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late", setpoint_trace = None))]
+#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late", setpoint_trace = None, on_stop = None))]
+#[allow(clippy::too_many_arguments)]
 fn serve_udp(
     py: Python<'_>,
     host: &str,
@@ -340,6 +384,7 @@ fn serve_udp(
     on_start: Option<&Bound<'_, PyAny>>,
     missed: &str,
     setpoint_trace: Option<&PySetpointTrace>,
+    on_stop: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<()> {
     let address: SocketAddr = (host, port)
         .to_socket_addrs()
@@ -349,16 +394,16 @@ fn serve_udp(
         .py()?;
     let bus = controlled_bus(count, missed, on_start)?;
     let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
-    run_until_signal(py, move |stop| server::serve_udp(address, bus, stop, trace))
+    run_until_signal(py, on_stop, move |stop| server::serve_udp(address, bus, stop, trace))
 }
 
 /// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
-/// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed` and
-/// `setpoint_trace` as for `serve_udp`. `busy_poll`: never sleep between frames, answering each
+/// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed`,
+/// `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames, answering each
 /// as it arrives as the drive's ESC does, on a CPU of its own (raises ConfigError under
 /// SCHED_FIFO or SCHED_RR).
 #[pyfunction]
-#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false))]
+#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false, on_stop = None))]
 #[allow(clippy::too_many_arguments)]
 fn serve_iface(
     py: Python<'_>,
@@ -368,11 +413,12 @@ fn serve_iface(
     missed: &str,
     setpoint_trace: Option<&PySetpointTrace>,
     busy_poll: bool,
+    on_stop: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<()> {
     let iface = iface.to_owned();
     let bus = controlled_bus(count, missed, on_start)?;
     let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
-    run_until_signal(py, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
+    run_until_signal(py, on_stop, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result, SettingError};
-use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
+use crate::frame::{self, Addressing, ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
 use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
 use crate::sim::line::Delivery;
@@ -40,6 +40,43 @@ pub struct ServerStats {
     /// Replies the interface could not send because the line went down under them (the
     /// master's end of a veth pair taken down, a cable pulled): lost, as on a real line.
     pub unsent: u64,
+    /// How late process-data replies went back because the server was not run, where the
+    /// interface stamps each frame's arrival (`None` over UDP, or where the kernel refuses).
+    pub late: Option<LateReplies>,
+}
+
+/// The bounds of [`LateReplies::over`], in µs.
+pub const LATE_AFTER_US: [u64; 5] = [250, 500, 1000, 2000, 4000];
+
+/// Process-data replies (to frames with a logical datagram, which a master waits for no longer
+/// than its cycle) that went back late because the server was not run: the time from the
+/// frame's arrival on the interface to the server's taking it up, less its own work meanwhile. An ESC answers
+/// as the frame passes; a simulator on a loaded host, or on a virtual CPU its host holds,
+/// answers milliseconds later, and the master counts the frame lost. This tells those losses
+/// from ones the master or the drives cause. The server's own work (serving, the drives' IP
+/// stacks) is not counted in it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LateReplies {
+    /// Replies later than each bound of [`LATE_AFTER_US`].
+    pub over: [u64; LATE_AFTER_US.len()],
+    /// The latest reply, in µs.
+    pub longest_us: u64,
+}
+
+impl LateReplies {
+    /// Counts a reply sent `late_ns` after the server could first have taken its frame.
+    fn count(&mut self, late_ns: u64) {
+        let late_us = late_ns / 1000;
+        for (over, bound) in self.over.iter_mut().zip(LATE_AFTER_US) {
+            *over += (late_us > bound) as u64;
+        }
+        self.longest_us = self.longest_us.max(late_us);
+    }
+}
+
+/// CLOCK_REALTIME in ns, the clock of the kernel's arrival stamps.
+fn realtime_ns() -> u64 {
+    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
 }
 
 impl ServerStats {
@@ -138,18 +175,21 @@ pub fn serve_iface(
     let socket = RawSocket::open(iface)?;
     socket.set_read_timeout(POLL_INTERVAL)?;
     let start = Instant::now();
-    let mut stats = ServerStats::default();
+    let mut stats = ServerStats { late: socket.stamp_arrivals().then(LateReplies::default), ..Default::default() };
     let mut buf = [0u8; MAX_ETH_FRAME_LEN];
     // When the firmware last ran, by a frame or by itself: busy-polling, it runs by itself once
     // no frame came for POLL_INTERVAL, as the blocking receive's time-out makes it.
     let mut ran_ns = 0;
+    // The server's own work last done between receives, from and to (CLOCK_REALTIME).
+    let mut work_ns = (0, 0);
     while !stop.load(Ordering::Relaxed) {
-        let got = if busy_poll { socket.try_recv(&mut buf)? } else { socket.recv_blocking(&mut buf)? };
-        let Some(len) = got else {
+        let Some((len, arrived_ns)) = socket.recv_stamped(&mut buf, !busy_poll)? else {
             let now_ns = elapsed_ns(start);
             if !busy_poll || now_ns - ran_ns >= POLL_INTERVAL.as_nanos() as u64 {
+                let from_ns = realtime_ns();
                 bus.idle(now_ns);
                 ran_ns = now_ns;
+                work_ns = (from_ns, realtime_ns());
             }
             continue;
         };
@@ -159,11 +199,14 @@ pub fn serve_iface(
         // cannot tell requests from replies; the socket already skips what this server sent.
         if !is_ecat {
             // Other traffic on the wire must not hold commands back until it pauses.
+            let from_ns = realtime_ns();
             bus.serve_commands();
+            work_ns = (from_ns, realtime_ns());
             continue;
         }
         let now_ns = elapsed_ns(start);
         ran_ns = now_ns;
+        let answered_ns = realtime_ns();
         if stats.serve(&mut bus, &mut buf[ETH_HEADER_LEN..len], now_ns) {
             buf[6] |= RETURNED_MAC_BIT;
             match socket.send(&buf[..len]) {
@@ -171,11 +214,32 @@ pub fn serve_iface(
                 Err(Error::Io { source, .. }) if line_down(&source) => stats.unsent += 1,
                 Err(e) => return Err(e),
             }
+            if let (Some(late), Some(arrived_ns)) = (&mut stats.late, arrived_ns) {
+                if carries_process_data(&buf[ETH_HEADER_LEN..len]) {
+                    late.count(lateness_ns(arrived_ns, answered_ns, work_ns));
+                }
+            }
             trace_frame(&mut trace, &bus, &buf[ETH_HEADER_LEN..len], received);
         }
         bus.run_ip_stacks(now_ns);
+        work_ns = (answered_ns, realtime_ns());
     }
     Ok(stats)
+}
+
+/// How late a frame that arrived at `arrived_ns` was taken up, at `answered_ns`, less the
+/// server's own work `work_ns` (from, to) done meanwhile.
+fn lateness_ns(arrived_ns: u64, answered_ns: u64, (from_ns, to_ns): (u64, u64)) -> u64 {
+    let own_ns = to_ns.saturating_sub(from_ns.max(arrived_ns));
+    answered_ns.saturating_sub(arrived_ns).saturating_sub(own_ns)
+}
+
+/// Whether an EtherCAT payload carries process data (a logical datagram): the cyclic frame, which
+/// a master waits for no longer than its cycle, unlike its mailbox and set-up frames.
+fn carries_process_data(payload: &[u8]) -> bool {
+    frame::parse(payload).is_ok_and(|mut datagrams| {
+        datagrams.any(|d| d.is_ok_and(|d| d.header.command.addressing() == Addressing::Logical))
+    })
 }
 
 /// Whether a send failed because the line is down: the interface's peer or carrier gone
@@ -248,6 +312,39 @@ mod tests {
         stop.store(true, Ordering::Relaxed);
         server.join().unwrap().unwrap();
         assert!(control.set_hardware_enable(0, false).unwrap_err().to_string().contains("gone"));
+    }
+
+    #[test]
+    fn lateness_leaves_out_the_servers_own_work_after_the_arrival() {
+        const MS: u64 = 1_000_000;
+        // Waiting in its receive since before the frame came: all of it late.
+        assert_eq!(lateness_ns(10 * MS, 15 * MS, (2 * MS, 3 * MS)), 5 * MS);
+        // Busy with its own work when the frame came: only the rest.
+        assert_eq!(lateness_ns(10 * MS, 15 * MS, (9 * MS, 12 * MS)), 3 * MS);
+        // Its receive returned without the frame (a signal, the time-out) and it worked: the wait before is late.
+        assert_eq!(lateness_ns(10 * MS, 15 * MS, (13 * MS, 14 * MS)), 4 * MS);
+        let mut late = LateReplies::default();
+        for us in [100, 250, 251, 4001, 3000] {
+            late.count(us * 1000);
+        }
+        assert_eq!(late, LateReplies { over: [3, 2, 2, 2, 1], longest_us: 4001 });
+    }
+
+    #[test]
+    fn process_data_is_a_frame_with_a_logical_datagram() {
+        let frame = |commands: &[Command]| {
+            let mut buf = [0u8; 128];
+            let mut b = FrameBuilder::new(&mut buf);
+            for &command in commands {
+                b.push(command, 0, 0, 0, &[0; 4]).unwrap();
+            }
+            let n = b.finish();
+            buf[..n].to_vec()
+        };
+        assert!(carries_process_data(&frame(&[Command::Lrw, Command::Brd])));
+        assert!(carries_process_data(&frame(&[Command::Fprd, Command::Lrd])));
+        assert!(!carries_process_data(&frame(&[Command::Fprd, Command::Fpwr, Command::Brd])));
+        assert!(!carries_process_data(&[0xFF, 0xFF, 0xFF]));
     }
 
     #[test]
