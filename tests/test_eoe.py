@@ -40,7 +40,17 @@ SUMMARY = re.compile(
 )
 
 # akd-sim's count of replies it sent more than 2 ms late because it was not run (see akd_ros.cli.sim).
-LATE_HALF_PERIOD = re.compile(r"process-data replies late because akd-sim was not run: .*?(?P<count>\d+) over 2 ms")
+LATE_HALF_PERIOD = re.compile(r"replies late because akd-sim was not run: .*?(?P<count>\d+) over 2 ms")
+
+
+def _late_by_half_a_period(sim: subprocess.Popen) -> int:
+    """The replies akd-sim, stopped, says it sent more than half the 4 ms period late because it was not run: the
+    frames a master on this shared machine may lose through no fault of its own or of EoE (a virtual CPU its host
+    held for milliseconds; a real drive's ESC answers in hardware)."""
+    late = LATE_HALF_PERIOD.search(sim.output_text)
+    assert late, sim.output_text
+    print(sim.output_text)
+    return int(late["count"])
 
 
 def _ready_lines(process: subprocess.Popen, count: int, timeout: float) -> list[str]:
@@ -103,15 +113,11 @@ def test_ping_through_the_tap_reaches_each_drive_with_no_cycle_lost(veth):
             out, err = stop_process(process)
     summary = SUMMARY.search(out)
     assert summary, out + err
-    late = LATE_HALF_PERIOD.search(sim.output_text)
-    assert late, sim.output_text
-    print(summary[0], sim.output_text, sep="\n")
+    print(summary[0])
     # SIGTERM ends the tool as SIGINT does: the summary, then status 130.
     assert process.returncode == EXIT_INTERRUPTED, err
-    # The EoE traffic costs no cycle: a frame is lost only where akd-sim itself, not run, sent its reply more than
-    # half the 4 ms period late (a virtual CPU its host held for milliseconds, seen on shared test machines; a real
-    # drive's ESC answers in hardware).
-    assert int(summary["lost"]) <= int(late["count"]), (summary[0], sim.output_text)
+    # The EoE traffic costs no cycle: a frame is lost only where akd-sim itself was late.
+    assert int(summary["lost"]) <= _late_by_half_a_period(sim), summary[0]
     assert int(summary["wkc"]) == 0, summary[0]
     assert (int(summary["dropped_to"]), int(summary["dropped_from"])) == (0, 0), summary[0]
     # 16 pings answered and the ARP exchanges: frames went both ways.
@@ -208,8 +214,9 @@ NODE_DOMAIN, NODE_WITHOUT_CAP_DOMAIN = 231, 232
 """The ROS domains of the node tests here (Fast DDS takes none above 232)."""
 
 
-def _node_parameters(path: Path, link: str, tap: str) -> Path:
-    """A parameters file of two joints on `link`, each drive given its address, the bridge on TAP `tap`."""
+def _node_parameters(path: Path, link: str, tap: str, cpu: int = -1) -> Path:
+    """A parameters file of two joints on `link`, each drive given its address, the bridge on TAP `tap`, the cycle
+    thread on `cpu` (-1: any)."""
     path.write_text(
         yaml.safe_dump(
             {
@@ -219,6 +226,7 @@ def _node_parameters(path: Path, link: str, tap: str) -> Path:
                         "joints": ["a", "b"],
                         "cycle_time": 0.004,
                         "rt.priority": 50,
+                        "rt.cpu": cpu,
                         "joints.a.eoe.ip": f"{DRIVES[0]}/24",
                         "joints.b.eoe.ip": f"{DRIVES[1]}/24",
                         "eoe.tap": tap,
@@ -258,9 +266,11 @@ def _log_until(process: subprocess.Popen, log: list[str], text: str, timeout: fl
 
 def test_the_node_with_eoe_tap_bridges_the_machine_to_each_drive(veth, tmp_path):
     # The node in the master's namespace (DDS on its loopback), akd-sim's two drives in the other, over the veth.
-    parameters = _node_parameters(tmp_path / "eoe.yaml", veth.if_master, "akdeoe1")
+    # The virtual AKDs on the cycle thread's CPU, as for akd-eoe above.
+    cpu = max(os.sched_getaffinity(0))
+    parameters = _node_parameters(tmp_path / "eoe.yaml", veth.if_master, "akdeoe1", cpu)
     argv, _ = node_command(parameters)
-    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
+    with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2, cpu=cpu) as sim:
         node = _start_node(netns_argv(veth.ns_master, argv), NODE_DOMAIN)
         log: list[str] = []
         try:
@@ -278,9 +288,11 @@ def test_the_node_with_eoe_tap_bridges_the_machine_to_each_drive(veth, tmp_path)
     )
     assert closed, text
     print(closed[0])
-    # 12 pings answered, and the ARP exchanges; nothing dropped, and no process-data frame lost meanwhile.
+    # 12 pings answered, and the ARP exchanges; nothing dropped, and no process-data frame lost meanwhile but where
+    # akd-sim was late.
     assert int(closed["to"]) >= 12 and int(closed["from"]) >= 12, closed[0]
-    assert [int(closed[k]) for k in ("dropped_to", "dropped_from", "lost", "wkc")] == [0, 0, 0, 0], closed[0]
+    assert [int(closed[k]) for k in ("dropped_to", "dropped_from", "wkc")] == [0, 0, 0], closed[0]
+    assert int(closed["lost"]) <= _late_by_half_a_period(sim), closed[0]
     assert "closed: drives disabled, bus in Init" in text, text
     assert "Traceback" not in text, text
 

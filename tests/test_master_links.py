@@ -116,31 +116,27 @@ def _answered_once_resumed(sim: subprocess.Popen, stopped_for: float, call) -> N
         resume.wait()
 
 
-def test_akd_sim_counts_the_process_data_replies_it_sent_late_because_it_was_not_run(veth):
-    """akd-sim says how late its replies to process data went back because it was not run, which tells a frame lost
-    because the simulator's host held it (as shared test machines do for milliseconds) from one the master lost: a
-    register read answered 300 ms late does not count (a master waits longer for those), an exchange of process data
-    answered 100 ms late counts over every bound."""
+def test_akd_sim_counts_the_replies_it_sent_late_because_it_was_not_run(veth):
+    """akd-sim says how late its replies went back because it was not run, which tells a frame lost because the
+    simulator's host held it (as shared test machines do for milliseconds) from one the master lost: a register read
+    answered 200 ms late counts over every bound."""
     with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=1) as sim:
         with entered_netns(veth.ns_master):
             master = _native.Master(veth.if_master, timeout=1.0)
         try:
             assert master.scan()
-            _answered_once_resumed(sim, 0.3, lambda: master.al_status(0))
-            master.request_state("preop")
-            master.request_state("op")
-            _answered_once_resumed(sim, 0.1, master.exchange)
+            _answered_once_resumed(sim, 0.2, lambda: master.al_status(0))
         finally:
             master.close()
     served = re.search(
-        r"akd-sim: served (?P<served>\d+) frames \(0 malformed, 0 lost on the line, 0 unsent\); process-data replies "
-        r"late because akd-sim was not run: (?P<over>.*), longest (?P<longest>[\d.]+) ms",
+        r"akd-sim: served (?P<served>\d+) frames \(0 malformed, 0 lost on the line, 0 unsent\); replies late because "
+        r"akd-sim was not run: (?P<over>.*), longest (?P<longest>[\d.]+) ms",
         sim.output_text,
     )
     assert served, sim.output_text
     over = {float(bound): int(count) for count, bound in re.findall(r"(\d+) over ([\d.]+) ms", served["over"])}
     assert list(over) == [0.25, 0.5, 1, 2, 4] and all(count >= 1 for count in over.values()), served[0]
-    assert 100 <= float(served["longest"]) < 300, served[0]
+    assert 200 <= float(served["longest"]) < 1000, served[0]
 
 
 def test_akd_sim_refuses_to_busy_poll_under_a_real_time_policy(veth):

@@ -26,15 +26,14 @@ stdout, 'ok ...' or 'error: ...':
 A change reaches the drive at once; the drive firmware acts on it when it next runs, at the
 next frame a master sends. The end of stdin ends the commands, not the simulator.
 
-At SIGINT or SIGTERM akd-sim says what it served, and on an interface how late its replies to
-process data (frames with a logical datagram) went back because it was not run: from the frame's
-arrival, as the kernel stamped it, to akd-sim taking it up, less its own work meanwhile. A master
-counts a reply later than its time-out as a lost frame, which a real ESC, answering in hardware,
-never causes:
+At SIGINT or SIGTERM akd-sim says what it served, and on an interface how late its replies went
+back because it was not run: from the frame's arrival, as the kernel stamped it, to akd-sim taking
+it up, less its own work meanwhile. A master counts a reply later than its time-out as a lost
+frame, which a real ESC, answering in hardware, never causes:
 
-  akd-sim: served 1062 frames (0 malformed, 0 lost on the line, 0 unsent); process-data replies
-  late because akd-sim was not run: 2 over 0.25 ms, 0 over 0.5 ms, 0 over 1 ms, 0 over 2 ms,
-  0 over 4 ms, longest 0.31 ms
+  akd-sim: served 1062 frames (0 malformed, 0 lost on the line, 0 unsent); replies late because
+  akd-sim was not run: 2 over 0.25 ms, 0 over 0.5 ms, 0 over 1 ms, 0 over 2 ms, 0 over 4 ms,
+  longest 0.31 ms
 
 --setpoint-trace FILE writes, for each drive in Op, every change of the set-points its RxPDO
 carries (target position 0x607A, target velocity 0x60FF, target torque 0x6071, controlword
@@ -188,8 +187,8 @@ def serve_commands(simulator, fd: int = 0) -> None:
 
 
 def served_line(stats: dict) -> str:
-    """The line akd-sim says at its stop: what it served and, on an interface, how late its process-data replies went
-    back because it was not run (a master counts a reply later than its time-out as a lost frame)."""
+    """The line akd-sim says at its stop: what it served and, on an interface, how late its replies went back because
+    it was not run (a master counts a reply later than its time-out as a lost frame)."""
     line = (
         f"akd-sim: served {stats['served']} frames ({stats['malformed']} malformed, {stats['lost']} lost on the line,"
         f" {stats['unsent']} unsent)"
@@ -198,7 +197,7 @@ def served_line(stats: dict) -> str:
     if late is not None:
         over = ", ".join(f"{count} over {bound / 1000:g} ms" for bound, count in late["over"].items())
         longest = late["longest_us"] / 1000
-        line += f"; process-data replies late because akd-sim was not run: {over}, longest {longest:.2f} ms"
+        line += f"; replies late because akd-sim was not run: {over}, longest {longest:.2f} ms"
     return line
 
 

@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result, SettingError};
-use crate::frame::{self, Addressing, ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
+use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
 use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
 use crate::sim::line::Delivery;
@@ -40,31 +40,31 @@ pub struct ServerStats {
     /// Replies the interface could not send because the line went down under them (the
     /// master's end of a veth pair taken down, a cable pulled): lost, as on a real line.
     pub unsent: u64,
-    /// How late process-data replies went back because the server was not run, where the
-    /// interface stamps each frame's arrival (`None` over UDP, or where the kernel refuses).
+    /// How late replies went back because the server was not run, where the interface stamps
+    /// each frame's arrival (`None` over UDP, or where the kernel refuses).
     pub late: Option<LateReplies>,
 }
 
 /// The bounds of [`LateReplies::over`], in µs.
 pub const LATE_AFTER_US: [u64; 5] = [250, 500, 1000, 2000, 4000];
 
-/// Process-data replies (to frames with a logical datagram, which a master waits for no longer
-/// than its cycle) that went back late because the server was not run: the time from the
-/// frame's arrival on the interface to the server's taking it up, less its own work meanwhile. An ESC answers
-/// as the frame passes; a simulator on a loaded host, or on a virtual CPU its host holds,
-/// answers milliseconds later, and the master counts the frame lost. This tells those losses
-/// from ones the master or the drives cause. The server's own work (serving, the drives' IP
-/// stacks) is not counted in it.
+/// Replies that went back late because the server was not run: the time from the frame's
+/// arrival on the interface to the server's taking it up, less the server's own work meanwhile
+/// (serving, the drives' IP stacks, their firmware). An ESC answers as the frame passes; a
+/// simulator on a loaded host, or on a virtual CPU its host holds, answers milliseconds later,
+/// and a master counts a reply later than its time-out as a lost frame. This tells those losses
+/// from ones the master or the line cause. Every frame counts, the cyclic ones and the mailbox
+/// ones alike: the server cannot tell which a master waits for how long.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LateReplies {
     /// Replies later than each bound of [`LATE_AFTER_US`].
     pub over: [u64; LATE_AFTER_US.len()],
-    /// The latest reply, in µs.
+    /// How late the latest reply was, in µs.
     pub longest_us: u64,
 }
 
 impl LateReplies {
-    /// Counts a reply sent `late_ns` after the server could first have taken its frame.
+    /// Counts a reply whose frame was taken up `late_ns` late.
     fn count(&mut self, late_ns: u64) {
         let late_us = late_ns / 1000;
         for (over, bound) in self.over.iter_mut().zip(LATE_AFTER_US) {
@@ -215,9 +215,7 @@ pub fn serve_iface(
                 Err(e) => return Err(e),
             }
             if let (Some(late), Some(arrived_ns)) = (&mut stats.late, arrived_ns) {
-                if carries_process_data(&buf[ETH_HEADER_LEN..len]) {
-                    late.count(lateness_ns(arrived_ns, answered_ns, work_ns));
-                }
+                late.count(lateness_ns(arrived_ns, answered_ns, work_ns));
             }
             trace_frame(&mut trace, &bus, &buf[ETH_HEADER_LEN..len], received);
         }
@@ -232,14 +230,6 @@ pub fn serve_iface(
 fn lateness_ns(arrived_ns: u64, answered_ns: u64, (from_ns, to_ns): (u64, u64)) -> u64 {
     let own_ns = to_ns.saturating_sub(from_ns.max(arrived_ns));
     answered_ns.saturating_sub(arrived_ns).saturating_sub(own_ns)
-}
-
-/// Whether an EtherCAT payload carries process data (a logical datagram): the cyclic frame, which
-/// a master waits for no longer than its cycle, unlike its mailbox and set-up frames.
-fn carries_process_data(payload: &[u8]) -> bool {
-    frame::parse(payload).is_ok_and(|mut datagrams| {
-        datagrams.any(|d| d.is_ok_and(|d| d.header.command.addressing() == Addressing::Logical))
-    })
 }
 
 /// Whether a send failed because the line is down: the interface's peer or carrier gone
@@ -328,23 +318,6 @@ mod tests {
             late.count(us * 1000);
         }
         assert_eq!(late, LateReplies { over: [3, 2, 2, 2, 1], longest_us: 4001 });
-    }
-
-    #[test]
-    fn process_data_is_a_frame_with_a_logical_datagram() {
-        let frame = |commands: &[Command]| {
-            let mut buf = [0u8; 128];
-            let mut b = FrameBuilder::new(&mut buf);
-            for &command in commands {
-                b.push(command, 0, 0, 0, &[0; 4]).unwrap();
-            }
-            let n = b.finish();
-            buf[..n].to_vec()
-        };
-        assert!(carries_process_data(&frame(&[Command::Lrw, Command::Brd])));
-        assert!(carries_process_data(&frame(&[Command::Fprd, Command::Lrd])));
-        assert!(!carries_process_data(&frame(&[Command::Fprd, Command::Fpwr, Command::Brd])));
-        assert!(!carries_process_data(&[0xFF, 0xFF, 0xFF]));
     }
 
     #[test]
