@@ -55,6 +55,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
+from figures import histogram_us, machine
+
 from support.kickcat_script import KICKCAT_HELPERS
 from support.netns import (
     SIM_PRIORITY,
@@ -289,22 +291,6 @@ SOEM = "SOEM"
 CONTENDERS = {"akd_ros": AKD_ROS_SCRIPT, SOEM: SOEM_SCRIPT, "KickCAT": KICKCAT_SCRIPT}
 
 
-def machine() -> dict:
-    """What the figures were measured on."""
-    model = "unknown"
-    with open("/proc/cpuinfo") as info:
-        for line in info:
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    return {
-        "uname": " ".join(platform.uname()),
-        "cpu_model": model,
-        "cores": os.cpu_count(),
-        "python": platform.python_version(),
-    }
-
-
 def percentile(sorted_ns: list[int], q: float) -> float:
     """The q-quantile of sorted samples (nearest rank), in µs."""
     return sorted_ns[min(len(sorted_ns) - 1, int(q * len(sorted_ns)))] / 1000
@@ -381,10 +367,11 @@ def cpu_split(sim_wakes: bool) -> tuple[int | None, list[int]]:
     return cpus[-1], cpus[:-1]
 
 
-def measure(args, contenders: dict[str, str]) -> tuple[dict, list[str]]:
+def measure(args, contenders: dict[str, str]) -> tuple[dict, list[dict], list[str]]:
     """Every count: one akd-sim, `rounds` rounds of every master in turn. Returns the figures
-    {count: {rate: {master: summary}}} and the problems met."""
-    results, problems = {}, []
+    {count: {rate: {master: summary}}}, the round trips' distributions at the highest rate (one per
+    count, as bench/figures.py's) and the problems met."""
+    results, distributions, problems = {}, [], []
     for count in args.counts:
         runs: dict[str, list[dict]] = {}
         with (
@@ -409,9 +396,11 @@ def measure(args, contenders: dict[str, str]) -> tuple[dict, list[str]]:
                     )
         results[count] = {}
         for rate in args.rates:
-            row = {}
+            row, series = {}, {}
             for name, reports in runs.items():
-                summary = summarise([r[str(rate)] for r in reports])
+                pooled = [r[str(rate)] for r in reports]
+                summary = summarise(pooled)
+                series[name] = histogram_us((t for run in pooled for t in run["times_ns"]), 1000)
                 if summary["bad_wkc"] > (CYCLE_BAD_SHARE if name.endswith(CYCLE) else BAD_SHARE) * summary["cycles"]:
                     problems.append(
                         f"{count} AKD(s) at {rate} Hz: {name} had {summary['bad_wkc']} of {summary['cycles']} "
@@ -420,7 +409,10 @@ def measure(args, contenders: dict[str, str]) -> tuple[dict, list[str]]:
                 else:
                     row[name] = summary
             results[count][rate] = row
-    return results, problems
+            if rate == max(args.rates):
+                title = f"round trip over veth, {count} AKD{'s' if count > 1 else ''} at {rate} Hz"
+                distributions.append({"title": title, "series": series})
+    return results, distributions, problems
 
 
 def ratios(row: dict) -> dict:
@@ -538,14 +530,13 @@ def main() -> int:
         "frame_timeout_s": FRAME_TIMEOUT_S,
         "pacing": "Python loop, sleep to an absolute deadline on the monotonic clock, normal scheduler",
     }
-    info = machine()
-    print(f"machine: {info['uname']}; {info['cpu_model']}, {info['cores']} cores; Python {info['python']}")
+    info = machine() | {"python": platform.python_version()}
+    print(f"machine: {info['uname']}; {info['cpu']}, {info['cores']} cores; Python {info['python']}")
     print(f"settings: {json.dumps(settings)}")
     started, load_before = time.monotonic(), os.getloadavg()
-    results, problems = measure(args, contenders)
+    results, distributions, problems = measure(args, contenders)
     duration, load_after = time.monotonic() - started, os.getloadavg()
     info["load_average_1min"] = {"before": load_before[0], "after": load_after[0]}
-    info["load"] = [round(x, 2) for x in load_before]  # as bench/run.py reads every section's
     print_table(results)
     print(f"duration: {duration:.0f} s; load average (1 min) {load_before[0]:.1f} before, {load_after[0]:.1f} after")
     # Every master at every count and rate must have its figures, or the run does not count.
@@ -566,6 +557,7 @@ def main() -> int:
                 for count, by_rate in results.items()
             },
             "problems": problems,
+            "distributions": distributions,
             # bench/run.py's table and list of what could not be measured.
             "rows": flat_rows(results),
             "not_measured": problems,
