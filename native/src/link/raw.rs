@@ -74,7 +74,7 @@ impl RawSocket {
         // only hold it back behind other traffic. Both are best effort: an older kernel without
         // them still delivers no frame of ours and still sends, through the queue.
         for option in [libc::PACKET_IGNORE_OUTGOING, libc::PACKET_QDISC_BYPASS] {
-            set_packet_option(&fd, option);
+            switch_on(&fd, libc::SOL_PACKET, option);
         }
         let kept_capabilities = privilege::drop_after_open(iface)?;
         Ok(RawSocket { fd, ifindex: ifindex as i32, iface: iface.to_owned(), kept_capabilities })
@@ -170,18 +170,7 @@ impl RawSocket {
     /// Has the kernel stamp each incoming frame with its arrival (SO_TIMESTAMPNS), for
     /// [`recv_stamped`](Self::recv_stamped); `false` where the kernel refuses.
     pub fn stamp_arrivals(&self) -> bool {
-        let on: libc::c_int = 1;
-        // SAFETY: a valid descriptor and a c_int of the size passed.
-        let rc = unsafe {
-            libc::setsockopt(
-                self.fd.as_raw_fd(),
-                libc::SOL_SOCKET,
-                libc::SO_TIMESTAMPNS,
-                &on as *const libc::c_int as *const libc::c_void,
-                std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-            )
-        };
-        rc == 0
+        switch_on(&self.fd, libc::SOL_SOCKET, libc::SO_TIMESTAMPNS)
     }
 
     /// Takes the next incoming frame into `buf`, waiting for it up to the [read
@@ -242,19 +231,21 @@ fn arrival_stamp(message: &libc::msghdr) -> Option<u64> {
     None
 }
 
-/// Sets a SOL_PACKET option to 1, leaving the socket as it was where the kernel lacks it.
-fn set_packet_option(fd: &OwnedFd, option: libc::c_int) {
+/// Turns the socket option `option` of `level` on (an int 1); `false` where the kernel lacks it,
+/// the socket left as it was.
+fn switch_on(fd: &OwnedFd, level: libc::c_int, option: libc::c_int) -> bool {
     let on: libc::c_int = 1;
     // SAFETY: a valid descriptor and a c_int of the size passed.
-    unsafe {
+    let rc = unsafe {
         libc::setsockopt(
             fd.as_raw_fd(),
-            libc::SOL_PACKET,
+            level,
             option,
             &on as *const libc::c_int as *const libc::c_void,
             std::mem::size_of::<libc::c_int>() as libc::socklen_t,
-        );
-    }
+        )
+    };
+    rc == 0
 }
 
 /// Why an AF_PACKET socket was refused and how to grant CAP_NET_RAW, on one line.
