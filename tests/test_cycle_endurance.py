@@ -3,9 +3,10 @@
 The cycle thread needs no GIL. To make any dependence on it visible, the test stretches the interpreter's switch
 interval to 50 ms and keeps a thread computing in pure Python (holding the GIL for 50 ms at a time) while the main
 thread commands a moving target and reads states: a loop that needed the GIL would stall for about 50 cycles at a
-time. The test asserts no such stalls (at most a few periods of 25 ms or more, which a virtual machine can add by
-itself), no lost frame, no working-counter error, and that every cycle ran, and prints the statistics. How regular
-the periods are on this machine is the benchmark's business (bench/cycle_jitter.py), not this test's.
+time. The test asserts no such stalls (at most 2 % of their number in periods of 25 ms or more, which a loaded virtual
+machine can add by itself), no lost frame, no working-counter error, and that every cycle ran, and prints the
+statistics. How regular the periods are on this machine is the benchmark's business (bench/cycle_jitter.py), not this
+test's.
 
 The cycle asks for SCHED_FIFO priority 80, as a robot would run it; where that is not permitted it runs without and
 says so in the printed statistics. Even so a virtual machine can stall the thread for more than the eight cycles the
@@ -28,9 +29,12 @@ STALL_NS = 7_000_000
 """A period this long means the drive missed frames: from the eighth in a row it raises F125."""
 GIL_WAIT_NS = int(SWITCH_INTERVAL * 1e9 / 2)
 """A period this long is what waiting for the GIL would look like."""
-VM_HICCUPS = 5
-"""Long periods a virtual machine's descheduled vCPU may add in 100 s (seen here: one of 80 ms, SCHED_FIFO or not);
-a loop that needed the GIL would show one every switch interval, thousands."""
+GIL_BOUND_WAITS = int(CYCLES / 1000 / SWITCH_INTERVAL)
+"""The periods of GIL_WAIT_NS or more a loop that needed the GIL would show: one every switch interval, 2000."""
+VM_HICCUPS = GIL_BOUND_WAITS // 50
+"""Long periods a shared host's descheduled vCPU may add in 100 s, SCHED_FIFO or not: one of 80 ms on a quiet day,
+8 of 25 ms or more (and 338 of 7 ms or more) in a fresh-clone CI run on a loaded one. 2 % of what a loop that needed
+the GIL would show, 40, tells the two apart by a factor of 50."""
 
 
 def test_100000_cycles_at_1_khz_with_python_busy_beside(capsys) -> None:
