@@ -399,9 +399,9 @@ fn serve_udp(
 
 /// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
 /// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed`,
-/// `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames, answering each
-/// as it arrives as the drive's ESC does, on a CPU of its own (raises ConfigError under
-/// SCHED_FIFO or SCHED_RR).
+/// `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames,
+/// answering each as it arrives as the drive's ESC does, on a CPU of its own (raises ConfigError
+/// under SCHED_FIFO or SCHED_RR).
 #[pyfunction]
 #[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false, on_stop = None))]
 #[allow(clippy::too_many_arguments)]

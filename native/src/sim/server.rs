@@ -21,7 +21,7 @@ use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
 use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
 use crate::sim::line::Delivery;
-use crate::sim::setpoint_trace::{Recorder, Stamps};
+use crate::sim::setpoint_trace::{clock_ns, Recorder, Stamps};
 
 /// How often a server looks at its stop flag and its commands, and lets its drives' firmware
 /// run when no frame comes: a real AKD's firmware runs by itself, so a master that is gone
@@ -76,7 +76,7 @@ impl LateReplies {
 
 /// CLOCK_REALTIME in ns, the clock of the kernel's arrival stamps.
 fn realtime_ns() -> u64 {
-    std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map_or(0, |d| d.as_nanos() as u64)
+    clock_ns(libc::CLOCK_REALTIME)
 }
 
 impl ServerStats {

@@ -60,7 +60,7 @@ const WRITER_POLL: Duration = Duration::from_millis(10);
 pub type Setpoints = [Option<i64>; SETPOINTS.len()];
 
 /// Nanoseconds on `clock` (CLOCK_REALTIME since the Unix epoch, CLOCK_MONOTONIC since boot).
-fn clock_ns(clock: libc::clockid_t) -> u64 {
+pub(crate) fn clock_ns(clock: libc::clockid_t) -> u64 {
     let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
     // Both clocks always exist on Linux and `ts` is valid: this cannot fail.
     unsafe { libc::clock_gettime(clock, &mut ts) };
