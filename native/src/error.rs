@@ -1495,6 +1495,10 @@ pub enum Unavailable {
         /// Subindex.
         subindex: u8,
     },
+    /// A cyclic frame sent while the last one's return was not taken yet.
+    CyclicFrameInFlight,
+    /// A cyclic frame's return asked for where none was sent.
+    NoCyclicFrameInFlight,
     /// The master was closed, or is held by a cycle thread.
     MasterClosed,
     /// The master is in use by another thread.
@@ -1573,6 +1577,14 @@ impl fmt::Display for Unavailable {
             }
             Unavailable::NotInOutputs { slave, index, subindex } => {
                 write!(f, "0x{index:04X}:{subindex:02X} is not in slave {slave}'s output mapping")
+            }
+            Unavailable::CyclicFrameInFlight => write!(
+                f,
+                "a cyclic frame is already on its way: take its return with receive_process_data before sending \
+                 the next"
+            ),
+            Unavailable::NoCyclicFrameInFlight => {
+                write!(f, "no cyclic frame is on its way: send one with send_process_data first")
             }
             Unavailable::MasterClosed => {
                 write!(f, "the master is closed, or handed to a Cycle (stop the Cycle to get it back)")

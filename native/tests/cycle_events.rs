@@ -2,7 +2,8 @@
 //! test can make lose frames: a gap long enough for the drive's F125 is reported by the
 //! master as lost frames (the eighth disables the drive), then as the drive's fault with its
 //! 0x603F code read beside the cycle, and the drive falling out of Op as an AL state event.
-//! The waits have deadlines only so that a failure does not hang; no timing is asserted.
+//! Every test runs twice: with the cycle waiting for each frame's return, and pipelined. The
+//! waits have deadlines only so that a failure does not hang; no timing is asserted.
 
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
@@ -10,9 +11,9 @@ use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
 use akd_native::cycle::events::{Action, Event, FaultSource};
-use akd_native::cycle::CycleThread;
+use akd_native::cycle::{Config, CycleThread};
 use akd_native::ds402::State;
-use akd_native::error::{Error, Result};
+use akd_native::error::Result;
 use akd_native::frame::{Command, FrameBuilder};
 use akd_native::link::Link;
 use akd_native::registers::AL_CONTROL;
@@ -20,7 +21,7 @@ use akd_native::sim::in_process::InProcess;
 
 #[path = "support/csp.rs"]
 mod csp;
-use csp::csp_cycle;
+use csp::csp_master;
 
 /// The in-process link, losing the next `drop` frames (the frame never reaches the drives)
 /// and the next `drop_mailbox` frames beside the cyclic LRW, and, when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a
@@ -33,22 +34,26 @@ struct Lossy {
 }
 
 impl Link for Lossy {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
         if self.to_safeop.swap(0, Ordering::AcqRel) > 0 {
             let mut frame = [0u8; 64];
             let mut builder = FrameBuilder::new(&mut frame);
             builder.push(Command::Apwr, 0, 0, AL_CONTROL, &(AlState::SafeOp as u16).to_le_bytes()).unwrap();
             let len = builder.finish();
             let mut reply = [0u8; 64];
-            self.inner.exchange(&frame[..len], &mut reply, timeout)?;
+            self.inner.exchange(&frame[..len], &mut reply, Duration::ZERO)?;
         }
         let cyclic = tx.get(2) == Some(&(Command::Lrw as u8));
         let lose =
             |count: &AtomicU32| count.fetch_update(Ordering::AcqRel, Ordering::Acquire, |n| n.checked_sub(1)).is_ok();
         if lose(&self.drop) || (!cyclic && lose(&self.drop_mailbox)) {
-            return Err(Error::Timeout { what: "a frame the test lost".into() });
+            return Ok(());
         }
-        self.inner.exchange(tx, rx, timeout)
+        self.inner.send(tx)
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        self.inner.receive(rx, deadline)
     }
 
     fn describe(&self) -> String {
@@ -63,7 +68,7 @@ struct Rig {
     to_safeop: Arc<AtomicU32>,
 }
 
-fn rig() -> Rig {
+fn rig(pipelined: bool) -> Rig {
     let (drop, drop_mailbox, to_safeop) = Default::default();
     let link = Lossy {
         inner: InProcess::new(1),
@@ -71,7 +76,9 @@ fn rig() -> Rig {
         drop_mailbox: Arc::clone(&drop_mailbox),
         to_safeop: Arc::clone(&to_safeop),
     };
-    Rig { cycle: csp_cycle(Box::new(link)), drop, drop_mailbox, to_safeop }
+    let config = Config { pipelined, ..Config::new(Duration::from_millis(1)) };
+    let cycle = CycleThread::start(csp_master(Box::new(link)), config).map_err(|e| e.0).unwrap();
+    Rig { cycle, drop, drop_mailbox, to_safeop }
 }
 
 fn enable(cycle: &CycleThread) {
@@ -102,9 +109,8 @@ fn source(e: &Event) -> Option<FaultSource> {
     }
 }
 
-#[test]
-fn a_short_gap_is_counted_and_the_drive_stays_enabled() {
-    let Rig { cycle, drop, .. } = rig();
+fn a_short_gap_is_counted_and_the_drive_stays_enabled(pipelined: bool) {
+    let Rig { cycle, drop, .. } = rig(pipelined);
     enable(&cycle);
     drop.store(3, Ordering::Release);
     let events = events_until(&cycle, |e| !e.is_empty());
@@ -117,9 +123,8 @@ fn a_short_gap_is_counted_and_the_drive_stays_enabled() {
     assert!(cycle.events().is_empty());
 }
 
-#[test]
-fn f125_after_the_eighth_lost_frame_is_reported_with_its_code_and_the_drive_disabled() {
-    let Rig { cycle, drop, .. } = rig();
+fn f125_after_the_eighth_lost_frame_is_reported_with_its_code_and_the_drive_disabled(pipelined: bool) {
+    let Rig { cycle, drop, .. } = rig(pipelined);
     enable(&cycle);
     // The AKD keeps its AL state through a gap (its SII asks for no process-data watchdog)
     // and raises F125 instead.
@@ -141,9 +146,8 @@ fn f125_after_the_eighth_lost_frame_is_reported_with_its_code_and_the_drive_disa
     assert_ne!(cycle.drive_status(0).unwrap().state(), Some(State::OperationEnabled));
 }
 
-#[test]
-fn a_drive_leaving_op_is_reported_with_its_al_status_and_disabled() {
-    let Rig { cycle, to_safeop, .. } = rig();
+fn a_drive_leaving_op_is_reported_with_its_al_status_and_disabled(pipelined: bool) {
+    let Rig { cycle, to_safeop, .. } = rig(pipelined);
     enable(&cycle);
     to_safeop.store(1, Ordering::Release);
     let events = events_until(&cycle, |e| e.iter().any(|e| source(e) == Some(FaultSource::AlState)));
@@ -161,9 +165,8 @@ fn a_drive_leaving_op_is_reported_with_its_al_status_and_disabled() {
     }
 }
 
-#[test]
-fn sdo_beside_the_cycle_reads_writes_and_names_aborts() {
-    let Rig { cycle, .. } = rig();
+fn sdo_beside_the_cycle_reads_writes_and_names_aborts(pipelined: bool) {
+    let Rig { cycle, .. } = rig(pipelined);
     assert_eq!(cycle.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
     cycle.sdo_write(0, 0x6083, 0, &5000u32.to_le_bytes()).unwrap();
     assert_eq!(cycle.sdo_read(0, 0x6083, 0).unwrap(), 5000u32.to_le_bytes());
@@ -176,9 +179,8 @@ fn sdo_beside_the_cycle_reads_writes_and_names_aborts() {
     assert_eq!(stats.lost_frames.load(Ordering::Relaxed), 0);
 }
 
-#[test]
-fn a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame() {
-    let Rig { cycle, drop, drop_mailbox, .. } = rig();
+fn a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame(pipelined: bool) {
+    let Rig { cycle, drop, drop_mailbox, .. } = rig(pipelined);
     drop_mailbox.store(1, Ordering::Release);
     // The transfer goes on after its lost frame: sent again, or its reply fetched again.
     assert_eq!(cycle.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
@@ -195,3 +197,30 @@ fn a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame() {
     assert_eq!(stats.lost_frames.load(Ordering::Relaxed), 1);
     assert_eq!(stats.acyclic_lost_frames.load(Ordering::Relaxed), 1);
 }
+
+/// Every test twice: with the cycle waiting for each frame's return, and pipelined (the return
+/// taken at the next wake-up).
+macro_rules! both_ways {
+    ($($name:ident),* $(,)?) => {
+        mod waiting {
+            $(#[test]
+            fn $name() {
+                super::$name(false)
+            })*
+        }
+        mod pipelined {
+            $(#[test]
+            fn $name() {
+                super::$name(true)
+            })*
+        }
+    };
+}
+
+both_ways!(
+    a_short_gap_is_counted_and_the_drive_stays_enabled,
+    f125_after_the_eighth_lost_frame_is_reported_with_its_code_and_the_drive_disabled,
+    a_drive_leaving_op_is_reported_with_its_al_status_and_disabled,
+    sdo_beside_the_cycle_reads_writes_and_names_aborts,
+    a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame
+);

@@ -1,4 +1,4 @@
-//! The cycle thread's loop allocates nothing: a global allocator counts the allocations of
+//! The cycle thread's loop allocates nothing, waiting for each frame or pipelined: a global allocator counts the allocations of
 //! the thread named `akd-cycle` (found by its kernel thread id in /proc), while the virtual
 //! AKDs are served over UDP by another thread whose allocations are not counted. Drive 2 is
 //! mapped for the profile modes, so that the set-point handshake and the command time-out (its
@@ -90,6 +90,14 @@ const LATE_IS_NOT_MISSED: Timing = Timing { missed_frames: MissedFrames::Lost, .
 
 #[test]
 fn cycle_loop_allocates_nothing() {
+    // One mode after the other: the counter watches one thread at a time.
+    for pipelined in [false, true] {
+        loop_allocates_nothing(pipelined);
+    }
+}
+
+/// The run for one way of taking each frame's return: waited for, or `pipelined`.
+fn loop_allocates_nothing(pipelined: bool) {
     let address: SocketAddr = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
@@ -120,7 +128,8 @@ fn cycle_loop_allocates_nothing() {
     m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
     m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
-    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let config = Config { pipelined, ..Config::new(Duration::from_millis(1)) };
+    let cycle = CycleThread::start(m, config).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);
     // The counter sees the watched thread only: this thread's allocation is not counted.
@@ -151,7 +160,10 @@ fn cycle_loop_allocates_nothing() {
     // a lost frame is counted, costs no allocation either, and may fault the drive (F125) once
     // it was enabled. What must hold is that the sequencer got the drive there and nothing
     // allocated.
-    eprintln!("{} cycles watched, {lost} lost frames, {wkc} WKC errors", last.cycle - armed.cycle);
+    eprintln!(
+        "pipelined {pipelined}: {} cycles watched, {lost} lost frames, {wkc} WKC errors",
+        last.cycle - armed.cycle
+    );
     assert!(
         sequenced.progress == Progress::Done || (sequenced.progress == Progress::Lost && lost > 0),
         "{sequenced:?}"
@@ -165,7 +177,7 @@ fn cycle_loop_allocates_nothing() {
         assert_eq!(command_timeouts, 2);
         assert_eq!(pings, 20, "echo replies");
     }
-    assert_eq!(during, 0, "allocations in {} cycles", last.cycle - armed.cycle);
+    assert_eq!(during, 0, "allocations in {} cycles (pipelined {pipelined})", last.cycle - armed.cycle);
     drop(master);
 }
 

@@ -6,7 +6,7 @@
 //! so. The drives' own view comes from the bus behind the link, not from the master.
 
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
@@ -37,7 +37,7 @@ struct Watched {
 }
 
 impl Link for Watched {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
         let has = |command: Command, ado: u16| {
             frame::parse(tx).unwrap().flatten().any(|d| d.header.command == command && d.header.ado == ado)
         };
@@ -47,7 +47,11 @@ impl Link for Watched {
             seen.with_drift += has(Command::Frmw, 0x0910) as u64;
             seen.with_difference += has(Command::Fprd, 0x092C) as u64;
         }
-        self.bus.lock().unwrap().exchange(tx, rx, timeout)
+        self.bus.lock().unwrap().send(tx)
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        self.bus.lock().unwrap().receive(rx, deadline)
     }
 
     fn describe(&self) -> String {

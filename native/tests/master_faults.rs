@@ -2,7 +2,7 @@
 //! flips, every operation ends, within its time-outs, in a result or an error.
 
 use std::sync::OnceLock;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
 use akd_native::error::Result;
@@ -21,13 +21,17 @@ struct Corrupting {
 }
 
 impl Link for Corrupting {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
-        let n = self.inner.exchange(tx, rx, timeout)?;
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
+        self.inner.send(tx)
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        let Some(n) = self.inner.receive(rx, deadline)? else { return Ok(None) };
         for &(_, at, mask) in self.faults.iter().filter(|f| f.0 == self.frame) {
             rx[at % n] ^= mask;
         }
         self.frame += 1;
-        Ok(n)
+        Ok(Some(n))
     }
 
     fn describe(&self) -> String {

@@ -4,7 +4,7 @@
 //! decodes every mailbox message that went through, to show the transfers were split.
 
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
 use akd_native::coe::{
@@ -39,8 +39,12 @@ struct Spy {
 }
 
 impl Link for Spy {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
-        let n = self.inner.exchange(tx, rx, timeout)?;
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
+        self.inner.send(tx)
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        let Some(n) = self.inner.receive(rx, deadline)? else { return Ok(None) };
         for dg in frame::parse(&rx[..n])? {
             let dg = dg?;
             let written = match (dg.header.command, dg.header.ado) {
@@ -52,7 +56,7 @@ impl Link for Spy {
                 self.messages.lock().unwrap().push((written, dg.data.to_vec()));
             }
         }
-        Ok(n)
+        Ok(Some(n))
     }
 
     fn describe(&self) -> String {

@@ -28,6 +28,12 @@
 //! A slave the loop loses (no answer, or out of Op) is reported and its drive disabled there;
 //! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
 //! stage off, while the other drives cycle on.
+//!
+//! By default each cycle waits for its frame's return. [`Config::pipelined`] sends the frame
+//! without waiting and takes its return at the next wake-up, before anything else: the outputs
+//! are written from inputs as old as when waiting (the last return), the frame still leaves
+//! right after the wake-up, and the round trip costs the cycle neither time nor CPU, so a lost
+//! frame no longer holds it for up to a period. What a cycle read is published a period later.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
@@ -87,12 +93,15 @@ pub struct Config {
     /// The CPUs' wake-up latency to hold while the thread runs, µs (see
     /// [`rt::hold_cpu_latency`]), 0..=[`rt::MAX_CPU_LATENCY_US`]; the system's when `None`.
     pub cpu_latency_us: Option<u32>,
+    /// Whether each cycle's frame is sent without waiting for it, its return taken at the next
+    /// wake-up (see [the module](self)).
+    pub pipelined: bool,
 }
 
 impl Config {
     /// A cycle of `period` with no real-time settings.
     pub fn new(period: Duration) -> Self {
-        Config { period, priority: None, cpu: None, lock_memory: false, cpu_latency_us: None }
+        Config { period, priority: None, cpu: None, lock_memory: false, cpu_latency_us: None, pipelined: false }
     }
 }
 
@@ -321,7 +330,9 @@ impl CycleThread {
                 // The starting thread waits for this message; it cannot be gone.
                 let _ = ready_tx.send(warnings);
                 let timeout = master.replace_timeout(config.period);
-                run(&mut master, &shared, &mut drives, (&mut mailbox, &mut relay_buffers), &mut player, period_ns);
+                let mut ready =
+                    Loop { master: &mut master, shared: &shared, drives: &mut drives, gaps: Gaps::default() };
+                run(&mut ready, (&mut mailbox, &mut relay_buffers), &mut player, (period_ns, config.pipelined));
                 shared.relay.end();
                 master.replace_timeout(timeout);
                 // The master goes on without the thread: plain exchanges, no status reads.
@@ -897,21 +908,47 @@ fn recoverer(
     recovery::Recoverer::new(master, shared.relay.clone(), period, syncs)
 }
 
+/// What the loop works on: the master, what it shares with the other threads, the drives it
+/// sequences and the gaps in their frames.
+struct Loop<'a> {
+    master: &'a mut Master,
+    shared: &'a Shared,
+    drives: &'a mut [DriveLoop],
+    gaps: Gaps,
+}
+
+/// A cycle whose frame went out: its (cycle, wake-up time), the period that led to it, and the
+/// time its exchange calls took so far (ns).
+#[derive(Clone, Copy)]
+struct Sent {
+    now: (u64, u64),
+    period_ns: u64,
+    exchange_ns: u64,
+}
+
 /// The loop. Everything it touches was allocated before it starts.
+///
+/// Each cycle wakes at its deadline, lets the trajectory, the sequencer and the latches write
+/// the outputs from the last inputs, sends the frame, and judges its return: it supervises the
+/// drives, records the cycle and publishes the snapshot; then one mailbox or recovery frame may
+/// go beside it. Waiting (the default), the cycle waits for the frame's return after sending it.
+/// `pipelined`, it does not wait: it takes the return at the next wake-up, before anything
+/// else, and judges it there. The outputs are then written from inputs as old as when waiting
+/// (the last return), the frame still leaves right after the wake-up, and the round trip costs
+/// the cycle neither time nor CPU: a lost frame no longer holds it for up to a period. What a
+/// cycle read is published a period later, at the next wake-up.
 fn run(
-    master: &mut Master,
-    shared: &Shared,
-    drives: &mut [DriveLoop],
+    l: &mut Loop<'_>,
     (mailbox, relay_buffers): (&mut MailboxService, &mut recovery::RelayBuffers),
     player: &mut trajectory_player::Player,
-    period_ns: u64,
+    (period_ns, pipelined): (u64, bool),
 ) {
-    let stats = &shared.stats;
-    let base = master.stats();
+    let stats = &l.shared.stats;
+    let base = l.master.stats();
     let mut schedule = timing::Schedule::new(timing::now_ns() + period_ns, period_ns);
     let mut last_wake = None;
-    let mut gaps = Gaps::default();
-    while !shared.stop.load(Ordering::Acquire) {
+    let mut in_flight: Option<Sent> = None;
+    while !l.shared.stop.load(Ordering::Acquire) {
         timing::sleep_until(schedule.next_ns());
         let wake = timing::now_ns();
         stats.wake_latency.record(wake.saturating_sub(schedule.next_ns()));
@@ -920,8 +957,52 @@ fn run(
             stats.period.record(period);
         }
         last_wake = Some(wake);
+        if let Some(sent) = in_flight.take() {
+            let before = (timing::now_ns(), l.master.stats());
+            let result = l.master.receive_process_data();
+            l.judge(result, before, sent, mailbox);
+        }
         let now = (stats.cycles.load(Ordering::Relaxed) + 1, wake);
-        for d in drives.iter_mut() {
+        l.write_outputs(player, now);
+        let before = (timing::now_ns(), l.master.stats());
+        let sent = Sent { now, period_ns: period, exchange_ns: 0 };
+        if pipelined {
+            match l.master.send_process_data() {
+                Ok(()) => in_flight = Some(Sent { exchange_ns: timing::now_ns() - before.0, ..sent }),
+                Err(e) => l.judge(Err(e), before, sent, mailbox),
+            }
+        } else {
+            let result = l.master.exchange();
+            l.judge(result, before, sent, mailbox);
+        }
+        let (shared, master) = (l.shared, &mut *l.master);
+        let recovering = |slave: u16| shared.recovery.get(slave as usize).is_some_and(recovery::busy);
+        mailbox.run(master, (&shared.sdo, &shared.eoe), &shared.events, now, recovering, |slave| {
+            let status = shared.drives.get(slave as usize).map(|d| d.status());
+            status.map_or(0, |s| s.statusword)
+        });
+        shared.relay.serve(master, relay_buffers);
+        let now_stats = master.stats();
+        let cyclic = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
+        let acyclic_lost = now_stats.lost_frames - base.lost_frames - cyclic.0;
+        stats.acyclic_lost_frames.store(acyclic_lost, Ordering::Relaxed);
+        stats.acyclic_wkc_errors.store(now_stats.wkc_errors - base.wkc_errors - cyclic.1, Ordering::Relaxed);
+        CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
+    }
+    if in_flight.is_some() {
+        // The last frame's return, so that the master is handed back with none on its way.
+        let _ = l.master.receive_process_data();
+    }
+}
+
+impl Loop<'_> {
+    /// The trajectory, the sequencer and the latches read the inputs of the last return and
+    /// write over the set-points copied into the outputs; the trajectory's targets are
+    /// set-point writes.
+    fn write_outputs(&mut self, player: &mut trajectory_player::Player, now: (u64, u64)) {
+        let (shared, master) = (self.shared, &mut *self.master);
+        let stats = &shared.stats;
+        for d in self.drives.iter_mut() {
             d.target_writes = Some(shared.command_timeouts[d.position as usize].writes());
             d.drive.before_copy(&shared.drives[d.position as usize]);
         }
@@ -931,21 +1012,19 @@ fn run(
         if let Ok(outputs) = master.output_image_mut() {
             if shared.setpoints.try_read(outputs).is_none() {
                 CycleStats::add(&stats.setpoints_busy, 1);
-                drives.iter_mut().for_each(|d| d.target_writes = None);
+                self.drives.iter_mut().for_each(|d| d.target_writes = None);
             } else {
-                drives.iter_mut().for_each(|d| d.drive.copied());
+                self.drives.iter_mut().for_each(|d| d.drive.copied());
             }
         }
-        // The trajectory, the sequencer and the latches read the inputs of the last exchange
-        // and write over the set-points; the trajectory's targets are set-point writes.
         if let Ok(inputs) = master.input_image() {
             player.observe(&shared.trajectories, &shared.events, inputs, now);
-            for d in drives.iter_mut().filter(|d| player.wrote(d.position)) {
+            for d in self.drives.iter_mut().filter(|d| player.wrote(d.position)) {
                 d.drive.written_in_loop(&shared.drives[d.position as usize]);
             }
             let timeout_ns = shared.request_timeout_ns.load(Ordering::Relaxed);
-            for d in drives.iter_mut() {
-                d.drive.observe(&shared.drives[d.position as usize], inputs, wake, timeout_ns);
+            for d in self.drives.iter_mut() {
+                d.drive.observe(&shared.drives[d.position as usize], inputs, now.1, timeout_ns);
                 if let Some(latch) = d.latch.as_mut() {
                     let slave = d.position;
                     latch.observe(&shared.latches[slave as usize], inputs, |channel, edge, position| {
@@ -962,13 +1041,13 @@ fn run(
             }
         }
         if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
-            for d in drives.iter_mut() {
+            for d in self.drives.iter_mut() {
                 observe_set_points(shared, d, inputs, outputs, now);
             }
         }
         if let Ok(outputs) = master.output_image_mut() {
             player.apply(&shared.trajectories, &shared.setpoints, outputs);
-            for d in drives.iter() {
+            for d in self.drives.iter() {
                 d.drive.apply(outputs);
                 d.handshake.apply(outputs, d.drive.offsets.controlword);
                 d.command_timeout.apply(outputs, d.drive.offsets.controlword);
@@ -977,10 +1056,21 @@ fn run(
                 }
             }
         }
-        let sent = timing::now_ns();
-        let before = master.stats();
-        let result = master.exchange();
-        let exchange_ns = timing::now_ns() - sent;
+    }
+
+    /// Judges the return of the frame of cycle `sent` (its working counter, or why there is
+    /// none), counted from the time and the master's counters before the exchange call that
+    /// gave it: supervises the drives, records the cycle and publishes the snapshot.
+    fn judge(
+        &mut self,
+        result: Result<u16>,
+        (started_ns, before): (u64, crate::master::Stats),
+        sent: Sent,
+        mailbox: &mut MailboxService,
+    ) {
+        let (shared, master) = (self.shared, &mut *self.master);
+        let stats = &shared.stats;
+        let exchange_ns = sent.exchange_ns + (timing::now_ns() - started_ns);
         stats.exchange.record(exchange_ns);
         // Lost frames and wrong working counters are the master's own counts, the cyclic
         // frame's kept apart from the mailbox's; other failures are counted here. None of them
@@ -998,43 +1088,30 @@ fn run(
                 (0, Exchange::Lost)
             }
         };
+        let now = sent.now;
         shared.dc.publish(master.clock());
-        supervise(master, shared, drives, mailbox, &mut gaps, exchange, now);
-        for d in drives.iter_mut() {
+        supervise(master, shared, self.drives, mailbox, &mut self.gaps, exchange, now);
+        for d in self.drives.iter_mut() {
             if let Some(counter) = d.mailbox_counter.take() {
                 master.set_mailbox_counter(d.position, counter);
             }
         }
         if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
-            let timing = (period.min(u32::MAX as u64) as u32, exchange_ns.min(u32::MAX as u64) as u32);
-            for d in drives.iter() {
+            let timing = (sent.period_ns.min(u32::MAX as u64) as u32, exchange_ns.min(u32::MAX as u64) as u32);
+            for d in self.drives.iter() {
                 shared.samples.push(&sample(d, inputs, outputs, now, timing, (wkc, result.is_ok())));
             }
         }
-        let recovering = |slave: u16| shared.recovery.get(slave as usize).is_some_and(recovery::busy);
-        mailbox.run(master, (&shared.sdo, &shared.eoe), &shared.events, now, recovering, |slave| {
-            let status = shared.drives.get(slave as usize).map(|d| d.status());
-            status.map_or(0, |s| s.statusword)
-        });
-        shared.relay.serve(master, relay_buffers);
-        let now_stats = master.stats();
-        let cyclic = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
-        let acyclic_lost = now_stats.lost_frames - base.lost_frames - cyclic.0;
-        stats.acyclic_lost_frames.store(acyclic_lost, Ordering::Relaxed);
-        stats.acyclic_wkc_errors.store(now_stats.wkc_errors - base.wkc_errors - cyclic.1, Ordering::Relaxed);
         CycleStats::add(&stats.cycles, 1);
-        {
-            let mut w = shared.snapshot.write();
-            w.write(0, &stats.cycles.load(Ordering::Relaxed).to_le_bytes());
-            w.write(8, &wake.to_le_bytes());
-            w.write(16, &wkc.to_le_bytes());
-            w.write(18, &[result.is_ok() as u8]);
-            if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
-                w.write(HEADER_LEN, inputs);
-                w.write(HEADER_LEN + inputs.len(), outputs);
-            }
+        let mut w = shared.snapshot.write();
+        w.write(0, &stats.cycles.load(Ordering::Relaxed).to_le_bytes());
+        w.write(8, &now.1.to_le_bytes());
+        w.write(16, &wkc.to_le_bytes());
+        w.write(18, &[result.is_ok() as u8]);
+        if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
+            w.write(HEADER_LEN, inputs);
+            w.write(HEADER_LEN + inputs.len(), outputs);
         }
-        CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
     }
 }
 

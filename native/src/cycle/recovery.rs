@@ -13,7 +13,7 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use crate::cycle::seqlock::SeqBytes;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::frame::MAX_PAYLOAD_LEN;
 use crate::link::Link;
 use crate::master::restore::{Restore, SlaveSync};
@@ -121,19 +121,26 @@ impl RelayLink {
 }
 
 impl Link for RelayLink {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
-        let lost = || Error::Timeout { what: "a frame sent beside the cycle".into() };
+    /// Asks the cycle thread to send `tx`; once it has ended, the frame is lost at once.
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
         if self.relay.ended.load(Ordering::Acquire) {
-            return Err(lost());
+            return Ok(());
         }
         let len = tx.len().min(MAX_PAYLOAD_LEN);
         self.relay.request.write().write(0, &tx[..len]);
         self.relay.request_len.store(len as u16, Ordering::Relaxed);
         self.relay.state.store(ASKED, Ordering::Release);
-        let deadline = Instant::now() + timeout + 4 * self.period;
+        Ok(())
+    }
+
+    /// The return of the frame sent, once the cycle thread has sent it in its turn: a frame
+    /// waits a few periods for that beyond `deadline`.
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        let deadline = deadline + 4 * self.period;
         loop {
             match self.relay.state.load(Ordering::Acquire) {
                 DONE => break,
+                FREE => return Ok(None),
                 ASKED
                     if (Instant::now() >= deadline || self.relay.ended.load(Ordering::Acquire))
                         && self
@@ -142,7 +149,7 @@ impl Link for RelayLink {
                             .compare_exchange(ASKED, FREE, Ordering::AcqRel, Ordering::Acquire)
                             .is_ok() =>
                 {
-                    return Err(lost());
+                    return Ok(None);
                 }
                 _ => {}
             }
@@ -153,13 +160,17 @@ impl Link for RelayLink {
         self.relay.reply.read(&mut reply);
         self.relay.state.store(FREE, Ordering::Release);
         if n == 0 {
-            return Err(lost());
+            return Ok(None);
         }
-        crate::link::copy_reply(&reply[..n], rx)
+        crate::link::copy_reply(&reply[..n], rx).map(Some)
     }
 
     fn describe(&self) -> String {
         self.describe.clone()
+    }
+
+    fn awaited(&self) -> &'static str {
+        "a frame sent beside the cycle"
     }
 }
 

@@ -5,37 +5,88 @@
 //! header for a raw interface. [`Recorder`](pcap::Recorder) wraps any link and writes what it
 //! sends and receives to a pcapng file.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 
+pub use returns::Returns;
 pub use spec::LinkSpec;
 
 pub mod pcap;
 pub mod privilege;
 pub mod raw;
+pub mod returns;
+pub mod socket;
 pub mod spec;
 pub mod udp;
 
-/// A path to a chain of slaves.
+/// A path to a chain of slaves. Frames go out with [`send`](Link::send) and come back, in the
+/// order they were sent, through [`receive`](Link::receive); which frame a return belongs to is
+/// the caller's to tell ([`is_reply_to`]), so that a master may send a frame and take its return
+/// later, after other frames have come and gone ([`exchange_beside`]).
 pub trait Link: Send {
-    /// Sends the EtherCAT payload `tx` and waits up to `timeout` for the frame to come back.
-    /// The returned frame is written to `rx` and its length returned. Stale or foreign frames
-    /// (an earlier frame's late return, another master's traffic) are dropped, not returned.
-    /// A frame that does not come back gives [`Error::Timeout`](crate::error::Error::Timeout).
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize>;
+    /// Sends the EtherCAT payload `tx` (frame header and datagrams).
+    fn send(&mut self, tx: &[u8]) -> Result<()>;
+
+    /// Waits until `deadline` for the next frame to come back and writes its EtherCAT payload
+    /// to `rx`; its length, or `None` when none came by then. What is no return at all (another
+    /// master's frame, one no slave forwarded) is skipped; an earlier frame's late return is
+    /// given like any other.
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>>;
 
     /// Human-readable description, e.g. `udp://127.0.0.1:34980` or `eth0`.
     fn describe(&self) -> String;
+
+    /// What a frame that did not come back was awaited as, in the time-out's text: a fixed
+    /// text, as the cycle thread meets it and must not allocate.
+    fn awaited(&self) -> &'static str {
+        "a frame to come back"
+    }
+
+    /// Sends `tx` and waits up to `timeout` for its return, written to `rx`; its length. The
+    /// returns of other frames (an earlier frame's late return) are dropped. A frame that does
+    /// not come back gives [`Error::Timeout`]. Built on `send` and `receive` for every link.
+    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+        exchange_beside(self, tx, rx, timeout, |_| {})
+    }
 }
 
 impl<L: Link + ?Sized> Link for Box<L> {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
-        (**self).exchange(tx, rx, timeout)
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
+        (**self).send(tx)
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        (**self).receive(rx, deadline)
     }
 
     fn describe(&self) -> String {
         (**self).describe()
+    }
+
+    fn awaited(&self) -> &'static str {
+        (**self).awaited()
+    }
+}
+
+/// [`Link::exchange`], handing the returns of other frames to `beside` instead of dropping
+/// them: a master waiting for a mailbox frame while its cyclic frame is on its way back keeps
+/// the cyclic frame's return there.
+pub fn exchange_beside<L: Link + ?Sized>(
+    link: &mut L,
+    tx: &[u8],
+    rx: &mut [u8],
+    timeout: Duration,
+    mut beside: impl FnMut(&[u8]),
+) -> Result<usize> {
+    link.send(tx)?;
+    let deadline = Instant::now() + timeout;
+    loop {
+        match link.receive(rx, deadline)? {
+            Some(n) if is_reply_to(tx, &rx[..n]) => return Ok(n),
+            Some(n) => beside(&rx[..n]),
+            None => return Err(Error::Timeout { what: link.awaited().into() }),
+        }
     }
 }
 

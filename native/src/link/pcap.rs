@@ -21,7 +21,7 @@ use std::mem;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{self, Receiver, SyncSender, TrySendError};
 use std::thread::JoinHandle;
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::time::{Instant, SystemTime, UNIX_EPOCH};
 
 use super::raw::{MASTER_MAC, RETURNED_MAC_BIT};
 use super::Link;
@@ -221,27 +221,42 @@ impl<L: Link> Recorder<L> {
     }
 }
 
-impl<L: Link> Link for Recorder<L> {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
-        let sent_ns = now_ns();
-        let result = self.inner.exchange(tx, rx, timeout);
-        let received_ns = now_ns();
-        if self.to_writer.is_some() {
-            push_frame(&mut self.chunk.0, tx, sent_ns, false);
-            self.chunk.1 += 1;
-            if let Ok(n) = result {
-                push_frame(&mut self.chunk.0, &rx[..n], received_ns, true);
-                self.chunk.1 += 1;
-            }
-            if self.chunk.0.len() >= CHUNK {
-                self.hand_over();
-            }
+impl<L: Link> Recorder<L> {
+    /// Adds one frame, sent or returned at `time_ns`, to the chunk under way.
+    fn record(&mut self, frame: &[u8], time_ns: u64, returned: bool) {
+        if self.to_writer.is_none() {
+            return;
         }
-        result
+        push_frame(&mut self.chunk.0, frame, time_ns, returned);
+        self.chunk.1 += 1;
+        if self.chunk.0.len() >= CHUNK {
+            self.hand_over();
+        }
+    }
+}
+
+impl<L: Link> Link for Recorder<L> {
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
+        let sent_ns = now_ns();
+        self.inner.send(tx)?;
+        self.record(tx, sent_ns, false);
+        Ok(())
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        let got = self.inner.receive(rx, deadline)?;
+        if let Some(n) = got {
+            self.record(&rx[..n], now_ns(), true);
+        }
+        Ok(got)
     }
 
     fn describe(&self) -> String {
         format!("{} recorded to {}", self.inner.describe(), self.path.display())
+    }
+
+    fn awaited(&self) -> &'static str {
+        self.inner.awaited()
     }
 }
 
@@ -257,22 +272,28 @@ impl<L: Link> Drop for Recorder<L> {
 mod tests {
     use super::*;
     use crate::frame::{Command, FrameBuilder};
+    use std::time::Duration;
 
     /// A link where every datagram is answered with its working counter incremented, and the
-    /// third exchange times out.
+    /// third frame is lost.
     struct Loop {
-        exchanges: u32,
+        sent: u32,
+        returns: crate::link::Returns,
     }
 
     impl Link for Loop {
-        fn exchange(&mut self, tx: &[u8], rx: &mut [u8], _timeout: Duration) -> Result<usize> {
-            self.exchanges += 1;
-            if self.exchanges == 3 {
-                return Err(Error::Timeout { what: "the test frame".into() });
-            }
-            rx[..tx.len()].copy_from_slice(tx);
-            rx[tx.len() - 2] += 1;
-            Ok(tx.len())
+        fn send(&mut self, tx: &[u8]) -> Result<()> {
+            self.sent += 1;
+            let lost = self.sent == 3;
+            self.returns.serve(tx, |frame| {
+                let wkc = frame.len() - 2;
+                frame[wkc] += 1;
+                Ok(!lost)
+            })
+        }
+
+        fn receive(&mut self, rx: &mut [u8], _deadline: Instant) -> Result<Option<usize>> {
+            self.returns.take(rx)
         }
 
         fn describe(&self) -> String {
@@ -306,7 +327,7 @@ mod tests {
         end: impl FnOnce(Recorder<Loop>),
     ) -> (Vec<u8>, Vec<u8>) {
         let path = std::env::temp_dir().join(format!("akd_pcap_{name}_{}.pcapng", std::process::id()));
-        let mut recorder = Recorder::new(Loop { exchanges: 0 }, &path).unwrap();
+        let mut recorder = Recorder::new(Loop { sent: 0, returns: Default::default() }, &path).unwrap();
         let mut tx = [0u8; 64];
         let mut builder = FrameBuilder::new(&mut tx);
         builder.push_zeroed(command, 0, 0, 0x0130, data_len).unwrap();
@@ -369,7 +390,10 @@ mod tests {
 
     #[test]
     fn an_unwritable_path_is_a_named_error() {
-        let e = Recorder::new(Loop { exchanges: 0 }, "/nonexistent-dir/x.pcapng").err().unwrap().to_string();
+        let e = Recorder::new(Loop { sent: 0, returns: Default::default() }, "/nonexistent-dir/x.pcapng")
+            .err()
+            .unwrap()
+            .to_string();
         assert!(e.contains("creating capture file /nonexistent-dir/x.pcapng"), "{e}");
     }
 }

@@ -7,12 +7,12 @@
 
 use std::ffi::CString;
 use std::io;
-use std::os::fd::{AsRawFd, FromRawFd, OwnedFd};
+use std::os::fd::{AsFd, AsRawFd, FromRawFd, OwnedFd};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, FrameError, Result, SettingError};
 use crate::frame::{self, ETHERTYPE, ETH_HEADER_LEN, MIN_ETH_FRAME_LEN};
-use crate::link::{copy_reply, is_reply_to, privilege, Link};
+use crate::link::{copy_reply, privilege, socket, Link};
 
 /// Source MAC of the master's frames: the one SOEM uses, so captures of both look alike.
 pub const MASTER_MAC: [u8; 6] = [0x01, 0x01, 0x01, 0x01, 0x01, 0x01];
@@ -109,28 +109,20 @@ impl RawSocket {
     }
 
     /// Waits until `deadline` for an incoming Ethernet frame and writes it to `buf`; `None` when
-    /// nothing came. One ppoll(2) and one recv(2) per frame: ppoll's time-out is exact to the
-    /// microsecond (SO_RCVTIMEO counts in scheduler ticks, up to 4 ms), so a lost frame costs
-    /// a cycle thread one period and not several.
+    /// nothing came (see [`socket::recv_until`]: exact to the microsecond, so a lost frame costs a
+    /// cycle thread one period and not several).
     pub fn recv_until(&self, buf: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
-        loop {
-            if !self.wait_readable(deadline.saturating_duration_since(Instant::now()))? {
-                return Ok(None);
-            }
-            if let Some(got) = self.try_recv(buf)? {
-                return Ok(Some(got));
-            }
-        }
+        socket::recv_until(self.fd.as_fd(), buf, deadline).map_err(|e| self.receiving(e))
     }
 
     /// Takes an incoming frame that is already there and writes it to `buf`, without waiting;
     /// `None` when there is none. One recv(2).
     pub fn try_recv(&self, buf: &mut [u8]) -> Result<Option<usize>> {
-        // SAFETY: `buf` is valid for the length passed.
-        let got = unsafe {
-            libc::recv(self.fd.as_raw_fd(), buf.as_mut_ptr() as *mut libc::c_void, buf.len(), libc::MSG_DONTWAIT)
-        };
-        self.received(got)
+        socket::recv_now(self.fd.as_fd(), buf).map_err(|e| self.receiving(e))
+    }
+
+    fn receiving(&self, err: io::Error) -> Error {
+        Error::io(format!("receiving on interface {:?}", self.iface), err)
     }
 
     /// Sets how long [`recv_stamped`](Self::recv_stamped) waits, as
@@ -152,19 +144,6 @@ impl RawSocket {
             return Err(Error::last_os(format!("setting the read time-out on interface {:?}", self.iface)));
         }
         Ok(())
-    }
-
-    /// What a receive call's result `got` says: a frame's length, or `None` for nothing there
-    /// (no frame, the read time-out passed, a signal).
-    fn received(&self, got: isize) -> Result<Option<usize>> {
-        if got >= 0 {
-            return Ok(Some(got as usize));
-        }
-        let err = io::Error::last_os_error();
-        if matches!(err.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::Interrupted) {
-            return Ok(None);
-        }
-        Err(Error::io(format!("receiving on interface {:?}", self.iface), err))
     }
 
     /// Has the kernel stamp each incoming frame with its arrival (SO_TIMESTAMPNS), for
@@ -192,26 +171,10 @@ impl RawSocket {
         let flags = if wait { 0 } else { libc::MSG_DONTWAIT };
         // SAFETY: `message` describes `buf` and `control`, both valid for their lengths.
         let got = unsafe { libc::recvmsg(self.fd.as_raw_fd(), &mut message, flags) };
-        let Some(len) = self.received(got)? else {
+        let Some(len) = socket::received(got).map_err(|e| self.receiving(e))? else {
             return Ok(None);
         };
         Ok(Some((len, arrival_stamp(&message))))
-    }
-
-    /// Waits until a frame can be read or `timeout` passes; `false` on time-out.
-    fn wait_readable(&self, timeout: Duration) -> Result<bool> {
-        let mut poll = libc::pollfd { fd: self.fd.as_raw_fd(), events: libc::POLLIN, revents: 0 };
-        let spec = libc::timespec { tv_sec: timeout.as_secs() as libc::time_t, tv_nsec: timeout.subsec_nanos() as _ };
-        // SAFETY: one valid pollfd, a valid timespec, no signal mask.
-        let rc = unsafe { libc::ppoll(&mut poll, 1, &spec, std::ptr::null()) };
-        if rc < 0 {
-            let err = io::Error::last_os_error();
-            if err.kind() == io::ErrorKind::Interrupted {
-                return Ok(true);
-            }
-            return Err(Error::io(format!("waiting on interface {:?}", self.iface), err));
-        }
-        Ok(rc > 0)
     }
 }
 
@@ -277,8 +240,8 @@ fn sockaddr_ll(ifindex: i32) -> libc::sockaddr_ll {
 /// The master's link over a [`RawSocket`]: broadcast frames from [`MASTER_MAC`], replies
 /// recognised by the returned-frame bit in their source MAC and by their datagrams.
 ///
-/// With a busy poll, the link asks the socket for the returning frame without sleeping, up to
-/// that long after the frame went out, and only then sleeps until it comes: a thread woken by
+/// With a busy poll, the link asks the socket for a returning frame without sleeping, up to
+/// that long after the last frame went out, and only then sleeps until it comes: a thread woken by
 /// the frame's arrival waits for the scheduler (on a virtual machine, for its halted vCPU to be
 /// woken too), which costs more than the round trip of a short line. The CPU spins meanwhile,
 /// so the busy poll is for a cycle thread on a core of its own; a peer process on the same CPU
@@ -288,6 +251,8 @@ fn sockaddr_ll(ifindex: i32) -> libc::sockaddr_ll {
 pub struct RawLink {
     socket: RawSocket,
     busy_poll: Duration,
+    /// When the last frame went out: the busy poll runs from there.
+    sent: Instant,
     tx: [u8; MAX_ETH_FRAME_LEN],
     rx: [u8; MAX_ETH_FRAME_LEN],
 }
@@ -299,6 +264,7 @@ impl RawLink {
         Ok(RawLink {
             socket: RawSocket::open(iface)?,
             busy_poll,
+            sent: Instant::now(),
             tx: [0; MAX_ETH_FRAME_LEN],
             rx: [0; MAX_ETH_FRAME_LEN],
         })
@@ -358,20 +324,21 @@ fn unwrap_returned(frame: &[u8]) -> Option<&[u8]> {
 }
 
 impl Link for RawLink {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
         let len = wrap(tx, &mut self.tx)?;
         self.socket.send(&self.tx[..len])?;
-        let sent = Instant::now();
-        let deadline = sent + timeout;
-        let spin_end = (sent + self.busy_poll).min(deadline);
+        self.sent = Instant::now();
+        Ok(())
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        let spin_end = (self.sent + self.busy_poll).min(deadline);
         loop {
             let Some(got) = self.next_frame(spin_end, deadline)? else {
-                return Err(Error::Timeout { what: "a frame to come back on the interface".into() });
+                return Ok(None);
             };
             if let Some(payload) = unwrap_returned(&self.rx[..got]) {
-                if is_reply_to(tx, payload) {
-                    return copy_reply(payload, rx);
-                }
+                return copy_reply(payload, rx).map(Some);
             }
         }
     }
@@ -379,12 +346,17 @@ impl Link for RawLink {
     fn describe(&self) -> String {
         self.socket.iface.clone()
     }
+
+    fn awaited(&self) -> &'static str {
+        "a frame to come back on the interface"
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::frame::{Command, FrameBuilder};
+    use crate::link::is_reply_to;
 
     fn payload() -> Vec<u8> {
         let mut buf = [0u8; 64];

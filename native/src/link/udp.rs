@@ -3,11 +3,12 @@
 
 use std::io;
 use std::net::{SocketAddr, ToSocketAddrs, UdpSocket};
-use std::time::{Duration, Instant};
+use std::os::fd::AsFd;
+use std::time::Instant;
 
 use crate::error::{Error, Result, SettingError};
 use crate::frame::{self, ETHERTYPE};
-use crate::link::{copy_reply, is_reply_to, Link};
+use crate::link::{copy_reply, socket, Link};
 
 /// The UDP port of EtherCAT over UDP (0x88A4 = 34980).
 pub const DEFAULT_PORT: u16 = ETHERTYPE;
@@ -47,33 +48,28 @@ impl Udp {
 }
 
 impl Link for Udp {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
         self.socket.send(tx).map_err(|e| Error::io(format!("sending to udp://{}", self.peer), e))?;
-        let deadline = Instant::now() + timeout;
-        loop {
-            let left = deadline.saturating_duration_since(Instant::now());
-            if left.is_zero() {
-                return Err(Error::Timeout { what: "a frame to come back over UDP".into() });
+        Ok(())
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        match socket::recv_until(self.socket.as_fd(), &mut self.rx, deadline) {
+            Ok(got) => got.map(|got| copy_reply(&self.rx[..got], rx)).transpose(),
+            // A simulator not (yet) listening answers with ICMP port unreachable.
+            Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
+                Err(Error::io(format!("udp://{}: no simulator listening", self.peer), e))
             }
-            self.socket.set_read_timeout(Some(left)).map_err(|e| Error::io("setting the UDP read time-out", e))?;
-            let got = match self.socket.recv(&mut self.rx) {
-                Ok(n) => n,
-                Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => continue,
-                // A simulator not (yet) listening answers with ICMP port unreachable.
-                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
-                    return Err(Error::io(format!("udp://{}: no simulator listening", self.peer), e))
-                }
-                Err(e) => return Err(Error::io(format!("receiving from udp://{}", self.peer), e)),
-            };
-            let reply = &self.rx[..got];
-            if is_reply_to(tx, reply) {
-                return copy_reply(reply, rx);
-            }
+            Err(e) => Err(Error::io(format!("receiving from udp://{}", self.peer), e)),
         }
     }
 
     fn describe(&self) -> String {
         format!("udp://{}", self.peer)
+    }
+
+    fn awaited(&self) -> &'static str {
+        "a frame to come back over UDP"
     }
 }
 
@@ -81,6 +77,7 @@ impl Link for Udp {
 mod tests {
     use super::*;
     use crate::frame::{Command, FrameBuilder};
+    use std::time::Duration;
 
     fn request(index: u8) -> Vec<u8> {
         let mut buf = [0u8; 64];

@@ -27,9 +27,12 @@
 //! Layout of the logical address space: every slave's outputs one after the other from
 //! address 0, then every slave's inputs.
 
+use std::time::Instant;
+
 use crate::al::AlState;
 use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::frame::{self, Command, FrameBuilder, Slot};
+use crate::link::{copy_reply, is_reply_to};
 use crate::master::mapping::Mapping;
 use crate::master::state::AlStatus;
 use crate::master::{Master, Slave};
@@ -84,6 +87,41 @@ pub struct ProcessImage {
     /// One per slave; read only while `supervised`.
     watch: Vec<SlaveWatch>,
     supervised: bool,
+    frame: CyclicFrame,
+}
+
+/// The cyclic frame's buffers, and the frame on its way back when one is.
+#[derive(Clone, Debug)]
+pub struct CyclicFrame {
+    tx: Box<[u8; frame::MAX_PAYLOAD_LEN]>,
+    rx: Box<[u8; frame::MAX_PAYLOAD_LEN]>,
+    in_flight: Option<InFlight>,
+}
+
+/// A cyclic frame sent and not yet received: where its datagrams are and how to judge it.
+#[derive(Clone, Copy, Debug)]
+struct InFlight {
+    /// Its bytes in `tx`.
+    len: usize,
+    lrw: Slot,
+    /// The FRMW of the system time and the FPRD of one slave's system-time difference.
+    clock: Option<(Slot, Slot)>,
+    watch: Option<Watch>,
+    /// Whether a wrong working counter is counted and raised (see [`Master::cycle`]).
+    judge: bool,
+    sent: Instant,
+    /// Its return's length in `rx`, once the exchange of another frame met it on the way.
+    returned: Option<usize>,
+}
+
+impl CyclicFrame {
+    /// Keeps `back` in `rx` when it is the return of the frame on its way and none was kept.
+    pub(super) fn keep(&mut self, back: &[u8]) {
+        let Some(flight) = self.in_flight.as_mut().filter(|f| f.returned.is_none()) else { return };
+        if is_reply_to(&self.tx[..flight.len], back) {
+            flight.returned = copy_reply(back, &mut self.rx[..]).ok();
+        }
+    }
 }
 
 impl ProcessImage {
@@ -115,7 +153,17 @@ impl ProcessImage {
             expected_wkc,
             watch: vec![unseen; lens.len()],
             supervised: false,
+            frame: CyclicFrame {
+                tx: Box::new([0; frame::MAX_PAYLOAD_LEN]),
+                rx: Box::new([0; frame::MAX_PAYLOAD_LEN]),
+                in_flight: None,
+            },
         })
+    }
+
+    /// The cyclic frame, for the exchanges of other frames to keep its return.
+    pub(super) fn frame_mut(&mut self) -> &mut CyclicFrame {
+        &mut self.frame
     }
 
     /// The working counter the LRW should come back with: 2 per slave that takes outputs, 1
@@ -203,18 +251,42 @@ impl Master {
         self.cycle(true)
     }
 
+    /// The first half of [`exchange`](Self::exchange): sends the cyclic frame with the outputs
+    /// and returns without waiting for it. [`receive_process_data`](Self::receive_process_data)
+    /// takes its return later, up to the frame time-out after it was sent: a cycle that sends
+    /// at one wake-up and receives at the next never waits for the round trip. Other frames
+    /// may go and come meanwhile (mailbox, registers); their exchanges keep the cyclic frame's
+    /// return for it. One cyclic frame is on its way at a time.
+    pub fn send_process_data(&mut self) -> Result<()> {
+        self.send_cycle(true)
+    }
+
+    /// The second half of [`exchange`](Self::exchange): takes the return of the frame
+    /// [`send_process_data`](Self::send_process_data) sent, waiting for it until the frame
+    /// time-out after it was sent, and returns the LRW's working counter as `exchange` does.
+    pub fn receive_process_data(&mut self) -> Result<u16> {
+        self.receive_cycle()
+    }
+
     /// One cycle; with `judge` a wrong working counter is counted and raised, without it (while
     /// the slaves change state) it is only returned. Inputs are taken only from a good cycle.
     pub(crate) fn cycle(&mut self, judge: bool) -> Result<u16> {
+        self.send_cycle(judge)?;
+        self.receive_cycle()
+    }
+
+    fn send_cycle(&mut self, judge: bool) -> Result<()> {
         // The field itself, not image(): the frame index is updated while the image is read.
-        let Some(image) = self.process.as_ref() else {
+        let Some(image) = self.process.as_mut() else {
             return Err(no_image());
         };
+        if image.frame.in_flight.is_some() {
+            return Err(Unavailable::CyclicFrameInFlight.into());
+        }
         let index = self.index.wrapping_add(1);
         self.index = index;
         let out_len = image.outputs.len();
-        let expected = image.expected_wkc;
-        let mut builder = FrameBuilder::new(&mut self.tx[..]);
+        let mut builder = FrameBuilder::new(&mut image.frame.tx[..]);
         let lrw = builder.push_zeroed(Command::Lrw, index, 0, 0, out_len + image.inputs.len())?;
         builder.bytes_mut()[lrw.data_offset..lrw.data_offset + out_len].copy_from_slice(&image.outputs);
         let clock: Option<(Slot, Slot)> = match &self.clock {
@@ -236,38 +308,63 @@ impl Master {
         };
         let len = builder.finish();
         self.stats.cycles += 1;
-        let n = self.send_frame(len)?;
-        match watch {
-            Some(Watch::Each(first)) => {
-                if let Some(image) = self.process.as_mut() {
-                    read_watch(&mut image.watch, first, &self.rx[..n])?;
+        self.stats.frames += 1;
+        self.link.send(&image.frame.tx[..len])?;
+        image.frame.in_flight = Some(InFlight { len, lrw, clock, watch, judge, sent: Instant::now(), returned: None });
+        Ok(())
+    }
+
+    fn receive_cycle(&mut self) -> Result<u16> {
+        let Some(image) = self.process.as_mut() else {
+            return Err(no_image());
+        };
+        let frame = &mut image.frame;
+        let flight = frame.in_flight.take().ok_or(Unavailable::NoCyclicFrameInFlight)?;
+        let n = match flight.returned {
+            Some(n) => n,
+            None => loop {
+                match self.link.receive(&mut frame.rx[..], flight.sent + self.timeout)? {
+                    Some(n) if is_reply_to(&frame.tx[..flight.len], &frame.rx[..n]) => break n,
+                    // An earlier frame's late return.
+                    Some(_) => {}
+                    None => {
+                        self.stats.lost_frames += 1;
+                        return Err(Error::Timeout { what: self.link.awaited().into() });
+                    }
                 }
+            },
+        };
+        let changed = match flight.watch {
+            Some(Watch::Each(first)) => {
+                read_watch(&mut image.watch, first, &frame.rx[..n])?;
+                false
             }
-            Some(Watch::Whole { al, sm1, common })
-                if !unchanged(al, sm1, common, self.slaves.len(), &self.rx[..n])? =>
-            {
-                self.watch_each(judge)?
-            }
-            _ => {}
+            Some(Watch::Whole { al, sm1, common }) => !unchanged(al, sm1, common, self.slaves.len(), &frame.rx[..n])?,
+            None => false,
+        };
+        if changed {
+            self.watch_each(flight.judge)?;
         }
-        let reply = &self.rx[..n];
+        let image = self.process.as_mut().ok_or_else(no_image)?;
+        let reply = &image.frame.rx[..n];
+        let (lrw, out_len, expected) = (flight.lrw, image.outputs.len(), image.expected_wkc);
         let wkc = lrw.wkc(reply)?;
         let mut clock_time = None;
-        if let (Some((slot, difference)), Some(c)) = (clock, self.clock.as_mut()) {
+        if let (Some((slot, difference)), Some(c)) = (flight.clock, self.clock.as_mut()) {
             let data = slot.data(reply)?;
             clock_time = Some((u64::from_le_bytes(data.try_into().expect("8 bytes")), slot.wkc(reply)?));
             read_difference(c, difference, reply)?;
         }
+        let data = &reply[lrw.data_offset + out_len..lrw.data_offset + lrw.len];
         if wkc != expected {
-            if !judge {
+            if !flight.judge {
                 return Ok(wkc);
             }
             self.stats.wkc_errors += 1;
             // A slave that answered its supervision reads in SafeOp or Op took the LRW in the
             // same frame: its inputs are good though another slave's are not (one that is
             // gone or being restored), so the slaves still there go on with fresh inputs.
-            let data = &self.rx[lrw.data_offset + out_len..lrw.data_offset + lrw.len];
-            if let Some(image) = self.process.as_mut().filter(|i| i.supervised) {
+            if image.supervised {
                 for (slot, watch) in image.slots.iter().zip(&image.watch) {
                     let exchanged = matches!(watch.al_status.state(), Some(AlState::SafeOp | AlState::Op));
                     if let (Some(slot), true) = (slot, watch.answered && exchanged) {
@@ -278,13 +375,10 @@ impl Master {
             }
             return Err(Error::WorkingCounter { what: "the cyclic LRW".into(), expected, got: wkc });
         }
-        let data = &self.rx[lrw.data_offset + out_len..lrw.data_offset + lrw.len];
-        if let Some(image) = self.process.as_mut() {
-            image.inputs.copy_from_slice(data);
-        }
+        image.inputs.copy_from_slice(data);
         if let (Some((time, clock_wkc)), Some(c)) = (clock_time, self.clock.as_mut()) {
             c.system_time = time;
-            if judge && clock_wkc != c.expected_wkc {
+            if flight.judge && clock_wkc != c.expected_wkc {
                 self.stats.wkc_errors += 1;
                 let expected = c.expected_wkc;
                 return Err(Error::WorkingCounter {
@@ -319,7 +413,7 @@ const AL_STATUS_LEN: usize = 6;
 const DATAGRAM_OVERHEAD: usize = frame::DATAGRAM_HEADER_LEN + frame::WKC_LEN;
 
 /// How the cyclic frame reads what it supervises.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 enum Watch {
     /// Every slave's AL status and SM1 status, its own two reads from the first slot on.
     Each(Slot),

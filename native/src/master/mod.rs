@@ -99,16 +99,22 @@ impl Slave {
 }
 
 /// Sends `tx` on `link` and returns the length of its return in `rx`; counts the frame in
-/// `stats`, and counts it lost when it does not come back.
+/// `stats`, and counts it lost when it does not come back. The return of the cyclic frame on its
+/// way back meanwhile, if one is, is kept in `cyclic` for
+/// [`receive_process_data`](Master::receive_process_data).
 fn counted_exchange(
     link: &mut dyn Link,
     stats: &mut Stats,
-    tx: &[u8],
-    rx: &mut [u8],
+    (tx, rx): (&[u8], &mut [u8]),
     timeout: Duration,
+    cyclic: Option<&mut cyclic::CyclicFrame>,
 ) -> Result<usize> {
     stats.frames += 1;
-    link.exchange(tx, rx, timeout).inspect_err(|e| {
+    let result = match cyclic {
+        Some(cyclic) => crate::link::exchange_beside(link, tx, rx, timeout, |back| cyclic.keep(back)),
+        None => link.exchange(tx, rx, timeout),
+    };
+    result.inspect_err(|e| {
         if matches!(e, Error::Timeout { .. }) {
             stats.lost_frames += 1;
         }
@@ -184,13 +190,15 @@ impl Master {
     /// Sends the frame of `len` bytes in `tx` and returns the length of its return in `rx`.
     /// Counts the frame, and counts it lost when it does not come back.
     fn send_frame(&mut self, len: usize) -> Result<usize> {
-        counted_exchange(&mut *self.link, &mut self.stats, &self.tx[..len], &mut self.rx[..], self.timeout)
+        let cyclic = self.process.as_mut().map(cyclic::ProcessImage::frame_mut);
+        counted_exchange(&mut *self.link, &mut self.stats, (&self.tx[..len], &mut self.rx[..]), self.timeout, cyclic)
     }
 
     /// As [`send_frame`](Self::send_frame), with the return in `rx`: for a second frame of a
     /// cycle while the first one's return in `self.rx` is still being read.
     pub(super) fn send_frame_into(&mut self, len: usize, rx: &mut [u8]) -> Result<usize> {
-        counted_exchange(&mut *self.link, &mut self.stats, &self.tx[..len], rx, self.timeout)
+        let cyclic = self.process.as_mut().map(cyclic::ProcessImage::frame_mut);
+        counted_exchange(&mut *self.link, &mut self.stats, (&self.tx[..len], rx), self.timeout, cyclic)
     }
 
     /// Sends a frame built by another master of the same bus (a [`sibling`](Self::sibling)

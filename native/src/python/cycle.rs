@@ -296,9 +296,16 @@ impl PyCycle {
     /// `lock_memory` locks the process's memory, and `cpu_latency_us` (0..=1000000) holds every
     /// CPU's wake-up latency from idle while the cycle runs (PM QoS, /dev/cpu_dma_latency, as
     /// cyclictest does); what the system does not permit is listed in `warnings` and the cycle
-    /// runs without it. The master is unusable until `stop()`.
+    /// runs without it. `pipelined` sends each cycle's frame without waiting for it and takes
+    /// its return at the next wake-up: no wait for the round trip (less CPU, a lost frame costs
+    /// no time), what a cycle read published a period later. The master is unusable until
+    /// `stop()`.
     #[new]
-    #[pyo3(signature = (master, period, *, priority = None, cpu = None, lock_memory = false, cpu_latency_us = None))]
+    // One argument per keyword of the Python signature.
+    #[allow(clippy::too_many_arguments)]
+    #[pyo3(signature = (
+        master, period, *, priority = None, cpu = None, lock_memory = false, cpu_latency_us = None, pipelined = false
+    ))]
     fn new(
         py: Python<'_>,
         master: Py<PyMaster>,
@@ -307,11 +314,12 @@ impl PyCycle {
         cpu: Option<usize>,
         lock_memory: bool,
         cpu_latency_us: Option<i64>,
+        pipelined: bool,
     ) -> PyResult<Self> {
         let period = Duration::try_from_secs_f64(period)
             .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
         let cpu_latency_us = cpu_latency_us.map(crate::cycle::rt::cpu_latency).transpose().map_err(super::to_py_err)?;
-        let config = Config { period, priority, cpu, lock_memory, cpu_latency_us };
+        let config = Config { period, priority, cpu, lock_memory, cpu_latency_us, pipelined };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
             Ok(cycle) => Ok(PyCycle { master, cycle }),

@@ -447,6 +447,20 @@ impl PyMaster {
         self.with_master(py, |m| m.exchange())
     }
 
+    /// The first half of `exchange`: sends the cyclic frame and returns without waiting for it;
+    /// `receive_process_data` takes its return later (other calls may go between). Raises
+    /// ConfigError while the last one's return was not taken.
+    fn send_process_data(&self, py: Python<'_>) -> PyResult<()> {
+        self.with_master(py, |m| m.send_process_data())
+    }
+
+    /// The second half of `exchange`: takes the return of the frame `send_process_data` sent,
+    /// waiting for it up to the frame time-out after it was sent; returns the working counter
+    /// as `exchange` does. Raises ConfigError when no frame was sent.
+    fn receive_process_data(&self, py: Python<'_>) -> PyResult<u16> {
+        self.with_master(py, |m| m.receive_process_data())
+    }
+
     /// Adds (True) or removes (False) the reads of every slave's AL status and mailbox status
     /// that a Cycle's frame carries to each `exchange`, to supervise the bus from a loop of
     /// one's own (`watch`); raises ConfigError when they would not fit in the frame.

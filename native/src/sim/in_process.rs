@@ -5,10 +5,10 @@
 //! not among the links, so that the link layer knows only frames and the simulator serves them
 //! through the same [`Link`] trait as any other line.
 
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
-use crate::error::{Error, Result};
-use crate::link::{copy_reply, is_reply_to, Link};
+use crate::error::Result;
+use crate::link::{Link, Returns};
 use crate::sim::control::{ControlledBus, SimControl};
 use crate::sim::line::Delivery;
 use crate::sim::VirtualBus;
@@ -17,6 +17,7 @@ use crate::sim::VirtualBus;
 pub struct InProcess {
     bus: ControlledBus,
     start: Instant,
+    returns: Returns,
 }
 
 impl InProcess {
@@ -27,7 +28,7 @@ impl InProcess {
 
     /// A link to an existing bus (for tests that prepare or inspect it).
     pub fn with_bus(bus: VirtualBus) -> Self {
-        InProcess { bus: ControlledBus::from(bus), start: Instant::now() }
+        InProcess { bus: ControlledBus::from(bus), start: Instant::now(), returns: Returns::default() }
     }
 
     /// The bus behind the link.
@@ -47,20 +48,25 @@ impl InProcess {
 }
 
 impl Link for InProcess {
-    fn exchange(&mut self, tx: &[u8], rx: &mut [u8], _timeout: Duration) -> Result<usize> {
-        let len = copy_reply(tx, rx)?;
+    fn send(&mut self, tx: &[u8]) -> Result<()> {
         // Monotonic time since the link opened: the bus's clocks run from there.
         let now_ns = self.start.elapsed().as_nanos() as u64;
-        // As the UDP and raw links do, a reply that is not the frame sent (a corrupted one) is
-        // dropped, and so the frame is lost. Neither is waited out: the link knows at once, and
-        // the drives' time runs on anyway.
-        match self.bus.process(&mut rx[..len], now_ns)? {
-            Delivery::Returned if is_reply_to(tx, &rx[..len]) => Ok(len),
-            _ => Err(Error::Timeout { what: "a frame to come back from the virtual AKDs (lost on the line)".into() }),
-        }
+        let bus = &mut self.bus;
+        // The drives serve the frame as it passes; its return waits to be received. A frame
+        // lost on the line is not waited out: nothing is there to receive, and the drives'
+        // time runs on anyway.
+        self.returns.serve(tx, |frame| Ok(bus.process(frame, now_ns)? == Delivery::Returned))
+    }
+
+    fn receive(&mut self, rx: &mut [u8], _deadline: Instant) -> Result<Option<usize>> {
+        self.returns.take(rx)
     }
 
     fn describe(&self) -> String {
         format!("sim:{}", self.bus.bus().len())
+    }
+
+    fn awaited(&self) -> &'static str {
+        "a frame to come back from the virtual AKDs (lost on the line)"
     }
 }
