@@ -139,6 +139,7 @@ class Bus:
         cpu: int | None = None,
         lock_memory: bool = False,
         cpu_latency_us: int | None = None,
+        pipelined: bool = False,
         request_timeout: float = 1.0,
         frame_timeout: float = 0.1,
         fault_reaction: str = "all",
@@ -184,6 +185,7 @@ class Bus:
                 cpu=cpu,
                 lock_memory=lock_memory,
                 cpu_latency_us=cpu_latency_us,
+                pipelined=pipelined,
             )
         except BaseException:
             self._master.close()

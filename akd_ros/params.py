@@ -320,6 +320,14 @@ SCHEMA: tuple[Spec, ...] = (
         1_000_000,
     ),
     Spec(
+        "rt.pipelined",
+        False,
+        "Send each cycle's frame without waiting for it and take its return at the next wake-up, as IgH's and "
+        "TwinCAT's cycles do: the cycle never waits for the round trip (less CPU, no busy poll needed, a lost frame "
+        "costs no time) and writes its outputs from inputs as old as when waiting; what it reads (joint states, "
+        "status) is published one cycle_time later.",
+    ),
+    Spec(
         "record.enabled",
         False,
         "Record the node's topics, its commands and every cycle to a rosbag2 bag (MCAP), from configure to cleanup.",
@@ -423,6 +431,7 @@ class Settings:
     rt_cpu: int | None
     rt_lock_memory: bool
     rt_cpu_latency_us: int | None
+    rt_pipelined: bool
     record: dict[str, object] | None
     """The Recorder's folder, decimation and black_box_seconds; None when recording is off."""
     autostart: bool
@@ -667,6 +676,7 @@ def settings(values: dict[str, object]) -> Settings:
         rt_cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
         rt_lock_memory=top["rt.lock_memory"],
         rt_cpu_latency_us=None if top["rt.cpu_latency_us"] < 0 else top["rt.cpu_latency_us"],
+        rt_pipelined=top["rt.pipelined"],
         record={
             "folder": top["record.folder"],
             "decimation": top["record.decimation"],

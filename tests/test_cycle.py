@@ -59,9 +59,10 @@ def busy_work(stop: threading.Event) -> int:
     return n
 
 
-def test_2000_cycles_with_python_busy_reach_the_drive(master):
+@pytest.mark.parametrize("pipelined", [False, True], ids=["waiting", "pipelined"])
+def test_2000_cycles_with_python_busy_reach_the_drive(master, pipelined):
     expected_wkc = master.expected_wkc
-    with _native.Cycle(master, 0.001) as cycle:
+    with _native.Cycle(master, 0.001, pipelined=pipelined) as cycle:
         assert cycle.running and cycle.period == pytest.approx(0.001)
         stop = threading.Event()
         workers = [threading.Thread(target=busy_work, args=(stop,)) for _ in range(2)]

@@ -121,6 +121,22 @@ def test_outputs_reach_the_drive_and_inputs_come_from_it(master):
     assert master.inputs(0)[4:6] == master.sdo_read(0, 0x6041, 0)
 
 
+def test_process_data_sent_now_and_taken_later_with_sdo_between(master):
+    master.request_state("op")
+    with pytest.raises(_native.ConfigError, match="no cyclic frame is on its way: send one with send_process_data"):
+        master.receive_process_data()
+    master.set_outputs(0, (7).to_bytes(4, "little", signed=True) + (0x0006).to_bytes(2, "little"))
+    master.send_process_data()
+    for call in (master.send_process_data, master.exchange):
+        with pytest.raises(_native.ConfigError, match="already on its way: take its return with receive_process_data"):
+            call()
+    # The SDO's frames meet the cyclic frame's return on their way and keep it for its receive.
+    assert master.sdo_read(0, 0x60C1, 1) == (7).to_bytes(4, "little", signed=True)
+    assert master.receive_process_data() == 3
+    assert master.stats()["lost_frames"] == 0
+    assert master.exchange() == 3
+
+
 def test_flexible_mapping(master):
     master.request_state("preop")
     master.configure_pdo(0, [[0x60400010, 0x607A0020]], [[0x60410010, 0x60640020]])

@@ -152,9 +152,11 @@ def test_the_real_six_axis_template_names_only_joint_parameters_in_its_blocks():
     assert settings.joints[2].units.direction == -1 and settings.joints[5].latch_arm == ((1, "rising"),)
 
 
-def test_cyclic_synchronous_position_with_fixed_mappings_and_whole_numbers_for_reals(tmp_path):
+def test_cyclic_synchronous_position_with_fixed_mappings_and_whole_numbers_for_reals_pipelined(tmp_path):
     path = params_file(
-        tmp_path, "mode: cyclic_synchronous_position\nmapping: 0x1724/0x1B26\ngear_ratio: 2\nenable_on_start: true"
+        tmp_path,
+        "mode: cyclic_synchronous_position\nmapping: 0x1724/0x1B26\ngear_ratio: 2\nenable_on_start: true\n"
+        "rt.pipelined: true",
     )
     status, output = run_until_configured(path, signal.SIGTERM)
     assert status == 0, output
@@ -171,6 +173,8 @@ def test_the_real_drive_template_names_only_known_parameters_with_good_values():
     (joint,) = settings.joints
     assert (settings.rt_priority, settings.rt_cpu, joint.limits.max_velocity) == (80, 1, 50.0)
     assert settings.rt_cpu_latency_us == 0
+    assert settings.rt_pipelined is False
+    assert params.settings({**values, "rt.pipelined": True}).rt_pipelined is True
     assert params.settings({**values, "rt.cpu_latency_us": -1}).rt_cpu_latency_us is None
     assert math.isinf(template["limits.max_position"]) and joint.limits.max_position is None
 

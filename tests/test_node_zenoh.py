@@ -106,14 +106,15 @@ def output(node) -> str:
     return "".join(node[2])
 
 
-def entities(peer) -> list[Entity]:
-    """The entities of the graph's liveliness tokens, once the node's own and its joint_states publisher are among
-    them (a query may reach the router before every token the node declared)."""
+def entities(peer, *more: tuple[EntityKind, str]) -> list[Entity]:
+    """The entities of the graph's liveliness tokens, once the node's own, its joint_states publisher and the `more`
+    (kind, topic or service name) are among them: a query may reach the router before every token the node
+    declared."""
 
     def listed():
         found = [Entity.parse(k) for k in liveliness_keys(peer, DOMAIN)]
         kinds = {(e.kind, e.topic.name if e.topic else e.node.name) for e in found}
-        wanted = {(EntityKind.NODE, "akd_node"), (EntityKind.PUBLISHER, "/joint_states")}
+        wanted = {(EntityKind.NODE, "akd_node"), (EntityKind.PUBLISHER, "/joint_states"), *more}
         return found if wanted <= kinds else None
 
     return wait_for("the node's liveliness tokens", listed, WAIT_S, 0.2)
@@ -151,7 +152,13 @@ def test_every_sample_carries_rmw_zenohs_attachment(node, peer):
 
 
 def test_the_liveliness_tokens_name_the_node_its_topics_types_and_qos(node, peer, types):
-    found = entities(peer)
+    asserted = [
+        (EntityKind.SUBSCRIPTION, "/akd_node/joint_commands"),
+        (EntityKind.PUBLISHER, "/akd_node/joint_1/status"),
+        (EntityKind.SERVICE, "/akd_node/enable"),
+        (EntityKind.SERVICE, "/akd_node/joint_2/set_mode"),
+    ]
+    found = entities(peer, *asserted)
     (node_token,) = [e for e in found if e.kind is EntityKind.NODE]
     assert (node_token.node.name, node_token.node.namespace) == ("akd_node", "/")
     topics = {(e.kind, e.topic.name): e.topic for e in found if e.topic is not None}
@@ -159,11 +166,7 @@ def test_the_liveliness_tokens_name_the_node_its_topics_types_and_qos(node, peer
     assert (joint_states.dds_type, joint_states.type_hash) == (dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
     assert joint_states.qos.depth == 10
     assert topics[EntityKind.SUBSCRIPTION, "/akd_node/joint_commands"].qos.depth == 100
-    assert (EntityKind.PUBLISHER, "/akd_node/joint_1/status") in topics
-    assert (EntityKind.SERVICE, "/akd_node/enable") in topics and (
-        EntityKind.SERVICE,
-        "/akd_node/joint_2/set_mode",
-    ) in topics
+    assert all(entity in topics for entity in asserted)
 
 
 def call(peer, types, name: str, sequence_number: int, gid: bytes):

@@ -106,6 +106,7 @@ class Core:
                 cpu=s.rt_cpu,
                 lock_memory=s.rt_lock_memory,
                 cpu_latency_us=s.rt_cpu_latency_us,
+                pipelined=s.rt_pipelined,
                 fault_reaction=s.fault_reaction,
                 dc=s.dc,
                 dc_shift=s.dc_shift,
