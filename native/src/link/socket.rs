@@ -1,7 +1,7 @@
-//! Taking a datagram from a socket by an exact deadline: ppoll(2) waits to the nanosecond,
-//! where a read time-out (SO_RCVTIMEO) counts in scheduler ticks, up to 4 ms, so that a lost
-//! frame costs a cycle one period and not several, and a deadline already past still takes
-//! what is there.
+//! Taking a datagram from a socket without waiting, or by an exact deadline: ppoll(2) waits to
+//! the nanosecond, where a read time-out (SO_RCVTIMEO) counts in scheduler ticks, up to 4 ms, so
+//! that a lost frame costs a cycle one period and not several; a deadline already past still
+//! takes what is there.
 
 use std::io;
 use std::os::fd::{AsRawFd, BorrowedFd};

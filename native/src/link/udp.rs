@@ -53,14 +53,30 @@ impl Link for Udp {
         Ok(())
     }
 
+    /// Waits with a read time-out, as a link to a simulator may: it counts in scheduler ticks, so
+    /// a reply the loaded host delays past `deadline` is still waited for, up to a tick (4 ms),
+    /// rather than lost. A deadline already past takes what is there without waiting (a pipelined
+    /// cycle asks for its frame a period after it sent it).
     fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
-        match socket::recv_until(self.socket.as_fd(), &mut self.rx, deadline) {
-            Ok(got) => got.map(|got| copy_reply(&self.rx[..got], rx)).transpose(),
-            // A simulator not (yet) listening answers with ICMP port unreachable.
-            Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
-                Err(Error::io(format!("udp://{}: no simulator listening", self.peer), e))
-            }
-            Err(e) => Err(Error::io(format!("receiving from udp://{}", self.peer), e)),
+        loop {
+            let left = deadline.saturating_duration_since(Instant::now());
+            let got = if left.is_zero() {
+                socket::recv_now(self.socket.as_fd(), &mut self.rx)
+            } else {
+                self.socket.set_read_timeout(Some(left)).map_err(|e| Error::io("setting the UDP read time-out", e))?;
+                match self.socket.recv(&mut self.rx) {
+                    Err(e) if matches!(e.kind(), io::ErrorKind::WouldBlock | io::ErrorKind::TimedOut) => continue,
+                    got => got.map(Some),
+                }
+            };
+            return match got {
+                Ok(got) => got.map(|got| copy_reply(&self.rx[..got], rx)).transpose(),
+                // A simulator not (yet) listening answers with ICMP port unreachable.
+                Err(e) if e.kind() == io::ErrorKind::ConnectionRefused => {
+                    Err(Error::io(format!("udp://{}: no simulator listening", self.peer), e))
+                }
+                Err(e) => Err(Error::io(format!("receiving from udp://{}", self.peer), e)),
+            };
         }
     }
 
@@ -114,6 +130,23 @@ mod tests {
         let mut rx = [0u8; 1500];
         let err = link.exchange(&request(1), &mut rx, Duration::from_millis(20)).unwrap_err();
         assert!(matches!(err, Error::Timeout { .. }), "{err}");
+    }
+
+    #[test]
+    fn a_return_already_there_is_taken_though_its_deadline_passed() {
+        // As a pipelined cycle asks for its frame a period after sending it.
+        let server = UdpSocket::bind("127.0.0.1:0").unwrap();
+        let mut link = Udp::connect(&server.local_addr().unwrap().to_string()).unwrap();
+        link.send(&request(9)).unwrap();
+        let mut buf = [0u8; 1500];
+        let (n, from) = server.recv_from(&mut buf).unwrap();
+        server.send_to(&buf[..n], from).unwrap();
+        std::thread::sleep(Duration::from_millis(50));
+        let mut rx = [0u8; 1500];
+        let past = Instant::now() - Duration::from_millis(10);
+        assert_eq!(link.receive(&mut rx, past).unwrap(), Some(n));
+        assert_eq!(rx[3], 9);
+        assert_eq!(link.receive(&mut rx, past).unwrap(), None);
     }
 
     #[test]
