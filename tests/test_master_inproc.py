@@ -127,7 +127,7 @@ def test_process_data_sent_now_and_taken_later_with_sdo_between(master):
         master.receive_process_data()
     master.set_outputs(0, (7).to_bytes(4, "little", signed=True) + (0x0006).to_bytes(2, "little"))
     master.send_process_data()
-    for call in (master.send_process_data, master.exchange):
+    for call in (master.send_process_data, master.exchange, lambda: _native.Cycle(master, 0.001)):
         with pytest.raises(_native.ConfigError, match="already on its way: take its return with receive_process_data"):
             call()
     # The SDO's frames meet the cyclic frame's return on their way and keep it for its receive.

@@ -240,6 +240,9 @@ impl CycleThread {
     pub fn start(mut master: Master, config: Config) -> std::result::Result<CycleThread, Box<(Error, Master)>> {
         let checked = timing::period_ns(config.period).and_then(|period_ns| {
             rt::check(config.priority, config.cpu)?;
+            if master.cyclic_frame_in_flight() {
+                return Err(Unavailable::CyclicFrameInFlight.into());
+            }
             let outputs = master.output_image()?.to_vec();
             let inputs_len = master.input_image()?.len();
             Ok((period_ns, outputs, inputs_len))
@@ -929,14 +932,10 @@ struct Sent {
 /// The loop. Everything it touches was allocated before it starts.
 ///
 /// Each cycle wakes at its deadline, lets the trajectory, the sequencer and the latches write
-/// the outputs from the last inputs, sends the frame, and judges its return: it supervises the
-/// drives, records the cycle and publishes the snapshot; then one mailbox or recovery frame may
-/// go beside it. Waiting (the default), the cycle waits for the frame's return after sending it.
-/// `pipelined`, it does not wait: it takes the return at the next wake-up, before anything
-/// else, and judges it there. The outputs are then written from inputs as old as when waiting
-/// (the last return), the frame still leaves right after the wake-up, and the round trip costs
-/// the cycle neither time nor CPU: a lost frame no longer holds it for up to a period. What a
-/// cycle read is published a period later, at the next wake-up.
+/// the outputs from the last inputs, sends the frame and judges its return (supervises the
+/// drives, records the cycle, publishes the snapshot): right after sending it, or `pipelined`
+/// at the next wake-up, before anything else; then one mailbox or recovery frame may go beside
+/// it.
 fn run(
     l: &mut Loop<'_>,
     (mailbox, relay_buffers): (&mut MailboxService, &mut recovery::RelayBuffers),

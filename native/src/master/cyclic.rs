@@ -268,6 +268,11 @@ impl Master {
         self.receive_cycle()
     }
 
+    /// Whether a cyclic frame is on its way, sent and its return not yet taken.
+    pub fn cyclic_frame_in_flight(&self) -> bool {
+        self.process.as_ref().is_some_and(|image| image.frame.in_flight.is_some())
+    }
+
     /// One cycle; with `judge` a wrong working counter is counted and raised, without it (while
     /// the slaves change state) it is only returned. Inputs are taken only from a good cycle.
     pub(crate) fn cycle(&mut self, judge: bool) -> Result<u16> {
