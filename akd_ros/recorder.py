@@ -494,8 +494,8 @@ class Recorder:
         self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
         self._black_box_ns = int(black_box_seconds * 1e9)
-        # Serial numbers of the records in the ring that a fault wrote already (writer thread only).
-        self._dumped: set[int] = set()
+        # The records a fault wrote already, as runs of serial numbers [first, end), in order (writer thread only).
+        self._dumped: list[tuple[int, int]] = []
         self._cycle_count = 0
         self._lock = threading.Lock()
         self._stats_lock = threading.Lock()
@@ -715,15 +715,7 @@ class Recorder:
             self._save_metadata()
         elif item[0] == "black_box":
             _, ring, fault_ns = item
-            oldest = fault_ns - self._black_box_ns
-            # Faults may come out of time order (an emergency before the Fault state seen in an
-            # earlier cycle): each writes its whole window but no record written before.
-            if ring:
-                self._dumped = {n for n in self._dumped if n >= ring[0][0]}
-            for serial, time_ns, data in ring:
-                if oldest < time_ns <= fault_ns and serial not in self._dumped:
-                    self._add_records(self._black_box_topic, [(time_ns, data)])
-                    self._dumped.add(serial)
+            self._add_records(self._black_box_topic, self._black_box(ring, fault_ns))
             self.stats.black_box_dumps += 1
             self._flush(sync=True)
         elif item[0] == "cycle":
@@ -731,6 +723,33 @@ class Recorder:
         else:
             topic, msg, time_ns = item
             self._add_records(topic, [(time_ns, self._topics[topic].msg_type.serialize(msg))])
+
+    def _black_box(self, ring: list[tuple[int, int, bytes]], fault_ns: int) -> list[tuple[int, bytes]]:
+        """The records (time ns, data) of `ring` within black_box_seconds up to fault_ns that no fault wrote before.
+
+        Faults may come out of time order (an emergency before the Fault state seen in an earlier cycle): each writes
+        its whole window but no record written before. The ring holds consecutive serial numbers in cycle order, so
+        its window and what was written are runs found by bisection, and a fault costs the records it writes, not the
+        ring: on a host that loses a frame now and then, every such gap is a fault."""
+        if not ring:
+            return []
+        first = ring[0][0]
+        self._dumped = [(start, end) for start, end in self._dumped if end > first]
+        time_of = operator.itemgetter(1)
+        window = (
+            bisect.bisect_right(ring, fault_ns - self._black_box_ns, key=time_of) + first,
+            bisect.bisect_right(ring, fault_ns, key=time_of) + first,
+        )
+        taken, at = [], window[0]
+        for start, end in [*self._dumped, (window[1], window[1])]:
+            if end <= at:
+                continue
+            taken.extend(ring[at - first : min(start, window[1]) - first])
+            at = max(at, end)
+            if at >= window[1]:
+                break
+        self._dumped = _merged([*self._dumped, window])
+        return [(time_ns, data) for _, time_ns, data in taken]
 
     def _add_records(self, topic: str, records: list[tuple[int, bytes]]) -> None:
         """Writes `records` (time ns, data) of `topic`, in time order, into a new file where they reach the split
@@ -787,6 +806,17 @@ class Recorder:
         self._guarded(self._file.close, self._metadata())
         if not self._failed:
             self._guarded(self._save_metadata)
+
+
+def _merged(runs: list[tuple[int, int]]) -> list[tuple[int, int]]:
+    """Runs [first, end) of serial numbers, sorted, overlapping and touching ones joined."""
+    merged: list[tuple[int, int]] = []
+    for start, end in sorted(run for run in runs if run[0] < run[1]):
+        if merged and start <= merged[-1][1]:
+            merged[-1] = (merged[-1][0], max(merged[-1][1], end))
+        else:
+            merged.append((start, end))
+    return merged
 
 
 def _messages_in(item: Any) -> int:
