@@ -16,6 +16,12 @@ default sleeps at once; and, on each link, the node's own loop, a `Cycle` thread
 native pacing, the supervised frame and the drives' state machines, its round trips from its
 exchange histogram and its CPU from the thread's schedstat.
 
+`+pipelined` rows send each cycle's frame and take its return at the next wake-up instead of
+waiting for it (`Master.send_process_data` / `receive_process_data`; the Cycle's `pipelined=True`),
+on the default link: they wait for no round trip, so they have none to show, only their CPU.
+`SOEM+pipelined` is SOEM used the same way (`send_processdata` now, `receive_processdata` at the
+next wake-up), to show what the pattern gives any master.
+
 akd-sim runs `--busy-poll` on the last CPU under the normal scheduler, and every master on the
 other CPUs: a real AKD's ESC answers in hardware as the frame passes, and a server woken by each
 frame would add the scheduler's wake-up (tens of µs on a virtual machine, the same for every
@@ -144,6 +150,21 @@ def paced(exchange, rate, cycles, warmup):
 
 def run_rates(exchange, rates, cycles, warmup):
     return {str(rate): paced(exchange, rate, cycles, warmup) for rate in rates}
+
+
+# A pipelined loop: each call takes the return of the frame the last one sent (`receive`, whether
+# it was good) and sends the next (`send`); none waits for a round trip, so none is reported.
+def run_pipelined(receive, send, rates, cycles, warmup):
+    send()
+
+    def exchange():
+        good = receive()
+        send()
+        return good
+
+    by_rate = run_rates(exchange, rates, cycles, warmup)
+    receive()
+    return {rate: {**run, "waits": False} for rate, run in by_rate.items()}
 """
 )
 
@@ -172,6 +193,16 @@ def measure_link(link, prefix):
                 return False
 
         variants = {prefix: run_rates(exchange, rates, cycles, warmup)}
+        # Sent at one wake-up, taken at the next (not in a --baseline build without the halves).
+        if not prefix and hasattr(master, "send_process_data"):
+
+            def receive():
+                try:
+                    return master.receive_process_data() == expected
+                except _native.EtherCatError:
+                    return False
+
+            variants["+pipelined"] = run_pipelined(receive, master.send_process_data, rates, cycles, warmup)
         # The frame a Cycle sends: the LRW and the reads of AL status and mailbox status (not in
         # a --baseline build older than Master.set_supervision).
         if hasattr(master, "set_supervision"):
@@ -183,18 +214,23 @@ def measure_link(link, prefix):
         master.request_state("init")
     if hasattr(_native, "Cycle"):
         variants[prefix + CYCLE] = {str(rate): cycle_thread(link, rate, cycles, warmup) for rate in rates}
+        if not prefix and "+pipelined" in variants:
+            variants["+pipelined" + CYCLE] = {
+                str(rate): cycle_thread(link, rate, cycles, warmup, pipelined=True) for rate in rates
+            }
     return found, lost, variants
 
 
 # The node's own loop on `link`: a Cycle thread, paced natively on the normal scheduler as the
 # Python loops are, its frame supervised (the +watch frame). Its round trips are the exchange
-# histogram's 1 µs buckets (upper edges) over the measured cycles, its CPU the thread's own.
-def cycle_thread(link, rate, cycles, warmup):
+# histogram's 1 µs buckets (upper edges) over the measured cycles, its CPU the thread's own;
+# `pipelined`, it waits for no round trip and its exchange histogram holds its send and receive.
+def cycle_thread(link, rate, cycles, warmup, pipelined=False):
     with _native.Master(link, timeout=TIMEOUT_S) as master:
         master.scan()
         master.request_state("preop")
         master.request_state("op")
-        cycle = _native.Cycle(master, 1 / rate)
+        cycle = _native.Cycle(master, 1 / rate, pipelined=pipelined)
         try:
             while cycle.snapshot()["cycle"] < warmup:
                 time.sleep(0.01)
@@ -211,7 +247,7 @@ def cycle_thread(link, rate, cycles, warmup):
     counted = ("lost_frames", "wkc_errors")
     return {"times_ns": times, "cpu_ns": (cpu1 - cpu0) * len(times) / (stats1["cycles"] - stats0["cycles"]),
             "exchange_cpu_ns": None, "bad_wkc": sum(stats1[k] - stats0[k] for k in counted),
-            "late": stats1["overruns"] - stats0["overruns"]}
+            "late": stats1["overruns"] - stats0["overruns"], "waits": not pipelined}
 
 
 found, lost, variants = measure_link(iface, "")
@@ -242,12 +278,17 @@ try:
         master.send_processdata()
         return master.receive_processdata(int(TIMEOUT_S * 1e6)) == expected
 
-    report = run_rates(exchange, rates, cycles, warmup)
+    report = {"": run_rates(exchange, rates, cycles, warmup)}
+
+    def receive():
+        return master.receive_processdata(int(TIMEOUT_S * 1e6)) == expected
+
+    report["+pipelined"] = run_pipelined(receive, master.send_processdata, rates, cycles, warmup)
     master.state = pysoem.INIT_STATE
     master.write_state()
 finally:
     master.close()
-print(json.dumps({"found": found, "lost": None, "variants": {"": report}, "version": pysoem.__version__}))
+print(json.dumps({"found": found, "lost": None, "variants": report, "version": pysoem.__version__}))
 """
 )
 
@@ -297,19 +338,26 @@ def percentile(sorted_ns: list[int], q: float) -> float:
 
 
 def summarise(runs: list[dict]) -> dict:
-    """Pools the runs of one master at one count and rate into the reported figures (µs)."""
+    """Pools the runs of one master at one count and rate into the reported figures (µs); a loop that
+    waits for no round trip (pipelined) has none."""
     times = sorted(t for run in runs for t in run["times_ns"])
     cycles = len(times)
     native = any(run["exchange_cpu_ns"] is None for run in runs)
+    waits = all(run.get("waits", True) for run in runs)
     cpu = sum(run["cpu_ns"] for run in runs)
     exchange_cpu = None if native else sum(run["exchange_cpu_ns"] for run in runs)
+
+    def round_trip(q: float) -> float | None:
+        return percentile(times, q) if waits else None
+
     return {
         "runs": len(runs),
         "cycles": cycles,
-        "p50_us": percentile(times, 0.5),
-        "p99_us": percentile(times, 0.99),
-        "p99.9_us": percentile(times, 0.999),
-        "max_us": times[-1] / 1000,
+        "waits": waits,
+        "p50_us": round_trip(0.5),
+        "p99_us": round_trip(0.99),
+        "p99.9_us": round_trip(0.999),
+        "max_us": times[-1] / 1000 if waits else None,
         "cpu_per_cycle_us": cpu / cycles / 1000,
         # Not for a Cycle thread: its pacing is native and its exchange's CPU not its own to read.
         "exchange_cpu_us": None if native else exchange_cpu / cycles / 1000,
@@ -317,7 +365,7 @@ def summarise(runs: list[dict]) -> dict:
         "bad_wkc": sum(run["bad_wkc"] for run in runs),
         "late": sum(run["late"] for run in runs),
         # Each run's own median: how far the machine's load moved the figures from run to run.
-        "run_p50_us": [percentile(sorted(run["times_ns"]), 0.5) for run in runs],
+        "run_p50_us": [percentile(sorted(run["times_ns"]), 0.5) for run in runs] if waits else None,
     }
 
 
@@ -400,7 +448,8 @@ def measure(args, contenders: dict[str, str]) -> tuple[dict, list[dict], list[st
             for name, reports in runs.items():
                 pooled = [r[str(rate)] for r in reports]
                 summary = summarise(pooled)
-                series[name] = histogram_us((t for run in pooled for t in run["times_ns"]), 1000)
+                if summary["waits"]:
+                    series[name] = histogram_us((t for run in pooled for t in run["times_ns"]), 1000)
                 if summary["bad_wkc"] > (CYCLE_BAD_SHARE if name.endswith(CYCLE) else BAD_SHARE) * summary["cycles"]:
                     problems.append(
                         f"{count} AKD(s) at {rate} Hz: {name} had {summary['bad_wkc']} of {summary['cycles']} "

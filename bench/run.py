@@ -10,7 +10,7 @@ those files.
 
 Sections, in the order they run (sudo or root: roundtrip's veth pair, the SCHED_FIFO priorities):
   master_cycle  cost of one cyclic exchange in-process, 1/4/16/64 AKDs, frame size (master_cycle.py)
-  roundtrip     this master, SOEM and KickCAT over one veth pair to one akd-sim (roundtrip.py --quick)
+  roundtrip     this master, SOEM and KickCAT over one veth pair to one akd-sim (roundtrip.py, 3 rounds of 2000)
   jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
   ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh (node_ros.py)
@@ -40,7 +40,8 @@ ROOT = BENCH.parent
 RESULTS = BENCH / "results"
 SECTIONS = {
     "master_cycle": (shlex.split("master_cycle.py --counts 1,4,16,64 --cycles 5000"), 120),
-    "roundtrip": (shlex.split("roundtrip.py --quick"), 300),
+    # Three rounds, not --quick's two: each master's CPU per cycle moved by ±0.2 of SOEM's between two-round runs.
+    "roundtrip": (shlex.split("roundtrip.py --rounds 3 --cycles 2000"), 450),
     "jitter": (shlex.split("cycle_jitter.py --loads idle --rates 1000,4000 --seconds 4 --rounds 4"), 240),
     "python": (
         shlex.split("cycle_jitter.py --loads idle,busy,sdo --no-cyclictest --rates 4000 --seconds 4 --rounds 4"),
