@@ -231,6 +231,19 @@ def test_a_drive_power_cycled_in_op_is_restored_with_its_power_stage_off(dc, rea
     )
 
 
+def test_a_drive_power_cycled_under_a_pipelined_cycle_is_restored_too():
+    # The restore's frames go beside a cyclic frame on its way back: each keeps the cyclic return for the next wake-up.
+    with Bus("sim:3?missed=lost", drives(3), fault_reaction="joint", pipelined=True) as bus:
+        bus.enable()
+        bus.simulator.power_cycle(1)
+        seen = faults_until(bus, has("j1", "unreachable", "recovered"), "unreachable and recovered events")
+        assert bus["j1"].recovery()["recoveries"] == 1
+        assert not any(j != "j1" for j, _ in seen), [(j, e.describe()) for j, e in seen]
+        assert [bus[j].state().state for j in ("j0", "j2")] == ["Operation enabled"] * 2
+        assert_powerless_and_still(bus, "j1")
+        enable_and_move(bus, "j1")
+
+
 def test_one_drive_of_several_vanishing_while_the_others_run():
     # As in the power-cycle row; the drive behind the pulled cable misses every frame, and faults F125 all the same.
     with Bus("sim:3?missed=lost", drives(3), fault_reaction="joint") as bus:
