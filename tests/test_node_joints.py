@@ -59,6 +59,7 @@ akd_node:
     cycle_time: {cycle_time}
     # As an integrator runs it: the cycle thread under SCHED_FIFO where permitted (else a warning).
     rt.priority: 30
+    rt.pipelined: {pipelined}
     dc: '{dc}'
     fault_reaction: {fault_reaction}
     mode: cyclic_synchronous_position
@@ -77,9 +78,12 @@ akd_node:
 """
 
 
-def params(port: int, folder: Path, *, fault_reaction: str = "all", dc: str = "off", record: bool = False) -> str:
+def params(
+    port: int, folder: Path, *, fault_reaction: str = "all", dc: str = "off", record: bool = False, pipelined=False
+) -> str:
     return PARAMS.format(
         port=port,
+        pipelined=str(pipelined).lower(),
         cycle_time=CYCLE_TIME,
         dc=dc,
         fault_reaction=fault_reaction,
@@ -188,8 +192,9 @@ def ros_domain():
 
 @pytest.fixture(scope="module")
 def robot(ros_domain, tmp_path_factory):
-    """A node of six joints with fault_reaction all and distributed clocks on."""
-    run = start(tmp_path_factory.mktemp("robot"), ros_domain, dc="on")
+    """A node of six joints with fault_reaction all, distributed clocks on and a pipelined cycle (the other nodes
+    here wait for each frame)."""
+    run = start(tmp_path_factory.mktemp("robot"), ros_domain, dc="on", pipelined=True)
     yield run
     end(run)
 
@@ -219,6 +224,7 @@ def test_with_dc_on_every_virtual_drive_runs_sync0_at_the_cycle_time_and_diagnos
     assert len(serials) == len(JOINTS), f"the virtual AKDs share serial numbers: {serials}"
     bus = {v.key: v.value for v in statuses["akd_node: bus"].values}
     assert bus["dc"] == "on (SYNC0)" and bus["joints"] == ", ".join(JOINTS) and int(bus["cycles"]) > 0, bus
+    assert bus["frames"] == "pipelined, each taken at the next wake-up", bus
 
 
 def test_each_joint_in_its_own_mode_takes_its_command_from_one_joint_commands_message(robot):
