@@ -31,7 +31,11 @@ With recording (record.enabled, record.decimation 1, every cycle in the bag) the
 
     .venv/bin/python bench/node_ros.py [--axes 1,6] [--transports rclpy,zenoh] [--cycle-time 0.00025]
         [--joint-states-rate 250] [--window 5] [--command-rate 100] [--command-seconds 3] [--priority 80]
-        [--sim-priority 70] [--attempts 3] [--json PATH]
+        [--sim-priority 70] [--attempts 3] [--pipelined-axes 6] [--json PATH]
+
+The runs without recording of --pipelined-axes are made again with rt.pipelined (the node's cycle sends each frame and
+takes its return at the next wake-up), right after the same transports' waiting runs: the node's CPU and latencies
+both ways, as ratios.
 
 The node's cycle thread runs at rt.priority 80 and akd-sim's threads at SCHED_FIFO 70: on a loaded 2-core machine
 the virtual AKDs otherwise miss more than seven frames and fault (F125). Even so the machine's other load faults some
@@ -227,13 +231,17 @@ class ZenohClient:
 
 
 @contextmanager
-def node_on_sim(folder: Path, count: int, transport: str, domain: int, endpoint: str, args, record: Path | None):
+def node_on_sim(folder: Path, count: int, case: tuple[str, bool], context: dict, args, record: Path | None):
     """akd-sim --count `count` (SCHED_FIFO args.sim_priority), tracing its set-points to `folder`/TRACE, and akd_node
-    on it over `transport` with its parameters in `folder`/PARAMS; yields both."""
+    on it over the case's transport, its cycle pipelined or not, with its parameters in `folder`/PARAMS; yields
+    both."""
+    transport, pipelined = case
+    domain, endpoint = context["domain"], context["endpoint"]
     sim = Sim(free_udp_port(), count=count, setpoint_trace=folder / TRACE)
     if args.sim_priority:
         real_time(sim.process.pid, args.sim_priority)
-    changes = {"transport": transport} | ({"zenoh.connect": [endpoint]} if transport == "zenoh" else {})
+    changes = {"transport": transport, "rt.pipelined": pipelined}
+    changes |= {"zenoh.connect": [endpoint]} if transport == "zenoh" else {}
     path = folder / PARAMS
     path.write_text(params(sim.port, count, args, record, changes))
     node = NodeProcess(path, domain=domain, without_ros=transport == "zenoh")
@@ -356,11 +364,13 @@ def cycle_to_delivery(received: list[tuple[int, int, float]], cycles: list[tuple
     return found
 
 
-def run(count: int, record: bool, transport: str, context: dict, args) -> dict:
-    domain, endpoint = context["domain"], context["endpoint"]
+def run(count: int, record: bool, case: tuple[str, bool], context: dict, args) -> dict:
+    """One case: `count` joints, recording or not, over the case's (transport, pipelined)."""
+    transport, pipelined = case
+    domain = context["domain"]
     with tempfile.TemporaryDirectory(prefix="node_ros-") as temp:
         folder = Path(temp) / "bags" if record else None
-        with node_on_sim(Path(temp), count, transport, domain, endpoint, args, folder) as (sim, node):
+        with node_on_sim(Path(temp), count, case, context, args, folder) as (sim, node):
             if transport == "rclpy":
                 client = DdsClient(domain, count)
             else:
@@ -389,6 +399,7 @@ def run(count: int, record: bool, transport: str, context: dict, args) -> dict:
             "axes": count,
             "recording": "every cycle" if record else "off",
             "transport": transport,
+            "cycle": PIPELINED if pipelined else WAITING,
             "publication_to_delivery": [d - p for d, p, _ in held],
             "faults": {what: sorted(joints) for what, joints in faults.items()},
             "log_tail": node.output().strip().splitlines()[-3:],
@@ -405,6 +416,9 @@ def run(count: int, record: bool, transport: str, context: dict, args) -> dict:
             }
         return result
 
+
+WAITING, PIPELINED = "waiting", "pipelined"
+"""The table's names of the node's cycle: waiting for each frame's return (the default) or rt.pipelined."""
 
 WIRE_P50, WIRE_P99 = "command→wire (akd-sim) p50 ms", "command→wire (akd-sim) p99 ms"
 """The table's labels of command to wire: the set-point's reception stamped inside the virtual AKD."""
@@ -426,12 +440,21 @@ def main() -> int:
     parser.add_argument("--priority", type=int, default=80, help="the node's rt.priority (0: none)")
     parser.add_argument("--sim-priority", type=int, default=70, help="akd-sim's SCHED_FIFO priority (0: none)")
     parser.add_argument("--attempts", type=int, default=3, help="runs of a case whose joints faulted, at most")
+    parser.add_argument(
+        "--pipelined-axes",
+        default="6",
+        help="axes whose runs without recording are made again with rt.pipelined, right after them ('' for none)",
+    )
     json_argument(parser)
     args = parser.parse_args()
-    axes = [int(a) for a in args.axes.split(",")]
+    try:
+        axes = [int(a) for a in args.axes.split(",")]
+        pipelined_axes = [int(a) for a in args.pipelined_axes.split(",") if a]
+    except ValueError:
+        parser.error("--axes and --pipelined-axes take comma-separated whole numbers, e.g. 1,6")
     transports = args.transports.split(",")
-    if set(transports) - set(TRANSPORTS) or not all(1 <= a <= 6 for a in axes):
-        parser.error(f"--transports: of {', '.join(TRANSPORTS)}; --axes: 1 to 6")
+    if set(transports) - set(TRANSPORTS) or not all(1 <= a <= 6 for a in axes) or set(pipelined_axes) - set(axes):
+        parser.error(f"--transports: of {', '.join(TRANSPORTS)}; --axes: 1 to 6; --pipelined-axes: of --axes")
     figures = Figures("node_ros.py", "akd_node through ROS: latencies and CPU, DDS beside Zenoh", args)
     results = []
     with (
@@ -444,26 +467,30 @@ def main() -> int:
         figures.note(f"ROS_DOMAIN_ID {domain} (rmw_fastrtps_cpp, localhost discovery); Zenoh router {endpoint}")
         for count in axes:
             for record in (False, True):
-                for transport in transports:
+                cases = [(transport, False) for transport in transports]
+                if not record and count in pipelined_axes:
+                    cases += [(transport, True) for transport in transports]
+                for case in cases:
+                    what = f"{count} axes over {case[0]}{', pipelined' if case[1] else ''}, recording {record}"
                     # The machine's other load can starve the virtual AKDs into F125 (more than seven frames
                     # missed): such a run measured joints that were not holding, so it is run again (said in the
                     # notes, its attempt in the table), up to --attempts times.
                     for attempt in range(1, args.attempts + 1):
                         try:
-                            result = run(count, record, transport, context, args)
+                            result = run(count, record, case, context, args)
                         except (RuntimeError, AssertionError) as e:
-                            figures.missing(f"{count} axes, {transport}, recording {record}: {str(e)[:300]}")
+                            figures.missing(f"{what}: {str(e)[:300]}")
                             break
                         if not result["faults"] or attempt == args.attempts:
                             results.append(result | {"attempt": attempt})
                             break
                         figures.note(
-                            f"{count} axes over {transport}, recording {record}: run again, the first faulted"
+                            f"{what}: run again, the first faulted"
                             f" ({'; '.join(f'{w} on {j}' for w, j in result['faults'].items())})"
                         )
     rows = []
     for r in results:
-        row = {"axes": r["axes"], "transport": r["transport"], "recording": r["recording"]}
+        row = {"axes": r["axes"], "transport": r["transport"], "recording": r["recording"], "cycle": r["cycle"]}
         row |= {k: r.get(k) for k in ("node CPU %", "of it cycle %", "akd-sim CPU %", "router CPU %")}
         row |= {"joint_states/s": r["joint_states/s"]}
         delivered = r["publication_to_delivery"]
@@ -509,7 +536,11 @@ def main() -> int:
         ratios = []
         for count in axes:
             for recording in ("off", "every cycle"):
-                pair = {r["transport"]: r for r in rows if r["axes"] == count and r["recording"] == recording}
+                pair = {
+                    r["transport"]: r
+                    for r in rows
+                    if r["axes"] == count and r["recording"] == recording and r["cycle"] == WAITING
+                }
                 if len(pair) == 2:
                     dds, zenoh = pair["rclpy"], pair["zenoh"]
                     ratio = {"axes": count, "recording": recording}
@@ -526,9 +557,27 @@ def main() -> int:
                             ratio[f"{key.replace(' ms', '').replace(' %', '')} zenoh/dds"] = zenoh[key] / dds[key]
                     ratios.append(ratio)
         figures.table("Zenoh against DDS (ratios, same run)", ratios)
+    pipelined = []
+    for row in rows:
+        waiting = [
+            r
+            for r in rows
+            if r["cycle"] == WAITING
+            and (r["axes"], r["transport"], r["recording"]) == (row["axes"], row["transport"], row["recording"])
+        ]
+        if row["cycle"] == PIPELINED and waiting:
+            ratio = {"axes": row["axes"], "transport": row["transport"]}
+            for key in ("node CPU %", "of it cycle %", "publication→delivery p50 ms", WIRE_P50, WIRE_P99):
+                if waiting[0].get(key) and row.get(key) is not None:
+                    ratio[f"{key.replace(' ms', '').replace(' %', '')} pipelined/waiting"] = row[key] / waiting[0][key]
+            pipelined.append(ratio)
+    if pipelined:
+        figures.table(
+            "The node's cycle pipelined (rt.pipelined) against waiting for each frame (ratios, same run)", pipelined
+        )
     series = {}
     for r in results:
-        case = f"{r['axes']} axes {r['transport']} ({r['recording']})"
+        case = f"{r['axes']} axes {r['transport']}{' pipelined' if r['cycle'] == PIPELINED else ''} ({r['recording']})"
         if r["command_to_wire"]:
             series[f"{case}: command→wire"] = histogram_us(r["command_to_wire"], 10_000)
         if r.get("cycle_to_delivery"):
