@@ -322,8 +322,8 @@ SCHEMA: tuple[Spec, ...] = (
     Spec(
         "rt.pipelined",
         False,
-        "Send each cycle's frame without waiting for it and take its return at the next wake-up, as IgH's and "
-        "TwinCAT's cycles do: the cycle never waits for the round trip (less CPU, no busy poll needed, a lost frame "
+        "Send each cycle's frame without waiting for it and take its return at the next wake-up, as the IgH "
+        "master's cycles do: the cycle never waits for the round trip (less CPU, no busy poll needed, a lost frame "
         "costs no time) and writes its outputs from inputs as old as when waiting; what it reads (joint states, "
         "status) is published one cycle_time later.",
     ),
