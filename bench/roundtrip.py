@@ -186,21 +186,22 @@ def measure_link(link, prefix):
         master.request_state("op")
         expected = master.expected_wkc
 
-        def exchange():
+        # Whether `call` (a whole exchange, or taking a return) gave the expected working counter.
+        def good(call):
             try:
-                return master.exchange() == expected
+                return call() == expected
             except _native.EtherCatError:
                 return False
+
+        def exchange():
+            return good(master.exchange)
 
         variants = {prefix: run_rates(exchange, rates, cycles, warmup)}
         # Sent at one wake-up, taken at the next (not in a --baseline build without the halves).
         if not prefix and hasattr(master, "send_process_data"):
 
             def receive():
-                try:
-                    return master.receive_process_data() == expected
-                except _native.EtherCatError:
-                    return False
+                return good(master.receive_process_data)
 
             variants["+pipelined"] = run_pipelined(receive, master.send_process_data, rates, cycles, warmup)
         # The frame a Cycle sends: the LRW and the reads of AL status and mailbox status (not in

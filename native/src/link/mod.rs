@@ -77,15 +77,28 @@ pub fn exchange_beside<L: Link + ?Sized>(
     tx: &[u8],
     rx: &mut [u8],
     timeout: Duration,
-    mut beside: impl FnMut(&[u8]),
+    beside: impl FnMut(&[u8]),
 ) -> Result<usize> {
     link.send(tx)?;
-    let deadline = Instant::now() + timeout;
+    receive_reply(link, tx, rx, Instant::now() + timeout, beside)?
+        .ok_or_else(|| Error::Timeout { what: link.awaited().into() })
+}
+
+/// Waits until `deadline` for the return of the frame `tx` sent on `link`, written to `rx`; its
+/// length, or `None` when it did not come by then. The returns of other frames met on the way
+/// (an earlier frame's late return) are handed to `beside`.
+pub fn receive_reply<L: Link + ?Sized>(
+    link: &mut L,
+    tx: &[u8],
+    rx: &mut [u8],
+    deadline: Instant,
+    mut beside: impl FnMut(&[u8]),
+) -> Result<Option<usize>> {
     loop {
         match link.receive(rx, deadline)? {
-            Some(n) if is_reply_to(tx, &rx[..n]) => return Ok(n),
+            Some(n) if is_reply_to(tx, &rx[..n]) => return Ok(Some(n)),
             Some(n) => beside(&rx[..n]),
-            None => return Err(Error::Timeout { what: link.awaited().into() }),
+            None => return Ok(None),
         }
     }
 }

@@ -32,7 +32,7 @@ use std::time::Instant;
 use crate::al::AlState;
 use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::frame::{self, Command, FrameBuilder, Slot};
-use crate::link::{copy_reply, is_reply_to};
+use crate::link::{copy_reply, is_reply_to, receive_reply};
 use crate::master::mapping::Mapping;
 use crate::master::state::AlStatus;
 use crate::master::{Master, Slave};
@@ -327,17 +327,16 @@ impl Master {
         let flight = frame.in_flight.take().ok_or(Unavailable::NoCyclicFrameInFlight)?;
         let n = match flight.returned {
             Some(n) => n,
-            None => loop {
-                match self.link.receive(&mut frame.rx[..], flight.sent + self.timeout)? {
-                    Some(n) if is_reply_to(&frame.tx[..flight.len], &frame.rx[..n]) => break n,
-                    // An earlier frame's late return.
-                    Some(_) => {}
+            None => {
+                let (tx, deadline) = (&frame.tx[..flight.len], flight.sent + self.timeout);
+                match receive_reply(&mut *self.link, tx, &mut frame.rx[..], deadline, |_| {})? {
+                    Some(n) => n,
                     None => {
                         self.stats.lost_frames += 1;
                         return Err(Error::Timeout { what: self.link.awaited().into() });
                     }
                 }
-            },
+            }
         };
         let changed = match flight.watch {
             Some(Watch::Each(first)) => {

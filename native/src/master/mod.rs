@@ -107,14 +107,15 @@ fn counted_exchange(
     stats: &mut Stats,
     (tx, rx): (&[u8], &mut [u8]),
     timeout: Duration,
-    cyclic: Option<&mut cyclic::CyclicFrame>,
+    mut cyclic: Option<&mut cyclic::CyclicFrame>,
 ) -> Result<usize> {
     stats.frames += 1;
-    let result = match cyclic {
-        Some(cyclic) => crate::link::exchange_beside(link, tx, rx, timeout, |back| cyclic.keep(back)),
-        None => link.exchange(tx, rx, timeout),
+    let keep = |back: &[u8]| {
+        if let Some(cyclic) = cyclic.as_deref_mut() {
+            cyclic.keep(back);
+        }
     };
-    result.inspect_err(|e| {
+    crate::link::exchange_beside(link, tx, rx, timeout, keep).inspect_err(|e| {
         if matches!(e, Error::Timeout { .. }) {
             stats.lost_frames += 1;
         }
