@@ -1,6 +1,5 @@
-//! The AKD's own I/O in its process data — digital inputs 0x60FD, digital outputs 0x60FE:01
-//! (driven where the bit mask 0x60FE:02 enables them), the analog input 0x3470:04 and the analog
-//! output set-point 0x3470:03 (AKD manual §5.5–5.7) — which mappings carry them, what their
+//! The AKD's own I/O in its process data — digital inputs 0x60FD, digital outputs 0x60FE:01,
+//! the analog input 0x3470:04 and the analog output set-point 0x3470:03 (AKD manual §5.5–5.7) — which mappings carry them, what their
 //! bits mean, and what one drive's process image says of them.
 //!
 //! What the manuals give, and what they leave out:
@@ -10,7 +9,8 @@
 //!   mapping within the AKD's rules;
 //! - no bit layout of 0x60FD or 0x60FE. CiA 402 gives one [std]: 0x60FD bit 0 negative limit
 //!   switch, 1 positive limit switch, 2 home switch, 3 interlock, bits 16–31 the manufacturer's;
-//!   0x60FE:02 masks the outputs the master drives. The AKD's digital inputs 1..7 are taken at
+//!   0x60FE:01 bits 16–31 the manufacturer's, and 0x60FE:02 a bit mask of the outputs the master
+//!   may drive, whose use on the AKD the manuals do not describe (nothing here writes it). The AKD's digital inputs 1..7 are taken at
 //!   bits 16..22 and its digital outputs 1..2 at bits 16..17 of the manufacturer's bits, in the
 //!   AKD's own numbering: a choice the manuals neither confirm nor refute;
 //! - no scaling of the analog values: [`ANALOG_VOLTS_PER_COUNT`] assumes ±10 V over the INT16
@@ -28,8 +28,6 @@ use crate::pdo::{self, Direction, PdoEntry};
 pub const DIGITAL_INPUTS: (u16, u8) = (0x60FD, 0);
 /// Digital outputs 0x60FE:01.
 pub const DIGITAL_OUTPUTS: (u16, u8) = (0x60FE, 1);
-/// The bit mask 0x60FE:02 of the digital outputs the master drives [std].
-pub const OUTPUT_MASK: (u16, u8) = (0x60FE, 2);
 /// The analog input as the fixed mappings carry it, 0x3470:04 ("AIN.VALUE" in the drive's SII).
 pub const ANALOG_INPUT: (u16, u8) = (0x3470, 4);
 /// The analog output set-point 0x3470:03 ("AOUT.VALUE write").
@@ -117,11 +115,6 @@ pub fn outputs(digital_outputs: u32) -> u8 {
 pub fn with_outputs(word: u32, levels: u8) -> u32 {
     let mask = u32::from((1u8 << OUTPUT_COUNT) - 1) << FIRST_MANUFACTURER_BIT;
     (word & !mask) | (u32::from(levels) << FIRST_MANUFACTURER_BIT & mask)
-}
-
-/// 0x60FE:02 enabling every digital output of the AKD.
-pub const fn all_outputs_mask() -> u32 {
-    ((1 << OUTPUT_COUNT) - 1) << FIRST_MANUFACTURER_BIT
 }
 
 /// The hardware enable input as the drive shows it.
@@ -293,7 +286,9 @@ impl InputWatch {
     /// differ from the last cycle's in what they say, else `None` (also on the first cycle,
     /// which sets what the next ones are compared with).
     pub fn observe(&mut self, inputs: &[u8]) -> Option<(u32, u16)> {
-        let word = |at: usize, len: usize| inputs.get(at..at + len).map(|b| b.iter().rev().fold(0u32, |v, x| v << 8 | *x as u32));
+        let word = |at: usize, len: usize| {
+            inputs.get(at..at + len).map(|b| b.iter().rev().fold(0u32, |v, x| v << 8 | *x as u32))
+        };
         let digital = self.digital_inputs.and_then(|at| word(at, 4)).unwrap_or(0);
         let statusword = word(self.statusword, 2)? as u16;
         let now = (digital, hardware_enable(statusword));
@@ -314,7 +309,6 @@ mod tests {
         assert_eq!(Switch::from_name("negative_limit"), Some(Switch::NegativeLimit));
         assert_eq!(with_outputs(0x0000_0001, 0b10), 0x0002_0001, "bit 0 (set brake) kept");
         assert_eq!(outputs(with_outputs(0, 0b11)), 0b11);
-        assert_eq!(all_outputs_mask(), 0x0003_0000);
     }
 
     #[test]
