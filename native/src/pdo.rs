@@ -512,10 +512,11 @@ pub const IO_TX: [&[PdoEntry]; 4] = [
     &[DIGITAL_INPUTS, ANALOG_INPUT],
 ];
 
-/// akd_ros's own flexible mappings by the name the node's `mapping` parameter gives them:
-/// (name, outputs, inputs).
-pub const NAMED: [(&str, &[&[PdoEntry]], &[&[PdoEntry]]); 2] =
-    [("default", &DEFAULT_RX, &DEFAULT_TX), ("io", &IO_RX, &IO_TX)];
+/// A flexible mapping of akd_ros's own: its name, its RxPDOs and its TxPDOs.
+pub type NamedMapping = (&'static str, &'static [&'static [PdoEntry]], &'static [&'static [PdoEntry]]);
+
+/// akd_ros's own flexible mappings by the name the node's `mapping` parameter gives them.
+pub const NAMED: [NamedMapping; 2] = [("default", &DEFAULT_RX, &DEFAULT_TX), ("io", &IO_RX, &IO_TX)];
 
 const MODES_OF_OPERATION: PdoEntry = PdoEntry::new(0x6060, 0, 8);
 const MODES_OF_OPERATION_DISPLAY: PdoEntry = PdoEntry::new(0x6061, 0, 8);
