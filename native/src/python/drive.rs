@@ -6,7 +6,7 @@
 //! drive's inputs read by its mapping (`DriveInputs`, from `Cycle.drive_inputs`), the CiA
 //! 402 states (`DS402_STATES`, `ds402_state`), and the drive's own I/O: what a mapping carries
 //! of it (`mapping_io`, `io_mappings`, `IO_MAPPING`), its layout (`IO_INPUT_COUNT`,
-//! `IO_OUTPUT_COUNT`, `IO_SWITCHES`, `ANALOG_VOLTS_PER_COUNT`, `digital_outputs_word`) and one
+//! `IO_OUTPUT_COUNT`, `IO_SWITCHES`, `ANALOG_VOLTS_PER_COUNT`, `with_digital_outputs`) and one
 //! drive's I/O in a cycle (`DriveIo`, from `Cycle.drives_io`).
 
 use pyo3::exceptions::PyValueError;
@@ -289,18 +289,20 @@ fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedV
     Ok(io::mappings_for(mode, wanted).into_iter().map(|m| (m.name, m.carried.into())).collect())
 }
 
-/// 0x60FE:01 with the AKD's digital outputs at `levels` (output 1 first), its other bits as
-/// `word` has them.
+/// 0x60FE:01 `word` with the AKD's digital outputs in `levels` (pairs of output number and
+/// level) set, its other bits as they are; ValueError naming an output the AKD does not have.
 #[pyfunction]
-fn digital_outputs_word(word: u32, levels: Vec<bool>) -> PyResult<u32> {
-    if levels.len() != io::OUTPUT_COUNT as usize {
-        return Err(PyValueError::new_err(format!(
-            "{} levels given, the AKD has {} outputs",
-            levels.len(),
-            io::OUTPUT_COUNT
-        )));
+fn with_digital_outputs(word: u32, levels: Vec<(i64, bool)>) -> PyResult<u32> {
+    let mut now = io::outputs(word);
+    for (output, high) in levels {
+        if !(1..=i64::from(io::OUTPUT_COUNT)).contains(&output) {
+            let count = io::OUTPUT_COUNT;
+            return Err(PyValueError::new_err(format!("output {output}: the AKD has digital outputs 1 to {count}")));
+        }
+        let bit = 1u8 << (output - 1);
+        now = if high { now | bit } else { now & !bit };
     }
-    Ok(io::with_outputs(word, levels.iter().rev().fold(0u8, |bits, &high| bits << 1 | u8::from(high))))
+    Ok(io::with_outputs(word, now))
 }
 
 /// Checks `rx` and `tx` (each as `Master.configure_pdo` takes it) against the AKD's mapping
@@ -372,7 +374,7 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDriveIo>()?;
     m.add_function(wrap_pyfunction!(mapping_io, m)?)?;
     m.add_function(wrap_pyfunction!(io_mappings, m)?)?;
-    m.add_function(wrap_pyfunction!(digital_outputs_word, m)?)?;
+    m.add_function(wrap_pyfunction!(with_digital_outputs, m)?)?;
     m.add("IO_INPUT_COUNT", io::INPUT_COUNT)?;
     m.add("IO_OUTPUT_COUNT", io::OUTPUT_COUNT)?;
     m.add("IO_SWITCHES", PyTuple::new(m.py(), Switch::ALL.map(Switch::name))?)?;
