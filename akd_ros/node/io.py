@@ -94,8 +94,9 @@ class Io:
         """The DriveIO of `joint` for `io`, stamped with its cycle's time, with the joint's names."""
         settings = self._joints[joint]
         inputs, outputs = list(io.inputs), list(io.outputs)
-        named_inputs = {name: inputs[n - 1] for name, n in (settings.io_inputs or {}).items() if inputs}
-        named_outputs = {name: outputs[n - 1] for name, n in (settings.io_outputs or {}).items() if outputs}
+        # A name of an input or output the mapping does not carry is refused by the parameters' check.
+        named_inputs = (settings.io_inputs or {}) if inputs else {}
+        named_outputs = (settings.io_outputs or {}) if outputs else {}
         return self._drive_io(
             header=self._header(stamp=self._clock.stamp(io.time_ns)),
             joint=joint,
@@ -108,14 +109,16 @@ class Io:
             interlock=io.switches.get("interlock", False),
             inputs=inputs,
             input_names=list(named_inputs),
-            named_inputs=list(named_inputs.values()),
+            input_numbers=list(named_inputs.values()),
+            named_inputs=[inputs[n - 1] for n in named_inputs.values()],
             hardware_enable=HARDWARE_ENABLE[io.hardware_enable],
             analog_input=math.nan if io.analog_input is None else io.analog_input,
             digital_outputs_mapped=io.digital_outputs is not None,
             digital_outputs=io.digital_outputs or 0,
             outputs=outputs,
             output_names=list(named_outputs),
-            named_outputs=list(named_outputs.values()),
+            output_numbers=list(named_outputs.values()),
+            named_outputs=[outputs[n - 1] for n in named_outputs.values()],
             analog_output=math.nan if io.analog_output is None else io.analog_output,
         )
 
