@@ -47,6 +47,8 @@ ANALOG_VOLTS_PER_COUNT = _native.ANALOG_VOLTS_PER_COUNT
 DIGITAL_OUTPUTS, ANALOG_OUTPUT = (0x60FE, 1), (0x3470, 3)
 """The objects of the drive's digital outputs and analog output set-point."""
 
+INPUT_EVENTS_KEPT = 4096
+"""Changes of the digital inputs an Axis keeps until `input_events` takes them; older ones are dropped."""
 # Velocity below which an enabled axis counts as standing still for a mode change, in counts/s (about 0.4 °/s at
 # 2^20 counts per revolution).
 STANDSTILL_COUNTS_PER_S = 1000
@@ -323,7 +325,8 @@ class Axis:
         self._output_offsets = {(index, sub): (offset, bits // 8) for index, sub, bits, offset in mapping["outputs"]}
         self.analog_scale = drive.analog_scale or ANALOG_VOLTS_PER_COUNT
         """Volts per count of the analog input and output."""
-        self._input_events: collections.deque[AxisIo] = collections.deque()
+        # Bounded: an input that chatters while nobody takes its changes must not fill the memory; the oldest go.
+        self._input_events: collections.deque[AxisIo] = collections.deque(maxlen=INPUT_EVENTS_KEPT)
         self._mode = drive.mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
@@ -786,7 +789,7 @@ class Axis:
     def input_events(self) -> Iterator[AxisIo]:
         """Each change of the drive's digital inputs (0x60FD) or hardware enable since the last call, oldest first, each
         handed out once: the I/O of the cycle whose inputs showed it (its outputs and analog input those of the
-        snapshot when it was taken)."""
+        snapshot when it was taken). The last INPUT_EVENTS_KEPT are kept between calls."""
         self._poll()
         while self._input_events:
             yield self._input_events.popleft()

@@ -12,6 +12,7 @@ is bounded; the processes are always ended.
 
 from __future__ import annotations
 
+import functools
 import math
 from pathlib import Path
 
@@ -24,8 +25,7 @@ from std_srvs.srv import Trigger
 
 from akd_ros.msg import DriveIO
 from akd_ros.srv import SetOutputs
-from support.netns import free_udp_port
-from support.ros import COUNTS_PER_RAD, NodeProcess, Participant, Sim, ros_environment, stop
+from support.ros import COUNTS_PER_RAD, Participant, module_domain, node_on_sim
 
 DOMAINS = range(84, 90)
 """ROS_DOMAIN_IDs of this module (others: 0-30, 60-70, 100-232); the recorded node takes the next one."""
@@ -148,31 +148,16 @@ def named(message: DriveIO, name: str, kind: str = "input") -> bool:
     return levels[list(names).index(name)]
 
 
-@pytest.fixture(scope="module")
-def ros_domain():
-    with ros_environment(DOMAINS) as domain:
-        yield domain
+ros_domain = module_domain(DOMAINS)
 
 
 @pytest.fixture(scope="module")
 def run(ros_domain, tmp_path_factory):
     """akd-sim with two drives, the node of joints a and b on it, and the client once ~/a/io arrives."""
-    sim = Sim(free_udp_port(), count=2)
-    path = tmp_path_factory.mktemp("node_io") / "akd_node.yaml"
-    path.write_text(PARAMS.format(port=sim.port))
-    node = NodeProcess(path)
-    client = None
-    try:
-        client = Client(ros_domain, ["a", "b"])
-        client.spin_until(lambda: client.received[f"{NODE}a/io"] or node.process.poll() is not None, "~/a/io")
-        assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
-        yield sim, node, client
-    finally:
-        if client is not None:
-            client.close()
-        stop(node.process)
-        sim.stop()
-        print(f"akd_node output:\n{node.output()}")
+    folder = tmp_path_factory.mktemp("node_io")
+    client_of = functools.partial(Client, joints=["a", "b"])
+    with node_on_sim(PARAMS, folder, ros_domain, count=2, client_of=client_of, ready=f"{NODE}a/io") as run:
+        yield run
 
 
 def test_the_io_of_each_joint_is_published_with_what_its_mapping_carries(run):
@@ -300,15 +285,9 @@ def test_an_input_change_is_on_io_within_two_cycles_of_the_drives_process_image(
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
-    sim = Sim(free_udp_port())
-    path = tmp_path / "akd_node.yaml"
-    path.write_text(RECORDED.format(port=sim.port, folder=tmp_path / "bags"))
-    node = NodeProcess(path, ros_domain + 1)
-    client = None
-    try:
-        client = Client(ros_domain + 1, ["a"])
-        client.spin_until(lambda: client.received[f"{NODE}io"] or node.process.poll() is not None, "~/io")
-        assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
+    params = RECORDED.replace("{folder}", str(tmp_path / "bags"))
+    client_of = functools.partial(Client, joints=["a"])
+    with node_on_sim(params, tmp_path, ros_domain + 1, client_of=client_of, ready=f"{NODE}io") as (sim, _, client):
         assert client.trigger("enable").success
         start = client.position("a")
         # Half a count past a whole count: there the rounded 0x6064 shows the crossing as the input does.
@@ -317,12 +296,6 @@ def test_an_input_change_is_on_io_within_two_cycles_of_the_drives_process_image(
         client.move("a", start, 0.4)
         client.io("a", lambda m: named(m, "part_present"), "part_present high")
         client.trigger("disable")
-    finally:
-        if client is not None:
-            client.close()
-        stop(node.process)
-        sim.stop()
-        print(f"akd_node output:\n{node.output()}")
     store = get_typestore(Stores.ROS2_JAZZY)
     for msg in sorted((Path(__file__).resolve().parents[1] / "msg").glob("*.msg")):
         store.register(get_types_from_msg(msg.read_text(), f"akd_ros/msg/{msg.stem}"))

@@ -67,7 +67,9 @@ def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Sett
     joints = check_joint_names(top["joints"])
     refuse_single_joint_parameters(named, joints)
     values = dict(top)
-    for spec in [*joint_specs(joints, top), *io_name_specs(named, joints)]:
+    # A name of another node's section is among `named` too: only those given to this node are declared.
+    io_names = [s for s in io_name_specs(named, joints) if _given(node, s.name).type_ != Parameter.Type.NOT_SET]
+    for spec in [*joint_specs(joints, top), *io_names]:
         values[spec.name] = _declare(node, spec, named)
     refuse_unknown(
         [

@@ -6,37 +6,24 @@
 
 use std::time::{Duration, Instant};
 
-use akd_native::akd_fault::MissedFrames;
-use akd_native::al::AlState;
 use akd_native::cycle::events::Event;
 use akd_native::cycle::sequencer::Request;
-use akd_native::cycle::{Config, CycleThread};
+use akd_native::cycle::CycleThread;
 use akd_native::ds402::{statusword, Mode, State};
 use akd_native::io;
-use akd_native::master::{Mapping, Master};
+use akd_native::master::Mapping;
 use akd_native::pdo::{self, PdoEntry};
 use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
-use akd_native::sim::in_process::InProcess;
-use akd_native::sim::{Timing, VirtualBus};
 
-const STEP: Duration = Duration::from_secs(5);
+#[path = "support/one_drive.rs"]
+mod one_drive;
+use one_drive::one_drive;
+
 const DEADLINE: Duration = Duration::from_secs(10);
 
 fn rig() -> (CycleThread, SimControl) {
-    // Missed frames judged by frames lost: a cycle this shared host runs late must not fault the
-    // drive (F125).
-    let timing = Timing { missed_frames: MissedFrames::Lost, ..Timing::IMMEDIATE };
-    let link = InProcess::with_bus(VirtualBus::with_timing(1, timing));
-    let control = link.control();
-    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
-    m.scan().unwrap();
-    m.request_state(AlState::PreOp, STEP).unwrap();
     let pdos = |p: &[&[PdoEntry]]| Mapping::Flexible(p.iter().map(|e| e.to_vec()).collect());
-    m.slave_mut(0).unwrap().configure_pdo(pdos(&pdo::IO_RX), pdos(&pdo::IO_TX)).unwrap();
-    m.slave_mut(0).unwrap().sdo_write(0x6060, 0, &[Mode::CyclicSynchronousPosition as u8]).unwrap();
-    m.request_state(AlState::Op, STEP).unwrap();
-    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
-    (cycle, control)
+    one_drive(Mode::CyclicSynchronousPosition, (pdos(&pdo::IO_RX), pdos(&pdo::IO_TX)))
 }
 
 fn wait_until<T>(what: &str, mut done: impl FnMut() -> Option<T>) -> T {

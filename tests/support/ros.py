@@ -317,17 +317,20 @@ def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
 
 
 @contextmanager
-def node_on_sim(params: str, folder: Path, domain: int) -> Iterator[tuple[Sim, NodeProcess, Client]]:
-    """A fresh simulator, akd_node on it with `params` (a template whose {port} is the simulator's) on `domain`, and
-    a client there once joint_states arrive; all ended afterwards, the node's output printed."""
-    sim = Sim(free_udp_port())
+def node_on_sim(
+    params: str, folder: Path, domain: int, *, count: int = 1, client_of=None, ready: str = "/joint_states"
+) -> Iterator[tuple[Sim, NodeProcess, Participant]]:
+    """A fresh simulator of `count` drives, akd_node on it with `params` (a template whose {port} is the simulator's)
+    on `domain`, and a client there (`client_of(domain)`, a `Client` by default) once topic `ready` arrives; all ended
+    afterwards, the node's output printed."""
+    sim = Sim(free_udp_port(), count=count)
     path = folder / "akd_node.yaml"
     path.write_text(params.format(port=sim.port))
     node = NodeProcess(path, domain)
     client = None
     try:
-        client = Client(domain)
-        client.spin_until(lambda: client.received["/joint_states"] or node.process.poll() is not None, "joint_states")
+        client = (client_of or Client)(domain)
+        client.spin_until(lambda: client.received[ready] or node.process.poll() is not None, ready)
         assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
         yield sim, node, client
     finally:
