@@ -183,6 +183,8 @@ def test_an_input_flipped_on_the_drive_shows_on_io_with_its_name(run):
     sim.command("input 0 3 high")
     high = ros.io("a", lambda m: named(m, "part_present"), "part_present high")
     assert high.inputs[2] and high.digital_inputs == 1 << 18 and high.cycle > before.cycle
+    # /diagnostics shows it by the name too.
+    ros.status("a", lambda s: ("input part_present (3)", "high") in [(v.key, v.value) for v in s.values], "the name")
     sim.command("analog_input 0 -4")
     shown = ros.io("a", lambda m: abs(m.analog_input + 4.0) <= ANALOG_STEP, "the analog input")
     assert named(shown, "part_present")

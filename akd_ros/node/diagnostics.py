@@ -13,7 +13,7 @@ values carry the link, the cycle statistics and the distributed clocks."""
 
 from __future__ import annotations
 
-from akd_ros.node.io import reasons
+from akd_ros.node.io import named_levels, reasons
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
 from akd_ros.node.transport import Qos, Transport
@@ -57,6 +57,7 @@ class Diagnostics:
         self, transport: Transport, session: Session, group, qos: Qos, node_name: str, publishing: Publishing
     ) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
+        self._joints = {j.name: j for j in session.joints}
         self._node_name, self._publishing = node_name, publishing
         self._transport = transport
         self._array = transport.message_class("diagnostic_msgs/msg/DiagnosticArray")
@@ -92,17 +93,15 @@ class Diagnostics:
         dc_status = bus.cycle.dc_status()
         recovery = {joint: bus[joint].recovery() for joint in states}
         ios = bus.io()
-        statuses = [
-            self._joint_status(bus[j], state, dc_status, recovery[j], reasons(ios[j], state.statusword))
-            for j, state in states.items()
-        ]
+        statuses = [self._joint_status(bus[j], state, dc_status, recovery[j], ios[j]) for j, state in states.items()]
         lost = [joint for joint, r in recovery.items() if r["recovering"]]
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
         self.publisher.publish(self._array(header=self._header(stamp=self._clock.stamp()), status=statuses))
 
-    def _joint_status(self, axis, state, dc_status: dict, recovery: dict, held: list[str]) -> object:
-        """The status of one joint: its drive's state, mode, position, DC, recovery and last fault, and what of its
-        I/O holds it back (`held`)."""
+    def _joint_status(self, axis, state, dc_status: dict, recovery: dict, io) -> object:
+        """The status of one joint: its drive's state, mode, position, DC, recovery and last fault, what of its I/O
+        (`io`, its `AxisIo`) holds it back, and its named inputs and outputs."""
+        held = reasons(io, state.statusword)
         fault = self._publishing.last_fault.get(axis.name)
         param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
         if recovery["recovering"] or state.state in FAULT_STATES:
@@ -146,6 +145,7 @@ class Diagnostics:
             "recovering": recovery["recovering"],
             "recoveries": recovery["recoveries"],
             "io": "; ".join(held) or "nothing holds the drive back",
+            **named_levels(self._joints[axis.name], io),
         }
         hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
         return self._status_message(level, axis.name, summary, hardware_id, values)

@@ -22,6 +22,7 @@ from akd_ros.axis import AxisIo, CommandError
 from akd_ros.node.publishing import RecordedPublisher
 from akd_ros.node.session import AXIS_ERRORS, Session, namespace
 from akd_ros.node.transport import Qos, Transport
+from akd_ros.params import JointSettings
 
 HARDWARE_ENABLE = {"unknown": 0, "high": 1, "low": 2}
 """DriveIO's hardware_enable codes (its HARDWARE_ENABLE_* constants) by the name the extension gives the state."""
@@ -48,6 +49,16 @@ def reasons(io: AxisIo, statusword: int) -> list[str]:
                 f"direction" + (holding if statusword & _INTERNAL_LIMIT else "")
             )
     return found
+
+
+def named_levels(joint: JointSettings, io: AxisIo) -> dict[str, str]:
+    """The levels of the inputs and outputs `joint` names, as /diagnostics' values show them: "input part_present (3)":
+    "high"; none where the mapping does not carry them."""
+    levels = {}
+    for kind, names, values in (("input", joint.io_inputs, io.inputs), ("output", joint.io_outputs, io.outputs)):
+        for name, number in (names or {}).items() if values else ():
+            levels[f"{kind} {name} ({number})"] = "high" if values[number - 1] else "low"
+    return levels
 
 
 class Io:

@@ -28,7 +28,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from akd_ros.msg import DriveFault, DriveStatus, LatchEvent, TrajectoryStatus
+from akd_ros.msg import DriveFault, DriveIO, DriveStatus, LatchEvent, TrajectoryStatus
 from akd_ros.srv import ArmLatch, SetMode
 from support.netns import SIM_PRIORITY, free_udp_port, realtime
 
@@ -46,6 +46,7 @@ NODE_TOPICS = {
     NODE + "latch": LatchEvent,
     NODE + "fault": DriveFault,
     NODE + "trajectory_status": TrajectoryStatus,
+    NODE + "io": DriveIO,
 }
 
 
