@@ -1383,6 +1383,11 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
+    /// How a virtual AKD's homing fails.
+    HomingFailure {
+        /// The name given.
+        name: String,
+    },
 }
 
 impl fmt::Display for UnknownName {
@@ -1406,6 +1411,9 @@ impl fmt::Display for UnknownName {
                 "missed frames judged {name:?}: allowed \"late\" (as the real drive) or \"lost\" (only frames lost on \
                  the line)"
             ),
+            UnknownName::HomingFailure { name } => {
+                write!(f, "homing failure {name:?}: allowed ok, error, no_reference")
+            }
         }
     }
 }
