@@ -94,7 +94,11 @@ class Homing:
             handle.succeed()
         else:
             handle.abort()
-        (self._logger.info if success else self._logger.error)(f"~/home: {message}")
+        # rclpy's logger takes one severity per call site.
+        if success:
+            self._logger.info(f"~/home: {message}")
+        else:
+            self._logger.error(f"~/home: {message}")
         return self._action.Result(
             success=success,
             message=message,
