@@ -137,13 +137,24 @@ def test_homing_all_six_ends_with_each_attained_at_the_new_zero(run):
     client.spin_until(lambda: abs(sim.state(0)["position"] - target) < 200, "joint_1 at its command")
 
 
+def home_failing(run, position: int, failure: str, cancel_after: float | None = None):
+    """Homes joint `position` + 1 with its drive's homing failing as `failure`; (goal status, result)."""
+    sim, _, client = run
+    sim.command(f"homing {position} {failure}")
+    try:
+        return client.home([JOINTS[position]], cancel_after)
+    finally:
+        sim.command(f"homing {position} ok")
+
+
+def assert_enabled_and_still(sim: Sim, position: int) -> None:
+    state = sim.state(position)
+    assert state["state"] == "Operation enabled" and abs(state["velocity"]) < COUNTS_PER_REV / 100, state
+
+
 def test_a_homing_error_reports_the_joint_and_why(run):
     sim, _, client = run
-    sim.command("homing 2 error")
-    try:
-        status, result = client.home(["joint_3"])
-    finally:
-        sim.command("homing 2 ok")
+    status, result = home_failing(run, 2, "error")
     assert status == GoalStatus.STATUS_ABORTED and list(result.outcome) == ["homing_error"], result
     assert "joint_3" in result.message and "homing error (statusword bit 13)" in result.message, result.message
     assert result.statusword[0] & 0x2000, hex(result.statusword[0])
@@ -152,29 +163,17 @@ def test_a_homing_error_reports_the_joint_and_why(run):
 
 
 def test_a_reference_never_found_times_out_halted_and_still_enabled(run):
-    sim, _, client = run
-    sim.command("homing 3 no_reference")
-    try:
-        _, result = client.home(["joint_4"])
-    finally:
-        sim.command("homing 3 ok")
-    assert list(result.outcome) == ["timed_out"], result
+    status, result = home_failing(run, 3, "no_reference")
+    assert status == GoalStatus.STATUS_ABORTED and list(result.outcome) == ["timed_out"], result
     assert "joint_4" in result.message and "within the time-out" in result.message, result.message
-    state = sim.state(3)
-    assert state["state"] == "Operation enabled" and abs(state["velocity"]) < COUNTS_PER_REV / 100, state
+    assert_enabled_and_still(run[0], 3)
 
 
 def test_a_cancel_halts_the_homing_and_leaves_the_drive_enabled_and_still(run):
-    sim, _, client = run
-    sim.command("homing 4 no_reference")
-    try:
-        status, result = client.home(["joint_5"], cancel_after=0.5)
-    finally:
-        sim.command("homing 4 ok")
+    status, result = home_failing(run, 4, "no_reference", cancel_after=0.5)
     assert status == GoalStatus.STATUS_CANCELED and list(result.outcome) == ["canceled"], result
-    client.spin_for(0.3)
-    state = sim.state(4)
-    assert state["state"] == "Operation enabled" and abs(state["velocity"]) < COUNTS_PER_REV / 100, state
+    run[2].spin_for(0.3)
+    assert_enabled_and_still(run[0], 4)
 
 
 def test_a_power_cycle_forgets_the_reference(run):

@@ -161,7 +161,8 @@ pub struct Shared {
 impl Shared {
     fn ask(&self, what: u64) -> u32 {
         let next = |r: u64| ((r >> 32) as u32).wrapping_add(1);
-        let before = self.request.fetch_update(Ordering::AcqRel, Ordering::Acquire, |r| Some((next(r) as u64) << 32 | what));
+        let before =
+            self.request.fetch_update(Ordering::AcqRel, Ordering::Acquire, |r| Some((next(r) as u64) << 32 | what));
         // The closure never refuses.
         next(before.unwrap_or_else(|r| r))
     }
@@ -231,7 +232,16 @@ pub struct Homing {
 
 impl Default for Homing {
     fn default() -> Self {
-        Homing { request: 0, phase: Phase::Idle, started_ns: 0, timeout_ns: 0, statusword: 0, phase_ns: 0, mode_before: 0, cycles: 0 }
+        Homing {
+            request: 0,
+            phase: Phase::Idle,
+            started_ns: 0,
+            timeout_ns: 0,
+            statusword: 0,
+            phase_ns: 0,
+            mode_before: 0,
+            cycles: 0,
+        }
     }
 }
 
@@ -387,7 +397,10 @@ mod tests {
         assert_eq!(cycle(&mut h, &shared, ENABLED | 0x1400, HOMING, 5), (false, CSP, 0x0F));
         assert_eq!(cycle(&mut h, &shared, ENABLED, CSP, 6), (false, CSP, 0x0F));
         let status = shared.status();
-        assert_eq!((status.phase, status.homed, status.homing_state()), (Phase::Done(Outcome::Attained), true, "attained"));
+        assert_eq!(
+            (status.phase, status.homed, status.homing_state()),
+            (Phase::Done(Outcome::Attained), true, "attained")
+        );
     }
 
     #[test]
@@ -406,13 +419,13 @@ mod tests {
         shared.cancel();
         assert_eq!(cycle(&mut h, &shared, ENABLED, HOMING, 12), (false, HOMING, 0x10F));
         // Not stopped within the stop time: back all the same.
-        assert_eq!(cycle(&mut h, &shared, ENABLED, HOMING, 22).0, true);
+        assert!(cycle(&mut h, &shared, ENABLED, HOMING, 22).0);
         assert_eq!(shared.status().phase, Phase::Leaving(Outcome::Canceled));
         shared.start(100 * MS);
         cycle(&mut h, &shared, ENABLED, CSP, 30);
         cycle(&mut h, &shared, ENABLED, HOMING, 31);
         assert_eq!(cycle(&mut h, &shared, ENABLED | 0x2000, HOMING, 32), (false, HOMING, 0x0F));
-        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x2400, HOMING, 33).0, true);
+        assert!(cycle(&mut h, &shared, ENABLED | 0x2400, HOMING, 33).0);
         assert_eq!(shared.status().homing_state(), "error");
         shared.start(100 * MS);
         cycle(&mut h, &shared, ENABLED, CSP, 40);

@@ -467,7 +467,8 @@ impl Drive {
         }
         let cyclic = matches!(self.mode, Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition));
         if cyclic && self.state == State::OperationEnabled {
-            let since = self.last_setpoint_ns.map_or(self.setpoints_due_since_ns, |s| s.max(self.setpoints_due_since_ns));
+            let since =
+                self.last_setpoint_ns.map_or(self.setpoints_due_since_ns, |s| s.max(self.setpoints_due_since_ns));
             if t.saturating_sub(since) > timeout_ns {
                 return Some(Fault::SetpointsMissing);
             }
