@@ -292,6 +292,40 @@ SCHEMA: tuple[Spec, ...] = (
         per_joint=True,
     ),
     Spec(
+        "homing.method",
+        "drive",
+        "How the joint is referenced. 'drive': ~/home runs the homing the drive is set up for (on the AKD its HOME.* "
+        "parameters, set in WorkBench: the EtherCAT manual names no CoE object for them, so the node writes none), "
+        "in the cycle thread; the joint is homed once the drive reports homing attained, until its drive is "
+        "power-cycled or lost. 'none': an absolute encoder, or an axis referenced otherwise; homed from the start.",
+        choices=("drive", "none"),
+        per_joint=True,
+    ),
+    Spec(
+        "homing.required",
+        False,
+        "Whether the joint must be homed before it moves: position commands, ~/joint_commands naming it and "
+        "trajectories through it are refused, naming the joint, while it is not homed. Velocity and torque commands "
+        "are not held back (homing itself may need a jog to leave a limit switch).",
+        per_joint=True,
+    ),
+    Spec(
+        "homing.timeout",
+        30.0,
+        "Seconds a homing may take from its start to homing attained; past them the drive is halted and the joint "
+        "reported timed out.",
+        0.1,
+        3600.0,
+        per_joint=True,
+    ),
+    Spec(
+        "homing.sequence",
+        "together",
+        "How ~/home homes several joints: 'together' starts them all at once; 'one_by_one' homes them in the order "
+        "of the goal (of joints when it names none), each after the last attained, and stops at the first that fails.",
+        choices=("together", "one_by_one"),
+    ),
+    Spec(
         "eoe.ip",
         "",
         "The drive's IP address and prefix (A.B.C.D/N), given it by EoE Set IP Parameter at configure so that its "
@@ -393,6 +427,11 @@ class JointSettings:
     fault_reset: str
     command_timeout: float
     command_timeout_policy: str
+    homing_method: str = "drive"
+    """'drive' (homed by ~/home) or 'none' (homed from the start)."""
+    homing_required: bool = False
+    """Whether motion commands are refused until the joint is homed."""
+    homing_timeout: float = 30.0
     eoe_ip: str | None = None
     """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
 
@@ -425,6 +464,8 @@ class Settings:
     joint_namespaces: bool
     """Whether each joint's topics and services go under ~/<joint>/ (joints given) rather than ~/ (one joint)."""
     joint_states_rate: float
+    homing_sequence: str
+    """How ~/home homes several joints: 'together' or 'one_by_one'."""
     status_rate: float
     diagnostics_rate: float
     rt_priority: int | None
@@ -670,6 +711,7 @@ def settings(values: dict[str, object]) -> Settings:
         joints=joints,
         joint_namespaces=bool(names),
         joint_states_rate=top["joint_states_rate"],
+        homing_sequence=top["homing.sequence"],
         status_rate=top["status_rate"],
         diagnostics_rate=top["diagnostics_rate"],
         rt_priority=top["rt.priority"] or None,
@@ -743,6 +785,9 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         fault_reset=values["fault_reset"],
         command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
+        homing_method=values["homing.method"],
+        homing_required=values["homing.required"],
+        homing_timeout=values["homing.timeout"],
         eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
     )
 

@@ -14,7 +14,11 @@ stdout, 'ok ...' or 'error: ...':
   state POSITION                      the drive firmware's state as JSON, with "dc": what its
                                       synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2)
   power_cycle POSITION                the drive loses power and comes back as at power-up
-                                      (AL Init, station address 0, Not ready to switch on)
+                                      (AL Init, station address 0, Not ready to switch on,
+                                      not homed)
+  homing POSITION ok|error|no_reference
+                                      the drive's homing works, stops halfway with a homing
+                                      error, or never finds its reference (searches on)
   cable POSITION pulled|plugged       pull the cable in front of the drive out (frames reach
                                       only the drives before it), or plug it back in
   drop FRAMES                         the next FRAMES frames get no reply at all
@@ -68,6 +72,7 @@ USAGE = {
     "toggles": "toggles POSITION INPUT P1,P2,...",
     "state": "state POSITION",
     "power_cycle": "power_cycle POSITION",
+    "homing": "homing POSITION ok|error|no_reference",
     "cable": "cable POSITION pulled|plugged",
     "drop": "drop FRAMES",
     "corrupt": "corrupt FRAMES",
@@ -126,7 +131,7 @@ def execute(simulator, line: str) -> str | None:
         raise CommandError(f"unknown command {name!r}: allowed are {', '.join(USAGE)}")
     if name == "help":
         return "ok commands: " + " | ".join(USAGE.values())
-    arity = {"fault": (2,), "hardware_enable": (2,), "toggles": (2, 3), "cable": (2,)}.get(name, (1,))
+    arity = {"fault": (2,), "hardware_enable": (2,), "toggles": (2, 3), "cable": (2,), "homing": (2,)}.get(name, (1,))
     if len(args) not in arity:
         raise CommandError(f"usage: {USAGE[name]}")
     if name in BURSTS:
@@ -146,6 +151,8 @@ def execute(simulator, line: str) -> str | None:
         simulator.set_input_toggles(position, digital_input, positions)
     elif name == "power_cycle":
         simulator.power_cycle(position)
+    elif name == "homing":
+        simulator.set_homing_failure(position, args[1])
     elif name == "cable":
         if args[1] not in ("pulled", "plugged"):
             raise CommandError(f"cable takes pulled or plugged, got {args[1]!r}")

@@ -13,6 +13,7 @@ from akd_ros.node import NODE_NAME
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
+from akd_ros.node.homing import Homing
 from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
 from akd_ros.node.services import Services
@@ -51,6 +52,8 @@ class Core:
         self._trajectories = Trajectories(transport, self._session, commands, periodic, command_qos, events)
         self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
         Services(transport, self._session, self._commands, requests)
+        # Homing goals have a group of their own: one runs for as long as its joints home.
+        Homing(transport, self._session, transport.group())
 
     @property
     def bus(self) -> Bus | None:

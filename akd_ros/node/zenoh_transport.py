@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from akd_ros.node.transport import Qos
+from akd_ros.node.transport import ActionCallbacks, Qos
 from akd_ros.node.worker import Worker
 from akd_ros.zenoh.wire import Durability, QoS, Reliability
 
@@ -99,6 +99,14 @@ class ZenohTransport:
         self.zenoh_node.service(
             name, type_name, answer, deserialize_request=lambda data: self.types.from_cdr(data, f"{type_name}_Request")
         )
+
+    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Worker) -> bool:
+        # rmw_zenoh carries an action as three services and two topics of types rosidl derives from the .action;
+        # this transport does not build those types, so it serves no action rather than a wrong one.
+        self.logger.warning(
+            f"{self.resolve(name)} ({type_name}) is not served over Zenoh alone: actions need transport rclpy or both"
+        )
+        return False
 
     def timer(self, period: float, callback: Callable[[], None], group: Worker) -> None:
         group.add_timer(period, callback)

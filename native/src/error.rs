@@ -1383,6 +1383,11 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
+    /// How a virtual AKD's homing fails.
+    HomingFailure {
+        /// The name given.
+        name: String,
+    },
 }
 
 impl fmt::Display for UnknownName {
@@ -1406,6 +1411,9 @@ impl fmt::Display for UnknownName {
                 "missed frames judged {name:?}: allowed \"late\" (as the real drive) or \"lost\" (only frames lost on \
                  the line)"
             ),
+            UnknownName::HomingFailure { name } => {
+                write!(f, "homing failure {name:?}: allowed ok, error, no_reference")
+            }
         }
     }
 }
@@ -1414,6 +1422,18 @@ impl fmt::Display for UnknownName {
 /// is in; the text says what would make it possible.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Unavailable {
+    /// Homing needs modes of operation and its display in the process data.
+    HomingUnmapped {
+        /// The slave's position.
+        slave: u16,
+    },
+    /// Homing starts only in Operation enabled.
+    HomingNotEnabled {
+        /// The slave's position.
+        slave: u16,
+        /// The state it is in.
+        state: &'static str,
+    },
     /// No process image: the slaves were not taken to SafeOp.
     NoProcessImage,
     /// A slave without process data in the image.
@@ -1529,6 +1549,14 @@ impl fmt::Display for Unavailable {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Unavailable::NoProcessImage => write!(f, "no process image yet: take the slaves to SafeOp first"),
+            Unavailable::HomingUnmapped { slave } => write!(
+                f,
+                "slave {slave} cannot home from the cycle: its mapping lacks modes of operation 0x6060 (outputs) or \
+                 its display 0x6061 (inputs); map both (akd_ros's default mapping has them)"
+            ),
+            Unavailable::HomingNotEnabled { slave, state } => {
+                write!(f, "slave {slave} cannot home: it is in {state}, not Operation enabled; enable it first")
+            }
             Unavailable::NoProcessData { slave, with_data: None } => {
                 write!(f, "slave {slave} has no process data (map it, then go to SafeOp)")
             }

@@ -643,6 +643,30 @@ impl PyCycle {
         Ok(self.cycle.setpoint_status(position).py()?.into())
     }
 
+    /// Starts homing drive `position` in the cycle thread with the method and speeds set in the
+    /// drive: into homing mode (6), start (bit 4), homing attained (bit 12) with the motion
+    /// stopped, then back to the mode the set-points carry with the target at the actual
+    /// position; halted and ended "timed_out" when not attained within `timeout` s. The drive
+    /// must be in Operation enabled with 0x6060 and 0x6061 mapped. Returns its number at once.
+    fn start_homing(&self, position: u16, timeout: f64) -> PyResult<u32> {
+        let timeout = duration("homing timeout", timeout, SECONDS)?;
+        self.cycle.start_homing(position, timeout).py()
+    }
+
+    /// Cancels the homing under way on drive `position`: halted, then back to its mode.
+    fn cancel_homing(&self, position: u16) -> PyResult<()> {
+        self.cycle.cancel_homing(position).py()
+    }
+
+    /// The homing of drive `position`: "request" (its number, 0 before any), "phase" ("idle",
+    /// "homing", "ending", "done"), "outcome" ("attained", "homing_error", "timed_out",
+    /// "canceled", "not_enabled"; None while under way), "reason" (why it failed, else None),
+    /// "statusword" and "homing_state" (from bits 13, 12, 10 in homing mode: "in_progress",
+    /// "interrupted", "attained", "error"), and "homed" (attained since the drive was last lost).
+    fn homing_status(&self, position: u16) -> PyResult<super::homing::HomingView> {
+        Ok(self.cycle.homing_status(position).py()?.into())
+    }
+
     /// Sets the command time-out of drive `position`: when a non-zero velocity (profile
     /// velocity) or torque (profile torque) written by `set_object` or `set_outputs` is not
     /// written again for `timeout` seconds while the drive is in Operation enabled, the cycle

@@ -29,6 +29,7 @@ use crate::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
+use crate::sim::homing::{Failure as HomingFailure, Setup};
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::sync::SyncState;
 use crate::sim::{VirtualAkd, VirtualBus};
@@ -106,6 +107,13 @@ pub enum Change {
         /// Toggle positions, counts, each finite.
         positions: Vec<f64>,
     },
+    /// Make the drive's homing runs fail, or work again.
+    HomingFailure {
+        /// Drive position.
+        position: usize,
+        /// How they fail; `None`: they work.
+        failure: Option<HomingFailure>,
+    },
     /// Power-cycle the drive ([`VirtualAkd::power_cycle`]).
     PowerCycle {
         /// Drive position.
@@ -146,6 +154,13 @@ impl Change {
         Ok(Change::InputToggles { position, input, positions })
     }
 
+    /// Homing failure `name` ("ok", "error", "no_reference", see [`HomingFailure`]) for drive
+    /// `position` of a bus of `count` drives.
+    pub fn homing_failure(count: usize, position: usize, name: &str) -> Result<Self> {
+        check_position(count, position)?;
+        Ok(Change::HomingFailure { position, failure: HomingFailure::from_name(name)? })
+    }
+
     /// Power-cycle drive `position` of a bus of `count` drives.
     pub fn power_cycle(count: usize, position: usize) -> Result<Self> {
         check_position(count, position)?;
@@ -166,6 +181,10 @@ impl Change {
             Change::InputToggles { position, input, positions } => {
                 let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_toggles(input, &positions);
                 debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+            }
+            Change::HomingFailure { position, failure } => {
+                let drive = bus.slave_mut(position).drive_mut();
+                drive.set_homing(Setup { failure, ..drive.homing_setup() });
             }
             // A test's rare event: the fresh drive's allocation on the owner's side is the
             // power-up's, not the exchange path's.
@@ -220,6 +239,12 @@ impl SimControl {
     /// (counts) crosses one of `positions` from the next frame on; it is low below all of them.
     pub fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> Result<()> {
         self.send(Message::Change(Change::input_toggles(self.count, position, input, positions)?))
+    }
+
+    /// Makes drive `position`'s homing runs fail from the next frame on as `name` says ("error":
+    /// a homing error halfway, "no_reference": the reference never found), or work ("ok").
+    pub fn set_homing_failure(&self, position: usize, name: &str) -> Result<()> {
+        self.send(Message::Change(Change::homing_failure(self.count, position, name)?))
     }
 
     /// Power-cycles drive `position` before the next frame: it answers as at power-up.
