@@ -9,7 +9,7 @@
 # included, so two machines set up a month apart get the same set. To move to newer releases:
 #     bash scripts/setup.sh --refresh-constraints
 # installs the same packages unpinned into a scratch environment and writes what pip chose to
-# constraints.txt (then run the tests, commit the file, and update the README's tested versions).
+# constraints.txt (then run the tests, commit the file, and update the tested versions in docs/install.md).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
