@@ -129,7 +129,9 @@ SCHEMA: tuple[Spec, ...] = (
         "sim",
         "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW), "
-        "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame.",
+        "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame. 'sim' and 'sim:N' "
+        "take '?missed=lost': the virtual drives then count as missed (F125) only the frames the line lost, not "
+        "those a busy host sent late.",
     ),
     Spec(
         "joints",
@@ -137,7 +139,8 @@ SCHEMA: tuple[Spec, ...] = (
         "Names of the joints on the bus, each with its own block joints.<name>.* of the joint parameters (slave, "
         "mode, mapping, units, limits, latches, fault reset, command time-out), whose defaults are the top-level "
         "values; its topics and services go under ~/<name>/. Empty: one joint, joint_name, with the top-level joint "
-        "parameters and its topics and services under ~/.",
+        "parameters and its topics and services under ~/. A name is letters, digits and single underscores, a "
+        "letter first.",
     ),
     Spec(
         "fault_reaction",
@@ -174,7 +177,8 @@ SCHEMA: tuple[Spec, ...] = (
         "dc",
         "auto",
         "Distributed clocks. 'on': SYNC0 at the cycle time and FBUS.PARAM02 = 1, the drive's PLL follows SYNC0 "
-        "(as TwinCAT runs the AKD), the clocks' drift compensated every cycle; 'off': SYNC0 off, the drive follows "
+        "(as TwinCAT runs the AKD; FBUS.PARAM02 is written only where the drive's SDO information names the object "
+        "so), the clocks' drift compensated every cycle; 'off': SYNC0 off, the drive follows "
         "each frame's SM2 event; 'auto': on for a network interface, off for 'sim', 'sim:N' and 'udp://', where a "
         "frame's timing is the host's scheduling and the socket's, not the wire's.",
         choices=tuple(DC_CHOICES),
@@ -337,12 +341,19 @@ SCHEMA: tuple[Spec, ...] = (
         "",
         "Name of a TAP interface (up to 15 characters, e.g. akd-eoe0) the node opens at configure and bridges to the "
         "EoE of every joint with an eoe.ip, so that the machine reaches the drives' addresses (ping, WorkBench); "
-        "needs CAP_NET_ADMIN, without which the node warns and runs without it. '' for none.",
+        "needs CAP_NET_ADMIN, without which the node warns and runs without it; closed at cleanup and shutdown. A "
+        "name without '/', ':' or blanks, '%d' in it numbered by the kernel; needs at least one joint with eoe.ip. "
+        "'' for none.",
     ),
     Spec("eoe.host", "", "The TAP interface's own address and prefix (A.B.C.D/N), '' for none."),
     Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
-    Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
+    Spec(
+        "rt.lock_memory",
+        False,
+        "Lock the process's memory (mlockall) so the cycle never waits on paging; where refused (no CAP_IPC_LOCK or "
+        "RLIMIT_MEMLOCK), the node warns and runs without it.",
+    ),
     Spec(
         "rt.cpu_latency_us",
         -1,
@@ -403,7 +414,7 @@ SCHEMA: tuple[Spec, ...] = (
         "default's or the file's; empty to keep those.",
     ),
 )
-"""Every parameter of akd_node, in the order the README's table lists them."""
+"""Every parameter of akd_node; the documentation's reference of parameters is generated from it, in this order."""
 SPECS = {spec.name: spec for spec in SCHEMA}
 """SCHEMA by parameter name."""
 

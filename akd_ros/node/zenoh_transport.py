@@ -63,16 +63,7 @@ class ZenohTransport:
             group.stop()
 
     def message_class(self, type_name: str) -> Callable[..., Any]:
-        cls = self.types.store.types[type_name]
-
-        def make(**fields):
-            return self.types.message(type_name, **fields)
-
-        # The message's constants (DiagnosticStatus.OK, LatchEvent.EDGE_RISING), as its class has them.
-        for constant, _, value in self.types.store.fielddefs[type_name][0]:
-            setattr(make, constant, value)
-        make.__name__ = cls.__name__
-        return make
+        return self.types.message_class(type_name)
 
     def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
         return _Publisher(self, type_name, topic, qos)
