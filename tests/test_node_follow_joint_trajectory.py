@@ -24,7 +24,7 @@ from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance
 from support.ros import NodeProcess, Participant, Sim, ros_environment, stop
 
-DOMAINS = range(231, 241)
+DOMAINS = range(211, 221)
 NODE = "/akd_node/"
 JOINTS = [f"joint_{i}" for i in range(1, 7)]
 COUNTS_PER_RAD = 2**20 / (2 * math.pi)
