@@ -100,6 +100,17 @@ def run(tmp_path_factory):
             print(f"akd_node output:\n{node.output()}")
 
 
+@pytest.fixture(autouse=True)
+def enabled(run):
+    """Each test starts with every drive enabled: a fault test, or an F706 after a host stall of over 100 ms on a
+    loaded machine, does not carry over to the next."""
+    sim, _, client = run
+    if not all(s["state"] == "Operation enabled" for s in states(sim)):
+        client.trigger("reset_fault")
+        client.trigger("enable")
+        client.spin_until(lambda: all(s["state"] == "Operation enabled" for s in states(sim)), "enabled again")
+
+
 def states(sim: Sim) -> list[dict]:
     return [sim.state(i) for i in range(len(JOINTS))]
 
