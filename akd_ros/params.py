@@ -330,6 +330,66 @@ SCHEMA: tuple[Spec, ...] = (
         choices=("together", "one_by_one"),
     ),
     Spec(
+        "constraints.trajectory",
+        0.0,
+        "~/follow_joint_trajectory's default path tolerance for the joint, rad (m): while a goal runs, the cycle "
+        "thread compares the actual position every cycle with the set-point of the cycle before; a larger error stops "
+        "the joints (braking at trajectory.stop_deceleration) and ends the goal PATH_TOLERANCE_VIOLATED. A goal's "
+        "path_tolerance overrides it (as joint_trajectory_controller's constraints.<joint>.trajectory). 0: not judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.goal",
+        0.0,
+        "~/follow_joint_trajectory's default goal tolerance for the joint, rad (m): from the last point's time on, the "
+        "goal succeeds once every joint's actual position is within it of the last point (and within "
+        "constraints.stopped_velocity_tolerance of rest); past constraints.goal_time it ends GOAL_TOLERANCE_VIOLATED. "
+        "A goal's goal_tolerance overrides it (as joint_trajectory_controller's constraints.<joint>.goal). 0: not "
+        "judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.stopped_velocity_tolerance",
+        0.0,
+        "~/follow_joint_trajectory's default goal velocity tolerance for the joint, rad/s (m/s): how fast it may "
+        "still move when the goal is judged (as joint_trajectory_controller's constraints.stopped_velocity_tolerance). "
+        "0: not judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.goal_time",
+        1.0,
+        "~/follow_joint_trajectory's default goal time tolerance, s: how long past the last point's time the joints "
+        "may take to come within their goal tolerances before the goal ends GOAL_TOLERANCE_VIOLATED. A goal's "
+        "goal_time_tolerance overrides it where not 0. 0: judged at the last point's time, without waiting "
+        "(joint_trajectory_controller waits without end there instead; a driver should not).",
+        0.0,
+        3600.0,
+    ),
+    Spec(
+        "trajectory.stop_deceleration",
+        10.0,
+        "Deceleration, rad/s² (m/s²), at which a ~/follow_joint_trajectory goal that is canceled or strays past its "
+        "path tolerance brings the joint from its set-point in force to a standstill, in the cycle thread (the "
+        "velocity falls linearly to 0, never a jump). Set it within what the axis can do.",
+        1e-3,
+        1e9,
+        per_joint=True,
+    ),
+    Spec(
+        "follow_joint_trajectory.feedback_rate",
+        20.0,
+        "Rate in Hz of ~/follow_joint_trajectory's feedback (desired, actual and error of each joint of the goal).",
+        0.1,
+        1000.0,
+    ),
+    Spec(
         "eoe.ip",
         "",
         "The drive's IP address and prefix (A.B.C.D/N), given it by EoE Set IP Parameter at configure so that its "
@@ -443,6 +503,14 @@ class JointSettings:
     homing_required: bool = False
     """Whether motion commands are refused until the joint is homed."""
     homing_timeout: float = 30.0
+    path_tolerance: float = 0.0
+    """constraints.trajectory: the default path position tolerance, SI (0: not judged)."""
+    goal_tolerance: float = 0.0
+    """constraints.goal: the default goal position tolerance, SI (0: not judged)."""
+    stopped_velocity_tolerance: float = 0.0
+    """constraints.stopped_velocity_tolerance: the default goal velocity tolerance, SI/s (0: not judged)."""
+    stop_deceleration: float = 10.0
+    """trajectory.stop_deceleration: how a stopped FollowJointTrajectory goal decelerates, SI/s²."""
     eoe_ip: str | None = None
     """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
 
@@ -477,6 +545,10 @@ class Settings:
     joint_states_rate: float
     homing_sequence: str
     """How ~/home homes several joints: 'together' or 'one_by_one'."""
+    goal_time: float
+    """constraints.goal_time: the default goal time tolerance of ~/follow_joint_trajectory, s."""
+    feedback_rate: float
+    """follow_joint_trajectory.feedback_rate, Hz."""
     status_rate: float
     diagnostics_rate: float
     rt_priority: int | None
@@ -723,6 +795,8 @@ def settings(values: dict[str, object]) -> Settings:
         joint_namespaces=bool(names),
         joint_states_rate=top["joint_states_rate"],
         homing_sequence=top["homing.sequence"],
+        goal_time=top["constraints.goal_time"],
+        feedback_rate=top["follow_joint_trajectory.feedback_rate"],
         status_rate=top["status_rate"],
         diagnostics_rate=top["diagnostics_rate"],
         rt_priority=top["rt.priority"] or None,
@@ -799,6 +873,10 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         homing_method=values["homing.method"],
         homing_required=values["homing.required"],
         homing_timeout=values["homing.timeout"],
+        path_tolerance=values["constraints.trajectory"],
+        goal_tolerance=values["constraints.goal"],
+        stopped_velocity_tolerance=values["constraints.stopped_velocity_tolerance"],
+        stop_deceleration=values["trajectory.stop_deceleration"],
         eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
     )
 

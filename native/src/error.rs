@@ -1674,6 +1674,13 @@ pub enum TrajectoryError {
         /// Joints of the trajectory.
         joints: usize,
     },
+    /// Tolerances for another number of joints than the trajectory has.
+    TolerancesCount {
+        /// Tolerances given.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
     /// A joint's limits that are not finite or whose minimum is above the maximum.
     BadLimits {
         /// The joint.
@@ -1759,6 +1766,9 @@ impl fmt::Display for TrajectoryError {
             }
             TrajectoryError::LimitsCount { given, joints } => {
                 write!(f, "{given} joint limit(s) given; the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::TolerancesCount { given, joints } => {
+                write!(f, "{given} joint tolerance(s) given; the trajectory has {joints} joint(s)")
             }
             TrajectoryError::BadLimits { joint, min, max } => {
                 write!(f, "joint {joint}: limits {min} ..= {max} counts; they must be finite with min <= max")

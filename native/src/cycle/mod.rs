@@ -313,7 +313,7 @@ impl CycleThread {
             eoe: eoe_frames::EoeFrames::default(),
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::Shared::new(master.clock()),
-            trajectories: trajectory_player::Shared::default(),
+            trajectories: trajectory_player::Shared::new(master.slaves().len()),
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
             supervised: supervised.is_ok(),
@@ -718,6 +718,22 @@ impl CycleThread {
         limits: Option<&[Limits]>,
         start_ns: Option<u64>,
     ) -> Result<u32> {
+        self.follow_trajectory(slaves, times_ns, points, limits, start_ns, None)
+    }
+
+    /// Plays a joint trajectory as [`play_trajectory`](Self::play_trajectory) does, judged by
+    /// `tolerances` (one per joint) where given: FollowJointTrajectory's path and goal
+    /// tolerances, its goal time tolerance, and how each joint stops
+    /// ([`stop_trajectory`](Self::stop_trajectory), a path violation).
+    pub fn follow_trajectory(
+        &self,
+        slaves: &[u16],
+        times_ns: &[u64],
+        points: &[Vec<Knot>],
+        limits: Option<&[Limits]>,
+        start_ns: Option<u64>,
+        tolerances: Option<trajectory_player::Tolerances>,
+    ) -> Result<u32> {
         if self.stopped() {
             return Err(Unavailable::CycleStopped { consequence: "no trajectory can play".into() }.into());
         }
@@ -732,7 +748,11 @@ impl CycleThread {
                 self.trajectory_joint(joint, slave)
             })
             .collect::<Result<Vec<_>>>()?;
-        let mut plan = trajectory_player::Plan::new(self.trajectories.next_id(), start_ns, joints, trajectory);
+        if let Some(t) = tolerances.as_ref().filter(|t| t.joints.len() != slaves.len()) {
+            return Err(TrajectoryError::TolerancesCount { given: t.joints.len(), joints: slaves.len() }.into());
+        }
+        let id = self.trajectories.next_id();
+        let mut plan = trajectory_player::Plan::judged(id, start_ns, joints, trajectory, tolerances);
         let status = plan.status();
         let deadline = std::time::Instant::now() + 10 * self.period + Duration::from_millis(100);
         loop {
@@ -779,7 +799,13 @@ impl CycleThread {
                     .into(),
             ));
         }
-        Ok(trajectory_player::Joint { slave, targets, statusword: o.statusword })
+        Ok(trajectory_player::Joint {
+            slave,
+            targets,
+            statusword: o.statusword,
+            actual: o.actual,
+            velocity_actual: o.velocity_actual,
+        })
     }
 
     /// The trajectory `id` (from [`play_trajectory`](Self::play_trajectory)) as the cycle
@@ -787,6 +813,18 @@ impl CycleThread {
     /// start) or how it ended. The statuses of the last [`trajectory_player::KEPT`] are kept.
     pub fn trajectory_status(&self, id: u32) -> Result<trajectory_player::Status> {
         self.trajectories.status(&self.shared.trajectories, id)
+    }
+
+    /// Brings trajectory `id` to a standstill in the cycle thread, each joint at its stop
+    /// deceleration; it then ends "stopped". Nothing for a trajectory that is not in force.
+    pub fn stop_trajectory(&self, id: u32) {
+        self.shared.trajectories.stop(id);
+    }
+
+    /// The drive at `slave`'s set-point and actual values as the trajectory in force judges
+    /// them (see [`trajectory_player::Shared::followed`]); `None` while none drives it.
+    pub fn trajectory_followed(&self, slave: u16) -> Option<[f64; 4]> {
+        self.shared.trajectories.followed(slave)
     }
 
     /// The mapping of the slave at `position`: its output entries and input entries, in wire
