@@ -78,7 +78,7 @@ class BothTransport:
         )
         self.ros.service(type_name, name, handler, group)
 
-    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: RosGroup) -> bool:
+    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: RosGroup) -> type:
         # Served over rclpy only: rmw_zenoh's clients reach it through a router bridging DDS, not this Zenoh session.
         return self.ros.action_server(type_name, name, callbacks, group)
 

@@ -52,11 +52,10 @@ class FollowJointTrajectory:
 
     def __init__(self, transport: Transport, session: Session, group) -> None:
         self._session, self._logger = session, transport.logger
-        self._action = transport.message_class(FOLLOW_JOINT_TRAJECTORY)
         self._point = transport.message_class("trajectory_msgs/msg/JointTrajectoryPoint")
         self._header = transport.message_class("std_msgs/msg/Header")
-        self._codes = self._action.Result
-        self.served = transport.action_server(
+        # None where the transport serves no action; then nothing here runs.
+        self._action = transport.action_server(
             FOLLOW_JOINT_TRAJECTORY,
             "~/follow_joint_trajectory",
             ActionCallbacks(goal=lambda goal: True, execute=self._execute, cancel=lambda handle: True),
@@ -76,7 +75,7 @@ class FollowJointTrajectory:
     def _start(self, goal):
         """Checks `goal` whole and hands its trajectory to the cycle thread: (id, joints, axes, the monotonic time in s
         by which it must have ended); _RefusedError where it cannot be followed."""
-        codes, session = self._codes, self._session
+        codes, session = self._action.Result, self._session
         trajectory = goal.trajectory
         joints = list(trajectory.joint_names)
         if goal.multi_dof_trajectory.joint_names:
@@ -179,7 +178,7 @@ class FollowJointTrajectory:
 
     def _result(self, handle, status: dict, joints, axes, stopping: bool):
         """Ends the goal as the cycle thread ended its trajectory."""
-        codes, state = self._codes, status["state"]
+        codes, state = self._action.Result, status["state"]
         by_slave = {axis.slave: axis for axis in axes}
         axis = by_slave.get(status.get("slave"))
         name = axis.name if axis is not None else f"slave {status.get('slave')}"

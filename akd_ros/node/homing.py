@@ -54,8 +54,8 @@ class Homing:
 
     def __init__(self, transport: Transport, session: Session, group) -> None:
         self._session, self._logger = session, transport.logger
-        self._action = transport.message_class(HOME)
-        self.served = transport.action_server(
+        # None where the transport serves no action; then nothing here runs.
+        self._action = transport.action_server(
             HOME, "~/home", ActionCallbacks(goal=lambda goal: True, execute=self._execute, cancel=lambda h: True), group
         )
 

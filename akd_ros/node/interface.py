@@ -91,9 +91,8 @@ class Noting:
     def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: Any) -> None:
         self.endpoints.append(Endpoint(SERVICE, self.resolve(name), type_name))
 
-    def action_server(self, type_name: str, name: str, callbacks: Any, group: Any) -> bool:
+    def action_server(self, type_name: str, name: str, callbacks: Any, group: Any) -> None:
         self.endpoints.append(Endpoint(ACTION, self.resolve(name), type_name))
-        return True
 
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         pass

@@ -76,9 +76,9 @@ class Transport(Protocol):
         """Serves `name` of service type `type_name` ("pkg/srv/Name"): `handler(request, response)` fills and returns
         the response."""
 
-    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Any) -> bool:
-        """Serves action `name` of type `type_name` ("pkg/action/Name") with `callbacks`; whether this transport
-        serves actions at all (where not, it says so in the log)."""
+    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Any) -> Any | None:
+        """Serves action `name` of type `type_name` ("pkg/action/Name") with `callbacks`; gives the action's class
+        (its Goal, Feedback and Result), or None where this transport serves no action (it says so in the log)."""
 
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         """Calls `callback` every `period` seconds."""

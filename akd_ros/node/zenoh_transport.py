@@ -91,13 +91,13 @@ class ZenohTransport:
             name, type_name, answer, deserialize_request=lambda data: self.types.from_cdr(data, f"{type_name}_Request")
         )
 
-    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Worker) -> bool:
+    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Worker) -> None:
         # rmw_zenoh carries an action as three services and two topics of types rosidl derives from the .action;
         # this transport does not build those types, so it serves no action rather than a wrong one.
         self.logger.warning(
             f"{self.resolve(name)} ({type_name}) is not served over Zenoh alone: actions need transport rclpy or both"
         )
-        return False
+        return None
 
     def timer(self, period: float, callback: Callable[[], None], group: Worker) -> None:
         group.add_timer(period, callback)
