@@ -97,7 +97,6 @@ class ZenohTransport:
         self.logger.warning(
             f"{self.resolve(name)} ({type_name}) is not served over Zenoh alone: actions need transport rclpy or both"
         )
-        return None
 
     def timer(self, period: float, callback: Callable[[], None], group: Worker) -> None:
         group.add_timer(period, callback)

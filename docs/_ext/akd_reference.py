@@ -2,8 +2,8 @@
 and included by the reference pages, so that it cannot drift from the code.
 
 - parameters.md: `akd_ros.params.SCHEMA` (name, type, default, range or allowed values, description), by group;
-- topics.md, services.md, actions.md: what the node's parts declare (`akd_ros.node.interface.declared`), on a node of joints and
-  on a node of one joint, each with its description from reference/node_interface.yaml (a door without a
+- topics.md, services.md, actions.md: what the node's parts declare (`akd_ros.node.interface.declared`), on a node
+  of joints and on a node of one joint, each with its description from reference/node_interface.yaml (a door without a
   description, or a description of a door the node lacks, fails the build);
 - messages.md: every definition in msg/, srv/ and action/, with the topics, services and actions that carry it;
 - tools.md: each command-line tool's --help, as its console script prints it.
