@@ -344,6 +344,8 @@ class Bus:
         times: Sequence[float],
         points: Sequence[Sequence[tuple[float, float | None, float | None]]],
         start_ns: int | None = None,
+        tolerances: Sequence[tuple[float, float, float, float, float]] | None = None,
+        goal_time: float = 0.0,
     ) -> int:
         """Plays a trajectory in the cycle thread: axis `joints[j]` through `points[k][j]` = (position, velocity or
         None, acceleration or None) in SI units at `times[k]` seconds from the start (strictly increasing, the first
@@ -351,7 +353,10 @@ class Bus:
         velocities are, linear otherwise. Each axis must be enabled in interpolated or cyclic synchronous position.
         It takes over from the trajectory in force without a step. CommandError, before anything moves, for an
         unknown joint, a point past an axis's limits (always refused, whatever the policy), NaN or bad times.
-        Returns its id (see `cycle.trajectory_status` and `trajectory_events`)."""
+        With `tolerances` (per joint: path position, path velocity, goal position, goal velocity in SI, inf where not
+        judged, and the stop deceleration in SI/s²) and `goal_time` (s), the cycle thread judges it as
+        FollowJointTrajectory does and `cycle.stop_trajectory` brakes it. Returns its id (see
+        `cycle.trajectory_status` and `trajectory_events`)."""
         axes = [self[name] for name in joints] if all(n in self.names for n in joints) else None
         if axes is None:
             unknown = [n for n in joints if n not in self.names]
@@ -370,9 +375,22 @@ class Bus:
             if len(point) != len(axes):
                 raise CommandError(f"trajectory refused: point {k} has {len(point)} values for {len(axes)} joints")
             knots.append([axis.trajectory_knot(*knot, point=k) for axis, knot in zip(axes, point, strict=True)])
+        counted = None
+        if tolerances is not None:
+            # Magnitudes: counts per SI unit, whatever the direction.
+            counted = [
+                tuple(abs(value / axis.units.si_per_count) for value in tolerance)
+                for axis, tolerance in zip(axes, tolerances, strict=True)
+            ]
         try:
             return self.cycle.play_trajectory(
-                [a.slave for a in axes], times_ns, knots, start_ns, [a.position_limits_counts() for a in axes]
+                [a.slave for a in axes],
+                times_ns,
+                knots,
+                start_ns,
+                [a.position_limits_counts() for a in axes],
+                counted,
+                round(goal_time * 1e9),
             )
         except (_native.ConfigError, OverflowError) as e:
             # The crate's refusal says "trajectory refused, nothing moved: " and why.

@@ -137,7 +137,9 @@ SCHEMA: tuple[Spec, ...] = (
         "sim",
         "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW), "
-        "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame.",
+        "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame. 'sim' and 'sim:N' "
+        "take '?missed=lost': the virtual drives then count as missed (F125) only the frames the line lost, not "
+        "those a busy host sent late.",
     ),
     Spec(
         "joints",
@@ -145,7 +147,8 @@ SCHEMA: tuple[Spec, ...] = (
         "Names of the joints on the bus, each with its own block joints.<name>.* of the joint parameters (slave, "
         "mode, mapping, units, limits, latches, fault reset, command time-out), whose defaults are the top-level "
         "values; its topics and services go under ~/<name>/. Empty: one joint, joint_name, with the top-level joint "
-        "parameters and its topics and services under ~/.",
+        "parameters and its topics and services under ~/. A name is letters, digits and single underscores, a "
+        "letter first.",
     ),
     Spec(
         "fault_reaction",
@@ -182,7 +185,8 @@ SCHEMA: tuple[Spec, ...] = (
         "dc",
         "auto",
         "Distributed clocks. 'on': SYNC0 at the cycle time and FBUS.PARAM02 = 1, the drive's PLL follows SYNC0 "
-        "(as TwinCAT runs the AKD), the clocks' drift compensated every cycle; 'off': SYNC0 off, the drive follows "
+        "(as TwinCAT runs the AKD; FBUS.PARAM02 is written only where the drive's SDO information names the object "
+        "so), the clocks' drift compensated every cycle; 'off': SYNC0 off, the drive follows "
         "each frame's SM2 event; 'auto': on for a network interface, off for 'sim', 'sim:N' and 'udp://', where a "
         "frame's timing is the host's scheduling and the socket's, not the wire's.",
         choices=tuple(DC_CHOICES),
@@ -317,6 +321,100 @@ SCHEMA: tuple[Spec, ...] = (
         per_joint=True,
     ),
     Spec(
+        "homing.method",
+        "drive",
+        "How the joint is referenced. 'drive': ~/home runs the homing the drive is set up for (on the AKD its HOME.* "
+        "parameters, set in WorkBench: the EtherCAT manual names no CoE object for them, so the node writes none), "
+        "in the cycle thread; the joint is homed once the drive reports homing attained, until its drive is "
+        "power-cycled or lost. 'none': an absolute encoder, or an axis referenced otherwise; homed from the start.",
+        choices=("drive", "none"),
+        per_joint=True,
+    ),
+    Spec(
+        "homing.required",
+        False,
+        "Whether the joint must be homed before it moves: position commands, ~/joint_commands naming it and "
+        "trajectories through it are refused, naming the joint, while it is not homed. Velocity and torque commands "
+        "are not held back (homing itself may need a jog to leave a limit switch).",
+        per_joint=True,
+    ),
+    Spec(
+        "homing.timeout",
+        30.0,
+        "Seconds a homing may take from its start to homing attained; past them the drive is halted and the joint "
+        "reported timed out.",
+        0.1,
+        3600.0,
+        per_joint=True,
+    ),
+    Spec(
+        "homing.sequence",
+        "together",
+        "How ~/home homes several joints: 'together' starts them all at once; 'one_by_one' homes them in the order "
+        "of the goal (of joints when it names none), each after the last attained, and stops at the first that fails.",
+        choices=("together", "one_by_one"),
+    ),
+    Spec(
+        "constraints.trajectory",
+        0.0,
+        "~/follow_joint_trajectory's default path tolerance for the joint, rad (m): while a goal runs, the cycle "
+        "thread compares the actual position every cycle with the set-point of the cycle before; a larger error stops "
+        "the joints (braking at trajectory.stop_deceleration) and ends the goal PATH_TOLERANCE_VIOLATED. A goal's "
+        "path_tolerance overrides it (as joint_trajectory_controller's constraints.<joint>.trajectory). 0: not judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.goal",
+        0.0,
+        "~/follow_joint_trajectory's default goal tolerance for the joint, rad (m): from the last point's time on, the "
+        "goal succeeds once every joint's actual position is within it of the last point (and within "
+        "constraints.stopped_velocity_tolerance of rest); past constraints.goal_time it ends GOAL_TOLERANCE_VIOLATED. "
+        "A goal's goal_tolerance overrides it (as joint_trajectory_controller's constraints.<joint>.goal). 0: not "
+        "judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.stopped_velocity_tolerance",
+        0.0,
+        "~/follow_joint_trajectory's default goal velocity tolerance for the joint, rad/s (m/s): how fast it may "
+        "still move when the goal is judged (as joint_trajectory_controller's constraints.stopped_velocity_tolerance). "
+        "0: not judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.goal_time",
+        1.0,
+        "~/follow_joint_trajectory's default goal time tolerance, s: how long past the last point's time the joints "
+        "may take to come within their goal tolerances before the goal ends GOAL_TOLERANCE_VIOLATED. A goal's "
+        "goal_time_tolerance overrides it where not 0. 0: judged at the last point's time, without waiting "
+        "(joint_trajectory_controller waits without end there instead; a driver should not).",
+        0.0,
+        3600.0,
+    ),
+    Spec(
+        "trajectory.stop_deceleration",
+        10.0,
+        "Deceleration, rad/s² (m/s²), at which a ~/follow_joint_trajectory goal that is canceled or strays past its "
+        "path tolerance brings the joint from its set-point in force to a standstill, in the cycle thread (the "
+        "velocity falls linearly to 0, never a jump). Set it within what the axis can do.",
+        1e-3,
+        1e9,
+        per_joint=True,
+    ),
+    Spec(
+        "follow_joint_trajectory.feedback_rate",
+        20.0,
+        "Rate in Hz of ~/follow_joint_trajectory's feedback (desired, actual and error of each joint of the goal).",
+        0.1,
+        1000.0,
+    ),
+    Spec(
         "eoe.ip",
         "",
         "The drive's IP address and prefix (A.B.C.D/N), given it by EoE Set IP Parameter at configure so that its "
@@ -328,12 +426,19 @@ SCHEMA: tuple[Spec, ...] = (
         "",
         "Name of a TAP interface (up to 15 characters, e.g. akd-eoe0) the node opens at configure and bridges to the "
         "EoE of every joint with an eoe.ip, so that the machine reaches the drives' addresses (ping, WorkBench); "
-        "needs CAP_NET_ADMIN, without which the node warns and runs without it. '' for none.",
+        "needs CAP_NET_ADMIN, without which the node warns and runs without it; closed at cleanup and shutdown. A "
+        "name without '/', ':' or blanks, '%d' in it numbered by the kernel; needs at least one joint with eoe.ip. "
+        "'' for none.",
     ),
     Spec("eoe.host", "", "The TAP interface's own address and prefix (A.B.C.D/N), '' for none."),
     Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
-    Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
+    Spec(
+        "rt.lock_memory",
+        False,
+        "Lock the process's memory (mlockall) so the cycle never waits on paging; where refused (no CAP_IPC_LOCK or "
+        "RLIMIT_MEMLOCK), the node warns and runs without it.",
+    ),
     Spec(
         "rt.cpu_latency_us",
         -1,
@@ -394,7 +499,7 @@ SCHEMA: tuple[Spec, ...] = (
         "default's or the file's; empty to keep those.",
     ),
 )
-"""Every parameter of akd_node, in the order the README's table lists them."""
+"""Every parameter of akd_node; the documentation's reference of parameters is generated from it, in this order."""
 SPECS = {spec.name: spec for spec in SCHEMA}
 """SCHEMA by parameter name."""
 IO_NAME_SPECS: tuple[Spec, ...] = (
@@ -438,6 +543,19 @@ class JointSettings:
     fault_reset: str
     command_timeout: float
     command_timeout_policy: str
+    homing_method: str = "drive"
+    """'drive' (homed by ~/home) or 'none' (homed from the start)."""
+    homing_required: bool = False
+    """Whether motion commands are refused until the joint is homed."""
+    homing_timeout: float = 30.0
+    path_tolerance: float = 0.0
+    """constraints.trajectory: the default path position tolerance, SI (0: not judged)."""
+    goal_tolerance: float = 0.0
+    """constraints.goal: the default goal position tolerance, SI (0: not judged)."""
+    stopped_velocity_tolerance: float = 0.0
+    """constraints.stopped_velocity_tolerance: the default goal velocity tolerance, SI/s (0: not judged)."""
+    stop_deceleration: float = 10.0
+    """trajectory.stop_deceleration: how a stopped FollowJointTrajectory goal decelerates, SI/s²."""
     eoe_ip: str | None = None
     """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
     io_carried: dict[str, bool] | None = None
@@ -485,6 +603,12 @@ class Settings:
     joint_namespaces: bool
     """Whether each joint's topics and services go under ~/<joint>/ (joints given) rather than ~/ (one joint)."""
     joint_states_rate: float
+    homing_sequence: str
+    """How ~/home homes several joints: 'together' or 'one_by_one'."""
+    goal_time: float
+    """constraints.goal_time: the default goal time tolerance of ~/follow_joint_trajectory, s."""
+    feedback_rate: float
+    """follow_joint_trajectory.feedback_rate, Hz."""
     status_rate: float
     diagnostics_rate: float
     io_rate: float
@@ -765,6 +889,9 @@ def settings(values: dict[str, object]) -> Settings:
         joints=joints,
         joint_namespaces=bool(names),
         joint_states_rate=top["joint_states_rate"],
+        homing_sequence=top["homing.sequence"],
+        goal_time=top["constraints.goal_time"],
+        feedback_rate=top["follow_joint_trajectory.feedback_rate"],
         status_rate=top["status_rate"],
         diagnostics_rate=top["diagnostics_rate"],
         io_rate=top["io_rate"],
@@ -854,6 +981,13 @@ def joint_settings(
         fault_reset=values["fault_reset"],
         command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
+        homing_method=values["homing.method"],
+        homing_required=values["homing.required"],
+        homing_timeout=values["homing.timeout"],
+        path_tolerance=values["constraints.trajectory"],
+        goal_tolerance=values["constraints.goal"],
+        stopped_velocity_tolerance=values["constraints.stopped_velocity_tolerance"],
+        stop_deceleration=values["trajectory.stop_deceleration"],
         eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
         io_carried=dict(carried),
         io_inputs=io[0],

@@ -140,8 +140,8 @@ def test_scan_with_cap_net_raw_alone_works_without_the_root_warning(as_user, vet
 
 
 def test_scan_with_setcap_on_the_interpreter_works(as_user, veth, tmp_path):
-    # On a copy of the interpreter (`python -m venv --copies`), as the README advises: setcap on the venv's usual
-    # symlink would give every user of the shared interpreter CAP_NET_RAW.
+    # On a copy of the interpreter (`python -m venv --copies`), as docs/howto/without_root.md advises: setcap on the
+    # venv's usual symlink would give every user of the shared interpreter CAP_NET_RAW.
     if shutil.which("setcap") is None:
         pytest.skip("needs setcap (Debian package libcap2-bin)")
     venv = Path(tempfile.mkdtemp(prefix="akd-setcap-"))

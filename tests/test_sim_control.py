@@ -209,8 +209,8 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
             ("state", "usage: state POSITION"),
             (
                 "jog 0",
-                "allowed are fault, hardware_enable, toggles, input, switch, analog_input, state, power_cycle, cable, "
-                "drop, corrupt, wrong_wkc, help",
+                "allowed are fault, hardware_enable, toggles, input, switch, analog_input, state, power_cycle, homing, "
+                "cable, drop, corrupt, wrong_wkc, help",
             ),
         ):
             reply = command(bad)

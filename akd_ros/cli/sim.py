@@ -21,7 +21,11 @@ stdout, 'ok ...' or 'error: ...':
                                       its I/O: digital_inputs (0x60FD), digital_outputs and
                                       analog_output (V) as the master drives them
   power_cycle POSITION                the drive loses power and comes back as at power-up
-                                      (AL Init, station address 0, Not ready to switch on)
+                                      (AL Init, station address 0, Not ready to switch on,
+                                      not homed)
+  homing POSITION ok|error|no_reference
+                                      the drive's homing works, stops halfway with a homing
+                                      error, or never finds its reference (searches on)
   cable POSITION pulled|plugged       pull the cable in front of the drive out (frames reach
                                       only the drives before it), or plug it back in
   drop FRAMES                         the next FRAMES frames get no reply at all
@@ -78,6 +82,7 @@ USAGE = {
     "analog_input": "analog_input POSITION VOLTS",
     "state": "state POSITION",
     "power_cycle": "power_cycle POSITION",
+    "homing": "homing POSITION ok|error|no_reference",
     "cable": "cable POSITION pulled|plugged",
     "drop": "drop FRAMES",
     "corrupt": "corrupt FRAMES",
@@ -144,6 +149,7 @@ def execute(simulator, line: str) -> str | None:
         "switch": (3,),
         "analog_input": (2,),
         "cable": (2,),
+        "homing": (2,),
     }.get(name, (1,))
     if len(args) not in arity:
         raise CommandError(f"usage: {USAGE[name]}")
@@ -179,6 +185,8 @@ def execute(simulator, line: str) -> str | None:
         simulator.set_analog_input(position, volts)
     elif name == "power_cycle":
         simulator.power_cycle(position)
+    elif name == "homing":
+        simulator.set_homing_failure(position, args[1])
     elif name == "cable":
         if args[1] not in ("pulled", "plugged"):
             raise CommandError(f"cable takes pulled or plugged, got {args[1]!r}")

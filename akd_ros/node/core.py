@@ -13,6 +13,8 @@ from akd_ros.node import NODE_NAME
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
+from akd_ros.node.follow_joint_trajectory import FollowJointTrajectory
+from akd_ros.node.homing import Homing
 from akd_ros.node.io import Io
 from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
@@ -53,6 +55,10 @@ class Core:
         self._io = Io(transport, self._session, periodic, requests, events)
         self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
         Services(transport, self._session, self._commands, requests)
+        # Homing goals have a group of their own: one runs for as long as its joints home.
+        Homing(transport, self._session, transport.group())
+        # So do FollowJointTrajectory goals: one runs until its trajectory ends, a newer one beside it to preempt it.
+        FollowJointTrajectory(transport, self._session, transport.group())
 
     @property
     def bus(self) -> Bus | None:

@@ -13,6 +13,7 @@ values carry the link, the cycle statistics and the distributed clocks."""
 
 from __future__ import annotations
 
+from akd_ros.node.homing import joint_homed
 from akd_ros.node.io import named_levels, reasons
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
@@ -138,6 +139,7 @@ class Diagnostics:
             "request": state.request or "",
             "progress": state.progress,
             "position": f"{state.position:.9g}",
+            "homed": joint_homed(self._session.joint(axis.name), axis),
             **dc_values(dc_status, axis.slave),
             "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
             "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",

@@ -1404,6 +1404,11 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
+    /// How a virtual AKD's homing fails.
+    HomingFailure {
+        /// The name given.
+        name: String,
+    },
 }
 
 impl fmt::Display for UnknownName {
@@ -1427,6 +1432,9 @@ impl fmt::Display for UnknownName {
                 "missed frames judged {name:?}: allowed \"late\" (as the real drive) or \"lost\" (only frames lost on \
                  the line)"
             ),
+            UnknownName::HomingFailure { name } => {
+                write!(f, "homing failure {name:?}: allowed ok, error, no_reference")
+            }
         }
     }
 }
@@ -1435,6 +1443,18 @@ impl fmt::Display for UnknownName {
 /// is in; the text says what would make it possible.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Unavailable {
+    /// Homing needs modes of operation and its display in the process data.
+    HomingUnmapped {
+        /// The slave's position.
+        slave: u16,
+    },
+    /// Homing starts only in Operation enabled.
+    HomingNotEnabled {
+        /// The slave's position.
+        slave: u16,
+        /// The state it is in.
+        state: &'static str,
+    },
     /// No process image: the slaves were not taken to SafeOp.
     NoProcessImage,
     /// A slave without process data in the image.
@@ -1550,6 +1570,14 @@ impl fmt::Display for Unavailable {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Unavailable::NoProcessImage => write!(f, "no process image yet: take the slaves to SafeOp first"),
+            Unavailable::HomingUnmapped { slave } => write!(
+                f,
+                "slave {slave} cannot home from the cycle: its mapping lacks modes of operation 0x6060 (outputs) or \
+                 its display 0x6061 (inputs); map both (akd_ros's default mapping has them)"
+            ),
+            Unavailable::HomingNotEnabled { slave, state } => {
+                write!(f, "slave {slave} cannot home: it is in {state}, not Operation enabled; enable it first")
+            }
             Unavailable::NoProcessData { slave, with_data: None } => {
                 write!(f, "slave {slave} has no process data (map it, then go to SafeOp)")
             }
@@ -1667,6 +1695,13 @@ pub enum TrajectoryError {
         /// Joints of the trajectory.
         joints: usize,
     },
+    /// Tolerances for another number of joints than the trajectory has.
+    TolerancesCount {
+        /// Tolerances given.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
     /// A joint's limits that are not finite or whose minimum is above the maximum.
     BadLimits {
         /// The joint.
@@ -1752,6 +1787,9 @@ impl fmt::Display for TrajectoryError {
             }
             TrajectoryError::LimitsCount { given, joints } => {
                 write!(f, "{given} joint limit(s) given; the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::TolerancesCount { given, joints } => {
+                write!(f, "{given} joint tolerance(s) given; the trajectory has {joints} joint(s)")
             }
             TrajectoryError::BadLimits { joint, min, max } => {
                 write!(f, "joint {joint}: limits {min} ..= {max} counts; they must be finite with min <= max")

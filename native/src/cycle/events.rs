@@ -185,6 +185,36 @@ pub enum TrajectoryState {
         /// Its statusword then.
         statusword: u16,
     },
+    /// Stopped on request (a cancel): its drives decelerated to a standstill.
+    Stopped,
+    /// A drive strayed past the path tolerance while it ran: its drives decelerated to a
+    /// standstill.
+    PathToleranceViolated(Violation),
+    /// A drive was not within the goal tolerance by the end plus the goal time tolerance.
+    GoalToleranceViolated(Violation),
+}
+
+/// Which drive strayed from a trajectory and by how much.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Violation {
+    /// The drive's position on the bus.
+    pub slave: u16,
+    /// Whether its velocity strayed (else its position).
+    pub velocity: bool,
+    /// The error, set-point minus actual: counts, or counts/s for a velocity.
+    pub error: i32,
+}
+
+impl Violation {
+    /// In 56 bits (an event keeps a state in 56): `code` for a position, the next for a
+    /// velocity, the drive, the error.
+    fn pack(self, code: u64) -> u64 {
+        (code + self.velocity as u64) | (self.slave as u64) << 8 | (self.error as u32 as u64) << 24
+    }
+
+    fn unpack(v: u64, code: u8) -> Violation {
+        Violation { slave: (v >> 8) as u16, velocity: v as u8 != code, error: (v >> 24) as u32 as i32 }
+    }
 }
 
 impl TrajectoryState {
@@ -196,6 +226,9 @@ impl TrajectoryState {
             TrajectoryState::Done => "done",
             TrajectoryState::Replaced { .. } => "replaced",
             TrajectoryState::Aborted { .. } => "aborted",
+            TrajectoryState::Stopped => "stopped",
+            TrajectoryState::PathToleranceViolated(_) => "path_tolerance_violated",
+            TrajectoryState::GoalToleranceViolated(_) => "goal_tolerance_violated",
         }
     }
 
@@ -204,7 +237,8 @@ impl TrajectoryState {
         !matches!(self, TrajectoryState::Pending | TrajectoryState::Running)
     }
 
-    /// The state in 40 bits: a code, then the replacing id or the drive and its statusword.
+    /// The state in 64 bits: a code, then the replacing id, the drive and its statusword, or
+    /// the violation.
     pub fn pack(self) -> u64 {
         match self {
             TrajectoryState::Pending => 1,
@@ -212,6 +246,9 @@ impl TrajectoryState {
             TrajectoryState::Done => 3,
             TrajectoryState::Replaced { by } => 4 | (by as u64) << 8,
             TrajectoryState::Aborted { slave, statusword } => 5 | (slave as u64) << 8 | (statusword as u64) << 24,
+            TrajectoryState::Stopped => 6,
+            TrajectoryState::PathToleranceViolated(v) => v.pack(7),
+            TrajectoryState::GoalToleranceViolated(v) => v.pack(9),
         }
     }
 
@@ -223,6 +260,9 @@ impl TrajectoryState {
             3 => Some(TrajectoryState::Done),
             4 => Some(TrajectoryState::Replaced { by: (v >> 8) as u32 }),
             5 => Some(TrajectoryState::Aborted { slave: (v >> 8) as u16, statusword: (v >> 24) as u16 }),
+            6 => Some(TrajectoryState::Stopped),
+            7 | 8 => Some(TrajectoryState::PathToleranceViolated(Violation::unpack(v, 7))),
+            9 | 10 => Some(TrajectoryState::GoalToleranceViolated(Violation::unpack(v, 9))),
             _ => None,
         }
     }

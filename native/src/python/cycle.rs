@@ -656,6 +656,30 @@ impl PyCycle {
         Ok(self.cycle.setpoint_status(position).py()?.into())
     }
 
+    /// Starts homing drive `position` in the cycle thread with the method and speeds set in the
+    /// drive: into homing mode (6), start (bit 4), homing attained (bit 12) with the motion
+    /// stopped, then back to the mode the set-points carry with the target at the actual
+    /// position; halted and ended "timed_out" when not attained within `timeout` s. The drive
+    /// must be in Operation enabled with 0x6060 and 0x6061 mapped. Returns its number at once.
+    fn start_homing(&self, position: u16, timeout: f64) -> PyResult<u32> {
+        let timeout = duration("homing timeout", timeout, SECONDS)?;
+        self.cycle.start_homing(position, timeout).py()
+    }
+
+    /// Cancels the homing under way on drive `position`: halted, then back to its mode.
+    fn cancel_homing(&self, position: u16) -> PyResult<()> {
+        self.cycle.cancel_homing(position).py()
+    }
+
+    /// The homing of drive `position`: "request" (its number, 0 before any), "phase" ("idle",
+    /// "homing", "ending", "done"), "outcome" ("attained", "homing_error", "timed_out",
+    /// "canceled", "not_enabled"; None while under way), "reason" (why it failed, else None),
+    /// "statusword" and "homing_state" (from bits 13, 12, 10 in homing mode: "in_progress",
+    /// "interrupted", "attained", "error"), and "homed" (attained since the drive was last lost).
+    fn homing_status(&self, position: u16) -> PyResult<super::homing::HomingView> {
+        Ok(self.cycle.homing_status(position).py()?.into())
+    }
+
     /// Sets the command time-out of drive `position`: when a non-zero velocity (profile
     /// velocity) or torque (profile torque) written by `set_object` or `set_outputs` is not
     /// written again for `timeout` seconds while the drive is in Operation enabled, the cycle
@@ -789,8 +813,14 @@ impl PyCycle {
     /// (time.monotonic_ns(); None: now). Every drive must be in Operation enabled in
     /// interpolated position or cyclic synchronous position. Takes over from the trajectory in
     /// force without a step; a bad one raises ConfigError saying why before anything moves.
+    /// With `tolerances` (FollowJointTrajectory's), a list of (path position, path velocity,
+    /// goal position, goal velocity, stop deceleration) per joint in counts, counts/s and
+    /// counts/s² (inf: not judged; for the deceleration: stop at once), with `goal_time_ns`:
+    /// it ends "path_tolerance_violated" (after braking to a standstill) or
+    /// "goal_tolerance_violated" where a drive strays, and `stop_trajectory` brakes it.
     /// Returns its id.
-    #[pyo3(signature = (positions, times_ns, points, start_ns = None, limits = None))]
+    #[pyo3(signature = (positions, times_ns, points, start_ns = None, limits = None, tolerances = None, goal_time_ns = 0))]
+    #[allow(clippy::too_many_arguments)]
     fn play_trajectory(
         &self,
         py: Python<'_>,
@@ -799,12 +829,29 @@ impl PyCycle {
         points: Vec<Vec<super::trajectory::PyKnot>>,
         start_ns: Option<u64>,
         limits: Option<Vec<(f64, f64)>>,
+        tolerances: Option<Vec<super::trajectory::PyTolerance>>,
+        goal_time_ns: u64,
     ) -> PyResult<u32> {
-        super::trajectory::play(py, &self.cycle, positions, times_ns, points, start_ns, limits)
+        let tolerances = tolerances.map(|t| super::trajectory::tolerances(t, goal_time_ns));
+        super::trajectory::play(py, &self.cycle, positions, times_ns, points, start_ns, limits, tolerances)
+    }
+
+    /// Brings trajectory `id` to a standstill in the cycle thread at its joints' stop
+    /// decelerations (it ends "stopped"); nothing for one that is not in force.
+    fn stop_trajectory(&self, id: u32) {
+        self.cycle.stop_trajectory(id);
+    }
+
+    /// Drive `position`'s (desired position, desired velocity, actual position, actual
+    /// velocity), counts and counts/s, as the trajectory in force judges them; None while none
+    /// drives it.
+    fn trajectory_followed(&self, position: u16) -> Option<(f64, f64, f64, f64)> {
+        self.cycle.trajectory_followed(position).map(|[a, b, c, d]| (a, b, c, d))
     }
 
     /// Trajectory `id` as the cycle thread last published it: "id", "state" ("pending",
-    /// "running", "done", "replaced", "aborted"), "replaced_by" (the newer id), "slave",
+    /// "running", "done", "replaced", "aborted", "stopped", "path_tolerance_violated",
+    /// "goal_tolerance_violated"), "replaced_by" (the newer id), "slave",
     /// "statusword" and "ds402_state" (of the drive that aborted it), "point" (the point
     /// approached; "points" once past the last), "started_ns" (None while pending),
     /// "elapsed_ns", "duration_ns". The last 64 are kept.

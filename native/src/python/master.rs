@@ -204,7 +204,7 @@ impl PyMaster {
 
     /// What opening the link could not do as asked, one sentence each: on a raw interface, the
     /// threads of this process that kept their capabilities after the socket was open (those
-    /// that block every signal; see the README's "Running without root").
+    /// that block every signal; see docs/howto/without_root.md).
     #[getter]
     fn warnings(&self) -> Vec<String> {
         self.warnings.clone()

@@ -162,6 +162,13 @@ impl PyVirtualBus {
         Ok(())
     }
 
+    /// Makes drive `position`'s homing runs fail as `name` says: "error" (a homing error
+    /// halfway to the reference), "no_reference" (it searches and never finds it), or "ok".
+    fn set_homing_failure(&mut self, position: usize, name: &str) -> PyResult<()> {
+        Change::homing_failure(self.bus.len(), position, name).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
     /// The drive firmware of drive `position` as a dict: "state" (the CiA 402 state's name),
     /// "fault" (the active fault's name, or None), "fault_number" (e.g. 125, or None), and the
     /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m), and "dc", what its
@@ -239,6 +246,13 @@ impl PySimulator {
     /// the next frame on.
     fn set_analog_input(&self, position: usize, volts: f64) -> PyResult<()> {
         self.control.set_analog_input(position, volts).py()
+    }
+
+    /// Makes drive `position`'s homing runs fail from the next frame on as `name` says: "error"
+    /// (a homing error halfway to the reference), "no_reference" (it searches and never finds
+    /// it), or "ok".
+    fn set_homing_failure(&self, position: usize, name: &str) -> PyResult<()> {
+        self.control.set_homing_failure(position, name).py()
     }
 
     /// Power-cycles drive `position` before the next frame: it comes back as at power-up (AL

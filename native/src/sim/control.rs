@@ -29,6 +29,7 @@ use crate::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
+use crate::sim::homing::{Failure as HomingFailure, Setup};
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::sync::SyncState;
 use crate::sim::terminals::{Outputs, Terminals};
@@ -138,6 +139,13 @@ pub enum Change {
         /// Volts, within the range 0x3470:04 holds.
         volts: f64,
     },
+    /// Make the drive's homing runs fail, or work again.
+    HomingFailure {
+        /// Drive position.
+        position: usize,
+        /// How they fail; `None`: they work.
+        failure: Option<HomingFailure>,
+    },
     /// Power-cycle the drive ([`VirtualAkd::power_cycle`]).
     PowerCycle {
         /// Drive position.
@@ -202,6 +210,13 @@ impl Change {
         Ok(Change::AnalogInput { position, volts })
     }
 
+    /// Homing failure `name` ("ok", "error", "no_reference", see [`HomingFailure`]) for drive
+    /// `position` of a bus of `count` drives.
+    pub fn homing_failure(count: usize, position: usize, name: &str) -> Result<Self> {
+        check_position(count, position)?;
+        Ok(Change::HomingFailure { position, failure: HomingFailure::from_name(name)? })
+    }
+
     /// Power-cycle drive `position` of a bus of `count` drives.
     pub fn power_cycle(count: usize, position: usize) -> Result<Self> {
         check_position(count, position)?;
@@ -234,6 +249,10 @@ impl Change {
             Change::AnalogInput { position, volts } => {
                 let checked = bus.slave_mut(position).drive_mut().terminals_mut().set_analog_input(volts);
                 debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+            }
+            Change::HomingFailure { position, failure } => {
+                let drive = bus.slave_mut(position).drive_mut();
+                drive.set_homing(Setup { failure, ..drive.homing_setup() });
             }
             // A test's rare event: the fresh drive's allocation on the owner's side is the
             // power-up's, not the exchange path's.
@@ -305,6 +324,12 @@ impl SimControl {
     /// Sets the analog input of drive `position` to `volts` from the next frame on.
     pub fn set_analog_input(&self, position: usize, volts: f64) -> Result<()> {
         self.send(Message::Change(Change::analog_input(self.count, position, volts)?))
+    }
+
+    /// Makes drive `position`'s homing runs fail from the next frame on as `name` says ("error":
+    /// a homing error halfway, "no_reference": the reference never found), or work ("ok").
+    pub fn set_homing_failure(&self, position: usize, name: &str) -> Result<()> {
+        self.send(Message::Change(Change::homing_failure(self.count, position, name)?))
     }
 
     /// Power-cycles drive `position` before the next frame: it answers as at power-up.

@@ -21,8 +21,8 @@
 //!   over the cycle time 0x60C2, the slope feeding the velocity loop forward. Profile velocity
 //!   (3) ramps to 0x60FF with 0x6083/0x6084. Torque (4) gives 0x6071 in 0.1 % of the peak
 //!   torque. Profile position (1) moves to 0x607A (bit 6: relative) on the rising edge of bit 4
-//!   with a trapezoid of 0x6081/0x6083/0x6084, each new set-point at once. Homing (6) is the
-//!   AKD's "home at the current position": bit 4 rising makes the actual position 0.
+//!   with a trapezoid of 0x6081/0x6083/0x6084, each new set-point at once. Homing (6) moves to
+//!   the reference on the rising edge of bit 4 and makes it the zero ([`crate::sim::homing`]).
 //! - On entering Operation enabled and on every mode change the position command is the actual
 //!   position: nothing moves until a set-point asks for it.
 //! - An active limit switch holds motion toward it back in every mode
@@ -35,6 +35,7 @@ use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State}
 use crate::pdo::PdoEntry;
 use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
+use crate::sim::homing::{self, Ending};
 use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
 use crate::sim::od::ObjectDictionary;
 use crate::sim::terminals::{LimitStop, Terminals};
@@ -148,6 +149,11 @@ pub struct Drive {
     profile_target: Option<f64>,
     setpoint_acknowledged: bool,
     homing_attained: bool,
+    homing_error: bool,
+    /// The homing run under way.
+    homing: Option<homing::Run>,
+    /// The homing as set up in the drive (its HOME.* parameters).
+    homing_setup: homing::Setup,
     /// A ramp to stand-still runs (halt, quick stop, fault reaction).
     stopping: bool,
     hardware_enable: bool,
@@ -162,7 +168,8 @@ pub struct Drive {
     time_ns: Option<u64>,
     last_process_data_ns: Option<u64>,
     last_setpoint_ns: Option<u64>,
-    enabled_at_ns: u64,
+    /// Since when cyclic set-points are due: the enable, or the change into the mode.
+    setpoints_due_since_ns: u64,
 }
 
 impl Default for Drive {
@@ -189,6 +196,9 @@ impl Drive {
             profile_target: None,
             setpoint_acknowledged: false,
             homing_attained: false,
+            homing_error: false,
+            homing: None,
+            homing_setup: homing::Setup::default(),
             stopping: false,
             hardware_enable: true,
             injected: None,
@@ -202,7 +212,7 @@ impl Drive {
             time_ns: None,
             last_process_data_ns: None,
             last_setpoint_ns: None,
-            enabled_at_ns: 0,
+            setpoints_due_since_ns: 0,
         }
     }
 
@@ -234,6 +244,16 @@ impl Drive {
     /// Sets the hardware enable input (X8), high at power-up.
     pub fn set_hardware_enable(&mut self, high: bool) {
         self.hardware_enable = high;
+    }
+
+    /// Sets the drive's homing up (where a real AKD's HOME.* parameters are set).
+    pub fn set_homing(&mut self, setup: homing::Setup) {
+        self.homing_setup = setup;
+    }
+
+    /// The drive's homing set-up.
+    pub fn homing_setup(&self) -> homing::Setup {
+        self.homing_setup
     }
 
     /// The simulated digital inputs, to set their levels and where they toggle.
@@ -349,8 +369,10 @@ impl Drive {
         let requested = Mode::from_i8(bytes::<1>(od, 0x6060, 0)[0] as i8);
         if requested.is_some() && requested != self.mode {
             self.mode = requested;
+            self.setpoints_due_since_ns = now;
             self.hold_here();
             self.homing_attained = false;
+            self.homing_error = false;
         }
         let enabled = self.state == State::OperationEnabled;
         let halt = enabled && controlword & cw::HALT != 0;
@@ -376,8 +398,9 @@ impl Drive {
                     self.setpoint_acknowledged = true;
                 }
                 Some(Mode::Homing) => {
-                    self.offset = -self.shaft.position.round();
-                    self.homing_attained = true;
+                    self.homing = Some(homing::Run::start(&self.homing_setup, self.command));
+                    self.homing_attained = false;
+                    self.homing_error = false;
                 }
                 _ => {}
             }
@@ -392,6 +415,7 @@ impl Drive {
         self.command_velocity = self.shaft.velocity;
         self.segment = None;
         self.profile_target = None;
+        self.homing = None;
         // A limit switch holds back from where the axis is now, not from where it once stopped.
         self.limit_stop = LimitStop::default();
     }
@@ -408,7 +432,7 @@ impl Drive {
         match next {
             State::OperationEnabled => {
                 if !was_on || self.stopping {
-                    self.enabled_at_ns = now;
+                    self.setpoints_due_since_ns = now;
                     self.loops.reset();
                     self.stopping = false;
                     self.hold_here();
@@ -457,7 +481,8 @@ impl Drive {
         }
         let cyclic = matches!(self.mode, Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition));
         if cyclic && self.state == State::OperationEnabled {
-            let since = self.last_setpoint_ns.map_or(self.enabled_at_ns, |s| s.max(self.enabled_at_ns));
+            let since =
+                self.last_setpoint_ns.map_or(self.setpoints_due_since_ns, |s| s.max(self.setpoints_due_since_ns));
             if t.saturating_sub(since) > timeout_ns {
                 return Some(Fault::SetpointsMissing);
             }
@@ -511,23 +536,44 @@ impl Drive {
                 self.loops.torque(target * self.mechanics.peak_torque / 1000.0, &m)
             }
             Some(Mode::ProfilePosition) => {
-                self.profile_step(od);
+                if let Some(target) = self.profile_target {
+                    let (v_max, acceleration, deceleration) =
+                        (u32_of(od, 0x6081) as f64, u32_of(od, 0x6083) as f64, u32_of(od, 0x6084) as f64);
+                    self.trapezoid_step(target, v_max, acceleration, deceleration);
+                }
                 (self.command, self.command_velocity) =
                     self.limit_stop.position(blocked, (self.command, self.command_velocity), quick_stop);
                 self.loops.position(self.command, self.command_velocity, &shaft, &g, &m)
             }
-            Some(Mode::Homing) | None => self.loops.position(self.command, 0.0, &shaft, &g, &m),
+            Some(Mode::Homing) => {
+                self.homing_step();
+                self.loops.position(self.command, self.command_velocity, &shaft, &g, &m)
+            }
+            None => self.loops.position(self.command, 0.0, &shaft, &g, &m),
         };
         Some(torque)
     }
 
-    /// One step of the profile position trapezoid toward the target.
-    fn profile_step(&mut self, od: &ObjectDictionary) {
-        let Some(target) = self.profile_target else {
+    /// One step of the homing run: toward where it stops, then the zero or the error there.
+    fn homing_step(&mut self) {
+        let Some(run) = self.homing else { return };
+        let s = self.homing_setup;
+        if !self.trapezoid_step(run.stop_at, s.speed, s.acceleration, s.acceleration) {
             return;
-        };
-        let (v_max, acceleration, deceleration) =
-            (u32_of(od, 0x6081) as f64, u32_of(od, 0x6083) as f64, u32_of(od, 0x6084) as f64);
+        }
+        self.homing = None;
+        match run.ends {
+            Ending::Reference => {
+                self.offset = -run.stop_at;
+                self.homing_attained = true;
+            }
+            Ending::Error => self.homing_error = true,
+        }
+    }
+
+    /// One step of a trapezoid of `v_max`, `acceleration` and `deceleration` toward `target`
+    /// (profile position, homing); whether the command is there.
+    fn trapezoid_step(&mut self, target: f64, v_max: f64, acceleration: f64, deceleration: f64) -> bool {
         let remaining = target - self.command;
         let v = self.command_velocity;
         let direction = remaining.signum();
@@ -538,9 +584,11 @@ impl Drive {
         if (next * STEP_S).abs() >= remaining.abs() {
             self.command = target;
             self.command_velocity = 0.0;
+            true
         } else {
             self.command += next * STEP_S;
             self.command_velocity = next;
+            false
         }
     }
 
@@ -575,7 +623,7 @@ impl Drive {
                 Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition) => {
                     (following_error.abs() <= POSITION_WINDOW, true, lagging)
                 }
-                Some(Mode::Homing) => (self.homing_attained, self.homing_attained, false),
+                Some(Mode::Homing) => (self.homing.is_none() && still, self.homing_attained, self.homing_error),
                 Some(Mode::ProfileTorque) | None => (!self.loops.limited, false, false),
             }
         };
@@ -777,7 +825,7 @@ mod tests {
     }
 
     #[test]
-    fn profile_position_relative_moves_and_homing_zeroes_the_position() {
+    fn profile_position_relative_moves() {
         let mut b = Bench::new();
         b.enable(1);
         b.write(0x607A, 0, &(1i32 << 20).to_le_bytes());
@@ -788,12 +836,66 @@ mod tests {
         }
         assert!((b.drive.position() - 2.0 * COUNTS_PER_REV).abs() <= POSITION_WINDOW, "{}", b.drive.position());
         assert_ne!(u16_of(&b.od, 0x6041) & sw::TARGET_REACHED, 0);
+    }
+
+    const HOMING_BITS: u16 = sw::MODE_SPECIFIC_13 | sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED;
+
+    /// Starts homing on an enabled drive: mode 6, then bit 4's rising edge.
+    fn start_homing(b: &mut Bench) {
         b.write(0x6060, 0, &[6]);
         b.controlword(cw::ENABLE_OPERATION_COMMAND);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, sw::TARGET_REACHED, "not started");
         b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT);
-        assert!(b.drive.position().abs() < 1.0, "{}", b.drive.position());
-        assert_eq!(u16_of(&b.od, 0x6041) & (sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED), 0x1400);
-        assert_eq!(b.i32(0x6064), 0);
+    }
+
+    #[test]
+    fn homing_moves_to_the_reference_at_its_speed_and_makes_it_the_zero() {
+        let mut b = Bench::new();
+        b.drive.shaft.position = -COUNTS_PER_REV;
+        b.enable(8);
+        let setup = b.drive.homing_setup();
+        start_homing(&mut b);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, 0, "in progress");
+        b.run_for(300 * MS);
+        // At the homing speed, toward the reference, before it is reached.
+        let v = b.drive.shaft().velocity;
+        assert!((v - setup.speed).abs() < 0.05 * setup.speed, "{v}");
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, 0);
+        b.run_for(1200 * MS);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED, "attained");
+        assert!(b.i32(0x6064).abs() <= 20, "{}", b.i32(0x6064));
+        assert!((b.drive.shaft().position - setup.reference).abs() <= 20.0);
+        // Attained goes with the mode: back in a cyclic mode (whose set-points are due from the
+        // change, not from the enable), then homing again, it starts over.
+        b.write(0x6060, 0, &[8]);
+        b.run_for(MS);
+        assert_eq!(b.drive.fault(), None);
+        start_homing(&mut b);
+    }
+
+    #[test]
+    fn homing_fails_as_set_up_and_a_halt_interrupts_it() {
+        let mut b = Bench::new();
+        b.enable(8);
+        let mut setup = b.drive.homing_setup();
+        setup.failure = Some(homing::Failure::Error);
+        b.drive.set_homing(setup);
+        start_homing(&mut b);
+        b.run_for(1000 * MS);
+        let error = sw::MODE_SPECIFIC_13 | sw::TARGET_REACHED;
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, error);
+        assert!((b.drive.shaft().position - setup.reference / 2.0).abs() <= 20.0, "stopped halfway");
+        setup.failure = Some(homing::Failure::NoReference);
+        b.drive.set_homing(setup);
+        b.controlword(cw::ENABLE_OPERATION_COMMAND);
+        b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT);
+        b.run_for(1000 * MS);
+        assert!(b.drive.shaft().position > 1.5 * setup.reference, "searched past it");
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, 0, "still in progress");
+        b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT | cw::HALT);
+        b.run_for(200 * MS);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, sw::TARGET_REACHED, "interrupted");
+        assert_eq!(b.drive.state(), State::OperationEnabled);
     }
 
     #[test]

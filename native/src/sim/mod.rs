@@ -26,6 +26,7 @@ pub mod eoe_server;
 pub mod esc;
 pub mod faults;
 pub mod foe_server;
+pub mod homing;
 pub mod in_process;
 pub mod line;
 pub mod mailbox_server;
@@ -207,11 +208,14 @@ impl VirtualAkd {
 
     /// The drive loses its power and comes back, as a real AKD does: ESC and firmware at
     /// power-up (AL Init, station address 0, sync managers, FMMUs and mailbox cleared, the
-    /// object dictionary and its mappings at their defaults, CiA 402 Not ready to switch on),
-    /// with the same EEPROM, identity and timing.
+    /// object dictionary and its mappings at their defaults, CiA 402 Not ready to switch on,
+    /// not homed), with the same EEPROM, identity, timing and homing set-up.
     pub fn power_cycle(&mut self) {
         let sii = self.esc.sii().to_vec();
+        // The reference is the machine's; the zero homing found there is the drive's, and gone.
+        let homing = self.drive().homing_setup();
         *self = Self::with_sii(sii, self.identity, self.mailbox_size, self.has_successor, self.timing);
+        self.drive_mut().set_homing(homing);
     }
 
     /// The AL state, the error flag and the AL status code.
