@@ -4,8 +4,6 @@
 //! whose inputs show it, and a limit switch that holds a move toward it. The waits have
 //! deadlines only so that a failure does not hang.
 
-use std::time::{Duration, Instant};
-
 use akd_native::cycle::events::Event;
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
@@ -17,24 +15,11 @@ use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
 
 #[path = "support/one_drive.rs"]
 mod one_drive;
-use one_drive::one_drive;
-
-const DEADLINE: Duration = Duration::from_secs(10);
+use one_drive::{one_drive, wait_until};
 
 fn rig() -> (CycleThread, SimControl) {
     let pdos = |p: &[&[PdoEntry]]| Mapping::Flexible(p.iter().map(|e| e.to_vec()).collect());
     one_drive(Mode::CyclicSynchronousPosition, (pdos(&pdo::IO_RX), pdos(&pdo::IO_TX)))
-}
-
-fn wait_until<T>(what: &str, mut done: impl FnMut() -> Option<T>) -> T {
-    let deadline = Instant::now() + DEADLINE;
-    loop {
-        if let Some(value) = done() {
-            return value;
-        }
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(1));
-    }
 }
 
 fn request(cycle: &CycleThread, request: Request, state: State) {

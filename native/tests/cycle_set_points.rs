@@ -15,10 +15,8 @@ use akd_native::master::Mapping;
 mod one_drive;
 #[path = "support/profile.rs"]
 mod profile;
-use one_drive::one_drive;
+use one_drive::{one_drive, wait_until};
 use profile::{inputs, outputs, profile_mapping};
-
-const DEADLINE: Duration = Duration::from_secs(10);
 
 /// One virtual AKD in `mode`, mapped for the profile modes (or with `mapping`), cycled at 1 kHz.
 fn rig_with(mode: Mode, mapping: Option<(Mapping, Mapping)>) -> CycleThread {
@@ -27,17 +25,6 @@ fn rig_with(mode: Mode, mapping: Option<(Mapping, Mapping)>) -> CycleThread {
 
 fn rig(mode: Mode) -> CycleThread {
     rig_with(mode, None)
-}
-
-fn wait_until<T>(what: &str, mut done: impl FnMut() -> Option<T>) -> T {
-    let deadline = Instant::now() + DEADLINE;
-    loop {
-        if let Some(value) = done() {
-            return value;
-        }
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(1));
-    }
 }
 
 fn enabled(cycle: &CycleThread) {

@@ -1,8 +1,8 @@
 //! One virtual AKD in Op with a given mapping and mode of operation, cycled at 1 kHz, and the
-//! handle that controls it. Its missed frames are judged by frames lost: a cycle this shared
+//! handle that controls it; and a wait with a deadline. Its missed frames are judged by frames lost: a cycle this shared
 //! host runs late must not fault the drive (F125) under a test of something else.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use akd_native::akd_fault::MissedFrames;
 use akd_native::al::AlState;
@@ -14,6 +14,20 @@ use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 
 const STEP: Duration = Duration::from_secs(5);
+/// How long a wait may last before the test fails: a bound, not a timing expectation.
+const DEADLINE: Duration = Duration::from_secs(10);
+
+/// The first `Some` of `done()`, polled every millisecond; fails naming `what` after DEADLINE.
+pub fn wait_until<T>(what: &str, mut done: impl FnMut() -> Option<T>) -> T {
+    let deadline = Instant::now() + DEADLINE;
+    loop {
+        if let Some(value) = done() {
+            return value;
+        }
+        assert!(Instant::now() < deadline, "timed out waiting for {what}");
+        std::thread::sleep(Duration::from_millis(1));
+    }
+}
 
 /// The drive mapped with outputs `rx` and inputs `tx`, in `mode`, its cycle running.
 pub fn one_drive(mode: Mode, (rx, tx): (Mapping, Mapping)) -> (CycleThread, SimControl) {
