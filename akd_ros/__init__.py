@@ -10,13 +10,24 @@ units (`Units`, `Limits`), with its events; `Axis(link)` alone is a bus of one.
 
 from akd_ros import _native
 from akd_ros._native import *  # noqa: F403  (the native module is the API)
-from akd_ros.axis import MODES, Axis, AxisState, CommandError, CommandTimeoutEvent, DriveConfig, FaultEvent, LatchEvent
+from akd_ros.axis import (
+    MODES,
+    Axis,
+    AxisIo,
+    AxisState,
+    CommandError,
+    CommandTimeoutEvent,
+    DriveConfig,
+    FaultEvent,
+    LatchEvent,
+)
 from akd_ros.bus import Bus, BusRequestError
 from akd_ros.units import Limits, Units, unwrap_position
 
 __all__ = [name for name in dir(_native) if not name.startswith("_")] + [
     "MODES",
     "Axis",
+    "AxisIo",
     "AxisState",
     "Bus",
     "BusRequestError",

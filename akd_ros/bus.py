@@ -427,6 +427,11 @@ class Bus:
         inputs = self.cycle.drives_inputs([axis.slave for axis in self.axes])
         return {axis.name: axis.state(i) for axis, i in zip(self.axes, inputs, strict=True)}
 
+    def io(self) -> dict:
+        """Every axis's own I/O (`Axis.io`) by name, the drives' values all of the same cycle."""
+        ios = self.cycle.drives_io([axis.slave for axis in self.axes])
+        return {axis.name: axis.io(i) for axis, i in zip(self.axes, ios, strict=True)}
+
     def stats(self) -> dict:
         """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped and per-cycle records dropped
         (by the cycle's ring or here) because they were not taken in time."""

@@ -15,12 +15,20 @@ number where a real number is expected (``gear_ratio: 2``) is taken as that real
 PDO mapping (`mapping`):
 
 - ``default``: the Axis's own flexible mapping, which carries everything every mode needs;
+- ``io``: akd_ros's flexible mapping with the drive's own I/O (digital and analog inputs and outputs), which carries
+  every mode's command but interpolated position's (docs/io.md);
 - ``RX/TX``: one of the AKD's fixed mappings each way, e.g. ``0x1724/0x1B26`` (cyclic synchronous position);
 - ``flexible``: the PDOs given by `mapping.rx` and `mapping.tx`, one string per PDO, its entries separated by
   spaces as ``INDEX:SUB/BITS``, e.g. ``["0x6040:00/16 0x60C1:01/32", "0x60FF:00/32"]``.
 
 Every mapping is tried on a virtual AKD before it is accepted; it refuses what the real drive refuses (unknown
-fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths).
+fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths). Each joint's settings say which of the
+drive's I/O its mapping carries (`JointSettings.io_carried`), and names given to inputs or outputs it does not carry
+are refused, naming the mappings that would.
+
+Names for a joint's digital inputs and outputs are parameters of their own, as a map in the file:
+``io: {inputs: {part_present: 3}, outputs: {brake_release: 1}}`` gives io.inputs.part_present and
+io.outputs.brake_release (`IO_NAME_SPECS`); top-level names apply to every joint, a joint's block adds its own.
 """
 
 from __future__ import annotations
@@ -35,7 +43,7 @@ from dataclasses import dataclass, replace
 
 import yaml
 
-from akd_ros.axis import MODES, DriveConfig
+from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES, DriveConfig, io_mappings
 from akd_ros.bus import FAULT_REACTIONS, CommandError, check
 from akd_ros.units import Limits, Units
 
@@ -201,8 +209,8 @@ SCHEMA: tuple[Spec, ...] = (
     Spec(
         "mapping",
         "default",
-        "PDO mapping: 'default', fixed mappings 'RX/TX' such as '0x1724/0x1B26', or "
-        "'flexible' (then mapping.rx and mapping.tx).",
+        "PDO mapping: 'default', 'io' (the drive's own I/O with every mode's command but interpolated position's), "
+        "fixed mappings 'RX/TX' such as '0x1724/0x1B26', or 'flexible' (then mapping.rx and mapping.tx).",
         per_joint=True,
     ),
     Spec(
@@ -263,6 +271,23 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("joint_states_rate", 100.0, "Rate of /joint_states in Hz.", 1.0, 1000.0),
     Spec("status_rate", 10.0, "Rate of ~/status in Hz.", 0.1, 100.0),
     Spec("diagnostics_rate", 1.0, "Rate of /diagnostics in Hz.", 0.1, 10.0),
+    Spec(
+        "io_rate",
+        10.0,
+        "Rate in Hz at which each joint's ~/io (akd_ros/DriveIO: its drive's own I/O) is published, besides once at "
+        "each change of its digital inputs or hardware enable, stamped with the cycle that showed it.",
+        0.1,
+        1000.0,
+    ),
+    Spec(
+        "io.analog_scale",
+        ANALOG_VOLTS_PER_COUNT,
+        "Volts per count of the drive's analog input 0x3470:04 and analog output 0x3470:03. The manuals give no "
+        "scaling; the default assumes ±10 V over the 16-bit range: check it against the drive (WorkBench).",
+        1e-9,
+        1.0,
+        per_joint=True,
+    ),
     Spec(
         "latch.arm",
         [],
@@ -477,6 +502,26 @@ SCHEMA: tuple[Spec, ...] = (
 """Every parameter of akd_node; the documentation's reference of parameters is generated from it, in this order."""
 SPECS = {spec.name: spec for spec in SCHEMA}
 """SCHEMA by parameter name."""
+IO_NAME_SPECS: tuple[Spec, ...] = (
+    Spec(
+        "io.inputs.<name>",
+        1,
+        "Your name for one of the drive's digital inputs: its number, 1..7 as the AKD numbers them; the name is what "
+        "~/io, /diagnostics and the bags show. Per joint (joints.<joint>.io.inputs.<name>) or for every joint.",
+        1,
+        7,
+    ),
+    Spec(
+        "io.outputs.<name>",
+        1,
+        "Your name for one of the drive's digital outputs: its number, 1..2 as the AKD numbers them; ~/set_outputs "
+        "takes the name. Per joint (joints.<joint>.io.outputs.<name>) or for every joint.",
+        1,
+        2,
+    ),
+)
+"""The families of parameters that name a joint's inputs and outputs: each name given is a parameter of its own."""
+_IO_NAME = re.compile(r"(?:joints\.(?P<joint>[^.]+)\.)?io\.(?P<kind>inputs|outputs)\.(?P<name>[^.]+)")
 
 
 @dataclass(frozen=True)
@@ -513,6 +558,15 @@ class JointSettings:
     """trajectory.stop_deceleration: how a stopped FollowJointTrajectory goal decelerates, SI/s²."""
     eoe_ip: str | None = None
     """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
+    io_carried: dict[str, bool] | None = None
+    """What the mapping carries of the drive's I/O (`_native.mapping_io`): digital_inputs, analog_input,
+    digital_outputs, analog_output."""
+    io_inputs: dict[str, int] | None = None
+    """The names given to digital inputs, with their numbers."""
+    io_outputs: dict[str, int] | None = None
+    """The names given to digital outputs, with their numbers."""
+    analog_scale: float = ANALOG_VOLTS_PER_COUNT
+    """Volts per count of the analog input and output."""
 
     def drive(self) -> DriveConfig:
         """The joint's drive as a Bus takes it."""
@@ -525,7 +579,13 @@ class JointSettings:
             limits=self.limits,
             mapping=self.mapping,
             eoe_ip=self.eoe_ip,
+            analog_scale=self.analog_scale,
         )
+
+    def describe_io(self) -> str:
+        """What the joint's mapping carries of its drive's I/O, in words, for the log."""
+        carried = [name.replace("_", " ") for name, has in (self.io_carried or {}).items() if has]
+        return ", ".join(carried) if carried else "none of the drive's I/O"
 
 
 @dataclass(frozen=True)
@@ -551,6 +611,7 @@ class Settings:
     """follow_joint_trajectory.feedback_rate, Hz."""
     status_rate: float
     diagnostics_rate: float
+    io_rate: float
     rt_priority: int | None
     rt_cpu: int | None
     rt_lock_memory: bool
@@ -613,6 +674,35 @@ def refuse_single_joint_parameters(named: dict[str, object], joints: list[str]) 
         )
 
 
+def io_name_specs(named: dict[str, object], joints: list[str]) -> list[Spec]:
+    """The parameter of each input or output name among the `named` parameters (io.inputs.<name>,
+    io.outputs.<name>, and the same in the block of a joint of `joints`), to check and declare as any other; a name
+    that is not a ROS name token, or a block of no joint, is left out (and so refused as unknown)."""
+    family = {"inputs": IO_NAME_SPECS[0], "outputs": IO_NAME_SPECS[1]}
+    specs = []
+    for name in named:
+        found = _IO_NAME.fullmatch(name)
+        if found is None or not JOINT_NAME.fullmatch(found["name"]):
+            continue
+        if found["joint"] is not None and found["joint"] not in joints:
+            continue
+        template = family[found["kind"]]
+        specs.append(replace(template, name=name, description=template.description.replace("<name>", found["name"])))
+    return specs
+
+
+def io_names(values: dict[str, object], joint: str | None, kind: str) -> dict[str, int]:
+    """The names `values` gives the joint's inputs or outputs (`kind`): every joint's (io.<kind>.<name>) and, for
+    `joint`, its block's, which win; each checked (a number the AKD has)."""
+    specs = io_name_specs(values, [] if joint is None else [joint])
+    names = {}
+    for prefix in ("", f"joints.{joint}.") if joint is not None else ("",):
+        for spec in specs:
+            if spec.name.startswith(f"{prefix}io.{kind}."):
+                names[spec.name.rsplit(".", 1)[1]] = spec.check(values[spec.name])
+    return names
+
+
 def refuse_unknown(unknown: list[str], joints: list[str]) -> None:
     """Refuses the `unknown` parameter names, if any, naming what the node has with `joints`."""
     if unknown:
@@ -630,6 +720,7 @@ def check_names(named: dict[str, object]) -> None:
     joints = check_joint_names(SPECS["joints"].check(named.get("joints", [])))
     refuse_single_joint_parameters(named, joints)
     blocks = {spec.name for spec in joint_specs(joints, {spec.name: spec.default for spec in SCHEMA})}
+    blocks |= {spec.name for spec in io_name_specs(named, joints)}
     refuse_unknown(
         [n for n in named if n not in SPECS and n not in blocks and not n.startswith("qos_overrides.")], joints
     )
@@ -774,12 +865,16 @@ def settings(values: dict[str, object]) -> Settings:
             blocks[spec.name] = spec.check(values.get(spec.name, spec.default))
         joints = tuple(
             joint_settings(
-                name, f"joints.{name}.", {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA if s.per_joint}
+                name,
+                f"joints.{name}.",
+                {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA if s.per_joint},
+                (io_names(values, name, "inputs"), io_names(values, name, "outputs")),
             )
             for name in names
         )
     else:
-        joints = (joint_settings(top["joint_name"], "", top),)
+        io = (io_names(values, None, "inputs"), io_names(values, None, "outputs"))
+        joints = (joint_settings(top["joint_name"], "", top, io),)
     try:
         check([j.drive() for j in joints], top["fault_reaction"], top["cycle_time"], top["dc_shift"])
     except CommandError as e:
@@ -799,6 +894,7 @@ def settings(values: dict[str, object]) -> Settings:
         feedback_rate=top["follow_joint_trajectory.feedback_rate"],
         status_rate=top["status_rate"],
         diagnostics_rate=top["diagnostics_rate"],
+        io_rate=top["io_rate"],
         rt_priority=top["rt.priority"] or None,
         rt_cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
         rt_lock_memory=top["rt.lock_memory"],
@@ -833,12 +929,27 @@ def transport_of(given: dict[str, object]) -> str:
     return "rclpy" if found else "zenoh"
 
 
-def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSettings:
-    """The joint `name` of its checked parameters `values` (by their top-level names), whose messages name each
-    parameter with `prefix` ("" at the top level, "joints.<name>." in a block); raises ParameterError."""
+def joint_settings(
+    name: str, prefix: str, values: dict[str, object], io: tuple[dict[str, int], dict[str, int]] = ({}, {})
+) -> JointSettings:
+    """The joint `name` of its checked parameters `values` (by their top-level names) and the names `io` gives its
+    inputs and outputs, whose messages name each parameter with `prefix` ("" at the top level, "joints.<name>." in a
+    block); raises ParameterError."""
+    from akd_ros import _native
+
     mapping = parse_mapping(values["mapping"], values["mapping.rx"], values["mapping.tx"], prefix)
     if mapping is not None:
         check_mapping(mapping, prefix)
+    carried = _native.mapping_io(*(mapping or _native.DEFAULT_MAPPING))
+    for kind, names, needs, what in (
+        ("inputs", io[0], "digital_inputs", "digital inputs (0x60FD)"),
+        ("outputs", io[1], "digital_outputs", "digital outputs (0x60FE:01)"),
+    ):
+        if names and not carried[needs]:
+            raise ParameterError(
+                f"parameters io.{kind}.* of joint {name}: its mapping {values['mapping']!r} carries no {what}; "
+                f"mappings that do with mode {values['mode']}: {io_mappings(values['mode'], needs)}"
+            )
     lead = values["lead"] or None
     if values["axis"] == "rotary" and lead is not None:
         raise ParameterError(
@@ -878,6 +989,10 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         stopped_velocity_tolerance=values["constraints.stopped_velocity_tolerance"],
         stop_deceleration=values["trajectory.stop_deceleration"],
         eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
+        io_carried=dict(carried),
+        io_inputs=io[0],
+        io_outputs=io[1],
+        analog_scale=values["io.analog_scale"],
     )
 
 
@@ -933,7 +1048,7 @@ def check_link(link: str) -> str:
 def parse_mapping(mapping: str, rx: list[str], tx: list[str], prefix: str = "") -> tuple[object, object] | None:
     """(rx, tx) in the form `_native.Master.configure_pdo` takes, None for 'default'; raises ParameterError naming
     the parameters with `prefix`."""
-    allowed = "'default', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
+    allowed = "'default', 'io', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
     if (rx or tx) and mapping != "flexible":
         raise ParameterError(
             f"parameters {prefix}mapping.rx and {prefix}mapping.tx apply to mapping 'flexible' only; "
@@ -941,6 +1056,10 @@ def parse_mapping(mapping: str, rx: list[str], tx: list[str], prefix: str = "") 
         )
     if mapping == "default":
         return None
+    if mapping == "io":
+        from akd_ros import _native
+
+        return _native.IO_MAPPING
     if mapping == "flexible":
         if not rx or not tx:
             raise ParameterError(

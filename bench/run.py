@@ -14,6 +14,7 @@ Sections, in the order they run (sudo or root: roundtrip's veth pair, the SCHED_
   jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
   ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh (node_ros.py)
+  io            akd_node's CPU with every joint's ~/io published and without, six joints at 1 kHz (node_io.py)
 
 --skip leaves sections out (RESULTS.md says skipped); --render writes RESULTS.md and results.png again from the
 JSON files of the last run, running nothing. Exit status: 0 when every section that ran measured every figure,
@@ -48,6 +49,7 @@ SECTIONS = {
         180,
     ),
     "ros": (["node_ros.py"], 420),
+    "io": (["node_io.py"], 300),
 }
 """Each section's script and arguments (--json added), and the seconds it may take before it is ended."""
 TITLES = {
@@ -56,6 +58,7 @@ TITLES = {
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
+    "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",
 }
 
 

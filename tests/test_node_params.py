@@ -240,6 +240,28 @@ def test_every_joint_block_parameter_is_declared_with_its_description_and_range(
         rclpy.shutdown(context=context)
 
 
+def test_the_names_of_inputs_and_outputs_are_declared_and_another_nodes_are_not(tmp_path):
+    path = tmp_path / "akd_node.yaml"
+    path.write_text(
+        "akd_node:\n  ros__parameters:\n    mapping: io\n    mode: cyclic_synchronous_position\n"
+        "    io:\n      inputs: {part_present: 3}\n      outputs: {lamp: 2}\n"
+        "other_node:\n  ros__parameters:\n    io.inputs.ghost: 5\n"
+    )
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=int(os.environ["ROS_DOMAIN_ID"]) + IN_PROCESS_DOMAIN_OFFSET)
+    try:
+        node = AkdNode(args=[], context=context, cli_args=["--ros-args", "--params-file", str(path)])
+        inputs, outputs = node.describe_parameters(["io.inputs.part_present", "io.outputs.lamp"])
+        assert "part_present" in inputs.description and inputs.read_only, inputs
+        assert (inputs.integer_range[0].to_value, outputs.integer_range[0].to_value) == (7, 2)
+        assert not node.has_parameter("io.inputs.ghost")
+        (joint,) = node.settings.joints
+        assert (joint.io_inputs, joint.io_outputs) == ({"part_present": 3}, {"lamp": 2})
+        node.destroy_node()
+    finally:
+        rclpy.shutdown(context=context)
+
+
 def test_without_autostart_the_lifecycle_services_walk_the_node(tmp_path):
     from lifecycle_msgs.msg import State, Transition
     from lifecycle_msgs.srv import ChangeState, GetState

@@ -11,8 +11,15 @@ stdout, 'ok ...' or 'error: ...':
   hardware_enable POSITION high|low   set the hardware enable input
   toggles POSITION INPUT P1,P2,...    digital input 1..7 toggles at these positions (counts);
                                       without positions it stays low
+  input POSITION INPUT high|low       digital input 1..7 high or low wherever the axis is
+  switch POSITION NAME on|off         a switch of 0x60FD active or not: negative_limit,
+                                      positive_limit (each stops motion toward it), home_switch,
+                                      interlock
+  analog_input POSITION VOLTS         the analog input, within ±10 V
   state POSITION                      the drive firmware's state as JSON, with "dc": what its
-                                      synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2)
+                                      synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2), and
+                                      its I/O: digital_inputs (0x60FD), digital_outputs and
+                                      analog_output (V) as the master drives them
   power_cycle POSITION                the drive loses power and comes back as at power-up
                                       (AL Init, station address 0, Not ready to switch on,
                                       not homed)
@@ -70,6 +77,9 @@ USAGE = {
     "fault": "fault POSITION NAME",
     "hardware_enable": "hardware_enable POSITION high|low",
     "toggles": "toggles POSITION INPUT P1,P2,...",
+    "input": "input POSITION INPUT high|low",
+    "switch": "switch POSITION NAME on|off",
+    "analog_input": "analog_input POSITION VOLTS",
     "state": "state POSITION",
     "power_cycle": "power_cycle POSITION",
     "homing": "homing POSITION ok|error|no_reference",
@@ -131,7 +141,16 @@ def execute(simulator, line: str) -> str | None:
         raise CommandError(f"unknown command {name!r}: allowed are {', '.join(USAGE)}")
     if name == "help":
         return "ok commands: " + " | ".join(USAGE.values())
-    arity = {"fault": (2,), "hardware_enable": (2,), "toggles": (2, 3), "cable": (2,), "homing": (2,)}.get(name, (1,))
+    arity = {
+        "fault": (2,),
+        "hardware_enable": (2,),
+        "toggles": (2, 3),
+        "input": (3,),
+        "switch": (3,),
+        "analog_input": (2,),
+        "cable": (2,),
+        "homing": (2,),
+    }.get(name, (1,))
     if len(args) not in arity:
         raise CommandError(f"usage: {USAGE[name]}")
     if name in BURSTS:
@@ -149,6 +168,21 @@ def execute(simulator, line: str) -> str | None:
         digital_input = _whole_number(args[1], "INPUT", "1..7")
         positions = _toggle_positions(args[2]) if len(args) == 3 else []
         simulator.set_input_toggles(position, digital_input, positions)
+    elif name == "input":
+        levels = {"high": True, "low": False}
+        if args[2] not in levels:
+            raise CommandError(f"input takes high or low, got {args[2]!r}")
+        simulator.set_input(position, _whole_number(args[1], "INPUT", "1..7"), levels[args[2]])
+    elif name == "switch":
+        if args[2] not in ("on", "off"):
+            raise CommandError(f"switch takes on or off, got {args[2]!r}")
+        simulator.set_switch(position, args[1], args[2] == "on")
+    elif name == "analog_input":
+        try:
+            volts = float(args[1])
+        except ValueError:
+            raise CommandError(f"analog_input takes a voltage such as 2.5, got {args[1]!r}") from None
+        simulator.set_analog_input(position, volts)
     elif name == "power_cycle":
         simulator.power_cycle(position)
     elif name == "homing":

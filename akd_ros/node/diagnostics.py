@@ -6,13 +6,15 @@ state or while its drive is unreachable and being brought back (with the attempt
 its state is not fresh, a request is stuck or lost, in Quick stop active, or with distributed clocks on a drive whose
 FBUS.PARAM02 is unknown (the master writes it only where the drive's SDO information confirms the object, see
 `Master.configure_dc`); OK otherwise. Its values carry the state, its distributed clock, its recovery and its last
-fault. The bus's status (`akd_node: bus`) is ERROR while a joint is in Fault or unreachable, WARN when a fault counter
-grew since the last report or the last frame did not come back; its values carry the link, the cycle statistics and
-the distributed clocks."""
+fault. A joint whose I/O holds its drive back (hardware enable low, a limit switch active: `akd_ros.node.io.reasons`)
+is WARN at least, and says so in the drive's words. The bus's status (`akd_node: bus`) is ERROR while a joint is in
+Fault or unreachable, WARN when a fault counter grew since the last report or the last frame did not come back; its
+values carry the link, the cycle statistics and the distributed clocks."""
 
 from __future__ import annotations
 
 from akd_ros.node.homing import joint_homed
+from akd_ros.node.io import named_levels, reasons
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
 from akd_ros.node.transport import Qos, Transport
@@ -56,6 +58,7 @@ class Diagnostics:
         self, transport: Transport, session: Session, group, qos: Qos, node_name: str, publishing: Publishing
     ) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
+        self._joints = {j.name: j for j in session.joints}
         self._node_name, self._publishing = node_name, publishing
         self._transport = transport
         self._array = transport.message_class("diagnostic_msgs/msg/DiagnosticArray")
@@ -90,13 +93,16 @@ class Diagnostics:
         self._counters_seen = counters
         dc_status = bus.cycle.dc_status()
         recovery = {joint: bus[joint].recovery() for joint in states}
-        statuses = [self._joint_status(bus[j], state, dc_status, recovery[j]) for j, state in states.items()]
+        ios = bus.io()
+        statuses = [self._joint_status(bus[j], state, dc_status, recovery[j], ios[j]) for j, state in states.items()]
         lost = [joint for joint, r in recovery.items() if r["recovering"]]
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
         self.publisher.publish(self._array(header=self._header(stamp=self._clock.stamp()), status=statuses))
 
-    def _joint_status(self, axis, state, dc_status: dict, recovery: dict) -> object:
-        """The status of one joint: its drive's state, mode, position, DC, recovery and last fault."""
+    def _joint_status(self, axis, state, dc_status: dict, recovery: dict, io) -> object:
+        """The status of one joint: its drive's state, mode, position, DC, recovery and last fault, what of its I/O
+        (`io`, its `AxisIo`) holds it back, and its named inputs and outputs."""
+        held = reasons(io, state.statusword)
         fault = self._publishing.last_fault.get(axis.name)
         param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
         if recovery["recovering"] or state.state in FAULT_STATES:
@@ -106,6 +112,7 @@ class Diagnostics:
             or state.progress in ("stuck", "lost")
             or state.state == "Quick stop active"
             or (param02_unknown)
+            or held
         ):
             level = self._warn
         else:
@@ -118,6 +125,8 @@ class Diagnostics:
             summary += f": {recovery['last_error']})" if recovery["last_error"] else ")"
         if param02_unknown:
             summary += f"; {FBUS_PARAM02_UNKNOWN}"
+        for reason in held:
+            summary += f"; {reason}"
         if level == self._error and fault is not None:
             summary += f"; last fault {fault.text or hex(fault.code)}"
         values = {
@@ -137,6 +146,8 @@ class Diagnostics:
             "last_fault_action": "" if fault is None else fault.action,
             "recovering": recovery["recovering"],
             "recoveries": recovery["recoveries"],
+            "io": "; ".join(held) or "nothing holds the drive back",
+            **named_levels(self._joints[axis.name], io),
         }
         hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
         return self._status_message(level, axis.name, summary, hardware_id, values)

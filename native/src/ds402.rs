@@ -334,6 +334,12 @@ impl Mode {
         }
     }
 
+    /// Whether `index:subindex` is the command object of some mode: a motion set-point, whose
+    /// write releases a held target (the drive's I/O and other outputs do not).
+    pub fn is_command_object(index: u16, subindex: u8) -> bool {
+        Self::ALL.iter().any(|m| m.command_objects().contains(&(index, subindex)))
+    }
+
     /// The controlword bits whose rising edge starts what the mode was commanded: profile
     /// position takes a new set-point at once (bits 4 and 5), homing starts (bit 4). The drive
     /// acknowledges in statusword bit 12; the bits then go low again, so that the next command

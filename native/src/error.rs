@@ -1143,6 +1143,20 @@ pub enum SettingError {
         /// The position given.
         position: f64,
     },
+    /// A switch of 0x60FD by a name CiA 402 does not give one.
+    Switch {
+        /// The name given.
+        name: String,
+    },
+    /// An analog voltage that is not a finite number within the range its 16-bit object holds.
+    AnalogVoltage {
+        /// What it is, e.g. "analog input".
+        what: &'static str,
+        /// The voltage given.
+        volts: f64,
+        /// The largest magnitude the object holds, V.
+        max: f64,
+    },
     /// An SDO write with no data.
     EmptySdoWrite {
         /// Object index.
@@ -1294,6 +1308,13 @@ impl fmt::Display for SettingError {
             }
             SettingError::TogglePosition { input, position } => {
                 write!(f, "toggle position {position} of digital input {input} is not a finite number of counts")
+            }
+            SettingError::Switch { name } => {
+                let names: Vec<_> = crate::io::Switch::ALL.iter().map(|s| s.name()).collect();
+                write!(f, "switch {name:?} is not one of {}", names.join(", "))
+            }
+            SettingError::AnalogVoltage { what, volts, max } => {
+                write!(f, "{what} {volts} V: allowed a finite voltage within ±{max:.4} V")
             }
             SettingError::EmptySdoWrite { index, subindex } => {
                 write!(f, "SDO write of 0x{index:04X}:{subindex:02X} with no data")

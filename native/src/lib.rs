@@ -11,6 +11,7 @@
 //!    [`al`] (AL states and status codes), [`mailbox`] and [`coe`] (mailbox header, CoE SDO,
 //!    SDO information, emergency), [`eoe`] (Ethernet over EtherCAT: fragments, Set IP
 //!    Parameter) and [`foe`] (file access over EtherCAT), [`pdo`] (the AKD's process-data mappings and their rules),
+//!    [`io`] (the drive's own digital and analog I/O in its process data),
 //!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine) and
 //!    [`akd_fault`] (the AKD's fault numbers), and [`trajectory`] (joint trajectories, validated
 //!    and interpolated). Closed sets of wire codes are enums (e.g.
@@ -49,6 +50,7 @@ pub mod eoe;
 pub mod error;
 pub mod foe;
 pub mod frame;
+pub mod io;
 pub mod link;
 pub mod mailbox;
 pub mod master;

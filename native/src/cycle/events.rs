@@ -1,5 +1,5 @@
-//! Events the cycle thread reports — latch captures, faults, command time-outs and what became
-//! of trajectories — as four words each through a
+//! Events the cycle thread reports — latch captures, faults, command time-outs, what became
+//! of trajectories and changes of a drive's digital inputs — as four words each through a
 //! [`Ring`], so that the thread never waits for whoever reads them; a full ring drops and
 //! counts, so what was missed is known.
 
@@ -327,6 +327,20 @@ pub enum Event {
         /// What was done.
         action: CommandTimeoutAction,
     },
+    /// A drive's digital inputs 0x60FD, or its hardware enable as its statusword shows it,
+    /// changed in this cycle's inputs ([`crate::io::InputWatch`]).
+    Inputs {
+        /// The cycle whose inputs showed it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The slave's position on the bus.
+        slave: u16,
+        /// 0x60FD (0 where the mapping lacks it).
+        digital_inputs: u32,
+        /// The statusword of that cycle.
+        statusword: u16,
+    },
     /// A trajectory started ([`TrajectoryState::Running`]) or ended.
     Trajectory {
         /// The cycle that saw it.
@@ -362,6 +376,9 @@ impl Event {
                 value as u32 as u64 | (timeout_us as u64) << 32,
             ],
             Event::Trajectory { cycle, time_ns, id, state } => [cycle, time_ns, 4 | state.pack() << 8, id as u64],
+            Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
+                [cycle, time_ns, 5 | (slave as u64) << 8 | (statusword as u64) << 24, digital_inputs as u64]
+            }
         }
     }
 
@@ -401,6 +418,13 @@ impl Event {
             4 => {
                 Some(Event::Trajectory { cycle, time_ns, id: data as u32, state: TrajectoryState::unpack(what >> 8)? })
             }
+            5 => Some(Event::Inputs {
+                cycle,
+                time_ns,
+                slave,
+                digital_inputs: data as u32,
+                statusword: (what >> 24) as u16,
+            }),
             _ => None,
         }
     }
@@ -463,9 +487,12 @@ mod tests {
             statusword: 0x1637,
             action: CommandTimeoutAction::QuickStop,
         };
+        let inputs =
+            Event::Inputs { cycle: 12, time_ns: 13, slave: 0xFFFE, digital_inputs: 0x8001_0002, statusword: 0xC0DE };
         events.push(latch);
         events.push(fault);
         events.push(timeout);
+        events.push(inputs);
         let trajectories = [
             TrajectoryState::Running,
             TrajectoryState::Done,
@@ -474,7 +501,7 @@ mod tests {
         ]
         .map(|state| Event::Trajectory { cycle: 10, time_ns: 12, id: 7, state });
         trajectories.iter().for_each(|t| events.push(*t));
-        assert_eq!(events.drain(), [[latch, fault, timeout].as_slice(), &trajectories].concat());
+        assert_eq!(events.drain(), [[latch, fault, timeout, inputs].as_slice(), &trajectories].concat());
         assert_eq!(TrajectoryState::unpack(TrajectoryState::Pending.pack()), Some(TrajectoryState::Pending));
         assert!(events.drain().is_empty());
         for _ in 0..CAPACITY + 3 {

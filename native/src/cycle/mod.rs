@@ -172,6 +172,8 @@ struct DriveLoop {
     position: u16,
     drive: sequencer::Drive,
     latch: Option<latch::Latch>,
+    /// Its digital inputs and hardware enable, each change an event.
+    inputs: crate::io::InputWatch,
     watch: supervision::DriveWatch,
     handshake: handshake::Handshake,
     command_timeout: command_timeout::CommandTimeout,
@@ -210,6 +212,13 @@ fn sequenced_drives(
             Ok((offsets.shifted(slot.out_offset, slot.in_offset), latch))
         })
         .collect()
+}
+
+/// Where object `index:subindex` sits in the whole input image, where slave `position` maps it.
+fn input_offset(master: &Master, position: u16, (index, subindex): (u16, u8)) -> Option<usize> {
+    let mapping = master.slaves().get(position as usize)?.mapping.as_ref()?;
+    let (at, _) = crate::pdo::find(&mapping.tx_entries, index, subindex)?;
+    Some(master.image_slot(position).ok()?.in_offset + at)
 }
 
 /// A cycle thread: it runs from [`start`](CycleThread::start) to [`stop`](CycleThread::stop).
@@ -266,10 +275,12 @@ impl CycleThread {
             .enumerate()
             .filter_map(|(p, f)| {
                 let (offsets, latch) = f.ok()?;
+                let digital_inputs = input_offset(&master, p as u16, crate::io::DIGITAL_INPUTS);
                 Some(DriveLoop {
                     position: p as u16,
                     drive: sequencer::Drive::new(offsets),
                     latch: latch.map(latch::Latch::new),
+                    inputs: crate::io::InputWatch::new(digital_inputs, offsets.statusword),
                     watch: supervision::DriveWatch::default(),
                     handshake: handshake::Handshake::default(),
                     command_timeout: command_timeout::CommandTimeout::default(),
@@ -675,8 +686,10 @@ impl CycleThread {
     }
 
     /// Sets one mapped output object `index:subindex` of the slave at `position` (its exact
-    /// size) from the next cycle on, leaving the other outputs as they are; a set-point write
-    /// that releases a held target.
+    /// size) from the next cycle on, leaving the other outputs as they are. A mode's command
+    /// object ([`Mode::is_command_object`](crate::ds402::Mode::is_command_object)) is a
+    /// set-point write that releases a held target; any other output (the drive's I/O, a
+    /// latch control) leaves the target held.
     pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         if self.stopped() {
             return Err(setpoints_stopped());
@@ -691,7 +704,8 @@ impl CycleThread {
             );
         }
         self.shared.setpoints.write().write(slot.out_offset + offset, data);
-        if let Some(Ok(())) = self.sequenced.get(position as usize) {
+        let command = crate::ds402::Mode::is_command_object(index, subindex);
+        if let (Some(Ok(())), true) = (self.sequenced.get(position as usize), command) {
             self.shared.drives[position as usize].setpoint_written();
             if command_timeout::TARGETS.contains(&(index, subindex)) {
                 self.shared.command_timeouts[position as usize].target_written();
@@ -1174,6 +1188,14 @@ impl Loop<'_> {
         let now = sent.now;
         shared.dc.publish(master.clock());
         supervise(master, shared, self.drives, mailbox, &mut self.gaps, exchange, now);
+        if let (Exchange::Good, Ok(inputs)) = (exchange, master.input_image()) {
+            for d in self.drives.iter_mut().filter(|d| !d.presence.lost()) {
+                if let Some((digital_inputs, statusword)) = d.inputs.observe(inputs) {
+                    let (cycle, time_ns, slave) = (now.0, now.1, d.position);
+                    shared.events.push(Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword });
+                }
+            }
+        }
         for d in self.drives.iter_mut() {
             if let Some(counter) = d.mailbox_counter.take() {
                 master.set_mailbox_counter(d.position, counter);

@@ -200,6 +200,14 @@ enum EventView {
     },
     /// A trajectory's start or end: its kind, cycle, time and id, then its state's keys.
     Trajectory(Merged<TrajectoryEventView, super::trajectory::StateView>),
+    Inputs {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        slave: u16,
+        digital_inputs: u32,
+        statusword: u16,
+    },
 }
 
 /// The head of a trajectory event, before its state's keys.
@@ -258,6 +266,9 @@ impl From<Event> for EventView {
                 TrajectoryEventView { kind: "trajectory", cycle, time_ns, id },
                 state.into(),
             )),
+            Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
+                EventView::Inputs { kind: "inputs", cycle, time_ns, slave, digital_inputs, statusword }
+            }
         }
     }
 }
@@ -497,7 +508,7 @@ impl PyCycle {
     }
 
     /// Latch, fault, command time-out and trajectory events since the last call, oldest first,
-    /// each a dict. Every event has "kind" ("latch", "fault", "command_timeout" or
+    /// each a dict. Every event has "kind" ("latch", "fault", "command_timeout", "inputs" or
     /// "trajectory"), "cycle" and "time_ns" (the cycle's monotonic wake-up time); all but
     /// trajectory events have "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
     /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
@@ -510,7 +521,9 @@ impl PyCycle {
     /// ("hold" or "quick_stop") and "text" (what was done, for the log). A trajectory event
     /// (one when it starts, one when it ends) has "id" and what `trajectory_status` gives of
     /// its state: "state" ("running", "done", "replaced", "aborted"), "replaced_by", "slave",
-    /// "statusword", "ds402_state".
+    /// "statusword", "ds402_state". An inputs event (a change of the drive's digital inputs
+    /// 0x60FD, or of its hardware enable as the statusword shows it, in that cycle's inputs) adds
+    /// "digital_inputs" and "statusword" (`DriveIo.with_inputs` reads them).
     fn events(&self) -> Vec<EventView> {
         self.cycle.events().into_iter().map(EventView::from).collect()
     }
@@ -700,7 +713,8 @@ impl PyCycle {
     }
 
     /// Sets one mapped output object of slave `position` from the next cycle on (its exact
-    /// size in bytes); releases a held target like any set-point.
+    /// size in bytes); a mode's command object (a motion set-point) releases a held target,
+    /// any other output (digital outputs, the analog output, a latch control) leaves it held.
     fn set_object(&self, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
         self.cycle.set_object(position, index, subindex, &data).py()
     }
@@ -761,6 +775,12 @@ impl PyCycle {
     /// all from the same snapshot: every joint's values of one cycle.
     fn drives_inputs(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveInputs>> {
         super::drive::drives_inputs(&self.cycle, &positions)
+    }
+
+    /// The I/O of each drive of `positions` (DriveIo: digital and analog inputs, outputs as
+    /// sent, hardware enable), all from the last snapshot.
+    fn drives_io(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveIo>> {
+        super::drive::drives_io(&self.cycle, &positions)
     }
 
     /// With `on`, a drive entering Fault or leaving Op quick-stops, in the same cycle, every

@@ -23,8 +23,9 @@ use crate::sim::{server, Timing, VirtualBus};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
 /// name, or None), "fault_number" (e.g. 125, or None), the motor's "position" (counts),
-/// "velocity" (counts/s) and "torque" (N·m), and "dc", what its synchronisation was told
-/// ([`SyncView`]).
+/// "velocity" (counts/s) and "torque" (N·m), "dc", what its synchronisation was told
+/// ([`SyncView`]), and its I/O: "digital_inputs" (0x60FD as it shows it), "digital_outputs"
+/// (the levels of outputs 1 and 2 as the master drives them) and "analog_output" (V).
 #[derive(IntoPyObject)]
 struct DriveStateView {
     state: &'static str,
@@ -34,6 +35,9 @@ struct DriveStateView {
     velocity: f64,
     torque: f64,
     dc: SyncView,
+    digital_inputs: u32,
+    digital_outputs: Vec<bool>,
+    analog_output: f64,
 }
 
 impl From<DriveState> for DriveStateView {
@@ -46,6 +50,9 @@ impl From<DriveState> for DriveStateView {
             velocity: drive.velocity,
             torque: drive.torque,
             dc: drive.sync.into(),
+            digital_inputs: drive.digital_inputs,
+            digital_outputs: (0..crate::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
+            analog_output: drive.outputs.analog,
         }
     }
 }
@@ -136,6 +143,25 @@ impl PyVirtualBus {
         Ok(())
     }
 
+    /// Digital input `input` (1..7) of drive `position` `high` or low wherever the shaft is.
+    fn set_input(&mut self, position: usize, input: usize, high: bool) -> PyResult<()> {
+        Change::input_level(self.bus.len(), position, input, high).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
+    /// "interlock") of drive `position` active or not; a limit switch holds motion toward it.
+    fn set_switch(&mut self, position: usize, name: &str, active: bool) -> PyResult<()> {
+        Change::switch(self.bus.len(), position, name, active).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// The analog input of drive `position` at `volts` (0x3470:04, ±10 V over its range).
+    fn set_analog_input(&mut self, position: usize, volts: f64) -> PyResult<()> {
+        Change::analog_input(self.bus.len(), position, volts).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
     /// Makes drive `position`'s homing runs fail as `name` says: "error" (a homing error
     /// halfway to the reference), "no_reference" (it searches and never finds it), or "ok".
     fn set_homing_failure(&mut self, position: usize, name: &str) -> PyResult<()> {
@@ -201,6 +227,25 @@ impl PySimulator {
     /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
     fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
         self.control.set_input_toggles(position, input, positions).py()
+    }
+
+    /// Digital input `input` (1..7) of drive `position` `high` or low wherever the shaft is,
+    /// from the next frame on.
+    fn set_input(&self, position: usize, input: usize, high: bool) -> PyResult<()> {
+        self.control.set_input(position, input, high).py()
+    }
+
+    /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
+    /// "interlock") of drive `position` active or not from the next frame on; a limit switch
+    /// holds motion toward it (braking with 0x6085) and lets motion away from it go.
+    fn set_switch(&self, position: usize, name: &str, active: bool) -> PyResult<()> {
+        self.control.set_switch(position, name, active).py()
+    }
+
+    /// The analog input of drive `position` at `volts` (0x3470:04, ±10 V over its range) from
+    /// the next frame on.
+    fn set_analog_input(&self, position: usize, volts: f64) -> PyResult<()> {
+        self.control.set_analog_input(position, volts).py()
     }
 
     /// Makes drive `position`'s homing runs fail from the next frame on as `name` says: "error"

@@ -25,6 +25,8 @@
 //!   the reference on the rising edge of bit 4 and makes it the zero ([`crate::sim::homing`]).
 //! - On entering Operation enabled and on every mode change the position command is the actual
 //!   position: nothing moves until a set-point asks for it.
+//! - An active limit switch holds motion toward it back in every mode
+//!   ([`crate::sim::terminals`]).
 //! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
 //!   counts/s², torque in 0.1 % of the drive's peak torque.
 
@@ -36,6 +38,7 @@ use crate::sim::faults::Fault;
 use crate::sim::homing::{self, Ending};
 use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
 use crate::sim::od::ObjectDictionary;
+use crate::sim::terminals::{LimitStop, Terminals};
 
 /// Frames the drive tolerates missing while enabled; one more raises F125 (§5.14).
 pub const MISSED_FRAMES_TOLERATED: u64 = 7;
@@ -158,6 +161,8 @@ pub struct Drive {
     fault: Option<Fault>,
     last_error_code: u16,
     inputs: Inputs,
+    terminals: Terminals,
+    limit_stop: LimitStop,
     latch: Latch,
     touch_probe: TouchProbe,
     time_ns: Option<u64>,
@@ -200,6 +205,8 @@ impl Drive {
             fault: None,
             last_error_code: 0,
             inputs: Inputs::default(),
+            terminals: Terminals::default(),
+            limit_stop: LimitStop::default(),
             latch: Latch::default(),
             touch_probe: TouchProbe::default(),
             time_ns: None,
@@ -249,9 +256,14 @@ impl Drive {
         self.homing_setup
     }
 
-    /// The simulated digital inputs, to set where they toggle.
+    /// The simulated digital inputs, to set their levels and where they toggle.
     pub fn inputs_mut(&mut self) -> &mut Inputs {
         &mut self.inputs
+    }
+
+    /// The switches and the analog input, to set them.
+    pub fn terminals_mut(&mut self) -> &mut Terminals {
+        &mut self.terminals
     }
 
     /// The position reported in 0x6063/0x6064, counts (fractional).
@@ -404,6 +416,8 @@ impl Drive {
         self.segment = None;
         self.profile_target = None;
         self.homing = None;
+        // A limit switch holds back from where the axis is now, not from where it once stopped.
+        self.limit_stop = LimitStop::default();
     }
 
     fn start_stop(&mut self) {
@@ -488,6 +502,7 @@ impl Drive {
             m.peak_torque = m.peak_torque.min(max_torque);
         }
         let (shaft, g) = (self.shaft, self.gains);
+        let (blocked, quick_stop) = (self.terminals.blocked(), u32_of(od, 0x6085) as f64);
         if self.stopping {
             let deceleration = match self.state {
                 State::OperationEnabled => u32_of(od, 0x6084),
@@ -499,22 +514,26 @@ impl Drive {
         }
         let torque = match self.mode {
             Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition) => {
-                let (position, velocity) = self.segment.map_or((self.command, 0.0), |s| s.at(t));
+                let commanded = self.segment.map_or((self.command, 0.0), |s| s.at(t));
+                let (position, velocity) = self.limit_stop.position(blocked, commanded, quick_stop);
                 self.command = position;
                 self.loops.position(position, velocity, &shaft, &g, &m)
             }
             Some(Mode::ProfileVelocity) => {
-                let target = i32_of(od, 0x60FF, 0) as f64;
+                let target = self.limit_stop.target(blocked, i32_of(od, 0x60FF, 0) as f64);
                 let speeding_up = target.abs() > self.command_velocity.abs();
-                let rate = u32_of(od, if speeding_up { 0x6083 } else { 0x6084 }) as f64;
+                let rate = match (self.limit_stop.limited, speeding_up) {
+                    (true, _) => quick_stop,
+                    (false, up) => u32_of(od, if up { 0x6083 } else { 0x6084 }) as f64,
+                };
                 self.command_velocity = approach(self.command_velocity, target, rate * STEP_S);
                 self.command = shaft.position;
                 self.loops.velocity(self.command_velocity, 0.0, &shaft, &g, &m)
             }
             Some(Mode::ProfileTorque) => {
                 self.command = shaft.position;
-                let target = bytes::<2>(od, 0x6071, 0);
-                self.loops.torque(i16::from_le_bytes(target) as f64 * self.mechanics.peak_torque / 1000.0, &m)
+                let target = self.limit_stop.target(blocked, i16::from_le_bytes(bytes::<2>(od, 0x6071, 0)) as f64);
+                self.loops.torque(target * self.mechanics.peak_torque / 1000.0, &m)
             }
             Some(Mode::ProfilePosition) => {
                 if let Some(target) = self.profile_target {
@@ -522,6 +541,8 @@ impl Drive {
                         (u32_of(od, 0x6081) as f64, u32_of(od, 0x6083) as f64, u32_of(od, 0x6084) as f64);
                     self.trapezoid_step(target, v_max, acceleration, deceleration);
                 }
+                (self.command, self.command_velocity) =
+                    self.limit_stop.position(blocked, (self.command, self.command_velocity), quick_stop);
                 self.loops.position(self.command, self.command_velocity, &shaft, &g, &m)
             }
             Some(Mode::Homing) => {
@@ -580,7 +601,7 @@ impl Drive {
         if self.state != State::OperationEnabled {
             return word;
         }
-        if self.loops.limited {
+        if self.loops.limited || self.limit_stop.limited {
             word |= sw::INTERNAL_LIMIT;
         }
         let lagging = window > 0.0 && following_error.abs() > window;
@@ -642,7 +663,9 @@ impl Drive {
         od.set(0x60F4, 0, &(following_error.round() as i64 as i32).to_le_bytes());
         od.set(0x603F, 0, &self.last_error_code.to_le_bytes());
         od.set(0x1001, 0, &[self.fault.map_or(0, |f| f.error_register())]);
-        self.latch.publish(od, self.inputs.levels(position));
+        let levels = self.inputs.levels(position);
+        self.latch.publish(od, levels);
+        self.terminals.publish(od, levels);
         self.touch_probe.publish(od);
     }
 }
@@ -892,6 +915,23 @@ mod tests {
         assert_eq!(b.drive.fault(), None);
         // Settled within the few counts of stick-slip, past the wrap: not 2^32 counts back.
         assert!(b.i32(0x6064) < 0 && b.i32(0x6064).wrapping_sub(target).abs() <= 20, "{}", b.i32(0x6064));
+    }
+
+    #[test]
+    fn a_limit_switch_stops_a_move_toward_it_and_lets_one_away_from_it_go() {
+        let mut b = Bench::new();
+        b.spin(2, 200 * MS);
+        b.drive.terminals_mut().set_switch("positive_limit", true).unwrap();
+        // 2 rev/s braked at 0x6085 (100 rev/s²) stop within 20 ms.
+        b.run_for(100 * MS);
+        assert!(b.drive.shaft().velocity.abs() < VELOCITY_WINDOW, "{:?}", b.drive.shaft());
+        assert_ne!(u16_of(&b.od, 0x6041) & sw::INTERNAL_LIMIT, 0, "bit 11 while it holds the command back");
+        assert_eq!((b.drive.state(), b.drive.fault()), (State::OperationEnabled, None));
+        assert_eq!(u32_of(&b.od, 0x60FD) & 0x3, 0x2, "0x60FD bit 1: positive limit switch");
+        b.write(0x60FF, 0, &(-(1i32 << 20)).to_le_bytes());
+        b.run_for(300 * MS);
+        assert!(b.drive.shaft().velocity < -0.9 * COUNTS_PER_REV, "{:?}", b.drive.shaft());
+        assert_eq!(u16_of(&b.od, 0x6041) & sw::INTERNAL_LIMIT, 0);
     }
 
     #[test]

@@ -38,6 +38,7 @@ pub mod setpoint_trace;
 pub mod sii_image;
 pub mod sync;
 pub mod sync_manager;
+pub mod terminals;
 pub mod watchdog;
 
 use crate::akd_fault::MissedFrames;
