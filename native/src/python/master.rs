@@ -35,11 +35,8 @@ struct Opened {
 /// Opens the link named by `spec` (a [`LinkSpec`]).
 fn open_link(spec: &str) -> crate::error::Result<Opened> {
     Ok(match spec.parse::<LinkSpec>()? {
-        LinkSpec::Sim { count, missed } => {
-            let link = InProcess::with_bus(VirtualBus::with_timing(
-                count,
-                Timing { missed_frames: missed, ..Timing::REAL_DRIVE },
-            ));
+        LinkSpec::Sim { count, missed, pace } => {
+            let link = InProcess::with_bus(VirtualBus::with_timing(count, Timing::of(pace, missed)));
             let simulator = Some(link.control());
             Opened { link: Box::new(link), simulator, warnings: Vec::new() }
         }

@@ -30,6 +30,7 @@ use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
+use crate::sim::missed_frames::WouldBeF125;
 use crate::sim::sync::SyncState;
 use crate::sim::{VirtualAkd, VirtualBus};
 
@@ -51,6 +52,8 @@ pub struct DriveState {
     pub torque: f64,
     /// What its synchronisation was told (SYNC0, FBUS.PARAM02, cycle time).
     pub sync: SyncState,
+    /// The F125 a real AKD would have raised where this one judges missed frames by "warn".
+    pub would_be_f125: WouldBeF125,
 }
 
 impl DriveState {
@@ -65,6 +68,7 @@ impl DriveState {
             velocity: shaft.velocity,
             torque: shaft.torque,
             sync: akd.sync_state(),
+            would_be_f125: akd.would_be_f125(),
         }
     }
 }
