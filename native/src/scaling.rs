@@ -83,14 +83,18 @@ pub enum PositionUnit {
     PositionUnits,
 }
 
+/// The position objects whose unit the scaling sets, each with its unit.
+pub const POSITION_OBJECTS: [((u16, u8), PositionUnit); 4] = [
+    ((0x6063, 0), PositionUnit::Increments),
+    ((0x60C1, 1), PositionUnit::Increments),
+    ((0x6064, 0), PositionUnit::PositionUnits),
+    ((0x607A, 0), PositionUnit::PositionUnits),
+];
+
 /// The unit the position object `index:subindex` counts in; `None` for an object that holds no
 /// position.
 pub fn unit_of(index: u16, subindex: u8) -> Option<PositionUnit> {
-    match (index, subindex) {
-        (0x6063, 0) | (0x60C1, 1) => Some(PositionUnit::Increments),
-        (0x6064, 0) | (0x607A, 0) => Some(PositionUnit::PositionUnits),
-        _ => None,
-    }
+    POSITION_OBJECTS.iter().find(|(object, _)| *object == (index, subindex)).map(|(_, unit)| *unit)
 }
 
 /// One drive's position scaling as its objects give it.
