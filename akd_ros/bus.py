@@ -70,9 +70,11 @@ def _no_samples() -> dict[str, list]:
 
 
 def check_mode(mode: str) -> None:
-    """CommandError unless `mode` is one of the AKD's modes."""
+    """CommandError unless `mode` is one of the AKD's modes; for CiA 402's cyclic synchronous velocity and torque, it
+    says why the AKD has none and which of its modes does that."""
     if mode not in MODES:
-        raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+        why = _native.MODES_NOT_OFFERED.get(mode)
+        raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}" + (f": {why}" if why else ""))
 
 
 def _picked(drives: Sequence, master, slaves: list[dict]) -> list[int]:

@@ -31,10 +31,12 @@ import itertools
 import math
 import re
 import socket
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import yaml
 
+from akd_ros import _native
 from akd_ros.axis import MODES, DriveConfig
 from akd_ros.bus import FAULT_REACTIONS, CommandError, check
 from akd_ros.units import Limits, Units
@@ -78,6 +80,8 @@ class Spec:
     choices: tuple | None = None
     per_joint: bool = False
     """Whether each joint of `joints` has it in its block, as joints.<name>.<parameter>."""
+    why_not: Mapping[str, str] | None = None
+    """For values outside `choices` that a user may expect, why they are not among them."""
 
     def of_joint(self, joint: str, default: object) -> Spec:
         """This parameter in the block of `joint`, with `default` (the top-level value)."""
@@ -116,7 +120,10 @@ class Spec:
         if not typed:
             raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
         if self.choices is not None and value not in self.choices:
-            raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
+            why = (self.why_not or {}).get(value)
+            raise ParameterError(
+                f"parameter {self.name} must be {self.allowed()}, got {value!r}" + (f": {why}" if why else "")
+            )
         if self.low is not None and not (self.low <= value <= self.high):
             raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
         return value
@@ -193,6 +200,7 @@ SCHEMA: tuple[Spec, ...] = (
         "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
         choices=tuple(MODES),
         per_joint=True,
+        why_not=_native.MODES_NOT_OFFERED,
     ),
     Spec(
         "mapping",
@@ -781,7 +789,6 @@ def check_eoe_bridge(tap: str, host: str, joints: tuple[JointSettings, ...]) -> 
 def check_link(link: str) -> str:
     """`link` if the node can open it: a link spec the extension accepts (`_native.LINK_FORMS`) that, where it names a
     network interface, names one of this machine."""
-    from akd_ros import _native
 
     try:
         spec = _native.parse_link(link)

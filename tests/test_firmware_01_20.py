@@ -1,6 +1,8 @@
-"""The DS402 scaling objects of firmware 01-20 (0x608F, 0x6091, 0x6092) as our master reads them and the Axis uses
-them: the drive's scale of each position object its mapping carries is checked against the joint's
-counts_per_revolution at the start, and a drive set up in another scale is refused with what to change."""
+"""What firmware 01-20 means for our master and node. The DS402 scaling objects (0x608F, 0x6091, 0x6092) as our
+master reads them and the Axis uses them: the drive's scale of each position object its mapping carries is checked
+against the joint's counts_per_revolution at the start, and a drive set up in another scale is refused with what to
+change. CiA 402's cyclic synchronous velocity and torque (9, 10), which the AKD does not offer, are refused with why
+and with the AKD's mode that does that."""
 
 from __future__ import annotations
 
@@ -8,7 +10,7 @@ import struct
 
 import pytest
 
-from akd_ros import Axis, CommandError, Units, _native
+from akd_ros import Axis, CommandError, Units, _native, params
 
 REV = 2**20
 
@@ -52,3 +54,14 @@ def test_an_axis_whose_counts_per_revolution_differ_from_the_drives_is_refused_w
     assert "counts_per_revolution is 4096, but the drive counts 1048576 per motor revolution" in message
     assert "in 0x60C1:01 (0x608F = 1048576/1" in message and "0x6064" not in message
     assert "256 times off" in message
+
+
+@pytest.mark.parametrize(("mode", "instead"), [("cyclic_synchronous_velocity", 3), ("cyclic_synchronous_torque", 4)])
+def test_modes_9_and_10_are_refused_with_why_and_the_akds_own_mode(mode, instead):
+    values = {spec.name: spec.default for spec in params.SCHEMA} | {"mode": mode}
+    with pytest.raises(params.ParameterError) as refused:
+        params.settings(values)
+    assert f"got '{mode}': the AKD offers no mode {'9' if instead == 3 else '10'}" in str(refused.value)
+    assert f"({instead}), which takes" in str(refused.value)
+    with Axis("sim?missed=lost&pace=immediate") as axis, pytest.raises(CommandError, match=f"{mode}.*AKD offers no"):
+        axis.set_mode(mode)
