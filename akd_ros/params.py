@@ -134,7 +134,11 @@ SCHEMA: tuple[Spec, ...] = (
     Spec(
         "link",
         "sim",
-        "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
+        "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), either with options joined by '&' after "
+        "'?': 'missed=late' (F125 after more than seven frames missed, judged by time as the real drive: the "
+        "default), 'missed=warn' (judged so, but a would-be F125 is counted and warned of, not raised) or "
+        "'missed=lost' (only frames lost on the line count), 'pace=real' (AL requests and mailbox answered as "
+        "slowly as the real drive: the default) or 'pace=immediate'; 'udp://HOST:PORT' "
         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW), "
         "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame.",
     ),
@@ -314,7 +318,15 @@ SCHEMA: tuple[Spec, ...] = (
         "needs CAP_NET_ADMIN, without which the node warns and runs without it. '' for none.",
     ),
     Spec("eoe.host", "", "The TAP interface's own address and prefix (A.B.C.D/N), '' for none."),
-    Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
+    Spec(
+        "rt.priority",
+        0,
+        "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler. Where the system does not permit "
+        "it (no CAP_SYS_NICE, an RLIMIT_RTPRIO below it) the node says so in one warning and cycles on the normal "
+        "scheduler.",
+        0,
+        99,
+    ),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
     Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
     Spec(
