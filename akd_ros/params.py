@@ -467,6 +467,20 @@ class Settings:
     eoe_host: str | None = None
     """The TAP interface's address (A.B.C.D/N), None for none."""
 
+    def bus_options(self) -> dict[str, object]:
+        """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
+        return {
+            "period": self.cycle_time,
+            "priority": self.rt_priority,
+            "cpu": self.rt_cpu,
+            "lock_memory": self.rt_lock_memory,
+            "cpu_latency_us": self.rt_cpu_latency_us,
+            "pipelined": self.rt_pipelined,
+            "fault_reaction": self.fault_reaction,
+            "dc": self.dc,
+            "dc_shift": self.dc_shift,
+        }
+
 
 def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
     """The parameters of each joint's block, with the top-level values `top` as defaults (slave: the joint's place in

@@ -115,20 +115,7 @@ class Tally:
 
 def bus_of(settings: params.Settings, link: str, priority: int) -> Bus:
     """The Bus akd_node would build from `settings`, on `link` with the cycle thread at `priority` (0: none)."""
-    s = settings
-    return Bus(
-        link,
-        [j.drive() for j in s.joints],
-        period=s.cycle_time,
-        priority=priority or None,
-        cpu=s.rt_cpu,
-        lock_memory=s.rt_lock_memory,
-        cpu_latency_us=s.rt_cpu_latency_us,
-        pipelined=s.rt_pipelined,
-        fault_reaction=s.fault_reaction,
-        dc=s.dc,
-        dc_shift=s.dc_shift,
-    )
+    return Bus(link, [j.drive() for j in settings.joints], **(settings.bus_options() | {"priority": priority or None}))
 
 
 def target_of(settings: params.Settings, rng: random.Random) -> list[float]:

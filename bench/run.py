@@ -61,7 +61,7 @@ TITLES = {
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
-    "host_noise": "The six-axis virtual robot with every CPU loaded: F125, with and without missed=warn and rt.priority",
+    "host_noise": "The six-axis virtual robot with every CPU loaded: F125 with and without missed=warn, rt.priority",
 }
 
 

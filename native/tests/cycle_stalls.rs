@@ -13,23 +13,24 @@ use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::error::Result;
-use akd_native::link::{Link, Returns};
+use akd_native::link::Link;
 use akd_native::sim::faults::Fault;
 use akd_native::sim::{Timing, VirtualBus};
 
 #[path = "support/csp.rs"]
 mod csp;
+#[path = "support/shared.rs"]
+mod shared;
 use csp::csp_cycle;
+use shared::Shared;
 
 /// How long the host does not run the cycle thread: 30 periods of 1 ms.
 const STALL: Duration = Duration::from_millis(30);
 
 /// A link to a virtual bus the test shares, which stalls the thread that sends once when asked.
 struct Stalling {
-    bus: Arc<Mutex<VirtualBus>>,
+    shared: Shared,
     stall: Arc<AtomicBool>,
-    start: Instant,
-    returns: Returns,
 }
 
 impl Link for Stalling {
@@ -37,15 +38,11 @@ impl Link for Stalling {
         if self.stall.swap(false, Ordering::Relaxed) {
             std::thread::sleep(STALL);
         }
-        let (bus, now_ns) = (&self.bus, self.start.elapsed().as_nanos() as u64);
-        self.returns.serve(tx, |frame| {
-            bus.lock().unwrap().process(frame, now_ns)?;
-            Ok(true)
-        })
+        self.shared.send(tx)
     }
 
-    fn receive(&mut self, rx: &mut [u8], _deadline: Instant) -> Result<Option<usize>> {
-        self.returns.take(rx)
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        self.shared.receive(rx, deadline)
     }
 
     fn describe(&self) -> String {
@@ -57,7 +54,7 @@ impl Link for Stalling {
 fn stalled(missed: MissedFrames) -> (CycleThread, Arc<Mutex<VirtualBus>>) {
     let bus = Arc::new(Mutex::new(VirtualBus::with_timing(1, Timing { missed_frames: missed, ..Timing::IMMEDIATE })));
     let stall = Arc::new(AtomicBool::new(false));
-    let link = Stalling { bus: bus.clone(), stall: stall.clone(), start: Instant::now(), returns: Returns::default() };
+    let link = Stalling { shared: Shared::new(bus.clone()), stall: stall.clone() };
     let cycle = csp_cycle(Box::new(link));
     cycle.request(0, Request::Enable).unwrap();
     wait(|| cycle.drive_status(0).unwrap().state() == Some(State::OperationEnabled));
