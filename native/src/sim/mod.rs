@@ -723,7 +723,7 @@ mod tests {
 
     #[test]
     fn init_to_preop_runs_at_a_pace_of_its_own() {
-        // A drive as under TwinCAT: Init for 16 ms after the request, other requests as usual.
+        // A drive of another pace there: Init for 16 ms after the request, other requests as usual.
         let mut bus = VirtualBus::with_timing(1, Timing { init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE });
         to_preop(&mut bus);
         for t in [4_500_000, 10_000_000, 15_999_999] {
