@@ -35,7 +35,7 @@ from dataclasses import dataclass, replace
 
 from akd_ros import _native
 from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
-from akd_ros.units import Limits, Units, unwrap_position
+from akd_ros.units import Limits, Units, scale_mismatch, unwrap_position
 
 MODE_NAMES = {code: name for name, code in MODES.items()}
 
@@ -327,6 +327,13 @@ class Axis:
         """Volts per count of the analog input and output."""
         # Bounded: an input that chatters while nobody takes its changes must not fill the memory; the oldest go.
         self._input_events: collections.deque[AxisIo] = collections.deque(maxlen=INPUT_EVENTS_KEPT)
+        mapped = self._outputs | {(index, subindex) for index, subindex, _, _ in mapping["inputs"]}
+        self.drive_scaling: dict | None = bus.scalings.get(slave)
+        """The drive's position scaling, read at the start (`_native.Master.position_scaling`); None for a drive
+        without the DS402 scaling objects."""
+        mismatch = scale_mismatch(self.units.counts_per_revolution, self.drive_scaling, mapped)
+        if mismatch is not None:
+            raise CommandError(f"{self.name} (drive {slave}): {mismatch}")
         self._mode = drive.mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()

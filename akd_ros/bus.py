@@ -70,9 +70,11 @@ def _no_samples() -> dict[str, list]:
 
 
 def check_mode(mode: str) -> None:
-    """CommandError unless `mode` is one of the AKD's modes."""
+    """CommandError unless `mode` is one of the AKD's modes; for CiA 402's cyclic synchronous velocity and torque, it
+    says why the AKD has none and which of its modes does that."""
     if mode not in MODES:
-        raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+        why = _native.MODES_NOT_OFFERED.get(mode)
+        raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}" + (f": {why}" if why else ""))
 
 
 def _picked(drives: Sequence, master, slaves: list[dict]) -> list[int]:
@@ -164,6 +166,9 @@ class Bus:
             self._master.request_state("preop")
             self.eoe_drives: dict[bytes, int] = {}
             """The MAC of each drive given an `eoe_ip`, with its position: where an `EoeBridge` sends frames."""
+            self.scalings: dict[int, dict | None] = {}
+            """Each drive's position scaling as its DS402 scaling objects give it (`_native.Master.position_scaling`,
+            read in PreOp), by position; its Axis checks its units against it."""
             for drive, position in zip(drives, positions, strict=True):
                 if drive.eoe_ip is not None:
                     address = ipaddress.IPv4Interface(drive.eoe_ip)
@@ -171,6 +176,7 @@ class Bus:
                     self.eoe_drives[bytes.fromhex(mac.replace(":", ""))] = position
                 rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
                 self._master.configure_pdo(position, rx, tx)
+                self.scalings[position] = self._master.position_scaling(position)
                 self._master.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[drive.mode]))
             # One clock set-up for the line: every drive with DC follows the same SYNC0 (or each its SM2 event).
             if _native.dc_by_default(link) if dc is None else dc:

@@ -39,10 +39,12 @@ import itertools
 import math
 import re
 import socket
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import yaml
 
+from akd_ros import _native
 from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES, DriveConfig, io_mappings
 from akd_ros.bus import FAULT_REACTIONS, CommandError, check
 from akd_ros.units import Limits, Units
@@ -86,6 +88,8 @@ class Spec:
     choices: tuple | None = None
     per_joint: bool = False
     """Whether each joint of `joints` has it in its block, as joints.<name>.<parameter>."""
+    why_not: Mapping[str, str] | None = None
+    """For values outside `choices` that a user may expect, why they are not among them."""
 
     def of_joint(self, joint: str, default: object) -> Spec:
         """This parameter in the block of `joint`, with `default` (the top-level value)."""
@@ -124,7 +128,10 @@ class Spec:
         if not typed:
             raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
         if self.choices is not None and value not in self.choices:
-            raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
+            why = (self.why_not or {}).get(value)
+            raise ParameterError(
+                f"parameter {self.name} must be {self.allowed()}, got {value!r}" + (f": {why}" if why else "")
+            )
         if self.low is not None and not (self.low <= value <= self.high):
             raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
         return value
@@ -135,11 +142,13 @@ SCHEMA: tuple[Spec, ...] = (
     Spec(
         "link",
         "sim",
-        "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
+        "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), either with options joined by '&' after "
+        "'?': 'missed=late' (F125 after more than seven frames missed, judged by time as the real drive: the "
+        "default), 'missed=warn' (judged so, but a would-be F125 is counted and warned of, not raised) or "
+        "'missed=lost' (only frames lost on the line count), 'pace=real' (AL requests and mailbox answered as "
+        "slowly as the real drive: the default) or 'pace=immediate'; 'udp://HOST:PORT' "
         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW), "
-        "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame. 'sim' and 'sim:N' "
-        "take '?missed=lost': the virtual drives then count as missed (F125) only the frames the line lost, not "
-        "those a busy host sent late.",
+        "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame.",
     ),
     Spec(
         "joints",
@@ -205,6 +214,7 @@ SCHEMA: tuple[Spec, ...] = (
         "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
         choices=tuple(MODES),
         per_joint=True,
+        why_not=_native.MODES_NOT_OFFERED,
     ),
     Spec(
         "mapping",
@@ -431,7 +441,15 @@ SCHEMA: tuple[Spec, ...] = (
         "'' for none.",
     ),
     Spec("eoe.host", "", "The TAP interface's own address and prefix (A.B.C.D/N), '' for none."),
-    Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
+    Spec(
+        "rt.priority",
+        0,
+        "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler. Where the system does not permit "
+        "it (no CAP_SYS_NICE, an RLIMIT_RTPRIO below it) the node says so in one warning and cycles on the normal "
+        "scheduler.",
+        0,
+        99,
+    ),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
     Spec(
         "rt.lock_memory",
@@ -631,6 +649,20 @@ class Settings:
     """The TAP interface bridged to the joints' EoE, None for none."""
     eoe_host: str | None = None
     """The TAP interface's address (A.B.C.D/N), None for none."""
+
+    def bus_options(self) -> dict[str, object]:
+        """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
+        return {
+            "period": self.cycle_time,
+            "priority": self.rt_priority,
+            "cpu": self.rt_cpu,
+            "lock_memory": self.rt_lock_memory,
+            "cpu_latency_us": self.rt_cpu_latency_us,
+            "pipelined": self.rt_pipelined,
+            "fault_reaction": self.fault_reaction,
+            "dc": self.dc,
+            "dc_shift": self.dc_shift,
+        }
 
 
 def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
@@ -1030,7 +1062,6 @@ def check_eoe_bridge(tap: str, host: str, joints: tuple[JointSettings, ...]) -> 
 def check_link(link: str) -> str:
     """`link` if the node can open it: a link spec the extension accepts (`_native.LINK_FORMS`) that, where it names a
     network interface, names one of this machine."""
-    from akd_ros import _native
 
     try:
         spec = _native.parse_link(link)

@@ -81,8 +81,9 @@ pip_install() {
 
 # tshark decodes captures in the tests, iproute2 makes the test namespaces, rt-tests measures
 # scheduling latency for the benchmarks, g++ compiles the messages' generated C and C++, ping
-# (iputils-ping) pings the virtual drives through akd-eoe's TAP interface in the EoE tests.
-APT_PACKAGES=(tshark iproute2 rt-tests g++ iputils-ping)
+# (iputils-ping) pings the virtual drives through akd-eoe's TAP interface in the EoE tests, stress-ng loads every CPU
+# in bench/host_noise.py.
+APT_PACKAGES=(tshark iproute2 rt-tests g++ iputils-ping stress-ng)
 missing=()
 for package in "${APT_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" || missing+=("$package")

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -280,7 +281,7 @@ def test_node_as_user_with_cap_net_raw_runs_and_its_threads_give_up_what_they_ca
         os.chown(home, 65534, 65534)
         params = home / "akd.yaml"
         params.write_text(
-            (REPO / "config" / "akd_sim.yaml").read_text().replace("link: sim", f"link: {veth.if_master}")
+            re.sub(r"link: \S+", f"link: {veth.if_master}", (REPO / "config" / "akd_sim.yaml").read_text())
         )
         argv, env = node_command(params)
         with akd_sim_in_netns(veth.ns_sim, veth.if_sim):

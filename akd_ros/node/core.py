@@ -108,19 +108,7 @@ class Core:
         # What each mapping carries of the drive's I/O, known from the parameters before the bus is touched.
         self._logger.info("I/O the mappings carry: " + "; ".join(f"{j.name}: {j.describe_io()}" for j in s.joints))
         try:
-            bus = Bus(
-                s.link,
-                [j.drive() for j in s.joints],
-                period=s.cycle_time,
-                priority=s.rt_priority,
-                cpu=s.rt_cpu,
-                lock_memory=s.rt_lock_memory,
-                cpu_latency_us=s.rt_cpu_latency_us,
-                pipelined=s.rt_pipelined,
-                fault_reaction=s.fault_reaction,
-                dc=s.dc,
-                dc_shift=s.dc_shift,
-            )
+            bus = Bus(s.link, [j.drive() for j in s.joints], **s.bus_options())
         except AXIS_ERRORS as e:
             return self._fail(f"configure: the drives ({self._where()}) on link {s.link!r} did not open: {e}")
         for joint, axis in zip(s.joints, bus.axes, strict=True):

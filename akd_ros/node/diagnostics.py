@@ -9,7 +9,9 @@ FBUS.PARAM02 is unknown (the master writes it only where the drive's SDO informa
 fault. A joint whose I/O holds its drive back (hardware enable low, a limit switch active: `akd_ros.node.io.reasons`)
 is WARN at least, and says so in the drive's words. The bus's status (`akd_node: bus`) is ERROR while a joint is in
 Fault or unreachable, WARN when a fault counter grew since the last report or the last frame did not come back; its
-values carry the link, the cycle statistics and the distributed clocks."""
+values carry the link, the cycle statistics and the distributed clocks. One counter, f125_stalls (the cycle stalled
+8.5 periods or more with a drive enabled), is also logged as a warning when it grows: a real AKD raises F125 there,
+virtual AKDs with `missed=warn` go on (docs/virtual_akd.md)."""
 
 from __future__ import annotations
 
@@ -24,6 +26,16 @@ FBUS_PARAM02_UNKNOWN = (
     "set FBUS.PARAM02 = 1 on the drive (WorkBench) for its PLL to follow SYNC0"
 )
 """What /diagnostics says of a drive with distributed clocks whose FBUS.PARAM02 the master left alone."""
+
+
+def f125_warning(stats: dict, new: int) -> str:
+    """What the node says when the cycle stalled, a drive enabled, long enough for a real AKD to raise F125."""
+    return (
+        f"a real AKD would raise F125 here: {new} cycle stall{'s' if new > 1 else ''} of 8.5 periods or more while a "
+        f"drive was enabled since the last report ({stats['f125_stalls']} in all; longest period "
+        f"{stats['period']['max_ns'] * 1e-6:.1f} ms); virtual AKDs with missed=warn go on, a real line faults. "
+        "Give the cycle thread real-time priority (rt.priority) on a host that stalls it"
+    )
 
 
 def fbus_param02_unknown(dc: dict, slave: int) -> bool:
@@ -82,7 +94,7 @@ class Diagnostics:
         if taken is None:
             return
         bus, states, stats = taken
-        counted = ["overruns", "lost_frames", "wkc_errors", "events_dropped"]
+        counted = ["overruns", "f125_stalls", "lost_frames", "wkc_errors", "events_dropped"]
         # Cycle records are taken only while recording; then each one lost is a cycle missing from the bag.
         if self._session.recorder is not None:
             counted.append("samples_dropped")
@@ -90,6 +102,10 @@ class Diagnostics:
         # The middleware's drops (a Zenoh sample without rmw_zenoh's attachment) grow the bus's WARN as the cycle's do.
         counters |= self._transport.counters()
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
+        if "f125_stalls" in grown:
+            self._transport.logger.warning(
+                f125_warning(stats, stats["f125_stalls"] - self._counters_seen["f125_stalls"])
+            )
         self._counters_seen = counters
         dc_status = bus.cycle.dc_status()
         recovery = {joint: bus[joint].recovery() for joint in states}

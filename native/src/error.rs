@@ -81,7 +81,8 @@ pub enum LinkSpecError {
         /// The most virtual AKDs a bus may hold (the link spec's `MAX_SIM_COUNT`).
         max: usize,
     },
-    /// `sim...?` with an option other than `missed=late` or `missed=lost`.
+    /// `sim...?` with an option other than `missed=late|lost|warn` or `pace=real|immediate`,
+    /// or one given twice.
     SimOption {
         /// The spec as given.
         spec: String,
@@ -112,8 +113,9 @@ impl LinkSpecError {
     /// none of them is told, and what the node's parameter check names as allowed.
     pub fn allowed_forms(max_sim_count: usize) -> String {
         format!(
-            "'sim', 'sim:N' (N 1..={max_sim_count}; either with '?missed=lost'), 'udp://HOST:PORT' or a network \
-             interface name (with '?busy_poll=US' to busy-poll for the returning frame)"
+            "'sim', 'sim:N' (N 1..={max_sim_count}; either with options '?missed=late|lost|warn', \
+             '?pace=real|immediate', joined by '&'), 'udp://HOST:PORT' or a network interface name (with \
+             '?busy_poll=US' to busy-poll for the returning frame)"
         )
     }
 }
@@ -126,9 +128,13 @@ impl fmt::Display for LinkSpecError {
             }
             LinkSpecError::SimOption { spec } => write!(
                 f,
-                "link {spec:?}: the virtual AKDs take one option, ?missed=late (the default: a frame \
-                 that comes late is missed, as the real drive judges) or ?missed=lost (only frames \
-                 lost on the line are missed, for a host whose master thread is not real-time)"
+                "link {spec:?}: the virtual AKDs take options after '?', joined by '&', each once: \
+                 missed=late (the default: a frame that comes late is missed and more than seven \
+                 raise F125, as the real drive judges), missed=lost (only frames lost on the line \
+                 are missed) or missed=warn (judged as the real drive, but a would-be F125 is \
+                 counted and warned of instead of raised, for a host whose master thread is not \
+                 real-time); pace=real (the default: AL requests and mailbox answered as slowly as \
+                 the real drive answers them) or pace=immediate (at once, for tests that need speed)"
             ),
             LinkSpecError::InterfaceOption { spec, max } => write!(
                 f,
@@ -1115,6 +1121,11 @@ pub enum SettingError {
         /// The value given.
         value: f64,
     },
+    /// A virtual AKD's Init→PreOp time that is no number of ms in 0..=10000.
+    InitToPreOp {
+        /// The time asked for, ms.
+        ms: f64,
+    },
     /// A virtual AKD's mailbox size outside what the simulator builds.
     MailboxSize {
         /// The size asked for.
@@ -1299,6 +1310,9 @@ impl fmt::Display for SettingError {
             SettingError::Seconds { what, value } => {
                 write!(f, "{what} must be a non-negative number of seconds, got {value}")
             }
+            SettingError::InitToPreOp { ms } => {
+                write!(f, "a virtual AKD's Init->PreOp time of {ms} ms: allowed are 0 to 10000 ms")
+            }
             SettingError::MailboxSize { size, min, max } => {
                 write!(f, "a virtual AKD's mailbox of {size} bytes: allowed are {min} to {max}")
             }
@@ -1409,6 +1423,11 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
+    /// How fast virtual AKDs answer.
+    Pace {
+        /// The name given.
+        name: String,
+    },
 }
 
 impl fmt::Display for UnknownName {
@@ -1429,8 +1448,13 @@ impl fmt::Display for UnknownName {
             }
             UnknownName::MissedFrames { name } => write!(
                 f,
-                "missed frames judged {name:?}: allowed \"late\" (as the real drive) or \"lost\" (only frames lost on \
-                 the line)"
+                "missed frames judged {name:?}: allowed \"late\" (as the real drive), \"lost\" (only frames lost on \
+                 the line) or \"warn\" (as the real drive, a would-be F125 counted and warned of, not raised)"
+            ),
+            UnknownName::Pace { name } => write!(
+                f,
+                "virtual AKD pace {name:?}: allowed \"real\" (as the real drive) or \"immediate\" (requests handled \
+                 at once)"
             ),
             UnknownName::HomingFailure { name } => {
                 write!(f, "homing failure {name:?}: allowed ok, error, no_reference")

@@ -12,7 +12,8 @@
 //!    SDO information, emergency), [`eoe`] (Ethernet over EtherCAT: fragments, Set IP
 //!    Parameter) and [`foe`] (file access over EtherCAT), [`pdo`] (the AKD's process-data mappings and their rules),
 //!    [`io`] (the drive's own digital and analog I/O in its process data),
-//!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine) and
+//!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine), [`scaling`]
+//!    (how the drive scales its positions, from its DS402 scaling objects) and
 //!    [`akd_fault`] (the AKD's fault numbers), and [`trajectory`] (joint trajectories, validated
 //!    and interpolated). Closed sets of wire codes are enums (e.g.
 //!    [`coe::CoeService`]); open ones are newtypes with a `name()` (e.g. [`coe::SdoAbortCode`]).
@@ -57,6 +58,7 @@ pub mod master;
 pub mod objects;
 pub mod pdo;
 pub mod registers;
+pub mod scaling;
 pub mod sii;
 pub mod sim;
 pub mod trajectory;

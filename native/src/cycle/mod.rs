@@ -1049,6 +1049,8 @@ fn run(
         let period = last_wake.map_or(0, |last| wake - last);
         if last_wake.is_some() {
             stats.period.record(period);
+            let enabled = l.drives.iter().any(|d| d.drive.enabled());
+            CycleStats::add(&stats.f125_stalls, supervision::stall_raises_f125(period, period_ns, enabled) as u64);
         }
         last_wake = Some(wake);
         if let Some(sent) = in_flight.take() {

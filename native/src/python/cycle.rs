@@ -85,6 +85,7 @@ struct SnapshotView<'a> {
 struct StatsView {
     cycles: u64,
     overruns: u64,
+    f125_stalls: u64,
     lost_frames: u64,
     wkc_errors: u64,
     watch_frames: u64,
@@ -371,7 +372,8 @@ impl PyCycle {
         .into_pyobject(py)
     }
 
-    /// The statistics: cycles, overruns, lost_frames and wkc_errors (the cyclic frame's),
+    /// The statistics: cycles, overruns, f125_stalls (frames that went out so late after the one
+    /// before, a drive enabled, that a real AKD would raise F125), lost_frames and wkc_errors (the cyclic frame's),
     /// watch_frames (cycles that read each slave in a second frame, a change having been seen),
     /// acyclic_lost_frames and acyclic_wkc_errors (the frames beside it: mailbox, and a
     /// recovery's), other_errors, setpoints_busy, relayed_frames and relayed_lost (frames a
@@ -387,6 +389,7 @@ impl PyCycle {
             relayed_lost,
             cycles: s.cycles.load(Relaxed),
             overruns: s.overruns.load(Relaxed),
+            f125_stalls: s.f125_stalls.load(Relaxed),
             lost_frames: s.lost_frames.load(Relaxed),
             wkc_errors: s.wkc_errors.load(Relaxed),
             watch_frames: s.watch_frames.load(Relaxed),

@@ -369,6 +369,9 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDriveInputs>()?;
     let modes: Vec<PyModeOfOperation> = Mode::ALL.into_iter().map(PyModeOfOperation::of).collect();
     m.add("MODES_OF_OPERATION", PyTuple::new(m.py(), modes)?)?;
+    let not_offered: std::collections::HashMap<&str, &str> =
+        ds402::NOT_OFFERED.iter().map(|&(_, name, why)| (name, why)).collect();
+    m.add("MODES_NOT_OFFERED", not_offered)?;
     m.add("DEFAULT_MAPPING", (as_words(&pdo::DEFAULT_RX), as_words(&pdo::DEFAULT_TX)))?;
     m.add("IO_MAPPING", (as_words(&pdo::IO_RX), as_words(&pdo::IO_TX)))?;
     m.add_class::<PyDriveIo>()?;

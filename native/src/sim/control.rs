@@ -31,6 +31,7 @@ use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
 use crate::sim::homing::{Failure as HomingFailure, Setup};
 use crate::sim::line::{Burst, Delivery, LineCounts};
+use crate::sim::missed_frames::WouldBeF125;
 use crate::sim::sync::SyncState;
 use crate::sim::terminals::{Outputs, Terminals};
 use crate::sim::{VirtualAkd, VirtualBus};
@@ -57,6 +58,8 @@ pub struct DriveState {
     pub digital_inputs: u32,
     /// The outputs as the master drives them.
     pub outputs: Outputs,
+    /// The F125 a real AKD would have raised where this one judges missed frames by "warn".
+    pub would_be_f125: WouldBeF125,
 }
 
 impl DriveState {
@@ -73,6 +76,7 @@ impl DriveState {
             sync: akd.sync_state(),
             digital_inputs: akd.od().get(0x60FD, 0).map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
             outputs: Terminals::outputs(akd.od()),
+            would_be_f125: akd.would_be_f125(),
         }
     }
 }

@@ -30,18 +30,18 @@
 //! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
 //!   counts/s², torque in 0.1 % of the drive's peak torque.
 
+use crate::akd_fault::{MissedFrames, MISSED_FRAMES_TOLERATED};
 use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
 use crate::pdo::PdoEntry;
 use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
 use crate::sim::homing::{self, Ending};
+use crate::sim::missed_frames::WouldBeF125;
 use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
 use crate::sim::od::ObjectDictionary;
 use crate::sim::terminals::{LimitStop, Terminals};
 
-/// Frames the drive tolerates missing while enabled; one more raises F125 (§5.14).
-pub const MISSED_FRAMES_TOLERATED: u64 = 7;
 /// How long an enabled drive waits for cyclic set-points before F706 when the master set no
 /// process-data watchdog (the AKD's default, FAULT706.ACTION).
 pub const SETPOINT_TIMEOUT_NS: u64 = 100_000_000;
@@ -124,9 +124,10 @@ pub struct Bus<'a> {
     pub process_data_expected: bool,
     /// The process-data watchdog time the master configured, if any (F706's time-out).
     pub watchdog_ns: Option<u64>,
-    /// Frames in a row the line lost before they reached the drive, when missed frames are
-    /// judged that way ([`MissedFrames::Lost`](crate::akd_fault::MissedFrames::Lost)); `None`: judged by time, as the real drive does.
-    pub frames_lost: Option<u64>,
+    /// How the firmware judges missed frames (by time, as the real drive, unless told otherwise).
+    pub missed_frames: MissedFrames,
+    /// Frames in a row the line lost before they reached the drive.
+    pub frames_lost: u64,
 }
 
 /// The drive firmware of one virtual AKD.
@@ -170,6 +171,7 @@ pub struct Drive {
     last_setpoint_ns: Option<u64>,
     /// Since when cyclic set-points are due: the enable, or the change into the mode.
     setpoints_due_since_ns: u64,
+    would_be_f125: WouldBeF125,
 }
 
 impl Default for Drive {
@@ -213,6 +215,7 @@ impl Drive {
             last_process_data_ns: None,
             last_setpoint_ns: None,
             setpoints_due_since_ns: 0,
+            would_be_f125: WouldBeF125::default(),
         }
     }
 
@@ -229,6 +232,12 @@ impl Drive {
     /// The actual position 0x6064 reports, counts (fractional: the model's own resolution).
     pub fn position(&self) -> f64 {
         self.reported(self.shaft.position)
+    }
+
+    /// The F125 a real AKD would have raised where this one judges missed frames by
+    /// [`MissedFrames::Warn`].
+    pub fn would_be_f125(&self) -> WouldBeF125 {
+        self.would_be_f125
     }
 
     /// The shaft (position in counts before any homing offset, velocity, torque).
@@ -271,12 +280,13 @@ impl Drive {
         shaft_position + self.offset
     }
 
-    /// The shaft position of a 32-bit position `target` taken as the nearest one to shaft
-    /// position `near`: positions wrap at ±2^31 counts (2048 revolutions) as 0x6064 does, and
-    /// the axis moves the short way across the wrap, not 2^32 counts back.
-    fn shaft_target(&self, target: i32, near: f64) -> f64 {
-        let near_counts = (near + self.offset).round();
-        near_counts - self.offset + target.wrapping_sub(near_counts as i64 as i32) as f64
+    /// The shaft position of a 32-bit position `target`, counted `scale` to a shaft count
+    /// ([`ObjectDictionary::position_scale`]), taken as the nearest one to shaft position
+    /// `near`: positions wrap at ±2^31 as 0x6064 does, and the axis moves the short way across
+    /// the wrap, not 2^32 back.
+    fn shaft_target(&self, target: i32, near: f64, scale: f64) -> f64 {
+        let near_counts = ((near + self.offset) * scale).round();
+        (near_counts + target.wrapping_sub(near_counts as i64 as i32) as f64) / scale - self.offset
     }
 
     /// Runs the firmware up to bus time `now_ns`; returns the emergency of a fault raised.
@@ -300,8 +310,7 @@ impl Drive {
         let window = u32_of(od, 0x6065) as f64;
         while t + STEP_NS <= now_ns {
             t += STEP_NS;
-            if let Some(fault) = self.injected.take().or_else(|| self.supervise(t, cycle_ns, timeout, bus.frames_lost))
-            {
+            if let Some(fault) = self.injected.take().or_else(|| self.supervise(t, cycle_ns, timeout, &bus)) {
                 raised = raised.or(self.raise(fault));
             }
             if self.shaft.at_rest() && !self.state.is_power_stage_on() {
@@ -341,7 +350,8 @@ impl Drive {
             return;
         }
         let from = self.segment.map_or(self.command, |s| s.to);
-        let to = self.shaft_target(i32_of(od, setpoint.0, setpoint.1), from);
+        let scale = od.position_scale(setpoint.0, setpoint.1);
+        let to = self.shaft_target(i32_of(od, setpoint.0, setpoint.1), from, scale);
         let length_ns = od.cycle_time_ns().unwrap_or(STEP_NS).max(STEP_NS);
         self.segment = Some(Segment { from, to, start_ns: received.at_ns, length_ns });
     }
@@ -389,11 +399,11 @@ impl Drive {
         if enabled && new_setpoint && !halt {
             match self.mode {
                 Some(Mode::ProfilePosition) => {
-                    let target = i32_of(od, 0x607A, 0);
+                    let (target, scale) = (i32_of(od, 0x607A, 0), od.position_scale(0x607A, 0));
                     self.profile_target = Some(if controlword & cw::RELATIVE != 0 {
-                        self.profile_target.unwrap_or(self.command) + target as f64
+                        self.profile_target.unwrap_or(self.command) + target as f64 / scale
                     } else {
-                        self.shaft_target(target, self.command)
+                        self.shaft_target(target, self.command, scale)
                     });
                     self.setpoint_acknowledged = true;
                 }
@@ -466,17 +476,12 @@ impl Drive {
     }
 
     /// The fault the firmware's supervision finds at time `t`, if any.
-    fn supervise(&self, t: u64, cycle_ns: u64, timeout_ns: u64, frames_lost: Option<u64>) -> Option<Fault> {
+    fn supervise(&mut self, t: u64, cycle_ns: u64, timeout_ns: u64, bus: &Bus<'_>) -> Option<Fault> {
         if self.fault.is_some() || !matches!(self.state, State::OperationEnabled | State::QuickStopActive) {
             return None;
         }
-        let missed = match (frames_lost, self.last_process_data_ns) {
-            (Some(lost), _) => lost,
-            // A frame is missed once half a cycle passed after it was due.
-            (None, Some(last)) if cycle_ns > 0 => t.saturating_sub(last).saturating_sub(cycle_ns / 2) / cycle_ns,
-            (None, _) => 0,
-        };
-        if missed > MISSED_FRAMES_TOLERATED {
+        let last = self.last_process_data_ns;
+        if self.would_be_f125.missed(bus.missed_frames, t, last, cycle_ns, bus.frames_lost) > MISSED_FRAMES_TOLERATED {
             return Some(Fault::SyncLost);
         }
         let cyclic = matches!(self.mode, Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition));
@@ -650,13 +655,14 @@ impl Drive {
     /// Writes the actual values into the object dictionary.
     fn publish(&self, od: &mut ObjectDictionary) {
         let position = self.reported(self.shaft.position);
-        let counts = position.round() as i64 as i32;
+        let in_units_of = |index| (position * od.position_scale(index, 0)).round() as i64 as i32;
+        let (internal, actual) = (in_units_of(0x6063), in_units_of(0x6064));
         let following_error = self.following_error();
         let window = u32_of(od, 0x6065) as f64;
         od.set(0x6041, 0, &self.statusword(od, following_error, window).to_le_bytes());
         od.set(0x6061, 0, &[self.mode.map_or(0, |m| m as i8) as u8]);
-        od.set(0x6063, 0, &counts.to_le_bytes());
-        od.set(0x6064, 0, &counts.to_le_bytes());
+        od.set(0x6063, 0, &internal.to_le_bytes());
+        od.set(0x6064, 0, &actual.to_le_bytes());
         od.set(0x606C, 0, &(self.shaft.velocity.round() as i64 as i32).to_le_bytes());
         let torque = (self.shaft.torque / self.mechanics.peak_torque * 1000.0).round() as i16;
         od.set(0x6077, 0, &torque.to_le_bytes());
@@ -775,8 +781,7 @@ mod tests {
         for (silence, faults) in [(17 * MS - STEP_NS, false), (17 * MS, true)] {
             let mut b = Bench::new();
             let image = [PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x607A, 0, 32)];
-            let expected =
-                |received| Bus { received, process_data_expected: true, watchdog_ns: None, frames_lost: None };
+            let expected = |received| Bus { received, process_data_expected: true, ..Bus::default() };
             b.write(0x60C2, 2, &[(-3i8) as u8]);
             b.enable(8);
             for _ in 0..5 {
@@ -797,8 +802,9 @@ mod tests {
             let bus = |received, frames_lost| Bus {
                 received,
                 process_data_expected: true,
-                watchdog_ns: None,
-                frames_lost: Some(frames_lost),
+                missed_frames: MissedFrames::Lost,
+                frames_lost,
+                ..Bus::default()
             };
             b.write(0x60C2, 2, &[(-3i8) as u8]);
             b.enable(8);
