@@ -388,6 +388,11 @@ impl Events {
         self.ring.drain(Event::decode)
     }
 
+    /// Whether an event waits to be taken.
+    pub fn pending(&self) -> bool {
+        self.ring.pending()
+    }
+
     /// Events dropped because the ring was full.
     pub fn dropped(&self) -> u64 {
         self.ring.dropped()

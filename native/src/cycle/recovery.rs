@@ -214,6 +214,11 @@ impl SlaveRecovery {
         *self.mode.lock().unwrap_or_else(|p| p.into_inner()) = Some(mode);
     }
 
+    /// The mode last set.
+    pub fn mode(&self) -> Option<i8> {
+        *self.mode.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
     /// Where it stands.
     pub fn status(&self) -> RecoveryStatus {
         RecoveryStatus {

@@ -56,6 +56,11 @@ impl<const W: usize> Ring<W> {
         records
     }
 
+    /// Whether a record waits to be taken.
+    pub fn pending(&self) -> bool {
+        self.head.load(Ordering::Acquire) != self.tail.load(Ordering::Acquire)
+    }
+
     /// Records dropped because the ring was full.
     pub fn dropped(&self) -> u64 {
         self.dropped.load(Ordering::Relaxed)
