@@ -31,6 +31,10 @@ class _Publisher:
         self._ros.publish(message)
         self._zenoh.publish(self._serialize(message))
 
+    def publish_serialized(self, data: bytes) -> None:
+        self._ros.publish_serialized(data)
+        self._zenoh.publish(data)
+
 
 class BothTransport:
     """`ros` (on the node's LifecycleNode) with `zenoh` beside it (see the module doc)."""

@@ -45,9 +45,7 @@ class Core:
         self._reliable = Qos(depth=10)
         events = Qos(depth=100)
         self._commands = Commands(transport, self._session, commands, command_qos, requests)
-        self._publishing = Publishing(
-            transport, self._session, periodic, self._reliable, events, self._commands.fault_seen
-        )
+        self._publishing = Publishing(transport, self._session, self._reliable, events, self._commands.fault_seen)
         self._trajectories = Trajectories(transport, self._session, commands, periodic, command_qos, events)
         self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
         Services(transport, self._session, self._commands, requests)
@@ -151,6 +149,7 @@ class Core:
             self._logger.info(f"EoE bridge: {drives} through {tap.name}")
         with self._session.lock:
             self._session.bus = bus
+        self._publishing.start()
         modes = ", ".join(sorted({j.mode for j in s.joints}))
         self._logger.info(
             f"configured: {self._where()} on {s.link} in Op, cycle {s.cycle_time * 1e3:g} ms, mode {modes}"
@@ -168,6 +167,7 @@ class Core:
                     return self._fail(f"parameter latch.arm of {joint.name}: latch {channel}/{edge} not armed: {e}")
         self._diagnostics.restart_counters()
         self._session.active = True
+        self._publishing.set_active(True)
         if self.settings.enable_on_start:
             ok, message = self._commands.request_all("enable")
             if ok:
@@ -180,6 +180,7 @@ class Core:
     def deactivate(self) -> None:
         """Stops publishing and accepting commands and disables the drives."""
         self._session.active = False
+        self._publishing.set_active(False)
         ok, message = self._commands.request_all("disable")
         if not ok:
             self._logger.error(f"deactivate: {message}")
@@ -188,6 +189,7 @@ class Core:
         """Stops publishing, disables the drives and returns the line to Init (does nothing when not configured)."""
         session = self._session
         session.active = False
+        self._publishing.stop()
         with session.lock:
             bus, session.bus = session.bus, None
         recorder, session.recorder = session.recorder, None

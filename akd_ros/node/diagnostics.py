@@ -12,6 +12,7 @@ the distributed clocks."""
 
 from __future__ import annotations
 
+from akd_ros import _native
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
 from akd_ros.node.transport import Qos, Transport
@@ -21,6 +22,11 @@ FBUS_PARAM02_UNKNOWN = (
     "set FBUS.PARAM02 = 1 on the drive (WorkBench) for its PLL to follow SYNC0"
 )
 """What /diagnostics says of a drive with distributed clocks whose FBUS.PARAM02 the master left alone."""
+
+
+def _number(level: bytes | int) -> int:
+    """A DiagnosticStatus level as its number."""
+    return level[0] if isinstance(level, bytes) else int(level)
 
 
 def fbus_param02_unknown(dc: dict, slave: int) -> bool:
@@ -57,12 +63,9 @@ class Diagnostics:
         self._session, self._clock, self._settings = session, session.clock, session.settings
         self._node_name, self._publishing = node_name, publishing
         self._transport = transport
-        self._array = transport.message_class("diagnostic_msgs/msg/DiagnosticArray")
-        self._status = transport.message_class("diagnostic_msgs/msg/DiagnosticStatus")
-        # The levels as the transport's messages spell them (a byte in rclpy's, an int in rosbags').
-        self._ok, self._warn, self._error = self._status.OK, self._status.WARN, self._status.ERROR
-        self._key_value = transport.message_class("diagnostic_msgs/msg/KeyValue")
-        self._header = transport.message_class("std_msgs/msg/Header")
+        status = transport.message_class("diagnostic_msgs/msg/DiagnosticStatus")
+        # The levels' numbers, from the transport's message class (a byte in rclpy's, an int in rosbags').
+        self._ok, self._warn, self._error = (_number(level) for level in (status.OK, status.WARN, status.ERROR))
         self.publisher = RecordedPublisher(
             transport, "diagnostic_msgs/msg/DiagnosticArray", "/diagnostics", qos, session
         )
@@ -80,9 +83,15 @@ class Diagnostics:
         bus, states, stats = taken
         counted = ["overruns", "lost_frames", "wkc_errors", "events_dropped"]
         # Cycle records are taken only while recording; then each one lost is a cycle missing from the bag.
-        if self._session.recorder is not None:
+        recorder = self._session.recorder
+        if recorder is not None:
             counted.append("samples_dropped")
         counters = {k: stats[k] for k in counted}
+        # What the crate made and nobody published in time, and, recording, what the bag's writer could not take
+        # (its queue full, its disk failed): counted, never waited for.
+        counters["messages_dropped"] = self._publishing.feed_dropped()
+        if recorder is not None:
+            counters["records_dropped"] = recorder.stats.dropped
         # The middleware's drops (a Zenoh sample without rmw_zenoh's attachment) grow the bus's WARN as the cycle's do.
         counters |= self._transport.counters()
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
@@ -92,9 +101,11 @@ class Diagnostics:
         statuses = [self._joint_status(bus[j], state, dc_status, recovery[j]) for j, state in states.items()]
         lost = [joint for joint, r in recovery.items() if r["recovering"]]
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
-        self.publisher.publish(self._array(header=self._header(stamp=self._clock.stamp()), status=statuses))
+        # The message's body is the crate's to make: no message object per key and value.
+        stamp_ns = self._clock.now_ns()
+        self.publisher.publish_serialized(_native.diagnostic_array(stamp_ns, statuses), stamp_ns)
 
-    def _joint_status(self, axis, state, dc_status: dict, recovery: dict) -> object:
+    def _joint_status(self, axis, state, dc_status: dict, recovery: dict) -> tuple:
         """The status of one joint: its drive's state, mode, position, DC, recovery and last fault."""
         fault = self._publishing.last_fault.get(axis.name)
         param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
@@ -139,7 +150,7 @@ class Diagnostics:
         hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
         return self._status_message(level, axis.name, summary, hardware_id, values)
 
-    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict, lost: list) -> object:
+    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict, lost: list) -> tuple:
         """The status of the bus: the link, the cycle's counters and timing, distributed clocks, the joints' worst."""
         faulted = [j for j, s in states.items() if s.state in FAULT_STATES]
         stale = not all(s.fresh for s in states.values())
@@ -179,12 +190,7 @@ class Diagnostics:
             }
         return self._status_message(level, "bus", summary, f"EtherCAT line {self._settings.link}", values)
 
-    def _status_message(self, level, what: str, summary: str, hardware_id: str, values: dict) -> object:
-        """A DiagnosticStatus `<node>: <what>` of `values` (each shown as text)."""
-        return self._status(
-            level=level,
-            name=f"{self._node_name}: {what}",
-            message=summary,
-            hardware_id=hardware_id,
-            values=[self._key_value(key=k, value=str(v)) for k, v in values.items()],
-        )
+    def _status_message(self, level: int, what: str, summary: str, hardware_id: str, values: dict) -> tuple:
+        """A DiagnosticStatus `<node>: <what>` of `values` (each shown as text), as `_native.diagnostic_array` takes
+        it."""
+        return (level, f"{self._node_name}: {what}", summary, hardware_id, [(k, str(v)) for k, v in values.items()])

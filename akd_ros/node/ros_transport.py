@@ -42,6 +42,10 @@ class _Publisher:
     def publish(self, message: Any) -> None:
         self._publisher.publish(message)
 
+    def publish_serialized(self, data: bytes) -> None:
+        # rclpy publishes bytes as a serialized message (rmw_publish_serialized_message).
+        self._publisher.publish(data)
+
 
 class RosGroup:
     """A callback group of the rclpy transport: the executor's for subscriptions and services, a worker thread for

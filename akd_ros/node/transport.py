@@ -36,6 +36,10 @@ class Publisher(Protocol):
     def publish(self, message: Any) -> None:
         """Sends `message`."""
 
+    def publish_serialized(self, data: bytes) -> None:
+        """Sends a message given serialised as rmw publishes it (CDR behind its encapsulation header), e.g. made by
+        the crate (`akd_ros._native.Feed`): nothing is built or serialised in Python."""
+
 
 class Transport(Protocol):
     """A middleware the node's parts run on (see the module doc)."""

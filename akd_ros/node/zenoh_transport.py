@@ -39,6 +39,9 @@ class _Publisher:
     def publish(self, message: Any) -> None:
         self._publisher.publish(self._transport.types.to_cdr(message, self._type_name))
 
+    def publish_serialized(self, data: bytes) -> None:
+        self._publisher.publish(data)
+
 
 class ZenohTransport:
     """The transport of `zenoh_node` (an `akd_ros.zenoh.ZenohNode` named `name`), logging to `logger` (see

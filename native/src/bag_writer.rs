@@ -417,7 +417,8 @@ impl Writer {
 
     fn run(mut self) {
         if let Err(e) = self.open_bag() {
-            self.fail(e);
+            let bag = self.options.folder.join(&self.options.name);
+            self.failed_because(format!("cannot open bag {}: {}", bag.display(), error_text(&e)));
         }
         self.report();
         loop {
@@ -438,6 +439,8 @@ impl Writer {
             }
             self.guarded(|w| w.flush_if_due());
             if self.closing && self.open.is_some() {
+                // The end: the records the source has after this round are not the bag's.
+                self.source = None;
                 self.guarded(|w| w.park());
             }
             let finished = finish.is_some();
@@ -490,13 +493,17 @@ impl Writer {
     }
 
     fn fail(&mut self, error: std::io::Error) {
+        let bag = self.bag.clone().unwrap_or_else(|| self.options.folder.join(&self.options.name));
+        self.failed_because(format!("recording into {} stopped: {}", bag.display(), error_text(&error)));
+    }
+
+    /// Stops recording for the first failure, `text`; counts every one.
+    fn failed_because(&mut self, text: String) {
         self.shared.counters.errors.fetch_add(1, Ordering::Relaxed);
         if self.failed {
             return;
         }
         self.failed = true;
-        let bag = self.bag.clone().unwrap_or_else(|| self.options.folder.join(&self.options.name));
-        let text = format!("recording into {} stopped: {}", bag.display(), error_text(&error));
         self.pending_bytes = 0;
         self.open = None;
         self.parked.clear();

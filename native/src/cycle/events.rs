@@ -393,6 +393,11 @@ impl Events {
         self.ring.pending()
     }
 
+    /// Events pushed so far (dropped ones not counted).
+    pub fn pushed(&self) -> u64 {
+        self.ring.pushed()
+    }
+
     /// Events dropped because the ring was full.
     pub fn dropped(&self) -> u64 {
         self.ring.dropped()

@@ -467,6 +467,11 @@ impl CycleThread {
         self.shared.events.pending()
     }
 
+    /// Events pushed since the cycle started (lock-free): a new one since a look made it grow.
+    pub fn events_pushed(&self) -> u64 {
+        self.shared.events.pushed()
+    }
+
     /// Events lost because nobody took them and the ring filled up.
     pub fn events_dropped(&self) -> u64 {
         self.shared.events.dropped()

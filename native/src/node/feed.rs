@@ -10,7 +10,8 @@
 //!   anything the feed's thread needs: Python waits there with the GIL released), at most
 //!   [`MAX_WAITING`] at a time, the oldest dropped and counted beyond;
 //! - with [`Feed::record`], queues the same bytes in a bag writer, at their stamp;
-//! - says whether the cycle has events waiting, so that they are taken when there are some.
+//! - says when the cycle has pushed new events (each once), so that they are taken when there are
+//!   some rather than polled for.
 //!
 //! Stamps are ROS time: the monotonic clock plus the offset the node keeps up to date (the
 //! `offset_ns` given to [`Feed::new`]), the same offset that stamps the recorded cycles.
@@ -53,6 +54,13 @@ pub enum Kind {
     DriveStatus(usize),
 }
 
+/// The continuous count nearest `last` that reads as the int32 `raw` on the drive, as
+/// `akd_ros.units.unwrap_position` gives it: continuous while the axis moves less than 2**31
+/// counts between readings.
+pub fn unwrap_position(last: i64, raw: i32) -> i64 {
+    last + raw.wrapping_sub(last as i32) as i64
+}
+
 /// What the feed's thread and its callers share.
 struct Shared {
     cycle: Arc<CycleThread>,
@@ -86,7 +94,7 @@ pub struct Feed {
 }
 
 /// What [`Feed::take`] gives: the messages made since the last call, each (stream, bytes), and
-/// whether the cycle had events waiting.
+/// whether the cycle pushed events since it last said so.
 pub type Taken = (Vec<(usize, Vec<u8>)>, bool);
 
 impl Feed {
@@ -191,6 +199,8 @@ struct Maker {
     /// Each joint's position in counts, unwrapped across the 32-bit wrap.
     unwrapped: Vec<Option<i64>>,
     names: Vec<String>,
+    /// The cycle's events pushed when it last said there were new ones.
+    said: u64,
 }
 
 impl Maker {
@@ -202,6 +212,7 @@ impl Maker {
             streams: streams.into_iter().map(|(kind, period)| (kind, period, now + period)).collect(),
             shared,
             names,
+            said: 0,
         }
     }
 
@@ -232,7 +243,10 @@ impl Maker {
             if !self.shared.active.load(Ordering::Acquire) {
                 continue;
             }
-            let events = self.shared.cycle.events_pending();
+            // Each event is said once, whoever takes it: a later look finds it said.
+            let pushed = self.shared.cycle.events_pushed();
+            let events = pushed > self.said;
+            self.said = pushed;
             let made = if due.is_empty() { Vec::new() } else { self.make(&due) };
             if !made.is_empty() || events {
                 self.hand_over(made, events);
@@ -283,8 +297,7 @@ impl Maker {
         let mut position = Vec::with_capacity(joints.len());
         for (k, (joint, inputs)) in joints.iter().zip(&reading.inputs).enumerate() {
             let raw = inputs.position_actual.unwrap_or(0);
-            // The continuous count nearest the last that reads as `raw` (as units.unwrap_position).
-            let counts = self.unwrapped[k].map_or(raw as i64, |last| last + raw.wrapping_sub(last as i32) as i64);
+            let counts = self.unwrapped[k].map_or(raw as i64, |last| unwrap_position(last, raw));
             self.unwrapped[k] = Some(counts);
             position.push(counts as f64 * joint.scale.si_per_count + joint.scale.position_offset);
         }
@@ -354,12 +367,26 @@ impl Maker {
             }
             outbox.messages.push_back((stream, data));
         }
-        // Events already said and not taken yet wake nobody again.
-        let wake = !made_none || (events && !outbox.events);
+        let wake = !made_none || events;
         outbox.events |= events;
         drop(outbox);
         if wake {
             self.shared.ready.notify_all();
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn positions_stay_continuous_across_the_wrap_either_way() {
+        // As tests/test_units.py checks akd_ros.units.unwrap_position.
+        assert_eq!(unwrap_position(i32::MAX as i64, i32::MIN), i32::MAX as i64 + 1);
+        assert_eq!(unwrap_position(i32::MIN as i64, i32::MAX), i32::MIN as i64 - 1);
+        assert_eq!(unwrap_position(i32::MAX as i64 + 10, i32::MIN + 20), i32::MAX as i64 + 21);
+        assert_eq!(unwrap_position(5 * (1 << 32) + 7, 3), 5 * (1 << 32) + 3);
+        assert_eq!(unwrap_position(-7, -7), -7);
     }
 }

@@ -552,6 +552,12 @@ impl PyCycle {
         self.cycle.samples_dropped()
     }
 
+    /// Whether events wait to be taken (`events()`).
+    #[getter]
+    fn events_pending(&self) -> bool {
+        self.cycle.events_pending()
+    }
+
     /// Events lost because they were not taken before 256 piled up.
     #[getter]
     fn events_dropped(&self) -> u64 {
