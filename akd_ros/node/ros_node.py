@@ -1,4 +1,5 @@
-"""akd_node over rclpy (`transport: rclpy` or `both`): the lifecycle node `AkdNode` under a MultiThreadedExecutor."""
+"""akd_node over rclpy (`transport: rclpy` or `both`): the lifecycle node `AkdNode` under a SingleThreadedExecutor,
+whose thread takes the commands and runs nothing that waits (see `akd_ros.node.ros_transport`)."""
 
 from __future__ import annotations
 
@@ -6,10 +7,11 @@ import signal
 import sys
 
 import rclpy
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import TransitionCallbackReturn
 from rclpy.signals import SignalHandlerOptions
 
+from akd_ros.node import hold_gil_briefly
 from akd_ros.node.lifecycle import NODE_NAME, AkdNode
 from akd_ros.params import ParameterError
 
@@ -22,6 +24,7 @@ def run(args: list[str] | None = None) -> int:
     # The signals end spin() here rather than shutting the context down at once, so the drive is disabled and the
     # bus closed while the node can still log it.
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    hold_gil_briefly()
     # SIGINT too: a shell starts background jobs with it ignored, and it must still stop the node cleanly.
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, signal.default_int_handler)
@@ -31,7 +34,7 @@ def run(args: list[str] | None = None) -> int:
         print(f"{NODE_NAME}: error: {e}", file=sys.stderr)
         rclpy.try_shutdown()
         return 1
-    executor = MultiThreadedExecutor(num_threads=4)
+    executor = SingleThreadedExecutor()
     executor.add_node(node)
     status = 0
     try:
