@@ -20,6 +20,7 @@ from akd_ros.node.session import AXIS_ERRORS, Session
 from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import Settings
+from akd_ros.recorder import Recorder
 from akd_ros.tap import Tap
 
 
@@ -54,6 +55,12 @@ class Core:
     def bus(self) -> Bus | None:
         """The Bus while configured, else None."""
         return self._session.bus
+
+    @property
+    def recorder(self) -> Recorder | None:
+        """The Recorder while configured with record.enabled, else None (e.g. to hold its writer, as a stalled disk
+        would, and see what that costs)."""
+        return self._session.recorder
 
     def _fail(self, message: str) -> bool:
         self.failure = message
