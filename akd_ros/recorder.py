@@ -24,8 +24,8 @@ recorder's own writes metadata.yaml when the files change.
   at a fault, at most once per ``black_box_sync_interval``: the faults of a host that loses a
   frame every few seconds (each a fault of every drive) share one.
 - Chunks are closed (and so safe from a crash of the process) every ``chunk_size`` bytes or
-  ``flush_interval`` seconds, and metadata.yaml is rewritten after each to describe exactly what
-  the closed chunks hold. A bag whose process was killed has MCAP files without a summary:
+  ``flush_interval`` seconds, and metadata.yaml is rewritten after them, at most once per
+  ``flush_interval``, to describe exactly what the closed chunks hold. A bag whose process was killed has MCAP files without a summary:
   :func:`reindex` rebuilds their summaries and metadata.yaml, as ``ros2 bag reindex`` does.
 - Files are split by size or by duration into ``<bag>_0.mcap``, ``<bag>_1.mcap``, ..., each a
   complete MCAP file with all schemas and channels.
@@ -47,6 +47,7 @@ import math
 import os
 import struct
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -429,6 +430,7 @@ class Recorder:
             raise ValueError(f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}")
 
         self._folder = Path(folder)
+        self._flush_interval = flush_interval
         self._decimation = decimation
         self._on_error = on_error
         stamp = datetime.datetime.now().strftime("%Y_%m_%d-%H_%M_%S")
@@ -630,14 +632,21 @@ class Recorder:
     # --- the recorder's thread: metadata.yaml and the files' metadata records ------------------------------
 
     def _keep(self) -> None:
-        """Writes metadata.yaml whenever the writer's files change (a chunk closed, a file split off) and gives the
-        files it parked their metadata record, until the writer's end; reports the first failure."""
-        seen, reported = 0, False
+        """Writes metadata.yaml when the writer's files change (a chunk closed, a file split off), at most once per
+        flush_interval (its YAML is the recorder's one Python cost per chunk: every cycle recorded closes a chunk
+        several times a second), and gives the files it parked their metadata record, until the writer's end;
+        reports the first failure."""
+        seen, reported, written = 0, False, -math.inf
         while True:
             report = self._writer.report(seen, 60.0)
             if report["version"] == seen:
                 continue
-            seen, self._report = report["version"], report
+            wait = written + self._flush_interval - time.monotonic()
+            if wait > 0 and not (report["closing"] or report["done"] or report["failure"] or report["parked"]):
+                # What changes meanwhile is in the report taken after the wait.
+                time.sleep(wait)
+                report = self._writer.report(report["version"], 0.0)
+            seen, self._report, written = report["version"], report, time.monotonic()
             failure = report["failure"]
             if failure is not None and not reported:
                 reported = True

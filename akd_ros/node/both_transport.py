@@ -85,8 +85,8 @@ class BothTransport:
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         self.ros.timer(period, callback, group)
 
-    def group(self) -> RosGroup:
-        return self.ros.group()
+    def group(self, name: str) -> RosGroup:
+        return self.ros.group(name)
 
     def now_ns(self) -> int:
         return self.ros.now_ns()

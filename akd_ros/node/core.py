@@ -38,10 +38,10 @@ class Core:
         self._session = Session(
             self.settings, CycleClock(transport.now_ns, transport.message_class("builtin_interfaces/msg/Time"))
         )
-        periodic, requests = transport.group(), transport.group()
+        periodic, requests = transport.group("periodic"), transport.group("requests")
         # Commands have a group of their own, so a slow timer callback (a batch of cycles to record) does not hold
         # them up, and a deep queue, so a stall of the node's Python side delays commands instead of dropping them.
-        commands = transport.group()
+        commands = transport.group("commands")
         command_qos = Qos(depth=100)
         self._reliable = Qos(depth=10)
         events = Qos(depth=100)

@@ -37,6 +37,7 @@ from akd_ros import _native
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.session import Session, namespace
 from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.worker import name_this_thread
 
 EDGE_RISING, EDGE_FALLING = 1, 2
 """LatchEvent's edge codes (its EDGE_RISING and EDGE_FALLING constants)."""
@@ -177,6 +178,7 @@ class Publishing:
         feed.set_offset(self.offset_ns)
 
     def _run(self, feed) -> None:
+        name_this_thread("akd-publish")
         streams, next_offset = self._streams, time.monotonic() + _OFFSET_PERIOD_S
         while self._feed is feed:
             messages, events = feed.take(_TAKE_TIMEOUT_S)

@@ -127,8 +127,8 @@ class RosTransport:
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         group.worker.add_timer(period, callback)
 
-    def group(self) -> RosGroup:
-        worker = Worker(f"akd-node-{len(self._workers)}", self.logger)
+    def group(self, name: str) -> RosGroup:
+        worker = Worker(f"akd-{name}", self.logger)
         self._workers.append(worker)
         return RosGroup(MutuallyExclusiveCallbackGroup(), worker)
 

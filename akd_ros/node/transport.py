@@ -72,8 +72,9 @@ class Transport(Protocol):
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         """Calls `callback` every `period` seconds."""
 
-    def group(self) -> Any:
-        """A callback group: callbacks of one group never run at the same time; of different groups they may."""
+    def group(self, name: str) -> Any:
+        """A callback group named `name` (its thread's name: akd-`name`): callbacks of one group never run at the same
+        time; of different groups they may."""
 
     def now_ns(self) -> int:
         """ROS time now, in nanoseconds."""

@@ -106,8 +106,8 @@ class ZenohTransport:
     def timer(self, period: float, callback: Callable[[], None], group: Worker) -> None:
         group.add_timer(period, callback)
 
-    def group(self) -> Worker:
-        group = Worker(f"akd-node-{len(self._groups)}", self.logger)
+    def group(self, name: str) -> Worker:
+        group = Worker(f"akd-{name}", self.logger)
         self._groups.append(group)
         return group
 
