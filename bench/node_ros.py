@@ -47,11 +47,14 @@ from __future__ import annotations
 
 import argparse
 import bisect
+import collections
 import functools
 import json
 import os
 import re
+import shutil
 import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -90,6 +93,10 @@ S = 1_000_000_000
 TICK = os.sysconf("SC_CLK_TCK")
 FAULT_LINE = re.compile(r"fault of (\w+): ([^;]+);")
 """akd_node's log line of a joint's fault: the joint and what the fault is."""
+RECORDED_LINE = re.compile(r"recorded \S+: \d+ messages, (\d+) dropped")
+"""akd_node's log line at the end of a recording: what the bag's writer dropped (its queue full, its disk failed)."""
+NOT_TAKEN = re.compile(r"recording: (\d+) per-cycle records were not taken in time")
+"""akd_node's log line of the cycle's records the bag's writer did not take before the cycle's ring overflowed."""
 BENCH_GID = bytes(range(16))
 """The GID of this process's Zenoh service client in the enable request's attachment."""
 
@@ -103,22 +110,26 @@ def joints_of(count: int) -> list[str]:
     return [f"joint_{i}" for i in range(1, count + 1)]
 
 
-def params(port: int, count: int, args, record: Path | None, changes: dict) -> str:
-    """config/akd_sim_6axis.yaml's first `count` joints on udp://127.0.0.1:`port`, at the run's cycle time and
-    /joint_states rate, the cycle thread at args.priority, recording to `record` if given, and `changes`."""
+def params(port: int | str, count: int, args, record: Path | None, changes: dict) -> str:
+    """config/akd_sim_6axis.yaml's first `count` joints (more joints like its first) on udp://127.0.0.1:`port` (or on
+    the link `port` names), at the run's cycle time and /joint_states rate, the cycle thread at args.priority and
+    args.rt_cpu_latency_us, recording to `record` if given, and `changes`."""
     document = yaml.safe_load(CONFIG.read_text())
     values = document["akd_node"]["ros__parameters"]
     kept = joints_of(count)
     for key in [k for k in values if k.startswith("joints.") and k.split(".")[1] not in kept]:
         del values[key]
+    # Beyond the six of the file, joints like its first.
+    values |= {f"joints.{joint}.gear_ratio": values["joints.joint_1.gear_ratio"] for joint in kept[6:]}
     values |= {
-        "link": f"udp://127.0.0.1:{port}",
+        "link": port if isinstance(port, str) else f"udp://127.0.0.1:{port}",
         "joints": kept,
         "cycle_time": args.cycle_time,
         "joint_states_rate": args.joint_states_rate,
     }
     if args.priority:
         values["rt.priority"] = args.priority
+    values["rt.cpu_latency_us"] = args.rt_cpu_latency_us
     if record:
         values |= {"record.enabled": True, "record.folder": str(record), "record.decimation": 1}
     return yaml.safe_dump(document | {"akd_node": {"ros__parameters": values | changes}})
@@ -130,9 +141,31 @@ def cpu_ticks(stat: Path) -> int:
     return int(fields[11]) + int(fields[12])
 
 
-def cycle_thread_ticks(pid: int) -> int:
-    tasks = Path(f"/proc/{pid}/task").iterdir()
-    return sum(cpu_ticks(t / "stat") for t in tasks if (t / "comm").read_text().strip() == "akd-cycle")
+THREAD_GROUPS = {
+    "akd-cycle": "cycle",
+    "akd-feed": "crate's other threads",
+    "akd-bag": "crate's other threads",
+    "akd-recovery": "crate's other threads",
+    "akd-publish": "Python threads",
+    "akd-periodic": "Python threads",
+    "akd-commands": "Python threads",
+    "akd-requests": "Python threads",
+}
+"""The node's threads by their names, in the groups the table splits its CPU into; the rest (the executor's main
+thread, the middleware's threads, the recorder's metadata thread) is "main and middleware"."""
+GROUPS = ("cycle", "crate's other threads", "Python threads", "main and middleware")
+
+
+def thread_ticks(pid: int) -> collections.Counter:
+    """utime + stime of process `pid`'s threads, in clock ticks, by group (THREAD_GROUPS)."""
+    ticks: collections.Counter = collections.Counter()
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            name = (task / "comm").read_text().strip()
+            ticks[THREAD_GROUPS.get(name, GROUPS[-1])] += cpu_ticks(task / "stat")
+        except OSError:  # a thread that ended meanwhile
+            continue
+    return ticks
 
 
 def children() -> list[int]:
@@ -263,7 +296,8 @@ def hold(node_pid: int, sim_pid: int, client, seconds: float) -> dict:
 
     def now() -> tuple:
         node_stat = Path(f"/proc/{node_pid}/stat")
-        ticks = [cpu_ticks(node_stat), cycle_thread_ticks(node_pid), cpu_ticks(Path(f"/proc/{sim_pid}/stat"))]
+        groups = thread_ticks(node_pid)
+        ticks = [cpu_ticks(node_stat), *(groups[g] for g in GROUPS), cpu_ticks(Path(f"/proc/{sim_pid}/stat"))]
         ticks += [cpu_ticks(Path(f"/proc/{pid}/stat")) for pid in others.values()]
         return (*ticks, len(client.received), time.monotonic())
 
@@ -272,7 +306,7 @@ def hold(node_pid: int, sim_pid: int, client, seconds: float) -> dict:
     after = now()
     *ticks, messages, elapsed = (b - a for a, b in zip(before, after, strict=True))
     shares = [100 * t / TICK / elapsed for t in ticks]
-    names = ["node CPU %", "of it cycle %", "akd-sim CPU %"] + [f"{name} CPU %" for name in others]
+    names = ["node CPU %", *(f"of it {g} %" for g in GROUPS), "akd-sim CPU %"] + [f"{n} CPU %" for n in others]
     return dict(zip(names, shares, strict=True)) | {
         "joint_states/s": messages / elapsed,
         "window": slice(before[-2], after[-2]),
@@ -294,10 +328,12 @@ def stream_commands(client, count: int, rate: float, seconds: float) -> list[tup
     return sent
 
 
-def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, int]]:
-    """From the one bag in `folder`: (stamp ns, position, command) of joint_1 in every cycle, in time order, and the
+def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, int], dict]:
+    """From the one bag in `folder`: (stamp ns, position, command) of joint_1 in every cycle, in time order; the
     time the node took each ~/joint_commands message in (its log time: the node records a command on arrival) by
-    joint_1's value."""
+    joint_1's value; and the bag's messages as metadata.yaml counts them, as rosbags reads them (every message
+    deserialised) and as mcap's reader reads them."""
+    from mcap.reader import make_reader
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -305,16 +341,22 @@ def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, 
     for path in sorted((ROOT / "msg").glob("*.msg")):
         store.register(get_types_from_msg(path.read_text(), f"akd_ros/msg/{path.stem}"))
     (bag,) = folder.iterdir()
-    cycles, arrivals = [], {}
+    cycles, arrivals, read = [], {}, 0
     with AnyReader([bag], default_typestore=store) as reader:
-        connections = [c for c in reader.connections if c.topic in (NODE + "cycle", NODE + "joint_commands")]
-        for connection, log_ns, raw in reader.messages(connections=connections):
+        for connection, log_ns, raw in reader.messages():
             m = reader.deserialize(raw, connection.msgtype)
+            read += 1
             if connection.topic == NODE + "joint_commands":
                 arrivals[float(m.position[0])] = log_ns
-            elif m.joint == "joint_1":
+            elif connection.topic == NODE + "cycle" and m.joint == "joint_1":
                 cycles.append((m.stamp.sec * S + m.stamp.nanosec, m.position, m.command))
-    return sorted(cycles), arrivals
+    by_mcap = 0
+    for path in sorted(bag.glob("*.mcap")):
+        with open(path, "rb") as stream:
+            by_mcap += sum(1 for _ in make_reader(stream).iter_messages(log_time_order=False))
+    information = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    counts = {"metadata": information["message_count"], "rosbags": read, "mcap": by_mcap}
+    return sorted(cycles), arrivals, counts
 
 
 def joint_1(params: Path) -> tuple[int, Units]:
@@ -364,8 +406,103 @@ def cycle_to_delivery(received: list[tuple[int, int, float]], cycles: list[tuple
     return found
 
 
-def run(count: int, record: bool, case: tuple[str, bool], context: dict, args) -> dict:
-    """One case: `count` joints, recording or not, over the case's (transport, pipelined)."""
+PY_SPY = Path(sys.executable).parent / "py-spy"
+PROFILE_RATE_HZ = 100
+"""py-spy's samples per second; perf samples at 999 Hz."""
+
+
+class Profile:
+    """py-spy (the Python threads while they hold the GIL) and perf (every thread, kernel too) over process `pid` for
+    `seconds`, started at once; `finish()` waits for both and gives their top entries."""
+
+    def __init__(self, pid: int, seconds: float, folder: Path, label: str) -> None:
+        self.seconds, self.spy_out, self.perf_out = seconds, folder / f"{label}.pyspy", folder / f"{label}.perf"
+        duration = str(max(1, round(seconds)))
+        spy = [str(PY_SPY), "record", "-p", str(pid), "-d", duration, "-r", str(PROFILE_RATE_HZ), "-f", "raw"]
+        spy += ["-o", str(self.spy_out), "--threads", "--gil", "--nonblocking"]
+        perf = ["perf", "record", "-q", "-F", "999", "-g", "-p", str(pid), "-o", str(self.perf_out), "--"]
+        self.processes = [
+            subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for argv in (spy, [*perf, "sleep", duration])
+            if shutil.which(argv[0])
+        ]
+
+    def finish(self, top: int = 12) -> dict:
+        """{"python": [(thread or function, % of a core)], "perf": [(thread, symbol, % of the process's samples)]}."""
+        for process in self.processes:
+            process.wait(timeout=self.seconds + 60)
+        return {
+            "python": py_spy_top(self.spy_out, self.seconds, top),
+            "perf": perf_top(self.perf_out, top),
+            "cycle": cycle_shares(self.perf_out) if self.perf_out.exists() else [],
+        }
+
+
+def py_spy_top(path: Path, seconds: float, top: int) -> list[tuple[str, float]]:
+    """From py-spy's raw output (one line per stack: "thread (TID): NAME;frame;...;frame COUNT", samples holding the
+    GIL): each Python thread's share of a core, then the innermost frames' shares, the largest first."""
+    if not path.exists():
+        return []
+    threads: collections.Counter = collections.Counter()
+    frames: collections.Counter = collections.Counter()
+    for line in path.read_text().splitlines():
+        stack, _, count = line.rpartition(" ")
+        head, *calls = stack.split(";")
+        threads[f"thread {head.split(': ', 1)[-1]}"] += int(count)
+        frames[calls[-1] if calls else head] += int(count)
+    per_core = 100 / (PROFILE_RATE_HZ * seconds)
+    return [(what, n * per_core) for what, n in [*threads.most_common(), *frames.most_common(top)]]
+
+
+PERF_LINE = re.compile(r"^\s*([\d.]+)%\s+(\S+)\s+\[[.k]\]\s+(.+?)\s*$")
+
+
+CYCLE_SHARES = (
+    ("waking akd-sim's thread (the send's softirq, on this host)", ("sock_def_readable",)),
+    ("sleeping and waking (context switches)", ("__schedule", "finish_task_switch")),
+)
+"""What the cycle thread's perf samples are spent on, by a function on their stack; the rest is the master's work
+and its system calls. Samples skid to where interrupts are enabled again: a wake-up's cost lands on the unlock that
+ends it, inside the function that made it."""
+
+
+def cycle_shares(path: Path) -> list[tuple[str, float]]:
+    """The cycle thread's perf samples in `path` split by CYCLE_SHARES, each % of its samples."""
+    script = subprocess.run(
+        ["perf", "script", "-i", str(path)], capture_output=True, text=True, timeout=300, check=False
+    ).stdout
+    counts: collections.Counter = collections.Counter()
+    for block in script.split("\n\n"):
+        lines = block.strip().splitlines()
+        if not lines or not lines[0].startswith("akd-cycle "):
+            continue
+        stack = " ".join(lines[1:])
+        counts[next((what for what, marks in CYCLE_SHARES if any(m in stack for m in marks)), "rest")] += 1
+    total = sum(counts.values()) or 1
+    shares = [(what, 100 * counts[what] / total) for what, _ in CYCLE_SHARES]
+    return [*shares, ("the master's work and its system calls", 100 * counts["rest"] / total)]
+
+
+def perf_top(path: Path, top: int) -> list[tuple[str, str, float]]:
+    """perf's report of `path` by thread name and symbol (self time): the `top` largest, % of the process's
+    samples."""
+    if not path.exists():
+        return []
+    report = subprocess.run(
+        ["perf", "report", "-i", str(path), "--stdio", "--no-children", "-g", "none", "--sort", "comm,symbol"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    ).stdout
+    found = [(m[2], m[3], float(m[1])) for line in report.splitlines() if (m := PERF_LINE.match(line))]
+    return found[:top]
+
+
+def run(count: int, record: bool, case: tuple[str, bool], context: dict, args, profile: Path | None = None) -> dict:
+    """One case: `count` joints, recording or not, over the case's (transport, pipelined). With `profile` (a folder),
+    py-spy and perf run over the holding window and over the commands: the figures are then perturbed, and the
+    result's "profile" holds what they found."""
     transport, pipelined = case
     domain = context["domain"]
     with tempfile.TemporaryDirectory(prefix="node_ros-") as temp:
@@ -380,11 +517,17 @@ def run(count: int, record: bool, case: tuple[str, bool], context: dict, args) -
                 if node.process.poll() is not None:
                     raise RuntimeError(f"akd_node exited:\n{node.output()}")
                 client.trigger("enable")
-                result = hold(node.process.pid, sim.process.pid, client, args.window)
+                pid = node.process.pid
+                profiles = {}
+                holding = Profile(pid, 1.0 + args.window, profile, "holding") if profile else None
+                result = hold(pid, sim.process.pid, client, args.window)
                 held = client.received[result.pop("window")]
                 moving_from = len(client.received)
+                commanding = Profile(pid, args.command_seconds, profile, "commands") if profile else None
                 sent = stream_commands(client, count, args.command_rate, args.command_seconds)
                 moving = client.received[moving_from:]
+                if profile:
+                    profiles = {"holding": holding.finish(), "commands": commanding.finish()}
                 node.process.send_signal(signal.SIGINT)
                 client.wait_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
             finally:
@@ -406,13 +549,18 @@ def run(count: int, record: bool, case: tuple[str, bool], context: dict, args) -
             "sent": len(sent),
             "command_to_wire": command_to_wire(sent, changes, units),
             "trace_dropped": dropped,
+            "profile": profiles,
         }
         if record:
-            cycles, arrivals = read_bag(folder)
+            cycles, arrivals, counts = read_bag(folder)
+            output = node.output()
+            dropped = sum(int(n) for n in [*RECORDED_LINE.findall(output), *NOT_TAKEN.findall(output)])
             result |= {
                 "command_to_node": [arrivals[v] - t for t, v in sent if v in arrivals],
                 "cycle_to_delivery": cycle_to_delivery(moving, cycles),
                 "moving": len(moving),
+                "bag": counts,
+                "records_dropped": dropped if RECORDED_LINE.search(output) else None,
             }
         return result
 
@@ -422,6 +570,77 @@ WAITING, PIPELINED = "waiting", "pipelined"
 
 WIRE_P50, WIRE_P99 = "command→wire (akd-sim) p50 ms", "command→wire (akd-sim) p99 ms"
 """The table's labels of command to wire: the set-point's reception stamped inside the virtual AKD."""
+
+
+BAG_READERS = ("metadata", "rosbags", "mcap")
+"""How a recorded run's bag is counted: metadata.yaml's message_count, the messages rosbags reads and deserialises,
+those mcap's reader reads."""
+CPU_RECORDING, CPU_NOT_RECORDING, LATENCY_MARGIN_MS = 20.0, 15.0, 1.0
+"""The issue's goals (six joints, 4 kHz): the node's CPU recording every cycle and not recording, % of one core; how
+much command→wire p99 may exceed publication→delivery p99 in every row."""
+
+
+def goals(rows: list[dict]) -> list[dict]:
+    """Each row's goals: measured, limit, met, and by how much it is missed (positive) or met (negative)."""
+    judged = []
+
+    def judge(row: dict, goal: str, measured, limit: float, unit: str) -> None:
+        case = f"{row['axes']} axes {row['transport']} {row['cycle']}, recording {row['recording']}"
+        missed = None if measured is None else measured - limit
+        met = "not measured" if missed is None else ("met" if missed <= 0 else "missed")
+        judged.append({"goal": goal, "case": case, "measured": measured, "limit": limit, "unit": unit, "met": met})
+        judged[-1]["missed by"] = missed
+
+    for row in rows:
+        delivery, wire = row["publication→delivery p99 ms"], row[WIRE_P99]
+        limit = None if delivery is None else delivery + LATENCY_MARGIN_MS
+        if limit is not None:
+            judge(row, "command→wire p99 ≤ publication→delivery p99 + 1 ms", wire, limit, "ms")
+        if row["axes"] != 6:
+            continue
+        if row["recording"] == "off":
+            judge(row, f"node CPU ≤ {CPU_NOT_RECORDING:g} % not recording", row["node CPU %"], CPU_NOT_RECORDING, "%")
+            continue
+        judge(row, f"node CPU ≤ {CPU_RECORDING:g} % recording every cycle", row["node CPU %"], CPU_RECORDING, "%")
+        judge(row, "no record dropped", row["records dropped"], 0, "records")
+        counts = row["bag messages metadata/rosbags/mcap"]
+        whole = None if counts is None else len(set(counts.split("/"))) - 1
+        judge(row, "rosbags and mcap read every message of the bag", whole, 0, "readers short")
+    return judged
+
+
+def profile_misses(judged: list[dict], results: list[dict], context: dict, args, figures: Figures) -> None:
+    """Runs each case that missed a goal once more under py-spy and perf (`Profile`), and tables their top entries:
+    what the node's CPU while holding, and its time while commands arrive, are made of."""
+    missed = {g["case"] for g in judged if g["met"] == "missed"}
+    for r in results:
+        case = f"{r['axes']} axes {r['transport']} {r['cycle']}, recording {r['recording']}"
+        if case not in missed:
+            continue
+        with tempfile.TemporaryDirectory(prefix="node_ros-profile-") as folder:
+            try:
+                profiled = run(
+                    r["axes"],
+                    r["recording"] != "off",
+                    (r["transport"], r["cycle"] == PIPELINED),
+                    context,
+                    args,
+                    Path(folder),
+                )
+            except (RuntimeError, AssertionError) as e:
+                figures.missing(f"profile of {case}: {str(e)[:300]}")
+                continue
+        for phase, found in profiled["profile"].items():
+            rows = [{"thread": t, "symbol": sym, "% of the node's samples": share} for t, sym, share in found["perf"]]
+            figures.table(f"perf, {case}, {phase}: the node's threads by symbol (self)", rows)
+            rows = [{"Python (GIL held)": what, "% of a core": share} for what, share in found["python"]]
+            figures.table(f"py-spy, {case}, {phase}: Python threads, then innermost frames", rows)
+            rows = [{"the cycle thread's samples": what, "%": share} for what, share in found["cycle"]]
+            figures.table(f"perf, {case}, {phase}: what the cycle thread's CPU is made of", rows)
+        figures.note(
+            f"profiles of {case}: a run of its own under py-spy ({PROFILE_RATE_HZ} Hz, --gil --nonblocking) and perf"
+            " record -g (999 Hz), over the holding window and over the commands; its own figures are not in the tables"
+        )
 
 
 def ms(values: list[int], fraction: float) -> float | None:
@@ -440,6 +659,17 @@ def main() -> int:
     parser.add_argument("--priority", type=int, default=80, help="the node's rt.priority (0: none)")
     parser.add_argument("--sim-priority", type=int, default=70, help="akd-sim's SCHED_FIFO priority (0: none)")
     parser.add_argument("--attempts", type=int, default=3, help="runs of a case whose joints faulted, at most")
+    parser.add_argument(
+        "--rt-cpu-latency-us",
+        type=int,
+        default=-1,
+        help="the node's rt.cpu_latency_us (-1: the system's; 0 keeps the CPUs from sleeping deeper than polling)",
+    )
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="each case that misses a goal is run again under py-spy and perf, and their top entries are tabled",
+    )
     parser.add_argument(
         "--pipelined-axes",
         default="6",
@@ -488,10 +718,15 @@ def main() -> int:
                             f"{what}: run again, the first faulted"
                             f" ({'; '.join(f'{w} on {j}' for w, j in result['faults'].items())})"
                         )
+        return tables(results, context, args, figures, transports, axes)
+
+
+def tables(results: list[dict], context: dict, args, figures: Figures, transports: list[str], axes: list[int]) -> int:
+    """The run's tables, its goals judged, the profiles of the cases that missed one (--profile); the exit status."""
     rows = []
     for r in results:
         row = {"axes": r["axes"], "transport": r["transport"], "recording": r["recording"], "cycle": r["cycle"]}
-        row |= {k: r.get(k) for k in ("node CPU %", "of it cycle %", "akd-sim CPU %", "router CPU %")}
+        row |= {k: r.get(k) for k in ("node CPU %", *(f"of it {g} %" for g in GROUPS), "akd-sim CPU %", "router CPU %")}
         row |= {"joint_states/s": r["joint_states/s"]}
         delivered = r["publication_to_delivery"]
         row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "publication→delivery p99 ms": ms(delivered, 0.99)}
@@ -522,6 +757,9 @@ def main() -> int:
                 f"cycle→delivery, {r['axes']} axes over {r['transport']}: {len(cycle)} matched of"
                 f" {r['moving']} /joint_states received while the joints moved"
             )
+        bag = r.get("bag")
+        row["records dropped"] = r.get("records_dropped")
+        row["bag messages metadata/rosbags/mcap"] = "/".join(str(bag[k]) for k in BAG_READERS) if bag else None
         row["faulted joints"] = len({j for joints in r["faults"].values() for j in joints})
         row["attempt"] = r["attempt"]
         if row["faulted joints"]:
@@ -532,6 +770,10 @@ def main() -> int:
     figures.table(
         f"akd_node at {1 / args.cycle_time:.0f} Hz, /joint_states at {args.joint_states_rate:g} Hz (DDS = rclpy)", rows
     )
+    judged = goals(rows)
+    figures.table("The issue's goals, row by row (issue 25)", judged)
+    if args.profile:
+        profile_misses(judged, results, context, args, figures)
     if set(transports) == set(TRANSPORTS):
         ratios = []
         for count in axes:

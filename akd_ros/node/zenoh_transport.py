@@ -81,6 +81,9 @@ class ZenohTransport:
         return _Publisher(self, type_name, topic, qos)
 
     def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: Worker) -> str:
+        # rosbags compiles a type's (de)serialiser at its first use: here, not in front of the first commands (or of
+        # the recording of the first, which would hold up the second by milliseconds).
+        self.types.from_cdr(self.types.to_cdr(self.types.message(type_name), type_name), type_name)
         self.zenoh_node.subscription(
             topic,
             type_name,
