@@ -361,7 +361,8 @@ def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, 
 
 def joint_1(params: Path) -> tuple[int, Units]:
     """The drive position and units of joint_1 as the node reads them from its parameters file `params`."""
-    joint = settings(read_parameters_file(str(params))).joints[0]
+    # Its link may be an interface of another namespace: the units do not depend on it.
+    joint = settings(read_parameters_file(str(params)) | {"link": "sim"}).joints[0]
     return joint.slave, joint.units
 
 
@@ -643,6 +644,129 @@ def profile_misses(judged: list[dict], results: list[dict], context: dict, args,
         )
 
 
+MANY_MAPPING = {"mapping": "flexible", "mapping.rx": ["0x6040:00/16 0x607A:00/32"]}
+MANY_MAPPING["mapping.tx"] = ["0x6041:00/16 0x6064:00/32", "0x606C:00/32"]
+"""What a line of many drives in cyclic synchronous position maps (16 bytes a drive): the default mapping, everything
+every mode needs (52 bytes), does not fit one frame beyond 28 drives, and the master sends one cyclic frame."""
+MANY_DOMAINS = range(60, 70)
+"""ROS_DOMAIN_IDs of the many-drive runs, each inside a network namespace of its own (its own loopback)."""
+DIAGNOSTIC_COUNTERS = ("cycles", "lost_frames", "wkc_errors", "overruns", "samples_dropped")
+
+
+def many_drives(args, figures: Figures) -> None:
+    """--drives: for each count, one akd-sim of that many AKDs behind a veth pair, in namespaces of their own, and
+    akd_node on the other end at --cycle-time over rclpy (its client in the node's namespace: `inside_many`), held
+    for --drive-cycles cycles: lost frames and the other counters (/diagnostics), the node's CPU while holding, its
+    latencies; then akd-sim's set-point trace for command to wire."""
+    from support.netns import akd_sim_in_netns, netns_argv, netns_unavailable_reason, veth_pair
+
+    reason = netns_unavailable_reason()
+    if reason is not None:
+        figures.missing(f"the many-drive runs: {reason}")
+        return
+    rows = []
+    for count in [int(c) for c in args.drives.split(",")]:
+        with tempfile.TemporaryDirectory(prefix="node_ros-many-") as temp:
+            folder = Path(temp)
+            trace = ["--setpoint-trace", str(folder / TRACE)]
+            limit = 120 + args.drive_cycles * args.cycle_time * 2
+            try:
+                with veth_pair() as net, akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, extra=trace) as sim:
+                    if args.sim_priority:
+                        real_time(sim.pid, args.sim_priority)
+                    spec = {"iface": net.if_master, "count": count, "folder": temp, "sim_pid": sim.pid}
+                    inner = [sys.executable, str(Path(__file__).resolve()), "--inside-many", json.dumps(spec)]
+                    inner += [f"--{k.replace('_', '-')}={v}" for k, v in vars(args).items() if k in INNER_OPTIONS]
+                    done = subprocess.run(
+                        netns_argv(net.ns_master, inner), capture_output=True, text=True, timeout=limit, check=False
+                    )
+            except (RuntimeError, subprocess.TimeoutExpired) as e:
+                figures.missing(f"{count} drives over veth: {str(e)[:300]}")
+                continue
+            lines = done.stdout.strip().splitlines()
+            if done.returncode != 0 or not lines:
+                figures.missing(f"{count} drives over veth: {(done.stderr or done.stdout).strip()[-400:]}")
+                continue
+            r = json.loads(lines[-1])
+            drive, units = joint_1(folder / PARAMS)
+            changes, dropped = read_trace(folder / TRACE, drive)
+        wire = command_to_wire(r.pop("sent"), changes, units)
+        delivered = r.pop("publication_to_delivery")
+        row = {"drives": count, "cycle ms": args.cycle_time * 1e3, **r.pop("diagnostics")}
+        row |= {k: v for k, v in r.items() if k.endswith("%")} | {"joint_states/s": r["joint_states/s"]}
+        row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "publication→delivery p99 ms": ms(delivered, 0.99)}
+        row |= {WIRE_P50: ms(wire, 0.5), WIRE_P99: ms(wire, 0.99), "matched": f"{len(wire)}/{r['sent_count']}"}
+        row |= {"faults": "; ".join(r["faults"]) or "none", "trace dropped": dropped}
+        rows.append(row)
+    figures.table(
+        f"akd_node with many AKDs over veth at {args.cycle_time * 1e6:.0f} µs (rclpy, one akd-sim process)", rows
+    )
+    figures.note(
+        "many drives: a veth pair between two network namespaces, akd-sim --iface --count N (SCHED_FIFO"
+        f" {args.sim_priority}) in one, akd_node (link: the interface, rt.priority {args.priority}, every joint in"
+        f" cyclic synchronous position, mapping {MANY_MAPPING['mapping.rx']} / {MANY_MAPPING['mapping.tx']})"
+        " and its rclpy client in the other; the counters are the last /diagnostics of the bus before SIGINT, after"
+        " at least"
+        f" {args.drive_cycles} cycles; CPU over --window s of holding, as in the table above"
+    )
+
+
+INNER_OPTIONS = ("cycle_time", "joint_states_rate", "window", "command_rate", "command_seconds", "priority")
+INNER_OPTIONS += ("rt_cpu_latency_us", "drive_cycles")
+"""The options a many-drive run passes to its inner process."""
+
+
+def inside_many(spec: dict, args) -> int:
+    """The inner process of a many-drive run, in the master's namespace: akd_node on the veth interface, its rclpy
+    client, the hold, the commands, the wait for the cycles; prints the result as one JSON line."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    count, folder = spec["count"], Path(spec["folder"])
+    with ros_environment(MANY_DOMAINS) as domain:
+        path = folder / PARAMS
+        # The file's sixth joint arms a latch, which this mapping does not carry.
+        changes = {"transport": "rclpy", **MANY_MAPPING, "joints.joint_6.latch.arm": []}
+        path.write_text(params(spec["iface"], count, args, None, changes))
+        node = NodeProcess(path, domain=domain)
+        client = DdsClient(domain, count)
+        last: dict = {}
+
+        def take(message) -> None:
+            for status in message.status:
+                if status.name.endswith(": bus"):
+                    values = {v.key: v.value for v in status.values}
+                    last.update({k: int(values[k]) for k in DIAGNOSTIC_COUNTERS if k in values})
+
+        client.node.create_subscription(DiagnosticArray, "/diagnostics", take, 10)
+        try:
+            # Configuring every drive (mapping, SDOs, Op) takes a while with many.
+            client.spin_until(lambda: client.received or node.process.poll() is not None, "/joint_states", 300)
+            if node.process.poll() is not None:
+                raise RuntimeError(f"akd_node exited:\n{node.output()}")
+            client.trigger("enable")
+            result = hold(node.process.pid, spec["sim_pid"], client, args.window)
+            held = client.received[result.pop("window")]
+            sent = stream_commands(client, count, args.command_rate, args.command_seconds)
+            held_for = args.drive_cycles * args.cycle_time * 1.5 + 60
+            client.spin_until(lambda: last.get("cycles", 0) >= args.drive_cycles, "the cycles", held_for)
+            diagnostics = dict(last)
+            node.process.send_signal(signal.SIGINT)
+            client.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
+        finally:
+            client.close()
+            stop(node.process)
+    faults = sorted({f"{what} on {joint}" for joint, what in FAULT_LINE.findall(node.output())})
+    result |= {
+        "diagnostics": diagnostics,
+        "publication_to_delivery": [d - p for d, p, _ in held],
+        "sent": sent,
+        "sent_count": len(sent),
+        "faults": faults,
+    }
+    print(json.dumps(result))
+    return 0
+
+
 def ms(values: list[int], fraction: float) -> float | None:
     return quantile(values, fraction) / 1e6 if len(values) >= 2 else None
 
@@ -675,8 +799,21 @@ def main() -> int:
         default="6",
         help="axes whose runs without recording are made again with rt.pipelined, right after them ('' for none)",
     )
+    parser.add_argument(
+        "--drives",
+        default="",
+        help="instead of the runs above: akd_node on this many AKDs over veth, comma-separated (e.g. 16,64)",
+    )
+    parser.add_argument("--drive-cycles", type=int, default=1_000_000, help="cycles each --drives run holds")
+    parser.add_argument("--inside-many", help=argparse.SUPPRESS)
     json_argument(parser)
     args = parser.parse_args()
+    if args.inside_many:
+        return inside_many(json.loads(args.inside_many), args)
+    if args.drives:
+        figures = Figures("node_ros.py", "akd_node with many AKDs over veth", args)
+        many_drives(args, figures)
+        return figures.finish()
     try:
         axes = [int(a) for a in args.axes.split(",")]
         pipelined_axes = [int(a) for a in args.pipelined_axes.split(",") if a]

@@ -694,3 +694,44 @@ fn supervision_reads_the_whole_line_by_broadcast_until_a_drive_changes_and_then_
     assert_eq!(states, vec![(true, Some(AlState::PreOp)), (true, Some(AlState::Op))]);
     assert_eq!(m2.stats().lost_frames, 0);
 }
+
+#[test]
+fn a_line_too_long_for_each_drives_reads_in_the_cyclic_frame_reads_them_in_frames_of_their_own() {
+    // 64 drives: every drive's own reads (31 bytes each) do not fit beside the process data, so
+    // the cyclic frame keeps its broadcast reads and each drive is read in frames after it, 48
+    // drives a frame, while they are not all alike (the first cycle, an emergency waiting).
+    let inner = InProcess::new(64);
+    let control = inner.control();
+    let frames = Arc::new(std::sync::Mutex::new(Vec::new()));
+    let link = Recording { inner, frames: frames.clone(), lose_reads: Arc::new(AtomicBool::new(false)) };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::Op, STEP).unwrap();
+    m.set_supervision(true).unwrap();
+    let cycle = |m: &mut Master| {
+        frames.lock().unwrap().clear();
+        let result = m.exchange().map_err(|e| e.to_string());
+        (result.is_ok(), std::mem::take(&mut *frames.lock().unwrap()))
+    };
+    let whole = vec![Command::Lrw, Command::Brd, Command::Brd];
+    let each = vec![[Command::Fprd; 96].to_vec(), [Command::Fprd; 32].to_vec()];
+    assert_eq!(cycle(&mut m), (true, [vec![whole.clone()], each.clone()].concat()));
+    assert_eq!(cycle(&mut m), (true, vec![whole.clone()]));
+    control.inject_fault(40, "F439").unwrap();
+    let deadline = std::time::Instant::now() + STEP;
+    loop {
+        assert!(std::time::Instant::now() < deadline, "the emergency was never seen");
+        let (ok, sent) = cycle(&mut m);
+        assert!(ok);
+        if sent.len() > 1 {
+            assert_eq!(sent, [vec![whole.clone()], each.clone()].concat());
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let mail: Vec<usize> =
+        m.watch().unwrap().iter().enumerate().filter(|(_, w)| w.mailbox_full).map(|(n, _)| n).collect();
+    assert_eq!(mail, vec![40]);
+    assert!(m.watch().unwrap().iter().all(|w| w.answered));
+    assert_eq!(m.stats().wkc_errors, 0);
+}

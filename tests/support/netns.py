@@ -251,13 +251,26 @@ def _serving(
 
 
 def akd_sim_in_netns(
-    ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0, cpu: int | None = None, busy_poll: bool = False
+    ns: str,
+    ifname: str,
+    count: int = 1,
+    ready_timeout: float = 10.0,
+    cpu: int | None = None,
+    busy_poll: bool = False,
+    extra: Sequence[str] = (),
 ):
     """Runs `akd-sim --iface IFNAME --count N` in `ns` (context manager yielding the process once
     its packet socket is bound; stopped with SIGTERM on exit), bound to `cpu` when one is given;
-    with `busy_poll`, `--busy-poll` under the normal scheduler (which it needs), else SCHED_FIFO."""
+    with `busy_poll`, `--busy-poll` under the normal scheduler (which it needs), else SCHED_FIFO;
+    `extra` arguments after those (e.g. --setpoint-trace FILE)."""
     argv = netns_argv(
-        ns, [*console_script("akd-sim"), "--iface", ifname, "--count", str(count), *(["--busy-poll"] * busy_poll)]
+        ns,
+        [
+            *console_script("akd-sim"),
+            *("--iface", ifname, "--count", str(count)),
+            *(["--busy-poll"] * busy_poll),
+            *extra,
+        ],
     )
     what = f"akd-sim on {ifname} in {ns}"
     priority = None if busy_poll else SIM_PRIORITY
