@@ -25,8 +25,9 @@ recorder's own writes metadata.yaml when the files change.
   frame every few seconds (each a fault of every drive) share one.
 - Chunks are closed (and so safe from a crash of the process) every ``chunk_size`` bytes or
   ``flush_interval`` seconds, and metadata.yaml is rewritten after them, at most once per
-  ``flush_interval``, to describe exactly what the closed chunks hold. A bag whose process was killed has MCAP files without a summary:
-  :func:`reindex` rebuilds their summaries and metadata.yaml, as ``ros2 bag reindex`` does.
+  ``flush_interval``, to describe exactly what the closed chunks hold. A bag whose process was
+  killed has MCAP files without a summary: :func:`reindex` rebuilds their summaries and
+  metadata.yaml, as ``ros2 bag reindex`` does.
 - Files are split by size or by duration into ``<bag>_0.mcap``, ``<bag>_1.mcap``, ..., each a
   complete MCAP file with all schemas and channels.
 - Handing over never blocks and never raises for I/O: a full queue drops the message and
