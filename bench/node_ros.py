@@ -11,9 +11,11 @@ joint_states_rate and record.* changed), both separate processes; this process i
   connected to a Zenoh router (eclipse-zenoh, its own process); the client a Zenoh node of this process
   (akd_ros.zenoh.entities) on rmw_zenoh's keys, messages made and read with rosbags.
 Every joint is enabled (~/enable) and holds. Over --window seconds: the CPU time (utime + stime of /proc/PID/stat)
-of the node, of its akd-cycle thread, of akd-sim and of the Zenoh router, as % of one core, and the /joint_states
-messages received per second with their publication-to-delivery time (the client's system clock when it holds the
-decoded message minus header.stamp, the node's ROS time of publication).
+of the node, split by its threads' names (/proc/PID/task: the akd-cycle thread; the crate's other threads akd-feed,
+akd-bag, akd-recovery; the Python threads akd-publish, akd-periodic, akd-commands, akd-requests; the rest: the
+executor's main thread, the middleware's threads, the recorder's metadata thread), of akd-sim and of the Zenoh router,
+as % of one core, and the /joint_states messages received per second with their publication-to-delivery time (the
+client's system clock when it holds the decoded message minus header.stamp, the node's ROS time of publication).
 
 Then ~/joint_commands is published at --command-rate for --command-seconds, each message moving every joint a small
 step to values not sent before. The node and akd-sim are stopped (SIGINT, SIGTERM) and akd-sim's set-point trace read:
@@ -27,11 +29,29 @@ With recording (record.enabled, record.decimation 1, every cycle in the bag) the
   callback takes it in);
 - cycle to delivery: for each /joint_states message received while the joints move, the cycle whose joint_1
   position it carries (the last one at or before its publication with that very value; a value two cycles within
-  10 ms share is left out) to the message's delivery in this process.
+  10 ms share is left out) to the message's delivery in this process;
+- records dropped (the node's log at its end: what the bag's writer dropped, and the cycle's records it did not take
+  in time), and the bag's messages as metadata.yaml counts them, as rosbags reads (and deserialises) them and as
+  mcap's reader reads them.
+
+The issue's goals (issue 25) are then judged row by row in a table of their own: six joints' node CPU at most 15 %
+not recording and 20 % recording every cycle, no record dropped and every message read back, and command→wire p99 at
+most publication→delivery p99 + 1 ms in every row. With --profile, each case that misses one is run again under
+py-spy (--gil: the Python threads' time holding the GIL, by thread and innermost frame) and perf record -g (every
+thread, kernel included, by symbol; and the cycle thread's samples split into waking akd-sim's thread, which the
+send's softirq does on this host, sleeping and waking, and the master's own work), over the holding window and over
+the commands: what the cost is made of. That run's own figures are not in the tables.
+
+--drives N,M (a run of its own, section "many" of bench/run.py) puts the node on N, then M, virtual AKDs of one
+akd-sim process behind a veth pair, each end in a network namespace of its own (akd-sim --iface, the node's link the
+interface, the client and the node in one namespace), every joint in cyclic synchronous position with a mapping of
+16 bytes a drive (the default's 52 bytes a drive do not fit one frame beyond 28 drives), held for --drive-cycles
+cycles: the bus's counters (lost frames first) from its last /diagnostics, the node's CPU, its latencies as above.
 
     .venv/bin/python bench/node_ros.py [--axes 1,6] [--transports rclpy,zenoh] [--cycle-time 0.00025]
         [--joint-states-rate 250] [--window 5] [--command-rate 100] [--command-seconds 3] [--priority 80]
-        [--sim-priority 70] [--attempts 3] [--pipelined-axes 6] [--json PATH]
+        [--sim-priority 70] [--attempts 3] [--pipelined-axes 6] [--rt-cpu-latency-us -1] [--profile] [--json PATH]
+    .venv/bin/python bench/node_ros.py --drives 16,64 [--drive-cycles 1000000] [--drive-pipelined] [...]
 
 The runs without recording of --pipelined-axes are made again with rt.pipelined (the node's cycle sends each frame and
 takes its return at the next wake-up), right after the same transports' waiting runs: the node's CPU and latencies
@@ -651,6 +671,8 @@ every mode needs (52 bytes), does not fit one frame beyond 28 drives, and the ma
 MANY_DOMAINS = range(60, 70)
 """ROS_DOMAIN_IDs of the many-drive runs, each inside a network namespace of its own (its own loopback)."""
 DIAGNOSTIC_COUNTERS = ("cycles", "lost_frames", "wkc_errors", "overruns", "samples_dropped")
+DIAGNOSTIC_TIMES = ("period_max_s", "exchange_p99_s")
+"""What a many-drive run takes of the bus's /diagnostics: its counters, and its timing (shown in µs)."""
 
 
 def many_drives(args, figures: Figures) -> None:
@@ -665,7 +687,10 @@ def many_drives(args, figures: Figures) -> None:
         figures.missing(f"the many-drive runs: {reason}")
         return
     rows = []
-    for count in [int(c) for c in args.drives.split(",")]:
+    cases = [
+        (int(c), pipelined) for c in args.drives.split(",") for pipelined in (False, True)[: 1 + args.drive_pipelined]
+    ]
+    for count, pipelined in cases:
         with tempfile.TemporaryDirectory(prefix="node_ros-many-") as temp:
             folder = Path(temp)
             trace = ["--setpoint-trace", str(folder / TRACE)]
@@ -675,13 +700,14 @@ def many_drives(args, figures: Figures) -> None:
                     if args.sim_priority:
                         real_time(sim.pid, args.sim_priority)
                     spec = {"iface": net.if_master, "count": count, "folder": temp, "sim_pid": sim.pid}
+                    spec["pipelined"] = pipelined
                     inner = [sys.executable, str(Path(__file__).resolve()), "--inside-many", json.dumps(spec)]
                     inner += [f"--{k.replace('_', '-')}={v}" for k, v in vars(args).items() if k in INNER_OPTIONS]
                     done = subprocess.run(
                         netns_argv(net.ns_master, inner), capture_output=True, text=True, timeout=limit, check=False
                     )
             except (RuntimeError, subprocess.TimeoutExpired) as e:
-                figures.missing(f"{count} drives over veth: {str(e)[:300]}")
+                figures.missing(f"{count} drives over veth ({'pipelined' if pipelined else 'waiting'}): {str(e)[:300]}")
                 continue
             lines = done.stdout.strip().splitlines()
             if done.returncode != 0 or not lines:
@@ -692,7 +718,8 @@ def many_drives(args, figures: Figures) -> None:
             changes, dropped = read_trace(folder / TRACE, drive)
         wire = command_to_wire(r.pop("sent"), changes, units)
         delivered = r.pop("publication_to_delivery")
-        row = {"drives": count, "cycle ms": args.cycle_time * 1e3, **r.pop("diagnostics")}
+        cycle = PIPELINED if pipelined else WAITING
+        row = {"drives": count, "cycle": cycle, "period ms": args.cycle_time * 1e3, **r.pop("diagnostics")}
         row |= {k: v for k, v in r.items() if k.endswith("%")} | {"joint_states/s": r["joint_states/s"]}
         row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "publication→delivery p99 ms": ms(delivered, 0.99)}
         row |= {WIRE_P50: ms(wire, 0.5), WIRE_P99: ms(wire, 0.99), "matched": f"{len(wire)}/{r['sent_count']}"}
@@ -726,6 +753,7 @@ def inside_many(spec: dict, args) -> int:
         path = folder / PARAMS
         # The file's sixth joint arms a latch, which this mapping does not carry.
         changes = {"transport": "rclpy", **MANY_MAPPING, "joints.joint_6.latch.arm": []}
+        changes["rt.pipelined"] = spec["pipelined"]
         path.write_text(params(spec["iface"], count, args, None, changes))
         node = NodeProcess(path, domain=domain)
         client = DdsClient(domain, count)
@@ -736,6 +764,7 @@ def inside_many(spec: dict, args) -> int:
                 if status.name.endswith(": bus"):
                     values = {v.key: v.value for v in status.values}
                     last.update({k: int(values[k]) for k in DIAGNOSTIC_COUNTERS if k in values})
+                    last.update({f"{k[:-2]} µs": float(values[k]) * 1e6 for k in DIAGNOSTIC_TIMES if k in values})
 
         client.node.create_subscription(DiagnosticArray, "/diagnostics", take, 10)
         try:
@@ -805,6 +834,9 @@ def main() -> int:
         help="instead of the runs above: akd_node on this many AKDs over veth, comma-separated (e.g. 16,64)",
     )
     parser.add_argument("--drive-cycles", type=int, default=1_000_000, help="cycles each --drives run holds")
+    parser.add_argument(
+        "--drive-pipelined", action="store_true", help="each --drives count again with rt.pipelined, right after"
+    )
     parser.add_argument("--inside-many", help=argparse.SUPPRESS)
     json_argument(parser)
     args = parser.parse_args()

@@ -8,12 +8,15 @@ those files.
 
     .venv/bin/python bench/run.py [--skip SECTION[,SECTION]] [--render]
 
-Sections, in the order they run (sudo or root: roundtrip's veth pair, the SCHED_FIFO priorities):
+Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs, the SCHED_FIFO priorities, perf):
   master_cycle  cost of one cyclic exchange in-process, 1/4/16/64 AKDs, frame size (master_cycle.py)
   roundtrip     this master, SOEM and KickCAT over one veth pair to one akd-sim (roundtrip.py, 3 rounds of 2000)
   jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
-  ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh (node_ros.py)
+  ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh; issue 25's goals, with
+                profiles of what misses one (node_ros.py --profile)
+  many          akd_node on 16 and 64 AKDs over veth at 250 µs, a million cycles each, waiting and pipelined
+                (node_ros.py --drives)
 
 --skip leaves sections out (RESULTS.md says skipped); --render writes RESULTS.md and results.png again from the
 JSON files of the last run, running nothing. Exit status: 0 when every section that ran measured every figure,
@@ -47,7 +50,8 @@ SECTIONS = {
         shlex.split("cycle_jitter.py --loads idle,busy,sdo --no-cyclictest --rates 4000 --seconds 4 --rounds 4"),
         180,
     ),
-    "ros": (["node_ros.py"], 420),
+    "ros": (["node_ros.py", "--profile"], 1200),
+    "many": (shlex.split("node_ros.py --drives 16,64 --drive-pipelined"), 2400),
 }
 """Each section's script and arguments (--json added), and the seconds it may take before it is ended."""
 TITLES = {
@@ -56,6 +60,7 @@ TITLES = {
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
+    "many": "Through ROS with many drives over veth",
 }
 
 
