@@ -475,7 +475,8 @@ def py_spy_top(path: Path, seconds: float, top: int) -> list[tuple[str, float]]:
     return [(what, n * per_core) for what, n in [*threads.most_common(), *frames.most_common(top)]]
 
 
-PERF_LINE = re.compile(r"^\s*([\d.]+)%\s+(\S+)\s+\[[.k]\]\s+(.+?)\s*$")
+PERF_LINE = re.compile(r"^\s*([\d.]+)%\s+(\S+)\s+\[[.k]\]\s+(.+?)(?:\s+-)*\s*$")
+"""A line of perf report --sort comm,symbol: share, thread, [k] or [.], the symbol (its empty columns left off)."""
 
 
 CYCLE_SHARES = (
