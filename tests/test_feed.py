@@ -71,9 +71,15 @@ def test_joint_states_and_statuses_are_what_rclpy_reads_with_the_drives_values(b
     feed = feed_of(bus)
     states = feed.add_joint_states(0.01)
     statuses = [feed.add_drive_status(k, 0.02) for k in range(2)]
+    with pytest.raises(ValueError, match="period must be a finite number of seconds > 0, not 0"):
+        feed.add_joint_states(0.0)
+    with pytest.raises(ValueError, match="no joint 2: the feed has 2"):
+        feed.add_drive_status(2, 0.1)
     offset = 1_733_000_000 * NS
     feed.set_offset(offset)
     feed.start()
+    with pytest.raises(ValueError, match=r"add its streams before start\(\)"):
+        feed.add_joint_states(0.01)
     try:
         assert feed.take(0.1) == ([], False), "an inactive feed makes nothing"
         feed.set_active(True)

@@ -182,18 +182,18 @@ class Publishing:
         streams, next_offset = self._streams, time.monotonic() + _OFFSET_PERIOD_S
         while self._feed is feed:
             messages, events = feed.take(_TAKE_TIMEOUT_S)
-            for stream, data in messages:
-                streams[stream].publish_made(data)
-            bus = self._session.bus
-            # Another part taking its events may have filed these drives' under them meanwhile.
-            if events or (bus is not None and bus.events_waiting()):
-                try:
+            try:
+                for stream, data in messages:
+                    streams[stream].publish_made(data)
+                bus = self._session.bus
+                # Another part taking its events may have filed these drives' under them meanwhile.
+                if events or (bus is not None and bus.events_waiting()):
                     self._publish_events()
-                except Exception as e:  # noqa: BLE001  (logged; publishing goes on)
-                    self._logger.error(f"publishing events failed: {type(e).__name__}: {e}")
-            if time.monotonic() >= next_offset:
-                next_offset += _OFFSET_PERIOD_S
-                self._read_offset(feed)
+                if time.monotonic() >= next_offset:
+                    next_offset += _OFFSET_PERIOD_S
+                    self._read_offset(feed)
+            except Exception as e:  # noqa: BLE001  (logged; publishing goes on)
+                self._logger.error(f"publishing failed: {type(e).__name__}: {e}")
 
     def _publish_events(self) -> None:
         session = self._session

@@ -90,6 +90,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 pub struct Feed {
     shared: Arc<Shared>,
     streams: Mutex<Vec<(Kind, Duration)>>,
+    started: AtomicBool,
     thread: Mutex<Option<JoinHandle<()>>>,
 }
 
@@ -115,6 +116,7 @@ impl Feed {
                 dropped: AtomicU64::new(0),
             }),
             streams: Mutex::default(),
+            started: AtomicBool::new(false),
             thread: Mutex::new(None),
         }
     }
@@ -124,17 +126,21 @@ impl Feed {
         &self.shared.joints
     }
 
-    /// Adds a stream of `kind` every `period`, before [`start`](Feed::start); its id.
-    pub fn add(&self, kind: Kind, period: Duration) -> usize {
+    /// Adds a stream of `kind` every `period`; its id, or `None` once [`start`](Feed::start)ed
+    /// (the thread has taken the streams).
+    pub fn add(&self, kind: Kind, period: Duration) -> Option<usize> {
+        if self.started.load(Ordering::Acquire) {
+            return None;
+        }
         let mut streams = lock(&self.streams);
         streams.push((kind, period));
-        streams.len() - 1
+        Some(streams.len() - 1)
     }
 
     /// Starts the thread.
     pub fn start(&self) -> std::io::Result<()> {
         let mut thread = lock(&self.thread);
-        if thread.is_none() {
+        if !self.started.swap(true, Ordering::AcqRel) {
             let maker = Maker::new(self.shared.clone(), lock(&self.streams).clone());
             *thread = Some(std::thread::Builder::new().name("akd-feed".into()).spawn(move || maker.run())?);
         }

@@ -44,7 +44,9 @@ fn period(seconds: f64) -> PyResult<Duration> {
 
 impl PyFeed {
     fn stream(&self, kind: Kind, seconds: f64) -> PyResult<usize> {
-        Ok(self.feed.add(kind, period(seconds)?))
+        self.feed
+            .add(kind, period(seconds)?)
+            .ok_or_else(|| PyValueError::new_err("the feed has started: add its streams before start()"))
     }
 }
 
