@@ -336,16 +336,17 @@ impl BagWriter {
     /// Waits up to `timeout` for the thread's end; whether it ended.
     pub fn join(&self, timeout: Duration) -> bool {
         let report = lock(&self.shared.report);
-        drop(self.shared.reported.wait_timeout_while(report, timeout, |r| !r.done).unwrap_or_else(|p| p.into_inner()));
-        let mut thread = lock(&self.thread);
-        match thread.as_ref() {
-            Some(t) if t.is_finished() => {
-                let _ = thread.take().map(JoinHandle::join);
-                true
-            }
-            Some(_) => false,
-            None => true,
+        let (report, _) =
+            self.shared.reported.wait_timeout_while(report, timeout, |r| !r.done).unwrap_or_else(|p| p.into_inner());
+        if !report.done {
+            return false;
         }
+        drop(report);
+        // Done is the thread's last word: it returns right after.
+        if let Some(thread) = lock(&self.thread).take() {
+            let _ = thread.join();
+        }
+        true
     }
 }
 
