@@ -698,7 +698,7 @@ def many_drives(args, figures: Figures) -> None:
             extra = ["--setpoint-trace", str(folder / TRACE), "--missed", "lost"]
             limit = 120 + args.drive_cycles * args.cycle_time * 2
             try:
-                with veth_pair() as net, akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, extra=extra) as sim:
+                with veth_pair() as net, akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, options=extra) as sim:
                     if args.sim_priority:
                         real_time(sim.pid, args.sim_priority)
                     spec = {"iface": net.if_master, "count": count, "folder": temp, "sim_pid": sim.pid}

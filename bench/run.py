@@ -17,6 +17,10 @@ Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs
                 profiles of what misses one (node_ros.py --profile)
   many          akd_node on 16 and 64 AKDs over veth at 250 µs, a million cycles each, waiting and pipelined
                 (node_ros.py --drives)
+  io            akd_node's CPU with every joint's ~/io published and without, six joints at 1 kHz (node_io.py)
+  host_noise    config/akd_sim_6axis.yaml's robot following trajectories under stress-ng on every CPU, with and
+                without missed=warn and rt.priority: trajectories done, would-be F125, worst stall (host_noise.py,
+                2 minutes per variant; --minutes 8 for a full run)
 
 --skip leaves sections out (RESULTS.md says skipped); --render writes RESULTS.md and results.png again from the
 JSON files of the last run, running nothing. Exit status: 0 when every section that ran measured every figure,
@@ -52,6 +56,9 @@ SECTIONS = {
     ),
     "ros": (["node_ros.py", "--profile"], 1200),
     "many": (shlex.split("node_ros.py --drives 16,64 --drive-pipelined"), 2400),
+    "io": (["node_io.py"], 300),
+    # Two minutes per variant, two alternating rounds: a shorter run than a quotable one (--minutes 8, about 35 min).
+    "host_noise": (shlex.split("host_noise.py --minutes 2 --rounds 2"), 900),
 }
 """Each section's script and arguments (--json added), and the seconds it may take before it is ended."""
 TITLES = {
@@ -61,6 +68,8 @@ TITLES = {
     "python": "Python's cost on the loop",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
     "many": "Through ROS with many drives over veth",
+    "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",
+    "host_noise": "The six-axis virtual robot with every CPU loaded: F125 with and without missed=warn, rt.priority",
 }
 
 

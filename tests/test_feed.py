@@ -53,7 +53,8 @@ def bus():
 
 
 def feed_of(bus: Bus) -> _native.Feed:
-    return _native.Feed(bus.cycle, [(a.slave, a.name, a.units) for a in bus.axes])
+    """A feed of `bus`'s joints, the first homed by its drive (never, here), the others not homed at all."""
+    return _native.Feed(bus.cycle, [(a.slave, a.name, a.units, k == 0) for k, a in enumerate(bus.axes)])
 
 
 def take_until(feed: _native.Feed, streams: set[int], timeout: float = 10.0) -> dict[int, list[bytes]]:
@@ -110,6 +111,7 @@ def test_joint_states_and_statuses_are_what_rclpy_reads_with_the_drives_values(b
         assert 0 < status.cycles <= bus.stats()["cycles"] and status.lost_frames == 0
         assert status.period_mean == pytest.approx(bus.cycle.period, rel=0.2)
         assert math.isfinite(status.following_error)
+        assert status.homed == (k == 1), "a joint its drive homes is homed once homing is attained; the others are"
     assert feed.dropped == 0
     # Stopped, it hands out nothing and does not wait.
     assert feed.take(5.0) == ([], False)

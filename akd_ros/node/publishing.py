@@ -138,7 +138,8 @@ class Publishing:
         """Starts the crate's feed of the session's Bus and the thread that publishes what it makes (at configure,
         once the Bus and the recorder are there)."""
         bus, settings = self._session.bus, self._settings
-        feed = _native.Feed(bus.cycle, [(axis.slave, axis.name, axis.units) for axis in bus.axes])
+        homes = {joint.name: joint.homing_method != "none" for joint in self._session.joints}
+        feed = _native.Feed(bus.cycle, [(axis.slave, axis.name, axis.units, homes[axis.name]) for axis in bus.axes])
         self._streams = {feed.add_joint_states(1.0 / settings.joint_states_rate): self.joint_states}
         for k, axis in enumerate(bus.axes):
             self._streams[feed.add_drive_status(k, 1.0 / settings.status_rate)] = self.joints[axis.name].status

@@ -88,6 +88,8 @@ pub struct DriveStatus<'a> {
     pub mode_of_operation: i8,
     /// rad or m.
     pub following_error: f64,
+    /// Homing attained since the drive was last lost (always, for a joint that is not homed).
+    pub homed: bool,
     /// Cycles since the cycle thread started.
     pub cycles: u64,
     /// Cycles that ended after their next deadline.

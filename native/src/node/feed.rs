@@ -347,6 +347,7 @@ impl Maker {
             mode: mode.as_deref().unwrap_or(""),
             mode_of_operation: shown.map_or(0, |m| m as i8),
             following_error: inputs.following_error.map_or(f64::NAN, |e| e as f64 * j.scale.si_per_count),
+            homed: !j.homes || cycle.homing_status(j.slave).is_ok_and(|s| s.homed),
             cycles: stats.cycles.load(Ordering::Relaxed),
             overruns: stats.overruns.load(Ordering::Relaxed),
             lost_frames: stats.lost_frames.load(Ordering::Relaxed),

@@ -26,4 +26,7 @@ pub struct Joint {
     pub name: String,
     /// Its scale.
     pub scale: JointScale,
+    /// Whether it is homed by the drive (homing.method other than none); a joint that is not is
+    /// always homed.
+    pub homes: bool,
 }

@@ -22,7 +22,8 @@ use crate::ros_msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue}
 type Taken<'py> = (Vec<(usize, Bound<'py, PyBytes>)>, bool);
 
 /// `Feed(cycle, joints)`: the publications of `joints`, each (drive position, name, its
-/// `akd_ros.units.Units`), of `cycle`. Streams are added (`add_joint_states`,
+/// `akd_ros.units.Units`, whether the drive homes it: DriveStatus.homed is always true for a
+/// joint it does not), of `cycle`. Streams are added (`add_joint_states`,
 /// `add_drive_status`, each giving its id) before `start()`; while active, each stream's
 /// message is made at its rate and handed out by `take()` as (id, bytes). Stamps are the
 /// monotonic clock plus `set_offset`'s ROS minus monotonic time.
@@ -53,10 +54,12 @@ impl PyFeed {
 #[pymethods]
 impl PyFeed {
     #[new]
-    fn new(cycle: Py<PyCycle>, joints: Vec<(u16, String, Bound<'_, PyAny>)>) -> PyResult<Self> {
+    fn new(cycle: Py<PyCycle>, joints: Vec<(u16, String, Bound<'_, PyAny>, bool)>) -> PyResult<Self> {
         let joints = joints
             .iter()
-            .map(|(slave, name, units)| Ok(Joint { slave: *slave, name: name.clone(), scale: joint_scale(units)? }))
+            .map(|(slave, name, units, homes)| {
+                Ok(Joint { slave: *slave, name: name.clone(), scale: joint_scale(units)?, homes: *homes })
+            })
             .collect::<PyResult<Vec<_>>>()?;
         let offset_ns = Arc::new(AtomicI64::new(0));
         let thread = cycle.get().thread();

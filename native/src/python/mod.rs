@@ -16,6 +16,7 @@ mod cycle;
 mod drive;
 mod eeprom;
 mod feed;
+mod homing;
 mod link_spec;
 mod master;
 mod record;
