@@ -55,9 +55,9 @@ class Core:
         self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
         Services(transport, self._session, self._commands, requests)
         # Homing goals have a group of their own: one runs for as long as its joints home.
-        Homing(transport, self._session, transport.group())
+        Homing(transport, self._session, transport.group("homing"))
         # So do FollowJointTrajectory goals: one runs until its trajectory ends, a newer one beside it to preempt it.
-        FollowJointTrajectory(transport, self._session, transport.group())
+        FollowJointTrajectory(transport, self._session, transport.group("follow"))
 
     @property
     def bus(self) -> Bus | None:
