@@ -20,7 +20,7 @@ from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 from sensor_msgs.msg import JointState
 
 from akd_ros import Bus, DriveConfig, Units, _native
-from akd_ros.msg import DriveStatus
+from akd_ros.msg import DriveIO, DriveStatus
 from akd_ros.recorder import Recorder, message_type
 from support.waiting import wait_for
 
@@ -52,9 +52,22 @@ def bus():
         yield b
 
 
+def joint(axis, homes: bool = False, inputs=(), outputs=()) -> dict:
+    """A joint of a feed: `axis`, homed by its drive or not, its named `inputs` and `outputs` ((name, number) each)."""
+    return {
+        "slave": axis.slave,
+        "name": axis.name,
+        "units": axis.units,
+        "homes": homes,
+        "inputs": list(inputs),
+        "outputs": list(outputs),
+        "volts_per_count": axis.analog_scale,
+    }
+
+
 def feed_of(bus: Bus) -> _native.Feed:
     """A feed of `bus`'s joints, the first homed by its drive (never, here), the others not homed at all."""
-    return _native.Feed(bus.cycle, [(a.slave, a.name, a.units, k == 0) for k, a in enumerate(bus.axes)])
+    return _native.Feed(bus.cycle, [joint(a, homes=k == 0) for k, a in enumerate(bus.axes)])
 
 
 def take_until(feed: _native.Feed, streams: set[int], timeout: float = 10.0) -> dict[int, list[bytes]]:
@@ -134,6 +147,72 @@ def test_the_feed_says_when_the_cycle_has_events_waiting_while_active() -> None:
             assert not bus.cycle.events_pending
         finally:
             feed.stop()
+
+
+def test_drive_io_reads_as_the_drive_shows_its_io_with_the_joints_names() -> None:
+    drives = [
+        DriveConfig(slave=0, name="gripper", mode="cyclic_synchronous_position", mapping=_native.IO_MAPPING),
+        DriveConfig(slave=1, name="wrist", mode="profile_velocity"),
+    ]
+    with Bus("sim:2?missed=lost", drives) as bus:
+        gripper, wrist = bus.axes
+        with pytest.raises(ValueError, match=r"joint gripper: input x is number 9: the AKD has digital inputs 1\.\.7"):
+            _native.Feed(bus.cycle, [joint(gripper, inputs=[("x", 9)])])
+        bus.simulator.set_input(0, 3, True)
+        bus.simulator.set_switch(0, "home_switch", True)
+        bus.simulator.set_analog_input(0, -2.5)
+        gripper.set_outputs({2: True}, analog_output=1.5)
+        io = wait_for("the inputs and outputs", lambda: (io := gripper.io()).inputs[2] and io.outputs[1] and io)
+        feed = _native.Feed(
+            bus.cycle,
+            [
+                joint(gripper, inputs=[("part_present", 3), ("start", 1)], outputs=[("clamp", 2)]),
+                joint(wrist, inputs=[("start", 1)], outputs=[("lamp", 1)]),
+            ],
+        )
+        streams = [feed.add_drive_io(k, 0.01) for k in range(2)]
+        with pytest.raises(ValueError, match="no joint 2: the feed has 2"):
+            feed.add_drive_io(2, 0.1)
+        feed.start()
+        feed.set_active(True)
+        try:
+            got = take_until(feed, set(streams))
+        finally:
+            feed.stop()
+    data = got[streams[0]][-1]
+    assert rosbags_bytes(data, "akd_ros/msg/DriveIO", DriveIO) == data
+    message = deserialize_message(data, DriveIO)
+    assert (message.joint, message.digital_inputs_mapped, message.digital_inputs) == (
+        "gripper",
+        True,
+        io.digital_inputs,
+    )
+    assert (message.home_switch, message.negative_limit, message.positive_limit, message.interlock) == (
+        True,
+        False,
+        False,
+        False,
+    )
+    assert list(message.inputs) == list(io.inputs)
+    assert (list(message.input_names), list(message.input_numbers), list(message.named_inputs)) == (
+        ["part_present", "start"],
+        [3, 1],
+        [True, False],
+    )
+    assert message.hardware_enable == DriveIO.HARDWARE_ENABLE_HIGH
+    assert message.analog_input == pytest.approx(-2.5, abs=2 * gripper.analog_scale)
+    assert (message.digital_outputs_mapped, list(message.outputs), list(message.named_outputs)) == (
+        True,
+        [False, True],
+        [True],
+    )
+    assert message.analog_output == pytest.approx(1.5, abs=gripper.analog_scale)
+    assert message.cycle >= io.cycle
+    # The default mapping carries the digital inputs only: no outputs read, no output named, the analog values NaN.
+    wrist_io = deserialize_message(got[streams[1]][-1], DriveIO)
+    assert (wrist_io.digital_inputs_mapped, len(wrist_io.inputs), list(wrist_io.input_names)) == (True, 7, ["start"])
+    assert (wrist_io.digital_outputs_mapped, list(wrist_io.outputs), list(wrist_io.output_names)) == (False, [], [])
+    assert math.isnan(wrist_io.analog_input) and math.isnan(wrist_io.analog_output)
 
 
 def test_diagnostic_array_is_what_rclpy_reads() -> None:

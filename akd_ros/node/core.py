@@ -51,7 +51,7 @@ class Core:
         self._commands = Commands(transport, self._session, commands, command_qos, requests)
         self._publishing = Publishing(transport, self._session, self._reliable, events, self._commands.fault_seen)
         self._trajectories = Trajectories(transport, self._session, commands, periodic, command_qos, events)
-        self._io = Io(transport, self._session, periodic, requests, events)
+        self._io = Io(transport, self._session, periodic, requests, events, self._publishing)
         self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
         Services(transport, self._session, self._commands, requests)
         # Homing goals have a group of their own: one runs for as long as its joints home.

@@ -17,7 +17,8 @@ The events (latches, faults, command time-outs) stay Python's: they are rare and
 the cycle has events waiting; this thread then takes them, publishes them, logs the faults and has the recorder write
 their black box.
 
-Another periodic publication (the drive's I/O on ~/io, say) is added the same way: its message struct and its making
+Each joint's ~/io (akd_ros/DriveIO, `akd_ros.node.io`) is made the same way, at io_rate. Another periodic publication
+is added so: its message struct and its making
 from the snapshot in the crate (a `Kind` of `native/src/node/feed.rs`; on change: compared there with what it last
 made, at its stream's check rate), a `Feed.add_...` stream here in `_start_feed` with its period, and its publisher in
 `self._streams` by the stream's id (recorded with `take_stream_from` when the topic is in the bag). Nothing of it runs
@@ -38,6 +39,7 @@ from akd_ros.node.clock import nanoseconds
 from akd_ros.node.session import Session, namespace
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.node.worker import name_this_thread
+from akd_ros.params import JointSettings
 
 EDGE_RISING, EDGE_FALLING = 1, 2
 """LatchEvent's edge codes (its EDGE_RISING and EDGE_FALLING constants)."""
@@ -54,6 +56,19 @@ def snake(name: str | None) -> str:
     """A state's name as the messages spell it: "Operation enabled" -> "operation_enabled", "SafeOp" -> "safe_op";
     None -> "unknown"."""
     return "unknown" if name is None else re.sub(r"(?<=[a-z])(?=[A-Z])", "_", name).replace(" ", "_").lower()
+
+
+def _feed_joint(axis, joint: JointSettings) -> dict:
+    """`axis`, the drive of `joint`, as the crate's feed takes it: what its messages say beside the drive's values."""
+    return {
+        "slave": axis.slave,
+        "name": axis.name,
+        "units": axis.units,
+        "homes": joint.homing_method != "none",
+        "inputs": list((joint.io_inputs or {}).items()),
+        "outputs": list((joint.io_outputs or {}).items()),
+        "volts_per_count": axis.analog_scale,
+    }
 
 
 class RecordedPublisher:
@@ -128,21 +143,31 @@ class Publishing:
         so that a fault's black box ends at the fault's own cycle."""
         self._feed: _native.Feed | None = None
         self._streams: dict[int, RecordedPublisher] = {}
+        self._drive_io: tuple[dict[str, RecordedPublisher], float] | None = None
         self._thread: threading.Thread | None = None
 
     def publishers(self) -> list[RecordedPublisher]:
         """Every publisher of this part, for the recorder."""
         return [self.joint_states] + [p for j in self.joints.values() for p in (j.status, j.latch, j.fault)]
 
+    def publish_drive_io(self, publishers: dict[str, RecordedPublisher], period: float) -> None:
+        """Has the feed make each joint's akd_ros/DriveIO every `period` seconds from `start()` on, for its publisher
+        in `publishers` (by joint name)."""
+        self._drive_io = (publishers, period)
+
     def start(self) -> None:
         """Starts the crate's feed of the session's Bus and the thread that publishes what it makes (at configure,
         once the Bus and the recorder are there)."""
         bus, settings = self._session.bus, self._settings
-        homes = {joint.name: joint.homing_method != "none" for joint in self._session.joints}
-        feed = _native.Feed(bus.cycle, [(axis.slave, axis.name, axis.units, homes[axis.name]) for axis in bus.axes])
+        joints = {joint.name: joint for joint in self._session.joints}
+        feed = _native.Feed(bus.cycle, [_feed_joint(axis, joints[axis.name]) for axis in bus.axes])
         self._streams = {feed.add_joint_states(1.0 / settings.joint_states_rate): self.joint_states}
         for k, axis in enumerate(bus.axes):
             self._streams[feed.add_drive_status(k, 1.0 / settings.status_rate)] = self.joints[axis.name].status
+        if self._drive_io is not None:
+            publishers, period = self._drive_io
+            for k, axis in enumerate(bus.axes):
+                self._streams[feed.add_drive_io(k, period)] = publishers[axis.name]
         self._read_offset(feed)
         recorder = self._session.recorder
         if recorder is not None:

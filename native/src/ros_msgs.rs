@@ -4,9 +4,9 @@
 //! rosbag2 stores and rmw publishes them (CDR little endian behind its 4-byte encapsulation
 //! header). No layout is written by hand: the serializer aligns every field.
 //!
-//! `tests/test_ros_msgs.py` compares each message's bytes with rclpy's serialisation of the same
-//! message and reads them back with rosbags, so a .msg file that changes without its struct here
-//! fails there.
+//! `tests/test_feed.py` and `tests/test_cycle_record.py` compare each message's bytes with
+//! rclpy's serialisation of the same message and read them back with rosbags, so a .msg file that
+//! changes without its struct here fails there.
 
 use serde::Serialize;
 
@@ -104,6 +104,55 @@ pub struct DriveStatus<'a> {
     pub period_max: f64,
     /// s.
     pub exchange_p99: f64,
+}
+
+/// akd_ros/DriveIO.
+#[derive(Debug, Serialize)]
+pub struct DriveIo<'a> {
+    /// Stamped with the cycle whose process image this is.
+    pub header: Header<'a>,
+    /// The joint the drive moves.
+    pub joint: &'a str,
+    /// That cycle's number.
+    pub cycle: u64,
+    /// Whether the mapping carries 0x60FD.
+    pub digital_inputs_mapped: bool,
+    /// 0x60FD.
+    pub digital_inputs: u32,
+    /// 0x60FD bit 0.
+    pub negative_limit: bool,
+    /// 0x60FD bit 1.
+    pub positive_limit: bool,
+    /// 0x60FD bit 2.
+    pub home_switch: bool,
+    /// 0x60FD bit 3.
+    pub interlock: bool,
+    /// Digital inputs 1..7, input 1 first.
+    pub inputs: Vec<bool>,
+    /// The names the joint gives inputs.
+    pub input_names: &'a [String],
+    /// Their numbers (1..7).
+    pub input_numbers: &'a [u8],
+    /// Their levels.
+    pub named_inputs: Vec<bool>,
+    /// DriveIO.HARDWARE_ENABLE_*.
+    pub hardware_enable: u8,
+    /// V; NaN where the mapping lacks 0x3470:04.
+    pub analog_input: f64,
+    /// Whether the mapping carries 0x60FE:01.
+    pub digital_outputs_mapped: bool,
+    /// 0x60FE:01 as sent.
+    pub digital_outputs: u32,
+    /// Digital outputs 1..2, output 1 first.
+    pub outputs: Vec<bool>,
+    /// The names the joint gives outputs.
+    pub output_names: &'a [String],
+    /// Their numbers (1..2).
+    pub output_numbers: &'a [u8],
+    /// Their levels.
+    pub named_outputs: Vec<bool>,
+    /// V as sent; NaN where the mapping lacks 0x3470:03.
+    pub analog_output: f64,
 }
 
 /// akd_ros/CycleSample.

@@ -35,8 +35,9 @@ use std::time::{Duration, Instant};
 
 use super::Joint;
 use crate::bag_writer::BagWriter;
-use crate::cycle::{timing, CycleThread};
+use crate::cycle::{timing, CycleThread, Snapshot};
 use crate::ds402::{Mode, State};
+use crate::io::{self, DriveIo, HardwareEnable, Switch};
 use crate::objects::DriveInputs;
 use crate::ros_msgs::{self, Header};
 
@@ -52,6 +53,8 @@ pub enum Kind {
     JointStates,
     /// akd_ros/DriveStatus of the joint at this index.
     DriveStatus(usize),
+    /// akd_ros/DriveIO of the joint at this index, of the cycle the snapshot holds.
+    DriveIo(usize),
 }
 
 /// The continuous count nearest `last` that reads as the int32 `raw` on the drive, as
@@ -192,8 +195,19 @@ impl Drop for Feed {
     }
 }
 
+/// The names and numbers of the named inputs or outputs and their `levels`; none where the
+/// mapping does not carry them (`levels` empty).
+fn named<'a>(levels: &[bool], names: &'a [String], numbers: &'a [u8]) -> (&'a [String], &'a [u8], Vec<bool>) {
+    if levels.is_empty() {
+        return (&[], &[], Vec::new());
+    }
+    // JointIo keeps every number within the drive's inputs or outputs.
+    (names, numbers, numbers.iter().map(|&n| levels[n as usize - 1]).collect())
+}
+
 /// What one wake-up read of the cycle, once for every stream due.
 struct Reading {
+    snapshot: Snapshot,
     inputs: Vec<DriveInputs>,
     stamp_ns: i64,
 }
@@ -286,13 +300,14 @@ impl Maker {
             })
             .collect();
         let stamp_ns = timing::now_ns() as i64 + self.shared.offset_ns.load(Ordering::Relaxed);
-        Reading { inputs, stamp_ns }
+        Reading { snapshot, inputs, stamp_ns }
     }
 
     fn message(&mut self, kind: Kind, reading: &Reading) -> Vec<u8> {
         match kind {
             Kind::JointStates => self.joint_states(reading),
             Kind::DriveStatus(joint) => self.drive_status(joint, reading),
+            Kind::DriveIo(joint) => self.drive_io(joint, reading),
         }
     }
 
@@ -357,6 +372,57 @@ impl Maker {
             exchange_p99: exchange.p99_ns as f64 * 1e-9,
         };
         ros_msgs::to_cdr(&message, 160)
+    }
+
+    /// The drive's digital inputs with the CiA 402 switches, hardware enable, analog input and
+    /// outputs as sent, read by its mapping from the snapshot's images, with the joint's names.
+    fn drive_io(&self, joint: usize, reading: &Reading) -> Vec<u8> {
+        let (cycle, snapshot) = (&self.shared.cycle, &reading.snapshot);
+        let j = &self.shared.joints[joint];
+        let drive =
+            match (cycle.mapping(j.slave), cycle.outputs_of(snapshot, j.slave), cycle.inputs_of(snapshot, j.slave)) {
+                (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, outputs, inputs),
+                _ => DriveIo::default(),
+            };
+        let levels = |word: Option<u32>, bits: fn(u32) -> u8, count: u8| {
+            word.map_or_else(Vec::new, |w| (0..count).map(|k| bits(w) >> k & 1 == 1).collect::<Vec<_>>())
+        };
+        let inputs = levels(drive.digital_inputs, io::inputs, io::INPUT_COUNT);
+        let outputs = levels(drive.digital_outputs, io::outputs, io::OUTPUT_COUNT);
+        let (input_names, input_numbers, named_inputs) = named(&inputs, &j.io.input_names, &j.io.input_numbers);
+        let (output_names, output_numbers, named_outputs) = named(&outputs, &j.io.output_names, &j.io.output_numbers);
+        let switch = |s: Switch| drive.digital_inputs.is_some_and(|w| s.active(w));
+        let volts = |counts: Option<i16>| counts.map_or(f64::NAN, |c| c as f64 * j.io.volts_per_count);
+        let stamp_ns = snapshot.time_ns as i64 + self.shared.offset_ns.load(Ordering::Relaxed);
+        let message = ros_msgs::DriveIo {
+            header: Header::at(stamp_ns),
+            joint: &j.name,
+            cycle: snapshot.cycle,
+            digital_inputs_mapped: drive.digital_inputs.is_some(),
+            digital_inputs: drive.digital_inputs.unwrap_or(0),
+            negative_limit: switch(Switch::NegativeLimit),
+            positive_limit: switch(Switch::PositiveLimit),
+            home_switch: switch(Switch::Home),
+            interlock: switch(Switch::Interlock),
+            inputs,
+            input_names,
+            input_numbers,
+            named_inputs,
+            hardware_enable: match drive.hardware_enable() {
+                HardwareEnable::Unknown => 0,
+                HardwareEnable::High => 1,
+                HardwareEnable::Low => 2,
+            },
+            analog_input: volts(drive.analog_input),
+            digital_outputs_mapped: drive.digital_outputs.is_some(),
+            digital_outputs: drive.digital_outputs.unwrap_or(0),
+            outputs,
+            output_names,
+            output_numbers,
+            named_outputs,
+            analog_output: volts(drive.analog_output),
+        };
+        ros_msgs::to_cdr(&message, 256)
     }
 
     fn hand_over(&self, made: Vec<(usize, i64, Vec<u8>)>, events: bool) {

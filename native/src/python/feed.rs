@@ -15,18 +15,17 @@ use super::cycle::PyCycle;
 use super::record::joint_scale;
 use crate::node::cycle_records::CycleRecords;
 use crate::node::feed::{Feed, Kind};
-use crate::node::Joint;
+use crate::node::{Joint, JointIo};
 use crate::ros_msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
 
 /// What `take` gives: each message made (its stream's id, its bytes), and whether events wait.
 type Taken<'py> = (Vec<(usize, Bound<'py, PyBytes>)>, bool);
 
-/// `Feed(cycle, joints)`: the publications of `joints`, each (drive position, name, its
-/// `akd_ros.units.Units`, whether the drive homes it: DriveStatus.homed is always true for a
-/// joint it does not), of `cycle`. Streams are added (`add_joint_states`,
-/// `add_drive_status`, each giving its id) before `start()`; while active, each stream's
-/// message is made at its rate and handed out by `take()` as (id, bytes). Stamps are the
-/// monotonic clock plus `set_offset`'s ROS minus monotonic time.
+/// `Feed(cycle, joints)`: the publications of `joints` (each a dict, see `FeedJoint`) of
+/// `cycle`. Streams are added (`add_joint_states`, `add_drive_status`, `add_drive_io`, each
+/// giving its id) before `start()`; while active, each stream's message is made at its rate and
+/// handed out by `take()` as (id, bytes). Stamps are the monotonic clock plus `set_offset`'s ROS
+/// minus monotonic time.
 #[pyclass(name = "Feed", module = "akd_ros._native", frozen)]
 pub struct PyFeed {
     feed: Feed,
@@ -43,7 +42,30 @@ fn period(seconds: f64) -> PyResult<Duration> {
     }
 }
 
+/// A joint of a feed, a dict with every key: "slave" (its drive's position), "name", "units"
+/// (`akd_ros.units.Units`), "homes" (whether its drive homes it: DriveStatus.homed is always
+/// true for a joint it does not), "inputs" and "outputs" (the names it gives the drive's digital
+/// inputs and outputs, each (name, AKD number)) and "volts_per_count" (its analog scale).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct FeedJoint<'py> {
+    slave: u16,
+    name: String,
+    units: Bound<'py, PyAny>,
+    homes: bool,
+    inputs: Vec<(String, u8)>,
+    outputs: Vec<(String, u8)>,
+    volts_per_count: f64,
+}
+
 impl PyFeed {
+    fn joint(&self, joint: usize) -> PyResult<()> {
+        match self.feed.joints().len() {
+            count if joint >= count => Err(PyValueError::new_err(format!("no joint {joint}: the feed has {count}"))),
+            _ => Ok(()),
+        }
+    }
+
     fn stream(&self, kind: Kind, seconds: f64) -> PyResult<usize> {
         self.feed
             .add(kind, period(seconds)?)
@@ -54,11 +76,13 @@ impl PyFeed {
 #[pymethods]
 impl PyFeed {
     #[new]
-    fn new(cycle: Py<PyCycle>, joints: Vec<(u16, String, Bound<'_, PyAny>, bool)>) -> PyResult<Self> {
+    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint<'_>>) -> PyResult<Self> {
         let joints = joints
-            .iter()
-            .map(|(slave, name, units, homes)| {
-                Ok(Joint { slave: *slave, name: name.clone(), scale: joint_scale(units)?, homes: *homes })
+            .into_iter()
+            .map(|j| {
+                let io = JointIo::new(j.inputs, j.outputs, j.volts_per_count)
+                    .map_err(|e| PyValueError::new_err(format!("joint {}: {e}", j.name)))?;
+                Ok(Joint { slave: j.slave, scale: joint_scale(&j.units)?, name: j.name, homes: j.homes, io })
             })
             .collect::<PyResult<Vec<_>>>()?;
         let offset_ns = Arc::new(AtomicI64::new(0));
@@ -73,10 +97,14 @@ impl PyFeed {
 
     /// A stream of akd_ros/DriveStatus of joint number `joint` every `period` seconds; its id.
     fn add_drive_status(&self, joint: usize, period: f64) -> PyResult<usize> {
-        if joint >= self.feed.joints().len() {
-            return Err(PyValueError::new_err(format!("no joint {joint}: the feed has {}", self.feed.joints().len())));
-        }
+        self.joint(joint)?;
         self.stream(Kind::DriveStatus(joint), period)
+    }
+
+    /// A stream of akd_ros/DriveIO of joint number `joint` every `period` seconds; its id.
+    fn add_drive_io(&self, joint: usize, period: f64) -> PyResult<usize> {
+        self.joint(joint)?;
+        self.stream(Kind::DriveIo(joint), period)
     }
 
     /// Starts the thread (inactive until `set_active(True)`).
