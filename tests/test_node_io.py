@@ -148,6 +148,16 @@ def named(message: DriveIO, name: str, kind: str = "input") -> bool:
     return levels[list(names).index(name)]
 
 
+def content(message: DriveIO) -> tuple:
+    """What `message` says but for its stamp and cycle."""
+    skipped = {"header", "cycle"}
+    return tuple(
+        tuple(value) if not isinstance(value := getattr(message, field), str | int | float | bool) else value
+        for field in message.get_fields_and_field_types()
+        if field not in skipped
+    )
+
+
 ros_domain = module_domain(DOMAINS)
 
 
@@ -181,8 +191,15 @@ def test_an_input_flipped_on_the_drive_shows_on_io_with_its_name(run):
     before = ros.io("a")
     assert not named(before, "part_present")
     sim.command("input 0 3 high")
+    seen = len(ros.received[f"{NODE}a/io"])
     high = ros.io("a", lambda m: named(m, "part_present"), "part_present high")
     assert high.inputs[2] and high.digital_inputs == 1 << 18 and high.cycle > before.cycle
+    # The edge's own message (built by the node from the cycle's event) and those the crate makes at io_rate after it
+    # say the same but for their stamps and cycles.
+    ros.spin_for(3 / 20.0)
+    after = [m for m in ros.received[f"{NODE}a/io"][seen:] if named(m, "part_present")]
+    assert len(after) >= 3, [m.cycle for m in after]
+    assert len({content(m) for m in after}) == 1, {content(m) for m in after}
     # /diagnostics shows it by the name too.
     ros.status("a", lambda s: ("input part_present (3)", "high") in [(v.key, v.value) for v in s.values], "the name")
     sim.command("analog_input 0 -4")

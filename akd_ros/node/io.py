@@ -3,10 +3,11 @@
 
 ~/io (~/<joint>/io on a node of joints) carries the digital inputs with the CiA 402 switches, the hardware enable as
 the drive shows it, the analog input, and the outputs as last sent, with the names io.inputs and io.outputs give them.
-It is published at io_rate for every joint from one snapshot of the cycle (every joint's I/O of the same cycle), and
-once more at each change of a joint's digital inputs or hardware enable: from the cycle thread's event of that change,
-stamped with the cycle whose process image showed it, so an edge is neither late by a publication period nor lost
-between two. Both are read at publication rates, never per cycle, and recorded when the node records.
+It is made by the crate at io_rate for every joint from one snapshot of the cycle (every joint's I/O of the same cycle;
+`akd_ros.node.publishing` hands the bytes over), and built here once more at each change of a joint's digital inputs
+or hardware enable: from the cycle thread's event of that change, stamped with the cycle whose process image showed
+it, so an edge is neither late by a publication period nor lost between two. Both are read at publication rates,
+never per cycle, and recorded when the node records.
 
 ~/set_outputs writes one joint's digital outputs (by name or by the AKD's number) and analog output set-point into the
 next cycle's process image, never by SDO. A request is checked whole first and refused with one line that names the
@@ -19,7 +20,7 @@ import math
 
 from akd_ros import _native
 from akd_ros.axis import AxisIo, CommandError
-from akd_ros.node.publishing import RecordedPublisher
+from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import AXIS_ERRORS, Session, namespace
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import JointSettings
@@ -62,10 +63,12 @@ def named_levels(joint: JointSettings, io: AxisIo) -> dict[str, str]:
 
 
 class Io:
-    """Each joint's ~/io publisher, its timers (io_rate and the changes) in `periodic`, and ~/set_outputs in
-    `requests`."""
+    """Each joint's ~/io publisher, fed at io_rate by `publishing`'s feed, the timer taking the changes in `periodic`,
+    and ~/set_outputs in `requests`."""
 
-    def __init__(self, transport: Transport, session: Session, periodic, requests, qos: Qos) -> None:
+    def __init__(
+        self, transport: Transport, session: Session, periodic, requests, qos: Qos, publishing: Publishing
+    ) -> None:
         self._session, self._clock = session, session.clock
         self._logger = transport.logger
         self._header = transport.message_class("std_msgs/msg/Header")
@@ -78,18 +81,9 @@ class Io:
             for j in session.joints
         }
         """Each joint's ~/io publisher, by its name."""
-        transport.timer(1.0 / session.settings.io_rate, self._publish_all, periodic)
+        publishing.publish_drive_io(self.publishers, 1.0 / session.settings.io_rate)
         transport.timer(_CHANGE_POLL_S, self._publish_changes, periodic)
         transport.service("akd_ros/srv/SetOutputs", "~/set_outputs", self._set_outputs, requests)
-
-    def _publish_all(self) -> None:
-        session = self._session
-        with session.lock:
-            if session.bus is None or not session.active:
-                return
-            ios = session.bus.io()
-        for joint, io in ios.items():
-            self.publishers[joint].publish(self.message(joint, io))
 
     def _publish_changes(self) -> None:
         session = self._session
@@ -102,7 +96,8 @@ class Io:
                 self.publishers[joint].publish(self.message(joint, io))
 
     def message(self, joint: str, io: AxisIo):
-        """The DriveIO of `joint` for `io`, stamped with its cycle's time, with the joint's names."""
+        """The DriveIO of `joint` for `io`, stamped with its cycle's time, with the joint's names, as the crate's feed
+        makes it at io_rate (tests/test_node_io.py holds the two equal)."""
         settings = self._joints[joint]
         inputs, outputs = list(io.inputs), list(io.outputs)
         # A name of an input or output the mapping does not carry is refused by the parameters' check.
