@@ -1,5 +1,6 @@
 """Builds akd_ros: the Python package, the Rust crate in native/ as akd_ros._native, and the
-package's ROS 2 messages and services (msg/, srv/; generated and compiled by rosidl_build.py).
+package's ROS 2 messages, services and actions (msg/, srv/, action/), and control_msgs'
+FollowJointTrajectory where control_msgs is not installed (generated and compiled by rosidl_build.py).
 
 The same file serves `pip install -e .` (the virtual environment made by scripts/setup.sh) and
 `colcon build` in a ROS 2 workspace (ament_python), where setuptools-rust and cargo come from apt
@@ -50,6 +51,7 @@ setup(
     packages=sorted(
         {
             *find_packages(include=[PACKAGE, f"{PACKAGE}.*"], exclude=rosidl_build.INTERFACE_PACKAGES),
+            # control_msgs where this build generates it (where it is not installed).
             *rosidl_build.interface_packages(),
         }
     ),

@@ -12,8 +12,13 @@ limits clamp or refuse as configured (`akd_ros.units.Limits`), and a command for
 refused. Each refusal is a `CommandError` naming the problem and what is allowed; nothing is sent then.
 
 Latch captures and faults arrive as events from the cycle thread, stamped with the cycle that saw them; `latch_events`
-and `fault_events` hand them out once each. The set-point handshake of profile position and homing, and the command
-time-out (`set_command_timeout`), run in the cycle thread too; `command_timeout_events` hands out each time-out once.
+and `fault_events` hand them out once each, and so does `input_events` each change of the drive's digital inputs. The
+set-point handshake of profile position and homing, and the command time-out (`set_command_timeout`), run in the cycle
+thread too; `command_timeout_events` hands out each time-out once.
+
+The drive's own I/O (`io`: digital inputs with the limit and home switches, the hardware enable as the drive shows it,
+the analog input, the outputs as last sent) is read from the cycle's snapshot where the mapping carries it;
+`set_outputs` writes the digital outputs and the analog output set-point into the next cycle's process image.
 
 Distributed clocks (`dc`, `dc_shift`) are set for the whole line by its `Bus`; `Axis(link, ...)` hands them to its bus
 of one, as it does `period`.
@@ -23,30 +28,47 @@ from __future__ import annotations
 
 import collections
 import contextlib
+import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, replace
 
 from akd_ros import _native
 from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
-from akd_ros.units import Limits, Units, unwrap_position
+from akd_ros.units import Limits, Units, scale_mismatch, unwrap_position
 
 MODE_NAMES = {code: name for name, code in MODES.items()}
 
 DEFAULT_RX, DEFAULT_TX = _native.DEFAULT_MAPPING
 """The mapping an Axis takes unless given one (`_native.DEFAULT_MAPPING`): everything every mode needs."""
+ANALOG_VOLTS_PER_COUNT = _native.ANALOG_VOLTS_PER_COUNT
+"""Volts per count of the analog input 0x3470:04 and output 0x3470:03 unless a drive is given its own: ±10 V over the
+16-bit range, assumed (the manuals give no scaling)."""
+DIGITAL_OUTPUTS, ANALOG_OUTPUT = (0x60FE, 1), (0x3470, 3)
+"""The objects of the drive's digital outputs and analog output set-point."""
 
+INPUT_EVENTS_KEPT = 4096
+"""Changes of the digital inputs an Axis keeps until `input_events` takes them; older ones are dropped."""
 # Velocity below which an enabled axis counts as standing still for a mode change, in counts/s (about 0.4 °/s at
 # 2^20 counts per revolution).
 STANDSTILL_COUNTS_PER_S = 1000
+
+
+def io_mappings(mode: str, needs: str) -> str:
+    """The mappings, as the node's `mapping` parameter names them, that carry the command of `mode` and `needs`
+    ("digital_inputs", "analog_input", "digital_outputs", "analog_output"), those with all of the I/O first: for a
+    refusal's message."""
+    found = [name for name, _ in _native.io_mappings(mode, [needs])]
+    return ", ".join(found) if found else "a flexible mapping (mapping.rx, mapping.tx) with it"
 
 
 @dataclass(frozen=True)
 class DriveConfig:
     """One drive of a `Bus`: where it is (`slave`, its position on the line, or `alias`, its station alias: one of
     them), its name (``"slave_<position>"`` unless given), its mode of operation at the start, its `Units` and
-    `Limits`, its process-data mapping (`DEFAULT_RX`, `DEFAULT_TX` unless given) and its IP address for EoE
-    (``"A.B.C.D/N"``, set by Set IP Parameter in PreOp; None for none)."""
+    `Limits`, its process-data mapping (`DEFAULT_RX`, `DEFAULT_TX` unless given), its IP address for EoE
+    (``"A.B.C.D/N"``, set by Set IP Parameter in PreOp; None for none) and the volts per count of its analog input
+    and output (`ANALOG_VOLTS_PER_COUNT` unless given)."""
 
     slave: int | None = None
     alias: int | None = None
@@ -56,6 +78,7 @@ class DriveConfig:
     limits: Limits | None = None
     mapping: tuple[object, object] | None = None
     eoe_ip: str | None = None
+    analog_scale: float | None = None
 
     def attach(self, bus: Bus, slave: int) -> Axis:
         """The Axis of this drive on `bus`, at position `slave`; the Bus calls it once the line is in Op."""
@@ -117,6 +140,33 @@ class AxisState:
     reason: str | None
     """Why a request is stuck or lost, from the statusword."""
     digital_inputs: int | None = None
+
+
+@dataclass(frozen=True)
+class AxisIo:
+    """One cycle's view of the drive's own I/O, where its mapping carries it (else empty, or None)."""
+
+    cycle: int
+    """The cycle it was taken in (from 1); for an input event, the cycle whose inputs showed the change."""
+    time_ns: int
+    """That cycle's wake-up time on the monotonic clock."""
+    fresh: bool
+    digital_inputs: int | None
+    """0x60FD as the drive reports it."""
+    switches: dict[str, bool]
+    """0x60FD bits 0..3 by name (negative_limit, positive_limit, home_switch, interlock): whether each is active."""
+    inputs: tuple[bool, ...]
+    """The AKD's digital inputs 1..7, input 1 first."""
+    hardware_enable: str
+    """"high", "low" or "unknown", as the statusword shows it."""
+    analog_input: float | None
+    """V."""
+    digital_outputs: int | None
+    """0x60FE:01 as last sent."""
+    outputs: tuple[bool, ...]
+    """The AKD's digital outputs 1..2 as last sent, output 1 first."""
+    analog_output: float | None
+    """V, as last sent."""
 
 
 @dataclass(frozen=True)
@@ -270,7 +320,20 @@ class Axis:
         self.limits = drive.limits or Limits()
         self.simulator = bus.simulator
         """For the built-in virtual AKD: its `Simulator` (fault injection, hardware enable, input toggles)."""
-        self._outputs = {(index, subindex) for index, subindex, _, _ in bus.cycle.mapping(slave)["outputs"]}
+        mapping = bus.cycle.mapping(slave)
+        self._outputs = {(index, subindex) for index, subindex, _, _ in mapping["outputs"]}
+        self._output_offsets = {(index, sub): (offset, bits // 8) for index, sub, bits, offset in mapping["outputs"]}
+        self.analog_scale = drive.analog_scale or ANALOG_VOLTS_PER_COUNT
+        """Volts per count of the analog input and output."""
+        # Bounded: an input that chatters while nobody takes its changes must not fill the memory; the oldest go.
+        self._input_events: collections.deque[AxisIo] = collections.deque(maxlen=INPUT_EVENTS_KEPT)
+        mapped = self._outputs | {(index, subindex) for index, subindex, _, _ in mapping["inputs"]}
+        self.drive_scaling: dict | None = bus.scalings.get(slave)
+        """The drive's position scaling, read at the start (`_native.Master.position_scaling`); None for a drive
+        without the DS402 scaling objects."""
+        mismatch = scale_mismatch(self.units.counts_per_revolution, self.drive_scaling, mapped)
+        if mismatch is not None:
+            raise CommandError(f"{self.name} (drive {slave}): {mismatch}")
         self._mode = drive.mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
@@ -586,6 +649,74 @@ class Axis:
             digital_inputs=inputs.digital_inputs,
         )
 
+    def io(self, io=None) -> AxisIo:
+        """The drive's own I/O in the last cycle's snapshot (analog values in V); from `io` (this drive's
+        `_native.DriveIo`) where given, as `Bus.io` reads every drive's from one cycle."""
+        if io is None:
+            io = self._running().drives_io([self.slave])[0]
+
+        def volts(counts: int | None) -> float | None:
+            return None if counts is None else counts * self.analog_scale
+
+        return AxisIo(
+            cycle=io.cycle,
+            time_ns=io.time_ns,
+            fresh=io.fresh,
+            digital_inputs=io.digital_inputs,
+            switches=dict(io.switches or ()),
+            inputs=tuple(io.inputs or ()),
+            hardware_enable=io.hardware_enable,
+            analog_input=volts(io.analog_input),
+            digital_outputs=io.digital_outputs,
+            outputs=tuple(io.outputs or ()),
+            analog_output=volts(io.analog_output),
+        )
+
+    def check_outputs(self, levels: dict[int, bool] | None = None, analog_output: float | None = None):
+        """The writes `set_outputs` makes for digital outputs `levels` (output number 1..2: level) and the analog
+        output set-point `analog_output` (V): (object, bytes) pairs; nothing is sent. CommandError saying why not: a
+        mapping without the object (naming mappings with it), an output the AKD does not have, a voltage that is NaN
+        or out of range."""
+        cycle = self._running()
+        writes = []
+        if levels:
+            if DIGITAL_OUTPUTS not in self._outputs:
+                raise CommandError(
+                    f"outputs refused: the mapping of {self.name} carries no digital outputs (0x60FE:01); mappings "
+                    f"that do with mode {self._mode}: {io_mappings(self._mode, 'digital_outputs')}"
+                )
+            offset, size = self._output_offsets[DIGITAL_OUTPUTS]
+            word = int.from_bytes(cycle.outputs(self.slave)[offset : offset + size], "little")
+            try:
+                word = _native.with_digital_outputs(word, [(int(n), bool(high)) for n, high in levels.items()])
+            except (TypeError, ValueError) as e:
+                raise CommandError(f"outputs refused: {e}") from None
+            writes.append((DIGITAL_OUTPUTS, _native.encode_value(*DIGITAL_OUTPUTS, word)))
+        if analog_output is not None:
+            if ANALOG_OUTPUT not in self._outputs:
+                raise CommandError(
+                    f"analog output refused: the mapping of {self.name} carries no analog output (0x3470:03); mappings "
+                    f"that do with mode {self._mode}: {io_mappings(self._mode, 'analog_output')}"
+                )
+            highest = 32767 * self.analog_scale
+            if not (isinstance(analog_output, int | float) and math.isfinite(analog_output)) or abs(
+                analog_output
+            ) > highest * (1 + 1e-12):
+                raise CommandError(
+                    f"analog output refused: {analog_output!r} V; allowed a finite voltage within ±{highest:.4g} V"
+                )
+            counts = max(-32767, min(32767, round(analog_output / self.analog_scale)))
+            writes.append((ANALOG_OUTPUT, _native.encode_value(*ANALOG_OUTPUT, counts)))
+        return writes
+
+    def set_outputs(self, levels: dict[int, bool] | None = None, analog_output: float | None = None) -> None:
+        """Sets digital outputs `levels` (output number 1..2: level) and the analog output set-point `analog_output`
+        (V) in the next cycle's process image; the others stay as they are, and a held target stays held. Checked
+        first (`check_outputs`): a refusal changes nothing."""
+        cycle = self._running()
+        for (index, subindex), data in self.check_outputs(levels, analog_output):
+            cycle.set_object(self.slave, index, subindex, data)
+
     def recovery(self) -> dict:
         """Where the recovery of this drive stands (`_native.Cycle.recovery_status`): "recovering" while it is lost and
         being brought back, "attempts", "recoveries" and "last_error"."""
@@ -598,7 +729,18 @@ class Axis:
     def _poll(self) -> None:
         if self._closed or self._bus.closed:
             return
-        for e in self._bus.events_of(self.slave):
+        events = list(self._bus.events_of(self.slave))
+        inputs = [e for e in events if e["kind"] == "inputs"]
+        if inputs:
+            # The outputs and the analog input of a change are the last snapshot's: only 0x60FD is the event's.
+            now = self._running().drives_io([self.slave])[0]
+            for e in inputs:
+                self._input_events.append(
+                    self.io(now.with_inputs(e["cycle"], e["time_ns"], e["digital_inputs"], e["statusword"]))
+                )
+        for e in events:
+            if e["kind"] == "inputs":
+                continue
             if e["kind"] == "latch":
                 counts = e["position"]
                 self._latches.append(
@@ -650,6 +792,14 @@ class Axis:
         self._poll()
         while self._faults:
             yield self._faults.popleft()
+
+    def input_events(self) -> Iterator[AxisIo]:
+        """Each change of the drive's digital inputs (0x60FD) or hardware enable since the last call, oldest first, each
+        handed out once: the I/O of the cycle whose inputs showed it (its outputs and analog input those of the
+        snapshot when it was taken). The last INPUT_EVENTS_KEPT are kept between calls."""
+        self._poll()
+        while self._input_events:
+            yield self._input_events.popleft()
 
     def command_timeout_events(self) -> Iterator[CommandTimeoutEvent]:
         """The command time-outs since the last call, oldest first, each handed out once."""

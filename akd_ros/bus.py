@@ -70,9 +70,11 @@ def _no_samples() -> dict[str, list]:
 
 
 def check_mode(mode: str) -> None:
-    """CommandError unless `mode` is one of the AKD's modes."""
+    """CommandError unless `mode` is one of the AKD's modes; for CiA 402's cyclic synchronous velocity and torque, it
+    says why the AKD has none and which of its modes does that."""
     if mode not in MODES:
-        raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}")
+        why = _native.MODES_NOT_OFFERED.get(mode)
+        raise CommandError(f"mode {mode!r} is not one of {', '.join(MODES)}" + (f": {why}" if why else ""))
 
 
 def _picked(drives: Sequence, master, slaves: list[dict]) -> list[int]:
@@ -164,6 +166,9 @@ class Bus:
             self._master.request_state("preop")
             self.eoe_drives: dict[bytes, int] = {}
             """The MAC of each drive given an `eoe_ip`, with its position: where an `EoeBridge` sends frames."""
+            self.scalings: dict[int, dict | None] = {}
+            """Each drive's position scaling as its DS402 scaling objects give it (`_native.Master.position_scaling`,
+            read in PreOp), by position; its Axis checks its units against it."""
             for drive, position in zip(drives, positions, strict=True):
                 if drive.eoe_ip is not None:
                     address = ipaddress.IPv4Interface(drive.eoe_ip)
@@ -171,6 +176,7 @@ class Bus:
                     self.eoe_drives[bytes.fromhex(mac.replace(":", ""))] = position
                 rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
                 self._master.configure_pdo(position, rx, tx)
+                self.scalings[position] = self._master.position_scaling(position)
                 self._master.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[drive.mode]))
             # One clock set-up for the line: every drive with DC follows the same SYNC0 (or each its SM2 event).
             if _native.dc_by_default(link) if dc is None else dc:
@@ -344,6 +350,8 @@ class Bus:
         times: Sequence[float],
         points: Sequence[Sequence[tuple[float, float | None, float | None]]],
         start_ns: int | None = None,
+        tolerances: Sequence[tuple[float, float, float, float, float]] | None = None,
+        goal_time: float = 0.0,
     ) -> int:
         """Plays a trajectory in the cycle thread: axis `joints[j]` through `points[k][j]` = (position, velocity or
         None, acceleration or None) in SI units at `times[k]` seconds from the start (strictly increasing, the first
@@ -351,7 +359,10 @@ class Bus:
         velocities are, linear otherwise. Each axis must be enabled in interpolated or cyclic synchronous position.
         It takes over from the trajectory in force without a step. CommandError, before anything moves, for an
         unknown joint, a point past an axis's limits (always refused, whatever the policy), NaN or bad times.
-        Returns its id (see `cycle.trajectory_status` and `trajectory_events`)."""
+        With `tolerances` (per joint: path position, path velocity, goal position, goal velocity in SI, inf where not
+        judged, and the stop deceleration in SI/s²) and `goal_time` (s), the cycle thread judges it as
+        FollowJointTrajectory does and `cycle.stop_trajectory` brakes it. Returns its id (see
+        `cycle.trajectory_status` and `trajectory_events`)."""
         axes = [self[name] for name in joints] if all(n in self.names for n in joints) else None
         if axes is None:
             unknown = [n for n in joints if n not in self.names]
@@ -370,9 +381,22 @@ class Bus:
             if len(point) != len(axes):
                 raise CommandError(f"trajectory refused: point {k} has {len(point)} values for {len(axes)} joints")
             knots.append([axis.trajectory_knot(*knot, point=k) for axis, knot in zip(axes, point, strict=True)])
+        counted = None
+        if tolerances is not None:
+            # Magnitudes: counts per SI unit, whatever the direction.
+            counted = [
+                tuple(abs(value / axis.units.si_per_count) for value in tolerance)
+                for axis, tolerance in zip(axes, tolerances, strict=True)
+            ]
         try:
             return self.cycle.play_trajectory(
-                [a.slave for a in axes], times_ns, knots, start_ns, [a.position_limits_counts() for a in axes]
+                [a.slave for a in axes],
+                times_ns,
+                knots,
+                start_ns,
+                [a.position_limits_counts() for a in axes],
+                counted,
+                round(goal_time * 1e9),
             )
         except (_native.ConfigError, OverflowError) as e:
             # The crate's refusal says "trajectory refused, nothing moved: " and why.
@@ -408,6 +432,11 @@ class Bus:
         """Every axis's state (`Axis.state`) by name, the drives' values all of the same cycle."""
         inputs = self.cycle.drives_inputs([axis.slave for axis in self.axes])
         return {axis.name: axis.state(i) for axis, i in zip(self.axes, inputs, strict=True)}
+
+    def io(self) -> dict:
+        """Every axis's own I/O (`Axis.io`) by name, the drives' values all of the same cycle."""
+        ios = self.cycle.drives_io([axis.slave for axis in self.axes])
+        return {axis.name: axis.io(i) for axis, i in zip(self.axes, ios, strict=True)}
 
     def stats(self) -> dict:
         """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped and per-cycle records dropped

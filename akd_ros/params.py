@@ -15,12 +15,20 @@ number where a real number is expected (``gear_ratio: 2``) is taken as that real
 PDO mapping (`mapping`):
 
 - ``default``: the Axis's own flexible mapping, which carries everything every mode needs;
+- ``io``: akd_ros's flexible mapping with the drive's own I/O (digital and analog inputs and outputs), which carries
+  every mode's command but interpolated position's (docs/io.md);
 - ``RX/TX``: one of the AKD's fixed mappings each way, e.g. ``0x1724/0x1B26`` (cyclic synchronous position);
 - ``flexible``: the PDOs given by `mapping.rx` and `mapping.tx`, one string per PDO, its entries separated by
   spaces as ``INDEX:SUB/BITS``, e.g. ``["0x6040:00/16 0x60C1:01/32", "0x60FF:00/32"]``.
 
 Every mapping is tried on a virtual AKD before it is accepted; it refuses what the real drive refuses (unknown
-fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths).
+fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths). Each joint's settings say which of the
+drive's I/O its mapping carries (`JointSettings.io_carried`), and names given to inputs or outputs it does not carry
+are refused, naming the mappings that would.
+
+Names for a joint's digital inputs and outputs are parameters of their own, as a map in the file:
+``io: {inputs: {part_present: 3}, outputs: {brake_release: 1}}`` gives io.inputs.part_present and
+io.outputs.brake_release (`IO_NAME_SPECS`); top-level names apply to every joint, a joint's block adds its own.
 """
 
 from __future__ import annotations
@@ -31,11 +39,13 @@ import itertools
 import math
 import re
 import socket
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
 import yaml
 
-from akd_ros.axis import MODES, DriveConfig
+from akd_ros import _native
+from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES, DriveConfig, io_mappings
 from akd_ros.bus import FAULT_REACTIONS, CommandError, check
 from akd_ros.units import Limits, Units
 
@@ -78,6 +88,8 @@ class Spec:
     choices: tuple | None = None
     per_joint: bool = False
     """Whether each joint of `joints` has it in its block, as joints.<name>.<parameter>."""
+    why_not: Mapping[str, str] | None = None
+    """For values outside `choices` that a user may expect, why they are not among them."""
 
     def of_joint(self, joint: str, default: object) -> Spec:
         """This parameter in the block of `joint`, with `default` (the top-level value)."""
@@ -116,7 +128,10 @@ class Spec:
         if not typed:
             raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
         if self.choices is not None and value not in self.choices:
-            raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
+            why = (self.why_not or {}).get(value)
+            raise ParameterError(
+                f"parameter {self.name} must be {self.allowed()}, got {value!r}" + (f": {why}" if why else "")
+            )
         if self.low is not None and not (self.low <= value <= self.high):
             raise ParameterError(f"parameter {self.name} must be {self.allowed()}, got {value!r}")
         return value
@@ -127,7 +142,11 @@ SCHEMA: tuple[Spec, ...] = (
     Spec(
         "link",
         "sim",
-        "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), 'udp://HOST:PORT' "
+        "The bus: 'sim' (the built-in virtual AKD), 'sim:N' (N of them), either with options joined by '&' after "
+        "'?': 'missed=late' (F125 after more than seven frames missed, judged by time as the real drive: the "
+        "default), 'missed=warn' (judged so, but a would-be F125 is counted and warned of, not raised) or "
+        "'missed=lost' (only frames lost on the line count), 'pace=real' (AL requests and mailbox answered as "
+        "slowly as the real drive: the default) or 'pace=immediate'; 'udp://HOST:PORT' "
         "(akd-sim --udp), or the name of the network interface the drive is wired to (needs CAP_NET_RAW), "
         "optionally with '?busy_poll=US' (0..=1000 µs) to busy-poll for each returning frame.",
     ),
@@ -137,7 +156,8 @@ SCHEMA: tuple[Spec, ...] = (
         "Names of the joints on the bus, each with its own block joints.<name>.* of the joint parameters (slave, "
         "mode, mapping, units, limits, latches, fault reset, command time-out), whose defaults are the top-level "
         "values; its topics and services go under ~/<name>/. Empty: one joint, joint_name, with the top-level joint "
-        "parameters and its topics and services under ~/.",
+        "parameters and its topics and services under ~/. A name is letters, digits and single underscores, a "
+        "letter first.",
     ),
     Spec(
         "fault_reaction",
@@ -174,7 +194,8 @@ SCHEMA: tuple[Spec, ...] = (
         "dc",
         "auto",
         "Distributed clocks. 'on': SYNC0 at the cycle time and FBUS.PARAM02 = 1, the drive's PLL follows SYNC0 "
-        "(as TwinCAT runs the AKD), the clocks' drift compensated every cycle; 'off': SYNC0 off, the drive follows "
+        "(as TwinCAT runs the AKD; FBUS.PARAM02 is written only where the drive's SDO information names the object "
+        "so), the clocks' drift compensated every cycle; 'off': SYNC0 off, the drive follows "
         "each frame's SM2 event; 'auto': on for a network interface, off for 'sim', 'sim:N' and 'udp://', where a "
         "frame's timing is the host's scheduling and the socket's, not the wire's.",
         choices=tuple(DC_CHOICES),
@@ -193,12 +214,13 @@ SCHEMA: tuple[Spec, ...] = (
         "Mode of operation at start-up (0x6060); ~/set_mode changes it.",
         choices=tuple(MODES),
         per_joint=True,
+        why_not=_native.MODES_NOT_OFFERED,
     ),
     Spec(
         "mapping",
         "default",
-        "PDO mapping: 'default', fixed mappings 'RX/TX' such as '0x1724/0x1B26', or "
-        "'flexible' (then mapping.rx and mapping.tx).",
+        "PDO mapping: 'default', 'io' (the drive's own I/O with every mode's command but interpolated position's), "
+        "fixed mappings 'RX/TX' such as '0x1724/0x1B26', or 'flexible' (then mapping.rx and mapping.tx).",
         per_joint=True,
     ),
     Spec(
@@ -260,6 +282,23 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("status_rate", 10.0, "Rate of ~/status in Hz.", 0.1, 100.0),
     Spec("diagnostics_rate", 1.0, "Rate of /diagnostics in Hz.", 0.1, 10.0),
     Spec(
+        "io_rate",
+        10.0,
+        "Rate in Hz at which each joint's ~/io (akd_ros/DriveIO: its drive's own I/O) is published, besides once at "
+        "each change of its digital inputs or hardware enable, stamped with the cycle that showed it.",
+        0.1,
+        1000.0,
+    ),
+    Spec(
+        "io.analog_scale",
+        ANALOG_VOLTS_PER_COUNT,
+        "Volts per count of the drive's analog input 0x3470:04 and analog output 0x3470:03. The manuals give no "
+        "scaling; the default assumes ±10 V over the 16-bit range: check it against the drive (WorkBench).",
+        1e-9,
+        1.0,
+        per_joint=True,
+    ),
+    Spec(
         "latch.arm",
         [],
         "Latches armed at activate, each 'CHANNEL/EDGE' with channel 1 or 2 and edge rising "
@@ -292,6 +331,100 @@ SCHEMA: tuple[Spec, ...] = (
         per_joint=True,
     ),
     Spec(
+        "homing.method",
+        "drive",
+        "How the joint is referenced. 'drive': ~/home runs the homing the drive is set up for (on the AKD its HOME.* "
+        "parameters, set in WorkBench: the EtherCAT manual names no CoE object for them, so the node writes none), "
+        "in the cycle thread; the joint is homed once the drive reports homing attained, until its drive is "
+        "power-cycled or lost. 'none': an absolute encoder, or an axis referenced otherwise; homed from the start.",
+        choices=("drive", "none"),
+        per_joint=True,
+    ),
+    Spec(
+        "homing.required",
+        False,
+        "Whether the joint must be homed before it moves: position commands, ~/joint_commands naming it and "
+        "trajectories through it are refused, naming the joint, while it is not homed. Velocity and torque commands "
+        "are not held back (homing itself may need a jog to leave a limit switch).",
+        per_joint=True,
+    ),
+    Spec(
+        "homing.timeout",
+        30.0,
+        "Seconds a homing may take from its start to homing attained; past them the drive is halted and the joint "
+        "reported timed out.",
+        0.1,
+        3600.0,
+        per_joint=True,
+    ),
+    Spec(
+        "homing.sequence",
+        "together",
+        "How ~/home homes several joints: 'together' starts them all at once; 'one_by_one' homes them in the order "
+        "of the goal (of joints when it names none), each after the last attained, and stops at the first that fails.",
+        choices=("together", "one_by_one"),
+    ),
+    Spec(
+        "constraints.trajectory",
+        0.0,
+        "~/follow_joint_trajectory's default path tolerance for the joint, rad (m): while a goal runs, the cycle "
+        "thread compares the actual position every cycle with the set-point of the cycle before; a larger error stops "
+        "the joints (braking at trajectory.stop_deceleration) and ends the goal PATH_TOLERANCE_VIOLATED. A goal's "
+        "path_tolerance overrides it (as joint_trajectory_controller's constraints.<joint>.trajectory). 0: not judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.goal",
+        0.0,
+        "~/follow_joint_trajectory's default goal tolerance for the joint, rad (m): from the last point's time on, the "
+        "goal succeeds once every joint's actual position is within it of the last point (and within "
+        "constraints.stopped_velocity_tolerance of rest); past constraints.goal_time it ends GOAL_TOLERANCE_VIOLATED. "
+        "A goal's goal_tolerance overrides it (as joint_trajectory_controller's constraints.<joint>.goal). 0: not "
+        "judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.stopped_velocity_tolerance",
+        0.0,
+        "~/follow_joint_trajectory's default goal velocity tolerance for the joint, rad/s (m/s): how fast it may "
+        "still move when the goal is judged (as joint_trajectory_controller's constraints.stopped_velocity_tolerance). "
+        "0: not judged.",
+        0.0,
+        1e6,
+        per_joint=True,
+    ),
+    Spec(
+        "constraints.goal_time",
+        1.0,
+        "~/follow_joint_trajectory's default goal time tolerance, s: how long past the last point's time the joints "
+        "may take to come within their goal tolerances before the goal ends GOAL_TOLERANCE_VIOLATED. A goal's "
+        "goal_time_tolerance overrides it where not 0. 0: judged at the last point's time, without waiting "
+        "(joint_trajectory_controller waits without end there instead; a driver should not).",
+        0.0,
+        3600.0,
+    ),
+    Spec(
+        "trajectory.stop_deceleration",
+        10.0,
+        "Deceleration, rad/s² (m/s²), at which a ~/follow_joint_trajectory goal that is canceled or strays past its "
+        "path tolerance brings the joint from its set-point in force to a standstill, in the cycle thread (the "
+        "velocity falls linearly to 0, never a jump). Set it within what the axis can do.",
+        1e-3,
+        1e9,
+        per_joint=True,
+    ),
+    Spec(
+        "follow_joint_trajectory.feedback_rate",
+        20.0,
+        "Rate in Hz of ~/follow_joint_trajectory's feedback (desired, actual and error of each joint of the goal).",
+        0.1,
+        1000.0,
+    ),
+    Spec(
         "eoe.ip",
         "",
         "The drive's IP address and prefix (A.B.C.D/N), given it by EoE Set IP Parameter at configure so that its "
@@ -303,12 +436,27 @@ SCHEMA: tuple[Spec, ...] = (
         "",
         "Name of a TAP interface (up to 15 characters, e.g. akd-eoe0) the node opens at configure and bridges to the "
         "EoE of every joint with an eoe.ip, so that the machine reaches the drives' addresses (ping, WorkBench); "
-        "needs CAP_NET_ADMIN, without which the node warns and runs without it. '' for none.",
+        "needs CAP_NET_ADMIN, without which the node warns and runs without it; closed at cleanup and shutdown. A "
+        "name without '/', ':' or blanks, '%d' in it numbered by the kernel; needs at least one joint with eoe.ip. "
+        "'' for none.",
     ),
     Spec("eoe.host", "", "The TAP interface's own address and prefix (A.B.C.D/N), '' for none."),
-    Spec("rt.priority", 0, "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler.", 0, 99),
+    Spec(
+        "rt.priority",
+        0,
+        "SCHED_FIFO priority of the cycle thread, 1..99; 0 for the normal scheduler. Where the system does not permit "
+        "it (no CAP_SYS_NICE, an RLIMIT_RTPRIO below it) the node says so in one warning and cycles on the normal "
+        "scheduler.",
+        0,
+        99,
+    ),
     Spec("rt.cpu", -1, "CPU the cycle thread is bound to; -1 for any.", -1, 1023),
-    Spec("rt.lock_memory", False, "Lock the process's memory (mlockall) so the cycle never waits on paging."),
+    Spec(
+        "rt.lock_memory",
+        False,
+        "Lock the process's memory (mlockall) so the cycle never waits on paging; where refused (no CAP_IPC_LOCK or "
+        "RLIMIT_MEMLOCK), the node warns and runs without it.",
+    ),
     Spec(
         "rt.cpu_latency_us",
         -1,
@@ -369,9 +517,29 @@ SCHEMA: tuple[Spec, ...] = (
         "default's or the file's; empty to keep those.",
     ),
 )
-"""Every parameter of akd_node, in the order the README's table lists them."""
+"""Every parameter of akd_node; the documentation's reference of parameters is generated from it, in this order."""
 SPECS = {spec.name: spec for spec in SCHEMA}
 """SCHEMA by parameter name."""
+IO_NAME_SPECS: tuple[Spec, ...] = (
+    Spec(
+        "io.inputs.<name>",
+        1,
+        "Your name for one of the drive's digital inputs: its number, 1..7 as the AKD numbers them; the name is what "
+        "~/io, /diagnostics and the bags show. Per joint (joints.<joint>.io.inputs.<name>) or for every joint.",
+        1,
+        7,
+    ),
+    Spec(
+        "io.outputs.<name>",
+        1,
+        "Your name for one of the drive's digital outputs: its number, 1..2 as the AKD numbers them; ~/set_outputs "
+        "takes the name. Per joint (joints.<joint>.io.outputs.<name>) or for every joint.",
+        1,
+        2,
+    ),
+)
+"""The families of parameters that name a joint's inputs and outputs: each name given is a parameter of its own."""
+_IO_NAME = re.compile(r"(?:joints\.(?P<joint>[^.]+)\.)?io\.(?P<kind>inputs|outputs)\.(?P<name>[^.]+)")
 
 
 @dataclass(frozen=True)
@@ -393,8 +561,30 @@ class JointSettings:
     fault_reset: str
     command_timeout: float
     command_timeout_policy: str
+    homing_method: str = "drive"
+    """'drive' (homed by ~/home) or 'none' (homed from the start)."""
+    homing_required: bool = False
+    """Whether motion commands are refused until the joint is homed."""
+    homing_timeout: float = 30.0
+    path_tolerance: float = 0.0
+    """constraints.trajectory: the default path position tolerance, SI (0: not judged)."""
+    goal_tolerance: float = 0.0
+    """constraints.goal: the default goal position tolerance, SI (0: not judged)."""
+    stopped_velocity_tolerance: float = 0.0
+    """constraints.stopped_velocity_tolerance: the default goal velocity tolerance, SI/s (0: not judged)."""
+    stop_deceleration: float = 10.0
+    """trajectory.stop_deceleration: how a stopped FollowJointTrajectory goal decelerates, SI/s²."""
     eoe_ip: str | None = None
     """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
+    io_carried: dict[str, bool] | None = None
+    """What the mapping carries of the drive's I/O (`_native.mapping_io`): digital_inputs, analog_input,
+    digital_outputs, analog_output."""
+    io_inputs: dict[str, int] | None = None
+    """The names given to digital inputs, with their numbers."""
+    io_outputs: dict[str, int] | None = None
+    """The names given to digital outputs, with their numbers."""
+    analog_scale: float = ANALOG_VOLTS_PER_COUNT
+    """Volts per count of the analog input and output."""
 
     def drive(self) -> DriveConfig:
         """The joint's drive as a Bus takes it."""
@@ -407,7 +597,13 @@ class JointSettings:
             limits=self.limits,
             mapping=self.mapping,
             eoe_ip=self.eoe_ip,
+            analog_scale=self.analog_scale,
         )
+
+    def describe_io(self) -> str:
+        """What the joint's mapping carries of its drive's I/O, in words, for the log."""
+        carried = [name.replace("_", " ") for name, has in (self.io_carried or {}).items() if has]
+        return ", ".join(carried) if carried else "none of the drive's I/O"
 
 
 @dataclass(frozen=True)
@@ -425,8 +621,15 @@ class Settings:
     joint_namespaces: bool
     """Whether each joint's topics and services go under ~/<joint>/ (joints given) rather than ~/ (one joint)."""
     joint_states_rate: float
+    homing_sequence: str
+    """How ~/home homes several joints: 'together' or 'one_by_one'."""
+    goal_time: float
+    """constraints.goal_time: the default goal time tolerance of ~/follow_joint_trajectory, s."""
+    feedback_rate: float
+    """follow_joint_trajectory.feedback_rate, Hz."""
     status_rate: float
     diagnostics_rate: float
+    io_rate: float
     rt_priority: int | None
     rt_cpu: int | None
     rt_lock_memory: bool
@@ -446,6 +649,20 @@ class Settings:
     """The TAP interface bridged to the joints' EoE, None for none."""
     eoe_host: str | None = None
     """The TAP interface's address (A.B.C.D/N), None for none."""
+
+    def bus_options(self) -> dict[str, object]:
+        """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
+        return {
+            "period": self.cycle_time,
+            "priority": self.rt_priority,
+            "cpu": self.rt_cpu,
+            "lock_memory": self.rt_lock_memory,
+            "cpu_latency_us": self.rt_cpu_latency_us,
+            "pipelined": self.rt_pipelined,
+            "fault_reaction": self.fault_reaction,
+            "dc": self.dc,
+            "dc_shift": self.dc_shift,
+        }
 
 
 def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
@@ -489,6 +706,35 @@ def refuse_single_joint_parameters(named: dict[str, object], joints: list[str]) 
         )
 
 
+def io_name_specs(named: dict[str, object], joints: list[str]) -> list[Spec]:
+    """The parameter of each input or output name among the `named` parameters (io.inputs.<name>,
+    io.outputs.<name>, and the same in the block of a joint of `joints`), to check and declare as any other; a name
+    that is not a ROS name token, or a block of no joint, is left out (and so refused as unknown)."""
+    family = {"inputs": IO_NAME_SPECS[0], "outputs": IO_NAME_SPECS[1]}
+    specs = []
+    for name in named:
+        found = _IO_NAME.fullmatch(name)
+        if found is None or not JOINT_NAME.fullmatch(found["name"]):
+            continue
+        if found["joint"] is not None and found["joint"] not in joints:
+            continue
+        template = family[found["kind"]]
+        specs.append(replace(template, name=name, description=template.description.replace("<name>", found["name"])))
+    return specs
+
+
+def io_names(values: dict[str, object], joint: str | None, kind: str) -> dict[str, int]:
+    """The names `values` gives the joint's inputs or outputs (`kind`): every joint's (io.<kind>.<name>) and, for
+    `joint`, its block's, which win; each checked (a number the AKD has)."""
+    specs = io_name_specs(values, [] if joint is None else [joint])
+    names = {}
+    for prefix in ("", f"joints.{joint}.") if joint is not None else ("",):
+        for spec in specs:
+            if spec.name.startswith(f"{prefix}io.{kind}."):
+                names[spec.name.rsplit(".", 1)[1]] = spec.check(values[spec.name])
+    return names
+
+
 def refuse_unknown(unknown: list[str], joints: list[str]) -> None:
     """Refuses the `unknown` parameter names, if any, naming what the node has with `joints`."""
     if unknown:
@@ -506,6 +752,7 @@ def check_names(named: dict[str, object]) -> None:
     joints = check_joint_names(SPECS["joints"].check(named.get("joints", [])))
     refuse_single_joint_parameters(named, joints)
     blocks = {spec.name for spec in joint_specs(joints, {spec.name: spec.default for spec in SCHEMA})}
+    blocks |= {spec.name for spec in io_name_specs(named, joints)}
     refuse_unknown(
         [n for n in named if n not in SPECS and n not in blocks and not n.startswith("qos_overrides.")], joints
     )
@@ -650,12 +897,16 @@ def settings(values: dict[str, object]) -> Settings:
             blocks[spec.name] = spec.check(values.get(spec.name, spec.default))
         joints = tuple(
             joint_settings(
-                name, f"joints.{name}.", {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA if s.per_joint}
+                name,
+                f"joints.{name}.",
+                {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA if s.per_joint},
+                (io_names(values, name, "inputs"), io_names(values, name, "outputs")),
             )
             for name in names
         )
     else:
-        joints = (joint_settings(top["joint_name"], "", top),)
+        io = (io_names(values, None, "inputs"), io_names(values, None, "outputs"))
+        joints = (joint_settings(top["joint_name"], "", top, io),)
     try:
         check([j.drive() for j in joints], top["fault_reaction"], top["cycle_time"], top["dc_shift"])
     except CommandError as e:
@@ -670,8 +921,12 @@ def settings(values: dict[str, object]) -> Settings:
         joints=joints,
         joint_namespaces=bool(names),
         joint_states_rate=top["joint_states_rate"],
+        homing_sequence=top["homing.sequence"],
+        goal_time=top["constraints.goal_time"],
+        feedback_rate=top["follow_joint_trajectory.feedback_rate"],
         status_rate=top["status_rate"],
         diagnostics_rate=top["diagnostics_rate"],
+        io_rate=top["io_rate"],
         rt_priority=top["rt.priority"] or None,
         rt_cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
         rt_lock_memory=top["rt.lock_memory"],
@@ -706,12 +961,27 @@ def transport_of(given: dict[str, object]) -> str:
     return "rclpy" if found else "zenoh"
 
 
-def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSettings:
-    """The joint `name` of its checked parameters `values` (by their top-level names), whose messages name each
-    parameter with `prefix` ("" at the top level, "joints.<name>." in a block); raises ParameterError."""
+def joint_settings(
+    name: str, prefix: str, values: dict[str, object], io: tuple[dict[str, int], dict[str, int]] = ({}, {})
+) -> JointSettings:
+    """The joint `name` of its checked parameters `values` (by their top-level names) and the names `io` gives its
+    inputs and outputs, whose messages name each parameter with `prefix` ("" at the top level, "joints.<name>." in a
+    block); raises ParameterError."""
+    from akd_ros import _native
+
     mapping = parse_mapping(values["mapping"], values["mapping.rx"], values["mapping.tx"], prefix)
     if mapping is not None:
         check_mapping(mapping, prefix)
+    carried = _native.mapping_io(*(mapping or _native.DEFAULT_MAPPING))
+    for kind, names, needs, what in (
+        ("inputs", io[0], "digital_inputs", "digital inputs (0x60FD)"),
+        ("outputs", io[1], "digital_outputs", "digital outputs (0x60FE:01)"),
+    ):
+        if names and not carried[needs]:
+            raise ParameterError(
+                f"parameters io.{kind}.* of joint {name}: its mapping {values['mapping']!r} carries no {what}; "
+                f"mappings that do with mode {values['mode']}: {io_mappings(values['mode'], needs)}"
+            )
     lead = values["lead"] or None
     if values["axis"] == "rotary" and lead is not None:
         raise ParameterError(
@@ -743,7 +1013,18 @@ def joint_settings(name: str, prefix: str, values: dict[str, object]) -> JointSe
         fault_reset=values["fault_reset"],
         command_timeout=values["command_timeout"],
         command_timeout_policy=values["command_timeout_policy"],
+        homing_method=values["homing.method"],
+        homing_required=values["homing.required"],
+        homing_timeout=values["homing.timeout"],
+        path_tolerance=values["constraints.trajectory"],
+        goal_tolerance=values["constraints.goal"],
+        stopped_velocity_tolerance=values["constraints.stopped_velocity_tolerance"],
+        stop_deceleration=values["trajectory.stop_deceleration"],
         eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
+        io_carried=dict(carried),
+        io_inputs=io[0],
+        io_outputs=io[1],
+        analog_scale=values["io.analog_scale"],
     )
 
 
@@ -781,7 +1062,6 @@ def check_eoe_bridge(tap: str, host: str, joints: tuple[JointSettings, ...]) -> 
 def check_link(link: str) -> str:
     """`link` if the node can open it: a link spec the extension accepts (`_native.LINK_FORMS`) that, where it names a
     network interface, names one of this machine."""
-    from akd_ros import _native
 
     try:
         spec = _native.parse_link(link)
@@ -799,7 +1079,7 @@ def check_link(link: str) -> str:
 def parse_mapping(mapping: str, rx: list[str], tx: list[str], prefix: str = "") -> tuple[object, object] | None:
     """(rx, tx) in the form `_native.Master.configure_pdo` takes, None for 'default'; raises ParameterError naming
     the parameters with `prefix`."""
-    allowed = "'default', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
+    allowed = "'default', 'io', 'RX/TX' fixed mappings such as '0x1724/0x1B26', or 'flexible' (with mapping.rx/.tx)"
     if (rx or tx) and mapping != "flexible":
         raise ParameterError(
             f"parameters {prefix}mapping.rx and {prefix}mapping.tx apply to mapping 'flexible' only; "
@@ -807,6 +1087,10 @@ def parse_mapping(mapping: str, rx: list[str], tx: list[str], prefix: str = "") 
         )
     if mapping == "default":
         return None
+    if mapping == "io":
+        from akd_ros import _native
+
+        return _native.IO_MAPPING
     if mapping == "flexible":
         if not rx or not tx:
             raise ParameterError(

@@ -10,7 +10,7 @@ import sys
 
 ROOT_WARNING = (
     "running as root is not needed; CAP_NET_RAW is enough, with CAP_NET_ADMIN for an EoE TAP interface "
-    "(README: Running without root)"
+    "(docs/howto/without_root.md)"
 )
 
 

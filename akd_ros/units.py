@@ -167,6 +167,47 @@ class Units:
         return _drive_value("torque", torque, value, (INT16_MIN, INT16_MAX), self.torque_to_si, unit)
 
 
+def scale_mismatch(counts_per_revolution: int, scaling: dict | None, mapped: set[tuple[int, int]]) -> str | None:
+    """Where the drive counts the position objects its mapping carries (`mapped`, (index, subindex)) in another scale
+    than `counts_per_revolution`, one sentence saying which, by how much, from which of its objects, and what to
+    change; None where they agree or the drive does not tell (`scaling` is `_native.Master.position_scaling`'s, None
+    for a drive without the DS402 scaling objects).
+
+    The objects give positions only: the AKD's velocity and torque units are its own parameters, so a joint's units
+    are configured, not derived from them, and this check is what keeps a drive set up in another scale from moving
+    to the wrong places."""
+    if scaling is None:
+        return None
+    differing = {
+        (index, sub): counts
+        for (index, sub), counts in scaling["counts_per_revolution"].items()
+        if (index, sub) in mapped and counts is not None and counts != counts_per_revolution
+    }
+    if not differing:
+        return None
+    objects = ", ".join(f"0x{i:04X}" + (f":{s:02X}" if s else "") for i, s in differing)
+    counts = sorted(set(differing.values()))
+    told = []
+    if any(i in (0x6063, 0x60C1) for i, _ in differing):
+        told.append(
+            "0x608F = {}/{} (encoder increments per motor revolutions, FB1.PSCALE)".format(
+                *scaling["encoder_resolution"]
+            )
+        )
+    if any(i in (0x6064, 0x607A) for i, _ in differing):
+        told.append(
+            "FBUS.PARAM05 bit 4 set: feed constant 0x6092 = {}/{} over gear ratio 0x6091 = {}/{}".format(
+                *scaling["feed_constant"], *scaling["gear_ratio"]
+            )
+        )
+    return (
+        f"counts_per_revolution is {counts_per_revolution}, but the drive counts "
+        f"{' and '.join(f'{c:.10g}' for c in counts)} per motor revolution in {objects} ({'; '.join(told)}): "
+        f"its positions would be read and commanded {counts[0] / counts_per_revolution:.6g} times off; set "
+        f"counts_per_revolution to the drive's scale, or the drive's scaling to {counts_per_revolution} per revolution"
+    )
+
+
 @dataclass(frozen=True)
 class Limits:
     """Set-point limits in SI units of the load; `None` leaves a limit open.

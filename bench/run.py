@@ -14,6 +14,10 @@ Sections, in the order they run (sudo or root: roundtrip's veth pair, the SCHED_
   jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
   ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh (node_ros.py)
+  io            akd_node's CPU with every joint's ~/io published and without, six joints at 1 kHz (node_io.py)
+  host_noise    config/akd_sim_6axis.yaml's robot following trajectories under stress-ng on every CPU, with and
+                without missed=warn and rt.priority: trajectories done, would-be F125, worst stall (host_noise.py,
+                2 minutes per variant; --minutes 8 for a full run)
 
 --skip leaves sections out (RESULTS.md says skipped); --render writes RESULTS.md and results.png again from the
 JSON files of the last run, running nothing. Exit status: 0 when every section that ran measured every figure,
@@ -48,6 +52,9 @@ SECTIONS = {
         180,
     ),
     "ros": (["node_ros.py"], 420),
+    "io": (["node_io.py"], 300),
+    # Two minutes per variant, two alternating rounds: a shorter run than a quotable one (--minutes 8, about 35 min).
+    "host_noise": (shlex.split("host_noise.py --minutes 2 --rounds 2"), 900),
 }
 """Each section's script and arguments (--json added), and the seconds it may take before it is ended."""
 TITLES = {
@@ -56,6 +63,8 @@ TITLES = {
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
+    "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",
+    "host_noise": "The six-axis virtual robot with every CPU loaded: F125 with and without missed=warn, rt.priority",
 }
 
 

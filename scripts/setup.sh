@@ -9,7 +9,7 @@
 # included, so two machines set up a month apart get the same set. To move to newer releases:
 #     bash scripts/setup.sh --refresh-constraints
 # installs the same packages unpinned into a scratch environment and writes what pip chose to
-# constraints.txt (then run the tests, commit the file, and update the README's tested versions).
+# constraints.txt (then run the tests, commit the file, and update the tested versions in docs/install.md).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
@@ -34,7 +34,8 @@ CONSTRAINTS=constraints.txt
 # (rosidl_build.py). mcap, rosbags, matplotlib and eclipse-zenoh serve the node's recording,
 # plotting and Zenoh work and its tests; PyYAML reads parameter files; textual draws akd-top and
 # rich (textual's own renderer) akd-sdo's and akd-foe's progress bars (akd_ros's own requirements, installed here
-# so that they are pinned too).
+# so that they are pinned too). Sphinx, myst-parser (Markdown pages) and furo (the theme) build the documentation site
+# in docs/ (scripts/docs.sh).
 BUILD_PACKAGES=("setuptools>=64" wheel "setuptools-rust>=1.7")
 TEST_PACKAGES=(pytest hypothesis pysoem kickcat colcon-common-extensions ruff==0.17.6)
 ROS_WHEELS=(
@@ -48,6 +49,7 @@ ROS_WHEELS=(
     ros-jazzy-ament-index-python
 )
 APP_PACKAGES=(mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash PyYAML textual rich)
+DOCS_PACKAGES=(sphinx myst-parser furo)
 NOROS_PACKAGES=("${BUILD_PACKAGES[@]}" pytest "eclipse-zenoh>=1.5,<2" rosbags mcap xxhash PyYAML textual rich)
 
 if ((refresh)); then
@@ -58,7 +60,7 @@ if ((refresh)); then
     "$PYTHON" -m venv "$scratch/venv"
     "$scratch/venv/bin/python" -m pip install -q --disable-pip-version-check \
         "${BUILD_PACKAGES[@]}" "${TEST_PACKAGES[@]}" "${ROS_WHEELS[@]}" "${APP_PACKAGES[@]}" \
-        "${NOROS_PACKAGES[@]}"
+        "${NOROS_PACKAGES[@]}" "${DOCS_PACKAGES[@]}"
     {
         printf '# Every Python package scripts/setup.sh installs, with its dependencies, at the version tested.\n'
         printf '# Written by: bash scripts/setup.sh --refresh-constraints (%s, %s); do not edit by hand.\n' \
@@ -79,8 +81,9 @@ pip_install() {
 
 # tshark decodes captures in the tests, iproute2 makes the test namespaces, rt-tests measures
 # scheduling latency for the benchmarks, g++ compiles the messages' generated C and C++, ping
-# (iputils-ping) pings the virtual drives through akd-eoe's TAP interface in the EoE tests.
-APT_PACKAGES=(tshark iproute2 rt-tests g++ iputils-ping)
+# (iputils-ping) pings the virtual drives through akd-eoe's TAP interface in the EoE tests, stress-ng loads every CPU
+# in bench/host_noise.py.
+APT_PACKAGES=(tshark iproute2 rt-tests g++ iputils-ping stress-ng)
 missing=()
 for package in "${APT_PACKAGES[@]}"; do
     dpkg-query -W -f='${Status}' "$package" 2>/dev/null | grep -q "install ok installed" || missing+=("$package")
@@ -113,8 +116,8 @@ if [[ ! -x .venv/bin/python ]]; then
     "$PYTHON" -m venv .venv
 fi
 
-say "installing build, test and interop packages into .venv ($CONSTRAINTS)"
-pip_install .venv/bin/python "${BUILD_PACKAGES[@]}" "${TEST_PACKAGES[@]}"
+say "installing build, test, interop and documentation packages into .venv ($CONSTRAINTS)"
+pip_install .venv/bin/python "${BUILD_PACKAGES[@]}" "${TEST_PACKAGES[@]}" "${DOCS_PACKAGES[@]}"
 say "installing ROS 2 Jazzy wheels and the recording tools into .venv ($CONSTRAINTS)"
 pip_install .venv/bin/python "${ROS_WHEELS[@]}" "${APP_PACKAGES[@]}"
 

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Runs every test: the Rust crate's lints (clippy, rustdoc, rustfmt) and own tests, the Python linter and
-# formatter (ruff, configured in pyproject.toml), then the Python suite against the built extension. Extra
-# arguments go to pytest (e.g. -k soem). Exits non-zero when any test or check fails.
+# Runs every test: the Rust crate's lints (clippy, rustdoc, rustfmt), the documentation site (scripts/docs.sh,
+# warnings as errors) and the crate's own tests, the Python linter and formatter (ruff, configured in pyproject.toml),
+# then the Python suite against the built extension. Extra arguments go to pytest (e.g. -k soem). Exits non-zero when
+# any test or check fails.
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 command -v cargo >/dev/null || { [[ -f "$HOME/.cargo/env" ]] && . "$HOME/.cargo/env"; }
@@ -19,6 +20,8 @@ lint cargo clippy --quiet --all-targets --features python -- -D warnings
 lint env RUSTDOCFLAGS="-D warnings" cargo doc --quiet --no-deps
 lint env RUSTDOCFLAGS="-D warnings" cargo doc --quiet --no-deps --features python
 lint cargo fmt --check
+echo "test: scripts/docs.sh (the documentation site: rustdoc, then Sphinx with warnings as errors)"
+bash scripts/docs.sh || status=1
 echo "test: scripts/module_deps.py (no module cycle, no dependency up a layer, in the crate or the package)"
 (cd scripts/module-deps && cargo fmt --check && cargo clippy --quiet --release -- -D warnings) || status=1
 python3 scripts/module_deps.py || status=1

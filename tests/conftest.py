@@ -47,7 +47,8 @@ def veth():
 
 
 def pytest_terminal_summary(terminalreporter) -> None:
-    """Prints the recovery table's rows measured in this run (tests/test_recovery.py), as the README quotes them."""
+    """Prints the recovery table's rows measured in this run (tests/test_recovery.py), as docs/howto/recovery.md quotes
+    them."""
     if recovery_table.ROWS:
         terminalreporter.write_sep("-", "recovery table (measured in this run)")
         for line in recovery_table.lines():

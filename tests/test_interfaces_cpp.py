@@ -325,7 +325,9 @@ def test_ament_index_lists_the_interfaces_as_rosidl_generate_interfaces_does():
     assert "akd_ros" in get_resources("rosidl_interfaces")
     content, prefix = get_resource("rosidl_interfaces", "akd_ros")
     assert Path(prefix) == Path(get_package_prefix("akd_ros"))
-    definitions = sorted(str(path.relative_to(REPO)) for kind in ("msg", "srv") for path in (REPO / kind).glob("*.*"))
+    definitions = sorted(
+        str(path.relative_to(REPO)) for kind in ("msg", "srv", "action") for path in (REPO / kind).glob("*.*")
+    )
     expected = sorted([*definitions, *(str(Path(d).with_suffix(".idl")) for d in definitions)])
     assert content.splitlines() == expected
 

@@ -18,6 +18,8 @@ from akd_ros import _native, params
         ("sim:2?missed=late", "sim", 2, "late", None, None, "sim:2"),
         ("sim?missed=lost", "sim", 1, "lost", None, None, "sim:1?missed=lost"),
         ("sim:6?missed=lost", "sim", 6, "lost", None, None, "sim:6?missed=lost"),
+        ("sim:6?missed=warn", "sim", 6, "warn", None, None, "sim:6?missed=warn"),
+        ("sim:6?pace=immediate&missed=warn", "sim", 6, "warn", None, None, "sim:6?missed=warn&pace=immediate"),
         ("udp://127.0.0.1:34980", "udp", None, None, "127.0.0.1:34980", None, "udp://127.0.0.1:34980"),
         ("udp://[::1]:7000", "udp", None, None, "[::1]:7000", None, "udp://[::1]:7000"),
         ("eth0", "interface", None, None, None, "eth0", "eth0"),
@@ -37,6 +39,7 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, add
     assert str(parsed) == text and _native.parse_link(text).kind == kind
     busy_poll = spec.partition("?busy_poll=")[2]
     assert parsed.busy_poll_us == (int(busy_poll or 0) if kind == "interface" else None)
+    assert parsed.pace == (("immediate" if "pace=immediate" in spec else "real") if kind == "sim" else None)
 
 
 @pytest.mark.parametrize(
@@ -47,8 +50,10 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, add
         ("sim:100", "the number of virtual AKDs must be 1..=64"),
         ("sim:x", "the number of virtual AKDs must be 1..=64"),
         ("sim:0?missed=lost", "the number of virtual AKDs must be 1..=64"),
-        ("sim:2?missed=soon", "?missed=late (the default"),
-        ("sim?lost", "?missed=lost (only frames lost on the line"),
+        ("sim:2?missed=soon", "missed=late (the default"),
+        ("sim?lost", "missed=lost (only frames lost on the line"),
+        ("sim?missed=warn&missed=late", "missed=warn (judged as the real drive"),
+        ("sim:2?pace=slow", "pace=immediate (at once"),
         ("udp://127.0.0.1", "udp://HOST:PORT with a port in 1..65535"),
         ("udp://127.0.0.1:0", "udp://HOST:PORT with a port in 1..65535"),
         ("udp://127.0.0.1:65536", "udp://HOST:PORT with a port in 1..65535"),
@@ -77,7 +82,8 @@ def test_the_allowed_forms_name_every_form_and_the_range_of_n():
     for form in (
         "'sim'",
         "'sim:N' (N 1..=64",
-        "'?missed=lost'",
+        "'?missed=late|lost|warn'",
+        "'?pace=real|immediate'",
         "'udp://HOST:PORT'",
         "network interface name",
         "'?busy_poll=US'",

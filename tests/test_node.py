@@ -304,6 +304,7 @@ def test_quick_stop_on_a_stopped_stream_and_a_fault_reset_once_by_itself_all_rec
         NODE + "joint_commands",
         NODE + "joint_trajectory",
         NODE + "trajectory_status",
+        NODE + "io",
         NODE + "cycle",
         NODE + "black_box",
     }, counts

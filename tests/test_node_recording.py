@@ -335,7 +335,7 @@ def test_a_bag_of_a_sigkilled_node_is_readable_up_to_its_last_chunk_and_reindexe
 
     with pytest.raises(AnyReaderError), AnyReader([bag]) as reader:
         list(reader.messages())
-    # The README's way (section Recording), then the picture of what was saved.
+    # The documented way (docs/howto/recording.md), then the picture of what was saved.
     subprocess.run(
         [sys.executable, "-c", f"from akd_ros.recorder import reindex; reindex({str(bag)!r})"], check=True, timeout=120
     )

@@ -349,3 +349,30 @@ def test_transport_both_without_rclpy_is_one_line_naming_the_way_out(tmp_path):
     )
     assert done.returncode == 1 and "Traceback" not in done.stderr, done.stderr
     assert "parameter transport 'both' needs rclpy" in done.stderr and "use transport zenoh" in done.stderr
+
+
+def test_drive_io_and_set_outputs_over_zenoh(node, peer, types):
+    drive_io, set_outputs = "akd_ros/msg/DriveIO", "akd_ros/srv/SetOutputs"
+    key = data_key_expr(DOMAIN, "/akd_node/joint_1/io", dds_type_name(drive_io), types.rihs01(drive_io))
+    seen: list = []
+    subscriber = peer.declare_subscriber(key, lambda s: seen.append(types.from_cdr(s.payload.to_bytes(), drive_io)))
+    try:
+        wait_for("~/joint_1/io over Zenoh", lambda: seen, WAIT_S)
+    finally:
+        subscriber.undeclare()
+    message = seen[-1]
+    # The default mapping carries the digital inputs alone.
+    assert (message.joint, message.digital_inputs_mapped, message.digital_outputs_mapped) == ("joint_1", True, False)
+    assert len(message.inputs) == 7 and len(message.outputs) == 0
+    service = data_key_expr(DOMAIN, "/akd_node/set_outputs", dds_type_name(set_outputs), types.rihs01(set_outputs))
+    request = types.message(f"{set_outputs}_Request", joint="joint_2", outputs=["1"], values=[True])
+    payload = types.to_cdr(request, f"{set_outputs}_Request")
+    attachment = Attachment(1, time.time_ns(), bytes(range(48, 64))).encode()
+    replies = list(peer.get(service, payload=payload, attachment=attachment, timeout=WAIT_S))
+    assert len(replies) == 1 and replies[0].ok is not None, replies
+    response = types.from_cdr(replies[0].ok.payload.to_bytes(), f"{set_outputs}_Response")
+    assert not response.success
+    assert response.message == (
+        "outputs not set: outputs refused: the mapping of joint_2 carries no digital outputs (0x60FE:01); mappings "
+        "that do with mode cyclic_synchronous_position: io, 0x1725/0x1B20"
+    )

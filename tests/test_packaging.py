@@ -71,3 +71,19 @@ def test_colcon_build_installs_a_working_package(tmp_path, mode):
     scan = run(str(prefix / "lib" / "akd_ros" / "akd-scan"), "sim")
     assert scan.returncode == 0, scan.stderr
     assert scan.stdout.startswith("0 vendor=0x0000006A product=0x00414B44")
+
+
+def test_the_public_api_is_what_the_package_names():
+    """`akd_ros` exports what its `__all__` names, each of it importable, and nothing of the extension besides: a new
+    helper of the extension does not become the user's API unnoticed."""
+    import types
+
+    import akd_ros
+
+    public = {
+        name
+        for name, value in vars(akd_ros).items()
+        if not name.startswith("_") and not isinstance(value, types.ModuleType)
+    }
+    assert public == set(akd_ros.__all__)
+    assert "check_mapping" not in public and "Master" in public

@@ -9,8 +9,8 @@ from pathlib import Path
 import pytest
 from sensor_msgs.msg import JointState
 
-from akd_ros.cli.plot import main
-from akd_ros.msg import CycleSample, DriveFault, LatchEvent
+from akd_ros.cli.plot import io_steps, main, read_run
+from akd_ros.msg import CycleSample, DriveFault, DriveIO, LatchEvent
 from akd_ros.recorder import Recorder
 
 T0 = 1_700_000_000_000_000_000
@@ -42,17 +42,39 @@ def cycle_sample(i: int) -> CycleSample:
     return msg
 
 
-def record(folder: Path, decimation: int = 4) -> Path:
-    """Records the stalled move with a latch capture and the fault; returns the bag."""
+def drive_io(i: int) -> DriveIO:
+    """The axis's I/O at cycle i: input 3 (named part_present) high from 0.5 s to 1.5 s, the positive limit switch
+    active from 2.2 s, output 2 (named lamp) on from 1 s; input 1 never high."""
+    t = i / RATE_HZ
+    msg = DriveIO(joint="axis", cycle=i, digital_inputs_mapped=True, digital_outputs_mapped=True)
+    msg.inputs = [False, False, 0.5 <= t < 1.5, False, False, False, False]
+    msg.positive_limit = t >= 2.2
+    msg.input_names, msg.input_numbers, msg.named_inputs = ["part_present"], [3], [msg.inputs[2]]
+    msg.outputs = [False, t >= 1.0]
+    msg.output_names, msg.output_numbers, msg.named_outputs = ["lamp"], [2], [msg.outputs[1]]
+    msg.hardware_enable = DriveIO.HARDWARE_ENABLE_HIGH
+    msg.analog_input = msg.analog_output = 0.0
+    return msg
+
+
+def record(folder: Path, decimation: int = 4, io: bool = False) -> Path:
+    """Records the stalled move with a latch capture and the fault (and with `io` the axis's I/O every 100 cycles);
+    returns the bag."""
     options = {"cycle_rate_hz": RATE_HZ, "decimation": decimation, "black_box_seconds": 1.0}
     with Recorder(folder, **options) as recorder:
         recorder.add_cycle_topic("/akd_node/cycle", CycleSample)
         recorder.add_topic("/akd_node/latch", LatchEvent)
         recorder.add_topic("/akd_node/fault", DriveFault)
+        if io:
+            recorder.add_topic("/akd_node/io", DriveIO)
         for i in range(CYCLES):
             time_ns = T0 + i * PERIOD_NS
             sample = cycle_sample(i)
             recorder.cycle_sample(sample, time_ns)
+            if io and i % 100 == 0:
+                message = drive_io(i)
+                message.header.stamp = sample.stamp
+                recorder.write("/akd_node/io", message, time_ns)
             if i == LATCH_CYCLE:
                 latch = LatchEvent(
                     joint="axis",
@@ -141,3 +163,18 @@ def test_killed_recording_needs_and_gets_reindex(tmp_path, capsys):
     assert "run akd-plot with --reindex" in capsys.readouterr().err
     assert main([str(bag), "-o", str(output), "--reindex"]) == 0
     assert png_size(output) == (1300, 1100)
+
+
+def test_the_io_is_drawn_as_steps_by_the_names_the_node_gave(tmp_path):
+    bag = record(tmp_path, io=True)
+    steps = dict(io_steps(read_run(bag).io))
+    # The named ones always, the others once high; input 1 never was.
+    assert list(steps) == ["part_present", "positive limit", "lamp"]
+    assert steps["part_present"] == [0.5 <= i / 10 < 1.5 for i in range(CYCLES // 100)]
+    output = tmp_path / "io.svg"
+    assert main([str(bag), "-o", str(output)]) == 0
+    text = output.read_text()
+    assert "part_present" in text and "positive limit" in text and "lamp" in text and "DI1" not in text
+    png = tmp_path / "io.png"
+    assert main([str(bag), "-o", str(png)]) == 0
+    assert png_size(png) == (1300, 1300)

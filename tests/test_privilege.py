@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -140,8 +141,8 @@ def test_scan_with_cap_net_raw_alone_works_without_the_root_warning(as_user, vet
 
 
 def test_scan_with_setcap_on_the_interpreter_works(as_user, veth, tmp_path):
-    # On a copy of the interpreter (`python -m venv --copies`), as the README advises: setcap on the venv's usual
-    # symlink would give every user of the shared interpreter CAP_NET_RAW.
+    # On a copy of the interpreter (`python -m venv --copies`), as docs/howto/without_root.md advises: setcap on the
+    # venv's usual symlink would give every user of the shared interpreter CAP_NET_RAW.
     if shutil.which("setcap") is None:
         pytest.skip("needs setcap (Debian package libcap2-bin)")
     venv = Path(tempfile.mkdtemp(prefix="akd-setcap-"))
@@ -280,7 +281,7 @@ def test_node_as_user_with_cap_net_raw_runs_and_its_threads_give_up_what_they_ca
         os.chown(home, 65534, 65534)
         params = home / "akd.yaml"
         params.write_text(
-            (REPO / "config" / "akd_sim.yaml").read_text().replace("link: sim", f"link: {veth.if_master}")
+            re.sub(r"link: \S+", f"link: {veth.if_master}", (REPO / "config" / "akd_sim.yaml").read_text())
         )
         argv, env = node_command(params)
         with akd_sim_in_netns(veth.ns_sim, veth.if_sim):

@@ -4,7 +4,8 @@ is back in Op with its power stage off and nothing moves until it is enabled and
 
 Each test measures its row's times (from the fault's injection to the event that reports it, and to the event that
 reports the drive back in Op) and records them in `support.recovery_table`, which the run prints at its end and the
-README's recovery table quotes. Deadlines only keep a failure from hanging; no test asserts how fast anything is.
+recovery table of docs/howto/recovery.md quotes. Deadlines only keep a failure from hanging; no test asserts how fast
+anything is.
 """
 
 from __future__ import annotations
@@ -289,8 +290,9 @@ def test_an_sdo_to_a_drive_that_vanishes_is_refused_as_unreachable_and_works_onc
 def test_the_link_down_and_up_is_reported_and_the_drives_come_back(veth):
     with akd_sim_in_netns(veth.ns_sim, veth.if_sim, count=2):
         with entered_netns(veth.ns_master):
-            # On a network interface, as a user runs it (the README's rt.priority): the drives judge missed frames by
-            # time as the real one does, and a cycle this shared host ran late would fault them before the row begins.
+            # On a network interface, as a user runs it (rt.priority, docs/howto/realtime.md): the drives judge missed
+            # frames by time as the real one does, and a cycle this shared host ran late would fault them before the row
+            # begins.
             bus = Bus(veth.if_master, drives(2), fault_reaction="joint", priority=RT_PRIORITY)
         with bus:
             bus.enable()

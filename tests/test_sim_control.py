@@ -131,6 +131,12 @@ def test_bad_values_are_refused_naming_the_allowed_ones():
             simulator.set_input_toggles(0, 8, [1.0])
         with pytest.raises(_native.ConfigError, match="toggle position NaN of digital input 1 is not a finite"):
             simulator.set_input_toggles(1, 1, [0.0, math.nan])
+        with pytest.raises(_native.ConfigError, match="digital input 0: the AKD has inputs 1 to 7"):
+            simulator.set_input(0, 0, True)
+        with pytest.raises(_native.ConfigError, match='switch "brake" is not one of negative_limit, positive_limit'):
+            simulator.set_switch(0, "brake", True)
+        with pytest.raises(_native.ConfigError, match=r"analog input inf V: allowed a finite voltage within ±10"):
+            simulator.set_analog_input(1, math.inf)
         with pytest.raises(_native.ConfigError, match="timeout must be a non-negative number"):
             simulator.drive_state(0, timeout=-1)
         # Nobody exchanges frames: the query says so instead of waiting for ever.
@@ -182,6 +188,9 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
         assert (state["state"], state["fault"], state["fault_number"]) == ("Fault", "sync_lost", 125)
         assert command("hardware_enable 0 low") == "ok hardware_enable 0 low"
         assert command("toggles 0 1 -100,250.5") == "ok toggles 0 1 -100,250.5"
+        assert command("input 0 3 high") == "ok input 0 3 high"
+        assert command("switch 0 negative_limit on") == "ok switch 0 negative_limit on"
+        assert command("analog_input 0 -2.5") == "ok analog_input 0 -2.5"
         assert command("help").startswith("ok commands: fault POSITION NAME | hardware_enable")
         for bad, named in (
             ("fault 0 F1", "following_error (F439)"),
@@ -189,12 +198,19 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
             ("hardware_enable 0 maybe", "high or low"),
             ("toggles 0 8 1", "inputs 1 to 7"),
             ("toggles 0 1 1,x", "counts separated by commas"),
+            ("input 0 8 high", "inputs 1 to 7"),
+            ("input 0 1 up", "high or low"),
+            ("switch 0 limit on", 'switch "limit" is not one of negative_limit, positive_limit, home_switch'),
+            ("switch 0 home_switch yes", "on or off"),
+            ("analog_input 0 12", "allowed a finite voltage within ±10.0000 V"),
+            ("analog_input 0 nan", "allowed a finite voltage"),
+            ("analog_input 0 volts", "a voltage such as 2.5"),
             ("state x", "POSITION must be a whole number 0..0"),
             ("state", "usage: state POSITION"),
             (
                 "jog 0",
-                "allowed are fault, hardware_enable, toggles, state, power_cycle, cable, drop, corrupt, wrong_wkc, "
-                "help",
+                "allowed are fault, hardware_enable, toggles, input, switch, analog_input, state, power_cycle, homing, "
+                "cable, drop, corrupt, wrong_wkc, help",
             ),
         ):
             reply = command(bad)

@@ -214,7 +214,10 @@ def test_akd_sim_fails_on_command_while_a_master_talks_to_it(udp_port):
         ):
             reply = command(bad)
             assert reply.startswith("error: ") and named in reply, (bad, reply)
-        assert "power_cycle POSITION | cable POSITION pulled|plugged | drop FRAMES" in command("help")
+        assert (
+            "power_cycle POSITION | homing POSITION ok|error|no_reference | cable POSITION pulled|plugged"
+            in command("help")
+        )
     finally:
         if sim.poll() is None:
             sim.kill()

@@ -4,8 +4,9 @@ BAG is a rosbag2 directory written by akd_ros (akd_ros.recorder); of a bag of se
 --joint NAME or the first. The picture has, against the
 time since the first cycle sample: position and command, following error, torque and the DS402
 state read from the statusword, each with the faults (red, with code, text and what the driver
-did) and latch captures (green, with channel, edge and position) drawn across; and a histogram of
-the cycle periods. Cycle samples come from
+did) and latch captures (green, with channel, edge and position) drawn across; where the bag has
+the joint's I/O (~/io), its digital inputs, switches, hardware enable and outputs as steps, by the
+names the node gave them; and a histogram of the cycle periods. Cycle samples come from
 the cycle topic and the black box (the seconds before each fault, shaded) alike. A bag whose
 recorder was killed is read after ``--reindex`` (akd_ros.recorder.reindex).
 """
@@ -24,6 +25,9 @@ from akd_ros.cli.common import EXIT_FAILURE, run
 CYCLE_SAMPLE = "akd_ros/msg/CycleSample"
 LATCH_EVENT = "akd_ros/msg/LatchEvent"
 DRIVE_FAULT = "akd_ros/msg/DriveFault"
+DRIVE_IO = "akd_ros/msg/DriveIO"
+# DriveIO's HARDWARE_ENABLE_LOW (msg/DriveIO.msg).
+_HARDWARE_ENABLE_LOW = 2
 #: File types the picture can be written as, by extension.
 FORMATS = (".png", ".svg", ".pdf")
 _EDGES = {1: "rising", 2: "falling"}
@@ -49,6 +53,8 @@ class Run:
     black_box: list = field(default_factory=list)
     latches: list = field(default_factory=list)
     faults: list = field(default_factory=list)
+    io: list = field(default_factory=list)
+    """(time_ns, DriveIO) of the joint, in time order."""
     topics: dict = field(default_factory=dict)
 
 
@@ -69,12 +75,13 @@ def read_run(bag: Path, joint: str | None = None) -> Run:
             result.topics = {c.topic: c.msgtype for c in reader.connections}
             connections = reader.connections
             black_box_topics = {c.topic for c in connections if c.topic.endswith("/black_box")}
-            kinds = (CYCLE_SAMPLE, LATCH_EVENT, DRIVE_FAULT)
+            kinds = (CYCLE_SAMPLE, LATCH_EVENT, DRIVE_FAULT, DRIVE_IO)
             wanted = [c for c in connections if c.msgtype in kinds]
             dump: list = []
             samples: dict = {}
             latches: list = []
             faults: list = []
+            io: list = []
             for connection, time_ns, raw in reader.messages(connections=wanted):
                 msg = reader.deserialize(raw, connection.msgtype)
                 # Bags of a single axis recorded before CycleSample named its joint have none.
@@ -87,6 +94,8 @@ def read_run(bag: Path, joint: str | None = None) -> Run:
                         dump.append((name, time_ns))
                 elif connection.msgtype == LATCH_EVENT:
                     latches.append((time_ns, msg))
+                elif connection.msgtype == DRIVE_IO:
+                    io.append((time_ns, msg))
                 else:
                     faults.append((time_ns, msg))
     except Exception as err:
@@ -102,6 +111,7 @@ def read_run(bag: Path, joint: str | None = None) -> Run:
     result.samples = samples.get(result.joint, {})
     result.latches = [(t, m) for t, m in latches if len(samples) < 2 or m.joint == result.joint]
     result.faults = [(t, m) for t, m in faults if len(samples) < 2 or m.joint == result.joint]
+    result.io = sorted(((t, m) for t, m in io if len(samples) < 2 or m.joint == result.joint), key=lambda x: x[0])
     result.black_box = _spans(sorted(t for name, t in dump if name == result.joint))
     return result
 
@@ -135,6 +145,36 @@ def ds402_state(statusword: int) -> int:
     return -1 if name is None else _DS402_STATES.index(name)
 
 
+def io_steps(io: list) -> list[tuple[str, list[bool]]]:
+    """The I/O signals of (time, DriveIO) pairs worth a step trace, each (label, its level in each message): every
+    named input and output by its name, every other input and output and every switch that was ever high, and the
+    hardware enable where it was ever low."""
+    messages = [m for _, m in io]
+    if not messages:
+        return []
+    last = messages[-1]
+    signals: list[tuple[str, list[bool]]] = []
+
+    def add(label: str, levels: list[bool], named: bool = False) -> None:
+        if named or any(levels):
+            signals.append((label, levels))
+
+    def level(m, field: str, index: int) -> bool:
+        values = getattr(m, field)
+        return bool(values[index]) if index < len(values) else False
+
+    names = {int(n) - 1: name for name, n in zip(last.input_names, last.input_numbers, strict=True)}
+    for i in range(len(last.inputs)):
+        add(names.get(i, f"DI{i + 1}"), [level(m, "inputs", i) for m in messages], i in names)
+    for switch in ("negative_limit", "positive_limit", "home_switch", "interlock"):
+        add(switch.replace("_", " "), [bool(getattr(m, switch)) for m in messages])
+    add("hardware enable low", [m.hardware_enable == _HARDWARE_ENABLE_LOW for m in messages])
+    names = {int(n) - 1: name for name, n in zip(last.output_names, last.output_numbers, strict=True)}
+    for o in range(len(last.outputs)):
+        add(names.get(o, f"DO{o + 1}"), [level(m, "outputs", o) for m in messages], o in names)
+    return signals
+
+
 def plot(run_data: Run, title: str, output: Path) -> None:
     """Draws the run into output (its extension picks the format)."""
     import matplotlib
@@ -159,13 +199,16 @@ def plot(run_data: Run, title: str, output: Path) -> None:
 
     states = np.array([ds402_state(s.statusword) for s in samples])
 
-    figure = plt.figure(figsize=(13, 11), layout="constrained")
-    grid = figure.add_gridspec(5, 1, height_ratios=[3, 2, 2, 2, 2])
+    signals = io_steps(run_data.io)
+    panels = 6 if signals else 5
+    figure = plt.figure(figsize=(13, 11 + 2 * (panels - 5)), layout="constrained")
+    grid = figure.add_gridspec(panels, 1, height_ratios=[3, 2, 2, 2, *([2] if signals else []), 2])
     ax_position = figure.add_subplot(grid[0])
     ax_error = figure.add_subplot(grid[1], sharex=ax_position)
     ax_torque = figure.add_subplot(grid[2], sharex=ax_position)
     ax_state = figure.add_subplot(grid[3], sharex=ax_position)
-    ax_period = figure.add_subplot(grid[4])
+    ax_io = figure.add_subplot(grid[4], sharex=ax_position) if signals else None
+    ax_period = figure.add_subplot(grid[-1])
     ax_position.set_title(title, fontsize=11)
 
     ax_position.plot(t, column["position"], lw=1.2, label="position")
@@ -179,9 +222,18 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     ax_state.set_yticks(range(-1, len(_DS402_STATES)), ["no valid state", *_DS402_STATES], fontsize=8)
     ax_state.set_ylim(-1.5, len(_DS402_STATES) - 0.5)
     ax_state.set_ylabel("DS402 state\n(statusword)")
-    ax_state.set_xlabel(f"time since the first cycle sample (s); cycles {cycles[0]}..{cycles[-1]}")
-
     time_axes = (ax_position, ax_error, ax_torque, ax_state)
+    if ax_io is not None:
+        io_t = seconds(np.array([t for t, _ in run_data.io], dtype=np.int64))
+        # Each signal a step between its row and 0.7 above it, in the order io_steps gives, first on top.
+        for row, (_, levels) in enumerate(reversed(signals)):
+            ax_io.step(io_t, row + 0.7 * np.array(levels, dtype=float), where="post", lw=1.3)
+        ax_io.set_yticks(range(len(signals)), [label for label, _ in reversed(signals)], fontsize=8)
+        ax_io.set_ylim(-0.5, len(signals))
+        ax_io.set_ylabel("I/O (~/io)")
+        time_axes = (*time_axes, ax_io)
+    time_axes[-1].set_xlabel(f"time since the first cycle sample (s); cycles {cycles[0]}..{cycles[-1]}")
+
     for first, last in run_data.black_box:
         for ax in time_axes:
             ax.axvspan(

@@ -11,10 +11,21 @@ stdout, 'ok ...' or 'error: ...':
   hardware_enable POSITION high|low   set the hardware enable input
   toggles POSITION INPUT P1,P2,...    digital input 1..7 toggles at these positions (counts);
                                       without positions it stays low
+  input POSITION INPUT high|low       digital input 1..7 high or low wherever the axis is
+  switch POSITION NAME on|off         a switch of 0x60FD active or not: negative_limit,
+                                      positive_limit (each stops motion toward it), home_switch,
+                                      interlock
+  analog_input POSITION VOLTS         the analog input, within ±10 V
   state POSITION                      the drive firmware's state as JSON, with "dc": what its
-                                      synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2)
+                                      synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2), and
+                                      its I/O: digital_inputs (0x60FD), digital_outputs and
+                                      analog_output (V) as the master drives them
   power_cycle POSITION                the drive loses power and comes back as at power-up
-                                      (AL Init, station address 0, Not ready to switch on)
+                                      (AL Init, station address 0, Not ready to switch on,
+                                      not homed)
+  homing POSITION ok|error|no_reference
+                                      the drive's homing works, stops halfway with a homing
+                                      error, or never finds its reference (searches on)
   cable POSITION pulled|plugged       pull the cable in front of the drive out (frames reach
                                       only the drives before it), or plug it back in
   drop FRAMES                         the next FRAMES frames get no reply at all
@@ -66,8 +77,12 @@ USAGE = {
     "fault": "fault POSITION NAME",
     "hardware_enable": "hardware_enable POSITION high|low",
     "toggles": "toggles POSITION INPUT P1,P2,...",
+    "input": "input POSITION INPUT high|low",
+    "switch": "switch POSITION NAME on|off",
+    "analog_input": "analog_input POSITION VOLTS",
     "state": "state POSITION",
     "power_cycle": "power_cycle POSITION",
+    "homing": "homing POSITION ok|error|no_reference",
     "cable": "cable POSITION pulled|plugged",
     "drop": "drop FRAMES",
     "corrupt": "corrupt FRAMES",
@@ -126,7 +141,16 @@ def execute(simulator, line: str) -> str | None:
         raise CommandError(f"unknown command {name!r}: allowed are {', '.join(USAGE)}")
     if name == "help":
         return "ok commands: " + " | ".join(USAGE.values())
-    arity = {"fault": (2,), "hardware_enable": (2,), "toggles": (2, 3), "cable": (2,)}.get(name, (1,))
+    arity = {
+        "fault": (2,),
+        "hardware_enable": (2,),
+        "toggles": (2, 3),
+        "input": (3,),
+        "switch": (3,),
+        "analog_input": (2,),
+        "cable": (2,),
+        "homing": (2,),
+    }.get(name, (1,))
     if len(args) not in arity:
         raise CommandError(f"usage: {USAGE[name]}")
     if name in BURSTS:
@@ -144,8 +168,25 @@ def execute(simulator, line: str) -> str | None:
         digital_input = _whole_number(args[1], "INPUT", "1..7")
         positions = _toggle_positions(args[2]) if len(args) == 3 else []
         simulator.set_input_toggles(position, digital_input, positions)
+    elif name == "input":
+        levels = {"high": True, "low": False}
+        if args[2] not in levels:
+            raise CommandError(f"input takes high or low, got {args[2]!r}")
+        simulator.set_input(position, _whole_number(args[1], "INPUT", "1..7"), levels[args[2]])
+    elif name == "switch":
+        if args[2] not in ("on", "off"):
+            raise CommandError(f"switch takes on or off, got {args[2]!r}")
+        simulator.set_switch(position, args[1], args[2] == "on")
+    elif name == "analog_input":
+        try:
+            volts = float(args[1])
+        except ValueError:
+            raise CommandError(f"analog_input takes a voltage such as 2.5, got {args[1]!r}") from None
+        simulator.set_analog_input(position, volts)
     elif name == "power_cycle":
         simulator.power_cycle(position)
+    elif name == "homing":
+        simulator.set_homing_failure(position, args[1])
     elif name == "cable":
         if args[1] not in ("pulled", "plugged"):
             raise CommandError(f"cable takes pulled or plugged, got {args[1]!r}")
@@ -193,6 +234,8 @@ def served_line(stats: dict) -> str:
         f"akd-sim: served {stats['served']} frames ({stats['malformed']} malformed, {stats['lost']} lost on the line,"
         f" {stats['unsent']} unsent)"
     )
+    if stats["would_be_f125"]:
+        line += f"; {stats['would_be_f125']} times a real AKD would have raised F125 (--missed warn)"
     late = stats["late"]
     if late is not None:
         over = ", ".join(f"{count} over {bound / 1000:g} ms" for bound, count in late["over"].items())
@@ -232,7 +275,15 @@ def main(argv: list[str] | None = None) -> int:
         choices=_native.MISSED_FRAMES,
         default="late",
         help="how the drives judge missed frames (F125 after more than 7): 'late' (default), as the real drive, "
-        "by time; 'lost', only frames lost on the line, for a host whose master thread is not real-time",
+        "by time; 'warn', by time too, but where a real AKD would raise F125 the drive says so on stderr and goes on "
+        "(for a host whose master thread is not real-time); 'lost', only frames lost on the line",
+    )
+    parser.add_argument(
+        "--pace",
+        choices=_native.PACES,
+        default="real",
+        help="how fast the drives' firmware answers: 'real' (default), as the real drive (Init->PreOp 17.5 ms, "
+        "other AL requests 4.5 ms, mailbox replies 1 ms); 'immediate', before the next frame",
     )
     parser.add_argument(
         "--setpoint-trace",
@@ -257,6 +308,7 @@ def main(argv: list[str] | None = None) -> int:
         options = {
             "on_start": start_commands,
             "missed": args.missed,
+            "pace": args.pace,
             "setpoint_trace": trace,
             "on_stop": lambda stats: print(served_line(stats), flush=True),
         }

@@ -59,14 +59,14 @@ def __getattr__(name: str):
 
 def _asked_for_help(arguments: list[str]) -> bool:
     """Prints the node's help when its own arguments (those before --ros-args) ask for it: what it is, the parameters
-    file and -p arguments it takes (README: Parameters), examples."""
+    file and -p arguments it takes (docs/reference/parameters.md), examples."""
     import argparse
 
     parser = argparse.ArgumentParser(
         prog=NODE_NAME,
         usage=f"{NODE_NAME} [-h] --ros-args [--params-file FILE] [-p NAME:=VALUE ...] [-r __ns:=NAMESPACE]",
         description="The AKD drives of one EtherCAT line as a ROS 2 lifecycle node. Its parameters come from a\n"
-        "parameters file and -p arguments after --ros-args (README: Parameters). A bad parameter or a\n"
+        "parameters file and -p arguments after --ros-args (docs/reference/parameters.md). A bad parameter or a\n"
         "failed start exits 1 with one line on stderr.",
         epilog=EXAMPLES,
         formatter_class=argparse.RawDescriptionHelpFormatter,

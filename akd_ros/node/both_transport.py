@@ -15,7 +15,7 @@ from typing import Any
 from rclpy.serialization import deserialize_message, serialize_message
 
 from akd_ros.node.ros_transport import RosGroup, RosTransport, message_class
-from akd_ros.node.transport import Qos
+from akd_ros.node.transport import ActionCallbacks, Qos
 from akd_ros.node.zenoh_transport import ZenohTransport, zenoh_qos
 from akd_ros.recorder import message_type
 
@@ -77,6 +77,10 @@ class BothTransport:
             name, type_name, answer, deserialize_request=lambda data: deserialize_message(bytes(data), cls.Request)
         )
         self.ros.service(type_name, name, handler, group)
+
+    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: RosGroup) -> type:
+        # Served over rclpy only: rmw_zenoh's clients reach it through a router bridging DDS, not this Zenoh session.
+        return self.ros.action_server(type_name, name, callbacks, group)
 
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         self.ros.timer(period, callback, group)

@@ -20,6 +20,7 @@ import time
 
 from akd_ros.axis import Axis, CheckedCommand, CommandError
 from akd_ros.bus import BusRequestError
+from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.session import AXIS_ERRORS, FAULT_STATES, Session, namespace
 from akd_ros.node.transport import Qos, Transport
 
@@ -99,6 +100,8 @@ class Commands:
         try:
             with session.lock:
                 axis = self._enabled_axis(joint, f"{kind} command")
+                if kind == "position" and (why := unhomed_refusal(session, [joint])):
+                    raise CommandError(f"position command refused, nothing sent: {why}")
                 axis.send_command(axis.check_command(kind, message.data))
         except CommandError as e:
             self._warn_refused(f"{joint}: {e}")
@@ -111,6 +114,9 @@ class Commands:
         try:
             with session.lock:
                 checked = self._check_joint_commands(message)
+                positioned = [axis.name for axis, _ in checked if axis.command_kind == "position"]
+                if why := unhomed_refusal(session, positioned):
+                    raise CommandError(why)
                 for axis, command in checked:
                     axis.send_command(command)
         except CommandError as e:

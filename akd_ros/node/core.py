@@ -13,6 +13,9 @@ from akd_ros.node import NODE_NAME
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
+from akd_ros.node.follow_joint_trajectory import FollowJointTrajectory
+from akd_ros.node.homing import Homing
+from akd_ros.node.io import Io
 from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
 from akd_ros.node.services import Services
@@ -49,8 +52,13 @@ class Core:
             transport, self._session, periodic, self._reliable, events, self._commands.fault_seen
         )
         self._trajectories = Trajectories(transport, self._session, commands, periodic, command_qos, events)
+        self._io = Io(transport, self._session, periodic, requests, events)
         self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
         Services(transport, self._session, self._commands, requests)
+        # Homing goals have a group of their own: one runs for as long as its joints home.
+        Homing(transport, self._session, transport.group())
+        # So do FollowJointTrajectory goals: one runs until its trajectory ends, a newer one beside it to preempt it.
+        FollowJointTrajectory(transport, self._session, transport.group())
 
     @property
     def bus(self) -> Bus | None:
@@ -97,20 +105,10 @@ class Core:
 
     def _configure(self, tap: Tap | None) -> bool:
         s = self.settings
+        # What each mapping carries of the drive's I/O, known from the parameters before the bus is touched.
+        self._logger.info("I/O the mappings carry: " + "; ".join(f"{j.name}: {j.describe_io()}" for j in s.joints))
         try:
-            bus = Bus(
-                s.link,
-                [j.drive() for j in s.joints],
-                period=s.cycle_time,
-                priority=s.rt_priority,
-                cpu=s.rt_cpu,
-                lock_memory=s.rt_lock_memory,
-                cpu_latency_us=s.rt_cpu_latency_us,
-                pipelined=s.rt_pipelined,
-                fault_reaction=s.fault_reaction,
-                dc=s.dc,
-                dc_shift=s.dc_shift,
-            )
+            bus = Bus(s.link, [j.drive() for j in s.joints], **s.bus_options())
         except AXIS_ERRORS as e:
             return self._fail(f"configure: the drives ({self._where()}) on link {s.link!r} did not open: {e}")
         for joint, axis in zip(s.joints, bus.axes, strict=True):
@@ -130,6 +128,7 @@ class Core:
             self._logger.warning(f"configure: not permitted: {warning}")
         if s.record is not None:
             topics = [(p.topic_name, p.msg_type, p.qos) for p in self._publishing.publishers()]
+            topics += [(p.topic_name, p.msg_type, p.qos) for p in self._io.publishers.values()]
             topics += [
                 (p.topic_name, p.msg_type, p.qos) for p in (self._diagnostics.publisher, self._trajectories.status)
             ]

@@ -6,12 +6,17 @@ state or while its drive is unreachable and being brought back (with the attempt
 its state is not fresh, a request is stuck or lost, in Quick stop active, or with distributed clocks on a drive whose
 FBUS.PARAM02 is unknown (the master writes it only where the drive's SDO information confirms the object, see
 `Master.configure_dc`); OK otherwise. Its values carry the state, its distributed clock, its recovery and its last
-fault. The bus's status (`akd_node: bus`) is ERROR while a joint is in Fault or unreachable, WARN when a fault counter
-grew since the last report or the last frame did not come back; its values carry the link, the cycle statistics and
-the distributed clocks."""
+fault. A joint whose I/O holds its drive back (hardware enable low, a limit switch active: `akd_ros.node.io.reasons`)
+is WARN at least, and says so in the drive's words. The bus's status (`akd_node: bus`) is ERROR while a joint is in
+Fault or unreachable, WARN when a fault counter grew since the last report or the last frame did not come back; its
+values carry the link, the cycle statistics and the distributed clocks. One counter, f125_stalls (the cycle stalled
+8.5 periods or more with a drive enabled), is also logged as a warning when it grows: a real AKD raises F125 there,
+virtual AKDs with `missed=warn` go on (docs/virtual_akd.md)."""
 
 from __future__ import annotations
 
+from akd_ros.node.homing import joint_homed
+from akd_ros.node.io import named_levels, reasons
 from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.session import FAULT_STATES, Session
 from akd_ros.node.transport import Qos, Transport
@@ -21,6 +26,16 @@ FBUS_PARAM02_UNKNOWN = (
     "set FBUS.PARAM02 = 1 on the drive (WorkBench) for its PLL to follow SYNC0"
 )
 """What /diagnostics says of a drive with distributed clocks whose FBUS.PARAM02 the master left alone."""
+
+
+def f125_warning(stats: dict, new: int) -> str:
+    """What the node says when the cycle stalled, a drive enabled, long enough for a real AKD to raise F125."""
+    return (
+        f"a real AKD would raise F125 here: {new} cycle stall{'s' if new > 1 else ''} of 8.5 periods or more while a "
+        f"drive was enabled since the last report ({stats['f125_stalls']} in all; longest period "
+        f"{stats['period']['max_ns'] * 1e-6:.1f} ms); virtual AKDs with missed=warn go on, a real line faults. "
+        "Give the cycle thread real-time priority (rt.priority) on a host that stalls it"
+    )
 
 
 def fbus_param02_unknown(dc: dict, slave: int) -> bool:
@@ -55,6 +70,7 @@ class Diagnostics:
         self, transport: Transport, session: Session, group, qos: Qos, node_name: str, publishing: Publishing
     ) -> None:
         self._session, self._clock, self._settings = session, session.clock, session.settings
+        self._joints = {j.name: j for j in session.joints}
         self._node_name, self._publishing = node_name, publishing
         self._transport = transport
         self._array = transport.message_class("diagnostic_msgs/msg/DiagnosticArray")
@@ -78,7 +94,7 @@ class Diagnostics:
         if taken is None:
             return
         bus, states, stats = taken
-        counted = ["overruns", "lost_frames", "wkc_errors", "events_dropped"]
+        counted = ["overruns", "f125_stalls", "lost_frames", "wkc_errors", "events_dropped"]
         # Cycle records are taken only while recording; then each one lost is a cycle missing from the bag.
         if self._session.recorder is not None:
             counted.append("samples_dropped")
@@ -86,16 +102,23 @@ class Diagnostics:
         # The middleware's drops (a Zenoh sample without rmw_zenoh's attachment) grow the bus's WARN as the cycle's do.
         counters |= self._transport.counters()
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
+        if "f125_stalls" in grown:
+            self._transport.logger.warning(
+                f125_warning(stats, stats["f125_stalls"] - self._counters_seen["f125_stalls"])
+            )
         self._counters_seen = counters
         dc_status = bus.cycle.dc_status()
         recovery = {joint: bus[joint].recovery() for joint in states}
-        statuses = [self._joint_status(bus[j], state, dc_status, recovery[j]) for j, state in states.items()]
+        ios = bus.io()
+        statuses = [self._joint_status(bus[j], state, dc_status, recovery[j], ios[j]) for j, state in states.items()]
         lost = [joint for joint, r in recovery.items() if r["recovering"]]
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
         self.publisher.publish(self._array(header=self._header(stamp=self._clock.stamp()), status=statuses))
 
-    def _joint_status(self, axis, state, dc_status: dict, recovery: dict) -> object:
-        """The status of one joint: its drive's state, mode, position, DC, recovery and last fault."""
+    def _joint_status(self, axis, state, dc_status: dict, recovery: dict, io) -> object:
+        """The status of one joint: its drive's state, mode, position, DC, recovery and last fault, what of its I/O
+        (`io`, its `AxisIo`) holds it back, and its named inputs and outputs."""
+        held = reasons(io, state.statusword)
         fault = self._publishing.last_fault.get(axis.name)
         param02_unknown = fbus_param02_unknown(dc_status, axis.slave)
         if recovery["recovering"] or state.state in FAULT_STATES:
@@ -105,6 +128,7 @@ class Diagnostics:
             or state.progress in ("stuck", "lost")
             or state.state == "Quick stop active"
             or (param02_unknown)
+            or held
         ):
             level = self._warn
         else:
@@ -117,6 +141,8 @@ class Diagnostics:
             summary += f": {recovery['last_error']})" if recovery["last_error"] else ")"
         if param02_unknown:
             summary += f"; {FBUS_PARAM02_UNKNOWN}"
+        for reason in held:
+            summary += f"; {reason}"
         if level == self._error and fault is not None:
             summary += f"; last fault {fault.text or hex(fault.code)}"
         values = {
@@ -129,12 +155,15 @@ class Diagnostics:
             "request": state.request or "",
             "progress": state.progress,
             "position": f"{state.position:.9g}",
+            "homed": joint_homed(self._session.joint(axis.name), axis),
             **dc_values(dc_status, axis.slave),
             "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
             "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
             "last_fault_action": "" if fault is None else fault.action,
             "recovering": recovery["recovering"],
             "recoveries": recovery["recoveries"],
+            "io": "; ".join(held) or "nothing holds the drive back",
+            **named_levels(self._joints[axis.name], io),
         }
         hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
         return self._status_message(level, axis.name, summary, hardware_id, values)

@@ -13,6 +13,7 @@ from collections.abc import Callable
 
 from akd_ros.axis import MODES
 from akd_ros.node.clock import nanoseconds
+from akd_ros.node.homing import joint_homed
 from akd_ros.node.recording import record_cycles
 from akd_ros.node.session import Session, namespace
 from akd_ros.node.transport import Qos, Transport
@@ -129,6 +130,7 @@ class Publishing:
                 mode=state.mode or bus[joint].mode,
                 mode_of_operation=MODES.get(state.mode, 0),
                 following_error=math.nan if state.following_error is None else state.following_error,
+                homed=joint_homed(self._session.joint(joint), bus[joint]),
                 cycles=stats["cycles"],
                 overruns=stats["overruns"],
                 lost_frames=stats["lost_frames"],

@@ -16,6 +16,7 @@ from akd_ros.params import (
     Spec,
     argument_sections,
     check_joint_names,
+    io_name_specs,
     joint_specs,
     refuse_single_joint_parameters,
     refuse_unknown,
@@ -52,7 +53,8 @@ def descriptor(spec: Spec) -> ParameterDescriptor:
 
 def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Settings:
     """Declares every parameter on `node` (what the ROS arguments gave each checked first), with every joint's block
-    (joints.<name>.*), and gives the checked settings; raises ParameterError naming the first parameter that is wrong
+    (joints.<name>.*) and every name given to an input or output (io.inputs.<name>, io.outputs.<name>), and gives
+    the checked settings; raises ParameterError naming the first parameter that is wrong
     and what it allows.
 
     `arguments` are the command lines rcl read for the node (rclpy.init's and the node's own cli_args) and
@@ -65,7 +67,9 @@ def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Sett
     joints = check_joint_names(top["joints"])
     refuse_single_joint_parameters(named, joints)
     values = dict(top)
-    for spec in joint_specs(joints, top):
+    # A name of another node's section is among `named` too: only those given to this node are declared.
+    io_names = [s for s in io_name_specs(named, joints) if _given(node, s.name).type_ != Parameter.Type.NOT_SET]
+    for spec in [*joint_specs(joints, top), *io_names]:
         values[spec.name] = _declare(node, spec, named)
     refuse_unknown(
         [

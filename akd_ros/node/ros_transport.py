@@ -14,7 +14,7 @@ from typing import Any
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-from akd_ros.node.transport import Qos
+from akd_ros.node.transport import ActionCallbacks, Qos
 from akd_ros.node.worker import Worker
 
 
@@ -88,6 +88,21 @@ class RosTransport:
 
     def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: RosGroup) -> None:
         self._node.create_service(message_class(type_name), name, handler, callback_group=group.callbacks)
+
+    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: RosGroup) -> type:
+        from rclpy.action import ActionServer, CancelResponse, GoalResponse
+
+        action = message_class(type_name)
+        ActionServer(
+            self._node,
+            action,
+            name,
+            execute_callback=callbacks.execute,
+            goal_callback=lambda goal: GoalResponse.ACCEPT if callbacks.goal(goal) else GoalResponse.REJECT,
+            cancel_callback=lambda handle: CancelResponse.ACCEPT if callbacks.cancel(handle) else CancelResponse.REJECT,
+            callback_group=group.callbacks,
+        )
+        return action
 
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         group.worker.add_timer(period, callback)

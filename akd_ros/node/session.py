@@ -40,6 +40,10 @@ class Session:
         """Every joint's settings, in order."""
         return self.settings.joints
 
+    def joint(self, name: str) -> JointSettings:
+        """The settings of joint `name`."""
+        return next(j for j in self.settings.joints if j.name == name)
+
     def states(self, with_stats: bool = False):
         """(bus, every axis's state by joint from one cycle, the cycle's statistics where `with_stats`, else None), or
         None when closed or inactive. /joint_states, the most frequent caller, needs no statistics."""

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from akd_ros.axis import CommandError
 from akd_ros.node.clock import nanoseconds
+from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.publishing import RecordedPublisher
 from akd_ros.node.session import Session
 from akd_ros.node.transport import Qos, Transport
@@ -62,7 +63,10 @@ class Trajectories:
             if start_ns is not None and start_ns < 0:
                 raise CommandError(f"header.stamp {stamp_ns} ns is before this machine started; zero means now")
             with session.lock:
-                identifier = session.bus_for_request().play_trajectory(joints, times, points, start_ns)
+                bus = session.bus_for_request()
+                if why := unhomed_refusal(session, joints):
+                    raise CommandError(why)
+                identifier = bus.play_trajectory(joints, times, points, start_ns)
                 self._joints[identifier] = joints
         except CommandError as e:
             text = str(e) if str(e).startswith("trajectory refused") else f"trajectory refused: {e}"

@@ -23,6 +23,17 @@ class Qos:
     transient_local: bool = False
 
 
+@dataclass(frozen=True)
+class ActionCallbacks:
+    """What an action server calls, as rclpy's ActionServer does: `goal(goal) -> bool` accepts or rejects a goal,
+    `execute(handle) -> result` runs an accepted one (handle.request, publish_feedback, is_cancel_requested,
+    succeed/abort/canceled), `cancel(handle) -> bool` accepts or rejects a cancel request."""
+
+    goal: Callable[[Any], bool]
+    execute: Callable[[Any], Any]
+    cancel: Callable[[Any], bool]
+
+
 class Publisher(Protocol):
     """A publisher of one topic."""
 
@@ -64,6 +75,10 @@ class Transport(Protocol):
     def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: Any) -> None:
         """Serves `name` of service type `type_name` ("pkg/srv/Name"): `handler(request, response)` fills and returns
         the response."""
+
+    def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Any) -> Any | None:
+        """Serves action `name` of type `type_name` ("pkg/action/Name") with `callbacks`; gives the action's class
+        (its Goal, Feedback and Result), or None where this transport serves no action (it says so in the log)."""
 
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         """Calls `callback` every `period` seconds."""

@@ -24,6 +24,7 @@ COLUMNS = (
     ("torque", "torque"),
     ("following_error", "following error"),
     ("fault", "last fault"),
+    ("io", "I/O"),
 )
 REFRESH_S = 0.1
 """How often the view reads its source."""

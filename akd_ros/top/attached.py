@@ -1,8 +1,8 @@
 """akd-top's sources for a running akd_node, whatever the middleware: its joints from /joint_states, their state,
 mode and last fault from /diagnostics, position, velocity and effort from /joint_states, following error from each
-joint's `status`, faults from its `fault`, the bus's statistics and DC from the `<node>: bus` diagnostic status;
-requests through the joint's Trigger services and `arm_latch`. The middleware (`ros_source`: rclpy;
-`zenoh_source`: rmw_zenoh's wire without ROS) subscribes and calls.
+joint's `status`, faults from its `fault`, its drive's own I/O from its `io`, the bus's statistics and DC from the
+`<node>: bus` diagnostic status; requests through the joint's Trigger services and `arm_latch`. The middleware
+(`ros_source`: rclpy; `zenoh_source`: rmw_zenoh's wire without ROS) subscribes and calls.
 
 A joint's topics and services are `<node>/<joint>/...` with `joints`, `<node>/...` for a node of one joint without:
 DriveStatus and DriveFault carry the joint's name, so both are subscribed, and a request goes to the joint's own
@@ -16,12 +16,15 @@ from abc import abstractmethod
 from collections.abc import Callable
 
 from akd_ros.top.direct import STATS_LABELS
-from akd_ros.top.source import BusRow, JointRow, Source, check_action
+from akd_ros.top.source import SWITCH_WORDS, BusRow, JointRow, Source, check_action, io_text
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
 DRIVE_STATUS = "akd_ros/msg/DriveStatus"
 DRIVE_FAULT = "akd_ros/msg/DriveFault"
+DRIVE_IO = "akd_ros/msg/DriveIO"
+# DriveIO's hardware_enable codes (its HARDWARE_ENABLE_* constants, msg/DriveIO.msg).
+HARDWARE_ENABLE = {0: "unknown", 1: "high", 2: "low"}
 TRIGGER = "std_srvs/srv/Trigger"
 ARM_LATCH = "akd_ros/srv/ArmLatch"
 # LatchEvent's EDGE_RISING and EDGE_FALLING, the codes ArmLatch's edge takes (msg/LatchEvent.msg).
@@ -39,6 +42,7 @@ class AttachedSource(Source):
         self._diagnostics: dict[str, dict[str, str]] = {}
         self._following: dict[str, float] = {}
         self._faults: dict[str, str] = {}
+        self._io: dict[str, str | None] = {}
 
     def start(self) -> None:
         """Subscribes to what every node has; each joint's own topics follow once /joint_states names it."""
@@ -62,6 +66,7 @@ class AttachedSource(Source):
         prefix = self._prefix(joint)
         self.subscribe(prefix + "status", DRIVE_STATUS, self._on_status)
         self.subscribe(prefix + "fault", DRIVE_FAULT, self._on_fault)
+        self.subscribe(prefix + "io", DRIVE_IO, self._on_io)
 
     # --- what arrives --------------------------------------------------------------------------------------------
 
@@ -94,6 +99,13 @@ class AttachedSource(Source):
         with self._lock:
             self._faults[message.joint] = f"{message.source}: {message.text or f'0x{message.code:04X}'}"
 
+    def _on_io(self, m) -> None:
+        switches = {name: bool(getattr(m, name)) for name in SWITCH_WORDS}
+        hardware_enable = HARDWARE_ENABLE.get(int(m.hardware_enable), "unknown")
+        text = io_text(m.inputs, switches, hardware_enable, m.analog_input, m.outputs, m.analog_output)
+        with self._lock:
+            self._io[m.joint] = text
+
     # --- Source --------------------------------------------------------------------------------------------------
 
     def rows(self) -> list[JointRow]:
@@ -105,7 +117,8 @@ class AttachedSource(Source):
                 last = values.get("last_fault")
                 fault = self._faults.get(joint) or (last if last not in (None, "none") else None)
                 state, mode, following = values.get("ds402_state"), values.get("mode"), self._following.get(joint)
-                rows.append(JointRow(joint, state, mode, position, velocity, effort, following, fault))
+                io = self._io.get(joint)
+                rows.append(JointRow(joint, state, mode, position, velocity, effort, following, fault, io))
             return rows
 
     def bus_row(self) -> BusRow:

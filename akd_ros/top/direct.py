@@ -6,7 +6,7 @@ from __future__ import annotations
 from akd_ros import _native
 from akd_ros.axis import DriveConfig
 from akd_ros.bus import Bus
-from akd_ros.top.source import BusRow, JointRow, Source, check_action
+from akd_ros.top.source import BusRow, JointRow, Source, check_action, io_text
 
 STATS_LABELS = ("cycles", "overruns", "lost_frames", "wkc_errors", "period_mean_s", "period_max_s", "exchange_p99_s")
 """The cycle statistics shown, named as akd_node's /diagnostics names them (so both sources show the same)."""
@@ -57,12 +57,12 @@ class DirectSource(Source):
         self._faults: dict[str, str] = {}
 
     def rows(self) -> list[JointRow]:
-        states = self.bus.states()
+        states, ios = self.bus.states(), self.bus.io()
         rows = []
         for axis in self.bus.axes:
             for event in axis.fault_events():
                 self._faults[axis.name] = fault_text(event)
-            s = states[axis.name]
+            s, io = states[axis.name], ios[axis.name]
             rows.append(
                 JointRow(
                     axis.name,
@@ -73,6 +73,7 @@ class DirectSource(Source):
                     s.torque,
                     s.following_error,
                     self._faults.get(axis.name),
+                    io_text(io.inputs, io.switches, io.hardware_enable, io.analog_input, io.outputs, io.analog_output),
                 )
             )
         return rows

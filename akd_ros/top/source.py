@@ -3,6 +3,7 @@ person makes of a joint. The view (`akd_ros.top.app`) is written once over this 
 
 from __future__ import annotations
 
+import math
 from abc import ABC, abstractmethod
 from dataclasses import dataclass, field
 
@@ -13,7 +14,7 @@ ACTIONS = ("enable", "disable", "quick_stop", "reset_fault")
 @dataclass(frozen=True)
 class JointRow:
     """One joint as last seen: CiA 402 state, mode, position, velocity, torque (SI units: rad, rad/s, N·m; m, m/s,
-    N on a linear axis), following error, and the last fault with its text."""
+    N on a linear axis), following error, the last fault with its text, and its drive's own I/O (`io_text`)."""
 
     name: str
     state: str | None = None
@@ -23,6 +24,7 @@ class JointRow:
     torque: float | None = None
     following_error: float | None = None
     fault: str | None = None
+    io: str | None = None
 
 
 @dataclass(frozen=True)
@@ -58,6 +60,29 @@ class Source(ABC):
     @abstractmethod
     def close(self) -> None:
         """Lets go of the bus (for a direct link: disables the drives and stops the cycle)."""
+
+
+SWITCH_WORDS = {"negative_limit": "-limit", "positive_limit": "+limit", "home_switch": "home", "interlock": "interlock"}
+"""The switches of 0x60FD as the I/O column names them while active."""
+
+
+def io_text(
+    inputs, switches: dict[str, bool], hardware_enable: str, analog_input, outputs, analog_output
+) -> str | None:
+    """A drive's I/O in one cell: digital inputs 1..7 as 0/1 digits (input 1 first), the switches that are active,
+    the hardware enable where not high, the analog input, digital outputs 1..2 and the analog output (V); what the
+    mapping lacks is left out (None for nothing at all)."""
+    parts = [f"DI {''.join('1' if x else '0' for x in inputs)}"] if len(inputs) else []
+    parts += [SWITCH_WORDS[name] for name, active in switches.items() if active]
+    if hardware_enable != "high":
+        parts.append(f"enable {hardware_enable}")
+    if analog_input is not None and math.isfinite(analog_input):
+        parts.append(f"AI {analog_input:.2f} V")
+    if len(outputs):
+        parts.append(f"DO {''.join('1' if x else '0' for x in outputs)}")
+    if analog_output is not None and math.isfinite(analog_output):
+        parts.append(f"AO {analog_output:.2f} V")
+    return " ".join(parts) or None
 
 
 def check_action(action: str) -> None:

@@ -160,6 +160,19 @@ class Types:
         }
         return self.store.types[typename](**values)
 
+    def message_class(self, typename: str) -> Callable[..., object]:
+        """A factory of `typename`'s messages (`message`'s keyword arguments), with the type's constants
+        (DiagnosticStatus.OK, LatchEvent.EDGE_RISING) as its class has them: what a node's transport hands its parts."""
+        cls = self.store.types[self._known(typename)]
+
+        def make(**fields):
+            return self.message(typename, **fields)
+
+        for constant, _, value in self.store.fielddefs[typename][0]:
+            setattr(make, constant, value)
+        make.__name__ = cls.__name__
+        return make
+
     def _default(self, desc: tuple) -> object:
         kind, argument = desc
         if kind == Nodetype.BASE:

@@ -1055,6 +1055,15 @@ pub mod data_type {
     }
 }
 
+/// Whether `name`, an object's name in a drive's SDO information, names the AKD parameter
+/// `parameter` (e.g. "FBUS.PARAM02") as a word of its own, in any case: "FBUS.PARAM02" and
+/// "FBUS.PARAM02 PLL mode" do, "FBUS.PARAM020" or "Sync mode" do not. A master writes or trusts
+/// a manufacturer object whose index no manual gives only where the drive names it so.
+pub fn names_parameter(name: &str, parameter: &str) -> bool {
+    name.split(|c: char| !(c.is_ascii_alphanumeric() || c == '.' || c == '_'))
+        .any(|word| word.eq_ignore_ascii_case(parameter))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -33,12 +33,10 @@ pub const FBUS_PARAM02: u16 = 0x3E02;
 /// virtual AKD's SDO information names object [`FBUS_PARAM02`].
 pub const FBUS_PARAM02_NAME: &str = "FBUS.PARAM02";
 
-/// Whether `name`, an object's name in a drive's SDO information, names FBUS.PARAM02: it holds
-/// [`FBUS_PARAM02_NAME`] (in any case) as a word of its own, so "FBUS.PARAM02" and
-/// "FBUS.PARAM02 PLL mode" do, "FBUS.PARAM020" or "Sync mode" do not.
+/// Whether `name`, an object's name in a drive's SDO information, names FBUS.PARAM02
+/// ([`crate::coe::names_parameter`]).
 pub fn names_fbus_param02(name: &str) -> bool {
-    name.split(|c: char| !(c.is_ascii_alphanumeric() || c == '.' || c == '_'))
-        .any(|word| word.eq_ignore_ascii_case(FBUS_PARAM02_NAME))
+    crate::coe::names_parameter(name, FBUS_PARAM02_NAME)
 }
 /// FBUS.PARAM02 bit 0: the drive's PLL follows SYNC0.
 pub const FBUS_PARAM02_PLL: u32 = 0x0000_0001;

@@ -231,6 +231,27 @@ pub enum Mode {
     CyclicSynchronousPosition = 8,
 }
 
+/// CiA 402's cyclic synchronous velocity (9) and torque (10), which the AKD does not offer: by
+/// their 0x6060 value and one-word name, with why (docs/virtual_akd.md has the evidence). The
+/// virtual AKD refuses them as it refuses any other value (SDO abort 0x06090030), and the master
+/// and the node refuse them with the reason.
+pub const NOT_OFFERED: [(i8, &str, &str); 2] = [
+    (
+        9,
+        "cyclic_synchronous_velocity",
+        "the AKD offers no mode 9: no AKD EtherCAT manual (2009 to 2017, firmware up to 1.17) lists it, and the AKD's \
+         0x6502 (0xE5) has no csv bit; its cyclic velocity mode is profile_velocity (3), which takes 0x60FF every \
+         cycle (DRV.OPMODE 1, DRV.CMDSOURCE 1)",
+    ),
+    (
+        10,
+        "cyclic_synchronous_torque",
+        "the AKD offers no mode 10: no AKD EtherCAT manual (2009 to 2017, firmware up to 1.17) lists it, and the \
+         AKD's 0x6502 (0xE5) has no cst bit; its cyclic torque mode is profile_torque (4), which takes 0x6071 every \
+         cycle (DRV.OPMODE 0, DRV.CMDSOURCE 1)",
+    ),
+];
+
 impl Mode {
     /// Every supported mode.
     pub const ALL: [Mode; 6] = [
@@ -332,6 +353,12 @@ impl Mode {
             Mode::Homing => &[],
             Mode::InterpolatedPosition => &[(0x60C1, 1)],
         }
+    }
+
+    /// Whether `index:subindex` is the command object of some mode: a motion set-point, whose
+    /// write releases a held target (the drive's I/O and other outputs do not).
+    pub fn is_command_object(index: u16, subindex: u8) -> bool {
+        Self::ALL.iter().any(|m| m.command_objects().contains(&(index, subindex)))
     }
 
     /// The controlword bits whose rising edge starts what the mode was commanded: profile

@@ -81,7 +81,8 @@ pub enum LinkSpecError {
         /// The most virtual AKDs a bus may hold (the link spec's `MAX_SIM_COUNT`).
         max: usize,
     },
-    /// `sim...?` with an option other than `missed=late` or `missed=lost`.
+    /// `sim...?` with an option other than `missed=late|lost|warn` or `pace=real|immediate`,
+    /// or one given twice.
     SimOption {
         /// The spec as given.
         spec: String,
@@ -112,8 +113,9 @@ impl LinkSpecError {
     /// none of them is told, and what the node's parameter check names as allowed.
     pub fn allowed_forms(max_sim_count: usize) -> String {
         format!(
-            "'sim', 'sim:N' (N 1..={max_sim_count}; either with '?missed=lost'), 'udp://HOST:PORT' or a network \
-             interface name (with '?busy_poll=US' to busy-poll for the returning frame)"
+            "'sim', 'sim:N' (N 1..={max_sim_count}; either with options '?missed=late|lost|warn', \
+             '?pace=real|immediate', joined by '&'), 'udp://HOST:PORT' or a network interface name (with \
+             '?busy_poll=US' to busy-poll for the returning frame)"
         )
     }
 }
@@ -126,9 +128,13 @@ impl fmt::Display for LinkSpecError {
             }
             LinkSpecError::SimOption { spec } => write!(
                 f,
-                "link {spec:?}: the virtual AKDs take one option, ?missed=late (the default: a frame \
-                 that comes late is missed, as the real drive judges) or ?missed=lost (only frames \
-                 lost on the line are missed, for a host whose master thread is not real-time)"
+                "link {spec:?}: the virtual AKDs take options after '?', joined by '&', each once: \
+                 missed=late (the default: a frame that comes late is missed and more than seven \
+                 raise F125, as the real drive judges), missed=lost (only frames lost on the line \
+                 are missed) or missed=warn (judged as the real drive, but a would-be F125 is \
+                 counted and warned of instead of raised, for a host whose master thread is not \
+                 real-time); pace=real (the default: AL requests and mailbox answered as slowly as \
+                 the real drive answers them) or pace=immediate (at once, for tests that need speed)"
             ),
             LinkSpecError::InterfaceOption { spec, max } => write!(
                 f,
@@ -1115,6 +1121,11 @@ pub enum SettingError {
         /// The value given.
         value: f64,
     },
+    /// A virtual AKD's Init→PreOp time that is no number of ms in 0..=10000.
+    InitToPreOp {
+        /// The time asked for, ms.
+        ms: f64,
+    },
     /// A virtual AKD's mailbox size outside what the simulator builds.
     MailboxSize {
         /// The size asked for.
@@ -1142,6 +1153,20 @@ pub enum SettingError {
         input: usize,
         /// The position given.
         position: f64,
+    },
+    /// A switch of 0x60FD by a name CiA 402 does not give one.
+    Switch {
+        /// The name given.
+        name: String,
+    },
+    /// An analog voltage that is not a finite number within the range its 16-bit object holds.
+    AnalogVoltage {
+        /// What it is, e.g. "analog input".
+        what: &'static str,
+        /// The voltage given.
+        volts: f64,
+        /// The largest magnitude the object holds, V.
+        max: f64,
     },
     /// An SDO write with no data.
     EmptySdoWrite {
@@ -1285,6 +1310,9 @@ impl fmt::Display for SettingError {
             SettingError::Seconds { what, value } => {
                 write!(f, "{what} must be a non-negative number of seconds, got {value}")
             }
+            SettingError::InitToPreOp { ms } => {
+                write!(f, "a virtual AKD's Init->PreOp time of {ms} ms: allowed are 0 to 10000 ms")
+            }
             SettingError::MailboxSize { size, min, max } => {
                 write!(f, "a virtual AKD's mailbox of {size} bytes: allowed are {min} to {max}")
             }
@@ -1294,6 +1322,13 @@ impl fmt::Display for SettingError {
             }
             SettingError::TogglePosition { input, position } => {
                 write!(f, "toggle position {position} of digital input {input} is not a finite number of counts")
+            }
+            SettingError::Switch { name } => {
+                let names: Vec<_> = crate::io::Switch::ALL.iter().map(|s| s.name()).collect();
+                write!(f, "switch {name:?} is not one of {}", names.join(", "))
+            }
+            SettingError::AnalogVoltage { what, volts, max } => {
+                write!(f, "{what} {volts} V: allowed a finite voltage within ±{max:.4} V")
             }
             SettingError::EmptySdoWrite { index, subindex } => {
                 write!(f, "SDO write of 0x{index:04X}:{subindex:02X} with no data")
@@ -1383,6 +1418,16 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
+    /// How a virtual AKD's homing fails.
+    HomingFailure {
+        /// The name given.
+        name: String,
+    },
+    /// How fast virtual AKDs answer.
+    Pace {
+        /// The name given.
+        name: String,
+    },
 }
 
 impl fmt::Display for UnknownName {
@@ -1403,9 +1448,17 @@ impl fmt::Display for UnknownName {
             }
             UnknownName::MissedFrames { name } => write!(
                 f,
-                "missed frames judged {name:?}: allowed \"late\" (as the real drive) or \"lost\" (only frames lost on \
-                 the line)"
+                "missed frames judged {name:?}: allowed \"late\" (as the real drive), \"lost\" (only frames lost on \
+                 the line) or \"warn\" (as the real drive, a would-be F125 counted and warned of, not raised)"
             ),
+            UnknownName::Pace { name } => write!(
+                f,
+                "virtual AKD pace {name:?}: allowed \"real\" (as the real drive) or \"immediate\" (requests handled \
+                 at once)"
+            ),
+            UnknownName::HomingFailure { name } => {
+                write!(f, "homing failure {name:?}: allowed ok, error, no_reference")
+            }
         }
     }
 }
@@ -1414,6 +1467,18 @@ impl fmt::Display for UnknownName {
 /// is in; the text says what would make it possible.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Unavailable {
+    /// Homing needs modes of operation and its display in the process data.
+    HomingUnmapped {
+        /// The slave's position.
+        slave: u16,
+    },
+    /// Homing starts only in Operation enabled.
+    HomingNotEnabled {
+        /// The slave's position.
+        slave: u16,
+        /// The state it is in.
+        state: &'static str,
+    },
     /// No process image: the slaves were not taken to SafeOp.
     NoProcessImage,
     /// A slave without process data in the image.
@@ -1529,6 +1594,14 @@ impl fmt::Display for Unavailable {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             Unavailable::NoProcessImage => write!(f, "no process image yet: take the slaves to SafeOp first"),
+            Unavailable::HomingUnmapped { slave } => write!(
+                f,
+                "slave {slave} cannot home from the cycle: its mapping lacks modes of operation 0x6060 (outputs) or \
+                 its display 0x6061 (inputs); map both (akd_ros's default mapping has them)"
+            ),
+            Unavailable::HomingNotEnabled { slave, state } => {
+                write!(f, "slave {slave} cannot home: it is in {state}, not Operation enabled; enable it first")
+            }
             Unavailable::NoProcessData { slave, with_data: None } => {
                 write!(f, "slave {slave} has no process data (map it, then go to SafeOp)")
             }
@@ -1646,6 +1719,13 @@ pub enum TrajectoryError {
         /// Joints of the trajectory.
         joints: usize,
     },
+    /// Tolerances for another number of joints than the trajectory has.
+    TolerancesCount {
+        /// Tolerances given.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
     /// A joint's limits that are not finite or whose minimum is above the maximum.
     BadLimits {
         /// The joint.
@@ -1731,6 +1811,9 @@ impl fmt::Display for TrajectoryError {
             }
             TrajectoryError::LimitsCount { given, joints } => {
                 write!(f, "{given} joint limit(s) given; the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::TolerancesCount { given, joints } => {
+                write!(f, "{given} joint tolerance(s) given; the trajectory has {joints} joint(s)")
             }
             TrajectoryError::BadLimits { joint, min, max } => {
                 write!(f, "joint {joint}: limits {min} ..= {max} counts; they must be finite with min <= max")

@@ -11,7 +11,9 @@
 //!    [`al`] (AL states and status codes), [`mailbox`] and [`coe`] (mailbox header, CoE SDO,
 //!    SDO information, emergency), [`eoe`] (Ethernet over EtherCAT: fragments, Set IP
 //!    Parameter) and [`foe`] (file access over EtherCAT), [`pdo`] (the AKD's process-data mappings and their rules),
-//!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine) and
+//!    [`io`] (the drive's own digital and analog I/O in its process data),
+//!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine), [`scaling`]
+//!    (how the drive scales its positions, from its DS402 scaling objects) and
 //!    [`akd_fault`] (the AKD's fault numbers), and [`trajectory`] (joint trajectories, validated
 //!    and interpolated). Closed sets of wire codes are enums (e.g.
 //!    [`coe::CoeService`]); open ones are newtypes with a `name()` (e.g. [`coe::SdoAbortCode`]).
@@ -49,12 +51,14 @@ pub mod eoe;
 pub mod error;
 pub mod foe;
 pub mod frame;
+pub mod io;
 pub mod link;
 pub mod mailbox;
 pub mod master;
 pub mod objects;
 pub mod pdo;
 pub mod registers;
+pub mod scaling;
 pub mod sii;
 pub mod sim;
 pub mod trajectory;

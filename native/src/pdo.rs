@@ -489,6 +489,35 @@ pub const DEFAULT_TX: [&[PdoEntry]; 4] = [
     &[LATCH_2_POSITION, DIGITAL_INPUTS],
 ];
 
+/// akd_ros's mapping with the drive's own I/O (the node's `mapping: io`), outputs: the default's
+/// commands but interpolated position's 0x60C1:01, whose four bytes and the two left over carry
+/// the digital outputs 0x60FE:01 and the analog output set-point 0x3470:03 — 22 bytes, the
+/// AKD's most. Controlword, modes of operation, padding, target position 0x607A | target
+/// velocity, target torque, latch controlword | digital outputs, analog output.
+pub const IO_RX: [&[PdoEntry]; 3] = [
+    &[CONTROLWORD, MODES_OF_OPERATION, PdoEntry::new(RX_PADDING_INDEX, 0, 8), TARGET_POSITION],
+    &[TARGET_VELOCITY, TARGET_TORQUE, LATCH_CONTROLWORD],
+    &[PHYSICAL_OUTPUTS, ANALOG_OUTPUT],
+];
+
+/// Inputs of the mapping with the drive's I/O (see [`IO_RX`]): the default's, with the digital
+/// inputs 0x60FD and the analog input 0x3470:04 in place of latch 2's position 0x20A7 (latch 1
+/// keeps 0x20A6): statusword, modes of operation display, padding, position actual | velocity
+/// actual, torque actual, latch statusword | following error, latch 1 position | digital
+/// inputs, analog input — 30 bytes.
+pub const IO_TX: [&[PdoEntry]; 4] = [
+    &[STATUSWORD, MODES_OF_OPERATION_DISPLAY, PdoEntry::new(TX_PADDING_INDEX, 1, 8), POSITION_ACTUAL],
+    &[VELOCITY_ACTUAL, TORQUE_ACTUAL, LATCH_STATUSWORD],
+    &[FOLLOWING_ERROR, LATCH_1_POSITION],
+    &[DIGITAL_INPUTS, ANALOG_INPUT],
+];
+
+/// A flexible mapping of akd_ros's own: its name, its RxPDOs and its TxPDOs.
+pub type NamedMapping = (&'static str, &'static [&'static [PdoEntry]], &'static [&'static [PdoEntry]]);
+
+/// akd_ros's own flexible mappings by the name the node's `mapping` parameter gives them.
+pub const NAMED: [NamedMapping; 2] = [("default", &DEFAULT_RX, &DEFAULT_TX), ("io", &IO_RX, &IO_TX)];
+
 const MODES_OF_OPERATION: PdoEntry = PdoEntry::new(0x6060, 0, 8);
 const MODES_OF_OPERATION_DISPLAY: PdoEntry = PdoEntry::new(0x6061, 0, 8);
 const TARGET_TORQUE: PdoEntry = PdoEntry::new(0x6071, 0, 16);
@@ -623,6 +652,23 @@ mod tests {
             },
             "the default inputs carry every value an axis shows"
         );
+    }
+
+    #[test]
+    fn the_io_mapping_is_one_the_akd_takes_and_fills_the_outputs() {
+        for (name, rx, tx) in NAMED {
+            for (direction, pdos) in [(Direction::Rx, rx), (Direction::Tx, tx)] {
+                let indexed: Vec<(u16, &[PdoEntry])> =
+                    pdos.iter().enumerate().map(|(i, e)| (direction.flexible_base() + i as u16, *e)).collect();
+                assert_eq!(check_flexible(direction, &indexed), Ok(()), "{name} {}", direction.name());
+            }
+        }
+        assert_eq!(bit_len(&IO_RX.concat()) / 8, MAX_RX_BYTES);
+        let rx = IO_RX.concat();
+        for mode in crate::ds402::Mode::ALL {
+            let carried = mode.command_objects().iter().all(|&(i, s)| find(&rx, i, s).is_some());
+            assert_eq!(carried, mode != crate::ds402::Mode::InterpolatedPosition, "{}", mode.name());
+        }
     }
 
     #[test]

@@ -8,44 +8,20 @@ use std::time::{Duration, Instant};
 use akd_native::cycle::sequencer::{Progress, Request, Status};
 use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
-use akd_native::error::Result;
-use akd_native::link::{Link, Returns};
 use akd_native::sim::faults::Fault;
 use akd_native::sim::{Timing, VirtualBus};
 
 #[path = "support/csp.rs"]
 mod csp;
+#[path = "support/shared.rs"]
+mod shared;
 use csp::csp_cycle;
-
-/// A link to a virtual bus the test shares, on the monotonic clock.
-struct Shared {
-    bus: Arc<Mutex<VirtualBus>>,
-    start: Instant,
-    returns: Returns,
-}
-
-impl Link for Shared {
-    fn send(&mut self, tx: &[u8]) -> Result<()> {
-        let (bus, now_ns) = (&self.bus, self.start.elapsed().as_nanos() as u64);
-        self.returns.serve(tx, |frame| {
-            bus.lock().unwrap().process(frame, now_ns)?;
-            Ok(true)
-        })
-    }
-
-    fn receive(&mut self, rx: &mut [u8], _deadline: Instant) -> Result<Option<usize>> {
-        self.returns.take(rx)
-    }
-
-    fn describe(&self) -> String {
-        "shared sim".into()
-    }
-}
+use shared::Shared;
 
 /// One virtual AKD in cyclic synchronous position with 0x1724/0x1B24, cycling at 1 kHz.
 fn rig() -> (CycleThread, Arc<Mutex<VirtualBus>>) {
     let bus = Arc::new(Mutex::new(VirtualBus::with_timing(1, Timing::IMMEDIATE)));
-    let cycle = csp_cycle(Box::new(Shared { bus: bus.clone(), start: Instant::now(), returns: Returns::default() }));
+    let cycle = csp_cycle(Box::new(Shared::new(bus.clone())));
     cycle.set_request_timeout(Duration::from_millis(200));
     (cycle, bus)
 }
@@ -131,10 +107,7 @@ fn others_after_a_fault(quick_stop_on_fault: bool) -> [Option<State>; 2] {
     use akd_native::master::{Mapping, Master};
 
     let bus = Arc::new(Mutex::new(VirtualBus::with_timing(3, Timing::IMMEDIATE)));
-    let mut m = Master::new(
-        Box::new(Shared { bus: bus.clone(), start: Instant::now(), returns: Returns::default() }),
-        Duration::from_millis(100),
-    );
+    let mut m = Master::new(Box::new(Shared::new(bus.clone())), Duration::from_millis(100));
     m.scan().unwrap();
     m.request_state(AlState::PreOp, csp::STEP).unwrap();
     for position in 0..3 {

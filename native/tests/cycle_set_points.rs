@@ -4,57 +4,27 @@
 
 use std::time::{Duration, Instant};
 
-use akd_native::akd_fault::MissedFrames;
-use akd_native::al::AlState;
 use akd_native::cycle::events::{CommandTimeoutAction, CommandedTarget, Event};
 use akd_native::cycle::handshake::{Progress, Stuck};
 use akd_native::cycle::sequencer::Request;
-use akd_native::cycle::{Config, CycleThread};
+use akd_native::cycle::CycleThread;
 use akd_native::ds402::{controlword as cw, Mode, State};
-use akd_native::master::{Mapping, Master};
-use akd_native::sim::in_process::InProcess;
-use akd_native::sim::{Timing, VirtualBus};
+use akd_native::master::Mapping;
 
+#[path = "support/one_drive.rs"]
+mod one_drive;
 #[path = "support/profile.rs"]
 mod profile;
+use one_drive::{one_drive, wait_until};
 use profile::{inputs, outputs, profile_mapping};
-
-const STEP: Duration = Duration::from_secs(5);
-const DEADLINE: Duration = Duration::from_secs(10);
 
 /// One virtual AKD in `mode`, mapped for the profile modes (or with `mapping`), cycled at 1 kHz.
 fn rig_with(mode: Mode, mapping: Option<(Mapping, Mapping)>) -> CycleThread {
-    let mut m = Master::new(
-        // Missed frames judged by frames lost: a cycle this shared host runs late must not fault the
-        // drive (F125) under a test of set-points.
-        Box::new(InProcess::with_bus(VirtualBus::with_timing(
-            1,
-            Timing { missed_frames: MissedFrames::Lost, ..Timing::IMMEDIATE },
-        ))),
-        Duration::from_millis(100),
-    );
-    m.scan().unwrap();
-    m.request_state(AlState::PreOp, STEP).unwrap();
-    let (rx, tx) = mapping.unwrap_or_else(profile_mapping);
-    m.slave_mut(0).unwrap().configure_pdo(rx, tx).unwrap();
-    m.slave_mut(0).unwrap().sdo_write(0x6060, 0, &[mode as u8]).unwrap();
-    m.request_state(AlState::Op, STEP).unwrap();
-    CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap()
+    one_drive(mode, mapping.unwrap_or_else(profile_mapping)).0
 }
 
 fn rig(mode: Mode) -> CycleThread {
     rig_with(mode, None)
-}
-
-fn wait_until<T>(what: &str, mut done: impl FnMut() -> Option<T>) -> T {
-    let deadline = Instant::now() + DEADLINE;
-    loop {
-        if let Some(value) = done() {
-            return value;
-        }
-        assert!(Instant::now() < deadline, "timed out waiting for {what}");
-        std::thread::sleep(Duration::from_millis(1));
-    }
 }
 
 fn enabled(cycle: &CycleThread) {

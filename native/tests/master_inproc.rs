@@ -94,9 +94,9 @@ fn init_to_preop_duration(init_to_preop_ns: u64) -> Duration {
 
 #[test]
 fn init_to_preop_takes_the_firmwares_time_and_the_master_waits_for_it() {
-    // The real drive's pace in the SOEM capture (4.2-6.2 ms) and under TwinCAT (about 16 ms
-    // reading Init after the request); the bound leaves room for a loaded machine.
-    for (firmware_ns, bound) in [(Timing::REAL_DRIVE.init_to_preop_ns, 50), (16_000_000, 100)] {
+    // The real drive's pace under TwinCAT (the default: 17.5 ms) and that of the drive in the
+    // SOEM capture (4.2-6.2 ms); the bound leaves room for a loaded machine.
+    for (firmware_ns, bound) in [(Timing::REAL_DRIVE.init_to_preop_ns, 100), (4_500_000, 50)] {
         let took = init_to_preop_duration(firmware_ns);
         assert!(took >= Duration::from_nanos(firmware_ns), "{took:?} for {firmware_ns} ns");
         assert!(took < Duration::from_millis(bound), "{took:?} for {firmware_ns} ns");

@@ -251,13 +251,26 @@ def _serving(
 
 
 def akd_sim_in_netns(
-    ns: str, ifname: str, count: int = 1, ready_timeout: float = 10.0, cpu: int | None = None, busy_poll: bool = False
+    ns: str,
+    ifname: str,
+    count: int = 1,
+    ready_timeout: float = 10.0,
+    cpu: int | None = None,
+    busy_poll: bool = False,
+    options: Sequence[str] = (),
 ):
     """Runs `akd-sim --iface IFNAME --count N` in `ns` (context manager yielding the process once
     its packet socket is bound; stopped with SIGTERM on exit), bound to `cpu` when one is given;
-    with `busy_poll`, `--busy-poll` under the normal scheduler (which it needs), else SCHED_FIFO."""
+    with `busy_poll`, `--busy-poll` under the normal scheduler (which it needs), else SCHED_FIFO;
+    with further akd-sim `options`, e.g. ("--missed", "warn")."""
     argv = netns_argv(
-        ns, [*console_script("akd-sim"), "--iface", ifname, "--count", str(count), *(["--busy-poll"] * busy_poll)]
+        ns,
+        [
+            *console_script("akd-sim"),
+            *("--iface", ifname, "--count", str(count)),
+            *(["--busy-poll"] * busy_poll),
+            *options,
+        ],
     )
     what = f"akd-sim on {ifname} in {ns}"
     priority = None if busy_poll else SIM_PRIORITY
@@ -272,12 +285,12 @@ def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeou
 
 
 def master_script_report(
-    net: VethPair, script: str, args: Sequence[str], count: int = 1, timeout: float = 120.0
+    net: VethPair, script: str, args: Sequence[str], count: int = 1, timeout: float = 120.0, options: Sequence[str] = ()
 ) -> dict:
-    """Serves `count` virtual AKDs on the sim end of `net`, runs a third-party master's script
-    (source text) in the master namespace with (interface, *args), and returns the JSON report
-    the script printed as its last line; fails the test with the script's output otherwise."""
-    with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count):
+    """Serves `count` virtual AKDs on the sim end of `net` (with akd-sim `options`), runs a third-party master's
+    script (source text) in the master namespace with (interface, *args), and returns the JSON report the script
+    printed as its last line; fails the test with the script's output otherwise."""
+    with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, options=options):
         result = run_python_in_netns(net.ns_master, script, args=[net.if_master, *args], timeout=timeout)
     if result.returncode != 0:
         pytest.fail(f"master script failed (status {result.returncode}):\n{result.stderr}\n{result.stdout}")

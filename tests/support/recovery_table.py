@@ -1,5 +1,5 @@
 """The recovery table's measured times: each test of tests/test_recovery.py (and the node's) records its row here,
-and conftest prints them all at the end of the run, as the README's recovery table quotes them."""
+and conftest prints them all at the end of the run, as docs/howto/recovery.md's table quotes them."""
 
 from __future__ import annotations
 

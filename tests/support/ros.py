@@ -28,7 +28,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
-from akd_ros.msg import DriveFault, DriveStatus, LatchEvent, TrajectoryStatus
+from akd_ros.msg import DriveFault, DriveIO, DriveStatus, LatchEvent, TrajectoryStatus
 from akd_ros.srv import ArmLatch, SetMode
 from support.netns import SIM_PRIORITY, free_udp_port, realtime
 
@@ -46,6 +46,7 @@ NODE_TOPICS = {
     NODE + "latch": LatchEvent,
     NODE + "fault": DriveFault,
     NODE + "trajectory_status": TrajectoryStatus,
+    NODE + "io": DriveIO,
 }
 
 
@@ -317,17 +318,20 @@ def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
 
 
 @contextmanager
-def node_on_sim(params: str, folder: Path, domain: int) -> Iterator[tuple[Sim, NodeProcess, Client]]:
-    """A fresh simulator, akd_node on it with `params` (a template whose {port} is the simulator's) on `domain`, and
-    a client there once joint_states arrive; all ended afterwards, the node's output printed."""
-    sim = Sim(free_udp_port())
+def node_on_sim(
+    params: str, folder: Path, domain: int, *, count: int = 1, client_of=None, ready: str = "/joint_states"
+) -> Iterator[tuple[Sim, NodeProcess, Participant]]:
+    """A fresh simulator of `count` drives, akd_node on it with `params` (a template whose {port} is the simulator's)
+    on `domain`, and a client there (`client_of(domain)`, a `Client` by default) once topic `ready` arrives; all ended
+    afterwards, the node's output printed."""
+    sim = Sim(free_udp_port(), count=count)
     path = folder / "akd_node.yaml"
     path.write_text(params.format(port=sim.port))
     node = NodeProcess(path, domain)
     client = None
     try:
-        client = Client(domain)
-        client.spin_until(lambda: client.received["/joint_states"] or node.process.poll() is not None, "joint_states")
+        client = (client_of or Client)(domain)
+        client.spin_until(lambda: client.received[ready] or node.process.poll() is not None, ready)
         assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
         yield sim, node, client
     finally:

@@ -1,5 +1,5 @@
-//! Events the cycle thread reports — latch captures, faults, command time-outs and what became
-//! of trajectories — as four words each through a
+//! Events the cycle thread reports — latch captures, faults, command time-outs, what became
+//! of trajectories and changes of a drive's digital inputs — as four words each through a
 //! [`Ring`], so that the thread never waits for whoever reads them; a full ring drops and
 //! counts, so what was missed is known.
 
@@ -185,6 +185,36 @@ pub enum TrajectoryState {
         /// Its statusword then.
         statusword: u16,
     },
+    /// Stopped on request (a cancel): its drives decelerated to a standstill.
+    Stopped,
+    /// A drive strayed past the path tolerance while it ran: its drives decelerated to a
+    /// standstill.
+    PathToleranceViolated(Violation),
+    /// A drive was not within the goal tolerance by the end plus the goal time tolerance.
+    GoalToleranceViolated(Violation),
+}
+
+/// Which drive strayed from a trajectory and by how much.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Violation {
+    /// The drive's position on the bus.
+    pub slave: u16,
+    /// Whether its velocity strayed (else its position).
+    pub velocity: bool,
+    /// The error, set-point minus actual: counts, or counts/s for a velocity.
+    pub error: i32,
+}
+
+impl Violation {
+    /// In 56 bits (an event keeps a state in 56): `code` for a position, the next for a
+    /// velocity, the drive, the error.
+    fn pack(self, code: u64) -> u64 {
+        (code + self.velocity as u64) | (self.slave as u64) << 8 | (self.error as u32 as u64) << 24
+    }
+
+    fn unpack(v: u64, code: u8) -> Violation {
+        Violation { slave: (v >> 8) as u16, velocity: v as u8 != code, error: (v >> 24) as u32 as i32 }
+    }
 }
 
 impl TrajectoryState {
@@ -196,6 +226,9 @@ impl TrajectoryState {
             TrajectoryState::Done => "done",
             TrajectoryState::Replaced { .. } => "replaced",
             TrajectoryState::Aborted { .. } => "aborted",
+            TrajectoryState::Stopped => "stopped",
+            TrajectoryState::PathToleranceViolated(_) => "path_tolerance_violated",
+            TrajectoryState::GoalToleranceViolated(_) => "goal_tolerance_violated",
         }
     }
 
@@ -204,7 +237,8 @@ impl TrajectoryState {
         !matches!(self, TrajectoryState::Pending | TrajectoryState::Running)
     }
 
-    /// The state in 40 bits: a code, then the replacing id or the drive and its statusword.
+    /// The state in 64 bits: a code, then the replacing id, the drive and its statusword, or
+    /// the violation.
     pub fn pack(self) -> u64 {
         match self {
             TrajectoryState::Pending => 1,
@@ -212,6 +246,9 @@ impl TrajectoryState {
             TrajectoryState::Done => 3,
             TrajectoryState::Replaced { by } => 4 | (by as u64) << 8,
             TrajectoryState::Aborted { slave, statusword } => 5 | (slave as u64) << 8 | (statusword as u64) << 24,
+            TrajectoryState::Stopped => 6,
+            TrajectoryState::PathToleranceViolated(v) => v.pack(7),
+            TrajectoryState::GoalToleranceViolated(v) => v.pack(9),
         }
     }
 
@@ -223,6 +260,9 @@ impl TrajectoryState {
             3 => Some(TrajectoryState::Done),
             4 => Some(TrajectoryState::Replaced { by: (v >> 8) as u32 }),
             5 => Some(TrajectoryState::Aborted { slave: (v >> 8) as u16, statusword: (v >> 24) as u16 }),
+            6 => Some(TrajectoryState::Stopped),
+            7 | 8 => Some(TrajectoryState::PathToleranceViolated(Violation::unpack(v, 7))),
+            9 | 10 => Some(TrajectoryState::GoalToleranceViolated(Violation::unpack(v, 9))),
             _ => None,
         }
     }
@@ -287,6 +327,20 @@ pub enum Event {
         /// What was done.
         action: CommandTimeoutAction,
     },
+    /// A drive's digital inputs 0x60FD, or its hardware enable as its statusword shows it,
+    /// changed in this cycle's inputs ([`crate::io::InputWatch`]).
+    Inputs {
+        /// The cycle whose inputs showed it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The slave's position on the bus.
+        slave: u16,
+        /// 0x60FD (0 where the mapping lacks it).
+        digital_inputs: u32,
+        /// The statusword of that cycle.
+        statusword: u16,
+    },
     /// A trajectory started ([`TrajectoryState::Running`]) or ended.
     Trajectory {
         /// The cycle that saw it.
@@ -322,6 +376,9 @@ impl Event {
                 value as u32 as u64 | (timeout_us as u64) << 32,
             ],
             Event::Trajectory { cycle, time_ns, id, state } => [cycle, time_ns, 4 | state.pack() << 8, id as u64],
+            Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
+                [cycle, time_ns, 5 | (slave as u64) << 8 | (statusword as u64) << 24, digital_inputs as u64]
+            }
         }
     }
 
@@ -361,6 +418,13 @@ impl Event {
             4 => {
                 Some(Event::Trajectory { cycle, time_ns, id: data as u32, state: TrajectoryState::unpack(what >> 8)? })
             }
+            5 => Some(Event::Inputs {
+                cycle,
+                time_ns,
+                slave,
+                digital_inputs: data as u32,
+                statusword: (what >> 24) as u16,
+            }),
             _ => None,
         }
     }
@@ -423,9 +487,12 @@ mod tests {
             statusword: 0x1637,
             action: CommandTimeoutAction::QuickStop,
         };
+        let inputs =
+            Event::Inputs { cycle: 12, time_ns: 13, slave: 0xFFFE, digital_inputs: 0x8001_0002, statusword: 0xC0DE };
         events.push(latch);
         events.push(fault);
         events.push(timeout);
+        events.push(inputs);
         let trajectories = [
             TrajectoryState::Running,
             TrajectoryState::Done,
@@ -434,7 +501,7 @@ mod tests {
         ]
         .map(|state| Event::Trajectory { cycle: 10, time_ns: 12, id: 7, state });
         trajectories.iter().for_each(|t| events.push(*t));
-        assert_eq!(events.drain(), [[latch, fault, timeout].as_slice(), &trajectories].concat());
+        assert_eq!(events.drain(), [[latch, fault, timeout, inputs].as_slice(), &trajectories].concat());
         assert_eq!(TrajectoryState::unpack(TrajectoryState::Pending.pack()), Some(TrajectoryState::Pending));
         assert!(events.drain().is_empty());
         for _ in 0..CAPACITY + 3 {

@@ -52,6 +52,7 @@ pub mod dc_status;
 pub mod eoe_frames;
 pub mod events;
 pub mod handshake;
+pub mod homing;
 pub mod image;
 pub mod latch;
 pub mod record;
@@ -143,6 +144,8 @@ struct Shared {
     handshakes: Vec<handshake::Shared>,
     /// One per slave: the command time-out.
     command_timeouts: Vec<command_timeout::Shared>,
+    /// One per slave: its homing.
+    homings: Vec<homing::Shared>,
     events: Events,
     samples: Samples,
     sdo: SdoSlot,
@@ -169,9 +172,12 @@ struct DriveLoop {
     position: u16,
     drive: sequencer::Drive,
     latch: Option<latch::Latch>,
+    /// Its digital inputs and hardware enable, each change an event.
+    inputs: crate::io::InputWatch,
     watch: supervision::DriveWatch,
     handshake: handshake::Handshake,
     command_timeout: command_timeout::CommandTimeout,
+    homing: homing::Homing,
     presence: recovery::Presence,
     /// The mailbox counter the recovery left off at, for the master to go on from.
     mailbox_counter: Option<u8>,
@@ -206,6 +212,13 @@ fn sequenced_drives(
             Ok((offsets.shifted(slot.out_offset, slot.in_offset), latch))
         })
         .collect()
+}
+
+/// Where object `index:subindex` sits in the whole input image, where slave `position` maps it.
+fn input_offset(master: &Master, position: u16, (index, subindex): (u16, u8)) -> Option<usize> {
+    let mapping = master.slaves().get(position as usize)?.mapping.as_ref()?;
+    let (at, _) = crate::pdo::find(&mapping.tx_entries, index, subindex)?;
+    Some(master.image_slot(position).ok()?.in_offset + at)
 }
 
 /// A cycle thread: it runs from [`start`](CycleThread::start) to [`stop`](CycleThread::stop).
@@ -262,13 +275,16 @@ impl CycleThread {
             .enumerate()
             .filter_map(|(p, f)| {
                 let (offsets, latch) = f.ok()?;
+                let digital_inputs = input_offset(&master, p as u16, crate::io::DIGITAL_INPUTS);
                 Some(DriveLoop {
                     position: p as u16,
                     drive: sequencer::Drive::new(offsets),
                     latch: latch.map(latch::Latch::new),
+                    inputs: crate::io::InputWatch::new(digital_inputs, offsets.statusword),
                     watch: supervision::DriveWatch::default(),
                     handshake: handshake::Handshake::default(),
                     command_timeout: command_timeout::CommandTimeout::default(),
+                    homing: homing::Homing::default(),
                     presence: recovery::Presence::default(),
                     mailbox_counter: None,
                     target_writes: None,
@@ -301,13 +317,14 @@ impl CycleThread {
             latches: (0..master.slaves().len()).map(|_| latch::Shared::default()).collect(),
             handshakes: (0..master.slaves().len()).map(|_| handshake::Shared::default()).collect(),
             command_timeouts: (0..master.slaves().len()).map(|_| command_timeout::Shared::default()).collect(),
+            homings: (0..master.slaves().len()).map(|_| homing::Shared::default()).collect(),
             events: Events::default(),
             samples: Samples::for_drives(sequenced_count),
             sdo: SdoSlot::default(),
             eoe: eoe_frames::EoeFrames::default(),
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::Shared::new(master.clock()),
-            trajectories: trajectory_player::Shared::default(),
+            trajectories: trajectory_player::Shared::new(master.slaves().len()),
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
             supervised: supervised.is_ok(),
@@ -598,6 +615,43 @@ impl CycleThread {
         }
     }
 
+    /// Starts homing the drive at `position` in the cycle thread (see [`homing`]): with the
+    /// method and speeds set in the drive, ended timed out (and halted) when not attained within
+    /// `timeout`, then back to the mode the set-points carry without a step. The drive must be
+    /// sequenced, in Operation enabled, with 0x6060 in its outputs and 0x6061 in its inputs.
+    /// Replaces one under way; returns its number. Lock-free.
+    pub fn start_homing(&self, position: u16, timeout: Duration) -> Result<u32> {
+        let status = self.sequenced(position)?.status();
+        if self.stopped() {
+            return Err(Unavailable::CycleStopped { consequence: "no homing can run".into() }.into());
+        }
+        let o = self.offsets[position as usize].unwrap_or_default();
+        if homing_objects(&o).is_none() {
+            return Err(Unavailable::HomingUnmapped { slave: position }.into());
+        }
+        if status.state() != Some(crate::ds402::State::OperationEnabled) {
+            let state = status.state().map_or("no valid state", crate::ds402::State::name);
+            return Err(Unavailable::HomingNotEnabled { slave: position, state }.into());
+        }
+        self.shared.command_timeouts[position as usize].release();
+        Ok(self.shared.homings[position as usize].start(timeout.as_nanos().min(u64::MAX as u128) as u64))
+    }
+
+    /// Cancels the homing under way on the drive at `position`: halted, then back to the mode
+    /// the set-points carry. Lock-free.
+    pub fn cancel_homing(&self, position: u16) -> Result<()> {
+        self.sequenced(position)?;
+        self.shared.homings[position as usize].cancel();
+        Ok(())
+    }
+
+    /// The homing of the drive at `position` as the cycle thread last published it, with its
+    /// homed flag. Lock-free.
+    pub fn homing_status(&self, position: u16) -> Result<homing::Status> {
+        self.sequenced(position)?;
+        Ok(self.shared.homings[position as usize].status())
+    }
+
     /// Sets the command time-out of the drive at `position` (see [`command_timeout`]): when a
     /// non-zero velocity (profile velocity) or torque (profile torque) stream stops for
     /// `timeout` while the drive is in Operation enabled, `action` is taken and an
@@ -632,8 +686,10 @@ impl CycleThread {
     }
 
     /// Sets one mapped output object `index:subindex` of the slave at `position` (its exact
-    /// size) from the next cycle on, leaving the other outputs as they are; a set-point write
-    /// that releases a held target.
+    /// size) from the next cycle on, leaving the other outputs as they are. A mode's command
+    /// object ([`Mode::is_command_object`](crate::ds402::Mode::is_command_object)) is a
+    /// set-point write that releases a held target; any other output (the drive's I/O, a
+    /// latch control) leaves the target held.
     pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         if self.stopped() {
             return Err(setpoints_stopped());
@@ -648,7 +704,8 @@ impl CycleThread {
             );
         }
         self.shared.setpoints.write().write(slot.out_offset + offset, data);
-        if let Some(Ok(())) = self.sequenced.get(position as usize) {
+        let command = crate::ds402::Mode::is_command_object(index, subindex);
+        if let (Some(Ok(())), true) = (self.sequenced.get(position as usize), command) {
             self.shared.drives[position as usize].setpoint_written();
             if command_timeout::TARGETS.contains(&(index, subindex)) {
                 self.shared.command_timeouts[position as usize].target_written();
@@ -675,6 +732,22 @@ impl CycleThread {
         limits: Option<&[Limits]>,
         start_ns: Option<u64>,
     ) -> Result<u32> {
+        self.follow_trajectory(slaves, times_ns, points, limits, start_ns, None)
+    }
+
+    /// Plays a joint trajectory as [`play_trajectory`](Self::play_trajectory) does, judged by
+    /// `tolerances` (one per joint) where given: FollowJointTrajectory's path and goal
+    /// tolerances, its goal time tolerance, and how each joint stops
+    /// ([`stop_trajectory`](Self::stop_trajectory), a path violation).
+    pub fn follow_trajectory(
+        &self,
+        slaves: &[u16],
+        times_ns: &[u64],
+        points: &[Vec<Knot>],
+        limits: Option<&[Limits]>,
+        start_ns: Option<u64>,
+        tolerances: Option<trajectory_player::Tolerances>,
+    ) -> Result<u32> {
         if self.stopped() {
             return Err(Unavailable::CycleStopped { consequence: "no trajectory can play".into() }.into());
         }
@@ -689,7 +762,11 @@ impl CycleThread {
                 self.trajectory_joint(joint, slave)
             })
             .collect::<Result<Vec<_>>>()?;
-        let mut plan = trajectory_player::Plan::new(self.trajectories.next_id(), start_ns, joints, trajectory);
+        if let Some(t) = tolerances.as_ref().filter(|t| t.joints.len() != slaves.len()) {
+            return Err(TrajectoryError::TolerancesCount { given: t.joints.len(), joints: slaves.len() }.into());
+        }
+        let id = self.trajectories.next_id();
+        let mut plan = trajectory_player::Plan::judged(id, start_ns, joints, trajectory, tolerances);
         let status = plan.status();
         let deadline = std::time::Instant::now() + 10 * self.period + Duration::from_millis(100);
         loop {
@@ -736,7 +813,13 @@ impl CycleThread {
                     .into(),
             ));
         }
-        Ok(trajectory_player::Joint { slave, targets, statusword: o.statusword })
+        Ok(trajectory_player::Joint {
+            slave,
+            targets,
+            statusword: o.statusword,
+            actual: o.actual,
+            velocity_actual: o.velocity_actual,
+        })
     }
 
     /// The trajectory `id` (from [`play_trajectory`](Self::play_trajectory)) as the cycle
@@ -744,6 +827,18 @@ impl CycleThread {
     /// start) or how it ended. The statuses of the last [`trajectory_player::KEPT`] are kept.
     pub fn trajectory_status(&self, id: u32) -> Result<trajectory_player::Status> {
         self.trajectories.status(&self.shared.trajectories, id)
+    }
+
+    /// Brings trajectory `id` to a standstill in the cycle thread, each joint at its stop
+    /// deceleration; it then ends "stopped". Nothing for a trajectory that is not in force.
+    pub fn stop_trajectory(&self, id: u32) {
+        self.shared.trajectories.stop(id);
+    }
+
+    /// The drive at `slave`'s set-point and actual values as the trajectory in force judges
+    /// them (see [`trajectory_player::Shared::followed`]); `None` while none drives it.
+    pub fn trajectory_followed(&self, slave: u16) -> Option<[f64; 4]> {
+        self.shared.trajectories.followed(slave)
     }
 
     /// The mapping of the slave at `position`: its output entries and input entries, in wire
@@ -954,6 +1049,8 @@ fn run(
         let period = last_wake.map_or(0, |last| wake - last);
         if last_wake.is_some() {
             stats.period.record(period);
+            let enabled = l.drives.iter().any(|d| d.drive.enabled());
+            CycleStats::add(&stats.f125_stalls, supervision::stall_raises_f125(period, period_ns, enabled) as u64);
         }
         last_wake = Some(wake);
         if let Some(sent) = in_flight.take() {
@@ -1049,6 +1146,9 @@ impl Loop<'_> {
             for d in self.drives.iter() {
                 d.drive.apply(outputs);
                 d.handshake.apply(outputs, d.drive.offsets.controlword);
+                if let Some(objects) = homing_objects(&d.drive.offsets) {
+                    d.homing.apply(&objects, outputs);
+                }
                 d.command_timeout.apply(outputs, d.drive.offsets.controlword);
                 if let Some(latch) = d.latch.as_ref() {
                     latch.apply(outputs);
@@ -1090,6 +1190,14 @@ impl Loop<'_> {
         let now = sent.now;
         shared.dc.publish(master.clock());
         supervise(master, shared, self.drives, mailbox, &mut self.gaps, exchange, now);
+        if let (Exchange::Good, Ok(inputs)) = (exchange, master.input_image()) {
+            for d in self.drives.iter_mut().filter(|d| !d.presence.lost()) {
+                if let Some((digital_inputs, statusword)) = d.inputs.observe(inputs) {
+                    let (cycle, time_ns, slave) = (now.0, now.1, d.position);
+                    shared.events.push(Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword });
+                }
+            }
+        }
         for d in self.drives.iter_mut() {
             if let Some(counter) = d.mailbox_counter.take() {
                 master.set_mailbox_counter(d.position, counter);
@@ -1124,6 +1232,22 @@ fn observe_set_points(shared: &Shared, d: &mut DriveLoop, inputs: &[u8], outputs
     d.handshake.observe(&shared.handshakes[slave], statusword, mode_display, now.1);
     let seen = command_timeout::Seen { now, slave: d.position, writes: d.target_writes, outputs, inputs, statusword };
     d.command_timeout.observe(&shared.command_timeouts[slave], &o, &shared.drives[slave], &shared.events, seen);
+    if let Some(objects) = homing_objects(&o) {
+        let stop_ns = shared.request_timeout_ns.load(Ordering::Relaxed);
+        if d.homing.observe(&shared.homings[slave], &objects, (inputs, outputs), now.1, stop_ns) {
+            shared.drives[slave].hold();
+        }
+    }
+}
+
+/// Where homing finds its objects: it needs the mode and its display mapped.
+fn homing_objects(o: &sequencer::Offsets) -> Option<homing::Objects> {
+    Some(homing::Objects {
+        controlword: o.controlword,
+        mode: o.mode?,
+        statusword: o.statusword,
+        mode_display: o.mode_display?,
+    })
 }
 
 /// The record of drive `d` in this cycle.
@@ -1262,6 +1386,7 @@ fn presence(
         None => false,
         Some(recovery::Change::Lost { report, missing }) => {
             shared.drives[slave as usize].request(sequencer::Request::Disable);
+            shared.homings[slave as usize].forget();
             if report && !reported {
                 let action = if d.drive.enabled() { events::Action::Disabled } else { events::Action::Reported };
                 shared.events.push(fault(FaultSource::Unreachable, missing.min(u16::MAX as u32) as u16, action));

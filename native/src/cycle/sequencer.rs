@@ -399,7 +399,13 @@ impl Sequencer {
         match (request, self.progress) {
             // A drive that gave up a reached state, or a stuck request, is left powerless.
             (_, Progress::Lost) | (Request::Enable, Progress::Stuck) => cw::DISABLE_VOLTAGE,
-            (Request::FaultReset, _) if matches!(state, State::Fault | State::FaultReactionActive) => {
+            // The drive takes the rising edge in Fault only (transition 15): while it still brakes in Fault
+            // reaction active, bit 7 stays low, so that the edge comes once it is in Fault.
+            (Request::FaultReset, _) if state == State::FaultReactionActive => {
+                self.reset_low_sent = true;
+                cw::DISABLE_VOLTAGE
+            }
+            (Request::FaultReset, _) if state == State::Fault => {
                 if std::mem::replace(&mut self.reset_low_sent, true) {
                     cw::FAULT_RESET
                 } else {
@@ -617,6 +623,19 @@ mod tests {
         // A second reset request starts low again.
         let c = s.step(Some(Request::FaultReset), seen(State::Fault, 4), TIMEOUT);
         assert_eq!(c.controlword, Some(cw::DISABLE_VOLTAGE));
+    }
+
+    #[test]
+    fn fault_reset_asked_while_the_drive_still_brakes_gives_its_edge_once_in_fault() {
+        let mut s = Sequencer::default();
+        for now in 0..3 {
+            let request = (now == 0).then_some(Request::FaultReset);
+            let c = s.step(request, seen(State::FaultReactionActive, now), TIMEOUT);
+            assert_eq!(c.controlword, Some(cw::DISABLE_VOLTAGE), "no edge the drive would not take, at {now}");
+        }
+        assert_eq!(s.step(None, seen(State::Fault, 3), TIMEOUT).controlword, Some(cw::FAULT_RESET));
+        s.step(None, seen(State::SwitchOnDisabled, 4), TIMEOUT);
+        assert_eq!(s.progress(), (Some(Request::FaultReset), Progress::Done));
     }
 
     #[test]

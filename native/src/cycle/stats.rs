@@ -167,6 +167,11 @@ pub struct CycleStats {
     pub cycles: AtomicU64,
     /// Deadlines missed because a cycle ended after the next one.
     pub overruns: AtomicU64,
+    /// Stalls: cyclic frames that went out 8.5 periods or more after the one before while a
+    /// drive was enabled, long enough for a real AKD to raise F125 (more than seven frames
+    /// missed). A real drive faults on each; a virtual one judging missed frames by `warn`
+    /// goes on.
+    pub f125_stalls: AtomicU64,
     /// Cyclic frames (the process data) that did not come back (the master's count, since the
     /// thread started).
     pub lost_frames: AtomicU64,
@@ -199,6 +204,7 @@ impl CycleStats {
             exchange: Histogram::new(0),
             cycles: AtomicU64::new(0),
             overruns: AtomicU64::new(0),
+            f125_stalls: AtomicU64::new(0),
             lost_frames: AtomicU64::new(0),
             wkc_errors: AtomicU64::new(0),
             watch_frames: AtomicU64::new(0),

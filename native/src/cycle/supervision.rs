@@ -5,6 +5,7 @@
 //! the drive for Switch on disabled, and the sequencer holds the target at the actual
 //! position from then on.
 
+use crate::akd_fault;
 use crate::al::AlState;
 use crate::cycle::events::{Action, Event, FaultSource};
 use crate::master::state::AlStatus;
@@ -12,6 +13,14 @@ use crate::master::state::AlStatus;
 /// Frames in a row the AKD misses before it raises F125 (more than seven, §7): a gap that
 /// long is handled as the loss of the drive, not as a gap.
 pub const DRIVE_MISSED_FRAME_LIMIT: u32 = 8;
+
+/// Whether the time between two cyclic frames, `gap_ns` at a period of `period_ns`, is a stall
+/// that makes an enabled AKD raise F125 (more than seven frames missed,
+/// [`akd_fault::raises_f125`]): a real drive faults on it; a virtual one judging missed frames
+/// by `warn` counts it and goes on. The cycle counts these stalls while a drive is `enabled`.
+pub fn stall_raises_f125(gap_ns: u64, period_ns: u64, enabled: bool) -> bool {
+    enabled && akd_fault::raises_f125(gap_ns, period_ns)
+}
 
 /// A gap in the exchange: lost frames, or wrong working counters, in a row.
 #[derive(Clone, Copy, Debug)]
@@ -171,6 +180,15 @@ mod tests {
         // With no drive enabled, a gap is not a fault.
         assert_eq!(gaps.observe(Exchange::Lost, false, (40, 0)), None);
         assert_eq!(gaps.observe(Exchange::Good, false, (41, 0)), None);
+    }
+
+    #[test]
+    fn a_stall_of_eight_and_a_half_periods_with_a_drive_enabled_would_raise_f125() {
+        let ms = 1_000_000;
+        assert!(!stall_raises_f125(8_499_999, ms, true));
+        assert!(stall_raises_f125(8_500_000, ms, true));
+        assert!(!stall_raises_f125(100 * ms, ms, false), "nothing enabled, nothing to fault");
+        assert!(stall_raises_f125(2_125_000, 250_000, true));
     }
 
     #[test]

@@ -21,12 +21,20 @@
 //! the set-point buffer too, so the drives keep it once the trajectory ends. A drive of the
 //! trajectory that leaves Operation enabled aborts it; that drive is the sequencer's from then
 //! on, and the others hold where they were.
+//!
+//! A plan may carry [`Tolerances`] (FollowJointTrajectory's): every cycle while it runs, each
+//! drive's actual position and velocity are judged against the set-point of the cycle before
+//! (the one the drive has had a cycle to follow) by the path tolerance; past the last point,
+//! against the last point by the goal tolerance, until the goal time tolerance runs out. A stop
+//! ([`Shared::stop`], a cancel) or a path violation brakes every joint from its set-point in
+//! force at its stop deceleration to a standstill, then ends the plan; the set-points are
+//! published each cycle ([`Shared::followed`]) for feedback.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
 use std::sync::Mutex;
 
-use crate::cycle::events::{Event, Events, TrajectoryState};
+use crate::cycle::events::{Event, Events, TrajectoryState, Violation};
 use crate::cycle::image::{i32_at, u16_at};
 use crate::cycle::seqlock::SeqBytes;
 use crate::ds402::State;
@@ -53,6 +61,10 @@ pub struct Joint {
     pub targets: [Option<usize>; 2],
     /// Statusword 0x6041 in the inputs.
     pub statusword: usize,
+    /// Position actual in the inputs, where mapped (judged by the tolerances).
+    pub actual: Option<usize>,
+    /// Velocity actual 0x606C in the inputs, where mapped (judged by the tolerances).
+    pub velocity_actual: Option<usize>,
 }
 
 impl Joint {
@@ -108,6 +120,39 @@ impl Status {
     }
 }
 
+/// How closely one joint must follow, in counts and counts/s; infinite where not judged.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tolerance {
+    /// Largest position error while the trajectory runs.
+    pub path_position: f64,
+    /// Largest velocity error while it runs.
+    pub path_velocity: f64,
+    /// Largest position error from the last point at the end.
+    pub goal_position: f64,
+    /// Largest velocity at the end.
+    pub goal_velocity: f64,
+    /// Deceleration of a stop, counts/s² (above 0; infinite: stops at once where it is).
+    pub stop_deceleration: f64,
+}
+
+/// A FollowJointTrajectory goal's tolerances: one per joint, and how long past the last point's
+/// time the joints may take to come within their goal tolerance (0: judged at that time).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tolerances {
+    /// Per joint.
+    pub joints: Vec<Tolerance>,
+    /// The goal time tolerance, ns.
+    pub goal_time_ns: u64,
+}
+
+/// A stop under way: when it began, each joint's set-point then, and how the plan ends once
+/// all are still.
+#[derive(Debug)]
+struct Braking {
+    since_ns: u64,
+    verdict: TrajectoryState,
+}
+
 /// A trajectory with its drives, as handed to the cycle thread.
 #[derive(Debug)]
 pub struct Plan {
@@ -116,6 +161,12 @@ pub struct Plan {
     trajectory: Trajectory,
     /// Per joint: the segment from the set-point at the start to the first point.
     lead_in: Vec<Segment>,
+    tolerances: Option<Tolerances>,
+    /// Per joint: the set-point of the last cycle, which the actual values of this one follow.
+    last: Vec<Setpoint>,
+    braking: Option<Braking>,
+    /// Per joint: its set-point when the stop began.
+    brake_from: Vec<Setpoint>,
     status: Status,
 }
 
@@ -123,6 +174,17 @@ impl Plan {
     /// A plan of `trajectory` (one joint per entry of `joints`) with id `id`, starting at
     /// `start_ns` on the monotonic clock (`None`: as soon as the cycle takes it).
     pub fn new(id: u32, start_ns: Option<u64>, joints: Vec<Joint>, trajectory: Trajectory) -> Box<Plan> {
+        Plan::judged(id, start_ns, joints, trajectory, None)
+    }
+
+    /// A plan as [`new`](Self::new) gives, judged by `tolerances` (one per joint) where given.
+    pub fn judged(
+        id: u32,
+        start_ns: Option<u64>,
+        joints: Vec<Joint>,
+        trajectory: Trajectory,
+        tolerances: Option<Tolerances>,
+    ) -> Box<Plan> {
         let status = Status {
             id,
             state: TrajectoryState::Pending,
@@ -132,8 +194,18 @@ impl Plan {
             elapsed_ns: 0,
             duration_ns: trajectory.duration_ns(),
         };
-        let lead_in = vec![Segment::default(); joints.len()];
-        Box::new(Plan { start_ns, joints, trajectory, lead_in, status })
+        let n = joints.len();
+        Box::new(Plan {
+            start_ns,
+            joints,
+            trajectory,
+            lead_in: vec![Segment::default(); n],
+            tolerances,
+            last: vec![Setpoint::default(); n],
+            braking: None,
+            brake_from: vec![Setpoint::default(); n],
+            status,
+        })
     }
 
     /// The status.
@@ -141,9 +213,55 @@ impl Plan {
         self.status
     }
 
-    /// Joint `j`'s set-point at `now_ns` (started).
+    /// Joint `j`'s set-point at `now_ns` (started): the trajectory's, or the stop's.
     fn at(&self, j: usize, now_ns: u64) -> Setpoint {
-        self.trajectory.at(&self.lead_in[j], now_ns.saturating_sub(self.status.started_ns), j)
+        match &self.braking {
+            None => self.trajectory.at(&self.lead_in[j], now_ns.saturating_sub(self.status.started_ns), j),
+            Some(b) => {
+                let deceleration = self.tolerances.as_ref().map_or(f64::INFINITY, |t| t.joints[j].stop_deceleration);
+                braked(self.brake_from[j], deceleration, (now_ns.saturating_sub(b.since_ns)) as f64 * 1e-9)
+            }
+        }
+    }
+
+    /// Begins a stop from each joint's set-point at `now_ns`, to end as `verdict`.
+    fn brake(&mut self, now_ns: u64, verdict: TrajectoryState) {
+        for j in 0..self.joints.len() {
+            self.brake_from[j] = self.at(j, now_ns);
+        }
+        self.braking = Some(Braking { since_ns: now_ns, verdict });
+    }
+
+    /// Whether every joint of a stop is still at `now_ns`.
+    fn still(&self, now_ns: u64) -> bool {
+        (0..self.joints.len()).all(|j| self.at(j, now_ns).velocity == 0.0)
+    }
+
+    /// The first joint whose actual values stray from `reference` by more than `bound` gives
+    /// (position, velocity) allows, as a violation.
+    fn strayed(
+        &self,
+        inputs: &[u8],
+        reference: impl Fn(usize) -> Setpoint,
+        bound: impl Fn(&Tolerance) -> (f64, f64),
+    ) -> Option<Violation> {
+        let tolerances = self.tolerances.as_ref()?;
+        self.joints.iter().enumerate().find_map(|(j, joint)| {
+            let (position, velocity) = bound(&tolerances.joints[j]);
+            let want = reference(j);
+            let errors = [
+                (false, joint.actual.map(|at| want.position - i32_at(inputs, at) as f64), position),
+                (true, joint.velocity_actual.map(|at| want.velocity - i32_at(inputs, at) as f64), velocity),
+            ];
+            errors.into_iter().find_map(|(is_velocity, error, allowed)| {
+                let error = error?;
+                (error.abs() > allowed).then(|| Violation {
+                    slave: joint.slave,
+                    velocity: is_velocity,
+                    error: error.round().clamp(i32::MIN as f64, i32::MAX as f64) as i32,
+                })
+            })
+        })
     }
 
     fn due(&self, now_ns: u64) -> bool {
@@ -151,25 +269,65 @@ impl Plan {
     }
 }
 
+/// The set-point `s` seconds into a stop from `from` at `deceleration`: the velocity falls
+/// linearly to 0, the position follows; an infinite deceleration stops where it was.
+fn braked(from: Setpoint, deceleration: f64, s: f64) -> Setpoint {
+    let v = from.velocity;
+    let stop_s = if deceleration.is_finite() { v.abs() / deceleration } else { 0.0 };
+    if s >= stop_s {
+        let travelled = if stop_s > 0.0 { v * stop_s / 2.0 } else { 0.0 };
+        return Setpoint { position: from.position + travelled, ..Setpoint::default() };
+    }
+    let a = -v.signum() * deceleration;
+    Setpoint { position: from.position + v * s + a * s * s / 2.0, velocity: v + a * s, acceleration: a }
+}
+
+/// Words a drive's followed values take in [`Shared::followed`]: the set-point's position and
+/// velocity, the actual position and velocity, and whether a trajectory drives it.
+const FOLLOWED: usize = 5;
+
 /// What the cycle thread and the callers share: the handoff and the published statuses.
 pub struct Shared {
     inbox: AtomicPtr<Plan>,
     outbox: [AtomicPtr<Plan>; OUTBOX],
     /// The running trajectory's status, then the pending one's (zeros where none).
     live: SeqBytes,
+    /// The id of the trajectory to stop (0: none).
+    stop: AtomicU32,
+    /// Per drive: [`FOLLOWED`] f64s.
+    followed: SeqBytes,
 }
 
-impl Default for Shared {
-    fn default() -> Self {
+impl Shared {
+    /// The handoff for a bus of `slaves` slaves.
+    pub fn new(slaves: usize) -> Self {
         Shared {
             inbox: AtomicPtr::new(std::ptr::null_mut()),
             outbox: std::array::from_fn(|_| AtomicPtr::new(std::ptr::null_mut())),
             live: SeqBytes::new(2 * STATUS_WORDS * 8, &[]),
+            stop: AtomicU32::new(0),
+            followed: SeqBytes::new(slaves * FOLLOWED * 8, &[]),
         }
     }
-}
 
-impl Shared {
+    /// Asks the cycle thread to bring trajectory `id` to a standstill at its joints' stop
+    /// decelerations (it ends "stopped"); nothing for a trajectory that is not in force.
+    pub fn stop(&self, id: u32) {
+        self.stop.store(id, Ordering::Release);
+    }
+
+    /// Drive `slave`'s set-point (position, velocity) as the trajectory in force last had it
+    /// and its actual (position, velocity) judged against it, counts and counts/s; `None`
+    /// while no trajectory drives it.
+    pub fn followed(&self, slave: u16) -> Option<[f64; 4]> {
+        let mut bytes = vec![0u8; self.followed.len()];
+        self.followed.read(&mut bytes);
+        let at = slave as usize * FOLLOWED * 8;
+        let words = bytes.get(at..at + FOLLOWED * 8)?;
+        let word = |w: usize| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes"));
+        (word(4) == 1.0).then(|| std::array::from_fn(word))
+    }
+
     /// Hands `plan` to the cycle thread; gives it back when the last one was not taken yet.
     pub fn give(&self, plan: Box<Plan>) -> std::result::Result<(), Box<Plan>> {
         let raw = Box::into_raw(plan);
@@ -231,6 +389,8 @@ pub struct Player {
     wrote: Vec<bool>,
     /// Per joint of the pending plan: the target its drive was last sent.
     sent: Vec<i32>,
+    /// Per slave: what [`Shared::followed`] gives.
+    followed: Vec<[f64; FOLLOWED]>,
 }
 
 impl Player {
@@ -243,6 +403,7 @@ impl Player {
             owned: vec![None; slaves],
             wrote: vec![false; slaves],
             sent: vec![0; slaves],
+            followed: vec![[0.0; FOLLOWED]; slaves],
         }
     }
 
@@ -306,7 +467,14 @@ impl Player {
                 self.owned.fill(None);
             }
         }
-        // The only writer of `live`: this never waits.
+        // The only writer of `followed` and `live`: this never waits.
+        let mut followed = shared.followed.write();
+        for (slave, words) in self.followed.iter().enumerate() {
+            for (w, word) in words.iter().enumerate() {
+                followed.write((slave * FOLLOWED + w) * 8, &word.to_le_bytes());
+            }
+        }
+        drop(followed);
         let mut live = shared.live.write();
         for (r, plan) in [&self.current, &self.pending].into_iter().enumerate() {
             let words = plan.as_ref().map_or([0; STATUS_WORDS], |p| p.status.pack());
@@ -327,6 +495,7 @@ impl Player {
             });
             let from = running.unwrap_or(Setpoint { position: self.sent[j] as f64, ..Setpoint::default() });
             plan.lead_in[j] = plan.trajectory.lead_in(j, from);
+            plan.last[j] = from;
         }
         plan.status.started_ns = now.1;
         plan.status.state = TrajectoryState::Running;
@@ -348,20 +517,54 @@ impl Player {
             return self.end(shared, events, plan, TrajectoryState::Aborted { slave, statusword }, now);
         }
         let elapsed_ns = now.1.saturating_sub(plan.status.started_ns);
-        for (j, joint) in plan.joints.iter().enumerate() {
-            let position = plan.at(j, now.1).position.round().clamp(i32::MIN as f64, i32::MAX as f64) as i32;
+        if plan.braking.is_none() {
+            if shared.stop.load(Ordering::Acquire) == plan.status.id {
+                plan.brake(now.1, TrajectoryState::Stopped);
+            } else if elapsed_ns < plan.status.duration_ns {
+                let path = |t: &Tolerance| (t.path_position, t.path_velocity);
+                if let Some(violation) = plan.strayed(inputs, |j| plan.last[j], path) {
+                    plan.brake(now.1, TrajectoryState::PathToleranceViolated(violation));
+                }
+            }
+        }
+        for j in 0..plan.joints.len() {
+            let joint = plan.joints[j];
+            let setpoint = plan.at(j, now.1);
+            let position = setpoint.position.round().clamp(i32::MIN as f64, i32::MAX as f64) as i32;
             self.owned[joint.slave as usize] = Some((position, joint.targets));
+            let actual = |at: Option<usize>| at.map_or(f64::NAN, |at| i32_at(inputs, at) as f64);
+            let last = plan.last[j];
+            self.followed[joint.slave as usize] =
+                [last.position, last.velocity, actual(joint.actual), actual(joint.velocity_actual), 1.0];
+            plan.last[j] = setpoint;
         }
         plan.status.elapsed_ns = elapsed_ns;
         plan.status.point = plan.trajectory.segment(elapsed_ns) as u32;
-        if elapsed_ns >= plan.status.duration_ns {
-            return self.end(shared, events, plan, TrajectoryState::Done, now);
+        if let Some(braking) = &plan.braking {
+            if plan.still(now.1) {
+                let verdict = braking.verdict;
+                return self.end(shared, events, plan, verdict, now);
+            }
+        } else if elapsed_ns >= plan.status.duration_ns {
+            let goal = |t: &Tolerance| (t.goal_position, t.goal_velocity);
+            let late_ns = elapsed_ns - plan.status.duration_ns;
+            let verdict = match (plan.strayed(inputs, |j| plan.at(j, now.1), goal), &plan.tolerances) {
+                (None, _) => Some(TrajectoryState::Done),
+                (Some(v), Some(t)) if late_ns >= t.goal_time_ns => Some(TrajectoryState::GoalToleranceViolated(v)),
+                (Some(_), _) => None,
+            };
+            if let Some(verdict) = verdict {
+                return self.end(shared, events, plan, verdict, now);
+            }
         }
         self.current = Some(plan);
     }
 
     fn end(&mut self, shared: &Shared, events: &Events, mut plan: Box<Plan>, state: TrajectoryState, now: (u64, u64)) {
         plan.status.state = state;
+        for joint in &plan.joints {
+            self.followed[joint.slave as usize] = [0.0; FOLLOWED];
+        }
         events.push(Event::Trajectory { cycle: now.0, time_ns: now.1, id: plan.status.id, state });
         match self.waiting.iter_mut().find(|w| w.is_none()) {
             Some(slot) => *slot = Some(plan),
@@ -445,7 +648,8 @@ mod tests {
     const MS: u64 = 1_000_000;
 
     /// One drive: its target at output 0, its statusword at input 0.
-    const JOINT: Joint = Joint { slave: 0, targets: [Some(0), None], statusword: 0 };
+    const JOINT: Joint =
+        Joint { slave: 0, targets: [Some(0), None], statusword: 0, actual: None, velocity_actual: None };
 
     fn plan(id: u32, start_ns: Option<u64>, to: f64, after_ns: u64) -> Box<Plan> {
         let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
@@ -486,7 +690,7 @@ mod tests {
 
     #[test]
     fn a_plan_starts_from_the_target_sent_ends_on_its_point_and_comes_back() {
-        let (shared, events, mut player) = (Shared::default(), Events::default(), Player::new(1));
+        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
         let mut image = 1000i32.to_le_bytes();
         shared.give(plan(1, Some(3 * MS), 2000.0, 10 * MS)).unwrap();
         // A second one cannot be handed before the first is taken.
@@ -503,9 +707,100 @@ mod tests {
         assert_eq!(shared.live(), [None, None]);
     }
 
+    /// A judged plan of one joint whose actual position is at input 2 (after the statusword).
+    fn judged(id: u32, to: f64, after_ns: u64, tolerance: Tolerance, goal_time_ns: u64) -> Box<Plan> {
+        let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
+        let joint = Joint { actual: Some(2), ..JOINT };
+        Plan::judged(id, None, vec![joint], trajectory, Some(Tolerances { joints: vec![tolerance], goal_time_ns }))
+    }
+
+    const LOOSE: Tolerance = Tolerance {
+        path_position: f64::INFINITY,
+        path_velocity: f64::INFINITY,
+        goal_position: f64::INFINITY,
+        goal_velocity: f64::INFINITY,
+        stop_deceleration: f64::INFINITY,
+    };
+
+    /// A cycle whose drive reports `actual`; returns the target sent.
+    fn judged_cycle(
+        player: &mut Player,
+        shared: &Shared,
+        events: &Events,
+        image: &mut [u8; 4],
+        now: u64,
+        actual: i32,
+    ) -> i32 {
+        let mut inputs = [0u8; 6];
+        inputs[..2].copy_from_slice(&State::OperationEnabled.statusword_bits().to_le_bytes());
+        inputs[2..].copy_from_slice(&actual.to_le_bytes());
+        let setpoints = SeqBytes::new(4, image);
+        let at = (now, now * MS);
+        player.before_copy(shared, events, image, at);
+        player.observe(shared, events, &inputs, at);
+        player.apply(shared, &setpoints, image);
+        i32::from_le_bytes(*image)
+    }
+
+    #[test]
+    fn a_drive_past_the_path_tolerance_brakes_the_plan_to_a_standstill_and_names_it() {
+        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
+        let mut image = 0i32.to_le_bytes();
+        // 100 counts/ms, braking at 1e7 counts/s² (10 counts/ms per ms); the drive stays at 0.
+        let tolerance = Tolerance { path_position: 250.0, stop_deceleration: 1e7, ..LOOSE };
+        shared.give(judged(1, 1000.0, 10 * MS, tolerance, 0)).unwrap();
+        let sent: Vec<i32> =
+            (1..=16).map(|ms| judged_cycle(&mut player, &shared, &events, &mut image, ms, 0)).collect();
+        // At 4 ms the set-point of 3 ms (200) is within; at 5 ms that of 4 ms (300) is not: it
+        // brakes from 400 at 100 counts/ms over 10 ms, 500 counts more, never a step.
+        assert_eq!(sent[..7], [0, 100, 200, 300, 400, 495, 580]);
+        assert!(sent.windows(2).all(|w| w[1] - w[0] <= 100 && w[1] >= w[0]), "{sent:?}");
+        assert_eq!(*sent.last().unwrap(), 900);
+        let violation = Violation { slave: 0, velocity: false, error: 300 };
+        assert_eq!(
+            trajectory_events(&events),
+            [(1, TrajectoryState::Running), (1, TrajectoryState::PathToleranceViolated(violation))]
+        );
+        assert_eq!(shared.followed(0), None, "ended: no trajectory drives it");
+    }
+
+    #[test]
+    fn a_stop_brakes_and_the_goal_tolerance_waits_for_the_goal_time() {
+        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
+        let mut image = 0i32.to_le_bytes();
+        shared.give(judged(1, 1000.0, 10 * MS, Tolerance { stop_deceleration: 1e7, ..LOOSE }, 0)).unwrap();
+        for ms in 1..=3 {
+            judged_cycle(&mut player, &shared, &events, &mut image, ms, 0);
+        }
+        // The set-point of 2 ms, which the drive had a cycle to follow; no velocity mapped.
+        let [position, velocity, actual, actual_velocity] = shared.followed(0).unwrap();
+        assert_eq!([position, velocity.round(), actual], [100.0, 100_000.0, 0.0]);
+        assert!(actual_velocity.is_nan());
+        shared.stop(1);
+        let sent: Vec<i32> =
+            (4..=20).map(|ms| judged_cycle(&mut player, &shared, &events, &mut image, ms, 0)).collect();
+        assert_eq!(sent[..3], [300, 395, 480], "from 300 at 100 counts/ms, braking");
+        assert_eq!(*sent.last().unwrap(), 800);
+        assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Running), (1, TrajectoryState::Stopped)]);
+        // A goal 50 counts short of 1000 with a tolerance of 10: done once the drive is there,
+        // violated once the goal time (5 ms) is out.
+        let goal = Tolerance { goal_position: 10.0, ..LOOSE };
+        for (id, arrives) in [(2, true), (3, false)] {
+            shared.give(judged(id, 1000.0, 2 * MS, goal, 5 * MS)).unwrap();
+            let base = 100 * id as u64;
+            for ms in 0..9 {
+                let actual = if arrives && ms >= 5 { 995 } else { 950 };
+                judged_cycle(&mut player, &shared, &events, &mut image, base + ms, actual);
+            }
+        }
+        let ended: Vec<_> = trajectory_events(&events).into_iter().filter(|e| e.1.ended()).collect();
+        let violation = Violation { slave: 0, velocity: false, error: 50 };
+        assert_eq!(ended, [(2, TrajectoryState::Done), (3, TrajectoryState::GoalToleranceViolated(violation))]);
+    }
+
     #[test]
     fn a_newer_plan_replaces_the_pending_one_then_the_running_one_and_a_drive_out_of_operation_aborts() {
-        let (shared, events, mut player) = (Shared::default(), Events::default(), Player::new(1));
+        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
         let mut image = 0i32.to_le_bytes();
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
         cycle(&mut player, &shared, &events, &mut image, 1, true);

@@ -17,15 +17,47 @@ pub const MAX_SIM_COUNT: usize = 64;
 /// a round trip on a real line of many drives takes tens of µs, and a 1 kHz cycle has 1000.
 pub const MAX_BUSY_POLL_US: u32 = 1000;
 
+/// How fast virtual AKDs' firmware answers AL requests and the mailbox (`sim?pace=...`,
+/// akd-sim `--pace`): as the real drive (the default), or at once, for tests that open many
+/// buses and are not about the drive's pace.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Pace {
+    /// The real drive's delays ([`crate::sim::Timing::REAL_DRIVE`]): Init→PreOp 17.5 ms, the
+    /// other AL requests 4.5 ms, a mailbox reply 1 ms after the request.
+    #[default]
+    Real,
+    /// Every request handled before the next frame.
+    Immediate,
+}
+
+impl Pace {
+    /// The option's values as the link spec writes them.
+    pub const NAMES: [(&'static str, Pace); 2] = [("real", Pace::Real), ("immediate", Pace::Immediate)];
+
+    /// "real" or "immediate".
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, p)| *p == self).map_or("real", |(name, _)| name)
+    }
+
+    /// The pace named `name`.
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, p)| *p)
+    }
+}
+
 /// A bus named by a link spec.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum LinkSpec {
-    /// `sim` (one) or `sim:N`, optionally `?missed=lost`: virtual AKDs in this process.
+    /// `sim` (one) or `sim:N`, optionally with options after `?`, joined by `&`:
+    /// `missed=late|lost|warn`, `pace=real|immediate`. Virtual AKDs in this process.
     Sim {
         /// How many virtual AKDs, 1..=[`MAX_SIM_COUNT`].
         count: usize,
-        /// How they judge missed frames: `late` (the default, as the real drive) or `lost`.
+        /// How they judge missed frames: `late` (the default, as the real drive), `lost` or
+        /// `warn`.
         missed: MissedFrames,
+        /// How fast their firmware answers: `real` (the default) or `immediate`.
+        pace: Pace,
     },
     /// `udp://HOST:PORT`: EtherCAT over UDP, e.g. to an akd-sim server.
     Udp {
@@ -87,14 +119,20 @@ impl FromStr for LinkSpec {
     }
 }
 
-/// `sim`, `sim:N`, each optionally followed by `?missed=late` or `?missed=lost`.
+/// `sim`, `sim:N`, each optionally followed by `?` and options joined by `&`, each at most
+/// once: `missed=late|lost|warn`, `pace=real|immediate`.
 fn parse_sim(spec: &str) -> Result<LinkSpec, LinkSpecError> {
-    let (bus, option) = spec.split_once('?').map_or((spec, None), |(bus, option)| (bus, Some(option)));
-    let missed = match option.map(|o| o.strip_prefix("missed=").and_then(MissedFrames::parse)) {
-        None => MissedFrames::default(),
-        Some(Some(missed)) => missed,
-        Some(None) => return Err(LinkSpecError::SimOption { spec: spec.to_owned() }),
-    };
+    let (bus, options) = spec.split_once('?').map_or((spec, None), |(bus, options)| (bus, Some(options)));
+    let refused = || LinkSpecError::SimOption { spec: spec.to_owned() };
+    let (mut missed, mut pace) = (None, None);
+    for option in options.map(|o| o.split('&')).into_iter().flatten() {
+        let parsed = match option.split_once('=') {
+            Some(("missed", value)) if missed.is_none() => MissedFrames::parse(value).map(|m| missed = Some(m)),
+            Some(("pace", value)) if pace.is_none() => Pace::parse(value).map(|p| pace = Some(p)),
+            _ => None,
+        };
+        parsed.ok_or_else(refused)?;
+    }
     let count = match bus.strip_prefix("sim:") {
         None => 1,
         Some(count) => count
@@ -103,7 +141,7 @@ fn parse_sim(spec: &str) -> Result<LinkSpec, LinkSpecError> {
             .filter(|n| (1..=MAX_SIM_COUNT).contains(n))
             .ok_or_else(|| LinkSpecError::SimCount { spec: spec.to_owned(), max: MAX_SIM_COUNT })?,
     };
-    Ok(LinkSpec::Sim { count, missed })
+    Ok(LinkSpec::Sim { count, missed: missed.unwrap_or_default(), pace: pace.unwrap_or_default() })
 }
 
 /// The forms a link spec takes, as [`LinkSpecError`] names them.
@@ -129,8 +167,16 @@ impl fmt::Display for LinkSpec {
     /// The spec in the form it was parsed from (`sim:1` for `sim`).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            LinkSpec::Sim { count, missed: MissedFrames::Late } => write!(f, "sim:{count}"),
-            LinkSpec::Sim { count, missed } => write!(f, "sim:{count}?missed={}", missed.name()),
+            LinkSpec::Sim { count, missed, pace } => {
+                write!(f, "sim:{count}")?;
+                let missed = (*missed != MissedFrames::default()).then(|| format!("missed={}", missed.name()));
+                let pace = (*pace != Pace::default()).then(|| format!("pace={}", pace.name()));
+                let options: Vec<String> = missed.into_iter().chain(pace).collect();
+                if !options.is_empty() {
+                    write!(f, "?{}", options.join("&"))?;
+                }
+                Ok(())
+            }
             LinkSpec::Udp { address } => write!(f, "udp://{address}"),
             LinkSpec::Interface { name, busy_poll_us: 0 } => f.write_str(name),
             LinkSpec::Interface { name, busy_poll_us } => write!(f, "{name}?busy_poll={busy_poll_us}"),
@@ -144,20 +190,28 @@ mod tests {
 
     #[test]
     fn parses_each_form() {
-        let late = MissedFrames::Late;
-        assert_eq!("sim".parse(), Ok(LinkSpec::Sim { count: 1, missed: late }));
-        assert_eq!("sim:64".parse(), Ok(LinkSpec::Sim { count: 64, missed: late }));
-        assert_eq!("sim:2?missed=late".parse(), Ok(LinkSpec::Sim { count: 2, missed: late }));
-        let lost = MissedFrames::Lost;
-        assert_eq!("sim?missed=lost".parse(), Ok(LinkSpec::Sim { count: 1, missed: lost }));
-        assert_eq!("sim:6?missed=lost".parse(), Ok(LinkSpec::Sim { count: 6, missed: lost }));
+        let sim = |count, missed, pace| Ok(LinkSpec::Sim { count, missed, pace });
+        let (late, lost, warn) = (MissedFrames::Late, MissedFrames::Lost, MissedFrames::Warn);
+        let (real, immediate) = (Pace::Real, Pace::Immediate);
+        assert_eq!("sim".parse(), sim(1, late, real));
+        assert_eq!("sim:64".parse(), sim(64, late, real));
+        assert_eq!("sim:2?missed=late".parse(), sim(2, late, real));
+        assert_eq!("sim?missed=lost".parse(), sim(1, lost, real));
+        assert_eq!("sim:6?missed=warn".parse(), sim(6, warn, real));
+        assert_eq!("sim:6?pace=immediate".parse(), sim(6, late, immediate));
+        assert_eq!("sim:6?pace=immediate&missed=lost".parse(), sim(6, lost, immediate));
+        assert_eq!("sim:6?missed=warn&pace=real".parse(), sim(6, warn, real));
         assert_eq!("udp://127.0.0.1:34980".parse(), Ok(LinkSpec::Udp { address: "127.0.0.1:34980".into() }));
         assert_eq!("eth0".parse(), Ok(LinkSpec::Interface { name: "eth0".into(), busy_poll_us: 0 }));
         assert_eq!("eth0?busy_poll=0".parse(), Ok(LinkSpec::Interface { name: "eth0".into(), busy_poll_us: 0 }));
         assert_eq!("eth0?busy_poll=1000".parse(), Ok(LinkSpec::Interface { name: "eth0".into(), busy_poll_us: 1000 }));
-        for spec in ["sim:3", "sim:3?missed=lost", "udp://h:1", "veth0", "veth0?busy_poll=80"] {
+        for spec in ["sim:3", "sim:3?missed=lost", "sim:3?missed=warn&pace=immediate", "sim:1?pace=immediate"] {
             assert_eq!(spec.parse::<LinkSpec>().unwrap().to_string(), spec);
         }
+        for spec in ["udp://h:1", "veth0", "veth0?busy_poll=80"] {
+            assert_eq!(spec.parse::<LinkSpec>().unwrap().to_string(), spec);
+        }
+        assert_eq!("sim:2?pace=real&missed=late".parse::<LinkSpec>().unwrap().to_string(), "sim:2");
     }
 
     #[test]
@@ -167,10 +221,20 @@ mod tests {
             assert_eq!(err, LinkSpecError::SimCount { spec: spec.into(), max: MAX_SIM_COUNT });
             assert!(err.to_string().contains("1..=64"), "{err}");
         }
-        for spec in ["sim?missed", "sim:2?missed=soon", "sim:2?lost", "sim:2?missed=lost?"] {
+        for spec in [
+            "sim?missed",
+            "sim:2?missed=soon",
+            "sim:2?lost",
+            "sim:2?missed=lost?",
+            "sim:2?missed=lost&missed=warn",
+            "sim:2?pace=slow",
+            "sim:2?pace=real&",
+        ] {
             let err = spec.parse::<LinkSpec>().unwrap_err();
             assert_eq!(err, LinkSpecError::SimOption { spec: spec.into() });
-            assert!(err.to_string().contains("?missed=late") && err.to_string().contains("?missed=lost"), "{err}");
+            for named in ["missed=late", "missed=lost", "missed=warn", "pace=real", "pace=immediate"] {
+                assert!(err.to_string().contains(named), "{err}");
+            }
         }
         for spec in ["eth0?busy_poll=1001", "eth0?busy_poll=", "eth0?busy_poll=+5", "eth0?spin=5", "eth0?"] {
             let err = spec.parse::<LinkSpec>().unwrap_err();

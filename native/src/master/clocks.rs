@@ -12,9 +12,9 @@
 use std::time::{SystemTime, UNIX_EPOCH};
 
 use crate::dc::{self, PortReceiveTimes};
-use crate::error::{Error, Result, Unavailable};
+use crate::error::{Result, Unavailable};
 use crate::frame::{self, Command};
-use crate::master::sdo_info::ObjectInfo;
+use crate::master::sdo_info::{parameter_confirmed, ObjectInfo};
 use crate::master::Master;
 use crate::registers;
 
@@ -72,15 +72,9 @@ pub struct Clock {
 }
 
 /// Whether a drive's answer to the object description of [`dc::FBUS_PARAM02`] confirms that
-/// the object is FBUS.PARAM02, so that it may be written: only a description whose name names
-/// it ([`dc::names_fbus_param02`]). An SDO abort (no such object, or no SDO information) leaves
-/// it unconfirmed; any other error (the mailbox failing) is the set-up's error.
+/// the object is FBUS.PARAM02, so that it may be written ([`parameter_confirmed`]).
 pub fn fbus_param02_confirmed(description: Result<ObjectInfo>) -> Result<bool> {
-    match description {
-        Ok(object) => Ok(dc::names_fbus_param02(&object.name)),
-        Err(Error::SdoAbort { .. }) => Ok(false),
-        Err(e) => Err(e),
-    }
+    parameter_confirmed(description, dc::FBUS_PARAM02_NAME)
 }
 
 /// The master's clock as EtherCAT system time.

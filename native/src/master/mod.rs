@@ -24,6 +24,7 @@ pub mod foe;
 pub mod mailbox_client;
 pub mod mapping;
 pub mod restore;
+pub mod scaling;
 pub mod scan;
 pub mod sdo;
 pub mod sdo_info;

@@ -26,6 +26,19 @@ pub struct ObjectInfo {
     pub name: String,
 }
 
+/// Whether a drive's answer to the object description of a manufacturer object confirms that
+/// it is the AKD parameter named `parameter` (e.g. "FBUS.PARAM02"), so that it may be written
+/// or its value trusted: only a description whose name names it
+/// ([`coe::names_parameter`]). An SDO abort (no such object, or no SDO information) leaves it
+/// unconfirmed; any other error (the mailbox failing) is the caller's error.
+pub fn parameter_confirmed(description: Result<ObjectInfo>, parameter: &str) -> Result<bool> {
+    match description {
+        Ok(object) => Ok(coe::names_parameter(&object.name, parameter)),
+        Err(crate::error::Error::SdoAbort { .. }) => Ok(false),
+        Err(e) => Err(e),
+    }
+}
+
 /// An entry's description, owned.
 #[derive(Clone, Debug, PartialEq, Eq)]
 // Python gets a dict keyed by the field names (akd_ros._native): renaming a field renames a key.

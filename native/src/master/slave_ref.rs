@@ -13,6 +13,7 @@ use crate::master::mapping::Mapping;
 use crate::master::sdo_info::{EntryInfo, ObjectInfo};
 use crate::master::state::AlStatus;
 use crate::master::{Master, Slave};
+use crate::scaling::PositionScaling;
 
 /// The slave at one position of a [`Master`]'s bus, from [`Master::slave_mut`] or
 /// [`Master::slave_by_alias`]. It borrows the master, so nothing else uses the bus meanwhile.
@@ -91,6 +92,12 @@ impl SlaveRef<'_> {
     /// The description of object `index` (SDO information).
     pub fn sdo_object_description(&mut self, index: u16) -> Result<ObjectInfo> {
         self.master.sdo_object_description(self.position, index)
+    }
+
+    /// The drive's position scaling (0x608F, 0x6091, 0x6092 and, where its SDO information
+    /// confirms the object, FBUS.PARAM05); `None` for a drive without the DS402 scaling objects.
+    pub fn position_scaling(&mut self) -> Result<Option<PositionScaling>> {
+        self.master.position_scaling(self.position)
     }
 
     /// The description of entry `index:subindex` (SDO information).

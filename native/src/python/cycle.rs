@@ -85,6 +85,7 @@ struct SnapshotView<'a> {
 struct StatsView {
     cycles: u64,
     overruns: u64,
+    f125_stalls: u64,
     lost_frames: u64,
     wkc_errors: u64,
     watch_frames: u64,
@@ -200,6 +201,14 @@ enum EventView {
     },
     /// A trajectory's start or end: its kind, cycle, time and id, then its state's keys.
     Trajectory(Merged<TrajectoryEventView, super::trajectory::StateView>),
+    Inputs {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        slave: u16,
+        digital_inputs: u32,
+        statusword: u16,
+    },
 }
 
 /// The head of a trajectory event, before its state's keys.
@@ -258,6 +267,9 @@ impl From<Event> for EventView {
                 TrajectoryEventView { kind: "trajectory", cycle, time_ns, id },
                 state.into(),
             )),
+            Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
+                EventView::Inputs { kind: "inputs", cycle, time_ns, slave, digital_inputs, statusword }
+            }
         }
     }
 }
@@ -360,7 +372,8 @@ impl PyCycle {
         .into_pyobject(py)
     }
 
-    /// The statistics: cycles, overruns, lost_frames and wkc_errors (the cyclic frame's),
+    /// The statistics: cycles, overruns, f125_stalls (frames that went out so late after the one
+    /// before, a drive enabled, that a real AKD would raise F125), lost_frames and wkc_errors (the cyclic frame's),
     /// watch_frames (cycles that read each slave in a second frame, a change having been seen),
     /// acyclic_lost_frames and acyclic_wkc_errors (the frames beside it: mailbox, and a
     /// recovery's), other_errors, setpoints_busy, relayed_frames and relayed_lost (frames a
@@ -376,6 +389,7 @@ impl PyCycle {
             relayed_lost,
             cycles: s.cycles.load(Relaxed),
             overruns: s.overruns.load(Relaxed),
+            f125_stalls: s.f125_stalls.load(Relaxed),
             lost_frames: s.lost_frames.load(Relaxed),
             wkc_errors: s.wkc_errors.load(Relaxed),
             watch_frames: s.watch_frames.load(Relaxed),
@@ -497,7 +511,7 @@ impl PyCycle {
     }
 
     /// Latch, fault, command time-out and trajectory events since the last call, oldest first,
-    /// each a dict. Every event has "kind" ("latch", "fault", "command_timeout" or
+    /// each a dict. Every event has "kind" ("latch", "fault", "command_timeout", "inputs" or
     /// "trajectory"), "cycle" and "time_ns" (the cycle's monotonic wake-up time); all but
     /// trajectory events have "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
     /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
@@ -510,7 +524,9 @@ impl PyCycle {
     /// ("hold" or "quick_stop") and "text" (what was done, for the log). A trajectory event
     /// (one when it starts, one when it ends) has "id" and what `trajectory_status` gives of
     /// its state: "state" ("running", "done", "replaced", "aborted"), "replaced_by", "slave",
-    /// "statusword", "ds402_state".
+    /// "statusword", "ds402_state". An inputs event (a change of the drive's digital inputs
+    /// 0x60FD, or of its hardware enable as the statusword shows it, in that cycle's inputs) adds
+    /// "digital_inputs" and "statusword" (`DriveIo.with_inputs` reads them).
     fn events(&self) -> Vec<EventView> {
         self.cycle.events().into_iter().map(EventView::from).collect()
     }
@@ -643,6 +659,30 @@ impl PyCycle {
         Ok(self.cycle.setpoint_status(position).py()?.into())
     }
 
+    /// Starts homing drive `position` in the cycle thread with the method and speeds set in the
+    /// drive: into homing mode (6), start (bit 4), homing attained (bit 12) with the motion
+    /// stopped, then back to the mode the set-points carry with the target at the actual
+    /// position; halted and ended "timed_out" when not attained within `timeout` s. The drive
+    /// must be in Operation enabled with 0x6060 and 0x6061 mapped. Returns its number at once.
+    fn start_homing(&self, position: u16, timeout: f64) -> PyResult<u32> {
+        let timeout = duration("homing timeout", timeout, SECONDS)?;
+        self.cycle.start_homing(position, timeout).py()
+    }
+
+    /// Cancels the homing under way on drive `position`: halted, then back to its mode.
+    fn cancel_homing(&self, position: u16) -> PyResult<()> {
+        self.cycle.cancel_homing(position).py()
+    }
+
+    /// The homing of drive `position`: "request" (its number, 0 before any), "phase" ("idle",
+    /// "homing", "ending", "done"), "outcome" ("attained", "homing_error", "timed_out",
+    /// "canceled", "not_enabled"; None while under way), "reason" (why it failed, else None),
+    /// "statusword" and "homing_state" (from bits 13, 12, 10 in homing mode: "in_progress",
+    /// "interrupted", "attained", "error"), and "homed" (attained since the drive was last lost).
+    fn homing_status(&self, position: u16) -> PyResult<super::homing::HomingView> {
+        Ok(self.cycle.homing_status(position).py()?.into())
+    }
+
     /// Sets the command time-out of drive `position`: when a non-zero velocity (profile
     /// velocity) or torque (profile torque) written by `set_object` or `set_outputs` is not
     /// written again for `timeout` seconds while the drive is in Operation enabled, the cycle
@@ -676,7 +716,8 @@ impl PyCycle {
     }
 
     /// Sets one mapped output object of slave `position` from the next cycle on (its exact
-    /// size in bytes); releases a held target like any set-point.
+    /// size in bytes); a mode's command object (a motion set-point) releases a held target,
+    /// any other output (digital outputs, the analog output, a latch control) leaves it held.
     fn set_object(&self, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
         self.cycle.set_object(position, index, subindex, &data).py()
     }
@@ -739,6 +780,12 @@ impl PyCycle {
         super::drive::drives_inputs(&self.cycle, &positions)
     }
 
+    /// The I/O of each drive of `positions` (DriveIo: digital and analog inputs, outputs as
+    /// sent, hardware enable), all from the last snapshot.
+    fn drives_io(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveIo>> {
+        super::drive::drives_io(&self.cycle, &positions)
+    }
+
     /// With `on`, a drive entering Fault or leaving Op quick-stops, in the same cycle, every
     /// other drive being enabled or enabled (and not in Fault): a bus of joints stops together.
     /// Off (the default), each drive reacts alone. The faulting drive's event is the only one.
@@ -769,8 +816,14 @@ impl PyCycle {
     /// (time.monotonic_ns(); None: now). Every drive must be in Operation enabled in
     /// interpolated position or cyclic synchronous position. Takes over from the trajectory in
     /// force without a step; a bad one raises ConfigError saying why before anything moves.
+    /// With `tolerances` (FollowJointTrajectory's), a list of (path position, path velocity,
+    /// goal position, goal velocity, stop deceleration) per joint in counts, counts/s and
+    /// counts/s² (inf: not judged; for the deceleration: stop at once), with `goal_time_ns`:
+    /// it ends "path_tolerance_violated" (after braking to a standstill) or
+    /// "goal_tolerance_violated" where a drive strays, and `stop_trajectory` brakes it.
     /// Returns its id.
-    #[pyo3(signature = (positions, times_ns, points, start_ns = None, limits = None))]
+    #[pyo3(signature = (positions, times_ns, points, start_ns = None, limits = None, tolerances = None, goal_time_ns = 0))]
+    #[allow(clippy::too_many_arguments)]
     fn play_trajectory(
         &self,
         py: Python<'_>,
@@ -779,12 +832,29 @@ impl PyCycle {
         points: Vec<Vec<super::trajectory::PyKnot>>,
         start_ns: Option<u64>,
         limits: Option<Vec<(f64, f64)>>,
+        tolerances: Option<Vec<super::trajectory::PyTolerance>>,
+        goal_time_ns: u64,
     ) -> PyResult<u32> {
-        super::trajectory::play(py, &self.cycle, positions, times_ns, points, start_ns, limits)
+        let tolerances = tolerances.map(|t| super::trajectory::tolerances(t, goal_time_ns));
+        super::trajectory::play(py, &self.cycle, positions, times_ns, points, start_ns, limits, tolerances)
+    }
+
+    /// Brings trajectory `id` to a standstill in the cycle thread at its joints' stop
+    /// decelerations (it ends "stopped"); nothing for one that is not in force.
+    fn stop_trajectory(&self, id: u32) {
+        self.cycle.stop_trajectory(id);
+    }
+
+    /// Drive `position`'s (desired position, desired velocity, actual position, actual
+    /// velocity), counts and counts/s, as the trajectory in force judges them; None while none
+    /// drives it.
+    fn trajectory_followed(&self, position: u16) -> Option<(f64, f64, f64, f64)> {
+        self.cycle.trajectory_followed(position).map(|[a, b, c, d]| (a, b, c, d))
     }
 
     /// Trajectory `id` as the cycle thread last published it: "id", "state" ("pending",
-    /// "running", "done", "replaced", "aborted"), "replaced_by" (the newer id), "slave",
+    /// "running", "done", "replaced", "aborted", "stopped", "path_tolerance_violated",
+    /// "goal_tolerance_violated"), "replaced_by" (the newer id), "slave",
     /// "statusword" and "ds402_state" (of the drive that aborted it), "point" (the point
     /// approached; "points" once past the last), "started_ns" (None while pending),
     /// "elapsed_ns", "duration_ns". The last 64 are kept.

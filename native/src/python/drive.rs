@@ -3,8 +3,11 @@
 //! (`DEFAULT_MAPPING`), the AKD's mapping rules (`check_mapping`) and entry syntax
 //! (`parse_pdo_entry`), CoE data types (`data_type_name`, `data_type_kind`), an entry's access
 //! bits by name (`access_names`), mapped objects' values as bytes (`encode_value`) and one
-//! drive's inputs read by its mapping (`DriveInputs`, from `Cycle.drive_inputs`), and the CiA
-//! 402 states (`DS402_STATES`, `ds402_state`).
+//! drive's inputs read by its mapping (`DriveInputs`, from `Cycle.drive_inputs`), the CiA
+//! 402 states (`DS402_STATES`, `ds402_state`), and the drive's own I/O: what a mapping carries
+//! of it (`mapping_io`, `io_mappings`, `IO_MAPPING`), its layout (`IO_INPUT_COUNT`,
+//! `IO_OUTPUT_COUNT`, `IO_SWITCHES`, `ANALOG_VOLTS_PER_COUNT`, `with_digital_outputs`) and one
+//! drive's I/O in a cycle (`DriveIo`, from `Cycle.drives_io`).
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -14,6 +17,7 @@ use super::IntoPyResult;
 use crate::coe::{access, data_type};
 use crate::cycle::{CycleThread, Snapshot};
 use crate::ds402::{self, Mode, State};
+use crate::io::{self, Carried, DriveIo, Switch};
 use crate::objects::{self, DriveInputs};
 use crate::pdo::{self, Direction, PdoEntry};
 
@@ -119,6 +123,188 @@ fn inputs_in(cycle: &CycleThread, snapshot: &Snapshot, position: u16) -> PyResul
     })
 }
 
+/// One drive's I/O in one cycle (`Cycle.drives_io`), read by its mapping: a value is None where
+/// the mapping lacks its object. Raw values in the drive's units (counts of the analog
+/// objects, ±10 V over their range as `ANALOG_VOLTS_PER_COUNT` assumes), and what they say.
+#[pyclass(name = "DriveIo", module = "akd_ros._native", frozen)]
+#[derive(Clone, Copy)]
+pub struct PyDriveIo {
+    cycle: u64,
+    time_ns: u64,
+    fresh: bool,
+    io: DriveIo,
+}
+
+#[pymethods]
+impl PyDriveIo {
+    /// The cycle they are from (from 1).
+    #[getter]
+    fn cycle(&self) -> u64 {
+        self.cycle
+    }
+
+    /// That cycle's wake-up time on the monotonic clock (ns).
+    #[getter]
+    fn time_ns(&self) -> u64 {
+        self.time_ns
+    }
+
+    /// Whether that cycle's exchange succeeded (else they are the last good ones).
+    #[getter]
+    fn fresh(&self) -> bool {
+        self.fresh
+    }
+
+    /// Statusword 0x6041.
+    #[getter]
+    fn statusword(&self) -> Option<u16> {
+        self.io.statusword
+    }
+
+    /// Digital inputs 0x60FD.
+    #[getter]
+    fn digital_inputs(&self) -> Option<u32> {
+        self.io.digital_inputs
+    }
+
+    /// The switches of 0x60FD bits 0..3 by name ("negative_limit", "positive_limit",
+    /// "home_switch", "interlock"): whether each is active; None without 0x60FD.
+    #[getter]
+    fn switches(&self) -> Option<Vec<(&'static str, bool)>> {
+        self.io.digital_inputs.map(|word| Switch::ALL.iter().map(|s| (s.name(), s.active(word))).collect())
+    }
+
+    /// The levels of the AKD's digital inputs 1..7 (0x60FD bits 16..22); None without 0x60FD.
+    #[getter]
+    fn inputs(&self) -> Option<Vec<bool>> {
+        self.io.digital_inputs.map(|word| (0..io::INPUT_COUNT).map(|i| io::inputs(word) >> i & 1 == 1).collect())
+    }
+
+    /// The hardware enable as the statusword shows it: "high", "low" or "unknown".
+    #[getter]
+    fn hardware_enable(&self) -> &'static str {
+        self.io.hardware_enable().name()
+    }
+
+    /// The analog input 0x3470:04, counts.
+    #[getter]
+    fn analog_input(&self) -> Option<i16> {
+        self.io.analog_input
+    }
+
+    /// Digital outputs 0x60FE:01 as sent.
+    #[getter]
+    fn digital_outputs(&self) -> Option<u32> {
+        self.io.digital_outputs
+    }
+
+    /// The levels of the AKD's digital outputs 1..2 as sent; None without 0x60FE:01.
+    #[getter]
+    fn outputs(&self) -> Option<Vec<bool>> {
+        self.io.digital_outputs.map(|word| (0..io::OUTPUT_COUNT).map(|o| io::outputs(word) >> o & 1 == 1).collect())
+    }
+
+    /// The analog output set-point 0x3470:03 as sent, counts.
+    #[getter]
+    fn analog_output(&self) -> Option<i16> {
+        self.io.analog_output
+    }
+
+    /// These I/O with the digital inputs and statusword of another cycle (an "inputs" event of
+    /// `Cycle.events`), where this drive's mapping carries them.
+    fn with_inputs(&self, cycle: u64, time_ns: u64, digital_inputs: u32, statusword: u16) -> PyDriveIo {
+        let io = DriveIo {
+            statusword: self.io.statusword.map(|_| statusword),
+            digital_inputs: self.io.digital_inputs.map(|_| digital_inputs),
+            ..self.io
+        };
+        PyDriveIo { cycle, time_ns, fresh: true, io }
+    }
+
+    fn __repr__(&self) -> String {
+        format!("DriveIo(cycle={}, {:?})", self.cycle, self.io)
+    }
+}
+
+/// The I/O of each drive of `positions`, all from the same snapshot (for `Cycle.drives_io`).
+pub(super) fn drives_io(cycle: &CycleThread, positions: &[u16]) -> PyResult<Vec<PyDriveIo>> {
+    let snapshot = cycle.snapshot();
+    positions
+        .iter()
+        .map(|&position| {
+            let (rx, tx) = cycle.mapping(position).py()?;
+            let outputs = cycle.outputs_of(&snapshot, position).py()?;
+            let io = DriveIo::read(rx, tx, outputs, cycle.inputs_of(&snapshot, position).py()?);
+            Ok(PyDriveIo { cycle: snapshot.cycle, time_ns: snapshot.time_ns, fresh: snapshot.fresh, io })
+        })
+        .collect()
+}
+
+/// What a mapping carries of the drive's I/O: "digital_inputs", "analog_input",
+/// "digital_outputs", "analog_output", each True or False.
+#[derive(IntoPyObject)]
+struct CarriedView {
+    digital_inputs: bool,
+    analog_input: bool,
+    digital_outputs: bool,
+    analog_output: bool,
+}
+
+impl From<Carried> for CarriedView {
+    fn from(c: Carried) -> Self {
+        CarriedView {
+            digital_inputs: c.digital_inputs,
+            analog_input: c.analog_input,
+            digital_outputs: c.digital_outputs,
+            analog_output: c.analog_output,
+        }
+    }
+}
+
+/// What the mapping `rx`, `tx` (each as `Master.configure_pdo` takes it) carries of the drive's
+/// I/O, as a dict of "digital_inputs", "analog_input", "digital_outputs", "analog_output";
+/// raises PdoError as `check_mapping` does for a mapping the AKD refuses.
+#[pyfunction]
+fn mapping_io(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<CarriedView> {
+    let (rx, tx) = (super::master::parse_mapping(rx)?, super::master::parse_mapping(tx)?);
+    Ok(Carried::of(&rx.entries(Direction::Rx).py()?, &tx.entries(Direction::Tx).py()?).into())
+}
+
+/// The mappings, as the node's `mapping` parameter names them ("io", "0x1725/0x1B20"), that
+/// carry the command of mode `mode` (its name, e.g. "cyclic_synchronous_position") and each
+/// of the I/O in `needs` (names as `mapping_io` gives them), those carrying all the I/O first:
+/// a list of (name, what it carries as `mapping_io` gives it). ValueError for an unknown mode
+/// or I/O name.
+#[pyfunction]
+fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedView)>> {
+    let mode = Mode::from_snake_name(mode).ok_or_else(|| PyValueError::new_err(format!("no mode {mode:?}")))?;
+    let names = ["digital_inputs", "analog_input", "digital_outputs", "analog_output"];
+    if let Some(bad) = needs.iter().find(|n| !names.contains(&n.as_str())) {
+        return Err(PyValueError::new_err(format!("{bad:?} is none of {}", names.join(", "))));
+    }
+    let wanted = |c: Carried| {
+        let has = [c.digital_inputs, c.analog_input, c.digital_outputs, c.analog_output];
+        needs.iter().all(|n| has[names.iter().position(|m| m == n).unwrap_or_default()])
+    };
+    Ok(io::mappings_for(mode, wanted).into_iter().map(|m| (m.name, m.carried.into())).collect())
+}
+
+/// 0x60FE:01 `word` with the AKD's digital outputs in `levels` (pairs of output number and
+/// level) set, its other bits as they are; ValueError naming an output the AKD does not have.
+#[pyfunction]
+fn with_digital_outputs(word: u32, levels: Vec<(i64, bool)>) -> PyResult<u32> {
+    let mut now = io::outputs(word);
+    for (output, high) in levels {
+        if !(1..=i64::from(io::OUTPUT_COUNT)).contains(&output) {
+            let count = io::OUTPUT_COUNT;
+            return Err(PyValueError::new_err(format!("output {output}: the AKD has digital outputs 1 to {count}")));
+        }
+        let bit = 1u8 << (output - 1);
+        now = if high { now | bit } else { now & !bit };
+    }
+    Ok(io::with_outputs(word, now))
+}
+
 /// Checks `rx` and `tx` (each as `Master.configure_pdo` takes it) against the AKD's mapping
 /// rules without a drive; raises PdoError saying what is wrong and what is allowed, as
 /// configuring a drive with them would.
@@ -183,7 +369,19 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDriveInputs>()?;
     let modes: Vec<PyModeOfOperation> = Mode::ALL.into_iter().map(PyModeOfOperation::of).collect();
     m.add("MODES_OF_OPERATION", PyTuple::new(m.py(), modes)?)?;
+    let not_offered: std::collections::HashMap<&str, &str> =
+        ds402::NOT_OFFERED.iter().map(|&(_, name, why)| (name, why)).collect();
+    m.add("MODES_NOT_OFFERED", not_offered)?;
     m.add("DEFAULT_MAPPING", (as_words(&pdo::DEFAULT_RX), as_words(&pdo::DEFAULT_TX)))?;
+    m.add("IO_MAPPING", (as_words(&pdo::IO_RX), as_words(&pdo::IO_TX)))?;
+    m.add_class::<PyDriveIo>()?;
+    m.add_function(wrap_pyfunction!(mapping_io, m)?)?;
+    m.add_function(wrap_pyfunction!(io_mappings, m)?)?;
+    m.add_function(wrap_pyfunction!(with_digital_outputs, m)?)?;
+    m.add("IO_INPUT_COUNT", io::INPUT_COUNT)?;
+    m.add("IO_OUTPUT_COUNT", io::OUTPUT_COUNT)?;
+    m.add("IO_SWITCHES", PyTuple::new(m.py(), Switch::ALL.map(Switch::name))?)?;
+    m.add("ANALOG_VOLTS_PER_COUNT", io::ANALOG_VOLTS_PER_COUNT)?;
     m.add_function(wrap_pyfunction!(check_mapping, m)?)?;
     m.add_function(wrap_pyfunction!(parse_pdo_entry, m)?)?;
     m.add_function(wrap_pyfunction!(data_type_name, m)?)?;

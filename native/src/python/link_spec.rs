@@ -33,11 +33,20 @@ impl PyLinkSpec {
         }
     }
 
-    /// How the virtual AKDs judge missed frames, "late" or "lost" (sim), else None.
+    /// How the virtual AKDs judge missed frames, "late", "lost" or "warn" (sim), else None.
     #[getter]
     fn missed(&self) -> Option<&'static str> {
         match self.spec {
             LinkSpec::Sim { missed, .. } => Some(missed.name()),
+            _ => None,
+        }
+    }
+
+    /// How fast the virtual AKDs answer, "real" or "immediate" (sim), else None.
+    #[getter]
+    fn pace(&self) -> Option<&'static str> {
+        match self.spec {
+            LinkSpec::Sim { pace, .. } => Some(pace.name()),
             _ => None,
         }
     }

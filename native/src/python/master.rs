@@ -20,6 +20,7 @@ use crate::link::{self, Link, LinkSpec};
 use crate::master::sdo_info::{EntryInfo, ObjectInfo};
 use crate::master::{self, Mapping, SlaveRef};
 use crate::pdo::PdoEntry;
+use crate::scaling::{self, PositionScaling};
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
 use crate::sim::{Timing, VirtualBus};
@@ -35,11 +36,8 @@ struct Opened {
 /// Opens the link named by `spec` (a [`LinkSpec`]).
 fn open_link(spec: &str) -> crate::error::Result<Opened> {
     Ok(match spec.parse::<LinkSpec>()? {
-        LinkSpec::Sim { count, missed } => {
-            let link = InProcess::with_bus(VirtualBus::with_timing(
-                count,
-                Timing { missed_frames: missed, ..Timing::REAL_DRIVE },
-            ));
+        LinkSpec::Sim { count, missed, pace } => {
+            let link = InProcess::with_bus(VirtualBus::with_timing(count, Timing::of(pace, missed)));
             let simulator = Some(link.control());
             Opened { link: Box::new(link), simulator, warnings: Vec::new() }
         }
@@ -67,6 +65,32 @@ pub(super) fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     let pdos: Vec<Vec<u32>> =
         value.extract().map_err(|_| Error::from(SettingError::MappingForm)).map_err(super::to_py_err)?;
     Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
+}
+
+/// What `Master.position_scaling` gives.
+#[derive(IntoPyObject)]
+struct PositionScalingView {
+    encoder_resolution: (u32, u32),
+    gear_ratio: (u32, u32),
+    feed_constant: (u32, u32),
+    ds402_scaling: Option<bool>,
+    counts_per_revolution: std::collections::BTreeMap<(u16, u8), Option<f64>>,
+}
+
+impl From<PositionScaling> for PositionScalingView {
+    fn from(s: PositionScaling) -> Self {
+        let pair = |r: scaling::Ratio| (r.numerator, r.denominator);
+        PositionScalingView {
+            encoder_resolution: pair(s.encoder_resolution),
+            gear_ratio: pair(s.gear_ratio),
+            feed_constant: pair(s.feed_constant),
+            ds402_scaling: s.ds402_scaling,
+            counts_per_revolution: scaling::POSITION_OBJECTS
+                .iter()
+                .map(|&((index, sub), _)| ((index, sub), s.counts_per_revolution(index, sub, None)))
+                .collect(),
+        }
+    }
 }
 
 /// An EtherCAT master on one link.
@@ -204,7 +228,7 @@ impl PyMaster {
 
     /// What opening the link could not do as asked, one sentence each: on a raw interface, the
     /// threads of this process that kept their capabilities after the socket was open (those
-    /// that block every signal; see the README's "Running without root").
+    /// that block every signal; see docs/howto/without_root.md).
     #[getter]
     fn warnings(&self) -> Vec<String> {
         self.warnings.clone()
@@ -395,6 +419,17 @@ impl PyMaster {
     /// The description of object `index`: index, data_type, max_subindex, object_code, name.
     fn sdo_object_description(&self, py: Python<'_>, position: u16, index: u16) -> PyResult<ObjectInfo> {
         self.with_slave(py, position, |s| s.sdo_object_description(index))
+    }
+
+    /// The position scaling of the drive at `position` (in PreOp or above), or None for a drive
+    /// without the DS402 scaling objects: "encoder_resolution" (0x608F), "gear_ratio" (0x6091)
+    /// and "feed_constant" (0x6092), each (numerator, denominator); "ds402_scaling", FBUS.PARAM05
+    /// bit 4, None where the drive's SDO information does not confirm the object; and
+    /// "counts_per_revolution", for each position object (index, subindex) the counts per motor
+    /// revolution it takes, None where the objects do not tell (0x6064, 0x607A with DS402
+    /// scaling off follow the drive's UNIT parameters, which no DS402 object gives).
+    fn position_scaling(&self, py: Python<'_>, position: u16) -> PyResult<Option<PositionScalingView>> {
+        Ok(self.with_slave(py, position, |s| s.position_scaling())?.map(PositionScalingView::from))
     }
 
     /// The description of entry `index:subindex`: subindex, data_type, bit_length, access, name.

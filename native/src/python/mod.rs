@@ -15,6 +15,7 @@ mod clocks;
 mod cycle;
 mod drive;
 mod eeprom;
+mod homing;
 mod link_spec;
 mod master;
 mod record;

@@ -14,6 +14,7 @@ use pyo3::types::PyBytes;
 use super::IntoPyResult;
 use crate::akd_fault::MissedFrames;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
+use crate::link::spec::Pace;
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
@@ -23,8 +24,9 @@ use crate::sim::{server, Timing, VirtualBus};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
 /// name, or None), "fault_number" (e.g. 125, or None), the motor's "position" (counts),
-/// "velocity" (counts/s) and "torque" (N·m), and "dc", what its synchronisation was told
-/// ([`SyncView`]).
+/// "velocity" (counts/s) and "torque" (N·m), "dc", what its synchronisation was told
+/// ([`SyncView`]), and its I/O: "digital_inputs" (0x60FD as it shows it), "digital_outputs"
+/// (the levels of outputs 1 and 2 as the master drives them) and "analog_output" (V).
 #[derive(IntoPyObject)]
 struct DriveStateView {
     state: &'static str,
@@ -34,6 +36,18 @@ struct DriveStateView {
     velocity: f64,
     torque: f64,
     dc: SyncView,
+    digital_inputs: u32,
+    digital_outputs: Vec<bool>,
+    analog_output: f64,
+    would_be_f125: WouldBeF125View,
+}
+
+/// `drive_state()["would_be_f125"]`: "count", the F125 a real AKD would have raised where this
+/// one, judging missed frames by "warn", went on; "longest_ms", the longest silence among them.
+#[derive(IntoPyObject)]
+struct WouldBeF125View {
+    count: u64,
+    longest_ms: f64,
 }
 
 impl From<DriveState> for DriveStateView {
@@ -46,6 +60,13 @@ impl From<DriveState> for DriveStateView {
             velocity: drive.velocity,
             torque: drive.torque,
             dc: drive.sync.into(),
+            digital_inputs: drive.digital_inputs,
+            digital_outputs: (0..crate::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
+            analog_output: drive.outputs.analog,
+            would_be_f125: WouldBeF125View {
+                count: drive.would_be_f125.count,
+                longest_ms: drive.would_be_f125.longest_ns as f64 / 1e6,
+            },
         }
     }
 }
@@ -87,12 +108,19 @@ struct PyVirtualBus {
 impl PyVirtualBus {
     /// `count` drives at power-up. `immediate=True` makes the firmware answer AL requests and
     /// mailbox messages before the next frame instead of after the real drive's delays.
+    /// `init_to_preop_ms`, when given, is how long this line's firmware takes from Init to
+    /// PreOp instead of the default (real drives differ there: docs/virtual_akd.md).
     #[new]
-    #[pyo3(signature = (count = 1, immediate = false))]
-    fn new(count: usize, immediate: bool) -> Self {
-        PyVirtualBus {
-            bus: VirtualBus::with_timing(count, if immediate { Timing::IMMEDIATE } else { Timing::REAL_DRIVE }),
+    #[pyo3(signature = (count = 1, immediate = false, init_to_preop_ms = None))]
+    fn new(count: usize, immediate: bool, init_to_preop_ms: Option<f64>) -> PyResult<Self> {
+        let mut timing = Timing::of(if immediate { Pace::Immediate } else { Pace::Real }, MissedFrames::Late);
+        if let Some(ms) = init_to_preop_ms {
+            if !(ms.is_finite() && (0.0..=10_000.0).contains(&ms)) {
+                return Err(Error::from(SettingError::InitToPreOp { ms })).py();
+            }
+            timing.init_to_preop_ns = (ms * 1e6).round() as u64;
         }
+        Ok(PyVirtualBus { bus: VirtualBus::with_timing(count, timing) })
     }
 
     /// Serves `payload` at bus time `time_ns` and returns the frame as it comes back, or None
@@ -133,6 +161,32 @@ impl PyVirtualBus {
     /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
     fn set_input_toggles(&mut self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
         Change::input_toggles(self.bus.len(), position, input, positions).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// Digital input `input` (1..7) of drive `position` `high` or low wherever the shaft is.
+    fn set_input(&mut self, position: usize, input: usize, high: bool) -> PyResult<()> {
+        Change::input_level(self.bus.len(), position, input, high).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
+    /// "interlock") of drive `position` active or not; a limit switch holds motion toward it.
+    fn set_switch(&mut self, position: usize, name: &str, active: bool) -> PyResult<()> {
+        Change::switch(self.bus.len(), position, name, active).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// The analog input of drive `position` at `volts` (0x3470:04, ±10 V over its range).
+    fn set_analog_input(&mut self, position: usize, volts: f64) -> PyResult<()> {
+        Change::analog_input(self.bus.len(), position, volts).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// Makes drive `position`'s homing runs fail as `name` says: "error" (a homing error
+    /// halfway to the reference), "no_reference" (it searches and never finds it), or "ok".
+    fn set_homing_failure(&mut self, position: usize, name: &str) -> PyResult<()> {
+        Change::homing_failure(self.bus.len(), position, name).py()?.apply(&mut self.bus);
         Ok(())
     }
 
@@ -194,6 +248,32 @@ impl PySimulator {
     /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
     fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
         self.control.set_input_toggles(position, input, positions).py()
+    }
+
+    /// Digital input `input` (1..7) of drive `position` `high` or low wherever the shaft is,
+    /// from the next frame on.
+    fn set_input(&self, position: usize, input: usize, high: bool) -> PyResult<()> {
+        self.control.set_input(position, input, high).py()
+    }
+
+    /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
+    /// "interlock") of drive `position` active or not from the next frame on; a limit switch
+    /// holds motion toward it (braking with 0x6085) and lets motion away from it go.
+    fn set_switch(&self, position: usize, name: &str, active: bool) -> PyResult<()> {
+        self.control.set_switch(position, name, active).py()
+    }
+
+    /// The analog input of drive `position` at `volts` (0x3470:04, ±10 V over its range) from
+    /// the next frame on.
+    fn set_analog_input(&self, position: usize, volts: f64) -> PyResult<()> {
+        self.control.set_analog_input(position, volts).py()
+    }
+
+    /// Makes drive `position`'s homing runs fail from the next frame on as `name` says: "error"
+    /// (a homing error halfway to the reference), "no_reference" (it searches and never finds
+    /// it), or "ok".
+    fn set_homing_failure(&self, position: usize, name: &str) -> PyResult<()> {
+        self.control.set_homing_failure(position, name).py()
     }
 
     /// Power-cycles drive `position` before the next frame: it comes back as at power-up (AL
@@ -288,11 +368,16 @@ impl PySetpointTrace {
 
 /// A bus of `count` virtual AKDs for a server; `on_start`, if given, is called with its
 /// Simulator before serving starts.
-fn controlled_bus(count: usize, missed: &str, on_start: Option<&Bound<'_, PyAny>>) -> PyResult<ControlledBus> {
+fn controlled_bus(
+    count: usize,
+    (missed, pace): (&str, &str),
+    on_start: Option<&Bound<'_, PyAny>>,
+) -> PyResult<ControlledBus> {
     let missed_frames = MissedFrames::parse(missed)
         .ok_or_else(|| Error::from(UnknownName::MissedFrames { name: missed.to_owned() }))
         .py()?;
-    let bus = ControlledBus::from(VirtualBus::with_timing(count, Timing { missed_frames, ..Timing::REAL_DRIVE }));
+    let pace = Pace::parse(pace).ok_or_else(|| Error::from(UnknownName::Pace { name: pace.to_owned() })).py()?;
+    let bus = ControlledBus::from(VirtualBus::with_timing(count, Timing::of(pace, missed_frames)));
     if let Some(on_start) = on_start {
         on_start.call1((PySimulator::new(bus.control()),))?;
     }
@@ -300,8 +385,9 @@ fn controlled_bus(count: usize, missed: &str, on_start: Option<&Bound<'_, PyAny>
 }
 
 /// What a server did, for `on_stop`: "served", "malformed", "lost" (on the simulated line),
-/// "unsent" (the line went down under the reply) and "late", how late replies went back
-/// because the server was not run ([`LateView`]; None over UDP).
+/// "unsent" (the line went down under the reply), "late", how late replies went back
+/// because the server was not run ([`LateView`]; None over UDP), and "would_be_f125", the F125
+/// its drives did not raise judging missed frames by "warn".
 #[derive(IntoPyObject)]
 struct ServerStatsView {
     served: u64,
@@ -309,6 +395,7 @@ struct ServerStatsView {
     lost: u64,
     unsent: u64,
     late: Option<LateView>,
+    would_be_f125: u64,
 }
 
 /// [`server::LateReplies`]: "over", the count of replies later than each bound (µs → count),
@@ -326,6 +413,7 @@ impl From<server::ServerStats> for ServerStatsView {
             malformed: stats.malformed,
             lost: stats.lost,
             unsent: stats.unsent,
+            would_be_f125: stats.would_be_f125,
             late: stats.late.map(|late| LateView {
                 over: server::LATE_AFTER_US.into_iter().zip(late.over).collect(),
                 longest_us: late.longest_us,
@@ -370,11 +458,13 @@ fn run_until_signal(
 
 /// Serves `count` virtual AKDs on UDP `host:port` until SIGINT/SIGTERM. `on_start(simulator)`
 /// is called first with the `Simulator` that controls them while they serve. `missed`: how
-/// they judge missed frames, "late" (as the real drive) or "lost" (only frames lost on the line).
+/// they judge missed frames, "late" (as the real drive), "lost" (only frames lost on the line)
+/// or "warn" (as the real drive, a would-be F125 warned of and not raised). `pace`: how fast
+/// their firmware answers, "real" (as the real drive) or "immediate".
 /// `setpoint_trace`: a `SetpointTrace` the drives' set-points are traced to. `on_stop(stats)`
 /// is called once serving has stopped, with what the server did ([`ServerStatsView`]).
 #[pyfunction]
-#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late", setpoint_trace = None, on_stop = None))]
+#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late", setpoint_trace = None, on_stop = None, pace = "real"))]
 #[allow(clippy::too_many_arguments)]
 fn serve_udp(
     py: Python<'_>,
@@ -385,6 +475,7 @@ fn serve_udp(
     missed: &str,
     setpoint_trace: Option<&PySetpointTrace>,
     on_stop: Option<&Bound<'_, PyAny>>,
+    pace: &str,
 ) -> PyResult<()> {
     let address: SocketAddr = (host, port)
         .to_socket_addrs()
@@ -392,18 +483,18 @@ fn serve_udp(
         .and_then(|mut a| a.next())
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
-    let bus = controlled_bus(count, missed, on_start)?;
+    let bus = controlled_bus(count, (missed, pace), on_start)?;
     let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_udp(address, bus, stop, trace))
 }
 
 /// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
 /// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed`,
-/// `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames,
+/// `pace`, `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames,
 /// answering each as it arrives as the drive's ESC does, on a CPU of its own (raises ConfigError
 /// under SCHED_FIFO or SCHED_RR).
 #[pyfunction]
-#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false, on_stop = None))]
+#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false, on_stop = None, pace = "real"))]
 #[allow(clippy::too_many_arguments)]
 fn serve_iface(
     py: Python<'_>,
@@ -414,9 +505,10 @@ fn serve_iface(
     setpoint_trace: Option<&PySetpointTrace>,
     busy_poll: bool,
     on_stop: Option<&Bound<'_, PyAny>>,
+    pace: &str,
 ) -> PyResult<()> {
     let iface = iface.to_owned();
-    let bus = controlled_bus(count, missed, on_start)?;
+    let bus = controlled_bus(count, (missed, pace), on_start)?;
     let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
 }
@@ -428,5 +520,6 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(serve_udp, m)?)?;
     m.add_function(wrap_pyfunction!(serve_iface, m)?)?;
     m.add("MISSED_FRAMES", MissedFrames::NAMES.map(|(name, _)| name))?;
+    m.add("PACES", Pace::NAMES.map(|(name, _)| name))?;
     Ok(())
 }

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 
 use super::{IntoPyResult, Merged};
 use crate::cycle::events::TrajectoryState;
-use crate::cycle::trajectory_player::Status;
+use crate::cycle::trajectory_player::{Status, Tolerance, Tolerances};
 use crate::cycle::CycleThread;
 use crate::ds402::State;
 use crate::trajectory::{Knot, Limits};
@@ -30,7 +30,27 @@ impl From<&PyKnot> for Knot {
     }
 }
 
+/// One joint's tolerances as Python gives them: (path position, path velocity, goal position,
+/// goal velocity, stop deceleration).
+pub(super) type PyTolerance = (f64, f64, f64, f64, f64);
+
+/// The tolerances of `joints` with `goal_time_ns`.
+pub(super) fn tolerances(joints: Vec<PyTolerance>, goal_time_ns: u64) -> Tolerances {
+    let joints = joints
+        .into_iter()
+        .map(|(path_position, path_velocity, goal_position, goal_velocity, stop_deceleration)| Tolerance {
+            path_position,
+            path_velocity,
+            goal_position,
+            goal_velocity,
+            stop_deceleration,
+        })
+        .collect();
+    Tolerances { joints, goal_time_ns }
+}
+
 /// Validates and hands over a trajectory, the GIL released while the cycle thread takes it.
+#[allow(clippy::too_many_arguments)]
 pub(super) fn play(
     py: Python<'_>,
     cycle: &CycleThread,
@@ -39,10 +59,14 @@ pub(super) fn play(
     points: Vec<Vec<PyKnot>>,
     start_ns: Option<u64>,
     limits: Option<Vec<(f64, f64)>>,
+    tolerances: Option<Tolerances>,
 ) -> PyResult<u32> {
     let points: Vec<Vec<Knot>> = points.iter().map(|p| p.iter().map(Knot::from).collect()).collect();
     let limits: Option<Vec<Limits>> = limits.map(|l| l.into_iter().map(|(min, max)| Limits { min, max }).collect());
-    py.allow_threads(|| cycle.play_trajectory(&positions, &times_ns, &points, limits.as_deref(), start_ns)).py()
+    py.allow_threads(|| {
+        cycle.follow_trajectory(&positions, &times_ns, &points, limits.as_deref(), start_ns, tolerances)
+    })
+    .py()
 }
 
 /// Adds what `state` says to `d`: "state", and "replaced_by", "slave", "statusword",
@@ -50,6 +74,8 @@ pub(super) fn play(
 /// How a trajectory stands, as Python sees it in its status and its events: "state",
 /// "replaced_by" (the newer id), and for an abort the drive, its statusword and its CiA 402
 /// state.
+/// A tolerance violation adds "velocity" (whether the velocity strayed, else the position)
+/// and "error" (counts or counts/s), "slave" naming the drive.
 #[derive(IntoPyObject)]
 pub(super) struct StateView {
     state: &'static str,
@@ -57,6 +83,8 @@ pub(super) struct StateView {
     slave: Option<u16>,
     statusword: Option<u16>,
     ds402_state: Option<&'static str>,
+    velocity: Option<bool>,
+    error: Option<i32>,
 }
 
 impl From<TrajectoryState> for StateView {
@@ -66,12 +94,18 @@ impl From<TrajectoryState> for StateView {
             TrajectoryState::Aborted { slave, statusword } => (None, Some((slave, statusword))),
             _ => (None, None),
         };
+        let violation = match state {
+            TrajectoryState::PathToleranceViolated(v) | TrajectoryState::GoalToleranceViolated(v) => Some(v),
+            _ => None,
+        };
         StateView {
             state: state.name(),
             replaced_by,
-            slave: aborted.map(|a| a.0),
+            slave: aborted.map(|a| a.0).or(violation.map(|v| v.slave)),
             statusword: aborted.map(|a| a.1),
             ds402_state: aborted.and_then(|a| State::from_statusword(a.1)).map(State::name),
+            velocity: violation.map(|v| v.velocity),
+            error: violation.map(|v| v.error),
         }
     }
 }

@@ -1,5 +1,5 @@
 //! Control of virtual AKDs whose bus another thread owns: fault injection, the hardware enable
-//! input, digital input toggles, the failures of the field (a drive power-cycled, a cable
+//! input, digital input levels and toggles, the limit and home switches, the analog input, the failures of the field (a drive power-cycled, a cable
 //! pulled, frames lost or corrupted, wrong working counters: see [`crate::sim::line`]), and a
 //! query of the drive firmware's state.
 //!
@@ -29,8 +29,11 @@ use crate::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
+use crate::sim::homing::{Failure as HomingFailure, Setup};
 use crate::sim::line::{Burst, Delivery, LineCounts};
+use crate::sim::missed_frames::WouldBeF125;
 use crate::sim::sync::SyncState;
+use crate::sim::terminals::{Outputs, Terminals};
 use crate::sim::{VirtualAkd, VirtualBus};
 
 /// How long a [`SimControl::drive_state`] query waits for the owner by default.
@@ -51,6 +54,12 @@ pub struct DriveState {
     pub torque: f64,
     /// What its synchronisation was told (SYNC0, FBUS.PARAM02, cycle time).
     pub sync: SyncState,
+    /// Digital inputs 0x60FD as the drive shows them.
+    pub digital_inputs: u32,
+    /// The outputs as the master drives them.
+    pub outputs: Outputs,
+    /// The F125 a real AKD would have raised where this one judges missed frames by "warn".
+    pub would_be_f125: WouldBeF125,
 }
 
 impl DriveState {
@@ -65,6 +74,9 @@ impl DriveState {
             velocity: shaft.velocity,
             torque: shaft.torque,
             sync: akd.sync_state(),
+            digital_inputs: akd.od().get(0x60FD, 0).map_or(0, |b| u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            outputs: Terminals::outputs(akd.od()),
+            would_be_f125: akd.would_be_f125(),
         }
     }
 }
@@ -106,6 +118,38 @@ pub enum Change {
         /// Toggle positions, counts, each finite.
         positions: Vec<f64>,
     },
+    /// Set a digital input high or low wherever the shaft is.
+    InputLevel {
+        /// Drive position.
+        position: usize,
+        /// Digital input, 1..=7.
+        input: usize,
+        /// Its level.
+        high: bool,
+    },
+    /// Set a switch of 0x60FD (a limit or home switch, the interlock) active or not.
+    Switch {
+        /// Drive position.
+        position: usize,
+        /// The switch's name, one [`crate::io::Switch::from_name`] knows.
+        name: String,
+        /// Whether it is active.
+        active: bool,
+    },
+    /// Set the analog input.
+    AnalogInput {
+        /// Drive position.
+        position: usize,
+        /// Volts, within the range 0x3470:04 holds.
+        volts: f64,
+    },
+    /// Make the drive's homing runs fail, or work again.
+    HomingFailure {
+        /// Drive position.
+        position: usize,
+        /// How they fail; `None`: they work.
+        failure: Option<HomingFailure>,
+    },
     /// Power-cycle the drive ([`VirtualAkd::power_cycle`]).
     PowerCycle {
         /// Drive position.
@@ -146,6 +190,37 @@ impl Change {
         Ok(Change::InputToggles { position, input, positions })
     }
 
+    /// Digital input `input` of drive `position` of a bus of `count` drives `high` or low;
+    /// refused for an input outside 1..=7.
+    pub fn input_level(count: usize, position: usize, input: usize, high: bool) -> Result<Self> {
+        check_position(count, position)?;
+        Inputs::default().set_level(input, high)?;
+        Ok(Change::InputLevel { position, input, high })
+    }
+
+    /// Switch `name` of drive `position` of a bus of `count` drives `active` or not; refused
+    /// for a name that is none of 0x60FD's switches.
+    pub fn switch(count: usize, position: usize, name: &str, active: bool) -> Result<Self> {
+        check_position(count, position)?;
+        Terminals::default().set_switch(name, active)?;
+        Ok(Change::Switch { position, name: name.to_owned(), active })
+    }
+
+    /// The analog input of drive `position` of a bus of `count` drives at `volts`; refused
+    /// when not finite or beyond what 0x3470:04 holds.
+    pub fn analog_input(count: usize, position: usize, volts: f64) -> Result<Self> {
+        check_position(count, position)?;
+        Terminals::default().set_analog_input(volts)?;
+        Ok(Change::AnalogInput { position, volts })
+    }
+
+    /// Homing failure `name` ("ok", "error", "no_reference", see [`HomingFailure`]) for drive
+    /// `position` of a bus of `count` drives.
+    pub fn homing_failure(count: usize, position: usize, name: &str) -> Result<Self> {
+        check_position(count, position)?;
+        Ok(Change::HomingFailure { position, failure: HomingFailure::from_name(name)? })
+    }
+
     /// Power-cycle drive `position` of a bus of `count` drives.
     pub fn power_cycle(count: usize, position: usize) -> Result<Self> {
         check_position(count, position)?;
@@ -166,6 +241,22 @@ impl Change {
             Change::InputToggles { position, input, positions } => {
                 let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_toggles(input, &positions);
                 debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+            }
+            Change::InputLevel { position, input, high } => {
+                let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_level(input, high);
+                debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+            }
+            Change::Switch { position, name, active } => {
+                let checked = bus.slave_mut(position).drive_mut().terminals_mut().set_switch(&name, active);
+                debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+            }
+            Change::AnalogInput { position, volts } => {
+                let checked = bus.slave_mut(position).drive_mut().terminals_mut().set_analog_input(volts);
+                debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+            }
+            Change::HomingFailure { position, failure } => {
+                let drive = bus.slave_mut(position).drive_mut();
+                drive.set_homing(Setup { failure, ..drive.homing_setup() });
             }
             // A test's rare event: the fresh drive's allocation on the owner's side is the
             // power-up's, not the exchange path's.
@@ -220,6 +311,29 @@ impl SimControl {
     /// (counts) crosses one of `positions` from the next frame on; it is low below all of them.
     pub fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> Result<()> {
         self.send(Message::Change(Change::input_toggles(self.count, position, input, positions)?))
+    }
+
+    /// Sets digital input `input` (1..=7) of drive `position` `high` or low from the next frame
+    /// on, wherever the shaft is.
+    pub fn set_input(&self, position: usize, input: usize, high: bool) -> Result<()> {
+        self.send(Message::Change(Change::input_level(self.count, position, input, high)?))
+    }
+
+    /// Sets switch `name` ("negative_limit", "positive_limit", "home_switch", "interlock") of
+    /// drive `position` `active` or not from the next frame on.
+    pub fn set_switch(&self, position: usize, name: &str, active: bool) -> Result<()> {
+        self.send(Message::Change(Change::switch(self.count, position, name, active)?))
+    }
+
+    /// Sets the analog input of drive `position` to `volts` from the next frame on.
+    pub fn set_analog_input(&self, position: usize, volts: f64) -> Result<()> {
+        self.send(Message::Change(Change::analog_input(self.count, position, volts)?))
+    }
+
+    /// Makes drive `position`'s homing runs fail from the next frame on as `name` says ("error":
+    /// a homing error halfway, "no_reference": the reference never found), or work ("ok").
+    pub fn set_homing_failure(&self, position: usize, name: &str) -> Result<()> {
+        self.send(Message::Change(Change::homing_failure(self.count, position, name)?))
     }
 
     /// Power-cycles drive `position` before the next frame: it answers as at power-up.

@@ -1,7 +1,8 @@
 //! The virtual AKD's digital inputs and position latch (AKD manual §5.12).
 //!
-//! Inputs are simulated: each one changes level wherever the shaft crosses one of its toggle
-//! positions, whichever way it moves, so its level is a function of the position alone. Latch 1
+//! Inputs are simulated: each one is set high or low (as a switch or a sensor wired to it would
+//! set it), and from there changes level wherever the shaft crosses one of its toggle positions,
+//! whichever way it moves, so its level is a function of the position and its set level. Latch 1
 //! captures on digital input 1 and latch 2 on input 2 (the AKD's fast inputs). A capture is the
 //! position where the input toggled, found within the model step (so within one count, not
 //! within the distance travelled in a step), as the AKD's hardware capture does.
@@ -19,36 +20,51 @@ use crate::error::SettingError;
 use crate::sim::od::ObjectDictionary;
 
 /// Digital inputs of the AKD (DIN1..DIN7).
-pub const INPUT_COUNT: usize = 7;
-/// Bit of 0x60FD that carries digital input 1 (the manufacturer-specific bits 16–31).
-const DIGITAL_INPUTS_SHIFT: u32 = 16;
+pub const INPUT_COUNT: usize = crate::io::INPUT_COUNT as usize;
 
-/// Simulated digital inputs: toggle positions per input.
+/// Simulated digital inputs: per input its set level and toggle positions.
 #[derive(Clone, Debug, Default)]
 pub struct Inputs {
     toggles: [Vec<f64>; INPUT_COUNT],
+    set: [bool; INPUT_COUNT],
+}
+
+/// Refuses an input number outside 1..=7.
+fn check_input(input: usize) -> Result<(), SettingError> {
+    if (1..=INPUT_COUNT).contains(&input) {
+        Ok(())
+    } else {
+        Err(SettingError::DigitalInput { input, count: INPUT_COUNT })
+    }
 }
 
 impl Inputs {
     /// Input `input` (1..=7) toggles at `positions` (counts); it is low below all of them.
     /// Refuses an input number out of range or a position that is not finite.
     pub fn set_toggles(&mut self, input: usize, positions: &[f64]) -> Result<(), SettingError> {
-        if !(1..=INPUT_COUNT).contains(&input) {
-            return Err(SettingError::DigitalInput { input, count: INPUT_COUNT });
-        }
+        check_input(input)?;
         if let Some(&position) = positions.iter().find(|p| !p.is_finite()) {
             return Err(SettingError::TogglePosition { input, position });
         }
         let mut sorted = positions.to_vec();
         sorted.sort_by(f64::total_cmp);
         self.toggles[input - 1] = sorted;
+        self.set[input - 1] = false;
         Ok(())
     }
 
-    /// Level of input `index` (0-based) with the shaft at `position`: high after an odd number
-    /// of toggle positions at or below it.
+    /// Input `input` (1..=7) is `high` or low wherever the shaft is (its toggles forgotten).
+    pub fn set_level(&mut self, input: usize, high: bool) -> Result<(), SettingError> {
+        check_input(input)?;
+        self.toggles[input - 1].clear();
+        self.set[input - 1] = high;
+        Ok(())
+    }
+
+    /// Level of input `index` (0-based) with the shaft at `position`: its set level, flipped
+    /// by an odd number of toggle positions at or below it.
     fn level(&self, index: usize, position: f64) -> bool {
-        self.toggles[index].partition_point(|t| *t <= position) % 2 == 1
+        self.set[index] ^ (self.toggles[index].partition_point(|t| *t <= position) % 2 == 1)
     }
 
     /// The input levels at `position`, input 1 in bit 0.
@@ -119,7 +135,7 @@ impl Latch {
         self.valid as u16 | self.selected() << 8 | inputs
     }
 
-    /// Writes the latch objects and the digital inputs 0x60FD.
+    /// Writes the latch objects.
     pub fn publish(&self, od: &mut ObjectDictionary, levels: u8) {
         for (i, p) in self.positions.iter().enumerate() {
             od.set(0x20A0 + i as u16, 0, &p.to_le_bytes());
@@ -129,7 +145,6 @@ impl Latch {
         od.set(0x20A6, 0, &one.to_le_bytes());
         od.set(0x20A7, 0, &two.to_le_bytes());
         od.set(0x20A5, 0, &self.status(levels).to_le_bytes());
-        od.set(0x60FD, 0, &((levels as u32) << DIGITAL_INPUTS_SHIFT).to_le_bytes());
     }
 }
 
@@ -181,6 +196,11 @@ mod tests {
         assert_eq!(inputs.levels(300.0), 0);
         assert!(inputs.set_toggles(8, &[]).unwrap_err().to_string().contains("inputs 1 to 7"));
         assert!(inputs.set_toggles(2, &[f64::NAN]).unwrap_err().to_string().contains("not a finite"));
+        inputs.set_level(1, true).unwrap();
+        assert_eq!(inputs.levels(99.0) | inputs.levels(1e9), 1, "set high wherever the shaft is");
+        inputs.set_toggles(3, &[0.0]).unwrap();
+        assert_eq!(inputs.levels(1.0), 0b101);
+        assert!(inputs.set_level(0, true).unwrap_err().to_string().contains("inputs 1 to 7"));
     }
 
     #[test]

@@ -21,23 +21,27 @@
 //!   over the cycle time 0x60C2, the slope feeding the velocity loop forward. Profile velocity
 //!   (3) ramps to 0x60FF with 0x6083/0x6084. Torque (4) gives 0x6071 in 0.1 % of the peak
 //!   torque. Profile position (1) moves to 0x607A (bit 6: relative) on the rising edge of bit 4
-//!   with a trapezoid of 0x6081/0x6083/0x6084, each new set-point at once. Homing (6) is the
-//!   AKD's "home at the current position": bit 4 rising makes the actual position 0.
+//!   with a trapezoid of 0x6081/0x6083/0x6084, each new set-point at once. Homing (6) moves to
+//!   the reference on the rising edge of bit 4 and makes it the zero ([`crate::sim::homing`]).
 //! - On entering Operation enabled and on every mode change the position command is the actual
 //!   position: nothing moves until a set-point asks for it.
+//! - An active limit switch holds motion toward it back in every mode
+//!   ([`crate::sim::terminals`]).
 //! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
 //!   counts/s², torque in 0.1 % of the drive's peak torque.
 
+use crate::akd_fault::{MissedFrames, MISSED_FRAMES_TOLERATED};
 use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
 use crate::pdo::PdoEntry;
 use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
+use crate::sim::homing::{self, Ending};
+use crate::sim::missed_frames::WouldBeF125;
 use crate::sim::motion::{Gains, Loops, Mechanics, Shaft, COUNTS_PER_REV, STEP_NS, STEP_S};
 use crate::sim::od::ObjectDictionary;
+use crate::sim::terminals::{LimitStop, Terminals};
 
-/// Frames the drive tolerates missing while enabled; one more raises F125 (§5.14).
-pub const MISSED_FRAMES_TOLERATED: u64 = 7;
 /// How long an enabled drive waits for cyclic set-points before F706 when the master set no
 /// process-data watchdog (the AKD's default, FAULT706.ACTION).
 pub const SETPOINT_TIMEOUT_NS: u64 = 100_000_000;
@@ -120,9 +124,10 @@ pub struct Bus<'a> {
     pub process_data_expected: bool,
     /// The process-data watchdog time the master configured, if any (F706's time-out).
     pub watchdog_ns: Option<u64>,
-    /// Frames in a row the line lost before they reached the drive, when missed frames are
-    /// judged that way ([`MissedFrames::Lost`](crate::akd_fault::MissedFrames::Lost)); `None`: judged by time, as the real drive does.
-    pub frames_lost: Option<u64>,
+    /// How the firmware judges missed frames (by time, as the real drive, unless told otherwise).
+    pub missed_frames: MissedFrames,
+    /// Frames in a row the line lost before they reached the drive.
+    pub frames_lost: u64,
 }
 
 /// The drive firmware of one virtual AKD.
@@ -145,6 +150,11 @@ pub struct Drive {
     profile_target: Option<f64>,
     setpoint_acknowledged: bool,
     homing_attained: bool,
+    homing_error: bool,
+    /// The homing run under way.
+    homing: Option<homing::Run>,
+    /// The homing as set up in the drive (its HOME.* parameters).
+    homing_setup: homing::Setup,
     /// A ramp to stand-still runs (halt, quick stop, fault reaction).
     stopping: bool,
     hardware_enable: bool,
@@ -152,12 +162,16 @@ pub struct Drive {
     fault: Option<Fault>,
     last_error_code: u16,
     inputs: Inputs,
+    terminals: Terminals,
+    limit_stop: LimitStop,
     latch: Latch,
     touch_probe: TouchProbe,
     time_ns: Option<u64>,
     last_process_data_ns: Option<u64>,
     last_setpoint_ns: Option<u64>,
-    enabled_at_ns: u64,
+    /// Since when cyclic set-points are due: the enable, or the change into the mode.
+    setpoints_due_since_ns: u64,
+    would_be_f125: WouldBeF125,
 }
 
 impl Default for Drive {
@@ -184,18 +198,24 @@ impl Drive {
             profile_target: None,
             setpoint_acknowledged: false,
             homing_attained: false,
+            homing_error: false,
+            homing: None,
+            homing_setup: homing::Setup::default(),
             stopping: false,
             hardware_enable: true,
             injected: None,
             fault: None,
             last_error_code: 0,
             inputs: Inputs::default(),
+            terminals: Terminals::default(),
+            limit_stop: LimitStop::default(),
             latch: Latch::default(),
             touch_probe: TouchProbe::default(),
             time_ns: None,
             last_process_data_ns: None,
             last_setpoint_ns: None,
-            enabled_at_ns: 0,
+            setpoints_due_since_ns: 0,
+            would_be_f125: WouldBeF125::default(),
         }
     }
 
@@ -214,6 +234,12 @@ impl Drive {
         self.reported(self.shaft.position)
     }
 
+    /// The F125 a real AKD would have raised where this one judges missed frames by
+    /// [`MissedFrames::Warn`].
+    pub fn would_be_f125(&self) -> WouldBeF125 {
+        self.would_be_f125
+    }
+
     /// The shaft (position in counts before any homing offset, velocity, torque).
     pub fn shaft(&self) -> &Shaft {
         &self.shaft
@@ -229,9 +255,24 @@ impl Drive {
         self.hardware_enable = high;
     }
 
-    /// The simulated digital inputs, to set where they toggle.
+    /// Sets the drive's homing up (where a real AKD's HOME.* parameters are set).
+    pub fn set_homing(&mut self, setup: homing::Setup) {
+        self.homing_setup = setup;
+    }
+
+    /// The drive's homing set-up.
+    pub fn homing_setup(&self) -> homing::Setup {
+        self.homing_setup
+    }
+
+    /// The simulated digital inputs, to set their levels and where they toggle.
     pub fn inputs_mut(&mut self) -> &mut Inputs {
         &mut self.inputs
+    }
+
+    /// The switches and the analog input, to set them.
+    pub fn terminals_mut(&mut self) -> &mut Terminals {
+        &mut self.terminals
     }
 
     /// The position reported in 0x6063/0x6064, counts (fractional).
@@ -239,12 +280,13 @@ impl Drive {
         shaft_position + self.offset
     }
 
-    /// The shaft position of a 32-bit position `target` taken as the nearest one to shaft
-    /// position `near`: positions wrap at ±2^31 counts (2048 revolutions) as 0x6064 does, and
-    /// the axis moves the short way across the wrap, not 2^32 counts back.
-    fn shaft_target(&self, target: i32, near: f64) -> f64 {
-        let near_counts = (near + self.offset).round();
-        near_counts - self.offset + target.wrapping_sub(near_counts as i64 as i32) as f64
+    /// The shaft position of a 32-bit position `target`, counted `scale` to a shaft count
+    /// ([`ObjectDictionary::position_scale`]), taken as the nearest one to shaft position
+    /// `near`: positions wrap at ±2^31 as 0x6064 does, and the axis moves the short way across
+    /// the wrap, not 2^32 back.
+    fn shaft_target(&self, target: i32, near: f64, scale: f64) -> f64 {
+        let near_counts = ((near + self.offset) * scale).round();
+        (near_counts + target.wrapping_sub(near_counts as i64 as i32) as f64) / scale - self.offset
     }
 
     /// Runs the firmware up to bus time `now_ns`; returns the emergency of a fault raised.
@@ -268,8 +310,7 @@ impl Drive {
         let window = u32_of(od, 0x6065) as f64;
         while t + STEP_NS <= now_ns {
             t += STEP_NS;
-            if let Some(fault) = self.injected.take().or_else(|| self.supervise(t, cycle_ns, timeout, bus.frames_lost))
-            {
+            if let Some(fault) = self.injected.take().or_else(|| self.supervise(t, cycle_ns, timeout, &bus)) {
                 raised = raised.or(self.raise(fault));
             }
             if self.shaft.at_rest() && !self.state.is_power_stage_on() {
@@ -309,7 +350,8 @@ impl Drive {
             return;
         }
         let from = self.segment.map_or(self.command, |s| s.to);
-        let to = self.shaft_target(i32_of(od, setpoint.0, setpoint.1), from);
+        let scale = od.position_scale(setpoint.0, setpoint.1);
+        let to = self.shaft_target(i32_of(od, setpoint.0, setpoint.1), from, scale);
         let length_ns = od.cycle_time_ns().unwrap_or(STEP_NS).max(STEP_NS);
         self.segment = Some(Segment { from, to, start_ns: received.at_ns, length_ns });
     }
@@ -337,8 +379,10 @@ impl Drive {
         let requested = Mode::from_i8(bytes::<1>(od, 0x6060, 0)[0] as i8);
         if requested.is_some() && requested != self.mode {
             self.mode = requested;
+            self.setpoints_due_since_ns = now;
             self.hold_here();
             self.homing_attained = false;
+            self.homing_error = false;
         }
         let enabled = self.state == State::OperationEnabled;
         let halt = enabled && controlword & cw::HALT != 0;
@@ -355,17 +399,18 @@ impl Drive {
         if enabled && new_setpoint && !halt {
             match self.mode {
                 Some(Mode::ProfilePosition) => {
-                    let target = i32_of(od, 0x607A, 0);
+                    let (target, scale) = (i32_of(od, 0x607A, 0), od.position_scale(0x607A, 0));
                     self.profile_target = Some(if controlword & cw::RELATIVE != 0 {
-                        self.profile_target.unwrap_or(self.command) + target as f64
+                        self.profile_target.unwrap_or(self.command) + target as f64 / scale
                     } else {
-                        self.shaft_target(target, self.command)
+                        self.shaft_target(target, self.command, scale)
                     });
                     self.setpoint_acknowledged = true;
                 }
                 Some(Mode::Homing) => {
-                    self.offset = -self.shaft.position.round();
-                    self.homing_attained = true;
+                    self.homing = Some(homing::Run::start(&self.homing_setup, self.command));
+                    self.homing_attained = false;
+                    self.homing_error = false;
                 }
                 _ => {}
             }
@@ -380,6 +425,9 @@ impl Drive {
         self.command_velocity = self.shaft.velocity;
         self.segment = None;
         self.profile_target = None;
+        self.homing = None;
+        // A limit switch holds back from where the axis is now, not from where it once stopped.
+        self.limit_stop = LimitStop::default();
     }
 
     fn start_stop(&mut self) {
@@ -394,7 +442,7 @@ impl Drive {
         match next {
             State::OperationEnabled => {
                 if !was_on || self.stopping {
-                    self.enabled_at_ns = now;
+                    self.setpoints_due_since_ns = now;
                     self.loops.reset();
                     self.stopping = false;
                     self.hold_here();
@@ -428,22 +476,18 @@ impl Drive {
     }
 
     /// The fault the firmware's supervision finds at time `t`, if any.
-    fn supervise(&self, t: u64, cycle_ns: u64, timeout_ns: u64, frames_lost: Option<u64>) -> Option<Fault> {
+    fn supervise(&mut self, t: u64, cycle_ns: u64, timeout_ns: u64, bus: &Bus<'_>) -> Option<Fault> {
         if self.fault.is_some() || !matches!(self.state, State::OperationEnabled | State::QuickStopActive) {
             return None;
         }
-        let missed = match (frames_lost, self.last_process_data_ns) {
-            (Some(lost), _) => lost,
-            // A frame is missed once half a cycle passed after it was due.
-            (None, Some(last)) if cycle_ns > 0 => t.saturating_sub(last).saturating_sub(cycle_ns / 2) / cycle_ns,
-            (None, _) => 0,
-        };
-        if missed > MISSED_FRAMES_TOLERATED {
+        let last = self.last_process_data_ns;
+        if self.would_be_f125.missed(bus.missed_frames, t, last, cycle_ns, bus.frames_lost) > MISSED_FRAMES_TOLERATED {
             return Some(Fault::SyncLost);
         }
         let cyclic = matches!(self.mode, Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition));
         if cyclic && self.state == State::OperationEnabled {
-            let since = self.last_setpoint_ns.map_or(self.enabled_at_ns, |s| s.max(self.enabled_at_ns));
+            let since =
+                self.last_setpoint_ns.map_or(self.setpoints_due_since_ns, |s| s.max(self.setpoints_due_since_ns));
             if t.saturating_sub(since) > timeout_ns {
                 return Some(Fault::SetpointsMissing);
             }
@@ -463,6 +507,7 @@ impl Drive {
             m.peak_torque = m.peak_torque.min(max_torque);
         }
         let (shaft, g) = (self.shaft, self.gains);
+        let (blocked, quick_stop) = (self.terminals.blocked(), u32_of(od, 0x6085) as f64);
         if self.stopping {
             let deceleration = match self.state {
                 State::OperationEnabled => u32_of(od, 0x6084),
@@ -474,39 +519,66 @@ impl Drive {
         }
         let torque = match self.mode {
             Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition) => {
-                let (position, velocity) = self.segment.map_or((self.command, 0.0), |s| s.at(t));
+                let commanded = self.segment.map_or((self.command, 0.0), |s| s.at(t));
+                let (position, velocity) = self.limit_stop.position(blocked, commanded, quick_stop);
                 self.command = position;
                 self.loops.position(position, velocity, &shaft, &g, &m)
             }
             Some(Mode::ProfileVelocity) => {
-                let target = i32_of(od, 0x60FF, 0) as f64;
+                let target = self.limit_stop.target(blocked, i32_of(od, 0x60FF, 0) as f64);
                 let speeding_up = target.abs() > self.command_velocity.abs();
-                let rate = u32_of(od, if speeding_up { 0x6083 } else { 0x6084 }) as f64;
+                let rate = match (self.limit_stop.limited, speeding_up) {
+                    (true, _) => quick_stop,
+                    (false, up) => u32_of(od, if up { 0x6083 } else { 0x6084 }) as f64,
+                };
                 self.command_velocity = approach(self.command_velocity, target, rate * STEP_S);
                 self.command = shaft.position;
                 self.loops.velocity(self.command_velocity, 0.0, &shaft, &g, &m)
             }
             Some(Mode::ProfileTorque) => {
                 self.command = shaft.position;
-                let target = bytes::<2>(od, 0x6071, 0);
-                self.loops.torque(i16::from_le_bytes(target) as f64 * self.mechanics.peak_torque / 1000.0, &m)
+                let target = self.limit_stop.target(blocked, i16::from_le_bytes(bytes::<2>(od, 0x6071, 0)) as f64);
+                self.loops.torque(target * self.mechanics.peak_torque / 1000.0, &m)
             }
             Some(Mode::ProfilePosition) => {
-                self.profile_step(od);
+                if let Some(target) = self.profile_target {
+                    let (v_max, acceleration, deceleration) =
+                        (u32_of(od, 0x6081) as f64, u32_of(od, 0x6083) as f64, u32_of(od, 0x6084) as f64);
+                    self.trapezoid_step(target, v_max, acceleration, deceleration);
+                }
+                (self.command, self.command_velocity) =
+                    self.limit_stop.position(blocked, (self.command, self.command_velocity), quick_stop);
                 self.loops.position(self.command, self.command_velocity, &shaft, &g, &m)
             }
-            Some(Mode::Homing) | None => self.loops.position(self.command, 0.0, &shaft, &g, &m),
+            Some(Mode::Homing) => {
+                self.homing_step();
+                self.loops.position(self.command, self.command_velocity, &shaft, &g, &m)
+            }
+            None => self.loops.position(self.command, 0.0, &shaft, &g, &m),
         };
         Some(torque)
     }
 
-    /// One step of the profile position trapezoid toward the target.
-    fn profile_step(&mut self, od: &ObjectDictionary) {
-        let Some(target) = self.profile_target else {
+    /// One step of the homing run: toward where it stops, then the zero or the error there.
+    fn homing_step(&mut self) {
+        let Some(run) = self.homing else { return };
+        let s = self.homing_setup;
+        if !self.trapezoid_step(run.stop_at, s.speed, s.acceleration, s.acceleration) {
             return;
-        };
-        let (v_max, acceleration, deceleration) =
-            (u32_of(od, 0x6081) as f64, u32_of(od, 0x6083) as f64, u32_of(od, 0x6084) as f64);
+        }
+        self.homing = None;
+        match run.ends {
+            Ending::Reference => {
+                self.offset = -run.stop_at;
+                self.homing_attained = true;
+            }
+            Ending::Error => self.homing_error = true,
+        }
+    }
+
+    /// One step of a trapezoid of `v_max`, `acceleration` and `deceleration` toward `target`
+    /// (profile position, homing); whether the command is there.
+    fn trapezoid_step(&mut self, target: f64, v_max: f64, acceleration: f64, deceleration: f64) -> bool {
         let remaining = target - self.command;
         let v = self.command_velocity;
         let direction = remaining.signum();
@@ -517,9 +589,11 @@ impl Drive {
         if (next * STEP_S).abs() >= remaining.abs() {
             self.command = target;
             self.command_velocity = 0.0;
+            true
         } else {
             self.command += next * STEP_S;
             self.command_velocity = next;
+            false
         }
     }
 
@@ -532,7 +606,7 @@ impl Drive {
         if self.state != State::OperationEnabled {
             return word;
         }
-        if self.loops.limited {
+        if self.loops.limited || self.limit_stop.limited {
             word |= sw::INTERNAL_LIMIT;
         }
         let lagging = window > 0.0 && following_error.abs() > window;
@@ -554,7 +628,7 @@ impl Drive {
                 Some(Mode::CyclicSynchronousPosition | Mode::InterpolatedPosition) => {
                     (following_error.abs() <= POSITION_WINDOW, true, lagging)
                 }
-                Some(Mode::Homing) => (self.homing_attained, self.homing_attained, false),
+                Some(Mode::Homing) => (self.homing.is_none() && still, self.homing_attained, self.homing_error),
                 Some(Mode::ProfileTorque) | None => (!self.loops.limited, false, false),
             }
         };
@@ -581,20 +655,23 @@ impl Drive {
     /// Writes the actual values into the object dictionary.
     fn publish(&self, od: &mut ObjectDictionary) {
         let position = self.reported(self.shaft.position);
-        let counts = position.round() as i64 as i32;
+        let in_units_of = |index| (position * od.position_scale(index, 0)).round() as i64 as i32;
+        let (internal, actual) = (in_units_of(0x6063), in_units_of(0x6064));
         let following_error = self.following_error();
         let window = u32_of(od, 0x6065) as f64;
         od.set(0x6041, 0, &self.statusword(od, following_error, window).to_le_bytes());
         od.set(0x6061, 0, &[self.mode.map_or(0, |m| m as i8) as u8]);
-        od.set(0x6063, 0, &counts.to_le_bytes());
-        od.set(0x6064, 0, &counts.to_le_bytes());
+        od.set(0x6063, 0, &internal.to_le_bytes());
+        od.set(0x6064, 0, &actual.to_le_bytes());
         od.set(0x606C, 0, &(self.shaft.velocity.round() as i64 as i32).to_le_bytes());
         let torque = (self.shaft.torque / self.mechanics.peak_torque * 1000.0).round() as i16;
         od.set(0x6077, 0, &torque.to_le_bytes());
         od.set(0x60F4, 0, &(following_error.round() as i64 as i32).to_le_bytes());
         od.set(0x603F, 0, &self.last_error_code.to_le_bytes());
         od.set(0x1001, 0, &[self.fault.map_or(0, |f| f.error_register())]);
-        self.latch.publish(od, self.inputs.levels(position));
+        let levels = self.inputs.levels(position);
+        self.latch.publish(od, levels);
+        self.terminals.publish(od, levels);
         self.touch_probe.publish(od);
     }
 }
@@ -704,8 +781,7 @@ mod tests {
         for (silence, faults) in [(17 * MS - STEP_NS, false), (17 * MS, true)] {
             let mut b = Bench::new();
             let image = [PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x607A, 0, 32)];
-            let expected =
-                |received| Bus { received, process_data_expected: true, watchdog_ns: None, frames_lost: None };
+            let expected = |received| Bus { received, process_data_expected: true, ..Bus::default() };
             b.write(0x60C2, 2, &[(-3i8) as u8]);
             b.enable(8);
             for _ in 0..5 {
@@ -726,8 +802,9 @@ mod tests {
             let bus = |received, frames_lost| Bus {
                 received,
                 process_data_expected: true,
-                watchdog_ns: None,
-                frames_lost: Some(frames_lost),
+                missed_frames: MissedFrames::Lost,
+                frames_lost,
+                ..Bus::default()
             };
             b.write(0x60C2, 2, &[(-3i8) as u8]);
             b.enable(8);
@@ -754,7 +831,7 @@ mod tests {
     }
 
     #[test]
-    fn profile_position_relative_moves_and_homing_zeroes_the_position() {
+    fn profile_position_relative_moves() {
         let mut b = Bench::new();
         b.enable(1);
         b.write(0x607A, 0, &(1i32 << 20).to_le_bytes());
@@ -765,12 +842,66 @@ mod tests {
         }
         assert!((b.drive.position() - 2.0 * COUNTS_PER_REV).abs() <= POSITION_WINDOW, "{}", b.drive.position());
         assert_ne!(u16_of(&b.od, 0x6041) & sw::TARGET_REACHED, 0);
+    }
+
+    const HOMING_BITS: u16 = sw::MODE_SPECIFIC_13 | sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED;
+
+    /// Starts homing on an enabled drive: mode 6, then bit 4's rising edge.
+    fn start_homing(b: &mut Bench) {
         b.write(0x6060, 0, &[6]);
         b.controlword(cw::ENABLE_OPERATION_COMMAND);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, sw::TARGET_REACHED, "not started");
         b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT);
-        assert!(b.drive.position().abs() < 1.0, "{}", b.drive.position());
-        assert_eq!(u16_of(&b.od, 0x6041) & (sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED), 0x1400);
-        assert_eq!(b.i32(0x6064), 0);
+    }
+
+    #[test]
+    fn homing_moves_to_the_reference_at_its_speed_and_makes_it_the_zero() {
+        let mut b = Bench::new();
+        b.drive.shaft.position = -COUNTS_PER_REV;
+        b.enable(8);
+        let setup = b.drive.homing_setup();
+        start_homing(&mut b);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, 0, "in progress");
+        b.run_for(300 * MS);
+        // At the homing speed, toward the reference, before it is reached.
+        let v = b.drive.shaft().velocity;
+        assert!((v - setup.speed).abs() < 0.05 * setup.speed, "{v}");
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, 0);
+        b.run_for(1200 * MS);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, sw::MODE_SPECIFIC_12 | sw::TARGET_REACHED, "attained");
+        assert!(b.i32(0x6064).abs() <= 20, "{}", b.i32(0x6064));
+        assert!((b.drive.shaft().position - setup.reference).abs() <= 20.0);
+        // Attained goes with the mode: back in a cyclic mode (whose set-points are due from the
+        // change, not from the enable), then homing again, it starts over.
+        b.write(0x6060, 0, &[8]);
+        b.run_for(MS);
+        assert_eq!(b.drive.fault(), None);
+        start_homing(&mut b);
+    }
+
+    #[test]
+    fn homing_fails_as_set_up_and_a_halt_interrupts_it() {
+        let mut b = Bench::new();
+        b.enable(8);
+        let mut setup = b.drive.homing_setup();
+        setup.failure = Some(homing::Failure::Error);
+        b.drive.set_homing(setup);
+        start_homing(&mut b);
+        b.run_for(1000 * MS);
+        let error = sw::MODE_SPECIFIC_13 | sw::TARGET_REACHED;
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, error);
+        assert!((b.drive.shaft().position - setup.reference / 2.0).abs() <= 20.0, "stopped halfway");
+        setup.failure = Some(homing::Failure::NoReference);
+        b.drive.set_homing(setup);
+        b.controlword(cw::ENABLE_OPERATION_COMMAND);
+        b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT);
+        b.run_for(1000 * MS);
+        assert!(b.drive.shaft().position > 1.5 * setup.reference, "searched past it");
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, 0, "still in progress");
+        b.controlword(cw::ENABLE_OPERATION_COMMAND | cw::NEW_SETPOINT | cw::HALT);
+        b.run_for(200 * MS);
+        assert_eq!(u16_of(&b.od, 0x6041) & HOMING_BITS, sw::TARGET_REACHED, "interrupted");
+        assert_eq!(b.drive.state(), State::OperationEnabled);
     }
 
     #[test]
@@ -790,6 +921,23 @@ mod tests {
         assert_eq!(b.drive.fault(), None);
         // Settled within the few counts of stick-slip, past the wrap: not 2^32 counts back.
         assert!(b.i32(0x6064) < 0 && b.i32(0x6064).wrapping_sub(target).abs() <= 20, "{}", b.i32(0x6064));
+    }
+
+    #[test]
+    fn a_limit_switch_stops_a_move_toward_it_and_lets_one_away_from_it_go() {
+        let mut b = Bench::new();
+        b.spin(2, 200 * MS);
+        b.drive.terminals_mut().set_switch("positive_limit", true).unwrap();
+        // 2 rev/s braked at 0x6085 (100 rev/s²) stop within 20 ms.
+        b.run_for(100 * MS);
+        assert!(b.drive.shaft().velocity.abs() < VELOCITY_WINDOW, "{:?}", b.drive.shaft());
+        assert_ne!(u16_of(&b.od, 0x6041) & sw::INTERNAL_LIMIT, 0, "bit 11 while it holds the command back");
+        assert_eq!((b.drive.state(), b.drive.fault()), (State::OperationEnabled, None));
+        assert_eq!(u32_of(&b.od, 0x60FD) & 0x3, 0x2, "0x60FD bit 1: positive limit switch");
+        b.write(0x60FF, 0, &(-(1i32 << 20)).to_le_bytes());
+        b.run_for(300 * MS);
+        assert!(b.drive.shaft().velocity < -0.9 * COUNTS_PER_REV, "{:?}", b.drive.shaft());
+        assert_eq!(u16_of(&b.od, 0x6041) & sw::INTERNAL_LIMIT, 0);
     }
 
     #[test]

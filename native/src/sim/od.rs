@@ -9,6 +9,7 @@
 
 use crate::coe::{access, data_type, ObjectCode, SdoAbortCode};
 use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
+use crate::scaling;
 use crate::sii::Identity;
 use crate::sim::sii_image;
 
@@ -189,6 +190,24 @@ fn nonzero(value: &[u8]) -> Result<(), SdoAbortCode> {
     } else {
         Err(SdoAbortCode::VALUE_RANGE)
     }
+}
+
+/// 0x608F:01 takes FB1.PSCALE's powers of two only (AKD EtherCAT manual 2017 §5.3.70).
+fn power_of_two(value: &[u8]) -> Result<(), SdoAbortCode> {
+    match value.try_into().map(u32::from_le_bytes) {
+        Ok(v) if v.is_power_of_two() => Ok(()),
+        _ => Err(SdoAbortCode::VALUE_RANGE),
+    }
+}
+
+/// One of the DS402 scaling ratios (0x608F, 0x6091, 0x6092, [`scaling`]), defaults from the
+/// AKD EtherCAT manual 2017 §5.3.70-72: numerator and denominator, neither ever 0.
+fn scaling_ratio(index: u16, name: &'static str, subs: [(&'static str, u32, ValueCheck); 2]) -> Object {
+    let entries = subs.iter().enumerate().map(|(i, &(sub_name, value, check))| Entry {
+        check: Some(check),
+        ..entry(i as u8 + 1, sub_name, data_type::UNSIGNED32, 32, RW, value as u64)
+    });
+    record(index, name, ObjectCode::Array, data_type::UNSIGNED32, RO, entries.collect())
 }
 
 /// Shortest cycle the AKD runs, in ns (4 kHz).
@@ -386,6 +405,8 @@ impl ObjectDictionary {
             // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::dc::FBUS_PARAM02);
             // named as the AKD names the parameter, which the master's SDO information check reads.
             (crate::dc::FBUS_PARAM02, crate::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
+            // Modelled likewise (see scaling::FBUS_PARAM05); bit 4 selects DS402 scaling.
+            (scaling::FBUS_PARAM05, scaling::FBUS_PARAM05_NAME, UNSIGNED32, RW),
             (0x603F, "Error code", UNSIGNED16, RO),
             (0x6040, "Controlword", UNSIGNED16, RW),
             (0x6041, "Statusword", UNSIGNED16, RO),
@@ -463,6 +484,24 @@ impl ObjectDictionary {
         period.check = Some(interpolation_period);
         period.entries[1].check = Some(nonzero);
         objects.push(period);
+        objects.push(scaling_ratio(
+            scaling::POSITION_ENCODER_RESOLUTION,
+            "Position encoder resolution",
+            [
+                ("Encoder increments", scaling::DEFAULT_COUNTS_PER_REVOLUTION, power_of_two),
+                ("Motor revolutions", 1, nonzero),
+            ],
+        ));
+        objects.push(scaling_ratio(
+            scaling::GEAR_RATIO,
+            "Gear ratio",
+            [("Motor revolutions", 1, nonzero), ("Shaft revolutions", 1, nonzero)],
+        ));
+        objects.push(scaling_ratio(
+            scaling::FEED_CONSTANT,
+            "Feed constant",
+            [("Feed", 1, nonzero), ("Shaft revolutions", 1, nonzero)],
+        ));
         objects.push(record(
             0x60E4,
             "Additional position actual value",
@@ -482,7 +521,10 @@ impl ObjectDictionary {
         let mut od = ObjectDictionary { objects };
         od.objects.sort_by_key(|o| o.index);
         od.set(0x6041, 0, &0x0240u16.to_le_bytes());
-        od.set(0x6502, 0, &0x0000_00EDu32.to_le_bytes());
+        // csp ip hm pv pp, as the AKD's description of 0x6502 gives it: no bit for profile torque
+        // (which the AKD offers as mode 4 all the same), none for cyclic synchronous velocity or
+        // torque (modes 9 and 10, which no AKD manual lists; docs/virtual_akd.md).
+        od.set(0x6502, 0, &0x0000_00E5u32.to_le_bytes());
         // The virtual drive's power-up motion parameters, which the drive model reads back.
         od.set(0x6065, 0, &FOLLOWING_ERROR_WINDOW.to_le_bytes());
         od.set(0x6081, 0, &PROFILE_VELOCITY.to_le_bytes());
@@ -608,6 +650,22 @@ impl ObjectDictionary {
                 Some((index, mapped_entries(o).collect()))
             })
             .collect()
+    }
+
+    /// The drive's position scaling as its objects hold it (FBUS.PARAM05 included).
+    pub fn position_scaling(&self) -> scaling::PositionScaling {
+        let entries =
+            scaling::SCALING_ENTRIES.map(|(index, sub)| self.object(index).map_or(0, |o| o.unsigned(sub) as u32));
+        let param05 = self.object(scaling::FBUS_PARAM05).map_or(0, |o| o.unsigned(0) as u32);
+        scaling::PositionScaling::from_entries(entries, Some(param05))
+    }
+
+    /// How many counts of position object `index:subindex` make one count of the drive model
+    /// (2^20 per motor revolution, UNIT.PIN's default where DS402 scaling is off); 1 for any
+    /// other object.
+    pub fn position_scale(&self, index: u16, subindex: u8) -> f64 {
+        let model = scaling::DEFAULT_COUNTS_PER_REVOLUTION as f64;
+        self.position_scaling().counts_per_revolution(index, subindex, Some(model)).map_or(1.0, |c| c / model)
     }
 
     /// The interpolation time period 0x60C2 in ns.

@@ -29,7 +29,7 @@ use crate::sim::setpoint_trace::{clock_ns, Recorder, Stamps};
 pub const POLL_INTERVAL: Duration = Duration::from_millis(2);
 
 /// What a server did, for its caller to report.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct ServerStats {
     /// Frames served and sent back.
     pub served: u64,
@@ -43,6 +43,11 @@ pub struct ServerStats {
     /// How late replies went back because the server was not run, where the interface stamps
     /// each frame's arrival (`None` over UDP, or where the kernel refuses).
     pub late: Option<LateReplies>,
+    /// F125 the drives would have raised as real AKDs and did not, judging missed frames by
+    /// [`MissedFrames::Warn`](crate::akd_fault::MissedFrames::Warn): each warned of on stderr.
+    pub would_be_f125: u64,
+    /// Each drive's count of them when last warned of.
+    warned: Vec<u64>,
 }
 
 /// The bounds of [`LateReplies::over`], in µs.
@@ -84,12 +89,41 @@ impl ServerStats {
     /// run once it has gone back); whether it goes back. What does not is counted, malformed or
     /// lost.
     fn serve(&mut self, bus: &mut ControlledBus, payload: &mut [u8], now_ns: u64) -> bool {
-        match bus.answer(payload, now_ns) {
-            Ok(Delivery::Returned) => return true,
-            Ok(Delivery::Lost) => self.lost += 1,
-            Err(_) => self.malformed += 1,
+        let returned = match bus.answer(payload, now_ns) {
+            Ok(Delivery::Returned) => true,
+            Ok(Delivery::Lost) => {
+                self.lost += 1;
+                false
+            }
+            Err(_) => {
+                self.malformed += 1;
+                false
+            }
+        };
+        self.warn_of_f125(bus);
+        returned
+    }
+
+    /// Says on stderr, once each, where a drive judging missed frames by
+    /// [`MissedFrames::Warn`](crate::akd_fault::MissedFrames::Warn) went on where a real AKD
+    /// would have raised F125. Rare (a stall of the master), so a line of I/O is no burden.
+    fn warn_of_f125(&mut self, bus: &ControlledBus) {
+        let bus = bus.bus();
+        self.warned.resize(bus.len(), 0);
+        for (position, warned) in self.warned.iter_mut().enumerate() {
+            let w = bus.slave(position).would_be_f125();
+            if w.count == *warned {
+                continue;
+            }
+            self.would_be_f125 += w.count - *warned;
+            *warned = w.count;
+            eprintln!(
+                "akd-sim: drive {position}: a real AKD would raise F125 here (no process data for {:.1} ms while \
+                 enabled, more than seven frames missed); this one goes on (--missed warn), {} so far",
+                w.latest_ns as f64 / 1e6,
+                w.count
+            );
         }
-        false
     }
 }
 

@@ -1,0 +1,179 @@
+"""The drives' own I/O on ROS: each joint's ~/io (akd_ros/DriveIO), ~/set_outputs (akd_ros/SetOutputs), and what
+/diagnostics says of a drive's I/O (`reasons`).
+
+~/io (~/<joint>/io on a node of joints) carries the digital inputs with the CiA 402 switches, the hardware enable as
+the drive shows it, the analog input, and the outputs as last sent, with the names io.inputs and io.outputs give them.
+It is published at io_rate for every joint from one snapshot of the cycle (every joint's I/O of the same cycle), and
+once more at each change of a joint's digital inputs or hardware enable: from the cycle thread's event of that change,
+stamped with the cycle whose process image showed it, so an edge is neither late by a publication period nor lost
+between two. Both are read at publication rates, never per cycle, and recorded when the node records.
+
+~/set_outputs writes one joint's digital outputs (by name or by the AKD's number) and analog output set-point into the
+next cycle's process image, never by SDO. A request is checked whole first and refused with one line that names the
+problem and what is allowed, changing nothing.
+"""
+
+from __future__ import annotations
+
+import math
+
+from akd_ros import _native
+from akd_ros.axis import AxisIo, CommandError
+from akd_ros.node.publishing import RecordedPublisher
+from akd_ros.node.session import AXIS_ERRORS, Session, namespace
+from akd_ros.node.transport import Qos, Transport
+from akd_ros.params import JointSettings
+
+HARDWARE_ENABLE = {"unknown": 0, "high": 1, "low": 2}
+"""DriveIO's hardware_enable codes (its HARDWARE_ENABLE_* constants) by the name the extension gives the state."""
+# The changes are taken from the cycle thread at this rate; its event queue holds 256, far more than arrive in 20 ms.
+_CHANGE_POLL_S = 0.02
+# Statusword bit 11, internal limit active: the drive holds a command back (here: at a limit switch).
+_INTERNAL_LIMIT = 1 << 11
+
+
+def reasons(io: AxisIo, statusword: int) -> list[str]:
+    """Why, as its I/O says, the drive will not enable or will not move one way: the hardware enable low, a limit
+    switch active; in the drive's words (the objects and bits that say so). Empty when nothing holds it."""
+    found = []
+    if io.hardware_enable == "low":
+        found.append(
+            "hardware enable low: the drive shows a warning (statusword bit 7) and will not stay switched on "
+            "(FBUS.PARAM05 bit 1 = 0 drops it to Switch on disabled while the input is low)"
+        )
+    holding = " and holds a command back (internal limit active, statusword bit 11)"
+    for switch, bit, direction in (("positive_limit", 1, "positive"), ("negative_limit", 0, "negative")):
+        if io.switches.get(switch):
+            found.append(
+                f"{direction} limit switch active (0x60FD bit {bit}): the drive stops moves in the {direction} "
+                f"direction" + (holding if statusword & _INTERNAL_LIMIT else "")
+            )
+    return found
+
+
+def named_levels(joint: JointSettings, io: AxisIo) -> dict[str, str]:
+    """The levels of the inputs and outputs `joint` names, as /diagnostics' values show them: "input part_present (3)":
+    "high"; none where the mapping does not carry them."""
+    levels = {}
+    for kind, names, values in (("input", joint.io_inputs, io.inputs), ("output", joint.io_outputs, io.outputs)):
+        for name, number in (names or {}).items() if values else ():
+            levels[f"{kind} {name} ({number})"] = "high" if values[number - 1] else "low"
+    return levels
+
+
+class Io:
+    """Each joint's ~/io publisher, its timers (io_rate and the changes) in `periodic`, and ~/set_outputs in
+    `requests`."""
+
+    def __init__(self, transport: Transport, session: Session, periodic, requests, qos: Qos) -> None:
+        self._session, self._clock = session, session.clock
+        self._logger = transport.logger
+        self._header = transport.message_class("std_msgs/msg/Header")
+        self._drive_io = transport.message_class("akd_ros/msg/DriveIO")
+        self._joints = {j.name: j for j in session.joints}
+        self.publishers = {
+            j.name: RecordedPublisher(
+                transport, "akd_ros/msg/DriveIO", f"{namespace(session.settings, j.name)}io", qos, session
+            )
+            for j in session.joints
+        }
+        """Each joint's ~/io publisher, by its name."""
+        transport.timer(1.0 / session.settings.io_rate, self._publish_all, periodic)
+        transport.timer(_CHANGE_POLL_S, self._publish_changes, periodic)
+        transport.service("akd_ros/srv/SetOutputs", "~/set_outputs", self._set_outputs, requests)
+
+    def _publish_all(self) -> None:
+        session = self._session
+        with session.lock:
+            if session.bus is None or not session.active:
+                return
+            ios = session.bus.io()
+        for joint, io in ios.items():
+            self.publishers[joint].publish(self.message(joint, io))
+
+    def _publish_changes(self) -> None:
+        session = self._session
+        with session.lock:
+            if session.bus is None or not session.active:
+                return
+            changes = [(axis.name, list(axis.input_events())) for axis in session.bus.axes]
+        for joint, ios in changes:
+            for io in ios:
+                self.publishers[joint].publish(self.message(joint, io))
+
+    def message(self, joint: str, io: AxisIo):
+        """The DriveIO of `joint` for `io`, stamped with its cycle's time, with the joint's names."""
+        settings = self._joints[joint]
+        inputs, outputs = list(io.inputs), list(io.outputs)
+        # A name of an input or output the mapping does not carry is refused by the parameters' check.
+        named_inputs = (settings.io_inputs or {}) if inputs else {}
+        named_outputs = (settings.io_outputs or {}) if outputs else {}
+        return self._drive_io(
+            header=self._header(stamp=self._clock.stamp(io.time_ns)),
+            joint=joint,
+            cycle=io.cycle,
+            digital_inputs_mapped=io.digital_inputs is not None,
+            digital_inputs=io.digital_inputs or 0,
+            negative_limit=io.switches.get("negative_limit", False),
+            positive_limit=io.switches.get("positive_limit", False),
+            home_switch=io.switches.get("home_switch", False),
+            interlock=io.switches.get("interlock", False),
+            inputs=inputs,
+            input_names=list(named_inputs),
+            input_numbers=list(named_inputs.values()),
+            named_inputs=[inputs[n - 1] for n in named_inputs.values()],
+            hardware_enable=HARDWARE_ENABLE[io.hardware_enable],
+            analog_input=math.nan if io.analog_input is None else io.analog_input,
+            digital_outputs_mapped=io.digital_outputs is not None,
+            digital_outputs=io.digital_outputs or 0,
+            outputs=outputs,
+            output_names=list(named_outputs),
+            output_numbers=list(named_outputs.values()),
+            named_outputs=[outputs[n - 1] for n in named_outputs.values()],
+            analog_output=math.nan if io.analog_output is None else io.analog_output,
+        )
+
+    def _joint_of(self, joint: str) -> str:
+        """The joint a request names ('' on a node of one joint: that one); CommandError otherwise."""
+        if joint in self._joints or (not joint and len(self._joints) == 1):
+            return joint or next(iter(self._joints))
+        raise CommandError(f"joint {joint!r} is not one of this node's joints: {', '.join(self._joints)}")
+
+    def _levels(self, joint: str, outputs: list[str], values: list[bool]) -> dict[int, bool]:
+        """The outputs a request names (by a name of io.outputs or the AKD's number) with their levels; CommandError
+        for a name the joint does not have, an output given twice, or a count of values that does not match."""
+        if len(outputs) != len(values):
+            raise CommandError(f"{len(outputs)} outputs with {len(values)} values: give one value per output")
+        names = self._joints[joint].io_outputs or {}
+        levels: dict[int, bool] = {}
+        for output, value in zip(outputs, values, strict=True):
+            number = names.get(output, int(output) if output.isdecimal() else None)
+            if number is None:
+                numbers = ", ".join(str(n) for n in range(1, _native.IO_OUTPUT_COUNT + 1))
+                allowed = f"its names ({', '.join(names)}) or " if names else ""
+                raise CommandError(
+                    f"output {output!r} of joint {joint}: allowed {allowed}the AKD's output numbers {numbers}"
+                )
+            if number in levels:
+                raise CommandError(f"output {output!r} of joint {joint} (output {number}) is given twice")
+            levels[number] = bool(value)
+        return levels
+
+    def _set_outputs(self, request, response):
+        try:
+            joint = self._joint_of(request.joint)
+            levels = self._levels(joint, list(request.outputs), list(request.values))
+            analog = request.analog_output if request.set_analog_output else None
+            if not levels and analog is None:
+                raise CommandError("nothing to set: give outputs with their values, or set_analog_output")
+            axis = self._session.axis_for_request(joint)
+            with self._session.lock:
+                axis.set_outputs(levels, analog)
+            done = [f"output {n} {'high' if high else 'low'}" for n, high in sorted(levels.items())]
+            done += [] if analog is None else [f"analog output {analog:g} V"]
+            response.success, response.message = True, f"{joint}: {', '.join(done)} from the next cycle"
+            self._logger.info(f"~/set_outputs: {response.message}")
+        except AXIS_ERRORS as e:
+            response.success, response.message = False, f"outputs not set: {e}"
+            self._logger.warning(f"~/set_outputs: {response.message}")
+        return response

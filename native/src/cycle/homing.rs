@@ -1,0 +1,436 @@
+//! Homing run by the cycle thread for one drive: into homing mode (6) through 0x6060 in the
+//! outputs, the start (controlword bit 4) once the drive shows the mode, the wait for homing
+//! attained (statusword bit 12) with the motion stopped (bit 10), and back to the mode the
+//! set-points carry, bumpless. The drive homes by itself, with the method and speeds set in it.
+//!
+//! Nothing here allocates, locks or waits: requests (start with a time-out, cancel) come through
+//! atomics and the status goes back through another. The steps, each a cycle or more:
+//! - into homing: 0x6060 = 6 goes out over the set-points' mode, bit 4 low, until 0x6061 shows 6;
+//! - homing: bit 4 high until bit 12 with bit 10 (attained and stopped), bit 13 (homing error),
+//!   the time-out from the request, a cancel, or the drive leaving Operation enabled;
+//! - stopping (time-out, cancel): halt (bit 8) until bit 10 says the motion stopped, at most the
+//!   request time-out; a homing error waits for bit 10 the same way, without halt;
+//! - back: the sequencer holds the target at the actual position (the new zero's coordinates)
+//!   one cycle before 0x6060 goes back to the set-points' mode (where they carry 0, "no
+//!   change", the mode the drive showed before homing), so both reach the drive in one frame
+//!   and nothing jumps; done once 0x6061 shows that mode.
+//!
+//! The drive's `homed` flag is set when homing is attained and cleared when a homing starts and
+//! when the drive is lost (a power cycle, a cable): the zero is the drive's, and gone with it.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use crate::ds402::{controlword as cw, statusword as sw, Mode, State};
+
+const HOMING: u8 = Mode::Homing as i8 as u8;
+
+/// How a homing ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Outcome {
+    /// Homing attained (bit 12) and stopped (bit 10).
+    Attained = 1,
+    /// The drive showed a homing error (bit 13).
+    HomingError = 2,
+    /// Not attained within the time-out; halted.
+    TimedOut = 3,
+    /// Canceled; halted.
+    Canceled = 4,
+    /// The drive left Operation enabled (fault, disable, quick stop, hardware enable low).
+    NotEnabled = 5,
+}
+
+impl Outcome {
+    const ALL: [Outcome; 5] =
+        [Outcome::Attained, Outcome::HomingError, Outcome::TimedOut, Outcome::Canceled, Outcome::NotEnabled];
+
+    /// Its name as the Python API spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Outcome::Attained => "attained",
+            Outcome::HomingError => "homing_error",
+            Outcome::TimedOut => "timed_out",
+            Outcome::Canceled => "canceled",
+            Outcome::NotEnabled => "not_enabled",
+        }
+    }
+
+    /// Why it failed, in one clause; `None` when attained.
+    pub fn describe(self) -> Option<&'static str> {
+        match self {
+            Outcome::Attained => None,
+            Outcome::HomingError => Some("the drive reported a homing error (statusword bit 13)"),
+            Outcome::TimedOut => {
+                Some("homing was not attained (statusword bit 12) within the time-out; the drive was halted")
+            }
+            Outcome::Canceled => Some("canceled; the drive was halted"),
+            Outcome::NotEnabled => Some("the drive left Operation enabled"),
+        }
+    }
+}
+
+/// Where a drive's homing is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Phase {
+    /// None asked for yet.
+    Idle,
+    /// Taken; 0x6060 = 6 goes out until the drive shows it.
+    Entering,
+    /// Bit 4 is high; the drive homes.
+    Homing,
+    /// Ending with the outcome: waiting for the motion to stop (halted unless attained or a
+    /// homing error).
+    Stopping(Outcome),
+    /// Ending: back to the set-points' mode.
+    Leaving(Outcome),
+    /// Ended.
+    Done(Outcome),
+}
+
+impl Phase {
+    fn pack(self) -> u64 {
+        let (phase, outcome) = match self {
+            Phase::Idle => (0, None),
+            Phase::Entering => (1, None),
+            Phase::Homing => (2, None),
+            Phase::Stopping(o) => (3, Some(o)),
+            Phase::Leaving(o) => (4, Some(o)),
+            Phase::Done(o) => (5, Some(o)),
+        };
+        phase | outcome.map_or(0, |o| o as u64) << 4
+    }
+
+    fn unpack(v: u64) -> Phase {
+        let outcome = Outcome::ALL.into_iter().find(|o| *o as u64 == (v >> 4) & 0xF);
+        match (v & 0xF, outcome) {
+            (1, _) => Phase::Entering,
+            (2, _) => Phase::Homing,
+            (3, Some(o)) => Phase::Stopping(o),
+            (4, Some(o)) => Phase::Leaving(o),
+            (5, Some(o)) => Phase::Done(o),
+            _ => Phase::Idle,
+        }
+    }
+
+    /// Whether a homing is under way (not idle, not done).
+    pub fn under_way(self) -> bool {
+        !matches!(self, Phase::Idle | Phase::Done(_))
+    }
+}
+
+/// A drive's homing as the cycle thread last published it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Status {
+    /// Which homing (counted from 1; 0 before any).
+    pub request: u32,
+    /// Where it is.
+    pub phase: Phase,
+    /// The statusword last seen while it was under way.
+    pub statusword: u16,
+    /// Whether the drive is homed: attained since it was last lost.
+    pub homed: bool,
+}
+
+impl Status {
+    /// The homing state the statusword shows in homing mode (CiA 402 bits 13, 12, 10).
+    pub fn homing_state(&self) -> &'static str {
+        let s = self.statusword;
+        match (s & sw::MODE_SPECIFIC_13 != 0, s & sw::MODE_SPECIFIC_12 != 0, s & sw::TARGET_REACHED != 0) {
+            (true, _, _) => "error",
+            (false, true, _) => "attained",
+            (false, false, false) => "in_progress",
+            (false, false, true) => "interrupted",
+        }
+    }
+}
+
+const START: u64 = 1;
+const CANCEL: u64 = 2;
+
+/// What a drive's homing shares with other threads: all atomics.
+#[derive(Default)]
+pub struct Shared {
+    /// The request counter (high 32 bits) and what it asks (START or CANCEL).
+    request: AtomicU64,
+    timeout_ns: AtomicU64,
+    /// The published status: request (high 32), phase, statusword (low 16).
+    status: AtomicU64,
+    homed: AtomicBool,
+}
+
+impl Shared {
+    fn ask(&self, what: u64) -> u32 {
+        let next = |r: u64| ((r >> 32) as u32).wrapping_add(1);
+        let before =
+            self.request.fetch_update(Ordering::AcqRel, Ordering::Acquire, |r| Some((next(r) as u64) << 32 | what));
+        // The closure never refuses.
+        next(before.unwrap_or_else(|r| r))
+    }
+
+    /// Asks for a homing that ends timed out when not attained within `timeout_ns` of the
+    /// cycle taking it; replaces one under way. Returns its number.
+    pub fn start(&self, timeout_ns: u64) -> u32 {
+        self.timeout_ns.store(timeout_ns, Ordering::Release);
+        self.ask(START)
+    }
+
+    /// Cancels the homing under way (halted, then back to the set-points' mode).
+    pub fn cancel(&self) {
+        self.ask(CANCEL);
+    }
+
+    /// Clears the homed flag: the drive was lost, and its zero with it.
+    pub fn forget(&self) {
+        self.homed.store(false, Ordering::Release);
+    }
+
+    /// The status as last published; a start not yet taken shows as entering.
+    pub fn status(&self) -> Status {
+        let request = self.request.load(Ordering::Acquire);
+        let v = self.status.load(Ordering::Acquire);
+        let mut status = Status {
+            request: (v >> 32) as u32,
+            phase: Phase::unpack(v >> 16),
+            statusword: v as u16,
+            homed: self.homed.load(Ordering::Acquire),
+        };
+        if (request >> 32) as u32 != status.request && request & 0xF == START {
+            status = Status { request: (request >> 32) as u32, phase: Phase::Entering, ..status };
+        }
+        status
+    }
+}
+
+/// Where the homing finds its objects in the whole images.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Objects {
+    /// Controlword 0x6040 in the outputs.
+    pub controlword: usize,
+    /// Modes of operation 0x6060 in the outputs.
+    pub mode: usize,
+    /// Statusword 0x6041 in the inputs.
+    pub statusword: usize,
+    /// Modes of operation display 0x6061 in the inputs.
+    pub mode_display: usize,
+}
+
+/// One drive's homing, kept by the cycle thread.
+#[derive(Clone, Copy, Debug)]
+pub struct Homing {
+    request: u32,
+    phase: Phase,
+    started_ns: u64,
+    timeout_ns: u64,
+    statusword: u16,
+    /// When the phase began.
+    phase_ns: u64,
+    /// The mode the drive showed when homing was asked for.
+    mode_before: u8,
+    /// Cycles spent in the phase.
+    cycles: u32,
+}
+
+impl Default for Homing {
+    fn default() -> Self {
+        Homing {
+            request: 0,
+            phase: Phase::Idle,
+            started_ns: 0,
+            timeout_ns: 0,
+            statusword: 0,
+            phase_ns: 0,
+            mode_before: 0,
+            cycles: 0,
+        }
+    }
+}
+
+impl Homing {
+    /// One cycle, after the set-points were copied into `outputs`: takes a request, moves on
+    /// from the statusword and mode display in `inputs`, and publishes the status. `stop_ns`
+    /// bounds the wait for the motion to stop. Returns whether the target is to be held at the
+    /// actual position from the next cycle (the sequencer's hold, before the mode goes back).
+    pub fn observe(
+        &mut self,
+        shared: &Shared,
+        o: &Objects,
+        (inputs, outputs): (&[u8], &[u8]),
+        now_ns: u64,
+        stop_ns: u64,
+    ) -> bool {
+        let statusword = u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]);
+        let display = inputs[o.mode_display];
+        let request = shared.request.load(Ordering::Acquire);
+        let mut hold = false;
+        let next = if (request >> 32) as u32 != self.request {
+            self.request = (request >> 32) as u32;
+            match request & 0xF {
+                START => {
+                    if !self.phase.under_way() {
+                        self.mode_before = display;
+                    }
+                    self.started_ns = now_ns;
+                    self.timeout_ns = shared.timeout_ns.load(Ordering::Acquire);
+                    shared.homed.store(false, Ordering::Release);
+                    Phase::Entering
+                }
+                _ if self.phase.under_way() => self.ending(Outcome::Canceled),
+                _ => self.phase,
+            }
+        } else {
+            self.next(statusword, display, self.mode_after(outputs[o.mode]), now_ns, stop_ns)
+        };
+        if next != self.phase {
+            self.cycles = 0;
+            self.phase_ns = now_ns;
+            hold = matches!(next, Phase::Leaving(_));
+            if next == Phase::Leaving(Outcome::Attained) || next == Phase::Done(Outcome::Attained) {
+                shared.homed.store(true, Ordering::Release);
+            }
+        }
+        self.cycles = self.cycles.saturating_add(1);
+        // The statusword of homing mode, up to the cycle that ended it: it says why.
+        let in_homing_mode = |p: Phase| matches!(p, Phase::Entering | Phase::Homing | Phase::Stopping(_));
+        if in_homing_mode(self.phase) || in_homing_mode(next) {
+            self.statusword = statusword;
+        }
+        self.phase = next;
+        let packed = (self.request as u64) << 32 | self.phase.pack() << 16 | self.statusword as u64;
+        shared.status.store(packed, Ordering::Release);
+        hold
+    }
+
+    /// The mode to go back to: the set-points', unless they carry 0 (no change).
+    fn mode_after(&self, set_mode: u8) -> u8 {
+        if set_mode == 0 {
+            self.mode_before
+        } else {
+            set_mode
+        }
+    }
+
+    fn ending(&self, outcome: Outcome) -> Phase {
+        match self.phase {
+            Phase::Entering => Phase::Leaving(outcome),
+            _ => Phase::Stopping(outcome),
+        }
+    }
+
+    fn next(&self, statusword: u16, display: u8, mode_after: u8, now_ns: u64, stop_ns: u64) -> Phase {
+        let enabled = State::from_statusword(statusword) == Some(State::OperationEnabled);
+        let stopped = statusword & sw::TARGET_REACHED != 0;
+        let timed_out = now_ns.saturating_sub(self.started_ns) >= self.timeout_ns;
+        match self.phase {
+            phase if !enabled && phase.under_way() => Phase::Done(Outcome::NotEnabled),
+            Phase::Entering if display == HOMING && self.cycles >= 1 => Phase::Homing,
+            Phase::Entering if timed_out => Phase::Leaving(Outcome::TimedOut),
+            Phase::Homing if statusword & sw::MODE_SPECIFIC_13 != 0 => Phase::Stopping(Outcome::HomingError),
+            Phase::Homing if statusword & sw::MODE_SPECIFIC_12 != 0 && stopped => Phase::Leaving(Outcome::Attained),
+            Phase::Homing if timed_out => Phase::Stopping(Outcome::TimedOut),
+            Phase::Stopping(o) if stopped || now_ns.saturating_sub(self.phase_ns) >= stop_ns => Phase::Leaving(o),
+            Phase::Leaving(o) if self.cycles >= 2 && display == mode_after => Phase::Done(o),
+            phase => phase,
+        }
+    }
+
+    /// Writes homing's mode and controlword bits over the outputs.
+    pub fn apply(&self, o: &Objects, outputs: &mut [u8]) {
+        let (mode, bits) = match self.phase {
+            Phase::Entering => (Some(HOMING), 0),
+            Phase::Homing => (Some(HOMING), cw::NEW_SETPOINT),
+            Phase::Stopping(Outcome::HomingError | Outcome::Attained) => (Some(HOMING), 0),
+            Phase::Stopping(_) => (Some(HOMING), cw::HALT),
+            // The cycle that asks for the hold still goes out in homing, halted where it was.
+            Phase::Leaving(Outcome::Canceled | Outcome::TimedOut) if self.cycles == 1 => (Some(HOMING), cw::HALT),
+            Phase::Leaving(_) if self.cycles == 1 => (Some(HOMING), 0),
+            Phase::Leaving(_) => (Some(self.mode_after(outputs[o.mode])), 0),
+            Phase::Idle | Phase::Done(_) => (None, 0),
+        };
+        if let Some(mode) = mode {
+            outputs[o.mode] = mode;
+        }
+        if bits != 0 {
+            let at = o.controlword;
+            let word = u16::from_le_bytes([outputs[at], outputs[at + 1]]) | bits;
+            outputs[at..at + 2].copy_from_slice(&word.to_le_bytes());
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MS: u64 = 1_000_000;
+    const ENABLED: u16 = 0x0237;
+    /// Controlword at 0, mode at 2 in the outputs; statusword at 0, mode display at 2 in the inputs.
+    const O: Objects = Objects { controlword: 0, mode: 2, statusword: 0, mode_display: 2 };
+    const CSP: u8 = 8;
+
+    /// One cycle with the drive showing `statusword` in mode `display`: (hold asked, the mode
+    /// and controlword that go out).
+    fn cycle(h: &mut Homing, shared: &Shared, statusword: u16, display: u8, t_ms: u64) -> (bool, u8, u16) {
+        let mut outputs = [0x0F, 0, CSP];
+        let inputs = [statusword as u8, (statusword >> 8) as u8, display];
+        let hold = h.observe(shared, &O, (&inputs, &outputs), t_ms * MS, 10 * MS);
+        h.apply(&O, &mut outputs);
+        (hold, outputs[2], u16::from_le_bytes([outputs[0], outputs[1]]))
+    }
+
+    #[test]
+    fn enters_homing_starts_waits_for_attained_and_stopped_and_goes_back_holding() {
+        let (mut h, shared) = (Homing::default(), Shared::default());
+        shared.homed.store(true, Ordering::Release);
+        assert_eq!(shared.start(100 * MS), 1);
+        assert_eq!(shared.status().phase, Phase::Entering);
+        assert_eq!(cycle(&mut h, &shared, ENABLED, CSP, 0), (false, HOMING, 0x0F));
+        assert!(!shared.status().homed, "a homing forgets the last zero");
+        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x0400, HOMING, 1), (false, HOMING, 0x1F));
+        assert_eq!(shared.status().homing_state(), "interrupted");
+        assert_eq!(cycle(&mut h, &shared, ENABLED, HOMING, 2), (false, HOMING, 0x1F));
+        assert_eq!(shared.status().homing_state(), "in_progress");
+        // Attained while still moving: bit 4 stays until the motion stopped.
+        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x1000, HOMING, 3), (false, HOMING, 0x1F));
+        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x1400, HOMING, 4), (true, HOMING, 0x0F));
+        assert!(shared.status().homed);
+        // The next cycle's frame carries the set-points' mode and the held target together.
+        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x1400, HOMING, 5), (false, CSP, 0x0F));
+        assert_eq!(cycle(&mut h, &shared, ENABLED, CSP, 6), (false, CSP, 0x0F));
+        let status = shared.status();
+        assert_eq!(
+            (status.phase, status.homed, status.homing_state()),
+            (Phase::Done(Outcome::Attained), true, "attained")
+        );
+    }
+
+    #[test]
+    fn a_time_out_or_a_cancel_halts_a_homing_error_stops_and_a_disable_ends_it() {
+        let (mut h, shared) = (Homing::default(), Shared::default());
+        shared.start(5 * MS);
+        cycle(&mut h, &shared, ENABLED, CSP, 0);
+        cycle(&mut h, &shared, ENABLED, HOMING, 1);
+        assert_eq!(cycle(&mut h, &shared, ENABLED, HOMING, 5), (false, HOMING, 0x10F));
+        assert_eq!(shared.status().phase, Phase::Stopping(Outcome::TimedOut));
+        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x0400, HOMING, 6), (true, HOMING, 0x10F));
+        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x0400, HOMING, 7), (false, CSP, 0x0F));
+        shared.start(100 * MS);
+        cycle(&mut h, &shared, ENABLED, CSP, 10);
+        cycle(&mut h, &shared, ENABLED, HOMING, 11);
+        shared.cancel();
+        assert_eq!(cycle(&mut h, &shared, ENABLED, HOMING, 12), (false, HOMING, 0x10F));
+        // Not stopped within the stop time: back all the same.
+        assert!(cycle(&mut h, &shared, ENABLED, HOMING, 22).0);
+        assert_eq!(shared.status().phase, Phase::Leaving(Outcome::Canceled));
+        shared.start(100 * MS);
+        cycle(&mut h, &shared, ENABLED, CSP, 30);
+        cycle(&mut h, &shared, ENABLED, HOMING, 31);
+        assert_eq!(cycle(&mut h, &shared, ENABLED | 0x2000, HOMING, 32), (false, HOMING, 0x0F));
+        assert!(cycle(&mut h, &shared, ENABLED | 0x2400, HOMING, 33).0);
+        assert_eq!(shared.status().homing_state(), "error");
+        shared.start(100 * MS);
+        cycle(&mut h, &shared, ENABLED, CSP, 40);
+        assert_eq!(cycle(&mut h, &shared, 0x0218, HOMING, 41), (false, CSP, 0x0F));
+        assert_eq!(shared.status().phase, Phase::Done(Outcome::NotEnabled));
+        assert!(!shared.status().homed);
+    }
+}
