@@ -333,6 +333,13 @@ class Bus:
             taken, self._trajectory_events = self._trajectory_events, []
         yield from taken
 
+    def events_waiting(self) -> bool:
+        """Whether the cycle has events waiting, or some were filed under a drive (taken with another's, e.g. with
+        `trajectory_events`) and not handed out yet; cheap enough to ask at every publication."""
+        if self._cycle is None:
+            return False
+        return self._cycle.events_pending or any(self._events.values())
+
     def _take_events(self) -> None:
         if self._cycle is None:
             return

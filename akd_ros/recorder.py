@@ -1,30 +1,37 @@
 """Recording of the drive's topics into rosbag2 bags, with a black box of the last seconds.
 
 A :class:`Recorder` writes one rosbag2 bag directory (metadata.yaml version 9 and MCAP files with
-the ``ros2`` profile) as ``ros2 bag record -s mcap`` would, without needing rosbag2 itself: the
-node hands it messages, a writer thread of its own serialises them and does all the disk I/O.
+the ``ros2`` profile) as ``ros2 bag record -s mcap`` would, without needing rosbag2 itself. The
+MCAP files are written by a thread of the crate (``akd_ros._native.BagWriter``), which does all
+their I/O and holds no lock and no GIL that anyone handing it a message waits for; a thread of the
+recorder's own writes metadata.yaml when the files change.
 
-- Messages are serialised once (in the writer thread, but the per-cycle records, which come
-  serialised), by rclpy's ``serialize_message`` (rclpy message classes) or by
-  rosbags' ``serialize_cdr`` (rosbags message classes with their typestore); the schemas are the
-  complete ``ros2msg`` definitions, made of the packages' .msg files as rosbag2 makes them, and the
-  type hashes their RIHS01 hashes, computed by rosbags' typestore from those definitions, so every
-  reader decodes the bag without this package.
+- Messages arrive serialised (:meth:`Recorder.write_serialized`: the bytes a middleware
+  publishes or delivers) or are serialised by the caller (:meth:`Recorder.write`), by rclpy's
+  ``serialize_message`` (rclpy message classes) or by rosbags' ``serialize_cdr`` (rosbags
+  message classes with their typestore); the schemas are the complete ``ros2msg`` definitions,
+  made of the packages' .msg files as rosbag2 makes them, and the type hashes their RIHS01
+  hashes, computed by rosbags' typestore from those definitions, so every reader decodes the bag
+  without this package.
 - The per-cycle channel (:meth:`Recorder.cycle_records`, already serialised, e.g. by
-  ``akd_ros._native.cycle_sample_records``; or :meth:`Recorder.cycle_sample`, one message) is
-  recorded every ``decimation``-th cycle, or not at all with ``decimation=0``; the last
-  ``black_box_seconds`` of every cycle are kept in memory regardless, and
+  ``akd_ros._native.cycle_sample_records``; :meth:`Recorder.cycle_sample`, one message; or
+  :meth:`Recorder.take_cycles_from`, a running cycle's records taken by the writer thread
+  itself) is recorded every ``decimation``-th cycle, or not at all with ``decimation=0``; the
+  last ``black_box_seconds`` of every cycle are kept in memory regardless, and
   :meth:`Recorder.fault` writes them to the black box topic (by default ``black_box`` beside
   the cycle topic, e.g. ``/akd_node/black_box``) with their own times, so the cycles before a
-  fault are in the bag even when the cycle topic is not recorded.
+  fault are in the bag even when the cycle topic is not recorded. The chunk is closed and synced
+  at a fault, at most once per ``black_box_sync_interval``: the faults of a host that loses a
+  frame every few seconds (each a fault of every drive) share one.
 - Chunks are closed (and so safe from a crash of the process) every ``chunk_size`` bytes or
-  ``flush_interval`` seconds, and metadata.yaml is rewritten each time to describe exactly what
-  the closed chunks hold. A bag whose process was killed has MCAP files without a summary:
-  :func:`reindex` rebuilds their summaries and metadata.yaml, as ``ros2 bag reindex`` does.
+  ``flush_interval`` seconds, and metadata.yaml is rewritten after them, at most once per
+  ``flush_interval``, to describe exactly what the closed chunks hold. A bag whose process was
+  killed has MCAP files without a summary: :func:`reindex` rebuilds their summaries and
+  metadata.yaml, as ``ros2 bag reindex`` does.
 - Files are split by size or by duration into ``<bag>_0.mcap``, ``<bag>_1.mcap``, ..., each a
   complete MCAP file with all schemas and channels.
-- :meth:`Recorder.write` never blocks and never raises for I/O: a full queue drops the message
-  and counts it; a failed disk (unwritable folder, disk full) is reported once, through
+- Handing over never blocks and never raises for I/O: a full queue drops the message and
+  counts it; a failed disk (unwritable folder, disk full) is reported once, through
   ``on_error`` or else the ``akd_ros.recorder`` logger, and counted in :attr:`Recorder.stats`;
   recording stops there, and the bag stays readable up to the last closed chunk.
 """
@@ -32,14 +39,12 @@ node hands it messages, a writer thread of its own serialises them and does all 
 from __future__ import annotations
 
 import atexit
-import bisect
 import collections
 import datetime
 import functools
 import importlib
 import logging
 import math
-import operator
 import os
 import struct
 import threading
@@ -270,12 +275,19 @@ class _Topic:
     msg_type: MessageType
     qos_yaml: str
     msg_class: type | None = None
-    message_count: int = 0
+    number: int = 0
+    """Its number with the crate's writer (the order added)."""
 
     @functools.cached_property
-    def qos_profiles(self) -> Any:
-        """The offered QoS profiles as metadata.yaml lists them, read once."""
-        return yaml.safe_load(self.qos_yaml)
+    def topic_metadata(self) -> dict:
+        """Its topic_metadata in metadata.yaml, made once."""
+        return {
+            "name": self.name,
+            "type": self.msg_type.name,
+            "serialization_format": _SERIALIZATION,
+            "offered_qos_profiles": yaml.safe_load(self.qos_yaml),
+            "type_description_hash": self.msg_type.type_hash,
+        }
 
 
 @dataclass
@@ -293,8 +305,9 @@ class _File:
         self.message_count += count
 
 
-def _bag_metadata(topics: list[_Topic], files: list[_File]) -> dict:
-    """metadata.yaml's content, as rosbag2 (Jazzy) writes it, for the given topics and files."""
+def _bag_metadata(topics: list[tuple[_Topic, int]], files: list[_File]) -> dict:
+    """metadata.yaml's content, as rosbag2 (Jazzy) writes it, for the given topics (each with its message count) and
+    files."""
     starts = [f.start_ns for f in files if f.start_ns is not None]
     ends = [f.end_ns for f in files if f.end_ns is not None]
     start = min(starts, default=0)
@@ -306,17 +319,7 @@ def _bag_metadata(topics: list[_Topic], files: list[_File]) -> dict:
             "starting_time": {"nanoseconds_since_epoch": start},
             "message_count": sum(f.message_count for f in files),
             "topics_with_message_count": [
-                {
-                    "topic_metadata": {
-                        "name": t.name,
-                        "type": t.msg_type.name,
-                        "serialization_format": _SERIALIZATION,
-                        "offered_qos_profiles": t.qos_profiles,
-                        "type_description_hash": t.msg_type.type_hash,
-                    },
-                    "message_count": t.message_count,
-                }
-                for t in topics
+                {"topic_metadata": t.topic_metadata, "message_count": count} for t, count in topics
             ],
             # Compression is MCAP's own, per chunk: rosbag2 lists no bag-level compression then.
             "compression_format": "",
@@ -344,54 +347,6 @@ def _write_metadata(bag: Path, metadata: dict) -> None:
     os.replace(tmp, bag / "metadata.yaml")
 
 
-class _McapFile:
-    """One open MCAP file of the bag, with every topic's schema and channel, written by the crate's `BagFile`."""
-
-    def __init__(self, path: Path, topics: list[_Topic], compression: str):
-        self.info = _File(path)
-        # Chunks are closed by flush() from the recorder, so that each closed chunk reaches the OS at once.
-        self.file = _native.BagFile(path, compression, "ros2", _LIBRARY)
-        self.schema_ids: dict[str, int] = {}
-        self.channel_ids: dict[str, int] = {}
-        for topic in topics:
-            self.add_topic(topic)
-
-    def add_topic(self, topic: _Topic) -> None:
-        msg_type = topic.msg_type
-        if msg_type.name not in self.schema_ids:
-            definition = msg_type.definition.encode()
-            self.schema_ids[msg_type.name] = self.file.add_schema(msg_type.name, "ros2msg", definition)
-        self.channel_ids[topic.name] = self.file.add_channel(
-            self.schema_ids[msg_type.name],
-            topic.name,
-            _SERIALIZATION,
-            {"offered_qos_profiles": topic.qos_yaml, "topic_type_hash": msg_type.type_hash},
-        )
-
-    def add_messages(self, topic: str, records: list[tuple[int, bytes]]) -> int:
-        """Adds `records` (time ns, data) of `topic`, in time order; their bytes in all."""
-        size = self.file.add_messages(self.channel_ids[topic], records)
-        self.info.add(records[0][0], records[-1][0], len(records))
-        return size
-
-    def flush(self, sync: bool = False) -> None:
-        self.file.flush()
-        if sync:
-            self.file.sync()
-
-    def size(self) -> int:
-        return self.file.size()
-
-    def close(self, metadata: dict) -> None:
-        self.file.finish(
-            "rosbag2",
-            {
-                "serialized_metadata": _dump_yaml(metadata["rosbag2_bagfile_information"]),
-                "ROS_DISTRO": metadata["rosbag2_bagfile_information"]["ros_distro"],
-            },
-        )
-
-
 @dataclass
 class RecorderStats:
     """Counters of a Recorder, all since it was made.
@@ -399,7 +354,8 @@ class RecorderStats:
     ``written`` messages are in the bag's closed chunks or pending in the open one; ``dropped``
     were refused because the queue was full or recording had stopped on an error; ``errors``
     counts I/O failures (only the first is reported); ``black_box_dumps`` counts faults whose
-    black box was written; ``files`` are the bag's MCAP files so far.
+    black box was written, ``black_box_syncs`` the closes and syncs of the chunk they made
+    (coalesced); ``files`` are the bag's MCAP files so far.
     """
 
     bag: Path | None = None
@@ -407,10 +363,8 @@ class RecorderStats:
     dropped: int = 0
     errors: int = 0
     black_box_dumps: int = 0
+    black_box_syncs: int = 0
     files: list[Path] = field(default_factory=list)
-
-
-_CLOSE = object()
 
 
 class Recorder:
@@ -431,9 +385,11 @@ class Recorder:
     - ``decimation``: record every n-th cycle's samples on the cycle topic; 0 records none (the
       black box still keeps them all).
     - ``black_box_seconds``: how much of the past :meth:`fault` writes to the black box topic.
+    - ``black_box_sync_interval`` (seconds): the least time between two closes and syncs of the
+      chunk for faults; the faults in between are written at once and synced together after it.
     - ``queue_size``: items waiting for the writer thread (a message, or one call's cycle
       records) beyond which the next is dropped.
-    - ``on_error``: called once, from the writer thread, with the text of the first I/O error
+    - ``on_error``: called once, from the recorder's thread, with the text of the first I/O error
       (without it, the error goes to the ``akd_ros.recorder`` logger).
 
     Bad arguments raise ValueError naming the allowed values; I/O never raises into the caller.
@@ -451,6 +407,7 @@ class Recorder:
         compression: str = "zstd",
         decimation: int = 1,
         black_box_seconds: float = 5.0,
+        black_box_sync_interval: float = 5.0,
         samples_per_cycle: int = 1,
         queue_size: int = 100_000,
         prefix: str = "akd",
@@ -463,6 +420,7 @@ class Recorder:
         _check_positive("flush_interval", flush_interval)
         _check_positive("queue_size", queue_size, integer=True)
         _check_positive("samples_per_cycle", samples_per_cycle, integer=True)
+        _check_positive("black_box_sync_interval", black_box_sync_interval)
         if split_size is not None:
             _check_positive("split_size", split_size, integer=True)
         if split_duration is not None:
@@ -473,48 +431,40 @@ class Recorder:
             raise ValueError(f"black_box_seconds must be a finite number >= 0, not {black_box_seconds!r}")
 
         self._folder = Path(folder)
-        self._compression = compression
-        self._split_size = split_size
-        self._split_duration_ns = None if split_duration is None else int(split_duration * 1e9)
-        self._chunk_size = chunk_size
         self._flush_interval = flush_interval
         self._decimation = decimation
-        self._queue_size = queue_size
         self._on_error = on_error
         stamp = datetime.datetime.now().strftime("%Y_%m_%d-%H_%M_%S")
         self._name = f"{prefix}_{stamp}" if prefix else stamp
-
         self._topics: dict[str, _Topic] = {}
         self._cycle_topic: str | None = None
-        self._black_box_topic: str | None = None
         self._cycle_class: type | None = None
         self._cycle_type: MessageType | None = None
-        self._samples_per_cycle = samples_per_cycle
-        ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz) * samples_per_cycle)
-        self._ring: collections.deque = collections.deque(maxlen=ring_size)
         self._black_box_on = black_box_seconds > 0
-        self._black_box_ns = int(black_box_seconds * 1e9)
-        # The records a fault wrote already, as runs of serial numbers [first, end), in order (writer thread only).
-        self._dumped: list[tuple[int, int]] = []
-        self._cycle_count = 0
         self._lock = threading.Lock()
-        self._stats_lock = threading.Lock()
-
-        # A deque, not a queue.Queue: append and popleft take no lock the caller could wait on
-        # (the wake-up event's lock is only taken when the writer thread is asleep).
-        self._queue: collections.deque = collections.deque()
-        self._wake = threading.Event()
         self._closed = False
-        self._failed = False
-        self.stats = RecorderStats()
-        # The topics the writer thread has registered, in order; _topics may be ahead of it.
-        self._registered: list[_Topic] = []
-        self._files: list[_File] = []
-        self._file: _McapFile | None = None
-        self._pending_bytes = 0
-        self._last_flush = time.monotonic()
-        self._thread = threading.Thread(target=self._run, name="akd_recorder", daemon=True)
-        self._thread.start()
+        self._report: dict = {"bag": None, "files": []}
+        self._metadata_errors = 0
+        ring_size = max(1, math.ceil((black_box_seconds + _BLACK_BOX_MARGIN_S) * cycle_rate_hz) * samples_per_cycle)
+        self._writer = _native.BagWriter(
+            self._folder,
+            self._name,
+            compression=compression,
+            profile="ros2",
+            library=_LIBRARY,
+            chunk_size=chunk_size,
+            flush_interval=flush_interval,
+            split_size=split_size,
+            split_duration=split_duration,
+            queue_size=queue_size,
+            decimation=decimation,
+            samples_per_cycle=samples_per_cycle,
+            black_box_seconds=black_box_seconds,
+            ring_size=ring_size,
+            sync_interval=black_box_sync_interval,
+        )
+        self._keeper = threading.Thread(target=self._keep, name="akd_recorder", daemon=True)
+        self._keeper.start()
         # A recorder left open still gets its summaries when the interpreter exits normally.
         atexit.register(self.close)
 
@@ -523,7 +473,22 @@ class Recorder:
         """The bag directory, made by the writer thread (so it may not exist yet, or have failed).
 
         ``_2``, ``_3``, ... is appended to its name if another recorder took it that second."""
-        return self._folder / self._name
+        bag = self._report["bag"]
+        return Path(bag) if bag is not None else self._folder / self._name
+
+    @property
+    def stats(self) -> RecorderStats:
+        """The counters now (see :class:`RecorderStats`)."""
+        counters = self._writer.counters()
+        return RecorderStats(
+            bag=self._report["bag"] and Path(self._report["bag"]),
+            written=counters["written"],
+            dropped=counters["dropped"],
+            errors=counters["errors"] + self._metadata_errors,
+            black_box_dumps=counters["black_box_dumps"],
+            black_box_syncs=counters["black_box_syncs"],
+            files=[Path(path) for path, _, _ in self._report["files"]],
+        )
 
     def add_topic(self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None) -> None:
         """Adds a topic of msg_class (see :func:`message_type`) with the QoS its publisher offers.
@@ -535,13 +500,15 @@ class Recorder:
             raise ValueError(f"topic must be an absolute ROS topic name such as '/akd_node/cycle', not {topic!r}")
         self._add_topic(topic, message_type(msg_class, typestore), msg_class, qos)
 
-    def _add_topic(self, topic: str, msg_type: MessageType, msg_class: type, qos: Any) -> None:
+    def _add_topic(self, topic: str, msg_type: MessageType, msg_class: type, qos: Any) -> _Topic:
         with self._lock:
             if topic in self._topics:
                 raise ValueError(f"topic {topic} was added before (topics: {sorted(self._topics)})")
-            entry = _Topic(topic, msg_type, _dump_yaml([_qos_profile(qos)]), msg_class)
+            entry = _Topic(topic, msg_type, _dump_yaml([_qos_profile(qos)]), msg_class, len(self._topics))
             self._topics[topic] = entry
-        self._enqueue(("topic", entry), control=True)
+            metadata = {"offered_qos_profiles": entry.qos_yaml, "topic_type_hash": msg_type.type_hash}
+            self._writer.add_topic(topic, msg_type.name, msg_type.definition.encode(), metadata)
+        return entry
 
     def add_cycle_topic(
         self,
@@ -565,26 +532,34 @@ class Recorder:
         if black_box_topic == topic:
             raise ValueError(f"black_box_topic must differ from the cycle topic {topic}")
         msg_type = message_type(msg_class, typestore)
-        if self._decimation:
-            self._add_topic(topic, msg_type, msg_class, qos)
-        if self._black_box_on:
-            self._add_topic(black_box_topic, msg_type, msg_class, qos)
-        self._cycle_topic, self._black_box_topic = topic, black_box_topic
+        cycle = self._add_topic(topic, msg_type, msg_class, qos).number if self._decimation else None
+        box = self._add_topic(black_box_topic, msg_type, msg_class, qos).number if self._black_box_on else None
+        self._writer.set_cycle_topics(cycle, box)
+        self._cycle_topic = topic
         self._cycle_class, self._cycle_type = msg_class, msg_type
 
-    def write(self, topic: str, msg: Any, time_ns: int) -> None:
-        """Queues msg for topic at time_ns (nanoseconds since the epoch); never blocks.
-
-        The message must not be changed afterwards: it is serialised by the writer thread.
-        Raises ValueError for a topic not added or a message of another type than the topic's;
-        a full queue or a failed recorder drops and counts the message instead.
-        """
+    def _topic(self, topic: str) -> _Topic:
         entry = self._topics.get(topic)
         if entry is None:
             raise ValueError(f"topic {topic} was not added (topics: {sorted(self._topics)})")
+        return entry
+
+    def write(self, topic: str, msg: Any, time_ns: int) -> None:
+        """Serialises msg (here, in the caller) and queues it for topic at time_ns (nanoseconds
+        since the epoch); never blocks.
+
+        Raises ValueError for a topic not added or a message of another type than the topic's;
+        a full queue or a failed recorder drops and counts the message instead.
+        """
+        entry = self._topic(topic)
         if type(msg) is not entry.msg_class:
             raise ValueError(f"topic {topic} takes {entry.msg_type.name}, not {type(msg).__qualname__}")
-        self._enqueue((topic, msg, time_ns))
+        self._writer.write(entry.number, time_ns, entry.msg_type.serialize(msg))
+
+    def write_serialized(self, topic: str, data: bytes, time_ns: int) -> None:
+        """Queues `data`, a message of topic serialised as the bag holds it (CDR, as a middleware
+        publishes it), at time_ns; as :meth:`write`, without serialising."""
+        self._writer.write(self._topic(topic).number, time_ns, data)
 
     def cycle_sample(self, msg: Any, time_ns: int) -> None:
         """Takes one sample, a message of the cycle topic's class, serialised here and then taken
@@ -604,27 +579,37 @@ class Recorder:
         to the cycle topic. Never blocks; raises ValueError before add_cycle_topic."""
         if self._cycle_topic is None:
             raise ValueError("no cycle topic: call add_cycle_topic first")
-        first = self._cycle_count
-        self._cycle_count += len(records)
-        self._ring.extend((first + i, time_ns, data) for i, (time_ns, data) in enumerate(records))
-        if self._decimation:
-            per_cycle, decimation = self._samples_per_cycle, self._decimation
-            kept = [r for i, r in enumerate(records, first) if (i // per_cycle) % decimation == 0]
-            if kept:
-                self._enqueue(("cycle", kept))
+        if records:
+            self._writer.records(records)
+
+    def take_cycles_from(self, feed: Any) -> None:
+        """From now on the writer thread takes every cycle's records of `feed` (an
+        ``akd_ros._native.Feed``) itself, as :meth:`cycle_records` takes them, without Python."""
+        if self._cycle_topic is None:
+            raise ValueError("no cycle topic: call add_cycle_topic first")
+        feed.record_cycles(self._writer)
+
+    def take_stream_from(self, feed: Any, stream: int, topic: str) -> None:
+        """Every message `feed` makes on its stream `stream` is also recorded on `topic`, at its stamp, by the crate."""
+        feed.record(stream, self._writer, self._topic(topic).number)
 
     def fault(self, time_ns: int) -> None:
         """Writes the black box: the samples of the ``black_box_seconds`` up to time_ns (the
         fault's time; samples after it may have been taken already) not written by an earlier fault.
 
-        They go to the black box topic with their own times, and the chunk is closed and synced
-        at once so that the moments before the fault survive whatever follows. Does nothing
-        without a cycle topic or with ``black_box_seconds=0``.
+        They go to the black box topic with their own times, at once, and the chunk is closed and
+        synced, at once for the first fault and at most every ``black_box_sync_interval`` after
+        it, so that the moments before the fault survive whatever follows. Does nothing without
+        a cycle topic or with ``black_box_seconds=0``.
         """
         if self._cycle_topic is None or not self._black_box_on:
             return
-        # Only the copy here (one C call); the writer thread picks the samples.
-        self._enqueue(("black_box", list(self._ring), time_ns), control=True)
+        self._writer.fault(time_ns)
+
+    def hold(self, held: bool) -> None:
+        """Holds the writer thread where it is (True) until released (False): a disk that stalls, on demand, to see
+        what a stall costs (the queue fills and drops; the cycles' records are lost and counted where they wait)."""
+        self._writer.hold(held)
 
     def close(self, timeout: float = 30.0) -> RecorderStats:
         """Writes what is queued, finishes the MCAP summaries and metadata.yaml, stops the thread.
@@ -632,9 +617,11 @@ class Recorder:
         Waits at most timeout seconds for the writer thread; returns the final stats."""
         if not self._closed:
             self._closed = True
-            self._enqueue(_CLOSE, control=True)
+            self._writer.hold(False)
+            self._writer.close()
             atexit.unregister(self.close)
-        self._thread.join(timeout)
+        self._keeper.join(timeout)
+        self._writer.join(max(0.0, timeout))
         return self.stats
 
     def __enter__(self) -> Recorder:
@@ -643,187 +630,57 @@ class Recorder:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def _enqueue(self, item: Any, control: bool = False) -> None:
-        full = not control and len(self._queue) >= self._queue_size
-        refused = self._failed or self._closed or full
-        if refused and item is not _CLOSE:
-            with self._stats_lock:
-                self.stats.dropped += _messages_in(item)
-            return
-        self._queue.append(item)
-        if not self._wake.is_set():
-            self._wake.set()
+    # --- the recorder's thread: metadata.yaml and the files' metadata records ------------------------------
 
-    # --- writer thread ---------------------------------------------------------------------
-
-    def _run(self) -> None:
-        try:
-            self._folder.mkdir(parents=True, exist_ok=True)
-            name, number = self._name, 1
-            while True:
-                try:
-                    self.bag_path.mkdir()
-                    break
-                except FileExistsError:
-                    number += 1
-                    self._name = f"{name}_{number}"
-            self.stats.bag = self.bag_path
-            self._open_file()
-            self._save_metadata()
-        except Exception as err:  # noqa: BLE001 - every I/O failure is reported, none raised
-            self._fail(f"cannot open bag {self.bag_path}: {err}")
+    def _keep(self) -> None:
+        """Writes metadata.yaml when the writer's files change (a chunk closed, a file split off), at most once per
+        flush_interval (its YAML is the recorder's one Python cost per chunk: every cycle recorded closes a chunk
+        several times a second), and gives the files it parked their metadata record, until the writer's end;
+        reports the first failure."""
+        seen, reported, written = 0, False, -math.inf
         while True:
-            self._wake.wait(self._flush_interval)
-            self._wake.clear()
-            while self._queue:
-                item = self._queue.popleft()
-                if item is _CLOSE:
-                    self._finish()
-                    return
-                if not self._failed:
-                    self._guarded(self._handle, item)
-            if not self._failed and self._pending_bytes and self._flush_due():
-                self._guarded(self._flush)
+            report = self._writer.report(seen, 60.0)
+            if report["version"] == seen:
+                continue
+            wait = written + self._flush_interval - time.monotonic()
+            if wait > 0 and not (report["closing"] or report["done"] or report["failure"] or report["parked"]):
+                # What changes meanwhile is in the report taken after the wait.
+                time.sleep(wait)
+                report = self._writer.report(report["version"], 0.0)
+            seen, self._report, written = report["version"], report, time.monotonic()
+            failure = report["failure"]
+            if failure is not None and not reported:
+                reported = True
+                self._report_error(failure)
+            elif failure is None and report["bag"] is not None:
+                metadata = self._metadata(report)
+                if report["parked"]:
+                    information = metadata["rosbag2_bagfile_information"]
+                    self._writer.finish(_dump_yaml(information))
+                try:
+                    _write_metadata(Path(report["bag"]), metadata)
+                except OSError as err:
+                    self._metadata_errors += 1
+                    if not reported:
+                        reported = True
+                        self._report_error(f"recording into {report['bag']}: metadata.yaml not written: {err}")
+            if report["done"]:
+                return
 
-    def _flush_due(self) -> bool:
-        return time.monotonic() - self._last_flush >= self._flush_interval
-
-    def _guarded(self, action: Callable, *args: Any) -> None:
-        try:
-            action(*args)
-        except Exception as err:  # noqa: BLE001 - every I/O failure is reported, none raised
-            self._fail(f"recording into {self.bag_path} stopped: {err}")
-
-    def _fail(self, text: str) -> None:
-        self.stats.errors += 1
-        if self._failed:
-            return
-        self._failed = True
+    def _report_error(self, text: str) -> None:
         # One report: a caller with on_error logs it its own way (the node through its ROS logger).
         if self._on_error is not None:
             self._on_error(text)
         else:
             LOG.error("%s", text)
-        # What waits is lost with the failed disk: count it as dropped.
-        with self._stats_lock:
-            self.stats.dropped += sum(_messages_in(item) for item in self._queue)
 
-    def _handle(self, item: tuple) -> None:
-        if item[0] == "topic":
-            self._registered.append(item[1])
-            self._file.add_topic(item[1])
-            self._save_metadata()
-        elif item[0] == "black_box":
-            _, ring, fault_ns = item
-            self._add_records(self._black_box_topic, self._black_box(ring, fault_ns))
-            self.stats.black_box_dumps += 1
-            self._flush(sync=True)
-        elif item[0] == "cycle":
-            self._add_records(self._cycle_topic, item[1])
-        else:
-            topic, msg, time_ns = item
-            self._add_records(topic, [(time_ns, self._topics[topic].msg_type.serialize(msg))])
-
-    def _black_box(self, ring: list[tuple[int, int, bytes]], fault_ns: int) -> list[tuple[int, bytes]]:
-        """The records (time ns, data) of `ring` within black_box_seconds up to fault_ns that no fault wrote before.
-
-        Faults may come out of time order (an emergency before the Fault state seen in an earlier cycle): each writes
-        its whole window but no record written before. The ring holds consecutive serial numbers in cycle order, so
-        its window and what was written are runs found by bisection, and a fault costs the records it writes, not the
-        ring: on a host that loses a frame now and then, every such gap is a fault."""
-        if not ring:
-            return []
-        first = ring[0][0]
-        self._dumped = [(start, end) for start, end in self._dumped if end > first]
-        time_of = operator.itemgetter(1)
-        window = (
-            bisect.bisect_right(ring, fault_ns - self._black_box_ns, key=time_of) + first,
-            bisect.bisect_right(ring, fault_ns, key=time_of) + first,
-        )
-        taken, at = [], window[0]
-        for start, end in [*self._dumped, (window[1], window[1])]:
-            if end <= at:
-                continue
-            taken.extend(ring[at - first : min(start, window[1]) - first])
-            at = max(at, end)
-            if at >= window[1]:
-                break
-        self._dumped = _merged([*self._dumped, window])
-        return [(time_ns, data) for _, time_ns, data in taken]
-
-    def _add_records(self, topic: str, records: list[tuple[int, bytes]]) -> None:
-        """Writes `records` (time ns, data) of `topic`, in time order, into a new file where they reach the split
-        duration."""
-        entry = self._topics[topic]
-        start = 0
-        while start < len(records):
-            end = len(records)
-            if self._split_duration_ns is not None:
-                first_ns = self._file.info.start_ns
-                limit = (records[start][0] if first_ns is None else first_ns) + self._split_duration_ns
-                end = bisect.bisect_left(records, limit, lo=start, key=operator.itemgetter(0))
-                if end == start:
-                    self._split()
-                    continue
-            batch = records[start:end]
-            self._pending_bytes += self._file.add_messages(topic, batch)
-            entry.message_count += len(batch)
-            self.stats.written += len(batch)
-            start = end
-            if self._pending_bytes >= self._chunk_size or self._flush_due():
-                self._flush()
-
-    def _flush(self, sync: bool = False) -> None:
-        self._file.flush(sync)
-        self._pending_bytes = 0
-        self._last_flush = time.monotonic()
-        self._save_metadata()
-        if self._split_size is not None and self._file.size() >= self._split_size:
-            self._split()
-
-    def _split(self) -> None:
-        self._file.flush()
-        self._file.close(self._metadata())
-        self._open_file()
-        self._pending_bytes = 0
-        self._save_metadata()
-
-    def _open_file(self) -> None:
-        path = self.bag_path / f"{self._name}_{len(self._files)}.mcap"
-        self._file = _McapFile(path, self._registered, self._compression)
-        self._files.append(self._file.info)
-        self.stats.files.append(path)
-
-    def _metadata(self) -> dict:
-        return _bag_metadata(self._registered, self._files)
-
-    def _save_metadata(self) -> None:
-        _write_metadata(self.bag_path, self._metadata())
-
-    def _finish(self) -> None:
-        if self._failed or self._file is None:
-            return
-        self._guarded(self._file.close, self._metadata())
-        if not self._failed:
-            self._guarded(self._save_metadata)
-
-
-def _merged(runs: list[tuple[int, int]]) -> list[tuple[int, int]]:
-    """Runs [first, end) of serial numbers, sorted, overlapping and touching ones joined."""
-    merged: list[tuple[int, int]] = []
-    for start, end in sorted(run for run in runs if run[0] < run[1]):
-        if merged and start <= merged[-1][1]:
-            merged[-1] = (merged[-1][0], max(merged[-1][1], end))
-        else:
-            merged.append((start, end))
-    return merged
-
-
-def _messages_in(item: Any) -> int:
-    """How many messages a queue item carries (topic additions and the close carry none)."""
-    if item is _CLOSE or item[0] == "topic":
-        return 0
-    return len(item[1]) if item[0] in ("black_box", "cycle") else 1  # a black box: its ring's records
+    def _metadata(self, report: dict) -> dict:
+        topics = list(self._topics.values())
+        files = []
+        for path, span, count in report["files"]:
+            start, end = span if span is not None else (None, None)
+            files.append(_File(Path(path), start, end, count))
+        return _bag_metadata(list(zip(topics, report["topic_messages"], strict=False)), files)
 
 
 def _check_positive(name: str, value: Any, integer: bool = False) -> None:
@@ -884,6 +741,7 @@ def reindex(bag: os.PathLike | str) -> Path:
         raise FileNotFoundError(f"{bag} holds no .mcap file")
 
     topics: dict[str, _Topic] = {}
+    counts: collections.Counter = collections.Counter()
     files: list[_File] = []
     for path in paths:
         records, complete = _read_records(path)
@@ -904,12 +762,12 @@ def reindex(bag: os.PathLike | str) -> Path:
         for record in records:
             if isinstance(record, Message):
                 info.add(record.log_time)
-                topics[channels[record.channel_id].topic].message_count += 1
+                counts[channels[record.channel_id].topic] += 1
         files.append(info)
         if not (complete and _has_summary(path)):
             _rewrite(path, records, schemas, channels)
 
-    metadata = _bag_metadata(list(topics.values()), files)
+    metadata = _bag_metadata([(t, counts[name]) for name, t in topics.items()], files)
     _write_metadata(bag, metadata)
     return bag / "metadata.yaml"
 

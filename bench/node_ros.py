@@ -11,9 +11,11 @@ joint_states_rate and record.* changed), both separate processes; this process i
   connected to a Zenoh router (eclipse-zenoh, its own process); the client a Zenoh node of this process
   (akd_ros.zenoh.entities) on rmw_zenoh's keys, messages made and read with rosbags.
 Every joint is enabled (~/enable) and holds. Over --window seconds: the CPU time (utime + stime of /proc/PID/stat)
-of the node, of its akd-cycle thread, of akd-sim and of the Zenoh router, as % of one core, and the /joint_states
-messages received per second with their publication-to-delivery time (the client's system clock when it holds the
-decoded message minus header.stamp, the node's ROS time of publication).
+of the node, split by its threads' names (/proc/PID/task: the akd-cycle thread; the crate's other threads akd-feed,
+akd-bag, akd-recovery; the Python threads akd-publish, akd-periodic, akd-commands, akd-requests; the rest: the
+executor's main thread, the middleware's threads, the recorder's metadata thread), of akd-sim and of the Zenoh router,
+as % of one core, and the /joint_states messages received per second with their publication-to-delivery time (the
+client's system clock when it holds the decoded message minus header.stamp, the node's ROS time of publication).
 
 Then ~/joint_commands is published at --command-rate for --command-seconds, each message moving every joint a small
 step to values not sent before. The node and akd-sim are stopped (SIGINT, SIGTERM) and akd-sim's set-point trace read:
@@ -27,11 +29,29 @@ With recording (record.enabled, record.decimation 1, every cycle in the bag) the
   callback takes it in);
 - cycle to delivery: for each /joint_states message received while the joints move, the cycle whose joint_1
   position it carries (the last one at or before its publication with that very value; a value two cycles within
-  10 ms share is left out) to the message's delivery in this process.
+  10 ms share is left out) to the message's delivery in this process;
+- records dropped (the node's log at its end: what the bag's writer dropped, and the cycle's records it did not take
+  in time), and the bag's messages as metadata.yaml counts them, as rosbags reads (and deserialises) them and as
+  mcap's reader reads them.
+
+The issue's goals (issue 25) are then judged row by row in a table of their own: six joints' node CPU at most 15 %
+not recording and 20 % recording every cycle, no record dropped and every message read back, and command→wire p99 at
+most publication→delivery p99 + 1 ms in every row. With --profile, each case that misses one is run again under
+py-spy (--gil: the Python threads' time holding the GIL, by thread and innermost frame) and perf record -g (every
+thread, kernel included, by symbol; and the cycle thread's samples split into waking akd-sim's thread, which the
+send's softirq does on this host, sleeping and waking, and the master's own work), over the holding window and over
+the commands: what the cost is made of. That run's own figures are not in the tables.
+
+--drives N,M (a run of its own, section "many" of bench/run.py) puts the node on N, then M, virtual AKDs of one
+akd-sim process behind a veth pair, each end in a network namespace of its own (akd-sim --iface, the node's link the
+interface, the client and the node in one namespace), every joint in cyclic synchronous position with a mapping of
+16 bytes a drive (the default's 52 bytes a drive do not fit one frame beyond 28 drives), held for --drive-cycles
+cycles: the bus's counters (lost frames first) from its last /diagnostics, the node's CPU, its latencies as above.
 
     .venv/bin/python bench/node_ros.py [--axes 1,6] [--transports rclpy,zenoh] [--cycle-time 0.00025]
         [--joint-states-rate 250] [--window 5] [--command-rate 100] [--command-seconds 3] [--priority 80]
-        [--sim-priority 70] [--attempts 3] [--pipelined-axes 6] [--json PATH]
+        [--sim-priority 70] [--attempts 3] [--pipelined-axes 6] [--rt-cpu-latency-us -1] [--profile] [--json PATH]
+    .venv/bin/python bench/node_ros.py --drives 16,64 [--drive-cycles 1000000] [--drive-pipelined] [...]
 
 The runs without recording of --pipelined-axes are made again with rt.pipelined (the node's cycle sends each frame and
 takes its return at the next wake-up), right after the same transports' waiting runs: the node's CPU and latencies
@@ -47,11 +67,14 @@ from __future__ import annotations
 
 import argparse
 import bisect
+import collections
 import functools
 import json
 import os
 import re
+import shutil
 import signal
+import subprocess
 import sys
 import tempfile
 import time
@@ -90,6 +113,10 @@ S = 1_000_000_000
 TICK = os.sysconf("SC_CLK_TCK")
 FAULT_LINE = re.compile(r"fault of (\w+): ([^;]+);")
 """akd_node's log line of a joint's fault: the joint and what the fault is."""
+RECORDED_LINE = re.compile(r"recorded \S+: \d+ messages, (\d+) dropped")
+"""akd_node's log line at the end of a recording: what the bag's writer dropped (its queue full, its disk failed)."""
+NOT_TAKEN = re.compile(r"recording: (\d+) per-cycle records were not taken in time")
+"""akd_node's log line of the cycle's records the bag's writer did not take before the cycle's ring overflowed."""
 BENCH_GID = bytes(range(16))
 """The GID of this process's Zenoh service client in the enable request's attachment."""
 
@@ -103,22 +130,26 @@ def joints_of(count: int) -> list[str]:
     return [f"joint_{i}" for i in range(1, count + 1)]
 
 
-def params(port: int, count: int, args, record: Path | None, changes: dict) -> str:
-    """config/akd_sim_6axis.yaml's first `count` joints on udp://127.0.0.1:`port`, at the run's cycle time and
-    /joint_states rate, the cycle thread at args.priority, recording to `record` if given, and `changes`."""
+def params(port: int | str, count: int, args, record: Path | None, changes: dict) -> str:
+    """config/akd_sim_6axis.yaml's first `count` joints (more joints like its first) on udp://127.0.0.1:`port` (or on
+    the link `port` names), at the run's cycle time and /joint_states rate, the cycle thread at args.priority and
+    args.rt_cpu_latency_us, recording to `record` if given, and `changes`."""
     document = yaml.safe_load(CONFIG.read_text())
     values = document["akd_node"]["ros__parameters"]
     kept = joints_of(count)
     for key in [k for k in values if k.startswith("joints.") and k.split(".")[1] not in kept]:
         del values[key]
+    # Beyond the six of the file, joints like its first.
+    values |= {f"joints.{joint}.gear_ratio": values["joints.joint_1.gear_ratio"] for joint in kept[6:]}
     values |= {
-        "link": f"udp://127.0.0.1:{port}",
+        "link": port if isinstance(port, str) else f"udp://127.0.0.1:{port}",
         "joints": kept,
         "cycle_time": args.cycle_time,
         "joint_states_rate": args.joint_states_rate,
     }
     if args.priority:
         values["rt.priority"] = args.priority
+    values["rt.cpu_latency_us"] = args.rt_cpu_latency_us
     if record:
         values |= {"record.enabled": True, "record.folder": str(record), "record.decimation": 1}
     return yaml.safe_dump(document | {"akd_node": {"ros__parameters": values | changes}})
@@ -130,9 +161,31 @@ def cpu_ticks(stat: Path) -> int:
     return int(fields[11]) + int(fields[12])
 
 
-def cycle_thread_ticks(pid: int) -> int:
-    tasks = Path(f"/proc/{pid}/task").iterdir()
-    return sum(cpu_ticks(t / "stat") for t in tasks if (t / "comm").read_text().strip() == "akd-cycle")
+THREAD_GROUPS = {
+    "akd-cycle": "cycle",
+    "akd-feed": "crate's other threads",
+    "akd-bag": "crate's other threads",
+    "akd-recovery": "crate's other threads",
+    "akd-publish": "Python threads",
+    "akd-periodic": "Python threads",
+    "akd-commands": "Python threads",
+    "akd-requests": "Python threads",
+}
+"""The node's threads by their names, in the groups the table splits its CPU into; the rest (the executor's main
+thread, the middleware's threads, the recorder's metadata thread) is "main and middleware"."""
+GROUPS = ("cycle", "crate's other threads", "Python threads", "main and middleware")
+
+
+def thread_ticks(pid: int) -> collections.Counter:
+    """utime + stime of process `pid`'s threads, in clock ticks, by group (THREAD_GROUPS)."""
+    ticks: collections.Counter = collections.Counter()
+    for task in Path(f"/proc/{pid}/task").iterdir():
+        try:
+            name = (task / "comm").read_text().strip()
+            ticks[THREAD_GROUPS.get(name, GROUPS[-1])] += cpu_ticks(task / "stat")
+        except OSError:  # a thread that ended meanwhile
+            continue
+    return ticks
 
 
 def children() -> list[int]:
@@ -263,7 +316,8 @@ def hold(node_pid: int, sim_pid: int, client, seconds: float) -> dict:
 
     def now() -> tuple:
         node_stat = Path(f"/proc/{node_pid}/stat")
-        ticks = [cpu_ticks(node_stat), cycle_thread_ticks(node_pid), cpu_ticks(Path(f"/proc/{sim_pid}/stat"))]
+        groups = thread_ticks(node_pid)
+        ticks = [cpu_ticks(node_stat), *(groups[g] for g in GROUPS), cpu_ticks(Path(f"/proc/{sim_pid}/stat"))]
         ticks += [cpu_ticks(Path(f"/proc/{pid}/stat")) for pid in others.values()]
         return (*ticks, len(client.received), time.monotonic())
 
@@ -272,7 +326,7 @@ def hold(node_pid: int, sim_pid: int, client, seconds: float) -> dict:
     after = now()
     *ticks, messages, elapsed = (b - a for a, b in zip(before, after, strict=True))
     shares = [100 * t / TICK / elapsed for t in ticks]
-    names = ["node CPU %", "of it cycle %", "akd-sim CPU %"] + [f"{name} CPU %" for name in others]
+    names = ["node CPU %", *(f"of it {g} %" for g in GROUPS), "akd-sim CPU %"] + [f"{n} CPU %" for n in others]
     return dict(zip(names, shares, strict=True)) | {
         "joint_states/s": messages / elapsed,
         "window": slice(before[-2], after[-2]),
@@ -294,10 +348,12 @@ def stream_commands(client, count: int, rate: float, seconds: float) -> list[tup
     return sent
 
 
-def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, int]]:
-    """From the one bag in `folder`: (stamp ns, position, command) of joint_1 in every cycle, in time order, and the
+def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, int], dict]:
+    """From the one bag in `folder`: (stamp ns, position, command) of joint_1 in every cycle, in time order; the
     time the node took each ~/joint_commands message in (its log time: the node records a command on arrival) by
-    joint_1's value."""
+    joint_1's value; and the bag's messages as metadata.yaml counts them, as rosbags reads them (every message
+    deserialised) and as mcap's reader reads them."""
+    from mcap.reader import make_reader
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
@@ -305,21 +361,28 @@ def read_bag(folder: Path) -> tuple[list[tuple[int, float, float]], dict[float, 
     for path in sorted((ROOT / "msg").glob("*.msg")):
         store.register(get_types_from_msg(path.read_text(), f"akd_ros/msg/{path.stem}"))
     (bag,) = folder.iterdir()
-    cycles, arrivals = [], {}
+    cycles, arrivals, read = [], {}, 0
     with AnyReader([bag], default_typestore=store) as reader:
-        connections = [c for c in reader.connections if c.topic in (NODE + "cycle", NODE + "joint_commands")]
-        for connection, log_ns, raw in reader.messages(connections=connections):
+        for connection, log_ns, raw in reader.messages():
             m = reader.deserialize(raw, connection.msgtype)
+            read += 1
             if connection.topic == NODE + "joint_commands":
                 arrivals[float(m.position[0])] = log_ns
-            elif m.joint == "joint_1":
+            elif connection.topic == NODE + "cycle" and m.joint == "joint_1":
                 cycles.append((m.stamp.sec * S + m.stamp.nanosec, m.position, m.command))
-    return sorted(cycles), arrivals
+    by_mcap = 0
+    for path in sorted(bag.glob("*.mcap")):
+        with open(path, "rb") as stream:
+            by_mcap += sum(1 for _ in make_reader(stream).iter_messages(log_time_order=False))
+    information = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    counts = {"metadata": information["message_count"], "rosbags": read, "mcap": by_mcap}
+    return sorted(cycles), arrivals, counts
 
 
 def joint_1(params: Path) -> tuple[int, Units]:
     """The drive position and units of joint_1 as the node reads them from its parameters file `params`."""
-    joint = settings(read_parameters_file(str(params))).joints[0]
+    # Its link may be an interface of another namespace: the units do not depend on it.
+    joint = settings(read_parameters_file(str(params)) | {"link": "sim"}).joints[0]
     return joint.slave, joint.units
 
 
@@ -364,8 +427,104 @@ def cycle_to_delivery(received: list[tuple[int, int, float]], cycles: list[tuple
     return found
 
 
-def run(count: int, record: bool, case: tuple[str, bool], context: dict, args) -> dict:
-    """One case: `count` joints, recording or not, over the case's (transport, pipelined)."""
+PY_SPY = Path(sys.executable).parent / "py-spy"
+PROFILE_RATE_HZ = 100
+"""py-spy's samples per second; perf samples at 999 Hz."""
+
+
+class Profile:
+    """py-spy (the Python threads while they hold the GIL) and perf (every thread, kernel too) over process `pid` for
+    `seconds`, started at once; `finish()` waits for both and gives their top entries."""
+
+    def __init__(self, pid: int, seconds: float, folder: Path, label: str) -> None:
+        self.seconds, self.spy_out, self.perf_out = seconds, folder / f"{label}.pyspy", folder / f"{label}.perf"
+        duration = str(max(1, round(seconds)))
+        spy = [str(PY_SPY), "record", "-p", str(pid), "-d", duration, "-r", str(PROFILE_RATE_HZ), "-f", "raw"]
+        spy += ["-o", str(self.spy_out), "--threads", "--gil", "--nonblocking"]
+        perf = ["perf", "record", "-q", "-F", "999", "-g", "-p", str(pid), "-o", str(self.perf_out), "--"]
+        self.processes = [
+            subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            for argv in (spy, [*perf, "sleep", duration])
+            if shutil.which(argv[0])
+        ]
+
+    def finish(self, top: int = 12) -> dict:
+        """{"python": [(thread or function, % of a core)], "perf": [(thread, symbol, % of the process's samples)]}."""
+        for process in self.processes:
+            process.wait(timeout=self.seconds + 60)
+        return {
+            "python": py_spy_top(self.spy_out, self.seconds, top),
+            "perf": perf_top(self.perf_out, top),
+            "cycle": cycle_shares(self.perf_out) if self.perf_out.exists() else [],
+        }
+
+
+def py_spy_top(path: Path, seconds: float, top: int) -> list[tuple[str, float]]:
+    """From py-spy's raw output (one line per stack: "thread (TID): NAME;frame;...;frame COUNT", samples holding the
+    GIL): each Python thread's share of a core, then the innermost frames' shares, the largest first."""
+    if not path.exists():
+        return []
+    threads: collections.Counter = collections.Counter()
+    frames: collections.Counter = collections.Counter()
+    for line in path.read_text().splitlines():
+        stack, _, count = line.rpartition(" ")
+        head, *calls = stack.split(";")
+        threads[f"thread {head.split(': ', 1)[-1]}"] += int(count)
+        frames[calls[-1] if calls else head] += int(count)
+    per_core = 100 / (PROFILE_RATE_HZ * seconds)
+    return [(what, n * per_core) for what, n in [*threads.most_common(), *frames.most_common(top)]]
+
+
+PERF_LINE = re.compile(r"^\s*([\d.]+)%\s+(\S+)\s+\[[.k]\]\s+(.+?)(?:\s+-)*\s*$")
+"""A line of perf report --sort comm,symbol: share, thread, [k] or [.], the symbol (its empty columns left off)."""
+
+
+CYCLE_SHARES = (
+    ("waking akd-sim's thread (the send's softirq, on this host)", ("sock_def_readable",)),
+    ("sleeping and waking (context switches)", ("__schedule", "finish_task_switch")),
+)
+"""What the cycle thread's perf samples are spent on, by a function on their stack; the rest is the master's work
+and its system calls. Samples skid to where interrupts are enabled again: a wake-up's cost lands on the unlock that
+ends it, inside the function that made it."""
+
+
+def cycle_shares(path: Path) -> list[tuple[str, float]]:
+    """The cycle thread's perf samples in `path` split by CYCLE_SHARES, each % of its samples."""
+    script = subprocess.run(
+        ["perf", "script", "-i", str(path)], capture_output=True, text=True, timeout=300, check=False
+    ).stdout
+    counts: collections.Counter = collections.Counter()
+    for block in script.split("\n\n"):
+        lines = block.strip().splitlines()
+        if not lines or not lines[0].startswith("akd-cycle "):
+            continue
+        stack = " ".join(lines[1:])
+        counts[next((what for what, marks in CYCLE_SHARES if any(m in stack for m in marks)), "rest")] += 1
+    total = sum(counts.values()) or 1
+    shares = [(what, 100 * counts[what] / total) for what, _ in CYCLE_SHARES]
+    return [*shares, ("the master's work and its system calls", 100 * counts["rest"] / total)]
+
+
+def perf_top(path: Path, top: int) -> list[tuple[str, str, float]]:
+    """perf's report of `path` by thread name and symbol (self time): the `top` largest, % of the process's
+    samples."""
+    if not path.exists():
+        return []
+    report = subprocess.run(
+        ["perf", "report", "-i", str(path), "--stdio", "--no-children", "-g", "none", "--sort", "comm,symbol"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=False,
+    ).stdout
+    found = [(m[2], m[3], float(m[1])) for line in report.splitlines() if (m := PERF_LINE.match(line))]
+    return found[:top]
+
+
+def run(count: int, record: bool, case: tuple[str, bool], context: dict, args, profile: Path | None = None) -> dict:
+    """One case: `count` joints, recording or not, over the case's (transport, pipelined). With `profile` (a folder),
+    py-spy and perf run over the holding window and over the commands: the figures are then perturbed, and the
+    result's "profile" holds what they found."""
     transport, pipelined = case
     domain = context["domain"]
     with tempfile.TemporaryDirectory(prefix="node_ros-") as temp:
@@ -380,11 +539,17 @@ def run(count: int, record: bool, case: tuple[str, bool], context: dict, args) -
                 if node.process.poll() is not None:
                     raise RuntimeError(f"akd_node exited:\n{node.output()}")
                 client.trigger("enable")
-                result = hold(node.process.pid, sim.process.pid, client, args.window)
+                pid = node.process.pid
+                profiles = {}
+                holding = Profile(pid, 1.0 + args.window, profile, "holding") if profile else None
+                result = hold(pid, sim.process.pid, client, args.window)
                 held = client.received[result.pop("window")]
                 moving_from = len(client.received)
+                commanding = Profile(pid, args.command_seconds, profile, "commands") if profile else None
                 sent = stream_commands(client, count, args.command_rate, args.command_seconds)
                 moving = client.received[moving_from:]
+                if profile:
+                    profiles = {"holding": holding.finish(), "commands": commanding.finish()}
                 node.process.send_signal(signal.SIGINT)
                 client.wait_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
             finally:
@@ -406,13 +571,18 @@ def run(count: int, record: bool, case: tuple[str, bool], context: dict, args) -
             "sent": len(sent),
             "command_to_wire": command_to_wire(sent, changes, units),
             "trace_dropped": dropped,
+            "profile": profiles,
         }
         if record:
-            cycles, arrivals = read_bag(folder)
+            cycles, arrivals, counts = read_bag(folder)
+            output = node.output()
+            dropped = sum(int(n) for n in [*RECORDED_LINE.findall(output), *NOT_TAKEN.findall(output)])
             result |= {
                 "command_to_node": [arrivals[v] - t for t, v in sent if v in arrivals],
                 "cycle_to_delivery": cycle_to_delivery(moving, cycles),
                 "moving": len(moving),
+                "bag": counts,
+                "records_dropped": dropped if RECORDED_LINE.search(output) else None,
             }
         return result
 
@@ -422,6 +592,224 @@ WAITING, PIPELINED = "waiting", "pipelined"
 
 WIRE_P50, WIRE_P99 = "command→wire (akd-sim) p50 ms", "command→wire (akd-sim) p99 ms"
 """The table's labels of command to wire: the set-point's reception stamped inside the virtual AKD."""
+
+
+BAG_READERS = ("metadata", "rosbags", "mcap")
+"""How a recorded run's bag is counted: metadata.yaml's message_count, the messages rosbags reads and deserialises,
+those mcap's reader reads."""
+CPU_RECORDING, CPU_NOT_RECORDING, LATENCY_MARGIN_MS = 20.0, 15.0, 1.0
+"""The issue's goals (six joints, 4 kHz): the node's CPU recording every cycle and not recording, % of one core; how
+much command→wire p99 may exceed publication→delivery p99 in every row."""
+
+
+def goals(rows: list[dict]) -> list[dict]:
+    """Each row's goals: measured, limit, met, and by how much it is missed (positive) or met (negative)."""
+    judged = []
+
+    def judge(row: dict, goal: str, measured, limit: float, unit: str) -> None:
+        case = f"{row['axes']} axes {row['transport']} {row['cycle']}, recording {row['recording']}"
+        missed = None if measured is None else measured - limit
+        met = "not measured" if missed is None else ("met" if missed <= 0 else "missed")
+        judged.append({"goal": goal, "case": case, "measured": measured, "limit": limit, "unit": unit, "met": met})
+        judged[-1]["missed by"] = missed
+
+    for row in rows:
+        delivery, wire = row["publication→delivery p99 ms"], row[WIRE_P99]
+        limit = None if delivery is None else delivery + LATENCY_MARGIN_MS
+        if limit is not None:
+            judge(row, "command→wire p99 ≤ publication→delivery p99 + 1 ms", wire, limit, "ms")
+        if row["axes"] != 6:
+            continue
+        if row["recording"] == "off":
+            judge(row, f"node CPU ≤ {CPU_NOT_RECORDING:g} % not recording", row["node CPU %"], CPU_NOT_RECORDING, "%")
+            continue
+        judge(row, f"node CPU ≤ {CPU_RECORDING:g} % recording every cycle", row["node CPU %"], CPU_RECORDING, "%")
+        judge(row, "no record dropped", row["records dropped"], 0, "records")
+        counts = row["bag messages metadata/rosbags/mcap"]
+        whole = None if counts is None else len(set(counts.split("/"))) - 1
+        judge(row, "rosbags and mcap read every message of the bag", whole, 0, "readers short")
+    return judged
+
+
+def profile_misses(judged: list[dict], results: list[dict], context: dict, args, figures: Figures) -> None:
+    """Runs each case that missed a goal once more under py-spy and perf (`Profile`), and tables their top entries:
+    what the node's CPU while holding, and its time while commands arrive, are made of."""
+    missed = {g["case"] for g in judged if g["met"] == "missed"}
+    for r in results:
+        case = f"{r['axes']} axes {r['transport']} {r['cycle']}, recording {r['recording']}"
+        if case not in missed:
+            continue
+        with tempfile.TemporaryDirectory(prefix="node_ros-profile-") as folder:
+            try:
+                profiled = run(
+                    r["axes"],
+                    r["recording"] != "off",
+                    (r["transport"], r["cycle"] == PIPELINED),
+                    context,
+                    args,
+                    Path(folder),
+                )
+            except (RuntimeError, AssertionError) as e:
+                figures.missing(f"profile of {case}: {str(e)[:300]}")
+                continue
+        for phase, found in profiled["profile"].items():
+            rows = [{"thread": t, "symbol": sym, "% of the node's samples": share} for t, sym, share in found["perf"]]
+            figures.table(f"perf, {case}, {phase}: the node's threads by symbol (self)", rows)
+            rows = [{"Python (GIL held)": what, "% of a core": share} for what, share in found["python"]]
+            figures.table(f"py-spy, {case}, {phase}: Python threads, then innermost frames", rows)
+            rows = [{"the cycle thread's samples": what, "%": share} for what, share in found["cycle"]]
+            figures.table(f"perf, {case}, {phase}: what the cycle thread's CPU is made of", rows)
+        figures.note(
+            f"profiles of {case}: a run of its own under py-spy ({PROFILE_RATE_HZ} Hz, --gil --nonblocking) and perf"
+            " record -g (999 Hz), over the holding window and over the commands; its own figures are not in the tables"
+        )
+
+
+MANY_MAPPING = {"mapping": "flexible", "mapping.rx": ["0x6040:00/16 0x607A:00/32"]}
+MANY_MAPPING["mapping.tx"] = ["0x6041:00/16 0x6064:00/32", "0x606C:00/32"]
+"""What a line of many drives in cyclic synchronous position maps (16 bytes a drive): the default mapping, everything
+every mode needs (52 bytes), does not fit one frame beyond 28 drives, and the master sends one cyclic frame."""
+MANY_DOMAINS = range(60, 70)
+"""ROS_DOMAIN_IDs of the many-drive runs, each inside a network namespace of its own (its own loopback)."""
+DIAGNOSTIC_COUNTERS = ("cycles", "lost_frames", "wkc_errors", "overruns", "samples_dropped")
+DIAGNOSTIC_TIMES = ("period_max_s", "exchange_p99_s")
+"""What a many-drive run takes of the bus's /diagnostics: its counters, and its timing (shown in µs)."""
+
+
+def many_drives(args, figures: Figures) -> None:
+    """--drives: for each count, one akd-sim of that many AKDs behind a veth pair, in namespaces of their own, and
+    akd_node on the other end at --cycle-time over rclpy (its client in the node's namespace: `inside_many`), held
+    for --drive-cycles cycles: lost frames and the other counters (/diagnostics), the node's CPU while holding, its
+    latencies; then akd-sim's set-point trace for command to wire."""
+    from support.netns import akd_sim_in_netns, netns_argv, netns_unavailable_reason, veth_pair
+
+    reason = netns_unavailable_reason()
+    if reason is not None:
+        figures.missing(f"the many-drive runs: {reason}")
+        return
+    rows = []
+    cases = [
+        (int(c), pipelined) for c in args.drives.split(",") for pipelined in (False, True)[: 1 + args.drive_pipelined]
+    ]
+    for count, pipelined in cases:
+        with tempfile.TemporaryDirectory(prefix="node_ros-many-") as temp:
+            folder = Path(temp)
+            # As the UDP runs' akd-sim: its drives judge the frames lost on the line, not this host's stalls (F125).
+            extra = ["--setpoint-trace", str(folder / TRACE), "--missed", "lost"]
+            limit = 120 + args.drive_cycles * args.cycle_time * 2
+            try:
+                with veth_pair() as net, akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, options=extra) as sim:
+                    if args.sim_priority:
+                        real_time(sim.pid, args.sim_priority)
+                    spec = {"iface": net.if_master, "count": count, "folder": temp, "sim_pid": sim.pid}
+                    spec["pipelined"] = pipelined
+                    inner = [sys.executable, str(Path(__file__).resolve()), "--inside-many", json.dumps(spec)]
+                    inner += [f"--{k.replace('_', '-')}={v}" for k, v in vars(args).items() if k in INNER_OPTIONS]
+                    done = subprocess.run(
+                        netns_argv(net.ns_master, inner), capture_output=True, text=True, timeout=limit, check=False
+                    )
+            except (RuntimeError, subprocess.TimeoutExpired) as e:
+                figures.missing(f"{count} drives over veth ({'pipelined' if pipelined else 'waiting'}): {str(e)[:300]}")
+                continue
+            lines = done.stdout.strip().splitlines()
+            if done.returncode != 0 or not lines:
+                figures.missing(f"{count} drives over veth: {(done.stderr or done.stdout).strip()[-400:]}")
+                continue
+            r = json.loads(lines[-1])
+            late = SIM_LATE.search(sim.output_text)
+            drive, units = joint_1(folder / PARAMS)
+            changes, dropped = read_trace(folder / TRACE, drive)
+        wire = command_to_wire(r.pop("sent"), changes, units)
+        if len(wire) < 2:
+            figures.missing(
+                f"command→wire, {count} drives: {len(wire)} matched; the node's last lines: {r['log_tail']}"
+            )
+        delivered = r.pop("publication_to_delivery")
+        cycle = PIPELINED if pipelined else WAITING
+        row = {"drives": count, "cycle": cycle, "period ms": args.cycle_time * 1e3, **r.pop("diagnostics")}
+        row |= {k: v for k, v in r.items() if k.endswith("%")} | {"joint_states/s": r["joint_states/s"]}
+        row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "publication→delivery p99 ms": ms(delivered, 0.99)}
+        row |= {WIRE_P50: ms(wire, 0.5), WIRE_P99: ms(wire, 0.99), "matched": f"{len(wire)}/{r['sent_count']}"}
+        row |= {"akd-sim replies late > 0.25 ms": int(late[1]) if late else None, "akd-sim longest late ms": None}
+        row["akd-sim longest late ms"] = float(late[2]) if late else None
+        row |= {"faults": "; ".join(r["faults"]) or "none", "trace dropped": dropped}
+        rows.append(row)
+    figures.table(
+        f"akd_node with many AKDs over veth at {args.cycle_time * 1e6:.0f} µs (rclpy, one akd-sim process)", rows
+    )
+    figures.note(
+        "many drives: a veth pair between two network namespaces, akd-sim --iface --count N --missed lost (SCHED_FIFO"
+        f" {args.sim_priority}) in one, akd_node (link: the interface, rt.priority {args.priority}, every joint in"
+        f" cyclic synchronous position, mapping {MANY_MAPPING['mapping.rx']} / {MANY_MAPPING['mapping.tx']})"
+        " and its rclpy client in the other; the counters are the last /diagnostics of the bus before SIGINT, after"
+        " at least"
+        f" {args.drive_cycles} cycles; CPU over --window s of holding, as in the table above; akd-sim's late replies:"
+        " what it says at its stop, replies that went back more than a period late because it was not run (each a"
+        " frame the node counts as lost; a real ESC answers in hardware)"
+    )
+
+
+SIM_LATE = re.compile(r"replies late because akd-sim was not run: (\d+) over 0\.25 ms.*longest ([\d.]+) ms")
+"""akd-sim's line at its stop: its replies that went back more than 0.25 ms late because it was not run (a master
+counts a reply later than its period, 0.25 ms here, as a lost frame: a real ESC answers in hardware), and the
+longest."""
+INNER_OPTIONS = ("cycle_time", "joint_states_rate", "window", "command_rate", "command_seconds", "priority")
+INNER_OPTIONS += ("rt_cpu_latency_us", "drive_cycles")
+"""The options a many-drive run passes to its inner process."""
+
+
+def inside_many(spec: dict, args) -> int:
+    """The inner process of a many-drive run, in the master's namespace: akd_node on the veth interface, its rclpy
+    client, the hold, the commands, the wait for the cycles; prints the result as one JSON line."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    count, folder = spec["count"], Path(spec["folder"])
+    with ros_environment(MANY_DOMAINS) as domain:
+        path = folder / PARAMS
+        # The file's sixth joint arms a latch, which this mapping does not carry.
+        changes = {"transport": "rclpy", **MANY_MAPPING, "joints.joint_6.latch.arm": []}
+        changes["rt.pipelined"] = spec["pipelined"]
+        path.write_text(params(spec["iface"], count, args, None, changes))
+        node = NodeProcess(path, domain=domain)
+        client = DdsClient(domain, count)
+        last: dict = {}
+
+        def take(message) -> None:
+            for status in message.status:
+                if status.name.endswith(": bus"):
+                    values = {v.key: v.value for v in status.values}
+                    last.update({k: int(values[k]) for k in DIAGNOSTIC_COUNTERS if k in values})
+                    last.update({f"{k[:-2]} µs": float(values[k]) * 1e6 for k in DIAGNOSTIC_TIMES if k in values})
+
+        client.node.create_subscription(DiagnosticArray, "/diagnostics", take, 10)
+        try:
+            # Configuring every drive (mapping, SDOs, Op) takes a while with many.
+            client.spin_until(lambda: client.received or node.process.poll() is not None, "/joint_states", 300)
+            if node.process.poll() is not None:
+                raise RuntimeError(f"akd_node exited:\n{node.output()}")
+            client.trigger("enable")
+            result = hold(node.process.pid, spec["sim_pid"], client, args.window)
+            held = client.received[result.pop("window")]
+            sent = stream_commands(client, count, args.command_rate, args.command_seconds)
+            held_for = args.drive_cycles * args.cycle_time * 1.5 + 60
+            client.spin_until(lambda: last.get("cycles", 0) >= args.drive_cycles, "the cycles", held_for)
+            diagnostics = dict(last)
+            node.process.send_signal(signal.SIGINT)
+            client.spin_until(lambda: node.process.poll() is not None, "akd_node's exit on SIGINT")
+        finally:
+            client.close()
+            stop(node.process)
+    faults = sorted({f"{what} on {joint}" for joint, what in FAULT_LINE.findall(node.output())})
+    result |= {
+        "diagnostics": diagnostics,
+        "publication_to_delivery": [d - p for d, p, _ in held],
+        "sent": sent,
+        "sent_count": len(sent),
+        "faults": faults,
+        "log_tail": node.output().strip().splitlines()[-3:],
+    }
+    print(json.dumps(result))
+    return 0
 
 
 def ms(values: list[int], fraction: float) -> float | None:
@@ -441,12 +829,39 @@ def main() -> int:
     parser.add_argument("--sim-priority", type=int, default=70, help="akd-sim's SCHED_FIFO priority (0: none)")
     parser.add_argument("--attempts", type=int, default=3, help="runs of a case whose joints faulted, at most")
     parser.add_argument(
+        "--rt-cpu-latency-us",
+        type=int,
+        default=-1,
+        help="the node's rt.cpu_latency_us (-1: the system's; 0 keeps the CPUs from sleeping deeper than polling)",
+    )
+    parser.add_argument(
+        "--profile",
+        action="store_true",
+        help="each case that misses a goal is run again under py-spy and perf, and their top entries are tabled",
+    )
+    parser.add_argument(
         "--pipelined-axes",
         default="6",
         help="axes whose runs without recording are made again with rt.pipelined, right after them ('' for none)",
     )
+    parser.add_argument(
+        "--drives",
+        default="",
+        help="instead of the runs above: akd_node on this many AKDs over veth, comma-separated (e.g. 16,64)",
+    )
+    parser.add_argument("--drive-cycles", type=int, default=1_000_000, help="cycles each --drives run holds")
+    parser.add_argument(
+        "--drive-pipelined", action="store_true", help="each --drives count again with rt.pipelined, right after"
+    )
+    parser.add_argument("--inside-many", help=argparse.SUPPRESS)
     json_argument(parser)
     args = parser.parse_args()
+    if args.inside_many:
+        return inside_many(json.loads(args.inside_many), args)
+    if args.drives:
+        figures = Figures("node_ros.py", "akd_node with many AKDs over veth", args)
+        many_drives(args, figures)
+        return figures.finish()
     try:
         axes = [int(a) for a in args.axes.split(",")]
         pipelined_axes = [int(a) for a in args.pipelined_axes.split(",") if a]
@@ -488,10 +903,15 @@ def main() -> int:
                             f"{what}: run again, the first faulted"
                             f" ({'; '.join(f'{w} on {j}' for w, j in result['faults'].items())})"
                         )
+        return tables(results, context, args, figures, transports, axes)
+
+
+def tables(results: list[dict], context: dict, args, figures: Figures, transports: list[str], axes: list[int]) -> int:
+    """The run's tables, its goals judged, the profiles of the cases that missed one (--profile); the exit status."""
     rows = []
     for r in results:
         row = {"axes": r["axes"], "transport": r["transport"], "recording": r["recording"], "cycle": r["cycle"]}
-        row |= {k: r.get(k) for k in ("node CPU %", "of it cycle %", "akd-sim CPU %", "router CPU %")}
+        row |= {k: r.get(k) for k in ("node CPU %", *(f"of it {g} %" for g in GROUPS), "akd-sim CPU %", "router CPU %")}
         row |= {"joint_states/s": r["joint_states/s"]}
         delivered = r["publication_to_delivery"]
         row |= {"publication→delivery p50 ms": ms(delivered, 0.5), "publication→delivery p99 ms": ms(delivered, 0.99)}
@@ -522,6 +942,9 @@ def main() -> int:
                 f"cycle→delivery, {r['axes']} axes over {r['transport']}: {len(cycle)} matched of"
                 f" {r['moving']} /joint_states received while the joints moved"
             )
+        bag = r.get("bag")
+        row["records dropped"] = r.get("records_dropped")
+        row["bag messages metadata/rosbags/mcap"] = "/".join(str(bag[k]) for k in BAG_READERS) if bag else None
         row["faulted joints"] = len({j for joints in r["faults"].values() for j in joints})
         row["attempt"] = r["attempt"]
         if row["faulted joints"]:
@@ -532,6 +955,10 @@ def main() -> int:
     figures.table(
         f"akd_node at {1 / args.cycle_time:.0f} Hz, /joint_states at {args.joint_states_rate:g} Hz (DDS = rclpy)", rows
     )
+    judged = goals(rows)
+    figures.table("The issue's goals, row by row (issue 25)", judged)
+    if args.profile:
+        profile_misses(judged, results, context, args, figures)
     if set(transports) == set(TRANSPORTS):
         ratios = []
         for count in axes:

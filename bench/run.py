@@ -8,12 +8,15 @@ those files.
 
     .venv/bin/python bench/run.py [--skip SECTION[,SECTION]] [--render]
 
-Sections, in the order they run (sudo or root: roundtrip's veth pair, the SCHED_FIFO priorities):
+Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs, the SCHED_FIFO priorities, perf):
   master_cycle  cost of one cyclic exchange in-process, 1/4/16/64 AKDs, frame size (master_cycle.py)
   roundtrip     this master, SOEM and KickCAT over one veth pair to one akd-sim (roundtrip.py, 3 rounds of 2000)
   jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
-  ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh (node_ros.py)
+  ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh; issue 25's goals, with
+                profiles of what misses one (node_ros.py --profile)
+  many          akd_node on 16 and 64 AKDs over veth at 250 µs, a million cycles each, waiting and pipelined
+                (node_ros.py --drives)
   io            akd_node's CPU with every joint's ~/io published and without, six joints at 1 kHz (node_io.py)
   host_noise    config/akd_sim_6axis.yaml's robot following trajectories under stress-ng on every CPU, with and
                 without missed=warn and rt.priority: trajectories done, would-be F125, worst stall (host_noise.py,
@@ -51,7 +54,8 @@ SECTIONS = {
         shlex.split("cycle_jitter.py --loads idle,busy,sdo --no-cyclictest --rates 4000 --seconds 4 --rounds 4"),
         180,
     ),
-    "ros": (["node_ros.py"], 420),
+    "ros": (["node_ros.py", "--profile"], 1200),
+    "many": (shlex.split("node_ros.py --drives 16,64 --drive-pipelined"), 2400),
     "io": (["node_io.py"], 300),
     # Two minutes per variant, two alternating rounds: a shorter run than a quotable one (--minutes 8, about 35 min).
     "host_noise": (shlex.split("host_noise.py --minutes 2 --rounds 2"), 900),
@@ -63,6 +67,7 @@ TITLES = {
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
+    "many": "Through ROS with many drives over veth",
     "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",
     "host_noise": "The six-axis virtual robot with every CPU loaded: F125 with and without missed=warn, rt.priority",
 }

@@ -27,7 +27,8 @@ CONSTRAINTS=constraints.txt
 # The packages of each environment. pysoem and kickcat are the third-party masters of the interop
 # tests; colcon checks that the package builds in a ROS workspace as it does here; ruff lints and
 # formats the Python code (scripts/test.sh; held at its version through a refresh too, because a
-# new release may add rules and fail a tree that passed). ROS 2 Jazzy comes as PyPI wheels (they need no
+# new release may add rules and fail a tree that passed); py-spy samples the node's Python threads in
+# bench/node_ros.py --profile. ROS 2 Jazzy comes as PyPI wheels (they need no
 # sourcing: ros-wheels-bootstrapper, which rclpy pulls in, restarts .venv's python with
 # LD_LIBRARY_PATH pointing at the wheels' libraries). The node needs rclpy over Fast DDS and these
 # interfaces; the rosidl generators and type supports, C and C++, build akd_ros's own messages
@@ -37,7 +38,7 @@ CONSTRAINTS=constraints.txt
 # so that they are pinned too). Sphinx, myst-parser (Markdown pages) and furo (the theme) build the documentation site
 # in docs/ (scripts/docs.sh).
 BUILD_PACKAGES=("setuptools>=64" wheel "setuptools-rust>=1.7")
-TEST_PACKAGES=(pytest hypothesis pysoem kickcat colcon-common-extensions ruff==0.17.6)
+TEST_PACKAGES=(pytest hypothesis pysoem kickcat colcon-common-extensions ruff==0.17.6 py-spy)
 ROS_WHEELS=(
     ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-common-interfaces ros-jazzy-std-srvs
     ros-jazzy-diagnostic-msgs ros-jazzy-sensor-msgs ros-jazzy-lifecycle-msgs

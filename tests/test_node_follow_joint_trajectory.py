@@ -233,6 +233,7 @@ def test_a_new_goal_preempts_from_the_set_point_in_force_without_a_step(run):
 def test_a_fault_mid_way_aborts_the_goal_naming_the_joint(run):
     sim, _, client = run
     start = positions(sim)
+    client.feedback.clear()
     handle = client.send(goal_to([p + 0.8 for p in start], 2.0))
     client.spin_until(lambda: len(client.feedback) > 5, "motion")
     sim.command("fault 3 F439")

@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import importlib
 import itertools
+import json
+import os
 import signal
 import subprocess
 import sys
@@ -25,12 +27,15 @@ from rclpy.serialization import deserialize_message
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
+from akd_ros.units import Units
+from support.netns import free_udp_port
 from support.ros import (
     BIN,
     COUNTS_PER_RAD,
     NODE,
     NODE_TOPICS,
     WAIT_S,
+    Sim,
     akd_plot,
     latch_across,
     move_to,
@@ -364,3 +369,110 @@ def test_an_unwritable_folder_is_reported_once_and_the_node_runs_on(ros_domain, 
         output = node.output()
     assert output.count("Not a directory") == 1 and "recording stopped: cannot open bag" in output, output
     assert not folder.exists()
+
+
+STALLED_RECORDER = """
+import json, sys, threading, time
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.parameter import Parameter
+from std_msgs.msg import Float64
+from akd_ros.node import hold_gil_briefly
+from akd_ros.node.lifecycle import AkdNode
+
+port, folder, hold_s, commands = int(sys.argv[1]), sys.argv[2], float(sys.argv[3]), int(sys.argv[4])
+rclpy.init()
+hold_gil_briefly()
+node = AkdNode(args=[], parameter_overrides=[
+    Parameter("link", value=f"udp://127.0.0.1:{port}"),
+    Parameter("cycle_time", value=0.0005),
+    Parameter("mode", value="cyclic_synchronous_position"),
+    Parameter("enable_on_start", value=True),
+    Parameter("record.enabled", value=True),
+    Parameter("record.folder", value=folder),
+    Parameter("record.decimation", value=1),
+])
+executor = SingleThreadedExecutor()
+executor.add_node(node)
+threading.Thread(target=executor.spin, daemon=True).start()
+from rclpy.lifecycle import TransitionCallbackReturn
+for step in (node.trigger_configure, node.trigger_activate):
+    assert step() == TransitionCallbackReturn.SUCCESS, node.failure
+client = rclpy.create_node("stall_client")
+commands_topic = client.create_publisher(Float64, "/akd_node/position_command", 100)
+deadline = time.monotonic() + 10
+while commands_topic.get_subscription_count() == 0 and time.monotonic() < deadline:
+    time.sleep(0.05)
+axis = node.bus.axes[0]
+here = axis.state().position
+# The disk stalls: the recorder's writer is held for hold_s, longer than the cycle keeps its records.
+node.recorder.hold(True)
+time.sleep(1.0)
+sent = []
+for k in range(commands):
+    value = here + (k + 1) * 1e-4
+    sent.append((time.time_ns(), value))
+    commands_topic.publish(Float64(data=value))
+    time.sleep((hold_s - 1.0) / commands)
+dropped_while_held = node.bus.stats()["samples_dropped"]
+node.recorder.hold(False)
+time.sleep(0.5)
+node.trigger_deactivate()
+recorder = node.recorder
+node.trigger_shutdown()
+stats = recorder.stats
+print(json.dumps({
+    "sent": sent, "units_offset": axis.units.offset, "si_per_count": axis.units.si_per_count,
+    "samples_dropped": dropped_while_held, "recorder_dropped": stats.dropped, "written": stats.written,
+    "errors": stats.errors, "bag": str(recorder.bag_path),
+}))
+executor.shutdown()
+client.destroy_node()
+node.destroy_node()
+rclpy.shutdown()
+"""
+
+COMMAND_BOUND_S = 0.05
+"""How long a command may take to reach the wire while the recorder is stalled: generous against the cycle (0.5 ms)
+and DDS (about 1 ms), far below the stall (6 s) it must not wait for."""
+
+
+def test_a_stalled_recorder_costs_counted_records_and_never_delays_a_command(ros_domain, tmp_path):
+
+    trace = tmp_path / "setpoints.jsonl"
+    sim = Sim(free_udp_port(), setpoint_trace=trace)
+    try:
+        done = subprocess.run(
+            [sys.executable, "-c", STALLED_RECORDER, str(sim.port), str(tmp_path / "bags"), "6.0", "40"],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            env={**os.environ, "ROS_DOMAIN_ID": str(ros_domain + 3 * RUN_DOMAIN_STEP)},
+        )
+    finally:
+        sim.stop()
+    assert done.returncode == 0, done.stdout + done.stderr
+    run = json.loads(done.stdout.strip().splitlines()[-1])
+    units = Units(offset=run["units_offset"])
+    assert units.si_per_count == run["si_per_count"]
+    # When akd-sim received the first frame carrying each command's value as the drive's target position.
+    lines = [json.loads(line) for line in trace.read_text().splitlines()]
+    arrived = {
+        line["target_position"]: line["realtime_ns"]
+        for line in reversed(lines[:-1])
+        if "target_position" in line.get("changed", [])
+    }
+    late = [
+        (value, (arrived[units.position_to_counts(value)] - sent_ns) * 1e-9)
+        if units.position_to_counts(value) in arrived
+        else (value, None)
+        for sent_ns, value in run["sent"]
+    ]
+    assert all(seconds is not None and seconds < COMMAND_BOUND_S for _, seconds in late), late
+    # The stall shows as records lost and counted: the cycle keeps 8192 records a drive (4 s at 2 kHz), the writer
+    # took none for 6 s.
+    assert run["samples_dropped"] > 0, run
+    assert run["errors"] == 0
+    # What was taken is in the bag, every message of it readable.
+    counts, _ = rosbags_messages(Path(run["bag"]))
+    assert sum(counts.values()) == metadata(Path(run["bag"]))["message_count"] == run["written"]

@@ -14,7 +14,7 @@ One module per job, each a part that the node's `Core` is made of:
 - `core`: `Core`, the parts over a transport and the transitions (configure opens the Bus, close closes it);
 - `lifecycle`: `AkdNode`, the rclpy LifecycleNode that runs a Core on rclpy (`ros_transport`);
 - `transport`: what the parts need of a middleware (`Transport`, `Qos`);
-- `publishing`: /joint_states, each joint's status and its events (latch, fault);
+- `publishing`: /joint_states, each joint's status (made by the crate) and its events (latch, fault);
 - `diagnostics`: /diagnostics;
 - `commands`: the command topics, their refusal and time-out, the automatic fault reset, the drive requests;
 - `trajectories`: ~/joint_trajectory and ~/trajectory_status;
@@ -24,13 +24,17 @@ One module per job, each a part that the node's `Core` is made of:
 - `session`: what the parts share (the settings, the clock; from configure to cleanup the Bus, the Recorder, the
   lock).
 
-Threads: three callback groups. The periodic group (publishing timers) and the command group (the command
-subscriptions, queued 100 deep so a stall of the Python side delays commands rather than drops them) never wait on
-the drive; the request group (services, the supervisor that handles automatic fault resets) may wait up to the axes'
-time-outs without stopping the periodic topics. Over rclpy a MultiThreadedExecutor runs the subscriptions and
-services and each group's timers run on a thread of the group's own (`worker`), so timers do not wake the executor;
-over Zenoh each group is such a thread. The session's lock
-guards the axes' Python-side state (position unwrapping, event queues, the last command) between them.
+Threads. The cycle thread and, beside it, the crate's feed (/joint_states and the statuses made from the cycle's
+snapshot) and the bag's writer (every cycle's records and what is published, written to the bag) never need Python.
+In Python: the publishing thread (`publishing`) hands the feed's messages to the middleware and takes the cycle's
+events when the feed says there are some; three callback groups: the periodic group (/diagnostics, the trajectories'
+status), the command group (the command subscriptions, queued 100 deep so a stall of the Python side delays commands
+rather than drops them) and the request group (services, the supervisor that handles automatic fault resets), which
+may wait up to the axes' time-outs. Over rclpy a SingleThreadedExecutor takes every message and runs the command
+callbacks itself, while services run on the request group's thread (`worker`) and timers on their group's, so nothing
+that waits or takes long is ever in front of a command; over Zenoh each group is such a thread. Every Python thread
+gives the GIL up within GIL_SWITCH_INTERVAL_S when another wants it. The session's lock guards the axes'
+Python-side state (position unwrapping, event queues, the last command) between them.
 """
 
 from __future__ import annotations
@@ -46,6 +50,16 @@ EXAMPLES = """examples:
   akd_node --ros-args --params-file config/akd_sim_6axis.yaml -p link:=udp://127.0.0.1:34980
   akd_node --ros-args -p link:=enp3s0 -p mode:=cyclic_synchronous_position -r __ns:=/arm
 """
+
+
+GIL_SWITCH_INTERVAL_S = 0.0005
+"""How long a Python thread of the node runs at most while another waits for the GIL (Python's default is 5 ms): the
+thread that takes a command waits no longer than this behind the node's other Python work."""
+
+
+def hold_gil_briefly() -> None:
+    """Sets the interpreter's switch interval to GIL_SWITCH_INTERVAL_S, for the node's process (both runners)."""
+    sys.setswitchinterval(GIL_SWITCH_INTERVAL_S)
 
 
 def __getattr__(name: str):

@@ -31,6 +31,10 @@ class _Publisher:
         self._ros.publish(message)
         self._zenoh.publish(self._serialize(message))
 
+    def publish_serialized(self, data: bytes) -> None:
+        self._ros.publish_serialized(data)
+        self._zenoh.publish(data)
+
 
 class BothTransport:
     """`ros` (on the node's LifecycleNode) with `zenoh` beside it (see the module doc)."""
@@ -85,8 +89,8 @@ class BothTransport:
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         self.ros.timer(period, callback, group)
 
-    def group(self) -> RosGroup:
-        return self.ros.group()
+    def group(self, name: str) -> RosGroup:
+        return self.ros.group(name)
 
     def now_ns(self) -> int:
         return self.ros.now_ns()

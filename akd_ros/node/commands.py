@@ -93,10 +93,8 @@ class Commands:
         return axis
 
     def _on_command(self, joint: str, kind: str, message) -> None:
+        arrival_ns = self._clock.now_ns()
         session = self._session
-        recorder = session.recorder
-        if recorder is not None:
-            recorder.write(self.topics[joint, kind], message, self._clock.now_ns())
         try:
             with session.lock:
                 axis = self._enabled_axis(joint, f"{kind} command")
@@ -105,12 +103,11 @@ class Commands:
                 axis.send_command(axis.check_command(kind, message.data))
         except CommandError as e:
             self._warn_refused(f"{joint}: {e}")
+        self._record(self.topics[joint, kind], message, arrival_ns)
 
     def _on_joint_commands(self, message) -> None:
+        arrival_ns = self._clock.now_ns()
         session = self._session
-        recorder = session.recorder
-        if recorder is not None:
-            recorder.write(self.joint_commands_topic, message, self._clock.now_ns())
         try:
             with session.lock:
                 checked = self._check_joint_commands(message)
@@ -121,6 +118,14 @@ class Commands:
                     axis.send_command(command)
         except CommandError as e:
             self._warn_refused(f"~/joint_commands refused, nothing sent: {e}")
+        self._record(self.joint_commands_topic, message, arrival_ns)
+
+    def _record(self, topic: str, message, arrival_ns: int) -> None:
+        """Records a command at its arrival, once it is on its way to the drive (or refused): its serialisation
+        never delays it."""
+        recorder = self._session.recorder
+        if recorder is not None:
+            recorder.write(topic, message, arrival_ns)
 
     def _check_joint_commands(self, message) -> list[tuple[Axis, CheckedCommand]]:
         """Each named joint's command of `message`, all checked; CommandError naming the first problem."""

@@ -23,6 +23,7 @@ from akd_ros.node.session import AXIS_ERRORS, Session
 from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import Settings
+from akd_ros.recorder import Recorder
 from akd_ros.tap import Tap
 
 
@@ -40,17 +41,15 @@ class Core:
         self._session = Session(
             self.settings, CycleClock(transport.now_ns, transport.message_class("builtin_interfaces/msg/Time"))
         )
-        periodic, requests = transport.group(), transport.group()
+        periodic, requests = transport.group("periodic"), transport.group("requests")
         # Commands have a group of their own, so a slow timer callback (a batch of cycles to record) does not hold
         # them up, and a deep queue, so a stall of the node's Python side delays commands instead of dropping them.
-        commands = transport.group()
+        commands = transport.group("commands")
         command_qos = Qos(depth=100)
         self._reliable = Qos(depth=10)
         events = Qos(depth=100)
         self._commands = Commands(transport, self._session, commands, command_qos, requests)
-        self._publishing = Publishing(
-            transport, self._session, periodic, self._reliable, events, self._commands.fault_seen
-        )
+        self._publishing = Publishing(transport, self._session, self._reliable, events, self._commands.fault_seen)
         self._trajectories = Trajectories(transport, self._session, commands, periodic, command_qos, events)
         self._io = Io(transport, self._session, periodic, requests, events)
         self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
@@ -64,6 +63,12 @@ class Core:
     def bus(self) -> Bus | None:
         """The Bus while configured, else None."""
         return self._session.bus
+
+    @property
+    def recorder(self) -> Recorder | None:
+        """The Recorder while configured with record.enabled, else None (e.g. to hold its writer, as a stalled disk
+        would, and see what that costs)."""
+        return self._session.recorder
 
     def _fail(self, message: str) -> bool:
         self.failure = message
@@ -150,6 +155,7 @@ class Core:
             self._logger.info(f"EoE bridge: {drives} through {tap.name}")
         with self._session.lock:
             self._session.bus = bus
+        self._publishing.start()
         modes = ", ".join(sorted({j.mode for j in s.joints}))
         self._logger.info(
             f"configured: {self._where()} on {s.link} in Op, cycle {s.cycle_time * 1e3:g} ms, mode {modes}"
@@ -167,6 +173,7 @@ class Core:
                     return self._fail(f"parameter latch.arm of {joint.name}: latch {channel}/{edge} not armed: {e}")
         self._diagnostics.restart_counters()
         self._session.active = True
+        self._publishing.set_active(True)
         if self.settings.enable_on_start:
             ok, message = self._commands.request_all("enable")
             if ok:
@@ -179,6 +186,7 @@ class Core:
     def deactivate(self) -> None:
         """Stops publishing and accepting commands and disables the drives."""
         self._session.active = False
+        self._publishing.set_active(False)
         ok, message = self._commands.request_all("disable")
         if not ok:
             self._logger.error(f"deactivate: {message}")
@@ -187,6 +195,7 @@ class Core:
         """Stops publishing, disables the drives and returns the line to Init (does nothing when not configured)."""
         session = self._session
         session.active = False
+        self._publishing.stop()
         with session.lock:
             bus, session.bus = session.bus, None
         recorder, session.recorder = session.recorder, None

@@ -15,6 +15,7 @@ virtual AKDs with `missed=warn` go on (docs/virtual_akd.md)."""
 
 from __future__ import annotations
 
+from akd_ros import _native
 from akd_ros.node.homing import joint_homed
 from akd_ros.node.io import named_levels, reasons
 from akd_ros.node.publishing import Publishing, RecordedPublisher
@@ -26,6 +27,11 @@ FBUS_PARAM02_UNKNOWN = (
     "set FBUS.PARAM02 = 1 on the drive (WorkBench) for its PLL to follow SYNC0"
 )
 """What /diagnostics says of a drive with distributed clocks whose FBUS.PARAM02 the master left alone."""
+
+
+def _number(level: bytes | int) -> int:
+    """A DiagnosticStatus level as its number."""
+    return level[0] if isinstance(level, bytes) else int(level)
 
 
 def f125_warning(stats: dict, new: int) -> str:
@@ -73,12 +79,9 @@ class Diagnostics:
         self._joints = {j.name: j for j in session.joints}
         self._node_name, self._publishing = node_name, publishing
         self._transport = transport
-        self._array = transport.message_class("diagnostic_msgs/msg/DiagnosticArray")
-        self._status = transport.message_class("diagnostic_msgs/msg/DiagnosticStatus")
-        # The levels as the transport's messages spell them (a byte in rclpy's, an int in rosbags').
-        self._ok, self._warn, self._error = self._status.OK, self._status.WARN, self._status.ERROR
-        self._key_value = transport.message_class("diagnostic_msgs/msg/KeyValue")
-        self._header = transport.message_class("std_msgs/msg/Header")
+        status = transport.message_class("diagnostic_msgs/msg/DiagnosticStatus")
+        # The levels' numbers, from the transport's message class (a byte in rclpy's, an int in rosbags').
+        self._ok, self._warn, self._error = (_number(level) for level in (status.OK, status.WARN, status.ERROR))
         self.publisher = RecordedPublisher(
             transport, "diagnostic_msgs/msg/DiagnosticArray", "/diagnostics", qos, session
         )
@@ -96,9 +99,15 @@ class Diagnostics:
         bus, states, stats = taken
         counted = ["overruns", "f125_stalls", "lost_frames", "wkc_errors", "events_dropped"]
         # Cycle records are taken only while recording; then each one lost is a cycle missing from the bag.
-        if self._session.recorder is not None:
+        recorder = self._session.recorder
+        if recorder is not None:
             counted.append("samples_dropped")
         counters = {k: stats[k] for k in counted}
+        # What the crate made and nobody published in time, and, recording, what the bag's writer could not take
+        # (its queue full, its disk failed): counted, never waited for.
+        counters["messages_dropped"] = self._publishing.feed_dropped()
+        if recorder is not None:
+            counters["records_dropped"] = recorder.stats.dropped
         # The middleware's drops (a Zenoh sample without rmw_zenoh's attachment) grow the bus's WARN as the cycle's do.
         counters |= self._transport.counters()
         grown = [k for k, v in counters.items() if v > self._counters_seen.get(k, v)]
@@ -113,9 +122,11 @@ class Diagnostics:
         statuses = [self._joint_status(bus[j], state, dc_status, recovery[j], ios[j]) for j, state in states.items()]
         lost = [joint for joint, r in recovery.items() if r["recovering"]]
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
-        self.publisher.publish(self._array(header=self._header(stamp=self._clock.stamp()), status=statuses))
+        # The message's body is the crate's to make: no message object per key and value.
+        stamp_ns = self._clock.now_ns()
+        self.publisher.publish_serialized(_native.diagnostic_array(stamp_ns, statuses), stamp_ns)
 
-    def _joint_status(self, axis, state, dc_status: dict, recovery: dict, io) -> object:
+    def _joint_status(self, axis, state, dc_status: dict, recovery: dict, io) -> tuple:
         """The status of one joint: its drive's state, mode, position, DC, recovery and last fault, what of its I/O
         (`io`, its `AxisIo`) holds it back, and its named inputs and outputs."""
         held = reasons(io, state.statusword)
@@ -168,7 +179,7 @@ class Diagnostics:
         hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
         return self._status_message(level, axis.name, summary, hardware_id, values)
 
-    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict, lost: list) -> object:
+    def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict, lost: list) -> tuple:
         """The status of the bus: the link, the cycle's counters and timing, distributed clocks, the joints' worst."""
         faulted = [j for j, s in states.items() if s.state in FAULT_STATES]
         stale = not all(s.fresh for s in states.values())
@@ -208,12 +219,7 @@ class Diagnostics:
             }
         return self._status_message(level, "bus", summary, f"EtherCAT line {self._settings.link}", values)
 
-    def _status_message(self, level, what: str, summary: str, hardware_id: str, values: dict) -> object:
-        """A DiagnosticStatus `<node>: <what>` of `values` (each shown as text)."""
-        return self._status(
-            level=level,
-            name=f"{self._node_name}: {what}",
-            message=summary,
-            hardware_id=hardware_id,
-            values=[self._key_value(key=k, value=str(v)) for k, v in values.items()],
-        )
+    def _status_message(self, level: int, what: str, summary: str, hardware_id: str, values: dict) -> tuple:
+        """A DiagnosticStatus `<node>: <what>` of `values` (each shown as text), as `_native.diagnostic_array` takes
+        it."""
+        return (level, f"{self._node_name}: {what}", summary, hardware_id, [(k, str(v)) for k, v in values.items()])

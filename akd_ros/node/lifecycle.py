@@ -17,6 +17,7 @@ from akd_ros.node.core import NODE_NAME, Core
 from akd_ros.node.ros_parameters import declare
 from akd_ros.node.ros_transport import RosTransport
 from akd_ros.params import Settings
+from akd_ros.recorder import Recorder
 
 __all__ = ["NODE_NAME", "AkdNode"]
 
@@ -57,6 +58,11 @@ class AkdNode(LifecycleNode):
     def bus(self) -> Bus | None:
         """The Bus while configured, else None."""
         return self._core.bus
+
+    @property
+    def recorder(self) -> Recorder | None:
+        """The Recorder while configured with record.enabled, else None."""
+        return self._core.recorder
 
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         """Opens the Bus: the line to Op and the cycle thread running, every drive disabled."""

@@ -1,30 +1,53 @@
 """Publishing: /joint_states (sensor_msgs/JointState, SI: every joint, all of one cycle), and per joint its status
-(DriveStatus), latch (LatchEvent) and fault (DriveFault) topics, each message recorded at its stamp when recording,
-and the cycle records taken with the events.
+(DriveStatus), latch (LatchEvent) and fault (DriveFault) topics, each message recorded at its stamp when recording.
 
-The timers run in every state and do nothing unless the node is active: cancelling a timer the executor has already
-taken as ready makes rclpy raise in the executor."""
+How the node publishes, and where a new publication goes
+--------------------------------------------------------
+
+/joint_states and each joint's status are made by the crate (`akd_ros._native.Feed`, see `native/src/node/feed.rs`):
+from configure to cleanup a thread of the crate reads the cycle's snapshot at each stream's rate, makes the message
+bodies (CDR, serialised by `cdr-encoding` from the .msg fields) and hands them out. One Python thread of this part
+(`akd-publish`) waits for them with the GIL released and hands each to its publisher as bytes
+(`Publisher.publish_serialized`); while recording, the crate queues the same bytes in the bag itself
+(`Recorder.take_stream_from`), and the bag's writer thread takes every cycle's records from the cycle without Python
+(`Recorder.take_cycles_from`). So Python wakes at the publication rates, never per cycle, and a message costs it one
+publish call, whatever the message holds.
+
+The events (latches, faults, command time-outs) stay Python's: they are rare and carry texts. The feed says when
+the cycle has events waiting; this thread then takes them, publishes them, logs the faults and has the recorder write
+their black box.
+
+Another periodic publication (the drive's I/O on ~/io, say) is added the same way: its message struct and its making
+from the snapshot in the crate (a `Kind` of `native/src/node/feed.rs`; on change: compared there with what it last
+made, at its stream's check rate), a `Feed.add_...` stream here in `_start_feed` with its period, and its publisher in
+`self._streams` by the stream's id (recorded with `take_stream_from` when the topic is in the bag). Nothing of it runs
+in Python but the publish call. A publication that must go through an rclpy API taking message objects (an action's
+feedback) takes the same snapshot-derived values from the crate at its own rate and builds its message there, at that
+rate, never per cycle.
+"""
 
 from __future__ import annotations
 
-import math
 import re
+import threading
+import time
 from collections.abc import Callable
 
-from akd_ros.axis import MODES
+from akd_ros import _native
 from akd_ros.node.clock import nanoseconds
-from akd_ros.node.homing import joint_homed
-from akd_ros.node.recording import record_cycles
 from akd_ros.node.session import Session, namespace
 from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.worker import name_this_thread
 
 EDGE_RISING, EDGE_FALLING = 1, 2
 """LatchEvent's edge codes (its EDGE_RISING and EDGE_FALLING constants)."""
 EDGE_NAMES = {EDGE_RISING: "rising", EDGE_FALLING: "falling"}
 """Latch edges by their LatchEvent code."""
 _EDGE_CODES = {name: code for code, name in EDGE_NAMES.items()}
-# Events are taken from the cycle thread at this rate; its queue holds 256, far more than arrive in 20 ms.
-_EVENT_POLL_S = 0.02
+# How long the publishing thread waits for the feed at most: how soon it sees the node closed.
+_TAKE_TIMEOUT_S = 0.5
+# How often the ROS minus monotonic time that stamps the crate's messages and the recorded cycles is read again.
+_OFFSET_PERIOD_S = 1.0
 
 
 def snake(name: str | None) -> str:
@@ -53,6 +76,17 @@ class RecordedPublisher:
         if recorder is not None:
             recorder.write(self.topic_name, message, nanoseconds(message.header.stamp))
 
+    def publish_serialized(self, data: bytes, stamp_ns: int) -> None:
+        """Publishes a message given serialised, stamped `stamp_ns`, and records it at that stamp."""
+        self._publisher.publish_serialized(data)
+        recorder = self._session.recorder
+        if recorder is not None:
+            recorder.write_serialized(self.topic_name, data, stamp_ns)
+
+    def publish_made(self, data: bytes) -> None:
+        """Publishes a message the crate made (and records itself)."""
+        self._publisher.publish_serialized(data)
+
 
 class JointPublishers:
     """One joint's status, latch and fault publishers."""
@@ -65,14 +99,14 @@ class JointPublishers:
 
 
 class Publishing:
-    """The periodic joint_states and statuses, and the events (latches, faults, command time-outs) with the cycle
-    records; `on_fault(joint)` is called for each fault published."""
+    """/joint_states and the statuses made by the crate, and the events (latches, faults, command time-outs) with the
+    recorder's black box; `on_fault(joint)` is called for each fault published. `start()` at configure, `stop()` at
+    cleanup, `set_active` at activate and deactivate."""
 
     def __init__(
         self,
         transport: Transport,
         session: Session,
-        group,
         reliable: Qos,
         events: Qos,
         on_fault: Callable[[str], None],
@@ -80,8 +114,6 @@ class Publishing:
         self._session, self._clock, self._settings, self._on_fault = session, session.clock, session.settings, on_fault
         self._logger = transport.logger
         self._header = transport.message_class("std_msgs/msg/Header")
-        self._joint_state = transport.message_class("sensor_msgs/msg/JointState")
-        self._drive_status = transport.message_class("akd_ros/msg/DriveStatus")
         self._latch_event = transport.message_class("akd_ros/msg/LatchEvent")
         self._drive_fault = transport.message_class("akd_ros/msg/DriveFault")
         self.joint_states = RecordedPublisher(
@@ -91,55 +123,78 @@ class Publishing:
         """Each joint's publishers by its name."""
         self.last_fault: dict[str, object] = {}
         """The last fault published of each joint, for /diagnostics."""
-        transport.timer(1.0 / session.settings.joint_states_rate, self._publish_joint_states, group)
-        transport.timer(1.0 / session.settings.status_rate, self._publish_status, group)
-        transport.timer(_EVENT_POLL_S, self._publish_events, group)
+        self.offset_ns = 0
+        """ROS minus monotonic time as last read: it stamps the crate's messages, the recorded cycles and the events,
+        so that a fault's black box ends at the fault's own cycle."""
+        self._feed: _native.Feed | None = None
+        self._streams: dict[int, RecordedPublisher] = {}
+        self._thread: threading.Thread | None = None
 
     def publishers(self) -> list[RecordedPublisher]:
         """Every publisher of this part, for the recorder."""
         return [self.joint_states] + [p for j in self.joints.values() for p in (j.status, j.latch, j.fault)]
 
-    def _publish_joint_states(self) -> None:
-        taken = self._session.states()
-        if taken is None:
-            return
-        _, states, _ = taken
-        values = list(states.values())
-        # JointState leaves velocity or effort empty when they are not all known.
-        message = self._joint_state(
-            header=self._header(stamp=self._clock.stamp()),
-            name=list(states),
-            position=[s.position for s in values],
-            velocity=[s.velocity for s in values] if all(s.velocity is not None for s in values) else [],
-            effort=[s.torque for s in values] if all(s.torque is not None for s in values) else [],
-        )
-        self.joint_states.publish(message)
+    def start(self) -> None:
+        """Starts the crate's feed of the session's Bus and the thread that publishes what it makes (at configure,
+        once the Bus and the recorder are there)."""
+        bus, settings = self._session.bus, self._settings
+        homes = {joint.name: joint.homing_method != "none" for joint in self._session.joints}
+        feed = _native.Feed(bus.cycle, [(axis.slave, axis.name, axis.units, homes[axis.name]) for axis in bus.axes])
+        self._streams = {feed.add_joint_states(1.0 / settings.joint_states_rate): self.joint_states}
+        for k, axis in enumerate(bus.axes):
+            self._streams[feed.add_drive_status(k, 1.0 / settings.status_rate)] = self.joints[axis.name].status
+        self._read_offset(feed)
+        recorder = self._session.recorder
+        if recorder is not None:
+            recorder.take_cycles_from(feed)
+            for stream, publisher in self._streams.items():
+                recorder.take_stream_from(feed, stream, publisher.topic_name)
+        feed.start()
+        self._feed = feed
+        self._thread = threading.Thread(target=self._run, args=(feed,), name="akd-publish", daemon=True)
+        self._thread.start()
 
-    def _publish_status(self) -> None:
-        taken = self._session.states(with_stats=True)
-        if taken is None:
-            return
-        bus, states, stats = taken
-        stamp = self._clock.stamp()
-        for joint, state in states.items():
-            message = self._drive_status(
-                header=self._header(stamp=stamp),
-                joint=joint,
-                ds402_state=snake(state.state),
-                statusword=state.statusword,
-                mode=state.mode or bus[joint].mode,
-                mode_of_operation=MODES.get(state.mode, 0),
-                following_error=math.nan if state.following_error is None else state.following_error,
-                homed=joint_homed(self._session.joint(joint), bus[joint]),
-                cycles=stats["cycles"],
-                overruns=stats["overruns"],
-                lost_frames=stats["lost_frames"],
-                wkc_errors=stats["wkc_errors"],
-                period_mean=stats["period"]["mean_ns"] * 1e-9,
-                period_max=stats["period"]["max_ns"] * 1e-9,
-                exchange_p99=stats["exchange"]["p99_ns"] * 1e-9,
-            )
-            self.joints[joint].status.publish(message)
+    def set_active(self, active: bool) -> None:
+        """Starts (or stops) making and publishing messages."""
+        if self._feed is not None:
+            if active:
+                self._read_offset(self._feed)
+            self._feed.set_active(active)
+
+    def stop(self) -> None:
+        """Stops the feed and the publishing thread (before the Bus closes)."""
+        feed, self._feed = self._feed, None
+        if feed is not None:
+            feed.stop()
+        if self._thread is not None:
+            self._thread.join(timeout=5.0)
+            self._thread = None
+
+    def feed_dropped(self) -> int:
+        """Messages the crate made that this part did not take in time (0 when not started)."""
+        return 0 if self._feed is None else self._feed.dropped
+
+    def _read_offset(self, feed) -> None:
+        self.offset_ns = self._clock.ros_minus_monotonic_ns()
+        feed.set_offset(self.offset_ns)
+
+    def _run(self, feed) -> None:
+        name_this_thread("akd-publish")
+        streams, next_offset = self._streams, time.monotonic() + _OFFSET_PERIOD_S
+        while self._feed is feed:
+            messages, events = feed.take(_TAKE_TIMEOUT_S)
+            try:
+                for stream, data in messages:
+                    streams[stream].publish_made(data)
+                bus = self._session.bus
+                # Another part taking its events may have filed these drives' under them meanwhile.
+                if events or (bus is not None and bus.events_waiting()):
+                    self._publish_events()
+                if time.monotonic() >= next_offset:
+                    next_offset += _OFFSET_PERIOD_S
+                    self._read_offset(feed)
+            except Exception as e:  # noqa: BLE001  (logged; publishing goes on)
+                self._logger.error(f"publishing failed: {type(e).__name__}: {e}")
 
     def _publish_events(self) -> None:
         session = self._session
@@ -150,11 +205,7 @@ class Publishing:
                 (a, list(a.latch_events()), list(a.fault_events()), list(a.command_timeout_events()))
                 for a in session.bus.axes
             ]
-            # Taken with the events, so the black box holds the cycles up to a fault when it is written.
             recorder = session.recorder
-            columns = [(a, a.samples()) for a in session.bus.axes] if recorder is not None else None
-        if columns is not None:
-            record_cycles(recorder, columns, self._clock.ros_minus_monotonic_ns())
         how_to_enable = "call ~/enable to go on"
         # A fault of the link (a lost frame, a working counter) is every drive's in the same cycle: one line for all.
         logged: dict[tuple, list[str]] = {}
@@ -166,13 +217,14 @@ class Publishing:
                 self._logger.warning(f"{', '.join(joints)}: {text}; {how_to_enable}")
             else:
                 self._logger.error(f"fault of {', '.join(joints)}: {text}")
+        offset = self.offset_ns
         for axis, latches, faults, timeouts in taken:
             joint = axis.name
             for e in timeouts:
                 self._logger.warning(f"{joint}: {e.describe(how_to_enable)}")
             for e in latches:
                 message = self._latch_event(
-                    header=self._header(stamp=self._clock.stamp(e.time_ns)),
+                    header=self._header(stamp=self._clock.time(e.time_ns + offset)),
                     joint=joint,
                     channel=e.channel,
                     edge=_EDGE_CODES[e.edge],
@@ -182,7 +234,7 @@ class Publishing:
                 self.joints[joint].latch.publish(message)
             for e in faults:
                 message = self._drive_fault(
-                    header=self._header(stamp=self._clock.stamp(e.time_ns)),
+                    header=self._header(stamp=self._clock.time(e.time_ns + offset)),
                     joint=joint,
                     source=e.source,
                     code=min(e.code, 0xFFFF),
@@ -195,5 +247,6 @@ class Publishing:
                 self.last_fault[joint] = message
                 self.joints[joint].fault.publish(message)
                 if recorder is not None:
-                    recorder.fault(nanoseconds(message.header.stamp))
+                    # The same offset as the recorded cycles': the black box ends at the fault's own cycle.
+                    recorder.fault(e.time_ns + offset)
                 self._on_fault(joint)

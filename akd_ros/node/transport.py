@@ -47,6 +47,10 @@ class Publisher(Protocol):
     def publish(self, message: Any) -> None:
         """Sends `message`."""
 
+    def publish_serialized(self, data: bytes) -> None:
+        """Sends a message given serialised as rmw publishes it (CDR behind its encapsulation header), e.g. made by
+        the crate (`akd_ros._native.Feed`): nothing is built or serialised in Python."""
+
 
 class Transport(Protocol):
     """A middleware the node's parts run on (see the module doc)."""
@@ -83,8 +87,9 @@ class Transport(Protocol):
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         """Calls `callback` every `period` seconds."""
 
-    def group(self) -> Any:
-        """A callback group: callbacks of one group never run at the same time; of different groups they may."""
+    def group(self, name: str) -> Any:
+        """A callback group named `name` (its thread's name: akd-`name`): callbacks of one group never run at the same
+        time; of different groups they may."""
 
     def now_ns(self) -> int:
         """ROS time now, in nanoseconds."""

@@ -17,6 +17,7 @@ import sys
 import threading
 import time
 
+from akd_ros.node import hold_gil_briefly
 from akd_ros.node.core import NODE_NAME, Core
 from akd_ros.params import Settings
 
@@ -77,6 +78,7 @@ def run(settings: Settings) -> int:
     """Runs the node on Zenoh until SIGINT/SIGTERM; its exit status (1 when configure or activate failed)."""
     from akd_ros.node.zenoh_transport import ZenohTransport
 
+    hold_gil_briefly()
     logger = Logger(NODE_NAME)
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):

@@ -39,6 +39,9 @@ class _Publisher:
     def publish(self, message: Any) -> None:
         self._publisher.publish(self._transport.types.to_cdr(message, self._type_name))
 
+    def publish_serialized(self, data: bytes) -> None:
+        self._publisher.publish(data)
+
 
 class ZenohTransport:
     """The transport of `zenoh_node` (an `akd_ros.zenoh.ZenohNode` named `name`), logging to `logger` (see
@@ -69,6 +72,9 @@ class ZenohTransport:
         return _Publisher(self, type_name, topic, qos)
 
     def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: Worker) -> str:
+        # rosbags compiles a type's (de)serialiser at its first use: here, not in front of the first commands (or of
+        # the recording of the first, which would hold up the second by milliseconds).
+        self.types.from_cdr(self.types.to_cdr(self.types.message(type_name), type_name), type_name)
         self.zenoh_node.subscription(
             topic,
             type_name,
@@ -101,8 +107,8 @@ class ZenohTransport:
     def timer(self, period: float, callback: Callable[[], None], group: Worker) -> None:
         group.add_timer(period, callback)
 
-    def group(self) -> Worker:
-        group = Worker(f"akd-node-{len(self._groups)}", self.logger)
+    def group(self, name: str) -> Worker:
+        group = Worker(f"akd-{name}", self.logger)
         self._groups.append(group)
         return group
 

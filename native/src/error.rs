@@ -1214,6 +1214,8 @@ pub enum SettingError {
     ImageTooLarge {
         /// Output and input bytes.
         bytes: usize,
+        /// The most one frame carries beside the clock's datagrams.
+        limit: usize,
     },
     /// A process image and the supervision reads that together exceed one frame.
     SupervisionTooLarge {
@@ -1221,7 +1223,7 @@ pub enum SettingError {
         image: usize,
         /// Slaves supervised.
         slaves: usize,
-        /// Bytes of the status reads.
+        /// Bytes of the broadcast status reads.
         watch: usize,
     },
     /// A host name that resolves to no address.
@@ -1348,11 +1350,15 @@ impl fmt::Display for SettingError {
                 f,
                 "a mapping is a fixed mapping index (e.g. 0x1701) or a list of PDOs, each a list of entries 0xIIIISSBB"
             ),
-            SettingError::ImageTooLarge { bytes } => write!(f, "process image of {bytes} bytes does not fit one frame"),
+            SettingError::ImageTooLarge { bytes, limit } => write!(
+                f,
+                "process image of {bytes} bytes (outputs and inputs of every drive) does not fit one frame ({limit} \
+                 bytes at most): map fewer objects per drive, e.g. a flexible mapping of what the mode needs"
+            ),
             SettingError::SupervisionTooLarge { image, slaves, watch } => write!(
                 f,
-                "the process image ({image} bytes) and the status reads of {slaves} slaves ({watch} bytes) do not fit \
-                 one frame"
+                "the process image ({image} bytes) leaves no room in one frame for the status reads of {slaves} \
+                 slaves ({watch} bytes)"
             ),
             SettingError::UnresolvedHost { host, role: "bind" } => {
                 write!(f, "cannot resolve {host:?} as a host to bind")

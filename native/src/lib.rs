@@ -32,8 +32,12 @@
 //! `python`) sit on top of all of them and are the only place that opens a link spec, since
 //! only they may see both the links and the simulator.
 //!
-//! [`bag_file`] stands apart from the EtherCAT layers: it writes the MCAP files of the
-//! recorder's rosbag2 bags, whose per-cycle records [`cycle::record`] serialises.
+//! [`ros_msgs`] is a codec too: the ROS messages the crate serialises itself (CDR by
+//! `cdr-encoding`). [`bag_file`] and [`bag_writer`] stand apart from the EtherCAT layers: one
+//! MCAP file of a rosbag2 bag, and the thread that writes a bag's files (topics, messages,
+//! per-cycle records, the black box). [`node`] sits on the cycle and the bag writer: what the
+//! ROS node publishes and records of a running cycle, made off the Python path ([`node::feed`],
+//! [`node::cycle_records`]), with the per-cycle records [`cycle::record`] serialises.
 
 #![deny(missing_docs)]
 
@@ -43,6 +47,7 @@ mod wire_code;
 pub mod akd_fault;
 pub mod al;
 pub mod bag_file;
+pub mod bag_writer;
 pub mod coe;
 pub mod cycle;
 pub mod dc;
@@ -55,9 +60,11 @@ pub mod io;
 pub mod link;
 pub mod mailbox;
 pub mod master;
+pub mod node;
 pub mod objects;
 pub mod pdo;
 pub mod registers;
+pub mod ros_msgs;
 pub mod scaling;
 pub mod sii;
 pub mod sim;

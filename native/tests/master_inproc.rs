@@ -13,6 +13,7 @@ use akd_native::frame::{self, Command};
 use akd_native::link::Link;
 use akd_native::master::{Mapping, Master};
 use akd_native::pdo::{self, Direction, PdoEntry};
+use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 
@@ -626,9 +627,14 @@ impl Link for Recording {
     }
 }
 
-#[test]
-fn supervision_reads_the_whole_line_by_broadcast_until_a_drive_changes_and_then_each_in_that_cycle() {
-    let inner = InProcess::new(3);
+/// What one exchange of [`recorded`] gives: its result, and the commands of every frame it sent.
+type Cycled = (std::result::Result<u16, String>, Vec<Vec<Command>>);
+
+/// A supervised master in Op on `count` virtual AKDs behind a [`Recording`] link, the control of
+/// the drives, whether the next frame of reads alone is lost, and a cycle: one exchange, its
+/// result and the commands of every frame it sent.
+fn recorded(count: usize) -> (Master, SimControl, Arc<AtomicBool>, impl Fn(&mut Master) -> Cycled) {
+    let inner = InProcess::new(count);
     let control = inner.control();
     let frames = Arc::new(std::sync::Mutex::new(Vec::new()));
     let lose_reads = Arc::new(AtomicBool::new(false));
@@ -637,11 +643,17 @@ fn supervision_reads_the_whole_line_by_broadcast_until_a_drive_changes_and_then_
     m.scan().unwrap();
     m.request_state(AlState::Op, STEP).unwrap();
     m.set_supervision(true).unwrap();
-    let cycle = |m: &mut Master| {
+    let cycle = move |m: &mut Master| {
         frames.lock().unwrap().clear();
         let result = m.exchange().map_err(|e| e.to_string());
         (result, std::mem::take(&mut *frames.lock().unwrap()))
     };
+    (m, control, lose_reads, cycle)
+}
+
+#[test]
+fn supervision_reads_the_whole_line_by_broadcast_until_a_drive_changes_and_then_each_in_that_cycle() {
+    let (mut m, control, lose_reads, cycle) = recorded(3);
     let each = [vec![Command::Lrw], [Command::Fprd; 6].to_vec()].concat();
     let whole = vec![Command::Lrw, Command::Brd, Command::Brd];
     // Nothing seen yet: every drive read on its own; from then on the line as a whole.
@@ -693,4 +705,37 @@ fn supervision_reads_the_whole_line_by_broadcast_until_a_drive_changes_and_then_
     let states: Vec<_> = m2.watch().unwrap().iter().map(|w| (w.answered, w.al_status.state())).collect();
     assert_eq!(states, vec![(true, Some(AlState::PreOp)), (true, Some(AlState::Op))]);
     assert_eq!(m2.stats().lost_frames, 0);
+}
+
+#[test]
+fn a_line_too_long_for_each_drives_reads_in_the_cyclic_frame_reads_them_in_frames_of_their_own() {
+    // 64 drives: every drive's own reads (31 bytes each) do not fit beside the process data, so
+    // the cyclic frame keeps its broadcast reads and each drive is read in frames after it, 48
+    // drives a frame, while they are not all alike (the first cycle, an emergency waiting).
+    let (mut m, control, _, exchange) = recorded(64);
+    let cycle = |m: &mut Master| {
+        let (result, sent) = exchange(m);
+        (result.is_ok(), sent)
+    };
+    let whole = vec![Command::Lrw, Command::Brd, Command::Brd];
+    let each = vec![[Command::Fprd; 96].to_vec(), [Command::Fprd; 32].to_vec()];
+    assert_eq!(cycle(&mut m), (true, [vec![whole.clone()], each.clone()].concat()));
+    assert_eq!(cycle(&mut m), (true, vec![whole.clone()]));
+    control.inject_fault(40, "F439").unwrap();
+    let deadline = std::time::Instant::now() + STEP;
+    loop {
+        assert!(std::time::Instant::now() < deadline, "the emergency was never seen");
+        let (ok, sent) = cycle(&mut m);
+        assert!(ok);
+        if sent.len() > 1 {
+            assert_eq!(sent, [vec![whole.clone()], each.clone()].concat());
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    let mail: Vec<usize> =
+        m.watch().unwrap().iter().enumerate().filter(|(_, w)| w.mailbox_full).map(|(n, _)| n).collect();
+    assert_eq!(mail, vec![40]);
+    assert!(m.watch().unwrap().iter().all(|w| w.answered));
+    assert_eq!(m.stats().wkc_errors, 0);
 }

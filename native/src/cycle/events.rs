@@ -452,6 +452,16 @@ impl Events {
         self.ring.drain(Event::decode)
     }
 
+    /// Whether an event waits to be taken.
+    pub fn pending(&self) -> bool {
+        self.ring.pending()
+    }
+
+    /// Events pushed so far (dropped ones not counted).
+    pub fn pushed(&self) -> u64 {
+        self.ring.pushed()
+    }
+
     /// Events dropped because the ring was full.
     pub fn dropped(&self) -> u64 {
         self.ring.dropped()

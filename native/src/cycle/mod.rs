@@ -479,6 +479,16 @@ impl CycleThread {
         self.shared.events.drain()
     }
 
+    /// Whether an event waits to be taken (lock-free: a publisher's thread asks it often).
+    pub fn events_pending(&self) -> bool {
+        self.shared.events.pending()
+    }
+
+    /// Events pushed since the cycle started (lock-free): a new one since a look made it grow.
+    pub fn events_pushed(&self) -> u64 {
+        self.shared.events.pushed()
+    }
+
     /// Events lost because nobody took them and the ring filled up.
     pub fn events_dropped(&self) -> u64 {
         self.shared.events.dropped()
@@ -555,6 +565,12 @@ impl CycleThread {
         drive.hold();
         self.shared.command_timeouts[position as usize].release();
         Ok(())
+    }
+
+    /// The mode of operation last set on the drive at `position` ([`set_mode`](Self::set_mode),
+    /// or its display when the cycle started), `None` before either.
+    pub fn mode_set(&self, position: u16) -> Option<i8> {
+        self.shared.recovery.get(position as usize).and_then(recovery::SlaveRecovery::mode)
     }
 
     /// Sets or clears halt (controlword bit 8) on the drive at `position`.

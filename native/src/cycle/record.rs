@@ -7,14 +7,9 @@
 //! lays them out with CDR's alignment. A test in `tests/test_cycle_record.py` compares these
 //! bytes with rclpy's serialisation of the same message.
 
-use serde::Serialize;
-
 use crate::cycle::samples::Sample;
 use crate::ds402::{Command, Mode};
-
-/// The encapsulation header of CDR little endian (RTPS's `CDR_LE`, options 0).
-const CDR_LE_HEADER: [u8; 4] = [0x00, 0x01, 0x00, 0x00];
-const NS_PER_S: i64 = 1_000_000_000;
+use crate::ros_msgs::{self, Time};
 
 /// How one joint's drive units become SI, as the node's units give them.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -25,30 +20,6 @@ pub struct JointScale {
     pub position_offset: f64,
     /// N·m (or N) per torque unit (0.1 % of the drive's peak torque).
     pub si_per_torque_unit: f64,
-}
-
-#[derive(Serialize)]
-struct Time {
-    sec: i32,
-    nanosec: u32,
-}
-
-#[derive(Serialize)]
-struct CycleSample<'a> {
-    stamp: Time,
-    cycle: u64,
-    joint: &'a str,
-    position: f64,
-    velocity: f64,
-    torque: f64,
-    command: f64,
-    following_error: f64,
-    position_counts: i32,
-    statusword: u16,
-    mode_of_operation: i8,
-    period_ns: u32,
-    exchange_ns: u32,
-    wkc: u16,
 }
 
 /// `sample` of `joint` as a serialised `akd_ros/msg/CycleSample` stamped `stamp_ns` (ROS time,
@@ -63,8 +34,8 @@ pub fn encode(sample: &Sample, joint: &str, scale: &JointScale, stamp_ns: i64) -
         Some(Command::Torque) => torque(sample.target_torque),
         None => f64::NAN,
     };
-    let message = CycleSample {
-        stamp: Time { sec: stamp_ns.div_euclid(NS_PER_S) as i32, nanosec: stamp_ns.rem_euclid(NS_PER_S) as u32 },
+    let message = ros_msgs::CycleSample {
+        stamp: Time::from_ns(stamp_ns),
         cycle: sample.cycle,
         joint,
         position: position(sample.position),
@@ -79,12 +50,27 @@ pub fn encode(sample: &Sample, joint: &str, scale: &JointScale, stamp_ns: i64) -
         exchange_ns: sample.exchange_ns,
         wkc: sample.wkc,
     };
-    let mut data = Vec::with_capacity(CDR_LE_HEADER.len() + 96 + joint.len());
-    data.extend_from_slice(&CDR_LE_HEADER);
-    // Writing into a Vec cannot fail, and every field has a CDR type.
-    cdr_encoding::to_writer::<_, byteorder::LittleEndian, _>(&mut data, &message)
-        .expect("a CycleSample always serialises");
-    data
+    ros_msgs::to_cdr(&message, 96 + joint.len())
+}
+
+/// The records of joint `rows` (each the joint's index in `joints`, which gives its name and
+/// scale, and its sample) as (ROS time ns, serialised CycleSample), cycle by cycle and within a
+/// cycle in the order of `joints`; each stamped with its cycle's wake-up time plus `offset_ns`
+/// (ROS minus monotonic time).
+pub fn encode_rows(
+    mut rows: Vec<(usize, Sample)>,
+    joints: &[(&str, JointScale)],
+    offset_ns: i64,
+) -> Vec<(i64, Vec<u8>)> {
+    // Stable: a drive's records of one cycle stay in the order they were taken.
+    rows.sort_by_key(|&(k, sample)| (sample.cycle, k));
+    rows.iter()
+        .map(|(k, sample)| {
+            let (joint, scale) = joints[*k];
+            let stamp_ns = sample.time_ns as i64 + offset_ns;
+            (stamp_ns, encode(sample, joint, &scale, stamp_ns))
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -121,7 +107,7 @@ mod tests {
     #[test]
     fn fields_sit_where_cdr_aligns_them_after_the_header() {
         let data = encode(&sample(Mode::CyclicSynchronousPosition), "j1", &SCALE, -1);
-        assert_eq!(data[..4], CDR_LE_HEADER);
+        assert_eq!(data[..4], [0, 1, 0, 0]);
         let body = &data[4..];
         // One nanosecond before the epoch: second -1 and its last nanosecond.
         assert_eq!(i32::from_le_bytes(body[0..4].try_into().unwrap()), -1);

@@ -23,6 +23,10 @@ use crate::master::Master;
 pub const LOST_AFTER: u32 = crate::cycle::supervision::DRIVE_MISSED_FRAME_LIMIT;
 /// How long the recovery thread waits after a failed attempt before the next.
 pub const RETRY_INTERVAL: Duration = Duration::from_millis(200);
+/// How often the recovery thread looks whether the cycle thread lost a slave, while none is lost.
+const IDLE_POLL: Duration = Duration::from_millis(20);
+/// How often it looks while one is.
+const RECOVERING_POLL: Duration = Duration::from_millis(2);
 
 const FREE: u8 = 0;
 const ASKED: u8 = 1;
@@ -214,6 +218,11 @@ impl SlaveRecovery {
         *self.mode.lock().unwrap_or_else(|p| p.into_inner()) = Some(mode);
     }
 
+    /// The mode last set.
+    pub fn mode(&self) -> Option<i8> {
+        *self.mode.lock().unwrap_or_else(|p| p.into_inner())
+    }
+
     /// Where it stands.
     pub fn status(&self) -> RecoveryStatus {
         RecoveryStatus {
@@ -331,7 +340,9 @@ impl Recoverer {
                     }
                 }
             }
-            std::thread::sleep(Duration::from_millis(2));
+            // Soon again while a slave is lost; rarely while none is (it cost 0.2-0.4 % of a core at 500 Hz).
+            let lost = slaves.iter().any(|s| s.wanted.load(Ordering::Acquire));
+            std::thread::sleep(if lost { RECOVERING_POLL } else { IDLE_POLL });
         }
     }
 }

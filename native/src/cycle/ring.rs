@@ -56,6 +56,16 @@ impl<const W: usize> Ring<W> {
         records
     }
 
+    /// Records pushed so far (dropped ones not counted).
+    pub fn pushed(&self) -> u64 {
+        self.head.load(Ordering::Acquire)
+    }
+
+    /// Whether a record waits to be taken.
+    pub fn pending(&self) -> bool {
+        self.head.load(Ordering::Acquire) != self.tail.load(Ordering::Acquire)
+    }
+
     /// Records dropped because the ring was full.
     pub fn dropped(&self) -> u64 {
         self.dropped.load(Ordering::Relaxed)

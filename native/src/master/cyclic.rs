@@ -15,7 +15,10 @@
 //! second frame reads every slave on its own in the same cycle (counted in
 //! [`Stats::watch_frames`](super::Stats::watch_frames)); the cycles after it read each slave
 //! in the cyclic frame until they are all alike again (an SDO reply taken, a recovered drive
-//! back in Op). What a cycle reports of each slave is the same either way.
+//! back in Op). A line whose process data leaves no room for every slave's own reads (some 30
+//! drives and more) keeps the broadcast reads in the cyclic frame and reads the slaves on their
+//! own in frames of their own after it (as many as they take, 48 slaves a frame), every cycle
+//! while they differ. What a cycle reports of each slave is the same either way.
 //!
 //! With distributed clocks the frame also reads one slave's system-time difference (0x092C),
 //! a different slave each cycle in turn: every slave's is then at most as many cycles old as
@@ -87,6 +90,8 @@ pub struct ProcessImage {
     /// One per slave; read only while `supervised`.
     watch: Vec<SlaveWatch>,
     supervised: bool,
+    /// Whether every slave's own reads fit in the cyclic frame beside the process data.
+    each_in_frame: bool,
     frame: CyclicFrame,
 }
 
@@ -129,8 +134,9 @@ impl ProcessImage {
     fn layout(lens: &[Option<(usize, usize)>]) -> Result<Self> {
         let out_total: usize = lens.iter().flatten().map(|l| l.0).sum();
         let in_total: usize = lens.iter().flatten().map(|l| l.1).sum();
-        if out_total + in_total > frame::MAX_DATAGRAM_DATA - DC_DATAGRAMS_LEN {
-            return Err(SettingError::ImageTooLarge { bytes: out_total + in_total }.into());
+        let limit = frame::MAX_DATAGRAM_DATA - DC_DATAGRAMS_LEN;
+        if out_total + in_total > limit {
+            return Err(SettingError::ImageTooLarge { bytes: out_total + in_total, limit }.into());
         }
         let (mut out_at, mut in_at, mut expected_wkc) = (0, 0, 0);
         let slots = lens
@@ -153,6 +159,7 @@ impl ProcessImage {
             expected_wkc,
             watch: vec![unseen; lens.len()],
             supervised: false,
+            each_in_frame: false,
             frame: CyclicFrame {
                 tx: Box::new([0; frame::MAX_PAYLOAD_LEN]),
                 rx: Box::new([0; frame::MAX_PAYLOAD_LEN]),
@@ -304,12 +311,13 @@ impl Master {
         };
         let watch = match (image.supervised, common_status(&image.watch)) {
             (false, _) => None,
-            (true, Some(common)) => Some(Watch::Whole {
+            (true, None) if image.each_in_frame => Some(Watch::Each(push_watch(&self.slaves, &mut builder, index)?)),
+            // Alike (or, without room for each slave's reads, not: then read on their own after it).
+            (true, common) => Some(Watch::Whole {
                 al: builder.push_zeroed(Command::Brd, index, 0, AL_STATUS, AL_STATUS_LEN)?,
                 sm1: builder.push_zeroed(Command::Brd, index, 0, sm1_status(), 1)?,
                 common,
             }),
-            (true, None) => Some(Watch::Each(push_watch(&self.slaves, &mut builder, index)?)),
         };
         let len = builder.finish();
         self.stats.cycles += 1;
@@ -415,6 +423,10 @@ fn read_difference(clock: &mut super::clocks::Clock, slot: Slot, reply: &[u8]) -
 const AL_STATUS_LEN: usize = 6;
 /// Frame bytes each datagram takes besides its data.
 const DATAGRAM_OVERHEAD: usize = frame::DATAGRAM_HEADER_LEN + frame::WKC_LEN;
+/// Frame bytes of one slave's AL status and SM1 status reads (and of the two broadcast ones).
+const WATCH_LEN: usize = AL_STATUS_LEN + 1 + 2 * DATAGRAM_OVERHEAD;
+/// Slaves whose own reads one frame carries.
+const WATCHED_PER_FRAME: usize = (frame::MAX_PAYLOAD_LEN - frame::FRAME_HEADER_LEN) / WATCH_LEN;
 
 /// How the cyclic frame reads what it supervises.
 #[derive(Clone, Copy, Debug)]
@@ -422,8 +434,9 @@ enum Watch {
     /// Every slave's AL status and SM1 status, its own two reads from the first slot on.
     Each(Slot),
     /// While every slave was last seen in the `common` state without an error or mail: one
-    /// broadcast read of each register, which every slave answers with its value ORed in.
-    Whole { al: Slot, sm1: Slot, common: AlStatus },
+    /// broadcast read of each register, which every slave answers with its value ORed in. With
+    /// `common` `None` they were not, and their own reads did not fit: each is read after it.
+    Whole { al: Slot, sm1: Slot, common: Option<AlStatus> },
 }
 
 /// The SM1 (mailbox in) status register.
@@ -445,8 +458,10 @@ fn common_status(watch: &[SlaveWatch]) -> Option<AlStatus> {
     (one_state && watch.iter().all(|w| w.answered && !w.mailbox_full && w.al_status == common)).then_some(common)
 }
 
-/// Whether the broadcast reads say every one of `slaves` answered and is as it was.
-fn unchanged(al: Slot, sm1: Slot, common: AlStatus, slaves: usize, reply: &[u8]) -> Result<bool> {
+/// Whether the broadcast reads say every one of `slaves` answered and is as it was (`common`;
+/// never when they were not alike).
+fn unchanged(al: Slot, sm1: Slot, common: Option<AlStatus>, slaves: usize, reply: &[u8]) -> Result<bool> {
+    let Some(common) = common else { return Ok(false) };
     if al.wkc(reply)? as usize != slaves || sm1.wkc(reply)? as usize != slaves {
         return Ok(false);
     }
@@ -462,16 +477,18 @@ impl Master {
     /// let the inputs of a slave just gone be taken. With `judge`, a frame in which a slave
     /// did not answer is counted as one with a wrong working counter, as the cyclic frame is.
     fn watch_each(&mut self, judge: bool) -> Result<()> {
-        let index = self.next_index();
-        let mut builder = FrameBuilder::new(&mut self.tx[..]);
-        let first = push_watch(&self.slaves, &mut builder, index)?;
-        let len = builder.finish();
         let mut rx = [0u8; frame::MAX_PAYLOAD_LEN];
-        self.stats.watch_frames += 1;
-        let n = self.send_frame_into(len, &mut rx)?;
-        let watch = &mut self.image_mut()?.watch;
-        read_watch(watch, first, &rx[..n])?;
-        let unanswered = watch.iter().any(|w| !w.answered);
+        for start in (0..self.slaves.len()).step_by(WATCHED_PER_FRAME) {
+            let end = (start + WATCHED_PER_FRAME).min(self.slaves.len());
+            let index = self.next_index();
+            let mut builder = FrameBuilder::new(&mut self.tx[..]);
+            let first = push_watch(&self.slaves[start..end], &mut builder, index)?;
+            let len = builder.finish();
+            self.stats.watch_frames += 1;
+            let n = self.send_frame_into(len, &mut rx)?;
+            read_watch(&mut self.image_mut()?.watch[start..end], first, &rx[..n])?;
+        }
+        let unanswered = self.image()?.watch.iter().any(|w| !w.answered);
         self.stats.wkc_errors += u64::from(judge && unanswered);
         Ok(())
     }
@@ -492,21 +509,22 @@ fn push_watch(slaves: &[Slave], builder: &mut FrameBuilder<'_>, index: u8) -> Re
 }
 
 impl Master {
-    /// Turns the AL status and mailbox status reads of the cyclic frame on or off.
+    /// Turns the AL status and mailbox status reads of the cyclic frame on or off: on, they
+    /// need room for the two broadcast reads beside the process data.
     pub fn set_supervision(&mut self, on: bool) -> Result<()> {
         let slaves = self.slaves.len();
         let image = self.image_mut()?;
-        let watch_len = slaves * (AL_STATUS_LEN + 1 + 2 * DATAGRAM_OVERHEAD);
-        let room = frame::MAX_DATAGRAM_DATA - DC_DATAGRAMS_LEN;
-        if on && image.outputs.len() + image.inputs.len() + watch_len > room {
+        let room = frame::MAX_DATAGRAM_DATA - DC_DATAGRAMS_LEN - (image.outputs.len() + image.inputs.len());
+        if on && WATCH_LEN > room {
             return Err(SettingError::SupervisionTooLarge {
                 image: image.outputs.len() + image.inputs.len(),
                 slaves,
-                watch: watch_len,
+                watch: WATCH_LEN,
             }
             .into());
         }
         image.supervised = on;
+        image.each_in_frame = slaves * WATCH_LEN <= room;
         Ok(())
     }
 
@@ -519,7 +537,7 @@ impl Master {
 
 /// Takes every slave's AL status and SM1 status from `reply`, from the slot of the first read on.
 fn read_watch(watch: &mut [SlaveWatch], first: Slot, reply: &[u8]) -> Result<()> {
-    let stride = AL_STATUS_LEN + DATAGRAM_OVERHEAD + 1 + DATAGRAM_OVERHEAD;
+    let stride = WATCH_LEN;
     for (n, w) in watch.iter_mut().enumerate() {
         let al = Slot { data_offset: first.data_offset + n * stride, len: AL_STATUS_LEN, index: first.index };
         let sm1 = Slot { data_offset: al.data_offset + AL_STATUS_LEN + DATAGRAM_OVERHEAD, len: 1, index: first.index };

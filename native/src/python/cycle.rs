@@ -8,6 +8,7 @@
 //! so are the set-point handshake (`start_setpoint`, `wait_setpoint`, `setpoint_status`) and the
 //! command time-out (`set_command_timeout`, `command_timeout_status`).
 
+use std::sync::Arc;
 use std::time::Duration;
 
 use pyo3::prelude::*;
@@ -30,7 +31,8 @@ use crate::error::{Error, SettingError, UnknownName};
 #[pyclass(name = "Cycle", module = "akd_ros._native", frozen)]
 pub struct PyCycle {
     master: Py<PyMaster>,
-    cycle: CycleThread,
+    // Shared with the threads that publish and record from it (`Feed`, `BagWriter`).
+    cycle: Arc<CycleThread>,
 }
 
 // The columns `Cycle.samples` gives, one list per field of Sample, and their names in that
@@ -286,6 +288,11 @@ const SECONDS: &str = "a finite number of seconds >= 0";
 const WAIT_POLL: Duration = Duration::from_millis(1);
 
 impl PyCycle {
+    /// The cycle thread, for the threads that publish and record from it.
+    pub(super) fn thread(&self) -> Arc<CycleThread> {
+        self.cycle.clone()
+    }
+
     fn request(&self, position: u16, request: Request) -> PyResult<()> {
         self.cycle.request(position, request).py()
     }
@@ -334,7 +341,7 @@ impl PyCycle {
         let config = Config { period, priority, cpu, lock_memory, cpu_latency_us, pipelined };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
-            Ok(cycle) => Ok(PyCycle { master, cycle }),
+            Ok(cycle) => Ok(PyCycle { master, cycle: Arc::new(cycle) }),
             Err(refused) => {
                 let (error, taken) = *refused;
                 master.borrow(py).put_back(taken);
@@ -559,6 +566,12 @@ impl PyCycle {
     #[getter]
     fn samples_dropped(&self) -> u64 {
         self.cycle.samples_dropped()
+    }
+
+    /// Whether events wait to be taken (`events()`).
+    #[getter]
+    fn events_pending(&self) -> bool {
+        self.cycle.events_pending()
     }
 
     /// Events lost because they were not taken before 256 piled up.

@@ -10,11 +10,12 @@ use pyo3::IntoPyObjectExt;
 
 use crate::error::Error;
 
-mod bag_file;
+mod bag_writer;
 mod clocks;
 mod cycle;
 mod drive;
 mod eeprom;
+mod feed;
 mod homing;
 mod link_spec;
 mod master;
@@ -190,6 +191,7 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     link_spec::register(m)?;
     clocks::register(m)?;
     record::register(m)?;
-    bag_file::register(m)?;
+    bag_writer::register(m)?;
+    feed::register(m)?;
     Ok(())
 }

@@ -75,6 +75,15 @@ fn samples_of(columns: &Bound<'_, PyDict>) -> PyResult<Vec<Sample>> {
         .collect())
 }
 
+/// The scale of an `akd_ros.units.Units`.
+pub(super) fn joint_scale(units: &Bound<'_, PyAny>) -> PyResult<JointScale> {
+    Ok(JointScale {
+        si_per_count: units.getattr("si_per_count")?.extract()?,
+        position_offset: units.getattr("offset")?.extract()?,
+        si_per_torque_unit: units.getattr("si_per_torque_unit")?.extract()?,
+    })
+}
+
 /// The records of `joints`, a list of (joint name, its `akd_ros.units.Units`, its columns as
 /// `Cycle.samples` gives them), as a list of (ROS time ns, serialised `akd_ros/msg/CycleSample`),
 /// cycle by cycle and within a cycle in the order of `joints`; `offset_ns` (ROS minus monotonic
@@ -86,22 +95,14 @@ fn cycle_sample_records(
     offset_ns: i64,
 ) -> PyResult<Vec<(i64, Py<PyBytes>)>> {
     let mut rows = Vec::new();
+    let mut named = Vec::with_capacity(joints.len());
     for (k, (joint, units, columns)) in joints.iter().enumerate() {
-        let scale = JointScale {
-            si_per_count: units.getattr("si_per_count")?.extract()?,
-            position_offset: units.getattr("offset")?.extract()?,
-            si_per_torque_unit: units.getattr("si_per_torque_unit")?.extract()?,
-        };
-        rows.extend(samples_of(columns)?.into_iter().map(|s| (s.cycle, k, s, joint.as_str(), scale)));
+        named.push((joint.as_str(), joint_scale(units)?));
+        rows.extend(samples_of(columns)?.into_iter().map(|s| (k, s)));
     }
-    // Stable: a drive's records of one cycle stay in the order they were taken.
-    rows.sort_by_key(|&(cycle, k, ..)| (cycle, k));
-    Ok(rows
-        .iter()
-        .map(|(_, _, sample, joint, scale)| {
-            let stamp_ns = sample.time_ns as i64 + offset_ns;
-            (stamp_ns, PyBytes::new(py, &record::encode(sample, joint, scale, stamp_ns)).unbind())
-        })
+    Ok(record::encode_rows(rows, &named, offset_ns)
+        .into_iter()
+        .map(|(stamp_ns, data)| (stamp_ns, PyBytes::new(py, &data).unbind()))
         .collect())
 }
 
