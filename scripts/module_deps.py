@@ -33,7 +33,8 @@ PYTHON_ROOT = "akd_ros"
 
 RUST_LAYERS: list[set[str]] = [
     {"wire_code"},
-    # The codecs: pure, no I/O; the master and the virtual AKD both use them.
+    # The codecs and the drive's knowledge: pure, no I/O; the master and the virtual AKD both use them. Each
+    # raises its own error (frame::FrameError, mailbox::MailboxError, ...).
     {
         "frame",
         "registers",
@@ -48,15 +49,23 @@ RUST_LAYERS: list[set[str]] = [
         "dc",
         "ds402",
         "akd_fault",
+        "io",
+        "scaling",
         "trajectory",
+        "link_spec",
+        "setting",
         "bag_file",
+        "ros_msgs",
     },
     # The umbrella error over every layer's own errors, with their Froms.
     {"error"},
-    {"link"},
+    # I/O: the links that move frames, and the bag writer's files.
+    {"link", "bag_writer"},
     # The virtual AKD beside the master: the same codecs and links, never each other's state.
     {"master", "sim"},
     {"cycle"},
+    # What the node needs from the cycle, off the cycle thread: its records and its feed of messages.
+    {"node"},
     {"python"},
 ]
 """The crate's top-level modules by layer, lowest first."""

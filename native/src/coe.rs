@@ -7,7 +7,7 @@
 
 use std::fmt;
 
-use crate::error::{Error, MailboxError};
+use crate::mailbox::MailboxError;
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
 
 /// Length of the CoE header.
@@ -97,9 +97,9 @@ impl CoeHeader {
 
     /// Decodes the first two bytes of a mailbox body; a service outside the standard's set is an
     /// error naming it.
-    pub fn decode(body: &[u8]) -> Result<Self, Error> {
+    pub fn decode(body: &[u8]) -> Result<Self, MailboxError> {
         if body.len() < COE_HEADER_LEN {
-            return Err(MailboxError::Truncated { what: "CoE message", len: body.len(), needed: COE_HEADER_LEN }.into());
+            return Err(MailboxError::Truncated { what: "CoE message", len: body.len(), needed: COE_HEADER_LEN });
         }
         let word = u16::from_le_bytes([body[0], body[1]]);
         let service = CoeService::try_from((word >> 12) as u8)?;
@@ -229,8 +229,8 @@ pub enum SdoResponse<'a> {
     },
 }
 
-fn sdo_too_short(what: &'static str, len: usize) -> Error {
-    MailboxError::Truncated { what, len, needed: SDO_LEN }.into()
+fn sdo_too_short(what: &'static str, len: usize) -> MailboxError {
+    MailboxError::Truncated { what, len, needed: SDO_LEN }
 }
 
 fn address(body: &[u8]) -> (u16, u8) {
@@ -245,7 +245,7 @@ fn write_address(out: &mut [u8], command: u8, index: u16, subindex: u8) {
 
 /// Decodes the data of a segment: `n` (bits 1–3) counts padding bytes when the segment
 /// carries the minimum of seven; longer segments carry exactly what the mailbox holds.
-fn segment_data<'a>(body: &'a [u8], what: &'static str) -> Result<(bool, bool, &'a [u8]), Error> {
+fn segment_data<'a>(body: &'a [u8], what: &'static str) -> Result<(bool, bool, &'a [u8]), MailboxError> {
     if body.len() < 1 + SEGMENT_MIN_DATA {
         return Err(sdo_too_short(what, body.len()));
     }
@@ -283,7 +283,7 @@ fn expedited_data(body: &[u8]) -> &[u8] {
 
 impl<'a> SdoRequest<'a> {
     /// Decodes the SDO part of a request (the bytes after the CoE header).
-    pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
+    pub fn decode(body: &'a [u8]) -> Result<Self, MailboxError> {
         let command = *body.first().ok_or_else(|| sdo_too_short("SDO request", 0))?;
         let ccs = ClientCommand::try_from(command >> 5)?;
         match ccs {
@@ -380,7 +380,7 @@ fn write_abort(out: &mut [u8], index: u16, subindex: u8, code: SdoAbortCode) -> 
 
 impl<'a> SdoResponse<'a> {
     /// Decodes the SDO part of a response (the bytes after the CoE header).
-    pub fn decode(body: &'a [u8]) -> Result<Self, Error> {
+    pub fn decode(body: &'a [u8]) -> Result<Self, MailboxError> {
         let command = *body.first().ok_or_else(|| sdo_too_short("SDO response", 0))?;
         let scs = ServerCommand::try_from(command >> 5)?;
         match scs {
@@ -461,10 +461,10 @@ pub fn write_sdo_response(out: &mut [u8], counter: u8, response: &SdoResponse<'_
 }
 
 /// Splits a CoE mailbox message into its mailbox header, CoE header and the body after them.
-pub fn split_message(message: &[u8]) -> Result<(MailboxHeader, CoeHeader, &[u8]), Error> {
+pub fn split_message(message: &[u8]) -> Result<(MailboxHeader, CoeHeader, &[u8]), MailboxError> {
     let header = MailboxHeader::decode(message)?;
     if header.protocol() != Some(MailboxType::Coe) {
-        return Err(MailboxError::NotCoe { mailbox_type: header.mailbox_type }.into());
+        return Err(MailboxError::NotCoe { mailbox_type: header.mailbox_type });
     }
     let body = header.body(message);
     let coe = CoeHeader::decode(body)?;
@@ -586,11 +586,6 @@ impl fmt::Display for SdoAbortCode {
     }
 }
 
-/// The error for an SDO aborted with `code`.
-pub fn abort_error(index: u16, subindex: u8, code: SdoAbortCode) -> Error {
-    Error::SdoAbort { index, subindex, code: code.0, code_name: code.name() }
-}
-
 /// An emergency message (CoE service 1): CiA error code, error register, 5 bytes of
 /// manufacturer data.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -610,11 +605,9 @@ pub const EMERGENCY_LEN: usize = 8;
 
 impl Emergency {
     /// Decodes the body after the CoE header.
-    pub fn decode(body: &[u8]) -> Result<Self, Error> {
+    pub fn decode(body: &[u8]) -> Result<Self, MailboxError> {
         if body.len() < EMERGENCY_LEN {
-            return Err(
-                MailboxError::Truncated { what: "emergency message", len: body.len(), needed: EMERGENCY_LEN }.into()
-            );
+            return Err(MailboxError::Truncated { what: "emergency message", len: body.len(), needed: EMERGENCY_LEN });
         }
         let mut data = [0; 5];
         data.copy_from_slice(&body[3..8]);
@@ -694,14 +687,13 @@ pub struct SdoInfoHeader {
 impl SdoInfoHeader {
     /// Decodes the header at the start of an SDO information body; an opcode outside the
     /// standard's set is an error naming it.
-    pub fn decode(body: &[u8]) -> Result<Self, Error> {
+    pub fn decode(body: &[u8]) -> Result<Self, MailboxError> {
         if body.len() < SDO_INFO_HEADER_LEN {
             return Err(MailboxError::Truncated {
                 what: "SDO information message",
                 len: body.len(),
                 needed: SDO_INFO_HEADER_LEN,
-            }
-            .into());
+            });
         }
         Ok(SdoInfoHeader {
             opcode: SdoInfoOpcode::try_from(body[0] & 0x7F)?,
@@ -765,20 +757,19 @@ pub const OBJECT_DESCRIPTION_FIXED_LEN: usize = 6;
 /// Length of an entry description before its optional values and name.
 pub const ENTRY_DESCRIPTION_FIXED_LEN: usize = 10;
 
-fn text<'a>(bytes: &'a [u8], what: &'static str) -> Result<&'a str, Error> {
-    std::str::from_utf8(bytes).map_err(|_| MailboxError::NotText { what }.into())
+fn text<'a>(bytes: &'a [u8], what: &'static str) -> Result<&'a str, MailboxError> {
+    std::str::from_utf8(bytes).map_err(|_| MailboxError::NotText { what })
 }
 
 impl<'a> ObjectDescription<'a> {
     /// Decodes the data of a Get object description response.
-    pub fn decode(data: &'a [u8]) -> Result<Self, Error> {
+    pub fn decode(data: &'a [u8]) -> Result<Self, MailboxError> {
         if data.len() < OBJECT_DESCRIPTION_FIXED_LEN {
             return Err(MailboxError::Truncated {
                 what: "object description",
                 len: data.len(),
                 needed: OBJECT_DESCRIPTION_FIXED_LEN,
-            }
-            .into());
+            });
         }
         Ok(ObjectDescription {
             index: u16::from_le_bytes([data[0], data[1]]),
@@ -864,14 +855,13 @@ pub struct EntryDescription<'a> {
 
 impl<'a> EntryDescription<'a> {
     /// Decodes the data of a Get entry description response.
-    pub fn decode(data: &'a [u8]) -> Result<Self, Error> {
+    pub fn decode(data: &'a [u8]) -> Result<Self, MailboxError> {
         if data.len() < ENTRY_DESCRIPTION_FIXED_LEN {
             return Err(MailboxError::Truncated {
                 what: "entry description",
                 len: data.len(),
                 needed: ENTRY_DESCRIPTION_FIXED_LEN,
-            }
-            .into());
+            });
         }
         Ok(EntryDescription {
             index: u16::from_le_bytes([data[0], data[1]]),

@@ -15,10 +15,12 @@
 //! as `01 00 A8 C0`) and the DNS name (32 bytes, zero-padded; TwinCAT sends all 32 however short
 //! the name is).
 
+use std::fmt;
 use std::net::Ipv4Addr;
 
-use crate::error::{EoeError, SettingError};
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
+use crate::setting::SettingError;
+use crate::wire_code::UnknownCode;
 
 /// Length of the EoE header (the two words after the mailbox header).
 pub const EOE_HEADER_LEN: usize = 4;
@@ -498,6 +500,126 @@ impl Reassembler {
         Ok(Some(&self.buffer[..self.len]))
     }
 }
+
+/// An EoE message or fragment that does not fit the standard (ETG.1000.6 §5.7), or a frame
+/// that cannot be sent through EoE.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EoeError {
+    /// A message, or a field of one, cut short.
+    Truncated {
+        /// The structure or field.
+        what: &'static str,
+        /// Bytes there were.
+        len: usize,
+        /// Bytes it needs.
+        needed: usize,
+    },
+    /// A frame type outside the standard's set.
+    UnknownCode(UnknownCode),
+    /// A DNS name longer than its field.
+    DnsNameTooLong {
+        /// Its length in bytes.
+        len: usize,
+        /// The field's length.
+        max: usize,
+    },
+    /// A DNS name that is not UTF-8 text.
+    DnsNameNotText,
+    /// An Ethernet frame longer than EoE carries here, or than its fragment 0 announced.
+    FrameTooLong {
+        /// Its length.
+        len: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// A mailbox too small for one 32-byte unit of a fragment.
+    MailboxTooSmall {
+        /// The mailbox's length.
+        len: usize,
+        /// The least that carries a fragment.
+        min: usize,
+    },
+    /// A fragment other than the next one of the frame being put together.
+    OutOfOrder {
+        /// Its frame number.
+        frame_number: u8,
+        /// The fragment number expected.
+        expected: u8,
+        /// The fragment number received.
+        got: u8,
+    },
+    /// A fragment whose offset is not where the frame being put together has reached.
+    OffsetMismatch {
+        /// Its offset in bytes.
+        offset: usize,
+        /// Bytes received so far.
+        received: usize,
+    },
+    /// A fragment other than the last whose length is not a multiple of 32 bytes.
+    FragmentNotWholeUnits {
+        /// Its length.
+        len: usize,
+    },
+    /// The slave's SII does not list EoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave answered Set IP Parameter with another result than success.
+    Refused {
+        /// Slave position.
+        slave: u16,
+        /// The result code.
+        result: u16,
+        /// Its name in the standard.
+        result_name: &'static str,
+    },
+    /// A frame whose length does not round to the size its fragment 0 announced.
+    SizeMismatch {
+        /// The size announced, in 32-byte units.
+        announced_units: u8,
+        /// Bytes received.
+        received: usize,
+    },
+}
+
+impl fmt::Display for EoeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EoeError::Truncated { what, len, needed } => {
+                write!(f, "{what} cut short: the message has {len} bytes, it needs {needed}")
+            }
+            EoeError::UnknownCode(e) => write!(f, "{e}"),
+            EoeError::DnsNameTooLong { len, max } => write!(f, "DNS name of {len} bytes is longer than {max}"),
+            EoeError::DnsNameNotText => write!(f, "DNS name is not valid text"),
+            EoeError::FrameTooLong { len, max } => write!(f, "Ethernet frame of {len} bytes is longer than {max}"),
+            EoeError::MailboxTooSmall { len, min } => {
+                write!(f, "a {len}-byte mailbox cannot carry an EoE fragment (it needs {min} bytes)")
+            }
+            EoeError::OutOfOrder { frame_number, expected, got } => {
+                write!(f, "EoE fragment {got} of frame {frame_number} where fragment {expected} was expected")
+            }
+            EoeError::OffsetMismatch { offset, received } => {
+                write!(f, "EoE fragment at offset {offset} where {received} bytes were received")
+            }
+            EoeError::FragmentNotWholeUnits { len } => {
+                write!(f, "EoE fragment of {len} bytes is not the last but not a multiple of 32 bytes")
+            }
+            EoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak EoE (SII mailbox protocols)")
+            }
+            EoeError::Refused { slave, result, result_name } => {
+                write!(f, "slave {slave} answered Set IP Parameter with result 0x{result:04X} ({result_name})")
+            }
+            EoeError::SizeMismatch { announced_units, received } => write!(
+                f,
+                "EoE frame of {received} bytes where fragment 0 announced {announced_units} units of 32 bytes"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for EoeError {}
 
 #[cfg(test)]
 mod tests {

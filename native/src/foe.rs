@@ -9,9 +9,10 @@
 //! with an empty one. Either side may end a transfer with an error.
 
 use std::borrow::Cow;
+use std::fmt;
 
-use crate::error::FoeError;
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
+use crate::wire_code::UnknownCode;
 
 /// Length of the FoE header.
 pub const FOE_HEADER_LEN: usize = 6;
@@ -225,6 +226,100 @@ pub fn packets(file: &[u8], room: usize) -> impl Iterator<Item = (u32, &[u8])> +
         ((i + 1) as u32, &file[from..(from + room).min(file.len())])
     })
 }
+
+/// A FoE message that does not fit the standard (ETG.1000.6 §5.9), or a transfer that failed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FoeError {
+    /// A message cut short.
+    Truncated {
+        /// The structure.
+        what: &'static str,
+        /// Bytes there were.
+        len: usize,
+        /// Bytes it needs.
+        needed: usize,
+    },
+    /// An opcode outside the standard's set.
+    UnknownCode(UnknownCode),
+    /// A file name that is not UTF-8 text.
+    NameNotText,
+    /// The slave's SII does not list FoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave ended the transfer of `name` with a FoE error.
+    Refused {
+        /// Slave position.
+        slave: u16,
+        /// The file.
+        name: String,
+        /// The error code.
+        code: u32,
+        /// Its name in the standard.
+        code_name: &'static str,
+        /// The slave's text.
+        text: String,
+    },
+    /// The slave answered with another message than the transfer allows.
+    Unexpected {
+        /// Slave position.
+        slave: u16,
+        /// The file.
+        name: String,
+        /// What was awaited.
+        expected: &'static str,
+        /// The opcode received.
+        got: &'static str,
+    },
+    /// A packet or acknowledge with another number than the transfer reached.
+    PacketNumber {
+        /// Slave position.
+        slave: u16,
+        /// The number expected.
+        expected: u32,
+        /// The number received.
+        got: u32,
+    },
+    /// A file longer than this master reads into memory.
+    TooLong {
+        /// The file.
+        name: String,
+        /// The most bytes read.
+        max: usize,
+    },
+}
+
+impl fmt::Display for FoeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FoeError::Truncated { what, len, needed } => {
+                write!(f, "{what} of {len} bytes is shorter than the {needed} bytes it needs")
+            }
+            FoeError::UnknownCode(e) => write!(f, "{e}"),
+            FoeError::NameNotText => write!(f, "FoE file name is not valid text"),
+            FoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak FoE (SII mailbox protocols)")
+            }
+            FoeError::Refused { slave, name, code, code_name, text } => {
+                write!(f, "slave {slave} refused file {name:?}: FoE error 0x{code:04X} ({code_name})")?;
+                if !text.is_empty() && text != code_name {
+                    write!(f, ": {text}")?;
+                }
+                Ok(())
+            }
+            FoeError::Unexpected { slave, name, expected, got } => {
+                write!(f, "slave {slave} answered the transfer of {name:?} with FoE {got} where {expected} was due")
+            }
+            FoeError::PacketNumber { slave, expected, got } => {
+                write!(f, "slave {slave} sent FoE packet number {got} where {expected} was due")
+            }
+            FoeError::TooLong { name, max } => write!(f, "file {name:?} is longer than {max} bytes"),
+        }
+    }
+}
+
+impl std::error::Error for FoeError {}
 
 #[cfg(test)]
 mod tests {

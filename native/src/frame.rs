@@ -9,7 +9,7 @@
 //! virtual AKD) serve the datagrams in place. Nothing here allocates, so the cyclic path can
 //! use it.
 
-use crate::error::FrameError;
+use std::fmt;
 
 /// EtherType of EtherCAT frames, also the UDP port of EtherCAT-over-UDP.
 pub const ETHERTYPE: u16 = 0x88A4;
@@ -502,6 +502,70 @@ pub fn write_ethernet_header(out: &mut [u8], source: [u8; 6]) {
     out[6..12].copy_from_slice(&source);
     out[12..14].copy_from_slice(&ETHERTYPE.to_be_bytes());
 }
+
+/// A malformed or unexpected EtherCAT frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FrameError {
+    /// Fewer bytes than the structure named by `what` needs.
+    Truncated {
+        /// The structure being decoded.
+        what: &'static str,
+        /// Bytes it needs.
+        needed: usize,
+        /// Bytes there were.
+        got: usize,
+    },
+    /// The frame header's type is not 1 (EtherCAT datagrams).
+    NotDatagrams(u8),
+    /// A datagram command byte above 14.
+    UnknownCommand(u8),
+    /// A frame header announcing no datagrams.
+    Empty,
+    /// The frame header's length differs from the datagrams' total.
+    LengthMismatch {
+        /// Length in the frame header.
+        header: usize,
+        /// Length the datagrams take.
+        datagrams: usize,
+    },
+    /// A datagram that does not fit the frame.
+    TooLarge {
+        /// Data length asked for.
+        len: usize,
+        /// Room left.
+        room: usize,
+    },
+    /// Not an EtherCAT Ethernet frame (EtherType other than 0x88A4).
+    NotEtherCat(u16),
+}
+
+impl fmt::Display for FrameError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FrameError::Truncated { what, needed, got } => {
+                write!(f, "truncated frame: the {what} needs {needed} bytes, the frame has {got}")
+            }
+            FrameError::NotDatagrams(t) => {
+                write!(f, "frame header type {t} is not 1 (EtherCAT datagrams)")
+            }
+            FrameError::UnknownCommand(c) => {
+                write!(f, "unknown datagram command {c} (allowed 0..=14, NOP..FRMW)")
+            }
+            FrameError::Empty => write!(f, "frame header announces no datagrams"),
+            FrameError::LengthMismatch { header, datagrams } => {
+                write!(f, "frame header announces {header} bytes of datagrams but the datagrams take {datagrams}")
+            }
+            FrameError::TooLarge { len, room } => {
+                write!(f, "datagram of {len} data bytes does not fit the frame ({room} bytes left)")
+            }
+            FrameError::NotEtherCat(t) => {
+                write!(f, "EtherType 0x{t:04X} is not EtherCAT (0x88A4)")
+            }
+        }
+    }
+}
+
+impl std::error::Error for FrameError {}
 
 #[cfg(test)]
 mod tests {

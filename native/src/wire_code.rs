@@ -2,6 +2,8 @@
 //! the standard spells them, `TryFrom` of the raw value (an error naming the value and the
 //! set) and the raw value back.
 
+use std::fmt;
+
 /// Declares a closed set of wire codes; see the module documentation.
 macro_rules! wire_codes {
     (
@@ -30,12 +32,12 @@ macro_rules! wire_codes {
         }
 
         impl TryFrom<$raw> for $name {
-            type Error = crate::error::UnknownCode;
+            type Error = crate::wire_code::UnknownCode;
 
-            fn try_from(value: $raw) -> Result<Self, crate::error::UnknownCode> {
+            fn try_from(value: $raw) -> Result<Self, crate::wire_code::UnknownCode> {
                 match value {
                     $($value => Ok($name::$variant),)+
-                    _ => Err(crate::error::UnknownCode {
+                    _ => Err(crate::wire_code::UnknownCode {
                         what: $what,
                         value: value.into(),
                         known: &[$(($value, $text)),+],
@@ -57,3 +59,26 @@ macro_rules! wire_codes {
         }
     };
 }
+
+/// A wire code outside its closed set (a CoE service, an SDO information opcode, ...).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownCode {
+    /// The field the code came in, e.g. "CoE service".
+    pub what: &'static str,
+    /// The value received.
+    pub value: u16,
+    /// The set's codes and names, to say what was allowed.
+    pub known: &'static [(u16, &'static str)],
+}
+
+impl fmt::Display for UnknownCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} {} is none of", self.what, self.value)?;
+        for (i, (value, name)) in self.known.iter().enumerate() {
+            write!(f, "{} {value} ({name})", if i == 0 { "" } else { "," })?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for UnknownCode {}

@@ -10,14 +10,12 @@ use std::time::{Duration, Instant};
 use crate::error::{Error, Result};
 
 pub use returns::Returns;
-pub use spec::LinkSpec;
 
 pub mod pcap;
 pub mod privilege;
 pub mod raw;
 pub mod returns;
 pub mod socket;
-pub mod spec;
 pub mod udp;
 
 /// A path to a chain of slaves. Frames go out with [`send`](Link::send) and come back, in the

@@ -51,7 +51,7 @@ pub struct Mailbox {
 impl Mailbox {
     /// The standard mailbox of a slave from its SII, `None` when it has no mailbox; an error
     /// when the mailbox is too small for any CoE message.
-    pub fn from_sii(sii: &Sii) -> Result<Option<Self>> {
+    pub fn from_sii(sii: &Sii) -> Result<Option<Self>, SiiError> {
         // "Receive" and "send" are the slave's view: it receives through SM0.
         let mb = &sii.header.standard_mailbox;
         let protocols = sii.header.mailbox_protocols;
@@ -63,8 +63,7 @@ impl Mailbox {
                 receive: mb.receive_size,
                 send: mb.send_size,
                 min: MIN_MAILBOX_LEN,
-            }
-            .into());
+            });
         }
         // The SM category, when present, holds the control bytes the slave expects.
         let control = |n: usize, default: u8| sii.sync_managers().get(n).map_or(default, |sm| sm.control);

@@ -46,7 +46,7 @@ use crate::akd_fault::MissedFrames;
 use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
-use crate::link::spec::Pace;
+use crate::link_spec::Pace;
 use crate::mailbox::HEADER_LEN;
 use crate::pdo;
 use crate::registers as reg;
@@ -130,7 +130,7 @@ pub const AKD_MAILBOX_SIZE: u16 = 0x0400;
 
 /// The SII image of the AKD with `identity` declaring a standard mailbox of `size` bytes each
 /// way (the sync manager category says the same), everything else as the real drive's.
-fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>> {
+fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate::sii::SiiError> {
     let mut sii = crate::sii::Sii::parse(&sii_image::akd_sii_of(identity))?;
     let mailbox = &mut sii.header.standard_mailbox;
     (mailbox.receive_size, mailbox.send_size) = (size, size);
