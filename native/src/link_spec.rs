@@ -1,12 +1,12 @@
 //! The link spec: the one text that names a bus, as the node's `link` parameter, the command
 //! line and `Master(link)` take it. It is parsed here once, with no I/O, so every layer that
 //! checks a spec accepts and refuses the same ones; opening it is left to a layer that may see
-//! both the links and the simulator.
+//! both the links and the simulator. The virtual AKDs' options are the spec's words too
+//! ([`MissedFrames`], [`Pace`]), so akd-sim, the bindings and the virtual AKD take them from here.
 
 use std::fmt;
 use std::str::FromStr;
 
-pub use crate::akd_fault::MissedFrames;
 /// Why a text is not a link spec; its text names the allowed forms.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum LinkSpecError {
@@ -98,6 +98,41 @@ pub const MAX_SIM_COUNT: usize = 64;
 /// The longest a raw link busy-polls for a frame to come back, in µs (`IFACE?busy_poll=US`):
 /// a round trip on a real line of many drives takes tens of µs, and a 1 kHz cycle has 1000.
 pub const MAX_BUSY_POLL_US: u32 = 1000;
+
+/// How a virtual AKD judges that it missed frames (F125, "Synchronization lost", after more
+/// than seven): the link spec names it (`sim:N?missed=warn`), akd-sim takes it (`--missed`),
+/// and the virtual AKD applies it. A real AKD always judges [`Late`](MissedFrames::Late).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MissedFrames {
+    /// By time, as the real AKD does: a frame is missed once half a cycle passed after it was
+    /// due, so a master thread the host runs late faults the drive.
+    #[default]
+    Late,
+    /// By the frames the line lost before they reached the drive (a lost burst, a pulled
+    /// cable): a late frame is not a missed one. It cannot see a master that stopped sending.
+    Lost,
+    /// By time, as the real AKD does, but where the real drive would raise F125 the virtual
+    /// one counts it as a would-be F125 (and akd-sim warns) and goes on: for a robot developed
+    /// on a host that stalls the master thread now and then. Frames lost on the line still
+    /// count as [`Lost`](MissedFrames::Lost) counts them, so a pulled cable still faults.
+    Warn,
+}
+
+impl MissedFrames {
+    /// The option's values as the link spec writes them.
+    pub const NAMES: [(&'static str, MissedFrames); 3] =
+        [("late", MissedFrames::Late), ("lost", MissedFrames::Lost), ("warn", MissedFrames::Warn)];
+
+    /// "late", "lost" or "warn".
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, m)| *m == self).map_or("late", |(name, _)| name)
+    }
+
+    /// The judgement named `name` ("late", "lost" or "warn").
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
+    }
+}
 
 /// How fast virtual AKDs' firmware answers AL requests and the mailbox (`sim?pace=...`,
 /// akd-sim `--pace`): as the real drive (the default), or at once, for tests that open many

@@ -13,7 +13,6 @@ use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::akd_fault::MissedFrames;
 use akd_native::al::AlState;
 use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
@@ -21,6 +20,7 @@ use akd_native::cycle::trajectory_player::Status;
 use akd_native::cycle::{handshake, Config, CycleThread, Snapshot};
 use akd_native::ds402::{Mode, State};
 use akd_native::link::udp::Udp;
+use akd_native::link_spec::MissedFrames;
 use akd_native::master::Master;
 use akd_native::sim::{server, Timing, VirtualBus};
 use akd_native::trajectory::Knot;

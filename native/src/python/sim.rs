@@ -12,8 +12,8 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
-use crate::akd_fault::MissedFrames;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
+use crate::link_spec::MissedFrames;
 use crate::link_spec::Pace;
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;

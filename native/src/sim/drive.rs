@@ -30,9 +30,10 @@
 //! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
 //!   counts/s², torque in 0.1 % of the drive's peak torque.
 
-use crate::akd_fault::{MissedFrames, MISSED_FRAMES_TOLERATED};
+use crate::akd_fault::MISSED_FRAMES_TOLERATED;
 use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
+use crate::link_spec::MissedFrames;
 use crate::pdo::PdoEntry;
 use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;

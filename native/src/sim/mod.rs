@@ -42,10 +42,10 @@ pub mod sync_manager;
 pub mod terminals;
 pub mod watchdog;
 
-use crate::akd_fault::MissedFrames;
 use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
+use crate::link_spec::MissedFrames;
 use crate::link_spec::Pace;
 use crate::mailbox::HEADER_LEN;
 use crate::pdo;
