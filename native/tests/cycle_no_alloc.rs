@@ -16,7 +16,7 @@ use std::time::{Duration, Instant};
 use akd_native::al::AlState;
 use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
-use akd_native::cycle::trajectory_player::Status;
+use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{handshake, Config, CycleThread, Snapshot};
 use akd_native::ds402::{Mode, State};
 use akd_native::link::udp::Udp;
@@ -212,7 +212,7 @@ fn set_points_and_requests(cycle: &CycleThread) {
 
 /// Drive 1 enabled follows a trajectory of 100 ms that another replaces half-way; their final
 /// statuses, `None` when the drive could not be enabled.
-fn trajectories(cycle: &CycleThread) -> Option<[Option<Status>; 2]> {
+fn trajectories(cycle: &CycleThread) -> Option<[Option<TrajectoryStatus>; 2]> {
     let enabled = || cycle.drive_status(1).unwrap().state() == Some(State::OperationEnabled);
     wait_until("drive 1 enabled", || enabled() || cycle.drive_status(1).unwrap().progress != Progress::InProgress);
     if !enabled() {
@@ -240,7 +240,7 @@ fn wait_until(what: &str, done: impl Fn() -> bool) {
 /// Drive 2: a profile-position set-point, then a velocity stream that times out twice, halted
 /// and released by the next write, then quick-stopped. The handshake's end, `None` when the
 /// drive could not be enabled (a lost frame on a loaded machine can fault it).
-fn set_point_and_command_timeouts(cycle: &CycleThread) -> Option<handshake::Status> {
+fn set_point_and_command_timeouts(cycle: &CycleThread) -> Option<handshake::HandshakeStatus> {
     cycle.request(2, Request::Enable).unwrap();
     let enabled = || cycle.drive_status(2).unwrap().state() == Some(State::OperationEnabled);
     wait_until("drive 2 enabled", || enabled() || cycle.drive_status(2).unwrap().progress != Progress::InProgress);

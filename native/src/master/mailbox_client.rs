@@ -155,7 +155,7 @@ impl Master {
     }
 
     /// The counter of the last message sent to the slave at `position` (0 before any), so
-    /// that a [`sibling`](Master::sibling) talking to the same slave goes on from it.
+    /// that a restoring master ([`Master::for_restore`]) talking to the same slave goes on from it.
     pub fn mailbox_counter(&self, position: u16) -> Option<u8> {
         Some(self.slave(position).ok()?.mailbox.as_ref()?.counter)
     }

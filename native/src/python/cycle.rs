@@ -131,8 +131,8 @@ struct SetpointView {
     statusword: u16,
 }
 
-impl From<handshake::Status> for SetpointView {
-    fn from(s: handshake::Status) -> Self {
+impl From<handshake::HandshakeStatus> for SetpointView {
+    fn from(s: handshake::HandshakeStatus) -> Self {
         let progress = match s.progress {
             handshake::Progress::Idle => "idle",
             handshake::Progress::InProgress => "in_progress",

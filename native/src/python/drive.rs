@@ -44,7 +44,7 @@ impl PyModeOfOperation {
         PyModeOfOperation {
             name: mode.snake_name(),
             code: mode as i8,
-            command: mode.command().map(ds402::Command::name),
+            command: mode.command().map(ds402::CommandKind::name),
             command_objects: mode.command_objects().to_vec(),
             handshake_controlword: mode.handshake_controlword(),
         }

@@ -18,8 +18,8 @@ use crate::link_spec::Pace;
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
+use crate::sim::pll::SyncState;
 use crate::sim::setpoint_trace::{Recorder, SetpointTrace, TraceSummary};
-use crate::sim::sync::SyncState;
 use crate::sim::{server, Timing, VirtualBus};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's

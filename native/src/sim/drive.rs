@@ -133,7 +133,7 @@ pub struct Bus<'a> {
 
 /// The drive firmware of one virtual AKD.
 #[derive(Clone, Debug)]
-pub struct Drive {
+pub struct DriveFirmware {
     state: State,
     controlword: u16,
     mode: Option<Mode>,
@@ -175,16 +175,16 @@ pub struct Drive {
     would_be_f125: WouldBeF125,
 }
 
-impl Default for Drive {
+impl Default for DriveFirmware {
     fn default() -> Self {
-        Drive::new(Mechanics::default())
+        DriveFirmware::new(Mechanics::default())
     }
 }
 
-impl Drive {
+impl DriveFirmware {
     /// A drive at power-up driving a motor and load of `mechanics`, loops tuned for it.
     pub fn new(mechanics: Mechanics) -> Self {
-        Drive {
+        DriveFirmware {
             state: State::NotReadyToSwitchOn,
             controlword: 0,
             mode: None,
@@ -685,7 +685,7 @@ mod tests {
 
     /// A drive and its dictionary, run at bus time `now` with SDO-like writes between runs.
     struct Bench {
-        drive: Drive,
+        drive: DriveFirmware,
         od: ObjectDictionary,
         now: u64,
         emergencies: Vec<u16>,
@@ -693,7 +693,8 @@ mod tests {
 
     impl Bench {
         fn new() -> Bench {
-            let mut b = Bench { drive: Drive::default(), od: ObjectDictionary::akd(), now: 0, emergencies: Vec::new() };
+            let mut b =
+                Bench { drive: DriveFirmware::default(), od: ObjectDictionary::akd(), now: 0, emergencies: Vec::new() };
             b.run_for(0);
             b
         }

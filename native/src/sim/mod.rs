@@ -5,7 +5,7 @@
 //! state machine ([`al_machine`]), the mailbox server ([`mailbox_server`]) over the object dictionary ([`od`]), the
 //! process image ([`process_data`]), the process-data watchdog ([`watchdog`]), and the drive firmware
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
-//! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`sync`] tells
+//! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`pll`] tells
 //! what its synchronisation (SYNC0 or SM2) was told. A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
 //! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
@@ -33,11 +33,11 @@ pub mod mailbox_server;
 pub mod missed_frames;
 pub mod motion;
 pub mod od;
+pub mod pll;
 pub mod process_data;
 pub mod server;
 pub mod setpoint_trace;
 pub mod sii_image;
-pub mod sync;
 pub mod sync_manager;
 pub mod terminals;
 pub mod watchdog;
@@ -162,7 +162,7 @@ pub struct VirtualAkd {
     frames_lost: u64,
     identity: Identity,
     has_successor: bool,
-    drive: drive::Drive,
+    drive: drive::DriveFirmware,
     rx_image: process_data::Image,
     tx_image: process_data::Image,
 }
@@ -214,7 +214,7 @@ impl VirtualAkd {
             frames_lost: 0,
             identity,
             has_successor,
-            drive: drive::Drive::default(),
+            drive: drive::DriveFirmware::default(),
             rx_image: Vec::new(),
             tx_image: Vec::new(),
         }
@@ -269,8 +269,8 @@ impl VirtualAkd {
     }
 
     /// What the drive's synchronisation was told: SYNC0, FBUS.PARAM02, its cycle time.
-    pub fn sync_state(&self) -> sync::SyncState {
-        sync::SyncState::of(self.esc.memory(), &self.od)
+    pub fn sync_state(&self) -> pll::SyncState {
+        pll::SyncState::of(self.esc.memory(), &self.od)
     }
 
     /// The outputs the master's last frames wrote into SM2, laid out by the drive's RxPDO
@@ -285,12 +285,12 @@ impl VirtualAkd {
     }
 
     /// The drive firmware: CiA 402 state, motor, inputs.
-    pub fn drive(&self) -> &drive::Drive {
+    pub fn drive(&self) -> &drive::DriveFirmware {
         &self.drive
     }
 
     /// The drive firmware, for fault injection and the simulated inputs.
-    pub fn drive_mut(&mut self) -> &mut drive::Drive {
+    pub fn drive_mut(&mut self) -> &mut drive::DriveFirmware {
         &mut self.drive
     }
 
