@@ -230,6 +230,21 @@ def test_a_new_goal_preempts_from_the_set_point_in_force_without_a_step(run):
     assert max(errors) <= GOAL_TOLERANCE, errors
 
 
+def test_the_node_answers_requests_while_a_goal_runs(run):
+    """A goal's execution waits for its trajectory for as long as it moves; it does so off the executor's thread, which
+    takes the commands, so a request is answered while the goal still runs."""
+    sim, _, client = run
+    start = positions(sim)
+    client.feedback.clear()
+    handle = client.send(goal_to([p + 0.4 for p in start], 3.0))
+    client.spin_until(lambda: len(client.feedback) > 2, "motion")
+    result = handle.get_result_async()
+    write_max_torque(client, "joint_2", 1000)
+    assert not result.done(), "the request was answered only once the goal had ended"
+    status, answer = client.result(handle)
+    assert status == GoalStatus.STATUS_SUCCEEDED, answer.error_string
+
+
 def test_a_fault_mid_way_aborts_the_goal_naming_the_joint(run):
     sim, _, client = run
     start = positions(sim)

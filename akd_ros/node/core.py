@@ -57,9 +57,9 @@ class Core:
         )
         Services(transport, self._node_state, self._commands, requests)
         # Homing goals have a group of their own: one runs for as long as its joints home.
-        Homing(transport, self._node_state, transport.group())
+        Homing(transport, self._node_state, transport.group("homing"))
         # So do FollowJointTrajectory goals: one runs until its trajectory ends, a newer one beside it to preempt it.
-        FollowJointTrajectory(transport, self._node_state, transport.group())
+        FollowJointTrajectory(transport, self._node_state, transport.group("follow"))
 
     @property
     def bus(self) -> Bus | None:

@@ -97,7 +97,7 @@ class Noting:
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         pass
 
-    def group(self) -> None:
+    def group(self, name: str) -> None:
         return None
 
     def now_ns(self) -> int:

@@ -5,7 +5,8 @@ Publishers are lifecycle publishers, so nothing goes out before activate; messag
 The executor's thread takes what arrives (`akd_ros.node.ros_node` runs a SingleThreadedExecutor) and runs the
 subscriptions' callbacks itself: a command goes from its arrival to the cycle's set-point slot on that thread, behind
 nothing but the executor's own wait. Whatever may wait or take long runs elsewhere: a service's handler on the
-`Worker` thread of its group (the executor awaits its answer, so it takes the next command meanwhile), timers on
+`Worker` thread of its group and an action's goal on a thread of its own for as long as it runs (the executor awaits
+their answers, so it takes the next command meanwhile), timers on
 those threads too (see `akd_ros.node.worker` for why), which `start()` starts and `close()` stops, and /joint_states
 and the statuses on the publishing thread (`akd_ros.node.publishing`). Publishers and subscriptions install no
 default QoS event handlers: each is a waitable that every wake-up of the executor, every command, walks in Python
@@ -26,7 +27,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
 from akd_ros.node.transport import ActionCallbacks, Qos
-from akd_ros.node.worker import Worker
+from akd_ros.node.worker import Worker, in_thread
 
 
 def message_class(type_name: str) -> type:
@@ -67,6 +68,15 @@ def _settle(answered: Future, done) -> None:
         answered.set_result(done.result())
     else:
         answered.set_exception(error)
+
+
+def _awaitable(node, done) -> Future:
+    """A future of `node`'s executor that ends as `done` (a concurrent.futures.Future ended elsewhere) does."""
+    answered = Future(executor=node.executor)
+    # A done callback is a task of the executor's: its creation wakes the executor to resume the task awaiting it.
+    answered.add_done_callback(lambda _: None)
+    done.add_done_callback(lambda ended: _settle(answered, ended))
+    return answered
 
 
 class RosGroup:
@@ -122,11 +132,7 @@ class RosTransport:
 
         async def serve(request, response):
             # The handler runs on the group's thread; the executor's takes the next message while it waits.
-            answered = Future(executor=node.executor)
-            # A done callback is a task of the executor's: its creation wakes the executor to resume this one.
-            answered.add_done_callback(lambda _: None)
-            group.worker.submit(handler, request, response).add_done_callback(lambda done: _settle(answered, done))
-            return await answered
+            return await _awaitable(node, group.worker.submit(handler, request, response))
 
         node.create_service(message_class(type_name), name, serve, callback_group=group.callbacks)
 
@@ -134,11 +140,18 @@ class RosTransport:
         from rclpy.action import ActionServer, CancelResponse, GoalResponse
 
         action = message_class(type_name)
+        node, goal_thread = self._node, f"{group.worker.name}-goal"
+
+        async def execute(handle):
+            # A goal runs as long as its motion: on a thread of its own, so the executor's, which takes the commands,
+            # never waits for it, and a newer goal's runs beside it to preempt it.
+            return await _awaitable(node, in_thread(goal_thread, callbacks.execute, handle))
+
         ActionServer(
-            self._node,
+            node,
             action,
             name,
-            execute_callback=callbacks.execute,
+            execute_callback=execute,
             goal_callback=lambda goal: GoalResponse.ACCEPT if callbacks.goal(goal) else GoalResponse.REJECT,
             cancel_callback=lambda handle: CancelResponse.ACCEPT if callbacks.cancel(handle) else CancelResponse.REJECT,
             callback_group=group.callbacks,

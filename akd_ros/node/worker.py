@@ -30,6 +30,22 @@ def name_this_thread(name: str) -> None:
     _LIBC.prctl(_PR_SET_NAME, name.encode()[:15], 0, 0, 0)
 
 
+def in_thread(name: str, callback: Callable[..., Any], *args) -> concurrent.futures.Future:
+    """Runs `callback(*args)` on a new thread named `name`; its result or exception as a Future. For work that runs as
+    long as a motion does (an action's goal), which would hold a group's one thread for that long."""
+    future: concurrent.futures.Future = concurrent.futures.Future()
+
+    def run() -> None:
+        name_this_thread(name)
+        try:
+            future.set_result(callback(*args))
+        except BaseException as e:  # noqa: BLE001  (handed to whoever awaits the future)
+            future.set_exception(e)
+
+    threading.Thread(target=run, name=name, daemon=True).start()
+    return future
+
+
 class Worker:
     """A callback group: one thread (named `name`) that runs its timers and the callbacks submitted to it, one at a
     time; a callback that raises is logged through `logger` and the group goes on."""
@@ -41,6 +57,11 @@ class Worker:
         self._stopped = False
         self._logger = logger
         self._thread = threading.Thread(target=self._run, name=name, daemon=True)
+
+    @property
+    def name(self) -> str:
+        """Its thread's name."""
+        return self._thread.name
 
     def start(self) -> None:
         self._thread.start()
