@@ -194,13 +194,14 @@ class Diagnostics:
             level, summary = self._ok, "cycle running"
         if grown:
             summary += f" ({', '.join(grown)} since the last report)"
+        # What exchange_p99_s times: the round trip waited for, or the sending and the taking of a return.
+        frames = "pipelined, each taken at the next wake-up" if self._settings.realtime.pipelined else "waited for"
         values = {
             "link": self._settings.link,
             "joints": ", ".join(bus.names),
             "fault_reaction": bus.fault_reaction,
             "cycle_time_s": f"{self._settings.cycle_time:.6g}",
-            # What exchange_p99_s times: the round trip waited for, or the sending and the taking of a return.
-            "frames": "pipelined, each taken at the next wake-up" if self._settings.rt_pipelined else "waited for",
+            "frames": frames,
             "cycles": stats["cycles"],
             **counters,
             "period_mean_s": f"{stats['period']['mean_ns'] * 1e-9:.6g}",

@@ -17,7 +17,7 @@ use akd_native::al::AlState;
 use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::trajectory_player::TrajectoryStatus;
-use akd_native::cycle::{handshake, Config, CycleThread, Snapshot};
+use akd_native::cycle::{handshake, Config, CycleThread, RealTime, Snapshot};
 use akd_native::ds402::{Mode, State};
 use akd_native::link::udp::Udp;
 use akd_native::link_spec::MissedFrames;
@@ -128,7 +128,8 @@ fn loop_allocates_nothing(pipelined: bool) {
     m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
     m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
-    let config = Config { pipelined, ..Config::new(Duration::from_millis(1)) };
+    let config =
+        Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
     let cycle = CycleThread::start(m, config).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);

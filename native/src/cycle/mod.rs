@@ -29,7 +29,7 @@
 //! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
 //! stage off, while the other drives cycle on.
 //!
-//! By default each cycle waits for its frame's return. [`Config::pipelined`] sends the frame
+//! By default each cycle waits for its frame's return. [`RealTime::pipelined`] sends the frame
 //! without waiting and takes its return at the next wake-up, before anything else: the outputs
 //! are written from inputs as old as when waiting (the last return), the frame still leaves
 //! right after the wake-up, and the round trip costs the cycle neither time nor CPU, so a lost
@@ -45,6 +45,7 @@ use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
 use crate::pdo::PdoEntry;
 use crate::trajectory::{Knot, Limits, Trajectory};
+pub use rt::RealTime;
 
 pub mod acyclic;
 pub mod command_timeout;
@@ -85,24 +86,14 @@ fn setpoints_stopped() -> Error {
 pub struct Config {
     /// The period, [`timing::MIN_PERIOD`]..=[`timing::MAX_PERIOD`].
     pub period: Duration,
-    /// SCHED_FIFO priority (1..=99), or the normal scheduler when `None`.
-    pub priority: Option<i32>,
-    /// The CPU the thread is bound to, or any when `None`.
-    pub cpu: Option<usize>,
-    /// Whether to lock the process's memory (mlockall).
-    pub lock_memory: bool,
-    /// The CPUs' wake-up latency to hold while the thread runs, µs (see
-    /// [`rt::hold_cpu_latency`]), 0..=[`rt::MAX_CPU_LATENCY_US`]; the system's when `None`.
-    pub cpu_latency_us: Option<u32>,
-    /// Whether each cycle's frame is sent without waiting for it, its return taken at the next
-    /// wake-up (see [the module](self)).
-    pub pipelined: bool,
+    /// How the thread runs on the host.
+    pub realtime: RealTime,
 }
 
 impl Config {
     /// A cycle of `period` with no real-time settings.
     pub fn new(period: Duration) -> Self {
-        Config { period, priority: None, cpu: None, lock_memory: false, cpu_latency_us: None, pipelined: false }
+        Config { period, realtime: RealTime::default() }
     }
 }
 
@@ -252,7 +243,7 @@ impl CycleThread {
     /// with the error. Real-time settings that are not permitted become [`warnings`](Self::warnings).
     pub fn start(mut master: Master, config: Config) -> std::result::Result<CycleThread, Box<(Error, Master)>> {
         let checked = timing::period_ns(config.period).and_then(|period_ns| {
-            rt::check(config.priority, config.cpu)?;
+            rt::check(config.realtime.priority, config.realtime.cpu)?;
             if master.cyclic_frame_in_flight() {
                 return Err(Unavailable::CyclicFrameInFlight.into());
             }
@@ -344,9 +335,9 @@ impl CycleThread {
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
-                warnings.extend(config.priority.and_then(rt::set_fifo_priority));
-                warnings.extend(config.cpu.and_then(rt::set_affinity));
-                if config.lock_memory {
+                warnings.extend(config.realtime.priority.and_then(rt::set_fifo_priority));
+                warnings.extend(config.realtime.cpu.and_then(rt::set_affinity));
+                if config.realtime.lock_memory {
                     warnings.extend(rt::lock_memory());
                 }
                 // The starting thread waits for this message; it cannot be gone.
@@ -354,7 +345,12 @@ impl CycleThread {
                 let timeout = master.replace_timeout(config.period);
                 let mut ready =
                     Loop { master: &mut master, shared: &shared, drives: &mut drives, gaps: Gaps::default() };
-                run(&mut ready, (&mut mailbox, &mut relay_buffers), &mut player, (period_ns, config.pipelined));
+                run(
+                    &mut ready,
+                    (&mut mailbox, &mut relay_buffers),
+                    &mut player,
+                    (period_ns, config.realtime.pipelined),
+                );
                 shared.relay.end();
                 master.replace_timeout(timeout);
                 // The master goes on without the thread: plain exchanges, no status reads.
@@ -372,7 +368,7 @@ impl CycleThread {
         let _ = master_tx.send(master);
         let mut warnings = ready_rx.recv().unwrap_or_default();
         let cpu_latency =
-            config.cpu_latency_us.and_then(|us| rt::hold_cpu_latency(us).map_err(|w| warnings.push(w)).ok());
+            config.realtime.cpu_latency_us.and_then(|us| rt::hold_cpu_latency(us).map_err(|w| warnings.push(w)).ok());
         let recovery = {
             let shared = shared.clone();
             std::thread::Builder::new()
@@ -1463,10 +1459,15 @@ mod tests {
         let (error, master) =
             *CycleThread::start(master_in_op(1), Config::new(Duration::from_micros(100))).err().unwrap();
         assert!(error.to_string().contains("250 µs ..= 10000 µs"), "{error}");
-        let (error, _) =
-            *CycleThread::start(master, Config { priority: Some(0), ..Config::new(Duration::from_millis(1)) })
-                .err()
-                .unwrap();
+        let (error, _) = *CycleThread::start(
+            master,
+            Config {
+                realtime: RealTime { priority: Some(0), ..RealTime::default() },
+                ..Config::new(Duration::from_millis(1))
+            },
+        )
+        .err()
+        .unwrap();
         assert!(error.to_string().contains("1..=99"), "{error}");
     }
 
