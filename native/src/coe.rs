@@ -4,9 +4,6 @@
 //! (number and service). This module encodes and decodes the SDO transfers (expedited, normal,
 //! segmented, abort), emergency messages and the SDO information service, on both the client
 //! (master) and server (virtual AKD) side. Values are borrowed from the caller's buffers.
-
-use std::fmt;
-
 use crate::mailbox::MailboxError;
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
 
@@ -471,118 +468,74 @@ pub fn split_message(message: &[u8]) -> Result<(MailboxHeader, CoeHeader, &[u8])
     Ok((header, coe, &body[COE_HEADER_LEN..]))
 }
 
-/// An SDO abort code (CiA 301 §7.2.4.3.17, AKD manual §5.13). A slave may abort with a code
-/// outside the standard's list (a manufacturer's), so this is the wire value with the
-/// standard's codes as constants and [`name`](SdoAbortCode::name) for any of them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct SdoAbortCode(pub u32);
-
-impl SdoAbortCode {
-    /// Toggle bit not alternated.
-    pub const TOGGLE_BIT: SdoAbortCode = SdoAbortCode(0x0503_0000);
-    /// SDO protocol timed out.
-    pub const TIMEOUT: SdoAbortCode = SdoAbortCode(0x0504_0000);
-    /// Client/server command specifier not valid or unknown.
-    pub const BAD_COMMAND: SdoAbortCode = SdoAbortCode(0x0504_0001);
-    /// Out of memory.
-    pub const OUT_OF_MEMORY: SdoAbortCode = SdoAbortCode(0x0504_0005);
-    /// Unsupported access to an object.
-    pub const UNSUPPORTED_ACCESS: SdoAbortCode = SdoAbortCode(0x0601_0000);
-    /// Attempt to read a write-only object.
-    pub const WRITE_ONLY: SdoAbortCode = SdoAbortCode(0x0601_0001);
-    /// Attempt to write a read-only object.
-    pub const READ_ONLY: SdoAbortCode = SdoAbortCode(0x0601_0002);
-    /// Subindex cannot be written, sub 0 must be 0 for write access.
-    pub const SUBINDEX_WRITE_NEEDS_ZERO: SdoAbortCode = SdoAbortCode(0x0601_0003);
-    /// Complete access not supported.
-    pub const COMPLETE_ACCESS_UNSUPPORTED: SdoAbortCode = SdoAbortCode(0x0601_0004);
-    /// Object does not exist in the object dictionary.
-    pub const NO_SUCH_OBJECT: SdoAbortCode = SdoAbortCode(0x0602_0000);
-    /// Object cannot be mapped to the PDO.
-    pub const NOT_MAPPABLE: SdoAbortCode = SdoAbortCode(0x0604_0041);
-    /// The number and length of the objects to be mapped would exceed the PDO length.
-    pub const PDO_TOO_LONG: SdoAbortCode = SdoAbortCode(0x0604_0042);
-    /// General parameter incompatibility.
-    pub const PARAMETER_INCOMPATIBLE: SdoAbortCode = SdoAbortCode(0x0604_0043);
-    /// General internal incompatibility in the device.
-    pub const DEVICE_INCOMPATIBLE: SdoAbortCode = SdoAbortCode(0x0604_0047);
-    /// Access failed due to a hardware error.
-    pub const HARDWARE_ERROR: SdoAbortCode = SdoAbortCode(0x0606_0000);
-    /// Data type does not match, length of service parameter does not match.
-    pub const LENGTH_MISMATCH: SdoAbortCode = SdoAbortCode(0x0607_0010);
-    /// Data type does not match, length of service parameter too high.
-    pub const LENGTH_TOO_HIGH: SdoAbortCode = SdoAbortCode(0x0607_0012);
-    /// Data type does not match, length of service parameter too low.
-    pub const LENGTH_TOO_LOW: SdoAbortCode = SdoAbortCode(0x0607_0013);
-    /// Subindex does not exist.
-    pub const NO_SUCH_SUBINDEX: SdoAbortCode = SdoAbortCode(0x0609_0011);
-    /// Value range of parameter exceeded (download only).
-    pub const VALUE_RANGE: SdoAbortCode = SdoAbortCode(0x0609_0030);
-    /// Value of parameter written too high.
-    pub const VALUE_TOO_HIGH: SdoAbortCode = SdoAbortCode(0x0609_0031);
-    /// Value of parameter written too low.
-    pub const VALUE_TOO_LOW: SdoAbortCode = SdoAbortCode(0x0609_0032);
-    /// Maximum value is less than minimum value.
-    pub const MAX_BELOW_MIN: SdoAbortCode = SdoAbortCode(0x0609_0036);
-    /// General error.
-    pub const GENERAL: SdoAbortCode = SdoAbortCode(0x0800_0000);
-    /// Data cannot be transferred or stored to the application.
-    pub const CANNOT_STORE: SdoAbortCode = SdoAbortCode(0x0800_0020);
-    /// Data cannot be transferred because of local control.
-    pub const LOCAL_CONTROL: SdoAbortCode = SdoAbortCode(0x0800_0021);
-    /// Data cannot be transferred because of the present device state.
-    pub const DEVICE_STATE: SdoAbortCode = SdoAbortCode(0x0800_0022);
-    /// Object dictionary dynamic generation fails or no object dictionary is present.
-    pub const NO_OBJECT_DICTIONARY: SdoAbortCode = SdoAbortCode(0x0800_0023);
-}
-
-impl SdoAbortCode {
-    /// The name CiA 301 / ETG.1000.6 give the code; "unknown abort code" outside their list.
-    pub fn name(self) -> &'static str {
-        match self {
-            SdoAbortCode::TOGGLE_BIT => "toggle bit not alternated",
-            SdoAbortCode::TIMEOUT => "SDO protocol timed out",
-            SdoAbortCode::BAD_COMMAND => "client/server command specifier not valid or unknown",
-            SdoAbortCode(0x0504_0002) => "invalid block size",
-            SdoAbortCode(0x0504_0003) => "invalid sequence number",
-            SdoAbortCode(0x0504_0004) => "CRC error",
-            SdoAbortCode::OUT_OF_MEMORY => "out of memory",
-            SdoAbortCode::UNSUPPORTED_ACCESS => "unsupported access to an object",
-            SdoAbortCode::WRITE_ONLY => "attempt to read a write-only object",
-            SdoAbortCode::READ_ONLY => "attempt to write a read-only object",
-            SdoAbortCode::SUBINDEX_WRITE_NEEDS_ZERO => {
-                "subindex cannot be written, subindex 0 must be 0 for write access"
-            }
-            SdoAbortCode::COMPLETE_ACCESS_UNSUPPORTED => "complete access not supported for objects of variable length",
-            SdoAbortCode(0x0601_0005) => "object length exceeds mailbox size",
-            SdoAbortCode(0x0601_0006) => "object mapped to RxPDO, SDO download blocked",
-            SdoAbortCode::NO_SUCH_OBJECT => "object does not exist in the object dictionary",
-            SdoAbortCode::NOT_MAPPABLE => "object cannot be mapped to the PDO",
-            SdoAbortCode::PDO_TOO_LONG => "number and length of mapped objects exceed the PDO length",
-            SdoAbortCode::PARAMETER_INCOMPATIBLE => "general parameter incompatibility",
-            SdoAbortCode::DEVICE_INCOMPATIBLE => "general internal incompatibility in the device",
-            SdoAbortCode::HARDWARE_ERROR => "access failed due to a hardware error",
-            SdoAbortCode::LENGTH_MISMATCH => "data type does not match, length of service parameter does not match",
-            SdoAbortCode::LENGTH_TOO_HIGH => "data type does not match, length of service parameter too high",
-            SdoAbortCode::LENGTH_TOO_LOW => "data type does not match, length of service parameter too low",
-            SdoAbortCode::NO_SUCH_SUBINDEX => "subindex does not exist",
-            SdoAbortCode::VALUE_RANGE => "value range of parameter exceeded",
-            SdoAbortCode::VALUE_TOO_HIGH => "value of parameter written too high",
-            SdoAbortCode::VALUE_TOO_LOW => "value of parameter written too low",
-            SdoAbortCode::MAX_BELOW_MIN => "maximum value is less than minimum value",
-            SdoAbortCode::GENERAL => "general error",
-            SdoAbortCode::CANNOT_STORE => "data cannot be transferred or stored to the application",
-            SdoAbortCode::LOCAL_CONTROL => "data cannot be transferred or stored because of local control",
-            SdoAbortCode::DEVICE_STATE => "data cannot be transferred or stored because of the present device state",
-            SdoAbortCode::NO_OBJECT_DICTIONARY => "no object dictionary is present",
-            _ => "unknown abort code",
-        }
-    }
-}
-
-impl fmt::Display for SdoAbortCode {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "0x{:08X} ({})", self.0, self.name())
+wire_codes! {
+    /// An SDO abort code (CiA 301 §7.2.4.3.17, AKD manual §5.13). A slave may abort with a code
+    /// outside the standard's list (a manufacturer's), so this is the wire value with the
+    /// standard's codes as constants and [`name`](SdoAbortCode::name) for any of them.
+    pub struct SdoAbortCode(u32) {
+        /// Toggle bit not alternated.
+        TOGGLE_BIT = 0x0503_0000 => "toggle bit not alternated",
+        /// SDO protocol timed out.
+        TIMEOUT = 0x0504_0000 => "SDO protocol timed out",
+        /// Client/server command specifier not valid or unknown.
+        BAD_COMMAND = 0x0504_0001 => "client/server command specifier not valid or unknown",
+        0x0504_0002 => "invalid block size",
+        0x0504_0003 => "invalid sequence number",
+        0x0504_0004 => "CRC error",
+        /// Out of memory.
+        OUT_OF_MEMORY = 0x0504_0005 => "out of memory",
+        /// Unsupported access to an object.
+        UNSUPPORTED_ACCESS = 0x0601_0000 => "unsupported access to an object",
+        /// Attempt to read a write-only object.
+        WRITE_ONLY = 0x0601_0001 => "attempt to read a write-only object",
+        /// Attempt to write a read-only object.
+        READ_ONLY = 0x0601_0002 => "attempt to write a read-only object",
+        /// Subindex cannot be written, sub 0 must be 0 for write access.
+        SUBINDEX_WRITE_NEEDS_ZERO = 0x0601_0003 => "subindex cannot be written, subindex 0 must be 0 for write access",
+        /// Complete access not supported.
+        COMPLETE_ACCESS_UNSUPPORTED = 0x0601_0004 => "complete access not supported for objects of variable length",
+        0x0601_0005 => "object length exceeds mailbox size",
+        0x0601_0006 => "object mapped to RxPDO, SDO download blocked",
+        /// Object does not exist in the object dictionary.
+        NO_SUCH_OBJECT = 0x0602_0000 => "object does not exist in the object dictionary",
+        /// Object cannot be mapped to the PDO.
+        NOT_MAPPABLE = 0x0604_0041 => "object cannot be mapped to the PDO",
+        /// The number and length of the objects to be mapped would exceed the PDO length.
+        PDO_TOO_LONG = 0x0604_0042 => "number and length of mapped objects exceed the PDO length",
+        /// General parameter incompatibility.
+        PARAMETER_INCOMPATIBLE = 0x0604_0043 => "general parameter incompatibility",
+        /// General internal incompatibility in the device.
+        DEVICE_INCOMPATIBLE = 0x0604_0047 => "general internal incompatibility in the device",
+        /// Access failed due to a hardware error.
+        HARDWARE_ERROR = 0x0606_0000 => "access failed due to a hardware error",
+        /// Data type does not match, length of service parameter does not match.
+        LENGTH_MISMATCH = 0x0607_0010 => "data type does not match, length of service parameter does not match",
+        /// Data type does not match, length of service parameter too high.
+        LENGTH_TOO_HIGH = 0x0607_0012 => "data type does not match, length of service parameter too high",
+        /// Data type does not match, length of service parameter too low.
+        LENGTH_TOO_LOW = 0x0607_0013 => "data type does not match, length of service parameter too low",
+        /// Subindex does not exist.
+        NO_SUCH_SUBINDEX = 0x0609_0011 => "subindex does not exist",
+        /// Value range of parameter exceeded (download only).
+        VALUE_RANGE = 0x0609_0030 => "value range of parameter exceeded",
+        /// Value of parameter written too high.
+        VALUE_TOO_HIGH = 0x0609_0031 => "value of parameter written too high",
+        /// Value of parameter written too low.
+        VALUE_TOO_LOW = 0x0609_0032 => "value of parameter written too low",
+        /// Maximum value is less than minimum value.
+        MAX_BELOW_MIN = 0x0609_0036 => "maximum value is less than minimum value",
+        /// General error.
+        GENERAL = 0x0800_0000 => "general error",
+        /// Data cannot be transferred or stored to the application.
+        CANNOT_STORE = 0x0800_0020 => "data cannot be transferred or stored to the application",
+        /// Data cannot be transferred because of local control.
+        LOCAL_CONTROL = 0x0800_0021 => "data cannot be transferred or stored because of local control",
+        /// Data cannot be transferred because of the present device state.
+        DEVICE_STATE = 0x0800_0022 => "data cannot be transferred or stored because of the present device state",
+        /// Object dictionary dynamic generation fails or no object dictionary is present.
+        NO_OBJECT_DICTIONARY = 0x0800_0023 => "no object dictionary is present",
+    } else {
+        _ => "unknown abort code",
     }
 }
 

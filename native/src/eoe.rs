@@ -61,37 +61,25 @@ wire_codes! {
     }
 }
 
-/// The result word of an EoE response (ETG.1000.6 table "EoE result"). A slave may answer
-/// with a code outside the standard's list, so this is the wire value with the standard's
-/// codes as constants and [`name`](EoeResult::name) for any of them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct EoeResult(pub u16);
-
-impl EoeResult {
-    /// Success.
-    pub const SUCCESS: EoeResult = EoeResult(0x0000);
-    /// Unspecified error.
-    pub const UNSPECIFIED: EoeResult = EoeResult(0x0001);
-    /// Unsupported frame type.
-    pub const UNSUPPORTED_FRAME_TYPE: EoeResult = EoeResult(0x0002);
-    /// No IP support.
-    pub const NO_IP_SUPPORT: EoeResult = EoeResult(0x0201);
-    /// DHCP not supported.
-    pub const NO_DHCP_SUPPORT: EoeResult = EoeResult(0x0202);
-    /// No address filter support.
-    pub const NO_FILTER_SUPPORT: EoeResult = EoeResult(0x0401);
-
-    /// The standard's name of the code; "unknown EoE result" outside its list.
-    pub fn name(self) -> &'static str {
-        match self {
-            EoeResult::SUCCESS => "success",
-            EoeResult::UNSPECIFIED => "unspecified error",
-            EoeResult::UNSUPPORTED_FRAME_TYPE => "unsupported frame type",
-            EoeResult::NO_IP_SUPPORT => "no IP support",
-            EoeResult::NO_DHCP_SUPPORT => "DHCP not supported",
-            EoeResult::NO_FILTER_SUPPORT => "no filter support",
-            _ => "unknown EoE result",
-        }
+wire_codes! {
+    /// The result word of an EoE response (ETG.1000.6 table "EoE result"). A slave may answer
+    /// with a code outside the standard's list, so this is the wire value with the standard's
+    /// codes as constants and [`name`](EoeResult::name) for any of them.
+    pub struct EoeResult(u16) {
+        /// Success.
+        SUCCESS = 0x0000 => "success",
+        /// Unspecified error.
+        UNSPECIFIED = 0x0001 => "unspecified error",
+        /// Unsupported frame type.
+        UNSUPPORTED_FRAME_TYPE = 0x0002 => "unsupported frame type",
+        /// No IP support.
+        NO_IP_SUPPORT = 0x0201 => "no IP support",
+        /// DHCP not supported.
+        NO_DHCP_SUPPORT = 0x0202 => "DHCP not supported",
+        /// No address filter support.
+        NO_FILTER_SUPPORT = 0x0401 => "no filter support",
+    } else {
+        _ => "unknown EoE result",
     }
 }
 

@@ -37,55 +37,37 @@ wire_codes! {
     }
 }
 
-/// A FoE error code (ETG.1000.6 table "FoE error codes"). Codes outside the standard's list
-/// are the vendor's, so this is the wire value with the standard's codes as constants and
-/// [`name`](FoeErrorCode::name) for any of them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct FoeErrorCode(pub u32);
-
-impl FoeErrorCode {
-    /// Not defined.
-    pub const NOT_DEFINED: FoeErrorCode = FoeErrorCode(0x8000);
-    /// Not found.
-    pub const NOT_FOUND: FoeErrorCode = FoeErrorCode(0x8001);
-    /// Access denied.
-    pub const ACCESS_DENIED: FoeErrorCode = FoeErrorCode(0x8002);
-    /// Disk full.
-    pub const DISK_FULL: FoeErrorCode = FoeErrorCode(0x8003);
-    /// Illegal.
-    pub const ILLEGAL: FoeErrorCode = FoeErrorCode(0x8004);
-    /// Packet number wrong.
-    pub const PACKET_NUMBER_WRONG: FoeErrorCode = FoeErrorCode(0x8005);
-    /// Already exists.
-    pub const ALREADY_EXISTS: FoeErrorCode = FoeErrorCode(0x8006);
-    /// No user.
-    pub const NO_USER: FoeErrorCode = FoeErrorCode(0x8007);
-    /// Bootstrap only.
-    pub const BOOTSTRAP_ONLY: FoeErrorCode = FoeErrorCode(0x8008);
-    /// Not bootstrap.
-    pub const NOT_BOOTSTRAP: FoeErrorCode = FoeErrorCode(0x8009);
-    /// No rights.
-    pub const NO_RIGHTS: FoeErrorCode = FoeErrorCode(0x800A);
-    /// Program error.
-    pub const PROGRAM_ERROR: FoeErrorCode = FoeErrorCode(0x800B);
-
-    /// The standard's name of the code; "vendor-specific FoE error" outside its list.
-    pub fn name(self) -> &'static str {
-        match self {
-            FoeErrorCode::NOT_DEFINED => "not defined",
-            FoeErrorCode::NOT_FOUND => "not found",
-            FoeErrorCode::ACCESS_DENIED => "access denied",
-            FoeErrorCode::DISK_FULL => "disk full",
-            FoeErrorCode::ILLEGAL => "illegal",
-            FoeErrorCode::PACKET_NUMBER_WRONG => "packet number wrong",
-            FoeErrorCode::ALREADY_EXISTS => "already exists",
-            FoeErrorCode::NO_USER => "no user",
-            FoeErrorCode::BOOTSTRAP_ONLY => "bootstrap only",
-            FoeErrorCode::NOT_BOOTSTRAP => "not bootstrap",
-            FoeErrorCode::NO_RIGHTS => "no rights",
-            FoeErrorCode::PROGRAM_ERROR => "program error",
-            _ => "vendor-specific FoE error",
-        }
+wire_codes! {
+    /// A FoE error code (ETG.1000.6 table "FoE error codes"). Codes outside the standard's list
+    /// are the vendor's, so this is the wire value with the standard's codes as constants and
+    /// [`name`](FoeErrorCode::name) for any of them.
+    pub struct FoeErrorCode(u32) {
+        /// Not defined.
+        NOT_DEFINED = 0x0000_8000 => "not defined",
+        /// Not found.
+        NOT_FOUND = 0x0000_8001 => "not found",
+        /// Access denied.
+        ACCESS_DENIED = 0x0000_8002 => "access denied",
+        /// Disk full.
+        DISK_FULL = 0x0000_8003 => "disk full",
+        /// Illegal.
+        ILLEGAL = 0x0000_8004 => "illegal",
+        /// Packet number wrong.
+        PACKET_NUMBER_WRONG = 0x0000_8005 => "packet number wrong",
+        /// Already exists.
+        ALREADY_EXISTS = 0x0000_8006 => "already exists",
+        /// No user.
+        NO_USER = 0x0000_8007 => "no user",
+        /// Bootstrap only.
+        BOOTSTRAP_ONLY = 0x0000_8008 => "bootstrap only",
+        /// Not bootstrap.
+        NOT_BOOTSTRAP = 0x0000_8009 => "not bootstrap",
+        /// No rights.
+        NO_RIGHTS = 0x0000_800A => "no rights",
+        /// Program error.
+        PROGRAM_ERROR = 0x0000_800B => "program error",
+    } else {
+        _ => "vendor-specific FoE error",
     }
 }
 

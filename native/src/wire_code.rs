@@ -1,6 +1,13 @@
-//! Closed sets of wire codes as enums: one declaration gives the `#[repr]` enum, its names as
-//! the standard spells them, `TryFrom` of the raw value (an error naming the value and the
-//! set) and the raw value back.
+//! Sets of wire codes, declared in one shape: each code with its value and its name as the
+//! standard spells it.
+//!
+//! - A closed set (`enum Name: raw, "what" { Variant = value => "name", ... }`) is a `#[repr]`
+//!   enum with its names, `ALL`, `TryFrom` of the raw value (an error naming the value and the
+//!   set) and the raw value back.
+//! - An open set (`struct Name(raw) { CONST = value => "name", value => "name", ... } else {
+//!   pattern => "name", ... }`), where a slave may send codes outside the standard's list (a
+//!   vendor's), is a newtype over the wire value: the codes this crate uses by name as
+//!   constants, a `name()` for every code of the list and the `else` patterns for the rest.
 
 use std::fmt;
 
@@ -55,6 +62,36 @@ macro_rules! wire_codes {
         impl std::fmt::Display for $name {
             fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
                 write!(f, "{} ({})", *self as $raw, self.name())
+            }
+        }
+    };
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident($raw:ty) {
+            $($($(#[$const_meta:meta])* $constant:ident =)? $value:literal => $text:literal,)+
+        } else {
+            $($other:pat => $other_text:literal,)+
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        $vis struct $name(pub $raw);
+
+        impl $name {
+            $($($(#[$const_meta])* pub const $constant: $name = $name($value);)?)+
+
+            /// The code's name as the standard spells it, for any code.
+            pub fn name(self) -> &'static str {
+                match self.0 {
+                    $($value => $text,)+
+                    $($other => $other_text,)+
+                }
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "0x{:0width$X} ({})", self.0, self.name(), width = 2 * std::mem::size_of::<$raw>())
             }
         }
     };

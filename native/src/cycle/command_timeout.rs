@@ -65,7 +65,7 @@ impl CommandTimeoutShared {
 
     fn config(&self) -> Option<(u64, CommandTimeoutAction)> {
         let packed = self.config.load(Ordering::Acquire);
-        let action = CommandTimeoutAction::ALL.into_iter().find(|a| *a as u64 == packed & 3)?;
+        let action = CommandTimeoutAction::try_from((packed & 3) as u8).ok()?;
         Some((packed >> 2, action))
     }
 

@@ -24,37 +24,23 @@ use crate::ds402::{controlword as cw, statusword as sw, Mode, State};
 
 const HOMING: u8 = Mode::Homing as i8 as u8;
 
-/// How a homing ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Outcome {
-    /// Homing attained (bit 12) and stopped (bit 10).
-    Attained = 1,
-    /// The drive showed a homing error (bit 13).
-    HomingError = 2,
-    /// Not attained within the time-out; halted.
-    TimedOut = 3,
-    /// Canceled; halted.
-    Canceled = 4,
-    /// The drive left Operation enabled (fault, disable, quick stop, hardware enable low).
-    NotEnabled = 5,
+wire_codes! {
+    /// How a homing ended.
+    pub enum Outcome: u8, "homing outcome" {
+        /// Homing attained (bit 12) and stopped (bit 10).
+        Attained = 1 => "attained",
+        /// The drive showed a homing error (bit 13).
+        HomingError = 2 => "homing_error",
+        /// Not attained within the time-out; halted.
+        TimedOut = 3 => "timed_out",
+        /// Canceled; halted.
+        Canceled = 4 => "canceled",
+        /// The drive left Operation enabled (fault, disable, quick stop, hardware enable low).
+        NotEnabled = 5 => "not_enabled",
+    }
 }
 
 impl Outcome {
-    const ALL: [Outcome; 5] =
-        [Outcome::Attained, Outcome::HomingError, Outcome::TimedOut, Outcome::Canceled, Outcome::NotEnabled];
-
-    /// Its name as the Python API spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Outcome::Attained => "attained",
-            Outcome::HomingError => "homing_error",
-            Outcome::TimedOut => "timed_out",
-            Outcome::Canceled => "canceled",
-            Outcome::NotEnabled => "not_enabled",
-        }
-    }
-
     /// Why it failed, in one clause; `None` when attained.
     pub fn describe(self) -> Option<&'static str> {
         match self {
@@ -101,7 +87,7 @@ impl Phase {
     }
 
     fn unpack(v: u64) -> Phase {
-        let outcome = Outcome::ALL.into_iter().find(|o| *o as u64 == (v >> 4) & 0xF);
+        let outcome = Outcome::try_from(((v >> 4) & 0xF) as u8).ok();
         match (v & 0xF, outcome) {
             (1, _) => Phase::Entering,
             (2, _) => Phase::Homing,

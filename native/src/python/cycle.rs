@@ -693,10 +693,10 @@ impl PyCycle {
     /// stream and lifts the hold.
     #[pyo3(signature = (position, timeout, policy = "hold"))]
     fn set_command_timeout(&self, position: u16, timeout: f64, policy: &str) -> PyResult<()> {
-        let action = CommandTimeoutAction::ALL
-            .into_iter()
-            .find(|a| a.name() == policy)
-            .ok_or_else(|| super::to_py_err(UnknownName::CommandTimeoutPolicy { name: policy.to_owned() }.into()))?;
+        let action =
+            CommandTimeoutAction::ALL.iter().copied().find(|a| a.name() == policy).ok_or_else(|| {
+                super::to_py_err(UnknownName::CommandTimeoutPolicy { name: policy.to_owned() }.into())
+            })?;
         let timeout = duration("command timeout", timeout, "a finite number of seconds >= 0, 0 turning it off")?;
         self.cycle.set_command_timeout(position, Some(timeout), action).py()
     }
