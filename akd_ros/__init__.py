@@ -3,7 +3,8 @@
 The public API, named here one by one (`__all__`), so that what the extension exports for the package's own use
 (drive knowledge, codecs, the node's helpers) is not the user's API by accident:
 
-- from the native extension: the `Master`, the real-time `Cycle`, the virtual AKD (`VirtualBus`, `serve_udp`,
+- from the native extension: the `Master`, the real-time `Cycle` and its options (`RealTime`, which `Bus`, `Axis`
+  and the node's `rt.*` parameters take alike), the virtual AKD (`VirtualBus`, `serve_udp`,
   `serve_iface`, `Simulator`, which controls the virtual AKDs of a `Master("sim")` or a server while they serve, and
   `SetpointTrace`, the file a server traces their set-points to) and the exceptions, all under `EtherCatError`;
 - in Python: `Bus`, one EtherCAT line with its master and cycle thread, and `Axis`, one drive on it commanded in SI
@@ -23,6 +24,7 @@ from akd_ros._native import (
     MailboxError,
     Master,
     PdoError,
+    RealTime,
     SdoAbortError,
     SetpointTrace,
     SiiError,
@@ -70,6 +72,7 @@ __all__ = [
     "MailboxError",
     "Master",
     "PdoError",
+    "RealTime",
     "SdoAbortError",
     "SetpointTrace",
     "SiiError",

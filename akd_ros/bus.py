@@ -127,8 +127,9 @@ def check(drives: Sequence, fault_reaction: str, period: float, dc_shift: float)
 class Bus:
     """One EtherCAT line: its master, its one cycle thread and an `Axis` per drive.
 
-    `drives` are `akd_ros.DriveConfig`s, one per drive to command. Use as a context manager or call `close()`: it
-    disables every drive, stops the cycle and returns the line to Init.
+    `drives` are `akd_ros.DriveConfig`s, one per drive to command; `realtime` (an `akd_ros.RealTime`, the same options
+    as an Axis's and the node's `rt.*` parameters) how the cycle thread runs. Use as a context manager or call
+    `close()`: it disables every drive, stops the cycle and returns the line to Init.
     """
 
     def __init__(
@@ -137,11 +138,7 @@ class Bus:
         drives: Sequence = (),
         *,
         period: float = 0.001,
-        priority: int | None = None,
-        cpu: int | None = None,
-        lock_memory: bool = False,
-        cpu_latency_us: int | None = None,
-        pipelined: bool = False,
+        realtime: _native.RealTime | None = None,
         request_timeout: float = 1.0,
         frame_timeout: float = 0.1,
         fault_reaction: str = "all",
@@ -184,15 +181,7 @@ class Bus:
             else:
                 self._master.configure_sm2_sync(round(period * 1e9))
             self._master.request_state("op")
-            self._cycle = _native.Cycle(
-                self._master,
-                period,
-                priority=priority,
-                cpu=cpu,
-                lock_memory=lock_memory,
-                cpu_latency_us=cpu_latency_us,
-                pipelined=pipelined,
-            )
+            self._cycle = _native.Cycle(self._master, period, realtime=realtime)
         except BaseException:
             self._master.close()
             raise

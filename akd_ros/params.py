@@ -630,11 +630,8 @@ class Settings:
     status_rate: float
     diagnostics_rate: float
     io_rate: float
-    rt_priority: int | None
-    rt_cpu: int | None
-    rt_lock_memory: bool
-    rt_cpu_latency_us: int | None
-    rt_pipelined: bool
+    realtime: _native.RealTime
+    """The cycle thread's rt.* parameters: priority, CPU, locked memory, wake-up latency, pipelined frames."""
     record: dict[str, object] | None
     """The Recorder's folder, decimation and black_box_seconds; None when recording is off."""
     autostart: bool
@@ -654,11 +651,7 @@ class Settings:
         """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
         return {
             "period": self.cycle_time,
-            "priority": self.rt_priority,
-            "cpu": self.rt_cpu,
-            "lock_memory": self.rt_lock_memory,
-            "cpu_latency_us": self.rt_cpu_latency_us,
-            "pipelined": self.rt_pipelined,
+            "realtime": self.realtime,
             "fault_reaction": self.fault_reaction,
             "dc": self.dc,
             "dc_shift": self.dc_shift,
@@ -927,11 +920,13 @@ def settings(values: dict[str, object]) -> Settings:
         status_rate=top["status_rate"],
         diagnostics_rate=top["diagnostics_rate"],
         io_rate=top["io_rate"],
-        rt_priority=top["rt.priority"] or None,
-        rt_cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
-        rt_lock_memory=top["rt.lock_memory"],
-        rt_cpu_latency_us=None if top["rt.cpu_latency_us"] < 0 else top["rt.cpu_latency_us"],
-        rt_pipelined=top["rt.pipelined"],
+        realtime=_native.RealTime(
+            priority=top["rt.priority"] or None,
+            cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
+            lock_memory=top["rt.lock_memory"],
+            cpu_latency_us=None if top["rt.cpu_latency_us"] < 0 else top["rt.cpu_latency_us"],
+            pipelined=top["rt.pipelined"],
+        ),
         record={
             "folder": top["record.folder"],
             "decimation": top["record.decimation"],

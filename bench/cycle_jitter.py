@@ -15,8 +15,8 @@ Wake-up latency is what cyclictest measures: how late after its deadline the thr
 
 cyclictest holds the CPUs' wake-up latency at 0 µs through PM QoS (/dev/cpu_dma_latency) while it runs, which keeps
 an idle CPU polling rather than halted: on a virtual machine a halted vCPU wakes tens of µs late. So that both run
-alike, every run of the cycle holds it the same way (`Cycle(..., cpu_latency_us=0)`; where it may not, the cycle's
-warning says so).
+alike, every run of the cycle holds it the same way (`Cycle(..., realtime=RealTime(cpu_latency_us=0))`; where it may
+not, the cycle's warning says so).
 
     .venv/bin/python bench/cycle_jitter.py [--rates 1000,4000] [--seconds 4] [--rounds 2] [--loads idle,busy,sdo]
         [--priority 80] [--busy 2] [--no-cyclictest] [--json PATH]
@@ -97,7 +97,11 @@ def run_cycle(rate: int, load: str, args) -> dict:
     with _native.Master("sim", timeout=0.5) as master:
         master.scan()
         master.request_state("op")
-        cycle = _native.Cycle(master, period_ns / 1e9, priority=args.priority, lock_memory=True, cpu_latency_us=0)
+        cycle = _native.Cycle(
+            master,
+            period_ns / 1e9,
+            realtime=_native.RealTime(priority=args.priority, lock_memory=True, cpu_latency_us=0),
+        )
         with Load(load, args, cycle) as running:
             cpu0, cycles0 = cycle_thread_cpu_ns(), cycle.snapshot()["cycle"]
             while cycle.snapshot()["cycle"] < cycles:

@@ -17,7 +17,7 @@ native pacing, the supervised frame and the drives' state machines, its round tr
 exchange histogram and its CPU from the thread's schedstat.
 
 `+pipelined` rows send each cycle's frame and take its return at the next wake-up instead of
-waiting for it (`Master.send_process_data` / `receive_process_data`; the Cycle's `pipelined=True`),
+waiting for it (`Master.send_process_data` / `receive_process_data`; the Cycle's `realtime=RealTime(pipelined=True)`),
 on the default link: they wait for no round trip, so they have none to show, only their CPU.
 `SOEM+pipelined` is SOEM used the same way (`send_processdata` now, `receive_processdata` at the
 next wake-up), to show what the pattern gives any master.
@@ -231,7 +231,7 @@ def cycle_thread(link, rate, cycles, warmup, pipelined=False):
         master.scan()
         master.request_state("preop")
         master.request_state("op")
-        cycle = _native.Cycle(master, 1 / rate, pipelined=pipelined)
+        cycle = _native.Cycle(master, 1 / rate, realtime=_native.RealTime(pipelined=pipelined))
         try:
             while cycle.snapshot()["cycle"] < warmup:
                 time.sleep(0.01)

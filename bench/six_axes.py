@@ -29,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 from cycle_jitter import cycle_thread_cpu_ns
 from figures import histogram_quantile, real_time
 
-from akd_ros import Bus, BusRequestError, DriveConfig, _native
+from akd_ros import Bus, BusRequestError, DriveConfig, RealTime, _native
 from support.netns import akd_sim_udp, free_udp_port
 
 COUNT = 6
@@ -70,7 +70,7 @@ class Recorded:
 
 def run(link: str, period: float, args) -> dict:
     drives = [DriveConfig(slave=i, name=f"joint_{i + 1}", mode="interpolated_position") for i in range(COUNT)]
-    with Bus(link, drives, period=period, priority=args.priority) as bus:
+    with Bus(link, drives, period=period, realtime=RealTime(priority=args.priority)) as bus:
         for warning in bus.warnings:
             print(f"  warning: {warning}")
         bus.enable()

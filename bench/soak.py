@@ -234,7 +234,7 @@ class Soak:
                 m.configure_sm2_sync(round(self.args.period * 1e9))
                 m.request_state("op")
                 before = m.stats()
-                cycle = _native.Cycle(m, self.args.period, priority=self.args.priority)
+                cycle = _native.Cycle(m, self.args.period, realtime=_native.RealTime(priority=self.args.priority))
                 break
             except _native.EtherCatError as e:
                 print(f"soak: bring-up attempt {attempt + 1} failed: {e}", flush=True)

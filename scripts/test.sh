@@ -22,7 +22,8 @@ lint env RUSTDOCFLAGS="-D warnings" cargo doc --quiet --no-deps --features pytho
 lint cargo fmt --check
 echo "test: scripts/docs.sh (the documentation site: rustdoc, then Sphinx with warnings as errors)"
 bash scripts/docs.sh || status=1
-echo "test: scripts/module_deps.py (no module cycles in the crate or the package)"
+echo "test: scripts/module_deps.py (no module cycle, no dependency up a layer, in the crate or the package)"
+(cd scripts/module-deps && cargo fmt --check && cargo clippy --quiet --release -- -D warnings) || status=1
 python3 scripts/module_deps.py || status=1
 echo "test: cargo test (native/)"
 # Tests that need CAP_NET_RAW are #[ignore]d so that cargo reports them as not run elsewhere.

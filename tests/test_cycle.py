@@ -62,7 +62,7 @@ def busy_work(stop: threading.Event) -> int:
 @pytest.mark.parametrize("pipelined", [False, True], ids=["waiting", "pipelined"])
 def test_2000_cycles_with_python_busy_reach_the_drive(master, pipelined):
     expected_wkc = master.expected_wkc
-    with _native.Cycle(master, 0.001, pipelined=pipelined) as cycle:
+    with _native.Cycle(master, 0.001, realtime=_native.RealTime(pipelined=pipelined)) as cycle:
         assert cycle.running and cycle.period == pytest.approx(0.001)
         stop = threading.Event()
         workers = [threading.Thread(target=busy_work, args=(stop,)) for _ in range(2)]
@@ -151,9 +151,9 @@ def test_a_period_out_of_range_is_refused_and_the_master_kept(master, period):
 
 def test_bad_settings_and_outputs_are_refused_by_name(master):
     with pytest.raises(_native.ConfigError, match=r"priority 0 is outside 1..=99"):
-        _native.Cycle(master, 0.001, priority=0)
+        _native.RealTime(priority=0)
     with pytest.raises(_native.ConfigError, match="CPU 4096 does not exist"):
-        _native.Cycle(master, 0.001, cpu=4096)
+        _native.RealTime(cpu=4096)
     with _native.Cycle(master, 0.001) as cycle:
         with pytest.raises(_native.ConfigError, match="6 bytes of outputs, 2 given"):
             cycle.set_outputs(0, b"\x01\x02")
@@ -172,7 +172,7 @@ def test_a_master_without_process_data_is_refused():
 def test_real_time_settings_apply_or_warn_by_name(master):
     # Permitted or not depends on the machine: either way the cycle runs, and each refusal
     # is one warning naming the setting.
-    with _native.Cycle(master, 0.001, priority=10, cpu=0) as cycle:
+    with _native.Cycle(master, 0.001, realtime=_native.RealTime(priority=10, cpu=0)) as cycle:
         wait_for_cycle(cycle, 10)
         for w in cycle.warnings:
             assert w.startswith(("SCHED_FIFO priority 10 not set", "CPU affinity to CPU 0 not set")), w
@@ -189,7 +189,7 @@ def cpu_latency_target() -> int | None:
 
 def test_a_cpu_latency_is_held_while_the_cycle_runs_or_refused_by_name(master):
     before = cpu_latency_target()
-    with _native.Cycle(master, 0.001, cpu_latency_us=7) as cycle:
+    with _native.Cycle(master, 0.001, realtime=_native.RealTime(cpu_latency_us=7)) as cycle:
         wait_for_cycle(cycle, 10)
         if cycle.warnings:
             # Not permitted here (no write access): one warning naming the setting and the file; the cycle runs.
@@ -206,4 +206,4 @@ def test_a_cpu_latency_is_held_while_the_cycle_runs_or_refused_by_name(master):
 def test_a_cpu_latency_out_of_range_is_refused_with_the_range(master, us):
     refused = rf"CPU wake-up latency {us} µs is outside the allowed range 0\.\.=1000000 µs"
     with pytest.raises(_native.ConfigError, match=refused):
-        _native.Cycle(master, 0.001, cpu_latency_us=us)
+        _native.RealTime(cpu_latency_us=us)

@@ -21,7 +21,7 @@ import sys
 import threading
 import time
 
-from akd_ros import Axis
+from akd_ros import Axis, RealTime
 
 CYCLES = 100_000
 SWITCH_INTERVAL = 0.05
@@ -50,7 +50,7 @@ def test_100000_cycles_at_1_khz_with_python_busy_beside(capsys) -> None:
     sys.setswitchinterval(SWITCH_INTERVAL)
     worker = threading.Thread(target=busy, daemon=True)
     try:
-        with Axis("sim", period=0.001, priority=80) as axis:
+        with Axis("sim", period=0.001, realtime=RealTime(priority=80)) as axis:
             warnings = axis.warnings
             axis.enable()
             start = axis.state()

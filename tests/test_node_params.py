@@ -171,11 +171,11 @@ def test_the_real_drive_template_names_only_known_parameters_with_good_values():
     values["link"] = "sim"
     settings = params.settings(values)
     (joint,) = settings.joints
-    assert (settings.rt_priority, settings.rt_cpu, joint.limits.max_velocity) == (80, 1, 50.0)
-    assert settings.rt_cpu_latency_us == 0
-    assert settings.rt_pipelined is False
-    assert params.settings({**values, "rt.pipelined": True}).rt_pipelined is True
-    assert params.settings({**values, "rt.cpu_latency_us": -1}).rt_cpu_latency_us is None
+    assert (settings.realtime.priority, settings.realtime.cpu, joint.limits.max_velocity) == (80, 1, 50.0)
+    assert settings.realtime.cpu_latency_us == 0
+    assert settings.realtime.pipelined is False
+    assert params.settings({**values, "rt.pipelined": True}).realtime.pipelined is True
+    assert params.settings({**values, "rt.cpu_latency_us": -1}).realtime.cpu_latency_us is None
     assert math.isinf(template["limits.max_position"]) and joint.limits.max_position is None
 
 

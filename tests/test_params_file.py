@@ -126,7 +126,7 @@ akd_node:
     assert values["limits.max_velocity"] == 6.0 and values["joints.b.mapping.rx"] == ["0x6040:00/16 0x60C1:01/32"]
     settings = params.settings(values)
     a, b = settings.joints
-    assert (settings.rt_priority, a.limits.min_position, a.limits.max_velocity) == (10, -1.5, 6.0)
+    assert (settings.realtime.priority, a.limits.min_position, a.limits.max_velocity) == (10, -1.5, 6.0)
     assert b.slave == 1 and b.mapping == ([[0x60400010, 0x60C10120]], [[0x60410010, 0x60640020]])
 
 

@@ -172,7 +172,7 @@ def test_scan_with_setcap_on_the_interpreter_works(as_user, veth, tmp_path):
 BUS_SCRIPT = r"""
 import json, sys, threading, time
 from pathlib import Path
-from akd_ros import Bus, DriveConfig, LinkError, Master
+from akd_ros import Bus, DriveConfig, LinkError, Master, RealTime
 
 def capabilities():
     fields = dict(line.split(":\t", 1) for line in Path("/proc/thread-self/status").read_text().splitlines())
@@ -184,7 +184,7 @@ others = [threading.Thread(target=stop.wait, name=f"other {n}") for n in range(2
 for thread in others:
     thread.start()
 before = capabilities()
-bus = Bus(iface, [DriveConfig(slave=0)], priority=priority)
+bus = Bus(iface, [DriveConfig(slave=0)], realtime=RealTime(priority=priority))
 first = bus.axes[0].state().cycle
 time.sleep(0.2)
 print(json.dumps({"before": before, "warnings": bus.warnings, "cycles": bus.axes[0].state().cycle - first}), flush=True)

@@ -17,7 +17,7 @@ import time
 
 import pytest
 
-from akd_ros import Bus, DriveConfig, _native
+from akd_ros import Bus, DriveConfig, RealTime, _native
 from support import recovery_table
 from support.netns import akd_sim_in_netns, entered_netns, free_udp_port, stop_process, udp_port_bound
 from support.ros import Sim
@@ -234,7 +234,7 @@ def test_a_drive_power_cycled_in_op_is_restored_with_its_power_stage_off(dc, rea
 
 def test_a_drive_power_cycled_under_a_pipelined_cycle_is_restored_too():
     # The restore's frames go beside a cyclic frame on its way back: each keeps the cyclic return for the next wake-up.
-    with Bus("sim:3?missed=lost", drives(3), fault_reaction="joint", pipelined=True) as bus:
+    with Bus("sim:3?missed=lost", drives(3), fault_reaction="joint", realtime=RealTime(pipelined=True)) as bus:
         bus.enable()
         bus.simulator.power_cycle(1)
         seen = faults_until(bus, has("j1", "unreachable", "recovered"), "unreachable and recovered events")
@@ -293,7 +293,7 @@ def test_the_link_down_and_up_is_reported_and_the_drives_come_back(veth):
             # On a network interface, as a user runs it (rt.priority, docs/howto/realtime.md): the drives judge missed
             # frames by time as the real one does, and a cycle this shared host ran late would fault them before the row
             # begins.
-            bus = Bus(veth.if_master, drives(2), fault_reaction="joint", priority=RT_PRIORITY)
+            bus = Bus(veth.if_master, drives(2), fault_reaction="joint", realtime=RealTime(priority=RT_PRIORITY))
         with bus:
             bus.enable()
             t0 = time.monotonic_ns()

@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 master.configure_sm2_sync(round(args.period * 1e9))
             master.request_state("op")
-            cycle = _native.Cycle(master, args.period, priority=args.priority, cpu=args.cpu)
+            cycle = _native.Cycle(master, args.period, realtime=_native.RealTime(priority=args.priority, cpu=args.cpu))
             for warning in cycle.warnings:
                 print(f"akd-eoe: warning: {warning}", file=sys.stderr, flush=True)
         except BaseException:

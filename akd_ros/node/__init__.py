@@ -21,7 +21,7 @@ One module per job, each a part that the node's `Core` is made of:
 - `services`: the services over those requests;
 - `recording`: the bag of everything published and received, and of every cycle of every joint (`record.*`);
 - `clock`: stamps, the cycle thread's monotonic times moved onto the ROS clock;
-- `session`: what the parts share (the settings, the clock; from configure to cleanup the Bus, the Recorder, the
+- `node_state`: what the parts share (the settings, the clock; from configure to cleanup the Bus, the Recorder, the
   lock).
 
 Threads. The cycle thread and, beside it, the crate's feed (/joint_states and the statuses made from the cycle's
@@ -33,7 +33,7 @@ rather than drops them) and the request group (services, the supervisor that han
 may wait up to the axes' time-outs. Over rclpy a SingleThreadedExecutor takes every message and runs the command
 callbacks itself, while services run on the request group's thread (`worker`) and timers on their group's, so nothing
 that waits or takes long is ever in front of a command; over Zenoh each group is such a thread. Every Python thread
-gives the GIL up within GIL_SWITCH_INTERVAL_S when another wants it. The session's lock guards the axes'
+gives the GIL up within GIL_SWITCH_INTERVAL_S when another wants it. The node state's lock guards the axes'
 Python-side state (position unwrapping, event queues, the last command) between them.
 """
 

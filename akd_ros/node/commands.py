@@ -21,7 +21,7 @@ import time
 from akd_ros.axis import Axis, CheckedCommand, CommandError
 from akd_ros.bus import BusRequestError
 from akd_ros.node.homing import unhomed_refusal
-from akd_ros.node.session import AXIS_ERRORS, FAULT_STATES, Session, namespace
+from akd_ros.node.node_state import AXIS_ERRORS, FAULT_STATES, NodeState, namespace
 from akd_ros.node.transport import Qos, Transport
 
 FLOAT64 = "std_msgs/msg/Float64"
@@ -46,16 +46,16 @@ class Commands:
     """The command subscriptions (in `group`, `qos`), the supervisor timer (in `supervisor_group`: it may wait on
     the drive) that resets a fault under auto_once, and which joints such a reset is due for."""
 
-    def __init__(self, transport: Transport, session: Session, group, qos: Qos, supervisor_group) -> None:
-        self._session, self._clock, self._settings = session, session.clock, session.settings
+    def __init__(self, transport: Transport, node_state: NodeState, group, qos: Qos, supervisor_group) -> None:
+        self._node_state, self._clock, self._settings = node_state, node_state.clock, node_state.settings
         self._logger = transport.logger
         self.qos = qos
         self._reset_pending: set[str] = set()
         self._refusals: dict[str, tuple[float, int]] = {}
         self.topics: dict[tuple[str, str], str] = {}
         """The command topics' names by (joint, kind)."""
-        for joint in session.joints:
-            ns = namespace(session.settings, joint.name)
+        for joint in node_state.joints:
+            ns = namespace(node_state.settings, joint.name)
             for kind in COMMAND_KINDS:
                 self.topics[joint.name, kind] = transport.subscription(
                     FLOAT64,
@@ -75,16 +75,16 @@ class Commands:
 
     def fault_seen(self, joint: str) -> None:
         """A fault of `joint` was published: under its fault_reset auto_once the supervisor resets it."""
-        if next(j for j in self._session.joints if j.name == joint).fault_reset == "auto_once":
+        if next(j for j in self._node_state.joints if j.name == joint).fault_reset == "auto_once":
             self._reset_pending.add(joint)
 
     def _enabled_axis(self, joint: str, what: str) -> Axis:
         """The Axis of `joint` if the node is active and its drive in Operation enabled; CommandError otherwise.
-        Called with the session's lock held."""
-        session = self._session
-        if session.bus is None or not session.active:
+        Called with the node state's lock held."""
+        node_state = self._node_state
+        if node_state.bus is None or not node_state.active:
             raise CommandError(f"{what} refused: the node is not active (activate it first)")
-        axis = session.bus[joint]
+        axis = node_state.bus[joint]
         drive_state = axis.cycle.drive_status(axis.slave)["state"]
         if drive_state != "Operation enabled":
             raise CommandError(
@@ -94,11 +94,11 @@ class Commands:
 
     def _on_command(self, joint: str, kind: str, message) -> None:
         arrival_ns = self._clock.now_ns()
-        session = self._session
+        node_state = self._node_state
         try:
-            with session.lock:
+            with node_state.lock:
                 axis = self._enabled_axis(joint, f"{kind} command")
-                if kind == "position" and (why := unhomed_refusal(session, [joint])):
+                if kind == "position" and (why := unhomed_refusal(node_state, [joint])):
                     raise CommandError(f"position command refused, nothing sent: {why}")
                 axis.send_command(axis.check_command(kind, message.data))
         except CommandError as e:
@@ -107,12 +107,12 @@ class Commands:
 
     def _on_joint_commands(self, message) -> None:
         arrival_ns = self._clock.now_ns()
-        session = self._session
+        node_state = self._node_state
         try:
-            with session.lock:
+            with node_state.lock:
                 checked = self._check_joint_commands(message)
                 positioned = [axis.name for axis, _ in checked if axis.command_kind == "position"]
-                if why := unhomed_refusal(session, positioned):
+                if why := unhomed_refusal(node_state, positioned):
                     raise CommandError(why)
                 for axis, command in checked:
                     axis.send_command(command)
@@ -123,14 +123,14 @@ class Commands:
     def _record(self, topic: str, message, arrival_ns: int) -> None:
         """Records a command at its arrival, once it is on its way to the drive (or refused): its serialisation
         never delays it."""
-        recorder = self._session.recorder
+        recorder = self._node_state.recorder
         if recorder is not None:
             recorder.write(topic, message, arrival_ns)
 
     def _check_joint_commands(self, message) -> list[tuple[Axis, CheckedCommand]]:
         """Each named joint's command of `message`, all checked; CommandError naming the first problem."""
         names = list(message.name)
-        known = [j.name for j in self._session.joints]
+        known = [j.name for j in self._node_state.joints]
         unknown = [n for n in names if n not in known]
         if unknown:
             raise CommandError(f"unknown joint {', '.join(unknown)} (joints: {', '.join(known)})")
@@ -172,8 +172,8 @@ class Commands:
 
     def _supervise(self) -> None:
         """Resets a fault once under fault_reset auto_once."""
-        bus = self._session.bus
-        if bus is None or not self._session.active:
+        bus = self._node_state.bus
+        if bus is None or not self._node_state.active:
             return
         while self._reset_pending:
             joint = self._reset_pending.pop()
@@ -187,10 +187,10 @@ class Commands:
         happened). Disable also works on a node configured but inactive."""
         failed, done = _REQUEST_WORDS[request]
         try:
-            if request == "disable" and self._session.bus is not None:
-                axis = self._session.bus[joint]
+            if request == "disable" and self._node_state.bus is not None:
+                axis = self._node_state.bus[joint]
             else:
-                axis = self._session.axis_for_request(joint)
+                axis = self._node_state.axis_for_request(joint)
             getattr(axis, request)()
         except AXIS_ERRORS as e:
             return False, f"{failed}: {e}"
@@ -200,10 +200,10 @@ class Commands:
         """`request` of every joint's drive at once and waits for all: (done, what happened, naming each joint that
         refused and why)."""
         failed, done = _REQUEST_WORDS[request]
-        bus = self._session.bus
+        bus = self._node_state.bus
         try:
-            if bus is None or (request != "disable" and not self._session.active):
-                bus = self._session.bus_for_request()
+            if bus is None or (request != "disable" and not self._node_state.active):
+                bus = self._node_state.bus_for_request()
             getattr(bus, request)()
         except BusRequestError as e:
             why = "; ".join(f"joint {joint}: {reason}" for joint, reason in e.failed.items())

@@ -16,10 +16,10 @@ from akd_ros.node.diagnostics import Diagnostics
 from akd_ros.node.follow_joint_trajectory import FollowJointTrajectory
 from akd_ros.node.homing import Homing
 from akd_ros.node.io import Io
+from akd_ros.node.node_state import AXIS_ERRORS, NodeState
 from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
 from akd_ros.node.services import Services
-from akd_ros.node.session import AXIS_ERRORS, Session
 from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import Settings
@@ -38,7 +38,7 @@ class Core:
         self._transport = transport
         self._logger = transport.logger
         self._eoe_bridge: EoeBridge | None = None
-        self._session = Session(
+        self._node_state = NodeState(
             self.settings, CycleClock(transport.now_ns, transport.message_class("builtin_interfaces/msg/Time"))
         )
         periodic, requests = transport.group("periodic"), transport.group("requests")
@@ -48,27 +48,29 @@ class Core:
         command_qos = Qos(depth=100)
         self._reliable = Qos(depth=10)
         events = Qos(depth=100)
-        self._commands = Commands(transport, self._session, commands, command_qos, requests)
-        self._publishing = Publishing(transport, self._session, self._reliable, events, self._commands.fault_seen)
-        self._trajectories = Trajectories(transport, self._session, commands, periodic, command_qos, events)
-        self._io = Io(transport, self._session, periodic, requests, events, self._publishing)
-        self._diagnostics = Diagnostics(transport, self._session, periodic, self._reliable, NODE_NAME, self._publishing)
-        Services(transport, self._session, self._commands, requests)
+        self._commands = Commands(transport, self._node_state, commands, command_qos, requests)
+        self._publishing = Publishing(transport, self._node_state, self._reliable, events, self._commands.fault_seen)
+        self._trajectories = Trajectories(transport, self._node_state, commands, periodic, command_qos, events)
+        self._io = Io(transport, self._node_state, periodic, requests, events, self._publishing)
+        self._diagnostics = Diagnostics(
+            transport, self._node_state, periodic, self._reliable, NODE_NAME, self._publishing
+        )
+        Services(transport, self._node_state, self._commands, requests)
         # Homing goals have a group of their own: one runs for as long as its joints home.
-        Homing(transport, self._session, transport.group("homing"))
+        Homing(transport, self._node_state, transport.group("homing"))
         # So do FollowJointTrajectory goals: one runs until its trajectory ends, a newer one beside it to preempt it.
-        FollowJointTrajectory(transport, self._session, transport.group("follow"))
+        FollowJointTrajectory(transport, self._node_state, transport.group("follow"))
 
     @property
     def bus(self) -> Bus | None:
         """The Bus while configured, else None."""
-        return self._session.bus
+        return self._node_state.bus
 
     @property
     def recorder(self) -> Recorder | None:
         """The Recorder while configured with record.enabled, else None (e.g. to hold its writer, as a stalled disk
         would, and see what that costs)."""
-        return self._session.recorder
+        return self._node_state.recorder
 
     def _fail(self, message: str) -> bool:
         self.failure = message
@@ -143,7 +145,7 @@ class Core:
                 for topic, kind in commanded
             ]
             try:
-                self._session.recorder = open_recorder(
+                self._node_state.recorder = open_recorder(
                     self._transport, s, topics, self._transport.recorded_qos(self._reliable)
                 )
             except (ValueError, OSError) as e:
@@ -153,8 +155,8 @@ class Core:
             self._eoe_bridge = EoeBridge(bus.cycle, bus.eoe_drives, tap)
             drives = ", ".join(f"{j.name} at {j.eoe_ip.split('/')[0]}" for j in s.joints if j.eoe_ip is not None)
             self._logger.info(f"EoE bridge: {drives} through {tap.name}")
-        with self._session.lock:
-            self._session.bus = bus
+        with self._node_state.lock:
+            self._node_state.bus = bus
         self._publishing.start()
         modes = ", ".join(sorted({j.mode for j in s.joints}))
         self._logger.info(
@@ -164,7 +166,7 @@ class Core:
 
     def activate(self) -> bool:
         """Arms the configured latches, starts publishing and accepting commands; enables with enable_on_start."""
-        bus = self._session.bus
+        bus = self._node_state.bus
         for joint, axis in zip(self.settings.joints, bus.axes, strict=True):
             for channel, edge in joint.latch_arm:
                 try:
@@ -172,7 +174,7 @@ class Core:
                 except AXIS_ERRORS as e:
                     return self._fail(f"parameter latch.arm of {joint.name}: latch {channel}/{edge} not armed: {e}")
         self._diagnostics.restart_counters()
-        self._session.active = True
+        self._node_state.active = True
         self._publishing.set_active(True)
         if self.settings.enable_on_start:
             ok, message = self._commands.request_all("enable")
@@ -185,7 +187,7 @@ class Core:
 
     def deactivate(self) -> None:
         """Stops publishing and accepting commands and disables the drives."""
-        self._session.active = False
+        self._node_state.active = False
         self._publishing.set_active(False)
         ok, message = self._commands.request_all("disable")
         if not ok:
@@ -193,12 +195,12 @@ class Core:
 
     def close(self) -> None:
         """Stops publishing, disables the drives and returns the line to Init (does nothing when not configured)."""
-        session = self._session
-        session.active = False
+        node_state = self._node_state
+        node_state.active = False
         self._publishing.stop()
-        with session.lock:
-            bus, session.bus = session.bus, None
-        recorder, session.recorder = session.recorder, None
+        with node_state.lock:
+            bus, node_state.bus = node_state.bus, None
+        recorder, node_state.recorder = node_state.recorder, None
         bridge, self._eoe_bridge = self._eoe_bridge, None
         if bridge is not None:
             bridge.close()

@@ -18,8 +18,8 @@ from __future__ import annotations
 from akd_ros import _native
 from akd_ros.node.homing import joint_homed
 from akd_ros.node.io import named_levels, reasons
+from akd_ros.node.node_state import FAULT_STATES, NodeState
 from akd_ros.node.publishing import Publishing, RecordedPublisher
-from akd_ros.node.session import FAULT_STATES, Session
 from akd_ros.node.transport import Qos, Transport
 
 FBUS_PARAM02_UNKNOWN = (
@@ -73,33 +73,33 @@ class Diagnostics:
     (`akd_node: bus`); `publishing` has each joint's last fault."""
 
     def __init__(
-        self, transport: Transport, session: Session, group, qos: Qos, node_name: str, publishing: Publishing
+        self, transport: Transport, node_state: NodeState, group, qos: Qos, node_name: str, publishing: Publishing
     ) -> None:
-        self._session, self._clock, self._settings = session, session.clock, session.settings
-        self._joints = {j.name: j for j in session.joints}
+        self._node_state, self._clock, self._settings = node_state, node_state.clock, node_state.settings
+        self._joints = {j.name: j for j in node_state.joints}
         self._node_name, self._publishing = node_name, publishing
         self._transport = transport
         status = transport.message_class("diagnostic_msgs/msg/DiagnosticStatus")
         # The levels' numbers, from the transport's message class (a byte in rclpy's, an int in rosbags').
         self._ok, self._warn, self._error = (_number(level) for level in (status.OK, status.WARN, status.ERROR))
         self.publisher = RecordedPublisher(
-            transport, "diagnostic_msgs/msg/DiagnosticArray", "/diagnostics", qos, session
+            transport, "diagnostic_msgs/msg/DiagnosticArray", "/diagnostics", qos, node_state
         )
         self._counters_seen: dict[str, int] = {}
-        transport.timer(1.0 / session.settings.diagnostics_rate, self._publish, group)
+        transport.timer(1.0 / node_state.settings.diagnostics_rate, self._publish, group)
 
     def restart_counters(self) -> None:
         """Counts the fault counters' growth from the next report on (at activate)."""
         self._counters_seen = {}
 
     def _publish(self) -> None:
-        taken = self._session.states(with_stats=True)
+        taken = self._node_state.states(with_stats=True)
         if taken is None:
             return
         bus, states, stats = taken
         counted = ["overruns", "f125_stalls", "lost_frames", "wkc_errors", "events_dropped"]
         # Cycle records are taken only while recording; then each one lost is a cycle missing from the bag.
-        recorder = self._session.recorder
+        recorder = self._node_state.recorder
         if recorder is not None:
             counted.append("samples_dropped")
         counters = {k: stats[k] for k in counted}
@@ -166,7 +166,7 @@ class Diagnostics:
             "request": state.request or "",
             "progress": state.progress,
             "position": f"{state.position:.9g}",
-            "homed": joint_homed(self._session.joint(axis.name), axis),
+            "homed": joint_homed(self._node_state.joint(axis.name), axis),
             **dc_values(dc_status, axis.slave),
             "last_fault": "none" if fault is None else f"{fault.source}: {fault.text or f'0x{fault.code:04X}'}",
             "last_fault_code": "" if fault is None else f"0x{fault.code:04X}",
@@ -194,13 +194,14 @@ class Diagnostics:
             level, summary = self._ok, "cycle running"
         if grown:
             summary += f" ({', '.join(grown)} since the last report)"
+        # What exchange_p99_s times: the round trip waited for, or the sending and the taking of a return.
+        frames = "pipelined, each taken at the next wake-up" if self._settings.realtime.pipelined else "waited for"
         values = {
             "link": self._settings.link,
             "joints": ", ".join(bus.names),
             "fault_reaction": bus.fault_reaction,
             "cycle_time_s": f"{self._settings.cycle_time:.6g}",
-            # What exchange_p99_s times: the round trip waited for, or the sending and the taking of a return.
-            "frames": "pipelined, each taken at the next wake-up" if self._settings.rt_pipelined else "waited for",
+            "frames": frames,
             "cycles": stats["cycles"],
             **counters,
             "period_mean_s": f"{stats['period']['mean_ns'] * 1e-9:.6g}",

@@ -24,7 +24,7 @@ import time
 from akd_ros.axis import CommandError
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.homing import unhomed_refusal
-from akd_ros.node.session import AXIS_ERRORS, Session
+from akd_ros.node.node_state import AXIS_ERRORS, NodeState
 from akd_ros.node.trajectories import Trajectories
 from akd_ros.node.transport import ActionCallbacks, Transport
 
@@ -50,8 +50,8 @@ def _tolerance(given: float, default: float) -> float:
 class FollowJointTrajectory:
     """The ~/follow_joint_trajectory action server; each goal's execution polls the cycle thread in `group`."""
 
-    def __init__(self, transport: Transport, session: Session, group) -> None:
-        self._session, self._logger = session, transport.logger
+    def __init__(self, transport: Transport, node_state: NodeState, group) -> None:
+        self._node_state, self._logger = node_state, transport.logger
         self._point = transport.message_class("trajectory_msgs/msg/JointTrajectoryPoint")
         self._header = transport.message_class("std_msgs/msg/Header")
         # None where the transport serves no action; then nothing here runs.
@@ -75,12 +75,12 @@ class FollowJointTrajectory:
     def _start(self, goal):
         """Checks `goal` whole and hands its trajectory to the cycle thread: (id, joints, axes, the monotonic time in s
         by which it must have ended); _RefusedError where it cannot be followed."""
-        codes, session = self._action.Result, self._session
+        codes, node_state = self._action.Result, self._node_state
         trajectory = goal.trajectory
         joints = list(trajectory.joint_names)
         if goal.multi_dof_trajectory.joint_names:
             raise _RefusedError(codes.INVALID_JOINTS, "multi_dof_trajectory names joints; akd_node drives none")
-        by_name = {j.name: j for j in session.joints}
+        by_name = {j.name: j for j in node_state.joints}
         unknown = [name for name in joints if name not in by_name]
         if unknown or not joints:
             what = f"unknown joint {', '.join(unknown)}" if unknown else "trajectory.joint_names is empty"
@@ -96,8 +96,8 @@ class FollowJointTrajectory:
             raise _RefusedError(codes.INVALID_GOAL, str(e)) from None
         tolerances = self._tolerances(goal, [by_name[name] for name in joints])
         given_goal_time = goal.goal_time_tolerance.sec + goal.goal_time_tolerance.nanosec * 1e-9
-        goal_time = given_goal_time or session.settings.goal_time
-        clock = session.clock
+        goal_time = given_goal_time or node_state.settings.goal_time
+        clock = node_state.clock
         stamp_ns = nanoseconds(trajectory.header.stamp)
         start_ns = None if stamp_ns == 0 else stamp_ns - clock.ros_minus_monotonic_ns()
         now_ns = time.monotonic_ns()
@@ -109,9 +109,9 @@ class FollowJointTrajectory:
             )
         end_s = (max(start_ns or now_ns, now_ns) * 1e-9) + times[-1] + goal_time + _END_MARGIN_S
         try:
-            with session.lock:
-                bus = session.bus_for_request()
-                if why := unhomed_refusal(session, joints):
+            with node_state.lock:
+                bus = node_state.bus_for_request()
+                if why := unhomed_refusal(node_state, joints):
                     raise CommandError(why)
                 identifier = bus.play_trajectory(joints, times, points, start_ns, tolerances, goal_time)
                 axes = [bus[name] for name in joints]
@@ -141,14 +141,14 @@ class FollowJointTrajectory:
 
     def _follow(self, handle, identifier: int, joints: list[str], axes, end_s: float):
         """Publishes feedback until the cycle thread ends trajectory `identifier`; stops it on a cancel."""
-        session = self._session
-        period = 1.0 / session.settings.feedback_rate
+        node_state = self._node_state
+        period = 1.0 / node_state.settings.feedback_rate
         stopping = False
         while True:
             if handle.is_cancel_requested and not stopping:
                 stopping = True
                 axes[0].bus.cycle.stop_trajectory(identifier)
-            with session.lock:
+            with node_state.lock:
                 cycle = axes[0].bus.cycle
                 status = cycle.trajectory_status(identifier)
                 followed = [cycle.trajectory_followed(axis.slave) for axis in axes]
@@ -173,7 +173,7 @@ class FollowJointTrajectory:
             actual.velocities.append(sample[3])
             error.positions.append(sample[0] - sample[2])
             error.velocities.append(sample[1] - sample[3])
-        header = self._header(stamp=self._session.clock.stamp())
+        header = self._header(stamp=self._node_state.clock.stamp())
         return self._action.Feedback(header=header, joint_names=joints, desired=desired, actual=actual, error=error)
 
     def _result(self, handle, status: dict, joints, axes, stopping: bool):

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 
-from akd_ros.node.session import AXIS_ERRORS, Session
+from akd_ros.node.node_state import AXIS_ERRORS, NodeState
 from akd_ros.node.transport import ActionCallbacks, Transport
 from akd_ros.params import JointSettings
 
@@ -31,11 +31,11 @@ def joint_homed(joint: JointSettings, axis) -> bool:
     return joint.homing_method == "none" or axis.bus.cycle.homing_status(axis.slave)["homed"]
 
 
-def unhomed_refusal(session: Session, joints: list[str]) -> str | None:
+def unhomed_refusal(node_state: NodeState, joints: list[str]) -> str | None:
     """Why a motion of `joints` is refused under homing.required (a sentence naming them), or None; call with the
-    session's bus running."""
-    by_name = {j.name: j for j in session.joints}
-    bus = session.bus
+    node_state's bus running."""
+    by_name = {j.name: j for j in node_state.joints}
+    bus = node_state.bus
     unhomed = [
         name
         for name in joints
@@ -52,8 +52,8 @@ def unhomed_refusal(session: Session, joints: list[str]) -> str | None:
 class Homing:
     """The ~/home action server, its goals run in `group` (which it holds while a goal runs)."""
 
-    def __init__(self, transport: Transport, session: Session, group) -> None:
-        self._session, self._logger = session, transport.logger
+    def __init__(self, transport: Transport, node_state: NodeState, group) -> None:
+        self._node_state, self._logger = node_state, transport.logger
         # None where the transport serves no action; then nothing here runs.
         self._action = transport.action_server(
             HOME, "~/home", ActionCallbacks(goal=lambda goal: True, execute=self._execute, cancel=lambda h: True), group
@@ -61,27 +61,27 @@ class Homing:
 
     def _execute(self, handle):
         goal_joints = list(handle.request.joints)
-        session = self._session
-        with session.lock:
-            bus = session.bus if session.active else None
-        joints = goal_joints or [j.name for j in session.joints]
-        unknown = [name for name in joints if name not in {j.name for j in session.joints}]
+        node_state = self._node_state
+        with node_state.lock:
+            bus = node_state.bus if node_state.active else None
+        joints = goal_joints or [j.name for j in node_state.joints]
+        unknown = [name for name in joints if name not in {j.name for j in node_state.joints}]
         if bus is None or unknown:
             why = (
                 "the node is not active (activate it first)"
                 if bus is None
-                else f"unknown joint {', '.join(unknown)} (joints: {', '.join(j.name for j in session.joints)})"
+                else f"unknown joint {', '.join(unknown)} (joints: {', '.join(j.name for j in node_state.joints)})"
             )
             handle.abort()
             return self._action.Result(success=False, message=f"homing refused: {why}")
-        settings = {j.name: j for j in session.joints}
+        settings = {j.name: j for j in node_state.joints}
         runs = {name: _Run(settings[name], bus[name]) for name in joints}
-        order = [[*joints]] if session.settings.homing_sequence == "together" else [[name] for name in joints]
+        order = [[*joints]] if node_state.settings.homing_sequence == "together" else [[name] for name in joints]
         for batch in order:
             for name in batch:
                 runs[name].start()
             self._follow(handle, runs, batch)
-            if session.settings.homing_sequence == "one_by_one" and not all(runs[n].homed for n in batch):
+            if node_state.settings.homing_sequence == "one_by_one" and not all(runs[n].homed for n in batch):
                 break
         for run in runs.values():
             run.finish()

@@ -20,8 +20,8 @@ import math
 
 from akd_ros import _native
 from akd_ros.axis import AxisIo, CommandError
+from akd_ros.node.node_state import AXIS_ERRORS, NodeState, namespace
 from akd_ros.node.publishing import Publishing, RecordedPublisher
-from akd_ros.node.session import AXIS_ERRORS, Session, namespace
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import JointSettings
 
@@ -67,30 +67,30 @@ class Io:
     and ~/set_outputs in `requests`."""
 
     def __init__(
-        self, transport: Transport, session: Session, periodic, requests, qos: Qos, publishing: Publishing
+        self, transport: Transport, node_state: NodeState, periodic, requests, qos: Qos, publishing: Publishing
     ) -> None:
-        self._session, self._clock = session, session.clock
+        self._node_state, self._clock = node_state, node_state.clock
         self._logger = transport.logger
         self._header = transport.message_class("std_msgs/msg/Header")
         self._drive_io = transport.message_class("akd_ros/msg/DriveIO")
-        self._joints = {j.name: j for j in session.joints}
+        self._joints = {j.name: j for j in node_state.joints}
         self.publishers = {
             j.name: RecordedPublisher(
-                transport, "akd_ros/msg/DriveIO", f"{namespace(session.settings, j.name)}io", qos, session
+                transport, "akd_ros/msg/DriveIO", f"{namespace(node_state.settings, j.name)}io", qos, node_state
             )
-            for j in session.joints
+            for j in node_state.joints
         }
         """Each joint's ~/io publisher, by its name."""
-        publishing.publish_drive_io(self.publishers, 1.0 / session.settings.io_rate)
+        publishing.publish_drive_io(self.publishers, 1.0 / node_state.settings.io_rate)
         transport.timer(_CHANGE_POLL_S, self._publish_changes, periodic)
         transport.service("akd_ros/srv/SetOutputs", "~/set_outputs", self._set_outputs, requests)
 
     def _publish_changes(self) -> None:
-        session = self._session
-        with session.lock:
-            if session.bus is None or not session.active:
+        node_state = self._node_state
+        with node_state.lock:
+            if node_state.bus is None or not node_state.active:
                 return
-            changes = [(axis.name, list(axis.input_events())) for axis in session.bus.axes]
+            changes = [(axis.name, list(axis.input_events())) for axis in node_state.bus.axes]
         for joint, ios in changes:
             for io in ios:
                 self.publishers[joint].publish(self.message(joint, io))
@@ -161,8 +161,8 @@ class Io:
             analog = request.analog_output if request.set_analog_output else None
             if not levels and analog is None:
                 raise CommandError("nothing to set: give outputs with their values, or set_analog_output")
-            axis = self._session.axis_for_request(joint)
-            with self._session.lock:
+            axis = self._node_state.axis_for_request(joint)
+            with self._node_state.lock:
                 axis.set_outputs(levels, analog)
             done = [f"output {n} {'high' if high else 'low'}" for n, high in sorted(levels.items())]
             done += [] if analog is None else [f"analog output {analog:g} V"]

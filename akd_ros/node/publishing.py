@@ -36,7 +36,7 @@ from collections.abc import Callable
 
 from akd_ros import _native
 from akd_ros.node.clock import nanoseconds
-from akd_ros.node.session import Session, namespace
+from akd_ros.node.node_state import NodeState, namespace
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.node.worker import name_this_thread
 from akd_ros.params import JointSettings
@@ -72,29 +72,29 @@ def _feed_joint(axis, joint: JointSettings) -> dict:
 
 
 class RecordedPublisher:
-    """A publisher of `type_name` on `topic` whose messages are also recorded, at their stamp, while the session
+    """A publisher of `type_name` on `topic` whose messages are also recorded, at their stamp, while the node state
     records."""
 
-    def __init__(self, transport: Transport, type_name: str, topic: str, qos: Qos, session: Session) -> None:
+    def __init__(self, transport: Transport, type_name: str, topic: str, qos: Qos, node_state: NodeState) -> None:
         self._publisher = transport.publisher(type_name, topic, qos)
         self.msg_type, self.qos, self.topic_name = (
             self._publisher.msg_type,
             self._publisher.qos,
             self._publisher.topic_name,
         )
-        self._session = session
+        self._node_state = node_state
 
     def publish(self, message) -> None:
         """Publishes `message` (stamped) and records it at its stamp."""
         self._publisher.publish(message)
-        recorder = self._session.recorder
+        recorder = self._node_state.recorder
         if recorder is not None:
             recorder.write(self.topic_name, message, nanoseconds(message.header.stamp))
 
     def publish_serialized(self, data: bytes, stamp_ns: int) -> None:
         """Publishes a message given serialised, stamped `stamp_ns`, and records it at that stamp."""
         self._publisher.publish_serialized(data)
-        recorder = self._session.recorder
+        recorder = self._node_state.recorder
         if recorder is not None:
             recorder.write_serialized(self.topic_name, data, stamp_ns)
 
@@ -106,11 +106,11 @@ class RecordedPublisher:
 class JointPublishers:
     """One joint's status, latch and fault publishers."""
 
-    def __init__(self, transport: Transport, session: Session, joint: str, reliable: Qos, events: Qos) -> None:
-        ns = namespace(session.settings, joint)
-        self.status = RecordedPublisher(transport, "akd_ros/msg/DriveStatus", f"{ns}status", reliable, session)
-        self.latch = RecordedPublisher(transport, "akd_ros/msg/LatchEvent", f"{ns}latch", events, session)
-        self.fault = RecordedPublisher(transport, "akd_ros/msg/DriveFault", f"{ns}fault", events, session)
+    def __init__(self, transport: Transport, node_state: NodeState, joint: str, reliable: Qos, events: Qos) -> None:
+        ns = namespace(node_state.settings, joint)
+        self.status = RecordedPublisher(transport, "akd_ros/msg/DriveStatus", f"{ns}status", reliable, node_state)
+        self.latch = RecordedPublisher(transport, "akd_ros/msg/LatchEvent", f"{ns}latch", events, node_state)
+        self.fault = RecordedPublisher(transport, "akd_ros/msg/DriveFault", f"{ns}fault", events, node_state)
 
 
 class Publishing:
@@ -121,20 +121,27 @@ class Publishing:
     def __init__(
         self,
         transport: Transport,
-        session: Session,
+        node_state: NodeState,
         reliable: Qos,
         events: Qos,
         on_fault: Callable[[str], None],
     ) -> None:
-        self._session, self._clock, self._settings, self._on_fault = session, session.clock, session.settings, on_fault
+        self._node_state, self._clock, self._settings, self._on_fault = (
+            node_state,
+            node_state.clock,
+            node_state.settings,
+            on_fault,
+        )
         self._logger = transport.logger
         self._header = transport.message_class("std_msgs/msg/Header")
         self._latch_event = transport.message_class("akd_ros/msg/LatchEvent")
         self._drive_fault = transport.message_class("akd_ros/msg/DriveFault")
         self.joint_states = RecordedPublisher(
-            transport, "sensor_msgs/msg/JointState", "/joint_states", reliable, session
+            transport, "sensor_msgs/msg/JointState", "/joint_states", reliable, node_state
         )
-        self.joints = {j.name: JointPublishers(transport, session, j.name, reliable, events) for j in session.joints}
+        self.joints = {
+            j.name: JointPublishers(transport, node_state, j.name, reliable, events) for j in node_state.joints
+        }
         """Each joint's publishers by its name."""
         self.last_fault: dict[str, object] = {}
         """The last fault published of each joint, for /diagnostics."""
@@ -156,10 +163,10 @@ class Publishing:
         self._drive_io = (publishers, period)
 
     def start(self) -> None:
-        """Starts the crate's feed of the session's Bus and the thread that publishes what it makes (at configure,
+        """Starts the crate's feed of the node state's Bus and the thread that publishes what it makes (at configure,
         once the Bus and the recorder are there)."""
-        bus, settings = self._session.bus, self._settings
-        joints = {joint.name: joint for joint in self._session.joints}
+        bus, settings = self._node_state.bus, self._settings
+        joints = {joint.name: joint for joint in self._node_state.joints}
         feed = _native.Feed(bus.cycle, [_feed_joint(axis, joints[axis.name]) for axis in bus.axes])
         self._streams = {feed.add_joint_states(1.0 / settings.joint_states_rate): self.joint_states}
         for k, axis in enumerate(bus.axes):
@@ -169,7 +176,7 @@ class Publishing:
             for k, axis in enumerate(bus.axes):
                 self._streams[feed.add_drive_io(k, period)] = publishers[axis.name]
         self._read_offset(feed)
-        recorder = self._session.recorder
+        recorder = self._node_state.recorder
         if recorder is not None:
             recorder.take_cycles_from(feed)
             for stream, publisher in self._streams.items():
@@ -211,7 +218,7 @@ class Publishing:
             try:
                 for stream, data in messages:
                     streams[stream].publish_made(data)
-                bus = self._session.bus
+                bus = self._node_state.bus
                 # Another part taking its events may have filed these drives' under them meanwhile.
                 if events or (bus is not None and bus.events_waiting()):
                     self._publish_events()
@@ -222,15 +229,15 @@ class Publishing:
                 self._logger.error(f"publishing failed: {type(e).__name__}: {e}")
 
     def _publish_events(self) -> None:
-        session = self._session
-        with session.lock:
-            if session.bus is None or not session.active:
+        node_state = self._node_state
+        with node_state.lock:
+            if node_state.bus is None or not node_state.active:
                 return
             taken = [
                 (a, list(a.latch_events()), list(a.fault_events()), list(a.command_timeout_events()))
-                for a in session.bus.axes
+                for a in node_state.bus.axes
             ]
-            recorder = session.recorder
+            recorder = node_state.recorder
         how_to_enable = "call ~/enable to go on"
         # A fault of the link (a lost frame, a working counter) is every drive's in the same cycle: one line for all.
         logged: dict[tuple, list[str]] = {}

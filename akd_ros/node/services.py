@@ -9,8 +9,8 @@ from collections.abc import Callable
 
 from akd_ros.axis import MODES, CommandError
 from akd_ros.node.commands import Commands
+from akd_ros.node.node_state import AXIS_ERRORS, NodeState, namespace
 from akd_ros.node.publishing import EDGE_FALLING, EDGE_NAMES, EDGE_RISING
-from akd_ros.node.session import AXIS_ERRORS, Session, namespace
 from akd_ros.node.transport import Transport
 
 REQUESTS = ("enable", "disable", "reset_fault", "quick_stop")
@@ -20,8 +20,8 @@ REQUESTS = ("enable", "disable", "reset_fault", "quick_stop")
 class Services:
     """The node's services, in `group` (they may wait up to the Axis's time-outs)."""
 
-    def __init__(self, transport: Transport, session: Session, commands: Commands, group) -> None:
-        self._session = session
+    def __init__(self, transport: Transport, node_state: NodeState, commands: Commands, group) -> None:
+        self._node_state = node_state
         self._logger = transport.logger
         for request in REQUESTS:
             transport.service(
@@ -30,9 +30,9 @@ class Services:
                 self._trigger(f"~/{request}", lambda r=request: commands.request_all(r)),
                 group,
             )
-        for joint in session.joints:
-            ns, name = namespace(session.settings, joint.name), joint.name
-            if session.settings.joint_namespaces:
+        for joint in node_state.joints:
+            ns, name = namespace(node_state.settings, joint.name), joint.name
+            if node_state.settings.joint_namespaces:
                 for request in REQUESTS:
                     handler = self._trigger(f"{ns}{request}", lambda j=name, r=request: commands.request(j, r))
                     transport.service("std_srvs/srv/Trigger", f"{ns}{request}", handler, group)
@@ -59,10 +59,10 @@ class Services:
 
     def _set_mode(self, joint: str, request, response):
         try:
-            axis = self._session.axis_for_request(joint)
+            axis = self._node_state.axis_for_request(joint)
             if request.mode not in MODES:
                 raise CommandError(f"mode {request.mode!r} is not one of {', '.join(MODES)}")
-            with self._session.lock:
+            with self._node_state.lock:
                 axis.set_mode(request.mode)
             response.success, response.message = True, f"mode {request.mode}"
         except AXIS_ERRORS as e:
@@ -72,7 +72,7 @@ class Services:
 
     def _arm_latch(self, joint: str, request, response):
         try:
-            axis = self._session.axis_for_request(joint)
+            axis = self._node_state.axis_for_request(joint)
             if request.edge not in EDGE_NAMES:
                 raise CommandError(
                     f"latch edge {request.edge}: allowed {EDGE_RISING} (rising) or {EDGE_FALLING} (falling)"
@@ -89,7 +89,7 @@ class Services:
 
     def _sdo_read(self, joint: str, request, response):
         try:
-            response.data = list(self._session.axis_for_request(joint).sdo_read(request.index, request.subindex))
+            response.data = list(self._node_state.axis_for_request(joint).sdo_read(request.index, request.subindex))
             response.success, response.message = True, ""
         except AXIS_ERRORS as e:
             response.success, response.message = False, f"0x{request.index:04X}:{request.subindex:02X}: {e}"
@@ -97,7 +97,7 @@ class Services:
 
     def _sdo_write(self, joint: str, request, response):
         try:
-            self._session.axis_for_request(joint).sdo_write(request.index, request.subindex, bytes(request.data))
+            self._node_state.axis_for_request(joint).sdo_write(request.index, request.subindex, bytes(request.data))
             response.success, response.message = True, ""
         except AXIS_ERRORS as e:
             response.success, response.message = False, f"0x{request.index:04X}:{request.subindex:02X}: {e}"

@@ -15,8 +15,8 @@ from __future__ import annotations
 from akd_ros.axis import CommandError
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.homing import unhomed_refusal
+from akd_ros.node.node_state import NodeState
 from akd_ros.node.publishing import RecordedPublisher
-from akd_ros.node.session import Session
 from akd_ros.node.transport import Qos, Transport
 
 JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
@@ -32,8 +32,10 @@ class Trajectories:
     """The ~/joint_trajectory subscription (in `command_group`) and the ~/trajectory_status publisher, with the timer
     (in `periodic_group`) that publishes the cycle thread's trajectory events and the progress of the one running."""
 
-    def __init__(self, transport: Transport, session: Session, command_group, periodic_group, qos: Qos, events: Qos):
-        self._session, self._clock = session, session.clock
+    def __init__(
+        self, transport: Transport, node_state: NodeState, command_group, periodic_group, qos: Qos, events: Qos
+    ):
+        self._node_state, self._clock = node_state, node_state.clock
         self._logger = transport.logger
         self._header = transport.message_class("std_msgs/msg/Header")
         self._trajectory_status = transport.message_class("akd_ros/msg/TrajectoryStatus")
@@ -42,16 +44,16 @@ class Trajectories:
         )
         """The trajectory topic's name, for the recorder."""
         self.status = RecordedPublisher(
-            transport, "akd_ros/msg/TrajectoryStatus", "~/trajectory_status", events, session
+            transport, "akd_ros/msg/TrajectoryStatus", "~/trajectory_status", events, node_state
         )
         self._joints: dict[int, list[str]] = {}
         self._running: int | None = None
         transport.timer(0.02, self._publish_events, periodic_group)
-        transport.timer(1.0 / session.settings.status_rate, self._publish_progress, periodic_group)
+        transport.timer(1.0 / node_state.settings.status_rate, self._publish_progress, periodic_group)
 
     def _on_trajectory(self, message) -> None:
-        session = self._session
-        recorder = session.recorder
+        node_state = self._node_state
+        recorder = node_state.recorder
         if recorder is not None:
             recorder.write(self.topic, message, self._clock.now_ns())
         joints = list(message.joint_names)
@@ -62,9 +64,9 @@ class Trajectories:
             start_ns = None if stamp_ns == 0 else stamp_ns - self._clock.ros_minus_monotonic_ns()
             if start_ns is not None and start_ns < 0:
                 raise CommandError(f"header.stamp {stamp_ns} ns is before this machine started; zero means now")
-            with session.lock:
-                bus = session.bus_for_request()
-                if why := unhomed_refusal(session, joints):
+            with node_state.lock:
+                bus = node_state.bus_for_request()
+                if why := unhomed_refusal(node_state, joints):
                     raise CommandError(why)
                 identifier = bus.play_trajectory(joints, times, points, start_ns)
                 self._joints[identifier] = joints
@@ -135,10 +137,10 @@ class Trajectories:
         }
 
     def _publish_events(self) -> None:
-        session = self._session
-        with session.lock:
-            bus = session.bus
-            if bus is None or not session.active:
+        node_state = self._node_state
+        with node_state.lock:
+            bus = node_state.bus
+            if bus is None or not node_state.active:
                 return
             statuses = []
             for event in bus.trajectory_events():
@@ -158,10 +160,10 @@ class Trajectories:
             self._publish(**fields)
 
     def _publish_progress(self) -> None:
-        session = self._session
-        with session.lock:
-            bus = session.bus
-            if bus is None or not session.active or self._running is None:
+        node_state = self._node_state
+        with node_state.lock:
+            bus = node_state.bus
+            if bus is None or not node_state.active or self._running is None:
                 return
             status = bus.cycle.trajectory_status(self._running)
         if status["state"] == "running":

@@ -53,7 +53,12 @@ class DirectSource(Source):
         if count == 0:
             raise ValueError(f"no drive answers on {link}")
         self.link = link
-        self.bus = Bus(link, [DriveConfig(slave=p) for p in range(count)], period=period, priority=priority)
+        self.bus = Bus(
+            link,
+            [DriveConfig(slave=p) for p in range(count)],
+            period=period,
+            realtime=_native.RealTime(priority=priority),
+        )
         self._faults: dict[str, str] = {}
 
     def rows(self) -> list[JointRow]:

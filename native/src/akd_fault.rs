@@ -35,41 +35,6 @@ pub fn raises_f125(silence_ns: u64, cycle_ns: u64) -> bool {
     frames_missed(silence_ns, cycle_ns) > MISSED_FRAMES_TOLERATED
 }
 
-/// How a virtual AKD judges that it missed frames (F125, "Synchronization lost", after more
-/// than seven): the link spec names it (`sim:N?missed=warn`), akd-sim takes it (`--missed`),
-/// and the virtual AKD applies it. A real AKD always judges [`Late`](MissedFrames::Late).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum MissedFrames {
-    /// By time, as the real AKD does: a frame is missed once half a cycle passed after it was
-    /// due, so a master thread the host runs late faults the drive.
-    #[default]
-    Late,
-    /// By the frames the line lost before they reached the drive (a lost burst, a pulled
-    /// cable): a late frame is not a missed one. It cannot see a master that stopped sending.
-    Lost,
-    /// By time, as the real AKD does, but where the real drive would raise F125 the virtual
-    /// one counts it as a would-be F125 (and akd-sim warns) and goes on: for a robot developed
-    /// on a host that stalls the master thread now and then. Frames lost on the line still
-    /// count as [`Lost`](MissedFrames::Lost) counts them, so a pulled cable still faults.
-    Warn,
-}
-
-impl MissedFrames {
-    /// The option's values as the link spec writes them.
-    pub const NAMES: [(&'static str, MissedFrames); 3] =
-        [("late", MissedFrames::Late), ("lost", MissedFrames::Lost), ("warn", MissedFrames::Warn)];
-
-    /// "late", "lost" or "warn".
-    pub fn name(self) -> &'static str {
-        Self::NAMES.iter().find(|(_, m)| *m == self).map_or("late", |(name, _)| name)
-    }
-
-    /// The judgement named `name` ("late", "lost" or "warn").
-    pub fn parse(name: &str) -> Option<Self> {
-        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
-    }
-}
-
 /// Faults this package knows by code.
 pub const KNOWN: &[AkdFault] = &[
     AkdFault { number: 439, error_code: 0x8611, text: "Following error" },

@@ -188,7 +188,7 @@ struct AtomicCounters {
     black_box_syncs: AtomicU64,
 }
 
-struct Shared {
+struct WriterShared {
     inbox: Mutex<Inbox>,
     arrived: Condvar,
     report: Mutex<Report>,
@@ -203,7 +203,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-impl Shared {
+impl WriterShared {
     fn push(&self, item: Item, wake: bool) -> bool {
         let mut inbox = lock(&self.inbox);
         let counted = matches!(item, Item::Message { .. } | Item::Records(_));
@@ -237,14 +237,14 @@ impl Shared {
 
 /// A bag being written by its thread (see the module).
 pub struct BagWriter {
-    shared: Arc<Shared>,
+    shared: Arc<WriterShared>,
     thread: Mutex<Option<JoinHandle<()>>>,
 }
 
 impl BagWriter {
     /// Starts the thread, which makes the bag directory and its first file.
     pub fn start(options: Options) -> std::io::Result<BagWriter> {
-        let shared = Arc::new(Shared {
+        let shared = Arc::new(WriterShared {
             inbox: Mutex::default(),
             arrived: Condvar::new(),
             report: Mutex::default(),
@@ -360,7 +360,7 @@ struct Open {
 
 /// What the thread works with.
 struct Writer {
-    shared: Arc<Shared>,
+    shared: Arc<WriterShared>,
     options: Options,
     bag: Option<PathBuf>,
     topics: Vec<Topic>,
@@ -389,7 +389,7 @@ struct Writer {
 }
 
 impl Writer {
-    fn new(shared: Arc<Shared>, options: Options) -> Writer {
+    fn new(shared: Arc<WriterShared>, options: Options) -> Writer {
         Writer {
             shared,
             bag: None,

@@ -8,7 +8,7 @@
 
 use std::time::Duration;
 
-use crate::error::{Result, SettingError};
+use crate::setting::SettingError;
 
 /// Seconds from the Unix epoch to the EtherCAT epoch, 2000-01-01 00:00:00 UTC.
 pub const EPOCH_OFFSET_S: u64 = 946_684_800;
@@ -102,12 +102,12 @@ pub fn sync0_start(system_time_ns: u64, cycle_ns: u32, margin_ns: u64) -> u64 {
 /// Checks a SYNC0 shift against the cycle: the first pulse, and with it every pulse, moves by
 /// `shift_ns` from the cycle boundary; a shift of a whole cycle or more would name the same
 /// pulses as a smaller one, so it is refused as a mistake (a wrong unit, most often).
-pub fn check_sync0_shift(shift_ns: i64, cycle_ns: u32) -> Result<i32> {
+pub fn check_sync0_shift(shift_ns: i64, cycle_ns: u32) -> Result<i32, SettingError> {
     let max = cycle_ns as i64 - 1;
     if (-max..=max).contains(&shift_ns) {
         return Ok(shift_ns as i32);
     }
-    Err(SettingError::Sync0Shift { shift_ns, cycle_ns }.into())
+    Err(SettingError::Sync0Shift { shift_ns, cycle_ns })
 }
 
 /// First SYNC0 pulse moved by `shift_ns` (checked by [`check_sync0_shift`]) from the cycle
@@ -131,9 +131,9 @@ pub fn time_difference(raw: u32) -> i64 {
 /// The cycle time as the AKD's interpolation time period 0x60C2: units (sub 1, UNSIGNED8) and
 /// a signed power of ten (sub 2, INTEGER8), choosing the coarsest exact exponent, e.g. 2 ms =
 /// (2, -3), 250 µs = (25, -5). Refuses cycles under 250 µs or without an exact encoding.
-pub fn interpolation_time_period(cycle_ns: u32) -> Result<(u8, i8)> {
+pub fn interpolation_time_period(cycle_ns: u32) -> Result<(u8, i8), SettingError> {
     if cycle_ns < MIN_CYCLE_NS {
-        return Err(SettingError::CycleTimeBelowMinimum { cycle_ns, min_ns: MIN_CYCLE_NS }.into());
+        return Err(SettingError::CycleTimeBelowMinimum { cycle_ns, min_ns: MIN_CYCLE_NS });
     }
     (-9i8..=0)
         .rev()
@@ -142,7 +142,7 @@ pub fn interpolation_time_period(cycle_ns: u32) -> Result<(u8, i8)> {
             let units = cycle_ns as u64 / unit;
             ((cycle_ns as u64).is_multiple_of(unit) && units <= u8::MAX as u64).then_some((units as u8, exponent))
         })
-        .ok_or(SettingError::CycleTimeNotEncodable { cycle_ns }.into())
+        .ok_or(SettingError::CycleTimeNotEncodable { cycle_ns })
 }
 
 #[cfg(test)]

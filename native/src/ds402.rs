@@ -297,7 +297,7 @@ impl State {
 
 /// What the command of a mode of operation sets.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Command {
+pub enum CommandKind {
     /// A position, in counts.
     Position,
     /// A velocity, in counts per second.
@@ -306,13 +306,13 @@ pub enum Command {
     Torque,
 }
 
-impl Command {
+impl CommandKind {
     /// The command's name as the Python API spells it: "position", "velocity", "torque".
     pub fn name(self) -> &'static str {
         match self {
-            Command::Position => "position",
-            Command::Velocity => "velocity",
-            Command::Torque => "torque",
+            CommandKind::Position => "position",
+            CommandKind::Velocity => "velocity",
+            CommandKind::Torque => "torque",
         }
     }
 }
@@ -330,13 +330,13 @@ impl Mode {
     }
 
     /// What the mode's command sets; `None` for homing, which the drive runs by itself.
-    pub fn command(self) -> Option<Command> {
+    pub fn command(self) -> Option<CommandKind> {
         match self {
             Mode::ProfilePosition | Mode::InterpolatedPosition | Mode::CyclicSynchronousPosition => {
-                Some(Command::Position)
+                Some(CommandKind::Position)
             }
-            Mode::ProfileVelocity => Some(Command::Velocity),
-            Mode::ProfileTorque => Some(Command::Torque),
+            Mode::ProfileVelocity => Some(CommandKind::Velocity),
+            Mode::ProfileTorque => Some(CommandKind::Torque),
             Mode::Homing => None,
         }
     }
@@ -488,7 +488,7 @@ mod tests {
                 let (object, code) = crate::objects::mappable_object(index, subindex).expect("a typed object");
                 assert_eq!(data_type::kind(code), ValueKind::SignedInteger, "{}", object.name);
                 // Torque counts in 0.1 % of peak (16 bits); positions and velocities in counts (32).
-                let bits = if mode.command() == Some(Command::Torque) { 16 } else { 32 };
+                let bits = if mode.command() == Some(CommandKind::Torque) { 16 } else { 32 };
                 assert_eq!(data_type::bit_len(code), Some(bits), "{}", object.name);
             }
         }

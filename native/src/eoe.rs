@@ -15,10 +15,12 @@
 //! as `01 00 A8 C0`) and the DNS name (32 bytes, zero-padded; TwinCAT sends all 32 however short
 //! the name is).
 
+use std::fmt;
 use std::net::Ipv4Addr;
 
-use crate::error::{EoeError, SettingError};
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
+use crate::setting::SettingError;
+use crate::wire_code::UnknownCode;
 
 /// Length of the EoE header (the two words after the mailbox header).
 pub const EOE_HEADER_LEN: usize = 4;
@@ -59,37 +61,25 @@ wire_codes! {
     }
 }
 
-/// The result word of an EoE response (ETG.1000.6 table "EoE result"). A slave may answer
-/// with a code outside the standard's list, so this is the wire value with the standard's
-/// codes as constants and [`name`](EoeResult::name) for any of them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct EoeResult(pub u16);
-
-impl EoeResult {
-    /// Success.
-    pub const SUCCESS: EoeResult = EoeResult(0x0000);
-    /// Unspecified error.
-    pub const UNSPECIFIED: EoeResult = EoeResult(0x0001);
-    /// Unsupported frame type.
-    pub const UNSUPPORTED_FRAME_TYPE: EoeResult = EoeResult(0x0002);
-    /// No IP support.
-    pub const NO_IP_SUPPORT: EoeResult = EoeResult(0x0201);
-    /// DHCP not supported.
-    pub const NO_DHCP_SUPPORT: EoeResult = EoeResult(0x0202);
-    /// No address filter support.
-    pub const NO_FILTER_SUPPORT: EoeResult = EoeResult(0x0401);
-
-    /// The standard's name of the code; "unknown EoE result" outside its list.
-    pub fn name(self) -> &'static str {
-        match self {
-            EoeResult::SUCCESS => "success",
-            EoeResult::UNSPECIFIED => "unspecified error",
-            EoeResult::UNSUPPORTED_FRAME_TYPE => "unsupported frame type",
-            EoeResult::NO_IP_SUPPORT => "no IP support",
-            EoeResult::NO_DHCP_SUPPORT => "DHCP not supported",
-            EoeResult::NO_FILTER_SUPPORT => "no filter support",
-            _ => "unknown EoE result",
-        }
+wire_codes! {
+    /// The result word of an EoE response (ETG.1000.6 table "EoE result"). A slave may answer
+    /// with a code outside the standard's list, so this is the wire value with the standard's
+    /// codes as constants and [`name`](EoeResult::name) for any of them.
+    pub struct EoeResult(u16) {
+        /// Success.
+        SUCCESS = 0x0000 => "success",
+        /// Unspecified error.
+        UNSPECIFIED = 0x0001 => "unspecified error",
+        /// Unsupported frame type.
+        UNSUPPORTED_FRAME_TYPE = 0x0002 => "unsupported frame type",
+        /// No IP support.
+        NO_IP_SUPPORT = 0x0201 => "no IP support",
+        /// DHCP not supported.
+        NO_DHCP_SUPPORT = 0x0202 => "DHCP not supported",
+        /// No address filter support.
+        NO_FILTER_SUPPORT = 0x0401 => "no filter support",
+    } else {
+        _ => "unknown EoE result",
     }
 }
 
@@ -498,6 +488,126 @@ impl Reassembler {
         Ok(Some(&self.buffer[..self.len]))
     }
 }
+
+/// An EoE message or fragment that does not fit the standard (ETG.1000.6 §5.7), or a frame
+/// that cannot be sent through EoE.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum EoeError {
+    /// A message, or a field of one, cut short.
+    Truncated {
+        /// The structure or field.
+        what: &'static str,
+        /// Bytes there were.
+        len: usize,
+        /// Bytes it needs.
+        needed: usize,
+    },
+    /// A frame type outside the standard's set.
+    UnknownCode(UnknownCode),
+    /// A DNS name longer than its field.
+    DnsNameTooLong {
+        /// Its length in bytes.
+        len: usize,
+        /// The field's length.
+        max: usize,
+    },
+    /// A DNS name that is not UTF-8 text.
+    DnsNameNotText,
+    /// An Ethernet frame longer than EoE carries here, or than its fragment 0 announced.
+    FrameTooLong {
+        /// Its length.
+        len: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// A mailbox too small for one 32-byte unit of a fragment.
+    MailboxTooSmall {
+        /// The mailbox's length.
+        len: usize,
+        /// The least that carries a fragment.
+        min: usize,
+    },
+    /// A fragment other than the next one of the frame being put together.
+    OutOfOrder {
+        /// Its frame number.
+        frame_number: u8,
+        /// The fragment number expected.
+        expected: u8,
+        /// The fragment number received.
+        got: u8,
+    },
+    /// A fragment whose offset is not where the frame being put together has reached.
+    OffsetMismatch {
+        /// Its offset in bytes.
+        offset: usize,
+        /// Bytes received so far.
+        received: usize,
+    },
+    /// A fragment other than the last whose length is not a multiple of 32 bytes.
+    FragmentNotWholeUnits {
+        /// Its length.
+        len: usize,
+    },
+    /// The slave's SII does not list EoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave answered Set IP Parameter with another result than success.
+    Refused {
+        /// Slave position.
+        slave: u16,
+        /// The result code.
+        result: u16,
+        /// Its name in the standard.
+        result_name: &'static str,
+    },
+    /// A frame whose length does not round to the size its fragment 0 announced.
+    SizeMismatch {
+        /// The size announced, in 32-byte units.
+        announced_units: u8,
+        /// Bytes received.
+        received: usize,
+    },
+}
+
+impl fmt::Display for EoeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EoeError::Truncated { what, len, needed } => {
+                write!(f, "{what} cut short: the message has {len} bytes, it needs {needed}")
+            }
+            EoeError::UnknownCode(e) => write!(f, "{e}"),
+            EoeError::DnsNameTooLong { len, max } => write!(f, "DNS name of {len} bytes is longer than {max}"),
+            EoeError::DnsNameNotText => write!(f, "DNS name is not valid text"),
+            EoeError::FrameTooLong { len, max } => write!(f, "Ethernet frame of {len} bytes is longer than {max}"),
+            EoeError::MailboxTooSmall { len, min } => {
+                write!(f, "a {len}-byte mailbox cannot carry an EoE fragment (it needs {min} bytes)")
+            }
+            EoeError::OutOfOrder { frame_number, expected, got } => {
+                write!(f, "EoE fragment {got} of frame {frame_number} where fragment {expected} was expected")
+            }
+            EoeError::OffsetMismatch { offset, received } => {
+                write!(f, "EoE fragment at offset {offset} where {received} bytes were received")
+            }
+            EoeError::FragmentNotWholeUnits { len } => {
+                write!(f, "EoE fragment of {len} bytes is not the last but not a multiple of 32 bytes")
+            }
+            EoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak EoE (SII mailbox protocols)")
+            }
+            EoeError::Refused { slave, result, result_name } => {
+                write!(f, "slave {slave} answered Set IP Parameter with result 0x{result:04X} ({result_name})")
+            }
+            EoeError::SizeMismatch { announced_units, received } => write!(
+                f,
+                "EoE frame of {received} bytes where fragment 0 announced {announced_units} units of 32 bytes"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for EoeError {}
 
 #[cfg(test)]
 mod tests {

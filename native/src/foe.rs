@@ -9,9 +9,10 @@
 //! with an empty one. Either side may end a transfer with an error.
 
 use std::borrow::Cow;
+use std::fmt;
 
-use crate::error::FoeError;
 use crate::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
+use crate::wire_code::UnknownCode;
 
 /// Length of the FoE header.
 pub const FOE_HEADER_LEN: usize = 6;
@@ -36,55 +37,37 @@ wire_codes! {
     }
 }
 
-/// A FoE error code (ETG.1000.6 table "FoE error codes"). Codes outside the standard's list
-/// are the vendor's, so this is the wire value with the standard's codes as constants and
-/// [`name`](FoeErrorCode::name) for any of them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct FoeErrorCode(pub u32);
-
-impl FoeErrorCode {
-    /// Not defined.
-    pub const NOT_DEFINED: FoeErrorCode = FoeErrorCode(0x8000);
-    /// Not found.
-    pub const NOT_FOUND: FoeErrorCode = FoeErrorCode(0x8001);
-    /// Access denied.
-    pub const ACCESS_DENIED: FoeErrorCode = FoeErrorCode(0x8002);
-    /// Disk full.
-    pub const DISK_FULL: FoeErrorCode = FoeErrorCode(0x8003);
-    /// Illegal.
-    pub const ILLEGAL: FoeErrorCode = FoeErrorCode(0x8004);
-    /// Packet number wrong.
-    pub const PACKET_NUMBER_WRONG: FoeErrorCode = FoeErrorCode(0x8005);
-    /// Already exists.
-    pub const ALREADY_EXISTS: FoeErrorCode = FoeErrorCode(0x8006);
-    /// No user.
-    pub const NO_USER: FoeErrorCode = FoeErrorCode(0x8007);
-    /// Bootstrap only.
-    pub const BOOTSTRAP_ONLY: FoeErrorCode = FoeErrorCode(0x8008);
-    /// Not bootstrap.
-    pub const NOT_BOOTSTRAP: FoeErrorCode = FoeErrorCode(0x8009);
-    /// No rights.
-    pub const NO_RIGHTS: FoeErrorCode = FoeErrorCode(0x800A);
-    /// Program error.
-    pub const PROGRAM_ERROR: FoeErrorCode = FoeErrorCode(0x800B);
-
-    /// The standard's name of the code; "vendor-specific FoE error" outside its list.
-    pub fn name(self) -> &'static str {
-        match self {
-            FoeErrorCode::NOT_DEFINED => "not defined",
-            FoeErrorCode::NOT_FOUND => "not found",
-            FoeErrorCode::ACCESS_DENIED => "access denied",
-            FoeErrorCode::DISK_FULL => "disk full",
-            FoeErrorCode::ILLEGAL => "illegal",
-            FoeErrorCode::PACKET_NUMBER_WRONG => "packet number wrong",
-            FoeErrorCode::ALREADY_EXISTS => "already exists",
-            FoeErrorCode::NO_USER => "no user",
-            FoeErrorCode::BOOTSTRAP_ONLY => "bootstrap only",
-            FoeErrorCode::NOT_BOOTSTRAP => "not bootstrap",
-            FoeErrorCode::NO_RIGHTS => "no rights",
-            FoeErrorCode::PROGRAM_ERROR => "program error",
-            _ => "vendor-specific FoE error",
-        }
+wire_codes! {
+    /// A FoE error code (ETG.1000.6 table "FoE error codes"). Codes outside the standard's list
+    /// are the vendor's, so this is the wire value with the standard's codes as constants and
+    /// [`name`](FoeErrorCode::name) for any of them.
+    pub struct FoeErrorCode(u32) {
+        /// Not defined.
+        NOT_DEFINED = 0x0000_8000 => "not defined",
+        /// Not found.
+        NOT_FOUND = 0x0000_8001 => "not found",
+        /// Access denied.
+        ACCESS_DENIED = 0x0000_8002 => "access denied",
+        /// Disk full.
+        DISK_FULL = 0x0000_8003 => "disk full",
+        /// Illegal.
+        ILLEGAL = 0x0000_8004 => "illegal",
+        /// Packet number wrong.
+        PACKET_NUMBER_WRONG = 0x0000_8005 => "packet number wrong",
+        /// Already exists.
+        ALREADY_EXISTS = 0x0000_8006 => "already exists",
+        /// No user.
+        NO_USER = 0x0000_8007 => "no user",
+        /// Bootstrap only.
+        BOOTSTRAP_ONLY = 0x0000_8008 => "bootstrap only",
+        /// Not bootstrap.
+        NOT_BOOTSTRAP = 0x0000_8009 => "not bootstrap",
+        /// No rights.
+        NO_RIGHTS = 0x0000_800A => "no rights",
+        /// Program error.
+        PROGRAM_ERROR = 0x0000_800B => "program error",
+    } else {
+        _ => "vendor-specific FoE error",
     }
 }
 
@@ -225,6 +208,100 @@ pub fn packets(file: &[u8], room: usize) -> impl Iterator<Item = (u32, &[u8])> +
         ((i + 1) as u32, &file[from..(from + room).min(file.len())])
     })
 }
+
+/// A FoE message that does not fit the standard (ETG.1000.6 §5.9), or a transfer that failed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FoeError {
+    /// A message cut short.
+    Truncated {
+        /// The structure.
+        what: &'static str,
+        /// Bytes there were.
+        len: usize,
+        /// Bytes it needs.
+        needed: usize,
+    },
+    /// An opcode outside the standard's set.
+    UnknownCode(UnknownCode),
+    /// A file name that is not UTF-8 text.
+    NameNotText,
+    /// The slave's SII does not list FoE among its mailbox protocols.
+    NotSupported {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave ended the transfer of `name` with a FoE error.
+    Refused {
+        /// Slave position.
+        slave: u16,
+        /// The file.
+        name: String,
+        /// The error code.
+        code: u32,
+        /// Its name in the standard.
+        code_name: &'static str,
+        /// The slave's text.
+        text: String,
+    },
+    /// The slave answered with another message than the transfer allows.
+    Unexpected {
+        /// Slave position.
+        slave: u16,
+        /// The file.
+        name: String,
+        /// What was awaited.
+        expected: &'static str,
+        /// The opcode received.
+        got: &'static str,
+    },
+    /// A packet or acknowledge with another number than the transfer reached.
+    PacketNumber {
+        /// Slave position.
+        slave: u16,
+        /// The number expected.
+        expected: u32,
+        /// The number received.
+        got: u32,
+    },
+    /// A file longer than this master reads into memory.
+    TooLong {
+        /// The file.
+        name: String,
+        /// The most bytes read.
+        max: usize,
+    },
+}
+
+impl fmt::Display for FoeError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FoeError::Truncated { what, len, needed } => {
+                write!(f, "{what} of {len} bytes is shorter than the {needed} bytes it needs")
+            }
+            FoeError::UnknownCode(e) => write!(f, "{e}"),
+            FoeError::NameNotText => write!(f, "FoE file name is not valid text"),
+            FoeError::NotSupported { slave } => {
+                write!(f, "slave {slave} does not speak FoE (SII mailbox protocols)")
+            }
+            FoeError::Refused { slave, name, code, code_name, text } => {
+                write!(f, "slave {slave} refused file {name:?}: FoE error 0x{code:04X} ({code_name})")?;
+                if !text.is_empty() && text != code_name {
+                    write!(f, ": {text}")?;
+                }
+                Ok(())
+            }
+            FoeError::Unexpected { slave, name, expected, got } => {
+                write!(f, "slave {slave} answered the transfer of {name:?} with FoE {got} where {expected} was due")
+            }
+            FoeError::PacketNumber { slave, expected, got } => {
+                write!(f, "slave {slave} sent FoE packet number {got} where {expected} was due")
+            }
+            FoeError::TooLong { name, max } => write!(f, "file {name:?} is longer than {max} bytes"),
+        }
+    }
+}
+
+impl std::error::Error for FoeError {}
 
 #[cfg(test)]
 mod tests {

@@ -9,7 +9,7 @@
 //! virtual AKD) serve the datagrams in place. Nothing here allocates, so the cyclic path can
 //! use it.
 
-use crate::error::FrameError;
+use std::fmt;
 
 /// EtherType of EtherCAT frames, also the UDP port of EtherCAT-over-UDP.
 pub const ETHERTYPE: u16 = 0x88A4;
@@ -30,40 +30,40 @@ pub const FRAME_TYPE_DATAGRAMS: u8 = 1;
 /// Smallest Ethernet frame without FCS; shorter frames are padded on the wire.
 pub const MIN_ETH_FRAME_LEN: usize = 60;
 
-/// An EtherCAT datagram command (ETG.1000.4 table 5).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[repr(u8)]
-pub enum Command {
-    /// No operation: slaves ignore it.
-    Nop = 0,
-    /// Auto-increment physical read.
-    Aprd = 1,
-    /// Auto-increment physical write.
-    Apwr = 2,
-    /// Auto-increment physical read-write.
-    Aprw = 3,
-    /// Configured-address physical read.
-    Fprd = 4,
-    /// Configured-address physical write.
-    Fpwr = 5,
-    /// Configured-address physical read-write.
-    Fprw = 6,
-    /// Broadcast read.
-    Brd = 7,
-    /// Broadcast write.
-    Bwr = 8,
-    /// Broadcast read-write.
-    Brw = 9,
-    /// Logical read.
-    Lrd = 10,
-    /// Logical write.
-    Lwr = 11,
-    /// Logical read-write.
-    Lrw = 12,
-    /// Auto-increment physical read, multiple write (the addressed slave reads, all others write).
-    Armw = 13,
-    /// Configured-address physical read, multiple write.
-    Frmw = 14,
+wire_codes! {
+    /// An EtherCAT datagram command (ETG.1000.4 table 5).
+    pub enum Command: u8, "datagram command" {
+        /// No operation: slaves ignore it.
+        Nop = 0 => "NOP",
+        /// Auto-increment physical read.
+        Aprd = 1 => "APRD",
+        /// Auto-increment physical write.
+        Apwr = 2 => "APWR",
+        /// Auto-increment physical read-write.
+        Aprw = 3 => "APRW",
+        /// Configured-address physical read.
+        Fprd = 4 => "FPRD",
+        /// Configured-address physical write.
+        Fpwr = 5 => "FPWR",
+        /// Configured-address physical read-write.
+        Fprw = 6 => "FPRW",
+        /// Broadcast read.
+        Brd = 7 => "BRD",
+        /// Broadcast write.
+        Bwr = 8 => "BWR",
+        /// Broadcast read-write.
+        Brw = 9 => "BRW",
+        /// Logical read.
+        Lrd = 10 => "LRD",
+        /// Logical write.
+        Lwr = 11 => "LWR",
+        /// Logical read-write.
+        Lrw = 12 => "LRW",
+        /// Auto-increment physical read, multiple write (the addressed slave reads, all others write).
+        Armw = 13 => "ARMW",
+        /// Configured-address physical read, multiple write.
+        Frmw = 14 => "FRMW",
+    }
 }
 
 /// How a datagram selects the slaves that serve it.
@@ -82,49 +82,9 @@ pub enum Addressing {
 }
 
 impl Command {
-    /// Every command, in code order.
-    pub const ALL: [Command; 15] = [
-        Command::Nop,
-        Command::Aprd,
-        Command::Apwr,
-        Command::Aprw,
-        Command::Fprd,
-        Command::Fpwr,
-        Command::Fprw,
-        Command::Brd,
-        Command::Bwr,
-        Command::Brw,
-        Command::Lrd,
-        Command::Lwr,
-        Command::Lrw,
-        Command::Armw,
-        Command::Frmw,
-    ];
-
     /// Decodes a command byte.
     pub fn from_u8(code: u8) -> Result<Self, FrameError> {
         Self::ALL.get(code as usize).copied().ok_or(FrameError::UnknownCommand(code))
-    }
-
-    /// The mnemonic used by ETG.1000 and Wireshark.
-    pub fn name(self) -> &'static str {
-        match self {
-            Command::Nop => "NOP",
-            Command::Aprd => "APRD",
-            Command::Apwr => "APWR",
-            Command::Aprw => "APRW",
-            Command::Fprd => "FPRD",
-            Command::Fpwr => "FPWR",
-            Command::Fprw => "FPRW",
-            Command::Brd => "BRD",
-            Command::Bwr => "BWR",
-            Command::Brw => "BRW",
-            Command::Lrd => "LRD",
-            Command::Lwr => "LWR",
-            Command::Lrw => "LRW",
-            Command::Armw => "ARMW",
-            Command::Frmw => "FRMW",
-        }
     }
 
     /// How the command addresses slaves.
@@ -502,6 +462,70 @@ pub fn write_ethernet_header(out: &mut [u8], source: [u8; 6]) {
     out[6..12].copy_from_slice(&source);
     out[12..14].copy_from_slice(&ETHERTYPE.to_be_bytes());
 }
+
+/// A malformed or unexpected EtherCAT frame.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum FrameError {
+    /// Fewer bytes than the structure named by `what` needs.
+    Truncated {
+        /// The structure being decoded.
+        what: &'static str,
+        /// Bytes it needs.
+        needed: usize,
+        /// Bytes there were.
+        got: usize,
+    },
+    /// The frame header's type is not 1 (EtherCAT datagrams).
+    NotDatagrams(u8),
+    /// A datagram command byte above 14.
+    UnknownCommand(u8),
+    /// A frame header announcing no datagrams.
+    Empty,
+    /// The frame header's length differs from the datagrams' total.
+    LengthMismatch {
+        /// Length in the frame header.
+        header: usize,
+        /// Length the datagrams take.
+        datagrams: usize,
+    },
+    /// A datagram that does not fit the frame.
+    TooLarge {
+        /// Data length asked for.
+        len: usize,
+        /// Room left.
+        room: usize,
+    },
+    /// Not an EtherCAT Ethernet frame (EtherType other than 0x88A4).
+    NotEtherCat(u16),
+}
+
+impl fmt::Display for FrameError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            FrameError::Truncated { what, needed, got } => {
+                write!(f, "truncated frame: the {what} needs {needed} bytes, the frame has {got}")
+            }
+            FrameError::NotDatagrams(t) => {
+                write!(f, "frame header type {t} is not 1 (EtherCAT datagrams)")
+            }
+            FrameError::UnknownCommand(c) => {
+                write!(f, "unknown datagram command {c} (allowed 0..=14, NOP..FRMW)")
+            }
+            FrameError::Empty => write!(f, "frame header announces no datagrams"),
+            FrameError::LengthMismatch { header, datagrams } => {
+                write!(f, "frame header announces {header} bytes of datagrams but the datagrams take {datagrams}")
+            }
+            FrameError::TooLarge { len, room } => {
+                write!(f, "datagram of {len} data bytes does not fit the frame ({room} bytes left)")
+            }
+            FrameError::NotEtherCat(t) => {
+                write!(f, "EtherType 0x{t:04X} is not EtherCAT (0x88A4)")
+            }
+        }
+    }
+}
+
+impl std::error::Error for FrameError {}
 
 #[cfg(test)]
 mod tests {

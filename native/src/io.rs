@@ -43,36 +43,24 @@ const FIRST_MANUFACTURER_BIT: u8 = 16;
 /// manuals give no scaling).
 pub const ANALOG_VOLTS_PER_COUNT: f64 = 10.0 / 32767.0;
 
-/// A switch CiA 402 gives a bit of 0x60FD [std].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Switch {
-    /// Bit 0: the negative limit switch, which stops moves in the negative direction.
-    NegativeLimit = 0,
-    /// Bit 1: the positive limit switch, which stops moves in the positive direction.
-    PositiveLimit = 1,
-    /// Bit 2: the home switch.
-    Home = 2,
-    /// Bit 3: the interlock.
-    Interlock = 3,
+wire_codes! {
+    /// A switch CiA 402 gives a bit of 0x60FD [std].
+    pub enum Switch: u8, "switch" {
+        /// Bit 0: the negative limit switch, which stops moves in the negative direction.
+        NegativeLimit = 0 => "negative_limit",
+        /// Bit 1: the positive limit switch, which stops moves in the positive direction.
+        PositiveLimit = 1 => "positive_limit",
+        /// Bit 2: the home switch.
+        Home = 2 => "home_switch",
+        /// Bit 3: the interlock.
+        Interlock = 3 => "interlock",
+    }
 }
 
 impl Switch {
-    /// Every switch, in bit order.
-    pub const ALL: [Switch; 4] = [Switch::NegativeLimit, Switch::PositiveLimit, Switch::Home, Switch::Interlock];
-
-    /// The switch's name as the messages and the simulator's commands spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Switch::NegativeLimit => "negative_limit",
-            Switch::PositiveLimit => "positive_limit",
-            Switch::Home => "home_switch",
-            Switch::Interlock => "interlock",
-        }
-    }
-
     /// The switch named `name`.
     pub fn from_name(name: &str) -> Option<Switch> {
-        Self::ALL.into_iter().find(|s| s.name() == name)
+        Self::ALL.iter().copied().find(|s| s.name() == name)
     }
 
     /// Its bit in 0x60FD.

@@ -3,9 +3,7 @@
 //!
 //! The layers point one way, each using only those listed before it:
 //!
-//! 1. [`error`]: the typed errors every layer returns, carrying the standard's and the drive's
-//!    names (AL status code names, SDO abort code names, the AKD's mapping rules).
-//! 2. Pure codecs, no I/O and no allocation in their hot paths, so each is tested alone and the
+//! 1. Pure codecs, no I/O and no allocation in their hot paths, so each is tested alone and the
 //!    master and the virtual AKD share them without sharing any state: [`frame`] (datagrams
 //!    and working counters), [`registers`] (ESC register map), [`sii`] (SII EEPROM content),
 //!    [`al`] (AL states and status codes), [`mailbox`] and [`coe`] (mailbox header, CoE SDO,
@@ -15,10 +13,15 @@
 //!    [`dc`] (distributed-clock arithmetic), [`ds402`] (CiA 402 drive state machine), [`scaling`]
 //!    (how the drive scales its positions, from its DS402 scaling objects) and
 //!    [`akd_fault`] (the AKD's fault numbers), and [`trajectory`] (joint trajectories, validated
-//!    and interpolated). Closed sets of wire codes are enums (e.g.
+//!    and interpolated), [`link_spec`] (the text that names a bus) and [`setting`] (a
+//!    configuration value out of range). Closed sets of wire codes are enums (e.g.
 //!    [`coe::CoeService`]); open ones are newtypes with a `name()` (e.g. [`coe::SdoAbortCode`]).
-//! 3. [`link`]: the [`link::Link`] trait that moves frames, the [`link::LinkSpec`] that names
-//!    one, and the links to a real line (UDP, raw interface) with the pcapng recorder.
+//!    Each raises its own error, declared beside it and named in the standard's and the drive's
+//!    words (AL status code names, SDO abort code names, the AKD's mapping rules).
+//! 2. [`error`]: the umbrella [`error::Error`] the layers above return, a `From` for each
+//!    codec's error, and the errors only those layers raise.
+//! 3. [`link`]: the [`link::Link`] trait that moves frames, and the links to a real line (UDP,
+//!    raw interface) with the pcapng recorder.
 //! 4. [`master`]: one [`master::Master`] drives one bus (scan, AL states of every slave, the
 //!    cyclic exchange, distributed clocks) and hands out a [`master::SlaveRef`] per drive for
 //!    what concerns that drive alone (SDO, mailbox, mapping, its process data).
@@ -58,6 +61,7 @@ pub mod foe;
 pub mod frame;
 pub mod io;
 pub mod link;
+pub mod link_spec;
 pub mod mailbox;
 pub mod master;
 pub mod node;
@@ -66,6 +70,7 @@ pub mod pdo;
 pub mod registers;
 pub mod ros_msgs;
 pub mod scaling;
+pub mod setting;
 pub mod sii;
 pub mod sim;
 pub mod trajectory;

@@ -4,7 +4,9 @@
 //! channel and priority, and the protocol type with a 3-bit counter. The counter lets a slave
 //! tell a repeated message from a new one; the AKD echoes the master's counter in its reply.
 
-use crate::error::{Error, MailboxError};
+use std::fmt;
+
+use crate::wire_code::UnknownCode;
 
 /// Length of the mailbox header.
 pub const HEADER_LEN: usize = 6;
@@ -83,11 +85,9 @@ impl MailboxHeader {
     }
 
     /// Decodes a header and checks that the message it announces fits `bytes`.
-    pub fn decode(bytes: &[u8]) -> Result<Self, Error> {
+    pub fn decode(bytes: &[u8]) -> Result<Self, MailboxError> {
         if bytes.len() < HEADER_LEN {
-            return Err(
-                MailboxError::Truncated { what: "mailbox message", len: bytes.len(), needed: HEADER_LEN }.into()
-            );
+            return Err(MailboxError::Truncated { what: "mailbox message", len: bytes.len(), needed: HEADER_LEN });
         }
         let header = MailboxHeader {
             length: u16::from_le_bytes([bytes[0], bytes[1]]),
@@ -98,9 +98,7 @@ impl MailboxHeader {
             counter: (bytes[5] >> 4) & 0x07,
         };
         if HEADER_LEN + header.length as usize > bytes.len() {
-            return Err(
-                MailboxError::LengthMismatch { announced: header.length, holds: bytes.len() - HEADER_LEN }.into()
-            );
+            return Err(MailboxError::LengthMismatch { announced: header.length, holds: bytes.len() - HEADER_LEN });
         }
         Ok(header)
     }
@@ -174,14 +172,264 @@ pub fn write_error_reply(out: &mut [u8], counter: u8, detail: MailboxErrorDetail
 }
 
 /// Reads the detail code of a mailbox error reply body.
-pub fn parse_error_reply(body: &[u8]) -> Result<u16, Error> {
+pub fn parse_error_reply(body: &[u8]) -> Result<u16, MailboxError> {
     if body.len() < ERROR_BODY_LEN {
-        return Err(
-            MailboxError::Truncated { what: "mailbox error reply", len: body.len(), needed: ERROR_BODY_LEN }.into()
-        );
+        return Err(MailboxError::Truncated { what: "mailbox error reply", len: body.len(), needed: ERROR_BODY_LEN });
     }
     Ok(u16::from_le_bytes([body[2], body[3]]))
 }
+
+/// A mailbox message that does not fit the request or the protocol (ETG.1000.6 mailbox and
+/// CoE).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum MailboxError {
+    /// A message, or a structure in one, shorter than the structure needs.
+    Truncated {
+        /// The structure, e.g. "SDO response" or "emergency message".
+        what: &'static str,
+        /// Bytes there were.
+        len: usize,
+        /// Bytes it needs.
+        needed: usize,
+    },
+    /// The mailbox header announces more data than the mailbox holds.
+    LengthMismatch {
+        /// Length in the mailbox header.
+        announced: u16,
+        /// Bytes after the header.
+        holds: usize,
+    },
+    /// A wire code outside the standard's set (CoE service, SDO command specifier, SDO
+    /// information opcode).
+    UnknownCode(UnknownCode),
+    /// A message of another mailbox type where CoE (3) was expected.
+    NotCoe {
+        /// The mailbox type received.
+        mailbox_type: u8,
+    },
+    /// A name in an SDO information description that is not UTF-8 text.
+    NotText {
+        /// The name's field.
+        what: &'static str,
+    },
+    /// The slave has no mailbox: its SII lists no mailbox protocol.
+    NoMailbox {
+        /// Slave position.
+        slave: u16,
+    },
+    /// The slave's SII does not list CoE among its mailbox protocols.
+    NoCoe {
+        /// Slave position.
+        slave: u16,
+    },
+    /// A message longer than the slave's mailbox (SM0).
+    TooLong {
+        /// Slave position.
+        slave: u16,
+        /// The message's length.
+        len: usize,
+        /// The mailbox's length.
+        room: u16,
+    },
+    /// The slave answered with a mailbox error reply (ETG.1000.6 Table 30).
+    ErrorReply {
+        /// Slave position.
+        slave: u16,
+        /// The error detail code.
+        detail: u16,
+        /// Its name.
+        detail_name: &'static str,
+    },
+    /// A message of a mailbox type this master does not speak (it speaks CoE).
+    UnsupportedType {
+        /// Slave position.
+        slave: u16,
+        /// The mailbox type received.
+        mailbox_type: u8,
+    },
+    /// A CoE reply of another service than the one that answers the request.
+    UnexpectedService {
+        /// Slave position.
+        slave: u16,
+        /// The request, e.g. "an SDO request".
+        request: &'static str,
+        /// The service received.
+        got: &'static str,
+        /// The service expected.
+        expected: &'static str,
+    },
+    /// An SDO upload that carried another number of bytes than it announced.
+    UploadSize {
+        /// Slave position.
+        slave: u16,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+        /// Bytes announced.
+        announced: usize,
+        /// Bytes carried.
+        carried: usize,
+    },
+    /// An SDO response that does not answer the request (other than an abort).
+    UnexpectedResponse {
+        /// Slave position.
+        slave: u16,
+        /// The transfer, e.g. "upload".
+        transfer: &'static str,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+        /// The response received, as decoded.
+        response: String,
+    },
+    /// An SDO information error request without its abort code.
+    InfoErrorWithoutCode,
+    /// An SDO information response that does not answer the request's opcode.
+    UnexpectedOpcode {
+        /// Slave position.
+        slave: u16,
+        /// The request's opcode.
+        asked: &'static str,
+        /// The opcode received.
+        got: &'static str,
+        /// The opcode that answers the request.
+        expected: &'static str,
+    },
+    /// A Get OD List response without its list type.
+    OdListWithoutType,
+    /// A description of another object or entry than the one asked for.
+    WrongDescription {
+        /// What was asked, e.g. "0x6041" or "0x6041:00".
+        asked: String,
+        /// What came.
+        got: String,
+    },
+    /// An SDO transfer asked of the cycle thread that needs segments, which it does not run.
+    NeedsSegments {
+        /// "read" or "write".
+        verb: &'static str,
+        /// Slave position.
+        slave: u16,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+    },
+    /// A slave without a CoE mailbox asked for an SDO transfer by the cycle thread.
+    NoCoeForTransfer {
+        /// "read" or "write".
+        verb: &'static str,
+        /// Slave position.
+        slave: u16,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+    },
+    /// A mailbox error reply to an SDO transfer of the cycle thread.
+    TransferErrorReply {
+        /// "read" or "write".
+        verb: &'static str,
+        /// Slave position.
+        slave: u16,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+        /// The error detail code.
+        detail: u16,
+        /// Its name.
+        detail_name: &'static str,
+    },
+    /// Any other reply to an SDO transfer of the cycle thread.
+    TransferUnexpected {
+        /// "read" or "write".
+        verb: &'static str,
+        /// Slave position.
+        slave: u16,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+    },
+}
+
+impl fmt::Display for MailboxError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            MailboxError::Truncated { what, len, needed } => {
+                write!(f, "{what} of {len} bytes is shorter than the {needed} bytes it needs")
+            }
+            MailboxError::LengthMismatch { announced, holds } => {
+                write!(f, "header announces {announced} bytes but the mailbox holds {holds}")
+            }
+            MailboxError::UnknownCode(e) => write!(f, "{e}"),
+            MailboxError::NotCoe { mailbox_type } => write!(f, "mailbox type {mailbox_type} is not CoE (3)"),
+            MailboxError::NotText { what } => write!(f, "{what} is not valid text"),
+            MailboxError::NoMailbox { slave } => {
+                write!(f, "slave {slave} has no mailbox (its SII lists no mailbox protocol)")
+            }
+            MailboxError::NoCoe { slave } => write!(f, "slave {slave} does not speak CoE (SII mailbox protocols)"),
+            MailboxError::TooLong { slave, len, room } => {
+                write!(f, "message of {len} bytes does not fit slave {slave}'s {room}-byte mailbox")
+            }
+            MailboxError::ErrorReply { slave, detail, detail_name } => {
+                write!(f, "slave {slave} answered with mailbox error 0x{detail:04X} ({detail_name})")
+            }
+            MailboxError::UnsupportedType { slave, mailbox_type } => write!(
+                f,
+                "slave {slave} sent a mailbox message of type {mailbox_type} that this master does not speak (CoE is 3)"
+            ),
+            MailboxError::UnexpectedService { slave, request, got, expected } => {
+                write!(f, "slave {slave} answered {request} with CoE service {got} (expected {expected})")
+            }
+            MailboxError::UploadSize { slave, index, subindex, announced, carried } => write!(
+                f,
+                "upload of 0x{index:04X}:{subindex:02X} from slave {slave} announced {announced} bytes but carried {carried}"
+            ),
+            MailboxError::UnexpectedResponse { slave, transfer, index, subindex, response } => {
+                write!(f, "slave {slave} answered the {transfer} of 0x{index:04X}:{subindex:02X} with {response}")
+            }
+            MailboxError::InfoErrorWithoutCode => write!(f, "SDO information error without an abort code"),
+            MailboxError::UnexpectedOpcode { slave, asked, got, expected } => {
+                write!(f, "slave {slave} answered SDO information opcode {asked} with opcode {got} (expected {expected})")
+            }
+            MailboxError::OdListWithoutType => write!(f, "OD list response without its list type"),
+            MailboxError::WrongDescription { asked, got } => {
+                write!(f, "asked for the description of {asked}, got {got}'s")
+            }
+            MailboxError::NeedsSegments { verb, slave, index, subindex } => write!(
+                f,
+                "SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave} needs a segmented transfer, which runs \
+                 only with the cycle stopped"
+            ),
+            MailboxError::NoCoeForTransfer { verb, slave, index, subindex } => write!(
+                f,
+                "slave {slave} has no CoE mailbox for the SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave}"
+            ),
+            MailboxError::TransferErrorReply { verb, slave, index, subindex, detail, detail_name } => write!(
+                f,
+                "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} with mailbox error \
+                 0x{detail:04X} ({detail_name})"
+            ),
+            MailboxError::TransferUnexpected { verb, slave, index, subindex } => write!(
+                f,
+                "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave} with \
+                 something else"
+            ),
+        }
+    }
+}
+
+impl From<UnknownCode> for MailboxError {
+    fn from(e: UnknownCode) -> Self {
+        MailboxError::UnknownCode(e)
+    }
+}
+
+impl std::error::Error for MailboxError {}
 
 #[cfg(test)]
 mod tests {

@@ -11,6 +11,7 @@
 
 use crate::coe::data_type::{INTEGER16, INTEGER32, INTEGER8, UNSIGNED16, UNSIGNED32};
 use crate::coe::SdoAbortCode;
+use std::fmt;
 
 /// One mapped object: index, subindex and bit length, as written to a mapping object's
 /// subindices in the form 0xIIIISSBB.
@@ -373,7 +374,126 @@ pub fn bit_len(entries: &[PdoEntry]) -> usize {
     entries.iter().map(|e| e.bits as usize).sum()
 }
 
-pub use crate::error::PdoError;
+/// A process-data mapping the AKD refuses (AKD manual §5.6, §5.7): each variant is one of the
+/// drive's rules, and [`abort_code`](PdoError::abort_code) the SDO abort code the drive answers
+/// the offending write with.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum PdoError {
+    /// An entry the AKD does not map in this direction, or not with this bit length.
+    NotMappable {
+        /// "RxPDO" or "TxPDO".
+        direction: &'static str,
+        /// The PDO's index.
+        pdo: u16,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+        /// Bit length asked for.
+        bits: u8,
+    },
+    /// A flexible PDO of more bytes than the AKD takes in one.
+    PdoTooLong {
+        /// "RxPDO" or "TxPDO".
+        direction: &'static str,
+        /// The PDO's index.
+        pdo: u16,
+        /// Its bytes.
+        bytes: usize,
+        /// The most one PDO holds.
+        max: usize,
+    },
+    /// More flexible PDOs assigned than the AKD takes.
+    TooManyPdos {
+        /// "RxPDO" or "TxPDO".
+        direction: &'static str,
+        /// PDOs assigned.
+        count: usize,
+        /// The most the AKD takes.
+        max: usize,
+    },
+    /// An index that is not one of the flexible PDOs of this direction.
+    NotFlexible {
+        /// "RxPDO" or "TxPDO".
+        direction: &'static str,
+        /// The index.
+        index: u16,
+        /// The first flexible PDO.
+        first: u16,
+        /// The last flexible PDO.
+        last: u16,
+    },
+    /// A mapping of more bytes than the AKD's process image of this direction holds.
+    MappingTooLong {
+        /// "RxPDO" or "TxPDO".
+        direction: &'static str,
+        /// Its bytes.
+        bytes: usize,
+        /// The most the AKD takes.
+        max: usize,
+    },
+    /// A mapping of an odd number of bytes, which the AKD refuses at SafeOp.
+    OddLength {
+        /// "RxPDO" or "TxPDO".
+        direction: &'static str,
+        /// Its bits.
+        bits: usize,
+        /// The entry that pads it.
+        padding: &'static str,
+    },
+    /// An index that is not one of the AKD's fixed mappings of this direction.
+    NotFixed {
+        /// "RxPDO" or "TxPDO".
+        direction: &'static str,
+        /// The index.
+        index: u16,
+        /// The fixed mappings of this direction.
+        allowed: Vec<u16>,
+    },
+    /// The slave has no process-data mapping yet.
+    NoMapping {
+        /// Slave position.
+        slave: u16,
+    },
+}
+
+impl fmt::Display for PdoError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PdoError::NotMappable { direction, pdo, index, subindex, bits } => write!(
+                f,
+                "0x{index:04X}:{subindex:02X} with {bits} bits cannot be mapped in {direction} 0x{pdo:04X} (see AKD \
+                 manual §5.7 for the mappable objects)"
+            ),
+            PdoError::PdoTooLong { direction, pdo, bytes, max } => {
+                write!(f, "{direction} 0x{pdo:04X} holds {bytes} bytes; a flexible PDO holds at most {max}")
+            }
+            PdoError::TooManyPdos { direction, count, max } => {
+                write!(f, "{count} {direction} PDOs assigned; the AKD takes at most {max}")
+            }
+            PdoError::NotFlexible { direction, index, first, last } => {
+                write!(f, "0x{index:04X} is not a flexible {direction} (allowed 0x{first:04X}..=0x{last:04X})")
+            }
+            PdoError::MappingTooLong { direction, bytes, max } => {
+                write!(f, "{direction} mapping of {bytes} bytes exceeds the AKD's {max} bytes")
+            }
+            PdoError::OddLength { direction, bits, padding } => write!(
+                f,
+                "{direction} mapping of {bits} bits has an odd byte length, which the AKD refuses; pad it with {padding}"
+            ),
+            PdoError::NotFixed { direction, index, allowed } => {
+                write!(f, "0x{index:04X} is not a fixed {direction} of the AKD (allowed: ")?;
+                for (i, a) in allowed.iter().enumerate() {
+                    write!(f, "{}0x{a:04X}", if i == 0 { "" } else { ", " })?;
+                }
+                write!(f, ")")
+            }
+            PdoError::NoMapping { slave } => write!(f, "slave {slave} has no process-data mapping"),
+        }
+    }
+}
+
+impl std::error::Error for PdoError {}
 
 impl PdoError {
     /// The SDO abort code the AKD answers the write that breaks this rule with; `None` where no

@@ -11,7 +11,10 @@
 //! Strings are ISO 8859-1 (Latin-1): each byte is one character, so any byte string decodes and
 //! encodes back unchanged.
 
-use crate::error::{Error, Result, SiiError};
+use std::fmt;
+
+/// The result of reading or writing an SII image.
+type Result<T> = std::result::Result<T, SiiError>;
 use crate::pdo::PdoEntry;
 
 /// Words in the fixed header before the first category.
@@ -368,9 +371,7 @@ impl<'a> Reader<'a> {
     fn bytes(&mut self, n: usize) -> Result<&'a [u8]> {
         let rest = &self.data[self.at..];
         if rest.len() < n {
-            return Err(
-                SiiError::CategoryOverrun { category: self.what, len: self.data.len(), read: n, at: self.at }.into()
-            );
+            return Err(SiiError::CategoryOverrun { category: self.what, len: self.data.len(), read: n, at: self.at });
         }
         self.at += n;
         Ok(&rest[..n])
@@ -406,10 +407,7 @@ fn latin1(bytes: &[u8]) -> String {
 
 fn latin1_bytes(s: &str, what: &'static str) -> Result<Vec<u8>> {
     s.chars()
-        .map(|c| {
-            u8::try_from(u32::from(c))
-                .map_err(|_| SiiError::NotLatin1 { what, text: s.to_owned(), character: c }.into())
-        })
+        .map(|c| u8::try_from(u32::from(c)).map_err(|_| SiiError::NotLatin1 { what, text: s.to_owned(), character: c }))
         .collect()
 }
 
@@ -466,7 +464,7 @@ fn decode_general(data: &[u8]) -> General {
 
 fn whole_records(data: &[u8], record: usize, what: &'static str) -> Result<()> {
     if !data.len().is_multiple_of(record) {
-        return Err(SiiError::NotWholeRecords { category: what, len: data.len(), record }.into());
+        return Err(SiiError::NotWholeRecords { category: what, len: data.len(), record });
     }
     Ok(())
 }
@@ -503,7 +501,7 @@ fn decode_pdos(data: &[u8], what: &'static str) -> Result<Vec<SiiPdo>> {
             entries: Vec::with_capacity(usize::from(count)),
         };
         if r.remaining() < usize::from(count) * 8 {
-            return Err(SiiError::PdoEntriesOverrun { what, index, count, left: r.remaining() }.into());
+            return Err(SiiError::PdoEntriesOverrun { what, index, count, left: r.remaining() });
         }
         for _ in 0..count {
             pdo.entries.push(SiiPdoEntry {
@@ -563,13 +561,13 @@ fn word(data: &[u8], w: usize) -> u16 {
 
 fn decode_header(data: &[u8]) -> Result<Header> {
     if data.len() < HEADER_BYTES {
-        return Err(SiiError::ShortImage { len: data.len(), header: HEADER_BYTES }.into());
+        return Err(SiiError::ShortImage { len: data.len(), header: HEADER_BYTES });
     }
     let mut first = [0u8; 14];
     first.copy_from_slice(&data[..14]);
     let crc = header_checksum(&first);
     if data[14] != crc {
-        return Err(SiiError::Checksum { stored: data[14], computed: crc }.into());
+        return Err(SiiError::Checksum { stored: data[14], computed: crc });
     }
     let mailbox = |w| MailboxLayout {
         receive_offset: word(data, w),
@@ -606,7 +604,7 @@ fn decode_header(data: &[u8]) -> Result<Header> {
 impl Sii {
     /// Decodes an image: the whole EEPROM, or the bytes from word 0 up to the end category.
     /// Every length that runs past the data, every string index beyond the strings category
-    /// and a header checksum that matches neither byte of word 7 is an [`Error::Sii`] that says
+    /// and a header checksum that matches neither byte of word 7 is an [`SiiError`] that says
     /// where.
     pub fn parse(data: &[u8]) -> Result<Sii> {
         let header = decode_header(data)?;
@@ -614,14 +612,14 @@ impl Sii {
         let mut at = HEADER_BYTES;
         loop {
             if at + 2 > data.len() {
-                return Err(SiiError::NoEndCategory { len: data.len(), categories: categories.len() }.into());
+                return Err(SiiError::NoEndCategory { len: data.len(), categories: categories.len() });
             }
             let kind = u16::from_le_bytes([data[at], data[at + 1]]);
             if kind == category::END {
                 break;
             }
             if at + 4 > data.len() {
-                return Err(SiiError::NoLengthWord { kind, word: at / 2 }.into());
+                return Err(SiiError::NoLengthWord { kind, word: at / 2 });
             }
             let len = usize::from(u16::from_le_bytes([data[at + 2], data[at + 3]])) * 2;
             let start = at + 4;
@@ -631,8 +629,7 @@ impl Sii {
                     word: at / 2,
                     words: len / 2,
                     left: (data.len() - start) / 2,
-                }
-                .into());
+                });
             }
             categories.push(decode_category(kind, &data[start..start + len])?);
             at = start + len;
@@ -726,14 +723,14 @@ impl Sii {
         for c in &self.categories {
             let data = encode_category(c)?;
             let words = u16::try_from(data.len() / 2)
-                .map_err(|_| Error::from(SiiError::CategoryTooLong { kind: c.kind(), len: data.len() }))?;
+                .map_err(|_| SiiError::CategoryTooLong { kind: c.kind(), len: data.len() })?;
             push16(&mut out, c.kind());
             push16(&mut out, words);
             out.extend_from_slice(&data);
         }
         push16(&mut out, category::END);
         if out.len() > h.eeprom_bytes() {
-            return Err(SiiError::ImageTooLarge { len: out.len(), size_word: h.size, eeprom: h.eeprom_bytes() }.into());
+            return Err(SiiError::ImageTooLarge { len: out.len(), size_word: h.size, eeprom: h.eeprom_bytes() });
         }
         out.resize(h.eeprom_bytes(), 0xFF);
         Ok(out)
@@ -830,8 +827,11 @@ fn pad_to_word(data: &mut Vec<u8>) {
 fn encode_pdos(pdos: &[SiiPdo], what: &'static str) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     for p in pdos {
-        let count = u8::try_from(p.entries.len())
-            .map_err(|_| Error::from(SiiError::TooManyEntries { what, index: p.index, count: p.entries.len() }))?;
+        let count = u8::try_from(p.entries.len()).map_err(|_| SiiError::TooManyEntries {
+            what,
+            index: p.index,
+            count: p.entries.len(),
+        })?;
         out.extend_from_slice(&p.index.to_le_bytes());
         out.extend_from_slice(&[count, p.sync_manager, p.dc_sync, p.name_idx]);
         out.extend_from_slice(&p.flags.to_le_bytes());
@@ -906,7 +906,7 @@ fn encode_category(c: &Category) -> Result<Vec<u8>> {
         Category::AkdFirmware(s) => out = latin1_bytes(s, "firmware string")?,
         Category::Other { kind, data } => {
             if data.len() % 2 == 1 {
-                return Err(SiiError::OddCategory { kind: *kind, len: data.len() }.into());
+                return Err(SiiError::OddCategory { kind: *kind, len: data.len() });
             }
             out.extend_from_slice(data);
         }
@@ -923,7 +923,7 @@ pub struct Builder {
     strings: Vec<String>,
     categories: Vec<Category>,
     strings_at: Option<usize>,
-    error: Option<Error>,
+    error: Option<SiiError>,
 }
 
 impl Builder {
@@ -943,9 +943,7 @@ impl Builder {
             }
         };
         u8::try_from(i + 1).unwrap_or_else(|_| {
-            self.error.get_or_insert_with(|| {
-                SiiError::TooManyStrings { count: i + 1, first_over: Some(s.to_owned()) }.into()
-            });
+            self.error.get_or_insert_with(|| SiiError::TooManyStrings { count: i + 1, first_over: Some(s.to_owned()) });
             0
         })
     }
@@ -968,9 +966,7 @@ impl Builder {
         }
         match self.strings_at {
             Some(i) => self.categories[i] = Category::Strings(self.strings),
-            None if !self.strings.is_empty() => {
-                return Err(SiiError::NoStringsCategory { count: self.strings.len() }.into())
-            }
+            None if !self.strings.is_empty() => return Err(SiiError::NoStringsCategory { count: self.strings.len() }),
             None => {}
         }
         Ok(Sii { header: self.header, categories: self.categories })
@@ -981,6 +977,308 @@ impl Builder {
         self.build()?.encode()
     }
 }
+
+/// SII EEPROM content (ETG.1000.6 §5.4, ETG.2010) or its EEPROM interface not as expected.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SiiError {
+    /// A read inside a category that runs past its end.
+    CategoryOverrun {
+        /// The category, e.g. "General".
+        category: &'static str,
+        /// The category's length in bytes.
+        len: usize,
+        /// Bytes read.
+        read: usize,
+        /// Where, in bytes from the category's start.
+        at: usize,
+    },
+    /// A string with a character outside ISO 8859-1, which the SII strings use.
+    NotLatin1 {
+        /// The string's role.
+        what: &'static str,
+        /// The string.
+        text: String,
+        /// The first character outside.
+        character: char,
+    },
+    /// A string of the strings category that runs past its end.
+    StringOverrun {
+        /// The string's number, from 1.
+        number: usize,
+        /// Strings the category announces.
+        count: usize,
+        /// The string's length.
+        len: usize,
+        /// Bytes left in the category.
+        left: usize,
+    },
+    /// A category of records whose length is not a multiple of the record's.
+    NotWholeRecords {
+        /// The category.
+        category: &'static str,
+        /// Its length in bytes.
+        len: usize,
+        /// One record's length in bytes.
+        record: usize,
+    },
+    /// A PDO announcing more entries than its category holds.
+    PdoEntriesOverrun {
+        /// "TxPDO" or "RxPDO".
+        what: &'static str,
+        /// The PDO's index.
+        index: u16,
+        /// Entries announced.
+        count: u8,
+        /// Bytes left in the category.
+        left: usize,
+    },
+    /// An image shorter than the SII header (words 0..63).
+    ShortImage {
+        /// The image's length.
+        len: usize,
+        /// The header's length.
+        header: usize,
+    },
+    /// A header checksum (word 7, low byte) that is not the CRC-8 of words 0..6.
+    Checksum {
+        /// The checksum in the image.
+        stored: u8,
+        /// The CRC-8 of words 0..6.
+        computed: u8,
+    },
+    /// No end category (0xFFFF) before the image ends.
+    NoEndCategory {
+        /// The image's length.
+        len: usize,
+        /// Categories read.
+        categories: usize,
+    },
+    /// A category header without its length word.
+    NoLengthWord {
+        /// Category type.
+        kind: u16,
+        /// Where, in words.
+        word: usize,
+    },
+    /// A category that announces more words than the image has left.
+    CategoryPastEnd {
+        /// Category type.
+        kind: u16,
+        /// Where, in words.
+        word: usize,
+        /// Words announced.
+        words: usize,
+        /// Words left.
+        left: usize,
+    },
+    /// A string number beyond the strings category.
+    NoSuchString {
+        /// Who names it, e.g. "the General category's name".
+        what: String,
+        /// The string number.
+        index: u8,
+        /// Strings in the category.
+        count: usize,
+    },
+    /// A category longer than a length word can announce.
+    CategoryTooLong {
+        /// Category type.
+        kind: u16,
+        /// Its length in bytes.
+        len: usize,
+    },
+    /// An image larger than the EEPROM its size word announces.
+    ImageTooLarge {
+        /// The image's length.
+        len: usize,
+        /// The size word.
+        size_word: u16,
+        /// The EEPROM's bytes.
+        eeprom: usize,
+    },
+    /// A PDO with more entries than a count byte holds.
+    TooManyEntries {
+        /// "TxPDO" or "RxPDO".
+        what: &'static str,
+        /// The PDO's index.
+        index: u16,
+        /// Entries.
+        count: usize,
+    },
+    /// More strings than a count byte holds.
+    TooManyStrings {
+        /// Strings.
+        count: usize,
+        /// The first one too many, when known.
+        first_over: Option<String>,
+    },
+    /// A string longer than a length byte holds.
+    StringTooLong {
+        /// The string.
+        text: String,
+        /// Its length in bytes.
+        len: usize,
+    },
+    /// A category of an odd number of bytes.
+    OddCategory {
+        /// Category type.
+        kind: u16,
+        /// Its length in bytes.
+        len: usize,
+    },
+    /// Strings interned while building an image, with no strings category placed.
+    NoStringsCategory {
+        /// Strings interned.
+        count: usize,
+    },
+    /// An EEPROM read that the ESC did not acknowledge (SII control/status register 0x0502).
+    EepromNack {
+        /// Station address.
+        station: u16,
+        /// The word read.
+        word: u32,
+        /// SII control/status.
+        control: u16,
+    },
+    /// No end category before the EEPROM ends.
+    EepromNoEnd {
+        /// Station address.
+        station: u16,
+        /// The EEPROM's size.
+        size_kbit: u32,
+    },
+    /// A category that runs past the EEPROM's end.
+    EepromCategoryPastEnd {
+        /// Station address.
+        station: u16,
+        /// Category type.
+        kind: u16,
+        /// Where, in words.
+        word: u32,
+        /// Its length in words.
+        len: u32,
+        /// The EEPROM's size.
+        size_kbit: u32,
+    },
+    /// A standard mailbox too small for an SDO message.
+    MailboxTooSmall {
+        /// Receive mailbox (SM0) size.
+        receive: u16,
+        /// Send mailbox (SM1) size.
+        send: u16,
+        /// The least an SDO message needs.
+        min: u16,
+    },
+    /// A PDO entry that the AKD's image names nowhere.
+    NoPdoName {
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+    },
+    /// Any of these, of one slave found by the scan.
+    OfSlave {
+        /// Slave position.
+        position: u16,
+        /// Its station address.
+        station: u16,
+        /// What is wrong.
+        error: Box<SiiError>,
+    },
+}
+
+impl fmt::Display for SiiError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SiiError::CategoryOverrun { category, len, read, at } => {
+                write!(f, "the {category} category is {len} bytes: reading {read} bytes at byte {at} runs past its end")
+            }
+            SiiError::NotLatin1 { what, text, character } => {
+                write!(f, "{what} {text:?} holds {character:?}, outside ISO 8859-1 (allowed U+0000..=U+00FF)")
+            }
+            SiiError::StringOverrun { number, count, len, left } => {
+                write!(f, "string {number} of {count} announces {len} bytes but the strings category has {left} left")
+            }
+            SiiError::NotWholeRecords { category, len, record } => {
+                write!(f, "the {category} category is {len} bytes, not a multiple of its {record}-byte records")
+            }
+            SiiError::PdoEntriesOverrun { what, index, count, left } => write!(
+                f,
+                "{what} 0x{index:04X} announces {count} entries ({} bytes) but the category has {left} bytes left",
+                usize::from(*count) * 8
+            ),
+            SiiError::ShortImage { len, header } => {
+                write!(f, "image of {len} bytes is shorter than the {header}-byte header")
+            }
+            SiiError::Checksum { stored, computed } => write!(
+                f,
+                "header checksum (low byte of word 7) is 0x{stored:02X} but the CRC-8 of words 0..6 is 0x{computed:02X}"
+            ),
+            SiiError::NoEndCategory { len, categories } => write!(
+                f,
+                "no end category (0xFFFF) before the end of the {len}-byte image (after {categories} categories)"
+            ),
+            SiiError::NoLengthWord { kind, word } => {
+                write!(f, "category 0x{kind:04X} at word 0x{word:04X} has no length word")
+            }
+            SiiError::CategoryPastEnd { kind, word, words, left } => write!(
+                f,
+                "category 0x{kind:04X} at word 0x{word:04X} announces {words} words but the image has {left} words left"
+            ),
+            SiiError::NoSuchString { what, index, count } => write!(
+                f,
+                "{what} names string {index} but the strings category has {count} (allowed 0..={count}, 0 = none)"
+            ),
+            SiiError::CategoryTooLong { kind, len } => {
+                write!(f, "category 0x{kind:04X} of {len} bytes exceeds the 65535 words a length word holds")
+            }
+            SiiError::ImageTooLarge { len, size_word, eeprom } => write!(
+                f,
+                "the image takes {len} bytes but the size word 0x{size_word:04X} announces an EEPROM of {eeprom} bytes"
+            ),
+            SiiError::TooManyEntries { what, index, count } => {
+                write!(f, "{what} 0x{index:04X} has {count} entries (allowed 0..=255)")
+            }
+            SiiError::TooManyStrings { count, first_over: None } => write!(f, "{count} strings (allowed 0..=255)"),
+            SiiError::TooManyStrings { first_over: Some(text), .. } => {
+                write!(f, "more than 255 strings (the 256th is {text:?})")
+            }
+            SiiError::StringTooLong { text, len } => write!(f, "string {text:?} is {len} bytes (allowed 0..=255)"),
+            SiiError::OddCategory { kind, len } => {
+                write!(f, "category 0x{kind:04X} has {len} bytes; a category is whole words")
+            }
+            SiiError::NoStringsCategory { count } => {
+                write!(f, "{count} strings interned but no strings category placed (call strings_here)")
+            }
+            SiiError::EepromNack { station, word, control } => write!(
+                f,
+                "station 0x{station:04X}: EEPROM read of word 0x{word:04X} failed (SII control 0x{control:04X}: \
+                 missing acknowledge)"
+            ),
+            SiiError::EepromNoEnd { station, size_kbit } => write!(
+                f,
+                "station 0x{station:04X}: no end category (0xFFFF) before the end of the {size_kbit} kbit EEPROM"
+            ),
+            SiiError::EepromCategoryPastEnd { station, kind, word, len, size_kbit } => write!(
+                f,
+                "station 0x{station:04X}: category 0x{kind:04X} at word 0x{word:04X} of {len} words runs past the \
+                 {size_kbit} kbit EEPROM"
+            ),
+            SiiError::MailboxTooSmall { receive, send, min } => write!(
+                f,
+                "mailbox of {receive} bytes out and {send} in is smaller than the {min} bytes of an SDO message"
+            ),
+            SiiError::NoPdoName { index, subindex } => {
+                write!(f, "no name for PDO object 0x{index:04X}:{subindex:02X} in the AKD's image")
+            }
+            SiiError::OfSlave { position, station, error } => {
+                write!(f, "slave {position} (station 0x{station:04X}): {error}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for SiiError {}
 
 #[cfg(test)]
 mod tests {

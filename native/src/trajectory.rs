@@ -13,7 +13,7 @@
 //! Units are the drive's: positions in counts, velocities in counts/s, accelerations in
 //! counts/s², times in ns.
 
-use crate::error::TrajectoryError;
+use std::fmt;
 
 /// One joint's value at one point.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -293,6 +293,168 @@ fn check_knot(point: usize, joint: usize, knot: &Knot, limits: &Limits) -> Resul
     }
     Ok(())
 }
+
+/// Why a trajectory is refused before anything moves. Points and joints count from 0, in the
+/// order given; positions are counts, velocities counts/s, accelerations counts/s².
+#[derive(Clone, Debug, PartialEq)]
+pub enum TrajectoryError {
+    /// A trajectory for no joint.
+    NoJoints,
+    /// A trajectory of no point.
+    NoPoints,
+    /// Points and their times of different numbers.
+    TimesCount {
+        /// Points given.
+        points: usize,
+        /// Times given.
+        times: usize,
+    },
+    /// A point with another number of values than the trajectory has joints.
+    JointCount {
+        /// The point.
+        point: usize,
+        /// Values it gives.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
+    /// Limits for another number of joints than the trajectory has.
+    LimitsCount {
+        /// Limits given.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
+    /// Tolerances for another number of joints than the trajectory has.
+    TolerancesCount {
+        /// Tolerances given.
+        given: usize,
+        /// Joints of the trajectory.
+        joints: usize,
+    },
+    /// A joint's limits that are not finite or whose minimum is above the maximum.
+    BadLimits {
+        /// The joint.
+        joint: usize,
+        /// The minimum given.
+        min: f64,
+        /// The maximum given.
+        max: f64,
+    },
+    /// A point's time from the start that is not after the previous point's (or, for the first
+    /// point, after the start).
+    TimeNotIncreasing {
+        /// The point.
+        point: usize,
+        /// Its time from the start, ns.
+        time_ns: u64,
+        /// The time it must be after, ns (0: the start).
+        after_ns: u64,
+    },
+    /// A position, velocity or acceleration that is NaN or infinite.
+    NotFinite {
+        /// The point.
+        point: usize,
+        /// The joint.
+        joint: usize,
+        /// "position", "velocity" or "acceleration".
+        what: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A position outside the joint's limits.
+    OutOfLimits {
+        /// The point.
+        point: usize,
+        /// The joint.
+        joint: usize,
+        /// The position given.
+        position: f64,
+        /// The joint's minimum.
+        min: f64,
+        /// The joint's maximum.
+        max: f64,
+    },
+    /// An acceleration given without a velocity (a quintic segment needs both).
+    AccelerationWithoutVelocity {
+        /// The point.
+        point: usize,
+        /// The joint.
+        joint: usize,
+    },
+    /// A drive named for two joints.
+    DriveTwice {
+        /// The drive's position on the bus.
+        slave: u16,
+        /// The first joint it was named for.
+        first: usize,
+        /// The second.
+        second: usize,
+    },
+    /// A drive that cannot follow a trajectory now: not on the bus, not sequenced, not in
+    /// Operation enabled, not in a cyclic position mode, or without its position target mapped.
+    DriveNotReady {
+        /// The joint.
+        joint: usize,
+        /// The drive's position on the bus.
+        slave: u16,
+        /// Why, with what it would need.
+        why: String,
+    },
+}
+
+impl fmt::Display for TrajectoryError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "trajectory refused, nothing moved: ")?;
+        match self {
+            TrajectoryError::NoJoints => write!(f, "it names no joint; at least one is needed"),
+            TrajectoryError::NoPoints => write!(f, "it has no point; at least one is needed"),
+            TrajectoryError::TimesCount { points, times } => {
+                write!(f, "{points} point(s) but {times} time(s) from the start; one time per point is needed")
+            }
+            TrajectoryError::JointCount { point, given, joints } => {
+                write!(f, "point {point} gives {given} joint value(s); the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::LimitsCount { given, joints } => {
+                write!(f, "{given} joint limit(s) given; the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::TolerancesCount { given, joints } => {
+                write!(f, "{given} joint tolerance(s) given; the trajectory has {joints} joint(s)")
+            }
+            TrajectoryError::BadLimits { joint, min, max } => {
+                write!(f, "joint {joint}: limits {min} ..= {max} counts; they must be finite with min <= max")
+            }
+            TrajectoryError::TimeNotIncreasing { point, time_ns, after_ns: 0 } => write!(
+                f,
+                "point {point}: time from the start {time_ns} ns; the first point's must be after the start (> 0 ns)"
+            ),
+            TrajectoryError::TimeNotIncreasing { point, time_ns, after_ns } => write!(
+                f,
+                "point {point}: time from the start {time_ns} ns is not after the previous point's {after_ns} ns; \
+                 times must increase strictly"
+            ),
+            TrajectoryError::NotFinite { point, joint, what, value } => {
+                write!(f, "point {point}, joint {joint}: {what} {value}; it must be a finite number")
+            }
+            TrajectoryError::OutOfLimits { point, joint, position, min, max } => write!(
+                f,
+                "point {point}, joint {joint}: position {position} counts is outside the joint's limits \
+                 {min} ..= {max} counts"
+            ),
+            TrajectoryError::AccelerationWithoutVelocity { point, joint } => write!(
+                f,
+                "point {point}, joint {joint}: an acceleration without a velocity; give both (quintic), the \
+                 velocity alone (cubic) or neither (linear)"
+            ),
+            TrajectoryError::DriveTwice { slave, first, second } => {
+                write!(f, "drive {slave} is named for joints {first} and {second}; each drive may be one joint")
+            }
+            TrajectoryError::DriveNotReady { joint, slave, why } => write!(f, "joint {joint} (drive {slave}): {why}"),
+        }
+    }
+}
+
+impl std::error::Error for TrajectoryError {}
 
 #[cfg(test)]
 mod tests {

@@ -1,6 +1,15 @@
-//! Closed sets of wire codes as enums: one declaration gives the `#[repr]` enum, its names as
-//! the standard spells them, `TryFrom` of the raw value (an error naming the value and the
-//! set) and the raw value back.
+//! Sets of wire codes, declared in one shape: each code with its value and its name as the
+//! standard spells it.
+//!
+//! - A closed set (`enum Name: raw, "what" { Variant = value => "name", ... }`) is a `#[repr]`
+//!   enum with its names, `ALL`, `TryFrom` of the raw value (an error naming the value and the
+//!   set) and the raw value back.
+//! - An open set (`struct Name(raw) { CONST = value => "name", value => "name", ... } else {
+//!   pattern => "name", ... }`), where a slave may send codes outside the standard's list (a
+//!   vendor's), is a newtype over the wire value: the codes this crate uses by name as
+//!   constants, a `name()` for every code of the list and the `else` patterns for the rest.
+
+use std::fmt;
 
 /// Declares a closed set of wire codes; see the module documentation.
 macro_rules! wire_codes {
@@ -30,12 +39,12 @@ macro_rules! wire_codes {
         }
 
         impl TryFrom<$raw> for $name {
-            type Error = crate::error::UnknownCode;
+            type Error = crate::wire_code::UnknownCode;
 
-            fn try_from(value: $raw) -> Result<Self, crate::error::UnknownCode> {
+            fn try_from(value: $raw) -> Result<Self, crate::wire_code::UnknownCode> {
                 match value {
                     $($value => Ok($name::$variant),)+
-                    _ => Err(crate::error::UnknownCode {
+                    _ => Err(crate::wire_code::UnknownCode {
                         what: $what,
                         value: value.into(),
                         known: &[$(($value, $text)),+],
@@ -56,4 +65,57 @@ macro_rules! wire_codes {
             }
         }
     };
+    (
+        $(#[$meta:meta])*
+        $vis:vis struct $name:ident($raw:ty) {
+            $($($(#[$const_meta:meta])* $constant:ident =)? $value:literal => $text:literal,)+
+        } else {
+            $($other:pat => $other_text:literal,)+
+        }
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        $vis struct $name(pub $raw);
+
+        impl $name {
+            $($($(#[$const_meta])* pub const $constant: $name = $name($value);)?)+
+
+            /// The code's name as the standard spells it, for any code.
+            pub fn name(self) -> &'static str {
+                match self.0 {
+                    $($value => $text,)+
+                    $($other => $other_text,)+
+                }
+            }
+        }
+
+        impl std::fmt::Display for $name {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                write!(f, "0x{:0width$X} ({})", self.0, self.name(), width = 2 * std::mem::size_of::<$raw>())
+            }
+        }
+    };
 }
+
+/// A wire code outside its closed set (a CoE service, an SDO information opcode, ...).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct UnknownCode {
+    /// The field the code came in, e.g. "CoE service".
+    pub what: &'static str,
+    /// The value received.
+    pub value: u16,
+    /// The set's codes and names, to say what was allowed.
+    pub known: &'static [(u16, &'static str)],
+}
+
+impl fmt::Display for UnknownCode {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} {} is none of", self.what, self.value)?;
+        for (i, (value, name)) in self.known.iter().enumerate() {
+            write!(f, "{} {value} ({name})", if i == 0 { "" } else { "," })?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for UnknownCode {}

@@ -5,7 +5,7 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::cycle::sequencer::{Progress, Request, Status};
+use akd_native::cycle::sequencer::{DriveStatus, Progress, Request};
 use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::sim::faults::Fault;
@@ -27,7 +27,7 @@ fn rig() -> (CycleThread, Arc<Mutex<VirtualBus>>) {
 }
 
 /// Waits until the drive's status satisfies `done`.
-fn wait(cycle: &CycleThread, done: impl Fn(&Status) -> bool) -> Status {
+fn wait(cycle: &CycleThread, done: impl Fn(&DriveStatus) -> bool) -> DriveStatus {
     let deadline = Instant::now() + Duration::from_secs(10);
     loop {
         let status = cycle.drive_status(0).unwrap();
@@ -47,7 +47,7 @@ fn cycles(cycle: &CycleThread, count: u64) {
     }
 }
 
-fn wait_state(cycle: &CycleThread, state: State) -> Status {
+fn wait_state(cycle: &CycleThread, state: State) -> DriveStatus {
     wait(cycle, |s| s.state() == Some(state))
 }
 

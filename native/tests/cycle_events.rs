@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use akd_native::al::AlState;
 use akd_native::cycle::events::{Action, Event, FaultSource};
-use akd_native::cycle::{Config, CycleThread};
+use akd_native::cycle::{Config, CycleThread, RealTime};
 use akd_native::ds402::State;
 use akd_native::error::Result;
 use akd_native::frame::{Command, FrameBuilder};
@@ -76,7 +76,8 @@ fn rig(pipelined: bool) -> Rig {
         drop_mailbox: Arc::clone(&drop_mailbox),
         to_safeop: Arc::clone(&to_safeop),
     };
-    let config = Config { pipelined, ..Config::new(Duration::from_millis(1)) };
+    let config =
+        Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
     let cycle = CycleThread::start(csp_master(Box::new(link)), config).map_err(|e| e.0).unwrap();
     Rig { cycle, drop, drop_mailbox, to_safeop }
 }

@@ -13,14 +13,14 @@ use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::akd_fault::MissedFrames;
 use akd_native::al::AlState;
 use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
-use akd_native::cycle::trajectory_player::Status;
-use akd_native::cycle::{handshake, Config, CycleThread, Snapshot};
+use akd_native::cycle::trajectory_player::TrajectoryStatus;
+use akd_native::cycle::{handshake, Config, CycleThread, RealTime, Snapshot};
 use akd_native::ds402::{Mode, State};
 use akd_native::link::udp::Udp;
+use akd_native::link_spec::MissedFrames;
 use akd_native::master::Master;
 use akd_native::sim::{server, Timing, VirtualBus};
 use akd_native::trajectory::Knot;
@@ -128,7 +128,8 @@ fn loop_allocates_nothing(pipelined: bool) {
     m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
     m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
-    let config = Config { pipelined, ..Config::new(Duration::from_millis(1)) };
+    let config =
+        Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
     let cycle = CycleThread::start(m, config).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);
@@ -212,7 +213,7 @@ fn set_points_and_requests(cycle: &CycleThread) {
 
 /// Drive 1 enabled follows a trajectory of 100 ms that another replaces half-way; their final
 /// statuses, `None` when the drive could not be enabled.
-fn trajectories(cycle: &CycleThread) -> Option<[Option<Status>; 2]> {
+fn trajectories(cycle: &CycleThread) -> Option<[Option<TrajectoryStatus>; 2]> {
     let enabled = || cycle.drive_status(1).unwrap().state() == Some(State::OperationEnabled);
     wait_until("drive 1 enabled", || enabled() || cycle.drive_status(1).unwrap().progress != Progress::InProgress);
     if !enabled() {
@@ -240,7 +241,7 @@ fn wait_until(what: &str, done: impl Fn() -> bool) {
 /// Drive 2: a profile-position set-point, then a velocity stream that times out twice, halted
 /// and released by the next write, then quick-stopped. The handshake's end, `None` when the
 /// drive could not be enabled (a lost frame on a loaded machine can fault it).
-fn set_point_and_command_timeouts(cycle: &CycleThread) -> Option<handshake::Status> {
+fn set_point_and_command_timeouts(cycle: &CycleThread) -> Option<handshake::HandshakeStatus> {
     cycle.request(2, Request::Enable).unwrap();
     let enabled = || cycle.drive_status(2).unwrap().state() == Some(State::OperationEnabled);
     wait_until("drive 2 enabled", || enabled() || cycle.drive_status(2).unwrap().progress != Progress::InProgress);

@@ -8,12 +8,12 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::akd_fault::MissedFrames;
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
 use akd_native::ds402::State;
 use akd_native::error::Result;
 use akd_native::link::Link;
+use akd_native::link_spec::MissedFrames;
 use akd_native::sim::faults::Fault;
 use akd_native::sim::{Timing, VirtualBus};
 

@@ -18,7 +18,7 @@ use akd_native::al::AlState;
 use akd_native::cycle::events::{Event, TrajectoryState};
 use akd_native::cycle::samples::Sample;
 use akd_native::cycle::sequencer::Request;
-use akd_native::cycle::trajectory_player::Status;
+use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::ds402::{statusword, Mode, State};
 use akd_native::master::{Mapping, Master};
@@ -103,7 +103,7 @@ fn records(cycle: &CycleThread, count: usize) -> Vec<Sample> {
 }
 
 /// Records until trajectory `id` ends; its status then.
-fn follow(cycle: &CycleThread, id: u32, all: &mut Vec<Sample>) -> Status {
+fn follow(cycle: &CycleThread, id: u32, all: &mut Vec<Sample>) -> TrajectoryStatus {
     wait_until("the trajectory's end", || {
         all.extend(cycle.samples());
         let status = cycle.trajectory_status(id).unwrap();

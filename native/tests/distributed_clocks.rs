@@ -16,7 +16,7 @@ use akd_native::frame::{self, Command};
 use akd_native::link::Link;
 use akd_native::master::Master;
 use akd_native::sim::in_process::InProcess;
-use akd_native::sim::sync::{SyncSource, SyncState};
+use akd_native::sim::pll::{SyncSource, SyncState};
 
 const STEP: Duration = Duration::from_secs(5);
 const CYCLE_NS: u32 = 1_000_000;

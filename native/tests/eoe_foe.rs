@@ -8,13 +8,13 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::akd_fault::MissedFrames;
 use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::eoe::IpParameters;
 use akd_native::error::{Error, FoeError};
 use akd_native::frame::{Command, FrameBuilder};
 use akd_native::link::udp::Udp;
+use akd_native::link_spec::MissedFrames;
 use akd_native::master::eoe::default_mac;
 use akd_native::master::Master;
 use akd_native::sim::in_process::InProcess;

@@ -131,7 +131,7 @@ impl SdoSlot {
         let verb = if write.is_some() { "write" } else { "read" };
         match outcome {
             o if o == Outcome::Done as u8 => Ok(value),
-            o if o == Outcome::Aborted as u8 => Err(coe::abort_error(index, subindex, coe::SdoAbortCode(code))),
+            o if o == Outcome::Aborted as u8 => Err(Error::sdo_abort(index, subindex, coe::SdoAbortCode(code))),
             o if o == Outcome::TimedOut as u8 => Err(Error::Timeout {
                 what: format!("slave {slave} to answer the SDO {verb} of 0x{index:04X}:{subindex:02X}").into(),
             }),

@@ -26,7 +26,7 @@ pub const TARGETS: [(u16, u8); 2] = [(0x60FF, 0), (0x6071, 0)];
 
 /// What a drive's command time-out shares with other threads: all atomics.
 #[derive(Default)]
-pub struct Shared {
+pub struct CommandTimeoutShared {
     /// The time-out in ns (0: off) shifted left by 2, the action in the low 2 bits.
     config: AtomicU64,
     /// Target writes counted.
@@ -39,7 +39,7 @@ pub struct Shared {
 
 /// A drive's command time-out as the cycle thread last published it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Status {
+pub struct CommandTimeoutStatus {
     /// The time-out and its action, `None` when off.
     pub config: Option<(Duration, CommandTimeoutAction)>,
     /// Whether a non-zero velocity or torque stream is being watched.
@@ -50,7 +50,7 @@ pub struct Status {
     pub timeouts: u64,
 }
 
-impl Shared {
+impl CommandTimeoutShared {
     /// Sets the time-out and its action, or turns it off (`None` or a zero time-out); the
     /// stream is forgotten and the watchdog's halt lifted, so a stream is watched from its next
     /// write.
@@ -65,7 +65,7 @@ impl Shared {
 
     fn config(&self) -> Option<(u64, CommandTimeoutAction)> {
         let packed = self.config.load(Ordering::Acquire);
-        let action = CommandTimeoutAction::ALL.into_iter().find(|a| *a as u64 == packed & 3)?;
+        let action = CommandTimeoutAction::try_from((packed & 3) as u8).ok()?;
         Some((packed >> 2, action))
     }
 
@@ -88,9 +88,9 @@ impl Shared {
     }
 
     /// The status as the thread last published it.
-    pub fn status(&self) -> Status {
+    pub fn status(&self) -> CommandTimeoutStatus {
         let status = self.status.load(Ordering::Acquire);
-        Status {
+        CommandTimeoutStatus {
             config: self.config().map(|(ns, action)| (Duration::from_nanos(ns), action)),
             armed: status & 1 != 0,
             halted: status & 2 != 0,
@@ -134,7 +134,14 @@ pub struct Seen<'a> {
 impl CommandTimeout {
     /// One cycle: notes target writes, and when a non-zero stream stopped for the time-out in
     /// Operation enabled, halts or asks `drive` for a quick stop and pushes one event.
-    pub fn observe(&mut self, shared: &Shared, o: &Offsets, drive: &sequencer::Shared, events: &Events, seen: Seen) {
+    pub fn observe(
+        &mut self,
+        shared: &CommandTimeoutShared,
+        o: &Offsets,
+        drive: &sequencer::SequencerShared,
+        events: &Events,
+        seen: Seen,
+    ) {
         let config = shared.config();
         if shared.release.swap(false, Ordering::AcqRel) || config.is_none() {
             self.stream = false;
@@ -211,8 +218,8 @@ mod tests {
     }
 
     struct Rig {
-        shared: Shared,
-        drive: sequencer::Shared,
+        shared: CommandTimeoutShared,
+        drive: sequencer::SequencerShared,
         events: Events,
         watch: CommandTimeout,
         outputs: [u8; 9],
@@ -223,9 +230,9 @@ mod tests {
         fn new(mode: Mode) -> Rig {
             let mut outputs = [0; 9];
             outputs[8] = mode as i8 as u8;
-            let shared = Shared::default();
+            let shared = CommandTimeoutShared::default();
             shared.set(Some((Duration::from_millis(5), CommandTimeoutAction::Halt)));
-            let (drive, events) = (sequencer::Shared::default(), Events::default());
+            let (drive, events) = (sequencer::SequencerShared::default(), Events::default());
             Rig { shared, drive, events, watch: CommandTimeout::default(), outputs, cycle: 0 }
         }
 

@@ -28,18 +28,18 @@ pub struct DcStatus {
 }
 
 /// What the thread publishes and the others read.
-pub(super) struct Shared {
+pub(super) struct DcStatusShared {
     setup: Option<Clock>,
     differences: Box<[AtomicI64]>,
     reads: AtomicU64,
     misses: AtomicU64,
 }
 
-impl Shared {
+impl DcStatusShared {
     /// For a master set up with `clock` (`None`: without distributed clocks).
     pub(super) fn new(clock: Option<&Clock>) -> Self {
         let count = clock.map_or(0, |c| c.slaves.len());
-        Shared {
+        DcStatusShared {
             setup: clock.cloned(),
             differences: (0..count).map(|_| AtomicI64::new(UNREAD)).collect(),
             reads: AtomicU64::new(0),

@@ -27,51 +27,26 @@ impl Edge {
     }
 }
 
-/// What a fault event is about.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum FaultSource {
-    /// The statusword shows Fault (or Fault reaction active); the code is 0x603F's.
-    DriveFault = 1,
-    /// The drive sent a CoE emergency message; the code is the message's.
-    Emergency = 2,
-    /// Frames were lost while a drive was enabled; the code is how many in a row.
-    LostFrames = 3,
-    /// The cyclic working counter was wrong while a drive was enabled; the code is how many
-    /// cycles in a row.
-    WorkingCounter = 4,
-    /// The slave left Op; the AL status says where it went and why.
-    AlState = 5,
-    /// The slave stopped answering (power, cable, line); the code is how many cycles in a
-    /// row. It is being brought back ([`recovery`](crate::cycle::recovery)).
-    Unreachable = 6,
-    /// The slave is back in Op after it was lost or left Op, its power stage off; the code is
-    /// how long it was gone (ms, saturating).
-    Recovered = 7,
-}
-
-impl FaultSource {
-    const ALL: [FaultSource; 7] = [
-        FaultSource::DriveFault,
-        FaultSource::Emergency,
-        FaultSource::LostFrames,
-        FaultSource::WorkingCounter,
-        FaultSource::AlState,
-        FaultSource::Unreachable,
-        FaultSource::Recovered,
-    ];
-
-    /// The source's name as the Python API and the DriveFault message spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            FaultSource::DriveFault => "drive_fault",
-            FaultSource::Emergency => "emergency",
-            FaultSource::LostFrames => "lost_frames",
-            FaultSource::WorkingCounter => "working_counter",
-            FaultSource::AlState => "al_state",
-            FaultSource::Unreachable => "unreachable",
-            FaultSource::Recovered => "recovered",
-        }
+wire_codes! {
+    /// What a fault event is about.
+    pub enum FaultSource: u8, "fault source" {
+        /// The statusword shows Fault (or Fault reaction active); the code is 0x603F's.
+        DriveFault = 1 => "drive_fault",
+        /// The drive sent a CoE emergency message; the code is the message's.
+        Emergency = 2 => "emergency",
+        /// Frames were lost while a drive was enabled; the code is how many in a row.
+        LostFrames = 3 => "lost_frames",
+        /// The cyclic working counter was wrong while a drive was enabled; the code is how many
+        /// cycles in a row.
+        WorkingCounter = 4 => "working_counter",
+        /// The slave left Op; the AL status says where it went and why.
+        AlState = 5 => "al_state",
+        /// The slave stopped answering (power, cable, line); the code is how many cycles in a
+        /// row. It is being brought back ([`recovery`](crate::cycle::recovery)).
+        Unreachable = 6 => "unreachable",
+        /// The slave is back in Op after it was lost or left Op, its power stage off; the code is
+        /// how long it was gone (ms, saturating).
+        Recovered = 7 => "recovered",
     }
 }
 
@@ -110,28 +85,17 @@ impl Action {
     }
 }
 
-/// What the command time-out does when a velocity or torque stream stops.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum CommandTimeoutAction {
-    /// Halt (controlword bit 8) until the next target write.
-    Halt = 1,
-    /// Quick stop: the drive brakes and holds in Quick stop active until enabled again.
-    QuickStop = 2,
+wire_codes! {
+    /// What the command time-out does when a velocity or torque stream stops.
+    pub enum CommandTimeoutAction: u8, "command time-out action" {
+        /// Halt (controlword bit 8) until the next target write.
+        Halt = 1 => "hold",
+        /// Quick stop: the drive brakes and holds in Quick stop active until enabled again.
+        QuickStop = 2 => "quick_stop",
+    }
 }
 
 impl CommandTimeoutAction {
-    /// Every action.
-    pub const ALL: [CommandTimeoutAction; 2] = [CommandTimeoutAction::Halt, CommandTimeoutAction::QuickStop];
-
-    /// The action's name as the Python API and the node's command_timeout_policy spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            CommandTimeoutAction::Halt => "hold",
-            CommandTimeoutAction::QuickStop => "quick_stop",
-        }
-    }
-
     /// What was done, for the log.
     pub fn describe(self) -> &'static str {
         match self {
@@ -141,25 +105,13 @@ impl CommandTimeoutAction {
     }
 }
 
-/// The target a command stream writes.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum CommandedTarget {
-    /// Target velocity 0x60FF (profile velocity), counts/s.
-    Velocity = 1,
-    /// Target torque 0x6071 (profile torque), 0.1 % of peak torque.
-    Torque = 2,
-}
-
-impl CommandedTarget {
-    const ALL: [CommandedTarget; 2] = [CommandedTarget::Velocity, CommandedTarget::Torque];
-
-    /// The command's kind as the Python API spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            CommandedTarget::Velocity => "velocity",
-            CommandedTarget::Torque => "torque",
-        }
+wire_codes! {
+    /// The target a command stream writes.
+    pub enum CommandedTarget: u8, "commanded target" {
+        /// Target velocity 0x60FF (profile velocity), counts/s.
+        Velocity = 1 => "velocity",
+        /// Target torque 0x6071 (profile torque), 0.1 % of peak torque.
+        Torque = 2 => "torque",
     }
 }
 
@@ -398,7 +350,7 @@ impl Event {
                 cycle,
                 time_ns,
                 slave,
-                source: *FaultSource::ALL.iter().find(|s| **s as u8 == (what >> 24) as u8)?,
+                source: FaultSource::try_from((what >> 24) as u8).ok()?,
                 code: data as u16,
                 statusword: (data >> 16) as u16,
                 al_status: (data >> 32) as u16,
@@ -409,7 +361,7 @@ impl Event {
                 cycle,
                 time_ns,
                 slave,
-                target: *CommandedTarget::ALL.iter().find(|t| **t as u8 == (what >> 32) as u8)?,
+                target: CommandedTarget::try_from((what >> 32) as u8).ok()?,
                 value: data as u32 as i32,
                 timeout_us: (data >> 32) as u32,
                 statusword: (what >> 40) as u16,

@@ -73,7 +73,7 @@ pub enum Progress {
 
 /// A drive's handshake as the cycle thread last published it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Status {
+pub struct HandshakeStatus {
     /// Which request it is (counted from 1; 0 before any).
     pub request: u32,
     /// The controlword bits asked for.
@@ -84,7 +84,7 @@ pub struct Status {
     pub statusword: u16,
 }
 
-impl Status {
+impl HandshakeStatus {
     /// Why it is stuck, with the drive's state and statusword; `None` when it is not.
     pub fn stuck_reason(&self) -> Option<String> {
         let Progress::Stuck(why) = self.progress else { return None };
@@ -114,7 +114,7 @@ impl Status {
             | self.statusword as u64
     }
 
-    fn unpack(v: u64) -> Status {
+    fn unpack(v: u64) -> HandshakeStatus {
         let why = Stuck::ALL.into_iter().find(|s| *s as u64 == (v >> 16) & 0xF);
         let progress = match ((v >> 20) & 0xF, why) {
             (1, _) => Progress::InProgress,
@@ -122,24 +122,24 @@ impl Status {
             (3, Some(why)) => Progress::Stuck(why),
             _ => Progress::Idle,
         };
-        Status { request: (v >> 32) as u32, bits: (v >> 24) as u8 as u16, progress, statusword: v as u16 }
+        HandshakeStatus { request: (v >> 32) as u32, bits: (v >> 24) as u8 as u16, progress, statusword: v as u16 }
     }
 }
 
 /// What a drive's handshake shares with other threads: all atomics.
 #[derive(Default)]
-pub struct Shared {
+pub struct HandshakeShared {
     /// The request counter (high 32 bits) and its bits (low 16).
     request: AtomicU64,
     /// How long the last request may wait for bit 12 to clear (ns).
     clear_timeout_ns: AtomicU64,
     /// How long the last request may wait for bit 12 once the bits are raised (ns).
     timeout_ns: AtomicU64,
-    /// The published [`Status`], packed.
+    /// The published [`HandshakeStatus`], packed.
     status: AtomicU64,
 }
 
-impl Shared {
+impl HandshakeShared {
     /// Asks for a handshake raising `bits` (within [`ALLOWED_BITS`], with bit 4) that ends stuck
     /// when bit 12 does not clear within `clear_timeout` or is not set within `timeout` of the
     /// raise; it replaces one under way. Returns its number.
@@ -157,13 +157,18 @@ impl Shared {
 
     /// The handshake last asked for as the cycle thread last published it; one not yet taken
     /// shows as in progress.
-    pub fn status(&self) -> Status {
+    pub fn status(&self) -> HandshakeStatus {
         let request = self.request.load(Ordering::Acquire);
-        let status = Status::unpack(self.status.load(Ordering::Acquire));
+        let status = HandshakeStatus::unpack(self.status.load(Ordering::Acquire));
         if (request >> 32) as u32 == status.request {
             return status;
         }
-        Status { request: (request >> 32) as u32, bits: request as u16, progress: Progress::InProgress, ..status }
+        HandshakeStatus {
+            request: (request >> 32) as u32,
+            bits: request as u16,
+            progress: Progress::InProgress,
+            ..status
+        }
     }
 }
 
@@ -203,7 +208,7 @@ pub struct Handshake {
 impl Handshake {
     /// One cycle: takes a new request from `shared`, moves the handshake on from the statusword
     /// and mode display read this cycle, and publishes its status.
-    pub fn observe(&mut self, shared: &Shared, statusword: u16, mode_display: Option<i8>, now_ns: u64) {
+    pub fn observe(&mut self, shared: &HandshakeShared, statusword: u16, mode_display: Option<i8>, now_ns: u64) {
         let request = shared.request.load(Ordering::Acquire);
         let was_under_way = self.phase.under_way();
         if (request >> 32) as u32 != self.request {
@@ -247,14 +252,14 @@ impl Handshake {
     }
 
     /// The published status.
-    pub fn status(&self) -> Status {
+    pub fn status(&self) -> HandshakeStatus {
         let progress = match self.phase {
             Phase::Idle => Progress::Idle,
             Phase::Taken | Phase::Clearing | Phase::Raised => Progress::InProgress,
             Phase::Done => Progress::Done,
             Phase::Stuck(why) => Progress::Stuck(why),
         };
-        Status { request: self.request, bits: self.bits, progress, statusword: self.statusword }
+        HandshakeStatus { request: self.request, bits: self.bits, progress, statusword: self.statusword }
     }
 
     /// The controlword bits to add in this cycle.
@@ -284,17 +289,20 @@ mod tests {
     const MS: u64 = 1_000_000;
     const ENABLED: u16 = 0x0027;
 
-    fn run(h: &mut Handshake, shared: &Shared, statusword: u16, mode: i8, t_ms: u64) -> (Progress, u16) {
+    fn run(h: &mut Handshake, shared: &HandshakeShared, statusword: u16, mode: i8, t_ms: u64) -> (Progress, u16) {
         h.observe(shared, statusword, Some(mode), t_ms * MS);
         (h.status().progress, h.bits())
     }
 
     #[test]
     fn raises_the_bits_the_cycle_after_it_took_them_and_lowers_them_at_bit_12() {
-        let (mut h, shared) = (Handshake::default(), Shared::default());
+        let (mut h, shared) = (Handshake::default(), HandshakeShared::default());
         assert_eq!(shared.status().progress, Progress::Idle);
         assert_eq!(shared.start(0x0030, TIMEOUT, TIMEOUT), 1);
-        assert_eq!(shared.status(), Status { request: 1, bits: 0x30, progress: Progress::InProgress, statusword: 0 });
+        assert_eq!(
+            shared.status(),
+            HandshakeStatus { request: 1, bits: 0x30, progress: Progress::InProgress, statusword: 0 }
+        );
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 0), (Progress::InProgress, 0));
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 1), (Progress::InProgress, 0x30));
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 2), (Progress::InProgress, 0x30));
@@ -304,7 +312,7 @@ mod tests {
 
     #[test]
     fn starts_from_bit_12_clear_or_gets_stuck_saying_so() {
-        let (mut h, shared) = (Handshake::default(), Shared::default());
+        let (mut h, shared) = (Handshake::default(), HandshakeShared::default());
         shared.start(0x0030, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, ENABLED | 0x1000, 1, 0);
         assert_eq!(run(&mut h, &shared, ENABLED | 0x1000, 1, 5), (Progress::InProgress, 0));
@@ -319,7 +327,7 @@ mod tests {
 
     #[test]
     fn a_drive_not_enabled_or_a_homing_error_ends_it_stuck() {
-        let (mut h, shared) = (Handshake::default(), Shared::default());
+        let (mut h, shared) = (Handshake::default(), HandshakeShared::default());
         shared.start(0x0010, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, 0x0040, 6, 0);
         assert_eq!(run(&mut h, &shared, 0x0040, 6, 1), (Progress::Stuck(Stuck::NotEnabled), 0));
@@ -339,7 +347,7 @@ mod tests {
 
     #[test]
     fn a_request_replacing_one_under_way_goes_out_low_first() {
-        let (mut h, shared) = (Handshake::default(), Shared::default());
+        let (mut h, shared) = (Handshake::default(), HandshakeShared::default());
         shared.start(0x0030, TIMEOUT, TIMEOUT);
         run(&mut h, &shared, ENABLED, 1, 0);
         assert_eq!(run(&mut h, &shared, ENABLED, 1, 1).1, 0x30);
@@ -352,8 +360,8 @@ mod tests {
     fn status_packs_and_unpacks() {
         let stuck = Stuck::ALL.map(Progress::Stuck);
         for progress in [Progress::Idle, Progress::InProgress, Progress::Done].into_iter().chain(stuck) {
-            let s = Status { request: u32::MAX, bits: 0x70, progress, statusword: 0xBEEF };
-            assert_eq!(Status::unpack(s.pack()), s);
+            let s = HandshakeStatus { request: u32::MAX, bits: 0x70, progress, statusword: 0xBEEF };
+            assert_eq!(HandshakeStatus::unpack(s.pack()), s);
         }
     }
 }

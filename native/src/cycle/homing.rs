@@ -24,37 +24,23 @@ use crate::ds402::{controlword as cw, statusword as sw, Mode, State};
 
 const HOMING: u8 = Mode::Homing as i8 as u8;
 
-/// How a homing ended.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Outcome {
-    /// Homing attained (bit 12) and stopped (bit 10).
-    Attained = 1,
-    /// The drive showed a homing error (bit 13).
-    HomingError = 2,
-    /// Not attained within the time-out; halted.
-    TimedOut = 3,
-    /// Canceled; halted.
-    Canceled = 4,
-    /// The drive left Operation enabled (fault, disable, quick stop, hardware enable low).
-    NotEnabled = 5,
+wire_codes! {
+    /// How a homing ended.
+    pub enum Outcome: u8, "homing outcome" {
+        /// Homing attained (bit 12) and stopped (bit 10).
+        Attained = 1 => "attained",
+        /// The drive showed a homing error (bit 13).
+        HomingError = 2 => "homing_error",
+        /// Not attained within the time-out; halted.
+        TimedOut = 3 => "timed_out",
+        /// Canceled; halted.
+        Canceled = 4 => "canceled",
+        /// The drive left Operation enabled (fault, disable, quick stop, hardware enable low).
+        NotEnabled = 5 => "not_enabled",
+    }
 }
 
 impl Outcome {
-    const ALL: [Outcome; 5] =
-        [Outcome::Attained, Outcome::HomingError, Outcome::TimedOut, Outcome::Canceled, Outcome::NotEnabled];
-
-    /// Its name as the Python API spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Outcome::Attained => "attained",
-            Outcome::HomingError => "homing_error",
-            Outcome::TimedOut => "timed_out",
-            Outcome::Canceled => "canceled",
-            Outcome::NotEnabled => "not_enabled",
-        }
-    }
-
     /// Why it failed, in one clause; `None` when attained.
     pub fn describe(self) -> Option<&'static str> {
         match self {
@@ -101,7 +87,7 @@ impl Phase {
     }
 
     fn unpack(v: u64) -> Phase {
-        let outcome = Outcome::ALL.into_iter().find(|o| *o as u64 == (v >> 4) & 0xF);
+        let outcome = Outcome::try_from(((v >> 4) & 0xF) as u8).ok();
         match (v & 0xF, outcome) {
             (1, _) => Phase::Entering,
             (2, _) => Phase::Homing,
@@ -120,7 +106,7 @@ impl Phase {
 
 /// A drive's homing as the cycle thread last published it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Status {
+pub struct HomingStatus {
     /// Which homing (counted from 1; 0 before any).
     pub request: u32,
     /// Where it is.
@@ -131,7 +117,7 @@ pub struct Status {
     pub homed: bool,
 }
 
-impl Status {
+impl HomingStatus {
     /// The homing state the statusword shows in homing mode (CiA 402 bits 13, 12, 10).
     pub fn homing_state(&self) -> &'static str {
         let s = self.statusword;
@@ -149,7 +135,7 @@ const CANCEL: u64 = 2;
 
 /// What a drive's homing shares with other threads: all atomics.
 #[derive(Default)]
-pub struct Shared {
+pub struct HomingShared {
     /// The request counter (high 32 bits) and what it asks (START or CANCEL).
     request: AtomicU64,
     timeout_ns: AtomicU64,
@@ -158,7 +144,7 @@ pub struct Shared {
     homed: AtomicBool,
 }
 
-impl Shared {
+impl HomingShared {
     fn ask(&self, what: u64) -> u32 {
         let next = |r: u64| ((r >> 32) as u32).wrapping_add(1);
         let before =
@@ -185,17 +171,17 @@ impl Shared {
     }
 
     /// The status as last published; a start not yet taken shows as entering.
-    pub fn status(&self) -> Status {
+    pub fn status(&self) -> HomingStatus {
         let request = self.request.load(Ordering::Acquire);
         let v = self.status.load(Ordering::Acquire);
-        let mut status = Status {
+        let mut status = HomingStatus {
             request: (v >> 32) as u32,
             phase: Phase::unpack(v >> 16),
             statusword: v as u16,
             homed: self.homed.load(Ordering::Acquire),
         };
         if (request >> 32) as u32 != status.request && request & 0xF == START {
-            status = Status { request: (request >> 32) as u32, phase: Phase::Entering, ..status };
+            status = HomingStatus { request: (request >> 32) as u32, phase: Phase::Entering, ..status };
         }
         status
     }
@@ -252,7 +238,7 @@ impl Homing {
     /// actual position from the next cycle (the sequencer's hold, before the mode goes back).
     pub fn observe(
         &mut self,
-        shared: &Shared,
+        shared: &HomingShared,
         o: &Objects,
         (inputs, outputs): (&[u8], &[u8]),
         now_ns: u64,
@@ -369,7 +355,7 @@ mod tests {
 
     /// One cycle with the drive showing `statusword` in mode `display`: (hold asked, the mode
     /// and controlword that go out).
-    fn cycle(h: &mut Homing, shared: &Shared, statusword: u16, display: u8, t_ms: u64) -> (bool, u8, u16) {
+    fn cycle(h: &mut Homing, shared: &HomingShared, statusword: u16, display: u8, t_ms: u64) -> (bool, u8, u16) {
         let mut outputs = [0x0F, 0, CSP];
         let inputs = [statusword as u8, (statusword >> 8) as u8, display];
         let hold = h.observe(shared, &O, (&inputs, &outputs), t_ms * MS, 10 * MS);
@@ -379,7 +365,7 @@ mod tests {
 
     #[test]
     fn enters_homing_starts_waits_for_attained_and_stopped_and_goes_back_holding() {
-        let (mut h, shared) = (Homing::default(), Shared::default());
+        let (mut h, shared) = (Homing::default(), HomingShared::default());
         shared.homed.store(true, Ordering::Release);
         assert_eq!(shared.start(100 * MS), 1);
         assert_eq!(shared.status().phase, Phase::Entering);
@@ -405,7 +391,7 @@ mod tests {
 
     #[test]
     fn a_time_out_or_a_cancel_halts_a_homing_error_stops_and_a_disable_ends_it() {
-        let (mut h, shared) = (Homing::default(), Shared::default());
+        let (mut h, shared) = (Homing::default(), HomingShared::default());
         shared.start(5 * MS);
         cycle(&mut h, &shared, ENABLED, CSP, 0);
         cycle(&mut h, &shared, ENABLED, HOMING, 1);

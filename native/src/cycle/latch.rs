@@ -88,11 +88,11 @@ impl LatchObjects {
 
 /// What other threads share with a drive's latch: the edges asked for.
 #[derive(Default)]
-pub struct Shared {
+pub struct LatchShared {
     armed: AtomicU8,
 }
 
-impl Shared {
+impl LatchShared {
     /// Arms (or disarms) the edges in `bits`.
     pub fn set(&self, bits: u8, arm: bool) {
         if arm {
@@ -157,7 +157,7 @@ impl Latch {
 
     /// The first half of a cycle: takes the armed edges from `shared` and calls `capture` with
     /// (channel, edge, position) for each capture seen in `inputs`.
-    pub fn observe(&mut self, shared: &Shared, inputs: &[u8], mut capture: impl FnMut(u8, Edge, i32)) {
+    pub fn observe(&mut self, shared: &LatchShared, inputs: &[u8], mut capture: impl FnMut(u8, Edge, i32)) {
         self.armed = shared.armed() & self.objects.readable();
         let valid = self.valid(inputs);
         // An edge reported goes out low for the next cycle only, and is not reported again
@@ -252,7 +252,7 @@ mod tests {
     fn every_capture_is_one_event_and_the_edge_rearms() {
         let objects = LatchObjects::Akd { control: 0, status: 0, direct: [None; 4], multiplexed: [Some(2), None] };
         let mut latch = Latch::new(objects);
-        let shared = Shared::default();
+        let shared = LatchShared::default();
         shared.set(edge_bit(1, Edge::Rising) | edge_bit(1, Edge::Falling), true);
         let mut drive = FakeAkd { control: 0, valid: 0, values: [0; 4] };
         let mut events = Vec::new();

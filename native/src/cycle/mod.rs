@@ -29,7 +29,7 @@
 //! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
 //! stage off, while the other drives cycle on.
 //!
-//! By default each cycle waits for its frame's return. [`Config::pipelined`] sends the frame
+//! By default each cycle waits for its frame's return. [`RealTime::pipelined`] sends the frame
 //! without waiting and takes its return at the next wake-up, before anything else: the outputs
 //! are written from inputs as old as when waiting (the last return), the frame still leaves
 //! right after the wake-up, and the round trip costs the cycle neither time nor CPU, so a lost
@@ -45,6 +45,7 @@ use crate::master::cyclic::ImageSlot;
 use crate::master::Master;
 use crate::pdo::PdoEntry;
 use crate::trajectory::{Knot, Limits, Trajectory};
+pub use rt::RealTime;
 
 pub mod acyclic;
 pub mod command_timeout;
@@ -85,24 +86,14 @@ fn setpoints_stopped() -> Error {
 pub struct Config {
     /// The period, [`timing::MIN_PERIOD`]..=[`timing::MAX_PERIOD`].
     pub period: Duration,
-    /// SCHED_FIFO priority (1..=99), or the normal scheduler when `None`.
-    pub priority: Option<i32>,
-    /// The CPU the thread is bound to, or any when `None`.
-    pub cpu: Option<usize>,
-    /// Whether to lock the process's memory (mlockall).
-    pub lock_memory: bool,
-    /// The CPUs' wake-up latency to hold while the thread runs, µs (see
-    /// [`rt::hold_cpu_latency`]), 0..=[`rt::MAX_CPU_LATENCY_US`]; the system's when `None`.
-    pub cpu_latency_us: Option<u32>,
-    /// Whether each cycle's frame is sent without waiting for it, its return taken at the next
-    /// wake-up (see [the module](self)).
-    pub pipelined: bool,
+    /// How the thread runs on the host.
+    pub realtime: RealTime,
 }
 
 impl Config {
     /// A cycle of `period` with no real-time settings.
     pub fn new(period: Duration) -> Self {
-        Config { period, priority: None, cpu: None, lock_memory: false, cpu_latency_us: None, pipelined: false }
+        Config { period, realtime: RealTime::default() }
     }
 }
 
@@ -129,23 +120,23 @@ pub struct Snapshot {
 }
 
 /// What the thread and the other threads share.
-struct Shared {
+struct CycleShared {
     stop: AtomicBool,
     setpoints: SeqBytes,
     snapshot: SeqBytes,
     stats: CycleStats,
     /// One per slave, sequenced or not.
-    drives: Vec<sequencer::Shared>,
+    drives: Vec<sequencer::SequencerShared>,
     /// How long a drive request may take before it is reported stuck (ns).
     request_timeout_ns: AtomicU64,
     /// One per slave: the latch edges armed.
-    latches: Vec<latch::Shared>,
+    latches: Vec<latch::LatchShared>,
     /// One per slave: the set-point handshake asked for.
-    handshakes: Vec<handshake::Shared>,
+    handshakes: Vec<handshake::HandshakeShared>,
     /// One per slave: the command time-out.
-    command_timeouts: Vec<command_timeout::Shared>,
+    command_timeouts: Vec<command_timeout::CommandTimeoutShared>,
     /// One per slave: its homing.
-    homings: Vec<homing::Shared>,
+    homings: Vec<homing::HomingShared>,
     events: Events,
     samples: Samples,
     sdo: SdoSlot,
@@ -153,8 +144,8 @@ struct Shared {
     eoe: eoe_frames::EoeFrames,
     /// Whether a fault on one drive quick-stops the others ([`CycleThread::set_quick_stop_on_fault`]).
     quick_stop_on_fault: AtomicBool,
-    dc: dc_status::Shared,
-    trajectories: trajectory_player::Shared,
+    dc: dc_status::DcStatusShared,
+    trajectories: trajectory_player::PlayerShared,
     /// Frames of the recovery thread, sent by the cycle thread.
     relay: Arc<recovery::Relay>,
     /// One per slave: its recovery.
@@ -170,7 +161,7 @@ pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
 /// What the cycle thread runs for one drive it sequences.
 struct DriveLoop {
     position: u16,
-    drive: sequencer::Drive,
+    drive: sequencer::SequencedDrive,
     latch: Option<latch::Latch>,
     /// Its digital inputs and hardware enable, each change an event.
     inputs: crate::io::InputWatch,
@@ -223,7 +214,7 @@ fn input_offset(master: &Master, position: u16, (index, subindex): (u16, u8)) ->
 
 /// A cycle thread: it runs from [`start`](CycleThread::start) to [`stop`](CycleThread::stop).
 pub struct CycleThread {
-    shared: Arc<Shared>,
+    shared: Arc<CycleShared>,
     /// Taken by [`stop`](CycleThread::stop), which may come from another thread than callers
     /// waiting on the cycle (they see it stopped and end); the cycle thread never locks these.
     thread: std::sync::Mutex<Option<JoinHandle<Option<Master>>>>,
@@ -252,7 +243,7 @@ impl CycleThread {
     /// with the error. Real-time settings that are not permitted become [`warnings`](Self::warnings).
     pub fn start(mut master: Master, config: Config) -> std::result::Result<CycleThread, Box<(Error, Master)>> {
         let checked = timing::period_ns(config.period).and_then(|period_ns| {
-            rt::check(config.priority, config.cpu)?;
+            rt::check(config.realtime.priority, config.realtime.cpu)?;
             if master.cyclic_frame_in_flight() {
                 return Err(Unavailable::CyclicFrameInFlight.into());
             }
@@ -278,7 +269,7 @@ impl CycleThread {
                 let digital_inputs = input_offset(&master, p as u16, crate::io::DIGITAL_INPUTS);
                 Some(DriveLoop {
                     position: p as u16,
-                    drive: sequencer::Drive::new(offsets),
+                    drive: sequencer::SequencedDrive::new(offsets),
                     latch: latch.map(latch::Latch::new),
                     inputs: crate::io::InputWatch::new(digital_inputs, offsets.statusword),
                     watch: supervision::DriveWatch::default(),
@@ -307,24 +298,26 @@ impl CycleThread {
             .iter()
             .map(|s| s.mapping.as_ref().map(|m| (m.rx_entries.clone(), m.tx_entries.clone())))
             .collect();
-        let shared = Arc::new(Shared {
+        let shared = Arc::new(CycleShared {
             stop: AtomicBool::new(false),
             setpoints: SeqBytes::new(outputs.len(), &outputs),
             snapshot: SeqBytes::new(HEADER_LEN + inputs_len + outputs.len(), &[]),
             stats: CycleStats::new(period_ns),
-            drives: (0..master.slaves().len()).map(|_| sequencer::Shared::default()).collect(),
+            drives: (0..master.slaves().len()).map(|_| sequencer::SequencerShared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
-            latches: (0..master.slaves().len()).map(|_| latch::Shared::default()).collect(),
-            handshakes: (0..master.slaves().len()).map(|_| handshake::Shared::default()).collect(),
-            command_timeouts: (0..master.slaves().len()).map(|_| command_timeout::Shared::default()).collect(),
-            homings: (0..master.slaves().len()).map(|_| homing::Shared::default()).collect(),
+            latches: (0..master.slaves().len()).map(|_| latch::LatchShared::default()).collect(),
+            handshakes: (0..master.slaves().len()).map(|_| handshake::HandshakeShared::default()).collect(),
+            command_timeouts: (0..master.slaves().len())
+                .map(|_| command_timeout::CommandTimeoutShared::default())
+                .collect(),
+            homings: (0..master.slaves().len()).map(|_| homing::HomingShared::default()).collect(),
             events: Events::default(),
             samples: Samples::for_drives(sequenced_count),
             sdo: SdoSlot::default(),
             eoe: eoe_frames::EoeFrames::default(),
             quick_stop_on_fault: AtomicBool::new(false),
-            dc: dc_status::Shared::new(master.clock()),
-            trajectories: trajectory_player::Shared::new(master.slaves().len()),
+            dc: dc_status::DcStatusShared::new(master.clock()),
+            trajectories: trajectory_player::PlayerShared::new(master.slaves().len()),
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
             supervised: supervised.is_ok(),
@@ -342,9 +335,9 @@ impl CycleThread {
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
-                warnings.extend(config.priority.and_then(rt::set_fifo_priority));
-                warnings.extend(config.cpu.and_then(rt::set_affinity));
-                if config.lock_memory {
+                warnings.extend(config.realtime.priority.and_then(rt::set_fifo_priority));
+                warnings.extend(config.realtime.cpu.and_then(rt::set_affinity));
+                if config.realtime.lock_memory {
                     warnings.extend(rt::lock_memory());
                 }
                 // The starting thread waits for this message; it cannot be gone.
@@ -352,7 +345,12 @@ impl CycleThread {
                 let timeout = master.replace_timeout(config.period);
                 let mut ready =
                     Loop { master: &mut master, shared: &shared, drives: &mut drives, gaps: Gaps::default() };
-                run(&mut ready, (&mut mailbox, &mut relay_buffers), &mut player, (period_ns, config.pipelined));
+                run(
+                    &mut ready,
+                    (&mut mailbox, &mut relay_buffers),
+                    &mut player,
+                    (period_ns, config.realtime.pipelined),
+                );
                 shared.relay.end();
                 master.replace_timeout(timeout);
                 // The master goes on without the thread: plain exchanges, no status reads.
@@ -370,7 +368,7 @@ impl CycleThread {
         let _ = master_tx.send(master);
         let mut warnings = ready_rx.recv().unwrap_or_default();
         let cpu_latency =
-            config.cpu_latency_us.and_then(|us| rt::hold_cpu_latency(us).map_err(|w| warnings.push(w)).ok());
+            config.realtime.cpu_latency_us.and_then(|us| rt::hold_cpu_latency(us).map_err(|w| warnings.push(w)).ok());
         let recovery = {
             let shared = shared.clone();
             std::thread::Builder::new()
@@ -433,7 +431,7 @@ impl CycleThread {
         Ok(())
     }
 
-    fn sequenced(&self, position: u16) -> Result<&sequencer::Shared> {
+    fn sequenced(&self, position: u16) -> Result<&sequencer::SequencerShared> {
         match self.sequenced.get(position as usize) {
             None => Err(Error::NoSuchSlave { position, count: self.slave_count() }),
             Some(Err(why)) => Err(why.clone().into()),
@@ -599,7 +597,7 @@ impl CycleThread {
 
     /// The set-point handshake last asked for at `position`, as the cycle thread last published
     /// it. Lock-free.
-    pub fn setpoint_status(&self, position: u16) -> Result<handshake::Status> {
+    pub fn setpoint_status(&self, position: u16) -> Result<handshake::HandshakeStatus> {
         self.sequenced(position)?;
         Ok(self.shared.handshakes[position as usize].status())
     }
@@ -608,7 +606,7 @@ impl CycleThread {
     /// for at `position` is done, and returns its status; a [`Error::Timeout`] saying why when
     /// it is stuck, when `timeout` passes first (the handshake goes on in the cycle until its
     /// own time-out) or when the cycle stops.
-    pub fn wait_setpoint(&self, position: u16, timeout: Option<Duration>) -> Result<handshake::Status> {
+    pub fn wait_setpoint(&self, position: u16, timeout: Option<Duration>) -> Result<handshake::HandshakeStatus> {
         let deadline = timeout.map(|t| std::time::Instant::now() + t);
         loop {
             let status = self.setpoint_status(position)?;
@@ -663,7 +661,7 @@ impl CycleThread {
 
     /// The homing of the drive at `position` as the cycle thread last published it, with its
     /// homed flag. Lock-free.
-    pub fn homing_status(&self, position: u16) -> Result<homing::Status> {
+    pub fn homing_status(&self, position: u16) -> Result<homing::HomingStatus> {
         self.sequenced(position)?;
         Ok(self.shared.homings[position as usize].status())
     }
@@ -696,7 +694,7 @@ impl CycleThread {
     }
 
     /// The command time-out of the drive at `position` as the cycle thread last published it.
-    pub fn command_timeout_status(&self, position: u16) -> Result<command_timeout::Status> {
+    pub fn command_timeout_status(&self, position: u16) -> Result<command_timeout::CommandTimeoutStatus> {
         self.sequenced(position)?;
         Ok(self.shared.command_timeouts[position as usize].status())
     }
@@ -841,7 +839,7 @@ impl CycleThread {
     /// The trajectory `id` (from [`play_trajectory`](Self::play_trajectory)) as the cycle
     /// thread last published it: pending, running (the point approached, the time since its
     /// start) or how it ended. The statuses of the last [`trajectory_player::KEPT`] are kept.
-    pub fn trajectory_status(&self, id: u32) -> Result<trajectory_player::Status> {
+    pub fn trajectory_status(&self, id: u32) -> Result<trajectory_player::TrajectoryStatus> {
         self.trajectories.status(&self.shared.trajectories, id)
     }
 
@@ -852,7 +850,7 @@ impl CycleThread {
     }
 
     /// The drive at `slave`'s set-point and actual values as the trajectory in force judges
-    /// them (see [`trajectory_player::Shared::followed`]); `None` while none drives it.
+    /// them (see [`trajectory_player::PlayerShared::followed`]); `None` while none drives it.
     pub fn trajectory_followed(&self, slave: u16) -> Option<[f64; 4]> {
         self.shared.trajectories.followed(slave)
     }
@@ -884,7 +882,7 @@ impl CycleThread {
     }
 
     /// The drive's status as the cycle thread last published it. Lock-free.
-    pub fn drive_status(&self, position: u16) -> Result<sequencer::Status> {
+    pub fn drive_status(&self, position: u16) -> Result<sequencer::DriveStatus> {
         Ok(self.sequenced(position)?.status())
     }
 
@@ -1006,7 +1004,7 @@ impl Drop for CycleThread {
 /// lost power has forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change").
 fn recoverer(
     master: &mut Master,
-    shared: &Shared,
+    shared: &CycleShared,
     drives: &[DriveLoop],
     period_ns: u64,
     period: Duration,
@@ -1026,7 +1024,7 @@ fn recoverer(
 /// sequences and the gaps in their frames.
 struct Loop<'a> {
     master: &'a mut Master,
-    shared: &'a Shared,
+    shared: &'a CycleShared,
     drives: &'a mut [DriveLoop],
     gaps: Gaps,
 }
@@ -1240,7 +1238,7 @@ impl Loop<'_> {
 
 /// Moves drive `d`'s set-point handshake and command time-out on, from this cycle's inputs and
 /// the set-points just copied into `outputs`.
-fn observe_set_points(shared: &Shared, d: &mut DriveLoop, inputs: &[u8], outputs: &[u8], now: (u64, u64)) {
+fn observe_set_points(shared: &CycleShared, d: &mut DriveLoop, inputs: &[u8], outputs: &[u8], now: (u64, u64)) {
     let o = d.drive.offsets;
     let slave = d.position as usize;
     let statusword = image::u16_at(inputs, o.statusword);
@@ -1305,7 +1303,7 @@ fn sample(
 /// safe state where the fault calls for it.
 fn supervise(
     master: &Master,
-    shared: &Shared,
+    shared: &CycleShared,
     drives: &mut [DriveLoop],
     mailbox: &mut MailboxService,
     gaps: &mut Gaps,
@@ -1379,7 +1377,7 @@ fn supervise(
 /// Returns whether it was lost this cycle.
 fn presence(
     master: &Master,
-    shared: &Shared,
+    shared: &CycleShared,
     d: &mut DriveLoop,
     (answered, in_op, reported): (bool, bool, bool),
     (statusword, al_status): (Option<u16>, Option<crate::master::state::AlStatus>),
@@ -1422,7 +1420,7 @@ fn presence(
 
 /// Asks every drive being enabled or enabled, and not in Fault, for a quick stop: the drive
 /// that faulted is in Fault, and one that left Op was asked for Switch on disabled.
-fn quick_stop_the_others(shared: &Shared, drives: &[DriveLoop], inputs: &[u8]) {
+fn quick_stop_the_others(shared: &CycleShared, drives: &[DriveLoop], inputs: &[u8]) {
     for d in drives {
         let in_fault = image::u16_at(inputs, d.drive.offsets.statusword) & crate::ds402::statusword::FAULT != 0;
         let position = d.position as usize;
@@ -1461,10 +1459,15 @@ mod tests {
         let (error, master) =
             *CycleThread::start(master_in_op(1), Config::new(Duration::from_micros(100))).err().unwrap();
         assert!(error.to_string().contains("250 µs ..= 10000 µs"), "{error}");
-        let (error, _) =
-            *CycleThread::start(master, Config { priority: Some(0), ..Config::new(Duration::from_millis(1)) })
-                .err()
-                .unwrap();
+        let (error, _) = *CycleThread::start(
+            master,
+            Config {
+                realtime: RealTime { priority: Some(0), ..RealTime::default() },
+                ..Config::new(Duration::from_millis(1))
+            },
+        )
+        .err()
+        .unwrap();
         assert!(error.to_string().contains("1..=99"), "{error}");
     }
 

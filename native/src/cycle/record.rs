@@ -8,7 +8,7 @@
 //! bytes with rclpy's serialisation of the same message.
 
 use crate::cycle::samples::Sample;
-use crate::ds402::{Command, Mode};
+use crate::ds402::{CommandKind, Mode};
 use crate::ros_msgs::{self, Time};
 
 /// How one joint's drive units become SI, as the node's units give them.
@@ -29,9 +29,9 @@ pub fn encode(sample: &Sample, joint: &str, scale: &JointScale, stamp_ns: i64) -
     let per_count = |counts: i32| counts as f64 * scale.si_per_count;
     let torque = |value: i16| value as f64 * scale.si_per_torque_unit;
     let command = match Mode::from_i8(sample.mode).and_then(Mode::command) {
-        Some(Command::Position) => position(sample.target_position),
-        Some(Command::Velocity) => per_count(sample.target_velocity),
-        Some(Command::Torque) => torque(sample.target_torque),
+        Some(CommandKind::Position) => position(sample.target_position),
+        Some(CommandKind::Velocity) => per_count(sample.target_velocity),
+        Some(CommandKind::Torque) => torque(sample.target_torque),
         None => f64::NAN,
     };
     let message = ros_msgs::CycleSample {

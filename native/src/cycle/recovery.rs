@@ -1,7 +1,7 @@
 //! Recovery of a slave the cycle lost: one that stopped answering (power cycled, its cable
 //! pulled, the line down) or left Op. The cycle thread notices it ([`Presence`]), asks the drive
 //! for Switch on disabled and reports it; a recovery thread beside the cycle then brings the
-//! slave back with [`Master::restore_slave`] on a [`sibling`](Master::sibling) master whose
+//! slave back with [`Master::restore_slave`] on a restoring master ([`Master::for_restore`]) whose
 //! frames the cycle thread sends for it, one per cycle after its own exchange ([`Relay`]), so
 //! the other drives cycle on. When the slave is back in Op the cycle thread reports it and holds
 //! its target at the actual position; its power stage stays off until it is enabled again.
@@ -293,7 +293,7 @@ impl Presence {
     }
 }
 
-/// The recovery thread's side: the sibling master and what each slave gets back.
+/// The recovery thread's side: the restoring master and what each slave gets back.
 pub struct Recoverer {
     master: Master,
     syncs: Vec<Option<SlaveSync>>,
@@ -304,7 +304,7 @@ impl Recoverer {
     /// not recovered), whose frames go through `relay`.
     pub fn new(master: &Master, relay: Arc<Relay>, period: Duration, syncs: Vec<Option<SlaveSync>>) -> Self {
         let link = RelayLink::new(relay, master.describe(), period);
-        Recoverer { master: master.sibling(Box::new(link)), syncs }
+        Recoverer { master: master.for_restore(Box::new(link)), syncs }
     }
 
     /// Runs until `stop`: restores every slave the cycle thread asks for, one at a time.

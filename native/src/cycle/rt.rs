@@ -6,6 +6,26 @@
 
 use crate::error::{Result, SettingError};
 
+/// How the cycle thread runs on the host: the options of `Axis`, `Bus` and the node's `rt.*`
+/// parameters alike (`akd_ros.RealTime` in Python). The default runs it as any thread, each
+/// frame awaited.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", pyo3::pyclass(name = "RealTime", module = "akd_ros._native", frozen, eq, get_all))]
+pub struct RealTime {
+    /// SCHED_FIFO priority (1..=99), or the normal scheduler when `None`.
+    pub priority: Option<i32>,
+    /// The CPU the thread is bound to, or any when `None`.
+    pub cpu: Option<usize>,
+    /// Whether to lock the process's memory (mlockall).
+    pub lock_memory: bool,
+    /// The CPUs' wake-up latency to hold while the thread runs, µs (see [`hold_cpu_latency`]),
+    /// 0..=[`MAX_CPU_LATENCY_US`]; the system's when `None`.
+    pub cpu_latency_us: Option<u32>,
+    /// Whether each cycle's frame is sent without waiting for it, its return taken at the next
+    /// wake-up (see [the cycle](super)).
+    pub pipelined: bool,
+}
+
 /// The SCHED_FIFO priorities Linux allows.
 pub fn fifo_priorities() -> (i32, i32) {
     unsafe { (libc::sched_get_priority_min(libc::SCHED_FIFO), libc::sched_get_priority_max(libc::SCHED_FIFO)) }

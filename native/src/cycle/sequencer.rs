@@ -15,7 +15,7 @@
 //! Nothing is retried into motion: a drive that leaves Operation enabled by itself (fault,
 //! hardware enable low) is brought to Switch on disabled, and enable does not reset faults.
 //! A request that does not reach its state within the time-out is reported stuck, with the
-//! statusword of that moment, from which [`Status::stuck_reason`] says why.
+//! statusword of that moment, from which [`DriveStatus::stuck_reason`] says why.
 
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 
@@ -159,7 +159,7 @@ pub enum Progress {
     InProgress,
     /// The drive reached the requested state.
     Done,
-    /// The time-out passed first, or the drive cannot get there (see [`Status::stuck_reason`]).
+    /// The time-out passed first, or the drive cannot get there (see [`DriveStatus::stuck_reason`]).
     Stuck,
     /// The drive left the state it reached by itself (fault, hardware enable low); the
     /// sequencer brought it to Switch on disabled and does not retry.
@@ -168,7 +168,7 @@ pub enum Progress {
 
 /// A drive's status as the cycle thread last published it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Status {
+pub struct DriveStatus {
     /// The last statusword read (0 before the first cycle).
     pub statusword: u16,
     /// The last request, if any.
@@ -179,7 +179,7 @@ pub struct Status {
     pub mode_display: Option<i8>,
 }
 
-impl Status {
+impl DriveStatus {
     /// The state the statusword shows, if it shows a valid one.
     pub fn state(&self) -> Option<State> {
         State::from_statusword(self.statusword)
@@ -227,7 +227,7 @@ impl Status {
         self.statusword as u64 | (self.request.map_or(0, |r| r as u64) << 16) | (progress << 24) | (mode << 32)
     }
 
-    fn unpack(v: u64) -> Status {
+    fn unpack(v: u64) -> DriveStatus {
         let progress = match (v >> 24) as u8 {
             1 => Progress::InProgress,
             2 => Progress::Done,
@@ -235,7 +235,7 @@ impl Status {
             4 => Progress::Lost,
             _ => Progress::Idle,
         };
-        Status {
+        DriveStatus {
             statusword: v as u16,
             request: Request::from_u8((v >> 16) as u8),
             progress,
@@ -245,7 +245,7 @@ impl Status {
 }
 
 /// What a drive's sequencer shares with other threads: all atomics.
-pub struct Shared {
+pub struct SequencerShared {
     request: AtomicU8,
     status: AtomicU64,
     setpoint_writes: AtomicU64,
@@ -257,10 +257,10 @@ pub struct Shared {
     halt: AtomicBool,
 }
 
-impl Default for Shared {
+impl Default for SequencerShared {
     fn default() -> Self {
-        let idle = Status { statusword: 0, request: None, progress: Progress::Idle, mode_display: None };
-        Shared {
+        let idle = DriveStatus { statusword: 0, request: None, progress: Progress::Idle, mode_display: None };
+        SequencerShared {
             request: AtomicU8::new(0),
             status: AtomicU64::new(idle.pack()),
             setpoint_writes: AtomicU64::new(0),
@@ -270,7 +270,7 @@ impl Default for Shared {
     }
 }
 
-impl Shared {
+impl SequencerShared {
     /// Asks for `request`; the cycle thread takes it in its next cycle, replacing any other.
     pub fn request(&self, request: Request) {
         self.request.store(request as u8, Ordering::Release);
@@ -278,8 +278,8 @@ impl Shared {
 
     /// The status the cycle thread last published; a request not yet taken shows as in
     /// progress.
-    pub fn status(&self) -> Status {
-        let mut status = Status::unpack(self.status.load(Ordering::Acquire));
+    pub fn status(&self) -> DriveStatus {
+        let mut status = DriveStatus::unpack(self.status.load(Ordering::Acquire));
         if let Some(pending) = Request::from_u8(self.request.load(Ordering::Acquire)) {
             status.request = Some(pending);
             status.progress = Progress::InProgress;
@@ -328,7 +328,7 @@ pub struct Observed {
 /// What the sequencing step writes into the drive's outputs; `None` leaves them as the user
 /// set them.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Command {
+pub struct SequencerOutputs {
     /// The controlword.
     pub controlword: Option<u16>,
     /// The position target(s) to hold; while held, velocity and torque targets are 0.
@@ -370,7 +370,7 @@ impl Sequencer {
 
     /// One cycle: takes `new` (a request made since the last cycle), judges progress against
     /// `timeout_ns`, and gives the controlword and held target to write.
-    pub fn step(&mut self, new: Option<Request>, seen: Observed, timeout_ns: u64) -> Command {
+    pub fn step(&mut self, new: Option<Request>, seen: Observed, timeout_ns: u64) -> SequencerOutputs {
         let state = State::from_statusword(seen.statusword);
         if let Some(request) = new {
             self.request = Some(request);
@@ -379,10 +379,10 @@ impl Sequencer {
             self.reset_low_sent = false;
         }
         let Some(request) = self.request else {
-            return Command { controlword: None, target: None };
+            return SequencerOutputs { controlword: None, target: None };
         };
         let controlword = self.controlword(request, state, seen, timeout_ns);
-        Command { controlword: Some(controlword), target: self.target(state, seen) }
+        SequencerOutputs { controlword: Some(controlword), target: self.target(state, seen) }
     }
 
     fn controlword(&mut self, request: Request, state: Option<State>, seen: Observed, timeout_ns: u64) -> u16 {
@@ -439,18 +439,18 @@ impl Sequencer {
 
     /// The status to publish.
     pub fn status(&self, statusword: u16, mode_display: Option<i8>) -> u64 {
-        Status { statusword, request: self.request, progress: self.progress, mode_display }.pack()
+        DriveStatus { statusword, request: self.request, progress: self.progress, mode_display }.pack()
     }
 }
 
 /// A drive the cycle thread sequences: where its objects are and its sequencing state.
-pub struct Drive {
+pub struct SequencedDrive {
     /// The drive's objects in the images (offsets within the whole images).
     pub offsets: Offsets,
     /// Its sequencing state.
     pub sequencer: Sequencer,
     /// What to write in this cycle.
-    pub command: Command,
+    pub command: SequencerOutputs,
     /// Whether halt (bit 8) goes out.
     halt: bool,
     /// The set-point writes counted before this cycle's copy of the set-points began.
@@ -461,13 +461,13 @@ pub struct Drive {
     writes_in_outputs: u64,
 }
 
-impl Drive {
+impl SequencedDrive {
     /// A drive with its objects at `offsets`, not sequenced until a request comes.
     pub fn new(offsets: Offsets) -> Self {
-        Drive {
+        SequencedDrive {
             offsets,
             sequencer: Sequencer::default(),
-            command: Command { controlword: None, target: None },
+            command: SequencerOutputs { controlword: None, target: None },
             halt: false,
             writes_before_copy: 0,
             writes_in_outputs: 0,
@@ -475,7 +475,7 @@ impl Drive {
     }
 
     /// Counts the set-point writes before the cycle copies the set-points into the outputs.
-    pub fn before_copy(&mut self, shared: &Shared) {
+    pub fn before_copy(&mut self, shared: &SequencerShared) {
         self.writes_before_copy = shared.setpoint_writes.load(Ordering::Acquire);
     }
 
@@ -487,14 +487,14 @@ impl Drive {
     /// Counts a set-point the cycle thread itself wrote into this cycle's outputs (a
     /// trajectory's) as a set-point write already in them, so a held target is released in
     /// this cycle.
-    pub fn written_in_loop(&mut self, shared: &Shared) {
+    pub fn written_in_loop(&mut self, shared: &SequencerShared) {
         shared.setpoint_written();
         self.writes_in_outputs += 1;
     }
 
     /// The first half of a cycle: reads the statusword and actual position from `inputs`,
     /// takes a request from `shared`, decides what to write and publishes the status.
-    pub fn observe(&mut self, shared: &Shared, inputs: &[u8], now_ns: u64, timeout_ns: u64) {
+    pub fn observe(&mut self, shared: &SequencerShared, inputs: &[u8], now_ns: u64, timeout_ns: u64) {
         let o = self.offsets;
         let statusword = u16_at(inputs, o.statusword);
         let seen = Observed {
@@ -578,7 +578,7 @@ mod tests {
         let mut s = Sequencer::default();
         assert_eq!(
             s.step(None, seen(State::SwitchOnDisabled, 0), TIMEOUT),
-            Command { controlword: None, target: None }
+            SequencerOutputs { controlword: None, target: None }
         );
     }
 
@@ -586,7 +586,7 @@ mod tests {
     fn enables_step_by_step_holding_the_actual_position() {
         let mut s = Sequencer::default();
         let c = s.step(Some(Request::Enable), seen(State::SwitchOnDisabled, 0), TIMEOUT);
-        assert_eq!(c, Command { controlword: Some(cw::SHUTDOWN), target: Some(1234) });
+        assert_eq!(c, SequencerOutputs { controlword: Some(cw::SHUTDOWN), target: Some(1234) });
         let c = s.step(None, seen(State::ReadyToSwitchOn, 1), TIMEOUT);
         assert_eq!(c.controlword, Some(cw::SWITCH_ON_COMMAND));
         let c = s.step(None, seen(State::SwitchedOn, 2), TIMEOUT);
@@ -595,7 +595,7 @@ mod tests {
         // the actual position changes meanwhile.
         let enabled = Observed { actual: Some(1300), ..seen(State::OperationEnabled, 3) };
         let c = s.step(None, enabled, TIMEOUT);
-        assert_eq!(c, Command { controlword: Some(cw::ENABLE_OPERATION_COMMAND), target: Some(1234) });
+        assert_eq!(c, SequencerOutputs { controlword: Some(cw::ENABLE_OPERATION_COMMAND), target: Some(1234) });
         assert_eq!(s.progress(), (Some(Request::Enable), Progress::Done));
         let c = s.step(None, Observed { setpoint_writes: 1, ..enabled }, TIMEOUT);
         assert_eq!(c.target, None);
@@ -645,7 +645,7 @@ mod tests {
         assert_eq!(c.controlword, Some(cw::DISABLE_VOLTAGE));
         s.step(None, seen(State::Fault, TIMEOUT), TIMEOUT);
         assert_eq!(s.progress(), (Some(Request::Enable), Progress::Stuck));
-        let status = Status::unpack(s.status(State::Fault.statusword_bits(), None));
+        let status = DriveStatus::unpack(s.status(State::Fault.statusword_bits(), None));
         let why = status.stuck_reason().unwrap();
         assert!(why.starts_with("enable stuck in Fault (statusword 0x0008): fault (bit 3)"), "{why}");
     }
@@ -657,7 +657,7 @@ mod tests {
         let dropped = State::SwitchOnDisabled.statusword_bits() | sw::WARNING;
         let c = s.step(None, Observed { statusword: dropped, ..seen(State::SwitchOnDisabled, 1) }, TIMEOUT);
         assert_eq!(c.controlword, Some(cw::DISABLE_VOLTAGE));
-        let why = Status::unpack(s.status(dropped, None)).stuck_reason().unwrap();
+        let why = DriveStatus::unpack(s.status(dropped, None)).stuck_reason().unwrap();
         assert!(why.contains("enable left the requested state in Switch on disabled"), "{why}");
         assert!(why.contains("hardware enable input is low"), "{why}");
     }
@@ -675,8 +675,8 @@ mod tests {
     fn status_packs_and_unpacks() {
         for progress in [Progress::Idle, Progress::InProgress, Progress::Done, Progress::Stuck, Progress::Lost] {
             for mode_display in [None, Some(-3), Some(8)] {
-                let s = Status { statusword: 0xBEEF, request: Some(Request::QuickStop), progress, mode_display };
-                assert_eq!(Status::unpack(s.pack()), s);
+                let s = DriveStatus { statusword: 0xBEEF, request: Some(Request::QuickStop), progress, mode_display };
+                assert_eq!(DriveStatus::unpack(s.pack()), s);
             }
         }
     }

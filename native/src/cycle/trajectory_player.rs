@@ -4,10 +4,10 @@
 //!
 //! The handoff never makes the loop allocate, free or wait. A [`Plan`] (the validated
 //! [`Trajectory`], its drives and where their targets are) is built and boxed in the caller's
-//! thread and handed over through one atomic pointer ([`Shared::give`]); the loop takes it
+//! thread and handed over through one atomic pointer ([`PlayerShared::give`]); the loop takes it
 //! ([`Player::before_copy`]) and, once done with it (done, replaced, aborted), puts the box
 //! into one of [`OUTBOX`] return slots, from which the caller's next call takes and drops it
-//! ([`Shared::collect`]), reading its final [`Status`]. The loop takes a new plan only when
+//! ([`PlayerShared::collect`]), reading its final [`TrajectoryStatus`]. The loop takes a new plan only when
 //! nothing of its own waits to be returned; from one take to the next it retires at most
 //! three plans (the one waiting to start, the one running, the new one), so its own waiting
 //! room of three never overflows when the caller does not collect.
@@ -26,9 +26,9 @@
 //! drive's actual position and velocity are judged against the set-point of the cycle before
 //! (the one the drive has had a cycle to follow) by the path tolerance; past the last point,
 //! against the last point by the goal tolerance, until the goal time tolerance runs out. A stop
-//! ([`Shared::stop`], a cancel) or a path violation brakes every joint from its set-point in
+//! ([`PlayerShared::stop`], a cancel) or a path violation brakes every joint from its set-point in
 //! force at its stop deceleration to a standstill, then ends the plan; the set-points are
-//! published each cycle ([`Shared::followed`]) for feedback.
+//! published each cycle ([`PlayerShared::followed`]) for feedback.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
@@ -75,7 +75,7 @@ impl Joint {
 
 /// Where a trajectory stands, as the cycle thread last published it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Status {
+pub struct TrajectoryStatus {
     /// The trajectory's id (from 1).
     pub id: u32,
     /// Pending, running or how it ended.
@@ -95,7 +95,7 @@ pub struct Status {
 /// A status in words.
 const STATUS_WORDS: usize = 6;
 
-impl Status {
+impl TrajectoryStatus {
     fn pack(&self) -> [u64; STATUS_WORDS] {
         [
             self.state.pack(),
@@ -107,8 +107,8 @@ impl Status {
         ]
     }
 
-    fn unpack(w: [u64; STATUS_WORDS]) -> Option<Status> {
-        Some(Status {
+    fn unpack(w: [u64; STATUS_WORDS]) -> Option<TrajectoryStatus> {
+        Some(TrajectoryStatus {
             state: TrajectoryState::unpack(w[0])?,
             id: w[1] as u32,
             point: w[2] as u32,
@@ -167,7 +167,7 @@ pub struct Plan {
     braking: Option<Braking>,
     /// Per joint: its set-point when the stop began.
     brake_from: Vec<Setpoint>,
-    status: Status,
+    status: TrajectoryStatus,
 }
 
 impl Plan {
@@ -185,7 +185,7 @@ impl Plan {
         trajectory: Trajectory,
         tolerances: Option<Tolerances>,
     ) -> Box<Plan> {
-        let status = Status {
+        let status = TrajectoryStatus {
             id,
             state: TrajectoryState::Pending,
             point: 0,
@@ -209,7 +209,7 @@ impl Plan {
     }
 
     /// The status.
-    pub fn status(&self) -> Status {
+    pub fn status(&self) -> TrajectoryStatus {
         self.status
     }
 
@@ -282,12 +282,12 @@ fn braked(from: Setpoint, deceleration: f64, s: f64) -> Setpoint {
     Setpoint { position: from.position + v * s + a * s * s / 2.0, velocity: v + a * s, acceleration: a }
 }
 
-/// Words a drive's followed values take in [`Shared::followed`]: the set-point's position and
+/// Words a drive's followed values take in [`PlayerShared::followed`]: the set-point's position and
 /// velocity, the actual position and velocity, and whether a trajectory drives it.
 const FOLLOWED: usize = 5;
 
 /// What the cycle thread and the callers share: the handoff and the published statuses.
-pub struct Shared {
+pub struct PlayerShared {
     inbox: AtomicPtr<Plan>,
     outbox: [AtomicPtr<Plan>; OUTBOX],
     /// The running trajectory's status, then the pending one's (zeros where none).
@@ -298,10 +298,10 @@ pub struct Shared {
     followed: SeqBytes,
 }
 
-impl Shared {
+impl PlayerShared {
     /// The handoff for a bus of `slaves` slaves.
     pub fn new(slaves: usize) -> Self {
-        Shared {
+        PlayerShared {
             inbox: AtomicPtr::new(std::ptr::null_mut()),
             outbox: std::array::from_fn(|_| AtomicPtr::new(std::ptr::null_mut())),
             live: SeqBytes::new(2 * STATUS_WORDS * 8, &[]),
@@ -340,7 +340,7 @@ impl Shared {
 
     /// Drops the plans the cycle thread is done with, passing each one's final status to
     /// `ended`.
-    pub fn collect(&self, mut ended: impl FnMut(Status)) {
+    pub fn collect(&self, mut ended: impl FnMut(TrajectoryStatus)) {
         for slot in &self.outbox {
             let raw = slot.swap(std::ptr::null_mut(), Ordering::AcqRel);
             if !raw.is_null() {
@@ -353,11 +353,11 @@ impl Shared {
     }
 
     /// The running and the pending trajectory's statuses, as last published.
-    pub fn live(&self) -> [Option<Status>; 2] {
+    pub fn live(&self) -> [Option<TrajectoryStatus>; 2] {
         let mut bytes = [0u8; 2 * STATUS_WORDS * 8];
         self.live.read(&mut bytes);
         let word = |n: usize| u64::from_le_bytes(bytes[n * 8..n * 8 + 8].try_into().expect("8 bytes"));
-        [0, 1].map(|r| Status::unpack(std::array::from_fn(|w| word(r * STATUS_WORDS + w))))
+        [0, 1].map(|r| TrajectoryStatus::unpack(std::array::from_fn(|w| word(r * STATUS_WORDS + w))))
     }
 
     fn take(&self) -> Option<Box<Plan>> {
@@ -368,7 +368,7 @@ impl Shared {
     }
 }
 
-impl Drop for Shared {
+impl Drop for PlayerShared {
     /// Plans still handed over or returned are dropped with the last owner, after the loop.
     fn drop(&mut self) {
         drop(self.take());
@@ -389,7 +389,7 @@ pub struct Player {
     wrote: Vec<bool>,
     /// Per joint of the pending plan: the target its drive was last sent.
     sent: Vec<i32>,
-    /// Per slave: what [`Shared::followed`] gives.
+    /// Per slave: what [`PlayerShared::followed`] gives.
     followed: Vec<[f64; FOLLOWED]>,
 }
 
@@ -415,7 +415,7 @@ impl Player {
     /// Before the set-points are copied into the outputs, which still hold what the last cycle
     /// sent: returns retired plans, takes one handed over (the one waiting for its start is
     /// replaced) and, for a plan due to start, notes the targets its drives were last sent.
-    pub fn before_copy(&mut self, shared: &Shared, events: &Events, outputs: &[u8], now: (u64, u64)) {
+    pub fn before_copy(&mut self, shared: &PlayerShared, events: &Events, outputs: &[u8], now: (u64, u64)) {
         self.flush(shared);
         if self.waiting.iter().all(Option::is_none) {
             if let Some(plan) = shared.take() {
@@ -435,7 +435,7 @@ impl Player {
     /// After the copy, before the sequencer: starts a plan that is due and follows the one in
     /// force from the drives' `inputs`, or aborts it; [`wrote`](Self::wrote) then tells which
     /// drives get a target from it in this cycle.
-    pub fn observe(&mut self, shared: &Shared, events: &Events, inputs: &[u8], now: (u64, u64)) {
+    pub fn observe(&mut self, shared: &PlayerShared, events: &Events, inputs: &[u8], now: (u64, u64)) {
         if self.pending.as_ref().is_some_and(|p| p.due(now.1)) {
             self.start(shared, events, now);
         }
@@ -449,7 +449,7 @@ impl Player {
 
     /// Writes the targets into `outputs` and, where it can without waiting, into `setpoints`
     /// (so they stay once no trajectory writes them); publishes the statuses.
-    pub fn apply(&mut self, shared: &Shared, setpoints: &SeqBytes, outputs: &mut [u8]) {
+    pub fn apply(&mut self, shared: &PlayerShared, setpoints: &SeqBytes, outputs: &mut [u8]) {
         for (value, targets) in self.owned.iter().flatten() {
             for at in targets.iter().flatten() {
                 outputs[*at..*at + 4].copy_from_slice(&value.to_le_bytes());
@@ -485,7 +485,7 @@ impl Player {
     }
 
     /// The pending plan takes over from each drive's set-point.
-    fn start(&mut self, shared: &Shared, events: &Events, now: (u64, u64)) {
+    fn start(&mut self, shared: &PlayerShared, events: &Events, now: (u64, u64)) {
         let Some(mut plan) = self.pending.take() else { return };
         for j in 0..plan.joints.len() {
             let slave = plan.joints[j].slave;
@@ -506,7 +506,7 @@ impl Player {
         self.current = Some(plan);
     }
 
-    fn follow(&mut self, shared: &Shared, events: &Events, mut plan: Box<Plan>, inputs: &[u8], now: (u64, u64)) {
+    fn follow(&mut self, shared: &PlayerShared, events: &Events, mut plan: Box<Plan>, inputs: &[u8], now: (u64, u64)) {
         let left = plan.joints.iter().find_map(|joint| {
             let statusword = u16_at(inputs, joint.statusword);
             (State::from_statusword(statusword) != Some(State::OperationEnabled)).then_some((joint.slave, statusword))
@@ -560,7 +560,14 @@ impl Player {
         self.current = Some(plan);
     }
 
-    fn end(&mut self, shared: &Shared, events: &Events, mut plan: Box<Plan>, state: TrajectoryState, now: (u64, u64)) {
+    fn end(
+        &mut self,
+        shared: &PlayerShared,
+        events: &Events,
+        mut plan: Box<Plan>,
+        state: TrajectoryState,
+        now: (u64, u64),
+    ) {
         plan.status.state = state;
         for joint in &plan.joints {
             self.followed[joint.slave as usize] = [0.0; FOLLOWED];
@@ -576,7 +583,7 @@ impl Player {
     }
 
     /// Moves retired plans into free return slots.
-    fn flush(&mut self, shared: &Shared) {
+    fn flush(&mut self, shared: &PlayerShared) {
         for waiting in self.waiting.iter_mut().filter(|w| w.is_some()) {
             let Some(slot) = shared.outbox.iter().find(|s| s.load(Ordering::Acquire).is_null()) else { return };
             let Some(plan) = waiting.take() else { continue };
@@ -591,7 +598,7 @@ impl Player {
 pub struct Caller {
     last_id: AtomicU32,
     /// Oldest first; the cycle thread never takes this lock.
-    known: Mutex<VecDeque<Status>>,
+    known: Mutex<VecDeque<TrajectoryStatus>>,
 }
 
 impl Caller {
@@ -602,7 +609,7 @@ impl Caller {
 
     /// Notes a trajectory handed over (pending) or ended; an end noted first (by another
     /// caller's collect) stays.
-    pub fn note(&self, status: Status) {
+    pub fn note(&self, status: TrajectoryStatus) {
         let mut known = self.known.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         match known.iter_mut().find(|s| s.id == status.id) {
             Some(s) if s.state.ended() && !status.state.ended() => {}
@@ -617,7 +624,7 @@ impl Caller {
     }
 
     /// Trajectory `id` as the cycle thread last published it.
-    pub fn status(&self, shared: &Shared, id: u32) -> Result<Status> {
+    pub fn status(&self, shared: &PlayerShared, id: u32) -> Result<TrajectoryStatus> {
         // Live first: a plan that ends meanwhile is in the outbox when collected after.
         let live = shared.live().into_iter().flatten().find(|s| s.id == id);
         shared.collect(|status| self.note(status));
@@ -659,7 +666,7 @@ mod tests {
     /// A cycle at `now` ms: the player's steps around the copy, returning the target sent.
     fn cycle(
         player: &mut Player,
-        shared: &Shared,
+        shared: &PlayerShared,
         events: &Events,
         image: &mut [u8; 4],
         now: u64,
@@ -690,7 +697,7 @@ mod tests {
 
     #[test]
     fn a_plan_starts_from_the_target_sent_ends_on_its_point_and_comes_back() {
-        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
+        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
         let mut image = 1000i32.to_le_bytes();
         shared.give(plan(1, Some(3 * MS), 2000.0, 10 * MS)).unwrap();
         // A second one cannot be handed before the first is taken.
@@ -725,7 +732,7 @@ mod tests {
     /// A cycle whose drive reports `actual`; returns the target sent.
     fn judged_cycle(
         player: &mut Player,
-        shared: &Shared,
+        shared: &PlayerShared,
         events: &Events,
         image: &mut [u8; 4],
         now: u64,
@@ -744,7 +751,7 @@ mod tests {
 
     #[test]
     fn a_drive_past_the_path_tolerance_brakes_the_plan_to_a_standstill_and_names_it() {
-        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
+        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
         let mut image = 0i32.to_le_bytes();
         // 100 counts/ms, braking at 1e7 counts/s² (10 counts/ms per ms); the drive stays at 0.
         let tolerance = Tolerance { path_position: 250.0, stop_deceleration: 1e7, ..LOOSE };
@@ -766,7 +773,7 @@ mod tests {
 
     #[test]
     fn a_stop_brakes_and_the_goal_tolerance_waits_for_the_goal_time() {
-        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
+        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
         let mut image = 0i32.to_le_bytes();
         shared.give(judged(1, 1000.0, 10 * MS, Tolerance { stop_deceleration: 1e7, ..LOOSE }, 0)).unwrap();
         for ms in 1..=3 {
@@ -800,7 +807,7 @@ mod tests {
 
     #[test]
     fn a_newer_plan_replaces_the_pending_one_then_the_running_one_and_a_drive_out_of_operation_aborts() {
-        let (shared, events, mut player) = (Shared::new(1), Events::default(), Player::new(1));
+        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
         let mut image = 0i32.to_le_bytes();
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
         cycle(&mut player, &shared, &events, &mut image, 1, true);

@@ -10,20 +10,18 @@ use std::time::{Duration, Instant};
 use crate::error::{Error, Result};
 
 pub use returns::Returns;
-pub use spec::LinkSpec;
 
 pub mod pcap;
 pub mod privilege;
 pub mod raw;
 pub mod returns;
 pub mod socket;
-pub mod spec;
 pub mod udp;
 
 /// A path to a chain of slaves. Frames go out with [`send`](Link::send) and come back, in the
 /// order they were sent, through [`receive`](Link::receive); which frame a return belongs to is
 /// the caller's to tell ([`is_reply_to`]), so that a master may send a frame and take its return
-/// later, after other frames have come and gone ([`exchange_beside`]).
+/// later, after other frames have come and gone ([`exchange_keeping_others`]).
 pub trait Link: Send {
     /// Sends the EtherCAT payload `tx` (frame header and datagrams).
     fn send(&mut self, tx: &[u8]) -> Result<()>;
@@ -47,7 +45,7 @@ pub trait Link: Send {
     /// returns of other frames (an earlier frame's late return) are dropped. A frame that does
     /// not come back gives [`Error::Timeout`]. Built on `send` and `receive` for every link.
     fn exchange(&mut self, tx: &[u8], rx: &mut [u8], timeout: Duration) -> Result<usize> {
-        exchange_beside(self, tx, rx, timeout, |_| {})
+        exchange_keeping_others(self, tx, rx, timeout, |_| {})
     }
 }
 
@@ -69,35 +67,35 @@ impl<L: Link + ?Sized> Link for Box<L> {
     }
 }
 
-/// [`Link::exchange`], handing the returns of other frames to `beside` instead of dropping
+/// [`Link::exchange`], handing the returns of other frames to `others` instead of dropping
 /// them: a master waiting for a mailbox frame while its cyclic frame is on its way back keeps
 /// the cyclic frame's return there.
-pub fn exchange_beside<L: Link + ?Sized>(
+pub fn exchange_keeping_others<L: Link + ?Sized>(
     link: &mut L,
     tx: &[u8],
     rx: &mut [u8],
     timeout: Duration,
-    beside: impl FnMut(&[u8]),
+    others: impl FnMut(&[u8]),
 ) -> Result<usize> {
     link.send(tx)?;
-    receive_reply(link, tx, rx, Instant::now() + timeout, beside)?
+    receive_reply(link, tx, rx, Instant::now() + timeout, others)?
         .ok_or_else(|| Error::Timeout { what: link.awaited().into() })
 }
 
 /// Waits until `deadline` for the return of the frame `tx` sent on `link`, written to `rx`; its
 /// length, or `None` when it did not come by then. The returns of other frames met on the way
-/// (an earlier frame's late return) are handed to `beside`.
+/// (an earlier frame's late return) are handed to `others`.
 pub fn receive_reply<L: Link + ?Sized>(
     link: &mut L,
     tx: &[u8],
     rx: &mut [u8],
     deadline: Instant,
-    mut beside: impl FnMut(&[u8]),
+    mut others: impl FnMut(&[u8]),
 ) -> Result<Option<usize>> {
     loop {
         match link.receive(rx, deadline)? {
             Some(n) if is_reply_to(tx, &rx[..n]) => return Ok(Some(n)),
-            Some(n) => beside(&rx[..n]),
+            Some(n) => others(&rx[..n]),
             None => return Ok(None),
         }
     }

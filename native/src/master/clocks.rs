@@ -200,7 +200,8 @@ impl Master {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coe::{self, ObjectCode, SdoAbortCode};
+    use crate::coe::{ObjectCode, SdoAbortCode};
+    use crate::error::Error;
     use crate::error::MailboxError;
 
     fn described(name: &str) -> Result<ObjectInfo> {
@@ -217,7 +218,7 @@ mod tests {
     fn fbus_param02_is_written_only_where_the_drive_names_the_object_so() {
         assert!(fbus_param02_confirmed(described("FBUS.PARAM02")).unwrap());
         assert!(!fbus_param02_confirmed(described("Position offset")).unwrap());
-        let no_object = coe::abort_error(dc::FBUS_PARAM02, 0, SdoAbortCode::NO_SUCH_OBJECT);
+        let no_object = Error::sdo_abort(dc::FBUS_PARAM02, 0, SdoAbortCode::NO_SUCH_OBJECT);
         assert!(!fbus_param02_confirmed(Err(no_object)).unwrap());
         let mailbox_failed = Err(MailboxError::InfoErrorWithoutCode.into());
         assert!(fbus_param02_confirmed(mailbox_failed).is_err(), "not a drive's answer: the set-up fails");

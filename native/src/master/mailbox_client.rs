@@ -51,7 +51,7 @@ pub struct Mailbox {
 impl Mailbox {
     /// The standard mailbox of a slave from its SII, `None` when it has no mailbox; an error
     /// when the mailbox is too small for any CoE message.
-    pub fn from_sii(sii: &Sii) -> Result<Option<Self>> {
+    pub fn from_sii(sii: &Sii) -> Result<Option<Self>, SiiError> {
         // "Receive" and "send" are the slave's view: it receives through SM0.
         let mb = &sii.header.standard_mailbox;
         let protocols = sii.header.mailbox_protocols;
@@ -63,8 +63,7 @@ impl Mailbox {
                 receive: mb.receive_size,
                 send: mb.send_size,
                 min: MIN_MAILBOX_LEN,
-            }
-            .into());
+            });
         }
         // The SM category, when present, holds the control bytes the slave expects.
         let control = |n: usize, default: u8| sii.sync_managers().get(n).map_or(default, |sm| sm.control);
@@ -156,7 +155,7 @@ impl Master {
     }
 
     /// The counter of the last message sent to the slave at `position` (0 before any), so
-    /// that a [`sibling`](Master::sibling) talking to the same slave goes on from it.
+    /// that a restoring master ([`Master::for_restore`]) talking to the same slave goes on from it.
     pub fn mailbox_counter(&self, position: u16) -> Option<u8> {
         Some(self.slave(position).ok()?.mailbox.as_ref()?.counter)
     }

@@ -116,7 +116,7 @@ fn counted_exchange(
             cyclic.keep(back);
         }
     };
-    crate::link::exchange_beside(link, tx, rx, timeout, keep).inspect_err(|e| {
+    crate::link::exchange_keeping_others(link, tx, rx, timeout, keep).inspect_err(|e| {
         if matches!(e, Error::Timeout { .. }) {
             stats.lost_frames += 1;
         }
@@ -203,8 +203,8 @@ impl Master {
         counted_exchange(&mut *self.link, &mut self.stats, (&self.tx[..len], rx), self.timeout, cyclic)
     }
 
-    /// Sends a frame built by another master of the same bus (a [`sibling`](Self::sibling)
-    /// restoring a slave) and gives its return in `rx`; counted with this master's frames, as
+    /// Sends a frame built by another master of the same bus (one made by
+    /// [`for_restore`](Self::for_restore), restoring a slave) and gives its return in `rx`; counted with this master's frames, as
     /// every frame on its link is.
     pub fn relay(&mut self, tx: &[u8], rx: &mut [u8]) -> Result<usize> {
         self.tx[..tx.len()].copy_from_slice(tx);

@@ -7,9 +7,9 @@
 //! addresses as before, and is taken through SafeOp to Op. Its DS402 state is left alone: the
 //! power stage stays off until it is enabled again.
 //!
-//! It runs on a [`sibling`](Master::sibling) of the cycling master, whose frames go out through
-//! the cycle thread between its cyclic exchanges; the sibling never sends process data of its
-//! own, which would overwrite every other slave's outputs.
+//! It runs on a restoring master made from the cycling one ([`Master::for_restore`]), whose
+//! frames go out through the cycle thread between its cyclic exchanges; the restoring master
+//! never sends process data of its own, which would overwrite every other slave's outputs.
 
 use crate::al::AlState;
 use crate::dc;
@@ -61,11 +61,11 @@ impl Master {
     /// A master of the same slaves (their addresses, SII, mailboxes, mappings) on `link`,
     /// without a process image or clock of its own: for [`restore_slave`](Self::restore_slave)
     /// while this one cycles.
-    pub fn sibling(&self, link: Box<dyn Link>) -> Master {
-        let mut sibling = Master::new(link, self.timeout);
-        sibling.mailbox_timeout = self.mailbox_timeout;
-        sibling.slaves = self.slaves.clone();
-        sibling
+    pub fn for_restore(&self, link: Box<dyn Link>) -> Master {
+        let mut restoring = Master::new(link, self.timeout);
+        restoring.mailbox_timeout = self.mailbox_timeout;
+        restoring.slaves = self.slaves.clone();
+        restoring
     }
 
     /// The clock a restore gives the slave at `position`, as this master's set-up did.

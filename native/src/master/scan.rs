@@ -67,10 +67,7 @@ impl Master {
         let alias = self.read_u16(station, registers::STATION_ALIAS)?;
         let image = self.read_sii(station)?;
         // An SII fault names the slave it was found on.
-        let of_slave = |e| match e {
-            Error::Sii(error) => SiiError::OfSlave { position, station, error: Box::new(error) }.into(),
-            other => other,
-        };
+        let of_slave = |error| -> Error { SiiError::OfSlave { position, station, error: Box::new(error) }.into() };
         let sii = Sii::parse(&image).map_err(of_slave)?;
         let mailbox = Mailbox::from_sii(&sii).map_err(of_slave)?;
         Ok(Slave {

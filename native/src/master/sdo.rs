@@ -44,7 +44,7 @@ impl Master {
         let len = coe::write_sdo_request(&mut message, 0, &request);
         // The abort is a courtesy to the slave; the error to report is the one found here.
         let _ = self.mailbox_send(position, &mut message[..len], self.mailbox_timeout);
-        coe::abort_error(index, subindex, code)
+        Error::sdo_abort(index, subindex, code)
     }
 
     /// Reads `index:subindex` of the slave at `position`.
@@ -65,7 +65,7 @@ impl Master {
             let segment =
                 self.sdo_exchange(position, &SdoRequest::UploadSegment { toggle }, |response| match response {
                     SdoResponse::UploadSegment { toggle: t, last, data } => Ok(Some((t, last, data.to_vec()))),
-                    SdoResponse::Abort { code, .. } => Err(coe::abort_error(index, subindex, code)),
+                    SdoResponse::Abort { code, .. } => Err(Error::sdo_abort(index, subindex, code)),
                     _ => Ok(None),
                 })?;
             let Some((t, last, data)) = segment else {
@@ -129,7 +129,7 @@ impl Master {
             let request = SdoRequest::DownloadSegment { toggle, last, data: chunk };
             let answered = self.sdo_exchange(position, &request, |response| match response {
                 SdoResponse::DownloadSegment { toggle: t } => Ok(Some(t)),
-                SdoResponse::Abort { code, .. } => Err(coe::abort_error(index, subindex, code)),
+                SdoResponse::Abort { code, .. } => Err(Error::sdo_abort(index, subindex, code)),
                 _ => Ok(None),
             })?;
             match answered {
@@ -167,7 +167,7 @@ pub(super) fn body_of_service<'a>(
 /// description of what came instead.
 fn unexpected(position: u16, index: u16, subindex: u8, what: &'static str, response: &SdoResponse<'_>) -> Error {
     match *response {
-        SdoResponse::Abort { code, .. } => coe::abort_error(index, subindex, code),
+        SdoResponse::Abort { code, .. } => Error::sdo_abort(index, subindex, code),
         ref other => MailboxError::UnexpectedResponse {
             slave: position,
             transfer: what,

@@ -5,7 +5,7 @@ use crate::coe::{
     self, CoeService, EntryDescription, ObjectCode, ObjectDescription, OdListType, SdoInfoHeader, SdoInfoOpcode,
     SDO_INFO_HEADER_LEN,
 };
-use crate::error::{MailboxError, Result};
+use crate::error::{Error, MailboxError, Result};
 use crate::master::sdo::body_of_service;
 use crate::master::Master;
 
@@ -79,7 +79,7 @@ impl Master {
                     .get(..4)
                     .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
                     .ok_or(MailboxError::InfoErrorWithoutCode)?;
-                return Err(coe::abort_error(index, subindex, coe::SdoAbortCode(code)));
+                return Err(Error::sdo_abort(index, subindex, coe::SdoAbortCode(code)));
             }
             if Some(info.opcode) != opcode.response() {
                 return Err(MailboxError::UnexpectedOpcode {

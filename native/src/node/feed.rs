@@ -65,7 +65,7 @@ pub fn unwrap_position(last: i64, raw: i32) -> i64 {
 }
 
 /// What the feed's thread and its callers share.
-struct Shared {
+struct FeedShared {
     cycle: Arc<CycleThread>,
     joints: Vec<Joint>,
     offset_ns: Arc<AtomicI64>,
@@ -91,7 +91,7 @@ fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
 
 /// The node's periodic publications (see the module).
 pub struct Feed {
-    shared: Arc<Shared>,
+    shared: Arc<FeedShared>,
     streams: Mutex<Vec<(Kind, Duration)>>,
     started: AtomicBool,
     thread: Mutex<Option<JoinHandle<()>>>,
@@ -106,7 +106,7 @@ impl Feed {
     /// monotonic time it stamps with.
     pub fn new(cycle: Arc<CycleThread>, joints: Vec<Joint>, offset_ns: Arc<AtomicI64>) -> Feed {
         Feed {
-            shared: Arc::new(Shared {
+            shared: Arc::new(FeedShared {
                 cycle,
                 joints,
                 offset_ns,
@@ -214,7 +214,7 @@ struct Reading {
 
 /// The thread's side: the streams with their deadlines, and what their messages keep.
 struct Maker {
-    shared: Arc<Shared>,
+    shared: Arc<FeedShared>,
     streams: Vec<(Kind, Duration, Instant)>,
     /// Each joint's position in counts, unwrapped across the 32-bit wrap.
     unwrapped: Vec<Option<i64>>,
@@ -224,7 +224,7 @@ struct Maker {
 }
 
 impl Maker {
-    fn new(shared: Arc<Shared>, streams: Vec<(Kind, Duration)>) -> Maker {
+    fn new(shared: Arc<FeedShared>, streams: Vec<(Kind, Duration)>) -> Maker {
         let now = Instant::now();
         let names = shared.joints.iter().map(|j| j.name.clone()).collect();
         Maker {

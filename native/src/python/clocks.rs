@@ -5,7 +5,7 @@ use pyo3::prelude::*;
 
 use super::IntoPyResult;
 use crate::cycle::dc_status::DcStatus;
-use crate::link::LinkSpec;
+use crate::link_spec::LinkSpec;
 use crate::master::clocks::DcSlave;
 
 /// Whether `link` runs distributed clocks by default: a network interface does, as TwinCAT runs

@@ -18,6 +18,7 @@ use super::master::PyMaster;
 use super::{IntoPyResult, Merged};
 use crate::akd_fault;
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
+use crate::cycle::rt::{self, RealTime};
 use crate::cycle::samples::Sample;
 use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
@@ -131,8 +132,8 @@ struct SetpointView {
     statusword: u16,
 }
 
-impl From<handshake::Status> for SetpointView {
-    fn from(s: handshake::Status) -> Self {
+impl From<handshake::HandshakeStatus> for SetpointView {
+    fn from(s: handshake::HandshakeStatus) -> Self {
         let progress = match s.progress {
             handshake::Progress::Idle => "idle",
             handshake::Progress::InProgress => "in_progress",
@@ -320,25 +321,11 @@ impl PyCycle {
     /// no time), what a cycle read published a period later. The master is unusable until
     /// `stop()`.
     #[new]
-    // One argument per keyword of the Python signature.
-    #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (
-        master, period, *, priority = None, cpu = None, lock_memory = false, cpu_latency_us = None, pipelined = false
-    ))]
-    fn new(
-        py: Python<'_>,
-        master: Py<PyMaster>,
-        period: f64,
-        priority: Option<i32>,
-        cpu: Option<usize>,
-        lock_memory: bool,
-        cpu_latency_us: Option<i64>,
-        pipelined: bool,
-    ) -> PyResult<Self> {
+    #[pyo3(signature = (master, period, *, realtime = None))]
+    fn new(py: Python<'_>, master: Py<PyMaster>, period: f64, realtime: Option<RealTime>) -> PyResult<Self> {
         let period = Duration::try_from_secs_f64(period)
             .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
-        let cpu_latency_us = cpu_latency_us.map(crate::cycle::rt::cpu_latency).transpose().map_err(super::to_py_err)?;
-        let config = Config { period, priority, cpu, lock_memory, cpu_latency_us, pipelined };
+        let config = Config { period, realtime: realtime.unwrap_or_default() };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
             Ok(cycle) => Ok(PyCycle { master, cycle: Arc::new(cycle) }),
@@ -706,10 +693,10 @@ impl PyCycle {
     /// stream and lifts the hold.
     #[pyo3(signature = (position, timeout, policy = "hold"))]
     fn set_command_timeout(&self, position: u16, timeout: f64, policy: &str) -> PyResult<()> {
-        let action = CommandTimeoutAction::ALL
-            .into_iter()
-            .find(|a| a.name() == policy)
-            .ok_or_else(|| super::to_py_err(UnknownName::CommandTimeoutPolicy { name: policy.to_owned() }.into()))?;
+        let action =
+            CommandTimeoutAction::ALL.iter().copied().find(|a| a.name() == policy).ok_or_else(|| {
+                super::to_py_err(UnknownName::CommandTimeoutPolicy { name: policy.to_owned() }.into())
+            })?;
         let timeout = duration("command timeout", timeout, "a finite number of seconds >= 0, 0 turning it off")?;
         self.cycle.set_command_timeout(position, Some(timeout), action).py()
     }
@@ -897,8 +884,41 @@ fn progress_name(progress: Progress) -> &'static str {
     }
 }
 
+#[pymethods]
+impl RealTime {
+    /// Real-time options of a cycle thread, each checked here: a priority outside the
+    /// SCHED_FIFO range, a CPU that does not exist or a wake-up latency outside
+    /// 0..=1000000 µs is a ConfigError naming the allowed values.
+    #[new]
+    #[pyo3(signature = (*, priority = None, cpu = None, lock_memory = false, cpu_latency_us = None, pipelined = false))]
+    fn py_new(
+        priority: Option<i32>,
+        cpu: Option<usize>,
+        lock_memory: bool,
+        cpu_latency_us: Option<i64>,
+        pipelined: bool,
+    ) -> PyResult<Self> {
+        rt::check(priority, cpu).py()?;
+        let cpu_latency_us = cpu_latency_us.map(rt::cpu_latency).transpose().py()?;
+        Ok(RealTime { priority, cpu, lock_memory, cpu_latency_us, pipelined })
+    }
+
+    fn __repr__(&self) -> String {
+        let option = |v: Option<String>| v.unwrap_or_else(|| "None".into());
+        format!(
+            "RealTime(priority={}, cpu={}, lock_memory={}, cpu_latency_us={}, pipelined={})",
+            option(self.priority.map(|p| p.to_string())),
+            option(self.cpu.map(|c| c.to_string())),
+            if self.lock_memory { "True" } else { "False" },
+            option(self.cpu_latency_us.map(|us| us.to_string())),
+            if self.pipelined { "True" } else { "False" },
+        )
+    }
+}
+
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCycle>()?;
+    m.add_class::<RealTime>()?;
     // Per-cycle records the cycle keeps for each drive until `samples()` takes them.
     m.add("SAMPLES_PER_DRIVE", crate::cycle::samples::CAPACITY)?;
     m.add("SAMPLE_COLUMNS", pyo3::types::PyTuple::new(m.py(), SAMPLE_COLUMNS)?)

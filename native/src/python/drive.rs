@@ -44,7 +44,7 @@ impl PyModeOfOperation {
         PyModeOfOperation {
             name: mode.snake_name(),
             code: mode as i8,
-            command: mode.command().map(ds402::Command::name),
+            command: mode.command().map(ds402::CommandKind::name),
             command_objects: mode.command_objects().to_vec(),
             handshake_controlword: mode.handshake_controlword(),
         }
@@ -380,7 +380,7 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(with_digital_outputs, m)?)?;
     m.add("IO_INPUT_COUNT", io::INPUT_COUNT)?;
     m.add("IO_OUTPUT_COUNT", io::OUTPUT_COUNT)?;
-    m.add("IO_SWITCHES", PyTuple::new(m.py(), Switch::ALL.map(Switch::name))?)?;
+    m.add("IO_SWITCHES", PyTuple::new(m.py(), Switch::ALL.iter().map(|s| s.name()))?)?;
     m.add("ANALOG_VOLTS_PER_COUNT", io::ANALOG_VOLTS_PER_COUNT)?;
     m.add_function(wrap_pyfunction!(check_mapping, m)?)?;
     m.add_function(wrap_pyfunction!(parse_pdo_entry, m)?)?;

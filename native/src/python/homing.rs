@@ -3,7 +3,7 @@
 
 use pyo3::prelude::*;
 
-use crate::cycle::homing::{Phase, Status};
+use crate::cycle::homing::{HomingStatus, Phase};
 
 /// What `Cycle.homing_status` gives.
 #[derive(IntoPyObject)]
@@ -17,8 +17,8 @@ pub(super) struct HomingView {
     homed: bool,
 }
 
-impl From<Status> for HomingView {
-    fn from(s: Status) -> Self {
+impl From<HomingStatus> for HomingView {
+    fn from(s: HomingStatus) -> Self {
         let (phase, outcome) = match s.phase {
             Phase::Idle => ("idle", None),
             Phase::Entering | Phase::Homing => ("homing", None),

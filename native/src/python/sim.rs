@@ -12,14 +12,14 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
-use crate::akd_fault::MissedFrames;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
-use crate::link::spec::Pace;
+use crate::link_spec::MissedFrames;
+use crate::link_spec::Pace;
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
+use crate::sim::pll::SyncState;
 use crate::sim::setpoint_trace::{Recorder, SetpointTrace, TraceSummary};
-use crate::sim::sync::SyncState;
 use crate::sim::{server, Timing, VirtualBus};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's

@@ -6,7 +6,7 @@ use pyo3::prelude::*;
 
 use super::{IntoPyResult, Merged};
 use crate::cycle::events::TrajectoryState;
-use crate::cycle::trajectory_player::{Status, Tolerance, Tolerances};
+use crate::cycle::trajectory_player::{Tolerance, Tolerances, TrajectoryStatus};
 use crate::cycle::CycleThread;
 use crate::ds402::State;
 use crate::trajectory::{Knot, Limits};
@@ -124,7 +124,7 @@ pub(super) struct ProgressView {
 /// `Cycle.trajectory_status`: its progress and its state.
 pub(super) type StatusView = Merged<ProgressView, StateView>;
 
-pub(super) fn status_view(s: Status) -> StatusView {
+pub(super) fn status_view(s: TrajectoryStatus) -> StatusView {
     let progress = ProgressView {
         id: s.id,
         point: s.point,

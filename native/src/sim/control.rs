@@ -32,7 +32,7 @@ use crate::sim::faults::Fault;
 use crate::sim::homing::{Failure as HomingFailure, Setup};
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::missed_frames::WouldBeF125;
-use crate::sim::sync::SyncState;
+use crate::sim::pll::SyncState;
 use crate::sim::terminals::{Outputs, Terminals};
 use crate::sim::{VirtualAkd, VirtualBus};
 

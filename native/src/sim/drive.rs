@@ -30,9 +30,10 @@
 //! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
 //!   counts/s², torque in 0.1 % of the drive's peak torque.
 
-use crate::akd_fault::{MissedFrames, MISSED_FRAMES_TOLERATED};
+use crate::akd_fault::MISSED_FRAMES_TOLERATED;
 use crate::coe::Emergency;
 use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
+use crate::link_spec::MissedFrames;
 use crate::pdo::PdoEntry;
 use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
@@ -132,7 +133,7 @@ pub struct Bus<'a> {
 
 /// The drive firmware of one virtual AKD.
 #[derive(Clone, Debug)]
-pub struct Drive {
+pub struct DriveFirmware {
     state: State,
     controlword: u16,
     mode: Option<Mode>,
@@ -174,16 +175,16 @@ pub struct Drive {
     would_be_f125: WouldBeF125,
 }
 
-impl Default for Drive {
+impl Default for DriveFirmware {
     fn default() -> Self {
-        Drive::new(Mechanics::default())
+        DriveFirmware::new(Mechanics::default())
     }
 }
 
-impl Drive {
+impl DriveFirmware {
     /// A drive at power-up driving a motor and load of `mechanics`, loops tuned for it.
     pub fn new(mechanics: Mechanics) -> Self {
-        Drive {
+        DriveFirmware {
             state: State::NotReadyToSwitchOn,
             controlword: 0,
             mode: None,
@@ -684,7 +685,7 @@ mod tests {
 
     /// A drive and its dictionary, run at bus time `now` with SDO-like writes between runs.
     struct Bench {
-        drive: Drive,
+        drive: DriveFirmware,
         od: ObjectDictionary,
         now: u64,
         emergencies: Vec<u16>,
@@ -692,7 +693,8 @@ mod tests {
 
     impl Bench {
         fn new() -> Bench {
-            let mut b = Bench { drive: Drive::default(), od: ObjectDictionary::akd(), now: 0, emergencies: Vec::new() };
+            let mut b =
+                Bench { drive: DriveFirmware::default(), od: ObjectDictionary::akd(), now: 0, emergencies: Vec::new() };
             b.run_for(0);
             b
         }

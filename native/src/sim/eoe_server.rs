@@ -289,17 +289,17 @@ mod tests {
     const HOST: Ipv4Addr = Ipv4Addr::new(192, 168, 0, 1);
     const MS: u64 = 1_000_000;
 
-    struct Drive {
+    struct EoeDrive {
         server: MailboxServer,
         od: ObjectDictionary,
         counter: u8,
         size: usize,
     }
 
-    impl Drive {
+    impl EoeDrive {
         fn new(size: usize) -> Self {
             let server = MailboxServer::with_eoe_delays(25 * MS, 18 * MS);
-            Drive { server, od: ObjectDictionary::akd(), counter: 0, size }
+            EoeDrive { server, od: ObjectDictionary::akd(), counter: 0, size }
         }
 
         fn send(&mut self, message: &[u8], now_ns: u64) {
@@ -384,7 +384,7 @@ mod tests {
 
     #[test]
     fn set_ip_is_answered_then_the_drive_announces_itself() {
-        let mut drive = Drive::new(1024);
+        let mut drive = EoeDrive::new(1024);
         drive.set_ip(0);
         assert!(drive.replies(24 * MS).is_empty(), "the response takes 25 ms");
         let replies = drive.replies(25 * MS);
@@ -410,7 +410,7 @@ mod tests {
 
     #[test]
     fn answers_arp_and_ping_and_fragments_large_replies() {
-        let mut drive = Drive::new(1024);
+        let mut drive = EoeDrive::new(1024);
         drive.set_ip(0);
         drive.replies(50 * MS);
         // Who has 192.168.0.2?
@@ -441,7 +441,7 @@ mod tests {
 
     #[test]
     fn a_broken_frame_is_dropped_and_counted() {
-        let mut drive = Drive::new(64);
+        let mut drive = EoeDrive::new(64);
         drive.set_ip(0);
         drive.replies(50 * MS);
         let frame = ping(100);
@@ -463,8 +463,8 @@ mod tests {
 
     #[test]
     fn malformed_headers_get_the_standards_answers() {
-        let mut drive = Drive::new(128);
-        let answer = |drive: &mut Drive, message: &[u8]| {
+        let mut drive = EoeDrive::new(128);
+        let answer = |drive: &mut EoeDrive, message: &[u8]| {
             drive.send(message, 0);
             drive.replies(0)
         };

@@ -11,17 +11,18 @@ use crate::akd_fault::{self, AkdFault};
 use crate::coe::Emergency;
 use crate::error::UnknownName;
 
-/// A drive fault.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Fault {
-    /// F439: the following error exceeded the window 0x6065.
-    FollowingError,
-    /// F235: heat sink over-temperature.
-    OverTemperature,
-    /// F125: more than seven frames missed while enabled (AKD manual §5.14, FBUS.PARAM04).
-    SyncLost,
-    /// F706: enabled in a cyclic position mode but no cyclic set-points arrive.
-    SetpointsMissing,
+wire_codes! {
+    /// A drive fault.
+    pub enum Fault: u16, "AKD fault number" {
+        /// F439: the following error exceeded the window 0x6065.
+        FollowingError = 439 => "following_error",
+        /// F235: heat sink over-temperature.
+        OverTemperature = 235 => "over_temperature",
+        /// F125: more than seven frames missed while enabled (AKD manual §5.14, FBUS.PARAM04).
+        SyncLost = 125 => "sync_lost",
+        /// F706: enabled in a cyclic position mode but no cyclic set-points arrive.
+        SetpointsMissing = 706 => "setpoints_missing",
+    }
 }
 
 /// Error register 0x1001 bits (CiA 301).
@@ -33,28 +34,9 @@ mod error_register {
 }
 
 impl Fault {
-    /// Every fault, in the order of [`Fault::name`]s listed in errors.
-    pub const ALL: [Fault; 4] =
-        [Fault::FollowingError, Fault::OverTemperature, Fault::SyncLost, Fault::SetpointsMissing];
-
-    /// The AKD's fault number (F439 → 439).
+    /// The AKD's fault number (F439, ...).
     pub fn number(self) -> u16 {
-        match self {
-            Fault::FollowingError => 439,
-            Fault::OverTemperature => 235,
-            Fault::SyncLost => 125,
-            Fault::SetpointsMissing => 706,
-        }
-    }
-
-    /// The name tests and the simulator command use.
-    pub fn name(self) -> &'static str {
-        match self {
-            Fault::FollowingError => "following_error",
-            Fault::OverTemperature => "over_temperature",
-            Fault::SyncLost => "sync_lost",
-            Fault::SetpointsMissing => "setpoints_missing",
-        }
+        self as u16
     }
 
     /// The fault's number, text and code as the real drive has them.
@@ -93,7 +75,7 @@ impl Fault {
 
     /// The fault named `name` (its [`name`](Fault::name) or "F" and its number, e.g. "F125").
     pub fn from_name(name: &str) -> Result<Fault, UnknownName> {
-        Self::ALL.into_iter().find(|f| f.name() == name || format!("F{}", f.number()) == name).ok_or_else(|| {
+        Self::ALL.iter().copied().find(|f| f.name() == name || format!("F{}", f.number()) == name).ok_or_else(|| {
             UnknownName::Fault {
                 name: name.to_owned(),
                 allowed: Self::ALL.iter().map(|f| format!("{} (F{})", f.name(), f.number())).collect(),
@@ -108,7 +90,7 @@ mod tests {
 
     #[test]
     fn names_and_numbers_find_the_fault() {
-        for fault in Fault::ALL {
+        for &fault in Fault::ALL {
             assert_eq!(Fault::from_name(fault.name()), Ok(fault));
             assert_eq!(Fault::from_name(&format!("F{}", fault.number())), Ok(fault));
         }

@@ -5,7 +5,7 @@
 //! state machine ([`al_machine`]), the mailbox server ([`mailbox_server`]) over the object dictionary ([`od`]), the
 //! process image ([`process_data`]), the process-data watchdog ([`watchdog`]), and the drive firmware
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
-//! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`sync`] tells
+//! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`pll`] tells
 //! what its synchronisation (SYNC0 or SM2) was told. A [`VirtualBus`] is a
 //! line of them that serves EtherCAT frames in place, with time passed in by the caller so
 //! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
@@ -33,20 +33,20 @@ pub mod mailbox_server;
 pub mod missed_frames;
 pub mod motion;
 pub mod od;
+pub mod pll;
 pub mod process_data;
 pub mod server;
 pub mod setpoint_trace;
 pub mod sii_image;
-pub mod sync;
 pub mod sync_manager;
 pub mod terminals;
 pub mod watchdog;
 
-use crate::akd_fault::MissedFrames;
 use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
-use crate::link::spec::Pace;
+use crate::link_spec::MissedFrames;
+use crate::link_spec::Pace;
 use crate::mailbox::HEADER_LEN;
 use crate::pdo;
 use crate::registers as reg;
@@ -130,7 +130,7 @@ pub const AKD_MAILBOX_SIZE: u16 = 0x0400;
 
 /// The SII image of the AKD with `identity` declaring a standard mailbox of `size` bytes each
 /// way (the sync manager category says the same), everything else as the real drive's.
-fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>> {
+fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate::sii::SiiError> {
     let mut sii = crate::sii::Sii::parse(&sii_image::akd_sii_of(identity))?;
     let mailbox = &mut sii.header.standard_mailbox;
     (mailbox.receive_size, mailbox.send_size) = (size, size);
@@ -162,7 +162,7 @@ pub struct VirtualAkd {
     frames_lost: u64,
     identity: Identity,
     has_successor: bool,
-    drive: drive::Drive,
+    drive: drive::DriveFirmware,
     rx_image: process_data::Image,
     tx_image: process_data::Image,
 }
@@ -214,7 +214,7 @@ impl VirtualAkd {
             frames_lost: 0,
             identity,
             has_successor,
-            drive: drive::Drive::default(),
+            drive: drive::DriveFirmware::default(),
             rx_image: Vec::new(),
             tx_image: Vec::new(),
         }
@@ -269,8 +269,8 @@ impl VirtualAkd {
     }
 
     /// What the drive's synchronisation was told: SYNC0, FBUS.PARAM02, its cycle time.
-    pub fn sync_state(&self) -> sync::SyncState {
-        sync::SyncState::of(self.esc.memory(), &self.od)
+    pub fn sync_state(&self) -> pll::SyncState {
+        pll::SyncState::of(self.esc.memory(), &self.od)
     }
 
     /// The outputs the master's last frames wrote into SM2, laid out by the drive's RxPDO
@@ -285,12 +285,12 @@ impl VirtualAkd {
     }
 
     /// The drive firmware: CiA 402 state, motor, inputs.
-    pub fn drive(&self) -> &drive::Drive {
+    pub fn drive(&self) -> &drive::DriveFirmware {
         &self.drive
     }
 
     /// The drive firmware, for fault injection and the simulated inputs.
-    pub fn drive_mut(&mut self) -> &mut drive::Drive {
+    pub fn drive_mut(&mut self) -> &mut drive::DriveFirmware {
         &mut self.drive
     }
 

@@ -44,7 +44,7 @@ pub struct ServerStats {
     /// each frame's arrival (`None` over UDP, or where the kernel refuses).
     pub late: Option<LateReplies>,
     /// F125 the drives would have raised as real AKDs and did not, judging missed frames by
-    /// [`MissedFrames::Warn`](crate::akd_fault::MissedFrames::Warn): each warned of on stderr.
+    /// [`MissedFrames::Warn`](crate::link_spec::MissedFrames::Warn): each warned of on stderr.
     pub would_be_f125: u64,
     /// Each drive's count of them when last warned of.
     warned: Vec<u64>,
@@ -105,7 +105,7 @@ impl ServerStats {
     }
 
     /// Says on stderr, once each, where a drive judging missed frames by
-    /// [`MissedFrames::Warn`](crate::akd_fault::MissedFrames::Warn) went on where a real AKD
+    /// [`MissedFrames::Warn`](crate::link_spec::MissedFrames::Warn) went on where a real AKD
     /// would have raised F125. Rare (a stall of the master), so a line of I/O is no burden.
     fn warn_of_f125(&mut self, bus: &ControlledBus) {
         let bus = bus.bus();

@@ -173,7 +173,7 @@ fn describe(identity: Identity) -> Result<Vec<u8>> {
     b.push(Category::TxPdos(tx));
     b.push(Category::RxPdos(rx));
     b.push(Category::Dc(dc));
-    b.finish()
+    Ok(b.finish()?)
 }
 
 /// The real AKD's 2 KiB SII image: the content above, 0xFF after the end category.

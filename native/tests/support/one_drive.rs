@@ -4,10 +4,10 @@
 
 use std::time::{Duration, Instant};
 
-use akd_native::akd_fault::MissedFrames;
 use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::ds402::Mode;
+use akd_native::link_spec::MissedFrames;
 use akd_native::master::{Mapping, Master};
 use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;

@@ -1,13 +1,95 @@
 //! The link spec: the one text that names a bus, as the node's `link` parameter, the command
 //! line and `Master(link)` take it. It is parsed here once, with no I/O, so every layer that
 //! checks a spec accepts and refuses the same ones; opening it is left to a layer that may see
-//! both the links and the simulator.
+//! both the links and the simulator. The virtual AKDs' options are the spec's words too
+//! ([`MissedFrames`], [`Pace`]), so akd-sim, the bindings and the virtual AKD take them from here.
 
 use std::fmt;
 use std::str::FromStr;
 
-pub use crate::akd_fault::MissedFrames;
-pub use crate::error::LinkSpecError;
+/// Why a text is not a link spec; its text names the allowed forms.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum LinkSpecError {
+    /// `sim:N` with N not a number in 1..=`max`.
+    SimCount {
+        /// The spec as given.
+        spec: String,
+        /// The most virtual AKDs a bus may hold (the link spec's `MAX_SIM_COUNT`).
+        max: usize,
+    },
+    /// `sim...?` with an option other than `missed=late|lost|warn` or `pace=real|immediate`,
+    /// or one given twice.
+    SimOption {
+        /// The spec as given.
+        spec: String,
+    },
+    /// An interface name followed by an option other than `busy_poll=US` with US in 0..=`max`.
+    InterfaceOption {
+        /// The spec as given.
+        spec: String,
+        /// The longest busy poll (the link spec's `MAX_BUSY_POLL_US`).
+        max: u32,
+    },
+    /// `udp://` without `HOST:PORT`, or with a port outside 1..=65535.
+    UdpAddress {
+        /// The spec as given.
+        spec: String,
+    },
+    /// None of the forms (empty, or a path or an address without `udp://`).
+    Unknown {
+        /// The spec as given.
+        spec: String,
+        /// As for [`SimCount`](LinkSpecError::SimCount), to name the allowed N.
+        max_sim_count: usize,
+    },
+}
+
+impl LinkSpecError {
+    /// The forms a link spec takes, with N's range up to `max_sim_count`: what a spec that is
+    /// none of them is told, and what the node's parameter check names as allowed.
+    pub fn allowed_forms(max_sim_count: usize) -> String {
+        format!(
+            "'sim', 'sim:N' (N 1..={max_sim_count}; either with options '?missed=late|lost|warn', \
+             '?pace=real|immediate', joined by '&'), 'udp://HOST:PORT' or a network interface name (with \
+             '?busy_poll=US' to busy-poll for the returning frame)"
+        )
+    }
+}
+
+impl fmt::Display for LinkSpecError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkSpecError::SimCount { spec, max } => {
+                write!(f, "link {spec:?}: the number of virtual AKDs must be 1..={max}")
+            }
+            LinkSpecError::SimOption { spec } => write!(
+                f,
+                "link {spec:?}: the virtual AKDs take options after '?', joined by '&', each once: \
+                 missed=late (the default: a frame that comes late is missed and more than seven \
+                 raise F125, as the real drive judges), missed=lost (only frames lost on the line \
+                 are missed) or missed=warn (judged as the real drive, but a would-be F125 is \
+                 counted and warned of instead of raised, for a host whose master thread is not \
+                 real-time); pace=real (the default: AL requests and mailbox answered as slowly as \
+                 the real drive answers them) or pace=immediate (at once, for tests that need speed)"
+            ),
+            LinkSpecError::InterfaceOption { spec, max } => write!(
+                f,
+                "link {spec:?}: a network interface takes one option, ?busy_poll=US with US in 0..={max}: \
+                 how many µs the master busy-polls for the returning frame before it sleeps (0, the \
+                 default: it sleeps at once)"
+            ),
+            // The port range as the node's parameter check has always named it.
+            LinkSpecError::UdpAddress { spec } => {
+                write!(f, "link {spec:?} is no udp://HOST:PORT with a port in 1..65535")
+            }
+            LinkSpecError::Unknown { spec, max_sim_count } => {
+                write!(f, "link {spec:?} is none of {}", LinkSpecError::allowed_forms(*max_sim_count))
+            }
+        }
+    }
+}
+
+impl std::error::Error for LinkSpecError {}
 
 /// The most virtual AKDs one in-process bus may hold: far more drives than one node moves, and
 /// few enough that a mistyped count does not build a bus that takes seconds per frame.
@@ -16,6 +98,41 @@ pub const MAX_SIM_COUNT: usize = 64;
 /// The longest a raw link busy-polls for a frame to come back, in µs (`IFACE?busy_poll=US`):
 /// a round trip on a real line of many drives takes tens of µs, and a 1 kHz cycle has 1000.
 pub const MAX_BUSY_POLL_US: u32 = 1000;
+
+/// How a virtual AKD judges that it missed frames (F125, "Synchronization lost", after more
+/// than seven): the link spec names it (`sim:N?missed=warn`), akd-sim takes it (`--missed`),
+/// and the virtual AKD applies it. A real AKD always judges [`Late`](MissedFrames::Late).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MissedFrames {
+    /// By time, as the real AKD does: a frame is missed once half a cycle passed after it was
+    /// due, so a master thread the host runs late faults the drive.
+    #[default]
+    Late,
+    /// By the frames the line lost before they reached the drive (a lost burst, a pulled
+    /// cable): a late frame is not a missed one. It cannot see a master that stopped sending.
+    Lost,
+    /// By time, as the real AKD does, but where the real drive would raise F125 the virtual
+    /// one counts it as a would-be F125 (and akd-sim warns) and goes on: for a robot developed
+    /// on a host that stalls the master thread now and then. Frames lost on the line still
+    /// count as [`Lost`](MissedFrames::Lost) counts them, so a pulled cable still faults.
+    Warn,
+}
+
+impl MissedFrames {
+    /// The option's values as the link spec writes them.
+    pub const NAMES: [(&'static str, MissedFrames); 3] =
+        [("late", MissedFrames::Late), ("lost", MissedFrames::Lost), ("warn", MissedFrames::Warn)];
+
+    /// "late", "lost" or "warn".
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(_, m)| *m == self).map_or("late", |(name, _)| name)
+    }
+
+    /// The judgement named `name` ("late", "lost" or "warn").
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
+    }
+}
 
 /// How fast virtual AKDs' firmware answers AL requests and the mailbox (`sim?pace=...`,
 /// akd-sim `--pace`): as the real drive (the default), or at once, for tests that open many

@@ -24,7 +24,7 @@ def namespace(settings: Settings, joint: str) -> str:
     return f"~/{joint}/" if settings.joint_namespaces else "~/"
 
 
-class Session:
+class NodeState:
     """The node's settings and clock; the Bus (None until configured), the Recorder (None unless recording),
     whether the node is active, and the lock that guards the axes between the callback groups."""
 

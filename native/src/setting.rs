@@ -1,0 +1,336 @@
+//! A value given for a setting outside what it allows, from any layer: the configuration error
+//! the Python package raises as `ConfigError`.
+
+use std::fmt;
+
+/// A value given for a setting outside what the setting allows.
+#[derive(Clone, Debug, PartialEq)]
+pub enum SettingError {
+    /// A simulator asked to busy-poll from a thread under a real-time policy.
+    BusyPollRealTime,
+    /// A cycle period outside 250 µs (the AKD's minimum) ..= 10 ms.
+    CyclePeriod {
+        /// The period asked for, µs.
+        period_us: f64,
+    },
+    /// A cycle period given in seconds outside 0.00025 ..= 0.01 s.
+    CyclePeriodSeconds {
+        /// The period asked for, s.
+        seconds: f64,
+    },
+    /// A SCHED_FIFO priority outside the scheduler's range.
+    Priority {
+        /// The priority asked for.
+        priority: i32,
+        /// The lowest.
+        low: i32,
+        /// The highest.
+        high: i32,
+    },
+    /// A CPU this machine does not have.
+    Cpu {
+        /// The CPU asked for.
+        cpu: usize,
+        /// CPUs of this machine.
+        cpus: usize,
+    },
+    /// A CPU wake-up latency outside what a cycle may hold.
+    CpuLatency {
+        /// The latency asked for, µs.
+        us: i64,
+        /// The longest allowed, µs.
+        max: u32,
+    },
+    /// A drive cycle time below the AKD's minimum.
+    CycleTimeBelowMinimum {
+        /// The cycle time, ns.
+        cycle_ns: u32,
+        /// The AKD's minimum, ns.
+        min_ns: u32,
+    },
+    /// A drive cycle time that 0x60C2 (units times a power of ten) cannot encode exactly.
+    CycleTimeNotEncodable {
+        /// The cycle time, ns.
+        cycle_ns: u32,
+    },
+    /// A SYNC0 shift of a whole cycle or more.
+    Sync0Shift {
+        /// The shift asked for, ns.
+        shift_ns: i64,
+        /// The cycle time, ns.
+        cycle_ns: u32,
+    },
+    /// A duration that is not a non-negative number of seconds.
+    Seconds {
+        /// The setting, e.g. "timeout".
+        what: &'static str,
+        /// The value given.
+        value: f64,
+    },
+    /// A virtual AKD's Init→PreOp time that is no number of ms in 0..=10000.
+    InitToPreOp {
+        /// The time asked for, ms.
+        ms: f64,
+    },
+    /// A virtual AKD's mailbox size outside what the simulator builds.
+    MailboxSize {
+        /// The size asked for.
+        size: u16,
+        /// The smallest.
+        min: u16,
+        /// The largest (the real drive's).
+        max: u16,
+    },
+    /// A latch channel the AKD does not have.
+    LatchChannel {
+        /// The channel asked for.
+        channel: u8,
+    },
+    /// A digital input the AKD does not have.
+    DigitalInput {
+        /// The input asked for, from 1.
+        input: usize,
+        /// Inputs the AKD has.
+        count: usize,
+    },
+    /// A digital input's toggle position that is not a finite number of counts.
+    TogglePosition {
+        /// The input, from 1.
+        input: usize,
+        /// The position given.
+        position: f64,
+    },
+    /// A switch of 0x60FD by a name CiA 402 does not give one.
+    Switch {
+        /// The name given.
+        name: String,
+    },
+    /// An analog voltage that is not a finite number within the range its 16-bit object holds.
+    AnalogVoltage {
+        /// What it is, e.g. "analog input".
+        what: &'static str,
+        /// The voltage given.
+        volts: f64,
+        /// The largest magnitude the object holds, V.
+        max: f64,
+    },
+    /// An SDO write with no data.
+    EmptySdoWrite {
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+    },
+    /// An SDO write through the cycle thread of more bytes than one mailbox message carries.
+    SdoWriteLength {
+        /// Slave position.
+        slave: u16,
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+        /// Bytes given.
+        len: usize,
+        /// The most allowed.
+        max: usize,
+    },
+    /// Outputs of another length than the slave's.
+    OutputsLength {
+        /// Slave position.
+        slave: u16,
+        /// The slave's output bytes.
+        expected: usize,
+        /// Bytes given.
+        given: usize,
+    },
+    /// A value of another length than its mapped entry's.
+    EntryLength {
+        /// Object index.
+        index: u16,
+        /// Subindex.
+        subindex: u8,
+        /// The entry's bytes.
+        expected: usize,
+        /// Bytes given.
+        given: usize,
+    },
+    /// A mapping given in a form that is neither a fixed index nor a list of PDOs.
+    MappingForm,
+    /// A process image larger than one frame carries.
+    ImageTooLarge {
+        /// Output and input bytes.
+        bytes: usize,
+        /// The most one frame carries beside the clock's datagrams.
+        limit: usize,
+    },
+    /// A process image and the supervision reads that together exceed one frame.
+    SupervisionTooLarge {
+        /// Output and input bytes.
+        image: usize,
+        /// Slaves supervised.
+        slaves: usize,
+        /// Bytes of the broadcast status reads.
+        watch: usize,
+    },
+    /// A host name that resolves to no address.
+    UnresolvedHost {
+        /// The host, as given.
+        host: String,
+        /// "bind" for a server, "connect" for a link.
+        role: &'static str,
+    },
+    /// A duration that is not a finite number of seconds in the setting's range.
+    Duration {
+        /// The setting, e.g. "command timeout".
+        what: &'static str,
+        /// The value given, s.
+        seconds: f64,
+        /// What the setting allows.
+        allowed: &'static str,
+    },
+    /// Set-point handshake bits outside those the AKD's profile position and homing take.
+    HandshakeBits {
+        /// The bits given.
+        bits: u16,
+    },
+    /// A virtual drive's position beyond any bus position (above 65535).
+    DrivePosition {
+        /// The position asked for.
+        position: usize,
+        /// Drives on the bus.
+        count: usize,
+    },
+    /// A burst of simulated line faults of a negative number of frames.
+    FrameCount {
+        /// The number asked for.
+        frames: i64,
+    },
+    /// An interface name with a NUL byte, which the OS cannot take.
+    InterfaceName {
+        /// The name.
+        name: String,
+    },
+    /// An address for EoE that is not in its form.
+    Address {
+        /// The field ("IP address", "MAC address", ...).
+        what: &'static str,
+        /// The text given.
+        value: String,
+        /// The form it must have.
+        form: &'static str,
+    },
+}
+
+impl fmt::Display for SettingError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SettingError::CyclePeriod { period_us } => write!(
+                f,
+                "cycle period {period_us} µs is outside the allowed range 250 µs ..= 10000 µs (the AKD's minimum to \
+                 10 ms)"
+            ),
+            SettingError::CyclePeriodSeconds { seconds } => {
+                write!(f, "cycle period {seconds} s is outside the allowed range 0.00025 ..= 0.01 s")
+            }
+            SettingError::Priority { priority, low, high } => {
+                write!(f, "SCHED_FIFO priority {priority} is outside {low}..={high}")
+            }
+            SettingError::CpuLatency { us, max } => {
+                write!(f, "CPU wake-up latency {us} µs is outside the allowed range 0..={max} µs")
+            }
+            SettingError::Cpu { cpu, cpus } => {
+                write!(f, "CPU {cpu} does not exist: this machine has CPUs 0..={}", cpus - 1)
+            }
+            SettingError::CycleTimeBelowMinimum { cycle_ns, min_ns } => {
+                write!(f, "cycle time {cycle_ns} ns is below the AKD's minimum of {min_ns} ns (4 kHz)")
+            }
+            SettingError::CycleTimeNotEncodable { cycle_ns } => write!(
+                f,
+                "cycle time {cycle_ns} ns has no exact encoding as units (0..=255) times a power of ten for 0x60C2"
+            ),
+            SettingError::Sync0Shift { shift_ns, cycle_ns } => {
+                let max = *cycle_ns as i64 - 1;
+                write!(
+                    f,
+                    "SYNC0 shift {shift_ns} ns is not within the {cycle_ns} ns cycle: allowed are -{max} to {max} ns"
+                )
+            }
+            SettingError::Seconds { what, value } => {
+                write!(f, "{what} must be a non-negative number of seconds, got {value}")
+            }
+            SettingError::InitToPreOp { ms } => {
+                write!(f, "a virtual AKD's Init->PreOp time of {ms} ms: allowed are 0 to 10000 ms")
+            }
+            SettingError::MailboxSize { size, min, max } => {
+                write!(f, "a virtual AKD's mailbox of {size} bytes: allowed are {min} to {max}")
+            }
+            SettingError::LatchChannel { channel } => write!(f, "latch channel {channel}: the AKD has latches 1 and 2"),
+            SettingError::DigitalInput { input, count } => {
+                write!(f, "digital input {input}: the AKD has inputs 1 to {count}")
+            }
+            SettingError::TogglePosition { input, position } => {
+                write!(f, "toggle position {position} of digital input {input} is not a finite number of counts")
+            }
+            SettingError::Switch { name } => {
+                let names: Vec<_> = crate::io::Switch::ALL.iter().map(|s| s.name()).collect();
+                write!(f, "switch {name:?} is not one of {}", names.join(", "))
+            }
+            SettingError::AnalogVoltage { what, volts, max } => {
+                write!(f, "{what} {volts} V: allowed a finite voltage within ±{max:.4} V")
+            }
+            SettingError::EmptySdoWrite { index, subindex } => {
+                write!(f, "SDO write of 0x{index:04X}:{subindex:02X} with no data")
+            }
+            SettingError::SdoWriteLength { slave, index, subindex, len, max } => write!(
+                f,
+                "SDO write of {len} bytes to 0x{index:04X}:{subindex:02X} of slave {slave}: 1 ..= {max} bytes while \
+                 cycling"
+            ),
+            SettingError::OutputsLength { slave, expected, given } => {
+                write!(f, "slave {slave} has {expected} bytes of outputs, {given} given")
+            }
+            SettingError::EntryLength { index, subindex, expected, given } => {
+                write!(f, "0x{index:04X}:{subindex:02X} takes {expected} bytes, {given} given")
+            }
+            SettingError::MappingForm => write!(
+                f,
+                "a mapping is a fixed mapping index (e.g. 0x1701) or a list of PDOs, each a list of entries 0xIIIISSBB"
+            ),
+            SettingError::ImageTooLarge { bytes, limit } => write!(
+                f,
+                "process image of {bytes} bytes (outputs and inputs of every drive) does not fit one frame ({limit} \
+                 bytes at most): map fewer objects per drive, e.g. a flexible mapping of what the mode needs"
+            ),
+            SettingError::SupervisionTooLarge { image, slaves, watch } => write!(
+                f,
+                "the process image ({image} bytes) leaves no room in one frame for the status reads of {slaves} \
+                 slaves ({watch} bytes)"
+            ),
+            SettingError::UnresolvedHost { host, role: "bind" } => {
+                write!(f, "cannot resolve {host:?} as a host to bind")
+            }
+            SettingError::UnresolvedHost { host, .. } => write!(f, "UDP address {host:?} resolves to nothing"),
+            SettingError::Duration { what, seconds, allowed } => write!(f, "{what} {seconds} s: allowed {allowed}"),
+            SettingError::HandshakeBits { bits } => write!(
+                f,
+                "set-point handshake bits 0x{bits:04X}: allowed are bit 4 (0x0010, new set-point or start homing) \
+                 with bit 5 (0x0020, change set immediately) and bit 6 (0x0040, relative), e.g. 0x0030 or 0x0010"
+            ),
+            SettingError::DrivePosition { position, count } => {
+                write!(f, "no slave at position {position}: the bus has {count} slave(s)")
+            }
+            SettingError::FrameCount { frames } => {
+                write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")
+            }
+            SettingError::InterfaceName { name } => write!(f, "interface name {name:?} contains a NUL byte"),
+            SettingError::BusyPollRealTime => f.write_str(
+                "a busy-polling simulator must run under the normal scheduler, not SCHED_FIFO or SCHED_RR: \
+                 the kernel stops a real-time thread that never sleeps for 50 ms of every second \
+                 (sched_rt_runtime_us), and it would take its CPU from every other thread meanwhile",
+            ),
+            SettingError::Address { what, value, form } => write!(f, "{what} {value:?} is not of the form {form}"),
+        }
+    }
+}
+
+impl std::error::Error for SettingError {}
