@@ -393,6 +393,7 @@ class Bus:
                 [a.position_limits_counts() for a in axes],
                 counted,
                 round(goal_time * 1e9),
+                names=list(joints),
             )
         except (_native.ConfigError, OverflowError) as e:
             # The crate's refusal says "trajectory refused, nothing moved: " and why.

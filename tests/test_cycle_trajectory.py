@@ -237,12 +237,17 @@ def unready(cycle):
     one = [[0.0]]
     with pytest.raises(_native.ConfigError, match=r"joint 0 \(drive 7\): no slave at position 7"):
         cycle.play_trajectory([7], [S], one)
-    with pytest.raises(_native.ConfigError, match="drive 1 is named for joints 0 and 1"):
+    with pytest.raises(_native.ConfigError, match="drive 1 is named for joint 0 and joint 1"):
         cycle.play_trajectory([1, 1], [S], [[0.0, 0.0]])
+    with pytest.raises(_native.ConfigError, match="drive 1 is named for wrist and elbow"):
+        cycle.play_trajectory([1, 1], [S], [[0.0, 0.0]], names=["wrist", "elbow"])
     cycle.disable(2)
     cycle.wait_state(2, "Switch on disabled")
     with pytest.raises(_native.ConfigError, match=r"joint 0 \(drive 2\): it is in Switch on disabled"):
         cycle.play_trajectory([2], [S], one)
+    # Named, as Bus.play_trajectory names them: what the user calls the joint.
+    with pytest.raises(_native.ConfigError, match=r"nothing moved: joint_3 \(drive 2\): it is in Switch on disabled"):
+        cycle.play_trajectory([2], [S], one, names=["joint_3"])
     with pytest.raises(_native.ConfigError, match="no trajectory 5: none was played"):
         cycle.trajectory_status(5)
 

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import itertools
 import math
+import re
 from pathlib import Path
 
 import pytest
@@ -255,3 +256,8 @@ def test_a_fault_mid_way_aborts_the_goal_naming_the_joint(run):
     status, result = client.result(handle)
     assert status == GoalStatus.STATUS_ABORTED, result
     assert "joint_4" in result.error_string and "left Operation enabled" in result.error_string, result.error_string
+    # A goal now (joint_4 in Fault, the others quick-stopped) is refused naming a joint as the goal does, by its name.
+    handle = client.send(goal_to(start, 1.0))
+    status, result = client.result(handle)
+    assert status == GoalStatus.STATUS_ABORTED and result.error_code == Result.INVALID_GOAL, result
+    assert re.search(r"nothing moved: joint_\d \(drive \d\): it is in ", result.error_string), result.error_string

@@ -403,8 +403,14 @@ pub enum TrajectoryError {
     },
 }
 
-impl fmt::Display for TrajectoryError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+impl TrajectoryError {
+    /// This error with each joint called as `names` calls it (its name), where it names one.
+    pub fn naming<'a>(&'a self, names: &'a [String]) -> impl fmt::Display + 'a {
+        Named { error: self, names }
+    }
+
+    /// Writes this error, each joint it names called `joint(index)`.
+    fn write(&self, f: &mut fmt::Formatter<'_>, joint: &dyn Fn(usize) -> String) -> fmt::Result {
         write!(f, "trajectory refused, nothing moved: ")?;
         match self {
             TrajectoryError::NoJoints => write!(f, "it names no joint; at least one is needed"),
@@ -421,8 +427,8 @@ impl fmt::Display for TrajectoryError {
             TrajectoryError::TolerancesCount { given, joints } => {
                 write!(f, "{given} joint tolerance(s) given; the trajectory has {joints} joint(s)")
             }
-            TrajectoryError::BadLimits { joint, min, max } => {
-                write!(f, "joint {joint}: limits {min} ..= {max} counts; they must be finite with min <= max")
+            TrajectoryError::BadLimits { joint: j, min, max } => {
+                write!(f, "{}: limits {min} ..= {max} counts; they must be finite with min <= max", joint(*j))
             }
             TrajectoryError::TimeNotIncreasing { point, time_ns, after_ns: 0 } => write!(
                 f,
@@ -433,24 +439,50 @@ impl fmt::Display for TrajectoryError {
                 "point {point}: time from the start {time_ns} ns is not after the previous point's {after_ns} ns; \
                  times must increase strictly"
             ),
-            TrajectoryError::NotFinite { point, joint, what, value } => {
-                write!(f, "point {point}, joint {joint}: {what} {value}; it must be a finite number")
+            TrajectoryError::NotFinite { point, joint: j, what, value } => {
+                write!(f, "point {point}, {}: {what} {value}; it must be a finite number", joint(*j))
             }
-            TrajectoryError::OutOfLimits { point, joint, position, min, max } => write!(
+            TrajectoryError::OutOfLimits { point, joint: j, position, min, max } => write!(
                 f,
-                "point {point}, joint {joint}: position {position} counts is outside the joint's limits \
-                 {min} ..= {max} counts"
+                "point {point}, {}: position {position} counts is outside the joint's limits {min} ..= {max} counts",
+                joint(*j)
             ),
-            TrajectoryError::AccelerationWithoutVelocity { point, joint } => write!(
+            TrajectoryError::AccelerationWithoutVelocity { point, joint: j } => write!(
                 f,
-                "point {point}, joint {joint}: an acceleration without a velocity; give both (quintic), the \
-                 velocity alone (cubic) or neither (linear)"
+                "point {point}, {}: an acceleration without a velocity; give both (quintic), the velocity alone \
+                 (cubic) or neither (linear)",
+                joint(*j)
             ),
             TrajectoryError::DriveTwice { slave, first, second } => {
-                write!(f, "drive {slave} is named for joints {first} and {second}; each drive may be one joint")
+                write!(
+                    f,
+                    "drive {slave} is named for {} and {}; each drive may be one joint",
+                    joint(*first),
+                    joint(*second)
+                )
             }
-            TrajectoryError::DriveNotReady { joint, slave, why } => write!(f, "joint {joint} (drive {slave}): {why}"),
+            TrajectoryError::DriveNotReady { joint: j, slave, why } => {
+                write!(f, "{} (drive {slave}): {why}", joint(*j))
+            }
         }
+    }
+}
+
+impl fmt::Display for TrajectoryError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.write(f, &|j| format!("joint {j}"))
+    }
+}
+
+/// A [`TrajectoryError`] naming its joints (see [`TrajectoryError::naming`]).
+struct Named<'a> {
+    error: &'a TrajectoryError,
+    names: &'a [String],
+}
+
+impl fmt::Display for Named<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        self.error.write(f, &|j| self.names.get(j).cloned().unwrap_or_else(|| format!("joint {j}")))
     }
 }
 

@@ -821,8 +821,11 @@ impl PyCycle {
     /// counts/s² (inf: not judged; for the deceleration: stop at once), with `goal_time_ns`:
     /// it ends "path_tolerance_violated" (after braking to a standstill) or
     /// "goal_tolerance_violated" where a drive strays, and `stop_trajectory` brakes it.
+    /// `names`, one per joint, name them in a refusal (else their numbers in the lists do).
     /// Returns its id.
-    #[pyo3(signature = (positions, times_ns, points, start_ns = None, limits = None, tolerances = None, goal_time_ns = 0))]
+    #[pyo3(signature = (
+        positions, times_ns, points, start_ns = None, limits = None, tolerances = None, goal_time_ns = 0, names = None
+    ))]
     #[allow(clippy::too_many_arguments)]
     fn play_trajectory(
         &self,
@@ -834,9 +837,11 @@ impl PyCycle {
         limits: Option<Vec<(f64, f64)>>,
         tolerances: Option<Vec<super::trajectory::PyTolerance>>,
         goal_time_ns: u64,
+        names: Option<Vec<String>>,
     ) -> PyResult<u32> {
         let tolerances = tolerances.map(|t| super::trajectory::tolerances(t, goal_time_ns));
-        super::trajectory::play(py, &self.cycle, positions, times_ns, points, start_ns, limits, tolerances)
+        let played = super::trajectory::Played { positions, times_ns, points, start_ns, limits, tolerances };
+        super::trajectory::play(py, &self.cycle, played, names.as_deref())
     }
 
     /// Brings trajectory `id` to a standstill in the cycle thread at its joints' stop

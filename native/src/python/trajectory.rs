@@ -4,11 +4,12 @@
 
 use pyo3::prelude::*;
 
-use super::{IntoPyResult, Merged};
+use super::{ConfigError, IntoPyResult, Merged};
 use crate::cycle::events::TrajectoryState;
 use crate::cycle::trajectory_player::{Tolerance, Tolerances, TrajectoryStatus};
 use crate::cycle::CycleThread;
 use crate::ds402::State;
+use crate::error::Error;
 use crate::trajectory::{Knot, Limits};
 
 /// One joint at one point as Python gives it: a position, or (position, velocity or None,
@@ -51,22 +52,28 @@ pub(super) fn tolerances(joints: Vec<PyTolerance>, goal_time_ns: u64) -> Toleran
 
 /// Validates and hands over a trajectory, the GIL released while the cycle thread takes it.
 #[allow(clippy::too_many_arguments)]
-pub(super) fn play(
-    py: Python<'_>,
-    cycle: &CycleThread,
-    positions: Vec<u16>,
-    times_ns: Vec<u64>,
-    points: Vec<Vec<PyKnot>>,
-    start_ns: Option<u64>,
-    limits: Option<Vec<(f64, f64)>>,
-    tolerances: Option<Tolerances>,
-) -> PyResult<u32> {
+/// A trajectory as `Cycle.play_trajectory` takes it (see there).
+pub(super) struct Played {
+    pub positions: Vec<u16>,
+    pub times_ns: Vec<u64>,
+    pub points: Vec<Vec<PyKnot>>,
+    pub start_ns: Option<u64>,
+    pub limits: Option<Vec<(f64, f64)>>,
+    pub tolerances: Option<Tolerances>,
+}
+
+/// Plays `played`; a refusal names the joints as `names` does, where given.
+pub(super) fn play(py: Python<'_>, cycle: &CycleThread, played: Played, names: Option<&[String]>) -> PyResult<u32> {
+    let Played { positions, times_ns, points, start_ns, limits, tolerances } = played;
     let points: Vec<Vec<Knot>> = points.iter().map(|p| p.iter().map(Knot::from).collect()).collect();
     let limits: Option<Vec<Limits>> = limits.map(|l| l.into_iter().map(|(min, max)| Limits { min, max }).collect());
-    py.allow_threads(|| {
+    let played = py.allow_threads(|| {
         cycle.follow_trajectory(&positions, &times_ns, &points, limits.as_deref(), start_ns, tolerances)
-    })
-    .py()
+    });
+    match (played, names) {
+        (Err(Error::Trajectory(e)), Some(names)) => Err(ConfigError::new_err(e.naming(names).to_string())),
+        (played, _) => played.py(),
+    }
 }
 
 /// Adds what `state` says to `d`: "state", and "replaced_by", "slave", "statusword",
