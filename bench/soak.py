@@ -28,11 +28,15 @@ is the machine's.
 What is checked, for every segment (one Cycle's life):
 - the cycle's per-cycle records (drive 0's, `Cycle.samples`, none dropped) number one per cycle, consecutive:
   records == cycles;
-- every cycle is either fresh (exchanged, working counter right) or stale, and every stale cycle is counted:
-  stale cycles with working counter 0 <= lost_frames + other_errors, stale cycles with one >= 1 <= wkc_errors, and
-  no cyclic count beyond the stale cycles: lost_frames + wkc_errors + other_errors <= stale; the mailbox frames
-  (SDO, error code) beside the cycle are counted apart: acyclic_lost_frames + acyclic_wkc_errors <= the master's
-  frames - its cyclic exchanges;
+- every cycle is either fresh (exchanged, working counter right) or stale, and every stale cycle is counted as the
+  master counts it, by what its record says (`lost`; its working counter alone does not tell, a reply no slave took
+  has 0 as a lost frame has): lost cycles (a frame of the cycle did not come back, or its return could not be read)
+  == lost_frames + other_errors, one count each; the others, with a wrong working counter (0 included),
+  <= wkc_errors, which counts frames: beyond the stale cycles only those of a cycle's second frame (`watch_frames`,
+  every slave's AL and mailbox status read apart after the broadcast reads saw a change) in which a slave did not
+  answer, in a stale cycle or a fresh one: wkc_errors - stale cycles with a wrong working counter <= watch_frames;
+  the mailbox frames (SDO, error code) beside the cycle are counted apart: acyclic_lost_frames + acyclic_wkc_errors
+  <= the master's frames - its cyclic exchanges;
 - the master's own counters (`Master.stats`, before and after) moved as the cycle's: one cyclic exchange per cycle,
   its lost frames and wrong working counters those of the cyclic frame and the frames beside it together;
 and at the end, over the whole run, the virtual AKDs' own count (`Simulator.line_counts`) against the master's:
@@ -138,8 +142,8 @@ class Segment:
 
     def drain(self) -> None:
         columns = self.cycle.samples()
-        for slave, cycle, fresh, wkc in zip(
-            columns["slave"], columns["cycle"], columns["fresh"], columns["wkc"], strict=True
+        for slave, cycle, fresh, lost in zip(
+            columns["slave"], columns["cycle"], columns["fresh"], columns["lost"], strict=True
         ):
             if slave != 0:
                 continue
@@ -148,7 +152,7 @@ class Segment:
             self.last_record = cycle
             if fresh:
                 self.fresh += 1
-            elif wkc == 0:
+            elif lost:
                 self.stale_lost += 1
             else:
                 self.stale_wkc += 1
@@ -159,7 +163,9 @@ class Segment:
     def check(self, master_after: dict) -> list[str]:
         """What does not add up in this finished segment, one sentence each."""
         s = self.cycle.stats()
-        cycles, lost, wkc, other = s["cycles"], s["lost_frames"], s["wkc_errors"], s["other_errors"]
+        cycles, lost, wkc, other, watch = (
+            s[k] for k in ("cycles", "lost_frames", "wkc_errors", "other_errors", "watch_frames")
+        )
         acyclic = (s["acyclic_lost_frames"], s["acyclic_wkc_errors"])
         before, after = self.master_before, master_after
         stale = self.stale_lost + self.stale_wkc
@@ -171,16 +177,17 @@ class Segment:
             problems.append(f"{self.records} records of drive 0 ({self.gaps} gaps) for {cycles} cycles")
         if self.fresh + stale != self.records:
             problems.append(f"fresh {self.fresh} + stale {stale} != records {self.records}")
-        if self.stale_lost > lost + other:
-            problems.append(f"{self.stale_lost} stale cycles without reply > lost {lost} + other errors {other}")
+        if self.stale_lost != lost + other:
+            problems.append(f"{self.stale_lost} cycles lost != lost_frames {lost} + other_errors {other}")
         if self.stale_wkc > wkc:
             problems.append(f"{self.stale_wkc} stale cycles with a wrong working counter > wkc_errors {wkc}")
+        if wkc - self.stale_wkc > watch:
+            problems.append(
+                f"wkc_errors {wkc} - {self.stale_wkc} stale cycles with a wrong working counter > {watch} second "
+                "frames: wrong working counters no frame of the cycle explains"
+            )
         if sum(acyclic) > acyclic_frames:
             problems.append(f"{sum(acyclic)} lost or wrong frames beside the cycle > {acyclic_frames} sent")
-        if lost + wkc + other - stale > 0:
-            problems.append(
-                f"lost {lost} + wkc {wkc} + other {other} > stale {stale}: errors in cycles that were fresh"
-            )
         if after["cycles"] - before["cycles"] != cycles:
             problems.append(f"the master exchanged {after['cycles'] - before['cycles']} times in {cycles} cycles")
         if (after["lost_frames"] - before["lost_frames"], after["wkc_errors"] - before["wkc_errors"]) != (
@@ -198,7 +205,15 @@ class Soak:
         self.master = _native.Master(f"sim:{COUNT}")
         self.simulator = self.master.simulator
         self.segment: Segment | None = None
-        self.done = {"cycles": 0, "lost_frames": 0, "wkc_errors": 0, "other_errors": 0, "overruns": 0}
+        self.done = {
+            "cycles": 0,
+            "lost_frames": 0,
+            "wkc_errors": 0,
+            "other_errors": 0,
+            "watch_frames": 0,
+            "overruns": 0,
+            "f125_stalls": 0,
+        }
         self.totals = {"fresh": 0, "stale_lost": 0, "stale_wkc": 0, "segments": 0}
         self.events: dict[str, int] = {}
         self.injected: dict[str, int] = {}
@@ -539,9 +554,10 @@ class Soak:
         t = self.totals
         print(
             f"soak: {self.done['cycles']} cycles in {time.monotonic() - self.t0:.0f} s over {t['segments']} segments: "
-            f"fresh {t['fresh']}, stale without reply {t['stale_lost']}, stale with a wrong working counter "
-            f"{t['stale_wkc']}; cycle counters lost {self.done['lost_frames']}, wkc {self.done['wkc_errors']}, "
-            f"other {self.done['other_errors']}, overruns {self.done['overruns']}",
+            f"fresh {t['fresh']}, stale lost {t['stale_lost']}, stale with a wrong working counter {t['stale_wkc']}; "
+            f"cycle counters lost {self.done['lost_frames']}, wkc {self.done['wkc_errors']}, "
+            f"other {self.done['other_errors']}, second frames {self.done['watch_frames']}, "
+            f"overruns {self.done['overruns']}, would-be F125 {self.done['f125_stalls']}",
             flush=True,
         )
         print(

@@ -17,6 +17,7 @@ use akd_native::error::Result;
 use akd_native::frame::{Command, FrameBuilder};
 use akd_native::link::Link;
 use akd_native::registers::AL_CONTROL;
+use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
 
 #[path = "support/csp.rs"]
@@ -66,12 +67,15 @@ struct Rig {
     drop: Arc<AtomicU32>,
     drop_mailbox: Arc<AtomicU32>,
     to_safeop: Arc<AtomicU32>,
+    control: SimControl,
 }
 
 fn rig(pipelined: bool) -> Rig {
     let (drop, drop_mailbox, to_safeop) = Default::default();
+    let inner = InProcess::new(1);
+    let control = inner.control();
     let link = Lossy {
-        inner: InProcess::new(1),
+        inner,
         drop: Arc::clone(&drop),
         drop_mailbox: Arc::clone(&drop_mailbox),
         to_safeop: Arc::clone(&to_safeop),
@@ -79,7 +83,7 @@ fn rig(pipelined: bool) -> Rig {
     let config =
         Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
     let cycle = CycleThread::start(csp_master(Box::new(link)), config).map_err(|e| e.0).unwrap();
-    Rig { cycle, drop, drop_mailbox, to_safeop }
+    Rig { cycle, drop, drop_mailbox, to_safeop, control }
 }
 
 fn enable(cycle: &CycleThread) {
@@ -199,6 +203,38 @@ fn a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame(pipelined: boo
     assert_eq!(stats.acyclic_lost_frames.load(Ordering::Relaxed), 1);
 }
 
+fn a_stale_cycle_records_whether_its_frame_was_lost_or_came_back_with_a_wrong_working_counter(pipelined: bool) {
+    let Rig { cycle, drop, control, .. } = rig(pipelined);
+    let stats = cycle.stats();
+    let wait_for = |what: &str, counter: &std::sync::atomic::AtomicU64| {
+        let deadline = Instant::now() + Duration::from_secs(10);
+        while counter.load(Ordering::Relaxed) == 0 {
+            assert!(Instant::now() < deadline, "{what} not counted");
+            std::thread::sleep(Duration::from_millis(1));
+        }
+    };
+    drop.store(1, Ordering::Release);
+    wait_for("the lost frame", &stats.lost_frames);
+    // The only drive power-cycled has lost its FMMUs: the frame comes back, no slave took its
+    // LRW, working counter 0, as a lost frame's record has it.
+    control.power_cycle(0).unwrap();
+    wait_for("the wrong working counter", &stats.wkc_errors);
+    cycle.stop().unwrap();
+    let samples = cycle.samples();
+    assert_eq!(cycle.samples_dropped(), 0);
+    let lost = samples.iter().filter(|s| s.lost).count() as u64;
+    let wrong_wkc = samples.iter().filter(|s| !s.fresh && !s.lost).count() as u64;
+    assert!(samples.iter().all(|s| !(s.fresh && s.lost)));
+    assert!(samples.iter().any(|s| !s.fresh && !s.lost && s.wkc == 0), "no wrong working counter of 0 recorded");
+    let counted = |c: &std::sync::atomic::AtomicU64| c.load(Ordering::Relaxed);
+    // One slave: its AL and mailbox status are read in the cyclic frame, never in a second one.
+    assert_eq!(counted(&stats.watch_frames), 0);
+    assert_eq!(
+        (lost, wrong_wkc),
+        (counted(&stats.lost_frames) + counted(&stats.other_errors), counted(&stats.wkc_errors))
+    );
+}
+
 /// Every test twice: with the cycle waiting for each frame's return, and pipelined (the return
 /// taken at the next wake-up).
 macro_rules! both_ways {
@@ -223,5 +259,6 @@ both_ways!(
     f125_after_the_eighth_lost_frame_is_reported_with_its_code_and_the_drive_disabled,
     a_drive_leaving_op_is_reported_with_its_al_status_and_disabled,
     sdo_beside_the_cycle_reads_writes_and_names_aborts,
-    a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame
+    a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame,
+    a_stale_cycle_records_whether_its_frame_was_lost_or_came_back_with_a_wrong_working_counter
 );

@@ -1220,7 +1220,7 @@ impl Loop<'_> {
         if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
             let timing = (sent.period_ns.min(u32::MAX as u64) as u32, exchange_ns.min(u32::MAX as u64) as u32);
             for d in self.drives.iter() {
-                shared.samples.push(&sample(d, inputs, outputs, now, timing, (wkc, result.is_ok())));
+                shared.samples.push(&sample(d, inputs, outputs, now, timing, (wkc, exchange)));
             }
         }
         CycleStats::add(&stats.cycles, 1);
@@ -1271,7 +1271,7 @@ fn sample(
     outputs: &[u8],
     (cycle, time_ns): (u64, u64),
     (period_ns, exchange_ns): (u32, u32),
-    (wkc, fresh): (u16, bool),
+    (wkc, exchange): (u16, Exchange),
 ) -> Sample {
     let o = d.drive.offsets;
     let mode = o.mode_display.map_or(0, |a| inputs[a] as i8);
@@ -1286,7 +1286,8 @@ fn sample(
         period_ns,
         exchange_ns,
         wkc,
-        fresh,
+        fresh: exchange == Exchange::Good,
+        lost: exchange == Exchange::Lost,
         statusword: image::u16_at(inputs, o.statusword),
         mode,
         position: i32_in(o.actual),

@@ -88,6 +88,7 @@ mod tests {
             exchange_ns: 40_000,
             wkc: 3,
             fresh: true,
+            lost: false,
             statusword: 0x1237,
             mode: mode as i8,
             position: 100,

@@ -25,6 +25,11 @@ pub struct Sample {
     pub wkc: u16,
     /// Whether this cycle's exchange succeeded (else the actual values are the last good ones).
     pub fresh: bool,
+    /// Whether this cycle's exchange was lost: a frame of it did not come back (counted in
+    /// `lost_frames`) or its return could not be read (`other_errors`). A cycle neither fresh nor
+    /// lost came back with a wrong working counter (`wkc_errors`), which may be 0 too: the
+    /// working counter alone does not tell a lost frame from one no slave took.
+    pub lost: bool,
     /// The statusword.
     pub statusword: u16,
     /// Modes of operation display 0x6061 (0 where not mapped).
@@ -56,7 +61,8 @@ impl Sample {
                 | (self.wkc as u64) << 16
                 | (self.mode as u8 as u64) << 32
                 | (self.slave as u64) << 40
-                | (self.fresh as u64) << 56,
+                | (self.fresh as u64) << 56
+                | (self.lost as u64) << 57,
             lo_hi(self.position as u32, self.velocity as u32),
             lo_hi(self.torque as u16 as u32, self.following_error as u32),
             lo_hi(self.target_position as u32, self.target_velocity as u32),
@@ -75,6 +81,7 @@ impl Sample {
             mode: (w[3] >> 32) as u8 as i8,
             slave: (w[3] >> 40) as u16,
             fresh: (w[3] >> 56) & 1 == 1,
+            lost: (w[3] >> 57) & 1 == 1,
             position: w[4] as u32 as i32,
             velocity: (w[4] >> 32) as u32 as i32,
             torque: w[5] as u16 as i16,
@@ -128,6 +135,7 @@ mod tests {
             exchange_ns: 4567,
             wkc: 3,
             fresh: true,
+            lost: true,
             statusword: 0x1637,
             mode: -1,
             position: -5,

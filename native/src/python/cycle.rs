@@ -61,6 +61,7 @@ sample_columns!(
     exchange_ns,
     wkc,
     fresh,
+    lost,
     statusword,
     mode,
     position,
@@ -527,7 +528,8 @@ impl PyCycle {
 
     /// One record per cycle and sequenced drive since the last call, oldest first, as columns:
     /// a dict of equal-length lists "cycle", "time_ns", "slave", "period_ns", "exchange_ns",
-    /// "wkc", "fresh", "statusword", "mode", "position", "velocity", "torque",
+    /// "wkc", "fresh", "lost" (stale because a frame did not come back or its return could not be
+    /// read, not for a wrong working counter), "statusword", "mode", "position", "velocity", "torque",
     /// "following_error", "target_position", "target_velocity", "target_torque" (drive units:
     /// counts, counts/s, 0.1 % of peak torque; 0 for objects the mapping lacks). The ring holds
     /// 8192 records; take them at least that often (`samples_dropped` counts the rest).
