@@ -32,7 +32,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import yaml
 from figures import Figures, json_argument, real_time
-from node_ros import TICK, cpu_ticks, cycle_thread_ticks
+from node_ros import TICK, cpu_ticks, thread_ticks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -126,9 +126,9 @@ def run(io_rate: float | None, domain: int, args) -> dict:
                 flipper.start()
             client.spin_for(1.0)  # past the enable's transients
             pid = node.process.pid
-            before = (cpu_ticks(Path(f"/proc/{pid}/stat")), cycle_thread_ticks(pid), client.io, time.monotonic())
+            before = (cpu_ticks(Path(f"/proc/{pid}/stat")), thread_ticks(pid)["cycle"], client.io, time.monotonic())
             client.spin_for(args.window)
-            after = (cpu_ticks(Path(f"/proc/{pid}/stat")), cycle_thread_ticks(pid), client.io, time.monotonic())
+            after = (cpu_ticks(Path(f"/proc/{pid}/stat")), thread_ticks(pid)["cycle"], client.io, time.monotonic())
             node_ticks, cycle_ticks, io, elapsed = (b - a for a, b in zip(before, after, strict=True))
             return {
                 "case": case_name(io_rate),

@@ -133,7 +133,7 @@ def joints_of(count: int) -> list[str]:
 def params(port: int | str, count: int, args, record: Path | None, changes: dict) -> str:
     """config/akd_sim_6axis.yaml's first `count` joints (more joints like its first) on udp://127.0.0.1:`port` (or on
     the link `port` names), at the run's cycle time and /joint_states rate, the cycle thread at args.priority and
-    args.rt_cpu_latency_us, recording to `record` if given, and `changes`."""
+    args.rt_cpu_latency_us, recording to `record` if given, and `changes` (None: the parameter left out)."""
     document = yaml.safe_load(CONFIG.read_text())
     values = document["akd_node"]["ros__parameters"]
     kept = joints_of(count)
@@ -152,7 +152,8 @@ def params(port: int | str, count: int, args, record: Path | None, changes: dict
     values["rt.cpu_latency_us"] = args.rt_cpu_latency_us
     if record:
         values |= {"record.enabled": True, "record.folder": str(record), "record.decimation": 1}
-    return yaml.safe_dump(document | {"akd_node": {"ros__parameters": values | changes}})
+    values = {key: value for key, value in (values | changes).items() if value is not None}
+    return yaml.safe_dump(document | {"akd_node": {"ros__parameters": values}})
 
 
 def cpu_ticks(stat: Path) -> int:
@@ -766,8 +767,9 @@ def inside_many(spec: dict, args) -> int:
     count, folder = spec["count"], Path(spec["folder"])
     with ros_environment(MANY_DOMAINS) as domain:
         path = folder / PARAMS
-        # The file's sixth joint arms a latch, which this mapping does not carry.
+        # The file's sixth joint arms a latch and names an input and an output, which this mapping does not carry.
         changes = {"transport": "rclpy", **MANY_MAPPING, "joints.joint_6.latch.arm": []}
+        changes |= {"joints.joint_6.io.inputs.gripper_closed": None, "joints.joint_6.io.outputs.gripper_open": None}
         changes["rt.pipelined"] = spec["pipelined"]
         path.write_text(params(spec["iface"], count, args, None, changes))
         node = NodeProcess(path, domain=domain)

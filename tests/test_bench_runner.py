@@ -5,6 +5,7 @@ section is said skipped, and the exit status is 1 whenever a figure could not be
 from __future__ import annotations
 
 import importlib.util
+import subprocess
 import sys
 from pathlib import Path
 
@@ -105,3 +106,11 @@ def test_an_unknown_section_to_skip_is_refused_naming_the_sections(suite, capsys
         suite({"fake": (["fake.py"], 60)}, "--skip", "nope")
     assert exit_.value.code == 2
     assert "no section nope; the sections: fake" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("script", sorted({argv[0] for argv, _ in runner.SECTIONS.values()}))
+def test_every_sections_script_starts(script):
+    """Each script run.py runs imports and parses its options (--help): a script broken by a change elsewhere (a name
+    it imports from another bench script, say) fails here, not an hour into a benchmark run."""
+    done = subprocess.run([sys.executable, str(BENCH / script), "--help"], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 0, done.stderr[-2000:]
