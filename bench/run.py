@@ -22,8 +22,9 @@ Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs
                 without missed=warn and rt.priority: trajectories done, would-be F125, worst stall (host_noise.py,
                 2 minutes per variant; --minutes 8 for a full run)
 
---skip leaves sections out (RESULTS.md says skipped); --render writes RESULTS.md and results.png again from the
-JSON files of the last run, running nothing. Exit status: 0 when every section that ran measured every figure,
+--skip leaves sections out (RESULTS.md says skipped); --again runs the sections it names again and keeps the last
+run's others (RESULTS.md says which, and when each section ended); --render writes RESULTS.md and results.png again
+from the JSON files of the last run, running nothing. Exit status: 0 when every section that ran measured every figure,
 1 when any could not be measured (a script missing, failing, timing out, or saying so), 2 on a bad option.
 """
 
@@ -99,7 +100,8 @@ def run_section(name: str) -> dict:
                 process.wait()
             code = None
     seconds = round(time.monotonic() - started, 1)
-    record = {"command": shown, "exit": code, "wall_seconds": seconds}
+    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    record = {"command": shown, "exit": code, "wall_seconds": seconds, "ended": date}
     if out.exists():
         record |= json.loads(out.read_text())
         out.unlink()  # kept in results/run.json with the run's other sections
@@ -154,8 +156,15 @@ def render(records: dict, total: dict) -> str:
         "| section | status | ran | command |",
         "|---|---|---|---|",
     ]
+    if total.get("again"):
+        lines[2:2] = [
+            f"Run again on their own ({total['again']['date']}, `{total['again']['command']}`), the other sections"
+            f" kept from the run above: {', '.join(total['again']['sections'])}.",
+            "",
+        ]
     for name, record in records.items():
         ran = f"{record['wall_seconds']} s" if "wall_seconds" in record else ""
+        ran += f", ended {record['ended']}" if "ended" in record else ""
         status = record["status"] + (f": {record['why']}" if "why" in record else "")
         lines.append(f"| {name} | {status} | {ran} | `{record.get('command', '')}` |")
     for name, record in records.items():
@@ -224,18 +233,30 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--skip", action="append", default=[], help=f"sections to leave out, of {', '.join(SECTIONS)}")
     parser.add_argument("--render", action="store_true", help="only render RESULTS.md and results.png again")
+    parser.add_argument(
+        "--again", action="append", default=[], help="sections to run again, keeping the last run's others"
+    )
     args = parser.parse_args()
     skipped = {s for value in args.skip for s in value.split(",") if s}
-    if unknown := skipped - set(SECTIONS):
-        parser.error(f"--skip: no section {', '.join(sorted(unknown))}; the sections: {', '.join(SECTIONS)}")
+    again = [s for value in args.again for s in value.split(",") if s]
+    for option, names in (("--skip", skipped), ("--again", set(again))):
+        if unknown := names - set(SECTIONS):
+            parser.error(f"{option}: no section {', '.join(sorted(unknown))}; the sections: {', '.join(SECTIONS)}")
     RESULTS.mkdir(exist_ok=True)
     summary_path = RESULTS / "run.json"
-    if args.render:
-        if not summary_path.exists():
-            print(f"run.py: nothing to render: {summary_path.relative_to(ROOT)} missing (run the suite first)")
-            return 1
+    if (args.render or again) and not summary_path.exists():
+        print(f"run.py: nothing to keep: {summary_path.relative_to(ROOT)} missing (run the suite first)")
+        return 1
+    if args.render or again:
         summary = json.loads(summary_path.read_text())
         records = summary.pop("records")
+        if again:
+            date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+            for name in again:
+                records[name] = run_section(name)
+            command = shlex.join([".venv/bin/python", "bench/run.py", *(f"--again={s}" for s in again)])
+            summary["again"] = {"date": date, "command": command, "sections": again}
+            summary_path.write_text(json.dumps(summary | {"records": records}, indent=1))
     else:
         started, at_start = time.monotonic(), machine()
         date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")

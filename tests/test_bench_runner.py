@@ -101,6 +101,18 @@ def test_render_writes_the_last_run_again_without_running(suite):
     assert code == 0 and "| first | 1.25 |" in text
 
 
+def test_again_runs_the_sections_named_and_keeps_the_last_runs_others(suite):
+    sections = {"fake": (["fake.py"], 60), "other": (["crashes.py"], 60)}
+    code, _ = suite(sections)
+    assert code == 1
+    (suite.folder / "crashes.py").write_text(SCRIPT)
+    (suite.folder / "fake.py").unlink()  # kept from the first run, never run again
+    code, text = suite(sections, "--again", "other")
+    assert code == 0, text
+    assert "| fake | measured |" in text and "| other | measured |" in text
+    assert "Run again on their own" in text and "kept from the run above: other" in text
+
+
 def test_an_unknown_section_to_skip_is_refused_naming_the_sections(suite, capsys):
     with pytest.raises(SystemExit) as exit_:
         suite({"fake": (["fake.py"], 60)}, "--skip", "nope")
