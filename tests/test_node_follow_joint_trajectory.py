@@ -12,7 +12,6 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from pathlib import Path
 
 import pytest
 from action_msgs.msg import GoalStatus
@@ -23,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 from akd_ros.srv import SdoWrite
 from control_msgs.action import FollowJointTrajectory
 from control_msgs.msg import JointTolerance
-from support.ros import NodeProcess, Participant, Sim, ros_environment, stop
+from support.ros import Participant, Sim, node_on_sim, ros_environment
 
 DOMAINS = range(211, 221)
 NODE = "/akd_node/"
@@ -77,28 +76,18 @@ class Mover(Participant):
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    from support.netns import free_udp_port
-
+    params = PARAMS.format(port="{port}", deceleration=STOP_DECELERATION, goal=GOAL_TOLERANCE, joints=", ".join(JOINTS))
+    folder = tmp_path_factory.mktemp("follow")
     with ros_environment(DOMAINS) as domain:
-        folder: Path = tmp_path_factory.mktemp("follow")
-        sim = Sim(free_udp_port(), count=len(JOINTS))
-        params = folder / "akd_node.yaml"
-        params.write_text(
-            PARAMS.format(port=sim.port, deceleration=STOP_DECELERATION, goal=GOAL_TOLERANCE, joints=", ".join(JOINTS))
-        )
-        node = NodeProcess(params, domain)
-        client = Mover(domain)
-        try:
-            client.spin_until(lambda: client.client.server_is_ready() or node.process.poll() is not None, "server")
-            assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
+        ready = lambda client: client.client.server_is_ready()  # noqa: E731
+        with node_on_sim(params, folder, domain, count=len(JOINTS), client_of=Mover, ready=ready) as (
+            sim,
+            node,
+            client,
+        ):
             client.trigger("enable")
             client.spin_until(lambda: all(s["state"] == "Operation enabled" for s in states(sim)), "enabled")
             yield sim, node, client
-        finally:
-            client.close()
-            stop(node.process)
-            sim.stop()
-            print(f"akd_node output:\n{node.output()}")
 
 
 @pytest.fixture(autouse=True)

@@ -10,7 +10,6 @@ ended.
 from __future__ import annotations
 
 import math
-from pathlib import Path
 
 import pytest
 from action_msgs.msg import GoalStatus
@@ -20,7 +19,7 @@ from std_msgs.msg import Float64
 
 from akd_ros.action import Home
 from akd_ros.msg import DriveStatus
-from support.ros import NodeProcess, Participant, Sim, ros_environment, stop
+from support.ros import Participant, Sim, node_on_sim, ros_environment
 
 DOMAINS = range(221, 231)
 NODE = "/akd_node/"
@@ -80,27 +79,17 @@ class Homer(Participant):
 
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
-    from support.netns import free_udp_port
-
+    params = PARAMS.format(port="{port}", timeout=HOMING_TIMEOUT, joints=", ".join(JOINTS))
+    folder = tmp_path_factory.mktemp("homing")
     with ros_environment(DOMAINS) as domain:
-        folder: Path = tmp_path_factory.mktemp("homing")
-        sim = Sim(free_udp_port(), count=len(JOINTS))
-        params = folder / "akd_node.yaml"
-        params.write_text(PARAMS.format(port=sim.port, timeout=HOMING_TIMEOUT, joints=", ".join(JOINTS)))
-        node = NodeProcess(params, domain)
-        client = Homer(domain)
-        try:
-            client.spin_until(
-                lambda: client.received[f"{NODE}joint_1/status"] or node.process.poll() is not None, "status"
-            )
-            assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
+        ready = f"{NODE}joint_1/status"
+        with node_on_sim(params, folder, domain, count=len(JOINTS), client_of=Homer, ready=ready) as (
+            sim,
+            node,
+            client,
+        ):
             client.trigger("enable")
             yield sim, node, client
-        finally:
-            client.close()
-            stop(node.process)
-            sim.stop()
-            print(f"akd_node output:\n{node.output()}")
 
 
 def counts(sim: Sim) -> list[float]:

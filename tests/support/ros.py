@@ -319,11 +319,11 @@ def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
 
 @contextmanager
 def node_on_sim(
-    params: str, folder: Path, domain: int, *, count: int = 1, client_of=None, ready: str = "/joint_states"
+    params: str, folder: Path, domain: int, *, count: int = 1, client_of=None, ready="/joint_states"
 ) -> Iterator[tuple[Sim, NodeProcess, Participant]]:
     """A fresh simulator of `count` drives, akd_node on it with `params` (a template whose {port} is the simulator's)
-    on `domain`, and a client there (`client_of(domain)`, a `Client` by default) once topic `ready` arrives; all ended
-    afterwards, the node's output printed."""
+    on `domain`, and a client there (`client_of(domain)`, a `Client` by default) once topic `ready` arrives (or, a
+    callable, once `ready(client)` is true); all ended afterwards, the node's output printed."""
     sim = Sim(free_udp_port(), count=count)
     path = folder / "akd_node.yaml"
     path.write_text(params.format(port=sim.port))
@@ -331,7 +331,8 @@ def node_on_sim(
     client = None
     try:
         client = (client_of or Client)(domain)
-        client.spin_until(lambda: client.received[ready] or node.process.poll() is not None, ready)
+        arrived = ready if callable(ready) else lambda c: c.received[ready]
+        client.spin_until(lambda: arrived(client) or node.process.poll() is not None, str(ready))
         assert node.process.poll() is None, f"akd_node exited:\n{node.output()}"
         yield sim, node, client
     finally:
