@@ -259,7 +259,10 @@ fn a_refused_trajectory_moves_nothing() {
                 "point 2, joint 1: velocity NaN",
             ),
             (cycle.play_trajectory(&DRIVES[..2], &times, &points, None, None), "point 0 gives 3 joint value(s)"),
-            (cycle.play_trajectory(&[0, 1, 1], &times, &points, None, None), "drive 1 is named for joints 1 and 2"),
+            (
+                cycle.play_trajectory(&[0, 1, 1], &times, &points, None, None),
+                "drive 1 is named for joint 1 and joint 2",
+            ),
             (cycle.play_trajectory(&[0, 1, 7], &times, &points, None, None), "joint 2 (drive 7)"),
         ];
         for (refused, why) in refusals {
