@@ -74,6 +74,11 @@ TITLES = {
 }
 
 
+def utc_now() -> str:
+    """Now, as RESULTS.md dates a run and a section."""
+    return datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+
+
 def run_section(name: str) -> dict:
     """Runs section `name`'s script; gives its JSON, or a record of why there is none."""
     argv, limit = SECTIONS[name]
@@ -100,7 +105,7 @@ def run_section(name: str) -> dict:
                 process.wait()
             code = None
     seconds = round(time.monotonic() - started, 1)
-    date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    date = utc_now()
     record = {"command": shown, "exit": code, "wall_seconds": seconds, "ended": date}
     if out.exists():
         record |= json.loads(out.read_text())
@@ -251,7 +256,7 @@ def main() -> int:
         summary = json.loads(summary_path.read_text())
         records = summary.pop("records")
         if again:
-            date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+            date = utc_now()
             for name in again:
                 records[name] = run_section(name)
             command = shlex.join([".venv/bin/python", "bench/run.py", *(f"--again={s}" for s in again)])
@@ -259,7 +264,7 @@ def main() -> int:
             summary_path.write_text(json.dumps(summary | {"records": records}, indent=1))
     else:
         started, at_start = time.monotonic(), machine()
-        date = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+        date = utc_now()
         records = {}
         for name in SECTIONS:
             records[name] = {"status": "skipped"} if name in skipped else run_section(name)

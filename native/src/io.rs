@@ -247,6 +247,17 @@ impl DriveIo {
         }
     }
 
+    /// The levels of digital inputs 1..=[`INPUT_COUNT`], input 1 first; `None` without 0x60FD.
+    pub fn input_levels(&self) -> Option<Vec<bool>> {
+        self.digital_inputs.map(|word| (0..INPUT_COUNT).map(|i| inputs(word) >> i & 1 == 1).collect())
+    }
+
+    /// The levels of digital outputs 1..=[`OUTPUT_COUNT`] as sent, output 1 first; `None`
+    /// without 0x60FE:01.
+    pub fn output_levels(&self) -> Option<Vec<bool>> {
+        self.digital_outputs.map(|word| (0..OUTPUT_COUNT).map(|o| outputs(word) >> o & 1 == 1).collect())
+    }
+
     /// The hardware enable input as the statusword shows it.
     pub fn hardware_enable(&self) -> HardwareEnable {
         self.statusword.map_or(HardwareEnable::Unknown, hardware_enable)

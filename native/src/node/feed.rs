@@ -37,7 +37,7 @@ use super::Joint;
 use crate::bag_writer::BagWriter;
 use crate::cycle::{timing, CycleThread, Snapshot};
 use crate::ds402::{Mode, State};
-use crate::io::{self, DriveIo, HardwareEnable, Switch};
+use crate::io::{DriveIo, HardwareEnable, Switch};
 use crate::objects::DriveInputs;
 use crate::ros_msgs::{self, Header};
 
@@ -384,11 +384,8 @@ impl Maker {
                 (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, outputs, inputs),
                 _ => DriveIo::default(),
             };
-        let levels = |word: Option<u32>, bits: fn(u32) -> u8, count: u8| {
-            word.map_or_else(Vec::new, |w| (0..count).map(|k| bits(w) >> k & 1 == 1).collect::<Vec<_>>())
-        };
-        let inputs = levels(drive.digital_inputs, io::inputs, io::INPUT_COUNT);
-        let outputs = levels(drive.digital_outputs, io::outputs, io::OUTPUT_COUNT);
+        let inputs = drive.input_levels().unwrap_or_default();
+        let outputs = drive.output_levels().unwrap_or_default();
         let (input_names, input_numbers, named_inputs) = named(&inputs, &j.io.input_names, &j.io.input_numbers);
         let (output_names, output_numbers, named_outputs) = named(&outputs, &j.io.output_names, &j.io.output_numbers);
         let switch = |s: Switch| drive.digital_inputs.is_some_and(|w| s.active(w));

@@ -177,7 +177,7 @@ impl PyDriveIo {
     /// The levels of the AKD's digital inputs 1..7 (0x60FD bits 16..22); None without 0x60FD.
     #[getter]
     fn inputs(&self) -> Option<Vec<bool>> {
-        self.io.digital_inputs.map(|word| (0..io::INPUT_COUNT).map(|i| io::inputs(word) >> i & 1 == 1).collect())
+        self.io.input_levels()
     }
 
     /// The hardware enable as the statusword shows it: "high", "low" or "unknown".
@@ -201,7 +201,7 @@ impl PyDriveIo {
     /// The levels of the AKD's digital outputs 1..2 as sent; None without 0x60FE:01.
     #[getter]
     fn outputs(&self) -> Option<Vec<bool>> {
-        self.io.digital_outputs.map(|word| (0..io::OUTPUT_COUNT).map(|o| io::outputs(word) >> o & 1 == 1).collect())
+        self.io.output_levels()
     }
 
     /// The analog output set-point 0x3470:03 as sent, counts.
