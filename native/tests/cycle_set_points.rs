@@ -178,6 +178,9 @@ fn a_stopped_velocity_stream_halts_until_the_next_write_and_leaves_a_user_halt_a
     );
     let status = cycle.command_timeout_status(0).unwrap();
     assert_eq!((status.armed, status.halted, status.timeouts), (false, true, 1));
+    // The event is pushed while the cycle builds its frame; the snapshot shows that frame once
+    // it is back, so two snapshots later the halt is certainly in what was sent.
+    cycles(&cycle, 2);
     assert_ne!(sent_controlword(&cycle) & cw::HALT, 0);
     wait_until("standstill", || (input_i32(&cycle, inputs::VELOCITY).abs() < 1000).then_some(()));
     assert_eq!(cycle.drive_status(0).unwrap().state(), Some(State::OperationEnabled));
