@@ -93,6 +93,9 @@ fn a_fault_while_enabled_is_not_retried_and_the_reset_clears_it() {
     assert_eq!(status.request, Some(Request::FaultReset));
     assert_eq!(bus.lock().unwrap().slave(0).drive().fault(), None);
     // Out of Fault, bit 7 is low again (ready for the next edge) and the power stage stays off.
+    // The status is published while the cycle builds its frame, the snapshot once that frame is
+    // back: two cycles on, the snapshot is certainly of a frame built after the status.
+    cycles(&cycle, 2);
     let snapshot = cycle.snapshot();
     assert_eq!(cycle.outputs_of(&snapshot, 0).unwrap()[4..6], [0, 0]);
     cycle.request(0, Request::Enable).unwrap();
