@@ -398,8 +398,14 @@ impl MailboxService {
             return true;
         }
         let Ok(header) = MailboxHeader::decode(&self.receive[..len]) else { return true };
+        // A request whose write came back after the frame's time-out may have reached the
+        // slave all the same: an answer with its counter proves it did, and must be taken, for
+        // the slave ignores the same request written again (same counter: a repeat).
         let awaited = match self.phase {
             Phase::Awaiting { slave: s, counter, origin, .. } if s == slave => Some((counter, origin)),
+            Phase::Sending { slave: s, origin, .. } if s == slave && header.counter == self.send[5] >> 4 => {
+                Some((header.counter, origin))
+            }
             _ => None,
         };
         match header.protocol() {
