@@ -28,7 +28,9 @@ use csp::csp_master;
 /// The in-process link, losing the next `drop` frames (the frame never reaches the drives)
 /// and the next `drop_mailbox` frames beside the cyclic LRW, holding back the return of the
 /// next `late_mailbox_writes` writes to the mailbox (SM0 at 0x1800; the drive takes the
-/// message) until after the next frame, as a return later than the master's time-out, and,
+/// message) until after the next frame, as a return later than the master's time-out, and
+/// likewise the returns of `stall_at_mailbox_read` frames from the next read of SM1 (0x1C00)
+/// on, as from a simulator stalled meanwhile, and,
 /// when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a drive
 /// leaving Op by itself, as far as the master can tell.
 struct Lossy {
@@ -36,7 +38,10 @@ struct Lossy {
     drop: Arc<AtomicU32>,
     drop_mailbox: Arc<AtomicU32>,
     late_mailbox_writes: Arc<AtomicU32>,
+    stall_at_mailbox_read: Arc<AtomicU32>,
     to_safeop: Arc<AtomicU32>,
+    /// Frames still to come back late in the stall under way.
+    stalled: u32,
     /// Returns held back, each with whether the frame after it was sent (then it comes first).
     late: VecDeque<(Vec<u8>, bool)>,
     /// Returns taken from the link before the one held back, received first.
@@ -62,7 +67,11 @@ impl Link for Lossy {
         self.late.iter_mut().for_each(|(_, after)| *after = true);
         self.inner.send(tx)?;
         let first = frame::parse(tx)?.next().expect("one datagram")?.header;
-        if (first.command, first.ado) == (Command::Fpwr, 0x1800) && lose(&self.late_mailbox_writes) {
+        if (first.command, first.ado) == (Command::Fprd, 0x1C00) {
+            self.stalled += self.stall_at_mailbox_read.swap(0, Ordering::AcqRel);
+        }
+        let stalled = self.stalled.checked_sub(1).inspect(|n| self.stalled = *n).is_some();
+        if stalled || (first.command, first.ado) == (Command::Fpwr, 0x1800) && lose(&self.late_mailbox_writes) {
             // Served at once; a pipelined cycle's frame may be waiting to be received before it.
             loop {
                 let mut back = vec![0; frame::MAX_PAYLOAD_LEN];
@@ -97,12 +106,13 @@ struct Rig {
     drop: Arc<AtomicU32>,
     drop_mailbox: Arc<AtomicU32>,
     late_mailbox_writes: Arc<AtomicU32>,
+    stall_at_mailbox_read: Arc<AtomicU32>,
     to_safeop: Arc<AtomicU32>,
     control: SimControl,
 }
 
 fn rig(pipelined: bool) -> Rig {
-    let (drop, drop_mailbox, late_mailbox_writes, to_safeop) = Default::default();
+    let (drop, drop_mailbox, late_mailbox_writes, stall_at_mailbox_read, to_safeop) = Default::default();
     let inner = InProcess::new(1);
     let control = inner.control();
     let link = Lossy {
@@ -110,14 +120,16 @@ fn rig(pipelined: bool) -> Rig {
         drop: Arc::clone(&drop),
         drop_mailbox: Arc::clone(&drop_mailbox),
         late_mailbox_writes: Arc::clone(&late_mailbox_writes),
+        stall_at_mailbox_read: Arc::clone(&stall_at_mailbox_read),
         to_safeop: Arc::clone(&to_safeop),
+        stalled: 0,
         late: VecDeque::new(),
         early: VecDeque::new(),
     };
     let config =
         Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
     let cycle = CycleThread::start(csp_master(Box::new(link)), config).map_err(|e| e.0).unwrap();
-    Rig { cycle, drop, drop_mailbox, late_mailbox_writes, to_safeop, control }
+    Rig { cycle, drop, drop_mailbox, late_mailbox_writes, stall_at_mailbox_read, to_safeop, control }
 }
 
 fn enable(cycle: &CycleThread) {
@@ -256,6 +268,17 @@ fn a_transfer_whose_request_came_back_late_is_answered(pipelined: bool) {
     assert_eq!(cycle.stop().unwrap().stats().late_returns, late);
 }
 
+fn an_answer_whose_read_came_back_late_is_fetched_again(pipelined: bool) {
+    let Rig { cycle, stall_at_mailbox_read, .. } = rig(pipelined);
+    // The read of the answer empties SM1 though its return comes late, and so do the frames
+    // after it for a while (a stalled simulator): the repeat request that puts the answer back
+    // is made once frames come back, not given up with the first frames it took.
+    stall_at_mailbox_read.store(6, Ordering::Release);
+    assert_eq!(cycle.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    assert_eq!(stall_at_mailbox_read.load(Ordering::Acquire), 0);
+    assert_eq!(cycle.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+}
+
 fn a_stale_cycle_records_whether_its_frame_was_lost_or_came_back_with_a_wrong_working_counter(pipelined: bool) {
     let Rig { cycle, drop, control, .. } = rig(pipelined);
     let stats = cycle.stats();
@@ -314,5 +337,6 @@ both_ways!(
     sdo_beside_the_cycle_reads_writes_and_names_aborts,
     a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame,
     a_transfer_whose_request_came_back_late_is_answered,
+    an_answer_whose_read_came_back_late_is_fetched_again,
     a_stale_cycle_records_whether_its_frame_was_lost_or_came_back_with_a_wrong_working_counter
 );

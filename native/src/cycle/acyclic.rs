@@ -191,6 +191,8 @@ pub struct MailboxService {
     pending: Vec<Option<Event>>,
     /// Where the search for a full SM1 starts next, so every slave gets its turn.
     next_slave: usize,
+    /// The slave whose read of SM1 failed: its repeat request may be left to make.
+    repeat: Option<u16>,
     index: u16,
     subindex: u8,
     eoe: EoeService,
@@ -221,6 +223,7 @@ impl MailboxService {
             phase: Phase::Idle,
             pending: vec![None; master.slaves().len()],
             next_slave: 0,
+            repeat: None,
             index: 0,
             subindex: 0,
             eoe: EoeService {
@@ -384,6 +387,12 @@ impl MailboxService {
         (cycle, time_ns): (u64, u64),
         (recovering, statusword): (&impl Fn(u16) -> bool, &impl Fn(u16) -> u16),
     ) -> bool {
+        if let Some(slave) = self.repeat.filter(|s| !recovering(*s)) {
+            if matches!(master.slave_mut(slave).and_then(|mut s| s.mailbox_try_repeat()), Ok(true)) {
+                return true;
+            }
+        }
+        self.repeat = None;
         let Ok(watch) = master.watch() else { return false };
         let count = watch.len();
         let waiting = |s: &usize| watch[*s].mailbox_full && !recovering(*s as u16);
@@ -395,6 +404,8 @@ impl MailboxService {
         let slave = slave as u16;
         let len = mailbox_of(master, slave).map_or(0, |m| m.in_len as usize);
         if !matches!(master.slave_mut(slave).and_then(|mut s| s.mailbox_try_read(&mut self.receive[..len])), Ok(true)) {
+            // A lost read may have emptied SM1: its repeat request goes first from the next cycle.
+            self.repeat = Some(slave);
             return true;
         }
         let Ok(header) = MailboxHeader::decode(&self.receive[..len]) else { return true };
