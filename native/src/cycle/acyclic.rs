@@ -275,7 +275,7 @@ impl MailboxService {
             }
         }
         if let Phase::Idle = self.phase {
-            self.start(master, slot, events, now_ns + TRANSFER_TIMEOUT.as_nanos() as u64);
+            self.start(master, (slot, events), &recovering, now_ns + TRANSFER_TIMEOUT.as_nanos() as u64);
         }
         if let Phase::Sending { slave, origin, deadline_ns } = self.phase {
             let len = mailbox_of(master, slave).map_or(0, |m| m.out_len as usize);
@@ -333,8 +333,16 @@ impl MailboxService {
         }
     }
 
-    /// Builds the next request: a fault's 0x603F first, then a caller's transfer.
-    fn start(&mut self, master: &mut Master, slot: &SdoSlot, events: &Events, deadline_ns: u64) {
+    /// Builds the next request: a fault's 0x603F first, then a caller's transfer. One for a
+    /// slave `recovering` ends at once: its mailbox is the recovery's, which goes on from the
+    /// counter the slave had when lost; a counter taken here would be handed out again after.
+    fn start(
+        &mut self,
+        master: &mut Master,
+        (slot, events): (&SdoSlot, &Events),
+        recovering: &impl Fn(u16) -> bool,
+        deadline_ns: u64,
+    ) {
         let (slave, origin, write_len) = if let Some(slave) = self.pending.iter().position(Option::is_some) {
             let fault = self.pending[slave].take().expect("found above");
             self.index = 0x603F;
@@ -347,6 +355,9 @@ impl MailboxService {
         } else {
             return;
         };
+        if recovering(slave) {
+            return self.finish(slot, events, origin, Outcome::Lost, 0, &[]);
+        }
         let Some(out_len) = mailbox_of(master, slave).map(|m| m.out_len as usize) else {
             return self.finish(slot, events, origin, Outcome::NoMailbox, 0, &[]);
         };
@@ -516,4 +527,35 @@ impl MailboxService {
 /// The mailbox of the slave at `slave`, if it has one.
 fn mailbox_of(master: &Master, slave: u16) -> Option<&Mailbox> {
     master.slave(slave).ok()?.mailbox.as_ref()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::al::AlState;
+    use crate::sim::in_process::InProcess;
+
+    #[test]
+    fn a_transfer_asked_of_a_slave_being_recovered_takes_no_mailbox_counter() {
+        let mut master = Master::new(Box::new(InProcess::new(1)), Duration::from_millis(100));
+        master.scan().unwrap();
+        master.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
+        let before = master.mailbox_counter(0);
+        let (mut service, slot) = (MailboxService::new(&master), SdoSlot::default());
+        let (frames, events) = (EoeFrames::default(), Events::default());
+        // Asked before the slave was seen lost, taken up after, in the cycle that saw it lost.
+        std::thread::scope(|s| {
+            let caller = s.spawn(|| slot.transfer(0, 0x1018, 1, None, || true));
+            while !caller.is_finished() {
+                service.run(&mut master, (&slot, &frames), &events, (1, 0), |_| true, |_| 0);
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            let e = caller.join().unwrap().unwrap_err();
+            assert!(matches!(e, Error::Unavailable(Unavailable::Recovering { slave: 0 })), "{e:?}");
+        });
+        // The recovery goes on from the counter the slave was lost with, and so does the cycle
+        // after it: a counter taken here would be the next request's again, which the drive
+        // ignores as a repeat.
+        assert_eq!(master.mailbox_counter(0), before);
+    }
 }
