@@ -5,6 +5,7 @@
 //! Every test runs twice: with the cycle waiting for each frame's return, and pipelined. The
 //! waits have deadlines only so that a failure does not hang; no timing is asserted.
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -14,8 +15,8 @@ use akd_native::cycle::events::{Action, Event, FaultSource};
 use akd_native::cycle::{Config, CycleThread, RealTime};
 use akd_native::ds402::State;
 use akd_native::error::Result;
-use akd_native::frame::{Command, FrameBuilder};
-use akd_native::link::Link;
+use akd_native::frame::{self, Command, FrameBuilder};
+use akd_native::link::{is_reply_to, Link};
 use akd_native::registers::AL_CONTROL;
 use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
@@ -25,13 +26,26 @@ mod csp;
 use csp::csp_master;
 
 /// The in-process link, losing the next `drop` frames (the frame never reaches the drives)
-/// and the next `drop_mailbox` frames beside the cyclic LRW, and, when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a
-/// drive leaving Op by itself, as far as the master can tell.
+/// and the next `drop_mailbox` frames beside the cyclic LRW, holding back the return of the
+/// next `late_mailbox_writes` writes to the mailbox (SM0 at 0x1800; the drive takes the
+/// message) until after the next frame, as a return later than the master's time-out, and
+/// likewise the returns of `stall_at_mailbox_read` frames from the next read of SM1 (0x1C00)
+/// on, as from a simulator stalled meanwhile, and,
+/// when `to_safeop` is set, slipping the drive an AL control write to SafeOp once — a drive
+/// leaving Op by itself, as far as the master can tell.
 struct Lossy {
     inner: InProcess,
     drop: Arc<AtomicU32>,
     drop_mailbox: Arc<AtomicU32>,
+    late_mailbox_writes: Arc<AtomicU32>,
+    stall_at_mailbox_read: Arc<AtomicU32>,
     to_safeop: Arc<AtomicU32>,
+    /// Frames still to come back late in the stall under way.
+    stalled: u32,
+    /// Returns held back, each with whether the frame after it was sent (then it comes first).
+    late: VecDeque<(Vec<u8>, bool)>,
+    /// Returns taken from the link before the one held back, received first.
+    early: VecDeque<Vec<u8>>,
 }
 
 impl Link for Lossy {
@@ -50,10 +64,35 @@ impl Link for Lossy {
         if lose(&self.drop) || (!cyclic && lose(&self.drop_mailbox)) {
             return Ok(());
         }
-        self.inner.send(tx)
+        self.late.iter_mut().for_each(|(_, after)| *after = true);
+        self.inner.send(tx)?;
+        let first = frame::parse(tx)?.next().expect("one datagram")?.header;
+        if (first.command, first.ado) == (Command::Fprd, 0x1C00) {
+            self.stalled += self.stall_at_mailbox_read.swap(0, Ordering::AcqRel);
+        }
+        let stalled = self.stalled.checked_sub(1).inspect(|n| self.stalled = *n).is_some();
+        if stalled || (first.command, first.ado) == (Command::Fpwr, 0x1800) && lose(&self.late_mailbox_writes) {
+            // Served at once; a pipelined cycle's frame may be waiting to be received before it.
+            loop {
+                let mut back = vec![0; frame::MAX_PAYLOAD_LEN];
+                let n = self.inner.receive(&mut back, Instant::now())?.expect("served at once");
+                back.truncate(n);
+                if is_reply_to(tx, &back) {
+                    self.late.push_back((back, false));
+                    break;
+                }
+                self.early.push_back(back);
+            }
+        }
+        Ok(())
     }
 
     fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> Result<Option<usize>> {
+        let late = || self.late.pop_front_if(|(_, after)| *after).map(|(back, _)| back);
+        if let Some(back) = self.early.pop_front().or_else(late) {
+            rx[..back.len()].copy_from_slice(&back);
+            return Ok(Some(back.len()));
+        }
         self.inner.receive(rx, deadline)
     }
 
@@ -66,24 +105,31 @@ struct Rig {
     cycle: CycleThread,
     drop: Arc<AtomicU32>,
     drop_mailbox: Arc<AtomicU32>,
+    late_mailbox_writes: Arc<AtomicU32>,
+    stall_at_mailbox_read: Arc<AtomicU32>,
     to_safeop: Arc<AtomicU32>,
     control: SimControl,
 }
 
 fn rig(pipelined: bool) -> Rig {
-    let (drop, drop_mailbox, to_safeop) = Default::default();
+    let (drop, drop_mailbox, late_mailbox_writes, stall_at_mailbox_read, to_safeop) = Default::default();
     let inner = InProcess::new(1);
     let control = inner.control();
     let link = Lossy {
         inner,
         drop: Arc::clone(&drop),
         drop_mailbox: Arc::clone(&drop_mailbox),
+        late_mailbox_writes: Arc::clone(&late_mailbox_writes),
+        stall_at_mailbox_read: Arc::clone(&stall_at_mailbox_read),
         to_safeop: Arc::clone(&to_safeop),
+        stalled: 0,
+        late: VecDeque::new(),
+        early: VecDeque::new(),
     };
     let config =
         Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
     let cycle = CycleThread::start(csp_master(Box::new(link)), config).map_err(|e| e.0).unwrap();
-    Rig { cycle, drop, drop_mailbox, to_safeop, control }
+    Rig { cycle, drop, drop_mailbox, late_mailbox_writes, stall_at_mailbox_read, to_safeop, control }
 }
 
 fn enable(cycle: &CycleThread) {
@@ -203,6 +249,36 @@ fn a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame(pipelined: boo
     assert_eq!(stats.acyclic_lost_frames.load(Ordering::Relaxed), 1);
 }
 
+fn a_transfer_whose_request_came_back_late_is_answered(pipelined: bool) {
+    let Rig { cycle, late_mailbox_writes, .. } = rig(pipelined);
+    late_mailbox_writes.store(3, Ordering::Release);
+    // The drive took the request though its frame came back after the master stopped waiting
+    // (a long line, a busy simulator), and so did the request written again in the next
+    // cycles, until its answer shows in SM1: the answer, with the request's counter, ends the
+    // transfer; the writes after the first are repeats (same counter) the drive rightly ignores.
+    cycle.sdo_write(0, 0x6060, 0, &[8]).unwrap();
+    assert_eq!(cycle.sdo_read(0, 0x6060, 0).unwrap(), [8]);
+    // Each late return counted as a lost frame beside the cycle (the read may have met some).
+    let stats = cycle.stats();
+    let late = 3 - u64::from(late_mailbox_writes.load(Ordering::Acquire));
+    assert!(late >= 2, "only {late} late");
+    assert_eq!(stats.acyclic_lost_frames.load(Ordering::Relaxed), late);
+    assert_eq!(stats.lost_frames.load(Ordering::Relaxed), 0);
+    // Each came back after all, later: told apart from a frame that never does.
+    assert_eq!(cycle.stop().unwrap().stats().late_returns, late);
+}
+
+fn an_answer_whose_read_came_back_late_is_fetched_again(pipelined: bool) {
+    let Rig { cycle, stall_at_mailbox_read, .. } = rig(pipelined);
+    // The read of the answer empties SM1 though its return comes late, and so do the frames
+    // after it for a while (a stalled simulator): the repeat request that puts the answer back
+    // is made once frames come back, not given up with the first frames it took.
+    stall_at_mailbox_read.store(6, Ordering::Release);
+    assert_eq!(cycle.sdo_read(0, 0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    assert_eq!(stall_at_mailbox_read.load(Ordering::Acquire), 0);
+    assert_eq!(cycle.sdo_read(0, 0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
+}
+
 fn a_stale_cycle_records_whether_its_frame_was_lost_or_came_back_with_a_wrong_working_counter(pipelined: bool) {
     let Rig { cycle, drop, control, .. } = rig(pipelined);
     let stats = cycle.stats();
@@ -260,5 +336,7 @@ both_ways!(
     a_drive_leaving_op_is_reported_with_its_al_status_and_disabled,
     sdo_beside_the_cycle_reads_writes_and_names_aborts,
     a_lost_mailbox_frame_is_counted_apart_from_a_lost_cyclic_frame,
+    a_transfer_whose_request_came_back_late_is_answered,
+    an_answer_whose_read_came_back_late_is_fetched_again,
     a_stale_cycle_records_whether_its_frame_was_lost_or_came_back_with_a_wrong_working_counter
 );

@@ -191,6 +191,8 @@ pub struct MailboxService {
     pending: Vec<Option<Event>>,
     /// Where the search for a full SM1 starts next, so every slave gets its turn.
     next_slave: usize,
+    /// The slave whose read of SM1 failed: its repeat request may be left to make.
+    repeat: Option<u16>,
     index: u16,
     subindex: u8,
     eoe: EoeService,
@@ -221,6 +223,7 @@ impl MailboxService {
             phase: Phase::Idle,
             pending: vec![None; master.slaves().len()],
             next_slave: 0,
+            repeat: None,
             index: 0,
             subindex: 0,
             eoe: EoeService {
@@ -272,7 +275,7 @@ impl MailboxService {
             }
         }
         if let Phase::Idle = self.phase {
-            self.start(master, slot, events, now_ns + TRANSFER_TIMEOUT.as_nanos() as u64);
+            self.start(master, (slot, events), &recovering, now_ns + TRANSFER_TIMEOUT.as_nanos() as u64);
         }
         if let Phase::Sending { slave, origin, deadline_ns } = self.phase {
             let len = mailbox_of(master, slave).map_or(0, |m| m.out_len as usize);
@@ -330,8 +333,16 @@ impl MailboxService {
         }
     }
 
-    /// Builds the next request: a fault's 0x603F first, then a caller's transfer.
-    fn start(&mut self, master: &mut Master, slot: &SdoSlot, events: &Events, deadline_ns: u64) {
+    /// Builds the next request: a fault's 0x603F first, then a caller's transfer. One for a
+    /// slave `recovering` ends at once: its mailbox is the recovery's, which goes on from the
+    /// counter the slave had when lost; a counter taken here would be handed out again after.
+    fn start(
+        &mut self,
+        master: &mut Master,
+        (slot, events): (&SdoSlot, &Events),
+        recovering: &impl Fn(u16) -> bool,
+        deadline_ns: u64,
+    ) {
         let (slave, origin, write_len) = if let Some(slave) = self.pending.iter().position(Option::is_some) {
             let fault = self.pending[slave].take().expect("found above");
             self.index = 0x603F;
@@ -344,6 +355,9 @@ impl MailboxService {
         } else {
             return;
         };
+        if recovering(slave) {
+            return self.finish(slot, events, origin, Outcome::Lost, 0, &[]);
+        }
         let Some(out_len) = mailbox_of(master, slave).map(|m| m.out_len as usize) else {
             return self.finish(slot, events, origin, Outcome::NoMailbox, 0, &[]);
         };
@@ -384,6 +398,12 @@ impl MailboxService {
         (cycle, time_ns): (u64, u64),
         (recovering, statusword): (&impl Fn(u16) -> bool, &impl Fn(u16) -> u16),
     ) -> bool {
+        if let Some(slave) = self.repeat.filter(|s| !recovering(*s)) {
+            if matches!(master.slave_mut(slave).and_then(|mut s| s.mailbox_try_repeat()), Ok(true)) {
+                return true;
+            }
+        }
+        self.repeat = None;
         let Ok(watch) = master.watch() else { return false };
         let count = watch.len();
         let waiting = |s: &usize| watch[*s].mailbox_full && !recovering(*s as u16);
@@ -395,11 +415,19 @@ impl MailboxService {
         let slave = slave as u16;
         let len = mailbox_of(master, slave).map_or(0, |m| m.in_len as usize);
         if !matches!(master.slave_mut(slave).and_then(|mut s| s.mailbox_try_read(&mut self.receive[..len])), Ok(true)) {
+            // A lost read may have emptied SM1: its repeat request goes first from the next cycle.
+            self.repeat = Some(slave);
             return true;
         }
         let Ok(header) = MailboxHeader::decode(&self.receive[..len]) else { return true };
+        // A request whose write came back after the frame's time-out may have reached the
+        // slave all the same: an answer with its counter proves it did, and must be taken, for
+        // the slave ignores the same request written again (same counter: a repeat).
         let awaited = match self.phase {
             Phase::Awaiting { slave: s, counter, origin, .. } if s == slave => Some((counter, origin)),
+            Phase::Sending { slave: s, origin, .. } if s == slave && header.counter == self.send[5] >> 4 => {
+                Some((header.counter, origin))
+            }
             _ => None,
         };
         match header.protocol() {
@@ -499,4 +527,35 @@ impl MailboxService {
 /// The mailbox of the slave at `slave`, if it has one.
 fn mailbox_of(master: &Master, slave: u16) -> Option<&Mailbox> {
     master.slave(slave).ok()?.mailbox.as_ref()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::al::AlState;
+    use crate::sim::in_process::InProcess;
+
+    #[test]
+    fn a_transfer_asked_of_a_slave_being_recovered_takes_no_mailbox_counter() {
+        let mut master = Master::new(Box::new(InProcess::new(1)), Duration::from_millis(100));
+        master.scan().unwrap();
+        master.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
+        let before = master.mailbox_counter(0);
+        let (mut service, slot) = (MailboxService::new(&master), SdoSlot::default());
+        let (frames, events) = (EoeFrames::default(), Events::default());
+        // Asked before the slave was seen lost, taken up after, in the cycle that saw it lost.
+        std::thread::scope(|s| {
+            let caller = s.spawn(|| slot.transfer(0, 0x1018, 1, None, || true));
+            while !caller.is_finished() {
+                service.run(&mut master, (&slot, &frames), &events, (1, 0), |_| true, |_| 0);
+                std::thread::sleep(Duration::from_millis(1));
+            }
+            let e = caller.join().unwrap().unwrap_err();
+            assert!(matches!(e, Error::Unavailable(Unavailable::Recovering { slave: 0 })), "{e:?}");
+        });
+        // The recovery goes on from the counter the slave was lost with, and so does the cycle
+        // after it: a counter taken here would be the next request's again, which the drive
+        // ignores as a repeat.
+        assert_eq!(master.mailbox_counter(0), before);
+    }
 }

@@ -101,6 +101,12 @@ pub fn receive_reply<L: Link + ?Sized>(
     }
 }
 
+/// Whether the slaves count a datagram's ADP up as it passes (auto-increment and broadcast).
+fn counts_adp(command: crate::frame::Command) -> bool {
+    use crate::frame::Addressing;
+    matches!(command.addressing(), Addressing::AutoIncrement | Addressing::Broadcast)
+}
+
 /// Copies a returned frame into the caller's buffer and gives its length; a buffer too small
 /// for it is an error, not a truncated frame.
 pub fn copy_reply(reply: &[u8], rx: &mut [u8]) -> Result<usize> {
@@ -112,9 +118,12 @@ pub fn copy_reply(reply: &[u8], rx: &mut [u8]) -> Result<usize> {
 }
 
 /// Whether `rx` is the return of the frame `tx`: same frame header and, datagram by datagram,
-/// the same command, index and length. Slaves change addresses (auto-increment), data, IRQ
-/// and working counters, never these, so a stale reply of an earlier frame (another index)
-/// or foreign traffic is told apart from the awaited one.
+/// the same command, index, length and address (ADP where the slaves do not count it up, as
+/// they do in auto-increment and broadcast datagrams). Slaves change those ADPs, data, IRQ
+/// and working counters, never the rest, so a stale reply of an earlier frame (another index)
+/// or foreign traffic is told apart from the awaited one — and so is the return of a frame
+/// 256 frames older (the index wrapped) that a stalled line brings back late, such as another
+/// slave's mailbox read.
 pub fn is_reply_to(tx: &[u8], rx: &[u8]) -> bool {
     let (Ok(sent), Ok(back)) = (crate::frame::parse(tx), crate::frame::parse(rx)) else {
         return false;
@@ -125,9 +134,38 @@ pub fn is_reply_to(tx: &[u8], rx: &[u8]) -> bool {
             (Ok(a), Some(Ok(b)))
                 if a.header.command == b.header.command
                     && a.header.index == b.header.index
-                    && a.header.len == b.header.len => {}
+                    && a.header.len == b.header.len
+                    && a.header.ado == b.header.ado
+                    && (a.header.adp == b.header.adp || counts_adp(a.header.command)) => {}
             _ => return false,
         }
     }
     back.next().is_none()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_reply_to;
+    use crate::frame::{Command, FrameBuilder};
+
+    fn frame(command: Command, index: u8, adp: u16, ado: u16) -> Vec<u8> {
+        let mut buf = [0u8; 64];
+        let mut b = FrameBuilder::new(&mut buf);
+        b.push(command, index, adp, ado, &[0, 0]).unwrap();
+        let n = b.finish();
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn a_return_with_the_same_index_from_another_address_is_not_the_reply() {
+        // 256 frames later the index is the same again: a read of another slave's mailbox, or of
+        // another register, that a stalled line brings back that late is not this read's return.
+        let read = frame(Command::Fprd, 9, 0x1008, 0x1C00);
+        assert!(is_reply_to(&read, &frame(Command::Fprd, 9, 0x1008, 0x1C00)));
+        assert!(!is_reply_to(&read, &frame(Command::Fprd, 9, 0x1010, 0x1C00)));
+        assert!(!is_reply_to(&read, &frame(Command::Fprd, 9, 0x1008, 0x080D)));
+        // Auto-increment and broadcast ADPs are counted up by each slave on the way.
+        assert!(is_reply_to(&frame(Command::Aprd, 9, 0, 0x0010), &frame(Command::Aprd, 9, 3, 0x0010)));
+        assert!(is_reply_to(&frame(Command::Brd, 9, 0, 0x0130), &frame(Command::Brd, 9, 64, 0x0130)));
+    }
 }

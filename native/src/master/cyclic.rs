@@ -120,12 +120,14 @@ struct InFlight {
 }
 
 impl CyclicFrame {
-    /// Keeps `back` in `rx` when it is the return of the frame on its way and none was kept.
-    pub(super) fn keep(&mut self, back: &[u8]) {
-        let Some(flight) = self.in_flight.as_mut().filter(|f| f.returned.is_none()) else { return };
+    /// Keeps `back` in `rx` when it is the return of the frame on its way and none was kept;
+    /// whether it was.
+    pub(super) fn keep(&mut self, back: &[u8]) -> bool {
+        let Some(flight) = self.in_flight.as_mut().filter(|f| f.returned.is_none()) else { return false };
         if is_reply_to(&self.tx[..flight.len], back) {
             flight.returned = copy_reply(back, &mut self.rx[..]).ok();
         }
+        flight.returned.is_some()
     }
 }
 
@@ -337,7 +339,8 @@ impl Master {
             Some(n) => n,
             None => {
                 let (tx, deadline) = (&frame.tx[..flight.len], flight.sent + self.timeout);
-                match receive_reply(&mut *self.link, tx, &mut frame.rx[..], deadline, |_| {})? {
+                let late = &mut self.stats.late_returns;
+                match receive_reply(&mut *self.link, tx, &mut frame.rx[..], deadline, |_| *late += 1)? {
                     Some(n) => n,
                     None => {
                         self.stats.lost_frames += 1;

@@ -46,6 +46,19 @@ pub struct Mailbox {
     /// Mailbox protocols the slave supports (SII word 0x1C).
     pub protocols: u16,
     counter: u8,
+    repeat: Repeat,
+}
+
+/// Where the repeat request a lost read of SM1 calls for stands, made one frame at a time by a
+/// cycle thread ([`Master::mailbox_try_repeat`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+enum Repeat {
+    #[default]
+    None,
+    /// SM1's activate byte is to be read, to know the toggled value.
+    ReadActivate,
+    /// This activate byte (repeat bit toggled) is to be written; writing it again is harmless.
+    Write(u8),
 }
 
 impl Mailbox {
@@ -76,6 +89,7 @@ impl Mailbox {
             in_control: control(1, SM1_CONTROL),
             protocols,
             counter: 0,
+            repeat: Repeat::None,
         }))
     }
 
@@ -170,7 +184,7 @@ impl Master {
     /// Takes the counter for the next message to the slave at `position` (1..=7), as
     /// [`mailbox_send`](Self::mailbox_send) does, for a caller that writes SM0 itself.
     pub(super) fn mailbox_take_counter(&mut self, position: u16) -> Result<u8> {
-        let mailbox = self.slave_entry_mut(position)?.mailbox.as_mut().ok_or_else(|| no_mailbox(position))?;
+        let mailbox = self.mailbox_entry_mut(position)?;
         mailbox.counter = codec::next_counter(mailbox.counter);
         Ok(mailbox.counter)
     }
@@ -191,19 +205,53 @@ impl Master {
     }
 
     /// One read of the slave's SM1 into `buffer` (exactly SM1's length), for a cycle thread
-    /// that saw SM1 full and must not wait: `true` when a message was read. A lost reply is
-    /// asked for again with SM1's repeat request, without waiting for it; SM1 shows full again
-    /// once the slave has put it back.
+    /// that saw SM1 full and must not wait: `true` when a message was read. A read whose
+    /// return does not come may have emptied SM1 all the same (it came late): the reply is
+    /// then asked for again with SM1's repeat request, made by
+    /// [`mailbox_try_repeat`](Self::mailbox_try_repeat) in the calls after; SM1 shows full
+    /// again once the slave has put it back.
     pub(super) fn mailbox_try_read(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
         let (station, in_start) = self.mailbox_address(position, |mb| mb.in_start)?;
         match self.datagram(Command::Fprd, station, in_start, buffer) {
             Ok(wkc) => Ok(wkc == 1),
             Err(Error::Timeout { .. }) => {
-                self.toggle_repeat_request(station)?;
+                self.mailbox_entry_mut(position)?.repeat = Repeat::ReadActivate;
                 Ok(false)
             }
             Err(e) => Err(e),
         }
+    }
+
+    /// One frame towards the repeat request a lost read of SM1 left to make, for a cycle
+    /// thread that must not wait: `true` when a frame was spent on it (call again in the next
+    /// cycle), `false` when none is left to make. Frames lost meanwhile (the line, or a
+    /// simulator, stalled) only put it off: given up, the reply would never come back.
+    pub(super) fn mailbox_try_repeat(&mut self, position: u16) -> Result<bool> {
+        let station = self.station(position)?;
+        let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
+        let mut activate = [0u8; 1];
+        let next = match self.mailbox_entry_mut(position)?.repeat {
+            Repeat::None => return Ok(false),
+            Repeat::ReadActivate => match self.datagram(Command::Fprd, station, activate_at, &mut activate) {
+                Ok(1) => Repeat::Write(activate[0] ^ 0x02),
+                Ok(_) | Err(Error::Timeout { .. }) => Repeat::ReadActivate,
+                Err(e) => return Err(e),
+            },
+            Repeat::Write(byte) => match self.datagram(Command::Fpwr, station, activate_at, &mut [byte]) {
+                Ok(1) => {
+                    self.stats.mailbox_repeats += 1;
+                    Repeat::None
+                }
+                Ok(_) | Err(Error::Timeout { .. }) => Repeat::Write(byte),
+                Err(e) => return Err(e),
+            },
+        };
+        self.mailbox_entry_mut(position)?.repeat = next;
+        Ok(true)
+    }
+
+    fn mailbox_entry_mut(&mut self, position: u16) -> Result<&mut Mailbox> {
+        self.slave_entry_mut(position)?.mailbox.as_mut().ok_or_else(|| no_mailbox(position))
     }
 
     /// Toggles SM1's repeat request (activate bit 1) and counts it; gives the activate byte

@@ -64,6 +64,9 @@ pub struct Stats {
     /// Frames of their own that read every slave's AL status and mailbox status, in cycles
     /// whose broadcast reads saw a slave change (see [`set_supervision`](Master::set_supervision)).
     pub watch_frames: u64,
+    /// Returns met while awaiting another frame's: frames counted lost that did come back,
+    /// after their time-out (a slow line or simulator), told apart from those that never did.
+    pub late_returns: u64,
 }
 
 /// One slave as the scan found it.
@@ -111,12 +114,14 @@ fn counted_exchange(
     mut cyclic: Option<&mut cyclic::CyclicFrame>,
 ) -> Result<usize> {
     stats.frames += 1;
+    let mut late = 0;
     let keep = |back: &[u8]| {
-        if let Some(cyclic) = cyclic.as_deref_mut() {
-            cyclic.keep(back);
-        }
+        let kept = cyclic.as_deref_mut().is_some_and(|cyclic| cyclic.keep(back));
+        late += u64::from(!kept);
     };
-    crate::link::exchange_keeping_others(link, tx, rx, timeout, keep).inspect_err(|e| {
+    let result = crate::link::exchange_keeping_others(link, tx, rx, timeout, keep);
+    stats.late_returns += late;
+    result.inspect_err(|e| {
         if matches!(e, Error::Timeout { .. }) {
             stats.lost_frames += 1;
         }

@@ -134,6 +134,12 @@ impl SlaveRef<'_> {
         self.master.mailbox_try_read(self.position, buffer)
     }
 
+    /// One frame towards the repeat request a lost read of SM1 left to make: `true` when a
+    /// frame was spent on it, `false` when none is left to make.
+    pub fn mailbox_try_repeat(&mut self) -> Result<bool> {
+        self.master.mailbox_try_repeat(self.position)
+    }
+
     /// Gives this slave its IP parameters (EoE Set IP Parameter) and waits for its response.
     pub fn eoe_set_ip(&mut self, parameters: &crate::eoe::IpParameters) -> Result<()> {
         self.master.eoe_set_ip(self.position, parameters)

@@ -386,7 +386,8 @@ fn controlled_bus(
 
 /// What a server did, for `on_stop`: "served", "malformed", "lost" (on the simulated line),
 /// "unsent" (the line went down under the reply), "late", how late replies went back
-/// because the server was not run ([`LateView`]; None over UDP), and "would_be_f125", the F125
+/// because the server was not run ([`LateView`]; None over UDP), "serving", how long its own
+/// serving of each frame took (the same view), and "would_be_f125", the F125
 /// its drives did not raise judging missed frames by "warn".
 #[derive(IntoPyObject)]
 struct ServerStatsView {
@@ -395,6 +396,7 @@ struct ServerStatsView {
     lost: u64,
     unsent: u64,
     late: Option<LateView>,
+    serving: LateView,
     would_be_f125: u64,
 }
 
@@ -406,6 +408,12 @@ struct LateView {
     longest_us: u64,
 }
 
+impl From<server::LateReplies> for LateView {
+    fn from(late: server::LateReplies) -> Self {
+        LateView { over: server::LATE_AFTER_US.into_iter().zip(late.over).collect(), longest_us: late.longest_us }
+    }
+}
+
 impl From<server::ServerStats> for ServerStatsView {
     fn from(stats: server::ServerStats) -> Self {
         ServerStatsView {
@@ -414,10 +422,8 @@ impl From<server::ServerStats> for ServerStatsView {
             lost: stats.lost,
             unsent: stats.unsent,
             would_be_f125: stats.would_be_f125,
-            late: stats.late.map(|late| LateView {
-                over: server::LATE_AFTER_US.into_iter().zip(late.over).collect(),
-                longest_us: late.longest_us,
-            }),
+            late: stats.late.map(LateView::from),
+            serving: stats.serving.into(),
         }
     }
 }

@@ -43,6 +43,11 @@ pub struct ServerStats {
     /// How late replies went back because the server was not run, where the interface stamps
     /// each frame's arrival (`None` over UDP, or where the kernel refuses).
     pub late: Option<LateReplies>,
+    /// How long the server's own serving of a frame took (the ESCs and the drives' firmware
+    /// answering it, from its taking it up to the reply handed to the interface), by the same
+    /// bounds: a master counts a reply later than its time-out as lost whether the server took
+    /// the frame up late or took long to answer it, and `late` leaves this part out.
+    pub serving: LateReplies,
     /// F125 the drives would have raised as real AKDs and did not, judging missed frames by
     /// [`MissedFrames::Warn`](crate::link_spec::MissedFrames::Warn): each warned of on stderr.
     pub would_be_f125: u64,
@@ -173,10 +178,11 @@ pub fn serve_udp(
             Err(e) => return Err(Error::io(format!("receiving on UDP {bind}"), e)),
         };
         let received = stamp(&trace);
-        let now_ns = elapsed_ns(start);
+        let (now_ns, answered_ns) = (elapsed_ns(start), realtime_ns());
         if stats.serve(&mut bus, &mut buf[..len], now_ns) {
             socket.send_to(&buf[..len], peer).map_err(|e| Error::io(format!("replying to {peer}"), e))?;
             stats.served += 1;
+            stats.serving.count(realtime_ns().saturating_sub(answered_ns));
             trace_frame(&mut trace, &bus, &buf[..len], received);
         }
         bus.run_ip_stacks(now_ns);
@@ -248,6 +254,7 @@ pub fn serve_iface(
                 Err(Error::Io { source, .. }) if line_down(&source) => stats.unsent += 1,
                 Err(e) => return Err(e),
             }
+            stats.serving.count(realtime_ns().saturating_sub(answered_ns));
             if let (Some(late), Some(arrived_ns)) = (&mut stats.late, arrived_ns) {
                 late.count(lateness_ns(arrived_ns, answered_ns, work_ns));
             }
