@@ -672,7 +672,7 @@ MANY_MAPPING["mapping.tx"] = ["0x6041:00/16 0x6064:00/32", "0x606C:00/32"]
 every mode needs (52 bytes), does not fit one frame beyond 28 drives, and the master sends one cyclic frame."""
 MANY_DOMAINS = range(60, 70)
 """ROS_DOMAIN_IDs of the many-drive runs, each inside a network namespace of its own (its own loopback)."""
-DIAGNOSTIC_COUNTERS = ("cycles", "lost_frames", "wkc_errors", "overruns", "samples_dropped")
+DIAGNOSTIC_COUNTERS = ("cycles", "lost_frames", "late_returns", "wkc_errors", "overruns", "samples_dropped")
 DIAGNOSTIC_TIMES = ("period_max_s", "exchange_p99_s")
 """What a many-drive run takes of the bus's /diagnostics: its counters, and its timing (shown in µs)."""
 
@@ -717,7 +717,7 @@ def many_drives(args, figures: Figures) -> None:
                 figures.missing(f"{count} drives over veth: {(done.stderr or done.stdout).strip()[-400:]}")
                 continue
             r = json.loads(lines[-1])
-            late = SIM_LATE.search(sim.output_text)
+            late, serving = SIM_LATE.search(sim.output_text), SIM_SERVING.search(sim.output_text)
             drive, units = joint_1(folder / PARAMS)
             changes, dropped = read_trace(folder / TRACE, drive)
         wire = command_to_wire(r.pop("sent"), changes, units)
@@ -733,6 +733,8 @@ def many_drives(args, figures: Figures) -> None:
         row |= {WIRE_P50: ms(wire, 0.5), WIRE_P99: ms(wire, 0.99), "matched": f"{len(wire)}/{r['sent_count']}"}
         row |= {"akd-sim replies late > 0.25 ms": int(late[1]) if late else None, "akd-sim longest late ms": None}
         row["akd-sim longest late ms"] = float(late[2]) if late else None
+        row["akd-sim serving > 0.25 ms"] = int(serving[1]) if serving else None
+        row["akd-sim slowest serving ms"] = float(serving[2]) if serving else None
         row |= {"faults": "; ".join(r["faults"]) or "none", "trace dropped": dropped}
         rows.append(row)
     figures.table(
@@ -746,7 +748,10 @@ def many_drives(args, figures: Figures) -> None:
         " at least"
         f" {args.drive_cycles} cycles; CPU over --window s of holding, as in the table above; akd-sim's late replies:"
         " what it says at its stop, replies that went back more than a period late because it was not run (each a"
-        " frame the node counts as lost; a real ESC answers in hardware)"
+        " frame the node counts as lost; a real ESC answers in hardware); akd-sim's serving: frames whose serving (its"
+        " drives answering) took it more than a period, each late too; late_returns: of the frames the node counted"
+        " lost, those that came back after their time-out (lost_frames counts the cyclic frame's, late_returns those"
+        " beside it too)"
     )
 
 
@@ -754,6 +759,9 @@ SIM_LATE = re.compile(r"replies late because akd-sim was not run: (\d+) over 0\.
 """akd-sim's line at its stop: its replies that went back more than 0.25 ms late because it was not run (a master
 counts a reply later than its period, 0.25 ms here, as a lost frame: a real ESC answers in hardware), and the
 longest."""
+SIM_SERVING = re.compile(r"its own serving of a frame took (\d+) over 0\.25 ms.*slowest ([\d.]+) ms")
+"""akd-sim's line at its stop: the frames whose serving took it more than 0.25 ms (its drives answering, on a busy
+host), and the slowest."""
 INNER_OPTIONS = ("cycle_time", "joint_states_rate", "window", "command_rate", "command_seconds", "priority")
 INNER_OPTIONS += ("rt_cpu_latency_us", "drive_cycles")
 """The options a many-drive run passes to its inner process."""

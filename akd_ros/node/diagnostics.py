@@ -209,6 +209,8 @@ class Diagnostics:
             "exchange_p99_s": f"{stats['exchange']['p99_ns'] * 1e-9:.6g}",
             "relayed_frames": stats["relayed_frames"],
             "relayed_lost": stats["relayed_lost"],
+            # Of the frames counted lost, those that came back after their time-out: a slow line or slave, not a cable.
+            "late_returns": stats["late_returns"],
             "dc": "on (SYNC0)" if dc_status["active"] else "off (the drives follow SM2)",
         }
         if dc_status["active"]:

@@ -1097,6 +1097,7 @@ fn run(
         let acyclic_lost = now_stats.lost_frames - base.lost_frames - cyclic.0;
         stats.acyclic_lost_frames.store(acyclic_lost, Ordering::Relaxed);
         stats.acyclic_wkc_errors.store(now_stats.wkc_errors - base.wkc_errors - cyclic.1, Ordering::Relaxed);
+        stats.late_returns.store(now_stats.late_returns - base.late_returns, Ordering::Relaxed);
         CycleStats::add(&stats.overruns, schedule.advance(timing::now_ns()));
     }
     if in_flight.is_some() {

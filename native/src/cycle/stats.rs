@@ -188,6 +188,9 @@ pub struct CycleStats {
     pub acyclic_lost_frames: AtomicU64,
     /// Wrong working counters of the register accesses beside the process data.
     pub acyclic_wkc_errors: AtomicU64,
+    /// Frames counted lost above, cyclic or beside, that came back after all, after their
+    /// time-out: a slow line or slave (or simulator), told apart from frames that never did.
+    pub late_returns: AtomicU64,
     /// Cycles whose exchange failed otherwise (a malformed reply, a link error).
     pub other_errors: AtomicU64,
     /// Cycles that went out with the previous cycle's set-points because a writer was
@@ -210,6 +213,7 @@ impl CycleStats {
             watch_frames: AtomicU64::new(0),
             acyclic_lost_frames: AtomicU64::new(0),
             acyclic_wkc_errors: AtomicU64::new(0),
+            late_returns: AtomicU64::new(0),
             other_errors: AtomicU64::new(0),
             setpoints_busy: AtomicU64::new(0),
         }

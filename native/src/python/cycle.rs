@@ -95,6 +95,7 @@ struct StatsView {
     watch_frames: u64,
     acyclic_lost_frames: u64,
     acyclic_wkc_errors: u64,
+    late_returns: u64,
     other_errors: u64,
     setpoints_busy: u64,
     relayed_frames: u64,
@@ -371,7 +372,8 @@ impl PyCycle {
     /// before, a drive enabled, that a real AKD would raise F125), lost_frames and wkc_errors (the cyclic frame's),
     /// watch_frames (cycles that read each slave in a second frame, a change having been seen),
     /// acyclic_lost_frames and acyclic_wkc_errors (the frames beside it: mailbox, and a
-    /// recovery's), other_errors, setpoints_busy, relayed_frames and relayed_lost (frames a
+    /// recovery's), late_returns (frames of either counted lost that came back after their
+    /// time-out: a slow line or slave, not a broken one), other_errors, setpoints_busy, relayed_frames and relayed_lost (frames a
     /// slave's recovery sent beside the cycle, and those lost, which acyclic_lost_frames counts too),
     /// and period, wake_latency (how late after its deadline the thread woke)
     /// and exchange, each {count, min_ns, mean_ns, p99_ns, max_ns}.
@@ -390,6 +392,7 @@ impl PyCycle {
             watch_frames: s.watch_frames.load(Relaxed),
             acyclic_lost_frames: s.acyclic_lost_frames.load(Relaxed),
             acyclic_wkc_errors: s.acyclic_wkc_errors.load(Relaxed),
+            late_returns: s.late_returns.load(Relaxed),
             other_errors: s.other_errors.load(Relaxed),
             setpoints_busy: s.setpoints_busy.load(Relaxed),
             period: s.period.summary(),
