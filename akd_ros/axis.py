@@ -159,6 +159,8 @@ class AxisIo:
     """The AKD's digital inputs 1..7, input 1 first."""
     hardware_enable: str
     """"high", "low" or "unknown", as the statusword shows it."""
+    statusword: int | None
+    """0x6041 of that cycle, which shows the hardware enable (None where the mapping does not carry it)."""
     analog_input: float | None
     """V."""
     digital_outputs: int | None
@@ -658,6 +660,7 @@ class Axis:
             switches=dict(io.switches or ()),
             inputs=tuple(io.inputs or ()),
             hardware_enable=io.hardware_enable,
+            statusword=io.statusword,
             analog_input=volts(io.analog_input),
             digital_outputs=io.digital_outputs,
             outputs=tuple(io.outputs or ()),

@@ -215,6 +215,35 @@ def test_drive_io_reads_as_the_drive_shows_its_io_with_the_joints_names() -> Non
     assert math.isnan(wrist_io.analog_input) and math.isnan(wrist_io.analog_output)
 
 
+def test_an_input_change_is_handed_out_at_once_as_the_cycle_showed_it() -> None:
+    drives = [DriveConfig(slave=0, name="gripper", mode="cyclic_synchronous_position", mapping=_native.IO_MAPPING)]
+    with Bus("sim:1?missed=lost", drives) as bus:
+        (gripper,) = bus.axes
+        feed = _native.Feed(bus.cycle, [joint(gripper, inputs=[("part_present", 3)])])
+        # A period far beyond the test: every DriveIO taken below is the change's own.
+        io_stream, states_stream = feed.add_drive_io(0, 3600.0), feed.add_joint_states(3600.0)
+        feed.start()
+        try:
+            # The cycle compares each cycle's inputs with the last: flipped after its first ones, the input is a change.
+            start = gripper.io().cycle
+            wait_for("a few cycles", lambda: gripper.io().cycle >= start + 5)
+            bus.simulator.set_input(0, 3, True)
+            change = wait_for("the input's change", lambda: next(iter(gripper.input_events()), None))
+            edge = (io_stream, change.cycle, change.time_ns, change.digital_inputs, change.statusword)
+            assert not feed.input_change(*edge), "made while inactive"
+            feed.set_active(True)
+            assert not feed.input_change(states_stream, *edge[1:]), "made on a stream of another kind"
+            assert feed.input_change(*edge)
+            (got,) = take_until(feed, {io_stream})[io_stream]
+        finally:
+            feed.stop()
+    message = deserialize_message(got, DriveIO)
+    assert (message.joint, message.cycle, stamp_ns(message)) == ("gripper", change.cycle, change.time_ns)
+    assert (list(message.input_names), list(message.named_inputs)) == (["part_present"], [True])
+    assert message.inputs[2] and message.digital_inputs == change.digital_inputs
+    assert message.hardware_enable == DriveIO.HARDWARE_ENABLE_HIGH
+
+
 def test_diagnostic_array_is_what_rclpy_reads() -> None:
     statuses = [
         (2, "akd_node: a", "fault on a; ünïcode", "AKD slave 0", [("joint", "a"), ("statusword", "0x0218")]),

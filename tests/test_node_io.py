@@ -194,8 +194,8 @@ def test_an_input_flipped_on_the_drive_shows_on_io_with_its_name(run):
     seen = len(ros.received[f"{NODE}a/io"])
     high = ros.io("a", lambda m: named(m, "part_present"), "part_present high")
     assert high.inputs[2] and high.digital_inputs == 1 << 18 and high.cycle > before.cycle
-    # The edge's own message (built by the node from the cycle's event) and those the crate makes at io_rate after it
-    # say the same but for their stamps and cycles.
+    # The edge's own message (made by the crate from the cycle's event) and those it makes at io_rate after it say the
+    # same but for their stamps and cycles.
     ros.spin_for(3 / 20.0)
     after = [m for m in ros.received[f"{NODE}a/io"][seen:] if named(m, "part_present")]
     assert len(after) >= 3, [m.cycle for m in after]

@@ -51,7 +51,7 @@ class Core:
         self._commands = Commands(transport, self._node_state, commands, command_qos, requests)
         self._publishing = Publishing(transport, self._node_state, self._reliable, events, self._commands.fault_seen)
         self._trajectories = Trajectories(transport, self._node_state, commands, periodic, command_qos, events)
-        self._io = Io(transport, self._node_state, periodic, requests, events, self._publishing)
+        self._io = Io(transport, self._node_state, requests, events, self._publishing)
         self._diagnostics = Diagnostics(
             transport, self._node_state, periodic, self._reliable, NODE_NAME, self._publishing
         )

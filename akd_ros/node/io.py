@@ -4,10 +4,10 @@
 ~/io (~/<joint>/io on a node of joints) carries the digital inputs with the CiA 402 switches, the hardware enable as
 the drive shows it, the analog input, and the outputs as last sent, with the names io.inputs and io.outputs give them.
 It is made by the crate at io_rate for every joint from one snapshot of the cycle (every joint's I/O of the same cycle;
-`akd_ros.node.publishing` hands the bytes over), and built here once more at each change of a joint's digital inputs
-or hardware enable: from the cycle thread's event of that change, stamped with the cycle whose process image showed
-it, so an edge is neither late by a publication period nor lost between two. Both are read at publication rates,
-never per cycle, and recorded when the node records.
+`akd_ros.node.publishing` hands the bytes over), and once more at each change of a joint's digital inputs or hardware
+enable: from the cycle thread's event of that change, stamped with the cycle whose process image showed it, so an edge
+is neither late by a publication period nor lost between two. The crate makes both (one DriveIO in one place), Python
+wakes for them at publication rates or at the change, never per cycle, and both are recorded when the node records.
 
 ~/set_outputs writes one joint's digital outputs (by name or by the AKD's number) and analog output set-point into the
 next cycle's process image, never by SDO. A request is checked whole first and refused with one line that names the
@@ -16,8 +16,6 @@ problem and what is allowed, changing nothing.
 
 from __future__ import annotations
 
-import math
-
 from akd_ros import _native
 from akd_ros.axis import AxisIo, CommandError
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState, namespace
@@ -25,10 +23,6 @@ from akd_ros.node.publishing import Publishing, RecordedPublisher
 from akd_ros.node.transport import Qos, Transport
 from akd_ros.params import JointSettings
 
-HARDWARE_ENABLE = {"unknown": 0, "high": 1, "low": 2}
-"""DriveIO's hardware_enable codes (its HARDWARE_ENABLE_* constants) by the name the extension gives the state."""
-# The changes are taken from the cycle thread at this rate; its event queue holds 256, far more than arrive in 20 ms.
-_CHANGE_POLL_S = 0.02
 # Statusword bit 11, internal limit active: the drive holds a command back (here: at a limit switch).
 _INTERNAL_LIMIT = 1 << 11
 
@@ -63,16 +57,12 @@ def named_levels(joint: JointSettings, io: AxisIo) -> dict[str, str]:
 
 
 class Io:
-    """Each joint's ~/io publisher, fed at io_rate by `publishing`'s feed, the timer taking the changes in `periodic`,
-    and ~/set_outputs in `requests`."""
+    """Each joint's ~/io publisher, fed by `publishing`'s feed at io_rate and at each change, and ~/set_outputs in
+    `requests`."""
 
-    def __init__(
-        self, transport: Transport, node_state: NodeState, periodic, requests, qos: Qos, publishing: Publishing
-    ) -> None:
-        self._node_state, self._clock = node_state, node_state.clock
+    def __init__(self, transport: Transport, node_state: NodeState, requests, qos: Qos, publishing: Publishing) -> None:
+        self._node_state = node_state
         self._logger = transport.logger
-        self._header = transport.message_class("std_msgs/msg/Header")
-        self._drive_io = transport.message_class("akd_ros/msg/DriveIO")
         self._joints = {j.name: j for j in node_state.joints}
         self.publishers = {
             j.name: RecordedPublisher(
@@ -82,51 +72,7 @@ class Io:
         }
         """Each joint's ~/io publisher, by its name."""
         publishing.publish_drive_io(self.publishers, 1.0 / node_state.settings.io_rate)
-        transport.timer(_CHANGE_POLL_S, self._publish_changes, periodic)
         transport.service("akd_ros/srv/SetOutputs", "~/set_outputs", self._set_outputs, requests)
-
-    def _publish_changes(self) -> None:
-        node_state = self._node_state
-        with node_state.lock:
-            if node_state.bus is None or not node_state.active:
-                return
-            changes = [(axis.name, list(axis.input_events())) for axis in node_state.bus.axes]
-        for joint, ios in changes:
-            for io in ios:
-                self.publishers[joint].publish(self.message(joint, io))
-
-    def message(self, joint: str, io: AxisIo):
-        """The DriveIO of `joint` for `io`, stamped with its cycle's time, with the joint's names, as the crate's feed
-        makes it at io_rate (tests/test_node_io.py holds the two equal)."""
-        settings = self._joints[joint]
-        inputs, outputs = list(io.inputs), list(io.outputs)
-        # A name of an input or output the mapping does not carry is refused by the parameters' check.
-        named_inputs = (settings.io_inputs or {}) if inputs else {}
-        named_outputs = (settings.io_outputs or {}) if outputs else {}
-        return self._drive_io(
-            header=self._header(stamp=self._clock.stamp(io.time_ns)),
-            joint=joint,
-            cycle=io.cycle,
-            digital_inputs_mapped=io.digital_inputs is not None,
-            digital_inputs=io.digital_inputs or 0,
-            negative_limit=io.switches.get("negative_limit", False),
-            positive_limit=io.switches.get("positive_limit", False),
-            home_switch=io.switches.get("home_switch", False),
-            interlock=io.switches.get("interlock", False),
-            inputs=inputs,
-            input_names=list(named_inputs),
-            input_numbers=list(named_inputs.values()),
-            named_inputs=[inputs[n - 1] for n in named_inputs.values()],
-            hardware_enable=HARDWARE_ENABLE[io.hardware_enable],
-            analog_input=math.nan if io.analog_input is None else io.analog_input,
-            digital_outputs_mapped=io.digital_outputs is not None,
-            digital_outputs=io.digital_outputs or 0,
-            outputs=outputs,
-            output_names=list(named_outputs),
-            output_numbers=list(named_outputs.values()),
-            named_outputs=[outputs[n - 1] for n in named_outputs.values()],
-            analog_output=math.nan if io.analog_output is None else io.analog_output,
-        )
 
     def _joint_of(self, joint: str) -> str:
         """The joint a request names ('' on a node of one joint: that one); CommandError otherwise."""

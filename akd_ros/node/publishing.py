@@ -17,7 +17,10 @@ The events (latches, faults, command time-outs) stay Python's: they are rare and
 the cycle has events waiting; this thread then takes them, publishes them, logs the faults and has the recorder write
 their black box.
 
-Each joint's ~/io (akd_ros/DriveIO, `akd_ros.node.io`) is made the same way, at io_rate. Another periodic publication
+Each joint's ~/io (akd_ros/DriveIO, `akd_ros.node.io`) is made the same way, at io_rate, and once more at each change
+of the drive's inputs: this thread hands the cycle's event of it to the feed (`Feed.input_change`), which makes that
+message, stamped with the cycle that showed the change, and hands it out and records it as the periodic ones, so an
+edge is neither late by a period nor lost between two. Another periodic publication
 is added so: its message struct and its making
 from the snapshot in the crate (a `Kind` of `native/src/node/feed.rs`; on change: compared there with what it last
 made, at its stream's check rate), a `Feed.add_...` stream here in `_start_feed` with its period, and its publisher in
@@ -151,6 +154,7 @@ class Publishing:
         self._feed: _native.Feed | None = None
         self._streams: dict[int, RecordedPublisher] = {}
         self._drive_io: tuple[dict[str, RecordedPublisher], float] | None = None
+        self._drive_io_streams: dict[str, int] = {}
         self._thread: threading.Thread | None = None
 
     def publishers(self) -> list[RecordedPublisher]:
@@ -174,7 +178,8 @@ class Publishing:
         if self._drive_io is not None:
             publishers, period = self._drive_io
             for k, axis in enumerate(bus.axes):
-                self._streams[feed.add_drive_io(k, period)] = publishers[axis.name]
+                self._drive_io_streams[axis.name] = stream = feed.add_drive_io(k, period)
+                self._streams[stream] = publishers[axis.name]
         self._read_offset(feed)
         recorder = self._node_state.recorder
         if recorder is not None:
@@ -237,7 +242,13 @@ class Publishing:
                 (a, list(a.latch_events()), list(a.fault_events()), list(a.command_timeout_events()))
                 for a in node_state.bus.axes
             ]
+            changes = [(a.name, list(a.input_events())) for a in node_state.bus.axes]
             recorder = node_state.recorder
+        feed = self._feed
+        for joint, ios in changes:
+            stream = self._drive_io_streams.get(joint)
+            for io in ios if feed is not None and stream is not None else ():
+                feed.input_change(stream, io.cycle, io.time_ns, io.digital_inputs or 0, io.statusword or 0)
         how_to_enable = "call ~/enable to go on"
         # A fault of the link (a lost frame, a working counter) is every drive's in the same cycle: one line for all.
         logged: dict[tuple, list[str]] = {}

@@ -247,6 +247,16 @@ impl DriveIo {
         }
     }
 
+    /// These I/O with the digital inputs and statusword of another cycle (the cycle thread's
+    /// event of an input change), where the mapping carries them.
+    pub fn with_inputs(self, digital_inputs: u32, statusword: u16) -> DriveIo {
+        DriveIo {
+            statusword: self.statusword.map(|_| statusword),
+            digital_inputs: self.digital_inputs.map(|_| digital_inputs),
+            ..self
+        }
+    }
+
     /// The levels of digital inputs 1..=[`INPUT_COUNT`], input 1 first; `None` without 0x60FD.
     pub fn input_levels(&self) -> Option<Vec<bool>> {
         self.digital_inputs.map(|word| (0..INPUT_COUNT).map(|i| inputs(word) >> i & 1 == 1).collect())

@@ -11,7 +11,8 @@
 //!   [`MAX_WAITING`] at a time, the oldest dropped and counted beyond;
 //! - with [`Feed::record`], queues the same bytes in a bag writer, at their stamp;
 //! - says when the cycle has pushed new events (each once), so that they are taken when there are
-//!   some rather than polled for.
+//!   some rather than polled for; an input change among them comes back as one more DriveIO
+//!   message, made at once ([`Feed::input_change`]).
 //!
 //! Stamps are ROS time: the monotonic clock plus the offset the node keeps up to date (the
 //! `offset_ns` given to [`Feed::new`]), the same offset that stamps the recorded cycles.
@@ -76,6 +77,83 @@ struct FeedShared {
     ready: Condvar,
     recording: Mutex<Vec<(usize, Arc<BagWriter>, usize)>>,
     dropped: AtomicU64,
+}
+
+impl FeedShared {
+    /// The I/O of `joint`'s drive in `snapshot`, read by its mapping (none where it has none).
+    fn drive_io_of(&self, joint: usize, snapshot: &Snapshot) -> DriveIo {
+        let (cycle, slave) = (&self.cycle, self.joints[joint].slave);
+        match (cycle.mapping(slave), cycle.outputs_of(snapshot, slave), cycle.inputs_of(snapshot, slave)) {
+            (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, outputs, inputs),
+            _ => DriveIo::default(),
+        }
+    }
+
+    /// `joint`'s akd_ros/DriveIO of `drive` as cycle `cycle` (woken at `time_ns`) showed it:
+    /// the digital inputs with the CiA 402 switches, hardware enable, analog input and outputs
+    /// as sent, with the joint's names.
+    fn drive_io(&self, joint: usize, drive: &DriveIo, cycle: u64, time_ns: u64) -> Vec<u8> {
+        let j = &self.joints[joint];
+        let inputs = drive.input_levels().unwrap_or_default();
+        let outputs = drive.output_levels().unwrap_or_default();
+        let (input_names, input_numbers, named_inputs) = named(&inputs, &j.io.input_names, &j.io.input_numbers);
+        let (output_names, output_numbers, named_outputs) = named(&outputs, &j.io.output_names, &j.io.output_numbers);
+        let switch = |s: Switch| drive.digital_inputs.is_some_and(|w| s.active(w));
+        let volts = |counts: Option<i16>| counts.map_or(f64::NAN, |c| c as f64 * j.io.volts_per_count);
+        let stamp_ns = time_ns as i64 + self.offset_ns.load(Ordering::Relaxed);
+        let message = ros_msgs::DriveIo {
+            header: Header::at(stamp_ns),
+            joint: &j.name,
+            cycle,
+            digital_inputs_mapped: drive.digital_inputs.is_some(),
+            digital_inputs: drive.digital_inputs.unwrap_or(0),
+            negative_limit: switch(Switch::NegativeLimit),
+            positive_limit: switch(Switch::PositiveLimit),
+            home_switch: switch(Switch::Home),
+            interlock: switch(Switch::Interlock),
+            inputs,
+            input_names,
+            input_numbers,
+            named_inputs,
+            hardware_enable: match drive.hardware_enable() {
+                HardwareEnable::Unknown => 0,
+                HardwareEnable::High => 1,
+                HardwareEnable::Low => 2,
+            },
+            analog_input: volts(drive.analog_input),
+            digital_outputs_mapped: drive.digital_outputs.is_some(),
+            digital_outputs: drive.digital_outputs.unwrap_or(0),
+            outputs,
+            output_names,
+            output_numbers,
+            named_outputs,
+            analog_output: volts(drive.analog_output),
+        };
+        ros_msgs::to_cdr(&message, 256)
+    }
+
+    fn hand_over(&self, made: Vec<(usize, i64, Vec<u8>)>, events: bool) {
+        for (stream, writer, topic) in lock(&self.recording).iter() {
+            for (_, stamp_ns, data) in made.iter().filter(|m| m.0 == *stream) {
+                writer.write(*topic, *stamp_ns, data.clone());
+            }
+        }
+        let made_none = made.is_empty();
+        let mut outbox = lock(&self.outbox);
+        for (stream, _, data) in made {
+            if outbox.messages.len() == MAX_WAITING {
+                outbox.messages.pop_front();
+                self.dropped.fetch_add(1, Ordering::Relaxed);
+            }
+            outbox.messages.push_back((stream, data));
+        }
+        let wake = !made_none || events;
+        outbox.events |= events;
+        drop(outbox);
+        if wake {
+            self.ready.notify_all();
+        }
+    }
 }
 
 #[derive(Default)]
@@ -170,6 +248,25 @@ impl Feed {
             .unwrap_or_else(|p| p.into_inner());
         let events = std::mem::take(&mut outbox.events);
         (outbox.messages.drain(..).collect(), events)
+    }
+
+    /// Hands out (and records) at once the DriveIO of the change of a drive's inputs that the
+    /// cycle thread reported (an input change event: `cycle`, its wake-up `time_ns`, and what
+    /// it read of 0x60FD and the statusword), on `stream`, which makes its joint's DriveIO at a
+    /// rate; the analog input and the outputs are the last snapshot's. An edge is so published
+    /// in its own message, stamped with its cycle, not a period later or lost between two.
+    /// `false` when `stream` makes no DriveIO, or the feed is inactive.
+    pub fn input_change(&self, stream: usize, cycle: u64, time_ns: u64, digital_inputs: u32, statusword: u16) -> bool {
+        let kind = lock(&self.streams).get(stream).map(|s| s.0);
+        let (Some(Kind::DriveIo(joint)), true) = (kind, self.shared.active.load(Ordering::Acquire)) else {
+            return false;
+        };
+        let shared = &self.shared;
+        let now = shared.drive_io_of(joint, &shared.cycle.snapshot());
+        let message = shared.drive_io(joint, &now.with_inputs(digital_inputs, statusword), cycle, time_ns);
+        let stamp_ns = time_ns as i64 + shared.offset_ns.load(Ordering::Relaxed);
+        shared.hand_over(vec![(stream, stamp_ns, message)], false);
+        true
     }
 
     /// Messages dropped because nobody took them in time.
@@ -269,7 +366,7 @@ impl Maker {
             self.said = pushed;
             let made = if due.is_empty() { Vec::new() } else { self.make(&due) };
             if !made.is_empty() || events {
-                self.hand_over(made, events);
+                self.shared.hand_over(made, events);
             }
         }
     }
@@ -307,7 +404,10 @@ impl Maker {
         match kind {
             Kind::JointStates => self.joint_states(reading),
             Kind::DriveStatus(joint) => self.drive_status(joint, reading),
-            Kind::DriveIo(joint) => self.drive_io(joint, reading),
+            Kind::DriveIo(joint) => {
+                let (shared, snapshot) = (&self.shared, &reading.snapshot);
+                shared.drive_io(joint, &shared.drive_io_of(joint, snapshot), snapshot.cycle, snapshot.time_ns)
+            }
         }
     }
 
@@ -372,77 +472,6 @@ impl Maker {
             exchange_p99: exchange.p99_ns as f64 * 1e-9,
         };
         ros_msgs::to_cdr(&message, 160)
-    }
-
-    /// The drive's digital inputs with the CiA 402 switches, hardware enable, analog input and
-    /// outputs as sent, read by its mapping from the snapshot's images, with the joint's names.
-    fn drive_io(&self, joint: usize, reading: &Reading) -> Vec<u8> {
-        let (cycle, snapshot) = (&self.shared.cycle, &reading.snapshot);
-        let j = &self.shared.joints[joint];
-        let drive =
-            match (cycle.mapping(j.slave), cycle.outputs_of(snapshot, j.slave), cycle.inputs_of(snapshot, j.slave)) {
-                (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, outputs, inputs),
-                _ => DriveIo::default(),
-            };
-        let inputs = drive.input_levels().unwrap_or_default();
-        let outputs = drive.output_levels().unwrap_or_default();
-        let (input_names, input_numbers, named_inputs) = named(&inputs, &j.io.input_names, &j.io.input_numbers);
-        let (output_names, output_numbers, named_outputs) = named(&outputs, &j.io.output_names, &j.io.output_numbers);
-        let switch = |s: Switch| drive.digital_inputs.is_some_and(|w| s.active(w));
-        let volts = |counts: Option<i16>| counts.map_or(f64::NAN, |c| c as f64 * j.io.volts_per_count);
-        let stamp_ns = snapshot.time_ns as i64 + self.shared.offset_ns.load(Ordering::Relaxed);
-        let message = ros_msgs::DriveIo {
-            header: Header::at(stamp_ns),
-            joint: &j.name,
-            cycle: snapshot.cycle,
-            digital_inputs_mapped: drive.digital_inputs.is_some(),
-            digital_inputs: drive.digital_inputs.unwrap_or(0),
-            negative_limit: switch(Switch::NegativeLimit),
-            positive_limit: switch(Switch::PositiveLimit),
-            home_switch: switch(Switch::Home),
-            interlock: switch(Switch::Interlock),
-            inputs,
-            input_names,
-            input_numbers,
-            named_inputs,
-            hardware_enable: match drive.hardware_enable() {
-                HardwareEnable::Unknown => 0,
-                HardwareEnable::High => 1,
-                HardwareEnable::Low => 2,
-            },
-            analog_input: volts(drive.analog_input),
-            digital_outputs_mapped: drive.digital_outputs.is_some(),
-            digital_outputs: drive.digital_outputs.unwrap_or(0),
-            outputs,
-            output_names,
-            output_numbers,
-            named_outputs,
-            analog_output: volts(drive.analog_output),
-        };
-        ros_msgs::to_cdr(&message, 256)
-    }
-
-    fn hand_over(&self, made: Vec<(usize, i64, Vec<u8>)>, events: bool) {
-        for (stream, writer, topic) in lock(&self.shared.recording).iter() {
-            for (_, stamp_ns, data) in made.iter().filter(|m| m.0 == *stream) {
-                writer.write(*topic, *stamp_ns, data.clone());
-            }
-        }
-        let made_none = made.is_empty();
-        let mut outbox = lock(&self.shared.outbox);
-        for (stream, _, data) in made {
-            if outbox.messages.len() == MAX_WAITING {
-                outbox.messages.pop_front();
-                self.shared.dropped.fetch_add(1, Ordering::Relaxed);
-            }
-            outbox.messages.push_back((stream, data));
-        }
-        let wake = !made_none || events;
-        outbox.events |= events;
-        drop(outbox);
-        if wake {
-            self.shared.ready.notify_all();
-        }
     }
 }
 

@@ -213,12 +213,7 @@ impl PyDriveIo {
     /// These I/O with the digital inputs and statusword of another cycle (an "inputs" event of
     /// `Cycle.events`), where this drive's mapping carries them.
     fn with_inputs(&self, cycle: u64, time_ns: u64, digital_inputs: u32, statusword: u16) -> PyDriveIo {
-        let io = DriveIo {
-            statusword: self.io.statusword.map(|_| statusword),
-            digital_inputs: self.io.digital_inputs.map(|_| digital_inputs),
-            ..self.io
-        };
-        PyDriveIo { cycle, time_ns, fresh: true, io }
+        PyDriveIo { cycle, time_ns, fresh: true, io: self.io.with_inputs(digital_inputs, statusword) }
     }
 
     fn __repr__(&self) -> String {

@@ -122,6 +122,15 @@ impl PyFeed {
         self.offset_ns.store(offset_ns, Ordering::Relaxed);
     }
 
+    /// Hands out at once on `stream`, a DriveIO stream, the DriveIO of a change of its drive's
+    /// inputs that the cycle reported (an "inputs" event of `Cycle.events`: its cycle, time_ns,
+    /// digital_inputs and statusword), stamped with that cycle, recorded as the stream is; the
+    /// analog input and the outputs are the last snapshot's. False when `stream` makes no
+    /// DriveIO or the feed is inactive.
+    fn input_change(&self, stream: usize, cycle: u64, time_ns: u64, digital_inputs: u32, statusword: u16) -> bool {
+        self.feed.input_change(stream, cycle, time_ns, digital_inputs, statusword)
+    }
+
     /// Every message of stream `stream` is also queued in `writer` as its topic number `topic`.
     fn record(&self, stream: usize, writer: &PyBagWriter, topic: usize) {
         self.feed.record(stream, writer.writer.clone(), topic);
