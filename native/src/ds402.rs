@@ -5,25 +5,28 @@
 //! the controlword that moves a drive one step toward a wanted state (what the master sends).
 //! The virtual AKD and the master's sequencer both use it, so they cannot disagree.
 
-/// A state of the drive, as the statusword shows it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum State {
-    /// Initialising; the drive leaves it by itself.
-    NotReadyToSwitchOn,
-    /// Power stage off, waiting for Shutdown.
-    SwitchOnDisabled,
-    /// Ready; Switch on closes the main contactor.
-    ReadyToSwitchOn,
-    /// High voltage applied, power stage off.
-    SwitchedOn,
-    /// Power stage on, following set-points.
-    OperationEnabled,
-    /// Braking with the quick-stop ramp.
-    QuickStopActive,
-    /// Reacting to a fault before entering Fault.
-    FaultReactionActive,
-    /// Faulted; needs a fault reset.
-    Fault,
+named_variants! {
+    /// A state of the drive, as the statusword shows it.
+    pub enum State {
+        /// Initialising; the drive leaves it by itself.
+        NotReadyToSwitchOn => "Not ready to switch on",
+        /// Power stage off, waiting for Shutdown.
+        SwitchOnDisabled => "Switch on disabled",
+        /// Ready; Switch on closes the main contactor.
+        ReadyToSwitchOn => "Ready to switch on",
+        /// High voltage applied, power stage off.
+        SwitchedOn => "Switched on",
+        /// Power stage on, following set-points.
+        OperationEnabled => "Operation enabled",
+        /// Braking with the quick-stop ramp.
+        QuickStopActive => "Quick stop active",
+        /// Reacting to a fault before entering Fault.
+        FaultReactionActive => "Fault reaction active",
+        /// Faulted; needs a fault reset.
+        Fault => "Fault",
+    }
+    /// The state's name as CiA 402 writes it.
+    fn name;
 }
 
 /// Statusword bits.
@@ -129,20 +132,6 @@ impl State {
         }
     }
 
-    /// The state's name as CiA 402 writes it.
-    pub fn name(self) -> &'static str {
-        match self {
-            State::NotReadyToSwitchOn => "Not ready to switch on",
-            State::SwitchOnDisabled => "Switch on disabled",
-            State::ReadyToSwitchOn => "Ready to switch on",
-            State::SwitchedOn => "Switched on",
-            State::OperationEnabled => "Operation enabled",
-            State::QuickStopActive => "Quick stop active",
-            State::FaultReactionActive => "Fault reaction active",
-            State::Fault => "Fault",
-        }
-    }
-
     /// Whether the power stage drives the motor in this state.
     pub fn is_power_stage_on(self) -> bool {
         matches!(self, State::OperationEnabled | State::QuickStopActive | State::FaultReactionActive)
@@ -213,22 +202,22 @@ pub fn step_toward(state: State, target: State) -> u16 {
     }
 }
 
-/// Modes of operation (0x6060 / 0x6061) the AKD supports (§5.8).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-#[repr(i8)]
-pub enum Mode {
-    /// Profile position (motion task 0).
-    ProfilePosition = 1,
-    /// Profile velocity.
-    ProfileVelocity = 3,
-    /// Profile torque, in 0.1 % of the drive's peak torque.
-    ProfileTorque = 4,
-    /// Homing (drive internal).
-    Homing = 6,
-    /// Interpolated position, set-points in 0x60C1:01.
-    InterpolatedPosition = 7,
-    /// Cyclic synchronous position, set-points in 0x607A.
-    CyclicSynchronousPosition = 8,
+wire_codes! {
+    /// Modes of operation (0x6060 / 0x6061) the AKD supports (§5.8).
+    pub enum Mode: i8, "mode of operation" {
+        /// Profile position (motion task 0).
+        ProfilePosition = 1 => "profile position",
+        /// Profile velocity.
+        ProfileVelocity = 3 => "profile velocity",
+        /// Profile torque, in 0.1 % of the drive's peak torque.
+        ProfileTorque = 4 => "profile torque",
+        /// Homing (drive internal).
+        Homing = 6 => "homing",
+        /// Interpolated position, set-points in 0x60C1:01.
+        InterpolatedPosition = 7 => "interpolated position",
+        /// Cyclic synchronous position, set-points in 0x607A.
+        CyclicSynchronousPosition = 8 => "cyclic synchronous position",
+    }
 }
 
 /// CiA 402's cyclic synchronous velocity (9) and torque (10), which the AKD does not offer: by
@@ -253,46 +242,10 @@ pub const NOT_OFFERED: [(i8, &str, &str); 2] = [
 ];
 
 impl Mode {
-    /// Every supported mode.
-    pub const ALL: [Mode; 6] = [
-        Mode::ProfilePosition,
-        Mode::ProfileVelocity,
-        Mode::ProfileTorque,
-        Mode::Homing,
-        Mode::InterpolatedPosition,
-        Mode::CyclicSynchronousPosition,
-    ];
-
     /// Decodes 0x6060/0x6061; `None` for a mode the AKD does not support.
     pub fn from_i8(value: i8) -> Option<Mode> {
-        Self::ALL.into_iter().find(|m| *m as i8 == value)
+        Mode::try_from(value).ok()
     }
-
-    /// The mode's name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Mode::ProfilePosition => "profile position",
-            Mode::ProfileVelocity => "profile velocity",
-            Mode::ProfileTorque => "profile torque",
-            Mode::Homing => "homing",
-            Mode::InterpolatedPosition => "interpolated position",
-            Mode::CyclicSynchronousPosition => "cyclic synchronous position",
-        }
-    }
-}
-
-impl State {
-    /// Every state, in the order of CiA 402's state diagram (for looking one up by name).
-    pub const ALL: [State; 8] = [
-        State::NotReadyToSwitchOn,
-        State::SwitchOnDisabled,
-        State::ReadyToSwitchOn,
-        State::SwitchedOn,
-        State::OperationEnabled,
-        State::QuickStopActive,
-        State::FaultReactionActive,
-        State::Fault,
-    ];
 }
 
 /// What the command of a mode of operation sets.

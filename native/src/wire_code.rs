@@ -1,5 +1,6 @@
 //! Sets of wire codes, declared in one shape: each code with its value and its name as the
-//! standard spells it.
+//! standard spells it; and enums that are no wire code but carry a text per variant, declared
+//! the same way so that no variant is listed twice.
 //!
 //! - A closed set (`enum Name: raw, "what" { Variant = value => "name", ... }`) is a `#[repr]`
 //!   enum with its names, `ALL`, `TryFrom` of the raw value (an error naming the value and the
@@ -8,6 +9,11 @@
 //!   pattern => "name", ... }`), where a slave may send codes outside the standard's list (a
 //!   vendor's), is a newtype over the wire value: the codes this crate uses by name as
 //!   constants, a `name()` for every code of the list and the `else` patterns for the rest.
+//! - An enum of names (`named_variants!`: `enum Name { Variant => "text", ... } fn name;`),
+//!   optionally with discriminants (`Variant = value => "text"`), is the enum with `ALL` and
+//!   the text of each variant by the method the declaration names (`name`, `describe`, ...,
+//!   documented there): for a set the crate spells (a link spec's option values, a DS402 state)
+//!   but receives from no wire.
 
 use std::fmt;
 
@@ -28,7 +34,7 @@ macro_rules! wire_codes {
 
         impl $name {
             /// Every code of the set, in the standard's order.
-            pub const ALL: &'static [$name] = &[$($name::$variant),+];
+            pub const ALL: [$name; [$(stringify!($variant)),+].len()] = [$($name::$variant),+];
 
             /// The code's name as the standard spells it.
             pub fn name(self) -> &'static str {
@@ -97,15 +103,45 @@ macro_rules! wire_codes {
     };
 }
 
+/// Declares an enum with a text per variant and `ALL`; see the module documentation.
+macro_rules! named_variants {
+    (
+        $(#[$meta:meta])*
+        $vis:vis enum $name:ident {
+            $($(#[$variant_meta:meta])* $variant:ident $(= $value:literal)? => $text:literal,)+
+        }
+        $(#[$text_meta:meta])*
+        fn $text_fn:ident;
+    ) => {
+        $(#[$meta])*
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        $vis enum $name {
+            $($(#[$variant_meta])* $variant $(= $value)?,)+
+        }
+
+        impl $name {
+            /// Every variant, in the order declared.
+            pub const ALL: [$name; [$(stringify!($variant)),+].len()] = [$($name::$variant),+];
+
+            $(#[$text_meta])*
+            pub fn $text_fn(self) -> &'static str {
+                match self {
+                    $($name::$variant => $text,)+
+                }
+            }
+        }
+    };
+}
+
 /// A wire code outside its closed set (a CoE service, an SDO information opcode, ...).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct UnknownCode {
     /// The field the code came in, e.g. "CoE service".
     pub what: &'static str,
-    /// The value received.
-    pub value: u16,
+    /// The value received (an `i32`, which holds the value of every set: `u8`, `u16`, `i8`).
+    pub value: i32,
     /// The set's codes and names, to say what was allowed.
-    pub known: &'static [(u16, &'static str)],
+    pub known: &'static [(i32, &'static str)],
 }
 
 impl fmt::Display for UnknownCode {

@@ -110,7 +110,7 @@ mod tests {
 
     #[test]
     fn wire_codes_round_trip_and_name_the_unknown() {
-        for &service in CoeService::ALL {
+        for service in CoeService::ALL {
             assert_eq!(CoeService::try_from(u8::from(service)), Ok(service));
         }
         assert_eq!(CoeService::SdoInformation.to_string(), "8 (SDO Information)");

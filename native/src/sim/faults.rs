@@ -90,7 +90,7 @@ mod tests {
 
     #[test]
     fn names_and_numbers_find_the_fault() {
-        for &fault in Fault::ALL {
+        for fault in Fault::ALL {
             assert_eq!(Fault::from_name(fault.name()), Ok(fault));
             assert_eq!(Fault::from_name(&format!("F{}", fault.number())), Ok(fault));
         }
