@@ -99,66 +99,57 @@ pub const MAX_SIM_COUNT: usize = 64;
 /// a round trip on a real line of many drives takes tens of µs, and a 1 kHz cycle has 1000.
 pub const MAX_BUSY_POLL_US: u32 = 1000;
 
-/// How a virtual AKD judges that it missed frames (F125, "Synchronization lost", after more
-/// than seven): the link spec names it (`sim:N?missed=warn`), akd-sim takes it (`--missed`),
-/// and the virtual AKD applies it. A real AKD always judges [`Late`](MissedFrames::Late).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum MissedFrames {
-    /// By time, as the real AKD does: a frame is missed once half a cycle passed after it was
-    /// due, so a master thread the host runs late faults the drive.
-    #[default]
-    Late,
-    /// By the frames the line lost before they reached the drive (a lost burst, a pulled
-    /// cable): a late frame is not a missed one. It cannot see a master that stopped sending.
-    Lost,
-    /// By time, as the real AKD does, but where the real drive would raise F125 the virtual
-    /// one counts it as a would-be F125 (and akd-sim warns) and goes on: for a robot developed
-    /// on a host that stalls the master thread now and then. Frames lost on the line still
-    /// count as [`Lost`](MissedFrames::Lost) counts them, so a pulled cable still faults.
-    Warn,
+named_variants! {
+    /// How a virtual AKD judges that it missed frames (F125, "Synchronization lost", after more
+    /// than seven): the link spec names it (`sim:N?missed=warn`), akd-sim takes it (`--missed`),
+    /// and the virtual AKD applies it. A real AKD always judges [`Late`](MissedFrames::Late).
+    #[derive(Default)]
+    pub enum MissedFrames {
+        /// By time, as the real AKD does: a frame is missed once half a cycle passed after it was
+        /// due, so a master thread the host runs late faults the drive.
+        #[default]
+        Late => "late",
+        /// By the frames the line lost before they reached the drive (a lost burst, a pulled
+        /// cable): a late frame is not a missed one. It cannot see a master that stopped sending.
+        Lost => "lost",
+        /// By time, as the real AKD does, but where the real drive would raise F125 the virtual
+        /// one counts it as a would-be F125 (and akd-sim warns) and goes on: for a robot developed
+        /// on a host that stalls the master thread now and then. Frames lost on the line still
+        /// count as [`Lost`](MissedFrames::Lost) counts them, so a pulled cable still faults.
+        Warn => "warn",
+    }
+    /// The option's value as the link spec writes it: "late", "lost" or "warn".
+    fn name;
 }
 
 impl MissedFrames {
-    /// The option's values as the link spec writes them.
-    pub const NAMES: [(&'static str, MissedFrames); 3] =
-        [("late", MissedFrames::Late), ("lost", MissedFrames::Lost), ("warn", MissedFrames::Warn)];
-
-    /// "late", "lost" or "warn".
-    pub fn name(self) -> &'static str {
-        Self::NAMES.iter().find(|(_, m)| *m == self).map_or("late", |(name, _)| name)
-    }
-
     /// The judgement named `name` ("late", "lost" or "warn").
     pub fn parse(name: &str) -> Option<Self> {
-        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, m)| *m)
+        Self::ALL.into_iter().find(|m| m.name() == name)
     }
 }
 
-/// How fast virtual AKDs' firmware answers AL requests and the mailbox (`sim?pace=...`,
-/// akd-sim `--pace`): as the real drive (the default), or at once, for tests that open many
-/// buses and are not about the drive's pace.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Pace {
-    /// The real drive's delays ([`crate::sim::Timing::REAL_DRIVE`]): Init→PreOp 17.5 ms, the
-    /// other AL requests 4.5 ms, a mailbox reply 1 ms after the request.
-    #[default]
-    Real,
-    /// Every request handled before the next frame.
-    Immediate,
+named_variants! {
+    /// How fast virtual AKDs' firmware answers AL requests and the mailbox (`sim?pace=...`,
+    /// akd-sim `--pace`): as the real drive (the default), or at once, for tests that open many
+    /// buses and are not about the drive's pace.
+    #[derive(Default)]
+    pub enum Pace {
+        /// The real drive's delays ([`crate::sim::Timing::REAL_DRIVE`]): Init→PreOp 17.5 ms, the
+        /// other AL requests 4.5 ms, a mailbox reply 1 ms after the request.
+        #[default]
+        Real => "real",
+        /// Every request handled before the next frame.
+        Immediate => "immediate",
+    }
+    /// The option's value as the link spec writes it: "real" or "immediate".
+    fn name;
 }
 
 impl Pace {
-    /// The option's values as the link spec writes them.
-    pub const NAMES: [(&'static str, Pace); 2] = [("real", Pace::Real), ("immediate", Pace::Immediate)];
-
-    /// "real" or "immediate".
-    pub fn name(self) -> &'static str {
-        Self::NAMES.iter().find(|(_, p)| *p == self).map_or("real", |(name, _)| name)
-    }
-
     /// The pace named `name`.
     pub fn parse(name: &str) -> Option<Self> {
-        Self::NAMES.iter().find(|(n, _)| *n == name).map(|(_, p)| *p)
+        Self::ALL.into_iter().find(|p| p.name() == name)
     }
 }
 

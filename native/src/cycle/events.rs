@@ -50,39 +50,25 @@ wire_codes! {
     }
 }
 
-/// What the cycle thread did about a fault.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Action {
-    /// Reported only: the drive's own reaction (or another event's action) covers it.
-    Reported = 1,
-    /// The drive was asked for Switch on disabled and its target held at the actual position.
-    Disabled = 2,
-    /// Counted: the drive held its last set-point through a short gap and went on.
-    Counted = 3,
-    /// Restored: the slave is back in Op (with its address, mapping, mode and clock set again
-    /// where it had lost them), its power stage off and its target held at the actual position.
-    Restored = 4,
-}
-
-impl Action {
-    const ALL: [Action; 4] = [Action::Reported, Action::Disabled, Action::Counted, Action::Restored];
-
-    /// One sentence for the fault message and the log.
-    pub fn describe(self) -> &'static str {
-        match self {
-            Action::Reported => "reported; the drive reacts by itself (power stage off in Fault)",
-            Action::Disabled => {
-                "drive disabled (Switch on disabled requested) with its target held at the actual position; \
-                 nothing moves until it is reset, enabled and commanded again"
-            }
-            Action::Counted => "counted; the drive held its last set-point through the gap and no more than that",
-            Action::Restored => {
-                "back in Op (readdressed and reconfigured where it had lost its configuration), its power stage off \
-                 and its target held at the actual position; nothing moves until it is enabled and commanded again"
-            }
-        }
+named_variants! {
+    /// What the cycle thread did about a fault.
+    #[repr(u8)]
+    pub enum Action {
+        /// Reported only: the drive's own reaction (or another event's action) covers it.
+        Reported = 1 => "reported; the drive reacts by itself (power stage off in Fault)",
+        /// The drive was asked for Switch on disabled and its target held at the actual position.
+        Disabled = 2 => "drive disabled (Switch on disabled requested) with its target held at the actual position; \
+            nothing moves until it is reset, enabled and commanded again",
+        /// Counted: the drive held its last set-point through a short gap and went on.
+        Counted = 3 => "counted; the drive held its last set-point through the gap and no more than that",
+        /// Restored: the slave is back in Op (with its address, mapping, mode and clock set again
+        /// where it had lost them), its power stage off and its target held at the actual position.
+        Restored = 4 => "back in Op (readdressed and reconfigured where it had lost its configuration), its power \
+            stage off and its target held at the actual position; nothing moves until it is enabled and commanded \
+            again",
     }
+    /// One sentence for the fault message and the log.
+    fn describe;
 }
 
 wire_codes! {

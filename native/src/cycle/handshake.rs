@@ -24,38 +24,23 @@ use crate::ds402::{controlword as cw, statusword as sw, Mode, State};
 /// immediately) and 6 (target relative). Bit 4 must be among them.
 pub const ALLOWED_BITS: u16 = cw::NEW_SETPOINT | cw::CHANGE_IMMEDIATELY | cw::RELATIVE;
 
-/// Why a handshake is stuck.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Stuck {
-    /// The drive is not, or no longer, in Operation enabled.
-    NotEnabled = 1,
-    /// Statusword bit 12 stayed set for the clearing time-out, so the bits were not raised.
-    NeverCleared = 2,
-    /// Statusword bit 12 was not set within the time-out from the raise.
-    NeverSet = 3,
-    /// The drive shows a homing error (statusword bit 13) while homing.
-    HomingError = 4,
-}
-
-impl Stuck {
-    const ALL: [Stuck; 4] = [Stuck::NotEnabled, Stuck::NeverCleared, Stuck::NeverSet, Stuck::HomingError];
-
-    /// Why, in one clause.
-    pub fn describe(self) -> &'static str {
-        match self {
-            Stuck::NotEnabled => "the drive is not in Operation enabled",
-            Stuck::NeverCleared => {
-                "statusword bit 12 stayed set for the request time-out (the handshake starts from bit 12 clear; \
-                 in homing it is the homing attained of an earlier homing)"
-            }
-            Stuck::NeverSet => {
-                "statusword bit 12 (set-point acknowledged, or homing attained) was not set within the time-out \
-                 after the bits were raised"
-            }
-            Stuck::HomingError => "homing error (statusword bit 13)",
-        }
+named_variants! {
+    /// Why a handshake is stuck.
+    #[repr(u8)]
+    pub enum Stuck {
+        /// The drive is not, or no longer, in Operation enabled.
+        NotEnabled = 1 => "the drive is not in Operation enabled",
+        /// Statusword bit 12 stayed set for the clearing time-out, so the bits were not raised.
+        NeverCleared = 2 => "statusword bit 12 stayed set for the request time-out (the handshake starts from bit 12 \
+            clear; in homing it is the homing attained of an earlier homing)",
+        /// Statusword bit 12 was not set within the time-out from the raise.
+        NeverSet = 3 => "statusword bit 12 (set-point acknowledged, or homing attained) was not set within the \
+            time-out after the bits were raised",
+        /// The drive shows a homing error (statusword bit 13) while homing.
+        HomingError = 4 => "homing error (statusword bit 13)",
     }
+    /// Why, in one clause.
+    fn describe;
 }
 
 /// How far a handshake is.

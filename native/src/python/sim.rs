@@ -525,7 +525,7 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PySetpointTrace>()?;
     m.add_function(wrap_pyfunction!(serve_udp, m)?)?;
     m.add_function(wrap_pyfunction!(serve_iface, m)?)?;
-    m.add("MISSED_FRAMES", MissedFrames::NAMES.map(|(name, _)| name))?;
-    m.add("PACES", Pace::NAMES.map(|(name, _)| name))?;
+    m.add("MISSED_FRAMES", MissedFrames::ALL.map(MissedFrames::name))?;
+    m.add("PACES", Pace::ALL.map(Pace::name))?;
     Ok(())
 }

@@ -16,29 +16,21 @@
 use crate::error::UnknownName;
 use crate::sim::motion::COUNTS_PER_REV;
 
-/// How a homing run goes wrong, as akd-sim's control makes it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Failure {
-    /// Halfway to the reference the drive stops with a homing error (bit 13), as the AKD does
-    /// when a limit switch or a fault ends the search.
-    Error,
-    /// The reference is never seen: the drive searches at its homing speed until halted or
-    /// taken out of homing (the master's time-out is what ends it).
-    NoReference,
+named_variants! {
+    /// How a homing run goes wrong, as akd-sim's control makes it.
+    pub enum Failure {
+        /// Halfway to the reference the drive stops with a homing error (bit 13), as the AKD does
+        /// when a limit switch or a fault ends the search.
+        Error => "error",
+        /// The reference is never seen: the drive searches at its homing speed until halted or
+        /// taken out of homing (the master's time-out is what ends it).
+        NoReference => "no_reference",
+    }
+    /// Its name in akd-sim's control.
+    fn name;
 }
 
 impl Failure {
-    /// Every failure, by [`name`](Self::name).
-    pub const ALL: [Failure; 2] = [Failure::Error, Failure::NoReference];
-
-    /// Its name in akd-sim's control.
-    pub fn name(self) -> &'static str {
-        match self {
-            Failure::Error => "error",
-            Failure::NoReference => "no_reference",
-        }
-    }
-
     /// The failure named `name`, or `None` for "ok" (homing works).
     pub fn from_name(name: &str) -> Result<Option<Failure>, UnknownName> {
         if name == "ok" {
