@@ -133,6 +133,10 @@ pub mod sm_reg {
     pub const MODE_MAILBOX: u8 = 0x02;
     /// Control: master writes (ECAT write, PDI read).
     pub const DIRECTION_WRITE: u8 = 0x04;
+    /// Activate bit 1: mailbox repeat request, toggled by the master.
+    pub const ACTIVATE_REPEAT: u8 = 0x02;
+    /// PDI control bit 1: repeat acknowledge, the slave's copy of the repeat request.
+    pub const PDI_REPEAT_ACK: u8 = 0x02;
 }
 
 /// FMMU register layout (16 bytes at 0x0600 + 16·n).

@@ -21,6 +21,8 @@ use crate::sii::Sii;
 
 /// Pause between polls of a sync manager's status.
 const POLL_INTERVAL: Duration = Duration::from_micros(100);
+/// SM1's activate register, whose bit 1 asks the slave for its last reply again.
+const SM1_ACTIVATE: u16 = registers::sm(1) + sm_reg::ACTIVATE as u16;
 /// Smallest mailbox that holds an SDO message: mailbox header, CoE header, SDO command.
 const MIN_MAILBOX_LEN: u16 = (coe::SDO_OFFSET + coe::SDO_LEN) as u16;
 /// Control byte of SM0 when the SII gives none: mailbox, master writes, PDI interrupt (AKD).
@@ -228,16 +230,15 @@ impl Master {
     /// simulator, stalled) only put it off: given up, the reply would never come back.
     pub(super) fn mailbox_try_repeat(&mut self, position: u16) -> Result<bool> {
         let station = self.station(position)?;
-        let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
         let mut activate = [0u8; 1];
         let next = match self.mailbox_entry_mut(position)?.repeat {
             Repeat::None => return Ok(false),
-            Repeat::ReadActivate => match self.datagram(Command::Fprd, station, activate_at, &mut activate) {
-                Ok(1) => Repeat::Write(activate[0] ^ 0x02),
+            Repeat::ReadActivate => match self.datagram(Command::Fprd, station, SM1_ACTIVATE, &mut activate) {
+                Ok(1) => Repeat::Write(activate[0] ^ sm_reg::ACTIVATE_REPEAT),
                 Ok(_) | Err(Error::Timeout { .. }) => Repeat::ReadActivate,
                 Err(e) => return Err(e),
             },
-            Repeat::Write(byte) => match self.datagram(Command::Fpwr, station, activate_at, &mut [byte]) {
+            Repeat::Write(byte) => match self.datagram(Command::Fpwr, station, SM1_ACTIVATE, &mut [byte]) {
                 Ok(1) => {
                     self.stats.mailbox_repeats += 1;
                     Repeat::None
@@ -258,11 +259,10 @@ impl Master {
     /// written, whose bit 1 the slave's acknowledge (PDI control bit 1) will match.
     fn toggle_repeat_request(&mut self, station: u16) -> Result<u8> {
         self.stats.mailbox_repeats += 1;
-        let activate_at = registers::sm(1) + sm_reg::ACTIVATE as u16;
         let mut activate = [0u8; 1];
-        self.read_registers(station, activate_at, &mut activate)?;
-        let request = activate[0] ^ 0x02;
-        self.write_registers(station, activate_at, &[request])?;
+        self.read_registers(station, SM1_ACTIVATE, &mut activate)?;
+        let request = activate[0] ^ sm_reg::ACTIVATE_REPEAT;
+        self.write_registers(station, SM1_ACTIVATE, &[request])?;
         Ok(request)
     }
 
@@ -347,7 +347,7 @@ impl Master {
         loop {
             let mut pdi = [0u8; 1];
             self.read_registers(station, registers::sm(1) + sm_reg::PDI_CONTROL as u16, &mut pdi)?;
-            if pdi[0] & 0x02 == request & 0x02 {
+            if pdi[0] & sm_reg::PDI_REPEAT_ACK == request & sm_reg::ACTIVATE_REPEAT {
                 return Ok(());
             }
             if Instant::now() >= deadline {

@@ -13,8 +13,8 @@
 //! refused, as the real drive refuses SOEM's quick second write of 0x0120).
 
 use crate::frame::{Addressing, Command, DatagramMut};
-use crate::registers::{self as reg, fmmu_reg, sii_reg};
-use crate::sim::sync_manager::{self, SyncManager, ACTIVATE_REPEAT, CONTROL_WATCHDOG, SM_COUNT};
+use crate::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
+use crate::sim::sync_manager::{self, SyncManager, CONTROL_WATCHDOG, SM_COUNT};
 
 /// Number of FMMUs of the AKD's ESC: a master needs two for process data (outputs, inputs)
 /// and may use the third for the mailbox-in status bit.
@@ -441,8 +441,8 @@ impl Esc {
 /// to tell when the master toggles one.
 fn old_repeat_bits(esc: &Esc, at: usize, len: usize) -> u8 {
     (0..SM_COUNT)
-        .filter(|&n| touches(at, len, reg::sm(n) + 6, 1))
-        .fold(0, |bits, n| bits | ((esc.memory[reg::sm(n) as usize + 6] & ACTIVATE_REPEAT) << n))
+        .filter(|&n| touches(at, len, reg::sm(n) + sm_reg::ACTIVATE as u16, 1))
+        .fold(0, |bits, n| bits | ((esc.memory[reg::sm(n) as usize + sm_reg::ACTIVATE] & sm_reg::ACTIVATE_REPEAT) << n))
 }
 
 #[cfg(test)]

@@ -49,10 +49,10 @@ use crate::link_spec::MissedFrames;
 use crate::link_spec::Pace;
 use crate::mailbox::HEADER_LEN;
 use crate::pdo;
-use crate::registers as reg;
+use crate::registers::{self as reg, sm_reg};
 use crate::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};
-use crate::sim::sync_manager::{SyncManager, ACTIVATE_REPEAT, MIN_MAILBOX_SIZE, PDI_REPEAT_ACK, SM_COUNT};
+use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE, SM_COUNT};
 
 /// How long the drive's firmware takes to react, in ns of bus time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -484,9 +484,9 @@ impl VirtualAkd {
             sync_manager::mark_written(memory, 1);
         }
         let memory = self.esc.memory_mut();
-        let ack = memory[reg::sm(1) as usize + 6] & ACTIVATE_REPEAT;
+        let ack = memory[reg::sm(1) as usize + sm_reg::ACTIVATE] & sm_reg::ACTIVATE_REPEAT;
         let pdi = &mut memory[sync_manager::pdi_control_address(1)];
-        *pdi = (*pdi & !PDI_REPEAT_ACK) | ack;
+        *pdi = (*pdi & !sm_reg::PDI_REPEAT_ACK) | ack;
     }
 }
 

@@ -17,12 +17,8 @@ pub const STATUS_WRITTEN: u8 = 0x01;
 pub const STATUS_READ: u8 = 0x02;
 /// Activate bit 0: the master enabled the sync manager.
 pub const ACTIVATE_ENABLE: u8 = 0x01;
-/// Activate bit 1: mailbox repeat request (toggled by the master).
-pub const ACTIVATE_REPEAT: u8 = 0x02;
 /// PDI control bit 0: the application deactivated the sync manager.
 pub const PDI_DEACTIVATE: u8 = 0x01;
-/// PDI control bit 1: repeat acknowledge (the application's copy of the repeat bit).
-pub const PDI_REPEAT_ACK: u8 = 0x02;
 /// Control bit 6: writes to this sync manager restart the process-data watchdog.
 pub const CONTROL_WATCHDOG: u8 = 0x40;
 /// Shortest mailbox sync manager the drive accepts at Init→PreOp, bytes.
