@@ -80,6 +80,11 @@ struct FeedShared {
 }
 
 impl FeedShared {
+    /// The ROS time (ns) of a monotonic time: the stamp of a message made of it.
+    fn ros_ns(&self, monotonic_ns: u64) -> i64 {
+        monotonic_ns as i64 + self.offset_ns.load(Ordering::Relaxed)
+    }
+
     /// The I/O of `joint`'s drive in `snapshot`, read by its mapping (none where it has none).
     fn drive_io_of(&self, joint: usize, snapshot: &Snapshot) -> DriveIo {
         let (cycle, slave) = (&self.cycle, self.joints[joint].slave);
@@ -89,10 +94,10 @@ impl FeedShared {
         }
     }
 
-    /// `joint`'s akd_ros/DriveIO of `drive` as cycle `cycle` (woken at `time_ns`) showed it:
-    /// the digital inputs with the CiA 402 switches, hardware enable, analog input and outputs
-    /// as sent, with the joint's names.
-    fn drive_io(&self, joint: usize, drive: &DriveIo, cycle: u64, time_ns: u64) -> Vec<u8> {
+    /// `joint`'s akd_ros/DriveIO of `drive` as cycle `cycle` showed it, stamped `stamp_ns` (ROS
+    /// time): the digital inputs with the CiA 402 switches, hardware enable, analog input and
+    /// outputs as sent, with the joint's names.
+    fn drive_io(&self, joint: usize, drive: &DriveIo, cycle: u64, stamp_ns: i64) -> Vec<u8> {
         let j = &self.joints[joint];
         let inputs = drive.input_levels().unwrap_or_default();
         let outputs = drive.output_levels().unwrap_or_default();
@@ -100,7 +105,6 @@ impl FeedShared {
         let (output_names, output_numbers, named_outputs) = named(&outputs, &j.io.output_names, &j.io.output_numbers);
         let switch = |s: Switch| drive.digital_inputs.is_some_and(|w| s.active(w));
         let volts = |counts: Option<i16>| counts.map_or(f64::NAN, |c| c as f64 * j.io.volts_per_count);
-        let stamp_ns = time_ns as i64 + self.offset_ns.load(Ordering::Relaxed);
         let message = ros_msgs::DriveIo {
             header: Header::at(stamp_ns),
             joint: &j.name,
@@ -263,8 +267,8 @@ impl Feed {
         };
         let shared = &self.shared;
         let now = shared.drive_io_of(joint, &shared.cycle.snapshot());
-        let message = shared.drive_io(joint, &now.with_inputs(digital_inputs, statusword), cycle, time_ns);
-        let stamp_ns = time_ns as i64 + shared.offset_ns.load(Ordering::Relaxed);
+        let stamp_ns = shared.ros_ns(time_ns);
+        let message = shared.drive_io(joint, &now.with_inputs(digital_inputs, statusword), cycle, stamp_ns);
         shared.hand_over(vec![(stream, stamp_ns, message)], false);
         true
     }
@@ -396,7 +400,7 @@ impl Maker {
                 _ => DriveInputs::default(),
             })
             .collect();
-        let stamp_ns = timing::now_ns() as i64 + self.shared.offset_ns.load(Ordering::Relaxed);
+        let stamp_ns = self.shared.ros_ns(timing::now_ns());
         Reading { snapshot, inputs, stamp_ns }
     }
 
@@ -406,7 +410,8 @@ impl Maker {
             Kind::DriveStatus(joint) => self.drive_status(joint, reading),
             Kind::DriveIo(joint) => {
                 let (shared, snapshot) = (&self.shared, &reading.snapshot);
-                shared.drive_io(joint, &shared.drive_io_of(joint, snapshot), snapshot.cycle, snapshot.time_ns)
+                let stamp_ns = shared.ros_ns(snapshot.time_ns);
+                shared.drive_io(joint, &shared.drive_io_of(joint, snapshot), snapshot.cycle, stamp_ns)
             }
         }
     }
