@@ -200,6 +200,42 @@ pub enum SettingError {
         /// Drives on the bus.
         count: usize,
     },
+    /// A virtual slave asked for what only an AKD does (a fault, the hardware enable, homing).
+    NotAnAkd {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// What was asked, e.g. "fault".
+        what: &'static str,
+    },
+    /// A virtual terminal's input it does not have.
+    TerminalInput {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// The input asked for, from 1.
+        input: usize,
+        /// Its inputs of that kind (0: none).
+        count: usize,
+        /// "digital" or "analog".
+        kind: &'static str,
+    },
+    /// A virtual analog input terminal's input set beyond its range.
+    AnalogInputVolts {
+        /// The voltage asked for.
+        volts: f64,
+        /// The range's bound (±).
+        limit: f64,
+    },
+    /// A virtual terminal whose SII image cannot be read.
+    TerminalImage {
+        /// The product, as a line spec names it.
+        product: &'static str,
+        /// What is wrong with the image.
+        error: crate::sii::SiiError,
+    },
     /// A burst of simulated line faults of a negative number of frames.
     FrameCount {
         /// The number asked for.
@@ -318,6 +354,21 @@ impl fmt::Display for SettingError {
             ),
             SettingError::DrivePosition { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
+            }
+            SettingError::NotAnAkd { position, product, what } => {
+                write!(f, "{what} is an AKD's: the slave at position {position} is an {product}")
+            }
+            SettingError::TerminalInput { position, product, input, count: 0, kind } => {
+                write!(f, "{kind} input {input}: the {product} at position {position} has no {kind} inputs")
+            }
+            SettingError::TerminalInput { position, product, input, count, kind } => {
+                write!(f, "{kind} input {input}: the {product} at position {position} has {kind} inputs 1 to {count}")
+            }
+            SettingError::AnalogInputVolts { volts, limit } => {
+                write!(f, "analog input of {volts} V: allowed are -{limit} to {limit} V")
+            }
+            SettingError::TerminalImage { product, error } => {
+                write!(f, "the virtual {product}'s SII image cannot be read: {error}")
             }
             SettingError::FrameCount { frames } => {
                 write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")

@@ -24,7 +24,9 @@ pub mod digital_inputs;
 pub mod drive;
 pub mod eoe_server;
 pub mod esc;
+pub mod esc_hardware;
 pub mod faults;
+pub mod firmware;
 pub mod foe_server;
 pub mod homing;
 pub mod in_process;
@@ -38,21 +40,23 @@ pub mod process_data;
 pub mod server;
 pub mod setpoint_trace;
 pub mod sii_image;
+pub mod slave;
 pub mod sync_manager;
+pub mod terminal;
+pub mod terminal_sii;
 pub mod terminals;
 pub mod watchdog;
 
 use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
 use crate::frame::{self, DatagramMut};
-use crate::link_spec::MissedFrames;
-use crate::link_spec::Pace;
-use crate::mailbox::HEADER_LEN;
+use crate::link_spec::{MissedFrames, Pace, SimLine, SimProduct};
 use crate::pdo;
-use crate::registers::{self as reg, sm_reg};
+use crate::registers as reg;
 use crate::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};
-use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE, SM_COUNT};
+pub use crate::sim::slave::VirtualSlave;
+use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE};
 
 /// How long the drive's firmware takes to react, in ns of bus time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -196,9 +200,7 @@ impl VirtualAkd {
 
     fn with_sii(sii: Vec<u8>, identity: Identity, mailbox_size: u16, has_successor: bool, timing: Timing) -> Self {
         let mut esc = Esc::new(sii, has_successor);
-        for n in 0..SM_COUNT {
-            sync_manager::set_pdi_deactivated(esc.memory_mut(), n, true);
-        }
+        firmware::deactivate_sync_managers(&mut esc);
         VirtualAkd {
             esc,
             al: al_machine::AlMachine::power_up(),
@@ -337,7 +339,7 @@ impl VirtualAkd {
             self.frames_lost = 0;
         }
         if events.repeat_request {
-            self.repeat_mailbox();
+            firmware::repeat_reply(&mut self.esc, &self.mailbox);
         }
     }
 
@@ -353,10 +355,10 @@ impl VirtualAkd {
         if let Some(due) = self.pending_mailbox {
             if due <= now_ns {
                 self.pending_mailbox = None;
-                self.read_mailbox(now_ns);
+                firmware::take_request(&mut self.esc, &mut self.mailbox, &mut self.od, self.al.state(), now_ns);
             }
         }
-        self.write_mailbox();
+        firmware::offer_reply(&mut self.esc, &mut self.mailbox);
         if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
             self.al.fail(AlState::SafeOp, AlStatusCode::SM_WATCHDOG);
             self.watchdog.stop();
@@ -387,9 +389,8 @@ impl VirtualAkd {
     /// real drive's ESC answers a frame in hardware while its processor does this work.
     pub fn run_ip_stack(&mut self, now_ns: u64) {
         if self.al.state() != AlState::Init && self.al.state() != AlState::Bootstrap {
-            let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
-            self.mailbox.poll(now_ns, size);
-            self.write_mailbox();
+            self.mailbox.poll(now_ns, firmware::reply_size(&self.esc));
+            firmware::offer_reply(&mut self.esc, &mut self.mailbox);
         }
     }
 
@@ -401,21 +402,9 @@ impl VirtualAkd {
             _ => Ok(()),
         });
         if let Some(t) = transition {
-            let memory = self.esc.memory_mut();
-            let mailbox_on = t.to != AlState::Init && t.to != AlState::Bootstrap;
-            let process_data_on = t.to >= AlState::SafeOp && t.to != AlState::Bootstrap;
-            for n in 0..2 {
-                sync_manager::set_pdi_deactivated(memory, n, !mailbox_on);
-            }
-            for n in 2..4 {
-                sync_manager::set_pdi_deactivated(memory, n, !process_data_on);
-            }
-            if !mailbox_on {
-                self.mailbox.reset();
+            firmware::enter_state(&mut self.esc, &mut self.mailbox, t.to);
+            if t.to == AlState::Init || t.to == AlState::Bootstrap {
                 self.pending_mailbox = None;
-                for n in 0..2 {
-                    memory[sync_manager::status_address(n)] = 0;
-                }
             }
             if t.from == AlState::PreOp && t.to == AlState::SafeOp {
                 (self.rx_image, self.tx_image) = process_data::images(&self.od);
@@ -433,68 +422,17 @@ impl VirtualAkd {
     }
 
     fn write_al_status(&mut self) {
-        let (status, status_code) = (self.al.status(), self.al.status_code());
-        let memory = self.esc.memory_mut();
-        memory[reg::AL_STATUS as usize..reg::AL_STATUS as usize + 2].copy_from_slice(&status.to_le_bytes());
-        memory[reg::AL_STATUS_CODE as usize..reg::AL_STATUS_CODE as usize + 2]
-            .copy_from_slice(&status_code.to_le_bytes());
-    }
-
-    /// Takes the master's message out of the mailbox-out buffer and answers it.
-    fn read_mailbox(&mut self, now_ns: u64) {
-        let out = SyncManager::read(self.esc.memory(), 0);
-        // Replies are sized for SM1 as the master set it, but never for less than the smallest
-        // mailbox the drive accepts at Init→PreOp: a master may shrink SM1 afterwards (even below
-        // a reply's headers), and then reads what fits of each reply.
-        let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
-        let memory = self.esc.memory();
-        let buffer = &memory[out.range_within(memory.len())];
-        let announced = buffer.get(..2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
-        let message = buffer[..(HEADER_LEN + announced).min(buffer.len())].to_vec();
-        sync_manager::mark_read(self.esc.memory_mut(), 0);
-        let request_size = usize::from(out.length);
-        self.mailbox.handle(&message, &mut self.od, self.al.state(), size, request_size, now_ns);
-    }
-
-    /// Puts the next queued reply into the mailbox-in buffer when the master emptied it.
-    fn write_mailbox(&mut self) {
-        let sm = SyncManager::read(self.esc.memory(), 1);
-        if !sm.active() || sm.full() {
-            return;
-        }
-        if let Some(reply) = self.mailbox.next_reply() {
-            let memory = self.esc.memory_mut();
-            let buffer = sm.range_within(memory.len());
-            let n = reply.len().min(buffer.len());
-            memory[buffer.start..buffer.start + n].copy_from_slice(&reply[..n]);
-            sync_manager::mark_written(memory, 1);
-        }
-    }
-
-    /// The master toggled the repeat request: the last reply goes into the buffer again and
-    /// the repeat acknowledge follows the request bit.
-    fn repeat_mailbox(&mut self) {
-        let sm = SyncManager::read(self.esc.memory(), 1);
-        if let Some(reply) = self.mailbox.last_reply() {
-            let buffer = sm.range_within(self.esc.memory().len());
-            let n = reply.len().min(buffer.len());
-            let reply = reply[..n].to_vec();
-            let memory = self.esc.memory_mut();
-            memory[buffer.start..buffer.start + n].copy_from_slice(&reply);
-            sync_manager::mark_written(memory, 1);
-        }
-        let memory = self.esc.memory_mut();
-        let ack = memory[reg::sm(1) as usize + sm_reg::ACTIVATE] & sm_reg::ACTIVATE_REPEAT;
-        let pdi = &mut memory[sync_manager::pdi_control_address(1)];
-        *pdi = (*pdi & !sm_reg::PDI_REPEAT_ACK) | ack;
+        firmware::write_al_status(&mut self.esc, &self.al);
     }
 }
 
-/// A line of virtual AKDs, as a real bus: frames pass drive 0, 1, ... in order. Drive `i`
-/// reports the identity [`sii_image::identity`]`(i)`: the real drive's, with a serial number of
-/// its own.
+/// A line of virtual slaves, as a real bus: frames pass slave 0, 1, ... in order. A line of
+/// AKDs ([`new`](Self::new), [`with_timing`](Self::with_timing)) or of the slaves a
+/// [`SimLine`] names, AKDs and Beckhoff terminals ([`of_line`](Self::of_line)). The `i`-th AKD
+/// of a line reports the identity [`sii_image::identity`]`(i)`: the real drive's, with a serial
+/// number of its own.
 pub struct VirtualBus {
-    slaves: Vec<VirtualAkd>,
+    slaves: Vec<VirtualSlave>,
     line: line::Line,
 }
 
@@ -507,7 +445,27 @@ impl VirtualBus {
     /// `count` virtual AKDs reacting with `timing`.
     pub fn with_timing(count: usize, timing: Timing) -> Self {
         let slaves = (0..count).map(|i| VirtualAkd::new(sii_image::identity(i), i + 1 < count, timing));
-        VirtualBus { slaves: slaves.collect(), line: line::Line::new(count) }
+        Self::of_slaves(slaves.map(VirtualSlave::Akd).collect())
+    }
+
+    /// The slaves `line` names, in order, at power-up, the AKDs reacting with `timing`; refused
+    /// when a terminal's SII image cannot be read.
+    pub fn of_line(line: &SimLine, timing: Timing) -> Result<Self> {
+        let count = line.len();
+        let mut akds = 0;
+        let mut slaves = Vec::with_capacity(count);
+        for (i, &product) in line.products().iter().enumerate() {
+            slaves.push(VirtualSlave::of(product, akds, i + 1 < count, timing)?);
+            akds += usize::from(product == SimProduct::Akd);
+        }
+        Ok(Self::of_slaves(slaves))
+    }
+
+    /// A line of `slaves` in order (built by the caller, e.g. a terminal serving an image a
+    /// test changed).
+    pub fn of_slaves(slaves: Vec<VirtualSlave>) -> Self {
+        let line = line::Line::new(slaves.len());
+        VirtualBus { slaves, line }
     }
 
     /// `count` virtual AKDs reacting with `timing` whose SII declares a standard mailbox of
@@ -516,27 +474,44 @@ impl VirtualBus {
     pub fn with_mailbox_size(count: usize, timing: Timing, mailbox_size: u16) -> Result<Self> {
         let slaves = (0..count)
             .map(|i| VirtualAkd::with_mailbox_size(sii_image::identity(i), mailbox_size, i + 1 < count, timing));
-        Ok(VirtualBus { slaves: slaves.collect::<Result<_>>()?, line: line::Line::new(count) })
+        Ok(Self::of_slaves(slaves.map(|s| s.map(VirtualSlave::Akd)).collect::<Result<_>>()?))
     }
 
-    /// Number of drives.
+    /// Number of slaves.
     pub fn len(&self) -> usize {
         self.slaves.len()
     }
 
-    /// Whether the line has no drive.
+    /// Whether the line has no slave.
     pub fn is_empty(&self) -> bool {
         self.slaves.is_empty()
     }
 
-    /// Drive `i`. Panics when `i` is not below [`len`](Self::len).
-    pub fn slave(&self, i: usize) -> &VirtualAkd {
+    /// The products of the line's slaves, in order.
+    pub fn products(&self) -> Vec<SimProduct> {
+        self.slaves.iter().map(VirtualSlave::product).collect()
+    }
+
+    /// Slave `i`. Panics when `i` is not below [`len`](Self::len).
+    pub fn at(&self, i: usize) -> &VirtualSlave {
         &self.slaves[i]
     }
 
-    /// Drive `i`, to change it (tests, fault injection). Panics when `i` is out of range.
-    pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
+    /// Slave `i`, to change it. Panics when `i` is not below [`len`](Self::len).
+    pub fn at_mut(&mut self, i: usize) -> &mut VirtualSlave {
         &mut self.slaves[i]
+    }
+
+    /// The AKD at position `i`. Panics when `i` is not below [`len`](Self::len) or names a
+    /// terminal (never on a line of AKDs).
+    pub fn slave(&self, i: usize) -> &VirtualAkd {
+        self.slaves[i].akd().unwrap_or_else(|| panic!("slave {i} is no AKD"))
+    }
+
+    /// The AKD at position `i`, to change it (tests, fault injection). Panics as
+    /// [`slave`](Self::slave) does.
+    pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
+        self.slaves[i].akd_mut().unwrap_or_else(|| panic!("slave {i} is no AKD"))
     }
 
     /// The line in front of the drives, as its faults left it.
@@ -556,7 +531,7 @@ impl VirtualBus {
         self.line.set_cable(position, plugged);
         let reach = self.line.reach();
         for (i, slave) in self.slaves.iter_mut().enumerate() {
-            slave.esc.set_successor(slave.has_successor && i + 1 < reach);
+            slave.set_successor(i + 1 < reach);
         }
     }
 

@@ -1,0 +1,428 @@
+//! A virtual Beckhoff terminal: an ESC serving the terminal's SII image ([`super::terminal_sii`]),
+//! and behind it what the real one has there.
+//!
+//! - The EK1100 and the digital terminals have no processor: their EEPROM sets device emulation
+//!   (the ESC copies AL control to AL status at once, whatever the request, as the capture shows
+//!   the real ones do) and, for the EL1xxx and EL2xxx, the ESC's digital I/O PDI. An EL1xxx's
+//!   inputs go into process RAM at 0x1000, where its sync manager 0 lets the master read them,
+//!   after the terminal's input filter (3 ms for the EL1004 and EL1008, as their names say). An
+//!   EL2xxx's outputs are the ESC's digital output register 0x0F00, which its sync manager 0
+//!   guards: the pins follow what the master writes there while the terminal is in Op, and drop
+//!   to off when the sync-manager watchdog runs out (100 ms of no output write at the ESC's
+//!   default registers) until the master writes again. No AL state changes on its own.
+//! - The EL3102 has a processor: the AL machine and the mailbox ([`super::firmware`], the same
+//!   as the AKD's), an object dictionary of its own (identity, its two TxPDOs and their
+//!   assignment 0x1C13, the inputs 0x3101 and 0x3102), and its inputs copied into sync manager 3
+//!   from SafeOp on. It answers at once (before the next frame): no capture shows its pace.
+//!
+//! A terminal's SII image is read when the terminal is made: an image that cannot be read is
+//! refused there, naming the terminal and what is wrong.
+
+use crate::al::AlState;
+use crate::coe::{access, data_type, ObjectCode};
+use crate::error::{Result, SettingError};
+use crate::frame::DatagramMut;
+use crate::link_spec::SimProduct;
+use crate::pdo::PdoEntry;
+use crate::registers as reg;
+use crate::sii::Sii;
+use crate::sim::al_machine::AlMachine;
+use crate::sim::esc::{Arrival, Esc, Events};
+use crate::sim::esc_hardware::{ET1100, ET1200};
+use crate::sim::mailbox_server::MailboxServer;
+use crate::sim::od::{self, ObjectDictionary};
+use crate::sim::process_data::{self, Image};
+use crate::sim::sync_manager::{self, SyncManager};
+use crate::sim::terminal_sii::{self as images, Kind, TerminalSii};
+use crate::sim::{firmware, watchdog};
+
+/// How long a digital input terminal's input filter holds a change back (the EL1004's and the
+/// EL1008's 3 ms).
+pub const INPUT_FILTER_NS: u64 = 3_000_000;
+/// The EL3102's input range, ±10 V, and the value it gives at its end.
+pub const ANALOG_RANGE_V: f64 = 10.0;
+const ANALOG_FULL_SCALE: f64 = 32767.0;
+
+/// The image description of each terminal product; `None` for the AKD.
+pub fn description(product: SimProduct) -> Option<TerminalSii> {
+    Some(match product {
+        SimProduct::Akd => return None,
+        SimProduct::Ek1100 => images::EK1100,
+        SimProduct::El1004 => images::EL1004,
+        SimProduct::El1008 => images::EL1008,
+        SimProduct::El2004 => images::EL2004,
+        SimProduct::El2008 => images::EL2008,
+        SimProduct::El3102 => images::EL3102,
+    })
+}
+
+/// A terminal's I/O as a query reports it; bit n of a mask is channel n + 1.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TerminalState {
+    /// The product.
+    pub product: SimProduct,
+    /// AL status (state bits and the error flag).
+    pub al_status: u16,
+    /// Digital inputs as the master reads them (after the filter).
+    pub inputs: u16,
+    /// How many digital inputs it has.
+    pub input_count: u8,
+    /// Digital outputs as the pins drive them.
+    pub outputs: u16,
+    /// How many digital outputs it has.
+    pub output_count: u8,
+    /// Analog inputs, V.
+    pub analog_inputs: [f64; 2],
+    /// How many analog inputs it has.
+    pub analog_count: u8,
+    /// Whether the sync-manager watchdog ran out and holds the outputs off.
+    pub watchdog_expired: bool,
+}
+
+/// A digital input terminal's inputs and their filter.
+#[derive(Clone, Copy, Debug, Default)]
+struct Filter {
+    /// The levels at the terminal's connector.
+    wanted: u16,
+    /// The levels past the filter, as the master reads them.
+    shown: u16,
+    /// Since when the levels at the connector differ from those shown.
+    since_ns: Option<u64>,
+}
+
+/// The processor of a terminal that has one (the EL3102).
+struct Processor {
+    al: AlMachine,
+    mailbox: MailboxServer,
+    od: ObjectDictionary,
+    tx_image: Image,
+    pending_control: Option<u16>,
+    pending_mailbox: bool,
+    volts: [f64; 2],
+}
+
+/// What is behind the ESC.
+enum Io {
+    None,
+    DigitalInputs(Filter),
+    DigitalOutputs { pins: u16, watchdog_expired: bool },
+    Processor(Box<Processor>),
+}
+
+/// One virtual terminal.
+pub struct VirtualTerminal {
+    product: SimProduct,
+    description: TerminalSii,
+    esc: Esc,
+    has_successor: bool,
+    watchdog: watchdog::Watchdog,
+    io: Io,
+}
+
+impl VirtualTerminal {
+    /// Terminal `product`, which `description` describes ([`description`]), at power-up with
+    /// the SII image it is made from; `has_successor` tells whether another slave follows on
+    /// port 1.
+    pub fn new(product: SimProduct, description: TerminalSii, has_successor: bool) -> Result<Self> {
+        let image =
+            description.image().map_err(|error| SettingError::TerminalImage { product: product.name(), error })?;
+        Self::with_sii(product, description, image, has_successor)
+    }
+
+    /// [`new`](Self::new) serving the EEPROM `sii` (its own, or one a test corrupted): refused
+    /// when the image cannot be read.
+    pub fn with_sii(product: SimProduct, description: TerminalSii, sii: Vec<u8>, has_successor: bool) -> Result<Self> {
+        let parsed =
+            Sii::parse(&sii).map_err(|error| SettingError::TerminalImage { product: product.name(), error })?;
+        let hardware = if description.kind == Kind::Coupler { ET1100 } else { ET1200 };
+        let mut esc = Esc::with_hardware(hardware, sii, has_successor);
+        let io = match description.kind {
+            Kind::Coupler => Io::None,
+            Kind::DigitalInputs { .. } => Io::DigitalInputs(Filter::default()),
+            Kind::DigitalOutputs { .. } => Io::DigitalOutputs { pins: 0, watchdog_expired: false },
+            Kind::AnalogInputs { .. } => {
+                firmware::deactivate_sync_managers(&mut esc);
+                Io::Processor(Box::new(Processor {
+                    al: AlMachine::power_up(),
+                    mailbox: MailboxServer::of_protocols(parsed.header.mailbox_protocols),
+                    od: analog_dictionary(&description),
+                    tx_image: Image::new(),
+                    pending_control: None,
+                    pending_mailbox: false,
+                    volts: [0.0; 2],
+                }))
+            }
+        };
+        Ok(VirtualTerminal { product, description, esc, has_successor, watchdog: watchdog::Watchdog::default(), io })
+    }
+
+    /// The product.
+    pub fn product(&self) -> SimProduct {
+        self.product
+    }
+
+    /// The ESC's register and RAM space.
+    pub fn registers(&self) -> &[u8] {
+        self.esc.memory()
+    }
+
+    /// The terminal loses its power and comes back as at power-up, with the same EEPROM; the
+    /// levels at its input connector stay what they were.
+    pub fn power_cycle(&mut self) {
+        let sii = self.esc.sii().to_vec();
+        let (wanted, volts) = match &self.io {
+            Io::DigitalInputs(filter) => (filter.wanted, [0.0; 2]),
+            Io::Processor(p) => (0, p.volts),
+            _ => (0, [0.0; 2]),
+        };
+        if let Ok(fresh) = Self::with_sii(self.product, self.description, sii, self.has_successor) {
+            *self = fresh;
+        }
+        match &mut self.io {
+            Io::DigitalInputs(filter) => filter.wanted = wanted,
+            Io::Processor(p) => p.volts = volts,
+            _ => {}
+        }
+    }
+
+    /// Whether a slave follows on port 1 (a cable pulled out behind it, or plugged back in).
+    pub fn set_successor(&mut self, has_successor: bool) {
+        self.esc.set_successor(has_successor && self.has_successor);
+    }
+
+    /// The number of digital inputs, outputs and analog inputs.
+    fn counts(&self) -> (u8, u8, u8) {
+        match self.description.kind {
+            Kind::Coupler => (0, 0, 0),
+            Kind::DigitalInputs { channels } => (channels, 0, 0),
+            Kind::DigitalOutputs { channels } => (0, channels, 0),
+            Kind::AnalogInputs { channels } => (0, 0, channels),
+        }
+    }
+
+    /// Checks that this terminal at `position` has digital input `input` (from 1).
+    pub fn check_input(product: SimProduct, position: usize, input: usize, analog: bool) -> Result<()> {
+        let kind = description(product).map(|d| d.kind);
+        let count = match (kind, analog) {
+            (Some(Kind::DigitalInputs { channels }), false) | (Some(Kind::AnalogInputs { channels }), true) => {
+                usize::from(channels)
+            }
+            _ => 0,
+        };
+        if (1..=count).contains(&input) {
+            return Ok(());
+        }
+        let kind = if analog { "analog" } else { "digital" };
+        Err(SettingError::TerminalInput { position, product: product.name(), input, count, kind }.into())
+    }
+
+    /// Checks an analog input voltage: finite, within the EL3102's ±10 V.
+    pub fn check_volts(volts: f64) -> Result<()> {
+        if volts.is_finite() && volts.abs() <= ANALOG_RANGE_V {
+            return Ok(());
+        }
+        Err(SettingError::AnalogInputVolts { volts, limit: ANALOG_RANGE_V }.into())
+    }
+
+    /// Sets digital input `input` (from 1, checked by [`check_input`](Self::check_input)) at the
+    /// connector; the master sees it once the filter let it through.
+    pub fn set_input(&mut self, input: usize, high: bool) {
+        if let Io::DigitalInputs(filter) = &mut self.io {
+            let bit = 1u16 << (input - 1);
+            filter.wanted = if high { filter.wanted | bit } else { filter.wanted & !bit };
+        }
+    }
+
+    /// Sets analog input `input` (from 1) to `volts` (both checked).
+    pub fn set_analog_input(&mut self, input: usize, volts: f64) {
+        if let Io::Processor(p) = &mut self.io {
+            p.volts[input - 1] = volts;
+        }
+    }
+
+    /// The terminal's I/O now.
+    pub fn state(&self) -> TerminalState {
+        let (input_count, output_count, analog_count) = self.counts();
+        let mut state = TerminalState {
+            product: self.product,
+            al_status: self.esc.u16_at(reg::AL_STATUS),
+            inputs: 0,
+            input_count,
+            outputs: 0,
+            output_count,
+            analog_inputs: [0.0; 2],
+            analog_count,
+            watchdog_expired: false,
+        };
+        match &self.io {
+            Io::None => {}
+            Io::DigitalInputs(filter) => state.inputs = filter.shown,
+            Io::DigitalOutputs { pins, watchdog_expired } => {
+                (state.outputs, state.watchdog_expired) = (*pins, *watchdog_expired)
+            }
+            Io::Processor(p) => state.analog_inputs = p.volts,
+        }
+        state
+    }
+
+    /// Serves one datagram passing the terminal at bus time `now_ns`.
+    pub fn serve(&mut self, dg: &mut DatagramMut<'_>, now_ns: u64, arrival: Arrival) {
+        self.esc.serve(dg, arrival);
+        let events = self.esc.take_events();
+        if events == Events::default() {
+            return;
+        }
+        if events.watchdog_trigger {
+            self.watchdog.trigger(now_ns);
+        }
+        if let Io::Processor(p) = &mut self.io {
+            if let Some(control) = events.al_control {
+                p.pending_control = Some(control);
+            }
+            p.pending_mailbox |= events.mailbox_written;
+            if events.repeat_request {
+                firmware::repeat_reply(&mut self.esc, &p.mailbox);
+            }
+        }
+    }
+
+    /// What the terminal does between frames, up to bus time `now_ns`.
+    pub fn poll(&mut self, now_ns: u64) {
+        let expired = self.watchdog.expired(now_ns, self.esc.memory_mut());
+        let al_state = self.esc.memory()[reg::AL_STATUS as usize] & 0x0F;
+        let mask = |count: u8| ((1u32 << count) - 1) as u16;
+        let (inputs, outputs, _) = self.counts();
+        match &mut self.io {
+            Io::None => {}
+            Io::DigitalInputs(filter) => {
+                if filter.wanted == filter.shown {
+                    filter.since_ns = None;
+                } else if now_ns.saturating_sub(*filter.since_ns.get_or_insert(now_ns)) >= INPUT_FILTER_NS {
+                    (filter.shown, filter.since_ns) = (filter.wanted, None);
+                }
+                let at = usize::from(images::DIGITAL_INPUTS);
+                self.esc.memory_mut()[at] = (filter.shown & mask(inputs)) as u8;
+            }
+            Io::DigitalOutputs { pins, watchdog_expired } => {
+                let register = u16::from(self.esc.memory()[usize::from(images::DIGITAL_OUTPUTS)]);
+                let driven = al_state == AlState::Op as u8 && !expired;
+                *pins = if driven { register & mask(outputs) } else { 0 };
+                *watchdog_expired = expired;
+            }
+            Io::Processor(p) => p.run(&mut self.esc, now_ns),
+        }
+    }
+}
+
+impl Processor {
+    fn run(&mut self, esc: &mut Esc, now_ns: u64) {
+        if let Some(control) = self.pending_control.take() {
+            esc.release_al_control();
+            self.handle_al_control(esc, control);
+        }
+        if std::mem::take(&mut self.pending_mailbox) {
+            firmware::take_request(esc, &mut self.mailbox, &mut self.od, self.al.state(), now_ns);
+        }
+        firmware::offer_reply(esc, &mut self.mailbox);
+        if self.al.state() >= AlState::SafeOp && self.al.state() != AlState::Bootstrap {
+            for (n, volts) in self.volts.iter().enumerate() {
+                let value = (volts / ANALOG_RANGE_V * ANALOG_FULL_SCALE).round() as i16;
+                self.od.set(images::analog_object(n as u8), 2, &value.to_le_bytes());
+            }
+            process_data::refresh_inputs_at(&self.od, esc.memory_mut(), &self.tx_image, images::EL3102_INPUTS);
+        }
+    }
+
+    fn handle_al_control(&mut self, esc: &mut Esc, control: u16) {
+        let (od, memory) = (&self.od, esc.memory());
+        let mailbox = images::EL3102_MAILBOX;
+        let transition = self.al.request(control, |from, to| match (from, to) {
+            (AlState::Init, AlState::PreOp) => sync_manager::check_mailbox_at(
+                memory,
+                (mailbox.receive_offset, mailbox.send_offset),
+                mailbox.receive_size,
+            ),
+            (AlState::PreOp, AlState::SafeOp) => {
+                let (rx, tx) = process_data::images(od);
+                let bytes = |image: &[PdoEntry]| crate::pdo::bit_len(image).div_ceil(8);
+                let sm = |n| SyncManager::read(memory, n);
+                process_data::check_sync_manager(&sm(2), images::EL3102_OUTPUTS, bytes(&rx), true)?;
+                process_data::check_sync_manager(&sm(3), images::EL3102_INPUTS, bytes(&tx), false)
+            }
+            _ => Ok(()),
+        });
+        if let Some(t) = transition {
+            firmware::enter_state(esc, &mut self.mailbox, t.to);
+            if t.from == AlState::PreOp && t.to == AlState::SafeOp {
+                self.tx_image = process_data::images(&self.od).1;
+            }
+        }
+        firmware::write_al_status(esc, &self.al);
+    }
+}
+
+/// 0x1C13 takes the EL3102's own TxPDOs only.
+fn tx_assignment(_: &ObjectDictionary, object: &od::Object, written: u8) -> Result<(), crate::coe::SdoAbortCode> {
+    let chosen = object.unsigned(written) as u16;
+    match written {
+        0 if object.unsigned(0) <= 2 => Ok(()),
+        1 | 2 if matches!(chosen, 0x1A00 | 0x1A01) => Ok(()),
+        _ => Err(crate::coe::SdoAbortCode::VALUE_RANGE),
+    }
+}
+
+/// The EL3102's object dictionary: identity, its two fixed TxPDOs, their assignment, and the
+/// inputs (0x3101 and 0x3102: status byte and value).
+fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
+    use data_type::{INTEGER16, UNSIGNED16, UNSIGNED32, UNSIGNED8};
+    let id = description.identity;
+    let Kind::AnalogInputs { channels } = description.kind else { unreachable!("an analog terminal") };
+    let ro_tx = od::RO | access::TX_PDO;
+    let mut objects = vec![
+        od::string_var(0x1008, "Device name", description.order),
+        od::record(
+            0x1018,
+            "Identity",
+            ObjectCode::Record,
+            data_type::IDENTITY,
+            od::RO,
+            vec![
+                od::entry(1, "Vendor ID", UNSIGNED32, 32, od::RO, id.vendor_id.into()),
+                od::entry(2, "Product code", UNSIGNED32, 32, od::RO, id.product_code.into()),
+                od::entry(3, "Revision", UNSIGNED32, 32, od::RO, id.revision.into()),
+                od::entry(4, "Serial number", UNSIGNED32, 32, od::RO, id.serial_number.into()),
+            ],
+        ),
+        od::record(
+            0x1C00,
+            "Sync manager type",
+            ObjectCode::Array,
+            UNSIGNED8,
+            od::RO,
+            (1..=4).map(|i| od::entry(i, od::SUBINDEX_NAMES[usize::from(i)], UNSIGNED8, 8, od::RO, i.into())).collect(),
+        ),
+        od::record(0x1C12, "RxPDO assign", ObjectCode::Array, UNSIGNED16, od::RW_PREOP, Vec::new()),
+    ];
+    let names = ["Inputs Ch.1", "Inputs Ch.2"];
+    let mut assign = Vec::new();
+    for n in 0..channels {
+        let object = images::analog_object(n);
+        let entries = [PdoEntry::new(object, 1, 8), PdoEntry::new(object, 2, 16)];
+        let pdo = 0x1A00 + u16::from(n);
+        let name = if n == 0 { "TxPDO-Map Channel 1" } else { "TxPDO-Map Channel 2" };
+        objects.push(od::mapping_object(pdo, name, od::RO, &entries, entries.len()));
+        objects.push(od::record(
+            object,
+            names[usize::from(n)],
+            ObjectCode::Record,
+            INTEGER16,
+            od::RO,
+            vec![od::entry(1, "Status", UNSIGNED8, 8, ro_tx, 0), od::entry(2, "Value", INTEGER16, 16, ro_tx, 0)],
+        ));
+        assign.push(od::entry(n + 1, od::SUBINDEX_NAMES[usize::from(n) + 1], UNSIGNED16, 16, od::RW_PREOP, pdo.into()));
+    }
+    let mut tx_assign = od::record(0x1C13, "TxPDO assign", ObjectCode::Array, UNSIGNED16, od::RW_PREOP, assign);
+    tx_assign.check = Some(tx_assignment);
+    objects.push(tx_assign);
+    ObjectDictionary::from_objects(objects)
+}
