@@ -67,10 +67,12 @@ pub enum SettingError {
         /// The value given.
         value: f64,
     },
-    /// A virtual AKD's Init→PreOp time that is no number of ms in 0..=10000.
-    InitToPreOp {
-        /// The time asked for, ms.
-        ms: f64,
+    /// A virtual line that is none (an unknown product, a terminal without a coupler in front).
+    SimLine {
+        /// The line as given.
+        line: String,
+        /// What is wrong with it.
+        error: crate::link_spec::SimLineError,
     },
     /// A virtual AKD's mailbox size outside what the simulator builds.
     MailboxSize {
@@ -200,14 +202,17 @@ pub enum SettingError {
         /// Drives on the bus.
         count: usize,
     },
-    /// A virtual slave asked for what only an AKD does (a fault, the hardware enable, homing).
-    NotAnAkd {
+    /// A virtual slave asked for what another kind of slave does (a fault of a terminal, the
+    /// I/O of a terminal of an AKD).
+    WrongSlave {
         /// Its position.
         position: usize,
         /// The product it is, as a line spec names it.
         product: &'static str,
         /// What was asked, e.g. "fault".
         what: &'static str,
+        /// The kind of slave that does it, e.g. "an AKD".
+        needs: &'static str,
     },
     /// A virtual terminal's input it does not have.
     TerminalInput {
@@ -294,9 +299,7 @@ impl fmt::Display for SettingError {
             SettingError::Seconds { what, value } => {
                 write!(f, "{what} must be a non-negative number of seconds, got {value}")
             }
-            SettingError::InitToPreOp { ms } => {
-                write!(f, "a virtual AKD's Init->PreOp time of {ms} ms: allowed are 0 to 10000 ms")
-            }
+            SettingError::SimLine { line, error } => write!(f, "line {line:?}: {error}"),
             SettingError::MailboxSize { size, min, max } => {
                 write!(f, "a virtual AKD's mailbox of {size} bytes: allowed are {min} to {max}")
             }
@@ -355,8 +358,8 @@ impl fmt::Display for SettingError {
             SettingError::DrivePosition { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
             }
-            SettingError::NotAnAkd { position, product, what } => {
-                write!(f, "{what} is an AKD's: the slave at position {position} is an {product}")
+            SettingError::WrongSlave { position, product, what, needs } => {
+                write!(f, "{what} needs {needs}: the slave at position {position} is an {product}")
             }
             SettingError::TerminalInput { position, product, input, count: 0, kind } => {
                 write!(f, "{kind} input {input}: the {product} at position {position} has no {kind} inputs")

@@ -64,10 +64,15 @@ pub struct Timing {
     /// From a write of AL control until the firmware handles the request (and the master may
     /// write AL control again).
     pub al_request_ns: u64,
-    /// The same for a request of PreOp in Init: the firmware sets up its mailbox and object
-    /// dictionary first, AL status reading Init all that time.
+    /// The same for the first request of PreOp in Init after power-up: the firmware sets up
+    /// its mailbox and object dictionary first, AL status reading Init all that time.
+    pub first_init_to_preop_ns: u64,
+    /// The same for a later request of PreOp in Init.
     pub init_to_preop_ns: u64,
-    /// From a complete mailbox write until the reply is in the mailbox-in buffer.
+    /// From a complete mailbox write until the reply is in the mailbox-in buffer, for the first
+    /// message after power-up.
+    pub first_mailbox_ns: u64,
+    /// The same for the later messages.
     pub mailbox_ns: u64,
     /// How the firmware judges missed frames: by time, as the real drive, or by frames lost.
     pub missed_frames: MissedFrames,
@@ -79,22 +84,26 @@ pub struct Timing {
 
 impl Timing {
     /// The real drive's pace (docs/virtual_akd.md has the evidence):
-    /// - Init→PreOp: under TwinCAT a real AKD read Init for about 16 ms after the request and
-    ///   PreOp by about 19 ms (issue 28); the state changes between the two, at 17.5 ms here.
-    ///   The drive of the SOEM capture was in PreOp 4.2-6.2 ms after its request (SOEM had
-    ///   handed it the SII just before, frame 265); what makes the difference is not known,
-    ///   and the replay of that capture sets that drive's pace ([`VirtualBus::with_timing`]).
+    /// - Init→PreOp: under TwinCAT a real AKD took 16-19 ms for its first Init→PreOp after
+    ///   power-up (issue 28: it read Init for about 16 ms, PreOp by about 19 ms), 17.5 ms here,
+    ///   and 3-6 ms for later ones, 4.5 ms here; the drive of the SOEM capture, powered up long
+    ///   before, was in PreOp 4.2-6.2 ms after its request.
     /// - the other AL requests: PreOp→SafeOp answered within 4.9 ms in the SOEM capture.
-    /// - mailbox: the SOEM capture's 35 SDO replies appear 0.56 to 2.9 ms after the request,
-    ///   most by 1.3 ms. A fixed 1 ms puts 19 of them in the window the capture allows, as any
-    ///   delay from 0.8 to 1.3 ms does; a firmware task running every 1 ms would explain 27,
-    ///   but its phase is unknown, and counted from the drive's first frame it fits the replay
-    ///   worse (23 of the capture's mailbox status polls on the other side, against 19).
+    /// - mailbox: under TwinCAT the first reply after that first PreOp came 25-50 ms after the
+    ///   request (TwinCAT, polling SM1 every 16 ms or so, found it empty once or twice first):
+    ///   30 ms here, which such polling finds empty once or twice too. The SOEM capture's 35
+    ///   replies appear 0.56 to 2.9 ms after the request, its first one too, most by 1.3 ms. A
+    ///   fixed 1 ms puts 19 of them in the window the capture allows, as any delay from 0.8 to
+    ///   1.3 ms does; a firmware task running every 1 ms would explain 27, but its phase is
+    ///   unknown, and counted from the drive's first frame it fits the replay worse (23 of the
+    ///   capture's mailbox status polls on the other side, against 19).
     /// - EoE: under TwinCAT a real AKD answered Set IP Parameter about 25 ms after the request
     ///   and sent its gratuitous ARP about 18 ms after that (issue 15).
     pub const REAL_DRIVE: Timing = Timing {
         al_request_ns: 4_500_000,
-        init_to_preop_ns: 17_500_000,
+        first_init_to_preop_ns: 17_500_000,
+        init_to_preop_ns: 4_500_000,
+        first_mailbox_ns: 30_000_000,
         mailbox_ns: 1_000_000,
         missed_frames: MissedFrames::Late,
         eoe_set_ip_ns: 25_000_000,
@@ -103,7 +112,9 @@ impl Timing {
     /// No delay: each request is handled before the next frame (`pace=immediate`).
     pub const IMMEDIATE: Timing = Timing {
         al_request_ns: 0,
+        first_init_to_preop_ns: 0,
         init_to_preop_ns: 0,
+        first_mailbox_ns: 0,
         mailbox_ns: 0,
         missed_frames: MissedFrames::Late,
         eoe_set_ip_ns: 0,
@@ -148,6 +159,16 @@ fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate
     sii.encode()
 }
 
+/// What a drive's firmware has done since power-up that makes it quicker the next time
+/// ([`Timing`]'s first and later Init→PreOp and mailbox replies).
+#[derive(Clone, Copy, Debug, Default)]
+struct Warm {
+    /// It went from Init to PreOp.
+    been_in_preop: bool,
+    /// It took a mailbox message.
+    answered_mailbox: bool,
+}
+
 /// One virtual AKD.
 pub struct VirtualAkd {
     esc: Esc,
@@ -166,6 +187,7 @@ pub struct VirtualAkd {
     frames_lost: u64,
     identity: Identity,
     has_successor: bool,
+    warm: Warm,
     drive: drive::DriveFirmware,
     rx_image: process_data::Image,
     tx_image: process_data::Image,
@@ -216,6 +238,7 @@ impl VirtualAkd {
             frames_lost: 0,
             identity,
             has_successor,
+            warm: Warm::default(),
             drive: drive::DriveFirmware::default(),
             rx_image: Vec::new(),
             tx_image: Vec::new(),
@@ -232,6 +255,13 @@ impl VirtualAkd {
         let homing = self.drive().homing_setup();
         *self = Self::with_sii(sii, self.identity, self.mailbox_size, self.has_successor, self.timing);
         self.drive_mut().set_homing(homing);
+    }
+
+    /// The drive as one powered up long before, that has been to PreOp and answered its mailbox
+    /// since: its next Init→PreOp and mailbox reply take the later ones' time ([`Timing`]), as
+    /// the drive of the SOEM capture did.
+    pub fn warm_up(&mut self) {
+        self.warm = Warm { been_in_preop: true, answered_mailbox: true };
     }
 
     /// The F125 a real AKD would have raised where this one judges missed frames by
@@ -324,11 +354,17 @@ impl VirtualAkd {
     fn schedule(&mut self, events: Events, now_ns: u64) {
         if let Some(control) = events.al_control {
             let to_preop = self.al.state() == AlState::Init && AlState::from_bits(control) == Some(AlState::PreOp);
-            let delay = if to_preop { self.timing.init_to_preop_ns } else { self.timing.al_request_ns };
+            let delay = match (to_preop, self.warm.been_in_preop) {
+                (true, false) => self.timing.first_init_to_preop_ns,
+                (true, true) => self.timing.init_to_preop_ns,
+                (false, _) => self.timing.al_request_ns,
+            };
             self.pending_al = Some((control, now_ns + delay));
         }
         if events.mailbox_written {
-            self.pending_mailbox = Some(now_ns + self.timing.mailbox_ns);
+            let delay = if self.warm.answered_mailbox { self.timing.mailbox_ns } else { self.timing.first_mailbox_ns };
+            self.warm.answered_mailbox = true;
+            self.pending_mailbox = Some(now_ns + delay);
         }
         if events.watchdog_trigger {
             self.watchdog.trigger(now_ns);
@@ -402,6 +438,7 @@ impl VirtualAkd {
             _ => Ok(()),
         });
         if let Some(t) = transition {
+            self.warm.been_in_preop |= t.to == AlState::PreOp;
             firmware::enter_state(&mut self.esc, &mut self.mailbox, t.to);
             if t.to == AlState::Init || t.to == AlState::Bootstrap {
                 self.pending_mailbox = None;
@@ -512,6 +549,15 @@ impl VirtualBus {
     /// [`slave`](Self::slave) does.
     pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
         self.slaves[i].akd_mut().unwrap_or_else(|| panic!("slave {i} is no AKD"))
+    }
+
+    /// Every AKD of the line as one powered up long before ([`VirtualAkd::warm_up`]).
+    pub fn warm_up(&mut self) {
+        for slave in &mut self.slaves {
+            if let Some(akd) = slave.akd_mut() {
+                akd.warm_up();
+            }
+        }
     }
 
     /// The line in front of the drives, as its faults left it.
@@ -673,6 +719,7 @@ mod tests {
         // Found by fuzzing (native/fuzz, virtual_akd): SM1 set to 4 bytes in PreOp, then an SDO
         // upload; the reply was sized for a mailbox smaller than its headers.
         let mut bus = VirtualBus::new(1);
+        bus.slave_mut(0).warm_up();
         to_preop(&mut bus);
         assert_eq!(exchange(&mut bus, 20_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
         assert_eq!(exchange(&mut bus, 20_000_000, Command::Bwr, 0, 0x080A, &[4, 0]).1, 1);
@@ -704,7 +751,8 @@ mod tests {
     #[test]
     fn init_to_preop_runs_at_a_pace_of_its_own() {
         // A drive of another pace there: Init for 16 ms after the request, other requests as usual.
-        let mut bus = VirtualBus::with_timing(1, Timing { init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE });
+        let timing = Timing { first_init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE };
+        let mut bus = VirtualBus::with_timing(1, timing);
         to_preop(&mut bus);
         for t in [4_500_000, 10_000_000, 15_999_999] {
             assert_eq!(exchange(&mut bus, t, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00], "at {t} ns");
@@ -715,6 +763,14 @@ mod tests {
         exchange(&mut bus, 16_000_000, Command::Bwr, 0, 0x0120, &[0x01, 0x00]);
         assert_eq!(exchange(&mut bus, 20_499_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
         assert_eq!(exchange(&mut bus, 20_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
+        // The next Init→PreOp takes a later request's 4.5 ms (3-6 ms under TwinCAT).
+        exchange(&mut bus, 21_000_000, Command::Bwr, 0, 0x0120, &[0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 25_499_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
+        assert_eq!(exchange(&mut bus, 25_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        // So does the first after a power cycle once more: 16 ms.
+        bus.slave_mut(0).power_cycle();
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 15_999_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
     }
 
     #[test]
@@ -733,16 +789,20 @@ mod tests {
         to_preop(&mut bus);
         let mut request = vec![0u8; 0x400];
         request[..16].copy_from_slice(&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x20, 0x40, 0x00, 0x1C, 0x03, 0, 0, 0, 0]);
-        let t = 18_000_000;
-        assert_eq!(exchange(&mut bus, t, Command::Bwr, 0, 0x1800, &request).1, 1);
-        assert_eq!(exchange(&mut bus, t + 650_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x00, 0x01]);
-        assert_eq!(exchange(&mut bus, t + 1_400_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x09, 0x01]);
-        let (reply, wkc) = exchange(&mut bus, t + 2_000_000, Command::Brd, 0, 0x1C00, &[0; 0x400]);
-        assert_eq!(
-            (&reply[..16], wkc),
-            (&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0][..], 1)
-        );
-        assert_eq!(exchange(&mut bus, t + 2_500_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+        let reply_of_counter =
+            |counter: u8| [0x0A, 0, 0, 0, 0, counter, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0];
+        // The first message after power-up is answered 30 ms on (25-50 ms under TwinCAT), the
+        // next ones 1 ms on (the SOEM capture's 0.56-2.9 ms).
+        for (t, delay, counter) in [(18_000_000, 30_000_000, 0x23), (50_000_000, 1_000_000, 0x33)] {
+            request[5] = counter;
+            assert_eq!(exchange(&mut bus, t, Command::Bwr, 0, 0x1800, &request).1, 1);
+            // SM1 not full (bit 3) until then.
+            assert_eq!(exchange(&mut bus, t + delay - 1, Command::Brd, 0, 0x080D, &[0, 0]).0[0] & 0x08, 0);
+            assert_eq!(exchange(&mut bus, t + delay, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x09, 0x01]);
+            let (reply, wkc) = exchange(&mut bus, t + delay + 500_000, Command::Brd, 0, 0x1C00, &[0; 0x400]);
+            assert_eq!((&reply[..16], wkc), (&reply_of_counter(counter)[..], 1));
+            assert_eq!(exchange(&mut bus, t + delay + 600_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+        }
     }
 
     #[test]
