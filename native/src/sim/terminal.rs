@@ -275,6 +275,11 @@ impl VirtualTerminal {
         if events.watchdog_trigger {
             self.watchdog.trigger(now_ns);
         }
+        if events.outputs_written && matches!(self.io, Io::DigitalOutputs { .. }) {
+            // The ESC drives the pins from the register once the sync manager's buffer is
+            // written, in the frame.
+            self.poll(now_ns);
+        }
         if let Io::Processor(p) = &mut self.io {
             if let Some(control) = events.al_control {
                 p.pending_control = Some(control);
@@ -425,4 +430,184 @@ fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
     tx_assign.check = Some(tx_assignment);
     objects.push(tx_assign);
     ObjectDictionary::from_objects(objects)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frame::{Command, FrameBuilder};
+    use crate::sim::{Timing, VirtualBus};
+
+    /// One datagram through `bus` at `now`: its data and working counter.
+    fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+        let mut buf = [0u8; 1500];
+        let mut b = FrameBuilder::new(&mut buf);
+        let slot = b.push(command, 0, adp, ado, data).unwrap();
+        let len = b.finish();
+        bus.process(&mut buf[..len], now).unwrap();
+        (slot.data(&buf[..len]).unwrap().to_vec(), slot.wkc(&buf[..len]).unwrap())
+    }
+
+    fn line(spec: &str) -> VirtualBus {
+        VirtualBus::of_line(&spec.parse().unwrap(), Timing::IMMEDIATE).unwrap()
+    }
+
+    /// Station addresses 0x1001.. as SOEM gives them.
+    fn address(bus: &mut VirtualBus) {
+        for i in 0..bus.len() as u16 {
+            exchange(bus, 0, Command::Apwr, 0u16.wrapping_sub(i), 0x0010, &(0x1001 + i).to_le_bytes());
+        }
+    }
+
+    /// An FMMU's 16 bytes: logical start and bits, length, physical start and bit, type.
+    fn fmmu(logical: u32, len: u16, bits: (u8, u8), physical: u16, physical_bit: u8, kind: u8) -> [u8; 16] {
+        let mut r = [0u8; 16];
+        r[..4].copy_from_slice(&logical.to_le_bytes());
+        r[4..6].copy_from_slice(&len.to_le_bytes());
+        (r[6], r[7]) = bits;
+        r[8..10].copy_from_slice(&physical.to_le_bytes());
+        (r[10], r[11], r[12]) = (physical_bit, kind, 1);
+        r
+    }
+
+    #[test]
+    fn terminals_answer_with_their_escs_and_images() {
+        let mut bus = line("ek1100,el1004,el2004");
+        // ET1100 0x11 ORed with two ET1200s 0x12 revision 1, as SOEM read 0x13 0x01.
+        assert_eq!(exchange(&mut bus, 0, Command::Brd, 0, 0x0000, &[0, 0]), (vec![0x13, 0x01], 3));
+        address(&mut bus);
+        assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1001, 0x0140, &[0, 0]).0, [0x00, 0x0D]);
+        assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1002, 0x0140, &[0, 0]).0, [0x04, 0x01]);
+        assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1001, 0x0110, &[0, 0]).0, [0x31, 0x5A]);
+        assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1003, 0x0110, &[0, 0]).0, [0x13, 0x56]);
+        // An ET1200 has no DC system time and no fourth FMMU: nothing answers there.
+        assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1002, 0x0918, &[0; 8]).1, 0);
+        assert_eq!(exchange(&mut bus, 0, Command::Bwr, 0, 0x0630, &[0; 16]).1, 1);
+        assert_eq!(exchange(&mut bus, 0, Command::Bwr, 0, 0x0910, &[0; 4]).1, 1);
+        // The EEPROM: 8 bytes a read, busy for 0.65 ms, bit 4 set below SafeOp on the ET1200.
+        exchange(&mut bus, 1_000, Command::Fpwr, 0x1002, 0x0502, &[0x00, 0x01, 0x0A, 0, 0, 0]);
+        assert_eq!(exchange(&mut bus, 500_000, Command::Fprd, 0x1002, 0x0502, &[0, 0]).0, [0x50, 0x81]);
+        assert_eq!(exchange(&mut bus, 700_000, Command::Fprd, 0x1002, 0x0502, &[0, 0]).0, [0x50, 0x00]);
+        let (data, _) = exchange(&mut bus, 700_000, Command::Fprd, 0x1002, 0x0508, &[0; 8]);
+        assert_eq!(data, images::EL1004.image().unwrap()[0x14..0x1C]);
+        assert_eq!(exchange(&mut bus, 0, Command::Fprd, 0x1001, 0x0502, &[0, 0]).0, [0x40, 0x00]);
+        // Device emulation: AL control is AL status at once, the error acknowledge included.
+        exchange(&mut bus, 800_000, Command::Bwr, 0, 0x0120, &[0x12, 0x00]);
+        assert_eq!(exchange(&mut bus, 800_000, Command::Brd, 0, 0x0130, &[0, 0]), (vec![0x12, 0x00], 3));
+        exchange(&mut bus, 800_000, Command::Bwr, 0, 0x0120, &[0x08, 0x00]);
+        assert_eq!(exchange(&mut bus, 800_000, Command::Fprd, 0x1002, 0x0130, &[0; 6]).0, [0x08, 0, 0, 0, 0, 0]);
+        assert_eq!(exchange(&mut bus, 800_000, Command::Fprd, 0x1002, 0x0502, &[0, 0]).0, [0x40, 0x00]);
+    }
+
+    #[test]
+    fn digital_terminals_follow_the_process_data_as_soem_packs_it() {
+        let mut bus = line("ek1100,el1004,el2004,el2004");
+        address(&mut bus);
+        // As SOEM sets them from the SII: the EL1004's SM0 at 0x1000 (1 byte, read), the
+        // EL2004s' at 0x0F00 (1 byte, written, watchdog); the outputs' 4 bits of each EL2004 in
+        // bits 0-3 and 4-7 of logical byte 0, the inputs in bits 0-3 of logical byte 1.
+        exchange(&mut bus, 0, Command::Fpwr, 0x1002, 0x0800, &[0x00, 0x10, 1, 0, 0x00, 0, 1, 0]);
+        exchange(&mut bus, 0, Command::Fpwr, 0x1002, 0x0600, &fmmu(1, 1, (0, 3), 0x1000, 0, 1));
+        for (station, bits) in [(0x1003, (0, 3)), (0x1004, (4, 7))] {
+            exchange(&mut bus, 0, Command::Fpwr, station, 0x0800, &[0x00, 0x0F, 1, 0, 0x44, 0, 9, 0]);
+            exchange(&mut bus, 0, Command::Fpwr, station, 0x0600, &fmmu(0, 1, bits, 0x0F00, 0, 2));
+        }
+        exchange(&mut bus, 0, Command::Bwr, 0, 0x0120, &[0x08, 0x00]);
+        bus.at_mut(1).terminal_mut().unwrap().set_input(2, true);
+        bus.at_mut(1).terminal_mut().unwrap().set_input(4, true);
+        // Outputs 1 and 3 of the first EL2004, 2 and 4 of the second; the inputs pass the
+        // 3 ms filter after the change reached the terminal.
+        let frame = |bus: &mut VirtualBus, now| exchange(bus, now, Command::Lrw, 0, 0, &[0x05 | 0xA0, 0]);
+        // One working counter per slave read (EL1004) and two per slave written.
+        assert_eq!(frame(&mut bus, 1_000_000), (vec![0xA5, 0x00], 5));
+        assert_eq!(frame(&mut bus, 3_999_999), (vec![0xA5, 0x00], 5));
+        assert_eq!(frame(&mut bus, 4_000_000), (vec![0xA5, 0x0A], 5));
+        let state = |bus: &VirtualBus, i: usize| bus.at(i).terminal().unwrap().state();
+        assert_eq!((state(&bus, 2).outputs, state(&bus, 3).outputs), (0x05, 0x0A));
+        assert_eq!((state(&bus, 1).inputs, state(&bus, 1).input_count), (0x0A, 4));
+        // No output written for 100 ms (the ESC's default watchdog): the pins drop to off.
+        bus.advance(104_000_001);
+        assert_eq!((state(&bus, 2).outputs, state(&bus, 2).watchdog_expired), (0, true));
+        assert_eq!(state(&bus, 2).al_status, 0x08, "no firmware to leave Op");
+        frame(&mut bus, 105_000_000);
+        assert_eq!((state(&bus, 2).outputs, state(&bus, 2).watchdog_expired), (0x05, false));
+        // Out of Op the pins are off whatever the process data says.
+        exchange(&mut bus, 106_000_000, Command::Bwr, 0, 0x0120, &[0x04, 0x00]);
+        frame(&mut bus, 106_000_000);
+        assert_eq!(state(&bus, 3).outputs, 0);
+    }
+
+    #[test]
+    fn the_el3102_runs_its_mailbox_and_inputs_through_the_shared_firmware() {
+        let mut bus = line("ek1100,el3102");
+        address(&mut bus);
+        bus.at_mut(1).terminal_mut().unwrap().set_analog_input(2, -5.0);
+        // Without its mailbox sync managers it refuses PreOp (0x0017), as the AKD does.
+        exchange(&mut bus, 0, Command::Fpwr, 0x1002, 0x0120, &[0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 1, Command::Fprd, 0x1002, 0x0130, &[0; 6]).0, [0x11, 0, 0, 0, 0x17, 0]);
+        exchange(&mut bus, 2, Command::Fpwr, 0x1002, 0x0800, &[0x00, 0x10, 0x80, 0, 0x26, 0, 1, 0]);
+        exchange(&mut bus, 2, Command::Fpwr, 0x1002, 0x0808, &[0x80, 0x10, 0x80, 0, 0x22, 0, 1, 0]);
+        exchange(&mut bus, 2, Command::Fpwr, 0x1002, 0x0120, &[0x12, 0x00]);
+        assert_eq!(exchange(&mut bus, 3, Command::Fprd, 0x1002, 0x0130, &[0; 6]).0, [0x02, 0, 0, 0, 0, 0]);
+        // An SDO upload of 0x1C13:02, the second TxPDO assigned.
+        let mut request = [0u8; 0x80];
+        request[..16].copy_from_slice(&[0x0A, 0, 0, 0, 0, 0x13, 0x00, 0x20, 0x40, 0x13, 0x1C, 0x02, 0, 0, 0, 0]);
+        exchange(&mut bus, 4, Command::Fpwr, 0x1002, 0x1000, &request);
+        let (reply, wkc) = exchange(&mut bus, 5, Command::Fprd, 0x1002, 0x1080, &[0; 0x80]);
+        assert_eq!(
+            (&reply[..16], wkc),
+            (&[0x0A, 0, 0, 0, 0, 0x13, 0x00, 0x30, 0x4B, 0x13, 0x1C, 0x02, 0x01, 0x1A, 0, 0][..], 1)
+        );
+        // It declares CoE only: an EoE message gets a mailbox error (service 2: unsupported protocol).
+        let mut eoe = [0u8; 0x80];
+        eoe[..8].copy_from_slice(&[0x02, 0, 0, 0, 0, 0x22, 0x00, 0x00]);
+        exchange(&mut bus, 6, Command::Fpwr, 0x1002, 0x1000, &eoe);
+        let (reply, _) = exchange(&mut bus, 7, Command::Fprd, 0x1002, 0x1080, &[0; 0x80]);
+        assert_eq!((reply[5] & 0x0F, &reply[6..10]), (0x00, &[0x01, 0x00, 0x02, 0x00][..]));
+        // SafeOp with SM3 of its 6 input bytes, then the inputs: status 0 and the value.
+        exchange(&mut bus, 8, Command::Fpwr, 0x1002, 0x0818, &[0x80, 0x11, 6, 0, 0x20, 0, 1, 0]);
+        exchange(&mut bus, 8, Command::Fpwr, 0x1002, 0x0120, &[0x04, 0x00]);
+        assert_eq!(exchange(&mut bus, 9, Command::Fprd, 0x1002, 0x0130, &[0; 6]).0, [0x04, 0, 0, 0, 0, 0]);
+        let (inputs, _) = exchange(&mut bus, 10, Command::Fprd, 0x1002, 0x1180, &[0; 6]);
+        let half = (-16384i16).to_le_bytes();
+        assert_eq!(inputs, [0, 0, 0, 0, half[0], half[1]]);
+    }
+
+    #[test]
+    fn a_corrupt_image_is_refused_in_one_line_naming_the_terminal() {
+        let image = images::EL1004.image().unwrap();
+        let refused = |at: usize| {
+            let mut corrupt = image.clone();
+            corrupt[at] ^= 0xFF;
+            let made = VirtualTerminal::with_sii(SimProduct::El1004, images::EL1004, corrupt, false);
+            made.err().map(|e| e.to_string()).unwrap_or_default()
+        };
+        // The header checksum (word 7), and the general category's name (string 4, byte 0x10B).
+        let checksum = refused(0x0E);
+        assert!(checksum.starts_with("configuration: the virtual el1004's SII image cannot be read: "), "{checksum}");
+        assert!(checksum.contains("checksum") && !checksum.contains('\n'), "{checksum}");
+        let name = refused(0x10B);
+        assert!(name.starts_with("configuration: the virtual el1004's SII image cannot be read: "), "{name}");
+        assert!(name.contains("name") && !name.contains('\n'), "{name}");
+    }
+
+    #[test]
+    fn commands_are_checked_against_the_terminal() {
+        let e = |r: Result<()>| r.unwrap_err().to_string();
+        assert_eq!(
+            e(VirtualTerminal::check_input(SimProduct::El1004, 1, 5, false)),
+            "configuration: digital input 5: the el1004 at position 1 has digital inputs 1 to 4"
+        );
+        assert_eq!(
+            e(VirtualTerminal::check_input(SimProduct::El2004, 2, 1, false)),
+            "configuration: digital input 1: the el2004 at position 2 has no digital inputs"
+        );
+        assert!(VirtualTerminal::check_input(SimProduct::El1008, 1, 8, false).is_ok());
+        assert!(VirtualTerminal::check_input(SimProduct::El3102, 1, 2, true).is_ok());
+        assert_eq!(
+            e(VirtualTerminal::check_volts(10.5)),
+            "configuration: analog input of 10.5 V: allowed are -10 to 10 V"
+        );
+        assert!(VirtualTerminal::check_volts(f64::NAN).is_err());
+    }
 }
