@@ -52,6 +52,8 @@ pub const PDI_DEVICE_EMULATION: u16 = 0x0100;
 /// AL control bits an ESC in device emulation copies to AL status: the state and the error
 /// acknowledge, which then reads as the error flag.
 const AL_MIRRORED: u16 = 0x001F;
+/// ECAT event request (0x0210) bit 2: the DL status changed, until the master reads it.
+const DL_STATUS_EVENT: u8 = 0x04;
 
 /// What the firmware has to react to after a datagram: the ESC raises these as events.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -142,7 +144,17 @@ impl Esc {
             Esc { hardware, memory, sii, al_control_locked: false, sii_busy_until_ns: 0, events: Events::default() };
         esc.refresh_sii_status(0);
         esc.set_successor(has_successor);
+        // What the DL status is at power-up is no change of it.
+        esc.memory[reg::ECAT_EVENT_REQUEST as usize] = 0;
         esc
+    }
+
+    /// The link on port 0 came up after the ESC's reset, as it does for a slave behind another
+    /// one at power-up: the DL status changed, and the event says so until the master reads
+    /// the DL status (the EL1004 behind an EK1100 showed it in the SOEM capture, through every
+    /// datagram's IRQ word once SOEM set the event mask).
+    pub fn link_came_up(&mut self) {
+        self.memory[reg::ECAT_EVENT_REQUEST as usize] |= DL_STATUS_EVENT;
     }
 
     /// What kind of ESC it is.
@@ -181,6 +193,9 @@ impl Esc {
     pub fn set_successor(&mut self, has_successor: bool) {
         let links = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
         let dl_status = links | self.hardware.dl_status_pdi;
+        if dl_status != self.u16_at(reg::DL_STATUS) {
+            self.memory[reg::ECAT_EVENT_REQUEST as usize] |= DL_STATUS_EVENT;
+        }
         self.memory[0x0110..0x0112].copy_from_slice(&dl_status.to_le_bytes());
     }
 
@@ -213,6 +228,9 @@ impl Esc {
     /// Serves one datagram as it passes this ESC: addressing, memory access, ADP increment
     /// and working counter.
     pub fn serve(&mut self, dg: &mut DatagramMut<'_>, arrival: Arrival) {
+        // Every ESC a datagram passes ORs its unmasked ECAT events into the IRQ word, as they
+        // stand when the datagram's header passes.
+        dg.header.irq |= self.u16_at(reg::ECAT_EVENT_REQUEST) & self.u16_at(reg::ECAT_EVENT_MASK);
         let h = dg.header;
         let command = h.command;
         let (did_read, did_write) = match command.addressing() {
@@ -278,6 +296,9 @@ impl Esc {
         }
         if read {
             self.after_ram_access(at, len, true);
+            if touches(at, len, reg::DL_STATUS, 2) {
+                self.memory[reg::ECAT_EVENT_REQUEST as usize] &= !DL_STATUS_EVENT;
+            }
         }
         (read, write)
     }

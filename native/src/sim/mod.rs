@@ -500,7 +500,11 @@ impl VirtualBus {
 
     /// A line of `slaves` in order (built by the caller, e.g. a terminal serving an image a
     /// test changed).
-    pub fn of_slaves(slaves: Vec<VirtualSlave>) -> Self {
+    pub fn of_slaves(mut slaves: Vec<VirtualSlave>) -> Self {
+        // Each slave behind another saw its link come up after it reset.
+        for slave in slaves.iter_mut().skip(1) {
+            slave.link_came_up();
+        }
         let line = line::Line::new(slaves.len());
         VirtualBus { slaves, line }
     }

@@ -116,6 +116,15 @@ impl VirtualSlave {
         }
     }
 
+    /// The link on port 0 came up after the slave's reset
+    /// ([`Esc::link_came_up`](super::esc::Esc::link_came_up)).
+    pub(super) fn link_came_up(&mut self) {
+        match self {
+            VirtualSlave::Akd(akd) => akd.esc.link_came_up(),
+            VirtualSlave::Terminal(t) => t.link_came_up(),
+        }
+    }
+
     /// Whether a slave answers on its port 1: one follows there and its cable is in.
     pub(super) fn set_successor(&mut self, reached: bool) {
         match self {

@@ -185,6 +185,11 @@ impl VirtualTerminal {
         }
     }
 
+    /// The link on port 0 came up after the terminal's reset.
+    pub fn link_came_up(&mut self) {
+        self.esc.link_came_up();
+    }
+
     /// Whether a slave follows on port 1 (a cable pulled out behind it, or plugged back in).
     pub fn set_successor(&mut self, has_successor: bool) {
         self.esc.set_successor(has_successor && self.has_successor);
