@@ -274,10 +274,9 @@ def start_commands(simulator) -> None:
 
 EXAMPLES = """
 examples:
-  akd-sim --udp 127.0.0.1:34980 --count 2   two virtual AKDs for the link udp://127.0.0.1:34980
-  akd-sim --iface veth-sim --count 6        six on a veth end, for a master on its peer
-  akd-sim --iface veth-sim --line ek1100,el1004,el2004,akd
-                                            a coupler, 4 inputs, 4 outputs and an AKD
+  akd-sim --udp 127.0.0.1:34980 --count 2                two virtual AKDs for the link udp://127.0.0.1:34980
+  akd-sim --iface veth-sim --count 6                     six on a veth end, for a master on its peer
+  akd-sim --iface veth-sim --line ek1100,el1004,el2004,akd  a coupler, 4 inputs, 4 outputs and an AKD
 """
 
 
