@@ -111,3 +111,57 @@ def test_kickcat_power_up_mapping_is_refused_like_the_real_drive(veth):
     assert report["sizes"] == [[17, 17]]
     assert "safeop_error" in report
     assert report["safeop_error"].startswith("ErrorAL")
+
+
+# Runs in the master's namespace: argv = interface. The cell ek1100, el1004, el2004, akd: the AKD's fixed mappings,
+# Op, and 100 cycles in which kickcat checks every datagram's working counter against its own expectation.
+KICKCAT_CELL_SCRIPT = (
+    KICKCAT_HELPERS
+    + r"""
+iface = sys.argv[1]
+report = {}
+link, bus, report["init_attempts"], report["init_errors"] = open_bus(iface)
+slaves = bus.slaves()
+report["found"] = len(slaves)
+report["state_after_init"] = [str(bus.get_state(s)) for s in slaves]
+select_fixed_mappings(bus, [slaves[3]])
+bus.create_mapping()
+report["sizes"] = [[s.output_size, s.input_size] for s in slaves]
+
+
+def outputs():
+    slaves[2].set_output_bytes(bytes([0b0101]))
+    slaves[3].set_output_bytes(struct.pack("<iH", 0, 0x0006))
+
+
+bus.request_state(State.SAFE_OP)
+bus.wait_for_state(State.SAFE_OP, 2.0)
+outputs()
+bus.process_data()
+bus.request_state(State.OPERATIONAL)
+bus.wait_for_state(State.OPERATIONAL, 2.0, bus.process_data)
+report["state_in_op"] = [str(bus.get_state(s)) for s in slaves]
+errors = 0
+for cycle in range(100):
+    outputs()
+    try:
+        bus.process_data()
+    except Exception as error:
+        errors += 1
+        report.setdefault("first_error", str(error))
+    time.sleep(0.001)
+report["cycle_errors"] = errors
+bus.request_state(State.INIT)
+print(json.dumps(report))
+"""
+)
+
+
+def test_kickcat_reaches_op_on_a_cell_of_terminals_and_an_akd(veth):
+    report = master_script_report(veth, KICKCAT_CELL_SCRIPT, [], line="ek1100,el1004,el2004,akd")
+    assert report["found"] == 4
+    assert report["state_after_init"] == ["State.PREOP"] * 4
+    # kickcat maps by whole bytes: the terminals' 4 bits take a byte each way.
+    assert report["sizes"] == [[0, 0], [0, 1], [1, 0], [6, 6]]
+    assert report["state_in_op"] == ["State.OPERATIONAL"] * 4
+    assert report["cycle_errors"] == 0, report.get("first_error")
