@@ -8,33 +8,17 @@ which runs between frames too. The waits have deadlines only so that a failure d
 from __future__ import annotations
 
 import json
-import queue
 import signal
 import subprocess
-import threading
 import time
 
 import pytest
 
 from akd_ros import _native
 from support.netns import console_script, udp_port_bound
+from support.waiting import Lines
 
 LINE = "ek1100,el1004,el2004,el3102,akd"
-
-
-class Lines:
-    """A process's stdout lines, read on a thread so that a wait can time out."""
-
-    def __init__(self, stream):
-        self._lines: queue.Queue[str] = queue.Queue()
-        threading.Thread(target=self._read, args=(stream,), daemon=True).start()
-
-    def _read(self, stream) -> None:
-        for line in stream:
-            self._lines.put(line.rstrip("\n"))
-
-    def next(self, timeout: float = 10.0) -> str:
-        return self._lines.get(timeout=timeout)
 
 
 @pytest.fixture

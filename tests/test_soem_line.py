@@ -12,17 +12,16 @@ out, and that an input set on akd-sim's stdin reaches SOEM.
 from __future__ import annotations
 
 import json
-import queue
 import re
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
 
 from support.netns import akd_sim_in_netns, master_script_report, netns_argv
 from support.soem_script import SOEM_HELPERS
+from support.waiting import Lines
 
 pysoem = pytest.importorskip("pysoem", reason="pysoem is installed by scripts/setup.sh")
 
@@ -32,10 +31,7 @@ SLAVEINFO = "soem-sdinfo-2-el2004.txt"
 SLAVEINFO_SCRIPT = (
     SOEM_HELPERS
     + r"""
-iface = sys.argv[1]
-report = {}
-master, report["found"], report["preop"] = open_master(iface)
-try:
+def slaveinfo(master, report):
     report["iomap_size"] = master.config_map()
     report["dc"] = master.config_dc()
     report["safeop"] = reach_safeop(master)
@@ -47,11 +43,9 @@ try:
         "dl_status": int.from_bytes(s._fprd(0x0110, 2), "little"),
         "receive_time": int.from_bytes(s._fprd(0x0900, 4), "little"),
     } for s in master.slaves]
-    master.state = pysoem.INIT_STATE
-    master.write_state()
-finally:
-    master.close()
-print(json.dumps(report, default=lambda raw: raw.decode("latin-1")))
+
+
+session(sys.argv[1], slaveinfo)
 """
 )
 
@@ -145,10 +139,7 @@ def test_soem_sees_the_virtual_terminals_as_it_saw_the_real_ones(veth, real_ethe
 CELL_SCRIPT = (
     SOEM_HELPERS
     + r"""
-iface = sys.argv[1]
-report = {}
-master, report["found"], report["preop"] = open_master(iface)
-try:
+def cell(master, report):
     slaves = master.slaves
     report["names"] = [s.name for s in slaves]
     slaves[3].config_func = lambda position: select_fixed_mappings(master, position)
@@ -173,33 +164,13 @@ try:
     sys.stdin.readline()
     master.read_state()
     report["states_before_init"] = [s.state for s in slaves]
-    master.state = pysoem.INIT_STATE
-    master.write_state()
-finally:
-    master.close()
-print(json.dumps(report, default=lambda raw: raw.decode("latin-1")))
+
+
+session(sys.argv[1], cell)
 """
 )
 
 LINE = "ek1100,el1004,el2004,akd"
-
-
-class Lines:
-    """A process's stdout lines, read on a thread so that a wait can time out."""
-
-    def __init__(self, stream):
-        self._lines: queue.Queue[str] = queue.Queue()
-        threading.Thread(target=self._read, args=(stream,), daemon=True).start()
-
-    def _read(self, stream) -> None:
-        try:
-            for line in stream:
-                self._lines.put(line.rstrip("\n"))
-        except (OSError, ValueError):
-            return
-
-    def next(self, timeout: float = 30.0) -> str:
-        return self._lines.get(timeout=timeout)
 
 
 def test_soem_runs_a_cell_whose_terminals_follow_the_process_data(veth):

@@ -20,20 +20,12 @@
 
 use crate::frame::{Addressing, Command, DatagramMut};
 use crate::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
+pub use crate::sim::esc_hardware::RAM_START;
 use crate::sim::esc_hardware::{EscHardware, SiiInterface};
 use crate::sim::sync_manager::{self, SyncManager, CONTROL_WATCHDOG, SM_COUNT};
 
-/// Number of FMMUs of the AKD's ESC: a master needs two for process data (outputs, inputs)
-/// and may use the third for the mailbox-in status bit.
-pub const FMMU_COUNT: u8 = super::esc_hardware::AKD.fmmus;
-/// ESC build (register 0x0002) of the real drive.
-pub const ESC_BUILD: u16 = super::esc_hardware::AKD.build;
 /// DL control byte 2 at power-up: the RX FIFO size, 7 (the ESC's default, no reduction).
 const DL_CONTROL_FIFO_SIZE: u8 = 0x07;
-/// First byte of process RAM.
-pub const RAM_START: usize = 0x1000;
-/// One past the last byte of the AKD's process RAM (4 KiB).
-pub const RAM_END: usize = 0x2000;
 /// Size of the address space a datagram can reach: ADO up to 0xFFFF plus its length, which
 /// the frame header's 11-bit length bounds (a link may bring a frame longer than Ethernet's).
 const SPACE: usize = 0x10000 + 0x07FF;
@@ -116,7 +108,7 @@ impl Esc {
     /// The AKD's ESC at power-up serving the EEPROM `sii`; `has_successor` tells whether another
     /// slave follows on port 1 (it sets the DL status).
     pub fn new(sii: Vec<u8>, has_successor: bool) -> Self {
-        Self::with_hardware(super::esc_hardware::AKD, sii, has_successor)
+        Self::with_hardware(crate::sim::esc_hardware::AKD, sii, has_successor)
     }
 
     /// An ESC of kind `hardware` at power-up serving the EEPROM `sii`; `has_successor` as for

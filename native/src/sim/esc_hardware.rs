@@ -24,6 +24,9 @@
 
 use std::ops::Range;
 
+/// First byte of process RAM, in every ESC.
+pub const RAM_START: usize = 0x1000;
+
 /// How the ESC reads its SII EEPROM for the master (register 0x0502).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum SiiInterface {
@@ -128,7 +131,7 @@ pub const ET1200: EscHardware = EscHardware {
 impl EscHardware {
     /// One past the last byte of process RAM.
     pub fn ram_end(&self) -> usize {
-        super::esc::RAM_START + usize::from(self.ram_kib) * 1024
+        RAM_START + usize::from(self.ram_kib) * 1024
     }
 
     /// Whether the register at `addr` exists in this ESC.

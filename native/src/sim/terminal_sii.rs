@@ -82,52 +82,30 @@ pub enum Kind {
     },
 }
 
-const fn identity(product_code: u32, revision: u32) -> Identity {
-    Identity { vendor_id: BECKHOFF, product_code, revision, serial_number: 0 }
+/// A Beckhoff terminal: its order number, product code, revision, E-bus current (mA) and kind.
+const fn terminal(
+    order: &'static str,
+    product_code: u32,
+    revision: u32,
+    current_on_ebus: i16,
+    kind: Kind,
+) -> TerminalSii {
+    let identity = Identity { vendor_id: BECKHOFF, product_code, revision, serial_number: 0 };
+    TerminalSii { order, identity, current_on_ebus, kind }
 }
 
 /// The EK1100 EtherCAT coupler.
-pub const EK1100: TerminalSii = TerminalSii {
-    order: "EK1100",
-    identity: identity(0x044C_2C52, 0x0012_0000),
-    current_on_ebus: -2000,
-    kind: Kind::Coupler,
-};
+pub const EK1100: TerminalSii = terminal("EK1100", 0x044C_2C52, 0x0012_0000, -2000, Kind::Coupler);
 /// The EL1004: 4 digital inputs.
-pub const EL1004: TerminalSii = TerminalSii {
-    order: "EL1004",
-    identity: identity(0x03EC_3052, 0x0013_0000),
-    current_on_ebus: 90,
-    kind: Kind::DigitalInputs { channels: 4 },
-};
+pub const EL1004: TerminalSii = terminal("EL1004", 0x03EC_3052, 0x0013_0000, 90, Kind::DigitalInputs { channels: 4 });
 /// The EL1008: 8 digital inputs.
-pub const EL1008: TerminalSii = TerminalSii {
-    order: "EL1008",
-    identity: identity(0x03F0_3052, 0x0013_0000),
-    current_on_ebus: 90,
-    kind: Kind::DigitalInputs { channels: 8 },
-};
+pub const EL1008: TerminalSii = terminal("EL1008", 0x03F0_3052, 0x0013_0000, 90, Kind::DigitalInputs { channels: 8 });
 /// The EL2004: 4 digital outputs.
-pub const EL2004: TerminalSii = TerminalSii {
-    order: "EL2004",
-    identity: identity(0x07D4_3052, 0x0010_0000),
-    current_on_ebus: 100,
-    kind: Kind::DigitalOutputs { channels: 4 },
-};
+pub const EL2004: TerminalSii = terminal("EL2004", 0x07D4_3052, 0x0010_0000, 100, Kind::DigitalOutputs { channels: 4 });
 /// The EL2008: 8 digital outputs.
-pub const EL2008: TerminalSii = TerminalSii {
-    order: "EL2008",
-    identity: identity(0x07D8_3052, 0x0010_0000),
-    current_on_ebus: 110,
-    kind: Kind::DigitalOutputs { channels: 8 },
-};
+pub const EL2008: TerminalSii = terminal("EL2008", 0x07D8_3052, 0x0010_0000, 110, Kind::DigitalOutputs { channels: 8 });
 /// The EL3102: 2 analog inputs, ±10 V.
-pub const EL3102: TerminalSii = TerminalSii {
-    order: "EL3102",
-    identity: identity(0x0C1E_3052, 0x0014_0000),
-    current_on_ebus: 130,
-    kind: Kind::AnalogInputs { channels: 2 },
-};
+pub const EL3102: TerminalSii = terminal("EL3102", 0x0C1E_3052, 0x0014_0000, 130, Kind::AnalogInputs { channels: 2 });
 
 /// The EL3102's mailbox: 128 bytes each way at 0x1000 and 0x1080.
 pub const EL3102_MAILBOX: MailboxLayout =
