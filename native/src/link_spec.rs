@@ -150,8 +150,9 @@ named_variants! {
     /// buses and are not about the drive's pace.
     #[derive(Default)]
     pub enum Pace {
-        /// The real drive's delays ([`crate::sim::Timing::REAL_DRIVE`]): Init→PreOp 17.5 ms, the
-        /// other AL requests 4.5 ms, a mailbox reply 1 ms after the request.
+        /// The real drive's delays ([`crate::sim::Timing::REAL_DRIVE`]): Init→PreOp 17.5 ms the
+        /// first time after power-up and 4.5 ms later, the other AL requests 4.5 ms, the first
+        /// mailbox reply 30 ms after the request and later ones 1 ms.
         #[default]
         Real => "real",
         /// Every request handled before the next frame.

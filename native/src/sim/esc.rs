@@ -257,7 +257,7 @@ impl Esc {
         let broadcast = command.addressing() == Addressing::Broadcast;
         let at = dg.header.ado as usize;
         let len = dg.data.len();
-        if !self.hardware.absent.is_empty() && (at..at + len).any(|addr| !self.hardware.has(addr)) {
+        if self.hardware.lacks_any(at, len) {
             return (false, false);
         }
         let (read, write) = self.gate(at, len, read, write);

@@ -134,8 +134,8 @@ impl EscHardware {
         RAM_START + usize::from(self.ram_kib) * 1024
     }
 
-    /// Whether the register at `addr` exists in this ESC.
-    pub fn has(&self, addr: usize) -> bool {
-        !self.absent.iter().any(|r| (usize::from(r.start)..usize::from(r.end)).contains(&addr))
+    /// Whether this ESC lacks any register of `[at, at + len)`.
+    pub fn lacks_any(&self, at: usize, len: usize) -> bool {
+        self.absent.iter().any(|r| usize::from(r.start) < at + len && at < usize::from(r.end))
     }
 }
