@@ -307,7 +307,7 @@ impl Change {
             }
             // A test's rare event: the fresh drive's allocation on the owner's side is the
             // power-up's, not the exchange path's.
-            Change::PowerCycle { position } => bus.at_mut(position).power_cycle(),
+            Change::PowerCycle { position } => bus.power_cycle(position),
             Change::Cable { position, plugged } => bus.set_cable(position, plugged),
             Change::Burst(burst) => bus.start_burst(burst),
         }

@@ -555,6 +555,17 @@ impl VirtualBus {
         self.slaves[i].akd_mut().unwrap_or_else(|| panic!("slave {i} is no AKD"))
     }
 
+    /// Slave `position` loses its power and comes back as at power-up; behind another slave, its
+    /// link comes up after its reset, as at the line's power-up. Panics when `position` is not
+    /// below [`len`](Self::len).
+    pub fn power_cycle(&mut self, position: usize) {
+        let slave = &mut self.slaves[position];
+        slave.power_cycle();
+        if position > 0 {
+            slave.link_came_up();
+        }
+    }
+
     /// Every AKD of the line as one powered up long before ([`VirtualAkd::warm_up`]).
     pub fn warm_up(&mut self) {
         for slave in &mut self.slaves {

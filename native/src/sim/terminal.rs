@@ -505,6 +505,35 @@ mod tests {
     }
 
     #[test]
+    fn a_slave_behind_another_shows_its_link_coming_up_in_the_irq_word() {
+        /// The IRQ word of one BRD of the AL status.
+        fn irq(bus: &mut VirtualBus) -> u16 {
+            let mut buf = [0u8; 64];
+            let mut b = FrameBuilder::new(&mut buf);
+            b.push(Command::Brd, 0, 0, 0x0130, &[0, 0]).unwrap();
+            let len = b.finish();
+            bus.process(&mut buf[..len], 0).unwrap();
+            u16::from_le_bytes([buf[10], buf[11]])
+        }
+        let mut bus = line("ek1100,el1004");
+        address(&mut bus);
+        assert_eq!(irq(&mut bus), 0, "masked");
+        // As SOEM: the ECAT event mask to the DL status event; the EL1004's is pending from power-up.
+        exchange(&mut bus, 0, Command::Bwr, 0, 0x0200, &[0x04, 0x00]);
+        assert_eq!(irq(&mut bus), 0x0004);
+        // The EK1100's DL status read leaves it, the EL1004's clears it.
+        exchange(&mut bus, 0, Command::Fprd, 0x1001, 0x0110, &[0, 0]);
+        assert_eq!(irq(&mut bus), 0x0004);
+        exchange(&mut bus, 0, Command::Fprd, 0x1002, 0x0110, &[0, 0]);
+        assert_eq!(irq(&mut bus), 0);
+        // A power cycle brings its link up again; its mask is at power-up's.
+        bus.power_cycle(1);
+        assert_eq!(irq(&mut bus), 0);
+        exchange(&mut bus, 0, Command::Bwr, 0, 0x0200, &[0x04, 0x00]);
+        assert_eq!(irq(&mut bus), 0x0004);
+    }
+
+    #[test]
     fn digital_terminals_follow_the_process_data_as_soem_packs_it() {
         let mut bus = line("ek1100,el1004,el2004,el2004");
         address(&mut bus);
