@@ -6,9 +6,11 @@
 //! process image ([`process_data`]), the process-data watchdog ([`watchdog`]), and the drive firmware
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
 //! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`pll`] tells
-//! what its synchronisation (SYNC0 or SM2) was told. A [`VirtualBus`] is a
-//! line of them that serves EtherCAT frames in place, with time passed in by the caller so
-//! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
+//! what its synchronisation (SYNC0 or SM2) was told; [`firmware`] is what its processor does at
+//! the ESC's PDI side. A [`VirtualBus`] is a line of them, or of the slaves a
+//! [`SimLine`] names ([`slave`]): AKDs and Beckhoff terminals built from their real EEPROMs
+//! ([`terminal`], [`terminal_sii`], on the ESCs of [`esc_hardware`]). It serves EtherCAT frames
+//! in place, with time passed in by the caller so that a run is deterministic. [`in_process`] serves a bus to a master in this process through
 //! the link trait; [`server`] serves one on UDP or on a network interface.
 //! [`control`] lets tests and the simulator command inject faults, set inputs and query a
 //! drive while another thread owns the bus and serves its frames, and make the bus fail as

@@ -205,7 +205,8 @@ impl VirtualTerminal {
         }
     }
 
-    /// Checks that this terminal at `position` has digital input `input` (from 1).
+    /// Checks that `product` (at `position`, for the error) has input `input` (from 1) of the
+    /// kind asked: a digital one, or an analog one where `analog`.
     pub fn check_input(product: SimProduct, position: usize, input: usize, analog: bool) -> Result<()> {
         let kind = description(product).map(|d| d.kind);
         let count = match (kind, analog) {
