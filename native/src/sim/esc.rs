@@ -509,6 +509,10 @@ impl Esc {
         let start = dg.header.logical_address() as u64;
         let end = start + dg.data.len() as u64;
         let (mut did_read, mut did_write) = (false, false);
+        if start == end {
+            // No byte to map: no FMMU is passed.
+            return (false, false);
+        }
         for pass_reads in [false, true] {
             for n in 0..self.hardware.fmmus {
                 let f = reg::fmmu(n) as usize;

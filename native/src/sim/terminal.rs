@@ -645,4 +645,39 @@ mod tests {
         );
         assert!(VirtualTerminal::check_volts(f64::NAN).is_err());
     }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(256))]
+
+        /// Any datagrams, at any bus time, through a line of every kind of slave: each frame is
+        /// served (or refused untouched) without a panic, whatever the FMMUs and sync managers
+        /// the earlier ones set.
+        #[test]
+        fn any_datagrams_through_a_mixed_line_are_served(
+            datagrams in proptest::collection::vec(
+                (0u8..15, proptest::prelude::any::<u16>(), proptest::prelude::any::<u16>(),
+                 proptest::collection::vec(proptest::prelude::any::<u8>(), 0..48), 0u64..200_000_000),
+                1..40,
+            )
+        ) {
+            let mut bus = line("ek1100,el1004,el2004,el3102,akd");
+            // Some set-up a master does, so that logical datagrams meet active FMMUs, and an
+            // empty logical datagram at their start.
+            address(&mut bus);
+            for station in 0x1002..=0x1003u16 {
+                exchange(&mut bus, 0, Command::Fpwr, station, 0x0600, &fmmu(0, 2, (3, 5), 0x0F00, 2, 3));
+            }
+            assert_eq!(exchange(&mut bus, 0, Command::Lrw, 0, 0, &[]).1, 0);
+            let mut now = 0;
+            for (command, adp, ado, data, step) in datagrams {
+                now += step;
+                let Ok(command) = Command::try_from(command) else { continue };
+                let mut buf = [0u8; 1500];
+                let mut b = FrameBuilder::new(&mut buf);
+                b.push(command, 0, adp, ado, &data).unwrap();
+                let len = b.finish();
+                bus.process(&mut buf[..len], now).unwrap();
+            }
+        }
+    }
 }
