@@ -222,7 +222,7 @@ impl Change {
     pub fn input_level(products: &[SimProduct], position: usize, input: usize, high: bool) -> Result<Self> {
         check_position(products.len(), position)?;
         match products[position] {
-            SimProduct::Akd => drop(Inputs::default().set_level(input, high)?),
+            SimProduct::Akd => Inputs::default().set_level(input, high)?,
             product => VirtualTerminal::check_input(product, position, input, false)?,
         }
         Ok(Change::InputLevel { position, input, high })
