@@ -9,16 +9,16 @@
 use std::borrow::Cow;
 use std::fmt;
 
-use crate::coe::SdoAbortCode;
-pub use crate::eoe::EoeError;
-pub use crate::foe::FoeError;
-pub use crate::frame::FrameError;
-pub use crate::link_spec::LinkSpecError;
-pub use crate::mailbox::MailboxError;
-pub use crate::pdo::PdoError;
+pub use crate::drive::pdo::PdoError;
+pub use crate::drive::trajectory::TrajectoryError;
+use crate::ethercat::coe::SdoAbortCode;
+pub use crate::ethercat::eoe::EoeError;
+pub use crate::ethercat::foe::FoeError;
+pub use crate::ethercat::frame::FrameError;
+pub use crate::ethercat::link_spec::LinkSpecError;
+pub use crate::ethercat::mailbox::MailboxError;
+pub use crate::ethercat::sii::SiiError;
 pub use crate::setting::SettingError;
-pub use crate::sii::SiiError;
-pub use crate::trajectory::TrajectoryError;
 pub use crate::wire_code::UnknownCode;
 
 /// A name that is none of the allowed ones; the text lists them.
@@ -406,9 +406,9 @@ pub enum Error {
         /// The position.
         slave: u16,
         /// What the scan found there.
-        expected: crate::sii::Identity,
+        expected: crate::ethercat::sii::Identity,
         /// What answers now.
-        found: crate::sii::Identity,
+        found: crate::ethercat::sii::Identity,
     },
     /// A slave position that is not on the bus.
     NoSuchSlave {

@@ -272,7 +272,7 @@ impl fmt::Display for SettingError {
                 write!(f, "toggle position {position} of digital input {input} is not a finite number of counts")
             }
             SettingError::Switch { name } => {
-                let names: Vec<_> = crate::io::Switch::ALL.iter().map(|s| s.name()).collect();
+                let names: Vec<_> = crate::drive::io::Switch::ALL.iter().map(|s| s.name()).collect();
                 write!(f, "switch {name:?} is not one of {}", names.join(", "))
             }
             SettingError::AnalogVoltage { what, volts, max } => {

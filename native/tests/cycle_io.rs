@@ -7,10 +7,10 @@
 use akd_native::cycle::events::Event;
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
-use akd_native::ds402::{statusword, Mode, State};
-use akd_native::io;
-use akd_native::master::Mapping;
-use akd_native::pdo::{self, PdoEntry};
+use akd_native::drive::ds402::{statusword, Mode, State};
+use akd_native::drive::io;
+use akd_native::drive::pdo::{self, PdoEntry};
+use akd_native::ethercat::master::Mapping;
 use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
 
 #[path = "support/one_drive.rs"]

@@ -6,13 +6,13 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
-use akd_native::coe::{data_type, ObjectCode, OdListType, SdoAbortCode};
+use akd_native::drive::pdo::{self, Direction, PdoEntry};
 use akd_native::error::{Error, Result};
-use akd_native::frame::{self, Command};
-use akd_native::link::Link;
-use akd_native::master::{Mapping, Master};
-use akd_native::pdo::{self, Direction, PdoEntry};
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::coe::{data_type, ObjectCode, OdListType, SdoAbortCode};
+use akd_native::ethercat::frame::{self, Command};
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::master::{Mapping, Master};
 use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
@@ -520,7 +520,9 @@ fn clocks_read_the_masters_time_and_follow_the_reference() {
     m.configure_dc(1_000_000, 0).unwrap();
     // The reference clock was set to the master's time (ns since 2000).
     let reference = u64::from_le_bytes(m.slave_mut(0).unwrap().read_register(0x0910, 8).unwrap().try_into().unwrap());
-    let now = akd_native::dc::system_time(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap());
+    let now = akd_native::ethercat::dc::system_time(
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap(),
+    );
     assert!(now.abs_diff(reference) < 100_000_000, "reference clock {reference} vs master {now}");
     for position in 1..3 {
         // Delays grow along the line; the drift datagrams left each clock next to the reference.
@@ -530,7 +532,7 @@ fn clocks_read_the_masters_time_and_follow_the_reference() {
         assert!(delay(&mut m, position) > delay(&mut m, position - 1), "delay of slave {position}");
         let raw =
             u32::from_le_bytes(m.slave_mut(position).unwrap().read_register(0x092C, 4).unwrap().try_into().unwrap());
-        let difference = akd_native::dc::time_difference(raw);
+        let difference = akd_native::ethercat::dc::time_difference(raw);
         assert!(difference.abs() < 10_000, "slave {position} is {difference} ns off the reference");
     }
 }
@@ -558,7 +560,8 @@ fn emergencies_are_queued_while_sdo_goes_on() {
     let mut m = Master::new(Box::new(Shared(bus.clone())), Duration::from_millis(100));
     m.scan().unwrap();
     m.request_state(AlState::PreOp, STEP).unwrap();
-    let fault = akd_native::coe::Emergency { error_code: 0x7380, error_register: 0x81, data: [1, 2, 3, 4, 5] };
+    let fault =
+        akd_native::ethercat::coe::Emergency { error_code: 0x7380, error_register: 0x81, data: [1, 2, 3, 4, 5] };
     bus.lock().unwrap().bus_mut().slave_mut(0).emergency(&fault);
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
     assert_eq!(m.slave_mut(0).unwrap().take_emergencies().unwrap(), vec![fault]);

@@ -22,8 +22,8 @@
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
 //! fault supervision, [`latch`] the position latch, [`acyclic`] the mailbox traffic beside
-//! the cycle, [`dc_status`] the distributed clocks ([`CycleThread::dc_status`]) and [`record`]
-//! the per-cycle records as the recorder writes them.
+//! the cycle and [`dc_status`] the distributed clocks ([`CycleThread::dc_status`]); [`samples`]
+//! the per-cycle records, which [`crate::ros::cycle_sample`] serialises for the bag.
 //!
 //! A slave the loop loses (no answer, or out of Op) is reported and its drive disabled there;
 //! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
@@ -40,11 +40,11 @@ use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use crate::drive::pdo::PdoEntry;
+use crate::drive::trajectory::{Knot, Limits, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
-use crate::master::cyclic::ImageSlot;
-use crate::master::Master;
-use crate::pdo::PdoEntry;
-use crate::trajectory::{Knot, Limits, Trajectory};
+use crate::ethercat::master::cyclic::ImageSlot;
+use crate::ethercat::master::Master;
 pub use rt::RealTime;
 
 pub mod acyclic;
@@ -56,7 +56,6 @@ pub mod handshake;
 pub mod homing;
 pub mod image;
 pub mod latch;
-pub mod record;
 pub mod recovery;
 pub mod ring;
 pub mod rt;
@@ -68,7 +67,7 @@ pub mod supervision;
 pub mod timing;
 pub mod trajectory_player;
 
-use crate::al::AlState;
+use crate::ethercat::al::AlState;
 use acyclic::{MailboxService, SdoSlot};
 use events::{CommandTimeoutAction, Event, Events, FaultSource};
 use samples::{Sample, Samples};
@@ -164,7 +163,7 @@ struct DriveLoop {
     drive: sequencer::SequencedDrive,
     latch: Option<latch::Latch>,
     /// Its digital inputs and hardware enable, each change an event.
-    inputs: crate::io::InputWatch,
+    inputs: crate::drive::io::InputWatch,
     watch: supervision::DriveWatch,
     handshake: handshake::Handshake,
     command_timeout: command_timeout::CommandTimeout,
@@ -208,7 +207,7 @@ fn sequenced_drives(
 /// Where object `index:subindex` sits in the whole input image, where slave `position` maps it.
 fn input_offset(master: &Master, position: u16, (index, subindex): (u16, u8)) -> Option<usize> {
     let mapping = master.slaves().get(position as usize)?.mapping.as_ref()?;
-    let (at, _) = crate::pdo::find(&mapping.tx_entries, index, subindex)?;
+    let (at, _) = crate::drive::pdo::find(&mapping.tx_entries, index, subindex)?;
     Some(master.image_slot(position).ok()?.in_offset + at)
 }
 
@@ -266,12 +265,12 @@ impl CycleThread {
             .enumerate()
             .filter_map(|(p, f)| {
                 let (offsets, latch) = f.ok()?;
-                let digital_inputs = input_offset(&master, p as u16, crate::io::DIGITAL_INPUTS);
+                let digital_inputs = input_offset(&master, p as u16, crate::drive::io::DIGITAL_INPUTS);
                 Some(DriveLoop {
                     position: p as u16,
                     drive: sequencer::SequencedDrive::new(offsets),
                     latch: latch.map(latch::Latch::new),
-                    inputs: crate::io::InputWatch::new(digital_inputs, offsets.statusword),
+                    inputs: crate::drive::io::InputWatch::new(digital_inputs, offsets.statusword),
                     watch: supervision::DriveWatch::default(),
                     handshake: handshake::Handshake::default(),
                     command_timeout: command_timeout::CommandTimeout::default(),
@@ -520,10 +519,12 @@ impl CycleThread {
     /// frame was dropped (counted in [`eoe_dropped`](Self::eoe_dropped)).
     pub fn eoe_send(&self, position: u16, frame: &[u8]) -> Result<bool> {
         self.check_slave(position)?;
-        if frame.len() > crate::eoe::MAX_FRAME_LEN {
-            return Err(
-                crate::error::EoeError::FrameTooLong { len: frame.len(), max: crate::eoe::MAX_FRAME_LEN }.into()
-            );
+        if frame.len() > crate::ethercat::eoe::MAX_FRAME_LEN {
+            return Err(crate::error::EoeError::FrameTooLong {
+                len: frame.len(),
+                max: crate::ethercat::eoe::MAX_FRAME_LEN,
+            }
+            .into());
         }
         Ok(self.shared.eoe.send(position, frame))
     }
@@ -588,7 +589,7 @@ impl CycleThread {
         if self.stopped() {
             return Err(Unavailable::CycleStopped { consequence: "no set-point handshake can run".into() }.into());
         }
-        if bits & !handshake::ALLOWED_BITS != 0 || bits & crate::ds402::controlword::NEW_SETPOINT == 0 {
+        if bits & !handshake::ALLOWED_BITS != 0 || bits & crate::drive::ds402::controlword::NEW_SETPOINT == 0 {
             return Err(SettingError::HandshakeBits { bits }.into());
         }
         let clear_timeout = self.request_timeout();
@@ -643,8 +644,8 @@ impl CycleThread {
         if homing_objects(&o).is_none() {
             return Err(Unavailable::HomingUnmapped { slave: position }.into());
         }
-        if status.state() != Some(crate::ds402::State::OperationEnabled) {
-            let state = status.state().map_or("no valid state", crate::ds402::State::name);
+        if status.state() != Some(crate::drive::ds402::State::OperationEnabled) {
+            let state = status.state().map_or("no valid state", crate::drive::ds402::State::name);
             return Err(Unavailable::HomingNotEnabled { slave: position, state }.into());
         }
         self.shared.command_timeouts[position as usize].release();
@@ -701,7 +702,7 @@ impl CycleThread {
 
     /// Sets one mapped output object `index:subindex` of the slave at `position` (its exact
     /// size) from the next cycle on, leaving the other outputs as they are. A mode's command
-    /// object ([`Mode::is_command_object`](crate::ds402::Mode::is_command_object)) is a
+    /// object ([`Mode::is_command_object`](crate::drive::ds402::Mode::is_command_object)) is a
     /// set-point write that releases a held target; any other output (the drive's I/O, a
     /// latch control) leaves the target held.
     pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
@@ -710,7 +711,7 @@ impl CycleThread {
         }
         let slot = self.slot(position)?;
         let (rx, _) = self.mapping(position)?;
-        let (offset, entry) = crate::pdo::find(rx, index, subindex)
+        let (offset, entry) = crate::drive::pdo::find(rx, index, subindex)
             .ok_or_else(|| Error::from(Unavailable::NotInOutputs { slave: position, index, subindex }))?;
         if entry.byte_len() != data.len() {
             return Err(
@@ -718,7 +719,7 @@ impl CycleThread {
             );
         }
         self.shared.setpoints.write().write(slot.out_offset + offset, data);
-        let command = crate::ds402::Mode::is_command_object(index, subindex);
+        let command = crate::drive::ds402::Mode::is_command_object(index, subindex);
         if let (Some(Ok(())), true) = (self.sequenced.get(position as usize), command) {
             self.shared.drives[position as usize].setpoint_written();
             if command_timeout::TARGETS.contains(&(index, subindex)) {
@@ -802,16 +803,16 @@ impl CycleThread {
     fn trajectory_joint(&self, joint: usize, slave: u16) -> Result<trajectory_player::Joint> {
         let not_ready = |why: String| trajectory_player::not_ready(joint, slave, why);
         let status = self.sequenced(slave).map_err(|e| not_ready(e.to_string()))?.status();
-        if status.state() != Some(crate::ds402::State::OperationEnabled) {
-            let state = status.state().map_or("no valid state", crate::ds402::State::name);
+        if status.state() != Some(crate::drive::ds402::State::OperationEnabled) {
+            let state = status.state().map_or("no valid state", crate::drive::ds402::State::name);
             return Err(not_ready(format!("it is in {state}, not Operation enabled; enable it first")));
         }
         let o = self.offsets[slave as usize].unwrap_or_default();
         let [target_position, ip_setpoint] = o.targets;
-        let targets = match status.mode_display.map(crate::ds402::Mode::from_i8) {
+        let targets = match status.mode_display.map(crate::drive::ds402::Mode::from_i8) {
             None => o.targets,
-            Some(Some(crate::ds402::Mode::InterpolatedPosition)) => [ip_setpoint, None],
-            Some(Some(crate::ds402::Mode::CyclicSynchronousPosition)) => [target_position, None],
+            Some(Some(crate::drive::ds402::Mode::InterpolatedPosition)) => [ip_setpoint, None],
+            Some(Some(crate::drive::ds402::Mode::CyclicSynchronousPosition)) => [target_position, None],
             Some(mode) => {
                 let mode =
                     mode.map_or_else(|| format!("mode {}", status.mode_display.unwrap_or(0)), |m| m.name().into());
@@ -1178,7 +1179,7 @@ impl Loop<'_> {
     fn judge(
         &mut self,
         result: Result<u16>,
-        (started_ns, before): (u64, crate::master::Stats),
+        (started_ns, before): (u64, crate::ethercat::master::Stats),
         sent: Sent,
         mailbox: &mut MailboxService,
     ) {
@@ -1382,7 +1383,7 @@ fn presence(
     shared: &CycleShared,
     d: &mut DriveLoop,
     (answered, in_op, reported): (bool, bool, bool),
-    (statusword, al_status): (Option<u16>, Option<crate::master::state::AlStatus>),
+    (statusword, al_status): (Option<u16>, Option<crate::ethercat::master::state::AlStatus>),
     now: (u64, u64),
 ) -> bool {
     let slave = d.position;
@@ -1424,7 +1425,7 @@ fn presence(
 /// that faulted is in Fault, and one that left Op was asked for Switch on disabled.
 fn quick_stop_the_others(shared: &CycleShared, drives: &[DriveLoop], inputs: &[u8]) {
     for d in drives {
-        let in_fault = image::u16_at(inputs, d.drive.offsets.statusword) & crate::ds402::statusword::FAULT != 0;
+        let in_fault = image::u16_at(inputs, d.drive.offsets.statusword) & crate::drive::ds402::statusword::FAULT != 0;
         let position = d.position as usize;
         if !in_fault && shared.drives[position].status().request == Some(sequencer::Request::Enable) {
             shared.drives[position].request(sequencer::Request::QuickStop);
@@ -1436,7 +1437,7 @@ fn quick_stop_the_others(shared: &CycleShared, drives: &[DriveLoop], inputs: &[u
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::al::AlState;
+    use crate::ethercat::al::AlState;
     use crate::sim::in_process::InProcess;
 
     fn master_in_op(count: usize) -> Master {

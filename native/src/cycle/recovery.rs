@@ -14,10 +14,10 @@ use std::time::{Duration, Instant};
 
 use crate::cycle::seqlock::SeqBytes;
 use crate::error::Result;
-use crate::frame::MAX_PAYLOAD_LEN;
-use crate::link::Link;
-use crate::master::restore::{Restore, SlaveSync};
-use crate::master::Master;
+use crate::ethercat::frame::MAX_PAYLOAD_LEN;
+use crate::ethercat::link::Link;
+use crate::ethercat::master::restore::{Restore, SlaveSync};
+use crate::ethercat::master::Master;
 
 /// Cycles without an answer after which a slave is taken as lost (the AKD's own limit).
 pub const LOST_AFTER: u32 = crate::cycle::supervision::DRIVE_MISSED_FRAME_LIMIT;
@@ -166,7 +166,7 @@ impl Link for RelayLink {
         if n == 0 {
             return Ok(None);
         }
-        crate::link::copy_reply(&reply[..n], rx).map(Some)
+        crate::ethercat::link::copy_reply(&reply[..n], rx).map(Some)
     }
 
     fn describe(&self) -> String {

@@ -20,10 +20,10 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 
 use crate::cycle::image::{i32_at, u16_at};
-use crate::ds402::{self, controlword as cw, statusword as sw, State};
+use crate::drive::ds402::{self, controlword as cw, statusword as sw, State};
+use crate::drive::objects::POSITION_ACTUAL;
+use crate::drive::pdo::{self, PdoEntry};
 use crate::error::{Result, Unavailable};
-use crate::objects::POSITION_ACTUAL;
-use crate::pdo::{self, PdoEntry};
 
 /// What a caller asks of a drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

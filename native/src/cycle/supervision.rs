@@ -5,10 +5,10 @@
 //! the drive for Switch on disabled, and the sequencer holds the target at the actual
 //! position from then on.
 
-use crate::akd_fault;
-use crate::al::AlState;
 use crate::cycle::events::{Action, Event, FaultSource};
-use crate::master::state::AlStatus;
+use crate::drive::akd_fault;
+use crate::ethercat::al::AlState;
+use crate::ethercat::master::state::AlStatus;
 
 /// Frames in a row the AKD misses before it raises F125 (more than seven, §7): a gap that
 /// long is handled as the loss of the drive, not as a gap.
@@ -135,7 +135,7 @@ impl DriveWatch {
             action,
         };
         if let Some(s) = statusword {
-            let in_fault = s & crate::ds402::statusword::FAULT != 0;
+            let in_fault = s & crate::drive::ds402::statusword::FAULT != 0;
             if in_fault && !self.in_fault {
                 let action = if sequenced { Action::Disabled } else { Action::Reported };
                 seen.fault = Some(event(FaultSource::DriveFault, 0, s, action));

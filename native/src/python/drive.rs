@@ -14,12 +14,12 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
 
 use super::IntoPyResult;
-use crate::coe::{access, data_type};
 use crate::cycle::{CycleThread, Snapshot};
-use crate::ds402::{self, Mode, State};
-use crate::io::{self, Carried, DriveIo, Switch};
-use crate::objects::{self, DriveInputs};
-use crate::pdo::{self, Direction, PdoEntry};
+use crate::drive::ds402::{self, Mode, State};
+use crate::drive::io::{self, Carried, DriveIo, Switch};
+use crate::drive::objects::{self, DriveInputs};
+use crate::drive::pdo::{self, Direction, PdoEntry};
+use crate::ethercat::coe::{access, data_type};
 
 /// One mode of operation of the AKD (0x6060), as `MODES_OF_OPERATION` lists them.
 #[pyclass(name = "ModeOfOperation", module = "akd_ros._native", frozen, get_all)]

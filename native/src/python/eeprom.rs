@@ -4,7 +4,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
-use crate::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
+use crate::ethercat::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
 use crate::sim::sii_image;
 
 /// What identifies a drive in its SII: the identity words and the names (None where absent).

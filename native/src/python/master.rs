@@ -13,15 +13,15 @@ use pyo3::types::PyInt;
 use super::eeprom::Identity;
 use super::IntoPyResult;
 use super::Merged;
-use crate::al::AlState;
-use crate::coe::{Emergency, ObjectCode, OdListType};
+use crate::drive::pdo::PdoEntry;
+use crate::drive::scaling::{self, PositionScaling};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
-use crate::link::{self, Link};
-use crate::link_spec::LinkSpec;
-use crate::master::sdo_info::{EntryInfo, ObjectInfo};
-use crate::master::{self, Mapping, SlaveRef};
-use crate::pdo::PdoEntry;
-use crate::scaling::{self, PositionScaling};
+use crate::ethercat::al::AlState;
+use crate::ethercat::coe::{Emergency, ObjectCode, OdListType};
+use crate::ethercat::link::{self, Link};
+use crate::ethercat::link_spec::LinkSpec;
+use crate::ethercat::master::sdo_info::{EntryInfo, ObjectInfo};
+use crate::ethercat::master::{self, Mapping, SlaveRef};
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
 use crate::sim::{Timing, VirtualBus};
@@ -345,7 +345,7 @@ impl PyMaster {
         dns_name: Option<String>,
         mac: Option<&str>,
     ) -> PyResult<String> {
-        use crate::eoe::{parse_ipv4, parse_mac, IpParameters};
+        use crate::ethercat::eoe::{parse_ipv4, parse_mac, IpParameters};
         let address = |what, text: Option<&str>| text.map(|t| parse_ipv4(what, t)).transpose();
         let parameters = IpParameters {
             mac: mac.map(parse_mac).transpose().map_err(Error::from).py()?,
@@ -357,7 +357,7 @@ impl PyMaster {
         };
         self.with_slave(py, position, |s| {
             let mac = parameters.mac.unwrap_or_else(|| master::eoe::default_mac(s.info().station_address));
-            s.eoe_set_ip(&crate::eoe::IpParameters { mac: Some(mac), ..parameters })?;
+            s.eoe_set_ip(&crate::ethercat::eoe::IpParameters { mac: Some(mac), ..parameters })?;
             Ok(mac.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(":"))
         })
     }

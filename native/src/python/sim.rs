@@ -13,8 +13,8 @@ use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
-use crate::link_spec::MissedFrames;
-use crate::link_spec::Pace;
+use crate::ethercat::link_spec::MissedFrames;
+use crate::ethercat::link_spec::Pace;
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
@@ -61,7 +61,7 @@ impl From<DriveState> for DriveStateView {
             torque: drive.torque,
             dc: drive.sync.into(),
             digital_inputs: drive.digital_inputs,
-            digital_outputs: (0..crate::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
+            digital_outputs: (0..crate::drive::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
             analog_output: drive.outputs.analog,
             would_be_f125: WouldBeF125View {
                 count: drive.would_be_f125.count,
@@ -135,7 +135,7 @@ impl PyVirtualBus {
     fn al_status(&self, position: usize) -> PyResult<(u16, u16)> {
         self.check(position)?;
         let (state, error, code) = self.bus.slave(position).al_status();
-        Ok((state as u16 | if error { crate::al::AL_ERROR_FLAG } else { 0 }, code))
+        Ok((state as u16 | if error { crate::ethercat::al::AL_ERROR_FLAG } else { 0 }, code))
     }
 
     /// Lets bus time `time_ns` pass with no frame: the drives' firmware and motors run up to it.

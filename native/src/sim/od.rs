@@ -7,10 +7,10 @@
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
-use crate::coe::{access, data_type, ObjectCode, SdoAbortCode};
-use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
-use crate::scaling;
-use crate::sii::Identity;
+use crate::drive::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
+use crate::drive::scaling;
+use crate::ethercat::coe::{access, data_type, ObjectCode, SdoAbortCode};
+use crate::ethercat::sii::Identity;
 use crate::sim::sii_image;
 
 /// Power-up following error window 0x6065: five revolutions.
@@ -402,9 +402,9 @@ impl ObjectDictionary {
             (0x20A7, "Latch 2 pn", INTEGER32, RO),
             (0x20B8, "ClearDigInputChangedBit", UNSIGNED16, RW),
             (0x3497, "Position offset", INTEGER32, RW),
-            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::dc::FBUS_PARAM02);
+            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::ethercat::dc::FBUS_PARAM02);
             // named as the AKD names the parameter, which the master's SDO information check reads.
-            (crate::dc::FBUS_PARAM02, crate::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
+            (crate::ethercat::dc::FBUS_PARAM02, crate::ethercat::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
             // Modelled likewise (see scaling::FBUS_PARAM05); bit 4 selects DS402 scaling.
             (scaling::FBUS_PARAM05, scaling::FBUS_PARAM05_NAME, UNSIGNED32, RW),
             (0x603F, "Error code", UNSIGNED16, RO),
@@ -568,7 +568,7 @@ impl ObjectDictionary {
     }
 
     /// Removes the object at `index`, if any: for tests of a drive that lacks an object the
-    /// virtual AKD has (e.g. [`crate::dc::FBUS_PARAM02`], whose index is not documented).
+    /// virtual AKD has (e.g. [`crate::ethercat::dc::FBUS_PARAM02`], whose index is not documented).
     pub fn remove(&mut self, index: u16) -> Option<Object> {
         let i = self.objects.binary_search_by_key(&index, |o| o.index).ok()?;
         Some(self.objects.remove(i))

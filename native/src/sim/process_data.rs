@@ -6,9 +6,9 @@
 //! has an odd length (17 bytes at power-up, in the SOEM capture), 0x001E for the inputs, and
 //! 0x0017 when SM2/SM3 do not match the image.
 
-use crate::al::AlStatusCode;
-use crate::pdo::{self, Direction, PdoEntry};
-use crate::registers::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
+use crate::drive::pdo::{self, Direction, PdoEntry};
+use crate::ethercat::al::AlStatusCode;
+use crate::ethercat::registers::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
 use crate::sim::od::ObjectDictionary;
 use crate::sim::sync_manager::{SyncManager, ACTIVATE_ENABLE};
 
@@ -77,7 +77,7 @@ pub fn refresh_inputs(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoEntr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coe::access::WRITE_PREOP;
+    use crate::ethercat::coe::access::WRITE_PREOP;
 
     fn select_fixed(od: &mut ObjectDictionary, rx: u16, tx: u16) {
         for (assign, pdo) in [(0x1C12, rx), (0x1C13, tx)] {

@@ -17,8 +17,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result, SettingError};
-use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
-use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
+use crate::ethercat::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
+use crate::ethercat::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
 use crate::sim::line::Delivery;
 use crate::sim::setpoint_trace::{clock_ns, Recorder, Stamps};
@@ -49,7 +49,7 @@ pub struct ServerStats {
     /// the frame up late or took long to answer it, and `late` leaves this part out.
     pub serving: LateReplies,
     /// F125 the drives would have raised as real AKDs and did not, judging missed frames by
-    /// [`MissedFrames::Warn`](crate::link_spec::MissedFrames::Warn): each warned of on stderr.
+    /// [`MissedFrames::Warn`](crate::ethercat::link_spec::MissedFrames::Warn): each warned of on stderr.
     pub would_be_f125: u64,
     /// Each drive's count of them when last warned of.
     warned: Vec<u64>,
@@ -110,7 +110,7 @@ impl ServerStats {
     }
 
     /// Says on stderr, once each, where a drive judging missed frames by
-    /// [`MissedFrames::Warn`](crate::link_spec::MissedFrames::Warn) went on where a real AKD
+    /// [`MissedFrames::Warn`](crate::ethercat::link_spec::MissedFrames::Warn) went on where a real AKD
     /// would have raised F125. Rare (a stall of the master), so a line of I/O is no burden.
     fn warn_of_f125(&mut self, bus: &ControlledBus) {
         let bus = bus.bus();
@@ -282,7 +282,7 @@ fn line_down(error: &std::io::Error) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::sim::VirtualBus;
     use std::sync::Arc;
 

@@ -35,9 +35,9 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use crate::drive::objects;
+use crate::drive::pdo::PdoEntry;
 use crate::error::{Error, Result, Unavailable};
-use crate::objects;
-use crate::pdo::PdoEntry;
 use crate::sim::VirtualBus;
 
 /// The set-points traced, with their names in the file: index (subindex 0) and name.
@@ -159,7 +159,7 @@ impl Recorder {
 
     /// Notes every drive's set-points after `bus` served `payload`, received at `received`.
     pub fn record_bus(&mut self, bus: &VirtualBus, payload: &[u8], received: Stamps) {
-        let first = crate::frame::parse(payload).ok().and_then(|mut d| d.next()).and_then(|d| d.ok());
+        let first = crate::ethercat::frame::parse(payload).ok().and_then(|mut d| d.next()).and_then(|d| d.ok());
         let index = first.map_or(0, |d| d.header.index);
         let frame = Frame { number: bus.line().counts().frames, index, received };
         for drive in 0..bus.len() {
@@ -281,7 +281,7 @@ impl Drop for SetpointTrace {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pdo::PdoEntry;
+    use crate::drive::pdo::PdoEntry;
 
     /// 0x1724's outputs: target position, controlword, torque offset.
     const CSP: [PdoEntry; 3] =

@@ -4,11 +4,11 @@
 
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
-use akd_native::ds402::Mode;
-use akd_native::link_spec::MissedFrames;
-use akd_native::master::{Mapping, Master};
+use akd_native::drive::ds402::Mode;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link_spec::MissedFrames;
+use akd_native::ethercat::master::{Mapping, Master};
 use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};

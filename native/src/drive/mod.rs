@@ -1,0 +1,16 @@
+//! The drive profile: what the crate knows of a CiA 402 drive and of the AKD in particular,
+//! above the EtherCAT layer and pure (no I/O): [`ds402`] (the CiA 402 state machine, its
+//! modes, targets and handshakes), [`pdo`] (the AKD's mappable objects and mappings, and their
+//! rules), [`objects`] (mapped values read and encoded by their data types), [`io`] (the
+//! drive's own digital and analog I/O in its process data), [`scaling`] (how the drive scales
+//! its positions), [`akd_fault`] (the AKD's fault numbers) and [`trajectory`] (joint
+//! trajectories, validated and interpolated). The master, the cycle thread, the virtual AKD and
+//! the bindings all read the drive from here.
+
+pub mod akd_fault;
+pub mod ds402;
+pub mod io;
+pub mod objects;
+pub mod pdo;
+pub mod scaling;
+pub mod trajectory;
