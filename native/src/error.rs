@@ -158,6 +158,13 @@ pub enum Unavailable {
         /// Slave position.
         slave: u16,
     },
+    /// Process data for a slave whose SII describes no sync manager to carry them.
+    NoSyncManager {
+        /// Slave position.
+        slave: u16,
+        /// The sync manager (2 for outputs, 3 for inputs).
+        n: u8,
+    },
     /// A latch asked of a slave whose mapping carries none.
     NoLatch {
         /// Slave position.
@@ -267,6 +274,9 @@ impl fmt::Display for Unavailable {
                 write!(f, "the drive cannot be sequenced: its mapping lacks {}", missing.join(" and "))
             }
             Unavailable::NoMapping { slave } => write!(f, "slave {slave} has no process-data mapping"),
+            Unavailable::NoSyncManager { slave, n } => {
+                write!(f, "slave {slave}'s SII describes no sync manager {n} to carry its process data")
+            }
             Unavailable::NoLatch { slave } => write!(
                 f,
                 "slave {slave}'s mapping carries no latch: map latch control 0x20A4 and latch status 0x20A5 with a \

@@ -9,7 +9,7 @@ use akd_native::cycle::handshake::{Progress, Stuck};
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
 use akd_native::drive::ds402::{controlword as cw, Mode, State};
-use akd_native::ethercat::master::Mapping;
+use akd_native::drive::pdo::Mapping;
 
 #[path = "support/one_drive.rs"]
 mod one_drive;

@@ -40,11 +40,11 @@ use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
-use crate::drive::pdo::PdoEntry;
 use crate::drive::trajectory::{Knot, Limits, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
 use crate::ethercat::master::cyclic::ImageSlot;
 use crate::ethercat::master::Master;
+use crate::ethercat::pdo::PdoEntry;
 pub use rt::RealTime;
 
 pub mod acyclic;
@@ -186,19 +186,20 @@ fn sequenced_drives(
         .iter()
         .map(|slave| {
             let position = slave.position;
-            let mapping = slave.mapping.as_ref().ok_or(Unavailable::NoMapping { slave: position })?;
+            let process_data = slave.process_data.as_ref().ok_or(Unavailable::NoMapping { slave: position })?;
             // A mapped slave has its slot once the image exists, which the cycle's start needs.
             let slot = master
                 .image_slot(position)
                 .map_err(|_| Unavailable::NoProcessData { slave: position, with_data: None })?;
-            let (rx, tx) = (&mapping.rx_entries, &mapping.tx_entries);
-            let offsets = sequencer::Offsets::find(rx, tx).map_err(|e| match e {
+            let rx: Vec<_> = process_data.outputs.entries().collect();
+            let tx: Vec<_> = process_data.inputs.entries().collect();
+            let offsets = sequencer::Offsets::find(&rx, &tx).map_err(|e| match e {
                 Unavailable::NotSequenced { missing, .. } => {
                     Unavailable::NotSequenced { slave: Some(position), missing }
                 }
                 other => other,
             })?;
-            let latch = latch::LatchObjects::find(rx, tx, slot.out_offset, slot.in_offset);
+            let latch = latch::LatchObjects::find(&rx, &tx, slot.out_offset, slot.in_offset);
             Ok((offsets.shifted(slot.out_offset, slot.in_offset), latch))
         })
         .collect()
@@ -206,8 +207,8 @@ fn sequenced_drives(
 
 /// Where object `index:subindex` sits in the whole input image, where slave `position` maps it.
 fn input_offset(master: &Master, position: u16, (index, subindex): (u16, u8)) -> Option<usize> {
-    let mapping = master.slaves().get(position as usize)?.mapping.as_ref()?;
-    let (at, _) = crate::drive::pdo::find(&mapping.tx_entries, index, subindex)?;
+    let inputs: Vec<_> = master.slaves().get(position as usize)?.process_data.as_ref()?.inputs.entries().collect();
+    let (at, _) = crate::ethercat::pdo::find(&inputs, index, subindex)?;
     Some(master.image_slot(position).ok()?.in_offset + at)
 }
 
@@ -295,7 +296,7 @@ impl CycleThread {
         let mappings = master
             .slaves()
             .iter()
-            .map(|s| s.mapping.as_ref().map(|m| (m.rx_entries.clone(), m.tx_entries.clone())))
+            .map(|s| s.process_data.as_ref().map(|d| (d.outputs.entries().collect(), d.inputs.entries().collect())))
             .collect();
         let shared = Arc::new(CycleShared {
             stop: AtomicBool::new(false),
@@ -711,7 +712,7 @@ impl CycleThread {
         }
         let slot = self.slot(position)?;
         let (rx, _) = self.mapping(position)?;
-        let (offset, entry) = crate::drive::pdo::find(rx, index, subindex)
+        let (offset, entry) = crate::ethercat::pdo::find(rx, index, subindex)
             .ok_or_else(|| Error::from(Unavailable::NotInOutputs { slave: position, index, subindex }))?;
         if entry.byte_len() != data.len() {
             return Err(

@@ -435,8 +435,11 @@ mod tests {
         for mode in Mode::ALL {
             assert_eq!(mode.command().is_none(), mode.command_objects().is_empty(), "{}", mode.name());
             for &(index, subindex) in mode.command_objects() {
-                assert!(crate::drive::pdo::mappable(crate::drive::pdo::Direction::Rx)
-                    .any(|e| (e.index, e.subindex) == (index, subindex)));
+                assert!(crate::drive::pdo::mappable(crate::ethercat::pdo::Direction::Rx).any(|e| (
+                    e.index, e.subindex
+                ) == (
+                    index, subindex
+                )));
                 let (object, code) = crate::drive::objects::mappable_object(index, subindex).expect("a typed object");
                 assert_eq!(data_type::kind(code), ValueKind::SignedInteger, "{}", object.name);
                 // Torque counts in 0.1 % of peak (16 bits); positions and velocities in counts (32).

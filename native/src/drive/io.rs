@@ -22,7 +22,9 @@
 
 use crate::drive::ds402::{statusword, Mode, State};
 use crate::drive::objects;
-use crate::drive::pdo::{self, Direction, PdoEntry};
+use crate::drive::pdo;
+use crate::ethercat::pdo::{find, Direction, PdoEntry};
+use crate::setting::SettingError;
 
 /// Digital inputs 0x60FD (index, subindex).
 pub const DIGITAL_INPUTS: (u16, u8) = (0x60FD, 0);
@@ -58,9 +60,14 @@ wire_codes! {
 }
 
 impl Switch {
-    /// The switch named `name`.
-    pub fn from_name(name: &str) -> Option<Switch> {
-        Self::ALL.iter().copied().find(|s| s.name() == name)
+    /// The switch named `name`, or an error naming the switches.
+    pub fn from_name(name: &str) -> Result<Switch, SettingError> {
+        let allowed = || Self::ALL.iter().map(|s| s.name()).collect();
+        Self::ALL
+            .iter()
+            .copied()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| SettingError::Switch { name: name.to_owned(), allowed: allowed() })
     }
 
     /// Its bit in 0x60FD.
@@ -155,7 +162,7 @@ pub struct Carried {
 impl Carried {
     /// What the mapping of outputs `rx` and inputs `tx` carries.
     pub fn of(rx: &[PdoEntry], tx: &[PdoEntry]) -> Carried {
-        let has = |entries: &[PdoEntry], (index, subindex): (u16, u8)| pdo::find(entries, index, subindex).is_some();
+        let has = |entries: &[PdoEntry], (index, subindex): (u16, u8)| find(entries, index, subindex).is_some();
         Carried {
             digital_inputs: has(tx, DIGITAL_INPUTS),
             analog_input: has(tx, ANALOG_INPUT),
@@ -195,7 +202,7 @@ pub struct IoMapping {
 /// first: akd_ros's own flexible mappings, then each fixed RxPDO that does with the first fixed
 /// TxPDO carrying every input of the I/O (0x1B20).
 pub fn mappings_for(mode: Mode, wanted: impl Fn(Carried) -> bool) -> Vec<IoMapping> {
-    let commands = |rx: &[PdoEntry]| mode.command_objects().iter().all(|&(i, s)| pdo::find(rx, i, s).is_some());
+    let commands = |rx: &[PdoEntry]| mode.command_objects().iter().all(|&(i, s)| find(rx, i, s).is_some());
     let fixed = |direction| pdo::FIXED.iter().filter(move |p| p.direction == direction);
     let inputs = fixed(Direction::Tx).find(|tx| {
         let carried = Carried::of(&[], tx.entries);
@@ -315,7 +322,7 @@ mod tests {
         let word = Switch::PositiveLimit.mask() | Switch::Home.mask() | bit(1) | bit(7);
         assert!(Switch::PositiveLimit.active(word) && !Switch::NegativeLimit.active(word));
         assert_eq!(inputs(word), 0b100_0001);
-        assert_eq!(Switch::from_name("negative_limit"), Some(Switch::NegativeLimit));
+        assert_eq!(Switch::from_name("negative_limit"), Ok(Switch::NegativeLimit));
         assert_eq!(with_outputs(0x0000_0001, 0b10), 0x0002_0001, "bit 0 (set brake) kept");
         assert_eq!(outputs(with_outputs(0, 0b11)), 0b11);
     }
@@ -347,11 +354,11 @@ mod tests {
         let (rx, tx) = (pdo::IO_RX.concat(), pdo::IO_TX.concat());
         let mut outputs = vec![0u8; 22];
         let mut image = vec![0u8; 30];
-        let (out_at, _) = pdo::find(&rx, 0x60FE, 1).unwrap();
+        let (out_at, _) = find(&rx, 0x60FE, 1).unwrap();
         outputs[out_at..out_at + 4].copy_from_slice(&bit(2).to_le_bytes());
-        let (aout_at, _) = pdo::find(&rx, 0x3470, 3).unwrap();
+        let (aout_at, _) = find(&rx, 0x3470, 3).unwrap();
         outputs[aout_at..aout_at + 2].copy_from_slice(&(-1000i16).to_le_bytes());
-        let (din_at, _) = pdo::find(&tx, 0x60FD, 0).unwrap();
+        let (din_at, _) = find(&tx, 0x60FD, 0).unwrap();
         image[din_at..din_at + 4].copy_from_slice(&(bit(3) | Switch::NegativeLimit.mask()).to_le_bytes());
         let io = DriveIo::read(&rx, &tx, &outputs, &image);
         assert_eq!(io.digital_outputs, Some(bit(2)));

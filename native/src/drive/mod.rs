@@ -7,6 +7,7 @@
 //! trajectories, validated and interpolated). The master, the cycle thread, the virtual AKD and
 //! the bindings all read the drive from here.
 
+pub mod akd;
 pub mod akd_fault;
 pub mod ds402;
 pub mod io;

@@ -5,8 +5,8 @@
 //! bits are (signed or not, how wide), so that the master, the virtual AKD's SII image and the
 //! Python package read an object the same way, from one table.
 
-use crate::drive::pdo::{self, PdoEntry};
 use crate::ethercat::coe::data_type;
+use crate::ethercat::pdo::{self, PdoEntry};
 
 pub use crate::drive::pdo::{MappableObject, MAPPABLE_OBJECTS};
 

@@ -3,106 +3,16 @@
 //! Fixed mappings are whole PDOs the drive defines (0x1701.., 0x1B01..) and selects through
 //! the sync-manager assignment objects 0x1C12 (outputs, RxPDO) and 0x1C13 (inputs, TxPDO).
 //! Flexible mappings are built in 0x1600–0x1603 and 0x1A00–0x1A03 under the AKD's rules, which
-//! [`check_flexible`] applies, so that the master refuses a mapping before writing anything and
-//! the virtual AKD refuses it as the drive does.
+//! [`check_flexible`] applies, so that a mapping is refused before the master writes anything
+//! ([`Mapping::process_data`]) and the virtual AKD refuses it as the drive does.
 //!
 //! Where the manual and the real drive differ, the real drive's SII wins: 0x1B01 carries the
 //! internal position 0x6063, digital outputs 0x60FE:01 are 32 bits, and 0x1725/0x1B26 exist.
 
 use crate::ethercat::coe::data_type::{INTEGER16, INTEGER32, INTEGER8, UNSIGNED16, UNSIGNED32};
 use crate::ethercat::coe::SdoAbortCode;
+use crate::ethercat::pdo::{bit_len, Direction, Pdo, PdoAssignment, PdoEntry, ProcessData};
 use std::fmt;
-
-/// One mapped object: index, subindex and bit length, as written to a mapping object's
-/// subindices in the form 0xIIIISSBB.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub struct PdoEntry {
-    /// Object index.
-    pub index: u16,
-    /// Subindex.
-    pub subindex: u8,
-    /// Length in bits.
-    pub bits: u8,
-}
-
-impl PdoEntry {
-    /// An entry of `bits` bits of `index:subindex`.
-    pub const fn new(index: u16, subindex: u8, bits: u8) -> Self {
-        PdoEntry { index, subindex, bits }
-    }
-
-    /// Decodes a mapping object value 0xIIIISSBB.
-    pub const fn from_u32(value: u32) -> Self {
-        PdoEntry { index: (value >> 16) as u16, subindex: (value >> 8) as u8, bits: value as u8 }
-    }
-
-    /// Encodes as a mapping object value 0xIIIISSBB.
-    pub const fn to_u32(self) -> u32 {
-        ((self.index as u32) << 16) | ((self.subindex as u32) << 8) | self.bits as u32
-    }
-
-    /// Bytes the entry occupies in the process image, a partial byte counting as one.
-    pub const fn byte_len(self) -> usize {
-        (self.bits as usize).div_ceil(8)
-    }
-
-    /// Whether this is a padding entry (0x0002 on outputs, 0x2002:01..04 on inputs), which
-    /// occupies bits but carries no object.
-    pub const fn is_padding(self) -> bool {
-        self.index == RX_PADDING_INDEX || self.index == TX_PADDING_INDEX
-    }
-}
-
-/// Which way a PDO carries data.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Direction {
-    /// Master to drive: set-points (RxPDO, sync manager 2, assignment 0x1C12).
-    Rx,
-    /// Drive to master: actual values (TxPDO, sync manager 3, assignment 0x1C13).
-    Tx,
-}
-
-impl Direction {
-    /// The sync-manager assignment object of this direction.
-    pub const fn assignment_index(self) -> u16 {
-        match self {
-            Direction::Rx => 0x1C12,
-            Direction::Tx => 0x1C13,
-        }
-    }
-
-    /// First flexible mapping object of this direction (0x1600 or 0x1A00).
-    pub const fn flexible_base(self) -> u16 {
-        match self {
-            Direction::Rx => 0x1600,
-            Direction::Tx => 0x1A00,
-        }
-    }
-
-    /// Largest process image the AKD accepts in this direction, in bytes.
-    pub const fn max_bytes(self) -> usize {
-        match self {
-            Direction::Rx => MAX_RX_BYTES,
-            Direction::Tx => MAX_TX_BYTES,
-        }
-    }
-
-    /// The sync manager carrying this direction.
-    pub const fn sync_manager(self) -> u8 {
-        match self {
-            Direction::Rx => 2,
-            Direction::Tx => 3,
-        }
-    }
-
-    /// "RxPDO" or "TxPDO".
-    pub const fn name(self) -> &'static str {
-        match self {
-            Direction::Rx => "RxPDO",
-            Direction::Tx => "TxPDO",
-        }
-    }
-}
 
 /// Number of flexible mapping objects per direction (0x1600–0x1603, 0x1A00–0x1A03).
 pub const FLEXIBLE_PDO_COUNT: usize = 4;
@@ -345,6 +255,20 @@ pub const MAPPABLE_OBJECTS: &[MappableObject] = &[
     input(PdoEntry::new(0x1002, 0, 32), "Manufacturer status register", Some(UNSIGNED32)),
 ];
 
+/// Whether `entry` pads (0x0002 on outputs, 0x2002:01..04 on inputs): it occupies bits but
+/// carries no object.
+pub const fn is_padding(entry: PdoEntry) -> bool {
+    entry.index == RX_PADDING_INDEX || entry.index == TX_PADDING_INDEX
+}
+
+/// Largest process image the AKD accepts in `direction`, in bytes.
+pub const fn max_bytes(direction: Direction) -> usize {
+    match direction {
+        Direction::Rx => MAX_RX_BYTES,
+        Direction::Tx => MAX_TX_BYTES,
+    }
+}
+
 /// The padding entries a flexible PDO may carry, per direction (not objects of the drive).
 const RX_PADDING: &[PdoEntry] = &[PdoEntry::new(RX_PADDING_INDEX, 0, 8)];
 const TX_PADDING: &[PdoEntry] = &[
@@ -367,11 +291,6 @@ pub fn mappable(direction: Direction) -> impl Iterator<Item = PdoEntry> {
 /// Whether `entry` (with its bit length) may go in a flexible PDO of `direction`.
 pub fn is_mappable(direction: Direction, entry: PdoEntry) -> bool {
     mappable(direction).any(|e| e == entry)
-}
-
-/// Total bit length of `entries`.
-pub fn bit_len(entries: &[PdoEntry]) -> usize {
-    entries.iter().map(|e| e.bits as usize).sum()
 }
 
 /// A process-data mapping the AKD refuses (AKD manual §5.6, §5.7): each variant is one of the
@@ -450,11 +369,6 @@ pub enum PdoError {
         /// The fixed mappings of this direction.
         allowed: Vec<u16>,
     },
-    /// The slave has no process-data mapping yet.
-    NoMapping {
-        /// Slave position.
-        slave: u16,
-    },
 }
 
 impl fmt::Display for PdoError {
@@ -488,7 +402,6 @@ impl fmt::Display for PdoError {
                 }
                 write!(f, ")")
             }
-            PdoError::NoMapping { slave } => write!(f, "slave {slave} has no process-data mapping"),
         }
     }
 }
@@ -504,7 +417,7 @@ impl PdoError {
             PdoError::PdoTooLong { .. } | PdoError::MappingTooLong { .. } => Some(SdoAbortCode::PDO_TOO_LONG),
             PdoError::TooManyPdos { .. } | PdoError::NotFlexible { .. } => Some(SdoAbortCode::VALUE_RANGE),
             PdoError::OddLength { .. } => Some(SdoAbortCode::PARAMETER_INCOMPATIBLE),
-            PdoError::NotFixed { .. } | PdoError::NoMapping { .. } => None,
+            PdoError::NotFixed { .. } => None,
         }
     }
 }
@@ -554,11 +467,11 @@ pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Resu
         check_flexible_pdo(direction, *index, entries)?;
     }
     let bits: usize = pdos.iter().map(|(_, e)| bit_len(e)).sum();
-    if bits > direction.max_bytes() * 8 {
+    if bits > max_bytes(direction) * 8 {
         return Err(PdoError::MappingTooLong {
             direction: direction.name(),
             bytes: bits / 8,
-            max: direction.max_bytes(),
+            max: max_bytes(direction),
         });
     }
     if !bits.is_multiple_of(16) {
@@ -571,20 +484,56 @@ pub fn check_flexible(direction: Direction, pdos: &[(u16, &[PdoEntry])]) -> Resu
     Ok(())
 }
 
-/// Where each entry of a mapping sits in the process image: byte offset and entry.
-pub fn layout(entries: impl IntoIterator<Item = PdoEntry>) -> impl Iterator<Item = (usize, PdoEntry)> {
-    let mut bit = 0usize;
-    entries.into_iter().map(move |e| {
-        let at = bit / 8;
-        bit += e.bits as usize;
-        (at, e)
-    })
+/// An AKD's mapping of one direction.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Mapping {
+    /// A fixed mapping of the drive, e.g. 0x1701 or 0x1B01.
+    Fixed(u16),
+    /// Up to four flexible PDOs, each a list of entries, written to 0x1600.. or 0x1A00...
+    Flexible(Vec<Vec<PdoEntry>>),
 }
 
-/// Where object `index:subindex` sits in a mapping's process data (byte offset) and how it is
-/// mapped, if the mapping carries it.
-pub fn find(entries: &[PdoEntry], index: u16, subindex: u8) -> Option<(usize, PdoEntry)> {
-    layout(entries.iter().copied()).find(|(_, e)| (e.index, e.subindex) == (index, subindex))
+impl Mapping {
+    /// What the master assigns to the drive for this mapping in `direction`, after checking that
+    /// the mapping fits `direction` and the AKD's rules. Both kinds are assigned over CoE, as the
+    /// real drive requires (it keeps its odd power-up mapping otherwise).
+    pub fn assignment(&self, direction: Direction) -> Result<PdoAssignment, PdoError> {
+        match self {
+            Mapping::Fixed(index) => match fixed(*index) {
+                Some(fixed) if fixed.direction == direction => Ok(PdoAssignment {
+                    pdos: vec![Pdo { index: *index, entries: fixed.entries.to_vec() }],
+                    over_coe: true,
+                    write_entries: false,
+                }),
+                _ => Err(PdoError::NotFixed {
+                    direction: direction.name(),
+                    index: *index,
+                    allowed: FIXED.iter().filter(|p| p.direction == direction).map(|p| p.index).collect(),
+                }),
+            },
+            Mapping::Flexible(pdos) => {
+                let pdos: Vec<Pdo> = pdos
+                    .iter()
+                    .enumerate()
+                    .map(|(i, entries)| Pdo { index: direction.flexible_base() + i as u16, entries: entries.clone() })
+                    .collect();
+                let indexed: Vec<(u16, &[PdoEntry])> = pdos.iter().map(|p| (p.index, p.entries.as_slice())).collect();
+                check_flexible(direction, &indexed)?;
+                Ok(PdoAssignment { pdos, over_coe: true, write_entries: true })
+            }
+        }
+    }
+
+    /// The entries in wire order, after the checks of [`assignment`](Self::assignment).
+    pub fn entries(&self, direction: Direction) -> Result<Vec<PdoEntry>, PdoError> {
+        Ok(self.assignment(direction)?.entries().collect())
+    }
+
+    /// An AKD's process data with outputs `rx` and inputs `tx`, both checked before the master
+    /// writes anything.
+    pub fn process_data(rx: &Mapping, tx: &Mapping) -> Result<ProcessData, PdoError> {
+        Ok(ProcessData { outputs: rx.assignment(Direction::Rx)?, inputs: tx.assignment(Direction::Tx)? })
+    }
 }
 
 /// akd_ros's default mapping, outputs: everything every mode of operation needs within the
@@ -644,54 +593,30 @@ const TARGET_TORQUE: PdoEntry = PdoEntry::new(0x6071, 0, 16);
 const LATCH_1_POSITION: PdoEntry = PdoEntry::new(0x20A6, 0, 32);
 const LATCH_2_POSITION: PdoEntry = PdoEntry::new(0x20A7, 0, 32);
 
-/// A mapping entry written as text in a form other than [`PdoEntry::parse`] takes.
-#[derive(Clone, Debug, PartialEq, Eq)]
-pub struct EntrySyntaxError {
-    /// The text as given.
-    pub text: String,
-}
-
-impl std::fmt::Display for EntrySyntaxError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "entry '{}' is not INDEX:SUB/BITS in hex, e.g. 0x6040:00/16", self.text)
-    }
-}
-
-impl std::error::Error for EntrySyntaxError {}
-
-impl PdoEntry {
-    /// Parses an entry written as the node's parameters write it, `INDEX:SUB/BITS`: index in
-    /// four hex digits, subindex in one or two, each with or without `0x`, and the bit length
-    /// in one or two decimal digits, e.g. `0x6040:00/16`. Whether the AKD maps it is
-    /// [`check_flexible`]'s question.
-    pub fn parse(text: &str) -> Result<PdoEntry, EntrySyntaxError> {
-        let refused = || EntrySyntaxError { text: text.to_owned() };
-        let hex = |part: &str, digits: std::ops::RangeInclusive<usize>| {
-            let part = part.strip_prefix("0x").unwrap_or(part);
-            let well_formed = digits.contains(&part.len()) && part.bytes().all(|b| b.is_ascii_hexdigit());
-            well_formed.then(|| u16::from_str_radix(part, 16).ok()).flatten()
-        };
-        let (address, bits) = text.split_once('/').ok_or_else(refused)?;
-        let (index, subindex) = address.split_once(':').ok_or_else(refused)?;
-        let index = hex(index, 4..=4).ok_or_else(refused)?;
-        let subindex = hex(subindex, 1..=2).ok_or_else(refused)? as u8;
-        if !(1..=2).contains(&bits.len()) || !bits.bytes().all(|b| b.is_ascii_digit()) {
-            return Err(refused());
-        }
-        let bits = bits.parse().map_err(|_| refused())?;
-        Ok(PdoEntry::new(index, subindex, bits))
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ethercat::pdo::{find, layout};
 
     #[test]
-    fn entries_round_trip_the_wire_form() {
-        assert_eq!(PdoEntry::from_u32(0x60FF0020), TARGET_VELOCITY);
-        assert_eq!(CONTROLWORD.to_u32(), 0x60400010);
-        assert_eq!(IP_SETPOINT.to_u32(), 0x60C10120);
+    fn fixed_mappings_resolve_in_their_direction_only() {
+        assert_eq!(Mapping::Fixed(0x1701).entries(Direction::Rx).unwrap().len(), 2);
+        let err = Mapping::Fixed(0x1701).entries(Direction::Tx).unwrap_err().to_string();
+        assert!(err.contains("0x1B01") && err.contains("not a fixed TxPDO"), "{err}");
+        assert!(Mapping::Fixed(0x1234).entries(Direction::Rx).is_err());
+    }
+
+    #[test]
+    fn odd_flexible_mapping_is_refused_before_writing() {
+        let odd = Mapping::Flexible(vec![vec![PdoEntry::new(0x6040, 0, 16), PdoEntry::new(0x6060, 0, 8)]]);
+        let err = odd.entries(Direction::Rx).unwrap_err().to_string();
+        assert!(err.contains("odd") && err.contains("0x0002"), "{err}");
+        let padded = Mapping::Flexible(vec![vec![
+            PdoEntry::new(0x6040, 0, 16),
+            PdoEntry::new(0x6060, 0, 8),
+            PdoEntry::new(0x0002, 0, 8),
+        ]]);
+        assert_eq!(padded.entries(Direction::Rx).unwrap().len(), 3);
     }
 
     #[test]
@@ -788,31 +713,6 @@ mod tests {
         for mode in crate::drive::ds402::Mode::ALL {
             let carried = mode.command_objects().iter().all(|&(i, s)| find(&rx, i, s).is_some());
             assert_eq!(carried, mode != crate::drive::ds402::Mode::InterpolatedPosition, "{}", mode.name());
-        }
-    }
-
-    #[test]
-    fn entries_parse_from_the_parameters_text() {
-        assert_eq!(PdoEntry::parse("0x6040:00/16"), Ok(CONTROLWORD));
-        assert_eq!(PdoEntry::parse("60C1:1/32"), Ok(IP_SETPOINT));
-        assert_eq!(PdoEntry::parse("0x60c1:0x01/32"), Ok(IP_SETPOINT));
-        for bad in [
-            "6040-16",
-            "0x6040:00",
-            "0x604:00/16",
-            "0x60400:00/16",
-            "0x6040:000/16",
-            "0x6040:00/160",
-            "0x6040:00/",
-            "0x6040:0g/16",
-            "0X6040:00/16",
-            "0x6040:00/+8",
-            " 0x6040:00/16",
-            "",
-        ] {
-            let refused = PdoEntry::parse(bad).unwrap_err();
-            assert!(refused.to_string().contains(&format!("'{bad}'")), "{refused}");
-            assert!(refused.to_string().contains("INDEX:SUB/BITS"), "{refused}");
         }
     }
 }

@@ -7,8 +7,9 @@
 //!    and working counters), [`registers`] (ESC register map), [`sii`] (SII EEPROM content),
 //!    [`al`] (AL states and status codes), [`mailbox`] and [`coe`] (mailbox header, CoE SDO,
 //!    SDO information, emergency), [`eoe`] (Ethernet over EtherCAT: fragments, Set IP
-//!    Parameter), [`foe`] (file access over EtherCAT), [`dc`] (distributed-clock arithmetic)
-//!    and [`link_spec`] (the text that names a bus). Each raises its own error, declared
+//!    Parameter), [`foe`] (file access over EtherCAT), [`dc`] (distributed-clock arithmetic),
+//!    [`pdo`] (process-data entries, and the description of a slave's process data the master
+//!    sets it up from) and [`link_spec`] (the text that names a bus). Each raises its own error, declared
 //!    beside it and named in the standard's words (AL status code names, SDO abort code
 //!    names).
 //! 2. [`link`]: the [`link::Link`] trait that moves frames, and the links to a real line (UDP,
@@ -29,5 +30,6 @@ pub mod link;
 pub mod link_spec;
 pub mod mailbox;
 pub mod master;
+pub mod pdo;
 pub mod registers;
 pub mod sii;

@@ -15,7 +15,7 @@ use std::fmt;
 
 /// The result of reading or writing an SII image.
 type Result<T> = std::result::Result<T, SiiError>;
-use crate::drive::pdo::PdoEntry;
+use crate::ethercat::pdo::{Direction, Pdo, PdoAssignment, PdoEntry, ProcessData};
 
 /// Words in the fixed header before the first category.
 pub const HEADER_WORDS: usize = 64;
@@ -800,6 +800,24 @@ impl Sii {
     /// The RxPDOs (master to drive).
     pub fn rx_pdos(&self) -> &[SiiPdo] {
         self.slice(|c| if let Category::RxPdos(v) = c { Some(v.as_slice()) } else { None })
+    }
+
+    /// What this SII assigns to sync managers 2 and 3 (its PDOs that name them), written over
+    /// CoE too when `over_coe`: the process data of a slave no profile describes.
+    pub fn process_data(&self, over_coe: bool) -> ProcessData {
+        let assigned = |pdos: &[SiiPdo], direction: Direction| PdoAssignment {
+            pdos: pdos
+                .iter()
+                .filter(|p| p.sync_manager == direction.sync_manager())
+                .map(|p| Pdo { index: p.index, entries: p.entries.iter().map(|e| e.pdo_entry()).collect() })
+                .collect(),
+            over_coe,
+            write_entries: false,
+        };
+        ProcessData {
+            outputs: assigned(self.rx_pdos(), Direction::Rx),
+            inputs: assigned(self.tx_pdos(), Direction::Tx),
+        }
     }
 
     /// The DC operation modes.

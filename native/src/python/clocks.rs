@@ -13,7 +13,7 @@ use crate::ethercat::master::clocks::DcSlave;
 /// wire's. Raises ConfigError for a link spec that names no bus.
 #[pyfunction]
 fn dc_by_default(link: &str) -> PyResult<bool> {
-    Ok(link.parse::<LinkSpec>().map_err(crate::error::Error::from).py()?.runs_dc_by_default())
+    Ok(link.parse::<LinkSpec>().py()?.runs_dc_by_default())
 }
 
 /// `Cycle.dc_status()`: {"active": False} without distributed clocks; with them "active",

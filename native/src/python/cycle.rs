@@ -478,7 +478,7 @@ impl PyCycle {
         })?;
         let timeout = super::seconds(timeout, "timeout")?;
         let cycle = &self.cycle;
-        let outcome = py.allow_threads(|| {
+        let outcome = py.allow_threads(|| -> crate::error::Result<Option<String>> {
             let deadline = std::time::Instant::now() + timeout;
             loop {
                 let status = cycle.drive_status(position)?;
@@ -731,8 +731,8 @@ impl PyCycle {
     /// (index, subindex, bit length, byte offset within the slave's data) in wire order.
     fn mapping(&self, position: u16) -> PyResult<MappingView> {
         let (rx, tx) = self.cycle.mapping(position).py()?;
-        let layout = |entries: &[crate::drive::pdo::PdoEntry]| {
-            crate::drive::pdo::layout(entries.iter().copied())
+        let layout = |entries: &[crate::ethercat::pdo::PdoEntry]| {
+            crate::ethercat::pdo::layout(entries.iter().copied())
                 .map(|(offset, e)| (e.index, e.subindex, e.bits, offset))
                 .collect()
         };

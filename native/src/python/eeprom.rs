@@ -130,7 +130,7 @@ struct SiiView<'a> {
 /// rx_pdos (each with named entries) and dc_modes. Raises SiiError naming what is wrong.
 #[pyfunction]
 fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> {
-    let sii = Sii::parse(data).map_err(crate::error::Error::from).py()?;
+    let sii = Sii::parse(data).py()?;
     let h = &sii.header;
     let rest = SiiView {
         alias: sii.alias(),

@@ -13,7 +13,8 @@ use pyo3::types::PyInt;
 use super::eeprom::Identity;
 use super::IntoPyResult;
 use super::Merged;
-use crate::drive::pdo::PdoEntry;
+use crate::drive::akd::AkdSlave;
+use crate::drive::pdo::Mapping;
 use crate::drive::scaling::{self, PositionScaling};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
 use crate::ethercat::al::AlState;
@@ -21,7 +22,8 @@ use crate::ethercat::coe::{Emergency, ObjectCode, OdListType};
 use crate::ethercat::link::{self, Link};
 use crate::ethercat::link_spec::LinkSpec;
 use crate::ethercat::master::sdo_info::{EntryInfo, ObjectInfo};
-use crate::ethercat::master::{self, Mapping, SlaveRef};
+use crate::ethercat::master::{self, SlaveRef};
+use crate::ethercat::pdo::PdoEntry;
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
 use crate::sim::{Timing, VirtualBus};
@@ -348,11 +350,11 @@ impl PyMaster {
         use crate::ethercat::eoe::{parse_ipv4, parse_mac, IpParameters};
         let address = |what, text: Option<&str>| text.map(|t| parse_ipv4(what, t)).transpose();
         let parameters = IpParameters {
-            mac: mac.map(parse_mac).transpose().map_err(Error::from).py()?,
-            ip: Some(parse_ipv4("IP address", ip).map_err(Error::from).py()?),
-            subnet_mask: address("subnet mask", subnet_mask).map_err(Error::from).py()?,
-            gateway: address("default gateway", gateway).map_err(Error::from).py()?,
-            dns_server: address("DNS server", dns_server).map_err(Error::from).py()?,
+            mac: mac.map(parse_mac).transpose().py()?,
+            ip: Some(parse_ipv4("IP address", ip).py()?),
+            subnet_mask: address("subnet mask", subnet_mask).py()?,
+            gateway: address("default gateway", gateway).py()?,
+            dns_server: address("DNS server", dns_server).py()?,
             dns_name,
         };
         self.with_slave(py, position, |s| {

@@ -127,7 +127,7 @@ impl PyVirtualBus {
     /// when it is lost on the line; raises FrameError for a malformed frame.
     fn process<'py>(&mut self, py: Python<'py>, payload: &[u8], time_ns: u64) -> PyResult<Option<Bound<'py, PyBytes>>> {
         let mut frame = payload.to_vec();
-        let delivery = self.bus.process(&mut frame, time_ns).map_err(Error::from).py()?;
+        let delivery = self.bus.process(&mut frame, time_ns).py()?;
         Ok((delivery == Delivery::Returned).then(|| PyBytes::new(py, &frame)))
     }
 
@@ -454,7 +454,7 @@ fn run_until_signal(
     }
     let stats = match py.allow_threads(|| worker.join()) {
         Ok(result) => result.py()?,
-        Err(_) => return Err(Unavailable::SimulatorPanicked.into()).py(),
+        Err(_) => return Err(Unavailable::SimulatorPanicked).py(),
     };
     if let Some(on_stop) = on_stop {
         on_stop.call1((ServerStatsView::from(stats),))?;

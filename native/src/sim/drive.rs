@@ -32,9 +32,9 @@
 
 use crate::drive::akd_fault::MISSED_FRAMES_TOLERATED;
 use crate::drive::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
-use crate::drive::pdo::PdoEntry;
 use crate::ethercat::coe::Emergency;
 use crate::ethercat::link_spec::MissedFrames;
+use crate::ethercat::pdo::PdoEntry;
 use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
 use crate::sim::homing::{self, Ending};

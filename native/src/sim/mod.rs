@@ -42,13 +42,13 @@ pub mod sync_manager;
 pub mod terminals;
 pub mod watchdog;
 
-use crate::drive::pdo;
 use crate::error::{FrameError, Result, SettingError};
 use crate::ethercat::al::{AlState, AlStatusCode};
 use crate::ethercat::frame::{self, DatagramMut};
 use crate::ethercat::link_spec::MissedFrames;
 use crate::ethercat::link_spec::Pace;
 use crate::ethercat::mailbox::HEADER_LEN;
+use crate::ethercat::pdo;
 use crate::ethercat::registers::{self as reg, sm_reg};
 use crate::ethercat::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};

@@ -7,9 +7,10 @@
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
-use crate::drive::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
+use crate::drive::pdo::{self, FLEXIBLE_PDO_COUNT};
 use crate::drive::scaling;
 use crate::ethercat::coe::{access, data_type, ObjectCode, SdoAbortCode};
+use crate::ethercat::pdo::{bit_len, Direction, PdoEntry};
 use crate::ethercat::sii::Identity;
 use crate::sim::sii_image;
 
@@ -277,11 +278,11 @@ fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(),
     let mut total = 0;
     for index in &assigned {
         let o = od.object(*index).ok_or(SdoAbortCode::VALUE_RANGE)?;
-        total += pdo::bit_len(&mapped_entries(o).collect::<Vec<_>>());
+        total += bit_len(&mapped_entries(o).collect::<Vec<_>>());
     }
     // Odd lengths are accepted here (the real drive powers up with one) and refused at the
     // PreOp→SafeOp transition with AL status code 0x001D/0x001E.
-    if total > direction.max_bytes() * 8 {
+    if total > pdo::max_bytes(direction) * 8 {
         return Err(SdoAbortCode::PDO_TOO_LONG);
     }
     Ok(())
@@ -688,7 +689,7 @@ mod tests {
         assert_eq!(od.read(0x1A03, 2).unwrap(), &0x606C_0020u32.to_le_bytes());
         assert_eq!(od.read(0x1C00, 3).unwrap(), &[3]);
         assert_eq!(od.read(0x1018, 1).unwrap(), &0x6Au32.to_le_bytes());
-        let rx: usize = od.assigned_pdos(Direction::Rx).iter().map(|(_, e)| pdo::bit_len(e)).sum();
+        let rx: usize = od.assigned_pdos(Direction::Rx).iter().map(|(_, e)| bit_len(e)).sum();
         assert_eq!(rx, 17 * 8);
         assert_eq!(od.cycle_time_ns(), Some(2_000_000));
         assert!(od.objects().windows(2).all(|w| w[0].index < w[1].index));

@@ -36,8 +36,8 @@ use std::thread::JoinHandle;
 use std::time::Duration;
 
 use crate::drive::objects;
-use crate::drive::pdo::PdoEntry;
 use crate::error::{Error, Result, Unavailable};
+use crate::ethercat::pdo::PdoEntry;
 use crate::sim::VirtualBus;
 
 /// The set-points traced, with their names in the file: index (subindex 0) and name.
@@ -281,7 +281,7 @@ impl Drop for SetpointTrace {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drive::pdo::PdoEntry;
+    use crate::ethercat::pdo::PdoEntry;
 
     /// 0x1724's outputs: target position, controlword, torque offset.
     const CSP: [PdoEntry; 3] =

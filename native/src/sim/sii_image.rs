@@ -8,9 +8,10 @@
 //! the image was read.
 
 use crate::drive::objects::{self, MappableObject};
-use crate::drive::pdo::{self, Direction, PdoEntry};
+use crate::drive::pdo;
 use crate::error::{Error, Result, SiiError};
 use crate::ethercat::mailbox::MailboxType;
+use crate::ethercat::pdo::{Direction, PdoEntry};
 use crate::ethercat::sii::{
     category, fmmu_usage, sync_manager_type, Builder, Category, DcOpMode, General, Header, Identity, MailboxLayout,
     SiiPdo, SiiPdoEntry, SyncManager,

@@ -48,7 +48,7 @@ impl Terminals {
     /// Sets switch `name` ("negative_limit", "positive_limit", "home_switch", "interlock")
     /// active or not.
     pub fn set_switch(&mut self, name: &str, active: bool) -> Result<(), SettingError> {
-        let switch = Switch::from_name(name).ok_or_else(|| SettingError::Switch { name: name.to_owned() })?;
+        let switch = Switch::from_name(name)?;
         self.switches = if active { self.switches | switch.mask() } else { self.switches & !switch.mask() };
         Ok(())
     }

@@ -191,6 +191,14 @@ impl Master {
         Ok(written)
     }
 
+    /// Sets the drive's cycle time (interpolation time period 0x60C2) of the slave at
+    /// `position`, e.g. 2 ms as (2, -3).
+    pub(super) fn set_cycle_time(&mut self, position: u16, cycle_ns: u32) -> Result<()> {
+        let (units, exponent) = crate::ethercat::dc::interpolation_time_period(cycle_ns)?;
+        self.sdo_write(position, 0x60C2, 1, &[units])?;
+        self.sdo_write(position, 0x60C2, 2, &[exponent as u8])
+    }
+
     /// The distributed-clock set-up, if any.
     pub fn clock(&self) -> Option<&Clock> {
         self.clock.as_ref()

@@ -32,14 +32,13 @@
 
 use std::time::Instant;
 
-use crate::drive::pdo::DEFAULT_FIXED;
 use crate::error::{Error, Result, SettingError, Unavailable};
 use crate::ethercat::al::AlState;
 use crate::ethercat::frame::{self, Command, FrameBuilder, Slot};
 use crate::ethercat::link::{copy_reply, is_reply_to, receive_reply};
-use crate::ethercat::master::mapping::Mapping;
 use crate::ethercat::master::state::AlStatus;
 use crate::ethercat::master::{Master, Slave};
+use crate::ethercat::pdo::Direction;
 use crate::ethercat::registers::{self, sm_reg, AL_STATUS, DC_SYSTEM_TIME, DC_SYSTEM_TIME_DIFFERENCE};
 
 /// Frame bytes the DC datagrams take: the FRMW of the system time (8 bytes) and the FPRD of
@@ -132,7 +131,7 @@ impl CyclicFrame {
 }
 
 impl ProcessImage {
-    /// Lays out the slaves' mappings (`None` for a slave without process data).
+    /// Lays out the slaves' process data (`None` for a slave without process data).
     fn layout(lens: &[Option<(usize, usize)>]) -> Result<Self> {
         let out_total: usize = lens.iter().flatten().map(|l| l.0).sum();
         let in_total: usize = lens.iter().flatten().map(|l| l.1).sum();
@@ -195,17 +194,24 @@ fn no_image() -> Error {
 }
 
 impl Master {
-    /// Before SafeOp: gives every slave at `positions` without a mapping the drive's default
-    /// fixed mapping (0x1701/0x1B01), lays out the process image over every mapped slave, and
-    /// sets up the sync managers and FMMUs of the slaves at `positions`.
+    /// Before SafeOp: gives every slave at `positions` with a mailbox and without process data
+    /// what its SII assigns (over CoE where it has CoE), lays out the process image over every
+    /// slave with process data, and sets up the sync managers and FMMUs of the slaves at
+    /// `positions`. A slave without a mailbox gets none: its SII's entries may be bits, which
+    /// this whole-byte layout does not pack.
     pub(crate) fn setup_process_data(&mut self, positions: &[u16]) -> Result<()> {
         for &p in positions {
-            if self.slave(p)?.mapping.is_none() && self.slave(p)?.mailbox.is_some() {
-                self.configure_pdo(p, Mapping::Fixed(DEFAULT_FIXED.0), Mapping::Fixed(DEFAULT_FIXED.1))?;
+            let slave = self.slave(p)?;
+            if let (None, Some(mailbox)) = (&slave.process_data, &slave.mailbox) {
+                let described = slave.sii.process_data(mailbox.has_coe());
+                self.configure_process_data(p, described)?;
             }
         }
-        let lens: Vec<Option<(usize, usize)>> =
-            self.slaves.iter().map(|s| s.mapping.as_ref().map(|m| (m.rx_bytes(), m.tx_bytes()))).collect();
+        let lens: Vec<Option<(usize, usize)>> = self
+            .slaves
+            .iter()
+            .map(|s| s.process_data.as_ref().map(|d| (d.bytes(Direction::Rx), d.bytes(Direction::Tx))))
+            .collect();
         let image = ProcessImage::layout(&lens)?;
         let out_total = image.outputs.len() as u32;
         for &p in positions {

@@ -3,7 +3,7 @@
 //! One module per concept: [`scan`] finds the slaves and gives them station addresses,
 //! [`sii_read`] reads their EEPROM, [`state`] moves them through the AL state machine,
 //! [`mailbox_client`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
-//! the CoE client, [`eoe`] and [`foe`] the EoE and FoE clients, [`mapping`] selects the process-data mapping, [`clocks`] sets up distributed
+//! the CoE client, [`eoe`] and [`foe`] the EoE and FoE clients, [`mapping`] sets up a slave's process data from its description, [`clocks`] sets up distributed
 //! clocks and [`cyclic`] exchanges the process image and [`restore`] brings one slave back while the
 //! others cycle. This file holds the bus-wide state and
 //! the register access all of them share.
@@ -15,6 +15,7 @@ use crate::error::{Error, Result};
 use crate::ethercat::coe::Emergency;
 use crate::ethercat::frame::{self, Command, FrameBuilder};
 use crate::ethercat::link::Link;
+use crate::ethercat::pdo::ProcessData;
 use crate::ethercat::sii::Sii;
 
 pub mod clocks;
@@ -24,7 +25,6 @@ pub mod foe;
 pub mod mailbox_client;
 pub mod mapping;
 pub mod restore;
-pub mod scaling;
 pub mod scan;
 pub mod sdo;
 pub mod sdo_info;
@@ -32,7 +32,6 @@ pub mod sii_read;
 pub mod slave_ref;
 pub mod state;
 
-pub use mapping::Mapping;
 pub use slave_ref::SlaveRef;
 
 /// Station address given to the slave at position 0; the next ones count up from it.
@@ -91,8 +90,8 @@ pub struct Slave {
     pub emergencies: VecDeque<Emergency>,
     /// Its end of EoE: Ethernet frames received, the next frame number.
     pub eoe: eoe::EoePort,
-    /// The process-data mapping chosen for this slave, if any.
-    pub mapping: Option<mapping::SlaveMapping>,
+    /// The process data this slave was given, if any.
+    pub process_data: Option<ProcessData>,
 }
 
 impl Slave {

@@ -2,7 +2,7 @@
 //! in Init, its station address gone), one that fell to SafeOp or Init with an error, a cable
 //! that came back — while the others go on cycling: the steps of the start, for that slave
 //! alone. It gets its station address again, is reset to Init, gets its mailbox, its
-//! process-data mapping, its mode of operation and its clock (SYNC0 on the line's common
+//! process data, its mode of operation and its clock (SYNC0 on the line's common
 //! boundary, or the SM2 event) in PreOp, its sync managers and FMMUs at the same logical
 //! addresses as before, and is taken through SafeOp to Op. Its DS402 state is left alone: the
 //! power stage stays off until it is enabled again.
@@ -48,7 +48,7 @@ pub enum SlaveSync {
     None,
 }
 
-/// What a restore gives the slave besides what the scan and the mapping hold.
+/// What a restore gives the slave besides what the scan and its process data hold.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Restore {
     /// The mode of operation to write to 0x6060 (a drive that lost power forgot it).
@@ -58,7 +58,7 @@ pub struct Restore {
 }
 
 impl Master {
-    /// A master of the same slaves (their addresses, SII, mailboxes, mappings) on `link`,
+    /// A master of the same slaves (their addresses, SII, mailboxes, process data) on `link`,
     /// without a process image or clock of its own: for [`restore_slave`](Self::restore_slave)
     /// while this one cycles.
     pub fn for_restore(&self, link: Box<dyn Link>) -> Master {
@@ -109,8 +109,8 @@ impl Master {
             self.write_registers(station, registers::DC_ACTIVATION, &[0])?;
         }
         self.request_state_of(AlState::PreOp, Some(position), STEP_TIMEOUT)?;
-        if let Some(mapping) = self.slave(position)?.mapping.clone() {
-            self.configure_pdo(position, mapping.rx, mapping.tx)?;
+        if let Some(process_data) = self.slave(position)?.process_data.clone() {
+            self.configure_process_data(position, process_data)?;
         }
         if let Some(mode) = restore.mode {
             self.sdo_write(position, 0x6060, 0, &[mode as u8])?;

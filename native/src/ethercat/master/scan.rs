@@ -80,7 +80,7 @@ impl Master {
             mailbox,
             emergencies: VecDeque::new(),
             eoe: Default::default(),
-            mapping: None,
+            process_data: None,
         })
     }
 }

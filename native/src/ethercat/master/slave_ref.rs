@@ -1,19 +1,18 @@
 //! One slave of the bus as a handle: [`SlaveRef`] carries every operation that talks to one
-//! drive (AL state, registers, SDO and SDO information, mailbox, process-data mapping, its
+//! slave (AL state, registers, SDO and SDO information, mailbox, process data, its
 //! slice of the process image, its emergencies), so a caller with several drives on one bus
 //! picks the drive once and then talks to it, while [`Master`] keeps what concerns the whole
 //! bus (scan, every slave's AL state, the cyclic exchange, distributed clocks, counters).
 
 use std::time::Duration;
 
-use crate::drive::scaling::PositionScaling;
 use crate::error::{Error, Result};
 use crate::ethercat::al::AlState;
 use crate::ethercat::coe::{Emergency, OdListType};
-use crate::ethercat::master::mapping::Mapping;
 use crate::ethercat::master::sdo_info::{EntryInfo, ObjectInfo};
 use crate::ethercat::master::state::AlStatus;
 use crate::ethercat::master::{Master, Slave};
+use crate::ethercat::pdo::ProcessData;
 
 /// The slave at one position of a [`Master`]'s bus, from [`Master::slave_mut`] or
 /// [`Master::slave_by_alias`]. It borrows the master, so nothing else uses the bus meanwhile.
@@ -48,7 +47,7 @@ impl SlaveRef<'_> {
         self.position
     }
 
-    /// What the scan found of this slave (identity, SII, mailbox, mapping).
+    /// What the scan found of this slave (identity, SII, mailbox, process data).
     pub fn info(&self) -> &Slave {
         &self.master.slaves[self.position as usize]
     }
@@ -92,12 +91,6 @@ impl SlaveRef<'_> {
     /// The description of object `index` (SDO information).
     pub fn sdo_object_description(&mut self, index: u16) -> Result<ObjectInfo> {
         self.master.sdo_object_description(self.position, index)
-    }
-
-    /// The drive's position scaling (0x608F, 0x6091, 0x6092 and, where its SDO information
-    /// confirms the object, FBUS.PARAM05); `None` for a drive without the DS402 scaling objects.
-    pub fn position_scaling(&mut self) -> Result<Option<PositionScaling>> {
-        self.master.position_scaling(self.position)
     }
 
     /// The description of entry `index:subindex` (SDO information).
@@ -176,10 +169,10 @@ impl SlaveRef<'_> {
         self.master.take_emergencies(self.position)
     }
 
-    /// Gives this slave (in PreOp) its outputs mapping `rx` and inputs mapping `tx`; both are
-    /// checked against the AKD's rules first, so a refused mapping writes nothing.
-    pub fn configure_pdo(&mut self, rx: Mapping, tx: Mapping) -> Result<()> {
-        self.master.configure_pdo(self.position, rx, tx)
+    /// Gives this slave (in PreOp) `process_data`, written over CoE where it says so; the
+    /// slave's profile checks it against the slave's rules first.
+    pub fn configure_process_data(&mut self, process_data: ProcessData) -> Result<()> {
+        self.master.configure_process_data(self.position, process_data)
     }
 
     /// Sets the drive's cycle time (interpolation time period 0x60C2), for a drive synchronised
