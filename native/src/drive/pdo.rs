@@ -27,6 +27,16 @@ pub const RX_PADDING_INDEX: u16 = 0x0002;
 /// Manufacturer status object whose subindices 1..4 pad a TxPDO.
 pub const TX_PADDING_INDEX: u16 = 0x2002;
 
+/// Where the AKD's ESC holds its sync managers' buffers, as its SII gives them: process data
+/// out (SM2) and in (SM3), at most 64 bytes each, and the mailbox out (SM0) and in (SM1).
+pub const AKD_PROCESS_OUT: u16 = 0x1100;
+/// SM3's buffer.
+pub const AKD_PROCESS_IN: u16 = 0x1140;
+/// SM0's buffer.
+pub const AKD_MAILBOX_OUT: u16 = 0x1800;
+/// SM1's buffer.
+pub const AKD_MAILBOX_IN: u16 = 0x1C00;
+
 /// A fixed mapping the drive defines.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct FixedPdo {

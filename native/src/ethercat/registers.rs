@@ -93,14 +93,6 @@ pub const DC_SYNC0_START_TIME: u16 = 0x0990;
 pub const DC_SYNC0_CYCLE_TIME: u16 = 0x09A0;
 /// DC SYNC1 cycle time (4 bytes, ns).
 pub const DC_SYNC1_CYCLE_TIME: u16 = 0x09A4;
-/// Process data out buffer of the AKD (SM2), at most 64 bytes.
-pub const AKD_PROCESS_OUT: u16 = 0x1100;
-/// Process data in buffer of the AKD (SM3), at most 64 bytes.
-pub const AKD_PROCESS_IN: u16 = 0x1140;
-/// Mailbox out buffer of the AKD (SM0, master to drive).
-pub const AKD_MAILBOX_OUT: u16 = 0x1800;
-/// Mailbox in buffer of the AKD (SM1, drive to master).
-pub const AKD_MAILBOX_IN: u16 = 0x1C00;
 
 /// Address of sync manager `n`'s registers.
 pub const fn sm(n: u8) -> u16 {

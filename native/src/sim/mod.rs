@@ -279,7 +279,7 @@ impl VirtualAkd {
         if self.al.state() != AlState::Op {
             return None;
         }
-        let base = reg::AKD_PROCESS_OUT as usize;
+        let base = crate::drive::pdo::AKD_PROCESS_OUT as usize;
         let outputs = self.esc.memory().get(base..base + pdo::bit_len(&self.rx_image) / 8)?;
         Some((&self.rx_image, outputs))
     }

@@ -7,9 +7,9 @@
 //! 0x0017 when SM2/SM3 do not match the image.
 
 use crate::drive::pdo::is_padding;
+use crate::drive::pdo::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
 use crate::ethercat::al::AlStatusCode;
 use crate::ethercat::pdo::{self, Direction, PdoEntry};
-use crate::ethercat::registers::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
 use crate::sim::od::ObjectDictionary;
 use crate::sim::sync_manager::{SyncManager, ACTIVATE_ENABLE};
 
