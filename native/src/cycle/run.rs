@@ -416,7 +416,7 @@ fn presence(
     let recovery = &shared.recovery[slave as usize];
     match d.presence.observe(answered, in_op && !recovery::restoring(recovery), now) {
         None => false,
-        Some(recovery::Change::Lost { report, missing }) => {
+        Some(recovery::PresenceChange::Lost { report, missing }) => {
             shared.drives[slave as usize].request(sequencer::Request::Disable);
             shared.homings[slave as usize].forget();
             if report && !reported {
@@ -426,7 +426,7 @@ fn presence(
             recovery::want(recovery, master.mailbox_counter(slave).unwrap_or(0));
             true
         }
-        Some(recovery::Change::Back { since }) => {
+        Some(recovery::PresenceChange::Back { since }) => {
             d.mailbox_counter = Some(recovery::done(recovery));
             shared.drives[slave as usize].hold();
             let gone_ms = (now.1.saturating_sub(since.1) / 1_000_000).min(u16::MAX as u64) as u16;

@@ -10,7 +10,7 @@ use crate::sim::sii_image;
 /// What identifies a drive in its SII: the identity words and the names (None where absent).
 /// Shared by `parse_sii` and the master's scan, so both speak of a drive in the same keys.
 #[derive(IntoPyObject)]
-pub(super) struct Identity {
+pub(super) struct IdentityView {
     vendor_id: u32,
     product_code: u32,
     revision: u32,
@@ -20,11 +20,11 @@ pub(super) struct Identity {
     firmware: Option<String>,
 }
 
-impl Identity {
+impl IdentityView {
     /// The identity `sii` holds.
     pub(super) fn of(sii: &Sii) -> Self {
         let id = sii.identity();
-        Identity {
+        IdentityView {
             vendor_id: id.vendor_id,
             product_code: id.product_code,
             revision: id.revision,
@@ -166,7 +166,7 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
             })
             .collect(),
     };
-    super::Merged(rest, Identity::of(&sii)).into_pyobject(py)
+    super::Merged(rest, IdentityView::of(&sii)).into_pyobject(py)
 }
 
 /// The SII EEPROM image the virtual AKD serves: the real AKD-P00606-NBCC-E000's 2048 bytes.

@@ -10,7 +10,7 @@ use std::time::Duration;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use super::eeprom::Identity;
+use super::eeprom::IdentityView;
 use super::IntoPyResult;
 use super::Merged;
 use crate::drive::akd::AkdSlave;
@@ -221,7 +221,7 @@ impl PyMaster {
         py.allow_threads(|| -> crate::error::Result<PyMaster> {
             let Opened { link: inner, simulator, warnings } = open_link(link)?;
             let inner: Box<dyn Link> = match pcap {
-                Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
+                Some(path) => Box::new(link::pcap::CapturingLink::new(inner, path)?),
                 None => inner,
             };
             Ok(PyMaster { master: Mutex::new(Some(master::Master::new(inner, timeout))), simulator, warnings })
@@ -249,7 +249,7 @@ impl PyMaster {
     /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
     /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
     /// what the scan found before it reset the bus.
-    fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, Identity>>> {
+    fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, IdentityView>>> {
         self.with_master(py, |m| {
             m.scan()?;
             (0..m.slaves().len() as u16)
@@ -269,7 +269,7 @@ impl PyMaster {
                         mailbox_protocols: slave.sii.header.mailbox_protocols,
                         dc: slave.has_dc(),
                     };
-                    Ok(Merged(rest, Identity::of(&slave.sii)))
+                    Ok(Merged(rest, IdentityView::of(&slave.sii)))
                 })
                 .collect()
         })

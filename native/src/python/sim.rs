@@ -19,7 +19,7 @@ use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, Q
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::pll::SyncState;
-use crate::sim::setpoint_trace::{Recorder, SetpointTrace, TraceSummary};
+use crate::sim::setpoint_trace::{SetpointTrace, TraceSender, TraceSummary};
 use crate::sim::{server, Timing, VirtualBus};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
@@ -346,8 +346,8 @@ pub struct PySetpointTrace {
 }
 
 impl PySetpointTrace {
-    fn recorder(&self, drives: usize) -> PyResult<Recorder> {
-        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).recorder(drives).py()
+    fn sender(&self, drives: usize) -> PyResult<TraceSender> {
+        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).sender(drives).py()
     }
 }
 
@@ -490,7 +490,7 @@ fn serve_udp(
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
     let bus = controlled_bus(count, (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    let trace = setpoint_trace.map(|t| t.sender(count)).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_udp(address, bus, stop, trace))
 }
 
@@ -515,7 +515,7 @@ fn serve_iface(
 ) -> PyResult<()> {
     let iface = iface.to_owned();
     let bus = controlled_bus(count, (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    let trace = setpoint_trace.map(|t| t.sender(count)).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
 }
 

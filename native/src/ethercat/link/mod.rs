@@ -2,7 +2,7 @@
 //!
 //! Every link carries the EtherCAT payload (frame header plus datagrams) and hides what wraps it:
 //! nothing for the in-process virtual bus (which the simulator provides), a UDP datagram for EtherCAT-over-UDP, an Ethernet II
-//! header for a raw interface. [`Recorder`](pcap::Recorder) wraps any link and writes what it
+//! header for a raw interface. [`CapturingLink`](pcap::CapturingLink) wraps any link and writes what it
 //! sends and receives to a pcapng file.
 
 use std::time::{Duration, Instant};

@@ -1,6 +1,6 @@
 //! Recording a link's traffic to a pcapng file that Wireshark and tshark decode.
 //!
-//! [`Recorder`] wraps any [`Link`]. Links carry bare EtherCAT payloads, so each frame is written
+//! [`CapturingLink`] wraps any [`Link`]. Links carry bare EtherCAT payloads, so each frame is written
 //! as the Ethernet frame it is (or would be) on the wire: broadcast, from
 //! [`super::raw::MASTER_MAC`] for requests and from the same address with
 //! [`super::raw::RETURNED_MAC_BIT`] set for replies, as a real ESC marks the
@@ -12,7 +12,7 @@
 //! thread and come back empty, so recording costs no system call and, once a few chunks exist,
 //! no allocation in the cyclic path. If the writer falls so far behind that no chunk can be
 //! handed over, the frames of that chunk are counted as lost, never waited for.
-//! [`Recorder::finish`] (or dropping the recorder) writes the rest and reports lost frames and
+//! [`CapturingLink::finish`] (or dropping the capture) writes the rest and reports lost frames and
 //! write errors.
 
 use std::fs::File;
@@ -50,7 +50,7 @@ const QUEUED_CHUNKS: usize = 16;
 type Chunk = (Vec<u8>, u64);
 
 /// A link whose every frame sent and received is written to a pcapng file.
-pub struct Recorder<L: Link> {
+pub struct CapturingLink<L: Link> {
     inner: L,
     path: PathBuf,
     /// Blocks not yet handed to the writer.
@@ -142,7 +142,7 @@ fn file_header(interface: &str) -> Vec<u8> {
 }
 
 /// The writer thread: writes chunks in order and returns them empty. After a write error it
-/// keeps returning chunks (so the recorder never waits) and reports the first error at the end.
+/// keeps returning chunks (so the capture never waits) and reports the first error at the end.
 fn write_chunks(mut file: File, chunks: Receiver<Chunk>, spare: SyncSender<Vec<u8>>) -> std::io::Result<()> {
     let mut result = Ok(());
     for (mut chunk, _) in chunks {
@@ -150,13 +150,13 @@ fn write_chunks(mut file: File, chunks: Receiver<Chunk>, spare: SyncSender<Vec<u
             result = file.write_all(&chunk);
         }
         chunk.clear();
-        // The recorder may be gone or have spares enough; either way the chunk is not needed.
+        // The capture may be gone or have spares enough; either way the chunk is not needed.
         let _ = spare.try_send(chunk);
     }
     result.and_then(|()| file.sync_data())
 }
 
-impl<L: Link> Recorder<L> {
+impl<L: Link> CapturingLink<L> {
     /// Wraps `inner`, creating (or truncating) the pcapng file at `path`, writing its section
     /// header and interface description (named after `inner`) and starting the writer thread.
     pub fn new(inner: L, path: impl AsRef<Path>) -> Result<Self> {
@@ -170,7 +170,7 @@ impl<L: Link> Recorder<L> {
             .name("pcap-writer".into())
             .spawn(move || write_chunks(file, chunks, spare_tx))
             .map_err(|e| Error::io(context("starting the writer thread of"), e))?;
-        Ok(Recorder {
+        Ok(CapturingLink {
             inner,
             path,
             chunk: (Vec::with_capacity(CHUNK + 4096), 0),
@@ -221,7 +221,7 @@ impl<L: Link> Recorder<L> {
     }
 }
 
-impl<L: Link> Recorder<L> {
+impl<L: Link> CapturingLink<L> {
     /// Adds one frame, sent or returned at `time_ns`, to the chunk under way.
     fn record(&mut self, frame: &[u8], time_ns: u64, returned: bool) {
         if self.to_writer.is_none() {
@@ -235,7 +235,7 @@ impl<L: Link> Recorder<L> {
     }
 }
 
-impl<L: Link> Link for Recorder<L> {
+impl<L: Link> Link for CapturingLink<L> {
     fn send(&mut self, tx: &[u8]) -> Result<()> {
         let sent_ns = now_ns();
         self.inner.send(tx)?;
@@ -260,9 +260,9 @@ impl<L: Link> Link for Recorder<L> {
     }
 }
 
-impl<L: Link> Drop for Recorder<L> {
+impl<L: Link> Drop for CapturingLink<L> {
     fn drop(&mut self) {
-        // Owners that hold the recorder as a plain `Link` cannot call `finish`; the file is
+        // Owners that hold the capture as a plain `Link` cannot call `finish`; the file is
         // completed here all the same, and a failure has no caller left to tell.
         let _ = self.finish();
     }
@@ -317,26 +317,26 @@ mod tests {
         out
     }
 
-    /// Records `exchanges` exchanges of one datagram through a [`Loop`], ends the recorder
+    /// Records `exchanges` exchanges of one datagram through a [`Loop`], ends the capture
     /// with `end` and returns the request and the file.
     fn record(
         name: &str,
         command: Command,
         data_len: usize,
         exchanges: usize,
-        end: impl FnOnce(Recorder<Loop>),
+        end: impl FnOnce(CapturingLink<Loop>),
     ) -> (Vec<u8>, Vec<u8>) {
         let path = std::env::temp_dir().join(format!("akd_pcap_{name}_{}.pcapng", std::process::id()));
-        let mut recorder = Recorder::new(Loop { sent: 0, returns: Default::default() }, &path).unwrap();
+        let mut capture = CapturingLink::new(Loop { sent: 0, returns: Default::default() }, &path).unwrap();
         let mut tx = [0u8; 64];
         let mut builder = FrameBuilder::new(&mut tx);
         builder.push_zeroed(command, 0, 0, 0x0130, data_len).unwrap();
         let n = builder.finish();
         let mut rx = [0u8; 64];
         for _ in 0..exchanges {
-            let _ = recorder.exchange(&tx[..n], &mut rx, Duration::from_millis(1));
+            let _ = capture.exchange(&tx[..n], &mut rx, Duration::from_millis(1));
         }
-        end(recorder);
+        end(capture);
         let file = std::fs::read(&path).unwrap();
         std::fs::remove_file(&path).unwrap();
         (tx[..n].to_vec(), file)
@@ -344,9 +344,9 @@ mod tests {
 
     #[test]
     fn records_requests_and_replies_as_ethernet_frames() {
-        let (tx, file) = record("frames", Command::Brd, 2, 3, |mut recorder| {
-            assert_eq!(recorder.lost_frames(), 0);
-            recorder.finish().unwrap();
+        let (tx, file) = record("frames", Command::Brd, 2, 3, |mut capture| {
+            assert_eq!(capture.lost_frames(), 0);
+            capture.finish().unwrap();
         });
         let n = tx.len();
 
@@ -380,7 +380,7 @@ mod tests {
     }
 
     #[test]
-    fn frames_over_many_chunks_are_all_written_when_the_recorder_is_dropped() {
+    fn frames_over_many_chunks_are_all_written_when_the_capture_is_dropped() {
         // 4000 exchanges (one times out): 7999 blocks of 96 bytes, about 12 chunks.
         let (_, file) = record("chunks", Command::Lrw, 34, 4000, drop);
         let blocks = blocks(&file);
@@ -390,7 +390,7 @@ mod tests {
 
     #[test]
     fn an_unwritable_path_is_a_named_error() {
-        let e = Recorder::new(Loop { sent: 0, returns: Default::default() }, "/nonexistent-dir/x.pcapng")
+        let e = CapturingLink::new(Loop { sent: 0, returns: Default::default() }, "/nonexistent-dir/x.pcapng")
             .err()
             .unwrap()
             .to_string();
