@@ -84,6 +84,23 @@ const fn tx(index: u16, entries: &'static [PdoEntry]) -> FixedPdo {
     FixedPdo { index, direction: Direction::Tx, entries }
 }
 
+/// The inputs of 0x1B20, 0x1B22, 0x1B23 and 0x1B25, which differ in their third entry
+/// (velocity or latch 2's position) and their sixth (a latched position).
+const fn latched(third: PdoEntry, latch: PdoEntry) -> [PdoEntry; 10] {
+    [
+        POSITION_INTERNAL,
+        SECOND_FEEDBACK,
+        third,
+        DIGITAL_INPUTS,
+        FOLLOWING_ERROR,
+        latch,
+        STATUSWORD,
+        TORQUE_ACTUAL,
+        LATCH_STATUSWORD,
+        ANALOG_INPUT,
+    ]
+}
+
 /// Every fixed mapping of the real drive (firmware 01-20-00-003), outputs then inputs.
 pub const FIXED: &[FixedPdo] = &[
     rx(0x1701, &[IP_SETPOINT, CONTROLWORD]),
@@ -95,68 +112,12 @@ pub const FIXED: &[FixedPdo] = &[
     rx(0x1724, &[TARGET_POSITION, CONTROLWORD, TORQUE_OFFSET]),
     rx(0x1725, &[CONTROLWORD, TARGET_POSITION, PHYSICAL_OUTPUTS, TORQUE_OFFSET, ANALOG_OUTPUT, MAX_TORQUE]),
     tx(0x1B01, &[POSITION_INTERNAL, STATUSWORD]),
-    tx(
-        0x1B20,
-        &[
-            POSITION_INTERNAL,
-            SECOND_FEEDBACK,
-            VELOCITY_ACTUAL,
-            DIGITAL_INPUTS,
-            FOLLOWING_ERROR,
-            PdoEntry::new(0x20A0, 0, 32),
-            STATUSWORD,
-            TORQUE_ACTUAL,
-            LATCH_STATUSWORD,
-            ANALOG_INPUT,
-        ],
-    ),
+    tx(0x1B20, &latched(VELOCITY_ACTUAL, PdoEntry::new(0x20A0, 0, 32))),
     tx(0x1B21, &[POSITION_INTERNAL, STATUSWORD]),
-    tx(
-        0x1B22,
-        &[
-            POSITION_INTERNAL,
-            SECOND_FEEDBACK,
-            VELOCITY_ACTUAL,
-            DIGITAL_INPUTS,
-            FOLLOWING_ERROR,
-            PdoEntry::new(0x20A1, 0, 32),
-            STATUSWORD,
-            TORQUE_ACTUAL,
-            LATCH_STATUSWORD,
-            ANALOG_INPUT,
-        ],
-    ),
-    tx(
-        0x1B23,
-        &[
-            POSITION_INTERNAL,
-            SECOND_FEEDBACK,
-            VELOCITY_ACTUAL,
-            DIGITAL_INPUTS,
-            FOLLOWING_ERROR,
-            PdoEntry::new(0x20A6, 0, 32),
-            STATUSWORD,
-            TORQUE_ACTUAL,
-            LATCH_STATUSWORD,
-            ANALOG_INPUT,
-        ],
-    ),
+    tx(0x1B22, &latched(VELOCITY_ACTUAL, PdoEntry::new(0x20A1, 0, 32))),
+    tx(0x1B23, &latched(VELOCITY_ACTUAL, PdoEntry::new(0x20A6, 0, 32))),
     tx(0x1B24, &[POSITION_ACTUAL, STATUSWORD]),
-    tx(
-        0x1B25,
-        &[
-            POSITION_INTERNAL,
-            SECOND_FEEDBACK,
-            PdoEntry::new(0x20A7, 0, 32),
-            DIGITAL_INPUTS,
-            FOLLOWING_ERROR,
-            PdoEntry::new(0x20A6, 0, 32),
-            STATUSWORD,
-            TORQUE_ACTUAL,
-            LATCH_STATUSWORD,
-            ANALOG_INPUT,
-        ],
-    ),
+    tx(0x1B25, &latched(PdoEntry::new(0x20A7, 0, 32), PdoEntry::new(0x20A6, 0, 32))),
     tx(0x1B26, &[STATUSWORD, POSITION_ACTUAL, TORQUE_ACTUAL, DIGITAL_INPUTS, ANALOG_INPUT, FOLLOWING_ERROR]),
 ];
 

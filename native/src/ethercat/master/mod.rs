@@ -283,11 +283,6 @@ impl Master {
         Ok(u16::from_le_bytes(b))
     }
 
-    /// Writes a 16-bit register.
-    pub fn write_u16(&mut self, station: u16, register: u16, value: u16) -> Result<()> {
-        self.write_registers(station, register, &value.to_le_bytes())
-    }
-
     /// Broadcast write (BWR) to every slave; returns how many slaves took it.
     pub fn broadcast_write(&mut self, register: u16, data: &[u8]) -> Result<u16> {
         let mut copy = data.to_vec();
