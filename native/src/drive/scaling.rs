@@ -161,12 +161,6 @@ impl PositionScaling {
     }
 }
 
-/// Whether `name`, an object's name in a drive's SDO information, names FBUS.PARAM05
-/// ([`crate::ethercat::coe::names_parameter`]).
-pub fn names_fbus_param05(name: &str) -> bool {
-    crate::ethercat::coe::names_parameter(name, FBUS_PARAM05_NAME)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -197,11 +191,5 @@ mod tests {
         assert_eq!(unknown.counts_per_revolution(0x60C1, 1, None), Some(65536.0));
         let zero = PositionScaling::from_entries([1 << 20, 0, 0, 1, 1, 1], Some(0x10));
         assert_eq!((zero.increments_per_revolution(), zero.position_units_per_revolution(None)), (None, None));
-    }
-
-    #[test]
-    fn names_the_parameter_as_a_word_of_its_own() {
-        assert!(names_fbus_param05("FBUS.PARAM05") && names_fbus_param05("fbus.param05 fieldbus options"));
-        assert!(!names_fbus_param05("FBUS.PARAM050") && !names_fbus_param05("FBUS.PARAM02"));
     }
 }

@@ -25,7 +25,7 @@ pub const MIN_CYCLE_NS: u32 = 250_000;
 /// The index is a guess, and on a real drive 0x3E02 could be another, writable parameter. A
 /// master must not write an object whose identity it cannot confirm, so the master first asks
 /// the drive's SDO information for the object's description and writes only when its name
-/// names FBUS.PARAM02 ([`names_fbus_param02`]); otherwise it writes nothing and records the
+/// names FBUS.PARAM02 ([`crate::ethercat::coe::names_parameter`]); otherwise it writes nothing and records the
 /// parameter as unknown ([`crate::ethercat::master::clocks::DcSlave::fbus_param02`]), and the node's
 /// /diagnostics warns to set FBUS.PARAM02 = 1 on the drive (WorkBench).
 pub const FBUS_PARAM02: u16 = 0x3E02;
@@ -33,11 +33,6 @@ pub const FBUS_PARAM02: u16 = 0x3E02;
 /// virtual AKD's SDO information names object [`FBUS_PARAM02`].
 pub const FBUS_PARAM02_NAME: &str = "FBUS.PARAM02";
 
-/// Whether `name`, an object's name in a drive's SDO information, names FBUS.PARAM02
-/// ([`crate::ethercat::coe::names_parameter`]).
-pub fn names_fbus_param02(name: &str) -> bool {
-    crate::ethercat::coe::names_parameter(name, FBUS_PARAM02_NAME)
-}
 /// FBUS.PARAM02 bit 0: the drive's PLL follows SYNC0.
 pub const FBUS_PARAM02_PLL: u32 = 0x0000_0001;
 
@@ -200,16 +195,6 @@ mod tests {
         for shift in [1_000, -1_000, i64::MAX] {
             let err = check_sync0_shift(shift, 1_000).unwrap_err().to_string();
             assert!(err.contains(&format!("SYNC0 shift {shift} ns")) && err.contains("-999 to 999 ns"), "{err}");
-        }
-    }
-
-    #[test]
-    fn only_a_name_that_names_fbus_param02_confirms_the_object() {
-        for name in ["FBUS.PARAM02", "fbus.param02", "FBUS.PARAM02 PLL mode", "(FBUS.PARAM02)"] {
-            assert!(names_fbus_param02(name), "{name}");
-        }
-        for name in ["", "FBUS.PARAM020", "FBUS.PARAM03", "XFBUS.PARAM02", "Sync mode", "FBUS PARAM02"] {
-            assert!(!names_fbus_param02(name), "{name}");
         }
     }
 

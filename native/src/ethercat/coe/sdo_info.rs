@@ -280,3 +280,18 @@ pub fn names_parameter(name: &str, parameter: &str) -> bool {
     name.split(|c: char| !(c.is_ascii_alphanumeric() || c == '.' || c == '_'))
         .any(|word| word.eq_ignore_ascii_case(parameter))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_name_names_a_parameter_only_as_a_word_of_its_own() {
+        for name in ["FBUS.PARAM02", "fbus.param02", "FBUS.PARAM02 PLL mode", "(FBUS.PARAM02)"] {
+            assert!(names_parameter(name, "FBUS.PARAM02"), "{name}");
+        }
+        for name in ["", "FBUS.PARAM020", "FBUS.PARAM03", "XFBUS.PARAM02", "Sync mode", "FBUS PARAM02"] {
+            assert!(!names_parameter(name, "FBUS.PARAM02"), "{name}");
+        }
+    }
+}
