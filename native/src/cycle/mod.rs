@@ -19,6 +19,9 @@
 //! streams ([`command_timeout`], [`CycleThread::set_command_timeout`]), and joint trajectories
 //! are followed there ([`trajectory_player`], [`CycleThread::play_trajectory`]).
 //!
+//! [`CycleThread`] is the handle the other threads hold (`handle.rs`), the loop is the thread's
+//! own (`run.rs`), and what both share is here.
+//!
 //! [`timing`] holds the deadlines, [`rt`] the real-time settings, [`stats`] the statistics,
 //! [`seqlock`] the lock-free buffers, [`sequencer`] the drive sequencer, [`supervision`] the
 //! fault supervision, [`latch`] the position latch, [`acyclic`] the mailbox traffic beside
