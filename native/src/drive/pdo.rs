@@ -48,13 +48,6 @@ pub struct FixedPdo {
     pub entries: &'static [PdoEntry],
 }
 
-impl FixedPdo {
-    /// Length of the process image in bytes.
-    pub fn byte_len(&self) -> usize {
-        bit_len(self.entries) / 8
-    }
-}
-
 const CONTROLWORD: PdoEntry = PdoEntry::new(0x6040, 0, 16);
 const STATUSWORD: PdoEntry = PdoEntry::new(0x6041, 0, 16);
 const IP_SETPOINT: PdoEntry = PdoEntry::new(0x60C1, 1, 32);
@@ -594,13 +587,13 @@ mod tests {
     fn fixed_mappings_match_the_manual() {
         let velocity = fixed(0x1702).unwrap();
         assert_eq!(velocity.entries.iter().map(|e| e.to_u32()).collect::<Vec<_>>(), vec![0x60FF0020, 0x60400010]);
-        assert_eq!(fixed(0x1701).unwrap().byte_len(), 6);
-        assert_eq!(fixed(0x1B01).unwrap().byte_len(), 6);
-        assert_eq!(fixed(0x1B20).unwrap().byte_len(), 32);
-        assert_eq!(fixed(0x1720).unwrap().byte_len(), 14);
+        assert_eq!(bit_len(fixed(0x1701).unwrap().entries) / 8, 6);
+        assert_eq!(bit_len(fixed(0x1B01).unwrap().entries) / 8, 6);
+        assert_eq!(bit_len(fixed(0x1B20).unwrap().entries) / 8, 32);
+        assert_eq!(bit_len(fixed(0x1720).unwrap().entries) / 8, 14);
         assert!(fixed(0x1704).is_none());
         for p in FIXED {
-            assert!(p.byte_len() <= 64, "0x{:04X} exceeds the 64-byte SM buffer", p.index);
+            assert!(bit_len(p.entries) / 8 <= 64, "0x{:04X} exceeds the 64-byte SM buffer", p.index);
         }
     }
 
