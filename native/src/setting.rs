@@ -104,6 +104,8 @@ pub enum SettingError {
     Switch {
         /// The name given.
         name: String,
+        /// The switches' names.
+        allowed: Vec<&'static str>,
     },
     /// An analog voltage that is not a finite number within the range its 16-bit object holds.
     AnalogVoltage {
@@ -271,10 +273,7 @@ impl fmt::Display for SettingError {
             SettingError::TogglePosition { input, position } => {
                 write!(f, "toggle position {position} of digital input {input} is not a finite number of counts")
             }
-            SettingError::Switch { name } => {
-                let names: Vec<_> = crate::io::Switch::ALL.iter().map(|s| s.name()).collect();
-                write!(f, "switch {name:?} is not one of {}", names.join(", "))
-            }
+            SettingError::Switch { name, allowed } => write!(f, "switch {name:?} is not one of {}", allowed.join(", ")),
             SettingError::AnalogVoltage { what, volts, max } => {
                 write!(f, "{what} {volts} V: allowed a finite voltage within ±{max:.4} V")
             }

@@ -13,13 +13,13 @@ use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
-use crate::link_spec::MissedFrames;
-use crate::link_spec::Pace;
+use crate::ethercat::link_spec::MissedFrames;
+use crate::ethercat::link_spec::Pace;
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::pll::SyncState;
-use crate::sim::setpoint_trace::{Recorder, SetpointTrace, TraceSummary};
+use crate::sim::setpoint_trace::{SetpointTrace, TraceSender, TraceSummary};
 use crate::sim::{server, Timing, VirtualBus};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
@@ -61,7 +61,7 @@ impl From<DriveState> for DriveStateView {
             torque: drive.torque,
             dc: drive.sync.into(),
             digital_inputs: drive.digital_inputs,
-            digital_outputs: (0..crate::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
+            digital_outputs: (0..crate::drive::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
             analog_output: drive.outputs.analog,
             would_be_f125: WouldBeF125View {
                 count: drive.would_be_f125.count,
@@ -127,7 +127,7 @@ impl PyVirtualBus {
     /// when it is lost on the line; raises FrameError for a malformed frame.
     fn process<'py>(&mut self, py: Python<'py>, payload: &[u8], time_ns: u64) -> PyResult<Option<Bound<'py, PyBytes>>> {
         let mut frame = payload.to_vec();
-        let delivery = self.bus.process(&mut frame, time_ns).map_err(Error::from).py()?;
+        let delivery = self.bus.process(&mut frame, time_ns).py()?;
         Ok((delivery == Delivery::Returned).then(|| PyBytes::new(py, &frame)))
     }
 
@@ -135,7 +135,7 @@ impl PyVirtualBus {
     fn al_status(&self, position: usize) -> PyResult<(u16, u16)> {
         self.check(position)?;
         let (state, error, code) = self.bus.slave(position).al_status();
-        Ok((state as u16 | if error { crate::al::AL_ERROR_FLAG } else { 0 }, code))
+        Ok((state as u16 | if error { crate::ethercat::al::AL_ERROR_FLAG } else { 0 }, code))
     }
 
     /// Lets bus time `time_ns` pass with no frame: the drives' firmware and motors run up to it.
@@ -346,8 +346,8 @@ pub struct PySetpointTrace {
 }
 
 impl PySetpointTrace {
-    fn recorder(&self, drives: usize) -> PyResult<Recorder> {
-        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).recorder(drives).py()
+    fn sender(&self, drives: usize) -> PyResult<TraceSender> {
+        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).sender(drives).py()
     }
 }
 
@@ -454,7 +454,7 @@ fn run_until_signal(
     }
     let stats = match py.allow_threads(|| worker.join()) {
         Ok(result) => result.py()?,
-        Err(_) => return Err(Unavailable::SimulatorPanicked.into()).py(),
+        Err(_) => return Err(Unavailable::SimulatorPanicked).py(),
     };
     if let Some(on_stop) = on_stop {
         on_stop.call1((ServerStatsView::from(stats),))?;
@@ -490,7 +490,7 @@ fn serve_udp(
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
     let bus = controlled_bus(count, (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    let trace = setpoint_trace.map(|t| t.sender(count)).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_udp(address, bus, stop, trace))
 }
 
@@ -515,7 +515,7 @@ fn serve_iface(
 ) -> PyResult<()> {
     let iface = iface.to_owned();
     let bus = controlled_bus(count, (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    let trace = setpoint_trace.map(|t| t.sender(count)).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
 }
 

@@ -25,7 +25,7 @@
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender};
 use std::time::Duration;
 
-use crate::ds402::State;
+use crate::drive::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
@@ -131,7 +131,7 @@ pub enum Change {
     Switch {
         /// Drive position.
         position: usize,
-        /// The switch's name, one [`crate::io::Switch::from_name`] knows.
+        /// The switch's name, one [`crate::drive::io::Switch::from_name`] knows.
         name: String,
         /// Whether it is active.
         active: bool,
@@ -477,7 +477,7 @@ impl ControlledBus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::sim::Timing;
 
     /// One BRD of the AL status through `bus` at `now_ns`.

@@ -12,8 +12,8 @@
 //! register behaving like a mailbox (a second write before the firmware read the first is
 //! refused, as the real drive refuses SOEM's quick second write of 0x0120).
 
-use crate::frame::{Addressing, Command, DatagramMut};
-use crate::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
+use crate::ethercat::frame::{Addressing, Command, DatagramMut};
+use crate::ethercat::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
 use crate::sim::sync_manager::{self, SyncManager, CONTROL_WATCHDOG, SM_COUNT};
 
 /// Number of FMMUs of the AKD's ESC: a master needs two for process data (outputs, inputs)
@@ -448,7 +448,7 @@ fn old_repeat_bits(esc: &Esc, at: usize, len: usize) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{for_each_datagram_mut, FrameBuilder};
+    use crate::ethercat::frame::{for_each_datagram_mut, FrameBuilder};
 
     const NOW: Arrival = Arrival { port0_ns: 1_000, port1_ns: None };
 
@@ -479,7 +479,7 @@ mod tests {
     fn a_datagram_longer_than_ethernet_carries_is_served_to_its_end() {
         // A frame header announces up to 2047 bytes, more than an Ethernet frame carries, and a
         // link may bring such a frame all the same: its datagram at ADO 0xFFFF ends 2035 bytes on.
-        let len = 0x07FF - crate::frame::DATAGRAM_HEADER_LEN - crate::frame::WKC_LEN;
+        let len = 0x07FF - crate::ethercat::frame::DATAGRAM_HEADER_LEN - crate::ethercat::frame::WKC_LEN;
         let mut frame = vec![0u8; 2 + 0x07FF];
         frame[..2].copy_from_slice(&(0x1000u16 | 0x07FF).to_le_bytes());
         frame[2..12].copy_from_slice(&[Command::Aprd as u8, 0, 0, 0, 0xFF, 0xFF, len as u8, (len >> 8) as u8, 0, 0]);
