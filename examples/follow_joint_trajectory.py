@@ -44,7 +44,7 @@ def duration(seconds: float) -> Duration:
 
 def goal(joints: list[str], points: list[tuple[list[float], float]]) -> FollowJointTrajectory.Goal:
     """A goal through `points` (positions, seconds from the start), each at rest, with the tolerances: each joint
-    within 0.05 rad of the path, within 0.01 rad of the last point and slower than 0.05 rad/s there, at most 0.5 s
+    within 0.1 rad of the path, within 0.01 rad of the last point and slower than 0.05 rad/s there, at most 0.5 s
     after its time."""
     trajectory = JointTrajectory(
         joint_names=joints,
@@ -54,7 +54,7 @@ def goal(joints: list[str], points: list[tuple[list[float], float]]) -> FollowJo
     )
     return FollowJointTrajectory.Goal(
         trajectory=trajectory,
-        path_tolerance=[JointTolerance(name=j, position=0.05) for j in joints],
+        path_tolerance=[JointTolerance(name=j, position=0.1) for j in joints],
         goal_tolerance=[JointTolerance(name=j, position=0.01, velocity=0.05) for j in joints],
         goal_time_tolerance=duration(0.5),
     )
