@@ -16,7 +16,7 @@ from action_msgs.msg import GoalStatus
 from builtin_interfaces.msg import Duration
 from rclpy.action import ActionClient
 from rclpy.node import Node
-from ros_helpers import enabled, run_goal, spin_until
+from ros_helpers import enabled, init, run_goal, spin_until
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -30,7 +30,7 @@ STATUS = {
     GoalStatus.STATUS_ABORTED: "ABORTED",
 }
 
-rclpy.init()
+init()
 client = Node("akd_follow_joint_trajectory_client")
 latest: list[JointState] = []
 client.create_subscription(JointState, "/joint_states", latest.append, 10)

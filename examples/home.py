@@ -13,31 +13,36 @@ import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from rclpy.node import Node
-from ros_helpers import enabled, run_goal
+from ros_helpers import enabled, init, run_goal, spin_until
+from sensor_msgs.msg import JointState
 
 from akd_ros.action import Home
 
 NODE = sys.argv[1] if len(sys.argv) > 1 else "/akd_node"
 STATUS = {GoalStatus.STATUS_SUCCEEDED: "SUCCEEDED", GoalStatus.STATUS_ABORTED: "ABORTED"}
 
-rclpy.init()
+init()
 client = Node("akd_homing_client")
 home = ActionClient(client, Home, f"{NODE}/home")
-positions: dict[str, float] = {}
+latest: list[JointState] = []
+client.create_subscription(JointState, "/joint_states", latest.append, 10)
+feedback = []
 
 
 def on_feedback(message) -> None:
     """Feedback at 10 Hz: each joint's homing state (statusword bits 13, 12, 10), position and whether homed."""
-    positions.update(zip(message.feedback.joints, message.feedback.position, strict=True))
+    feedback.append(message.feedback)
 
 
+spin_until(client, lambda: latest, "/joint_states")
 with enabled(client, NODE):
     # No joints named: every joint of the node, homed together (or one by one: homing.sequence).
     status, result = run_goal(client, home, Home.Goal(joints=[]), f"{NODE}/home", on_feedback)
+    positions = dict(zip(latest[-1].name, latest[-1].position, strict=True))
     for joint, outcome, homed, reason in zip(result.joints, result.outcome, result.homed, result.reason, strict=True):
-        where = f"{'homed' if homed else 'not homed'} at {positions[joint]:+.4f} rad"
+        where = f"{'homed' if homed else 'not homed'}, at {positions[joint]:+.4f} rad"
         print(f"{joint}: {outcome}, {where}" + (f" ({reason})" if reason else ""))
-    print(f"{NODE}/home: {STATUS.get(status, status)}: {result.message}")
+    print(f"{NODE}/home: {STATUS.get(status, status)} after {len(feedback)} feedback messages: {result.message}")
 client.destroy_node()
 rclpy.shutdown()
 sys.exit(0 if result.success else 1)

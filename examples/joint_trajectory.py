@@ -12,7 +12,7 @@ import rclpy
 from builtin_interfaces.msg import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
-from ros_helpers import enabled, spin_until
+from ros_helpers import enabled, init, spin_until
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -20,7 +20,7 @@ from akd_ros.msg import TrajectoryStatus
 
 NODE = sys.argv[1] if len(sys.argv) > 1 else "/akd_node"
 
-rclpy.init()
+init()
 client = Node("akd_trajectory_client")
 latest: list[JointState] = []
 statuses: list[TrajectoryStatus] = []

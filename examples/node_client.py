@@ -12,12 +12,12 @@ import time
 
 import rclpy
 from rclpy.node import Node
-from ros_helpers import NodeLog, enabled, spin_until
+from ros_helpers import NodeLog, enabled, init, spin_until
 from sensor_msgs.msg import JointState
 
 NODE = sys.argv[1] if len(sys.argv) > 1 else "/akd_node"
 
-rclpy.init()
+init()
 client = Node("akd_client")
 latest: list[JointState] = []
 client.create_subscription(JointState, "/joint_states", latest.append, 10)

@@ -1,6 +1,7 @@
-"""What the ROS examples share: spinning until something arrived, calling one of akd_node's services or actions, its
-joints enabled for a block (and disabled after it, however the block ends), and what the node logs about a command it
-refused (a topic has no answer; the node says why in its log, on /rosout)."""
+"""What the ROS examples share: rclpy started so that Ctrl-C stops the example and not rclpy under it, spinning until
+something arrived, calling one of akd_node's services or actions, its joints enabled for a block (and disabled after
+it, however the block ends, Ctrl-C too), and what the node logs about a command it refused (a topic has no answer; the
+node says why in its log, on /rosout)."""
 
 import sys
 import time
@@ -11,18 +12,28 @@ from rcl_interfaces.msg import Log
 from rclpy.action import ActionClient
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile
+from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 TIMEOUT_S = 30.0
 
 
+def init() -> None:
+    """rclpy.init without rclpy's own Ctrl-C handler, which would shut rclpy down under the example: Ctrl-C ends the
+    wait it comes in, and the example can still disable the joints."""
+    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+
+
 def spin_until(node: Node, done, what: str, timeout: float = TIMEOUT_S) -> None:
-    """Spins `node` until done() is true; exits naming `what` after `timeout` seconds."""
+    """Spins `node` until done() is true; exits naming `what` after `timeout` seconds, or at Ctrl-C."""
     deadline = time.monotonic() + timeout
-    while not done():
-        if time.monotonic() > deadline:
-            sys.exit(f"{node.get_name()}: no {what} within {timeout} s: is akd_node running?")
-        rclpy.spin_once(node, timeout_sec=0.05)
+    try:
+        while not done():
+            if time.monotonic() > deadline:
+                sys.exit(f"{node.get_name()}: no {what} within {timeout} s: is akd_node running?")
+            rclpy.spin_once(node, timeout_sec=0.05)
+    except KeyboardInterrupt:
+        sys.exit(f"{node.get_name()}: interrupted while waiting for {what}")
 
 
 def call(node: Node, service: str, kind=Trigger, request=None):

@@ -13,7 +13,7 @@ import sys
 
 import rclpy
 from rclpy.node import Node
-from ros_helpers import call
+from ros_helpers import call, init
 
 from akd_ros.srv import SdoRead, SdoWrite
 
@@ -22,7 +22,7 @@ JOINT = sys.argv[2] if len(sys.argv) > 2 else "joint_2"
 PREFIX = f"{NODE}/{JOINT}".rstrip("/")
 WINDOW = 0x6065  # UNSIGNED32, counts
 
-rclpy.init()
+init()
 client = Node("akd_sdo_client")
 
 

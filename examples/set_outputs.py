@@ -11,7 +11,7 @@ import sys
 
 import rclpy
 from rclpy.node import Node
-from ros_helpers import call, spin_until
+from ros_helpers import call, init, spin_until
 
 from akd_ros.msg import DriveIO
 from akd_ros.srv import SetOutputs
@@ -19,7 +19,7 @@ from akd_ros.srv import SetOutputs
 NODE = sys.argv[1] if len(sys.argv) > 1 else "/akd_node"
 JOINT = sys.argv[2] if len(sys.argv) > 2 else "joint_6"
 
-rclpy.init()
+init()
 client = Node("akd_outputs_client")
 io: list[DriveIO] = []
 client.create_subscription(DriveIO, f"{NODE}/{JOINT}/io", io.append, 10)
