@@ -42,11 +42,12 @@ with enabled(client, NODE):  # every joint in Operation enabled, each holding it
         return bool(log.lines)
 
     spin_until(client, lambda: arrived() or refused(), "joints at their targets")
-    if log.lines:
-        print(f"{NODE}: {log.lines[0]}")
+    refusal = None if arrived() else log.lines[0]
+    if refusal:
+        print(f"{NODE}: {refusal}")
     else:
         for name, position in zip(latest[-1].name, latest[-1].position, strict=True):
             print(f"{name}: {position:+.4f} rad")
 client.destroy_node()
 rclpy.shutdown()
-sys.exit(1 if log.lines else 0)
+sys.exit(1 if refusal else 0)
