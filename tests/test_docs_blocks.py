@@ -19,7 +19,7 @@ from markdown_it import MarkdownIt
 from myst_parser.mdit_to_docutils.base import default_slugify
 
 from akd_ros import params
-from support.docs_pages import MARKS, ROOT, blocks_of, pages
+from support.docs_pages import COMMAND_LANGUAGES, MARKS, ROOT, blocks_of, pages
 
 PAGES = pages()
 TOOLS = {e.name for e in distribution("akd_ros").entry_points if e.group == "console_scripts"}
@@ -106,7 +106,7 @@ def test_commands_are_typed_with_the_environment_they_run_from():
     found = []
     for page in PAGES:
         for block in blocks_of(page):
-            if block.language == "sh":
+            if block.language in COMMAND_LANGUAGES:
                 found += [f"{block.where}: {word}" for word in bare_commands(block.code, whole=True)]
         for token in MarkdownIt("commonmark").parse((ROOT / page).read_text(encoding="utf-8")):
             spans = [child.content for child in token.children or [] if child.type == "code_inline"]

@@ -7,11 +7,11 @@ A block's marks follow its language in the fence's info string, which neither Gi
 
 Every block is one of these, and tests/test_docs_blocks.py holds each to it:
 
-- a **command** (`sh`): run as written by tests/test_docs_commands.py, in order with the page's other blocks, to exit
-  status 0 (`exit=N`: N). `ready="TEXT"`: it runs until stopped (a node, a simulator), in the background once it
-  printed TEXT; the page's background commands get Ctrl-C (SIGINT; each must exit 0) at its end, and the last one
-  started before a block marked `after-ctrl-c`. `terminal="TEXT"`: a full-screen program, run in a terminal until
-  its screen shows TEXT, then quit with `q` (it must exit 0).
+- a **command** (`sh` or `bash`): run as written by tests/test_docs_commands.py, in order with the page's other
+  blocks, to exit status 0 (`exit=N`: N). `ready="TEXT"`: it runs until stopped (a node, a simulator), in the
+  background once it printed TEXT; the page's background commands get Ctrl-C (SIGINT; each must exit 0) at its end,
+  and the last one started before a block marked `after-ctrl-c`. `terminal="TEXT"`: a full-screen program, run in a
+  terminal until its screen shows TEXT, then quit with `q` (it must exit 0).
 - a **snippet** (`python`): run as a script with `.venv/bin/python`, in order, to exit status 0.
 - **output** (`text`, or no language): what the command or snippet just above it prints, compared line by line
   with numbers normalised (`...` on a line of its own stands for any lines); a part of the output may be shown.
@@ -31,10 +31,11 @@ from pathlib import Path
 from markdown_it import MarkdownIt
 
 ROOT = Path(__file__).resolve().parents[2]
-COMMAND_LANGUAGES = {"sh"}
+COMMAND_LANGUAGES = {"sh", "bash"}
 OUTPUT_LANGUAGES = {"text", ""}
 MARKS = {
     "sh": {"ready", "after-ctrl-c", "exit", "terminal", "run-by", "not-tested"},
+    "bash": {"ready", "after-ctrl-c", "exit", "terminal", "run-by", "not-tested"},
     "python": {"after-ctrl-c", "not-tested"},
     "text": {"not-tested"},
     "": {"not-tested"},
