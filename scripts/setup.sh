@@ -140,4 +140,8 @@ say "installing akd_ros into .venv-noros, without ROS"
 pip_install .venv-noros/bin/python "${NOROS_PACKAGES[@]}"
 CARGO_TARGET_DIR=native/target/noros pip_install .venv-noros/bin/python --no-build-isolation -e .
 .venv-noros/bin/python -c 'from akd_ros import _native, params' || die "akd_ros does not import in .venv-noros"
+# akd-zenohd, the Zenoh router akd_node over Zenoh needs where no ROS install brings rmw_zenohd, comes with akd_ros.
+for venv in .venv .venv-noros; do
+    "$venv/bin/akd-zenohd" --help >/dev/null || die "$venv has no Zenoh router (akd-zenohd) after the install"
+done
 say "ready: .venv/bin/akd_node --ros-args --params-file config/akd_sim.yaml, bash scripts/test.sh"

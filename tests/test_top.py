@@ -250,3 +250,27 @@ def test_attached_over_zenoh_shows_faults_and_enables_with_confirmation(tmp_path
             lambda: ZenohSource("/akd_node", [endpoint]),
             without_ros=True,
         )
+
+
+def test_attached_over_zenoh_with_no_router_says_so_in_one_line():
+    from akd_ros.top.zenoh_source import ZenohSource
+    from support.zenoh import free_tcp_port
+
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+
+    async def scenario(source: ZenohSource) -> None:
+        app = Top(source, refresh_s=0.05)
+        async with app.run_test(size=(200, 30)) as pilot:
+            await until(pilot, lambda: "no Zenoh router" in app.bus_text, "the hint in the bus line")
+            assert app.bus_text.splitlines()[0] == (
+                f"bus /akd_node (no Zenoh router reached at {endpoint}: start one, e.g. .venv/bin/akd-zenohd, or "
+                "give --connect ENDPOINT): "
+            )
+            assert app.table.row_count == 0
+            await pilot.press("q")
+
+    source = ZenohSource("/akd_node", [endpoint])
+    try:
+        asyncio.run(scenario(source))
+    finally:
+        source.close()

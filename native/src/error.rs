@@ -9,16 +9,16 @@
 use std::borrow::Cow;
 use std::fmt;
 
-use crate::coe::SdoAbortCode;
-pub use crate::eoe::EoeError;
-pub use crate::foe::FoeError;
-pub use crate::frame::FrameError;
-pub use crate::link_spec::LinkSpecError;
-pub use crate::mailbox::MailboxError;
-pub use crate::pdo::PdoError;
+pub use crate::drive::pdo::PdoError;
+pub use crate::drive::trajectory::TrajectoryError;
+use crate::ethercat::coe::SdoAbortCode;
+pub use crate::ethercat::eoe::EoeError;
+pub use crate::ethercat::foe::FoeError;
+pub use crate::ethercat::frame::FrameError;
+pub use crate::ethercat::link_spec::LinkSpecError;
+pub use crate::ethercat::mailbox::MailboxError;
+pub use crate::ethercat::sii::SiiError;
 pub use crate::setting::SettingError;
-pub use crate::sii::SiiError;
-pub use crate::trajectory::TrajectoryError;
 pub use crate::wire_code::UnknownCode;
 
 /// A name that is none of the allowed ones; the text lists them.
@@ -158,6 +158,13 @@ pub enum Unavailable {
         /// Slave position.
         slave: u16,
     },
+    /// Process data for a slave whose SII describes no sync manager to carry them.
+    NoSyncManager {
+        /// Slave position.
+        slave: u16,
+        /// The sync manager (2 for outputs, 3 for inputs).
+        n: u8,
+    },
     /// A latch asked of a slave whose mapping carries none.
     NoLatch {
         /// Slave position.
@@ -272,6 +279,9 @@ impl fmt::Display for Unavailable {
                 write!(f, "the drive cannot be sequenced: its mapping lacks {}", missing.join(" and "))
             }
             Unavailable::NoMapping { slave } => write!(f, "slave {slave} has no process-data mapping"),
+            Unavailable::NoSyncManager { slave, n } => {
+                write!(f, "slave {slave}'s SII describes no sync manager {n} to carry its process data")
+            }
             Unavailable::NoLatch { slave } => write!(
                 f,
                 "slave {slave}'s mapping carries no latch: map latch control 0x20A4 and latch status 0x20A5 with a \
@@ -416,9 +426,9 @@ pub enum Error {
         /// The position.
         slave: u16,
         /// What the scan found there.
-        expected: crate::sii::Identity,
+        expected: crate::ethercat::sii::Identity,
         /// What answers now.
-        found: crate::sii::Identity,
+        found: crate::ethercat::sii::Identity,
     },
     /// A slave position that is not on the bus.
     NoSuchSlave {

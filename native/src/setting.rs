@@ -72,7 +72,7 @@ pub enum SettingError {
         /// The line as given.
         line: String,
         /// What is wrong with it.
-        error: crate::link_spec::SimLineError,
+        error: crate::ethercat::link_spec::SimLineError,
     },
     /// A virtual AKD's mailbox size outside what the simulator builds.
     MailboxSize {
@@ -106,6 +106,8 @@ pub enum SettingError {
     Switch {
         /// The name given.
         name: String,
+        /// The switches' names.
+        allowed: Vec<&'static str>,
     },
     /// An analog voltage that is not a finite number within the range its 16-bit object holds.
     AnalogVoltage {
@@ -239,7 +241,7 @@ pub enum SettingError {
         /// The product, as a line spec names it.
         product: &'static str,
         /// What is wrong with the image.
-        error: crate::sii::SiiError,
+        error: crate::ethercat::sii::SiiError,
     },
     /// A burst of simulated line faults of a negative number of frames.
     FrameCount {
@@ -310,10 +312,7 @@ impl fmt::Display for SettingError {
             SettingError::TogglePosition { input, position } => {
                 write!(f, "toggle position {position} of digital input {input} is not a finite number of counts")
             }
-            SettingError::Switch { name } => {
-                let names: Vec<_> = crate::io::Switch::ALL.iter().map(|s| s.name()).collect();
-                write!(f, "switch {name:?} is not one of {}", names.join(", "))
-            }
+            SettingError::Switch { name, allowed } => write!(f, "switch {name:?} is not one of {}", allowed.join(", ")),
             SettingError::AnalogVoltage { what, volts, max } => {
                 write!(f, "{what} {volts} V: allowed a finite voltage within ±{max:.4} V")
             }

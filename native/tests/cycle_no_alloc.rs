@@ -13,17 +13,18 @@ use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{handshake, Config, CycleThread, RealTime, Snapshot};
-use akd_native::ds402::{Mode, State};
-use akd_native::link::udp::Udp;
-use akd_native::link_spec::MissedFrames;
-use akd_native::master::Master;
+use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::ds402::{Mode, State};
+use akd_native::drive::trajectory::Knot;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link::udp::Udp;
+use akd_native::ethercat::link_spec::MissedFrames;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::{server, Timing, VirtualBus};
-use akd_native::trajectory::Knot;
 
 #[path = "support/ethernet.rs"]
 mod ethernet;
@@ -114,7 +115,7 @@ fn loop_allocates_nothing(pipelined: bool) {
     m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
     let mac = [0x02, 0x01, 0x05, 0x30, 0x10, 0x01];
     let ip = std::net::Ipv4Addr::new(192, 168, 0, 10);
-    let parameters = akd_native::eoe::IpParameters {
+    let parameters = akd_native::ethercat::eoe::IpParameters {
         mac: Some(mac),
         ip: Some(ip),
         subnet_mask: Some(std::net::Ipv4Addr::new(255, 255, 255, 0)),

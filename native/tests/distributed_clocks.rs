@@ -8,13 +8,13 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
-use akd_native::dc;
 use akd_native::error::Result;
-use akd_native::frame::{self, Command};
-use akd_native::link::Link;
-use akd_native::master::Master;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::dc;
+use akd_native::ethercat::frame::{self, Command};
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::pll::{SyncSource, SyncState};
 

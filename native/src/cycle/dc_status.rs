@@ -1,11 +1,11 @@
 //! Distributed clocks as the cycle sees them, for other threads: the set-up (SYNC0 cycle and
 //! shift, reference clock, FBUS.PARAM02 per drive) as it was when the cycle started, and every
 //! slave's system-time difference, which the cyclic frame reads of one slave per cycle in turn
-//! ([`crate::master::cyclic`]) and the thread publishes in atomics after each exchange.
+//! ([`crate::ethercat::master::cyclic`]) and the thread publishes in atomics after each exchange.
 
 use std::sync::atomic::{AtomicI64, AtomicU64, Ordering};
 
-use crate::master::clocks::{Clock, DcSlave};
+use crate::ethercat::master::clocks::{Clock, DcSlave};
 
 /// A difference not read yet.
 const UNREAD: i64 = i64::MIN;

@@ -14,10 +14,10 @@ use std::time::{Duration, Instant};
 
 use crate::cycle::seqlock::SeqBytes;
 use crate::error::Result;
-use crate::frame::MAX_PAYLOAD_LEN;
-use crate::link::Link;
-use crate::master::restore::{Restore, SlaveSync};
-use crate::master::Master;
+use crate::ethercat::frame::MAX_PAYLOAD_LEN;
+use crate::ethercat::link::Link;
+use crate::ethercat::master::restore::{Restore, SlaveSync};
+use crate::ethercat::master::Master;
 
 /// Cycles without an answer after which a slave is taken as lost (the AKD's own limit).
 pub const LOST_AFTER: u32 = crate::cycle::supervision::DRIVE_MISSED_FRAME_LIMIT;
@@ -166,7 +166,7 @@ impl Link for RelayLink {
         if n == 0 {
             return Ok(None);
         }
-        crate::link::copy_reply(&reply[..n], rx).map(Some)
+        crate::ethercat::link::copy_reply(&reply[..n], rx).map(Some)
     }
 
     fn describe(&self) -> String {
@@ -236,7 +236,7 @@ impl SlaveRecovery {
 
 /// What [`Presence::observe`] saw change.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Change {
+pub enum PresenceChange {
     /// The slave is lost from this cycle on: `report` when nothing else reported it yet (a
     /// slave that left Op was reported as such).
     Lost {
@@ -263,11 +263,11 @@ impl Presence {
     /// Takes one cycle: whether the slave answered its supervision reads, and whether it is in
     /// Op. Lost after [`LOST_AFTER`] cycles unanswered or when it answers out of Op; back when
     /// it answers in Op again.
-    pub fn observe(&mut self, answered: bool, in_op: bool, now: (u64, u64)) -> Option<Change> {
+    pub fn observe(&mut self, answered: bool, in_op: bool, now: (u64, u64)) -> Option<PresenceChange> {
         if let Some(since) = self.lost {
             if in_op {
                 *self = Presence::default();
-                return Some(Change::Back { since });
+                return Some(PresenceChange::Back { since });
             }
             return None;
         }
@@ -277,12 +277,12 @@ impl Presence {
         }
         if answered {
             self.lost = Some(now);
-            return Some(Change::Lost { report: false, missing: self.missing });
+            return Some(PresenceChange::Lost { report: false, missing: self.missing });
         }
         self.missing += 1;
         if self.missing >= LOST_AFTER {
             self.lost = Some(now);
-            return Some(Change::Lost { report: true, missing: self.missing });
+            return Some(PresenceChange::Lost { report: true, missing: self.missing });
         }
         None
     }
@@ -382,11 +382,11 @@ mod tests {
         for cycle in 1..LOST_AFTER as u64 {
             assert_eq!(p.observe(false, false, (cycle, cycle)), None);
         }
-        assert_eq!(p.observe(false, false, (8, 8)), Some(Change::Lost { report: true, missing: LOST_AFTER }));
+        assert_eq!(p.observe(false, false, (8, 8)), Some(PresenceChange::Lost { report: true, missing: LOST_AFTER }));
         assert!(p.lost());
         // Answering out of Op (being restored) keeps it lost; Op brings it back.
         assert_eq!(p.observe(true, false, (9, 9)), None);
-        assert_eq!(p.observe(true, true, (10, 10)), Some(Change::Back { since: (8, 8) }));
+        assert_eq!(p.observe(true, true, (10, 10)), Some(PresenceChange::Back { since: (8, 8) }));
         assert!(!p.lost());
     }
 
@@ -398,7 +398,10 @@ mod tests {
         for cycle in 3..3 + LOST_AFTER as u64 - 1 {
             assert_eq!(p.observe(false, false, (cycle, cycle)), None);
         }
-        assert_eq!(p.observe(true, false, (20, 20)), Some(Change::Lost { report: false, missing: LOST_AFTER - 1 }));
+        assert_eq!(
+            p.observe(true, false, (20, 20)),
+            Some(PresenceChange::Lost { report: false, missing: LOST_AFTER - 1 })
+        );
     }
 
     #[test]

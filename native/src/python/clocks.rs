@@ -5,15 +5,15 @@ use pyo3::prelude::*;
 
 use super::IntoPyResult;
 use crate::cycle::dc_status::DcStatus;
-use crate::link_spec::LinkSpec;
-use crate::master::clocks::DcSlave;
+use crate::ethercat::link_spec::LinkSpec;
+use crate::ethercat::master::clocks::DcSlave;
 
 /// Whether `link` runs distributed clocks by default: a network interface does, as TwinCAT runs
 /// the AKD; "sim", "sim:N" and "udp://HOST:PORT" do not, as their frames' timing is not a
 /// wire's. Raises ConfigError for a link spec that names no bus.
 #[pyfunction]
 fn dc_by_default(link: &str) -> PyResult<bool> {
-    Ok(link.parse::<LinkSpec>().map_err(crate::error::Error::from).py()?.runs_dc_by_default())
+    Ok(link.parse::<LinkSpec>().py()?.runs_dc_by_default())
 }
 
 /// `Cycle.dc_status()`: {"active": False} without distributed clocks; with them "active",
@@ -36,7 +36,7 @@ pub(super) enum DcStatusView {
 }
 
 /// One drive of `dc_status()["drives"]`: "position", "fbus_param02" (None: unknown, nothing
-/// was written; see [`crate::master::clocks::DcSlave::fbus_param02`]) and
+/// was written; see [`crate::ethercat::master::clocks::DcSlave::fbus_param02`]) and
 /// "system_time_difference_ns" (None before the first read).
 #[derive(IntoPyObject)]
 pub(super) struct DcDriveView {

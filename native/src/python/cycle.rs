@@ -16,7 +16,6 @@ use pyo3::types::{PyBytes, PyDict};
 
 use super::master::PyMaster;
 use super::{IntoPyResult, Merged};
-use crate::akd_fault;
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
 use crate::cycle::rt::{self, RealTime};
 use crate::cycle::samples::Sample;
@@ -24,7 +23,8 @@ use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
-use crate::ds402::State;
+use crate::drive::akd_fault;
+use crate::drive::ds402::State;
 use crate::error::{Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
@@ -247,9 +247,9 @@ impl From<Event> for EventView {
                     statusword,
                     ds402_state: ds402_state(statusword),
                     al_status,
-                    al_state: (al_status != 0).then(|| crate::al::state_name(al_status)),
+                    al_state: (al_status != 0).then(|| crate::ethercat::al::state_name(al_status)),
                     al_status_code,
-                    al_status_code_name: crate::al::AlStatusCode(al_status_code).name(),
+                    al_status_code_name: crate::ethercat::al::AlStatusCode(al_status_code).name(),
                     action: action.describe(),
                 }
             }
@@ -478,7 +478,7 @@ impl PyCycle {
         })?;
         let timeout = super::seconds(timeout, "timeout")?;
         let cycle = &self.cycle;
-        let outcome = py.allow_threads(|| {
+        let outcome = py.allow_threads(|| -> crate::error::Result<Option<String>> {
             let deadline = std::time::Instant::now() + timeout;
             loop {
                 let status = cycle.drive_status(position)?;
@@ -731,8 +731,8 @@ impl PyCycle {
     /// (index, subindex, bit length, byte offset within the slave's data) in wire order.
     fn mapping(&self, position: u16) -> PyResult<MappingView> {
         let (rx, tx) = self.cycle.mapping(position).py()?;
-        let layout = |entries: &[crate::pdo::PdoEntry]| {
-            crate::pdo::layout(entries.iter().copied())
+        let layout = |entries: &[crate::ethercat::pdo::PdoEntry]| {
+            crate::ethercat::pdo::layout(entries.iter().copied())
                 .map(|(offset, e)| (e.index, e.subindex, e.bits, offset))
                 .collect()
         };

@@ -3,7 +3,7 @@
 
 use pyo3::prelude::*;
 
-use crate::link_spec::{self as spec, LinkSpec};
+use crate::ethercat::link_spec::{self as spec, LinkSpec};
 
 /// A parsed link spec: "kind" ("sim", "udp" or "interface") and the one field of that kind,
 /// the others None.

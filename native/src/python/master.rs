@@ -10,18 +10,20 @@ use std::time::Duration;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use super::eeprom::Identity;
+use super::eeprom::IdentityView;
 use super::IntoPyResult;
 use super::Merged;
-use crate::al::AlState;
-use crate::coe::{Emergency, ObjectCode, OdListType};
+use crate::drive::akd::AkdSlave;
+use crate::drive::pdo::Mapping;
+use crate::drive::scaling::{self, PositionScaling};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
-use crate::link::{self, Link};
-use crate::link_spec::LinkSpec;
-use crate::master::sdo_info::{EntryInfo, ObjectInfo};
-use crate::master::{self, Mapping, SlaveRef};
-use crate::pdo::PdoEntry;
-use crate::scaling::{self, PositionScaling};
+use crate::ethercat::al::AlState;
+use crate::ethercat::coe::{Emergency, ObjectCode, OdListType};
+use crate::ethercat::link::{self, Link};
+use crate::ethercat::link_spec::LinkSpec;
+use crate::ethercat::master::sdo_info::{EntryInfo, ObjectInfo};
+use crate::ethercat::master::{self, SlaveRef};
+use crate::ethercat::pdo::PdoEntry;
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
 use crate::sim::{Timing, VirtualBus};
@@ -222,7 +224,7 @@ impl PyMaster {
         py.allow_threads(|| -> crate::error::Result<PyMaster> {
             let Opened { link: inner, simulator, warnings } = open_link(link)?;
             let inner: Box<dyn Link> = match pcap {
-                Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
+                Some(path) => Box::new(link::pcap::CapturingLink::new(inner, path)?),
                 None => inner,
             };
             Ok(PyMaster { master: Mutex::new(Some(master::Master::new(inner, timeout))), simulator, warnings })
@@ -250,7 +252,7 @@ impl PyMaster {
     /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
     /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
     /// what the scan found before it reset the bus.
-    fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, Identity>>> {
+    fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, IdentityView>>> {
         self.with_master(py, |m| {
             m.scan()?;
             (0..m.slaves().len() as u16)
@@ -270,7 +272,7 @@ impl PyMaster {
                         mailbox_protocols: slave.sii.header.mailbox_protocols,
                         dc: slave.has_dc(),
                     };
-                    Ok(Merged(rest, Identity::of(&slave.sii)))
+                    Ok(Merged(rest, IdentityView::of(&slave.sii)))
                 })
                 .collect()
         })
@@ -348,19 +350,19 @@ impl PyMaster {
         dns_name: Option<String>,
         mac: Option<&str>,
     ) -> PyResult<String> {
-        use crate::eoe::{parse_ipv4, parse_mac, IpParameters};
+        use crate::ethercat::eoe::{parse_ipv4, parse_mac, IpParameters};
         let address = |what, text: Option<&str>| text.map(|t| parse_ipv4(what, t)).transpose();
         let parameters = IpParameters {
-            mac: mac.map(parse_mac).transpose().map_err(Error::from).py()?,
-            ip: Some(parse_ipv4("IP address", ip).map_err(Error::from).py()?),
-            subnet_mask: address("subnet mask", subnet_mask).map_err(Error::from).py()?,
-            gateway: address("default gateway", gateway).map_err(Error::from).py()?,
-            dns_server: address("DNS server", dns_server).map_err(Error::from).py()?,
+            mac: mac.map(parse_mac).transpose().py()?,
+            ip: Some(parse_ipv4("IP address", ip).py()?),
+            subnet_mask: address("subnet mask", subnet_mask).py()?,
+            gateway: address("default gateway", gateway).py()?,
+            dns_server: address("DNS server", dns_server).py()?,
             dns_name,
         };
         self.with_slave(py, position, |s| {
             let mac = parameters.mac.unwrap_or_else(|| master::eoe::default_mac(s.info().station_address));
-            s.eoe_set_ip(&crate::eoe::IpParameters { mac: Some(mac), ..parameters })?;
+            s.eoe_set_ip(&crate::ethercat::eoe::IpParameters { mac: Some(mac), ..parameters })?;
             Ok(mac.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(":"))
         })
     }

@@ -13,14 +13,14 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
-use crate::al::AlState;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
-use crate::link_spec::{MissedFrames, Pace, SimLine, SimLineError, SimProduct};
+use crate::ethercat::al::AlState;
+use crate::ethercat::link_spec::{MissedFrames, Pace, SimLine, SimLineError, SimProduct};
 use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::pll::SyncState;
-use crate::sim::setpoint_trace::{Recorder, SetpointTrace, TraceSummary};
+use crate::sim::setpoint_trace::{SetpointTrace, TraceSender, TraceSummary};
 use crate::sim::terminal::{self, TerminalState};
 use crate::sim::{server, sii_image, Timing, VirtualBus};
 
@@ -63,7 +63,7 @@ impl From<DriveState> for DriveStateView {
             torque: drive.torque,
             dc: drive.sync.into(),
             digital_inputs: drive.digital_inputs,
-            digital_outputs: (0..crate::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
+            digital_outputs: (0..crate::drive::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
             analog_output: drive.outputs.analog,
             would_be_f125: WouldBeF125View {
                 count: drive.would_be_f125.count,
@@ -177,7 +177,7 @@ impl PyVirtualBus {
     /// when it is lost on the line; raises FrameError for a malformed frame.
     fn process<'py>(&mut self, py: Python<'py>, payload: &[u8], time_ns: u64) -> PyResult<Option<Bound<'py, PyBytes>>> {
         let mut frame = payload.to_vec();
-        let delivery = self.bus.process(&mut frame, time_ns).map_err(Error::from).py()?;
+        let delivery = self.bus.process(&mut frame, time_ns).py()?;
         Ok((delivery == Delivery::Returned).then(|| PyBytes::new(py, &frame)))
     }
 
@@ -186,7 +186,7 @@ impl PyVirtualBus {
         self.check(position)?;
         let registers = self.bus.at(position).registers();
         let word = |at: u16| u16::from_le_bytes([registers[usize::from(at)], registers[usize::from(at) + 1]]);
-        Ok((word(crate::registers::AL_STATUS), word(crate::registers::AL_STATUS_CODE)))
+        Ok((word(crate::ethercat::registers::AL_STATUS), word(crate::ethercat::registers::AL_STATUS_CODE)))
     }
 
     /// Lets bus time `time_ns` pass with no frame: the drives' firmware and motors run up to it.
@@ -425,8 +425,8 @@ pub struct PySetpointTrace {
 }
 
 impl PySetpointTrace {
-    fn recorder(&self, drives: usize) -> PyResult<Recorder> {
-        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).recorder(drives).py()
+    fn sender(&self, drives: usize) -> PyResult<TraceSender> {
+        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).sender(drives).py()
     }
 }
 
@@ -534,7 +534,7 @@ fn run_until_signal(
     }
     let stats = match py.allow_threads(|| worker.join()) {
         Ok(result) => result.py()?,
-        Err(_) => return Err(Unavailable::SimulatorPanicked.into()).py(),
+        Err(_) => return Err(Unavailable::SimulatorPanicked).py(),
     };
     if let Some(on_stop) = on_stop {
         on_stop.call1((ServerStatsView::from(stats),))?;
@@ -572,7 +572,7 @@ fn serve_udp(
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
     let bus = controlled_bus((count, line), (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(bus.bus().len())).transpose()?;
+    let trace = setpoint_trace.map(|t| t.sender(bus.bus().len())).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_udp(address, bus, stop, trace))
 }
 
@@ -598,7 +598,7 @@ fn serve_iface(
 ) -> PyResult<()> {
     let iface = iface.to_owned();
     let bus = controlled_bus((count, line), (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(bus.bus().len())).transpose()?;
+    let trace = setpoint_trace.map(|t| t.sender(bus.bus().len())).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
 }
 

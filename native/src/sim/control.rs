@@ -28,9 +28,9 @@ use std::time::Duration;
 
 use std::sync::Arc;
 
-use crate::ds402::State;
+use crate::drive::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
-use crate::link_spec::SimProduct;
+use crate::ethercat::link_spec::SimProduct;
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
 use crate::sim::homing::{Failure as HomingFailure, Setup};
@@ -156,7 +156,7 @@ pub enum Change {
     Switch {
         /// Drive position.
         position: usize,
-        /// The switch's name, one [`crate::io::Switch::from_name`] knows.
+        /// The switch's name, one [`crate::drive::io::Switch::from_name`] knows.
         name: String,
         /// Whether it is active.
         active: bool,
@@ -551,7 +551,7 @@ impl ControlledBus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::sim::Timing;
 
     /// One BRD of the AL status through `bus` at `now_ns`.

@@ -18,8 +18,8 @@
 //! and an ET1200's digital output register 0x0F00, which a sync manager may guard as it guards
 //! process RAM.
 
-use crate::frame::{Addressing, Command, DatagramMut};
-use crate::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
+use crate::ethercat::frame::{Addressing, Command, DatagramMut};
+use crate::ethercat::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
 pub use crate::sim::esc_hardware::RAM_START;
 use crate::sim::esc_hardware::{EscHardware, SiiInterface};
 use crate::sim::sync_manager::{self, SyncManager, CONTROL_WATCHDOG, SM_COUNT};
@@ -427,7 +427,8 @@ impl Esc {
         match self.hardware.sii {
             SiiInterface::Emulated => sii_reg::EMULATION,
             SiiInterface::Eeprom { bit4_below_safeop, .. } => {
-                let below_safeop = self.memory[reg::AL_STATUS as usize] & 0x0F < crate::al::AlState::SafeOp as u8;
+                let below_safeop =
+                    self.memory[reg::AL_STATUS as usize] & 0x0F < crate::ethercat::al::AlState::SafeOp as u8;
                 let bit4 = if bit4_below_safeop && below_safeop { 0x0010 } else { 0 };
                 let busy = if now_ns < self.sii_busy_until_ns { sii_reg::BUSY } else { 0 };
                 sii_reg::READ_8_BYTES | bit4 | busy
@@ -621,7 +622,7 @@ fn old_repeat_bits(esc: &Esc, at: usize, len: usize) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{for_each_datagram_mut, FrameBuilder};
+    use crate::ethercat::frame::{for_each_datagram_mut, FrameBuilder};
 
     const NOW: Arrival = Arrival { port0_ns: 1_000, port1_ns: None };
 
@@ -652,7 +653,7 @@ mod tests {
     fn a_datagram_longer_than_ethernet_carries_is_served_to_its_end() {
         // A frame header announces up to 2047 bytes, more than an Ethernet frame carries, and a
         // link may bring such a frame all the same: its datagram at ADO 0xFFFF ends 2035 bytes on.
-        let len = 0x07FF - crate::frame::DATAGRAM_HEADER_LEN - crate::frame::WKC_LEN;
+        let len = 0x07FF - crate::ethercat::frame::DATAGRAM_HEADER_LEN - crate::ethercat::frame::WKC_LEN;
         let mut frame = vec![0u8; 2 + 0x07FF];
         frame[..2].copy_from_slice(&(0x1000u16 | 0x07FF).to_le_bytes());
         frame[2..12].copy_from_slice(&[Command::Aprd as u8, 0, 0, 0, 0xFF, 0xFF, len as u8, (len >> 8) as u8, 0, 0]);

@@ -3,9 +3,9 @@
 //! opens and closes with the AL state, the master's mailbox message taken out of SM0, replies
 //! put into SM1 when the master emptied it, and a reply repeated on the master's request.
 
-use crate::al::AlState;
-use crate::mailbox::HEADER_LEN;
-use crate::registers::{self as reg, sm_reg};
+use crate::ethercat::al::AlState;
+use crate::ethercat::mailbox::HEADER_LEN;
+use crate::ethercat::registers::{self as reg, sm_reg};
 use crate::sim::al_machine::AlMachine;
 use crate::sim::esc::Esc;
 use crate::sim::mailbox_server::MailboxServer;

@@ -116,7 +116,7 @@ impl Line {
         if take(&mut self.wrong_wkc) {
             self.counts.wrong_wkc += 1;
             // One less than the drives gave, or 1 where none answered: wrong either way.
-            let wrong = crate::frame::for_each_datagram_mut(payload, |dg| {
+            let wrong = crate::ethercat::frame::for_each_datagram_mut(payload, |dg| {
                 dg.wkc = if dg.wkc == 0 { 1 } else { dg.wkc - 1 };
             });
             debug_assert!(wrong.is_ok(), "a served frame is valid: {wrong:?}");

@@ -10,14 +10,16 @@
 
 use std::collections::VecDeque;
 
-use crate::al::AlState;
-use crate::coe::{
+use crate::error::EoeError;
+use crate::ethercat::al::AlState;
+use crate::ethercat::coe::{
     access, write_info_message, write_message, write_sdo_response, CoeHeader, CoeService, Emergency, EntryDescription,
     ObjectDescription, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse, COE_HEADER_LEN,
     SDO_INFO_HEADER_LEN, SDO_LEN,
 };
-use crate::error::EoeError;
-use crate::mailbox::{next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN};
+use crate::ethercat::mailbox::{
+    next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN,
+};
 use crate::sim::eoe_server::EoeServer;
 use crate::sim::foe_server::FoeServer;
 use crate::sim::od::ObjectDictionary;
@@ -487,7 +489,7 @@ fn object_list(od: &ObjectDictionary, list: OdListType) -> impl Iterator<Item = 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coe::{split_message, write_sdo_request};
+    use crate::ethercat::coe::{split_message, write_sdo_request};
 
     fn ask(server: &mut MailboxServer, od: &mut ObjectDictionary, request: &SdoRequest<'_>) -> Vec<u8> {
         let mut buf = [0u8; 64];

@@ -49,13 +49,12 @@ pub mod terminal_sii;
 pub mod terminals;
 pub mod watchdog;
 
-use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
-use crate::frame::{self, DatagramMut};
-use crate::link_spec::{MissedFrames, Pace, SimLine, SimProduct};
-use crate::pdo;
-use crate::registers as reg;
-use crate::sii::Identity;
+use crate::ethercat::al::{AlState, AlStatusCode};
+use crate::ethercat::frame::{self, DatagramMut};
+use crate::ethercat::link_spec::{MissedFrames, Pace, SimLine, SimProduct};
+use crate::ethercat::pdo;
+use crate::ethercat::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};
 pub use crate::sim::slave::VirtualSlave;
 use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE};
@@ -147,12 +146,12 @@ pub const AKD_MAILBOX_SIZE: u16 = 0x0400;
 
 /// The SII image of the AKD with `identity` declaring a standard mailbox of `size` bytes each
 /// way (the sync manager category says the same), everything else as the real drive's.
-fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate::sii::SiiError> {
-    let mut sii = crate::sii::Sii::parse(&sii_image::akd_sii_of(identity))?;
+fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate::ethercat::sii::SiiError> {
+    let mut sii = crate::ethercat::sii::Sii::parse(&sii_image::akd_sii_of(identity))?;
     let mailbox = &mut sii.header.standard_mailbox;
     (mailbox.receive_size, mailbox.send_size) = (size, size);
     for category in &mut sii.categories {
-        if let crate::sii::Category::SyncManagers(sms) = category {
+        if let crate::ethercat::sii::Category::SyncManagers(sms) = category {
             for sm in sms.iter_mut().take(2) {
                 sm.length = size;
             }
@@ -313,7 +312,7 @@ impl VirtualAkd {
         if self.al.state() != AlState::Op {
             return None;
         }
-        let base = reg::AKD_PROCESS_OUT as usize;
+        let base = crate::drive::pdo::AKD_PROCESS_OUT as usize;
         let outputs = self.esc.memory().get(base..base + pdo::bit_len(&self.rx_image) / 8)?;
         Some((&self.rx_image, outputs))
     }
@@ -339,7 +338,7 @@ impl VirtualAkd {
     }
 
     /// Queues an emergency message, as the drive sends on a fault.
-    pub fn emergency(&mut self, emergency: &crate::coe::Emergency) {
+    pub fn emergency(&mut self, emergency: &crate::ethercat::coe::Emergency) {
         let size = SyncManager::read(self.esc.memory(), 1).length as usize;
         self.mailbox.emergency(emergency, size);
     }
@@ -658,7 +657,7 @@ impl VirtualBus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
 
     fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
         served(VirtualBus::process, bus, now, (command, adp, ado), data)
@@ -827,8 +826,8 @@ mod tests {
         let mut bus = VirtualBus::with_timing(1, Timing::IMMEDIATE);
         to_preop(&mut bus);
         let mut request = vec![0u8; 0x400];
-        let parameters = crate::eoe::IpParameters { ip: Some([192, 0, 2, 10].into()), ..Default::default() };
-        crate::eoe::write_set_ip_request(&mut request, 1, &parameters).unwrap();
+        let parameters = crate::ethercat::eoe::IpParameters { ip: Some([192, 0, 2, 10].into()), ..Default::default() };
+        crate::ethercat::eoe::write_set_ip_request(&mut request, 1, &parameters).unwrap();
         exchange(&mut bus, 1, Command::Bwr, 0, 0x1800, &request);
         // The frame that lets the firmware take the request finds SM1 empty (status bit 3 clear):
         // the response is the IP stack's, which runs after the frame went back.
@@ -846,7 +845,8 @@ mod tests {
     fn a_small_mailbox_is_declared_in_the_sii_and_expected_at_init_to_preop() {
         // Re-encoding with the real size gives the real image: only the mailbox size changes.
         assert_eq!(sii_with_mailbox_size(sii_image::IDENTITY, AKD_MAILBOX_SIZE).unwrap(), sii_image::akd_sii());
-        let sii = crate::sii::Sii::parse(&sii_with_mailbox_size(sii_image::identity(3), 64).unwrap()).unwrap();
+        let sii =
+            crate::ethercat::sii::Sii::parse(&sii_with_mailbox_size(sii_image::identity(3), 64).unwrap()).unwrap();
         assert_eq!(sii.identity(), sii_image::identity(3));
         let mb = sii.header.standard_mailbox;
         assert_eq!((mb.receive_offset, mb.receive_size, mb.send_offset, mb.send_size), (0x1800, 64, 0x1C00, 64));
@@ -872,7 +872,7 @@ mod tests {
     }
 
     /// Payload of one BRD of the AL status.
-    fn al_status_frame() -> (Vec<u8>, crate::frame::Slot) {
+    fn al_status_frame() -> (Vec<u8>, crate::ethercat::frame::Slot) {
         let mut buf = vec![0u8; 64];
         let mut b = FrameBuilder::new(&mut buf);
         let slot = b.push(Command::Brd, 0, 0, 0x0130, &[0, 0]).unwrap();
@@ -892,7 +892,7 @@ mod tests {
         assert_eq!(bus.slave(1).al_status().0, AlState::PreOp);
         bus.slave_mut(1).power_cycle();
         assert_eq!(bus.slave(1).al_status(), (AlState::Init, false, 0));
-        assert_eq!(bus.slave(1).drive().state(), crate::ds402::State::NotReadyToSwitchOn);
+        assert_eq!(bus.slave(1).drive().state(), crate::drive::ds402::State::NotReadyToSwitchOn);
         assert_eq!(bus.slave(1).drive().fault(), None);
         assert_eq!(exchange(&mut bus, 3, Command::Aprd, 0xFFFF, 0x0010, &[0, 0]), (vec![0, 0], 1));
         let fresh = VirtualBus::new(2);

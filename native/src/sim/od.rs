@@ -7,10 +7,11 @@
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
-use crate::coe::{access, data_type, ObjectCode, SdoAbortCode};
-use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
-use crate::scaling;
-use crate::sii::Identity;
+use crate::drive::pdo::{self, FLEXIBLE_PDO_COUNT};
+use crate::drive::scaling;
+use crate::ethercat::coe::{access, data_type, ObjectCode, SdoAbortCode};
+use crate::ethercat::pdo::{bit_len, Direction, PdoEntry};
+use crate::ethercat::sii::Identity;
 use crate::sim::sii_image;
 
 /// Power-up following error window 0x6065: five revolutions.
@@ -290,11 +291,11 @@ fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(),
     let mut total = 0;
     for index in &assigned {
         let o = od.object(*index).ok_or(SdoAbortCode::VALUE_RANGE)?;
-        total += pdo::bit_len(&mapped_entries(o).collect::<Vec<_>>());
+        total += bit_len(&mapped_entries(o).collect::<Vec<_>>());
     }
     // Odd lengths are accepted here (the real drive powers up with one) and refused at the
     // PreOp→SafeOp transition with AL status code 0x001D/0x001E.
-    if total > direction.max_bytes() * 8 {
+    if total > pdo::max_bytes(direction) * 8 {
         return Err(SdoAbortCode::PDO_TOO_LONG);
     }
     Ok(())
@@ -415,9 +416,9 @@ impl ObjectDictionary {
             (0x20A7, "Latch 2 pn", INTEGER32, RO),
             (0x20B8, "ClearDigInputChangedBit", UNSIGNED16, RW),
             (0x3497, "Position offset", INTEGER32, RW),
-            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::dc::FBUS_PARAM02);
+            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::ethercat::dc::FBUS_PARAM02);
             // named as the AKD names the parameter, which the master's SDO information check reads.
-            (crate::dc::FBUS_PARAM02, crate::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
+            (crate::ethercat::dc::FBUS_PARAM02, crate::ethercat::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
             // Modelled likewise (see scaling::FBUS_PARAM05); bit 4 selects DS402 scaling.
             (scaling::FBUS_PARAM05, scaling::FBUS_PARAM05_NAME, UNSIGNED32, RW),
             (0x603F, "Error code", UNSIGNED16, RO),
@@ -587,7 +588,7 @@ impl ObjectDictionary {
     }
 
     /// Removes the object at `index`, if any: for tests of a drive that lacks an object the
-    /// virtual AKD has (e.g. [`crate::dc::FBUS_PARAM02`], whose index is not documented).
+    /// virtual AKD has (e.g. [`crate::ethercat::dc::FBUS_PARAM02`], whose index is not documented).
     pub fn remove(&mut self, index: u16) -> Option<Object> {
         let i = self.objects.binary_search_by_key(&index, |o| o.index).ok()?;
         Some(self.objects.remove(i))
@@ -707,7 +708,7 @@ mod tests {
         assert_eq!(od.read(0x1A03, 2).unwrap(), &0x606C_0020u32.to_le_bytes());
         assert_eq!(od.read(0x1C00, 3).unwrap(), &[3]);
         assert_eq!(od.read(0x1018, 1).unwrap(), &0x6Au32.to_le_bytes());
-        let rx: usize = od.assigned_pdos(Direction::Rx).iter().map(|(_, e)| pdo::bit_len(e)).sum();
+        let rx: usize = od.assigned_pdos(Direction::Rx).iter().map(|(_, e)| bit_len(e)).sum();
         assert_eq!(rx, 17 * 8);
         assert_eq!(od.cycle_time_ns(), Some(2_000_000));
         assert!(od.objects().windows(2).all(|w| w[0].index < w[1].index));

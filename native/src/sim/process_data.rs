@@ -6,9 +6,10 @@
 //! has an odd length (17 bytes at power-up, in the SOEM capture), 0x001E for the inputs, and
 //! 0x0017 when SM2/SM3 do not match the image.
 
-use crate::al::AlStatusCode;
-use crate::pdo::{self, Direction, PdoEntry};
-use crate::registers::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
+use crate::drive::pdo::is_padding;
+use crate::drive::pdo::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
+use crate::ethercat::al::AlStatusCode;
+use crate::ethercat::pdo::{self, Direction, PdoEntry};
 use crate::sim::od::ObjectDictionary;
 use crate::sim::sync_manager::{SyncManager, ACTIVATE_ENABLE};
 
@@ -53,7 +54,7 @@ pub fn check_safeop(od: &ObjectDictionary, memory: &[u8]) -> Result<(), AlStatus
 pub fn apply_outputs(od: &mut ObjectDictionary, memory: &[u8], image: &[PdoEntry]) {
     let base = AKD_PROCESS_OUT as usize;
     for (at, entry) in pdo::layout(image.iter().copied()) {
-        if !entry.is_padding() {
+        if !is_padding(entry) {
             let len = entry.byte_len();
             od.set(entry.index, entry.subindex, &memory[base + at..base + at + len]);
         }
@@ -82,7 +83,7 @@ pub fn refresh_inputs_at(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoE
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coe::access::WRITE_PREOP;
+    use crate::ethercat::coe::access::WRITE_PREOP;
 
     fn select_fixed(od: &mut ObjectDictionary, rx: u16, tx: u16) {
         for (assign, pdo) in [(0x1C12, rx), (0x1C13, tx)] {

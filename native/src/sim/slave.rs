@@ -2,8 +2,8 @@
 //! pass them.
 
 use crate::error::Result;
-use crate::frame::DatagramMut;
-use crate::link_spec::SimProduct;
+use crate::ethercat::frame::DatagramMut;
+use crate::ethercat::link_spec::SimProduct;
 use crate::sim::esc::Arrival;
 use crate::sim::terminal::{self, VirtualTerminal};
 use crate::sim::{sii_image, Timing, VirtualAkd};

@@ -18,14 +18,14 @@
 //! A terminal's SII image is read when the terminal is made: an image that cannot be read is
 //! refused there, naming the terminal and what is wrong.
 
-use crate::al::AlState;
-use crate::coe::{access, data_type, ObjectCode};
 use crate::error::{Result, SettingError};
-use crate::frame::DatagramMut;
-use crate::link_spec::SimProduct;
-use crate::pdo::PdoEntry;
-use crate::registers as reg;
-use crate::sii::Sii;
+use crate::ethercat::al::AlState;
+use crate::ethercat::coe::{access, data_type, ObjectCode};
+use crate::ethercat::frame::DatagramMut;
+use crate::ethercat::link_spec::SimProduct;
+use crate::ethercat::pdo::PdoEntry;
+use crate::ethercat::registers as reg;
+use crate::ethercat::sii::Sii;
 use crate::sim::al_machine::AlMachine;
 use crate::sim::esc::{Arrival, Esc, Events};
 use crate::sim::esc_hardware::{ET1100, ET1200};
@@ -355,7 +355,7 @@ impl Processor {
             ),
             (AlState::PreOp, AlState::SafeOp) => {
                 let (rx, tx) = process_data::images(od);
-                let bytes = |image: &[PdoEntry]| crate::pdo::bit_len(image).div_ceil(8);
+                let bytes = |image: &[PdoEntry]| crate::ethercat::pdo::bit_len(image).div_ceil(8);
                 let sm = |n| SyncManager::read(memory, n);
                 process_data::check_sync_manager(&sm(2), images::EL3102_OUTPUTS, bytes(&rx), true)?;
                 process_data::check_sync_manager(&sm(3), images::EL3102_INPUTS, bytes(&tx), false)
@@ -373,12 +373,16 @@ impl Processor {
 }
 
 /// 0x1C13 takes the EL3102's own TxPDOs only.
-fn tx_assignment(_: &ObjectDictionary, object: &od::Object, written: u8) -> Result<(), crate::coe::SdoAbortCode> {
+fn tx_assignment(
+    _: &ObjectDictionary,
+    object: &od::Object,
+    written: u8,
+) -> Result<(), crate::ethercat::coe::SdoAbortCode> {
     let chosen = object.unsigned(written) as u16;
     match written {
         0 if object.unsigned(0) <= 2 => Ok(()),
         1 | 2 if matches!(chosen, 0x1A00 | 0x1A01) => Ok(()),
-        _ => Err(crate::coe::SdoAbortCode::VALUE_RANGE),
+        _ => Err(crate::ethercat::coe::SdoAbortCode::VALUE_RANGE),
     }
 }
 
@@ -441,7 +445,7 @@ fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::sim::{Timing, VirtualBus};
 
     /// One datagram through `bus` at `now`: its data and working counter.

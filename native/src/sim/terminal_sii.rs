@@ -28,8 +28,8 @@
 //!   as the ClipX's image has them; names and E-bus current (130 mA) are Beckhoff's catalogue's.
 //!   Thin evidence throughout: what a master reads of it is consistent, not measured.
 
-use crate::mailbox::MailboxType;
-use crate::sii::{
+use crate::ethercat::mailbox::MailboxType;
+use crate::ethercat::sii::{
     category, fmmu_usage, sync_manager_type, Builder, Category, General, Header, Identity, MailboxLayout, SiiError,
     SiiPdo, SiiPdoEntry, SyncManager,
 };
@@ -303,7 +303,7 @@ fn digital_pdos(b: &mut Builder, pdo: u16, object: u16, entry: &str, channels: u
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sii::Sii;
+    use crate::ethercat::sii::Sii;
 
     #[test]
     fn every_image_encodes_and_reads_back() {
