@@ -226,6 +226,11 @@ pub enum Unavailable {
         /// Why not: closed, or taken by another server.
         why: &'static str,
     },
+    /// A virtual line with terminals asked of the master, which takes lines of AKDs only so far.
+    LineWithTerminals {
+        /// The line, as a spec names it.
+        line: String,
+    },
     /// The virtual AKDs are gone with their master or server.
     SimulatorGone,
     /// A virtual AKD whose bus served no frame in time to answer a query.
@@ -322,6 +327,11 @@ impl fmt::Display for Unavailable {
             ),
             Unavailable::SimulatorPanicked => write!(f, "the simulator thread panicked"),
             Unavailable::SetpointTrace { path, why } => write!(f, "the set-point trace {path} {why}"),
+            Unavailable::LineWithTerminals { line } => write!(
+                f,
+                "the virtual line {line} holds terminals, and the master takes lines of AKDs only so far: name AKDs \
+                 only (sim:N), or serve the line with akd-sim --line {line} to another master"
+            ),
             Unavailable::SimulatorGone => {
                 write!(f, "the virtual AKDs are gone: their master was closed or their server stopped")
             }

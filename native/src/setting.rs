@@ -67,10 +67,12 @@ pub enum SettingError {
         /// The value given.
         value: f64,
     },
-    /// A virtual AKD's Init→PreOp time that is no number of ms in 0..=10000.
-    InitToPreOp {
-        /// The time asked for, ms.
-        ms: f64,
+    /// A virtual line that is none (an unknown product, a terminal without a coupler in front).
+    SimLine {
+        /// The line as given.
+        line: String,
+        /// What is wrong with it.
+        error: crate::ethercat::link_spec::SimLineError,
     },
     /// A virtual AKD's mailbox size outside what the simulator builds.
     MailboxSize {
@@ -202,6 +204,45 @@ pub enum SettingError {
         /// Drives on the bus.
         count: usize,
     },
+    /// A virtual slave asked for what another kind of slave does (a fault of a terminal, the
+    /// I/O of a terminal of an AKD).
+    WrongSlave {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// What was asked, e.g. "fault".
+        what: &'static str,
+        /// The kind of slave that does it, e.g. "an AKD".
+        needs: &'static str,
+    },
+    /// A virtual terminal's input it does not have.
+    TerminalInput {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// The input asked for, from 1.
+        input: usize,
+        /// Its inputs of that kind (0: none).
+        count: usize,
+        /// "digital" or "analog".
+        kind: &'static str,
+    },
+    /// A virtual analog input terminal's input set beyond its range.
+    AnalogInputVolts {
+        /// The voltage asked for.
+        volts: f64,
+        /// The range's bound (±).
+        limit: f64,
+    },
+    /// A virtual terminal whose SII image cannot be read.
+    TerminalImage {
+        /// The product, as a line spec names it.
+        product: &'static str,
+        /// What is wrong with the image.
+        error: crate::ethercat::sii::SiiError,
+    },
     /// A burst of simulated line faults of a negative number of frames.
     FrameCount {
         /// The number asked for.
@@ -260,9 +301,7 @@ impl fmt::Display for SettingError {
             SettingError::Seconds { what, value } => {
                 write!(f, "{what} must be a non-negative number of seconds, got {value}")
             }
-            SettingError::InitToPreOp { ms } => {
-                write!(f, "a virtual AKD's Init->PreOp time of {ms} ms: allowed are 0 to 10000 ms")
-            }
+            SettingError::SimLine { line, error } => write!(f, "line {line:?}: {error}"),
             SettingError::MailboxSize { size, min, max } => {
                 write!(f, "a virtual AKD's mailbox of {size} bytes: allowed are {min} to {max}")
             }
@@ -317,6 +356,21 @@ impl fmt::Display for SettingError {
             ),
             SettingError::DrivePosition { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
+            }
+            SettingError::WrongSlave { position, product, what, needs } => {
+                write!(f, "{what} needs {needs}: the slave at position {position} is an {product}")
+            }
+            SettingError::TerminalInput { position, product, input, count: 0, kind } => {
+                write!(f, "{kind} input {input}: the {product} at position {position} has no {kind} inputs")
+            }
+            SettingError::TerminalInput { position, product, input, count, kind } => {
+                write!(f, "{kind} input {input}: the {product} at position {position} has {kind} inputs 1 to {count}")
+            }
+            SettingError::AnalogInputVolts { volts, limit } => {
+                write!(f, "analog input of {volts} V: allowed are -{limit} to {limit} V")
+            }
+            SettingError::TerminalImage { product, error } => {
+                write!(f, "the virtual {product}'s SII image cannot be read: {error}")
             }
             SettingError::FrameCount { frames } => {
                 write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")

@@ -2,7 +2,9 @@
 //! line and `Master(link)` take it. It is parsed here once, with no I/O, so every layer that
 //! checks a spec accepts and refuses the same ones; opening it is left to a layer that may see
 //! both the links and the simulator. The virtual AKDs' options are the spec's words too
-//! ([`MissedFrames`], [`Pace`]), so akd-sim, the bindings and the virtual AKD take them from here.
+//! ([`MissedFrames`], [`Pace`]), so akd-sim, the bindings and the virtual AKD take them from here,
+//! and so is a virtual line's list of slaves ([`SimLine`] of [`SimProduct`]s), which `sim:SPEC`
+//! and `akd-sim --line SPEC` both name.
 
 use std::fmt;
 use std::str::FromStr;
@@ -16,6 +18,13 @@ pub enum LinkSpecError {
         spec: String,
         /// The most virtual AKDs a bus may hold (the link spec's `MAX_SIM_COUNT`).
         max: usize,
+    },
+    /// `sim:SPEC` whose SPEC is no line of slaves the simulator makes.
+    SimLine {
+        /// The spec as given.
+        spec: String,
+        /// What is wrong with the line.
+        error: SimLineError,
     },
     /// `sim...?` with an option other than `missed=late|lost|warn` or `pace=real|immediate`,
     /// or one given twice.
@@ -49,9 +58,11 @@ impl LinkSpecError {
     /// none of them is told, and what the node's parameter check names as allowed.
     pub fn allowed_forms(max_sim_count: usize) -> String {
         format!(
-            "'sim', 'sim:N' (N 1..={max_sim_count}; either with options '?missed=late|lost|warn', \
-             '?pace=real|immediate', joined by '&'), 'udp://HOST:PORT' or a network interface name (with \
-             '?busy_poll=US' to busy-poll for the returning frame)"
+            "'sim', 'sim:N' (N 1..={max_sim_count} AKDs), 'sim:P1,P2,...' (the slaves in order, each one of {}; \
+             any of them with options '?missed=late|lost|warn', '?pace=real|immediate', joined by '&'), \
+             'udp://HOST:PORT' or a network interface name (with '?busy_poll=US' to busy-poll for the returning \
+             frame)",
+            SimProduct::allowed()
         )
     }
 }
@@ -60,8 +71,12 @@ impl fmt::Display for LinkSpecError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             LinkSpecError::SimCount { spec, max } => {
-                write!(f, "link {spec:?}: the number of virtual AKDs must be 1..={max}")
+                write!(
+                    f,
+                    "link {spec:?}: the number of virtual AKDs must be 1..={max} (or name the slaves, sim:P1,P2,...)"
+                )
             }
+            LinkSpecError::SimLine { spec, error } => write!(f, "link {spec:?}: {error}"),
             LinkSpecError::SimOption { spec } => write!(
                 f,
                 "link {spec:?}: the virtual AKDs take options after '?', joined by '&', each once: \
@@ -135,8 +150,9 @@ named_variants! {
     /// buses and are not about the drive's pace.
     #[derive(Default)]
     pub enum Pace {
-        /// The real drive's delays ([`crate::sim::Timing::REAL_DRIVE`]): Init→PreOp 17.5 ms, the
-        /// other AL requests 4.5 ms, a mailbox reply 1 ms after the request.
+        /// The real drive's delays ([`crate::sim::Timing::REAL_DRIVE`]): Init→PreOp 17.5 ms the
+        /// first time after power-up and 4.5 ms later, the other AL requests 4.5 ms, the first
+        /// mailbox reply 30 ms after the request and later ones 1 ms.
         #[default]
         Real => "real",
         /// Every request handled before the next frame.
@@ -153,18 +169,188 @@ impl Pace {
     }
 }
 
+named_variants! {
+    /// A slave the built-in simulator makes, as a line's spec names it (`sim:ek1100,el1004,akd`,
+    /// `akd-sim --line ...`): the virtual AKD, and Beckhoff terminals built from their SII images
+    /// (docs/howto/simulator.md says what each is made from and where the evidence is thin).
+    pub enum SimProduct {
+        /// A Kollmorgen AKD, the virtual AKD.
+        Akd => "akd",
+        /// A Beckhoff EK1100 EtherCAT coupler: the head of a station of E-bus terminals, no
+        /// process data.
+        Ek1100 => "ek1100",
+        /// A Beckhoff EL1004: 4 digital inputs, 24 V, 3 ms filter.
+        El1004 => "el1004",
+        /// A Beckhoff EL1008: 8 digital inputs, 24 V, 3 ms filter.
+        El1008 => "el1008",
+        /// A Beckhoff EL2004: 4 digital outputs, 24 V, 0.5 A.
+        El2004 => "el2004",
+        /// A Beckhoff EL2008: 8 digital outputs, 24 V, 0.5 A.
+        El2008 => "el2008",
+        /// A Beckhoff EL3102: 2 analog inputs, ±10 V differential, 16 bit, with a mailbox (CoE).
+        El3102 => "el3102",
+    }
+    /// The product's name as a line spec writes it, e.g. "el1004".
+    fn name;
+}
+
+impl SimProduct {
+    /// The product named `name`, in any case ("EL1004" or "el1004").
+    pub fn parse(name: &str) -> Option<Self> {
+        Self::ALL.into_iter().find(|p| p.name().eq_ignore_ascii_case(name))
+    }
+
+    /// Whether it sits on the E-bus of a coupler: an EL terminal, which needs an EK1100 or
+    /// another terminal in front of it.
+    pub fn is_ebus_terminal(self) -> bool {
+        !matches!(self, SimProduct::Akd | SimProduct::Ek1100)
+    }
+
+    /// Every product's name, as an error names the allowed ones: "akd, ek1100, el1004, ...".
+    pub fn allowed() -> String {
+        Self::ALL.map(Self::name).join(", ")
+    }
+}
+
+/// Why a text is not a virtual line (`sim:SPEC`, `akd-sim --line SPEC`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum SimLineError {
+    /// A slave that names no product the simulator makes (or an empty one: two commas in a
+    /// row, or one at an end).
+    UnknownProduct {
+        /// Its position on the line, from 0.
+        position: usize,
+        /// What the spec gave there.
+        name: String,
+    },
+    /// More slaves than a line may hold.
+    TooMany {
+        /// Slaves given.
+        count: usize,
+        /// The most a line holds ([`MAX_SIM_COUNT`]).
+        max: usize,
+    },
+    /// An E-bus terminal with neither a coupler nor a terminal in front of it, which a real
+    /// line cannot have: the E-bus is the coupler's.
+    NoCoupler {
+        /// Its position on the line, from 0.
+        position: usize,
+        /// The terminal.
+        product: SimProduct,
+    },
+}
+
+impl fmt::Display for SimLineError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimLineError::UnknownProduct { position, name } => write!(
+                f,
+                "the slave at position {position}, {name:?}, is no product the simulator makes: allowed are {} \
+                 (the slaves in order, separated by commas, e.g. ek1100,el1004,el2004,akd)",
+                SimProduct::allowed()
+            ),
+            SimLineError::TooMany { count, max } => {
+                write!(f, "a line of {count} slaves: the simulator makes lines of 1 to {max}")
+            }
+            SimLineError::NoCoupler { position, product } => write!(
+                f,
+                "the slave at position {position}, {}, is an E-bus terminal: an ek1100 or another terminal goes in \
+                 front of it, as on a real line",
+                product.name()
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SimLineError {}
+
+/// The slaves of a virtual line in the order frames pass them, 1 to [`MAX_SIM_COUNT`] of them,
+/// each E-bus terminal behind a coupler or another terminal.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct SimLine(Vec<SimProduct>);
+
+impl SimLine {
+    /// A line of `count` AKDs (`sim:N`, `akd-sim --count N`).
+    pub fn akds(count: usize) -> Result<Self, SimLineError> {
+        Self::of(vec![SimProduct::Akd; count])
+    }
+
+    /// The line of `products` in order, checked.
+    pub fn of(products: Vec<SimProduct>) -> Result<Self, SimLineError> {
+        if products.is_empty() || products.len() > MAX_SIM_COUNT {
+            return Err(SimLineError::TooMany { count: products.len(), max: MAX_SIM_COUNT });
+        }
+        for (position, &product) in products.iter().enumerate() {
+            let behind_a_coupler = position > 0 && products[position - 1] != SimProduct::Akd;
+            if product.is_ebus_terminal() && !behind_a_coupler {
+                return Err(SimLineError::NoCoupler { position, product });
+            }
+        }
+        Ok(SimLine(products))
+    }
+
+    /// The slaves, in order.
+    pub fn products(&self) -> &[SimProduct] {
+        &self.0
+    }
+
+    /// Number of slaves.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Always false: a line has at least one slave.
+    pub fn is_empty(&self) -> bool {
+        self.0.is_empty()
+    }
+
+    /// Whether every slave is an AKD (a line `sim:N` names).
+    pub fn only_akds(&self) -> bool {
+        self.0.iter().all(|p| *p == SimProduct::Akd)
+    }
+}
+
+impl FromStr for SimLine {
+    type Err = SimLineError;
+
+    /// The slaves' names in order, separated by commas: `ek1100,el1004,el2004,akd`.
+    fn from_str(spec: &str) -> Result<Self, Self::Err> {
+        let names: Vec<&str> = spec.split(',').collect();
+        if names.len() > MAX_SIM_COUNT {
+            return Err(SimLineError::TooMany { count: names.len(), max: MAX_SIM_COUNT });
+        }
+        let products = names
+            .iter()
+            .enumerate()
+            .map(|(position, name)| {
+                SimProduct::parse(name.trim())
+                    .ok_or_else(|| SimLineError::UnknownProduct { position, name: (*name).to_owned() })
+            })
+            .collect::<Result<_, _>>()?;
+        Self::of(products)
+    }
+}
+
+impl fmt::Display for SimLine {
+    /// The names in order, separated by commas.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0.iter().map(|p| p.name()).collect::<Vec<_>>().join(","))
+    }
+}
+
 /// A bus named by a link spec.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum LinkSpec {
-    /// `sim` (one) or `sim:N`, optionally with options after `?`, joined by `&`:
-    /// `missed=late|lost|warn`, `pace=real|immediate`. Virtual AKDs in this process.
+    /// `sim` (one AKD), `sim:N` (N AKDs) or `sim:P1,P2,...` (the slaves in order), optionally
+    /// with options after `?`, joined by `&`: `missed=late|lost|warn`, `pace=real|immediate`.
+    /// A virtual line in this process.
     Sim {
-        /// How many virtual AKDs, 1..=[`MAX_SIM_COUNT`].
-        count: usize,
-        /// How they judge missed frames: `late` (the default, as the real drive), `lost` or
+        /// The slaves, 1..=[`MAX_SIM_COUNT`] of them.
+        line: SimLine,
+        /// How its AKDs judge missed frames: `late` (the default, as the real drive), `lost` or
         /// `warn`.
         missed: MissedFrames,
-        /// How fast their firmware answers: `real` (the default) or `immediate`.
+        /// How fast its AKDs' firmware answers: `real` (the default) or `immediate`.
         pace: Pace,
     },
     /// `udp://HOST:PORT`: EtherCAT over UDP, e.g. to an akd-sim server.
@@ -227,8 +413,8 @@ impl FromStr for LinkSpec {
     }
 }
 
-/// `sim`, `sim:N`, each optionally followed by `?` and options joined by `&`, each at most
-/// once: `missed=late|lost|warn`, `pace=real|immediate`.
+/// `sim`, `sim:N`, `sim:P1,P2,...`, each optionally followed by `?` and options joined by `&`,
+/// each at most once: `missed=late|lost|warn`, `pace=real|immediate`.
 fn parse_sim(spec: &str) -> Result<LinkSpec, LinkSpecError> {
     let (bus, options) = spec.split_once('?').map_or((spec, None), |(bus, options)| (bus, Some(options)));
     let refused = || LinkSpecError::SimOption { spec: spec.to_owned() };
@@ -241,15 +427,17 @@ fn parse_sim(spec: &str) -> Result<LinkSpec, LinkSpecError> {
         };
         parsed.ok_or_else(refused)?;
     }
-    let count = match bus.strip_prefix("sim:") {
-        None => 1,
-        Some(count) => count
-            .parse()
-            .ok()
-            .filter(|n| (1..=MAX_SIM_COUNT).contains(n))
-            .ok_or_else(|| LinkSpecError::SimCount { spec: spec.to_owned(), max: MAX_SIM_COUNT })?,
-    };
-    Ok(LinkSpec::Sim { count, missed: missed.unwrap_or_default(), pace: pace.unwrap_or_default() })
+    let count_refused = || LinkSpecError::SimCount { spec: spec.to_owned(), max: MAX_SIM_COUNT };
+    let line = match bus.strip_prefix("sim:") {
+        None => SimLine::akds(1),
+        Some(count) if count.is_empty() || count.bytes().all(|b| b.is_ascii_digit()) => {
+            let count = count.parse().ok().filter(|n| (1..=MAX_SIM_COUNT).contains(n)).ok_or_else(count_refused)?;
+            SimLine::akds(count)
+        }
+        Some(slaves) => slaves.parse(),
+    }
+    .map_err(|error| LinkSpecError::SimLine { spec: spec.to_owned(), error })?;
+    Ok(LinkSpec::Sim { line, missed: missed.unwrap_or_default(), pace: pace.unwrap_or_default() })
 }
 
 /// The forms a link spec takes, as [`LinkSpecError`] names them.
@@ -272,11 +460,16 @@ fn is_host_and_port(address: &str) -> bool {
 }
 
 impl fmt::Display for LinkSpec {
-    /// The spec in the form it was parsed from (`sim:1` for `sim`).
+    /// The spec in the form it was parsed from (`sim:1` for `sim`, `sim:N` for a line of N AKDs
+    /// however named, a line's products in lower case).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            LinkSpec::Sim { count, missed, pace } => {
-                write!(f, "sim:{count}")?;
+            LinkSpec::Sim { line, missed, pace } => {
+                if line.only_akds() {
+                    write!(f, "sim:{}", line.len())?;
+                } else {
+                    write!(f, "sim:{line}")?;
+                }
                 let missed = (*missed != MissedFrames::default()).then(|| format!("missed={}", missed.name()));
                 let pace = (*pace != Pace::default()).then(|| format!("pace={}", pace.name()));
                 let options: Vec<String> = missed.into_iter().chain(pace).collect();
@@ -298,7 +491,7 @@ mod tests {
 
     #[test]
     fn parses_each_form() {
-        let sim = |count, missed, pace| Ok(LinkSpec::Sim { count, missed, pace });
+        let sim = |count, missed, pace| Ok(LinkSpec::Sim { line: SimLine::akds(count).unwrap(), missed, pace });
         let (late, lost, warn) = (MissedFrames::Late, MissedFrames::Lost, MissedFrames::Warn);
         let (real, immediate) = (Pace::Real, Pace::Immediate);
         assert_eq!("sim".parse(), sim(1, late, real));
@@ -324,7 +517,7 @@ mod tests {
 
     #[test]
     fn names_the_allowed_forms() {
-        for spec in ["sim:0", "sim:65", "sim:x", "sim:"] {
+        for spec in ["sim:0", "sim:65", "sim:"] {
             let err = spec.parse::<LinkSpec>().unwrap_err();
             assert_eq!(err, LinkSpecError::SimCount { spec: spec.into(), max: MAX_SIM_COUNT });
             assert!(err.to_string().contains("1..=64"), "{err}");
@@ -364,5 +557,56 @@ mod tests {
         for spec in ["udp://localhost:65535", "udp://[::1]:34980", "udp://10.0.0.2:1"] {
             assert!(spec.parse::<LinkSpec>().is_ok(), "{spec}");
         }
+    }
+
+    #[test]
+    fn a_line_names_its_slaves_in_order() {
+        use SimProduct::*;
+        let LinkSpec::Sim { line, .. } = "sim:ek1100,el1004,EL2004,akd,akd?pace=immediate".parse().unwrap() else {
+            panic!("not a line")
+        };
+        assert_eq!(line.products(), [Ek1100, El1004, El2004, Akd, Akd]);
+        assert!(!line.only_akds());
+        let spec: LinkSpec = "sim:ek1100,el1008,el2008,el3102,akd?missed=lost".parse().unwrap();
+        assert_eq!(spec.to_string(), "sim:ek1100,el1008,el2008,el3102,akd?missed=lost");
+        // A line of AKDs only is sim:N however it was named.
+        assert_eq!("sim:akd,akd".parse::<LinkSpec>().unwrap().to_string(), "sim:2");
+        assert_eq!("ek1100, el1004 ,akd".parse::<SimLine>().unwrap().to_string(), "ek1100,el1004,akd");
+        // A coupler with nothing behind it, or behind an AKD (a coupler's X2 out), is a line too.
+        for spec in ["ek1100", "akd,ek1100,el2004", "ek1100,el1004,ek1100,el2004"] {
+            assert!(spec.parse::<SimLine>().is_ok(), "{spec}");
+        }
+    }
+
+    #[test]
+    fn a_bad_line_is_named_in_one_sentence() {
+        let err = "sim:ek1100,el9999,akd".parse::<LinkSpec>().unwrap_err();
+        assert_eq!(
+            err,
+            LinkSpecError::SimLine {
+                spec: "sim:ek1100,el9999,akd".into(),
+                error: SimLineError::UnknownProduct { position: 1, name: "el9999".into() }
+            }
+        );
+        let text = err.to_string();
+        assert!(text.starts_with("link \"sim:ek1100,el9999,akd\": the slave at position 1, \"el9999\""), "{text}");
+        assert!(text.contains("allowed are akd, ek1100, el1004, el1008, el2004, el2008, el3102"), "{text}");
+        assert!(!text.contains('\n'), "{text}");
+        for (spec, position, name) in [("sim:x", 0, "x"), ("sim:ek1100,,akd", 1, ""), ("sim:akd,", 1, "")] {
+            let Err(LinkSpecError::SimLine { error, .. }) = spec.parse::<LinkSpec>() else { panic!("{spec} accepted") };
+            assert_eq!(error, SimLineError::UnknownProduct { position, name: name.into() }, "{spec}");
+        }
+        for (spec, position, product) in
+            [("el1004", 0, SimProduct::El1004), ("ek1100,akd,el2004", 2, SimProduct::El2004)]
+        {
+            let err = spec.parse::<SimLine>().unwrap_err();
+            assert_eq!(err, SimLineError::NoCoupler { position, product }, "{spec}");
+            assert!(err.to_string().contains("an ek1100 or another terminal goes in front of it"), "{err}");
+        }
+        let long = vec!["akd"; MAX_SIM_COUNT + 1].join(",");
+        let err = long.parse::<SimLine>().unwrap_err();
+        assert_eq!(err, SimLineError::TooMany { count: 65, max: 64 });
+        assert_eq!(err.to_string(), "a line of 65 slaves: the simulator makes lines of 1 to 64");
+        assert!(allowed_forms().contains("'sim:P1,P2,...'") && allowed_forms().contains("el3102"));
     }
 }

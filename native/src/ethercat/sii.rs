@@ -354,6 +354,9 @@ pub struct Sii {
     pub header: Header,
     /// The categories in image order, without the end category.
     pub categories: Vec<Category>,
+    /// The byte a category of an odd number of bytes is padded with to a whole word: 0 in the
+    /// AKD's image, 0xFF in Beckhoff's. Kept so that an image encodes back as it was read.
+    pub padding: u8,
 }
 
 /// Little-endian reader over a category's data that names what it reads in its errors.
@@ -609,6 +612,7 @@ impl Sii {
     pub fn parse(data: &[u8]) -> Result<Sii> {
         let header = decode_header(data)?;
         let mut categories = Vec::new();
+        let mut padding = None;
         let mut at = HEADER_BYTES;
         loop {
             if at + 2 > data.len() {
@@ -631,10 +635,16 @@ impl Sii {
                     left: (data.len() - start) / 2,
                 });
             }
-            categories.push(decode_category(kind, &data[start..start + len])?);
+            let category = decode_category(kind, &data[start..start + len])?;
+            if padding.is_none() {
+                // A category of an odd number of bytes shows the writer's padding.
+                let bytes = encode_category_unpadded(&category).map_or(0, |raw| raw.len());
+                padding = (bytes % 2 == 1 && bytes < len).then(|| data[start + bytes]);
+            }
+            categories.push(category);
             at = start + len;
         }
-        let sii = Sii { header, categories };
+        let sii = Sii { header, categories, padding: padding.unwrap_or(0) };
         sii.check_string_indices()?;
         Ok(sii)
     }
@@ -721,7 +731,10 @@ impl Sii {
         push16(&mut out, h.size);
         push16(&mut out, h.version);
         for c in &self.categories {
-            let data = encode_category(c)?;
+            let mut data = encode_category_unpadded(c)?;
+            if data.len() % 2 == 1 {
+                data.push(self.padding);
+            }
             let words = u16::try_from(data.len() / 2)
                 .map_err(|_| SiiError::CategoryTooLong { kind: c.kind(), len: data.len() })?;
             push16(&mut out, c.kind());
@@ -836,12 +849,6 @@ impl Sii {
     }
 }
 
-fn pad_to_word(data: &mut Vec<u8>) {
-    if data.len() % 2 == 1 {
-        data.push(0);
-    }
-}
-
 fn encode_pdos(pdos: &[SiiPdo], what: &'static str) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     for p in pdos {
@@ -862,7 +869,8 @@ fn encode_pdos(pdos: &[SiiPdo], what: &'static str) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-fn encode_category(c: &Category) -> Result<Vec<u8>> {
+/// A category's data as written, before it is padded to a whole word.
+fn encode_category_unpadded(c: &Category) -> Result<Vec<u8>> {
     let mut out = Vec::new();
     match c {
         Category::Strings(strings) => {
@@ -929,7 +937,6 @@ fn encode_category(c: &Category) -> Result<Vec<u8>> {
             out.extend_from_slice(data);
         }
     }
-    pad_to_word(&mut out);
     Ok(out)
 }
 
@@ -942,12 +949,18 @@ pub struct Builder {
     categories: Vec<Category>,
     strings_at: Option<usize>,
     error: Option<SiiError>,
+    padding: u8,
 }
 
 impl Builder {
-    /// A builder for an image with this header.
+    /// A builder for an image with this header, odd categories padded with 0.
     pub fn new(header: Header) -> Self {
-        Builder { header, strings: Vec::new(), categories: Vec::new(), strings_at: None, error: None }
+        Builder { header, strings: Vec::new(), categories: Vec::new(), strings_at: None, error: None, padding: 0 }
+    }
+
+    /// Pads categories of an odd number of bytes with `byte` (see [`Sii::padding`]).
+    pub fn pad_with(&mut self, byte: u8) {
+        self.padding = byte;
     }
 
     /// The 1-based index of `s` in the strings category, adding it if new. More than 255
@@ -987,7 +1000,7 @@ impl Builder {
             None if !self.strings.is_empty() => return Err(SiiError::NoStringsCategory { count: self.strings.len() }),
             None => {}
         }
-        Ok(Sii { header: self.header, categories: self.categories })
+        Ok(Sii { header: self.header, categories: self.categories, padding: self.padding })
     }
 
     /// The encoded image.
@@ -1333,7 +1346,7 @@ mod tests {
 
     #[test]
     fn checksum_sits_in_the_low_byte_of_word_7() {
-        let sii = Sii { header: header(1, 0), categories: vec![] };
+        let sii = Sii { header: header(1, 0), categories: vec![], padding: 0 };
         let image = sii.encode().unwrap();
         let mut first = [0u8; 14];
         first.copy_from_slice(&image[..14]);
@@ -1344,7 +1357,7 @@ mod tests {
 
     #[test]
     fn bad_checksum_is_named() {
-        let sii = Sii { header: header(1, 0), categories: vec![] };
+        let sii = Sii { header: header(1, 0), categories: vec![], padding: 0 };
         let mut image = sii.encode().unwrap();
         image[0] ^= 1;
         let e = Sii::parse(&image).unwrap_err().to_string();
@@ -1368,7 +1381,7 @@ mod tests {
         let e = Sii::parse(&image).unwrap_err().to_string();
         assert!(e.contains("TxPDO 0x1A00 entry 0x6041:00 names string 2"), "{e}");
 
-        let mut cut = Sii { header: header(1, 0), categories: vec![] }.encode().unwrap();
+        let mut cut = Sii { header: header(1, 0), categories: vec![], padding: 0 }.encode().unwrap();
         cut[HEADER_BYTES..HEADER_BYTES + 4].copy_from_slice(&[0x0A, 0, 0x40, 0]);
         let e = Sii::parse(&cut).unwrap_err().to_string();
         assert!(e.contains("announces 64 words"), "{e}");
@@ -1446,7 +1459,7 @@ mod tests {
         prop_oneof![
             general.prop_map(Category::General),
             prop::collection::vec(any::<u8>(), 0..4).prop_map(|mut v| {
-                pad_to_word(&mut v);
+                v.resize(v.len().next_multiple_of(2), 0);
                 Category::Fmmu(v)
             }),
             prop::collection::vec(sm, 0..5).prop_map(Category::SyncManagers),
@@ -1456,7 +1469,7 @@ mod tests {
             text.prop_map(Category::AkdModel),
             text.prop_map(Category::AkdFirmware),
             (0x0100u16..0x07FF, prop::collection::vec(any::<u8>(), 0..8)).prop_map(|(kind, mut data)| {
-                pad_to_word(&mut data);
+                data.resize(data.len().next_multiple_of(2), 0);
                 Category::Other { kind, data }
             }),
         ]
@@ -1472,7 +1485,7 @@ mod tests {
                 let mut h = header(0x0F, reserved);
                 h.identity.serial_number = serial;
                 categories.insert(0, Category::Strings(strings));
-                Sii { header: h, categories }
+                Sii { header: h, categories, padding: 0 }
             })
     }
 
@@ -1484,7 +1497,7 @@ mod tests {
 
         #[test]
         fn parse_never_panics_behind_a_valid_header(tail in prop::collection::vec(any::<u8>(), 0..600)) {
-            let mut image = Sii { header: header(0x0F, 0), categories: vec![] }
+            let mut image = Sii { header: header(0x0F, 0), categories: vec![], padding: 0 }
                 .encode()
                 .unwrap();
             image.truncate(HEADER_BYTES);

@@ -39,8 +39,11 @@ struct Opened {
 /// Opens the link named by `spec` (a [`LinkSpec`]).
 fn open_link(spec: &str) -> crate::error::Result<Opened> {
     Ok(match spec.parse::<LinkSpec>()? {
-        LinkSpec::Sim { count, missed, pace } => {
-            let link = InProcess::with_bus(VirtualBus::with_timing(count, Timing::of(pace, missed)));
+        LinkSpec::Sim { line, missed, pace } => {
+            if !line.only_akds() {
+                return Err(Unavailable::LineWithTerminals { line: line.to_string() }.into());
+            }
+            let link = InProcess::with_bus(VirtualBus::of_line(&line, Timing::of(pace, missed))?);
             let simulator = Some(link.control());
             Opened { link: Box::new(link), simulator, warnings: Vec::new() }
         }

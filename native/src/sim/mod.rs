@@ -6,9 +6,11 @@
 //! process image ([`process_data`]), the process-data watchdog ([`watchdog`]), and the drive firmware
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
 //! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`pll`] tells
-//! what its synchronisation (SYNC0 or SM2) was told. A [`VirtualBus`] is a
-//! line of them that serves EtherCAT frames in place, with time passed in by the caller so
-//! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
+//! what its synchronisation (SYNC0 or SM2) was told; [`firmware`] is what its processor does at
+//! the ESC's PDI side. A [`VirtualBus`] is a line of them, or of the slaves a
+//! [`SimLine`] names ([`slave`]): AKDs and Beckhoff terminals built from their real EEPROMs
+//! ([`terminal`], [`terminal_sii`], on the ESCs of [`esc_hardware`]). It serves EtherCAT frames
+//! in place, with time passed in by the caller so that a run is deterministic. [`in_process`] serves a bus to a master in this process through
 //! the link trait; [`server`] serves one on UDP or on a network interface.
 //! [`control`] lets tests and the simulator command inject faults, set inputs and query a
 //! drive while another thread owns the bus and serves its frames, and make the bus fail as
@@ -24,7 +26,9 @@ pub mod digital_inputs;
 pub mod drive;
 pub mod eoe_server;
 pub mod esc;
+pub mod esc_hardware;
 pub mod faults;
+pub mod firmware;
 pub mod foe_server;
 pub mod homing;
 pub mod in_process;
@@ -38,21 +42,22 @@ pub mod process_data;
 pub mod server;
 pub mod setpoint_trace;
 pub mod sii_image;
+pub mod slave;
 pub mod sync_manager;
+pub mod terminal;
+pub mod terminal_sii;
 pub mod terminals;
 pub mod watchdog;
 
 use crate::error::{FrameError, Result, SettingError};
 use crate::ethercat::al::{AlState, AlStatusCode};
 use crate::ethercat::frame::{self, DatagramMut};
-use crate::ethercat::link_spec::MissedFrames;
-use crate::ethercat::link_spec::Pace;
-use crate::ethercat::mailbox::HEADER_LEN;
+use crate::ethercat::link_spec::{MissedFrames, Pace, SimLine, SimProduct};
 use crate::ethercat::pdo;
-use crate::ethercat::registers::{self as reg, sm_reg};
 use crate::ethercat::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};
-use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE, SM_COUNT};
+pub use crate::sim::slave::VirtualSlave;
+use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE};
 
 /// How long the drive's firmware takes to react, in ns of bus time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,10 +65,15 @@ pub struct Timing {
     /// From a write of AL control until the firmware handles the request (and the master may
     /// write AL control again).
     pub al_request_ns: u64,
-    /// The same for a request of PreOp in Init: the firmware sets up its mailbox and object
-    /// dictionary first, AL status reading Init all that time.
+    /// The same for the first request of PreOp in Init after power-up: the firmware sets up
+    /// its mailbox and object dictionary first, AL status reading Init all that time.
+    pub first_init_to_preop_ns: u64,
+    /// The same for a later request of PreOp in Init.
     pub init_to_preop_ns: u64,
-    /// From a complete mailbox write until the reply is in the mailbox-in buffer.
+    /// From a complete mailbox write until the reply is in the mailbox-in buffer, for the first
+    /// message after power-up.
+    pub first_mailbox_ns: u64,
+    /// The same for the later messages.
     pub mailbox_ns: u64,
     /// How the firmware judges missed frames: by time, as the real drive, or by frames lost.
     pub missed_frames: MissedFrames,
@@ -75,22 +85,26 @@ pub struct Timing {
 
 impl Timing {
     /// The real drive's pace (docs/virtual_akd.md has the evidence):
-    /// - Init→PreOp: under TwinCAT a real AKD read Init for about 16 ms after the request and
-    ///   PreOp by about 19 ms (issue 28); the state changes between the two, at 17.5 ms here.
-    ///   The drive of the SOEM capture was in PreOp 4.2-6.2 ms after its request (SOEM had
-    ///   handed it the SII just before, frame 265); what makes the difference is not known,
-    ///   and the replay of that capture sets that drive's pace ([`VirtualBus::with_timing`]).
+    /// - Init→PreOp: under TwinCAT a real AKD took 16-19 ms for its first Init→PreOp after
+    ///   power-up (issue 28: it read Init for about 16 ms, PreOp by about 19 ms), 17.5 ms here,
+    ///   and 3-6 ms for later ones, 4.5 ms here; the drive of the SOEM capture, powered up long
+    ///   before, was in PreOp 4.2-6.2 ms after its request.
     /// - the other AL requests: PreOp→SafeOp answered within 4.9 ms in the SOEM capture.
-    /// - mailbox: the SOEM capture's 35 SDO replies appear 0.56 to 2.9 ms after the request,
-    ///   most by 1.3 ms. A fixed 1 ms puts 19 of them in the window the capture allows, as any
-    ///   delay from 0.8 to 1.3 ms does; a firmware task running every 1 ms would explain 27,
-    ///   but its phase is unknown, and counted from the drive's first frame it fits the replay
-    ///   worse (23 of the capture's mailbox status polls on the other side, against 19).
+    /// - mailbox: under TwinCAT the first reply after that first PreOp came 25-50 ms after the
+    ///   request (TwinCAT, polling SM1 every 16 ms or so, found it empty once or twice first):
+    ///   30 ms here, which such polling finds empty once or twice too. The SOEM capture's 35
+    ///   replies appear 0.56 to 2.9 ms after the request, its first one too, most by 1.3 ms. A
+    ///   fixed 1 ms puts 19 of them in the window the capture allows, as any delay from 0.8 to
+    ///   1.3 ms does; a firmware task running every 1 ms would explain 27, but its phase is
+    ///   unknown, and counted from the drive's first frame it fits the replay worse (23 of the
+    ///   capture's mailbox status polls on the other side, against 19).
     /// - EoE: under TwinCAT a real AKD answered Set IP Parameter about 25 ms after the request
     ///   and sent its gratuitous ARP about 18 ms after that (issue 15).
     pub const REAL_DRIVE: Timing = Timing {
         al_request_ns: 4_500_000,
-        init_to_preop_ns: 17_500_000,
+        first_init_to_preop_ns: 17_500_000,
+        init_to_preop_ns: 4_500_000,
+        first_mailbox_ns: 30_000_000,
         mailbox_ns: 1_000_000,
         missed_frames: MissedFrames::Late,
         eoe_set_ip_ns: 25_000_000,
@@ -99,7 +113,9 @@ impl Timing {
     /// No delay: each request is handled before the next frame (`pace=immediate`).
     pub const IMMEDIATE: Timing = Timing {
         al_request_ns: 0,
+        first_init_to_preop_ns: 0,
         init_to_preop_ns: 0,
+        first_mailbox_ns: 0,
         mailbox_ns: 0,
         missed_frames: MissedFrames::Late,
         eoe_set_ip_ns: 0,
@@ -144,6 +160,16 @@ fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate
     sii.encode()
 }
 
+/// What a drive's firmware has done since power-up that makes it quicker the next time
+/// ([`Timing`]'s first and later Init→PreOp and mailbox replies).
+#[derive(Clone, Copy, Debug, Default)]
+struct Warm {
+    /// It went from Init to PreOp.
+    been_in_preop: bool,
+    /// It took a mailbox message.
+    answered_mailbox: bool,
+}
+
 /// One virtual AKD.
 pub struct VirtualAkd {
     esc: Esc,
@@ -162,6 +188,7 @@ pub struct VirtualAkd {
     frames_lost: u64,
     identity: Identity,
     has_successor: bool,
+    warm: Warm,
     drive: drive::DriveFirmware,
     rx_image: process_data::Image,
     tx_image: process_data::Image,
@@ -196,9 +223,7 @@ impl VirtualAkd {
 
     fn with_sii(sii: Vec<u8>, identity: Identity, mailbox_size: u16, has_successor: bool, timing: Timing) -> Self {
         let mut esc = Esc::new(sii, has_successor);
-        for n in 0..SM_COUNT {
-            sync_manager::set_pdi_deactivated(esc.memory_mut(), n, true);
-        }
+        firmware::deactivate_sync_managers(&mut esc);
         VirtualAkd {
             esc,
             al: al_machine::AlMachine::power_up(),
@@ -214,6 +239,7 @@ impl VirtualAkd {
             frames_lost: 0,
             identity,
             has_successor,
+            warm: Warm::default(),
             drive: drive::DriveFirmware::default(),
             rx_image: Vec::new(),
             tx_image: Vec::new(),
@@ -230,6 +256,13 @@ impl VirtualAkd {
         let homing = self.drive().homing_setup();
         *self = Self::with_sii(sii, self.identity, self.mailbox_size, self.has_successor, self.timing);
         self.drive_mut().set_homing(homing);
+    }
+
+    /// The drive as one powered up long before, that has been to PreOp and answered its mailbox
+    /// since: its next Init→PreOp and mailbox reply take the later ones' time ([`Timing`]), as
+    /// the drive of the SOEM capture did.
+    pub fn warm_up(&mut self) {
+        self.warm = Warm { been_in_preop: true, answered_mailbox: true };
     }
 
     /// The F125 a real AKD would have raised where this one judges missed frames by
@@ -322,11 +355,17 @@ impl VirtualAkd {
     fn schedule(&mut self, events: Events, now_ns: u64) {
         if let Some(control) = events.al_control {
             let to_preop = self.al.state() == AlState::Init && AlState::from_bits(control) == Some(AlState::PreOp);
-            let delay = if to_preop { self.timing.init_to_preop_ns } else { self.timing.al_request_ns };
+            let delay = match (to_preop, self.warm.been_in_preop) {
+                (true, false) => self.timing.first_init_to_preop_ns,
+                (true, true) => self.timing.init_to_preop_ns,
+                (false, _) => self.timing.al_request_ns,
+            };
             self.pending_al = Some((control, now_ns + delay));
         }
         if events.mailbox_written {
-            self.pending_mailbox = Some(now_ns + self.timing.mailbox_ns);
+            let delay = if self.warm.answered_mailbox { self.timing.mailbox_ns } else { self.timing.first_mailbox_ns };
+            self.warm.answered_mailbox = true;
+            self.pending_mailbox = Some(now_ns + delay);
         }
         if events.watchdog_trigger {
             self.watchdog.trigger(now_ns);
@@ -337,7 +376,7 @@ impl VirtualAkd {
             self.frames_lost = 0;
         }
         if events.repeat_request {
-            self.repeat_mailbox();
+            firmware::repeat_reply(&mut self.esc, &self.mailbox);
         }
     }
 
@@ -353,10 +392,10 @@ impl VirtualAkd {
         if let Some(due) = self.pending_mailbox {
             if due <= now_ns {
                 self.pending_mailbox = None;
-                self.read_mailbox(now_ns);
+                firmware::take_request(&mut self.esc, &mut self.mailbox, &mut self.od, self.al.state(), now_ns);
             }
         }
-        self.write_mailbox();
+        firmware::offer_reply(&mut self.esc, &mut self.mailbox);
         if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
             self.al.fail(AlState::SafeOp, AlStatusCode::SM_WATCHDOG);
             self.watchdog.stop();
@@ -387,9 +426,8 @@ impl VirtualAkd {
     /// real drive's ESC answers a frame in hardware while its processor does this work.
     pub fn run_ip_stack(&mut self, now_ns: u64) {
         if self.al.state() != AlState::Init && self.al.state() != AlState::Bootstrap {
-            let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
-            self.mailbox.poll(now_ns, size);
-            self.write_mailbox();
+            self.mailbox.poll(now_ns, firmware::reply_size(&self.esc));
+            firmware::offer_reply(&mut self.esc, &mut self.mailbox);
         }
     }
 
@@ -401,21 +439,10 @@ impl VirtualAkd {
             _ => Ok(()),
         });
         if let Some(t) = transition {
-            let memory = self.esc.memory_mut();
-            let mailbox_on = t.to != AlState::Init && t.to != AlState::Bootstrap;
-            let process_data_on = t.to >= AlState::SafeOp && t.to != AlState::Bootstrap;
-            for n in 0..2 {
-                sync_manager::set_pdi_deactivated(memory, n, !mailbox_on);
-            }
-            for n in 2..4 {
-                sync_manager::set_pdi_deactivated(memory, n, !process_data_on);
-            }
-            if !mailbox_on {
-                self.mailbox.reset();
+            self.warm.been_in_preop |= t.to == AlState::PreOp;
+            firmware::enter_state(&mut self.esc, &mut self.mailbox, t.to);
+            if t.to == AlState::Init || t.to == AlState::Bootstrap {
                 self.pending_mailbox = None;
-                for n in 0..2 {
-                    memory[sync_manager::status_address(n)] = 0;
-                }
             }
             if t.from == AlState::PreOp && t.to == AlState::SafeOp {
                 (self.rx_image, self.tx_image) = process_data::images(&self.od);
@@ -433,68 +460,17 @@ impl VirtualAkd {
     }
 
     fn write_al_status(&mut self) {
-        let (status, status_code) = (self.al.status(), self.al.status_code());
-        let memory = self.esc.memory_mut();
-        memory[reg::AL_STATUS as usize..reg::AL_STATUS as usize + 2].copy_from_slice(&status.to_le_bytes());
-        memory[reg::AL_STATUS_CODE as usize..reg::AL_STATUS_CODE as usize + 2]
-            .copy_from_slice(&status_code.to_le_bytes());
-    }
-
-    /// Takes the master's message out of the mailbox-out buffer and answers it.
-    fn read_mailbox(&mut self, now_ns: u64) {
-        let out = SyncManager::read(self.esc.memory(), 0);
-        // Replies are sized for SM1 as the master set it, but never for less than the smallest
-        // mailbox the drive accepts at Init→PreOp: a master may shrink SM1 afterwards (even below
-        // a reply's headers), and then reads what fits of each reply.
-        let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
-        let memory = self.esc.memory();
-        let buffer = &memory[out.range_within(memory.len())];
-        let announced = buffer.get(..2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
-        let message = buffer[..(HEADER_LEN + announced).min(buffer.len())].to_vec();
-        sync_manager::mark_read(self.esc.memory_mut(), 0);
-        let request_size = usize::from(out.length);
-        self.mailbox.handle(&message, &mut self.od, self.al.state(), size, request_size, now_ns);
-    }
-
-    /// Puts the next queued reply into the mailbox-in buffer when the master emptied it.
-    fn write_mailbox(&mut self) {
-        let sm = SyncManager::read(self.esc.memory(), 1);
-        if !sm.active() || sm.full() {
-            return;
-        }
-        if let Some(reply) = self.mailbox.next_reply() {
-            let memory = self.esc.memory_mut();
-            let buffer = sm.range_within(memory.len());
-            let n = reply.len().min(buffer.len());
-            memory[buffer.start..buffer.start + n].copy_from_slice(&reply[..n]);
-            sync_manager::mark_written(memory, 1);
-        }
-    }
-
-    /// The master toggled the repeat request: the last reply goes into the buffer again and
-    /// the repeat acknowledge follows the request bit.
-    fn repeat_mailbox(&mut self) {
-        let sm = SyncManager::read(self.esc.memory(), 1);
-        if let Some(reply) = self.mailbox.last_reply() {
-            let buffer = sm.range_within(self.esc.memory().len());
-            let n = reply.len().min(buffer.len());
-            let reply = reply[..n].to_vec();
-            let memory = self.esc.memory_mut();
-            memory[buffer.start..buffer.start + n].copy_from_slice(&reply);
-            sync_manager::mark_written(memory, 1);
-        }
-        let memory = self.esc.memory_mut();
-        let ack = memory[reg::sm(1) as usize + sm_reg::ACTIVATE] & sm_reg::ACTIVATE_REPEAT;
-        let pdi = &mut memory[sync_manager::pdi_control_address(1)];
-        *pdi = (*pdi & !sm_reg::PDI_REPEAT_ACK) | ack;
+        firmware::write_al_status(&mut self.esc, &self.al);
     }
 }
 
-/// A line of virtual AKDs, as a real bus: frames pass drive 0, 1, ... in order. Drive `i`
-/// reports the identity [`sii_image::identity`]`(i)`: the real drive's, with a serial number of
-/// its own.
+/// A line of virtual slaves, as a real bus: frames pass slave 0, 1, ... in order. A line of
+/// AKDs ([`new`](Self::new), [`with_timing`](Self::with_timing)) or of the slaves a
+/// [`SimLine`] names, AKDs and Beckhoff terminals ([`of_line`](Self::of_line)). The `i`-th AKD
+/// of a line reports the identity [`sii_image::identity`]`(i)`: the real drive's, with a serial
+/// number of its own.
 pub struct VirtualBus {
-    slaves: Vec<VirtualAkd>,
+    slaves: Vec<VirtualSlave>,
     line: line::Line,
 }
 
@@ -507,7 +483,31 @@ impl VirtualBus {
     /// `count` virtual AKDs reacting with `timing`.
     pub fn with_timing(count: usize, timing: Timing) -> Self {
         let slaves = (0..count).map(|i| VirtualAkd::new(sii_image::identity(i), i + 1 < count, timing));
-        VirtualBus { slaves: slaves.collect(), line: line::Line::new(count) }
+        Self::of_slaves(slaves.map(VirtualSlave::Akd).collect())
+    }
+
+    /// The slaves `line` names, in order, at power-up, the AKDs reacting with `timing`; refused
+    /// when a terminal's SII image cannot be read.
+    pub fn of_line(line: &SimLine, timing: Timing) -> Result<Self> {
+        let count = line.len();
+        let mut akds = 0;
+        let mut slaves = Vec::with_capacity(count);
+        for (i, &product) in line.products().iter().enumerate() {
+            slaves.push(VirtualSlave::of(product, akds, i + 1 < count, timing)?);
+            akds += usize::from(product == SimProduct::Akd);
+        }
+        Ok(Self::of_slaves(slaves))
+    }
+
+    /// A line of `slaves` in order (built by the caller, e.g. a terminal serving an image a
+    /// test changed).
+    pub fn of_slaves(mut slaves: Vec<VirtualSlave>) -> Self {
+        // Each slave behind another saw its link come up after it reset.
+        for slave in slaves.iter_mut().skip(1) {
+            slave.link_came_up();
+        }
+        let line = line::Line::new(slaves.len());
+        VirtualBus { slaves, line }
     }
 
     /// `count` virtual AKDs reacting with `timing` whose SII declares a standard mailbox of
@@ -516,27 +516,64 @@ impl VirtualBus {
     pub fn with_mailbox_size(count: usize, timing: Timing, mailbox_size: u16) -> Result<Self> {
         let slaves = (0..count)
             .map(|i| VirtualAkd::with_mailbox_size(sii_image::identity(i), mailbox_size, i + 1 < count, timing));
-        Ok(VirtualBus { slaves: slaves.collect::<Result<_>>()?, line: line::Line::new(count) })
+        Ok(Self::of_slaves(slaves.map(|s| s.map(VirtualSlave::Akd)).collect::<Result<_>>()?))
     }
 
-    /// Number of drives.
+    /// Number of slaves.
     pub fn len(&self) -> usize {
         self.slaves.len()
     }
 
-    /// Whether the line has no drive.
+    /// Whether the line has no slave.
     pub fn is_empty(&self) -> bool {
         self.slaves.is_empty()
     }
 
-    /// Drive `i`. Panics when `i` is not below [`len`](Self::len).
-    pub fn slave(&self, i: usize) -> &VirtualAkd {
+    /// The products of the line's slaves, in order.
+    pub fn products(&self) -> Vec<SimProduct> {
+        self.slaves.iter().map(VirtualSlave::product).collect()
+    }
+
+    /// Slave `i`. Panics when `i` is not below [`len`](Self::len).
+    pub fn at(&self, i: usize) -> &VirtualSlave {
         &self.slaves[i]
     }
 
-    /// Drive `i`, to change it (tests, fault injection). Panics when `i` is out of range.
-    pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
+    /// Slave `i`, to change it. Panics when `i` is not below [`len`](Self::len).
+    pub fn at_mut(&mut self, i: usize) -> &mut VirtualSlave {
         &mut self.slaves[i]
+    }
+
+    /// The AKD at position `i`. Panics when `i` is not below [`len`](Self::len) or names a
+    /// terminal (never on a line of AKDs).
+    pub fn slave(&self, i: usize) -> &VirtualAkd {
+        self.slaves[i].akd().unwrap_or_else(|| panic!("slave {i} is no AKD"))
+    }
+
+    /// The AKD at position `i`, to change it (tests, fault injection). Panics as
+    /// [`slave`](Self::slave) does.
+    pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
+        self.slaves[i].akd_mut().unwrap_or_else(|| panic!("slave {i} is no AKD"))
+    }
+
+    /// Slave `position` loses its power and comes back as at power-up; behind another slave, its
+    /// link comes up after its reset, as at the line's power-up. Panics when `position` is not
+    /// below [`len`](Self::len).
+    pub fn power_cycle(&mut self, position: usize) {
+        let slave = &mut self.slaves[position];
+        slave.power_cycle();
+        if position > 0 {
+            slave.link_came_up();
+        }
+    }
+
+    /// Every AKD of the line as one powered up long before ([`VirtualAkd::warm_up`]).
+    pub fn warm_up(&mut self) {
+        for slave in &mut self.slaves {
+            if let Some(akd) = slave.akd_mut() {
+                akd.warm_up();
+            }
+        }
     }
 
     /// The line in front of the drives, as its faults left it.
@@ -556,7 +593,7 @@ impl VirtualBus {
         self.line.set_cable(position, plugged);
         let reach = self.line.reach();
         for (i, slave) in self.slaves.iter_mut().enumerate() {
-            slave.esc.set_successor(slave.has_successor && i + 1 < reach);
+            slave.set_successor(i + 1 < reach);
         }
     }
 
@@ -698,6 +735,7 @@ mod tests {
         // Found by fuzzing (native/fuzz, virtual_akd): SM1 set to 4 bytes in PreOp, then an SDO
         // upload; the reply was sized for a mailbox smaller than its headers.
         let mut bus = VirtualBus::new(1);
+        bus.slave_mut(0).warm_up();
         to_preop(&mut bus);
         assert_eq!(exchange(&mut bus, 20_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
         assert_eq!(exchange(&mut bus, 20_000_000, Command::Bwr, 0, 0x080A, &[4, 0]).1, 1);
@@ -729,7 +767,8 @@ mod tests {
     #[test]
     fn init_to_preop_runs_at_a_pace_of_its_own() {
         // A drive of another pace there: Init for 16 ms after the request, other requests as usual.
-        let mut bus = VirtualBus::with_timing(1, Timing { init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE });
+        let timing = Timing { first_init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE };
+        let mut bus = VirtualBus::with_timing(1, timing);
         to_preop(&mut bus);
         for t in [4_500_000, 10_000_000, 15_999_999] {
             assert_eq!(exchange(&mut bus, t, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00], "at {t} ns");
@@ -740,6 +779,14 @@ mod tests {
         exchange(&mut bus, 16_000_000, Command::Bwr, 0, 0x0120, &[0x01, 0x00]);
         assert_eq!(exchange(&mut bus, 20_499_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
         assert_eq!(exchange(&mut bus, 20_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
+        // The next Init→PreOp takes a later request's 4.5 ms (3-6 ms under TwinCAT).
+        exchange(&mut bus, 21_000_000, Command::Bwr, 0, 0x0120, &[0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 25_499_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
+        assert_eq!(exchange(&mut bus, 25_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        // So does the first after a power cycle once more: 16 ms.
+        bus.slave_mut(0).power_cycle();
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 15_999_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
     }
 
     #[test]
@@ -758,16 +805,20 @@ mod tests {
         to_preop(&mut bus);
         let mut request = vec![0u8; 0x400];
         request[..16].copy_from_slice(&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x20, 0x40, 0x00, 0x1C, 0x03, 0, 0, 0, 0]);
-        let t = 18_000_000;
-        assert_eq!(exchange(&mut bus, t, Command::Bwr, 0, 0x1800, &request).1, 1);
-        assert_eq!(exchange(&mut bus, t + 650_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x00, 0x01]);
-        assert_eq!(exchange(&mut bus, t + 1_400_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x09, 0x01]);
-        let (reply, wkc) = exchange(&mut bus, t + 2_000_000, Command::Brd, 0, 0x1C00, &[0; 0x400]);
-        assert_eq!(
-            (&reply[..16], wkc),
-            (&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0][..], 1)
-        );
-        assert_eq!(exchange(&mut bus, t + 2_500_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+        let reply_of_counter =
+            |counter: u8| [0x0A, 0, 0, 0, 0, counter, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0];
+        // The first message after power-up is answered 30 ms on (25-50 ms under TwinCAT), the
+        // next ones 1 ms on (the SOEM capture's 0.56-2.9 ms).
+        for (t, delay, counter) in [(18_000_000, 30_000_000, 0x23), (50_000_000, 1_000_000, 0x33)] {
+            request[5] = counter;
+            assert_eq!(exchange(&mut bus, t, Command::Bwr, 0, 0x1800, &request).1, 1);
+            // SM1 not full (bit 3) until then.
+            assert_eq!(exchange(&mut bus, t + delay - 1, Command::Brd, 0, 0x080D, &[0, 0]).0[0] & 0x08, 0);
+            assert_eq!(exchange(&mut bus, t + delay, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x09, 0x01]);
+            let (reply, wkc) = exchange(&mut bus, t + delay + 500_000, Command::Brd, 0, 0x1C00, &[0; 0x400]);
+            assert_eq!((&reply[..16], wkc), (&reply_of_counter(counter)[..], 1));
+            assert_eq!(exchange(&mut bus, t + delay + 600_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+        }
     }
 
     #[test]

@@ -87,17 +87,17 @@ fn little_endian(bytes: &[u8]) -> u64 {
 /// Access of an entry that is read and written in every state.
 const RW: u16 = access::READ | access::WRITE;
 /// Access of an entry that is written only in PreOp (PDO mapping and assignment).
-const RW_PREOP: u16 = access::READ | access::WRITE_PREOP;
+pub(crate) const RW_PREOP: u16 = access::READ | access::WRITE_PREOP;
 /// Access of a read-only entry.
-const RO: u16 = access::READ;
+pub(crate) const RO: u16 = access::READ;
 
-fn entry(subindex: u8, name: &'static str, data_type: u16, bits: u16, access: u16, value: u64) -> Entry {
+pub(crate) fn entry(subindex: u8, name: &'static str, data_type: u16, bits: u16, access: u16, value: u64) -> Entry {
     let bytes = value.to_le_bytes()[..(bits as usize).div_ceil(8)].to_vec();
     Entry { subindex, name, data_type, bits, access, value: bytes, check: None }
 }
 
 /// A read-only string variable (device name, versions).
-fn string_var(index: u16, name: &'static str, value: &str) -> Object {
+pub(crate) fn string_var(index: u16, name: &'static str, value: &str) -> Object {
     let e = Entry {
         subindex: 0,
         name,
@@ -125,7 +125,7 @@ fn bits_of(t: u16) -> u16 {
     }
 }
 
-fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Object {
+pub(crate) fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Object {
     let value = if data_type::is_signed(t) { value & (u64::MAX >> (64 - bits_of(t))) } else { value };
     Object {
         index,
@@ -138,14 +138,27 @@ fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Objec
 }
 
 /// A record or array: subindex 0 holds the count of `entries`.
-fn record(index: u16, name: &'static str, code: ObjectCode, t: u16, sub0_access: u16, entries: Vec<Entry>) -> Object {
+pub(crate) fn record(
+    index: u16,
+    name: &'static str,
+    code: ObjectCode,
+    t: u16,
+    sub0_access: u16,
+    entries: Vec<Entry>,
+) -> Object {
     let count = entries.len() as u64;
     let mut all = vec![entry(0, "SubIndex 000", data_type::UNSIGNED8, 8, sub0_access, count)];
     all.extend(entries);
     Object { index, name, object_code: code, data_type: t, entries: all, check: None }
 }
 
-fn mapping_object(index: u16, name: &'static str, access: u16, entries: &[PdoEntry], capacity: usize) -> Object {
+pub(crate) fn mapping_object(
+    index: u16,
+    name: &'static str,
+    access: u16,
+    entries: &[PdoEntry],
+    capacity: usize,
+) -> Object {
     let subs = (1..=capacity)
         .map(|i| {
             let value = entries.get(i - 1).map_or(0, |e| e.to_u32()) as u64;
@@ -157,7 +170,7 @@ fn mapping_object(index: u16, name: &'static str, access: u16, entries: &[PdoEnt
     o
 }
 
-const SUBINDEX_NAMES: [&str; 11] = [
+pub(crate) const SUBINDEX_NAMES: [&str; 11] = [
     "SubIndex 000",
     "SubIndex 001",
     "SubIndex 002",
@@ -546,6 +559,12 @@ impl ObjectDictionary {
             }
         }
         od
+    }
+
+    /// A dictionary of `objects` (another slave's than the AKD's, e.g. a terminal's).
+    pub fn from_objects(mut objects: Vec<Object>) -> Self {
+        objects.sort_by_key(|o| o.index);
+        ObjectDictionary { objects }
     }
 
     /// Every object, by index.

@@ -23,7 +23,7 @@ pub fn images(od: &ObjectDictionary) -> (Image, Image) {
 }
 
 /// Checks one process-data sync manager against its image length, start and direction.
-fn check_sync_manager(sm: &SyncManager, start: u16, bytes: usize, master_writes: bool) -> Result<(), AlStatusCode> {
+pub fn check_sync_manager(sm: &SyncManager, start: u16, bytes: usize, master_writes: bool) -> Result<(), AlStatusCode> {
     let enabled = sm.activate & ACTIVATE_ENABLE != 0 && sm.length > 0;
     if bytes == 0 {
         return if enabled { Err(AlStatusCode::INVALID_SM_CONFIG) } else { Ok(()) };
@@ -63,7 +63,12 @@ pub fn apply_outputs(od: &mut ObjectDictionary, memory: &[u8], image: &[PdoEntry
 
 /// Copies the objects the inputs carry into SM3's buffer.
 pub fn refresh_inputs(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoEntry]) {
-    let base = AKD_PROCESS_IN as usize;
+    refresh_inputs_at(od, memory, image, AKD_PROCESS_IN);
+}
+
+/// Copies the objects the inputs carry into the input buffer at `base` (another slave's SM3).
+pub fn refresh_inputs_at(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoEntry], base: u16) {
+    let base = usize::from(base);
     for (at, entry) in pdo::layout(image.iter().copied()) {
         let len = entry.byte_len();
         let target = &mut memory[base + at..base + at + len];

@@ -116,7 +116,8 @@ impl ServerStats {
         let bus = bus.bus();
         self.warned.resize(bus.len(), 0);
         for (position, warned) in self.warned.iter_mut().enumerate() {
-            let w = bus.slave(position).would_be_f125();
+            let Some(akd) = bus.at(position).akd() else { continue };
+            let w = akd.would_be_f125();
             if w.count == *warned {
                 continue;
             }

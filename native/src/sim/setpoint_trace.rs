@@ -157,14 +157,16 @@ impl TraceSender {
         }
     }
 
-    /// Notes every drive's set-points after `bus` served `payload`, received at `received`.
+    /// Notes every drive's set-points after `bus` served `payload`, received at `received`; a
+    /// drive is named by its position on the line (terminals have none).
     pub fn record_bus(&mut self, bus: &VirtualBus, payload: &[u8], received: Stamps) {
         let first = crate::ethercat::frame::parse(payload).ok().and_then(|mut d| d.next()).and_then(|d| d.ok());
         let index = first.map_or(0, |d| d.header.index);
         let frame = Frame { number: bus.line().counts().frames, index, received };
         for drive in 0..bus.len() {
-            let slave = bus.slave(drive);
-            self.record(drive, slave.received_outputs(), slave.drive().position(), frame);
+            if let Some(akd) = bus.at(drive).akd() {
+                self.record(drive, akd.received_outputs(), akd.drive().position(), frame);
+            }
         }
     }
 }
