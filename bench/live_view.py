@@ -21,7 +21,6 @@ and the medians what the live view adds to the node's CPU, each case against the
 from __future__ import annotations
 
 import argparse
-import collections
 import socket
 import statistics
 import sys
@@ -34,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 import yaml
 from figures import Figures, json_argument, real_time
-from node_ros import FAULT_LINE, TICK, cpu_ticks
+from node_ros import FAULT_LINE, TICK, cpu_ticks, thread_ticks
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -52,7 +51,8 @@ JOINTS = 6
 OFF, ON, WATCHED = "off", "on, no client", "on, one client"
 CASES = (OFF, ON, WATCHED)
 THREADS = {"akd-publish": "akd-publish", "tokio-rt-worker": "SDK threads"}
-"""The node's threads the table shows apart, by name; the rest is "the rest"."""
+"""The node's threads the table shows apart, by name; the others are REST."""
+REST = "the rest"
 
 
 def free_tcp_port() -> int:
@@ -75,18 +75,6 @@ def params(sim_port: int, live_view_port: int, args) -> str:
     if args.priority:
         values["rt.priority"] = args.priority
     return yaml.safe_dump(document)
-
-
-def thread_ticks(pid: int) -> collections.Counter:
-    """utime + stime of process `pid`'s threads, in clock ticks, by THREADS' groups ("the rest" for the others)."""
-    ticks: collections.Counter = collections.Counter()
-    for task in Path(f"/proc/{pid}/task").iterdir():
-        try:
-            name = (task / "comm").read_text().strip()
-            ticks[THREADS.get(name, "the rest")] += cpu_ticks(task / "stat")
-        except OSError:  # a thread that ended meanwhile
-            continue
-    return ticks
 
 
 class Watcher:
@@ -144,12 +132,15 @@ def run(case: str, domain: int, args) -> dict:
                 watcher = Watcher(f"ws://127.0.0.1:{port}")
             client.spin_for(1.0)  # past the enable's transients and the subscriptions
             pid = node.process.pid
-            counted = watcher.messages if watcher else 0
-            before = (cpu_ticks(Path(f"/proc/{pid}/stat")), thread_ticks(pid), counted, time.monotonic())
+
+            def taken() -> tuple:
+                counted = watcher.messages if watcher else 0
+                return cpu_ticks(Path(f"/proc/{pid}/stat")), thread_ticks(pid, THREADS, REST), counted, time.monotonic()
+
+            before = taken()
             received.clear()
             client.spin_for(args.window)
-            counted = watcher.messages if watcher else 0
-            after = (cpu_ticks(Path(f"/proc/{pid}/stat")), thread_ticks(pid), counted, time.monotonic())
+            after = taken()
             elapsed = after[3] - before[3]
             threads = after[1] - before[1]
             return {
