@@ -18,6 +18,8 @@ Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs
   many          akd_node on 16 and 64 AKDs over veth at 250 µs, a million cycles each, waiting and pipelined
                 (node_ros.py --drives)
   io            akd_node's CPU with every joint's ~/io published and without, six joints at 1 kHz (node_io.py)
+  live_view     akd_node's CPU with the live view in Foxglove off, on, and on with a client subscribed to every
+                channel, six joints at 1 kHz (live_view.py)
   host_noise    config/akd_sim_6axis.yaml's robot following trajectories under stress-ng on every CPU, with and
                 without missed=warn and rt.priority: trajectories done, would-be F125, worst stall (host_noise.py,
                 2 minutes per variant; --minutes 8 for a full run)
@@ -58,6 +60,7 @@ SECTIONS = {
     "ros": (["node_ros.py", "--profile"], 1200),
     "many": (shlex.split("node_ros.py --drives 16,64 --drive-pipelined"), 2400),
     "io": (["node_io.py"], 300),
+    "live_view": (["live_view.py"], 600),
     # Two minutes per variant, two alternating rounds: a shorter run than a quotable one (--minutes 8, about 35 min).
     "host_noise": (shlex.split("host_noise.py --minutes 2 --rounds 2"), 900),
 }
@@ -70,6 +73,7 @@ TITLES = {
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
     "many": "Through ROS with many drives over veth",
     "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",
+    "live_view": "The live view in Foxglove: the node's CPU with it off, on, and with a client",
     "host_noise": "The six-axis virtual robot with every CPU loaded: F125 with and without missed=warn, rt.priority",
 }
 

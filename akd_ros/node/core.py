@@ -35,6 +35,13 @@ class Core:
         self.settings = settings
         self.failure: str | None = None
         """Why the last transition failed, for the log and the exit message."""
+        self._live_view = None
+        if settings.live_view is not None:
+            # Imported only when on: with the live view off the node imports no foxglove.
+            from akd_ros.node.live_view import LiveView
+
+            self._live_view = LiveView(settings.live_view, transport)
+            transport = self._live_view.transport
         self._transport = transport
         self._logger = transport.logger
         self._eoe_bridge: EoeBridge | None = None
@@ -89,13 +96,20 @@ class Core:
 
     def configure(self) -> bool:
         """Opens the Bus: the line to Op and the cycle thread running, every drive disabled; with eoe.tap, the EoE
-        bridge."""
+        bridge; with live_view.port, first the live view."""
+        if self._live_view is not None:
+            try:
+                self._live_view.open()
+            except OSError as e:
+                return self._fail(f"parameters live_view.*: {e}")
         tap = self._open_tap()
         try:
             configured = self._configure(tap)
         finally:
             if self._eoe_bridge is None and tap is not None:
                 tap.close()
+        if not configured and self._live_view is not None:
+            self._live_view.close()
         return configured
 
     def _open_tap(self) -> Tap | None:
@@ -194,7 +208,8 @@ class Core:
             self._logger.error(f"deactivate: {message}")
 
     def close(self) -> None:
-        """Stops publishing, disables the drives and returns the line to Init (does nothing when not configured)."""
+        """Stops publishing, disables the drives and returns the line to Init, and closes the live view (does nothing
+        when not configured)."""
         node_state = self._node_state
         node_state.active = False
         self._publishing.stop()
@@ -224,6 +239,8 @@ class Core:
                 self._logger.info(closed if self.settings.joint_namespaces else "closed: drive disabled, bus in Init")
             if lost:
                 self._logger.warning(f"recording: {lost} per-cycle records were not taken in time, not in the bag")
+        if self._live_view is not None:
+            self._live_view.close()
         if recorder is not None:
             stats = recorder.close()
             self._logger.info(

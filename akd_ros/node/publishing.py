@@ -27,7 +27,7 @@ made, at its stream's check rate), a `Feed.add_...` stream here in `_start_feed`
 `self._streams` by the stream's id (recorded with `take_stream_from` when the topic is in the bag). Nothing of it runs
 in Python but the publish call. A publication that must go through an rclpy API taking message objects (an action's
 feedback) takes the same snapshot-derived values from the crate at its own rate and builds its message there, at that
-rate, never per cycle.
+rate, never per cycle. Any publisher made through the transport is in the live view too (`akd_ros.node.live_view`).
 """
 
 from __future__ import annotations
