@@ -58,6 +58,7 @@ RUST_LAYERS: list[set[str]] = [
         "drive::pdo",
         "drive::objects",
         "drive::scaling",
+        "drive::sync",
         "drive::akd_fault",
         "drive::io",
         "drive::trajectory",

@@ -17,7 +17,7 @@ use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{handshake, Config, CycleThread, RealTime, Snapshot};
-use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::akd::{AkdLine, AkdSlave};
 use akd_native::drive::ds402::{Mode, State};
 use akd_native::drive::trajectory::Knot;
 use akd_native::ethercat::al::AlState;
