@@ -16,7 +16,10 @@ Four rules, because a parent module declares its children and re-exports from th
 - among the sibling modules of each directory below the top (each with its own children folded in), no cycle;
 - a unit depends only on units of its own layer or of the layers below it;
 - a module never depends on a module `RUST_APART` keeps from it: the EtherCAT layer on the drive profile (or on the
-  virtual AKD, the cycle, the ROS side, the bindings), the virtual AKD on the master or on what uses it.
+  virtual AKD, the cycle, the ROS side, the bindings), the virtual AKD on the master or on what uses it;
+- the EtherCAT layer's code names no object of a device (`DEVICE_OBJECTS`): no hex literal of four digits between
+  0x2000 and 0x9FFF but a single bit (a mask) or one of `NOT_OBJECTS`, so that a drive's object it writes (0x6060,
+  0x60C2, FBUS.PARAM02's 0x3E02) is seen even where it imports nothing of the drive profile.
 
 Usage: scripts/module_deps.py [--list] [--root DIR]   (--list prints every module's dependencies as well; --root
 checks the tree below DIR, holding native/src and akd_ros, instead of this repository)
@@ -58,6 +61,7 @@ RUST_LAYERS: list[set[str]] = [
         "drive::pdo",
         "drive::objects",
         "drive::scaling",
+        "drive::sync",
         "drive::akd_fault",
         "drive::io",
         "drive::trajectory",
@@ -84,6 +88,14 @@ RUST_APART: dict[str, set[str]] = {
 }
 """Modules (with their children) and the modules (with theirs) they must never depend on, whatever the layers: the
 EtherCAT layer knows no AKD, and the virtual AKD shares the master's codecs and links, never its state."""
+OBJECTS_UNNAMED = "ethercat"
+"""The module (with its children) whose code names no object of a device."""
+DEVICE_OBJECTS = range(0x2000, 0xA000)
+"""CoE object indices of a device: its manufacturer's (0x2000-0x5FFF) and its profiles' (0x6000-0x9FFF, CiA 402's
+among them). A master names only those of the communication area (0x1000-0x1FFF: identity, PDO mapping and
+assignment, sync manager parameters)."""
+NOT_OBJECTS = {0x88A4: "the EtherCAT EtherType"}
+"""Four-digit hex numbers of the EtherCAT layer in `DEVICE_OBJECTS`' range that are no object."""
 PYTHON_LAYERS: list[set[str]] = [
     {"_native"},
     {"units", "privilege", "tap"},
@@ -106,8 +118,8 @@ def rust_module_of(src: Path, path: Path) -> tuple[str, ...]:
 
 
 def rust_paths(files: list[Path]) -> dict[Path, list[str]]:
-    """Every path each file's code names that starts at crate, super or self, as the syn-based tool in
-    scripts/module-deps reads them (built on first use with cargo)."""
+    """Every path each file's code names that starts at crate, super or self, and every hex literal it writes
+    (`=0x6060`), as the syn-based tool in scripts/module-deps reads them (built on first use with cargo)."""
     subprocess.run(
         ["cargo", "build", "--quiet", "--release", "--manifest-path", str(TOOL / "Cargo.toml")],
         check=True,
@@ -154,18 +166,38 @@ def tracked(directory: Path, pattern: str) -> list[Path]:
     return sorted(directory / name for name in listed.stdout.decode().split("\0") if name)
 
 
-def rust_graph(src: Path) -> dict[tuple[str, ...], set[tuple[str, ...]]]:
+def rust_graph(src: Path) -> tuple[dict[tuple[str, ...], set[tuple[str, ...]]], list[str]]:
+    """The crate's module graph, and each object of a device named where `OBJECTS_UNNAMED` names none."""
     files = tracked(src, "*.rs")
     modules = {rust_module_of(src, f) for f in files}
     graph: dict[tuple[str, ...], set[tuple[str, ...]]] = defaultdict(set)
+    problems = []
     for f, paths in rust_paths(files).items():
         module = rust_module_of(src, f)
         graph[module]
         for path in paths:
+            if path.startswith("="):
+                if within(module, {OBJECTS_UNNAMED}) and (number := device_object(path[1:])) is not None:
+                    problems.append(
+                        f"rust: {'::'.join(module)} names 0x{number:04X}, an object of a device (0x2000-0x9FFF): "
+                        "the profile's to write, not the EtherCAT layer's"
+                    )
+                continue
             target = resolve_rust(module, path, modules)
             if target not in (module, ()):
                 graph[module].add(target)
-    return graph
+    return graph, list(dict.fromkeys(problems))
+
+
+def device_object(literal: str) -> int | None:
+    """The object index a hex literal (`0x6060`, `0x6060u16`) writes, if it is four digits in `DEVICE_OBJECTS` and
+    neither a single bit nor one of `NOT_OBJECTS`."""
+    digits = literal[2:].split("u")[0].split("i")[0]
+    if len(digits) != 4 or "_" in digits:
+        return None
+    number = int(digits, 16)
+    single_bit = number & (number - 1) == 0
+    return number if number in DEVICE_OBJECTS and not single_bit and number not in NOT_OBJECTS else None
 
 
 def python_graph(package: Path) -> dict[tuple[str, ...], set[tuple[str, ...]]]:
@@ -321,9 +353,10 @@ def main() -> int:
     parser.add_argument("--list", action="store_true", help="print every module's dependencies")
     parser.add_argument("--root", type=Path, default=Path(__file__).resolve().parent.parent, help="the tree to check")
     args = parser.parse_args()
-    rust, python = rust_graph(args.root / "native" / "src"), python_graph(args.root / PYTHON_ROOT)
+    (rust, objects), python = rust_graph(args.root / "native" / "src"), python_graph(args.root / PYTHON_ROOT)
     problems = (
-        check("rust", rust, (), args.list)
+        objects
+        + check("rust", rust, (), args.list)
         + layer_problems("rust", rust, (), RUST_LAYERS, RUST_APART)
         + check("python", python, (PYTHON_ROOT,), args.list)
         + layer_problems("python", python, (PYTHON_ROOT,), PYTHON_LAYERS, {})
@@ -331,7 +364,10 @@ def main() -> int:
     for problem in problems:
         print(f"module_deps: {problem}", file=sys.stderr)
     if not problems:
-        print("module_deps: no cycles, no dependency up a layer (Rust crate native/src and Python package akd_ros)")
+        print(
+            "module_deps: no cycles, no dependency up a layer, no device's object in the EtherCAT layer (Rust crate "
+            "native/src and Python package akd_ros)"
+        )
     return 1 if problems else 0
 
 

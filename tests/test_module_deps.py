@@ -1,6 +1,6 @@
-"""scripts/module_deps.py sees what it checks: a cycle, a dependency up a layer and the EtherCAT layer reaching for the
-drive profile planted in a scratch tree fail it, wherever in the code they are written, and text that only looks like
-code (strings, comments, doc comments, tests) does not."""
+"""scripts/module_deps.py sees what it checks: a cycle, a dependency up a layer, the EtherCAT layer reaching for the
+drive profile and the EtherCAT layer naming a device's object planted in a scratch tree fail it, wherever in the code
+they are written, and text that only looks like code (strings, comments, doc comments, tests) does not."""
 
 from __future__ import annotations
 
@@ -24,7 +24,10 @@ pub const CONTINUED: &str = "a string continued \
 pub const RAW: &str = r#"a raw string with "quotes" and crate::ethercat::master::Master"#;
 pub const QUOTE: char = '"';
 pub fn lifetime<'a>(s: &'a str) -> &'a str { s }
-/* a block comment naming crate::ethercat::master::Master */
+/* a block comment naming crate::ethercat::master::Master and 0x6060 */
+/// A doc comment naming the AKD's 0x60C2.
+pub const NOT_CODE: &str = "0x6060 in a string";
+pub const MASKS: [u16; 3] = [0x8000, 0x88A4, 0x1C12];
 """
 
 
@@ -53,7 +56,8 @@ CLEAN_RUST = {
     "lib.rs": "pub mod error;\npub mod ethercat;\npub mod drive;\npub mod sim;\n",
     "ethercat/mod.rs": "pub mod frame;\npub mod sii;\npub mod link;\npub mod master;\n",
     "ethercat/frame.rs": TRICKY
-    + "pub struct Frame;\n#[cfg(test)]\nmod tests {\n    use crate::ethercat::master::Master;\n}\n",
+    + "pub struct Frame;\n#[cfg(test)]\nmod tests {\n    use crate::ethercat::master::Master;\n"
+    + "    const M: u16 = 0x6060;\n}\n",
     "ethercat/sii.rs": "use crate::ethercat::frame::Frame;\npub struct Identity(pub Frame);\n",
     "error.rs": "pub enum Error { Sii(crate::ethercat::sii::Identity), Pdo(crate::drive::pdo::PdoError) }\n",
     "ethercat/link/mod.rs": "pub mod udp;\nuse crate::error::Error;\npub fn f(_: Error) {}\n",
@@ -118,6 +122,20 @@ def test_a_clean_tree_passes(tmp_path):
             "rust: sim depends on ethercat::master, a module kept apart from it",
         ),
         ({"sim/mod.rs": "use crate::drive::akd::configure;\n"}, "rust: sim depends on drive::akd, a module kept apart"),
+        # The EtherCAT layer naming a drive's object, imported from nowhere: written by the master, in a codec's
+        # constant, in a macro's tokens.
+        (
+            {"ethercat/master/mod.rs": "pub struct Master;\nimpl Master { fn f(&mut self) { self.w(0x6060, 0); } }"},
+            "rust: ethercat::master names 0x6060, an object of a device",
+        ),
+        (
+            {"ethercat/sii.rs": "pub struct Identity;\npub const PARAM02: u16 = 0x3e02;\n"},
+            "rust: ethercat::sii names 0x3E02, an object of a device",
+        ),
+        (
+            {"ethercat/link/udp.rs": "pub fn g() { let _ = vec![0x60C2u16]; }\n"},
+            "rust: ethercat::link::udp names 0x60C2, an object of a device",
+        ),
         # A cycle among siblings of one directory.
         (
             {

@@ -17,7 +17,7 @@ use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{handshake, Config, CycleThread, RealTime, Snapshot};
-use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::akd::{AkdLine, AkdSlave};
 use akd_native::drive::ds402::{Mode, State};
 use akd_native::drive::trajectory::Knot;
 use akd_native::ethercat::al::AlState;
@@ -184,20 +184,38 @@ fn loop_allocates_nothing(pipelined: bool) {
 }
 
 /// Drive 0 pinged 20 times through EoE, every other ping of 1400 bytes (two fragments each
-/// way), 10 ms apart; the echo replies received. (Back to back, a debug build's cycle carrying
-/// a fragment in most cycles over UDP overran its 1 ms in about half of them.)
+/// way), 10 ms apart; the pings answered. Each reply is judged by its own sequence number, so
+/// one that comes after the next ping went out is still its own ping's: each ping waits up to
+/// a second for its reply, and those still missing at the end up to ten seconds more. (Back to
+/// back, a debug build's cycle carrying a fragment in most cycles over UDP overran its 1 ms in
+/// about half of them.)
 fn pings(cycle: &CycleThread, mac: [u8; 6], ip: std::net::Ipv4Addr) -> usize {
+    const PINGS: u16 = 20;
+    let data = |seq_no: u16| vec![seq_no as u8; if seq_no.is_multiple_of(2) { 56 } else { 1400 }];
     // The drive's announcement and its answer to the ARP request, sent before the cycle.
     while cycle.eoe_receive(Duration::from_millis(100)).is_some_and(|(_, f)| f[12..14] == [0x08, 0x06]) {}
-    (0..20u16)
-        .filter(|&seq_no| {
-            std::thread::sleep(Duration::from_millis(10));
-            let data = vec![seq_no as u8; if seq_no % 2 == 0 { 56 } else { 1400 }];
-            cycle.eoe_send(0, &ethernet::ping(ip, mac, &data, seq_no)).unwrap();
-            let reply = cycle.eoe_receive(Duration::from_secs(1));
-            reply.inspect(|(_, frame)| ethernet::check_echo_reply(frame, ip, &data, seq_no)).is_some()
-        })
-        .count()
+    // Takes the next reply within `timeout`, if one comes, checked against its own ping.
+    let take = |answered: &mut [bool], timeout| {
+        let Some((_, frame)) = cycle.eoe_receive(timeout) else { return };
+        let (seq_no, _) = ethernet::echo_reply(&frame, ip).expect("an echo reply");
+        ethernet::check_echo_reply(&frame, ip, &data(seq_no), seq_no);
+        let seen = answered.get_mut(seq_no as usize).expect("the reply of a ping sent");
+        assert!(!std::mem::replace(seen, true), "ping {seq_no} answered twice");
+    };
+    let mut answered = [false; PINGS as usize];
+    for seq_no in 0..PINGS {
+        std::thread::sleep(Duration::from_millis(10));
+        cycle.eoe_send(0, &ethernet::ping(ip, mac, &data(seq_no), seq_no)).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(1);
+        while !answered[seq_no as usize] && Instant::now() < deadline {
+            take(&mut answered, Duration::from_millis(100));
+        }
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while answered.contains(&false) && Instant::now() < deadline {
+        take(&mut answered, Duration::from_millis(100));
+    }
+    answered.iter().filter(|&&a| a).count()
 }
 
 /// Drive 0's set-points written and its requests made, as a user would.

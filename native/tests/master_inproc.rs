@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::akd::{AkdLine, AkdSlave};
 use akd_native::drive::pdo;
 use akd_native::drive::pdo::Mapping;
 use akd_native::error::{Error, Result};

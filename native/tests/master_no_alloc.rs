@@ -7,6 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
+use akd_native::drive::akd::AkdLine;
 use akd_native::ethercat::al::AlState;
 use akd_native::ethercat::link::udp::Udp;
 use akd_native::ethercat::master::Master;

@@ -30,18 +30,22 @@ fn setpoints_stopped() -> Error {
 }
 
 /// How a cycle thread runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Config {
     /// The period, [`timing::MIN_PERIOD`]..=[`timing::MAX_PERIOD`].
     pub period: Duration,
     /// How the thread runs on the host.
     pub realtime: RealTime,
+    /// FBUS.PARAM02 as the clock set-up left it in each slave, by position, as
+    /// [`AkdLine`](crate::drive::akd::AkdLine) gives it; [`CycleThread::dc_status`] shows it (a
+    /// slave not in it as `None`, unknown).
+    pub fbus_param02: Vec<Option<u32>>,
 }
 
 impl Config {
     /// A cycle of `period` with no real-time settings.
     pub fn new(period: Duration) -> Self {
-        Config { period, realtime: RealTime::default() }
+        Config { period, realtime: RealTime::default(), fbus_param02: Vec::new() }
     }
 }
 
@@ -206,13 +210,13 @@ impl CycleThread {
             sdo: SdoSlot::default(),
             eoe: eoe_frames::EoeFrames::default(),
             quick_stop_on_fault: AtomicBool::new(false),
-            dc: dc_status::DcStatusShared::new(master.clock()),
+            dc: dc_status::DcStatusShared::new(master.clock(), &config.fbus_param02),
             trajectories: trajectory_player::PlayerShared::new(master.slaves().len()),
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
             supervised: supervised.is_ok(),
         });
-        let recoverer = recoverer(&mut master, &shared, &drives, period_ns, config.period);
+        let recoverer = recoverer(&mut master, &shared, &drives, config.period);
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
         let (ready_tx, ready_rx) = mpsc::sync_channel(1);
@@ -892,24 +896,18 @@ impl Drop for CycleThread {
 }
 
 /// The recovery thread's work, made while the master is still this thread's: each sequenced
-/// drive's clock as set up, and the mode in force (its display 0x6061, read now: a drive that
-/// lost power has forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change").
-fn recoverer(
-    master: &mut Master,
-    shared: &CycleShared,
-    drives: &[DriveLoop],
-    period_ns: u64,
-    period: Duration,
-) -> recovery::Recoverer {
-    let mut syncs = vec![None; master.slaves().len()];
+/// drive, and the mode in force (its display 0x6061, read now: a drive that lost power has
+/// forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change").
+fn recoverer(master: &mut Master, shared: &CycleShared, drives: &[DriveLoop], period: Duration) -> recovery::Recoverer {
+    let mut recovered = vec![false; master.slaves().len()];
     for d in drives {
         let position = d.position as usize;
         if let Ok([mode]) = master.slave_mut(d.position).and_then(|mut s| s.sdo_read(0x6061, 0)).as_deref() {
             shared.recovery[position].set_mode(*mode as i8);
         }
-        syncs[position] = master.restore_sync(d.position, period_ns as u32).ok();
+        recovered[position] = true;
     }
-    recovery::Recoverer::new(master, shared.relay.clone(), period, syncs)
+    recovery::Recoverer::new(master, shared.relay.clone(), period, recovered)
 }
 
 #[cfg(test)]

@@ -1,9 +1,11 @@
 //! Recovery of a slave the cycle lost: one that stopped answering (power cycled, its cable
 //! pulled, the line down) or left Op. The cycle thread notices it ([`Presence`]), asks the drive
 //! for Switch on disabled and reports it; a recovery thread beside the cycle then brings the
-//! slave back with [`Master::restore_slave`] on a restoring master ([`Master::for_restore`]) whose
-//! frames the cycle thread sends for it, one per cycle after its own exchange ([`Relay`]), so
-//! the other drives cycle on. When the slave is back in Op the cycle thread reports it and holds
+//! slave back on a restoring master ([`Master::for_restore`]) whose frames the cycle thread
+//! sends for it, one per cycle after its own exchange ([`Relay`]), so the other drives cycle
+//! on: the master takes it to PreOp ([`Master::restore_to_preop`]), the drive profile writes its
+//! mode and clock again ([`AkdSlave::restore`]), and the master takes it to Op
+//! ([`Master::restore_to_op`]). When the slave is back in Op the cycle thread reports it and holds
 //! its target at the actual position; its power stage stays off until it is enabled again.
 //! Attempts repeat while the slave does not answer, and a slave that comes back in Op by itself
 //! (a short cut of the line) is taken back without a restore.
@@ -13,10 +15,11 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use crate::cycle::seqlock::SeqBytes;
+use crate::drive::akd::{AkdLine, AkdSlave};
 use crate::error::Result;
 use crate::ethercat::frame::MAX_PAYLOAD_LEN;
 use crate::ethercat::link::Link;
-use crate::ethercat::master::restore::{Restore, SlaveSync};
+use crate::ethercat::master::restore::Restoring;
 use crate::ethercat::master::Master;
 
 /// Cycles without an answer after which a slave is taken as lost (the AKD's own limit).
@@ -293,18 +296,32 @@ impl Presence {
     }
 }
 
-/// The recovery thread's side: the restoring master and what each slave gets back.
+/// The recovery thread's side: the restoring master, the cycle's period and which slaves it
+/// brings back.
 pub struct Recoverer {
     master: Master,
-    syncs: Vec<Option<SlaveSync>>,
+    period: Duration,
+    recovered: Vec<bool>,
 }
 
 impl Recoverer {
-    /// A recoverer of `master`'s slaves, each with the clock it gets back (`None` for a slave
-    /// not recovered), whose frames go through `relay`.
-    pub fn new(master: &Master, relay: Arc<Relay>, period: Duration, syncs: Vec<Option<SlaveSync>>) -> Self {
+    /// A recoverer of `master`'s slaves, those `recovered` says, whose frames go through
+    /// `relay`, cycling every `period`.
+    pub fn new(master: &Master, relay: Arc<Relay>, period: Duration, recovered: Vec<bool>) -> Self {
         let link = RelayLink::new(relay, master.describe(), period);
-        Recoverer { master: master.for_restore(Box::new(link)), syncs }
+        Recoverer { master: master.for_restore(Box::new(link)), period, recovered }
+    }
+
+    /// Brings the drive at `position` back to Op: the master's two halves of a restore, the
+    /// drive profile's writes between them (its `mode` and its clock's side as the set-up gave
+    /// it; the cycle time of a drive on the SM2 event is the cycle's period).
+    fn restore(&mut self, position: u16, mode: Option<i8>) -> Result<()> {
+        if self.master.restore_to_preop(position)? == Restoring::InOp {
+            return Ok(());
+        }
+        let sync = self.master.drive_sync(position, self.period.as_nanos() as u32);
+        self.master.slave_mut(position)?.restore(mode, sync)?;
+        self.master.restore_to_op(position)
     }
 
     /// Runs until `stop`: restores every slave the cycle thread asks for, one at a time.
@@ -312,18 +329,19 @@ impl Recoverer {
         let mut next_try = vec![Instant::now(); slaves.len()];
         while !stop.load(Ordering::Acquire) {
             for (position, slave) in slaves.iter().enumerate() {
-                let Some(sync) = self.syncs.get(position).copied().flatten() else { continue };
-                if !slave.wanted.load(Ordering::Acquire) || Instant::now() < next_try[position] {
+                if !self.recovered.get(position).is_some_and(|&r| r)
+                    || !slave.wanted.load(Ordering::Acquire)
+                    || Instant::now() < next_try[position]
+                {
                     continue;
                 }
                 // 0 is no mode: the drive refuses it, and keeps its power-up mode.
                 let mode = slave.mode.lock().unwrap_or_else(|p| p.into_inner()).filter(|&m| m != 0);
-                let restore = Restore { mode, sync };
                 let p = position as u16;
                 self.master.set_mailbox_counter(p, slave.mailbox_counter.load(Ordering::Acquire));
                 slave.attempts.fetch_add(1, Ordering::Relaxed);
                 slave.restoring.store(true, Ordering::Release);
-                let outcome = self.master.restore_slave(p, &restore);
+                let outcome = self.restore(p, mode);
                 slave.mailbox_counter.store(self.master.mailbox_counter(p).unwrap_or(0), Ordering::Release);
                 slave.restoring.store(false, Ordering::Release);
                 let mut last_error = slave.last_error.lock().unwrap_or_else(|p| p.into_inner());

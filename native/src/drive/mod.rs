@@ -3,10 +3,11 @@
 //! modes, targets and handshakes), [`pdo`] (the AKD's mappable objects and mappings, and their
 //! rules), [`objects`] (mapped values read and encoded by their data types), [`io`] (the
 //! drive's own digital and analog I/O in its process data), [`scaling`] (how the drive scales
-//! its positions), [`akd_fault`] (the AKD's fault numbers) and [`trajectory`] (joint
-//! trajectories, validated and interpolated). The cycle thread, the virtual AKD and the bindings
+//! its positions), [`sync`] (how it follows the line's clock), [`akd_fault`] (the AKD's fault
+//! numbers) and [`trajectory`] (joint trajectories, validated and interpolated). The cycle thread, the virtual AKD and the bindings
 //! read the drive from here; [`akd`] is what the profile does to an AKD through the master (its
-//! mapping, its position scaling), the master itself knowing no AKD.
+//! mapping, its position scaling, its clock's side, its restore), the master itself knowing no
+//! AKD.
 
 pub mod akd;
 pub mod akd_fault;
@@ -15,4 +16,5 @@ pub mod io;
 pub mod objects;
 pub mod pdo;
 pub mod scaling;
+pub mod sync;
 pub mod trajectory;

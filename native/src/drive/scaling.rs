@@ -28,7 +28,7 @@ pub const GEAR_RATIO: u16 = 0x6091;
 pub const FEED_CONSTANT: u16 = 0x6092;
 
 /// FBUS.PARAM05, the AKD's fieldbus behaviour bits (manual §5.14). The manual names the
-/// parameter but gives no CoE index for it; like FBUS.PARAM02 ([`crate::ethercat::dc::FBUS_PARAM02`],
+/// parameter but gives no CoE index for it; like FBUS.PARAM02 ([`crate::drive::sync::FBUS_PARAM02`],
 /// which explains the choice) it is modelled as manufacturer object 0x3E05:00, UNSIGNED32, and
 /// a master trusts what it reads there only where the drive's SDO information names the object
 /// [`FBUS_PARAM05_NAME`].

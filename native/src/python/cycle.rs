@@ -327,7 +327,8 @@ impl PyCycle {
     fn new(py: Python<'_>, master: Py<PyMaster>, period: f64, realtime: Option<RealTime>) -> PyResult<Self> {
         let period = Duration::try_from_secs_f64(period)
             .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
-        let config = Config { period, realtime: realtime.unwrap_or_default() };
+        let fbus_param02 = super::master::lock(&master.borrow(py).fbus_param02).clone();
+        let config = Config { period, realtime: realtime.unwrap_or_default(), fbus_param02 };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
             Ok(cycle) => Ok(PyCycle { master, cycle: Arc::new(cycle) }),

@@ -13,7 +13,7 @@ use pyo3::types::PyInt;
 use super::eeprom::IdentityView;
 use super::IntoPyResult;
 use super::Merged;
-use crate::drive::akd::AkdSlave;
+use crate::drive::akd::{AkdLine, AkdSlave};
 use crate::drive::pdo::Mapping;
 use crate::drive::scaling::{self, PositionScaling};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
@@ -107,6 +107,9 @@ pub struct PyMaster {
     /// does not hold them.
     simulator: Option<SimControl>,
     warnings: Vec<String>,
+    /// FBUS.PARAM02 as the last clock set-up left it in each slave, by position, for the Cycle
+    /// that shows it.
+    pub(super) fbus_param02: Mutex<Vec<Option<u32>>>,
 }
 
 /// The master while one call uses it.
@@ -227,7 +230,8 @@ impl PyMaster {
                 Some(path) => Box::new(link::pcap::CapturingLink::new(inner, path)?),
                 None => inner,
             };
-            Ok(PyMaster { master: Mutex::new(Some(master::Master::new(inner, timeout))), simulator, warnings })
+            let master = Mutex::new(Some(master::Master::new(inner, timeout)));
+            Ok(PyMaster { master, simulator, warnings, fbus_param02: Mutex::default() })
         })
         .py()
     }
@@ -253,6 +257,7 @@ impl PyMaster {
     /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
     /// what the scan found before it reset the bus.
     fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, IdentityView>>> {
+        lock(&self.fbus_param02).clear();
         self.with_master(py, |m| {
             m.scan()?;
             (0..m.slaves().len() as u16)
@@ -473,14 +478,18 @@ impl PyMaster {
     /// a cycle either way), with FBUS.PARAM02 = 1 on every AKD (in PreOp).
     #[pyo3(signature = (cycle_time_ns, shift_ns = 0))]
     fn configure_dc(&self, py: Python<'_>, cycle_time_ns: u32, shift_ns: i64) -> PyResult<()> {
-        self.with_master(py, |m| m.configure_dc(cycle_time_ns, shift_ns))
+        let fbus_param02 = self.with_master(py, |m| m.configure_dc(cycle_time_ns, shift_ns))?;
+        *lock(&self.fbus_param02) = fbus_param02;
+        Ok(())
     }
 
     /// Runs the drives without distributed clocks at `cycle_time_ns`: SYNC0 off,
     /// FBUS.PARAM02 = 0 and the cycle time 0x60C2 on every AKD, which then follows the SM2
     /// event (in PreOp).
     fn configure_sm2_sync(&self, py: Python<'_>, cycle_time_ns: u32) -> PyResult<()> {
-        self.with_master(py, |m| m.configure_sm2_sync(cycle_time_ns))
+        let fbus_param02 = self.with_master(py, |m| m.configure_sm2_sync(cycle_time_ns))?;
+        *lock(&self.fbus_param02) = fbus_param02;
+        Ok(())
     }
 
     /// One cyclic exchange; returns the working counter.
@@ -575,6 +584,11 @@ impl PyMaster {
     /// Gives the master back after its cycle thread stopped. Waits for the lock: while the
     /// master is out, a call holds it only to fail at once, with the GIL that the caller holds.
     pub(super) fn put_back(&self, master: master::Master) {
-        *self.master.lock().unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(master);
+        *lock(&self.master) = Some(master);
     }
+}
+
+/// A lock that a panicking holder left holds what it held.
+pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }

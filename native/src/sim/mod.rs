@@ -327,11 +327,6 @@ impl VirtualAkd {
         &mut self.drive
     }
 
-    /// Changes how fast the firmware reacts.
-    pub fn set_timing(&mut self, timing: Timing) {
-        self.timing = timing;
-    }
-
     /// A frame the line carried did not reach the drive.
     fn miss_frame(&mut self) {
         self.frames_lost += 1;

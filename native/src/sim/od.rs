@@ -416,9 +416,9 @@ impl ObjectDictionary {
             (0x20A7, "Latch 2 pn", INTEGER32, RO),
             (0x20B8, "ClearDigInputChangedBit", UNSIGNED16, RW),
             (0x3497, "Position offset", INTEGER32, RW),
-            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::ethercat::dc::FBUS_PARAM02);
+            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::drive::sync::FBUS_PARAM02);
             // named as the AKD names the parameter, which the master's SDO information check reads.
-            (crate::ethercat::dc::FBUS_PARAM02, crate::ethercat::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
+            (crate::drive::sync::FBUS_PARAM02, crate::drive::sync::FBUS_PARAM02_NAME, UNSIGNED32, RW),
             // Modelled likewise (see scaling::FBUS_PARAM05); bit 4 selects DS402 scaling.
             (scaling::FBUS_PARAM05, scaling::FBUS_PARAM05_NAME, UNSIGNED32, RW),
             (0x603F, "Error code", UNSIGNED16, RO),
@@ -588,7 +588,7 @@ impl ObjectDictionary {
     }
 
     /// Removes the object at `index`, if any: for tests of a drive that lacks an object the
-    /// virtual AKD has (e.g. [`crate::ethercat::dc::FBUS_PARAM02`], whose index is not documented).
+    /// virtual AKD has (e.g. [`crate::drive::sync::FBUS_PARAM02`], whose index is not documented).
     pub fn remove(&mut self, index: u16) -> Option<Object> {
         let i = self.objects.binary_search_by_key(&index, |o| o.index).ok()?;
         Some(self.objects.remove(i))

@@ -4,7 +4,7 @@
 //! SYNC0 when FBUS.PARAM02 bit 0 is set and SYNC0 runs; it locks when the SYNC0 cycle is the
 //! drive's cycle time. Otherwise the drive follows the SM2 event (§5.11.2).
 
-use crate::ethercat::dc::{FBUS_PARAM02, FBUS_PARAM02_PLL};
+use crate::drive::sync::{FBUS_PARAM02, FBUS_PARAM02_PLL};
 use crate::ethercat::registers as reg;
 use crate::sim::od::{self, ObjectDictionary};
 

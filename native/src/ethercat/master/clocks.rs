@@ -1,11 +1,10 @@
 //! Distributed-clock set-up on the bus (ETG.1020 §9): latch the receive times, set every
 //! clock's propagation delay and offset so that all read the master's time, let the clocks
 //! settle with a burst of drift-compensation frames, and start SYNC0 at the cycle time on a
-//! common cycle boundary, moved by a configurable shift. Every AKD gets FBUS.PARAM02 = 1, so
-//! its PLL follows SYNC0 (AKD manual §5.11), once its SDO information confirms the object
-//! (see [`dc::FBUS_PARAM02`]), and its cycle time 0x60C2. Without DC
-//! ([`configure_sm2_sync`](Master::configure_sm2_sync)) SYNC0 stays off, FBUS.PARAM02 = 0,
-//! and the drives follow the SM2 event (§5.11.2). The arithmetic is in [`crate::ethercat::dc`]; the
+//! common cycle boundary, moved by a configurable shift ([`Master::set_up_dc`]); or switch
+//! SYNC0 off on every slave ([`Master::stop_dc`]). Registers only: what a slave's application
+//! is told of the clock (an AKD's PLL and cycle time) is its profile's, written around these
+//! steps ([`crate::drive::akd::AkdLine`]). The arithmetic is in [`crate::ethercat::dc`]; the
 //! per-cycle drift datagram and the system-time difference reads are sent by
 //! [`exchange`](Master::exchange).
 
@@ -14,16 +13,15 @@ use std::time::{SystemTime, UNIX_EPOCH};
 use crate::error::{Result, Unavailable};
 use crate::ethercat::dc::{self, PortReceiveTimes};
 use crate::ethercat::frame::{self, Command};
-use crate::ethercat::master::sdo_info::{parameter_confirmed, ObjectInfo};
 use crate::ethercat::master::Master;
 use crate::ethercat::registers;
 
 /// Drift-compensation frames sent before SYNC0 starts, so the clocks have converged.
 const STATIC_DRIFT_FRAMES: usize = 1000;
 /// Time from "now" to the first SYNC0 pulse: enough for every slave to be armed.
-pub(crate) const SYNC0_MARGIN_NS: u64 = 100_000_000;
+const SYNC0_MARGIN_NS: u64 = 100_000_000;
 /// DC activation: cyclic unit and SYNC0 on.
-pub(crate) const ACTIVATE_SYNC0: u8 = 0x03;
+const ACTIVATE_SYNC0: u8 = 0x03;
 
 /// One slave with a distributed clock, as the set-up left it and the cycle reads it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -32,11 +30,6 @@ pub struct DcSlave {
     pub position: u16,
     /// Station address.
     pub station: u16,
-    /// FBUS.PARAM02 as written (1), or `None`, unknown: a slave without CoE, or a drive whose
-    /// SDO information does not confirm that object [`dc::FBUS_PARAM02`] is FBUS.PARAM02 (no
-    /// such object, or named otherwise), so nothing was written. Its PLL must then be switched
-    /// on the drive (FBUS.PARAM02 = 1 in WorkBench), or it does not follow SYNC0.
-    pub fbus_param02: Option<u32>,
     /// Its propagation delay from the reference (register 0x0928), ns, as set up.
     pub delay_ns: u32,
     /// The last system-time difference read (register 0x092C, ns, positive when the slave's
@@ -71,12 +64,6 @@ pub struct Clock {
     pub difference_misses: u64,
 }
 
-/// Whether a drive's answer to the object description of [`dc::FBUS_PARAM02`] confirms that
-/// the object is FBUS.PARAM02, so that it may be written ([`parameter_confirmed`]).
-pub fn fbus_param02_confirmed(description: Result<ObjectInfo>) -> Result<bool> {
-    parameter_confirmed(description, dc::FBUS_PARAM02_NAME)
-}
-
 /// The master's clock as EtherCAT system time.
 fn master_time() -> u64 {
     dc::system_time(SystemTime::now().duration_since(UNIX_EPOCH).unwrap_or_default())
@@ -85,10 +72,8 @@ fn master_time() -> u64 {
 impl Master {
     /// Sets up distributed clocks on every slave that has one and starts SYNC0 with
     /// `cycle_ns`, every pulse `shift_ns` after the cycle boundary (negative: before; less
-    /// than a cycle either way); every AKD gets FBUS.PARAM02 = 1 and its cycle time (0x60C2)
-    /// the same. Call in PreOp, before SafeOp.
-    pub fn configure_dc(&mut self, cycle_ns: u32, shift_ns: i64) -> Result<()> {
-        dc::interpolation_time_period(cycle_ns)?;
+    /// than a cycle either way). Call in PreOp, before SafeOp.
+    pub fn set_up_dc(&mut self, cycle_ns: u32, shift_ns: i64) -> Result<()> {
         let shift_ns = dc::check_sync0_shift(shift_ns, cycle_ns)?;
         let dc_positions: Vec<u16> = self.slaves.iter().filter(|s| s.has_dc()).map(|s| s.position).collect();
         let dc_slaves: Vec<u16> = dc_positions.iter().map(|&p| self.slaves[p as usize].station_address).collect();
@@ -112,33 +97,22 @@ impl Master {
         let mut delays = vec![0u32; dc_slaves.len()];
         dc::propagation_delays(&times, &mut delays);
         for (i, &station) in dc_slaves.iter().enumerate() {
-            let offset = dc::system_time_offset(sent_at, delays[i], local[i]);
-            self.write_registers(station, registers::DC_SYSTEM_TIME_OFFSET, &offset.to_le_bytes())?;
-            self.write_registers(station, registers::DC_SYSTEM_TIME_DELAY, &delays[i].to_le_bytes())?;
+            self.set_clock(station, dc::system_time_offset(sent_at, delays[i], local[i]), delays[i])?;
         }
         for _ in 0..STATIC_DRIFT_FRAMES {
             self.datagram(Command::Frmw, reference_station, registers::DC_SYSTEM_TIME, &mut [0u8; 8])?;
         }
-        let mut now = [0u8; 8];
-        self.read_registers(reference_station, registers::DC_SYSTEM_TIME, &mut now)?;
-        let start = dc::shifted_sync0_start(u64::from_le_bytes(now), cycle_ns, SYNC0_MARGIN_NS, shift_ns);
+        let now = self.system_time_of(reference_station)?;
+        let start = dc::shifted_sync0_start(now, cycle_ns, SYNC0_MARGIN_NS, shift_ns);
         for &station in &dc_slaves {
             self.write_registers(station, registers::DC_ACTIVATION, &[0])?;
-            self.write_registers(station, registers::DC_SYNC0_CYCLE_TIME, &cycle_ns.to_le_bytes())?;
-            self.write_registers(station, registers::DC_SYNC0_START_TIME, &start.to_le_bytes())?;
-            self.write_registers(station, registers::DC_ACTIVATION, &[ACTIVATE_SYNC0])?;
+            self.start_sync0(station, cycle_ns, start)?;
         }
-        let param02 = self.set_drive_sync(cycle_ns, dc::FBUS_PARAM02_PLL)?;
         let slaves = dc_positions
             .iter()
             .zip(&dc_slaves)
-            .map(|(&position, &station)| DcSlave {
-                position,
-                station,
-                fbus_param02: param02[position as usize],
-                delay_ns: delays[dc_positions.iter().position(|&p| p == position).unwrap_or(0)],
-                time_difference_ns: None,
-            })
+            .zip(&delays)
+            .map(|((&position, &station), &delay_ns)| DcSlave { position, station, delay_ns, time_difference_ns: None })
             .collect();
         self.clock = Some(Clock {
             reference_station,
@@ -147,7 +121,7 @@ impl Master {
             cycle_ns,
             shift_ns,
             sync0_start: start,
-            system_time: u64::from_le_bytes(now),
+            system_time: now,
             slaves,
             next_difference: 0,
             difference_reads: 0,
@@ -156,79 +130,56 @@ impl Master {
         Ok(())
     }
 
-    /// Runs the drives without distributed clocks: SYNC0 off on every slave with DC, every
-    /// AKD's FBUS.PARAM02 = 0 and its cycle time (0x60C2) `cycle_ns`, so that each follows the
-    /// SM2 event of the cyclic frame (AKD manual §5.11.2). Call in PreOp, before SafeOp.
-    pub fn configure_sm2_sync(&mut self, cycle_ns: u32) -> Result<()> {
-        dc::interpolation_time_period(cycle_ns)?;
+    /// Runs the bus without distributed clocks: SYNC0 off on every slave with DC. Call in
+    /// PreOp, before SafeOp.
+    pub fn stop_dc(&mut self) -> Result<()> {
         self.clock = None;
         let stations: Vec<u16> = self.slaves.iter().filter(|s| s.has_dc()).map(|s| s.station_address).collect();
         for station in stations {
             self.write_registers(station, registers::DC_ACTIVATION, &[0])?;
         }
-        self.set_drive_sync(cycle_ns, 0)?;
         Ok(())
     }
 
-    /// Writes FBUS.PARAM02 = `param02` to every slave with CoE whose SDO information confirms
-    /// the object ([`dc::FBUS_PARAM02`] explains why), and the cycle time to every slave with
-    /// CoE; per slave, the FBUS.PARAM02 now in the drive (`None`: unknown, nothing written).
-    fn set_drive_sync(&mut self, cycle_ns: u32, param02: u32) -> Result<Vec<Option<u32>>> {
-        (0..self.slaves.len() as u16).map(|position| self.set_slave_sync(position, cycle_ns, param02)).collect()
+    /// Sets the clock of the slave at `position` (at `station`), if the set-up gave it SYNC0, to
+    /// system time again after it lost it: its offset to the reference's time, its propagation
+    /// delay as measured at the set-up, and SYNC0 as the set-up started it, on the line's common
+    /// cycle boundary.
+    pub(super) fn restart_sync0(&mut self, position: u16, station: u16) -> Result<()> {
+        let Some(clock) = &self.clock else { return Ok(()) };
+        let Some(delay_ns) = clock.slaves.iter().find(|s| s.position == position).map(|s| s.delay_ns) else {
+            return Ok(());
+        };
+        let (cycle_ns, shift_ns, reference_station) = (clock.cycle_ns, clock.shift_ns, clock.reference_station);
+        let local = self.system_time_of(station)?;
+        let reference = self.system_time_of(reference_station)?;
+        self.set_clock(station, reference.wrapping_sub(local).wrapping_add(delay_ns as u64), delay_ns)?;
+        let start = dc::shifted_sync0_start(reference, cycle_ns, SYNC0_MARGIN_NS, shift_ns);
+        self.start_sync0(station, cycle_ns, start)
     }
 
-    /// [`set_drive_sync`](Self::set_drive_sync) for the slave at `position` alone.
-    pub(crate) fn set_slave_sync(&mut self, position: u16, cycle_ns: u32, param02: u32) -> Result<Option<u32>> {
-        if !self.slave(position)?.mailbox.as_ref().is_some_and(|m| m.has_coe()) {
-            return Ok(None);
-        }
-        let mut written = None;
-        if fbus_param02_confirmed(self.sdo_object_description(position, dc::FBUS_PARAM02))? {
-            self.sdo_write(position, dc::FBUS_PARAM02, 0, &param02.to_le_bytes())?;
-            written = Some(param02);
-        }
-        self.set_cycle_time(position, cycle_ns)?;
-        Ok(written)
+    /// The system time of the slave at `station` (register 0x0910).
+    fn system_time_of(&mut self, station: u16) -> Result<u64> {
+        let mut time = [0u8; 8];
+        self.read_registers(station, registers::DC_SYSTEM_TIME, &mut time)?;
+        Ok(u64::from_le_bytes(time))
     }
 
-    /// Sets the drive's cycle time (interpolation time period 0x60C2) of the slave at
-    /// `position`, e.g. 2 ms as (2, -3).
-    pub(super) fn set_cycle_time(&mut self, position: u16, cycle_ns: u32) -> Result<()> {
-        let (units, exponent) = crate::ethercat::dc::interpolation_time_period(cycle_ns)?;
-        self.sdo_write(position, 0x60C2, 1, &[units])?;
-        self.sdo_write(position, 0x60C2, 2, &[exponent as u8])
+    /// Sets the offset of the slave at `station` to system time and its propagation delay.
+    fn set_clock(&mut self, station: u16, offset: u64, delay_ns: u32) -> Result<()> {
+        self.write_registers(station, registers::DC_SYSTEM_TIME_OFFSET, &offset.to_le_bytes())?;
+        self.write_registers(station, registers::DC_SYSTEM_TIME_DELAY, &delay_ns.to_le_bytes())
+    }
+
+    /// Starts SYNC0 on the slave at `station`, every `cycle_ns` from `start` (system time).
+    fn start_sync0(&mut self, station: u16, cycle_ns: u32, start: u64) -> Result<()> {
+        self.write_registers(station, registers::DC_SYNC0_CYCLE_TIME, &cycle_ns.to_le_bytes())?;
+        self.write_registers(station, registers::DC_SYNC0_START_TIME, &start.to_le_bytes())?;
+        self.write_registers(station, registers::DC_ACTIVATION, &[ACTIVATE_SYNC0])
     }
 
     /// The distributed-clock set-up, if any.
     pub fn clock(&self) -> Option<&Clock> {
         self.clock.as_ref()
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::error::Error;
-    use crate::error::MailboxError;
-    use crate::ethercat::coe::{ObjectCode, SdoAbortCode};
-
-    fn described(name: &str) -> Result<ObjectInfo> {
-        Ok(ObjectInfo {
-            index: dc::FBUS_PARAM02,
-            data_type: 0x0007,
-            max_subindex: 0,
-            object_code: ObjectCode::Var,
-            name: name.into(),
-        })
-    }
-
-    #[test]
-    fn fbus_param02_is_written_only_where_the_drive_names_the_object_so() {
-        assert!(fbus_param02_confirmed(described("FBUS.PARAM02")).unwrap());
-        assert!(!fbus_param02_confirmed(described("Position offset")).unwrap());
-        let no_object = Error::sdo_abort(dc::FBUS_PARAM02, 0, SdoAbortCode::NO_SUCH_OBJECT);
-        assert!(!fbus_param02_confirmed(Err(no_object)).unwrap());
-        let mailbox_failed = Err(MailboxError::InfoErrorWithoutCode.into());
-        assert!(fbus_param02_confirmed(mailbox_failed).is_err(), "not a drive's answer: the set-up fails");
     }
 }

@@ -150,3 +150,29 @@ impl Master {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::error::{Error, MailboxError};
+    use crate::ethercat::coe::{ObjectCode, SdoAbortCode};
+
+    #[test]
+    fn a_parameter_is_confirmed_only_where_the_slave_names_the_object_so() {
+        let described = |name: &str| {
+            Ok(ObjectInfo {
+                index: 0x2001,
+                data_type: 7,
+                max_subindex: 0,
+                object_code: ObjectCode::Var,
+                name: name.into(),
+            })
+        };
+        assert!(parameter_confirmed(described("VENDOR.PARAM01"), "VENDOR.PARAM01").unwrap());
+        assert!(!parameter_confirmed(described("Position offset"), "VENDOR.PARAM01").unwrap());
+        let no_object = Error::sdo_abort(0x2001, 0, SdoAbortCode::NO_SUCH_OBJECT);
+        assert!(!parameter_confirmed(Err(no_object), "VENDOR.PARAM01").unwrap());
+        let mailbox_failed = Err(MailboxError::InfoErrorWithoutCode.into());
+        assert!(parameter_confirmed(mailbox_failed, "VENDOR.PARAM01").is_err(), "not the slave's answer: an error");
+    }
+}

@@ -175,12 +175,6 @@ impl SlaveRef<'_> {
         self.master.configure_process_data(self.position, process_data)
     }
 
-    /// Sets the drive's cycle time (interpolation time period 0x60C2), for a drive synchronised
-    /// without distributed clocks.
-    pub fn set_cycle_time(&mut self, cycle_ns: u32) -> Result<()> {
-        self.master.set_cycle_time(self.position, cycle_ns)
-    }
-
     /// This slave's outputs as they go out in the next cycle.
     pub fn outputs(&self) -> Result<&[u8]> {
         self.master.outputs(self.position)
