@@ -24,3 +24,33 @@ pub mod place;
 pub mod registers;
 pub mod tally;
 pub mod topology;
+
+use std::time::Duration;
+
+/// What a reader of the line has: each slave's ports, and their links and counts as tallied.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct LineReading {
+    /// Each slave's port descriptor, by position.
+    pub ports: Vec<registers::PortDescriptor>,
+    /// The counts.
+    pub health: tally::LineHealth,
+    /// How often the line is read; `None`: read once (at rest), or not at all.
+    pub interval: Option<Duration>,
+    /// Frames the reads took.
+    pub frames: u64,
+    /// Of those, the ones that did not come back.
+    pub frames_lost: u64,
+}
+
+impl LineReading {
+    /// The line's connections as first read (each slave's first DL status).
+    pub fn topology(&self) -> topology::Topology {
+        let found: Vec<_> = self.health.slaves.iter().map(|s| s.found).collect();
+        topology::Topology::of(&found)
+    }
+
+    /// What the counts show, the worst first ([`place::findings`]).
+    pub fn findings(&self) -> Vec<place::Finding> {
+        place::findings(&self.topology(), &self.health)
+    }
+}
