@@ -11,7 +11,7 @@ use crate::ethercat::line_health::registers::{
 };
 use crate::ethercat::line_health::tally::{LineTally, SlaveRead};
 use crate::ethercat::line_health::LineReading;
-use crate::ethercat::master::Master;
+use crate::ethercat::master::{Master, Slave};
 use crate::ethercat::registers::{DL_STATUS, PORT_DESCRIPTOR};
 
 /// Frame bytes one slave's reads take: its DL status (2 bytes) and its error counters (20), each
@@ -103,5 +103,12 @@ impl Master {
         tally.close_read(0);
         let frames = self.stats.frames - frames_before;
         Ok(LineReading { ports, health: tally.health(), interval: None, frames, frames_lost: 0 })
+    }
+}
+
+impl Slave {
+    /// What the slave is, as its SII names it: its order number ("EL1004"), else its name.
+    pub fn product(&self) -> &str {
+        self.sii.order().or(self.sii.name()).unwrap_or("unnamed")
     }
 }
