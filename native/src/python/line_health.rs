@@ -9,7 +9,7 @@ use pyo3::prelude::*;
 use crate::ethercat::line_health::place::Finding;
 use crate::ethercat::line_health::registers::PortCounts;
 use crate::ethercat::line_health::LineReading;
-use crate::ros::line_diagnostics::{self, level_of, link_words, peer_words, slave_words};
+use crate::ros::line_diagnostics::{self, counts_words, level_of, link_words, peer_words, slave_words};
 
 /// One port's counters: "invalid_frames", "rx_errors", "forwarded_errors", "lost_links".
 #[derive(IntoPyObject)]
@@ -41,7 +41,8 @@ pub(super) struct EscCountsView {
 /// One port of `line_health()["slaves"][n]["ports"]`: "port", "kind" ("MII", "E-bus", ...),
 /// "link" (its link as the DL status shows it: "link, open", "link, closed", "no link" or
 /// "unknown"), "peer" (what is at its other end: "the master", "slave 2 (joint_3) port 1",
-/// "nothing"), "total" and "window" (its counters since the first read and over the window).
+/// "nothing"), "total" and "window" (its counters since the first read and over the window),
+/// "counted" (the window's in words: "37 invalid frames, 1 lost link", or "no errors").
 #[derive(IntoPyObject)]
 struct PortView {
     port: usize,
@@ -50,6 +51,7 @@ struct PortView {
     peer: String,
     total: PortCountsView,
     window: PortCountsView,
+    counted: String,
 }
 
 /// One slave of `line_health()["slaves"]`: "position", "name", "answered" (the last read),
@@ -111,11 +113,9 @@ impl LineHealthView {
         let health = &reading.health;
         let topology = reading.topology();
         let findings = reading.findings();
-        let words = |f: &Finding| f.words(|s| slave_words(labels, s), health.window_ns);
-        let summary = findings
-            .first()
-            .map(words)
-            .unwrap_or_else(|| format!("no errors on the line in the last {:.0} s", health.window_ns as f64 * 1e-9));
+        let period = reading.period();
+        let words = |f: &Finding| f.words(|s| slave_words(labels, s), &period);
+        let summary = findings.first().map(words).unwrap_or_else(|| format!("no errors on the line {period}"));
         let slaves = health
             .slaves
             .iter()
@@ -136,6 +136,7 @@ impl LineHealthView {
                             peer: peer_words(topology.peer(s, port), labels),
                             total: slave.totals.ports[port].into(),
                             window: slave.window.ports[port].into(),
+                            counted: counts_words(&slave.window.ports[port]),
                         })
                         .collect(),
                     total: EscCountsView {

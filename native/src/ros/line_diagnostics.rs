@@ -33,11 +33,6 @@ pub fn slave_words(labels: &[String], slave: usize) -> String {
     }
 }
 
-/// How the window is said: "in the last 10 s".
-fn window_words(window_ns: u64) -> String {
-    format!("in the last {:.0} s", window_ns as f64 * 1e-9)
-}
-
 /// A port's link as its DL status shows it.
 pub fn link_words(status: Option<DlStatus>, port: usize) -> &'static str {
     match status {
@@ -91,11 +86,11 @@ pub fn statuses(reading: &LineReading, labels: &[String], link: &str) -> Vec<Sta
     let findings = reading.findings();
     let name = |s: usize| slave_words(labels, s);
     let health = &reading.health;
-    let window = window_words(health.window_ns);
+    let window = reading.period();
     let (level, message) = match (reading.interval, findings.first()) {
         (None, None) if health.reads == 0 => (OK, "the line's links and error counters are not read".to_owned()),
         (_, None) => (OK, format!("no errors on the line {window}")),
-        (_, Some(worst)) => (level_of(worst), worst.words(name, health.window_ns)),
+        (_, Some(worst)) => (level_of(worst), worst.words(name, &window)),
     };
     let topology = reading.topology();
     let connections: Vec<String> = (1..health.slaves.len())
@@ -109,7 +104,7 @@ pub fn statuses(reading: &LineReading, labels: &[String], link: &str) -> Vec<Sta
         ("read_frames_lost".to_owned(), reading.frames_lost.to_string()),
         ("topology".to_owned(), connections.join("; ")),
     ];
-    values.extend(findings.iter().enumerate().map(|(n, f)| (format!("finding_{n}"), f.words(name, health.window_ns))));
+    values.extend(findings.iter().enumerate().map(|(n, f)| (format!("finding_{n}"), f.words(name, &window))));
     let hardware_id = format!("EtherCAT line {link}");
     let mut all = vec![(level, "line".to_owned(), message, hardware_id, values)];
     for (s, slave) in health.slaves.iter().enumerate() {

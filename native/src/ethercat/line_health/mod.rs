@@ -49,6 +49,15 @@ impl LineReading {
         topology::Topology::of(&found)
     }
 
+    /// How its counts over the window are said: "in the last 10 s", or, for a line read once at
+    /// rest, whose window is all each slave counted, "since power-up or the last clear".
+    pub fn period(&self) -> String {
+        match self.interval {
+            Some(_) => place::window_words(self.health.window_ns),
+            None => "since power-up or the last clear".to_owned(),
+        }
+    }
+
     /// What the counts show, the worst first ([`place::findings`]).
     pub fn findings(&self) -> Vec<place::Finding> {
         place::findings(&self.topology(), &self.health)

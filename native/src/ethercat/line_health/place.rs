@@ -84,13 +84,13 @@ impl Finding {
     }
 
     /// The finding in words, each slave named by `label` (e.g. "slave 4 (joint_5)"), counts said
-    /// over a window of `window_ns`.
-    pub fn words(&self, label: impl Fn(usize) -> String, window_ns: u64) -> String {
+    /// over `period` ([`period_words`]: "in the last 10 s").
+    pub fn words(&self, label: impl Fn(usize) -> String, period: &str) -> String {
         let end = |e: &End| match e {
             End::Master => "the master".to_owned(),
             End::Port { slave, port } => format!("{} port {port}", label(*slave)),
         };
-        let window = format!("in the last {:.0} s", window_ns as f64 * 1e-9);
+        let window = period;
         let cable = |into: &(usize, usize), from: &End| {
             format!("the cable into {} port {}, from {}", label(into.0), into.1, end(from))
         };
@@ -114,6 +114,11 @@ impl Finding {
             }
         }
     }
+}
+
+/// How counts over a window of `window_ns` are said: "in the last 10 s".
+pub fn window_words(window_ns: u64) -> String {
+    format!("in the last {:.0} s", window_ns as f64 * 1e-9)
 }
 
 /// What `health` shows of a line whose connections were `found` (the topology of the line as
@@ -215,7 +220,7 @@ mod tests {
         let found = findings(&topology, &health);
         assert_eq!(found, [Finding::Errors { into: (3, 0), from: End::Port { slave: 2, port: 1 }, count: 37 }]);
         assert_eq!(
-            found[0].words(label, health.window_ns),
+            found[0].words(label, &window_words(health.window_ns)),
             "errors on the cable into slave 3 (joint_4) port 0, from slave 2 (joint_3) port 1: 37 in the last 10 s"
         );
     }
@@ -229,7 +234,7 @@ mod tests {
         }
         let found = findings(&topology, &health);
         assert_eq!(
-            found[0].words(label, health.window_ns),
+            found[0].words(label, &window_words(health.window_ns)),
             "errors on the cable into slave 3 (joint_4) port 1, from slave 4 (joint_5) port 0: 12 in the last 10 s"
         );
     }
@@ -244,12 +249,12 @@ mod tests {
         health.slaves[3].window.ports[1].lost_links = 1;
         let found = findings(&topology, &health);
         assert_eq!(
-            found[0].words(label, health.window_ns),
+            found[0].words(label, &window_words(health.window_ns)),
             "no link on the cable into slave 4 (joint_5) port 0, from slave 3 (joint_4) port 1: unreachable slave 4 \
              (joint_5), slave 5 (joint_6)"
         );
         assert_eq!(
-            found[1].words(label, health.window_ns),
+            found[1].words(label, &window_words(health.window_ns)),
             "link lost on the cable into slave 4 (joint_5) port 0, from slave 3 (joint_4) port 1: 1 in the last 10 s"
         );
         assert_eq!(found.len(), 2, "the unreachable slaves are the link's, not unanswered: {found:?}");

@@ -77,7 +77,8 @@ struct SlaveTally {
     last: ErrorCounts<u8>,
     /// Whether its next read clears.
     clear_next: bool,
-    /// Whether it answered a read yet: the first one's counts are not the window's.
+    /// Whether its next read's counts are the window's: from its first answered read on (or at
+    /// once, at rest).
     started: bool,
     /// Counted in the line read under way.
     current: ErrorCounts<u8>,
@@ -99,12 +100,22 @@ pub struct LineTally {
 impl LineTally {
     /// A tally of `slaves` slaves whose window spans the last `window_reads` reads (at least 1).
     pub fn new(slaves: usize, window_reads: usize) -> Self {
+        Self::with_first_read(slaves, window_reads, false)
+    }
+
+    /// A tally of one read of a line at rest: its window is that read's counts, all each slave
+    /// counted since its power-up or the last clear.
+    pub fn at_rest(slaves: usize) -> Self {
+        Self::with_first_read(slaves, 1, true)
+    }
+
+    fn with_first_read(slaves: usize, window_reads: usize, first_in_window: bool) -> Self {
         let window_reads = window_reads.max(1);
         let slave = SlaveTally {
             health: SlaveHealth::default(),
             last: ErrorCounts::default(),
             clear_next: false,
-            started: false,
+            started: first_in_window,
             current: ErrorCounts::default(),
             ring: vec![ErrorCounts::default(); window_reads],
         };

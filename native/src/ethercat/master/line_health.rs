@@ -86,12 +86,12 @@ impl Master {
     }
 
     /// The line's health as one read finds it, at rest (for tools): each slave's links and what
-    /// its ESC counted since its power-up or the last clear, nothing cleared; and its port
-    /// descriptor.
+    /// its ESC counted since its power-up or the last clear (the window's counts too, so that the
+    /// findings place them), nothing cleared; and its port descriptor.
     pub fn line_health(&mut self) -> Result<LineReading> {
         let ports = self.port_descriptors()?;
         let frames_before = self.stats.frames;
-        let mut tally = LineTally::new(self.slaves.len(), 1);
+        let mut tally = LineTally::at_rest(self.slaves.len());
         let mut reads = vec![SlaveRead::default(); SLAVES_PER_FRAME];
         for first in (0..self.slaves.len()).step_by(SLAVES_PER_FRAME) {
             let count = SLAVES_PER_FRAME.min(self.slaves.len() - first);
