@@ -84,7 +84,8 @@ impl Finding {
     }
 
     /// The finding in words, each slave named by `label` (e.g. "slave 4 (joint_5)"), counts said
-    /// over `period` ([`period_words`]: "in the last 10 s").
+    /// over `period` ([`window_words`] or [`LineReading::period`](super::LineReading::period): "in the
+    /// last 10 s").
     pub fn words(&self, label: impl Fn(usize) -> String, period: &str) -> String {
         let end = |e: &End| match e {
             End::Master => "the master".to_owned(),
