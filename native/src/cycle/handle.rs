@@ -15,8 +15,8 @@ use super::seqlock::SeqBytes;
 use super::stats::CycleStats;
 use super::supervision::Gaps;
 use super::{
-    command_timeout, dc_status, eoe_frames, handshake, homing, latch, recovery, rt, sequencer, supervision, timing,
-    trajectory_player, CycleShared, RealTime, HEADER_LEN,
+    command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, recovery, rt, sequencer,
+    supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
 use crate::drive::trajectory::{Knot, Limits, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
@@ -40,12 +40,21 @@ pub struct Config {
     /// [`AkdLine`](crate::drive::akd::AkdLine) gives it; [`CycleThread::dc_status`] shows it (a
     /// slave not in it as `None`, unknown).
     pub fbus_param02: Vec<Option<u32>>,
+    /// How often every slave's links and error counters are read beside the cycle
+    /// ([`super::line_health`]); `None`: never.
+    pub line_health: Option<Duration>,
 }
 
 impl Config {
-    /// A cycle of `period` with no real-time settings.
+    /// A cycle of `period` with no real-time settings, reading the line's health four times a
+    /// second.
     pub fn new(period: Duration) -> Self {
-        Config { period, realtime: RealTime::default(), fbus_param02: Vec::new() }
+        Config {
+            period,
+            realtime: RealTime::default(),
+            fbus_param02: Vec::new(),
+            line_health: Some(super::line_health::DEFAULT_INTERVAL),
+        }
     }
 }
 
@@ -128,6 +137,8 @@ pub struct CycleThread {
     /// Per slave: the mapping's entries, outputs and inputs, where mapped.
     mappings: Vec<Option<(Vec<PdoEntry>, Vec<PdoEntry>)>>,
     trajectories: trajectory_player::Caller,
+    /// Each slave's product as its SII names it.
+    products: Vec<String>,
 }
 
 impl CycleThread {
@@ -187,6 +198,16 @@ impl CycleThread {
             ));
         }
         let mailbox = MailboxService::new(&master);
+        // The ports each slave's ESC has, for the line's health; without them it is not read.
+        let (ports, line_health_interval) = match master.port_descriptors() {
+            Ok(ports) => (ports, config.line_health.filter(|i| !i.is_zero())),
+            Err(e) => {
+                start_warnings.push(format!("the line's links and error counters are not read: {e}"));
+                (Vec::new(), None)
+            }
+        };
+        let products =
+            master.slaves().iter().map(|s| s.sii.order().or(s.sii.name()).unwrap_or("unnamed").to_owned()).collect();
         let mappings = master
             .slaves()
             .iter()
@@ -215,6 +236,7 @@ impl CycleThread {
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
             supervised: supervised.is_ok(),
+            line_health: line_health::LineHealthShared::new(ports, line_health_interval),
         });
         let recoverer = recoverer(&mut master, &shared, &drives, config.period);
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
@@ -226,6 +248,7 @@ impl CycleThread {
             let mut mailbox = mailbox;
             let mut player = trajectory_player::Player::new(master.slaves().len());
             let mut relay_buffers = recovery::RelayBuffers::default();
+            let mut line_reader = line_health::LineHealthReader::new(master.slaves().len(), &shared.line_health);
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
@@ -241,7 +264,7 @@ impl CycleThread {
                     Loop { master: &mut master, shared: &shared, drives: &mut drives, gaps: Gaps::default() };
                 run(
                     &mut ready,
-                    (&mut mailbox, &mut relay_buffers),
+                    (&mut mailbox, &mut relay_buffers, &mut line_reader),
                     &mut player,
                     (period_ns, config.realtime.pipelined),
                 );
@@ -284,6 +307,7 @@ impl CycleThread {
             offsets,
             mappings,
             trajectories: trajectory_player::Caller::default(),
+            products,
         })
     }
 
@@ -364,6 +388,17 @@ impl CycleThread {
         }
         self.shared.latches[position as usize].set(edges, arm);
         Ok(())
+    }
+
+    /// Every slave's links and error counters as the reads beside the cycle found them so far
+    /// ([`super::line_health`]).
+    pub fn line_health(&self) -> crate::ethercat::line_health::LineReading {
+        self.shared.line_health.reading()
+    }
+
+    /// Each slave's product as its SII names it (its order number, else its name), by position.
+    pub fn products(&self) -> &[String] {
+        &self.products
     }
 
     /// Latch and fault events since the last call, oldest first.
