@@ -2,8 +2,7 @@
 configuration with mutual TLS and the access-control rules of its role (what `akd-access init` writes).
 
 Every door the node declares (`akd_ros.node.interface.declared`) has a role: a topic it publishes is *observe*, a
-service or action that only reads is *observe* too where listed below, one that changes a drive's configuration is
-*configure*, and every other door (the command topics, enable, disable, reset, quick stop, mode, latches, outputs,
+service that changes a drive's configuration (CONFIGURING_SERVICES) is *configure*, and every other door (the command topics, enable, disable, reset, quick stop, mode, latches, outputs,
 trajectories, homing) is *operate*. A client's role is the common name of its certificate. The rules are the node's:
 the node's session listens with mutual TLS, so a client without a certificate of this authority cannot connect, and
 Zenoh's access control on the node's session lets an observer subscribe only, an operator also put commands and query
