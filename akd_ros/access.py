@@ -1,9 +1,8 @@
 """Who may use which door of akd_node over Zenoh: the roles, a small certificate authority, and each party's Zenoh
 configuration with mutual TLS and the access-control rules of its role (what `akd-access init` writes).
 
-Every door the node declares (`akd_ros.node.interface.declared`) has a role: a topic it publishes is *observe*, a
-service that changes a drive's configuration (CONFIGURING_SERVICES) is *configure*, and every other door (the command topics, enable, disable, reset, quick stop, mode, latches, outputs,
-trajectories, homing) is *operate*. A client's role is the common name of its certificate. The rules are the node's:
+Every door the node declares (`akd_ros.node.interface.declared`) has the role `akd_ros.node.doors` gives it:
+observe, operate or configure. A client's role is the common name of its certificate. The rules are the node's:
 the node's session listens with mutual TLS, so a client without a certificate of this authority cannot connect, and
 Zenoh's access control on the node's session lets an observer subscribe only, an operator also put commands and query
 the operating services and actions, and a configurer the rest. Anything no rule allows is denied before it reaches the
@@ -18,28 +17,22 @@ import json
 import os
 from pathlib import Path
 
-from akd_ros.node.interface import ACTION, PUBLISHER, SERVICE, SUBSCRIPTION, Endpoint
+from akd_ros.node import doors
+from akd_ros.node.interface import ACTION, SERVICE, SUBSCRIPTION, Endpoint
+from akd_ros.params import DOOR_ROLES as ROLES
 
-OBSERVE, OPERATE, CONFIGURE = "observe", "operate", "configure"
-ROLES = (OBSERVE, OPERATE, CONFIGURE)
-"""Each role may use the doors of the roles before it in this tuple too."""
+OBSERVE, OPERATE, CONFIGURE = ROLES
 CLIENTS = {OBSERVE: "observer", OPERATE: "operator", CONFIGURE: "configurer"}
 """The certificate common name (and file name) of each role's client."""
 NODE = "akd-node"
 """The node's certificate common name; its files are node.*."""
-CONFIGURING_SERVICES = ("sdo_write",)
-"""The services that change a drive's configuration rather than move it."""
 VALIDITY_DAYS = 825
 """How long the certificates are valid by default: the longest a TLS server certificate is commonly accepted for."""
 
 
 def role_of(endpoint: Endpoint) -> str:
-    """The role whose clients may use `endpoint`."""
-    if endpoint.kind == PUBLISHER:
-        return OBSERVE
-    if endpoint.kind == SERVICE and door_name(endpoint) in CONFIGURING_SERVICES:
-        return CONFIGURE
-    return OPERATE
+    """The role whose clients may use `endpoint` (each role may use the doors of the roles before it too)."""
+    return doors.role_of(endpoint.kind, endpoint.name)
 
 
 def door_name(endpoint: Endpoint) -> str:
@@ -66,7 +59,16 @@ def access_control(endpoints: list[Endpoint], node_name: str) -> dict:
             "messages": ["declare_subscriber", "liveliness_token", "declare_liveliness_subscriber", "liveliness_query"],
             "flows": ["ingress", "egress"],
             "permission": "allow",
-            "key_exprs": ["**"],
+            # ** matches no chunk that starts with @ (a verbatim chunk): the graph's tokens are named apart.
+            "key_exprs": ["**", "@ros2_lv/**"],
+        },
+        # The graph: who is who, which the node also asks to name a request's sender.
+        {
+            "id": "graph",
+            "messages": ["reply"],
+            "flows": ["ingress", "egress"],
+            "permission": "allow",
+            "key_exprs": ["@ros2_lv/**"],
         },
         {
             "id": "to_clients",
@@ -98,7 +100,7 @@ def access_control(endpoints: list[Endpoint], node_name: str) -> dict:
         role: [
             r["id"]
             for r in rules
-            if r["id"] in ("observe", "to_clients") or r["id"].split("_")[0] in ROLES[: ROLES.index(role) + 1]
+            if r["id"] in ("observe", "graph", "to_clients") or r["id"].split("_")[0] in ROLES[: ROLES.index(role) + 1]
         ]
         for role in ROLES
     }

@@ -61,6 +61,8 @@ FAULT_RESET_POLICIES = ("manual", "auto_once")
 COMMAND_TIMEOUT_POLICIES = ("hold", "quick_stop")
 """Values of command_timeout_policy."""
 DC_CHOICES = {"auto": None, "on": True, "off": False}
+DOOR_ROLES = ("observe", "operate", "configure")
+"""The roles of the node's doors (akd_ros.node.doors), which the doors parameter opens."""
 """Values of dc, each with the Axis's `dc` (None: the link's default)."""
 _TYPE_WORDS = {
     bool: "a bool (true or false)",
@@ -510,6 +512,15 @@ SCHEMA: tuple[Spec, ...] = (
         "The address the live view listens on (an IPv4 or IPv6 address of this machine): 127.0.0.1 lets only this "
         "machine watch; 0.0.0.0 (or ::) every network, to watch from another machine.",
     ),
+    Spec(
+        "doors",
+        ["observe", "operate"],
+        "Which roles' doors the node has (docs/howto/access.md): observe (the topics it publishes), operate (the "
+        "command topics, enable, disable, reset_fault, quick_stop, set_mode, arm_latch, set_outputs, sdo_read, the "
+        "trajectories and actions) and configure (sdo_write). A door of a role not named does not exist on any "
+        "transport; observe is always needed. Each request at an operating or configuring door is recorded on "
+        "~/access.",
+    ),
     Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
     Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
     Spec(
@@ -663,6 +674,8 @@ class Settings:
     """The TAP interface's address (A.B.C.D/N), None for none."""
     live_view: tuple[str, int] | None = None
     """The live view's (address, port) (live_view.*), None when off."""
+    doors: tuple[str, ...] = DOOR_ROLES[:2]
+    """The roles whose doors the node has, in DOOR_ROLES' order."""
 
     def bus_options(self) -> dict[str, object]:
         """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
@@ -959,6 +972,7 @@ def settings(values: dict[str, object]) -> Settings:
         eoe_tap=eoe_tap,
         eoe_host=eoe_host,
         live_view=check_live_view(top["live_view.address"], top["live_view.port"]),
+        doors=check_doors(top["doors"]),
     )
 
 
@@ -1070,6 +1084,24 @@ def check_eoe_bridge(tap: str, host: str, joints: tuple[JointSettings, ...]) -> 
     if tap and not any(j.eoe_ip for j in joints):
         raise ParameterError("parameter eoe.tap bridges to the joints' eoe.ip: give at least one joint an eoe.ip")
     return tap or None, address
+
+
+def check_doors(roles: list[str]) -> tuple[str, ...]:
+    """The roles the doors parameter opens, in DOOR_ROLES' order; ParameterError naming the allowed ones."""
+    unknown = [r for r in roles if r not in DOOR_ROLES]
+    if unknown or "observe" not in roles or len(set(roles)) != len(roles):
+        why = (
+            f"{unknown[0]!r} is not a role"
+            if unknown
+            else "observe is missing"
+            if "observe" not in roles
+            else "a role is named twice"
+        )
+        raise ParameterError(
+            f"parameter doors must name roles among {', '.join(DOOR_ROLES)}, observe among them, each once; got "
+            f"{roles!r}: {why}"
+        )
+    return tuple(r for r in DOOR_ROLES if r in roles)
 
 
 def check_live_view(address: str, port: int) -> tuple[str, int] | None:

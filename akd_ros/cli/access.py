@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         from akd_ros import access
         from akd_ros.node.interface import declared
-        from akd_ros.params import ParameterError, read_parameters_file, settings
+        from akd_ros.params import DOOR_ROLES, ParameterError, read_parameters_file, settings
 
         host = access.endpoint_host(args.endpoint)
         days = access.VALIDITY_DAYS if args.days is None else args.days
@@ -60,7 +60,8 @@ def main(argv: list[str] | None = None) -> int:
             return EXIT_FAILURE
         try:
             values = read_parameters_file(args.params, args.node_name) if args.params else {}
-            doors = declared(settings(values), node_name=args.node_name)
+            # Every role's doors, whichever the file opens: a role's rules are there for the day it opens them.
+            doors = declared(settings({**values, "doors": list(DOOR_ROLES)}), node_name=args.node_name)
         except ParameterError as error:
             print(f"akd-access: error: {error}", file=sys.stderr)
             return EXIT_FAILURE

@@ -14,6 +14,8 @@ One module per job, each a part that the node's `Core` is made of:
 - `core`: `Core`, the parts over a transport and the transitions (configure opens the Bus, close closes it);
 - `lifecycle`: `AkdNode`, the rclpy LifecycleNode that runs a Core on rclpy (`ros_transport`);
 - `transport`: what the parts need of a middleware (`Transport`, `Qos`);
+- `doors`: the transport the parts declare their doors on: those of the roles `doors` opens, each request recorded on
+  ~/access;
 - `publishing`: /joint_states, each joint's status (made by the crate) and its events (latch, fault);
 - `diagnostics`: /diagnostics;
 - `commands`: the command topics, their refusal and time-out, the automatic fault reset, the drive requests;

@@ -65,26 +65,37 @@ class BothTransport:
         self.zenoh.zenoh_node.subscription(
             topic,
             type_name,
-            lambda message: group.worker.submit(callback, message),
+            lambda message, gid: group.worker.submit(self.zenoh.delivering, gid, callback, message),
             zenoh_qos(qos),
             deserialize=lambda data: deserialize_message(bytes(data), cls),
+            with_gid=True,
         )
         return self.ros.subscription(type_name, topic, callback, qos, group)
 
     def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: RosGroup) -> None:
         cls = message_class(type_name)
 
-        def answer(request) -> bytes:
-            return group.worker.submit(lambda: serialize_message(handler(request, cls.Response()))).result()
+        def answer(request, gid: bytes) -> bytes:
+            def run() -> bytes:
+                return serialize_message(self.zenoh.delivering(gid, handler, request, cls.Response()))
+
+            return group.worker.submit(run).result()
 
         self.zenoh.zenoh_node.service(
-            name, type_name, answer, deserialize_request=lambda data: deserialize_message(bytes(data), cls.Request)
+            name,
+            type_name,
+            answer,
+            deserialize_request=lambda data: deserialize_message(bytes(data), cls.Request),
+            with_gid=True,
         )
         self.ros.service(type_name, name, handler, group)
 
     def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: RosGroup) -> type:
         # Served over rclpy only: rmw_zenoh's clients reach it through a router bridging DDS, not this Zenoh session.
         return self.ros.action_server(type_name, name, callbacks, group)
+
+    def caller(self, door: str) -> str | None:
+        return self.zenoh.caller(door) or self.ros.caller(door)
 
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         self.ros.timer(period, callback, group)
