@@ -3,7 +3,7 @@
 //! AKDs are served over UDP by another thread whose allocations are not counted. Drive 2 is
 //! mapped for the profile modes, so that the set-point handshake and the command time-out (its
 //! halt, its release and its quick stop) run in the watched cycles too; drive 1 (its
-//! interpolation set-point 0x60C1:01 mapped) follows a trajectory that another replaces half-way (both allocated in
+//! interpolation set-point 0x60C1:01 mapped) follows a trajectory that another replaces early on (both allocated in
 //! this thread, handed over and returned by the loop). Drive 0 is pinged through EoE meanwhile,
 //! small pings and large ones in fragments. The line's links and error counters are read beside
 //! the cycle every 20 ms meanwhile.
@@ -237,8 +237,9 @@ fn set_points_and_requests(cycle: &CycleThread) {
     }
 }
 
-/// Drive 1 enabled follows a trajectory of 100 ms that another replaces half-way; their final
-/// statuses, `None` when the drive could not be enabled.
+/// Drive 1 enabled follows a trajectory of 10 s that another of 100 ms replaces 50 ms into it
+/// (long enough to be still running then when a loaded host stalls this thread, as a first of
+/// 100 ms was not); their final statuses, `None` when the drive could not be enabled.
 fn trajectories(cycle: &CycleThread) -> Option<[Option<TrajectoryStatus>; 2]> {
     let enabled = || cycle.drive_status(1).unwrap().state() == Some(State::OperationEnabled);
     wait_until("drive 1 enabled", || enabled() || cycle.drive_status(1).unwrap().progress != Progress::InProgress);
@@ -246,7 +247,7 @@ fn trajectories(cycle: &CycleThread) -> Option<[Option<TrajectoryStatus>; 2]> {
         return None;
     }
     let at = |ms: u64, position: f64| (ms * 1_000_000, vec![Knot { velocity: Some(0.0), ..Knot::position(position) }]);
-    let ((t0, p0), (t1, p1)) = (at(50, 5000.0), at(100, -5000.0));
+    let ((t0, p0), (t1, p1)) = (at(5000, 5000.0), at(10_000, -5000.0));
     let first = cycle.play_trajectory(&[1], &[t0, t1], &[p0, p1], None, None).unwrap();
     std::thread::sleep(Duration::from_millis(50));
     let (t, p) = at(100, 0.0);

@@ -59,7 +59,8 @@ pub struct Stats {
     pub mailbox_repeats: u64,
     /// Emergency messages received.
     pub emergencies: u64,
-    /// Mailbox replies dropped because their counter was not the request's (late answers).
+    /// Mailbox replies dropped as stale: another counter than the request's (late answers), or
+    /// the copy of the message read before that a repeat request brought back.
     pub stale_mailbox_replies: u64,
     /// Frames of their own that read every slave's AL status and mailbox status, in cycles
     /// whose broadcast reads saw a slave change (see [`set_supervision`](Master::set_supervision)).
