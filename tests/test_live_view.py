@@ -113,7 +113,7 @@ def viewed(request, ros_domain, tmp_path_factory):
 
 def every_topic() -> set[str]:
     per_joint = {f"{NODE}{j}/{t}" for j in JOINTS for t in ("status", "io", "latch", "fault")}
-    return {"/joint_states", "/diagnostics", f"{NODE}trajectory_status", *per_joint}
+    return {"/joint_states", "/diagnostics", f"{NODE}trajectory_status", f"{NODE}access", *per_joint}
 
 
 def test_the_server_offers_no_capability_and_every_topic_as_a_ros2msg_channel(viewed):
