@@ -128,7 +128,8 @@ class Bus:
     """One EtherCAT line: its master, its one cycle thread and an `Axis` per drive.
 
     `drives` are `akd_ros.DriveConfig`s, one per drive to command; `realtime` (an `akd_ros.RealTime`, the same options
-    as an Axis's and the node's `rt.*` parameters) how the cycle thread runs. Use as a context manager or call
+    as an Axis's and the node's `rt.*` parameters) how the cycle thread runs; `line_reads` whether it reads every
+    slave's links and error counters beside the cycle (`line_health`; a frame a few times a second). Use as a context manager or call
     `close()`: it disables every drive, stops the cycle and returns the line to Init.
     """
 
@@ -144,6 +145,7 @@ class Bus:
         fault_reaction: str = "all",
         dc: bool | None = None,
         dc_shift: float = 0.0,
+        line_reads: bool = True,
     ) -> None:
         check(drives, fault_reaction, period, dc_shift)
         self.link = link
@@ -181,7 +183,9 @@ class Bus:
             else:
                 self._master.configure_sm2_sync(round(period * 1e9))
             self._master.request_state("op")
-            self._cycle = _native.Cycle(self._master, period, realtime=realtime)
+            # The cycle's own interval for the line's reads, or none (line_health 0).
+            interval = {} if line_reads else {"line_health": 0}
+            self._cycle = _native.Cycle(self._master, period, realtime=realtime, **interval)
         except BaseException:
             self._master.close()
             raise
