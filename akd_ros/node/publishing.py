@@ -32,7 +32,6 @@ rate, never per cycle. Any publisher made through the transport is in the live v
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 from collections.abc import Callable
@@ -56,9 +55,9 @@ _OFFSET_PERIOD_S = 1.0
 
 
 def snake(name: str | None) -> str:
-    """A state's name as the messages spell it: "Operation enabled" -> "operation_enabled", "SafeOp" -> "safe_op";
-    None -> "unknown"."""
-    return "unknown" if name is None else re.sub(r"(?<=[a-z])(?=[A-Z])", "_", name).replace(" ", "_").lower()
+    """A state's name as the messages spell it, by the crate's one rule (`_native.snake_case`): "Operation enabled" ->
+    "operation_enabled", "SafeOp" -> "safe_op"; None -> "unknown"."""
+    return "unknown" if name is None else _native.snake_case(name)
 
 
 def _feed_joint(axis, joint: JointSettings) -> dict:

@@ -462,7 +462,7 @@ impl Maker {
         let message = msgs::DriveStatus {
             header: Header::at(reading.stamp_ns),
             joint: &j.name,
-            ds402_state: &state.map_or_else(|| "unknown".to_owned(), |s| s.to_lowercase().replace(' ', "_")),
+            ds402_state: &state.map_or_else(|| "unknown".to_owned(), crate::spelling::snake_case),
             statusword: status.map_or(0, |s| s.statusword),
             mode: mode.as_deref().unwrap_or(""),
             mode_of_operation: shown.map_or(0, |m| m as i8),
