@@ -4,6 +4,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
+use crate::drive::identity;
 use crate::ethercat::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
 use crate::sim::sii_image;
 
@@ -30,8 +31,8 @@ impl IdentityView {
             revision: id.revision,
             serial_number: id.serial_number,
             name: sii.name().map(str::to_owned),
-            model: sii.model().map(str::to_owned),
-            firmware: sii.firmware().map(str::to_owned),
+            model: identity::model(sii),
+            firmware: identity::firmware(sii),
         }
     }
 }
