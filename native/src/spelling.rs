@@ -22,7 +22,8 @@ pub fn snake_case(name: &str) -> String {
         let next = chars.get(i + 1).copied();
         if c.is_ascii_uppercase() {
             let after_lower = previous.is_some_and(|p| p.is_ascii_lowercase() || p.is_ascii_digit());
-            let ends_acronym = previous.is_some_and(|p| p.is_ascii_uppercase()) && next.is_some_and(|n| n.is_ascii_lowercase());
+            let ends_acronym =
+                previous.is_some_and(|p| p.is_ascii_uppercase()) && next.is_some_and(|n| n.is_ascii_lowercase());
             boundary |= after_lower || ends_acronym;
         }
         if boundary && !out.is_empty() {

@@ -45,6 +45,10 @@ pub mod category {
     pub const END: u16 = 0xFFFF;
 }
 
+/// CoE details bit of the general category: the slave takes a PDO assignment (0x1C12, 0x1C13)
+/// written over CoE.
+pub const COE_PDO_ASSIGN: u8 = 0x04;
+
 /// FMMU usage codes of the FMMU category.
 pub mod fmmu_usage {
     /// Process data outputs.
@@ -798,17 +802,29 @@ impl Sii {
         self.slice(|c| if let Category::RxPdos(v) = c { Some(v.as_slice()) } else { None })
     }
 
-    /// What this SII assigns to sync managers 2 and 3 (its PDOs that name them), written over
-    /// CoE too when `over_coe`: the process data of a slave no profile describes.
-    pub fn process_data(&self, over_coe: bool) -> ProcessData {
-        let assigned = |pdos: &[SiiPdo], direction: Direction| PdoAssignment {
-            pdos: pdos
-                .iter()
-                .filter(|p| p.sync_manager == direction.sync_manager())
-                .map(|p| Pdo { index: p.index, entries: p.entries.iter().map(|e| e.pdo_entry()).collect() })
-                .collect(),
-            over_coe,
-            write_entries: false,
+    /// What this SII assigns to its sync managers of process data (its PDOs that name the first
+    /// sync manager of outputs, and of inputs: SM2 and SM3 of a slave with a mailbox, SM0 of a
+    /// digital I/O terminal): the process data of a slave no profile describes. With `coe` (the
+    /// slave has CoE) and a general category saying it takes a PDO assignment (CoE details bit
+    /// 2), the assignment is also written over CoE, as the slave's object dictionary may hold
+    /// another one; without, the slave carries what its SII says.
+    pub fn process_data(&self, coe: bool) -> ProcessData {
+        let over_coe = coe && self.general().is_some_and(|g| g.coe_details & COE_PDO_ASSIGN != 0);
+        let assigned = |pdos: &[SiiPdo], direction: Direction| {
+            let kind = match direction {
+                Direction::Rx => sync_manager_type::PROCESS_DATA_OUT,
+                Direction::Tx => sync_manager_type::PROCESS_DATA_IN,
+            };
+            let sm = self.sync_managers().iter().position(|sm| sm.sm_type == kind);
+            PdoAssignment {
+                pdos: pdos
+                    .iter()
+                    .filter(|p| sm.is_some_and(|n| usize::from(p.sync_manager) == n))
+                    .map(|p| Pdo { index: p.index, entries: p.entries.iter().map(|e| e.pdo_entry()).collect() })
+                    .collect(),
+                over_coe,
+                write_entries: false,
+            }
         };
         ProcessData {
             outputs: assigned(self.rx_pdos(), Direction::Rx),

@@ -533,7 +533,7 @@ impl PyMaster {
 
     /// The outputs of the slave at `position`.
     fn outputs(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u8>> {
-        self.with_slave(py, position, |s| s.outputs().map(<[u8]>::to_vec))
+        self.with_slave(py, position, |s| s.outputs())
     }
 
     /// Sets the outputs of the slave at `position` for the next cycles.
@@ -543,7 +543,7 @@ impl PyMaster {
 
     /// The inputs of the slave at `position` from the last good cycle.
     fn inputs(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u8>> {
-        self.with_slave(py, position, |s| s.inputs().map(<[u8]>::to_vec))
+        self.with_slave(py, position, |s| s.inputs())
     }
 
     /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats,

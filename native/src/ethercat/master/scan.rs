@@ -64,6 +64,8 @@ impl Master {
     /// Reads what the slave at `station` is: features, alias and SII.
     fn read_slave(&mut self, position: u16, station: u16, found: AlStatus) -> Result<Slave> {
         let esc_features = self.read_u16(station, registers::FEATURES)?;
+        let dc = esc_features & registers::FEATURE_DC != 0
+            && self.datagram_retry(Command::Fprd, station, registers::DC_SYSTEM_TIME, &mut [0u8; 8])? == 1;
         let alias = self.read_u16(station, registers::STATION_ALIAS)?;
         let image = self.read_sii(station)?;
         // An SII fault names the slave it was found on.
@@ -75,6 +77,7 @@ impl Master {
             station_address: station,
             alias,
             esc_features,
+            dc,
             found,
             sii,
             mailbox,
