@@ -55,6 +55,7 @@ RUST_LAYERS: list[set[str]] = [
         "ethercat::foe",
         "ethercat::dc",
         "ethercat::pdo",
+        "ethercat::device",
         "ethercat::link_spec",
         "drive",
         "drive::ds402",

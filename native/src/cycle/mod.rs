@@ -30,7 +30,10 @@
 //!
 //! A slave the loop loses (no answer, or out of Op) is reported and its drive disabled there;
 //! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
-//! stage off, while the other drives cycle on.
+//! stage off, while the other drives cycle on. The slaves it does not sequence, the devices
+//! beside the drives (terminals), are run by [`devices`]: their inputs' edges reported, their
+//! outputs switched off where the loop decides it, their presence judged and their recovery
+//! asked for as a drive's.
 //!
 //! By default each cycle waits for its frame's return. [`RealTime::pipelined`] sends the frame
 //! without waiting and takes its return at the next wake-up, before anything else: the outputs
@@ -47,6 +50,7 @@ pub use rt::RealTime;
 pub mod acyclic;
 pub mod command_timeout;
 pub mod dc_status;
+pub mod devices;
 pub mod eoe_frames;
 pub mod events;
 mod handle;
@@ -106,6 +110,8 @@ struct CycleShared {
     relay: Arc<recovery::Relay>,
     /// One per slave: its recovery.
     recovery: Vec<recovery::SlaveRecovery>,
+    /// One per slave: what a device beside the drives asks of the loop.
+    devices: Vec<devices::DeviceShared>,
     /// Whether the cyclic frame reads every slave's AL status: without, no drive's presence can
     /// be judged, and none is taken as lost.
     supervised: bool,

@@ -9,7 +9,8 @@
 //!    SDO information, emergency), [`eoe`] (Ethernet over EtherCAT: fragments, Set IP
 //!    Parameter), [`foe`] (file access over EtherCAT), [`dc`] (distributed-clock arithmetic),
 //!    [`pdo`] (process-data entries, and the description of a slave's process data the master
-//!    sets it up from) and [`link_spec`] (the text that names a bus). Each raises its own error, declared
+//!    sets it up from), [`device`] (a slave's process data by name: its channels, their
+//!    values to the bit) and [`link_spec`] (the text that names a bus). Each raises its own error, declared
 //!    beside it and named in the standard's words (AL status code names, SDO abort code
 //!    names).
 //! 2. [`link`]: the [`link::Link`] trait that moves frames, and the links to a real line (UDP,
@@ -23,6 +24,7 @@
 pub mod al;
 pub mod coe;
 pub mod dc;
+pub mod device;
 pub mod eoe;
 pub mod foe;
 pub mod frame;

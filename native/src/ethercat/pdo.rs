@@ -87,12 +87,19 @@ pub fn bit_len(entries: &[PdoEntry]) -> usize {
     entries.iter().map(|e| e.bits as usize).sum()
 }
 
+/// Clears `bits` bits of `image` from bit `from`, leaving the others as they are.
+pub fn clear_bits(image: &mut [u8], from: usize, bits: usize) {
+    for n in from..from + bits {
+        image[n / 8] &= !(1 << (n % 8));
+    }
+}
+
 /// Copies `bits` bits of `src` from bit `from` into `dst` from bit `to`, leaving `dst`'s other
 /// bits as they are; bit n is bit n % 8 of byte n / 8, as in a process image. Whole bytes are
 /// copied as such where both ends sit on byte boundaries. Panics past either slice's end:
 /// callers check ranges first.
 pub fn copy_bits(src: &[u8], from: usize, dst: &mut [u8], to: usize, bits: usize) {
-    if from % 8 == 0 && to % 8 == 0 && bits % 8 == 0 {
+    if from.is_multiple_of(8) && to.is_multiple_of(8) && bits.is_multiple_of(8) {
         dst[to / 8..(to + bits) / 8].copy_from_slice(&src[from / 8..(from + bits) / 8]);
         return;
     }
@@ -237,6 +244,8 @@ mod tests {
         let mut out = [0u8; 1];
         copy_bits(&image, 6, &mut out, 0, 4);
         assert_eq!(out, [0b0101]);
+        clear_bits(&mut image, 5, 4);
+        assert_eq!(image, [0b0001_1111, 0b0000_0000, 0xFF]);
         let mut whole = [0u8; 3];
         copy_bits(&[1, 2], 0, &mut whole, 8, 16);
         assert_eq!(whole, [0, 1, 2]);

@@ -13,6 +13,7 @@ use crate::error::Error;
 mod bag_writer;
 mod clocks;
 mod cycle;
+mod device;
 mod drive;
 mod eeprom;
 mod feed;

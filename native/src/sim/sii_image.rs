@@ -188,7 +188,7 @@ pub fn akd_sii() -> Vec<u8> {
 }
 
 /// The real AKD's SII image with `identity` in its header: the image of the drive at a position
-/// of its own on a line ([`identity`]). The header checksum covers words 0 to 6 only, before the
+/// of its own on a line ([`identity()`]). The header checksum covers words 0 to 6 only, before the
 /// identity, so it stays the real image's.
 pub fn akd_sii_of(identity: Identity) -> Vec<u8> {
     // Only the identity varies, and no identity can fail to encode; `describes_the_real_drive`
