@@ -103,6 +103,7 @@ PYTHON_LAYERS: list[set[str]] = [
     {"units", "privilege", "tap"},
     {"bus"},
     {"axis"},
+    {"device"},
     {"params", "recorder", "eoe_bridge", "zenoh"},
     {"node"},
     {"top"},

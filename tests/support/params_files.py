@@ -117,7 +117,10 @@ BAD_FILES = {
     ),
     "a joint past the last drive": (
         "link: sim:2\njoints: [a, b, c]",
-        ["the drives (a (slave 0), b (slave 1), c (slave 2))", "slave 2 is not on the bus (slaves 0..1)"],
+        [
+            "the drives (a (slave 0), b (slave 1), c (slave 2))",
+            "slave 2 is not on the bus: the line has 2 slaves (0..1); drive c expects an AKD there",
+        ],
     ),
     # Port 9 (discard) on loopback: nothing listens, so the configure fails and the node ends.
     "a line with no drives listening": (

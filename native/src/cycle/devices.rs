@@ -116,6 +116,7 @@ mod tests {
             name: format!("channel_{}", n + 1),
             direction,
             entry: PdoEntry::new(0x6000 + 0x10 * n as u16, 1, 1),
+            pdo: 0x1A00 + n as u16,
             data_type: data_type::BOOLEAN,
             bit: n,
         }

@@ -2,6 +2,7 @@
 //! call to start the thread, give it set-points and requests, read what it publishes, and stop
 //! it. It never touches the master while the thread runs; it works on [`CycleShared`].
 
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
@@ -929,16 +930,25 @@ impl CycleThread {
         }
     }
 
-    /// The outputs the slave at `position` was sent in `snapshot`'s cycle.
-    pub fn outputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+    /// The outputs the slave at `position` was sent in `snapshot`'s cycle, from bit 0 of the
+    /// first byte: the snapshot's own bytes for a slave laid out in whole bytes (a drive), a copy
+    /// for one packed beside others.
+    pub fn outputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<Cow<'a, [u8]>> {
         let slot = self.slot(position)?;
-        Ok(&snapshot.outputs[slot.out_offset..slot.out_offset + slot.out_len])
+        Ok(match slot.out_bit {
+            0 => Cow::Borrowed(&snapshot.outputs[slot.out_offset..slot.out_offset + slot.out_bits.div_ceil(8)]),
+            _ => Cow::Owned(slot.outputs_in(&snapshot.outputs)),
+        })
     }
 
-    /// The inputs of the slave at `position` in `snapshot`.
-    pub fn inputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+    /// The inputs of the slave at `position` in `snapshot`, from bit 0 of the first byte, as
+    /// [`outputs_of`](Self::outputs_of) gives the outputs.
+    pub fn inputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<Cow<'a, [u8]>> {
         let slot = self.slot(position)?;
-        Ok(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_len])
+        Ok(match slot.in_bit {
+            0 => Cow::Borrowed(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_bits.div_ceil(8)]),
+            _ => Cow::Owned(slot.inputs_in(&snapshot.inputs)),
+        })
     }
 
     /// The distributed clocks: SYNC0's set-up and every drive's last system-time difference;
@@ -1087,7 +1097,7 @@ mod tests {
         assert_eq!(later.wkc, 6);
         assert_eq!(cycle.inputs_of(&later, 1).unwrap().len(), 6);
         // No drive was asked for anything: the set-points go out as written.
-        assert_eq!(cycle.outputs_of(&later, 0).unwrap(), [0x78, 0x56, 0x34, 0x12, 0x06, 0]);
+        assert_eq!(*cycle.outputs_of(&later, 0).unwrap(), [0x78, 0x56, 0x34, 0x12, 0x06, 0]);
         let stats = cycle.stats();
         assert!(stats.period.summary().count >= 20);
         assert!(stats.wake_latency.summary().count >= 21);

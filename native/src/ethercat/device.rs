@@ -25,6 +25,8 @@ pub struct Channel {
     pub direction: Direction,
     /// The entry: object, subindex, bits.
     pub entry: PdoEntry,
+    /// The PDO that carries it (its mapping object, e.g. 0x1A00).
+    pub pdo: u16,
     /// Its CoE data type as the SII gives it (0 where it gives none).
     pub data_type: u16,
     /// The bit of the slave's data that way where it starts.
@@ -171,7 +173,8 @@ pub fn channels(sii: &Sii, process_data: &ProcessData) -> Vec<Channel> {
                 if entry.index != 0 {
                     let name = sii_entry.and_then(|e| sii.string(e.name_idx)).map(snake_case).unwrap_or_default();
                     let data_type = sii_entry.map_or(0, |e| u16::from(e.data_type));
-                    let channel = Channel { name: String::new(), direction, entry: *entry, data_type, bit };
+                    let channel =
+                        Channel { name: String::new(), direction, entry: *entry, pdo: pdo.index, data_type, bit };
                     found.push((channel, name, pdo_name.clone()));
                 }
                 bit += usize::from(entry.bits);
@@ -211,7 +214,14 @@ mod tests {
     use crate::ethercat::pdo::{Pdo, PdoAssignment};
 
     fn one_bit(name: &str, direction: Direction, bit: usize) -> Channel {
-        Channel { name: name.into(), direction, entry: PdoEntry::new(0x7010, 1, 1), data_type: data_type::BOOLEAN, bit }
+        Channel {
+            name: name.into(),
+            direction,
+            entry: PdoEntry::new(0x7010, 1, 1),
+            pdo: 0x1601,
+            data_type: data_type::BOOLEAN,
+            bit,
+        }
     }
 
     #[test]
@@ -228,6 +238,7 @@ mod tests {
             name: "value".into(),
             direction: Direction::Tx,
             entry: PdoEntry::new(0x3101, 2, 16),
+            pdo: 0x1A00,
             data_type: data_type::INTEGER16,
             bit: 8,
         };
@@ -273,7 +284,7 @@ mod tests {
 
     impl Channel {
         fn with_entry(self, index: u16) -> Channel {
-            Channel { entry: PdoEntry::new(index, 1, 1), ..self }
+            Channel { entry: PdoEntry::new(index, 1, 1), pdo: 0x1600 + (index - 0x7000) / 0x10, ..self }
         }
     }
 }

@@ -80,8 +80,8 @@ struct SnapshotView<'a> {
     time_ns: u64,
     wkc: u16,
     fresh: bool,
-    inputs: Vec<Option<&'a [u8]>>,
-    outputs: Vec<Option<&'a [u8]>>,
+    inputs: Vec<Option<std::borrow::Cow<'a, [u8]>>>,
+    outputs: Vec<Option<std::borrow::Cow<'a, [u8]>>>,
 }
 
 /// What `stats` gives.

@@ -23,6 +23,7 @@ pub(super) struct ChannelView {
     subindex: u8,
     bits: u8,
     data_type: &'static str,
+    pdo: u16,
 }
 
 impl From<&Channel> for ChannelView {
@@ -37,6 +38,7 @@ impl From<&Channel> for ChannelView {
             subindex: c.entry.subindex,
             bits: c.entry.bits,
             data_type: data_type::name(c.data_type),
+            pdo: c.pdo,
         }
     }
 }

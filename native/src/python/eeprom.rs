@@ -8,7 +8,8 @@ use crate::drive::identity;
 use crate::ethercat::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
 use crate::sim::sii_image;
 
-/// What identifies a drive in its SII: the identity words and the names (None where absent).
+/// What identifies a slave in its SII: the identity words, the names (None where absent) and
+/// whether it is an AKD.
 /// Shared by `parse_sii` and the master's scan, so both speak of a drive in the same keys.
 #[derive(IntoPyObject)]
 pub(super) struct IdentityView {
@@ -17,6 +18,8 @@ pub(super) struct IdentityView {
     revision: u32,
     serial_number: u32,
     name: Option<String>,
+    order: Option<String>,
+    akd: bool,
     model: Option<String>,
     firmware: Option<String>,
 }
@@ -31,6 +34,8 @@ impl IdentityView {
             revision: id.revision,
             serial_number: id.serial_number,
             name: sii.name().map(str::to_owned),
+            order: sii.order().map(str::to_owned),
+            akd: identity::is_akd(&id),
             model: identity::model(sii),
             firmware: identity::firmware(sii),
         }
@@ -108,7 +113,6 @@ struct DcModeView<'a> {
 struct SiiView<'a> {
     alias: u16,
     group: Option<&'a str>,
-    order: Option<&'a str>,
     mailbox_protocols: u16,
     standard_mailbox: MailboxLayout,
     bootstrap_mailbox: MailboxLayout,
@@ -136,7 +140,6 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
     let rest = SiiView {
         alias: sii.alias(),
         group: sii.group(),
-        order: sii.order(),
         mailbox_protocols: h.mailbox_protocols,
         standard_mailbox: h.standard_mailbox,
         bootstrap_mailbox: h.bootstrap_mailbox,

@@ -19,6 +19,7 @@ use crate::drive::scaling::{self, PositionScaling};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
 use crate::ethercat::al::AlState;
 use crate::ethercat::coe::{Emergency, ObjectCode, OdListType};
+use crate::ethercat::device;
 use crate::ethercat::link::{self, Link};
 use crate::ethercat::link_spec::LinkSpec;
 use crate::ethercat::master::sdo_info::{EntryInfo, ObjectInfo};
@@ -177,6 +178,9 @@ struct ScannedSlave {
     found_al_status_code_name: &'static str,
     mailbox_protocols: u16,
     dc: bool,
+    /// The channels its SII's process data carries, named as a device's
+    /// ([`crate::ethercat::device`]): what it has if no profile gives it other PDOs.
+    channels: Vec<super::device::ChannelView>,
 }
 
 /// One slave as `watch` reports it.
@@ -250,9 +254,11 @@ impl PyMaster {
         Ok(super::sim::PySimulator::new(control))
     }
 
-    /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
-    /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
-    /// what the scan found before it reset the bus.
+    /// Finds the slaves, takes them to Init and returns one dict per slave: its identity and
+    /// names (vendor_id, product_code, revision, serial_number, name, order, akd, model,
+    /// firmware), `al_state` and `al_status_code` the state now (Init), `found_al_state` and
+    /// `found_al_status_code` what the scan found before it reset the bus, and `channels`, those
+    /// its SII's process data carries (each a dict as `Cycle.channels` gives it).
     fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, IdentityView>>> {
         lock(&self.fbus_param02).clear();
         self.with_master(py, |m| {
@@ -273,6 +279,11 @@ impl PyMaster {
                         found_al_status_code_name: slave.found.code_name(),
                         mailbox_protocols: slave.sii.header.mailbox_protocols,
                         dc: slave.has_dc(),
+                        channels: {
+                            let coe = slave.mailbox.as_ref().is_some_and(|m| m.has_coe());
+                            let described = slave.sii.process_data(coe);
+                            device::channels(&slave.sii, &described).iter().map(Into::into).collect()
+                        },
                     };
                     Ok(Merged(rest, IdentityView::of(&slave.sii)))
                 })

@@ -89,7 +89,7 @@ impl FeedShared {
     fn drive_io_of(&self, joint: usize, snapshot: &Snapshot) -> DriveIo {
         let (cycle, slave) = (&self.cycle, self.joints[joint].slave);
         match (cycle.mapping(slave), cycle.outputs_of(snapshot, slave), cycle.inputs_of(snapshot, slave)) {
-            (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, outputs, inputs),
+            (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, &outputs, &inputs),
             _ => DriveIo::default(),
         }
     }
@@ -396,7 +396,7 @@ impl Maker {
             .joints
             .iter()
             .map(|j| match (cycle.mapping(j.slave), cycle.inputs_of(&snapshot, j.slave)) {
-                (Ok((_, tx)), Ok(bytes)) => DriveInputs::read(tx, bytes),
+                (Ok((_, tx)), Ok(bytes)) => DriveInputs::read(tx, &bytes),
                 _ => DriveInputs::default(),
             })
             .collect();
