@@ -298,7 +298,8 @@ class Bus:
         try:
             if cycle.running:
                 for device in self.devices:
-                    cycle.switch_outputs_off(device.slave)
+                    with contextlib.suppress(_native.EtherCatError):
+                        cycle.switch_outputs_off(device.slave)
                 for axis in self.axes:
                     cycle.disable(axis.slave)
                 deadline = time.monotonic() + 1.0

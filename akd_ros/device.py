@@ -51,6 +51,9 @@ class DeviceIo:
     """Whether that cycle's exchange succeeded (else the inputs are the last good ones)."""
     inputs: dict[str, bool | int | float]
     outputs: dict[str, bool | int | float]
+    levels: int | None = None
+    """Of a change (`Device.input_events`): its inputs of one bit as the cycle thread reported them, the first in bit
+    0."""
 
 
 class Device:
@@ -128,7 +131,8 @@ class Device:
             for e in changes:
                 levels = {name: bool(e["levels"] >> n & 1) for n, name in enumerate(self._bit_inputs)}
                 inputs = {**now["inputs"], **levels}
-                self._input_events.append(DeviceIo(e["cycle"], e["time_ns"], True, inputs, dict(now["outputs"])))
+                outputs = dict(now["outputs"])
+                self._input_events.append(DeviceIo(e["cycle"], e["time_ns"], True, inputs, outputs, e["levels"]))
         for e in events:
             if e["kind"] == "fault":
                 self._faults.append(

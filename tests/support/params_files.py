@@ -122,6 +122,32 @@ BAD_FILES = {
             "slave 2 is not on the bus: the line has 2 slaves (0..1); drive c expects an AKD there",
         ],
     ),
+    "a device without its slave": ("devices: [valves]", ["parameter devices.valves.slave must be given", "akd-scan"]),
+    "a device named as a joint": (
+        "link: sim:2\njoints: [a, b]\ndevices: [a]\ndevices.a.slave: 1",
+        ["parameter devices names a more than once (or as a joint)"],
+    ),
+    "a block of a device not in devices": (
+        "devices: [valves]\ndevices.valves.slave: 1\ndevices.lamps.slave: 2",
+        ["unknown parameter devices.lamps.slave", "devices.<name>.<one of slave, product>"],
+    ),
+    "an unknown product in the link": (
+        "link: sim:ek1100,el9999,akd",
+        ["parameter link", '"el9999", is no product the simulator makes: allowed are akd, ek1100'],
+    ),
+    "a device of another product than the line's": (
+        "link: sim:ek1100,el1004,el2004,akd?pace=immediate\nslave: 3\ndevices: [valves]\ndevices.valves.slave: 2\n"
+        "devices.valves.product: EL2008",
+        ["configure: ", "slave 2 is an EL2004; device valves expects an EL2008"],
+    ),
+    "a device past the end of the line": (
+        "link: sim:ek1100,el1004,akd?pace=immediate\nslave: 2\ndevices: [valves]\ndevices.valves.slave: 5",
+        ["slave 5 is not on the bus: the line has 3 slaves (0..2); device valves expects a device there"],
+    ),
+    "a joint where the line has a terminal": (
+        "link: sim:ek1100,el1004,akd?pace=immediate\nslave: 1",
+        ["slave 1 is an EL1004; drive akd_axis expects an AKD"],
+    ),
     # Port 9 (discard) on loopback: nothing listens, so the configure fails and the node ends.
     "a line with no drives listening": (
         "link: udp://127.0.0.1:9",

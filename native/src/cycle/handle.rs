@@ -861,9 +861,9 @@ impl CycleThread {
             .collect())
     }
 
-    /// The device at `position`: a slave the cycle does not sequence (a drive's outputs are
-    /// its objects', set with [`set_object`](Self::set_object)).
-    fn device(&self, position: u16) -> Result<ImageSlot> {
+    /// The device at `position`, where it has process data: a slave the cycle does not
+    /// sequence (a drive's outputs are its objects', set with [`set_object`](Self::set_object)).
+    fn device(&self, position: u16) -> Result<Option<ImageSlot>> {
         if self.stopped() {
             return Err(setpoints_stopped());
         }
@@ -871,7 +871,7 @@ impl CycleThread {
         if self.sequenced[position as usize].is_ok() {
             return Err(Unavailable::DriveChannels { slave: position }.into());
         }
-        self.slot(position)
+        Ok(self.slots[position as usize])
     }
 
     /// Sets output channels of the device at `position` by name from the next cycle on, every
@@ -892,6 +892,8 @@ impl CycleThread {
             let raw = channel.encode(value).map_err(|error| Unavailable::ChannelValue { slave: position, error })?;
             writes.push((channel, raw));
         }
+        // A slave without process data has no channel: its first name was refused.
+        let (Some(slot), false) = (slot, writes.is_empty()) else { return Ok(()) };
         let mut w = self.shared.setpoints.write();
         for (channel, raw) in writes {
             w.write_bits(
@@ -904,9 +906,9 @@ impl CycleThread {
     }
 
     /// Switches every output of the device at `position` off (its bits 0) from the next cycle
-    /// on, until they are set again.
+    /// on, until they are set again; nothing for a device without outputs.
     pub fn switch_outputs_off(&self, position: u16) -> Result<()> {
-        let slot = self.device(position)?;
+        let Some(slot) = self.device(position)? else { return Ok(()) };
         let mut w = self.shared.setpoints.write();
         for n in (0..slot.out_bits).step_by(64) {
             w.write_bits(slot.out_start_bit() + n, &[0; 8], (slot.out_bits - n).min(64));
