@@ -11,9 +11,12 @@ use std::time::{Duration, Instant};
 use akd_native::drive::akd::{AkdLine, AkdSlave};
 use akd_native::drive::pdo::Mapping;
 use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::frame::{self, Command};
+use akd_native::ethercat::link::Link;
 use akd_native::ethercat::link_spec::{MissedFrames, Pace, SimLine};
 use akd_native::ethercat::master::restore::Restoring;
 use akd_native::ethercat::master::Master;
+use akd_native::ethercat::registers;
 use akd_native::sim::{Timing, VirtualBus};
 
 #[path = "support/shared.rs"]
@@ -163,4 +166,54 @@ fn a_power_cycled_terminal_comes_back_with_its_outputs_where_they_were_in_the_im
     m.slave_mut(2).unwrap().set_outputs(&[0b1000]).unwrap();
     cycle_until(&mut m, &bus, |b| b.at(2).terminal().unwrap().state().outputs == 0b1000);
     assert_eq!(m.exchange().unwrap(), m.expected_wkc().unwrap());
+}
+
+/// A link whose slave at `station` answers every read of its EEPROM's data with the bits
+/// flipped, as a damaged EEPROM would.
+struct DamagedEeprom {
+    inner: Shared,
+    station: u16,
+}
+
+impl Link for DamagedEeprom {
+    fn send(&mut self, tx: &[u8]) -> akd_native::error::Result<()> {
+        self.inner.send(tx)
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> akd_native::error::Result<Option<usize>> {
+        let n = self.inner.receive(rx, deadline)?;
+        if let Some(n) = n {
+            let station = self.station;
+            frame::for_each_datagram_mut(&mut rx[..n], |dg| {
+                // The master reads control, address and data in one datagram from SII control on.
+                let data = usize::from(registers::SII_DATA - registers::SII_CONTROL);
+                let reads_sii = (dg.header.command, dg.header.adp, dg.header.ado)
+                    == (Command::Fprd, station, registers::SII_CONTROL);
+                if reads_sii && dg.data.len() > data {
+                    dg.data[data..].iter_mut().for_each(|b| *b ^= 0xFF);
+                }
+            })?;
+        }
+        Ok(n)
+    }
+
+    fn describe(&self) -> String {
+        "a line with a damaged EEPROM".into()
+    }
+}
+
+#[test]
+fn a_terminal_whose_eeprom_is_damaged_is_named_in_one_line_and_nothing_goes_on() {
+    let line: SimLine = "ek1100,el2004,akd".parse().unwrap();
+    let bus = VirtualBus::of_line(&line, Timing::of(Pace::Immediate, MissedFrames::Lost)).unwrap();
+    let bus = Arc::new(Mutex::new(bus));
+    let link = DamagedEeprom { inner: Shared::new(bus.clone()), station: 0x1002 };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    let refused = m.scan().unwrap_err().to_string();
+    assert!(refused.contains("slave 1 (station 0x1002)") && refused.contains("checksum"), "{refused}");
+    assert!(!refused.contains('\n'), "{refused}");
+    assert!(m.slaves().is_empty(), "no slave taken from a scan that failed");
+    for position in 0..3 {
+        assert_eq!(bus.lock().unwrap().at(position).registers()[0x0130] & 0x0F, 1, "slave {position} left in Init");
+    }
 }

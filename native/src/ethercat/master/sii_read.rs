@@ -64,11 +64,18 @@ impl Master {
     }
 
     /// Reads the used part of the SII of `station`: header and every category up to the end
-    /// marker (included), bounded by the EEPROM size the header gives.
+    /// marker (included), bounded by the EEPROM size the header gives; a header whose checksum
+    /// is wrong is refused before any category is read.
     pub fn read_sii(&mut self, station: u16) -> Result<Vec<u8>> {
         // Give the EEPROM interface to EtherCAT (0x0500 = 0) rather than to the PDI.
         self.write_registers(station, crate::ethercat::registers::SII_CONFIG, &[0])?;
         let mut image = self.read_sii_words(station, 0, HEADER_WORDS)?;
+        // A damaged header is told at once, before its size word sends the reads past the EEPROM.
+        let first: [u8; 14] = image[..14].try_into().expect("the header's first seven words");
+        let computed = crate::ethercat::sii::header_checksum(&first);
+        if image[14] != computed {
+            return Err(SiiError::Checksum { stored: image[14], computed }.into());
+        }
         let size_kbit = u16::from_le_bytes([image[SIZE_WORD * 2], image[SIZE_WORD * 2 + 1]]) as u32 + 1;
         let size_words = size_kbit * 1024 / 16;
         let mut word = HEADER_WORDS;
