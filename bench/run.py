@@ -13,6 +13,8 @@ Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs
   roundtrip     this master, SOEM and KickCAT over one veth pair to one akd-sim (roundtrip.py, 3 rounds of 2000)
   jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
+  line_health   the cycle on six virtual AKDs with the line's links and error counters read beside it and without
+                (line_health.py)
   ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh; issue 25's goals, with
                 profiles of what misses one (node_ros.py --profile)
   many          akd_node on 16 and 64 AKDs over veth at 250 µs, a million cycles each, waiting and pipelined
@@ -57,6 +59,7 @@ SECTIONS = {
         shlex.split("cycle_jitter.py --loads idle,busy,sdo --no-cyclictest --rates 4000 --seconds 4 --rounds 4"),
         180,
     ),
+    "line_health": (shlex.split("line_health.py --rates 1000,4000 --seconds 4 --rounds 4"), 240),
     "ros": (["node_ros.py", "--profile"], 1200),
     "many": (shlex.split("node_ros.py --drives 16,64 --drive-pipelined"), 2400),
     "io": (["node_io.py"], 300),
@@ -70,6 +73,7 @@ TITLES = {
     "roundtrip": "Round trip over veth: this master, SOEM and KickCAT",
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
+    "line_health": "The line's counters read beside the cycle, against not",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
     "many": "Through ROS with many drives over veth",
     "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",

@@ -194,7 +194,7 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
             (
                 "jog 0",
                 "allowed are fault, hardware_enable, toggles, input, switch, analog_input, state, power_cycle, homing, "
-                "cable, drop, corrupt, wrong_wkc, help",
+                "cable, link, crc, counters, drop, corrupt, wrong_wkc, help",
             ),
         ):
             reply = command(bad)

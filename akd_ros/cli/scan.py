@@ -6,6 +6,11 @@ State and code are those the scan found; the scan leaves every slave in Init. Wi
 slave's channels follow its line: the PDO entries its SII gives its sync managers, named as the
 node names them. With --params FILE, akd-scan also writes a parameters file for akd_node of the line
 it found (each AKD a joint, every other slave a device), which the node takes as it is.
+
+With --line it then reads the line at rest: a line saying where errors first appear (the cable's
+words, as akd_node's /diagnostics says them), and one line per port of each slave with its link,
+what is at its other end and what its ESC counted since power-up or the last clear (nothing is
+cleared).
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ EXAMPLES = """examples:
   akd-scan enp3s0 --pcap scan.pcapng  the drives on an interface, every frame written for Wireshark
   akd-scan sim:ek1100,el1004,el2004,akd --pdos --params cell.yaml
                                       a virtual cell, each slave's channels, and akd_node's parameters for it
+  akd-scan sim:6 --line               six virtual AKDs, then their ports, links and error counters
 """
 
 
@@ -92,6 +98,25 @@ def _yaml(text: str) -> str:
     return yaml.safe_dump(text, default_style=None, width=1000).strip().removesuffix("\n...").strip()
 
 
+def format_line(line: dict) -> list[str]:
+    """The lines saying what `Master.line_health()` found: where errors first appear, then each port of each slave."""
+    lines = [f"line: {line['summary']}"]
+    for slave in line["slaves"]:
+        name = f"slave {slave['position']} ({slave['name']})"
+        if not slave["answered"]:
+            lines.append(f"{name}: no answer")
+            continue
+        for port in slave["ports"]:
+            to = "" if port["peer"] == "nothing" else f", to {port['peer']}"
+            lines.append(f"{name} port {port['port']} ({port['kind']}): {port['link']}{to}; {port['counted']}")
+        total = slave["total"]
+        if total["processing_unit_errors"] or total["pdi_errors"]:
+            lines.append(
+                f"{name}: {total['processing_unit_errors']} processing unit errors, {total['pdi_errors']} PDI errors"
+            )
+    return lines
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-scan."""
     parser = argparse.ArgumentParser(
@@ -107,12 +132,18 @@ def main(argv: list[str] | None = None) -> int:
         metavar="FILE",
         help="write akd_node's parameters for the line found to FILE (each AKD a joint, every other slave a device)",
     )
+    parser.add_argument(
+        "--line",
+        action="store_true",
+        help="then each slave's ports: their links, what is at their other ends, the error counters since power-up",
+    )
     args = parser.parse_args(argv)
 
     def body() -> int:
         master = open_master(args)
         try:
             slaves = master.scan()
+            line = master.line_health() if slaves and args.line else None
         finally:
             master.close()
         if not slaves:
@@ -126,6 +157,8 @@ def main(argv: list[str] | None = None) -> int:
             with open(args.params, "w", encoding="utf-8") as out:
                 out.write(parameters_file(args.link, slaves))
             print(f"akd-scan: wrote {args.params}: akd_node --ros-args --params-file {args.params}", file=sys.stderr)
+        for text in format_line(line) if line else ():
+            print(text)
         return 0
 
     return run("akd-scan", body)

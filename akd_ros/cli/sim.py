@@ -38,6 +38,24 @@ from 1:
                                       error, or never finds its reference (searches on)
   cable POSITION pulled|plugged       pull the cable in front of the slave out (frames reach
                                       only the slaves before it), or plug it back in
+  link POSITION PORT down|up          take the link at a port of the slave down or up again: the
+                                      cable there pulled or plugged (port 0: the cable in front
+                                      of it, 'link 3 0 down' is 'cable 3 pulled'; port 1: the
+                                      cable to the next slave), both ends counting a lost link
+  crc POSITION PORT COUNT [EVERY]     a faulty cable into a port of the slave spoils the CRC of
+                                      the next COUNT frames entering there, one in every EVERY
+                                      (1 where left out): the slave counts an invalid frame at
+                                      that port, every slave after it on the frame's way a
+                                      forwarded error, and the master never gets the frame.
+                                      Frames enter port 0 on their way out, from the slave in
+                                      front ('crc 3 0 200': the cable from slave 2 into slave 3),
+                                      and port 1 on their way back, from the slave behind
+                                      ('crc 3 1 200': the cable from slave 4 into slave 3)
+  counters POSITION                   the slave's ESC as JSON: its DL status, each of its ports
+                                      with its link, the frames a fault is still to spoil there
+                                      and its error counters as the master reads them
+                                      ("registers": they stop at 255 and a master clears them)
+                                      and as counted since power-up ("counted")
   drop FRAMES                         the next FRAMES frames get no reply at all
   corrupt FRAMES                      the next FRAMES replies come back corrupted
   wrong_wkc FRAMES                    the next FRAMES replies carry a wrong working counter
@@ -98,6 +116,9 @@ USAGE = {
     "power_cycle": "power_cycle POSITION",
     "homing": "homing POSITION ok|error|no_reference",
     "cable": "cable POSITION pulled|plugged",
+    "link": "link POSITION PORT down|up",
+    "crc": "crc POSITION PORT COUNT [EVERY]",
+    "counters": "counters POSITION",
     "drop": "drop FRAMES",
     "corrupt": "corrupt FRAMES",
     "wrong_wkc": "wrong_wkc FRAMES",
@@ -164,6 +185,8 @@ def execute(simulator, line: str) -> str | None:
         "analog_input": (2, 3),
         "cable": (2,),
         "homing": (2,),
+        "link": (3,),
+        "crc": (3, 4),
     }.get(name, (1,))
     if len(args) not in arity:
         raise CommandError(f"usage: {USAGE[name]}")
@@ -208,6 +231,17 @@ def execute(simulator, line: str) -> str | None:
         if args[1] not in ("pulled", "plugged"):
             raise CommandError(f"cable takes pulled or plugged, got {args[1]!r}")
         (simulator.pull_cable if args[1] == "pulled" else simulator.replug_cable)(position)
+    elif name == "link":
+        if args[2] not in ("down", "up"):
+            raise CommandError(f"link takes down or up, got {args[2]!r}")
+        simulator.set_link(position, _whole_number(args[1], "PORT", "0..3"), args[2] == "up")
+    elif name == "crc":
+        port = _whole_number(args[1], "PORT", "0..3")
+        count = _whole_number(args[2], "COUNT", "0 or more (0 ends a fault still pending)")
+        every = _whole_number(args[3], "EVERY", "1 or more") if len(args) == 4 else 1
+        simulator.crc_errors(position, port, count, every)
+    elif name == "counters":
+        return "ok " + json.dumps(simulator.esc_state(position))
     elif product in (None, "akd"):
         return "ok " + json.dumps(simulator.drive_state(position))
     else:

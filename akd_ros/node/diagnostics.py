@@ -16,7 +16,12 @@ virtual AKDs with `missed=warn` go on (docs/virtual_akd.md).
 Each device beside the drives (`devices`) has a status too (`akd_node: <device>`, hardware id naming what it is and
 where): ERROR while it is unreachable and being brought back, WARN when its inputs are not fresh, OK otherwise; its
 values carry every channel, inputs as read and outputs as sent (a bit "high" or "low"), its recovery and its last loss.
-The bus is ERROR while a device is lost, as while a joint is."""
+The bus is ERROR while a device is lost, as while a joint is.
+
+The line's links and error counters, as the reads beside the cycle found them, follow in statuses the crate makes
+(`Bus.line_diagnostics`, docs/reference/diagnostics.md): `akd_node: line`, naming the worst place (ERROR while a link
+is down, WARN while errors or lost links were counted in the last 10 s), and `akd_node: line slave N` for each slave,
+its ports' links and counters."""
 
 from __future__ import annotations
 
@@ -133,6 +138,7 @@ class Diagnostics:
             if device_recovery["recovering"]:
                 lost.append(device.name)
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
+        statuses += [(level, f"{self._node_name}: {what}", *rest) for level, what, *rest in bus.line_diagnostics()]
         # The message's body is the crate's to make: no message object per key and value.
         stamp_ns = self._clock.now_ns()
         self.publisher.publish_serialized(_native.diagnostic_array(stamp_ns, statuses), stamp_ns)

@@ -243,6 +243,33 @@ pub enum SettingError {
         /// What is wrong with the image.
         error: crate::ethercat::sii::SiiError,
     },
+    /// A virtual slave's port its ESC does not have.
+    NoSuchPort {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// The port asked for.
+        port: usize,
+        /// The ports it has, e.g. "0, 1".
+        ports: String,
+    },
+    /// A port of a virtual slave that no cable of the virtual line reaches.
+    NoCable {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// The port asked for.
+        port: usize,
+        /// Why none does.
+        why: &'static str,
+    },
+    /// A cable fault spoiling one frame in every 0, or in a negative number of frames.
+    FrameSpacing {
+        /// The spacing given.
+        every: i64,
+    },
     /// A burst of simulated line faults of a negative number of frames.
     FrameCount {
         /// The number asked for.
@@ -371,6 +398,15 @@ impl fmt::Display for SettingError {
             }
             SettingError::TerminalImage { product, error } => {
                 write!(f, "the virtual {product}'s SII image cannot be read: {error}")
+            }
+            SettingError::NoSuchPort { position, product, port, ports } => {
+                write!(f, "port {port}: the {product} at position {position} has ports {ports}")
+            }
+            SettingError::NoCable { position, product, port, why } => {
+                write!(f, "no cable at port {port} of the {product} at position {position}: {why}")
+            }
+            SettingError::FrameSpacing { every } => {
+                write!(f, "one frame in every {every}: allowed are 1 (each frame) or more")
             }
             SettingError::FrameCount { frames } => {
                 write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")

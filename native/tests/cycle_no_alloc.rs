@@ -5,7 +5,8 @@
 //! halt, its release and its quick stop) run in the watched cycles too; drive 1 (its
 //! interpolation set-point 0x60C1:01 mapped) follows a trajectory that another replaces half-way (both allocated in
 //! this thread, handed over and returned by the loop). Drive 0 is pinged through EoE meanwhile,
-//! small pings and large ones in fragments. Then a virtual cell (an EK1100, an EL1004, an EL2004
+//! small pings and large ones in fragments. The line's links and error counters are read beside
+//! the cycle every 20 ms meanwhile. Then a virtual cell (an EK1100, an EL1004, an EL2004
 //! and an AKD): the devices' outputs set by name, their input edges reported, one of them
 //! power-cycled, lost, brought back and its outputs switched off, all in the watched cycles.
 
@@ -179,8 +180,11 @@ fn loop_allocates_nothing(pipelined: bool) {
     m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
     m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
-    let config =
-        Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
+    let config = Config {
+        realtime: RealTime { pipelined, ..RealTime::default() },
+        line_health: Some(Duration::from_millis(20)),
+        ..Config::new(Duration::from_millis(1))
+    };
     let cycle = CycleThread::start(m, config).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);
@@ -188,6 +192,7 @@ fn loop_allocates_nothing(pipelined: bool) {
     drop(std::hint::black_box(Vec::<u8>::with_capacity(8)));
     let armed = wait_for_cycle(&cycle, started.cycle);
     let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let line_reads = cycle.line_health().health.reads;
     // Set-points written, drives sequenced and snapshots read meanwhile, as a user would.
     cycle.request(1, Request::Enable).unwrap();
     let (trajectories, pings) = std::thread::scope(|scope| {
@@ -200,6 +205,7 @@ fn loop_allocates_nothing(pipelined: bool) {
     let last = wait_for_cycle(&cycle, armed.cycle + 300);
     let during = ALLOCATIONS.load(Ordering::SeqCst) - before;
     WATCHED.store(0, Ordering::SeqCst);
+    let line_reads = cycle.line_health().health.reads - line_reads;
     let stats = cycle.stats();
     let (lost, wkc) = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
     // The sequencer did run in those cycles.
@@ -229,6 +235,7 @@ fn loop_allocates_nothing(pipelined: bool) {
         assert_eq!(command_timeouts, 2);
         assert_eq!(pings, 20, "echo replies");
     }
+    assert!(line_reads > 0, "the line's health was not read in the cycles watched");
     assert_eq!(during, 0, "allocations in {} cycles (pipelined {pipelined})", last.cycle - armed.cycle);
     drop(master);
 }

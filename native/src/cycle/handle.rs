@@ -17,8 +17,8 @@ use super::seqlock::SeqBytes;
 use super::stats::CycleStats;
 use super::supervision::Gaps;
 use super::{
-    command_timeout, dc_status, eoe_frames, handshake, homing, latch, recovery, rt, sequencer, supervision, timing,
-    trajectory_player, CycleShared, RealTime, HEADER_LEN,
+    command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, recovery, rt, sequencer,
+    supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
 use crate::drive::trajectory::{Knot, Limits, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
@@ -43,12 +43,21 @@ pub struct Config {
     /// [`AkdLine`](crate::drive::akd::AkdLine) gives it; [`CycleThread::dc_status`] shows it (a
     /// slave not in it as `None`, unknown).
     pub fbus_param02: Vec<Option<u32>>,
+    /// How often every slave's links and error counters are read beside the cycle
+    /// ([`super::line_health`]); `None`: never.
+    pub line_health: Option<Duration>,
 }
 
 impl Config {
-    /// A cycle of `period` with no real-time settings.
+    /// A cycle of `period` with no real-time settings, reading the line's health four times a
+    /// second.
     pub fn new(period: Duration) -> Self {
-        Config { period, realtime: RealTime::default(), fbus_param02: Vec::new() }
+        Config {
+            period,
+            realtime: RealTime::default(),
+            fbus_param02: Vec::new(),
+            line_health: Some(super::line_health::DEFAULT_INTERVAL),
+        }
     }
 }
 
@@ -134,6 +143,8 @@ pub struct CycleThread {
     /// data).
     channels: Vec<Vec<Channel>>,
     trajectories: trajectory_player::Caller,
+    /// Each slave's product as its SII names it.
+    products: Vec<String>,
 }
 
 impl CycleThread {
@@ -205,6 +216,16 @@ impl CycleThread {
             ));
         }
         let mailbox = MailboxService::new(&master);
+        // The ports each slave's ESC has, for the line's health; without them it is not read.
+        let (ports, line_health_interval) = match master.port_descriptors() {
+            Ok(ports) => (ports, config.line_health.filter(|i| !i.is_zero())),
+            Err(e) => {
+                start_warnings.push(format!("the line's links and error counters are not read: {e}"));
+                (Vec::new(), None)
+            }
+        };
+        let products =
+            master.slaves().iter().map(|s| s.sii.order().or(s.sii.name()).unwrap_or("unnamed").to_owned()).collect();
         let mappings = master
             .slaves()
             .iter()
@@ -234,6 +255,7 @@ impl CycleThread {
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
             devices: (0..master.slaves().len()).map(|_| DeviceShared::default()).collect(),
             supervised: supervised.is_ok(),
+            line_health: line_health::LineHealthShared::new(ports, line_health_interval),
         });
         let recoverer = recoverer(&mut master, &shared, &drives, &devices, config.period);
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
@@ -246,6 +268,7 @@ impl CycleThread {
             let mut mailbox = mailbox;
             let mut player = trajectory_player::Player::new(master.slaves().len());
             let mut relay_buffers = recovery::RelayBuffers::default();
+            let mut line_reader = line_health::LineHealthReader::new(master.slaves().len(), &shared.line_health);
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
@@ -266,7 +289,7 @@ impl CycleThread {
                 };
                 run(
                     &mut ready,
-                    (&mut mailbox, &mut relay_buffers),
+                    (&mut mailbox, &mut relay_buffers, &mut line_reader),
                     &mut player,
                     (period_ns, config.realtime.pipelined),
                 );
@@ -310,6 +333,7 @@ impl CycleThread {
             mappings,
             channels,
             trajectories: trajectory_player::Caller::default(),
+            products,
         })
     }
 
@@ -390,6 +414,17 @@ impl CycleThread {
         }
         self.shared.latches[position as usize].set(edges, arm);
         Ok(())
+    }
+
+    /// Every slave's links and error counters as the reads beside the cycle found them so far
+    /// ([`super::line_health`]).
+    pub fn line_health(&self) -> crate::ethercat::line_health::LineReading {
+        self.shared.line_health.reading()
+    }
+
+    /// Each slave's product as its SII names it (its order number, else its name), by position.
+    pub fn products(&self) -> &[String] {
+        &self.products
     }
 
     /// Latch and fault events since the last call, oldest first.

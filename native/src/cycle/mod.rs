@@ -35,6 +35,10 @@
 //! outputs switched off where the loop decides it, their presence judged and their recovery
 //! asked for as a drive's.
 //!
+//! A few times a second the thread also reads every slave's links and error counters in a frame
+//! beside its own ([`line_health`], [`CycleThread::line_health`]), when no mailbox or recovery
+//! frame took the cycle's room.
+//!
 //! By default each cycle waits for its frame's return. [`RealTime::pipelined`] sends the frame
 //! without waiting and takes its return at the next wake-up, before anything else: the outputs
 //! are written from inputs as old as when waiting (the last return), the frame still leaves
@@ -58,6 +62,7 @@ pub mod handshake;
 pub mod homing;
 pub mod image;
 pub mod latch;
+pub mod line_health;
 pub mod recovery;
 pub mod ring;
 pub mod rt;
@@ -115,4 +120,6 @@ struct CycleShared {
     /// Whether the cyclic frame reads every slave's AL status: without, no drive's presence can
     /// be judged, and none is taken as lost.
     supervised: bool,
+    /// Every slave's links and error counters, read beside the cycle.
+    line_health: line_health::LineHealthShared,
 }

@@ -11,7 +11,7 @@ use super::samples::Sample;
 use super::stats::CycleStats;
 use super::supervision::{Exchange, Gaps};
 use super::{
-    command_timeout, events, handshake, homing, image, latch, recovery, sequencer, supervision, timing,
+    command_timeout, events, handshake, homing, image, latch, line_health, recovery, sequencer, supervision, timing,
     trajectory_player, CycleShared, HEADER_LEN,
 };
 use crate::error::{Error, Result};
@@ -65,7 +65,11 @@ struct Sent {
 /// it.
 pub(super) fn run(
     l: &mut Loop<'_>,
-    (mailbox, relay_buffers): (&mut MailboxService, &mut recovery::RelayBuffers),
+    (mailbox, relay_buffers, line_reader): (
+        &mut MailboxService,
+        &mut recovery::RelayBuffers,
+        &mut line_health::LineHealthReader,
+    ),
     player: &mut trajectory_player::Player,
     (period_ns, pipelined): (u64, bool),
 ) {
@@ -104,12 +108,15 @@ pub(super) fn run(
             l.judge(result, before, sent, mailbox);
         }
         let (shared, master) = (l.shared, &mut *l.master);
+        let frames_before = master.stats().frames;
         let recovering = |slave: u16| shared.recovery.get(slave as usize).is_some_and(recovery::busy);
         mailbox.run(master, (&shared.sdo, &shared.eoe), &shared.events, now, recovering, |slave| {
             let status = shared.drives.get(slave as usize).map(|d| d.status());
             status.map_or(0, |s| s.statusword)
         });
         shared.relay.serve(master, relay_buffers);
+        let frame_free = master.stats().frames == frames_before;
+        line_reader.run(master, &shared.line_health, timing::now_ns(), frame_free);
         let now_stats = master.stats();
         let cyclic = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
         let acyclic_lost = now_stats.lost_frames - base.lost_frames - cyclic.0;

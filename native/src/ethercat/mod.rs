@@ -10,7 +10,8 @@
 //!    Parameter), [`foe`] (file access over EtherCAT), [`dc`] (distributed-clock arithmetic),
 //!    [`pdo`] (process-data entries, and the description of a slave's process data the master
 //!    sets it up from), [`device`] (a slave's process data by name: its channels, their
-//!    values to the bit) and [`link_spec`] (the text that names a bus). Each raises its own error, declared
+//!    values to the bit), [`link_spec`] (the text that names a bus) and [`line_health`] (the ESCs'
+//!    error counters and links, the line's topology and the place of a fault). Each raises its own error, declared
 //!    beside it and named in the standard's words (AL status code names, SDO abort code
 //!    names).
 //! 2. [`link`]: the [`link::Link`] trait that moves frames, and the links to a real line (UDP,
@@ -28,6 +29,7 @@ pub mod device;
 pub mod eoe;
 pub mod foe;
 pub mod frame;
+pub mod line_health;
 pub mod link;
 pub mod link_spec;
 pub mod mailbox;

@@ -1,5 +1,6 @@
 //! ESC register addresses (ETG.1000.4 §6, AKD manual §5.1) used by the master and served by
-//! the virtual AKD. All registers are little-endian.
+//! the virtual AKD. All registers are little-endian. The error counters (0x0300–0x0313) are
+//! [`crate::ethercat::line_health::registers`]'.
 
 /// ESC type (1 byte), then revision (1) and build (2).
 pub const TYPE: u16 = 0x0000;
@@ -39,8 +40,6 @@ pub const AL_EVENT_MASK: u16 = 0x0204;
 pub const ECAT_EVENT_REQUEST: u16 = 0x0210;
 /// AL event request (4 bytes).
 pub const AL_EVENT_REQUEST: u16 = 0x0220;
-/// RX error counters of ports 0..3 (8 bytes); any write clears them.
-pub const RX_ERROR_COUNTERS: u16 = 0x0300;
 /// Watchdog divider (2 bytes), in 40 ns ticks.
 pub const WATCHDOG_DIVIDER: u16 = 0x0400;
 /// Process-data watchdog time (2 bytes), in watchdog-divider units.

@@ -8,6 +8,7 @@
 //! so are the set-point handshake (`start_setpoint`, `wait_setpoint`, `setpoint_status`) and the
 //! command time-out (`set_command_timeout`, `command_timeout_status`).
 
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -17,6 +18,7 @@ use pyo3::types::{PyBytes, PyDict};
 use super::master::PyMaster;
 use super::{IntoPyResult, Merged};
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
+use crate::cycle::line_health::DEFAULT_INTERVAL as LINE_HEALTH_INTERVAL;
 use crate::cycle::rt::{self, RealTime};
 use crate::cycle::samples::Sample;
 use crate::cycle::sequencer::{Progress, Request};
@@ -289,6 +291,9 @@ impl From<Event> for EventView {
     }
 }
 
+/// A /diagnostics status of the line: level, what, message, hardware_id, values.
+type LineStatus = crate::ros::line_diagnostics::Status;
+
 /// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
 fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
     Duration::try_from_secs_f64(seconds)
@@ -332,13 +337,24 @@ impl PyCycle {
     /// its return at the next wake-up: no wait for the round trip (less CPU, a lost frame costs
     /// no time), what a cycle read published a period later. The master is unusable until
     /// `stop()`.
+    /// `line_health`: how often (s) every slave's links and error counters are read beside the
+    /// cycle (`line_health()`), 0 or None for never.
     #[new]
-    #[pyo3(signature = (master, period, *, realtime = None))]
-    fn new(py: Python<'_>, master: Py<PyMaster>, period: f64, realtime: Option<RealTime>) -> PyResult<Self> {
+    #[pyo3(signature = (master, period, *, realtime = None, line_health = LINE_HEALTH_INTERVAL.as_secs_f64()))]
+    fn new(
+        py: Python<'_>,
+        master: Py<PyMaster>,
+        period: f64,
+        realtime: Option<RealTime>,
+        line_health: Option<f64>,
+    ) -> PyResult<Self> {
         let period = Duration::try_from_secs_f64(period)
             .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
         let fbus_param02 = super::master::lock(&master.borrow(py).fbus_param02).clone();
-        let config = Config { period, realtime: realtime.unwrap_or_default(), fbus_param02 };
+        let line_health =
+            line_health.map(|s| duration("line health interval", s, "a finite number of seconds >= 0, 0 for never"));
+        let config =
+            Config { period, realtime: realtime.unwrap_or_default(), fbus_param02, line_health: line_health.transpose()? };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
             Ok(cycle) => Ok(PyCycle { master, cycle: Arc::new(cycle) }),
@@ -855,6 +871,27 @@ impl PyCycle {
     /// in the cyclic frame, one drive per cycle in turn); {"active": False} without them.
     fn dc_status(&self) -> super::clocks::DcStatusView {
         self.cycle.dc_status().into()
+    }
+
+    /// Every slave's links and error counters as the reads beside the cycle found them: each
+    /// port's link, what is at its other end, its counters since the first read ("total") and
+    /// over the last 10 s ("window"), and the findings, the worst first ("errors on the cable
+    /// into slave 4 (joint_5) port 0, from slave 3 (joint_4) port 1: 37 in the last 10 s").
+    /// `names` (position to name) names slaves in the words; the others by their product.
+    #[pyo3(signature = (names = None))]
+    fn line_health(&self, names: Option<HashMap<usize, String>>) -> super::line_health::LineHealthView {
+        let labels = super::line_health::labels(self.cycle.products(), names);
+        super::line_health::LineHealthView::new(&self.cycle.line_health(), &labels)
+    }
+
+    /// What /diagnostics says of the line: a status of the line (its worst finding) and one per
+    /// slave, each a tuple (level, what, message, hardware_id, [(key, value)]) as
+    /// `diagnostic_array` takes it once the node's name is put in front of `what` ("line",
+    /// "line slave N"); `link` names the line in hardware_id, `names` as for `line_health`.
+    #[pyo3(signature = (link, names = None))]
+    fn line_diagnostics(&self, link: &str, names: Option<HashMap<usize, String>>) -> Vec<LineStatus> {
+        let labels = super::line_health::labels(self.cycle.products(), names);
+        crate::ros::line_diagnostics::statuses(&self.cycle.line_health(), &labels, link)
     }
 
     /// Plays a joint trajectory in the cycle thread: joint j on drive `positions[j]`, point k

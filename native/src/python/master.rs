@@ -533,6 +533,23 @@ impl PyMaster {
         self.with_master(py, |m| Ok(m.watch()?.iter().map(WatchedSlave::from).collect()))
     }
 
+    /// Every slave's links and error counters as one read finds them, the line at rest (no
+    /// Cycle): as `Cycle.line_health()` gives them, each count what the slave's ESC counted
+    /// since its power-up or the last clear (nothing is cleared here, and nothing counts in the
+    /// window of one read). `names` as there.
+    #[pyo3(signature = (names = None))]
+    fn line_health(
+        &self,
+        py: Python<'_>,
+        names: Option<std::collections::HashMap<usize, String>>,
+    ) -> PyResult<super::line_health::LineHealthView> {
+        let (reading, products) = self.with_master(py, |m| {
+            let products: Vec<String> = m.slaves().iter().map(|s| s.product().to_owned()).collect();
+            Ok((m.line_health()?, products))
+        })?;
+        Ok(super::line_health::LineHealthView::new(&reading, &super::line_health::labels(&products, names)))
+    }
+
     /// The working counter a good cycle comes back with.
     #[getter]
     fn expected_wkc(&self, py: Python<'_>) -> PyResult<u16> {

@@ -18,6 +18,7 @@ mod drive;
 mod eeprom;
 mod feed;
 mod homing;
+mod line_health;
 mod link_spec;
 mod master;
 mod record;

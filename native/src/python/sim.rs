@@ -16,13 +16,15 @@ use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
 use crate::ethercat::al::AlState;
 use crate::ethercat::link_spec::{MissedFrames, Pace, SimLine, SimLineError, SimProduct};
-use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
+use crate::sim::control::{self, Change, ControlledBus, DriveState, EscState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::pll::SyncState;
 use crate::sim::setpoint_trace::{SetpointTrace, TraceSender, TraceSummary};
 use crate::sim::terminal::{self, TerminalState};
 use crate::sim::{server, sii_image, Timing, VirtualBus};
+
+use super::line_health::{EscCountsView, PortCountsView};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
 /// name, or None), "fault_number" (e.g. 125, or None), the motor's "position" (counts),
@@ -127,6 +129,60 @@ impl From<TerminalState> for TerminalStateView {
             outputs: bits(t.outputs, t.output_count),
             analog_inputs: t.analog_inputs[..usize::from(t.analog_count)].to_vec(),
             watchdog_expired: t.watchdog_expired,
+        }
+    }
+}
+
+/// One port of `esc_state()["ports"]`: "port", "kind" ("MII", "E-bus", ...), "link",
+/// "loop_closed", "communication" (as the DL status shows them), "spoiling" (frames a faulty
+/// cable is still to spoil entering it), "registers" (its counters as the master reads them)
+/// and "counted" (what they counted since power-up, never cleared).
+#[derive(IntoPyObject)]
+struct EscPortView {
+    port: usize,
+    kind: &'static str,
+    link: bool,
+    loop_closed: bool,
+    communication: bool,
+    spoiling: u64,
+    registers: PortCountsView,
+    counted: PortCountsView,
+}
+
+/// `esc_state()`: "dl_status", "ports" (the ports its ESC has), "registers" and "counted" (its
+/// processing unit's and PDI's counters, as for each port).
+#[derive(IntoPyObject)]
+struct EscStateView {
+    dl_status: u16,
+    ports: Vec<EscPortView>,
+    registers: EscCountsView,
+    counted: EscCountsView,
+}
+
+impl From<EscState> for EscStateView {
+    fn from(e: EscState) -> Self {
+        let ports = e
+            .port_descriptor
+            .ports()
+            .map(|port| EscPortView {
+                port,
+                kind: e.port_descriptor.kind(port).name(),
+                link: e.dl_status.link(port),
+                loop_closed: e.dl_status.loop_closed(port),
+                communication: e.dl_status.communication(port),
+                spoiling: e.spoiling[port],
+                registers: e.registers.ports[port].into(),
+                counted: e.counted.ports[port].into(),
+            })
+            .collect();
+        EscStateView {
+            dl_status: e.dl_status.0,
+            ports,
+            registers: EscCountsView {
+                processing_unit_errors: e.registers.processing_unit.into(),
+                pdi_errors: e.registers.pdi.into(),
+            },
+            counted: EscCountsView { processing_unit_errors: e.counted.processing_unit, pdi_errors: e.counted.pdi },
         }
     }
 }
@@ -260,6 +316,27 @@ impl PyVirtualBus {
         Ok(self.bus.at(position).terminal().map(|t| t.state().into()).expect("checked: a terminal"))
     }
 
+    /// Takes the link at `port` of slave `position` down (`up` False) or up again, as
+    /// `Simulator.set_link` does.
+    fn set_link(&mut self, position: usize, port: usize, up: bool) -> PyResult<()> {
+        Change::link(&self.products, position, port, up).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// The cable into `port` of slave `position` spoils the next `frames` frames entering
+    /// there, one in every `every`, as `Simulator.crc_errors` says.
+    #[pyo3(signature = (position, port, frames, every = 1))]
+    fn crc_errors(&mut self, position: usize, port: usize, frames: i64, every: i64) -> PyResult<()> {
+        Change::spoil_port(&self.products, position, port, frames, every).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// The ESC of slave `position` as a dict (see `Simulator.esc_state`).
+    fn esc_state(&self, position: usize) -> PyResult<EscStateView> {
+        self.check(position)?;
+        Ok(EscState::of(&self.bus, position).into())
+    }
+
     fn __len__(&self) -> usize {
         self.bus.len()
     }
@@ -357,6 +434,37 @@ impl PySimulator {
         self.control.set_cable(position, true).py()
     }
 
+    /// Takes the link at `port` of slave `position` down (`up` False) before the next frame, or
+    /// up again: the cable there pulled or plugged (port 0: the one in front of it; port 1: the
+    /// one to the next slave), each end counting a lost link. Raises ConfigError for a port its
+    /// ESC lacks or no cable of the line reaches.
+    fn set_link(&self, position: usize, port: usize, up: bool) -> PyResult<()> {
+        self.control.set_link(position, port, up).py()
+    }
+
+    /// The cable into `port` of slave `position` spoils (a CRC error) the next `frames` frames
+    /// entering there, one in every `every`, from the next frame on: the slave's ESC counts an
+    /// invalid frame at that port, every ESC after it on the frame's way a forwarded error, and
+    /// the master never gets the frame. Port 0 takes frames on their way out, from the slave in
+    /// front (or the master); port 1 on their way back, from the slave behind. 0 ends a fault
+    /// still pending.
+    #[pyo3(signature = (position, port, frames, every = 1))]
+    fn crc_errors(&self, position: usize, port: usize, frames: i64, every: i64) -> PyResult<()> {
+        self.control.spoil_port(position, port, frames, every).py()
+    }
+
+    /// The ESC of slave `position` after the next frame, as a dict: "dl_status", "ports" (each
+    /// port its ESC has: "port", "kind", "link", "loop_closed", "communication", "spoiling",
+    /// "registers" and "counted", its counters as the master reads them and as counted since
+    /// power-up), "registers" and "counted" (its processing unit's and PDI's); waits up to
+    /// `timeout` seconds for that frame.
+    #[pyo3(signature = (position, timeout = QUERY_TIMEOUT.as_secs_f64()))]
+    fn esc_state(&self, py: Python<'_>, position: usize, timeout: f64) -> PyResult<EscStateView> {
+        let timeout = super::seconds(timeout, "timeout")?;
+        let control = &self.control;
+        Ok(py.allow_threads(|| control.esc_state(position, timeout)).py()?.into())
+    }
+
     /// The next `frames` frames get no reply at all; 0 ends a burst still pending.
     fn drop_frames(&self, frames: i64) -> PyResult<()> {
         self.control.start_burst(Burst::Lost(Burst::frames(frames).py()?)).py()
@@ -402,7 +510,8 @@ impl PySimulator {
     /// What the line did to the frames it carried since the drives were laid out, counted by
     /// the virtual AKDs themselves, after the next frame (counted in): "frames" (that reached
     /// the line), "lost" (before the first drive: dropped, or the first cable out),
-    /// "corrupted" and "wrong_wkc" (replies spoiled so). Waits up to `timeout` seconds.
+    /// "corrupted" and "wrong_wkc" (replies spoiled so), "spoiled" (frames a faulty cable
+    /// spoiled, `crc_errors`). Waits up to `timeout` seconds.
     #[pyo3(signature = (timeout = QUERY_TIMEOUT.as_secs_f64()))]
     fn line_counts(&self, py: Python<'_>, timeout: f64) -> PyResult<LineCounts> {
         let timeout = super::seconds(timeout, "timeout")?;

@@ -15,12 +15,15 @@
 //!   instead of polling.
 //! - [`cycle_records`]: the cycle's per-cycle records as akd_ros/CycleSample messages, which a
 //!   bag writer's thread takes for itself.
+//! - [`line_diagnostics`]: what /diagnostics says of the line's links and error counters, a
+//!   status of the line and one per slave.
 
 pub mod bag_file;
 pub mod bag_writer;
 pub mod cycle_records;
 pub mod cycle_sample;
 pub mod feed;
+pub mod line_diagnostics;
 pub mod msgs;
 
 use crate::ros::cycle_sample::JointScale;

@@ -1,8 +1,9 @@
 //! Control of virtual slaves whose bus another thread owns: fault injection, the hardware enable
 //! input, digital input levels and toggles (an AKD's, a digital input terminal's), the analog
 //! inputs, the limit and home switches, the analog input, the failures of the field (a drive power-cycled, a cable
-//! pulled, frames lost or corrupted, wrong working counters: see [`crate::sim::line`]), and a
-//! query of the drive firmware's state.
+//! pulled, a port's link taken down, a faulty cable spoiling frames into a port, frames lost or
+//! corrupted, wrong working counters: see [`crate::sim::line`]), and queries of the drive
+//! firmware's state, a terminal's I/O and a slave's ESC (its links and error counters).
 //!
 //! The bus is owned by whoever serves its frames: the in-process link inside a master (and so
 //! the cycle thread while a cycle runs), or the `akd-sim` server loop. A [`SimControl`] handle
@@ -30,6 +31,9 @@ use std::sync::Arc;
 
 use crate::drive::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
+use crate::ethercat::line_health::registers::{
+    DlStatus, ErrorCounts, PortDescriptor, ERROR_COUNTERS, ERROR_COUNTERS_LEN, PORTS,
+};
 use crate::ethercat::link_spec::SimProduct;
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
@@ -84,6 +88,61 @@ impl DriveState {
             would_be_f125: akd.would_be_f125(),
         }
     }
+}
+
+/// A slave's ESC as a query reports it: its ports and their links, its error counters as the
+/// master reads them, and what it counted since power-up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EscState {
+    /// Its port descriptor: the ports it has.
+    pub port_descriptor: PortDescriptor,
+    /// Its DL status: each port's link, loop and communication.
+    pub dl_status: DlStatus,
+    /// Its error counters' registers (stopped at 0xFF, cleared by the master's writes).
+    pub registers: ErrorCounts<u8>,
+    /// What they counted since power-up, never cleared.
+    pub counted: ErrorCounts<u64>,
+    /// Frames a faulty cable is still to spoil entering each port.
+    pub spoiling: [u64; PORTS],
+}
+
+impl EscState {
+    /// Slave `position`'s ESC on `bus` now.
+    pub fn of(bus: &VirtualBus, position: usize) -> Self {
+        let esc = bus.at(position).esc();
+        let at = usize::from(ERROR_COUNTERS);
+        let block = esc.memory()[at..at + ERROR_COUNTERS_LEN].try_into().expect("the block's length");
+        EscState {
+            port_descriptor: PortDescriptor(esc.hardware().port_descriptor),
+            dl_status: DlStatus(esc.u16_at(crate::ethercat::registers::DL_STATUS)),
+            registers: ErrorCounts::decode(block),
+            counted: esc.counted(),
+            spoiling: std::array::from_fn(|port| bus.line().spoiling(position, port)),
+        }
+    }
+}
+
+/// The cable into `port` of slave `position` of a line of `products`: the index of that cable
+/// as [`VirtualBus::set_cable`] counts them (the one in front of a slave). Refused for a port the
+/// slave's ESC lacks, and for one no cable of the virtual line reaches (the line is a daisy
+/// chain: port 0 in, port 1 on to the next slave).
+pub fn cable_at(products: &[SimProduct], position: usize, port: usize) -> Result<usize> {
+    check_position(products.len(), position)?;
+    let product = products[position];
+    let descriptor = PortDescriptor(crate::sim::slave::hardware_of(product).port_descriptor);
+    if port >= PORTS || !descriptor.has(port) {
+        let ports: Vec<String> = descriptor.ports().map(|p| p.to_string()).collect();
+        return Err(
+            SettingError::NoSuchPort { position, product: product.name(), port, ports: ports.join(", ") }.into()
+        );
+    }
+    let why = match port {
+        0 => return Ok(position),
+        1 if position + 1 < products.len() => return Ok(position + 1),
+        1 => "it is the last slave of the line, nothing follows it on port 1",
+        _ => "the virtual line is a daisy chain, each slave taking frames in at port 0 and passing them on at port 1",
+    };
+    Err(SettingError::NoCable { position, product: product.name(), port, why }.into())
 }
 
 /// Checks that slave `position` is on a line of `count` slaves.
@@ -189,6 +248,17 @@ pub enum Change {
         /// Whether it is in.
         plugged: bool,
     },
+    /// Make the cable into a port spoil frames ([`crate::sim::line::Line::spoil_port`]).
+    SpoilPort {
+        /// Slave position.
+        position: usize,
+        /// Its port.
+        port: usize,
+        /// Frames to spoil.
+        frames: u64,
+        /// One in every so many frames entering there.
+        every: u64,
+    },
     /// Lose, corrupt or give a wrong working counter to the next frames.
     Burst(Burst),
 }
@@ -274,6 +344,22 @@ impl Change {
         Ok(Change::Cable { position, plugged })
     }
 
+    /// Takes the link at `port` of slave `position` of a line of `products` down (`up` false) or
+    /// up again: the cable there pulled out or plugged back in.
+    pub fn link(products: &[SimProduct], position: usize, port: usize, up: bool) -> Result<Self> {
+        Ok(Change::Cable { position: cable_at(products, position, port)?, plugged: up })
+    }
+
+    /// The cable into `port` of slave `position` of a line of `products` spoils the next
+    /// `frames` frames entering there, one in every `every`; refused for a negative count, an
+    /// `every` below 1, and a port no cable reaches.
+    pub fn spoil_port(products: &[SimProduct], position: usize, port: usize, frames: i64, every: i64) -> Result<Self> {
+        cable_at(products, position, port)?;
+        let frames = Burst::frames(frames)?;
+        let every = u64::try_from(every).ok().filter(|&e| e >= 1).ok_or(SettingError::FrameSpacing { every })?;
+        Ok(Change::SpoilPort { position, port, frames, every })
+    }
+
     /// Applies the change to `bus` (the bus it was checked against).
     pub fn apply(self, bus: &mut VirtualBus) {
         match self {
@@ -309,6 +395,7 @@ impl Change {
             // power-up's, not the exchange path's.
             Change::PowerCycle { position } => bus.power_cycle(position),
             Change::Cable { position, plugged } => bus.set_cable(position, plugged),
+            Change::SpoilPort { position, port, frames, every } => bus.spoil_port(position, port, frames, every),
             Change::Burst(burst) => bus.start_burst(burst),
         }
     }
@@ -319,6 +406,7 @@ enum Message {
     Change(Change),
     DriveState { position: usize, reply: SyncSender<DriveState> },
     TerminalState { position: usize, reply: SyncSender<TerminalState> },
+    EscState { position: usize, reply: SyncSender<EscState> },
     LineCounts { reply: SyncSender<LineCounts> },
 }
 
@@ -400,6 +488,18 @@ impl SimControl {
         self.send(Message::Change(Change::cable(&self.products, position, plugged)?))
     }
 
+    /// Takes the link at `port` of slave `position` down (`up` false) before the next frame, or
+    /// up again: the cable there pulled or plugged, both its ends counting a lost link.
+    pub fn set_link(&self, position: usize, port: usize, up: bool) -> Result<()> {
+        self.send(Message::Change(Change::link(&self.products, position, port, up)?))
+    }
+
+    /// The cable into `port` of slave `position` spoils the next `frames` frames entering
+    /// there, one in every `every`, from the next frame on.
+    pub fn spoil_port(&self, position: usize, port: usize, frames: i64, every: i64) -> Result<()> {
+        self.send(Message::Change(Change::spoil_port(&self.products, position, port, frames, every)?))
+    }
+
     /// Starts `burst` at the next frame: lost frames, corrupted replies or wrong working
     /// counters, as many as it counts.
     pub fn start_burst(&self, burst: Burst) -> Result<()> {
@@ -421,6 +521,15 @@ impl SimControl {
         check_terminal(&self.products, position, "a terminal state")?;
         let (reply, answer) = mpsc::sync_channel(1);
         self.send(Message::TerminalState { position, reply })?;
+        wait(&answer, Some(position), timeout)
+    }
+
+    /// The ESC of slave `position` ([`EscState`]) after the owner's next frame; waits up to
+    /// `timeout` for it.
+    pub fn esc_state(&self, position: usize, timeout: Duration) -> Result<EscState> {
+        check_position(self.products.len(), position)?;
+        let (reply, answer) = mpsc::sync_channel(1);
+        self.send(Message::EscState { position, reply })?;
         wait(&answer, Some(position), timeout)
     }
 
@@ -456,6 +565,8 @@ pub struct ControlledBus {
     queries: Vec<(usize, SyncSender<DriveState>)>,
     /// Queries of terminals, likewise.
     terminal_queries: Vec<(usize, SyncSender<TerminalState>)>,
+    /// Queries of ESCs, likewise.
+    esc_queries: Vec<(usize, SyncSender<EscState>)>,
     /// Queries of the line's counts, likewise.
     line_queries: Vec<SyncSender<LineCounts>>,
 }
@@ -464,8 +575,8 @@ impl From<VirtualBus> for ControlledBus {
     fn from(bus: VirtualBus) -> Self {
         let (sender, receiver) = mpsc::channel();
         let control = SimControl { sender, products: bus.products().into() };
-        let (queries, terminal_queries, line_queries) = (Vec::new(), Vec::new(), Vec::new());
-        ControlledBus { bus, receiver, control, queries, terminal_queries, line_queries }
+        let (queries, terminal_queries, esc_queries, line_queries) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        ControlledBus { bus, receiver, control, queries, terminal_queries, esc_queries, line_queries }
     }
 }
 
@@ -527,6 +638,7 @@ impl ControlledBus {
                 Message::Change(change) => change.apply(&mut self.bus),
                 Message::DriveState { position, reply } => self.queries.push((position, reply)),
                 Message::TerminalState { position, reply } => self.terminal_queries.push((position, reply)),
+                Message::EscState { position, reply } => self.esc_queries.push((position, reply)),
                 Message::LineCounts { reply } => self.line_queries.push(reply),
             }
         }
@@ -541,6 +653,9 @@ impl ControlledBus {
             if let Some(terminal) = self.bus.at(position).terminal() {
                 let _ = reply.try_send(terminal.state());
             }
+        }
+        for (position, reply) in self.esc_queries.drain(..) {
+            let _ = reply.try_send(EscState::of(&self.bus, position));
         }
         for reply in self.line_queries.drain(..) {
             let _ = reply.try_send(self.bus.line().counts());
@@ -579,6 +694,14 @@ mod tests {
         assert!(e.contains("no slave at position 2: the bus has 2 slave(s)"), "{e}");
         let e = control.set_cable(3, false).unwrap_err().to_string();
         assert!(e.contains("no slave at position 3: the bus has 2 slave(s)"), "{e}");
+        let e = control.set_link(1, 1, false).unwrap_err().to_string();
+        assert!(e.contains("no cable at port 1 of the akd at position 1: it is the last slave"), "{e}");
+        let e = control.spoil_port(0, 2, 10, 1).unwrap_err().to_string();
+        assert!(e.contains("port 2: the akd at position 0 has ports 0, 1"), "{e}");
+        let e = control.spoil_port(0, 1, 10, 0).unwrap_err().to_string();
+        assert!(e.contains("one frame in every 0: allowed are 1 (each frame) or more"), "{e}");
+        let e = control.spoil_port(0, 1, -1, 1).unwrap_err().to_string();
+        assert!(e.contains("-1 frames"), "{e}");
         let e = control.set_hardware_enable(usize::MAX, false).unwrap_err().to_string();
         assert!(e.contains(&format!("no slave at position {}: the bus has 2", usize::MAX)), "{e}");
         // Nothing refused reached the owner.

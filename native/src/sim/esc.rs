@@ -17,8 +17,19 @@
 //! control bit 8, the terminals without a processor), AL control copied to AL status at once;
 //! and an ET1200's digital output register 0x0F00, which a sync manager may guard as it guards
 //! process RAM.
+//!
+//! Its ports are those its port descriptor names, each with a link or not: the DL status shows
+//! them (a port with a link open with communication, one without closed), a link lost at a port
+//! whose loop is on auto counts in its lost link counter, and the frames a line carries count in
+//! the error counters as their path through the ports meets a fault (see
+//! [`crate::ethercat::line_health`] and [`super::VirtualBus`]): an invalid frame at the port it
+//! entered by, a frame another ESC marked invalid as a forwarded error, either at port 0 also in
+//! the processing unit's counter. Each counter stops at 0xFF and is cleared by a write as the
+//! ESC's registers say; beside the registers the ESC keeps what it counted since power-up,
+//! never cleared, for a test to compare a master's counts with.
 
 use crate::ethercat::frame::{Addressing, Command, DatagramMut};
+use crate::ethercat::line_health::registers::{cleared_by_write, Counter, DlStatus, ErrorCounts, PORTS};
 use crate::ethercat::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
 pub use crate::sim::esc_hardware::RAM_START;
 use crate::sim::esc_hardware::{EscHardware, SiiInterface};
@@ -29,12 +40,6 @@ const DL_CONTROL_FIFO_SIZE: u8 = 0x07;
 /// Size of the address space a datagram can reach: ADO up to 0xFFFF plus its length, which
 /// the frame header's 11-bit length bounds (a link may bring a frame longer than Ethernet's).
 const SPACE: usize = 0x10000 + 0x07FF;
-/// DL status of the last slave of a line, but its PDI bits: port 0 link and communication,
-/// port 1 loop closed.
-const DL_STATUS_LAST: u16 = 0x5610;
-/// DL status of a slave with a successor, but its PDI bits: port 1 also has link and
-/// communication, loop open.
-const DL_STATUS_FORWARDING: u16 = 0x5A30;
 /// An ET1200's digital output data (0x0F00-0x0F03), where a digital I/O PDI takes its outputs.
 pub const DIGITAL_OUTPUTS: std::ops::Range<usize> = 0x0F00..0x0F04;
 /// PDI control (0x0140) low byte of a digital I/O PDI.
@@ -82,6 +87,10 @@ pub struct Esc {
     /// Local time until which an EEPROM read keeps the SII interface busy.
     sii_busy_until_ns: u64,
     events: Events,
+    /// Which ports have a link.
+    links: [bool; PORTS],
+    /// What the error counters counted since power-up, never cleared.
+    counted: ErrorCounts<u64>,
 }
 
 /// Whether the master may write the byte at `addr` of an ESC whose process RAM ends at
@@ -132,10 +141,18 @@ impl Esc {
         memory[0x0140..0x0142].copy_from_slice(&pdi_control.to_le_bytes());
         memory[0x0400..0x0402].copy_from_slice(&0x09C2u16.to_le_bytes());
         memory[0x0420..0x0422].copy_from_slice(&1000u16.to_le_bytes());
-        let mut esc =
-            Esc { hardware, memory, sii, al_control_locked: false, sii_busy_until_ns: 0, events: Events::default() };
+        let mut esc = Esc {
+            hardware,
+            memory,
+            sii,
+            al_control_locked: false,
+            sii_busy_until_ns: 0,
+            events: Events::default(),
+            links: [true, has_successor, false, false],
+            counted: ErrorCounts::default(),
+        };
         esc.refresh_sii_status(0);
-        esc.set_successor(has_successor);
+        esc.refresh_dl_status();
         // What the DL status is at power-up is no change of it.
         esc.memory[reg::ECAT_EVENT_REQUEST as usize] = 0;
         esc
@@ -180,15 +197,75 @@ impl Esc {
         &self.sii
     }
 
-    /// Whether a drive answers on port 1 (a cable pulled out behind it, or plugged back in):
-    /// the DL status shows port 1's link and whether its loop is closed.
-    pub fn set_successor(&mut self, has_successor: bool) {
-        let links = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
-        let dl_status = links | self.hardware.dl_status_pdi;
+    /// Whether `port` has a link (a cable plugged in with a powered slave at its other end, or
+    /// pulled out): the DL status shows it, and a link lost at a port whose loop is on auto (or
+    /// auto-close, DL control) counts in its lost link counter. A port the ESC lacks never
+    /// has one.
+    pub fn set_link(&mut self, port: usize, up: bool) {
+        let up = up && self.has_port(port);
+        let was = std::mem::replace(&mut self.links[port], up);
+        let loop_setting = self.memory[reg::DL_CONTROL as usize + 1] >> (2 * port) & 0x03;
+        if was && !up && loop_setting <= 1 {
+            self.count(Counter::LostLinks(port));
+        }
+        self.refresh_dl_status();
+    }
+
+    /// The links its ports have as it powers up: no change of a link, nothing counted.
+    pub fn power_up_links(&mut self, links: [bool; PORTS]) {
+        self.links = std::array::from_fn(|port| links[port] && self.has_port(port));
+        self.refresh_dl_status();
+    }
+
+    /// Whether `port` has a link.
+    pub fn link(&self, port: usize) -> bool {
+        self.links[port]
+    }
+
+    /// Whether the ESC has `port` (its port descriptor names it).
+    pub fn has_port(&self, port: usize) -> bool {
+        port < PORTS && crate::ethercat::line_health::registers::PortDescriptor(self.hardware.port_descriptor).has(port)
+    }
+
+    fn refresh_dl_status(&mut self) {
+        let dl_status = DlStatus::with_links(self.hardware.dl_status_pdi, self.links).0;
         if dl_status != self.u16_at(reg::DL_STATUS) {
             self.memory[reg::ECAT_EVENT_REQUEST as usize] |= DL_STATUS_EVENT;
         }
-        self.memory[0x0110..0x0112].copy_from_slice(&dl_status.to_le_bytes());
+        self.memory[reg::DL_STATUS as usize..reg::DL_STATUS as usize + 2].copy_from_slice(&dl_status.to_le_bytes());
+    }
+
+    /// Counts one event in `counter`: its register stops at 0xFF, what it counted since
+    /// power-up goes on.
+    pub fn count(&mut self, counter: Counter) {
+        let at = usize::from(counter.register());
+        self.memory[at] = self.memory[at].saturating_add(1);
+        *self.counted.get_mut(counter) += 1;
+    }
+
+    /// A frame entered `port` invalid, this ESC the first to find it so (a CRC error): counted
+    /// at the port, and in the processing unit when it entered port 0 (the one frames pass the
+    /// processing unit from).
+    pub fn count_invalid_frame(&mut self, port: usize) {
+        self.count(Counter::InvalidFrames(port));
+        if port == 0 {
+            self.count(Counter::ProcessingUnit);
+        }
+    }
+
+    /// A frame entered `port` marked invalid by an ESC before: a forwarded error, at port 0
+    /// also the processing unit's.
+    pub fn count_forwarded_error(&mut self, port: usize) {
+        self.count(Counter::ForwardedErrors(port));
+        if port == 0 {
+            self.count(Counter::ProcessingUnit);
+        }
+    }
+
+    /// What the error counters counted since power-up, never cleared (their registers stop at
+    /// 0xFF and a master clears them).
+    pub fn counted(&self) -> ErrorCounts<u64> {
+        self.counted
     }
 
     /// The whole space, as the firmware (PDI) sees it.
@@ -370,8 +447,8 @@ impl Esc {
                 self.events.al_control = Some(control);
             }
         }
-        if touches(at, len, reg::RX_ERROR_COUNTERS, 0x14) {
-            self.memory[0x0300..0x0314].fill(0);
+        for cleared in cleared_by_write(at, len) {
+            self.memory[cleared].fill(0);
         }
         if touches(at, len, reg::SII_CONTROL, 2) {
             self.sii_command(arrival.port0_ns);

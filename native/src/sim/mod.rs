@@ -52,6 +52,7 @@ pub mod watchdog;
 use crate::error::{FrameError, Result, SettingError};
 use crate::ethercat::al::{AlState, AlStatusCode};
 use crate::ethercat::frame::{self, DatagramMut};
+use crate::ethercat::line_health::registers::PORTS;
 use crate::ethercat::link_spec::{MissedFrames, Pace, SimLine, SimProduct};
 use crate::ethercat::pdo;
 use crate::ethercat::sii::Identity;
@@ -499,7 +500,7 @@ impl VirtualBus {
     pub fn of_slaves(mut slaves: Vec<VirtualSlave>) -> Self {
         // Each slave behind another saw its link come up after it reset.
         for slave in slaves.iter_mut().skip(1) {
-            slave.link_came_up();
+            slave.esc_mut().link_came_up();
         }
         let line = line::Line::new(slaves.len());
         VirtualBus { slaves, line }
@@ -551,14 +552,42 @@ impl VirtualBus {
         self.slaves[i].akd_mut().unwrap_or_else(|| panic!("slave {i} is no AKD"))
     }
 
-    /// Slave `position` loses its power and comes back as at power-up; behind another slave, its
-    /// link comes up after its reset, as at the line's power-up. Panics when `position` is not
-    /// below [`len`](Self::len).
+    /// Slave `position` loses its power and comes back as at power-up: its neighbours lose
+    /// their links to it meanwhile (and count them); behind another slave, its link comes up
+    /// after its reset, as at the line's power-up. Panics when `position` is not below
+    /// [`len`](Self::len).
     pub fn power_cycle(&mut self, position: usize) {
+        if position > 0 {
+            self.slaves[position - 1].esc_mut().set_link(1, false);
+        }
+        if let Some(next) = self.slaves.get_mut(position + 1) {
+            next.esc_mut().set_link(0, false);
+        }
+        let links = self.links_of(position);
         let slave = &mut self.slaves[position];
         slave.power_cycle();
+        slave.esc_mut().power_up_links(links);
         if position > 0 {
-            slave.link_came_up();
+            slave.esc_mut().link_came_up();
+        }
+        self.apply_links();
+    }
+
+    /// The links slave `position`'s ports have through the line's cables: port 0 through the
+    /// one in front of it, port 1 through the one in front of the next slave; the virtual line
+    /// is a daisy chain, its slaves' other ports without a cable.
+    fn links_of(&self, position: usize) -> [bool; PORTS] {
+        [self.line.plugged(position), self.line.plugged(position + 1), false, false]
+    }
+
+    /// Sets every slave's links as the cables are.
+    fn apply_links(&mut self) {
+        for position in 0..self.slaves.len() {
+            let links = self.links_of(position);
+            let esc = self.slaves[position].esc_mut();
+            for (port, up) in links.into_iter().enumerate() {
+                esc.set_link(port, up);
+            }
         }
     }
 
@@ -583,13 +612,18 @@ impl VirtualBus {
 
     /// Pulls the cable in front of drive `position` out, or plugs it back in: frames reach
     /// only the drives in front of the first cable out, and the last of those closes its port
-    /// 1. Panics when `position` is not below [`len`](Self::len).
+    /// 1; the ports at both ends of the cable lose their link (and count it). Panics when
+    /// `position` is not below [`len`](Self::len).
     pub fn set_cable(&mut self, position: usize, plugged: bool) {
         self.line.set_cable(position, plugged);
-        let reach = self.line.reach();
-        for (i, slave) in self.slaves.iter_mut().enumerate() {
-            slave.set_successor(i + 1 < reach);
-        }
+        self.apply_links();
+    }
+
+    /// Makes the cable into `port` of slave `position` spoil the next `frames` frames entering
+    /// there, one in every `every` ([`line::Line::spoil_port`]). Panics when `position` is not
+    /// below [`len`](Self::len) or `port` is no port (below 4).
+    pub fn spoil_port(&mut self, position: usize, port: usize, frames: u64, every: u64) {
+        self.line.spoil_port(position, port, frames, every);
     }
 
     /// Lets bus time `now_ns` pass with no frame: every drive's firmware runs up to it (the
@@ -619,6 +653,12 @@ impl VirtualBus {
     }
 
     /// [`process`](Self::process) without the IP stacks' work: the frame as the ESCs answer it.
+    ///
+    /// The frame enters each slave at port 0 on its way out, and each slave but the last of
+    /// those it reaches at port 1 on its way back, from the slave behind it. A faulty cable
+    /// there may spoil it ([`line::Line::spoil_port`]): the ESC counts an invalid frame at that
+    /// port and marks the frame, every ESC after it counts a forwarded error, none takes it
+    /// (an ESC discards what an invalid frame asked), and the master never gets it.
     pub fn answer(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
         frame::validate(payload)?;
         if self.line.carry() {
@@ -630,6 +670,7 @@ impl VirtualBus {
         }
         let reach = self.line.reach();
         let last = reach as u64 - 1;
+        let mut spoiled = false;
         for (i, slave) in self.slaves.iter_mut().enumerate() {
             if i >= reach {
                 slave.miss_frame();
@@ -637,12 +678,35 @@ impl VirtualBus {
                 continue;
             }
             slave.poll(now_ns);
+            if spoiled {
+                slave.esc_mut().count_forwarded_error(0);
+            } else if self.line.spoils(i, 0) {
+                slave.esc_mut().count_invalid_frame(0);
+                spoiled = true;
+            }
+            if spoiled {
+                slave.miss_frame();
+                continue;
+            }
             let i = i as u64;
             let arrival = Arrival {
                 port0_ns: now_ns + i * FORWARD_DELAY_NS,
                 port1_ns: (i < last).then_some(now_ns + (2 * last - i) * FORWARD_DELAY_NS),
             };
             frame::for_each_datagram_mut(payload, |dg| slave.serve(dg, now_ns, arrival))?;
+        }
+        for i in (0..reach - 1).rev() {
+            let esc = self.slaves[i].esc_mut();
+            if spoiled {
+                esc.count_forwarded_error(1);
+            } else if self.line.spoils(i, 1) {
+                esc.count_invalid_frame(1);
+                spoiled = true;
+            }
+        }
+        if spoiled {
+            self.line.count_spoiled();
+            return Ok(line::Delivery::Lost);
         }
         self.line.spoil(payload);
         Ok(line::Delivery::Returned)
@@ -653,6 +717,7 @@ impl VirtualBus {
 mod tests {
     use super::*;
     use crate::ethercat::frame::{Command, FrameBuilder};
+    use crate::ethercat::line_health::registers::ErrorCounts;
 
     fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
         served(VirtualBus::process, bus, now, (command, adp, ado), data)
@@ -938,11 +1003,124 @@ mod tests {
         assert_eq!(bus.line().pending(), (0, 0, 0));
         // The line counts what it did; the wrong working counter and the corruption hit the
         // same (third) reply.
-        let counts = line::LineCounts { frames: 5, lost: 2, corrupted: 1, wrong_wkc: 2 };
+        let counts = line::LineCounts { frames: 5, lost: 2, corrupted: 1, wrong_wkc: 2, spoiled: 0 };
         assert_eq!(bus.line().counts(), counts);
         bus.set_cable(0, false);
         assert_eq!(serve(&mut bus), (Lost, true, 0));
         assert_eq!(bus.line().counts(), line::LineCounts { frames: 6, lost: 3, ..counts });
+    }
+
+    /// Slave `position`'s error counters as counted since power-up.
+    fn counted(bus: &VirtualBus, position: usize) -> ErrorCounts<u64> {
+        bus.at(position).esc().counted()
+    }
+
+    /// The error counters' registers of slave `position`, read by the master.
+    fn counter_registers(bus: &mut VirtualBus, position: u16) -> ErrorCounts<u8> {
+        let (block, wkc) = exchange(bus, 0, Command::Aprd, 0u16.wrapping_sub(position), 0x0300, &[0; 20]);
+        assert_eq!(wkc, 1);
+        ErrorCounts::decode(&block.try_into().unwrap())
+    }
+
+    #[test]
+    fn a_bad_cable_into_a_port_0_counts_there_and_forwarded_after_it_and_loses_the_frame() {
+        let mut bus = VirtualBus::with_timing(6, Timing::IMMEDIATE);
+        let (sent, _) = al_status_frame();
+        // Slave 2 to slave 3: every second frame entering slave 3's port 0 spoiled, twice.
+        bus.spoil_port(3, 0, 2, 2);
+        let deliveries: Vec<_> = (0..6).map(|_| bus.process(&mut sent.clone(), 0).unwrap()).collect();
+        use line::Delivery::{Lost, Returned};
+        assert_eq!(deliveries, [Returned, Lost, Returned, Lost, Returned, Returned]);
+        assert_eq!(bus.line().counts().spoiled, 2);
+        assert_eq!(counted(&bus, 3).ports[0].invalid_frames, 2);
+        assert_eq!(counted(&bus, 3).processing_unit, 2);
+        // After it on the way out, then back through every port 1 to the master.
+        for (slave, port) in [(4, 0), (5, 0), (4, 1), (3, 1), (2, 1), (1, 1), (0, 1)] {
+            assert_eq!(counted(&bus, slave).ports[port].forwarded_errors, 2, "slave {slave} port {port}");
+        }
+        assert_eq!(counted(&bus, 2).ports[0], Default::default(), "in front of the fault: nothing");
+        assert_eq!(counted(&bus, 5).ports[1], Default::default(), "the last slave's port 1 is closed");
+        // The registers say the same.
+        assert_eq!(counter_registers(&mut bus, 4).ports[0].forwarded_errors, 2);
+        assert_eq!(counter_registers(&mut bus, 3).processing_unit, 2);
+    }
+
+    #[test]
+    fn a_bad_cable_into_a_port_1_is_the_return_path_from_the_slave_behind() {
+        let mut bus = VirtualBus::with_timing(6, Timing::IMMEDIATE);
+        let (sent, slot) = al_status_frame();
+        bus.spoil_port(3, 1, 1, 1);
+        let mut frame = sent.clone();
+        assert_eq!(bus.process(&mut frame, 0), Ok(line::Delivery::Lost));
+        assert_eq!(counted(&bus, 3).ports[1].invalid_frames, 1);
+        assert_eq!(counted(&bus, 3).processing_unit, 0, "frames from port 1 do not pass the processing unit");
+        for slave in 0..3 {
+            assert_eq!(counted(&bus, slave).ports[1].forwarded_errors, 1);
+        }
+        for slave in 4..6 {
+            assert_eq!(counted(&bus, slave), ErrorCounts::default(), "slave {slave} served it unspoiled");
+        }
+        // Every slave had served it on its way out: the drives took it, the master did not.
+        let mut frame = sent.clone();
+        assert_eq!(bus.process(&mut frame, 0), Ok(line::Delivery::Returned));
+        assert_eq!(slot.wkc(&frame).unwrap(), 6);
+    }
+
+    #[test]
+    fn a_write_clears_the_counters_its_register_names_and_a_read_write_reads_them_first() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        let (sent, _) = al_status_frame();
+        bus.spoil_port(1, 0, 300, 1);
+        for _ in 0..300 {
+            bus.process(&mut sent.clone(), 0).unwrap();
+        }
+        bus.set_cable(2, false);
+        bus.set_cable(2, true);
+        let counts = counter_registers(&mut bus, 1);
+        // 300 counted, the registers stopped at 0xFF.
+        assert_eq!(
+            (counts.ports[0].invalid_frames, counts.processing_unit, counts.ports[1].lost_links),
+            (0xFF, 0xFF, 1)
+        );
+        assert_eq!(counted(&bus, 1).ports[0].invalid_frames, 300);
+        // A write of the processing unit's counter clears it alone.
+        exchange(&mut bus, 0, Command::Apwr, 0xFFFF, 0x030C, &[0]);
+        let counts = counter_registers(&mut bus, 1);
+        assert_eq!((counts.ports[0].invalid_frames, counts.processing_unit, counts.ports[1].lost_links), (0xFF, 0, 1));
+        // A read-write of the whole block reads what it clears.
+        let (read, wkc) = exchange(&mut bus, 0, Command::Aprw, 0xFFFF, 0x0300, &[0; 20]);
+        assert_eq!((read[0], read[0x10 + 1], wkc), (0xFF, 1, 3));
+        assert_eq!(counter_registers(&mut bus, 1), ErrorCounts::default());
+        assert_eq!(counted(&bus, 1).ports[0].invalid_frames, 300, "what it counted since power-up stays");
+    }
+
+    #[test]
+    fn a_link_lost_counts_at_both_ends_of_its_cable_and_a_power_cycle_at_the_neighbours() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        bus.set_cable(2, false);
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+        bus.set_cable(2, true);
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
+        assert_eq!((counted(&bus, 1).ports[1].lost_links, counted(&bus, 2).ports[0].lost_links), (1, 1));
+        bus.power_cycle(1);
+        assert_eq!((counted(&bus, 0).ports[1].lost_links, counted(&bus, 2).ports[0].lost_links), (1, 2));
+        assert_eq!(counted(&bus, 1), ErrorCounts::default(), "a fresh ESC");
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
+    }
+
+    #[test]
+    fn terminals_count_at_their_escs_ports_too() {
+        let line = "ek1100,el1004,el2004,akd".parse().unwrap();
+        let mut bus = VirtualBus::of_line(&line, Timing::IMMEDIATE).unwrap();
+        let (sent, _) = al_status_frame();
+        bus.spoil_port(2, 0, 1, 1);
+        assert_eq!(bus.process(&mut sent.clone(), 0), Ok(line::Delivery::Lost));
+        assert_eq!(counted(&bus, 2).ports[0].invalid_frames, 1);
+        assert_eq!(counted(&bus, 3).ports[0].forwarded_errors, 1);
+        assert_eq!(counted(&bus, 0).ports[1].forwarded_errors, 1, "the EK1100's E-bus port");
+        // The EL2004's ET1200 has no port 2: it never has a link there.
+        assert!(!bus.at(2).esc().has_port(2) && bus.at(2).esc().has_port(3));
+        assert!(bus.at(0).esc().has_port(2) && !bus.at(0).esc().link(2));
     }
 
     #[test]

@@ -4,7 +4,8 @@
 use crate::error::Result;
 use crate::ethercat::frame::DatagramMut;
 use crate::ethercat::link_spec::SimProduct;
-use crate::sim::esc::Arrival;
+use crate::sim::esc::{Arrival, Esc};
+use crate::sim::esc_hardware::{self, EscHardware};
 use crate::sim::terminal::{self, VirtualTerminal};
 use crate::sim::{sii_image, Timing, VirtualAkd};
 
@@ -116,20 +117,24 @@ impl VirtualSlave {
         }
     }
 
-    /// The link on port 0 came up after the slave's reset
-    /// ([`Esc::link_came_up`](super::esc::Esc::link_came_up)).
-    pub(super) fn link_came_up(&mut self) {
+    /// Its ESC: registers, links, error counters.
+    pub fn esc(&self) -> &Esc {
         match self {
-            VirtualSlave::Akd(akd) => akd.esc.link_came_up(),
-            VirtualSlave::Terminal(t) => t.link_came_up(),
+            VirtualSlave::Akd(akd) => &akd.esc,
+            VirtualSlave::Terminal(t) => t.esc(),
         }
     }
 
-    /// Whether a slave answers on its port 1: one follows there and its cable is in.
-    pub(super) fn set_successor(&mut self, reached: bool) {
+    /// Its ESC, for the line to set its links and count what frames meet at its ports.
+    pub(super) fn esc_mut(&mut self) -> &mut Esc {
         match self {
-            VirtualSlave::Akd(akd) => akd.esc.set_successor(akd.has_successor && reached),
-            VirtualSlave::Terminal(t) => t.set_successor(reached),
+            VirtualSlave::Akd(akd) => &mut akd.esc,
+            VirtualSlave::Terminal(t) => t.esc_mut(),
         }
     }
+}
+
+/// The ESC `product` is built on.
+pub fn hardware_of(product: SimProduct) -> EscHardware {
+    terminal::description(product).map_or(esc_hardware::AKD, |d| terminal::hardware(&d))
 }

@@ -28,7 +28,7 @@ use crate::ethercat::registers as reg;
 use crate::ethercat::sii::Sii;
 use crate::sim::al_machine::AlMachine;
 use crate::sim::esc::{Arrival, Esc, Events};
-use crate::sim::esc_hardware::{ET1100, ET1200};
+use crate::sim::esc_hardware::{EscHardware, ET1100, ET1200};
 use crate::sim::mailbox_server::MailboxServer;
 use crate::sim::od::{self, ObjectDictionary};
 use crate::sim::process_data::{self, Image};
@@ -109,6 +109,16 @@ enum Io {
     Processor(Box<Processor>),
 }
 
+/// The ESC a terminal `description` describes is built on: a coupler's ET1100, the others'
+/// ET1200.
+pub fn hardware(description: &TerminalSii) -> EscHardware {
+    if description.kind == Kind::Coupler {
+        ET1100
+    } else {
+        ET1200
+    }
+}
+
 /// One virtual terminal.
 pub struct VirtualTerminal {
     product: SimProduct,
@@ -134,8 +144,7 @@ impl VirtualTerminal {
     pub fn with_sii(product: SimProduct, description: TerminalSii, sii: Vec<u8>, has_successor: bool) -> Result<Self> {
         let parsed =
             Sii::parse(&sii).map_err(|error| SettingError::TerminalImage { product: product.name(), error })?;
-        let hardware = if description.kind == Kind::Coupler { ET1100 } else { ET1200 };
-        let mut esc = Esc::with_hardware(hardware, sii, has_successor);
+        let mut esc = Esc::with_hardware(hardware(&description), sii, has_successor);
         let io = match description.kind {
             Kind::Coupler => Io::None,
             Kind::DigitalInputs { .. } => Io::DigitalInputs(Filter::default()),
@@ -185,14 +194,14 @@ impl VirtualTerminal {
         }
     }
 
-    /// The link on port 0 came up after the terminal's reset.
-    pub fn link_came_up(&mut self) {
-        self.esc.link_came_up();
+    /// Its ESC.
+    pub fn esc(&self) -> &Esc {
+        &self.esc
     }
 
-    /// Whether a slave follows on port 1 (a cable pulled out behind it, or plugged back in).
-    pub fn set_successor(&mut self, has_successor: bool) {
-        self.esc.set_successor(has_successor && self.has_successor);
+    /// Its ESC, for the line to set its links and count what the frames meet at its ports.
+    pub(super) fn esc_mut(&mut self) -> &mut Esc {
+        &mut self.esc
     }
 
     /// The number of digital inputs, outputs and analog inputs.
@@ -531,8 +540,12 @@ mod tests {
         assert_eq!(irq(&mut bus), 0x0004);
         exchange(&mut bus, 0, Command::Fprd, 0x1002, 0x0110, &[0, 0]);
         assert_eq!(irq(&mut bus), 0);
-        // A power cycle brings its link up again; its mask is at power-up's.
+        // A power cycle takes the EK1100's port 1 link down and up again: its DL status changed,
+        // which its event says until the DL status is read. The EL1004's link comes up again; its
+        // mask is at power-up's.
         bus.power_cycle(1);
+        assert_eq!(irq(&mut bus), 0x0004);
+        exchange(&mut bus, 0, Command::Fprd, 0x1001, 0x0110, &[0, 0]);
         assert_eq!(irq(&mut bus), 0);
         exchange(&mut bus, 0, Command::Bwr, 0, 0x0200, &[0x04, 0x00]);
         assert_eq!(irq(&mut bus), 0x0004);

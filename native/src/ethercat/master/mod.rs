@@ -5,7 +5,7 @@
 //! [`mailbox_client`] carries mailbox messages with counter and repeat, [`sdo`] and [`sdo_info`] are
 //! the CoE client, [`eoe`] and [`foe`] the EoE and FoE clients, [`mapping`] sets up a slave's process data from its description, [`clocks`] sets up distributed
 //! clocks and [`cyclic`] exchanges the process image and [`restore`] brings one slave back while the
-//! others cycle. This file holds the bus-wide state and
+//! others cycle; [`line_health`] reads every slave's links and error counters. This file holds the bus-wide state and
 //! the register access all of them share.
 
 use std::collections::VecDeque;
@@ -22,6 +22,7 @@ pub mod clocks;
 pub mod cyclic;
 pub mod eoe;
 pub mod foe;
+pub mod line_health;
 pub mod mailbox_client;
 pub mod mapping;
 pub mod restore;
