@@ -120,18 +120,20 @@ fn every_slave_of_a_line_goes_to_op_from_what_its_sii_says() {
 
 #[test]
 fn the_coupler_is_the_reference_clock_and_terminals_without_system_time_are_not_synchronised() {
-    let (mut m, _bus) = master_on("ek1100,el1004,el2004,akd");
+    // The EL3102 has CoE: FBUS.PARAM02 or 0x60C2 written to it would be refused (an SDO abort).
+    let (mut m, _bus) = master_on("ek1100,el1004,el2004,el3102,akd");
     let dc: Vec<bool> = m.slaves().iter().map(|s| s.has_dc()).collect();
     // The ET1200 says it has DC (feature bit 2) and has no system time.
-    assert_eq!(dc, [true, false, false, true]);
+    assert_eq!(dc, [true, false, false, false, true]);
     assert!(m.slaves()[1].esc_features & 0x0004 != 0);
     m.request_state(AlState::PreOp, STEP).unwrap();
     let fbus_param02 = m.configure_dc(1_000_000, 0).unwrap();
-    assert_eq!(fbus_param02[..3], [None, None, None], "nothing of the AKD's written to a terminal");
+    assert_eq!(fbus_param02[..4], [None; 4], "nothing of the AKD's written to a terminal");
+    assert!(fbus_param02[4].is_some(), "FBUS.PARAM02 written to the AKD");
     let clock = m.clock().unwrap().clone();
     assert_eq!(clock.reference_position, 0);
-    assert_eq!(clock.slaves.iter().map(|s| s.position).collect::<Vec<_>>(), [0, 3]);
-    m.slave_mut(3).unwrap().configure_pdo(Mapping::Fixed(0x1701), Mapping::Fixed(0x1B01)).unwrap();
+    assert_eq!(clock.slaves.iter().map(|s| s.position).collect::<Vec<_>>(), [0, 4]);
+    m.slave_mut(4).unwrap().configure_pdo(Mapping::Fixed(0x1701), Mapping::Fixed(0x1B01)).unwrap();
     m.request_state(AlState::Op, STEP).unwrap();
     assert_eq!(m.exchange().unwrap(), m.expected_wkc().unwrap());
     m.request_state(AlState::Init, STEP).unwrap();
