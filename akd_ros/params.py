@@ -173,7 +173,7 @@ SCHEMA: tuple[Spec, ...] = (
         "fault_reaction",
         "all",
         "What a fault on one joint's drive does to the others: 'all' quick-stops them in the same cycle (as an arm "
-        "needs), 'joint' leaves them as they are.",
+        "needs) and switches the devices' outputs off until they are set again, 'joint' leaves them as they are.",
         choices=FAULT_REACTIONS,
     ),
     Spec(

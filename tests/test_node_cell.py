@@ -2,7 +2,8 @@
 EL2004 in front of two AKDs, served by `akd-sim --line ek1100,el1004,el2004,akd,akd` over UDP. The terminals, named
 under devices, come to Op with the drives; each one's channels are on ~/<device>/io; an input toggled on akd-sim's
 stdin is published at its edge and shown by /diagnostics; an output set through ~/set_outputs reaches the terminal's
-pins; bad requests are refused in one line and change nothing; the outputs go off when the node deactivates; and the
+pins; bad requests are refused in one line and change nothing; the outputs go off at the fault reaction of a drive's
+fault, when a power-cycled terminal is brought back and when the node deactivates, and stay off until set again; and the
 bag holds the input's edge and the output as sent. Every wait is bounded; the processes are always ended.
 """
 
@@ -178,6 +179,41 @@ def test_bad_requests_of_a_device_are_refused_in_one_line_and_change_nothing(run
         assert not response.success and "\n" not in response.message, response.message
         assert response.message.startswith("outputs not set: ") and refusal in response.message, response.message
     assert sim.state(2)["outputs"] == before
+
+
+def test_a_drive_fault_switches_the_outputs_off_and_they_stay_off_after_the_reset(run):
+    sim, _, ros = run[:3]
+    assert ros.set_outputs("valves", ["channel_1_output", "channel_3_output"], [True, True]).success
+    ros.io("valves", lambda m: level(m, "channel_3_output") == 1.0, "channel_3_output on")
+    ros.trigger("enable")
+    # fault_reaction all: the drives quick-stopped, the gripper's valves closed in the same reaction.
+    sim.command("fault 4 F439")
+    ros.io("valves", lambda m: not any(m.outputs), "every output off at the fault reaction")
+    assert sim.state(2)["outputs"] == [False] * 4
+    ros.trigger("reset_fault")
+    ros.spin_for(0.5)
+    assert not any(ros.io("valves").outputs) and sim.state(2)["outputs"] == [False] * 4, "off until set again"
+    assert ros.set_outputs("valves", ["channel_1_output"], [True]).success
+    ros.io("valves", lambda m: level(m, "channel_1_output") == 1.0, "channel_1_output on again")
+    assert sim.state(2)["outputs"] == [True, False, False, False]
+    assert ros.set_outputs("valves", ["channel_1_output"], [False]).success
+
+
+def test_a_terminal_power_cycled_is_brought_back_with_its_outputs_off_until_set_again(run):
+    sim, _, ros = run[:3]
+    recoveries = int(ros.values("valves", lambda v: True, "the valves' status")["recoveries"])
+    assert ros.set_outputs("valves", ["channel_2_output"], [True]).success
+    ros.io("valves", lambda m: level(m, "channel_2_output") == 1.0, "channel_2_output on")
+    sim.command("power_cycle 2")
+    ros.values("valves", lambda v: v["recovering"] == "True", "the valves lost on /diagnostics")
+    back = ros.values("valves", lambda v: int(v["recoveries"]) > recoveries, "the valves brought back")
+    assert back["output channel_2_output"] == "low", back
+    ros.spin_for(0.5)
+    assert not any(ros.io("valves").outputs) and sim.state(2)["outputs"] == [False] * 4, "off until set again"
+    assert [sim.state(p)["al_state"] for p in range(3)] == ["Op"] * 3
+    assert ros.set_outputs("valves", ["channel_2_output"], [True]).success
+    ros.io("valves", lambda m: level(m, "channel_2_output") == 1.0, "channel_2_output on again")
+    assert sim.state(2)["outputs"] == [False, True, False, False]
 
 
 def test_the_outputs_go_off_when_the_node_deactivates(run):
