@@ -9,6 +9,7 @@ bag holds the input's edge and the output as sent. Every wait is bounded; the pr
 
 from __future__ import annotations
 
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -19,7 +20,8 @@ from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from akd_ros.msg import DeviceIO
 from akd_ros.srv import SetOutputs
-from support.ros import Participant, module_domain, node_on_sim, stop
+from support.netns import free_udp_port
+from support.ros import BIN, NodeProcess, Participant, Sim, module_domain, node_on_sim, stop
 
 DOMAINS = range(90, 96)
 """ROS_DOMAIN_IDs of this module (see tests/test_node_io.py for the others')."""
@@ -51,12 +53,11 @@ akd_node:
 class Client(Participant):
     """Each device's ~/<device>/io and /diagnostics collected; ~/set_outputs called."""
 
-    def __init__(self, domain: int):
+    def __init__(self, domain: int, devices=("sensors", "valves")):
         super().__init__(domain, "akd_node_cell_test")
         qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         for topic, kind in {
-            f"{NODE}sensors/io": DeviceIO,
-            f"{NODE}valves/io": DeviceIO,
+            **{f"{NODE}{device}/io": DeviceIO for device in devices},
             "/diagnostics": DiagnosticArray,
         }.items():
             self.received[topic] = []
@@ -254,3 +255,36 @@ def read_bag(folder: Path) -> dict[str, list]:
             message = reader.deserialize(raw, connection.msgtype)
             found[message.device].append(message)
     return found
+
+
+def test_the_node_runs_the_line_on_the_parameters_akd_scan_wrote_for_it_unchanged(ros_domain, tmp_path):
+    # Another domain than the module's node, which is still up.
+    domain = DOMAINS[(DOMAINS.index(ros_domain) + 1) % len(DOMAINS)]
+    sim = Sim(free_udp_port(), line=LINE)
+    node = client = None
+    try:
+        path = tmp_path / "cell.yaml"
+        link = f"udp://127.0.0.1:{sim.port}"
+        scan = subprocess.run(
+            [BIN / "akd-scan", link, "--params", path], capture_output=True, text=True, timeout=120, check=False
+        )
+        assert scan.returncode == 0, scan.stderr
+        assert "devices: [ek1100_0, el1004_1, el2004_2]" in path.read_text(), path.read_text()
+        node = NodeProcess(path, domain)
+        client = Client(domain, ("el1004_1", "el2004_2"))
+        client.spin_until(
+            lambda: client.received[f"{NODE}el2004_2/io"] or node.process.poll() is not None, "~/el2004_2/io"
+        )
+        assert node.process.poll() is None, node.output()
+        sim.command("input 1 3 high")
+        client.io("el1004_1", lambda m: level(m, "channel_3_input") == 1.0, "channel_3_input high")
+        assert client.set_outputs("el2004_2", ["channel_4_output"], [True]).success
+        client.io("el2004_2", lambda m: level(m, "channel_4_output") == 1.0, "channel_4_output on")
+        assert sim.state(2)["outputs"] == [False, False, False, True]
+    finally:
+        if client is not None:
+            client.close()
+        if node is not None:
+            stop(node.process)
+            print(f"akd_node output:\n{node.output()}")
+        sim.stop()

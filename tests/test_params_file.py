@@ -28,6 +28,7 @@ REFUSED_AT_CONFIGURE = {
     "mode the mapping cannot carry",
     "a line with no drives listening",
     "a device of another product than the line's",
+    "a device's product unknown to the line",
     "a device past the end of the line",
     "a joint where the line has a terminal",
 }

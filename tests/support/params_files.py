@@ -127,6 +127,19 @@ BAD_FILES = {
         "link: sim:2\njoints: [a, b]\ndevices: [a]\ndevices.a.slave: 1",
         ["parameter devices names a more than once (or as a joint)"],
     ),
+    "two devices on one slave": (
+        "link: sim:2\njoints: [a]\ndevices: [valves, lamps]\ndevices.valves.slave: 1\ndevices.lamps.slave: 1",
+        ["parameters devices.<name>.slave: slave 1 given to several devices; each device once"],
+    ),
+    "a device on a joint's slave": (
+        "link: sim:2\njoints: [a]\ndevices: [valves]\ndevices.valves.slave: 0",
+        ["slave 0 is given to a drive and to device valves; each slave once"],
+    ),
+    "a device's product unknown to the line": (
+        "link: sim:ek1100,el1004,el2004,akd?pace=immediate\nslave: 3\ndevices: [valves]\ndevices.valves.slave: 2\n"
+        "devices.valves.product: EL9999",
+        ["configure: ", "slave 2 is an EL2004; device valves expects an EL9999"],
+    ),
     "a block of a device not in devices": (
         "devices: [valves]\ndevices.valves.slave: 1\ndevices.lamps.slave: 2",
         ["unknown parameter devices.lamps.slave", "devices.<name>.<one of slave, product>"],
