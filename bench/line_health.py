@@ -71,6 +71,55 @@ def run_cycle(rate: int, interval: float, args) -> dict:
     }
 
 
+def compared(runs: list[dict], rates: list[int], key: str, labels: dict, extra=lambda these: {}) -> tuple:
+    """The table rows and jitter series of `runs` at each of `rates`, those with `key` False and True apart (named
+    `labels[False]`, `labels[True]` in column `key`): medians of the runs' own figures (a stall of the host falls on one
+    run, not on the median), the worst of all, sums of overruns and lost frames, `extra(runs)`'s columns, and the
+    ratios True / False."""
+    rows, series = [], {}
+    for rate in rates:
+        figures_of = {}
+        for variant in (False, True):
+            these = [r for r in runs if r["rate"] == rate and r[key] == variant]
+
+            def median(figure: str, of: str, these=these) -> float:
+                return quantile([quantiles(r[of])[figure] for r in these], 0.5)
+
+            figures_of[variant] = (
+                {"rate Hz": rate, key: labels[variant]}
+                | extra(these)
+                | {
+                    "jitter p99 µs": median("p99", "jitter"),
+                    "jitter p99.9 µs": median("p99.9", "jitter"),
+                    "wake p99 µs": median("p99", "wake"),
+                    "wake p99.9 µs": median("p99.9", "wake"),
+                    "jitter max µs (all runs)": quantiles(merged([r["jitter"] for r in these]))["max"],
+                    "exchange p99 µs": quantile([r["exchange p99 µs"] for r in these], 0.5),
+                    "CPU/cycle µs": quantile([r["CPU/cycle µs"] for r in these], 0.5),
+                    "overruns": sum(r["overruns"] for r in these),
+                    "lost frames": sum(r["lost"] + r["acyclic lost"] for r in these),
+                }
+            )
+            series[f"{key} {labels[variant]} {rate} Hz"] = merged([r["jitter"] for r in these])
+        on, off = figures_of[True], figures_of[False]
+        rows += [off, on]
+        rows.append(
+            {"rate Hz": rate, key: f"{labels[True]} / {labels[False]}"}
+            | {
+                k: (on[k] / off[k] if off[k] else float("nan"))
+                for k in (
+                    "jitter p99 µs",
+                    "jitter p99.9 µs",
+                    "wake p99 µs",
+                    "wake p99.9 µs",
+                    "exchange p99 µs",
+                    "CPU/cycle µs",
+                )
+            }
+        )
+    return rows, series
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rates", default="1000,4000", help="cycle rates in Hz, comma-separated")
@@ -98,39 +147,13 @@ def main() -> int:
             figures.missing(f"{run['rate']} Hz: the clean virtual line showed {run['findings']}")
     for warning in sorted({w for run in runs for w in run["warnings"]}):
         figures.note(f"cycle warning: {warning}")
-    rows, series = [], {}
-    for rate in rates:
-        figures_of = {}
-        for reads in (False, True):
-            these = [r for r in runs if r["rate"] == rate and r["reads"] == reads]
-
-            def median(figure: str, of: str, these=these) -> float:
-                return quantile([quantiles(r[of])[figure] for r in these], 0.5)
-
-            figures_of[reads] = {
-                "rate Hz": rate,
-                "reads": "on" if reads else "off",
-                "line reads": sum(r["line reads"] for r in these),
-                "jitter p99 µs": median("p99", "jitter"),
-                "jitter p99.9 µs": median("p99.9", "jitter"),
-                "wake p99 µs": median("p99", "wake"),
-                "wake p99.9 µs": median("p99.9", "wake"),
-                "jitter max µs (all runs)": quantiles(merged([r["jitter"] for r in these]))["max"],
-                "exchange p99 µs": quantile([r["exchange p99 µs"] for r in these], 0.5),
-                "CPU/cycle µs": quantile([r["CPU/cycle µs"] for r in these], 0.5),
-                "overruns": sum(r["overruns"] for r in these),
-                "lost frames": sum(r["lost"] + r["acyclic lost"] for r in these),
-            }
-            series[f"reads {'on' if reads else 'off'} {rate} Hz"] = merged([r["jitter"] for r in these])
-        on, off = figures_of[True], figures_of[False]
-        rows += [off, on]
-        rows.append(
-            {"rate Hz": rate, "reads": "on / off"}
-            | {
-                k: (on[k] / off[k] if off[k] else float("nan"))
-                for k in ("jitter p99 µs", "jitter p99.9 µs", "wake p99 µs", "wake p99.9 µs", "CPU/cycle µs")
-            }
-        )
+    rows, series = compared(
+        runs,
+        rates,
+        "reads",
+        {False: "off", True: "on"},
+        lambda these: {"line reads": sum(r["line reads"] for r in these)},
+    )
     figures.table(
         "The cycle with the line's counters read beside it and without: medians of the runs' own figures (ratios: on"
         " / off)",
