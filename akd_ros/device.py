@@ -26,6 +26,12 @@ INPUT_EVENTS_KEPT = 4096
 """Changes of a device's inputs kept until `input_events` takes them; older ones are dropped."""
 
 
+def device_name(slave: dict) -> str:
+    """The name akd-scan's parameters file and akd-top give the slave `slave` (as `Master.scan` found it) as a device:
+    its order number in snake case and its position (``el2004_2``)."""
+    return f"{_native.snake_case(slave.get('order') or 'slave')}_{slave['position']}"
+
+
 @dataclass(frozen=True)
 class DeviceConfig:
     """One device of a `Bus`: its position on the line (`slave`), its name (``"slave_<position>"`` unless given) and,

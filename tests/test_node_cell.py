@@ -10,6 +10,7 @@ bag holds the input's edge and the output as sent. Every wait is bounded; the pr
 from __future__ import annotations
 
 import subprocess
+import time
 from pathlib import Path
 
 import pytest
@@ -215,6 +216,40 @@ def test_a_terminal_power_cycled_is_brought_back_with_its_outputs_off_until_set_
     assert ros.set_outputs("valves", ["channel_2_output"], [True]).success
     ros.io("valves", lambda m: level(m, "channel_2_output") == 1.0, "channel_2_output on again")
     assert sim.state(2)["outputs"] == [False, True, False, False]
+
+
+def test_akd_top_attached_shows_each_devices_channels(run):
+    import asyncio
+
+    from akd_ros.top.app import Top
+    from akd_ros.top.ros_source import RosSource
+
+    sim, _, ros = run[:3]
+    assert ros.set_outputs("valves", ["channel_2_output"], [True]).success
+    sim.command("input 1 3 high")
+
+    async def shows(app: Top) -> None:
+        def cell(device: str, column: str) -> str:
+            table = app.device_table
+            return table.get_cell(device, column).plain if device in table.rows else ""
+
+        async with app.run_test(size=(200, 60)) as pilot:
+            deadline = time.monotonic() + 30.0
+            while (cell("sensors", "inputs"), cell("valves", "outputs")) != ("0010", "0100"):
+                assert time.monotonic() < deadline, [
+                    cell(d, c) for d in ("sensors", "valves") for c in ("inputs", "outputs")
+                ]
+                await pilot.pause(0.05)
+            assert (cell("valves", "product"), cell("valves", "slave")) == ("EL2004", "2")
+            await pilot.press("q")
+
+    source = RosSource("/akd_node")
+    try:
+        asyncio.run(shows(Top(source, refresh_s=0.05)))
+    finally:
+        source.close()
+        sim.command("input 1 3 low")
+        assert ros.set_outputs("valves", ["channel_2_output"], [False]).success
 
 
 def test_the_outputs_go_off_when_the_node_deactivates(run):

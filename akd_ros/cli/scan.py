@@ -64,10 +64,10 @@ def parameters_file(link: str, slaves: list[dict]) -> str:
     """akd_node's parameters for the line `slaves` on `link`: each AKD a joint (joint_1, joint_2, ... in line order)
     at its position, every other slave a device named after its order number and position (el2004_2) at its
     position, with its product; the node checks the line against it before anything goes to Op."""
-    from akd_ros import _native
+    from akd_ros.device import device_name
 
     joints = [(f"joint_{n}", s) for n, s in enumerate((s for s in slaves if s["akd"]), 1)]
-    devices = [(f"{_native.snake_case(s.get('order') or 'slave')}_{s['position']}", s) for s in slaves if not s["akd"]]
+    devices = [(device_name(s), s) for s in slaves if not s["akd"]]
     lines = [
         f"# akd_node's parameters for the line akd-scan found on {link}:",
         "# each AKD a joint, every other slave a device, at its position, checked against the line before anything",
