@@ -141,18 +141,4 @@ class Device:
                 self._input_events.append(DeviceIo(e["cycle"], e["time_ns"], True, inputs, outputs, e["levels"]))
         for e in events:
             if e["kind"] == "fault":
-                self._faults.append(
-                    FaultEvent(
-                        e["cycle"],
-                        e["time_ns"],
-                        e["source"],
-                        e["code"],
-                        e["text"],
-                        e["statusword"],
-                        e["ds402_state"],
-                        e["al_state"],
-                        e["al_status_code"],
-                        e["al_status_code_name"],
-                        e["action"],
-                    )
-                )
+                self._faults.append(FaultEvent.of(e))

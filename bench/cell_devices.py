@@ -18,14 +18,11 @@ all. The ratios (cell / drives alone) are the figures to quote: the terminals mu
 from __future__ import annotations
 
 import argparse
+import itertools
 import sys
-import time
 
-from cycle_jitter import cycle_thread_cpu_ns, jitter_histogram
 from figures import Figures, json_argument
-from line_health import INPUT_ENTRIES, compared
-
-from akd_ros import _native
+from line_health import compared, cycle_arguments, measured
 
 DRIVES = 2
 TERMINALS = "ek1100,el1004,el2004"
@@ -35,51 +32,21 @@ OUTPUTS = 2
 
 def run_cycle(rate: int, cell: bool, args) -> dict:
     """One run at `rate` Hz on the drives alone or on the cell."""
-    period_ns = 1_000_000_000 // rate
-    cycles = rate * args.seconds
-    line = f"sim:{TERMINALS},{','.join(['akd'] * DRIVES)}" if cell else f"sim:{DRIVES}"
     first_drive = len(TERMINALS.split(",")) if cell else 0
-    with _native.Master(line, timeout=0.5) as master:
-        master.scan()
-        master.request_state("preop")
-        for position in range(first_drive, first_drive + DRIVES):
-            master.configure_pdo(position, 0x1724, INPUT_ENTRIES)
-        master.request_state("op")
-        cycle = _native.Cycle(
-            master,
-            period_ns / 1e9,
-            realtime=_native.RealTime(priority=args.priority, lock_memory=True, cpu_latency_us=0),
-        )
-        cpu0, cycles0 = cycle_thread_cpu_ns(), cycle.snapshot()["cycle"]
-        high = False
-        while cycle.snapshot()["cycle"] < cycles:
-            if cell:
-                high = not high
-                cycle.set_channels(OUTPUTS, {"channel_1_output": high, "channel_3_output": not high})
-            time.sleep(0.05)
-        cpu1, cycles1 = cycle_thread_cpu_ns(), cycle.snapshot()["cycle"]
-        cycle.stop()
-        stats, h = cycle.stats(), cycle.histograms()
-    return {
-        "rate": rate,
-        "cell": cell,
-        "warnings": cycle.warnings,
-        "jitter": jitter_histogram(h["period"], period_ns),
-        "wake": [(edge / 1000, count) for edge, count in h["wake_latency"]],
-        "exchange p99 µs": stats["exchange"]["p99_ns"] / 1000,
-        "CPU/cycle µs": (cpu1 - cpu0) / max(1, cycles1 - cycles0) / 1000,
-        "overruns": stats["overruns"],
-        "lost": stats["lost_frames"],
-        "acyclic lost": stats["acyclic_lost_frames"],
-    }
+    line = f"sim:{TERMINALS},{','.join(['akd'] * DRIVES)}" if cell else f"sim:{DRIVES}"
+    outputs = itertools.cycle([{"channel_1_output": True, "channel_3_output": False}, {"channel_1_output": False}])
+
+    def tick(cycle) -> None:
+        if cell:
+            cycle.set_channels(OUTPUTS, next(outputs))
+
+    run = measured(line, range(first_drive, first_drive + DRIVES), rate, args, tick=tick)
+    return run | {"cell": cell}
 
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rates", default="1000,4000", help="cycle rates in Hz, comma-separated")
-    parser.add_argument("--seconds", type=int, default=4, help="s of each run")
-    parser.add_argument("--rounds", type=int, default=3, help="rounds, alternating the cell and the drives alone")
-    parser.add_argument("--priority", type=int, default=80, help="SCHED_FIFO priority of the cycle thread (0: none)")
+    cycle_arguments(parser, "the cell and the drives alone")
     json_argument(parser)
     args = parser.parse_args()
     rates = [int(r) for r in args.rates.split(",")]

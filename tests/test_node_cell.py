@@ -20,7 +20,6 @@ from lifecycle_msgs.srv import ChangeState
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from akd_ros.msg import DeviceIO
-from akd_ros.srv import SetOutputs
 from support.netns import free_udp_port
 from support.ros import BIN, NodeProcess, Participant, Sim, module_domain, node_on_sim, stop
 
@@ -77,28 +76,11 @@ class Client(Participant):
 
     def values(self, device: str, done, what: str) -> dict[str, str]:
         """The values of the first /diagnostics status of `device` from now on for which `done(values)`."""
-        seen = len(self.received["/diagnostics"])
 
-        def found():
-            for array in self.received["/diagnostics"][seen:]:
-                for status in array.status:
-                    values = {v.key: v.value for v in status.values}
-                    if status.name == f"akd_node: {device}" and done(values):
-                        return values
-            return None
+        def values_of(status) -> dict[str, str]:
+            return {v.key: v.value for v in status.values}
 
-        self.spin_until(found, what)
-        return found()
-
-    def set_outputs(self, joint: str, outputs=(), values=(), analog: float | None = None) -> SetOutputs.Response:
-        request = SetOutputs.Request(
-            joint=joint,
-            outputs=list(outputs),
-            values=list(values),
-            set_analog_output=analog is not None,
-            analog_output=0.0 if analog is None else analog,
-        )
-        return self.call(SetOutputs, "set_outputs", request)
+        return values_of(self.status(f"akd_node: {device}", lambda status: done(values_of(status)), what))
 
 
 def level(message: DeviceIO, name: str) -> float:

@@ -29,7 +29,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from akd_ros.msg import DriveFault, DriveIO, DriveStatus, LatchEvent, TrajectoryStatus
-from akd_ros.srv import ArmLatch, SetMode
+from akd_ros.srv import ArmLatch, SetMode, SetOutputs
 from support.netns import SIM_PRIORITY, free_udp_port, realtime
 
 BIN = Path(sys.executable).parent
@@ -253,6 +253,32 @@ class Participant:
         response = self.call(Trigger, name)
         assert response.success, f"{name}: {response.message}"
         return response.message
+
+    def status(self, name: str, done, what: str):
+        """The first /diagnostics status named `name` from now on for which `done(status)` (the participant collects
+        /diagnostics in `received`)."""
+        seen = len(self.received["/diagnostics"])
+
+        def found():
+            for array in self.received["/diagnostics"][seen:]:
+                for status in array.status:
+                    if status.name == name and done(status):
+                        return status
+            return None
+
+        self.spin_until(found, what)
+        return found()
+
+    def set_outputs(self, joint: str, outputs=(), values=(), analog: float | None = None) -> SetOutputs.Response:
+        """Calls ~/set_outputs for `joint` (a joint or a device) and gives its response."""
+        request = SetOutputs.Request(
+            joint=joint,
+            outputs=list(outputs),
+            values=list(values),
+            set_analog_output=analog is not None,
+            analog_output=0.0 if analog is None else analog,
+        )
+        return self.call(SetOutputs, "set_outputs", request)
 
     def latest(self, topic: str):
         """The last message of `topic` after a fresh one arrived."""
