@@ -219,3 +219,45 @@ fn a_terminal_whose_eeprom_is_damaged_is_named_in_one_line_and_nothing_goes_on()
         assert_eq!(bus.lock().unwrap().at(position).registers()[0x0130] & 0x0F, 1, "slave {position} left in Init");
     }
 }
+
+/// A link whose thread stalls once, for longer than the master waits for an SII read, right
+/// after a read found the EEPROM interface busy, as this shared host stalls a thread now and then.
+struct StallAfterBusySii {
+    inner: Shared,
+    stalled: bool,
+}
+
+impl Link for StallAfterBusySii {
+    fn send(&mut self, tx: &[u8]) -> akd_native::error::Result<()> {
+        self.inner.send(tx)
+    }
+
+    fn receive(&mut self, rx: &mut [u8], deadline: Instant) -> akd_native::error::Result<Option<usize>> {
+        let n = self.inner.receive(rx, deadline)?;
+        let mut busy = false;
+        if let Some(n) = n {
+            frame::for_each_datagram_mut(&mut rx[..n], |dg| {
+                let reads_sii = (dg.header.command, dg.header.ado) == (Command::Fprd, registers::SII_CONTROL);
+                busy |= reads_sii && dg.data.len() >= 2 && dg.data[1] & 0x80 != 0;
+            })?;
+        }
+        if busy && !self.stalled {
+            self.stalled = true;
+            std::thread::sleep(Duration::from_millis(150));
+        }
+        Ok(n)
+    }
+
+    fn describe(&self) -> String {
+        "a line on a host that stalls".into()
+    }
+}
+
+#[test]
+fn a_stall_after_a_busy_eeprom_read_is_no_time_out() {
+    let line: SimLine = "ek1100,el1004,akd".parse().unwrap();
+    let bus = VirtualBus::of_line(&line, Timing::of(Pace::Immediate, MissedFrames::Lost)).unwrap();
+    let link = StallAfterBusySii { inner: Shared::new(Arc::new(Mutex::new(bus))), stalled: false };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    assert_eq!(m.scan().unwrap(), 3);
+}

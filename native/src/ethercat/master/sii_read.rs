@@ -32,6 +32,9 @@ impl Master {
         // Control (2), address (4) and up to 8 data bytes in one read.
         let mut state = [0u8; 14];
         loop {
+            // Judged before the read: a thread stalled past the deadline after a busy read reads
+            // once more, and fails only on what the interface says after the deadline.
+            let expired = Instant::now() > deadline;
             self.read_registers(station, SII_CONTROL, &mut state)?;
             let control = u16::from_le_bytes([state[0], state[1]]);
             if control & (sii_reg::BUSY | sii_reg::CMD_READ) == 0 {
@@ -42,7 +45,7 @@ impl Master {
                 out.extend_from_slice(&state[6..6 + len]);
                 return Ok(());
             }
-            if Instant::now() > deadline {
+            if expired {
                 return Err(Error::Timeout {
                     what: format!(
                         "station 0x{station:04X}'s SII interface (word 0x{word:04X}, control 0x{control:04X})"
