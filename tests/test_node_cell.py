@@ -189,7 +189,7 @@ def test_a_terminal_power_cycled_is_brought_back_with_its_outputs_off_until_set_
     assert ros.set_outputs("valves", ["channel_2_output"], [True]).success
     ros.io("valves", lambda m: level(m, "channel_2_output") == 1.0, "channel_2_output on")
     sim.command("power_cycle 2")
-    ros.values("valves", lambda v: v["recovering"] == "True", "the valves lost on /diagnostics")
+    # Lost and back may fall between two /diagnostics: the count of recoveries says it happened.
     back = ros.values("valves", lambda v: int(v["recoveries"]) > recoveries, "the valves brought back")
     assert back["output channel_2_output"] == "low", back
     ros.spin_for(0.5)

@@ -24,8 +24,7 @@ EXAMPLES = """examples:
   akd-scan sim:2                      two virtual AKDs in this process
   akd-scan udp://127.0.0.1:34980      the virtual AKDs of akd-sim --udp 127.0.0.1:34980
   akd-scan enp3s0 --pcap scan.pcapng  the drives on an interface, every frame written for Wireshark
-  akd-scan sim:ek1100,el1004,el2004,akd --pdos --params cell.yaml
-                                      a virtual cell, each slave's channels, and akd_node's parameters for it
+  akd-scan sim:ek1100,el2004,akd --pdos --params cell.yaml  a cell's channels, akd_node's parameters for it
   akd-scan sim:6 --line               six virtual AKDs, then their ports, links and error counters
 """
 
