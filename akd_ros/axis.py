@@ -31,7 +31,7 @@ import contextlib
 import math
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 
 from akd_ros import _native
 from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
@@ -206,6 +206,11 @@ class FaultEvent:
     al_status_code: int
     al_status_code_name: str
     action: str
+
+    @classmethod
+    def of(cls, event: dict) -> FaultEvent:
+        """The fault event the cycle thread reported as `event` (a "fault" of `_native.Cycle.events`)."""
+        return cls(*(event[f.name] for f in fields(cls)))
 
     def describe(self) -> str:
         """One line for a log."""
@@ -760,21 +765,7 @@ class Axis:
                     )
                 )
             else:
-                self._faults.append(
-                    FaultEvent(
-                        e["cycle"],
-                        e["time_ns"],
-                        e["source"],
-                        e["code"],
-                        e["text"],
-                        e["statusword"],
-                        e["ds402_state"],
-                        e["al_state"],
-                        e["al_status_code"],
-                        e["al_status_code_name"],
-                        e["action"],
-                    )
-                )
+                self._faults.append(FaultEvent.of(e))
 
     def latch_events(self) -> Iterator[LatchEvent]:
         """The latch captures since the last call, oldest first, each handed out once."""

@@ -47,6 +47,7 @@ import yaml
 from akd_ros import _native
 from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES, DriveConfig, io_mappings
 from akd_ros.bus import FAULT_REACTIONS, CommandError, check
+from akd_ros.device import DeviceConfig
 from akd_ros.units import Limits, Units
 
 TRANSPORTS = ("rclpy", "zenoh", "both")
@@ -162,10 +163,19 @@ SCHEMA: tuple[Spec, ...] = (
         "letter first.",
     ),
     Spec(
+        "devices",
+        [],
+        "Names of the devices on the line beside the drives (terminals: an EK1100's EL1004 inputs, EL2004 outputs), "
+        "each with its block devices.<name>.slave (its position on the bus) and devices.<name>.product (what it must "
+        "be, checked before anything goes to Op). Each device's channels, named after its PDO entries, are on "
+        "~/<name>/io (akd_ros/DeviceIO) and set by name through ~/set_outputs. A name is letters, digits and single "
+        "underscores, a letter first, and no joint's.",
+    ),
+    Spec(
         "fault_reaction",
         "all",
         "What a fault on one joint's drive does to the others: 'all' quick-stops them in the same cycle (as an arm "
-        "needs), 'joint' leaves them as they are.",
+        "needs) and switches the devices' outputs off until they are set again, 'joint' leaves them as they are.",
         choices=FAULT_REACTIONS,
     ),
     Spec(
@@ -565,6 +575,23 @@ IO_NAME_SPECS: tuple[Spec, ...] = (
     ),
 )
 """The families of parameters that name a joint's inputs and outputs: each name given is a parameter of its own."""
+DEVICE_SPECS: tuple[Spec, ...] = (
+    Spec(
+        "slave",
+        -1,
+        "Position of the device on the bus, counted from 0 nearest the master (akd-scan LINK lists them); it must be "
+        "given.",
+        -1,
+        65535,
+    ),
+    Spec(
+        "product",
+        "",
+        "What the device at slave must be: its order number as its SII gives it (akd-scan shows it), e.g. EL2004, "
+        "compared without regard to case before anything goes to Op; '' checks nothing.",
+    ),
+)
+"""The parameters of each device's block, devices.<name>.<parameter>."""
 _IO_NAME = re.compile(r"(?:joints\.(?P<joint>[^.]+)\.)?io\.(?P<kind>inputs|outputs)\.(?P<name>[^.]+)")
 
 
@@ -633,6 +660,20 @@ class JointSettings:
 
 
 @dataclass(frozen=True)
+class DeviceSettings:
+    """One device's checked parameters."""
+
+    name: str
+    slave: int
+    product: str | None
+    """What it must be (its order number), None for anything."""
+
+    def device(self) -> DeviceConfig:
+        """The device as a Bus takes it."""
+        return DeviceConfig(slave=self.slave, name=self.name, product=self.product)
+
+
+@dataclass(frozen=True)
 class Settings:
     """The node's checked parameters, in the forms the Bus takes."""
 
@@ -674,6 +715,8 @@ class Settings:
     """The TAP interface's address (A.B.C.D/N), None for none."""
     live_view: tuple[str, int] | None = None
     """The live view's (address, port) (live_view.*), None when off."""
+    devices: tuple[DeviceSettings, ...] = ()
+    """Every device beside the drives, in the order of the devices parameter."""
     doors: tuple[str, ...] = DOOR_ROLES[:2]
     """The roles whose doors the node has, in DOOR_ROLES' order."""
 
@@ -686,6 +729,49 @@ class Settings:
             "dc": self.dc,
             "dc_shift": self.dc_shift,
         }
+
+
+def device_specs(devices: list[str]) -> list[Spec]:
+    """The parameters of each device's block (devices.<name>.slave, devices.<name>.product)."""
+    return [
+        replace(spec, name=f"devices.{device}.{spec.name}", description=f"Device {device}: {spec.description}")
+        for device in devices
+        for spec in DEVICE_SPECS
+    ]
+
+
+def check_device_names(devices: list[str], joints: list[str]) -> list[str]:
+    """`devices` if every name is a ROS name token, none is given twice and none is a joint's (their topics would be
+    one); ParameterError otherwise."""
+    for device in devices:
+        if not JOINT_NAME.fullmatch(device):
+            raise ParameterError(
+                f"parameter devices: {device!r} is not a device name; allowed: letters, digits and single underscores "
+                "between them, a letter first (e.g. gripper_valves, inputs_1)"
+            )
+    twice = sorted({d for d in devices if devices.count(d) > 1} | (set(devices) & set(joints)))
+    if twice:
+        raise ParameterError(
+            f"parameter devices names {', '.join(twice)} more than once (or as a joint); each device once, "
+            "under a name of its own"
+        )
+    return devices
+
+
+def device_settings(values: dict[str, object], devices: list[str]) -> tuple[DeviceSettings, ...]:
+    """Each device of `devices` of its block's checked parameters in `values`; ParameterError for one whose slave is
+    not given."""
+    found = []
+    for name in devices:
+        block = {spec.name: spec.check(values.get(spec.name, spec.default)) for spec in device_specs([name])}
+        slave = block[f"devices.{name}.slave"]
+        if slave < 0:
+            raise ParameterError(
+                f"parameter devices.{name}.slave must be given: the device's position on the bus, 0..65535 from the "
+                "master (akd-scan LINK lists the line)"
+            )
+        found.append(DeviceSettings(name, slave, block[f"devices.{name}.product"] or None))
+    return tuple(found)
 
 
 def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
@@ -758,13 +844,14 @@ def io_names(values: dict[str, object], joint: str | None, kind: str) -> dict[st
     return names
 
 
-def refuse_unknown(unknown: list[str], joints: list[str]) -> None:
-    """Refuses the `unknown` parameter names, if any, naming what the node has with `joints`."""
+def refuse_unknown(unknown: list[str], joints: list[str], devices: list[str] = ()) -> None:
+    """Refuses the `unknown` parameter names, if any, naming what the node has with `joints` and `devices`."""
     if unknown:
         raise ParameterError(
-            f"unknown parameter {', '.join(sorted(unknown))}; the parameters are: {', '.join(SPECS)}, and for each "
+            f"unknown parameter {', '.join(sorted(unknown))}; the parameters are: {', '.join(SPECS)}, for each "
             f"joint of joints ({', '.join(joints) or 'none given'}) joints.<name>.<one of "
-            f"{', '.join(s.name for s in SCHEMA if s.per_joint)}>"
+            f"{', '.join(s.name for s in SCHEMA if s.per_joint)}>, and for each device of devices "
+            f"({', '.join(devices) or 'none given'}) devices.<name>.<one of {', '.join(s.name for s in DEVICE_SPECS)}>"
         )
 
 
@@ -773,11 +860,15 @@ def check_names(named: dict[str, object]) -> None:
     SCHEMA nor in the block of a joint of `joints` (rclpy's qos_overrides.* aside), and joint_name, slave or alias
     beside joints; ParameterError."""
     joints = check_joint_names(SPECS["joints"].check(named.get("joints", [])))
+    devices = check_device_names(SPECS["devices"].check(named.get("devices", [])), joints)
     refuse_single_joint_parameters(named, joints)
     blocks = {spec.name for spec in joint_specs(joints, {spec.name: spec.default for spec in SCHEMA})}
     blocks |= {spec.name for spec in io_name_specs(named, joints)}
+    blocks |= {spec.name for spec in device_specs(devices)}
     refuse_unknown(
-        [n for n in named if n not in SPECS and n not in blocks and not n.startswith("qos_overrides.")], joints
+        [n for n in named if n not in SPECS and n not in blocks and not n.startswith("qos_overrides.")],
+        joints,
+        devices,
     )
 
 
@@ -930,10 +1021,17 @@ def settings(values: dict[str, object]) -> Settings:
     else:
         io = (io_names(values, None, "inputs"), io_names(values, None, "outputs"))
         joints = (joint_settings(top["joint_name"], "", top, io),)
+    devices = device_settings(values, check_device_names(top["devices"], names))
     try:
         check([j.drive() for j in joints], top["fault_reaction"], top["cycle_time"], top["dc_shift"])
     except CommandError as e:
         raise ParameterError(f"parameters joints.<name>.slave/alias: {e}") from None
+    try:
+        drives = [j.drive() for j in joints]
+        check(drives, top["fault_reaction"], top["cycle_time"], top["dc_shift"], [d.device() for d in devices])
+    except CommandError as e:
+        # The joints passed alone: what is wrong is a device's.
+        raise ParameterError(f"parameters devices.<name>.slave: {e}") from None
     eoe_tap, eoe_host = check_eoe_bridge(top["eoe.tap"], top["eoe.host"], joints)
     return Settings(
         link=link,
@@ -972,6 +1070,7 @@ def settings(values: dict[str, object]) -> Settings:
         eoe_tap=eoe_tap,
         eoe_host=eoe_host,
         live_view=check_live_view(top["live_view.address"], top["live_view.port"]),
+        devices=devices,
         doors=check_doors(top["doors"]),
     )
 

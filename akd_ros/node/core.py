@@ -90,14 +90,17 @@ class Core:
         return False
 
     def _where(self) -> str:
-        """The joints and where they are, for the log."""
+        """The joints and where they are, and the devices, for the log."""
         s = self.settings
         if not s.joint_namespaces:
             j = s.joints[0]
-            return f"slave {j.slave}" if j.alias is None else f"alias {j.alias}"
-        return ", ".join(
-            f"{j.name} (slave {j.slave})" if j.alias is None else f"{j.name} (alias {j.alias})" for j in s.joints
-        )
+            where = f"slave {j.slave}" if j.alias is None else f"alias {j.alias}"
+        else:
+            where = ", ".join(
+                f"{j.name} (slave {j.slave})" if j.alias is None else f"{j.name} (alias {j.alias})" for j in s.joints
+            )
+        devices = ", ".join(f"{d.name} (slave {d.slave}{f', {d.product}' if d.product else ''})" for d in s.devices)
+        return f"{where}; devices {devices}" if devices else where
 
     def configure(self) -> bool:
         """Opens the Bus: the line to Op and the cycle thread running, every drive disabled; with eoe.tap, the EoE
@@ -134,7 +137,7 @@ class Core:
         # What each mapping carries of the drive's I/O, known from the parameters before the bus is touched.
         self._logger.info("I/O the mappings carry: " + "; ".join(f"{j.name}: {j.describe_io()}" for j in s.joints))
         try:
-            bus = Bus(s.link, [j.drive() for j in s.joints], **s.bus_options())
+            bus = Bus(s.link, [j.drive() for j in s.joints], devices=[d.device() for d in s.devices], **s.bus_options())
         except AXIS_ERRORS as e:
             return self._fail(f"configure: the drives ({self._where()}) on link {s.link!r} did not open: {e}")
         for joint, axis in zip(s.joints, bus.axes, strict=True):
@@ -152,9 +155,16 @@ class Core:
                 self._logger.warning(f"parameter {prefix}command_timeout: not watched: {e}")
         for warning in bus.warnings:
             self._logger.warning(f"configure: not permitted: {warning}")
+        if bus.unnamed:
+            found = ", ".join(f"{p} ({bus.slaves[p].get('order') or bus.slaves[p]['name']})" for p in bus.unnamed)
+            self._logger.warning(
+                f"configure: slaves in Op that the parameters name neither as a joint nor as a device, their outputs "
+                f"off: {found}; name them under devices to see and set them"
+            )
         if s.record is not None:
             topics = [(p.topic_name, p.msg_type, p.qos) for p in self._publishing.publishers()]
             topics += [(p.topic_name, p.msg_type, p.qos) for p in self._io.publishers.values()]
+            topics += [(p.topic_name, p.msg_type, p.qos) for p in self._io.device_publishers.values()]
             topics += [
                 (p.topic_name, p.msg_type, p.qos) for p in (self._diagnostics.publisher, self._trajectories.status)
             ]
@@ -205,12 +215,18 @@ class Core:
         return True
 
     def deactivate(self) -> None:
-        """Stops publishing and accepting commands and disables the drives."""
+        """Stops publishing and accepting commands, disables the drives and switches the devices' outputs off."""
         self._node_state.active = False
         self._publishing.set_active(False)
         ok, message = self._commands.request_all("disable")
         if not ok:
             self._logger.error(f"deactivate: {message}")
+        bus = self._node_state.bus
+        for device in bus.devices if bus is not None else ():
+            try:
+                device.outputs_off()
+            except AXIS_ERRORS as e:
+                self._logger.error(f"deactivate: the outputs of device {device.name} were not switched off: {e}")
 
     def close(self) -> None:
         """Stops publishing, disables the drives and returns the line to Init, and closes the live view (does nothing

@@ -1,6 +1,6 @@
 """What the node's parts share: the settings and the clock, and from a configure to its cleanup the Bus with an Axis
-per joint, the Recorder, whether the node is active, and the lock that guards the axes' Python-side state (position
-unwrapping, event queues, the last command) between the callback groups."""
+per joint and a Device per device, the Recorder, whether the node is active, and the lock that guards the axes'
+Python-side state (position unwrapping, event queues, the last command) between the callback groups."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import threading
 from akd_ros import _native
 from akd_ros.axis import Axis, CommandError
 from akd_ros.bus import Bus
+from akd_ros.device import Device
 from akd_ros.node.clock import CycleClock
 from akd_ros.params import JointSettings, Settings
 from akd_ros.recorder import Recorder
@@ -62,3 +63,7 @@ class NodeState:
     def axis_for_request(self, joint: str) -> Axis:
         """The Axis of `joint` on an active node; CommandError otherwise."""
         return self.bus_for_request()[joint]
+
+    def device_for_request(self, device: str) -> Device:
+        """The Device `device` on an active node; CommandError otherwise."""
+        return self.bus_for_request().device(device)

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use akd_native::drive::akd::{AkdLine, AkdSlave};
+use akd_native::drive::identity;
 use akd_native::drive::pdo;
 use akd_native::drive::pdo::Mapping;
 use akd_native::error::{Error, Result};
@@ -52,8 +53,8 @@ fn scan_finds_the_virtual_akds_with_the_real_identity() {
             let id = slave.sii.identity();
             assert_eq!((id.vendor_id, id.product_code, id.revision), (0x6A, 0x0041_4B44, 2));
             assert_eq!(slave.sii.name(), Some("AKD EtherCAT Drive (CoE)"));
-            assert_eq!(slave.sii.model(), Some("AKD-P00606-NBCC-E000"));
-            assert_eq!(slave.sii.firmware(), Some("01-20-00-003"));
+            assert_eq!(identity::model(&slave.sii).as_deref(), Some("AKD-P00606-NBCC-E000"));
+            assert_eq!(identity::firmware(&slave.sii).as_deref(), Some("01-20-00-003"));
             let mb = slave.mailbox.as_ref().expect("the AKD has a mailbox");
             assert_eq!((mb.out_start, mb.out_len, mb.in_start, mb.in_len), (0x1800, 0x400, 0x1C00, 0x400));
             assert!(mb.has_coe());
@@ -244,8 +245,14 @@ fn sdo_round_trips_of_every_size() {
         assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x607A, 0).unwrap(), target.to_le_bytes());
         // Normal: strings longer than 4 bytes, which the SII also names.
         let sii = m.slave(position).unwrap().sii.clone();
-        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1009, 0).unwrap(), sii.model().unwrap().as_bytes());
-        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x100A, 0).unwrap(), sii.firmware().unwrap().as_bytes());
+        assert_eq!(
+            m.slave_mut(position).unwrap().sdo_read(0x1009, 0).unwrap(),
+            identity::model(&sii).unwrap().as_bytes()
+        );
+        assert_eq!(
+            m.slave_mut(position).unwrap().sdo_read(0x100A, 0).unwrap(),
+            identity::firmware(&sii).unwrap().as_bytes()
+        );
         // The identity object agrees with the SII.
         assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
         assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());

@@ -1,5 +1,5 @@
 //! Events the cycle thread reports — latch captures, faults, command time-outs, what became
-//! of trajectories and changes of a drive's digital inputs — as four words each through a
+//! of trajectories, changes of a drive's digital inputs and of a device's — as four words each through a
 //! [`Ring`], so that the thread never waits for whoever reads them; a full ring drops and
 //! counts, so what was missed is known.
 
@@ -66,6 +66,12 @@ named_variants! {
         Restored = 4 => "back in Op (readdressed and reconfigured where it had lost its configuration), its power \
             stage off and its target held at the actual position; nothing moves until it is enabled and commanded \
             again",
+        /// A device beside the drives (a terminal) was lost or left Op: its outputs were
+        /// switched off in the process image, where they stay until set again.
+        OutputsOff = 5 => "its outputs switched off; they stay off until set again",
+        /// A device is back in Op, its outputs off.
+        RestoredOutputsOff = 6 => "back in Op (readdressed and reconfigured where it had lost its configuration), its \
+            outputs off until set again",
     }
     /// One sentence for the fault message and the log.
     fn describe;
@@ -279,6 +285,18 @@ pub enum Event {
         /// The statusword of that cycle.
         statusword: u16,
     },
+    /// A device's inputs of one bit (an EL1004's) changed in this cycle's inputs
+    /// ([`crate::cycle::devices`]).
+    DeviceInputs {
+        /// The cycle whose inputs showed it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The slave's position on the bus.
+        slave: u16,
+        /// Their levels, the device's first input channel of one bit in bit 0 (up to 64).
+        levels: u64,
+    },
     /// A trajectory started ([`TrajectoryState::Running`]) or ended.
     Trajectory {
         /// The cycle that saw it.
@@ -317,6 +335,7 @@ impl Event {
             Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
                 [cycle, time_ns, 5 | (slave as u64) << 8 | (statusword as u64) << 24, digital_inputs as u64]
             }
+            Event::DeviceInputs { cycle, time_ns, slave, levels } => [cycle, time_ns, 6 | (slave as u64) << 8, levels],
         }
     }
 
@@ -363,6 +382,7 @@ impl Event {
                 digital_inputs: data as u32,
                 statusword: (what >> 24) as u16,
             }),
+            6 => Some(Event::DeviceInputs { cycle, time_ns, slave, levels: data }),
             _ => None,
         }
     }
@@ -441,6 +461,8 @@ mod tests {
         events.push(fault);
         events.push(timeout);
         events.push(inputs);
+        let device = Event::DeviceInputs { cycle: 14, time_ns: 15, slave: 3, levels: u64::MAX - 2 };
+        events.push(device);
         let trajectories = [
             TrajectoryState::Running,
             TrajectoryState::Done,
@@ -449,7 +471,7 @@ mod tests {
         ]
         .map(|state| Event::Trajectory { cycle: 10, time_ns: 12, id: 7, state });
         trajectories.iter().for_each(|t| events.push(*t));
-        assert_eq!(events.drain(), [[latch, fault, timeout, inputs].as_slice(), &trajectories].concat());
+        assert_eq!(events.drain(), [[latch, fault, timeout, inputs, device].as_slice(), &trajectories].concat());
         assert_eq!(TrajectoryState::unpack(TrajectoryState::Pending.pack()), Some(TrajectoryState::Pending));
         assert!(events.drain().is_empty());
         for _ in 0..CAPACITY + 3 {

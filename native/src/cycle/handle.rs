@@ -2,12 +2,14 @@
 //! call to start the thread, give it set-points and requests, read what it publishes, and stop
 //! it. It never touches the master while the thread runs; it works on [`CycleShared`].
 
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
 use super::acyclic::{MailboxService, SdoSlot};
+use super::devices::{DeviceLoop, DeviceShared};
 use super::events::{CommandTimeoutAction, Event, Events};
 use super::run::{homing_objects, run, DriveLoop, Loop};
 use super::samples::{Sample, Samples};
@@ -20,9 +22,10 @@ use super::{
 };
 use crate::drive::trajectory::{Knot, Limits, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
+use crate::ethercat::device::{self, Channel, ChannelValue};
 use crate::ethercat::master::cyclic::ImageSlot;
 use crate::ethercat::master::Master;
-use crate::ethercat::pdo::PdoEntry;
+use crate::ethercat::pdo::{Direction, PdoEntry};
 
 /// Why a set-point is refused once the cycle stopped.
 fn setpoints_stopped() -> Error {
@@ -136,6 +139,9 @@ pub struct CycleThread {
     offsets: Vec<Option<sequencer::Offsets>>,
     /// Per slave: the mapping's entries, outputs and inputs, where mapped.
     mappings: Vec<Option<(Vec<PdoEntry>, Vec<PdoEntry>)>>,
+    /// Per slave: its channels, named as its SII names its PDO entries (none without process
+    /// data).
+    channels: Vec<Vec<Channel>>,
     trajectories: trajectory_player::Caller,
     /// Each slave's product as its SII names it.
     products: Vec<String>,
@@ -166,6 +172,18 @@ impl CycleThread {
         let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
         let latch_objects = found.iter().map(|f| f.as_ref().ok().and_then(|f| f.1)).collect();
         let offsets = found.iter().map(|f| f.as_ref().ok().map(|f| f.0)).collect();
+        let channels: Vec<Vec<Channel>> = master
+            .slaves()
+            .iter()
+            .map(|s| s.process_data.as_ref().map_or_else(Vec::new, |d| device::channels(&s.sii, d)))
+            .collect();
+        // Every slave the cycle does not sequence is a device beside the drives.
+        let devices: Vec<DeviceLoop> = found
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.is_err())
+            .map(|(p, _)| DeviceLoop::new(p as u16, master.image_slot(p as u16).ok(), &channels[p]))
+            .collect();
         let drives: Vec<DriveLoop> = found
             .into_iter()
             .enumerate()
@@ -235,16 +253,18 @@ impl CycleThread {
             trajectories: trajectory_player::PlayerShared::new(master.slaves().len()),
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
+            devices: (0..master.slaves().len()).map(|_| DeviceShared::default()).collect(),
             supervised: supervised.is_ok(),
             line_health: line_health::LineHealthShared::new(ports, line_health_interval),
         });
-        let recoverer = recoverer(&mut master, &shared, &drives, config.period);
+        let recoverer = recoverer(&mut master, &shared, &drives, &devices, config.period);
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
         let (ready_tx, ready_rx) = mpsc::sync_channel(1);
         let spawned = {
             let shared = shared.clone();
             let mut drives = drives;
+            let mut devices = devices;
             let mut mailbox = mailbox;
             let mut player = trajectory_player::Player::new(master.slaves().len());
             let mut relay_buffers = recovery::RelayBuffers::default();
@@ -260,8 +280,13 @@ impl CycleThread {
                 // The starting thread waits for this message; it cannot be gone.
                 let _ = ready_tx.send(warnings);
                 let timeout = master.replace_timeout(config.period);
-                let mut ready =
-                    Loop { master: &mut master, shared: &shared, drives: &mut drives, gaps: Gaps::default() };
+                let mut ready = Loop {
+                    master: &mut master,
+                    shared: &shared,
+                    drives: &mut drives,
+                    devices: &mut devices,
+                    gaps: Gaps::default(),
+                };
                 run(
                     &mut ready,
                     (&mut mailbox, &mut relay_buffers, &mut line_reader),
@@ -306,6 +331,7 @@ impl CycleThread {
             latch_objects,
             offsets,
             mappings,
+            channels,
             trajectories: trajectory_player::Caller::default(),
             products,
         })
@@ -343,7 +369,7 @@ impl CycleThread {
         }
         let slot = self.slot(position)?;
         slot.check_outputs_len(position, data.len())?;
-        self.shared.setpoints.write().write(slot.out_offset, data);
+        self.shared.setpoints.write().write_bits(slot.out_start_bit(), data, slot.out_bits);
         self.shared.drives[position as usize].setpoint_written();
         self.shared.command_timeouts[position as usize].target_written();
         Ok(())
@@ -839,12 +865,90 @@ impl CycleThread {
     }
 
     /// The outputs of the slave at `position` as last set (the set-points; for a sequenced
-    /// drive, the controlword and held target that go out are in [`Snapshot::outputs`]).
+    /// drive, the controlword and held target that go out are in [`Snapshot::outputs`]), from
+    /// bit 0 of the first byte.
     pub fn outputs(&self, position: u16) -> Result<Vec<u8>> {
         let slot = self.slot(position)?;
         let mut image = vec![0; self.shared.setpoints.len()];
         self.shared.setpoints.read(&mut image);
-        Ok(image[slot.out_offset..slot.out_offset + slot.out_len].to_vec())
+        Ok(slot.outputs_in(&image))
+    }
+
+    /// The channels of the slave at `position`, named after its PDO entries as its SII names
+    /// them ([`crate::ethercat::device`]): outputs, then inputs; empty for a slave without
+    /// process data.
+    pub fn channels(&self, position: u16) -> Result<&[Channel]> {
+        self.check_position(position)?;
+        Ok(&self.channels[position as usize])
+    }
+
+    /// The value of every channel of the slave at `position` in `snapshot`, in the order of
+    /// [`channels`](Self::channels): inputs as read, outputs as that cycle sent them.
+    pub fn channel_values(&self, snapshot: &Snapshot, position: u16) -> Result<Vec<ChannelValue>> {
+        let channels = self.channels(position)?;
+        let Some(slot) = self.slots[position as usize] else { return Ok(Vec::new()) };
+        Ok(channels
+            .iter()
+            .map(|c| match c.direction {
+                Direction::Rx => c.read(&snapshot.outputs, slot.out_start_bit()),
+                Direction::Tx => c.read(&snapshot.inputs, slot.in_start_bit()),
+            })
+            .collect())
+    }
+
+    /// The device at `position`, where it has process data: a slave the cycle does not
+    /// sequence (a drive's outputs are its objects', set with [`set_object`](Self::set_object)).
+    fn device(&self, position: u16) -> Result<Option<ImageSlot>> {
+        if self.stopped() {
+            return Err(setpoints_stopped());
+        }
+        self.check_position(position)?;
+        if self.sequenced[position as usize].is_ok() {
+            return Err(Unavailable::DriveChannels { slave: position }.into());
+        }
+        Ok(self.slots[position as usize])
+    }
+
+    /// Sets output channels of the device at `position` by name from the next cycle on, every
+    /// one or none: each name must be one of its outputs and each value one it takes
+    /// ([`Channel::encode`]); the other outputs keep their values. Lock-free for the cycle.
+    pub fn set_channels(&self, position: u16, values: &[(&str, ChannelValue)]) -> Result<()> {
+        let slot = self.device(position)?;
+        let channels = &self.channels[position as usize];
+        let outputs =
+            || channels.iter().filter(|c| c.direction == Direction::Rx).map(|c| c.name.clone()).collect::<Vec<_>>();
+        let mut writes = Vec::with_capacity(values.len());
+        for &(name, value) in values {
+            let channel =
+                channels.iter().find(|c| c.name == name && c.direction == Direction::Rx).ok_or_else(|| {
+                    let is_input = channels.iter().any(|c| c.name == name);
+                    Unavailable::NoSuchOutput { slave: position, name: name.to_owned(), outputs: outputs(), is_input }
+                })?;
+            let raw = channel.encode(value).map_err(|error| Unavailable::ChannelValue { slave: position, error })?;
+            writes.push((channel, raw));
+        }
+        // A slave without process data has no channel: its first name was refused.
+        let (Some(slot), false) = (slot, writes.is_empty()) else { return Ok(()) };
+        let mut w = self.shared.setpoints.write();
+        for (channel, raw) in writes {
+            w.write_bits(
+                slot.out_start_bit() + channel.bit,
+                &raw.to_le_bytes(),
+                usize::from(channel.entry.bits).min(64),
+            );
+        }
+        Ok(())
+    }
+
+    /// Switches every output of the device at `position` off (its bits 0) from the next cycle
+    /// on, until they are set again; nothing for a device without outputs.
+    pub fn switch_outputs_off(&self, position: u16) -> Result<()> {
+        let Some(slot) = self.device(position)? else { return Ok(()) };
+        let mut w = self.shared.setpoints.write();
+        for n in (0..slot.out_bits).step_by(64) {
+            w.write_bits(slot.out_start_bit() + n, &[0; 8], (slot.out_bits - n).min(64));
+        }
+        Ok(())
     }
 
     /// The last cycle's snapshot.
@@ -863,16 +967,25 @@ impl CycleThread {
         }
     }
 
-    /// The outputs the slave at `position` was sent in `snapshot`'s cycle.
-    pub fn outputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+    /// The outputs the slave at `position` was sent in `snapshot`'s cycle, from bit 0 of the
+    /// first byte: the snapshot's own bytes for a slave laid out in whole bytes (a drive), a copy
+    /// for one packed beside others.
+    pub fn outputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<Cow<'a, [u8]>> {
         let slot = self.slot(position)?;
-        Ok(&snapshot.outputs[slot.out_offset..slot.out_offset + slot.out_len])
+        Ok(match slot.out_bit {
+            0 => Cow::Borrowed(&snapshot.outputs[slot.out_offset..slot.out_offset + slot.out_bits.div_ceil(8)]),
+            _ => Cow::Owned(slot.outputs_in(&snapshot.outputs)),
+        })
     }
 
-    /// The inputs of the slave at `position` in `snapshot`.
-    pub fn inputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+    /// The inputs of the slave at `position` in `snapshot`, from bit 0 of the first byte, as
+    /// [`outputs_of`](Self::outputs_of) gives the outputs.
+    pub fn inputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<Cow<'a, [u8]>> {
         let slot = self.slot(position)?;
-        Ok(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_len])
+        Ok(match slot.in_bit {
+            0 => Cow::Borrowed(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_bits.div_ceil(8)]),
+            _ => Cow::Owned(slot.inputs_in(&snapshot.inputs)),
+        })
     }
 
     /// The distributed clocks: SYNC0's set-up and every drive's last system-time difference;
@@ -932,9 +1045,19 @@ impl Drop for CycleThread {
 
 /// The recovery thread's work, made while the master is still this thread's: each sequenced
 /// drive, and the mode in force (its display 0x6061, read now: a drive that lost power has
-/// forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change").
-fn recoverer(master: &mut Master, shared: &CycleShared, drives: &[DriveLoop], period: Duration) -> recovery::Recoverer {
+/// forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change"), and each device,
+/// which gets no mode.
+fn recoverer(
+    master: &mut Master,
+    shared: &CycleShared,
+    drives: &[DriveLoop],
+    devices: &[DeviceLoop],
+    period: Duration,
+) -> recovery::Recoverer {
     let mut recovered = vec![false; master.slaves().len()];
+    for d in devices {
+        recovered[d.position as usize] = true;
+    }
     for d in drives {
         let position = d.position as usize;
         if let Ok([mode]) = master.slave_mut(d.position).and_then(|mut s| s.sdo_read(0x6061, 0)).as_deref() {
@@ -1011,7 +1134,7 @@ mod tests {
         assert_eq!(later.wkc, 6);
         assert_eq!(cycle.inputs_of(&later, 1).unwrap().len(), 6);
         // No drive was asked for anything: the set-points go out as written.
-        assert_eq!(cycle.outputs_of(&later, 0).unwrap(), [0x78, 0x56, 0x34, 0x12, 0x06, 0]);
+        assert_eq!(*cycle.outputs_of(&later, 0).unwrap(), [0x78, 0x56, 0x34, 0x12, 0x06, 0]);
         let stats = cycle.stats();
         assert!(stats.period.summary().count >= 20);
         assert!(stats.wake_latency.summary().count >= 21);

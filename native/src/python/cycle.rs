@@ -82,8 +82,8 @@ struct SnapshotView<'a> {
     time_ns: u64,
     wkc: u16,
     fresh: bool,
-    inputs: Vec<Option<&'a [u8]>>,
-    outputs: Vec<Option<&'a [u8]>>,
+    inputs: Vec<Option<std::borrow::Cow<'a, [u8]>>>,
+    outputs: Vec<Option<std::borrow::Cow<'a, [u8]>>>,
 }
 
 /// What `stats` gives.
@@ -216,6 +216,13 @@ enum EventView {
         digital_inputs: u32,
         statusword: u16,
     },
+    DeviceInputs {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        slave: u16,
+        levels: u64,
+    },
 }
 
 /// The head of a trajectory event, before its state's keys.
@@ -276,6 +283,9 @@ impl From<Event> for EventView {
             )),
             Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
                 EventView::Inputs { kind: "inputs", cycle, time_ns, slave, digital_inputs, statusword }
+            }
+            Event::DeviceInputs { cycle, time_ns, slave, levels } => {
+                EventView::DeviceInputs { kind: "device_inputs", cycle, time_ns, slave, levels }
             }
         }
     }
@@ -810,6 +820,40 @@ impl PyCycle {
     /// sent, hardware enable), all from the last snapshot.
     fn drives_io(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveIo>> {
         super::drive::drives_io(&self.cycle, &positions)
+    }
+
+    /// The channels of the slave at `position`, named after its PDO entries as its SII names
+    /// them in snake case (an EL1004's "channel_1_input"): outputs, then inputs, each a dict of
+    /// name, direction ("output" or "input"), index, subindex, bits and data_type (its CoE name);
+    /// none for a slave without process data.
+    fn channels(&self, position: u16) -> PyResult<Vec<super::device::ChannelView>> {
+        super::device::channels(&self.cycle, position)
+    }
+
+    /// The I/O of each slave of `positions` by channel name, all from the last snapshot: a dict
+    /// of cycle, time_ns, fresh, inputs ({name: value} as read) and outputs ({name: value} as
+    /// sent); a bit is a bool, an integer an int.
+    fn devices_io(&self, positions: Vec<u16>) -> PyResult<Vec<super::device::DeviceIoView>> {
+        super::device::devices_io(&self.cycle, &positions)
+    }
+
+    /// Sets output channels of the device at `position` (a slave the cycle does not sequence)
+    /// by name from the next cycle on, all or none: `values` maps each name to a bool (a bit),
+    /// an int or a float; the other outputs keep theirs. ConfigError names an unknown output
+    /// (and the device's outputs) or a value it does not take.
+    fn set_channels(
+        &self,
+        position: u16,
+        values: std::collections::BTreeMap<String, super::device::PyChannelValue>,
+    ) -> PyResult<()> {
+        let values: Vec<(&str, crate::ethercat::device::ChannelValue)> =
+            values.iter().map(|(name, v)| (name.as_str(), v.0)).collect();
+        self.cycle.set_channels(position, &values).py()
+    }
+
+    /// Switches every output of the device at `position` off from the next cycle on.
+    fn switch_outputs_off(&self, position: u16) -> PyResult<()> {
+        self.cycle.switch_outputs_off(position).py()
     }
 
     /// With `on`, a drive entering Fault or leaving Op quick-stops, in the same cycle, every

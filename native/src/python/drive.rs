@@ -109,7 +109,7 @@ pub(super) fn drives_inputs(cycle: &CycleThread, positions: &[u16]) -> PyResult<
 
 fn inputs_in(cycle: &CycleThread, snapshot: &Snapshot, position: u16) -> PyResult<PyDriveInputs> {
     let (_, tx) = cycle.mapping(position).py()?;
-    let inputs = DriveInputs::read(tx, cycle.inputs_of(snapshot, position).py()?);
+    let inputs = DriveInputs::read(tx, &cycle.inputs_of(snapshot, position).py()?);
     Ok(PyDriveInputs {
         cycle: snapshot.cycle,
         time_ns: snapshot.time_ns,
@@ -230,7 +230,7 @@ pub(super) fn drives_io(cycle: &CycleThread, positions: &[u16]) -> PyResult<Vec<
         .map(|&position| {
             let (rx, tx) = cycle.mapping(position).py()?;
             let outputs = cycle.outputs_of(&snapshot, position).py()?;
-            let io = DriveIo::read(rx, tx, outputs, cycle.inputs_of(&snapshot, position).py()?);
+            let io = DriveIo::read(rx, tx, &outputs, &cycle.inputs_of(&snapshot, position).py()?);
             Ok(PyDriveIo { cycle: snapshot.cycle, time_ns: snapshot.time_ns, fresh: snapshot.fresh, io })
         })
         .collect()
