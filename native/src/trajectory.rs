@@ -301,20 +301,13 @@ const PEAK_DEPTH: u32 = 48;
 /// The largest value of the polynomial Σ cᵢ·sⁱ of `degree` (at most 5) over s in
 /// `[0, duration_s]`, to a relative 1e-9: its Bernstein coefficients bound it (the polynomial
 /// lies in their convex hull and meets the end ones), and halving the interval where the bound
-/// is above the best value found narrows it. Exact arithmetic on the stack, no allocation, so
-/// that the cycle thread may judge a segment too.
+/// is above the best value found narrows it. Arithmetic on the stack, no allocation, so that
+/// the cycle thread may judge a segment too.
 fn peak(c: [f64; 6], degree: usize, duration_s: f64) -> f64 {
     // On u in [0, 1]: aᵢ = cᵢ·Tⁱ; then bₖ = Σᵢ₌₀..ₖ C(k,i)/C(n,i)·aᵢ.
-    let mut a = [0.0; 6];
-    let mut power = 1.0;
-    for i in 0..=degree {
-        a[i] = c[i] * power;
-        power *= duration_s;
-    }
-    let mut b = [0.0; 6];
-    for k in 0..=degree {
-        b[k] = (0..=k).map(|i| binomial(k, i) / binomial(degree, i) * a[i]).sum();
-    }
+    let a: [f64; 6] = std::array::from_fn(|i| c[i] * duration_s.powi(i as i32));
+    let b: [f64; 6] =
+        std::array::from_fn(|k| (0..=k.min(degree)).map(|i| binomial(k, i) / binomial(degree, i) * a[i]).sum());
     let mut best = b[0].max(b[degree]);
     descend(&b, degree, 0, &mut best);
     best
@@ -547,11 +540,13 @@ impl Trajectory {
     }
 
     /// How joint `joint`'s segment to the first point, from `from` (the set-point it has when
-    /// the trajectory takes over), goes past its limits, if it does: past a position or speed,
-    /// or, where an acceleration limit is set, with a step of the velocity at its start or at
-    /// the first point. No allocation.
+    /// the trajectory takes over), goes past its limits, if it does: past a position (further
+    /// than `from` is, where it stands past one) or a speed, or, where an acceleration limit is
+    /// set, with a step of the velocity at its start or at the first point. No allocation.
     pub fn lead_in_breach(&self, joint: usize, from: Setpoint) -> Option<Breach> {
-        let limits = &self.limits[joint];
+        // A joint that stands past a position limit (it coasted there) may move back; it may not go further out.
+        let given = &self.limits[joint];
+        let limits = &Limits { min: given.min.min(from.position), max: given.max.max(from.position), ..*given };
         let lead_in = self.lead_in(joint, from);
         let duration_s = seconds(self.times_ns[0]);
         if let Some(excess) = limits.excess(&lead_in, duration_s) {
@@ -1120,6 +1115,16 @@ mod tests {
         assert!(close(excess.value / PER_RAD, 12.0, 1e-6), "{excess:?}");
         let slow = Trajectory::new(1, &[S / 5], &[vec![Knot::position(0.8 * PER_RAD)]], Some(&[joint_4()])).unwrap();
         assert_eq!(slow.lead_in_breach(0, at_rest), None);
+        // A joint that coasted past 3.2 rad may come back, not go further out.
+        let out = Setpoint { position: 3.5 * PER_RAD, ..at_rest };
+        let back = Trajectory::new(1, &[S], &[vec![Knot::position(3.0 * PER_RAD)]], Some(&[joint_4()])).unwrap();
+        assert_eq!(back.lead_in_breach(0, out), None);
+        // Still moving outward at 1 rad/s, a cubic back first goes further out.
+        let further = Setpoint { velocity: 1.0 * PER_RAD, ..out };
+        let rest = Knot { velocity: Some(0.0), ..Knot::position(3.0 * PER_RAD) };
+        let cubic_back = Trajectory::new(1, &[S], &[vec![rest]], Some(&[joint_4()])).unwrap();
+        let Some(Breach::Past(excess)) = cubic_back.lead_in_breach(0, further) else { panic!("not refused") };
+        assert_eq!((excess.limit, excess.allowed), (Limit::Position, 3.5 * PER_RAD));
         // The same segment, from a set-point already moving the other way fast, goes too fast.
         let moving = Setpoint { velocity: -5.9 * PER_RAD, ..at_rest };
         let from_moving = Trajectory::new(1, &[S / 5], &[vec![rest]], Some(&[joint_4()])).unwrap();
