@@ -93,17 +93,11 @@ class Careless(Participant):
 
     def send(self, client: ActionClient, goal):
         """Sends `goal`; its accepted goal handle."""
-        sent = client.send_goal_async(goal, feedback_callback=lambda f: self.feedback.append(f.feedback))
-        self.spin_until(sent.done, "goal response")
-        handle = sent.result()
-        assert handle.accepted
-        return handle
+        return self.send_goal(client, goal, lambda f: self.feedback.append(f.feedback))
 
     def result(self, handle, timeout: float = 20.0):
         """(goal status, result) of `handle` once it ends."""
-        result = handle.get_result_async()
-        self.spin_until(result.done, "goal result", timeout=timeout)
-        return result.result().status, result.result().result
+        return self.goal_result(handle, timeout)
 
     def cancel(self, handle) -> None:
         canceling = handle.cancel_goal_async()
@@ -438,7 +432,7 @@ def test_6_homing_feedback_shows_every_joint_as_it_is(robot):
 def test_6_negative_times_and_bad_tolerances_are_refused_saying_why(robot, fields, why):
     client = robot.client
     before = client.positions()
-    seconds = fields.pop("time_from_start", 1.0)
+    seconds = fields.pop("time_from_start", 2.0)
     points = [point([before["joint_1"] + 0.1], 1.0), point([before["joint_1"] + 0.2], seconds)]
     status, result = client.result(client.send(client.follow, goal(["joint_1"], points, **fields)))
     assert status == GoalStatus.STATUS_ABORTED and result.error_code == Result.INVALID_GOAL, result.error_string
