@@ -243,11 +243,12 @@ fn a_refused_trajectory_moves_nothing() {
     on_a_steady_host(|cycle, _control| {
         let base = last_targets(&records(cycle, 20));
         let (times, points) = three_points(base);
-        let limits = Limits::positions(-1e9, base[0] as f64 + 120_000.0);
-        let joint = JointLimits { name: "joint 0".into(), limits, scale: Scale::COUNTS };
-        cycle.set_joint_limits(DRIVES[0], joint).unwrap();
+        let joint = |limits| JointLimits { name: "joint 0".into(), limits, scale: Scale::COUNTS };
+        cycle.set_joint_limits(DRIVES[0], joint(Limits::positions(-1e9, base[0] as f64 + 120_000.0))).unwrap();
+        let past_a_limit = cycle.play_trajectory(&DRIVES, &times, &points, None);
+        cycle.set_joint_limits(DRIVES[0], joint(Limits::TARGET)).unwrap();
         let refusals = [
-            (cycle.play_trajectory(&DRIVES, &times, &points, None), "point 1, joint 0: position"),
+            (past_a_limit, "point 1, joint 0: position"),
             (
                 cycle.play_trajectory(&DRIVES, &[S, S, 2 * S], &points, None),
                 "point 1: time from the start 1000000000 ns is not after the previous point's 1000000000 ns",

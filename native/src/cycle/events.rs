@@ -149,44 +149,24 @@ pub struct Refusal {
     pub value: f32,
 }
 
-/// What a refusal at the take-over judged.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum RefusalReason {
-    /// Its segment to the first point went past the drive's position limits.
-    Position = 0,
-    /// ... past its max velocity.
-    Velocity = 1,
-    /// ... past its max acceleration.
-    Acceleration = 2,
-    /// Its set-point's velocity would step where its acceleration is limited.
-    VelocityStep = 3,
-    /// It is a drive of the trajectory in force, not of this one, and it was still moving.
-    LeftMoving = 4,
+wire_codes! {
+    /// What a refusal at the take-over judged.
+    pub enum RefusalReason: u8, "trajectory refusal" {
+        /// Its segment to the first point went past the drive's position limits.
+        Position = 0 => "position",
+        /// ... past its max velocity.
+        Velocity = 1 => "max_velocity",
+        /// ... past its max acceleration.
+        Acceleration = 2 => "max_acceleration",
+        /// Its set-point's velocity would step where its acceleration is limited.
+        VelocityStep = 3 => "velocity_step",
+        /// It is a drive of the trajectory in force, not of this one, and it was still moving.
+        LeftMoving = 4 => "left_moving",
+    }
 }
 
 // A refusal's value is what a finite trajectory reached, never NaN: equal to itself.
 impl Eq for Refusal {}
-
-impl RefusalReason {
-    const ALL: [RefusalReason; 5] = [
-        RefusalReason::Position,
-        RefusalReason::Velocity,
-        RefusalReason::Acceleration,
-        RefusalReason::VelocityStep,
-        RefusalReason::LeftMoving,
-    ];
-
-    /// Its name as the Python API spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            RefusalReason::Position => "position",
-            RefusalReason::Velocity => "max_velocity",
-            RefusalReason::Acceleration => "max_acceleration",
-            RefusalReason::VelocityStep => "velocity_step",
-            RefusalReason::LeftMoving => "left_moving",
-        }
-    }
-}
 
 impl Refusal {
     /// In 56 bits: `code` plus the reason, the drive, the value as an f32.
@@ -196,7 +176,7 @@ impl Refusal {
 
     fn unpack(v: u64, code: u8) -> Option<Refusal> {
         Some(Refusal {
-            why: *RefusalReason::ALL.get((v as u8).checked_sub(code)? as usize)?,
+            why: RefusalReason::try_from((v as u8).checked_sub(code)?).ok()?,
             slave: (v >> 8) as u16,
             value: f32::from_bits((v >> 24) as u32),
         })
