@@ -87,6 +87,7 @@ setup(
             "akd-top = akd_ros.cli.top:main",
             "akd-eoe = akd_ros.cli.eoe:main",
             "akd-foe = akd_ros.cli.foe:main",
+            "akd-zenohd = akd_ros.cli.zenohd:main",
             "akd_node = akd_ros.node:main",
         ]
     },

@@ -439,6 +439,21 @@ class Bus:
         ios = self.cycle.drives_io([axis.slave for axis in self.axes])
         return {axis.name: axis.io(i) for axis, i in zip(self.axes, ios, strict=True)}
 
+    def slave_names(self) -> dict[int, str]:
+        """Each commanded drive's position and its axis's name: how the line's words name the slaves."""
+        return {axis.slave: axis.name for axis in self.axes}
+
+    def line_health(self) -> dict:
+        """Every slave's links and error counters as the reads beside the cycle found them (`_native.Cycle.line_health`:
+        each port's link, what is at its other end, its counters since the start and over the last 10 s, and the
+        findings in the cable's words), the drives named by their axes' names, the other slaves by their product."""
+        return self.cycle.line_health(self.slave_names())
+
+    def line_diagnostics(self) -> list[tuple]:
+        """What /diagnostics says of the line (`_native.Cycle.line_diagnostics`): a status of the line and one per
+        slave, each (level, what, message, hardware_id, [(key, value)]), named as `line_health` names them."""
+        return self.cycle.line_diagnostics(self.link, self.slave_names())
+
     def stats(self) -> dict:
         """The cycle thread's statistics (see `_native.Cycle.stats`), plus events dropped and per-cycle records dropped
         (by the cycle's ring or here) because they were not taken in time."""

@@ -508,6 +508,21 @@ SCHEMA: tuple[Spec, ...] = (
         0.0,
         600.0,
     ),
+    Spec(
+        "live_view.port",
+        0,
+        "Serve a live view of everything the node publishes to Foxglove (its WebSocket protocol) on this TCP port, "
+        "8765 being Foxglove's default; 0 for none. View only: clients can subscribe, never publish, call a service "
+        "or set a parameter.",
+        0,
+        65535,
+    ),
+    Spec(
+        "live_view.address",
+        "127.0.0.1",
+        "The address the live view listens on (an IPv4 or IPv6 address of this machine): 127.0.0.1 lets only this "
+        "machine watch; 0.0.0.0 (or ::) every network, to watch from another machine.",
+    ),
     Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
     Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
     Spec(
@@ -659,6 +674,8 @@ class Settings:
     """The TAP interface bridged to the joints' EoE, None for none."""
     eoe_host: str | None = None
     """The TAP interface's address (A.B.C.D/N), None for none."""
+    live_view: tuple[str, int] | None = None
+    """The live view's (address, port) (live_view.*), None when off."""
 
     def bus_options(self) -> dict[str, object]:
         """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
@@ -954,6 +971,7 @@ def settings(values: dict[str, object]) -> Settings:
         zenoh_connect=tuple(top["zenoh.connect"]),
         eoe_tap=eoe_tap,
         eoe_host=eoe_host,
+        live_view=check_live_view(top["live_view.address"], top["live_view.port"]),
     )
 
 
@@ -1065,6 +1083,19 @@ def check_eoe_bridge(tap: str, host: str, joints: tuple[JointSettings, ...]) -> 
     if tap and not any(j.eoe_ip for j in joints):
         raise ParameterError("parameter eoe.tap bridges to the joints' eoe.ip: give at least one joint an eoe.ip")
     return tap or None, address
+
+
+def check_live_view(address: str, port: int) -> tuple[str, int] | None:
+    """(live_view.address, live_view.port) checked, None for port 0; ParameterError for an address that is not an IP
+    address. Whether the port is free is known only when the node opens it, before the bus."""
+    try:
+        ipaddress.ip_address(address)
+    except ValueError:
+        raise ParameterError(
+            "parameter live_view.address must be an IPv4 or IPv6 address of this machine such as 127.0.0.1 (only this "
+            f"machine), 0.0.0.0 or :: (every network), got {address!r}"
+        ) from None
+    return (address, port) if port else None
 
 
 def check_link(link: str) -> str:

@@ -1,7 +1,8 @@
 """The one warning about privilege: no tool and not the node need root, CAP_NET_RAW alone opens a raw interface (the
 node and the tools that open a link give it; akd-plot, which reads bags, needs no capability).
 
-What happens to the capabilities once the socket is open is the native link's (native/src/link/privilege.rs)."""
+What happens to the capabilities once the socket is open is the native link's
+(native/src/ethercat/link/privilege.rs)."""
 
 from __future__ import annotations
 

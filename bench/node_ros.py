@@ -177,13 +177,14 @@ thread, the middleware's threads, the recorder's metadata thread) is "main and m
 GROUPS = ("cycle", "crate's other threads", "Python threads", "main and middleware")
 
 
-def thread_ticks(pid: int) -> collections.Counter:
-    """utime + stime of process `pid`'s threads, in clock ticks, by group (THREAD_GROUPS)."""
+def thread_ticks(pid: int, groups: dict[str, str] = THREAD_GROUPS, rest: str = GROUPS[-1]) -> collections.Counter:
+    """utime + stime of process `pid`'s threads, in clock ticks, by group (`groups` by thread name, `rest` for the
+    others)."""
     ticks: collections.Counter = collections.Counter()
     for task in Path(f"/proc/{pid}/task").iterdir():
         try:
             name = (task / "comm").read_text().strip()
-            ticks[THREAD_GROUPS.get(name, GROUPS[-1])] += cpu_ticks(task / "stat")
+            ticks[groups.get(name, rest)] += cpu_ticks(task / "stat")
         except OSError:  # a thread that ended meanwhile
             continue
     return ticks

@@ -13,11 +13,15 @@ Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs
   roundtrip     this master, SOEM and KickCAT over one veth pair to one akd-sim (roundtrip.py, 3 rounds of 2000)
   jitter        the cycle thread's wake-up latency and period jitter beside cyclictest (cycle_jitter.py)
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
+  line_health   the cycle on six virtual AKDs with the line's links and error counters read beside it and without
+                (line_health.py)
   ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh; issue 25's goals, with
                 profiles of what misses one (node_ros.py --profile)
   many          akd_node on 16 and 64 AKDs over veth at 250 µs, a million cycles each, waiting and pipelined
                 (node_ros.py --drives)
   io            akd_node's CPU with every joint's ~/io published and without, six joints at 1 kHz (node_io.py)
+  live_view     akd_node's CPU with the live view in Foxglove off, on, and on with a client subscribed to every
+                channel, six joints at 1 kHz (live_view.py)
   host_noise    config/akd_sim_6axis.yaml's robot following trajectories under stress-ng on every CPU, with and
                 without missed=warn and rt.priority: trajectories done, would-be F125, worst stall (host_noise.py,
                 2 minutes per variant; --minutes 8 for a full run)
@@ -55,9 +59,11 @@ SECTIONS = {
         shlex.split("cycle_jitter.py --loads idle,busy,sdo --no-cyclictest --rates 4000 --seconds 4 --rounds 4"),
         180,
     ),
+    "line_health": (shlex.split("line_health.py --rates 1000,4000 --seconds 4 --rounds 4"), 240),
     "ros": (["node_ros.py", "--profile"], 1200),
     "many": (shlex.split("node_ros.py --drives 16,64 --drive-pipelined"), 2400),
     "io": (["node_io.py"], 300),
+    "live_view": (["live_view.py"], 600),
     # Two minutes per variant, two alternating rounds: a shorter run than a quotable one (--minutes 8, about 35 min).
     "host_noise": (shlex.split("host_noise.py --minutes 2 --rounds 2"), 900),
 }
@@ -67,9 +73,11 @@ TITLES = {
     "roundtrip": "Round trip over veth: this master, SOEM and KickCAT",
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
+    "line_health": "The line's counters read beside the cycle, against not",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
     "many": "Through ROS with many drives over veth",
     "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",
+    "live_view": "The live view in Foxglove: the node's CPU with it off, on, and with a client",
     "host_noise": "The six-axis virtual robot with every CPU loaded: F125 with and without missed=warn, rt.priority",
 }
 

@@ -18,8 +18,9 @@ root_doc = "index"
 exclude_patterns = ["_build", "_generated/*.md"]
 # Links in pages to a heading of another page ([text](page.md#a-heading)) are checked too.
 myst_heading_anchors = 3
-# {.real-drive} and {.ros2-cli} above a command block mark it as not run by tests/test_docs_commands.py.
-myst_enable_extensions = ["attrs_block", "colon_fence"]
+# A code block's marks for the tests (tests/support/docs_pages.py) follow its language in the fence's info string,
+# which MyST, like GitHub, does not show; no block attribute syntax, which GitHub would show as text.
+myst_enable_extensions = ["colon_fence"]
 # Broken references fail the build (-W); the crate's rustdoc is copied beside the pages by scripts/docs.sh.
 nitpicky = False
 suppress_warnings = []

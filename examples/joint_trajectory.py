@@ -12,7 +12,7 @@ import rclpy
 from builtin_interfaces.msg import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
-from ros_helpers import call, spin_until
+from ros_helpers import enabled, init, spin_until
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
@@ -20,7 +20,7 @@ from akd_ros.msg import TrajectoryStatus
 
 NODE = sys.argv[1] if len(sys.argv) > 1 else "/akd_node"
 
-rclpy.init()
+init()
 client = Node("akd_trajectory_client")
 latest: list[JointState] = []
 statuses: list[TrajectoryStatus] = []
@@ -41,20 +41,19 @@ def point(positions: list[float], seconds: float) -> JointTrajectoryPoint:
 
 
 spin_until(client, lambda: latest, "/joint_states")
-call(client, f"{NODE}/enable")
-start = latest[-1]
-here = list(start.position)
-# Out by 0.3 rad and back, each joint; header.stamp zero: it starts when the node takes it.
-trajectory = JointTrajectory(
-    joint_names=list(start.name),
-    points=[point([p + 0.3 for p in here], 1.0), point(here, 2.0)],
-)
-spin_until(client, lambda: trajectories.get_subscription_count() > 0, f"subscriber of {NODE}/joint_trajectory")
-trajectories.publish(trajectory)
-spin_until(client, lambda: statuses and statuses[-1].state not in ("pending", "running"), "end of the trajectory")
-outcome = statuses[-1]
-print(f"trajectory {outcome.id} of {', '.join(outcome.joints)}: {outcome.state} {outcome.message}".rstrip())
-call(client, f"{NODE}/disable")
+with enabled(client, NODE):
+    start = latest[-1]
+    here = list(start.position)
+    # Out by 0.3 rad and back, each joint; header.stamp zero: it starts when the node takes it.
+    trajectory = JointTrajectory(
+        joint_names=list(start.name),
+        points=[point([p + 0.3 for p in here], 1.0), point(here, 2.0)],
+    )
+    spin_until(client, lambda: trajectories.get_subscription_count() > 0, f"subscriber of {NODE}/joint_trajectory")
+    trajectories.publish(trajectory)
+    spin_until(client, lambda: statuses and statuses[-1].state not in ("pending", "running"), "end of the trajectory")
+    outcome = statuses[-1]
+    print(f"trajectory {outcome.id} of {', '.join(outcome.joints)}: {outcome.state} {outcome.message}".rstrip())
 client.destroy_node()
 rclpy.shutdown()
 sys.exit(0 if outcome.state == "done" else 1)

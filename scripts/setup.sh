@@ -24,21 +24,20 @@ esac
 CONSTRAINTS=constraints.txt
 [[ $refresh -eq 1 || -f $CONSTRAINTS ]] || die "$CONSTRAINTS is missing: restore it from git, or make it with --refresh-constraints"
 
-# The packages of each environment. pysoem and kickcat are the third-party masters of the interop
-# tests; colcon checks that the package builds in a ROS workspace as it does here; ruff lints and
-# formats the Python code (scripts/test.sh; held at its version through a refresh too, because a
-# new release may add rules and fail a tree that passed); py-spy samples the node's Python threads in
-# bench/node_ros.py --profile. ROS 2 Jazzy comes as PyPI wheels (they need no
-# sourcing: ros-wheels-bootstrapper, which rclpy pulls in, restarts .venv's python with
-# LD_LIBRARY_PATH pointing at the wheels' libraries). The node needs rclpy over Fast DDS and these
-# interfaces; the rosidl generators and type supports, C and C++, build akd_ros's own messages
-# (rosidl_build.py). mcap, rosbags, matplotlib and eclipse-zenoh serve the node's recording,
-# plotting and Zenoh work and its tests; PyYAML reads parameter files; textual draws akd-top and
-# rich (textual's own renderer) akd-sdo's and akd-foe's progress bars (akd_ros's own requirements, installed here
-# so that they are pinned too). Sphinx, myst-parser (Markdown pages) and furo (the theme) build the documentation site
-# in docs/ (scripts/docs.sh).
+# The packages of each environment. pysoem and kickcat are the third-party masters of the interop tests; colcon
+# checks that the package builds in a ROS workspace as it does here; ruff lints and formats the Python code
+# (scripts/test.sh; held at its version through a refresh too, because a new release may add rules and fail a tree
+# that passed); py-spy samples the node's Python threads in bench/node_ros.py --profile; websockets is the tests'
+# client of the live view's Foxglove WebSocket protocol. ROS 2 Jazzy comes as PyPI wheels (they need no sourcing:
+# ros-wheels-bootstrapper, which rclpy pulls in, restarts .venv's python with LD_LIBRARY_PATH pointing at the
+# wheels' libraries). The node needs rclpy over Fast DDS and these interfaces; the rosidl generators and type
+# supports, C and C++, build akd_ros's own messages (rosidl_build.py). mcap, rosbags, matplotlib and eclipse-zenoh
+# serve the node's recording, plotting and Zenoh work and its tests; PyYAML reads parameter files; textual draws
+# akd-top and rich (textual's own renderer) akd-sdo's and akd-foe's progress bars, foxglove-sdk serves the node's
+# live view to Foxglove (live_view.port) (akd_ros's own requirements, installed here so that they are pinned too).
+# Sphinx, myst-parser (Markdown pages) and furo (the theme) build the documentation site in docs/ (scripts/docs.sh).
 BUILD_PACKAGES=("setuptools>=64" wheel "setuptools-rust>=1.7")
-TEST_PACKAGES=(pytest hypothesis pysoem kickcat colcon-common-extensions ruff==0.17.6 py-spy)
+TEST_PACKAGES=(pytest hypothesis pysoem kickcat colcon-common-extensions ruff==0.17.6 py-spy websockets)
 ROS_WHEELS=(
     ros-jazzy-rclpy ros-jazzy-rmw-fastrtps-cpp ros-jazzy-common-interfaces ros-jazzy-std-srvs
     ros-jazzy-diagnostic-msgs ros-jazzy-sensor-msgs ros-jazzy-lifecycle-msgs
@@ -49,9 +48,10 @@ ROS_WHEELS=(
     ros-jazzy-rosidl-typesupport-fastrtps-cpp ros-jazzy-rosidl-typesupport-introspection-cpp
     ros-jazzy-ament-index-python
 )
-APP_PACKAGES=(mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash PyYAML textual rich)
+APP_PACKAGES=(mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash PyYAML textual rich foxglove-sdk)
 DOCS_PACKAGES=(sphinx myst-parser furo)
-NOROS_PACKAGES=("${BUILD_PACKAGES[@]}" pytest "eclipse-zenoh>=1.5,<2" rosbags mcap xxhash PyYAML textual rich)
+NOROS_PACKAGES=("${BUILD_PACKAGES[@]}" pytest "eclipse-zenoh>=1.5,<2" rosbags mcap xxhash PyYAML textual rich
+    foxglove-sdk)
 
 if ((refresh)); then
     PYTHON=${PYTHON:-python3}
@@ -140,4 +140,8 @@ say "installing akd_ros into .venv-noros, without ROS"
 pip_install .venv-noros/bin/python "${NOROS_PACKAGES[@]}"
 CARGO_TARGET_DIR=native/target/noros pip_install .venv-noros/bin/python --no-build-isolation -e .
 .venv-noros/bin/python -c 'from akd_ros import _native, params' || die "akd_ros does not import in .venv-noros"
+# akd-zenohd, the Zenoh router akd_node over Zenoh needs where no ROS install brings rmw_zenohd, comes with akd_ros.
+for venv in .venv .venv-noros; do
+    "$venv/bin/akd-zenohd" --help >/dev/null || die "$venv has no Zenoh router (akd-zenohd) after the install"
+done
 say "ready: .venv/bin/akd_node --ros-args --params-file config/akd_sim.yaml, bash scripts/test.sh"

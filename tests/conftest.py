@@ -1,8 +1,9 @@
 """Shared fixtures of the Python suite.
 
 The suite runs against the extension built by `pip install -e .` (scripts/setup.sh). Real-drive
-data is read from `<repo>/../shared/real-akd/` and never copied into the project; tests that need
-it skip with the reason where it is absent (a user's clone).
+and real-terminal data is read from `<repo>/../shared/real-akd/` and `real-ethercat/` and never
+copied into the project; tests that need it skip with the reason where it is absent (a user's
+clone).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from support.netns import free_udp_port, veth_pair
 
 REPO = Path(__file__).resolve().parents[1]
 REAL_AKD = REPO.parent / "shared" / "real-akd"
+REAL_ETHERCAT = REPO.parent / "shared" / "real-ethercat"
 
 
 @pytest.fixture(scope="session")
@@ -30,6 +32,14 @@ def real_akd_dir() -> Path:
     if not REAL_AKD.is_dir():
         pytest.skip(f"real-drive data not present at {REAL_AKD} (only in the project's CI)")
     return REAL_AKD
+
+
+@pytest.fixture(scope="session")
+def real_ethercat_dir() -> Path:
+    """`../shared/real-ethercat/` (SII images and captures of real Beckhoff terminals); skips where it is absent."""
+    if not REAL_ETHERCAT.is_dir():
+        pytest.skip(f"real-terminal data not present at {REAL_ETHERCAT} (only in the project's CI)")
+    return REAL_ETHERCAT
 
 
 @pytest.fixture

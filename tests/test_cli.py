@@ -227,7 +227,7 @@ def test_scan_over_raw_ethernet_in_netns(veth):
     assert scanned_positions(scan.stdout) == [0, 1]
 
 
-HELPED_TOOLS = ("akd-sim", "akd-scan", "akd-sdo", "akd-plot", "akd_node", "akd-top")
+HELPED_TOOLS = ("akd-sim", "akd-scan", "akd-sdo", "akd-plot", "akd_node", "akd-top", "akd-zenohd")
 
 
 @pytest.mark.parametrize("tool", HELPED_TOOLS)
@@ -244,6 +244,22 @@ def test_every_tools_help_shows_an_example(tool):
     examples = result.stdout.split("examples:", 1)[1].splitlines()
     # Each example is a command line of the tool itself.
     assert [line.split()[0] for line in examples if line.strip()] == [tool] * sum(1 for x in examples if x.strip())
+
+
+def test_akd_zenohd_on_a_port_in_use_says_so_in_one_line():
+    from support.zenoh import zenoh_router
+
+    with zenoh_router() as endpoint:
+        result = subprocess.run(
+            [str(Path(sys.executable).with_name("akd-zenohd")), "--listen", endpoint],
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
+    assert result.returncode == 1, result.stdout + result.stderr
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(f"akd-zenohd: error: cannot listen on {endpoint}: "), line
 
 
 def test_a_yaml_syntax_error_in_a_parameters_file_is_the_nodes_one_line(tmp_path):

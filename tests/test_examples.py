@@ -1,68 +1,44 @@
-"""Every program in examples/ runs to exit status 0 against the virtual AKD: those without ROS as they are, those of
-the node against an `akd_node` this test starts (two joints on `sim:2?missed=lost`, recording), and read_bag.py on
-the bag that node wrote. Each is on the documentation's examples page."""
+"""Every program in examples/ is shown on the documentation's examples page and run, as a reader runs it, by a page of
+the documentation: tests/test_docs_commands.py runs that page's commands against the virtual AKD (the node's examples
+against an `akd_node` on config/akd_sim_6axis.yaml or akd_sim.yaml that the page starts) and compares what each prints
+with what the page shows. So each example runs once, where a reader meets it."""
 
 from __future__ import annotations
 
-import subprocess
-import sys
-from pathlib import Path
+import re
 
-import pytest
+from support.docs_pages import ROOT, blocks_of, pages
 
-from support.params_files import params_file
-from support.ros import WAIT_S, NodeProcess, ros_environment, stop
-
-ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
-DOMAINS = range(50, 55)
-WITHOUT_ROS = ("axis_profile_position.py", "bus_of_drives.py")
-OF_THE_NODE = ("node_client.py", "joint_trajectory.py")
-OF_A_BAG = ("read_bag.py",)
 HELPERS = ("ros_helpers.py",)
 """Imported by the examples, not run."""
+RUN = re.compile(r"^\.venv(-noros)?/bin/python examples/(\w+\.py)\b", re.MULTILINE)
 
 
-def run(name: str, *args: str, cwd: Path = ROOT) -> str:
-    """Runs examples/`name`; its output, once it exited 0."""
-    done = subprocess.run(
-        [sys.executable, str(EXAMPLES / name), *args],
-        cwd=cwd,
-        capture_output=True,
-        text=True,
-        timeout=WAIT_S * 4,
-        check=False,
-    )
-    assert done.returncode == 0, f"{name} exited {done.returncode}:\n{done.stdout}{done.stderr}"
-    return done.stdout
+def run_by_pages() -> dict[str, list[str]]:
+    """Each example a page's commands run, with the blocks that run it."""
+    found: dict[str, list[str]] = {}
+    for page in pages():
+        for block in blocks_of(page):
+            if block.kind == "command":
+                for match in RUN.finditer(block.code):
+                    found.setdefault(match.group(2), []).append(block.where)
+    return found
 
 
-def test_every_example_is_run_here_and_shown_on_the_examples_page():
+def test_every_example_is_shown_on_the_examples_page():
     page = (ROOT / "docs" / "examples.md").read_text(encoding="utf-8")
-    programs = sorted(path.name for path in EXAMPLES.glob("*.py"))
-    assert programs == sorted(WITHOUT_ROS + OF_THE_NODE + OF_A_BAG + HELPERS)
-    for name in programs:
-        assert f"```{{literalinclude}} ../examples/{name}" in page, name
+    for path in sorted(EXAMPLES.glob("*.py")):
+        assert f"```{{literalinclude}} ../examples/{path.name}" in page, path.name
 
 
-@pytest.mark.parametrize("name", WITHOUT_ROS)
-def test_an_example_without_ros_runs(name):
-    assert run(name)
+def test_every_example_is_run_by_a_page_of_the_documentation():
+    programs = {path.name for path in EXAMPLES.glob("*.py")} - set(HELPERS)
+    run = run_by_pages()
+    assert not programs - set(run), f"run by no page: {sorted(programs - set(run))}"
+    assert not set(run) - programs, f"pages run examples that do not exist: {sorted(set(run) - programs)}"
 
 
-def test_the_node_s_examples_run_against_a_node_and_its_bag_is_read(tmp_path):
-    bags = tmp_path / "bags"
-    body = f"link: sim:2?missed=lost\njoints: [shoulder, elbow]\nrecord.enabled: true\nrecord.folder: {bags}"
-    with ros_environment(DOMAINS) as domain:
-        node = NodeProcess(params_file(tmp_path, body), domain)
-        try:
-            # The example itself waits for the node (its /joint_states, its services), as a user runs it.
-            assert "shoulder: +" in run(OF_THE_NODE[0])
-            assert ": done" in run(OF_THE_NODE[1])
-        finally:
-            stop(node.process)
-        assert node.process.returncode == 0, node.output()
-    (bag,) = bags.iterdir()
-    shown = run(OF_A_BAG[0], str(bag))
-    assert "/akd_node/joint_trajectory: 1 messages" in shown
-    assert "shoulder:" in shown and "elbow:" in shown
+def test_the_helpers_are_what_the_node_s_examples_import():
+    importing = [p.name for p in EXAMPLES.glob("*.py") if "from ros_helpers import" in p.read_text(encoding="utf-8")]
+    assert len(importing) >= 5, importing

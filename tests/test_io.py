@@ -11,13 +11,13 @@ from __future__ import annotations
 
 import math
 import re
-from pathlib import Path
 
 import pytest
 import yaml
 
 from akd_ros import Axis, CommandError, _native, params
 from akd_ros.axis import ANALOG_VOLTS_PER_COUNT
+from support.docs_pages import blocks_of
 from support.waiting import wait_for
 
 CSP = "cyclic_synchronous_position"
@@ -190,8 +190,7 @@ def test_parameters_name_inputs_and_outputs_and_are_checked_against_the_mapping(
 
 
 def test_the_flexible_mapping_docs_io_gives_for_interpolated_position_carries_all_of_the_io():
-    text = (Path(__file__).resolve().parents[1] / "docs" / "io.md").read_text()
-    block = text.split("```yaml\n", 1)[1].split("```", 1)[0]
+    block = next(b for b in blocks_of("docs/io.md") if b.language == "yaml").code
     given = yaml.safe_load("p:\n" + block)["p"]
     joint = params.settings(given).joints[0]
     assert joint.mode == "interpolated_position" and all(joint.io_carried.values()), joint.io_carried

@@ -20,6 +20,8 @@ from akd_ros import _native, params
         ("sim:6?missed=lost", "sim", 6, "lost", None, None, "sim:6?missed=lost"),
         ("sim:6?missed=warn", "sim", 6, "warn", None, None, "sim:6?missed=warn"),
         ("sim:6?pace=immediate&missed=warn", "sim", 6, "warn", None, None, "sim:6?missed=warn&pace=immediate"),
+        ("sim:EK1100,el1004,el2004,akd", "sim", 4, "late", None, None, "sim:ek1100,el1004,el2004,akd"),
+        ("sim:akd,akd?missed=lost", "sim", 2, "lost", None, None, "sim:2?missed=lost"),
         ("udp://127.0.0.1:34980", "udp", None, None, "127.0.0.1:34980", None, "udp://127.0.0.1:34980"),
         ("udp://[::1]:7000", "udp", None, None, "[::1]:7000", None, "udp://[::1]:7000"),
         ("eth0", "interface", None, None, None, "eth0", "eth0"),
@@ -40,6 +42,23 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, add
     busy_poll = spec.partition("?busy_poll=")[2]
     assert parsed.busy_poll_us == (int(busy_poll or 0) if kind == "interface" else None)
     assert parsed.pace == (("immediate" if "pace=immediate" in spec else "real") if kind == "sim" else None)
+    if kind == "sim" and "," in spec:
+        assert parsed.line == spec.partition(":")[2].partition("?")[0].lower().split(",")
+    elif kind == "sim":
+        assert parsed.line == ["akd"] * count
+    else:
+        assert parsed.line is None
+
+
+def test_a_line_with_terminals_is_refused_by_the_master_until_it_takes_them():
+    # The master configures AKDs only so far: it names the line and where such a line runs.
+    with pytest.raises(_native.ConfigError) as refused:
+        _native.Master("sim:ek1100,el1004,akd")
+    message = str(refused.value)
+    assert "the virtual line ek1100,el1004,akd holds terminals" in message and "\n" not in message
+    assert "akd-sim --line ek1100,el1004,akd" in message
+    # The node's parameter check takes it, as a spec; the master is what refuses it today.
+    assert params.check_link("sim:ek1100,el1004,akd") == "sim:ek1100,el1004,akd"
 
 
 @pytest.mark.parametrize(
@@ -48,7 +67,10 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, add
         ("sim:0", "the number of virtual AKDs must be 1..=64"),
         ("sim:65", "the number of virtual AKDs must be 1..=64"),
         ("sim:100", "the number of virtual AKDs must be 1..=64"),
-        ("sim:x", "the number of virtual AKDs must be 1..=64"),
+        ("sim:x", 'the slave at position 0, "x", is no product the simulator makes: allowed are akd, ek1100'),
+        ("sim:ek1100,el9999", 'the slave at position 1, "el9999", is no product the simulator makes'),
+        ("sim:ek1100,,akd", 'the slave at position 1, "", is no product the simulator makes'),
+        ("sim:akd,el1004", "the slave at position 1, el1004, is an E-bus terminal: an ek1100 or another terminal"),
         ("sim:0?missed=lost", "the number of virtual AKDs must be 1..=64"),
         ("sim:2?missed=soon", "missed=late (the default"),
         ("sim?lost", "missed=lost (only frames lost on the line"),
@@ -82,6 +104,8 @@ def test_the_allowed_forms_name_every_form_and_the_range_of_n():
     for form in (
         "'sim'",
         "'sim:N' (N 1..=64",
+        "'sim:P1,P2,...'",
+        "akd, ek1100, el1004, el1008, el2004, el2008, el3102",
         "'?missed=late|lost|warn'",
         "'?pace=real|immediate'",
         "'udp://HOST:PORT'",

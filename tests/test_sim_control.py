@@ -12,18 +12,17 @@ from __future__ import annotations
 
 import json
 import math
-import queue
 import re
 import signal
 import struct
 import subprocess
-import threading
 import time
 
 import pytest
 
 from akd_ros import _native
 from support.netns import console_script, udp_port_bound
+from support.waiting import Lines
 
 # 0x1724 outputs: target position 0x607A (i32), controlword (u16), torque offset 0x60B2 (i16).
 CSP_OUTPUTS = struct.Struct("<iHh")
@@ -148,21 +147,6 @@ def test_bad_values_are_refused_naming_the_allowed_ones():
         _ = _native.Master("udp://127.0.0.1:9").simulator
 
 
-class Lines:
-    """The lines a process writes to stdout, read on a thread so that a wait can time out."""
-
-    def __init__(self, stream):
-        self._lines: queue.Queue[str] = queue.Queue()
-        threading.Thread(target=self._read, args=(stream,), daemon=True).start()
-
-    def _read(self, stream) -> None:
-        for line in stream:
-            self._lines.put(line.rstrip("\n"))
-
-    def next(self, timeout: float = 10.0) -> str:
-        return self._lines.get(timeout=timeout)
-
-
 def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
     argv = [*console_script("akd-sim"), "--udp", f"127.0.0.1:{udp_port}"]
     sim = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -210,7 +194,7 @@ def test_akd_sim_takes_commands_on_stdin_while_a_master_talks_to_it(udp_port):
             (
                 "jog 0",
                 "allowed are fault, hardware_enable, toggles, input, switch, analog_input, state, power_cycle, homing, "
-                "cable, drop, corrupt, wrong_wkc, help",
+                "cable, link, crc, counters, drop, corrupt, wrong_wkc, help",
             ),
         ):
             reply = command(bad)

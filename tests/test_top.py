@@ -113,6 +113,32 @@ def test_direct_link_shows_faults_and_enables_with_confirmation():
         source.close()
 
 
+async def line_scenario(source: DirectSource) -> None:
+    app = Top(source, refresh_s=0.05)
+    async with app.run_test(size=(200, 60)) as pilot:
+        await until(pilot, lambda: app.line_table.row_count == 12, "a row per port of the six slaves")
+        await until(pilot, lambda: "no errors on the line" in app.line_text, "a clean line")
+        assert app.line_table.get_cell("2:1", "peer").plain == "slave 3 (slave_3) port 0"
+        # The cable from slave 1 into slave 2: frames entering slave 2's port 0 spoiled.
+        source.bus.simulator.crc_errors(2, 0, 20, 10)
+        words = "errors on the cable into slave 2 (slave_2) port 0, from slave 1 (slave_1) port 1: "
+        await until(pilot, lambda: words in app.line_text, "the cable named")
+        await until(pilot, lambda: app.line_table.get_cell("2:0", "invalid_frames").plain == "20", "all 20 counted")
+        assert "yellow" in str(app.line_table.get_cell("2:0", "invalid_frames").style)
+        # After it, forwarded; in front of it, nothing.
+        assert app.line_table.get_cell("3:0", "forwarded_errors").plain == "20"
+        assert app.line_table.get_cell("1:0", "invalid_frames").plain == "0"
+        await pilot.press("q")
+
+
+def test_direct_link_shows_the_line_and_names_a_faulty_cable():
+    source = DirectSource("sim:6?missed=lost", period=0.004)
+    try:
+        asyncio.run(line_scenario(source))
+    finally:
+        source.close()
+
+
 def test_help_and_a_bad_link_are_one_line():
     result = subprocess.run(
         [*console_script("akd-top"), "--help"], capture_output=True, text=True, timeout=60, check=False
@@ -250,3 +276,27 @@ def test_attached_over_zenoh_shows_faults_and_enables_with_confirmation(tmp_path
             lambda: ZenohSource("/akd_node", [endpoint]),
             without_ros=True,
         )
+
+
+def test_attached_over_zenoh_with_no_router_says_so_in_one_line():
+    from akd_ros.top.zenoh_source import ZenohSource
+    from support.zenoh import free_tcp_port
+
+    endpoint = f"tcp/127.0.0.1:{free_tcp_port()}"
+
+    async def scenario(source: ZenohSource) -> None:
+        app = Top(source, refresh_s=0.05)
+        async with app.run_test(size=(200, 30)) as pilot:
+            await until(pilot, lambda: "no Zenoh router" in app.bus_text, "the hint in the bus line")
+            assert app.bus_text.splitlines()[0] == (
+                f"bus /akd_node (no Zenoh router reached at {endpoint}: start one, e.g. .venv/bin/akd-zenohd, or "
+                "give --connect ENDPOINT): "
+            )
+            assert app.table.row_count == 0
+            await pilot.press("q")
+
+    source = ZenohSource("/akd_node", [endpoint])
+    try:
+        asyncio.run(scenario(source))
+    finally:
+        source.close()

@@ -185,6 +185,37 @@ def test_service_reply_carries_the_requests_sequence_number_and_client_gid(sessi
     assert service.dropped.total == 0
 
 
+def test_a_client_calls_with_rmw_zenohs_attachment_and_is_listed(sessions, node, types):
+    _, peer = sessions
+    client = node.client("/akd_node/enable", TRIGGER)
+    assert client.key_expr == f"0/akd_node/enable/std_srvs::srv::dds_::Trigger_/{types.rihs01(TRIGGER)}"
+    requests: list[Attachment] = []
+    response = types.to_cdr(
+        types.message(f"{TRIGGER}_Response", success=True, message="enabled"), f"{TRIGGER}_Response"
+    )
+
+    def serve(query: zenoh.Query) -> None:
+        # As an rmw_zenoh service answers: the request's sequence number and the client's GID back.
+        asked = Attachment.decode(query.attachment.to_bytes())
+        requests.append(asked)
+        query.reply(client.key_expr, response, attachment=Attachment(asked.sequence_number, 0, asked.gid).encode())
+
+    queryable = peer.declare_queryable(client.key_expr, serve, complete=True)
+    try:
+        request = types.to_cdr(types.message(f"{TRIGGER}_Request"), f"{TRIGGER}_Request")
+        replies = [wait_for("a reply", lambda: client.call(request, WAIT_S), WAIT_S, 0.1), client.call(request, WAIT_S)]
+    finally:
+        queryable.undeclare()
+    assert [types.from_cdr(reply, f"{TRIGGER}_Response").message for reply in replies] == ["enabled", "enabled"]
+    # Numbered from 1, one per call; calls made before the queryable was reached got no reply.
+    numbers = [asked.sequence_number for asked in requests]
+    assert len(numbers) >= 2 and numbers == list(range(numbers[-1] - len(numbers) + 1, numbers[-1] + 1))
+    assert {asked.gid for asked in requests} == {client.gid}
+    keys = wait_for("the client's token", lambda: _at_least(2, liveliness_keys(peer)))
+    key, entity = _entity_of(keys, EntityKind.CLIENT, "/akd_node/enable")
+    assert entity.node.name == "akd_node" and gid_of(key) == client.gid
+
+
 def test_bad_requests_get_no_reply_and_are_counted(sessions, node, types, logged):
     _, peer = sessions
     service = node.service(

@@ -1,33 +1,61 @@
-"""akd-sim: serves virtual AKDs on a UDP port or a network interface until SIGINT/SIGTERM.
+"""akd-sim: serves virtual AKDs, or a line of AKDs and terminals, on a UDP port or a network interface until
+SIGINT/SIGTERM.
 
 With --udp the EtherCAT payload travels as the UDP payload (the master's 'udp://HOST:PORT'
-link); with --iface the virtual AKDs answer raw EtherCAT frames on that interface as a real
-line of drives would (for a veth end, or a spare port wired to a master).
+link); with --iface the virtual slaves answer raw EtherCAT frames on that interface as a real
+line would (for a veth end, or a spare port wired to a master). --count N serves N AKDs; --line
+names the slaves in order, e.g. 'ek1100,el1004,el2004,akd' (an EK1100 coupler, EL1004 and EL1008
+digital inputs, EL2004 and EL2008 digital outputs, an EL3102 with two analog inputs, AKDs).
 
 While it serves, akd-sim takes commands on stdin, one a line, each answered with one line on
-stdout, 'ok ...' or 'error: ...':
+stdout, 'ok ...' or 'error: ...'. POSITION is a slave's place on the line, from 0; INPUT counts
+from 1:
 
-  fault POSITION NAME                 raise a fault, e.g. 'fault 0 F439', 'fault 0 sync_lost'
-  hardware_enable POSITION high|low   set the hardware enable input
-  toggles POSITION INPUT P1,P2,...    digital input 1..7 toggles at these positions (counts);
-                                      without positions it stays low
-  input POSITION INPUT high|low       digital input 1..7 high or low wherever the axis is
-  switch POSITION NAME on|off         a switch of 0x60FD active or not: negative_limit,
+  fault POSITION NAME                 raise a fault in an AKD, e.g. 'fault 0 F439', 'fault 0 sync_lost'
+  hardware_enable POSITION high|low   set an AKD's hardware enable input
+  toggles POSITION INPUT P1,P2,...    an AKD's digital input 1..7 toggles at these positions
+                                      (counts); without positions it stays low
+  input POSITION INPUT high|low       a digital input high or low: an AKD's 1..7 wherever the
+                                      axis is, an EL1004's 1..4 or EL1008's 1..8 at its connector
+                                      (the master sees it after the terminal's 3 ms filter)
+  switch POSITION NAME on|off         a switch of an AKD's 0x60FD active or not: negative_limit,
                                       positive_limit (each stops motion toward it), home_switch,
                                       interlock
-  analog_input POSITION VOLTS         the analog input, within ±10 V
-  state POSITION                      the drive firmware's state as JSON, with "dc": what its
+  analog_input POSITION [INPUT] VOLTS an analog input, within ±10 V: an AKD's one, an EL3102's
+                                      1 or 2 (INPUT 1 where it is left out)
+  state POSITION                      an AKD's firmware state as JSON, with "dc": what its
                                       synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2), and
                                       its I/O: digital_inputs (0x60FD), digital_outputs and
-                                      analog_output (V) as the master drives them
-  power_cycle POSITION                the drive loses power and comes back as at power-up
-                                      (AL Init, station address 0, Not ready to switch on,
+                                      analog_output (V) as the master drives them; a terminal's
+                                      AL state and I/O: inputs (as the master reads them),
+                                      outputs (as its pins drive them: off outside Op and once
+                                      the sync-manager watchdog ran out), analog_inputs (V)
+  power_cycle POSITION                the slave loses power and comes back as at power-up (AL
+                                      Init, station address 0; an AKD Not ready to switch on,
                                       not homed)
   homing POSITION ok|error|no_reference
-                                      the drive's homing works, stops halfway with a homing
+                                      an AKD's homing works, stops halfway with a homing
                                       error, or never finds its reference (searches on)
-  cable POSITION pulled|plugged       pull the cable in front of the drive out (frames reach
-                                      only the drives before it), or plug it back in
+  cable POSITION pulled|plugged       pull the cable in front of the slave out (frames reach
+                                      only the slaves before it), or plug it back in
+  link POSITION PORT down|up          take the link at a port of the slave down or up again: the
+                                      cable there pulled or plugged (port 0: the cable in front
+                                      of it, 'link 3 0 down' is 'cable 3 pulled'; port 1: the
+                                      cable to the next slave), both ends counting a lost link
+  crc POSITION PORT COUNT [EVERY]     a faulty cable into a port of the slave spoils the CRC of
+                                      the next COUNT frames entering there, one in every EVERY
+                                      (1 where left out): the slave counts an invalid frame at
+                                      that port, every slave after it on the frame's way a
+                                      forwarded error, and the master never gets the frame.
+                                      Frames enter port 0 on their way out, from the slave in
+                                      front ('crc 3 0 200': the cable from slave 2 into slave 3),
+                                      and port 1 on their way back, from the slave behind
+                                      ('crc 3 1 200': the cable from slave 4 into slave 3)
+  counters POSITION                   the slave's ESC as JSON: its DL status, each of its ports
+                                      with its link, the frames a fault is still to spoil there
+                                      and its error counters as the master reads them
+                                      ("registers": they stop at 255 and a master clears them)
+                                      and as counted since power-up ("counted")
   drop FRAMES                         the next FRAMES frames get no reply at all
   corrupt FRAMES                      the next FRAMES replies come back corrupted
   wrong_wkc FRAMES                    the next FRAMES replies carry a wrong working counter
@@ -83,11 +111,14 @@ USAGE = {
     "toggles": "toggles POSITION INPUT P1,P2,...",
     "input": "input POSITION INPUT high|low",
     "switch": "switch POSITION NAME on|off",
-    "analog_input": "analog_input POSITION VOLTS",
+    "analog_input": "analog_input POSITION [INPUT] VOLTS",
     "state": "state POSITION",
     "power_cycle": "power_cycle POSITION",
     "homing": "homing POSITION ok|error|no_reference",
     "cable": "cable POSITION pulled|plugged",
+    "link": "link POSITION PORT down|up",
+    "crc": "crc POSITION PORT COUNT [EVERY]",
+    "counters": "counters POSITION",
     "drop": "drop FRAMES",
     "corrupt": "corrupt FRAMES",
     "wrong_wkc": "wrong_wkc FRAMES",
@@ -151,9 +182,11 @@ def execute(simulator, line: str) -> str | None:
         "toggles": (2, 3),
         "input": (3,),
         "switch": (3,),
-        "analog_input": (2,),
+        "analog_input": (2, 3),
         "cable": (2,),
         "homing": (2,),
+        "link": (3,),
+        "crc": (3, 4),
     }.get(name, (1,))
     if len(args) not in arity:
         raise CommandError(f"usage: {USAGE[name]}")
@@ -161,6 +194,8 @@ def execute(simulator, line: str) -> str | None:
         getattr(simulator, BURSTS[name])(_whole_number(args[0], "FRAMES", "0 or more"))
         return "ok " + " ".join(words)
     position = _whole_number(args[0], "POSITION", f"0..{len(simulator) - 1}")
+    # What a position names is the simulator's to say; past the line, it names the line's length.
+    product = simulator.products[position] if position < len(simulator) else None
     if name == "fault":
         simulator.inject_fault(position, args[1])
     elif name == "hardware_enable":
@@ -169,24 +204,25 @@ def execute(simulator, line: str) -> str | None:
             raise CommandError(f"hardware_enable takes high or low, got {args[1]!r}")
         simulator.set_hardware_enable(position, levels[args[1]])
     elif name == "toggles":
-        digital_input = _whole_number(args[1], "INPUT", "1..7")
+        digital_input = _whole_number(args[1], "INPUT", "from 1")
         positions = _toggle_positions(args[2]) if len(args) == 3 else []
         simulator.set_input_toggles(position, digital_input, positions)
     elif name == "input":
         levels = {"high": True, "low": False}
         if args[2] not in levels:
             raise CommandError(f"input takes high or low, got {args[2]!r}")
-        simulator.set_input(position, _whole_number(args[1], "INPUT", "1..7"), levels[args[2]])
+        simulator.set_input(position, _whole_number(args[1], "INPUT", "from 1"), levels[args[2]])
     elif name == "switch":
         if args[2] not in ("on", "off"):
             raise CommandError(f"switch takes on or off, got {args[2]!r}")
         simulator.set_switch(position, args[1], args[2] == "on")
     elif name == "analog_input":
+        analog_input = _whole_number(args[1], "INPUT", "from 1") if len(args) == 3 else 1
         try:
-            volts = float(args[1])
+            volts = float(args[-1])
         except ValueError:
-            raise CommandError(f"analog_input takes a voltage such as 2.5, got {args[1]!r}") from None
-        simulator.set_analog_input(position, volts)
+            raise CommandError(f"analog_input takes a voltage such as 2.5, got {args[-1]!r}") from None
+        simulator.set_analog_input(position, volts, analog_input)
     elif name == "power_cycle":
         simulator.power_cycle(position)
     elif name == "homing":
@@ -195,8 +231,21 @@ def execute(simulator, line: str) -> str | None:
         if args[1] not in ("pulled", "plugged"):
             raise CommandError(f"cable takes pulled or plugged, got {args[1]!r}")
         (simulator.pull_cable if args[1] == "pulled" else simulator.replug_cable)(position)
-    else:
+    elif name == "link":
+        if args[2] not in ("down", "up"):
+            raise CommandError(f"link takes down or up, got {args[2]!r}")
+        simulator.set_link(position, _whole_number(args[1], "PORT", "0..3"), args[2] == "up")
+    elif name == "crc":
+        port = _whole_number(args[1], "PORT", "0..3")
+        count = _whole_number(args[2], "COUNT", "0 or more (0 ends a fault still pending)")
+        every = _whole_number(args[3], "EVERY", "1 or more") if len(args) == 4 else 1
+        simulator.crc_errors(position, port, count, every)
+    elif name == "counters":
+        return "ok " + json.dumps(simulator.esc_state(position))
+    elif product in (None, "akd"):
         return "ok " + json.dumps(simulator.drive_state(position))
+    else:
+        return "ok " + json.dumps(simulator.terminal_state(position))
     return "ok " + " ".join(words)
 
 
@@ -259,8 +308,9 @@ def start_commands(simulator) -> None:
 
 EXAMPLES = """
 examples:
-  akd-sim --udp 127.0.0.1:34980 --count 2   two virtual AKDs for the link udp://127.0.0.1:34980
-  akd-sim --iface veth-sim --count 6        six on a veth end, for a master on its peer
+  akd-sim --udp 127.0.0.1:34980 --count 2                two virtual AKDs for the link udp://127.0.0.1:34980
+  akd-sim --iface veth-sim --count 6                     six on a veth end, for a master on its peer
+  akd-sim --iface veth-sim --line ek1100,el1004,el2004,akd  a coupler, 4 inputs, 4 outputs and an AKD
 """
 
 
@@ -275,8 +325,15 @@ def main(argv: list[str] | None = None) -> int:
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--udp", metavar="HOST:PORT", help="serve EtherCAT over UDP here")
     where.add_argument("--iface", metavar="NAME", help="serve raw EtherCAT on this interface")
-    parser.add_argument(
+    slaves = parser.add_mutually_exclusive_group()
+    slaves.add_argument(
         "--count", type=count_argument, default=1, metavar="N", help="number of virtual AKDs in the line (default 1)"
+    )
+    slaves.add_argument(
+        "--line",
+        metavar="SPEC",
+        help=f"the slaves in order, separated by commas, each one of {', '.join(_native.SIM_PRODUCTS)} "
+        "(e.g. ek1100,el1004,el2004,akd)",
     )
     parser.add_argument(
         "--missed",
@@ -290,8 +347,9 @@ def main(argv: list[str] | None = None) -> int:
         "--pace",
         choices=_native.PACES,
         default="real",
-        help="how fast the drives' firmware answers: 'real' (default), as the real drive (Init->PreOp 17.5 ms, "
-        "other AL requests 4.5 ms, mailbox replies 1 ms); 'immediate', before the next frame",
+        help="how fast the drives' firmware answers: 'real' (default), as the real drive (Init->PreOp 17.5 ms the "
+        "first time after power-up and 4.5 ms later, other AL requests 4.5 ms, the first mailbox reply 30 ms and "
+        "later ones 1 ms); 'immediate', before the next frame",
     )
     parser.add_argument(
         "--setpoint-trace",
@@ -311,22 +369,28 @@ def main(argv: list[str] | None = None) -> int:
     def body() -> int:
         from akd_ros import SetpointTrace, serve_iface, serve_udp
 
-        drives = f"{args.count} virtual AKD{'s' if args.count > 1 else ''}"
+        drives = f"line {args.line}" if args.line else f"{args.count} virtual AKD{'s' if args.count > 1 else ''}"
         trace = SetpointTrace(args.setpoint_trace) if args.setpoint_trace else None
+        where = f"udp {args.udp}" if args.udp else f"interface {args.iface}"
+
+        def on_start(simulator) -> None:
+            # Said once the line is made: a line that cannot be made is said instead.
+            print(f"akd-sim: starting {drives} on {where}", flush=True)
+            start_commands(simulator)
+
         options = {
-            "on_start": start_commands,
+            "on_start": on_start,
             "missed": args.missed,
             "pace": args.pace,
             "setpoint_trace": trace,
             "on_stop": lambda stats: print(served_line(stats), flush=True),
+            "line": args.line,
         }
         try:
             if args.udp:
                 host, port = parse_host_port(args.udp)
-                print(f"akd-sim: starting {drives} on udp {host}:{port}", flush=True)
                 serve_udp(host, port, args.count, **options)
             else:
-                print(f"akd-sim: starting {drives} on interface {args.iface}", flush=True)
                 serve_iface(args.iface, args.count, busy_poll=args.busy_poll, **options)
         except KeyboardInterrupt:
             # SIGINT and SIGTERM are how a simulator is meant to stop; a second signal while

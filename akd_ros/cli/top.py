@@ -1,6 +1,7 @@
 """akd-top: a live terminal view of a bus's joints (DS402 state, mode, position, velocity, torque, following error, last
-fault), its cycle statistics and distributed clocks, with keys that enable, disable, quick-stop, reset or arm a latch
-of the selected joint, each after a confirmation.
+fault), its cycle statistics and distributed clocks, and its line (each slave's ports: link, the other end, error
+counters, highlighted when they rose, and the worst place said in the cable's words), with keys that enable, disable,
+quick-stop, reset or arm a latch of the selected joint, each after a confirmation.
 
 It runs a link itself (LINK: the drives are opened with akd_ros.Bus and its cycle thread, no ROS), or attaches to a
 running akd_node (--attach ros over rclpy, --attach zenoh over rmw_zenoh's wire without ROS: its /joint_states,

@@ -20,6 +20,8 @@ One module per job, each a part that the node's `Core` is made of:
 - `trajectories`: ~/joint_trajectory and ~/trajectory_status;
 - `services`: the services over those requests;
 - `recording`: the bag of everything published and received, and of every cycle of every joint (`record.*`);
+- `live_view`: everything published, served to Foxglove over its WebSocket protocol, view only (`live_view.*`);
+  `foxglove_layout` the Foxglove layout of a node's joints, for it and for the bags;
 - `clock`: stamps, the cycle thread's monotonic times moved onto the ROS clock;
 - `node_state`: what the parts share (the settings, the clock; from configure to cleanup the Bus, the Recorder, the
   lock).

@@ -38,6 +38,13 @@ class Core:
         self.settings = settings
         self.failure: str | None = None
         """Why the last transition failed, for the log and the exit message."""
+        self._live_view = None
+        if settings.live_view is not None:
+            # Imported only when on: with the live view off the node imports no foxglove.
+            from akd_ros.node.live_view import LiveView
+
+            self._live_view = LiveView(settings.live_view, transport)
+            transport = self._live_view.transport
         self._transport = transport
         self._logger = transport.logger
         self._eoe_bridge: EoeBridge | None = None
@@ -92,14 +99,21 @@ class Core:
 
     def configure(self) -> bool:
         """Opens the Bus: the line to Op and the cycle thread running, every drive disabled; with eoe.tap, the EoE
-        bridge."""
+        bridge; with live_view.port, first the live view."""
         self._node_state.goals.open()
+        if self._live_view is not None:
+            try:
+                self._live_view.open()
+            except OSError as e:
+                return self._fail(f"parameters live_view.*: {e}")
         tap = self._open_tap()
         try:
             configured = self._configure(tap)
         finally:
             if self._eoe_bridge is None and tap is not None:
                 tap.close()
+        if not configured and self._live_view is not None:
+            self._live_view.close()
         return configured
 
     def _open_tap(self) -> Tap | None:
@@ -204,8 +218,8 @@ class Core:
             self._logger.warning(f"closing: some action goals had not ended after {_GOALS_END_S:g} s")
 
     def close(self) -> None:
-        """Ends the action goals executing, stops publishing, disables the drives and returns the line to Init (does
-        nothing when not configured)."""
+        """Ends the action goals executing, stops publishing, disables the drives and returns the line to Init, and
+        closes the live view (does nothing when not configured)."""
         node_state = self._node_state
         self.end_goals()
         node_state.active = False
@@ -236,6 +250,8 @@ class Core:
                 self._logger.info(closed if self.settings.joint_namespaces else "closed: drive disabled, bus in Init")
             if lost:
                 self._logger.warning(f"recording: {lost} per-cycle records were not taken in time, not in the bag")
+        if self._live_view is not None:
+            self._live_view.close()
         if recorder is not None:
             stats = recorder.close()
             self._logger.info(

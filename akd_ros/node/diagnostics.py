@@ -11,7 +11,12 @@ is WARN at least, and says so in the drive's words. The bus's status (`akd_node:
 Fault or unreachable, WARN when a fault counter grew since the last report or the last frame did not come back; its
 values carry the link, the cycle statistics and the distributed clocks. One counter, f125_stalls (the cycle stalled
 8.5 periods or more with a drive enabled), is also logged as a warning when it grows: a real AKD raises F125 there,
-virtual AKDs with `missed=warn` go on (docs/virtual_akd.md)."""
+virtual AKDs with `missed=warn` go on (docs/virtual_akd.md).
+
+The line's links and error counters, as the reads beside the cycle found them, follow in statuses the crate makes
+(`Bus.line_diagnostics`, docs/reference/diagnostics.md): `akd_node: line`, naming the worst place (ERROR while a link
+is down, WARN while errors or lost links were counted in the last 10 s), and `akd_node: line slave N` for each slave,
+its ports' links and counters."""
 
 from __future__ import annotations
 
@@ -122,6 +127,7 @@ class Diagnostics:
         statuses = [self._joint_status(bus[j], state, dc_status, recovery[j], ios[j]) for j, state in states.items()]
         lost = [joint for joint, r in recovery.items() if r["recovering"]]
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
+        statuses += [(level, f"{self._node_name}: {what}", *rest) for level, what, *rest in bus.line_diagnostics()]
         # The message's body is the crate's to make: no message object per key and value.
         stamp_ns = self._clock.now_ns()
         self.publisher.publish_serialized(_native.diagnostic_array(stamp_ns, statuses), stamp_ns)

@@ -4,7 +4,7 @@
 How the node publishes, and where a new publication goes
 --------------------------------------------------------
 
-/joint_states and each joint's status are made by the crate (`akd_ros._native.Feed`, see `native/src/node/feed.rs`):
+/joint_states and each joint's status are made by the crate (`akd_ros._native.Feed`, see `native/src/ros/feed.rs`):
 from configure to cleanup a thread of the crate reads the cycle's snapshot at each stream's rate, makes the message
 bodies (CDR, serialised by `cdr-encoding` from the .msg fields) and hands them out. One Python thread of this part
 (`akd-publish`) waits for them with the GIL released and hands each to its publisher as bytes
@@ -22,12 +22,12 @@ of the drive's inputs: this thread hands the cycle's event of it to the feed (`F
 message, stamped with the cycle that showed the change, and hands it out and records it as the periodic ones, so an
 edge is neither late by a period nor lost between two. Another periodic publication
 is added so: its message struct and its making
-from the snapshot in the crate (a `Kind` of `native/src/node/feed.rs`; on change: compared there with what it last
+from the snapshot in the crate (a `Kind` of `native/src/ros/feed.rs`; on change: compared there with what it last
 made, at its stream's check rate), a `Feed.add_...` stream here in `_start_feed` with its period, and its publisher in
 `self._streams` by the stream's id (recorded with `take_stream_from` when the topic is in the bag). Nothing of it runs
 in Python but the publish call. A publication that must go through an rclpy API taking message objects (an action's
 feedback) takes the same snapshot-derived values from the crate at its own rate and builds its message there, at that
-rate, never per cycle.
+rate, never per cycle. Any publisher made through the transport is in the live view too (`akd_ros.node.live_view`).
 """
 
 from __future__ import annotations

@@ -1,11 +1,13 @@
-"""akd-top's view (Textual): a table of one row per joint, the bus's line below it, the outcome of the last request,
-and the keys that ask the selected joint for something, each after a confirmation. Written once over
-`akd_ros.top.source.Source`."""
+"""akd-top's view (Textual): a table of one row per joint, the bus's line below it, the line's slaves with each port's
+link and error counters (a port whose counters rose in the last seconds highlighted, the worst place on the line said
+above them), the outcome of the last request, and the keys that ask the selected joint for something, each after a
+confirmation. Written once over `akd_ros.top.source.Source`."""
 
 from __future__ import annotations
 
 from typing import ClassVar
 
+from rich.text import Text
 from textual import work
 from textual.app import App, ComposeResult
 from textual.binding import Binding
@@ -13,7 +15,7 @@ from textual.containers import Grid
 from textual.screen import ModalScreen
 from textual.widgets import Button, DataTable, Footer, Header, Label, Static
 
-from akd_ros.top.source import Source
+from akd_ros.top.source import LineView, Source
 
 COLUMNS = (
     ("joint", "joint"),
@@ -26,6 +28,21 @@ COLUMNS = (
     ("fault", "last fault"),
     ("io", "I/O"),
 )
+LINE_COLUMNS = (
+    ("slave", "slave"),
+    ("port", "port"),
+    ("link", "link"),
+    ("peer", "other end"),
+    ("invalid_frames", "invalid frames"),
+    ("rx_errors", "RX errors"),
+    ("forwarded_errors", "forwarded"),
+    ("lost_links", "lost links"),
+    ("window", "lately"),
+)
+"""The line table's columns: one row per port of each slave, its counters since the start, then what they counted
+over the last seconds."""
+LEVEL_STYLES = {0: "", 1: "bold yellow", 2: "bold red"}
+"""How a row of the line is shown by its status's level: a port whose counters rose, or a slave out of reach."""
 REFRESH_S = 0.1
 """How often the view reads its source."""
 ACTION_WORDS = {
@@ -119,21 +136,29 @@ class Top(App):
         """What the last request came to, as the status line shows it."""
         self.bus_text = ""
         """The bus's lines as shown."""
+        self.line_text = ""
+        """The line's summary as shown."""
 
     def compose(self) -> ComposeResult:
         # Kept, not queried: a query looks in the screen on top, which is a confirmation while one is open.
         self.table = DataTable(id="joints", cursor_type="row", zebra_stripes=True)
         self.bus_line = Static(id="bus")
+        self.line_summary = Static(id="line")
+        self.line_table = DataTable(id="ports", cursor_type="none", zebra_stripes=True)
         self.outcome_line = Static(id="outcome")
         yield Header()
         yield self.table
         yield self.bus_line
+        yield self.line_summary
+        yield self.line_table
         yield self.outcome_line
         yield Footer()
 
     def on_mount(self) -> None:
         for key, label in COLUMNS:
             self.table.add_column(label, key=key)
+        for key, label in LINE_COLUMNS:
+            self.line_table.add_column(label, key=key)
         self.show()
         self.set_interval(self.refresh_s, self.show)
 
@@ -141,10 +166,11 @@ class Top(App):
         """Reads the source once and shows what it gives; what reading fails with goes to the status line (the view
         keeps showing what it had, and tries again at the next refresh)."""
         try:
-            rows, bus = self.source.rows(), self.source.bus_row()
+            rows, bus, line = self.source.rows(), self.source.bus_row(), self.source.line()
         except Exception as error:  # noqa: BLE001  (a view shows its source's failure, whatever it is, and goes on)
             self.outcome(f"reading the bus failed: {error}")
             return
+        self.show_line(line)
         table = self.table
         for row in rows:
             cells = {key: cell(getattr(row, key)) for key, _ in COLUMNS if key != "joint"}
@@ -156,6 +182,35 @@ class Top(App):
         stats = "  ".join(f"{k} {v}" for k, v in bus.stats.items())
         self.bus_text = f"bus {bus.link}: {stats}\nDC: {bus.dc}"
         self.bus_line.update(self.bus_text)
+
+    def show_line(self, line: LineView) -> None:
+        """The line's summary, and a row per port of each slave, styled as its slave's status where the port's counters
+        rose lately (or the slave is out of reach)."""
+        self.line_text = f"line: {line.summary}"
+        self.line_summary.update(Text(self.line_text, style=LEVEL_STYLES.get(line.level, "")))
+        table = self.line_table
+        for row in line.rows:
+            for port in row.ports:
+                key = f"{row.slave}:{port.port}"
+                style = LEVEL_STYLES.get(row.level, "") if port.rising or row.level == 2 else ""
+                name = f"{row.slave} ({row.name})" if row.name else str(row.slave)
+                texts = (
+                    name,
+                    str(port.port),
+                    port.link,
+                    port.peer,
+                    port.invalid_frames,
+                    port.rx_errors,
+                    port.forwarded_errors,
+                    port.lost_links,
+                    port.window,
+                )
+                cells = [Text(t, style=style) for t in texts]
+                if key not in table.rows:
+                    table.add_row(*cells, key=key)
+                    continue
+                for (column, _), text in zip(LINE_COLUMNS, cells, strict=True):
+                    table.update_cell(key, column, text, update_width=True)
 
     def selected(self) -> str | None:
         """The joint of the row under the cursor."""

@@ -1,7 +1,8 @@
 """akd-top's sources for a running akd_node, whatever the middleware: its joints from /joint_states, their state,
 mode and last fault from /diagnostics, position, velocity and effort from /joint_states, following error from each
 joint's `status`, faults from its `fault`, its drive's own I/O from its `io`, the bus's statistics and DC from the
-`<node>: bus` diagnostic status; requests through the joint's Trigger services and `arm_latch`. The middleware
+`<node>: bus` diagnostic status, the line's slaves from its `<node>: line` and `<node>: line slave N` statuses; requests
+through the joint's Trigger services and `arm_latch`. The middleware
 (`ros_source`: rclpy; `zenoh_source`: rmw_zenoh's wire without ROS) subscribes and calls.
 
 A joint's topics and services are `<node>/<joint>/...` with `joints`, `<node>/...` for a node of one joint without:
@@ -16,7 +17,7 @@ from abc import abstractmethod
 from collections.abc import Callable
 
 from akd_ros.top.direct import STATS_LABELS
-from akd_ros.top.source import SWITCH_WORDS, BusRow, JointRow, Source, check_action, io_text
+from akd_ros.top.source import SWITCH_WORDS, BusRow, JointRow, LineView, Source, check_action, io_text, line_view
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
@@ -40,6 +41,7 @@ class AttachedSource(Source):
         self._joints: list[str] = []
         self._joint_states: dict[str, tuple] = {}
         self._diagnostics: dict[str, dict[str, str]] = {}
+        self._line: dict[str, tuple] = {}
         self._following: dict[str, float] = {}
         self._faults: dict[str, str] = {}
         self._io: dict[str, str | None] = {}
@@ -89,7 +91,12 @@ class AttachedSource(Source):
         with self._lock:
             for status in message.status:
                 if status.name.startswith(prefix):
-                    self._diagnostics[status.name[len(prefix) :]] = {v.key: v.value for v in status.values}
+                    what = status.name[len(prefix) :]
+                    values = {v.key: v.value for v in status.values}
+                    self._diagnostics[what] = values
+                    if what == "line" or what.startswith("line slave "):
+                        level = status.level[0] if isinstance(status.level, bytes) else int(status.level)
+                        self._line[what] = (level, what, status.message, status.hardware_id, values)
 
     def _on_status(self, message) -> None:
         with self._lock:
@@ -132,6 +139,11 @@ class AttachedSource(Source):
             )
         stats = {k: values[k] for k in STATS_LABELS if k in values}
         return BusRow(values.get("link", f"{self.node_name} (no /diagnostics yet)"), stats, dc)
+
+    def line(self) -> LineView:
+        with self._lock:
+            statuses = list(self._line.values())
+        return line_view(statuses) if statuses else LineView(summary="no line statuses on /diagnostics yet")
 
     def _joint_call(self, joint: str, name: str, ros_type: str, fields: dict):
         """Calls the joint's service `name`, or the node's for the one joint of a node without joints."""

@@ -6,7 +6,7 @@ from __future__ import annotations
 from akd_ros import _native
 from akd_ros.axis import DriveConfig
 from akd_ros.bus import Bus
-from akd_ros.top.source import BusRow, JointRow, Source, check_action, io_text
+from akd_ros.top.source import BusRow, JointRow, LineView, Source, check_action, io_text, line_view
 
 STATS_LABELS = ("cycles", "overruns", "lost_frames", "wkc_errors", "period_mean_s", "period_max_s", "exchange_p99_s")
 """The cycle statistics shown, named as akd_node's /diagnostics names them (so both sources show the same)."""
@@ -85,6 +85,9 @@ class DirectSource(Source):
 
     def bus_row(self) -> BusRow:
         return BusRow(self.link, stats_texts(self.bus.stats()), dc_text(self.bus.cycle.dc_status()))
+
+    def line(self) -> LineView:
+        return line_view(self.bus.line_diagnostics())
 
     def request(self, joint: str, action: str) -> str:
         check_action(action)

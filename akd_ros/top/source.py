@@ -1,10 +1,14 @@
-"""What akd-top shows and asks, whatever it comes from: one `JointRow` per joint, one `BusRow`, and the requests a
-person makes of a joint. The view (`akd_ros.top.app`) is written once over this interface."""
+"""What akd-top shows and asks, whatever it comes from: one `JointRow` per joint, one `BusRow`, the line's slaves with
+their ports' links and error counters (`LineView`, read from the line's /diagnostics statuses by `line_view` whichever
+source gave them), and the requests a person makes of a joint. The view (`akd_ros.top.app`) is written once over this
+interface."""
 
 from __future__ import annotations
 
 import math
+import re
 from abc import ABC, abstractmethod
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 ACTIONS = ("enable", "disable", "quick_stop", "reset_fault")
@@ -36,6 +40,89 @@ class BusRow:
     dc: str = "unknown"
 
 
+@dataclass(frozen=True)
+class PortCell:
+    """One port of a slave of the line: its link, what is at its other end, its counters since the start (as text), and
+    what they counted over the last seconds (`window`, in words); `rising` when that is anything."""
+
+    port: int
+    link: str
+    peer: str
+    invalid_frames: str
+    rx_errors: str
+    forwarded_errors: str
+    lost_links: str
+    window: str
+    rising: bool
+
+
+@dataclass(frozen=True)
+class LineRow:
+    """One slave of the line: its position and name, its status's level (0 OK, 1 WARN, 2 ERROR) and message, its
+    ports."""
+
+    slave: int
+    name: str
+    level: int
+    message: str
+    ports: list[PortCell]
+
+
+@dataclass(frozen=True)
+class LineView:
+    """The line: its status's level and summary (the worst place, in the cable's words), and its slaves."""
+
+    level: int = 0
+    summary: str = "not read"
+    rows: list[LineRow] = field(default_factory=list)
+
+
+_PORT = re.compile(r"port(\d+)")
+
+
+def line_view(statuses: Iterable[tuple]) -> LineView:
+    """The line as its /diagnostics statuses give it (`Bus.line_diagnostics`' tuples, or those received, each
+    (level, what, message, hardware_id, values) with `what` "line" or "line slave N" and values (key, value) pairs or
+    a dict); the other statuses are passed over."""
+    view = LineView()
+    rows = []
+    for level, what, message, _, values in statuses:
+        values = dict(values)
+        if what == "line":
+            view = LineView(int(level), message)
+        elif what.startswith("line slave "):
+            ports = []
+            for key in values:
+                if (match := _PORT.fullmatch(key)) is None:
+                    continue
+                p = f"port{match[1]}"
+                window = values.get(p + "_window", "")
+                ports.append(
+                    PortCell(
+                        int(match[1]),
+                        values[key],
+                        values.get(p + "_peer", ""),
+                        *(values.get(f"{p}_{c}", "") for c in COUNTERS),
+                        window,
+                        bool(window) and not window.startswith("no errors"),
+                    )
+                )
+            rows.append(
+                LineRow(
+                    int(values.get("slave", what.rsplit(" ", 1)[-1])),
+                    values.get("name", ""),
+                    int(level),
+                    message,
+                    ports,
+                )
+            )
+    return LineView(view.level, view.summary, sorted(rows, key=lambda r: r.slave))
+
+
+COUNTERS = ("invalid_frames", "rx_errors", "forwarded_errors", "lost_links")
+"""A port's error counters, as the line's statuses name them."""
+
+
 class Source(ABC):
     """A bus akd-top shows. `rows` and `bus_row` are cheap and called from the view's timer; `request` and `arm_latch`
     may wait for the drive (up to a few seconds) and are called from a worker thread."""
@@ -47,6 +134,10 @@ class Source(ABC):
     @abstractmethod
     def bus_row(self) -> BusRow:
         """The bus's row."""
+
+    def line(self) -> LineView:
+        """The line's slaves with their ports' links and error counters; a source without them says so."""
+        return LineView(summary="not shown by this source")
 
     @abstractmethod
     def request(self, joint: str, action: str) -> str:

@@ -1,4 +1,5 @@
-"""A ROS node's publishers, subscriptions and services over one Zenoh session, as rmw_zenoh puts them on the wire.
+"""A ROS node's publishers, subscriptions, services and service clients over one Zenoh session, as rmw_zenoh puts
+them on the wire.
 
 Each entity declares its liveliness token (so graph tools on an rmw_zenoh system list it) and uses its data key
 expression; every sample, query and reply carries rmw_zenoh's attachment. What arrives without a valid
@@ -256,6 +257,36 @@ class Service:
         self._thread.join(timeout=5)
 
 
+class Client:
+    """A service client: `call` sends the request's CDR bytes as a query with the attachment an rmw_zenoh client
+    sends (sequence numbers from 1, the system clock's time, the client's GID, which the server's reply carries
+    back) and gives the reply's CDR bytes, or None where no server answered within the time-out."""
+
+    def __init__(self, session: zenoh.Session, entity: Entity) -> None:
+        self.entity = entity
+        self.key_expr = entity.data_key_expr()
+        self.gid = entity.gid
+        self._session = session
+        self._token = session.liveliness().declare_token(entity.liveliness_key())
+        self._lock = threading.Lock()
+        self._sequence_number = 0
+
+    def call(self, request: bytes, timeout: float) -> bytes | None:
+        """The reply to one request, waiting at most `timeout` seconds; None where none came."""
+        with self._lock:
+            self._sequence_number += 1
+            attachment = Attachment(self._sequence_number, time.time_ns(), self.gid)
+        replies = self._session.get(
+            self.key_expr, payload=bytes(request), attachment=attachment.encode(), timeout=timeout
+        )
+        answers = [reply.ok for reply in replies if reply.ok is not None]
+        return answers[0].payload.to_bytes() if answers else None
+
+    def close(self) -> None:
+        """Withdraws the token."""
+        self._token.undeclare()
+
+
 class ZenohNode:
     """A ROS node on one Zenoh session: its liveliness token and the entities it declares, named and typed as
     an rmw_zenoh node would name them (relative names under the namespace, `~` for the node's own)."""
@@ -279,7 +310,7 @@ class ZenohNode:
         self.node_id = next(self._ids)
         self.entity = node_entity(self.zid, self.node_id, self.info)
         self._token = session.liveliness().declare_token(self.entity.liveliness_key())
-        self._entities: list[Publisher | Subscription | Service] = []
+        self._entities: list[Publisher | Subscription | Service | Client] = []
 
     def _entity(self, kind: EntityKind, name: str, ros_type: str, qos: QoS) -> Entity:
         topic = TopicInfo(
@@ -333,6 +364,12 @@ class ZenohNode:
         )
         self._entities.append(service)
         return service
+
+    def client(self, name: str, ros_type: str, qos: QoS | None = None) -> Client:
+        """A client of the service `ros_type` (e.g. std_srvs/srv/Trigger) named `name`."""
+        client = Client(self.session, self._entity(EntityKind.CLIENT, name, ros_type, qos or SERVICES_QOS))
+        self._entities.append(client)
+        return client
 
     def dropped(self) -> int:
         """Samples and requests its subscriptions and services dropped so far (no or a malformed attachment, a

@@ -40,6 +40,7 @@ _GROUP_TITLES = {
     "eoe": "Ethernet over EtherCAT",
     "rt": "Real-time",
     "record": "Recording",
+    "live_view": "Live view (Foxglove)",
     "zenoh": "Zenoh",
 }
 

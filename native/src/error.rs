@@ -9,16 +9,16 @@
 use std::borrow::Cow;
 use std::fmt;
 
-use crate::coe::SdoAbortCode;
-pub use crate::eoe::EoeError;
-pub use crate::foe::FoeError;
-pub use crate::frame::FrameError;
-pub use crate::link_spec::LinkSpecError;
-pub use crate::mailbox::MailboxError;
-pub use crate::pdo::PdoError;
+pub use crate::drive::pdo::PdoError;
+pub use crate::drive::trajectory::TrajectoryError;
+use crate::ethercat::coe::SdoAbortCode;
+pub use crate::ethercat::eoe::EoeError;
+pub use crate::ethercat::foe::FoeError;
+pub use crate::ethercat::frame::FrameError;
+pub use crate::ethercat::link_spec::LinkSpecError;
+pub use crate::ethercat::mailbox::MailboxError;
+pub use crate::ethercat::sii::SiiError;
 pub use crate::setting::SettingError;
-pub use crate::sii::SiiError;
-pub use crate::trajectory::TrajectoryError;
 pub use crate::wire_code::UnknownCode;
 
 /// A name that is none of the allowed ones; the text lists them.
@@ -158,6 +158,13 @@ pub enum Unavailable {
         /// Slave position.
         slave: u16,
     },
+    /// Process data for a slave whose SII describes no sync manager to carry them.
+    NoSyncManager {
+        /// Slave position.
+        slave: u16,
+        /// The sync manager (2 for outputs, 3 for inputs).
+        n: u8,
+    },
     /// A latch asked of a slave whose mapping carries none.
     NoLatch {
         /// Slave position.
@@ -218,6 +225,11 @@ pub enum Unavailable {
         path: String,
         /// Why not: closed, or taken by another server.
         why: &'static str,
+    },
+    /// A virtual line with terminals asked of the master, which takes lines of AKDs only so far.
+    LineWithTerminals {
+        /// The line, as a spec names it.
+        line: String,
     },
     /// The virtual AKDs are gone with their master or server.
     SimulatorGone,
@@ -285,6 +297,9 @@ impl fmt::Display for Unavailable {
                 write!(f, "the drive cannot be sequenced: its mapping lacks {}", missing.join(" and "))
             }
             Unavailable::NoMapping { slave } => write!(f, "slave {slave} has no process-data mapping"),
+            Unavailable::NoSyncManager { slave, n } => {
+                write!(f, "slave {slave}'s SII describes no sync manager {n} to carry its process data")
+            }
             Unavailable::NoLatch { slave } => write!(
                 f,
                 "slave {slave}'s mapping carries no latch: map latch control 0x20A4 and latch status 0x20A5 with a \
@@ -343,6 +358,11 @@ impl fmt::Display for Unavailable {
             Unavailable::StepPastLimit { slave, detail } => {
                 write!(f, "slave {slave}: {detail}")
             }
+            Unavailable::LineWithTerminals { line } => write!(
+                f,
+                "the virtual line {line} holds terminals, and the master takes lines of AKDs only so far: name AKDs \
+                 only (sim:N), or serve the line with akd-sim --line {line} to another master"
+            ),
             Unavailable::SimulatorGone => {
                 write!(f, "the virtual AKDs are gone: their master was closed or their server stopped")
             }
@@ -437,9 +457,9 @@ pub enum Error {
         /// The position.
         slave: u16,
         /// What the scan found there.
-        expected: crate::sii::Identity,
+        expected: crate::ethercat::sii::Identity,
         /// What answers now.
-        found: crate::sii::Identity,
+        found: crate::ethercat::sii::Identity,
     },
     /// A slave position that is not on the bus.
     NoSuchSlave {

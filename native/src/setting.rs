@@ -67,10 +67,12 @@ pub enum SettingError {
         /// The value given.
         value: f64,
     },
-    /// A virtual AKD's Init→PreOp time that is no number of ms in 0..=10000.
-    InitToPreOp {
-        /// The time asked for, ms.
-        ms: f64,
+    /// A virtual line that is none (an unknown product, a terminal without a coupler in front).
+    SimLine {
+        /// The line as given.
+        line: String,
+        /// What is wrong with it.
+        error: crate::ethercat::link_spec::SimLineError,
     },
     /// A virtual AKD's mailbox size outside what the simulator builds.
     MailboxSize {
@@ -104,6 +106,8 @@ pub enum SettingError {
     Switch {
         /// The name given.
         name: String,
+        /// The switches' names.
+        allowed: Vec<&'static str>,
     },
     /// An analog voltage that is not a finite number within the range its 16-bit object holds.
     AnalogVoltage {
@@ -200,6 +204,72 @@ pub enum SettingError {
         /// Drives on the bus.
         count: usize,
     },
+    /// A virtual slave asked for what another kind of slave does (a fault of a terminal, the
+    /// I/O of a terminal of an AKD).
+    WrongSlave {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// What was asked, e.g. "fault".
+        what: &'static str,
+        /// The kind of slave that does it, e.g. "an AKD".
+        needs: &'static str,
+    },
+    /// A virtual terminal's input it does not have.
+    TerminalInput {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// The input asked for, from 1.
+        input: usize,
+        /// Its inputs of that kind (0: none).
+        count: usize,
+        /// "digital" or "analog".
+        kind: &'static str,
+    },
+    /// A virtual analog input terminal's input set beyond its range.
+    AnalogInputVolts {
+        /// The voltage asked for.
+        volts: f64,
+        /// The range's bound (±).
+        limit: f64,
+    },
+    /// A virtual terminal whose SII image cannot be read.
+    TerminalImage {
+        /// The product, as a line spec names it.
+        product: &'static str,
+        /// What is wrong with the image.
+        error: crate::ethercat::sii::SiiError,
+    },
+    /// A virtual slave's port its ESC does not have.
+    NoSuchPort {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// The port asked for.
+        port: usize,
+        /// The ports it has, e.g. "0, 1".
+        ports: String,
+    },
+    /// A port of a virtual slave that no cable of the virtual line reaches.
+    NoCable {
+        /// Its position.
+        position: usize,
+        /// The product it is, as a line spec names it.
+        product: &'static str,
+        /// The port asked for.
+        port: usize,
+        /// Why none does.
+        why: &'static str,
+    },
+    /// A cable fault spoiling one frame in every 0, or in a negative number of frames.
+    FrameSpacing {
+        /// The spacing given.
+        every: i64,
+    },
     /// A burst of simulated line faults of a negative number of frames.
     FrameCount {
         /// The number asked for.
@@ -258,9 +328,7 @@ impl fmt::Display for SettingError {
             SettingError::Seconds { what, value } => {
                 write!(f, "{what} must be a non-negative number of seconds, got {value}")
             }
-            SettingError::InitToPreOp { ms } => {
-                write!(f, "a virtual AKD's Init->PreOp time of {ms} ms: allowed are 0 to 10000 ms")
-            }
+            SettingError::SimLine { line, error } => write!(f, "line {line:?}: {error}"),
             SettingError::MailboxSize { size, min, max } => {
                 write!(f, "a virtual AKD's mailbox of {size} bytes: allowed are {min} to {max}")
             }
@@ -271,10 +339,7 @@ impl fmt::Display for SettingError {
             SettingError::TogglePosition { input, position } => {
                 write!(f, "toggle position {position} of digital input {input} is not a finite number of counts")
             }
-            SettingError::Switch { name } => {
-                let names: Vec<_> = crate::io::Switch::ALL.iter().map(|s| s.name()).collect();
-                write!(f, "switch {name:?} is not one of {}", names.join(", "))
-            }
+            SettingError::Switch { name, allowed } => write!(f, "switch {name:?} is not one of {}", allowed.join(", ")),
             SettingError::AnalogVoltage { what, volts, max } => {
                 write!(f, "{what} {volts} V: allowed a finite voltage within ±{max:.4} V")
             }
@@ -318,6 +383,30 @@ impl fmt::Display for SettingError {
             ),
             SettingError::DrivePosition { position, count } => {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
+            }
+            SettingError::WrongSlave { position, product, what, needs } => {
+                write!(f, "{what} needs {needs}: the slave at position {position} is an {product}")
+            }
+            SettingError::TerminalInput { position, product, input, count: 0, kind } => {
+                write!(f, "{kind} input {input}: the {product} at position {position} has no {kind} inputs")
+            }
+            SettingError::TerminalInput { position, product, input, count, kind } => {
+                write!(f, "{kind} input {input}: the {product} at position {position} has {kind} inputs 1 to {count}")
+            }
+            SettingError::AnalogInputVolts { volts, limit } => {
+                write!(f, "analog input of {volts} V: allowed are -{limit} to {limit} V")
+            }
+            SettingError::TerminalImage { product, error } => {
+                write!(f, "the virtual {product}'s SII image cannot be read: {error}")
+            }
+            SettingError::NoSuchPort { position, product, port, ports } => {
+                write!(f, "port {port}: the {product} at position {position} has ports {ports}")
+            }
+            SettingError::NoCable { position, product, port, why } => {
+                write!(f, "no cable at port {port} of the {product} at position {position}: {why}")
+            }
+            SettingError::FrameSpacing { every } => {
+                write!(f, "one frame in every {every}: allowed are 1 (each frame) or more")
             }
             SettingError::FrameCount { frames } => {
                 write!(f, "{frames} frames: allowed are 0 (ends the burst) or more")

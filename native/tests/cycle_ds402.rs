@@ -7,7 +7,8 @@ use std::time::{Duration, Instant};
 
 use akd_native::cycle::sequencer::{DriveStatus, Progress, Request};
 use akd_native::cycle::CycleThread;
-use akd_native::ds402::State;
+use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::ds402::State;
 use akd_native::sim::faults::Fault;
 use akd_native::sim::{Timing, VirtualBus};
 
@@ -105,9 +106,10 @@ fn a_fault_while_enabled_is_not_retried_and_the_reset_clears_it() {
 /// Three virtual AKDs in cyclic synchronous position, enabled, with a fault on the middle one:
 /// the states the other two end in.
 fn others_after_a_fault(quick_stop_on_fault: bool) -> [Option<State>; 2] {
-    use akd_native::al::AlState;
     use akd_native::cycle::Config;
-    use akd_native::master::{Mapping, Master};
+    use akd_native::drive::pdo::Mapping;
+    use akd_native::ethercat::al::AlState;
+    use akd_native::ethercat::master::Master;
 
     let bus = Arc::new(Mutex::new(VirtualBus::with_timing(3, Timing::IMMEDIATE)));
     let mut m = Master::new(Box::new(Shared::new(bus.clone())), Duration::from_millis(100));

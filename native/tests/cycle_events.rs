@@ -10,14 +10,14 @@ use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::events::{Action, Event, FaultSource};
 use akd_native::cycle::{Config, CycleThread, RealTime};
-use akd_native::ds402::State;
+use akd_native::drive::ds402::State;
 use akd_native::error::Result;
-use akd_native::frame::{self, Command, FrameBuilder};
-use akd_native::link::{is_reply_to, Link};
-use akd_native::registers::AL_CONTROL;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::frame::{self, Command, FrameBuilder};
+use akd_native::ethercat::link::{is_reply_to, Link};
+use akd_native::ethercat::registers::AL_CONTROL;
 use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
 

@@ -7,10 +7,11 @@
 use akd_native::cycle::events::Event;
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
-use akd_native::ds402::{statusword, Mode, State};
-use akd_native::io;
-use akd_native::master::Mapping;
-use akd_native::pdo::{self, PdoEntry};
+use akd_native::drive::ds402::{statusword, Mode, State};
+use akd_native::drive::io;
+use akd_native::drive::pdo;
+use akd_native::drive::pdo::Mapping;
+use akd_native::ethercat::pdo::{find, PdoEntry};
 use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
 
 #[path = "support/one_drive.rs"]
@@ -33,7 +34,7 @@ fn word(cycle: &CycleThread, (index, subindex): (u16, u8), sent: bool) -> i32 {
     let s = cycle.snapshot();
     let (entries, image) =
         if sent { (rx, cycle.outputs_of(&s, 0).unwrap()) } else { (tx, cycle.inputs_of(&s, 0).unwrap()) };
-    let (at, _) = pdo::find(entries, index, subindex).unwrap();
+    let (at, _) = find(entries, index, subindex).unwrap();
     i32::from_le_bytes(image[at..at + 4].try_into().unwrap())
 }
 

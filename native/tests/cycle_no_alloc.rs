@@ -5,7 +5,8 @@
 //! halt, its release and its quick stop) run in the watched cycles too; drive 1 (its
 //! interpolation set-point 0x60C1:01 mapped) follows a trajectory that another replaces half-way (both allocated in
 //! this thread, handed over and returned by the loop). Drive 0 is pinged through EoE meanwhile,
-//! small pings and large ones in fragments.
+//! small pings and large ones in fragments. The line's links and error counters are read beside
+//! the cycle every 20 ms meanwhile.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::net::{SocketAddr, UdpSocket};
@@ -13,17 +14,18 @@ use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{handshake, Config, CycleThread, RealTime, Snapshot};
-use akd_native::ds402::{Mode, State};
-use akd_native::link::udp::Udp;
-use akd_native::link_spec::MissedFrames;
-use akd_native::master::Master;
+use akd_native::drive::akd::{AkdLine, AkdSlave};
+use akd_native::drive::ds402::{Mode, State};
+use akd_native::drive::trajectory::Knot;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link::udp::Udp;
+use akd_native::ethercat::link_spec::MissedFrames;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::{server, Timing, VirtualBus};
-use akd_native::trajectory::Knot;
 
 #[path = "support/ethernet.rs"]
 mod ethernet;
@@ -114,7 +116,7 @@ fn loop_allocates_nothing(pipelined: bool) {
     m.request_state(AlState::PreOp, Duration::from_secs(5)).unwrap();
     let mac = [0x02, 0x01, 0x05, 0x30, 0x10, 0x01];
     let ip = std::net::Ipv4Addr::new(192, 168, 0, 10);
-    let parameters = akd_native::eoe::IpParameters {
+    let parameters = akd_native::ethercat::eoe::IpParameters {
         mac: Some(mac),
         ip: Some(ip),
         subnet_mask: Some(std::net::Ipv4Addr::new(255, 255, 255, 0)),
@@ -128,8 +130,11 @@ fn loop_allocates_nothing(pipelined: bool) {
     m.slave_mut(2).unwrap().configure_pdo(rx, tx).unwrap();
     m.slave_mut(2).unwrap().sdo_write(0x6060, 0, &[Mode::ProfilePosition as u8]).unwrap();
     m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
-    let config =
-        Config { realtime: RealTime { pipelined, ..RealTime::default() }, ..Config::new(Duration::from_millis(1)) };
+    let config = Config {
+        realtime: RealTime { pipelined, ..RealTime::default() },
+        line_health: Some(Duration::from_millis(20)),
+        ..Config::new(Duration::from_millis(1))
+    };
     let cycle = CycleThread::start(m, config).map_err(|e| e.0).unwrap();
     let started = wait_for_cycle(&cycle, 5);
     WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);
@@ -137,6 +142,7 @@ fn loop_allocates_nothing(pipelined: bool) {
     drop(std::hint::black_box(Vec::<u8>::with_capacity(8)));
     let armed = wait_for_cycle(&cycle, started.cycle);
     let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let line_reads = cycle.line_health().health.reads;
     // Set-points written, drives sequenced and snapshots read meanwhile, as a user would.
     cycle.request(1, Request::Enable).unwrap();
     let (trajectories, pings) = std::thread::scope(|scope| {
@@ -149,6 +155,7 @@ fn loop_allocates_nothing(pipelined: bool) {
     let last = wait_for_cycle(&cycle, armed.cycle + 300);
     let during = ALLOCATIONS.load(Ordering::SeqCst) - before;
     WATCHED.store(0, Ordering::SeqCst);
+    let line_reads = cycle.line_health().health.reads - line_reads;
     let stats = cycle.stats();
     let (lost, wkc) = (stats.lost_frames.load(Ordering::Relaxed), stats.wkc_errors.load(Ordering::Relaxed));
     // The sequencer did run in those cycles.
@@ -178,25 +185,44 @@ fn loop_allocates_nothing(pipelined: bool) {
         assert_eq!(command_timeouts, 2);
         assert_eq!(pings, 20, "echo replies");
     }
+    assert!(line_reads > 0, "the line's health was not read in the cycles watched");
     assert_eq!(during, 0, "allocations in {} cycles (pipelined {pipelined})", last.cycle - armed.cycle);
     drop(master);
 }
 
 /// Drive 0 pinged 20 times through EoE, every other ping of 1400 bytes (two fragments each
-/// way), 10 ms apart; the echo replies received. (Back to back, a debug build's cycle carrying
-/// a fragment in most cycles over UDP overran its 1 ms in about half of them.)
+/// way), 10 ms apart; the pings answered. Each reply is judged by its own sequence number, so
+/// one that comes after the next ping went out is still its own ping's: each ping waits up to
+/// a second for its reply, and those still missing at the end up to ten seconds more. (Back to
+/// back, a debug build's cycle carrying a fragment in most cycles over UDP overran its 1 ms in
+/// about half of them.)
 fn pings(cycle: &CycleThread, mac: [u8; 6], ip: std::net::Ipv4Addr) -> usize {
+    const PINGS: u16 = 20;
+    let data = |seq_no: u16| vec![seq_no as u8; if seq_no.is_multiple_of(2) { 56 } else { 1400 }];
     // The drive's announcement and its answer to the ARP request, sent before the cycle.
     while cycle.eoe_receive(Duration::from_millis(100)).is_some_and(|(_, f)| f[12..14] == [0x08, 0x06]) {}
-    (0..20u16)
-        .filter(|&seq_no| {
-            std::thread::sleep(Duration::from_millis(10));
-            let data = vec![seq_no as u8; if seq_no % 2 == 0 { 56 } else { 1400 }];
-            cycle.eoe_send(0, &ethernet::ping(ip, mac, &data, seq_no)).unwrap();
-            let reply = cycle.eoe_receive(Duration::from_secs(1));
-            reply.inspect(|(_, frame)| ethernet::check_echo_reply(frame, ip, &data, seq_no)).is_some()
-        })
-        .count()
+    // Takes the next reply within `timeout`, if one comes, checked against its own ping.
+    let take = |answered: &mut [bool], timeout| {
+        let Some((_, frame)) = cycle.eoe_receive(timeout) else { return };
+        let (seq_no, _) = ethernet::echo_reply(&frame, ip).expect("an echo reply");
+        ethernet::check_echo_reply(&frame, ip, &data(seq_no), seq_no);
+        let seen = answered.get_mut(seq_no as usize).expect("the reply of a ping sent");
+        assert!(!std::mem::replace(seen, true), "ping {seq_no} answered twice");
+    };
+    let mut answered = [false; PINGS as usize];
+    for seq_no in 0..PINGS {
+        std::thread::sleep(Duration::from_millis(10));
+        cycle.eoe_send(0, &ethernet::ping(ip, mac, &data(seq_no), seq_no)).unwrap();
+        let deadline = Instant::now() + Duration::from_secs(1);
+        while !answered[seq_no as usize] && Instant::now() < deadline {
+            take(&mut answered, Duration::from_millis(100));
+        }
+    }
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while answered.contains(&false) && Instant::now() < deadline {
+        take(&mut answered, Duration::from_millis(100));
+    }
+    answered.iter().filter(|&&a| a).count()
 }
 
 /// Drive 0's set-points written and its requests made, as a user would.

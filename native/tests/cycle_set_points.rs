@@ -8,8 +8,8 @@ use akd_native::cycle::events::{CommandTimeoutAction, CommandedTarget, Event};
 use akd_native::cycle::handshake::{Progress, Stuck};
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
-use akd_native::ds402::{controlword as cw, Mode, State};
-use akd_native::master::Mapping;
+use akd_native::drive::ds402::{controlword as cw, Mode, State};
+use akd_native::drive::pdo::Mapping;
 
 #[path = "support/one_drive.rs"]
 mod one_drive;

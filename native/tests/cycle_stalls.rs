@@ -10,10 +10,10 @@ use std::time::{Duration, Instant};
 
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::CycleThread;
-use akd_native::ds402::State;
+use akd_native::drive::ds402::State;
 use akd_native::error::Result;
-use akd_native::link::Link;
-use akd_native::link_spec::MissedFrames;
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::link_spec::MissedFrames;
 use akd_native::sim::faults::Fault;
 use akd_native::sim::{Timing, VirtualBus};
 

@@ -14,19 +14,21 @@
 use std::panic::{catch_unwind, resume_unwind, AssertUnwindSafe};
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::events::{Event, TrajectoryState};
 use akd_native::cycle::samples::Sample;
 use akd_native::cycle::sequencer::Request;
 use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{Config, CycleThread};
-use akd_native::ds402::{statusword, Mode, State};
-use akd_native::master::{Mapping, Master};
-use akd_native::pdo;
+use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::ds402::{statusword, Mode, State};
+use akd_native::drive::pdo;
+use akd_native::drive::pdo::Mapping;
+use akd_native::drive::trajectory::{JointLimits, Knot, Limits, Scale, Setpoint, Trajectory};
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::control::SimControl;
 use akd_native::sim::faults::Fault;
 use akd_native::sim::in_process::InProcess;
-use akd_native::trajectory::{JointLimits, Knot, Limits, Scale, Setpoint, Trajectory};
 
 const STEP: Duration = Duration::from_secs(5);
 const DRIVES: [u16; 3] = [0, 1, 2];
@@ -40,7 +42,8 @@ fn rig() -> (CycleThread, SimControl) {
     m.scan().unwrap();
     m.request_state(AlState::PreOp, STEP).unwrap();
     let default = || {
-        let pdos = |p: &[&[pdo::PdoEntry]]| Mapping::Flexible(p.iter().map(|e| e.to_vec()).collect());
+        let pdos =
+            |p: &[&[akd_native::ethercat::pdo::PdoEntry]]| Mapping::Flexible(p.iter().map(|e| e.to_vec()).collect());
         (pdos(&pdo::DEFAULT_RX), pdos(&pdo::DEFAULT_TX))
     };
     let setups = [

@@ -3,18 +3,21 @@
 //! cyclic frame carries the drift FRMW and one drive's system-time difference read; with DC
 //! off, SYNC0 stays off and FBUS.PARAM02 = 0, the drives follow SM2; a shift of a cycle or more
 //! is refused; FBUS.PARAM02 is written only to a drive whose SDO information names the object
-//! so. The drives' own view comes from the bus behind the link, not from the master.
+//! so; a drive the cycle restores after a power cycle is told its clock and its mode again. The
+//! drives' own view comes from the bus behind the link, not from the master.
 
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
-use akd_native::dc;
+use akd_native::drive::akd::AkdLine;
+use akd_native::drive::ds402::Mode;
+use akd_native::drive::sync;
 use akd_native::error::Result;
-use akd_native::frame::{self, Command};
-use akd_native::link::Link;
-use akd_native::master::Master;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::frame::{self, Command};
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::pll::{SyncSource, SyncState};
 
@@ -85,7 +88,7 @@ impl Rig {
 #[test]
 fn dc_on_every_drive_runs_sync0_at_the_cycle_with_the_shift_and_every_frame_keeps_the_clocks() {
     let mut rig = Rig::new();
-    rig.m.configure_dc(CYCLE_NS, -250_000).unwrap();
+    let param02 = rig.m.configure_dc(CYCLE_NS, -250_000).unwrap();
     for position in 0..DRIVES {
         let s = rig.sync(position);
         assert!(s.sync0_active, "drive {position}: {s:?}");
@@ -95,7 +98,7 @@ fn dc_on_every_drive_runs_sync0_at_the_cycle_with_the_shift_and_every_frame_keep
     }
     let clock = rig.m.clock().unwrap().clone();
     assert_eq!((clock.cycle_ns, clock.shift_ns, clock.reference_position), (CYCLE_NS, -250_000, 0));
-    assert!(clock.slaves.iter().all(|s| s.fbus_param02 == Some(1)), "{:?}", clock.slaves);
+    assert_eq!(param02, [Some(1); DRIVES]);
     rig.m.request_state(AlState::Op, STEP).unwrap();
     let before = std::mem::take(&mut *rig.seen.lock().unwrap());
     let reads_before = rig.m.clock().unwrap().difference_reads;
@@ -150,9 +153,10 @@ fn a_shift_of_a_cycle_or_more_is_refused_and_nothing_is_started() {
 #[test]
 fn the_cycle_thread_publishes_every_drives_system_time_difference() {
     let mut rig = Rig::new();
-    rig.m.configure_dc(CYCLE_NS, 100_000).unwrap();
+    let fbus_param02 = rig.m.configure_dc(CYCLE_NS, 100_000).unwrap();
     rig.m.request_state(AlState::Op, STEP).unwrap();
-    let cycle = CycleThread::start(rig.m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let config = Config { fbus_param02, ..Config::new(Duration::from_millis(1)) };
+    let cycle = CycleThread::start(rig.m, config).map_err(|e| e.0).unwrap();
     let deadline = std::time::Instant::now() + STEP;
     let status = loop {
         let status = cycle.dc_status().unwrap();
@@ -178,21 +182,53 @@ fn fbus_param02_is_left_alone_on_a_drive_without_the_object_or_naming_it_otherwi
         let mut bus = rig.bus.lock().unwrap();
         // Drive 1 has another parameter at the modelled index; drive 2 has no object there.
         let od = bus.bus_mut().slave_mut(1).od_mut();
-        let mut other = od.object(dc::FBUS_PARAM02).unwrap().clone();
+        let mut other = od.object(sync::FBUS_PARAM02).unwrap().clone();
         (other.name, other.entries[0].name) = ("DRV.OTHER", "DRV.OTHER");
         od.insert(other);
-        bus.bus_mut().slave_mut(2).od_mut().remove(dc::FBUS_PARAM02).unwrap();
+        bus.bus_mut().slave_mut(2).od_mut().remove(sync::FBUS_PARAM02).unwrap();
     }
-    rig.m.configure_dc(CYCLE_NS, 0).unwrap();
-    let param02: Vec<_> = rig.m.clock().unwrap().slaves.iter().map(|s| s.fbus_param02).collect();
+    let param02 = rig.m.configure_dc(CYCLE_NS, 0).unwrap();
     assert_eq!(param02, [Some(1), None, None], "unknown where not confirmed");
-    let drive_1 = rig.bus.lock().unwrap().bus().slave(1).od().get(dc::FBUS_PARAM02, 0).unwrap().to_vec();
+    let drive_1 = rig.bus.lock().unwrap().bus().slave(1).od().get(sync::FBUS_PARAM02, 0).unwrap().to_vec();
     assert_eq!(drive_1, [0; 4], "the object named otherwise was not written");
     // SYNC0 and the cycle time are still set on every drive; only drive 0's PLL follows SYNC0.
     let sources: Vec<_> = (0..DRIVES).map(|p| rig.sync(p)).map(|s| (s.sync0_active, s.source)).collect();
     assert_eq!(sources, [(true, SyncSource::Sync0), (true, SyncSource::Sm2), (true, SyncSource::Sm2)]);
     assert!((0..DRIVES).all(|p| rig.sync(p).cycle_ns == Some(CYCLE_NS as u64)));
     rig.m.configure_sm2_sync(CYCLE_NS).unwrap();
-    let drive_1 = rig.bus.lock().unwrap().bus().slave(1).od().get(dc::FBUS_PARAM02, 0).unwrap().to_vec();
+    let drive_1 = rig.bus.lock().unwrap().bus().slave(1).od().get(sync::FBUS_PARAM02, 0).unwrap().to_vec();
     assert_eq!(drive_1, [0; 4], "nor written with DC off");
+}
+
+#[test]
+fn a_drive_restored_by_the_cycle_is_told_its_clock_and_its_mode_again() {
+    for dc in [true, false] {
+        let Rig { mut m, bus, .. } = Rig::new();
+        let fbus_param02 = if dc { m.configure_dc(CYCLE_NS, 0) } else { m.configure_sm2_sync(CYCLE_NS) }.unwrap();
+        // Neither the drive's power-up mode (none) nor its power-up cycle time (2 ms): a power
+        // cycle forgets both, and only the restore gives them back.
+        let mode = Mode::CyclicSynchronousPosition as u8;
+        m.slave_mut(1).unwrap().sdo_write(0x6060, 0, &[mode]).unwrap();
+        m.request_state(AlState::Op, STEP).unwrap();
+        let config = Config { fbus_param02, ..Config::new(Duration::from_nanos(CYCLE_NS.into())) };
+        let cycle = CycleThread::start(m, config).map_err(|e| e.0).unwrap();
+        bus.lock().unwrap().bus_mut().slave_mut(1).power_cycle();
+        let deadline = Instant::now() + 4 * STEP;
+        while cycle.recovery_status(1).unwrap().recoveries == 0 {
+            assert!(Instant::now() < deadline, "dc {dc}: never restored: {:?}", cycle.recovery_status(1));
+            std::thread::sleep(Duration::from_millis(2));
+        }
+        let (sync, modes) = {
+            let bus = bus.lock().unwrap();
+            (bus.bus().slave(1).sync_state(), bus.bus().slave(1).od().get(0x6060, 0).unwrap().to_vec())
+        };
+        let clock = (sync.sync0_active, sync.fbus_param02, sync.cycle_ns, sync.source, sync.pll_locked);
+        let expected = match dc {
+            true => (true, 1, Some(CYCLE_NS as u64), SyncSource::Sync0, true),
+            false => (false, 0, Some(CYCLE_NS as u64), SyncSource::Sm2, false),
+        };
+        assert_eq!(clock, expected, "dc {dc}");
+        assert_eq!(modes, [mode], "dc {dc}");
+        cycle.stop().unwrap();
+    }
 }

@@ -8,12 +8,14 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
-use akd_native::ds402::{controlword as cw, statusword as sw, State};
+use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::ds402::{controlword as cw, statusword as sw, State};
+use akd_native::drive::pdo::Mapping;
 use akd_native::error::Result;
-use akd_native::link::{Link, Returns};
-use akd_native::master::{Mapping, Master};
-use akd_native::pdo::{self, PdoEntry};
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link::{Link, Returns};
+use akd_native::ethercat::master::Master;
+use akd_native::ethercat::pdo::{self, PdoEntry};
 use akd_native::sim::faults::Fault;
 use akd_native::sim::{Timing, VirtualBus};
 

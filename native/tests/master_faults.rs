@@ -4,10 +4,10 @@
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::error::Result;
-use akd_native::link::Link;
-use akd_native::master::Master;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 use proptest::prelude::*;

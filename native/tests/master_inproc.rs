@@ -6,13 +6,16 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
-use akd_native::coe::{data_type, ObjectCode, OdListType, SdoAbortCode};
+use akd_native::drive::akd::{AkdLine, AkdSlave};
+use akd_native::drive::pdo;
+use akd_native::drive::pdo::Mapping;
 use akd_native::error::{Error, Result};
-use akd_native::frame::{self, Command};
-use akd_native::link::Link;
-use akd_native::master::{Mapping, Master};
-use akd_native::pdo::{self, Direction, PdoEntry};
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::coe::{data_type, ObjectCode, OdListType, SdoAbortCode};
+use akd_native::ethercat::frame::{self, Command};
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::master::Master;
+use akd_native::ethercat::pdo::{bit_len, layout, Direction, PdoEntry};
 use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
@@ -36,7 +39,7 @@ fn raw_al_request(m: &mut Master, position: u16, state: AlState) {
 
 /// Byte offset of `index` in a mapping's entries.
 fn offset_of(entries: &[PdoEntry], index: u16) -> Option<usize> {
-    pdo::layout(entries.iter().copied()).find(|(_, e)| e.index == index).map(|(at, _)| at)
+    layout(entries.iter().copied()).find(|(_, e)| e.index == index).map(|(at, _)| at)
 }
 
 #[test]
@@ -79,9 +82,9 @@ fn esc_information_and_dl_control_read_as_the_real_drives() {
 }
 
 /// Time from the request of PreOp until the master sees it, against a drive whose firmware
-/// takes `init_to_preop_ns` for it.
-fn init_to_preop_duration(init_to_preop_ns: u64) -> Duration {
-    let timing = Timing { init_to_preop_ns, ..Timing::REAL_DRIVE };
+/// takes `first_init_to_preop_ns` for its first since power-up.
+fn init_to_preop_duration(first_init_to_preop_ns: u64) -> Duration {
+    let timing = Timing { first_init_to_preop_ns, ..Timing::REAL_DRIVE };
     let link = InProcess::with_bus(VirtualBus::with_timing(1, timing));
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();
@@ -97,17 +100,44 @@ fn init_to_preop_duration(init_to_preop_ns: u64) -> Duration {
 fn init_to_preop_takes_the_firmwares_time_and_the_master_waits_for_it() {
     // The real drive's pace under TwinCAT (the default: 17.5 ms) and that of the drive in the
     // SOEM capture (4.2-6.2 ms); the bound leaves room for a loaded machine.
-    for (firmware_ns, bound) in [(Timing::REAL_DRIVE.init_to_preop_ns, 100), (4_500_000, 50)] {
+    for (firmware_ns, bound) in [(Timing::REAL_DRIVE.first_init_to_preop_ns, 100), (4_500_000, 50)] {
         let took = init_to_preop_duration(firmware_ns);
         assert!(took >= Duration::from_nanos(firmware_ns), "{took:?} for {firmware_ns} ns");
         assert!(took < Duration::from_millis(bound), "{took:?} for {firmware_ns} ns");
     }
 }
 
+/// The master knows no AKD: a drive given no process data gets what its SII assigns, which
+/// for the AKD is the drive profile's default fixed mapping, assigned over CoE.
+#[test]
+fn the_master_configures_a_drive_at_the_real_drives_pace_within_its_time_outs() {
+    // The first Init→PreOp after power-up takes 17.5 ms, the first mailbox reply 30 ms, the
+    // later ones 4.5 ms and 1 ms; the master's time-outs hold them all.
+    let link = InProcess::with_bus(VirtualBus::with_timing(1, Timing::REAL_DRIVE));
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let start = std::time::Instant::now();
+    assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
+    assert!(start.elapsed() >= Duration::from_millis(30), "first reply after {:?}", start.elapsed());
+    m.request_state(AlState::Op, STEP).unwrap();
+    assert_eq!(m.exchange().unwrap(), 3);
+    m.request_state(AlState::Init, STEP).unwrap();
+    let start = std::time::Instant::now();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let took = start.elapsed();
+    assert!(took >= Duration::from_micros(4_500), "{took:?}");
+    m.request_state(AlState::Op, STEP).unwrap();
+    assert_eq!(m.exchange().unwrap(), 3);
+}
+
 #[test]
 fn reaches_op_with_the_default_mapping_and_three_wkc_per_slave() {
     let mut m = master(2);
     m.request_state(AlState::Op, STEP).unwrap();
+    let (rx, tx) = (Mapping::Fixed(pdo::DEFAULT_FIXED.0), Mapping::Fixed(pdo::DEFAULT_FIXED.1));
+    let profiles = Mapping::process_data(&rx, &tx).unwrap();
+    assert_eq!(m.slave_mut(0).unwrap().info().process_data.as_ref(), Some(&profiles));
     for position in 0..2 {
         assert_eq!(m.slave_mut(position).unwrap().al_status().unwrap().state(), Some(AlState::Op));
         assert_eq!(m.slave_mut(position).unwrap().outputs().unwrap().len(), 6);
@@ -153,8 +183,8 @@ fn every_fixed_mapping_exchanges_process_data() {
         assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1C13, 1).unwrap(), tx.to_le_bytes(), "0x1C13:01 for {tx:04X}");
         m.request_state(AlState::Op, STEP).unwrap_or_else(|e| panic!("0x{rx:04X}/0x{tx:04X}: {e}"));
         let (rx_entries, tx_entries) = (pdo::fixed(rx).unwrap().entries, pdo::fixed(tx).unwrap().entries);
-        assert_eq!(m.slave_mut(0).unwrap().outputs().unwrap().len(), pdo::bit_len(rx_entries) / 8);
-        assert_eq!(m.slave_mut(0).unwrap().inputs().unwrap().len(), pdo::bit_len(tx_entries) / 8);
+        assert_eq!(m.slave_mut(0).unwrap().outputs().unwrap().len(), bit_len(rx_entries) / 8);
+        assert_eq!(m.slave_mut(0).unwrap().inputs().unwrap().len(), bit_len(tx_entries) / 8);
         assert_eq!(m.expected_wkc().unwrap(), 3);
         check_process_data(&mut m, 0, rx_entries, tx_entries);
     }
@@ -451,7 +481,7 @@ fn process_data_sent_now_is_taken_later_with_mailbox_frames_between() {
 #[test]
 fn a_late_reply_to_a_request_given_up_is_not_taken_for_the_next_ones() {
     // A drive whose firmware takes 50 ms per mailbox message, asked with a 1 ms time-out.
-    let slow = Timing { mailbox_ns: 50_000_000, ..Timing::IMMEDIATE };
+    let slow = Timing { first_mailbox_ns: 50_000_000, mailbox_ns: 50_000_000, ..Timing::IMMEDIATE };
     let link = InProcess::with_bus(VirtualBus::with_timing(1, slow));
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();
@@ -520,7 +550,9 @@ fn clocks_read_the_masters_time_and_follow_the_reference() {
     m.configure_dc(1_000_000, 0).unwrap();
     // The reference clock was set to the master's time (ns since 2000).
     let reference = u64::from_le_bytes(m.slave_mut(0).unwrap().read_register(0x0910, 8).unwrap().try_into().unwrap());
-    let now = akd_native::dc::system_time(std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap());
+    let now = akd_native::ethercat::dc::system_time(
+        std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap(),
+    );
     assert!(now.abs_diff(reference) < 100_000_000, "reference clock {reference} vs master {now}");
     for position in 1..3 {
         // Delays grow along the line; the drift datagrams left each clock next to the reference.
@@ -530,7 +562,7 @@ fn clocks_read_the_masters_time_and_follow_the_reference() {
         assert!(delay(&mut m, position) > delay(&mut m, position - 1), "delay of slave {position}");
         let raw =
             u32::from_le_bytes(m.slave_mut(position).unwrap().read_register(0x092C, 4).unwrap().try_into().unwrap());
-        let difference = akd_native::dc::time_difference(raw);
+        let difference = akd_native::ethercat::dc::time_difference(raw);
         assert!(difference.abs() < 10_000, "slave {position} is {difference} ns off the reference");
     }
 }
@@ -558,7 +590,8 @@ fn emergencies_are_queued_while_sdo_goes_on() {
     let mut m = Master::new(Box::new(Shared(bus.clone())), Duration::from_millis(100));
     m.scan().unwrap();
     m.request_state(AlState::PreOp, STEP).unwrap();
-    let fault = akd_native::coe::Emergency { error_code: 0x7380, error_register: 0x81, data: [1, 2, 3, 4, 5] };
+    let fault =
+        akd_native::ethercat::coe::Emergency { error_code: 0x7380, error_register: 0x81, data: [1, 2, 3, 4, 5] };
     bus.lock().unwrap().bus_mut().slave_mut(0).emergency(&fault);
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
     assert_eq!(m.slave_mut(0).unwrap().take_emergencies().unwrap(), vec![fault]);

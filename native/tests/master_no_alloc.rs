@@ -7,9 +7,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
 
-use akd_native::al::AlState;
-use akd_native::link::udp::Udp;
-use akd_native::master::Master;
+use akd_native::drive::akd::AkdLine;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link::udp::Udp;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::{server, Timing, VirtualBus};
 
 #[path = "support/counting.rs"]

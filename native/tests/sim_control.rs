@@ -8,8 +8,8 @@
 use std::time::{Duration, Instant};
 
 use akd_native::cycle::{Config, CycleThread};
-use akd_native::ds402::{statusword, State};
-use akd_native::master::Master;
+use akd_native::drive::ds402::{statusword, State};
+use akd_native::ethercat::master::Master;
 use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
 use akd_native::sim::faults::Fault;
 use akd_native::sim::in_process::InProcess;

@@ -6,16 +6,16 @@
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
-use akd_native::coe::{
+use akd_native::drive::pdo::{AKD_MAILBOX_IN, AKD_MAILBOX_OUT};
+use akd_native::error::{Error, Result};
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::coe::{
     self, access, data_type, CoeService, ObjectCode, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode,
     SdoRequest, SdoResponse,
 };
-use akd_native::error::{Error, Result};
-use akd_native::frame::{self, Command};
-use akd_native::link::Link;
-use akd_native::master::Master;
-use akd_native::registers::{AKD_MAILBOX_IN, AKD_MAILBOX_OUT};
+use akd_native::ethercat::frame::{self, Command};
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::od::{Entry, Object};
 use akd_native::sim::{Timing, VirtualBus};

@@ -94,12 +94,15 @@ def exchange(bus, time_ns: int, *datagrams: Datagram) -> list[Datagram]:
 
 STATION = 0x1001
 MAILBOX_OUT, MAILBOX_IN, MAILBOX_SIZE = 0x1800, 0x1C00, 0x400
+# SM1's status register and its "mailbox full" bit; how many frames a reply is polled for.
+SM1_STATUS, MAILBOX_FULL, MAILBOX_POLLS = 0x080D, 0x08, 10
 
 
 class VirtualAkdSession:
     """Drives one virtual AKD by hand-built frames: station address, mailbox sync managers,
     AL requests and SDO transfers through the mailbox, with a clock that advances by 10 ms per
-    frame (longer than the firmware's reaction times)."""
+    frame (longer than the firmware's reaction times but its first mailbox reply's, which is
+    polled for)."""
 
     def __init__(self, bus):
         self.bus = bus
@@ -129,6 +132,11 @@ class VirtualAkdSession:
         """Writes a mailbox message and returns the drive's reply (the whole mailbox-in buffer)."""
         written = self.fp("FPWR", MAILBOX_OUT, message.ljust(MAILBOX_SIZE, b"\0"))
         assert written.wkc == 1, "the mailbox-out buffer refused the message"
+        # As a master polls SM1's status for the reply: the drive's first reply after power-up
+        # takes 30 ms, three frames of this clock.
+        for _ in range(MAILBOX_POLLS):
+            if self.fp("FPRD", SM1_STATUS, 1).data[0] & MAILBOX_FULL:
+                break
         reply = self.fp("FPRD", MAILBOX_IN, MAILBOX_SIZE)
         assert reply.wkc == 1, "no reply in the mailbox-in buffer"
         return reply.data

@@ -36,6 +36,32 @@ def open_bus(iface, attempts=3):
     raise RuntimeError(f"Bus.init failed {attempts} times: {errors}")
 
 
+def start(iface):
+    """Opens kickcat on `iface` (`open_bus`); returns the link (which must outlive the bus), the bus, its slaves and a
+    report of what it found."""
+    report = {}
+    link, bus, report["init_attempts"], report["init_errors"] = open_bus(iface)
+    slaves = bus.slaves()
+    report["found"] = len(slaves)
+    report["state_after_init"] = [str(bus.get_state(s)) for s in slaves]
+    return link, bus, slaves, report
+
+
+def run_cycles(bus, set_outputs, cycles=100):
+    """`cycles` of process data, `set_outputs()` before each, 1 ms apart; kickcat's process_data raises on any
+    datagram whose working counter is not the one it expects. Returns the errors and the first one's text."""
+    errors, first = 0, None
+    for cycle in range(cycles):
+        set_outputs(cycle)
+        try:
+            bus.process_data()
+        except Exception as error:
+            errors += 1
+            first = first or str(error)
+        time.sleep(0.001)
+    return errors, first
+
+
 def write_sdo(bus, slave, index, subindex, data):
     """Downloads `data` to the slave's object index:subindex, serving the mailboxes until done."""
     message = slave.mailbox.write_sdo(index, subindex, False, data, 1.0)

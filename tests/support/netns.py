@@ -230,13 +230,24 @@ def realtime(priority: int | None, cpu: int | None = None) -> None:
 
 @contextmanager
 def _serving(
-    argv: list[str], ready, what: str, ready_timeout: float, cpu: int | None = None, priority: int | None = SIM_PRIORITY
+    argv: list[str],
+    ready,
+    what: str,
+    ready_timeout: float,
+    cpu: int | None = None,
+    priority: int | None = SIM_PRIORITY,
+    stdin: bool = False,
 ) -> Iterator[subprocess.Popen]:
-    """Starts a simulator process (under SCHED_FIFO `priority` unless None, and on `cpu` when given, where permitted),
-    yields it once `ready()` holds, stops it with SIGTERM on exit and checks it stopped cleanly (status 0). Its output
-    is then in `process.output_text`."""
+    """Starts a simulator process (under SCHED_FIFO `priority` unless None, and on `cpu` when given, where permitted;
+    with its stdin a pipe for commands when `stdin`), yields it once `ready()` holds, stops it with SIGTERM on exit and
+    checks it stopped cleanly (status 0). Its output is then in `process.output_text`."""
     process = subprocess.Popen(
-        argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, preexec_fn=lambda: realtime(priority, cpu)
+        argv,
+        stdin=subprocess.PIPE if stdin else None,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=lambda: realtime(priority, cpu),
     )
     _wait_until(ready, process, what, ready_timeout)
     try:
@@ -258,23 +269,26 @@ def akd_sim_in_netns(
     cpu: int | None = None,
     busy_poll: bool = False,
     options: Sequence[str] = (),
+    line: str | None = None,
+    stdin: bool = False,
 ):
-    """Runs `akd-sim --iface IFNAME --count N` in `ns` (context manager yielding the process once
-    its packet socket is bound; stopped with SIGTERM on exit), bound to `cpu` when one is given;
-    with `busy_poll`, `--busy-poll` under the normal scheduler (which it needs), else SCHED_FIFO;
-    with further akd-sim `options`, e.g. ("--missed", "warn")."""
+    """Runs `akd-sim --iface IFNAME --count N` (`--line LINE` where a line is given) in `ns` (context manager yielding
+    the process once its packet socket is bound; stopped with SIGTERM on exit), bound to `cpu` when one is given;
+    with `busy_poll`, `--busy-poll` under the normal scheduler (which it needs), else SCHED_FIFO; with further akd-sim
+    `options`, e.g. ("--missed", "warn"); its stdin a pipe for commands when `stdin`."""
+    slaves = ("--line", line) if line else ("--count", str(count))
     argv = netns_argv(
         ns,
         [
             *console_script("akd-sim"),
-            *("--iface", ifname, "--count", str(count)),
+            *("--iface", ifname, *slaves),
             *(["--busy-poll"] * busy_poll),
             *options,
         ],
     )
     what = f"akd-sim on {ifname} in {ns}"
     priority = None if busy_poll else SIM_PRIORITY
-    return _serving(argv, lambda: _packet_socket_open(ns, ifname), what, ready_timeout, cpu, priority)
+    return _serving(argv, lambda: _packet_socket_open(ns, ifname), what, ready_timeout, cpu, priority, stdin)
 
 
 def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeout: float = 10.0):
@@ -285,12 +299,18 @@ def akd_sim_udp(port: int, count: int = 1, host: str = "127.0.0.1", ready_timeou
 
 
 def master_script_report(
-    net: VethPair, script: str, args: Sequence[str], count: int = 1, timeout: float = 120.0, options: Sequence[str] = ()
+    net: VethPair,
+    script: str,
+    args: Sequence[str],
+    count: int = 1,
+    timeout: float = 120.0,
+    options: Sequence[str] = (),
+    line: str | None = None,
 ) -> dict:
-    """Serves `count` virtual AKDs on the sim end of `net` (with akd-sim `options`), runs a third-party master's
-    script (source text) in the master namespace with (interface, *args), and returns the JSON report the script
-    printed as its last line; fails the test with the script's output otherwise."""
-    with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, options=options):
+    """Serves `count` virtual AKDs (the slaves `line` names, where given) on the sim end of `net` (with akd-sim
+    `options`), runs a third-party master's script (source text) in the master namespace with (interface, *args), and
+    returns the JSON report the script printed as its last line; fails the test with the script's output otherwise."""
+    with akd_sim_in_netns(net.ns_sim, net.if_sim, count=count, options=options, line=line):
         result = run_python_in_netns(net.ns_master, script, args=[net.if_master, *args], timeout=timeout)
     if result.returncode != 0:
         pytest.fail(f"master script failed (status {result.returncode}):\n{result.stderr}\n{result.stdout}")

@@ -20,6 +20,20 @@ def open_master(iface):
     return master, found, preop
 
 
+def session(iface, body):
+    """Opens SOEM on `iface` (`open_master`), runs `body(master, report)` with the report of what it found, takes the
+    slaves back to Init, closes the master and prints the report as JSON (names read as Latin-1), its last line."""
+    report = {}
+    master, report["found"], report["preop"] = open_master(iface)
+    try:
+        body(master, report)
+        master.state = pysoem.INIT_STATE
+        master.write_state()
+    finally:
+        master.close()
+    print(json.dumps(report, default=lambda raw: raw.decode("latin-1")))
+
+
 def select_fixed_mappings(master, position):
     """AKD_FACTS 6: the fixed mappings 0x1701/0x1B01, chosen by writing both assignments."""
     slave = master.slaves[position]

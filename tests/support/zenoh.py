@@ -1,12 +1,13 @@
 """A Zenoh router for the tests, in a process of its own as rmw_zenohd would be, on a loopback TCP port the test
 picks, multicast scouting off so that nothing outside the test joins; and sessions connected to it.
 
-The router is eclipse-zenoh in router mode (`python -c`), ended by its owner's teardown; every wait is bounded.
+The router is akd-zenohd (eclipse-zenoh in router mode, rmw_zenohd's settings), ended by its owner's teardown with
+SIGINT; every wait is bounded.
 """
 
 from __future__ import annotations
 
-import contextlib
+import signal
 import socket
 import subprocess
 import sys
@@ -14,6 +15,7 @@ import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
+from pathlib import Path
 
 import zenoh
 
@@ -21,17 +23,7 @@ from akd_ros.zenoh.session import open_session, session_config
 
 # A bound on every wait, not a timing expectation.
 WAIT_S = 20.0
-ROUTER_SCRIPT = """
-import json, sys, zenoh
-config = zenoh.Config()
-config.insert_json5("mode", '"router"')
-config.insert_json5("listen/endpoints", json.dumps([sys.argv[1]]))
-config.insert_json5("scouting/multicast/enabled", "false")
-config.insert_json5("timestamping/enabled", "true")
-session = zenoh.open(config)
-sys.stdin.read()  # until the test closes our stdin
-session.close()
-"""
+AKD_ZENOHD = Path(sys.executable).with_name("akd-zenohd")
 
 
 def free_tcp_port() -> int:
@@ -53,9 +45,7 @@ def zenoh_router(port: int | None = None) -> Iterator[str]:
     endpoint = f"tcp/127.0.0.1:{port}"
     # The router's log goes to a file, which a chatty router cannot fill up as it could a pipe.
     with tempfile.TemporaryFile(mode="w+") as log:
-        process = subprocess.Popen(
-            [sys.executable, "-c", ROUTER_SCRIPT, endpoint], stdin=subprocess.PIPE, stdout=log, stderr=log, text=True
-        )
+        process = subprocess.Popen([str(AKD_ZENOHD), "--listen", endpoint], stdout=log, stderr=log, text=True)
         try:
             deadline = time.monotonic() + WAIT_S
             while not _listening(port):
@@ -66,8 +56,7 @@ def zenoh_router(port: int | None = None) -> Iterator[str]:
                 time.sleep(0.05)
             yield endpoint
         finally:
-            with contextlib.suppress(BrokenPipeError):
-                process.stdin.close()
+            process.send_signal(signal.SIGINT)
             try:
                 process.wait(timeout=5)
             except subprocess.TimeoutExpired:

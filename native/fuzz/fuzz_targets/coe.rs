@@ -4,11 +4,11 @@
 //! a message that decodes to the same value.
 #![no_main]
 
-use akd_native::coe::{
+use akd_native::ethercat::coe::{
     self, data_type, CoeHeader, CoeService, Emergency, EntryDescription, ObjectDescription, SdoInfoHeader, SdoRequest,
     SdoResponse, SDO_INFO_HEADER_LEN,
 };
-use akd_native::mailbox::HEADER_LEN;
+use akd_native::ethercat::mailbox::HEADER_LEN;
 use libfuzzer_sys::fuzz_target;
 
 /// Room for any message a 2047-byte frame could carry, and then some.

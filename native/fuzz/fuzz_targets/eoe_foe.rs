@@ -4,9 +4,9 @@
 //! order and sizes they come in; a frame cut by the fragmenter comes back whole.
 #![no_main]
 
-use akd_native::eoe::{self, EoeMessage, Fragmenter, Reassembler, MAX_FRAME_LEN};
-use akd_native::foe::{self, FoeMessage};
-use akd_native::mailbox::{MailboxHeader, HEADER_LEN};
+use akd_native::ethercat::eoe::{self, EoeMessage, Fragmenter, Reassembler, MAX_FRAME_LEN};
+use akd_native::ethercat::foe::{self, FoeMessage};
+use akd_native::ethercat::mailbox::{MailboxHeader, HEADER_LEN};
 use libfuzzer_sys::fuzz_target;
 
 const ROOM: usize = 4096;

@@ -4,7 +4,7 @@
 //! every byte as it was.
 #![no_main]
 
-use akd_native::frame::{self, Command, FrameBuilder, DATAGRAM_HEADER_LEN, FRAME_HEADER_LEN, MAX_PAYLOAD_LEN};
+use akd_native::ethercat::frame::{self, Command, FrameBuilder, DATAGRAM_HEADER_LEN, FRAME_HEADER_LEN, MAX_PAYLOAD_LEN};
 use libfuzzer_sys::fuzz_target;
 
 /// Bits 11–13 of a datagram's length word, which the standard reserves and the codec drops.

@@ -3,7 +3,7 @@
 //! within the message, and an error reply's detail reads back as written.
 #![no_main]
 
-use akd_native::mailbox::{self, MailboxErrorDetail, MailboxHeader, HEADER_LEN};
+use akd_native::ethercat::mailbox::{self, MailboxErrorDetail, MailboxHeader, HEADER_LEN};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

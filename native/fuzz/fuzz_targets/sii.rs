@@ -2,7 +2,7 @@
 //! every accessor answers, and an image that parses and encodes parses back to the same.
 #![no_main]
 
-use akd_native::sii::Sii;
+use akd_native::ethercat::sii::Sii;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {

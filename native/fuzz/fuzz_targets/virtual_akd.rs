@@ -7,8 +7,8 @@
 //! length), never a panic.
 #![no_main]
 
-use akd_native::frame;
-use akd_native::link::is_reply_to;
+use akd_native::ethercat::frame;
+use akd_native::ethercat::link::is_reply_to;
 use akd_native::sim::line::Delivery;
 use akd_native::sim::VirtualBus;
 use libfuzzer_sys::fuzz_target;

@@ -17,15 +17,15 @@ use std::sync::atomic::{AtomicU16, AtomicU32, AtomicU8, Ordering};
 use std::sync::Mutex;
 use std::time::Duration;
 
-use crate::coe::{self, CoeService, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
 use crate::cycle::eoe_frames::EoeFrames;
 use crate::cycle::events::{Action, Event, Events, FaultSource};
-use crate::eoe::{self, EoeMessage, Fragmenter, Reassembler, MAX_FRAME_LEN};
 use crate::error::{Error, MailboxError, Result, SettingError, Unavailable};
-use crate::mailbox::{MailboxHeader, MailboxType};
-use crate::master::cyclic::SlaveWatch;
-use crate::master::mailbox_client::Mailbox;
-use crate::master::Master;
+use crate::ethercat::coe::{self, CoeService, Emergency, SdoRequest, SdoResponse, SDO_LEN, SDO_OFFSET};
+use crate::ethercat::eoe::{self, EoeMessage, Fragmenter, Reassembler, MAX_FRAME_LEN};
+use crate::ethercat::mailbox::{MailboxHeader, MailboxType};
+use crate::ethercat::master::cyclic::SlaveWatch;
+use crate::ethercat::master::mailbox_client::Mailbox;
+use crate::ethercat::master::Master;
 
 /// Largest value a transfer beside the cycle carries.
 pub const MAX_DATA: usize = 1024;
@@ -144,7 +144,7 @@ impl SdoSlot {
                 index,
                 subindex,
                 detail: code as u16,
-                detail_name: crate::mailbox::error_detail_name(code as u16),
+                detail_name: crate::ethercat::mailbox::error_detail_name(code as u16),
             }
             .into()),
             o if o == Outcome::NoMailbox as u8 => {
@@ -433,7 +433,8 @@ impl MailboxService {
         match header.protocol() {
             Some(MailboxType::Error) => {
                 if let Some((_, origin)) = awaited {
-                    let detail = crate::mailbox::parse_error_reply(header.body(&self.receive[..len])).unwrap_or(0);
+                    let detail =
+                        crate::ethercat::mailbox::parse_error_reply(header.body(&self.receive[..len])).unwrap_or(0);
                     self.finish(slot, events, origin, Outcome::MailboxError, detail as u32, &[]);
                 }
             }
@@ -532,7 +533,7 @@ fn mailbox_of(master: &Master, slave: u16) -> Option<&Mailbox> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::al::AlState;
+    use crate::ethercat::al::AlState;
     use crate::sim::in_process::InProcess;
 
     #[test]

@@ -19,7 +19,7 @@ use std::time::Duration;
 use crate::cycle::events::{CommandTimeoutAction, CommandedTarget, Event, Events};
 use crate::cycle::image::{i16_at, i32_at};
 use crate::cycle::sequencer::{self, Offsets, Request};
-use crate::ds402::{controlword as cw, Mode, State};
+use crate::drive::ds402::{controlword as cw, Mode, State};
 
 /// The targets whose writes feed the time-out: target velocity 0x60FF and target torque 0x6071.
 pub const TARGETS: [(u16, u8); 2] = [(0x60FF, 0), (0x6071, 0)];

@@ -9,7 +9,7 @@ use std::sync::atomic::{AtomicU16, AtomicU64, AtomicU8, AtomicUsize, Ordering};
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use crate::eoe::MAX_FRAME_LEN;
+use crate::ethercat::eoe::MAX_FRAME_LEN;
 
 /// Frames each ring holds.
 pub const RING_LEN: usize = 16;

@@ -320,7 +320,7 @@ pub enum Event {
         action: CommandTimeoutAction,
     },
     /// A drive's digital inputs 0x60FD, or its hardware enable as its statusword shows it,
-    /// changed in this cycle's inputs ([`crate::io::InputWatch`]).
+    /// changed in this cycle's inputs ([`crate::drive::io::InputWatch`]).
     Inputs {
         /// The cycle whose inputs showed it.
         cycle: u64,

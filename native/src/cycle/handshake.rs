@@ -18,7 +18,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
 
-use crate::ds402::{controlword as cw, statusword as sw, Mode, State};
+use crate::drive::ds402::{controlword as cw, statusword as sw, Mode, State};
 
 /// The controlword bits a handshake may raise: 4 (new set-point; start homing), 5 (change set
 /// immediately) and 6 (target relative). Bit 4 must be among them.

@@ -20,7 +20,7 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
-use crate::ds402::{controlword as cw, statusword as sw, Mode, State};
+use crate::drive::ds402::{controlword as cw, statusword as sw, Mode, State};
 
 const HOMING: u8 = Mode::Homing as i8 as u8;
 

@@ -17,7 +17,7 @@ use std::sync::atomic::{AtomicU8, Ordering};
 
 use crate::cycle::events::Edge;
 use crate::cycle::image::{i32_at, u16_at};
-use crate::pdo::{self, PdoEntry};
+use crate::ethercat::pdo::{self, PdoEntry};
 
 /// The four edges' bits.
 pub const ALL_EDGES: u8 = 0x0F;

@@ -1,9 +1,11 @@
 //! Recovery of a slave the cycle lost: one that stopped answering (power cycled, its cable
 //! pulled, the line down) or left Op. The cycle thread notices it ([`Presence`]), asks the drive
 //! for Switch on disabled and reports it; a recovery thread beside the cycle then brings the
-//! slave back with [`Master::restore_slave`] on a restoring master ([`Master::for_restore`]) whose
-//! frames the cycle thread sends for it, one per cycle after its own exchange ([`Relay`]), so
-//! the other drives cycle on. When the slave is back in Op the cycle thread reports it and holds
+//! slave back on a restoring master ([`Master::for_restore`]) whose frames the cycle thread
+//! sends for it, one per cycle after its own exchange ([`Relay`]), so the other drives cycle
+//! on: the master takes it to PreOp ([`Master::restore_to_preop`]), the drive profile writes its
+//! mode and clock again ([`AkdSlave::restore`]), and the master takes it to Op
+//! ([`Master::restore_to_op`]). When the slave is back in Op the cycle thread reports it and holds
 //! its target at the actual position; its power stage stays off until it is enabled again.
 //! Attempts repeat while the slave does not answer, and a slave that comes back in Op by itself
 //! (a short cut of the line) is taken back without a restore.
@@ -13,11 +15,12 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use crate::cycle::seqlock::SeqBytes;
+use crate::drive::akd::{AkdLine, AkdSlave};
 use crate::error::Result;
-use crate::frame::MAX_PAYLOAD_LEN;
-use crate::link::Link;
-use crate::master::restore::{Restore, SlaveSync};
-use crate::master::Master;
+use crate::ethercat::frame::MAX_PAYLOAD_LEN;
+use crate::ethercat::link::Link;
+use crate::ethercat::master::restore::Restoring;
+use crate::ethercat::master::Master;
 
 /// Cycles without an answer after which a slave is taken as lost (the AKD's own limit).
 pub const LOST_AFTER: u32 = crate::cycle::supervision::DRIVE_MISSED_FRAME_LIMIT;
@@ -166,7 +169,7 @@ impl Link for RelayLink {
         if n == 0 {
             return Ok(None);
         }
-        crate::link::copy_reply(&reply[..n], rx).map(Some)
+        crate::ethercat::link::copy_reply(&reply[..n], rx).map(Some)
     }
 
     fn describe(&self) -> String {
@@ -236,7 +239,7 @@ impl SlaveRecovery {
 
 /// What [`Presence::observe`] saw change.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Change {
+pub enum PresenceChange {
     /// The slave is lost from this cycle on: `report` when nothing else reported it yet (a
     /// slave that left Op was reported as such).
     Lost {
@@ -263,11 +266,11 @@ impl Presence {
     /// Takes one cycle: whether the slave answered its supervision reads, and whether it is in
     /// Op. Lost after [`LOST_AFTER`] cycles unanswered or when it answers out of Op; back when
     /// it answers in Op again.
-    pub fn observe(&mut self, answered: bool, in_op: bool, now: (u64, u64)) -> Option<Change> {
+    pub fn observe(&mut self, answered: bool, in_op: bool, now: (u64, u64)) -> Option<PresenceChange> {
         if let Some(since) = self.lost {
             if in_op {
                 *self = Presence::default();
-                return Some(Change::Back { since });
+                return Some(PresenceChange::Back { since });
             }
             return None;
         }
@@ -277,12 +280,12 @@ impl Presence {
         }
         if answered {
             self.lost = Some(now);
-            return Some(Change::Lost { report: false, missing: self.missing });
+            return Some(PresenceChange::Lost { report: false, missing: self.missing });
         }
         self.missing += 1;
         if self.missing >= LOST_AFTER {
             self.lost = Some(now);
-            return Some(Change::Lost { report: true, missing: self.missing });
+            return Some(PresenceChange::Lost { report: true, missing: self.missing });
         }
         None
     }
@@ -293,18 +296,32 @@ impl Presence {
     }
 }
 
-/// The recovery thread's side: the restoring master and what each slave gets back.
+/// The recovery thread's side: the restoring master, the cycle's period and which slaves it
+/// brings back.
 pub struct Recoverer {
     master: Master,
-    syncs: Vec<Option<SlaveSync>>,
+    period: Duration,
+    recovered: Vec<bool>,
 }
 
 impl Recoverer {
-    /// A recoverer of `master`'s slaves, each with the clock it gets back (`None` for a slave
-    /// not recovered), whose frames go through `relay`.
-    pub fn new(master: &Master, relay: Arc<Relay>, period: Duration, syncs: Vec<Option<SlaveSync>>) -> Self {
+    /// A recoverer of `master`'s slaves, those `recovered` says, whose frames go through
+    /// `relay`, cycling every `period`.
+    pub fn new(master: &Master, relay: Arc<Relay>, period: Duration, recovered: Vec<bool>) -> Self {
         let link = RelayLink::new(relay, master.describe(), period);
-        Recoverer { master: master.for_restore(Box::new(link)), syncs }
+        Recoverer { master: master.for_restore(Box::new(link)), period, recovered }
+    }
+
+    /// Brings the drive at `position` back to Op: the master's two halves of a restore, the
+    /// drive profile's writes between them (its `mode` and its clock's side as the set-up gave
+    /// it; the cycle time of a drive on the SM2 event is the cycle's period).
+    fn restore(&mut self, position: u16, mode: Option<i8>) -> Result<()> {
+        if self.master.restore_to_preop(position)? == Restoring::InOp {
+            return Ok(());
+        }
+        let sync = self.master.drive_sync(position, self.period.as_nanos() as u32);
+        self.master.slave_mut(position)?.restore(mode, sync)?;
+        self.master.restore_to_op(position)
     }
 
     /// Runs until `stop`: restores every slave the cycle thread asks for, one at a time.
@@ -312,18 +329,19 @@ impl Recoverer {
         let mut next_try = vec![Instant::now(); slaves.len()];
         while !stop.load(Ordering::Acquire) {
             for (position, slave) in slaves.iter().enumerate() {
-                let Some(sync) = self.syncs.get(position).copied().flatten() else { continue };
-                if !slave.wanted.load(Ordering::Acquire) || Instant::now() < next_try[position] {
+                if !self.recovered.get(position).is_some_and(|&r| r)
+                    || !slave.wanted.load(Ordering::Acquire)
+                    || Instant::now() < next_try[position]
+                {
                     continue;
                 }
                 // 0 is no mode: the drive refuses it, and keeps its power-up mode.
                 let mode = slave.mode.lock().unwrap_or_else(|p| p.into_inner()).filter(|&m| m != 0);
-                let restore = Restore { mode, sync };
                 let p = position as u16;
                 self.master.set_mailbox_counter(p, slave.mailbox_counter.load(Ordering::Acquire));
                 slave.attempts.fetch_add(1, Ordering::Relaxed);
                 slave.restoring.store(true, Ordering::Release);
-                let outcome = self.master.restore_slave(p, &restore);
+                let outcome = self.restore(p, mode);
                 slave.mailbox_counter.store(self.master.mailbox_counter(p).unwrap_or(0), Ordering::Release);
                 slave.restoring.store(false, Ordering::Release);
                 let mut last_error = slave.last_error.lock().unwrap_or_else(|p| p.into_inner());
@@ -382,11 +400,11 @@ mod tests {
         for cycle in 1..LOST_AFTER as u64 {
             assert_eq!(p.observe(false, false, (cycle, cycle)), None);
         }
-        assert_eq!(p.observe(false, false, (8, 8)), Some(Change::Lost { report: true, missing: LOST_AFTER }));
+        assert_eq!(p.observe(false, false, (8, 8)), Some(PresenceChange::Lost { report: true, missing: LOST_AFTER }));
         assert!(p.lost());
         // Answering out of Op (being restored) keeps it lost; Op brings it back.
         assert_eq!(p.observe(true, false, (9, 9)), None);
-        assert_eq!(p.observe(true, true, (10, 10)), Some(Change::Back { since: (8, 8) }));
+        assert_eq!(p.observe(true, true, (10, 10)), Some(PresenceChange::Back { since: (8, 8) }));
         assert!(!p.lost());
     }
 
@@ -398,7 +416,10 @@ mod tests {
         for cycle in 3..3 + LOST_AFTER as u64 - 1 {
             assert_eq!(p.observe(false, false, (cycle, cycle)), None);
         }
-        assert_eq!(p.observe(true, false, (20, 20)), Some(Change::Lost { report: false, missing: LOST_AFTER - 1 }));
+        assert_eq!(
+            p.observe(true, false, (20, 20)),
+            Some(PresenceChange::Lost { report: false, missing: LOST_AFTER - 1 })
+        );
     }
 
     #[test]

@@ -20,10 +20,10 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, AtomicU8, Ordering};
 
 use crate::cycle::image::{i32_at, u16_at};
-use crate::ds402::{self, controlword as cw, statusword as sw, State};
+use crate::drive::ds402::{self, controlword as cw, statusword as sw, State};
+use crate::drive::objects::POSITION_ACTUAL;
 use crate::error::{Result, Unavailable};
-use crate::objects::POSITION_ACTUAL;
-use crate::pdo::{self, PdoEntry};
+use crate::ethercat::pdo::{find, PdoEntry};
 
 /// What a caller asks of a drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -99,7 +99,7 @@ impl Offsets {
     /// Finds the objects in a drive's mapping; a mapping without controlword or statusword
     /// cannot be sequenced and is refused, naming what is missing.
     pub fn find(rx: &[PdoEntry], tx: &[PdoEntry]) -> Result<Offsets, Unavailable> {
-        let at = |entries: &[PdoEntry], index: u16, subindex: u8| pdo::find(entries, index, subindex).map(|(o, _)| o);
+        let at = |entries: &[PdoEntry], index: u16, subindex: u8| find(entries, index, subindex).map(|(o, _)| o);
         let controlword = at(rx, 0x6040, 0);
         let statusword = at(tx, 0x6041, 0);
         let (Some(controlword), Some(statusword)) = (controlword, statusword) else {
@@ -562,8 +562,8 @@ mod tests {
 
     #[test]
     fn finds_the_objects_or_names_what_is_missing() {
-        let rx = pdo::fixed(0x1724).unwrap().entries;
-        let tx = pdo::fixed(0x1B24).unwrap().entries;
+        let rx = crate::drive::pdo::fixed(0x1724).unwrap().entries;
+        let tx = crate::drive::pdo::fixed(0x1B24).unwrap().entries;
         let o = Offsets::find(rx, tx).unwrap();
         assert_eq!((o.controlword, o.statusword, o.targets, o.actual), (4, 4, [Some(0), None], Some(0)));
         let tx = [PdoEntry::new(0x6064, 0, 32)];

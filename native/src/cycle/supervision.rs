@@ -5,10 +5,10 @@
 //! the drive for Switch on disabled, and the sequencer holds the target at the actual
 //! position from then on.
 
-use crate::akd_fault;
-use crate::al::AlState;
 use crate::cycle::events::{Action, Event, FaultSource};
-use crate::master::state::AlStatus;
+use crate::drive::akd_fault;
+use crate::ethercat::al::AlState;
+use crate::ethercat::master::state::AlStatus;
 
 /// Frames in a row the AKD misses before it raises F125 (more than seven, §7): a gap that
 /// long is handled as the loss of the drive, not as a gap.
@@ -102,7 +102,7 @@ pub struct DriveWatch {
 
 /// What a drive's watch saw this cycle.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct Seen {
+pub struct WatchEvents {
     /// The drive entered Fault (its event waits for 0x603F).
     pub fault: Option<Event>,
     /// The slave left Op.
@@ -120,8 +120,8 @@ impl DriveWatch {
         al_status: Option<AlStatus>,
         sequenced: bool,
         (cycle, time_ns): (u64, u64),
-    ) -> Seen {
-        let mut seen = Seen::default();
+    ) -> WatchEvents {
+        let mut seen = WatchEvents::default();
         let al = al_status.unwrap_or(AlStatus { status: 0, code: 0 });
         let event = |source, code, statusword, action| Event::Fault {
             cycle,
@@ -135,7 +135,7 @@ impl DriveWatch {
             action,
         };
         if let Some(s) = statusword {
-            let in_fault = s & crate::ds402::statusword::FAULT != 0;
+            let in_fault = s & crate::drive::ds402::statusword::FAULT != 0;
             if in_fault && !self.in_fault {
                 let action = if sequenced { Action::Disabled } else { Action::Reported };
                 seen.fault = Some(event(FaultSource::DriveFault, 0, s, action));
@@ -195,16 +195,16 @@ mod tests {
     fn a_fault_and_a_drop_out_of_op_are_seen_once() {
         let mut watch = DriveWatch::default();
         let op = AlStatus { status: 0x08, code: 0 };
-        assert_eq!(watch.observe(0, Some(0x0237), Some(op), true, (1, 1)), Seen::default());
+        assert_eq!(watch.observe(0, Some(0x0237), Some(op), true, (1, 1)), WatchEvents::default());
         let seen = watch.observe(0, Some(0x0218), Some(op), true, (2, 2));
         assert!(matches!(
             seen.fault,
             Some(Event::Fault { source: FaultSource::DriveFault, action: Action::Disabled, .. })
         ));
-        assert_eq!(watch.observe(0, Some(0x0218), Some(op), true, (3, 3)), Seen::default());
+        assert_eq!(watch.observe(0, Some(0x0218), Some(op), true, (3, 3)), WatchEvents::default());
         let safeop = AlStatus { status: 0x14, code: 0x001B };
         let seen = watch.observe(0, Some(0x0218), Some(safeop), true, (4, 4));
         assert!(matches!(seen.left_op, Some(Event::Fault { al_status: 0x14, al_status_code: 0x001B, .. })));
-        assert_eq!(watch.observe(0, Some(0x0218), Some(safeop), true, (5, 5)), Seen::default());
+        assert_eq!(watch.observe(0, Some(0x0218), Some(safeop), true, (5, 5)), WatchEvents::default());
     }
 }

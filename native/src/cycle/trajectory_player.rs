@@ -37,9 +37,9 @@ use std::sync::Mutex;
 use crate::cycle::events::{Event, Events, Refusal, RefusalReason, TrajectoryState, Violation};
 use crate::cycle::image::{i32_at, u16_at};
 use crate::cycle::seqlock::SeqBytes;
-use crate::ds402::State;
+use crate::drive::ds402::State;
+use crate::drive::trajectory::{Breach, Limit, Segment, Setpoint, Trajectory};
 use crate::error::{Error, Result, TrajectoryError, Unavailable};
-use crate::trajectory::{Breach, Limit, Segment, Setpoint, Trajectory};
 
 /// Return slots for plans the loop is done with.
 pub const OUTBOX: usize = 4;
@@ -761,7 +761,7 @@ pub fn not_ready(joint: usize, slave: u16, why: impl Into<String>) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::trajectory::{Knot, Limits};
+    use crate::drive::trajectory::{Knot, Limits};
 
     const MS: u64 = 1_000_000;
 

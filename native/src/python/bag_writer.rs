@@ -1,5 +1,5 @@
 //! `akd_ros._native.BagWriter`: a bag's MCAP files written by a thread of the crate for
-//! `akd_ros.recorder`, over [`crate::bag_writer`]; `Feed.record` and `Feed.record_cycles`
+//! `akd_ros.recorder`, over [`crate::ros::bag_writer`]; `Feed.record` and `Feed.record_cycles`
 //! hand it what the node publishes and every cycle's records without Python.
 
 use std::collections::BTreeMap;
@@ -10,8 +10,8 @@ use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
-use crate::bag_file::Compression;
-use crate::bag_writer::{BagWriter, Options, Report, Topic};
+use crate::ros::bag_file::Compression;
+use crate::ros::bag_writer::{BagWriter, Options, Report, Topic};
 
 /// A bag being written by its thread: `BagWriter(folder, name, *, compression, ...)` (see
 /// `akd_ros.recorder.Recorder`, which checks the values). Nothing it does raises for I/O: the

@@ -3,69 +3,37 @@
 
 use pyo3::prelude::*;
 
-use super::IntoPyResult;
+use super::{IntoPyResult, Merged};
 use crate::cycle::dc_status::DcStatus;
-use crate::link_spec::LinkSpec;
-use crate::master::clocks::DcSlave;
+use crate::ethercat::link_spec::LinkSpec;
 
 /// Whether `link` runs distributed clocks by default: a network interface does, as TwinCAT runs
 /// the AKD; "sim", "sim:N" and "udp://HOST:PORT" do not, as their frames' timing is not a
 /// wire's. Raises ConfigError for a link spec that names no bus.
 #[pyfunction]
 fn dc_by_default(link: &str) -> PyResult<bool> {
-    Ok(link.parse::<LinkSpec>().map_err(crate::error::Error::from).py()?.runs_dc_by_default())
+    Ok(link.parse::<LinkSpec>().py()?.runs_dc_by_default())
 }
 
-/// `Cycle.dc_status()`: {"active": False} without distributed clocks; with them "active",
-/// "cycle_ns", "shift_ns", "reference_position", "difference_reads", "difference_misses" and
-/// "drives", one [`DcDriveView`] per drive with DC.
+/// `Cycle.dc_status()`: {"active": False} without distributed clocks; with them "active" and
+/// the fields of [`DcStatus`], each drive's those of [`crate::cycle::dc_status::DcDrive`].
 #[derive(IntoPyObject)]
 pub(super) enum DcStatusView {
-    Off {
-        active: bool,
-    },
-    On {
-        active: bool,
-        cycle_ns: u32,
-        shift_ns: i32,
-        reference_position: u16,
-        difference_reads: u64,
-        difference_misses: u64,
-        drives: Vec<DcDriveView>,
-    },
+    Off(Active),
+    On(Merged<Active, DcStatus>),
 }
 
-/// One drive of `dc_status()["drives"]`: "position", "fbus_param02" (None: unknown, nothing
-/// was written; see [`crate::master::clocks::DcSlave::fbus_param02`]) and
-/// "system_time_difference_ns" (None before the first read).
+/// Whether the bus runs distributed clocks.
 #[derive(IntoPyObject)]
-pub(super) struct DcDriveView {
-    position: u16,
-    fbus_param02: Option<u32>,
-    system_time_difference_ns: Option<i64>,
-}
-
-impl From<DcSlave> for DcDriveView {
-    fn from(slave: DcSlave) -> Self {
-        DcDriveView {
-            position: slave.position,
-            fbus_param02: slave.fbus_param02,
-            system_time_difference_ns: slave.time_difference_ns,
-        }
-    }
+pub(super) struct Active {
+    active: bool,
 }
 
 impl From<Option<DcStatus>> for DcStatusView {
     fn from(status: Option<DcStatus>) -> Self {
-        let Some(s) = status else { return DcStatusView::Off { active: false } };
-        DcStatusView::On {
-            active: true,
-            cycle_ns: s.cycle_ns,
-            shift_ns: s.shift_ns,
-            reference_position: s.reference_position,
-            difference_reads: s.difference_reads,
-            difference_misses: s.difference_misses,
-            drives: s.drives.into_iter().map(DcDriveView::from).collect(),
+        match status {
+            Some(status) => DcStatusView::On(Merged(Active { active: true }, status)),
+            None => DcStatusView::Off(Active { active: false }),
         }
     }
 }

@@ -8,6 +8,7 @@
 //! so are the set-point handshake (`start_setpoint`, `wait_setpoint`, `setpoint_status`) and the
 //! command time-out (`set_command_timeout`, `command_timeout_status`).
 
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -16,15 +17,16 @@ use pyo3::types::{PyBytes, PyDict};
 
 use super::master::PyMaster;
 use super::{IntoPyResult, Merged};
-use crate::akd_fault;
 use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
+use crate::cycle::line_health::DEFAULT_INTERVAL as LINE_HEALTH_INTERVAL;
 use crate::cycle::rt::{self, RealTime};
 use crate::cycle::samples::Sample;
 use crate::cycle::sequencer::{Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
-use crate::ds402::State;
+use crate::drive::akd_fault;
+use crate::drive::ds402::State;
 use crate::error::{Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
@@ -248,9 +250,9 @@ impl EventView {
                     statusword,
                     ds402_state: ds402_state(statusword),
                     al_status,
-                    al_state: (al_status != 0).then(|| crate::al::state_name(al_status)),
+                    al_state: (al_status != 0).then(|| crate::ethercat::al::state_name(al_status)),
                     al_status_code,
-                    al_status_code_name: crate::al::AlStatusCode(al_status_code).name(),
+                    al_status_code_name: crate::ethercat::al::AlStatusCode(al_status_code).name(),
                     action: action.describe(),
                 }
             }
@@ -279,6 +281,9 @@ impl EventView {
         }
     }
 }
+
+/// A /diagnostics status of the line: level, what, message, hardware_id, values.
+type LineStatus = crate::ros::line_diagnostics::Status;
 
 /// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
 fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
@@ -323,12 +328,28 @@ impl PyCycle {
     /// its return at the next wake-up: no wait for the round trip (less CPU, a lost frame costs
     /// no time), what a cycle read published a period later. The master is unusable until
     /// `stop()`.
+    /// `line_health`: how often (s) every slave's links and error counters are read beside the
+    /// cycle (`line_health()`), 0 or None for never.
     #[new]
-    #[pyo3(signature = (master, period, *, realtime = None))]
-    fn new(py: Python<'_>, master: Py<PyMaster>, period: f64, realtime: Option<RealTime>) -> PyResult<Self> {
+    #[pyo3(signature = (master, period, *, realtime = None, line_health = LINE_HEALTH_INTERVAL.as_secs_f64()))]
+    fn new(
+        py: Python<'_>,
+        master: Py<PyMaster>,
+        period: f64,
+        realtime: Option<RealTime>,
+        line_health: Option<f64>,
+    ) -> PyResult<Self> {
         let period = Duration::try_from_secs_f64(period)
             .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
-        let config = Config { period, realtime: realtime.unwrap_or_default() };
+        let fbus_param02 = super::master::lock(&master.borrow(py).fbus_param02).clone();
+        let line_health =
+            line_health.map(|s| duration("line health interval", s, "a finite number of seconds >= 0, 0 for never"));
+        let config = Config {
+            period,
+            realtime: realtime.unwrap_or_default(),
+            fbus_param02,
+            line_health: line_health.transpose()?,
+        };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
             Ok(cycle) => Ok(PyCycle { master, cycle: Arc::new(cycle) }),
@@ -481,7 +502,7 @@ impl PyCycle {
         })?;
         let timeout = super::seconds(timeout, "timeout")?;
         let cycle = &self.cycle;
-        let outcome = py.allow_threads(|| {
+        let outcome = py.allow_threads(|| -> crate::error::Result<Option<String>> {
             let deadline = std::time::Instant::now() + timeout;
             loop {
                 let status = cycle.drive_status(position)?;
@@ -734,8 +755,8 @@ impl PyCycle {
     /// (index, subindex, bit length, byte offset within the slave's data) in wire order.
     fn mapping(&self, position: u16) -> PyResult<MappingView> {
         let (rx, tx) = self.cycle.mapping(position).py()?;
-        let layout = |entries: &[crate::pdo::PdoEntry]| {
-            crate::pdo::layout(entries.iter().copied())
+        let layout = |entries: &[crate::ethercat::pdo::PdoEntry]| {
+            crate::ethercat::pdo::layout(entries.iter().copied())
                 .map(|(offset, e)| (e.index, e.subindex, e.bits, offset))
                 .collect()
         };
@@ -813,6 +834,27 @@ impl PyCycle {
     /// in the cyclic frame, one drive per cycle in turn); {"active": False} without them.
     fn dc_status(&self) -> super::clocks::DcStatusView {
         self.cycle.dc_status().into()
+    }
+
+    /// Every slave's links and error counters as the reads beside the cycle found them: each
+    /// port's link, what is at its other end, its counters since the first read ("total") and
+    /// over the last 10 s ("window"), and the findings, the worst first ("errors on the cable
+    /// into slave 4 (joint_5) port 0, from slave 3 (joint_4) port 1: 37 in the last 10 s").
+    /// `names` (position to name) names slaves in the words; the others by their product.
+    #[pyo3(signature = (names = None))]
+    fn line_health(&self, names: Option<HashMap<usize, String>>) -> super::line_health::LineHealthView {
+        let labels = super::line_health::labels(self.cycle.products(), names);
+        super::line_health::LineHealthView::new(&self.cycle.line_health(), &labels)
+    }
+
+    /// What /diagnostics says of the line: a status of the line (its worst finding) and one per
+    /// slave, each a tuple (level, what, message, hardware_id, [(key, value)]) as
+    /// `diagnostic_array` takes it once the node's name is put in front of `what` ("line",
+    /// "line slave N"); `link` names the line in hardware_id, `names` as for `line_health`.
+    #[pyo3(signature = (link, names = None))]
+    fn line_diagnostics(&self, link: &str, names: Option<HashMap<usize, String>>) -> Vec<LineStatus> {
+        let labels = super::line_health::labels(self.cycle.products(), names);
+        crate::ros::line_diagnostics::statuses(&self.cycle.line_health(), &labels, link)
     }
 
     /// Plays a joint trajectory in the cycle thread: joint j on drive `positions[j]`, point k

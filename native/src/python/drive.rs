@@ -14,12 +14,13 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyInt, PyTuple};
 
 use super::IntoPyResult;
-use crate::coe::{access, data_type};
 use crate::cycle::{CycleThread, Snapshot};
-use crate::ds402::{self, Mode, State};
-use crate::io::{self, Carried, DriveIo, Switch};
-use crate::objects::{self, DriveInputs};
-use crate::pdo::{self, Direction, PdoEntry};
+use crate::drive::ds402::{self, Mode, State};
+use crate::drive::io::{self, Carried, DriveIo, Switch};
+use crate::drive::objects::{self, DriveInputs};
+use crate::drive::pdo::{self, Mapping};
+use crate::ethercat::coe::{access, data_type};
+use crate::ethercat::pdo::{Direction, PdoEntry};
 
 /// One mode of operation of the AKD (0x6060), as `MODES_OF_OPERATION` lists them.
 #[pyclass(name = "ModeOfOperation", module = "akd_ros._native", frozen, get_all)]
@@ -308,9 +309,7 @@ fn with_digital_outputs(word: u32, levels: Vec<(Bound<'_, PyInt>, bool)>) -> PyR
 #[pyfunction]
 fn check_mapping(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<()> {
     let (rx, tx) = (super::master::parse_mapping(rx)?, super::master::parse_mapping(tx)?);
-    rx.entries(Direction::Rx).py()?;
-    tx.entries(Direction::Tx).py()?;
-    Ok(())
+    Mapping::process_data(&rx, &tx).py().map(drop)
 }
 
 /// The mapping entry 0xIIIISSBB written as `INDEX:SUB/BITS` (hex index and subindex, decimal

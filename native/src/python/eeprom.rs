@@ -4,13 +4,13 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
-use crate::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
+use crate::ethercat::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
 use crate::sim::sii_image;
 
 /// What identifies a drive in its SII: the identity words and the names (None where absent).
 /// Shared by `parse_sii` and the master's scan, so both speak of a drive in the same keys.
 #[derive(IntoPyObject)]
-pub(super) struct Identity {
+pub(super) struct IdentityView {
     vendor_id: u32,
     product_code: u32,
     revision: u32,
@@ -20,11 +20,11 @@ pub(super) struct Identity {
     firmware: Option<String>,
 }
 
-impl Identity {
+impl IdentityView {
     /// The identity `sii` holds.
     pub(super) fn of(sii: &Sii) -> Self {
         let id = sii.identity();
-        Identity {
+        IdentityView {
             vendor_id: id.vendor_id,
             product_code: id.product_code,
             revision: id.revision,
@@ -130,7 +130,7 @@ struct SiiView<'a> {
 /// rx_pdos (each with named entries) and dc_modes. Raises SiiError naming what is wrong.
 #[pyfunction]
 fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> {
-    let sii = Sii::parse(data).map_err(crate::error::Error::from).py()?;
+    let sii = Sii::parse(data).py()?;
     let h = &sii.header;
     let rest = SiiView {
         alias: sii.alias(),
@@ -166,7 +166,7 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
             })
             .collect(),
     };
-    super::Merged(rest, Identity::of(&sii)).into_pyobject(py)
+    super::Merged(rest, IdentityView::of(&sii)).into_pyobject(py)
 }
 
 /// The SII EEPROM image the virtual AKD serves: the real AKD-P00606-NBCC-E000's 2048 bytes.

@@ -1,5 +1,5 @@
 //! `akd_ros._native.Feed`: the node's periodic publications made by a thread of the crate from a
-//! running `Cycle` (see [`crate::node::feed`]), and `diagnostic_array`, the /diagnostics message
+//! running `Cycle` (see [`crate::ros::feed`]), and `diagnostic_array`, the /diagnostics message
 //! made of what the node says.
 
 use std::sync::atomic::{AtomicI64, Ordering};
@@ -13,10 +13,10 @@ use pyo3::types::PyBytes;
 use super::bag_writer::PyBagWriter;
 use super::cycle::PyCycle;
 use super::record::joint_scale;
-use crate::node::cycle_records::CycleRecords;
-use crate::node::feed::{Feed, Kind};
-use crate::node::{Joint, JointIo};
-use crate::ros_msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
+use crate::ros::cycle_records::CycleRecords;
+use crate::ros::feed::{Feed, Kind};
+use crate::ros::msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
+use crate::ros::{Joint, JointIo};
 
 /// What `take` gives: each message made (its stream's id, its bytes), and whether events wait.
 type Taken<'py> = (Vec<(usize, Bound<'py, PyBytes>)>, bool);
@@ -187,7 +187,7 @@ fn diagnostic_array<'py>(py: Python<'py>, stamp_ns: i64, statuses: Vec<Status>) 
             })
             .collect(),
     };
-    PyBytes::new(py, &ros_msgs::to_cdr(&message, 4096))
+    PyBytes::new(py, &msgs::to_cdr(&message, 4096))
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

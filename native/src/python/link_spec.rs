@@ -3,7 +3,7 @@
 
 use pyo3::prelude::*;
 
-use crate::link_spec::{self as spec, LinkSpec};
+use crate::ethercat::link_spec::{self as spec, LinkSpec};
 
 /// A parsed link spec: "kind" ("sim", "udp" or "interface") and the one field of that kind,
 /// the others None.
@@ -17,18 +17,27 @@ impl PyLinkSpec {
     /// "sim", "udp" or "interface".
     #[getter]
     fn kind(&self) -> &'static str {
-        match self.spec {
+        match &self.spec {
             LinkSpec::Sim { .. } => "sim",
             LinkSpec::Udp { .. } => "udp",
             LinkSpec::Interface { .. } => "interface",
         }
     }
 
-    /// How many virtual AKDs (sim), else None.
+    /// How many virtual slaves (sim), else None.
     #[getter]
     fn count(&self) -> Option<usize> {
-        match self.spec {
-            LinkSpec::Sim { count, .. } => Some(count),
+        match &self.spec {
+            LinkSpec::Sim { line, .. } => Some(line.len()),
+            _ => None,
+        }
+    }
+
+    /// The virtual slaves' products in order, e.g. ["ek1100", "el1004", "akd"] (sim), else None.
+    #[getter]
+    fn line(&self) -> Option<Vec<&'static str>> {
+        match &self.spec {
+            LinkSpec::Sim { line, .. } => Some(line.products().iter().map(|p| p.name()).collect()),
             _ => None,
         }
     }
@@ -36,7 +45,7 @@ impl PyLinkSpec {
     /// How the virtual AKDs judge missed frames, "late", "lost" or "warn" (sim), else None.
     #[getter]
     fn missed(&self) -> Option<&'static str> {
-        match self.spec {
+        match &self.spec {
             LinkSpec::Sim { missed, .. } => Some(missed.name()),
             _ => None,
         }
@@ -45,7 +54,7 @@ impl PyLinkSpec {
     /// How fast the virtual AKDs answer, "real" or "immediate" (sim), else None.
     #[getter]
     fn pace(&self) -> Option<&'static str> {
-        match self.spec {
+        match &self.spec {
             LinkSpec::Sim { pace, .. } => Some(pace.name()),
             _ => None,
         }
@@ -72,8 +81,8 @@ impl PyLinkSpec {
     /// How many µs the master busy-polls for the returning frame (interface), else None.
     #[getter]
     fn busy_poll_us(&self) -> Option<u32> {
-        match self.spec {
-            LinkSpec::Interface { busy_poll_us, .. } => Some(busy_poll_us),
+        match &self.spec {
+            LinkSpec::Interface { busy_poll_us, .. } => Some(*busy_poll_us),
             _ => None,
         }
     }

@@ -10,18 +10,20 @@ use std::time::Duration;
 use pyo3::prelude::*;
 use pyo3::types::PyInt;
 
-use super::eeprom::Identity;
+use super::eeprom::IdentityView;
 use super::IntoPyResult;
 use super::Merged;
-use crate::al::AlState;
-use crate::coe::{Emergency, ObjectCode, OdListType};
+use crate::drive::akd::{AkdLine, AkdSlave};
+use crate::drive::pdo::Mapping;
+use crate::drive::scaling::{self, PositionScaling};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
-use crate::link::{self, Link};
-use crate::link_spec::LinkSpec;
-use crate::master::sdo_info::{EntryInfo, ObjectInfo};
-use crate::master::{self, Mapping, SlaveRef};
-use crate::pdo::PdoEntry;
-use crate::scaling::{self, PositionScaling};
+use crate::ethercat::al::AlState;
+use crate::ethercat::coe::{Emergency, ObjectCode, OdListType};
+use crate::ethercat::link::{self, Link};
+use crate::ethercat::link_spec::LinkSpec;
+use crate::ethercat::master::sdo_info::{EntryInfo, ObjectInfo};
+use crate::ethercat::master::{self, SlaveRef};
+use crate::ethercat::pdo::PdoEntry;
 use crate::sim::control::SimControl;
 use crate::sim::in_process::InProcess;
 use crate::sim::{Timing, VirtualBus};
@@ -37,8 +39,11 @@ struct Opened {
 /// Opens the link named by `spec` (a [`LinkSpec`]).
 fn open_link(spec: &str) -> crate::error::Result<Opened> {
     Ok(match spec.parse::<LinkSpec>()? {
-        LinkSpec::Sim { count, missed, pace } => {
-            let link = InProcess::with_bus(VirtualBus::with_timing(count, Timing::of(pace, missed)));
+        LinkSpec::Sim { line, missed, pace } => {
+            if !line.only_akds() {
+                return Err(Unavailable::LineWithTerminals { line: line.to_string() }.into());
+            }
+            let link = InProcess::with_bus(VirtualBus::of_line(&line, Timing::of(pace, missed))?);
             let simulator = Some(link.control());
             Opened { link: Box::new(link), simulator, warnings: Vec::new() }
         }
@@ -102,6 +107,9 @@ pub struct PyMaster {
     /// does not hold them.
     simulator: Option<SimControl>,
     warnings: Vec<String>,
+    /// FBUS.PARAM02 as the last clock set-up left it in each slave, by position, for the Cycle
+    /// that shows it.
+    pub(super) fbus_param02: Mutex<Vec<Option<u32>>>,
 }
 
 /// The master while one call uses it.
@@ -219,10 +227,11 @@ impl PyMaster {
         py.allow_threads(|| -> crate::error::Result<PyMaster> {
             let Opened { link: inner, simulator, warnings } = open_link(link)?;
             let inner: Box<dyn Link> = match pcap {
-                Some(path) => Box::new(link::pcap::Recorder::new(inner, path)?),
+                Some(path) => Box::new(link::pcap::CapturingLink::new(inner, path)?),
                 None => inner,
             };
-            Ok(PyMaster { master: Mutex::new(Some(master::Master::new(inner, timeout))), simulator, warnings })
+            let master = Mutex::new(Some(master::Master::new(inner, timeout)));
+            Ok(PyMaster { master, simulator, warnings, fbus_param02: Mutex::default() })
         })
         .py()
     }
@@ -247,7 +256,8 @@ impl PyMaster {
     /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
     /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
     /// what the scan found before it reset the bus.
-    fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, Identity>>> {
+    fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, IdentityView>>> {
+        lock(&self.fbus_param02).clear();
         self.with_master(py, |m| {
             m.scan()?;
             (0..m.slaves().len() as u16)
@@ -267,7 +277,7 @@ impl PyMaster {
                         mailbox_protocols: slave.sii.header.mailbox_protocols,
                         dc: slave.has_dc(),
                     };
-                    Ok(Merged(rest, Identity::of(&slave.sii)))
+                    Ok(Merged(rest, IdentityView::of(&slave.sii)))
                 })
                 .collect()
         })
@@ -345,19 +355,19 @@ impl PyMaster {
         dns_name: Option<String>,
         mac: Option<&str>,
     ) -> PyResult<String> {
-        use crate::eoe::{parse_ipv4, parse_mac, IpParameters};
+        use crate::ethercat::eoe::{parse_ipv4, parse_mac, IpParameters};
         let address = |what, text: Option<&str>| text.map(|t| parse_ipv4(what, t)).transpose();
         let parameters = IpParameters {
-            mac: mac.map(parse_mac).transpose().map_err(Error::from).py()?,
-            ip: Some(parse_ipv4("IP address", ip).map_err(Error::from).py()?),
-            subnet_mask: address("subnet mask", subnet_mask).map_err(Error::from).py()?,
-            gateway: address("default gateway", gateway).map_err(Error::from).py()?,
-            dns_server: address("DNS server", dns_server).map_err(Error::from).py()?,
+            mac: mac.map(parse_mac).transpose().py()?,
+            ip: Some(parse_ipv4("IP address", ip).py()?),
+            subnet_mask: address("subnet mask", subnet_mask).py()?,
+            gateway: address("default gateway", gateway).py()?,
+            dns_server: address("DNS server", dns_server).py()?,
             dns_name,
         };
         self.with_slave(py, position, |s| {
             let mac = parameters.mac.unwrap_or_else(|| master::eoe::default_mac(s.info().station_address));
-            s.eoe_set_ip(&crate::eoe::IpParameters { mac: Some(mac), ..parameters })?;
+            s.eoe_set_ip(&crate::ethercat::eoe::IpParameters { mac: Some(mac), ..parameters })?;
             Ok(mac.iter().map(|b| format!("{b:02x}")).collect::<Vec<_>>().join(":"))
         })
     }
@@ -468,14 +478,18 @@ impl PyMaster {
     /// a cycle either way), with FBUS.PARAM02 = 1 on every AKD (in PreOp).
     #[pyo3(signature = (cycle_time_ns, shift_ns = 0))]
     fn configure_dc(&self, py: Python<'_>, cycle_time_ns: u32, shift_ns: i64) -> PyResult<()> {
-        self.with_master(py, |m| m.configure_dc(cycle_time_ns, shift_ns))
+        let fbus_param02 = self.with_master(py, |m| m.configure_dc(cycle_time_ns, shift_ns))?;
+        *lock(&self.fbus_param02) = fbus_param02;
+        Ok(())
     }
 
     /// Runs the drives without distributed clocks at `cycle_time_ns`: SYNC0 off,
     /// FBUS.PARAM02 = 0 and the cycle time 0x60C2 on every AKD, which then follows the SM2
     /// event (in PreOp).
     fn configure_sm2_sync(&self, py: Python<'_>, cycle_time_ns: u32) -> PyResult<()> {
-        self.with_master(py, |m| m.configure_sm2_sync(cycle_time_ns))
+        let fbus_param02 = self.with_master(py, |m| m.configure_sm2_sync(cycle_time_ns))?;
+        *lock(&self.fbus_param02) = fbus_param02;
+        Ok(())
     }
 
     /// One cyclic exchange; returns the working counter.
@@ -509,6 +523,23 @@ impl PyMaster {
     /// while supervision is off).
     fn watch(&self, py: Python<'_>) -> PyResult<Vec<WatchedSlave>> {
         self.with_master(py, |m| Ok(m.watch()?.iter().map(WatchedSlave::from).collect()))
+    }
+
+    /// Every slave's links and error counters as one read finds them, the line at rest (no
+    /// Cycle): as `Cycle.line_health()` gives them, each count what the slave's ESC counted
+    /// since its power-up or the last clear (nothing is cleared here, and nothing counts in the
+    /// window of one read). `names` as there.
+    #[pyo3(signature = (names = None))]
+    fn line_health(
+        &self,
+        py: Python<'_>,
+        names: Option<std::collections::HashMap<usize, String>>,
+    ) -> PyResult<super::line_health::LineHealthView> {
+        let (reading, products) = self.with_master(py, |m| {
+            let products: Vec<String> = m.slaves().iter().map(|s| s.product().to_owned()).collect();
+            Ok((m.line_health()?, products))
+        })?;
+        Ok(super::line_health::LineHealthView::new(&reading, &super::line_health::labels(&products, names)))
     }
 
     /// The working counter a good cycle comes back with.
@@ -570,6 +601,11 @@ impl PyMaster {
     /// Gives the master back after its cycle thread stopped. Waits for the lock: while the
     /// master is out, a call holds it only to fail at once, with the GIL that the caller holds.
     pub(super) fn put_back(&self, master: master::Master) {
-        *self.master.lock().unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(master);
+        *lock(&self.master) = Some(master);
     }
+}
+
+/// A lock that a panicking holder left holds what it held.
+pub(super) fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
 }

@@ -17,6 +17,7 @@ mod drive;
 mod eeprom;
 mod feed;
 mod homing;
+mod line_health;
 mod link_spec;
 mod master;
 mod record;
@@ -153,14 +154,14 @@ where
     }
 }
 
-/// Extension trait: `.py()?` converts a crate result into a Python one.
+/// Extension trait: `.py()?` converts a crate result, or a codec's, into a Python one.
 pub(crate) trait IntoPyResult<T> {
     fn py(self) -> PyResult<T>;
 }
 
-impl<T> IntoPyResult<T> for crate::error::Result<T> {
+impl<T, E: Into<Error>> IntoPyResult<T> for std::result::Result<T, E> {
     fn py(self) -> PyResult<T> {
-        self.map_err(to_py_err)
+        self.map_err(|e| to_py_err(e.into()))
     }
 }
 

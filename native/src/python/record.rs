@@ -5,8 +5,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
-use crate::cycle::record::{self, JointScale};
 use crate::cycle::samples::Sample;
+use crate::ros::cycle_sample::{self, JointScale};
 
 /// A column of `columns` by name, every row converted to T.
 fn column<'py, T: FromPyObject<'py>>(columns: &Bound<'py, PyDict>, name: &str) -> PyResult<Vec<T>> {
@@ -100,7 +100,7 @@ fn cycle_sample_records(
         named.push((joint.as_str(), joint_scale(units)?));
         rows.extend(samples_of(columns)?.into_iter().map(|s| (k, s)));
     }
-    Ok(record::encode_rows(rows, &named, offset_ns)
+    Ok(cycle_sample::encode_rows(rows, &named, offset_ns)
         .into_iter()
         .map(|(stamp_ns, data)| (stamp_ns, PyBytes::new(py, &data).unbind()))
         .collect())

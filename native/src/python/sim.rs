@@ -1,7 +1,8 @@
-//! Python face of the virtual AKD: `VirtualBus` for tests that build their own frames,
+//! Python face of the virtual line: `VirtualBus` for tests that build their own frames,
 //! `serve_udp` / `serve_iface` for the `akd-sim` command, and `Simulator`, which controls
-//! virtual AKDs another thread serves (a `Master("sim")` and its Cycle, or a server), and
-//! `SetpointTrace`, the file a server traces its drives' set-points to.
+//! virtual slaves another thread serves (a `Master("sim")` and its Cycle, or a server), and
+//! `SetpointTrace`, the file a server traces its drives' set-points to; `sim_sii_image`, the
+//! SII image each virtual slave serves.
 
 use std::net::{SocketAddr, ToSocketAddrs};
 use std::path::PathBuf;
@@ -13,14 +14,17 @@ use pyo3::types::PyBytes;
 
 use super::IntoPyResult;
 use crate::error::{Error, Result, SettingError, Unavailable, UnknownName};
-use crate::link_spec::MissedFrames;
-use crate::link_spec::Pace;
-use crate::sim::control::{self, Change, ControlledBus, DriveState, SimControl, QUERY_TIMEOUT};
+use crate::ethercat::al::AlState;
+use crate::ethercat::link_spec::{MissedFrames, Pace, SimLine, SimLineError, SimProduct};
+use crate::sim::control::{self, Change, ControlledBus, DriveState, EscState, SimControl, QUERY_TIMEOUT};
 use crate::sim::faults::Fault;
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::pll::SyncState;
-use crate::sim::setpoint_trace::{Recorder, SetpointTrace, TraceSummary};
-use crate::sim::{server, Timing, VirtualBus};
+use crate::sim::setpoint_trace::{SetpointTrace, TraceSender, TraceSummary};
+use crate::sim::terminal::{self, TerminalState};
+use crate::sim::{server, sii_image, Timing, VirtualBus};
+
+use super::line_health::{EscCountsView, PortCountsView};
 
 /// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
 /// name, or None), "fault_number" (e.g. 125, or None), the motor's "position" (counts),
@@ -61,7 +65,7 @@ impl From<DriveState> for DriveStateView {
             torque: drive.torque,
             dc: drive.sync.into(),
             digital_inputs: drive.digital_inputs,
-            digital_outputs: (0..crate::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
+            digital_outputs: (0..crate::drive::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
             analog_output: drive.outputs.analog,
             would_be_f125: WouldBeF125View {
                 count: drive.would_be_f125.count,
@@ -98,44 +102,147 @@ impl From<SyncState> for SyncView {
     }
 }
 
-/// A line of virtual AKDs serving EtherCAT payloads (frame header and datagrams) in place.
+/// `terminal_state()`: "product" (e.g. "el1004"), "al_state" (the AL state's name),
+/// "al_status" (the register, error flag included), its digital "inputs" (as the master reads
+/// them, after the input filter) and "outputs" (as the pins drive them), its "analog_inputs" (V),
+/// each a list from channel 1, and "watchdog_expired" (the sync-manager watchdog ran out and
+/// holds the outputs off).
+#[derive(IntoPyObject)]
+struct TerminalStateView {
+    product: &'static str,
+    al_state: Option<&'static str>,
+    al_status: u16,
+    inputs: Vec<bool>,
+    outputs: Vec<bool>,
+    analog_inputs: Vec<f64>,
+    watchdog_expired: bool,
+}
+
+impl From<TerminalState> for TerminalStateView {
+    fn from(t: TerminalState) -> Self {
+        let bits = |mask: u16, count: u8| (0..count).map(|n| mask >> n & 1 == 1).collect();
+        TerminalStateView {
+            product: t.product.name(),
+            al_state: AlState::from_bits(t.al_status & 0x0F).map(AlState::name),
+            al_status: t.al_status,
+            inputs: bits(t.inputs, t.input_count),
+            outputs: bits(t.outputs, t.output_count),
+            analog_inputs: t.analog_inputs[..usize::from(t.analog_count)].to_vec(),
+            watchdog_expired: t.watchdog_expired,
+        }
+    }
+}
+
+/// One port of `esc_state()["ports"]`: "port", "kind" ("MII", "E-bus", ...), "link",
+/// "loop_closed", "communication" (as the DL status shows them), "spoiling" (frames a faulty
+/// cable is still to spoil entering it), "registers" (its counters as the master reads them)
+/// and "counted" (what they counted since power-up, never cleared).
+#[derive(IntoPyObject)]
+struct EscPortView {
+    port: usize,
+    kind: &'static str,
+    link: bool,
+    loop_closed: bool,
+    communication: bool,
+    spoiling: u64,
+    registers: PortCountsView,
+    counted: PortCountsView,
+}
+
+/// `esc_state()`: "dl_status", "ports" (the ports its ESC has), "registers" and "counted" (its
+/// processing unit's and PDI's counters, as for each port).
+#[derive(IntoPyObject)]
+struct EscStateView {
+    dl_status: u16,
+    ports: Vec<EscPortView>,
+    registers: EscCountsView,
+    counted: EscCountsView,
+}
+
+impl From<EscState> for EscStateView {
+    fn from(e: EscState) -> Self {
+        let ports = e
+            .port_descriptor
+            .ports()
+            .map(|port| EscPortView {
+                port,
+                kind: e.port_descriptor.kind(port).name(),
+                link: e.dl_status.link(port),
+                loop_closed: e.dl_status.loop_closed(port),
+                communication: e.dl_status.communication(port),
+                spoiling: e.spoiling[port],
+                registers: e.registers.ports[port].into(),
+                counted: e.counted.ports[port].into(),
+            })
+            .collect();
+        EscStateView {
+            dl_status: e.dl_status.0,
+            ports,
+            registers: EscCountsView {
+                processing_unit_errors: e.registers.processing_unit.into(),
+                pdi_errors: e.registers.pdi.into(),
+            },
+            counted: EscCountsView { processing_unit_errors: e.counted.processing_unit, pdi_errors: e.counted.pdi },
+        }
+    }
+}
+
+/// The line `line` names ("ek1100,el1004,akd"), or `count` AKDs where it is None.
+fn sim_line(count: usize, line: Option<&str>) -> Result<SimLine> {
+    let parsed = match line {
+        Some(text) => text.parse(),
+        None => SimLine::akds(count),
+    };
+    parsed.map_err(|error| {
+        SettingError::SimLine { line: line.map_or_else(|| count.to_string(), str::to_owned), error }.into()
+    })
+}
+
+/// A line of virtual slaves serving EtherCAT payloads (frame header and datagrams) in place.
 #[pyclass(name = "VirtualBus", module = "akd_ros._native")]
 struct PyVirtualBus {
     bus: VirtualBus,
+    products: Vec<SimProduct>,
 }
 
 #[pymethods]
 impl PyVirtualBus {
-    /// `count` drives at power-up. `immediate=True` makes the firmware answer AL requests and
-    /// mailbox messages before the next frame instead of after the real drive's delays.
-    /// `init_to_preop_ms`, when given, is how long this line's firmware takes from Init to
-    /// PreOp instead of the default (real drives differ there: docs/virtual_akd.md).
+    /// `count` AKDs at power-up, or the slaves `line` names ("ek1100,el1004,el2004,akd").
+    /// `immediate=True` makes the AKDs' firmware answer AL requests and mailbox messages before
+    /// the next frame instead of after the real drive's delays. `warm=True` makes them drives
+    /// powered up long before, as the drive of the SOEM capture was: their Init→PreOp and
+    /// first mailbox reply take the later requests' time (docs/virtual_akd.md).
     #[new]
-    #[pyo3(signature = (count = 1, immediate = false, init_to_preop_ms = None))]
-    fn new(count: usize, immediate: bool, init_to_preop_ms: Option<f64>) -> PyResult<Self> {
-        let mut timing = Timing::of(if immediate { Pace::Immediate } else { Pace::Real }, MissedFrames::Late);
-        if let Some(ms) = init_to_preop_ms {
-            if !(ms.is_finite() && (0.0..=10_000.0).contains(&ms)) {
-                return Err(Error::from(SettingError::InitToPreOp { ms })).py();
-            }
-            timing.init_to_preop_ns = (ms * 1e6).round() as u64;
+    #[pyo3(signature = (count = 1, immediate = false, warm = false, line = None))]
+    fn new(count: usize, immediate: bool, warm: bool, line: Option<&str>) -> PyResult<Self> {
+        let timing = Timing::of(if immediate { Pace::Immediate } else { Pace::Real }, MissedFrames::Late);
+        let mut bus = sim_line(count, line).and_then(|line| VirtualBus::of_line(&line, timing)).py()?;
+        if warm {
+            bus.warm_up();
         }
-        Ok(PyVirtualBus { bus: VirtualBus::with_timing(count, timing) })
+        Ok(PyVirtualBus { products: bus.products(), bus })
+    }
+
+    /// The slaves' products in order, e.g. ["ek1100", "el1004", "akd"].
+    #[getter]
+    fn products(&self) -> Vec<&'static str> {
+        self.products.iter().map(|p| p.name()).collect()
     }
 
     /// Serves `payload` at bus time `time_ns` and returns the frame as it comes back, or None
     /// when it is lost on the line; raises FrameError for a malformed frame.
     fn process<'py>(&mut self, py: Python<'py>, payload: &[u8], time_ns: u64) -> PyResult<Option<Bound<'py, PyBytes>>> {
         let mut frame = payload.to_vec();
-        let delivery = self.bus.process(&mut frame, time_ns).map_err(Error::from).py()?;
+        let delivery = self.bus.process(&mut frame, time_ns).py()?;
         Ok((delivery == Delivery::Returned).then(|| PyBytes::new(py, &frame)))
     }
 
-    /// AL state bits with the error flag, and the AL status code, of drive `position`.
+    /// AL state bits with the error flag, and the AL status code, of slave `position`.
     fn al_status(&self, position: usize) -> PyResult<(u16, u16)> {
         self.check(position)?;
-        let (state, error, code) = self.bus.slave(position).al_status();
-        Ok((state as u16 | if error { crate::al::AL_ERROR_FLAG } else { 0 }, code))
+        let registers = self.bus.at(position).registers();
+        let word = |at: u16| u16::from_le_bytes([registers[usize::from(at)], registers[usize::from(at) + 1]]);
+        Ok((word(crate::ethercat::registers::AL_STATUS), word(crate::ethercat::registers::AL_STATUS_CODE)))
     }
 
     /// Lets bus time `time_ns` pass with no frame: the drives' firmware and motors run up to it.
@@ -147,46 +254,50 @@ impl PyVirtualBus {
     /// "following_error" (F439), "over_temperature" (F235), "sync_lost" (F125) or
     /// "setpoints_missing" (F706), by name or as "F125".
     fn inject_fault(&mut self, position: usize, name: &str) -> PyResult<()> {
-        Change::inject_fault(self.bus.len(), position, name).py()?.apply(&mut self.bus);
+        Change::inject_fault(&self.products, position, name).py()?.apply(&mut self.bus);
         Ok(())
     }
 
     /// Sets the hardware enable input of drive `position` (high at power-up).
     fn set_hardware_enable(&mut self, position: usize, high: bool) -> PyResult<()> {
-        Change::hardware_enable(self.bus.len(), position, high).py()?.apply(&mut self.bus);
+        Change::hardware_enable(&self.products, position, high).py()?.apply(&mut self.bus);
         Ok(())
     }
 
     /// Digital input `input` (1..7) of drive `position` toggles wherever the actual position
     /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
     fn set_input_toggles(&mut self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
-        Change::input_toggles(self.bus.len(), position, input, positions).py()?.apply(&mut self.bus);
+        Change::input_toggles(&self.products, position, input, positions).py()?.apply(&mut self.bus);
         Ok(())
     }
 
-    /// Digital input `input` (1..7) of drive `position` `high` or low wherever the shaft is.
+    /// Digital input `input` (from 1) of slave `position` `high` or low: an AKD's 1..7 wherever
+    /// the shaft is, a digital input terminal's at its connector (the master sees it after the
+    /// terminal's input filter).
     fn set_input(&mut self, position: usize, input: usize, high: bool) -> PyResult<()> {
-        Change::input_level(self.bus.len(), position, input, high).py()?.apply(&mut self.bus);
+        Change::input_level(&self.products, position, input, high).py()?.apply(&mut self.bus);
         Ok(())
     }
 
     /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
     /// "interlock") of drive `position` active or not; a limit switch holds motion toward it.
     fn set_switch(&mut self, position: usize, name: &str, active: bool) -> PyResult<()> {
-        Change::switch(self.bus.len(), position, name, active).py()?.apply(&mut self.bus);
+        Change::switch(&self.products, position, name, active).py()?.apply(&mut self.bus);
         Ok(())
     }
 
-    /// The analog input of drive `position` at `volts` (0x3470:04, ±10 V over its range).
-    fn set_analog_input(&mut self, position: usize, volts: f64) -> PyResult<()> {
-        Change::analog_input(self.bus.len(), position, volts).py()?.apply(&mut self.bus);
+    /// Analog input `input` (from 1) of slave `position` at `volts`: an AKD's one (0x3470:04,
+    /// ±10 V over its range), an EL3102's two (±10 V).
+    #[pyo3(signature = (position, volts, input = 1))]
+    fn set_analog_input(&mut self, position: usize, volts: f64, input: usize) -> PyResult<()> {
+        Change::analog_input(&self.products, position, input, volts).py()?.apply(&mut self.bus);
         Ok(())
     }
 
     /// Makes drive `position`'s homing runs fail as `name` says: "error" (a homing error
     /// halfway to the reference), "no_reference" (it searches and never finds it), or "ok".
     fn set_homing_failure(&mut self, position: usize, name: &str) -> PyResult<()> {
-        Change::homing_failure(self.bus.len(), position, name).py()?.apply(&mut self.bus);
+        Change::homing_failure(&self.products, position, name).py()?.apply(&mut self.bus);
         Ok(())
     }
 
@@ -195,8 +306,35 @@ impl PyVirtualBus {
     /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m), and "dc", what its
     /// synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2, whether its PLL would lock).
     fn drive_state(&self, position: usize) -> PyResult<DriveStateView> {
-        self.check(position)?;
+        control::check_akd(&self.products, position, "a drive state").py()?;
         Ok(DriveState::of(self.bus.slave(position)).into())
+    }
+
+    /// The I/O of the terminal at `position` as a dict (see `Simulator.terminal_state`).
+    fn terminal_state(&self, position: usize) -> PyResult<TerminalStateView> {
+        control::check_terminal(&self.products, position, "a terminal state").py()?;
+        Ok(self.bus.at(position).terminal().map(|t| t.state().into()).expect("checked: a terminal"))
+    }
+
+    /// Takes the link at `port` of slave `position` down (`up` False) or up again, as
+    /// `Simulator.set_link` does.
+    fn set_link(&mut self, position: usize, port: usize, up: bool) -> PyResult<()> {
+        Change::link(&self.products, position, port, up).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// The cable into `port` of slave `position` spoils the next `frames` frames entering
+    /// there, one in every `every`, as `Simulator.crc_errors` says.
+    #[pyo3(signature = (position, port, frames, every = 1))]
+    fn crc_errors(&mut self, position: usize, port: usize, frames: i64, every: i64) -> PyResult<()> {
+        Change::spoil_port(&self.products, position, port, frames, every).py()?.apply(&mut self.bus);
+        Ok(())
+    }
+
+    /// The ESC of slave `position` as a dict (see `Simulator.esc_state`).
+    fn esc_state(&self, position: usize) -> PyResult<EscStateView> {
+        self.check(position)?;
+        Ok(EscState::of(&self.bus, position).into())
     }
 
     fn __len__(&self) -> usize {
@@ -250,8 +388,9 @@ impl PySimulator {
         self.control.set_input_toggles(position, input, positions).py()
     }
 
-    /// Digital input `input` (1..7) of drive `position` `high` or low wherever the shaft is,
-    /// from the next frame on.
+    /// Digital input `input` (from 1) of slave `position` `high` or low from the next frame on:
+    /// an AKD's 1..7 wherever the shaft is, a digital input terminal's at its connector (the
+    /// master sees it after the terminal's input filter, 3 ms).
     fn set_input(&self, position: usize, input: usize, high: bool) -> PyResult<()> {
         self.control.set_input(position, input, high).py()
     }
@@ -263,10 +402,11 @@ impl PySimulator {
         self.control.set_switch(position, name, active).py()
     }
 
-    /// The analog input of drive `position` at `volts` (0x3470:04, ±10 V over its range) from
-    /// the next frame on.
-    fn set_analog_input(&self, position: usize, volts: f64) -> PyResult<()> {
-        self.control.set_analog_input(position, volts).py()
+    /// Analog input `input` (from 1) of slave `position` at `volts` from the next frame on: an
+    /// AKD's one (0x3470:04, ±10 V over its range), an EL3102's two (±10 V).
+    #[pyo3(signature = (position, volts, input = 1))]
+    fn set_analog_input(&self, position: usize, volts: f64, input: usize) -> PyResult<()> {
+        self.control.set_analog_input(position, input, volts).py()
     }
 
     /// Makes drive `position`'s homing runs fail from the next frame on as `name` says: "error"
@@ -292,6 +432,37 @@ impl PySimulator {
     /// Plugs the cable in front of drive `position` back in.
     fn replug_cable(&self, position: usize) -> PyResult<()> {
         self.control.set_cable(position, true).py()
+    }
+
+    /// Takes the link at `port` of slave `position` down (`up` False) before the next frame, or
+    /// up again: the cable there pulled or plugged (port 0: the one in front of it; port 1: the
+    /// one to the next slave), each end counting a lost link. Raises ConfigError for a port its
+    /// ESC lacks or no cable of the line reaches.
+    fn set_link(&self, position: usize, port: usize, up: bool) -> PyResult<()> {
+        self.control.set_link(position, port, up).py()
+    }
+
+    /// The cable into `port` of slave `position` spoils (a CRC error) the next `frames` frames
+    /// entering there, one in every `every`, from the next frame on: the slave's ESC counts an
+    /// invalid frame at that port, every ESC after it on the frame's way a forwarded error, and
+    /// the master never gets the frame. Port 0 takes frames on their way out, from the slave in
+    /// front (or the master); port 1 on their way back, from the slave behind. 0 ends a fault
+    /// still pending.
+    #[pyo3(signature = (position, port, frames, every = 1))]
+    fn crc_errors(&self, position: usize, port: usize, frames: i64, every: i64) -> PyResult<()> {
+        self.control.spoil_port(position, port, frames, every).py()
+    }
+
+    /// The ESC of slave `position` after the next frame, as a dict: "dl_status", "ports" (each
+    /// port its ESC has: "port", "kind", "link", "loop_closed", "communication", "spoiling",
+    /// "registers" and "counted", its counters as the master reads them and as counted since
+    /// power-up), "registers" and "counted" (its processing unit's and PDI's); waits up to
+    /// `timeout` seconds for that frame.
+    #[pyo3(signature = (position, timeout = QUERY_TIMEOUT.as_secs_f64()))]
+    fn esc_state(&self, py: Python<'_>, position: usize, timeout: f64) -> PyResult<EscStateView> {
+        let timeout = super::seconds(timeout, "timeout")?;
+        let control = &self.control;
+        Ok(py.allow_threads(|| control.esc_state(position, timeout)).py()?.into())
     }
 
     /// The next `frames` frames get no reply at all; 0 ends a burst still pending.
@@ -320,10 +491,27 @@ impl PySimulator {
         Ok(py.allow_threads(|| control.drive_state(position, timeout)).py()?.into())
     }
 
+    /// The I/O of the terminal at `position` after the next frame, as a dict: "product",
+    /// "al_state", "al_status", "inputs" and "outputs" (lists of levels from channel 1),
+    /// "analog_inputs" (V) and "watchdog_expired"; waits up to `timeout` seconds for that frame.
+    #[pyo3(signature = (position, timeout = QUERY_TIMEOUT.as_secs_f64()))]
+    fn terminal_state(&self, py: Python<'_>, position: usize, timeout: f64) -> PyResult<TerminalStateView> {
+        let timeout = super::seconds(timeout, "timeout")?;
+        let control = &self.control;
+        Ok(py.allow_threads(|| control.terminal_state(position, timeout)).py()?.into())
+    }
+
+    /// The slaves' products in order, e.g. ["ek1100", "el1004", "akd"].
+    #[getter]
+    fn products(&self) -> Vec<&'static str> {
+        self.control.products().iter().map(|p| p.name()).collect()
+    }
+
     /// What the line did to the frames it carried since the drives were laid out, counted by
     /// the virtual AKDs themselves, after the next frame (counted in): "frames" (that reached
     /// the line), "lost" (before the first drive: dropped, or the first cable out),
-    /// "corrupted" and "wrong_wkc" (replies spoiled so). Waits up to `timeout` seconds.
+    /// "corrupted" and "wrong_wkc" (replies spoiled so), "spoiled" (frames a faulty cable
+    /// spoiled, `crc_errors`). Waits up to `timeout` seconds.
     #[pyo3(signature = (timeout = QUERY_TIMEOUT.as_secs_f64()))]
     fn line_counts(&self, py: Python<'_>, timeout: f64) -> PyResult<LineCounts> {
         let timeout = super::seconds(timeout, "timeout")?;
@@ -346,8 +534,8 @@ pub struct PySetpointTrace {
 }
 
 impl PySetpointTrace {
-    fn recorder(&self, drives: usize) -> PyResult<Recorder> {
-        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).recorder(drives).py()
+    fn sender(&self, drives: usize) -> PyResult<TraceSender> {
+        self.trace.lock().unwrap_or_else(|poisoned| poisoned.into_inner()).sender(drives).py()
     }
 }
 
@@ -366,10 +554,10 @@ impl PySetpointTrace {
     }
 }
 
-/// A bus of `count` virtual AKDs for a server; `on_start`, if given, is called with its
-/// Simulator before serving starts.
+/// A bus of `count` virtual AKDs, or of the slaves `line` names, for a server; `on_start`, if
+/// given, is called with its Simulator before serving starts.
 fn controlled_bus(
-    count: usize,
+    (count, line): (usize, Option<&str>),
     (missed, pace): (&str, &str),
     on_start: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<ControlledBus> {
@@ -377,7 +565,8 @@ fn controlled_bus(
         .ok_or_else(|| Error::from(UnknownName::MissedFrames { name: missed.to_owned() }))
         .py()?;
     let pace = Pace::parse(pace).ok_or_else(|| Error::from(UnknownName::Pace { name: pace.to_owned() })).py()?;
-    let bus = ControlledBus::from(VirtualBus::with_timing(count, Timing::of(pace, missed_frames)));
+    let timing = Timing::of(pace, missed_frames);
+    let bus = ControlledBus::from(sim_line(count, line).and_then(|line| VirtualBus::of_line(&line, timing)).py()?);
     if let Some(on_start) = on_start {
         on_start.call1((PySimulator::new(bus.control()),))?;
     }
@@ -454,7 +643,7 @@ fn run_until_signal(
     }
     let stats = match py.allow_threads(|| worker.join()) {
         Ok(result) => result.py()?,
-        Err(_) => return Err(Unavailable::SimulatorPanicked.into()).py(),
+        Err(_) => return Err(Unavailable::SimulatorPanicked).py(),
     };
     if let Some(on_stop) = on_stop {
         on_stop.call1((ServerStatsView::from(stats),))?;
@@ -462,15 +651,16 @@ fn run_until_signal(
     interrupt.map_or(Ok(()), Err)
 }
 
-/// Serves `count` virtual AKDs on UDP `host:port` until SIGINT/SIGTERM. `on_start(simulator)`
-/// is called first with the `Simulator` that controls them while they serve. `missed`: how
+/// Serves `count` virtual AKDs, or the slaves `line` names ("ek1100,el1004,el2004,akd"), on UDP
+/// `host:port` until SIGINT/SIGTERM. `on_start(simulator)` is called first with the `Simulator`
+/// that controls them while they serve. `missed`: how
 /// they judge missed frames, "late" (as the real drive), "lost" (only frames lost on the line)
 /// or "warn" (as the real drive, a would-be F125 warned of and not raised). `pace`: how fast
 /// their firmware answers, "real" (as the real drive) or "immediate".
 /// `setpoint_trace`: a `SetpointTrace` the drives' set-points are traced to. `on_stop(stats)`
 /// is called once serving has stopped, with what the server did ([`ServerStatsView`]).
 #[pyfunction]
-#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late", setpoint_trace = None, on_stop = None, pace = "real"))]
+#[pyo3(signature = (host, port, count = 1, on_start = None, missed = "late", setpoint_trace = None, on_stop = None, pace = "real", line = None))]
 #[allow(clippy::too_many_arguments)]
 fn serve_udp(
     py: Python<'_>,
@@ -482,6 +672,7 @@ fn serve_udp(
     setpoint_trace: Option<&PySetpointTrace>,
     on_stop: Option<&Bound<'_, PyAny>>,
     pace: &str,
+    line: Option<&str>,
 ) -> PyResult<()> {
     let address: SocketAddr = (host, port)
         .to_socket_addrs()
@@ -489,18 +680,18 @@ fn serve_udp(
         .and_then(|mut a| a.next())
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
-    let bus = controlled_bus(count, (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    let bus = controlled_bus((count, line), (missed, pace), on_start)?;
+    let trace = setpoint_trace.map(|t| t.sender(bus.bus().len())).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_udp(address, bus, stop, trace))
 }
 
-/// Serves `count` virtual AKDs on network interface `iface` until SIGINT/SIGTERM.
-/// `on_start(simulator)` is called first with the `Simulator` that controls them; `missed`,
-/// `pace`, `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames,
+/// Serves `count` virtual AKDs, or the slaves `line` names, on network interface `iface` until
+/// SIGINT/SIGTERM. `on_start(simulator)` is called first with the `Simulator` that controls
+/// them; `missed`, `pace`, `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames,
 /// answering each as it arrives as the drive's ESC does, on a CPU of its own (raises ConfigError
 /// under SCHED_FIFO or SCHED_RR).
 #[pyfunction]
-#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false, on_stop = None, pace = "real"))]
+#[pyo3(signature = (iface, count = 1, on_start = None, missed = "late", setpoint_trace = None, busy_poll = false, on_stop = None, pace = "real", line = None))]
 #[allow(clippy::too_many_arguments)]
 fn serve_iface(
     py: Python<'_>,
@@ -512,11 +703,29 @@ fn serve_iface(
     busy_poll: bool,
     on_stop: Option<&Bound<'_, PyAny>>,
     pace: &str,
+    line: Option<&str>,
 ) -> PyResult<()> {
     let iface = iface.to_owned();
-    let bus = controlled_bus(count, (missed, pace), on_start)?;
-    let trace = setpoint_trace.map(|t| t.recorder(count)).transpose()?;
+    let bus = controlled_bus((count, line), (missed, pace), on_start)?;
+    let trace = setpoint_trace.map(|t| t.sender(bus.bus().len())).transpose()?;
     run_until_signal(py, on_stop, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
+}
+
+/// The SII EEPROM image the virtual slave `product` serves ("akd", "ek1100", "el1004", ...):
+/// the AKD's is the real drive's, the EK1100's and EL2004's their real dumps, the others made as
+/// the simulator's documentation says.
+#[pyfunction]
+fn sim_sii_image<'py>(py: Python<'py>, product: &str) -> PyResult<Bound<'py, PyBytes>> {
+    let unknown = || SimLineError::UnknownProduct { position: 0, name: product.to_owned() };
+    let known = SimProduct::parse(product).ok_or_else(unknown);
+    let parsed = known.map_err(|error| Error::from(SettingError::SimLine { line: product.to_owned(), error })).py()?;
+    let image = match terminal::description(parsed) {
+        None => Ok(sii_image::akd_sii()),
+        Some(description) => description.image(),
+    };
+    let image =
+        image.map_err(|error| Error::from(SettingError::TerminalImage { product: parsed.name(), error })).py()?;
+    Ok(PyBytes::new(py, &image))
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -527,5 +736,7 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(serve_iface, m)?)?;
     m.add("MISSED_FRAMES", MissedFrames::ALL.map(MissedFrames::name))?;
     m.add("PACES", Pace::ALL.map(Pace::name))?;
+    m.add_function(wrap_pyfunction!(sim_sii_image, m)?)?;
+    m.add("SIM_PRODUCTS", SimProduct::ALL.map(SimProduct::name))?;
     Ok(())
 }

@@ -1,6 +1,6 @@
 //! Joint trajectories for Python: `Cycle.play_trajectory`, `Cycle.trajectory_status` and the
 //! "trajectory" events, converted here; the validation, the handoff and the interpolation are
-//! the crate's ([`crate::trajectory`], [`crate::cycle::trajectory_player`]).
+//! the crate's ([`crate::drive::trajectory`], [`crate::cycle::trajectory_player`]).
 
 use pyo3::prelude::*;
 
@@ -8,9 +8,9 @@ use super::{ConfigError, IntoPyResult, Merged};
 use crate::cycle::events::TrajectoryState;
 use crate::cycle::trajectory_player::{Tolerance, Tolerances, TrajectoryStatus};
 use crate::cycle::CycleThread;
-use crate::ds402::State;
+use crate::drive::ds402::State;
+use crate::drive::trajectory::{JointLimits, Knot, Limits, Scale, Unit};
 use crate::error::Error;
-use crate::trajectory::{JointLimits, Knot, Limits, Scale, Unit};
 
 /// One joint at one point as Python gives it: a position, or (position, velocity or None,
 /// acceleration or None).

@@ -6,7 +6,7 @@
 //! and leaves the state where it was. While the error flag is set, requests for a higher state
 //! are ignored until the master acknowledges with AL control bit 4.
 
-use crate::al::{AlState, AlStatusCode, AL_ERROR_ACK, AL_ERROR_FLAG};
+use crate::ethercat::al::{AlState, AlStatusCode, AL_ERROR_ACK, AL_ERROR_FLAG};
 
 /// The AL status of one virtual AKD.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

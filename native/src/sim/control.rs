@@ -1,7 +1,9 @@
-//! Control of virtual AKDs whose bus another thread owns: fault injection, the hardware enable
-//! input, digital input levels and toggles, the limit and home switches, the analog input, the failures of the field (a drive power-cycled, a cable
-//! pulled, frames lost or corrupted, wrong working counters: see [`crate::sim::line`]), and a
-//! query of the drive firmware's state.
+//! Control of virtual slaves whose bus another thread owns: fault injection, the hardware enable
+//! input, digital input levels and toggles (an AKD's, a digital input terminal's), the analog
+//! inputs, the limit and home switches, the analog input, the failures of the field (a drive power-cycled, a cable
+//! pulled, a port's link taken down, a faulty cable spoiling frames into a port, frames lost or
+//! corrupted, wrong working counters: see [`crate::sim::line`]), and queries of the drive
+//! firmware's state, a terminal's I/O and a slave's ESC (its links and error counters).
 //!
 //! The bus is owned by whoever serves its frames: the in-process link inside a master (and so
 //! the cycle thread while a cycle runs), or the `akd-sim` server loop. A [`SimControl`] handle
@@ -25,14 +27,21 @@
 use std::sync::mpsc::{self, Receiver, RecvTimeoutError, Sender, SyncSender};
 use std::time::Duration;
 
-use crate::ds402::State;
+use std::sync::Arc;
+
+use crate::drive::ds402::State;
 use crate::error::{Error, FrameError, Result, SettingError, Unavailable};
+use crate::ethercat::line_health::registers::{
+    DlStatus, ErrorCounts, PortDescriptor, ERROR_COUNTERS, ERROR_COUNTERS_LEN, PORTS,
+};
+use crate::ethercat::link_spec::SimProduct;
 use crate::sim::digital_inputs::Inputs;
 use crate::sim::faults::Fault;
 use crate::sim::homing::{Failure as HomingFailure, Setup};
 use crate::sim::line::{Burst, Delivery, LineCounts};
 use crate::sim::missed_frames::WouldBeF125;
 use crate::sim::pll::SyncState;
+use crate::sim::terminal::{TerminalState, VirtualTerminal};
 use crate::sim::terminals::{Outputs, Terminals};
 use crate::sim::{VirtualAkd, VirtualBus};
 
@@ -81,7 +90,62 @@ impl DriveState {
     }
 }
 
-/// Checks that drive `position` is on a bus of `count` drives.
+/// A slave's ESC as a query reports it: its ports and their links, its error counters as the
+/// master reads them, and what it counted since power-up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EscState {
+    /// Its port descriptor: the ports it has.
+    pub port_descriptor: PortDescriptor,
+    /// Its DL status: each port's link, loop and communication.
+    pub dl_status: DlStatus,
+    /// Its error counters' registers (stopped at 0xFF, cleared by the master's writes).
+    pub registers: ErrorCounts<u8>,
+    /// What they counted since power-up, never cleared.
+    pub counted: ErrorCounts<u64>,
+    /// Frames a faulty cable is still to spoil entering each port.
+    pub spoiling: [u64; PORTS],
+}
+
+impl EscState {
+    /// Slave `position`'s ESC on `bus` now.
+    pub fn of(bus: &VirtualBus, position: usize) -> Self {
+        let esc = bus.at(position).esc();
+        let at = usize::from(ERROR_COUNTERS);
+        let block = esc.memory()[at..at + ERROR_COUNTERS_LEN].try_into().expect("the block's length");
+        EscState {
+            port_descriptor: PortDescriptor(esc.hardware().port_descriptor),
+            dl_status: DlStatus(esc.u16_at(crate::ethercat::registers::DL_STATUS)),
+            registers: ErrorCounts::decode(block),
+            counted: esc.counted(),
+            spoiling: std::array::from_fn(|port| bus.line().spoiling(position, port)),
+        }
+    }
+}
+
+/// The cable into `port` of slave `position` of a line of `products`: the index of that cable
+/// as [`VirtualBus::set_cable`] counts them (the one in front of a slave). Refused for a port the
+/// slave's ESC lacks, and for one no cable of the virtual line reaches (the line is a daisy
+/// chain: port 0 in, port 1 on to the next slave).
+pub fn cable_at(products: &[SimProduct], position: usize, port: usize) -> Result<usize> {
+    check_position(products.len(), position)?;
+    let product = products[position];
+    let descriptor = PortDescriptor(crate::sim::slave::hardware_of(product).port_descriptor);
+    if port >= PORTS || !descriptor.has(port) {
+        let ports: Vec<String> = descriptor.ports().map(|p| p.to_string()).collect();
+        return Err(
+            SettingError::NoSuchPort { position, product: product.name(), port, ports: ports.join(", ") }.into()
+        );
+    }
+    let why = match port {
+        0 => return Ok(position),
+        1 if position + 1 < products.len() => return Ok(position + 1),
+        1 => "it is the last slave of the line, nothing follows it on port 1",
+        _ => "the virtual line is a daisy chain, each slave taking frames in at port 0 and passing them on at port 1",
+    };
+    Err(SettingError::NoCable { position, product: product.name(), port, why }.into())
+}
+
+/// Checks that slave `position` is on a line of `count` slaves.
 pub fn check_position(count: usize, position: usize) -> Result<()> {
     if position < count {
         return Ok(());
@@ -92,7 +156,27 @@ pub fn check_position(count: usize, position: usize) -> Result<()> {
     })
 }
 
-/// A change to one drive of a bus, checked against that bus's size when made.
+/// Checks that slave `position` of a line of `products` is an AKD, for `what`.
+pub fn check_akd(products: &[SimProduct], position: usize, what: &'static str) -> Result<()> {
+    check_kind(products, position, what, true)
+}
+
+/// Checks that slave `position` of a line of `products` is a terminal, for `what`.
+pub fn check_terminal(products: &[SimProduct], position: usize, what: &'static str) -> Result<()> {
+    check_kind(products, position, what, false)
+}
+
+fn check_kind(products: &[SimProduct], position: usize, what: &'static str, akd: bool) -> Result<()> {
+    check_position(products.len(), position)?;
+    let product = products[position];
+    if (product == SimProduct::Akd) == akd {
+        return Ok(());
+    }
+    let needs = if akd { "an AKD" } else { "a terminal" };
+    Err(SettingError::WrongSlave { position, product: product.name(), what, needs }.into())
+}
+
+/// A change to one slave of a line, checked against that line's slaves when made.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Change {
     /// Raise `fault` at the drive's next model step.
@@ -118,11 +202,11 @@ pub enum Change {
         /// Toggle positions, counts, each finite.
         positions: Vec<f64>,
     },
-    /// Set a digital input high or low wherever the shaft is.
+    /// Set a digital input high or low (an AKD's wherever the shaft is).
     InputLevel {
-        /// Drive position.
+        /// Slave position.
         position: usize,
-        /// Digital input, 1..=7.
+        /// Digital input, from 1: an AKD's 1..=7, a digital input terminal's.
         input: usize,
         /// Its level.
         high: bool,
@@ -131,16 +215,18 @@ pub enum Change {
     Switch {
         /// Drive position.
         position: usize,
-        /// The switch's name, one [`crate::io::Switch::from_name`] knows.
+        /// The switch's name, one [`crate::drive::io::Switch::from_name`] knows.
         name: String,
         /// Whether it is active.
         active: bool,
     },
-    /// Set the analog input.
+    /// Set an analog input.
     AnalogInput {
-        /// Drive position.
+        /// Slave position.
         position: usize,
-        /// Volts, within the range 0x3470:04 holds.
+        /// The input, from 1: an AKD's 1, an analog input terminal's.
+        input: usize,
+        /// Volts, within the range the slave measures.
         volts: f64,
     },
     /// Make the drive's homing runs fail, or work again.
@@ -162,75 +248,116 @@ pub enum Change {
         /// Whether it is in.
         plugged: bool,
     },
+    /// Make the cable into a port spoil frames ([`crate::sim::line::Line::spoil_port`]).
+    SpoilPort {
+        /// Slave position.
+        position: usize,
+        /// Its port.
+        port: usize,
+        /// Frames to spoil.
+        frames: u64,
+        /// One in every so many frames entering there.
+        every: u64,
+    },
     /// Lose, corrupt or give a wrong working counter to the next frames.
     Burst(Burst),
 }
 
 impl Change {
     /// Fault `name` (as [`Fault::from_name`] takes it, e.g. "F439" or "following_error") for
-    /// drive `position` of a bus of `count` drives.
-    pub fn inject_fault(count: usize, position: usize, name: &str) -> Result<Self> {
-        check_position(count, position)?;
+    /// the AKD at `position` of a line of `products`.
+    pub fn inject_fault(products: &[SimProduct], position: usize, name: &str) -> Result<Self> {
+        check_akd(products, position, "a fault")?;
         Ok(Change::InjectFault { position, fault: Fault::from_name(name)? })
     }
 
-    /// Hardware enable `high` or low for drive `position` of a bus of `count` drives.
-    pub fn hardware_enable(count: usize, position: usize, high: bool) -> Result<Self> {
-        check_position(count, position)?;
+    /// Hardware enable `high` or low for the AKD at `position` of a line of `products`.
+    pub fn hardware_enable(products: &[SimProduct], position: usize, high: bool) -> Result<Self> {
+        check_akd(products, position, "the hardware enable")?;
         Ok(Change::HardwareEnable { position, high })
     }
 
-    /// Toggle positions of digital input `input` of drive `position` of a bus of `count`
-    /// drives; refused for an input outside 1..=7 or a position that is not finite.
-    pub fn input_toggles(count: usize, position: usize, input: usize, positions: Vec<f64>) -> Result<Self> {
-        check_position(count, position)?;
+    /// Toggle positions of digital input `input` of the AKD at `position` of a line of
+    /// `products`; refused for an input outside 1..=7 or a position that is not finite.
+    pub fn input_toggles(products: &[SimProduct], position: usize, input: usize, positions: Vec<f64>) -> Result<Self> {
+        check_akd(products, position, "input toggles")?;
         // The drive's own inputs decide what they take; a scratch set asks them now, so the
         // owner never gets a change it would refuse.
         Inputs::default().set_toggles(input, &positions)?;
         Ok(Change::InputToggles { position, input, positions })
     }
 
-    /// Digital input `input` of drive `position` of a bus of `count` drives `high` or low;
-    /// refused for an input outside 1..=7.
-    pub fn input_level(count: usize, position: usize, input: usize, high: bool) -> Result<Self> {
-        check_position(count, position)?;
-        Inputs::default().set_level(input, high)?;
+    /// Digital input `input` of slave `position` of a line of `products` `high` or low; refused
+    /// for an input the slave does not have (an AKD has 1..=7, an EL1004 1..=4, ...).
+    pub fn input_level(products: &[SimProduct], position: usize, input: usize, high: bool) -> Result<Self> {
+        check_position(products.len(), position)?;
+        match products[position] {
+            SimProduct::Akd => Inputs::default().set_level(input, high)?,
+            product => VirtualTerminal::check_input(product, position, input, false)?,
+        }
         Ok(Change::InputLevel { position, input, high })
     }
 
-    /// Switch `name` of drive `position` of a bus of `count` drives `active` or not; refused
+    /// Switch `name` of the AKD at `position` of a line of `products` `active` or not; refused
     /// for a name that is none of 0x60FD's switches.
-    pub fn switch(count: usize, position: usize, name: &str, active: bool) -> Result<Self> {
-        check_position(count, position)?;
+    pub fn switch(products: &[SimProduct], position: usize, name: &str, active: bool) -> Result<Self> {
+        check_akd(products, position, "a switch")?;
         Terminals::default().set_switch(name, active)?;
         Ok(Change::Switch { position, name: name.to_owned(), active })
     }
 
-    /// The analog input of drive `position` of a bus of `count` drives at `volts`; refused
-    /// when not finite or beyond what 0x3470:04 holds.
-    pub fn analog_input(count: usize, position: usize, volts: f64) -> Result<Self> {
-        check_position(count, position)?;
-        Terminals::default().set_analog_input(volts)?;
-        Ok(Change::AnalogInput { position, volts })
+    /// Analog input `input` of slave `position` of a line of `products` at `volts`; refused for
+    /// an input the slave does not have, and when not finite or beyond what it measures (what
+    /// an AKD's 0x3470:04 holds, an EL3102's ±10 V).
+    pub fn analog_input(products: &[SimProduct], position: usize, input: usize, volts: f64) -> Result<Self> {
+        check_position(products.len(), position)?;
+        match products[position] {
+            SimProduct::Akd if input == 1 => Terminals::default().set_analog_input(volts)?,
+            SimProduct::Akd => {
+                let kind = "analog";
+                return Err(SettingError::TerminalInput { position, product: "akd", input, count: 1, kind }.into());
+            }
+            product => {
+                VirtualTerminal::check_input(product, position, input, true)?;
+                VirtualTerminal::check_volts(volts)?;
+            }
+        }
+        Ok(Change::AnalogInput { position, input, volts })
     }
 
-    /// Homing failure `name` ("ok", "error", "no_reference", see [`HomingFailure`]) for drive
-    /// `position` of a bus of `count` drives.
-    pub fn homing_failure(count: usize, position: usize, name: &str) -> Result<Self> {
-        check_position(count, position)?;
+    /// Homing failure `name` ("ok", "error", "no_reference", see [`HomingFailure`]) for the AKD
+    /// at `position` of a line of `products`.
+    pub fn homing_failure(products: &[SimProduct], position: usize, name: &str) -> Result<Self> {
+        check_akd(products, position, "homing")?;
         Ok(Change::HomingFailure { position, failure: HomingFailure::from_name(name)? })
     }
 
-    /// Power-cycle drive `position` of a bus of `count` drives.
-    pub fn power_cycle(count: usize, position: usize) -> Result<Self> {
-        check_position(count, position)?;
+    /// Power-cycle slave `position` of a line of `products`.
+    pub fn power_cycle(products: &[SimProduct], position: usize) -> Result<Self> {
+        check_position(products.len(), position)?;
         Ok(Change::PowerCycle { position })
     }
 
-    /// Pull the cable in front of drive `position` of a bus of `count` drives out, or plug it in.
-    pub fn cable(count: usize, position: usize, plugged: bool) -> Result<Self> {
-        check_position(count, position)?;
+    /// Pull the cable in front of slave `position` of a line of `products` out, or plug it in.
+    pub fn cable(products: &[SimProduct], position: usize, plugged: bool) -> Result<Self> {
+        check_position(products.len(), position)?;
         Ok(Change::Cable { position, plugged })
+    }
+
+    /// Takes the link at `port` of slave `position` of a line of `products` down (`up` false) or
+    /// up again: the cable there pulled out or plugged back in.
+    pub fn link(products: &[SimProduct], position: usize, port: usize, up: bool) -> Result<Self> {
+        Ok(Change::Cable { position: cable_at(products, position, port)?, plugged: up })
+    }
+
+    /// The cable into `port` of slave `position` of a line of `products` spoils the next
+    /// `frames` frames entering there, one in every `every`; refused for a negative count, an
+    /// `every` below 1, and a port no cable reaches.
+    pub fn spoil_port(products: &[SimProduct], position: usize, port: usize, frames: i64, every: i64) -> Result<Self> {
+        cable_at(products, position, port)?;
+        let frames = Burst::frames(frames)?;
+        let every = u64::try_from(every).ok().filter(|&e| e >= 1).ok_or(SettingError::FrameSpacing { every })?;
+        Ok(Change::SpoilPort { position, port, frames, every })
     }
 
     /// Applies the change to `bus` (the bus it was checked against).
@@ -242,26 +369,33 @@ impl Change {
                 let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_toggles(input, &positions);
                 debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
             }
-            Change::InputLevel { position, input, high } => {
-                let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_level(input, high);
-                debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
-            }
+            Change::InputLevel { position, input, high } => match bus.at_mut(position).terminal_mut() {
+                Some(terminal) => terminal.set_input(input, high),
+                None => {
+                    let checked = bus.slave_mut(position).drive_mut().inputs_mut().set_level(input, high);
+                    debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+                }
+            },
             Change::Switch { position, name, active } => {
                 let checked = bus.slave_mut(position).drive_mut().terminals_mut().set_switch(&name, active);
                 debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
             }
-            Change::AnalogInput { position, volts } => {
-                let checked = bus.slave_mut(position).drive_mut().terminals_mut().set_analog_input(volts);
-                debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
-            }
+            Change::AnalogInput { position, input, volts } => match bus.at_mut(position).terminal_mut() {
+                Some(terminal) => terminal.set_analog_input(input, volts),
+                None => {
+                    let checked = bus.slave_mut(position).drive_mut().terminals_mut().set_analog_input(volts);
+                    debug_assert!(checked.is_ok(), "checked when the change was made: {checked:?}");
+                }
+            },
             Change::HomingFailure { position, failure } => {
                 let drive = bus.slave_mut(position).drive_mut();
                 drive.set_homing(Setup { failure, ..drive.homing_setup() });
             }
             // A test's rare event: the fresh drive's allocation on the owner's side is the
             // power-up's, not the exchange path's.
-            Change::PowerCycle { position } => bus.slave_mut(position).power_cycle(),
+            Change::PowerCycle { position } => bus.power_cycle(position),
             Change::Cable { position, plugged } => bus.set_cable(position, plugged),
+            Change::SpoilPort { position, port, frames, every } => bus.spoil_port(position, port, frames, every),
             Change::Burst(burst) => bus.start_burst(burst),
         }
     }
@@ -271,25 +405,32 @@ impl Change {
 enum Message {
     Change(Change),
     DriveState { position: usize, reply: SyncSender<DriveState> },
+    TerminalState { position: usize, reply: SyncSender<TerminalState> },
+    EscState { position: usize, reply: SyncSender<EscState> },
     LineCounts { reply: SyncSender<LineCounts> },
 }
 
-/// A handle that controls virtual AKDs whose bus another thread serves.
+/// A handle that controls virtual slaves whose bus another thread serves.
 #[derive(Clone, Debug)]
 pub struct SimControl {
     sender: Sender<Message>,
-    count: usize,
+    products: Arc<[SimProduct]>,
 }
 
 impl SimControl {
-    /// Number of drives on the bus.
+    /// Number of slaves on the line.
     pub fn len(&self) -> usize {
-        self.count
+        self.products.len()
     }
 
-    /// Whether the bus has no drive.
+    /// Whether the line has no slave.
     pub fn is_empty(&self) -> bool {
-        self.count == 0
+        self.products.is_empty()
+    }
+
+    /// The line's slaves, in order.
+    pub fn products(&self) -> &[SimProduct] {
+        &self.products
     }
 
     fn send(&self, message: Message) -> Result<()> {
@@ -299,52 +440,64 @@ impl SimControl {
     /// Raises fault `name` ("F439", "following_error", ...) in drive `position` at its next
     /// model step after the next frame.
     pub fn inject_fault(&self, position: usize, name: &str) -> Result<()> {
-        self.send(Message::Change(Change::inject_fault(self.count, position, name)?))
+        self.send(Message::Change(Change::inject_fault(&self.products, position, name)?))
     }
 
     /// Sets the hardware enable input of drive `position` before the next frame.
     pub fn set_hardware_enable(&self, position: usize, high: bool) -> Result<()> {
-        self.send(Message::Change(Change::hardware_enable(self.count, position, high)?))
+        self.send(Message::Change(Change::hardware_enable(&self.products, position, high)?))
     }
 
     /// Digital input `input` (1..=7) of drive `position` toggles wherever the actual position
     /// (counts) crosses one of `positions` from the next frame on; it is low below all of them.
     pub fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> Result<()> {
-        self.send(Message::Change(Change::input_toggles(self.count, position, input, positions)?))
+        self.send(Message::Change(Change::input_toggles(&self.products, position, input, positions)?))
     }
 
-    /// Sets digital input `input` (1..=7) of drive `position` `high` or low from the next frame
-    /// on, wherever the shaft is.
+    /// Sets digital input `input` (from 1) of slave `position` `high` or low from the next frame
+    /// on (an AKD's 1..=7 wherever the shaft is, a digital input terminal's).
     pub fn set_input(&self, position: usize, input: usize, high: bool) -> Result<()> {
-        self.send(Message::Change(Change::input_level(self.count, position, input, high)?))
+        self.send(Message::Change(Change::input_level(&self.products, position, input, high)?))
     }
 
     /// Sets switch `name` ("negative_limit", "positive_limit", "home_switch", "interlock") of
     /// drive `position` `active` or not from the next frame on.
     pub fn set_switch(&self, position: usize, name: &str, active: bool) -> Result<()> {
-        self.send(Message::Change(Change::switch(self.count, position, name, active)?))
+        self.send(Message::Change(Change::switch(&self.products, position, name, active)?))
     }
 
-    /// Sets the analog input of drive `position` to `volts` from the next frame on.
-    pub fn set_analog_input(&self, position: usize, volts: f64) -> Result<()> {
-        self.send(Message::Change(Change::analog_input(self.count, position, volts)?))
+    /// Sets analog input `input` (from 1) of slave `position` to `volts` from the next frame on.
+    pub fn set_analog_input(&self, position: usize, input: usize, volts: f64) -> Result<()> {
+        self.send(Message::Change(Change::analog_input(&self.products, position, input, volts)?))
     }
 
     /// Makes drive `position`'s homing runs fail from the next frame on as `name` says ("error":
     /// a homing error halfway, "no_reference": the reference never found), or work ("ok").
     pub fn set_homing_failure(&self, position: usize, name: &str) -> Result<()> {
-        self.send(Message::Change(Change::homing_failure(self.count, position, name)?))
+        self.send(Message::Change(Change::homing_failure(&self.products, position, name)?))
     }
 
     /// Power-cycles drive `position` before the next frame: it answers as at power-up.
     pub fn power_cycle(&self, position: usize) -> Result<()> {
-        self.send(Message::Change(Change::power_cycle(self.count, position)?))
+        self.send(Message::Change(Change::power_cycle(&self.products, position)?))
     }
 
     /// Pulls the cable in front of drive `position` out (`plugged` false) before the next
     /// frame, or plugs it back in: frames reach only the drives in front of it.
     pub fn set_cable(&self, position: usize, plugged: bool) -> Result<()> {
-        self.send(Message::Change(Change::cable(self.count, position, plugged)?))
+        self.send(Message::Change(Change::cable(&self.products, position, plugged)?))
+    }
+
+    /// Takes the link at `port` of slave `position` down (`up` false) before the next frame, or
+    /// up again: the cable there pulled or plugged, both its ends counting a lost link.
+    pub fn set_link(&self, position: usize, port: usize, up: bool) -> Result<()> {
+        self.send(Message::Change(Change::link(&self.products, position, port, up)?))
+    }
+
+    /// The cable into `port` of slave `position` spoils the next `frames` frames entering
+    /// there, one in every `every`, from the next frame on.
+    pub fn spoil_port(&self, position: usize, port: usize, frames: i64, every: i64) -> Result<()> {
+        self.send(Message::Change(Change::spoil_port(&self.products, position, port, frames, every)?))
     }
 
     /// Starts `burst` at the next frame: lost frames, corrupted replies or wrong working
@@ -356,13 +509,28 @@ impl SimControl {
     /// The drive firmware's state of drive `position` after the owner's next frame; waits up
     /// to `timeout` for it.
     pub fn drive_state(&self, position: usize, timeout: Duration) -> Result<DriveState> {
-        check_position(self.count, position)?;
+        check_akd(&self.products, position, "a drive state")?;
         let (reply, answer) = mpsc::sync_channel(1);
         self.send(Message::DriveState { position, reply })?;
-        answer.recv_timeout(timeout).map_err(|e| match e {
-            RecvTimeoutError::Disconnected => gone(),
-            RecvTimeoutError::Timeout => Unavailable::SimulatorSilent { position: Some(position), timeout }.into(),
-        })
+        wait(&answer, Some(position), timeout)
+    }
+
+    /// The I/O of the terminal at `position` after the owner's next frame; waits up to
+    /// `timeout` for it.
+    pub fn terminal_state(&self, position: usize, timeout: Duration) -> Result<TerminalState> {
+        check_terminal(&self.products, position, "a terminal state")?;
+        let (reply, answer) = mpsc::sync_channel(1);
+        self.send(Message::TerminalState { position, reply })?;
+        wait(&answer, Some(position), timeout)
+    }
+
+    /// The ESC of slave `position` ([`EscState`]) after the owner's next frame; waits up to
+    /// `timeout` for it.
+    pub fn esc_state(&self, position: usize, timeout: Duration) -> Result<EscState> {
+        check_position(self.products.len(), position)?;
+        let (reply, answer) = mpsc::sync_channel(1);
+        self.send(Message::EscState { position, reply })?;
+        wait(&answer, Some(position), timeout)
     }
 
     /// What the line did to the frames it carried ([`LineCounts`]), after the owner's next
@@ -370,11 +538,17 @@ impl SimControl {
     pub fn line_counts(&self, timeout: Duration) -> Result<LineCounts> {
         let (reply, answer) = mpsc::sync_channel(1);
         self.send(Message::LineCounts { reply })?;
-        answer.recv_timeout(timeout).map_err(|e| match e {
-            RecvTimeoutError::Disconnected => gone(),
-            RecvTimeoutError::Timeout => Unavailable::SimulatorSilent { position: None, timeout }.into(),
-        })
+        wait(&answer, None, timeout)
     }
+}
+
+/// The owner's answer to a query about slave `position` (`None`: the line), waited for up to
+/// `timeout`.
+fn wait<T>(answer: &Receiver<T>, position: Option<usize>, timeout: Duration) -> Result<T> {
+    answer.recv_timeout(timeout).map_err(|e| match e {
+        RecvTimeoutError::Disconnected => gone(),
+        RecvTimeoutError::Timeout => Unavailable::SimulatorSilent { position, timeout }.into(),
+    })
 }
 
 fn gone() -> Error {
@@ -389,6 +563,10 @@ pub struct ControlledBus {
     /// Queries taken before a frame, answered after it. Its capacity stays once a query came,
     /// so later queries do not allocate on the owner's side either.
     queries: Vec<(usize, SyncSender<DriveState>)>,
+    /// Queries of terminals, likewise.
+    terminal_queries: Vec<(usize, SyncSender<TerminalState>)>,
+    /// Queries of ESCs, likewise.
+    esc_queries: Vec<(usize, SyncSender<EscState>)>,
     /// Queries of the line's counts, likewise.
     line_queries: Vec<SyncSender<LineCounts>>,
 }
@@ -396,8 +574,9 @@ pub struct ControlledBus {
 impl From<VirtualBus> for ControlledBus {
     fn from(bus: VirtualBus) -> Self {
         let (sender, receiver) = mpsc::channel();
-        let control = SimControl { sender, count: bus.len() };
-        ControlledBus { bus, receiver, control, queries: Vec::new(), line_queries: Vec::new() }
+        let control = SimControl { sender, products: bus.products().into() };
+        let (queries, terminal_queries, esc_queries, line_queries) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        ControlledBus { bus, receiver, control, queries, terminal_queries, esc_queries, line_queries }
     }
 }
 
@@ -458,6 +637,8 @@ impl ControlledBus {
             match message {
                 Message::Change(change) => change.apply(&mut self.bus),
                 Message::DriveState { position, reply } => self.queries.push((position, reply)),
+                Message::TerminalState { position, reply } => self.terminal_queries.push((position, reply)),
+                Message::EscState { position, reply } => self.esc_queries.push((position, reply)),
                 Message::LineCounts { reply } => self.line_queries.push(reply),
             }
         }
@@ -468,6 +649,14 @@ impl ControlledBus {
             // A query that timed out has dropped its receiver; there is nobody left to tell.
             let _ = reply.try_send(DriveState::of(self.bus.slave(position)));
         }
+        for (position, reply) in self.terminal_queries.drain(..) {
+            if let Some(terminal) = self.bus.at(position).terminal() {
+                let _ = reply.try_send(terminal.state());
+            }
+        }
+        for (position, reply) in self.esc_queries.drain(..) {
+            let _ = reply.try_send(EscState::of(&self.bus, position));
+        }
         for reply in self.line_queries.drain(..) {
             let _ = reply.try_send(self.bus.line().counts());
         }
@@ -477,7 +666,7 @@ impl ControlledBus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::sim::Timing;
 
     /// One BRD of the AL status through `bus` at `now_ns`.
@@ -505,6 +694,14 @@ mod tests {
         assert!(e.contains("no slave at position 2: the bus has 2 slave(s)"), "{e}");
         let e = control.set_cable(3, false).unwrap_err().to_string();
         assert!(e.contains("no slave at position 3: the bus has 2 slave(s)"), "{e}");
+        let e = control.set_link(1, 1, false).unwrap_err().to_string();
+        assert!(e.contains("no cable at port 1 of the akd at position 1: it is the last slave"), "{e}");
+        let e = control.spoil_port(0, 2, 10, 1).unwrap_err().to_string();
+        assert!(e.contains("port 2: the akd at position 0 has ports 0, 1"), "{e}");
+        let e = control.spoil_port(0, 1, 10, 0).unwrap_err().to_string();
+        assert!(e.contains("one frame in every 0: allowed are 1 (each frame) or more"), "{e}");
+        let e = control.spoil_port(0, 1, -1, 1).unwrap_err().to_string();
+        assert!(e.contains("-1 frames"), "{e}");
         let e = control.set_hardware_enable(usize::MAX, false).unwrap_err().to_string();
         assert!(e.contains(&format!("no slave at position {}: the bus has 2", usize::MAX)), "{e}");
         // Nothing refused reached the owner.

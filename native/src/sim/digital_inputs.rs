@@ -20,7 +20,7 @@ use crate::error::SettingError;
 use crate::sim::od::ObjectDictionary;
 
 /// Digital inputs of the AKD (DIN1..DIN7).
-pub const INPUT_COUNT: usize = crate::io::INPUT_COUNT as usize;
+pub const INPUT_COUNT: usize = crate::drive::io::INPUT_COUNT as usize;
 
 /// Simulated digital inputs: per input its set level and toggle positions.
 #[derive(Clone, Debug, Default)]

@@ -1,5 +1,5 @@
 //! The virtual AKD's drive firmware: the CiA 402 state machine (AKD manual §5.4, through
-//! [`crate::ds402`]), the modes of operation (§5.8), the set-point handling, the monitoring that
+//! [`crate::drive::ds402`]), the modes of operation (§5.8), the set-point handling, the monitoring that
 //! raises faults (§5.14), and the motor model ([`crate::sim::motion`]) it drives.
 //!
 //! The drive reads what the master sent from the object dictionary (controlword 0x6040, mode
@@ -30,11 +30,11 @@
 //! - Units: position in counts of 2^20 per revolution, velocity in counts/s, acceleration in
 //!   counts/s², torque in 0.1 % of the drive's peak torque.
 
-use crate::akd_fault::MISSED_FRAMES_TOLERATED;
-use crate::coe::Emergency;
-use crate::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
-use crate::link_spec::MissedFrames;
-use crate::pdo::PdoEntry;
+use crate::drive::akd_fault::MISSED_FRAMES_TOLERATED;
+use crate::drive::ds402::{controlword as cw, statusword as sw, transition, Mode, State};
+use crate::ethercat::coe::Emergency;
+use crate::ethercat::link_spec::MissedFrames;
+use crate::ethercat::pdo::PdoEntry;
 use crate::sim::digital_inputs::{Inputs, Latch, TouchProbe};
 use crate::sim::faults::Fault;
 use crate::sim::homing::{self, Ending};

@@ -20,7 +20,7 @@ use smoltcp::wire::{
     IpCidr,
 };
 
-use crate::eoe::{
+use crate::ethercat::eoe::{
     write_fragment, write_response, EoeFrameType, EoeMessage, EoeResult, Fragmenter, IpParameters, Reassembler,
     MAX_FRAME_LEN,
 };
@@ -277,9 +277,9 @@ mod tests {
     use smoltcp::wire::{Icmpv4Packet, Icmpv4Repr, IpProtocol, Ipv4Packet, Ipv4Repr};
 
     use super::*;
-    use crate::al::AlState;
-    use crate::eoe::{write_set_ip_request, FragmentHeader};
-    use crate::mailbox::{MailboxHeader, MailboxType};
+    use crate::ethercat::al::AlState;
+    use crate::ethercat::eoe::{write_set_ip_request, FragmentHeader};
+    use crate::ethercat::mailbox::{MailboxHeader, MailboxType};
     use crate::sim::mailbox_server::MailboxServer;
     use crate::sim::od::ObjectDictionary;
 
@@ -303,7 +303,7 @@ mod tests {
         }
 
         fn send(&mut self, message: &[u8], now_ns: u64) {
-            self.counter = crate::mailbox::next_counter(self.counter);
+            self.counter = crate::ethercat::mailbox::next_counter(self.counter);
             let mut m = message.to_vec();
             m[5] = (m[5] & 0x0F) | (self.counter << 4);
             self.server.handle(&m, &mut self.od, AlState::Op, self.size, self.size, now_ns);

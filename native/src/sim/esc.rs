@@ -1,39 +1,56 @@
-//! The EtherCAT slave controller (ESC) of the virtual AKD: its register and RAM space and the
-//! datagram service as the hardware does it, without the drive's firmware (the PDI side, in
-//! [`super::VirtualAkd`]).
+//! The EtherCAT slave controller (ESC) of a virtual slave: its register and RAM space and the
+//! datagram service as the hardware does it, without the firmware (the PDI side, in
+//! [`super::VirtualAkd`] and [`super::terminal`]).
 //!
-//! The register values at power-up are the real drive's, read in the SOEM capture and under
-//! TwinCAT: type 0x04 revision 0x02 build 0x0043 (an ESC20-class controller with 3 FMMUs,
-//! 4 sync managers and 4 KiB of RAM at 0x1000–0x1FFF), port descriptor 0x0F, features 0x0184,
-//! DL control byte 2 (RX FIFO size) 0x07, DL status 0x5613, PDI control 0x0C08, SII control
-//! 0x0020 (EEPROM emulated by the PDI, 4-byte reads). What the hardware does by itself is here: the
-//! SII interface reading the EEPROM image, DC receive-time latching and the system time, the
-//! sync managers' buffer protection, FMMU mapping of logical datagrams, and the AL control
-//! register behaving like a mailbox (a second write before the firmware read the first is
-//! refused, as the real drive refuses SOEM's quick second write of 0x0120).
+//! What differs from one ESC to another is its [`EscHardware`]: the AKD's register values at
+//! power-up are the real drive's, read in the SOEM capture and under TwinCAT: type 0x04
+//! revision 0x02 build 0x0043 (an ESC20-class controller with 3 FMMUs, 4 sync managers and 4 KiB
+//! of RAM at 0x1000–0x1FFF), port descriptor 0x0F, features 0x0184, DL control byte 2 (RX FIFO
+//! size) 0x07, DL status 0x5613, PDI control 0x0C08, SII control 0x0020 (EEPROM emulated by the
+//! PDI, 4-byte reads); the Beckhoff terminals' ET1100 and ET1200 are described in
+//! [`super::esc_hardware`]. What the hardware does by itself is here: the SII interface reading
+//! the EEPROM image (at once where the PDI emulates it, after the EEPROM's read time where it is
+//! real), DC receive-time latching and the system time, the sync managers' buffer protection,
+//! FMMU mapping of logical datagrams bit by bit, the AL control register behaving like a mailbox
+//! (a second write before the firmware read the first is refused, as the real drive refuses
+//! SOEM's quick second write of 0x0120), or, where the EEPROM sets device emulation (PDI
+//! control bit 8, the terminals without a processor), AL control copied to AL status at once;
+//! and an ET1200's digital output register 0x0F00, which a sync manager may guard as it guards
+//! process RAM.
+//!
+//! Its ports are those its port descriptor names, each with a link or not: the DL status shows
+//! them (a port with a link open with communication, one without closed), a link lost at a port
+//! whose loop is on auto counts in its lost link counter, and the frames a line carries count in
+//! the error counters as their path through the ports meets a fault (see
+//! [`crate::ethercat::line_health`] and [`super::VirtualBus`]): an invalid frame at the port it
+//! entered by, a frame another ESC marked invalid as a forwarded error, either at port 0 also in
+//! the processing unit's counter. Each counter stops at 0xFF and is cleared by a write as the
+//! ESC's registers say; beside the registers the ESC keeps what it counted since power-up,
+//! never cleared, for a test to compare a master's counts with.
 
-use crate::frame::{Addressing, Command, DatagramMut};
-use crate::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
+use crate::ethercat::frame::{Addressing, Command, DatagramMut};
+use crate::ethercat::line_health::registers::{cleared_by_write, Counter, DlStatus, ErrorCounts, PORTS};
+use crate::ethercat::registers::{self as reg, fmmu_reg, sii_reg, sm_reg};
+pub use crate::sim::esc_hardware::RAM_START;
+use crate::sim::esc_hardware::{EscHardware, SiiInterface};
 use crate::sim::sync_manager::{self, SyncManager, CONTROL_WATCHDOG, SM_COUNT};
 
-/// Number of FMMUs of the AKD's ESC: a master needs two for process data (outputs, inputs)
-/// and may use the third for the mailbox-in status bit.
-pub const FMMU_COUNT: u8 = 3;
-/// ESC build (register 0x0002) of the real drive.
-pub const ESC_BUILD: u16 = 0x0043;
 /// DL control byte 2 at power-up: the RX FIFO size, 7 (the ESC's default, no reduction).
 const DL_CONTROL_FIFO_SIZE: u8 = 0x07;
-/// First byte of process RAM.
-pub const RAM_START: usize = 0x1000;
-/// One past the last byte of process RAM (4 KiB).
-pub const RAM_END: usize = 0x2000;
 /// Size of the address space a datagram can reach: ADO up to 0xFFFF plus its length, which
 /// the frame header's 11-bit length bounds (a link may bring a frame longer than Ethernet's).
 const SPACE: usize = 0x10000 + 0x07FF;
-/// DL status of the last drive of a line: port 0 link and communication, port 1 loop closed.
-const DL_STATUS_LAST: u16 = 0x5613;
-/// DL status of a drive with a successor: port 1 also has link and communication, loop open.
-const DL_STATUS_FORWARDING: u16 = 0x5A33;
+/// An ET1200's digital output data (0x0F00-0x0F03), where a digital I/O PDI takes its outputs.
+pub const DIGITAL_OUTPUTS: std::ops::Range<usize> = 0x0F00..0x0F04;
+/// PDI control (0x0140) low byte of a digital I/O PDI.
+const PDI_DIGITAL_IO: u16 = 0x04;
+/// PDI control (0x0140) bit 8: device emulation, AL control copied to AL status by the ESC.
+pub const PDI_DEVICE_EMULATION: u16 = 0x0100;
+/// AL control bits an ESC in device emulation copies to AL status: the state and the error
+/// acknowledge, which then reads as the error flag.
+const AL_MIRRORED: u16 = 0x001F;
+/// ECAT event request (0x0210) bit 2: the DL status changed, until the master reads it.
+const DL_STATUS_EVENT: u8 = 0x04;
 
 /// What the firmware has to react to after a datagram: the ESC raises these as events.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -63,22 +80,31 @@ pub struct Arrival {
 
 /// The register and RAM space of one ESC.
 pub struct Esc {
+    hardware: EscHardware,
     memory: Box<[u8]>,
     sii: Vec<u8>,
     al_control_locked: bool,
+    /// Local time until which an EEPROM read keeps the SII interface busy.
+    sii_busy_until_ns: u64,
     events: Events,
+    /// Which ports have a link.
+    links: [bool; PORTS],
+    /// What the error counters counted since power-up, never cleared.
+    counted: ErrorCounts<u64>,
 }
 
-/// Whether the master may write the byte at `addr` (ETG.1000.4 register access types, as
-/// implemented by Beckhoff ESCs; most identification and status registers are read-only).
-fn master_writable(addr: usize) -> bool {
+/// Whether the master may write the byte at `addr` of an ESC whose process RAM ends at
+/// `ram_end` and whose digital outputs, if any, the master writes (ETG.1000.4 register access
+/// types, as implemented by Beckhoff ESCs; most identification and status registers are
+/// read-only).
+fn master_writable(addr: usize, ram_end: usize, digital_outputs: bool) -> bool {
     match addr {
         0x0010..=0x0011 | 0x0100..=0x0103 | 0x0108..=0x0109 | 0x0120..=0x0121 | 0x0200..=0x0201 => true,
         0x0400..=0x0401 | 0x0410..=0x0411 | 0x0420..=0x0421 | 0x0500 | 0x0502..=0x050F => true,
         0x0600..=0x06FF | 0x0920..=0x092B | 0x0930..=0x0935 | 0x0980..=0x0981 => true,
-        0x0990..=0x0997 | 0x09A0..=0x09A7 | RAM_START..=0x1FFF => true,
-        0x0800..=0x081F => !matches!((addr - 0x0800) % 8, 5 | 7),
-        _ => false,
+        0x0990..=0x0997 | 0x09A0..=0x09A7 => true,
+        0x0800..=0x087F => !matches!((addr - 0x0800) % 8, 5 | 7),
+        _ => (RAM_START..ram_end).contains(&addr) || (digital_outputs && DIGITAL_OUTPUTS.contains(&addr)),
     }
 }
 
@@ -88,29 +114,82 @@ fn touches(at: usize, len: usize, register: u16, register_len: usize) -> bool {
 }
 
 impl Esc {
-    /// An ESC at power-up serving the EEPROM `sii`; `has_successor` tells whether another
-    /// drive follows on port 1 (it sets the DL status).
+    /// The AKD's ESC at power-up serving the EEPROM `sii`; `has_successor` tells whether another
+    /// slave follows on port 1 (it sets the DL status).
     pub fn new(sii: Vec<u8>, has_successor: bool) -> Self {
+        Self::with_hardware(crate::sim::esc_hardware::AKD, sii, has_successor)
+    }
+
+    /// An ESC of kind `hardware` at power-up serving the EEPROM `sii`; `has_successor` as for
+    /// [`new`](Self::new).
+    pub fn with_hardware(hardware: EscHardware, sii: Vec<u8>, has_successor: bool) -> Self {
         let mut memory = vec![0u8; SPACE].into_boxed_slice();
-        memory[0x0000] = 0x04;
-        memory[0x0001] = 0x02;
-        memory[0x0002..0x0004].copy_from_slice(&ESC_BUILD.to_le_bytes());
-        memory[0x0004] = FMMU_COUNT;
-        memory[0x0005] = SM_COUNT;
-        memory[0x0006] = ((RAM_END - RAM_START) / 1024) as u8;
-        memory[0x0007] = 0x0F;
-        memory[0x0008..0x000A].copy_from_slice(&0x0184u16.to_le_bytes());
+        memory[0x0000] = hardware.esc_type;
+        memory[0x0001] = hardware.revision;
+        memory[0x0002..0x0004].copy_from_slice(&hardware.build.to_le_bytes());
+        memory[0x0004] = hardware.fmmus;
+        memory[0x0005] = hardware.sync_managers;
+        memory[0x0006] = hardware.ram_kib;
+        memory[0x0007] = hardware.port_descriptor;
+        memory[0x0008..0x000A].copy_from_slice(&hardware.features.to_le_bytes());
         memory[reg::DL_CONTROL as usize + 2] = DL_CONTROL_FIFO_SIZE;
-        let alias = sii.get(8..10).map_or(0, |w| u16::from_le_bytes([w[0], w[1]]));
-        memory[0x0012..0x0014].copy_from_slice(&alias.to_le_bytes());
+        let word = |w: usize| sii.get(2 * w..2 * w + 2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]));
+        // EEPROM word 4: the configured station alias.
+        memory[0x0012..0x0014].copy_from_slice(&word(4).to_le_bytes());
         memory[0x0130] = 0x01;
-        memory[0x0140..0x0142].copy_from_slice(&0x0C08u16.to_le_bytes());
+        let pdi_control = hardware.pdi_control.unwrap_or_else(|| word(0));
+        memory[0x0140..0x0142].copy_from_slice(&pdi_control.to_le_bytes());
         memory[0x0400..0x0402].copy_from_slice(&0x09C2u16.to_le_bytes());
         memory[0x0420..0x0422].copy_from_slice(&1000u16.to_le_bytes());
-        memory[0x0502..0x0504].copy_from_slice(&sii_reg::EMULATION.to_le_bytes());
-        let mut esc = Esc { memory, sii, al_control_locked: false, events: Events::default() };
-        esc.set_successor(has_successor);
+        let mut esc = Esc {
+            hardware,
+            memory,
+            sii,
+            al_control_locked: false,
+            sii_busy_until_ns: 0,
+            events: Events::default(),
+            links: [true, has_successor, false, false],
+            counted: ErrorCounts::default(),
+        };
+        esc.refresh_sii_status(0);
+        esc.refresh_dl_status();
+        // What the DL status is at power-up is no change of it.
+        esc.memory[reg::ECAT_EVENT_REQUEST as usize] = 0;
         esc
+    }
+
+    /// The link on port 0 came up after the ESC's reset, as it does for a slave behind another
+    /// one at power-up: the DL status changed, and the event says so until the master reads
+    /// the DL status (the EL1004 behind an EK1100 showed it in the SOEM capture, through every
+    /// datagram's IRQ word once SOEM set the event mask).
+    pub fn link_came_up(&mut self) {
+        self.memory[reg::ECAT_EVENT_REQUEST as usize] |= DL_STATUS_EVENT;
+    }
+
+    /// What kind of ESC it is.
+    pub fn hardware(&self) -> &EscHardware {
+        &self.hardware
+    }
+
+    /// Whether the EEPROM set device emulation (PDI control bit 8): the ESC itself copies AL
+    /// control to AL status, there being no processor to do it.
+    pub fn device_emulation(&self) -> bool {
+        self.u16_at(reg::PDI_CONTROL) & PDI_DEVICE_EMULATION != 0
+    }
+
+    /// Whether the EEPROM set a digital I/O PDI: outputs from 0x0F00, inputs into 0x1000.
+    pub fn digital_io(&self) -> bool {
+        self.u16_at(reg::PDI_CONTROL) & 0x00FF == PDI_DIGITAL_IO
+    }
+
+    /// The first address a sync manager guards: process RAM, and an ET1200's digital outputs
+    /// before it where its PDI is digital I/O.
+    fn guarded_start(&self) -> usize {
+        if self.digital_io() {
+            DIGITAL_OUTPUTS.start
+        } else {
+            RAM_START
+        }
     }
 
     /// The EEPROM it serves.
@@ -118,11 +197,75 @@ impl Esc {
         &self.sii
     }
 
-    /// Whether a drive answers on port 1 (a cable pulled out behind it, or plugged back in):
-    /// the DL status shows port 1's link and whether its loop is closed.
-    pub fn set_successor(&mut self, has_successor: bool) {
-        let dl_status = if has_successor { DL_STATUS_FORWARDING } else { DL_STATUS_LAST };
-        self.memory[0x0110..0x0112].copy_from_slice(&dl_status.to_le_bytes());
+    /// Whether `port` has a link (a cable plugged in with a powered slave at its other end, or
+    /// pulled out): the DL status shows it, and a link lost at a port whose loop is on auto (or
+    /// auto-close, DL control) counts in its lost link counter. A port the ESC lacks never
+    /// has one.
+    pub fn set_link(&mut self, port: usize, up: bool) {
+        let up = up && self.has_port(port);
+        let was = std::mem::replace(&mut self.links[port], up);
+        let loop_setting = self.memory[reg::DL_CONTROL as usize + 1] >> (2 * port) & 0x03;
+        if was && !up && loop_setting <= 1 {
+            self.count(Counter::LostLinks(port));
+        }
+        self.refresh_dl_status();
+    }
+
+    /// The links its ports have as it powers up: no change of a link, nothing counted.
+    pub fn power_up_links(&mut self, links: [bool; PORTS]) {
+        self.links = std::array::from_fn(|port| links[port] && self.has_port(port));
+        self.refresh_dl_status();
+    }
+
+    /// Whether `port` has a link.
+    pub fn link(&self, port: usize) -> bool {
+        self.links[port]
+    }
+
+    /// Whether the ESC has `port` (its port descriptor names it).
+    pub fn has_port(&self, port: usize) -> bool {
+        port < PORTS && crate::ethercat::line_health::registers::PortDescriptor(self.hardware.port_descriptor).has(port)
+    }
+
+    fn refresh_dl_status(&mut self) {
+        let dl_status = DlStatus::with_links(self.hardware.dl_status_pdi, self.links).0;
+        if dl_status != self.u16_at(reg::DL_STATUS) {
+            self.memory[reg::ECAT_EVENT_REQUEST as usize] |= DL_STATUS_EVENT;
+        }
+        self.memory[reg::DL_STATUS as usize..reg::DL_STATUS as usize + 2].copy_from_slice(&dl_status.to_le_bytes());
+    }
+
+    /// Counts one event in `counter`: its register stops at 0xFF, what it counted since
+    /// power-up goes on.
+    pub fn count(&mut self, counter: Counter) {
+        let at = usize::from(counter.register());
+        self.memory[at] = self.memory[at].saturating_add(1);
+        *self.counted.get_mut(counter) += 1;
+    }
+
+    /// A frame entered `port` invalid, this ESC the first to find it so (a CRC error): counted
+    /// at the port, and in the processing unit when it entered port 0 (the one frames pass the
+    /// processing unit from).
+    pub fn count_invalid_frame(&mut self, port: usize) {
+        self.count(Counter::InvalidFrames(port));
+        if port == 0 {
+            self.count(Counter::ProcessingUnit);
+        }
+    }
+
+    /// A frame entered `port` marked invalid by an ESC before: a forwarded error, at port 0
+    /// also the processing unit's.
+    pub fn count_forwarded_error(&mut self, port: usize) {
+        self.count(Counter::ForwardedErrors(port));
+        if port == 0 {
+            self.count(Counter::ProcessingUnit);
+        }
+    }
+
+    /// What the error counters counted since power-up, never cleared (their registers stop at
+    /// 0xFF and a master clears them).
+    pub fn counted(&self) -> ErrorCounts<u64> {
+        self.counted
     }
 
     /// The whole space, as the firmware (PDI) sees it.
@@ -154,6 +297,9 @@ impl Esc {
     /// Serves one datagram as it passes this ESC: addressing, memory access, ADP increment
     /// and working counter.
     pub fn serve(&mut self, dg: &mut DatagramMut<'_>, arrival: Arrival) {
+        // Every ESC a datagram passes ORs its unmasked ECAT events into the IRQ word, as they
+        // stand when the datagram's header passes.
+        dg.header.irq |= self.u16_at(reg::ECAT_EVENT_REQUEST) & self.u16_at(reg::ECAT_EVENT_MASK);
         let h = dg.header;
         let command = h.command;
         let (did_read, did_write) = match command.addressing() {
@@ -188,16 +334,23 @@ impl Esc {
         let broadcast = command.addressing() == Addressing::Broadcast;
         let at = dg.header.ado as usize;
         let len = dg.data.len();
+        if self.hardware.lacks_any(at, len) {
+            return (false, false);
+        }
         let (read, write) = self.gate(at, len, read, write);
         let write = write && !(self.al_control_locked && touches(at, len, reg::AL_CONTROL, 2));
         if read {
             self.refresh_system_time(at, len, arrival);
+            if touches(at, len, reg::SII_CONTROL, 2) {
+                self.refresh_sii_status(arrival.port0_ns);
+            }
         }
         let repeat_before = old_repeat_bits(self, at, len);
+        let (ram_end, digital_outputs) = (self.hardware.ram_end(), self.digital_io());
         for (i, byte) in dg.data.iter_mut().enumerate() {
             let addr = at + i;
             let old = self.memory[addr];
-            if write && master_writable(addr) {
+            if write && master_writable(addr, ram_end, digital_outputs) {
                 self.memory[addr] = *byte;
             }
             if read {
@@ -212,6 +365,9 @@ impl Esc {
         }
         if read {
             self.after_ram_access(at, len, true);
+            if touches(at, len, reg::DL_STATUS, 2) {
+                self.memory[reg::ECAT_EVENT_REQUEST as usize] &= !DL_STATUS_EVENT;
+            }
         }
         (read, write)
     }
@@ -219,15 +375,15 @@ impl Esc {
     /// Whether a read and a write of `[at, at + len)` pass the sync managers: a full mailbox
     /// refuses writes from the master, an empty one refuses reads, and a buffer the firmware
     /// deactivated refuses both. Memory no enabled sync manager covers is free, and so are the
-    /// registers below [`RAM_START`]: an ESC's sync managers work on process memory only, so a
-    /// sync manager a master set over the registers (a broadcast write may do that) never
-    /// blocks them.
+    /// registers below [`RAM_START`] (but an ET1200's digital outputs): an ESC's sync managers
+    /// work on process memory only, so a sync manager a master set over the registers (a
+    /// broadcast write may do that) never blocks them.
     fn gate(&self, at: usize, len: usize, read: bool, write: bool) -> (bool, bool) {
         let (mut read, mut write) = (read, write);
-        if at + len <= RAM_START {
+        if at + len <= self.guarded_start() {
             return (read, write);
         }
-        for n in 0..SM_COUNT {
+        for n in 0..self.hardware.sync_managers {
             let sm = SyncManager::read(&self.memory, n);
             if sm.activate & sync_manager::ACTIVATE_ENABLE == 0 || sm.length == 0 || !sm.overlaps(at, len) {
                 continue;
@@ -250,10 +406,10 @@ impl Esc {
 
     /// Completes transfers: the last byte of a buffer written or read by the master.
     fn after_ram_access(&mut self, at: usize, len: usize, was_read: bool) {
-        if at + len <= RAM_START {
+        if at + len <= self.guarded_start() {
             return;
         }
-        for n in 0..SM_COUNT {
+        for n in 0..self.hardware.sync_managers {
             let sm = SyncManager::read(&self.memory, n);
             if !sm.active() || !sm.covers_last_byte(at, len) || sm.master_writes() == was_read {
                 continue;
@@ -281,14 +437,21 @@ impl Esc {
         let len = dg.data.len();
         let value_at = |addr: u16| (addr as usize).checked_sub(at).and_then(|i| dg.data.get(i)).copied();
         if touches(at, len, reg::AL_CONTROL, 2) {
-            self.al_control_locked = true;
-            self.events.al_control = Some(self.u16_at(reg::AL_CONTROL));
+            let control = self.u16_at(reg::AL_CONTROL);
+            if self.device_emulation() {
+                let status = (self.u16_at(reg::AL_STATUS) & !AL_MIRRORED) | (control & AL_MIRRORED);
+                self.memory[reg::AL_STATUS as usize..reg::AL_STATUS as usize + 2]
+                    .copy_from_slice(&status.to_le_bytes());
+            } else {
+                self.al_control_locked = true;
+                self.events.al_control = Some(control);
+            }
         }
-        if touches(at, len, reg::RX_ERROR_COUNTERS, 0x14) {
-            self.memory[0x0300..0x0314].fill(0);
+        for cleared in cleared_by_write(at, len) {
+            self.memory[cleared].fill(0);
         }
         if touches(at, len, reg::SII_CONTROL, 2) {
-            self.sii_command();
+            self.sii_command(arrival.port0_ns);
         }
         if old_repeat_bits(self, at, len) != repeat_bits_before {
             self.events.repeat_request = true;
@@ -302,23 +465,63 @@ impl Esc {
         }
     }
 
-    /// Executes the command written to SII control: a read copies 4 bytes of the EEPROM at the
-    /// word address into SII data at once (the drive emulates the EEPROM, never busy); other
-    /// commands are refused with the error bit, as an emulated EEPROM cannot be written here.
-    fn sii_command(&mut self) {
+    /// Executes the command written to SII control at local time `now_ns`: a read copies 4
+    /// bytes (8 from a real EEPROM) of the EEPROM at the word address into SII data, at once
+    /// where the PDI emulates the EEPROM, the interface busy for the EEPROM's read time
+    /// otherwise; other commands are refused with the error bit, as the EEPROM cannot be written
+    /// here. A command while a read is busy is ignored, as the ESC ignores it.
+    fn sii_command(&mut self, now_ns: u64) {
         let control = self.u16_at(reg::SII_CONTROL);
-        let mut status = sii_reg::EMULATION | (control & sii_reg::WRITE_ENABLE);
+        if now_ns < self.sii_busy_until_ns {
+            self.refresh_sii_status(now_ns);
+            return;
+        }
+        let mut error = 0;
         if control & sii_reg::CMD_READ != 0 {
             let a = reg::SII_ADDRESS as usize;
             let word = u32::from_le_bytes([self.memory[a], self.memory[a + 1], self.memory[a + 2], self.memory[a + 3]]);
-            for i in 0..4 {
+            let (bytes, read_ns) = match self.hardware.sii {
+                SiiInterface::Emulated => (4, 0),
+                SiiInterface::Eeprom { read_ns, .. } => (8, read_ns),
+            };
+            for i in 0..bytes {
                 let byte = (word as usize).checked_mul(2).and_then(|b| self.sii.get(b + i)).copied().unwrap_or(0xFF);
                 self.memory[reg::SII_DATA as usize + i] = byte;
             }
+            self.sii_busy_until_ns = now_ns + read_ns;
         } else if control & (sii_reg::CMD_WRITE | sii_reg::CMD_RELOAD) != 0 {
-            status |= sii_reg::ERROR_ACK;
+            error = sii_reg::ERROR_ACK;
         }
-        self.memory[reg::SII_CONTROL as usize..reg::SII_CONTROL as usize + 2].copy_from_slice(&status.to_le_bytes());
+        let status = self.sii_status(now_ns) | (control & sii_reg::WRITE_ENABLE) | error;
+        let busy = if now_ns < self.sii_busy_until_ns { control & sii_reg::CMD_READ } else { 0 };
+        self.memory[reg::SII_CONTROL as usize..reg::SII_CONTROL as usize + 2]
+            .copy_from_slice(&(status | busy).to_le_bytes());
+    }
+
+    /// SII control as the interface shows it at local time `now_ns`, without the command and
+    /// write-enable bits the master wrote: the read size, emulation, busy.
+    fn sii_status(&self, now_ns: u64) -> u16 {
+        match self.hardware.sii {
+            SiiInterface::Emulated => sii_reg::EMULATION,
+            SiiInterface::Eeprom { bit4_below_safeop, .. } => {
+                let below_safeop =
+                    self.memory[reg::AL_STATUS as usize] & 0x0F < crate::ethercat::al::AlState::SafeOp as u8;
+                let bit4 = if bit4_below_safeop && below_safeop { 0x0010 } else { 0 };
+                let busy = if now_ns < self.sii_busy_until_ns { sii_reg::BUSY } else { 0 };
+                sii_reg::READ_8_BYTES | bit4 | busy
+            }
+        }
+    }
+
+    /// Brings SII control up to local time `now_ns` before the master reads it: a finished read
+    /// clears busy and its command.
+    fn refresh_sii_status(&mut self, now_ns: u64) {
+        let a = reg::SII_CONTROL as usize;
+        let kept = self.u16_at(reg::SII_CONTROL) & (sii_reg::WRITE_ENABLE | sii_reg::ERROR_ACK);
+        let busy = self.sii_status(now_ns) & sii_reg::BUSY != 0;
+        let command = if busy { self.u16_at(reg::SII_CONTROL) & sii_reg::CMD_READ } else { 0 };
+        let value = self.sii_status(now_ns) | kept | command;
+        self.memory[a..a + 2].copy_from_slice(&value.to_le_bytes());
     }
 
     fn system_time_offset(&self) -> u64 {
@@ -375,14 +578,21 @@ impl Esc {
     }
 
     /// A logical access through the FMMUs: outputs are taken from the datagram as it arrived,
-    /// then inputs are put into it. Start and end bits mask the first and last byte.
+    /// then inputs are put into it. An FMMU maps bit by bit: its logical start and end bits
+    /// bound its first and last logical byte, and its logical start bit goes to its physical
+    /// start bit, so that a master may pack a few bits of each of several slaves into one
+    /// logical byte (SOEM maps two EL2004s' 4 output bits to bits 0-3 and 4-7 of one byte).
     fn logical(&mut self, dg: &mut DatagramMut<'_>) -> (bool, bool) {
         let command = dg.header.command;
         let start = dg.header.logical_address() as u64;
         let end = start + dg.data.len() as u64;
         let (mut did_read, mut did_write) = (false, false);
+        if start == end {
+            // No byte to map: no FMMU is passed.
+            return (false, false);
+        }
         for pass_reads in [false, true] {
-            for n in 0..FMMU_COUNT {
+            for n in 0..self.hardware.fmmus {
                 let f = reg::fmmu(n) as usize;
                 let r = &self.memory[f..f + 16];
                 let kind = r[fmmu_reg::TYPE];
@@ -394,37 +604,28 @@ impl Esc {
                 let l_start = u32::from_le_bytes([r[0], r[1], r[2], r[3]]) as u64;
                 let f_len = u16::from_le_bytes([r[4], r[5]]) as u64;
                 let (start_bit, end_bit) = (r[fmmu_reg::LOGICAL_START_BIT] & 7, r[fmmu_reg::LOGICAL_END_BIT] & 7);
-                let p_start = u16::from_le_bytes([r[8], r[9]]) as usize;
-                let (from, to) = (start.max(l_start), end.min(l_start + f_len));
-                if f_len == 0 || from >= to {
+                let p_start = u16::from_le_bytes([r[8], r[9]]) as u64;
+                let p_bit = r[fmmu_reg::PHYSICAL_START_BIT] & 7;
+                if f_len == 0 {
                     continue;
                 }
-                let p_from = p_start + (from - l_start) as usize;
-                let count = (to - from) as usize;
+                // The FMMU's logical bits, and those the datagram carries of them.
+                let first = l_start * 8 + u64::from(start_bit);
+                let last = (l_start + f_len - 1) * 8 + u64::from(end_bit);
+                let (from, to) = (first.max(start * 8), last.min(end * 8 - 1));
+                if from > to {
+                    continue;
+                }
+                // Logical bit b is physical bit b + shift.
+                let shift = (p_start * 8 + u64::from(p_bit)) as i128 - first as i128;
+                let physical = |bit: u64| (bit as i128 + shift) as u64;
+                let (p_from, p_to) = ((physical(from) / 8) as usize, (physical(to) / 8) as usize);
+                let count = p_to - p_from + 1;
                 let (read_ok, write_ok) = self.gate(p_from, count, pass_reads, !pass_reads);
                 if !(read_ok || write_ok) {
                     continue;
                 }
-                for i in 0..count {
-                    let logical = from + i as u64;
-                    let mut mask = 0xFFu8;
-                    if logical == l_start {
-                        mask &= 0xFFu8 << start_bit;
-                    }
-                    if logical == l_start + f_len - 1 {
-                        mask &= 0xFFu8 >> (7 - end_bit);
-                    }
-                    let d = (logical - start) as usize;
-                    let p = p_from + i;
-                    if pass_reads {
-                        // An FMMU may map past the end of the memory: nothing answers there.
-                        if let Some(&byte) = self.memory.get(p) {
-                            dg.data[d] = (dg.data[d] & !mask) | (byte & mask);
-                        }
-                    } else if (RAM_START..RAM_END).contains(&p) {
-                        self.memory[p] = (self.memory[p] & !mask) | (dg.data[d] & mask);
-                    }
-                }
+                self.map_bits(dg, start, (from, to), shift, pass_reads);
                 self.after_ram_access(p_from, count, pass_reads);
                 if pass_reads {
                     did_read = true;
@@ -434,6 +635,56 @@ impl Esc {
             }
         }
         (did_read, did_write)
+    }
+
+    /// Copies logical bits `from..=to` of a datagram starting at logical byte `start` from
+    /// their physical bits, `shift` bits on (`reading`), or to them; whole bytes where logical and physical bits
+    /// line up, bit by bit where they do not. An FMMU may map past the end of the memory:
+    /// nothing answers there; and the master writes process RAM (and a digital I/O ESC's
+    /// outputs) only.
+    fn map_bits(&mut self, dg: &mut DatagramMut<'_>, start: u64, (from, to): (u64, u64), shift: i128, reading: bool) {
+        let (ram_end, digital_outputs) = (self.hardware.ram_end(), self.digital_io());
+        let writable =
+            |p: usize| (RAM_START..ram_end).contains(&p) || (digital_outputs && DIGITAL_OUTPUTS.contains(&p));
+        let physical = |bit: u64| (bit as i128 + shift) as u64;
+        let aligned = shift.rem_euclid(8) == 0;
+        let mut bit = from;
+        while bit <= to {
+            let d = ((bit / 8) - start) as usize;
+            let p = (physical(bit) / 8) as usize;
+            let (mask, next) = if aligned {
+                // The bits of this byte that lie in from..=to.
+                let byte_last = (bit | 7).min(to);
+                let width = byte_last - bit + 1;
+                let mask = (((1u16 << width) - 1) << (bit % 8)) as u8;
+                (mask, byte_last + 1)
+            } else {
+                (1u8 << (bit % 8), bit + 1)
+            };
+            let p_mask = if aligned { mask } else { 1u8 << (physical(bit) % 8) };
+            if reading {
+                if let Some(&byte) = self.memory.get(p) {
+                    let value = if aligned {
+                        byte & mask
+                    } else if byte & p_mask != 0 {
+                        mask
+                    } else {
+                        0
+                    };
+                    dg.data[d] = (dg.data[d] & !mask) | value;
+                }
+            } else if writable(p) {
+                let value = if aligned {
+                    dg.data[d] & mask
+                } else if dg.data[d] & mask != 0 {
+                    p_mask
+                } else {
+                    0
+                };
+                self.memory[p] = (self.memory[p] & !p_mask) | value;
+            }
+            bit = next;
+        }
     }
 }
 
@@ -448,7 +699,7 @@ fn old_repeat_bits(esc: &Esc, at: usize, len: usize) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{for_each_datagram_mut, FrameBuilder};
+    use crate::ethercat::frame::{for_each_datagram_mut, FrameBuilder};
 
     const NOW: Arrival = Arrival { port0_ns: 1_000, port1_ns: None };
 
@@ -479,7 +730,7 @@ mod tests {
     fn a_datagram_longer_than_ethernet_carries_is_served_to_its_end() {
         // A frame header announces up to 2047 bytes, more than an Ethernet frame carries, and a
         // link may bring such a frame all the same: its datagram at ADO 0xFFFF ends 2035 bytes on.
-        let len = 0x07FF - crate::frame::DATAGRAM_HEADER_LEN - crate::frame::WKC_LEN;
+        let len = 0x07FF - crate::ethercat::frame::DATAGRAM_HEADER_LEN - crate::ethercat::frame::WKC_LEN;
         let mut frame = vec![0u8; 2 + 0x07FF];
         frame[..2].copy_from_slice(&(0x1000u16 | 0x07FF).to_le_bytes());
         frame[2..12].copy_from_slice(&[Command::Aprd as u8, 0, 0, 0, 0xFF, 0xFF, len as u8, (len >> 8) as u8, 0, 0]);

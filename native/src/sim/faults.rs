@@ -7,9 +7,9 @@
 //! (0x8611 following error, 0x8700 sync controller, 0x8250 RPDO time-out), as the AKD's table
 //! is not in the project's sources.
 
-use crate::akd_fault::{self, AkdFault};
-use crate::coe::Emergency;
+use crate::drive::akd_fault::{self, AkdFault};
 use crate::error::UnknownName;
+use crate::ethercat::coe::Emergency;
 
 wire_codes! {
     /// A drive fault.

@@ -7,7 +7,7 @@
 
 use std::collections::BTreeMap;
 
-use crate::foe::{packet_room, FoeErrorCode, FoeMessage};
+use crate::ethercat::foe::{packet_room, FoeErrorCode, FoeMessage};
 
 /// A transfer in progress.
 enum Transfer {
@@ -155,7 +155,7 @@ mod tests {
             decode(&ask(&mut s, FoeMessage::WriteRequest { password: 0, name: "a.bin" }, 32)),
             FoeMessage::Ack { packet: 0 }
         );
-        for (n, chunk) in crate::foe::packets(&file, 20) {
+        for (n, chunk) in crate::ethercat::foe::packets(&file, 20) {
             let reply = ask(&mut s, FoeMessage::Data { packet: n, data: chunk }, 32);
             assert_eq!(decode(&reply), FoeMessage::Ack { packet: n });
         }

@@ -8,7 +8,7 @@
 use std::time::Instant;
 
 use crate::error::Result;
-use crate::link::{Link, Returns};
+use crate::ethercat::link::{Link, Returns};
 use crate::sim::control::{ControlledBus, SimControl};
 use crate::sim::line::Delivery;
 use crate::sim::VirtualBus;

@@ -9,6 +9,13 @@
 //! their firmware keeps running on bus time and misses the frames (the watchdog and the
 //! drive's own supervision see that), and they carry on where they were when replugged. With
 //! the cable in front of the first drive pulled no ESC returns anything: every frame is lost.
+//!
+//! A faulty cable spoils frames entering one port of one slave, one in every so many frames
+//! as a flaky connector does, as many as asked ([`Line::spoil_port`]): the slave's ESC counts it
+//! there, marks it, and every ESC after it on the frame's way counts a forwarded error; the
+//! master never gets it (its NIC drops a frame whose CRC is bad), see [`super::VirtualBus`].
+
+use crate::ethercat::line_health::registers::PORTS;
 
 /// What became of a frame sent down the line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,6 +59,17 @@ pub struct LineCounts {
     pub corrupted: u64,
     /// Replies given a wrong working counter.
     pub wrong_wkc: u64,
+    /// Frames a faulty cable spoiled on their way ([`Line::spoil_port`]), lost to the master.
+    pub spoiled: u64,
+}
+
+/// Frames a faulty cable spoils entering one port: `frames` more, one in every `every`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Spoiling {
+    frames: u64,
+    every: u64,
+    /// Frames that entered the port since the fault began.
+    seen: u64,
 }
 
 /// The state of the line: bursts still pending, which cables are out, and its counts.
@@ -62,13 +80,15 @@ pub struct Line {
     wrong_wkc: u64,
     /// `pulled[i]`: the cable in front of drive `i` is out.
     pulled: Vec<bool>,
+    /// `spoiling[i][port]`: what a faulty cable does to the frames entering that port of drive `i`.
+    spoiling: Vec<[Spoiling; PORTS]>,
     counts: LineCounts,
 }
 
 impl Line {
     /// A line in front of `count` drives, every cable in.
     pub fn new(count: usize) -> Self {
-        Line { pulled: vec![false; count], ..Line::default() }
+        Line { pulled: vec![false; count], spoiling: vec![[Spoiling::default(); PORTS]; count], ..Line::default() }
     }
 
     /// Starts `burst`, replacing one of the same kind still pending.
@@ -84,6 +104,40 @@ impl Line {
     /// Panics when `position` is not on the line (checked by the caller).
     pub fn set_cable(&mut self, position: usize, plugged: bool) {
         self.pulled[position] = !plugged;
+    }
+
+    /// Whether the cable in front of drive `position` is in; `false` past the line.
+    pub fn plugged(&self, position: usize) -> bool {
+        self.pulled.get(position).is_some_and(|p| !p)
+    }
+
+    /// Makes the cable into `port` of drive `position` spoil the next `frames` frames entering
+    /// there, one in every `every` (at least 1), replacing a fault pending there. Panics when
+    /// `position` is not on the line or `port` is no port (checked by the caller).
+    pub fn spoil_port(&mut self, position: usize, port: usize, frames: u64, every: u64) {
+        self.spoiling[position][port] = Spoiling { frames, every: every.max(1), seen: 0 };
+    }
+
+    /// A frame enters `port` of drive `position`: whether the cable there spoils it.
+    pub fn spoils(&mut self, position: usize, port: usize) -> bool {
+        let Some(s) = self.spoiling.get_mut(position).and_then(|p| p.get_mut(port)) else { return false };
+        if s.frames == 0 {
+            return false;
+        }
+        s.seen += 1;
+        let hit = s.seen.is_multiple_of(s.every);
+        s.frames -= u64::from(hit);
+        hit
+    }
+
+    /// Frames still to spoil at `port` of drive `position`.
+    pub fn spoiling(&self, position: usize, port: usize) -> u64 {
+        self.spoiling.get(position).and_then(|p| p.get(port)).map_or(0, |s| s.frames)
+    }
+
+    /// Counts a frame a faulty cable spoiled.
+    pub fn count_spoiled(&mut self) {
+        self.counts.spoiled += 1;
     }
 
     /// How many drives a frame reaches: those in front of the first pulled cable.
@@ -116,7 +170,7 @@ impl Line {
         if take(&mut self.wrong_wkc) {
             self.counts.wrong_wkc += 1;
             // One less than the drives gave, or 1 where none answered: wrong either way.
-            let wrong = crate::frame::for_each_datagram_mut(payload, |dg| {
+            let wrong = crate::ethercat::frame::for_each_datagram_mut(payload, |dg| {
                 dg.wkc = if dg.wkc == 0 { 1 } else { dg.wkc - 1 };
             });
             debug_assert!(wrong.is_ok(), "a served frame is valid: {wrong:?}");
@@ -169,5 +223,18 @@ mod tests {
         assert_eq!(line.reach(), 2);
         line.set_cable(2, true);
         assert_eq!(line.reach(), 3);
+    }
+
+    #[test]
+    fn a_faulty_cable_spoils_one_frame_in_every_so_many_as_many_as_asked() {
+        let mut line = Line::new(2);
+        line.spoil_port(1, 1, 2, 3);
+        let hits: Vec<bool> = (0..9).map(|_| line.spoils(1, 1)).collect();
+        assert_eq!(hits, [false, false, true, false, false, true, false, false, false]);
+        assert!(!line.spoils(1, 0) && !line.spoils(7, 0), "other ports and past the line: never");
+        line.spoil_port(0, 0, 1, 1);
+        assert_eq!(line.spoiling(0, 0), 1);
+        assert!(line.spoils(0, 0));
+        assert_eq!(line.spoiling(0, 0), 0);
     }
 }

@@ -10,14 +10,16 @@
 
 use std::collections::VecDeque;
 
-use crate::al::AlState;
-use crate::coe::{
+use crate::error::EoeError;
+use crate::ethercat::al::AlState;
+use crate::ethercat::coe::{
     access, write_info_message, write_message, write_sdo_response, CoeHeader, CoeService, Emergency, EntryDescription,
     ObjectDescription, OdListType, SdoAbortCode, SdoInfoHeader, SdoInfoOpcode, SdoRequest, SdoResponse, COE_HEADER_LEN,
     SDO_INFO_HEADER_LEN, SDO_LEN,
 };
-use crate::error::EoeError;
-use crate::mailbox::{next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN};
+use crate::ethercat::mailbox::{
+    next_counter, write_error_reply, MailboxErrorDetail, MailboxHeader, MailboxType, HEADER_LEN,
+};
 use crate::sim::eoe_server::EoeServer;
 use crate::sim::foe_server::FoeServer;
 use crate::sim::od::ObjectDictionary;
@@ -59,6 +61,10 @@ pub struct MailboxServer {
     /// The firmware's delays before the Set IP Parameter response and after it, before the
     /// announcement (see [`Timing`](crate::sim::Timing)).
     eoe_delays: (u64, u64),
+    /// The protocols the slave's SII declares (its bits of
+    /// [`MailboxType::sii_protocol_bit`]), where it serves fewer than the AKD; the others are
+    /// answered with a mailbox error.
+    protocols: Option<u16>,
 }
 
 /// The write-access bit of the state the drive is in.
@@ -77,12 +83,18 @@ impl MailboxServer {
         MailboxServer { eoe_delays: (set_ip_ns, announce_ns), ..MailboxServer::default() }
     }
 
+    /// A server of `protocols` only (bits of [`MailboxType::sii_protocol_bit`], as an SII
+    /// declares them).
+    pub fn of_protocols(protocols: u16) -> Self {
+        MailboxServer { protocols: Some(protocols), ..MailboxServer::default() }
+    }
+
     /// Forgets transfers, queued replies and the IP settings (the mailbox stops when the drive
     /// goes to Init); files written by FoE stay.
     pub fn reset(&mut self) {
-        let (mut foe, eoe_delays) = (std::mem::take(&mut self.foe), self.eoe_delays);
+        let (mut foe, eoe_delays, protocols) = (std::mem::take(&mut self.foe), self.eoe_delays, self.protocols);
         foe.stop();
-        *self = MailboxServer { foe, eoe_delays, ..MailboxServer::default() };
+        *self = MailboxServer { foe, eoe_delays, protocols, ..MailboxServer::default() };
     }
 
     /// The EoE side (its IP parameters, fragments dropped).
@@ -164,7 +176,11 @@ impl MailboxServer {
             Err(_) => return self.error(counter, MailboxErrorDetail::InvalidSize, mailbox_size),
         };
         let body = header.body(message);
+        let declared = |p: MailboxType| self.protocols.is_none_or(|bits| bits & p.sii_protocol_bit() != 0);
         match header.protocol() {
+            Some(p) if !declared(p) => {
+                return self.error(counter, MailboxErrorDetail::UnsupportedProtocol, mailbox_size)
+            }
             Some(MailboxType::Coe) => {}
             Some(MailboxType::Eoe) => return self.serve_eoe(body, counter, now_ns, mailbox_size),
             Some(MailboxType::Foe) => {
@@ -473,7 +489,7 @@ fn object_list(od: &ObjectDictionary, list: OdListType) -> impl Iterator<Item = 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coe::{split_message, write_sdo_request};
+    use crate::ethercat::coe::{split_message, write_sdo_request};
 
     fn ask(server: &mut MailboxServer, od: &mut ObjectDictionary, request: &SdoRequest<'_>) -> Vec<u8> {
         let mut buf = [0u8; 64];

@@ -3,8 +3,8 @@
 //! ([`MissedFrames`]): by time as the real drive, by frames lost on the line, or by time with
 //! the would-be F125 counted instead of raised.
 
-use crate::akd_fault::{self, MISSED_FRAMES_TOLERATED};
-use crate::link_spec::MissedFrames;
+use crate::drive::akd_fault::{self, MISSED_FRAMES_TOLERATED};
+use crate::ethercat::link_spec::MissedFrames;
 
 /// The would-be F125 a virtual AKD judging [`MissedFrames::Warn`] counted.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]

@@ -6,9 +6,11 @@
 //! process image ([`process_data`]), the process-data watchdog ([`watchdog`]), and the drive firmware
 //! ([`drive`]: CiA 402 state machine, modes, supervision and [`faults`]) with its motor and
 //! load ([`motion`]) and simulated digital inputs and latch ([`digital_inputs`]); [`pll`] tells
-//! what its synchronisation (SYNC0 or SM2) was told. A [`VirtualBus`] is a
-//! line of them that serves EtherCAT frames in place, with time passed in by the caller so
-//! that a run is deterministic. [`in_process`] serves a bus to a master in this process through
+//! what its synchronisation (SYNC0 or SM2) was told; [`firmware`] is what its processor does at
+//! the ESC's PDI side. A [`VirtualBus`] is a line of them, or of the slaves a
+//! [`SimLine`] names ([`slave`]): AKDs and Beckhoff terminals built from their real EEPROMs
+//! ([`terminal`], [`terminal_sii`], on the ESCs of [`esc_hardware`]). It serves EtherCAT frames
+//! in place, with time passed in by the caller so that a run is deterministic. [`in_process`] serves a bus to a master in this process through
 //! the link trait; [`server`] serves one on UDP or on a network interface.
 //! [`control`] lets tests and the simulator command inject faults, set inputs and query a
 //! drive while another thread owns the bus and serves its frames, and make the bus fail as
@@ -24,7 +26,9 @@ pub mod digital_inputs;
 pub mod drive;
 pub mod eoe_server;
 pub mod esc;
+pub mod esc_hardware;
 pub mod faults;
+pub mod firmware;
 pub mod foe_server;
 pub mod homing;
 pub mod in_process;
@@ -38,21 +42,23 @@ pub mod process_data;
 pub mod server;
 pub mod setpoint_trace;
 pub mod sii_image;
+pub mod slave;
 pub mod sync_manager;
+pub mod terminal;
+pub mod terminal_sii;
 pub mod terminals;
 pub mod watchdog;
 
-use crate::al::{AlState, AlStatusCode};
 use crate::error::{FrameError, Result, SettingError};
-use crate::frame::{self, DatagramMut};
-use crate::link_spec::MissedFrames;
-use crate::link_spec::Pace;
-use crate::mailbox::HEADER_LEN;
-use crate::pdo;
-use crate::registers::{self as reg, sm_reg};
-use crate::sii::Identity;
+use crate::ethercat::al::{AlState, AlStatusCode};
+use crate::ethercat::frame::{self, DatagramMut};
+use crate::ethercat::line_health::registers::PORTS;
+use crate::ethercat::link_spec::{MissedFrames, Pace, SimLine, SimProduct};
+use crate::ethercat::pdo;
+use crate::ethercat::sii::Identity;
 use crate::sim::esc::{Arrival, Esc, Events};
-use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE, SM_COUNT};
+pub use crate::sim::slave::VirtualSlave;
+use crate::sim::sync_manager::{SyncManager, MIN_MAILBOX_SIZE};
 
 /// How long the drive's firmware takes to react, in ns of bus time.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -60,10 +66,15 @@ pub struct Timing {
     /// From a write of AL control until the firmware handles the request (and the master may
     /// write AL control again).
     pub al_request_ns: u64,
-    /// The same for a request of PreOp in Init: the firmware sets up its mailbox and object
-    /// dictionary first, AL status reading Init all that time.
+    /// The same for the first request of PreOp in Init after power-up: the firmware sets up
+    /// its mailbox and object dictionary first, AL status reading Init all that time.
+    pub first_init_to_preop_ns: u64,
+    /// The same for a later request of PreOp in Init.
     pub init_to_preop_ns: u64,
-    /// From a complete mailbox write until the reply is in the mailbox-in buffer.
+    /// From a complete mailbox write until the reply is in the mailbox-in buffer, for the first
+    /// message after power-up.
+    pub first_mailbox_ns: u64,
+    /// The same for the later messages.
     pub mailbox_ns: u64,
     /// How the firmware judges missed frames: by time, as the real drive, or by frames lost.
     pub missed_frames: MissedFrames,
@@ -75,22 +86,26 @@ pub struct Timing {
 
 impl Timing {
     /// The real drive's pace (docs/virtual_akd.md has the evidence):
-    /// - Init→PreOp: under TwinCAT a real AKD read Init for about 16 ms after the request and
-    ///   PreOp by about 19 ms (issue 28); the state changes between the two, at 17.5 ms here.
-    ///   The drive of the SOEM capture was in PreOp 4.2-6.2 ms after its request (SOEM had
-    ///   handed it the SII just before, frame 265); what makes the difference is not known,
-    ///   and the replay of that capture sets that drive's pace ([`VirtualBus::with_timing`]).
+    /// - Init→PreOp: under TwinCAT a real AKD took 16-19 ms for its first Init→PreOp after
+    ///   power-up (issue 28: it read Init for about 16 ms, PreOp by about 19 ms), 17.5 ms here,
+    ///   and 3-6 ms for later ones, 4.5 ms here; the drive of the SOEM capture, powered up long
+    ///   before, was in PreOp 4.2-6.2 ms after its request.
     /// - the other AL requests: PreOp→SafeOp answered within 4.9 ms in the SOEM capture.
-    /// - mailbox: the SOEM capture's 35 SDO replies appear 0.56 to 2.9 ms after the request,
-    ///   most by 1.3 ms. A fixed 1 ms puts 19 of them in the window the capture allows, as any
-    ///   delay from 0.8 to 1.3 ms does; a firmware task running every 1 ms would explain 27,
-    ///   but its phase is unknown, and counted from the drive's first frame it fits the replay
-    ///   worse (23 of the capture's mailbox status polls on the other side, against 19).
+    /// - mailbox: under TwinCAT the first reply after that first PreOp came 25-50 ms after the
+    ///   request (TwinCAT, polling SM1 every 16 ms or so, found it empty once or twice first):
+    ///   30 ms here, which such polling finds empty once or twice too. The SOEM capture's 35
+    ///   replies appear 0.56 to 2.9 ms after the request, its first one too, most by 1.3 ms. A
+    ///   fixed 1 ms puts 19 of them in the window the capture allows, as any delay from 0.8 to
+    ///   1.3 ms does; a firmware task running every 1 ms would explain 27, but its phase is
+    ///   unknown, and counted from the drive's first frame it fits the replay worse (23 of the
+    ///   capture's mailbox status polls on the other side, against 19).
     /// - EoE: under TwinCAT a real AKD answered Set IP Parameter about 25 ms after the request
     ///   and sent its gratuitous ARP about 18 ms after that (issue 15).
     pub const REAL_DRIVE: Timing = Timing {
         al_request_ns: 4_500_000,
-        init_to_preop_ns: 17_500_000,
+        first_init_to_preop_ns: 17_500_000,
+        init_to_preop_ns: 4_500_000,
+        first_mailbox_ns: 30_000_000,
         mailbox_ns: 1_000_000,
         missed_frames: MissedFrames::Late,
         eoe_set_ip_ns: 25_000_000,
@@ -99,7 +114,9 @@ impl Timing {
     /// No delay: each request is handled before the next frame (`pace=immediate`).
     pub const IMMEDIATE: Timing = Timing {
         al_request_ns: 0,
+        first_init_to_preop_ns: 0,
         init_to_preop_ns: 0,
+        first_mailbox_ns: 0,
         mailbox_ns: 0,
         missed_frames: MissedFrames::Late,
         eoe_set_ip_ns: 0,
@@ -130,18 +147,28 @@ pub const AKD_MAILBOX_SIZE: u16 = 0x0400;
 
 /// The SII image of the AKD with `identity` declaring a standard mailbox of `size` bytes each
 /// way (the sync manager category says the same), everything else as the real drive's.
-fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate::sii::SiiError> {
-    let mut sii = crate::sii::Sii::parse(&sii_image::akd_sii_of(identity))?;
+fn sii_with_mailbox_size(identity: Identity, size: u16) -> Result<Vec<u8>, crate::ethercat::sii::SiiError> {
+    let mut sii = crate::ethercat::sii::Sii::parse(&sii_image::akd_sii_of(identity))?;
     let mailbox = &mut sii.header.standard_mailbox;
     (mailbox.receive_size, mailbox.send_size) = (size, size);
     for category in &mut sii.categories {
-        if let crate::sii::Category::SyncManagers(sms) = category {
+        if let crate::ethercat::sii::Category::SyncManagers(sms) = category {
             for sm in sms.iter_mut().take(2) {
                 sm.length = size;
             }
         }
     }
     sii.encode()
+}
+
+/// What a drive's firmware has done since power-up that makes it quicker the next time
+/// ([`Timing`]'s first and later Init→PreOp and mailbox replies).
+#[derive(Clone, Copy, Debug, Default)]
+struct Warm {
+    /// It went from Init to PreOp.
+    been_in_preop: bool,
+    /// It took a mailbox message.
+    answered_mailbox: bool,
 }
 
 /// One virtual AKD.
@@ -162,6 +189,7 @@ pub struct VirtualAkd {
     frames_lost: u64,
     identity: Identity,
     has_successor: bool,
+    warm: Warm,
     drive: drive::DriveFirmware,
     rx_image: process_data::Image,
     tx_image: process_data::Image,
@@ -196,9 +224,7 @@ impl VirtualAkd {
 
     fn with_sii(sii: Vec<u8>, identity: Identity, mailbox_size: u16, has_successor: bool, timing: Timing) -> Self {
         let mut esc = Esc::new(sii, has_successor);
-        for n in 0..SM_COUNT {
-            sync_manager::set_pdi_deactivated(esc.memory_mut(), n, true);
-        }
+        firmware::deactivate_sync_managers(&mut esc);
         VirtualAkd {
             esc,
             al: al_machine::AlMachine::power_up(),
@@ -214,6 +240,7 @@ impl VirtualAkd {
             frames_lost: 0,
             identity,
             has_successor,
+            warm: Warm::default(),
             drive: drive::DriveFirmware::default(),
             rx_image: Vec::new(),
             tx_image: Vec::new(),
@@ -230,6 +257,13 @@ impl VirtualAkd {
         let homing = self.drive().homing_setup();
         *self = Self::with_sii(sii, self.identity, self.mailbox_size, self.has_successor, self.timing);
         self.drive_mut().set_homing(homing);
+    }
+
+    /// The drive as one powered up long before, that has been to PreOp and answered its mailbox
+    /// since: its next Init→PreOp and mailbox reply take the later ones' time ([`Timing`]), as
+    /// the drive of the SOEM capture did.
+    pub fn warm_up(&mut self) {
+        self.warm = Warm { been_in_preop: true, answered_mailbox: true };
     }
 
     /// The F125 a real AKD would have raised where this one judges missed frames by
@@ -279,7 +313,7 @@ impl VirtualAkd {
         if self.al.state() != AlState::Op {
             return None;
         }
-        let base = reg::AKD_PROCESS_OUT as usize;
+        let base = crate::drive::pdo::AKD_PROCESS_OUT as usize;
         let outputs = self.esc.memory().get(base..base + pdo::bit_len(&self.rx_image) / 8)?;
         Some((&self.rx_image, outputs))
     }
@@ -294,18 +328,13 @@ impl VirtualAkd {
         &mut self.drive
     }
 
-    /// Changes how fast the firmware reacts.
-    pub fn set_timing(&mut self, timing: Timing) {
-        self.timing = timing;
-    }
-
     /// A frame the line carried did not reach the drive.
     fn miss_frame(&mut self) {
         self.frames_lost += 1;
     }
 
     /// Queues an emergency message, as the drive sends on a fault.
-    pub fn emergency(&mut self, emergency: &crate::coe::Emergency) {
+    pub fn emergency(&mut self, emergency: &crate::ethercat::coe::Emergency) {
         let size = SyncManager::read(self.esc.memory(), 1).length as usize;
         self.mailbox.emergency(emergency, size);
     }
@@ -322,11 +351,17 @@ impl VirtualAkd {
     fn schedule(&mut self, events: Events, now_ns: u64) {
         if let Some(control) = events.al_control {
             let to_preop = self.al.state() == AlState::Init && AlState::from_bits(control) == Some(AlState::PreOp);
-            let delay = if to_preop { self.timing.init_to_preop_ns } else { self.timing.al_request_ns };
+            let delay = match (to_preop, self.warm.been_in_preop) {
+                (true, false) => self.timing.first_init_to_preop_ns,
+                (true, true) => self.timing.init_to_preop_ns,
+                (false, _) => self.timing.al_request_ns,
+            };
             self.pending_al = Some((control, now_ns + delay));
         }
         if events.mailbox_written {
-            self.pending_mailbox = Some(now_ns + self.timing.mailbox_ns);
+            let delay = if self.warm.answered_mailbox { self.timing.mailbox_ns } else { self.timing.first_mailbox_ns };
+            self.warm.answered_mailbox = true;
+            self.pending_mailbox = Some(now_ns + delay);
         }
         if events.watchdog_trigger {
             self.watchdog.trigger(now_ns);
@@ -337,7 +372,7 @@ impl VirtualAkd {
             self.frames_lost = 0;
         }
         if events.repeat_request {
-            self.repeat_mailbox();
+            firmware::repeat_reply(&mut self.esc, &self.mailbox);
         }
     }
 
@@ -353,10 +388,10 @@ impl VirtualAkd {
         if let Some(due) = self.pending_mailbox {
             if due <= now_ns {
                 self.pending_mailbox = None;
-                self.read_mailbox(now_ns);
+                firmware::take_request(&mut self.esc, &mut self.mailbox, &mut self.od, self.al.state(), now_ns);
             }
         }
-        self.write_mailbox();
+        firmware::offer_reply(&mut self.esc, &mut self.mailbox);
         if self.al.state() == AlState::Op && self.watchdog.expired(now_ns, self.esc.memory_mut()) {
             self.al.fail(AlState::SafeOp, AlStatusCode::SM_WATCHDOG);
             self.watchdog.stop();
@@ -387,9 +422,8 @@ impl VirtualAkd {
     /// real drive's ESC answers a frame in hardware while its processor does this work.
     pub fn run_ip_stack(&mut self, now_ns: u64) {
         if self.al.state() != AlState::Init && self.al.state() != AlState::Bootstrap {
-            let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
-            self.mailbox.poll(now_ns, size);
-            self.write_mailbox();
+            self.mailbox.poll(now_ns, firmware::reply_size(&self.esc));
+            firmware::offer_reply(&mut self.esc, &mut self.mailbox);
         }
     }
 
@@ -401,21 +435,10 @@ impl VirtualAkd {
             _ => Ok(()),
         });
         if let Some(t) = transition {
-            let memory = self.esc.memory_mut();
-            let mailbox_on = t.to != AlState::Init && t.to != AlState::Bootstrap;
-            let process_data_on = t.to >= AlState::SafeOp && t.to != AlState::Bootstrap;
-            for n in 0..2 {
-                sync_manager::set_pdi_deactivated(memory, n, !mailbox_on);
-            }
-            for n in 2..4 {
-                sync_manager::set_pdi_deactivated(memory, n, !process_data_on);
-            }
-            if !mailbox_on {
-                self.mailbox.reset();
+            self.warm.been_in_preop |= t.to == AlState::PreOp;
+            firmware::enter_state(&mut self.esc, &mut self.mailbox, t.to);
+            if t.to == AlState::Init || t.to == AlState::Bootstrap {
                 self.pending_mailbox = None;
-                for n in 0..2 {
-                    memory[sync_manager::status_address(n)] = 0;
-                }
             }
             if t.from == AlState::PreOp && t.to == AlState::SafeOp {
                 (self.rx_image, self.tx_image) = process_data::images(&self.od);
@@ -433,68 +456,17 @@ impl VirtualAkd {
     }
 
     fn write_al_status(&mut self) {
-        let (status, status_code) = (self.al.status(), self.al.status_code());
-        let memory = self.esc.memory_mut();
-        memory[reg::AL_STATUS as usize..reg::AL_STATUS as usize + 2].copy_from_slice(&status.to_le_bytes());
-        memory[reg::AL_STATUS_CODE as usize..reg::AL_STATUS_CODE as usize + 2]
-            .copy_from_slice(&status_code.to_le_bytes());
-    }
-
-    /// Takes the master's message out of the mailbox-out buffer and answers it.
-    fn read_mailbox(&mut self, now_ns: u64) {
-        let out = SyncManager::read(self.esc.memory(), 0);
-        // Replies are sized for SM1 as the master set it, but never for less than the smallest
-        // mailbox the drive accepts at Init→PreOp: a master may shrink SM1 afterwards (even below
-        // a reply's headers), and then reads what fits of each reply.
-        let size = usize::from(SyncManager::read(self.esc.memory(), 1).length.max(MIN_MAILBOX_SIZE));
-        let memory = self.esc.memory();
-        let buffer = &memory[out.range_within(memory.len())];
-        let announced = buffer.get(..2).map_or(0, |b| u16::from_le_bytes([b[0], b[1]]) as usize);
-        let message = buffer[..(HEADER_LEN + announced).min(buffer.len())].to_vec();
-        sync_manager::mark_read(self.esc.memory_mut(), 0);
-        let request_size = usize::from(out.length);
-        self.mailbox.handle(&message, &mut self.od, self.al.state(), size, request_size, now_ns);
-    }
-
-    /// Puts the next queued reply into the mailbox-in buffer when the master emptied it.
-    fn write_mailbox(&mut self) {
-        let sm = SyncManager::read(self.esc.memory(), 1);
-        if !sm.active() || sm.full() {
-            return;
-        }
-        if let Some(reply) = self.mailbox.next_reply() {
-            let memory = self.esc.memory_mut();
-            let buffer = sm.range_within(memory.len());
-            let n = reply.len().min(buffer.len());
-            memory[buffer.start..buffer.start + n].copy_from_slice(&reply[..n]);
-            sync_manager::mark_written(memory, 1);
-        }
-    }
-
-    /// The master toggled the repeat request: the last reply goes into the buffer again and
-    /// the repeat acknowledge follows the request bit.
-    fn repeat_mailbox(&mut self) {
-        let sm = SyncManager::read(self.esc.memory(), 1);
-        if let Some(reply) = self.mailbox.last_reply() {
-            let buffer = sm.range_within(self.esc.memory().len());
-            let n = reply.len().min(buffer.len());
-            let reply = reply[..n].to_vec();
-            let memory = self.esc.memory_mut();
-            memory[buffer.start..buffer.start + n].copy_from_slice(&reply);
-            sync_manager::mark_written(memory, 1);
-        }
-        let memory = self.esc.memory_mut();
-        let ack = memory[reg::sm(1) as usize + sm_reg::ACTIVATE] & sm_reg::ACTIVATE_REPEAT;
-        let pdi = &mut memory[sync_manager::pdi_control_address(1)];
-        *pdi = (*pdi & !sm_reg::PDI_REPEAT_ACK) | ack;
+        firmware::write_al_status(&mut self.esc, &self.al);
     }
 }
 
-/// A line of virtual AKDs, as a real bus: frames pass drive 0, 1, ... in order. Drive `i`
-/// reports the identity [`sii_image::identity`]`(i)`: the real drive's, with a serial number of
-/// its own.
+/// A line of virtual slaves, as a real bus: frames pass slave 0, 1, ... in order. A line of
+/// AKDs ([`new`](Self::new), [`with_timing`](Self::with_timing)) or of the slaves a
+/// [`SimLine`] names, AKDs and Beckhoff terminals ([`of_line`](Self::of_line)). The `i`-th AKD
+/// of a line reports the identity [`sii_image::identity`]`(i)`: the real drive's, with a serial
+/// number of its own.
 pub struct VirtualBus {
-    slaves: Vec<VirtualAkd>,
+    slaves: Vec<VirtualSlave>,
     line: line::Line,
 }
 
@@ -507,7 +479,31 @@ impl VirtualBus {
     /// `count` virtual AKDs reacting with `timing`.
     pub fn with_timing(count: usize, timing: Timing) -> Self {
         let slaves = (0..count).map(|i| VirtualAkd::new(sii_image::identity(i), i + 1 < count, timing));
-        VirtualBus { slaves: slaves.collect(), line: line::Line::new(count) }
+        Self::of_slaves(slaves.map(VirtualSlave::Akd).collect())
+    }
+
+    /// The slaves `line` names, in order, at power-up, the AKDs reacting with `timing`; refused
+    /// when a terminal's SII image cannot be read.
+    pub fn of_line(line: &SimLine, timing: Timing) -> Result<Self> {
+        let count = line.len();
+        let mut akds = 0;
+        let mut slaves = Vec::with_capacity(count);
+        for (i, &product) in line.products().iter().enumerate() {
+            slaves.push(VirtualSlave::of(product, akds, i + 1 < count, timing)?);
+            akds += usize::from(product == SimProduct::Akd);
+        }
+        Ok(Self::of_slaves(slaves))
+    }
+
+    /// A line of `slaves` in order (built by the caller, e.g. a terminal serving an image a
+    /// test changed).
+    pub fn of_slaves(mut slaves: Vec<VirtualSlave>) -> Self {
+        // Each slave behind another saw its link come up after it reset.
+        for slave in slaves.iter_mut().skip(1) {
+            slave.esc_mut().link_came_up();
+        }
+        let line = line::Line::new(slaves.len());
+        VirtualBus { slaves, line }
     }
 
     /// `count` virtual AKDs reacting with `timing` whose SII declares a standard mailbox of
@@ -516,27 +512,92 @@ impl VirtualBus {
     pub fn with_mailbox_size(count: usize, timing: Timing, mailbox_size: u16) -> Result<Self> {
         let slaves = (0..count)
             .map(|i| VirtualAkd::with_mailbox_size(sii_image::identity(i), mailbox_size, i + 1 < count, timing));
-        Ok(VirtualBus { slaves: slaves.collect::<Result<_>>()?, line: line::Line::new(count) })
+        Ok(Self::of_slaves(slaves.map(|s| s.map(VirtualSlave::Akd)).collect::<Result<_>>()?))
     }
 
-    /// Number of drives.
+    /// Number of slaves.
     pub fn len(&self) -> usize {
         self.slaves.len()
     }
 
-    /// Whether the line has no drive.
+    /// Whether the line has no slave.
     pub fn is_empty(&self) -> bool {
         self.slaves.is_empty()
     }
 
-    /// Drive `i`. Panics when `i` is not below [`len`](Self::len).
-    pub fn slave(&self, i: usize) -> &VirtualAkd {
+    /// The products of the line's slaves, in order.
+    pub fn products(&self) -> Vec<SimProduct> {
+        self.slaves.iter().map(VirtualSlave::product).collect()
+    }
+
+    /// Slave `i`. Panics when `i` is not below [`len`](Self::len).
+    pub fn at(&self, i: usize) -> &VirtualSlave {
         &self.slaves[i]
     }
 
-    /// Drive `i`, to change it (tests, fault injection). Panics when `i` is out of range.
-    pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
+    /// Slave `i`, to change it. Panics when `i` is not below [`len`](Self::len).
+    pub fn at_mut(&mut self, i: usize) -> &mut VirtualSlave {
         &mut self.slaves[i]
+    }
+
+    /// The AKD at position `i`. Panics when `i` is not below [`len`](Self::len) or names a
+    /// terminal (never on a line of AKDs).
+    pub fn slave(&self, i: usize) -> &VirtualAkd {
+        self.slaves[i].akd().unwrap_or_else(|| panic!("slave {i} is no AKD"))
+    }
+
+    /// The AKD at position `i`, to change it (tests, fault injection). Panics as
+    /// [`slave`](Self::slave) does.
+    pub fn slave_mut(&mut self, i: usize) -> &mut VirtualAkd {
+        self.slaves[i].akd_mut().unwrap_or_else(|| panic!("slave {i} is no AKD"))
+    }
+
+    /// Slave `position` loses its power and comes back as at power-up: its neighbours lose
+    /// their links to it meanwhile (and count them); behind another slave, its link comes up
+    /// after its reset, as at the line's power-up. Panics when `position` is not below
+    /// [`len`](Self::len).
+    pub fn power_cycle(&mut self, position: usize) {
+        if position > 0 {
+            self.slaves[position - 1].esc_mut().set_link(1, false);
+        }
+        if let Some(next) = self.slaves.get_mut(position + 1) {
+            next.esc_mut().set_link(0, false);
+        }
+        let links = self.links_of(position);
+        let slave = &mut self.slaves[position];
+        slave.power_cycle();
+        slave.esc_mut().power_up_links(links);
+        if position > 0 {
+            slave.esc_mut().link_came_up();
+        }
+        self.apply_links();
+    }
+
+    /// The links slave `position`'s ports have through the line's cables: port 0 through the
+    /// one in front of it, port 1 through the one in front of the next slave; the virtual line
+    /// is a daisy chain, its slaves' other ports without a cable.
+    fn links_of(&self, position: usize) -> [bool; PORTS] {
+        [self.line.plugged(position), self.line.plugged(position + 1), false, false]
+    }
+
+    /// Sets every slave's links as the cables are.
+    fn apply_links(&mut self) {
+        for position in 0..self.slaves.len() {
+            let links = self.links_of(position);
+            let esc = self.slaves[position].esc_mut();
+            for (port, up) in links.into_iter().enumerate() {
+                esc.set_link(port, up);
+            }
+        }
+    }
+
+    /// Every AKD of the line as one powered up long before ([`VirtualAkd::warm_up`]).
+    pub fn warm_up(&mut self) {
+        for slave in &mut self.slaves {
+            if let Some(akd) = slave.akd_mut() {
+                akd.warm_up();
+            }
+        }
     }
 
     /// The line in front of the drives, as its faults left it.
@@ -551,13 +612,18 @@ impl VirtualBus {
 
     /// Pulls the cable in front of drive `position` out, or plugs it back in: frames reach
     /// only the drives in front of the first cable out, and the last of those closes its port
-    /// 1. Panics when `position` is not below [`len`](Self::len).
+    /// 1; the ports at both ends of the cable lose their link (and count it). Panics when
+    /// `position` is not below [`len`](Self::len).
     pub fn set_cable(&mut self, position: usize, plugged: bool) {
         self.line.set_cable(position, plugged);
-        let reach = self.line.reach();
-        for (i, slave) in self.slaves.iter_mut().enumerate() {
-            slave.esc.set_successor(slave.has_successor && i + 1 < reach);
-        }
+        self.apply_links();
+    }
+
+    /// Makes the cable into `port` of slave `position` spoil the next `frames` frames entering
+    /// there, one in every `every` ([`line::Line::spoil_port`]). Panics when `position` is not
+    /// below [`len`](Self::len) or `port` is no port (below 4).
+    pub fn spoil_port(&mut self, position: usize, port: usize, frames: u64, every: u64) {
+        self.line.spoil_port(position, port, frames, every);
     }
 
     /// Lets bus time `now_ns` pass with no frame: every drive's firmware runs up to it (the
@@ -587,6 +653,12 @@ impl VirtualBus {
     }
 
     /// [`process`](Self::process) without the IP stacks' work: the frame as the ESCs answer it.
+    ///
+    /// The frame enters each slave at port 0 on its way out, and each slave but the last of
+    /// those it reaches at port 1 on its way back, from the slave behind it. A faulty cable
+    /// there may spoil it ([`line::Line::spoil_port`]): the ESC counts an invalid frame at that
+    /// port and marks the frame, every ESC after it counts a forwarded error, none takes it
+    /// (an ESC discards what an invalid frame asked), and the master never gets it.
     pub fn answer(&mut self, payload: &mut [u8], now_ns: u64) -> Result<line::Delivery, FrameError> {
         frame::validate(payload)?;
         if self.line.carry() {
@@ -598,6 +670,7 @@ impl VirtualBus {
         }
         let reach = self.line.reach();
         let last = reach as u64 - 1;
+        let mut spoiled = false;
         for (i, slave) in self.slaves.iter_mut().enumerate() {
             if i >= reach {
                 slave.miss_frame();
@@ -605,12 +678,35 @@ impl VirtualBus {
                 continue;
             }
             slave.poll(now_ns);
+            if spoiled {
+                slave.esc_mut().count_forwarded_error(0);
+            } else if self.line.spoils(i, 0) {
+                slave.esc_mut().count_invalid_frame(0);
+                spoiled = true;
+            }
+            if spoiled {
+                slave.miss_frame();
+                continue;
+            }
             let i = i as u64;
             let arrival = Arrival {
                 port0_ns: now_ns + i * FORWARD_DELAY_NS,
                 port1_ns: (i < last).then_some(now_ns + (2 * last - i) * FORWARD_DELAY_NS),
             };
             frame::for_each_datagram_mut(payload, |dg| slave.serve(dg, now_ns, arrival))?;
+        }
+        for i in (0..reach - 1).rev() {
+            let esc = self.slaves[i].esc_mut();
+            if spoiled {
+                esc.count_forwarded_error(1);
+            } else if self.line.spoils(i, 1) {
+                esc.count_invalid_frame(1);
+                spoiled = true;
+            }
+        }
+        if spoiled {
+            self.line.count_spoiled();
+            return Ok(line::Delivery::Lost);
         }
         self.line.spoil(payload);
         Ok(line::Delivery::Returned)
@@ -620,7 +716,8 @@ impl VirtualBus {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
+    use crate::ethercat::line_health::registers::ErrorCounts;
 
     fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
         served(VirtualBus::process, bus, now, (command, adp, ado), data)
@@ -698,6 +795,7 @@ mod tests {
         // Found by fuzzing (native/fuzz, virtual_akd): SM1 set to 4 bytes in PreOp, then an SDO
         // upload; the reply was sized for a mailbox smaller than its headers.
         let mut bus = VirtualBus::new(1);
+        bus.slave_mut(0).warm_up();
         to_preop(&mut bus);
         assert_eq!(exchange(&mut bus, 20_000_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
         assert_eq!(exchange(&mut bus, 20_000_000, Command::Bwr, 0, 0x080A, &[4, 0]).1, 1);
@@ -729,7 +827,8 @@ mod tests {
     #[test]
     fn init_to_preop_runs_at_a_pace_of_its_own() {
         // A drive of another pace there: Init for 16 ms after the request, other requests as usual.
-        let mut bus = VirtualBus::with_timing(1, Timing { init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE });
+        let timing = Timing { first_init_to_preop_ns: 16_000_000, ..Timing::REAL_DRIVE };
+        let mut bus = VirtualBus::with_timing(1, timing);
         to_preop(&mut bus);
         for t in [4_500_000, 10_000_000, 15_999_999] {
             assert_eq!(exchange(&mut bus, t, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00], "at {t} ns");
@@ -740,6 +839,14 @@ mod tests {
         exchange(&mut bus, 16_000_000, Command::Bwr, 0, 0x0120, &[0x01, 0x00]);
         assert_eq!(exchange(&mut bus, 20_499_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
         assert_eq!(exchange(&mut bus, 20_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
+        // The next Init→PreOp takes a later request's 4.5 ms (3-6 ms under TwinCAT).
+        exchange(&mut bus, 21_000_000, Command::Bwr, 0, 0x0120, &[0x02, 0x00]);
+        assert_eq!(exchange(&mut bus, 25_499_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
+        assert_eq!(exchange(&mut bus, 25_500_000, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x02, 0x00]);
+        // So does the first after a power cycle once more: 16 ms.
+        bus.slave_mut(0).power_cycle();
+        to_preop(&mut bus);
+        assert_eq!(exchange(&mut bus, 15_999_999, Command::Brd, 0, 0x0130, &[0, 0]).0, vec![0x01, 0x00]);
     }
 
     #[test]
@@ -758,16 +865,20 @@ mod tests {
         to_preop(&mut bus);
         let mut request = vec![0u8; 0x400];
         request[..16].copy_from_slice(&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x20, 0x40, 0x00, 0x1C, 0x03, 0, 0, 0, 0]);
-        let t = 18_000_000;
-        assert_eq!(exchange(&mut bus, t, Command::Bwr, 0, 0x1800, &request).1, 1);
-        assert_eq!(exchange(&mut bus, t + 650_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x00, 0x01]);
-        assert_eq!(exchange(&mut bus, t + 1_400_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x09, 0x01]);
-        let (reply, wkc) = exchange(&mut bus, t + 2_000_000, Command::Brd, 0, 0x1C00, &[0; 0x400]);
-        assert_eq!(
-            (&reply[..16], wkc),
-            (&[0x0A, 0, 0, 0, 0, 0x23, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0][..], 1)
-        );
-        assert_eq!(exchange(&mut bus, t + 2_500_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+        let reply_of_counter =
+            |counter: u8| [0x0A, 0, 0, 0, 0, counter, 0x00, 0x30, 0x4F, 0x00, 0x1C, 0x03, 0x03, 0, 0, 0];
+        // The first message after power-up is answered 30 ms on (25-50 ms under TwinCAT), the
+        // next ones 1 ms on (the SOEM capture's 0.56-2.9 ms).
+        for (t, delay, counter) in [(18_000_000, 30_000_000, 0x23), (50_000_000, 1_000_000, 0x33)] {
+            request[5] = counter;
+            assert_eq!(exchange(&mut bus, t, Command::Bwr, 0, 0x1800, &request).1, 1);
+            // SM1 not full (bit 3) until then.
+            assert_eq!(exchange(&mut bus, t + delay - 1, Command::Brd, 0, 0x080D, &[0, 0]).0[0] & 0x08, 0);
+            assert_eq!(exchange(&mut bus, t + delay, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x09, 0x01]);
+            let (reply, wkc) = exchange(&mut bus, t + delay + 500_000, Command::Brd, 0, 0x1C00, &[0; 0x400]);
+            assert_eq!((&reply[..16], wkc), (&reply_of_counter(counter)[..], 1));
+            assert_eq!(exchange(&mut bus, t + delay + 600_000, Command::Brd, 0, 0x080D, &[0, 0]).0, vec![0x02, 0x01]);
+        }
     }
 
     #[test]
@@ -775,8 +886,8 @@ mod tests {
         let mut bus = VirtualBus::with_timing(1, Timing::IMMEDIATE);
         to_preop(&mut bus);
         let mut request = vec![0u8; 0x400];
-        let parameters = crate::eoe::IpParameters { ip: Some([192, 0, 2, 10].into()), ..Default::default() };
-        crate::eoe::write_set_ip_request(&mut request, 1, &parameters).unwrap();
+        let parameters = crate::ethercat::eoe::IpParameters { ip: Some([192, 0, 2, 10].into()), ..Default::default() };
+        crate::ethercat::eoe::write_set_ip_request(&mut request, 1, &parameters).unwrap();
         exchange(&mut bus, 1, Command::Bwr, 0, 0x1800, &request);
         // The frame that lets the firmware take the request finds SM1 empty (status bit 3 clear):
         // the response is the IP stack's, which runs after the frame went back.
@@ -794,7 +905,8 @@ mod tests {
     fn a_small_mailbox_is_declared_in_the_sii_and_expected_at_init_to_preop() {
         // Re-encoding with the real size gives the real image: only the mailbox size changes.
         assert_eq!(sii_with_mailbox_size(sii_image::IDENTITY, AKD_MAILBOX_SIZE).unwrap(), sii_image::akd_sii());
-        let sii = crate::sii::Sii::parse(&sii_with_mailbox_size(sii_image::identity(3), 64).unwrap()).unwrap();
+        let sii =
+            crate::ethercat::sii::Sii::parse(&sii_with_mailbox_size(sii_image::identity(3), 64).unwrap()).unwrap();
         assert_eq!(sii.identity(), sii_image::identity(3));
         let mb = sii.header.standard_mailbox;
         assert_eq!((mb.receive_offset, mb.receive_size, mb.send_offset, mb.send_size), (0x1800, 64, 0x1C00, 64));
@@ -820,7 +932,7 @@ mod tests {
     }
 
     /// Payload of one BRD of the AL status.
-    fn al_status_frame() -> (Vec<u8>, crate::frame::Slot) {
+    fn al_status_frame() -> (Vec<u8>, crate::ethercat::frame::Slot) {
         let mut buf = vec![0u8; 64];
         let mut b = FrameBuilder::new(&mut buf);
         let slot = b.push(Command::Brd, 0, 0, 0x0130, &[0, 0]).unwrap();
@@ -840,7 +952,7 @@ mod tests {
         assert_eq!(bus.slave(1).al_status().0, AlState::PreOp);
         bus.slave_mut(1).power_cycle();
         assert_eq!(bus.slave(1).al_status(), (AlState::Init, false, 0));
-        assert_eq!(bus.slave(1).drive().state(), crate::ds402::State::NotReadyToSwitchOn);
+        assert_eq!(bus.slave(1).drive().state(), crate::drive::ds402::State::NotReadyToSwitchOn);
         assert_eq!(bus.slave(1).drive().fault(), None);
         assert_eq!(exchange(&mut bus, 3, Command::Aprd, 0xFFFF, 0x0010, &[0, 0]), (vec![0, 0], 1));
         let fresh = VirtualBus::new(2);
@@ -891,11 +1003,124 @@ mod tests {
         assert_eq!(bus.line().pending(), (0, 0, 0));
         // The line counts what it did; the wrong working counter and the corruption hit the
         // same (third) reply.
-        let counts = line::LineCounts { frames: 5, lost: 2, corrupted: 1, wrong_wkc: 2 };
+        let counts = line::LineCounts { frames: 5, lost: 2, corrupted: 1, wrong_wkc: 2, spoiled: 0 };
         assert_eq!(bus.line().counts(), counts);
         bus.set_cable(0, false);
         assert_eq!(serve(&mut bus), (Lost, true, 0));
         assert_eq!(bus.line().counts(), line::LineCounts { frames: 6, lost: 3, ..counts });
+    }
+
+    /// Slave `position`'s error counters as counted since power-up.
+    fn counted(bus: &VirtualBus, position: usize) -> ErrorCounts<u64> {
+        bus.at(position).esc().counted()
+    }
+
+    /// The error counters' registers of slave `position`, read by the master.
+    fn counter_registers(bus: &mut VirtualBus, position: u16) -> ErrorCounts<u8> {
+        let (block, wkc) = exchange(bus, 0, Command::Aprd, 0u16.wrapping_sub(position), 0x0300, &[0; 20]);
+        assert_eq!(wkc, 1);
+        ErrorCounts::decode(&block.try_into().unwrap())
+    }
+
+    #[test]
+    fn a_bad_cable_into_a_port_0_counts_there_and_forwarded_after_it_and_loses_the_frame() {
+        let mut bus = VirtualBus::with_timing(6, Timing::IMMEDIATE);
+        let (sent, _) = al_status_frame();
+        // Slave 2 to slave 3: every second frame entering slave 3's port 0 spoiled, twice.
+        bus.spoil_port(3, 0, 2, 2);
+        let deliveries: Vec<_> = (0..6).map(|_| bus.process(&mut sent.clone(), 0).unwrap()).collect();
+        use line::Delivery::{Lost, Returned};
+        assert_eq!(deliveries, [Returned, Lost, Returned, Lost, Returned, Returned]);
+        assert_eq!(bus.line().counts().spoiled, 2);
+        assert_eq!(counted(&bus, 3).ports[0].invalid_frames, 2);
+        assert_eq!(counted(&bus, 3).processing_unit, 2);
+        // After it on the way out, then back through every port 1 to the master.
+        for (slave, port) in [(4, 0), (5, 0), (4, 1), (3, 1), (2, 1), (1, 1), (0, 1)] {
+            assert_eq!(counted(&bus, slave).ports[port].forwarded_errors, 2, "slave {slave} port {port}");
+        }
+        assert_eq!(counted(&bus, 2).ports[0], Default::default(), "in front of the fault: nothing");
+        assert_eq!(counted(&bus, 5).ports[1], Default::default(), "the last slave's port 1 is closed");
+        // The registers say the same.
+        assert_eq!(counter_registers(&mut bus, 4).ports[0].forwarded_errors, 2);
+        assert_eq!(counter_registers(&mut bus, 3).processing_unit, 2);
+    }
+
+    #[test]
+    fn a_bad_cable_into_a_port_1_is_the_return_path_from_the_slave_behind() {
+        let mut bus = VirtualBus::with_timing(6, Timing::IMMEDIATE);
+        let (sent, slot) = al_status_frame();
+        bus.spoil_port(3, 1, 1, 1);
+        let mut frame = sent.clone();
+        assert_eq!(bus.process(&mut frame, 0), Ok(line::Delivery::Lost));
+        assert_eq!(counted(&bus, 3).ports[1].invalid_frames, 1);
+        assert_eq!(counted(&bus, 3).processing_unit, 0, "frames from port 1 do not pass the processing unit");
+        for slave in 0..3 {
+            assert_eq!(counted(&bus, slave).ports[1].forwarded_errors, 1);
+        }
+        for slave in 4..6 {
+            assert_eq!(counted(&bus, slave), ErrorCounts::default(), "slave {slave} served it unspoiled");
+        }
+        // Every slave had served it on its way out: the drives took it, the master did not.
+        let mut frame = sent.clone();
+        assert_eq!(bus.process(&mut frame, 0), Ok(line::Delivery::Returned));
+        assert_eq!(slot.wkc(&frame).unwrap(), 6);
+    }
+
+    #[test]
+    fn a_write_clears_the_counters_its_register_names_and_a_read_write_reads_them_first() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        let (sent, _) = al_status_frame();
+        bus.spoil_port(1, 0, 300, 1);
+        for _ in 0..300 {
+            bus.process(&mut sent.clone(), 0).unwrap();
+        }
+        bus.set_cable(2, false);
+        bus.set_cable(2, true);
+        let counts = counter_registers(&mut bus, 1);
+        // 300 counted, the registers stopped at 0xFF.
+        assert_eq!(
+            (counts.ports[0].invalid_frames, counts.processing_unit, counts.ports[1].lost_links),
+            (0xFF, 0xFF, 1)
+        );
+        assert_eq!(counted(&bus, 1).ports[0].invalid_frames, 300);
+        // A write of the processing unit's counter clears it alone.
+        exchange(&mut bus, 0, Command::Apwr, 0xFFFF, 0x030C, &[0]);
+        let counts = counter_registers(&mut bus, 1);
+        assert_eq!((counts.ports[0].invalid_frames, counts.processing_unit, counts.ports[1].lost_links), (0xFF, 0, 1));
+        // A read-write of the whole block reads what it clears.
+        let (read, wkc) = exchange(&mut bus, 0, Command::Aprw, 0xFFFF, 0x0300, &[0; 20]);
+        assert_eq!((read[0], read[0x10 + 1], wkc), (0xFF, 1, 3));
+        assert_eq!(counter_registers(&mut bus, 1), ErrorCounts::default());
+        assert_eq!(counted(&bus, 1).ports[0].invalid_frames, 300, "what it counted since power-up stays");
+    }
+
+    #[test]
+    fn a_link_lost_counts_at_both_ends_of_its_cable_and_a_power_cycle_at_the_neighbours() {
+        let mut bus = VirtualBus::with_timing(3, Timing::IMMEDIATE);
+        bus.set_cable(2, false);
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x13, 0x56]);
+        bus.set_cable(2, true);
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
+        assert_eq!((counted(&bus, 1).ports[1].lost_links, counted(&bus, 2).ports[0].lost_links), (1, 1));
+        bus.power_cycle(1);
+        assert_eq!((counted(&bus, 0).ports[1].lost_links, counted(&bus, 2).ports[0].lost_links), (1, 2));
+        assert_eq!(counted(&bus, 1), ErrorCounts::default(), "a fresh ESC");
+        assert_eq!(exchange(&mut bus, 0, Command::Aprd, 0xFFFF, 0x0110, &[0, 0]).0, vec![0x33, 0x5A]);
+    }
+
+    #[test]
+    fn terminals_count_at_their_escs_ports_too() {
+        let line = "ek1100,el1004,el2004,akd".parse().unwrap();
+        let mut bus = VirtualBus::of_line(&line, Timing::IMMEDIATE).unwrap();
+        let (sent, _) = al_status_frame();
+        bus.spoil_port(2, 0, 1, 1);
+        assert_eq!(bus.process(&mut sent.clone(), 0), Ok(line::Delivery::Lost));
+        assert_eq!(counted(&bus, 2).ports[0].invalid_frames, 1);
+        assert_eq!(counted(&bus, 3).ports[0].forwarded_errors, 1);
+        assert_eq!(counted(&bus, 0).ports[1].forwarded_errors, 1, "the EK1100's E-bus port");
+        // The EL2004's ET1200 has no port 2: it never has a link there.
+        assert!(!bus.at(2).esc().has_port(2) && bus.at(2).esc().has_port(3));
+        assert!(bus.at(0).esc().has_port(2) && !bus.at(0).esc().link(2));
     }
 
     #[test]

@@ -7,10 +7,11 @@
 //! one entry (a PDO mapping, the cycle time) are object checks run after a tentative write,
 //! which is undone when the check refuses it.
 
-use crate::coe::{access, data_type, ObjectCode, SdoAbortCode};
-use crate::pdo::{self, Direction, PdoEntry, FLEXIBLE_PDO_COUNT};
-use crate::scaling;
-use crate::sii::Identity;
+use crate::drive::pdo::{self, FLEXIBLE_PDO_COUNT};
+use crate::drive::scaling;
+use crate::ethercat::coe::{access, data_type, ObjectCode, SdoAbortCode};
+use crate::ethercat::pdo::{bit_len, Direction, PdoEntry};
+use crate::ethercat::sii::Identity;
 use crate::sim::sii_image;
 
 /// Power-up following error window 0x6065: five revolutions.
@@ -86,17 +87,17 @@ fn little_endian(bytes: &[u8]) -> u64 {
 /// Access of an entry that is read and written in every state.
 const RW: u16 = access::READ | access::WRITE;
 /// Access of an entry that is written only in PreOp (PDO mapping and assignment).
-const RW_PREOP: u16 = access::READ | access::WRITE_PREOP;
+pub(crate) const RW_PREOP: u16 = access::READ | access::WRITE_PREOP;
 /// Access of a read-only entry.
-const RO: u16 = access::READ;
+pub(crate) const RO: u16 = access::READ;
 
-fn entry(subindex: u8, name: &'static str, data_type: u16, bits: u16, access: u16, value: u64) -> Entry {
+pub(crate) fn entry(subindex: u8, name: &'static str, data_type: u16, bits: u16, access: u16, value: u64) -> Entry {
     let bytes = value.to_le_bytes()[..(bits as usize).div_ceil(8)].to_vec();
     Entry { subindex, name, data_type, bits, access, value: bytes, check: None }
 }
 
 /// A read-only string variable (device name, versions).
-fn string_var(index: u16, name: &'static str, value: &str) -> Object {
+pub(crate) fn string_var(index: u16, name: &'static str, value: &str) -> Object {
     let e = Entry {
         subindex: 0,
         name,
@@ -124,7 +125,7 @@ fn bits_of(t: u16) -> u16 {
     }
 }
 
-fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Object {
+pub(crate) fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Object {
     let value = if data_type::is_signed(t) { value & (u64::MAX >> (64 - bits_of(t))) } else { value };
     Object {
         index,
@@ -137,14 +138,27 @@ fn var(index: u16, name: &'static str, t: u16, access: u16, value: u64) -> Objec
 }
 
 /// A record or array: subindex 0 holds the count of `entries`.
-fn record(index: u16, name: &'static str, code: ObjectCode, t: u16, sub0_access: u16, entries: Vec<Entry>) -> Object {
+pub(crate) fn record(
+    index: u16,
+    name: &'static str,
+    code: ObjectCode,
+    t: u16,
+    sub0_access: u16,
+    entries: Vec<Entry>,
+) -> Object {
     let count = entries.len() as u64;
     let mut all = vec![entry(0, "SubIndex 000", data_type::UNSIGNED8, 8, sub0_access, count)];
     all.extend(entries);
     Object { index, name, object_code: code, data_type: t, entries: all, check: None }
 }
 
-fn mapping_object(index: u16, name: &'static str, access: u16, entries: &[PdoEntry], capacity: usize) -> Object {
+pub(crate) fn mapping_object(
+    index: u16,
+    name: &'static str,
+    access: u16,
+    entries: &[PdoEntry],
+    capacity: usize,
+) -> Object {
     let subs = (1..=capacity)
         .map(|i| {
             let value = entries.get(i - 1).map_or(0, |e| e.to_u32()) as u64;
@@ -156,7 +170,7 @@ fn mapping_object(index: u16, name: &'static str, access: u16, entries: &[PdoEnt
     o
 }
 
-const SUBINDEX_NAMES: [&str; 11] = [
+pub(crate) const SUBINDEX_NAMES: [&str; 11] = [
     "SubIndex 000",
     "SubIndex 001",
     "SubIndex 002",
@@ -277,11 +291,11 @@ fn assignment(od: &ObjectDictionary, object: &Object, written: u8) -> Result<(),
     let mut total = 0;
     for index in &assigned {
         let o = od.object(*index).ok_or(SdoAbortCode::VALUE_RANGE)?;
-        total += pdo::bit_len(&mapped_entries(o).collect::<Vec<_>>());
+        total += bit_len(&mapped_entries(o).collect::<Vec<_>>());
     }
     // Odd lengths are accepted here (the real drive powers up with one) and refused at the
     // PreOp→SafeOp transition with AL status code 0x001D/0x001E.
-    if total > direction.max_bytes() * 8 {
+    if total > pdo::max_bytes(direction) * 8 {
         return Err(SdoAbortCode::PDO_TOO_LONG);
     }
     Ok(())
@@ -402,9 +416,9 @@ impl ObjectDictionary {
             (0x20A7, "Latch 2 pn", INTEGER32, RO),
             (0x20B8, "ClearDigInputChangedBit", UNSIGNED16, RW),
             (0x3497, "Position offset", INTEGER32, RW),
-            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::dc::FBUS_PARAM02);
+            // Modelled: the manual gives FBUS.PARAM02 no CoE index (see crate::drive::sync::FBUS_PARAM02);
             // named as the AKD names the parameter, which the master's SDO information check reads.
-            (crate::dc::FBUS_PARAM02, crate::dc::FBUS_PARAM02_NAME, UNSIGNED32, RW),
+            (crate::drive::sync::FBUS_PARAM02, crate::drive::sync::FBUS_PARAM02_NAME, UNSIGNED32, RW),
             // Modelled likewise (see scaling::FBUS_PARAM05); bit 4 selects DS402 scaling.
             (scaling::FBUS_PARAM05, scaling::FBUS_PARAM05_NAME, UNSIGNED32, RW),
             (0x603F, "Error code", UNSIGNED16, RO),
@@ -547,6 +561,12 @@ impl ObjectDictionary {
         od
     }
 
+    /// A dictionary of `objects` (another slave's than the AKD's, e.g. a terminal's).
+    pub fn from_objects(mut objects: Vec<Object>) -> Self {
+        objects.sort_by_key(|o| o.index);
+        ObjectDictionary { objects }
+    }
+
     /// Every object, by index.
     pub fn objects(&self) -> &[Object] {
         &self.objects
@@ -568,7 +588,7 @@ impl ObjectDictionary {
     }
 
     /// Removes the object at `index`, if any: for tests of a drive that lacks an object the
-    /// virtual AKD has (e.g. [`crate::dc::FBUS_PARAM02`], whose index is not documented).
+    /// virtual AKD has (e.g. [`crate::drive::sync::FBUS_PARAM02`], whose index is not documented).
     pub fn remove(&mut self, index: u16) -> Option<Object> {
         let i = self.objects.binary_search_by_key(&index, |o| o.index).ok()?;
         Some(self.objects.remove(i))
@@ -688,7 +708,7 @@ mod tests {
         assert_eq!(od.read(0x1A03, 2).unwrap(), &0x606C_0020u32.to_le_bytes());
         assert_eq!(od.read(0x1C00, 3).unwrap(), &[3]);
         assert_eq!(od.read(0x1018, 1).unwrap(), &0x6Au32.to_le_bytes());
-        let rx: usize = od.assigned_pdos(Direction::Rx).iter().map(|(_, e)| pdo::bit_len(e)).sum();
+        let rx: usize = od.assigned_pdos(Direction::Rx).iter().map(|(_, e)| bit_len(e)).sum();
         assert_eq!(rx, 17 * 8);
         assert_eq!(od.cycle_time_ns(), Some(2_000_000));
         assert!(od.objects().windows(2).all(|w| w[0].index < w[1].index));

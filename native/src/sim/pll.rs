@@ -4,8 +4,8 @@
 //! SYNC0 when FBUS.PARAM02 bit 0 is set and SYNC0 runs; it locks when the SYNC0 cycle is the
 //! drive's cycle time. Otherwise the drive follows the SM2 event (§5.11.2).
 
-use crate::dc::{FBUS_PARAM02, FBUS_PARAM02_PLL};
-use crate::registers as reg;
+use crate::drive::sync::{FBUS_PARAM02, FBUS_PARAM02_PLL};
+use crate::ethercat::registers as reg;
 use crate::sim::od::{self, ObjectDictionary};
 
 /// DC activation bits the drive needs for SYNC0: cyclic unit (bit 0) and SYNC0 (bit 1).

@@ -6,9 +6,10 @@
 //! has an odd length (17 bytes at power-up, in the SOEM capture), 0x001E for the inputs, and
 //! 0x0017 when SM2/SM3 do not match the image.
 
-use crate::al::AlStatusCode;
-use crate::pdo::{self, Direction, PdoEntry};
-use crate::registers::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
+use crate::drive::pdo::is_padding;
+use crate::drive::pdo::{AKD_PROCESS_IN, AKD_PROCESS_OUT};
+use crate::ethercat::al::AlStatusCode;
+use crate::ethercat::pdo::{self, Direction, PdoEntry};
 use crate::sim::od::ObjectDictionary;
 use crate::sim::sync_manager::{SyncManager, ACTIVATE_ENABLE};
 
@@ -22,7 +23,7 @@ pub fn images(od: &ObjectDictionary) -> (Image, Image) {
 }
 
 /// Checks one process-data sync manager against its image length, start and direction.
-fn check_sync_manager(sm: &SyncManager, start: u16, bytes: usize, master_writes: bool) -> Result<(), AlStatusCode> {
+pub fn check_sync_manager(sm: &SyncManager, start: u16, bytes: usize, master_writes: bool) -> Result<(), AlStatusCode> {
     let enabled = sm.activate & ACTIVATE_ENABLE != 0 && sm.length > 0;
     if bytes == 0 {
         return if enabled { Err(AlStatusCode::INVALID_SM_CONFIG) } else { Ok(()) };
@@ -53,7 +54,7 @@ pub fn check_safeop(od: &ObjectDictionary, memory: &[u8]) -> Result<(), AlStatus
 pub fn apply_outputs(od: &mut ObjectDictionary, memory: &[u8], image: &[PdoEntry]) {
     let base = AKD_PROCESS_OUT as usize;
     for (at, entry) in pdo::layout(image.iter().copied()) {
-        if !entry.is_padding() {
+        if !is_padding(entry) {
             let len = entry.byte_len();
             od.set(entry.index, entry.subindex, &memory[base + at..base + at + len]);
         }
@@ -62,7 +63,12 @@ pub fn apply_outputs(od: &mut ObjectDictionary, memory: &[u8], image: &[PdoEntry
 
 /// Copies the objects the inputs carry into SM3's buffer.
 pub fn refresh_inputs(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoEntry]) {
-    let base = AKD_PROCESS_IN as usize;
+    refresh_inputs_at(od, memory, image, AKD_PROCESS_IN);
+}
+
+/// Copies the objects the inputs carry into the input buffer at `base` (another slave's SM3).
+pub fn refresh_inputs_at(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoEntry], base: u16) {
+    let base = usize::from(base);
     for (at, entry) in pdo::layout(image.iter().copied()) {
         let len = entry.byte_len();
         let target = &mut memory[base + at..base + at + len];
@@ -77,7 +83,7 @@ pub fn refresh_inputs(od: &ObjectDictionary, memory: &mut [u8], image: &[PdoEntr
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coe::access::WRITE_PREOP;
+    use crate::ethercat::coe::access::WRITE_PREOP;
 
     fn select_fixed(od: &mut ObjectDictionary, rx: u16, tx: u16) {
         for (assign, pdo) in [(0x1C12, rx), (0x1C13, tx)] {

@@ -9,7 +9,7 @@
 //! [`SimControl`](crate::sim::control::SimControl) handles at each frame and, with no frame,
 //! at each wake-up, so a query is answered within 100 ms whether a master runs or not.
 //!
-//! Given a [`Recorder`], a server stamps each frame as it is received and, once the reply is
+//! Given a [`TraceSender`], a server stamps each frame as it is received and, once the reply is
 //! out, traces the set-points it changed (see [`crate::sim::setpoint_trace`]).
 
 use std::net::{SocketAddr, UdpSocket};
@@ -17,11 +17,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result, SettingError};
-use crate::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
-use crate::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
+use crate::ethercat::frame::{ETHERTYPE, ETH_HEADER_LEN, MAX_PAYLOAD_LEN};
+use crate::ethercat::link::raw::{RawSocket, MAX_ETH_FRAME_LEN, RETURNED_MAC_BIT};
 use crate::sim::control::ControlledBus;
 use crate::sim::line::Delivery;
-use crate::sim::setpoint_trace::{clock_ns, Recorder, Stamps};
+use crate::sim::setpoint_trace::{clock_ns, Stamps, TraceSender};
 
 /// How often a server looks at its stop flag and its commands, and lets its drives' firmware
 /// run when no frame comes: a real AKD's firmware runs by itself, so a master that is gone
@@ -49,7 +49,7 @@ pub struct ServerStats {
     /// the frame up late or took long to answer it, and `late` leaves this part out.
     pub serving: LateReplies,
     /// F125 the drives would have raised as real AKDs and did not, judging missed frames by
-    /// [`MissedFrames::Warn`](crate::link_spec::MissedFrames::Warn): each warned of on stderr.
+    /// [`MissedFrames::Warn`](crate::ethercat::link_spec::MissedFrames::Warn): each warned of on stderr.
     pub would_be_f125: u64,
     /// Each drive's count of them when last warned of.
     warned: Vec<u64>,
@@ -110,13 +110,14 @@ impl ServerStats {
     }
 
     /// Says on stderr, once each, where a drive judging missed frames by
-    /// [`MissedFrames::Warn`](crate::link_spec::MissedFrames::Warn) went on where a real AKD
+    /// [`MissedFrames::Warn`](crate::ethercat::link_spec::MissedFrames::Warn) went on where a real AKD
     /// would have raised F125. Rare (a stall of the master), so a line of I/O is no burden.
     fn warn_of_f125(&mut self, bus: &ControlledBus) {
         let bus = bus.bus();
         self.warned.resize(bus.len(), 0);
         for (position, warned) in self.warned.iter_mut().enumerate() {
-            let w = bus.slave(position).would_be_f125();
+            let Some(akd) = bus.at(position).akd() else { continue };
+            let w = akd.would_be_f125();
             if w.count == *warned {
                 continue;
             }
@@ -137,12 +138,12 @@ fn elapsed_ns(start: Instant) -> u64 {
 }
 
 /// The stamps of a frame just received, when a trace wants them.
-fn stamp(trace: &Option<Recorder>) -> Option<Stamps> {
+fn stamp(trace: &Option<TraceSender>) -> Option<Stamps> {
     trace.as_ref().map(|_| Stamps::now())
 }
 
 /// Traces the set-points `payload`, served and answered, left in the drives.
-fn trace_frame(trace: &mut Option<Recorder>, bus: &ControlledBus, payload: &[u8], received: Option<Stamps>) {
+fn trace_frame(trace: &mut Option<TraceSender>, bus: &ControlledBus, payload: &[u8], received: Option<Stamps>) {
     if let (Some(recorder), Some(received)) = (trace, received) {
         recorder.record_bus(bus.bus(), payload, received);
     }
@@ -155,7 +156,7 @@ pub fn serve_udp(
     bind: SocketAddr,
     bus: impl Into<ControlledBus>,
     stop: &AtomicBool,
-    mut trace: Option<Recorder>,
+    mut trace: Option<TraceSender>,
 ) -> Result<ServerStats> {
     let mut bus = bus.into();
     let socket = UdpSocket::bind(bind).map_err(|e| Error::io(format!("binding UDP {bind}"), e))?;
@@ -204,7 +205,7 @@ pub fn serve_iface(
     iface: &str,
     bus: impl Into<ControlledBus>,
     stop: &AtomicBool,
-    mut trace: Option<Recorder>,
+    mut trace: Option<TraceSender>,
     busy_poll: bool,
 ) -> Result<ServerStats> {
     // SAFETY: sched_getscheduler(0) asks about the calling thread and touches no memory.
@@ -282,7 +283,7 @@ fn line_down(error: &std::io::Error) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::frame::{Command, FrameBuilder};
+    use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::sim::VirtualBus;
     use std::sync::Arc;
 

@@ -4,7 +4,7 @@
 //! (those mapped), stamped with the time the frame carrying it reached the server.
 //!
 //! The serving thread only compares the values with the last ones and hands a change to a
-//! bounded channel allocated up front ([`Recorder`]); a writer thread of its own writes the file
+//! bounded channel allocated up front ([`TraceSender`]); a writer thread of its own writes the file
 //! ([`SetpointTrace`]). The writer polls the channel rather than waiting in it, so a hand-over
 //! never has to wake a thread: the serving path makes no system call for the trace beyond
 //! reading the two clocks. A change the writer could not take in time is dropped and counted.
@@ -35,9 +35,9 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::Duration;
 
+use crate::drive::objects;
 use crate::error::{Error, Result, Unavailable};
-use crate::objects;
-use crate::pdo::PdoEntry;
+use crate::ethercat::pdo::PdoEntry;
 use crate::sim::VirtualBus;
 
 /// The set-points traced, with their names in the file: index (subindex 0) and name.
@@ -122,21 +122,21 @@ pub struct TraceSummary {
 
 /// The serving side of a trace: compares each drive's set-points with the last ones and hands
 /// the changes over without waiting; allocates nothing once made.
-pub struct Recorder {
+pub struct TraceSender {
     to_writer: SyncSender<Change>,
     dropped: Arc<AtomicU64>,
     /// The last set-points of each drive.
     last: Vec<Setpoints>,
 }
 
-impl Recorder {
+impl TraceSender {
     fn new(to_writer: SyncSender<Change>, dropped: Arc<AtomicU64>, drives: usize) -> Self {
-        Recorder { to_writer, dropped, last: vec![[None; SETPOINTS.len()]; drives] }
+        TraceSender { to_writer, dropped, last: vec![[None; SETPOINTS.len()]; drives] }
     }
 
     /// Notes drive `drive`'s set-points as `frame` left them, a change if they differ from the
     /// last ones; a drive not in Op (`received` None) has none, and its next ones are all new.
-    /// A drive beyond those the recorder was made for is not traced.
+    /// A drive beyond those the sender was made for is not traced.
     pub fn record(&mut self, drive: usize, received: Option<(&[PdoEntry], &[u8])>, position: f64, frame: Frame) {
         let Some(last) = self.last.get_mut(drive) else { return };
         let values = received.map_or([None; SETPOINTS.len()], |(entries, outputs)| {
@@ -157,14 +157,16 @@ impl Recorder {
         }
     }
 
-    /// Notes every drive's set-points after `bus` served `payload`, received at `received`.
+    /// Notes every drive's set-points after `bus` served `payload`, received at `received`; a
+    /// drive is named by its position on the line (terminals have none).
     pub fn record_bus(&mut self, bus: &VirtualBus, payload: &[u8], received: Stamps) {
-        let first = crate::frame::parse(payload).ok().and_then(|mut d| d.next()).and_then(|d| d.ok());
+        let first = crate::ethercat::frame::parse(payload).ok().and_then(|mut d| d.next()).and_then(|d| d.ok());
         let index = first.map_or(0, |d| d.header.index);
         let frame = Frame { number: bus.line().counts().frames, index, received };
         for drive in 0..bus.len() {
-            let slave = bus.slave(drive);
-            self.record(drive, slave.received_outputs(), slave.drive().position(), frame);
+            if let Some(akd) = bus.at(drive).akd() {
+                self.record(drive, akd.received_outputs(), akd.drive().position(), frame);
+            }
         }
     }
 }
@@ -191,7 +193,7 @@ fn write_change(out: &mut impl Write, change: &Change) -> std::io::Result<()> {
     out.write_all(b"}\n")
 }
 
-/// The writer: writes the changes as they come until every recorder is gone, then the end line.
+/// The writer: writes the changes as they come until every sender is gone, then the end line.
 /// After a write error it keeps taking changes (so that they count as written nowhere, not as
 /// waiting) and reports the first error at the end.
 fn write_trace(file: File, changes: Receiver<Change>, dropped: &AtomicU64) -> std::io::Result<TraceSummary> {
@@ -223,7 +225,7 @@ fn write_trace(file: File, changes: Receiver<Change>, dropped: &AtomicU64) -> st
 /// A trace file and its writer thread.
 pub struct SetpointTrace {
     path: PathBuf,
-    /// Until a server takes its [`Recorder`].
+    /// Until a server takes its [`TraceSender`].
     to_writer: Option<SyncSender<Change>>,
     dropped: Arc<AtomicU64>,
     /// `None` once finished.
@@ -247,17 +249,17 @@ impl SetpointTrace {
         Ok(SetpointTrace { path, to_writer: Some(to_writer), dropped, writer: Some(writer) })
     }
 
-    /// The recorder of a server of `drives` drives; one server per trace.
-    pub fn recorder(&mut self, drives: usize) -> Result<Recorder> {
+    /// The sender of a server of `drives` drives; one server per trace.
+    pub fn sender(&mut self, drives: usize) -> Result<TraceSender> {
         let why = if self.writer.is_none() { "is closed" } else { "records a server already: one server per trace" };
         let to_writer = self
             .to_writer
             .take()
             .ok_or_else(|| Unavailable::SetpointTrace { path: self.path.display().to_string(), why })?;
-        Ok(Recorder::new(to_writer, self.dropped.clone(), drives))
+        Ok(TraceSender::new(to_writer, self.dropped.clone(), drives))
     }
 
-    /// Waits for the server recording (once it stopped, its recorder is gone), writes what is
+    /// Waits for the server recording (once it stopped, its sender is gone), writes what is
     /// left and the end line, and closes the file; an error names it.
     pub fn finish(&mut self) -> Result<TraceSummary> {
         self.to_writer = None;
@@ -281,7 +283,7 @@ impl Drop for SetpointTrace {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pdo::PdoEntry;
+    use crate::ethercat::pdo::PdoEntry;
 
     /// 0x1724's outputs: target position, controlword, torque offset.
     const CSP: [PdoEntry; 3] =
@@ -303,7 +305,7 @@ mod tests {
     fn only_changes_are_recorded_and_drops_are_counted() {
         let (to_writer, changes) = mpsc::sync_channel(3);
         let dropped = Arc::new(AtomicU64::new(0));
-        let mut recorder = Recorder::new(to_writer, dropped.clone(), 2);
+        let mut sender = TraceSender::new(to_writer, dropped.clone(), 2);
         let sent = [
             (0, Some(outputs(-5, 0x06, 7))), // first sight: every mapped value
             (0, Some(outputs(-5, 0x06, 9))), // the torque offset is not traced
@@ -315,12 +317,12 @@ mod tests {
             (0, Some(outputs(200, 0x0F, 9))), // back in Op: all new again, dropped too
         ];
         for (n, (drive, data)) in sent.iter().enumerate() {
-            recorder.record(*drive, data.as_deref().map(|d| (&CSP[..], d)), n as f64, frame(n as u64));
+            sender.record(*drive, data.as_deref().map(|d| (&CSP[..], d)), n as f64, frame(n as u64));
         }
-        // A drive the recorder was not made for is left out.
-        recorder.record(2, Some((&CSP, &outputs(1, 1, 1))), 0.0, frame(99));
+        // A drive the sender was not made for is left out.
+        sender.record(2, Some((&CSP, &outputs(1, 1, 1))), 0.0, frame(99));
         assert_eq!(dropped.load(Ordering::Relaxed), 2);
-        drop(recorder);
+        drop(sender);
         let got: Vec<Change> = changes.iter().collect();
         let summary: Vec<_> = got.iter().map(|c| (c.frame.number, c.changed, c.values[0], c.values[3])).collect();
         assert_eq!(
@@ -341,11 +343,11 @@ mod tests {
         let path = temp_path("lines");
         let (to_writer, changes) = mpsc::sync_channel(2);
         let dropped = Arc::new(AtomicU64::new(0));
-        let mut recorder = Recorder::new(to_writer, dropped.clone(), 1);
+        let mut sender = TraceSender::new(to_writer, dropped.clone(), 1);
         for (n, target) in [10, 20, 30].into_iter().enumerate() {
-            recorder.record(0, Some((&CSP, &outputs(target, 0x0F, 0))), 0.5, frame(n as u64 + 1));
+            sender.record(0, Some((&CSP, &outputs(target, 0x0F, 0))), 0.5, frame(n as u64 + 1));
         }
-        drop(recorder);
+        drop(sender);
         let summary = write_trace(File::create(&path).unwrap(), changes, &dropped).unwrap();
         assert_eq!(summary, TraceSummary { changes: 2, dropped: 1 });
         let text = std::fs::read_to_string(&path).unwrap();
@@ -366,11 +368,11 @@ mod tests {
     fn a_trace_serves_one_recorder_and_finishes_once() {
         let path = temp_path("once");
         let mut trace = SetpointTrace::create(&path).unwrap();
-        let mut recorder = trace.recorder(1).unwrap();
-        let e = trace.recorder(1).err().unwrap().to_string();
+        let mut sender = trace.sender(1).unwrap();
+        let e = trace.sender(1).err().unwrap().to_string();
         assert!(e.contains("records a server already"), "{e}");
-        recorder.record(0, Some((&CSP, &outputs(1, 0x0F, 0))), 0.0, frame(1));
-        drop(recorder);
+        sender.record(0, Some((&CSP, &outputs(1, 0x0F, 0))), 0.0, frame(1));
+        drop(sender);
         assert_eq!(trace.finish().unwrap(), TraceSummary { changes: 1, dropped: 0 });
         assert!(trace.finish().unwrap_err().to_string().contains("is closed"));
         let text = std::fs::read_to_string(&path).unwrap();

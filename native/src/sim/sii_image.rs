@@ -1,17 +1,18 @@
 //! The SII EEPROM image of the real AKD the virtual AKD stands in for: an AKD-P00606-NBCC-E000
 //! with firmware 01-20-00-003, written out as what it says (identity, mailbox, names, sync
-//! managers, PDOs, DC modes) and encoded with [`sii::Builder`](crate::sii::Builder).
+//! managers, PDOs, DC modes) and encoded with [`sii::Builder`](crate::ethercat::sii::Builder).
 //!
-//! The fixed PDOs come from [`crate::pdo::FIXED`], so the image and the mapping
+//! The fixed PDOs come from [`crate::drive::pdo::FIXED`], so the image and the mapping
 //! rules cannot drift apart; this file adds only what the SII holds besides them: entry names
 //! and data types, default sync-manager assignment, and the flexible PDOs' content at the time
 //! the image was read.
 
+use crate::drive::objects::{self, MappableObject};
+use crate::drive::pdo;
 use crate::error::{Error, Result, SiiError};
-use crate::mailbox::MailboxType;
-use crate::objects::{self, MappableObject};
-use crate::pdo::{self, Direction, PdoEntry};
-use crate::sii::{
+use crate::ethercat::mailbox::MailboxType;
+use crate::ethercat::pdo::{Direction, PdoEntry};
+use crate::ethercat::sii::{
     category, fmmu_usage, sync_manager_type, Builder, Category, DcOpMode, General, Header, Identity, MailboxLayout,
     SiiPdo, SiiPdoEntry, SyncManager,
 };
@@ -193,8 +194,8 @@ pub fn akd_sii_of(identity: Identity) -> Vec<u8> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::coe::data_type;
-    use crate::sii::Sii;
+    use crate::ethercat::coe::data_type;
+    use crate::ethercat::sii::Sii;
 
     #[test]
     fn describes_the_real_drive() {

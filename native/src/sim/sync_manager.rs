@@ -7,7 +7,7 @@
 //! Buffered sync managers (process data) are always accessible while enabled; a complete write
 //! of the output buffer triggers the process-data watchdog.
 
-use crate::registers::{sm, sm_reg};
+use crate::ethercat::registers::{sm, sm_reg};
 
 /// Number of sync managers of the AKD's ESC.
 pub const SM_COUNT: u8 = 4;
@@ -130,11 +130,21 @@ pub fn set_pdi_deactivated(memory: &mut [u8], n: u8, deactivated: bool) {
     *p = if deactivated { *p | PDI_DEACTIVATE } else { *p & !PDI_DEACTIVATE };
 }
 
-/// The drive's checks of Init→PreOp: the mailbox sync managers where the SII puts them, in
-/// mailbox mode, with a buffer of [`MIN_MAILBOX_SIZE`] up to the `mailbox_size` the SII
+/// The drive's checks of Init→PreOp: the mailbox sync managers where the AKD's SII puts them,
+/// in mailbox mode, with a buffer of [`MIN_MAILBOX_SIZE`] up to the `mailbox_size` the SII
 /// declares.
-pub fn check_mailbox(memory: &[u8], mailbox_size: u16) -> Result<(), crate::al::AlStatusCode> {
-    for (n, start, master_writes) in [(0u8, 0x1800u16, true), (1, 0x1C00, false)] {
+pub fn check_mailbox(memory: &[u8], mailbox_size: u16) -> Result<(), crate::ethercat::al::AlStatusCode> {
+    check_mailbox_at(memory, (0x1800, 0x1C00), mailbox_size)
+}
+
+/// The checks of [`check_mailbox`] for a slave whose SII puts its mailbox-out and mailbox-in
+/// buffers at `starts`.
+pub fn check_mailbox_at(
+    memory: &[u8],
+    starts: (u16, u16),
+    mailbox_size: u16,
+) -> Result<(), crate::ethercat::al::AlStatusCode> {
+    for (n, start, master_writes) in [(0u8, starts.0, true), (1, starts.1, false)] {
         let sm = SyncManager::read(memory, n);
         let enabled = sm.activate & ACTIVATE_ENABLE != 0;
         if !enabled
@@ -143,7 +153,7 @@ pub fn check_mailbox(memory: &[u8], mailbox_size: u16) -> Result<(), crate::al::
             || !sm.is_mailbox()
             || sm.master_writes() != master_writes
         {
-            return Err(crate::al::AlStatusCode::INVALID_SM_CONFIG);
+            return Err(crate::ethercat::al::AlStatusCode::INVALID_SM_CONFIG);
         }
     }
     Ok(())

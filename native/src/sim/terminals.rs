@@ -1,7 +1,7 @@
 //! What is wired to the virtual AKD's connectors besides its digital inputs
 //! ([`crate::sim::digital_inputs`]): the limit and home switches of 0x60FD, the analog input
 //! 0x3470:04, and the digital and analog outputs the master drives through 0x60FE:01 and
-//! 0x3470:03 (see [`crate::io`] for the bits and the scaling, and what the manuals leave out).
+//! 0x3470:03 (see [`crate::drive::io`] for the bits and the scaling, and what the manuals leave out).
 //!
 //! The switches are set as signals of their own (on a real AKD a digital input carries each, as
 //! the drive's configuration assigns it; the virtual AKD does not model that assignment). A
@@ -11,8 +11,8 @@
 //! does not fault or disable: the manuals say no more of how the AKD reacts, so this is the
 //! model's choice.
 
+use crate::drive::io::{self, Switch, ANALOG_VOLTS_PER_COUNT};
 use crate::error::SettingError;
-use crate::io::{self, Switch, ANALOG_VOLTS_PER_COUNT};
 use crate::sim::motion::STEP_S;
 use crate::sim::od::ObjectDictionary;
 
@@ -48,7 +48,7 @@ impl Terminals {
     /// Sets switch `name` ("negative_limit", "positive_limit", "home_switch", "interlock")
     /// active or not.
     pub fn set_switch(&mut self, name: &str, active: bool) -> Result<(), SettingError> {
-        let switch = Switch::from_name(name).ok_or_else(|| SettingError::Switch { name: name.to_owned() })?;
+        let switch = Switch::from_name(name)?;
         self.switches = if active { self.switches | switch.mask() } else { self.switches & !switch.mask() };
         Ok(())
     }

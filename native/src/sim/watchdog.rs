@@ -5,7 +5,7 @@
 //! status code 0x001B. A time of 0 disables it, as does a master that never sets the trigger
 //! bit (the AKD's SII gives SM2 control 0x24, without it).
 
-use crate::registers::{WATCHDOG_DIVIDER, WATCHDOG_STATUS, WATCHDOG_TIME_PROCESS_DATA};
+use crate::ethercat::registers::{WATCHDOG_DIVIDER, WATCHDOG_STATUS, WATCHDOG_TIME_PROCESS_DATA};
 
 /// Length of one watchdog-divider tick (the ESC's 25 MHz clock).
 const TICK_NS: u64 = 40;

@@ -3,10 +3,12 @@
 
 use std::time::Duration;
 
-use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
-use akd_native::link::Link;
-use akd_native::master::{Mapping, Master};
+use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::pdo::Mapping;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link::Link;
+use akd_native::ethercat::master::Master;
 
 /// How long each AL step of the set-up may take.
 pub const STEP: Duration = Duration::from_secs(5);

@@ -42,11 +42,20 @@ pub fn who_has(ip: Ipv4Addr) -> Vec<u8> {
     akd_native::sim::eoe_server::arp_request(HOST_MAC, HOST, ip)
 }
 
+/// The sequence number and data of `frame` when it is an echo reply from `from` to the host;
+/// `None` for any other frame.
+pub fn echo_reply(frame: &[u8], from: Ipv4Addr) -> Option<(u16, Vec<u8>)> {
+    let e = EthernetFrame::new_checked(frame).ok()?;
+    let ip = Ipv4Packet::new_checked(e.payload()).ok()?;
+    let icmp = Icmpv4Packet::new_checked(ip.payload()).ok()?;
+    match Icmpv4Repr::parse(&icmp, &ChecksumCapabilities::default()).ok()? {
+        Icmpv4Repr::EchoReply { ident: 0x42, seq_no, data } if (ip.src_addr(), ip.dst_addr()) == (from, HOST) => {
+            Some((seq_no, data.to_vec()))
+        }
+        _ => None,
+    }
+}
+
 pub fn check_echo_reply(frame: &[u8], from: Ipv4Addr, data: &[u8], seq_no: u16) {
-    let e = EthernetFrame::new_checked(frame).unwrap();
-    let ip = Ipv4Packet::new_checked(e.payload()).unwrap();
-    assert_eq!((ip.src_addr(), ip.dst_addr()), (from, HOST));
-    let icmp = Icmpv4Packet::new_checked(ip.payload()).unwrap();
-    let reply = Icmpv4Repr::parse(&icmp, &ChecksumCapabilities::default()).unwrap();
-    assert_eq!(reply, Icmpv4Repr::EchoReply { ident: 0x42, seq_no, data });
+    assert_eq!(echo_reply(frame, from), Some((seq_no, data.to_vec())), "the echo reply of ping {seq_no}");
 }

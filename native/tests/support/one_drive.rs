@@ -4,11 +4,13 @@
 
 use std::time::{Duration, Instant};
 
-use akd_native::al::AlState;
 use akd_native::cycle::{Config, CycleThread};
-use akd_native::ds402::Mode;
-use akd_native::link_spec::MissedFrames;
-use akd_native::master::{Mapping, Master};
+use akd_native::drive::akd::AkdSlave;
+use akd_native::drive::ds402::Mode;
+use akd_native::drive::pdo::Mapping;
+use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::link_spec::MissedFrames;
+use akd_native::ethercat::master::Master;
 use akd_native::sim::control::SimControl;
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};

@@ -2,8 +2,8 @@
 //! them: out controlword, modes of operation, pad, target position | target velocity, target
 //! torque; in statusword, mode display, pad, position actual | velocity actual, torque actual.
 
-use akd_native::master::Mapping;
-use akd_native::pdo::PdoEntry;
+use akd_native::drive::pdo::Mapping;
+use akd_native::ethercat::pdo::PdoEntry;
 
 /// Byte offsets within the drive's outputs.
 #[allow(dead_code)] // not every test that includes this module reads each

@@ -5,7 +5,7 @@ use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 use akd_native::error::Result;
-use akd_native::link::{Link, Returns};
+use akd_native::ethercat::link::{Link, Returns};
 use akd_native::sim::VirtualBus;
 
 /// The link: every frame served by the shared bus at the time since the link was made.

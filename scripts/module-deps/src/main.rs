@@ -1,5 +1,7 @@
 //! Prints, for each Rust source file named on the command line, every module path its code names
-//! that starts at `crate`, `super` or `self`: one line `FILE<TAB>PATH` each, use trees expanded.
+//! that starts at `crate`, `super` or `self`: one line `FILE<TAB>PATH` each, use trees expanded;
+//! and every integer literal its code writes in hex, as written: one line `FILE<TAB>=LITERAL`
+//! each (an object index such as 0x6060 shows where a layer names a device's objects).
 //!
 //! Code, not text: the file is parsed by syn, so string literals, raw strings, char literals and
 //! comments (doc comments included) name nothing. Attributes name nothing either (a doc link may
@@ -18,6 +20,11 @@ const ROOTS: [&str; 3] = ["crate", "super", "self"];
 
 #[derive(Default)]
 struct Paths(Vec<String>);
+
+/// Whether a literal is an integer written in hex.
+fn is_hex(literal: &str) -> bool {
+    literal.starts_with("0x") || literal.starts_with("0X")
+}
 
 impl Paths {
     fn push(&mut self, segments: &[String]) {
@@ -58,6 +65,7 @@ impl Paths {
         while i < trees.len() {
             match &trees[i] {
                 TokenTree::Group(g) => self.tokens(g.stream()),
+                TokenTree::Literal(l) if is_hex(&l.to_string()) => self.0.push(format!("={l}")),
                 TokenTree::Ident(id) if ROOTS.contains(&id.to_string().as_str()) => {
                     let mut segments = vec![id.to_string()];
                     let mut j = i + 1;
@@ -133,6 +141,12 @@ impl<'ast> Visit<'ast> for Paths {
         let segments: Vec<String> = path.segments.iter().map(|s| s.ident.to_string()).collect();
         self.push(&segments);
         visit::visit_path(self, path);
+    }
+
+    fn visit_lit_int(&mut self, literal: &'ast syn::LitInt) {
+        if is_hex(&literal.to_string()) {
+            self.0.push(format!("={literal}"));
+        }
     }
 
     fn visit_macro(&mut self, mac: &'ast syn::Macro) {

@@ -1,0 +1,86 @@
+"""akd-zenohd: a Zenoh router, as rmw_zenohd runs one, for akd_node over Zenoh on a machine without ROS.
+
+rmw_zenoh's nodes (and akd_node with transport zenoh, and akd-top --attach zenoh) are peers that find each other
+through a router, tcp/localhost:7447 by default. ROS installs bring rmw_zenohd for it; this is the same router made
+with eclipse-zenoh (the package akd_ros already uses), with rmw_zenohd's settings: router mode, listening on port
+7447 of every address, multicast scouting off, timestamps on (which transient-local topics need). It serves until
+SIGINT or SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import threading
+
+from akd_ros.cli.common import EXIT_FAILURE, run
+
+# rmw_zenoh's DEFAULT_RMW_ZENOH_ROUTER_CONFIG.json5, the settings it changes from Zenoh's own defaults.
+DEFAULT_LISTEN = "tcp/[::]:7447"
+ROUTER_SETTINGS = {
+    "mode": "router",
+    "scouting/multicast/enabled": False,
+    "timestamping/enabled": {"router": True, "peer": True, "client": True},
+}
+
+EXAMPLES = """examples:
+  akd-zenohd                              rmw_zenohd's default: port 7447 of every address
+  akd-zenohd --listen tcp/127.0.0.1:7447  this machine only
+"""
+
+
+def router_config(listen: list[str]):
+    """rmw_zenohd's router configuration, listening on `listen`."""
+    import zenoh
+
+    config = zenoh.Config()
+    for key, value in ROUTER_SETTINGS.items():
+        config.insert_json5(key, json.dumps(value))
+    try:
+        config.insert_json5("listen/endpoints", json.dumps(listen))
+    except zenoh.ZError as error:
+        raise ValueError(f"--listen {listen!r}: not a list of Zenoh endpoints ({error})") from None
+    return config
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of akd-zenohd."""
+    parser = argparse.ArgumentParser(
+        prog="akd-zenohd",
+        description=__doc__.splitlines()[0],
+        epilog=EXAMPLES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    parser.add_argument(
+        "--listen",
+        action="append",
+        metavar="ENDPOINT",
+        help=f"a Zenoh endpoint to listen on, repeatable (default {DEFAULT_LISTEN}, as rmw_zenohd)",
+    )
+    args = parser.parse_args(argv)
+    listen = args.listen or [DEFAULT_LISTEN]
+
+    def body() -> int:
+        import zenoh
+
+        try:
+            session = zenoh.open(router_config(listen))
+        except zenoh.ZError as error:
+            print(f"akd-zenohd: error: cannot listen on {', '.join(listen)}: {error}", file=sys.stderr)
+            return EXIT_FAILURE
+        print(f"akd-zenohd: Zenoh router {session.info.zid()} listening on {', '.join(listen)}", flush=True)
+        try:
+            threading.Event().wait()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            session.close()
+        print("akd-zenohd: stopped", flush=True)
+        return 0
+
+    return run("akd-zenohd", body, opens_a_link=False)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
