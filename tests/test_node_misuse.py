@@ -203,7 +203,9 @@ def moved(before: dict[str, float], after: dict[str, float]) -> dict[str, float]
 # --- 1. the crash -------------------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("output", ["9223372036854775808", "18446744073709551616" * 3, "\u0663", "\uff11", "3", "0"])
+@pytest.mark.parametrize(
+    "output", ["9223372036854775808", "9223372036854775807", "18446744073709551616" * 3, "\u0663", "\uff11", "3", "0"]
+)
 def test_1_an_output_number_no_akd_has_is_refused_and_the_node_lives(robot, output):
     response = robot.client.call(
         SetOutputs, "set_outputs", SetOutputs.Request(joint="joint_6", outputs=[output], values=[True])
@@ -289,22 +291,24 @@ def test_2_a_goal_within_the_limits_is_followed_and_no_joint_passes_one(robot):
 
 def test_3_homing_a_disabled_or_quick_stopped_joint_fails_whatever_it_was_before(robot):
     client = robot.client
-    status, result = client.home(["joint_2"])
+    # As found: every joint homed, then the node's ~/disable (or joint_2's quick stop), then joint_2 homed again.
+    status, result = client.home([])
     assert status == GoalStatus.STATUS_SUCCEEDED and result.success, result.message
-    for request in ("disable", "quick_stop"):
+    for request in ("disable", "joint_2/quick_stop"):
         robot.enable()
-        client.trigger(f"joint_2/{request}")
+        client.trigger(request)
         status, result = client.home(["joint_2"])
         assert status == GoalStatus.STATUS_ABORTED and not result.success, (request, result)
         assert list(result.outcome) == ["refused"] and "not homed: joint_2: refused" in result.message, result
         assert "Operation enabled" in result.reason[0], result.reason
 
 
-def test_3_homing_a_joint_a_goal_drives_is_refused_and_the_goal_reaches_its_point(robot):
+@pytest.mark.parametrize("driven", [["joint_1"], JOINTS], ids=["joint_1_alone", "every_joint"])
+def test_3_homing_a_joint_a_goal_drives_is_refused_and_the_goal_reaches_its_point(robot, driven):
     client = robot.client
     before = client.positions()
-    target = before["joint_1"] + 0.4
-    handle = client.send(client.follow, goal(["joint_1"], [point([target], 2.0, [0.0])]))
+    target = {j: before[j] + 0.4 for j in driven}
+    handle = client.send(client.follow, goal(driven, [point([target[j] for j in driven], 2.0, [0.0] * len(driven))]))
     client.spin_until(lambda: abs(client.positions()["joint_1"] - before["joint_1"]) > 0.01, "joint_1 moving")
     status, result = client.home(["joint_1"])
     assert status == GoalStatus.STATUS_ABORTED and list(result.outcome) == ["refused"], result
@@ -312,7 +316,8 @@ def test_3_homing_a_joint_a_goal_drives_is_refused_and_the_goal_reaches_its_poin
     status, followed = client.result(handle)
     assert status == GoalStatus.STATUS_SUCCEEDED, followed.error_string
     client.spin_for(0.3)
-    assert abs(client.positions()["joint_1"] - target) < 0.01
+    after = client.positions()
+    assert all(abs(after[j] - target[j]) < 0.01 for j in driven), (target, after)
     assert all(s["fault"] is None for s in robot.states()), robot.states()
 
 
@@ -332,7 +337,7 @@ def rclpy_duration(seconds: float):
 def test_4_a_goal_waiting_for_its_start_ends_at_a_cancel_or_a_disable(robot):
     client = robot.client
     before = client.positions()
-    for ahead, end in ((6.0, "cancel"), (3600.0, "disable")):
+    for ahead, end in ((6.0, "cancel"), (3600.0, "cancel"), (3600.0, "disable")):
         robot.enable()
         stamp = stamp_in(client, ahead)
         handle = client.send(client.follow, goal(["joint_1"], [point([before["joint_1"] + 0.1], 1.0)], stamp))
