@@ -43,6 +43,16 @@ ARRIVED: dict[int, int] = {}
 first cycle), not when it was reported."""
 
 
+def between_line_reads(bus: Bus) -> None:
+    """Waits for the first read of the line's health beside the cycle, which comes as the cycle starts: the next is an
+    interval (250 ms) away, so that a burst the line spoils now takes the cycle's frames, which these tests count, and
+    none of the line's reads."""
+    deadline = time.monotonic() + WAIT_S
+    while bus.line_health()["reads"] == 0:
+        assert time.monotonic() < deadline, "no read of the line's health"
+        time.sleep(0.005)
+
+
 def at(event) -> int:
     """When `event` reached the test (monotonic ns)."""
     return ARRIVED[id(event)]
@@ -115,6 +125,7 @@ def test_a_short_burst_of_lost_frames_is_counted_and_changes_nothing(burst, enab
             bus.enable()
         position = bus["j0"].state().position_counts
         lost = bus.stats()["lost_frames"]
+        between_line_reads(bus)
         t0 = time.monotonic_ns()
         bus.simulator.drop_frames(burst)
         if enabled:
@@ -148,6 +159,7 @@ def test_a_long_burst_of_lost_frames_is_reported_in_every_state_and_the_drive_co
     with Bus("sim:1", drives(1), period=BURST_PERIOD) as bus:
         if enabled:
             bus.enable()
+        between_line_reads(bus)
         t0 = time.monotonic_ns()
         bus.simulator.drop_frames(burst)
         reported = "lost_frames" if enabled else "unreachable"
@@ -174,6 +186,7 @@ def test_a_long_burst_of_lost_frames_is_reported_in_every_state_and_the_drive_co
 def test_wrong_working_counters_are_counted_short_and_disable_long(burst):
     with Bus("sim:1", drives(1), period=BURST_PERIOD) as bus:
         bus.enable()
+        between_line_reads(bus)
         t0 = time.monotonic_ns()
         bus.simulator.wrong_wkc(burst)
         seen = faults_until(bus, has("j0", "working_counter"), "working_counter event")
