@@ -358,14 +358,15 @@ class Bus:
 
     # --- every drive at once --------------------------------------------------------------------------------------
 
-    def _every(self, request: str, timeout: float) -> None:
+    def _every(self, request: str, timeout: float) -> list[str]:
+        """Asks every drive for `request` and waits; gives the names of those it was not asked of (a reset of a drive
+        without a fault)."""
         self.cycle  # noqa: B018  (a closed bus refuses before any drive is asked)
         refusals = (TimeoutError, ValueError, _native.EtherCatError)
-        failed, asked, done = {}, [], []
+        failed, asked, done, untouched = {}, [], [], []
         for axis in self.axes:
             try:
-                axis.request(request)
-                asked.append(axis)
+                (asked if axis.request(request) else untouched).append(axis)
             except refusals as e:
                 failed[axis.name] = str(e)
         deadline = time.monotonic() + timeout
@@ -377,6 +378,7 @@ class Bus:
                 failed[axis.name] = str(e)
         if failed:
             raise BusRequestError(request, {a.name: failed[a.name] for a in self.axes if a.name in failed}, done)
+        return [axis.name for axis in untouched]
 
     def enable(self, timeout: float = 5.0) -> None:
         """Brings every drive to Operation enabled together; each target holds its actual position until commanded."""
@@ -390,9 +392,11 @@ class Bus:
         """Quick-stops every drive (Quick stop active, Switch on disabled where off)."""
         self._every("quick_stop", timeout)
 
-    def reset_fault(self, timeout: float = 5.0) -> None:
-        """Resets every drive's fault, to Switch on disabled."""
-        self._every("reset_fault", timeout)
+    def reset_fault(self, timeout: float = 5.0) -> list[str]:
+        """Resets the fault of every drive that shows one, to Switch on disabled; the others are left as they are
+        (their power stages untouched). Gives the names of the drives reset."""
+        untouched = self._every("reset_fault", timeout)
+        return [name for name in self.names if name not in untouched]
 
     # --- what the cycle reports, filed under each drive -------------------------------------------------------------
 
@@ -442,9 +446,11 @@ class Bus:
         """Plays a trajectory in the cycle thread: axis `joints[j]` through `points[k][j]` = (position, velocity or
         None, acceleration or None) in SI units at `times[k]` seconds from the start (strictly increasing, the first
         > 0), from `start_ns` (time.monotonic_ns(); None: now); quintic where accelerations are given, cubic where
-        velocities are, linear otherwise. Each axis must be enabled in interpolated or cyclic synchronous position.
-        It takes over from the trajectory in force without a step. CommandError, before anything moves, for an
-        unknown joint, a point past an axis's limits (always refused, whatever the policy), NaN or bad times.
+        velocities are, linear otherwise. Each axis must be enabled in interpolated or cyclic synchronous position,
+        and not being homed. It takes over from the trajectory in force without a step. CommandError, before
+        anything moves, for an unknown joint, a point or the path between points past an axis's limits (position,
+        max_velocity, max_acceleration: always refused, whatever the policy), NaN or bad times; the cycle judges it
+        again when it takes over, where it may end "refused", nothing moved.
         With `tolerances` (per joint: path position, path velocity, goal position, goal velocity in SI, inf where not
         judged, and the stop deceleration in SI/s²) and `goal_time` (s), the cycle thread judges it as
         FollowJointTrajectory does and `cycle.stop_trajectory` brakes it. Returns its id (see
@@ -459,9 +465,14 @@ class Bus:
             raise CommandError(f"trajectory refused: a joint is named twice in {', '.join(joints)}")
         times_ns = []
         for k, t in enumerate(times):
-            if not math.isfinite(t):
-                raise CommandError(f"trajectory refused: point {k}'s time is {t}, not a finite number of seconds")
+            if not math.isfinite(t) or t < 0:
+                raise CommandError(
+                    f"trajectory refused: point {k}'s time from the start is {t} s; times are finite, increasing "
+                    "seconds after the start (the first > 0)"
+                )
             times_ns.append(round(t * 1e9))
+        if not math.isfinite(goal_time) or goal_time < 0:
+            raise CommandError(f"trajectory refused: goal time {goal_time} s; allowed a finite number of seconds >= 0")
         knots = []
         for k, point in enumerate(points):
             if len(point) != len(axes):
@@ -476,14 +487,7 @@ class Bus:
             ]
         try:
             return self.cycle.play_trajectory(
-                [a.slave for a in axes],
-                times_ns,
-                knots,
-                start_ns,
-                [a.position_limits_counts() for a in axes],
-                counted,
-                round(goal_time * 1e9),
-                names=list(joints),
+                [a.slave for a in axes], times_ns, knots, start_ns, counted, round(goal_time * 1e9), names=list(joints)
             )
         except (_native.ConfigError, OverflowError) as e:
             # The crate's refusal says "trajectory refused, nothing moved: " and why.

@@ -280,7 +280,20 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("limits.min_position", -_INF, "Lowest position command, rad (m); -.inf for none.", per_joint=True),
     Spec("limits.max_position", _INF, "Highest position command, rad (m); .inf for none.", per_joint=True),
     Spec(
-        "limits.max_velocity", _INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none.", per_joint=True
+        "limits.max_velocity",
+        _INF,
+        "Largest velocity magnitude of any motion the node commands, rad/s (m/s): velocity commands, trajectories "
+        "(every point and the path interpolated between them) and, in a cyclic position mode, the step of a position "
+        "command within one cycle; .inf for none.",
+        per_joint=True,
+    ),
+    Spec(
+        "limits.max_acceleration",
+        _INF,
+        "Largest acceleration magnitude of a trajectory (every point and the path between them; where set, a "
+        "trajectory must not step its velocity: give velocities at every point and end at rest) and of a position "
+        "command's step in a cyclic position mode, rad/s² (m/s²); .inf for none.",
+        per_joint=True,
     ),
     Spec("limits.max_torque", _INF, "Largest torque command magnitude, N·m (N); .inf for none.", per_joint=True),
     Spec(
@@ -1303,6 +1316,7 @@ def parse_limits(values: dict[str, object], prefix: str = "") -> Limits:
             bound("max_velocity"),
             bound("max_torque"),
             values["limits.policy"],
+            bound("max_acceleration"),
         )
     except ValueError as e:
         raise ParameterError(f"parameters {prefix}limits.*: {e}") from None

@@ -27,6 +27,9 @@ from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 from akd_ros.tap import Tap
 
+# How long a closing node waits for its action goals to end (a trajectory braking, a homing halting).
+_GOALS_END_S = 10.0
+
 
 class Core:
     """A bus of AKD joints as a node, over `transport` (see `akd_ros.node`): its parts and its transitions, each of
@@ -105,6 +108,7 @@ class Core:
     def configure(self) -> bool:
         """Opens the Bus: the line to Op and the cycle thread running, every drive disabled; with eoe.tap, the EoE
         bridge; with live_view.port, first the live view."""
+        self._node_state.goals.open()
         if self._live_view is not None:
             try:
                 self._live_view.open()
@@ -228,10 +232,17 @@ class Core:
             except AXIS_ERRORS as e:
                 self._logger.error(f"deactivate: the outputs of device {device.name} were not switched off: {e}")
 
+    def end_goals(self) -> None:
+        """Ends every action goal executing, each with its result: their motions stopped (trajectories braked to a
+        standstill, homings halted), before the bus they run on closes; waits for them, up to _GOALS_END_S."""
+        if not self._node_state.goals.close(_GOALS_END_S):
+            self._logger.warning(f"closing: some action goals had not ended after {_GOALS_END_S:g} s")
+
     def close(self) -> None:
-        """Stops publishing, disables the drives and returns the line to Init, and closes the live view (does nothing
-        when not configured)."""
+        """Ends the action goals executing, stops publishing, disables the drives and returns the line to Init, and
+        closes the live view (does nothing when not configured)."""
         node_state = self._node_state
+        self.end_goals()
         node_state.active = False
         self._publishing.stop()
         with node_state.lock:

@@ -124,7 +124,8 @@ class Io:
         names = self._joints[joint].io_outputs or {}
         levels: dict[int, bool] = {}
         for output, value in zip(outputs, values, strict=True):
-            number = names.get(output, int(output) if output.isdecimal() else None)
+            # ASCII digits only: str.isdecimal() and int() also take other scripts' digits (Arabic-Indic, full-width).
+            number = names.get(output, int(output) if output.isascii() and output.isdigit() else None)
             if number is None:
                 numbers = ", ".join(str(n) for n in range(1, _native.IO_OUTPUT_COUNT + 1))
                 allowed = f"its names ({', '.join(names)}) or " if names else ""

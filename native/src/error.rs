@@ -251,6 +251,24 @@ pub enum Unavailable {
     },
     /// The virtual AKDs are gone with their master or server.
     SimulatorGone,
+    /// A drive that a trajectory or a homing drives, asked for what would fight it (a
+    /// set-point, a mode change, a homing, a trajectory).
+    Driven {
+        /// Slave position.
+        slave: u16,
+        /// What was asked, e.g. "a set-point".
+        what: &'static str,
+        /// The trajectory that drives it, or `None` for its homing.
+        trajectory: Option<u32>,
+    },
+    /// A set-point whose step from the target last sent, taken within one cycle, would go past
+    /// the joint's limits.
+    StepPastLimit {
+        /// Slave position.
+        slave: u16,
+        /// The step, the limit and what to do, in the joint's words.
+        detail: String,
+    },
     /// A virtual AKD whose bus served no frame in time to answer a query.
     SimulatorSilent {
         /// Drive position, or `None` for a query of the line's counts.
@@ -345,6 +363,19 @@ impl fmt::Display for Unavailable {
             ),
             Unavailable::SimulatorPanicked => write!(f, "the simulator thread panicked"),
             Unavailable::SetpointTrace { path, why } => write!(f, "the set-point trace {path} {why}"),
+            Unavailable::Driven { slave, what, trajectory: Some(id) } => write!(
+                f,
+                "slave {slave}: {what} refused, nothing changed: trajectory {id} drives it until it ends; stop it \
+                 (cancel its goal) or wait for its end"
+            ),
+            Unavailable::Driven { slave, what, trajectory: None } => write!(
+                f,
+                "slave {slave}: {what} refused, nothing changed: it is being homed; cancel the homing or wait for \
+                 its end"
+            ),
+            Unavailable::StepPastLimit { slave, detail } => {
+                write!(f, "slave {slave}: {detail}")
+            }
             Unavailable::NoSuchOutput { slave, name, outputs, is_input: true } => write!(
                 f,
                 "slave {slave}'s channel {name:?} is an input; its outputs: {}",

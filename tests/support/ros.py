@@ -249,6 +249,20 @@ class Participant:
         self.node.destroy_client(client)
         return future.result()
 
+    def send_goal(self, action_client, goal, feedback=None):
+        """Sends `goal` through `action_client` (feedback to `feedback` where given); its accepted goal handle."""
+        sent = action_client.send_goal_async(goal, feedback_callback=feedback)
+        self.spin_until(sent.done, "goal response")
+        handle = sent.result()
+        assert handle.accepted
+        return handle
+
+    def goal_result(self, handle, timeout: float = 20.0):
+        """(goal status, result) of `handle` once it ends."""
+        result = handle.get_result_async()
+        self.spin_until(result.done, "goal result", timeout=timeout)
+        return result.result().status, result.result().result
+
     def trigger(self, name: str) -> str:
         """Calls a Trigger service that must succeed; gives its message."""
         response = self.call(Trigger, name)

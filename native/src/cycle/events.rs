@@ -136,6 +136,57 @@ pub enum TrajectoryState {
     PathToleranceViolated(Violation),
     /// A drive was not within the goal tolerance by the end plus the goal time tolerance.
     GoalToleranceViolated(Violation),
+    /// Refused when it was to take over, nothing moved: from the set-point then in force, a
+    /// drive's segment to the first point would go past its limits, or a drive of the
+    /// trajectory in force that this one does not drive was still moving. The trajectory in
+    /// force goes on.
+    Refused(Refusal),
+}
+
+/// Why a trajectory was refused when it was to take over, and of which drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refusal {
+    /// The drive's position on the bus.
+    pub slave: u16,
+    /// Why.
+    pub why: RefusalReason,
+    /// The value that went past the limit (counts, counts/s or counts/s²; the velocity step, or
+    /// the velocity of the drive left moving).
+    pub value: f32,
+}
+
+wire_codes! {
+    /// What a refusal at the take-over judged.
+    pub enum RefusalReason: u8, "trajectory refusal" {
+        /// Its segment to the first point went past the drive's position limits.
+        Position = 0 => "position",
+        /// ... past its max velocity.
+        Velocity = 1 => "max_velocity",
+        /// ... past its max acceleration.
+        Acceleration = 2 => "max_acceleration",
+        /// Its set-point's velocity would step where its acceleration is limited.
+        VelocityStep = 3 => "velocity_step",
+        /// It is a drive of the trajectory in force, not of this one, and it was still moving.
+        LeftMoving = 4 => "left_moving",
+    }
+}
+
+// A refusal's value is what a finite trajectory reached, never NaN: equal to itself.
+impl Eq for Refusal {}
+
+impl Refusal {
+    /// In 56 bits: `code` plus the reason, the drive, the value as an f32.
+    fn pack(self, code: u64) -> u64 {
+        (code + self.why as u64) | (self.slave as u64) << 8 | (self.value.to_bits() as u64) << 24
+    }
+
+    fn unpack(v: u64, code: u8) -> Option<Refusal> {
+        Some(Refusal {
+            why: RefusalReason::try_from((v as u8).checked_sub(code)?).ok()?,
+            slave: (v >> 8) as u16,
+            value: f32::from_bits((v >> 24) as u32),
+        })
+    }
 }
 
 /// Which drive strayed from a trajectory and by how much.
@@ -173,6 +224,7 @@ impl TrajectoryState {
             TrajectoryState::Stopped => "stopped",
             TrajectoryState::PathToleranceViolated(_) => "path_tolerance_violated",
             TrajectoryState::GoalToleranceViolated(_) => "goal_tolerance_violated",
+            TrajectoryState::Refused(_) => "refused",
         }
     }
 
@@ -193,6 +245,7 @@ impl TrajectoryState {
             TrajectoryState::Stopped => 6,
             TrajectoryState::PathToleranceViolated(v) => v.pack(7),
             TrajectoryState::GoalToleranceViolated(v) => v.pack(9),
+            TrajectoryState::Refused(r) => r.pack(11),
         }
     }
 
@@ -207,6 +260,7 @@ impl TrajectoryState {
             6 => Some(TrajectoryState::Stopped),
             7 | 8 => Some(TrajectoryState::PathToleranceViolated(Violation::unpack(v, 7))),
             9 | 10 => Some(TrajectoryState::GoalToleranceViolated(Violation::unpack(v, 9))),
+            11..=15 => Some(TrajectoryState::Refused(Refusal::unpack(v, 11)?)),
             _ => None,
         }
     }

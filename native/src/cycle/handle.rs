@@ -10,7 +10,7 @@ use std::time::Duration;
 
 use super::acyclic::{MailboxService, SdoSlot};
 use super::devices::{DeviceLoop, DeviceShared};
-use super::events::{CommandTimeoutAction, Event, Events};
+use super::events::{CommandTimeoutAction, Event, Events, Refusal, RefusalReason};
 use super::run::{homing_objects, run, DriveLoop, Loop};
 use super::samples::{Sample, Samples};
 use super::seqlock::SeqBytes;
@@ -20,7 +20,7 @@ use super::{
     command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, recovery, rt, sequencer,
     supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
-use crate::drive::trajectory::{Knot, Limits, Trajectory};
+use crate::drive::trajectory::{JointLimits, Knot, Limit, Limits, Scale, Setpoint, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
 use crate::ethercat::device::{self, Channel, ChannelValue};
 use crate::ethercat::master::cyclic::ImageSlot;
@@ -145,6 +145,9 @@ pub struct CycleThread {
     trajectories: trajectory_player::Caller,
     /// Each slave's product as its SII names it.
     products: Vec<String>,
+    /// Per slave: the joint's limits, handed down once; every motion of the drive is judged by
+    /// them (an INT32 target's range, at any speed, where none were).
+    joint_limits: std::sync::RwLock<Vec<Option<JointLimits>>>,
 }
 
 impl CycleThread {
@@ -167,6 +170,7 @@ impl CycleThread {
             Err(e) => return Err(Box::new((e, master))),
         };
         let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
+        let master_slaves = master.slaves().len();
         let found = sequenced_drives(&master);
         let sequenced_count = found.iter().filter(|f| f.is_ok()).count();
         let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
@@ -318,6 +322,7 @@ impl CycleThread {
                 .spawn(move || recoverer.run(&shared.recovery, &shared.stop))
                 .ok()
         };
+        let joint_limits = std::sync::RwLock::new(vec![None; master_slaves]);
         Ok(CycleThread {
             shared,
             thread: std::sync::Mutex::new(Some(thread)),
@@ -330,6 +335,7 @@ impl CycleThread {
             sequenced,
             latch_objects,
             offsets,
+            joint_limits,
             mappings,
             channels,
             trajectories: trajectory_player::Caller::default(),
@@ -397,6 +403,19 @@ impl CycleThread {
         drive.request(request);
         self.shared.command_timeouts[position as usize].release();
         Ok(())
+    }
+
+    /// Asks the drive at `position` for a fault reset if it shows a fault (Fault, or Fault
+    /// reaction active: the edge then comes once it is in Fault); gives whether it did. A drive
+    /// without a fault is left as it is: a reset never takes power from a drive that runs.
+    pub fn reset_fault(&self, position: u16) -> Result<bool> {
+        use crate::drive::ds402::State;
+        let state = self.sequenced(position)?.status().state();
+        if !matches!(state, Some(State::Fault | State::FaultReactionActive)) {
+            return Ok(false);
+        }
+        self.request(position, sequencer::Request::FaultReset)?;
+        Ok(true)
     }
 
     /// Arms (`arm`) or disarms the latch edges in `edges` (bits as [`latch::edge_bit`]) of the
@@ -512,6 +531,7 @@ impl CycleThread {
     /// set-point, so the new mode starts where the axis is.
     pub fn set_mode(&self, position: u16, mode: i8) -> Result<()> {
         let drive = self.sequenced(position)?;
+        self.check_not_driven(position, "a mode change")?;
         match self.offsets[position as usize].and_then(|o| o.mode) {
             Some(at) => self.shared.setpoints.write().write(at, &[mode as u8]),
             None => self.sdo_write(position, 0x6060, 0, &[mode as u8])?,
@@ -604,6 +624,7 @@ impl CycleThread {
             let state = status.state().map_or("no valid state", crate::drive::ds402::State::name);
             return Err(Unavailable::HomingNotEnabled { slave: position, state }.into());
         }
+        self.check_not_driven(position, "a homing")?;
         self.shared.command_timeouts[position as usize].release();
         Ok(self.shared.homings[position as usize].start(timeout.as_nanos().min(u64::MAX as u128) as u64))
     }
@@ -674,8 +695,12 @@ impl CycleThread {
                 SettingError::EntryLength { index, subindex, expected: entry.byte_len(), given: data.len() }.into()
             );
         }
-        self.shared.setpoints.write().write(slot.out_offset + offset, data);
         let command = crate::drive::ds402::Mode::is_command_object(index, subindex);
+        if command && self.sequenced.get(position as usize).is_some_and(|s| s.is_ok()) {
+            self.check_not_driven(position, "a set-point")?;
+            self.check_step(position, slot.out_offset + offset, data)?;
+        }
+        self.shared.setpoints.write().write(slot.out_offset + offset, data);
         if let (Some(Ok(())), true) = (self.sequenced.get(position as usize), command) {
             self.shared.drives[position as usize].setpoint_written();
             if command_timeout::TARGETS.contains(&(index, subindex)) {
@@ -700,10 +725,9 @@ impl CycleThread {
         slaves: &[u16],
         times_ns: &[u64],
         points: &[Vec<Knot>],
-        limits: Option<&[Limits]>,
         start_ns: Option<u64>,
     ) -> Result<u32> {
-        self.follow_trajectory(slaves, times_ns, points, limits, start_ns, None)
+        self.follow_trajectory(slaves, times_ns, points, start_ns, None)
     }
 
     /// Plays a joint trajectory as [`play_trajectory`](Self::play_trajectory) does, judged by
@@ -715,14 +739,14 @@ impl CycleThread {
         slaves: &[u16],
         times_ns: &[u64],
         points: &[Vec<Knot>],
-        limits: Option<&[Limits]>,
         start_ns: Option<u64>,
         tolerances: Option<trajectory_player::Tolerances>,
     ) -> Result<u32> {
         if self.stopped() {
             return Err(Unavailable::CycleStopped { consequence: "no trajectory can play".into() }.into());
         }
-        let trajectory = Trajectory::new(slaves.len(), times_ns, points, limits)?;
+        let limits: Vec<Limits> = slaves.iter().map(|&slave| self.limits_of(slave).0).collect();
+        let trajectory = Trajectory::new(slaves.len(), times_ns, points, Some(&limits))?;
         let joints = slaves
             .iter()
             .enumerate()
@@ -735,6 +759,14 @@ impl CycleThread {
             .collect::<Result<Vec<_>>>()?;
         if let Some(t) = tolerances.as_ref().filter(|t| t.joints.len() != slaves.len()) {
             return Err(TrajectoryError::TolerancesCount { given: t.joints.len(), joints: slaves.len() }.into());
+        }
+        for &slave in slaves {
+            if self.shared.homings[slave as usize].status().phase.under_way() {
+                return Err(Unavailable::Driven { slave, what: "a trajectory", trajectory: None }.into());
+            }
+        }
+        if start_ns.is_none_or(|start| start <= crate::cycle::timing::now_ns() + 2 * self.period.as_nanos() as u64) {
+            self.judge_take_over(slaves, &trajectory)?;
         }
         let id = self.trajectories.next_id();
         let mut plan = trajectory_player::Plan::judged(id, start_ns, joints, trajectory, tolerances);
@@ -751,8 +783,179 @@ impl CycleThread {
             }
             std::thread::sleep(Duration::from_micros(100));
         }
-        self.trajectories.note(status);
+        self.trajectories.handed(status, slaves.to_vec());
         Ok(status.id)
+    }
+
+    /// Judges, before it is handed over, how `trajectory` (on drives `slaves`) would take over
+    /// now: each drive's segment to the first point from its set-point in force (the running
+    /// trajectory's, else the target last sent, at rest), and that no drive of the running
+    /// trajectory that this one does not drive is moving. The cycle thread judges the same at
+    /// the take-over itself, from the exact set-points then.
+    fn judge_take_over(&self, slaves: &[u16], trajectory: &Trajectory) -> Result<()> {
+        let snapshot = self.snapshot();
+        for (joint, &slave) in slaves.iter().enumerate() {
+            let sent = || {
+                let at = self.offsets[slave as usize].and_then(|o| o.targets.into_iter().flatten().next())?;
+                Some(crate::cycle::image::i32_at(&snapshot.outputs, at) as f64)
+            };
+            let from = self
+                .shared
+                .trajectories
+                .setpoint(slave)
+                .or_else(|| sent().map(|position| Setpoint { position, ..Setpoint::default() }));
+            if let Some(breach) = from.and_then(|from| trajectory.lead_in_breach(joint, from)) {
+                return Err(Trajectory::lead_in_error(joint, breach).into());
+            }
+        }
+        let left = (0..self.slave_count()).filter(|s| !slaves.contains(s)).find_map(|slave| {
+            let setpoint = self.shared.trajectories.setpoint(slave)?;
+            (setpoint.velocity != 0.0).then_some((slave, setpoint.velocity))
+        });
+        if let Some((slave, velocity)) = left {
+            let (_, scale, name) = self.limits_of(slave);
+            return Err(TrajectoryError::LeavesMoving {
+                slave,
+                name,
+                velocity: scale.words(Limit::Velocity, velocity),
+            }
+            .into());
+        }
+        Ok(())
+    }
+
+    /// What `refusal` (of a trajectory at its take-over) means, in the joint's words.
+    pub fn refusal_text(&self, refusal: &Refusal) -> String {
+        let (limits, scale, name) = self.limits_of(refusal.slave);
+        let joint = name.unwrap_or_else(|| format!("drive {}", refusal.slave));
+        let value = refusal.value as f64;
+        let (limit, allowed) = match refusal.why {
+            RefusalReason::Position => {
+                let end = if value > limits.max { limits.max } else { limits.min };
+                return format!(
+                    "{joint}'s segment to the first point, from its set-point at the take-over, would reach {}, past \
+                     its limit {}",
+                    scale.words(Limit::Position, value),
+                    scale.words(Limit::Position, end)
+                );
+            }
+            RefusalReason::Velocity => (Limit::Velocity, limits.max_velocity),
+            RefusalReason::Acceleration | RefusalReason::VelocityStep => (Limit::Acceleration, limits.max_acceleration),
+            RefusalReason::LeftMoving => {
+                return format!(
+                    "{joint} was moving at {} in the trajectory in force, which this one would have replaced \
+                     without driving it",
+                    scale.words(Limit::Velocity, value)
+                );
+            }
+        };
+        if refusal.why == RefusalReason::VelocityStep {
+            return format!(
+                "{joint}'s set-point velocity would step by {} at the take-over, past its max_acceleration {}",
+                scale.magnitude(Limit::Velocity, value),
+                scale.magnitude(limit, allowed)
+            );
+        }
+        format!(
+            "{joint}'s segment to the first point, from its set-point at the take-over, would reach {}, past its {} \
+             {}",
+            scale.words(limit, value),
+            limit.name(),
+            scale.magnitude(limit, allowed)
+        )
+    }
+
+    /// Hands down the limits of the joint on the drive at `position`, by which the cycle judges
+    /// every motion of it from then on: trajectories (every point and the path between them),
+    /// and the set-points of a cyclic position mode (the step to each from the target last
+    /// sent, taken within one cycle).
+    pub fn set_joint_limits(&self, position: u16, joint: JointLimits) -> Result<()> {
+        self.check_position(position)?;
+        if let Some(e) = joint.check() {
+            return Err(e.into());
+        }
+        let mut all = self.joint_limits.write().unwrap_or_else(|poisoned| poisoned.into_inner());
+        all[position as usize] = Some(joint);
+        Ok(())
+    }
+
+    /// The limits of the joint on the drive at `slave`, how its values read and its name (an
+    /// INT32 target's range at any speed, counts, no name, where none were handed down).
+    pub fn limits_of(&self, slave: u16) -> (Limits, Scale, Option<String>) {
+        let all = self.joint_limits.read().unwrap_or_else(|poisoned| poisoned.into_inner());
+        match all.get(slave as usize) {
+            Some(Some(joint)) => (joint.limits, joint.scale, Some(joint.name.clone())),
+            _ => (Limits::TARGET, Scale::COUNTS, None),
+        }
+    }
+
+    /// Refuses `what` for the drive at `position` while a trajectory in force or a homing
+    /// under way drives it.
+    fn check_not_driven(&self, position: u16, what: &'static str) -> Result<()> {
+        if self.shared.homings.get(position as usize).is_some_and(|h| h.status().phase.under_way()) {
+            return Err(Unavailable::Driven { slave: position, what, trajectory: None }.into());
+        }
+        if let Some(id) = self.trajectories.driving(&self.shared.trajectories, position) {
+            return Err(Unavailable::Driven { slave: position, what, trajectory: Some(id) }.into());
+        }
+        Ok(())
+    }
+
+    /// Refuses a position target `data` written at `at` in the outputs of the drive at
+    /// `position` in a cyclic position mode whose step from the target last sent, which the
+    /// drive takes within one cycle, would go past the joint's velocity or acceleration limit.
+    fn check_step(&self, position: u16, at: usize, data: &[u8]) -> Result<()> {
+        let Some(o) = self.offsets[position as usize] else { return Ok(()) };
+        let Ok(bytes) = <[u8; 4]>::try_from(data) else { return Ok(()) };
+        if !o.targets.contains(&Some(at)) {
+            return Ok(());
+        }
+        let status = self.drive_status(position)?;
+        // A set-point written while the drive is not enabled never goes out: the target is held at the actual
+        // position until one is written after the enable.
+        if status.state() != Some(crate::drive::ds402::State::OperationEnabled) {
+            return Ok(());
+        }
+        let mode = status.mode_display.or_else(|| self.mode_set(position));
+        use crate::drive::ds402::Mode;
+        let cyclic = [Mode::CyclicSynchronousPosition, Mode::InterpolatedPosition];
+        if !mode.and_then(Mode::from_i8).is_some_and(|m| cyclic.contains(&m)) {
+            return Ok(());
+        }
+        let (limits, scale, name) = self.limits_of(position);
+        let sent = crate::cycle::image::i32_at(&self.snapshot().outputs, at);
+        let step = i32::from_le_bytes(bytes).wrapping_sub(sent) as f64;
+        let period_s = self.period.as_secs_f64();
+        // Within a cycle the drive moves the step at a constant velocity, from rest and back to it.
+        let (velocity, acceleration) = (step / period_s, step / (period_s * period_s));
+        let past = [
+            (Limit::Velocity, velocity, limits.max_velocity),
+            (Limit::Acceleration, acceleration, limits.max_acceleration),
+        ]
+        .into_iter()
+        .find(|(_, value, allowed)| value.abs() > allowed * 1.000_001 && step.abs() > 1.0);
+        let Some((limit, value, allowed)) = past else { return Ok(()) };
+        let joint = name.map_or_else(|| format!("drive {position}"), |n| format!("joint {n}"));
+        let most = match limit {
+            Limit::Acceleration => allowed * period_s * period_s,
+            _ => allowed * period_s,
+        };
+        Err(Unavailable::StepPastLimit {
+            slave: position,
+            detail: format!(
+                "in a cyclic position mode the drive takes the step of {} from the target last sent within one cycle \
+                 ({} s), {} {}, past {joint}'s {} {}; a step may be at most {}: stream set-points every cycle, or \
+                 move by a trajectory, which the cycle interpolates",
+                scale.magnitude(Limit::Position, step),
+                period_s,
+                if limit == Limit::Velocity { "a velocity of" } else { "an acceleration of" },
+                scale.magnitude(limit, value),
+                limit.name(),
+                scale.magnitude(limit, allowed),
+                scale.magnitude(Limit::Position, most),
+            ),
+        }
+        .into())
     }
 
     /// The drive at `slave` as joint `joint` of a trajectory, or why it cannot be one.

@@ -11,7 +11,7 @@
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyTuple};
+use pyo3::types::{PyBytes, PyInt, PyTuple};
 
 use super::IntoPyResult;
 use crate::cycle::{CycleThread, Snapshot};
@@ -286,15 +286,17 @@ fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedV
 }
 
 /// 0x60FE:01 `word` with the AKD's digital outputs in `levels` (pairs of output number and
-/// level) set, its other bits as they are; ValueError naming an output the AKD does not have.
+/// level) set, its other bits as they are; ValueError naming an output the AKD does not have,
+/// whatever the integer (one past 64 bits too).
 #[pyfunction]
-fn with_digital_outputs(word: u32, levels: Vec<(i64, bool)>) -> PyResult<u32> {
+fn with_digital_outputs(word: u32, levels: Vec<(Bound<'_, PyInt>, bool)>) -> PyResult<u32> {
     let mut now = io::outputs(word);
-    for (output, high) in levels {
-        if !(1..=i64::from(io::OUTPUT_COUNT)).contains(&output) {
+    for (number, high) in levels {
+        let output = number.extract::<u8>().ok().filter(|o| (1..=io::OUTPUT_COUNT).contains(o));
+        let Some(output) = output else {
             let count = io::OUTPUT_COUNT;
-            return Err(PyValueError::new_err(format!("output {output}: the AKD has digital outputs 1 to {count}")));
-        }
+            return Err(PyValueError::new_err(format!("output {number}: the AKD has digital outputs 1 to {count}")));
+        };
         let bit = 1u8 << (output - 1);
         now = if high { now | bit } else { now & !bit };
     }
