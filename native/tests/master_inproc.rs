@@ -441,12 +441,9 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
     assert_eq!(m.stats().lost_frames, before.lost_frames + 3);
 }
 
-/// A read of SM1 whose return is lost leaves the master unsure whether it emptied SM1, so it
-/// asks for the reply again (SM1's repeat request); if the read had found SM1 already empty (a
-/// cycle thread reads on the mailbox status of a frame sent before its last read), the drive puts
-/// back the message the master took before. That copy is not taken a second time.
-#[test]
-fn a_message_a_repeat_request_brings_back_after_a_lost_read_of_an_empty_mailbox_is_not_taken_twice() {
+/// A master in PreOp on one virtual AKD behind a link that loses as many reads of SM1 as the
+/// counter it gives says.
+fn in_preop_losing_mailbox_reads() -> (Master, Arc<AtomicU32>) {
     let lose_mailbox_reads = Arc::new(AtomicU32::new(0));
     let link = Lossy {
         inner: InProcess::new(1),
@@ -457,6 +454,16 @@ fn a_message_a_repeat_request_brings_back_after_a_lost_read_of_an_empty_mailbox_
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();
     m.request_state(AlState::PreOp, STEP).unwrap();
+    (m, lose_mailbox_reads)
+}
+
+/// A read of SM1 whose return is lost leaves the master unsure whether it emptied SM1, so it
+/// asks for the reply again (SM1's repeat request); if the read had found SM1 already empty (a
+/// cycle thread reads on the mailbox status of a frame sent before its last read), the drive puts
+/// back the message the master took before. That copy is not taken a second time.
+#[test]
+fn a_message_a_repeat_request_brings_back_after_a_lost_read_of_an_empty_mailbox_is_not_taken_twice() {
+    let (mut m, lose_mailbox_reads) = in_preop_losing_mailbox_reads();
     // The mailbox as a cycle thread uses it: an SDO upload written, its reply read once.
     let mut slave = m.slave_mut(0).unwrap();
     let mut request = [0u8; 0x400];
@@ -494,16 +501,7 @@ fn sm1_full(slave: &mut akd_native::ethercat::master::SlaveRef<'_>) -> bool {
 /// next one follows it; neither is lost.
 #[test]
 fn a_repeat_request_brings_back_the_reply_read_last_and_the_next_one_after_it() {
-    let lose_mailbox_reads = Arc::new(AtomicU32::new(0));
-    let link = Lossy {
-        inner: InProcess::new(1),
-        lose_lrw: Arc::default(),
-        lose_mailbox_reads: lose_mailbox_reads.clone(),
-        lose_mailbox_writes: Arc::default(),
-    };
-    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
-    m.scan().unwrap();
-    m.request_state(AlState::PreOp, STEP).unwrap();
+    let (mut m, lose_mailbox_reads) = in_preop_losing_mailbox_reads();
     let mut slave = m.slave_mut(0).unwrap();
     let deadline = Instant::now() + STEP;
     // Two uploads written before either reply is read: the second reply waits in the drive.
