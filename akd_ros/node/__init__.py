@@ -12,8 +12,9 @@ same four, set_mode, arm_latch, sdo_read and sdo_write (the package's own).
 One module per job, each a part that the node's `Core` is made of:
 
 - `core`: `Core`, the parts over a transport and the transitions (configure opens the Bus, close closes it);
-- `lifecycle`: `AkdNode`, the rclpy LifecycleNode that runs a Core on rclpy (`ros_transport`);
-- `transport`: what the parts need of a middleware (`Transport`, `Qos`);
+- `lifecycle`: `AkdNode`, the rclpy LifecycleNode that runs a Core on rclpy (`transports.ros_transport`);
+- `transports`: what the parts need of a middleware (`transport`: `Transport`, `Qos`) and the middlewares: rclpy
+  (`ros_transport`), Zenoh (`zenoh_transport`), both (`both_transport`);
 - `publishing`: /joint_states, each joint's status (made by the crate) and its events (latch, fault);
 - `diagnostics`: /diagnostics;
 - `commands`: the command topics, their refusal and time-out, the automatic fault reset, the drive requests;
@@ -23,6 +24,7 @@ One module per job, each a part that the node's `Core` is made of:
 - `live_view`: everything published, served to Foxglove over its WebSocket protocol, view only (`live_view.*`);
   `foxglove_layout` the Foxglove layout of a node's joints, for it and for the bags;
 - `clock`: stamps, the cycle thread's monotonic times moved onto the ROS clock;
+- `threads`: the node's Python threads named in the operating system as the crate's are;
 - `node_state`: what the parts share (the settings, the clock; from configure to cleanup the Bus, the Recorder, the
   lock).
 
@@ -33,10 +35,10 @@ events when the feed says there are some; three callback groups: the periodic gr
 status), the command group (the command subscriptions, queued 100 deep so a stall of the Python side delays commands
 rather than drops them) and the request group (services, the supervisor that handles automatic fault resets), which
 may wait up to the axes' time-outs. Over rclpy a SingleThreadedExecutor takes every message and runs the command
-callbacks itself, while services run on the request group's thread (`worker`) and timers on their group's, so nothing
-that waits or takes long is ever in front of a command; over Zenoh each group is such a thread. Every Python thread
-gives the GIL up within GIL_SWITCH_INTERVAL_S when another wants it. The node state's lock guards the axes'
-Python-side state (position unwrapping, event queues, the last command) between them.
+callbacks itself, while services run on the request group's thread (`transports.worker`) and timers on their group's,
+so nothing that waits or takes long is ever in front of a command; over Zenoh each group is such a thread. Every
+Python thread gives the GIL up within GIL_SWITCH_INTERVAL_S when another wants it. The node state's lock guards the
+axes' Python-side state (position unwrapping, event queues, the last command) between them.
 """
 
 from __future__ import annotations

@@ -21,7 +21,7 @@ from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
 from akd_ros.node.services import Services
 from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
-from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.transports.transport import Qos, Transport
 from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 from akd_ros.tap import Tap

@@ -26,7 +26,7 @@ from akd_ros.node.clock import nanoseconds
 from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState
 from akd_ros.node.trajectories import Trajectories
-from akd_ros.node.transport import ActionCallbacks, Transport
+from akd_ros.node.transports.transport import ActionCallbacks, Transport
 
 FOLLOW_JOINT_TRAJECTORY = "control_msgs/action/FollowJointTrajectory"
 # How long past its end plus goal time a trajectory may take to be reported over before the goal gives up on it.

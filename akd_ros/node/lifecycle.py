@@ -15,7 +15,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from akd_ros.bus import Bus
 from akd_ros.node.core import NODE_NAME, Core
 from akd_ros.node.ros_parameters import declare
-from akd_ros.node.ros_transport import RosTransport
+from akd_ros.node.transports.ros_transport import RosTransport
 from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 
@@ -39,9 +39,9 @@ class AkdNode(LifecycleNode):
         transport = RosTransport(self)
         self._zenoh = None
         if self.settings.transport == "both":
-            from akd_ros.node.both_transport import BothTransport
+            from akd_ros.node.transports.both_transport import BothTransport
+            from akd_ros.node.transports.zenoh_transport import ZenohTransport
             from akd_ros.node.zenoh_node import open_zenoh
-            from akd_ros.node.zenoh_transport import ZenohTransport
 
             self._zenoh = open_zenoh(self.settings, transport.logger)
             transport = BothTransport(transport, ZenohTransport(self._zenoh[1], transport.logger))

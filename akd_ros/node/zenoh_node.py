@@ -76,7 +76,7 @@ def open_zenoh(settings: Settings, logger):
 
 def run(settings: Settings) -> int:
     """Runs the node on Zenoh until SIGINT/SIGTERM; its exit status (1 when configure or activate failed)."""
-    from akd_ros.node.zenoh_transport import ZenohTransport
+    from akd_ros.node.transports.zenoh_transport import ZenohTransport
 
     hold_gil_briefly()
     logger = Logger(NODE_NAME)

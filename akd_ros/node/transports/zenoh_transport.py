@@ -14,8 +14,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from akd_ros.node.transport import ActionCallbacks, Qos
-from akd_ros.node.worker import Worker
+from akd_ros.node.transports.transport import ActionCallbacks, Qos
+from akd_ros.node.transports.worker import Worker
 from akd_ros.zenoh.wire import Durability, QoS, Reliability
 
 
@@ -45,8 +45,8 @@ class _Publisher:
 
 class ZenohTransport:
     """The transport of `zenoh_node` (an `akd_ros.zenoh.ZenohNode` named `name`), logging to `logger` (see
-    `akd_ros.node.transport.Transport`). `start()` runs the groups' threads once the parts are made; `close()` stops
-    them."""
+    `akd_ros.node.transports.transport.Transport`). `start()` runs the groups' threads once the parts are made;
+    `close()` stops them."""
 
     name = "zenoh"
 

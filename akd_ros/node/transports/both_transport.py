@@ -14,9 +14,9 @@ from typing import Any
 
 from rclpy.serialization import deserialize_message, serialize_message
 
-from akd_ros.node.ros_transport import RosGroup, RosTransport, message_class
-from akd_ros.node.transport import ActionCallbacks, Qos
-from akd_ros.node.zenoh_transport import ZenohTransport, zenoh_qos
+from akd_ros.node.transports.ros_transport import RosGroup, RosTransport, message_class
+from akd_ros.node.transports.transport import ActionCallbacks, Qos
+from akd_ros.node.transports.zenoh_transport import ZenohTransport, zenoh_qos
 from akd_ros.recorder import message_type
 
 

@@ -6,9 +6,9 @@ The executor's thread takes what arrives (`akd_ros.node.ros_node` runs a SingleT
 subscriptions' callbacks itself: a command goes from its arrival to the cycle's set-point slot on that thread, behind
 nothing but the executor's own wait. Whatever may wait or take long runs elsewhere: a service's handler on the
 `Worker` thread of its group and an action's goal on a thread of its own for as long as it runs (the executor awaits
-their answers, so it takes the next command meanwhile), timers on
-those threads too (see `akd_ros.node.worker` for why), which `start()` starts and `close()` stops, and /joint_states
-and the statuses on the publishing thread (`akd_ros.node.publishing`). Publishers and subscriptions install no
+their answers, so it takes the next command meanwhile), timers on those threads too (see
+`akd_ros.node.transports.worker` for why), which `start()` starts and `close()` stops, and /joint_states and the
+statuses on the publishing thread (`akd_ros.node.publishing`). Publishers and subscriptions install no
 default QoS event handlers: each is a waitable that every wake-up of the executor, every command, walks in Python
 (about 4 µs each, two per publisher or subscription: 0.3 ms of each command with six joints, 1.5 ms with 64). The
 other end of a topic whose QoS is incompatible still says so: rclpy's and rclcpp's publishers and subscriptions log
@@ -26,8 +26,8 @@ from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallba
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 
-from akd_ros.node.transport import ActionCallbacks, Qos
-from akd_ros.node.worker import Worker, in_thread
+from akd_ros.node.transports.transport import ActionCallbacks, Qos
+from akd_ros.node.transports.worker import Worker, in_thread
 
 
 def message_class(type_name: str) -> type:
@@ -88,7 +88,7 @@ class RosGroup:
 
 
 class RosTransport:
-    """The transport of a LifecycleNode `node` (see `akd_ros.node.transport.Transport`)."""
+    """The transport of a LifecycleNode `node` (see `akd_ros.node.transports.transport.Transport`)."""
 
     name = "rclpy"
     typestore = None
