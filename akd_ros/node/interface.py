@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from akd_ros.node import NODE_NAME
+from akd_ros.node.node_state import NODE_NAME
 from akd_ros.node.transports.transport import Qos
 from akd_ros.params import Settings
 from akd_ros.zenoh.types import Types

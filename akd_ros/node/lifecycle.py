@@ -3,7 +3,7 @@
 configure opens the Bus (the line to Op, the one cycle thread running, every joint's drive disabled); activate arms
 the configured latches and starts publishing and accepting commands; deactivate disables the drives; cleanup and
 shutdown close the Bus (drives disabled, line back to Init). With `autostart` the node walks itself to active at
-start-up (see `akd_ros.node.main`), and with `enable_on_start` it then enables every joint's power stage.
+start-up (see `akd_ros.node.ros_node`), and with `enable_on_start` it then enables every joint's power stage.
 """
 
 from __future__ import annotations

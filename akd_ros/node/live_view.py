@@ -31,7 +31,7 @@ from typing import Any
 
 import foxglove
 
-from akd_ros.node import NODE_NAME
+from akd_ros.node.node_state import NODE_NAME
 from akd_ros.node.transports.transport import Qos, Transport
 from akd_ros.recorder import MessageType, message_type
 

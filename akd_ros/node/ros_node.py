@@ -16,8 +16,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import TransitionCallbackReturn
 from rclpy.signals import SignalHandlerOptions
 
-from akd_ros.node import hold_gil_briefly
 from akd_ros.node.lifecycle import NODE_NAME, AkdNode
+from akd_ros.node.threads import hold_gil_briefly
 from akd_ros.params import ParameterError
 
 _STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}

@@ -17,8 +17,8 @@ import sys
 import threading
 import time
 
-from akd_ros.node import hold_gil_briefly
 from akd_ros.node.core import NODE_NAME, Core
+from akd_ros.node.threads import hold_gil_briefly
 from akd_ros.params import Settings
 
 _LEVELS = {"info": "INFO", "warning": "WARN", "error": "ERROR"}
