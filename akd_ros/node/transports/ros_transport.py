@@ -17,6 +17,7 @@ it by default.
 
 from __future__ import annotations
 
+import functools
 import importlib
 from collections.abc import Callable
 from typing import Any
@@ -24,16 +25,33 @@ from typing import Any
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 
 from akd_ros.node.transports.transport import ActionCallbacks, Qos
 from akd_ros.node.transports.worker import Worker, in_thread
 
 
+@functools.cache
 def message_class(type_name: str) -> type:
-    """The rosidl-generated class of `type_name` ("pkg/msg/Name" or "pkg/srv/Name")."""
+    """The rosidl-generated class of `type_name` ("pkg/msg/Name", "pkg/srv/Name" or "pkg/srv/Name_Request")."""
     package, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
+
+
+class RosMessages:
+    """rclpy's messages made, serialised and read by type name as a Zenoh transport takes them (the methods of
+    `akd_ros.zenoh.types.Types` it uses), so that what arrives by Zenoh with transport both reaches the callbacks as
+    rclpy's classes, as what arrives by rclpy does."""
+
+    def message(self, type_name: str) -> Any:
+        return message_class(type_name)()
+
+    def to_cdr(self, message: Any, type_name: str) -> bytes:
+        return serialize_message(message)
+
+    def from_cdr(self, data: bytes, type_name: str) -> Any:
+        return deserialize_message(bytes(data), message_class(type_name))
 
 
 def qos_profile(qos: Qos) -> QoSProfile:
