@@ -96,7 +96,7 @@ class FollowJointTrajectory:
             raise _RefusedError(codes.INVALID_GOAL, str(e)) from None
         tolerances = self._tolerances(goal, [by_name[name] for name in joints])
         given_goal_time = goal.goal_time_tolerance.sec + goal.goal_time_tolerance.nanosec * 1e-9
-        goal_time = given_goal_time or node_state.settings.goal_time
+        goal_time = given_goal_time or node_state.settings.constraints_goal_time
         clock = node_state.clock
         stamp_ns = nanoseconds(trajectory.header.stamp)
         start_ns = None if stamp_ns == 0 else stamp_ns - clock.ros_minus_monotonic_ns()
@@ -130,11 +130,11 @@ class FollowJointTrajectory:
             p, g = path.get(joint.name), at_goal.get(joint.name)
             result.append(
                 (
-                    _tolerance(p.position if p else 0.0, joint.path_tolerance),
+                    _tolerance(p.position if p else 0.0, joint.constraints_trajectory),
                     _tolerance(p.velocity if p else 0.0, 0.0),
-                    _tolerance(g.position if g else 0.0, joint.goal_tolerance),
-                    _tolerance(g.velocity if g else 0.0, joint.stopped_velocity_tolerance),
-                    joint.stop_deceleration,
+                    _tolerance(g.position if g else 0.0, joint.constraints_goal),
+                    _tolerance(g.velocity if g else 0.0, joint.constraints_stopped_velocity_tolerance),
+                    joint.trajectory_stop_deceleration,
                 )
             )
         return result
@@ -142,7 +142,7 @@ class FollowJointTrajectory:
     def _follow(self, handle, identifier: int, joints: list[str], axes, end_s: float):
         """Publishes feedback until the cycle thread ends trajectory `identifier`; stops it on a cancel."""
         node_state = self._node_state
-        period = 1.0 / node_state.settings.feedback_rate
+        period = 1.0 / node_state.settings.follow_joint_trajectory_feedback_rate
         stopping = False
         while True:
             if handle.is_cancel_requested and not stopping:

@@ -1,14 +1,20 @@
 """The node's settings: `Settings` with a `JointSettings` per joint, its checked parameters in the forms the Bus and
 its Axis take, made by `settings` of what `akd_ros.params.reader` reads; and `transport_of`, the transport the
-parameters choose."""
+parameters choose.
+
+A parameter is named once: its setting is the field of its name with each dot an underscore (`field_name`), filled
+from SCHEMA in one loop (`made_of`) unless the setting is made of it (a link checked, a mapping parsed), and only the
+parameters that make a setting of several (a joint's units, limits and name, the cycle thread's realtime, record and
+live_view) have no field of their own."""
 
 from __future__ import annotations
 
+import dataclasses
 import importlib.util
 from dataclasses import dataclass
 
 from akd_ros import _native
-from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, DriveConfig, io_mappings
+from akd_ros.axis import DriveConfig, io_mappings
 from akd_ros.bus import CommandError, check
 from akd_ros.params.schema import (
     DC_CHOICES,
@@ -31,7 +37,8 @@ from akd_ros.units import Limits, Units
 
 @dataclass(frozen=True)
 class JointSettings:
-    """One joint's checked parameters, in the forms the Bus and its Axis take."""
+    """One joint's checked parameters, in the forms the Bus and its Axis take; a field named after a parameter
+    (`field_name`) holds it."""
 
     name: str
     slave: int | None
@@ -48,29 +55,29 @@ class JointSettings:
     fault_reset: str
     command_timeout: float
     command_timeout_policy: str
-    homing_method: str = "drive"
+    homing_method: str
     """'drive' (homed by ~/home) or 'none' (homed from the start)."""
-    homing_required: bool = False
+    homing_required: bool
     """Whether motion commands are refused until the joint is homed."""
-    homing_timeout: float = 30.0
-    path_tolerance: float = 0.0
-    """constraints.trajectory: the default path position tolerance, SI (0: not judged)."""
-    goal_tolerance: float = 0.0
-    """constraints.goal: the default goal position tolerance, SI (0: not judged)."""
-    stopped_velocity_tolerance: float = 0.0
-    """constraints.stopped_velocity_tolerance: the default goal velocity tolerance, SI/s (0: not judged)."""
-    stop_deceleration: float = 10.0
-    """trajectory.stop_deceleration: how a stopped FollowJointTrajectory goal decelerates, SI/s²."""
-    eoe_ip: str | None = None
+    homing_timeout: float
+    constraints_trajectory: float
+    """The default path position tolerance, SI (0: not judged)."""
+    constraints_goal: float
+    """The default goal position tolerance, SI (0: not judged)."""
+    constraints_stopped_velocity_tolerance: float
+    """The default goal velocity tolerance, SI/s (0: not judged)."""
+    trajectory_stop_deceleration: float
+    """How a stopped FollowJointTrajectory goal decelerates, SI/s²."""
+    eoe_ip: str | None
     """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
-    io_carried: dict[str, bool] | None = None
+    io_carried: dict[str, bool]
     """What the mapping carries of the drive's I/O (`_native.mapping_io`): digital_inputs, analog_input,
     digital_outputs, analog_output."""
-    io_inputs: dict[str, int] | None = None
-    """The names given to digital inputs, with their numbers."""
-    io_outputs: dict[str, int] | None = None
-    """The names given to digital outputs, with their numbers."""
-    analog_scale: float = ANALOG_VOLTS_PER_COUNT
+    io_inputs: dict[str, int]
+    """The names given to digital inputs (io.inputs.<name>), with their numbers."""
+    io_outputs: dict[str, int]
+    """The names given to digital outputs (io.outputs.<name>), with their numbers."""
+    io_analog_scale: float
     """Volts per count of the analog input and output."""
 
     def drive(self) -> DriveConfig:
@@ -84,7 +91,7 @@ class JointSettings:
             limits=self.limits,
             mapping=self.mapping,
             eoe_ip=self.eoe_ip,
-            analog_scale=self.analog_scale,
+            analog_scale=self.io_analog_scale,
         )
 
     def describe_io(self) -> str:
@@ -95,7 +102,8 @@ class JointSettings:
 
 @dataclass(frozen=True)
 class Settings:
-    """The node's checked parameters, in the forms the Bus takes."""
+    """The node's checked parameters, in the forms the Bus takes; a field named after a parameter (`field_name`) holds
+    it."""
 
     link: str
     cycle_time: float
@@ -110,10 +118,10 @@ class Settings:
     joint_states_rate: float
     homing_sequence: str
     """How ~/home homes several joints: 'together' or 'one_by_one'."""
-    goal_time: float
-    """constraints.goal_time: the default goal time tolerance of ~/follow_joint_trajectory, s."""
-    feedback_rate: float
-    """follow_joint_trajectory.feedback_rate, Hz."""
+    constraints_goal_time: float
+    """The default goal time tolerance of ~/follow_joint_trajectory, s."""
+    follow_joint_trajectory_feedback_rate: float
+    """Hz."""
     status_rate: float
     diagnostics_rate: float
     io_rate: float
@@ -145,6 +153,24 @@ class Settings:
             "dc": self.dc,
             "dc_shift": self.dc_shift,
         }
+
+
+def field_name(parameter: str) -> str:
+    """The field of `Settings` or `JointSettings` that holds the parameter named `parameter`: its name with each dot
+    an underscore (homing.sequence: homing_sequence)."""
+    return parameter.replace(".", "_")
+
+
+def made_of(cls: type, values: dict[str, object], per_joint: bool, **made: object):
+    """`cls` (`Settings`, or with `per_joint` `JointSettings`) of the fields `made` and, for each other field that holds
+    a parameter of SCHEMA (its own, or each joint's with `per_joint`), that parameter's checked value in `values`."""
+    fields = {field.name for field in dataclasses.fields(cls)} - made.keys()
+    given = {
+        field_name(spec.name): values[spec.name]
+        for spec in SCHEMA
+        if spec.per_joint == per_joint and field_name(spec.name) in fields
+    }
+    return cls(**given, **made)
 
 
 def settings(values: dict[str, object]) -> Settings:
@@ -180,21 +206,14 @@ def settings(values: dict[str, object]) -> Settings:
     except CommandError as e:
         raise ParameterError(f"parameters joints.<name>.slave/alias: {e}") from None
     eoe_tap, eoe_host = check_eoe_bridge(top["eoe.tap"], top["eoe.host"], joints)
-    return Settings(
+    return made_of(
+        Settings,
+        top,
+        per_joint=False,
         link=link,
-        cycle_time=top["cycle_time"],
         dc=DC_CHOICES[top["dc"]],
-        dc_shift=top["dc_shift"],
-        fault_reaction=top["fault_reaction"],
         joints=joints,
         joint_namespaces=bool(names),
-        joint_states_rate=top["joint_states_rate"],
-        homing_sequence=top["homing.sequence"],
-        goal_time=top["constraints.goal_time"],
-        feedback_rate=top["follow_joint_trajectory.feedback_rate"],
-        status_rate=top["status_rate"],
-        diagnostics_rate=top["diagnostics_rate"],
-        io_rate=top["io_rate"],
         realtime=_native.RealTime(
             priority=top["rt.priority"] or None,
             cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
@@ -209,9 +228,6 @@ def settings(values: dict[str, object]) -> Settings:
         }
         if top["record.enabled"]
         else None,
-        autostart=top["autostart"],
-        enable_on_start=top["enable_on_start"],
-        transport=top["transport"],
         zenoh_config=top["zenoh.config"] or None,
         zenoh_connect=tuple(top["zenoh.connect"]),
         eoe_tap=eoe_tap,
@@ -272,30 +288,21 @@ def joint_settings(
         raise ParameterError(
             f"parameters {prefix}axis/{prefix}lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')"
         ) from None
-    return JointSettings(
+    return made_of(
+        JointSettings,
+        values,
+        per_joint=True,
         name=name,
         slave=None if values["alias"] >= 0 else values["slave"],
         alias=None if values["alias"] < 0 else values["alias"],
-        mode=values["mode"],
         mapping=mapping,
         units=units,
         limits=parse_limits(values, prefix),
         latch_arm=parse_latches(values["latch.arm"], prefix),
-        fault_reset=values["fault_reset"],
-        command_timeout=values["command_timeout"],
-        command_timeout_policy=values["command_timeout_policy"],
-        homing_method=values["homing.method"],
-        homing_required=values["homing.required"],
-        homing_timeout=values["homing.timeout"],
-        path_tolerance=values["constraints.trajectory"],
-        goal_tolerance=values["constraints.goal"],
-        stopped_velocity_tolerance=values["constraints.stopped_velocity_tolerance"],
-        stop_deceleration=values["trajectory.stop_deceleration"],
         eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
         io_carried=dict(carried),
         io_inputs=io[0],
         io_outputs=io[1],
-        analog_scale=values["io.analog_scale"],
     )
 
 
