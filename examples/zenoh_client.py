@@ -7,6 +7,9 @@ runs with transport zenoh (or both) on the same ROS_DOMAIN_ID.
     .venv/bin/akd-zenohd                                                      # a Zenoh router
     .venv-noros/bin/akd_node --ros-args --params-file config/akd_sim_6axis.yaml -p transport:=zenoh
     .venv-noros/bin/python examples/zenoh_client.py
+
+ZENOH_SESSION_CONFIG_URI names a Zenoh configuration file to use instead, as it does for rmw_zenoh: one of those
+`akd-access init` writes, for a node that listens with mutual TLS (docs/howto/access.md).
 """
 
 import os
@@ -23,9 +26,12 @@ TRIGGER = "std_srvs/srv/Trigger"
 TIMEOUT_S = 30.0
 
 types = Types()
-config = session_config()  # rmw_zenoh's default; session_config(connect=["tcp/HOST:7447"]) for another router
+# rmw_zenoh's default, or the file ZENOH_SESSION_CONFIG_URI names (connecting to the node itself, without a router);
+# session_config(connect=["tcp/HOST:7447"]) for another router.
+config_file = os.environ.get("ZENOH_SESSION_CONFIG_URI")
+config = session_config(config_file)
 session = open_session(config)
-if warning := router_warning(session, config):
+if not config_file and (warning := router_warning(session, config)):
     sys.exit(warning)
 # ROS_DOMAIN_ID picks the domain as it does for rmw_zenoh (0 when unset).
 client = ZenohNode(session, types, "akd_zenoh_client", domain=int(os.environ.get("ROS_DOMAIN_ID", "0")))

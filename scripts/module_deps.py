@@ -103,7 +103,7 @@ PYTHON_LAYERS: list[set[str]] = [
     {"axis"},
     {"params", "recorder", "eoe_bridge", "zenoh"},
     {"node"},
-    {"top"},
+    {"top", "access"},
     {"cli"},
 ]
 """The package's units (top-level modules below akd_ros) by layer, lowest first."""

@@ -48,10 +48,10 @@ ROS_WHEELS=(
     ros-jazzy-rosidl-typesupport-fastrtps-cpp ros-jazzy-rosidl-typesupport-introspection-cpp
     ros-jazzy-ament-index-python
 )
-APP_PACKAGES=(mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash PyYAML textual rich foxglove-sdk)
+APP_PACKAGES=(mcap rosbags matplotlib "eclipse-zenoh>=1.5,<2" xxhash PyYAML textual rich foxglove-sdk cryptography)
 DOCS_PACKAGES=(sphinx myst-parser furo)
 NOROS_PACKAGES=("${BUILD_PACKAGES[@]}" pytest "eclipse-zenoh>=1.5,<2" rosbags mcap xxhash PyYAML textual rich
-    foxglove-sdk)
+    foxglove-sdk cryptography)
 
 if ((refresh)); then
     PYTHON=${PYTHON:-python3}

@@ -227,7 +227,7 @@ def test_scan_over_raw_ethernet_in_netns(veth):
     assert scanned_positions(scan.stdout) == [0, 1]
 
 
-HELPED_TOOLS = ("akd-sim", "akd-scan", "akd-sdo", "akd-plot", "akd_node", "akd-top", "akd-zenohd")
+HELPED_TOOLS = ("akd-sim", "akd-scan", "akd-sdo", "akd-plot", "akd_node", "akd-top", "akd-zenohd", "akd-access")
 
 
 @pytest.mark.parametrize("tool", HELPED_TOOLS)

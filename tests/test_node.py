@@ -47,6 +47,7 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{port}
     cycle_time: 0.002
+    doors: [observe, operate, configure]
     # As an integrator runs it: the cycle thread under SCHED_FIFO where permitted (else a warning).
     rt.priority: 30
     mode: interpolated_position

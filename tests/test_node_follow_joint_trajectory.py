@@ -37,6 +37,7 @@ akd_node:
   ros__parameters:
     link: udp://127.0.0.1:{port}
     cycle_time: 0.002
+    doors: [observe, operate, configure]
     mode: cyclic_synchronous_position
     follow_joint_trajectory.feedback_rate: 50.0
     trajectory.stop_deceleration: {deceleration}

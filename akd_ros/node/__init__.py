@@ -17,6 +17,8 @@ One module per job, each a part that the node's `Core` is made of:
 - `lifecycle`: `AkdNode`, the rclpy LifecycleNode that runs a Core on rclpy (`transports.ros_transport`);
 - `transports`: what the parts need of a middleware (`transport`: `Transport`, `Qos`) and the middlewares: rclpy
   (`ros_transport`), Zenoh (`zenoh_transport`), both (`both_transport`);
+- `doors`: the transport the parts declare their doors on: those of the roles `doors` opens, each request recorded on
+  ~/access;
 - `publishing`: /joint_states, each joint's status (made by the crate) and its events (latch, fault);
 - `diagnostics`: /diagnostics;
 - `commands`: the command topics, their refusal and time-out, the automatic fault reset, the drive requests;

@@ -12,6 +12,7 @@ from akd_ros.eoe_bridge import EoeBridge
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
+from akd_ros.node.doors import Doors
 from akd_ros.node.follow_joint_trajectory import FollowJointTrajectory
 from akd_ros.node.homing import Homing
 from akd_ros.node.io import Io
@@ -41,6 +42,9 @@ class Core:
 
             self._live_view = LiveView(settings.live_view, transport)
             transport = self._live_view.transport
+        # Every part declares its doors here: those of a closed role never exist; each request is recorded.
+        doors = Doors(transport, settings.doors)
+        transport = doors
         self._transport = transport
         self._logger = transport.logger
         self._eoe_bridge: EoeBridge | None = None
@@ -66,6 +70,7 @@ class Core:
         Homing(transport, self._node_state, transport.group("homing"))
         # So do FollowJointTrajectory goals: one runs until its trajectory ends, a newer one beside it to preempt it.
         FollowJointTrajectory(transport, self._node_state, transport.group("follow"))
+        self._logger.info(doors.summary())
 
     @property
     def bus(self) -> Bus | None:

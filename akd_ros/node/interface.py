@@ -61,6 +61,7 @@ class Noting:
     """A transport (`akd_ros.node.transports.transport.Transport`) that notes what the parts declare in `endpoints`
     and runs nothing; `node_name` resolves ~/ names as the node's own."""
 
+    name = "no transport (noted)"
     typestore = None
 
     def __init__(self, types: Types, node_name: str = NODE_NAME) -> None:
@@ -96,6 +97,9 @@ class Noting:
 
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         pass
+
+    def caller(self, door: str) -> str:
+        return ""
 
     def group(self, name: str) -> None:
         return None

@@ -19,7 +19,7 @@ import time
 
 from akd_ros.node.core import NODE_NAME, Core
 from akd_ros.node.threads import hold_gil_briefly
-from akd_ros.params import Settings
+from akd_ros.params import ParameterError, Settings
 
 _LEVELS = {"info": "INFO", "warning": "WARN", "error": "ERROR"}
 
@@ -55,13 +55,17 @@ def domain_id() -> int:
 
 def open_zenoh(settings: Settings, logger):
     """The session (`zenoh.config`, `zenoh.connect` or rmw_zenoh's default) and the node's ZenohNode on it, the
-    router's absence warned about through `logger`; the caller closes both."""
+    router's absence warned about through `logger`; the caller closes both. ParameterError where the session does
+    not open."""
     from akd_ros.zenoh.entities import ZenohNode
-    from akd_ros.zenoh.session import open_session, router_warning, session_config
+    from akd_ros.zenoh.session import SessionConfigError, open_session, router_warning, session_config
     from akd_ros.zenoh.types import Types
 
-    config = session_config(settings.zenoh_config, settings.zenoh_connect)
-    session = open_session(config)
+    try:
+        config = session_config(settings.zenoh_config, settings.zenoh_connect)
+        session = open_session(config)
+    except SessionConfigError as error:
+        raise ParameterError(f"parameters zenoh.config/zenoh.connect: {error}") from None
     try:
         warning = router_warning(session, config)
         if warning:
@@ -83,7 +87,11 @@ def run(settings: Settings) -> int:
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda *_: stop.set())
-    session, zenoh_node = open_zenoh(settings, logger)
+    try:
+        session, zenoh_node = open_zenoh(settings, logger)
+    except ParameterError as error:
+        print(f"{NODE_NAME}: error: {error}", file=sys.stderr)
+        return 1
     status = 0
     try:
         transport = ZenohTransport(zenoh_node, logger)

@@ -18,9 +18,11 @@ from akd_ros.axis import DriveConfig, io_mappings
 from akd_ros.bus import CommandError, check
 from akd_ros.params.schema import (
     DC_CHOICES,
+    DOOR_ROLES,
     SCHEMA,
     SPECS,
     ParameterError,
+    check_doors,
     check_interface_address,
     check_joint_names,
     check_link,
@@ -143,6 +145,8 @@ class Settings:
     """The TAP interface's address (A.B.C.D/N), None for none."""
     live_view: tuple[str, int] | None = None
     """The live view's (address, port) (live_view.*), None when off."""
+    doors: tuple[str, ...] = DOOR_ROLES[:2]
+    """The roles whose doors the node has, in DOOR_ROLES' order."""
 
     def bus_options(self) -> dict[str, object]:
         """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
@@ -233,6 +237,7 @@ def settings(values: dict[str, object]) -> Settings:
         eoe_tap=eoe_tap,
         eoe_host=eoe_host,
         live_view=check_live_view(top["live_view.address"], top["live_view.port"]),
+        doors=check_doors(top["doors"]),
     )
 
 

@@ -29,6 +29,8 @@ FAULT_RESET_POLICIES = ("manual", "auto_once")
 COMMAND_TIMEOUT_POLICIES = ("hold", "quick_stop")
 """Values of command_timeout_policy."""
 DC_CHOICES = {"auto": None, "on": True, "off": False}
+DOOR_ROLES = ("observe", "operate", "configure")
+"""The roles of the node's doors (akd_ros.node.doors), which the doors parameter opens."""
 """Values of dc, each with the Axis's `dc` (None: the link's default)."""
 _TYPE_WORDS = {
     bool: "a bool (true or false)",
@@ -478,6 +480,15 @@ SCHEMA: tuple[Spec, ...] = (
         "The address the live view listens on (an IPv4 or IPv6 address of this machine): 127.0.0.1 lets only this "
         "machine watch; 0.0.0.0 (or ::) every network, to watch from another machine.",
     ),
+    Spec(
+        "doors",
+        ["observe", "operate"],
+        "Which roles' doors the node has (docs/howto/access.md): observe (the topics it publishes), operate (the "
+        "command topics, enable, disable, reset_fault, quick_stop, set_mode, arm_latch, set_outputs, sdo_read, the "
+        "trajectories and actions) and configure (sdo_write). A door of a role not named does not exist on any "
+        "transport; observe is always needed. Each request at an operating or configuring door is recorded on "
+        "~/access.",
+    ),
     Spec("autostart", True, "Walk the lifecycle to active at start-up (configure, then activate)."),
     Spec("enable_on_start", False, "Enable the power stage after activate (Operation enabled)."),
     Spec(
@@ -631,6 +642,24 @@ def check_interface_address(name: str, text: str) -> str | None:
         raise ParameterError(
             f"parameter {name} must be an IPv4 address with its prefix such as 192.168.0.10/24, or '', got {text!r}"
         ) from None
+
+
+def check_doors(roles: list[str]) -> tuple[str, ...]:
+    """The roles the doors parameter opens, in DOOR_ROLES' order; ParameterError naming the allowed ones."""
+    unknown = [r for r in roles if r not in DOOR_ROLES]
+    if unknown or "observe" not in roles or len(set(roles)) != len(roles):
+        why = (
+            f"{unknown[0]!r} is not a role"
+            if unknown
+            else "observe is missing"
+            if "observe" not in roles
+            else "a role is named twice"
+        )
+        raise ParameterError(
+            f"parameter doors must name roles among {', '.join(DOOR_ROLES)}, observe among them, each once; got "
+            f"{roles!r}: {why}"
+        )
+    return tuple(r for r in DOOR_ROLES if r in roles)
 
 
 def check_live_view(address: str, port: int) -> tuple[str, int] | None:

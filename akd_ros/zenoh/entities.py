@@ -30,6 +30,7 @@ import zenoh.ext
 
 from akd_ros.zenoh.types import Types
 from akd_ros.zenoh.wire import (
+    ADMIN_SPACE,
     SERVICES_QOS,
     Attachment,
     Durability,
@@ -42,12 +43,15 @@ from akd_ros.zenoh.wire import (
     TopicInfo,
     dds_type_name,
     fully_qualified_name,
+    gid_of,
     node_entity,
 )
 
 Log = Callable[[str], None]
 # The period rmw_zenoh gives a reliable transient-local publisher's sporadic heartbeat (500 ms).
 HEARTBEAT_PERIOD = 0.5
+SENDER_QUERY_S = 1.0
+"""How long `ZenohNode.sender_of` waits for the graph's liveliness tokens."""
 # How many queries a keep-all service holds while its handler is busy (the client then waits, as Zenoh blocks).
 KEEP_ALL_QUERIES = 1024
 
@@ -154,7 +158,7 @@ class Publisher:
 class Subscription:
     """A topic's subscription: callback(message) for each sample with a valid attachment whose payload
     `deserialize` accepts (raising ValueError otherwise); message is what deserialize returns, by default the
-    CDR bytes themselves."""
+    CDR bytes themselves. `with_gid`: callback(message, gid), gid the sender's GID its attachment gives."""
 
     def __init__(
         self,
@@ -163,6 +167,7 @@ class Subscription:
         callback: Callable[[object], None],
         deserialize: Callable[[bytes], object],
         log: Log,
+        with_gid: bool = False,
     ) -> None:
         assert entity.topic is not None
         self.entity = entity
@@ -171,6 +176,7 @@ class Subscription:
         self.received = 0
         self._callback = callback
         self._deserialize = deserialize
+        self._with_gid = with_gid
         qos = entity.topic.qos
         if qos.durability is Durability.TRANSIENT_LOCAL:
             reliable = qos.reliability is Reliability.RELIABLE
@@ -189,7 +195,10 @@ class Subscription:
     def _on_sample(self, sample: zenoh.Sample) -> None:
         if accepted := _accepted(sample, self._deserialize, self.dropped, "sample"):
             self.received += 1
-            self._callback(accepted[1])
+            if self._with_gid:
+                self._callback(accepted[1], accepted[0].gid)
+            else:
+                self._callback(accepted[1])
 
     def close(self) -> None:
         """Withdraws the token and the subscriber."""
@@ -202,8 +211,8 @@ class Service:
     handler(request) -> reply CDR bytes on a thread of the service's own (a handler may wait for the drive
     without holding up Zenoh's threads). The reply carries the request's sequence number and the client's GID,
     which is how an rmw_zenoh client matches it to its request. request is what deserialize_request returns, by
-    default the CDR bytes. Queries beyond the history depth waiting for the handler drop the oldest, as rmw_zenoh
-    does."""
+    default the CDR bytes; `with_gid`: handler(request, gid), gid the client's GID. Queries beyond the history
+    depth waiting for the handler drop the oldest, as rmw_zenoh does."""
 
     def __init__(
         self,
@@ -212,6 +221,7 @@ class Service:
         handler: Callable[[object], bytes],
         deserialize_request: Callable[[bytes], object],
         log: Log,
+        with_gid: bool = False,
     ) -> None:
         assert entity.topic is not None
         self.entity = entity
@@ -219,6 +229,7 @@ class Service:
         self.dropped = Dropped(f"service {entity.topic.name}", log)
         self.answered = 0
         self._handler = handler
+        self._with_gid = with_gid
         self._deserialize_request = deserialize_request
         qos = entity.topic.qos
         # Keep-all queues without dropping (to a bound, where rmw_zenoh has none); keep-last drops the oldest.
@@ -242,7 +253,7 @@ class Service:
             return
         attachment, request = accepted
         try:
-            reply = self._handler(request)
+            reply = self._handler(request, attachment.gid) if self._with_gid else self._handler(request)
         except Exception as error:  # noqa: BLE001  (a failing handler must not end the service's thread)
             self.dropped("handler_failed", f"a request its handler failed on ({type(error).__name__}: {error})")
             return
@@ -311,6 +322,7 @@ class ZenohNode:
         self.entity = node_entity(self.zid, self.node_id, self.info)
         self._token = session.liveliness().declare_token(self.entity.liveliness_key())
         self._entities: list[Publisher | Subscription | Service | Client] = []
+        self._senders: dict[bytes, str] = {}
 
     def _entity(self, kind: EntityKind, name: str, ros_type: str, qos: QoS) -> Entity:
         topic = TopicInfo(
@@ -334,14 +346,17 @@ class ZenohNode:
         callback: Callable[[object], None],
         qos: QoS | None = None,
         deserialize: Callable[[bytes], object] = bytes,
+        with_gid: bool = False,
     ) -> Subscription:
-        """A subscription to topic calling callback(deserialize(cdr)) for each valid sample."""
+        """A subscription to topic calling callback(deserialize(cdr)) for each valid sample (with_gid: and the
+        sender's GID)."""
         subscription = Subscription(
             self.session,
             self._entity(EntityKind.SUBSCRIPTION, topic, ros_type, qos or QoS()),
             callback,
             deserialize,
             self._log,
+            with_gid,
         )
         self._entities.append(subscription)
         return subscription
@@ -353,14 +368,17 @@ class ZenohNode:
         handler: Callable[[object], bytes],
         qos: QoS | None = None,
         deserialize_request: Callable[[bytes], object] = bytes,
+        with_gid: bool = False,
     ) -> Service:
-        """A server of the service `ros_type` (e.g. std_srvs/srv/Trigger) answering with handler's CDR bytes."""
+        """A server of the service `ros_type` (e.g. std_srvs/srv/Trigger) answering with handler's CDR bytes
+        (with_gid: handler(request, gid), gid the client's)."""
         service = Service(
             self.session,
             self._entity(EntityKind.SERVICE, name, ros_type, qos or SERVICES_QOS),
             handler,
             deserialize_request,
             self._log,
+            with_gid,
         )
         self._entities.append(service)
         return service
@@ -370,6 +388,26 @@ class ZenohNode:
         client = Client(self.session, self._entity(EntityKind.CLIENT, name, ros_type, qos or SERVICES_QOS))
         self._entities.append(client)
         return client
+
+    def sender_of(self, gid: bytes) -> str:
+        """Who sent a sample or request whose attachment gives `gid`, as far as Zenoh can tell: the node and
+        session of the entity whose liveliness token hashes to it, and the certificate name of the link to that
+        session where it is a TLS link of this session's own (a client of a router is behind the router's link)."""
+        if gid not in self._senders:
+            self._senders[gid] = self._sender_of(gid)
+        return self._senders[gid]
+
+    def _sender_of(self, gid: bytes) -> str:
+        replies = self.session.liveliness().get(f"{ADMIN_SPACE}/{self.info.domain}/**", timeout=SENDER_QUERY_S)
+        keys = [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
+        entity = next((Entity.parse(key) for key in keys if gid_of(key) == gid), None)
+        if entity is None:
+            return f"gid {gid.hex()} (no entity of the graph has it)"
+        node = f"{entity.node.namespace.rstrip('/')}/{entity.node.name}"
+        names = {str(link.auth_identifier) for link in self.session.info.links() if str(link.zid) == entity.zid}
+        names.discard("None")
+        certificate = f", certificate {', '.join(sorted(names))}" if names else ""
+        return f"node {node} of session {entity.zid}{certificate}"
 
     def dropped(self) -> int:
         """Samples and requests its subscriptions and services dropped so far (no or a malformed attachment, a

@@ -72,8 +72,14 @@ def connect_endpoints(config: zenoh.Config) -> list[str]:
 
 
 def open_session(config: zenoh.Config) -> zenoh.Session:
-    """Opens the session; it does not wait for a router (Zenoh keeps connecting in the background)."""
-    return zenoh.open(config)
+    """Opens the session; it does not wait for a router (Zenoh keeps connecting in the background). A session that
+    does not open (an endpoint to listen on that is taken, a certificate that does not load) is a
+    SessionConfigError saying why in Zenoh's words, without the places in Zenoh's source they name."""
+    try:
+        return zenoh.open(config)
+    except zenoh.ZError as error:
+        words = str(error).split(" at /", 1)[0]
+        raise SessionConfigError(f"the Zenoh session does not open: {words}") from None
 
 
 def router_warning(session: zenoh.Session, config: zenoh.Config, timeout: float = ROUTER_CHECK_TIMEOUT) -> str | None:

@@ -92,10 +92,12 @@ def parameters_markdown() -> str:
 
 
 def node_settings():
-    """The settings of the two nodes the reference lists: one of joints (EXAMPLE_JOINTS) and one of one joint."""
+    """The settings of the two nodes the reference lists: one of joints (EXAMPLE_JOINTS) and one of one joint, each
+    with every role's doors (the `doors` parameter closes the configuring ones by default)."""
     from akd_ros import params
 
-    return params.settings({"joints": list(EXAMPLE_JOINTS)}), params.settings({})
+    every = list(params.DOOR_ROLES)
+    return params.settings({"joints": list(EXAMPLE_JOINTS), "doors": every}), params.settings({"doors": every})
 
 
 def generic(name: str, joints: bool) -> str | None:

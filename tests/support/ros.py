@@ -171,7 +171,8 @@ def node_command(params: Path, domain: int | None = None, *, without_ros: bool =
         env["ROS_DOMAIN_ID"] = str(domain)
     program = BIN / "akd_node"
     if without_ros:
-        env["PYTHONPATH"] = str(NO_ROS)
+        # NO_ROS first, so that it refuses every ROS import; then what the environment adds.
+        env["PYTHONPATH"] = os.pathsep.join([str(NO_ROS), *filter(None, [os.environ.get("PYTHONPATH")])])
         program = NO_ROS_NODE if NO_ROS_NODE.exists() else program
     return [str(program), "--ros-args", "--params-file", str(params)], env
 

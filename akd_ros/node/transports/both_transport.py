@@ -71,6 +71,9 @@ class BothTransport:
         # Served over rclpy only: rmw_zenoh's clients reach it through a router bridging DDS, not this Zenoh session.
         return self.ros.action_server(type_name, name, callbacks, group)
 
+    def caller(self, door: str) -> str | None:
+        return self.zenoh.caller(door) or self.ros.caller(door)
+
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         self.ros.timer(period, callback, group)
 

@@ -190,6 +190,18 @@ class RosTransport:
     def resolve(self, name: str) -> str:
         return self._node.resolve_topic_name(name)
 
+    def caller(self, door: str) -> str:
+        """rclpy hands a callback no sender (neither a sample's publisher nor a request's client): for a topic, the
+        graph's other publishers of it; for a service, nothing."""
+        publishers = [
+            f"{info.node_namespace.rstrip('/')}/{info.node_name}"
+            for info in self._node.get_publishers_info_by_topic(door)
+            if (info.node_name, info.node_namespace) != (self._node.get_name(), self._node.get_namespace())
+        ]
+        if not publishers:
+            return "dds: unknown (rclpy gives a request no sender)"
+        return f"dds: a publisher of the topic: {', '.join(sorted(set(publishers)))}"
+
     def counters(self) -> dict[str, int]:
         return {}
 

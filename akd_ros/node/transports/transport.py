@@ -84,6 +84,9 @@ class Transport(Protocol):
         """Serves action `name` of type `type_name` ("pkg/action/Name") with `callbacks`; gives the action's class
         (its Goal, Feedback and Result), or None where this transport serves no action (it says so in the log)."""
 
+    def caller(self, door: str) -> str | None:
+        """Who sent the sample or request the running callback of `door` handles, as far as the middleware tells."""
+
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         """Calls `callback` every `period` seconds."""
 

@@ -10,6 +10,7 @@ waits for the reply.
 
 from __future__ import annotations
 
+import threading
 import time
 from collections.abc import Callable
 from typing import Any, Protocol
@@ -67,6 +68,8 @@ class ZenohTransport:
         self.typestore = self.types.store
         self.logger = logger
         self._groups: list[Worker] = []
+        self._delivering = threading.local()
+        """On a group's thread: the GID of the sender whose sample or request its callback handles."""
 
     def start(self) -> None:
         for group in self._groups:
@@ -99,9 +102,10 @@ class ZenohTransport:
         self._zenoh_node.subscription(
             topic,
             type_name,
-            lambda message: group.submit(callback, message),
+            lambda message, gid: group.submit(self.delivering, gid, callback, message),
             zenoh_qos(qos),
             deserialize=lambda data: messages.from_cdr(data, type_name),
+            with_gid=True,
         )
         return self.resolve(topic)
 
@@ -118,15 +122,34 @@ class ZenohTransport:
         messages = messages or self.types
         response_type = f"{type_name}_Response"
 
-        def answer(request) -> bytes:
+        def answer(request, gid: bytes) -> bytes:
             def run():
-                return messages.to_cdr(handler(request, messages.message(response_type)), response_type)
+                response = self.delivering(gid, handler, request, messages.message(response_type))
+                return messages.to_cdr(response, response_type)
 
             return group.submit(run).result()
 
         self._zenoh_node.service(
-            name, type_name, answer, deserialize_request=lambda data: messages.from_cdr(data, f"{type_name}_Request")
+            name,
+            type_name,
+            answer,
+            deserialize_request=lambda data: messages.from_cdr(data, f"{type_name}_Request"),
+            with_gid=True,
         )
+
+    def delivering(self, gid: bytes, callback: Callable[..., Any], *args: Any) -> Any:
+        """Runs `callback(*args)` for a sample or request of the sender `gid`, which `caller` names meanwhile."""
+        self._delivering.gid = gid
+        try:
+            return callback(*args)
+        finally:
+            self._delivering.gid = None
+
+    def caller(self, door: str) -> str | None:
+        """Who sent what the running callback handles, as far as Zenoh tells (`ZenohNode.sender_of`); None outside
+        a callback of this transport."""
+        gid = getattr(self._delivering, "gid", None)
+        return None if gid is None else f"zenoh: {self._zenoh_node.sender_of(gid)}"
 
     def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Worker) -> None:
         # rmw_zenoh carries an action as three services and two topics of types rosidl derives from the .action;

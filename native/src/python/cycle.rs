@@ -343,8 +343,12 @@ impl PyCycle {
         let fbus_param02 = super::master::lock(&master.borrow(py).fbus_param02).clone();
         let line_health =
             line_health.map(|s| duration("line health interval", s, "a finite number of seconds >= 0, 0 for never"));
-        let config =
-            Config { period, realtime: realtime.unwrap_or_default(), fbus_param02, line_health: line_health.transpose()? };
+        let config = Config {
+            period,
+            realtime: realtime.unwrap_or_default(),
+            fbus_param02,
+            line_health: line_health.transpose()?,
+        };
         let taken = master.borrow(py).take()?;
         match py.allow_threads(|| CycleThread::start(taken, config)) {
             Ok(cycle) => Ok(PyCycle { master, cycle: Arc::new(cycle) }),
