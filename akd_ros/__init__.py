@@ -8,7 +8,8 @@ The public API, named here one by one (`__all__`), so that what the extension ex
   `serve_iface`, `Simulator`, which controls the virtual AKDs of a `Master("sim")` or a server while they serve, and
   `SetpointTrace`, the file a server traces their set-points to) and the exceptions, all under `EtherCatError`;
 - in Python: `Bus`, one EtherCAT line with its master and cycle thread, and `Axis`, one drive on it commanded in SI
-  units (`Units`, `Limits`), with its events; `Axis(link)` alone is a bus of one.
+  units (`Units`, `Limits`), with its events; `Axis(link)` alone is a bus of one; `Device`, one of the line's other
+  slaves (a terminal beside the drives: `DeviceConfig`), read and set by channel name (`DeviceIo`).
 
 Everything else of the extension stays reachable as `akd_ros._native`, for the package and its tests.
 """
@@ -47,6 +48,7 @@ from akd_ros.axis import (
     LatchEvent,
 )
 from akd_ros.bus import Bus, BusRequestError
+from akd_ros.device import Device, DeviceConfig, DeviceIo
 from akd_ros.units import Limits, Units, unwrap_position
 
 __all__ = [
@@ -61,6 +63,9 @@ __all__ = [
     "CommandTimeoutEvent",
     "ConfigError",
     "Cycle",
+    "Device",
+    "DeviceConfig",
+    "DeviceIo",
     "DriveConfig",
     "EtherCatError",
     "FaultEvent",

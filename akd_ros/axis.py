@@ -31,7 +31,7 @@ import contextlib
 import math
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields
 
 from akd_ros import _native
 from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
@@ -207,6 +207,11 @@ class FaultEvent:
     al_status_code_name: str
     action: str
 
+    @classmethod
+    def of(cls, event: dict) -> FaultEvent:
+        """The fault event the cycle thread reported as `event` (a "fault" of `_native.Cycle.events`)."""
+        return cls(*(event[f.name] for f in fields(cls)))
+
     def describe(self) -> str:
         """One line for a log."""
         what = self.text or (f"code 0x{self.code:04X}" if self.source in ("drive_fault", "emergency") else "")
@@ -334,6 +339,24 @@ class Axis:
         self._command_timeouts: collections.deque[CommandTimeoutEvent] = collections.deque()
         self._unwrapped: int | None = None
         self._commanded: dict[str, float] = {}
+        self._hand_down_limits()
+
+    def _hand_down_limits(self) -> None:
+        """Hands the limits down to the cycle, which judges every motion of the drive by them from then on
+        (trajectories, and the steps of cyclic position set-points), and words its refusals in this axis's units."""
+        low, high = self.position_limits_counts()
+        open_ends = {-(2.0**31), 2.0**31 - 1}
+        counts_per_si = 1 / abs(self.units.si_per_count)
+        speeds = [
+            None if v is None else v * counts_per_si for v in (self.limits.max_velocity, self.limits.max_acceleration)
+        ]
+        self._bus.cycle.set_joint_limits(
+            self.slave,
+            self.name,
+            (None if low in open_ends else low, None if high in open_ends else high),
+            *speeds,
+            scale=(self.units.si_per_count, self.units.offset, self.units.position_unit),
+        )
 
     # --- life cycle ---------------------------------------------------------------------------------------------
 
@@ -385,15 +408,16 @@ class Axis:
 
     # --- DS402 ----------------------------------------------------------------------------------------------------
 
-    def request(self, request: str) -> None:
-        """Asks the drive for `request` ("enable", "disable", "quick_stop", "reset_fault") and returns at once;
-        `wait(request)` waits for it. The methods of the same names do both."""
+    def request(self, request: str) -> bool:
+        """Asks the drive for `request` ("enable", "disable", "quick_stop", "reset_fault") and returns at once whether
+        it asked: always, but for a reset of a drive that shows no fault, which is left as it is (its power stage
+        untouched); `wait(request)` waits for it. The methods of the same names do both."""
         if request not in REQUESTS:
             raise CommandError(f"request {request!r} is not one of {', '.join(REQUESTS)}")
         cycle = self._running()
         if request == "enable":
             self._commanded.clear()
-        getattr(cycle, request)(self.slave)
+        return getattr(cycle, request)(self.slave) is not False
 
     def wait(self, request: str, timeout: float = 5.0) -> None:
         """Waits until the drive carried out `request`; TimeoutError saying in which state it is stuck and why, or
@@ -426,11 +450,14 @@ class Axis:
         self.request("quick_stop")
         self.wait("quick_stop", timeout)
 
-    def reset_fault(self, timeout: float = 5.0) -> None:
-        """Resets a fault by a rising edge of controlword bit 7 and waits for Switch on disabled. Raises
-        TimeoutError when the fault persists (its cause is still there)."""
-        self.request("reset_fault")
+    def reset_fault(self, timeout: float = 5.0) -> bool:
+        """Resets a fault by a rising edge of controlword bit 7 and waits for Switch on disabled; returns whether there
+        was one: a drive without a fault is left as it is. Raises TimeoutError when the fault persists (its cause is
+        still there)."""
+        if not self.request("reset_fault"):
+            return False
         self.wait("reset_fault", timeout)
+        return True
 
     def halt(self, on: bool = True) -> None:
         """Halt (controlword bit 8): the drive stops and stays enabled; `halt(False)` lets it go on."""
@@ -517,7 +544,12 @@ class Axis:
                 f"{command.kind} command refused: it was checked in mode {command.mode}, the axis is in {self._mode}"
             )
         if command.mapped:
-            cycle.set_object(self.slave, *command.target, command.data)
+            try:
+                cycle.set_object(self.slave, *command.target, command.data)
+            except _native.ConfigError as e:
+                # The cycle judges the set-point too: its step, and whether a trajectory or a homing drives the axis.
+                why = str(e).removeprefix("configuration: ")
+                raise CommandError(f"{command.kind} command refused, nothing sent: {why}") from None
         else:
             cycle.sdo_write(self.slave, *command.target, command.data)
         handshake = _MODES[self._mode].handshake_controlword
@@ -563,12 +595,12 @@ class Axis:
         self, position: float, velocity: float | None = None, acceleration: float | None = None, *, point: int = 0
     ) -> tuple[int, int | None, float | None]:
         """A trajectory point of this axis (SI) in the drive's counts, counts/s and counts/s², as
-        `Cycle.play_trajectory` takes it; CommandError naming the axis and `point` for NaN or a value past the
-        limits (refused whatever the limits' policy: a trajectory is not bent to fit)."""
-        refuse = replace(self.limits, policy="refuse")
+        `Cycle.play_trajectory` takes it; CommandError naming the axis and `point` for NaN or a value no drive value
+        carries. The cycle judges it by the axis's limits (refused whatever the limits' policy: a trajectory is not
+        bent to fit)."""
         try:
-            counts = self.units.position_to_counts(refuse.check("position", position))
-            per_s = None if velocity is None else self.units.velocity_to_counts(refuse.check("velocity", velocity))
+            counts = self.units.position_to_counts(position)
+            per_s = None if velocity is None else self.units.velocity_to_counts(velocity)
             per_s2 = None if acceleration is None else self.units.acceleration_to_counts(acceleration)
         except ValueError as e:
             raise CommandError(f"trajectory refused: joint {self.name}, point {point}: {e}") from None
@@ -760,21 +792,7 @@ class Axis:
                     )
                 )
             else:
-                self._faults.append(
-                    FaultEvent(
-                        e["cycle"],
-                        e["time_ns"],
-                        e["source"],
-                        e["code"],
-                        e["text"],
-                        e["statusword"],
-                        e["ds402_state"],
-                        e["al_state"],
-                        e["al_status_code"],
-                        e["al_status_code_name"],
-                        e["action"],
-                    )
-                )
+                self._faults.append(FaultEvent.of(e))
 
     def latch_events(self) -> Iterator[LatchEvent]:
         """The latch captures since the last call, oldest first, each handed out once."""

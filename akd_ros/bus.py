@@ -1,5 +1,9 @@
 """`Bus`: one EtherCAT line of AKDs from Python, without ROS: the one master and the one cycle thread.
 
+The line may hold other slaves beside the drives (an EK1100 coupler, EL1xxx inputs, EL2xxx outputs): the master
+configures each from what it says of itself and takes it to Op with the drives. Those named in `devices`
+(`akd_ros.device.DeviceConfig`) are the Bus's `devices` (`akd_ros.device.Device`), read and set by channel name.
+
 A Bus opens a link (``"sim"``/``"sim:N"`` for built-in virtual AKDs, ``"udp://HOST:PORT"`` for `akd-sim`, or a
 network interface), scans it, picks its drives by position or station alias, gives each its process-data mapping and
 mode of operation in PreOp, takes the line to Op and starts one native cycle for all of them. Each drive is commanded
@@ -91,7 +95,10 @@ def _picked(drives: Sequence, master, slaves: list[dict]) -> list[int]:
         else:
             position = drive.slave
         if not 0 <= position < len(slaves):
-            raise CommandError(f"slave {position} is not on the bus (slaves 0..{len(slaves) - 1})")
+            raise CommandError(
+                f"slave {position} is not on the bus: the line has {len(slaves)} slaves (0..{len(slaves) - 1}); "
+                f"drive {drive.name or len(positions)} expects an AKD there"
+            )
         if position in positions:
             raise CommandError(
                 f"slave {position} is given twice (drives {positions.index(position)} and "
@@ -101,7 +108,7 @@ def _picked(drives: Sequence, master, slaves: list[dict]) -> list[int]:
     return positions
 
 
-def check(drives: Sequence, fault_reaction: str, period: float, dc_shift: float) -> None:
+def check(drives: Sequence, fault_reaction: str, period: float, dc_shift: float, devices: Sequence = ()) -> None:
     """CommandError for what can be told wrong of a Bus's settings before the bus is touched."""
     if not all(math.isfinite(x) for x in (period, dc_shift)):
         raise CommandError(f"period and dc_shift must be finite seconds, got {period!r} and {dc_shift!r}")
@@ -122,13 +129,65 @@ def check(drives: Sequence, fault_reaction: str, period: float, dc_shift: float)
                 f"one of them ({which})"
             )
         check_mode(d.mode)
+    drive_slaves = {d.slave for d in drives if d.slave is not None}
+    drive_names = {d.name for d in drives if d.name is not None}
+    for key in ("slave", "name"):
+        given = [getattr(d, key) for d in devices if getattr(d, key) is not None]
+        twice = sorted({v for v in given if given.count(v) > 1}, key=str)
+        if twice:
+            raise CommandError(f"{key} {', '.join(map(str, twice))} given to several devices; each device once")
+    for d in devices:
+        if d.slave in drive_slaves:
+            raise CommandError(
+                f"slave {d.slave} is given to a drive and to device {d.name or d.slave}; each slave once"
+            )
+        if d.name is not None and d.name in drive_names:
+            raise CommandError(f"name {d.name} is given to a drive and to a device; each name once")
+
+
+def _a(product: str) -> str:
+    """`product` with its article: "an EL2004", "an AKD", "a BK1120"."""
+    return f"{'an' if product[:1].upper() in 'AEFHILMNORSX' else 'a'} {product}"
+
+
+def product_of(slave: dict) -> str:
+    """What a slave `Master.scan` found is, in a word: "AKD" for an AKD, else its order number as its SII gives it
+    (e.g. "EL2004"), else its product code."""
+    if slave.get("akd"):
+        return "AKD"
+    return slave.get("order") or f"product 0x{slave['product_code']:08X} of vendor 0x{slave['vendor_id']:08X}"
+
+
+def check_line(slaves: list[dict], drives: dict[str, int], devices: Sequence) -> None:
+    """CommandError, in one line, for the first difference between the line `slaves` (`Master.scan`) and what the Bus
+    expects of it: each drive (by name: its position) an AKD, each device (`DeviceConfig`) at a position the line has,
+    no AKD, and the product it names where it names one."""
+    for name, position in drives.items():
+        if not slaves[position].get("akd"):
+            raise CommandError(f"slave {position} is {_a(product_of(slaves[position]))}; drive {name} expects an AKD")
+    for d in devices:
+        who = f"device {d.name or d.slave}"
+        if not 0 <= d.slave < len(slaves):
+            raise CommandError(
+                f"slave {d.slave} is not on the bus: the line has {len(slaves)} slaves (0..{len(slaves) - 1}); {who} "
+                f"expects {_a(d.product) if d.product else 'a device'} there"
+            )
+        found = product_of(slaves[d.slave])
+        if found == "AKD":
+            raise CommandError(f"slave {d.slave} is an AKD; {who} expects a device beside the drives: make it a drive")
+        if d.product is not None and found.lower() != d.product.lower():
+            raise CommandError(f"slave {d.slave} is {_a(found)}; {who} expects {_a(d.product)}")
 
 
 class Bus:
-    """One EtherCAT line: its master, its one cycle thread and an `Axis` per drive.
+    """One EtherCAT line: its master, its one cycle thread, an `Axis` per drive and a `Device` per device.
 
-    `drives` are `akd_ros.DriveConfig`s, one per drive to command; `realtime` (an `akd_ros.RealTime`, the same options
-    as an Axis's and the node's `rt.*` parameters) how the cycle thread runs. Use as a context manager or call
+    `drives` are `akd_ros.DriveConfig`s, one per drive to command; `devices` `akd_ros.device.DeviceConfig`s, one per
+    other slave to read and set by name (a terminal); the line is checked against both before anything goes to Op
+    (a drive where the line has no AKD, a device where it has none or another product: one CommandError);
+    `realtime` (an `akd_ros.RealTime`, the same options as an Axis's and the node's `rt.*` parameters) how the cycle
+    thread runs; `line_reads` whether it reads every slave's links and error counters beside the cycle
+    (`line_health`; a frame a few times a second). Use as a context manager or call
     `close()`: it disables every drive, stops the cycle and returns the line to Init.
     """
 
@@ -144,8 +203,10 @@ class Bus:
         fault_reaction: str = "all",
         dc: bool | None = None,
         dc_shift: float = 0.0,
+        line_reads: bool = True,
+        devices: Sequence = (),
     ) -> None:
-        check(drives, fault_reaction, period, dc_shift)
+        check(drives, fault_reaction, period, dc_shift, devices)
         self.link = link
         self.fault_reaction = fault_reaction
         self._master = _native.Master(link, timeout=frame_timeout)
@@ -155,6 +216,11 @@ class Bus:
             """What the scan found of each slave on the line (`_native.Master.scan`), by position: identity (vendor,
             product, revision, serial number), name, model, firmware, station alias."""
             positions = _picked(drives, self._master, self.slaves)
+            named = {d.name or f"slave_{p}": p for d, p in zip(drives, positions, strict=True)}
+            check_line(self.slaves, named, devices)
+            self.unnamed: list[int] = sorted(set(range(len(self.slaves))) - set(positions) - {d.slave for d in devices})
+            """The positions of the slaves neither a drive nor a device: they go to Op with the others, their outputs
+            off."""
             self.simulator = None
             """For built-in virtual AKDs: their `Simulator` (fault injection, hardware enable, input toggles)."""
             # The extension knows which links are virtual: the others have no simulator.
@@ -181,21 +247,26 @@ class Bus:
             else:
                 self._master.configure_sm2_sync(round(period * 1e9))
             self._master.request_state("op")
-            self._cycle = _native.Cycle(self._master, period, realtime=realtime)
+            # The cycle's own interval for the line's reads, or none (line_health 0).
+            interval = {} if line_reads else {"line_health": 0}
+            self._cycle = _native.Cycle(self._master, period, realtime=realtime, **interval)
         except BaseException:
             self._master.close()
             raise
         self._cycle.request_timeout = request_timeout
         self._cycle.set_quick_stop_on_fault(fault_reaction == "all")
         self._poll_lock = threading.Lock()
-        self._events: dict[int, list[dict]] = {p: [] for p in positions}
+        self._events: dict[int, list[dict]] = {p: [] for p in [*positions, *(d.slave for d in devices)]}
         self._trajectory_events: list[dict] = []
         self._samples: dict[int, dict[str, list]] = {p: _no_samples() for p in positions}
         self._samples_dropped = dict.fromkeys(positions, 0)
         self.axes = []
         """One `Axis` per drive, in the order given."""
+        self.devices = []
+        """One `akd_ros.device.Device` per device, in the order given."""
         try:
             self.axes.extend(d.attach(self, p) for d, p in zip(drives, positions, strict=True))
+            self.devices.extend(d.attach(self, d.slave) for d in devices)
         except BaseException:
             self.close()
             raise
@@ -230,6 +301,9 @@ class Bus:
         problem = None
         try:
             if cycle.running:
+                for device in self.devices:
+                    with contextlib.suppress(_native.EtherCatError):
+                        cycle.switch_outputs_off(device.slave)
                 for axis in self.axes:
                     cycle.disable(axis.slave)
                 deadline = time.monotonic() + 1.0
@@ -237,6 +311,10 @@ class Bus:
                     # A drive in Fault or unreachable stays as it is: powerless.
                     with contextlib.suppress(_native.EtherCatError):
                         cycle.wait_state(axis.slave, "Switch on disabled", timeout=max(deadline - time.monotonic(), 0))
+                # The devices' outputs off go out in a cycle before the line leaves Op.
+                sent = cycle.snapshot()["cycle"] + 2
+                while self.devices and cycle.snapshot()["cycle"] < sent and time.monotonic() < deadline:
+                    time.sleep(cycle.period)
         finally:
             self._cycle = None
             cycle.stop()
@@ -259,6 +337,18 @@ class Bus:
         """The axes' names, in order."""
         return [axis.name for axis in self.axes]
 
+    def device(self, name: str):
+        """The Device named `name`."""
+        for device in self.devices:
+            if device.name == name:
+                return device
+        raise KeyError(f"no device named {name!r} on this bus (devices: {', '.join(d.name for d in self.devices)})")
+
+    def devices_io(self) -> dict:
+        """Every device's channels (`Device.io`) by name, all of the same cycle."""
+        ios = self.cycle.devices_io([device.slave for device in self.devices])
+        return {device.name: device.io(i) for device, i in zip(self.devices, ios, strict=True)}
+
     def __getitem__(self, name: str):
         """The Axis named `name`."""
         for axis in self.axes:
@@ -268,14 +358,15 @@ class Bus:
 
     # --- every drive at once --------------------------------------------------------------------------------------
 
-    def _every(self, request: str, timeout: float) -> None:
+    def _every(self, request: str, timeout: float) -> list[str]:
+        """Asks every drive for `request` and waits; gives the names of those it was not asked of (a reset of a drive
+        without a fault)."""
         self.cycle  # noqa: B018  (a closed bus refuses before any drive is asked)
         refusals = (TimeoutError, ValueError, _native.EtherCatError)
-        failed, asked, done = {}, [], []
+        failed, asked, done, untouched = {}, [], [], []
         for axis in self.axes:
             try:
-                axis.request(request)
-                asked.append(axis)
+                (asked if axis.request(request) else untouched).append(axis)
             except refusals as e:
                 failed[axis.name] = str(e)
         deadline = time.monotonic() + timeout
@@ -287,6 +378,7 @@ class Bus:
                 failed[axis.name] = str(e)
         if failed:
             raise BusRequestError(request, {a.name: failed[a.name] for a in self.axes if a.name in failed}, done)
+        return [axis.name for axis in untouched]
 
     def enable(self, timeout: float = 5.0) -> None:
         """Brings every drive to Operation enabled together; each target holds its actual position until commanded."""
@@ -300,9 +392,11 @@ class Bus:
         """Quick-stops every drive (Quick stop active, Switch on disabled where off)."""
         self._every("quick_stop", timeout)
 
-    def reset_fault(self, timeout: float = 5.0) -> None:
-        """Resets every drive's fault, to Switch on disabled."""
-        self._every("reset_fault", timeout)
+    def reset_fault(self, timeout: float = 5.0) -> list[str]:
+        """Resets the fault of every drive that shows one, to Switch on disabled; the others are left as they are
+        (their power stages untouched). Gives the names of the drives reset."""
+        untouched = self._every("reset_fault", timeout)
+        return [name for name in self.names if name not in untouched]
 
     # --- what the cycle reports, filed under each drive -------------------------------------------------------------
 
@@ -352,9 +446,11 @@ class Bus:
         """Plays a trajectory in the cycle thread: axis `joints[j]` through `points[k][j]` = (position, velocity or
         None, acceleration or None) in SI units at `times[k]` seconds from the start (strictly increasing, the first
         > 0), from `start_ns` (time.monotonic_ns(); None: now); quintic where accelerations are given, cubic where
-        velocities are, linear otherwise. Each axis must be enabled in interpolated or cyclic synchronous position.
-        It takes over from the trajectory in force without a step. CommandError, before anything moves, for an
-        unknown joint, a point past an axis's limits (always refused, whatever the policy), NaN or bad times.
+        velocities are, linear otherwise. Each axis must be enabled in interpolated or cyclic synchronous position,
+        and not being homed. It takes over from the trajectory in force without a step. CommandError, before
+        anything moves, for an unknown joint, a point or the path between points past an axis's limits (position,
+        max_velocity, max_acceleration: always refused, whatever the policy), NaN or bad times; the cycle judges it
+        again when it takes over, where it may end "refused", nothing moved.
         With `tolerances` (per joint: path position, path velocity, goal position, goal velocity in SI, inf where not
         judged, and the stop deceleration in SI/s²) and `goal_time` (s), the cycle thread judges it as
         FollowJointTrajectory does and `cycle.stop_trajectory` brakes it. Returns its id (see
@@ -369,9 +465,14 @@ class Bus:
             raise CommandError(f"trajectory refused: a joint is named twice in {', '.join(joints)}")
         times_ns = []
         for k, t in enumerate(times):
-            if not math.isfinite(t):
-                raise CommandError(f"trajectory refused: point {k}'s time is {t}, not a finite number of seconds")
+            if not math.isfinite(t) or t < 0:
+                raise CommandError(
+                    f"trajectory refused: point {k}'s time from the start is {t} s; times are finite, increasing "
+                    "seconds after the start (the first > 0)"
+                )
             times_ns.append(round(t * 1e9))
+        if not math.isfinite(goal_time) or goal_time < 0:
+            raise CommandError(f"trajectory refused: goal time {goal_time} s; allowed a finite number of seconds >= 0")
         knots = []
         for k, point in enumerate(points):
             if len(point) != len(axes):
@@ -386,14 +487,7 @@ class Bus:
             ]
         try:
             return self.cycle.play_trajectory(
-                [a.slave for a in axes],
-                times_ns,
-                knots,
-                start_ns,
-                [a.position_limits_counts() for a in axes],
-                counted,
-                round(goal_time * 1e9),
-                names=list(joints),
+                [a.slave for a in axes], times_ns, knots, start_ns, counted, round(goal_time * 1e9), names=list(joints)
             )
         except (_native.ConfigError, OverflowError) as e:
             # The crate's refusal says "trajectory refused, nothing moved: " and why.

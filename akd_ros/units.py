@@ -226,12 +226,15 @@ class Limits:
     """Largest torque (N·m) or, on a linear axis, force (N) magnitude."""
     policy: Policy = "refuse"
     """"clamp" or "refuse"."""
+    max_acceleration: float | None = None
+    """Largest acceleration magnitude (rad/s² or m/s²) of a trajectory or a cyclic position set-point's step, which
+    the cycle judges (`Axis` hands it down); no command is clamped to it."""
 
     def __post_init__(self) -> None:
         for name in ("min_position", "max_position"):
             if getattr(self, name) is not None:
                 _finite(name, getattr(self, name))
-        for name in ("max_velocity", "max_torque"):
+        for name in ("max_velocity", "max_torque", "max_acceleration"):
             if getattr(self, name) is not None:
                 _finite(name, getattr(self, name), positive=True)
         if self.min_position is not None and self.max_position is not None and self.min_position > self.max_position:

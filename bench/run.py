@@ -15,6 +15,8 @@ Sections, in the order they run (sudo or root: roundtrip's and many's veth pairs
   python        the cycle's jitter with busy Python threads and SDO traffic, against idle (cycle_jitter.py)
   line_health   the cycle on six virtual AKDs with the line's links and error counters read beside it and without
                 (line_health.py)
+  cell_devices  the cycle on two virtual AKDs behind an EK1100, an EL1004 and an EL2004, against the two alone
+                (cell_devices.py)
   ros           akd_node: command to wire, cycle to /joint_states, CPU; DDS beside Zenoh; issue 25's goals, with
                 profiles of what misses one (node_ros.py --profile)
   many          akd_node on 16 and 64 AKDs over veth at 250 µs, a million cycles each, waiting and pipelined
@@ -60,6 +62,7 @@ SECTIONS = {
         180,
     ),
     "line_health": (shlex.split("line_health.py --rates 1000,4000 --seconds 4 --rounds 4"), 240),
+    "cell_devices": (shlex.split("cell_devices.py --rates 1000,4000 --seconds 4 --rounds 4"), 240),
     "ros": (["node_ros.py", "--profile"], 1200),
     "many": (shlex.split("node_ros.py --drives 16,64 --drive-pipelined"), 2400),
     "io": (["node_io.py"], 300),
@@ -74,6 +77,7 @@ TITLES = {
     "jitter": "Cycle thread beside cyclictest",
     "python": "Python's cost on the loop",
     "line_health": "The line's counters read beside the cycle, against not",
+    "cell_devices": "Devices beside the drives: the cycle on a cell against the same drives alone",
     "ros": "Through ROS: latencies and the node's CPU, DDS and Zenoh",
     "many": "Through ROS with many drives over veth",
     "io": "The drives' I/O on ROS: the node's CPU with every joint's ~/io and without",

@@ -250,6 +250,8 @@ class Soak:
                 m.request_state("op")
                 before = m.stats()
                 cycle = _native.Cycle(m, self.args.period, realtime=_native.RealTime(priority=self.args.priority))
+                for drive in TRAJECTORY_DRIVES:
+                    cycle.set_joint_limits(drive, f"drive {drive}", (-POSITION_LIMIT, POSITION_LIMIT))
                 break
             except _native.EtherCatError as e:
                 print(f"soak: bring-up attempt {attempt + 1} failed: {e}", flush=True)
@@ -323,7 +325,12 @@ class Soak:
             value = rng.randint(-VELOCITY_LIMIT, VELOCITY_LIMIT)
         else:
             value = rng.randint(-TORQUE_LIMIT, TORQUE_LIMIT)
-        cycle.set_object(drive, index, subindex, _native.encode_value(index, subindex, value))
+        try:
+            cycle.set_object(drive, index, subindex, _native.encode_value(index, subindex, value))
+        except _native.ConfigError:
+            # A drive a trajectory drives takes no set-point until the trajectory ends: refused, nothing written.
+            self.count(self.commands, f"set_point_refused:{mode}")
+            return
         if mode == "profile_position" and cycle.drive_status(drive)["state"] == "Operation enabled":
             cycle.start_setpoint(drive, 0x30)
         self.count(self.commands, f"set_point:{mode}")
@@ -339,12 +346,12 @@ class Soak:
             [(max(-POSITION_LIMIT, min(POSITION_LIMIT, s + rng.randint(-20_000, 20_000))), None, None) for s in start]
             for _ in range(points)
         ]
-        limits = [(-POSITION_LIMIT, POSITION_LIMIT)] * len(TRAJECTORY_DRIVES)
         try:
-            cycle.play_trajectory(TRAJECTORY_DRIVES, times, knots, limits=limits)
+            cycle.play_trajectory(TRAJECTORY_DRIVES, times, knots)
             self.count(self.commands, "trajectory")
         except _native.ConfigError:
-            # A joint not in Operation enabled: refused before anything moved, as it should be.
+            # A joint not in Operation enabled, or a take-over past its limits: refused before anything moved, as it
+            # should be.
             self.count(self.commands, "trajectory_refused")
 
     def sdo_reads(self, stop: threading.Event) -> None:

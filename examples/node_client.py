@@ -28,8 +28,10 @@ spin_until(client, lambda: latest, "/joint_states")
 with enabled(client, NODE):  # every joint in Operation enabled, each holding its actual position; disabled after
     start = latest[-1]
     spin_until(client, lambda: commands.get_subscription_count() > 0, f"subscriber of {NODE}/joint_commands")
-    for step in range(1, 51):  # a ramp of 0.1 rad over half a second
-        targets = [p + 0.1 * step / 50 for p in start.position]
+    # A ramp of 0.1 rad over a second in steps of 1 mrad: the drive takes each step within one 1 ms cycle, and a few
+    # commands delivered at once add up to one step, which must stay within max_velocity (6 mrad a cycle).
+    for step in range(1, 101):
+        targets = [p + 0.1 * step / 100 for p in start.position]
         commands.publish(JointState(name=list(start.name), position=targets))
         time.sleep(0.01)
     target = JointState(name=list(start.name), position=[p + 0.1 for p in start.position])

@@ -70,8 +70,10 @@ print("enable:", trigger("enable"))
 try:
     start = latest[-1]
     targets = [p + 0.1 for p in start.position]
-    for step in range(1, 51):  # a ramp of 0.1 rad over half a second
-        command([p + 0.1 * step / 50 for p in start.position])
+    # A ramp of 0.1 rad over a second in steps of 1 mrad: the drive takes each step within one 1 ms cycle, and a few
+    # commands delivered at once add up to one step, which must stay within max_velocity (6 mrad a cycle).
+    for step in range(1, 101):
+        command([p + 0.1 * step / 100 for p in start.position])
         time.sleep(0.01)
     wait_until(lambda: all(abs(p - t) < 1e-3 for p, t in zip(latest[-1].position, targets, strict=True)), "arrival")
     for name, position in zip(latest[-1].name, latest[-1].position, strict=True):

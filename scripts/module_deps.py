@@ -39,7 +39,7 @@ TOOL = Path(__file__).resolve().parent / "module-deps"
 PYTHON_ROOT = "akd_ros"
 
 RUST_LAYERS: list[set[str]] = [
-    {"wire_code"},
+    {"wire_code", "spelling"},
     # The codecs and the drive's knowledge: pure, no I/O; the master and the virtual AKD both use them. Each raises its
     # own error (frame::FrameError, mailbox::MailboxError, ...). A product's folder holds only declarations.
     {
@@ -55,9 +55,11 @@ RUST_LAYERS: list[set[str]] = [
         "ethercat::foe",
         "ethercat::dc",
         "ethercat::pdo",
+        "ethercat::device",
         "ethercat::link_spec",
         "drive",
         "drive::ds402",
+        "drive::identity",
         "drive::pdo",
         "drive::objects",
         "drive::scaling",
@@ -101,6 +103,7 @@ PYTHON_LAYERS: list[set[str]] = [
     {"units", "privilege", "tap"},
     {"bus"},
     {"axis"},
+    {"device"},
     {"params", "recorder", "eoe_bridge", "zenoh"},
     {"node"},
     {"top", "access"},

@@ -59,9 +59,9 @@ def position_range(axis: Axis, cycles: int) -> tuple[int, int]:
 
 @pytest.fixture
 def axis():
-    with Axis(
-        "sim?missed=lost", limits=Limits(min_position=-100.0, max_position=100.0, max_velocity=50.0, max_torque=2.0)
-    ) as a:
+    # No velocity limit: these tests step position set-points (test_a_position_step_past_a_speed_limit_is_refused
+    # has one).
+    with Axis("sim?missed=lost", limits=Limits(min_position=-100.0, max_position=100.0, max_torque=2.0)) as a:
         yield a
 
 
@@ -191,6 +191,26 @@ def test_bad_commands_are_refused_and_nothing_moves(axis: Axis, command: str, va
     assert axis.cycle.outputs(0) == before, "a refused command reached the set-points"
     low, high = position_range(axis, 100)
     assert high - low <= 1
+
+
+def test_a_position_step_past_a_speed_limit_is_refused_and_a_trajectory_goes_there() -> None:
+    # In interpolated position the drive takes a set-point's step within one cycle (1 ms): 0.1 rad is 100 rad/s.
+    limits = Limits(max_velocity=6.0, max_acceleration=100.0)
+    with Axis("sim?missed=lost", limits=limits) as a:
+        a.enable()
+        start = settled(a)
+        before = a.cycle.outputs(0)
+        with pytest.raises(CommandError, match=r"step of 0\.1\d* rad .* past joint slave_0's max_velocity 6 rad/s"):
+            a.command_position(start.position + 0.1)
+        assert a.cycle.outputs(0) == before, "a refused command reached the set-points"
+        low, high = position_range(a, 100)
+        assert high - low <= 1
+        # Within both limits at 1 ms: 6e-3 rad for the velocity, 1e-4 rad for the acceleration.
+        a.command_position(start.position + 5e-5)
+        wait_for("the small step", lambda: abs(settled(a).position - start.position - 5e-5) < 2 * COUNT)
+        # The same 0.1 rad as a trajectory, at rest at both ends in 0.5 s (a cubic peaks at 0.3 rad/s).
+        a.bus.play_trajectory([a.name], [0.5], [[(start.position + 0.1, 0.0, None)]])
+        wait_for("the trajectory", lambda: abs(settled(a).position - start.position - 0.1) < 2 * COUNT)
 
 
 def test_limits_clamp_when_so_configured() -> None:

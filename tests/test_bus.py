@@ -161,7 +161,7 @@ def test_bus_wide_enable_names_the_drive_whose_hardware_enable_is_low(bus: Bus) 
             {},
             "mode 'spin' is not one of profile_position, .*, cyclic_synchronous_position",
         ),
-        ([DriveConfig(slave=5)], {}, r"slave 5 is not on the bus \(slaves 0..2\)"),
+        ([DriveConfig(slave=5)], {}, r"slave 5 is not on the bus: the line has 3 slaves \(0..2\)"),
         ([DriveConfig(slave=1), DriveConfig(slave=1)], {}, "slave 1 given to several drives"),
         ([DriveConfig(slave=0, name="a"), DriveConfig(slave=1, name="a")], {}, "name a given to several drives"),
         ([DriveConfig(alias=0)], {}, r"station alias 0 is on 3 slave\(s\), not one \(position: alias of each: 0: 0, "),

@@ -217,8 +217,14 @@ def refused(cycle, records, change, why):
     records.wait(20)
     base = records.last_targets()
     times, points, limits = change(*three_points(base), [(-1e9, 1e9)] * 3)
-    with pytest.raises(_native.ConfigError, match=r"^trajectory refused, nothing moved: ") as refused:
-        cycle.play_trajectory(DRIVES, times, points, limits=limits)
+    for joint, (drive, limit) in enumerate(zip(DRIVES, limits, strict=True)):
+        cycle.set_joint_limits(drive, f"joint {joint}", limit)
+    try:
+        with pytest.raises(_native.ConfigError, match=r"^trajectory refused, nothing moved: ") as refused:
+            cycle.play_trajectory(DRIVES, times, points)
+    finally:
+        for joint, drive in enumerate(DRIVES):
+            cycle.set_joint_limits(drive, f"joint {joint}", (None, None))
     assert why.lower() in str(refused.value).lower()
     since = cycle.snapshot()["cycle"]
     records.wait(300)

@@ -50,14 +50,9 @@ def test_each_form_parses_into_its_kind_and_field(spec, kind, count, missed, add
         assert parsed.line is None
 
 
-def test_a_line_with_terminals_is_refused_by_the_master_until_it_takes_them():
-    # The master configures AKDs only so far: it names the line and where such a line runs.
-    with pytest.raises(_native.ConfigError) as refused:
-        _native.Master("sim:ek1100,el1004,akd")
-    message = str(refused.value)
-    assert "the virtual line ek1100,el1004,akd holds terminals" in message and "\n" not in message
-    assert "akd-sim --line ek1100,el1004,akd" in message
-    # The node's parameter check takes it, as a spec; the master is what refuses it today.
+def test_a_line_with_terminals_is_opened_by_the_master_and_taken_by_the_node():
+    with _native.Master("sim:ek1100,el1004,akd?pace=immediate") as master:
+        assert [s["order"] for s in master.scan()] == ["EK1100", "EL1004", "AKD"]
     assert params.check_link("sim:ek1100,el1004,akd") == "sim:ek1100,el1004,akd"
 
 

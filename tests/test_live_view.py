@@ -113,7 +113,7 @@ def viewed(request, ros_domain, tmp_path_factory):
 
 def every_topic() -> set[str]:
     per_joint = {f"{NODE}{j}/{t}" for j in JOINTS for t in ("status", "io", "latch", "fault")}
-    return {"/joint_states", "/diagnostics", f"{NODE}trajectory_status", *per_joint}
+    return {"/joint_states", "/diagnostics", f"{NODE}trajectory_status", f"{NODE}access", *per_joint}
 
 
 def test_the_server_offers_no_capability_and_every_topic_as_a_ros2msg_channel(viewed):
@@ -152,7 +152,10 @@ def test_joint_states_and_diagnostics_arrive_and_decode_against_the_advertised_s
     diagnostics = client.subscribe(channels["/diagnostics"])
     array = client.next_message(channels["/diagnostics"], diagnostics)
     statuses = {s.name: s for s in array.status}
-    assert set(statuses) == {"akd_node: joint_1", "akd_node: joint_2", "akd_node: bus"}, statuses
+    # Each joint's and the bus's status; the line's (its links and error counters) once they were first read.
+    joints_and_bus = {"akd_node: joint_1", "akd_node: joint_2", "akd_node: bus"}
+    assert joints_and_bus <= set(statuses), statuses
+    assert all(name.startswith("akd_node: line") for name in set(statuses) - joints_and_bus), statuses
     values = {v.key: v.value for v in statuses["akd_node: bus"].values}
     assert "lost_frames" in values and values["joints"] == "joint_1, joint_2", values
 

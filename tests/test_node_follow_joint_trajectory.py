@@ -62,17 +62,11 @@ class Mover(Participant):
     def send(self, goal: FollowJointTrajectory.Goal):
         """Sends `goal`; its accepted goal handle."""
         self.spin_until(lambda: self.client.server_is_ready(), "~/follow_joint_trajectory action server")
-        sent = self.client.send_goal_async(goal, feedback_callback=lambda f: self.feedback.append(f.feedback))
-        self.spin_until(sent.done, "goal response")
-        handle = sent.result()
-        assert handle.accepted
-        return handle
+        return self.send_goal(self.client, goal, lambda f: self.feedback.append(f.feedback))
 
     def result(self, handle, timeout: float = 20.0):
         """(goal status, result) of `handle` once it ends."""
-        result = handle.get_result_async()
-        self.spin_until(result.done, "trajectory result", timeout=timeout)
-        return result.result().status, result.result().result
+        return self.goal_result(handle, timeout)
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,6 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from akd_ros.msg import DriveIO
-from akd_ros.srv import SetOutputs
 from support.ros import COUNTS_PER_RAD, Participant, module_domain, node_on_sim
 
 DOMAINS = range(84, 90)
@@ -103,28 +102,7 @@ class Client(Participant):
 
     def status(self, joint: str, done, what: str) -> DiagnosticStatus:
         """The first /diagnostics status of `joint` from now on for which `done(status)`."""
-        seen = len(self.received["/diagnostics"])
-        name = f"akd_node: {joint}"
-
-        def found():
-            for array in self.received["/diagnostics"][seen:]:
-                for status in array.status:
-                    if status.name == name and done(status):
-                        return status
-            return None
-
-        self.spin_until(found, what)
-        return found()
-
-    def set_outputs(self, joint: str, outputs=(), values=(), analog: float | None = None) -> SetOutputs.Response:
-        request = SetOutputs.Request(
-            joint=joint,
-            outputs=list(outputs),
-            values=list(values),
-            set_analog_output=analog is not None,
-            analog_output=0.0 if analog is None else analog,
-        )
-        return self.call(SetOutputs, "set_outputs", request)
+        return super().status(f"akd_node: {joint}", done, what)
 
     def trigger(self, name: str) -> Trigger.Response:
         return self.call(Trigger, name)

@@ -27,10 +27,14 @@ REFUSED_AT_CONFIGURE = {
     "a joint past the last drive",
     "mode the mapping cannot carry",
     "a line with no drives listening",
+    "a device of another product than the line's",
+    "a device's product unknown to the line",
+    "a device past the end of the line",
+    "a joint where the line has a terminal",
 }
 """Bad files of BAD_FILES that the parameters' checks pass: the node refuses them at configure, when the Bus opens
-(a slave that is not on the bus, a line where nothing answers) or when it checks each joint's mode against its
-drive's mapping."""
+(a slave that is not on the bus or not what the file expects, a line where nothing answers) or when it checks each
+joint's mode against its drive's mapping."""
 # What the package and the node's parameters need without ROS, checked where ROS cannot be imported.
 IMPORTS_WITHOUT_ROS = """
 import sys
@@ -54,7 +58,10 @@ COMPOSED = {
         ["counts_per_revolution", "gear_ratio", "direction", "offset", "axis", "lead", "peak_torque"],
         "JointSettings.units",
     ),
-    **{f"limits.{n}": "JointSettings.limits" for n in ("min_position", "max_position", "max_velocity", "max_torque")},
+    **{
+        f"limits.{n}": "JointSettings.limits"
+        for n in ("min_position", "max_position", "max_velocity", "max_torque", "max_acceleration")
+    },
     "limits.policy": "JointSettings.limits",
     "mapping.rx": "JointSettings.mapping",
     "mapping.tx": "JointSettings.mapping",

@@ -139,6 +139,31 @@ def test_direct_link_shows_the_line_and_names_a_faulty_cable():
         source.close()
 
 
+async def cell_scenario(source: DirectSource) -> None:
+    app = Top(source, refresh_s=0.05)
+    async with app.run_test(size=(200, 60)) as pilot:
+        await until(pilot, lambda: app.device_table.row_count == 3, "a row per device")
+        assert app.table.row_count == 1 and shown(app, "slave_3", "state") == "Switch on disabled"
+        cells = {c: app.device_table.get_cell("el1004_1", c).plain for c in ("slave", "product", "inputs", "outputs")}
+        assert cells == {"slave": "1", "product": "EL1004", "inputs": "0000", "outputs": "-"}, cells
+        assert app.device_table.get_cell("ek1100_0", "inputs").plain == "-"
+        source.bus.simulator.set_input(1, 2, True)
+        await until(pilot, lambda: app.device_table.get_cell("el1004_1", "inputs").plain == "0100", "input 2 high")
+        source.bus.device("el2004_2").set_outputs({"channel_4_output": True})
+        await until(pilot, lambda: app.device_table.get_cell("el2004_2", "outputs").plain == "0001", "output 4 on")
+        assert app.device_table.get_cell("el2004_2", "message").plain == "EL2004 in Op"
+        await pilot.press("q")
+
+
+def test_direct_link_on_a_cell_shows_its_devices_channels():
+    # Before akd-top took the other slaves as devices, a line with terminals was refused (slave 0 is an EK1100).
+    source = DirectSource("sim:ek1100,el1004,el2004,akd?missed=lost", period=0.004)
+    try:
+        asyncio.run(cell_scenario(source))
+    finally:
+        source.close()
+
+
 def test_help_and_a_bad_link_are_one_line():
     result = subprocess.run(
         [*console_script("akd-top"), "--help"], capture_output=True, text=True, timeout=60, check=False

@@ -374,7 +374,8 @@ def main(argv: list[str] | None = None) -> int:
         where = f"udp {args.udp}" if args.udp else f"interface {args.iface}"
 
         def on_start(simulator) -> None:
-            # Said once the line is made: a line that cannot be made is said instead.
+            # Said once the socket is bound and the line made, so that a client that waits for this line finds the
+            # simulator there; a socket or a line that cannot be made is said instead.
             print(f"akd-sim: starting {drives} on {where}", flush=True)
             start_commands(simulator)
 

@@ -191,7 +191,8 @@ class Commands:
                 axis = self._node_state.bus[joint]
             else:
                 axis = self._node_state.axis_for_request(joint)
-            getattr(axis, request)()
+            if getattr(axis, request)() is False:
+                return True, f"no fault to reset: the drive of {joint} is in {axis.state().state}; left as it was"
         except AXIS_ERRORS as e:
             return False, f"{failed}: {e}"
         return True, done
@@ -204,11 +205,15 @@ class Commands:
         try:
             if bus is None or (request != "disable" and not self._node_state.active):
                 bus = self._node_state.bus_for_request()
-            getattr(bus, request)()
+            reset = getattr(bus, request)()
         except BusRequestError as e:
             why = "; ".join(f"joint {joint}: {reason}" for joint, reason in e.failed.items())
             return False, f"{failed}: {why}; done: {', '.join(e.done) or 'none'}"
         except AXIS_ERRORS as e:
             return False, f"{failed}: {e}"
-        joints = ", ".join(bus.names)
-        return True, f"{joints}: {done}" if self._settings.joint_namespaces else done
+        joints = bus.names if request != "reset_fault" else reset
+        if not joints:
+            return True, "no fault to reset: no drive is in Fault; every drive left as it was"
+        others = [name for name in bus.names if name not in joints]
+        untouched = f"; no fault on {', '.join(others)}, left as they were" if others else ""
+        return True, (f"{', '.join(joints)}: {done}" if self._settings.joint_namespaces else done) + untouched

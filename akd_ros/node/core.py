@@ -26,6 +26,9 @@ from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 from akd_ros.tap import Tap
 
+# How long a closing node waits for its action goals to end (a trajectory braking, a homing halting).
+_GOALS_END_S = 10.0
+
 
 class Core:
     """A bus of AKD joints as a node, over `transport` (see `akd_ros.node`): its parts and its transitions, each of
@@ -89,18 +92,22 @@ class Core:
         return False
 
     def _where(self) -> str:
-        """The joints and where they are, for the log."""
+        """The joints and where they are, and the devices, for the log."""
         s = self.settings
         if not s.joint_namespaces:
             j = s.joints[0]
-            return f"slave {j.slave}" if j.alias is None else f"alias {j.alias}"
-        return ", ".join(
-            f"{j.name} (slave {j.slave})" if j.alias is None else f"{j.name} (alias {j.alias})" for j in s.joints
-        )
+            where = f"slave {j.slave}" if j.alias is None else f"alias {j.alias}"
+        else:
+            where = ", ".join(
+                f"{j.name} (slave {j.slave})" if j.alias is None else f"{j.name} (alias {j.alias})" for j in s.joints
+            )
+        devices = ", ".join(f"{d.name} (slave {d.slave}{f', {d.product}' if d.product else ''})" for d in s.devices)
+        return f"{where}; devices {devices}" if devices else where
 
     def configure(self) -> bool:
         """Opens the Bus: the line to Op and the cycle thread running, every drive disabled; with eoe.tap, the EoE
         bridge; with live_view.port, first the live view."""
+        self._node_state.goals.open()
         if self._live_view is not None:
             try:
                 self._live_view.open()
@@ -133,7 +140,7 @@ class Core:
         # What each mapping carries of the drive's I/O, known from the parameters before the bus is touched.
         self._logger.info("I/O the mappings carry: " + "; ".join(f"{j.name}: {j.describe_io()}" for j in s.joints))
         try:
-            bus = Bus(s.link, [j.drive() for j in s.joints], **s.bus_options())
+            bus = Bus(s.link, [j.drive() for j in s.joints], devices=[d.device() for d in s.devices], **s.bus_options())
         except AXIS_ERRORS as e:
             return self._fail(f"configure: the drives ({self._where()}) on link {s.link!r} did not open: {e}")
         for joint, axis in zip(s.joints, bus.axes, strict=True):
@@ -151,9 +158,16 @@ class Core:
                 self._logger.warning(f"parameter {prefix}command_timeout: not watched: {e}")
         for warning in bus.warnings:
             self._logger.warning(f"configure: not permitted: {warning}")
+        if bus.unnamed:
+            found = ", ".join(f"{p} ({bus.slaves[p].get('order') or bus.slaves[p]['name']})" for p in bus.unnamed)
+            self._logger.warning(
+                f"configure: slaves in Op that the parameters name neither as a joint nor as a device, their outputs "
+                f"off: {found}; name them under devices to see and set them"
+            )
         if s.record is not None:
             topics = [(p.topic_name, p.msg_type, p.qos) for p in self._publishing.publishers()]
             topics += [(p.topic_name, p.msg_type, p.qos) for p in self._io.publishers.values()]
+            topics += [(p.topic_name, p.msg_type, p.qos) for p in self._io.device_publishers.values()]
             topics += [
                 (p.topic_name, p.msg_type, p.qos) for p in (self._diagnostics.publisher, self._trajectories.status)
             ]
@@ -204,17 +218,30 @@ class Core:
         return True
 
     def deactivate(self) -> None:
-        """Stops publishing and accepting commands and disables the drives."""
+        """Stops publishing and accepting commands, disables the drives and switches the devices' outputs off."""
         self._node_state.active = False
         self._publishing.set_active(False)
         ok, message = self._commands.request_all("disable")
         if not ok:
             self._logger.error(f"deactivate: {message}")
+        bus = self._node_state.bus
+        for device in bus.devices if bus is not None else ():
+            try:
+                device.outputs_off()
+            except AXIS_ERRORS as e:
+                self._logger.error(f"deactivate: the outputs of device {device.name} were not switched off: {e}")
+
+    def end_goals(self) -> None:
+        """Ends every action goal executing, each with its result: their motions stopped (trajectories braked to a
+        standstill, homings halted), before the bus they run on closes; waits for them, up to _GOALS_END_S."""
+        if not self._node_state.goals.close(_GOALS_END_S):
+            self._logger.warning(f"closing: some action goals had not ended after {_GOALS_END_S:g} s")
 
     def close(self) -> None:
-        """Stops publishing, disables the drives and returns the line to Init, and closes the live view (does nothing
-        when not configured)."""
+        """Ends the action goals executing, stops publishing, disables the drives and returns the line to Init, and
+        closes the live view (does nothing when not configured)."""
         node_state = self._node_state
+        self.end_goals()
         node_state.active = False
         self._publishing.stop()
         with node_state.lock:

@@ -13,6 +13,11 @@ values carry the link, the cycle statistics and the distributed clocks. One coun
 8.5 periods or more with a drive enabled), is also logged as a warning when it grows: a real AKD raises F125 there,
 virtual AKDs with `missed=warn` go on (docs/virtual_akd.md).
 
+Each device beside the drives (`devices`) has a status too (`akd_node: <device>`, hardware id naming what it is and
+where): ERROR while it is unreachable and being brought back, WARN when its inputs are not fresh, OK otherwise; its
+values carry every channel, inputs as read and outputs as sent (a bit "high" or "low"), its recovery and its last loss.
+The bus is ERROR while a device is lost, as while a joint is.
+
 The line's links and error counters, as the reads beside the cycle found them, follow in statuses the crate makes
 (`Bus.line_diagnostics`, docs/reference/diagnostics.md): `akd_node: line`, naming the worst place (ERROR while a link
 is down, WARN while errors or lost links were counted in the last 10 s), and `akd_node: line slave N` for each slave,
@@ -126,6 +131,12 @@ class Diagnostics:
         ios = bus.io()
         statuses = [self._joint_status(bus[j], state, dc_status, recovery[j], ios[j]) for j, state in states.items()]
         lost = [joint for joint, r in recovery.items() if r["recovering"]]
+        device_ios = bus.devices_io()
+        for device in bus.devices:
+            device_recovery = device.recovery()
+            statuses.append(self._device_status(device, device_ios[device.name], device_recovery))
+            if device_recovery["recovering"]:
+                lost.append(device.name)
         statuses.append(self._bus_status(bus, states, stats, counters, grown, dc_status, lost))
         statuses += [(level, f"{self._node_name}: {what}", *rest) for level, what, *rest in bus.line_diagnostics()]
         # The message's body is the crate's to make: no message object per key and value.
@@ -185,6 +196,34 @@ class Diagnostics:
         hardware_id = f"AKD slave {axis.slave} serial {axis.serial_number} on {self._settings.link}"
         return self._status_message(level, axis.name, summary, hardware_id, values)
 
+    def _device_status(self, device, io, recovery: dict) -> tuple:
+        """The status of one device: its channels, its recovery and its last loss or return."""
+        fault = self._publishing.last_device_fault.get(device.name)
+        if recovery["recovering"]:
+            level = self._error
+            why = f": {recovery['last_error']}" if recovery["last_error"] else ""
+            summary = f"unreachable, being brought back (attempt {recovery['attempts']}{why}), its outputs off"
+        elif not io.fresh:
+            level, summary = self._warn, "the last frame did not come back: its inputs are the last good ones"
+        else:
+            level, summary = self._ok, f"{device.product} in Op"
+
+        def shown(value) -> str:
+            return ("high" if value else "low") if isinstance(value, bool) else str(value)
+
+        values = {
+            "device": device.name,
+            "slave": device.slave,
+            "product": device.product,
+            **{f"input {name}": shown(value) for name, value in io.inputs.items()},
+            **{f"output {name}": shown(value) for name, value in io.outputs.items()},
+            "recovering": recovery["recovering"],
+            "recoveries": recovery["recoveries"],
+            "last_event": "none" if fault is None else fault.describe(),
+        }
+        hardware_id = f"{device.product} ({device.description}) slave {device.slave} on {self._settings.link}"
+        return self._status_message(level, device.name, summary, hardware_id, values)
+
     def _bus_status(self, bus, states, stats: dict, counters: dict, grown: list, dc_status: dict, lost: list) -> tuple:
         """The status of the bus: the link, the cycle's counters and timing, distributed clocks, the joints' worst."""
         faulted = [j for j, s in states.items() if s.state in FAULT_STATES]
@@ -205,6 +244,7 @@ class Diagnostics:
         values = {
             "link": self._settings.link,
             "joints": ", ".join(bus.names),
+            **({"devices": ", ".join(d.name for d in bus.devices)} if bus.devices else {}),
             "fault_reaction": bus.fault_reaction,
             "cycle_time_s": f"{self._settings.cycle_time:.6g}",
             "frames": frames,

@@ -4,16 +4,22 @@ and motion scripts speak: the second door to the cycle thread's trajectories (th
 
 A goal is checked whole before anything moves; a bad one ends ABORTED with control_msgs' error_code (INVALID_JOINTS for
 an unknown joint, OLD_HEADER_TIMESTAMP for a trajectory over before it arrived, INVALID_GOAL for the rest: no points,
-times that do not increase, NaN, a point past a limit, a joint not enabled in a position mode or not homed where
-homing.required) and an error_string saying why. Tolerances per joint: a goal's value above 0 is used, 0 takes the
-joint's constraints.* parameter, below 0 means not judged (as joint_trajectory_controller); accelerations are not
-judged (the drive reports none). The cycle thread ends the trajectory: done (SUCCEEDED), past a path tolerance
-(PATH_TOLERANCE_VIOLATED, after braking the joints to a standstill), outside the goal tolerance after the goal time
-(GOAL_TOLERANCE_VIOLATED), a drive leaving Operation enabled (ABORTED, PATH_TOLERANCE_VIOLATED: the path cannot be
-followed, naming the joint), replaced by a newer goal or trajectory (ABORTED; the newer one took over from the
-set-point in force without a step). A cancel brakes every joint from its set-point at its trajectory.stop_deceleration,
-then CANCELED. Feedback (desired, actual, error of each joint, the desired being the set-point the actual values
-follow) at follow_joint_trajectory.feedback_rate.
+times that are negative or do not increase, NaN, a point or the path between points past a joint's limits (position,
+limits.max_velocity, limits.max_acceleration, judged by the crate on the interpolated path), a joint not enabled in a
+position mode, being homed, or not homed where homing.required, a bad tolerance) and an error_string saying why.
+Tolerances per joint: a goal's value above 0 is used, 0 takes the joint's constraints.* parameter, -1 means not judged
+(as control_msgs says); NaN and other negative values are refused; accelerations are not judged (the drive reports
+none). The cycle thread ends the trajectory: done (SUCCEEDED), past a path tolerance (PATH_TOLERANCE_VIOLATED, after
+braking the joints to a standstill), outside the goal tolerance after the goal time (GOAL_TOLERANCE_VIOLATED), a drive
+leaving Operation enabled, also before the trajectory's start (ABORTED, PATH_TOLERANCE_VIOLATED: the path cannot be
+followed, naming the joint), replaced by a newer goal or trajectory (ABORTED, INVALID_GOAL, as
+joint_trajectory_controller answers a preempted goal; the newer one took over from the set-point in force without a
+step), refused when it was to start because from the set-points then in force a joint would go past its limits, or a
+joint of the trajectory in force that it does not drive was still moving (ABORTED, INVALID_GOAL, nothing moved). A
+cancel brakes every joint from its set-point at its trajectory.stop_deceleration, then CANCELED; a goal still waiting
+for its start ends CANCELED at once. A node that closes brakes every goal's joints and ends it ABORTED before its bus
+goes. Feedback (desired, actual, error of each joint, the desired being the set-point the actual values follow) at
+follow_joint_trajectory.feedback_rate.
 """
 
 from __future__ import annotations
@@ -25,12 +31,14 @@ from akd_ros.axis import CommandError
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState
-from akd_ros.node.trajectories import Trajectories
+from akd_ros.node.trajectories import Trajectories, ended_before
 from akd_ros.node.transports.transport import ActionCallbacks, Transport
 
 FOLLOW_JOINT_TRAJECTORY = "control_msgs/action/FollowJointTrajectory"
 # How long past its end plus goal time a trajectory may take to be reported over before the goal gives up on it.
 _END_MARGIN_S = 5.0
+# control_msgs' INVALID_GOAL, for the tolerances checked before the action's class is at hand.
+_INVALID_GOAL = -1
 
 
 class _RefusedError(Exception):
@@ -41,8 +49,11 @@ class _RefusedError(Exception):
         self.code = code
 
 
-def _tolerance(given: float, default: float) -> float:
-    """A goal's tolerance (> 0: it; 0: `default`; < 0: not judged) as the cycle thread takes it (inf: not judged)."""
+def _tolerance(given: float, default: float, what: str) -> float:
+    """A goal's tolerance `what` (> 0: it; 0: `default`, itself not judged where 0; -1: not judged, as control_msgs
+    says) as the cycle thread takes it (inf: not judged); _RefusedError for NaN or another negative value."""
+    if math.isnan(given) or (given < 0 and given != -1):
+        raise _RefusedError(_INVALID_GOAL, f"{what} {given}; allowed > 0, 0 (the joint's default) or -1 (not judged)")
     value = default if given == 0 else given
     return math.inf if value <= 0 or not math.isfinite(value) else value
 
@@ -63,14 +74,22 @@ class FollowJointTrajectory:
         )
 
     def _execute(self, handle):
-        try:
-            identifier, joints, axes, end_s = self._start(handle.request)
-        except _RefusedError as e:
-            self._logger.warning(f"~/follow_joint_trajectory: goal refused, nothing moved: {e}")
-            handle.abort()
-            return self._action.Result(error_code=e.code, error_string=f"goal refused, nothing moved: {e}")
-        self._logger.info(f"~/follow_joint_trajectory: trajectory {identifier} of {', '.join(joints)}")
-        return self._follow(handle, identifier, joints, axes, end_s)
+        with self._node_state.goals.running():
+            try:
+                identifier, joints, axes, end_s = self._start(handle.request)
+            except _RefusedError as e:
+                self._logger.warning(f"~/follow_joint_trajectory: goal refused, nothing moved: {e}")
+                handle.abort()
+                return self._action.Result(error_code=e.code, error_string=f"goal refused, nothing moved: {e}")
+            self._logger.info(f"~/follow_joint_trajectory: trajectory {identifier} of {', '.join(joints)}")
+            try:
+                return self._follow(handle, identifier, joints, axes, end_s)
+            except (CommandError, *AXIS_ERRORS) as e:
+                # The bus went away under the goal (a cleanup): its trajectory went with it.
+                text = f"aborted: the trajectory could no longer be followed: {e}"
+                self._logger.error(f"~/follow_joint_trajectory: trajectory {identifier}: {text}")
+                handle.abort()
+                return self._action.Result(error_code=self._action.Result.PATH_TOLERANCE_VIOLATED, error_string=text)
 
     def _start(self, goal):
         """Checks `goal` whole and hands its trajectory to the cycle thread: (id, joints, axes, the monotonic time in s
@@ -96,21 +115,28 @@ class FollowJointTrajectory:
             raise _RefusedError(codes.INVALID_GOAL, str(e)) from None
         tolerances = self._tolerances(goal, [by_name[name] for name in joints])
         given_goal_time = goal.goal_time_tolerance.sec + goal.goal_time_tolerance.nanosec * 1e-9
+        if given_goal_time < 0:
+            raise _RefusedError(
+                codes.INVALID_GOAL,
+                f"goal_time_tolerance {given_goal_time:g} s; allowed >= 0 s (0: constraints.goal_time)",
+            )
         goal_time = given_goal_time or node_state.settings.constraints_goal_time
         clock = node_state.clock
         stamp_ns = nanoseconds(trajectory.header.stamp)
         start_ns = None if stamp_ns == 0 else stamp_ns - clock.ros_minus_monotonic_ns()
-        now_ns = time.monotonic_ns()
-        if start_ns is not None and start_ns + round(times[-1] * 1e9) < now_ns:
+        if (late := ended_before(start_ns, times[-1])) is not None:
             raise _RefusedError(
                 codes.OLD_HEADER_TIMESTAMP,
-                f"the trajectory ends {(now_ns - start_ns) * 1e-9 - times[-1]:.3f} s before it arrived (header.stamp "
-                f"{stamp_ns} ns plus its last time_from_start); stamp 0 means on arrival",
+                f"the trajectory ends {late:.3f} s before it arrived (header.stamp {stamp_ns} ns plus its last "
+                "time_from_start); stamp 0 means on arrival",
             )
+        now_ns = time.monotonic_ns()
         end_s = (max(start_ns or now_ns, now_ns) * 1e-9) + times[-1] + goal_time + _END_MARGIN_S
         try:
             with node_state.lock:
                 bus = node_state.bus_for_request()
+                if node_state.goals.closing:
+                    raise CommandError("the node is shutting down")
                 if why := unhomed_refusal(node_state, joints):
                     raise CommandError(why)
                 identifier = bus.play_trajectory(joints, times, points, start_ns, tolerances, goal_time)
@@ -128,12 +154,19 @@ class FollowJointTrajectory:
         result = []
         for joint in joints:
             p, g = path.get(joint.name), at_goal.get(joint.name)
+            name = joint.name
             result.append(
                 (
-                    _tolerance(p.position if p else 0.0, joint.constraints_trajectory),
-                    _tolerance(p.velocity if p else 0.0, 0.0),
-                    _tolerance(g.position if g else 0.0, joint.constraints_goal),
-                    _tolerance(g.velocity if g else 0.0, joint.constraints_stopped_velocity_tolerance),
+                    _tolerance(
+                        p.position if p else 0.0, joint.constraints_trajectory, f"path_tolerance of {name}: position"
+                    ),
+                    _tolerance(p.velocity if p else 0.0, 0.0, f"path_tolerance of {name}: velocity"),
+                    _tolerance(g.position if g else 0.0, joint.constraints_goal, f"goal_tolerance of {name}: position"),
+                    _tolerance(
+                        g.velocity if g else 0.0,
+                        joint.constraints_stopped_velocity_tolerance,
+                        f"goal_tolerance of {name}: velocity",
+                    ),
                     joint.trajectory_stop_deceleration,
                 )
             )
@@ -145,7 +178,7 @@ class FollowJointTrajectory:
         period = 1.0 / node_state.settings.follow_joint_trajectory_feedback_rate
         stopping = False
         while True:
-            if handle.is_cancel_requested and not stopping:
+            if (handle.is_cancel_requested or node_state.goals.closing) and not stopping:
                 stopping = True
                 axes[0].bus.cycle.stop_trajectory(identifier)
             with node_state.lock:
@@ -189,7 +222,10 @@ class FollowJointTrajectory:
             text = "canceled: the joints were brought to a standstill"
             handle.canceled()
         else:
-            if state == "stopped":
+            if state == "stopped" and self._node_state.goals.closing:
+                code = codes.PATH_TOLERANCE_VIOLATED
+                text = "aborted: the node is shutting down; the joints were brought to a standstill"
+            elif state == "stopped":
                 code = codes.GOAL_TOLERANCE_VIOLATED
                 text = "the trajectory did not end in time; the joints were stopped"
             elif state in ("path_tolerance_violated", "goal_tolerance_violated"):
@@ -212,8 +248,14 @@ class FollowJointTrajectory:
                 code = codes.PATH_TOLERANCE_VIOLATED
                 text = f"aborted: the drive of {name} left Operation enabled ({status['ds402_state']}); the others hold"
             elif state == "replaced":
+                # As joint_trajectory_controller answers a goal a newer one preempted.
+                code = codes.INVALID_GOAL
                 text = f"preempted: trajectory {status['replaced_by']} took over from the set-point in force"
+            elif state == "refused":
+                code = codes.INVALID_GOAL
+                text = f"refused when it was to start, nothing moved: {status['reason']}"
             else:
+                code = codes.INVALID_GOAL
                 text = f"the trajectory ended {state}"
             handle.abort()
         if code == codes.SUCCESSFUL:

@@ -9,10 +9,16 @@ from the start. Joints of one goal home together or one after the other (homing.
 joint's homing state from its statusword (bits 13, 12, 10) and position at 10 Hz, the result each joint's outcome and,
 for a failure, its statusword, its drive's error code and why. A cancel halts the homings under way; the drives stay
 enabled, still.
+
+A goal succeeds only when it homed every joint it names: a joint it could not start (not in Operation enabled, driven
+by a trajectory, homed by another goal's homing), a canceled or failed one makes it fail, whatever the joint's homed
+state was before. A goal naming a joint twice, or a joint another goal homes, is refused before anything moves. A node
+that closes cancels the homings under way and ends each goal with its result before the bus goes.
 """
 
 from __future__ import annotations
 
+import threading
 import time
 
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState
@@ -54,26 +60,56 @@ class Homing:
 
     def __init__(self, transport: Transport, node_state: NodeState, group) -> None:
         self._node_state, self._logger = node_state, transport.logger
+        # The joints the goals executing home: a joint is homed by one goal at a time.
+        self._homing: set[str] = set()
+        self._homing_lock = threading.Lock()
         # None where the transport serves no action; then nothing here runs.
         self._action = transport.action_server(
             HOME, "~/home", ActionCallbacks(goal=lambda goal: True, execute=self._execute, cancel=lambda h: True), group
         )
 
     def _execute(self, handle):
-        goal_joints = list(handle.request.joints)
+        with self._node_state.goals.running():
+            try:
+                joints = self._claim(list(handle.request.joints))
+            except _RefusedError as e:
+                handle.abort()
+                self._logger.warning(f"~/home: homing refused, nothing moved: {e}")
+                return self._action.Result(success=False, message=f"homing refused, nothing moved: {e}")
+            try:
+                return self._home(handle, joints)
+            finally:
+                with self._homing_lock:
+                    self._homing.difference_update(joints)
+
+    def _claim(self, goal_joints: list[str]) -> list[str]:
+        """The joints `goal_joints` names (every joint when none), now this goal's; _RefusedError for a node that is not
+        active or closing, an unknown joint, a joint named twice or homed by another goal."""
         node_state = self._node_state
-        with node_state.lock:
-            bus = node_state.bus if node_state.active else None
         joints = goal_joints or [j.name for j in node_state.joints]
-        unknown = [name for name in joints if name not in {j.name for j in node_state.joints}]
-        if bus is None or unknown:
-            why = (
-                "the node is not active (activate it first)"
-                if bus is None
-                else f"unknown joint {', '.join(unknown)} (joints: {', '.join(j.name for j in node_state.joints)})"
-            )
-            handle.abort()
-            return self._action.Result(success=False, message=f"homing refused: {why}")
+        known = [j.name for j in node_state.joints]
+        unknown = [name for name in joints if name not in known]
+        twice = sorted({name for name in joints if joints.count(name) > 1})
+        with node_state.lock:
+            active = node_state.bus is not None and node_state.active and not node_state.goals.closing
+        if not active:
+            raise _RefusedError("the node is not active (activate it first)")
+        if unknown:
+            raise _RefusedError(f"unknown joint {', '.join(unknown)} (joints: {', '.join(known)})")
+        if twice:
+            raise _RefusedError(f"{', '.join(twice)} named twice; name each joint once")
+        with self._homing_lock:
+            taken = [name for name in joints if name in self._homing]
+            if taken:
+                raise _RefusedError(
+                    f"{', '.join(taken)} already homed by another goal; cancel it or wait for its result"
+                )
+            self._homing.update(joints)
+        return joints
+
+    def _home(self, handle, joints: list[str]):
+        node_state = self._node_state
+        bus = node_state.bus
         settings = {j.name: j for j in node_state.joints}
         runs = {name: _Run(settings[name], bus[name]) for name in joints}
         order = [[*joints]] if node_state.settings.homing_sequence == "together" else [[name] for name in joints]
@@ -81,22 +117,30 @@ class Homing:
             for name in batch:
                 runs[name].start()
             self._follow(handle, runs, batch)
-            if node_state.settings.homing_sequence == "one_by_one" and not all(runs[n].homed for n in batch):
+            if node_state.settings.homing_sequence == "one_by_one" and not all(runs[n].attained for n in batch):
                 break
         for run in runs.values():
             run.finish()
-        failed = [f"{name}: {run.outcome}, {run.reason}" for name, run in runs.items() if not run.homed]
+        # Success means every joint named homed by this goal: a joint refused, canceled or failed is not, whatever
+        # it was before.
+        failed = [f"{name}: {run.outcome}, {run.reason}" for name, run in runs.items() if not run.attained]
         success = not failed
         message = "homed: " + ", ".join(joints) if success else "not homed: " + "; ".join(failed)
-        if handle.is_cancel_requested:
+        if node_state.goals.closing:
+            message = f"the node is shutting down; {message}"
+        # Asked before the goal ends: a goal ended canceled no longer reports the request.
+        canceled = handle.is_cancel_requested
+        if canceled:
             handle.canceled()
         elif success:
             handle.succeed()
         else:
             handle.abort()
-        # rclpy's logger takes one severity per call site.
+        # rclpy's logger takes one severity per call site; a cancel is what the client asked for, no error.
         if success:
             self._logger.info(f"~/home: {message}")
+        elif canceled:
+            self._logger.info(f"~/home: canceled; {message}")
         else:
             self._logger.error(f"~/home: {message}")
         return self._action.Result(
@@ -111,14 +155,16 @@ class Homing:
         )
 
     def _follow(self, handle, runs: dict, batch: list[str]) -> None:
-        """Publishes feedback until every homing of `batch` ended; cancels them when the goal is canceled."""
+        """Publishes feedback until every homing of `batch` ended; cancels them when the goal is canceled or the node
+        closes."""
         canceled = False
         while True:
-            if handle.is_cancel_requested and not canceled:
+            if (handle.is_cancel_requested or self._node_state.goals.closing) and not canceled:
                 canceled = True
                 for name in batch:
                     runs[name].cancel()
-            ended = all(runs[name].poll() for name in batch)
+            # Every joint's status, each polled: the feedback shows each as it is.
+            ended = [runs[name].poll() for name in runs]
             handle.publish_feedback(
                 self._action.Feedback(
                     joints=list(runs),
@@ -127,9 +173,13 @@ class Homing:
                     homed=[run.homed for run in runs.values()],
                 )
             )
-            if ended:
+            if all(done for name, done in zip(runs, ended, strict=True) if name in batch):
                 return
             time.sleep(FEEDBACK_PERIOD_S)
+
+
+class _RefusedError(Exception):
+    """A homing goal refused before anything moved."""
 
 
 class _Run:
@@ -143,6 +193,11 @@ class _Run:
         self.position = axis.state().position
         self._request: int | None = None
         self._deadline = 0.0
+
+    @property
+    def attained(self) -> bool:
+        """Whether this goal homed the joint (homing attained, or homing.method 'none')."""
+        return self.outcome == "attained"
 
     def start(self) -> None:
         if self.joint.homing_method == "none":

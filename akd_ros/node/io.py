@@ -1,5 +1,6 @@
 """The drives' own I/O on ROS: each joint's ~/io (akd_ros/DriveIO), ~/set_outputs (akd_ros/SetOutputs), and what
-/diagnostics says of a drive's I/O (`reasons`).
+/diagnostics says of a drive's I/O (`reasons`); and the devices' beside them: each device's ~/<device>/io
+(akd_ros/DeviceIO), its outputs set through the same ~/set_outputs, whose `joint` then names the device.
 
 ~/io (~/<joint>/io on a node of joints) carries the digital inputs with the CiA 402 switches, the hardware enable as
 the drive shows it, the analog input, and the outputs as last sent, with the names io.inputs and io.outputs give them.
@@ -12,6 +13,11 @@ wakes for them at publication rates or at the change, never per cycle, and both 
 ~/set_outputs writes one joint's digital outputs (by name or by the AKD's number) and analog output set-point into the
 next cycle's process image, never by SDO. A request is checked whole first and refused with one line that names the
 problem and what is allowed, changing nothing.
+
+A device's ~/<device>/io carries every channel of its process data by name (its SII's, in snake case), inputs as read
+and outputs as sent, each as a number (a bit 0 or 1): made by the crate at io_rate and once more at each change of
+its inputs of one bit, from the cycle thread's event of it, as a joint's is. ~/set_outputs with `joint` naming a device
+sets its output channels of one bit by name (`outputs`, `values`), every one or none.
 """
 
 from __future__ import annotations
@@ -71,14 +77,44 @@ class Io:
             for j in node_state.joints
         }
         """Each joint's ~/io publisher, by its name."""
+        self._devices = {d.name: d for d in node_state.settings.devices}
+        self.device_publishers = {
+            d.name: RecordedPublisher(transport, "akd_ros/msg/DeviceIO", f"~/{d.name}/io", qos, node_state)
+            for d in node_state.settings.devices
+        }
+        """Each device's ~/<device>/io publisher, by its name."""
         publishing.publish_drive_io(self.publishers, 1.0 / node_state.settings.io_rate)
+        publishing.publish_device_io(self.device_publishers, 1.0 / node_state.settings.io_rate)
         transport.service("akd_ros/srv/SetOutputs", "~/set_outputs", self._set_outputs, requests)
 
     def _joint_of(self, joint: str) -> str:
         """The joint a request names ('' on a node of one joint: that one); CommandError otherwise."""
         if joint in self._joints or (not joint and len(self._joints) == 1):
             return joint or next(iter(self._joints))
-        raise CommandError(f"joint {joint!r} is not one of this node's joints: {', '.join(self._joints)}")
+        devices = f", nor of its devices: {', '.join(self._devices)}" if self._devices else ""
+        raise CommandError(f"joint {joint!r} is not one of this node's joints: {', '.join(self._joints)}{devices}")
+
+    def _set_device_outputs(self, request, response):
+        """~/set_outputs of the device `request.joint` names: its output channels of one bit by name."""
+        name = request.joint
+        outputs, values = list(request.outputs), list(request.values)
+        if request.set_analog_output:
+            raise CommandError(
+                f"device {name} takes its outputs by channel name (outputs, values); set_analog_output is a joint's"
+            )
+        if len(outputs) != len(values):
+            raise CommandError(f"{len(outputs)} outputs with {len(values)} values: give one value per output")
+        if not outputs:
+            raise CommandError(f"nothing to set: give outputs of device {name} with their values")
+        twice = sorted({o for o in outputs if outputs.count(o) > 1})
+        if twice:
+            raise CommandError(f"output {', '.join(twice)} of device {name} is given twice")
+        device = self._node_state.device_for_request(name)
+        levels = {output: bool(value) for output, value in zip(outputs, values, strict=True)}
+        with self._node_state.lock:
+            device.set_outputs(levels)
+        done = ", ".join(f"{output} {'high' if high else 'low'}" for output, high in levels.items())
+        response.success, response.message = True, f"{name}: {done} from the next cycle"
 
     def _levels(self, joint: str, outputs: list[str], values: list[bool]) -> dict[int, bool]:
         """The outputs a request names (by a name of io.outputs or the AKD's number) with their levels; CommandError
@@ -88,7 +124,8 @@ class Io:
         names = self._joints[joint].io_outputs or {}
         levels: dict[int, bool] = {}
         for output, value in zip(outputs, values, strict=True):
-            number = names.get(output, int(output) if output.isdecimal() else None)
+            # ASCII digits only: str.isdecimal() and int() also take other scripts' digits (Arabic-Indic, full-width).
+            number = names.get(output, int(output) if output.isascii() and output.isdigit() else None)
             if number is None:
                 numbers = ", ".join(str(n) for n in range(1, _native.IO_OUTPUT_COUNT + 1))
                 allowed = f"its names ({', '.join(names)}) or " if names else ""
@@ -102,6 +139,10 @@ class Io:
 
     def _set_outputs(self, request, response):
         try:
+            if request.joint in self._devices:
+                self._set_device_outputs(request, response)
+                self._logger.info(f"~/set_outputs: {response.message}")
+                return response
             joint = self._joint_of(request.joint)
             levels = self._levels(joint, list(request.outputs), list(request.values))
             analog = request.analog_output if request.set_analog_output else None

@@ -9,6 +9,8 @@ start-up (see `akd_ros.node.ros_node`), and with `enable_on_start` it then enabl
 from __future__ import annotations
 
 import sys
+import threading
+import time
 
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 
@@ -20,6 +22,9 @@ from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 
 __all__ = ["NODE_NAME", "AkdNode"]
+
+# How long the executor spins, once the goals ended, for their results to go out.
+_RESULTS_SENT_S = 0.3
 
 
 def _outcome(done: bool) -> TransitionCallbackReturn:
@@ -95,8 +100,21 @@ class AkdNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def close(self) -> None:
-        """Stops publishing, disables the drives and returns the line to Init (does nothing when not configured)."""
+        """Ends the action goals executing, stops publishing, disables the drives and returns the line to Init (does
+        nothing when not configured)."""
         self._core.close()
+
+    def end_goals(self, executor) -> None:
+        """Ends every action goal executing with its result (`Core.end_goals`) while `executor`, the node's, spins to
+        send the results out: for a node that stops, before it closes its bus."""
+        ended = threading.Event()
+        threading.Thread(target=lambda: (self._core.end_goals(), ended.set()), name="akd-end-goals").start()
+        while not ended.is_set():
+            executor.spin_once(timeout_sec=0.02)
+        # The results go out from tasks the goals' ends made: give them their turns.
+        deadline = time.monotonic() + _RESULTS_SENT_S
+        while time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.02)
 
     def destroy_node(self) -> None:
         """Also stops the timer threads and withdraws the node from Zenoh (transport both)."""

@@ -1,14 +1,19 @@
 """What the node's parts share: the settings and the clock, and from a configure to its cleanup the Bus with an Axis
-per joint, the Recorder, whether the node is active, and the lock that guards the axes' Python-side state (position
-unwrapping, event queues, the last command) between the callback groups."""
+per joint and a Device per device, the Recorder, whether the node is active, the lock that guards the axes'
+Python-side state (position unwrapping, event queues, the last command) between the callback groups, and the action
+goals executing (`Goals`), which a node that closes ends, each with a result, before its bus goes."""
 
 from __future__ import annotations
 
+import contextlib
 import threading
+import time
+from collections.abc import Iterator
 
 from akd_ros import _native
 from akd_ros.axis import Axis, CommandError
 from akd_ros.bus import Bus
+from akd_ros.device import Device
 from akd_ros.node.clock import CycleClock
 from akd_ros.params import JointSettings, Settings
 from akd_ros.recorder import Recorder
@@ -26,6 +31,43 @@ def namespace(settings: Settings, joint: str) -> str:
     return f"~/{joint}/" if settings.joint_namespaces else "~/"
 
 
+class Goals:
+    """The action goals executing, of every action: each runs inside `running()`; `close()` asks them to end (each
+    goal's loop sees `closing`, stops its motion and ends with a result) and waits until they did, so that the bus is
+    closed under none."""
+
+    def __init__(self) -> None:
+        self._executing = 0
+        self._changed = threading.Condition()
+        self.closing = False
+        """Whether the node is closing: a goal's loop that sees it stops its motion and ends, with a result."""
+
+    @contextlib.contextmanager
+    def running(self) -> Iterator[None]:
+        """Counts a goal's execution for the time of the block."""
+        with self._changed:
+            self._executing += 1
+        try:
+            yield
+        finally:
+            with self._changed:
+                self._executing -= 1
+                self._changed.notify_all()
+
+    def close(self, timeout: float) -> bool:
+        """Asks every goal executing to end and waits up to `timeout` s until none runs; whether none does."""
+        deadline = time.monotonic() + timeout
+        with self._changed:
+            self.closing = True
+            while self._executing and (left := deadline - time.monotonic()) > 0:
+                self._changed.wait(left)
+            return self._executing == 0
+
+    def open(self) -> None:
+        """Takes goals again (a node configured anew)."""
+        self.closing = False
+
+
 class NodeState:
     """The node's settings and clock; the Bus (None until configured), the Recorder (None unless recording),
     whether the node is active, and the lock that guards the axes between the callback groups."""
@@ -36,6 +78,7 @@ class NodeState:
         self.bus: Bus | None = None
         self.active = False
         self.recorder: Recorder | None = None
+        self.goals = Goals()
 
     @property
     def joints(self) -> tuple[JointSettings, ...]:
@@ -64,3 +107,7 @@ class NodeState:
     def axis_for_request(self, joint: str) -> Axis:
         """The Axis of `joint` on an active node; CommandError otherwise."""
         return self.bus_for_request()[joint]
+
+    def device_for_request(self, device: str) -> Device:
+        """The Device `device` on an active node; CommandError otherwise."""
+        return self.bus_for_request().device(device)

@@ -20,7 +20,9 @@ their black box.
 Each joint's ~/io (akd_ros/DriveIO, `akd_ros.node.io`) is made the same way, at io_rate, and once more at each change
 of the drive's inputs: this thread hands the cycle's event of it to the feed (`Feed.input_change`), which makes that
 message, stamped with the cycle that showed the change, and hands it out and records it as the periodic ones, so an
-edge is neither late by a period nor lost between two. Another periodic publication
+edge is neither late by a period nor lost between two; so is each device's ~/<device>/io (akd_ros/DeviceIO, at each
+change of its inputs of one bit: `Feed.device_input_change`), whose losses and returns this thread logs. Another
+periodic publication
 is added so: its message struct and its making
 from the snapshot in the crate (a `Kind` of `native/src/ros/feed.rs`; on change: compared there with what it last
 made, at its stream's check rate), a `Feed.add_...` stream here in `_start_feed` with its period, and its publisher in
@@ -32,7 +34,6 @@ rate, never per cycle. Any publisher made through the transport is in the live v
 
 from __future__ import annotations
 
-import re
 import threading
 import time
 from collections.abc import Callable
@@ -56,9 +57,9 @@ _OFFSET_PERIOD_S = 1.0
 
 
 def snake(name: str | None) -> str:
-    """A state's name as the messages spell it: "Operation enabled" -> "operation_enabled", "SafeOp" -> "safe_op";
-    None -> "unknown"."""
-    return "unknown" if name is None else re.sub(r"(?<=[a-z])(?=[A-Z])", "_", name).replace(" ", "_").lower()
+    """A state's name as the messages spell it, by the crate's one rule (`_native.snake_case`): "Operation enabled" ->
+    "operation_enabled", "SafeOp" -> "safe_op"; None -> "unknown"."""
+    return "unknown" if name is None else _native.snake_case(name)
 
 
 def _feed_joint(axis, joint: JointSettings) -> dict:
@@ -148,6 +149,8 @@ class Publishing:
         """Each joint's publishers by its name."""
         self.last_fault: dict[str, object] = {}
         """The last fault published of each joint, for /diagnostics."""
+        self.last_device_fault: dict[str, object] = {}
+        """The last loss or return of each device (an `akd_ros.axis.FaultEvent`), for /diagnostics."""
         self.offset_ns = 0
         """ROS minus monotonic time as last read: it stamps the crate's messages, the recorded cycles and the events,
         so that a fault's black box ends at the fault's own cycle."""
@@ -155,6 +158,8 @@ class Publishing:
         self._streams: dict[int, RecordedPublisher] = {}
         self._drive_io: tuple[dict[str, RecordedPublisher], float] | None = None
         self._drive_io_streams: dict[str, int] = {}
+        self._device_io: tuple[dict[str, RecordedPublisher], float] | None = None
+        self._device_io_streams: dict[str, int] = {}
         self._thread: threading.Thread | None = None
 
     def publishers(self) -> list[RecordedPublisher]:
@@ -166,12 +171,18 @@ class Publishing:
         in `publishers` (by joint name)."""
         self._drive_io = (publishers, period)
 
+    def publish_device_io(self, publishers: dict[str, RecordedPublisher], period: float) -> None:
+        """Has the feed make each device's akd_ros/DeviceIO every `period` seconds from `start()` on, for its publisher
+        in `publishers` (by device name)."""
+        self._device_io = (publishers, period)
+
     def start(self) -> None:
         """Starts the crate's feed of the node state's Bus and the thread that publishes what it makes (at configure,
         once the Bus and the recorder are there)."""
         bus, settings = self._node_state.bus, self._settings
         joints = {joint.name: joint for joint in self._node_state.joints}
-        feed = _native.Feed(bus.cycle, [_feed_joint(axis, joints[axis.name]) for axis in bus.axes])
+        devices = [{"slave": d.slave, "name": d.name, "product": d.product} for d in bus.devices]
+        feed = _native.Feed(bus.cycle, [_feed_joint(axis, joints[axis.name]) for axis in bus.axes], devices)
         self._streams = {feed.add_joint_states(1.0 / settings.joint_states_rate): self.joint_states}
         for k, axis in enumerate(bus.axes):
             self._streams[feed.add_drive_status(k, 1.0 / settings.status_rate)] = self.joints[axis.name].status
@@ -180,6 +191,11 @@ class Publishing:
             for k, axis in enumerate(bus.axes):
                 self._drive_io_streams[axis.name] = stream = feed.add_drive_io(k, period)
                 self._streams[stream] = publishers[axis.name]
+        if self._device_io is not None:
+            publishers, period = self._device_io
+            for k, device in enumerate(bus.devices):
+                self._device_io_streams[device.name] = stream = feed.add_device_io(k, period)
+                self._streams[stream] = publishers[device.name]
         self._read_offset(feed)
         recorder = self._node_state.recorder
         if recorder is not None:
@@ -243,12 +259,24 @@ class Publishing:
                 for a in node_state.bus.axes
             ]
             changes = [(a.name, list(a.input_events())) for a in node_state.bus.axes]
+            devices = [(d, list(d.input_events()), list(d.fault_events())) for d in node_state.bus.devices]
             recorder = node_state.recorder
         feed = self._feed
         for joint, ios in changes:
             stream = self._drive_io_streams.get(joint)
             for io in ios if feed is not None and stream is not None else ():
                 feed.input_change(stream, io.cycle, io.time_ns, io.digital_inputs or 0, io.statusword or 0)
+        for device, edges, faults in devices:
+            stream = self._device_io_streams.get(device.name)
+            for io in edges if feed is not None and stream is not None else ():
+                feed.device_input_change(stream, io.cycle, io.time_ns, io.levels)
+            for e in faults:
+                line = f"device {device.name} (slave {device.slave}, {device.product}): {e.describe()}"
+                if e.source == "recovered":
+                    self._logger.warning(line)
+                else:
+                    self._logger.error(line)
+                self.last_device_fault[device.name] = e
         how_to_enable = "call ~/enable to go on"
         # A fault of the link (a lost frame, a working counter) is every drive's in the same cycle: one line for all.
         logged: dict[tuple, list[str]] = {}

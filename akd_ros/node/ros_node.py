@@ -67,6 +67,9 @@ def run(args: list[str] | None = None) -> int:
     except ExternalShutdownException:
         pass
     finally:
+        # Every goal executing gets its result while the executor still runs, before the bus goes to Init.
+        if rclpy.ok():
+            node.end_goals(executor)
         node.close()
         executor.shutdown()
         node.destroy_node()

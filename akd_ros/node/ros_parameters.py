@@ -15,7 +15,9 @@ from akd_ros.params import (
     Settings,
     Spec,
     argument_sections,
+    check_device_names,
     check_joint_names,
+    device_specs,
     io_name_specs,
     joint_specs,
     refuse_single_joint_parameters,
@@ -53,7 +55,8 @@ def descriptor(spec: Spec) -> ParameterDescriptor:
 
 def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Settings:
     """Declares every parameter on `node` (what the ROS arguments gave each checked first), with every joint's block
-    (joints.<name>.*) and every name given to an input or output (io.inputs.<name>, io.outputs.<name>), and gives
+    (joints.<name>.*), every device's (devices.<name>.*) and every name given to an input or output (io.inputs.<name>,
+    io.outputs.<name>), and gives
     the checked settings; raises ParameterError naming the first parameter that is wrong
     and what it allows.
 
@@ -65,11 +68,12 @@ def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Sett
     named |= {parameter.name: parameter.value for parameter in overrides}
     top = {spec.name: _declare(node, spec, named) for spec in SCHEMA}
     joints = check_joint_names(top["joints"])
+    devices = check_device_names(top["devices"], joints)
     refuse_single_joint_parameters(named, joints)
     values = dict(top)
     # A name of another node's section is among `named` too: only those given to this node are declared.
     io_names = [s for s in io_name_specs(named, joints) if _given(node, s.name).type_ != Parameter.Type.NOT_SET]
-    for spec in [*joint_specs(joints, top), *io_names]:
+    for spec in [*joint_specs(joints, top), *io_names, *device_specs(devices)]:
         values[spec.name] = _declare(node, spec, named)
     refuse_unknown(
         [
@@ -80,6 +84,7 @@ def declare(node, arguments: list[str], overrides: list[Parameter] = ()) -> Sett
             and _given(node, n).type_ != Parameter.Type.NOT_SET
         ],
         joints,
+        devices,
     )
     return settings(values)
 

@@ -12,6 +12,8 @@ runs."""
 
 from __future__ import annotations
 
+import time
+
 from akd_ros.axis import CommandError
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.homing import unhomed_refusal
@@ -21,11 +23,20 @@ from akd_ros.node.transports.transport import Qos, Transport
 
 JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 
-_ENDED = ("done", "replaced", "aborted")
+_ENDED = ("done", "replaced", "aborted", "refused", "stopped")
 
 
 def _seconds(duration) -> float:
     return duration.sec + duration.nanosec * 1e-9
+
+
+def ended_before(start_ns: int | None, duration_s: float) -> float | None:
+    """How long before now (s) a trajectory of `duration_s` from `start_ns` (monotonic; None: now) ended, or None
+    while it has not: such a one is refused whatever the door, as joint_trajectory_controller refuses it."""
+    now_ns = time.monotonic_ns()
+    if start_ns is None or start_ns + round(duration_s * 1e9) >= now_ns:
+        return None
+    return (now_ns - start_ns) * 1e-9 - duration_s
 
 
 class Trajectories:
@@ -64,6 +75,11 @@ class Trajectories:
             start_ns = None if stamp_ns == 0 else stamp_ns - self._clock.ros_minus_monotonic_ns()
             if start_ns is not None and start_ns < 0:
                 raise CommandError(f"header.stamp {stamp_ns} ns is before this machine started; zero means now")
+            if (late := ended_before(start_ns, times[-1])) is not None:
+                raise CommandError(
+                    f"it ends {late:.3f} s before it arrived (header.stamp {stamp_ns} ns plus its last "
+                    "time_from_start); stamp 0 means on arrival"
+                )
             with node_state.lock:
                 bus = node_state.bus_for_request()
                 if why := unhomed_refusal(node_state, joints):
@@ -104,7 +120,13 @@ class Trajectories:
                 raise CommandError(f"point {k} has accelerations without velocities; a quintic needs both")
             velocities = list(point.velocities) or [None] * len(joints)
             accelerations = list(point.accelerations) or [None] * len(joints)
-            times.append(_seconds(point.time_from_start))
+            time_from_start = _seconds(point.time_from_start)
+            if time_from_start < 0:
+                raise CommandError(
+                    f"point {k}'s time_from_start is {time_from_start:g} s; times from the start increase from above "
+                    "0 s"
+                )
+            times.append(time_from_start)
             points.append(
                 [
                     (float(p), None if v is None else float(v), None if a is None else float(a))
@@ -124,6 +146,8 @@ class Trajectories:
             text = f"aborted: the drive of {joint} left Operation enabled ({status['ds402_state']})"
         elif status["state"] == "replaced":
             text = f"replaced by trajectory {status['replaced_by']}"
+        elif status["state"] == "refused":
+            text = f"refused when it was to start, nothing moved: {status['reason']}"
         return {
             "id": identifier,
             "state": status["state"],
@@ -155,7 +179,7 @@ class Trajectories:
                 if self._running == status["id"]:
                     self._running = None
                 self._joints.pop(status["id"], None)
-                if status["state"] == "aborted":
+                if status["state"] in ("aborted", "refused"):
                     self._logger.error(f"trajectory {status['id']} {fields['message']}")
             self._publish(**fields)
 

@@ -1,6 +1,6 @@
-"""The node's settings: `Settings` with a `JointSettings` per joint, its checked parameters in the forms the Bus and
-its Axis take, made by `settings` of what `akd_ros.params.reader` reads; and `transport_of`, the transport the
-parameters choose.
+"""The node's settings: `Settings` with a `JointSettings` per joint and a `DeviceSettings` per device, its checked
+parameters in the forms the Bus and its Axis take, made by `settings` of what `akd_ros.params.reader` reads; and
+`transport_of`, the transport the parameters choose.
 
 A parameter is named once: its setting is the field of its name with each dot an underscore (`field_name`), filled
 from SCHEMA in one loop (`made_of`) unless the setting is made of it (a link checked, a mapping parsed), and only the
@@ -16,18 +16,21 @@ from dataclasses import dataclass
 from akd_ros import _native
 from akd_ros.axis import DriveConfig, io_mappings
 from akd_ros.bus import CommandError, check
+from akd_ros.device import DeviceConfig
 from akd_ros.params.schema import (
     DC_CHOICES,
     DOOR_ROLES,
     SCHEMA,
     SPECS,
     ParameterError,
+    check_device_names,
     check_doors,
     check_interface_address,
     check_joint_names,
     check_link,
     check_live_view,
     check_mapping,
+    device_specs,
     io_names,
     joint_specs,
     parse_latches,
@@ -103,6 +106,20 @@ class JointSettings:
 
 
 @dataclass(frozen=True)
+class DeviceSettings:
+    """One device's checked parameters."""
+
+    name: str
+    slave: int
+    product: str | None
+    """What it must be (its order number), None for anything."""
+
+    def device(self) -> DeviceConfig:
+        """The device as a Bus takes it."""
+        return DeviceConfig(slave=self.slave, name=self.name, product=self.product)
+
+
+@dataclass(frozen=True)
 class Settings:
     """The node's checked parameters, in the forms the Bus takes; a field named after a parameter (`field_name`) holds
     it."""
@@ -145,6 +162,8 @@ class Settings:
     """The TAP interface's address (A.B.C.D/N), None for none."""
     live_view: tuple[str, int] | None = None
     """The live view's (address, port) (live_view.*), None when off."""
+    devices: tuple[DeviceSettings, ...] = ()
+    """Every device beside the drives, in the order of the devices parameter."""
     doors: tuple[str, ...] = DOOR_ROLES[:2]
     """The roles whose doors the node has, in DOOR_ROLES' order."""
 
@@ -205,10 +224,17 @@ def settings(values: dict[str, object]) -> Settings:
     else:
         io = (io_names(values, None, "inputs"), io_names(values, None, "outputs"))
         joints = (joint_settings(top["joint_name"], "", top, io),)
+    devices = device_settings(values, check_device_names(top["devices"], names))
     try:
         check([j.drive() for j in joints], top["fault_reaction"], top["cycle_time"], top["dc_shift"])
     except CommandError as e:
         raise ParameterError(f"parameters joints.<name>.slave/alias: {e}") from None
+    try:
+        drives = [j.drive() for j in joints]
+        check(drives, top["fault_reaction"], top["cycle_time"], top["dc_shift"], [d.device() for d in devices])
+    except CommandError as e:
+        # The joints passed alone: what is wrong is a device's.
+        raise ParameterError(f"parameters devices.<name>.slave: {e}") from None
     eoe_tap, eoe_host = check_eoe_bridge(top["eoe.tap"], top["eoe.host"], joints)
     return made_of(
         Settings,
@@ -237,8 +263,25 @@ def settings(values: dict[str, object]) -> Settings:
         eoe_tap=eoe_tap,
         eoe_host=eoe_host,
         live_view=check_live_view(top["live_view.address"], top["live_view.port"]),
+        devices=devices,
         doors=check_doors(top["doors"]),
     )
+
+
+def device_settings(values: dict[str, object], devices: list[str]) -> tuple[DeviceSettings, ...]:
+    """Each device of `devices` of its block's checked parameters in `values`; ParameterError for one whose slave is
+    not given."""
+    found = []
+    for name in devices:
+        block = {spec.name: spec.check(values.get(spec.name, spec.default)) for spec in device_specs([name])}
+        slave = block[f"devices.{name}.slave"]
+        if slave < 0:
+            raise ParameterError(
+                f"parameter devices.{name}.slave must be given: the device's position on the bus, 0..65535 from the "
+                "master (akd-scan LINK lists the line)"
+            )
+        found.append(DeviceSettings(name, slave, block[f"devices.{name}.product"] or None))
+    return tuple(found)
 
 
 def transport_of(given: dict[str, object]) -> str:

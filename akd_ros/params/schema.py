@@ -130,10 +130,19 @@ SCHEMA: tuple[Spec, ...] = (
         "letter first.",
     ),
     Spec(
+        "devices",
+        [],
+        "Names of the devices on the line beside the drives (terminals: an EK1100's EL1004 inputs, EL2004 outputs), "
+        "each with its block devices.<name>.slave (its position on the bus) and devices.<name>.product (what it must "
+        "be, checked before anything goes to Op). Each device's channels, named after its PDO entries, are on "
+        "~/<name>/io (akd_ros/DeviceIO) and set by name through ~/set_outputs. A name is letters, digits and single "
+        "underscores, a letter first, and no joint's.",
+    ),
+    Spec(
         "fault_reaction",
         "all",
         "What a fault on one joint's drive does to the others: 'all' quick-stops them in the same cycle (as an arm "
-        "needs), 'joint' leaves them as they are.",
+        "needs) and switches the devices' outputs off until they are set again, 'joint' leaves them as they are.",
         choices=FAULT_REACTIONS,
     ),
     Spec(
@@ -238,7 +247,20 @@ SCHEMA: tuple[Spec, ...] = (
     Spec("limits.min_position", -_INF, "Lowest position command, rad (m); -.inf for none.", per_joint=True),
     Spec("limits.max_position", _INF, "Highest position command, rad (m); .inf for none.", per_joint=True),
     Spec(
-        "limits.max_velocity", _INF, "Largest velocity command magnitude, rad/s (m/s); .inf for none.", per_joint=True
+        "limits.max_velocity",
+        _INF,
+        "Largest velocity magnitude of any motion the node commands, rad/s (m/s): velocity commands, trajectories "
+        "(every point and the path interpolated between them) and, in a cyclic position mode, the step of a position "
+        "command within one cycle; .inf for none.",
+        per_joint=True,
+    ),
+    Spec(
+        "limits.max_acceleration",
+        _INF,
+        "Largest acceleration magnitude of a trajectory (every point and the path between them; where set, a "
+        "trajectory must not step its velocity: give velocities at every point and end at rest) and of a position "
+        "command's step in a cyclic position mode, rad/s² (m/s²); .inf for none.",
+        per_joint=True,
     ),
     Spec("limits.max_torque", _INF, "Largest torque command magnitude, N·m (N); .inf for none.", per_joint=True),
     Spec(
@@ -533,6 +555,23 @@ IO_NAME_SPECS: tuple[Spec, ...] = (
     ),
 )
 """The families of parameters that name a joint's inputs and outputs: each name given is a parameter of its own."""
+DEVICE_SPECS: tuple[Spec, ...] = (
+    Spec(
+        "slave",
+        -1,
+        "Position of the device on the bus, counted from 0 nearest the master (akd-scan LINK lists them); it must be "
+        "given.",
+        -1,
+        65535,
+    ),
+    Spec(
+        "product",
+        "",
+        "What the device at slave must be: its order number as its SII gives it (akd-scan shows it), e.g. EL2004, "
+        "compared without regard to case before anything goes to Op; '' checks nothing.",
+    ),
+)
+"""The parameters of each device's block, devices.<name>.<parameter>."""
 _IO_NAME = re.compile(r"(?:joints\.(?P<joint>[^.]+)\.)?io\.(?P<kind>inputs|outputs)\.(?P<name>[^.]+)")
 
 
@@ -564,6 +603,33 @@ def check_joint_names(joints: list[str]) -> list[str]:
     if twice:
         raise ParameterError(f"parameter joints names {', '.join(twice)} more than once; each joint once")
     return joints
+
+
+def device_specs(devices: list[str]) -> list[Spec]:
+    """The parameters of each device's block (devices.<name>.slave, devices.<name>.product)."""
+    return [
+        replace(spec, name=f"devices.{device}.{spec.name}", description=f"Device {device}: {spec.description}")
+        for device in devices
+        for spec in DEVICE_SPECS
+    ]
+
+
+def check_device_names(devices: list[str], joints: list[str]) -> list[str]:
+    """`devices` if every name is a ROS name token, none is given twice and none is a joint's (their topics would be
+    one); ParameterError otherwise."""
+    for device in devices:
+        if not JOINT_NAME.fullmatch(device):
+            raise ParameterError(
+                f"parameter devices: {device!r} is not a device name; allowed: letters, digits and single underscores "
+                "between them, a letter first (e.g. gripper_valves, inputs_1)"
+            )
+    twice = sorted({d for d in devices if devices.count(d) > 1} | (set(devices) & set(joints)))
+    if twice:
+        raise ParameterError(
+            f"parameter devices names {', '.join(twice)} more than once (or as a joint); each device once, "
+            "under a name of its own"
+        )
+    return devices
 
 
 def refuse_single_joint_parameters(named: dict[str, object], joints: list[str]) -> None:
@@ -606,13 +672,14 @@ def io_names(values: dict[str, object], joint: str | None, kind: str) -> dict[st
     return names
 
 
-def refuse_unknown(unknown: list[str], joints: list[str]) -> None:
-    """Refuses the `unknown` parameter names, if any, naming what the node has with `joints`."""
+def refuse_unknown(unknown: list[str], joints: list[str], devices: list[str] = ()) -> None:
+    """Refuses the `unknown` parameter names, if any, naming what the node has with `joints` and `devices`."""
     if unknown:
         raise ParameterError(
-            f"unknown parameter {', '.join(sorted(unknown))}; the parameters are: {', '.join(SPECS)}, and for each "
+            f"unknown parameter {', '.join(sorted(unknown))}; the parameters are: {', '.join(SPECS)}, for each "
             f"joint of joints ({', '.join(joints) or 'none given'}) joints.<name>.<one of "
-            f"{', '.join(s.name for s in SCHEMA if s.per_joint)}>"
+            f"{', '.join(s.name for s in SCHEMA if s.per_joint)}>, and for each device of devices "
+            f"({', '.join(devices) or 'none given'}) devices.<name>.<one of {', '.join(s.name for s in DEVICE_SPECS)}>"
         )
 
 
@@ -621,11 +688,15 @@ def check_names(named: dict[str, object]) -> None:
     SCHEMA nor in the block of a joint of `joints` (rclpy's qos_overrides.* aside), and joint_name, slave or alias
     beside joints; ParameterError."""
     joints = check_joint_names(SPECS["joints"].check(named.get("joints", [])))
+    devices = check_device_names(SPECS["devices"].check(named.get("devices", [])), joints)
     refuse_single_joint_parameters(named, joints)
     blocks = {spec.name for spec in joint_specs(joints, {spec.name: spec.default for spec in SCHEMA})}
     blocks |= {spec.name for spec in io_name_specs(named, joints)}
+    blocks |= {spec.name for spec in device_specs(devices)}
     refuse_unknown(
-        [n for n in named if n not in SPECS and n not in blocks and not n.startswith("qos_overrides.")], joints
+        [n for n in named if n not in SPECS and n not in blocks and not n.startswith("qos_overrides.")],
+        joints,
+        devices,
     )
 
 
@@ -762,6 +833,7 @@ def parse_limits(values: dict[str, object], prefix: str = "") -> Limits:
             bound("max_velocity"),
             bound("max_torque"),
             values["limits.policy"],
+            bound("max_acceleration"),
         )
     except ValueError as e:
         raise ParameterError(f"parameters {prefix}limits.*: {e}") from None

@@ -1,7 +1,8 @@
-"""akd-top's view (Textual): a table of one row per joint, the bus's line below it, the line's slaves with each port's
-link and error counters (a port whose counters rose in the last seconds highlighted, the worst place on the line said
-above them), the outcome of the last request, and the keys that ask the selected joint for something, each after a
-confirmation. Written once over `akd_ros.top.source.Source`."""
+"""akd-top's view (Textual): a table of one row per joint, the bus's line below it, a row per device beside the drives
+with its channels (a device out of reach highlighted; the table shown only where there are devices), the line's slaves
+with each port's link and error counters (a port whose counters rose in the last seconds highlighted, the worst place
+on the line said above them), the outcome of the last request, and the keys that ask the selected joint for
+something, each after a confirmation. Written once over `akd_ros.top.source.Source`."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from textual.containers import Grid
 from textual.screen import ModalScreen
 from textual.widgets import Button, DataTable, Footer, Header, Label, Static
 
-from akd_ros.top.source import LineView, Source
+from akd_ros.top.source import DeviceRow, LineView, Source
 
 COLUMNS = (
     ("joint", "joint"),
@@ -28,6 +29,16 @@ COLUMNS = (
     ("fault", "last fault"),
     ("io", "I/O"),
 )
+DEVICE_COLUMNS = (
+    ("device", "device"),
+    ("slave", "slave"),
+    ("product", "product"),
+    ("inputs", "inputs"),
+    ("outputs", "outputs"),
+    ("message", "status"),
+)
+"""The devices table's columns: each direction's channels of one bit as 0/1 digits (the first channel first), its
+other channels as name=value."""
 LINE_COLUMNS = (
     ("slave", "slave"),
     ("port", "port"),
@@ -143,12 +154,15 @@ class Top(App):
         # Kept, not queried: a query looks in the screen on top, which is a confirmation while one is open.
         self.table = DataTable(id="joints", cursor_type="row", zebra_stripes=True)
         self.bus_line = Static(id="bus")
+        self.device_table = DataTable(id="devices", cursor_type="none", zebra_stripes=True)
+        self.device_table.display = False
         self.line_summary = Static(id="line")
         self.line_table = DataTable(id="ports", cursor_type="none", zebra_stripes=True)
         self.outcome_line = Static(id="outcome")
         yield Header()
         yield self.table
         yield self.bus_line
+        yield self.device_table
         yield self.line_summary
         yield self.line_table
         yield self.outcome_line
@@ -157,6 +171,8 @@ class Top(App):
     def on_mount(self) -> None:
         for key, label in COLUMNS:
             self.table.add_column(label, key=key)
+        for key, label in DEVICE_COLUMNS:
+            self.device_table.add_column(label, key=key)
         for key, label in LINE_COLUMNS:
             self.line_table.add_column(label, key=key)
         self.show()
@@ -167,9 +183,11 @@ class Top(App):
         keeps showing what it had, and tries again at the next refresh)."""
         try:
             rows, bus, line = self.source.rows(), self.source.bus_row(), self.source.line()
+            devices = self.source.devices()
         except Exception as error:  # noqa: BLE001  (a view shows its source's failure, whatever it is, and goes on)
             self.outcome(f"reading the bus failed: {error}")
             return
+        self.show_devices(devices)
         self.show_line(line)
         table = self.table
         for row in rows:
@@ -182,6 +200,20 @@ class Top(App):
         stats = "  ".join(f"{k} {v}" for k, v in bus.stats.items())
         self.bus_text = f"bus {bus.link}: {stats}\nDC: {bus.dc}"
         self.bus_line.update(self.bus_text)
+
+    def show_devices(self, devices: list[DeviceRow]) -> None:
+        """A row per device with its channels, styled as its status's level (a device out of reach in red)."""
+        table = self.device_table
+        table.display = bool(devices) or bool(table.row_count)
+        for row in devices:
+            style = LEVEL_STYLES.get(row.level, "")
+            texts = (row.name, row.slave, row.product, row.inputs, row.outputs, row.message)
+            cells = [Text(t, style=style) for t in texts]
+            if row.name not in table.rows:
+                table.add_row(*cells, key=row.name)
+                continue
+            for (column, _), text in zip(DEVICE_COLUMNS, cells, strict=True):
+                table.update_cell(row.name, column, text, update_width=True)
 
     def show_line(self, line: LineView) -> None:
         """The line's summary, and a row per port of each slave, styled as its slave's status where the port's counters

@@ -1,7 +1,8 @@
 """akd-top's sources for a running akd_node, whatever the middleware: its joints from /joint_states, their state,
 mode and last fault from /diagnostics, position, velocity and effort from /joint_states, following error from each
 joint's `status`, faults from its `fault`, its drive's own I/O from its `io`, the bus's statistics and DC from the
-`<node>: bus` diagnostic status, the line's slaves from its `<node>: line` and `<node>: line slave N` statuses; requests
+`<node>: bus` diagnostic status, the devices beside the drives from their statuses (`<node>: <device>`, with their
+channels), the line's slaves from its `<node>: line` and `<node>: line slave N` statuses; requests
 through the joint's Trigger services and `arm_latch`. The middleware
 (`ros_source`: rclpy; `zenoh_source`: rmw_zenoh's wire without ROS) subscribes and calls.
 
@@ -17,7 +18,18 @@ from abc import abstractmethod
 from collections.abc import Callable
 
 from akd_ros.top.direct import STATS_LABELS
-from akd_ros.top.source import SWITCH_WORDS, BusRow, JointRow, LineView, Source, check_action, io_text, line_view
+from akd_ros.top.source import (
+    SWITCH_WORDS,
+    BusRow,
+    DeviceRow,
+    JointRow,
+    LineView,
+    Source,
+    check_action,
+    devices_view,
+    io_text,
+    line_view,
+)
 
 JOINT_STATE = "sensor_msgs/msg/JointState"
 DIAGNOSTICS = "diagnostic_msgs/msg/DiagnosticArray"
@@ -42,6 +54,7 @@ class AttachedSource(Source):
         self._joint_states: dict[str, tuple] = {}
         self._diagnostics: dict[str, dict[str, str]] = {}
         self._line: dict[str, tuple] = {}
+        self._devices: dict[str, tuple] = {}
         self._following: dict[str, float] = {}
         self._faults: dict[str, str] = {}
         self._io: dict[str, str | None] = {}
@@ -94,9 +107,11 @@ class AttachedSource(Source):
                     what = status.name[len(prefix) :]
                     values = {v.key: v.value for v in status.values}
                     self._diagnostics[what] = values
+                    level = status.level[0] if isinstance(status.level, bytes) else int(status.level)
                     if what == "line" or what.startswith("line slave "):
-                        level = status.level[0] if isinstance(status.level, bytes) else int(status.level)
                         self._line[what] = (level, what, status.message, status.hardware_id, values)
+                    elif "device" in values:
+                        self._devices[what] = (level, what, status.message, status.hardware_id, values)
 
     def _on_status(self, message) -> None:
         with self._lock:
@@ -139,6 +154,11 @@ class AttachedSource(Source):
             )
         stats = {k: values[k] for k in STATS_LABELS if k in values}
         return BusRow(values.get("link", f"{self.node_name} (no /diagnostics yet)"), stats, dc)
+
+    def devices(self) -> list[DeviceRow]:
+        with self._lock:
+            statuses = list(self._devices.values())
+        return devices_view(statuses)
 
     def line(self) -> LineView:
         with self._lock:

@@ -1,12 +1,23 @@
 """akd-top's source for a link it runs itself (`sim:6`, `udp://...`, an interface): an `akd_ros.Bus` with an Axis per
-drive found, and its cycle thread; no ROS."""
+AKD found and a Device per other slave (a coupler, I/O terminals), and its cycle thread; no ROS."""
 
 from __future__ import annotations
 
 from akd_ros import _native
 from akd_ros.axis import DriveConfig
 from akd_ros.bus import Bus
-from akd_ros.top.source import BusRow, JointRow, LineView, Source, check_action, io_text, line_view
+from akd_ros.device import DeviceConfig, device_name
+from akd_ros.top.source import (
+    BusRow,
+    DeviceRow,
+    JointRow,
+    LineView,
+    Source,
+    channels_text,
+    check_action,
+    io_text,
+    line_view,
+)
 
 STATS_LABELS = ("cycles", "overruns", "lost_frames", "wkc_errors", "period_mean_s", "period_max_s", "exchange_p99_s")
 """The cycle statistics shown, named as akd_node's /diagnostics names them (so both sources show the same)."""
@@ -41,21 +52,24 @@ def fault_text(event) -> str:
 
 
 class DirectSource(Source):
-    """Every drive on `link` as an Axis of one Bus (named slave_<position>, in interpolated position mode), at
-    `period` seconds per cycle, the cycle thread under SCHED_FIFO `priority` where given (`Bus`'s)."""
+    """Every AKD on `link` as an Axis of one Bus (named slave_<position>, in interpolated position mode) and every other
+    slave as a Device (named as akd-scan's parameters file names it, el2004_2), at `period` seconds per cycle, the
+    cycle thread under SCHED_FIFO `priority` where given (`Bus`'s)."""
 
     def __init__(self, link: str, period: float = 0.004, priority: int | None = None) -> None:
         master = _native.Master(link)
         try:
-            count = len(master.scan())
+            slaves = master.scan()
         finally:
             master.close()
-        if count == 0:
+        drives = [DriveConfig(slave=s["position"]) for s in slaves if s["akd"]]
+        if not drives:
             raise ValueError(f"no drive answers on {link}")
         self.link = link
         self.bus = Bus(
             link,
-            [DriveConfig(slave=p) for p in range(count)],
+            drives,
+            devices=[DeviceConfig(slave=s["position"], name=device_name(s)) for s in slaves if not s["akd"]],
             period=period,
             realtime=_native.RealTime(priority=priority),
         )
@@ -88,6 +102,30 @@ class DirectSource(Source):
 
     def line(self) -> LineView:
         return line_view(self.bus.line_diagnostics())
+
+    def devices(self) -> list[DeviceRow]:
+        ios = self.bus.devices_io()
+        rows = []
+        for device in self.bus.devices:
+            io = ios[device.name]
+            if device.recovery()["recovering"]:
+                level, message = 2, "unreachable, being brought back, its outputs off"
+            elif not io.fresh:
+                level, message = 1, "the last frame did not come back"
+            else:
+                level, message = 0, f"{device.product} in Op"
+            rows.append(
+                DeviceRow(
+                    device.name,
+                    str(device.slave),
+                    device.product,
+                    level,
+                    message,
+                    channels_text(io.inputs),
+                    channels_text(io.outputs),
+                )
+            )
+        return rows
 
     def request(self, joint: str, action: str) -> str:
         check_action(action)

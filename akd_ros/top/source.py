@@ -1,7 +1,7 @@
-"""What akd-top shows and asks, whatever it comes from: one `JointRow` per joint, one `BusRow`, the line's slaves with
-their ports' links and error counters (`LineView`, read from the line's /diagnostics statuses by `line_view` whichever
-source gave them), and the requests a person makes of a joint. The view (`akd_ros.top.app`) is written once over this
-interface."""
+"""What akd-top shows and asks, whatever it comes from: one `JointRow` per joint, one `BusRow`, one `DeviceRow` per
+device beside the drives (a terminal's channels), the line's slaves with their ports' links and error counters
+(`LineView`, read from the line's /diagnostics statuses by `line_view` whichever source gave them), and the requests a
+person makes of a joint. The view (`akd_ros.top.app`) is written once over this interface."""
 
 from __future__ import annotations
 
@@ -77,6 +77,57 @@ class LineView:
     rows: list[LineRow] = field(default_factory=list)
 
 
+@dataclass(frozen=True)
+class DeviceRow:
+    """One device beside the drives (a terminal): its name, position and product, its status's level (0 OK, 1 WARN,
+    2 ERROR) and message, and its input and output channels, each direction in one cell (`channels_text`)."""
+
+    name: str
+    slave: str
+    product: str
+    level: int
+    message: str
+    inputs: str
+    outputs: str
+
+
+def channels_text(channels: dict) -> str:
+    """A device's channels of one direction in one cell: its bits as 0/1 digits in wire order (the first channel
+    first), then its other channels as name=value; '-' for none. A bit is a bool, or "high"/"low" as /diagnostics
+    says it."""
+    bits = {"high": "1", "low": "0", True: "1", False: "0"}
+    digits = "".join(bits[v] for v in channels.values() if isinstance(v, bool) or v in ("high", "low"))
+    others = [f"{k}={v}" for k, v in channels.items() if not (isinstance(v, bool) or v in ("high", "low"))]
+    return " ".join(([digits] if digits else []) + others) or "-"
+
+
+def devices_view(statuses: Iterable[tuple]) -> list[DeviceRow]:
+    """The devices as akd_node's /diagnostics statuses give them (each (level, what, message, hardware_id, values),
+    values with the device's name under "device" and its channels under "input NAME"/"output NAME"); the other
+    statuses are passed over."""
+    rows = []
+    for level, _, message, _, values in statuses:
+        values = dict(values)
+        if "device" not in values:
+            continue
+        channels = {
+            kind: {k.split(" ", 1)[1]: v for k, v in values.items() if k.startswith(kind + " ")}
+            for kind in ("input", "output")
+        }
+        rows.append(
+            DeviceRow(
+                values["device"],
+                values.get("slave", ""),
+                values.get("product", ""),
+                int(level),
+                message,
+                channels_text(channels["input"]),
+                channels_text(channels["output"]),
+            )
+        )
+    return rows
+
+
 _PORT = re.compile(r"port(\d+)")
 
 
@@ -138,6 +189,10 @@ class Source(ABC):
     def line(self) -> LineView:
         """The line's slaves with their ports' links and error counters; a source without them says so."""
         return LineView(summary="not shown by this source")
+
+    def devices(self) -> list[DeviceRow]:
+        """The devices beside the drives, each with its channels; none for a source without them."""
+        return []
 
     @abstractmethod
     def request(self, joint: str, action: str) -> str:

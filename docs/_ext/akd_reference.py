@@ -18,6 +18,7 @@ import math
 import os
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import yaml
@@ -30,10 +31,14 @@ INTERFACE_DIRS = ("msg", "srv", "action")
 EXAMPLE_JOINTS = ("joint_a", "joint_b")
 """The joints of the node of joints the reference lists; joint_a stands for every joint (~/<joint>/)."""
 JOINT = "<joint>"
+EXAMPLE_DEVICE = "device_a"
+"""The device of the nodes the reference lists, standing for every device (~/<device>/)."""
+DEVICE = "<device>"
 _TYPE_NAMES = {str: "string", list: "string[]", int: "integer", float: "double", bool: "bool"}
 _GROUP_TITLES = {
     "node": "The node and its bus",
     "joint": "Each joint: drive, mode, units, faults",
+    "devices": "Each device beside the drives",
     "mapping": "Each joint: PDO mapping",
     "limits": "Each joint: command limits",
     "latch": "Each joint: latches",
@@ -62,12 +67,13 @@ def _value(value: object) -> str:
 
 def parameter_groups() -> list[tuple[str, list]]:
     """SCHEMA's parameters by group: a dotted name's prefix, else whether each joint has it; in schema order."""
-    from akd_ros.params import SCHEMA
+    from akd_ros.params import DEVICE_SPECS, SCHEMA
 
     groups: dict[str, list] = {}
     for spec in SCHEMA:
         key = spec.name.split(".")[0] if "." in spec.name else ("joint" if spec.per_joint else "node")
         groups.setdefault(key, []).append(spec)
+    groups["devices"] = [replace(spec, name=f"devices.{DEVICE}.{spec.name}") for spec in DEVICE_SPECS]
     return list(groups.items())
 
 
@@ -93,11 +99,13 @@ def parameters_markdown() -> str:
 
 def node_settings():
     """The settings of the two nodes the reference lists: one of joints (EXAMPLE_JOINTS) and one of one joint, each
-    with every role's doors (the `doors` parameter closes the configuring ones by default)."""
+    with every role's doors (the `doors` parameter closes the configuring ones by default) and a device
+    (EXAMPLE_DEVICE) beside them."""
     from akd_ros import params
 
-    every = list(params.DOOR_ROLES)
-    return params.settings({"joints": list(EXAMPLE_JOINTS), "doors": every}), params.settings({"doors": every})
+    every = {"doors": list(params.DOOR_ROLES)}
+    device = {"devices": [EXAMPLE_DEVICE], f"devices.{EXAMPLE_DEVICE}.slave": len(EXAMPLE_JOINTS)}
+    return params.settings({"joints": list(EXAMPLE_JOINTS), **device, **every}), params.settings({**device, **every})
 
 
 def generic(name: str, joints: bool) -> str | None:
@@ -109,6 +117,8 @@ def generic(name: str, joints: bool) -> str | None:
     if not name.startswith(own):
         return name
     rest = name[len(own) :]
+    if rest.startswith(f"{EXAMPLE_DEVICE}/"):
+        return f"~/{DEVICE}/{rest.partition('/')[2]}"
     if joints:
         first, _, tail = rest.partition("/")
         if first == EXAMPLE_JOINTS[0] and tail:

@@ -226,13 +226,49 @@ pub enum Unavailable {
         /// Why not: closed, or taken by another server.
         why: &'static str,
     },
-    /// A virtual line with terminals asked of the master, which takes lines of AKDs only so far.
-    LineWithTerminals {
-        /// The line, as a spec names it.
-        line: String,
+    /// A channel name a slave does not have among its outputs.
+    NoSuchOutput {
+        /// Slave position.
+        slave: u16,
+        /// The name given.
+        name: String,
+        /// Its output channels' names.
+        outputs: Vec<String>,
+        /// Whether the name is one of its inputs.
+        is_input: bool,
+    },
+    /// Channels asked of a drive the cycle sequences.
+    DriveChannels {
+        /// Slave position.
+        slave: u16,
+    },
+    /// A channel's value it cannot take.
+    ChannelValue {
+        /// Slave position.
+        slave: u16,
+        /// What is wrong with it.
+        error: crate::ethercat::device::ChannelValueError,
     },
     /// The virtual AKDs are gone with their master or server.
     SimulatorGone,
+    /// A drive that a trajectory or a homing drives, asked for what would fight it (a
+    /// set-point, a mode change, a homing, a trajectory).
+    Driven {
+        /// Slave position.
+        slave: u16,
+        /// What was asked, e.g. "a set-point".
+        what: &'static str,
+        /// The trajectory that drives it, or `None` for its homing.
+        trajectory: Option<u32>,
+    },
+    /// A set-point whose step from the target last sent, taken within one cycle, would go past
+    /// the joint's limits.
+    StepPastLimit {
+        /// Slave position.
+        slave: u16,
+        /// The step, the limit and what to do, in the joint's words.
+        detail: String,
+    },
     /// A virtual AKD whose bus served no frame in time to answer a query.
     SimulatorSilent {
         /// Drive position, or `None` for a query of the line's counts.
@@ -327,10 +363,34 @@ impl fmt::Display for Unavailable {
             ),
             Unavailable::SimulatorPanicked => write!(f, "the simulator thread panicked"),
             Unavailable::SetpointTrace { path, why } => write!(f, "the set-point trace {path} {why}"),
-            Unavailable::LineWithTerminals { line } => write!(
+            Unavailable::Driven { slave, what, trajectory: Some(id) } => write!(
                 f,
-                "the virtual line {line} holds terminals, and the master takes lines of AKDs only so far: name AKDs \
-                 only (sim:N), or serve the line with akd-sim --line {line} to another master"
+                "slave {slave}: {what} refused, nothing changed: trajectory {id} drives it until it ends; stop it \
+                 (cancel its goal) or wait for its end"
+            ),
+            Unavailable::Driven { slave, what, trajectory: None } => write!(
+                f,
+                "slave {slave}: {what} refused, nothing changed: it is being homed; cancel the homing or wait for \
+                 its end"
+            ),
+            Unavailable::StepPastLimit { slave, detail } => {
+                write!(f, "slave {slave}: {detail}")
+            }
+            Unavailable::NoSuchOutput { slave, name, outputs, is_input: true } => write!(
+                f,
+                "slave {slave}'s channel {name:?} is an input; its outputs: {}",
+                if outputs.is_empty() { "none".to_owned() } else { outputs.join(", ") }
+            ),
+            Unavailable::NoSuchOutput { slave, name, outputs, is_input: false } => write!(
+                f,
+                "slave {slave} has no output channel {name:?}; its outputs: {}",
+                if outputs.is_empty() { "none".to_owned() } else { outputs.join(", ") }
+            ),
+            Unavailable::ChannelValue { slave, error } => write!(f, "slave {slave}: {error}"),
+            Unavailable::DriveChannels { slave } => write!(
+                f,
+                "slave {slave} is a drive the cycle sequences: its outputs are its objects, set with set_object (or \
+                 set_outputs), not by channel"
             ),
             Unavailable::SimulatorGone => {
                 write!(f, "the virtual AKDs are gone: their master was closed or their server stopped")

@@ -16,11 +16,12 @@
 //! - The Python bindings (feature `python`) on top of all of them, the only place that opens a
 //!   link spec, since only they may see both the links and the simulator.
 //!
-//! Beside them, three things every product uses: [`error`] (the umbrella [`error::Error`] the
+//! Beside them, four things every product uses: [`error`] (the umbrella [`error::Error`] the
 //! layers above the codecs return, a `From` for each codec's error, and the errors only those
 //! layers raise), [`setting`] (a configuration value out of range) and the `wire_codes!` macro
 //! (closed sets of wire codes as enums, e.g. [`ethercat::coe::CoeService`]; open ones as
-//! newtypes with a `name()`, e.g. [`ethercat::coe::SdoAbortCode`]).
+//! newtypes with a `name()`, e.g. [`ethercat::coe::SdoAbortCode`]) and [`spelling`] (how a
+//! name is spelled as one word, [`spelling::snake_case`]).
 
 #![deny(missing_docs)]
 
@@ -34,6 +35,7 @@ pub mod ethercat;
 pub mod ros;
 pub mod setting;
 pub mod sim;
+pub mod spelling;
 
 #[cfg(feature = "python")]
 mod python;

@@ -156,7 +156,11 @@ fn events_until(cycle: &CycleThread, done: impl Fn(&[Event]) -> bool) -> Vec<Eve
 fn source(e: &Event) -> Option<FaultSource> {
     match e {
         Event::Fault { source, .. } => Some(*source),
-        Event::Latch { .. } | Event::CommandTimeout { .. } | Event::Trajectory { .. } | Event::Inputs { .. } => None,
+        Event::Latch { .. }
+        | Event::CommandTimeout { .. }
+        | Event::Trajectory { .. }
+        | Event::Inputs { .. }
+        | Event::DeviceInputs { .. } => None,
     }
 }
 

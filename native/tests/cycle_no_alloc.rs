@@ -3,10 +3,12 @@
 //! AKDs are served over UDP by another thread whose allocations are not counted. Drive 2 is
 //! mapped for the profile modes, so that the set-point handshake and the command time-out (its
 //! halt, its release and its quick stop) run in the watched cycles too; drive 1 (its
-//! interpolation set-point 0x60C1:01 mapped) follows a trajectory that another replaces half-way (both allocated in
+//! interpolation set-point 0x60C1:01 mapped) follows a trajectory that another replaces early on (both allocated in
 //! this thread, handed over and returned by the loop). Drive 0 is pinged through EoE meanwhile,
 //! small pings and large ones in fragments. The line's links and error counters are read beside
-//! the cycle every 20 ms meanwhile.
+//! the cycle every 20 ms meanwhile. Then a virtual cell (an EK1100, an EL1004, an EL2004
+//! and an AKD): the devices' outputs set by name, their input edges reported, one of them
+//! power-cycled, lost, brought back and its outputs switched off, all in the watched cycles.
 
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::net::{SocketAddr, UdpSocket};
@@ -14,7 +16,7 @@ use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use akd_native::cycle::events::{CommandTimeoutAction, TrajectoryState};
+use akd_native::cycle::events::{CommandTimeoutAction, Event, TrajectoryState};
 use akd_native::cycle::sequencer::{Progress, Request};
 use akd_native::cycle::trajectory_player::TrajectoryStatus;
 use akd_native::cycle::{handshake, Config, CycleThread, RealTime, Snapshot};
@@ -22,9 +24,11 @@ use akd_native::drive::akd::{AkdLine, AkdSlave};
 use akd_native::drive::ds402::{Mode, State};
 use akd_native::drive::trajectory::Knot;
 use akd_native::ethercat::al::AlState;
+use akd_native::ethercat::device::ChannelValue;
 use akd_native::ethercat::link::udp::Udp;
-use akd_native::ethercat::link_spec::MissedFrames;
+use akd_native::ethercat::link_spec::{MissedFrames, SimLine};
 use akd_native::ethercat::master::Master;
+use akd_native::sim::control::ControlledBus;
 use akd_native::sim::{server, Timing, VirtualBus};
 
 #[path = "support/ethernet.rs"]
@@ -96,6 +100,52 @@ fn cycle_loop_allocates_nothing() {
     for pipelined in [false, true] {
         loop_allocates_nothing(pipelined);
     }
+    devices_allocate_nothing();
+}
+
+/// The cell's run (see the module): the allocations of the watched cycles, none.
+fn devices_allocate_nothing() {
+    let address: SocketAddr = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let stop = Arc::new(AtomicBool::new(false));
+    let line: SimLine = "ek1100,el1004,el2004,akd".parse().unwrap();
+    let bus = ControlledBus::from(VirtualBus::of_line(&line, LATE_IS_NOT_MISSED).unwrap());
+    let control = bus.control();
+    let serving = {
+        let stop = stop.clone();
+        std::thread::spawn(move || server::serve_udp(address, bus, &stop, None))
+    };
+    let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
+    let deadline = Instant::now() + Duration::from_secs(5);
+    while m.scan().is_err() {
+        assert!(Instant::now() < deadline, "no simulator on {address}");
+    }
+    m.request_state(AlState::Op, Duration::from_secs(5)).unwrap();
+    let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
+    let started = wait_for_cycle(&cycle, 5);
+    WATCHED.store(thread_named("akd-cycle"), Ordering::SeqCst);
+    let armed = wait_for_cycle(&cycle, started.cycle);
+    let before = ALLOCATIONS.load(Ordering::SeqCst);
+    let mut edges = 0;
+    for n in 0..20 {
+        cycle.set_channels(2, &[("channel_1_output", ChannelValue::Bit(n % 2 == 0))]).unwrap();
+        control.set_input(1, 1 + n % 4, n % 3 == 0).unwrap();
+        let later = wait_for_cycle(&cycle, cycle.snapshot().cycle + 5);
+        edges += cycle.events().iter().filter(|e| matches!(e, Event::DeviceInputs { .. })).count();
+        wait_for_cycle(&cycle, later.cycle);
+    }
+    control.power_cycle(2).unwrap();
+    wait_until("the EL2004 lost and back", || cycle.recovery_status(2).unwrap().recoveries == 1);
+    let recovered = cycle.events().iter().any(|e| matches!(e, Event::Fault { slave: 2, .. }));
+    cycle.switch_outputs_off(2).unwrap();
+    let last = wait_for_cycle(&cycle, cycle.snapshot().cycle + 20);
+    let during = ALLOCATIONS.load(Ordering::SeqCst) - before;
+    WATCHED.store(0, Ordering::SeqCst);
+    cycle.stop().unwrap();
+    stop.store(true, Ordering::SeqCst);
+    serving.join().unwrap().unwrap();
+    eprintln!("cell: {} cycles watched, {edges} input edges reported", last.cycle - armed.cycle);
+    assert!(edges > 0 && recovered, "{edges} edges, recovered {recovered}");
+    assert_eq!(during, 0, "allocations in {} cycles of the cell", last.cycle - armed.cycle);
 }
 
 /// The run for one way of taking each frame's return: waited for, or `pipelined`.
@@ -237,8 +287,9 @@ fn set_points_and_requests(cycle: &CycleThread) {
     }
 }
 
-/// Drive 1 enabled follows a trajectory of 100 ms that another replaces half-way; their final
-/// statuses, `None` when the drive could not be enabled.
+/// Drive 1 enabled follows a trajectory of 10 s that another of 100 ms replaces 50 ms into it
+/// (long enough to be still running then when a loaded host stalls this thread, as a first of
+/// 100 ms was not); their final statuses, `None` when the drive could not be enabled.
 fn trajectories(cycle: &CycleThread) -> Option<[Option<TrajectoryStatus>; 2]> {
     let enabled = || cycle.drive_status(1).unwrap().state() == Some(State::OperationEnabled);
     wait_until("drive 1 enabled", || enabled() || cycle.drive_status(1).unwrap().progress != Progress::InProgress);
@@ -246,11 +297,11 @@ fn trajectories(cycle: &CycleThread) -> Option<[Option<TrajectoryStatus>; 2]> {
         return None;
     }
     let at = |ms: u64, position: f64| (ms * 1_000_000, vec![Knot { velocity: Some(0.0), ..Knot::position(position) }]);
-    let ((t0, p0), (t1, p1)) = (at(50, 5000.0), at(100, -5000.0));
-    let first = cycle.play_trajectory(&[1], &[t0, t1], &[p0, p1], None, None).unwrap();
+    let ((t0, p0), (t1, p1)) = (at(5000, 5000.0), at(10_000, -5000.0));
+    let first = cycle.play_trajectory(&[1], &[t0, t1], &[p0, p1], None).unwrap();
     std::thread::sleep(Duration::from_millis(50));
     let (t, p) = at(100, 0.0);
-    let second = cycle.play_trajectory(&[1], &[t], &[p], None, None).unwrap();
+    let second = cycle.play_trajectory(&[1], &[t], &[p], None).unwrap();
     let ended = |id| cycle.trajectory_status(id).ok().filter(|s| s.state.ended());
     wait_until("the second trajectory's end", || ended(second).is_some() || !enabled());
     Some([ended(first), ended(second)])

@@ -7,11 +7,12 @@ use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use akd_native::drive::akd::{AkdLine, AkdSlave};
+use akd_native::drive::identity;
 use akd_native::drive::pdo;
 use akd_native::drive::pdo::Mapping;
 use akd_native::error::{Error, Result};
 use akd_native::ethercat::al::AlState;
-use akd_native::ethercat::coe::{data_type, ObjectCode, OdListType, SdoAbortCode};
+use akd_native::ethercat::coe::{data_type, write_sdo_request, ObjectCode, OdListType, SdoAbortCode, SdoRequest};
 use akd_native::ethercat::frame::{self, Command};
 use akd_native::ethercat::link::Link;
 use akd_native::ethercat::master::Master;
@@ -52,8 +53,8 @@ fn scan_finds_the_virtual_akds_with_the_real_identity() {
             let id = slave.sii.identity();
             assert_eq!((id.vendor_id, id.product_code, id.revision), (0x6A, 0x0041_4B44, 2));
             assert_eq!(slave.sii.name(), Some("AKD EtherCAT Drive (CoE)"));
-            assert_eq!(slave.sii.model(), Some("AKD-P00606-NBCC-E000"));
-            assert_eq!(slave.sii.firmware(), Some("01-20-00-003"));
+            assert_eq!(identity::model(&slave.sii).as_deref(), Some("AKD-P00606-NBCC-E000"));
+            assert_eq!(identity::firmware(&slave.sii).as_deref(), Some("01-20-00-003"));
             let mb = slave.mailbox.as_ref().expect("the AKD has a mailbox");
             assert_eq!((mb.out_start, mb.out_len, mb.in_start, mb.in_len), (0x1800, 0x400, 0x1C00, 0x400));
             assert!(mb.has_coe());
@@ -244,8 +245,14 @@ fn sdo_round_trips_of_every_size() {
         assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x607A, 0).unwrap(), target.to_le_bytes());
         // Normal: strings longer than 4 bytes, which the SII also names.
         let sii = m.slave(position).unwrap().sii.clone();
-        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1009, 0).unwrap(), sii.model().unwrap().as_bytes());
-        assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x100A, 0).unwrap(), sii.firmware().unwrap().as_bytes());
+        assert_eq!(
+            m.slave_mut(position).unwrap().sdo_read(0x1009, 0).unwrap(),
+            identity::model(&sii).unwrap().as_bytes()
+        );
+        assert_eq!(
+            m.slave_mut(position).unwrap().sdo_read(0x100A, 0).unwrap(),
+            identity::firmware(&sii).unwrap().as_bytes()
+        );
         // The identity object agrees with the SII.
         assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1018, 1).unwrap(), 0x6Au32.to_le_bytes());
         assert_eq!(m.slave_mut(position).unwrap().sdo_read(0x1018, 2).unwrap(), 0x0041_4B44u32.to_le_bytes());
@@ -432,6 +439,106 @@ fn lost_frames_are_counted_and_a_lost_mailbox_reply_is_fetched_again() {
     assert_eq!(sm1_status & 0x08, 0, "a second reply waits in SM1 (status 0x{sm1_status:02X})");
     assert_eq!(m.slave_mut(0).unwrap().sdo_read(0x1018, 3).unwrap(), 2u32.to_le_bytes());
     assert_eq!(m.stats().lost_frames, before.lost_frames + 3);
+}
+
+/// A read of SM1 whose return is lost leaves the master unsure whether it emptied SM1, so it
+/// asks for the reply again (SM1's repeat request); if the read had found SM1 already empty (a
+/// cycle thread reads on the mailbox status of a frame sent before its last read), the drive puts
+/// back the message the master took before. That copy is not taken a second time.
+#[test]
+fn a_message_a_repeat_request_brings_back_after_a_lost_read_of_an_empty_mailbox_is_not_taken_twice() {
+    let lose_mailbox_reads = Arc::new(AtomicU32::new(0));
+    let link = Lossy {
+        inner: InProcess::new(1),
+        lose_lrw: Arc::default(),
+        lose_mailbox_reads: lose_mailbox_reads.clone(),
+        lose_mailbox_writes: Arc::default(),
+    };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    // The mailbox as a cycle thread uses it: an SDO upload written, its reply read once.
+    let mut slave = m.slave_mut(0).unwrap();
+    let mut request = [0u8; 0x400];
+    let counter = slave.mailbox_take_counter().unwrap();
+    let upload = SdoRequest::Upload { index: 0x1018, subindex: 1, complete_access: false };
+    write_sdo_request(&mut request, counter, &upload);
+    let deadline = Instant::now() + STEP;
+    while !slave.mailbox_try_send(&mut request).unwrap() {
+        assert!(Instant::now() < deadline, "SM0 never took the request");
+    }
+    let mut reply = [0u8; 0x400];
+    while !slave.mailbox_try_read(&mut reply).unwrap() {
+        assert!(Instant::now() < deadline, "no reply");
+    }
+    // SM1 is empty now; a read of it whose return is lost, and the repeat request that follows.
+    lose_mailbox_reads.store(1, Ordering::SeqCst);
+    assert!(!slave.mailbox_try_read(&mut [0u8; 0x400]).unwrap());
+    while slave.mailbox_try_repeat().unwrap() {}
+    // The drive put its last reply back into SM1: the one already taken.
+    let until = Instant::now() + Duration::from_millis(50);
+    while Instant::now() < until {
+        let mut again = [0u8; 0x400];
+        assert!(!slave.mailbox_try_read(&mut again).unwrap(), "the reply taken before was taken again");
+    }
+    let stats = m.stats();
+    assert_eq!((stats.mailbox_repeats, stats.stale_mailbox_replies), (1, 1));
+}
+
+fn sm1_full(slave: &mut akd_native::ethercat::master::SlaveRef<'_>) -> bool {
+    slave.read_register(0x080D, 1).unwrap()[0] & 0x08 != 0
+}
+
+/// A read of SM1 whose return is lost after it emptied SM1, and the drive's next reply put in
+/// before the repeat request comes: the repeat brings back the reply whose read was lost, and the
+/// next one follows it; neither is lost.
+#[test]
+fn a_repeat_request_brings_back_the_reply_read_last_and_the_next_one_after_it() {
+    let lose_mailbox_reads = Arc::new(AtomicU32::new(0));
+    let link = Lossy {
+        inner: InProcess::new(1),
+        lose_lrw: Arc::default(),
+        lose_mailbox_reads: lose_mailbox_reads.clone(),
+        lose_mailbox_writes: Arc::default(),
+    };
+    let mut m = Master::new(Box::new(link), Duration::from_millis(100));
+    m.scan().unwrap();
+    m.request_state(AlState::PreOp, STEP).unwrap();
+    let mut slave = m.slave_mut(0).unwrap();
+    let deadline = Instant::now() + STEP;
+    // Two uploads written before either reply is read: the second reply waits in the drive.
+    for subindex in [1, 2] {
+        let mut request = [0u8; 0x400];
+        let counter = slave.mailbox_take_counter().unwrap();
+        write_sdo_request(
+            &mut request,
+            counter,
+            &SdoRequest::Upload { index: 0x1018, subindex, complete_access: false },
+        );
+        while !slave.mailbox_try_send(&mut request).unwrap() {
+            assert!(Instant::now() < deadline, "SM0 never took the request");
+        }
+    }
+    while !sm1_full(&mut slave) {
+        assert!(Instant::now() < deadline, "no reply");
+    }
+    // The first reply's read empties SM1 and its return is lost; the drive puts its second in.
+    lose_mailbox_reads.store(1, Ordering::SeqCst);
+    assert!(!slave.mailbox_try_read(&mut [0u8; 0x400]).unwrap());
+    while !sm1_full(&mut slave) {
+        assert!(Instant::now() < deadline, "the second reply never came");
+    }
+    while slave.mailbox_try_repeat().unwrap() {}
+    // The replies to subindex 1 and 2, in their order, each once.
+    let mut subindices = Vec::new();
+    let until = Instant::now() + Duration::from_millis(100);
+    while Instant::now() < until {
+        let mut reply = [0u8; 0x400];
+        if slave.mailbox_try_read(&mut reply).unwrap() {
+            subindices.push(reply[11]);
+        }
+    }
+    assert_eq!(subindices, [1, 2]);
 }
 
 #[test]

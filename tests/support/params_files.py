@@ -117,7 +117,49 @@ BAD_FILES = {
     ),
     "a joint past the last drive": (
         "link: sim:2\njoints: [a, b, c]",
-        ["the drives (a (slave 0), b (slave 1), c (slave 2))", "slave 2 is not on the bus (slaves 0..1)"],
+        [
+            "the drives (a (slave 0), b (slave 1), c (slave 2))",
+            "slave 2 is not on the bus: the line has 2 slaves (0..1); drive c expects an AKD there",
+        ],
+    ),
+    "a device without its slave": ("devices: [valves]", ["parameter devices.valves.slave must be given", "akd-scan"]),
+    "a device named as a joint": (
+        "link: sim:2\njoints: [a, b]\ndevices: [a]\ndevices.a.slave: 1",
+        ["parameter devices names a more than once (or as a joint)"],
+    ),
+    "two devices on one slave": (
+        "link: sim:2\njoints: [a]\ndevices: [valves, lamps]\ndevices.valves.slave: 1\ndevices.lamps.slave: 1",
+        ["parameters devices.<name>.slave: slave 1 given to several devices; each device once"],
+    ),
+    "a device on a joint's slave": (
+        "link: sim:2\njoints: [a]\ndevices: [valves]\ndevices.valves.slave: 0",
+        ["slave 0 is given to a drive and to device valves; each slave once"],
+    ),
+    "a device's product unknown to the line": (
+        "link: sim:ek1100,el1004,el2004,akd?pace=immediate\nslave: 3\ndevices: [valves]\ndevices.valves.slave: 2\n"
+        "devices.valves.product: EL9999",
+        ["configure: ", "slave 2 is an EL2004; device valves expects an EL9999"],
+    ),
+    "a block of a device not in devices": (
+        "devices: [valves]\ndevices.valves.slave: 1\ndevices.lamps.slave: 2",
+        ["unknown parameter devices.lamps.slave", "devices.<name>.<one of slave, product>"],
+    ),
+    "an unknown product in the link": (
+        "link: sim:ek1100,el9999,akd",
+        ["parameter link", '"el9999", is no product the simulator makes: allowed are akd, ek1100'],
+    ),
+    "a device of another product than the line's": (
+        "link: sim:ek1100,el1004,el2004,akd?pace=immediate\nslave: 3\ndevices: [valves]\ndevices.valves.slave: 2\n"
+        "devices.valves.product: EL2008",
+        ["configure: ", "slave 2 is an EL2004; device valves expects an EL2008"],
+    ),
+    "a device past the end of the line": (
+        "link: sim:ek1100,el1004,akd?pace=immediate\nslave: 2\ndevices: [valves]\ndevices.valves.slave: 5",
+        ["slave 5 is not on the bus: the line has 3 slaves (0..2); device valves expects a device there"],
+    ),
+    "a joint where the line has a terminal": (
+        "link: sim:ek1100,el1004,akd?pace=immediate\nslave: 1",
+        ["slave 1 is an EL1004; drive akd_axis expects an AKD"],
     ),
     # Port 9 (discard) on loopback: nothing listens, so the configure fails and the node ends.
     "a line with no drives listening": (

@@ -29,7 +29,7 @@ from std_msgs.msg import Float64
 from std_srvs.srv import Trigger
 
 from akd_ros.msg import DriveFault, DriveIO, DriveStatus, LatchEvent, TrajectoryStatus
-from akd_ros.srv import ArmLatch, SetMode
+from akd_ros.srv import ArmLatch, SetMode, SetOutputs
 from support.netns import SIM_PRIORITY, free_udp_port, realtime
 
 BIN = Path(sys.executable).parent
@@ -107,15 +107,30 @@ class Sim:
     node's tests are not about this shared host's scheduling and a node cycle it runs late must not fault them
     (F125); a test of the drive's own reaction to a master that stops asks for "late", as the real drive judges.
     With `setpoint_trace` it traces the set-points its drives receive to that file (akd-sim --setpoint-trace), complete
-    once it stopped."""
+    once it stopped. With `line` it serves that line (akd-sim --line: terminals and AKDs) instead of `count` AKDs."""
 
-    def __init__(self, port: int, count: int = 1, missed: str = "lost", setpoint_trace: Path | None = None):
+    def __init__(
+        self,
+        port: int,
+        count: int = 1,
+        missed: str = "lost",
+        setpoint_trace: Path | None = None,
+        line: str | None = None,
+    ):
         self.port = port
         self.log: list[str] = []
         self.lines: queue.Queue = queue.Queue()
         trace = ["--setpoint-trace", str(setpoint_trace)] if setpoint_trace else []
         self.process = subprocess.Popen(
-            [str(BIN / "akd-sim"), "--udp", f"127.0.0.1:{port}", "--count", str(count), "--missed", missed, *trace],
+            [
+                str(BIN / "akd-sim"),
+                "--udp",
+                f"127.0.0.1:{port}",
+                *(["--line", line] if line is not None else ["--count", str(count)]),
+                "--missed",
+                missed,
+                *trace,
+            ],
             preexec_fn=lambda: realtime(SIM_PRIORITY),
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
@@ -234,11 +249,51 @@ class Participant:
         self.node.destroy_client(client)
         return future.result()
 
+    def send_goal(self, action_client, goal, feedback=None):
+        """Sends `goal` through `action_client` (feedback to `feedback` where given); its accepted goal handle."""
+        sent = action_client.send_goal_async(goal, feedback_callback=feedback)
+        self.spin_until(sent.done, "goal response")
+        handle = sent.result()
+        assert handle.accepted
+        return handle
+
+    def goal_result(self, handle, timeout: float = 20.0):
+        """(goal status, result) of `handle` once it ends."""
+        result = handle.get_result_async()
+        self.spin_until(result.done, "goal result", timeout=timeout)
+        return result.result().status, result.result().result
+
     def trigger(self, name: str) -> str:
         """Calls a Trigger service that must succeed; gives its message."""
         response = self.call(Trigger, name)
         assert response.success, f"{name}: {response.message}"
         return response.message
+
+    def status(self, name: str, done, what: str):
+        """The first /diagnostics status named `name` from now on for which `done(status)` (the participant collects
+        /diagnostics in `received`)."""
+        seen = len(self.received["/diagnostics"])
+
+        def found():
+            for array in self.received["/diagnostics"][seen:]:
+                for status in array.status:
+                    if status.name == name and done(status):
+                        return status
+            return None
+
+        self.spin_until(found, what)
+        return found()
+
+    def set_outputs(self, joint: str, outputs=(), values=(), analog: float | None = None) -> SetOutputs.Response:
+        """Calls ~/set_outputs for `joint` (a joint or a device) and gives its response."""
+        request = SetOutputs.Request(
+            joint=joint,
+            outputs=list(outputs),
+            values=list(values),
+            set_analog_output=analog is not None,
+            analog_output=0.0 if analog is None else analog,
+        )
+        return self.call(SetOutputs, "set_outputs", request)
 
     def latest(self, topic: str):
         """The last message of `topic` after a fresh one arrived."""
@@ -320,12 +375,19 @@ def move_to(ros: Client, target: float, seconds: float = 1.0) -> None:
 
 @contextmanager
 def node_on_sim(
-    params: str, folder: Path, domain: int, *, count: int = 1, client_of=None, ready="/joint_states"
+    params: str,
+    folder: Path,
+    domain: int,
+    *,
+    count: int = 1,
+    client_of=None,
+    ready="/joint_states",
+    line: str | None = None,
 ) -> Iterator[tuple[Sim, NodeProcess, Participant]]:
-    """A fresh simulator of `count` drives, akd_node on it with `params` (a template whose {port} is the simulator's)
-    on `domain`, and a client there (`client_of(domain)`, a `Client` by default) once topic `ready` arrives (or, a
-    callable, once `ready(client)` is true); all ended afterwards, the node's output printed."""
-    sim = Sim(free_udp_port(), count=count)
+    """A fresh simulator of `count` drives (or of `line`), akd_node on it with `params` (a template whose {port} is the
+    simulator's) on `domain`, and a client there (`client_of(domain)`, a `Client` by default) once topic `ready`
+    arrives (or, a callable, once `ready(client)` is true); all ended afterwards, the node's output printed."""
+    sim = Sim(free_udp_port(), count=count, line=line)
     path = folder / "akd_node.yaml"
     path.write_text(params.format(port=sim.port))
     node = NodeProcess(path, domain)

@@ -24,7 +24,13 @@ from typing import Any
 
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import (
+    DurabilityPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_parameters,
+    qos_profile_services_default,
+)
 from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 
@@ -97,6 +103,26 @@ def _awaitable(node, done) -> Future:
     return answered
 
 
+_SERVICE_QOS = QoSProfile(
+    depth=qos_profile_parameters.depth,
+    reliability=qos_profile_services_default.reliability,
+    durability=qos_profile_services_default.durability,
+)
+"""Services' QoS: the default's, as deep as the parameter services'."""
+
+
+def _failed(response, error: Exception):
+    """`response` (a service's response or an action's result) saying that its handler failed with `error`, where it
+    has the fields to say so."""
+    text = f"failed: {type(error).__name__}: {error}"
+    for field, value in (("success", False), ("message", text), ("error_string", text)):
+        if hasattr(response, field):
+            setattr(response, field, value)
+    if hasattr(response, "error_code"):
+        response.error_code = getattr(response, "INVALID_GOAL", -1)
+    return response
+
+
 class RosGroup:
     """A callback group of the rclpy transport: the executor's for subscriptions and services, a worker thread for
     timers (and, with transport both, for what arrives by Zenoh)."""
@@ -150,9 +176,17 @@ class RosTransport:
 
         async def serve(request, response):
             # The handler runs on the group's thread; the executor's takes the next message while it waits.
-            return await _awaitable(node, group.worker.submit(handler, request, response))
+            try:
+                return await _awaitable(node, group.worker.submit(handler, request, response))
+            except Exception as e:  # noqa: BLE001  (a defect: the worker logged it; the caller still gets an answer)
+                return _failed(response, e)
 
-        node.create_service(message_class(type_name), name, serve, callback_group=group.callbacks)
+        # The group takes one request at a time, the others waiting in the service's queue meanwhile: as deep as ROS's
+        # own parameter services have theirs, "so that requests do not get lost". A burst of calls overflowed the
+        # default depth of 10, and a call dropped there is never answered.
+        node.create_service(
+            message_class(type_name), name, serve, qos_profile=_SERVICE_QOS, callback_group=group.callbacks
+        )
 
     def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: RosGroup) -> type:
         from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -163,7 +197,13 @@ class RosTransport:
         async def execute(handle):
             # A goal runs as long as its motion: on a thread of its own, so the executor's, which takes the commands,
             # never waits for it, and a newer goal's runs beside it to preempt it.
-            return await _awaitable(node, in_thread(goal_thread, callbacks.execute, handle))
+            try:
+                return await _awaitable(node, in_thread(goal_thread, callbacks.execute, handle))
+            except Exception as e:  # noqa: BLE001  (a defect: the goal still ends, with a result saying so)
+                self.logger.error(f"{name}: goal failed: {type(e).__name__}: {e}")
+                if handle.is_active:
+                    handle.abort()
+                return _failed(action.Result(), e)
 
         ActionServer(
             node,

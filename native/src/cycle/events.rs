@@ -1,5 +1,5 @@
 //! Events the cycle thread reports — latch captures, faults, command time-outs, what became
-//! of trajectories and changes of a drive's digital inputs — as four words each through a
+//! of trajectories, changes of a drive's digital inputs and of a device's — as four words each through a
 //! [`Ring`], so that the thread never waits for whoever reads them; a full ring drops and
 //! counts, so what was missed is known.
 
@@ -66,6 +66,12 @@ named_variants! {
         Restored = 4 => "back in Op (readdressed and reconfigured where it had lost its configuration), its power \
             stage off and its target held at the actual position; nothing moves until it is enabled and commanded \
             again",
+        /// A device beside the drives (a terminal) was lost or left Op: its outputs were
+        /// switched off in the process image, where they stay until set again.
+        OutputsOff = 5 => "its outputs switched off; they stay off until set again",
+        /// A device is back in Op, its outputs off.
+        RestoredOutputsOff = 6 => "back in Op (readdressed and reconfigured where it had lost its configuration), its \
+            outputs off until set again",
     }
     /// One sentence for the fault message and the log.
     fn describe;
@@ -130,6 +136,57 @@ pub enum TrajectoryState {
     PathToleranceViolated(Violation),
     /// A drive was not within the goal tolerance by the end plus the goal time tolerance.
     GoalToleranceViolated(Violation),
+    /// Refused when it was to take over, nothing moved: from the set-point then in force, a
+    /// drive's segment to the first point would go past its limits, or a drive of the
+    /// trajectory in force that this one does not drive was still moving. The trajectory in
+    /// force goes on.
+    Refused(Refusal),
+}
+
+/// Why a trajectory was refused when it was to take over, and of which drive.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refusal {
+    /// The drive's position on the bus.
+    pub slave: u16,
+    /// Why.
+    pub why: RefusalReason,
+    /// The value that went past the limit (counts, counts/s or counts/s²; the velocity step, or
+    /// the velocity of the drive left moving).
+    pub value: f32,
+}
+
+wire_codes! {
+    /// What a refusal at the take-over judged.
+    pub enum RefusalReason: u8, "trajectory refusal" {
+        /// Its segment to the first point went past the drive's position limits.
+        Position = 0 => "position",
+        /// ... past its max velocity.
+        Velocity = 1 => "max_velocity",
+        /// ... past its max acceleration.
+        Acceleration = 2 => "max_acceleration",
+        /// Its set-point's velocity would step where its acceleration is limited.
+        VelocityStep = 3 => "velocity_step",
+        /// It is a drive of the trajectory in force, not of this one, and it was still moving.
+        LeftMoving = 4 => "left_moving",
+    }
+}
+
+// A refusal's value is what a finite trajectory reached, never NaN: equal to itself.
+impl Eq for Refusal {}
+
+impl Refusal {
+    /// In 56 bits: `code` plus the reason, the drive, the value as an f32.
+    fn pack(self, code: u64) -> u64 {
+        (code + self.why as u64) | (self.slave as u64) << 8 | (self.value.to_bits() as u64) << 24
+    }
+
+    fn unpack(v: u64, code: u8) -> Option<Refusal> {
+        Some(Refusal {
+            why: RefusalReason::try_from((v as u8).checked_sub(code)?).ok()?,
+            slave: (v >> 8) as u16,
+            value: f32::from_bits((v >> 24) as u32),
+        })
+    }
 }
 
 /// Which drive strayed from a trajectory and by how much.
@@ -167,6 +224,7 @@ impl TrajectoryState {
             TrajectoryState::Stopped => "stopped",
             TrajectoryState::PathToleranceViolated(_) => "path_tolerance_violated",
             TrajectoryState::GoalToleranceViolated(_) => "goal_tolerance_violated",
+            TrajectoryState::Refused(_) => "refused",
         }
     }
 
@@ -187,6 +245,7 @@ impl TrajectoryState {
             TrajectoryState::Stopped => 6,
             TrajectoryState::PathToleranceViolated(v) => v.pack(7),
             TrajectoryState::GoalToleranceViolated(v) => v.pack(9),
+            TrajectoryState::Refused(r) => r.pack(11),
         }
     }
 
@@ -201,6 +260,7 @@ impl TrajectoryState {
             6 => Some(TrajectoryState::Stopped),
             7 | 8 => Some(TrajectoryState::PathToleranceViolated(Violation::unpack(v, 7))),
             9 | 10 => Some(TrajectoryState::GoalToleranceViolated(Violation::unpack(v, 9))),
+            11..=15 => Some(TrajectoryState::Refused(Refusal::unpack(v, 11)?)),
             _ => None,
         }
     }
@@ -279,6 +339,18 @@ pub enum Event {
         /// The statusword of that cycle.
         statusword: u16,
     },
+    /// A device's inputs of one bit (an EL1004's) changed in this cycle's inputs
+    /// ([`crate::cycle::devices`]).
+    DeviceInputs {
+        /// The cycle whose inputs showed it.
+        cycle: u64,
+        /// That cycle's wake-up time (ns, monotonic).
+        time_ns: u64,
+        /// The slave's position on the bus.
+        slave: u16,
+        /// Their levels, the device's first input channel of one bit in bit 0 (up to 64).
+        levels: u64,
+    },
     /// A trajectory started ([`TrajectoryState::Running`]) or ended.
     Trajectory {
         /// The cycle that saw it.
@@ -317,6 +389,7 @@ impl Event {
             Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
                 [cycle, time_ns, 5 | (slave as u64) << 8 | (statusword as u64) << 24, digital_inputs as u64]
             }
+            Event::DeviceInputs { cycle, time_ns, slave, levels } => [cycle, time_ns, 6 | (slave as u64) << 8, levels],
         }
     }
 
@@ -363,6 +436,7 @@ impl Event {
                 digital_inputs: data as u32,
                 statusword: (what >> 24) as u16,
             }),
+            6 => Some(Event::DeviceInputs { cycle, time_ns, slave, levels: data }),
             _ => None,
         }
     }
@@ -441,6 +515,8 @@ mod tests {
         events.push(fault);
         events.push(timeout);
         events.push(inputs);
+        let device = Event::DeviceInputs { cycle: 14, time_ns: 15, slave: 3, levels: u64::MAX - 2 };
+        events.push(device);
         let trajectories = [
             TrajectoryState::Running,
             TrajectoryState::Done,
@@ -449,7 +525,7 @@ mod tests {
         ]
         .map(|state| Event::Trajectory { cycle: 10, time_ns: 12, id: 7, state });
         trajectories.iter().for_each(|t| events.push(*t));
-        assert_eq!(events.drain(), [[latch, fault, timeout, inputs].as_slice(), &trajectories].concat());
+        assert_eq!(events.drain(), [[latch, fault, timeout, inputs, device].as_slice(), &trajectories].concat());
         assert_eq!(TrajectoryState::unpack(TrajectoryState::Pending.pack()), Some(TrajectoryState::Pending));
         assert!(events.drain().is_empty());
         for _ in 0..CAPACITY + 3 {

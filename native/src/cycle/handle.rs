@@ -2,13 +2,15 @@
 //! call to start the thread, give it set-points and requests, read what it publishes, and stop
 //! it. It never touches the master while the thread runs; it works on [`CycleShared`].
 
+use std::borrow::Cow;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{mpsc, Arc};
 use std::thread::JoinHandle;
 use std::time::Duration;
 
 use super::acyclic::{MailboxService, SdoSlot};
-use super::events::{CommandTimeoutAction, Event, Events};
+use super::devices::{DeviceLoop, DeviceShared};
+use super::events::{CommandTimeoutAction, Event, Events, Refusal, RefusalReason};
 use super::run::{homing_objects, run, DriveLoop, Loop};
 use super::samples::{Sample, Samples};
 use super::seqlock::SeqBytes;
@@ -18,11 +20,12 @@ use super::{
     command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, recovery, rt, sequencer,
     supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
-use crate::drive::trajectory::{Knot, Limits, Trajectory};
+use crate::drive::trajectory::{JointLimits, Knot, Limit, Limits, Scale, Setpoint, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
+use crate::ethercat::device::{self, Channel, ChannelValue};
 use crate::ethercat::master::cyclic::ImageSlot;
 use crate::ethercat::master::Master;
-use crate::ethercat::pdo::PdoEntry;
+use crate::ethercat::pdo::{Direction, PdoEntry};
 
 /// Why a set-point is refused once the cycle stopped.
 fn setpoints_stopped() -> Error {
@@ -136,9 +139,15 @@ pub struct CycleThread {
     offsets: Vec<Option<sequencer::Offsets>>,
     /// Per slave: the mapping's entries, outputs and inputs, where mapped.
     mappings: Vec<Option<(Vec<PdoEntry>, Vec<PdoEntry>)>>,
+    /// Per slave: its channels, named as its SII names its PDO entries (none without process
+    /// data).
+    channels: Vec<Vec<Channel>>,
     trajectories: trajectory_player::Caller,
     /// Each slave's product as its SII names it.
     products: Vec<String>,
+    /// Per slave: the joint's limits, handed down once; every motion of the drive is judged by
+    /// them (an INT32 target's range, at any speed, where none were).
+    joint_limits: std::sync::RwLock<Vec<Option<JointLimits>>>,
 }
 
 impl CycleThread {
@@ -161,11 +170,24 @@ impl CycleThread {
             Err(e) => return Err(Box::new((e, master))),
         };
         let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
+        let master_slaves = master.slaves().len();
         let found = sequenced_drives(&master);
         let sequenced_count = found.iter().filter(|f| f.is_ok()).count();
         let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
         let latch_objects = found.iter().map(|f| f.as_ref().ok().and_then(|f| f.1)).collect();
         let offsets = found.iter().map(|f| f.as_ref().ok().map(|f| f.0)).collect();
+        let channels: Vec<Vec<Channel>> = master
+            .slaves()
+            .iter()
+            .map(|s| s.process_data.as_ref().map_or_else(Vec::new, |d| device::channels(&s.sii, d)))
+            .collect();
+        // Every slave the cycle does not sequence is a device beside the drives.
+        let devices: Vec<DeviceLoop> = found
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.is_err())
+            .map(|(p, _)| DeviceLoop::new(p as u16, master.image_slot(p as u16).ok(), &channels[p]))
+            .collect();
         let drives: Vec<DriveLoop> = found
             .into_iter()
             .enumerate()
@@ -235,16 +257,18 @@ impl CycleThread {
             trajectories: trajectory_player::PlayerShared::new(master.slaves().len()),
             relay: Arc::default(),
             recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
+            devices: (0..master.slaves().len()).map(|_| DeviceShared::default()).collect(),
             supervised: supervised.is_ok(),
             line_health: line_health::LineHealthShared::new(ports, line_health_interval),
         });
-        let recoverer = recoverer(&mut master, &shared, &drives, config.period);
+        let recoverer = recoverer(&mut master, &shared, &drives, &devices, config.period);
         // The master goes to the thread once it exists, so a failed spawn can hand it back.
         let (master_tx, master_rx) = mpsc::sync_channel::<Master>(1);
         let (ready_tx, ready_rx) = mpsc::sync_channel(1);
         let spawned = {
             let shared = shared.clone();
             let mut drives = drives;
+            let mut devices = devices;
             let mut mailbox = mailbox;
             let mut player = trajectory_player::Player::new(master.slaves().len());
             let mut relay_buffers = recovery::RelayBuffers::default();
@@ -260,8 +284,13 @@ impl CycleThread {
                 // The starting thread waits for this message; it cannot be gone.
                 let _ = ready_tx.send(warnings);
                 let timeout = master.replace_timeout(config.period);
-                let mut ready =
-                    Loop { master: &mut master, shared: &shared, drives: &mut drives, gaps: Gaps::default() };
+                let mut ready = Loop {
+                    master: &mut master,
+                    shared: &shared,
+                    drives: &mut drives,
+                    devices: &mut devices,
+                    gaps: Gaps::default(),
+                };
                 run(
                     &mut ready,
                     (&mut mailbox, &mut relay_buffers, &mut line_reader),
@@ -293,6 +322,7 @@ impl CycleThread {
                 .spawn(move || recoverer.run(&shared.recovery, &shared.stop))
                 .ok()
         };
+        let joint_limits = std::sync::RwLock::new(vec![None; master_slaves]);
         Ok(CycleThread {
             shared,
             thread: std::sync::Mutex::new(Some(thread)),
@@ -305,7 +335,9 @@ impl CycleThread {
             sequenced,
             latch_objects,
             offsets,
+            joint_limits,
             mappings,
+            channels,
             trajectories: trajectory_player::Caller::default(),
             products,
         })
@@ -343,7 +375,7 @@ impl CycleThread {
         }
         let slot = self.slot(position)?;
         slot.check_outputs_len(position, data.len())?;
-        self.shared.setpoints.write().write(slot.out_offset, data);
+        self.shared.setpoints.write().write_bits(slot.out_start_bit(), data, slot.out_bits);
         self.shared.drives[position as usize].setpoint_written();
         self.shared.command_timeouts[position as usize].target_written();
         Ok(())
@@ -371,6 +403,19 @@ impl CycleThread {
         drive.request(request);
         self.shared.command_timeouts[position as usize].release();
         Ok(())
+    }
+
+    /// Asks the drive at `position` for a fault reset if it shows a fault (Fault, or Fault
+    /// reaction active: the edge then comes once it is in Fault); gives whether it did. A drive
+    /// without a fault is left as it is: a reset never takes power from a drive that runs.
+    pub fn reset_fault(&self, position: u16) -> Result<bool> {
+        use crate::drive::ds402::State;
+        let state = self.sequenced(position)?.status().state();
+        if !matches!(state, Some(State::Fault | State::FaultReactionActive)) {
+            return Ok(false);
+        }
+        self.request(position, sequencer::Request::FaultReset)?;
+        Ok(true)
     }
 
     /// Arms (`arm`) or disarms the latch edges in `edges` (bits as [`latch::edge_bit`]) of the
@@ -486,6 +531,7 @@ impl CycleThread {
     /// set-point, so the new mode starts where the axis is.
     pub fn set_mode(&self, position: u16, mode: i8) -> Result<()> {
         let drive = self.sequenced(position)?;
+        self.check_not_driven(position, "a mode change")?;
         match self.offsets[position as usize].and_then(|o| o.mode) {
             Some(at) => self.shared.setpoints.write().write(at, &[mode as u8]),
             None => self.sdo_write(position, 0x6060, 0, &[mode as u8])?,
@@ -578,6 +624,7 @@ impl CycleThread {
             let state = status.state().map_or("no valid state", crate::drive::ds402::State::name);
             return Err(Unavailable::HomingNotEnabled { slave: position, state }.into());
         }
+        self.check_not_driven(position, "a homing")?;
         self.shared.command_timeouts[position as usize].release();
         Ok(self.shared.homings[position as usize].start(timeout.as_nanos().min(u64::MAX as u128) as u64))
     }
@@ -648,8 +695,12 @@ impl CycleThread {
                 SettingError::EntryLength { index, subindex, expected: entry.byte_len(), given: data.len() }.into()
             );
         }
-        self.shared.setpoints.write().write(slot.out_offset + offset, data);
         let command = crate::drive::ds402::Mode::is_command_object(index, subindex);
+        if command && self.sequenced.get(position as usize).is_some_and(|s| s.is_ok()) {
+            self.check_not_driven(position, "a set-point")?;
+            self.check_step(position, slot.out_offset + offset, data)?;
+        }
+        self.shared.setpoints.write().write(slot.out_offset + offset, data);
         if let (Some(Ok(())), true) = (self.sequenced.get(position as usize), command) {
             self.shared.drives[position as usize].setpoint_written();
             if command_timeout::TARGETS.contains(&(index, subindex)) {
@@ -674,10 +725,9 @@ impl CycleThread {
         slaves: &[u16],
         times_ns: &[u64],
         points: &[Vec<Knot>],
-        limits: Option<&[Limits]>,
         start_ns: Option<u64>,
     ) -> Result<u32> {
-        self.follow_trajectory(slaves, times_ns, points, limits, start_ns, None)
+        self.follow_trajectory(slaves, times_ns, points, start_ns, None)
     }
 
     /// Plays a joint trajectory as [`play_trajectory`](Self::play_trajectory) does, judged by
@@ -689,14 +739,14 @@ impl CycleThread {
         slaves: &[u16],
         times_ns: &[u64],
         points: &[Vec<Knot>],
-        limits: Option<&[Limits]>,
         start_ns: Option<u64>,
         tolerances: Option<trajectory_player::Tolerances>,
     ) -> Result<u32> {
         if self.stopped() {
             return Err(Unavailable::CycleStopped { consequence: "no trajectory can play".into() }.into());
         }
-        let trajectory = Trajectory::new(slaves.len(), times_ns, points, limits)?;
+        let limits: Vec<Limits> = slaves.iter().map(|&slave| self.limits_of(slave).0).collect();
+        let trajectory = Trajectory::new(slaves.len(), times_ns, points, Some(&limits))?;
         let joints = slaves
             .iter()
             .enumerate()
@@ -709,6 +759,14 @@ impl CycleThread {
             .collect::<Result<Vec<_>>>()?;
         if let Some(t) = tolerances.as_ref().filter(|t| t.joints.len() != slaves.len()) {
             return Err(TrajectoryError::TolerancesCount { given: t.joints.len(), joints: slaves.len() }.into());
+        }
+        for &slave in slaves {
+            if self.shared.homings[slave as usize].status().phase.under_way() {
+                return Err(Unavailable::Driven { slave, what: "a trajectory", trajectory: None }.into());
+            }
+        }
+        if start_ns.is_none_or(|start| start <= crate::cycle::timing::now_ns() + 2 * self.period.as_nanos() as u64) {
+            self.judge_take_over(slaves, &trajectory)?;
         }
         let id = self.trajectories.next_id();
         let mut plan = trajectory_player::Plan::judged(id, start_ns, joints, trajectory, tolerances);
@@ -725,8 +783,179 @@ impl CycleThread {
             }
             std::thread::sleep(Duration::from_micros(100));
         }
-        self.trajectories.note(status);
+        self.trajectories.handed(status, slaves.to_vec());
         Ok(status.id)
+    }
+
+    /// Judges, before it is handed over, how `trajectory` (on drives `slaves`) would take over
+    /// now: each drive's segment to the first point from its set-point in force (the running
+    /// trajectory's, else the target last sent, at rest), and that no drive of the running
+    /// trajectory that this one does not drive is moving. The cycle thread judges the same at
+    /// the take-over itself, from the exact set-points then.
+    fn judge_take_over(&self, slaves: &[u16], trajectory: &Trajectory) -> Result<()> {
+        let snapshot = self.snapshot();
+        for (joint, &slave) in slaves.iter().enumerate() {
+            let sent = || {
+                let at = self.offsets[slave as usize].and_then(|o| o.targets.into_iter().flatten().next())?;
+                Some(crate::cycle::image::i32_at(&snapshot.outputs, at) as f64)
+            };
+            let from = self
+                .shared
+                .trajectories
+                .setpoint(slave)
+                .or_else(|| sent().map(|position| Setpoint { position, ..Setpoint::default() }));
+            if let Some(breach) = from.and_then(|from| trajectory.lead_in_breach(joint, from)) {
+                return Err(Trajectory::lead_in_error(joint, breach).into());
+            }
+        }
+        let left = (0..self.slave_count()).filter(|s| !slaves.contains(s)).find_map(|slave| {
+            let setpoint = self.shared.trajectories.setpoint(slave)?;
+            (setpoint.velocity != 0.0).then_some((slave, setpoint.velocity))
+        });
+        if let Some((slave, velocity)) = left {
+            let (_, scale, name) = self.limits_of(slave);
+            return Err(TrajectoryError::LeavesMoving {
+                slave,
+                name,
+                velocity: scale.words(Limit::Velocity, velocity),
+            }
+            .into());
+        }
+        Ok(())
+    }
+
+    /// What `refusal` (of a trajectory at its take-over) means, in the joint's words.
+    pub fn refusal_text(&self, refusal: &Refusal) -> String {
+        let (limits, scale, name) = self.limits_of(refusal.slave);
+        let joint = name.unwrap_or_else(|| format!("drive {}", refusal.slave));
+        let value = refusal.value as f64;
+        let (limit, allowed) = match refusal.why {
+            RefusalReason::Position => {
+                let end = if value > limits.max { limits.max } else { limits.min };
+                return format!(
+                    "{joint}'s segment to the first point, from its set-point at the take-over, would reach {}, past \
+                     its limit {}",
+                    scale.words(Limit::Position, value),
+                    scale.words(Limit::Position, end)
+                );
+            }
+            RefusalReason::Velocity => (Limit::Velocity, limits.max_velocity),
+            RefusalReason::Acceleration | RefusalReason::VelocityStep => (Limit::Acceleration, limits.max_acceleration),
+            RefusalReason::LeftMoving => {
+                return format!(
+                    "{joint} was moving at {} in the trajectory in force, which this one would have replaced \
+                     without driving it",
+                    scale.words(Limit::Velocity, value)
+                );
+            }
+        };
+        if refusal.why == RefusalReason::VelocityStep {
+            return format!(
+                "{joint}'s set-point velocity would step by {} at the take-over, past its max_acceleration {}",
+                scale.magnitude(Limit::Velocity, value),
+                scale.magnitude(limit, allowed)
+            );
+        }
+        format!(
+            "{joint}'s segment to the first point, from its set-point at the take-over, would reach {}, past its {} \
+             {}",
+            scale.words(limit, value),
+            limit.name(),
+            scale.magnitude(limit, allowed)
+        )
+    }
+
+    /// Hands down the limits of the joint on the drive at `position`, by which the cycle judges
+    /// every motion of it from then on: trajectories (every point and the path between them),
+    /// and the set-points of a cyclic position mode (the step to each from the target last
+    /// sent, taken within one cycle).
+    pub fn set_joint_limits(&self, position: u16, joint: JointLimits) -> Result<()> {
+        self.check_position(position)?;
+        if let Some(e) = joint.check() {
+            return Err(e.into());
+        }
+        let mut all = self.joint_limits.write().unwrap_or_else(|poisoned| poisoned.into_inner());
+        all[position as usize] = Some(joint);
+        Ok(())
+    }
+
+    /// The limits of the joint on the drive at `slave`, how its values read and its name (an
+    /// INT32 target's range at any speed, counts, no name, where none were handed down).
+    pub fn limits_of(&self, slave: u16) -> (Limits, Scale, Option<String>) {
+        let all = self.joint_limits.read().unwrap_or_else(|poisoned| poisoned.into_inner());
+        match all.get(slave as usize) {
+            Some(Some(joint)) => (joint.limits, joint.scale, Some(joint.name.clone())),
+            _ => (Limits::TARGET, Scale::COUNTS, None),
+        }
+    }
+
+    /// Refuses `what` for the drive at `position` while a trajectory in force or a homing
+    /// under way drives it.
+    fn check_not_driven(&self, position: u16, what: &'static str) -> Result<()> {
+        if self.shared.homings.get(position as usize).is_some_and(|h| h.status().phase.under_way()) {
+            return Err(Unavailable::Driven { slave: position, what, trajectory: None }.into());
+        }
+        if let Some(id) = self.trajectories.driving(&self.shared.trajectories, position) {
+            return Err(Unavailable::Driven { slave: position, what, trajectory: Some(id) }.into());
+        }
+        Ok(())
+    }
+
+    /// Refuses a position target `data` written at `at` in the outputs of the drive at
+    /// `position` in a cyclic position mode whose step from the target last sent, which the
+    /// drive takes within one cycle, would go past the joint's velocity or acceleration limit.
+    fn check_step(&self, position: u16, at: usize, data: &[u8]) -> Result<()> {
+        let Some(o) = self.offsets[position as usize] else { return Ok(()) };
+        let Ok(bytes) = <[u8; 4]>::try_from(data) else { return Ok(()) };
+        if !o.targets.contains(&Some(at)) {
+            return Ok(());
+        }
+        let status = self.drive_status(position)?;
+        // A set-point written while the drive is not enabled never goes out: the target is held at the actual
+        // position until one is written after the enable.
+        if status.state() != Some(crate::drive::ds402::State::OperationEnabled) {
+            return Ok(());
+        }
+        let mode = status.mode_display.or_else(|| self.mode_set(position));
+        use crate::drive::ds402::Mode;
+        let cyclic = [Mode::CyclicSynchronousPosition, Mode::InterpolatedPosition];
+        if !mode.and_then(Mode::from_i8).is_some_and(|m| cyclic.contains(&m)) {
+            return Ok(());
+        }
+        let (limits, scale, name) = self.limits_of(position);
+        let sent = crate::cycle::image::i32_at(&self.snapshot().outputs, at);
+        let step = i32::from_le_bytes(bytes).wrapping_sub(sent) as f64;
+        let period_s = self.period.as_secs_f64();
+        // Within a cycle the drive moves the step at a constant velocity, from rest and back to it.
+        let (velocity, acceleration) = (step / period_s, step / (period_s * period_s));
+        let past = [
+            (Limit::Velocity, velocity, limits.max_velocity),
+            (Limit::Acceleration, acceleration, limits.max_acceleration),
+        ]
+        .into_iter()
+        .find(|(_, value, allowed)| value.abs() > allowed * 1.000_001 && step.abs() > 1.0);
+        let Some((limit, value, allowed)) = past else { return Ok(()) };
+        let joint = name.map_or_else(|| format!("drive {position}"), |n| format!("joint {n}"));
+        let most = match limit {
+            Limit::Acceleration => allowed * period_s * period_s,
+            _ => allowed * period_s,
+        };
+        Err(Unavailable::StepPastLimit {
+            slave: position,
+            detail: format!(
+                "in a cyclic position mode the drive takes the step of {} from the target last sent within one cycle \
+                 ({} s), {} {}, past {joint}'s {} {}; a step may be at most {}: stream set-points every cycle, or \
+                 move by a trajectory, which the cycle interpolates",
+                scale.magnitude(Limit::Position, step),
+                period_s,
+                if limit == Limit::Velocity { "a velocity of" } else { "an acceleration of" },
+                scale.magnitude(limit, value),
+                limit.name(),
+                scale.magnitude(limit, allowed),
+                scale.magnitude(Limit::Position, most),
+            ),
+        }
+        .into())
     }
 
     /// The drive at `slave` as joint `joint` of a trajectory, or why it cannot be one.
@@ -839,12 +1068,90 @@ impl CycleThread {
     }
 
     /// The outputs of the slave at `position` as last set (the set-points; for a sequenced
-    /// drive, the controlword and held target that go out are in [`Snapshot::outputs`]).
+    /// drive, the controlword and held target that go out are in [`Snapshot::outputs`]), from
+    /// bit 0 of the first byte.
     pub fn outputs(&self, position: u16) -> Result<Vec<u8>> {
         let slot = self.slot(position)?;
         let mut image = vec![0; self.shared.setpoints.len()];
         self.shared.setpoints.read(&mut image);
-        Ok(image[slot.out_offset..slot.out_offset + slot.out_len].to_vec())
+        Ok(slot.outputs_in(&image))
+    }
+
+    /// The channels of the slave at `position`, named after its PDO entries as its SII names
+    /// them ([`crate::ethercat::device`]): outputs, then inputs; empty for a slave without
+    /// process data.
+    pub fn channels(&self, position: u16) -> Result<&[Channel]> {
+        self.check_position(position)?;
+        Ok(&self.channels[position as usize])
+    }
+
+    /// The value of every channel of the slave at `position` in `snapshot`, in the order of
+    /// [`channels`](Self::channels): inputs as read, outputs as that cycle sent them.
+    pub fn channel_values(&self, snapshot: &Snapshot, position: u16) -> Result<Vec<ChannelValue>> {
+        let channels = self.channels(position)?;
+        let Some(slot) = self.slots[position as usize] else { return Ok(Vec::new()) };
+        Ok(channels
+            .iter()
+            .map(|c| match c.direction {
+                Direction::Rx => c.read(&snapshot.outputs, slot.out_start_bit()),
+                Direction::Tx => c.read(&snapshot.inputs, slot.in_start_bit()),
+            })
+            .collect())
+    }
+
+    /// The device at `position`, where it has process data: a slave the cycle does not
+    /// sequence (a drive's outputs are its objects', set with [`set_object`](Self::set_object)).
+    fn device(&self, position: u16) -> Result<Option<ImageSlot>> {
+        if self.stopped() {
+            return Err(setpoints_stopped());
+        }
+        self.check_position(position)?;
+        if self.sequenced[position as usize].is_ok() {
+            return Err(Unavailable::DriveChannels { slave: position }.into());
+        }
+        Ok(self.slots[position as usize])
+    }
+
+    /// Sets output channels of the device at `position` by name from the next cycle on, every
+    /// one or none: each name must be one of its outputs and each value one it takes
+    /// ([`Channel::encode`]); the other outputs keep their values. Lock-free for the cycle.
+    pub fn set_channels(&self, position: u16, values: &[(&str, ChannelValue)]) -> Result<()> {
+        let slot = self.device(position)?;
+        let channels = &self.channels[position as usize];
+        let outputs =
+            || channels.iter().filter(|c| c.direction == Direction::Rx).map(|c| c.name.clone()).collect::<Vec<_>>();
+        let mut writes = Vec::with_capacity(values.len());
+        for &(name, value) in values {
+            let channel =
+                channels.iter().find(|c| c.name == name && c.direction == Direction::Rx).ok_or_else(|| {
+                    let is_input = channels.iter().any(|c| c.name == name);
+                    Unavailable::NoSuchOutput { slave: position, name: name.to_owned(), outputs: outputs(), is_input }
+                })?;
+            let raw = channel.encode(value).map_err(|error| Unavailable::ChannelValue { slave: position, error })?;
+            writes.push((channel, raw));
+        }
+        // A slave without process data has no channel: its first name was refused.
+        let (Some(slot), false) = (slot, writes.is_empty()) else { return Ok(()) };
+        let mut w = self.shared.setpoints.write();
+        for (channel, raw) in writes {
+            w.write_bits(
+                slot.out_start_bit() + channel.bit,
+                &raw.to_le_bytes(),
+                usize::from(channel.entry.bits).min(64),
+            );
+        }
+        Ok(())
+    }
+
+    /// Switches every output of the device at `position` off (its bits 0) from the next cycle
+    /// on, until they are set again; nothing for a device without outputs.
+    pub fn switch_outputs_off(&self, position: u16) -> Result<()> {
+        let Some(slot) = self.device(position)? else { return Ok(()) };
+        let mut w = self.shared.setpoints.write();
+        for n in (0..slot.out_bits).step_by(64) {
+            w.write_bits(slot.out_start_bit() + n, &[0; 8], (slot.out_bits - n).min(64));
+        }
+        Ok(())
     }
 
     /// The last cycle's snapshot.
@@ -863,16 +1170,25 @@ impl CycleThread {
         }
     }
 
-    /// The outputs the slave at `position` was sent in `snapshot`'s cycle.
-    pub fn outputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+    /// The outputs the slave at `position` was sent in `snapshot`'s cycle, from bit 0 of the
+    /// first byte: the snapshot's own bytes for a slave laid out in whole bytes (a drive), a copy
+    /// for one packed beside others.
+    pub fn outputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<Cow<'a, [u8]>> {
         let slot = self.slot(position)?;
-        Ok(&snapshot.outputs[slot.out_offset..slot.out_offset + slot.out_len])
+        Ok(match slot.out_bit {
+            0 => Cow::Borrowed(&snapshot.outputs[slot.out_offset..slot.out_offset + slot.out_bits.div_ceil(8)]),
+            _ => Cow::Owned(slot.outputs_in(&snapshot.outputs)),
+        })
     }
 
-    /// The inputs of the slave at `position` in `snapshot`.
-    pub fn inputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<&'a [u8]> {
+    /// The inputs of the slave at `position` in `snapshot`, from bit 0 of the first byte, as
+    /// [`outputs_of`](Self::outputs_of) gives the outputs.
+    pub fn inputs_of<'a>(&self, snapshot: &'a Snapshot, position: u16) -> Result<Cow<'a, [u8]>> {
         let slot = self.slot(position)?;
-        Ok(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_len])
+        Ok(match slot.in_bit {
+            0 => Cow::Borrowed(&snapshot.inputs[slot.in_offset..slot.in_offset + slot.in_bits.div_ceil(8)]),
+            _ => Cow::Owned(slot.inputs_in(&snapshot.inputs)),
+        })
     }
 
     /// The distributed clocks: SYNC0's set-up and every drive's last system-time difference;
@@ -932,9 +1248,19 @@ impl Drop for CycleThread {
 
 /// The recovery thread's work, made while the master is still this thread's: each sequenced
 /// drive, and the mode in force (its display 0x6061, read now: a drive that lost power has
-/// forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change").
-fn recoverer(master: &mut Master, shared: &CycleShared, drives: &[DriveLoop], period: Duration) -> recovery::Recoverer {
+/// forgotten it, and 0x6060 reads 0 where mapped outputs carry "no change"), and each device,
+/// which gets no mode.
+fn recoverer(
+    master: &mut Master,
+    shared: &CycleShared,
+    drives: &[DriveLoop],
+    devices: &[DeviceLoop],
+    period: Duration,
+) -> recovery::Recoverer {
     let mut recovered = vec![false; master.slaves().len()];
+    for d in devices {
+        recovered[d.position as usize] = true;
+    }
     for d in drives {
         let position = d.position as usize;
         if let Ok([mode]) = master.slave_mut(d.position).and_then(|mut s| s.sdo_read(0x6061, 0)).as_deref() {
@@ -1011,7 +1337,7 @@ mod tests {
         assert_eq!(later.wkc, 6);
         assert_eq!(cycle.inputs_of(&later, 1).unwrap().len(), 6);
         // No drive was asked for anything: the set-points go out as written.
-        assert_eq!(cycle.outputs_of(&later, 0).unwrap(), [0x78, 0x56, 0x34, 0x12, 0x06, 0]);
+        assert_eq!(*cycle.outputs_of(&later, 0).unwrap(), [0x78, 0x56, 0x34, 0x12, 0x06, 0]);
         let stats = cycle.stats();
         assert!(stats.period.summary().count >= 20);
         assert!(stats.wake_latency.summary().count >= 21);

@@ -30,7 +30,10 @@
 //!
 //! A slave the loop loses (no answer, or out of Op) is reported and its drive disabled there;
 //! [`recovery`] brings it back beside the cycle ([`CycleThread::recovery_status`]), its power
-//! stage off, while the other drives cycle on.
+//! stage off, while the other drives cycle on. The slaves it does not sequence, the devices
+//! beside the drives (terminals), are run by [`devices`]: their inputs' edges reported, their
+//! outputs switched off where the loop decides it, their presence judged and their recovery
+//! asked for as a drive's.
 //!
 //! A few times a second the thread also reads every slave's links and error counters in a frame
 //! beside its own ([`line_health`], [`CycleThread::line_health`]), when no mailbox or recovery
@@ -51,6 +54,7 @@ pub use rt::RealTime;
 pub mod acyclic;
 pub mod command_timeout;
 pub mod dc_status;
+pub mod devices;
 pub mod eoe_frames;
 pub mod events;
 mod handle;
@@ -111,6 +115,8 @@ struct CycleShared {
     relay: Arc<recovery::Relay>,
     /// One per slave: its recovery.
     recovery: Vec<recovery::SlaveRecovery>,
+    /// One per slave: what a device beside the drives asks of the loop.
+    devices: Vec<devices::DeviceShared>,
     /// Whether the cyclic frame reads every slave's AL status: without, no drive's presence can
     /// be judged, and none is taken as lost.
     supervised: bool,

@@ -5,6 +5,7 @@
 use std::sync::atomic::Ordering;
 
 use super::acyclic::MailboxService;
+use super::devices::DeviceLoop;
 use super::events::{Event, FaultSource};
 use super::samples::Sample;
 use super::stats::CycleStats;
@@ -37,11 +38,12 @@ pub(super) struct DriveLoop {
 }
 
 /// What the loop works on: the master, what it shares with the other threads, the drives it
-/// sequences and the gaps in their frames.
+/// sequences, the devices beside them and the gaps in their frames.
 pub(super) struct Loop<'a> {
     pub(super) master: &'a mut Master,
     pub(super) shared: &'a CycleShared,
     pub(super) drives: &'a mut [DriveLoop],
+    pub(super) devices: &'a mut [DeviceLoop],
     pub(super) gaps: Gaps,
 }
 
@@ -150,6 +152,9 @@ impl Loop<'_> {
             } else {
                 self.drives.iter_mut().for_each(|d| d.drive.copied());
             }
+            for device in self.devices.iter() {
+                device.apply_off(&shared.devices[device.position as usize], &shared.setpoints, outputs);
+            }
         }
         if let Ok(inputs) = master.input_image() {
             player.observe(&shared.trajectories, &shared.events, inputs, now);
@@ -227,7 +232,7 @@ impl Loop<'_> {
         };
         let now = sent.now;
         shared.dc.publish(master.clock());
-        supervise(master, shared, self.drives, mailbox, &mut self.gaps, exchange, now);
+        supervise(master, shared, (self.drives, self.devices), mailbox, &mut self.gaps, exchange, now);
         if let (Exchange::Good, Ok(inputs)) = (exchange, master.input_image()) {
             for d in self.drives.iter_mut().filter(|d| !d.presence.lost()) {
                 if let Some((digital_inputs, statusword)) = d.inputs.observe(inputs) {
@@ -235,10 +240,18 @@ impl Loop<'_> {
                     shared.events.push(Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword });
                 }
             }
+            for d in self.devices.iter_mut().filter(|d| !d.presence.lost()) {
+                if let Some(levels) = d.observe_inputs(inputs) {
+                    let (cycle, time_ns, slave) = (now.0, now.1, d.position);
+                    shared.events.push(Event::DeviceInputs { cycle, time_ns, slave, levels });
+                }
+            }
         }
-        for d in self.drives.iter_mut() {
-            if let Some(counter) = d.mailbox_counter.take() {
-                master.set_mailbox_counter(d.position, counter);
+        let counters = self.drives.iter_mut().map(|d| (d.position, &mut d.mailbox_counter));
+        for (position, counter) in counters.chain(self.devices.iter_mut().map(|d| (d.position, &mut d.mailbox_counter)))
+        {
+            if let Some(counter) = counter.take() {
+                master.set_mailbox_counter(position, counter);
             }
         }
         if let (Ok(inputs), Ok(outputs)) = (master.input_image(), master.output_image()) {
@@ -324,12 +337,12 @@ fn sample(
     }
 }
 
-/// Judges the cycle's exchange and every drive's state; reports faults and brings drives to a
-/// safe state where the fault calls for it.
+/// Judges the cycle's exchange, every drive's state and every device's presence; reports faults
+/// and brings drives to a safe state, and devices' outputs off, where the fault calls for it.
 fn supervise(
     master: &Master,
     shared: &CycleShared,
-    drives: &mut [DriveLoop],
+    (drives, devices): (&mut [DriveLoop], &mut [DeviceLoop]),
     mailbox: &mut MailboxService,
     gaps: &mut Gaps,
     exchange: Exchange,
@@ -342,9 +355,12 @@ fn supervise(
     let answered = |slave: u16| {
         exchange != Exchange::Lost && watch.and_then(|w| w.get(slave as usize)).is_some_and(|w| w.answered)
     };
-    let all_answered = drives.iter().all(|d| answered(d.position));
+    // Every slave of the line, devices too: a terminal that did not answer spares the drives
+    // that did a wrong working counter.
+    let slaves = 0..master.slaves().len() as u16;
+    let all_answered = slaves.clone().all(answered);
     // A frame in which nobody answered is the line's fault, as a lost frame is, not one drive's.
-    let none_answered = !drives.iter().any(|d| answered(d.position));
+    let none_answered = !slaves.clone().any(answered);
     for d in drives.iter_mut() {
         let slave = d.position;
         let o = d.drive.offsets;
@@ -391,8 +407,52 @@ fn supervise(
             faulted |= presence(master, shared, d, (answered(slave), in_op, reported), (statusword, al_status), now);
         }
     }
+    if shared.supervised {
+        for d in devices.iter_mut() {
+            device_presence(master, shared, d, answered(d.position), now);
+        }
+    }
     if faulted && shared.quick_stop_on_fault.load(Ordering::Relaxed) {
         quick_stop_the_others(shared, drives, inputs);
+        // The line's fault reaction: the devices' outputs (a gripper's valve) go off too.
+        devices.iter().for_each(|d| shared.devices[d.position as usize].request_off());
+    }
+}
+
+/// Moves device `d`'s presence on, as a drive's: when it is lost (unanswered for as long as a
+/// drive, or out of Op), reports it, switches its outputs off and asks for its recovery; when
+/// it is back in Op, reports it with its outputs off, where they stay until set again.
+fn device_presence(master: &Master, shared: &CycleShared, d: &mut DeviceLoop, answered: bool, now: (u64, u64)) {
+    let slave = d.position;
+    let al_status = master.watch().ok().and_then(|w| w.get(slave as usize)).filter(|w| w.answered).map(|w| w.al_status);
+    let in_op = answered && al_status.is_some_and(|a| a.state() == Some(AlState::Op) && !a.error());
+    let recovery = &shared.recovery[slave as usize];
+    let fault = |source, code, action| Event::Fault {
+        cycle: now.0,
+        time_ns: now.1,
+        slave,
+        source,
+        code,
+        statusword: 0,
+        al_status: al_status.map_or(0, |a| a.status),
+        al_status_code: al_status.map_or(0, |a| a.code),
+        action,
+    };
+    match d.presence.observe(answered, in_op && !recovery::restoring(recovery), now) {
+        None => {}
+        Some(recovery::PresenceChange::Lost { report, missing }) => {
+            let source = if report { FaultSource::Unreachable } else { FaultSource::AlState };
+            let code = if report { missing.min(u16::MAX as u32) as u16 } else { 0 };
+            shared.events.push(fault(source, code, events::Action::OutputsOff));
+            shared.devices[slave as usize].request_off();
+            recovery::want(recovery, master.mailbox_counter(slave).unwrap_or(0));
+        }
+        Some(recovery::PresenceChange::Back { since }) => {
+            d.mailbox_counter = Some(recovery::done(recovery));
+            shared.devices[slave as usize].request_off();
+            let gone_ms = (now.1.saturating_sub(since.1) / 1_000_000).min(u16::MAX as u64) as u16;
+            shared.events.push(fault(FaultSource::Recovered, gone_ms, events::Action::RestoredOutputsOff));
+        }
     }
 }
 

@@ -35,6 +35,19 @@ impl Writer<'_> {
     }
 }
 
+impl Writer<'_> {
+    /// Writes `bits` bits of `data` (from its bit 0) from bit `at` of the buffer on, leaving
+    /// the buffer's other bits: a slave packed in a byte beside others. Panics when out of
+    /// bounds: callers check ranges first.
+    pub fn write_bits(&mut self, at: usize, data: &[u8], bits: usize) {
+        for n in 0..bits {
+            let (cell, bit) = (&self.buffer.bytes[(at + n) / 8], (at + n) % 8);
+            let value = data[n / 8] >> (n % 8) & 1;
+            cell.store(cell.load(Ordering::Relaxed) & !(1 << bit) | value << bit, Ordering::Relaxed);
+        }
+    }
+}
+
 impl Drop for Writer<'_> {
     fn drop(&mut self) {
         self.buffer.sequence.store(self.sequence + 2, Ordering::Release);
@@ -143,6 +156,9 @@ mod tests {
         assert_eq!(b.try_read(&mut out), Some(1));
         assert_eq!(out, [1, 2, 7, 8, 0, 0]);
         assert_eq!(b.writes(), 1);
+        b.write().write_bits(28, &[0b1010], 4);
+        b.read(&mut out);
+        assert_eq!(out, [1, 2, 7, 0b1010_1000, 0, 0], "bits 28-31 written, the others kept");
     }
 
     #[test]

@@ -34,11 +34,11 @@ use std::collections::VecDeque;
 use std::sync::atomic::{AtomicPtr, AtomicU32, Ordering};
 use std::sync::Mutex;
 
-use crate::cycle::events::{Event, Events, TrajectoryState, Violation};
+use crate::cycle::events::{Event, Events, Refusal, RefusalReason, TrajectoryState, Violation};
 use crate::cycle::image::{i32_at, u16_at};
 use crate::cycle::seqlock::SeqBytes;
 use crate::drive::ds402::State;
-use crate::drive::trajectory::{Segment, Setpoint, Trajectory};
+use crate::drive::trajectory::{Breach, Limit, Segment, Setpoint, Trajectory};
 use crate::error::{Error, Result, TrajectoryError, Unavailable};
 
 /// Return slots for plans the loop is done with.
@@ -283,8 +283,9 @@ fn braked(from: Setpoint, deceleration: f64, s: f64) -> Setpoint {
 }
 
 /// Words a drive's followed values take in [`PlayerShared::followed`]: the set-point's position and
-/// velocity, the actual position and velocity, and whether a trajectory drives it.
-const FOLLOWED: usize = 5;
+/// velocity, the actual position and velocity, whether a trajectory drives it, and the
+/// set-point's acceleration.
+const FOLLOWED: usize = 6;
 
 /// What the cycle thread and the callers share: the handoff and the published statuses.
 pub struct PlayerShared {
@@ -326,6 +327,17 @@ impl PlayerShared {
         let words = bytes.get(at..at + FOLLOWED * 8)?;
         let word = |w: usize| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes"));
         (word(4) == 1.0).then(|| std::array::from_fn(word))
+    }
+
+    /// Drive `slave`'s set-point (position, velocity, acceleration) as the trajectory in force
+    /// last had it; `None` while none drives it.
+    pub fn setpoint(&self, slave: u16) -> Option<Setpoint> {
+        let mut bytes = vec![0u8; self.followed.len()];
+        self.followed.read(&mut bytes);
+        let at = slave as usize * FOLLOWED * 8;
+        let words = bytes.get(at..at + FOLLOWED * 8)?;
+        let word = |w: usize| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes"));
+        (word(4) == 1.0).then(|| Setpoint { position: word(0), velocity: word(1), acceleration: word(5) })
     }
 
     /// Hands `plan` to the cycle thread; gives it back when the last one was not taken yet.
@@ -425,6 +437,11 @@ impl Player {
                 self.pending = Some(plan);
             }
         }
+        // A stop of a trajectory still waiting for its start ends it at once: nothing moved.
+        let stop = shared.stop.load(Ordering::Acquire);
+        if let Some(plan) = self.pending.take_if(|p| p.status.id == stop) {
+            self.end(shared, events, plan, TrajectoryState::Stopped, now);
+        }
         if let Some(plan) = self.pending.as_ref().filter(|p| p.due(now.1)) {
             for (sent, joint) in self.sent.iter_mut().zip(&plan.joints) {
                 *sent = joint.sent(outputs);
@@ -436,6 +453,13 @@ impl Player {
     /// force from the drives' `inputs`, or aborts it; [`wrote`](Self::wrote) then tells which
     /// drives get a target from it in this cycle.
     pub fn observe(&mut self, shared: &PlayerShared, events: &Events, inputs: &[u8], now: (u64, u64)) {
+        // A trajectory waiting for its start whose drive leaves Operation enabled could not
+        // start: it ends aborted now, not when it was due.
+        if let Some((slave, statusword)) = self.pending.as_ref().and_then(|p| left_operation(&p.joints, inputs)) {
+            if let Some(plan) = self.pending.take() {
+                self.end(shared, events, plan, TrajectoryState::Aborted { slave, statusword }, now);
+            }
+        }
         if self.pending.as_ref().is_some_and(|p| p.due(now.1)) {
             self.start(shared, events, now);
         }
@@ -484,7 +508,9 @@ impl Player {
         }
     }
 
-    /// The pending plan takes over from each drive's set-point.
+    /// The pending plan takes over from each drive's set-point, unless that would take a drive
+    /// past its limits or leave one of the trajectory in force moving: then it is refused and
+    /// the one in force goes on.
     fn start(&mut self, shared: &PlayerShared, events: &Events, now: (u64, u64)) {
         let Some(mut plan) = self.pending.take() else { return };
         for j in 0..plan.joints.len() {
@@ -494,8 +520,23 @@ impl Player {
                 Some(c.at(i, now.1))
             });
             let from = running.unwrap_or(Setpoint { position: self.sent[j] as f64, ..Setpoint::default() });
+            if let Some(breach) = plan.trajectory.lead_in_breach(j, from) {
+                let refusal = Refusal::of(slave, breach);
+                return self.end(shared, events, plan, TrajectoryState::Refused(refusal), now);
+            }
             plan.lead_in[j] = plan.trajectory.lead_in(j, from);
             plan.last[j] = from;
+        }
+        if let Some(current) = &self.current {
+            let left = current.joints.iter().enumerate().find_map(|(i, joint)| {
+                let velocity = current.at(i, now.1).velocity;
+                (velocity != 0.0 && !plan.joints.iter().any(|j| j.slave == joint.slave))
+                    .then_some((joint.slave, velocity))
+            });
+            if let Some((slave, velocity)) = left {
+                let refusal = Refusal { slave, why: RefusalReason::LeftMoving, value: velocity as f32 };
+                return self.end(shared, events, plan, TrajectoryState::Refused(refusal), now);
+            }
         }
         plan.status.started_ns = now.1;
         plan.status.state = TrajectoryState::Running;
@@ -507,11 +548,7 @@ impl Player {
     }
 
     fn follow(&mut self, shared: &PlayerShared, events: &Events, mut plan: Box<Plan>, inputs: &[u8], now: (u64, u64)) {
-        let left = plan.joints.iter().find_map(|joint| {
-            let statusword = u16_at(inputs, joint.statusword);
-            (State::from_statusword(statusword) != Some(State::OperationEnabled)).then_some((joint.slave, statusword))
-        });
-        if let Some((slave, statusword)) = left {
+        if let Some((slave, statusword)) = left_operation(&plan.joints, inputs) {
             // The sequencer holds that drive where it is.
             self.owned[slave as usize] = None;
             return self.end(shared, events, plan, TrajectoryState::Aborted { slave, statusword }, now);
@@ -534,8 +571,14 @@ impl Player {
             self.owned[joint.slave as usize] = Some((position, joint.targets));
             let actual = |at: Option<usize>| at.map_or(f64::NAN, |at| i32_at(inputs, at) as f64);
             let last = plan.last[j];
-            self.followed[joint.slave as usize] =
-                [last.position, last.velocity, actual(joint.actual), actual(joint.velocity_actual), 1.0];
+            self.followed[joint.slave as usize] = [
+                last.position,
+                last.velocity,
+                actual(joint.actual),
+                actual(joint.velocity_actual),
+                1.0,
+                last.acceleration,
+            ];
             plan.last[j] = setpoint;
         }
         plan.status.elapsed_ns = elapsed_ns;
@@ -593,12 +636,41 @@ impl Player {
     }
 }
 
-/// The callers' side: trajectory ids and the statuses of the last [`KEPT`] trajectories.
+/// The callers' side: trajectory ids, the statuses of the last [`KEPT`] trajectories, and the
+/// drives of those in force.
 #[derive(Default)]
 pub struct Caller {
     last_id: AtomicU32,
-    /// Oldest first; the cycle thread never takes this lock.
-    known: Mutex<VecDeque<TrajectoryStatus>>,
+    /// The cycle thread never takes this lock.
+    known: Mutex<Known>,
+}
+
+#[derive(Default)]
+struct Known {
+    /// Oldest first.
+    statuses: VecDeque<TrajectoryStatus>,
+    /// The trajectories handed over and not known to have ended, each with its drives.
+    in_force: Vec<(u32, Vec<u16>)>,
+}
+
+impl Known {
+    /// Notes a trajectory handed over (pending) or ended; an end noted first (by another
+    /// caller's collect) stays.
+    fn note(&mut self, status: TrajectoryStatus) {
+        if status.state.ended() {
+            self.in_force.retain(|(id, _)| *id != status.id);
+        }
+        match self.statuses.iter_mut().find(|s| s.id == status.id) {
+            Some(s) if s.state.ended() && !status.state.ended() => {}
+            Some(s) => *s = status,
+            None => {
+                if self.statuses.len() == KEPT {
+                    self.statuses.pop_front();
+                }
+                self.statuses.push_back(status);
+            }
+        }
+    }
 }
 
 impl Caller {
@@ -607,20 +679,31 @@ impl Caller {
         self.last_id.fetch_add(1, Ordering::Relaxed) + 1
     }
 
+    fn known(&self) -> std::sync::MutexGuard<'_, Known> {
+        self.known.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Notes trajectory `status` (pending) handed over with its drives `slaves`; in force until
+    /// its end is noted (unless that came first).
+    pub fn handed(&self, status: TrajectoryStatus, slaves: Vec<u16>) {
+        let mut known = self.known();
+        let ended = known.statuses.iter().any(|s| s.id == status.id && s.state.ended());
+        if !ended {
+            known.in_force.push((status.id, slaves));
+        }
+        known.note(status);
+    }
+
+    /// The trajectory handed over, not known to have ended, that drives drive `slave`.
+    pub fn driving(&self, shared: &PlayerShared, slave: u16) -> Option<u32> {
+        shared.collect(|status| self.note(status));
+        self.known().in_force.iter().find(|(_, slaves)| slaves.contains(&slave)).map(|(id, _)| *id)
+    }
+
     /// Notes a trajectory handed over (pending) or ended; an end noted first (by another
     /// caller's collect) stays.
     pub fn note(&self, status: TrajectoryStatus) {
-        let mut known = self.known.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        match known.iter_mut().find(|s| s.id == status.id) {
-            Some(s) if s.state.ended() && !status.state.ended() => {}
-            Some(s) => *s = status,
-            None => {
-                if known.len() == KEPT {
-                    known.pop_front();
-                }
-                known.push_back(status);
-            }
-        }
+        self.known().note(status);
     }
 
     /// Trajectory `id` as the cycle thread last published it.
@@ -628,17 +711,45 @@ impl Caller {
         // Live first: a plan that ends meanwhile is in the outbox when collected after.
         let live = shared.live().into_iter().flatten().find(|s| s.id == id);
         shared.collect(|status| self.note(status));
-        let known = self.known.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
-        let kept = known.iter().find(|s| s.id == id).copied();
+        let known = self.known();
+        let kept = known.statuses.iter().find(|s| s.id == id).copied();
         match (kept, live) {
             (Some(kept), _) if kept.state.ended() => Ok(kept),
             (_, Some(live)) => Ok(live),
             (Some(kept), None) => Ok(kept),
             (None, None) => {
-                let ids = known.front().map(|f| (f.id, known.back().map_or(f.id, |b| b.id)));
+                let statuses = &known.statuses;
+                let ids = statuses.front().map(|f| (f.id, statuses.back().map_or(f.id, |b| b.id)));
                 Err(Error::from(Unavailable::NoSuchTrajectory { id, kept: ids }))
             }
         }
+    }
+}
+
+/// The first drive of `joints` that is not in Operation enabled in `inputs`, with its
+/// statusword.
+fn left_operation(joints: &[Joint], inputs: &[u8]) -> Option<(u16, u16)> {
+    joints.iter().find_map(|joint| {
+        let statusword = u16_at(inputs, joint.statusword);
+        (State::from_statusword(statusword) != Some(State::OperationEnabled)).then_some((joint.slave, statusword))
+    })
+}
+
+impl Refusal {
+    /// The refusal of drive `slave` for `breach` of its segment to the first point.
+    fn of(slave: u16, breach: Breach) -> Refusal {
+        let (why, value) = match breach {
+            Breach::Past(excess) => {
+                let why = match excess.limit {
+                    Limit::Position => RefusalReason::Position,
+                    Limit::Velocity => RefusalReason::Velocity,
+                    Limit::Acceleration => RefusalReason::Acceleration,
+                };
+                (why, excess.value)
+            }
+            Breach::Step { from, to, .. } => (RefusalReason::VelocityStep, to - from),
+        };
+        Refusal { slave, why, value: value as f32 }
     }
 }
 
@@ -650,7 +761,7 @@ pub fn not_ready(joint: usize, slave: u16, why: impl Into<String>) -> Error {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::drive::trajectory::Knot;
+    use crate::drive::trajectory::{Knot, Limits};
 
     const MS: u64 = 1_000_000;
 
@@ -803,6 +914,44 @@ mod tests {
         let ended: Vec<_> = trajectory_events(&events).into_iter().filter(|e| e.1.ended()).collect();
         let violation = Violation { slave: 0, velocity: false, error: 50 };
         assert_eq!(ended, [(2, TrajectoryState::Done), (3, TrajectoryState::GoalToleranceViolated(violation))]);
+    }
+
+    #[test]
+    fn a_plan_waiting_for_its_start_ends_at_once_on_a_stop_or_when_its_drive_leaves_operation() {
+        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
+        let mut image = 1000i32.to_le_bytes();
+        // Due in an hour: stopped, it ends now, and nothing was written.
+        shared.give(plan(1, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
+        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        shared.stop(1);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 2, true), 1000);
+        assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Stopped)]);
+        // Due in an hour, its drive disabled: aborted now.
+        shared.give(plan(2, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
+        cycle(&mut player, &shared, &events, &mut image, 3, true);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 4, false), 1000);
+        let aborted = TrajectoryState::Aborted { slave: 0, statusword: State::Fault.statusword_bits() };
+        assert_eq!(trajectory_events(&events), [(2, aborted)]);
+        assert_eq!(shared.live(), [None, None]);
+    }
+
+    #[test]
+    fn a_plan_whose_start_would_go_past_a_limit_is_refused_and_the_one_in_force_goes_on() {
+        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
+        let mut image = 0i32.to_le_bytes();
+        shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
+        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        // 100 counts/ms allowed: from 100, where plan 1 is at 2 ms, to 5000 in 10 ms is 490.
+        let limits = Limits { max_velocity: 100_000.0, ..Limits::TARGET };
+        let trajectory = Trajectory::new(1, &[10 * MS], &[vec![Knot::position(5000.0)]], Some(&[limits])).unwrap();
+        shared.give(Plan::new(2, None, vec![JOINT], trajectory)).unwrap();
+        let sent: Vec<i32> = (2..=12).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        assert_eq!(sent, [100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1000], "plan 1 went on");
+        let refusal = Refusal { slave: 0, why: RefusalReason::Velocity, value: 490_000.0 };
+        assert_eq!(
+            trajectory_events(&events),
+            [(1, TrajectoryState::Running), (2, TrajectoryState::Refused(refusal)), (1, TrajectoryState::Done)]
+        );
     }
 
     #[test]

@@ -8,6 +8,7 @@
 //! master's clock set-up with every drive's side of it. What the values mean is
 //! [`scaling`]'s, [`sync`]'s and [`crate::drive::pdo`]'s; this module only carries them.
 
+use crate::drive::identity;
 use crate::drive::pdo::Mapping;
 use crate::drive::scaling::{self, PositionScaling, SCALING_ENTRIES};
 use crate::drive::sync::{self, FBUS_PARAM02, FBUS_PARAM02_NAME, FBUS_PARAM02_PLL};
@@ -43,8 +44,9 @@ pub trait AkdSlave {
 
     /// Tells the drive (in PreOp) how to follow the line's clock: FBUS.PARAM02 where its SDO
     /// information confirms the object ([`sync::FBUS_PARAM02`] explains why), and its cycle
-    /// time. Gives FBUS.PARAM02 as it is now in the drive, `None` when unknown: a slave without
-    /// CoE (nothing is written to it), or a drive whose SDO information does not confirm the
+    /// time. Gives FBUS.PARAM02 as it is now in the drive, `None` when unknown: a slave that is
+    /// no AKD ([`identity::is_akd`]; nothing is written to it, a terminal with CoE among them),
+    /// or a drive whose SDO information does not confirm the
     /// object, whose PLL must then be switched on the drive (FBUS.PARAM02 = 1 in WorkBench),
     /// or it does not follow SYNC0.
     fn set_drive_sync(&mut self, sync: DriveSync) -> Result<Option<u32>>;
@@ -84,7 +86,7 @@ impl AkdSlave for SlaveRef<'_> {
     }
 
     fn set_drive_sync(&mut self, sync: DriveSync) -> Result<Option<u32>> {
-        if !self.info().mailbox.as_ref().is_some_and(|m| m.has_coe()) {
+        if !identity::is_akd(&self.info().sii.identity()) {
             return Ok(None);
         }
         let mut written = None;
@@ -110,13 +112,13 @@ impl AkdSlave for SlaveRef<'_> {
 /// The line of AKDs: the master's clock set-up with every drive's side of it.
 pub trait AkdLine {
     /// Sets up distributed clocks and starts SYNC0 at `cycle_ns`, moved by `shift_ns` (less
-    /// than a cycle either way; [`Master::set_up_dc`]), then gives every slave with CoE
-    /// FBUS.PARAM02 = 1 and the cycle time ([`AkdSlave::set_drive_sync`]). Call in PreOp,
+    /// than a cycle either way; [`Master::set_up_dc`]), then gives every AKD FBUS.PARAM02 = 1
+    /// and the cycle time ([`AkdSlave::set_drive_sync`]). Call in PreOp,
     /// before SafeOp. Gives FBUS.PARAM02 as it is now in each slave, by position.
     fn configure_dc(&mut self, cycle_ns: u32, shift_ns: i64) -> Result<Vec<Option<u32>>>;
 
     /// Runs the drives without distributed clocks: SYNC0 off ([`Master::stop_dc`]), every
-    /// slave with CoE given FBUS.PARAM02 = 0 and the cycle time `cycle_ns`, so that each
+    /// AKD given FBUS.PARAM02 = 0 and the cycle time `cycle_ns`, so that each
     /// follows the SM2 event of the cyclic frame (AKD manual §5.11.2). Call in PreOp, before
     /// SafeOp. Gives FBUS.PARAM02 as it is now in each slave, by position.
     fn configure_sm2_sync(&mut self, cycle_ns: u32) -> Result<Vec<Option<u32>>>;

@@ -274,7 +274,7 @@ impl Mode {
     /// The mode's name as one word, as the Python API and the node's parameters spell it:
     /// "profile_position".
     pub fn snake_name(self) -> String {
-        self.name().replace(' ', "_")
+        crate::spelling::snake_case(self.name())
     }
 
     /// The mode whose [`snake_name`](Mode::snake_name) is `name`.

@@ -1,6 +1,7 @@
 //! The drive profile: what the crate knows of a CiA 402 drive and of the AKD in particular,
 //! above the EtherCAT layer, its codecs pure (no I/O): [`ds402`] (the CiA 402 state machine, its
-//! modes, targets and handshakes), [`pdo`] (the AKD's mappable objects and mappings, and their
+//! modes, targets and handshakes), [`identity`] (what tells an AKD from another slave, and its
+//! model and firmware in its SII), [`pdo`] (the AKD's mappable objects and mappings, and their
 //! rules), [`objects`] (mapped values read and encoded by their data types), [`io`] (the
 //! drive's own digital and analog I/O in its process data), [`scaling`] (how the drive scales
 //! its positions), [`sync`] (how it follows the line's clock), [`akd_fault`] (the AKD's fault
@@ -12,6 +13,7 @@
 pub mod akd;
 pub mod akd_fault;
 pub mod ds402;
+pub mod identity;
 pub mod io;
 pub mod objects;
 pub mod pdo;

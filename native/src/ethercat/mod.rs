@@ -9,7 +9,8 @@
 //!    SDO information, emergency), [`eoe`] (Ethernet over EtherCAT: fragments, Set IP
 //!    Parameter), [`foe`] (file access over EtherCAT), [`dc`] (distributed-clock arithmetic),
 //!    [`pdo`] (process-data entries, and the description of a slave's process data the master
-//!    sets it up from), [`link_spec`] (the text that names a bus) and [`line_health`] (the ESCs'
+//!    sets it up from), [`device`] (a slave's process data by name: its channels, their
+//!    values to the bit), [`link_spec`] (the text that names a bus) and [`line_health`] (the ESCs'
 //!    error counters and links, the line's topology and the place of a fault). Each raises its own error, declared
 //!    beside it and named in the standard's words (AL status code names, SDO abort code
 //!    names).
@@ -24,6 +25,7 @@
 pub mod al;
 pub mod coe;
 pub mod dc;
+pub mod device;
 pub mod eoe;
 pub mod foe;
 pub mod frame;

@@ -87,6 +87,29 @@ pub fn bit_len(entries: &[PdoEntry]) -> usize {
     entries.iter().map(|e| e.bits as usize).sum()
 }
 
+/// Clears `bits` bits of `image` from bit `from`, leaving the others as they are.
+pub fn clear_bits(image: &mut [u8], from: usize, bits: usize) {
+    for n in from..from + bits {
+        image[n / 8] &= !(1 << (n % 8));
+    }
+}
+
+/// Copies `bits` bits of `src` from bit `from` into `dst` from bit `to`, leaving `dst`'s other
+/// bits as they are; bit n is bit n % 8 of byte n / 8, as in a process image. Whole bytes are
+/// copied as such where both ends sit on byte boundaries. Panics past either slice's end:
+/// callers check ranges first.
+pub fn copy_bits(src: &[u8], from: usize, dst: &mut [u8], to: usize, bits: usize) {
+    if from.is_multiple_of(8) && to.is_multiple_of(8) && bits.is_multiple_of(8) {
+        dst[to / 8..(to + bits) / 8].copy_from_slice(&src[from / 8..(from + bits) / 8]);
+        return;
+    }
+    for n in 0..bits {
+        let (s, d) = (from + n, to + n);
+        let bit = src[s / 8] >> (s % 8) & 1;
+        dst[d / 8] = dst[d / 8] & !(1 << (d % 8)) | bit << (d % 8);
+    }
+}
+
 /// Where each entry of a mapping sits in the process image: byte offset and entry.
 pub fn layout(entries: impl IntoIterator<Item = PdoEntry>) -> impl Iterator<Item = (usize, PdoEntry)> {
     let mut bit = 0usize;
@@ -191,9 +214,14 @@ impl ProcessData {
         }
     }
 
-    /// Bytes of process data in `direction`.
+    /// Bits of process data in `direction`.
+    pub fn bits(&self, direction: Direction) -> usize {
+        self.assignment(direction).entries().map(|e| e.bits as usize).sum()
+    }
+
+    /// Bytes its sync manager of `direction` holds: the bits, a partial byte counting as one.
     pub fn bytes(&self, direction: Direction) -> usize {
-        self.assignment(direction).entries().map(|e| e.bits as usize).sum::<usize>() / 8
+        self.bits(direction).div_ceil(8)
     }
 }
 
@@ -206,6 +234,21 @@ mod tests {
         assert_eq!(PdoEntry::from_u32(0x60FF0020), PdoEntry::new(0x60FF, 0, 32));
         assert_eq!(PdoEntry::new(0x6040, 0, 16).to_u32(), 0x60400010);
         assert_eq!(PdoEntry::new(0x60C1, 1, 32).to_u32(), 0x60C10120);
+    }
+
+    #[test]
+    fn bits_are_copied_across_bytes_leaving_the_others() {
+        let mut image = [0xFFu8, 0x00, 0xFF];
+        copy_bits(&[0b0000_0101], 0, &mut image, 6, 4);
+        assert_eq!(image, [0b0111_1111, 0b0000_0001, 0xFF]);
+        let mut out = [0u8; 1];
+        copy_bits(&image, 6, &mut out, 0, 4);
+        assert_eq!(out, [0b0101]);
+        clear_bits(&mut image, 5, 4);
+        assert_eq!(image, [0b0001_1111, 0b0000_0000, 0xFF]);
+        let mut whole = [0u8; 3];
+        copy_bits(&[1, 2], 0, &mut whole, 8, 16);
+        assert_eq!(whole, [0, 1, 2]);
     }
 
     #[test]

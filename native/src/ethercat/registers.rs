@@ -14,6 +14,8 @@ pub const RAM_SIZE: u16 = 0x0006;
 pub const PORT_DESCRIPTOR: u16 = 0x0007;
 /// ESC features supported (2 bytes).
 pub const FEATURES: u16 = 0x0008;
+/// Feature bit of a distributed clock.
+pub const FEATURE_DC: u16 = 0x0004;
 /// Configured station address (2 bytes).
 pub const STATION_ADDRESS: u16 = 0x0010;
 /// Configured station alias (2 bytes, loaded from SII word 4).

@@ -22,7 +22,8 @@ pub const HEADER_WORDS: usize = 64;
 /// Bytes in the fixed header before the first category.
 pub const HEADER_BYTES: usize = HEADER_WORDS * 2;
 
-/// Category types (ETG.2010 table 7, and the AKD's manufacturer categories).
+/// Category types (ETG.2010 table 7). A manufacturer's own categories (0x0800 and up) are kept
+/// raw ([`Category::Other`]); its profile reads them.
 pub mod category {
     /// Strings referenced by index from the other categories.
     pub const STRINGS: u16 = 0x000A;
@@ -40,13 +41,13 @@ pub mod category {
     pub const RX_PDO: u16 = 0x0033;
     /// Distributed-clock operation modes.
     pub const DC: u16 = 0x003C;
-    /// The AKD's model string, e.g. `AKD-P00606-NBCC-E000` (AKD manual §5.15).
-    pub const AKD_MODEL: u16 = 0x0800;
-    /// The AKD's firmware version string, e.g. `01-20-00-003` (AKD manual §5.15).
-    pub const AKD_FIRMWARE: u16 = 0x0801;
     /// End of the category list.
     pub const END: u16 = 0xFFFF;
 }
+
+/// CoE details bit of the general category: the slave takes a PDO assignment (0x1C12, 0x1C13)
+/// written over CoE.
+pub const COE_PDO_ASSIGN: u8 = 0x04;
 
 /// FMMU usage codes of the FMMU category.
 pub mod fmmu_usage {
@@ -316,10 +317,6 @@ pub enum Category {
     RxPdos(Vec<SiiPdo>),
     /// 0x003C: DC operation modes.
     Dc(Vec<DcOpMode>),
-    /// 0x0800: the AKD's model string.
-    AkdModel(String),
-    /// 0x0801: the AKD's firmware version string.
-    AkdFirmware(String),
     /// Any other category, kept as read.
     Other {
         /// Category type.
@@ -340,8 +337,6 @@ impl Category {
             Category::TxPdos(_) => category::TX_PDO,
             Category::RxPdos(_) => category::RX_PDO,
             Category::Dc(_) => category::DC,
-            Category::AkdModel(_) => category::AKD_MODEL,
-            Category::AkdFirmware(_) => category::AKD_FIRMWARE,
             Category::Other { kind, .. } => *kind,
         }
     }
@@ -412,12 +407,6 @@ fn latin1_bytes(s: &str, what: &'static str) -> Result<Vec<u8>> {
     s.chars()
         .map(|c| u8::try_from(u32::from(c)).map_err(|_| SiiError::NotLatin1 { what, text: s.to_owned(), character: c }))
         .collect()
-}
-
-/// A string category's content: the string up to the first NUL (the padding).
-fn decode_padded_string(data: &[u8]) -> String {
-    let end = data.iter().position(|&b| b == 0).unwrap_or(data.len());
-    latin1(&data[..end])
 }
 
 fn decode_strings(data: &[u8]) -> Result<Vec<String>> {
@@ -552,8 +541,6 @@ fn decode_category(kind: u16, data: &[u8]) -> Result<Category> {
         category::TX_PDO => Category::TxPdos(decode_pdos(data, "TxPDO")?),
         category::RX_PDO => Category::RxPdos(decode_pdos(data, "RxPDO")?),
         category::DC => Category::Dc(decode_dc(data)?),
-        category::AKD_MODEL => Category::AkdModel(decode_padded_string(data)),
-        category::AKD_FIRMWARE => Category::AkdFirmware(decode_padded_string(data)),
         _ => Category::Other { kind, data: data.to_vec() },
     })
 }
@@ -815,17 +802,29 @@ impl Sii {
         self.slice(|c| if let Category::RxPdos(v) = c { Some(v.as_slice()) } else { None })
     }
 
-    /// What this SII assigns to sync managers 2 and 3 (its PDOs that name them), written over
-    /// CoE too when `over_coe`: the process data of a slave no profile describes.
-    pub fn process_data(&self, over_coe: bool) -> ProcessData {
-        let assigned = |pdos: &[SiiPdo], direction: Direction| PdoAssignment {
-            pdos: pdos
-                .iter()
-                .filter(|p| p.sync_manager == direction.sync_manager())
-                .map(|p| Pdo { index: p.index, entries: p.entries.iter().map(|e| e.pdo_entry()).collect() })
-                .collect(),
-            over_coe,
-            write_entries: false,
+    /// What this SII assigns to its sync managers of process data (its PDOs that name the first
+    /// sync manager of outputs, and of inputs: SM2 and SM3 of a slave with a mailbox, SM0 of a
+    /// digital I/O terminal): the process data of a slave no profile describes. With `coe` (the
+    /// slave has CoE) and a general category saying it takes a PDO assignment (CoE details bit
+    /// 2), the assignment is also written over CoE, as the slave's object dictionary may hold
+    /// another one; without, the slave carries what its SII says.
+    pub fn process_data(&self, coe: bool) -> ProcessData {
+        let over_coe = coe && self.general().is_some_and(|g| g.coe_details & COE_PDO_ASSIGN != 0);
+        let assigned = |pdos: &[SiiPdo], direction: Direction| {
+            let kind = match direction {
+                Direction::Rx => sync_manager_type::PROCESS_DATA_OUT,
+                Direction::Tx => sync_manager_type::PROCESS_DATA_IN,
+            };
+            let sm = self.sync_managers().iter().position(|sm| sm.sm_type == kind);
+            PdoAssignment {
+                pdos: pdos
+                    .iter()
+                    .filter(|p| sm.is_some_and(|n| usize::from(p.sync_manager) == n))
+                    .map(|p| Pdo { index: p.index, entries: p.entries.iter().map(|e| e.pdo_entry()).collect() })
+                    .collect(),
+                over_coe,
+                write_entries: false,
+            }
         };
         ProcessData {
             outputs: assigned(self.rx_pdos(), Direction::Rx),
@@ -838,14 +837,13 @@ impl Sii {
         self.slice(|c| if let Category::Dc(v) = c { Some(v.as_slice()) } else { None })
     }
 
-    /// The AKD's model string (category 0x0800).
-    pub fn model(&self) -> Option<&str> {
-        self.categories.iter().find_map(|c| if let Category::AkdModel(v) = c { Some(v.as_str()) } else { None })
-    }
-
-    /// The AKD's firmware version string (category 0x0801).
-    pub fn firmware(&self) -> Option<&str> {
-        self.categories.iter().find_map(|c| if let Category::AkdFirmware(v) = c { Some(v.as_str()) } else { None })
+    /// The data of the first category of type `kind` kept raw ([`Category::Other`]): a
+    /// manufacturer's own, for its profile to read.
+    pub fn other_category(&self, kind: u16) -> Option<&[u8]> {
+        self.categories.iter().find_map(|c| match c {
+            Category::Other { kind: k, data } if *k == kind => Some(data.as_slice()),
+            _ => None,
+        })
     }
 }
 
@@ -928,8 +926,6 @@ fn encode_category_unpadded(c: &Category) -> Result<Vec<u8>> {
                 out.extend_from_slice(&m.reserved);
             }
         }
-        Category::AkdModel(s) => out = latin1_bytes(s, "model string")?,
-        Category::AkdFirmware(s) => out = latin1_bytes(s, "firmware string")?,
         Category::Other { kind, data } => {
             if data.len() % 2 == 1 {
                 return Err(SiiError::OddCategory { kind: *kind, len: data.len() });
@@ -1453,9 +1449,6 @@ mod tests {
                 physical_memory_address: u16::from_le_bytes([b[13], b[14]]),
                 reserved_20: r,
             });
-        // Model strings without NUL and of even length round-trip exactly; odd ones gain a
-        // zero pad byte that decoding strips.
-        let text = "[ -~\u{a0}-\u{ff}]{0,12}";
         prop_oneof![
             general.prop_map(Category::General),
             prop::collection::vec(any::<u8>(), 0..4).prop_map(|mut v| {
@@ -1466,9 +1459,7 @@ mod tests {
             prop::collection::vec(pdo.clone(), 0..4).prop_map(Category::TxPdos),
             prop::collection::vec(pdo, 0..4).prop_map(Category::RxPdos),
             prop::collection::vec(dc, 0..3).prop_map(Category::Dc),
-            text.prop_map(Category::AkdModel),
-            text.prop_map(Category::AkdFirmware),
-            (0x0100u16..0x07FF, prop::collection::vec(any::<u8>(), 0..8)).prop_map(|(kind, mut data)| {
+            (0x0100u16..0x0900, prop::collection::vec(any::<u8>(), 0..8)).prop_map(|(kind, mut data)| {
                 data.resize(data.len().next_multiple_of(2), 0);
                 Category::Other { kind, data }
             }),

@@ -82,8 +82,8 @@ struct SnapshotView<'a> {
     time_ns: u64,
     wkc: u16,
     fresh: bool,
-    inputs: Vec<Option<&'a [u8]>>,
-    outputs: Vec<Option<&'a [u8]>>,
+    inputs: Vec<Option<std::borrow::Cow<'a, [u8]>>>,
+    outputs: Vec<Option<std::borrow::Cow<'a, [u8]>>>,
 }
 
 /// What `stats` gives.
@@ -216,6 +216,13 @@ enum EventView {
         digital_inputs: u32,
         statusword: u16,
     },
+    DeviceInputs {
+        kind: &'static str,
+        cycle: u64,
+        time_ns: u64,
+        slave: u16,
+        levels: u64,
+    },
 }
 
 /// The head of a trajectory event, before its state's keys.
@@ -227,8 +234,9 @@ struct TrajectoryEventView {
     id: u32,
 }
 
-impl From<Event> for EventView {
-    fn from(event: Event) -> Self {
+impl EventView {
+    /// `event` as Python sees it, a trajectory's refusal worded by `cycle`.
+    fn of(event: Event, cycle: &CycleThread) -> Self {
         let ds402_state = |statusword| State::from_statusword(statusword).map(State::name);
         match event {
             Event::Latch { cycle, time_ns, slave, channel, edge, position } => {
@@ -270,12 +278,15 @@ impl From<Event> for EventView {
                     text: action.describe(),
                 }
             }
-            Event::Trajectory { cycle, time_ns, id, state } => EventView::Trajectory(Merged(
-                TrajectoryEventView { kind: "trajectory", cycle, time_ns, id },
-                state.into(),
+            Event::Trajectory { cycle: number, time_ns, id, state } => EventView::Trajectory(Merged(
+                TrajectoryEventView { kind: "trajectory", cycle: number, time_ns, id },
+                super::trajectory::state_view(state, cycle),
             )),
             Event::Inputs { cycle, time_ns, slave, digital_inputs, statusword } => {
                 EventView::Inputs { kind: "inputs", cycle, time_ns, slave, digital_inputs, statusword }
+            }
+            Event::DeviceInputs { cycle, time_ns, slave, levels } => {
+                EventView::DeviceInputs { kind: "device_inputs", cycle, time_ns, slave, levels }
             }
         }
     }
@@ -452,10 +463,12 @@ impl PyCycle {
         self.request(position, Request::QuickStop)
     }
 
-    /// Asks drive `position` for a fault reset: bit 7 of the controlword low for a cycle, then
-    /// high (the drive reacts to the rising edge), to Switch on disabled.
-    fn reset_fault(&self, position: u16) -> PyResult<()> {
-        self.request(position, Request::FaultReset)
+    /// Asks drive `position` for a fault reset where it shows a fault (Fault, Fault reaction
+    /// active): bit 7 of the controlword low for a cycle, then high (the drive reacts to the
+    /// rising edge), to Switch on disabled. Returns whether it asked: a drive without a fault is
+    /// left as it is, its power stage untouched.
+    fn reset_fault(&self, position: u16) -> PyResult<bool> {
+        self.cycle.reset_fault(position).py()
     }
 
     /// How long a request may take before it is reported stuck, in seconds (1 by default).
@@ -547,7 +560,7 @@ impl PyCycle {
     /// 0x60FD, or of its hardware enable as the statusword shows it, in that cycle's inputs) adds
     /// "digital_inputs" and "statusword" (`DriveIo.with_inputs` reads them).
     fn events(&self) -> Vec<EventView> {
-        self.cycle.events().into_iter().map(EventView::from).collect()
+        self.cycle.events().into_iter().map(|event| EventView::of(event, &self.cycle)).collect()
     }
 
     /// One record per cycle and sequenced drive since the last call, oldest first, as columns:
@@ -812,6 +825,40 @@ impl PyCycle {
         super::drive::drives_io(&self.cycle, &positions)
     }
 
+    /// The channels of the slave at `position`, named after its PDO entries as its SII names
+    /// them in snake case (an EL1004's "channel_1_input"): outputs, then inputs, each a dict of
+    /// name, direction ("output" or "input"), index, subindex, bits and data_type (its CoE name);
+    /// none for a slave without process data.
+    fn channels(&self, position: u16) -> PyResult<Vec<super::device::ChannelView>> {
+        super::device::channels(&self.cycle, position)
+    }
+
+    /// The I/O of each slave of `positions` by channel name, all from the last snapshot: a dict
+    /// of cycle, time_ns, fresh, inputs ({name: value} as read) and outputs ({name: value} as
+    /// sent); a bit is a bool, an integer an int.
+    fn devices_io(&self, positions: Vec<u16>) -> PyResult<Vec<super::device::DeviceIoView>> {
+        super::device::devices_io(&self.cycle, &positions)
+    }
+
+    /// Sets output channels of the device at `position` (a slave the cycle does not sequence)
+    /// by name from the next cycle on, all or none: `values` maps each name to a bool (a bit),
+    /// an int or a float; the other outputs keep theirs. ConfigError names an unknown output
+    /// (and the device's outputs) or a value it does not take.
+    fn set_channels(
+        &self,
+        position: u16,
+        values: std::collections::BTreeMap<String, super::device::PyChannelValue>,
+    ) -> PyResult<()> {
+        let values: Vec<(&str, crate::ethercat::device::ChannelValue)> =
+            values.iter().map(|(name, v)| (name.as_str(), v.0)).collect();
+        self.cycle.set_channels(position, &values).py()
+    }
+
+    /// Switches every output of the device at `position` off from the next cycle on.
+    fn switch_outputs_off(&self, position: u16) -> PyResult<()> {
+        self.cycle.switch_outputs_off(position).py()
+    }
+
     /// With `on`, a drive entering Fault or leaving Op quick-stops, in the same cycle, every
     /// other drive being enabled or enabled (and not in Fault): a bus of joints stops together.
     /// Off (the default), each drive reacts alone. The faulting drive's event is the only one.
@@ -858,21 +905,22 @@ impl PyCycle {
     /// at `times_ns[k]` from the start (strictly increasing, the first > 0), `points[k]` one
     /// entry per joint, a position (counts) or (position, velocity counts/s or None,
     /// acceleration counts/s² or None) — quintic where both ends of a segment give
-    /// accelerations, cubic where they give velocities, linear otherwise — within `limits`
-    /// ((min, max) counts per joint; a 32-bit target's range when None), from `start_ns`
+    /// accelerations, cubic where they give velocities, linear otherwise — within each joint's
+    /// limits (`set_joint_limits`; a 32-bit target's range at any speed where none were set):
+    /// every point and the path interpolated between them, from `start_ns`
     /// (time.monotonic_ns(); None: now). Every drive must be in Operation enabled in
-    /// interpolated position or cyclic synchronous position. Takes over from the trajectory in
-    /// force without a step; a bad one raises ConfigError saying why before anything moves.
+    /// interpolated position or cyclic synchronous position, and not being homed. Takes over
+    /// from the trajectory in force without a step; a bad one raises ConfigError saying why
+    /// before anything moves. Judged again when it takes over, from the set-points then in
+    /// force: it may end "refused" there, nothing moved, the trajectory in force going on.
     /// With `tolerances` (FollowJointTrajectory's), a list of (path position, path velocity,
     /// goal position, goal velocity, stop deceleration) per joint in counts, counts/s and
     /// counts/s² (inf: not judged; for the deceleration: stop at once), with `goal_time_ns`:
     /// it ends "path_tolerance_violated" (after braking to a standstill) or
     /// "goal_tolerance_violated" where a drive strays, and `stop_trajectory` brakes it.
-    /// `names`, one per joint, name them in a refusal (else their numbers in the lists do).
-    /// Returns its id.
-    #[pyo3(signature = (
-        positions, times_ns, points, start_ns = None, limits = None, tolerances = None, goal_time_ns = 0, names = None
-    ))]
+    /// `names`, one per joint, name them in a refusal (else the names their limits were set
+    /// with, else their numbers in the lists). Returns its id.
+    #[pyo3(signature = (positions, times_ns, points, start_ns = None, tolerances = None, goal_time_ns = 0, names = None))]
     #[allow(clippy::too_many_arguments)]
     fn play_trajectory(
         &self,
@@ -881,14 +929,35 @@ impl PyCycle {
         times_ns: Vec<u64>,
         points: Vec<Vec<super::trajectory::PyKnot>>,
         start_ns: Option<u64>,
-        limits: Option<Vec<(f64, f64)>>,
         tolerances: Option<Vec<super::trajectory::PyTolerance>>,
         goal_time_ns: u64,
         names: Option<Vec<String>>,
     ) -> PyResult<u32> {
         let tolerances = tolerances.map(|t| super::trajectory::tolerances(t, goal_time_ns));
-        let played = super::trajectory::Played { positions, times_ns, points, start_ns, limits, tolerances };
+        let played = super::trajectory::Played { positions, times_ns, points, start_ns, tolerances };
         super::trajectory::play(py, &self.cycle, played, names.as_deref())
+    }
+
+    /// Hands down the limits of joint `name` on drive `position`, by which every motion of it
+    /// is judged from then on: `position` (min, max) in counts, `max_velocity` counts/s and
+    /// `max_acceleration` counts/s² (None: open), and `scale` (units per count, the position at
+    /// 0 counts, "rad", "m" or "counts") to word refusals in. Trajectories are refused where a
+    /// point or the path between them goes past them; in a cyclic position mode, so is a
+    /// set-point whose step from the target last sent, taken within one cycle, does.
+    #[pyo3(signature = (position, name, limits, max_velocity = None, max_acceleration = None, scale = (1.0, 0.0, "counts".to_string())))]
+    fn set_joint_limits(
+        &self,
+        position: u16,
+        name: String,
+        limits: (Option<f64>, Option<f64>),
+        max_velocity: Option<f64>,
+        max_acceleration: Option<f64>,
+        scale: (f64, f64, String),
+    ) -> PyResult<()> {
+        let (per_count, offset, unit) = scale;
+        let joint =
+            super::trajectory::joint_limits(name, limits, max_velocity, max_acceleration, (per_count, offset, &unit))?;
+        self.cycle.set_joint_limits(position, joint).py()
     }
 
     /// Brings trajectory `id` to a standstill in the cycle thread at its joints' stop
@@ -911,7 +980,7 @@ impl PyCycle {
     /// approached; "points" once past the last), "started_ns" (None while pending),
     /// "elapsed_ns", "duration_ns". The last 64 are kept.
     fn trajectory_status(&self, id: u32) -> PyResult<super::trajectory::StatusView> {
-        Ok(super::trajectory::status_view(self.cycle.trajectory_status(id).py()?))
+        Ok(super::trajectory::status_view(self.cycle.trajectory_status(id).py()?, &self.cycle))
     }
 }
 

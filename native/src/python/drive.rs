@@ -11,7 +11,7 @@
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyTuple};
+use pyo3::types::{PyBytes, PyInt, PyTuple};
 
 use super::IntoPyResult;
 use crate::cycle::{CycleThread, Snapshot};
@@ -109,7 +109,7 @@ pub(super) fn drives_inputs(cycle: &CycleThread, positions: &[u16]) -> PyResult<
 
 fn inputs_in(cycle: &CycleThread, snapshot: &Snapshot, position: u16) -> PyResult<PyDriveInputs> {
     let (_, tx) = cycle.mapping(position).py()?;
-    let inputs = DriveInputs::read(tx, cycle.inputs_of(snapshot, position).py()?);
+    let inputs = DriveInputs::read(tx, &cycle.inputs_of(snapshot, position).py()?);
     Ok(PyDriveInputs {
         cycle: snapshot.cycle,
         time_ns: snapshot.time_ns,
@@ -230,7 +230,7 @@ pub(super) fn drives_io(cycle: &CycleThread, positions: &[u16]) -> PyResult<Vec<
         .map(|&position| {
             let (rx, tx) = cycle.mapping(position).py()?;
             let outputs = cycle.outputs_of(&snapshot, position).py()?;
-            let io = DriveIo::read(rx, tx, outputs, cycle.inputs_of(&snapshot, position).py()?);
+            let io = DriveIo::read(rx, tx, &outputs, &cycle.inputs_of(&snapshot, position).py()?);
             Ok(PyDriveIo { cycle: snapshot.cycle, time_ns: snapshot.time_ns, fresh: snapshot.fresh, io })
         })
         .collect()
@@ -286,15 +286,17 @@ fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedV
 }
 
 /// 0x60FE:01 `word` with the AKD's digital outputs in `levels` (pairs of output number and
-/// level) set, its other bits as they are; ValueError naming an output the AKD does not have.
+/// level) set, its other bits as they are; ValueError naming an output the AKD does not have,
+/// whatever the integer (one past 64 bits too).
 #[pyfunction]
-fn with_digital_outputs(word: u32, levels: Vec<(i64, bool)>) -> PyResult<u32> {
+fn with_digital_outputs(word: u32, levels: Vec<(Bound<'_, PyInt>, bool)>) -> PyResult<u32> {
     let mut now = io::outputs(word);
-    for (output, high) in levels {
-        if !(1..=i64::from(io::OUTPUT_COUNT)).contains(&output) {
+    for (number, high) in levels {
+        let output = number.extract::<u8>().ok().filter(|o| (1..=io::OUTPUT_COUNT).contains(o));
+        let Some(output) = output else {
             let count = io::OUTPUT_COUNT;
-            return Err(PyValueError::new_err(format!("output {output}: the AKD has digital outputs 1 to {count}")));
-        }
+            return Err(PyValueError::new_err(format!("output {number}: the AKD has digital outputs 1 to {count}")));
+        };
         let bit = 1u8 << (output - 1);
         now = if high { now | bit } else { now & !bit };
     }

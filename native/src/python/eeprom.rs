@@ -4,10 +4,12 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
+use crate::drive::identity;
 use crate::ethercat::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
 use crate::sim::sii_image;
 
-/// What identifies a drive in its SII: the identity words and the names (None where absent).
+/// What identifies a slave in its SII: the identity words, the names (None where absent) and
+/// whether it is an AKD.
 /// Shared by `parse_sii` and the master's scan, so both speak of a drive in the same keys.
 #[derive(IntoPyObject)]
 pub(super) struct IdentityView {
@@ -16,6 +18,8 @@ pub(super) struct IdentityView {
     revision: u32,
     serial_number: u32,
     name: Option<String>,
+    order: Option<String>,
+    akd: bool,
     model: Option<String>,
     firmware: Option<String>,
 }
@@ -30,8 +34,10 @@ impl IdentityView {
             revision: id.revision,
             serial_number: id.serial_number,
             name: sii.name().map(str::to_owned),
-            model: sii.model().map(str::to_owned),
-            firmware: sii.firmware().map(str::to_owned),
+            order: sii.order().map(str::to_owned),
+            akd: identity::is_akd(&id),
+            model: identity::model(sii),
+            firmware: identity::firmware(sii),
         }
     }
 }
@@ -107,7 +113,6 @@ struct DcModeView<'a> {
 struct SiiView<'a> {
     alias: u16,
     group: Option<&'a str>,
-    order: Option<&'a str>,
     mailbox_protocols: u16,
     standard_mailbox: MailboxLayout,
     bootstrap_mailbox: MailboxLayout,
@@ -135,7 +140,6 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
     let rest = SiiView {
         alias: sii.alias(),
         group: sii.group(),
-        order: sii.order(),
         mailbox_protocols: h.mailbox_protocols,
         standard_mailbox: h.standard_mailbox,
         bootstrap_mailbox: h.bootstrap_mailbox,

@@ -16,14 +16,14 @@ use super::record::joint_scale;
 use crate::ros::cycle_records::CycleRecords;
 use crate::ros::feed::{Feed, Kind};
 use crate::ros::msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
-use crate::ros::{Joint, JointIo};
+use crate::ros::{Device, Joint, JointIo};
 
 /// What `take` gives: each message made (its stream's id, its bytes), and whether events wait.
 type Taken<'py> = (Vec<(usize, Bound<'py, PyBytes>)>, bool);
 
-/// `Feed(cycle, joints)`: the publications of `joints` (each a dict, see `FeedJoint`) of
-/// `cycle`. Streams are added (`add_joint_states`, `add_drive_status`, `add_drive_io`, each
-/// giving its id) before `start()`; while active, each stream's message is made at its rate and
+/// `Feed(cycle, joints, devices=[])`: the publications of `joints` (each a dict, see
+/// `FeedJoint`) and `devices` (`FeedDevice`) of `cycle`. Streams are added (`add_joint_states`,
+/// `add_drive_status`, `add_drive_io`, `add_device_io`, each giving its id) before `start()`; while active, each stream's message is made at its rate and
 /// handed out by `take()` as (id, bytes). Stamps are the monotonic clock plus `set_offset`'s ROS
 /// minus monotonic time.
 #[pyclass(name = "Feed", module = "akd_ros._native", frozen)]
@@ -58,7 +58,24 @@ struct FeedJoint<'py> {
     volts_per_count: f64,
 }
 
+/// A device of a feed, a dict with every key: "slave" (its position), "name" and "product" (its
+/// order number).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct FeedDevice {
+    slave: u16,
+    name: String,
+    product: String,
+}
+
 impl PyFeed {
+    fn device(&self, device: usize) -> PyResult<()> {
+        match self.feed.devices().len() {
+            count if device >= count => Err(PyValueError::new_err(format!("no device {device}: the feed has {count}"))),
+            _ => Ok(()),
+        }
+    }
+
     fn joint(&self, joint: usize) -> PyResult<()> {
         match self.feed.joints().len() {
             count if joint >= count => Err(PyValueError::new_err(format!("no joint {joint}: the feed has {count}"))),
@@ -76,7 +93,8 @@ impl PyFeed {
 #[pymethods]
 impl PyFeed {
     #[new]
-    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint<'_>>) -> PyResult<Self> {
+    #[pyo3(signature = (cycle, joints, devices = Vec::new()))]
+    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint<'_>>, devices: Vec<FeedDevice>) -> PyResult<Self> {
         let joints = joints
             .into_iter()
             .map(|j| {
@@ -87,7 +105,9 @@ impl PyFeed {
             .collect::<PyResult<Vec<_>>>()?;
         let offset_ns = Arc::new(AtomicI64::new(0));
         let thread = cycle.get().thread();
-        Ok(PyFeed { feed: Feed::new(thread, joints, offset_ns.clone()), offset_ns, cycle })
+        let devices =
+            devices.into_iter().map(|d| Device { slave: d.slave, name: d.name, product: d.product }).collect();
+        Ok(PyFeed { feed: Feed::new(thread, joints, devices, offset_ns.clone()), offset_ns, cycle })
     }
 
     /// A stream of sensor_msgs/JointState of every joint every `period` seconds; its id.
@@ -105,6 +125,21 @@ impl PyFeed {
     fn add_drive_io(&self, joint: usize, period: f64) -> PyResult<usize> {
         self.joint(joint)?;
         self.stream(Kind::DriveIo(joint), period)
+    }
+
+    /// A stream of akd_ros/DeviceIO of device number `device` every `period` seconds; its id.
+    fn add_device_io(&self, device: usize, period: f64) -> PyResult<usize> {
+        self.device(device)?;
+        self.stream(Kind::DeviceIo(device), period)
+    }
+
+    /// Hands out at once on `stream`, a DeviceIO stream, the DeviceIO of a change of its
+    /// device's inputs that the cycle reported (a "device_inputs" event of `Cycle.events`: its
+    /// cycle, time_ns and levels), stamped with that cycle, recorded as the stream is; its
+    /// other channels are the last snapshot's. False when `stream` makes no DeviceIO or the feed
+    /// is inactive.
+    fn device_input_change(&self, stream: usize, cycle: u64, time_ns: u64, levels: u64) -> bool {
+        self.feed.device_input_change(stream, cycle, time_ns, levels)
     }
 
     /// Starts the thread (inactive until `set_active(True)`).

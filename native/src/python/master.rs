@@ -19,6 +19,7 @@ use crate::drive::scaling::{self, PositionScaling};
 use crate::error::{Error, SettingError, Unavailable, UnknownName};
 use crate::ethercat::al::AlState;
 use crate::ethercat::coe::{Emergency, ObjectCode, OdListType};
+use crate::ethercat::device;
 use crate::ethercat::link::{self, Link};
 use crate::ethercat::link_spec::LinkSpec;
 use crate::ethercat::master::sdo_info::{EntryInfo, ObjectInfo};
@@ -40,9 +41,6 @@ struct Opened {
 fn open_link(spec: &str) -> crate::error::Result<Opened> {
     Ok(match spec.parse::<LinkSpec>()? {
         LinkSpec::Sim { line, missed, pace } => {
-            if !line.only_akds() {
-                return Err(Unavailable::LineWithTerminals { line: line.to_string() }.into());
-            }
             let link = InProcess::with_bus(VirtualBus::of_line(&line, Timing::of(pace, missed))?);
             let simulator = Some(link.control());
             Opened { link: Box::new(link), simulator, warnings: Vec::new() }
@@ -180,6 +178,9 @@ struct ScannedSlave {
     found_al_status_code_name: &'static str,
     mailbox_protocols: u16,
     dc: bool,
+    /// The channels its SII's process data carries, named as a device's
+    /// ([`crate::ethercat::device`]): what it has if no profile gives it other PDOs.
+    channels: Vec<super::device::ChannelView>,
 }
 
 /// One slave as `watch` reports it.
@@ -253,9 +254,11 @@ impl PyMaster {
         Ok(super::sim::PySimulator::new(control))
     }
 
-    /// Finds the slaves, takes them to Init and returns one dict per slave: `al_state` and
-    /// `al_status_code` are the state now (Init), `found_al_state` and `found_al_status_code`
-    /// what the scan found before it reset the bus.
+    /// Finds the slaves, takes them to Init and returns one dict per slave: its identity and
+    /// names (vendor_id, product_code, revision, serial_number, name, order, akd, model,
+    /// firmware), `al_state` and `al_status_code` the state now (Init), `found_al_state` and
+    /// `found_al_status_code` what the scan found before it reset the bus, and `channels`, those
+    /// its SII's process data carries (each a dict as `Cycle.channels` gives it).
     fn scan(&self, py: Python<'_>) -> PyResult<Vec<Merged<ScannedSlave, IdentityView>>> {
         lock(&self.fbus_param02).clear();
         self.with_master(py, |m| {
@@ -276,6 +279,11 @@ impl PyMaster {
                         found_al_status_code_name: slave.found.code_name(),
                         mailbox_protocols: slave.sii.header.mailbox_protocols,
                         dc: slave.has_dc(),
+                        channels: {
+                            let coe = slave.mailbox.as_ref().is_some_and(|m| m.has_coe());
+                            let described = slave.sii.process_data(coe);
+                            device::channels(&slave.sii, &described).iter().map(Into::into).collect()
+                        },
                     };
                     Ok(Merged(rest, IdentityView::of(&slave.sii)))
                 })
@@ -550,7 +558,7 @@ impl PyMaster {
 
     /// The outputs of the slave at `position`.
     fn outputs(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u8>> {
-        self.with_slave(py, position, |s| s.outputs().map(<[u8]>::to_vec))
+        self.with_slave(py, position, |s| s.outputs())
     }
 
     /// Sets the outputs of the slave at `position` for the next cycles.
@@ -560,7 +568,7 @@ impl PyMaster {
 
     /// The inputs of the slave at `position` from the last good cycle.
     fn inputs(&self, py: Python<'_>, position: u16) -> PyResult<Vec<u8>> {
-        self.with_slave(py, position, |s| s.inputs().map(<[u8]>::to_vec))
+        self.with_slave(py, position, |s| s.inputs())
     }
 
     /// The bus counters: frames, lost_frames, wkc_errors, cycles, mailbox_repeats,

@@ -13,6 +13,7 @@ use crate::error::Error;
 mod bag_writer;
 mod clocks;
 mod cycle;
+mod device;
 mod drive;
 mod eeprom;
 mod feed;
@@ -165,6 +166,15 @@ impl<T, E: Into<Error>> IntoPyResult<T> for std::result::Result<T, E> {
     }
 }
 
+/// `name` spelled as one word, as every name akd_ros gives from a device, a standard or a state
+/// machine is ("Operation enabled" -> "operation_enabled", "SafeOp" -> "safe_op", a PDO entry's
+/// "TxPDO-Map Channel 1" -> "tx_pdo_map_channel_1"): the crate's one rule,
+/// [`crate::spelling::snake_case`].
+#[pyfunction]
+fn snake_case(name: &str) -> String {
+    crate::spelling::snake_case(name)
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     let py = m.py();
@@ -194,5 +204,6 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     record::register(m)?;
     bag_writer::register(m)?;
     feed::register(m)?;
+    m.add_function(wrap_pyfunction!(snake_case, m)?)?;
     Ok(())
 }

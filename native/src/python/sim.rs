@@ -652,8 +652,8 @@ fn run_until_signal(
 }
 
 /// Serves `count` virtual AKDs, or the slaves `line` names ("ek1100,el1004,el2004,akd"), on UDP
-/// `host:port` until SIGINT/SIGTERM. `on_start(simulator)` is called first with the `Simulator`
-/// that controls them while they serve. `missed`: how
+/// `host:port` until SIGINT/SIGTERM. `on_start(simulator)` is called once the socket is bound,
+/// before serving starts, with the `Simulator` that controls them while they serve. `missed`: how
 /// they judge missed frames, "late" (as the real drive), "lost" (only frames lost on the line)
 /// or "warn" (as the real drive, a would-be F125 warned of and not raised). `pace`: how fast
 /// their firmware answers, "real" (as the real drive) or "immediate".
@@ -680,14 +680,16 @@ fn serve_udp(
         .and_then(|mut a| a.next())
         .ok_or_else(|| Error::from(SettingError::UnresolvedHost { host: host.to_owned(), role: "bind" }))
         .py()?;
+    // Bound before on_start: a client waiting for what on_start says finds the socket there.
+    let socket = server::bind_udp(address).py()?;
     let bus = controlled_bus((count, line), (missed, pace), on_start)?;
     let trace = setpoint_trace.map(|t| t.sender(bus.bus().len())).transpose()?;
-    run_until_signal(py, on_stop, move |stop| server::serve_udp(address, bus, stop, trace))
+    run_until_signal(py, on_stop, move |stop| server::serve_udp_on(socket, bus, stop, trace))
 }
 
 /// Serves `count` virtual AKDs, or the slaves `line` names, on network interface `iface` until
-/// SIGINT/SIGTERM. `on_start(simulator)` is called first with the `Simulator` that controls
-/// them; `missed`, `pace`, `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames,
+/// SIGINT/SIGTERM. `on_start(simulator)` is called once the socket is open, with the
+/// `Simulator` that controls them; `missed`, `pace`, `setpoint_trace` and `on_stop` as for `serve_udp`. `busy_poll`: never sleep between frames,
 /// answering each as it arrives as the drive's ESC does, on a CPU of its own (raises ConfigError
 /// under SCHED_FIFO or SCHED_RR).
 #[pyfunction]
@@ -705,10 +707,10 @@ fn serve_iface(
     pace: &str,
     line: Option<&str>,
 ) -> PyResult<()> {
-    let iface = iface.to_owned();
+    let socket = server::open_iface(iface, busy_poll).py()?;
     let bus = controlled_bus((count, line), (missed, pace), on_start)?;
     let trace = setpoint_trace.map(|t| t.sender(bus.bus().len())).transpose()?;
-    run_until_signal(py, on_stop, move |stop| server::serve_iface(&iface, bus, stop, trace, busy_poll))
+    run_until_signal(py, on_stop, move |stop| server::serve_iface_on(socket, bus, stop, trace, busy_poll))
 }
 
 /// The SII EEPROM image the virtual slave `product` serves ("akd", "ek1100", "el1004", ...):

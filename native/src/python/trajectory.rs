@@ -9,7 +9,7 @@ use crate::cycle::events::TrajectoryState;
 use crate::cycle::trajectory_player::{Tolerance, Tolerances, TrajectoryStatus};
 use crate::cycle::CycleThread;
 use crate::drive::ds402::State;
-use crate::drive::trajectory::{Knot, Limits};
+use crate::drive::trajectory::{JointLimits, Knot, Limits, Scale, Unit};
 use crate::error::Error;
 
 /// One joint at one point as Python gives it: a position, or (position, velocity or None,
@@ -50,39 +50,65 @@ pub(super) fn tolerances(joints: Vec<PyTolerance>, goal_time_ns: u64) -> Toleran
     Tolerances { joints, goal_time_ns }
 }
 
-/// Validates and hands over a trajectory, the GIL released while the cycle thread takes it.
-#[allow(clippy::too_many_arguments)]
 /// A trajectory as `Cycle.play_trajectory` takes it (see there).
 pub(super) struct Played {
     pub positions: Vec<u16>,
     pub times_ns: Vec<u64>,
     pub points: Vec<Vec<PyKnot>>,
     pub start_ns: Option<u64>,
-    pub limits: Option<Vec<(f64, f64)>>,
     pub tolerances: Option<Tolerances>,
 }
 
-/// Plays `played`; a refusal names the joints as `names` does, where given.
+/// Validates and hands over `played`, the GIL released while the cycle thread takes it; a
+/// refusal names each joint as `names` does where given (else by the name its limits were
+/// handed down with) and gives its values in the joint's units.
 pub(super) fn play(py: Python<'_>, cycle: &CycleThread, played: Played, names: Option<&[String]>) -> PyResult<u32> {
-    let Played { positions, times_ns, points, start_ns, limits, tolerances } = played;
+    let Played { positions, times_ns, points, start_ns, tolerances } = played;
     let points: Vec<Vec<Knot>> = points.iter().map(|p| p.iter().map(Knot::from).collect()).collect();
-    let limits: Option<Vec<Limits>> = limits.map(|l| l.into_iter().map(|(min, max)| Limits { min, max }).collect());
-    let played = py.allow_threads(|| {
-        cycle.follow_trajectory(&positions, &times_ns, &points, limits.as_deref(), start_ns, tolerances)
-    });
-    match (played, names) {
-        (Err(Error::Trajectory(e)), Some(names)) => Err(ConfigError::new_err(e.naming(names).to_string())),
-        (played, _) => played.py(),
+    let played = py.allow_threads(|| cycle.follow_trajectory(&positions, &times_ns, &points, start_ns, tolerances));
+    match played {
+        Err(Error::Trajectory(e)) => {
+            let joints: Vec<_> = positions.iter().map(|&p| cycle.limits_of(p)).collect();
+            let named: Vec<String> = match names {
+                Some(names) => names.to_vec(),
+                None => {
+                    joints.iter().enumerate().map(|(j, (_, _, n))| n.clone().unwrap_or(format!("joint {j}"))).collect()
+                }
+            };
+            let scales: Vec<Scale> = joints.iter().map(|(_, scale, _)| *scale).collect();
+            let text = e.naming(&named, &scales).to_string();
+            Err(ConfigError::new_err(text))
+        }
+        played => played.py(),
     }
 }
 
-/// Adds what `state` says to `d`: "state", and "replaced_by", "slave", "statusword",
-/// "ds402_state" (None where they do not apply).
+/// The joint on drive `position` with its name, limits (counts; None where open) and units, as
+/// `Cycle.set_joint_limits` takes them.
+pub(super) fn joint_limits(
+    name: String,
+    (min, max): (Option<f64>, Option<f64>),
+    max_velocity: Option<f64>,
+    max_acceleration: Option<f64>,
+    (per_count, offset, unit): (f64, f64, &str),
+) -> PyResult<JointLimits> {
+    let unit = Unit::from_name(unit)
+        .ok_or_else(|| ConfigError::new_err(format!("unit {unit:?}: allowed \"counts\", \"rad\" or \"m\"")))?;
+    let open = Limits::TARGET;
+    let limits = Limits {
+        min: min.unwrap_or(open.min),
+        max: max.unwrap_or(open.max),
+        max_velocity: max_velocity.unwrap_or(open.max_velocity),
+        max_acceleration: max_acceleration.unwrap_or(open.max_acceleration),
+    };
+    Ok(JointLimits { name, limits, scale: Scale { per_count, offset, unit } })
+}
+
 /// How a trajectory stands, as Python sees it in its status and its events: "state",
 /// "replaced_by" (the newer id), and for an abort the drive, its statusword and its CiA 402
-/// state.
-/// A tolerance violation adds "velocity" (whether the velocity strayed, else the position)
-/// and "error" (counts or counts/s), "slave" naming the drive.
+/// state. A tolerance violation adds "velocity" (whether the velocity strayed, else the
+/// position) and "error" (counts or counts/s), "slave" naming the drive; a refusal at the
+/// take-over "slave" and "reason" (why, in the joint's words).
 #[derive(IntoPyObject)]
 pub(super) struct StateView {
     state: &'static str,
@@ -92,28 +118,33 @@ pub(super) struct StateView {
     ds402_state: Option<&'static str>,
     velocity: Option<bool>,
     error: Option<i32>,
+    reason: Option<String>,
 }
 
-impl From<TrajectoryState> for StateView {
-    fn from(state: TrajectoryState) -> Self {
-        let (replaced_by, aborted) = match state {
-            TrajectoryState::Replaced { by } => (Some(by), None),
-            TrajectoryState::Aborted { slave, statusword } => (None, Some((slave, statusword))),
-            _ => (None, None),
-        };
-        let violation = match state {
-            TrajectoryState::PathToleranceViolated(v) | TrajectoryState::GoalToleranceViolated(v) => Some(v),
-            _ => None,
-        };
-        StateView {
-            state: state.name(),
-            replaced_by,
-            slave: aborted.map(|a| a.0).or(violation.map(|v| v.slave)),
-            statusword: aborted.map(|a| a.1),
-            ds402_state: aborted.and_then(|a| State::from_statusword(a.1)).map(State::name),
-            velocity: violation.map(|v| v.velocity),
-            error: violation.map(|v| v.error),
-        }
+/// `state` as Python sees it, a refusal worded by `cycle`.
+pub(super) fn state_view(state: TrajectoryState, cycle: &CycleThread) -> StateView {
+    let (replaced_by, aborted) = match state {
+        TrajectoryState::Replaced { by } => (Some(by), None),
+        TrajectoryState::Aborted { slave, statusword } => (None, Some((slave, statusword))),
+        _ => (None, None),
+    };
+    let violation = match state {
+        TrajectoryState::PathToleranceViolated(v) | TrajectoryState::GoalToleranceViolated(v) => Some(v),
+        _ => None,
+    };
+    let refusal = match state {
+        TrajectoryState::Refused(r) => Some(r),
+        _ => None,
+    };
+    StateView {
+        state: state.name(),
+        replaced_by,
+        slave: aborted.map(|a| a.0).or(violation.map(|v| v.slave)).or(refusal.map(|r| r.slave)),
+        statusword: aborted.map(|a| a.1),
+        ds402_state: aborted.and_then(|a| State::from_statusword(a.1)).map(State::name),
+        velocity: violation.map(|v| v.velocity),
+        error: violation.map(|v| v.error),
+        reason: refusal.map(|r| cycle.refusal_text(&r)),
     }
 }
 
@@ -131,7 +162,7 @@ pub(super) struct ProgressView {
 /// `Cycle.trajectory_status`: its progress and its state.
 pub(super) type StatusView = Merged<ProgressView, StateView>;
 
-pub(super) fn status_view(s: TrajectoryStatus) -> StatusView {
+pub(super) fn status_view(s: TrajectoryStatus, cycle: &CycleThread) -> StatusView {
     let progress = ProgressView {
         id: s.id,
         point: s.point,
@@ -140,5 +171,5 @@ pub(super) fn status_view(s: TrajectoryStatus) -> StatusView {
         elapsed_ns: s.elapsed_ns,
         duration_ns: s.duration_ns,
     };
-    Merged(progress, s.state.into())
+    Merged(progress, state_view(s.state, cycle))
 }

@@ -34,11 +34,13 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::Joint;
+use super::{Device, Joint};
 use crate::cycle::{timing, CycleThread, Snapshot};
 use crate::drive::ds402::{Mode, State};
 use crate::drive::io::{DriveIo, HardwareEnable, Switch};
 use crate::drive::objects::DriveInputs;
+use crate::ethercat::device::ChannelValue;
+use crate::ethercat::pdo::Direction;
 use crate::ros::bag_writer::BagWriter;
 use crate::ros::msgs::{self, Header};
 
@@ -56,6 +58,8 @@ pub enum Kind {
     DriveStatus(usize),
     /// akd_ros/DriveIO of the joint at this index, of the cycle the snapshot holds.
     DriveIo(usize),
+    /// akd_ros/DeviceIO of the device at this index, of the cycle the snapshot holds.
+    DeviceIo(usize),
 }
 
 /// The continuous count nearest `last` that reads as the int32 `raw` on the drive, as
@@ -69,6 +73,7 @@ pub fn unwrap_position(last: i64, raw: i32) -> i64 {
 struct FeedShared {
     cycle: Arc<CycleThread>,
     joints: Vec<Joint>,
+    devices: Vec<Device>,
     offset_ns: Arc<AtomicI64>,
     active: AtomicBool,
     stopped: Mutex<bool>,
@@ -89,7 +94,7 @@ impl FeedShared {
     fn drive_io_of(&self, joint: usize, snapshot: &Snapshot) -> DriveIo {
         let (cycle, slave) = (&self.cycle, self.joints[joint].slave);
         match (cycle.mapping(slave), cycle.outputs_of(snapshot, slave), cycle.inputs_of(snapshot, slave)) {
-            (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, outputs, inputs),
+            (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, &outputs, &inputs),
             _ => DriveIo::default(),
         }
     }
@@ -134,6 +139,48 @@ impl FeedShared {
             analog_output: volts(drive.analog_output),
         };
         msgs::to_cdr(&message, 256)
+    }
+
+    /// `device`'s akd_ros/DeviceIO of `snapshot`, stamped with its cycle; with `levels` (a
+    /// change the cycle thread reported, in its cycle `cycle`), its inputs of one bit at those
+    /// levels, its first in bit 0.
+    fn device_io(&self, device: usize, snapshot: &Snapshot, levels: Option<(u64, u64)>) -> Vec<u8> {
+        let (cycle, d) = (&self.cycle, &self.devices[device]);
+        let channels = cycle.channels(d.slave).unwrap_or_default();
+        let values = cycle.channel_values(snapshot, d.slave).unwrap_or_default();
+        let (mut input_names, mut inputs, mut output_names, mut outputs) =
+            (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+        let mut bit_input = 0;
+        for (c, v) in channels.iter().zip(values) {
+            let value = match (c.direction, levels) {
+                (Direction::Tx, Some((_, levels))) if c.is_bit() && bit_input < 64 => {
+                    bit_input += 1;
+                    ChannelValue::Bit(levels >> (bit_input - 1) & 1 == 1)
+                }
+                _ => v,
+            };
+            let (names, values) = if c.direction == Direction::Tx {
+                (&mut input_names, &mut inputs)
+            } else {
+                (&mut output_names, &mut outputs)
+            };
+            names.push(c.name.clone());
+            values.push(value.as_f64());
+        }
+        let cycle_number = levels.map_or(snapshot.cycle, |(cycle, _)| cycle);
+        let message = msgs::DeviceIo {
+            header: Header::at(self.ros_ns(snapshot.time_ns)),
+            device: &d.name,
+            product: &d.product,
+            slave: d.slave,
+            cycle: cycle_number,
+            fresh: snapshot.fresh || levels.is_some(),
+            input_names: &input_names,
+            inputs: &inputs,
+            output_names: &output_names,
+            outputs: &outputs,
+        };
+        msgs::to_cdr(&message, 128 + 40 * channels.len())
     }
 
     fn hand_over(&self, made: Vec<(usize, i64, Vec<u8>)>, events: bool) {
@@ -184,13 +231,14 @@ pub struct Feed {
 pub type Taken = (Vec<(usize, Vec<u8>)>, bool);
 
 impl Feed {
-    /// A feed of `joints` of `cycle`, inactive and without streams; `offset_ns` is the ROS minus
-    /// monotonic time it stamps with.
-    pub fn new(cycle: Arc<CycleThread>, joints: Vec<Joint>, offset_ns: Arc<AtomicI64>) -> Feed {
+    /// A feed of `joints` and `devices` of `cycle`, inactive and without streams; `offset_ns`
+    /// is the ROS minus monotonic time it stamps with.
+    pub fn new(cycle: Arc<CycleThread>, joints: Vec<Joint>, devices: Vec<Device>, offset_ns: Arc<AtomicI64>) -> Feed {
         Feed {
             shared: Arc::new(FeedShared {
                 cycle,
                 joints,
+                devices,
                 offset_ns,
                 active: AtomicBool::new(false),
                 stopped: Mutex::new(false),
@@ -270,6 +318,28 @@ impl Feed {
         let stamp_ns = shared.ros_ns(time_ns);
         let message = shared.drive_io(joint, &now.with_inputs(digital_inputs, statusword), cycle, stamp_ns);
         shared.hand_over(vec![(stream, stamp_ns, message)], false);
+        true
+    }
+
+    /// The devices.
+    pub fn devices(&self) -> &[Device] {
+        &self.shared.devices
+    }
+
+    /// Hands out (and records) at once, on `stream`, which makes a device's DeviceIO at a rate,
+    /// the DeviceIO of a change of its inputs of one bit that the cycle thread reported (a
+    /// device inputs event: `cycle`, its wake-up `time_ns` and the `levels`), stamped with that
+    /// cycle; its other channels are the last snapshot's. `false` when `stream` makes no
+    /// DeviceIO, or the feed is inactive.
+    pub fn device_input_change(&self, stream: usize, cycle: u64, time_ns: u64, levels: u64) -> bool {
+        let kind = lock(&self.streams).get(stream).map(|s| s.0);
+        let (Some(Kind::DeviceIo(device)), true) = (kind, self.shared.active.load(Ordering::Acquire)) else {
+            return false;
+        };
+        let shared = &self.shared;
+        let snapshot = Snapshot { time_ns, ..shared.cycle.snapshot() };
+        let message = shared.device_io(device, &snapshot, Some((cycle, levels)));
+        shared.hand_over(vec![(stream, shared.ros_ns(time_ns), message)], false);
         true
     }
 
@@ -396,7 +466,7 @@ impl Maker {
             .joints
             .iter()
             .map(|j| match (cycle.mapping(j.slave), cycle.inputs_of(&snapshot, j.slave)) {
-                (Ok((_, tx)), Ok(bytes)) => DriveInputs::read(tx, bytes),
+                (Ok((_, tx)), Ok(bytes)) => DriveInputs::read(tx, &bytes),
                 _ => DriveInputs::default(),
             })
             .collect();
@@ -413,6 +483,7 @@ impl Maker {
                 let stamp_ns = shared.ros_ns(snapshot.time_ns);
                 shared.drive_io(joint, &shared.drive_io_of(joint, snapshot), snapshot.cycle, stamp_ns)
             }
+            Kind::DeviceIo(device) => self.shared.device_io(device, &reading.snapshot, None),
         }
     }
 
@@ -462,7 +533,7 @@ impl Maker {
         let message = msgs::DriveStatus {
             header: Header::at(reading.stamp_ns),
             joint: &j.name,
-            ds402_state: &state.map_or_else(|| "unknown".to_owned(), |s| s.to_lowercase().replace(' ', "_")),
+            ds402_state: &state.map_or_else(|| "unknown".to_owned(), crate::spelling::snake_case),
             statusword: status.map_or(0, |s| s.statusword),
             mode: mode.as_deref().unwrap_or(""),
             mode_of_operation: shown.map_or(0, |m| m as i8),

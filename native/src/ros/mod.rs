@@ -8,7 +8,8 @@
 //!   bag's files (topics, messages, per-cycle records, the black box).
 //! - [`feed`]: a thread that, at each stream's rate, reads the cycle's last snapshot and
 //!   statistics once and makes every message due from them (sensor_msgs/JointState of every
-//!   joint, akd_ros/DriveStatus and akd_ros/DriveIO of one); Python takes them as bytes and
+//!   joint, akd_ros/DriveStatus and akd_ros/DriveIO of one, akd_ros/DeviceIO of a device beside
+//!   them); Python takes them as bytes and
 //!   publishes them, and a [`bag_writer::BagWriter`] records the same bytes without Python. It
 //!   also says when the cycle has events waiting, so Python takes those when there are some
 //!   instead of polling.
@@ -42,6 +43,18 @@ pub struct Joint {
     pub homes: bool,
     /// What its akd_ros/DriveIO says beside the drive's values.
     pub io: JointIo,
+}
+
+/// A device of the node beside its joints (a terminal): its position on the bus, its name in
+/// the parameters file and what it is.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Device {
+    /// Its position on the bus.
+    pub slave: u16,
+    /// Its name.
+    pub name: String,
+    /// Its order number as its SII gives it (e.g. "EL1004").
+    pub product: String,
 }
 
 /// The names a joint gives its drive's digital inputs and outputs, and its analog scale.

@@ -155,6 +155,31 @@ pub struct DriveIo<'a> {
     pub analog_output: f64,
 }
 
+/// akd_ros/DeviceIO.
+#[derive(Debug, Serialize)]
+pub struct DeviceIo<'a> {
+    /// Stamped with the cycle whose process image this is.
+    pub header: Header<'a>,
+    /// Its name in the parameters file.
+    pub device: &'a str,
+    /// Its order number as its SII gives it.
+    pub product: &'a str,
+    /// Its position on the line.
+    pub slave: u16,
+    /// That cycle's number.
+    pub cycle: u64,
+    /// Whether that cycle's exchange succeeded.
+    pub fresh: bool,
+    /// Its input channels' names.
+    pub input_names: &'a [String],
+    /// Their values.
+    pub inputs: &'a [f64],
+    /// Its output channels' names.
+    pub output_names: &'a [String],
+    /// Their values as sent.
+    pub outputs: &'a [f64],
+}
+
 /// akd_ros/CycleSample.
 #[derive(Debug, Serialize)]
 pub struct CycleSample<'a> {

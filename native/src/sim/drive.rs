@@ -315,6 +315,8 @@ impl DriveFirmware {
                 raised = raised.or(self.raise(fault));
             }
             if self.shaft.at_rest() && !self.state.is_power_stage_on() {
+                // It stays at rest, and a power stage that is off makes no torque.
+                self.shaft.torque = 0.0;
                 continue;
             }
             let before = self.reported(self.shaft.position);
@@ -760,6 +762,20 @@ mod tests {
             assert!((b.drive.shaft().position - command).abs() < 20.0, "held at {command}: {:?}", b.drive.shaft());
         }
         assert_eq!(b.drive.state(), State::QuickStopActive);
+    }
+
+    #[test]
+    fn a_drive_disabled_while_its_shaft_is_held_by_friction_reports_no_torque() {
+        // 5 thousandths of the 3 N·m peak, 0.015 N·m, is less than the shaft's dry friction: it stays at rest.
+        let mut b = Bench::new();
+        b.enable(4);
+        b.write(0x6071, 0, &5i16.to_le_bytes());
+        b.run_for(100 * MS);
+        assert_eq!((b.drive.shaft().velocity, b.od.get(0x6077, 0).unwrap()[..2].to_vec()), (0.0, vec![5, 0]));
+        b.controlword(cw::DISABLE_VOLTAGE);
+        b.run_for(100 * MS);
+        assert_eq!(b.drive.state(), State::SwitchOnDisabled);
+        assert_eq!(b.od.get(0x6077, 0).unwrap()[..2], [0, 0], "a power stage that is off makes no torque");
     }
 
     #[test]

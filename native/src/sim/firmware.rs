@@ -88,12 +88,13 @@ pub fn offer_reply(esc: &mut Esc, mailbox: &mut MailboxServer) {
     }
 }
 
-/// The master toggled the repeat request: the last reply goes into the buffer again and the
-/// repeat acknowledge follows the request bit.
-pub fn repeat_reply(esc: &mut Esc, mailbox: &MailboxServer) {
+/// The master toggled the repeat request: the reply it read last goes into the buffer again
+/// (one put in since, unread, is queued after it) and the repeat acknowledge follows the request
+/// bit.
+pub fn repeat_reply(esc: &mut Esc, mailbox: &mut MailboxServer) {
     let sm = SyncManager::read(esc.memory(), 1);
     let memory = esc.memory_mut();
-    if let Some(reply) = mailbox.last_reply() {
+    if let Some(reply) = mailbox.repeat(sm.full()) {
         let buffer = sm.range_within(memory.len());
         let n = reply.len().min(buffer.len());
         memory[buffer.start..buffer.start + n].copy_from_slice(&reply[..n]);

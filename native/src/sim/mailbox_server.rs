@@ -6,7 +6,7 @@
 //! reply counter 1 in the SOEM capture). A message with the same non-zero counter as the last
 //! one accepted is the master writing it again after a lost frame (ETG.1000.6 mailbox "Cnt"):
 //! it is not served a second time. Replies wait in a queue until the mailbox-in buffer is free;
-//! the last one is kept for a repeat request.
+//! the one the master read last is kept for a repeat request.
 
 use std::collections::VecDeque;
 
@@ -52,7 +52,10 @@ pub struct MailboxServer {
     upload: Option<Upload>,
     download: Option<Download>,
     replies: VecDeque<Vec<u8>>,
+    /// The reply last put in the mailbox-in buffer, and the one before it, which the master read
+    /// (the buffer takes a reply only once the last one was read).
     last: Option<Vec<u8>>,
+    read_before: Option<Vec<u8>>,
     counter: u8,
     /// Counter of the last message from the master that was served (0: none, or not counted).
     accepted_counter: u8,
@@ -133,12 +136,21 @@ impl MailboxServer {
     /// The next reply for the mailbox-in buffer; it is kept for a repeat request.
     pub fn next_reply(&mut self) -> Option<&[u8]> {
         let reply = self.replies.pop_front()?;
-        self.last = Some(reply);
+        self.read_before = self.last.replace(reply);
         self.last.as_deref()
     }
 
-    /// The reply last put in the mailbox-in buffer, for a repeat request.
-    pub fn last_reply(&self) -> Option<&[u8]> {
+    /// The reply a repeat request asks for, to put into the mailbox-in buffer again: the one the
+    /// master read last, whose read it lost. When the buffer is `full`, the master has not read
+    /// the reply in it, which was put in after that read: it goes back to the front of the queue,
+    /// to follow the repeated one rather than take its place.
+    pub fn repeat(&mut self, full: bool) -> Option<&[u8]> {
+        if full {
+            let read = self.read_before.take()?;
+            if let Some(unread) = self.last.replace(read) {
+                self.replies.push_front(unread);
+            }
+        }
         self.last.as_deref()
     }
 

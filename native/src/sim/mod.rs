@@ -372,7 +372,7 @@ impl VirtualAkd {
             self.frames_lost = 0;
         }
         if events.repeat_request {
-            firmware::repeat_reply(&mut self.esc, &self.mailbox);
+            firmware::repeat_reply(&mut self.esc, &mut self.mailbox);
         }
     }
 

@@ -156,11 +156,28 @@ pub fn serve_udp(
     bind: SocketAddr,
     bus: impl Into<ControlledBus>,
     stop: &AtomicBool,
+    trace: Option<TraceSender>,
+) -> Result<ServerStats> {
+    serve_udp_on(bind_udp(bind)?, bus, stop, trace)
+}
+
+/// A UDP socket bound to `bind` for [`serve_udp_on`]: a caller that says it serves once its
+/// socket is bound binds it first.
+pub fn bind_udp(bind: SocketAddr) -> Result<UdpSocket> {
+    let socket = UdpSocket::bind(bind).map_err(|e| Error::io(format!("binding UDP {bind}"), e))?;
+    socket.set_read_timeout(Some(POLL_INTERVAL)).map_err(|e| Error::io("setting the UDP read timeout", e))?;
+    Ok(socket)
+}
+
+/// [`serve_udp`] on a socket [`bind_udp`] bound.
+pub fn serve_udp_on(
+    socket: UdpSocket,
+    bus: impl Into<ControlledBus>,
+    stop: &AtomicBool,
     mut trace: Option<TraceSender>,
 ) -> Result<ServerStats> {
     let mut bus = bus.into();
-    let socket = UdpSocket::bind(bind).map_err(|e| Error::io(format!("binding UDP {bind}"), e))?;
-    socket.set_read_timeout(Some(POLL_INTERVAL)).map_err(|e| Error::io("setting the UDP read timeout", e))?;
+    let bind = socket.local_addr().map_err(|e| Error::io("reading the UDP socket's address", e))?;
     let start = Instant::now();
     let mut stats = ServerStats::default();
     let mut buf = [0u8; MAX_PAYLOAD_LEN];
@@ -205,16 +222,33 @@ pub fn serve_iface(
     iface: &str,
     bus: impl Into<ControlledBus>,
     stop: &AtomicBool,
-    mut trace: Option<TraceSender>,
+    trace: Option<TraceSender>,
     busy_poll: bool,
 ) -> Result<ServerStats> {
+    serve_iface_on(open_iface(iface, busy_poll)?, bus, stop, trace, busy_poll)
+}
+
+/// A raw socket on `iface` for [`serve_iface_on`]; refuses `busy_poll` under a real-time
+/// scheduler (see [`serve_iface`]).
+pub fn open_iface(iface: &str, busy_poll: bool) -> Result<RawSocket> {
     // SAFETY: sched_getscheduler(0) asks about the calling thread and touches no memory.
     if busy_poll && matches!(unsafe { libc::sched_getscheduler(0) }, libc::SCHED_FIFO | libc::SCHED_RR) {
         return Err(SettingError::BusyPollRealTime.into());
     }
-    let mut bus = bus.into();
     let socket = RawSocket::open(iface)?;
     socket.set_read_timeout(POLL_INTERVAL)?;
+    Ok(socket)
+}
+
+/// [`serve_iface`] on a socket [`open_iface`] opened.
+pub fn serve_iface_on(
+    socket: RawSocket,
+    bus: impl Into<ControlledBus>,
+    stop: &AtomicBool,
+    mut trace: Option<TraceSender>,
+    busy_poll: bool,
+) -> Result<ServerStats> {
+    let mut bus = bus.into();
     let start = Instant::now();
     let mut stats = ServerStats { late: socket.stamp_arrivals().then(LateReplies::default), ..Default::default() };
     let mut buf = [0u8; MAX_ETH_FRAME_LEN];

@@ -7,6 +7,7 @@
 //! and data types, default sync-manager assignment, and the flexible PDOs' content at the time
 //! the image was read.
 
+use crate::drive::identity;
 use crate::drive::objects::{self, MappableObject};
 use crate::drive::pdo;
 use crate::error::{Error, Result, SiiError};
@@ -24,8 +25,12 @@ pub const FIRMWARE: &str = "01-20-00-003";
 /// The device name of the general category.
 pub const NAME: &str = "AKD EtherCAT Drive (CoE)";
 /// Vendor id, product code, revision and serial number of the real drive.
-pub const IDENTITY: Identity =
-    Identity { vendor_id: 0x0000_006A, product_code: 0x0041_4B44, revision: 2, serial_number: 0x9983_0093 };
+pub const IDENTITY: Identity = Identity {
+    vendor_id: identity::VENDOR_ID,
+    product_code: identity::PRODUCT_CODE,
+    revision: 2,
+    serial_number: 0x9983_0093,
+};
 
 /// The identity of the virtual AKD at `position` on its line: the real drive's, its serial
 /// number counted up by the position. Drives on one line then tell themselves apart as real ones
@@ -121,8 +126,8 @@ fn sync_manager(start_address: u16, length: u16, control: u8, sm_type: u8) -> Sy
 
 fn describe(identity: Identity) -> Result<Vec<u8>> {
     let mut b = Builder::new(header(identity));
-    b.push(Category::AkdModel(MODEL.into()));
-    b.push(Category::AkdFirmware(FIRMWARE.into()));
+    b.push(identity::string_category(identity::MODEL_CATEGORY, MODEL));
+    b.push(identity::string_category(identity::FIRMWARE_CATEGORY, FIRMWARE));
     b.strings_here();
     // Fields in the order the drive's string table names them.
     let general = General {
@@ -183,7 +188,7 @@ pub fn akd_sii() -> Vec<u8> {
 }
 
 /// The real AKD's SII image with `identity` in its header: the image of the drive at a position
-/// of its own on a line ([`identity`]). The header checksum covers words 0 to 6 only, before the
+/// of its own on a line ([`identity()`]). The header checksum covers words 0 to 6 only, before the
 /// identity, so it stays the real image's.
 pub fn akd_sii_of(identity: Identity) -> Vec<u8> {
     // Only the identity varies, and no identity can fail to encode; `describes_the_real_drive`
@@ -205,8 +210,8 @@ mod tests {
         let id = sii.identity();
         assert_eq!((id.vendor_id, id.product_code, id.revision), (0x6A, 0x0041_4B44, 2));
         assert_eq!(sii.name(), Some("AKD EtherCAT Drive (CoE)"));
-        assert_eq!(sii.model(), Some("AKD-P00606-NBCC-E000"));
-        assert_eq!(sii.firmware(), Some("01-20-00-003"));
+        assert_eq!(identity::model(&sii).as_deref(), Some("AKD-P00606-NBCC-E000"));
+        assert_eq!(identity::firmware(&sii).as_deref(), Some("01-20-00-003"));
         let sms: Vec<_> = sii.sync_managers().iter().map(|sm| (sm.start_address, sm.control)).collect();
         assert_eq!(sms, [(0x1800, 0x26), (0x1C00, 0x22), (0x1100, 0x24), (0x1140, 0x20)]);
         assert_eq!(sii.header.mailbox_protocols, 0x000E);

@@ -301,7 +301,7 @@ impl VirtualTerminal {
             }
             p.pending_mailbox |= events.mailbox_written;
             if events.repeat_request {
-                firmware::repeat_reply(&mut self.esc, &p.mailbox);
+                firmware::repeat_reply(&mut self.esc, &mut p.mailbox);
             }
         }
     }

@@ -28,7 +28,9 @@
 //! the next. Reads and unanswered reads are counted in the [`Clock`](super::clocks::Clock).
 //!
 //! Layout of the logical address space: every slave's outputs one after the other from
-//! address 0, then every slave's inputs.
+//! address 0, then every slave's inputs. A slave of fewer than 8 bits a way (an EL2004's four
+//! outputs) is packed at the next free bit, as SOEM packs it (two EL2004s share one logical
+//! byte, bits 0-3 and 4-7); any other starts on a byte of its own and takes whole bytes.
 
 use std::time::Instant;
 
@@ -38,7 +40,7 @@ use crate::ethercat::frame::{self, Command, FrameBuilder, Slot};
 use crate::ethercat::link::{copy_reply, is_reply_to, receive_reply};
 use crate::ethercat::master::state::AlStatus;
 use crate::ethercat::master::{Master, Slave};
-use crate::ethercat::pdo::Direction;
+use crate::ethercat::pdo::{copy_bits, Direction};
 use crate::ethercat::registers::{self, sm_reg, AL_STATUS, DC_SYSTEM_TIME, DC_SYSTEM_TIME_DIFFERENCE};
 
 /// Frame bytes the DC datagrams take: the FRMW of the system time (8 bytes) and the FPRD of
@@ -48,24 +50,88 @@ const DC_DATAGRAMS_LEN: usize = 8 + 4 + 2 * (frame::DATAGRAM_HEADER_LEN + frame:
 /// Where one slave's data sits in the process image.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ImageSlot {
-    /// Offset of its outputs in the output image (and logical address).
+    /// Offset of its outputs' first byte in the output image (and logical address).
     pub out_offset: usize,
-    /// Bytes of outputs.
+    /// Bytes of the output image its outputs touch.
     pub out_len: usize,
-    /// Offset of its inputs in the input image.
+    /// Offset of its inputs' first byte in the input image.
     pub in_offset: usize,
-    /// Bytes of inputs.
+    /// Bytes of the input image its inputs touch.
     pub in_len: usize,
+    /// The bit of its first output in the byte at `out_offset`: 0 but for a slave packed at a
+    /// bit (see the module).
+    pub out_bit: u8,
+    /// Bits of outputs: 8 per byte of a slave laid out in whole bytes.
+    pub out_bits: usize,
+    /// The bit of its first input in the byte at `in_offset`.
+    pub in_bit: u8,
+    /// Bits of inputs.
+    pub in_bits: usize,
 }
 
 impl ImageSlot {
-    /// Checks that `len` bytes are exactly the outputs of this slot (the slave at `position`).
+    /// Checks that `len` bytes are exactly the outputs of this slot (the slave at `position`),
+    /// its bits from bit 0 of the first byte.
     pub fn check_outputs_len(&self, position: u16, len: usize) -> Result<()> {
-        if len == self.out_len {
+        let expected = self.out_bits.div_ceil(8);
+        if len == expected {
             return Ok(());
         }
-        Err(SettingError::OutputsLength { slave: position, expected: self.out_len, given: len }.into())
+        Err(SettingError::OutputsLength { slave: position, expected, given: len }.into())
     }
+
+    /// The first bit of its outputs in the output image.
+    pub fn out_start_bit(&self) -> usize {
+        self.out_offset * 8 + usize::from(self.out_bit)
+    }
+
+    /// The first bit of its inputs in the input image.
+    pub fn in_start_bit(&self) -> usize {
+        self.in_offset * 8 + usize::from(self.in_bit)
+    }
+
+    /// Its outputs in `image` (the whole output image), from bit 0 of the first byte.
+    pub fn outputs_in(&self, image: &[u8]) -> Vec<u8> {
+        let mut data = vec![0; self.out_bits.div_ceil(8)];
+        copy_bits(image, self.out_start_bit(), &mut data, 0, self.out_bits);
+        data
+    }
+
+    /// Its inputs in `image` (the whole input image), from bit 0 of the first byte.
+    pub fn inputs_in(&self, image: &[u8]) -> Vec<u8> {
+        let mut data = vec![0; self.in_bits.div_ceil(8)];
+        copy_bits(image, self.in_start_bit(), &mut data, 0, self.in_bits);
+        data
+    }
+
+    /// Writes its outputs `data` (from bit 0 of the first byte, checked to be as long as
+    /// [`check_outputs_len`](Self::check_outputs_len) asks) into `image`, leaving the bits of
+    /// the slaves packed beside it.
+    pub fn write_outputs(&self, image: &mut [u8], data: &[u8]) {
+        copy_bits(data, 0, image, self.out_start_bit(), self.out_bits);
+    }
+}
+
+/// Bits of process data one way of one slave, as its sync manager carries them.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SlaveBits {
+    /// Outputs.
+    pub outputs: usize,
+    /// Inputs.
+    pub inputs: usize,
+}
+
+/// Places `bits` at `cursor` (bits into an image): packed at the next free bit when fewer than
+/// 8, else from the next whole byte on and rounded up to whole bytes. Gives the first bit and
+/// the bits taken, and moves the cursor past them.
+fn place(cursor: &mut usize, bits: usize) -> (usize, usize) {
+    let (start, taken) = match bits {
+        0 => (*cursor, 0),
+        1..=7 => (*cursor, bits),
+        _ => (cursor.next_multiple_of(8), bits.next_multiple_of(8)),
+    };
+    *cursor = start + taken;
+    (start, taken)
 }
 
 /// What the cyclic frame read of one slave besides its process data, with supervision on.
@@ -131,34 +197,45 @@ impl CyclicFrame {
 }
 
 impl ProcessImage {
-    /// Lays out the slaves' process data (`None` for a slave without process data).
-    fn layout(lens: &[Option<(usize, usize)>]) -> Result<Self> {
-        let out_total: usize = lens.iter().flatten().map(|l| l.0).sum();
-        let in_total: usize = lens.iter().flatten().map(|l| l.1).sum();
+    /// Lays out the slaves' process data (`None` for a slave without process data), as the
+    /// module says.
+    fn layout(bits: &[Option<SlaveBits>]) -> Result<Self> {
+        let (mut out_cursor, mut in_cursor, mut expected_wkc) = (0, 0, 0);
+        let slots: Vec<Option<ImageSlot>> = bits
+            .iter()
+            .map(|b| {
+                b.map(|b| {
+                    let (out_start, out_bits) = place(&mut out_cursor, b.outputs);
+                    let (in_start, in_bits) = place(&mut in_cursor, b.inputs);
+                    let touched = |start: usize, bits: usize| (start % 8 + bits).div_ceil(8);
+                    // A slave's ESC counts the LRW once for its inputs and twice for its
+                    // outputs, whoever shares their bytes.
+                    expected_wkc += frame::expected_wkc(Command::Lrw, (in_bits > 0) as u16, (out_bits > 0) as u16);
+                    ImageSlot {
+                        out_offset: out_start / 8,
+                        out_len: touched(out_start, out_bits),
+                        in_offset: in_start / 8,
+                        in_len: touched(in_start, in_bits),
+                        out_bit: (out_start % 8) as u8,
+                        out_bits,
+                        in_bit: (in_start % 8) as u8,
+                        in_bits,
+                    }
+                })
+            })
+            .collect();
+        let (out_total, in_total) = (out_cursor.div_ceil(8), in_cursor.div_ceil(8));
         let limit = frame::MAX_DATAGRAM_DATA - DC_DATAGRAMS_LEN;
         if out_total + in_total > limit {
             return Err(SettingError::ImageTooLarge { bytes: out_total + in_total, limit }.into());
         }
-        let (mut out_at, mut in_at, mut expected_wkc) = (0, 0, 0);
-        let slots = lens
-            .iter()
-            .map(|l| {
-                l.map(|(out_len, in_len)| {
-                    let slot = ImageSlot { out_offset: out_at, out_len, in_offset: in_at, in_len };
-                    out_at += out_len;
-                    in_at += in_len;
-                    expected_wkc += frame::expected_wkc(Command::Lrw, (in_len > 0) as u16, (out_len > 0) as u16);
-                    slot
-                })
-            })
-            .collect();
         let unseen = SlaveWatch { al_status: AlStatus { status: 0, code: 0 }, mailbox_full: false, answered: false };
         Ok(ProcessImage {
             outputs: vec![0; out_total],
             inputs: vec![0; in_total],
             slots,
             expected_wkc,
-            watch: vec![unseen; lens.len()],
+            watch: vec![unseen; bits.len()],
             supervised: false,
             each_in_frame: false,
             frame: CyclicFrame {
@@ -194,29 +271,34 @@ fn no_image() -> Error {
 }
 
 impl Master {
-    /// Before SafeOp: gives every slave at `positions` with a mailbox and without process data
-    /// what its SII assigns (over CoE where it has CoE), lays out the process image over every
-    /// slave with process data, and sets up the sync managers and FMMUs of the slaves at
-    /// `positions`. A slave without a mailbox gets none: its SII's entries may be bits, which
-    /// this whole-byte layout does not pack.
+    /// Before SafeOp: gives every slave at `positions` without process data what its SII
+    /// assigns (over CoE where it has CoE and its SII says the assignment may be written, see
+    /// [`Sii::process_data`](crate::ethercat::sii::Sii::process_data)), lays out the process
+    /// image over every slave with process data, and sets up the sync managers and FMMUs of
+    /// the slaves at `positions`.
     pub(crate) fn setup_process_data(&mut self, positions: &[u16]) -> Result<()> {
         for &p in positions {
             let slave = self.slave(p)?;
-            if let (None, Some(mailbox)) = (&slave.process_data, &slave.mailbox) {
-                let described = slave.sii.process_data(mailbox.has_coe());
+            if slave.process_data.is_none() {
+                let coe = slave.mailbox.as_ref().is_some_and(|m| m.has_coe());
+                let described = slave.sii.process_data(coe);
                 self.configure_process_data(p, described)?;
             }
         }
-        let lens: Vec<Option<(usize, usize)>> = self
+        let bits: Vec<Option<SlaveBits>> = self
             .slaves
             .iter()
-            .map(|s| s.process_data.as_ref().map(|d| (d.bytes(Direction::Rx), d.bytes(Direction::Tx))))
+            .map(|s| {
+                let d = s.process_data.as_ref()?;
+                let bits = SlaveBits { outputs: d.bits(Direction::Rx), inputs: d.bits(Direction::Tx) };
+                (bits != SlaveBits::default()).then_some(bits)
+            })
             .collect();
-        let image = ProcessImage::layout(&lens)?;
+        let image = ProcessImage::layout(&bits)?;
         let out_total = image.outputs.len() as u32;
         for &p in positions {
             if let Ok(slot) = image.slot(p) {
-                self.setup_process_syncmanagers(p, slot.out_offset as u32, out_total + slot.in_offset as u32)?;
+                self.setup_process_syncmanagers(p, &slot, out_total)?;
             }
         }
         self.process = Some(image);
@@ -231,27 +313,28 @@ impl Master {
         self.process.as_mut().ok_or_else(no_image)
     }
 
-    /// The outputs of the slave at `position` as they go out in the next cycle.
-    pub(super) fn outputs(&self, position: u16) -> Result<&[u8]> {
+    /// The outputs of the slave at `position` as they go out in the next cycle, from bit 0 of
+    /// the first byte.
+    pub(super) fn outputs(&self, position: u16) -> Result<Vec<u8>> {
         let image = self.image()?;
-        let s = image.slot(position)?;
-        Ok(&image.outputs[s.out_offset..s.out_offset + s.out_len])
+        Ok(image.slot(position)?.outputs_in(&image.outputs))
     }
 
-    /// Sets the outputs of the slave at `position`; `data` must have their exact length.
+    /// Sets the outputs of the slave at `position`; `data` must have their exact length (its
+    /// bits from bit 0 of the first byte), the slaves packed beside it keep theirs.
     pub(super) fn set_outputs(&mut self, position: u16, data: &[u8]) -> Result<()> {
         let image = self.image_mut()?;
         let s = image.slot(position)?;
         s.check_outputs_len(position, data.len())?;
-        image.outputs[s.out_offset..s.out_offset + s.out_len].copy_from_slice(data);
+        s.write_outputs(&mut image.outputs, data);
         Ok(())
     }
 
-    /// The inputs of the slave at `position` from the last good cycle.
-    pub(super) fn inputs(&self, position: u16) -> Result<&[u8]> {
+    /// The inputs of the slave at `position` from the last good cycle, from bit 0 of the first
+    /// byte.
+    pub(super) fn inputs(&self, position: u16) -> Result<Vec<u8>> {
         let image = self.image()?;
-        let s = image.slot(position)?;
-        Ok(&image.inputs[s.in_offset..s.in_offset + s.in_len])
+        Ok(image.slot(position)?.inputs_in(&image.inputs))
     }
 
     /// The LRW's expected working counter.
@@ -389,8 +472,7 @@ impl Master {
                 for (slot, watch) in image.slots.iter().zip(&image.watch) {
                     let exchanged = matches!(watch.al_status.state(), Some(AlState::SafeOp | AlState::Op));
                     if let (Some(slot), true) = (slot, watch.answered && exchanged) {
-                        let at = slot.in_offset..slot.in_offset + slot.in_len;
-                        image.inputs[at.clone()].copy_from_slice(&data[at]);
+                        copy_bits(data, slot.in_start_bit(), &mut image.inputs, slot.in_start_bit(), slot.in_bits);
                     }
                 }
             }
@@ -593,18 +675,57 @@ impl Master {
 mod tests {
     use super::*;
 
+    fn bytes(outputs: usize, inputs: usize) -> Option<SlaveBits> {
+        Some(SlaveBits { outputs: outputs * 8, inputs: inputs * 8 })
+    }
+
+    fn whole(out_offset: usize, out_len: usize, in_offset: usize, in_len: usize) -> ImageSlot {
+        ImageSlot {
+            out_offset,
+            out_len,
+            in_offset,
+            in_len,
+            out_bits: out_len * 8,
+            in_bits: in_len * 8,
+            ..ImageSlot::default()
+        }
+    }
+
     #[test]
     fn layout_puts_outputs_then_inputs_and_counts_wkc() {
-        let image = ProcessImage::layout(&[Some((6, 6)), None, Some((10, 28))]).unwrap();
-        assert_eq!(image.slot(0).unwrap(), ImageSlot { out_offset: 0, out_len: 6, in_offset: 0, in_len: 6 });
-        assert_eq!(image.slot(2).unwrap(), ImageSlot { out_offset: 6, out_len: 10, in_offset: 6, in_len: 28 });
+        let image = ProcessImage::layout(&[bytes(6, 6), None, bytes(10, 28)]).unwrap();
+        assert_eq!(image.slot(0).unwrap(), whole(0, 6, 0, 6));
+        assert_eq!(image.slot(2).unwrap(), whole(6, 10, 6, 28));
         assert!(image.slot(1).is_err());
         assert_eq!(image.expected_wkc(), 6);
         assert_eq!((image.outputs.len(), image.inputs.len()), (16, 34));
     }
 
     #[test]
+    fn slaves_of_a_few_bits_share_bytes_as_soem_packs_them() {
+        // EL1004, EL2004, EL2004, EL3102 (6 bytes in), AKD: as SOEM maps two EL2004s to bits
+        // 0-3 and 4-7 of one byte, and the next slave of whole bytes on a byte of its own.
+        let four_in = Some(SlaveBits { outputs: 0, inputs: 4 });
+        let four_out = Some(SlaveBits { outputs: 4, inputs: 0 });
+        let image = ProcessImage::layout(&[None, four_in, four_out, four_out, bytes(0, 6), bytes(6, 6)]).unwrap();
+        let el2004 = |p| image.slot(p).map(|s| (s.out_offset, s.out_bit, s.out_bits, s.out_len)).unwrap();
+        assert_eq!((el2004(2), el2004(3)), ((0, 0, 4, 1), (0, 4, 4, 1)));
+        assert_eq!(image.slot(5).unwrap().out_offset, 1, "the AKD's outputs on a byte of their own");
+        assert_eq!((image.slot(1).unwrap().in_bit, image.slot(4).unwrap().in_offset), (0, 1));
+        assert_eq!(image.slot(5).unwrap().in_offset, 7);
+        // 1 (EL1004) + 2 + 2 (EL2004s) + 1 (EL3102) + 3 (AKD).
+        assert_eq!(image.expected_wkc(), 9);
+        assert_eq!((image.outputs.len(), image.inputs.len()), (7, 13));
+        let mut outputs = image.outputs.clone();
+        image.slot(3).unwrap().write_outputs(&mut outputs, &[0b1010]);
+        image.slot(2).unwrap().write_outputs(&mut outputs, &[0b0001]);
+        assert_eq!(outputs[0], 0b1010_0001);
+        assert_eq!(image.slot(3).unwrap().outputs_in(&outputs), [0b1010]);
+        assert!(image.slot(2).unwrap().check_outputs_len(2, 1).is_ok());
+    }
+
+    #[test]
     fn layout_refuses_an_image_beyond_one_frame() {
-        assert!(ProcessImage::layout(&[Some((1000, 1000))]).is_err());
+        assert!(ProcessImage::layout(&[bytes(1000, 1000)]).is_err());
     }
 }

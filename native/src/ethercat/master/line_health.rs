@@ -24,7 +24,8 @@ impl Master {
     /// Reads the DL status and error counters of the slaves from position `first` on, one per
     /// entry of `reads` (at most [`SLAVES_PER_FRAME`]), in one frame; where `clears(position)`
     /// says so, with a read-write of the counters that clears them as it reads them (what is
-    /// read is what was there before the write). Each read says whether its slave answered.
+    /// read is what was there before the write). Each read says whether its slave answered;
+    /// a frame in which one did not is one working-counter error, counted as the cycle's are.
     /// A frame that does not come back leaves every read unanswered and is returned as the
     /// error, counted as the master counts lost frames. No allocation.
     pub fn read_line_health(
@@ -54,6 +55,7 @@ impl Master {
         let len = builder.finish();
         let n = self.send_frame(len)?;
         let reply = &self.rx[..n];
+        let mut all_answered = true;
         for (i, read) in reads.iter_mut().take(count).enumerate() {
             let status = Slot { data_offset: first_slot.data_offset + i * READ_LEN, len: 2, index: first_slot.index };
             let counters = Slot {
@@ -64,10 +66,14 @@ impl Master {
             // A read-write counts 3 where the slave read and wrote.
             let answered = status.wkc(reply)? == 1 && counters.wkc(reply)? >= 1;
             read.answered = answered;
+            all_answered &= answered;
             if answered {
                 read.dl_status = DlStatus(u16::from_le_bytes(status.data(reply)?.try_into().expect("2 bytes")));
                 read.counters = ErrorCounts::decode(counters.data(reply)?.try_into().expect("the block's length"));
             }
+        }
+        if !all_answered {
+            self.stats.wkc_errors += 1;
         }
         Ok(())
     }

@@ -3,7 +3,9 @@
 //! A message is written as a whole buffer (the last byte makes SM0 full), with a counter
 //! 1..7 that lets the slave tell a repeat from a new message. A reply is read when SM1 says
 //! full; reading it empties SM1, so a reply lost on the way back is fetched again with the
-//! repeat request of SM1 (activate bit 1, acknowledged in PDI control bit 1). Emergency
+//! repeat request of SM1 (activate bit 1, acknowledged in PDI control bit 1). A lost read may
+//! also have found SM1 empty, or not have reached the slave: the repeat then brings back the
+//! message read before it, which is dropped (and counted) rather than taken twice. Emergency
 //! messages that arrive in between are queued on the slave, a reply with another counter than
 //! the request's is a stale one and dropped (and counted), and a mailbox error reply becomes an
 //! error naming its detail code. EoE fragments go to the slave's [`EoePort`](super::eoe::EoePort)
@@ -49,6 +51,43 @@ pub struct Mailbox {
     pub protocols: u16,
     counter: u8,
     repeat: Repeat,
+    last_read: LastRead,
+}
+
+/// The last message read from SM1, for the master to know it again when a repeat request brings
+/// it back: the repeat asks for the message the slave saw read last, which is the one whose read
+/// was lost only if that read did reach SM1 while it was full. Two messages in a row that carry a
+/// counter are never the same bytes (the counter moves on, or a reply echoes another request's),
+/// so the same bytes again right after a repeat request are that copy.
+#[derive(Clone, Debug, PartialEq, Eq)]
+struct LastRead {
+    /// Room for SM1's whole buffer, allocated with the mailbox: a cycle thread reads without
+    /// allocating.
+    message: Box<[u8]>,
+    len: usize,
+    /// A repeat request was made since: the next message read may be this one again.
+    repeated: bool,
+}
+
+impl LastRead {
+    fn new(in_len: u16) -> Self {
+        LastRead { message: vec![0; usize::from(in_len)].into_boxed_slice(), len: 0, repeated: false }
+    }
+
+    /// Takes the message just read into `buffer` (SM1's whole buffer); `false` when it is the copy
+    /// of the last one that a repeat request brought back. A counter of 0 (the slave does not
+    /// count) tells nothing: such a message is always taken.
+    fn take(&mut self, buffer: &[u8]) -> bool {
+        let announced = buffer.get(..2).map_or(0, |b| usize::from(u16::from_le_bytes([b[0], b[1]])));
+        let len = (codec::HEADER_LEN + announced).min(buffer.len()).min(self.message.len());
+        let counted = buffer.get(5).is_some_and(|b| b & 0x70 != 0);
+        let copy = std::mem::take(&mut self.repeated) && counted && buffer[..len] == self.message[..self.len];
+        if !copy {
+            self.message[..len].copy_from_slice(&buffer[..len]);
+            self.len = len;
+        }
+        !copy
+    }
 }
 
 /// Where the repeat request a lost read of SM1 calls for stands, made one frame at a time by a
@@ -92,6 +131,7 @@ impl Mailbox {
             protocols,
             counter: 0,
             repeat: Repeat::None,
+            last_read: LastRead::new(mb.send_size),
         }))
     }
 
@@ -207,7 +247,8 @@ impl Master {
     }
 
     /// One read of the slave's SM1 into `buffer` (exactly SM1's length), for a cycle thread
-    /// that saw SM1 full and must not wait: `true` when a message was read. A read whose
+    /// that saw SM1 full and must not wait: `true` when a message was read, not the copy of the
+    /// last one that a repeat request brought back (dropped, and counted stale). A read whose
     /// return does not come may have emptied SM1 all the same (it came late): the reply is
     /// then asked for again with SM1's repeat request, made by
     /// [`mailbox_try_repeat`](Self::mailbox_try_repeat) in the calls after; SM1 shows full
@@ -215,13 +256,22 @@ impl Master {
     pub(super) fn mailbox_try_read(&mut self, position: u16, buffer: &mut [u8]) -> Result<bool> {
         let (station, in_start) = self.mailbox_address(position, |mb| mb.in_start)?;
         match self.datagram(Command::Fprd, station, in_start, buffer) {
-            Ok(wkc) => Ok(wkc == 1),
+            Ok(1) => self.take_read(position, buffer),
+            Ok(_) => Ok(false),
             Err(Error::Timeout { .. }) => {
                 self.mailbox_entry_mut(position)?.repeat = Repeat::ReadActivate;
                 Ok(false)
             }
             Err(e) => Err(e),
         }
+    }
+
+    /// Keeps the message just read from the slave's SM1 as its last; `false` (and counted stale)
+    /// when it is the copy of the last one that a repeat request brought back.
+    fn take_read(&mut self, position: u16, buffer: &[u8]) -> Result<bool> {
+        let new = self.mailbox_entry_mut(position)?.last_read.take(buffer);
+        self.stats.stale_mailbox_replies += u64::from(!new);
+        Ok(new)
     }
 
     /// One frame towards the repeat request a lost read of SM1 left to make, for a cycle
@@ -241,6 +291,7 @@ impl Master {
             Repeat::Write(byte) => match self.datagram(Command::Fpwr, station, SM1_ACTIVATE, &mut [byte]) {
                 Ok(1) => {
                     self.stats.mailbox_repeats += 1;
+                    self.mailbox_entry_mut(position)?.last_read.repeated = true;
                     Repeat::None
                 }
                 Ok(_) | Err(Error::Timeout { .. }) => Repeat::Write(byte),
@@ -291,7 +342,7 @@ impl Master {
         }
         let mut buffer = vec![0u8; mb.in_len as usize];
         match self.datagram(Command::Fprd, station, mb.in_start, &mut buffer) {
-            Ok(1) => {}
+            Ok(1) if self.take_read(position, &buffer)? => {}
             Ok(_) => return Ok(None),
             Err(Error::Timeout { .. }) => {
                 self.repeat_request(position, station)?;
@@ -343,6 +394,7 @@ impl Master {
     /// toggle SM1's repeat request and wait for the slave's acknowledge.
     fn repeat_request(&mut self, position: u16, station: u16) -> Result<()> {
         let request = self.toggle_repeat_request(station)?;
+        self.mailbox_entry_mut(position)?.last_read.repeated = true;
         let deadline = Instant::now() + self.timeout.max(Duration::from_millis(100));
         loop {
             let mut pdi = [0u8; 1];

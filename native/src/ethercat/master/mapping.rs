@@ -1,14 +1,18 @@
 //! Setting up a slave's process data from its description ([`ProcessData`]): over CoE where
 //! the description says so — clear the assignment count, write each flexible PDO's entries with
 //! its count 0 and the count last, assign the PDOs, write the assignment count (CiA 301's order,
-//! which the AKD requires, AKD manual §5.6) — and, before SafeOp, sync managers 2 and 3 as the
-//! slave's SII gives them and FMMU0/FMMU1 from the slave's place in the process image.
+//! which the AKD requires, AKD manual §5.6) — and, before SafeOp, the sync managers of process
+//! data as the slave's SII gives them (by their type: SM2 and SM3 of a slave with a mailbox, SM0
+//! of a digital I/O terminal) and an FMMU each way, the one its SII's FMMU category gives that
+//! use, from the slave's place in the process image, to the bit.
 
 use crate::error::{Result, Unavailable};
+use crate::ethercat::master::cyclic::ImageSlot;
 use crate::ethercat::master::mailbox_client::sm_registers;
 use crate::ethercat::master::Master;
 use crate::ethercat::pdo::{Direction, PdoAssignment, ProcessData};
 use crate::ethercat::registers::{self, fmmu_reg};
+use crate::ethercat::sii::{fmmu_usage, sync_manager_type, Sii};
 
 impl Master {
     /// Gives the slave at `position` (in PreOp) the process data `process_data`.
@@ -40,46 +44,95 @@ impl Master {
         self.sdo_write(position, assign, 0, &[assignment.pdos.len() as u8])
     }
 
-    /// Writes SM2/SM3 and FMMU0/FMMU1 of the slave at `position` for outputs at logical
-    /// address `out_logical` and inputs at `in_logical`.
-    pub(crate) fn setup_process_syncmanagers(
-        &mut self,
-        position: u16,
-        out_logical: u32,
-        in_logical: u32,
-    ) -> Result<()> {
+    /// Writes the process-data sync managers and FMMUs of the slave at `position` for its
+    /// place `slot` in the process image, whose inputs start at logical address `in_base`
+    /// (after every slave's outputs).
+    pub(crate) fn setup_process_syncmanagers(&mut self, position: u16, slot: &ImageSlot, in_base: u32) -> Result<()> {
         let slave = self.slave(position)?;
         let station = slave.station_address;
         let process_data = slave.process_data.as_ref().ok_or(Unavailable::NoMapping { slave: position })?;
-        let sm = |direction: Direction| {
-            let n = direction.sync_manager();
-            let sm = slave.sii.sync_managers().get(n as usize);
-            sm.map(|sm| (sm.start_address, sm.control)).ok_or(Unavailable::NoSyncManager { slave: position, n })
-        };
-        let ((out_start, out_control), (in_start, in_control)) = (sm(Direction::Rx)?, sm(Direction::Tx)?);
-        let (out_len, in_len) = (process_data.bytes(Direction::Rx) as u16, process_data.bytes(Direction::Tx) as u16);
-        let mut both = [0u8; 16];
-        both[..8].copy_from_slice(&sm_registers(out_start, out_len, out_control, out_len > 0));
-        both[8..].copy_from_slice(&sm_registers(in_start, in_len, in_control, in_len > 0));
-        self.write_registers(station, registers::sm(2), &both)?;
-        let mut fmmus = [0u8; 32];
-        fmmus[..16].copy_from_slice(&fmmu_registers(out_logical, out_len, out_start, fmmu_reg::TYPE_WRITE));
-        fmmus[16..].copy_from_slice(&fmmu_registers(in_logical, in_len, in_start, fmmu_reg::TYPE_READ));
-        self.write_registers(station, registers::fmmu(0), &fmmus)
+        let mut writes = Vec::with_capacity(4);
+        for direction in [Direction::Rx, Direction::Tx] {
+            let len = process_data.bytes(direction) as u16;
+            let Some((n, start, control)) = process_data_sync_manager(&slave.sii, direction) else {
+                if len > 0 {
+                    return Err(Unavailable::NoSyncManager { slave: position, n: direction.sync_manager() }.into());
+                }
+                continue;
+            };
+            writes.push((registers::sm(n), sm_registers(start, len, control, len > 0).to_vec()));
+            if len > 0 {
+                let fmmu = fmmu_for(&slave.sii, direction);
+                let place = match direction {
+                    Direction::Rx => Place {
+                        logical: slot.out_offset as u32,
+                        len: slot.out_len as u16,
+                        bit: slot.out_bit,
+                        bits: slot.out_bits,
+                    },
+                    Direction::Tx => Place {
+                        logical: in_base + slot.in_offset as u32,
+                        len: slot.in_len as u16,
+                        bit: slot.in_bit,
+                        bits: slot.in_bits,
+                    },
+                };
+                writes.push((registers::fmmu(fmmu), fmmu_registers(place, start, direction).to_vec()));
+            }
+        }
+        for (register, data) in writes {
+            self.write_registers(station, register, &data)?;
+        }
+        Ok(())
     }
 }
 
-/// The sixteen bytes of an FMMU mapping `len` whole bytes from `logical` to `physical`.
-fn fmmu_registers(logical: u32, len: u16, physical: u16, kind: u8) -> [u8; 16] {
+/// The sync manager that carries `direction` in the slave `sii` describes: the first of the
+/// type of process data that way (outputs 3, inputs 4), as its number, start address and
+/// control byte.
+fn process_data_sync_manager(sii: &Sii, direction: Direction) -> Option<(u8, u16, u8)> {
+    let wanted = match direction {
+        Direction::Rx => sync_manager_type::PROCESS_DATA_OUT,
+        Direction::Tx => sync_manager_type::PROCESS_DATA_IN,
+    };
+    let (n, sm) = sii.sync_managers().iter().enumerate().find(|(_, sm)| sm.sm_type == wanted)?;
+    Some((n as u8, sm.start_address, sm.control))
+}
+
+/// The FMMU the slave's SII gives to `direction` (the first of that use in its FMMU
+/// category); without one, FMMU 0 for outputs and 1 for inputs.
+pub(crate) fn fmmu_for(sii: &Sii, direction: Direction) -> u8 {
+    let (usage, otherwise) = match direction {
+        Direction::Rx => (fmmu_usage::OUTPUTS, 0),
+        Direction::Tx => (fmmu_usage::INPUTS, 1),
+    };
+    sii.fmmu_usage().iter().position(|&u| u == usage).map_or(otherwise, |n| n as u8)
+}
+
+/// Where one way of a slave's process data sits in the logical address space: the first byte
+/// and the bytes it touches, the bit of its first bit in that byte and its bits.
+struct Place {
+    logical: u32,
+    len: u16,
+    bit: u8,
+    bits: usize,
+}
+
+/// The sixteen bytes of an FMMU mapping `place` to the sync manager's buffer at `physical`,
+/// bit for bit: its first logical bit to physical bit 0.
+fn fmmu_registers(place: Place, physical: u16, direction: Direction) -> [u8; 16] {
     let mut r = [0u8; 16];
-    r[fmmu_reg::LOGICAL_START..fmmu_reg::LOGICAL_START + 4].copy_from_slice(&logical.to_le_bytes());
-    r[fmmu_reg::LENGTH..fmmu_reg::LENGTH + 2].copy_from_slice(&len.to_le_bytes());
-    r[fmmu_reg::LOGICAL_START_BIT] = 0;
-    r[fmmu_reg::LOGICAL_END_BIT] = 7;
+    r[fmmu_reg::LOGICAL_START..fmmu_reg::LOGICAL_START + 4].copy_from_slice(&place.logical.to_le_bytes());
+    r[fmmu_reg::LENGTH..fmmu_reg::LENGTH + 2].copy_from_slice(&place.len.to_le_bytes());
+    r[fmmu_reg::LOGICAL_START_BIT] = place.bit;
+    r[fmmu_reg::LOGICAL_END_BIT] = ((usize::from(place.bit) + place.bits + 7) % 8) as u8;
     r[fmmu_reg::PHYSICAL_START..fmmu_reg::PHYSICAL_START + 2].copy_from_slice(&physical.to_le_bytes());
     r[fmmu_reg::PHYSICAL_START_BIT] = 0;
-    r[fmmu_reg::TYPE] = kind;
-    r[fmmu_reg::ACTIVATE] = (len > 0) as u8;
+    r[fmmu_reg::TYPE] = match direction {
+        Direction::Rx => fmmu_reg::TYPE_WRITE,
+        Direction::Tx => fmmu_reg::TYPE_READ,
+    };
+    r[fmmu_reg::ACTIVATE] = 1;
     r
 }
 
@@ -89,8 +142,18 @@ mod tests {
 
     #[test]
     fn fmmu_layout() {
-        let r = fmmu_registers(0x10, 6, 0x1100, fmmu_reg::TYPE_WRITE);
+        let r = fmmu_registers(Place { logical: 0x10, len: 6, bit: 0, bits: 48 }, 0x1100, Direction::Rx);
         assert_eq!(&r[..8], &[0x10, 0, 0, 0, 6, 0, 0, 7]);
         assert_eq!(&r[8..13], &[0x00, 0x11, 0, 2, 1]);
+    }
+
+    #[test]
+    fn an_fmmu_of_a_few_bits_maps_them_as_soem_maps_an_el2004() {
+        // SOEM's slaveinfo of two EL2004s: "FMMU0 Ls:00000000 Ll:1 Lsb:0 Leb:3 Ps:0f00" and
+        // "Lsb:4 Leb:7".
+        let first = fmmu_registers(Place { logical: 0, len: 1, bit: 0, bits: 4 }, 0x0F00, Direction::Rx);
+        let second = fmmu_registers(Place { logical: 0, len: 1, bit: 4, bits: 4 }, 0x0F00, Direction::Rx);
+        assert_eq!(&first[..12], &[0, 0, 0, 0, 1, 0, 0, 3, 0x00, 0x0F, 0, 2]);
+        assert_eq!(&second[6..8], &[4, 7]);
     }
 }

@@ -59,7 +59,8 @@ pub struct Stats {
     pub mailbox_repeats: u64,
     /// Emergency messages received.
     pub emergencies: u64,
-    /// Mailbox replies dropped because their counter was not the request's (late answers).
+    /// Mailbox replies dropped as stale: another counter than the request's (late answers), or
+    /// the copy of the message read before that a repeat request brought back.
     pub stale_mailbox_replies: u64,
     /// Frames of their own that read every slave's AL status and mailbox status, in cycles
     /// whose broadcast reads saw a slave change (see [`set_supervision`](Master::set_supervision)).
@@ -80,6 +81,11 @@ pub struct Slave {
     pub alias: u16,
     /// ESC features (register 0x0008); bit 2 says whether it has a distributed clock.
     pub esc_features: u16,
+    /// Whether it has a distributed clock with a system time: feature bit 2, and its system time
+    /// (0x0910) answered the scan. The ET1200 of Beckhoff's digital terminals sets the bit but
+    /// has no system time (a read there finds no register, working counter 0): it latches
+    /// receive times and is not synchronised.
+    pub dc: bool,
     /// AL status and code as the scan found them, before it took the slave to Init: what a
     /// commissioning engineer needs to see of a drive that was left in Op or with an error.
     pub found: state::AlStatus,
@@ -96,9 +102,9 @@ pub struct Slave {
 }
 
 impl Slave {
-    /// Whether the ESC has a distributed clock (feature bit 2).
+    /// Whether the ESC has a distributed clock with a system time ([`Slave::dc`]).
     pub fn has_dc(&self) -> bool {
-        self.esc_features & 0x0004 != 0
+        self.dc
     }
 }
 

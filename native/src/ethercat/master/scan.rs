@@ -54,20 +54,27 @@ impl Master {
         self.broadcast_write(FMMU0, &[0; FMMUS_CLEARED * registers::FMMU_LEN as usize])?;
         self.broadcast_write(SM0, &[0; SMS_CLEARED * registers::SM_LEN as usize])?;
         self.broadcast_write(registers::DC_ACTIVATION, &[0])?;
-        for (position, found) in (0..count).zip(found) {
-            let slave = self.read_slave(position, FIRST_STATION_ADDRESS + position, found)?;
-            self.slaves.push(slave);
-        }
+        // Taken whole or not at all: a slave that cannot be read leaves no half line behind.
+        let slaves = (0..count)
+            .zip(found)
+            .map(|(position, found)| self.read_slave(position, FIRST_STATION_ADDRESS + position, found))
+            .collect::<Result<Vec<_>>>()?;
+        self.slaves = slaves;
         Ok(count as usize)
     }
 
     /// Reads what the slave at `station` is: features, alias and SII.
     fn read_slave(&mut self, position: u16, station: u16, found: AlStatus) -> Result<Slave> {
         let esc_features = self.read_u16(station, registers::FEATURES)?;
+        let dc = esc_features & registers::FEATURE_DC != 0
+            && self.datagram_retry(Command::Fprd, station, registers::DC_SYSTEM_TIME, &mut [0u8; 8])? == 1;
         let alias = self.read_u16(station, registers::STATION_ALIAS)?;
-        let image = self.read_sii(station)?;
         // An SII fault names the slave it was found on.
         let of_slave = |error| -> Error { SiiError::OfSlave { position, station, error: Box::new(error) }.into() };
+        let image = self.read_sii(station).map_err(|e| match e {
+            Error::Sii(error) => of_slave(error),
+            other => other,
+        })?;
         let sii = Sii::parse(&image).map_err(of_slave)?;
         let mailbox = Mailbox::from_sii(&sii).map_err(of_slave)?;
         Ok(Slave {
@@ -75,6 +82,7 @@ impl Master {
             station_address: station,
             alias,
             esc_features,
+            dc,
             found,
             sii,
             mailbox,

@@ -32,6 +32,9 @@ impl Master {
         // Control (2), address (4) and up to 8 data bytes in one read.
         let mut state = [0u8; 14];
         loop {
+            // Judged before the read: a thread stalled past the deadline after a busy read reads
+            // once more, and fails only on what the interface says after the deadline.
+            let expired = Instant::now() > deadline;
             self.read_registers(station, SII_CONTROL, &mut state)?;
             let control = u16::from_le_bytes([state[0], state[1]]);
             if control & (sii_reg::BUSY | sii_reg::CMD_READ) == 0 {
@@ -42,7 +45,7 @@ impl Master {
                 out.extend_from_slice(&state[6..6 + len]);
                 return Ok(());
             }
-            if Instant::now() > deadline {
+            if expired {
                 return Err(Error::Timeout {
                     what: format!(
                         "station 0x{station:04X}'s SII interface (word 0x{word:04X}, control 0x{control:04X})"
@@ -64,11 +67,18 @@ impl Master {
     }
 
     /// Reads the used part of the SII of `station`: header and every category up to the end
-    /// marker (included), bounded by the EEPROM size the header gives.
+    /// marker (included), bounded by the EEPROM size the header gives; a header whose checksum
+    /// is wrong is refused before any category is read.
     pub fn read_sii(&mut self, station: u16) -> Result<Vec<u8>> {
         // Give the EEPROM interface to EtherCAT (0x0500 = 0) rather than to the PDI.
         self.write_registers(station, crate::ethercat::registers::SII_CONFIG, &[0])?;
         let mut image = self.read_sii_words(station, 0, HEADER_WORDS)?;
+        // A damaged header is told at once, before its size word sends the reads past the EEPROM.
+        let first: [u8; 14] = image[..14].try_into().expect("the header's first seven words");
+        let computed = crate::ethercat::sii::header_checksum(&first);
+        if image[14] != computed {
+            return Err(SiiError::Checksum { stored: image[14], computed }.into());
+        }
         let size_kbit = u16::from_le_bytes([image[SIZE_WORD * 2], image[SIZE_WORD * 2 + 1]]) as u32 + 1;
         let size_words = size_kbit * 1024 / 16;
         let mut word = HEADER_WORDS;

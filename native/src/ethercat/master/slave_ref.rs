@@ -175,18 +175,20 @@ impl SlaveRef<'_> {
         self.master.configure_process_data(self.position, process_data)
     }
 
-    /// This slave's outputs as they go out in the next cycle.
-    pub fn outputs(&self) -> Result<&[u8]> {
+    /// This slave's outputs as they go out in the next cycle, from bit 0 of the first byte (a
+    /// slave of a few bits shares its byte in the image with others).
+    pub fn outputs(&self) -> Result<Vec<u8>> {
         self.master.outputs(self.position)
     }
 
-    /// Sets this slave's outputs; `data` must have their exact length.
+    /// Sets this slave's outputs; `data` must have their exact length, from bit 0 of the first
+    /// byte.
     pub fn set_outputs(&mut self, data: &[u8]) -> Result<()> {
         self.master.set_outputs(self.position, data)
     }
 
-    /// This slave's inputs from the last good cycle.
-    pub fn inputs(&self) -> Result<&[u8]> {
+    /// This slave's inputs from the last good cycle, from bit 0 of the first byte.
+    pub fn inputs(&self) -> Result<Vec<u8>> {
         self.master.inputs(self.position)
     }
 }

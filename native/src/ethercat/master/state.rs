@@ -145,11 +145,28 @@ impl Master {
         let state = status.status & al::AL_STATE_MASK;
         self.write_al_control(position, station, state | AL_ERROR_ACK, ACK_TIMEOUT)?;
         let deadline = Instant::now() + ACK_TIMEOUT;
-        while self.read_al_status(station)?.error() {
+        loop {
+            let now = self.read_al_status(station)?;
+            if !now.error() {
+                return Ok(());
+            }
+            self.clear_echoed_ack(position, station, now, state | AL_ERROR_ACK)?;
             if Instant::now() >= deadline {
                 return Err(Error::Timeout { what: format!("slave {position} to clear its AL error flag").into() });
             }
             std::thread::sleep(POLL_INTERVAL);
+        }
+    }
+
+    /// An ESC in device emulation (PDI control bit 8: a terminal without a processor, an
+    /// EK1100 or an EL1004) copies AL control into AL status, the acknowledge bit too, so that
+    /// the error flag reads set after `written` (a state with the acknowledge bit): when AL
+    /// status is exactly that, with no AL status code, the state is written again without the
+    /// bit, which clears it. A drive whose firmware answers the acknowledge never shows it so
+    /// once the firmware took it.
+    fn clear_echoed_ack(&mut self, position: u16, station: u16, status: AlStatus, written: u16) -> Result<()> {
+        if status.status == written && status.code == 0 {
+            self.write_al_control(position, station, written & !AL_ERROR_ACK, ACK_TIMEOUT)?;
         }
         Ok(())
     }
@@ -159,12 +176,14 @@ impl Master {
     /// waiting for the drive's firmware to take the acknowledge, not a refusal.
     pub(crate) fn reset_to_init(&mut self, position: u16, station: u16, timeout: Duration) -> Result<()> {
         let deadline = Instant::now() + timeout;
-        self.write_al_control(position, station, AlState::Init as u16 | AL_ERROR_ACK, timeout)?;
+        let written = AlState::Init as u16 | AL_ERROR_ACK;
+        self.write_al_control(position, station, written, timeout)?;
         loop {
             let status = self.read_al_status(station)?;
             if status.state() == Some(AlState::Init) && !status.error() {
                 return Ok(());
             }
+            self.clear_echoed_ack(position, station, status, written)?;
             if Instant::now() >= deadline {
                 return Err(Error::Timeout {
                     what: format!(
