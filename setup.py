@@ -89,7 +89,7 @@ setup(
             "akd-foe = akd_ros.cli.foe:main",
             "akd-zenohd = akd_ros.cli.zenohd:main",
             "akd-access = akd_ros.cli.access:main",
-            "akd_node = akd_ros.node:main",
+            "akd_node = akd_ros.node.command_line:main",
         ]
     },
 )

@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from akd_ros import Axis, CommandError, _native, params
-from akd_ros.axis import ANALOG_VOLTS_PER_COUNT
+from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES
 from support.docs_pages import blocks_of
 from support.waiting import wait_for
 
@@ -140,7 +140,7 @@ def test_what_each_mapping_carries_and_which_carry_a_modes_command_with_the_io()
         "interpolated_position": [],
         CSP: ["io", "0x1725/0x1B20"],
     }
-    assert {mode: [name for name, _ in _native.io_mappings(mode, everything)] for mode in params.MODES} == expected
+    assert {mode: [name for name, _ in _native.io_mappings(mode, everything)] for mode in MODES} == expected
     with pytest.raises(ValueError, match="no mode"):
         _native.io_mappings("jog", [])
     with pytest.raises(ValueError, match='"outputs" is none of digital_inputs'):

@@ -22,7 +22,9 @@ import yaml
 from rcl_interfaces.msg import ParameterType
 
 from akd_ros import params
-from akd_ros.node import NODE_NAME, AkdNode, ros_parameters
+from akd_ros.node import ros_parameters
+from akd_ros.node.lifecycle import AkdNode
+from akd_ros.node.node_state import NODE_NAME
 from support.params_files import BAD_FILES, params_file
 
 BIN = Path(sys.executable).parent

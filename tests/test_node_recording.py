@@ -377,8 +377,8 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from std_msgs.msg import Float64
-from akd_ros.node import hold_gil_briefly
 from akd_ros.node.lifecycle import AkdNode
+from akd_ros.node.threads import hold_gil_briefly
 
 port, folder, hold_s, commands = int(sys.argv[1]), sys.argv[2], float(sys.argv[3]), int(sys.argv[4])
 rclpy.init()

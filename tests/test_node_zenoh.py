@@ -169,9 +169,9 @@ def test_the_liveliness_tokens_name_the_node_its_topics_types_and_qos(node, peer
     assert all(entity in topics for entity in asserted)
 
 
-def call(peer, types, name: str, sequence_number: int, gid: bytes):
+def call(peer, types, name: str, sequence_number: int, gid: bytes, domain: int = DOMAIN):
     """Calls the Trigger service `name` with rmw_zenoh's attachment; its reply."""
-    key = data_key_expr(DOMAIN, name, dds_type_name(TRIGGER), types.rihs01(TRIGGER))
+    key = data_key_expr(domain, name, dds_type_name(TRIGGER), types.rihs01(TRIGGER))
     request = types.to_cdr(types.message(f"{TRIGGER}_Request"), f"{TRIGGER}_Request")
     attachment = Attachment(sequence_number, time.time_ns(), gid).encode()
     replies = list(peer.get(key, payload=request, attachment=attachment, timeout=WAIT_S))
@@ -190,22 +190,30 @@ def test_a_bus_wide_enable_is_answered_with_the_replys_attachment_right(node, pe
     assert [sim.state(i)["state"] for i in range(2)] == ["Operation enabled"] * 2
 
 
-def joint_commands_key(types) -> str:
-    return data_key_expr(DOMAIN, "/akd_node/joint_commands", dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
+def joint_commands_key(types, domain: int = DOMAIN) -> str:
+    return data_key_expr(domain, "/akd_node/joint_commands", dds_type_name(JOINT_STATE), types.rihs01(JOINT_STATE))
 
 
-def test_a_joint_commands_put_with_an_attachment_moves_the_joint(node, peer, types):
-    sim = node[0]
-    call(peer, types, "/akd_node/enable", 8, bytes(16))
+def move_joint_1_over_zenoh(sim, peer, types, domain: int = DOMAIN) -> None:
+    """Enables the drives by their service and moves joint_1 by 0.01 rad by joint_commands, both over Zenoh."""
+    response = types.from_cdr(
+        call(peer, types, "/akd_node/enable", 8, bytes(16), domain).payload.to_bytes(), f"{TRIGGER}_Response"
+    )
+    assert response.success, response.message
     start = sim.state(0)["position"] / COUNTS_PER_RAD
     target = start + 0.01
     gid = bytes(range(32, 48))
     for number in range(1, 21):
         message = types.message(JOINT_STATE, name=["joint_1"], position=[start + 0.01 * number / 20])
         payload = types.to_cdr(message, JOINT_STATE)
-        peer.put(joint_commands_key(types), payload, attachment=Attachment(number, time.time_ns(), gid).encode())
+        attachment = Attachment(number, time.time_ns(), gid).encode()
+        peer.put(joint_commands_key(types, domain), payload, attachment=attachment)
         time.sleep(0.02)
     wait_for("joint_1 at its target", lambda: abs(sim.state(0)["position"] - target * COUNTS_PER_RAD) < 20, WAIT_S)
+
+
+def test_a_joint_commands_put_with_an_attachment_moves_the_joint(node, peer, types):
+    move_joint_1_over_zenoh(node[0], peer, types)
 
 
 @pytest.mark.parametrize(
@@ -301,6 +309,31 @@ def test_transport_both_delivers_the_same_joint_states_to_rclpy_and_to_zenoh(rou
     assert len(common) >= 10, (len(over_dds), len(over_zenoh))
     for m in common:
         assert list(m.name) == JOINTS and list(m.position) == stamps[m.header.stamp.sec, m.header.stamp.nanosec]
+
+
+def test_transport_both_answers_services_and_takes_commands_over_zenoh(router, peer, types, tmp_path):
+    """What arrives by Zenoh on a node of transport both is read into rclpy's classes and handed to the same callbacks
+    as over rclpy: a service's request and its response, a command."""
+    from support.netns import free_udp_port
+    from support.ros import NodeProcess, ros_environment
+
+    sim = Sim(free_udp_port(), count=len(JOINTS))
+    path = tmp_path / "akd_node.yaml"
+    path.write_text(PARAMS.format(endpoint=router, port=sim.port).replace("transport: zenoh", "transport: both"))
+    with ros_environment(range(BOTH_DOMAIN, BOTH_DOMAIN + 1)):
+        node = NodeProcess(path, BOTH_DOMAIN)
+        try:
+            wait_for(
+                "the node active",
+                lambda: "active: publishing" in node.output() or node.process.poll() is not None,
+                WAIT_S,
+            )
+            assert node.process.poll() is None, node.output()
+            move_joint_1_over_zenoh(sim, peer, types, BOTH_DOMAIN)
+        finally:
+            stop(node.process)
+            sim.stop()
+            print("akd_node output:\n" + node.output())
 
 
 def test_without_a_router_the_node_warns_naming_it_runs_on_and_records_a_bag_rosbags_reads(tmp_path):

@@ -52,6 +52,28 @@ for blocked in ("rclpy", "rcl_interfaces.msg", "rosidl_runtime_py", "std_msgs.ms
 """
 
 
+COMPOSED = {
+    "joint_name": "JointSettings.name",
+    **dict.fromkeys(
+        ["counts_per_revolution", "gear_ratio", "direction", "offset", "axis", "lead", "peak_torque"],
+        "JointSettings.units",
+    ),
+    **{
+        f"limits.{n}": "JointSettings.limits"
+        for n in ("min_position", "max_position", "max_velocity", "max_torque", "max_acceleration")
+    },
+    "limits.policy": "JointSettings.limits",
+    "mapping.rx": "JointSettings.mapping",
+    "mapping.tx": "JointSettings.mapping",
+    **{f"rt.{n}": "Settings.realtime" for n in ("priority", "cpu", "lock_memory", "cpu_latency_us", "pipelined")},
+    **{f"record.{n}": "Settings.record" for n in ("enabled", "folder", "decimation", "black_box_seconds")},
+    "live_view.address": "Settings.live_view",
+    "live_view.port": "Settings.live_view",
+}
+"""The parameters that make a setting of several parameters' values, each with the field it goes into; every other
+parameter has a field of its own name, its dots made underscores."""
+
+
 def run_without_ros(*arguments: str) -> subprocess.CompletedProcess:
     """This Python with `arguments`, in the repository, its ROS imports refused; to its end."""
     path = os.pathsep.join(filter(None, [str(NO_ROS), os.environ.get("PYTHONPATH")]))
@@ -262,3 +284,16 @@ def test_a_file_that_is_no_parameters_file_is_refused_naming_it(tmp_path):
             params.read_parameters_file(write(tmp_path, text))
         assert f": {where} must be a map of node names, each with its ros__parameters" in str(refused.value)
     assert params.read_parameters_file(write(tmp_path, "")) == {}
+
+
+def test_each_parameter_is_held_in_the_settings_under_its_own_name():
+    import dataclasses
+
+    fields = {
+        per_joint: {field.name for field in dataclasses.fields(params.JointSettings if per_joint else params.Settings)}
+        for per_joint in (False, True)
+    }
+    without = {spec.name for spec in params.SCHEMA if spec.name.replace(".", "_") not in fields[spec.per_joint]}
+    assert without == set(COMPOSED)
+    made = params.settings({"constraints.goal_time": 2.5, "trajectory.stop_deceleration": 4.0})
+    assert (made.constraints_goal_time, made.joints[0].trajectory_stop_deceleration) == (2.5, 4.0)

@@ -22,7 +22,7 @@ from akd_ros.axis import Axis, CheckedCommand, CommandError
 from akd_ros.bus import BusRequestError
 from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.node_state import AXIS_ERRORS, FAULT_STATES, NodeState, namespace
-from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.transports.transport import Qos, Transport
 
 FLOAT64 = "std_msgs/msg/Float64"
 JOINT_STATE = "sensor_msgs/msg/JointState"

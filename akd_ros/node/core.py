@@ -9,7 +9,6 @@ from __future__ import annotations
 from akd_ros.axis import CommandError
 from akd_ros.bus import Bus
 from akd_ros.eoe_bridge import EoeBridge
-from akd_ros.node import NODE_NAME
 from akd_ros.node.clock import CycleClock
 from akd_ros.node.commands import Commands
 from akd_ros.node.diagnostics import Diagnostics
@@ -17,12 +16,12 @@ from akd_ros.node.doors import Doors
 from akd_ros.node.follow_joint_trajectory import FollowJointTrajectory
 from akd_ros.node.homing import Homing
 from akd_ros.node.io import Io
-from akd_ros.node.node_state import AXIS_ERRORS, NodeState
+from akd_ros.node.node_state import AXIS_ERRORS, NODE_NAME, NodeState
 from akd_ros.node.publishing import Publishing
 from akd_ros.node.recording import open_recorder
 from akd_ros.node.services import Services
 from akd_ros.node.trajectories import JOINT_TRAJECTORY, Trajectories
-from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.transports.transport import Qos, Transport
 from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 from akd_ros.tap import Tap

@@ -30,7 +30,7 @@ from akd_ros.node.homing import joint_homed
 from akd_ros.node.io import named_levels, reasons
 from akd_ros.node.node_state import FAULT_STATES, NodeState
 from akd_ros.node.publishing import Publishing, RecordedPublisher
-from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.transports.transport import Qos, Transport
 
 FBUS_PARAM02_UNKNOWN = (
     "FBUS.PARAM02 unknown: the drive's SDO information does not confirm the object, so nothing was written; "

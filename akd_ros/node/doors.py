@@ -17,7 +17,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from akd_ros.node.transport import ActionCallbacks, Qos, Transport
+from akd_ros.node.transports.transport import ActionCallbacks, Qos, Transport
 from akd_ros.params import DOOR_ROLES
 
 OBSERVE, OPERATE, CONFIGURE = DOOR_ROLES

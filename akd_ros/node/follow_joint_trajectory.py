@@ -32,7 +32,7 @@ from akd_ros.node.clock import nanoseconds
 from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState
 from akd_ros.node.trajectories import Trajectories, ended_before
-from akd_ros.node.transport import ActionCallbacks, Transport
+from akd_ros.node.transports.transport import ActionCallbacks, Transport
 
 FOLLOW_JOINT_TRAJECTORY = "control_msgs/action/FollowJointTrajectory"
 # How long past its end plus goal time a trajectory may take to be reported over before the goal gives up on it.
@@ -120,7 +120,7 @@ class FollowJointTrajectory:
                 codes.INVALID_GOAL,
                 f"goal_time_tolerance {given_goal_time:g} s; allowed >= 0 s (0: constraints.goal_time)",
             )
-        goal_time = given_goal_time or node_state.settings.goal_time
+        goal_time = given_goal_time or node_state.settings.constraints_goal_time
         clock = node_state.clock
         stamp_ns = nanoseconds(trajectory.header.stamp)
         start_ns = None if stamp_ns == 0 else stamp_ns - clock.ros_minus_monotonic_ns()
@@ -157,15 +157,17 @@ class FollowJointTrajectory:
             name = joint.name
             result.append(
                 (
-                    _tolerance(p.position if p else 0.0, joint.path_tolerance, f"path_tolerance of {name}: position"),
+                    _tolerance(
+                        p.position if p else 0.0, joint.constraints_trajectory, f"path_tolerance of {name}: position"
+                    ),
                     _tolerance(p.velocity if p else 0.0, 0.0, f"path_tolerance of {name}: velocity"),
-                    _tolerance(g.position if g else 0.0, joint.goal_tolerance, f"goal_tolerance of {name}: position"),
+                    _tolerance(g.position if g else 0.0, joint.constraints_goal, f"goal_tolerance of {name}: position"),
                     _tolerance(
                         g.velocity if g else 0.0,
-                        joint.stopped_velocity_tolerance,
+                        joint.constraints_stopped_velocity_tolerance,
                         f"goal_tolerance of {name}: velocity",
                     ),
-                    joint.stop_deceleration,
+                    joint.trajectory_stop_deceleration,
                 )
             )
         return result
@@ -173,7 +175,7 @@ class FollowJointTrajectory:
     def _follow(self, handle, identifier: int, joints: list[str], axes, end_s: float):
         """Publishes feedback until the cycle thread ends trajectory `identifier`; stops it on a cancel."""
         node_state = self._node_state
-        period = 1.0 / node_state.settings.feedback_rate
+        period = 1.0 / node_state.settings.follow_joint_trajectory_feedback_rate
         stopping = False
         while True:
             if (handle.is_cancel_requested or node_state.goals.closing) and not stopping:

@@ -27,8 +27,7 @@ import json
 import sys
 
 from akd_ros import _native
-from akd_ros.node import NODE_NAME
-from akd_ros.node.node_state import FAULT_STATES, namespace
+from akd_ros.node.node_state import FAULT_STATES, NODE_NAME, namespace
 from akd_ros.node.publishing import snake
 from akd_ros.params import ParameterError, Settings, read_arguments, settings
 

@@ -22,7 +22,7 @@ import threading
 import time
 
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState
-from akd_ros.node.transport import ActionCallbacks, Transport
+from akd_ros.node.transports.transport import ActionCallbacks, Transport
 from akd_ros.params import JointSettings
 
 HOME = "akd_ros/action/Home"

@@ -15,8 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from akd_ros.node import NODE_NAME
-from akd_ros.node.transport import Qos
+from akd_ros.node.node_state import NODE_NAME
+from akd_ros.node.transports.transport import Qos
 from akd_ros.params import Settings
 from akd_ros.zenoh.types import Types
 
@@ -58,8 +58,8 @@ class _Silent:
 
 
 class Noting:
-    """A transport (`akd_ros.node.transport.Transport`) that notes what the parts declare in `endpoints` and runs
-    nothing; `node_name` resolves ~/ names as the node's own."""
+    """A transport (`akd_ros.node.transports.transport.Transport`) that notes what the parts declare in `endpoints`
+    and runs nothing; `node_name` resolves ~/ names as the node's own."""
 
     name = "no transport (noted)"
     typestore = None

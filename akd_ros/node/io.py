@@ -26,7 +26,7 @@ from akd_ros import _native
 from akd_ros.axis import AxisIo, CommandError
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState, namespace
 from akd_ros.node.publishing import Publishing, RecordedPublisher
-from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.transports.transport import Qos, Transport
 from akd_ros.params import JointSettings
 
 # Statusword bit 11, internal limit active: the drive holds a command back (here: at a limit switch).

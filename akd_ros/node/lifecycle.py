@@ -3,7 +3,7 @@
 configure opens the Bus (the line to Op, the one cycle thread running, every joint's drive disabled); activate arms
 the configured latches and starts publishing and accepting commands; deactivate disables the drives; cleanup and
 shutdown close the Bus (drives disabled, line back to Init). With `autostart` the node walks itself to active at
-start-up (see `akd_ros.node.main`), and with `enable_on_start` it then enables every joint's power stage.
+start-up (see `akd_ros.node.ros_node`), and with `enable_on_start` it then enables every joint's power stage.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackRet
 from akd_ros.bus import Bus
 from akd_ros.node.core import NODE_NAME, Core
 from akd_ros.node.ros_parameters import declare
-from akd_ros.node.ros_transport import RosTransport
+from akd_ros.node.transports.ros_transport import RosTransport
 from akd_ros.params import Settings
 from akd_ros.recorder import Recorder
 
@@ -44,9 +44,9 @@ class AkdNode(LifecycleNode):
         transport = RosTransport(self)
         self._zenoh = None
         if self.settings.transport == "both":
-            from akd_ros.node.both_transport import BothTransport
+            from akd_ros.node.transports.both_transport import BothTransport
+            from akd_ros.node.transports.zenoh_transport import ZenohTransport
             from akd_ros.node.zenoh_node import open_zenoh
-            from akd_ros.node.zenoh_transport import ZenohTransport
 
             self._zenoh = open_zenoh(self.settings, transport.logger)
             transport = BothTransport(transport, ZenohTransport(self._zenoh[1], transport.logger))

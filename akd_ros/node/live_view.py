@@ -31,8 +31,8 @@ from typing import Any
 
 import foxglove
 
-from akd_ros.node import NODE_NAME
-from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.node_state import NODE_NAME
+from akd_ros.node.transports.transport import Qos, Transport
 from akd_ros.recorder import MessageType, message_type
 
 BACKLOG = 1024

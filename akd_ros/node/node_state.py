@@ -18,6 +18,8 @@ from akd_ros.node.clock import CycleClock
 from akd_ros.params import JointSettings, Settings
 from akd_ros.recorder import Recorder
 
+NODE_NAME = "akd_node"
+"""The node's name, under which its ~/ topics and services are."""
 AXIS_ERRORS = (ValueError, TimeoutError, _native.EtherCatError)
 """What the Bus and an Axis raise for a request they cannot carry out; the node answers with the text."""
 FAULT_STATES = ("Fault", "Fault reaction active")

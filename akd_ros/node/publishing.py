@@ -41,8 +41,8 @@ from collections.abc import Callable
 from akd_ros import _native
 from akd_ros.node.clock import nanoseconds
 from akd_ros.node.node_state import NodeState, namespace
-from akd_ros.node.transport import Qos, Transport
-from akd_ros.node.worker import name_this_thread
+from akd_ros.node.threads import name_this_thread
+from akd_ros.node.transports.transport import Qos, Transport
 from akd_ros.params import JointSettings
 
 EDGE_RISING, EDGE_FALLING = 1, 2

@@ -1,5 +1,5 @@
 """akd_node over rclpy (`transport: rclpy` or `both`): the lifecycle node `AkdNode` under a SingleThreadedExecutor,
-whose thread takes the commands and runs nothing that waits (see `akd_ros.node.ros_transport`).
+whose thread takes the commands and runs nothing that waits (see `akd_ros.node.transports.ros_transport`).
 
 SIGINT and SIGTERM are taken by a thread of their own (sigwait), which wakes the executor through a guard condition:
 the executor's thread wakes for what arrives and for nothing else (a wait bounded for Python's signal handlers to run
@@ -16,8 +16,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.lifecycle import TransitionCallbackReturn
 from rclpy.signals import SignalHandlerOptions
 
-from akd_ros.node import hold_gil_briefly
 from akd_ros.node.lifecycle import NODE_NAME, AkdNode
+from akd_ros.node.threads import hold_gil_briefly
 from akd_ros.params import ParameterError
 
 _STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}

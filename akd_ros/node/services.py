@@ -11,7 +11,7 @@ from akd_ros.axis import MODES, CommandError
 from akd_ros.node.commands import Commands
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState, namespace
 from akd_ros.node.publishing import EDGE_FALLING, EDGE_NAMES, EDGE_RISING
-from akd_ros.node.transport import Transport
+from akd_ros.node.transports.transport import Transport
 
 REQUESTS = ("enable", "disable", "reset_fault", "quick_stop")
 """The Trigger services, bus-wide and per joint."""

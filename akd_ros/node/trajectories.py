@@ -19,7 +19,7 @@ from akd_ros.node.clock import nanoseconds
 from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.node_state import NodeState
 from akd_ros.node.publishing import RecordedPublisher
-from akd_ros.node.transport import Qos, Transport
+from akd_ros.node.transports.transport import Qos, Transport
 
 JOINT_TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 

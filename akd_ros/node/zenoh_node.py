@@ -17,8 +17,8 @@ import sys
 import threading
 import time
 
-from akd_ros.node import hold_gil_briefly
 from akd_ros.node.core import NODE_NAME, Core
+from akd_ros.node.threads import hold_gil_briefly
 from akd_ros.params import ParameterError, Settings
 
 _LEVELS = {"info": "INFO", "warning": "WARN", "error": "ERROR"}
@@ -80,7 +80,7 @@ def open_zenoh(settings: Settings, logger):
 
 def run(settings: Settings) -> int:
     """Runs the node on Zenoh until SIGINT/SIGTERM; its exit status (1 when configure or activate failed)."""
-    from akd_ros.node.zenoh_transport import ZenohTransport
+    from akd_ros.node.transports.zenoh_transport import ZenohTransport
 
     hold_gil_briefly()
     logger = Logger(NODE_NAME)

@@ -111,7 +111,7 @@ def node_settings():
 def generic(name: str, joints: bool) -> str | None:
     """A declared name as the reference writes it (~/ for the node's own, ~/<joint>/ for a joint's); None for
     another joint than the one standing for all."""
-    from akd_ros.node import NODE_NAME
+    from akd_ros.node.node_state import NODE_NAME
 
     own = f"/{NODE_NAME}/"
     if not name.startswith(own):

@@ -6,9 +6,9 @@ The executor's thread takes what arrives (`akd_ros.node.ros_node` runs a SingleT
 subscriptions' callbacks itself: a command goes from its arrival to the cycle's set-point slot on that thread, behind
 nothing but the executor's own wait. Whatever may wait or take long runs elsewhere: a service's handler on the
 `Worker` thread of its group and an action's goal on a thread of its own for as long as it runs (the executor awaits
-their answers, so it takes the next command meanwhile), timers on
-those threads too (see `akd_ros.node.worker` for why), which `start()` starts and `close()` stops, and /joint_states
-and the statuses on the publishing thread (`akd_ros.node.publishing`). Publishers and subscriptions install no
+their answers, so it takes the next command meanwhile), timers on those threads too (see
+`akd_ros.node.transports.worker` for why), which `start()` starts and `close()` stops, and /joint_states and the
+statuses on the publishing thread (`akd_ros.node.publishing`). Publishers and subscriptions install no
 default QoS event handlers: each is a waitable that every wake-up of the executor, every command, walks in Python
 (about 4 µs each, two per publisher or subscription: 0.3 ms of each command with six joints, 1.5 ms with 64). The
 other end of a topic whose QoS is incompatible still says so: rclpy's and rclcpp's publishers and subscriptions log
@@ -17,6 +17,7 @@ it by default.
 
 from __future__ import annotations
 
+import functools
 import importlib
 from collections.abc import Callable
 from typing import Any
@@ -30,16 +31,33 @@ from rclpy.qos import (
     qos_profile_parameters,
     qos_profile_services_default,
 )
+from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 
-from akd_ros.node.transport import ActionCallbacks, Qos
-from akd_ros.node.worker import Worker, in_thread
+from akd_ros.node.transports.transport import ActionCallbacks, Qos
+from akd_ros.node.transports.worker import Worker, in_thread
 
 
+@functools.cache
 def message_class(type_name: str) -> type:
-    """The rosidl-generated class of `type_name` ("pkg/msg/Name" or "pkg/srv/Name")."""
+    """The rosidl-generated class of `type_name` ("pkg/msg/Name", "pkg/srv/Name" or "pkg/srv/Name_Request")."""
     package, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{package}.{kind}"), name)
+
+
+class RosMessages:
+    """rclpy's messages made, serialised and read by type name as a Zenoh transport takes them (the methods of
+    `akd_ros.zenoh.types.Types` it uses), so that what arrives by Zenoh with transport both reaches the callbacks as
+    rclpy's classes, as what arrives by rclpy does."""
+
+    def message(self, type_name: str) -> Any:
+        return message_class(type_name)()
+
+    def to_cdr(self, message: Any, type_name: str) -> bytes:
+        return serialize_message(message)
+
+    def from_cdr(self, data: bytes, type_name: str) -> Any:
+        return deserialize_message(bytes(data), message_class(type_name))
 
 
 def qos_profile(qos: Qos) -> QoSProfile:
@@ -114,7 +132,7 @@ class RosGroup:
 
 
 class RosTransport:
-    """The transport of a LifecycleNode `node` (see `akd_ros.node.transport.Transport`)."""
+    """The transport of a LifecycleNode `node` (see `akd_ros.node.transports.transport.Transport`)."""
 
     name = "rclpy"
     typestore = None

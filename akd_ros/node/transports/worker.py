@@ -9,8 +9,6 @@ entities (about 90 with six joints), which cost most of the node's CPU at 250 Hz
 from __future__ import annotations
 
 import concurrent.futures
-import ctypes
-import ctypes.util
 import heapq
 import itertools
 import queue
@@ -19,15 +17,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-_PR_SET_NAME = 15
-_LIBC = ctypes.CDLL(ctypes.util.find_library("c"), use_errno=True)
-
-
-def name_this_thread(name: str) -> None:
-    """Gives the calling thread `name` (its first 15 bytes) in the operating system too, as the crate's threads
-    have theirs (akd-cycle, akd-feed, akd-bag): what top -H, perf and /proc/PID/task show, and what a benchmark
-    splits the node's CPU by."""
-    _LIBC.prctl(_PR_SET_NAME, name.encode()[:15], 0, 0, 0)
+from akd_ros.node.threads import name_this_thread
 
 
 def in_thread(name: str, callback: Callable[..., Any], *args) -> concurrent.futures.Future:

@@ -1,54 +1,21 @@
-"""The parameters of `akd_node`: their schema (type, default, range, description) and their checks.
-
-This module imports no ROS package: `read_parameters_file` and `read_arguments` read a parameters file and -p
-overrides as rcl does (with PyYAML), and `settings` checks them, so the node runs without ROS (transport zenoh).
-Over rclpy, `akd_ros.node.ros_parameters.declare` declares every parameter on the node with a `ParameterDescriptor`
-carrying its description, its range (numbers) or its allowed values (strings, in `additional_constraints`), so
-`ros2 param describe /akd_node NAME` tells what a file may say. All are read-only: they are read once, at start-up;
-change the file and restart the node.
-
-A parameters file is checked before anything reaches the bus: an unknown name, a wrong type, a value outside its
-range or its allowed values, an unknown PDO mapping, a cycle time below the AKD's 250 µs or a network interface
-that does not exist each raise `ParameterError`, whose message names the parameter and what is allowed. A whole
-number where a real number is expected (``gear_ratio: 2``) is taken as that real number.
-
-PDO mapping (`mapping`):
-
-- ``default``: the Axis's own flexible mapping, which carries everything every mode needs;
-- ``io``: akd_ros's flexible mapping with the drive's own I/O (digital and analog inputs and outputs), which carries
-  every mode's command but interpolated position's (docs/io.md);
-- ``RX/TX``: one of the AKD's fixed mappings each way, e.g. ``0x1724/0x1B26`` (cyclic synchronous position);
-- ``flexible``: the PDOs given by `mapping.rx` and `mapping.tx`, one string per PDO, its entries separated by
-  spaces as ``INDEX:SUB/BITS``, e.g. ``["0x6040:00/16 0x60C1:01/32", "0x60FF:00/32"]``.
-
-Every mapping is tried on a virtual AKD before it is accepted; it refuses what the real drive refuses (unknown
-fixed mappings, objects that cannot be mapped, PDOs over 8 bytes, odd lengths). Each joint's settings say which of the
-drive's I/O its mapping carries (`JointSettings.io_carried`), and names given to inputs or outputs it does not carry
-are refused, naming the mappings that would.
-
-Names for a joint's digital inputs and outputs are parameters of their own, as a map in the file:
-``io: {inputs: {part_present: 3}, outputs: {brake_release: 1}}`` gives io.inputs.part_present and
-io.outputs.brake_release (`IO_NAME_SPECS`); top-level names apply to every joint, a joint's block adds its own.
-"""
+"""The schema of akd_node's parameters: `Spec` and `SCHEMA`, each parameter's type, default, range, allowed values
+and description (the documentation's reference of parameters is generated from it); the names a parameters file may
+give (a joint's block, its inputs' and outputs' names); and the checks of single values (the link, a PDO mapping,
+limits, latches, addresses), each raising `ParameterError` naming the parameter and what is allowed."""
 
 from __future__ import annotations
 
-import importlib.util
 import ipaddress
-import itertools
 import math
 import re
 import socket
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
 
-import yaml
-
 from akd_ros import _native
-from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES, DriveConfig, io_mappings
-from akd_ros.bus import FAULT_REACTIONS, CommandError, check
-from akd_ros.device import DeviceConfig
-from akd_ros.units import Limits, Units
+from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES
+from akd_ros.bus import FAULT_REACTIONS
+from akd_ros.units import Limits
 
 TRANSPORTS = ("rclpy", "zenoh", "both")
 """Values of transport."""
@@ -608,185 +575,6 @@ DEVICE_SPECS: tuple[Spec, ...] = (
 _IO_NAME = re.compile(r"(?:joints\.(?P<joint>[^.]+)\.)?io\.(?P<kind>inputs|outputs)\.(?P<name>[^.]+)")
 
 
-@dataclass(frozen=True)
-class JointSettings:
-    """One joint's checked parameters, in the forms the Bus and its Axis take."""
-
-    name: str
-    slave: int | None
-    """The drive's position on the bus; None when `alias` finds it."""
-    alias: int | None
-    """The station alias that finds the drive, None to use `slave`."""
-    mode: str
-    mapping: tuple[object, object] | None
-    """(rx, tx) for `akd_ros.DriveConfig`, None for its default mapping."""
-    units: Units
-    limits: Limits
-    latch_arm: tuple[tuple[int, str], ...]
-    """(channel, edge) of each latch armed at activate."""
-    fault_reset: str
-    command_timeout: float
-    command_timeout_policy: str
-    homing_method: str = "drive"
-    """'drive' (homed by ~/home) or 'none' (homed from the start)."""
-    homing_required: bool = False
-    """Whether motion commands are refused until the joint is homed."""
-    homing_timeout: float = 30.0
-    path_tolerance: float = 0.0
-    """constraints.trajectory: the default path position tolerance, SI (0: not judged)."""
-    goal_tolerance: float = 0.0
-    """constraints.goal: the default goal position tolerance, SI (0: not judged)."""
-    stopped_velocity_tolerance: float = 0.0
-    """constraints.stopped_velocity_tolerance: the default goal velocity tolerance, SI/s (0: not judged)."""
-    stop_deceleration: float = 10.0
-    """trajectory.stop_deceleration: how a stopped FollowJointTrajectory goal decelerates, SI/s²."""
-    eoe_ip: str | None = None
-    """The drive's address and prefix for EoE (A.B.C.D/N), None for none."""
-    io_carried: dict[str, bool] | None = None
-    """What the mapping carries of the drive's I/O (`_native.mapping_io`): digital_inputs, analog_input,
-    digital_outputs, analog_output."""
-    io_inputs: dict[str, int] | None = None
-    """The names given to digital inputs, with their numbers."""
-    io_outputs: dict[str, int] | None = None
-    """The names given to digital outputs, with their numbers."""
-    analog_scale: float = ANALOG_VOLTS_PER_COUNT
-    """Volts per count of the analog input and output."""
-
-    def drive(self) -> DriveConfig:
-        """The joint's drive as a Bus takes it."""
-        return DriveConfig(
-            slave=self.slave,
-            alias=self.alias,
-            name=self.name,
-            mode=self.mode,
-            units=self.units,
-            limits=self.limits,
-            mapping=self.mapping,
-            eoe_ip=self.eoe_ip,
-            analog_scale=self.analog_scale,
-        )
-
-    def describe_io(self) -> str:
-        """What the joint's mapping carries of its drive's I/O, in words, for the log."""
-        carried = [name.replace("_", " ") for name, has in (self.io_carried or {}).items() if has]
-        return ", ".join(carried) if carried else "none of the drive's I/O"
-
-
-@dataclass(frozen=True)
-class DeviceSettings:
-    """One device's checked parameters."""
-
-    name: str
-    slave: int
-    product: str | None
-    """What it must be (its order number), None for anything."""
-
-    def device(self) -> DeviceConfig:
-        """The device as a Bus takes it."""
-        return DeviceConfig(slave=self.slave, name=self.name, product=self.product)
-
-
-@dataclass(frozen=True)
-class Settings:
-    """The node's checked parameters, in the forms the Bus takes."""
-
-    link: str
-    cycle_time: float
-    dc: bool | None
-    """The Bus's `dc`: True on, False off, None the link's default."""
-    dc_shift: float
-    fault_reaction: str
-    joints: tuple[JointSettings, ...]
-    """Every joint, in the order of the joints parameter (one, joint_name, without it)."""
-    joint_namespaces: bool
-    """Whether each joint's topics and services go under ~/<joint>/ (joints given) rather than ~/ (one joint)."""
-    joint_states_rate: float
-    homing_sequence: str
-    """How ~/home homes several joints: 'together' or 'one_by_one'."""
-    goal_time: float
-    """constraints.goal_time: the default goal time tolerance of ~/follow_joint_trajectory, s."""
-    feedback_rate: float
-    """follow_joint_trajectory.feedback_rate, Hz."""
-    status_rate: float
-    diagnostics_rate: float
-    io_rate: float
-    realtime: _native.RealTime
-    """The cycle thread's rt.* parameters: priority, CPU, locked memory, wake-up latency, pipelined frames."""
-    record: dict[str, object] | None
-    """The Recorder's folder, decimation and black_box_seconds; None when recording is off."""
-    autostart: bool
-    enable_on_start: bool
-    transport: str
-    """"rclpy", "zenoh" or "both" (`transport_of` picks it for the node)."""
-    zenoh_config: str | None
-    """The Zenoh JSON5 file of the session, None for rmw_zenoh's default."""
-    zenoh_connect: tuple[str, ...]
-    """The endpoints the Zenoh session connects to, none to keep the configuration's."""
-    eoe_tap: str | None = None
-    """The TAP interface bridged to the joints' EoE, None for none."""
-    eoe_host: str | None = None
-    """The TAP interface's address (A.B.C.D/N), None for none."""
-    live_view: tuple[str, int] | None = None
-    """The live view's (address, port) (live_view.*), None when off."""
-    devices: tuple[DeviceSettings, ...] = ()
-    """Every device beside the drives, in the order of the devices parameter."""
-    doors: tuple[str, ...] = DOOR_ROLES[:2]
-    """The roles whose doors the node has, in DOOR_ROLES' order."""
-
-    def bus_options(self) -> dict[str, object]:
-        """The Bus's keyword arguments (all but the link and the drives) as these settings give them: akd_node's bus."""
-        return {
-            "period": self.cycle_time,
-            "realtime": self.realtime,
-            "fault_reaction": self.fault_reaction,
-            "dc": self.dc,
-            "dc_shift": self.dc_shift,
-        }
-
-
-def device_specs(devices: list[str]) -> list[Spec]:
-    """The parameters of each device's block (devices.<name>.slave, devices.<name>.product)."""
-    return [
-        replace(spec, name=f"devices.{device}.{spec.name}", description=f"Device {device}: {spec.description}")
-        for device in devices
-        for spec in DEVICE_SPECS
-    ]
-
-
-def check_device_names(devices: list[str], joints: list[str]) -> list[str]:
-    """`devices` if every name is a ROS name token, none is given twice and none is a joint's (their topics would be
-    one); ParameterError otherwise."""
-    for device in devices:
-        if not JOINT_NAME.fullmatch(device):
-            raise ParameterError(
-                f"parameter devices: {device!r} is not a device name; allowed: letters, digits and single underscores "
-                "between them, a letter first (e.g. gripper_valves, inputs_1)"
-            )
-    twice = sorted({d for d in devices if devices.count(d) > 1} | (set(devices) & set(joints)))
-    if twice:
-        raise ParameterError(
-            f"parameter devices names {', '.join(twice)} more than once (or as a joint); each device once, "
-            "under a name of its own"
-        )
-    return devices
-
-
-def device_settings(values: dict[str, object], devices: list[str]) -> tuple[DeviceSettings, ...]:
-    """Each device of `devices` of its block's checked parameters in `values`; ParameterError for one whose slave is
-    not given."""
-    found = []
-    for name in devices:
-        block = {spec.name: spec.check(values.get(spec.name, spec.default)) for spec in device_specs([name])}
-        slave = block[f"devices.{name}.slave"]
-        if slave < 0:
-            raise ParameterError(
-                f"parameter devices.{name}.slave must be given: the device's position on the bus, 0..65535 from the "
-                "master (akd-scan LINK lists the line)"
-            )
-        found.append(DeviceSettings(name, slave, block[f"devices.{name}.product"] or None))
-    return tuple(found)
-
-
 def joint_specs(joints: list[str], top: dict[str, object]) -> list[Spec]:
     """The parameters of each joint's block, with the top-level values `top` as defaults (slave: the joint's place in
     `joints`)."""
@@ -815,6 +603,33 @@ def check_joint_names(joints: list[str]) -> list[str]:
     if twice:
         raise ParameterError(f"parameter joints names {', '.join(twice)} more than once; each joint once")
     return joints
+
+
+def device_specs(devices: list[str]) -> list[Spec]:
+    """The parameters of each device's block (devices.<name>.slave, devices.<name>.product)."""
+    return [
+        replace(spec, name=f"devices.{device}.{spec.name}", description=f"Device {device}: {spec.description}")
+        for device in devices
+        for spec in DEVICE_SPECS
+    ]
+
+
+def check_device_names(devices: list[str], joints: list[str]) -> list[str]:
+    """`devices` if every name is a ROS name token, none is given twice and none is a joint's (their topics would be
+    one); ParameterError otherwise."""
+    for device in devices:
+        if not JOINT_NAME.fullmatch(device):
+            raise ParameterError(
+                f"parameter devices: {device!r} is not a device name; allowed: letters, digits and single underscores "
+                "between them, a letter first (e.g. gripper_valves, inputs_1)"
+            )
+    twice = sorted({d for d in devices if devices.count(d) > 1} | (set(devices) & set(joints)))
+    if twice:
+        raise ParameterError(
+            f"parameter devices names {', '.join(twice)} more than once (or as a joint); each device once, "
+            "under a name of its own"
+        )
+    return devices
 
 
 def refuse_single_joint_parameters(named: dict[str, object], joints: list[str]) -> None:
@@ -885,288 +700,6 @@ def check_names(named: dict[str, object]) -> None:
     )
 
 
-def read_parameters_file(path: str, node_name: str = "akd_node") -> dict[str, object]:
-    """The parameters the ROS parameters file `path` gives the node `node_name`, by dotted name, read as rcl reads
-    a --params-file; unknown names refused (`check_names`); raises ParameterError naming the file.
-
-    Its sections apply to the node as rcl applies them: the node's own (``akd_node:``, ``/akd_node:``, or nested
-    under its namespace) and the wildcards (``/**:``, ``/*:``, ``/**/akd_node:``), each one's ros__parameters by
-    name, nested maps and dotted keys alike (``limits: {max_velocity: 6.0}`` is ``limits.max_velocity``); a later
-    section wins over an earlier one for a name both give."""
-    sections: dict[str, dict[str, object]] = {}
-    _add_file(sections, path)
-    return _checked_for(sections, node_name)
-
-
-def read_arguments(arguments: list[str], node_name: str = "akd_node") -> dict[str, object]:
-    """The parameters the ROS arguments of a command line give the node `node_name` (each --params-file FILE and
-    -p NAME:=VALUE of its --ros-args, as `read_parameters_file` reads a file), by dotted name; unknown names
-    refused; raises ParameterError.
-
-    As rcl merges them: all of them, in order, into one set of sections (-p is ``/**``), a later value of a name
-    replacing an earlier one in its section; the sections then apply to the node in the order each first
-    appeared."""
-    return _checked_for(argument_sections(arguments), node_name)
-
-
-def argument_sections(arguments: list[str]) -> dict[str, dict[str, object]]:
-    """The parameters ROS arguments set, as rcl merges them: by section (a node name or a wildcard, fully
-    qualified) in the order each first appears, then by dotted name; ParameterError for a file it cannot read."""
-    sections: dict[str, dict[str, object]] = {}
-    ros = False
-    # Each with the one after it (None after the last): no argument at all is none.
-    for argument, following in itertools.pairwise([*arguments, None]):
-        if argument in ("--ros-args", "--"):
-            ros = argument == "--ros-args"
-        elif ros and following is not None and argument in ("-p", "--param"):
-            name, _, text = following.partition(":=")
-            if name:  # rcl refuses -p without a name
-                sections.setdefault("/**", {})[name] = _yaml_value(text)
-        elif ros and following is not None and argument == "--params-file":
-            _add_file(sections, following)
-    return sections
-
-
-def _checked_for(sections: dict[str, dict[str, object]], node_name: str) -> dict[str, object]:
-    """What `sections` give the node `node_name` (a later section wins), its names checked."""
-    node = node_name if node_name.startswith("/") else f"/{node_name}"
-    named: dict[str, object] = {}
-    for section, parameters in sections.items():
-        if _applies(section, node):
-            named.update(parameters)
-    check_names(named)
-    return named
-
-
-def _applies(section: str, node: str) -> bool:
-    """Whether the section `section` (a fully qualified node name, where ``*`` is one name and ``**`` any number)
-    applies to the node `node` (fully qualified)."""
-    tokens = {"**": "(/[^/]+)*", "*": "/[^/]+"}
-    return re.fullmatch("".join(tokens.get(t, "/" + re.escape(t)) for t in section[1:].split("/")), node) is not None
-
-
-def _add_file(sections: dict[str, dict[str, object]], path: str) -> None:
-    """Adds the parameters of the parameters file `path` to `sections`; ParameterError naming the file (and the line
-    and column of a YAML error)."""
-    try:
-        with open(path, encoding="utf-8") as stream:
-            tree = yaml.safe_load(stream)
-    except OSError as e:
-        raise ParameterError(f"parameters file {path}: {e.strerror}") from None
-    except yaml.MarkedYAMLError as e:
-        raise ParameterError(f"parameters file {path}, {_yaml_problem(e)}") from None
-    except yaml.YAMLError as e:
-        raise ParameterError(f"parameters file {path}: {' '.join(str(e).split())}") from None
-    for section, parameters in _sections_of(tree, path):
-        sections.setdefault(section, {}).update(parameters)
-
-
-def _yaml_problem(error: yaml.MarkedYAMLError) -> str:
-    """'line L, column C: problem (context, line L, column C)' of a YAML error, on one line."""
-    mark = error.problem_mark or error.context_mark
-    text = f"line {mark.line + 1}, column {mark.column + 1}: {error.problem or error.context}"
-    if error.problem and error.context and error.context_mark:
-        text += f" ({error.context}, line {error.context_mark.line + 1}, column {error.context_mark.column + 1})"
-    return " ".join(text.split())
-
-
-def _sections_of(tree: object, path: str, node: tuple[str, ...] = ()) -> list[tuple[str, dict[str, object]]]:
-    """(fully qualified node name, its ros__parameters by dotted name) of each section of a parameters file's tree,
-    in order; `node` is the names of the maps above `tree`."""
-    if tree is None and not node:
-        return []  # an empty file
-    if not isinstance(tree, dict):
-        where = "/".join(node) or "the top level"
-        raise ParameterError(
-            f"parameters file {path}: {where} must be a map of node names, each with its ros__parameters"
-        )
-    found = []
-    for key, value in tree.items():
-        if key == "ros__parameters" and node:
-            found.append(("/" + "/".join(n.strip("/") for n in node), _parameters_of(value)))
-        else:
-            found += _sections_of(value, path, (*node, str(key)))
-    return found
-
-
-def _parameters_of(tree: object, prefix: str = "") -> dict[str, object]:
-    """The parameters of a ros__parameters map by dotted name: a nested map's keys joined to its own with '.'."""
-    if not isinstance(tree, dict):
-        return {prefix: tree} if prefix else {}
-    found = {}
-    for key, value in tree.items():
-        found.update(_parameters_of(value, f"{prefix}.{key}" if prefix else str(key)))
-    return found
-
-
-def _yaml_value(text: str) -> object:
-    try:
-        return yaml.safe_load(text)
-    except yaml.YAMLError:
-        return text  # rcl takes what YAML cannot read as a string
-
-
-def settings(values: dict[str, object]) -> Settings:
-    """The settings for `values` (the parameters of SCHEMA by name, and with joints each joint's block
-    joints.<name>.<parameter>, missing ones taking their defaults: what `read_parameters_file` or `read_arguments`
-    gives); raises ParameterError."""
-    top = {spec.name: spec.check(values.get(spec.name, spec.default)) for spec in SCHEMA}
-    link = check_link(top["link"])
-    if not abs(top["dc_shift"]) < top["cycle_time"]:
-        raise ParameterError(
-            f"parameter dc_shift must be less than one cycle_time ({top['cycle_time']} s) either way, "
-            f"got {top['dc_shift']}"
-        )
-    names = check_joint_names(top["joints"])
-    if names:
-        blocks = {}
-        for spec in joint_specs(names, top):
-            blocks[spec.name] = spec.check(values.get(spec.name, spec.default))
-        joints = tuple(
-            joint_settings(
-                name,
-                f"joints.{name}.",
-                {s.name: blocks[f"joints.{name}.{s.name}"] for s in SCHEMA if s.per_joint},
-                (io_names(values, name, "inputs"), io_names(values, name, "outputs")),
-            )
-            for name in names
-        )
-    else:
-        io = (io_names(values, None, "inputs"), io_names(values, None, "outputs"))
-        joints = (joint_settings(top["joint_name"], "", top, io),)
-    devices = device_settings(values, check_device_names(top["devices"], names))
-    try:
-        check([j.drive() for j in joints], top["fault_reaction"], top["cycle_time"], top["dc_shift"])
-    except CommandError as e:
-        raise ParameterError(f"parameters joints.<name>.slave/alias: {e}") from None
-    try:
-        drives = [j.drive() for j in joints]
-        check(drives, top["fault_reaction"], top["cycle_time"], top["dc_shift"], [d.device() for d in devices])
-    except CommandError as e:
-        # The joints passed alone: what is wrong is a device's.
-        raise ParameterError(f"parameters devices.<name>.slave: {e}") from None
-    eoe_tap, eoe_host = check_eoe_bridge(top["eoe.tap"], top["eoe.host"], joints)
-    return Settings(
-        link=link,
-        cycle_time=top["cycle_time"],
-        dc=DC_CHOICES[top["dc"]],
-        dc_shift=top["dc_shift"],
-        fault_reaction=top["fault_reaction"],
-        joints=joints,
-        joint_namespaces=bool(names),
-        joint_states_rate=top["joint_states_rate"],
-        homing_sequence=top["homing.sequence"],
-        goal_time=top["constraints.goal_time"],
-        feedback_rate=top["follow_joint_trajectory.feedback_rate"],
-        status_rate=top["status_rate"],
-        diagnostics_rate=top["diagnostics_rate"],
-        io_rate=top["io_rate"],
-        realtime=_native.RealTime(
-            priority=top["rt.priority"] or None,
-            cpu=None if top["rt.cpu"] < 0 else top["rt.cpu"],
-            lock_memory=top["rt.lock_memory"],
-            cpu_latency_us=None if top["rt.cpu_latency_us"] < 0 else top["rt.cpu_latency_us"],
-            pipelined=top["rt.pipelined"],
-        ),
-        record={
-            "folder": top["record.folder"],
-            "decimation": top["record.decimation"],
-            "black_box_seconds": top["record.black_box_seconds"],
-        }
-        if top["record.enabled"]
-        else None,
-        autostart=top["autostart"],
-        enable_on_start=top["enable_on_start"],
-        transport=top["transport"],
-        zenoh_config=top["zenoh.config"] or None,
-        zenoh_connect=tuple(top["zenoh.connect"]),
-        eoe_tap=eoe_tap,
-        eoe_host=eoe_host,
-        live_view=check_live_view(top["live_view.address"], top["live_view.port"]),
-        devices=devices,
-        doors=check_doors(top["doors"]),
-    )
-
-
-def transport_of(given: dict[str, object]) -> str:
-    """The transport the parameters `given` (`read_arguments`) choose: theirs, checked; without one, rclpy where it
-    imports and zenoh where it does not (a controller with no ROS install)."""
-    if "transport" in given:
-        return SPECS["transport"].check(given["transport"])
-    try:
-        found = importlib.util.find_spec("rclpy") is not None
-    except ImportError:
-        found = False
-    return "rclpy" if found else "zenoh"
-
-
-def joint_settings(
-    name: str, prefix: str, values: dict[str, object], io: tuple[dict[str, int], dict[str, int]] = ({}, {})
-) -> JointSettings:
-    """The joint `name` of its checked parameters `values` (by their top-level names) and the names `io` gives its
-    inputs and outputs, whose messages name each parameter with `prefix` ("" at the top level, "joints.<name>." in a
-    block); raises ParameterError."""
-    from akd_ros import _native
-
-    mapping = parse_mapping(values["mapping"], values["mapping.rx"], values["mapping.tx"], prefix)
-    if mapping is not None:
-        check_mapping(mapping, prefix)
-    carried = _native.mapping_io(*(mapping or _native.DEFAULT_MAPPING))
-    for kind, names, needs, what in (
-        ("inputs", io[0], "digital_inputs", "digital inputs (0x60FD)"),
-        ("outputs", io[1], "digital_outputs", "digital outputs (0x60FE:01)"),
-    ):
-        if names and not carried[needs]:
-            raise ParameterError(
-                f"parameters io.{kind}.* of joint {name}: its mapping {values['mapping']!r} carries no {what}; "
-                f"mappings that do with mode {values['mode']}: {io_mappings(values['mode'], needs)}"
-            )
-    lead = values["lead"] or None
-    if values["axis"] == "rotary" and lead is not None:
-        raise ParameterError(
-            f"parameter {prefix}lead applies to a linear axis only; with {prefix}axis 'rotary' it must be 0, got {lead}"
-        )
-    try:
-        units = Units(
-            values["counts_per_revolution"],
-            values["gear_ratio"],
-            values["direction"],
-            values["offset"],
-            values["axis"],
-            lead,
-            values["peak_torque"],
-        )
-    except ValueError as e:
-        raise ParameterError(
-            f"parameters {prefix}axis/{prefix}lead: {e} (lead > 0 with axis 'linear', lead 0 with 'rotary')"
-        ) from None
-    return JointSettings(
-        name=name,
-        slave=None if values["alias"] >= 0 else values["slave"],
-        alias=None if values["alias"] < 0 else values["alias"],
-        mode=values["mode"],
-        mapping=mapping,
-        units=units,
-        limits=parse_limits(values, prefix),
-        latch_arm=parse_latches(values["latch.arm"], prefix),
-        fault_reset=values["fault_reset"],
-        command_timeout=values["command_timeout"],
-        command_timeout_policy=values["command_timeout_policy"],
-        homing_method=values["homing.method"],
-        homing_required=values["homing.required"],
-        homing_timeout=values["homing.timeout"],
-        path_tolerance=values["constraints.trajectory"],
-        goal_tolerance=values["constraints.goal"],
-        stopped_velocity_tolerance=values["constraints.stopped_velocity_tolerance"],
-        stop_deceleration=values["trajectory.stop_deceleration"],
-        eoe_ip=check_interface_address(f"{prefix}eoe.ip", values["eoe.ip"]),
-        io_carried=dict(carried),
-        io_inputs=io[0],
-        io_outputs=io[1],
-        analog_scale=values["io.analog_scale"],
-    )
-
-
 def check_interface_address(name: str, text: str) -> str | None:
     """Parameter `name`'s `text` as an IPv4 address with its prefix (A.B.C.D/N), None for ''; ParameterError."""
     if not text:
@@ -1180,22 +713,6 @@ def check_interface_address(name: str, text: str) -> str | None:
         raise ParameterError(
             f"parameter {name} must be an IPv4 address with its prefix such as 192.168.0.10/24, or '', got {text!r}"
         ) from None
-
-
-def check_eoe_bridge(tap: str, host: str, joints: tuple[JointSettings, ...]) -> tuple[str | None, str | None]:
-    """(eoe.tap, eoe.host) checked, None for ''; ParameterError."""
-    # What Linux takes as an interface name (dev_valid_name), and "%d" for the kernel to number.
-    if tap and (len(tap.encode()) > 15 or tap in (".", "..") or any(c in "/:" or c.isspace() for c in tap)):
-        raise ParameterError(
-            "parameter eoe.tap must be a network interface name of 1 to 15 bytes without '/', ':' or blanks "
-            f"(e.g. akd-eoe0), or '', got {tap!r}"
-        )
-    address = check_interface_address("eoe.host", host)
-    if address is not None and not tap:
-        raise ParameterError("parameter eoe.host is the address of eoe.tap: give eoe.tap too, or eoe.host ''")
-    if tap and not any(j.eoe_ip for j in joints):
-        raise ParameterError("parameter eoe.tap bridges to the joints' eoe.ip: give at least one joint an eoe.ip")
-    return tap or None, address
 
 
 def check_doors(roles: list[str]) -> tuple[str, ...]:

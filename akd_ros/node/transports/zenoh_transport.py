@@ -13,10 +13,10 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
-from akd_ros.node.transport import ActionCallbacks, Qos
-from akd_ros.node.worker import Worker
+from akd_ros.node.transports.transport import ActionCallbacks, Qos
+from akd_ros.node.transports.worker import Worker
 from akd_ros.zenoh.wire import Durability, QoS, Reliability
 
 
@@ -29,13 +29,24 @@ def zenoh_qos(qos: Qos) -> QoS:
     )
 
 
+class Messages(Protocol):
+    """How a Zenoh transport makes a message of a type by name and moves it to and from CDR: `akd_ros.zenoh.types.Types`
+    (rosbags' classes) by default, rclpy's with transport both (`ros_transport.RosMessages`)."""
+
+    def message(self, type_name: str) -> Any: ...
+
+    def to_cdr(self, message: Any, type_name: str) -> bytes: ...
+
+    def from_cdr(self, data: bytes, type_name: str) -> Any: ...
+
+
 class _Publisher:
-    def __init__(self, transport: ZenohTransport, type_name: str, topic: str, qos: Qos) -> None:
+    def __init__(self, transport: ZenohTransport, type_name: str, topic: str, qos: Qos, publisher) -> None:
         self._transport, self._type_name = transport, type_name
         self.topic_name = transport.resolve(topic)
         self.msg_type = transport.types.store.types[type_name]
         self.qos = transport.recorded_qos(qos)
-        self._publisher = transport.zenoh_node.publisher(topic, type_name, zenoh_qos(qos))
+        self._publisher = publisher
 
     def publish(self, message: Any) -> None:
         self._publisher.publish(self._transport.types.to_cdr(message, self._type_name))
@@ -46,13 +57,13 @@ class _Publisher:
 
 class ZenohTransport:
     """The transport of `zenoh_node` (an `akd_ros.zenoh.ZenohNode` named `name`), logging to `logger` (see
-    `akd_ros.node.transport.Transport`). `start()` runs the groups' threads once the parts are made; `close()` stops
-    them."""
+    `akd_ros.node.transports.transport.Transport`). `start()` runs the groups' threads once the parts are made;
+    `close()` stops them."""
 
     name = "zenoh"
 
     def __init__(self, zenoh_node, logger) -> None:
-        self.zenoh_node = zenoh_node
+        self._zenoh_node = zenoh_node
         self.types = zenoh_node.types
         self.typestore = self.types.store
         self.logger = logger
@@ -72,37 +83,57 @@ class ZenohTransport:
         return self.types.message_class(type_name)
 
     def publisher(self, type_name: str, topic: str, qos: Qos) -> _Publisher:
-        return _Publisher(self, type_name, topic, qos)
+        return _Publisher(self, type_name, topic, qos, self._zenoh_node.publisher(topic, type_name, zenoh_qos(qos)))
 
-    def subscription(self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: Worker) -> str:
+    def subscription(
+        self,
+        type_name: str,
+        topic: str,
+        callback: Callable[[Any], None],
+        qos: Qos,
+        group: Worker,
+        messages: Messages | None = None,
+    ) -> str:
+        """As `Transport.subscription`; `messages` (default: this transport's rosbags types) reads each sample."""
+        messages = messages or self.types
         # rosbags compiles a type's (de)serialiser at its first use: here, not in front of the first commands (or of
         # the recording of the first, which would hold up the second by milliseconds).
-        self.types.from_cdr(self.types.to_cdr(self.types.message(type_name), type_name), type_name)
-        self.zenoh_node.subscription(
+        messages.from_cdr(messages.to_cdr(messages.message(type_name), type_name), type_name)
+        self._zenoh_node.subscription(
             topic,
             type_name,
             lambda message, gid: group.submit(self.delivering, gid, callback, message),
             zenoh_qos(qos),
-            deserialize=lambda data: self.types.from_cdr(data, type_name),
+            deserialize=lambda data: messages.from_cdr(data, type_name),
             with_gid=True,
         )
         return self.resolve(topic)
 
-    def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: Worker) -> None:
+    def service(
+        self,
+        type_name: str,
+        name: str,
+        handler: Callable[[Any, Any], Any],
+        group: Worker,
+        messages: Messages | None = None,
+    ) -> None:
+        """As `Transport.service`; `messages` (default: this transport's rosbags types) reads each request and makes
+        and writes its response."""
+        messages = messages or self.types
         response_type = f"{type_name}_Response"
 
         def answer(request, gid: bytes) -> bytes:
             def run():
-                response = self.delivering(gid, handler, request, self.types.message(response_type))
-                return self.types.to_cdr(response, response_type)
+                response = self.delivering(gid, handler, request, messages.message(response_type))
+                return messages.to_cdr(response, response_type)
 
             return group.submit(run).result()
 
-        self.zenoh_node.service(
+        self._zenoh_node.service(
             name,
             type_name,
             answer,
-            deserialize_request=lambda data: self.types.from_cdr(data, f"{type_name}_Request"),
+            deserialize_request=lambda data: messages.from_cdr(data, f"{type_name}_Request"),
             with_gid=True,
         )
 
@@ -118,7 +149,7 @@ class ZenohTransport:
         """Who sent what the running callback handles, as far as Zenoh tells (`ZenohNode.sender_of`); None outside
         a callback of this transport."""
         gid = getattr(self._delivering, "gid", None)
-        return None if gid is None else f"zenoh: {self.zenoh_node.sender_of(gid)}"
+        return None if gid is None else f"zenoh: {self._zenoh_node.sender_of(gid)}"
 
     def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Worker) -> None:
         # rmw_zenoh carries an action as three services and two topics of types rosidl derives from the .action;
@@ -140,11 +171,11 @@ class ZenohTransport:
 
     def resolve(self, name: str) -> str:
         if name.startswith("~/"):
-            return f"/{self.zenoh_node.info.name}/{name[2:]}"
+            return f"/{self._zenoh_node.info.name}/{name[2:]}"
         return name if name.startswith("/") else f"/{name}"
 
     def counters(self) -> dict[str, int]:
-        return {"zenoh_dropped": self.zenoh_node.dropped()}
+        return {"zenoh_dropped": self._zenoh_node.dropped()}
 
     def recorded_class(self, type_name: str) -> type:
         return self.types.store.types[type_name]

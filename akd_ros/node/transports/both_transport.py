@@ -12,11 +12,9 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from rclpy.serialization import deserialize_message, serialize_message
-
-from akd_ros.node.ros_transport import RosGroup, RosTransport, message_class
-from akd_ros.node.transport import ActionCallbacks, Qos
-from akd_ros.node.zenoh_transport import ZenohTransport, zenoh_qos
+from akd_ros.node.transports.ros_transport import RosGroup, RosMessages, RosTransport
+from akd_ros.node.transports.transport import ActionCallbacks, Qos
+from akd_ros.node.transports.zenoh_transport import ZenohTransport
 from akd_ros.recorder import message_type
 
 
@@ -25,15 +23,15 @@ class _Publisher:
         self._ros = both.ros.publisher(type_name, topic, qos)
         self.topic_name, self.msg_type, self.qos = self._ros.topic_name, self._ros.msg_type, self._ros.qos
         self._serialize = message_type(self.msg_type).serialize
-        self._zenoh = both.zenoh.zenoh_node.publisher(topic, type_name, zenoh_qos(qos))
+        self._zenoh = both.zenoh.publisher(type_name, topic, qos)
 
     def publish(self, message: Any) -> None:
         self._ros.publish(message)
-        self._zenoh.publish(self._serialize(message))
+        self._zenoh.publish_serialized(self._serialize(message))
 
     def publish_serialized(self, data: bytes) -> None:
         self._ros.publish_serialized(data)
-        self._zenoh.publish(data)
+        self._zenoh.publish_serialized(data)
 
 
 class BothTransport:
@@ -45,6 +43,7 @@ class BothTransport:
     def __init__(self, ros: RosTransport, zenoh: ZenohTransport) -> None:
         self.ros, self.zenoh = ros, zenoh
         self.logger = ros.logger
+        self._messages = RosMessages()
 
     def start(self) -> None:
         self.ros.start()
@@ -61,33 +60,11 @@ class BothTransport:
     def subscription(
         self, type_name: str, topic: str, callback: Callable[[Any], None], qos: Qos, group: RosGroup
     ) -> str:
-        cls = message_class(type_name)
-        self.zenoh.zenoh_node.subscription(
-            topic,
-            type_name,
-            lambda message, gid: group.worker.submit(self.zenoh.delivering, gid, callback, message),
-            zenoh_qos(qos),
-            deserialize=lambda data: deserialize_message(bytes(data), cls),
-            with_gid=True,
-        )
+        self.zenoh.subscription(type_name, topic, callback, qos, group.worker, self._messages)
         return self.ros.subscription(type_name, topic, callback, qos, group)
 
     def service(self, type_name: str, name: str, handler: Callable[[Any, Any], Any], group: RosGroup) -> None:
-        cls = message_class(type_name)
-
-        def answer(request, gid: bytes) -> bytes:
-            def run() -> bytes:
-                return serialize_message(self.zenoh.delivering(gid, handler, request, cls.Response()))
-
-            return group.worker.submit(run).result()
-
-        self.zenoh.zenoh_node.service(
-            name,
-            type_name,
-            answer,
-            deserialize_request=lambda data: deserialize_message(bytes(data), cls.Request),
-            with_gid=True,
-        )
+        self.zenoh.service(type_name, name, handler, group.worker, self._messages)
         self.ros.service(type_name, name, handler, group)
 
     def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: RosGroup) -> type:
