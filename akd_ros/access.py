@@ -35,16 +35,10 @@ def role_of(endpoint: Endpoint) -> str:
     return doors.role_of(endpoint.kind, endpoint.name)
 
 
-def door_name(endpoint: Endpoint) -> str:
-    """The last part of the door's name (enable, position_command, follow_joint_trajectory): a joint's door and the
-    node's of the same name are the same door."""
-    return endpoint.name.rsplit("/", 1)[-1]
-
-
 def door_key_exprs(endpoint: Endpoint, node_name: str) -> list[str]:
     """The Zenoh key expressions of a door of the node `node_name` as rmw_zenoh names it (<domain>/<name>/<type>/<hash>,
     an action's services under <name>/_action/), in any domain and namespace and for any joint."""
-    name = door_name(endpoint)
+    name = doors.door_name(endpoint.name)
     return [f"*/**/{node_name}/{name}/**", f"*/**/{node_name}/*/{name}/**"]
 
 

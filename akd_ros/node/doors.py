@@ -29,8 +29,16 @@ ACCESS_TOPIC = "~/access"
 ACCESS_TYPE = "akd_ros/msg/AccessRequest"
 BURST_GAP_S = 1.0
 """A sender's messages on one topic closer together than this are one burst, logged once."""
+BURSTS_KEPT = 1024
+"""How many (door, sender) bursts are remembered before the ended ones are forgotten."""
 REQUEST_TEXT_MAX = 200
 """How much of a request its record keeps, in characters."""
+
+
+def door_name(name: str) -> str:
+    """The last part of a door's name (enable, position_command): a joint's door and the node's of the same name are
+    the same door."""
+    return name.rsplit("/", 1)[-1]
 
 
 def role_of(kind: str, name: str) -> str:
@@ -38,7 +46,7 @@ def role_of(kind: str, name: str) -> str:
     name are the same door)."""
     if kind == PUBLISHER:
         return OBSERVE
-    if kind == SERVICE and name.rsplit("/", 1)[-1] in CONFIGURING_SERVICES:
+    if kind == SERVICE and door_name(name) in CONFIGURING_SERVICES:
         return CONFIGURE
     return OPERATE
 
@@ -61,7 +69,7 @@ class Doors:
         self._record = transport.publisher(ACCESS_TYPE, ACCESS_TOPIC, Qos(depth=100))
         self._message = transport.message_class(ACCESS_TYPE)
         self._stamp = transport.message_class("builtin_interfaces/msg/Time")
-        self._bursts: dict[tuple[str, str, bool], float] = {}
+        self._bursts: dict[tuple[str, bytes | None, bool], float] = {}
         self._lock = threading.Lock()
 
     def __getattr__(self, name: str) -> Any:
@@ -69,7 +77,7 @@ class Doors:
 
     def summary(self) -> str:
         """The open roles and the closed doors, in one line, for the log at start."""
-        closed = sorted({name.rsplit("/", 1)[-1] for name in self.closed})
+        closed = sorted({door_name(name) for name in self.closed})
         shut = f"; closed: {', '.join(closed)} (doors: {', '.join(self.open_roles)})" if closed else ""
         return f"doors open on {self._transport.name}: {', '.join(self.open_roles)}{shut}"
 
@@ -130,24 +138,30 @@ class Doors:
     def record(self, door: str, role: str, request: Any, accepted: bool, outcome: str, every: bool = True) -> None:
         """Records one request at `door` on ~/access (`every`: each one, else the first of each sender's burst),
         and logs the first of each burst. Called on the thread of the callback that handled it, after it."""
-        caller = self._transport.caller(door) or "unknown"
-        now = time.monotonic()
+        # A burst is told by the sender's cheap mark; who it is may take a graph query: only for what is recorded,
+        # never for each of a stream of commands.
+        sender, now = self._transport.sender(), time.monotonic()
         with self._lock:
-            last, self._bursts[door, caller, accepted] = self._bursts.get((door, caller, accepted)), now
+            if len(self._bursts) >= BURSTS_KEPT:
+                # Only a burst still going matters; a careless client may make a new sender for each request.
+                self._bursts = {k: t for k, t in self._bursts.items() if now - t <= BURST_GAP_S}
+            last, self._bursts[door, sender, accepted] = self._bursts.get((door, sender, accepted)), now
         first = last is None or now - last > BURST_GAP_S
-        if every or first:
-            stamp = self._transport.now_ns()
-            self._record.publish(
-                self._message(
-                    stamp=self._stamp(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000),
-                    door=door,
-                    role=role,
-                    request=describe(request),
-                    accepted=accepted,
-                    outcome=outcome,
-                    caller=caller,
-                )
+        if not (every or first):
+            return
+        caller = self._transport.caller(door, sender) or "unknown"
+        stamp = self._transport.now_ns()
+        self._record.publish(
+            self._message(
+                stamp=self._stamp(sec=stamp // 1_000_000_000, nanosec=stamp % 1_000_000_000),
+                door=door,
+                role=role,
+                request=describe(request),
+                accepted=accepted,
+                outcome=outcome,
+                caller=caller,
             )
+        )
         if first:
             words = f"{door} ({role}) from {caller}: {'accepted' if accepted else 'refused'}, {outcome}"
             # rclpy ties a severity to each logging call site: one call per severity.

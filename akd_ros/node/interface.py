@@ -98,7 +98,10 @@ class Noting:
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         pass
 
-    def caller(self, door: str) -> str:
+    def sender(self) -> None:
+        return None
+
+    def caller(self, door: str, sender: bytes | None) -> str:
         return ""
 
     def group(self, name: str) -> None:

@@ -51,6 +51,8 @@ Log = Callable[[str], None]
 # The period rmw_zenoh gives a reliable transient-local publisher's sporadic heartbeat (500 ms).
 HEARTBEAT_PERIOD = 0.5
 SENDER_QUERY_S = 1.0
+SENDERS_KEPT = 256
+"""How many senders `ZenohNode.sender_of` keeps named before it asks the graph afresh."""
 """How long `ZenohNode.sender_of` waits for the graph's liveliness tokens."""
 # How many queries a keep-all service holds while its handler is busy (the client then waits, as Zenoh blocks).
 KEEP_ALL_QUERIES = 1024
@@ -394,6 +396,9 @@ class ZenohNode:
         session of the entity whose liveliness token hashes to it, and the certificate name of the link to that
         session where it is a TLS link of this session's own (a client of a router is behind the router's link)."""
         if gid not in self._senders:
+            if len(self._senders) >= SENDERS_KEPT:
+                # Clients come and go (and a careless one may send any GID): forget them all rather than grow.
+                self._senders.clear()
             self._senders[gid] = self._sender_of(gid)
         return self._senders[gid]
 

@@ -71,8 +71,11 @@ class BothTransport:
         # Served over rclpy only: rmw_zenoh's clients reach it through a router bridging DDS, not this Zenoh session.
         return self.ros.action_server(type_name, name, callbacks, group)
 
-    def caller(self, door: str) -> str | None:
-        return self.zenoh.caller(door) or self.ros.caller(door)
+    def sender(self) -> bytes | None:
+        return self.zenoh.sender()
+
+    def caller(self, door: str, sender: bytes | None) -> str | None:
+        return self.zenoh.caller(door, sender) if sender is not None else self.ros.caller(door, None)
 
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         self.ros.timer(period, callback, group)

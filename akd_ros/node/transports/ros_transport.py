@@ -230,7 +230,10 @@ class RosTransport:
     def resolve(self, name: str) -> str:
         return self._node.resolve_topic_name(name)
 
-    def caller(self, door: str) -> str:
+    def sender(self) -> None:
+        return None
+
+    def caller(self, door: str, sender: bytes | None) -> str:
         """rclpy hands a callback no sender (neither a sample's publisher nor a request's client): for a topic, the
         graph's other publishers of it; for a service, nothing."""
         publishers = [

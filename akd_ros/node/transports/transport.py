@@ -84,8 +84,13 @@ class Transport(Protocol):
         """Serves action `name` of type `type_name` ("pkg/action/Name") with `callbacks`; gives the action's class
         (its Goal, Feedback and Result), or None where this transport serves no action (it says so in the log)."""
 
-    def caller(self, door: str) -> str | None:
-        """Who sent the sample or request the running callback of `door` handles, as far as the middleware tells."""
+    def sender(self) -> bytes | None:
+        """What tells apart the sender of the sample or request the running callback handles, at no cost (over Zenoh
+        its GID); None where the middleware tells nothing."""
+
+    def caller(self, door: str, sender: bytes | None) -> str | None:
+        """Who `sender` (`sender()` of a callback of `door`) is, as far as the middleware tells; it may ask the
+        graph, so it is called only for what is recorded."""
 
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         """Calls `callback` every `period` seconds."""

@@ -145,11 +145,13 @@ class ZenohTransport:
         finally:
             self._delivering.gid = None
 
-    def caller(self, door: str) -> str | None:
-        """Who sent what the running callback handles, as far as Zenoh tells (`ZenohNode.sender_of`); None outside
-        a callback of this transport."""
-        gid = getattr(self._delivering, "gid", None)
-        return None if gid is None else f"zenoh: {self._zenoh_node.sender_of(gid)}"
+    def sender(self) -> bytes | None:
+        """The GID of what the running callback handles; None outside a callback of this transport."""
+        return getattr(self._delivering, "gid", None)
+
+    def caller(self, door: str, sender: bytes | None) -> str | None:
+        """Who `sender` is, as far as Zenoh tells (`ZenohNode.sender_of`)."""
+        return None if sender is None else f"zenoh: {self._zenoh_node.sender_of(sender)}"
 
     def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Worker) -> None:
         # rmw_zenoh carries an action as three services and two topics of types rosidl derives from the .action;
