@@ -18,12 +18,11 @@ import os
 from pathlib import Path
 
 from akd_ros.node import doors
+from akd_ros.node.doors import CLIENTS
 from akd_ros.node.interface import ACTION, SERVICE, SUBSCRIPTION, Endpoint
 from akd_ros.params import DOOR_ROLES as ROLES
 
 OBSERVE, OPERATE, CONFIGURE = ROLES
-CLIENTS = {OBSERVE: "observer", OPERATE: "operator", CONFIGURE: "configurer"}
-"""The certificate common name (and file name) of each role's client."""
 NODE = "akd-node"
 """The node's certificate common name; its files are node.*."""
 VALIDITY_DAYS = 825

@@ -150,10 +150,12 @@ def test_a_client_without_a_certificate_of_the_authority_cannot_connect(node, au
         stranger.close()
 
 
-def test_an_observer_sees_the_joint_but_its_commands_change_nothing(node, authority, types):
-    sim, _ = node
+def test_an_observer_sees_the_joint_but_its_commands_change_nothing_and_are_recorded_refused(node, authority, types):
+    sim, process = node
     observer = Client(authority, "observer", types)
     try:
+        # Declared before joint_states: once its samples arrive, the node knows of this subscriber too.
+        records = observer.subscribe("/akd_node/access", ACCESS_REQUEST)
         received = observer.subscribe("/joint_states", JOINT_STATE)
         wait_for("joint_states at the observer", lambda: received, WAIT_S)
         start = sim.state(0)["position"]
@@ -164,6 +166,18 @@ def test_an_observer_sees_the_joint_but_its_commands_change_nothing(node, author
         state = sim.state(0)
         assert state["state"] != "Operation enabled", state
         assert abs(state["position"] - start) < 50, (start, state)
+        # Zenoh dropped all of it; the node recorded each of the observer's clients at a door it may not use.
+        doors = {"/akd_node/enable", "/akd_node/position_command", "/akd_node/sdo_write"}
+        wait_for("the refusals' records", lambda: doors <= {r.door for r in records}, WAIT_S)
+        by_door = {r.door: r for r in records}
+        assert set(by_door) == doors, records
+        for record in by_door.values():
+            assert not record.accepted, record
+            assert "certificate observer" in record.caller and "node /observer_client" in record.caller, record
+            assert "refused by Zenoh's access control, certificate observer may not" in record.outcome, record
+        assert (by_door["/akd_node/enable"].role, by_door["/akd_node/sdo_write"].role) == ("operate", "configure")
+        assert by_door["/akd_node/position_command"].request == "made a publisher of /akd_node/position_command"
+        assert "access: /akd_node/enable (operate) from zenoh: node /observer_client" in process.output()
     finally:
         observer.close()
 
@@ -187,7 +201,15 @@ def test_an_operator_enables_and_moves_the_joint_but_cannot_write_an_object(node
         # The audit trail: each request with who made it, the enable and disable each, the commands once a burst.
         wait_for("the disable's record", lambda: any(r.door == "/akd_node/disable" for r in records), WAIT_S)
         by_door = {r.door: r for r in records}
-        assert set(by_door) == {"/akd_node/enable", "/akd_node/position_command", "/akd_node/disable"}, records
+        doors = {"/akd_node/enable", "/akd_node/position_command", "/akd_node/disable", "/akd_node/sdo_write"}
+        assert set(by_door) == doors, records
+        refused = by_door["/akd_node/sdo_write"]
+        assert (refused.role, refused.accepted, refused.request) == (
+            "configure",
+            False,
+            "made a client of /akd_node/sdo_write",
+        ), refused
+        assert "certificate operator may not configure" in refused.outcome, refused
         enable = by_door["/akd_node/enable"]
         assert (enable.role, enable.accepted) == ("operate", True), enable
         assert "node /operator_client" in enable.caller and "certificate operator" in enable.caller, enable.caller

@@ -216,6 +216,9 @@ class RosTransport:
         )
         return action
 
+    def watch_clients(self, callback: Callable[[str, str, bytes, str, list[str]], None]) -> None:
+        """rclpy tells nothing of the graph's clients as they are made (and DDS here has no authentication)."""
+
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         group.worker.add_timer(period, callback)
 
