@@ -23,7 +23,7 @@ from akd_ros.zenoh.types import Types
 from support.netns import free_udp_port
 from support.ros import COUNTS_PER_RAD, NodeProcess, Sim, stop
 from support.waiting import wait_for
-from support.zenoh import WAIT_S, free_tcp_port
+from support.zenoh import WAIT_S, free_tcp_port, zenoh_router
 
 AKD_ACCESS = [str(Path(sys.executable).with_name("akd-access"))]
 """akd-access, as its console script runs it."""
@@ -92,9 +92,11 @@ class Client:
         directory, _ = authority
         self.types = types
         self.session = zenoh.open(zenoh.Config.from_file(directory / f"{role}.json5"))
-        wait_for(f"the {role} connected to the node", lambda: list(self.session.info.peers_zid()), WAIT_S, 0.05)
+        info = self.session.info
+        wait_for(f"the {role} connected", lambda: list(info.peers_zid()) or list(info.routers_zid()), WAIT_S, 0.05)
         self.node = ZenohNode(self.session, types, f"{role}_client", domain=DOMAIN)
         self.received: dict[str, list] = {}
+        self._clients: dict[str, object] = {}
 
     def subscribe(self, topic: str, type_name: str) -> list:
         """What arrives on `topic` from now on, decoded."""
@@ -106,12 +108,19 @@ class Client:
     def call(self, name: str, type_name: str, **fields):
         """The response to one request of the service `name`, None when none came."""
         request = self.types.to_cdr(self.types.message(f"{type_name}_Request", **fields), f"{type_name}_Request")
-        reply = self.node.client(name, type_name).call(request, QUIET_S)
+        reply = self._client(name, type_name).call(request, QUIET_S)
         return None if reply is None else self.types.from_cdr(reply, f"{type_name}_Response")
 
-    def serving(self, name: str) -> None:
-        """Waits until the node's service `name` is known to this session: a query goes only to the queryables a
-        session knows of, and a session just connected learns of them over the next moments."""
+    def _client(self, name: str, type_name: str):
+        if name not in self._clients:
+            self._clients[name] = self.node.client(name, type_name)
+        return self._clients[name]
+
+    def serving(self, name: str, type_name: str = TRIGGER) -> None:
+        """Makes a client of the node's service `name` and waits until the service is known to this session, as an
+        rmw_zenoh client waits for its service: a query goes only to the queryables a session knows of, and a
+        session just connected learns of them over the next moments."""
+        self._client(name, type_name)
         key = f"@ros2_lv/{DOMAIN}/*/*/*/SS/*/*/*/{name.replace('/', '%')}/**"
         wait_for(f"{name} served", lambda: list(self.session.liveliness().get(f"{key}", timeout=1)), WAIT_S, 0.1)
 
@@ -224,7 +233,7 @@ def test_a_configurer_writes_an_object_and_a_refusal_is_recorded(node, authority
     configurer = Client(authority, "configurer", types)
     try:
         records = configurer.subscribe("/akd_node/access", ACCESS_REQUEST)
-        configurer.serving("/akd_node/sdo_write")
+        configurer.serving("/akd_node/sdo_write", SDO_WRITE)
         time.sleep(0.5)
         assert not configurer.call("/akd_node/sdo_write", SDO_WRITE, index=0x5FFF, subindex=0, data=[1]).success
         wait_for("the refusal's record", lambda: records, WAIT_S)
@@ -280,3 +289,60 @@ def test_a_node_whose_endpoint_is_taken_says_so_in_one_line(node, authority, tmp
         f"new TLS listener on {endpoint[4:]}: {endpoint[4:]}: Address already in use (os error 98)"
     ], second.output()
     assert "Traceback" not in second.output()
+
+
+def test_through_a_router_between_machines_the_roles_hold(tmp_path, types):
+    directory = tmp_path / "access"
+    node_port, router_port = free_tcp_port(), free_tcp_port()
+    done = subprocess.run(
+        [
+            *AKD_ACCESS,
+            "init",
+            str(directory),
+            "--endpoint",
+            f"tls/127.0.0.1:{node_port}",
+            "--router",
+            f"tls/127.0.0.1:{router_port}",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 0, done.stderr
+    assert json.loads((directory / "operator.json5").read_text())["connect"]["endpoints"] == [
+        f"tls/127.0.0.1:{router_port}"
+    ]
+    authority = directory, None
+    sim = Sim(free_udp_port(), count=1)
+    path = tmp_path / "akd_node.yaml"
+    path.write_text(PARAMS.format(config=directory / "node.json5", port=sim.port, doors="[observe, operate]"))
+    node = NodeProcess(path, DOMAIN, without_ros=True)
+    try:
+        wait_for("the node active", lambda: "active:" in node.output() or node.process.poll() is not None, WAIT_S)
+        assert node.process.poll() is None, node.output()
+        with zenoh_router(router_port, directory / "router.json5"):
+            observer = Client(authority, "observer", types)
+            try:
+                received = observer.subscribe("/joint_states", JOINT_STATE)
+                wait_for("joint_states at the observer, through the router", lambda: received, WAIT_S)
+                assert observer.call("/akd_node/enable", TRIGGER) is None
+            finally:
+                observer.close()
+            assert sim.state(0)["state"] != "Operation enabled"
+            operator = Client(authority, "operator", types)
+            try:
+                records = operator.subscribe("/akd_node/access", ACCESS_REQUEST)
+                operator.serving("/akd_node/enable")
+                time.sleep(0.5)
+                assert operator.call("/akd_node/enable", TRIGGER).success
+                assert sim.state(0)["state"] == "Operation enabled"
+                assert operator.call("/akd_node/disable", TRIGGER).success
+                wait_for("the enable's record", lambda: any(r.door == "/akd_node/enable" for r in records), WAIT_S)
+                enable = next(r for r in records if r.door == "/akd_node/enable")
+                # The node's only link is the router's: the client's node is named, its certificate is not.
+                assert "node /operator_client" in enable.caller and "certificate" not in enable.caller, enable
+            finally:
+                operator.close()
+    finally:
+        stop(node.process)
+        sim.stop()

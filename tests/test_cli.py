@@ -262,6 +262,34 @@ def test_akd_zenohd_on_a_port_in_use_says_so_in_one_line():
     assert line.startswith(f"akd-zenohd: error: cannot listen on {endpoint}: "), line
 
 
+@pytest.mark.parametrize(
+    "config, words",
+    [
+        (None, "is not a file"),
+        ("{mode: 1", "is not a Zenoh configuration: --> 1:8"),
+        (
+            '{mode: "router", listen: {endpoints: ["tls/127.0.0.1:1"]}, transport: {link: {tls: '
+            '{listen_certificate: "/nonexistent.pem", listen_private_key: "/nonexistent.key"}}}}',
+            "cannot listen on",
+        ),
+    ],
+)
+def test_akd_zenohd_with_a_config_it_cannot_use_says_so_in_one_line(tmp_path, config, words):
+    path = tmp_path / "router.json5"
+    if config is not None:
+        path.write_text(config)
+    result = subprocess.run(
+        [str(Path(sys.executable).with_name("akd-zenohd")), "--config", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 1, result.stdout + result.stderr
+    (line,) = result.stderr.splitlines()
+    assert line.startswith("akd-zenohd: error: ") and words in line, line
+
+
 def test_a_yaml_syntax_error_in_a_parameters_file_is_the_nodes_one_line(tmp_path):
     path = tmp_path / "params.yaml"
     path.write_text("akd_node:\n  ros__parameters:\n    link: [sim\n    mode: homing\n")

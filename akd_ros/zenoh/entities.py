@@ -397,19 +397,18 @@ class ZenohNode:
         session of the entity whose liveliness token hashes to it, and the certificate name of the link to that
         session where it is a TLS link of this session's own (a client of a router is behind the router's link)."""
         if gid not in self._senders:
+            replies = self.session.liveliness().get(f"{ADMIN_SPACE}/{self.info.domain}/**", timeout=SENDER_QUERY_S)
+            keys = [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
+            entity = next((Entity.parse(key) for key in keys if gid_of(key) == gid), None)
+            if entity is None:
+                # Not remembered: a client's token may reach this session after its first request (through a
+                # router they take different ways).
+                return f"gid {gid.hex()} (no entity of the graph has it)"
             if len(self._senders) >= SENDERS_KEPT:
                 # Clients come and go (and a careless one may send any GID): forget them all rather than grow.
                 self._senders.clear()
-            self._senders[gid] = self._sender_of(gid)
+            self._senders[gid] = self.who(entity)
         return self._senders[gid]
-
-    def _sender_of(self, gid: bytes) -> str:
-        replies = self.session.liveliness().get(f"{ADMIN_SPACE}/{self.info.domain}/**", timeout=SENDER_QUERY_S)
-        keys = [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
-        entity = next((Entity.parse(key) for key in keys if gid_of(key) == gid), None)
-        if entity is None:
-            return f"gid {gid.hex()} (no entity of the graph has it)"
-        return self.who(entity)
 
     def certificates(self, zid: str) -> list[str]:
         """The names the certificates of this session's TLS links to the session `zid` give (none for a session
