@@ -161,13 +161,13 @@ class Doors:
         # neither is judged here.
         if role is None or not roles or max(map(DOOR_ROLES.index, roles)) >= DOOR_ROLES.index(role):
             return
-        asked = "its samples are dropped" if kind == "publisher" else "its requests never reach the node"
+        dropped = "drops its samples" if kind == "publisher" else "keeps its requests from the node"
         self.record(
             name,
             role,
             f"made a {kind} of {name}",
             False,
-            f"refused by Zenoh's access control, certificate {', '.join(certificates)} may not {role}: {asked}",
+            f"certificate {', '.join(certificates)} may not {role}: Zenoh's access control {dropped}",
             sender=sender,
             caller=caller,
         )
