@@ -141,6 +141,15 @@ class Client:
         key = f"@ros2_lv/{DOMAIN}/*/*/*/SS/*/*/*/{name.replace('/', '%')}/**"
         wait_for(f"{name} served", lambda: list(self.session.liveliness().get(f"{key}", timeout=1)), WAIT_S, 0.1)
 
+    def enable_recorded(self, sim: Sim) -> list:
+        """Enables the joint (which must then be enabled at the drive); gives the ~/access records from before it on."""
+        records = self.subscribe("/akd_node/access", ACCESS_REQUEST)
+        self.serving("/akd_node/enable")
+        time.sleep(0.5)
+        assert self.call("/akd_node/enable", TRIGGER).success
+        assert sim.state(0)["state"] == "Operation enabled"
+        return records
+
     def put_position(self, position: float) -> None:
         publisher = self.node.publisher("/akd_node/position_command", FLOAT64)
         for _ in range(10):
@@ -210,11 +219,7 @@ def test_an_operator_enables_and_moves_the_joint_but_cannot_write_an_object(node
     sim, process = node
     operator = Client(authority, "operator", types)
     try:
-        records = operator.subscribe("/akd_node/access", ACCESS_REQUEST)
-        operator.serving("/akd_node/enable")
-        time.sleep(0.5)
-        assert operator.call("/akd_node/enable", TRIGGER).success
-        assert sim.state(0)["state"] == "Operation enabled"
+        records = operator.enable_recorded(sim)
         target = sim.state(0)["position"] / COUNTS_PER_RAD + 0.01
         operator.put_position(target)
         wait_for(
@@ -313,11 +318,7 @@ def test_through_a_router_between_machines_the_roles_hold(tmp_path, types):
         assert sim.state(0)["state"] != "Operation enabled"
         operator = Client(authority, "operator", types)
         try:
-            records = operator.subscribe("/akd_node/access", ACCESS_REQUEST)
-            operator.serving("/akd_node/enable")
-            time.sleep(0.5)
-            assert operator.call("/akd_node/enable", TRIGGER).success
-            assert sim.state(0)["state"] == "Operation enabled"
+            records = operator.enable_recorded(sim)
             assert operator.call("/akd_node/disable", TRIGGER).success
             wait_for("the enable's record", lambda: any(r.door == "/akd_node/enable" for r in records), WAIT_S)
             enable = next(r for r in records if r.door == "/akd_node/enable")

@@ -246,19 +246,25 @@ def test_every_tools_help_shows_an_example(tool):
     assert [line.split()[0] for line in examples if line.strip()] == [tool] * sum(1 for x in examples if x.strip())
 
 
+def akd_zenohd_error(*arguments: str) -> str:
+    """The one line of akd-zenohd `arguments`, which must fail."""
+    result = subprocess.run(
+        [str(Path(sys.executable).with_name("akd-zenohd")), *arguments],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 1, result.stdout + result.stderr
+    (line,) = result.stderr.splitlines()
+    return line
+
+
 def test_akd_zenohd_on_a_port_in_use_says_so_in_one_line():
     from support.zenoh import zenoh_router
 
     with zenoh_router() as endpoint:
-        result = subprocess.run(
-            [str(Path(sys.executable).with_name("akd-zenohd")), "--listen", endpoint],
-            capture_output=True,
-            text=True,
-            timeout=60,
-            check=False,
-        )
-    assert result.returncode == 1, result.stdout + result.stderr
-    (line,) = result.stderr.splitlines()
+        line = akd_zenohd_error("--listen", endpoint)
     assert line.startswith(f"akd-zenohd: error: cannot listen on {endpoint}: "), line
 
 
@@ -278,15 +284,7 @@ def test_akd_zenohd_with_a_config_it_cannot_use_says_so_in_one_line(tmp_path, co
     path = tmp_path / "router.json5"
     if config is not None:
         path.write_text(config)
-    result = subprocess.run(
-        [str(Path(sys.executable).with_name("akd-zenohd")), "--config", str(path)],
-        capture_output=True,
-        text=True,
-        timeout=60,
-        check=False,
-    )
-    assert result.returncode == 1, result.stdout + result.stderr
-    (line,) = result.stderr.splitlines()
+    line = akd_zenohd_error("--config", str(path))
     assert line.startswith("akd-zenohd: error: ") and words in line, line
 
 
