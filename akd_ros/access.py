@@ -7,6 +7,10 @@ the node's session listens with mutual TLS, so a client without a certificate of
 Zenoh's access control on the node's session lets an observer subscribe only, an operator also put commands and query
 the operating services and actions, and a configurer the rest. Anything no rule allows is denied before it reaches the
 node.
+
+Between machines a router may stand in front of the node (`router_config`): it listens where the clients connect,
+with the same mutual TLS and the same rules for them, and connects to the node; the node and the router trust each
+other's certificate with everything, the router having judged its clients already.
 """
 
 from __future__ import annotations
@@ -18,14 +22,27 @@ import os
 from pathlib import Path
 
 from akd_ros.node import doors
+from akd_ros.node.doors import CLIENTS
 from akd_ros.node.interface import ACTION, SERVICE, SUBSCRIPTION, Endpoint
 from akd_ros.params import DOOR_ROLES as ROLES
 
 OBSERVE, OPERATE, CONFIGURE = ROLES
-CLIENTS = {OBSERVE: "observer", OPERATE: "operator", CONFIGURE: "configurer"}
-"""The certificate common name (and file name) of each role's client."""
 NODE = "akd-node"
 """The node's certificate common name; its files are node.*."""
+ROUTER = "akd-router"
+"""The certificate common name of a router in front of the node; its files are router.*."""
+ACL_MESSAGES = {
+    "put",
+    "delete",
+    "declare_subscriber",
+    "query",
+    "reply",
+    "declare_queryable",
+    "liveliness_token",
+    "declare_liveliness_subscriber",
+    "liveliness_query",
+}
+"""Every kind of message Zenoh's access control judges."""
 VALIDITY_DAYS = 825
 """How long the certificates are valid by default: the longest a TLS server certificate is commonly accepted for."""
 
@@ -42,9 +59,10 @@ def door_key_exprs(endpoint: Endpoint, node_name: str) -> list[str]:
     return [f"*/**/{node_name}/{name}/**", f"*/**/{node_name}/*/{name}/**"]
 
 
-def access_control(endpoints: list[Endpoint], node_name: str) -> dict:
-    """Zenoh's access_control section for the node: the rules of each role over `endpoints` (the node's doors), its
-    subjects by certificate common name, deny for everything else."""
+def access_control(endpoints: list[Endpoint], node_name: str, trusted: str | None = None) -> dict:
+    """Zenoh's access_control section for the node (or a router in front of it): the rules of each role over
+    `endpoints` (the node's doors), its subjects by certificate common name, everything for the certificate named
+    `trusted` (the router's at the node, the node's at the router), deny for everything else."""
     commands = {role: _role_rules(endpoints, node_name, role, (SUBSCRIPTION,)) for role in ROLES}
     queries = {role: _role_rules(endpoints, node_name, role, (SERVICE, ACTION)) for role in ROLES}
     rules = [
@@ -98,12 +116,26 @@ def access_control(endpoints: list[Endpoint], node_name: str) -> dict:
         ]
         for role in ROLES
     }
+    subjects = [{"id": CLIENTS[role], "cert_common_names": [CLIENTS[role]]} for role in ROLES]
+    policies = [{"id": CLIENTS[role], "rules": granted[role], "subjects": [CLIENTS[role]]} for role in ROLES]
+    if trusted:
+        rules.append(
+            {
+                "id": "trusted",
+                "messages": sorted(ACL_MESSAGES),
+                "flows": ["ingress", "egress"],
+                "permission": "allow",
+                "key_exprs": ["**", "@ros2_lv/**"],
+            }
+        )
+        subjects.append({"id": trusted, "cert_common_names": [trusted]})
+        policies.append({"id": trusted, "rules": ["trusted"], "subjects": [trusted]})
     return {
         "enabled": True,
         "default_permission": "deny",
         "rules": rules,
-        "subjects": [{"id": CLIENTS[role], "cert_common_names": [CLIENTS[role]]} for role in ROLES],
-        "policies": [{"id": CLIENTS[role], "rules": granted[role], "subjects": [CLIENTS[role]]} for role in ROLES],
+        "subjects": subjects,
+        "policies": policies,
     }
 
 
@@ -123,9 +155,12 @@ def tls(directory: Path, who: str, listening: bool) -> dict:
     return section
 
 
-def node_config(directory: Path, endpoint: str, endpoints: list[Endpoint], node_name: str) -> dict:
-    """The node's Zenoh configuration: a peer listening on `endpoint` with mutual TLS and the roles' access control,
-    as rmw_zenoh's default otherwise (multicast scouting off, timestamps on)."""
+def node_config(
+    directory: Path, endpoint: str, endpoints: list[Endpoint], node_name: str, router: bool = False
+) -> dict:
+    """The node's Zenoh configuration: a peer listening on `endpoint` with mutual TLS and the roles' access control
+    (`router`: and a router in front of it trusted), as rmw_zenoh's default otherwise (multicast scouting off,
+    timestamps on)."""
     return {
         "mode": "peer",
         "listen": {"endpoints": [endpoint]},
@@ -133,15 +168,31 @@ def node_config(directory: Path, endpoint: str, endpoints: list[Endpoint], node_
         "scouting": {"multicast": {"enabled": False}},
         "timestamping": {"enabled": {"router": True, "peer": True, "client": True}},
         "transport": {"link": {"tls": tls(directory, "node", listening=True)}},
-        "access_control": access_control(endpoints, node_name),
+        "access_control": access_control(endpoints, node_name, ROUTER if router else None),
     }
 
 
-def client_config(directory: Path, endpoint: str, role: str) -> dict:
-    """A client of `role`'s Zenoh configuration: a peer (as rmw_zenoh's nodes are) connecting to the node's
-    `endpoint` with its certificate, listening nowhere."""
+def router_config(directory: Path, endpoint: str, node_endpoint: str, endpoints: list[Endpoint], node_name: str):
+    """A router's Zenoh configuration: listening for the clients on `endpoint` with mutual TLS and the roles' access
+    control, connected to the node at `node_endpoint` (whose certificate it trusts), as rmw_zenohd's default
+    otherwise."""
     return {
-        "mode": "peer",
+        "mode": "router",
+        "listen": {"endpoints": [endpoint]},
+        "connect": {"endpoints": [node_endpoint]},
+        "scouting": {"multicast": {"enabled": False}},
+        "timestamping": {"enabled": {"router": True, "peer": True, "client": True}},
+        "transport": {"link": {"tls": tls(directory, "router", listening=True)}},
+        "access_control": access_control(endpoints, node_name, NODE),
+    }
+
+
+def client_config(directory: Path, endpoint: str, role: str, router: bool = False) -> dict:
+    """A client of `role`'s Zenoh configuration, connecting to `endpoint` with its certificate, listening nowhere: a
+    peer (as rmw_zenoh's nodes are) connecting to the node, or (`router`) a client of the router there, which talks
+    to nothing but it."""
+    return {
+        "mode": "client" if router else "peer",
         "connect": {"endpoints": [endpoint]},
         "listen": {"endpoints": []},
         "scouting": {"multicast": {"enabled": False}},
@@ -150,20 +201,21 @@ def client_config(directory: Path, endpoint: str, role: str) -> dict:
     }
 
 
-def endpoint_host(endpoint: str) -> str:
-    """The host of a tls/HOST:PORT endpoint (an IPv6 address without its brackets); ValueError naming the form."""
+def endpoint_host(endpoint: str, option: str = "--endpoint") -> str:
+    """The host of a tls/HOST:PORT endpoint (an IPv6 address without its brackets) given as `option`; ValueError
+    naming the form."""
     protocol, _, address = endpoint.partition("/")
     host, _, port = address.rpartition(":")
     host = host.strip("[]")
     if protocol != "tls" or not host or not port.isascii() or not port.isdigit() or not 0 < int(port) < 65536:
-        raise ValueError(f"--endpoint {endpoint!r} is not of the form tls/HOST:PORT (e.g. tls/192.168.1.10:7447)")
+        raise ValueError(f"{option} {endpoint!r} is not of the form tls/HOST:PORT (e.g. tls/192.168.1.10:7447)")
     return host
 
 
-def write_authority(directory: Path, host: str, days: int = VALIDITY_DAYS) -> None:
+def write_authority(directory: Path, host: str, days: int = VALIDITY_DAYS, router_host: str | None = None) -> None:
     """Writes a certificate authority (ca.pem, ca.key) and a key and certificate signed by it for the node (named
-    for `host`, as clients check it) and for each role's client (named after the role), in `directory`; keys are
-    readable by their owner only."""
+    for `host`, as clients check it), for a router in front of it when `router_host` is given (named for that host),
+    and for each role's client (named after the role), in `directory`; keys are readable by their owner only."""
     from cryptography import x509
     from cryptography.hazmat.primitives import hashes, serialization
     from cryptography.hazmat.primitives.asymmetric import ec
@@ -206,11 +258,17 @@ def write_authority(directory: Path, host: str, days: int = VALIDITY_DAYS) -> No
         (x509.KeyUsage(False, False, False, False, False, True, True, False, False), True),
     ).sign(ca_key, hashes.SHA256())
     save("ca", ca_key, ca)
-    try:
-        alternative = x509.IPAddress(ipaddress.ip_address(host))
-    except ValueError:
-        alternative = x509.DNSName(host)
-    for stem, common_name, names in [("node", NODE, [alternative])] + [(c, c, []) for c in CLIENTS.values()]:
+
+    def alternative(host: str) -> x509.GeneralName:
+        try:
+            return x509.IPAddress(ipaddress.ip_address(host))
+        except ValueError:
+            return x509.DNSName(host)
+
+    parties = [("node", NODE, [alternative(host)])] + [(c, c, []) for c in CLIENTS.values()]
+    if router_host is not None:
+        parties.append(("router", ROUTER, [alternative(router_host)]))
+    for stem, common_name, names in parties:
         key = ec.generate_private_key(ec.SECP256R1())
         usage = [ExtendedKeyUsageOID.SERVER_AUTH, ExtendedKeyUsageOID.CLIENT_AUTH]
         extensions = [(x509.BasicConstraints(ca=False, path_length=None), True), (x509.ExtendedKeyUsage(usage), False)]
@@ -219,12 +277,19 @@ def write_authority(directory: Path, host: str, days: int = VALIDITY_DAYS) -> No
         save(stem, key, issued(common_name, key.public_key(), *extensions).sign(ca_key, hashes.SHA256()))
 
 
-def write_configs(directory: Path, endpoint: str, endpoints: list[Endpoint], node_name: str) -> list[Path]:
-    """Writes node.json5 and a configuration per role's client in `directory`; the files written."""
-    written = [directory / "node.json5"]
-    written[0].write_text(json.dumps(node_config(directory, endpoint, endpoints, node_name), indent=2) + "\n")
+def write_configs(
+    directory: Path, endpoint: str, endpoints: list[Endpoint], node_name: str, router: str | None = None
+) -> list[Path]:
+    """Writes node.json5, router.json5 when a router listens at `router` in front of the node, and a configuration
+    per role's client (connecting to the router if any, else to the node) in `directory`; the files written."""
+    configs = {"node": node_config(directory, endpoint, endpoints, node_name, router=router is not None)}
+    if router is not None:
+        configs["router"] = router_config(directory, router, endpoint, endpoints, node_name)
     for role in ROLES:
-        path = directory / f"{CLIENTS[role]}.json5"
-        path.write_text(json.dumps(client_config(directory, endpoint, role), indent=2) + "\n")
+        configs[CLIENTS[role]] = client_config(directory, router or endpoint, role, router=router is not None)
+    written = []
+    for stem, config in configs.items():
+        path = directory / f"{stem}.json5"
+        path.write_text(json.dumps(config, indent=2) + "\n")
         written.append(path)
     return written

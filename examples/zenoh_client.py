@@ -26,7 +26,7 @@ TRIGGER = "std_srvs/srv/Trigger"
 TIMEOUT_S = 30.0
 
 types = Types()
-# rmw_zenoh's default, or the file ZENOH_SESSION_CONFIG_URI names (connecting to the node itself, without a router);
+# rmw_zenoh's default, or the file ZENOH_SESSION_CONFIG_URI names (e.g. akd-access's, to the node or its router);
 # session_config(connect=["tcp/HOST:7447"]) for another router.
 config_file = os.environ.get("ZENOH_SESSION_CONFIG_URI")
 config = session_config(config_file)

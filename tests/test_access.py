@@ -1,5 +1,5 @@
 """akd_node over Zenoh with the authority and configurations `akd-access init` makes: real Zenoh sessions over
-mutual TLS, each with a role's configuration, against the node on a virtual AKD.
+mutual TLS, each with a role's configuration, against the node on a virtual AKD; and who the audit names over rclpy.
 
 The node runs without ROS (`transport: zenoh`, its `zenoh.config` the node.json5 written), listening on a loopback
 port the test picks; the clients are this process's sessions opened from observer.json5, operator.json5 and
@@ -13,21 +13,26 @@ import json
 import subprocess
 import sys
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
 import zenoh
 
+from akd_ros.node.doors import BURST_GAP_S
 from akd_ros.zenoh.entities import ZenohNode
 from akd_ros.zenoh.types import Types
 from support.netns import free_udp_port
-from support.ros import COUNTS_PER_RAD, NodeProcess, Sim, stop
+from support.ros import COUNTS_PER_RAD, NodeProcess, Sim, node_on_sim, ros_environment, stop
 from support.waiting import wait_for
-from support.zenoh import WAIT_S, free_tcp_port
+from support.zenoh import WAIT_S, free_tcp_port, zenoh_router
 
 AKD_ACCESS = [str(Path(sys.executable).with_name("akd-access"))]
 """akd-access, as its console script runs it."""
 DOMAIN = 0
+ROS_DOMAINS = range(231, 233)
+"""The ROS_DOMAIN_IDs of this module's node over rclpy; other modules take other ranges."""
 JOINT_STATE = "sensor_msgs/msg/JointState"
 FLOAT64 = "std_msgs/msg/Float64"
 TRIGGER = "std_srvs/srv/Trigger"
@@ -54,25 +59,23 @@ def types():
     return Types()
 
 
-@pytest.fixture(scope="module")
-def authority(tmp_path_factory):
-    directory = tmp_path_factory.mktemp("access")
-    endpoint = f"tls/127.0.0.1:{free_tcp_port()}"
+def init(directory: Path, endpoint: str, *options: str) -> None:
+    """`akd-access init directory --endpoint endpoint *options`, which must succeed."""
     done = subprocess.run(
-        [*AKD_ACCESS, "init", str(directory), "--endpoint", endpoint], capture_output=True, text=True, timeout=60
+        [*AKD_ACCESS, "init", str(directory), "--endpoint", endpoint, *options],
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert done.returncode == 0, done.stderr
-    return directory, endpoint
 
 
-@pytest.fixture(scope="module")
-def node(authority, tmp_path_factory):
-    directory, _ = authority
+@contextmanager
+def secure_node(directory: Path, folder: Path, doors: str) -> Iterator[tuple[Sim, NodeProcess]]:
+    """A virtual AKD and akd_node on it with `directory`'s node.json5 and the roles `doors` open, once active."""
     sim = Sim(free_udp_port(), count=1)
-    path = tmp_path_factory.mktemp("node") / "akd_node.yaml"
-    path.write_text(
-        PARAMS.format(config=directory / "node.json5", port=sim.port, doors="[observe, operate, configure]")
-    )
+    path = folder / "akd_node.yaml"
+    path.write_text(PARAMS.format(config=directory / "node.json5", port=sim.port, doors=doors))
     node = NodeProcess(path, DOMAIN, without_ros=True)
     try:
         wait_for("the node active", lambda: "active:" in node.output() or node.process.poll() is not None, WAIT_S)
@@ -84,6 +87,20 @@ def node(authority, tmp_path_factory):
         print("akd_node output:\n" + node.output())
 
 
+@pytest.fixture(scope="module")
+def authority(tmp_path_factory):
+    directory = tmp_path_factory.mktemp("access")
+    endpoint = f"tls/127.0.0.1:{free_tcp_port()}"
+    init(directory, endpoint)
+    return directory, endpoint
+
+
+@pytest.fixture(scope="module")
+def node(authority, tmp_path_factory):
+    with secure_node(authority[0], tmp_path_factory.mktemp("node"), "[observe, operate, configure]") as running:
+        yield running
+
+
 class Client:
     """A client of a role: a session of its configuration, connected to the node, with a ROS node on it as an
     rmw_zenoh client has (its liveliness tokens name it and its entities)."""
@@ -92,9 +109,11 @@ class Client:
         directory, _ = authority
         self.types = types
         self.session = zenoh.open(zenoh.Config.from_file(directory / f"{role}.json5"))
-        wait_for(f"the {role} connected to the node", lambda: list(self.session.info.peers_zid()), WAIT_S, 0.05)
+        info = self.session.info
+        wait_for(f"the {role} connected", lambda: list(info.peers_zid()) or list(info.routers_zid()), WAIT_S, 0.05)
         self.node = ZenohNode(self.session, types, f"{role}_client", domain=DOMAIN)
         self.received: dict[str, list] = {}
+        self._clients: dict[str, object] = {}
 
     def subscribe(self, topic: str, type_name: str) -> list:
         """What arrives on `topic` from now on, decoded."""
@@ -106,14 +125,30 @@ class Client:
     def call(self, name: str, type_name: str, **fields):
         """The response to one request of the service `name`, None when none came."""
         request = self.types.to_cdr(self.types.message(f"{type_name}_Request", **fields), f"{type_name}_Request")
-        reply = self.node.client(name, type_name).call(request, QUIET_S)
+        reply = self._client(name, type_name).call(request, QUIET_S)
         return None if reply is None else self.types.from_cdr(reply, f"{type_name}_Response")
 
-    def serving(self, name: str) -> None:
-        """Waits until the node's service `name` is known to this session: a query goes only to the queryables a
-        session knows of, and a session just connected learns of them over the next moments."""
+    def _client(self, name: str, type_name: str):
+        if name not in self._clients:
+            self._clients[name] = self.node.client(name, type_name)
+        return self._clients[name]
+
+    def serving(self, name: str, type_name: str = TRIGGER) -> None:
+        """Makes a client of the node's service `name` and waits until the service is known to this session, as an
+        rmw_zenoh client waits for its service: a query goes only to the queryables a session knows of, and a
+        session just connected learns of them over the next moments."""
+        self._client(name, type_name)
         key = f"@ros2_lv/{DOMAIN}/*/*/*/SS/*/*/*/{name.replace('/', '%')}/**"
         wait_for(f"{name} served", lambda: list(self.session.liveliness().get(f"{key}", timeout=1)), WAIT_S, 0.1)
+
+    def enable_recorded(self, sim: Sim) -> list:
+        """Enables the joint (which must then be enabled at the drive); gives the ~/access records from before it on."""
+        records = self.subscribe("/akd_node/access", ACCESS_REQUEST)
+        self.serving("/akd_node/enable")
+        time.sleep(0.5)
+        assert self.call("/akd_node/enable", TRIGGER).success
+        assert sim.state(0)["state"] == "Operation enabled"
+        return records
 
     def put_position(self, position: float) -> None:
         publisher = self.node.publisher("/akd_node/position_command", FLOAT64)
@@ -134,10 +169,7 @@ def test_a_client_without_a_certificate_of_the_authority_cannot_connect(node, au
     if certificate == "none":
         del tls["connect_private_key"], tls["connect_certificate"]
     else:
-        done = subprocess.run(
-            [*AKD_ACCESS, "init", str(tmp_path), "--endpoint", "tls/127.0.0.1:1"], capture_output=True, timeout=60
-        )
-        assert done.returncode == 0
+        init(tmp_path, "tls/127.0.0.1:1")
         tls["connect_private_key"], tls["connect_certificate"] = (
             str(tmp_path / "observer.key"),
             str(tmp_path / "observer.pem"),
@@ -150,10 +182,12 @@ def test_a_client_without_a_certificate_of_the_authority_cannot_connect(node, au
         stranger.close()
 
 
-def test_an_observer_sees_the_joint_but_its_commands_change_nothing(node, authority, types):
-    sim, _ = node
+def test_an_observer_sees_the_joint_but_its_commands_change_nothing_and_are_recorded_refused(node, authority, types):
+    sim, process = node
     observer = Client(authority, "observer", types)
     try:
+        # Declared before joint_states: once its samples arrive, the node knows of this subscriber too.
+        records = observer.subscribe("/akd_node/access", ACCESS_REQUEST)
         received = observer.subscribe("/joint_states", JOINT_STATE)
         wait_for("joint_states at the observer", lambda: received, WAIT_S)
         start = sim.state(0)["position"]
@@ -164,6 +198,19 @@ def test_an_observer_sees_the_joint_but_its_commands_change_nothing(node, author
         state = sim.state(0)
         assert state["state"] != "Operation enabled", state
         assert abs(state["position"] - start) < 50, (start, state)
+        # Zenoh dropped all of it; the node recorded each of the observer's clients at a door it may not use.
+        doors = {"/akd_node/enable", "/akd_node/position_command", "/akd_node/sdo_write"}
+        wait_for("the refusals' records", lambda: doors <= {r.door for r in records}, WAIT_S)
+        by_door = {r.door: r for r in records}
+        assert set(by_door) == doors, records
+        for record in by_door.values():
+            assert not record.accepted, record
+            assert "certificate observer" in record.caller and "node /observer_client" in record.caller, record
+            assert record.outcome.startswith("certificate observer may not "), record
+            assert "Zenoh's access control" in record.outcome, record
+        assert (by_door["/akd_node/enable"].role, by_door["/akd_node/sdo_write"].role) == ("operate", "configure")
+        assert by_door["/akd_node/position_command"].request == "made a publisher of /akd_node/position_command"
+        assert "access: /akd_node/enable (operate) from zenoh: node /observer_client" in process.output()
     finally:
         observer.close()
 
@@ -172,11 +219,7 @@ def test_an_operator_enables_and_moves_the_joint_but_cannot_write_an_object(node
     sim, process = node
     operator = Client(authority, "operator", types)
     try:
-        records = operator.subscribe("/akd_node/access", ACCESS_REQUEST)
-        operator.serving("/akd_node/enable")
-        time.sleep(0.5)
-        assert operator.call("/akd_node/enable", TRIGGER).success
-        assert sim.state(0)["state"] == "Operation enabled"
+        records = operator.enable_recorded(sim)
         target = sim.state(0)["position"] / COUNTS_PER_RAD + 0.01
         operator.put_position(target)
         wait_for(
@@ -187,7 +230,15 @@ def test_an_operator_enables_and_moves_the_joint_but_cannot_write_an_object(node
         # The audit trail: each request with who made it, the enable and disable each, the commands once a burst.
         wait_for("the disable's record", lambda: any(r.door == "/akd_node/disable" for r in records), WAIT_S)
         by_door = {r.door: r for r in records}
-        assert set(by_door) == {"/akd_node/enable", "/akd_node/position_command", "/akd_node/disable"}, records
+        doors = {"/akd_node/enable", "/akd_node/position_command", "/akd_node/disable", "/akd_node/sdo_write"}
+        assert set(by_door) == doors, records
+        refused = by_door["/akd_node/sdo_write"]
+        assert (refused.role, refused.accepted, refused.request) == (
+            "configure",
+            False,
+            "made a client of /akd_node/sdo_write",
+        ), refused
+        assert "certificate operator may not configure" in refused.outcome, refused
         enable = by_door["/akd_node/enable"]
         assert (enable.role, enable.accepted) == ("operate", True), enable
         assert "node /operator_client" in enable.caller and "certificate operator" in enable.caller, enable.caller
@@ -202,7 +253,7 @@ def test_a_configurer_writes_an_object_and_a_refusal_is_recorded(node, authority
     configurer = Client(authority, "configurer", types)
     try:
         records = configurer.subscribe("/akd_node/access", ACCESS_REQUEST)
-        configurer.serving("/akd_node/sdo_write")
+        configurer.serving("/akd_node/sdo_write", SDO_WRITE)
         time.sleep(0.5)
         assert not configurer.call("/akd_node/sdo_write", SDO_WRITE, index=0x5FFF, subindex=0, data=[1]).success
         wait_for("the refusal's record", lambda: records, WAIT_S)
@@ -216,20 +267,9 @@ def test_a_configurer_writes_an_object_and_a_refusal_is_recorded(node, authority
 
 def test_without_the_configure_role_sdo_write_does_not_exist(tmp_path, types):
     directory = tmp_path / "access"
-    done = subprocess.run(
-        [*AKD_ACCESS, "init", str(directory), "--endpoint", f"tls/127.0.0.1:{free_tcp_port()}"],
-        capture_output=True,
-        text=True,
-        timeout=60,
-    )
-    assert done.returncode == 0, done.stderr
+    init(directory, f"tls/127.0.0.1:{free_tcp_port()}")
     authority = directory, None
-    sim = Sim(free_udp_port(), count=1)
-    path = tmp_path / "akd_node.yaml"
-    path.write_text(PARAMS.format(config=directory / "node.json5", port=sim.port, doors="[observe, operate]"))
-    node = NodeProcess(path, DOMAIN, without_ros=True)
-    try:
-        wait_for("the node active", lambda: "active:" in node.output() or node.process.poll() is not None, WAIT_S)
+    with secure_node(directory, tmp_path, "[observe, operate]") as (_, node):
         assert "doors open on zenoh: observe, operate; closed: sdo_write" in node.output(), node.output()
         configurer = Client(authority, "configurer", types)
         try:
@@ -240,9 +280,6 @@ def test_without_the_configure_role_sdo_write_does_not_exist(tmp_path, types):
             assert configurer.call("/akd_node/sdo_write", SDO_WRITE, index=0x6065, subindex=0, data=[0]) is None
         finally:
             configurer.close()
-    finally:
-        stop(node.process)
-        sim.stop()
 
 
 def test_a_node_whose_endpoint_is_taken_says_so_in_one_line(node, authority, tmp_path):
@@ -258,3 +295,63 @@ def test_a_node_whose_endpoint_is_taken_says_so_in_one_line(node, authority, tmp
         f"new TLS listener on {endpoint[4:]}: {endpoint[4:]}: Address already in use (os error 98)"
     ], second.output()
     assert "Traceback" not in second.output()
+
+
+def test_through_a_router_between_machines_the_roles_hold(tmp_path, types):
+    directory = tmp_path / "access"
+    router_port = free_tcp_port()
+    init(directory, f"tls/127.0.0.1:{free_tcp_port()}", "--router", f"tls/127.0.0.1:{router_port}")
+    connect = json.loads((directory / "operator.json5").read_text())["connect"]["endpoints"]
+    assert connect == [f"tls/127.0.0.1:{router_port}"]
+    authority = directory, None
+    with (
+        secure_node(directory, tmp_path, "[observe, operate]") as (sim, _),
+        zenoh_router(router_port, directory / "router.json5"),
+    ):
+        observer = Client(authority, "observer", types)
+        try:
+            received = observer.subscribe("/joint_states", JOINT_STATE)
+            wait_for("joint_states at the observer, through the router", lambda: received, WAIT_S)
+            assert observer.call("/akd_node/enable", TRIGGER) is None
+        finally:
+            observer.close()
+        assert sim.state(0)["state"] != "Operation enabled"
+        operator = Client(authority, "operator", types)
+        try:
+            records = operator.enable_recorded(sim)
+            assert operator.call("/akd_node/disable", TRIGGER).success
+            wait_for("the enable's record", lambda: any(r.door == "/akd_node/enable" for r in records), WAIT_S)
+            enable = next(r for r in records if r.door == "/akd_node/enable")
+            # The node's only link is the router's: the client's node is named, its certificate is not.
+            assert "node /operator_client" in enable.caller and "certificate" not in enable.caller, enable
+        finally:
+            operator.close()
+
+
+def test_over_rclpy_the_record_names_the_clients_and_publishers_of_the_door_with_their_gids(tmp_path):
+    from akd_ros.msg import AccessRequest
+
+    params = PARAMS.replace("    transport: zenoh\n    zenoh.config: {config}\n", "").replace("{port}", "{{port}}")
+    with (
+        ros_environment(ROS_DOMAINS) as domain,
+        node_on_sim(params.format(doors="[observe, operate]"), tmp_path, domain) as (_, _, ros),
+    ):
+        records = []
+        access = ros.node.create_subscription(AccessRequest, "/akd_node/access", records.append, 100)
+        ros.spin_until(lambda: access.get_publisher_count() > 0, "the node's ~/access")
+        deadline = time.monotonic() + WAIT_S
+        # Until the node's writer has matched this reader too (DDS matches each side on its own): a burst a round.
+        while not {"/akd_node/enable", "/akd_node/position_command"} <= {r.door for r in records}:
+            assert time.monotonic() < deadline, records
+            ros.trigger("enable")
+            ros.stream("position", [ros.position()] * 5)
+            ros.spin_for(BURST_GAP_S + 0.1)
+        by_door = {r.door: r for r in records}
+        own = ros.node.get_publishers_info_by_topic("/akd_node/position_command")
+        gid = bytes(next(i for i in own if i.node_name == "akd_node_test").endpoint_gid).hex()
+        assert by_door["/akd_node/position_command"].caller == (
+            f"dds: a publisher of the topic: /akd_node_test (gid {gid})"
+        ), records
+        # The client is gone once answered (Participant.call destroys it): its GID is named while it lives.
+        enable = by_door["/akd_node/enable"].caller
+        assert enable.startswith("dds: a client of the service: /akd_node_test (gid "), records

@@ -246,20 +246,46 @@ def test_every_tools_help_shows_an_example(tool):
     assert [line.split()[0] for line in examples if line.strip()] == [tool] * sum(1 for x in examples if x.strip())
 
 
+def akd_zenohd_error(*arguments: str) -> str:
+    """The one line of akd-zenohd `arguments`, which must fail."""
+    result = subprocess.run(
+        [str(Path(sys.executable).with_name("akd-zenohd")), *arguments],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+    )
+    assert result.returncode == 1, result.stdout + result.stderr
+    (line,) = result.stderr.splitlines()
+    return line
+
+
 def test_akd_zenohd_on_a_port_in_use_says_so_in_one_line():
     from support.zenoh import zenoh_router
 
     with zenoh_router() as endpoint:
-        result = subprocess.run(
-            [str(Path(sys.executable).with_name("akd-zenohd")), "--listen", endpoint],
-            capture_output=True,
-            text=True,
-            timeout=60,
-            check=False,
-        )
-    assert result.returncode == 1, result.stdout + result.stderr
-    (line,) = result.stderr.splitlines()
+        line = akd_zenohd_error("--listen", endpoint)
     assert line.startswith(f"akd-zenohd: error: cannot listen on {endpoint}: "), line
+
+
+@pytest.mark.parametrize(
+    "config, words",
+    [
+        (None, "is not a file"),
+        ("{mode: 1", "is not a Zenoh configuration: --> 1:8"),
+        (
+            '{mode: "router", listen: {endpoints: ["tls/127.0.0.1:1"]}, transport: {link: {tls: '
+            '{listen_certificate: "/nonexistent.pem", listen_private_key: "/nonexistent.key"}}}}',
+            "cannot listen on",
+        ),
+    ],
+)
+def test_akd_zenohd_with_a_config_it_cannot_use_says_so_in_one_line(tmp_path, config, words):
+    path = tmp_path / "router.json5"
+    if config is not None:
+        path.write_text(config)
+    line = akd_zenohd_error("--config", str(path))
+    assert line.startswith("akd-zenohd: error: ") and words in line, line
 
 
 def test_a_yaml_syntax_error_in_a_parameters_file_is_the_nodes_one_line(tmp_path):

@@ -7,6 +7,9 @@ its zenoh.config parameter) and DIR/observer.json5, DIR/operator.json5, DIR/conf
 it; an rmw_zenoh node takes one as ZENOH_SESSION_CONFIG_URI). A client without a certificate of this authority
 cannot connect. The rules name the node's doors as it declares them (`--params`: the node's parameters file, for the
 doors of its joints and devices); the configuration files name the keys and certificates by their absolute paths.
+`--router tls/HOST:PORT` puts a router between machines in front of the node: DIR/router.json5 (run it with
+`akd-zenohd --config DIR/router.json5`) listens there with the same TLS and rules for the clients, whose
+configurations then connect to it.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ from akd_ros.cli.common import EXIT_FAILURE, run
 EXAMPLES = """examples:
   akd-access init access --endpoint tls/127.0.0.1:7448
   akd-access init /etc/akd/access --endpoint tls/192.168.1.10:7448 --params config/akd_6axis.yaml
+  akd-access init access --endpoint tls/127.0.0.1:7448 --router tls/192.168.1.10:7450
 """
 
 
@@ -35,6 +39,11 @@ def main(argv: list[str] | None = None) -> int:
     init = commands.add_parser("init", help="make the authority, the certificates and the Zenoh configurations")
     init.add_argument("directory", metavar="DIR", type=Path, help="where to write them (made if missing)")
     init.add_argument("--endpoint", required=True, help="where the node listens: tls/HOST:PORT")
+    init.add_argument(
+        "--router",
+        metavar="ENDPOINT",
+        help="where a router in front of the node listens for the clients: tls/HOST:PORT (writes router.json5)",
+    )
     init.add_argument("--params", metavar="FILE", help="akd_node's parameters file (default: one joint)")
     init.add_argument("--node-name", default="akd_node", help="the node's name (default akd_node)")
     init.add_argument("--days", type=int, default=None, help="how long the certificates are valid")
@@ -47,6 +56,7 @@ def main(argv: list[str] | None = None) -> int:
         from akd_ros.params import DOOR_ROLES, ParameterError, read_parameters_file, settings
 
         host = access.endpoint_host(args.endpoint)
+        router_host = None if args.router is None else access.endpoint_host(args.router, "--router")
         days = access.VALIDITY_DAYS if args.days is None else args.days
         if days < 1:
             raise ValueError(f"--days must be at least 1, got {days}")
@@ -66,13 +76,15 @@ def main(argv: list[str] | None = None) -> int:
             print(f"akd-access: error: {error}", file=sys.stderr)
             return EXIT_FAILURE
         directory.mkdir(parents=True, exist_ok=True)
-        access.write_authority(directory, host, days)
-        written = access.write_configs(directory, args.endpoint, doors, args.node_name)
+        access.write_authority(directory, host, days, router_host)
+        written = access.write_configs(directory, args.endpoint, doors, args.node_name, args.router)
         for path in written:
             print(f"akd-access: wrote {path}")
+        clients = [p.name for p in written if p.stem in access.CLIENTS.values()]
+        router = f"; run the router with 'akd-zenohd --config {directory / 'router.json5'}'" if args.router else ""
         print(
-            f"akd-access: give akd_node 'transport: zenoh' and 'zenoh.config: {written[0]}'; a client takes its "
-            f"role's file ({', '.join(p.name for p in written[1:])}) as its Zenoh configuration"
+            f"akd-access: give akd_node 'transport: zenoh' and 'zenoh.config: {written[0]}'{router}; a client takes "
+            f"its role's file ({', '.join(clients)}) as its Zenoh configuration"
         )
         return 0
 

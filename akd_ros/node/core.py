@@ -73,6 +73,7 @@ class Core:
         Homing(transport, self._node_state, transport.group("homing"))
         # So do FollowJointTrajectory goals: one runs until its trajectory ends, a newer one beside it to preempt it.
         FollowJointTrajectory(transport, self._node_state, transport.group("follow"))
+        doors.watch_clients()
         self._logger.info(doors.summary())
 
     @property

@@ -8,6 +8,11 @@ answers it, on any transport. `Doors` is the transport the node's parts declare 
 the open roles and records each request at an operating or configuring door, accepted or refused, on ~/access (an
 akd_ros/AccessRequest: the door, what was asked, the outcome and who asked, as far as the transport can tell), which
 the bag records as it records everything published; it logs the first of each burst from one sender.
+
+A client the middleware refuses before the node sees its requests is recorded too, as far as the middleware shows
+it: over Zenoh with the access control `akd_ros.access` writes, a publisher of a command topic or a client of a
+service made by a session whose certificate (the name of a role's client, CLIENTS) does not grant the door's role is
+recorded refused when the graph announces it. Zenoh still drops what it sends; the node never sees what it asks.
 """
 
 from __future__ import annotations
@@ -21,6 +26,9 @@ from akd_ros.node.transports.transport import ActionCallbacks, Qos, Transport
 from akd_ros.params import DOOR_ROLES
 
 OBSERVE, OPERATE, CONFIGURE = DOOR_ROLES
+CLIENTS = {OBSERVE: "observer", OPERATE: "operator", CONFIGURE: "configurer"}
+"""The certificate common name of each role's client: a client may use the doors of its role and of the roles before
+it."""
 CONFIGURING_SERVICES = ("sdo_write",)
 """The services that change a drive's configuration rather than move it."""
 PUBLISHER, SUBSCRIPTION, SERVICE, ACTION = "publisher", "subscription", "service", "action"
@@ -53,6 +61,8 @@ def role_of(kind: str, name: str) -> str:
 
 def describe(message: Any) -> str:
     """What a request asked, in one line: its fields and their values, cut to REQUEST_TEXT_MAX characters."""
+    if isinstance(message, str):
+        return message
     fields = getattr(message, "__slots__", None) or getattr(message, "__dataclass_fields__", None) or ()
     text = ", ".join(f"{f.lstrip('_')}={getattr(message, f)!r}" for f in fields if not f.startswith("__"))
     return text if len(text) <= REQUEST_TEXT_MAX else text[: REQUEST_TEXT_MAX - 1] + "…"
@@ -71,6 +81,8 @@ class Doors:
         self._stamp = transport.message_class("builtin_interfaces/msg/Time")
         self._bursts: dict[tuple[str, bytes | None, bool], float] = {}
         self._lock = threading.Lock()
+        self._operating: dict[tuple[str, str], str] = {}
+        """The role of each open operating or configuring door, by its name and the kind of client that uses it."""
 
     def __getattr__(self, name: str) -> Any:
         return getattr(self._transport, name)
@@ -97,6 +109,7 @@ class Doors:
         if role is None:
             return self._transport.resolve(topic)
         door = self._transport.resolve(topic)
+        self._operating[door, "publisher"] = role
 
         def audited(message) -> None:
             callback(message)
@@ -110,6 +123,7 @@ class Doors:
         if role is None:
             return
         door = self._transport.resolve(name)
+        self._operating[door, "client"] = role
 
         def audited(request, response):
             response = handler(request, response)
@@ -135,12 +149,46 @@ class Doors:
         audited = ActionCallbacks(goal=goal, execute=callbacks.execute, cancel=callbacks.cancel)
         return self._transport.action_server(type_name, name, audited, group)
 
-    def record(self, door: str, role: str, request: Any, accepted: bool, outcome: str, every: bool = True) -> None:
+    def watch_clients(self) -> None:
+        """Records, from now on, each client the transport's access control refuses at an open door (see the module
+        doc); called once every part has declared its doors."""
+        self._transport.watch_clients(self._client_made)
+
+    def _client_made(self, name: str, kind: str, sender: bytes, caller: str, certificates: list[str]) -> None:
+        role = self._operating.get((name, kind))
+        roles = [r for r in DOOR_ROLES if CLIENTS[r] in certificates]
+        # A certificate of no role's name is not this authority's scheme, and a client behind a router shows none:
+        # neither is judged here.
+        if role is None or not roles or max(map(DOOR_ROLES.index, roles)) >= DOOR_ROLES.index(role):
+            return
+        dropped = "drops its samples" if kind == "publisher" else "keeps its requests from the node"
+        self.record(
+            name,
+            role,
+            f"made a {kind} of {name}",
+            False,
+            f"certificate {', '.join(certificates)} may not {role}: Zenoh's access control {dropped}",
+            sender=sender,
+            caller=caller,
+        )
+
+    def record(
+        self,
+        door: str,
+        role: str,
+        request: Any,
+        accepted: bool,
+        outcome: str,
+        every: bool = True,
+        sender: bytes | None = None,
+        caller: str | None = None,
+    ) -> None:
         """Records one request at `door` on ~/access (`every`: each one, else the first of each sender's burst),
-        and logs the first of each burst. Called on the thread of the callback that handled it, after it."""
+        and logs the first of each burst. Called on the thread of the callback that handled it, after it, which
+        tells the sender and the caller; or given them (`sender`, `caller`)."""
         # A burst is told by the sender's cheap mark; who it is may take a graph query: only for what is recorded,
         # never for each of a stream of commands.
-        sender, now = self._transport.sender(), time.monotonic()
+        sender, now = sender or self._transport.sender(), time.monotonic()
         with self._lock:
             if len(self._bursts) >= BURSTS_KEPT:
                 # Only a burst still going matters; a careless client may make a new sender for each request.
@@ -149,7 +197,7 @@ class Doors:
         first = last is None or now - last > BURST_GAP_S
         if not (every or first):
             return
-        caller = self._transport.caller(door, sender) or "unknown"
+        caller = caller or self._transport.caller(door, sender) or "unknown"
         stamp = self._transport.now_ns()
         self._record.publish(
             self._message(

@@ -104,6 +104,9 @@ class Noting:
     def caller(self, door: str, sender: bytes | None) -> str:
         return ""
 
+    def watch_clients(self, callback: Callable[..., None]) -> None:
+        pass
+
     def group(self, name: str) -> None:
         return None
 

@@ -51,9 +51,9 @@ Log = Callable[[str], None]
 # The period rmw_zenoh gives a reliable transient-local publisher's sporadic heartbeat (500 ms).
 HEARTBEAT_PERIOD = 0.5
 SENDER_QUERY_S = 1.0
+"""How long `ZenohNode.sender_of` waits for the graph's liveliness tokens."""
 SENDERS_KEPT = 256
 """How many senders `ZenohNode.sender_of` keeps named before it asks the graph afresh."""
-"""How long `ZenohNode.sender_of` waits for the graph's liveliness tokens."""
 # How many queries a keep-all service holds while its handler is busy (the client then waits, as Zenoh blocks).
 KEEP_ALL_QUERIES = 1024
 
@@ -325,6 +325,7 @@ class ZenohNode:
         self._token = session.liveliness().declare_token(self.entity.liveliness_key())
         self._entities: list[Publisher | Subscription | Service | Client] = []
         self._senders: dict[bytes, str] = {}
+        self._watchers: list[zenoh.Subscriber] = []
 
     def _entity(self, kind: EntityKind, name: str, ros_type: str, qos: QoS) -> Entity:
         topic = TopicInfo(
@@ -396,23 +397,51 @@ class ZenohNode:
         session of the entity whose liveliness token hashes to it, and the certificate name of the link to that
         session where it is a TLS link of this session's own (a client of a router is behind the router's link)."""
         if gid not in self._senders:
+            replies = self.session.liveliness().get(f"{ADMIN_SPACE}/{self.info.domain}/**", timeout=SENDER_QUERY_S)
+            keys = [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
+            entity = next((Entity.parse(key) for key in keys if gid_of(key) == gid), None)
+            if entity is None:
+                # Not remembered: a client's token may reach this session after its first request (through a
+                # router they take different ways).
+                return f"gid {gid.hex()} (no entity of the graph has it)"
             if len(self._senders) >= SENDERS_KEPT:
                 # Clients come and go (and a careless one may send any GID): forget them all rather than grow.
                 self._senders.clear()
-            self._senders[gid] = self._sender_of(gid)
+            self._senders[gid] = self.who(entity)
         return self._senders[gid]
 
-    def _sender_of(self, gid: bytes) -> str:
-        replies = self.session.liveliness().get(f"{ADMIN_SPACE}/{self.info.domain}/**", timeout=SENDER_QUERY_S)
-        keys = [str(reply.ok.key_expr) for reply in replies if reply.ok is not None]
-        entity = next((Entity.parse(key) for key in keys if gid_of(key) == gid), None)
-        if entity is None:
-            return f"gid {gid.hex()} (no entity of the graph has it)"
+    def certificates(self, zid: str) -> list[str]:
+        """The names the certificates of this session's TLS links to the session `zid` give (none for a session
+        that is not linked to this one directly, e.g. one behind a router, or linked without TLS)."""
+        names = {link.auth_identifier for link in self.session.info.links() if str(link.zid) == zid}
+        return sorted(name for name in names if name)
+
+    def who(self, entity: Entity) -> str:
+        """The node and session of `entity`, and the certificate name of this session's link to that session."""
         node = f"{entity.node.namespace.rstrip('/')}/{entity.node.name}"
-        names = {str(link.auth_identifier) for link in self.session.info.links() if str(link.zid) == entity.zid}
-        names.discard("None")
-        certificate = f", certificate {', '.join(sorted(names))}" if names else ""
+        names = self.certificates(entity.zid)
+        certificate = f", certificate {', '.join(names)}" if names else ""
         return f"node {node} of session {entity.zid}{certificate}"
+
+    def watch(self, callback: Callable[[Entity, bytes], None]) -> None:
+        """Calls `callback(entity, gid)` on Zenoh's thread for each entity of the graph's other sessions, those there
+        now and each declared later (its liveliness token and the GID it hashes to); tokens that are not rmw_zenoh's
+        are passed over."""
+
+        def on_token(sample: zenoh.Sample) -> None:
+            if sample.kind != zenoh.SampleKind.PUT:
+                return
+            key = str(sample.key_expr)
+            try:
+                entity = Entity.parse(key)
+            except ValueError:
+                return
+            if entity.zid != self.zid:
+                callback(entity, gid_of(key))
+
+        self._watchers.append(
+            self.session.liveliness().declare_subscriber(f"{ADMIN_SPACE}/{self.info.domain}/**", on_token, history=True)
+        )
 
     def dropped(self) -> int:
         """Samples and requests its subscriptions and services dropped so far (no or a malformed attachment, a
@@ -421,6 +450,9 @@ class ZenohNode:
 
     def close(self) -> None:
         """Withdraws every entity and the node's token (the session stays open: its owner closes it)."""
+        for watcher in self._watchers:
+            watcher.undeclare()
+        self._watchers.clear()
         for entity in reversed(self._entities):
             entity.close()
         self._entities.clear()

@@ -39,13 +39,15 @@ def _listening(port: int) -> bool:
 
 
 @contextmanager
-def zenoh_router(port: int | None = None) -> Iterator[str]:
-    """A running router; yields its endpoint (tcp/127.0.0.1:<port>)."""
+def zenoh_router(port: int | None = None, config: Path | None = None) -> Iterator[str]:
+    """A running router; yields its endpoint (tcp/127.0.0.1:<port>). With `config` (a configuration file listening
+    with TLS on `port` of 127.0.0.1), the router runs with it: tls/127.0.0.1:<port>."""
     port = port or free_tcp_port()
-    endpoint = f"tcp/127.0.0.1:{port}"
+    endpoint = f"{'tcp' if config is None else 'tls'}/127.0.0.1:{port}"
+    arguments = ["--listen", endpoint] if config is None else ["--config", str(config)]
     # The router's log goes to a file, which a chatty router cannot fill up as it could a pipe.
     with tempfile.TemporaryFile(mode="w+") as log:
-        process = subprocess.Popen([str(AKD_ZENOHD), "--listen", endpoint], stdout=log, stderr=log, text=True)
+        process = subprocess.Popen([str(AKD_ZENOHD), *arguments], stdout=log, stderr=log, text=True)
         try:
             deadline = time.monotonic() + WAIT_S
             while not _listening(port):

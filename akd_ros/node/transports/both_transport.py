@@ -77,6 +77,9 @@ class BothTransport:
     def caller(self, door: str, sender: bytes | None) -> str | None:
         return self.zenoh.caller(door, sender) if sender is not None else self.ros.caller(door, None)
 
+    def watch_clients(self, callback: Callable[[str, str, bytes, str, list[str]], None]) -> None:
+        self.zenoh.watch_clients(callback)
+
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         self.ros.timer(period, callback, group)
 

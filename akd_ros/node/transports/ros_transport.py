@@ -216,6 +216,9 @@ class RosTransport:
         )
         return action
 
+    def watch_clients(self, callback: Callable[[str, str, bytes, str, list[str]], None]) -> None:
+        """rclpy tells nothing of the graph's clients as they are made (and DDS here has no authentication)."""
+
     def timer(self, period: float, callback: Callable[[], None], group: RosGroup) -> None:
         group.worker.add_timer(period, callback)
 
@@ -234,16 +237,28 @@ class RosTransport:
         return None
 
     def caller(self, door: str, sender: bytes | None) -> str:
-        """rclpy hands a callback no sender (neither a sample's publisher nor a request's client): for a topic, the
-        graph's other publishers of it; for a service, nothing."""
-        publishers = [
-            f"{info.node_namespace.rstrip('/')}/{info.node_name}"
-            for info in self._node.get_publishers_info_by_topic(door)
-            if (info.node_name, info.node_namespace) != (self._node.get_name(), self._node.get_namespace())
-        ]
-        if not publishers:
-            return "dds: unknown (rclpy gives a request no sender)"
-        return f"dds: a publisher of the topic: {', '.join(sorted(set(publishers)))}"
+        """rclpy hands a callback no sender: its executor takes a request's header (the client's writer GUID) and
+        passes it to send_response only, and a sample's to no one. So who it may be, from the graph, each writer
+        with its GID: for a topic, the other publishers of it; for a service, its clients, the writers of the DDS
+        topic a service's requests go on (rq/<name>Request, as ROS 2 maps a service onto DDS)."""
+        own = (self._node.get_name(), self._node.get_namespace())
+        for what, infos in (
+            ("a publisher of the topic", lambda: self._node.get_publishers_info_by_topic(door)),
+            (
+                "a client of the service",
+                lambda: self._node.get_publishers_info_by_topic(f"rq{door}Request", no_mangle=True),
+            ),
+        ):
+            writers = sorted(
+                {
+                    f"{info.node_namespace.rstrip('/')}/{info.node_name} (gid {bytes(info.endpoint_gid).hex()})"
+                    for info in infos()
+                    if (info.node_name, info.node_namespace) != own
+                }
+            )
+            if writers:
+                return f"dds: {what}: {', '.join(writers)}"
+        return "dds: unknown (rclpy gives a callback no sender, and the graph has no other writer of it)"
 
     def counters(self) -> dict[str, int]:
         return {}

@@ -92,6 +92,13 @@ class Transport(Protocol):
         """Who `sender` (`sender()` of a callback of `door`) is, as far as the middleware tells; it may ask the
         graph, so it is called only for what is recorded."""
 
+    def watch_clients(self, callback: Callable[[str, str, bytes, str, list[str]], None]) -> None:
+        """Calls `callback(name, kind, sender, caller, certificates)`, on a thread of the middleware's, for each
+        client the middleware sees made before it sends anything: a publisher of topic `name` or a client of service
+        `name` (`kind` "publisher" or "client"), `sender` telling it apart as `sender()` does, `caller` who it is,
+        `certificates` the names the certificates of its authenticated links to the node give. Over Zenoh from the
+        graph's liveliness tokens; rclpy tells nothing of it and never calls."""
+
     def timer(self, period: float, callback: Callable[[], None], group: Any) -> None:
         """Calls `callback` every `period` seconds."""
 

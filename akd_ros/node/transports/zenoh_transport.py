@@ -17,7 +17,7 @@ from typing import Any, Protocol
 
 from akd_ros.node.transports.transport import ActionCallbacks, Qos
 from akd_ros.node.transports.worker import Worker
-from akd_ros.zenoh.wire import Durability, QoS, Reliability
+from akd_ros.zenoh.wire import Durability, Entity, EntityKind, QoS, Reliability
 
 
 def zenoh_qos(qos: Qos) -> QoS:
@@ -152,6 +152,19 @@ class ZenohTransport:
     def caller(self, door: str, sender: bytes | None) -> str | None:
         """Who `sender` is, as far as Zenoh tells (`ZenohNode.sender_of`)."""
         return None if sender is None else f"zenoh: {self._zenoh_node.sender_of(sender)}"
+
+    def watch_clients(self, callback: Callable[[str, str, bytes, str, list[str]], None]) -> None:
+        """As `Transport.watch_clients`: each publisher and service client of the graph's other sessions
+        (`ZenohNode.watch`), its sender the GID its samples and requests carry."""
+        kinds = {EntityKind.PUBLISHER: "publisher", EntityKind.CLIENT: "client"}
+
+        def on_entity(entity: Entity, gid: bytes) -> None:
+            if entity.kind in kinds and entity.topic is not None:
+                certificates = self._zenoh_node.certificates(entity.zid)
+                who = f"zenoh: {self._zenoh_node.who(entity)}"
+                callback(entity.topic.name, kinds[entity.kind], gid, who, certificates)
+
+        self._zenoh_node.watch(on_entity)
 
     def action_server(self, type_name: str, name: str, callbacks: ActionCallbacks, group: Worker) -> None:
         # rmw_zenoh carries an action as three services and two topics of types rosidl derives from the .action;
