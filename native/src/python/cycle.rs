@@ -12,6 +12,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
@@ -26,7 +27,7 @@ use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
 use crate::drive::akd_fault;
-use crate::drive::ds402::State;
+use crate::drive::ds402::{CommandKind, State};
 use crate::error::{Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
@@ -752,6 +753,56 @@ impl PyCycle {
             halted: s.halted,
             timeouts: s.timeouts,
         })
+    }
+
+    /// Commands joints in SI units in one call, each of `commands` a (drive position, kind
+    /// "position", "velocity" or "torque", value, the joint's `Units`): for each the crate picks
+    /// the target object of the drive's mode that its mapping carries, converts and encodes
+    /// the value, and writes it into the next cycle's outputs (by SDO where a profile-position
+    /// target is unmapped); all are checked before any is sent. A mode started by a handshake
+    /// starts it in the cycle thread without waiting: each command's handshake number, None
+    /// for a mode without one (`setpoint_status` and `wait_setpoint` follow it). ConfigError
+    /// says why a command was refused, nothing of it sent; its `command` is the refused one's
+    /// index in `commands`.
+    fn command(
+        &self,
+        py: Python<'_>,
+        commands: Vec<(u16, String, f64, super::units::PyUnits)>,
+    ) -> PyResult<Vec<Option<u32>>> {
+        let commands = commands
+            .into_iter()
+            .map(|(position, kind, value, units)| {
+                let kinds = [CommandKind::Position, CommandKind::Velocity, CommandKind::Torque];
+                let kind = kinds.into_iter().find(|k| k.name() == kind).ok_or_else(|| {
+                    PyValueError::new_err(format!("kind must be 'position', 'velocity' or 'torque', got {kind:?}"))
+                })?;
+                Ok((position, kind, value, units.scaling))
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let cycle = &self.cycle;
+        py.allow_threads(|| cycle.command(&commands)).map_err(|(index, e)| {
+            let err = super::to_py_err(e);
+            // Setting an attribute on a fresh exception instance cannot fail.
+            let _ = err.value(py).setattr("command", index);
+            err
+        })
+    }
+
+    /// Sets the digital outputs of the drive at `position` at `levels` (AKD output number 1..2:
+    /// level) and its analog output set-point at `analog_output` (V, at `volts_per_count`) from
+    /// the next cycle on, the others as they are; all checked first, a refusal (ConfigError
+    /// naming `joint` and the mappings that carry what its mapping lacks, an output the AKD
+    /// does not have, a voltage out of range) changing nothing.
+    #[pyo3(signature = (position, joint, levels, analog_output, volts_per_count))]
+    fn set_drive_outputs(
+        &self,
+        position: u16,
+        joint: &str,
+        levels: Vec<(i64, bool)>,
+        analog_output: Option<f64>,
+        volts_per_count: f64,
+    ) -> PyResult<()> {
+        self.cycle.set_drive_outputs(position, joint, &levels, analog_output, volts_per_count).py()
     }
 
     /// Sets one mapped output object of slave `position` from the next cycle on (its exact
