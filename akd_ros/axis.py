@@ -329,7 +329,7 @@ class Axis:
             self.name,
             (None if low in open_ends else low, None if high in open_ends else high),
             *speeds,
-            scale=(self.units.si_per_count, self.units.offset, self.units.position_unit),
+            units=self.units,
         )
 
     # --- life cycle ---------------------------------------------------------------------------------------------
@@ -632,7 +632,7 @@ class Axis:
         try:
             numbered = [(int(n), bool(high)) for n, high in (levels or {}).items()]
             cycle.set_drive_outputs(self.slave, self.name, numbered, analog_output, self.analog_scale)
-        except (_native.ConfigError, TypeError, ValueError, OverflowError) as e:
+        except (_native.ConfigError, TypeError, ValueError) as e:
             message = str(e)
             raise CommandError(message if "refused" in message else f"outputs refused: {message}") from None
 

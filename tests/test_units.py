@@ -232,7 +232,7 @@ def test_position_outside_int32_is_refused_with_the_range() -> None:
     assert units.position_to_counts(largest) == INT32_MAX
     message = (
         f"position 13000.0 rad maps to drive value {round(13000.0 / TAU * REV)}, outside [-2147483648, 2147483647]; "
-        f"the allowed position range is [{-TAU * 2**11:.9g}, {largest:.9g}] rad"
+        f"the allowed position range is [{-TAU * 2**11:.6g}, {largest:.6g}] rad"
     )
     with pytest.raises(ValueError, match=re.escape(message)):
         units.position_to_counts(13000.0)

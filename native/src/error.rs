@@ -626,8 +626,8 @@ pub enum CommandRefused {
     },
     /// A digital output the AKD does not have.
     NoSuchOutput {
-        /// Its number.
-        number: i64,
+        /// Its number, as given (an integer of any size).
+        number: String,
     },
     /// An analog output voltage that is not finite or beyond the output's range.
     Voltage {
@@ -673,7 +673,7 @@ impl fmt::Display for CommandRefused {
                 f,
                 "analog output refused: {} V; allowed a finite voltage within ±{} V",
                 crate::drive::scaling::py_repr(*volts),
-                crate::drive::scaling::significant(*highest, 4)
+                crate::drive::trajectory::trimmed(*highest)
             ),
             CommandRefused::NotSent { what, why } => write!(f, "{what} refused, nothing sent: {why}"),
         }

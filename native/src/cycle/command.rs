@@ -149,8 +149,8 @@ impl CycleThread {
             let outputs = self.outputs(position)?;
             let bytes = &outputs[offset..offset + entry.byte_len()];
             let word = bytes.iter().rev().fold(0u32, |w, b| w << 8 | u32::from(*b));
-            let word =
-                io::with_output_levels(word, levels).map_err(|number| CommandRefused::NoSuchOutput { number })?;
+            let word = io::with_output_levels(word, levels)
+                .map_err(|n| CommandRefused::NoSuchOutput { number: n.to_string() })?;
             writes.push((DIGITAL_OUTPUTS, encoded(DIGITAL_OUTPUTS, word.into(), "outputs")?));
         }
         if let Some(volts) = analog_volts {

@@ -25,7 +25,7 @@
 //! the 32-bit wrap.
 
 use crate::drive::ds402::CommandKind;
-use crate::drive::trajectory::{Scale, Unit};
+use crate::drive::trajectory::{trimmed, Scale, Unit};
 
 /// Position encoder resolution: encoder increments (:01) per motor revolutions (:02).
 pub const POSITION_ENCODER_RESOLUTION: u16 = 0x608F;
@@ -254,64 +254,20 @@ impl std::fmt::Display for ScalingError {
                 "{name} {} {unit} maps to drive value {value}, outside [{low}, {high}]; the allowed {name} range is \
                  [{}, {}] {unit}",
                 py_repr(*si),
-                significant(*a, 9),
-                significant(*b, 9)
+                trimmed(*a),
+                trimmed(*b)
             ),
         }
     }
 }
 
-/// `x` as Python's `repr` writes a float: the shortest digits that read back, an exponent
-/// below 1e-4 and from 1e16 on, "nan" and "inf".
+/// `x` as Python writes a float ("nan", "inf", "0.5"), which the refusals quote.
 pub fn py_repr(x: f64) -> String {
     if x.is_nan() {
-        return "nan".into();
-    }
-    if x.is_infinite() {
-        return if x > 0.0 { "inf" } else { "-inf" }.into();
-    }
-    let exponent = if x == 0.0 { 0 } else { x.abs().log10().floor() as i32 };
-    if (-4..16).contains(&exponent) {
-        let text = format!("{x}");
-        if text.contains('.') {
-            text
-        } else {
-            text + ".0"
-        }
+        "nan".into()
     } else {
-        python_exponent(&format!("{x:e}"))
+        format!("{x:?}")
     }
-}
-
-/// `x` to `digits` significant digits as Python's `%g` writes it.
-pub fn significant(x: f64, digits: usize) -> String {
-    if !x.is_finite() {
-        return py_repr(x);
-    }
-    let scientific = format!("{x:.*e}", digits - 1);
-    let exponent: i32 = scientific.rsplit('e').next().and_then(|e| e.parse().ok()).unwrap_or(0);
-    if exponent < -4 || exponent >= digits as i32 {
-        let (mantissa, e) = scientific.split_once('e').unwrap_or((&scientific, "0"));
-        python_exponent(&format!("{}e{e}", trim_zeros(mantissa)))
-    } else {
-        trim_zeros(&format!("{x:.*}", (digits as i32 - 1 - exponent) as usize)).to_owned()
-    }
-}
-
-fn trim_zeros(text: &str) -> &str {
-    if text.contains('.') {
-        text.trim_end_matches('0').trim_end_matches('.')
-    } else {
-        text
-    }
-}
-
-/// Rust's "1.5e-7" as Python writes it: "1.5e-07".
-fn python_exponent(text: &str) -> String {
-    let (mantissa, exponent) = text.split_once('e').unwrap_or((text, "0"));
-    let exponent: i32 = exponent.parse().unwrap_or(0);
-    let sign = if exponent < 0 { '-' } else { '+' };
-    format!("{mantissa}e{sign}{:02}", exponent.abs())
 }
 
 fn finite(name: &'static str, value: f64, positive: bool) -> Result<f64, ScalingError> {
@@ -528,7 +484,7 @@ impl PositionScaling {
                 pair(self.gear_ratio)
             ));
         }
-        let scales: Vec<String> = counts.iter().map(|c| significant(*c, 10)).collect();
+        let scales: Vec<String> = counts.iter().map(|c| trimmed(*c)).collect();
         Some(format!(
             "counts_per_revolution is {counts_per_revolution}, but the drive counts {} per motor revolution in {} \
              ({}): its positions would be read and commanded {} times off; set counts_per_revolution to the drive's \
@@ -536,7 +492,7 @@ impl PositionScaling {
             scales.join(" and "),
             objects.join(", "),
             told.join("; "),
-            significant(counts[0] / counts_per_revolution as f64, 6)
+            trimmed(counts[0] / counts_per_revolution as f64)
         ))
     }
 }
@@ -587,15 +543,10 @@ mod tests {
     #[test]
     fn numbers_read_as_python_writes_them() {
         let cases =
-            [(0.0, "0.0"), (-2.0, "-2.0"), (13000.0, "13000.0"), (0.01, "0.01"), (1e-5, "1e-05"), (1e16, "1e+16")];
+            [(0.0, "0.0"), (-2.0, "-2.0"), (13000.0, "13000.0"), (f64::NAN, "nan"), (f64::NEG_INFINITY, "-inf")];
         for (x, text) in cases {
             assert_eq!(py_repr(x), text);
         }
-        assert_eq!((py_repr(f64::NAN), py_repr(f64::NEG_INFINITY)), ("nan".into(), "-inf".into()));
-        assert_eq!(significant(-12867.9635, 9), "-12867.9635");
-        assert_eq!(significant(3.0e-7, 9), "3e-07");
-        assert_eq!(significant(1234567890.0, 9), "1.23456789e+09");
-        assert_eq!(significant(32.767, 9), "32.767");
     }
 
     #[test]

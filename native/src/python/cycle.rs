@@ -28,7 +28,8 @@ use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
 use crate::drive::akd_fault;
 use crate::drive::ds402::{CommandKind, State};
-use crate::error::{Error, SettingError, UnknownName};
+use crate::drive::trajectory::Scale;
+use crate::error::{CommandRefused, Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
 // Frozen: stop() may come while another thread waits inside a method (an SDO, a state).
@@ -798,10 +799,19 @@ impl PyCycle {
         &self,
         position: u16,
         joint: &str,
-        levels: Vec<(i64, bool)>,
+        levels: Vec<(Bound<'_, pyo3::types::PyInt>, bool)>,
         analog_output: Option<f64>,
         volts_per_count: f64,
     ) -> PyResult<()> {
+        let levels = levels
+            .iter()
+            .map(|(number, high)| match number.extract::<i64>() {
+                Ok(n) => Ok((n, *high)),
+                // Past 64 bits: no output the AKD has.
+                Err(_) => Err(Error::from(CommandRefused::NoSuchOutput { number: number.to_string() })),
+            })
+            .collect::<crate::error::Result<Vec<_>>>()
+            .py()?;
         self.cycle.set_drive_outputs(position, joint, &levels, analog_output, volts_per_count).py()
     }
 
@@ -991,11 +1001,11 @@ impl PyCycle {
 
     /// Hands down the limits of joint `name` on drive `position`, by which every motion of it
     /// is judged from then on: `position` (min, max) in counts, `max_velocity` counts/s and
-    /// `max_acceleration` counts/s² (None: open), and `scale` (units per count, the position at
-    /// 0 counts, "rad", "m" or "counts") to word refusals in. Trajectories are refused where a
-    /// point or the path between them goes past them; in a cyclic position mode, so is a
-    /// set-point whose step from the target last sent, taken within one cycle, does.
-    #[pyo3(signature = (position, name, limits, max_velocity = None, max_acceleration = None, scale = (1.0, 0.0, "counts".to_string())))]
+    /// `max_acceleration` counts/s² (None: open), and its `units` to word refusals in (None:
+    /// counts). Trajectories are refused where a point or the path between them goes past them;
+    /// in a cyclic position mode, so is a set-point whose step from the target last sent, taken
+    /// within one cycle, does.
+    #[pyo3(signature = (position, name, limits, max_velocity = None, max_acceleration = None, units = None))]
     fn set_joint_limits(
         &self,
         position: u16,
@@ -1003,11 +1013,10 @@ impl PyCycle {
         limits: (Option<f64>, Option<f64>),
         max_velocity: Option<f64>,
         max_acceleration: Option<f64>,
-        scale: (f64, f64, String),
+        units: Option<super::units::PyUnits>,
     ) -> PyResult<()> {
-        let (per_count, offset, unit) = scale;
-        let joint =
-            super::trajectory::joint_limits(name, limits, max_velocity, max_acceleration, (per_count, offset, &unit))?;
+        let scale = units.map_or(Scale::COUNTS, |u| u.scaling.scale());
+        let joint = super::trajectory::joint_limits(name, limits, max_velocity, max_acceleration, scale);
         self.cycle.set_joint_limits(position, joint).py()
     }
 
