@@ -59,6 +59,7 @@ fn conversion<T>(result: Result<T, ScalingError>) -> PyResult<T> {
 #[pymethods]
 impl PyUnits {
     #[new]
+    #[allow(clippy::too_many_arguments)] // the mechanics' seven keywords, as Python names them
     #[pyo3(signature = (counts_per_revolution = None, gear_ratio = None, direction = None, offset = None, axis = None, lead = None, peak_torque = None))]
     fn new(
         py: Python<'_>,
@@ -87,7 +88,7 @@ impl PyUnits {
         };
         let sense = match real(&direction) {
             d if d == 1.0 && !direction.is_instance_of::<PyBool>() => 1,
-            d if d == -1.0 => -1,
+            -1.0 => -1,
             _ => 0,
         };
         let linear = match axis.extract::<String>().as_deref() {
