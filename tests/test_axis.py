@@ -373,6 +373,16 @@ def test_a_profile_position_command_through_the_bus_does_not_wait_for_the_drive(
         [taken] = a.bus.command([(a, "position", start + 0.5)])
         assert taken != held and a.cycle.wait_setpoint(a.slave, timeout=10.0)["request"] == taken
         wait_for("the target", lambda: abs(settled(a).position - start - 0.5) < 10 * COUNT)
+        # A set-point the drive does not take ends stuck, which its status tells (the node's supervisor warns of it).
+        a.cycle.request_timeout = 0.2
+        a.halt()
+        [ignored] = a.bus.command([(a, "position", start)])
+        stuck = wait_for(
+            "the handshake to give up",
+            lambda: (s := a.cycle.setpoint_status(a.slave))["progress"] != "in_progress" and s,
+        )
+        assert (stuck["request"], stuck["progress"]) == (ignored, "stuck") and "bit 12" in stuck["reason"]
+        a.halt(False)
         # A command the crate refuses names its axis, and nothing is sent.
         with pytest.raises(CommandError, match="velocity commands need mode profile_velocity") as refused:
             a.bus.command([(a, "velocity", 1.0)])
