@@ -28,14 +28,13 @@ from __future__ import annotations
 
 import collections
 import contextlib
-import math
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass, fields
 
 from akd_ros import _native
 from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
-from akd_ros.units import Limits, Units, scale_mismatch, unwrap_position
+from akd_ros.units import Limits, Units
 
 MODE_NAMES = {code: name for name, code in MODES.items()}
 
@@ -44,22 +43,12 @@ DEFAULT_RX, DEFAULT_TX = _native.DEFAULT_MAPPING
 ANALOG_VOLTS_PER_COUNT = _native.ANALOG_VOLTS_PER_COUNT
 """Volts per count of the analog input 0x3470:04 and output 0x3470:03 unless a drive is given its own: ±10 V over the
 16-bit range, assumed (the manuals give no scaling)."""
-DIGITAL_OUTPUTS, ANALOG_OUTPUT = (0x60FE, 1), (0x3470, 3)
-"""The objects of the drive's digital outputs and analog output set-point."""
 
 INPUT_EVENTS_KEPT = 4096
 """Changes of the digital inputs an Axis keeps until `input_events` takes them; older ones are dropped."""
 # Velocity below which an enabled axis counts as standing still for a mode change, in counts/s (about 0.4 °/s at
 # 2^20 counts per revolution).
 STANDSTILL_COUNTS_PER_S = 1000
-
-
-def io_mappings(mode: str, needs: str) -> str:
-    """The mappings, as the node's `mapping` parameter names them, that carry the command of `mode` and `needs`
-    ("digital_inputs", "analog_input", "digital_outputs", "analog_output"), those with all of the I/O first: for a
-    refusal's message."""
-    found = [name for name, _ in _native.io_mappings(mode, [needs])]
-    return ", ".join(found) if found else "a flexible mapping (mapping.rx, mapping.tx) with it"
 
 
 @dataclass(frozen=True)
@@ -96,20 +85,6 @@ class _ThisAxis(DriveConfig):
     def attach(self, bus: Bus, slave: int) -> Axis:
         self.axis._attach(bus, slave, self)
         return self.axis
-
-
-@dataclass(frozen=True)
-class CheckedCommand:
-    """A command `Axis.check_command` accepted, ready for `Axis.send_command`: the mode it was checked in, its kind,
-    its value (SI, after the limits), the object it goes to and that object's bytes, and whether the object is mapped
-    (else it goes by SDO)."""
-
-    mode: str
-    kind: str
-    value: float
-    target: tuple[int, int]
-    data: bytes
-    mapped: bool
 
 
 @dataclass(frozen=True)
@@ -321,7 +296,6 @@ class Axis:
         """For the built-in virtual AKD: its `Simulator` (fault injection, hardware enable, input toggles)."""
         mapping = bus.cycle.mapping(slave)
         self._outputs = {(index, subindex) for index, subindex, _, _ in mapping["outputs"]}
-        self._output_offsets = {(index, sub): (offset, bits // 8) for index, sub, bits, offset in mapping["outputs"]}
         self.analog_scale = drive.analog_scale or ANALOG_VOLTS_PER_COUNT
         """Volts per count of the analog input and output."""
         # Bounded: an input that chatters while nobody takes its changes must not fill the memory; the oldest go.
@@ -330,14 +304,14 @@ class Axis:
         self.drive_scaling: dict | None = bus.scalings.get(slave)
         """The drive's position scaling, read at the start (`_native.Master.position_scaling`); None for a drive
         without the DS402 scaling objects."""
-        mismatch = scale_mismatch(self.units.counts_per_revolution, self.drive_scaling, mapped)
+        mismatch = self.units.scale_mismatch(self.drive_scaling, sorted(mapped))
         if mismatch is not None:
             raise CommandError(f"{self.name} (drive {slave}): {mismatch}")
         self._mode = drive.mode
         self._latches: collections.deque[LatchEvent] = collections.deque()
         self._faults: collections.deque[FaultEvent] = collections.deque()
         self._command_timeouts: collections.deque[CommandTimeoutEvent] = collections.deque()
-        self._unwrapped: int | None = None
+        self._unwrap = _native.PositionUnwrap()
         self._commanded: dict[str, float] = {}
         self._hand_down_limits()
 
@@ -355,7 +329,7 @@ class Axis:
             self.name,
             (None if low in open_ends else low, None if high in open_ends else high),
             *speeds,
-            scale=(self.units.si_per_count, self.units.offset, self.units.position_unit),
+            units=self.units,
         )
 
     # --- life cycle ---------------------------------------------------------------------------------------------
@@ -509,66 +483,18 @@ class Axis:
 
     # --- commands -------------------------------------------------------------------------------------------------
 
-    def check_command(self, kind: str, value: float) -> CheckedCommand:
-        """`value` as a `kind` ("position", "velocity", "torque") command of this axis, checked against its mode and
-        limits and converted for the drive; nothing is sent (`send_command` sends it). CommandError says why not."""
-        self._running()
-        mode = _MODES[self._mode]
-        if mode.command != kind:
-            modes = [name for name, m in _MODES.items() if m.command == kind]
-            raise CommandError(
-                f"{kind} command refused: the axis is in mode {self._mode}; {kind} commands need mode "
-                f"{' or '.join(modes)}"
-            )
-        try:
-            checked = self.limits.check(kind, value)
-            to_drive = {
-                "position": self.units.position_to_counts,
-                "velocity": self.units.velocity_to_counts,
-                "torque": self.units.torque_to_drive,
-            }[kind]
-            drive_value = to_drive(checked)
-        except ValueError as e:
-            raise CommandError(f"{kind} command refused: {e}") from None
-        mapped = [t for t in mode.command_objects if t in self._outputs]
-        target = (mapped or mode.command_objects)[0]
-        data = _native.encode_value(*target, drive_value)
-        return CheckedCommand(self._mode, kind, checked, target, data, bool(mapped))
-
-    def send_command(self, command: CheckedCommand) -> None:
-        """Sends a command `check_command` gave, in the cycle's next frame (or by SDO where its object is not mapped);
-        CommandError if the mode changed since it was checked."""
-        cycle = self._running()
-        if command.mode != self._mode:
-            raise CommandError(
-                f"{command.kind} command refused: it was checked in mode {command.mode}, the axis is in {self._mode}"
-            )
-        if command.mapped:
-            try:
-                cycle.set_object(self.slave, *command.target, command.data)
-            except _native.ConfigError as e:
-                # The cycle judges the set-point too: its step, and whether a trajectory or a homing drives the axis.
-                why = str(e).removeprefix("configuration: ")
-                raise CommandError(f"{command.kind} command refused, nothing sent: {why}") from None
-        else:
-            cycle.sdo_write(self.slave, *command.target, command.data)
-        handshake = _MODES[self._mode].handshake_controlword
-        if handshake is not None:
-            self._start(handshake, "the new position set-point")
-        self._commanded[command.kind] = command.value
-
     def _command(self, kind: str, value: float) -> None:
-        self.send_command(self.check_command(kind, value))
+        """Sends the command through the bus (`Bus.command`) and, in profile position, waits for its set-point
+        handshake: TimeoutError says why it is stuck (not in Operation enabled, statusword bit 12 not cleared or not
+        set within the request time-out)."""
+        self._running()
+        [handshake] = self._bus.command([(self, kind, value)])
+        if handshake is not None:
+            self._wait_setpoint("the new position set-point")
 
-    def _start(self, bits: int, what: str, timeout: float = 1.0) -> None:
-        """Runs the set-point handshake in the cycle thread and waits for it: controlword `bits` (bit 4 starts a
-        profile move or homing) raised from statusword bit 12 clear until the drive acknowledges in bit 12, then
-        lowered, so the next command makes a new rising edge. TimeoutError says why it is stuck (not in Operation
-        enabled, bit 12 not cleared within the request time-out or not set within `timeout`, homing error)."""
-        cycle = self._running()
-        cycle.start_setpoint(self.slave, bits, timeout=timeout)
+    def _wait_setpoint(self, what: str) -> None:
         try:
-            cycle.wait_setpoint(self.slave)
+            self._running().wait_setpoint(self.slave)
         except _native.TimeoutError as e:
             raise TimeoutError(f"{what}: {e}") from None
 
@@ -577,7 +503,8 @@ class Axis:
         homing is attained."""
         if self._mode != "homing":
             raise CommandError(f"home() needs mode homing; the axis is in mode {self._mode} (set_mode('homing'))")
-        self._start(_MODES["homing"].handshake_controlword, "homing", timeout)
+        self._running().start_setpoint(self.slave, _MODES["homing"].handshake_controlword, timeout=timeout)
+        self._wait_setpoint("homing")
 
     def command_position(self, position: float) -> None:
         """Commands a position (rad or m) in a position mode."""
@@ -643,10 +570,6 @@ class Axis:
 
     # --- state and events -----------------------------------------------------------------------------------------
 
-    def _position_counts(self, raw: int) -> int:
-        self._unwrapped = raw if self._unwrapped is None else unwrap_position(self._unwrapped, raw)
-        return self._unwrapped
-
     def state(self, inputs=None) -> AxisState:
         """The last cycle's state of the axis; from `inputs` (this drive's `_native.DriveInputs`) where given, as
         `Bus.states` reads every drive's from one cycle."""
@@ -654,7 +577,7 @@ class Axis:
         if inputs is None:
             inputs = cycle.drive_inputs(self.slave)
         status = cycle.drive_status(self.slave)
-        counts = self._position_counts(inputs.position_actual or 0)
+        counts = self._unwrap.next(inputs.position_actual or 0)
         velocity, torque, following = inputs.velocity_actual, inputs.torque_actual, inputs.following_error
         mode = inputs.mode_display
         return AxisState(
@@ -699,50 +622,19 @@ class Axis:
             analog_output=volts(io.analog_output),
         )
 
-    def check_outputs(self, levels: dict[int, bool] | None = None, analog_output: float | None = None):
-        """The writes `set_outputs` makes for digital outputs `levels` (output number 1..2: level) and the analog
-        output set-point `analog_output` (V): (object, bytes) pairs; nothing is sent. CommandError saying why not: a
-        mapping without the object (naming mappings with it), an output the AKD does not have, a voltage that is NaN
-        or out of range."""
-        cycle = self._running()
-        writes = []
-        if levels:
-            if DIGITAL_OUTPUTS not in self._outputs:
-                raise CommandError(
-                    f"outputs refused: the mapping of {self.name} carries no digital outputs (0x60FE:01); mappings "
-                    f"that do with mode {self._mode}: {io_mappings(self._mode, 'digital_outputs')}"
-                )
-            offset, size = self._output_offsets[DIGITAL_OUTPUTS]
-            word = int.from_bytes(cycle.outputs(self.slave)[offset : offset + size], "little")
-            try:
-                word = _native.with_digital_outputs(word, [(int(n), bool(high)) for n, high in levels.items()])
-            except (TypeError, ValueError) as e:
-                raise CommandError(f"outputs refused: {e}") from None
-            writes.append((DIGITAL_OUTPUTS, _native.encode_value(*DIGITAL_OUTPUTS, word)))
-        if analog_output is not None:
-            if ANALOG_OUTPUT not in self._outputs:
-                raise CommandError(
-                    f"analog output refused: the mapping of {self.name} carries no analog output (0x3470:03); mappings "
-                    f"that do with mode {self._mode}: {io_mappings(self._mode, 'analog_output')}"
-                )
-            highest = 32767 * self.analog_scale
-            if not (isinstance(analog_output, int | float) and math.isfinite(analog_output)) or abs(
-                analog_output
-            ) > highest * (1 + 1e-12):
-                raise CommandError(
-                    f"analog output refused: {analog_output!r} V; allowed a finite voltage within ±{highest:.4g} V"
-                )
-            counts = max(-32767, min(32767, round(analog_output / self.analog_scale)))
-            writes.append((ANALOG_OUTPUT, _native.encode_value(*ANALOG_OUTPUT, counts)))
-        return writes
-
     def set_outputs(self, levels: dict[int, bool] | None = None, analog_output: float | None = None) -> None:
         """Sets digital outputs `levels` (output number 1..2: level) and the analog output set-point `analog_output`
         (V) in the next cycle's process image; the others stay as they are, and a held target stays held. Checked
-        first (`check_outputs`): a refusal changes nothing."""
+        first, in the crate (`_native.Cycle.set_drive_outputs`): a refusal, a CommandError saying why (a mapping
+        without the object, naming mappings with it; an output the AKD does not have; a voltage that is NaN or out of
+        range), changes nothing."""
         cycle = self._running()
-        for (index, subindex), data in self.check_outputs(levels, analog_output):
-            cycle.set_object(self.slave, index, subindex, data)
+        try:
+            numbered = [(int(n), bool(high)) for n, high in (levels or {}).items()]
+            cycle.set_drive_outputs(self.slave, self.name, numbered, analog_output, self.analog_scale)
+        except (_native.ConfigError, TypeError, ValueError) as e:
+            message = str(e)
+            raise CommandError(message if "refused" in message else f"outputs refused: {message}") from None
 
     def recovery(self) -> dict:
         """Where the recovery of this drive stands (`_native.Cycle.recovery_status`): "recovering" while it is lost and

@@ -36,7 +36,7 @@ from akd_ros import _native
 
 _MODES = {mode.name: mode for mode in _native.MODES_OF_OPERATION}
 MODES: dict[str, int] = {name: mode.code for name, mode in _MODES.items()}
-"""The CiA 402 modes the AKD offers over EtherCAT, by name, with their 0x6060 values (from the extension's table,
+"""The CiA 402 modes the AKD offers over EtherCAT, by name, with their codes (from the extension's table,
 `_native.MODES_OF_OPERATION`, which also gives each mode's command, the objects it is written to and the handshake
 that starts it)."""
 
@@ -52,7 +52,12 @@ drive)."""
 
 
 class CommandError(ValueError):
-    """A command or request was refused before anything reached the drive."""
+    """A command or request was refused before anything reached the drive; of a command of several axes
+    (`Bus.command`), `joint` names the axis whose command was refused."""
+
+    def __init__(self, message: str, joint: str | None = None) -> None:
+        super().__init__(message)
+        self.joint = joint
 
 
 class BusRequestError(TimeoutError):
@@ -240,7 +245,7 @@ class Bus:
                 rx, tx = drive.mapping if drive.mapping is not None else _native.DEFAULT_MAPPING
                 self._master.configure_pdo(position, rx, tx)
                 self.scalings[position] = self._master.position_scaling(position)
-                self._master.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[drive.mode]))
+                self._master.set_mode(position, MODES[drive.mode])
             # One clock set-up for the line: every drive with DC follows the same SYNC0 (or each its SM2 event).
             if _native.dc_by_default(link) if dc is None else dc:
                 self._master.configure_dc(round(period * 1e9), round(dc_shift * 1e9))
@@ -431,6 +436,33 @@ class Bus:
                 self._trajectory_events.append(e)
             elif e["slave"] in self._events:
                 self._events[e["slave"]].append(e)
+
+    # --- commands -----------------------------------------------------------------------------------------------------
+
+    def command(self, commands: Sequence[tuple]) -> list[int | None]:
+        """Commands axes in SI units, each of `commands` an (axis, kind, value) with kind "position", "velocity" or
+        "torque": each value clamped or refused by its axis's `Limits`, then, in one call to the crate
+        (`_native.Cycle.command`), checked against its drive's mode, converted by its `Units`, encoded for the target
+        object its mode and mapping give, and written into the next cycle's outputs (by SDO where a profile-position
+        target is unmapped). All are checked before any is sent; CommandError says why not, naming the axis in
+        `joint`. A profile-position command starts its set-point handshake in the cycle thread and returns at once:
+        each command's handshake number (None in a mode without one), whose outcome `cycle.setpoint_status(slave)`
+        gives."""
+        cycle = self.cycle
+        checked = []
+        for axis, kind, value in commands:
+            try:
+                checked.append((axis, kind, axis.limits.check(kind, value)))
+            except ValueError as e:
+                raise CommandError(f"{kind} command refused: {e}", joint=axis.name) from None
+        try:
+            handshakes = cycle.command([(axis.slave, kind, value, axis.units) for axis, kind, value in checked])
+        except _native.ConfigError as e:
+            refused = checked[e.command][0].name if getattr(e, "command", None) is not None else None
+            raise CommandError(str(e), joint=refused) from None
+        for axis, kind, value in checked:
+            axis._commanded[kind] = value
+        return handshakes
 
     # --- trajectories -----------------------------------------------------------------------------------------------
 

@@ -245,7 +245,7 @@ class Soak:
                 rx, tx = _native.DEFAULT_MAPPING
                 for position, mode in enumerate(DRIVE_MODES):
                     m.configure_pdo(position, rx, tx)
-                    m.sdo_write(position, 0x6060, 0, _native.encode_value(0x6060, 0, MODES[mode]))
+                    m.set_mode(position, MODES[mode])
                 m.configure_sm2_sync(round(self.args.period * 1e9))
                 m.request_state("op")
                 before = m.stats()

@@ -355,6 +355,40 @@ def test_profile_position_set_points_follow_each_other_and_need_operation_enable
     assert end.statusword & 0x0400, "target reached"
 
 
+def test_a_profile_position_command_through_the_bus_does_not_wait_for_the_drive() -> None:
+    # The node's path (Bus.command): the crate writes the target, starts the set-point handshake in the cycle thread
+    # and returns. A halted drive takes no set-point (the virtual AKD acknowledges none while controlword bit 8 is
+    # set), so the handshake is still under way when the call returns, however late that is; the path before waited
+    # for it there.
+    with Axis("sim?missed=lost", mode="profile_position", request_timeout=30.0) as a:
+        a.enable()
+        start = a.state().position
+        a.halt()
+        [held] = a.bus.command([(a, "position", start + 0.5)])
+        status = a.cycle.setpoint_status(a.slave)
+        assert (status["request"], status["progress"]) == (held, "in_progress")
+        assert a.command == pytest.approx(start + 0.5)
+        a.halt(False)
+        # The next command replaces the one under way, and the drive takes it.
+        [taken] = a.bus.command([(a, "position", start + 0.5)])
+        assert taken != held and a.cycle.wait_setpoint(a.slave, timeout=10.0)["request"] == taken
+        wait_for("the target", lambda: abs(settled(a).position - start - 0.5) < 10 * COUNT)
+        # A set-point the drive does not take ends stuck, which its status tells (the node's supervisor warns of it).
+        a.cycle.request_timeout = 0.2
+        a.halt()
+        [ignored] = a.bus.command([(a, "position", start)])
+        stuck = wait_for(
+            "the handshake to give up",
+            lambda: (s := a.cycle.setpoint_status(a.slave))["progress"] != "in_progress" and s,
+        )
+        assert (stuck["request"], stuck["progress"]) == (ignored, "stuck") and "bit 12" in stuck["reason"]
+        a.halt(False)
+        # A command the crate refuses names its axis, and nothing is sent.
+        with pytest.raises(CommandError, match="velocity commands need mode profile_velocity") as refused:
+            a.bus.command([(a, "velocity", 1.0)])
+        assert refused.value.joint == a.name
+
+
 def stream_velocity(axis: Axis, velocity: float, seconds: float) -> None:
     """Commands `velocity` every 10 ms for `seconds`."""
     end = time.monotonic() + seconds

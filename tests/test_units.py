@@ -1,4 +1,7 @@
-"""akd_ros.units: drive counts and 0.1 % torque units against SI, the 32-bit position wrap, and set-point limits."""
+"""akd_ros.units: drive counts and 0.1 % torque units against SI, the 32-bit position wrap, and set-point limits.
+
+`Units` and `unwrap_position` are the crate's (`_native`): what these tests judge is the one scale by which the node's
+joint states, its recorded cycles and its commands convert too."""
 
 from __future__ import annotations
 
@@ -9,7 +12,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from akd_ros.units import INT16_MAX, INT16_MIN, INT32_MAX, INT32_MIN, Limits, Units, unwrap_position
+from akd_ros import _native
+from akd_ros.units import Limits, Units, unwrap_position
+
+INT32_MIN, INT32_MAX = -(2**31), 2**31 - 1
+INT16_MIN, INT16_MAX = -(2**15), 2**15 - 1
 
 REV = 2**20
 TAU = 2 * math.pi
@@ -146,6 +153,26 @@ def test_unwrap_follows_any_motion_of_less_than_2_pow_31_per_reading(start: int,
         assert continuous == true
 
 
+def test_the_python_face_is_the_crates_one_scale() -> None:
+    assert Units is _native.Units and unwrap_position is _native.unwrap_position
+    assert Units(gear_ratio=2.0) == Units(gear_ratio=2.0) != Units()
+    assert hash(Units(offset=0.5)) == hash(Units(offset=0.5))
+    assert repr(Units(axis="linear", lead=0.005)) == (
+        "Units(counts_per_revolution=1048576, gear_ratio=1.0, direction=1, offset=0.0, axis='linear', lead=0.005, "
+        "peak_torque=3.0)"
+    )
+
+
+@given(st.integers(INT32_MIN, INT32_MAX), st.lists(st.integers(-(2**31) + 1, 2**31 - 1), max_size=50))
+def test_a_reader_of_positions_unwraps_by_the_same_rule(start: int, steps: list[int]) -> None:
+    # An Axis and the feed each keep a PositionUnwrap: the first reading is taken as it is, each next by the rule.
+    reader, true = _native.PositionUnwrap(), start
+    assert reader.next(start) == start
+    for step in steps:
+        true += step
+        assert reader.next(_raw(true)) == true == unwrap_position(true - step, _raw(true))
+
+
 def test_unwrapped_position_stays_continuous_in_si() -> None:
     units = Units()
     before = unwrap_position(INT32_MAX - 1, INT32_MAX - 1)
@@ -205,7 +232,7 @@ def test_position_outside_int32_is_refused_with_the_range() -> None:
     assert units.position_to_counts(largest) == INT32_MAX
     message = (
         f"position 13000.0 rad maps to drive value {round(13000.0 / TAU * REV)}, outside [-2147483648, 2147483647]; "
-        f"the allowed position range is [{-TAU * 2**11:.9g}, {largest:.9g}] rad"
+        f"the allowed position range is [{-TAU * 2**11:.6g}, {largest:.6g}] rad"
     )
     with pytest.raises(ValueError, match=re.escape(message)):
         units.position_to_counts(13000.0)

@@ -18,7 +18,7 @@ import math
 import re
 import time
 
-from akd_ros.axis import Axis, CheckedCommand, CommandError
+from akd_ros.axis import Axis, CommandError
 from akd_ros.bus import BusRequestError
 from akd_ros.node.homing import unhomed_refusal
 from akd_ros.node.node_state import AXIS_ERRORS, FAULT_STATES, NodeState, namespace
@@ -51,6 +51,7 @@ class Commands:
         self._logger = transport.logger
         self.qos = qos
         self._reset_pending: set[str] = set()
+        self._handshakes: dict[str, int] = {}
         self._refusals: dict[str, tuple[float, int]] = {}
         self.topics: dict[tuple[str, str], str] = {}
         """The command topics' names by (joint, kind)."""
@@ -100,7 +101,7 @@ class Commands:
                 axis = self._enabled_axis(joint, f"{kind} command")
                 if kind == "position" and (why := unhomed_refusal(node_state, [joint])):
                     raise CommandError(f"position command refused, nothing sent: {why}")
-                axis.send_command(axis.check_command(kind, message.data))
+                self._sent(node_state.bus.command([(axis, kind, message.data)]), [axis])
         except CommandError as e:
             self._warn_refused(f"{joint}: {e}")
         self._record(self.topics[joint, kind], message, arrival_ns)
@@ -110,12 +111,14 @@ class Commands:
         node_state = self._node_state
         try:
             with node_state.lock:
-                checked = self._check_joint_commands(message)
-                positioned = [axis.name for axis, _ in checked if axis.command_kind == "position"]
+                commands = self._joint_commands(message)
+                positioned = [axis.name for axis, kind, _ in commands if kind == "position"]
                 if why := unhomed_refusal(node_state, positioned):
                     raise CommandError(why)
-                for axis, command in checked:
-                    axis.send_command(command)
+                try:
+                    self._sent(node_state.bus.command(commands), [axis for axis, _, _ in commands])
+                except CommandError as e:
+                    raise CommandError(f"joint {e.joint}: {e}" if e.joint else str(e)) from None
         except CommandError as e:
             self._warn_refused(f"~/joint_commands refused, nothing sent: {e}")
         self._record(self.joint_commands_topic, message, arrival_ns)
@@ -127,8 +130,15 @@ class Commands:
         if recorder is not None:
             recorder.write(topic, message, arrival_ns)
 
-    def _check_joint_commands(self, message) -> list[tuple[Axis, CheckedCommand]]:
-        """Each named joint's command of `message`, all checked; CommandError naming the first problem."""
+    def _sent(self, handshakes: list[int | None], axes: list[Axis]) -> None:
+        """Notes the set-point handshakes the commands to `axes` started, which the supervisor follows: a callback
+        never waits for one."""
+        for axis, handshake in zip(axes, handshakes, strict=True):
+            if handshake is not None:
+                self._handshakes[axis.name] = handshake
+
+    def _joint_commands(self, message) -> list[tuple[Axis, str, float]]:
+        """Each named joint's command of `message` (axis, kind, value); CommandError naming the first problem."""
         names = list(message.name)
         known = [j.name for j in self._node_state.joints]
         unknown = [n for n in names if n not in known]
@@ -138,7 +148,7 @@ class Commands:
             raise CommandError(f"a joint is named twice in {', '.join(names)}")
         if not names:
             raise CommandError("no joint named (name is empty)")
-        checked = []
+        commands = []
         for i, joint in enumerate(names):
             axis = self._enabled_axis(joint, f"the command of {joint}")
             kind = axis.command_kind
@@ -151,11 +161,8 @@ class Commands:
                     f"joint {joint} in mode {axis.mode} takes its {kind} from {field}, which "
                     f"has {len(values)} values for {len(names)} names"
                 )
-            try:
-                checked.append((axis, axis.check_command(kind, float(values[i]))))
-            except CommandError as e:
-                raise CommandError(f"joint {joint}: {e}") from None
-        return checked
+            commands.append((axis, kind, float(values[i])))
+        return commands
 
     def _warn_refused(self, message: str) -> None:
         """Logs a refusal, each kind (its text without the numbers) at most once per _REFUSAL_LOG_PERIOD_S, with the
@@ -171,10 +178,21 @@ class Commands:
         self._logger.warning(message + more)
 
     def _supervise(self) -> None:
-        """Resets a fault once under fault_reset auto_once."""
+        """Resets a fault once under fault_reset auto_once, and warns of a profile-position set-point the drive did not
+        take (its handshake stuck in the cycle thread)."""
         bus = self._node_state.bus
         if bus is None or not self._node_state.active:
             return
+        for joint, handshake in list(self._handshakes.items()):
+            axis = bus[joint]
+            status = axis.cycle.setpoint_status(axis.slave)
+            ours = status["request"] == handshake
+            if ours and status["progress"] == "in_progress":
+                continue
+            if self._handshakes.get(joint) == handshake:
+                self._handshakes.pop(joint, None)
+            if ours and status["progress"] == "stuck":
+                self._warn_refused(f"{joint}: the position set-point was not taken: {status['reason']}")
         while self._reset_pending:
             joint = self._reset_pending.pop()
             axis = bus[joint]

@@ -147,7 +147,7 @@ class Core:
         for joint, axis in zip(s.joints, bus.axes, strict=True):
             prefix = "" if not s.joint_namespaces else f"joints.{joint.name}."
             try:
-                # The Bus writes 0x6060 as given; set_mode also checks that the mapping carries the mode's target.
+                # The Bus sets the mode as given; set_mode also checks that the mapping carries the mode's target.
                 axis.set_mode(joint.mode)
             except AXIS_ERRORS as e:
                 bus.close()

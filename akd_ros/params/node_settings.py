@@ -14,7 +14,7 @@ import importlib.util
 from dataclasses import dataclass
 
 from akd_ros import _native
-from akd_ros.axis import DriveConfig, io_mappings
+from akd_ros.axis import DriveConfig
 from akd_ros.bus import CommandError, check
 from akd_ros.device import DeviceConfig
 from akd_ros.params.schema import (
@@ -315,7 +315,7 @@ def joint_settings(
         if names and not carried[needs]:
             raise ParameterError(
                 f"parameters io.{kind}.* of joint {name}: its mapping {values['mapping']!r} carries no {what}; "
-                f"mappings that do with mode {values['mode']}: {io_mappings(values['mode'], needs)}"
+                f"mappings that do with mode {values['mode']}: {_native.io_mappings_in_words(values['mode'], needs)}"
             )
     lead = values["lead"] or None
     if values["axis"] == "rotary" and lead is not None:

@@ -499,6 +499,8 @@ pub enum Error {
     },
     /// A trajectory refused before anything moved.
     Trajectory(TrajectoryError),
+    /// A joint's command refused before anything was sent.
+    Command(CommandRefused),
     /// An Ethernet-over-EtherCAT message or frame that does not fit the standard.
     Eoe(EoeError),
     /// A file transfer over EtherCAT that failed or a message that does not fit the standard.
@@ -542,6 +544,7 @@ impl fmt::Display for Error {
                 write!(f, "no slave at position {position}: the bus has {count} slave(s)")
             }
             Error::Trajectory(e) => write!(f, "{e}"),
+            Error::Command(e) => write!(f, "{e}"),
             Error::Eoe(e) => write!(f, "EoE: {e}"),
             Error::Foe(e) => write!(f, "FoE: {e}"),
         }
@@ -571,6 +574,7 @@ error_from! {
     LinkSpecError => LinkSpec,
     FrameError => Frame,
     TrajectoryError => Trajectory,
+    CommandRefused => Command,
     EoeError => Eoe,
     FoeError => Foe,
 }
@@ -578,6 +582,101 @@ error_from! {
 impl From<UnknownCode> for Error {
     fn from(e: UnknownCode) -> Self {
         Error::Mailbox(MailboxError::UnknownCode(e))
+    }
+}
+
+/// Why a joint's command was refused, nothing sent.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CommandRefused {
+    /// The drive's mode commands another kind, or none (or is not known).
+    Mode {
+        /// What was commanded.
+        kind: crate::drive::ds402::CommandKind,
+        /// The drive's mode.
+        mode: String,
+        /// The modes that take it, in words.
+        needs: String,
+    },
+    /// The mode changed between making the command and sending it.
+    ModeChanged {
+        /// What was commanded.
+        kind: crate::drive::ds402::CommandKind,
+        /// The mode it was made for.
+        made: String,
+        /// The mode now.
+        now: String,
+    },
+    /// The value has no drive value (NaN, past the drive object's range).
+    Value {
+        /// What was commanded.
+        kind: crate::drive::ds402::CommandKind,
+        /// Why.
+        reason: crate::drive::scaling::ScalingError,
+    },
+    /// A drive's output its mapping does not carry.
+    OutputUnmapped {
+        /// The joint's name.
+        joint: String,
+        /// Which: "digital outputs (0x60FE:01)" or "analog output (0x3470:03)".
+        what: &'static str,
+        /// The drive's mode.
+        mode: String,
+        /// The mappings that carry it with that mode, in words.
+        mappings: String,
+    },
+    /// A digital output the AKD does not have.
+    NoSuchOutput {
+        /// Its number, as given (an integer of any size).
+        number: String,
+    },
+    /// An analog output voltage that is not finite or beyond the output's range.
+    Voltage {
+        /// The voltage asked for.
+        volts: f64,
+        /// The highest magnitude allowed.
+        highest: f64,
+    },
+    /// The value could not be encoded, or the cycle refused the set-point.
+    NotSent {
+        /// What was refused: "position command", "outputs".
+        what: String,
+        /// Why.
+        why: String,
+    },
+}
+
+impl fmt::Display for CommandRefused {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CommandRefused::Mode { kind, mode, needs } => {
+                let kind = kind.name();
+                write!(f, "{kind} command refused: the axis is in mode {mode}; {kind} commands need mode {needs}")
+            }
+            CommandRefused::ModeChanged { kind, made, now } => {
+                write!(f, "{} command refused: it was made in mode {made}, the axis is in {now}", kind.name())
+            }
+            CommandRefused::Value { kind, reason } => write!(f, "{} command refused: {reason}", kind.name()),
+            CommandRefused::OutputUnmapped { joint, what, mode, mappings } => {
+                let refused = if what.starts_with("analog") { "analog output" } else { "outputs" };
+                write!(
+                    f,
+                    "{refused} refused: the mapping of {joint} carries no {what}; mappings that do with mode {mode}: \
+                     {mappings}"
+                )
+            }
+            CommandRefused::NoSuchOutput { number } => write!(
+                f,
+                "outputs refused: output {number}: the AKD has digital outputs 1 to {}",
+                crate::drive::io::OUTPUT_COUNT
+            ),
+            CommandRefused::Voltage { volts, highest } => write!(
+                f,
+                "analog output refused: {} V; allowed a finite voltage within ±{} V",
+                crate::drive::scaling::py_repr(*volts),
+                crate::drive::trajectory::trimmed(*highest)
+            ),
+            CommandRefused::NotSent { what, why } => write!(f, "{what} refused, nothing sent: {why}"),
+        }
     }
 }
 

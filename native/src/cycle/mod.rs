@@ -52,6 +52,7 @@ pub use handle::{Config, CycleThread, Snapshot, DEFAULT_REQUEST_TIMEOUT};
 pub use rt::RealTime;
 
 pub mod acyclic;
+pub mod command;
 pub mod command_timeout;
 pub mod dc_status;
 pub mod devices;

@@ -51,6 +51,10 @@ pub trait AkdSlave {
     /// or it does not follow SYNC0.
     fn set_drive_sync(&mut self, sync: DriveSync) -> Result<Option<u32>>;
 
+    /// Sets the drive's mode of operation (0x6060, `mode` its code) by SDO: the mode it starts
+    /// the cycle in, or takes again after a restore.
+    fn set_mode(&mut self, mode: i8) -> Result<()>;
+
     /// After [`Master::restore_to_preop`] brought the drive back to PreOp: its mode of
     /// operation (0x6060; a drive that lost power forgot it) and its clock's side, as the start
     /// gave them; `None` writes nothing of that.
@@ -98,9 +102,13 @@ impl AkdSlave for SlaveRef<'_> {
         Ok(written)
     }
 
+    fn set_mode(&mut self, mode: i8) -> Result<()> {
+        self.sdo_write(0x6060, 0, &[mode as u8])
+    }
+
     fn restore(&mut self, mode: Option<i8>, sync: Option<DriveSync>) -> Result<()> {
         if let Some(mode) = mode {
-            self.sdo_write(0x6060, 0, &[mode as u8])?;
+            self.set_mode(mode)?;
         }
         if let Some(sync) = sync {
             self.set_drive_sync(sync)?;

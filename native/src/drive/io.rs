@@ -112,6 +112,21 @@ pub fn with_outputs(word: u32, levels: u8) -> u32 {
     (word & !mask) | (u32::from(levels) << FIRST_MANUFACTURER_BIT & mask)
 }
 
+/// 0x60FE:01 `word` with the digital outputs of `levels` (each an output number and its
+/// level) set, its other bits as they are; `Err` with the first number the AKD has no output
+/// of.
+pub fn with_output_levels(word: u32, levels: &[(i64, bool)]) -> Result<u32, i64> {
+    let mut now = outputs(word);
+    for &(number, high) in levels {
+        if !(1..=i64::from(OUTPUT_COUNT)).contains(&number) {
+            return Err(number);
+        }
+        let bit = 1u8 << (number - 1);
+        now = if high { now | bit } else { now & !bit };
+    }
+    Ok(with_outputs(word, now))
+}
+
 /// The hardware enable input as the drive shows it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum HardwareEnable {
@@ -222,6 +237,17 @@ pub fn mappings_for(mode: Mode, wanted: impl Fn(Carried) -> bool) -> Vec<IoMappi
     // Those carrying all of the I/O first, each group in the order above.
     found.sort_by_key(|m| !m.carried.all());
     found
+}
+
+/// The mappings [`mappings_for`] finds, in words for a refusal: their names, or where none has
+/// it, a flexible mapping.
+pub fn mappings_in_words(mode: Mode, wanted: impl Fn(Carried) -> bool) -> String {
+    let found: Vec<String> = mappings_for(mode, wanted).into_iter().map(|m| m.name).collect();
+    if found.is_empty() {
+        "a flexible mapping (mapping.rx, mapping.tx) with it".into()
+    } else {
+        found.join(", ")
+    }
 }
 
 /// One drive's I/O in one cycle, read by its mapping: each value `None` where the mapping lacks

@@ -19,6 +19,13 @@
 //! Evidence is thin beyond these four objects: the notes say bit 4 also scales the profile
 //! acceleration and deceleration (0x6083/0x6084) in the position modes, and say nothing of the
 //! velocity objects; neither is modelled here.
+//!
+//! [`JointScaling`] is a joint's own scale (counts, gear, direction, offset, torque), by which
+//! every SI value of the joint is converted, and [`PositionUnwrap`] reads its position across
+//! the 32-bit wrap.
+
+use crate::drive::ds402::CommandKind;
+use crate::drive::trajectory::{trimmed, Scale, Unit};
 
 /// Position encoder resolution: encoder increments (:01) per motor revolutions (:02).
 pub const POSITION_ENCODER_RESOLUTION: u16 = 0x608F;
@@ -161,6 +168,335 @@ impl PositionScaling {
     }
 }
 
+/// Feedback counts per revolution, gear, direction, offset and torque of one joint: how its
+/// load's SI values (rad, rad/s, N·m; m, m/s, N on a linear axis, REP 103) and its drive's
+/// values relate. The one place a joint's scale is: the feed's joint states, the recorded
+/// cycles, the commands and the Python `Units` all convert by it.
+///
+/// The drive counts positions (0x6064, 0x607A, 0x60C1:01) in `counts_per_revolution` per motor
+/// revolution, velocities (0x606C, 0x60FF) in those counts per second (an assumption of the
+/// virtual AKD: a real AKD's DS402 velocity unit is configurable and must be set to match), and
+/// torques (0x6071, 0x6077) in 0.1 % of its peak torque (AKD manual, mode 4, unlike CiA 402's
+/// per mille of rated torque). `gear_ratio` is motor revolutions per load revolution,
+/// `direction` flips the load's sense against the motor's, `offset` is the load position at
+/// count 0, and a linear axis moves `lead` metres per load revolution.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct JointScaling {
+    /// Feedback counts per motor revolution.
+    pub counts_per_revolution: u64,
+    /// Motor revolutions per load revolution.
+    pub gear_ratio: f64,
+    /// +1 with the motor's positive sense, -1 against it.
+    pub direction: i8,
+    /// Load position at count 0 (rad or m).
+    pub offset: f64,
+    /// Metres per load revolution of a linear axis; `None` for a rotary one.
+    pub lead: Option<f64>,
+    /// The drive's peak torque at the motor (N·m): what torque value 1000 (100 %) means.
+    pub peak_torque: f64,
+}
+
+/// Drive torque units per peak torque: 0x6071/0x6077 count in 0.1 %.
+pub const TORQUE_UNITS_PER_PEAK: f64 = 1000.0;
+
+/// What a joint's scaling or a conversion by it refuses.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ScalingError {
+    /// `counts_per_revolution` is no positive integer.
+    CountsPerRevolution,
+    /// A value that must be finite (and, where `positive`, greater than 0) is not.
+    NotFinite {
+        /// Its name.
+        name: &'static str,
+        /// Whether it must be greater than 0.
+        positive: bool,
+        /// The value.
+        value: f64,
+    },
+    /// `direction` is neither +1 nor -1.
+    Direction,
+    /// A lead given to a rotary axis.
+    LeadOnRotary(f64),
+    /// A linear axis without a lead.
+    NoLead,
+    /// A value whose drive value is outside the drive object's range.
+    OutOfRange {
+        /// "position", "velocity" or "torque".
+        name: &'static str,
+        /// The SI value.
+        si: f64,
+        /// Its drive value.
+        value: i64,
+        /// The drive's range.
+        range: (i64, i64),
+        /// The SI values of the range's ends, the lower first.
+        allowed: (f64, f64),
+        /// The SI unit.
+        unit: &'static str,
+    },
+}
+
+impl std::fmt::Display for ScalingError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ScalingError::CountsPerRevolution => write!(f, "counts_per_revolution must be a positive integer"),
+            ScalingError::NotFinite { name, positive, value } => {
+                let allowed = if *positive { "a finite number greater than 0" } else { "a finite number" };
+                write!(f, "{name} must be {allowed}, got {}", py_repr(*value))
+            }
+            ScalingError::Direction => write!(f, "direction must be +1 or -1"),
+            ScalingError::LeadOnRotary(lead) => {
+                write!(f, "lead applies to a linear axis only; a rotary axis needs lead None, got {}", py_repr(*lead))
+            }
+            ScalingError::NoLead => write!(f, "lead (m per load revolution) is required for a linear axis"),
+            ScalingError::OutOfRange { name, si, value, range: (low, high), allowed: (a, b), unit } => write!(
+                f,
+                "{name} {} {unit} maps to drive value {value}, outside [{low}, {high}]; the allowed {name} range is \
+                 [{}, {}] {unit}",
+                py_repr(*si),
+                trimmed(*a),
+                trimmed(*b)
+            ),
+        }
+    }
+}
+
+/// `x` as Python writes a float ("nan", "inf", "0.5"), which the refusals quote.
+pub fn py_repr(x: f64) -> String {
+    if x.is_nan() {
+        "nan".into()
+    } else {
+        format!("{x:?}")
+    }
+}
+
+fn finite(name: &'static str, value: f64, positive: bool) -> Result<f64, ScalingError> {
+    match value.is_finite() && (!positive || value > 0.0) {
+        true => Ok(value),
+        false => Err(ScalingError::NotFinite { name, positive, value }),
+    }
+}
+
+impl Default for JointScaling {
+    /// The virtual AKD's: 2^20 counts per revolution, no gear, peak torque 3 N·m, rotary.
+    fn default() -> Self {
+        JointScaling {
+            counts_per_revolution: DEFAULT_COUNTS_PER_REVOLUTION as u64,
+            gear_ratio: 1.0,
+            direction: 1,
+            offset: 0.0,
+            lead: None,
+            peak_torque: 3.0,
+        }
+    }
+}
+
+impl JointScaling {
+    /// The scaling of these mechanics (`linear` with its `lead`, or rotary without one), or
+    /// why they are none.
+    pub fn new(
+        counts_per_revolution: u64,
+        gear_ratio: f64,
+        direction: i8,
+        offset: f64,
+        (linear, lead): (bool, Option<f64>),
+        peak_torque: f64,
+    ) -> Result<JointScaling, ScalingError> {
+        if counts_per_revolution == 0 {
+            return Err(ScalingError::CountsPerRevolution);
+        }
+        finite("gear_ratio", gear_ratio, true)?;
+        if direction != 1 && direction != -1 {
+            return Err(ScalingError::Direction);
+        }
+        finite("offset", offset, false)?;
+        match (linear, lead) {
+            (false, Some(lead)) => return Err(ScalingError::LeadOnRotary(lead)),
+            (true, None) => return Err(ScalingError::NoLead),
+            (true, Some(lead)) => _ = finite("lead", lead, true)?,
+            (false, None) => {}
+        }
+        finite("peak_torque", peak_torque, true)?;
+        Ok(JointScaling { counts_per_revolution, gear_ratio, direction, offset, lead, peak_torque })
+    }
+
+    /// The unit of its positions.
+    pub fn position_unit(&self) -> Unit {
+        if self.lead.is_some() {
+            Unit::Metre
+        } else {
+            Unit::Radian
+        }
+    }
+
+    /// Load travel (rad or m, signed by the direction) per count.
+    pub fn si_per_count(&self) -> f64 {
+        let travel = self.lead.unwrap_or(std::f64::consts::TAU);
+        self.direction as f64 * travel / (self.counts_per_revolution as f64 * self.gear_ratio)
+    }
+
+    /// Load torque (N·m) or force (N), signed by the direction, per drive torque unit.
+    pub fn si_per_torque_unit(&self) -> f64 {
+        let load_torque = self.peak_torque * self.gear_ratio / TORQUE_UNITS_PER_PEAK;
+        let per_unit = self.lead.map_or(load_torque, |lead| load_torque * std::f64::consts::TAU / lead);
+        self.direction as f64 * per_unit
+    }
+
+    /// How its values read in words (the trajectory's and the cycle's refusals).
+    pub fn scale(&self) -> Scale {
+        Scale { per_count: self.si_per_count(), offset: self.offset, unit: self.position_unit() }
+    }
+
+    /// The load position at `counts` (raw, or unwrapped).
+    pub fn position_to_si(&self, counts: f64) -> f64 {
+        counts * self.si_per_count() + self.offset
+    }
+
+    /// The load velocity at `counts_per_second`; so too a distance (a following error) in counts.
+    pub fn velocity_to_si(&self, counts_per_second: f64) -> f64 {
+        counts_per_second * self.si_per_count()
+    }
+
+    /// The load torque (or force) at drive torque `value`.
+    pub fn torque_to_si(&self, value: f64) -> f64 {
+        value * self.si_per_torque_unit()
+    }
+
+    /// The int32 target position for load position `position`.
+    pub fn position_to_counts(&self, position: f64) -> Result<i32, ScalingError> {
+        let counts = ((finite("position", position, false)? - self.offset) / self.si_per_count()).round();
+        self.in_range("position", position, counts, INT32, |c| self.position_to_si(c)).map(|c| c as i32)
+    }
+
+    /// The int32 target velocity (counts/s) for load velocity `velocity`.
+    pub fn velocity_to_counts(&self, velocity: f64) -> Result<i32, ScalingError> {
+        let counts = (finite("velocity", velocity, false)? / self.si_per_count()).round();
+        self.in_range("velocity", velocity, counts, INT32, |c| self.velocity_to_si(c)).map(|c| c as i32)
+    }
+
+    /// Counts/s² for load acceleration `acceleration`.
+    pub fn acceleration_to_counts(&self, acceleration: f64) -> Result<f64, ScalingError> {
+        Ok(finite("acceleration", acceleration, false)? / self.si_per_count())
+    }
+
+    /// The int16 target torque (0.1 % of peak) for load torque (or force) `torque`.
+    pub fn torque_to_drive(&self, torque: f64) -> Result<i16, ScalingError> {
+        let value = (finite("torque", torque, false)? / self.si_per_torque_unit()).round();
+        let range = (i16::MIN as i64, i16::MAX as i64);
+        self.in_range("torque", torque, value, range, |v| self.torque_to_si(v)).map(|v| v as i16)
+    }
+
+    /// The drive value of `kind` for SI `value` (counts, counts/s, 0.1 % of peak).
+    pub fn to_drive(&self, kind: CommandKind, value: f64) -> Result<i64, ScalingError> {
+        match kind {
+            CommandKind::Position => self.position_to_counts(value).map(i64::from),
+            CommandKind::Velocity => self.velocity_to_counts(value).map(i64::from),
+            CommandKind::Torque => self.torque_to_drive(value).map(i64::from),
+        }
+    }
+
+    fn in_range(
+        &self,
+        name: &'static str,
+        si: f64,
+        value: f64,
+        (low, high): (i64, i64),
+        to_si: impl Fn(f64) -> f64,
+    ) -> Result<i64, ScalingError> {
+        if (low as f64..=high as f64).contains(&value) {
+            return Ok(value as i64);
+        }
+        let (a, b) = (to_si(low as f64), to_si(high as f64));
+        let unit = match (name, self.position_unit()) {
+            ("torque", Unit::Metre) => "N",
+            ("torque", _) => "N·m",
+            ("velocity", Unit::Metre) => "m/s",
+            ("velocity", _) => "rad/s",
+            (_, unit) => unit.name(),
+        };
+        let value = if value.abs() < 9.2e18 { value as i64 } else { value.signum() as i64 * i64::MAX };
+        Err(ScalingError::OutOfRange { name, si, value, range: (low, high), allowed: (a.min(b), a.max(b)), unit })
+    }
+}
+
+const INT32: (i64, i64) = (i32::MIN as i64, i32::MAX as i64);
+
+/// The continuous count nearest `last` that reads as the int32 `raw` on the drive: continuous
+/// while the axis moves less than 2^31 counts between readings.
+pub fn unwrap_position(last: i64, raw: i32) -> i64 {
+    last.wrapping_add(raw.wrapping_sub(last as i32) as i64)
+}
+
+/// A joint's position unwrapped across the drive's 32-bit wrap, reading after reading: each
+/// reader of a joint's position (the feed, an `Axis`) keeps its own, the rule being
+/// [`unwrap_position`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PositionUnwrap {
+    last: Option<i64>,
+}
+
+impl PositionUnwrap {
+    /// The continuous count of the reading `raw`; the first reading is taken as it is.
+    pub fn next(&mut self, raw: i32) -> i64 {
+        let counts = self.last.map_or(raw as i64, |last| unwrap_position(last, raw));
+        self.last = Some(counts);
+        counts
+    }
+}
+
+impl PositionScaling {
+    /// Where the drive counts the position objects `mapped` carries in another scale than
+    /// `counts_per_revolution`, one sentence saying which, by how much, from which of its
+    /// objects, and what to change; `None` where they agree or the objects do not tell. The
+    /// objects give positions only: velocity and torque units are the AKD's own parameters.
+    pub fn mismatch(&self, counts_per_revolution: u64, mapped: impl Fn(u16, u8) -> bool) -> Option<String> {
+        let differing: Vec<((u16, u8), f64)> = POSITION_OBJECTS
+            .iter()
+            .filter(|((index, sub), _)| mapped(*index, *sub))
+            .filter_map(|&((index, sub), _)| Some(((index, sub), self.counts_per_revolution(index, sub, None)?)))
+            .filter(|&(_, counts)| counts != counts_per_revolution as f64)
+            .collect();
+        let mut differing = differing;
+        differing.sort_by_key(|(object, _)| *object);
+        if differing.is_empty() {
+            return None;
+        }
+        let objects: Vec<String> = differing
+            .iter()
+            .map(|((i, s), _)| if *s == 0 { format!("0x{i:04X}") } else { format!("0x{i:04X}:{s:02X}") })
+            .collect();
+        let mut counts: Vec<f64> = differing.iter().map(|(_, c)| *c).collect();
+        counts.sort_by(f64::total_cmp);
+        counts.dedup();
+        let pair = |r: Ratio| format!("{}/{}", r.numerator, r.denominator);
+        let mut told = Vec::new();
+        let in_unit = |unit| differing.iter().any(|((i, s), _)| unit_of(*i, *s) == Some(unit));
+        if in_unit(PositionUnit::Increments) {
+            told.push(format!(
+                "0x608F = {} (encoder increments per motor revolutions, FB1.PSCALE)",
+                pair(self.encoder_resolution)
+            ));
+        }
+        if in_unit(PositionUnit::PositionUnits) {
+            told.push(format!(
+                "FBUS.PARAM05 bit 4 set: feed constant 0x6092 = {} over gear ratio 0x6091 = {}",
+                pair(self.feed_constant),
+                pair(self.gear_ratio)
+            ));
+        }
+        let scales: Vec<String> = counts.iter().map(|c| trimmed(*c)).collect();
+        Some(format!(
+            "counts_per_revolution is {counts_per_revolution}, but the drive counts {} per motor revolution in {} \
+             ({}): its positions would be read and commanded {} times off; set counts_per_revolution to the drive's \
+             scale, or the drive's scaling to {counts_per_revolution} per revolution",
+            scales.join(" and "),
+            objects.join(", "),
+            told.join("; "),
+            trimmed(counts[0] / counts_per_revolution as f64)
+        ))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -191,5 +527,49 @@ mod tests {
         assert_eq!(unknown.counts_per_revolution(0x60C1, 1, None), Some(65536.0));
         let zero = PositionScaling::from_entries([1 << 20, 0, 0, 1, 1, 1], Some(0x10));
         assert_eq!((zero.increments_per_revolution(), zero.position_units_per_revolution(None)), (None, None));
+    }
+
+    #[test]
+    fn positions_stay_continuous_across_the_wrap_either_way() {
+        assert_eq!(unwrap_position(i32::MAX as i64, i32::MIN), i32::MAX as i64 + 1);
+        assert_eq!(unwrap_position(i32::MIN as i64, i32::MAX), i32::MIN as i64 - 1);
+        assert_eq!(unwrap_position(i32::MAX as i64 + 10, i32::MIN + 20), i32::MAX as i64 + 21);
+        assert_eq!(unwrap_position(5 * (1 << 32) + 7, 3), 5 * (1 << 32) + 3);
+        assert_eq!(unwrap_position(-7, -7), -7);
+        let mut unwrap = PositionUnwrap::default();
+        assert_eq!([unwrap.next(i32::MAX - 1), unwrap.next(i32::MIN + 1)], [i32::MAX as i64 - 1, i32::MAX as i64 + 2]);
+    }
+
+    #[test]
+    fn numbers_read_as_python_writes_them() {
+        let cases =
+            [(0.0, "0.0"), (-2.0, "-2.0"), (13000.0, "13000.0"), (f64::NAN, "nan"), (f64::NEG_INFINITY, "-inf")];
+        for (x, text) in cases {
+            assert_eq!(py_repr(x), text);
+        }
+    }
+
+    #[test]
+    fn a_command_past_the_drive_range_names_the_range_in_si() {
+        let s = JointScaling::new(1 << 20, 1.0, 1, 0.0, (false, None), 1.0).unwrap();
+        assert_eq!(s.torque_to_drive(32.767), Ok(i16::MAX));
+        let e = s.torque_to_drive(32.768).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "torque 32.768 N·m maps to drive value 32768, outside [-32768, 32767]; the allowed torque range is \
+             [-32.768, 32.767] N·m"
+        );
+        assert_eq!(s.to_drive(CommandKind::Velocity, std::f64::consts::TAU), Ok(1 << 20));
+        assert!(matches!(s.position_to_counts(f64::NAN), Err(ScalingError::NotFinite { name: "position", .. })));
+    }
+
+    #[test]
+    fn a_mismatch_names_the_objects_and_the_scale() {
+        let s = PositionScaling::from_entries([1 << 16, 1, 1, 1, 1, 1], Some(0));
+        let text = s.mismatch(1 << 20, |_, _| true).unwrap();
+        assert!(text.starts_with("counts_per_revolution is 1048576, but the drive counts 65536 per motor revolution in 0x6063, 0x60C1:01 (0x608F = 65536/1"), "{text}");
+        assert!(text.contains("0.0625 times off"), "{text}");
+        assert_eq!(s.mismatch(1 << 16, |_, _| true), None);
+        assert_eq!(s.mismatch(1 << 20, |i, _| i == 0x6064), None);
     }
 }

@@ -222,11 +222,6 @@ pub enum Unit {
 }
 
 impl Unit {
-    /// The unit named `name` ("counts", "rad", "m").
-    pub fn from_name(name: &str) -> Option<Unit> {
-        [Unit::Counts, Unit::Radian, Unit::Metre].into_iter().find(|u| u.name() == name)
-    }
-
     /// Its symbol.
     pub fn name(self) -> &'static str {
         match self {
@@ -277,8 +272,9 @@ impl Scale {
     }
 }
 
-/// `x` to six significant digits (all of its integer digits), without trailing zeros.
-fn trimmed(x: f64) -> String {
+/// `x` to six significant digits (all of its integer digits), without trailing zeros: how the
+/// drive profile writes a joint's values in words.
+pub fn trimmed(x: f64) -> String {
     let magnitude = if x == 0.0 { 0 } else { x.abs().log10().floor() as i32 };
     let decimals = (5 - magnitude).clamp(0, 12) as usize;
     let text = format!("{x:.decimals$}");

@@ -12,6 +12,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
@@ -26,8 +27,9 @@ use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
 use crate::drive::akd_fault;
-use crate::drive::ds402::State;
-use crate::error::{Error, SettingError, UnknownName};
+use crate::drive::ds402::{CommandKind, State};
+use crate::drive::trajectory::Scale;
+use crate::error::{CommandRefused, Error, SettingError, UnknownName};
 
 /// Exchanges a Master's process image every period on a thread of its own.
 // Frozen: stop() may come while another thread waits inside a method (an SDO, a state).
@@ -754,6 +756,65 @@ impl PyCycle {
         })
     }
 
+    /// Commands joints in SI units in one call, each of `commands` a (drive position, kind
+    /// "position", "velocity" or "torque", value, the joint's `Units`): for each the crate picks
+    /// the target object of the drive's mode that its mapping carries, converts and encodes
+    /// the value, and writes it into the next cycle's outputs (by SDO where a profile-position
+    /// target is unmapped); all are checked before any is sent. A mode started by a handshake
+    /// starts it in the cycle thread without waiting: each command's handshake number, None
+    /// for a mode without one (`setpoint_status` and `wait_setpoint` follow it). ConfigError
+    /// says why a command was refused, nothing of it sent; its `command` is the refused one's
+    /// index in `commands`.
+    fn command(
+        &self,
+        py: Python<'_>,
+        commands: Vec<(u16, String, f64, super::units::PyUnits)>,
+    ) -> PyResult<Vec<Option<u32>>> {
+        let commands = commands
+            .into_iter()
+            .map(|(position, kind, value, units)| {
+                let kinds = [CommandKind::Position, CommandKind::Velocity, CommandKind::Torque];
+                let kind = kinds.into_iter().find(|k| k.name() == kind).ok_or_else(|| {
+                    PyValueError::new_err(format!("kind must be 'position', 'velocity' or 'torque', got {kind:?}"))
+                })?;
+                Ok((position, kind, value, units.scaling))
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let cycle = &self.cycle;
+        py.allow_threads(|| cycle.command(&commands)).map_err(|(index, e)| {
+            let err = super::to_py_err(e);
+            // Setting an attribute on a fresh exception instance cannot fail.
+            let _ = err.value(py).setattr("command", index);
+            err
+        })
+    }
+
+    /// Sets the digital outputs of the drive at `position` at `levels` (AKD output number 1..2:
+    /// level) and its analog output set-point at `analog_output` (V, at `volts_per_count`) from
+    /// the next cycle on, the others as they are; all checked first, a refusal (ConfigError
+    /// naming `joint` and the mappings that carry what its mapping lacks, an output the AKD
+    /// does not have, a voltage out of range) changing nothing.
+    #[pyo3(signature = (position, joint, levels, analog_output, volts_per_count))]
+    fn set_drive_outputs(
+        &self,
+        position: u16,
+        joint: &str,
+        levels: Vec<(Bound<'_, pyo3::types::PyInt>, bool)>,
+        analog_output: Option<f64>,
+        volts_per_count: f64,
+    ) -> PyResult<()> {
+        let levels = levels
+            .iter()
+            .map(|(number, high)| match number.extract::<i64>() {
+                Ok(n) => Ok((n, *high)),
+                // Past 64 bits: no output the AKD has.
+                Err(_) => Err(Error::from(CommandRefused::NoSuchOutput { number: number.to_string() })),
+            })
+            .collect::<crate::error::Result<Vec<_>>>()
+            .py()?;
+        self.cycle.set_drive_outputs(position, joint, &levels, analog_output, volts_per_count).py()
+    }
+
     /// Sets one mapped output object of slave `position` from the next cycle on (its exact
     /// size in bytes); a mode's command object (a motion set-point) releases a held target,
     /// any other output (digital outputs, the analog output, a latch control) leaves it held.
@@ -940,11 +1001,11 @@ impl PyCycle {
 
     /// Hands down the limits of joint `name` on drive `position`, by which every motion of it
     /// is judged from then on: `position` (min, max) in counts, `max_velocity` counts/s and
-    /// `max_acceleration` counts/s² (None: open), and `scale` (units per count, the position at
-    /// 0 counts, "rad", "m" or "counts") to word refusals in. Trajectories are refused where a
-    /// point or the path between them goes past them; in a cyclic position mode, so is a
-    /// set-point whose step from the target last sent, taken within one cycle, does.
-    #[pyo3(signature = (position, name, limits, max_velocity = None, max_acceleration = None, scale = (1.0, 0.0, "counts".to_string())))]
+    /// `max_acceleration` counts/s² (None: open), and its `units` to word refusals in (None:
+    /// counts). Trajectories are refused where a point or the path between them goes past them;
+    /// in a cyclic position mode, so is a set-point whose step from the target last sent, taken
+    /// within one cycle, does.
+    #[pyo3(signature = (position, name, limits, max_velocity = None, max_acceleration = None, units = None))]
     fn set_joint_limits(
         &self,
         position: u16,
@@ -952,11 +1013,10 @@ impl PyCycle {
         limits: (Option<f64>, Option<f64>),
         max_velocity: Option<f64>,
         max_acceleration: Option<f64>,
-        scale: (f64, f64, String),
+        units: Option<super::units::PyUnits>,
     ) -> PyResult<()> {
-        let (per_count, offset, unit) = scale;
-        let joint =
-            super::trajectory::joint_limits(name, limits, max_velocity, max_acceleration, (per_count, offset, &unit))?;
+        let scale = units.map_or(Scale::COUNTS, |u| u.scaling.scale());
+        let joint = super::trajectory::joint_limits(name, limits, max_velocity, max_acceleration, scale);
         self.cycle.set_joint_limits(position, joint).py()
     }
 

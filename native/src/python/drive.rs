@@ -11,7 +11,7 @@
 
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyInt, PyTuple};
+use pyo3::types::{PyBytes, PyTuple};
 
 use super::IntoPyResult;
 use crate::cycle::{CycleThread, Snapshot};
@@ -285,22 +285,16 @@ fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedV
     Ok(io::mappings_for(mode, wanted).into_iter().map(|m| (m.name, m.carried.into())).collect())
 }
 
-/// 0x60FE:01 `word` with the AKD's digital outputs in `levels` (pairs of output number and
-/// level) set, its other bits as they are; ValueError naming an output the AKD does not have,
-/// whatever the integer (one past 64 bits too).
+/// The mappings `io_mappings` finds for mode `mode` and the one I/O `needs`, in words for a
+/// refusal: their names, or a flexible mapping where none has it.
 #[pyfunction]
-fn with_digital_outputs(word: u32, levels: Vec<(Bound<'_, PyInt>, bool)>) -> PyResult<u32> {
-    let mut now = io::outputs(word);
-    for (number, high) in levels {
-        let output = number.extract::<u8>().ok().filter(|o| (1..=io::OUTPUT_COUNT).contains(o));
-        let Some(output) = output else {
-            let count = io::OUTPUT_COUNT;
-            return Err(PyValueError::new_err(format!("output {number}: the AKD has digital outputs 1 to {count}")));
-        };
-        let bit = 1u8 << (output - 1);
-        now = if high { now | bit } else { now & !bit };
-    }
-    Ok(io::with_outputs(word, now))
+fn io_mappings_in_words(mode: &str, needs: &str) -> PyResult<String> {
+    let mode = Mode::from_snake_name(mode).ok_or_else(|| PyValueError::new_err(format!("no mode {mode:?}")))?;
+    let names = ["digital_inputs", "analog_input", "digital_outputs", "analog_output"];
+    let Some(k) = names.iter().position(|n| *n == needs) else {
+        return Err(PyValueError::new_err(format!("{needs:?} is none of {}", names.join(", "))));
+    };
+    Ok(io::mappings_in_words(mode, |c| [c.digital_inputs, c.analog_input, c.digital_outputs, c.analog_output][k]))
 }
 
 /// Checks `rx` and `tx` (each as `Master.configure_pdo` takes it) against the AKD's mapping
@@ -373,7 +367,7 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyDriveIo>()?;
     m.add_function(wrap_pyfunction!(mapping_io, m)?)?;
     m.add_function(wrap_pyfunction!(io_mappings, m)?)?;
-    m.add_function(wrap_pyfunction!(with_digital_outputs, m)?)?;
+    m.add_function(wrap_pyfunction!(io_mappings_in_words, m)?)?;
     m.add("IO_INPUT_COUNT", io::INPUT_COUNT)?;
     m.add("IO_OUTPUT_COUNT", io::OUTPUT_COUNT)?;
     m.add("IO_SWITCHES", PyTuple::new(m.py(), Switch::ALL.iter().map(|s| s.name()))?)?;

@@ -12,7 +12,7 @@ use pyo3::types::PyBytes;
 
 use super::bag_writer::PyBagWriter;
 use super::cycle::PyCycle;
-use super::record::joint_scale;
+use super::units::PyUnits;
 use crate::ros::cycle_records::CycleRecords;
 use crate::ros::feed::{Feed, Kind};
 use crate::ros::msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
@@ -43,15 +43,15 @@ fn period(seconds: f64) -> PyResult<Duration> {
 }
 
 /// A joint of a feed, a dict with every key: "slave" (its drive's position), "name", "units"
-/// (`akd_ros.units.Units`), "homes" (whether its drive homes it: DriveStatus.homed is always
+/// (its `Units`), "homes" (whether its drive homes it: DriveStatus.homed is always
 /// true for a joint it does not), "inputs" and "outputs" (the names it gives the drive's digital
 /// inputs and outputs, each (name, AKD number)) and "volts_per_count" (its analog scale).
 #[derive(FromPyObject)]
 #[pyo3(from_item_all)]
-struct FeedJoint<'py> {
+struct FeedJoint {
     slave: u16,
     name: String,
-    units: Bound<'py, PyAny>,
+    units: PyUnits,
     homes: bool,
     inputs: Vec<(String, u8)>,
     outputs: Vec<(String, u8)>,
@@ -94,13 +94,13 @@ impl PyFeed {
 impl PyFeed {
     #[new]
     #[pyo3(signature = (cycle, joints, devices = Vec::new()))]
-    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint<'_>>, devices: Vec<FeedDevice>) -> PyResult<Self> {
+    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint>, devices: Vec<FeedDevice>) -> PyResult<Self> {
         let joints = joints
             .into_iter()
             .map(|j| {
                 let io = JointIo::new(j.inputs, j.outputs, j.volts_per_count)
                     .map_err(|e| PyValueError::new_err(format!("joint {}: {e}", j.name)))?;
-                Ok(Joint { slave: j.slave, scale: joint_scale(&j.units)?, name: j.name, homes: j.homes, io })
+                Ok(Joint { slave: j.slave, scale: j.units.scaling, name: j.name, homes: j.homes, io })
             })
             .collect::<PyResult<Vec<_>>>()?;
         let offset_ns = Arc::new(AtomicI64::new(0));

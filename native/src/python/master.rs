@@ -451,6 +451,12 @@ impl PyMaster {
         Ok(self.with_slave(py, position, |s| s.position_scaling())?.map(PositionScalingView::from))
     }
 
+    /// Sets the mode of operation (0x6060) of the drive at `position` by SDO, `mode` its code
+    /// (`ModeOfOperation.code`): the mode it starts the cycle in.
+    fn set_mode(&self, py: Python<'_>, position: u16, mode: i8) -> PyResult<()> {
+        self.with_slave(py, position, |s| s.set_mode(mode))
+    }
+
     /// The description of entry `index:subindex`: subindex, data_type, bit_length, access, name.
     fn sdo_entry_description(&self, py: Python<'_>, position: u16, index: u16, subindex: u8) -> PyResult<EntryInfo> {
         self.with_slave(py, position, |s| s.sdo_entry_description(index, subindex))

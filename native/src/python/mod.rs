@@ -24,6 +24,7 @@ mod master;
 mod record;
 mod sim;
 mod trajectory;
+mod units;
 
 create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
 create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
@@ -89,7 +90,8 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
             | Error::Unavailable(_)
             | Error::AliasNotUnique { .. }
             | Error::NoSuchSlave { .. }
-            | Error::Trajectory(_) => ConfigError::new_err(message),
+            | Error::Trajectory(_)
+            | Error::Command(_) => ConfigError::new_err(message),
         };
         let value = err.value(py);
         let set = |name: &str, v: PyResult<PyObject>| {
@@ -204,6 +206,7 @@ fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
     record::register(m)?;
     bag_writer::register(m)?;
     feed::register(m)?;
+    units::register(m)?;
     m.add_function(wrap_pyfunction!(snake_case, m)?)?;
     Ok(())
 }

@@ -5,8 +5,9 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
+use super::units::PyUnits;
 use crate::cycle::samples::Sample;
-use crate::ros::cycle_sample::{self, JointScale};
+use crate::ros::cycle_sample;
 
 /// A column of `columns` by name, every row converted to T.
 fn column<'py, T: FromPyObject<'py>>(columns: &Bound<'py, PyDict>, name: &str) -> PyResult<Vec<T>> {
@@ -75,29 +76,20 @@ fn samples_of(columns: &Bound<'_, PyDict>) -> PyResult<Vec<Sample>> {
         .collect())
 }
 
-/// The scale of an `akd_ros.units.Units`.
-pub(super) fn joint_scale(units: &Bound<'_, PyAny>) -> PyResult<JointScale> {
-    Ok(JointScale {
-        si_per_count: units.getattr("si_per_count")?.extract()?,
-        position_offset: units.getattr("offset")?.extract()?,
-        si_per_torque_unit: units.getattr("si_per_torque_unit")?.extract()?,
-    })
-}
-
-/// The records of `joints`, a list of (joint name, its `akd_ros.units.Units`, its columns as
+/// The records of `joints`, a list of (joint name, its `Units`, its columns as
 /// `Cycle.samples` gives them), as a list of (ROS time ns, serialised `akd_ros/msg/CycleSample`),
 /// cycle by cycle and within a cycle in the order of `joints`; `offset_ns` (ROS minus monotonic
 /// time) stamps each with its cycle's wake-up on the ROS clock.
 #[pyfunction]
 fn cycle_sample_records(
     py: Python<'_>,
-    joints: Vec<(String, Bound<'_, PyAny>, Bound<'_, PyDict>)>,
+    joints: Vec<(String, PyUnits, Bound<'_, PyDict>)>,
     offset_ns: i64,
 ) -> PyResult<Vec<(i64, Py<PyBytes>)>> {
     let mut rows = Vec::new();
     let mut named = Vec::with_capacity(joints.len());
     for (k, (joint, units, columns)) in joints.iter().enumerate() {
-        named.push((joint.as_str(), joint_scale(units)?));
+        named.push((joint.as_str(), units.scaling));
         rows.extend(samples_of(columns)?.into_iter().map(|s| (k, s)));
     }
     Ok(cycle_sample::encode_rows(rows, &named, offset_ns)

@@ -9,7 +9,7 @@ use crate::cycle::events::TrajectoryState;
 use crate::cycle::trajectory_player::{Tolerance, Tolerances, TrajectoryStatus};
 use crate::cycle::CycleThread;
 use crate::drive::ds402::State;
-use crate::drive::trajectory::{JointLimits, Knot, Limits, Scale, Unit};
+use crate::drive::trajectory::{JointLimits, Knot, Limits, Scale};
 use crate::error::Error;
 
 /// One joint at one point as Python gives it: a position, or (position, velocity or None,
@@ -90,10 +90,8 @@ pub(super) fn joint_limits(
     (min, max): (Option<f64>, Option<f64>),
     max_velocity: Option<f64>,
     max_acceleration: Option<f64>,
-    (per_count, offset, unit): (f64, f64, &str),
-) -> PyResult<JointLimits> {
-    let unit = Unit::from_name(unit)
-        .ok_or_else(|| ConfigError::new_err(format!("unit {unit:?}: allowed \"counts\", \"rad\" or \"m\"")))?;
+    scale: Scale,
+) -> JointLimits {
     let open = Limits::TARGET;
     let limits = Limits {
         min: min.unwrap_or(open.min),
@@ -101,7 +99,7 @@ pub(super) fn joint_limits(
         max_velocity: max_velocity.unwrap_or(open.max_velocity),
         max_acceleration: max_acceleration.unwrap_or(open.max_acceleration),
     };
-    Ok(JointLimits { name, limits, scale: Scale { per_count, offset, unit } })
+    JointLimits { name, limits, scale }
 }
 
 /// How a trajectory stands, as Python sees it in its status and its events: "state",

@@ -9,25 +9,15 @@
 
 use crate::cycle::samples::Sample;
 use crate::drive::ds402::{CommandKind, Mode};
+use crate::drive::scaling::JointScaling;
 use crate::ros::msgs::{self, Time};
-
-/// How one joint's drive units become SI, as the node's units give them.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct JointScale {
-    /// rad (or m) per count, for position, velocity and following error.
-    pub si_per_count: f64,
-    /// The position of count 0 (rad or m).
-    pub position_offset: f64,
-    /// N·m (or N) per torque unit (0.1 % of the drive's peak torque).
-    pub si_per_torque_unit: f64,
-}
 
 /// `sample` of `joint` as a serialised `akd_ros/msg/CycleSample` stamped `stamp_ns` (ROS time,
 /// ns); its command is the target of the mode the drive shows (NaN in a mode without one).
-pub fn encode(sample: &Sample, joint: &str, scale: &JointScale, stamp_ns: i64) -> Vec<u8> {
-    let position = |counts: i32| counts as f64 * scale.si_per_count + scale.position_offset;
-    let per_count = |counts: i32| counts as f64 * scale.si_per_count;
-    let torque = |value: i16| value as f64 * scale.si_per_torque_unit;
+pub fn encode(sample: &Sample, joint: &str, scale: &JointScaling, stamp_ns: i64) -> Vec<u8> {
+    let position = |counts: i32| scale.position_to_si(counts.into());
+    let per_count = |counts: i32| scale.velocity_to_si(counts.into());
+    let torque = |value: i16| scale.torque_to_si(value.into());
     let command = match Mode::from_i8(sample.mode).and_then(Mode::command) {
         Some(CommandKind::Position) => position(sample.target_position),
         Some(CommandKind::Velocity) => per_count(sample.target_velocity),
@@ -59,7 +49,7 @@ pub fn encode(sample: &Sample, joint: &str, scale: &JointScale, stamp_ns: i64) -
 /// (ROS minus monotonic time).
 pub fn encode_rows(
     mut rows: Vec<(usize, Sample)>,
-    joints: &[(&str, JointScale)],
+    joints: &[(&str, JointScaling)],
     offset_ns: i64,
 ) -> Vec<(i64, Vec<u8>)> {
     // Stable: a drive's records of one cycle stay in the order they were taken.
@@ -77,7 +67,15 @@ pub fn encode_rows(
 mod tests {
     use super::*;
 
-    const SCALE: JointScale = JointScale { si_per_count: 0.5, position_offset: 1.0, si_per_torque_unit: 0.25 };
+    // 0.5 m per count, 1.0 m at count 0, 0.25 N per torque unit (to rounding).
+    const SCALE: JointScaling = JointScaling {
+        counts_per_revolution: 1,
+        gear_ratio: 1.0,
+        direction: 1,
+        offset: 1.0,
+        lead: Some(0.5),
+        peak_torque: 125.0 / std::f64::consts::TAU,
+    };
 
     fn sample(mode: Mode) -> Sample {
         Sample {
@@ -119,7 +117,7 @@ mod tests {
         assert_eq!(&body[20..23], b"j1\0");
         assert_eq!(f64_at(body, 24), 51.0);
         assert_eq!(f64_at(body, 32), -4.0);
-        assert_eq!(f64_at(body, 40), 10.0);
+        assert!((f64_at(body, 40) - 10.0).abs() < 1e-12);
         assert_eq!(f64_at(body, 48), 53.0);
         assert_eq!(f64_at(body, 56), 1.0);
         assert_eq!(i32::from_le_bytes(body[64..68].try_into().unwrap()), 100);
@@ -135,7 +133,7 @@ mod tests {
     fn the_command_is_the_target_of_the_mode_shown() {
         let command = |mode| f64_at(&encode(&sample(mode), "j1", &SCALE, 0)[4..], 48);
         assert_eq!(command(Mode::ProfileVelocity), 6.0);
-        assert_eq!(command(Mode::ProfileTorque), -5.0);
+        assert!((command(Mode::ProfileTorque) + 5.0).abs() < 1e-12);
         assert!(command(Mode::Homing).is_nan());
     }
 }

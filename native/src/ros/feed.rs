@@ -39,6 +39,7 @@ use crate::cycle::{timing, CycleThread, Snapshot};
 use crate::drive::ds402::{Mode, State};
 use crate::drive::io::{DriveIo, HardwareEnable, Switch};
 use crate::drive::objects::DriveInputs;
+use crate::drive::scaling::PositionUnwrap;
 use crate::ethercat::device::ChannelValue;
 use crate::ethercat::pdo::Direction;
 use crate::ros::bag_writer::BagWriter;
@@ -60,13 +61,6 @@ pub enum Kind {
     DriveIo(usize),
     /// akd_ros/DeviceIO of the device at this index, of the cycle the snapshot holds.
     DeviceIo(usize),
-}
-
-/// The continuous count nearest `last` that reads as the int32 `raw` on the drive, as
-/// `akd_ros.units.unwrap_position` gives it: continuous while the axis moves less than 2**31
-/// counts between readings.
-pub fn unwrap_position(last: i64, raw: i32) -> i64 {
-    last + raw.wrapping_sub(last as i32) as i64
 }
 
 /// What the feed's thread and its callers share.
@@ -387,8 +381,8 @@ struct Reading {
 struct Maker {
     shared: Arc<FeedShared>,
     streams: Vec<(Kind, Duration, Instant)>,
-    /// Each joint's position in counts, unwrapped across the 32-bit wrap.
-    unwrapped: Vec<Option<i64>>,
+    /// Each joint's position, unwrapped across the 32-bit wrap.
+    unwrapped: Vec<PositionUnwrap>,
     names: Vec<String>,
     /// The cycle's events pushed when it last said there were new ones.
     said: u64,
@@ -399,7 +393,7 @@ impl Maker {
         let now = Instant::now();
         let names = shared.joints.iter().map(|j| j.name.clone()).collect();
         Maker {
-            unwrapped: vec![None; shared.joints.len()],
+            unwrapped: vec![PositionUnwrap::default(); shared.joints.len()],
             streams: streams.into_iter().map(|(kind, period)| (kind, period, now + period)).collect(),
             shared,
             names,
@@ -493,21 +487,19 @@ impl Maker {
         let joints = &self.shared.joints;
         let mut position = Vec::with_capacity(joints.len());
         for (k, (joint, inputs)) in joints.iter().zip(&reading.inputs).enumerate() {
-            let raw = inputs.position_actual.unwrap_or(0);
-            let counts = self.unwrapped[k].map_or(raw as i64, |last| unwrap_position(last, raw));
-            self.unwrapped[k] = Some(counts);
-            position.push(counts as f64 * joint.scale.si_per_count + joint.scale.position_offset);
+            let counts = self.unwrapped[k].next(inputs.position_actual.unwrap_or(0));
+            position.push(joint.scale.position_to_si(counts as f64));
         }
         let all = |values: Option<Vec<f64>>| values.unwrap_or_default();
         let velocity = all(joints
             .iter()
             .zip(&reading.inputs)
-            .map(|(j, i)| i.velocity_actual.map(|v| v as f64 * j.scale.si_per_count))
+            .map(|(j, i)| i.velocity_actual.map(|v| j.scale.velocity_to_si(v.into())))
             .collect());
         let effort = all(joints
             .iter()
             .zip(&reading.inputs)
-            .map(|(j, i)| i.torque_actual.map(|t| t as f64 * j.scale.si_per_torque_unit))
+            .map(|(j, i)| i.torque_actual.map(|t| j.scale.torque_to_si(t.into())))
             .collect());
         let message = msgs::JointState {
             header: Header::at(reading.stamp_ns),
@@ -537,7 +529,7 @@ impl Maker {
             statusword: status.map_or(0, |s| s.statusword),
             mode: mode.as_deref().unwrap_or(""),
             mode_of_operation: shown.map_or(0, |m| m as i8),
-            following_error: inputs.following_error.map_or(f64::NAN, |e| e as f64 * j.scale.si_per_count),
+            following_error: inputs.following_error.map_or(f64::NAN, |e| j.scale.velocity_to_si(e.into())),
             homed: !j.homes || cycle.homing_status(j.slave).is_ok_and(|s| s.homed),
             cycles: stats.cycles.load(Ordering::Relaxed),
             overruns: stats.overruns.load(Ordering::Relaxed),
@@ -548,20 +540,5 @@ impl Maker {
             exchange_p99: exchange.p99_ns as f64 * 1e-9,
         };
         msgs::to_cdr(&message, 160)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn positions_stay_continuous_across_the_wrap_either_way() {
-        // As tests/test_units.py checks akd_ros.units.unwrap_position.
-        assert_eq!(unwrap_position(i32::MAX as i64, i32::MIN), i32::MAX as i64 + 1);
-        assert_eq!(unwrap_position(i32::MIN as i64, i32::MAX), i32::MIN as i64 - 1);
-        assert_eq!(unwrap_position(i32::MAX as i64 + 10, i32::MIN + 20), i32::MAX as i64 + 21);
-        assert_eq!(unwrap_position(5 * (1 << 32) + 7, 3), 5 * (1 << 32) + 3);
-        assert_eq!(unwrap_position(-7, -7), -7);
     }
 }

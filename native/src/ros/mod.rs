@@ -26,7 +26,7 @@ pub mod feed;
 pub mod line_diagnostics;
 pub mod msgs;
 
-use crate::ros::cycle_sample::JointScale;
+use crate::drive::scaling::JointScaling;
 
 /// A joint of the node: its drive's position on the bus, its name and how its drive units
 /// become SI.
@@ -37,7 +37,7 @@ pub struct Joint {
     /// The joint's name.
     pub name: String,
     /// Its scale.
-    pub scale: JointScale,
+    pub scale: JointScaling,
     /// Whether it is homed by the drive (homing.method other than none); a joint that is not is
     /// always homed.
     pub homes: bool,

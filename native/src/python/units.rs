@@ -1,0 +1,301 @@
+//! `akd_ros._native.Units`, a joint's scale ([`JointScaling`]) for Python, and
+//! `PositionUnwrap`, its position read across the 32-bit wrap ([`PositionUnwrap`]).
+
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyFloat, PyInt};
+
+use crate::drive::scaling::{self, JointScaling, PositionScaling, PositionUnwrap, Ratio, ScalingError};
+
+/// How drive counts and thousandths of peak torque map to SI units of the load: rad, rad/s and
+/// N·m for a rotary axis, m, m/s and N for a linear one (REP 103). Positions (0x6064, 0x607A,
+/// 0x60C1:01) count `counts_per_revolution` per motor revolution, velocities (0x606C, 0x60FF)
+/// those counts per second, torques (0x6071, 0x6077) 0.1 % of the drive's peak torque.
+/// `gear_ratio` is motor revolutions per load revolution, `direction` (+1 or -1) flips the
+/// load's sense against the motor's, `offset` is the load position at motor count 0, a linear
+/// axis moves `lead` metres per load revolution, and `peak_torque` (N·m at the motor) is what
+/// drive torque 1000 means. Every conversion of the joint's values is this one, in the crate:
+/// the node's joint states, its recorded cycles and its commands convert by it too.
+#[pyclass(name = "Units", module = "akd_ros._native", frozen, eq)]
+#[derive(Clone, PartialEq)]
+pub struct PyUnits {
+    pub(super) scaling: JointScaling,
+}
+
+/// A drive's position scaling as `Master.position_scaling` gives it (its ratios and DS402
+/// scaling; the counts it derives are derived again here).
+#[derive(FromPyObject)]
+#[pyo3(from_item_all)]
+struct DriveScaling {
+    encoder_resolution: (u32, u32),
+    gear_ratio: (u32, u32),
+    feed_constant: (u32, u32),
+    ds402_scaling: Option<bool>,
+}
+
+/// `error` about `value` (given as Python gave it) in Python's words.
+fn refused(error: ScalingError, value: &Bound<'_, PyAny>) -> PyErr {
+    let text = error.to_string();
+    let head = text.split(", got ").next().unwrap_or(&text);
+    let repr = value.repr().map_or_else(|_| "?".to_owned(), |r| r.to_string());
+    PyValueError::new_err(format!("{head}, got {repr}"))
+}
+
+/// `value` as a real number (NaN for anything else, which the scaling then refuses).
+fn real(value: &Bound<'_, PyAny>) -> f64 {
+    let number =
+        !value.is_instance_of::<PyBool>() && (value.is_instance_of::<PyInt>() || value.is_instance_of::<PyFloat>());
+    if number {
+        value.extract().unwrap_or(f64::NAN)
+    } else {
+        f64::NAN
+    }
+}
+
+fn conversion<T>(result: Result<T, ScalingError>) -> PyResult<T> {
+    result.map_err(|e| PyValueError::new_err(e.to_string()))
+}
+
+#[pymethods]
+impl PyUnits {
+    #[new]
+    #[allow(clippy::too_many_arguments)] // the mechanics' seven keywords, as Python names them
+    #[pyo3(signature = (counts_per_revolution = None, gear_ratio = None, direction = None, offset = None, axis = None, lead = None, peak_torque = None))]
+    fn new(
+        py: Python<'_>,
+        counts_per_revolution: Option<Bound<'_, PyAny>>,
+        gear_ratio: Option<Bound<'_, PyAny>>,
+        direction: Option<Bound<'_, PyAny>>,
+        offset: Option<Bound<'_, PyAny>>,
+        axis: Option<Bound<'_, PyAny>>,
+        lead: Option<Bound<'_, PyAny>>,
+        peak_torque: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let default = JointScaling::default();
+        fn or<'py>(given: Option<Bound<'py, PyAny>>, default: Bound<'py, PyAny>) -> Bound<'py, PyAny> {
+            given.unwrap_or(default)
+        }
+        let float = |x: f64| PyFloat::new(py, x).into_any();
+        let cpr = or(counts_per_revolution, default.counts_per_revolution.into_pyobject(py)?.into_any());
+        let gear = or(gear_ratio, float(default.gear_ratio));
+        let direction = or(direction, 1i8.into_pyobject(py)?.into_any());
+        let offset = or(offset, float(default.offset));
+        let axis = or(axis, "rotary".into_pyobject(py)?.into_any());
+        let peak = or(peak_torque, float(default.peak_torque));
+        let counts = match cpr.is_instance_of::<PyBool>() {
+            true => 0,
+            false => cpr.extract::<u64>().unwrap_or(0),
+        };
+        let sense = match real(&direction) {
+            d if d == 1.0 && !direction.is_instance_of::<PyBool>() => 1,
+            -1.0 => -1,
+            _ => 0,
+        };
+        let linear = match axis.extract::<String>().as_deref() {
+            Ok("rotary") => false,
+            Ok("linear") => true,
+            _ => return Err(PyValueError::new_err(format!("axis must be 'rotary' or 'linear', got {}", axis.repr()?))),
+        };
+        let lead_value = lead.as_ref().map(real);
+        JointScaling::new(counts, real(&gear), sense, real(&offset), (linear, lead_value), real(&peak))
+            .map(|scaling| PyUnits { scaling })
+            .map_err(|e| {
+                let given = match &e {
+                    ScalingError::CountsPerRevolution => &cpr,
+                    ScalingError::Direction => &direction,
+                    ScalingError::NotFinite { name: "gear_ratio", .. } => &gear,
+                    ScalingError::NotFinite { name: "offset", .. } => &offset,
+                    ScalingError::NotFinite { name: "peak_torque", .. } => &peak,
+                    ScalingError::NoLead => return PyValueError::new_err(e.to_string()),
+                    _ => lead.as_ref().unwrap_or(&axis),
+                };
+                refused(e, given)
+            })
+    }
+
+    /// Feedback counts per motor revolution; the virtual AKD uses 2**20.
+    #[getter]
+    fn counts_per_revolution(&self) -> u64 {
+        self.scaling.counts_per_revolution
+    }
+
+    /// Motor revolutions per load revolution.
+    #[getter]
+    fn gear_ratio(&self) -> f64 {
+        self.scaling.gear_ratio
+    }
+
+    /// +1 when the load turns with the motor's positive sense, -1 when against it.
+    #[getter]
+    fn direction(&self) -> i8 {
+        self.scaling.direction
+    }
+
+    /// Load position at motor count 0: rad for a rotary axis, m for a linear one.
+    #[getter]
+    fn offset(&self) -> f64 {
+        self.scaling.offset
+    }
+
+    /// "rotary" (rad, rad/s, N·m) or "linear" (m, m/s, N).
+    #[getter]
+    fn axis(&self) -> &'static str {
+        if self.scaling.lead.is_some() {
+            "linear"
+        } else {
+            "rotary"
+        }
+    }
+
+    /// Metres the load travels per load revolution of a linear axis; None for a rotary one.
+    #[getter]
+    fn lead(&self) -> Option<f64> {
+        self.scaling.lead
+    }
+
+    /// The drive's peak torque at the motor in N·m, which drive torque value 1000 (100 %) means.
+    #[getter]
+    fn peak_torque(&self) -> f64 {
+        self.scaling.peak_torque
+    }
+
+    /// The SI unit of positions: "rad" or "m".
+    #[getter]
+    fn position_unit(&self) -> &'static str {
+        self.scaling.position_unit().name()
+    }
+
+    /// Load travel (rad or m, signed by `direction`) per motor count.
+    #[getter]
+    fn si_per_count(&self) -> f64 {
+        self.scaling.si_per_count()
+    }
+
+    /// Load torque (N·m) or force (N), signed by `direction`, per drive torque unit (0.1 % of peak).
+    #[getter]
+    fn si_per_torque_unit(&self) -> f64 {
+        self.scaling.si_per_torque_unit()
+    }
+
+    /// The load position (rad or m) at motor position `counts` (raw int32 or an unwrapped count).
+    fn position_to_si(&self, counts: f64) -> f64 {
+        self.scaling.position_to_si(counts)
+    }
+
+    /// The int32 target position (0x607A) for the load position `position` (rad or m).
+    fn position_to_counts(&self, position: f64) -> PyResult<i32> {
+        conversion(self.scaling.position_to_counts(position))
+    }
+
+    /// The load velocity (rad/s or m/s) at motor velocity `counts_per_second` (0x606C).
+    fn velocity_to_si(&self, counts_per_second: f64) -> f64 {
+        self.scaling.velocity_to_si(counts_per_second)
+    }
+
+    /// The int32 target velocity (0x60FF, counts per second) for the load velocity `velocity`.
+    fn velocity_to_counts(&self, velocity: f64) -> PyResult<i32> {
+        conversion(self.scaling.velocity_to_counts(velocity))
+    }
+
+    /// Motor counts/s² for the load acceleration `acceleration` (rad/s² or m/s²).
+    fn acceleration_to_counts(&self, acceleration: f64) -> PyResult<f64> {
+        conversion(self.scaling.acceleration_to_counts(acceleration))
+    }
+
+    /// The load torque (N·m) or force (N) for the drive torque `value` (0x6077, 0.1 % of peak).
+    fn torque_to_si(&self, value: f64) -> f64 {
+        self.scaling.torque_to_si(value)
+    }
+
+    /// The int16 target torque (0x6071, 0.1 % of peak) for the load torque (N·m) or force (N).
+    fn torque_to_drive(&self, torque: f64) -> PyResult<i16> {
+        conversion(self.scaling.torque_to_drive(torque))
+    }
+
+    /// Where the drive counts the position objects its mapping carries (`mapped`, (index,
+    /// subindex) pairs) in another scale than `counts_per_revolution`, one sentence saying which,
+    /// by how much, from which of its objects, and what to change; None where they agree or the
+    /// drive does not tell (`scaling` is `Master.position_scaling`'s, None for a drive without
+    /// the DS402 scaling objects).
+    #[pyo3(signature = (scaling, mapped))]
+    fn scale_mismatch(&self, scaling: Option<DriveScaling>, mapped: Vec<(u16, u8)>) -> Option<String> {
+        let s = scaling?;
+        let ratio = |(numerator, denominator): (u32, u32)| Ratio { numerator, denominator };
+        let drive = PositionScaling {
+            encoder_resolution: ratio(s.encoder_resolution),
+            gear_ratio: ratio(s.gear_ratio),
+            feed_constant: ratio(s.feed_constant),
+            ds402_scaling: s.ds402_scaling,
+        };
+        drive.mismatch(self.scaling.counts_per_revolution, |index, sub| mapped.contains(&(index, sub)))
+    }
+
+    fn __hash__(&self) -> u64 {
+        let s = &self.scaling;
+        let bits = [s.gear_ratio, s.offset, s.lead.unwrap_or(-1.0), s.peak_torque].map(f64::to_bits);
+        bits.iter().fold(s.counts_per_revolution ^ s.direction as u64, |h, b| h.rotate_left(13) ^ b)
+    }
+
+    fn __repr__(&self) -> String {
+        let s = &self.scaling;
+        let lead = s.lead.map_or("None".to_owned(), scaling::py_repr);
+        format!(
+            "Units(counts_per_revolution={}, gear_ratio={}, direction={}, offset={}, axis='{}', lead={lead}, \
+             peak_torque={})",
+            s.counts_per_revolution,
+            scaling::py_repr(s.gear_ratio),
+            s.direction,
+            scaling::py_repr(s.offset),
+            self.axis(),
+            scaling::py_repr(s.peak_torque)
+        )
+    }
+}
+
+/// One reader's view of a joint's position across the drive's 32-bit wrap: `next(raw)` gives
+/// the continuous count of each reading (`unwrap_position` from the last), the first as it is.
+/// The node's feed keeps one per joint for /joint_states, an `Axis` one for its states.
+#[pyclass(name = "PositionUnwrap", module = "akd_ros._native")]
+#[derive(Default)]
+pub struct PyPositionUnwrap {
+    unwrap: PositionUnwrap,
+}
+
+/// `raw` as an int32, or ValueError naming the range.
+fn int32(raw: &Bound<'_, PyAny>) -> PyResult<i32> {
+    match raw.is_instance_of::<PyInt>() && !raw.is_instance_of::<PyBool>() {
+        true => raw.extract::<i32>().ok(),
+        false => None,
+    }
+    .ok_or_else(|| {
+        let repr = raw.repr().map_or_else(|_| "?".to_owned(), |r| r.to_string());
+        PyValueError::new_err(format!("raw position must be an int32, in [{}, {}], got {repr}", i32::MIN, i32::MAX))
+    })
+}
+
+#[pymethods]
+impl PyPositionUnwrap {
+    #[new]
+    fn new() -> Self {
+        Self::default()
+    }
+
+    /// The continuous count of the int32 reading `raw`.
+    fn next(&mut self, raw: &Bound<'_, PyAny>) -> PyResult<i64> {
+        Ok(self.unwrap.next(int32(raw)?))
+    }
+}
+
+/// The continuous count nearest `previous` that reads as the int32 `raw` on the drive: fed each
+/// raw reading with the last result, the count stays continuous while the axis moves less than
+/// 2**31 counts between readings. Start with `previous = raw`.
+#[pyfunction]
+fn unwrap_position(previous: i64, raw: &Bound<'_, PyAny>) -> PyResult<i64> {
+    Ok(scaling::unwrap_position(previous, int32(raw)?))
+}
+
+pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyUnits>()?;
+    m.add_class::<PyPositionUnwrap>()?;
+    m.add_function(wrap_pyfunction!(unwrap_position, m)?)
+}
