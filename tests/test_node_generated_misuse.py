@@ -141,7 +141,8 @@ def check_setpoints(robot: Robot) -> None:
     it missed, two periods' motion in one frame that arrives less than a period after the late one; over a window
     that is one period more, which the allowance (1.2 times, plus a period) covers, while a joint driven faster than
     max_velocity for longer than a cycle is still caught. A target set where the drive stands (the sequencer holding
-    it at the actual position, as after an enable) moves nothing, whatever the target before: a window starts there."""
+    it at the actual position, as after an enable) moves nothing, whatever the target before and wherever it stands:
+    a window starts there."""
     for line in robot.new_setpoints():
         drive, target = line["drive"], line.get("target_position")
         before, robot.last[drive] = robot.last.get(drive), line
@@ -150,14 +151,15 @@ def check_setpoints(robot: Robot) -> None:
             window.clear()
             continue
         rad, previous = target / COUNTS_PER_RAD[drive], before["target_position"] / COUNTS_PER_RAD[drive]
+        if abs(rad - line["position"] / COUNTS_PER_RAD[drive]) <= MAX_VELOCITY * PERIOD_S:
+            # Held where it stands, past a limit too where a homing search (which knows no limits yet) left it.
+            window.clear()
+            window.append(line)
+            continue
         joint = JOINTS[drive]
         assert past(rad, LIMIT[drive]) <= past(previous, LIMIT[drive]) + 1e-6, (
             f"{joint}'s set-point {rad} rad is past its limit ±{LIMIT[drive]} (before: {previous}): {line}"
         )
-        if abs(rad - line["position"] / COUNTS_PER_RAD[drive]) <= MAX_VELOCITY * PERIOD_S:
-            window.clear()
-            window.append(line)
-            continue
         if line["frame"] - before["frame"] != 1:
             # The frames between carried before's target (only changes are traced): it stood until the last one.
             window.clear()
