@@ -346,6 +346,8 @@ class Misuse(RuleBasedStateMachine):
             keys = ("frame", "monotonic_ns", "controlword", "modes_of_operation", "target_position", "position")
             shown = [{k: line.get(k) for k in keys} for line in (mine[:1] + changes[:5] + changes[-5:] + mine[-1:])]
             received.append(f"{joint}: {len(mine)} frames, {len(changes)} target changes: {shown}")
+        by_drive = collections.Counter(JOINTS[line["drive"]] for line in lines)
+        received.append(f"every drive's traced frames since: {dict(by_drive)}")
         statuses = [
             (m.id, m.state, list(m.joints), m.message) for m in self.client.received[NODE + "trajectory_status"][-8:]
         ]
