@@ -20,7 +20,6 @@ The budget is small here (`AKD_MISUSE_EXAMPLES` examples of `AKD_MISUSE_STEPS` s
 from __future__ import annotations
 
 import collections
-import itertools
 import json
 import math
 import os
@@ -323,7 +322,7 @@ class Misuse(RuleBasedStateMachine):
         bound = max(stamp, 0.0) + max(elapsed, 0.0) + 1.0 + GOAL_BOUND_S
         handle, result = self.accepted(self.client.follow, message, bound, f"follow {motion}")
         if before is not None:
-            trace_at = self.robot.trace.stat().st_size
+            judged_ns = time.monotonic_ns()
             # A refused goal is answered at once, before anything moved.
             self.client.spin_until(lambda: result.done() or handle.status == GoalStatus.STATUS_EXECUTING, "an answer")
             self.client.spin_for(0.05)
@@ -331,23 +330,33 @@ class Misuse(RuleBasedStateMachine):
                 self.client.spin_for(0.2)
                 after = dict(zip(JOINTS, (self.client.positions()[j] for j in JOINTS), strict=True))
                 moved = {j: after[j] - before[j] for j in JOINTS if abs(after[j] - before[j]) > STILL}
-                assert not moved, self.why_moved(result.result().result.error_string, moved, trace_at)
+                assert not moved, self.why_moved(result.result().result.error_string, moved, judged_ns)
 
-    def why_moved(self, refusal: str, moved: dict[str, float], trace_at: int) -> str:
+    def why_moved(self, refusal: str, moved: dict[str, float], judged_ns: int) -> str:
         """What the soak needs to tell who moved a joint a refused goal did not name: what each moved joint's drive
-        received since the goal was sent, the trajectories' last statuses, this example's goals and the node's log."""
+        received from half a second before the robot was judged still (akd-sim stamps it with this host's monotonic
+        clock; its writer may lag, so it is given a second to catch up), the moved joints' last /joint_states, the
+        trajectories' last statuses, this example's goals and the node's log."""
+        time.sleep(1.0)
+        since = judged_ns - 500_000_000
         with self.robot.trace.open() as trace:
-            trace.seek(trace_at)
-            lines = [json.loads(line) for line in trace.read().splitlines() if line.startswith('{"drive"')]
-        received = []
+            lines = [json.loads(line) for line in trace if line.startswith('{"drive"')]
+        lines = [line for line in lines if line["monotonic_ns"] >= since]
+        received = [
+            f"every drive's traced frames since: {dict(collections.Counter(JOINTS[x['drive']] for x in lines))}"
+        ]
+        keys = ("monotonic_ns", "controlword", "modes_of_operation", "target_position", "position")
         for joint in moved:
-            mine = [line for line in lines if line["drive"] == JOINTS.index(joint)]
-            changes = [b for a, b in itertools.pairwise(mine) if a.get("target_position") != b.get("target_position")]
-            keys = ("frame", "monotonic_ns", "controlword", "modes_of_operation", "target_position", "position")
-            shown = [{k: line.get(k) for k in keys} for line in (mine[:1] + changes[:5] + changes[-5:] + mine[-1:])]
-            received.append(f"{joint}: {len(mine)} frames, {len(changes)} target changes: {shown}")
-        by_drive = collections.Counter(JOINTS[line["drive"]] for line in lines)
-        received.append(f"every drive's traced frames since: {dict(by_drive)}")
+            mine = [{k: line.get(k) for k in keys} for line in lines if line["drive"] == JOINTS.index(joint)]
+            received.append(f"{joint} (judged at {judged_ns}): {len(mine)} frames: {mine[:6]} ... {mine[-6:]}")
+        states = self.client.received["/joint_states"][-40:]
+        for joint in moved:
+            at = states[-1].name.index(joint)
+            seen = [
+                (m.header.stamp.sec % 1000 + m.header.stamp.nanosec * 1e-9, m.position[at], m.velocity[at])
+                for m in states
+            ]
+            received.append(f"{joint} on /joint_states (stamp, position, velocity): {seen}")
         statuses = [
             (m.id, m.state, list(m.joints), m.message) for m in self.client.received[NODE + "trajectory_status"][-8:]
         ]
