@@ -130,13 +130,13 @@ impl HomingStatus {
     }
 }
 
-const START: u64 = 1;
-const CANCEL: u64 = 2;
-
 /// What a drive's homing shares with other threads: all atomics.
 #[derive(Default)]
 pub struct HomingShared {
-    /// The request counter (high 32 bits) and what it asks (START or CANCEL).
+    /// The request counter (high 32 bits) and the number of the last start asked (low 32): the
+    /// last request is a start when both are equal, else a cancel. Carrying the last start
+    /// beside the counter lets the cycle see a start it never took because a cancel came
+    /// before its next cycle, and end it canceled instead of losing it.
     request: AtomicU64,
     timeout_ns: AtomicU64,
     /// The published status: request (high 32), phase, statusword (low 16).
@@ -144,25 +144,34 @@ pub struct HomingShared {
     homed: AtomicBool,
 }
 
+/// A request word: its counter and the number of the last start asked.
+fn split(request: u64) -> (u32, u32) {
+    ((request >> 32) as u32, request as u32)
+}
+
 impl HomingShared {
-    fn ask(&self, what: u64) -> u32 {
-        let next = |r: u64| ((r >> 32) as u32).wrapping_add(1);
-        let before =
-            self.request.fetch_update(Ordering::AcqRel, Ordering::Acquire, |r| Some((next(r) as u64) << 32 | what));
+    fn ask(&self, start: bool) -> u32 {
+        let next = |r: u64| {
+            let (counter, last_start) = split(r);
+            let counter = counter.wrapping_add(1);
+            (counter as u64) << 32 | if start { counter } else { last_start } as u64
+        };
+        let before = self.request.fetch_update(Ordering::AcqRel, Ordering::Acquire, |r| Some(next(r)));
         // The closure never refuses.
-        next(before.unwrap_or_else(|r| r))
+        split(next(before.unwrap_or_else(|r| r))).0
     }
 
     /// Asks for a homing that ends timed out when not attained within `timeout_ns` of the
     /// cycle taking it; replaces one under way. Returns its number.
     pub fn start(&self, timeout_ns: u64) -> u32 {
         self.timeout_ns.store(timeout_ns, Ordering::Release);
-        self.ask(START)
+        self.ask(true)
     }
 
-    /// Cancels the homing under way (halted, then back to the set-points' mode).
+    /// Cancels the homing under way, or asked and not yet taken (halted, then back to the
+    /// set-points' mode).
     pub fn cancel(&self) {
-        self.ask(CANCEL);
+        self.ask(false);
     }
 
     /// Clears the homed flag: the drive was lost, and its zero with it.
@@ -170,9 +179,10 @@ impl HomingShared {
         self.homed.store(false, Ordering::Release);
     }
 
-    /// The status as last published; a start not yet taken shows as entering.
+    /// The status as last published; a start not yet taken shows as entering, even when a
+    /// cancel followed it before the cycle took either.
     pub fn status(&self) -> HomingStatus {
-        let request = self.request.load(Ordering::Acquire);
+        let (counter, last_start) = split(self.request.load(Ordering::Acquire));
         let v = self.status.load(Ordering::Acquire);
         let mut status = HomingStatus {
             request: (v >> 32) as u32,
@@ -180,8 +190,8 @@ impl HomingShared {
             statusword: v as u16,
             homed: self.homed.load(Ordering::Acquire),
         };
-        if (request >> 32) as u32 != status.request && request & 0xF == START {
-            status = HomingStatus { request: (request >> 32) as u32, phase: Phase::Entering, ..status };
+        if counter != status.request && (last_start.wrapping_sub(status.request) as i32) > 0 {
+            status = HomingStatus { request: last_start, phase: Phase::Entering, ..status };
         }
         status
     }
@@ -214,6 +224,8 @@ pub struct Homing {
     mode_before: u8,
     /// Cycles spent in the phase.
     cycles: u32,
+    /// The number of the last start taken or ended unstarted.
+    started: u32,
 }
 
 impl Default for Homing {
@@ -227,6 +239,7 @@ impl Default for Homing {
             phase_ns: 0,
             mode_before: 0,
             cycles: 0,
+            started: 0,
         }
     }
 }
@@ -246,22 +259,27 @@ impl Homing {
     ) -> bool {
         let statusword = u16::from_le_bytes([inputs[o.statusword], inputs[o.statusword + 1]]);
         let display = inputs[o.mode_display];
-        let request = shared.request.load(Ordering::Acquire);
+        let (counter, last_start) = split(shared.request.load(Ordering::Acquire));
         let mut hold = false;
-        let next = if (request >> 32) as u32 != self.request {
-            self.request = (request >> 32) as u32;
-            match request & 0xF {
-                START => {
-                    if !self.phase.under_way() {
-                        self.mode_before = display;
-                    }
-                    self.started_ns = now_ns;
-                    self.timeout_ns = shared.timeout_ns.load(Ordering::Acquire);
-                    shared.homed.store(false, Ordering::Release);
-                    Phase::Entering
+        let next = if counter != self.request {
+            self.request = counter;
+            if last_start == counter {
+                if !self.phase.under_way() {
+                    self.mode_before = display;
                 }
-                _ if self.phase.under_way() => self.ending(Outcome::Canceled),
-                _ => self.phase,
+                self.started = counter;
+                self.started_ns = now_ns;
+                self.timeout_ns = shared.timeout_ns.load(Ordering::Acquire);
+                shared.homed.store(false, Ordering::Release);
+                Phase::Entering
+            } else if self.phase.under_way() {
+                self.ending(Outcome::Canceled)
+            } else if last_start != self.started {
+                // Asked and canceled between two cycles: it ends canceled, never started.
+                self.started = last_start;
+                Phase::Done(Outcome::Canceled)
+            } else {
+                self.phase
             }
         } else {
             self.next(statusword, display, self.mode_after(outputs[o.mode]), now_ns, stop_ns)
@@ -418,5 +436,33 @@ mod tests {
         assert_eq!(cycle(&mut h, &shared, 0x0218, HOMING, 41), (false, CSP, 0x0F));
         assert_eq!(shared.status().phase, Phase::Done(Outcome::NotEnabled));
         assert!(!shared.status().homed);
+    }
+
+    #[test]
+    fn a_start_canceled_before_the_cycle_took_it_ends_canceled_not_as_the_last_homing_did() {
+        let (mut h, shared) = (Homing::default(), HomingShared::default());
+        shared.cancel();
+        cycle(&mut h, &shared, ENABLED, CSP, 0);
+        assert_eq!(shared.status().phase, Phase::Idle, "a cancel with nothing asked changes nothing");
+        shared.start(100 * MS);
+        cycle(&mut h, &shared, ENABLED, CSP, 1);
+        cycle(&mut h, &shared, ENABLED | 0x1400, HOMING, 2);
+        cycle(&mut h, &shared, ENABLED | 0x1400, HOMING, 3);
+        cycle(&mut h, &shared, ENABLED, CSP, 4);
+        cycle(&mut h, &shared, ENABLED, CSP, 5);
+        assert_eq!(shared.status().phase, Phase::Done(Outcome::Attained));
+        let number = shared.start(100 * MS);
+        shared.cancel();
+        assert_eq!(
+            (shared.status().request, shared.status().phase),
+            (number, Phase::Entering),
+            "not yet taken: not the last homing's outcome"
+        );
+        assert_eq!(cycle(&mut h, &shared, ENABLED, CSP, 6), (false, CSP, 0x0F), "nothing moves");
+        assert_eq!(shared.status().phase, Phase::Done(Outcome::Canceled));
+        assert!(shared.status().homed, "a homing never started leaves the last zero");
+        shared.cancel();
+        cycle(&mut h, &shared, ENABLED, CSP, 7);
+        assert_eq!(shared.status().phase, Phase::Done(Outcome::Canceled), "a second cancel changes nothing");
     }
 }
