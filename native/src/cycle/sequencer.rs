@@ -25,8 +25,20 @@ use crate::drive::objects::POSITION_ACTUAL;
 use crate::error::{Result, Unavailable};
 use crate::ethercat::pdo::{find, PdoEntry};
 
-/// What a caller asks of a drive.
+/// What a caller asks of a drive; in Python `DriveRequest` (`DriveRequest.ENABLE`, ...), which
+/// prints as its [`name`](Request::name).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "python",
+    pyo3::pyclass(
+        name = "DriveRequest",
+        module = "akd_ros._native",
+        frozen,
+        eq,
+        eq_int,
+        rename_all = "SCREAMING_SNAKE_CASE"
+    )
+)]
 #[repr(u8)]
 pub enum Request {
     /// To Operation enabled (from Switch on disabled, not from Fault).
@@ -40,10 +52,11 @@ pub enum Request {
 }
 
 impl Request {
+    /// Every request, in the order of their values.
+    pub const ALL: [Request; 4] = [Request::Enable, Request::Disable, Request::QuickStop, Request::FaultReset];
+
     fn from_u8(value: u8) -> Option<Request> {
-        [Request::Enable, Request::Disable, Request::QuickStop, Request::FaultReset]
-            .into_iter()
-            .find(|r| *r as u8 == value)
+        Request::ALL.into_iter().find(|r| *r as u8 == value)
     }
 
     /// The request's name as the Python API spells it.
@@ -150,8 +163,20 @@ impl Offsets {
     }
 }
 
-/// How far the current request is.
+/// How far the current request is; in Python `RequestProgress` (`RequestProgress.STUCK`, ...),
+/// which prints as its [`name`](Progress::name).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(
+    feature = "python",
+    pyo3::pyclass(
+        name = "RequestProgress",
+        module = "akd_ros._native",
+        frozen,
+        eq,
+        eq_int,
+        rename_all = "SCREAMING_SNAKE_CASE"
+    )
+)]
 pub enum Progress {
     /// No request was made yet: the sequencer leaves the drive's outputs alone.
     Idle,
@@ -166,8 +191,23 @@ pub enum Progress {
     Lost,
 }
 
-/// A drive's status as the cycle thread last published it.
+impl Progress {
+    /// The progress's name as the Python API spells it: "in_progress".
+    pub fn name(self) -> &'static str {
+        match self {
+            Progress::Idle => "idle",
+            Progress::InProgress => "in_progress",
+            Progress::Done => "done",
+            Progress::Stuck => "stuck",
+            Progress::Lost => "lost",
+        }
+    }
+}
+
+/// A drive's status as the cycle thread last published it; the same object in Python
+/// (`Cycle.drive_status`), and what akd_ros/DriveStatus says of the drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "python", pyo3::pyclass(module = "akd_ros._native", frozen, get_all))]
 pub struct DriveStatus {
     /// The last statusword read (0 before the first cycle).
     pub statusword: u16,
