@@ -123,8 +123,8 @@ class AxisState:
     fresh: bool
     """Whether that cycle's exchange succeeded (else the values are the last good ones)."""
     state: _native.Ds402State | None
-    """The CiA 402 state (`Ds402State.OPERATION_ENABLED`, ...), None for a statusword that shows none. Deprecated
-    use: it was the state's name (a str) until 0.1.0; it prints as that name, but compares equal only to a member."""
+    """The CiA 402 state (`Ds402State.OPERATION_ENABLED`, ...), None for a statusword that shows none. Earlier
+    versions gave the state's name (a str): it prints as that name, but compares equal only to a member."""
     statusword: int
     mode: str | None
     """The mode the drive shows (0x6061), by name."""

@@ -25,48 +25,28 @@ use crate::drive::objects::POSITION_ACTUAL;
 use crate::error::{Result, Unavailable};
 use crate::ethercat::pdo::{find, PdoEntry};
 
-/// What a caller asks of a drive; in Python `DriveRequest` (`DriveRequest.ENABLE`, ...), which
-/// prints as its [`name`](Request::name).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(
-    feature = "python",
-    pyo3::pyclass(
-        name = "DriveRequest",
-        module = "akd_ros._native",
-        frozen,
-        eq,
-        eq_int,
-        rename_all = "SCREAMING_SNAKE_CASE"
-    )
-)]
-#[repr(u8)]
-pub enum Request {
-    /// To Operation enabled (from Switch on disabled, not from Fault).
-    Enable = 1,
-    /// To Switch on disabled (power stage off).
-    Disable = 2,
-    /// Quick stop: brake with 0x6085 and hold in Quick stop active (from Operation enabled).
-    QuickStop = 3,
-    /// Fault reset by a rising edge of bit 7: Fault to Switch on disabled.
-    FaultReset = 4,
+named_variants! {
+    /// What a caller asks of a drive; in Python `DriveRequest` (`DriveRequest.ENABLE`, ...),
+    /// which prints as its [`name`](Request::name).
+    #[cfg_attr(feature = "python", pyo3::pyclass(name = "DriveRequest", module = "akd_ros._native", frozen, eq, eq_int, rename_all = "SCREAMING_SNAKE_CASE"))]
+    #[repr(u8)]
+    pub enum Request {
+        /// To Operation enabled (from Switch on disabled, not from Fault).
+        Enable = 1 => "enable",
+        /// To Switch on disabled (power stage off).
+        Disable = 2 => "disable",
+        /// Quick stop: brake with 0x6085 and hold in Quick stop active (from Operation enabled).
+        QuickStop = 3 => "quick_stop",
+        /// Fault reset by a rising edge of bit 7: Fault to Switch on disabled.
+        FaultReset = 4 => "reset_fault",
+    }
+    /// The request's name as the Python API spells it.
+    fn name;
 }
 
 impl Request {
-    /// Every request, in the order of their values.
-    pub const ALL: [Request; 4] = [Request::Enable, Request::Disable, Request::QuickStop, Request::FaultReset];
-
     fn from_u8(value: u8) -> Option<Request> {
         Request::ALL.into_iter().find(|r| *r as u8 == value)
-    }
-
-    /// The request's name as the Python API spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Request::Enable => "enable",
-            Request::Disable => "disable",
-            Request::QuickStop => "quick_stop",
-            Request::FaultReset => "reset_fault",
-        }
     }
 
     /// Whether the drive in `state` has done what was asked.
@@ -163,45 +143,25 @@ impl Offsets {
     }
 }
 
-/// How far the current request is; in Python `RequestProgress` (`RequestProgress.STUCK`, ...),
-/// which prints as its [`name`](Progress::name).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[cfg_attr(
-    feature = "python",
-    pyo3::pyclass(
-        name = "RequestProgress",
-        module = "akd_ros._native",
-        frozen,
-        eq,
-        eq_int,
-        rename_all = "SCREAMING_SNAKE_CASE"
-    )
-)]
-pub enum Progress {
-    /// No request was made yet: the sequencer leaves the drive's outputs alone.
-    Idle,
-    /// The request is under way.
-    InProgress,
-    /// The drive reached the requested state.
-    Done,
-    /// The time-out passed first, or the drive cannot get there (see [`DriveStatus::stuck_reason`]).
-    Stuck,
-    /// The drive left the state it reached by itself (fault, hardware enable low); the
-    /// sequencer brought it to Switch on disabled and does not retry.
-    Lost,
-}
-
-impl Progress {
-    /// The progress's name as the Python API spells it: "in_progress".
-    pub fn name(self) -> &'static str {
-        match self {
-            Progress::Idle => "idle",
-            Progress::InProgress => "in_progress",
-            Progress::Done => "done",
-            Progress::Stuck => "stuck",
-            Progress::Lost => "lost",
-        }
+named_variants! {
+    /// How far the current request is; in Python `RequestProgress` (`RequestProgress.STUCK`,
+    /// ...), which prints as its [`name`](Progress::name).
+    #[cfg_attr(feature = "python", pyo3::pyclass(name = "RequestProgress", module = "akd_ros._native", frozen, eq, eq_int, rename_all = "SCREAMING_SNAKE_CASE"))]
+    pub enum Progress {
+        /// No request was made yet: the sequencer leaves the drive's outputs alone.
+        Idle => "idle",
+        /// The request is under way.
+        InProgress => "in_progress",
+        /// The drive reached the requested state.
+        Done => "done",
+        /// The time-out passed first, or the drive cannot get there (see [`DriveStatus::stuck_reason`]).
+        Stuck => "stuck",
+        /// The drive left the state it reached by itself (fault, hardware enable low); the
+        /// sequencer brought it to Switch on disabled and does not retry.
+        Lost => "lost",
     }
+    /// The progress's name as the Python API spells it: "in_progress".
+    fn name;
 }
 
 /// A drive's status as the cycle thread last published it; the same object in Python

@@ -8,18 +8,7 @@
 named_variants! {
     /// A state of the drive, as the statusword shows it; in Python `Ds402State`, its members
     /// `Ds402State.OPERATION_ENABLED` and so on.
-    #[cfg_attr(
-        feature = "python",
-        pyo3::pyclass(
-            name = "Ds402State",
-            module = "akd_ros._native",
-            frozen,
-            eq,
-            eq_int,
-            hash,
-            rename_all = "SCREAMING_SNAKE_CASE"
-        )
-    )]
+    #[cfg_attr(feature = "python", pyo3::pyclass(name = "Ds402State", module = "akd_ros._native", frozen, eq, eq_int, hash, rename_all = "SCREAMING_SNAKE_CASE"))]
     pub enum State {
         /// Initialising; the drive leaves it by itself.
         NotReadyToSwitchOn => "Not ready to switch on",

@@ -205,62 +205,46 @@ enum EventView {
 }
 
 /// One fault and what the cycle thread did about it (`akd_ros.FaultEvent`, from `Axis.fault_events`).
-#[pyclass(module = "akd_ros._native", frozen)]
+#[pyclass(module = "akd_ros._native", frozen, get_all)]
 pub struct FaultEvent {
     /// The cycle that saw it (from 1).
-    #[pyo3(get)]
     cycle: u64,
     /// That cycle's wake-up time on the monotonic clock (ns).
-    #[pyo3(get)]
     time_ns: u64,
     /// The slave's position on the line.
-    #[pyo3(get)]
     slave: u16,
-    source: FaultSource,
+    /// What it is about: "drive_fault", "emergency", "lost_frames", "working_counter",
+    /// "al_state", "unreachable" (the drive stopped answering: power, cable or line; it is
+    /// being brought back) or "recovered" (back in Op, its power stage off).
+    source: &'static str,
     /// CiA error code (0x603F or the emergency's); cycles in a row for lost frames, working
     /// counter errors and an unreachable drive; how long it was gone (ms) for a recovered one.
-    #[pyo3(get)]
     code: u16,
     /// The AKD's text for the code where known, e.g. "F439 Following error".
-    #[pyo3(get)]
     text: Option<String>,
     /// The statusword of that cycle.
-    #[pyo3(get)]
     statusword: u16,
     /// The CiA 402 state it shows (a `Ds402State`), None for none.
-    #[pyo3(get)]
     ds402_state: Option<State>,
     /// AL status 0x0130 of that cycle (0 when not read).
-    #[pyo3(get)]
     al_status: u16,
     /// The AL state it shows ("Op", "SafeOp", ...), None when not read.
-    #[pyo3(get)]
     al_state: Option<&'static str>,
     /// AL status code 0x0134 of that cycle.
-    #[pyo3(get)]
     al_status_code: u16,
     /// Its name.
-    #[pyo3(get)]
     al_status_code_name: &'static str,
     /// What the cycle thread did about it.
-    #[pyo3(get)]
     action: &'static str,
 }
 
 #[pymethods]
 impl FaultEvent {
-    /// What it is about: "drive_fault", "emergency", "lost_frames", "working_counter",
-    /// "al_state", "unreachable" (the drive stopped answering: power, cable or line; it is
-    /// being brought back) or "recovered" (back in Op, its power stage off).
-    #[getter]
-    fn source(&self) -> &'static str {
-        self.source.name()
-    }
-
     /// One line for a log.
     fn describe(&self) -> String {
         let code = self.code;
-        let what = match self.source {
+        let source = FaultSource::ALL.into_iter().find(|s| s.name() == self.source);
+        let what = match source.unwrap_or(FaultSource::DriveFault) {
             FaultSource::LostFrames | FaultSource::WorkingCounter => format!("{code} cycles in a row"),
             FaultSource::Unreachable => {
                 format!("no answer for {code} cycles (power, cable or line); being brought back")
@@ -274,7 +258,7 @@ impl FaultEvent {
             ),
             _ => self.text.clone().unwrap_or_else(|| format!("code 0x{code:04X}")),
         };
-        format!("{}: {what}; {}", self.source.name(), self.action)
+        format!("{}: {what}; {}", self.source, self.action)
     }
 
     fn __repr__(&self) -> String {
@@ -306,7 +290,7 @@ impl EventView {
                     cycle,
                     time_ns,
                     slave,
-                    source,
+                    source: source.name(),
                     code,
                     text,
                     statusword,
@@ -1045,17 +1029,6 @@ impl DriveStatus {
     #[getter(reason)]
     fn py_reason(&self) -> Option<String> {
         self.stuck_reason()
-    }
-
-    fn __repr__(&self) -> String {
-        format!(
-            "DriveStatus(state={}, statusword=0x{:04X}, request={}, progress={}, mode_display={})",
-            self.state().map_or("None", State::name),
-            self.statusword,
-            self.request.map_or("None", Request::name),
-            self.progress.name(),
-            self.mode_display.map_or("None".to_owned(), |m| m.to_string()),
-        )
     }
 }
 

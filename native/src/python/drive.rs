@@ -361,7 +361,7 @@ impl State {
 
     /// What a message says of `state`: its `snake_name`, "unknown" for None.
     #[staticmethod]
-    #[pyo3(name = "message_name")]
+    #[pyo3(name = "message_name", signature = (state))]
     fn py_message_name(state: Option<State>) -> String {
         State::message_name(state)
     }
