@@ -4,9 +4,10 @@ The public API, named here one by one (`__all__`), so that what the extension ex
 (drive knowledge, codecs, the node's helpers) is not the user's API by accident:
 
 - from the native extension: the `Master`, the real-time `Cycle` and its options (`RealTime`, which `Bus`, `Axis`
-  and the node's `rt.*` parameters take alike), the virtual AKD (`VirtualBus`, `serve_udp`,
-  `serve_iface`, `Simulator`, which controls the virtual AKDs of a `Master("sim")` or a server while they serve, and
-  `SetpointTrace`, the file a server traces their set-points to) and the exceptions, all under `EtherCatError`;
+  and the node's `rt.*` parameters take alike), the CiA 402 states (`Ds402State`), the virtual AKD (`VirtualBus`,
+  `serve_udp`, `serve_iface`, `Simulator`, which controls the virtual AKDs of a `Master("sim")` or a server while they
+  serve, and `SetpointTrace`, the file a server traces their set-points to) and the exceptions, all under
+  `EtherCatError`;
 - in Python: `Bus`, one EtherCAT line with its master and cycle thread, and `Axis`, one drive on it commanded in SI
   units (`Units`, `Limits`), with its events; `Axis(link)` alone is a bus of one; `Device`, one of the line's other
   slaves (a terminal beside the drives: `DeviceConfig`), read and set by channel name (`DeviceIo`).
@@ -18,6 +19,7 @@ from akd_ros._native import (
     AlStateError,
     ConfigError,
     Cycle,
+    Ds402State,
     EtherCatError,
     FoeError,
     FrameError,
@@ -67,6 +69,7 @@ __all__ = [
     "DeviceConfig",
     "DeviceIo",
     "DriveConfig",
+    "Ds402State",
     "EtherCatError",
     "FaultEvent",
     "FoeError",

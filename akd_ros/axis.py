@@ -30,7 +30,7 @@ import collections
 import contextlib
 import time
 from collections.abc import Iterator
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 from akd_ros import _native
 from akd_ros.bus import _MODES, MODES, REQUESTS, Bus, CommandError, check_mode
@@ -97,8 +97,9 @@ class AxisState:
     """That cycle's wake-up time on the monotonic clock."""
     fresh: bool
     """Whether that cycle's exchange succeeded (else the values are the last good ones)."""
-    state: str | None
-    """The CiA 402 state's name, None for a statusword that shows none."""
+    state: _native.Ds402State | None
+    """The CiA 402 state (`Ds402State.OPERATION_ENABLED`, ...), None for a statusword that shows none. Earlier
+    versions gave the state's name (a str): it prints as that name, but compares equal only to a member."""
     statusword: int
     mode: str | None
     """The mode the drive shows (0x6061), by name."""
@@ -108,10 +109,11 @@ class AxisState:
     following_error: float | None
     position_counts: int
     """The actual position in counts, unwrapped across the 32-bit wrap."""
-    request: str | None
-    """The last request: "enable", "disable", "quick_stop", "reset_fault"."""
-    progress: str
-    """"idle", "in_progress", "done", "stuck" or "lost"."""
+    request: _native.DriveRequest | None
+    """The last request (`DriveRequest.ENABLE`, `DISABLE`, `QUICK_STOP`, `FAULT_RESET`; printed: "enable", "disable",
+    "quick_stop", "reset_fault")."""
+    progress: _native.RequestProgress
+    """`RequestProgress.IDLE`, `IN_PROGRESS`, `DONE`, `STUCK` or `LOST` (printed: "idle", ..., "lost")."""
     reason: str | None
     """Why a request is stuck or lost, from the statusword."""
     digital_inputs: int | None = None
@@ -161,46 +163,8 @@ class LatchEvent:
     position_counts: int
 
 
-@dataclass(frozen=True)
-class FaultEvent:
-    """One fault and what the cycle thread did about it."""
-
-    cycle: int
-    time_ns: int
-    source: str
-    """"drive_fault", "emergency", "lost_frames", "working_counter", "al_state", "unreachable" (the drive stopped
-    answering: power, cable or line; it is being brought back) or "recovered" (back in Op, its power stage off)."""
-    code: int
-    """CiA error code (0x603F or the emergency's); cycles in a row for lost frames, working counter errors and an
-    unreachable drive; how long it was gone (ms) for a recovered one."""
-    text: str | None
-    """The AKD's text for the code where known, e.g. "F439 Following error"."""
-    statusword: int
-    ds402_state: str | None
-    al_state: str | None
-    al_status_code: int
-    al_status_code_name: str
-    action: str
-
-    @classmethod
-    def of(cls, event: dict) -> FaultEvent:
-        """The fault event the cycle thread reported as `event` (a "fault" of `_native.Cycle.events`)."""
-        return cls(*(event[f.name] for f in fields(cls)))
-
-    def describe(self) -> str:
-        """One line for a log."""
-        what = self.text or (f"code 0x{self.code:04X}" if self.source in ("drive_fault", "emergency") else "")
-        if self.source in ("lost_frames", "working_counter"):
-            what = f"{self.code} cycles in a row"
-        if self.source == "unreachable":
-            what = f"no answer for {self.code} cycles (power, cable or line); being brought back"
-        if self.source == "recovered":
-            what = f"back after {self.code} ms"
-        if self.source == "al_state":
-            what = (
-                f"slave now in {self.al_state}, AL status code 0x{self.al_status_code:04X} ({self.al_status_code_name})"
-            )
-        return f"{self.source}: {what}; {self.action}"
+FaultEvent = _native.FaultEvent
+"""One fault and what the cycle thread did about it, as the crate makes it (`_native.FaultEvent`)."""
 
 
 @dataclass(frozen=True)
@@ -218,7 +182,7 @@ class CommandTimeoutEvent:
     value_drive: int
     """The same in drive units (counts/s, 0.1 % of peak torque)."""
     statusword: int
-    ds402_state: str | None
+    ds402_state: _native.Ds402State | None
     action: str
     """"hold" (halted until the next command) or "quick_stop" (until enabled again)."""
     text: str
@@ -358,7 +322,7 @@ class Axis:
         cycle.disable(self.slave)
         # A drive in Fault or unreachable stays as it is: powerless.
         with contextlib.suppress(_native.EtherCatError):
-            cycle.wait_state(self.slave, "Switch on disabled", timeout=1.0)
+            cycle.wait_state(self.slave, _native.Ds402State.SWITCH_ON_DISABLED, timeout=1.0)
         return None
 
     def __enter__(self) -> Axis:
@@ -367,7 +331,7 @@ class Axis:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _wait_state(self, state: str, timeout: float) -> None:
+    def _wait_state(self, state: _native.Ds402State, timeout: float) -> None:
         """Waits for the drive to show `state`; the native time-out (which names the state it is stuck in and why)
         becomes Python's TimeoutError, as callers of a driver expect."""
         try:
@@ -398,13 +362,16 @@ class Axis:
         that another request took its place (a quick stop of the whole bus after another drive's fault)."""
         try:
             if request == "quick_stop":
-                done = ("Quick stop active", "Switch on disabled")
-                self._wait_for(lambda s: s["state"] in done, "the quick stop", timeout)
+                done = (_native.Ds402State.QUICK_STOP_ACTIVE, _native.Ds402State.SWITCH_ON_DISABLED)
+                self._wait_for(lambda s: s.state in done, "the quick stop", timeout)
             else:
-                self._wait_state("Operation enabled" if request == "enable" else "Switch on disabled", timeout)
+                enable = request == "enable"
+                self._wait_state(
+                    _native.Ds402State.OPERATION_ENABLED if enable else _native.Ds402State.SWITCH_ON_DISABLED, timeout
+                )
         except TimeoutError as e:
-            in_force = self._running().drive_status(self.slave)["request"]
-            if in_force is not None and in_force != request:
+            in_force = self._running().drive_status(self.slave).request
+            if in_force is not None and in_force != REQUESTS[request]:
                 raise TimeoutError(f"{e}; the {request} was replaced by a {in_force} request") from None
             raise
 
@@ -453,7 +420,7 @@ class Axis:
             objects = " or ".join(f"0x{i:04X}:{s:02X}" for i, s in targets)
             raise CommandError(f"mode {mode} needs {objects} in the output mapping, which this mapping lacks")
         state = self.state()
-        if state.state == "Operation enabled" and state.velocity is not None:
+        if state.state == _native.Ds402State.OPERATION_ENABLED and state.velocity is not None:
             counts_per_s = abs(state.velocity / self.units.si_per_count)
             if counts_per_s > STANDSTILL_COUNTS_PER_S:
                 raise CommandError(
@@ -464,7 +431,7 @@ class Axis:
         self._mode = mode
         self._commanded.clear()
         if cycle.drive_inputs(self.slave).mode_display is not None:
-            self._wait_for(lambda s: s["mode_display"] == MODES[mode], f"the drive to show mode {mode} (0x6061)")
+            self._wait_for(lambda s: s.mode_display == MODES[mode], f"the drive to show mode {mode} (0x6061)")
 
     def _wait_for(self, done, what: str, timeout: float = 1.0) -> None:
         """Polls the drive's status until `done(status)`; TimeoutError naming `what`, the drive's state and, for a
@@ -472,12 +439,12 @@ class Axis:
         cycle = self._running()
         deadline = time.monotonic() + timeout
         while not done(status := cycle.drive_status(self.slave)):
-            stuck = status["progress"] == "stuck"
+            stuck = status.progress == _native.RequestProgress.STUCK
             if stuck or time.monotonic() > deadline:
                 raise TimeoutError(
-                    f"drive {self.slave}: timed out waiting for {what} (statusword 0x{status['statusword']:04X}, "
-                    f"state {status['state']}, mode display {status['mode_display']})"
-                    + (f": {status['reason']}" if stuck else "")
+                    f"drive {self.slave}: timed out waiting for {what} (statusword 0x{status.statusword:04X}, "
+                    f"state {status.state}, mode display {status.mode_display})"
+                    + (f": {status.reason}" if stuck else "")
                 )
             time.sleep(0.001)
 
@@ -584,17 +551,17 @@ class Axis:
             cycle=inputs.cycle,
             time_ns=inputs.time_ns,
             fresh=inputs.fresh,
-            state=status["state"],
-            statusword=status["statusword"],
+            state=status.state,
+            statusword=status.statusword,
             mode=MODE_NAMES.get(mode) if mode is not None else None,
             position=self.units.position_to_si(counts),
             velocity=None if velocity is None else self.units.velocity_to_si(velocity),
             torque=None if torque is None else self.units.torque_to_si(torque),
             following_error=None if following is None else following * self.units.si_per_count,
             position_counts=counts,
-            request=status["request"],
-            progress=status["progress"],
-            reason=status["reason"],
+            request=status.request,
+            progress=status.progress,
+            reason=status.reason,
             digital_inputs=inputs.digital_inputs,
         )
 
@@ -684,7 +651,7 @@ class Axis:
                     )
                 )
             else:
-                self._faults.append(FaultEvent.of(e))
+                self._faults.append(e["fault"])
 
     def latch_events(self) -> Iterator[LatchEvent]:
         """The latch captures since the last call, oldest first, each handed out once."""

@@ -43,8 +43,9 @@ that starts it)."""
 FAULT_REACTIONS = ("all", "joint")
 """What a fault on one drive does to the others: "all" quick-stops them, "joint" leaves them."""
 
-REQUESTS = ("enable", "disable", "quick_stop", "reset_fault")
-"""The requests a Bus makes of every drive at once."""
+REQUESTS = {str(request): request for request in _native.DRIVE_REQUESTS}
+"""The requests a Bus makes of every drive at once, by name ("enable", "disable", "quick_stop", "reset_fault"): the
+crate's `DriveRequest`s, as `Cycle.drive_status` reports them."""
 
 SAMPLES_KEPT = _native.SAMPLES_PER_DRIVE
 """Per-cycle records a Bus keeps for each drive until they are taken (as many as the cycle's own ring holds for each
@@ -315,7 +316,11 @@ class Bus:
                 for axis in self.axes:
                     # A drive in Fault or unreachable stays as it is: powerless.
                     with contextlib.suppress(_native.EtherCatError):
-                        cycle.wait_state(axis.slave, "Switch on disabled", timeout=max(deadline - time.monotonic(), 0))
+                        cycle.wait_state(
+                            axis.slave,
+                            _native.Ds402State.SWITCH_ON_DISABLED,
+                            timeout=max(deadline - time.monotonic(), 0),
+                        )
                 # The devices' outputs off go out in a cycle before the line leaves Op.
                 sent = cycle.snapshot()["cycle"] + 2
                 while self.devices and cycle.snapshot()["cycle"] < sent and time.monotonic() < deadline:

@@ -141,4 +141,4 @@ class Device:
                 self._input_events.append(DeviceIo(e["cycle"], e["time_ns"], True, inputs, outputs, e["levels"]))
         for e in events:
             if e["kind"] == "fault":
-                self._faults.append(FaultEvent.of(e))
+                self._faults.append(e["fault"])

@@ -189,8 +189,9 @@ def take_f125(bus: Bus, tally: Tally) -> None:
     """Counts the F125 the drives raised since the last call (their fault events with 0x603F = 0x8700)."""
     for axis in bus.axes:
         for event in bus.events_of(axis.slave):
-            if event.get("kind") == "fault" and event.get("source") == "drive_fault":
-                tally.f125_raised += event.get("code") == SYNC_LOST
+            fault = event.get("fault")
+            if fault is not None and fault.source == "drive_fault":
+                tally.f125_raised += fault.code == SYNC_LOST
 
 
 def stress(enabled: bool) -> subprocess.Popen | None:

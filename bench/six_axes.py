@@ -93,7 +93,7 @@ def run(link: str, period: float, args) -> dict:
         # Each fault's text (or source) and the joints that reported it, once each.
         faults: dict[str, list[str]] = {}
         for axis in bus.axes:
-            texts = {e["text"] or e["source"] for e in bus.events_of(axis.slave) if e["kind"] == "fault"}
+            texts = {e["fault"].text or e["fault"].source for e in bus.events_of(axis.slave) if e["kind"] == "fault"}
             for text in sorted(texts):
                 faults.setdefault(text, []).append(axis.name)
     start, end = status["started_ns"], status["started_ns"] + status["duration_ns"]

@@ -157,7 +157,8 @@ class Segment:
             else:
                 self.stale_wkc += 1
         for event in self.cycle.events():
-            key = event["kind"] if event["kind"] != "fault" else f"fault:{event['source']}:{event['code']:#06x}"
+            fault = event.get("fault")
+            key = event["kind"] if fault is None else f"fault:{fault.source}:{fault.code:#06x}"
             self.events[key] = self.events.get(key, 0) + 1
 
     def check(self, master_after: dict) -> list[str]:
@@ -308,7 +309,7 @@ class Soak:
         else:
             self.set_point(drive)
         # A drive in Fault is reset now and then, so that the stream goes on.
-        if cycle.drive_status(drive)["state"] == "Fault" and rng.random() < 0.3:
+        if cycle.drive_status(drive).state == _native.Ds402State.FAULT and rng.random() < 0.3:
             cycle.reset_fault(drive)
             self.count(self.commands, "reset_fault")
 
@@ -331,7 +332,7 @@ class Soak:
             # A drive a trajectory drives takes no set-point until the trajectory ends: refused, nothing written.
             self.count(self.commands, f"set_point_refused:{mode}")
             return
-        if mode == "profile_position" and cycle.drive_status(drive)["state"] == "Operation enabled":
+        if mode == "profile_position" and cycle.drive_status(drive).state == _native.Ds402State.OPERATION_ENABLED:
             cycle.start_setpoint(drive, 0x30)
         self.count(self.commands, f"set_point:{mode}")
 

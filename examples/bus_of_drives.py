@@ -30,4 +30,4 @@ with Bus("sim:3?missed=lost", drives, period=0.001, fault_reaction="all") as bus
     time.sleep(0.1)
     for fault in bus["wrist"].fault_events():
         print("wrist:", fault.describe())
-    print({name: state.state for name, state in bus.states().items()})  # the others are in Quick stop active
+    print({name: str(state.state) for name, state in bus.states().items()})  # the others are in Quick stop active

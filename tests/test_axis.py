@@ -15,6 +15,7 @@ import math
 import time
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import Axis, CommandError, ConfigError, Limits, Units
 
@@ -262,14 +263,14 @@ def test_a_drive_fault_is_one_event_with_its_code_and_text_and_reset_clears_it(a
     by_source = {e.source: e for e in faults}
     fault = by_source["drive_fault"]
     assert fault.code == 0x8611 and fault.text == "F439 Following error", fault
-    assert fault.ds402_state in ("Fault", "Fault reaction active")
+    assert fault.ds402_state in (Ds402State.FAULT, Ds402State.FAULT_REACTION_ACTIVE)
     assert "disabled" in fault.action
     assert by_source["emergency"].code == 0x8611
     assert axis.sdo_read(0x603F) == (0x8611).to_bytes(2, "little")
     with pytest.raises(TimeoutError, match="fault"):
         axis.enable(timeout=2.0)
     axis.reset_fault()
-    assert axis.state().state == "Switch on disabled"
+    assert axis.state().state == Ds402State.SWITCH_ON_DISABLED
     # Enabled again, it stays where it stopped: nothing retried the old command into motion.
     here = settled(axis)
     axis.enable()
@@ -292,12 +293,12 @@ def test_quick_stop_and_halt_stop_a_moving_axis(axis: Axis) -> None:
     wait_for("10 rad/s", lambda: abs(axis.state().velocity - 10.0) < 0.1)
     axis.halt()
     s = settled(axis)
-    assert s.state == "Operation enabled"
+    assert s.state == Ds402State.OPERATION_ENABLED
     axis.halt(False)
     wait_for("10 rad/s again", lambda: abs(axis.state().velocity - 10.0) < 0.1)
     axis.quick_stop()
     s = settled(axis)
-    assert s.state == "Quick stop active"
+    assert s.state == Ds402State.QUICK_STOP_ACTIVE
 
 
 def test_sdo_beside_the_cycle(axis: Axis) -> None:
@@ -407,13 +408,13 @@ def test_a_velocity_stream_that_stops_is_halted_until_the_next_command(axis: Axi
     assert abs(axis.state().velocity - 5.0) < 0.05
     event = wait_for("the time-out", lambda: list(axis.command_timeout_events()))[0]
     assert (event.command, event.action, event.timeout) == ("velocity", "hold", pytest.approx(0.3))
-    assert event.value == pytest.approx(5.0, abs=1e-4) and event.ds402_state == "Operation enabled"
+    assert event.value == pytest.approx(5.0, abs=1e-4) and event.ds402_state == Ds402State.OPERATION_ENABLED
     assert event.describe() == (
         "no velocity command for 0.3 s (command_timeout) while commanding 5: halted, holding until the next command"
     )
     assert list(axis.fault_events()) == [], "a command time-out is not a fault"
     s = settled(axis)
-    assert s.state == "Operation enabled" and abs(s.velocity) < 0.01
+    assert s.state == Ds402State.OPERATION_ENABLED and abs(s.velocity) < 0.01
     assert axis.cycle.command_timeout_status(0)["halted"]
     # The next command lets it go on.
     axis.command_velocity(5.0)
@@ -437,9 +438,9 @@ def test_a_torque_stream_that_stops_is_quick_stopped_until_enabled(axis: Axis) -
     event = wait_for("the time-out", lambda: list(axis.command_timeout_events()))[0]
     assert (event.command, event.action) == ("torque", "quick_stop")
     assert event.value == pytest.approx(0.3, abs=3.0 / 1000) and event.value_drive == 100
-    wait_for("Quick stop active", lambda: axis.state().state == "Quick stop active")
+    wait_for("Quick stop active", lambda: axis.state().state == Ds402State.QUICK_STOP_ACTIVE)
     axis.enable()
-    assert axis.state().state == "Operation enabled"
+    assert axis.state().state == Ds402State.OPERATION_ENABLED
 
 
 def test_position_and_zero_commands_never_time_out(axis: Axis) -> None:

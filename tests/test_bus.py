@@ -14,6 +14,7 @@ from __future__ import annotations
 import time
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import Axis, Bus, BusRequestError, CommandError, DriveConfig, Limits
 from support.waiting import wait_for
@@ -52,7 +53,7 @@ def test_three_axes_in_three_modes_move_each_as_commanded_and_only_then(bus: Bus
     assert bus["velocity"] is velocity and [a.slave for a in bus.axes] == [0, 1, 2]
     assert [a.mode for a in bus.axes] == ["interpolated_position", "profile_velocity", "profile_torque"]
     bus.enable()
-    assert [a.state().state for a in bus.axes] == ["Operation enabled"] * 3
+    assert [a.state().state for a in bus.axes] == [Ds402State.OPERATION_ENABLED] * 3
     # Enabled together, nothing moves before its command.
     assert [still(a) for a in bus.axes] == [0, 0, 0]
     start = {a.name: a.state().position_counts for a in bus.axes}
@@ -107,7 +108,9 @@ def test_a_latch_and_a_fault_arrive_only_at_their_axis(bus: Bus) -> None:
     assert list(velocity.latch_events()) == []
 
 
-@pytest.mark.parametrize(("reaction", "others"), [("all", "Quick stop active"), ("joint", "Operation enabled")])
+@pytest.mark.parametrize(
+    ("reaction", "others"), [("all", Ds402State.QUICK_STOP_ACTIVE), ("joint", Ds402State.OPERATION_ENABLED)]
+)
 def test_a_fault_on_one_drive_stops_the_others_as_fault_reaction_says(reaction: str, others: str) -> None:
     with Bus("sim:3?missed=lost", THREE, fault_reaction=reaction) as bus:
         ip, velocity, torque = bus.axes
@@ -115,7 +118,7 @@ def test_a_fault_on_one_drive_stops_the_others_as_fault_reaction_says(reaction: 
         velocity.command_velocity(2.0)
         ip.command_position(0.5)
         bus.simulator.inject_fault(1, "F439")
-        wait_for("the fault", lambda: velocity.state().state in ("Fault", "Fault reaction active"))
+        wait_for("the fault", lambda: velocity.state().state in (Ds402State.FAULT, Ds402State.FAULT_REACTION_ACTIVE))
         for axis in (ip, torque):
             wait_for(f"{axis.name} in {others}", lambda a=axis: a.state().state == others)
         time.sleep(0.1)
@@ -126,7 +129,7 @@ def test_a_fault_on_one_drive_stops_the_others_as_fault_reaction_says(reaction: 
         if reaction == "all":
             # Quick-stopped, not faulted: enabling again is the user's call, and it works.
             ip.enable()
-            assert ip.state().state == "Operation enabled"
+            assert ip.state().state == Ds402State.OPERATION_ENABLED
 
 
 def test_an_enable_a_fault_elsewhere_replaces_with_a_quick_stop_says_so() -> None:
@@ -150,7 +153,7 @@ def test_bus_wide_enable_names_the_drive_whose_hardware_enable_is_low(bus: Bus) 
     bus.simulator.set_hardware_enable(2, True)
     bus.enable()
     bus.disable()
-    assert {a.state().state for a in bus.axes} == {"Switch on disabled"}
+    assert {a.state().state for a in bus.axes} == {Ds402State.SWITCH_ON_DISABLED}
 
 
 @pytest.mark.parametrize(
@@ -187,8 +190,8 @@ def test_an_axis_of_a_shared_bus_closes_alone_and_a_closed_bus_refuses(bus: Bus)
     ip, velocity, _ = bus.axes
     bus.enable()
     velocity.close()
-    assert ip.state().state == "Operation enabled"
-    assert bus.cycle.drive_status(1)["state"] == "Switch on disabled"
+    assert ip.state().state == Ds402State.OPERATION_ENABLED
+    assert bus.cycle.drive_status(1).state == Ds402State.SWITCH_ON_DISABLED
     with pytest.raises(CommandError, match="the axis is closed"):
         velocity.command_velocity(1.0)
     bus.close()

@@ -11,6 +11,7 @@ from __future__ import annotations
 import re
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import Bus, CommandError, DriveConfig, Master
 from akd_ros.device import DeviceConfig
@@ -60,7 +61,7 @@ def test_the_terminals_are_read_and_set_by_name_beside_the_drives(cell: Bus) -> 
     assert inputs.io().inputs["channel_3_input"] is True
     # The drives run as ever beside them.
     cell.enable()
-    assert [a.state().state for a in cell.axes] == ["Operation enabled"] * 2
+    assert [a.state().state for a in cell.axes] == [Ds402State.OPERATION_ENABLED] * 2
 
 
 def test_the_outputs_go_off_as_the_bus_closes():

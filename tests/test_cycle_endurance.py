@@ -21,6 +21,8 @@ import sys
 import threading
 import time
 
+from akd_ros._native import Ds402State
+
 from akd_ros import Axis, RealTime
 
 CYCLES = 100_000
@@ -104,5 +106,5 @@ def test_100000_cycles_at_1_khz_with_python_busy_beside(capsys) -> None:
     # The drive stays enabled unless the machine stalled the thread past the eight cycles the AKD tolerates (a
     # virtual machine's vCPU can be descheduled, SCHED_FIFO or not): then it faults F125, as a real drive would, and
     # that stall is in the measured periods — a fault without one would be the loop's own doing.
-    if state.state != "Operation enabled":
+    if state.state != Ds402State.OPERATION_ENABLED:
         assert stalls > 0 and all(f.text and "F125" in f.text for f in faults), [f.describe() for f in faults]

@@ -23,6 +23,7 @@ import math
 import time
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import _native
 
@@ -49,7 +50,7 @@ def rig():
             for slave in DRIVES:
                 c.enable(slave)
             for slave in DRIVES:
-                c.wait_state(slave, "Operation enabled")
+                c.wait_state(slave, Ds402State.OPERATION_ENABLED)
             yield c, simulator
 
 
@@ -248,7 +249,7 @@ def unready(cycle):
     with pytest.raises(_native.ConfigError, match="drive 1 is named for wrist and elbow"):
         cycle.play_trajectory([1, 1], [S], [[0.0, 0.0]], names=["wrist", "elbow"])
     cycle.disable(2)
-    cycle.wait_state(2, "Switch on disabled")
+    cycle.wait_state(2, Ds402State.SWITCH_ON_DISABLED)
     with pytest.raises(_native.ConfigError, match=r"joint 0 \(drive 2\): it is in Switch on disabled"):
         cycle.play_trajectory([2], [S], one)
     # Named, as Bus.play_trajectory names them: what the user calls the joint.
@@ -277,4 +278,4 @@ def faulted(cycle, simulator, records):
         held = records.of(drive, "target_position", aborted["cycle"])
         assert len(held) >= 200 and set(held) == {held[0]}, f"drive {drive} moved on"
         assert held[0] != base[drive]
-    assert cycle.drive_status(1)["state"] == "Fault"
+    assert cycle.drive_status(1).state == Ds402State.FAULT

@@ -4,6 +4,7 @@ read by the mapping), checked against what the virtual AKD does and says about i
 from __future__ import annotations
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import _native
 from support.waiting import wait_for
@@ -91,7 +92,7 @@ def test_the_handshake_bits_start_profile_position_and_homing_in_the_cycle_threa
         mode = MODES[name]
         cycle.set_mode(0, mode.code)
         cycle.enable(0)
-        cycle.wait_state(0, "Operation enabled")
+        cycle.wait_state(0, Ds402State.OPERATION_ENABLED)
         if mode.command_objects:
             target = cycle.drive_inputs(0).position_actual - 50_000
             cycle.set_object(0, *mode.command_objects[0], encode(kinds, mode.command_objects[0], target))
@@ -102,7 +103,7 @@ def test_the_handshake_bits_start_profile_position_and_homing_in_the_cycle_threa
         else:
             wait_for("homing to zero the position", lambda: abs(cycle.drive_inputs(0).position_actual) < 2)
         cycle.disable(0)
-        cycle.wait_state(0, "Switch on disabled")
+        cycle.wait_state(0, Ds402State.SWITCH_ON_DISABLED)
     # The modes that follow their command every cycle have no handshake to start them.
     assert {m.name for m in MODES.values() if m.handshake_controlword is not None} == {"profile_position", "homing"}
 
@@ -112,7 +113,7 @@ def test_decoded_inputs_agree_with_sdo_reads_of_the_same_objects(drive) -> None:
     torque = MODES["profile_torque"]
     cycle.set_mode(0, torque.code)
     cycle.enable(0)
-    cycle.wait_state(0, "Operation enabled")
+    cycle.wait_state(0, Ds402State.OPERATION_ENABLED)
     # A negative torque: the shaft accelerates backwards, so position and velocity go negative and fall each cycle.
     cycle.set_object(0, *torque.command_objects[0], encode(kinds, torque.command_objects[0], -200))
     wait_for("a negative position", lambda: cycle.drive_inputs(0).position_actual < -10_000)
@@ -127,7 +128,7 @@ def test_decoded_inputs_agree_with_sdo_reads_of_the_same_objects(drive) -> None:
     assert after.torque_actual == -200 and after.velocity_actual < 0 and after.mode_display == torque.code
     assert after.cycle > before.cycle and after.fresh
     cycle.disable(0)
-    cycle.wait_state(0, "Switch on disabled")
+    cycle.wait_state(0, Ds402State.SWITCH_ON_DISABLED)
 
 
 def test_a_fixed_mapping_reads_the_internal_position_and_lacks_the_rest() -> None:
@@ -242,12 +243,20 @@ def test_encoded_values_are_what_the_drive_takes_and_reads_back() -> None:
 def test_ds402_states_name_what_the_sequencer_reaches(drive) -> None:
     cycle, _ = drive
     for request, state in (
-        (cycle.enable, "Operation enabled"),
-        (cycle.quick_stop, "Quick stop active"),
-        (cycle.disable, "Switch on disabled"),
+        (cycle.enable, Ds402State.OPERATION_ENABLED),
+        (cycle.quick_stop, Ds402State.QUICK_STOP_ACTIVE),
+        (cycle.disable, Ds402State.SWITCH_ON_DISABLED),
     ):
         request(0)
         cycle.wait_state(0, state)
         assert state in _native.DS402_STATES
-        assert _native.ds402_state(cycle.drive_inputs(0).statusword) == state
-    assert _native.ds402_state(0x0005) is None
+        assert Ds402State.from_statusword(cycle.drive_inputs(0).statusword) == state
+    assert Ds402State.from_statusword(0x0005) is None
+
+
+def test_a_state_prints_as_cia_402_writes_it_and_messages_spell_it_as_one_word() -> None:
+    state = Ds402State.FAULT_REACTION_ACTIVE
+    assert (str(state), state.snake_name, state.is_fault) == ("Fault reaction active", "fault_reaction_active", True)
+    assert [s for s in _native.DS402_STATES if s.is_fault] == [Ds402State.FAULT_REACTION_ACTIVE, Ds402State.FAULT]
+    assert Ds402State.message_name(None) == "unknown"
+    assert f"{Ds402State.OPERATION_ENABLED}" == "Operation enabled" != Ds402State.OPERATION_ENABLED

@@ -118,7 +118,7 @@ def test_joint_states_and_statuses_are_what_rclpy_reads_with_the_drives_values(b
         assert (status.joint, status.ds402_state, status.statusword) == (
             joint,
             "operation_enabled",
-            drive["statusword"],
+            drive.statusword,
         )
         assert (status.mode, status.mode_of_operation) == (bus[joint].mode, 8 if k == 0 else 3)
         assert 0 < status.cycles <= bus.stats()["cycles"] and status.lost_frames == 0

@@ -14,6 +14,7 @@ import re
 
 import pytest
 import yaml
+from akd_ros._native import Ds402State
 
 from akd_ros import Axis, CommandError, _native, params
 from akd_ros.axis import ANALOG_VOLTS_PER_COUNT, MODES
@@ -67,7 +68,7 @@ def test_outputs_go_out_by_the_process_image_and_read_back_from_the_drive(axis):
     io = axis.io()
     assert io.outputs == (True, True) and abs(io.analog_output + 3.3) <= ANALOG_VOLTS_PER_COUNT
     # A held axis stays held: outputs are no command.
-    assert axis.state().state == "Operation enabled" and axis.command is None
+    assert axis.state().state == Ds402State.OPERATION_ENABLED and axis.command is None
 
 
 def test_bad_outputs_are_refused_and_change_nothing(axis):
@@ -112,7 +113,7 @@ def test_a_limit_switch_holds_a_move_toward_it_and_lets_one_away_go(axis):
     held = axis.state()
     assert held.position < start + 0.05, (start, held.position)
     assert held.statusword & (1 << 11), "internal limit active"
-    assert held.state == "Operation enabled"
+    assert held.state == Ds402State.OPERATION_ENABLED
     for i in range(1, 200):
         axis.command_position(held.position - step * i)
         later(axis, 1)

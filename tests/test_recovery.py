@@ -16,6 +16,7 @@ import sys
 import time
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import Bus, DriveConfig, RealTime, _native
 from support import recovery_table
@@ -87,7 +88,7 @@ def assert_powerless_and_still(bus: Bus, joint: str, seconds: float = 0.3) -> No
     moves without a fresh enable and a fresh command."""
     axis = bus[joint]
     state = axis.state()
-    assert state.state in ("Switch on disabled", "Fault", "Ready to switch on"), state
+    assert state.state in (Ds402State.SWITCH_ON_DISABLED, Ds402State.FAULT, Ds402State.READY_TO_SWITCH_ON), state
     before = state.position_counts
     time.sleep(seconds)
     assert axis.state().position_counts == before
@@ -97,7 +98,7 @@ def assert_powerless_and_still(bus: Bus, joint: str, seconds: float = 0.3) -> No
 def enable_and_move(bus: Bus, joint: str) -> None:
     """A fresh reset, enable and command moves the recovered drive again."""
     axis = bus[joint]
-    if axis.state().state == "Fault":
+    if axis.state().state == Ds402State.FAULT:
         axis.reset_fault()
     axis.enable()
     start = axis.state().position
@@ -136,7 +137,7 @@ def test_a_short_burst_of_lost_frames_is_counted_and_changes_nothing(burst, enab
             detected = None
         assert bus.stats()["lost_frames"] == lost + burst
         state = bus["j0"].state()
-        assert state.state == ("Operation enabled" if enabled else "Switch on disabled"), state
+        assert state.state == (Ds402State.OPERATION_ENABLED if enabled else Ds402State.SWITCH_ON_DISABLED), state
         assert abs(state.position_counts - position) <= 1
     seen_text = (
         "`lost_frames` fault, counted; the drive holds its set-point" if enabled else "counted in the statistics"
@@ -161,7 +162,7 @@ def test_a_long_burst_of_lost_frames_is_reported_in_every_state_and_the_drive_co
         back = first(seen, "j0", "recovered")
         if enabled:
             # The drive saw more than seven frames missing while enabled: F125, its own reaction.
-            faults_until(bus, lambda _: bus["j0"].state().state == "Fault", "the drive's F125")
+            faults_until(bus, lambda _: bus["j0"].state().state == Ds402State.FAULT, "the drive's F125")
             assert bus.simulator.drive_state(0)["fault"] == "sync_lost"  # F125
         assert_powerless_and_still(bus, "j0")
         enable_and_move(bus, "j0")
@@ -184,10 +185,10 @@ def test_wrong_working_counters_are_counted_short_and_disable_long(burst):
         event = first(seen, "j0", "working_counter")
         assert event.code == burst, event
         if burst < 8:
-            assert event.action.startswith("counted") and bus["j0"].state().state == "Operation enabled"
+            assert event.action.startswith("counted") and bus["j0"].state().state == Ds402State.OPERATION_ENABLED
         else:
             assert event.action.startswith("drive disabled"), event
-            faults_until(bus, lambda _: bus["j0"].state().state == "Switch on disabled", "the drive disabled")
+            faults_until(bus, lambda _: bus["j0"].state().state == Ds402State.SWITCH_ON_DISABLED, "the drive disabled")
             assert_powerless_and_still(bus, "j0")
             enable_and_move(bus, "j0")
     recovery_table.record(
@@ -216,8 +217,8 @@ def test_a_drive_power_cycled_in_op_is_restored_with_its_power_stage_off(dc, rea
             assert sim["dc"]["sync0_active"] and sim["dc"]["sync0_cycle_ns"] == 1_000_000, sim["dc"]
         assert_powerless_and_still(bus, "j1")
         others = {j: bus[j].state().state for j in ("j0", "j2")}
-        expected = "Operation enabled" if reaction == "joint" else "Quick stop active"
-        assert set(others.values()) <= {expected, "Switch on disabled"} and (
+        expected = Ds402State.OPERATION_ENABLED if reaction == "joint" else Ds402State.QUICK_STOP_ACTIVE
+        assert set(others.values()) <= {expected, Ds402State.SWITCH_ON_DISABLED} and (
             reaction == "all" or set(others.values()) == {expected}
         ), (
             others,
@@ -244,7 +245,7 @@ def test_a_drive_power_cycled_under_a_pipelined_cycle_is_restored_too():
         seen = faults_until(bus, has("j1", "unreachable", "recovered"), "unreachable and recovered events")
         assert bus["j1"].recovery()["recoveries"] == 1
         assert not any(j != "j1" for j, _ in seen), [(j, e.describe()) for j, e in seen]
-        assert [bus[j].state().state for j in ("j0", "j2")] == ["Operation enabled"] * 2
+        assert [bus[j].state().state for j in ("j0", "j2")] == [Ds402State.OPERATION_ENABLED] * 2
         assert_powerless_and_still(bus, "j1")
         enable_and_move(bus, "j1")
 
@@ -259,7 +260,7 @@ def test_one_drive_of_several_vanishing_while_the_others_run():
         lost = first(seen, "j2", "unreachable")
         time.sleep(0.2)
         # The others answered every frame: they keep fresh inputs, stay enabled and follow commands.
-        assert [bus[j].state().state for j in ("j0", "j1")] == ["Operation enabled"] * 2
+        assert [bus[j].state().state for j in ("j0", "j1")] == [Ds402State.OPERATION_ENABLED] * 2
         assert bus["j2"].recovery()["recovering"]
         enable_and_move(bus, "j0")
         bus.simulator.replug_cable(2)
@@ -408,7 +409,7 @@ def test_a_master_killed_while_a_drive_is_enabled_leaves_the_drive_to_its_f125()
             while not (state := bus["j0"].state()).fresh:
                 assert time.monotonic() < deadline
                 time.sleep(0.01)
-            assert state.state == "Fault", state
+            assert state.state == Ds402State.FAULT, state
             enable_and_move(bus, "j0")
     finally:
         stop_process(master)
@@ -437,7 +438,7 @@ def test_stopping_the_cycle_while_another_thread_waits_on_it_ends_the_wait_with_
 
         def wait():
             try:
-                cycle.wait_state(0, "Operation enabled", timeout=WAIT_S)
+                cycle.wait_state(0, Ds402State.OPERATION_ENABLED, timeout=WAIT_S)
             except _native.EtherCatError as e:
                 outcome.append(str(e))
 

@@ -19,6 +19,7 @@ import subprocess
 import time
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import _native
 from support.netns import console_script, udp_port_bound
@@ -64,7 +65,7 @@ def rig():
 
 def enabled(cycle) -> None:
     cycle.enable(0)
-    cycle.wait_state(0, "Operation enabled")
+    cycle.wait_state(0, Ds402State.OPERATION_ENABLED)
 
 
 def test_a_fault_injected_while_a_cycle_holds_the_master_shows_in_the_statusword(rig):
@@ -78,11 +79,14 @@ def test_a_fault_injected_while_a_cycle_holds_the_master_shows_in_the_statusword
     simulator.inject_fault(0, "F439")
     wait_for("statusword fault bit", lambda: inputs(cycle)[1] & STATUSWORD_FAULT)
     state = simulator.drive_state(0)
-    assert (state["state"], state["fault"], state["fault_number"]) == ("Fault", "following_error", 439)
-    assert cycle.drive_status(0)["state"] == "Fault"
+    assert (state["state"], state["fault"], state["fault_number"]) == (Ds402State.FAULT, "following_error", 439)
+    assert cycle.drive_status(0).state == Ds402State.FAULT
     # The cycle thread took the drive's emergency from its mailbox and made it an event.
-    emergency = wait_for("the emergency", lambda: [e for e in cycle.events() if e.get("source") == "emergency"])
-    assert [e["code"] for e in emergency] == [0x8611]
+    emergency = wait_for(
+        "the emergency",
+        lambda: [e["fault"] for e in cycle.events() if e["kind"] == "fault" and e["fault"].source == "emergency"],
+    )
+    assert [f.code for f in emergency] == [0x8611]
     cycle.stop()
     # Back with the master: the drive reports the fault's CiA code.
     assert master.sdo_read(0, 0x603F, 0) == (0x8611).to_bytes(2, "little")
@@ -95,7 +99,7 @@ def test_hardware_enable_low_drops_an_enabled_drive_with_a_warning(rig):
     wait_for("warning bit", lambda: inputs(cycle)[1] & STATUSWORD_WARNING)
     statusword = inputs(cycle)[1]
     assert statusword & 0x004F == 0x0040, f"not Switch on disabled: 0x{statusword:04X}"
-    assert simulator.drive_state(0)["state"] == "Switch on disabled"
+    assert simulator.drive_state(0)["state"] == Ds402State.SWITCH_ON_DISABLED
     simulator.set_hardware_enable(0, True)
     wait_for("warning bit gone", lambda: not inputs(cycle)[1] & STATUSWORD_WARNING)
     enabled(cycle)

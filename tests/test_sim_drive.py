@@ -7,6 +7,7 @@ from __future__ import annotations
 import struct
 
 import pytest
+from akd_ros._native import Ds402State
 
 from support.ethercat import MAILBOX_IN, MAILBOX_SIZE, VirtualAkdSession
 
@@ -40,11 +41,11 @@ def enable_profile_velocity(session: VirtualAkdSession) -> None:
     sdo_write(session, 0x6060, 0, b"\x03")
     for controlword in (SHUTDOWN, SWITCH_ON, ENABLE_OPERATION):
         sdo_write(session, 0x6040, 0, struct.pack("<H", controlword))
-    assert session.bus.drive_state(0)["state"] == "Operation enabled"
+    assert session.bus.drive_state(0)["state"] == Ds402State.OPERATION_ENABLED
 
 
 def test_sim_drive_moves_in_profile_velocity(session):
-    assert session.bus.drive_state(0)["state"] == "Switch on disabled"
+    assert session.bus.drive_state(0)["state"] == Ds402State.SWITCH_ON_DISABLED
     enable_profile_velocity(session)
     sdo_write(session, 0x60FF, 0, struct.pack("<i", 2 * REV))
     session.time_ns += 500_000_000
@@ -61,13 +62,13 @@ def test_sim_drive_injected_fault_sends_an_emergency_and_resets_on_the_edge(sess
     session.time_ns += 1_000_000
     session.bus.advance(session.time_ns)
     state = session.bus.drive_state(0)
-    assert (state["state"], state["fault"], state["fault_number"]) == ("Fault", "over_temperature", 235)
+    assert (state["state"], state["fault"], state["fault_number"]) == (Ds402State.FAULT, "over_temperature", 235)
     emergency = session.fp("FPRD", MAILBOX_IN, MAILBOX_SIZE).data
     code, register = struct.unpack_from("<HB", emergency, 8)
     assert (emergency[7] >> 4, code, register, emergency[11:15]) == (1, 0x4310, 0x09, b"F235")
     assert sdo_read(session, 0x603F, 2) == 0x4310
     sdo_write(session, 0x6040, 0, struct.pack("<H", FAULT_RESET))
-    assert session.bus.drive_state(0)["state"] == "Switch on disabled"
+    assert session.bus.drive_state(0)["state"] == Ds402State.SWITCH_ON_DISABLED
     with pytest.raises(akd.ConfigError, match=r'no fault named "F1".*sync_lost \(F125\)'):
         session.bus.inject_fault(0, "F1")
 
@@ -76,7 +77,7 @@ def test_sim_drive_hardware_enable_low_keeps_it_from_operation(session):
     session.bus.set_hardware_enable(0, False)
     for controlword in (SHUTDOWN, SWITCH_ON, ENABLE_OPERATION):
         sdo_write(session, 0x6040, 0, struct.pack("<H", controlword))
-    assert session.bus.drive_state(0)["state"] == "Switch on disabled"
+    assert session.bus.drive_state(0)["state"] == Ds402State.SWITCH_ON_DISABLED
     assert sdo_read(session, 0x6041, 2) & 0x0080, "warning while hardware enable is low"
     session.bus.set_hardware_enable(0, True)
     enable_profile_velocity(session)

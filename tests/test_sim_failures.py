@@ -14,6 +14,7 @@ import subprocess
 import time
 
 import pytest
+from akd_ros._native import Ds402State
 
 from akd_ros import _native
 from support.netns import console_script, udp_port_bound
@@ -121,7 +122,7 @@ def test_an_enabled_drive_behind_a_pulled_cable_misses_its_frames_and_faults(mis
     # line carries is one it misses, and the eighth raises F125.
     with in_op(f"sim:{DRIVES}?missed={missed}") as (simulator, cycle):
         cycle.enable(2)
-        cycle.wait_state(2, "Operation enabled")
+        cycle.wait_state(2, Ds402State.OPERATION_ENABLED)
         simulator.pull_cable(1)
         wait_for("F125 behind the cable", lambda: simulator.drive_state(2)["fault_number"] == 125)
         assert simulator.drive_state(0)["fault"] is None
@@ -133,7 +134,7 @@ def test_a_drive_judging_by_frames_lost_faults_after_more_than_seven_lost_on_the
     # `?missed=lost`: a frame the line lost counts, however late the next one comes; eight in a row raise F125.
     with in_op("sim:1?missed=lost") as (simulator, cycle):
         cycle.enable(0)
-        cycle.wait_state(0, "Operation enabled")
+        cycle.wait_state(0, Ds402State.OPERATION_ENABLED)
         assert after_burst(cycle, simulator.drop_frames, burst) == (burst, 0, 0)
         assert simulator.drive_state(0)["fault"] == (None if burst == 7 else "sync_lost")
 

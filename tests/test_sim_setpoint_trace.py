@@ -15,6 +15,8 @@ import struct
 import subprocess
 import time
 
+from akd_ros._native import Ds402State
+
 from akd_ros import _native
 from support.netns import console_script, udp_port_bound
 from support.waiting import wait_for
@@ -56,7 +58,7 @@ def test_the_trace_holds_every_change_of_the_set_points_in_the_order_the_frames_
             with _native.Cycle(master, 0.001) as cycle:
                 cycle.set_object(0, 0x6060, 0, _native.encode_value(0x6060, 0, CSP))
                 cycle.enable(0)
-                cycle.wait_state(0, "Operation enabled")
+                cycle.wait_state(0, Ds402State.OPERATION_ENABLED)
                 here = position_actual(cycle)
                 for step in (1, 2, 3):
                     target = here + 1000 * step
@@ -64,7 +66,7 @@ def test_the_trace_holds_every_change_of_the_set_points_in_the_order_the_frames_
                     cycle.set_object(0, 0x607A, 0, _native.encode_value(0x607A, 0, target))
                     after_cycles(cycle, 20)
                 cycle.disable(0)
-                cycle.wait_state(0, "Switch on disabled")
+                cycle.wait_state(0, Ds402State.SWITCH_ON_DISABLED)
         sim.send_signal(signal.SIGTERM)
         out, err = sim.communicate(timeout=10)
     finally:

@@ -141,8 +141,8 @@ def latch_label(msg) -> str:
 
 def ds402_state(statusword: int) -> int:
     """The index in _DS402_STATES of the state a statusword shows, -1 for none."""
-    name = _native.ds402_state(statusword)
-    return -1 if name is None else _DS402_STATES.index(name)
+    state = _native.Ds402State.from_statusword(statusword)
+    return -1 if state is None else _DS402_STATES.index(state)
 
 
 def io_steps(io: list) -> list[tuple[str, list[bool]]]:
@@ -219,7 +219,7 @@ def plot(run_data: Run, title: str, output: Path) -> None:
     ax_torque.plot(t, column["torque"], lw=1.0, color="tab:brown")
     ax_torque.set_ylabel("torque (N·m or N)")
     ax_state.step(t, states, where="post", lw=1.5, color="tab:gray")
-    ax_state.set_yticks(range(-1, len(_DS402_STATES)), ["no valid state", *_DS402_STATES], fontsize=8)
+    ax_state.set_yticks(range(-1, len(_DS402_STATES)), ["no valid state", *map(str, _DS402_STATES)], fontsize=8)
     ax_state.set_ylim(-1.5, len(_DS402_STATES) - 0.5)
     ax_state.set_ylabel("DS402 state\n(statusword)")
     time_axes = (ax_position, ax_error, ax_torque, ax_state)

@@ -243,7 +243,8 @@ def execute(simulator, line: str) -> str | None:
     elif name == "counters":
         return "ok " + json.dumps(simulator.esc_state(position))
     elif product in (None, "akd"):
-        return "ok " + json.dumps(simulator.drive_state(position))
+        # The state as CiA 402 writes it ("Operation enabled"), as the line has always said it.
+        return "ok " + json.dumps(simulator.drive_state(position), default=str)
     else:
         return "ok " + json.dumps(simulator.terminal_state(position))
     return "ok " + " ".join(words)

@@ -18,6 +18,7 @@ import math
 import re
 import time
 
+from akd_ros import _native
 from akd_ros.axis import Axis, CommandError
 from akd_ros.bus import BusRequestError
 from akd_ros.node.homing import unhomed_refusal
@@ -86,8 +87,8 @@ class Commands:
         if node_state.bus is None or not node_state.active:
             raise CommandError(f"{what} refused: the node is not active (activate it first)")
         axis = node_state.bus[joint]
-        drive_state = axis.cycle.drive_status(axis.slave)["state"]
-        if drive_state != "Operation enabled":
+        drive_state = axis.cycle.drive_status(axis.slave).state
+        if drive_state != _native.Ds402State.OPERATION_ENABLED:
             raise CommandError(
                 f"{what} refused: the drive of {joint} is in {drive_state}, not Operation enabled; call ~/enable first"
             )
@@ -196,7 +197,7 @@ class Commands:
         while self._reset_pending:
             joint = self._reset_pending.pop()
             axis = bus[joint]
-            if axis.cycle.drive_status(axis.slave)["state"] in FAULT_STATES:
+            if axis.cycle.drive_status(axis.slave).state in FAULT_STATES:
                 _, message = self.request(joint, "reset_fault")
                 self._logger.warning(f"fault_reset auto_once: {message} (joint {joint})")
 

@@ -153,15 +153,15 @@ class Diagnostics:
             level = self._error
         elif (
             not state.fresh
-            or state.progress in ("stuck", "lost")
-            or state.state == "Quick stop active"
+            or state.progress in (_native.RequestProgress.STUCK, _native.RequestProgress.LOST)
+            or state.state == _native.Ds402State.QUICK_STOP_ACTIVE
             or (param02_unknown)
             or held
         ):
             level = self._warn
         else:
             level = self._ok
-        summary = state.state or "no valid DS402 state"
+        summary = str(state.state or "no valid DS402 state")
         if state.reason:
             summary += f": {state.reason}"
         if recovery["recovering"]:
@@ -177,11 +177,11 @@ class Diagnostics:
             "joint": axis.name,
             "slave": axis.slave,
             "serial_number": axis.serial_number,
-            "ds402_state": state.state or "unknown",
+            "ds402_state": str(state.state or "unknown"),
             "statusword": f"0x{state.statusword:04X}",
             "mode": state.mode or axis.mode,
-            "request": state.request or "",
-            "progress": state.progress,
+            "request": str(state.request or ""),
+            "progress": str(state.progress),
             "position": f"{state.position:.9g}",
             "homed": joint_homed(self._node_state.joint(axis.name), axis),
             **dc_values(dc_status, axis.slave),

@@ -28,11 +28,13 @@ import sys
 
 from akd_ros import _native
 from akd_ros.node.node_state import FAULT_STATES, NODE_NAME, namespace
-from akd_ros.node.publishing import snake
 from akd_ros.params import ParameterError, Settings, read_arguments, settings
 
 GREEN, RED, AMBER, GREY = "#2ca02c", "#d62728", "#ff7f0e", "#7f7f7f"
-STATE_COLOURS = {"Operation enabled": GREEN, "Quick stop active": AMBER} | dict.fromkeys(FAULT_STATES, RED)
+STATE_COLOURS = {
+    _native.Ds402State.OPERATION_ENABLED: GREEN,
+    _native.Ds402State.QUICK_STOP_ACTIVE: AMBER,
+} | dict.fromkeys(FAULT_STATES, RED)
 """The indicator's colour of a DS402 state (grey for the others)."""
 COUNTERS = ("lost_frames", "wkc_errors", "overruns")
 """The cycle's counters of DriveStatus the line tab plots."""
@@ -88,7 +90,12 @@ class _Panels:
 
     def indicator(self, name: str, title: str, path: str) -> str:
         rules = [
-            {"operator": "=", "rawValue": snake(state), "color": STATE_COLOURS.get(state, GREY), "label": state}
+            {
+                "operator": "=",
+                "rawValue": state.snake_name,
+                "color": STATE_COLOURS.get(state, GREY),
+                "label": f"{state}",
+            }
             for state in _native.DS402_STATES
         ]
         return self.add(

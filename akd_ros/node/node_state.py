@@ -22,8 +22,8 @@ NODE_NAME = "akd_node"
 """The node's name, under which its ~/ topics and services are."""
 AXIS_ERRORS = (ValueError, TimeoutError, _native.EtherCatError)
 """What the Bus and an Axis raise for a request they cannot carry out; the node answers with the text."""
-FAULT_STATES = ("Fault", "Fault reaction active")
-"""The DS402 states of a fault."""
+FAULT_STATES = frozenset(state for state in _native.DS402_STATES if state.is_fault)
+"""The DS402 states of a fault (`Ds402State.is_fault`)."""
 
 
 def namespace(settings: Settings, joint: str) -> str:

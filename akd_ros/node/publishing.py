@@ -56,12 +56,6 @@ _TAKE_TIMEOUT_S = 0.5
 _OFFSET_PERIOD_S = 1.0
 
 
-def snake(name: str | None) -> str:
-    """A state's name as the messages spell it, by the crate's one rule (`_native.snake_case`): "Operation enabled" ->
-    "operation_enabled", "SafeOp" -> "safe_op"; None -> "unknown"."""
-    return "unknown" if name is None else _native.snake_case(name)
-
-
 def _feed_joint(axis, joint: JointSettings) -> dict:
     """`axis`, the drive of `joint`, as the crate's feed takes it: what its messages say beside the drive's values."""
     return {
@@ -310,8 +304,8 @@ class Publishing:
                     source=e.source,
                     code=min(e.code, 0xFFFF),
                     text=e.text or "",
-                    ds402_state=snake(e.ds402_state),
-                    al_state=snake(e.al_state),
+                    ds402_state=_native.Ds402State.message_name(e.ds402_state),
+                    al_state=_native.snake_case(e.al_state or "unknown"),
                     al_status_code=e.al_status_code,
                     action=e.action,
                 )

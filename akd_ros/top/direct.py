@@ -85,7 +85,7 @@ class DirectSource(Source):
             rows.append(
                 JointRow(
                     axis.name,
-                    s.state,
+                    None if s.state is None else str(s.state),
                     s.mode,
                     s.position,
                     s.velocity,

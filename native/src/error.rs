@@ -29,13 +29,6 @@ pub enum UnknownName {
         /// The name given.
         name: String,
     },
-    /// A CiA 402 state name.
-    DriveState {
-        /// The name given.
-        name: String,
-        /// The states' names.
-        allowed: Vec<&'static str>,
-    },
     /// A fault the virtual AKD does not raise.
     Fault {
         /// The name given.
@@ -75,9 +68,6 @@ impl fmt::Display for UnknownName {
         match self {
             UnknownName::AlState { name } => {
                 write!(f, "unknown AL state {name:?} (allowed: init, preop, safeop, op, bootstrap)")
-            }
-            UnknownName::DriveState { name, allowed } => {
-                write!(f, "unknown state {name:?} (allowed: {})", allowed.join(", "))
             }
             UnknownName::Fault { name, allowed } => {
                 write!(f, "no fault named {name:?}: the virtual AKD raises {}", allowed.join(", "))

@@ -25,35 +25,28 @@ use crate::drive::objects::POSITION_ACTUAL;
 use crate::error::{Result, Unavailable};
 use crate::ethercat::pdo::{find, PdoEntry};
 
-/// What a caller asks of a drive.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum Request {
-    /// To Operation enabled (from Switch on disabled, not from Fault).
-    Enable = 1,
-    /// To Switch on disabled (power stage off).
-    Disable = 2,
-    /// Quick stop: brake with 0x6085 and hold in Quick stop active (from Operation enabled).
-    QuickStop = 3,
-    /// Fault reset by a rising edge of bit 7: Fault to Switch on disabled.
-    FaultReset = 4,
+named_variants! {
+    /// What a caller asks of a drive; in Python `DriveRequest` (`DriveRequest.ENABLE`, ...),
+    /// which prints as its [`name`](Request::name).
+    #[cfg_attr(feature = "python", pyo3::pyclass(name = "DriveRequest", module = "akd_ros._native", frozen, eq, eq_int, rename_all = "SCREAMING_SNAKE_CASE"))]
+    #[repr(u8)]
+    pub enum Request {
+        /// To Operation enabled (from Switch on disabled, not from Fault).
+        Enable = 1 => "enable",
+        /// To Switch on disabled (power stage off).
+        Disable = 2 => "disable",
+        /// Quick stop: brake with 0x6085 and hold in Quick stop active (from Operation enabled).
+        QuickStop = 3 => "quick_stop",
+        /// Fault reset by a rising edge of bit 7: Fault to Switch on disabled.
+        FaultReset = 4 => "reset_fault",
+    }
+    /// The request's name as the Python API spells it.
+    fn name;
 }
 
 impl Request {
     fn from_u8(value: u8) -> Option<Request> {
-        [Request::Enable, Request::Disable, Request::QuickStop, Request::FaultReset]
-            .into_iter()
-            .find(|r| *r as u8 == value)
-    }
-
-    /// The request's name as the Python API spells it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Request::Enable => "enable",
-            Request::Disable => "disable",
-            Request::QuickStop => "quick_stop",
-            Request::FaultReset => "reset_fault",
-        }
+        Request::ALL.into_iter().find(|r| *r as u8 == value)
     }
 
     /// Whether the drive in `state` has done what was asked.
@@ -150,24 +143,31 @@ impl Offsets {
     }
 }
 
-/// How far the current request is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Progress {
-    /// No request was made yet: the sequencer leaves the drive's outputs alone.
-    Idle,
-    /// The request is under way.
-    InProgress,
-    /// The drive reached the requested state.
-    Done,
-    /// The time-out passed first, or the drive cannot get there (see [`DriveStatus::stuck_reason`]).
-    Stuck,
-    /// The drive left the state it reached by itself (fault, hardware enable low); the
-    /// sequencer brought it to Switch on disabled and does not retry.
-    Lost,
+named_variants! {
+    /// How far the current request is; in Python `RequestProgress` (`RequestProgress.STUCK`,
+    /// ...), which prints as its [`name`](Progress::name).
+    #[cfg_attr(feature = "python", pyo3::pyclass(name = "RequestProgress", module = "akd_ros._native", frozen, eq, eq_int, rename_all = "SCREAMING_SNAKE_CASE"))]
+    pub enum Progress {
+        /// No request was made yet: the sequencer leaves the drive's outputs alone.
+        Idle => "idle",
+        /// The request is under way.
+        InProgress => "in_progress",
+        /// The drive reached the requested state.
+        Done => "done",
+        /// The time-out passed first, or the drive cannot get there (see [`DriveStatus::stuck_reason`]).
+        Stuck => "stuck",
+        /// The drive left the state it reached by itself (fault, hardware enable low); the
+        /// sequencer brought it to Switch on disabled and does not retry.
+        Lost => "lost",
+    }
+    /// The progress's name as the Python API spells it: "in_progress".
+    fn name;
 }
 
-/// A drive's status as the cycle thread last published it.
+/// A drive's status as the cycle thread last published it; the same object in Python
+/// (`Cycle.drive_status`), and what akd_ros/DriveStatus says of the drive.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "python", pyo3::pyclass(module = "akd_ros._native", frozen, get_all))]
 pub struct DriveStatus {
     /// The last statusword read (0 before the first cycle).
     pub statusword: u16,

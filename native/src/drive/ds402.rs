@@ -6,7 +6,9 @@
 //! The virtual AKD and the master's sequencer both use it, so they cannot disagree.
 
 named_variants! {
-    /// A state of the drive, as the statusword shows it.
+    /// A state of the drive, as the statusword shows it; in Python `Ds402State`, its members
+    /// `Ds402State.OPERATION_ENABLED` and so on.
+    #[cfg_attr(feature = "python", pyo3::pyclass(name = "Ds402State", module = "akd_ros._native", frozen, eq, eq_int, hash, rename_all = "SCREAMING_SNAKE_CASE"))]
     pub enum State {
         /// Initialising; the drive leaves it by itself.
         NotReadyToSwitchOn => "Not ready to switch on",
@@ -130,6 +132,22 @@ impl State {
             State::FaultReactionActive => FAULT | OPERATION_ENABLED | SWITCHED_ON | READY_TO_SWITCH_ON,
             State::Fault => FAULT,
         }
+    }
+
+    /// The state's name as one word, as the messages spell it: "operation_enabled".
+    pub fn snake_name(self) -> String {
+        crate::spelling::snake_case(self.name())
+    }
+
+    /// What a message says for the state a statusword shows: its [`snake_name`](State::snake_name),
+    /// "unknown" for a statusword that shows none.
+    pub fn message_name(state: Option<State>) -> String {
+        state.map_or_else(|| "unknown".to_owned(), State::snake_name)
+    }
+
+    /// Whether the drive shows a fault: Fault, or Fault reaction active on its way there.
+    pub fn is_fault(self) -> bool {
+        matches!(self, State::Fault | State::FaultReactionActive)
     }
 
     /// Whether the power stage drives the motor in this state.

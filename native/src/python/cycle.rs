@@ -22,7 +22,7 @@ use crate::cycle::events::{CommandTimeoutAction, Edge, Event, FaultSource};
 use crate::cycle::line_health::DEFAULT_INTERVAL as LINE_HEALTH_INTERVAL;
 use crate::cycle::rt::{self, RealTime};
 use crate::cycle::samples::Sample;
-use crate::cycle::sequencer::{Progress, Request};
+use crate::cycle::sequencer::{DriveStatus, Progress, Request};
 use crate::cycle::stats::Summary;
 use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
@@ -117,17 +117,6 @@ struct Histograms {
     exchange: Vec<(u64, u64)>,
 }
 
-/// What `drive_status` gives.
-#[derive(IntoPyObject)]
-struct DriveStatusView {
-    state: Option<&'static str>,
-    statusword: u16,
-    request: Option<&'static str>,
-    progress: &'static str,
-    reason: Option<String>,
-    mode_display: Option<i8>,
-}
-
 /// What `wait_setpoint` and `setpoint_status` give.
 #[derive(IntoPyObject)]
 struct SetpointView {
@@ -179,21 +168,11 @@ enum EventView {
         edge: &'static str,
         position: i32,
     },
+    /// A fault: its kind and slave, to file it by, and the `FaultEvent`.
     Fault {
         kind: &'static str,
-        cycle: u64,
-        time_ns: u64,
         slave: u16,
-        source: &'static str,
-        code: u16,
-        text: Option<String>,
-        statusword: u16,
-        ds402_state: Option<&'static str>,
-        al_status: u16,
-        al_state: Option<&'static str>,
-        al_status_code: u16,
-        al_status_code_name: &'static str,
-        action: &'static str,
+        fault: FaultEvent,
     },
     CommandTimeout {
         kind: &'static str,
@@ -204,7 +183,7 @@ enum EventView {
         value: i32,
         timeout: f64,
         statusword: u16,
-        ds402_state: Option<&'static str>,
+        ds402_state: Option<State>,
         action: &'static str,
         text: &'static str,
     },
@@ -227,6 +206,68 @@ enum EventView {
     },
 }
 
+/// One fault and what the cycle thread did about it (`akd_ros.FaultEvent`, from `Axis.fault_events`).
+#[pyclass(module = "akd_ros._native", frozen, get_all)]
+pub struct FaultEvent {
+    /// The cycle that saw it (from 1).
+    cycle: u64,
+    /// That cycle's wake-up time on the monotonic clock (ns).
+    time_ns: u64,
+    /// The slave's position on the line.
+    slave: u16,
+    /// What it is about: "drive_fault", "emergency", "lost_frames", "working_counter",
+    /// "al_state", "unreachable" (the drive stopped answering: power, cable or line; it is
+    /// being brought back) or "recovered" (back in Op, its power stage off).
+    source: &'static str,
+    /// CiA error code (0x603F or the emergency's); cycles in a row for lost frames, working
+    /// counter errors and an unreachable drive; how long it was gone (ms) for a recovered one.
+    code: u16,
+    /// The AKD's text for the code where known, e.g. "F439 Following error".
+    text: Option<String>,
+    /// The statusword of that cycle.
+    statusword: u16,
+    /// The CiA 402 state it shows (a `Ds402State`), None for none.
+    ds402_state: Option<State>,
+    /// AL status 0x0130 of that cycle (0 when not read).
+    al_status: u16,
+    /// The AL state it shows ("Op", "SafeOp", ...), None when not read.
+    al_state: Option<&'static str>,
+    /// AL status code 0x0134 of that cycle.
+    al_status_code: u16,
+    /// Its name.
+    al_status_code_name: &'static str,
+    /// What the cycle thread did about it.
+    action: &'static str,
+}
+
+#[pymethods]
+impl FaultEvent {
+    /// One line for a log.
+    fn describe(&self) -> String {
+        let code = self.code;
+        let source = FaultSource::ALL.into_iter().find(|s| s.name() == self.source);
+        let what = match source.unwrap_or(FaultSource::DriveFault) {
+            FaultSource::LostFrames | FaultSource::WorkingCounter => format!("{code} cycles in a row"),
+            FaultSource::Unreachable => {
+                format!("no answer for {code} cycles (power, cable or line); being brought back")
+            }
+            FaultSource::Recovered => format!("back after {code} ms"),
+            FaultSource::AlState => format!(
+                "slave now in {}, AL status code 0x{:04X} ({})",
+                self.al_state.unwrap_or("None"),
+                self.al_status_code,
+                self.al_status_code_name
+            ),
+            _ => self.text.clone().unwrap_or_else(|| format!("code 0x{code:04X}")),
+        };
+        format!("{}: {what}; {}", self.source, self.action)
+    }
+
+    fn __repr__(&self) -> String {
+        format!("FaultEvent(cycle={}, slave={}, {})", self.cycle, self.slave, self.describe())
+    }
+}
+
 /// The head of a trajectory event, before its state's keys.
 #[derive(IntoPyObject)]
 struct TrajectoryEventView {
@@ -239,7 +280,6 @@ struct TrajectoryEventView {
 impl EventView {
     /// `event` as Python sees it, a trajectory's refusal worded by `cycle`.
     fn of(event: Event, cycle: &CycleThread) -> Self {
-        let ds402_state = |statusword| State::from_statusword(statusword).map(State::name);
         match event {
             Event::Latch { cycle, time_ns, slave, channel, edge, position } => {
                 EventView::Latch { kind: "latch", cycle, time_ns, slave, channel, edge: edge.name(), position }
@@ -248,8 +288,7 @@ impl EventView {
                 let text = matches!(source, FaultSource::DriveFault | FaultSource::Emergency)
                     .then(|| akd_fault::by_code(code).map(|f| format!("F{} {}", f.number, f.text)))
                     .flatten();
-                EventView::Fault {
-                    kind: "fault",
+                let fault = FaultEvent {
                     cycle,
                     time_ns,
                     slave,
@@ -257,13 +296,14 @@ impl EventView {
                     code,
                     text,
                     statusword,
-                    ds402_state: ds402_state(statusword),
+                    ds402_state: State::from_statusword(statusword),
                     al_status,
                     al_state: (al_status != 0).then(|| crate::ethercat::al::state_name(al_status)),
                     al_status_code,
                     al_status_code_name: crate::ethercat::al::AlStatusCode(al_status_code).name(),
                     action: action.describe(),
-                }
+                };
+                EventView::Fault { kind: "fault", slave, fault }
             }
             Event::CommandTimeout { cycle, time_ns, slave, target, value, timeout_us, statusword, action } => {
                 EventView::CommandTimeout {
@@ -275,7 +315,7 @@ impl EventView {
                     value,
                     timeout: timeout_us as f64 * 1e-6,
                     statusword,
-                    ds402_state: ds402_state(statusword),
+                    ds402_state: State::from_statusword(statusword),
                     action: action.name(),
                     text: action.describe(),
                 }
@@ -486,32 +526,16 @@ impl PyCycle {
         Ok(())
     }
 
-    /// Drive `position` as the cycle thread last saw it: "state" (the CiA 402 state's name,
-    /// or None for a statusword that shows none), "statusword", "request" ("enable",
-    /// "disable", "quick_stop", "reset_fault" or None), "progress" ("idle", "in_progress",
-    /// "done", "stuck", or "lost" when the drive left the state it had reached), "reason"
-    /// (why stuck or lost, else None) and "mode_display" (0x6061 where mapped, else None).
-    fn drive_status(&self, position: u16) -> PyResult<DriveStatusView> {
-        let s = self.cycle.drive_status(position).py()?;
-        Ok(DriveStatusView {
-            state: s.state().map(State::name),
-            statusword: s.statusword,
-            request: s.request.map(Request::name),
-            progress: progress_name(s.progress),
-            reason: s.stuck_reason(),
-            mode_display: s.mode_display,
-        })
+    /// Drive `position` as the cycle thread last saw it (a `DriveStatus`).
+    fn drive_status(&self, position: u16) -> PyResult<DriveStatus> {
+        self.cycle.drive_status(position).py()
     }
 
-    /// Waits, without holding the GIL, until drive `position` shows `state` (a CiA 402 state's
-    /// name, e.g. "Operation enabled"); raises TimeoutError after `timeout` seconds, and at
-    /// once when the request under way is stuck, saying in which state it is and why.
-    #[pyo3(signature = (position, state, timeout = 5.0))]
-    fn wait_state(&self, py: Python<'_>, position: u16, state: &str, timeout: f64) -> PyResult<()> {
-        let wanted = State::ALL.iter().copied().find(|s| s.name().eq_ignore_ascii_case(state)).ok_or_else(|| {
-            let names: Vec<&str> = State::ALL.iter().map(|s| s.name()).collect();
-            super::to_py_err(UnknownName::DriveState { name: state.to_owned(), allowed: names }.into())
-        })?;
+    /// Waits, without holding the GIL, until drive `position` shows `wanted` (a `Ds402State`);
+    /// raises TimeoutError after `timeout` seconds, and at once when the request under way is
+    /// stuck, saying in which state it is and why.
+    #[pyo3(signature = (position, wanted, timeout = 5.0))]
+    fn wait_state(&self, py: Python<'_>, position: u16, wanted: State, timeout: f64) -> PyResult<()> {
         let timeout = super::seconds(timeout, "timeout")?;
         let cycle = &self.cycle;
         let outcome = py.allow_threads(|| -> crate::error::Result<Option<String>> {
@@ -546,13 +570,10 @@ impl PyCycle {
 
     /// Latch, fault, command time-out and trajectory events since the last call, oldest first,
     /// each a dict. Every event has "kind" ("latch", "fault", "command_timeout", "inputs" or
-    /// "trajectory"), "cycle" and "time_ns" (the cycle's monotonic wake-up time); all but
-    /// trajectory events have "slave". A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
-    /// (counts). A fault adds "source" ("drive_fault", "emergency", "lost_frames",
-    /// "working_counter", "al_state", "unreachable", "recovered"), "code" (CiA error code; for
-    /// lost frames, working counter errors and an unreachable drive the cycles in a row; for a
-    /// recovered one the ms it was gone), "text" (the AKD's text where known, else None),
-    /// "statusword", "al_status", "al_status_code" and "action" (what the loop did). A command
+    /// "trajectory"), and all but trajectory events "slave". A fault's only other key is
+    /// "fault", its `FaultEvent`; the others have "cycle" and "time_ns" (the cycle's monotonic
+    /// wake-up time). A latch adds "channel" (1, 2), "edge" ("rising", "falling") and "position"
+    /// (counts). A command
     /// time-out adds "command" ("velocity", "torque"), "value" (its last value in drive units:
     /// counts/s, 0.1 % of peak torque), "timeout" (s), "statusword", "ds402_state", "action"
     /// ("hold" or "quick_stop") and "text" (what was done, for the log). A trajectory event
@@ -1055,13 +1076,33 @@ impl Drop for PyCycle {
     }
 }
 
-fn progress_name(progress: Progress) -> &'static str {
-    match progress {
-        Progress::Idle => "idle",
-        Progress::InProgress => "in_progress",
-        Progress::Done => "done",
-        Progress::Stuck => "stuck",
-        Progress::Lost => "lost",
+#[pymethods]
+impl DriveStatus {
+    /// The CiA 402 state the statusword shows (a `Ds402State`), None for a statusword that
+    /// shows none.
+    #[getter(state)]
+    fn py_state(&self) -> Option<State> {
+        self.state()
+    }
+
+    /// Why the request is stuck or lost, from the statusword; None when it is neither.
+    #[getter(reason)]
+    fn py_reason(&self) -> Option<String> {
+        self.stuck_reason()
+    }
+}
+
+#[pymethods]
+impl Request {
+    fn __str__(&self) -> &'static str {
+        self.name()
+    }
+}
+
+#[pymethods]
+impl Progress {
+    fn __str__(&self) -> &'static str {
+        self.name()
     }
 }
 
@@ -1100,6 +1141,11 @@ impl RealTime {
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyCycle>()?;
     m.add_class::<RealTime>()?;
+    m.add_class::<DriveStatus>()?;
+    m.add_class::<FaultEvent>()?;
+    m.add_class::<Request>()?;
+    m.add_class::<Progress>()?;
+    m.add("DRIVE_REQUESTS", pyo3::types::PyTuple::new(m.py(), Request::ALL)?)?;
     // Per-cycle records the cycle keeps for each drive until `samples()` takes them.
     m.add("SAMPLES_PER_DRIVE", crate::cycle::samples::CAPACITY)?;
     m.add("SAMPLE_COLUMNS", pyo3::types::PyTuple::new(m.py(), SAMPLE_COLUMNS)?)

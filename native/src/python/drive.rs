@@ -4,7 +4,7 @@
 //! (`parse_pdo_entry`), CoE data types (`data_type_name`, `data_type_kind`), an entry's access
 //! bits by name (`access_names`), mapped objects' values as bytes (`encode_value`) and one
 //! drive's inputs read by its mapping (`DriveInputs`, from `Cycle.drive_inputs`), the CiA
-//! 402 states (`DS402_STATES`, `ds402_state`), and the drive's own I/O: what a mapping carries
+//! 402 states (`Ds402State`, every one in `DS402_STATES`), and the drive's own I/O: what a mapping carries
 //! of it (`mapping_io`, `io_mappings`, `IO_MAPPING`), its layout (`IO_INPUT_COUNT`,
 //! `IO_OUTPUT_COUNT`, `IO_SWITCHES`, `ANALOG_VOLTS_PER_COUNT`, `with_digital_outputs`) and one
 //! drive's I/O in a cycle (`DriveIo`, from `Cycle.drives_io`).
@@ -344,9 +344,38 @@ fn encode_value<'py>(py: Python<'py>, index: u16, subindex: u8, value: i64) -> P
 }
 
 /// The name of the CiA 402 state `statusword` shows (one of `DS402_STATES`), None for none.
-#[pyfunction]
-fn ds402_state(statusword: u16) -> Option<&'static str> {
-    State::from_statusword(statusword).map(State::name)
+#[pymethods]
+impl State {
+    /// The state `statusword` shows, None for one that shows none.
+    #[staticmethod]
+    #[pyo3(name = "from_statusword")]
+    fn py_from_statusword(statusword: u16) -> Option<State> {
+        State::from_statusword(statusword)
+    }
+
+    /// What a message says of `state`: its `snake_name`, "unknown" for None.
+    #[staticmethod]
+    #[pyo3(name = "message_name", signature = (state))]
+    fn py_message_name(state: Option<State>) -> String {
+        State::message_name(state)
+    }
+
+    /// The state's name as one word, as the messages spell it: "operation_enabled".
+    #[getter(snake_name)]
+    fn py_snake_name(&self) -> String {
+        self.snake_name()
+    }
+
+    /// Whether the drive shows a fault (Fault, Fault reaction active).
+    #[getter(is_fault)]
+    fn py_is_fault(&self) -> bool {
+        self.is_fault()
+    }
+
+    /// The state's name as CiA 402 writes it: "Operation enabled".
+    fn __str__(&self) -> &'static str {
+        self.name()
+    }
 }
 
 /// The flexible PDOs of a mapping as `Master.configure_pdo` takes them: lists of 0xIIIISSBB.
@@ -378,7 +407,7 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(data_type_kind, m)?)?;
     m.add_function(wrap_pyfunction!(access_names, m)?)?;
     m.add_function(wrap_pyfunction!(encode_value, m)?)?;
-    m.add_function(wrap_pyfunction!(ds402_state, m)?)?;
-    m.add("DS402_STATES", PyTuple::new(m.py(), State::ALL.map(State::name))?)?;
+    m.add_class::<State>()?;
+    m.add("DS402_STATES", PyTuple::new(m.py(), State::ALL)?)?;
     Ok(())
 }

@@ -26,14 +26,14 @@ use crate::sim::{server, sii_image, Timing, VirtualBus};
 
 use super::line_health::{EscCountsView, PortCountsView};
 
-/// What `drive_state` gives: "state" (the CiA 402 state's name), "fault" (the active fault's
+/// What `drive_state` gives: "state" (the CiA 402 state, a `Ds402State`), "fault" (the active fault's
 /// name, or None), "fault_number" (e.g. 125, or None), the motor's "position" (counts),
 /// "velocity" (counts/s) and "torque" (N·m), "dc", what its synchronisation was told
 /// ([`SyncView`]), and its I/O: "digital_inputs" (0x60FD as it shows it), "digital_outputs"
 /// (the levels of outputs 1 and 2 as the master drives them) and "analog_output" (V).
 #[derive(IntoPyObject)]
 struct DriveStateView {
-    state: &'static str,
+    state: crate::drive::ds402::State,
     fault: Option<&'static str>,
     fault_number: Option<u16>,
     position: f64,
@@ -57,7 +57,7 @@ struct WouldBeF125View {
 impl From<DriveState> for DriveStateView {
     fn from(drive: DriveState) -> Self {
         DriveStateView {
-            state: drive.state.name(),
+            state: drive.state,
             fault: drive.fault.map(Fault::name),
             fault_number: drive.fault.map(Fault::number),
             position: drive.position,
@@ -301,7 +301,7 @@ impl PyVirtualBus {
         Ok(())
     }
 
-    /// The drive firmware of drive `position` as a dict: "state" (the CiA 402 state's name),
+    /// The drive firmware of drive `position` as a dict: "state" (its `Ds402State`),
     /// "fault" (the active fault's name, or None), "fault_number" (e.g. 125, or None), and the
     /// motor's "position" (counts), "velocity" (counts/s) and "torque" (N·m), and "dc", what its
     /// synchronisation was told (SYNC0, FBUS.PARAM02, 0x60C2, whether its PLL would lock).

@@ -521,11 +521,10 @@ impl Maker {
         let mode = shown.or_else(|| cycle.mode_set(j.slave).and_then(Mode::from_i8)).map(Mode::snake_name);
         let stats = cycle.stats();
         let (period, exchange) = (stats.period.summary(), stats.exchange.summary());
-        let state = status.and_then(|s| s.state()).map(State::name);
         let message = msgs::DriveStatus {
             header: Header::at(reading.stamp_ns),
             joint: &j.name,
-            ds402_state: &state.map_or_else(|| "unknown".to_owned(), crate::spelling::snake_case),
+            ds402_state: &State::message_name(status.and_then(|s| s.state())),
             statusword: status.map_or(0, |s| s.statusword),
             mode: mode.as_deref().unwrap_or(""),
             mode_of_operation: shown.map_or(0, |m| m as i8),
