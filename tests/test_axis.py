@@ -267,6 +267,7 @@ def test_a_drive_fault_is_one_event_with_its_code_and_text_and_reset_clears_it(a
     assert "disabled" in fault.action
     assert by_source["emergency"].code == 0x8611
     assert axis.sdo_read(0x603F) == (0x8611).to_bytes(2, "little")
+    assert axis.cycle.drive_error_code(axis.slave) == 0x8611
     with pytest.raises(TimeoutError, match="fault"):
         axis.enable(timeout=2.0)
     axis.reset_fault()

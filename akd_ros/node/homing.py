@@ -21,6 +21,7 @@ from __future__ import annotations
 import threading
 import time
 
+from akd_ros import _native
 from akd_ros.node.node_state import AXIS_ERRORS, NodeState
 from akd_ros.node.transports.transport import ActionCallbacks, Transport
 from akd_ros.params import JointSettings
@@ -29,7 +30,6 @@ HOME = "akd_ros/action/Home"
 FEEDBACK_PERIOD_S = 0.1
 # How long past its own time-out a homing may take to come back to its mode before the action gives up on it.
 _END_MARGIN_S = 5.0
-_FAULT = 0x0008
 
 
 def joint_homed(joint: JointSettings, axis) -> bool:
@@ -235,9 +235,12 @@ class _Run:
 
     def finish(self) -> None:
         """Reads the drive's error code where it is in Fault, for the result."""
-        if self.statusword & _FAULT or self.axis.state().statusword & _FAULT:
+        if any(
+            (state := _native.Ds402State.from_statusword(statusword)) is not None and state.is_fault
+            for statusword in (self.statusword, self.axis.state().statusword)
+        ):
             try:
-                self.error_code = int.from_bytes(self.axis.sdo_read(0x603F, 0), "little")
+                self.error_code = self.axis.cycle.drive_error_code(self.axis.slave)
             except AXIS_ERRORS:
                 self.error_code = 0
             self.reason += f"; drive in Fault, error code 0x{self.error_code:04X}"

@@ -345,8 +345,7 @@ impl MailboxService {
     ) {
         let (slave, origin, write_len) = if let Some(slave) = self.pending.iter().position(Option::is_some) {
             let fault = self.pending[slave].take().expect("found above");
-            self.index = 0x603F;
-            self.subindex = 0;
+            (self.index, self.subindex) = crate::drive::ds402::ERROR_CODE;
             (slave as u16, Origin::ErrorCode(fault), 0)
         } else if slot.state.compare_exchange(ASKED, TAKEN, Ordering::AcqRel, Ordering::Acquire).is_ok() {
             self.index = slot.index.load(Ordering::Relaxed);

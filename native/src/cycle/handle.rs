@@ -483,6 +483,13 @@ impl CycleThread {
         self.shared.sdo.transfer(position, index, subindex, None, || self.running())
     }
 
+    /// The drive's error code (0x603F): the CiA 402 code of its last fault, read beside the cycle.
+    pub fn drive_error_code(&self, position: u16) -> Result<u16> {
+        let (index, subindex) = crate::drive::ds402::ERROR_CODE;
+        let value = self.sdo_read(position, index, subindex)?;
+        Ok(u16::from_le_bytes([value.first().copied().unwrap_or(0), value.get(1).copied().unwrap_or(0)]))
+    }
+
     /// Writes `data` to `index:subindex` of the slave at `position` through the cycle thread.
     pub fn sdo_write(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
         self.check_slave(position)?;

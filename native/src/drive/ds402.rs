@@ -238,6 +238,10 @@ wire_codes! {
     }
 }
 
+/// Error code 0x603F:00 (UNSIGNED16): the CiA 402 code of the drive's last fault, which the
+/// AKD also sends in its emergency message.
+pub const ERROR_CODE: (u16, u8) = (0x603F, 0);
+
 /// CiA 402's cyclic synchronous velocity (9) and torque (10), which the AKD does not offer: by
 /// their 0x6060 value and one-word name, with why (docs/virtual_akd.md has the evidence). The
 /// virtual AKD refuses them as it refuses any other value (SDO abort 0x06090030), and the master

@@ -652,6 +652,13 @@ impl PyCycle {
         Ok(PyBytes::new(py, &value))
     }
 
+    /// The drive's error code (0x603F) of slave `position`, the CiA 402 code of its last fault,
+    /// read beside the running cycle; raises as `sdo_read` does.
+    fn drive_error_code(&self, py: Python<'_>, position: u16) -> PyResult<u16> {
+        let cycle = &self.cycle;
+        py.allow_threads(|| cycle.drive_error_code(position)).py()
+    }
+
     /// Writes `data` to `index:subindex` of slave `position` beside the running cycle.
     fn sdo_write(&self, py: Python<'_>, position: u16, index: u16, subindex: u8, data: Vec<u8>) -> PyResult<()> {
         let cycle = &self.cycle;
