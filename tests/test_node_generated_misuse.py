@@ -265,6 +265,8 @@ class Misuse(RuleBasedStateMachine):
         self.goals: list[tuple[object, float, str]] = []
         """Each accepted goal's handle, the monotonic time by which it must have answered, and what it was."""
         self.answers: list = []
+        self.still_stamp = None
+        """The stamp of the /joint_states message the robot was last judged still by."""
 
     @property
     def client(self) -> Careless:
@@ -284,6 +286,7 @@ class Misuse(RuleBasedStateMachine):
         message = self.client.latest("/joint_states")
         if any(abs(v) > 1e-3 for v in message.velocity):
             return None
+        self.still_stamp = message.header.stamp
         statuses = self.client.received[NODE + "trajectory_status"]
         running = {m.id for m in statuses if m.state == "running"} - {m.id for m in statuses if m.state != "running"}
         if running or any(m.state == "pending" for m in statuses[-3:]):
@@ -362,8 +365,15 @@ class Misuse(RuleBasedStateMachine):
         ]
         goals = [(what, handle.status) for handle, _, what in self.goals]
         log = self.robot.node.output().splitlines()[-30:]
+        judged_by = self.still_stamp.sec % 1000 + self.still_stamp.nanosec * 1e-9
         return "\n".join(
-            [f"{refusal}; moved: {moved}", *received, f"last statuses: {statuses}", f"goals: {goals}", *log]
+            [
+                f"{refusal}; moved: {moved}; judged still by /joint_states stamped {judged_by:.3f}",
+                *received,
+                f"last statuses: {statuses}",
+                f"goals: {goals}",
+                *log,
+            ]
         )
 
     @rule(motion=motions)

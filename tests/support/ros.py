@@ -296,9 +296,17 @@ class Participant:
         return self.call(SetOutputs, "set_outputs", request)
 
     def latest(self, topic: str):
-        """The last message of `topic` after a fresh one arrived."""
-        count = len(self.received[topic])
-        self.spin_until(lambda: len(self.received[topic]) > count, f"message on {topic}")
+        """The last message of `topic`, stamped at or after this call. The executor hands over one message a spin, so
+        a client with many entities spins slower than /joint_states comes and falls behind: the first message to
+        arrive after the call was measured 100 ms old with 560 service clients, and a robot judged still by such a
+        message had moved since."""
+        since_ns = time.time_ns()
+
+        def fresh() -> bool:
+            stamp = self.received[topic][-1].header.stamp if self.received[topic] else None
+            return stamp is not None and stamp.sec * 1_000_000_000 + stamp.nanosec >= since_ns
+
+        self.spin_until(fresh, f"message on {topic} stamped after {since_ns} ns")
         return self.received[topic][-1]
 
     def close(self) -> None:
