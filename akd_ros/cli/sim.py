@@ -103,7 +103,7 @@ import sys
 import threading
 
 from akd_ros import _native
-from akd_ros.cli.common import run
+from akd_ros.cli.common import run, signals_held
 
 USAGE = {
     "fault": "fault POSITION NAME",
@@ -302,9 +302,11 @@ def served_line(stats: dict) -> str:
     return line
 
 
-def start_commands(simulator) -> None:
-    """Answers stdin's commands on a thread of their own while the simulator serves."""
-    threading.Thread(target=serve_commands, args=(simulator,), name="akd-sim commands", daemon=True).start()
+def start_commands(simulator, fd: int = 0) -> None:
+    """Answers the commands read from `fd` (stdin) on a thread of their own while the simulator serves; a stop asked
+    meanwhile waits until the thread has started (`signals_held`)."""
+    with signals_held():
+        threading.Thread(target=serve_commands, args=(simulator, fd), name="akd-sim commands", daemon=True).start()
 
 
 EXAMPLES = """
