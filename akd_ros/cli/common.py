@@ -19,6 +19,13 @@ EXIT_FAILURE = 1
 EXIT_INTERRUPTED = 130
 
 
+def tool_parser(prog: str, description: str, examples: str) -> argparse.ArgumentParser:
+    """A tool's argument parser: its name, what it does in a line, and its examples after the options, as written."""
+    return argparse.ArgumentParser(
+        prog=prog, description=description, epilog=examples, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+
+
 def add_master_arguments(parser: argparse.ArgumentParser) -> None:
     """Adds LINK and the options every tool that opens a master takes."""
     parser.add_argument("link", metavar="LINK", help=LINK_HELP)

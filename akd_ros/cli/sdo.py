@@ -13,14 +13,13 @@ its abort code and name, goes on with the rest, and ends with a summary; status 
 
 from __future__ import annotations
 
-import argparse
 import struct
 import sys
 
 from akd_ros import _native
 from akd_ros.cli import backup
 from akd_ros.cli.backup import REAL_FORMATS
-from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run
+from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run, tool_parser
 
 EXAMPLES = """examples:
   akd-sdo sim read 0x6060:0
@@ -83,11 +82,10 @@ def encode_value(text: str, data_type: int | None, size: int) -> bytes:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-sdo."""
-    parser = argparse.ArgumentParser(
-        prog="akd-sdo",
-        description="Reads or writes one object of a drive by CoE SDO, or dumps or restores its whole configuration.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    parser = tool_parser(
+        "akd-sdo",
+        "Reads or writes one object of a drive by CoE SDO, or dumps or restores its whole configuration.",
+        EXAMPLES,
     )
     add_master_arguments(parser)
     parser.add_argument(
