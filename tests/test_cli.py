@@ -305,3 +305,67 @@ def test_a_yaml_syntax_error_in_a_parameters_file_is_the_nodes_one_line(tmp_path
         "(while parsing a flow sequence, line 3, column 11)"
     ], result.stderr
     assert "Traceback" not in result.stdout + result.stderr
+
+
+# Starts akd-sim's command thread once for each line the start runs (in start_commands and what it calls), with
+# SIGTERM sent at that line by a trace function (the handler runs as the trace function returns), under akd-sim's own
+# handlers; prints, a line each, what the start raised. Then waits for every command thread to read to the end of its
+# pipe: one waiting for a lock that the interrupted start left taken never ends.
+SIGNAL_AT_EACH_LINE = """
+import os, signal, sys, threading
+from akd_ros.cli.common import stop_on_signals
+from akd_ros.cli.sim import start_commands
+
+def start(signal_at):
+    lines, fired = 0, False
+
+    def trace(frame, event, arg):
+        nonlocal lines, fired
+        if event == "line":
+            if lines == signal_at:
+                fired = True
+                os.kill(os.getpid(), signal.SIGTERM)
+            lines += 1
+        return trace
+
+    read_end, write_end = os.pipe()
+    outcome = "none"
+    sys.settrace(trace)
+    try:
+        start_commands(None, read_end)
+    except BaseException as e:
+        outcome = f"{type(e).__name__}: {e}"
+    finally:
+        sys.settrace(None)
+        os.close(write_end)
+    return fired, outcome, lines
+
+stop_on_signals()
+_, outcome, lines = start(None)
+print(f"without a signal: {outcome}", flush=True)
+for at in range(lines):
+    fired, outcome, _ = start(at)
+    if fired:
+        print(f"line {at}: {outcome}", flush=True)
+for thread in threading.enumerate():
+    if thread is not threading.current_thread() and thread.is_alive():
+        thread.join()
+print("every command thread ended", flush=True)
+"""
+
+
+def test_a_signal_while_akd_sim_starts_its_command_thread_stops_it_quietly():
+    # It once ended in "RuntimeError: release unlocked lock" (threading's own Condition interrupted), or left
+    # threading's lock of starting threads taken, so that no thread could start or end after it.
+    sweep = subprocess.Popen([sys.executable, "-c", SIGNAL_AT_EACH_LINE], stdout=subprocess.PIPE, text=True)
+    try:
+        out, _ = sweep.communicate(timeout=60)
+    except subprocess.TimeoutExpired:
+        sweep.kill()
+        out, _ = sweep.communicate()
+    lines = out.splitlines()
+    assert lines[:1] == ["without a signal: none"], out
+    assert lines[-1:] == ["every command thread ended"], out
+    signalled = lines[1:-1]
+    assert len(signalled) > 10, out
+    assert all(line.endswith(": KeyboardInterrupt: signal 15") for line in signalled), out

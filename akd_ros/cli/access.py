@@ -14,11 +14,10 @@ configurations then connect to it.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
-from akd_ros.cli.common import EXIT_FAILURE, run
+from akd_ros.cli.common import EXIT_FAILURE, run, tool_parser
 
 EXAMPLES = """examples:
   akd-access init access --endpoint tls/127.0.0.1:7448
@@ -29,12 +28,7 @@ EXAMPLES = """examples:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-access."""
-    parser = argparse.ArgumentParser(
-        prog="akd-access",
-        description=__doc__.splitlines()[0],
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = tool_parser("akd-access", __doc__.splitlines()[0], EXAMPLES)
     commands = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     init = commands.add_parser("init", help="make the authority, the certificates and the Zenoh configurations")
     init.add_argument("directory", metavar="DIR", type=Path, help="where to write them (made if missing)")

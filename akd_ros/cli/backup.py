@@ -62,6 +62,16 @@ def decode(data: bytes, data_type: int) -> int | float | str:
     return data.hex()
 
 
+def integer_bytes(value: int, signed: bool, size: int, type_name: str) -> bytes:
+    """`value` as a little-endian integer of `size` bytes; ValueError naming `type_name` and its range if it does not
+    fit."""
+    bits = 8 * size
+    low, high = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
+    if not low <= value <= high:
+        raise ValueError(f"{value} is out of range for {type_name} ({low}..{high})")
+    return value.to_bytes(size, "little", signed=signed)
+
+
 def encode(value, data_type: int, size: int) -> bytes:
     """The bytes of `value` (as `decode` gives it) for an entry of `data_type` and `size` bytes; ValueError naming
     what is wrong when it does not fit."""
@@ -70,12 +80,7 @@ def encode(value, data_type: int, size: int) -> bytes:
     if kind in ("signed_integer", "unsigned_integer"):
         if isinstance(value, bool) or not isinstance(value, int):
             raise ValueError(f"expected an integer for {name}, got {value!r}")
-        signed = kind == "signed_integer"
-        bits = 8 * size
-        low, high = (-(1 << (bits - 1)), (1 << (bits - 1)) - 1) if signed else (0, (1 << bits) - 1)
-        if not low <= value <= high:
-            raise ValueError(f"{value} is out of range for {name} ({low}..{high})")
-        return value.to_bytes(size, "little", signed=signed)
+        return integer_bytes(value, kind == "signed_integer", size, name)
     if kind == "real" and size in REAL_FORMATS:
         if isinstance(value, bool) or not isinstance(value, int | float):
             raise ValueError(f"expected a number for {name}, got {value!r}")

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from akd_ros import _native
-from akd_ros.cli.common import EXIT_FAILURE, run
+from akd_ros.cli.common import EXIT_FAILURE, run, tool_parser
 
 CYCLE_SAMPLE = "akd_ros/msg/CycleSample"
 LATCH_EVENT = "akd_ros/msg/LatchEvent"
@@ -310,12 +310,7 @@ def main(argv: list[str] | None = None) -> int:
     """akd-plot's entry point; returns the exit status: 0, or 1 for a bag it cannot plot.
 
     argparse exits with 2 for bad arguments (e.g. an output type not in FORMATS)."""
-    parser = argparse.ArgumentParser(
-        prog="akd-plot",
-        description=__doc__.splitlines()[0],
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = tool_parser("akd-plot", __doc__.splitlines()[0], EXAMPLES)
     parser.add_argument("bag", metavar="BAG", type=Path, help="rosbag2 directory recorded by akd_ros")
     parser.add_argument(
         "-o",

@@ -15,10 +15,9 @@ cleared).
 
 from __future__ import annotations
 
-import argparse
 import sys
 
-from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run
+from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run, tool_parser
 
 EXAMPLES = """examples:
   akd-scan sim:2                      two virtual AKDs in this process
@@ -118,12 +117,7 @@ def format_line(line: dict) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-scan."""
-    parser = argparse.ArgumentParser(
-        prog="akd-scan",
-        description=__doc__.splitlines()[0],
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = tool_parser("akd-scan", __doc__.splitlines()[0], EXAMPLES)
     add_master_arguments(parser)
     parser.add_argument("--pdos", action="store_true", help="under each slave, the channels its process data carries")
     parser.add_argument(

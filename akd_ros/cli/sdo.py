@@ -13,14 +13,13 @@ its abort code and name, goes on with the rest, and ends with a summary; status 
 
 from __future__ import annotations
 
-import argparse
 import struct
 import sys
 
 from akd_ros import _native
 from akd_ros.cli import backup
 from akd_ros.cli.backup import REAL_FORMATS
-from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run
+from akd_ros.cli.common import EXIT_FAILURE, add_master_arguments, open_master, run, tool_parser
 
 EXAMPLES = """examples:
   akd-sdo sim read 0x6060:0
@@ -53,12 +52,9 @@ def format_value(data: bytes, data_type: int | None) -> str:
     """Shows an SDO value as its data type reads (number, text), or as hex bytes."""
     kind = _kind(data_type)
     if kind in _INTEGER_KINDS:
-        value = int.from_bytes(data, "little", signed=kind == "signed_integer")
-        return f"{value} (0x{data[::-1].hex().upper()})"
-    if kind == "real" and len(data) in REAL_FORMATS:
-        return repr(struct.unpack(REAL_FORMATS[len(data)], data)[0])
-    if kind == "visible_string":
-        return repr(data.rstrip(b"\0").decode("latin-1"))
+        return f"{backup.decode(data, data_type)} (0x{data[::-1].hex().upper()})"
+    if kind == "visible_string" or (kind == "real" and len(data) in REAL_FORMATS):
+        return repr(backup.decode(data, data_type))
     return data.hex(" ") if data else "(empty)"
 
 
@@ -73,21 +69,16 @@ def encode_value(text: str, data_type: int | None, size: int) -> bytes:
         value = int(text, 0)
     except ValueError:
         raise ValueError(f"expected a number in hex (0x...) or decimal, got {text!r}") from None
-    signed = kind == "signed_integer"
-    low, high = (-(1 << (8 * size - 1)), (1 << (8 * size - 1)) - 1) if signed else (0, (1 << (8 * size)) - 1)
-    if not low <= value <= high:
-        type_name = _native.data_type_name(data_type) if kind in _INTEGER_KINDS else f"{size}-byte value"
-        raise ValueError(f"{text} is out of range for {type_name} ({low}..{high})")
-    return value.to_bytes(size, "little", signed=signed)
+    type_name = _native.data_type_name(data_type) if kind in _INTEGER_KINDS else f"{size}-byte value"
+    return backup.integer_bytes(value, kind == "signed_integer", size, type_name)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-sdo."""
-    parser = argparse.ArgumentParser(
-        prog="akd-sdo",
-        description="Reads or writes one object of a drive by CoE SDO, or dumps or restores its whole configuration.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    parser = tool_parser(
+        "akd-sdo",
+        "Reads or writes one object of a drive by CoE SDO, or dumps or restores its whole configuration.",
+        EXAMPLES,
     )
     add_master_arguments(parser)
     parser.add_argument(

@@ -103,7 +103,7 @@ import sys
 import threading
 
 from akd_ros import _native
-from akd_ros.cli.common import run
+from akd_ros.cli.common import run, signals_held, tool_parser
 
 USAGE = {
     "fault": "fault POSITION NAME",
@@ -302,9 +302,11 @@ def served_line(stats: dict) -> str:
     return line
 
 
-def start_commands(simulator) -> None:
-    """Answers stdin's commands on a thread of their own while the simulator serves."""
-    threading.Thread(target=serve_commands, args=(simulator,), name="akd-sim commands", daemon=True).start()
+def start_commands(simulator, fd: int = 0) -> None:
+    """Answers the commands read from `fd` (stdin) on a thread of their own while the simulator serves; a stop asked
+    meanwhile waits until the thread has started (`signals_held`)."""
+    with signals_held():
+        threading.Thread(target=serve_commands, args=(simulator, fd), name="akd-sim commands", daemon=True).start()
 
 
 EXAMPLES = """
@@ -317,12 +319,7 @@ examples:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-sim."""
-    parser = argparse.ArgumentParser(
-        prog="akd-sim",
-        description=__doc__.splitlines()[0],
-        epilog=__doc__.split("\n\n", 2)[2] + EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = tool_parser("akd-sim", __doc__.splitlines()[0], __doc__.split("\n\n", 2)[2] + EXAMPLES)
     where = parser.add_mutually_exclusive_group(required=True)
     where.add_argument("--udp", metavar="HOST:PORT", help="serve EtherCAT over UDP here")
     where.add_argument("--iface", metavar="NAME", help="serve raw EtherCAT on this interface")

@@ -11,10 +11,9 @@ or the node cannot be opened."""
 
 from __future__ import annotations
 
-import argparse
 import sys
 
-from akd_ros.cli.common import LINK_HELP, run
+from akd_ros.cli.common import LINK_HELP, run, tool_parser
 
 EXAMPLES = """examples:
   akd-top sim:6                       six virtual AKDs run in this process
@@ -28,11 +27,10 @@ EXAMPLES = """examples:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-top."""
-    parser = argparse.ArgumentParser(
-        prog="akd-top",
-        description="A live terminal view of a bus's joints, with keys to enable, disable, quick-stop and reset them.",
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+    parser = tool_parser(
+        "akd-top",
+        "A live terminal view of a bus's joints, with keys to enable, disable, quick-stop and reset them.",
+        EXAMPLES,
     )
     parser.add_argument("link", metavar="LINK", nargs="?", help=LINK_HELP + "; not with --attach")
     parser.add_argument(

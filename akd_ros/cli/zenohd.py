@@ -10,13 +10,12 @@ SIGINT or SIGTERM.
 
 from __future__ import annotations
 
-import argparse
 import json
 import sys
 import threading
 from pathlib import Path
 
-from akd_ros.cli.common import EXIT_FAILURE, run
+from akd_ros.cli.common import EXIT_FAILURE, run, tool_parser
 
 # rmw_zenoh's DEFAULT_RMW_ZENOH_ROUTER_CONFIG.json5, the settings it changes from Zenoh's own defaults.
 DEFAULT_LISTEN = "tcp/[::]:7447"
@@ -59,12 +58,7 @@ def router_config(listen: list[str] | None, config_file: Path | None = None):
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of akd-zenohd."""
-    parser = argparse.ArgumentParser(
-        prog="akd-zenohd",
-        description=__doc__.splitlines()[0],
-        epilog=EXAMPLES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
-    )
+    parser = tool_parser("akd-zenohd", __doc__.splitlines()[0], EXAMPLES)
     parser.add_argument(
         "--listen",
         action="append",

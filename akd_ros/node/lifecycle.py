@@ -41,15 +41,16 @@ class AkdNode(LifecycleNode):
         super().__init__(NODE_NAME, **kwargs)
         arguments = [*(sys.argv if args is None else args), *(kwargs.get("cli_args") or [])]
         self.settings: Settings = declare(self, arguments, kwargs.get("parameter_overrides") or [])
-        transport = RosTransport(self)
         self._zenoh = None
         if self.settings.transport == "both":
             from akd_ros.node.transports.both_transport import BothTransport
             from akd_ros.node.transports.zenoh_transport import ZenohTransport
             from akd_ros.node.zenoh_node import open_zenoh
 
-            self._zenoh = open_zenoh(self.settings, transport.logger)
-            transport = BothTransport(transport, ZenohTransport(self._zenoh[1], transport.logger))
+            self._zenoh = open_zenoh(self.settings, self.get_logger())
+            transport = BothTransport(self, ZenohTransport(self._zenoh[1], self.get_logger()))
+        else:
+            transport = RosTransport(self)
         self._core = Core(transport, self.settings)
         transport.start()
         self._transport = transport

@@ -35,7 +35,8 @@ io.outputs.brake_release (`IO_NAME_SPECS`); top-level names apply to every joint
 
 from __future__ import annotations
 
-from akd_ros.params.node_settings import (
+# Imported to be re-exported, each name once (hence F401): every public name of the three, as akd_ros.params.NAME.
+from akd_ros.params.node_settings import (  # noqa: F401
     DeviceSettings,
     JointSettings,
     Settings,
@@ -45,12 +46,12 @@ from akd_ros.params.node_settings import (
     settings,
     transport_of,
 )
-from akd_ros.params.reader import (
+from akd_ros.params.reader import (  # noqa: F401
     argument_sections,
     read_arguments,
     read_parameters_file,
 )
-from akd_ros.params.schema import (
+from akd_ros.params.schema import (  # noqa: F401
     COMMAND_TIMEOUT_POLICIES,
     CYCLE_TIME_RANGE,
     DC_CHOICES,
@@ -83,48 +84,3 @@ from akd_ros.params.schema import (
     refuse_single_joint_parameters,
     refuse_unknown,
 )
-
-__all__ = [
-    "COMMAND_TIMEOUT_POLICIES",
-    "CYCLE_TIME_RANGE",
-    "DC_CHOICES",
-    "DEVICE_SPECS",
-    "DOOR_ROLES",
-    "EDGES",
-    "FAULT_RESET_POLICIES",
-    "IO_NAME_SPECS",
-    "JOINT_NAME",
-    "SCHEMA",
-    "SPECS",
-    "TRANSPORTS",
-    "DeviceSettings",
-    "JointSettings",
-    "ParameterError",
-    "Settings",
-    "Spec",
-    "argument_sections",
-    "check_device_names",
-    "check_doors",
-    "check_eoe_bridge",
-    "check_interface_address",
-    "check_joint_names",
-    "check_link",
-    "check_live_view",
-    "check_mapping",
-    "check_names",
-    "device_settings",
-    "device_specs",
-    "io_name_specs",
-    "io_names",
-    "joint_settings",
-    "joint_specs",
-    "parse_latches",
-    "parse_limits",
-    "parse_mapping",
-    "read_arguments",
-    "read_parameters_file",
-    "refuse_single_joint_parameters",
-    "refuse_unknown",
-    "settings",
-    "transport_of",
-]

@@ -591,14 +591,19 @@ JOINT_NAME = re.compile(r"[A-Za-z][A-Za-z0-9]*(_[A-Za-z0-9]+)*")
 ~/<joint>/ is a valid namespace and joints.<name>.* a valid parameter name."""
 
 
+def _refuse_non_tokens(kind: str, names: list[str], examples: str) -> None:
+    """ParameterError for the first of parameter `kind`s' `names` that is not a ROS name token (`JOINT_NAME`)."""
+    for name in names:
+        if not JOINT_NAME.fullmatch(name):
+            raise ParameterError(
+                f"parameter {kind}s: {name!r} is not a {kind} name; allowed: letters, digits and single underscores "
+                f"between them, a letter first (e.g. {examples})"
+            )
+
+
 def check_joint_names(joints: list[str]) -> list[str]:
     """`joints` if every name is a ROS name token and none is given twice; ParameterError otherwise."""
-    for joint in joints:
-        if not JOINT_NAME.fullmatch(joint):
-            raise ParameterError(
-                f"parameter joints: {joint!r} is not a joint name; allowed: letters, digits and single underscores "
-                "between them, a letter first (e.g. joint_1, shoulder_pan)"
-            )
+    _refuse_non_tokens("joint", joints, "joint_1, shoulder_pan")
     twice = sorted({j for j in joints if joints.count(j) > 1})
     if twice:
         raise ParameterError(f"parameter joints names {', '.join(twice)} more than once; each joint once")
@@ -617,12 +622,7 @@ def device_specs(devices: list[str]) -> list[Spec]:
 def check_device_names(devices: list[str], joints: list[str]) -> list[str]:
     """`devices` if every name is a ROS name token, none is given twice and none is a joint's (their topics would be
     one); ParameterError otherwise."""
-    for device in devices:
-        if not JOINT_NAME.fullmatch(device):
-            raise ParameterError(
-                f"parameter devices: {device!r} is not a device name; allowed: letters, digits and single underscores "
-                "between them, a letter first (e.g. gripper_valves, inputs_1)"
-            )
+    _refuse_non_tokens("device", devices, "gripper_valves, inputs_1")
     twice = sorted({d for d in devices if devices.count(d) > 1} | (set(devices) & set(joints)))
     if twice:
         raise ParameterError(

@@ -112,6 +112,20 @@ def _accepted(
         return None
 
 
+class _Receiver:
+    """A subscription's or a service's entity, what it dropped, and what it calls: `_callback(message, gid)`."""
+
+    def __init__(
+        self, entity: Entity, kind: str, callback: Callable, deserialize: Callable, log: Log, with_gid: bool
+    ) -> None:
+        assert entity.topic is not None
+        self.entity = entity
+        self.key_expr = entity.data_key_expr()
+        self.dropped = Dropped(f"{kind} {entity.topic.name}", log)
+        self._deserialize = deserialize
+        self._callback = callback if with_gid else lambda message, gid: callback(message)
+
+
 class Publisher:
     """A topic's publisher: `publish` puts CDR bytes with the attachment (sequence numbers from 1, the system
     clock's time, the publisher's GID)."""
@@ -157,7 +171,7 @@ class Publisher:
         self._publisher.undeclare()
 
 
-class Subscription:
+class Subscription(_Receiver):
     """A topic's subscription: callback(message) for each sample with a valid attachment whose payload
     `deserialize` accepts (raising ValueError otherwise); message is what deserialize returns, by default the
     CDR bytes themselves. `with_gid`: callback(message, gid), gid the sender's GID its attachment gives."""
@@ -171,14 +185,8 @@ class Subscription:
         log: Log,
         with_gid: bool = False,
     ) -> None:
-        assert entity.topic is not None
-        self.entity = entity
-        self.key_expr = entity.data_key_expr()
-        self.dropped = Dropped(f"subscription {entity.topic.name}", log)
+        super().__init__(entity, "subscription", callback, deserialize, log, with_gid)
         self.received = 0
-        self._callback = callback
-        self._deserialize = deserialize
-        self._with_gid = with_gid
         qos = entity.topic.qos
         if qos.durability is Durability.TRANSIENT_LOCAL:
             reliable = qos.reliability is Reliability.RELIABLE
@@ -197,10 +205,7 @@ class Subscription:
     def _on_sample(self, sample: zenoh.Sample) -> None:
         if accepted := _accepted(sample, self._deserialize, self.dropped, "sample"):
             self.received += 1
-            if self._with_gid:
-                self._callback(accepted[1], accepted[0].gid)
-            else:
-                self._callback(accepted[1])
+            self._callback(accepted[1], accepted[0].gid)
 
     def close(self) -> None:
         """Withdraws the token and the subscriber."""
@@ -208,7 +213,7 @@ class Subscription:
         self._subscriber.undeclare()
 
 
-class Service:
+class Service(_Receiver):
     """A service server: a complete queryable whose queries, each with a client's attachment, are answered by
     handler(request) -> reply CDR bytes on a thread of the service's own (a handler may wait for the drive
     without holding up Zenoh's threads). The reply carries the request's sequence number and the client's GID,
@@ -225,14 +230,8 @@ class Service:
         log: Log,
         with_gid: bool = False,
     ) -> None:
-        assert entity.topic is not None
-        self.entity = entity
-        self.key_expr = entity.data_key_expr()
-        self.dropped = Dropped(f"service {entity.topic.name}", log)
+        super().__init__(entity, "service", handler, deserialize_request, log, with_gid)
         self.answered = 0
-        self._handler = handler
-        self._with_gid = with_gid
-        self._deserialize_request = deserialize_request
         qos = entity.topic.qos
         # Keep-all queues without dropping (to a bound, where rmw_zenoh has none); keep-last drops the oldest.
         keep_all = qos.history is History.KEEP_ALL
@@ -250,12 +249,12 @@ class Service:
                 self._answer(query)
 
     def _answer(self, query: zenoh.Query) -> None:
-        accepted = _accepted(query, self._deserialize_request, self.dropped, "request")
+        accepted = _accepted(query, self._deserialize, self.dropped, "request")
         if accepted is None:
             return
         attachment, request = accepted
         try:
-            reply = self._handler(request, attachment.gid) if self._with_gid else self._handler(request)
+            reply = self._callback(request, attachment.gid)
         except Exception as error:  # noqa: BLE001  (a failing handler must not end the service's thread)
             self.dropped("handler_failed", f"a request its handler failed on ({type(error).__name__}: {error})")
             return

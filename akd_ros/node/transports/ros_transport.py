@@ -35,7 +35,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from rclpy.task import Future
 
 from akd_ros.node.transports.transport import ActionCallbacks, Qos
-from akd_ros.node.transports.worker import Worker, in_thread
+from akd_ros.node.transports.worker import Worker, WorkerGroups, in_thread
 
 
 @functools.cache
@@ -131,26 +131,16 @@ class RosGroup:
         self.callbacks, self.worker = callbacks, worker
 
 
-class RosTransport:
-    """The transport of a LifecycleNode `node` (see `akd_ros.node.transports.transport.Transport`)."""
+class RosTransport(WorkerGroups):
+    """The transport of a LifecycleNode `node` (see `akd_ros.node.transports.transport.Transport`); its groups' timer
+    threads are `WorkerGroups`'."""
 
     name = "rclpy"
     typestore = None
 
     def __init__(self, node) -> None:
+        super().__init__(node.get_logger())
         self._node = node
-        self.logger = node.get_logger()
-        self._workers: list[Worker] = []
-
-    def start(self) -> None:
-        """Starts the groups' timer threads (once the parts are made)."""
-        for worker in self._workers:
-            worker.start()
-
-    def close(self) -> None:
-        """Stops them."""
-        for worker in self._workers:
-            worker.stop()
 
     def message_class(self, type_name: str) -> type:
         return message_class(type_name)
@@ -223,9 +213,7 @@ class RosTransport:
         group.worker.add_timer(period, callback)
 
     def group(self, name: str) -> RosGroup:
-        worker = Worker(f"akd-{name}", self.logger)
-        self._workers.append(worker)
-        return RosGroup(MutuallyExclusiveCallbackGroup(), worker)
+        return RosGroup(MutuallyExclusiveCallbackGroup(), super().group(name))
 
     def now_ns(self) -> int:
         return self._node.get_clock().now().nanoseconds

@@ -1,5 +1,6 @@
 """A callback group as a thread of its own: `Worker` runs its timers at absolute deadlines and the callbacks handed to
-it, one at a time, as rclpy's mutually exclusive callback groups do.
+it, one at a time, as rclpy's mutually exclusive callback groups do; `WorkerGroups`, a transport's, made, started and
+stopped together.
 
 The Zenoh transport runs every group this way (Zenoh has no executor), and the rclpy one runs its timers this way:
 a timer of rclpy's executor wakes it, and every wake-up rebuilds the executor's wait set over all of the node's
@@ -96,3 +97,25 @@ class Worker:
                     callback()
                 except Exception as e:  # noqa: BLE001
                     self._logger.error(f"timer callback failed: {type(e).__name__}: {e}")
+
+
+class WorkerGroups:
+    """What a transport whose callback groups run on `Worker` threads has of them: `group(name)` makes one, `start()`
+    runs their threads once the parts are made, `close()` stops them."""
+
+    def __init__(self, logger) -> None:
+        self.logger = logger
+        self._workers: list[Worker] = []
+
+    def start(self) -> None:
+        for worker in self._workers:
+            worker.start()
+
+    def close(self) -> None:
+        for worker in self._workers:
+            worker.stop()
+
+    def group(self, name: str) -> Worker:
+        worker = Worker(f"akd-{name}", self.logger)
+        self._workers.append(worker)
+        return worker

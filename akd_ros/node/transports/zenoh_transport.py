@@ -16,7 +16,7 @@ from collections.abc import Callable
 from typing import Any, Protocol
 
 from akd_ros.node.transports.transport import ActionCallbacks, Qos
-from akd_ros.node.transports.worker import Worker
+from akd_ros.node.transports.worker import Worker, WorkerGroups
 from akd_ros.zenoh.wire import Durability, Entity, EntityKind, QoS, Reliability
 
 
@@ -55,29 +55,19 @@ class _Publisher:
         self._publisher.publish(data)
 
 
-class ZenohTransport:
+class ZenohTransport(WorkerGroups):
     """The transport of `zenoh_node` (an `akd_ros.zenoh.ZenohNode` named `name`), logging to `logger` (see
-    `akd_ros.node.transports.transport.Transport`). `start()` runs the groups' threads once the parts are made;
-    `close()` stops them."""
+    `akd_ros.node.transports.transport.Transport`); its groups are `WorkerGroups`'."""
 
     name = "zenoh"
 
     def __init__(self, zenoh_node, logger) -> None:
+        super().__init__(logger)
         self._zenoh_node = zenoh_node
         self.types = zenoh_node.types
         self.typestore = self.types.store
-        self.logger = logger
-        self._groups: list[Worker] = []
         self._delivering = threading.local()
         """On a group's thread: the GID of the sender whose sample or request its callback handles."""
-
-    def start(self) -> None:
-        for group in self._groups:
-            group.start()
-
-    def close(self) -> None:
-        for group in self._groups:
-            group.stop()
 
     def message_class(self, type_name: str) -> Callable[..., Any]:
         return self.types.message_class(type_name)
@@ -175,11 +165,6 @@ class ZenohTransport:
 
     def timer(self, period: float, callback: Callable[[], None], group: Worker) -> None:
         group.add_timer(period, callback)
-
-    def group(self, name: str) -> Worker:
-        group = Worker(f"akd-{name}", self.logger)
-        self._groups.append(group)
-        return group
 
     def now_ns(self) -> int:
         return time.time_ns()
