@@ -135,13 +135,15 @@ def past(position: float, limit: float) -> float:
 
 def check_setpoints(robot: Robot) -> None:
     """No position set-point a drive received while enabled went past its joint's limits or moved faster than
-    max_velocity. The speed is judged over the drive's last WINDOW_S of set-points, not frame by frame: a cycle the
-    master ran late (the VM stalls its thread now and then) skips a deadline and advances the set-point by the time
-    it missed, two periods' motion in one frame that arrives less than a period after the late one; over a window
-    that is one period more, which the allowance (1.2 times, plus a period) covers, while a joint driven faster than
-    max_velocity for longer than a cycle is still caught. A target set where the drive stands (the sequencer holding
-    it at the actual position, as after an enable) moves nothing, whatever the target before and wherever it stands:
-    a window starts there."""
+    max_velocity. The speed is judged from the newest set-point at least WINDOW_S older, not frame by frame: a cycle the
+    master ran late (the VM stalls its thread now and then) advances the set-point by all the time it missed, in one
+    frame that can come a period after the late one, whose own receipt carries the stall (a soak saw 0.017 rad in one
+    frame 1.1 ms after the one before, the drive nearly still, in a run whose cycle stalled up to 42 ms); a window
+    reaching back past the late frame spans the stall, which the allowance (1.2 times, plus a period) covers, while a
+    joint driven faster than max_velocity for longer than a window is still caught. A target set where the drive stands
+    (the sequencer holding it at the actual position, as after an enable), if it jumps, moves nothing, whatever the
+    target before and wherever it stands: a window starts there. A target following the drive closely in motion is no
+    hold: it stays in the window."""
     for line in robot.new_setpoints():
         drive, target = line["drive"], line.get("target_position")
         before, robot.last[drive] = robot.last.get(drive), line
@@ -150,25 +152,29 @@ def check_setpoints(robot: Robot) -> None:
             window.clear()
             continue
         rad, previous = target / COUNTS_PER_RAD[drive], before["target_position"] / COUNTS_PER_RAD[drive]
-        if abs(rad - line["position"] / COUNTS_PER_RAD[drive]) <= MAX_VELOCITY * PERIOD_S:
-            # Held where it stands, past a limit too where a homing search (which knows no limits yet) left it.
-            window.clear()
-            window.append(line)
-            continue
+        # Where the drive stands: held, or followed closely; past a limit too where a homing search (which knows no
+        # limits yet) left it.
+        stands = abs(rad - line["position"] / COUNTS_PER_RAD[drive]) <= MAX_VELOCITY * PERIOD_S
         joint = JOINTS[drive]
-        assert past(rad, LIMIT[drive]) <= past(previous, LIMIT[drive]) + 1e-6, (
+        assert stands or past(rad, LIMIT[drive]) <= past(previous, LIMIT[drive]) + 1e-6, (
             f"{joint}'s set-point {rad} rad is past its limit ±{LIMIT[drive]} (before: {previous}): {line}"
         )
         if line["frame"] - before["frame"] != 1:
             # The frames between carried before's target (only changes are traced): it stood until the last one.
             window.clear()
             window.append({**before, "monotonic_ns": line["monotonic_ns"] - round(PERIOD_S * 1e9)})
-        while window and line["monotonic_ns"] - window[0]["monotonic_ns"] > WINDOW_S * 1e9:
+        # From the newest set-point at least WINDOW_S before this one: a window that spans a stall.
+        while len(window) > 1 and line["monotonic_ns"] - window[1]["monotonic_ns"] >= WINDOW_S * 1e9:
             window.popleft()
         first = window[0] if window else before
         seconds = (line["monotonic_ns"] - first["monotonic_ns"]) * 1e-9 + PERIOD_S
         moved = rad - first["target_position"] / COUNTS_PER_RAD[drive]
         allowed = MAX_VELOCITY * seconds * 1.2 + 2 / COUNTS_PER_RAD[drive]
+        if abs(moved) > allowed and stands:
+            # A hold: the target jumped to where the drive stands, which moves nothing; a window starts there.
+            window.clear()
+            window.append(line)
+            continue
         assert abs(moved) <= allowed, (
             f"{joint}'s set-point moved {moved} rad in {seconds - PERIOD_S} s, past max_velocity: {first} -> {line}"
         )
