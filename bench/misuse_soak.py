@@ -33,6 +33,8 @@ def main() -> int:
             AKD_MISUSE_EXAMPLES=str(args.examples),
             AKD_MISUSE_STEPS=str(args.steps),
             AKD_MISUSE_CASES=str(cases),
+            # Domains no test module uses: the soak runs beside the suite on a shared machine.
+            AKD_MISUSE_DOMAINS="5 10",
         )
         pytest = [sys.executable, "-m", "pytest", str(TEST), "-q", "-p", "no:cacheprovider"]
         status = subprocess.run(pytest, cwd=ROOT, env=env, check=False).returncode

@@ -43,7 +43,9 @@ from support.netns import free_udp_port
 from support.ros import NodeProcess, Sim, ros_environment, stop
 from test_node_misuse import JOINTS, NODE, SIX_AXES, Careless, duration, goal, point, six_axis_params, trajectory
 
-DOMAINS = range(78, 84)
+DOMAINS = range(*(int(n) for n in os.environ.get("AKD_MISUSE_DOMAINS", "78 84").split()))
+"""The ROS domains this module picks from; the soak takes ones no test module uses, so it can run beside the suite (a
+run sharing a domain with the suite's saw the other node's /joint_states)."""
 EXAMPLES = int(os.environ.get("AKD_MISUSE_EXAMPLES", "40"))
 STEPS = int(os.environ.get("AKD_MISUSE_STEPS", "10"))
 CASES_FILE = os.environ.get("AKD_MISUSE_CASES")
