@@ -12,7 +12,7 @@ use pyo3::types::PyBytes;
 
 use super::bag_writer::PyBagWriter;
 use super::cycle::PyCycle;
-use super::units::PyUnits;
+use crate::drive::scaling::JointScaling;
 use crate::ros::cycle_records::CycleRecords;
 use crate::ros::feed::{Feed, Kind};
 use crate::ros::msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
@@ -51,7 +51,7 @@ fn period(seconds: f64) -> PyResult<Duration> {
 struct FeedJoint {
     slave: u16,
     name: String,
-    units: PyUnits,
+    units: JointScaling,
     homes: bool,
     inputs: Vec<(String, u8)>,
     outputs: Vec<(String, u8)>,
@@ -100,7 +100,7 @@ impl PyFeed {
             .map(|j| {
                 let io = JointIo::new(j.inputs, j.outputs, j.volts_per_count)
                     .map_err(|e| PyValueError::new_err(format!("joint {}: {e}", j.name)))?;
-                Ok(Joint { slave: j.slave, scale: j.units.scaling, name: j.name, homes: j.homes, io })
+                Ok(Joint { slave: j.slave, scale: j.units, name: j.name, homes: j.homes, io })
             })
             .collect::<PyResult<Vec<_>>>()?;
         let offset_ns = Arc::new(AtomicI64::new(0));

@@ -5,8 +5,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
-use super::units::PyUnits;
 use crate::cycle::samples::Sample;
+use crate::drive::scaling::JointScaling;
 use crate::ros::cycle_sample;
 
 /// A column of `columns` by name, every row converted to T.
@@ -83,13 +83,13 @@ fn samples_of(columns: &Bound<'_, PyDict>) -> PyResult<Vec<Sample>> {
 #[pyfunction]
 fn cycle_sample_records(
     py: Python<'_>,
-    joints: Vec<(String, PyUnits, Bound<'_, PyDict>)>,
+    joints: Vec<(String, JointScaling, Bound<'_, PyDict>)>,
     offset_ns: i64,
 ) -> PyResult<Vec<(i64, Py<PyBytes>)>> {
     let mut rows = Vec::new();
     let mut named = Vec::with_capacity(joints.len());
     for (k, (joint, units, columns)) in joints.iter().enumerate() {
-        named.push((joint.as_str(), units.scaling));
+        named.push((joint.as_str(), *units));
         rows.extend(samples_of(columns)?.into_iter().map(|s| (k, s)));
     }
     Ok(cycle_sample::encode_rows(rows, &named, offset_ns)
