@@ -163,6 +163,7 @@ pub fn hardware_enable(statusword: u16) -> HardwareEnable {
 
 /// Which of the drive's I/O a mapping carries.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Carried {
     /// Digital inputs 0x60FD (with the limit and home switches).
     pub digital_inputs: bool,

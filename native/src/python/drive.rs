@@ -236,34 +236,13 @@ pub(super) fn drives_io(cycle: &CycleThread, positions: &[u16]) -> PyResult<Vec<
         .collect()
 }
 
-/// What a mapping carries of the drive's I/O: "digital_inputs", "analog_input",
-/// "digital_outputs", "analog_output", each True or False.
-#[derive(IntoPyObject)]
-struct CarriedView {
-    digital_inputs: bool,
-    analog_input: bool,
-    digital_outputs: bool,
-    analog_output: bool,
-}
-
-impl From<Carried> for CarriedView {
-    fn from(c: Carried) -> Self {
-        CarriedView {
-            digital_inputs: c.digital_inputs,
-            analog_input: c.analog_input,
-            digital_outputs: c.digital_outputs,
-            analog_output: c.analog_output,
-        }
-    }
-}
-
 /// What the mapping `rx`, `tx` (each as `Master.configure_pdo` takes it) carries of the drive's
 /// I/O, as a dict of "digital_inputs", "analog_input", "digital_outputs", "analog_output";
 /// raises PdoError as `check_mapping` does for a mapping the AKD refuses.
 #[pyfunction]
-fn mapping_io(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<CarriedView> {
+fn mapping_io(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<Carried> {
     let (rx, tx) = (super::master::parse_mapping(rx)?, super::master::parse_mapping(tx)?);
-    Ok(Carried::of(&rx.entries(Direction::Rx).py()?, &tx.entries(Direction::Tx).py()?).into())
+    Ok(Carried::of(&rx.entries(Direction::Rx).py()?, &tx.entries(Direction::Tx).py()?))
 }
 
 /// The mappings, as the node's `mapping` parameter names them ("io", "0x1725/0x1B20"), that
@@ -272,7 +251,7 @@ fn mapping_io(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<CarriedV
 /// a list of (name, what it carries as `mapping_io` gives it). ValueError for an unknown mode
 /// or I/O name.
 #[pyfunction]
-fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedView)>> {
+fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, Carried)>> {
     let mode = Mode::from_snake_name(mode).ok_or_else(|| PyValueError::new_err(format!("no mode {mode:?}")))?;
     let names = ["digital_inputs", "analog_input", "digital_outputs", "analog_output"];
     if let Some(bad) = needs.iter().find(|n| !names.contains(&n.as_str())) {
@@ -282,7 +261,7 @@ fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedV
         let has = [c.digital_inputs, c.analog_input, c.digital_outputs, c.analog_output];
         needs.iter().all(|n| has[names.iter().position(|m| m == n).unwrap_or_default()])
     };
-    Ok(io::mappings_for(mode, wanted).into_iter().map(|m| (m.name, m.carried.into())).collect())
+    Ok(io::mappings_for(mode, wanted).into_iter().map(|m| (m.name, m.carried)).collect())
 }
 
 /// The mappings `io_mappings` finds for mode `mode` and the one I/O `needs`, in words for a

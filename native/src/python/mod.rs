@@ -167,6 +167,23 @@ where
     }
 }
 
+/// Enums that reach Python as their `name()`, a str ("sync0").
+macro_rules! named {
+    ($($t:ty),*) => {$(
+        impl<'py> IntoPyObject<'py> for $t {
+            type Target = pyo3::types::PyString;
+            type Output = Bound<'py, pyo3::types::PyString>;
+            type Error = std::convert::Infallible;
+
+            fn into_pyobject(self, py: Python<'py>) -> Result<Self::Output, Self::Error> {
+                Ok(pyo3::types::PyString::new(py, self.name()))
+            }
+        }
+    )*};
+}
+
+named!(crate::sim::pll::SyncSource);
+
 /// Extension trait: `.py()?` converts a crate result, or a codec's, into a Python one.
 pub(crate) trait IntoPyResult<T> {
     fn py(self) -> PyResult<T>;
