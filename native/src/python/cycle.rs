@@ -28,6 +28,8 @@ use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
 use crate::drive::akd_fault;
 use crate::drive::ds402::{CommandKind, State};
+use crate::drive::io::DriveIo;
+use crate::drive::objects::DriveInputs;
 use crate::drive::trajectory::Scale;
 use crate::error::{CommandRefused, Error, SettingError, UnknownName};
 
@@ -892,20 +894,22 @@ impl PyCycle {
     /// data type: a DriveInputs (statusword, mode_display, position_actual, velocity_actual,
     /// torque_actual, following_error, digital_inputs; None where not mapped) with the
     /// snapshot's cycle, time_ns and fresh.
-    fn drive_inputs(&self, position: u16) -> PyResult<super::drive::PyDriveInputs> {
-        super::drive::drive_inputs(&self.cycle, position)
+    fn drive_inputs(&self, position: u16) -> PyResult<DriveInputs> {
+        self.cycle.drive_inputs(&self.cycle.snapshot(), position).py()
     }
 
     /// The inputs of each drive of `positions` (DriveInputs, as `drive_inputs` gives them),
     /// all from the same snapshot: every joint's values of one cycle.
-    fn drives_inputs(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveInputs>> {
-        super::drive::drives_inputs(&self.cycle, &positions)
+    fn drives_inputs(&self, positions: Vec<u16>) -> PyResult<Vec<DriveInputs>> {
+        let snapshot = self.cycle.snapshot();
+        positions.into_iter().map(|p| self.cycle.drive_inputs(&snapshot, p).py()).collect()
     }
 
     /// The I/O of each drive of `positions` (DriveIo: digital and analog inputs, outputs as
     /// sent, hardware enable), all from the last snapshot.
-    fn drives_io(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveIo>> {
-        super::drive::drives_io(&self.cycle, &positions)
+    fn drives_io(&self, positions: Vec<u16>) -> PyResult<Vec<DriveIo>> {
+        let snapshot = self.cycle.snapshot();
+        positions.into_iter().map(|p| self.cycle.drive_io(&snapshot, p).py()).collect()
     }
 
     /// The channels of the slave at `position`, named after its PDO entries as its SII names
