@@ -22,7 +22,7 @@ use crate::ros::{Device, Joint, JointIo};
 type Taken<'py> = (Vec<(usize, Bound<'py, PyBytes>)>, bool);
 
 /// `Feed(cycle, joints, devices=[])`: the publications of `joints` (each a dict, see
-/// `FeedJoint`) and `devices` (`FeedDevice`) of `cycle`. Streams are added (`add_joint_states`,
+/// `FeedJoint`) and `devices` (each a dict of "slave", "name", "product") of `cycle`. Streams are added (`add_joint_states`,
 /// `add_drive_status`, `add_drive_io`, `add_device_io`, each giving its id) before `start()`; while active, each stream's message is made at its rate and
 /// handed out by `take()` as (id, bytes). Stamps are the monotonic clock plus `set_offset`'s ROS
 /// minus monotonic time.
@@ -58,16 +58,6 @@ struct FeedJoint {
     volts_per_count: f64,
 }
 
-/// A device of a feed, a dict with every key: "slave" (its position), "name" and "product" (its
-/// order number).
-#[derive(FromPyObject)]
-#[pyo3(from_item_all)]
-struct FeedDevice {
-    slave: u16,
-    name: String,
-    product: String,
-}
-
 impl PyFeed {
     fn device(&self, device: usize) -> PyResult<()> {
         match self.feed.devices().len() {
@@ -94,7 +84,7 @@ impl PyFeed {
 impl PyFeed {
     #[new]
     #[pyo3(signature = (cycle, joints, devices = Vec::new()))]
-    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint>, devices: Vec<FeedDevice>) -> PyResult<Self> {
+    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint>, devices: Vec<Device>) -> PyResult<Self> {
         let joints = joints
             .into_iter()
             .map(|j| {
@@ -105,8 +95,6 @@ impl PyFeed {
             .collect::<PyResult<Vec<_>>>()?;
         let offset_ns = Arc::new(AtomicI64::new(0));
         let thread = cycle.get().thread();
-        let devices =
-            devices.into_iter().map(|d| Device { slave: d.slave, name: d.name, product: d.product }).collect();
         Ok(PyFeed { feed: Feed::new(thread, joints, devices, offset_ns.clone()), offset_ns, cycle })
     }
 
