@@ -21,40 +21,43 @@ use crate::drive::pdo::{self, Mapping};
 use crate::ethercat::coe::{access, data_type};
 use crate::ethercat::pdo::{Direction, PdoEntry};
 
-/// One mode of operation of the AKD (0x6060), as `MODES_OF_OPERATION` lists them.
-#[pyclass(name = "ModeOfOperation", module = "akd_ros._native", frozen, get_all)]
-pub struct PyModeOfOperation {
+#[pymethods]
+impl Mode {
     /// The mode's name as one word, e.g. "profile_position".
-    name: String,
+    #[getter(name)]
+    fn py_name(&self) -> String {
+        self.snake_name()
+    }
+
     /// Its value in 0x6060 and 0x6061.
-    code: i8,
+    #[getter]
+    fn code(&self) -> i8 {
+        *self as i8
+    }
+
     /// What its command sets: "position", "velocity", "torque", or None (homing).
-    command: Option<&'static str>,
+    #[getter(command)]
+    fn py_command(&self) -> Option<&'static str> {
+        self.command().map(ds402::CommandKind::name)
+    }
+
     /// The objects (index, subindex) its command is written to, in the order tried: the first
     /// the output mapping carries; a mode with a handshake writes the first by SDO where none
     /// is mapped, the others need one mapped.
-    command_objects: Vec<(u16, u8)>,
+    #[getter(command_objects)]
+    fn py_command_objects(&self) -> &'static [(u16, u8)] {
+        self.command_objects()
+    }
+
     /// The controlword bits whose rising edge starts a command (profile position, homing), for
     /// `Cycle.start_setpoint`; None for a mode that follows its command every cycle.
-    handshake_controlword: Option<u16>,
-}
-
-impl PyModeOfOperation {
-    fn of(mode: Mode) -> Self {
-        PyModeOfOperation {
-            name: mode.snake_name(),
-            code: mode as i8,
-            command: mode.command().map(ds402::CommandKind::name),
-            command_objects: mode.command_objects().to_vec(),
-            handshake_controlword: mode.handshake_controlword(),
-        }
+    #[getter(handshake_controlword)]
+    fn py_handshake_controlword(&self) -> Option<u16> {
+        self.handshake_controlword()
     }
-}
 
-#[pymethods]
-impl PyModeOfOperation {
     fn __repr__(&self) -> String {
-        format!("ModeOfOperation({:?}, code={})", self.name, self.code)
+        format!("ModeOfOperation({:?}, code={})", self.snake_name(), *self as i8)
     }
 }
 
@@ -234,10 +237,9 @@ fn as_words(pdos: &[&[PdoEntry]]) -> Vec<Vec<u32>> {
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyModeOfOperation>()?;
+    m.add_class::<Mode>()?;
     m.add_class::<DriveInputs>()?;
-    let modes: Vec<PyModeOfOperation> = Mode::ALL.into_iter().map(PyModeOfOperation::of).collect();
-    m.add("MODES_OF_OPERATION", PyTuple::new(m.py(), modes)?)?;
+    m.add("MODES_OF_OPERATION", PyTuple::new(m.py(), Mode::ALL)?)?;
     let not_offered: std::collections::HashMap<&str, &str> =
         ds402::NOT_OFFERED.iter().map(|&(_, name, why)| (name, why)).collect();
     m.add("MODES_NOT_OFFERED", not_offered)?;
