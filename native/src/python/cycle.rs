@@ -220,7 +220,7 @@ pub struct FaultEvent {
     /// What it is about: "drive_fault", "emergency", "lost_frames", "working_counter",
     /// "al_state", "unreachable" (the drive stopped answering: power, cable or line; it is
     /// being brought back) or "recovered" (back in Op, its power stage off).
-    source: &'static str,
+    source: FaultSource,
     /// CiA error code (0x603F or the emergency's); cycles in a row for lost frames, working
     /// counter errors and an unreachable drive; how long it was gone (ms) for a recovered one.
     code: u16,
@@ -247,8 +247,7 @@ impl FaultEvent {
     /// One line for a log.
     fn describe(&self) -> String {
         let code = self.code;
-        let source = FaultSource::ALL.into_iter().find(|s| s.name() == self.source);
-        let what = match source.unwrap_or(FaultSource::DriveFault) {
+        let what = match self.source {
             FaultSource::LostFrames | FaultSource::WorkingCounter => format!("{code} cycles in a row"),
             FaultSource::Unreachable => {
                 format!("no answer for {code} cycles (power, cable or line); being brought back")
@@ -262,7 +261,7 @@ impl FaultEvent {
             ),
             _ => self.text.clone().unwrap_or_else(|| format!("code 0x{code:04X}")),
         };
-        format!("{}: {what}; {}", self.source, self.action)
+        format!("{}: {what}; {}", self.source.name(), self.action)
     }
 
     fn __repr__(&self) -> String {
@@ -294,7 +293,7 @@ impl EventView {
                     cycle,
                     time_ns,
                     slave,
-                    source: source.name(),
+                    source,
                     code,
                     text,
                     statusword,

@@ -182,7 +182,7 @@ macro_rules! named {
     )*};
 }
 
-named!(crate::sim::pll::SyncSource);
+named!(crate::sim::pll::SyncSource, crate::cycle::events::FaultSource);
 
 /// Extension trait: `.py()?` converts a crate result, or a codec's, into a Python one.
 pub(crate) trait IntoPyResult<T> {
