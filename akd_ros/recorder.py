@@ -487,7 +487,7 @@ class Recorder:
             errors=counters["errors"] + self._metadata_errors,
             black_box_dumps=counters["black_box_dumps"],
             black_box_syncs=counters["black_box_syncs"],
-            files=[Path(path) for path, _, _ in self._report["files"]],
+            files=[Path(f["path"]) for f in self._report["files"]],
         )
 
     def add_topic(self, topic: str, msg_class: type, qos: Any = None, *, typestore: Any = None) -> None:
@@ -677,9 +677,9 @@ class Recorder:
     def _metadata(self, report: dict) -> dict:
         topics = list(self._topics.values())
         files = []
-        for path, span, count in report["files"]:
-            start, end = span if span is not None else (None, None)
-            files.append(_File(Path(path), start, end, count))
+        for f in report["files"]:
+            start, end = f["span"] if f["span"] is not None else (None, None)
+            files.append(_File(Path(f["path"]), start, end, f["messages"]))
         return _bag_metadata(list(zip(topics, report["topic_messages"], strict=False)), files)
 
 

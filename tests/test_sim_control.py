@@ -140,7 +140,7 @@ def test_bad_values_are_refused_naming_the_allowed_ones():
             simulator.set_switch(0, "brake", True)
         with pytest.raises(_native.ConfigError, match=r"analog input inf V: allowed a finite voltage within ±10"):
             simulator.set_analog_input(1, math.inf)
-        with pytest.raises(_native.ConfigError, match="timeout must be a non-negative number"):
+        with pytest.raises(_native.ConfigError, match="timeout -1 s: allowed a finite number of seconds >= 0"):
             simulator.drive_state(0, timeout=-1)
         # Nobody exchanges frames: the query says so instead of waiting for ever.
         with pytest.raises(_native.ConfigError, match=r"not answered within 50ms.*idle in-process master"):

@@ -631,8 +631,29 @@ pub enum CommandRefused {
         /// What was refused: "position command", "outputs".
         what: String,
         /// Why.
-        why: String,
+        why: NotSent,
     },
+}
+
+/// Why a command was not sent.
+#[derive(Clone, Debug, PartialEq)]
+pub enum NotSent {
+    /// Its value has no encoding in its object.
+    Encode(crate::drive::objects::EncodeError),
+    /// The cycle refused the set-point (a step past the joint's limits).
+    Setting(SettingError),
+    /// The cycle cannot take it now (a trajectory or a homing drives the drive).
+    Unavailable(Unavailable),
+}
+
+impl fmt::Display for NotSent {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            NotSent::Encode(e) => write!(f, "{e}"),
+            NotSent::Setting(e) => write!(f, "{e}"),
+            NotSent::Unavailable(e) => write!(f, "{e}"),
+        }
+    }
 }
 
 impl fmt::Display for CommandRefused {

@@ -60,13 +60,6 @@ pub enum SettingError {
         /// The cycle time, ns.
         cycle_ns: u32,
     },
-    /// A duration that is not a non-negative number of seconds.
-    Seconds {
-        /// The setting, e.g. "timeout".
-        what: &'static str,
-        /// The value given.
-        value: f64,
-    },
     /// A virtual line that is none (an unknown product, a terminal without a coupler in front).
     SimLine {
         /// The line as given.
@@ -324,9 +317,6 @@ impl fmt::Display for SettingError {
                     f,
                     "SYNC0 shift {shift_ns} ns is not within the {cycle_ns} ns cycle: allowed are -{max} to {max} ns"
                 )
-            }
-            SettingError::Seconds { what, value } => {
-                write!(f, "{what} must be a non-negative number of seconds, got {value}")
             }
             SettingError::SimLine { line, error } => write!(f, "line {line:?}: {error}"),
             SettingError::MailboxSize { size, min, max } => {

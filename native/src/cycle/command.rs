@@ -12,7 +12,7 @@ use crate::drive::ds402::{CommandKind, Mode};
 use crate::drive::io::{self, ANALOG_OUTPUT, DIGITAL_OUTPUTS};
 use crate::drive::objects;
 use crate::drive::scaling::JointScaling;
-use crate::error::{CommandRefused, Error, Result};
+use crate::error::{CommandRefused, Error, NotSent, Result};
 use crate::ethercat::pdo;
 
 /// A joint's command ready to go: what [`CycleThread::prepare_command`] made of it.
@@ -40,7 +40,7 @@ fn refused(kind: CommandKind) -> String {
 /// `value` as the bytes of `object`.
 fn encoded(object: (u16, u8), value: i64, what: impl std::fmt::Display) -> Result<Vec<u8>> {
     objects::encode(object.0, object.1, value)
-        .map_err(|e| CommandRefused::NotSent { what: what.to_string(), why: e.to_string() }.into())
+        .map_err(|e| CommandRefused::NotSent { what: what.to_string(), why: NotSent::Encode(e) }.into())
 }
 
 impl CycleThread {
@@ -84,12 +84,10 @@ impl CycleThread {
         }
         let (index, subindex) = command.object;
         if command.mapped {
+            let not_sent = |why| Error::from(CommandRefused::NotSent { what: refused(kind), why });
             self.set_object(position, index, subindex, &command.data).map_err(|e| match e {
-                Error::Setting(_) | Error::Unavailable(_) => {
-                    let why = e.to_string();
-                    let why = why.strip_prefix("configuration: ").unwrap_or(&why).to_owned();
-                    Error::from(CommandRefused::NotSent { what: refused(kind), why })
-                }
+                Error::Setting(e) => not_sent(NotSent::Setting(e)),
+                Error::Unavailable(e) => not_sent(NotSent::Unavailable(e)),
                 e => e,
             })?;
         } else {

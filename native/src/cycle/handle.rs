@@ -20,6 +20,8 @@ use super::{
     command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, recovery, rt, sequencer,
     supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
+use crate::drive::io::DriveIo;
+use crate::drive::objects::DriveInputs;
 use crate::drive::trajectory::{JointLimits, Knot, Limit, Limits, Scale, Setpoint, Trajectory};
 use crate::error::{Error, Result, SettingError, TrajectoryError, Unavailable};
 use crate::ethercat::device::{self, Channel, ChannelValue};
@@ -1104,6 +1106,22 @@ impl CycleThread {
                 Direction::Tx => c.read(&snapshot.inputs, slot.in_start_bit()),
             })
             .collect())
+    }
+
+    /// What the inputs of the drive at `position` say in `snapshot`, read by its mapping.
+    pub fn drive_inputs(&self, snapshot: &Snapshot, position: u16) -> Result<DriveInputs> {
+        let (_, tx) = self.mapping(position)?;
+        let read = DriveInputs::read(tx, &self.inputs_of(snapshot, position)?);
+        Ok(DriveInputs { cycle: snapshot.cycle, time_ns: snapshot.time_ns, fresh: snapshot.fresh, ..read })
+    }
+
+    /// The I/O of the drive at `position` in `snapshot`, read by its mapping: its inputs as
+    /// read, its outputs as that cycle sent them.
+    pub fn drive_io(&self, snapshot: &Snapshot, position: u16) -> Result<DriveIo> {
+        let (rx, tx) = self.mapping(position)?;
+        let outputs = self.outputs_of(snapshot, position)?;
+        let read = DriveIo::read(rx, tx, &outputs, &self.inputs_of(snapshot, position)?);
+        Ok(DriveIo { cycle: snapshot.cycle, time_ns: snapshot.time_ns, fresh: snapshot.fresh, ..read })
     }
 
     /// The device at `position`, where it has process data: a slave the cycle does not

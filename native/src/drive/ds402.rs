@@ -221,7 +221,9 @@ pub fn step_toward(state: State, target: State) -> u16 {
 }
 
 wire_codes! {
-    /// Modes of operation (0x6060 / 0x6061) the AKD supports (§5.8).
+    /// Modes of operation (0x6060 / 0x6061) the AKD supports (§5.8); in Python
+    /// `ModeOfOperation`, every one in `MODES_OF_OPERATION`.
+    #[cfg_attr(feature = "python", pyo3::pyclass(name = "ModeOfOperation", module = "akd_ros._native", frozen, eq, hash))]
     pub enum Mode: i8, "mode of operation" {
         /// Profile position (motion task 0).
         ProfilePosition = 1 => "profile position",

@@ -163,6 +163,7 @@ pub fn hardware_enable(statusword: u16) -> HardwareEnable {
 
 /// Which of the drive's I/O a mapping carries.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Carried {
     /// Digital inputs 0x60FD (with the limit and home switches).
     pub digital_inputs: bool,
@@ -251,9 +252,17 @@ pub fn mappings_in_words(mode: Mode, wanted: impl Fn(Carried) -> bool) -> String
 }
 
 /// One drive's I/O in one cycle, read by its mapping: each value `None` where the mapping lacks
-/// its object.
+/// its object (`Cycle.drives_io` in Python). Raw values in the drive's units (counts of the
+/// analog objects, ±10 V over their range as `ANALOG_VOLTS_PER_COUNT` assumes).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", pyo3::pyclass(module = "akd_ros._native", frozen, get_all))]
 pub struct DriveIo {
+    /// The cycle they are from (from 1; 0 where not read from a cycle's snapshot).
+    pub cycle: u64,
+    /// That cycle's wake-up time on the monotonic clock (ns).
+    pub time_ns: u64,
+    /// Whether that cycle's exchange succeeded (else the inputs are the last good ones).
+    pub fresh: bool,
     /// Statusword 0x6041 (for the hardware enable).
     pub statusword: Option<u16>,
     /// Digital inputs 0x60FD.
@@ -277,13 +286,17 @@ impl DriveIo {
             analog_input: input(ANALOG_INPUT).map(|v| v as i16),
             digital_outputs: output(DIGITAL_OUTPUTS).map(|v| v as u32),
             analog_output: output(ANALOG_OUTPUT).map(|v| v as i16),
+            ..DriveIo::default()
         }
     }
 
     /// These I/O with the digital inputs and statusword of another cycle (the cycle thread's
     /// event of an input change), where the mapping carries them.
-    pub fn with_inputs(self, digital_inputs: u32, statusword: u16) -> DriveIo {
+    pub fn with_inputs(self, cycle: u64, time_ns: u64, digital_inputs: u32, statusword: u16) -> DriveIo {
         DriveIo {
+            cycle,
+            time_ns,
+            fresh: true,
             statusword: self.statusword.map(|_| statusword),
             digital_inputs: self.digital_inputs.map(|_| digital_inputs),
             ..self

@@ -41,21 +41,29 @@ pub fn read(entries: &[PdoEntry], image: &[u8], index: u16, subindex: u8) -> Opt
 /// else the internal value 0x6063 (which the fixed mapping 0x1B01 carries instead).
 pub const POSITION_ACTUAL: [(u16, u8); 2] = [(0x6064, 0), (0x6063, 0)];
 
-/// What one drive's inputs say, read by its mapping: each value `None` where the mapping lacks
-/// its object. The values a caller of one axis shows every cycle.
+/// What one drive's inputs say in one cycle, read by its mapping with each object's data type:
+/// each value `None` where the mapping lacks its object. The values a caller of one axis shows
+/// every cycle (`Cycle.drive_inputs` in Python).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", pyo3::pyclass(module = "akd_ros._native", frozen, get_all))]
 pub struct DriveInputs {
+    /// The cycle they are from (from 1; 0 where not read from a cycle's snapshot).
+    pub cycle: u64,
+    /// That cycle's wake-up time on the monotonic clock (ns).
+    pub time_ns: u64,
+    /// Whether that cycle's exchange succeeded (else they are the last good ones).
+    pub fresh: bool,
     /// Statusword 0x6041.
     pub statusword: Option<u16>,
     /// Modes of operation display 0x6061.
     pub mode_display: Option<i8>,
-    /// Actual position in counts, from the first of [`POSITION_ACTUAL`] mapped.
+    /// Actual position in counts: 0x6064, else the internal value 0x6063 ([`POSITION_ACTUAL`]).
     pub position_actual: Option<i32>,
-    /// Velocity actual value 0x606C.
+    /// Velocity actual value 0x606C, counts/s.
     pub velocity_actual: Option<i32>,
-    /// Torque actual value 0x6077.
+    /// Torque actual value 0x6077, 0.1 % of peak torque.
     pub torque_actual: Option<i16>,
-    /// Following error actual value 0x60F4.
+    /// Following error actual value 0x60F4, counts.
     pub following_error: Option<i32>,
     /// Digital inputs 0x60FD.
     pub digital_inputs: Option<u32>,
@@ -76,6 +84,7 @@ impl DriveInputs {
             torque_actual: value(0x6077).map(|v| v as i16),
             following_error: value(0x60F4).map(|v| v as i32),
             digital_inputs: value(0x60FD).map(|v| v as u32),
+            ..DriveInputs::default()
         }
     }
 }
@@ -213,6 +222,7 @@ mod tests {
                 torque_actual: Some(-300),
                 following_error: None,
                 digital_inputs: Some(0x8001_0000),
+                ..DriveInputs::default()
             }
         );
     }

@@ -658,6 +658,7 @@ mod tests {
                 torque_actual: Some(0),
                 following_error: Some(0),
                 digital_inputs: Some(0),
+                ..Default::default()
             },
             "the default inputs carry every value an axis shows"
         );

@@ -181,18 +181,19 @@ impl PositionScaling {
 /// `direction` flips the load's sense against the motor's, `offset` is the load position at
 /// count 0, and a linear axis moves `lead` metres per load revolution.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "python", pyo3::pyclass(name = "Units", module = "akd_ros._native", frozen, eq, get_all))]
 pub struct JointScaling {
-    /// Feedback counts per motor revolution.
+    /// Feedback counts per motor revolution; the virtual AKD uses 2**20.
     pub counts_per_revolution: u64,
     /// Motor revolutions per load revolution.
     pub gear_ratio: f64,
-    /// +1 with the motor's positive sense, -1 against it.
+    /// +1 when the load turns with the motor's positive sense, -1 when against it.
     pub direction: i8,
-    /// Load position at count 0 (rad or m).
+    /// Load position at motor count 0: rad for a rotary axis, m for a linear one.
     pub offset: f64,
-    /// Metres per load revolution of a linear axis; `None` for a rotary one.
+    /// Metres the load travels per load revolution of a linear axis; None for a rotary one.
     pub lead: Option<f64>,
-    /// The drive's peak torque at the motor (N·m): what torque value 1000 (100 %) means.
+    /// The drive's peak torque at the motor in N·m, which drive torque value 1000 (100 %) means.
     pub peak_torque: f64,
 }
 

@@ -11,7 +11,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
 use crate::ros::bag_file::Compression;
-use crate::ros::bag_writer::{BagWriter, Options, Report, Topic};
+use crate::ros::bag_writer::{BagWriter, Counters, Options, Report, Topic};
 
 /// A bag being written by its thread: `BagWriter(folder, name, *, compression, ...)` (see
 /// `akd_ros.recorder.Recorder`, which checks the values). Nothing it does raises for I/O: the
@@ -19,48 +19,6 @@ use crate::ros::bag_writer::{BagWriter, Options, Report, Topic};
 #[pyclass(name = "BagWriter", module = "akd_ros._native", frozen)]
 pub struct PyBagWriter {
     pub(super) writer: Arc<BagWriter>,
-}
-
-/// A file as `report` gives it: its path, its first and last message's time (ns) or None, its
-/// messages.
-type FileView = (PathBuf, Option<(i64, i64)>, u64);
-
-/// What `report` gives.
-#[derive(IntoPyObject)]
-struct ReportView {
-    version: u64,
-    bag: Option<PathBuf>,
-    files: Vec<FileView>,
-    topic_messages: Vec<u64>,
-    parked: usize,
-    failure: Option<String>,
-    closing: bool,
-    done: bool,
-}
-
-impl From<Report> for ReportView {
-    fn from(r: Report) -> Self {
-        ReportView {
-            version: r.version,
-            bag: r.bag,
-            files: r.files.into_iter().map(|f| (f.path, f.span, f.messages)).collect(),
-            topic_messages: r.topic_messages,
-            parked: r.parked,
-            failure: r.failure,
-            closing: r.closing,
-            done: r.done,
-        }
-    }
-}
-
-/// What `counters` gives.
-#[derive(IntoPyObject)]
-struct CountersView {
-    written: u64,
-    dropped: u64,
-    errors: u64,
-    black_box_dumps: u64,
-    black_box_syncs: u64,
 }
 
 #[pymethods]
@@ -151,12 +109,12 @@ impl PyBagWriter {
     }
 
     /// The report once its version passes `seen`, or the current one after `timeout` seconds
-    /// (the GIL released): version, bag, files (path, (first, last) ns or None, messages),
-    /// topic_messages, parked, failure, closing, done.
-    fn report(&self, py: Python<'_>, seen: u64, timeout: f64) -> PyResult<ReportView> {
+    /// (the GIL released): version, bag, files (each path, span: (first, last) ns or None,
+    /// messages), topic_messages, parked, failure, closing, done.
+    fn report(&self, py: Python<'_>, seen: u64, timeout: f64) -> PyResult<Report> {
         let timeout = super::seconds(timeout, "timeout")?;
         let writer = &self.writer;
-        Ok(py.allow_threads(|| writer.report(seen, timeout)).into())
+        Ok(py.allow_threads(|| writer.report(seen, timeout)))
     }
 
     /// The metadata record's text of the files parked so far.
@@ -178,15 +136,8 @@ impl PyBagWriter {
 
     /// written, dropped, errors, black_box_dumps (faults whose black box was written) and
     /// black_box_syncs (closes and syncs of the chunk they made).
-    fn counters(&self) -> CountersView {
-        let c = self.writer.counters();
-        CountersView {
-            written: c.written,
-            dropped: c.dropped,
-            errors: c.errors,
-            black_box_dumps: c.black_box_dumps,
-            black_box_syncs: c.black_box_syncs,
-        }
+    fn counters(&self) -> Counters {
+        self.writer.counters()
     }
 }
 

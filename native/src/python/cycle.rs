@@ -28,6 +28,8 @@ use crate::cycle::{handshake, latch};
 use crate::cycle::{Config, CycleThread};
 use crate::drive::akd_fault;
 use crate::drive::ds402::{CommandKind, State};
+use crate::drive::io::DriveIo;
+use crate::drive::objects::DriveInputs;
 use crate::drive::trajectory::Scale;
 use crate::error::{CommandRefused, Error, SettingError, UnknownName};
 
@@ -218,7 +220,7 @@ pub struct FaultEvent {
     /// What it is about: "drive_fault", "emergency", "lost_frames", "working_counter",
     /// "al_state", "unreachable" (the drive stopped answering: power, cable or line; it is
     /// being brought back) or "recovered" (back in Op, its power stage off).
-    source: &'static str,
+    source: FaultSource,
     /// CiA error code (0x603F or the emergency's); cycles in a row for lost frames, working
     /// counter errors and an unreachable drive; how long it was gone (ms) for a recovered one.
     code: u16,
@@ -245,8 +247,7 @@ impl FaultEvent {
     /// One line for a log.
     fn describe(&self) -> String {
         let code = self.code;
-        let source = FaultSource::ALL.into_iter().find(|s| s.name() == self.source);
-        let what = match source.unwrap_or(FaultSource::DriveFault) {
+        let what = match self.source {
             FaultSource::LostFrames | FaultSource::WorkingCounter => format!("{code} cycles in a row"),
             FaultSource::Unreachable => {
                 format!("no answer for {code} cycles (power, cable or line); being brought back")
@@ -260,7 +261,7 @@ impl FaultEvent {
             ),
             _ => self.text.clone().unwrap_or_else(|| format!("code 0x{code:04X}")),
         };
-        format!("{}: {what}; {}", self.source, self.action)
+        format!("{}: {what}; {}", self.source.name(), self.action)
     }
 
     fn __repr__(&self) -> String {
@@ -292,7 +293,7 @@ impl EventView {
                     cycle,
                     time_ns,
                     slave,
-                    source: source.name(),
+                    source,
                     code,
                     text,
                     statusword,
@@ -336,14 +337,6 @@ impl EventView {
 
 /// A /diagnostics status of the line: level, what, message, hardware_id, values.
 type LineStatus = crate::ros::line_diagnostics::Status;
-
-/// `seconds` as a duration, or a ConfigError naming `what` and the allowed values.
-fn duration(what: &'static str, seconds: f64, allowed: &'static str) -> PyResult<Duration> {
-    Duration::try_from_secs_f64(seconds)
-        .map_err(|_| super::to_py_err(SettingError::Duration { what, seconds, allowed }.into()))
-}
-
-const SECONDS: &str = "a finite number of seconds >= 0";
 
 /// How often `wait_state` looks at the drive's status.
 const WAIT_POLL: Duration = Duration::from_millis(1);
@@ -394,8 +387,9 @@ impl PyCycle {
         let period = Duration::try_from_secs_f64(period)
             .map_err(|_| super::to_py_err(SettingError::CyclePeriodSeconds { seconds: period }.into()))?;
         let fbus_param02 = super::master::lock(&master.borrow(py).fbus_param02).clone();
-        let line_health =
-            line_health.map(|s| duration("line health interval", s, "a finite number of seconds >= 0, 0 for never"));
+        let line_health = line_health.map(|s| {
+            super::seconds_allowing(s, "line health interval", "a finite number of seconds >= 0, 0 for never")
+        });
         let config = Config {
             period,
             realtime: realtime.unwrap_or_default(),
@@ -674,7 +668,7 @@ impl PyCycle {
     /// The next Ethernet frame a drive's IP stack sent, waiting up to `timeout` s (the GIL
     /// released): `(position, frame)`, or `None`.
     fn eoe_receive<'py>(&self, py: Python<'py>, timeout: f64) -> PyResult<Option<(u16, Bound<'py, PyBytes>)>> {
-        let timeout = duration("timeout", timeout, SECONDS)?;
+        let timeout = super::seconds(timeout, "timeout")?;
         let cycle = &self.cycle;
         let frame = py.allow_threads(|| cycle.eoe_receive(timeout));
         Ok(frame.map(|(position, f)| (position, PyBytes::new(py, &f))))
@@ -707,7 +701,7 @@ impl PyCycle {
     /// once (`wait_setpoint` waits).
     #[pyo3(signature = (position, bits, timeout = None))]
     fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<f64>) -> PyResult<u32> {
-        let timeout = timeout.map(|t| duration("set-point handshake timeout", t, SECONDS)).transpose()?;
+        let timeout = timeout.map(|t| super::seconds(t, "set-point handshake timeout")).transpose()?;
         self.cycle.start_setpoint(position, bits, timeout).py()
     }
 
@@ -716,7 +710,7 @@ impl PyCycle {
     /// `timeout` seconds pass first (None: until the handshake's own time-out ends it).
     #[pyo3(signature = (position, timeout = None))]
     fn wait_setpoint(&self, py: Python<'_>, position: u16, timeout: Option<f64>) -> PyResult<SetpointView> {
-        let timeout = timeout.map(|t| duration("timeout", t, SECONDS)).transpose()?;
+        let timeout = timeout.map(|t| super::seconds(t, "timeout")).transpose()?;
         let cycle = &self.cycle;
         Ok(py.allow_threads(|| cycle.wait_setpoint(position, timeout)).py()?.into())
     }
@@ -734,7 +728,7 @@ impl PyCycle {
     /// position; halted and ended "timed_out" when not attained within `timeout` s. The drive
     /// must be in Operation enabled with 0x6060 and 0x6061 mapped. Returns its number at once.
     fn start_homing(&self, position: u16, timeout: f64) -> PyResult<u32> {
-        let timeout = duration("homing timeout", timeout, SECONDS)?;
+        let timeout = super::seconds(timeout, "homing timeout")?;
         self.cycle.start_homing(position, timeout).py()
     }
 
@@ -766,7 +760,8 @@ impl PyCycle {
             CommandTimeoutAction::ALL.iter().copied().find(|a| a.name() == policy).ok_or_else(|| {
                 super::to_py_err(UnknownName::CommandTimeoutPolicy { name: policy.to_owned() }.into())
             })?;
-        let timeout = duration("command timeout", timeout, "a finite number of seconds >= 0, 0 turning it off")?;
+        let timeout =
+            super::seconds_allowing(timeout, "command timeout", "a finite number of seconds >= 0, 0 turning it off")?;
         self.cycle.set_command_timeout(position, Some(timeout), action).py()
     }
 
@@ -796,7 +791,7 @@ impl PyCycle {
     fn command(
         &self,
         py: Python<'_>,
-        commands: Vec<(u16, String, f64, super::units::PyUnits)>,
+        commands: Vec<(u16, String, f64, crate::drive::scaling::JointScaling)>,
     ) -> PyResult<Vec<Option<u32>>> {
         let commands = commands
             .into_iter()
@@ -805,7 +800,7 @@ impl PyCycle {
                 let kind = kinds.into_iter().find(|k| k.name() == kind).ok_or_else(|| {
                     PyValueError::new_err(format!("kind must be 'position', 'velocity' or 'torque', got {kind:?}"))
                 })?;
-                Ok((position, kind, value, units.scaling))
+                Ok((position, kind, value, units))
             })
             .collect::<PyResult<Vec<_>>>()?;
         let cycle = &self.cycle;
@@ -898,20 +893,22 @@ impl PyCycle {
     /// data type: a DriveInputs (statusword, mode_display, position_actual, velocity_actual,
     /// torque_actual, following_error, digital_inputs; None where not mapped) with the
     /// snapshot's cycle, time_ns and fresh.
-    fn drive_inputs(&self, position: u16) -> PyResult<super::drive::PyDriveInputs> {
-        super::drive::drive_inputs(&self.cycle, position)
+    fn drive_inputs(&self, position: u16) -> PyResult<DriveInputs> {
+        self.cycle.drive_inputs(&self.cycle.snapshot(), position).py()
     }
 
     /// The inputs of each drive of `positions` (DriveInputs, as `drive_inputs` gives them),
     /// all from the same snapshot: every joint's values of one cycle.
-    fn drives_inputs(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveInputs>> {
-        super::drive::drives_inputs(&self.cycle, &positions)
+    fn drives_inputs(&self, positions: Vec<u16>) -> PyResult<Vec<DriveInputs>> {
+        let snapshot = self.cycle.snapshot();
+        positions.into_iter().map(|p| self.cycle.drive_inputs(&snapshot, p).py()).collect()
     }
 
     /// The I/O of each drive of `positions` (DriveIo: digital and analog inputs, outputs as
     /// sent, hardware enable), all from the last snapshot.
-    fn drives_io(&self, positions: Vec<u16>) -> PyResult<Vec<super::drive::PyDriveIo>> {
-        super::drive::drives_io(&self.cycle, &positions)
+    fn drives_io(&self, positions: Vec<u16>) -> PyResult<Vec<DriveIo>> {
+        let snapshot = self.cycle.snapshot();
+        positions.into_iter().map(|p| self.cycle.drive_io(&snapshot, p).py()).collect()
     }
 
     /// The channels of the slave at `position`, named after its PDO entries as its SII names
@@ -1041,9 +1038,9 @@ impl PyCycle {
         limits: (Option<f64>, Option<f64>),
         max_velocity: Option<f64>,
         max_acceleration: Option<f64>,
-        units: Option<super::units::PyUnits>,
+        units: Option<crate::drive::scaling::JointScaling>,
     ) -> PyResult<()> {
-        let scale = units.map_or(Scale::COUNTS, |u| u.scaling.scale());
+        let scale = units.map_or(Scale::COUNTS, |u| u.scale());
         let joint = super::trajectory::joint_limits(name, limits, max_velocity, max_acceleration, scale);
         self.cycle.set_joint_limits(position, joint).py()
     }

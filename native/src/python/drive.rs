@@ -14,7 +14,6 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
 
 use super::IntoPyResult;
-use crate::cycle::{CycleThread, Snapshot};
 use crate::drive::ds402::{self, Mode, State};
 use crate::drive::io::{self, Carried, DriveIo, Switch};
 use crate::drive::objects::{self, DriveInputs};
@@ -22,71 +21,48 @@ use crate::drive::pdo::{self, Mapping};
 use crate::ethercat::coe::{access, data_type};
 use crate::ethercat::pdo::{Direction, PdoEntry};
 
-/// One mode of operation of the AKD (0x6060), as `MODES_OF_OPERATION` lists them.
-#[pyclass(name = "ModeOfOperation", module = "akd_ros._native", frozen, get_all)]
-pub struct PyModeOfOperation {
+#[pymethods]
+impl Mode {
     /// The mode's name as one word, e.g. "profile_position".
-    name: String,
+    #[getter(name)]
+    fn py_name(&self) -> String {
+        self.snake_name()
+    }
+
     /// Its value in 0x6060 and 0x6061.
-    code: i8,
+    #[getter]
+    fn code(&self) -> i8 {
+        *self as i8
+    }
+
     /// What its command sets: "position", "velocity", "torque", or None (homing).
-    command: Option<&'static str>,
+    #[getter(command)]
+    fn py_command(&self) -> Option<&'static str> {
+        self.command().map(ds402::CommandKind::name)
+    }
+
     /// The objects (index, subindex) its command is written to, in the order tried: the first
     /// the output mapping carries; a mode with a handshake writes the first by SDO where none
     /// is mapped, the others need one mapped.
-    command_objects: Vec<(u16, u8)>,
+    #[getter(command_objects)]
+    fn py_command_objects(&self) -> &'static [(u16, u8)] {
+        self.command_objects()
+    }
+
     /// The controlword bits whose rising edge starts a command (profile position, homing), for
     /// `Cycle.start_setpoint`; None for a mode that follows its command every cycle.
-    handshake_controlword: Option<u16>,
-}
-
-impl PyModeOfOperation {
-    fn of(mode: Mode) -> Self {
-        PyModeOfOperation {
-            name: mode.snake_name(),
-            code: mode as i8,
-            command: mode.command().map(ds402::CommandKind::name),
-            command_objects: mode.command_objects().to_vec(),
-            handshake_controlword: mode.handshake_controlword(),
-        }
+    #[getter(handshake_controlword)]
+    fn py_handshake_controlword(&self) -> Option<u16> {
+        self.handshake_controlword()
     }
-}
 
-#[pymethods]
-impl PyModeOfOperation {
     fn __repr__(&self) -> String {
-        format!("ModeOfOperation({:?}, code={})", self.name, self.code)
+        format!("ModeOfOperation({:?}, code={})", self.snake_name(), *self as i8)
     }
 }
 
-/// One drive's inputs in one cycle, read by its mapping with each object's data type; a value
-/// is None where the mapping lacks its object.
-#[pyclass(name = "DriveInputs", module = "akd_ros._native", frozen, get_all)]
-pub struct PyDriveInputs {
-    /// The cycle they are from (from 1).
-    cycle: u64,
-    /// That cycle's wake-up time on the monotonic clock (ns).
-    time_ns: u64,
-    /// Whether that cycle's exchange succeeded (else they are the last good ones).
-    fresh: bool,
-    /// Statusword 0x6041.
-    statusword: Option<u16>,
-    /// Modes of operation display 0x6061.
-    mode_display: Option<i8>,
-    /// Position actual value 0x6064, else the internal value 0x6063, in counts.
-    position_actual: Option<i32>,
-    /// Velocity actual value 0x606C, counts/s.
-    velocity_actual: Option<i32>,
-    /// Torque actual value 0x6077, 0.1 % of peak torque.
-    torque_actual: Option<i16>,
-    /// Following error actual value 0x60F4, counts.
-    following_error: Option<i32>,
-    /// Digital inputs 0x60FD.
-    digital_inputs: Option<u32>,
-}
-
 #[pymethods]
-impl PyDriveInputs {
+impl DriveInputs {
     fn __repr__(&self) -> String {
         format!(
             "DriveInputs(cycle={}, statusword={:?}, position_actual={:?})",
@@ -95,165 +71,42 @@ impl PyDriveInputs {
     }
 }
 
-/// Drive `position`'s inputs in `cycle`'s last snapshot (for `Cycle.drive_inputs`).
-pub(super) fn drive_inputs(cycle: &CycleThread, position: u16) -> PyResult<PyDriveInputs> {
-    inputs_in(cycle, &cycle.snapshot(), position)
-}
-
-/// The inputs of each drive of `positions`, all from the same snapshot: one cycle's values of
-/// the whole bus (for `Cycle.drives_inputs`).
-pub(super) fn drives_inputs(cycle: &CycleThread, positions: &[u16]) -> PyResult<Vec<PyDriveInputs>> {
-    let snapshot = cycle.snapshot();
-    positions.iter().map(|&position| inputs_in(cycle, &snapshot, position)).collect()
-}
-
-fn inputs_in(cycle: &CycleThread, snapshot: &Snapshot, position: u16) -> PyResult<PyDriveInputs> {
-    let (_, tx) = cycle.mapping(position).py()?;
-    let inputs = DriveInputs::read(tx, &cycle.inputs_of(snapshot, position).py()?);
-    Ok(PyDriveInputs {
-        cycle: snapshot.cycle,
-        time_ns: snapshot.time_ns,
-        fresh: snapshot.fresh,
-        statusword: inputs.statusword,
-        mode_display: inputs.mode_display,
-        position_actual: inputs.position_actual,
-        velocity_actual: inputs.velocity_actual,
-        torque_actual: inputs.torque_actual,
-        following_error: inputs.following_error,
-        digital_inputs: inputs.digital_inputs,
-    })
-}
-
-/// One drive's I/O in one cycle (`Cycle.drives_io`), read by its mapping: a value is None where
-/// the mapping lacks its object. Raw values in the drive's units (counts of the analog
-/// objects, ±10 V over their range as `ANALOG_VOLTS_PER_COUNT` assumes), and what they say.
-#[pyclass(name = "DriveIo", module = "akd_ros._native", frozen)]
-#[derive(Clone, Copy)]
-pub struct PyDriveIo {
-    cycle: u64,
-    time_ns: u64,
-    fresh: bool,
-    io: DriveIo,
-}
-
 #[pymethods]
-impl PyDriveIo {
-    /// The cycle they are from (from 1).
-    #[getter]
-    fn cycle(&self) -> u64 {
-        self.cycle
-    }
-
-    /// That cycle's wake-up time on the monotonic clock (ns).
-    #[getter]
-    fn time_ns(&self) -> u64 {
-        self.time_ns
-    }
-
-    /// Whether that cycle's exchange succeeded (else they are the last good ones).
-    #[getter]
-    fn fresh(&self) -> bool {
-        self.fresh
-    }
-
-    /// Statusword 0x6041.
-    #[getter]
-    fn statusword(&self) -> Option<u16> {
-        self.io.statusword
-    }
-
-    /// Digital inputs 0x60FD.
-    #[getter]
-    fn digital_inputs(&self) -> Option<u32> {
-        self.io.digital_inputs
-    }
-
+impl DriveIo {
     /// The switches of 0x60FD bits 0..3 by name ("negative_limit", "positive_limit",
     /// "home_switch", "interlock"): whether each is active; None without 0x60FD.
     #[getter]
     fn switches(&self) -> Option<Vec<(&'static str, bool)>> {
-        self.io.digital_inputs.map(|word| Switch::ALL.iter().map(|s| (s.name(), s.active(word))).collect())
+        self.digital_inputs.map(|word| Switch::ALL.iter().map(|s| (s.name(), s.active(word))).collect())
     }
 
     /// The levels of the AKD's digital inputs 1..7 (0x60FD bits 16..22); None without 0x60FD.
     #[getter]
     fn inputs(&self) -> Option<Vec<bool>> {
-        self.io.input_levels()
+        self.input_levels()
     }
 
     /// The hardware enable as the statusword shows it: "high", "low" or "unknown".
-    #[getter]
-    fn hardware_enable(&self) -> &'static str {
-        self.io.hardware_enable().name()
-    }
-
-    /// The analog input 0x3470:04, counts.
-    #[getter]
-    fn analog_input(&self) -> Option<i16> {
-        self.io.analog_input
-    }
-
-    /// Digital outputs 0x60FE:01 as sent.
-    #[getter]
-    fn digital_outputs(&self) -> Option<u32> {
-        self.io.digital_outputs
+    #[getter(hardware_enable)]
+    fn py_hardware_enable(&self) -> &'static str {
+        self.hardware_enable().name()
     }
 
     /// The levels of the AKD's digital outputs 1..2 as sent; None without 0x60FE:01.
     #[getter]
     fn outputs(&self) -> Option<Vec<bool>> {
-        self.io.output_levels()
-    }
-
-    /// The analog output set-point 0x3470:03 as sent, counts.
-    #[getter]
-    fn analog_output(&self) -> Option<i16> {
-        self.io.analog_output
+        self.output_levels()
     }
 
     /// These I/O with the digital inputs and statusword of another cycle (an "inputs" event of
     /// `Cycle.events`), where this drive's mapping carries them.
-    fn with_inputs(&self, cycle: u64, time_ns: u64, digital_inputs: u32, statusword: u16) -> PyDriveIo {
-        PyDriveIo { cycle, time_ns, fresh: true, io: self.io.with_inputs(digital_inputs, statusword) }
+    #[pyo3(name = "with_inputs")]
+    fn py_with_inputs(&self, cycle: u64, time_ns: u64, digital_inputs: u32, statusword: u16) -> DriveIo {
+        self.with_inputs(cycle, time_ns, digital_inputs, statusword)
     }
 
     fn __repr__(&self) -> String {
-        format!("DriveIo(cycle={}, {:?})", self.cycle, self.io)
-    }
-}
-
-/// The I/O of each drive of `positions`, all from the same snapshot (for `Cycle.drives_io`).
-pub(super) fn drives_io(cycle: &CycleThread, positions: &[u16]) -> PyResult<Vec<PyDriveIo>> {
-    let snapshot = cycle.snapshot();
-    positions
-        .iter()
-        .map(|&position| {
-            let (rx, tx) = cycle.mapping(position).py()?;
-            let outputs = cycle.outputs_of(&snapshot, position).py()?;
-            let io = DriveIo::read(rx, tx, &outputs, &cycle.inputs_of(&snapshot, position).py()?);
-            Ok(PyDriveIo { cycle: snapshot.cycle, time_ns: snapshot.time_ns, fresh: snapshot.fresh, io })
-        })
-        .collect()
-}
-
-/// What a mapping carries of the drive's I/O: "digital_inputs", "analog_input",
-/// "digital_outputs", "analog_output", each True or False.
-#[derive(IntoPyObject)]
-struct CarriedView {
-    digital_inputs: bool,
-    analog_input: bool,
-    digital_outputs: bool,
-    analog_output: bool,
-}
-
-impl From<Carried> for CarriedView {
-    fn from(c: Carried) -> Self {
-        CarriedView {
-            digital_inputs: c.digital_inputs,
-            analog_input: c.analog_input,
-            digital_outputs: c.digital_outputs,
-            analog_output: c.analog_output,
-        }
+        format!("{self:?}")
     }
 }
 
@@ -261,9 +114,9 @@ impl From<Carried> for CarriedView {
 /// I/O, as a dict of "digital_inputs", "analog_input", "digital_outputs", "analog_output";
 /// raises PdoError as `check_mapping` does for a mapping the AKD refuses.
 #[pyfunction]
-fn mapping_io(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<CarriedView> {
+fn mapping_io(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<Carried> {
     let (rx, tx) = (super::master::parse_mapping(rx)?, super::master::parse_mapping(tx)?);
-    Ok(Carried::of(&rx.entries(Direction::Rx).py()?, &tx.entries(Direction::Tx).py()?).into())
+    Ok(Carried::of(&rx.entries(Direction::Rx).py()?, &tx.entries(Direction::Tx).py()?))
 }
 
 /// The mappings, as the node's `mapping` parameter names them ("io", "0x1725/0x1B20"), that
@@ -272,7 +125,7 @@ fn mapping_io(rx: &Bound<'_, PyAny>, tx: &Bound<'_, PyAny>) -> PyResult<CarriedV
 /// a list of (name, what it carries as `mapping_io` gives it). ValueError for an unknown mode
 /// or I/O name.
 #[pyfunction]
-fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedView)>> {
+fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, Carried)>> {
     let mode = Mode::from_snake_name(mode).ok_or_else(|| PyValueError::new_err(format!("no mode {mode:?}")))?;
     let names = ["digital_inputs", "analog_input", "digital_outputs", "analog_output"];
     if let Some(bad) = needs.iter().find(|n| !names.contains(&n.as_str())) {
@@ -282,7 +135,7 @@ fn io_mappings(mode: &str, needs: Vec<String>) -> PyResult<Vec<(String, CarriedV
         let has = [c.digital_inputs, c.analog_input, c.digital_outputs, c.analog_output];
         needs.iter().all(|n| has[names.iter().position(|m| m == n).unwrap_or_default()])
     };
-    Ok(io::mappings_for(mode, wanted).into_iter().map(|m| (m.name, m.carried.into())).collect())
+    Ok(io::mappings_for(mode, wanted).into_iter().map(|m| (m.name, m.carried)).collect())
 }
 
 /// The mappings `io_mappings` finds for mode `mode` and the one I/O `needs`, in words for a
@@ -384,16 +237,15 @@ fn as_words(pdos: &[&[PdoEntry]]) -> Vec<Vec<u32>> {
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyModeOfOperation>()?;
-    m.add_class::<PyDriveInputs>()?;
-    let modes: Vec<PyModeOfOperation> = Mode::ALL.into_iter().map(PyModeOfOperation::of).collect();
-    m.add("MODES_OF_OPERATION", PyTuple::new(m.py(), modes)?)?;
+    m.add_class::<Mode>()?;
+    m.add_class::<DriveInputs>()?;
+    m.add("MODES_OF_OPERATION", PyTuple::new(m.py(), Mode::ALL)?)?;
     let not_offered: std::collections::HashMap<&str, &str> =
         ds402::NOT_OFFERED.iter().map(|&(_, name, why)| (name, why)).collect();
     m.add("MODES_NOT_OFFERED", not_offered)?;
     m.add("DEFAULT_MAPPING", (as_words(&pdo::DEFAULT_RX), as_words(&pdo::DEFAULT_TX)))?;
     m.add("IO_MAPPING", (as_words(&pdo::IO_RX), as_words(&pdo::IO_TX)))?;
-    m.add_class::<PyDriveIo>()?;
+    m.add_class::<DriveIo>()?;
     m.add_function(wrap_pyfunction!(mapping_io, m)?)?;
     m.add_function(wrap_pyfunction!(io_mappings, m)?)?;
     m.add_function(wrap_pyfunction!(io_mappings_in_words, m)?)?;

@@ -12,7 +12,7 @@ use pyo3::types::PyBytes;
 
 use super::bag_writer::PyBagWriter;
 use super::cycle::PyCycle;
-use super::units::PyUnits;
+use crate::drive::scaling::JointScaling;
 use crate::ros::cycle_records::CycleRecords;
 use crate::ros::feed::{Feed, Kind};
 use crate::ros::msgs::{self, DiagnosticArray, DiagnosticStatus, Header, KeyValue};
@@ -22,7 +22,7 @@ use crate::ros::{Device, Joint, JointIo};
 type Taken<'py> = (Vec<(usize, Bound<'py, PyBytes>)>, bool);
 
 /// `Feed(cycle, joints, devices=[])`: the publications of `joints` (each a dict, see
-/// `FeedJoint`) and `devices` (`FeedDevice`) of `cycle`. Streams are added (`add_joint_states`,
+/// `FeedJoint`) and `devices` (each a dict of "slave", "name", "product") of `cycle`. Streams are added (`add_joint_states`,
 /// `add_drive_status`, `add_drive_io`, `add_device_io`, each giving its id) before `start()`; while active, each stream's message is made at its rate and
 /// handed out by `take()` as (id, bytes). Stamps are the monotonic clock plus `set_offset`'s ROS
 /// minus monotonic time.
@@ -51,21 +51,11 @@ fn period(seconds: f64) -> PyResult<Duration> {
 struct FeedJoint {
     slave: u16,
     name: String,
-    units: PyUnits,
+    units: JointScaling,
     homes: bool,
     inputs: Vec<(String, u8)>,
     outputs: Vec<(String, u8)>,
     volts_per_count: f64,
-}
-
-/// A device of a feed, a dict with every key: "slave" (its position), "name" and "product" (its
-/// order number).
-#[derive(FromPyObject)]
-#[pyo3(from_item_all)]
-struct FeedDevice {
-    slave: u16,
-    name: String,
-    product: String,
 }
 
 impl PyFeed {
@@ -94,19 +84,17 @@ impl PyFeed {
 impl PyFeed {
     #[new]
     #[pyo3(signature = (cycle, joints, devices = Vec::new()))]
-    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint>, devices: Vec<FeedDevice>) -> PyResult<Self> {
+    fn new(cycle: Py<PyCycle>, joints: Vec<FeedJoint>, devices: Vec<Device>) -> PyResult<Self> {
         let joints = joints
             .into_iter()
             .map(|j| {
                 let io = JointIo::new(j.inputs, j.outputs, j.volts_per_count)
                     .map_err(|e| PyValueError::new_err(format!("joint {}: {e}", j.name)))?;
-                Ok(Joint { slave: j.slave, scale: j.units.scaling, name: j.name, homes: j.homes, io })
+                Ok(Joint { slave: j.slave, scale: j.units, name: j.name, homes: j.homes, io })
             })
             .collect::<PyResult<Vec<_>>>()?;
         let offset_ns = Arc::new(AtomicI64::new(0));
         let thread = cycle.get().thread();
-        let devices =
-            devices.into_iter().map(|d| Device { slave: d.slave, name: d.name, product: d.product }).collect();
         Ok(PyFeed { feed: Feed::new(thread, joints, devices, offset_ns.clone()), offset_ns, cycle })
     }
 

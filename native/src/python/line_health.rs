@@ -11,26 +11,6 @@ use crate::ethercat::line_health::registers::PortCounts;
 use crate::ethercat::line_health::LineReading;
 use crate::ros::line_diagnostics::{self, counts_words, level_of, link_words, peer_words, slave_words};
 
-/// One port's counters: "invalid_frames", "rx_errors", "forwarded_errors", "lost_links".
-#[derive(IntoPyObject)]
-pub(super) struct PortCountsView {
-    invalid_frames: u64,
-    rx_errors: u64,
-    forwarded_errors: u64,
-    lost_links: u64,
-}
-
-impl<T: Into<u64> + Copy> From<PortCounts<T>> for PortCountsView {
-    fn from(c: PortCounts<T>) -> Self {
-        PortCountsView {
-            invalid_frames: c.invalid_frames.into(),
-            rx_errors: c.rx_errors.into(),
-            forwarded_errors: c.forwarded_errors.into(),
-            lost_links: c.lost_links.into(),
-        }
-    }
-}
-
 /// A slave's counters that are not a port's: "processing_unit_errors", "pdi_errors".
 #[derive(IntoPyObject)]
 pub(super) struct EscCountsView {
@@ -49,8 +29,8 @@ struct PortView {
     kind: &'static str,
     link: &'static str,
     peer: String,
-    total: PortCountsView,
-    window: PortCountsView,
+    total: PortCounts<u64>,
+    window: PortCounts<u64>,
     counted: String,
 }
 
@@ -134,8 +114,8 @@ impl LineHealthView {
                             kind: descriptor.kind(port).name(),
                             link: link_words(slave.dl_status, port),
                             peer: peer_words(topology.peer(s, port), labels),
-                            total: slave.totals.ports[port].into(),
-                            window: slave.window.ports[port].into(),
+                            total: slave.totals.ports[port],
+                            window: slave.window.ports[port],
                             counted: counts_words(&slave.window.ports[port]),
                         })
                         .collect(),

@@ -129,10 +129,20 @@ pub(crate) fn to_py_err(error: Error) -> PyErr {
     })
 }
 
-/// A duration given from Python in seconds; a negative or non-finite one is refused.
+/// A duration given from Python in seconds; a negative or non-finite one is a ConfigError
+/// naming `what`.
 pub(crate) fn seconds(value: f64, what: &'static str) -> PyResult<std::time::Duration> {
-    std::time::Duration::try_from_secs_f64(value)
-        .map_err(|_| to_py_err(crate::error::SettingError::Seconds { what, value }.into()))
+    seconds_allowing(value, what, "a finite number of seconds >= 0")
+}
+
+/// [`seconds`], the ConfigError saying that `allowed` is (where 0 means off).
+pub(crate) fn seconds_allowing(
+    seconds: f64,
+    what: &'static str,
+    allowed: &'static str,
+) -> PyResult<std::time::Duration> {
+    std::time::Duration::try_from_secs_f64(seconds)
+        .map_err(|_| to_py_err(crate::error::SettingError::Duration { what, seconds, allowed }.into()))
 }
 
 /// Two derived dicts as one, the second's keys added to the first's. pyo3's derive has no
@@ -156,6 +166,23 @@ where
         Ok(dict)
     }
 }
+
+/// Enums that reach Python as their `name()`, a str ("sync0").
+macro_rules! named {
+    ($($t:ty),*) => {$(
+        impl<'py> IntoPyObject<'py> for $t {
+            type Target = pyo3::types::PyString;
+            type Output = Bound<'py, pyo3::types::PyString>;
+            type Error = std::convert::Infallible;
+
+            fn into_pyobject(self, py: Python<'py>) -> Result<Self::Output, Self::Error> {
+                Ok(pyo3::types::PyString::new(py, self.name()))
+            }
+        }
+    )*};
+}
+
+named!(crate::sim::pll::SyncSource, crate::cycle::events::FaultSource);
 
 /// Extension trait: `.py()?` converts a crate result, or a codec's, into a Python one.
 pub(crate) trait IntoPyResult<T> {

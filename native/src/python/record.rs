@@ -5,8 +5,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyDict};
 
-use super::units::PyUnits;
 use crate::cycle::samples::Sample;
+use crate::drive::scaling::JointScaling;
 use crate::ros::cycle_sample;
 
 /// A column of `columns` by name, every row converted to T.
@@ -17,63 +17,34 @@ fn column<'py, T: FromPyObject<'py>>(columns: &Bound<'py, PyDict>, name: &str) -
     }
 }
 
-/// The rows of `columns` (`Cycle.samples`' columns of one drive; none at all for no rows) as Samples.
+/// `values`, a column of `rows` values; refused where it has another length.
+fn of_length<T>(values: Vec<T>, rows: usize) -> PyResult<Vec<T>> {
+    match values.len() == rows {
+        true => Ok(values),
+        false => Err(PyValueError::new_err("per-cycle records whose columns differ in length")),
+    }
+}
+
+/// Each of `fields` of `samples` from its column of `columns`.
+macro_rules! read_columns {
+    ($columns:ident, $samples:ident: $($field:ident),*) => {
+        $(
+            let values = of_length(column($columns, stringify!($field))?, $samples.len())?;
+            $samples.iter_mut().zip(values).for_each(|(sample, value)| sample.$field = value);
+        )*
+    };
+}
+
+/// The rows of `columns` (`Cycle.samples`' columns of one drive; none at all for no rows) as
+/// Samples: what a CycleSample carries of each (not its slave, freshness or loss).
 fn samples_of(columns: &Bound<'_, PyDict>) -> PyResult<Vec<Sample>> {
     if columns.is_empty() {
         return Ok(Vec::new());
     }
-    let cycle: Vec<u64> = column(columns, "cycle")?;
-    let time_ns: Vec<u64> = column(columns, "time_ns")?;
-    let period_ns: Vec<u32> = column(columns, "period_ns")?;
-    let exchange_ns: Vec<u32> = column(columns, "exchange_ns")?;
-    let wkc: Vec<u16> = column(columns, "wkc")?;
-    let statusword: Vec<u16> = column(columns, "statusword")?;
-    let mode: Vec<i8> = column(columns, "mode")?;
-    let position: Vec<i32> = column(columns, "position")?;
-    let velocity: Vec<i32> = column(columns, "velocity")?;
-    let torque: Vec<i16> = column(columns, "torque")?;
-    let following_error: Vec<i32> = column(columns, "following_error")?;
-    let target_position: Vec<i32> = column(columns, "target_position")?;
-    let target_velocity: Vec<i32> = column(columns, "target_velocity")?;
-    let target_torque: Vec<i16> = column(columns, "target_torque")?;
-    let rows = cycle.len();
-    let lengths = [
-        time_ns.len(),
-        period_ns.len(),
-        exchange_ns.len(),
-        wkc.len(),
-        statusword.len(),
-        mode.len(),
-        position.len(),
-        velocity.len(),
-        torque.len(),
-        following_error.len(),
-        target_position.len(),
-        target_velocity.len(),
-        target_torque.len(),
-    ];
-    if lengths.iter().any(|&n| n != rows) {
-        return Err(PyValueError::new_err("per-cycle records whose columns differ in length"));
-    }
-    Ok((0..rows)
-        .map(|i| Sample {
-            cycle: cycle[i],
-            time_ns: time_ns[i],
-            period_ns: period_ns[i],
-            exchange_ns: exchange_ns[i],
-            wkc: wkc[i],
-            statusword: statusword[i],
-            mode: mode[i],
-            position: position[i],
-            velocity: velocity[i],
-            torque: torque[i],
-            following_error: following_error[i],
-            target_position: target_position[i],
-            target_velocity: target_velocity[i],
-            target_torque: target_torque[i],
-            ..Sample::default()
-        })
-        .collect())
+    let mut samples = vec![Sample::default(); column::<u64>(columns, "cycle")?.len()];
+    read_columns!(columns, samples: cycle, time_ns, period_ns, exchange_ns, wkc, statusword, mode, position,
+        velocity, torque, following_error, target_position, target_velocity, target_torque);
+    Ok(samples)
 }
 
 /// The records of `joints`, a list of (joint name, its `Units`, its columns as
@@ -83,13 +54,13 @@ fn samples_of(columns: &Bound<'_, PyDict>) -> PyResult<Vec<Sample>> {
 #[pyfunction]
 fn cycle_sample_records(
     py: Python<'_>,
-    joints: Vec<(String, PyUnits, Bound<'_, PyDict>)>,
+    joints: Vec<(String, JointScaling, Bound<'_, PyDict>)>,
     offset_ns: i64,
 ) -> PyResult<Vec<(i64, Py<PyBytes>)>> {
     let mut rows = Vec::new();
     let mut named = Vec::with_capacity(joints.len());
     for (k, (joint, units, columns)) in joints.iter().enumerate() {
-        named.push((joint.as_str(), units.scaling));
+        named.push((joint.as_str(), *units));
         rows.extend(samples_of(columns)?.into_iter().map(|s| (k, s)));
     }
     Ok(cycle_sample::encode_rows(rows, &named, offset_ns)

@@ -24,12 +24,13 @@ use crate::sim::setpoint_trace::{SetpointTrace, TraceSender, TraceSummary};
 use crate::sim::terminal::{self, TerminalState};
 use crate::sim::{server, sii_image, Timing, VirtualBus};
 
-use super::line_health::{EscCountsView, PortCountsView};
+use super::line_health::EscCountsView;
+use crate::ethercat::line_health::registers::PortCounts;
 
 /// What `drive_state` gives: "state" (the CiA 402 state, a `Ds402State`), "fault" (the active fault's
 /// name, or None), "fault_number" (e.g. 125, or None), the motor's "position" (counts),
 /// "velocity" (counts/s) and "torque" (N·m), "dc", what its synchronisation was told
-/// ([`SyncView`]), and its I/O: "digital_inputs" (0x60FD as it shows it), "digital_outputs"
+/// ([`SyncState`]), and its I/O: "digital_inputs" (0x60FD as it shows it), "digital_outputs"
 /// (the levels of outputs 1 and 2 as the master drives them) and "analog_output" (V).
 #[derive(IntoPyObject)]
 struct DriveStateView {
@@ -39,7 +40,7 @@ struct DriveStateView {
     position: f64,
     velocity: f64,
     torque: f64,
-    dc: SyncView,
+    dc: SyncState,
     digital_inputs: u32,
     digital_outputs: Vec<bool>,
     analog_output: f64,
@@ -63,7 +64,7 @@ impl From<DriveState> for DriveStateView {
             position: drive.position,
             velocity: drive.velocity,
             torque: drive.torque,
-            dc: drive.sync.into(),
+            dc: drive.sync,
             digital_inputs: drive.digital_inputs,
             digital_outputs: (0..crate::drive::io::OUTPUT_COUNT).map(|o| drive.outputs.digital >> o & 1 == 1).collect(),
             analog_output: drive.outputs.analog,
@@ -71,33 +72,6 @@ impl From<DriveState> for DriveStateView {
                 count: drive.would_be_f125.count,
                 longest_ms: drive.would_be_f125.longest_ns as f64 / 1e6,
             },
-        }
-    }
-}
-
-/// `drive_state()["dc"]`: "sync0_active", "sync0_cycle_ns", "sync0_start_ns", "fbus_param02",
-/// "cycle_ns" (0x60C2), "source" ("sync0" or "sm2") and "pll_locked".
-#[derive(IntoPyObject)]
-struct SyncView {
-    sync0_active: bool,
-    sync0_cycle_ns: u32,
-    sync0_start_ns: u64,
-    fbus_param02: u32,
-    cycle_ns: Option<u64>,
-    source: &'static str,
-    pll_locked: bool,
-}
-
-impl From<SyncState> for SyncView {
-    fn from(sync: SyncState) -> Self {
-        SyncView {
-            sync0_active: sync.sync0_active,
-            sync0_cycle_ns: sync.sync0_cycle_ns,
-            sync0_start_ns: sync.sync0_start_ns,
-            fbus_param02: sync.fbus_param02,
-            cycle_ns: sync.cycle_ns,
-            source: sync.source.name(),
-            pll_locked: sync.pll_locked,
         }
     }
 }
@@ -145,8 +119,8 @@ struct EscPortView {
     loop_closed: bool,
     communication: bool,
     spoiling: u64,
-    registers: PortCountsView,
-    counted: PortCountsView,
+    registers: PortCounts<u8>,
+    counted: PortCounts<u64>,
 }
 
 /// `esc_state()`: "dl_status", "ports" (the ports its ESC has), "registers" and "counted" (its
@@ -171,8 +145,8 @@ impl From<EscState> for EscStateView {
                 loop_closed: e.dl_status.loop_closed(port),
                 communication: e.dl_status.communication(port),
                 spoiling: e.spoiling[port],
-                registers: e.registers.ports[port].into(),
-                counted: e.counted.ports[port].into(),
+                registers: e.registers.ports[port],
+                counted: e.counted.ports[port],
             })
             .collect();
         EscStateView {

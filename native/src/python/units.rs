@@ -1,4 +1,4 @@
-//! `akd_ros._native.Units`, a joint's scale ([`JointScaling`]) for Python, and
+//! `akd_ros._native.Units`, a joint's scale ([`JointScaling`]), made and converted from Python, and
 //! `PositionUnwrap`, its position read across the 32-bit wrap ([`PositionUnwrap`]).
 
 use pyo3::exceptions::PyValueError;
@@ -6,21 +6,6 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyFloat, PyInt};
 
 use crate::drive::scaling::{self, JointScaling, PositionScaling, PositionUnwrap, Ratio, ScalingError};
-
-/// How drive counts and thousandths of peak torque map to SI units of the load: rad, rad/s and
-/// N·m for a rotary axis, m, m/s and N for a linear one (REP 103). Positions (0x6064, 0x607A,
-/// 0x60C1:01) count `counts_per_revolution` per motor revolution, velocities (0x606C, 0x60FF)
-/// those counts per second, torques (0x6071, 0x6077) 0.1 % of the drive's peak torque.
-/// `gear_ratio` is motor revolutions per load revolution, `direction` (+1 or -1) flips the
-/// load's sense against the motor's, `offset` is the load position at motor count 0, a linear
-/// axis moves `lead` metres per load revolution, and `peak_torque` (N·m at the motor) is what
-/// drive torque 1000 means. Every conversion of the joint's values is this one, in the crate:
-/// the node's joint states, its recorded cycles and its commands convert by it too.
-#[pyclass(name = "Units", module = "akd_ros._native", frozen, eq)]
-#[derive(Clone, PartialEq)]
-pub struct PyUnits {
-    pub(super) scaling: JointScaling,
-}
 
 /// A drive's position scaling as `Master.position_scaling` gives it (its ratios and DS402
 /// scaling; the counts it derives are derived again here).
@@ -52,16 +37,18 @@ fn real(value: &Bound<'_, PyAny>) -> f64 {
     }
 }
 
-fn conversion<T>(result: Result<T, ScalingError>) -> PyResult<T> {
-    result.map_err(|e| PyValueError::new_err(e.to_string()))
+impl From<ScalingError> for PyErr {
+    fn from(error: ScalingError) -> PyErr {
+        PyValueError::new_err(error.to_string())
+    }
 }
 
 #[pymethods]
-impl PyUnits {
+impl JointScaling {
     #[new]
     #[allow(clippy::too_many_arguments)] // the mechanics' seven keywords, as Python names them
     #[pyo3(signature = (counts_per_revolution = None, gear_ratio = None, direction = None, offset = None, axis = None, lead = None, peak_torque = None))]
-    fn new(
+    fn py_new(
         py: Python<'_>,
         counts_per_revolution: Option<Bound<'_, PyAny>>,
         gear_ratio: Option<Bound<'_, PyAny>>,
@@ -97,119 +84,88 @@ impl PyUnits {
             _ => return Err(PyValueError::new_err(format!("axis must be 'rotary' or 'linear', got {}", axis.repr()?))),
         };
         let lead_value = lead.as_ref().map(real);
-        JointScaling::new(counts, real(&gear), sense, real(&offset), (linear, lead_value), real(&peak))
-            .map(|scaling| PyUnits { scaling })
-            .map_err(|e| {
-                let given = match &e {
-                    ScalingError::CountsPerRevolution => &cpr,
-                    ScalingError::Direction => &direction,
-                    ScalingError::NotFinite { name: "gear_ratio", .. } => &gear,
-                    ScalingError::NotFinite { name: "offset", .. } => &offset,
-                    ScalingError::NotFinite { name: "peak_torque", .. } => &peak,
-                    ScalingError::NoLead => return PyValueError::new_err(e.to_string()),
-                    _ => lead.as_ref().unwrap_or(&axis),
-                };
-                refused(e, given)
-            })
-    }
-
-    /// Feedback counts per motor revolution; the virtual AKD uses 2**20.
-    #[getter]
-    fn counts_per_revolution(&self) -> u64 {
-        self.scaling.counts_per_revolution
-    }
-
-    /// Motor revolutions per load revolution.
-    #[getter]
-    fn gear_ratio(&self) -> f64 {
-        self.scaling.gear_ratio
-    }
-
-    /// +1 when the load turns with the motor's positive sense, -1 when against it.
-    #[getter]
-    fn direction(&self) -> i8 {
-        self.scaling.direction
-    }
-
-    /// Load position at motor count 0: rad for a rotary axis, m for a linear one.
-    #[getter]
-    fn offset(&self) -> f64 {
-        self.scaling.offset
+        JointScaling::new(counts, real(&gear), sense, real(&offset), (linear, lead_value), real(&peak)).map_err(|e| {
+            let given = match &e {
+                ScalingError::CountsPerRevolution => &cpr,
+                ScalingError::Direction => &direction,
+                ScalingError::NotFinite { name: "gear_ratio", .. } => &gear,
+                ScalingError::NotFinite { name: "offset", .. } => &offset,
+                ScalingError::NotFinite { name: "peak_torque", .. } => &peak,
+                ScalingError::NoLead => return PyValueError::new_err(e.to_string()),
+                _ => lead.as_ref().unwrap_or(&axis),
+            };
+            refused(e, given)
+        })
     }
 
     /// "rotary" (rad, rad/s, N·m) or "linear" (m, m/s, N).
     #[getter]
     fn axis(&self) -> &'static str {
-        if self.scaling.lead.is_some() {
+        if self.lead.is_some() {
             "linear"
         } else {
             "rotary"
         }
     }
 
-    /// Metres the load travels per load revolution of a linear axis; None for a rotary one.
-    #[getter]
-    fn lead(&self) -> Option<f64> {
-        self.scaling.lead
-    }
-
-    /// The drive's peak torque at the motor in N·m, which drive torque value 1000 (100 %) means.
-    #[getter]
-    fn peak_torque(&self) -> f64 {
-        self.scaling.peak_torque
-    }
-
     /// The SI unit of positions: "rad" or "m".
-    #[getter]
-    fn position_unit(&self) -> &'static str {
-        self.scaling.position_unit().name()
+    #[getter(position_unit)]
+    fn py_position_unit(&self) -> &'static str {
+        self.position_unit().name()
     }
 
     /// Load travel (rad or m, signed by `direction`) per motor count.
-    #[getter]
-    fn si_per_count(&self) -> f64 {
-        self.scaling.si_per_count()
+    #[getter(si_per_count)]
+    fn py_si_per_count(&self) -> f64 {
+        self.si_per_count()
     }
 
     /// Load torque (N·m) or force (N), signed by `direction`, per drive torque unit (0.1 % of peak).
-    #[getter]
-    fn si_per_torque_unit(&self) -> f64 {
-        self.scaling.si_per_torque_unit()
+    #[getter(si_per_torque_unit)]
+    fn py_si_per_torque_unit(&self) -> f64 {
+        self.si_per_torque_unit()
     }
 
     /// The load position (rad or m) at motor position `counts` (raw int32 or an unwrapped count).
-    fn position_to_si(&self, counts: f64) -> f64 {
-        self.scaling.position_to_si(counts)
+    #[pyo3(name = "position_to_si")]
+    fn py_position_to_si(&self, counts: f64) -> f64 {
+        self.position_to_si(counts)
     }
 
     /// The int32 target position (0x607A) for the load position `position` (rad or m).
-    fn position_to_counts(&self, position: f64) -> PyResult<i32> {
-        conversion(self.scaling.position_to_counts(position))
+    #[pyo3(name = "position_to_counts")]
+    fn py_position_to_counts(&self, position: f64) -> PyResult<i32> {
+        Ok(self.position_to_counts(position)?)
     }
 
     /// The load velocity (rad/s or m/s) at motor velocity `counts_per_second` (0x606C).
-    fn velocity_to_si(&self, counts_per_second: f64) -> f64 {
-        self.scaling.velocity_to_si(counts_per_second)
+    #[pyo3(name = "velocity_to_si")]
+    fn py_velocity_to_si(&self, counts_per_second: f64) -> f64 {
+        self.velocity_to_si(counts_per_second)
     }
 
     /// The int32 target velocity (0x60FF, counts per second) for the load velocity `velocity`.
-    fn velocity_to_counts(&self, velocity: f64) -> PyResult<i32> {
-        conversion(self.scaling.velocity_to_counts(velocity))
+    #[pyo3(name = "velocity_to_counts")]
+    fn py_velocity_to_counts(&self, velocity: f64) -> PyResult<i32> {
+        Ok(self.velocity_to_counts(velocity)?)
     }
 
     /// Motor counts/s² for the load acceleration `acceleration` (rad/s² or m/s²).
-    fn acceleration_to_counts(&self, acceleration: f64) -> PyResult<f64> {
-        conversion(self.scaling.acceleration_to_counts(acceleration))
+    #[pyo3(name = "acceleration_to_counts")]
+    fn py_acceleration_to_counts(&self, acceleration: f64) -> PyResult<f64> {
+        Ok(self.acceleration_to_counts(acceleration)?)
     }
 
     /// The load torque (N·m) or force (N) for the drive torque `value` (0x6077, 0.1 % of peak).
-    fn torque_to_si(&self, value: f64) -> f64 {
-        self.scaling.torque_to_si(value)
+    #[pyo3(name = "torque_to_si")]
+    fn py_torque_to_si(&self, value: f64) -> f64 {
+        self.torque_to_si(value)
     }
 
     /// The int16 target torque (0x6071, 0.1 % of peak) for the load torque (N·m) or force (N).
-    fn torque_to_drive(&self, torque: f64) -> PyResult<i16> {
-        conversion(self.scaling.torque_to_drive(torque))
+    #[pyo3(name = "torque_to_drive")]
+    fn py_torque_to_drive(&self, torque: f64) -> PyResult<i16> {
+        Ok(self.torque_to_drive(torque)?)
     }
 
     /// Where the drive counts the position objects its mapping carries (`mapped`, (index,
@@ -227,27 +183,25 @@ impl PyUnits {
             feed_constant: ratio(s.feed_constant),
             ds402_scaling: s.ds402_scaling,
         };
-        drive.mismatch(self.scaling.counts_per_revolution, |index, sub| mapped.contains(&(index, sub)))
+        drive.mismatch(self.counts_per_revolution, |index, sub| mapped.contains(&(index, sub)))
     }
 
     fn __hash__(&self) -> u64 {
-        let s = &self.scaling;
-        let bits = [s.gear_ratio, s.offset, s.lead.unwrap_or(-1.0), s.peak_torque].map(f64::to_bits);
-        bits.iter().fold(s.counts_per_revolution ^ s.direction as u64, |h, b| h.rotate_left(13) ^ b)
+        let bits = [self.gear_ratio, self.offset, self.lead.unwrap_or(-1.0), self.peak_torque].map(f64::to_bits);
+        bits.iter().fold(self.counts_per_revolution ^ self.direction as u64, |h, b| h.rotate_left(13) ^ b)
     }
 
     fn __repr__(&self) -> String {
-        let s = &self.scaling;
-        let lead = s.lead.map_or("None".to_owned(), scaling::py_repr);
+        let lead = self.lead.map_or("None".to_owned(), scaling::py_repr);
         format!(
             "Units(counts_per_revolution={}, gear_ratio={}, direction={}, offset={}, axis='{}', lead={lead}, \
              peak_torque={})",
-            s.counts_per_revolution,
-            scaling::py_repr(s.gear_ratio),
-            s.direction,
-            scaling::py_repr(s.offset),
+            self.counts_per_revolution,
+            scaling::py_repr(self.gear_ratio),
+            self.direction,
+            scaling::py_repr(self.offset),
             self.axis(),
-            scaling::py_repr(s.peak_torque)
+            scaling::py_repr(self.peak_torque)
         )
     }
 }
@@ -295,7 +249,7 @@ fn unwrap_position(previous: i64, raw: &Bound<'_, PyAny>) -> PyResult<i64> {
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyUnits>()?;
+    m.add_class::<JointScaling>()?;
     m.add_class::<PyPositionUnwrap>()?;
     m.add_function(wrap_pyfunction!(unwrap_position, m)?)
 }

@@ -96,6 +96,7 @@ pub struct Options {
 
 /// One MCAP file of the bag, as metadata.yaml lists it.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct FileInfo {
     /// Its path.
     pub path: PathBuf,
@@ -112,8 +113,9 @@ impl FileInfo {
     }
 }
 
-/// Where a writer stands, for whoever writes metadata.yaml.
+/// Where a writer stands, for whoever writes metadata.yaml (`BagWriter.report` in Python).
 #[derive(Clone, Debug, Default)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Report {
     /// Grows with every change below.
     pub version: u64,
@@ -135,6 +137,7 @@ pub struct Report {
 
 /// The writer's counters since it was made.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct Counters {
     /// Messages in the bag's closed chunks or in the open one.
     pub written: u64,

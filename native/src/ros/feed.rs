@@ -86,17 +86,13 @@ impl FeedShared {
 
     /// The I/O of `joint`'s drive in `snapshot`, read by its mapping (none where it has none).
     fn drive_io_of(&self, joint: usize, snapshot: &Snapshot) -> DriveIo {
-        let (cycle, slave) = (&self.cycle, self.joints[joint].slave);
-        match (cycle.mapping(slave), cycle.outputs_of(snapshot, slave), cycle.inputs_of(snapshot, slave)) {
-            (Ok((rx, tx)), Ok(outputs), Ok(inputs)) => DriveIo::read(rx, tx, &outputs, &inputs),
-            _ => DriveIo::default(),
-        }
+        self.cycle.drive_io(snapshot, self.joints[joint].slave).unwrap_or_default()
     }
 
-    /// `joint`'s akd_ros/DriveIO of `drive` as cycle `cycle` showed it, stamped `stamp_ns` (ROS
-    /// time): the digital inputs with the CiA 402 switches, hardware enable, analog input and
-    /// outputs as sent, with the joint's names.
-    fn drive_io(&self, joint: usize, drive: &DriveIo, cycle: u64, stamp_ns: i64) -> Vec<u8> {
+    /// `joint`'s akd_ros/DriveIO of `drive` as its cycle showed it, stamped with that cycle's
+    /// wake-up on the ROS clock: the digital inputs with the CiA 402 switches, hardware enable,
+    /// analog input and outputs as sent, with the joint's names.
+    fn drive_io(&self, joint: usize, drive: &DriveIo) -> Vec<u8> {
         let j = &self.joints[joint];
         let inputs = drive.input_levels().unwrap_or_default();
         let outputs = drive.output_levels().unwrap_or_default();
@@ -105,9 +101,9 @@ impl FeedShared {
         let switch = |s: Switch| drive.digital_inputs.is_some_and(|w| s.active(w));
         let volts = |counts: Option<i16>| counts.map_or(f64::NAN, |c| c as f64 * j.io.volts_per_count);
         let message = msgs::DriveIo {
-            header: Header::at(stamp_ns),
+            header: Header::at(self.ros_ns(drive.time_ns)),
             joint: &j.name,
-            cycle,
+            cycle: drive.cycle,
             digital_inputs_mapped: drive.digital_inputs.is_some(),
             digital_inputs: drive.digital_inputs.unwrap_or(0),
             negative_limit: switch(Switch::NegativeLimit),
@@ -308,9 +304,10 @@ impl Feed {
             return false;
         };
         let shared = &self.shared;
-        let now = shared.drive_io_of(joint, &shared.cycle.snapshot());
+        let now =
+            shared.drive_io_of(joint, &shared.cycle.snapshot()).with_inputs(cycle, time_ns, digital_inputs, statusword);
         let stamp_ns = shared.ros_ns(time_ns);
-        let message = shared.drive_io(joint, &now.with_inputs(digital_inputs, statusword), cycle, stamp_ns);
+        let message = shared.drive_io(joint, &now);
         shared.hand_over(vec![(stream, stamp_ns, message)], false);
         true
     }
@@ -455,15 +452,8 @@ impl Maker {
     fn read(&mut self) -> Reading {
         let cycle = &self.shared.cycle;
         let snapshot = cycle.snapshot();
-        let inputs = self
-            .shared
-            .joints
-            .iter()
-            .map(|j| match (cycle.mapping(j.slave), cycle.inputs_of(&snapshot, j.slave)) {
-                (Ok((_, tx)), Ok(bytes)) => DriveInputs::read(tx, &bytes),
-                _ => DriveInputs::default(),
-            })
-            .collect();
+        let inputs =
+            self.shared.joints.iter().map(|j| cycle.drive_inputs(&snapshot, j.slave).unwrap_or_default()).collect();
         let stamp_ns = self.shared.ros_ns(timing::now_ns());
         Reading { snapshot, inputs, stamp_ns }
     }
@@ -472,11 +462,7 @@ impl Maker {
         match kind {
             Kind::JointStates => self.joint_states(reading),
             Kind::DriveStatus(joint) => self.drive_status(joint, reading),
-            Kind::DriveIo(joint) => {
-                let (shared, snapshot) = (&self.shared, &reading.snapshot);
-                let stamp_ns = shared.ros_ns(snapshot.time_ns);
-                shared.drive_io(joint, &shared.drive_io_of(joint, snapshot), snapshot.cycle, stamp_ns)
-            }
+            Kind::DriveIo(joint) => self.shared.drive_io(joint, &self.shared.drive_io_of(joint, &reading.snapshot)),
             Kind::DeviceIo(device) => self.shared.device_io(device, &reading.snapshot, None),
         }
     }

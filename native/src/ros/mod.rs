@@ -46,8 +46,9 @@ pub struct Joint {
 }
 
 /// A device of the node beside its joints (a terminal): its position on the bus, its name in
-/// the parameters file and what it is.
+/// the parameters file and what it is (from Python a dict with every key).
 #[derive(Clone, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::FromPyObject), pyo3(from_item_all))]
 pub struct Device {
     /// Its position on the bus.
     pub slave: u16,

@@ -30,8 +30,9 @@ impl SyncSource {
     }
 }
 
-/// One virtual AKD's synchronisation as the master set it up.
+/// One virtual AKD's synchronisation as the master set it up (`Simulator.drive_state()["dc"]`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct SyncState {
     /// Whether SYNC0 is activated (0x0981 bits 0 and 1).
     pub sync0_active: bool,

@@ -78,6 +78,7 @@ impl Counter {
 
 /// The counters of one port.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObject))]
 pub struct PortCounts<T> {
     /// Invalid frames first seen at this port ([`Counter::InvalidFrames`]).
     pub invalid_frames: T,
