@@ -1015,7 +1015,7 @@ impl CycleThread {
     /// Brings trajectory `id` to a standstill in the cycle thread, each joint at its stop
     /// deceleration; it then ends "stopped". Nothing for a trajectory that is not in force.
     pub fn stop_trajectory(&self, id: u32) {
-        self.shared.trajectories.stop(id);
+        self.trajectories.stop(&self.shared.trajectories, id);
     }
 
     /// The drive at `slave`'s set-point and actual values as the trajectory in force judges

@@ -51,6 +51,12 @@ pub const KEPT: usize = 64;
 /// the one taken.
 const WAITING: usize = 3;
 
+/// Stop requests the callers can have open at once: more than trajectories can be in force
+/// (handed over and not collected: in the inbox, pending, running, waiting or returned), so a
+/// stop always finds a slot.
+const STOPS: usize = 16;
+const _: () = assert!(STOPS > 3 + WAITING + OUTBOX);
+
 /// One joint: its drive and where its objects are in the whole images.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Joint {
@@ -293,8 +299,8 @@ pub struct PlayerShared {
     outbox: [AtomicPtr<Plan>; OUTBOX],
     /// The running trajectory's status, then the pending one's (zeros where none).
     live: SeqBytes,
-    /// The id of the trajectory to stop (0: none).
-    stop: AtomicU32,
+    /// The ids of the trajectories asked to stop, each in a slot of its own (0: free).
+    stops: [AtomicU32; STOPS],
     /// Per drive: [`FOLLOWED`] f64s.
     followed: SeqBytes,
 }
@@ -306,15 +312,32 @@ impl PlayerShared {
             inbox: AtomicPtr::new(std::ptr::null_mut()),
             outbox: std::array::from_fn(|_| AtomicPtr::new(std::ptr::null_mut())),
             live: SeqBytes::new(2 * STATUS_WORDS * 8, &[]),
-            stop: AtomicU32::new(0),
+            stops: std::array::from_fn(|_| AtomicU32::new(0)),
             followed: SeqBytes::new(slaves * FOLLOWED * 8, &[]),
         }
     }
 
     /// Asks the cycle thread to bring trajectory `id` to a standstill at its joints' stop
-    /// decelerations (it ends "stopped"); nothing for a trajectory that is not in force.
-    pub fn stop(&self, id: u32) {
-        self.stop.store(id, Ordering::Release);
+    /// decelerations (it ends "stopped"). The request takes a slot of its own, free or held by
+    /// a trajectory no longer `in_force`, so two stops asked within one cycle both count (one
+    /// shared slot kept the last: a trajectory waiting an hour for its start, canceled with
+    /// another, was never stopped and its goal never answered). Callers take turns
+    /// ([`Caller::stop`] holds its lock).
+    pub fn stop(&self, id: u32, in_force: impl Fn(u32) -> bool) {
+        if self.stop_asked(id) {
+            return;
+        }
+        let free = self.stops.iter().find(|slot| {
+            let held = slot.load(Ordering::Acquire);
+            held == 0 || !in_force(held)
+        });
+        if let Some(slot) = free {
+            slot.store(id, Ordering::Release);
+        }
+    }
+
+    fn stop_asked(&self, id: u32) -> bool {
+        self.stops.iter().any(|slot| slot.load(Ordering::Acquire) == id)
     }
 
     /// Drive `slave`'s set-point (position, velocity) as the trajectory in force last had it
@@ -438,8 +461,7 @@ impl Player {
             }
         }
         // A stop of a trajectory still waiting for its start ends it at once: nothing moved.
-        let stop = shared.stop.load(Ordering::Acquire);
-        if let Some(plan) = self.pending.take_if(|p| p.status.id == stop) {
+        if let Some(plan) = self.pending.take_if(|p| shared.stop_asked(p.status.id)) {
             self.end(shared, events, plan, TrajectoryState::Stopped, now);
         }
         if let Some(plan) = self.pending.as_ref().filter(|p| p.due(now.1)) {
@@ -555,7 +577,7 @@ impl Player {
         }
         let elapsed_ns = now.1.saturating_sub(plan.status.started_ns);
         if plan.braking.is_none() {
-            if shared.stop.load(Ordering::Acquire) == plan.status.id {
+            if shared.stop_asked(plan.status.id) {
                 plan.brake(now.1, TrajectoryState::Stopped);
             } else if elapsed_ns < plan.status.duration_ns {
                 let path = |t: &Tolerance| (t.path_position, t.path_velocity);
@@ -698,6 +720,17 @@ impl Caller {
     pub fn driving(&self, shared: &PlayerShared, slave: u16) -> Option<u32> {
         shared.collect(|status| self.note(status));
         self.known().in_force.iter().find(|(_, slaves)| slaves.contains(&slave)).map(|(id, _)| *id)
+    }
+
+    /// Asks the cycle thread to stop trajectory `id` ([`PlayerShared::stop`]); nothing for a
+    /// trajectory that is not in force.
+    pub fn stop(&self, shared: &PlayerShared, id: u32) {
+        shared.collect(|status| self.note(status));
+        let known = self.known();
+        let in_force = |held: u32| known.in_force.iter().any(|(i, _)| *i == held);
+        if in_force(id) {
+            shared.stop(id, in_force);
+        }
     }
 
     /// Notes a trajectory handed over (pending) or ended; an end noted first (by another
@@ -894,7 +927,7 @@ mod tests {
         let [position, velocity, actual, actual_velocity] = shared.followed(0).unwrap();
         assert_eq!([position, velocity.round(), actual], [100.0, 100_000.0, 0.0]);
         assert!(actual_velocity.is_nan());
-        shared.stop(1);
+        shared.stop(1, |_| false);
         let sent: Vec<i32> =
             (4..=20).map(|ms| judged_cycle(&mut player, &shared, &events, &mut image, ms, 0)).collect();
         assert_eq!(sent[..3], [300, 395, 480], "from 300 at 100 counts/ms, braking");
@@ -917,13 +950,34 @@ mod tests {
     }
 
     #[test]
+    fn two_stops_asked_within_one_cycle_both_count() {
+        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
+        let mut image = 1000i32.to_le_bytes();
+        let caller = Caller::default();
+        for (id, start) in [(1, None), (2, Some(3_600_000 * MS))] {
+            let plan = plan(id, start, 2000.0, 10 * MS);
+            caller.handed(plan.status(), vec![0]);
+            shared.give(plan).unwrap();
+            cycle(&mut player, &shared, &events, &mut image, id as u64, true);
+        }
+        // The one waiting an hour for its start first, then the running one, before the cycle looks.
+        caller.stop(&shared, 2);
+        caller.stop(&shared, 1);
+        for ms in 3..=5 {
+            cycle(&mut player, &shared, &events, &mut image, ms, true);
+        }
+        let ended: Vec<_> = trajectory_events(&events).into_iter().filter(|e| e.1.ended()).collect();
+        assert_eq!(ended, [(2, TrajectoryState::Stopped), (1, TrajectoryState::Stopped)]);
+    }
+
+    #[test]
     fn a_plan_waiting_for_its_start_ends_at_once_on_a_stop_or_when_its_drive_leaves_operation() {
         let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
         let mut image = 1000i32.to_le_bytes();
         // Due in an hour: stopped, it ends now, and nothing was written.
         shared.give(plan(1, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
         cycle(&mut player, &shared, &events, &mut image, 1, true);
-        shared.stop(1);
+        shared.stop(1, |_| false);
         assert_eq!(cycle(&mut player, &shared, &events, &mut image, 2, true), 1000);
         assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Stopped)]);
         // Due in an hour, its drive disabled: aborted now.
