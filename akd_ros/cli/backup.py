@@ -30,17 +30,8 @@ from akd_ros import _native
 
 REAL_FORMATS = {4: "<f", 8: "<d"}
 """IEEE 754 numbers by their size in bytes (REAL32, REAL64), as struct formats."""
-_ASSIGNMENTS = (0x1C12, 0x1C13)
-WHOLE = (0x60C2,)
-"""Objects the drive checks as a whole when their last entry is written (0x60C2: units and index give the cycle
-time, checked when the index is written): written whole when any entry changes."""
 FILE_FORMAT = 1
 """The version of the dump file's layout, written as `format`."""
-
-
-def is_mapping(index: int) -> bool:
-    """Whether `index` is a PDO mapping object (RxPDO 0x1600-0x17FF, TxPDO 0x1A00-0x1BFF)."""
-    return 0x1600 <= index <= 0x17FF or 0x1A00 <= index <= 0x1BFF
 
 
 class _Hex(int):
@@ -241,14 +232,14 @@ def plan(master, position: int, records: list[dict]) -> Plan:
             same[index, subindex] = replace(write, step=True)
             continue
         changes[index, subindex] = write
-    for index in WHOLE:
+    for index in _native.OBJECTS_WRITTEN_WHOLE:
         if any(k[0] == index for k in changes):
             changes |= {k: w for k, w in same.items() if k[0] == index}
 
-    pdo_changes = sorted(k for k in changes if is_mapping(k[0]) or k[0] in _ASSIGNMENTS)
+    pdo_changes = sorted(k for k in changes if _native.is_pdo_mapping(k[0]) or k[0] in _native.PDO_ASSIGNMENTS)
     if pdo_changes:
         count_of = {}
-        for index in {*_ASSIGNMENTS, *(i for i, _ in pdo_changes)}:
+        for index in {*_native.PDO_ASSIGNMENTS, *(i for i, _ in pdo_changes)}:
             final = changes.pop((index, 0), None)
             if final is None and (index, 0) in described:
                 # A count the file leaves as it is still goes to 0 first and back after.
@@ -257,12 +248,12 @@ def plan(master, position: int, records: list[dict]) -> Plan:
             if final is not None:
                 count_of[index] = final
         zero = {i: Write(i, 0, w.name, b"\0", 0, step=True) for i, w in count_of.items()}
-        result.writes += [zero[i] for i in _ASSIGNMENTS if i in zero]
-        for index in sorted({i for i, _ in pdo_changes if is_mapping(i)}):
+        result.writes += [zero[i] for i in _native.PDO_ASSIGNMENTS if i in zero]
+        for index in sorted({i for i, _ in pdo_changes if _native.is_pdo_mapping(i)}):
             result.writes += [zero[index]] if index in zero else []
             result.writes += [changes.pop(k) for k in sorted(changes) if k[0] == index]
             result.writes += [count_of[index]] if index in count_of else []
-        for index in _ASSIGNMENTS:
+        for index in _native.PDO_ASSIGNMENTS:
             result.writes += [changes.pop(k) for k in sorted(changes) if k[0] == index]
             result.writes += [count_of[index]] if index in count_of else []
     result.writes += [changes[k] for k in sorted(changes)]

@@ -85,8 +85,8 @@ impl AkdSlave for SlaveRef<'_> {
 
     fn set_cycle_time(&mut self, cycle_ns: u32) -> Result<()> {
         let (units, exponent) = sync::interpolation_time_period(cycle_ns)?;
-        self.sdo_write(0x60C2, 1, &[units])?;
-        self.sdo_write(0x60C2, 2, &[exponent as u8])
+        self.sdo_write(sync::INTERPOLATION_TIME_PERIOD, 1, &[units])?;
+        self.sdo_write(sync::INTERPOLATION_TIME_PERIOD, 2, &[exponent as u8])
     }
 
     fn set_drive_sync(&mut self, sync: DriveSync) -> Result<Option<u32>> {

@@ -29,6 +29,14 @@ pub const FBUS_PARAM02_NAME: &str = "FBUS.PARAM02";
 /// FBUS.PARAM02 bit 0: the drive's PLL follows SYNC0.
 pub const FBUS_PARAM02_PLL: u32 = 0x0000_0001;
 
+/// The interpolation time period 0x60C2, the drive's cycle time: units (sub 1) times a power
+/// of ten (sub 2), which the drive checks as one value when the power is written.
+pub const INTERPOLATION_TIME_PERIOD: u16 = 0x60C2;
+
+/// Objects the drive checks as a whole when their last entry is written: a restore that
+/// changes any entry writes them all.
+pub const WRITTEN_WHOLE: &[u16] = &[INTERPOLATION_TIME_PERIOD];
+
 /// The cycle time as the interpolation time period 0x60C2: units (sub 1, UNSIGNED8) and a
 /// signed power of ten (sub 2, INTEGER8), choosing the coarsest exact exponent, e.g. 2 ms =
 /// (2, -3), 250 µs = (25, -5). Refuses cycles under 250 µs or without an exact encoding.

@@ -65,6 +65,12 @@ impl Direction {
         }
     }
 
+    /// The PDO mapping objects of this direction (CiA 301: 0x1600-0x17FF, 0x1A00-0x1BFF).
+    pub const fn mapping_objects(self) -> std::ops::RangeInclusive<u16> {
+        let base = self.flexible_base();
+        base..=base + 0x1FF
+    }
+
     /// The sync manager carrying this direction.
     pub const fn sync_manager(self) -> u8 {
         match self {
@@ -80,6 +86,11 @@ impl Direction {
             Direction::Tx => "TxPDO",
         }
     }
+}
+
+/// Whether `index` is a PDO mapping object of either direction.
+pub fn is_mapping_object(index: u16) -> bool {
+    [Direction::Rx, Direction::Tx].iter().any(|d| d.mapping_objects().contains(&index))
 }
 
 /// Total bit length of `entries`.
@@ -228,6 +239,13 @@ impl ProcessData {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_mapping_objects_are_cia_301s_two_ranges() {
+        let mapping: Vec<u16> = (0x1500..=0x1C20).filter(|&i| is_mapping_object(i)).collect();
+        let expected: Vec<u16> = (0x1600..=0x17FF).chain(0x1A00..=0x1BFF).collect();
+        assert_eq!(mapping, expected);
+    }
 
     #[test]
     fn entries_round_trip_the_wire_form() {

@@ -236,6 +236,12 @@ fn as_words(pdos: &[&[PdoEntry]]) -> Vec<Vec<u32>> {
     pdos.iter().map(|p| p.iter().map(|e| e.to_u32()).collect()).collect()
 }
 
+/// Whether `index` is a PDO mapping object (CiA 301: RxPDO 0x1600-0x17FF, TxPDO 0x1A00-0x1BFF).
+#[pyfunction]
+fn is_pdo_mapping(index: u16) -> bool {
+    crate::ethercat::pdo::is_mapping_object(index)
+}
+
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<Mode>()?;
     m.add_class::<DriveInputs>()?;
@@ -259,6 +265,9 @@ pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(data_type_kind, m)?)?;
     m.add_function(wrap_pyfunction!(access_names, m)?)?;
     m.add_function(wrap_pyfunction!(encode_value, m)?)?;
+    m.add_function(wrap_pyfunction!(is_pdo_mapping, m)?)?;
+    m.add("PDO_ASSIGNMENTS", (Direction::Rx.assignment_index(), Direction::Tx.assignment_index()))?;
+    m.add("OBJECTS_WRITTEN_WHOLE", PyTuple::new(m.py(), crate::drive::sync::WRITTEN_WHOLE)?)?;
     m.add_class::<State>()?;
     m.add("DS402_STATES", PyTuple::new(m.py(), State::ALL)?)?;
     Ok(())
