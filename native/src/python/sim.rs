@@ -216,9 +216,7 @@ impl PyVirtualBus {
         self.bus.advance(time_ns);
     }
 
-    /// Raises fault `name` in drive `position` at its next run, as its firmware would:
-    /// "following_error" (F439), "over_temperature" (F235), "sync_lost" (F125) or
-    /// "setpoints_missing" (F706), by name or as "F125".
+    /// Raises fault `name` in drive `position` at its next run, as `Simulator.inject_fault` does.
     fn inject_fault(&mut self, position: usize, name: &str) -> PyResult<()> {
         self.apply(Change::inject_fault(&self.products, position, name))
     }
@@ -228,34 +226,28 @@ impl PyVirtualBus {
         self.apply(Change::hardware_enable(&self.products, position, high))
     }
 
-    /// Digital input `input` (1..7) of drive `position` toggles wherever the actual position
-    /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
+    /// Digital input `input` of drive `position` toggles as `Simulator.set_input_toggles` says.
     fn set_input_toggles(&mut self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
         self.apply(Change::input_toggles(&self.products, position, input, positions))
     }
 
-    /// Digital input `input` (from 1) of slave `position` `high` or low: an AKD's 1..7 wherever
-    /// the shaft is, a digital input terminal's at its connector (the master sees it after the
-    /// terminal's input filter).
+    /// Digital input `input` (from 1) of slave `position` `high` or low, as `Simulator.set_input` says.
     fn set_input(&mut self, position: usize, input: usize, high: bool) -> PyResult<()> {
         self.apply(Change::input_level(&self.products, position, input, high))
     }
 
-    /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
-    /// "interlock") of drive `position` active or not; a limit switch holds motion toward it.
+    /// Switch `name` of 0x60FD of drive `position` active or not, as `Simulator.set_switch` says.
     fn set_switch(&mut self, position: usize, name: &str, active: bool) -> PyResult<()> {
         self.apply(Change::switch(&self.products, position, name, active))
     }
 
-    /// Analog input `input` (from 1) of slave `position` at `volts`: an AKD's one (0x3470:04,
-    /// ±10 V over its range), an EL3102's two (±10 V).
+    /// Analog input `input` (from 1) of slave `position` at `volts`, as `Simulator.set_analog_input` says.
     #[pyo3(signature = (position, volts, input = 1))]
     fn set_analog_input(&mut self, position: usize, volts: f64, input: usize) -> PyResult<()> {
         self.apply(Change::analog_input(&self.products, position, input, volts))
     }
 
-    /// Makes drive `position`'s homing runs fail as `name` says: "error" (a homing error
-    /// halfway to the reference), "no_reference" (it searches and never finds it), or "ok".
+    /// Makes drive `position`'s homing runs fail as `name` says (see `Simulator.set_homing_failure`).
     fn set_homing_failure(&mut self, position: usize, name: &str) -> PyResult<()> {
         self.apply(Change::homing_failure(&self.products, position, name))
     }

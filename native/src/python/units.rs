@@ -59,16 +59,13 @@ impl JointScaling {
         peak_torque: Option<Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let default = JointScaling::default();
-        fn or<'py>(given: Option<Bound<'py, PyAny>>, default: Bound<'py, PyAny>) -> Bound<'py, PyAny> {
-            given.unwrap_or(default)
-        }
         let float = |x: f64| PyFloat::new(py, x).into_any();
-        let cpr = or(counts_per_revolution, default.counts_per_revolution.into_pyobject(py)?.into_any());
-        let gear = or(gear_ratio, float(default.gear_ratio));
-        let direction = or(direction, 1i8.into_pyobject(py)?.into_any());
-        let offset = or(offset, float(default.offset));
-        let axis = or(axis, "rotary".into_pyobject(py)?.into_any());
-        let peak = or(peak_torque, float(default.peak_torque));
+        let cpr = counts_per_revolution.unwrap_or(default.counts_per_revolution.into_pyobject(py)?.into_any());
+        let gear = gear_ratio.unwrap_or(float(default.gear_ratio));
+        let direction = direction.unwrap_or(1i8.into_pyobject(py)?.into_any());
+        let offset = offset.unwrap_or(float(default.offset));
+        let axis = axis.unwrap_or("rotary".into_pyobject(py)?.into_any());
+        let peak = peak_torque.unwrap_or(float(default.peak_torque));
         let counts = match cpr.is_instance_of::<PyBool>() {
             true => 0,
             false => cpr.extract::<u64>().unwrap_or(0),
