@@ -5,18 +5,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyFloat, PyInt};
 
-use crate::drive::scaling::{self, JointScaling, PositionScaling, PositionUnwrap, Ratio, ScalingError};
-
-/// A drive's position scaling as `Master.position_scaling` gives it (its ratios and DS402
-/// scaling; the counts it derives are derived again here).
-#[derive(FromPyObject)]
-#[pyo3(from_item_all)]
-struct DriveScaling {
-    encoder_resolution: (u32, u32),
-    gear_ratio: (u32, u32),
-    feed_constant: (u32, u32),
-    ds402_scaling: Option<bool>,
-}
+use crate::drive::scaling::{self, JointScaling, PositionScaling, PositionUnwrap, ScalingError};
 
 /// `error` about `value` (given as Python gave it) in Python's words.
 fn refused(error: ScalingError, value: &Bound<'_, PyAny>) -> PyErr {
@@ -171,16 +160,8 @@ impl JointScaling {
     /// drive does not tell (`scaling` is `Master.position_scaling`'s, None for a drive without
     /// the DS402 scaling objects).
     #[pyo3(signature = (scaling, mapped))]
-    fn scale_mismatch(&self, scaling: Option<DriveScaling>, mapped: Vec<(u16, u8)>) -> Option<String> {
-        let s = scaling?;
-        let ratio = |(numerator, denominator): (u32, u32)| Ratio { numerator, denominator };
-        let drive = PositionScaling {
-            encoder_resolution: ratio(s.encoder_resolution),
-            gear_ratio: ratio(s.gear_ratio),
-            feed_constant: ratio(s.feed_constant),
-            ds402_scaling: s.ds402_scaling,
-        };
-        drive.mismatch(self.counts_per_revolution, |index, sub| mapped.contains(&(index, sub)))
+    fn scale_mismatch(&self, scaling: Option<PositionScaling>, mapped: Vec<(u16, u8)>) -> Option<String> {
+        scaling?.mismatch(self.counts_per_revolution, |index, sub| mapped.contains(&(index, sub)))
     }
 
     fn __hash__(&self) -> u64 {
