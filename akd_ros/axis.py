@@ -265,7 +265,7 @@ class Axis:
         # Bounded: an input that chatters while nobody takes its changes must not fill the memory; the oldest go.
         self._input_events: collections.deque[AxisIo] = collections.deque(maxlen=INPUT_EVENTS_KEPT)
         mapped = self._outputs | {(index, subindex) for index, subindex, _, _ in mapping["inputs"]}
-        self.drive_scaling: dict | None = bus.scalings.get(slave)
+        self.drive_scaling: _native.PositionScaling | None = bus.scalings.get(slave)
         """The drive's position scaling, read at the start (`_native.Master.position_scaling`); None for a drive
         without the DS402 scaling objects."""
         mismatch = self.units.scale_mismatch(self.drive_scaling, sorted(mapped))

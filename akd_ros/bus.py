@@ -235,7 +235,7 @@ class Bus:
             self._master.request_state("preop")
             self.eoe_drives: dict[bytes, int] = {}
             """The MAC of each drive given an `eoe_ip`, with its position: where an `EoeBridge` sends frames."""
-            self.scalings: dict[int, dict | None] = {}
+            self.scalings: dict[int, _native.PositionScaling | None] = {}
             """Each drive's position scaling as its DS402 scaling objects give it (`_native.Master.position_scaling`,
             read in PreOp), by position; its Axis checks its units against it."""
             for drive, position in zip(drives, positions, strict=True):

@@ -26,23 +26,23 @@ def master():
 
 def test_the_master_reads_the_scaling_objects_and_names_each_position_objects_scale(master):
     s = master.position_scaling(0)
-    assert (s["encoder_resolution"], s["gear_ratio"], s["feed_constant"]) == ((REV, 1), (1, 1), (1, 1))
+    assert (s.encoder_resolution, s.gear_ratio, s.feed_constant) == ((REV, 1), (1, 1), (1, 1))
     # The virtual AKD's SDO information names FBUS.PARAM05, whose bit 4 is clear: 0x6064/0x607A follow the UNIT
     # parameters, which no DS402 object tells.
-    assert s["ds402_scaling"] is False
-    assert s["counts_per_revolution"] == {(0x6063, 0): REV, (0x60C1, 1): REV, (0x6064, 0): None, (0x607A, 0): None}
+    assert s.ds402_scaling is False
+    assert s.counts_per_revolution == {(0x6063, 0): REV, (0x60C1, 1): REV, (0x6064, 0): None, (0x607A, 0): None}
     master.sdo_write(0, 0x3E05, 0, struct.pack("<I", 0x10))
     master.sdo_write(0, 0x6092, 1, struct.pack("<I", 36000))
     master.sdo_write(0, 0x6091, 1, struct.pack("<I", 10))
     master.sdo_write(0, 0x608F, 1, struct.pack("<I", 1 << 16))
     s = master.position_scaling(0)
-    assert s["ds402_scaling"] is True
-    assert s["counts_per_revolution"] == {(0x6063, 0): 65536, (0x60C1, 1): 65536, (0x6064, 0): 3600, (0x607A, 0): 3600}
+    assert s.ds402_scaling is True
+    assert s.counts_per_revolution == {(0x6063, 0): 65536, (0x60C1, 1): 65536, (0x6064, 0): 3600, (0x607A, 0): 3600}
 
 
 def test_an_axis_in_the_drives_scale_starts_and_keeps_what_it_read():
     with Axis("sim?missed=lost&pace=immediate") as axis:
-        assert axis.drive_scaling["counts_per_revolution"][(0x6063, 0)] == axis.units.counts_per_revolution == REV
+        assert axis.drive_scaling.counts_per_revolution[(0x6063, 0)] == axis.units.counts_per_revolution == REV
 
 
 def test_an_axis_whose_counts_per_revolution_differ_from_the_drives_is_refused_with_what_to_change():

@@ -106,6 +106,7 @@ pub fn unit_of(index: u16, subindex: u8) -> Option<PositionUnit> {
 
 /// One drive's position scaling as its objects give it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "python", pyo3::pyclass(module = "akd_ros._native", frozen, eq, get_all))]
 pub struct PositionScaling {
     /// 0x608F: increments per motor revolutions.
     pub encoder_resolution: Ratio,

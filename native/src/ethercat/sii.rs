@@ -174,6 +174,7 @@ impl Header {
 
 /// Category General (ETG.2010 table 9), 32 bytes.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "python", derive(pyo3::IntoPyObjectRef))]
 pub struct General {
     /// String index of the group type.
     pub group_idx: u8,

@@ -2,8 +2,9 @@
 //! `dc_status()`.
 
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 
-use super::{IntoPyResult, Merged};
+use super::IntoPyResult;
 use crate::cycle::dc_status::DcStatus;
 use crate::ethercat::link_spec::LinkSpec;
 
@@ -17,25 +18,13 @@ fn dc_by_default(link: &str) -> PyResult<bool> {
 
 /// `Cycle.dc_status()`: {"active": False} without distributed clocks; with them "active" and
 /// the fields of [`DcStatus`], each drive's those of [`crate::cycle::dc_status::DcDrive`].
-#[derive(IntoPyObject)]
-pub(super) enum DcStatusView {
-    Off(Active),
-    On(Merged<Active, DcStatus>),
-}
-
-/// Whether the bus runs distributed clocks.
-#[derive(IntoPyObject)]
-pub(super) struct Active {
-    active: bool,
-}
-
-impl From<Option<DcStatus>> for DcStatusView {
-    fn from(status: Option<DcStatus>) -> Self {
-        match status {
-            Some(status) => DcStatusView::On(Merged(Active { active: true }, status)),
-            None => DcStatusView::Off(Active { active: false }),
-        }
+pub(super) fn dc_status(py: Python<'_>, status: Option<DcStatus>) -> PyResult<Bound<'_, PyDict>> {
+    let dict = PyDict::new(py);
+    dict.set_item("active", status.is_some())?;
+    if let Some(status) = status {
+        dict.update(status.into_pyobject(py)?.as_mapping())?;
     }
+    Ok(dict)
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {

@@ -962,8 +962,8 @@ impl PyCycle {
     /// The distributed clocks while the cycle runs: SYNC0's cycle and shift, the reference
     /// clock's position and each drive's FBUS.PARAM02 and last system-time difference (read
     /// in the cyclic frame, one drive per cycle in turn); {"active": False} without them.
-    fn dc_status(&self) -> super::clocks::DcStatusView {
-        self.cycle.dc_status().into()
+    fn dc_status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        super::clocks::dc_status(py, self.cycle.dc_status())
     }
 
     /// Every slave's links and error counters as the reads beside the cycle found them: each

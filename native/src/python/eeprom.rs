@@ -5,7 +5,7 @@ use pyo3::types::{PyBytes, PyDict};
 
 use super::IntoPyResult;
 use crate::drive::identity;
-use crate::ethercat::sii::{MailboxLayout, Sii, SiiPdo, SyncManager};
+use crate::ethercat::sii::{General, MailboxLayout, Sii, SiiPdo, SyncManager};
 use crate::sim::sii_image;
 
 /// What identifies a slave in its SII: the identity words, the names (None where absent) and
@@ -86,17 +86,6 @@ fn pdo_views<'a>(sii: &'a Sii, pdos: &'a [SiiPdo]) -> Vec<PdoView<'a>> {
         .collect()
 }
 
-/// The general category's details (its string indices are resolved in the top-level names).
-#[derive(IntoPyObject)]
-struct GeneralView {
-    coe_details: u8,
-    foe_details: u8,
-    eoe_details: u8,
-    flags: u8,
-    current_on_ebus: i16,
-    physical_port: u16,
-}
-
 /// One DC operation mode, its name resolved.
 #[derive(IntoPyObject)]
 struct DcModeView<'a> {
@@ -118,7 +107,7 @@ struct SiiView<'a> {
     bootstrap_mailbox: MailboxLayout,
     eeprom_bytes: usize,
     strings: &'a [String],
-    general: Option<GeneralView>,
+    general: Option<&'a General>,
     /// FMMU usage codes (1 outputs, 2 inputs, 3 SM status), widened: pyo3 makes bytes of a
     /// `u8` sequence, and Python reads a list of codes.
     fmmu_usage: Vec<u16>,
@@ -145,14 +134,7 @@ fn parse_sii<'py>(py: Python<'py>, data: &[u8]) -> PyResult<Bound<'py, PyDict>> 
         bootstrap_mailbox: h.bootstrap_mailbox,
         eeprom_bytes: h.eeprom_bytes(),
         strings: sii.strings(),
-        general: sii.general().map(|g| GeneralView {
-            coe_details: g.coe_details,
-            foe_details: g.foe_details,
-            eoe_details: g.eoe_details,
-            flags: g.flags,
-            current_on_ebus: g.current_on_ebus,
-            physical_port: g.physical_port,
-        }),
+        general: sii.general(),
         fmmu_usage: sii.fmmu_usage().iter().map(|&u| u.into()).collect(),
         sync_managers: sii.sync_managers(),
         tx_pdos: pdo_views(&sii, sii.tx_pdos()),

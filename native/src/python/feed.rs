@@ -58,21 +58,15 @@ struct FeedJoint {
     volts_per_count: f64,
 }
 
+/// `index` where it is below `count`, the feed's number of `what`s; else ValueError saying so.
+fn one_of(what: &str, index: usize, count: usize) -> PyResult<usize> {
+    match index < count {
+        true => Ok(index),
+        false => Err(PyValueError::new_err(format!("no {what} {index}: the feed has {count}"))),
+    }
+}
+
 impl PyFeed {
-    fn device(&self, device: usize) -> PyResult<()> {
-        match self.feed.devices().len() {
-            count if device >= count => Err(PyValueError::new_err(format!("no device {device}: the feed has {count}"))),
-            _ => Ok(()),
-        }
-    }
-
-    fn joint(&self, joint: usize) -> PyResult<()> {
-        match self.feed.joints().len() {
-            count if joint >= count => Err(PyValueError::new_err(format!("no joint {joint}: the feed has {count}"))),
-            _ => Ok(()),
-        }
-    }
-
     fn stream(&self, kind: Kind, seconds: f64) -> PyResult<usize> {
         self.feed
             .add(kind, period(seconds)?)
@@ -105,20 +99,17 @@ impl PyFeed {
 
     /// A stream of akd_ros/DriveStatus of joint number `joint` every `period` seconds; its id.
     fn add_drive_status(&self, joint: usize, period: f64) -> PyResult<usize> {
-        self.joint(joint)?;
-        self.stream(Kind::DriveStatus(joint), period)
+        self.stream(Kind::DriveStatus(one_of("joint", joint, self.feed.joints().len())?), period)
     }
 
     /// A stream of akd_ros/DriveIO of joint number `joint` every `period` seconds; its id.
     fn add_drive_io(&self, joint: usize, period: f64) -> PyResult<usize> {
-        self.joint(joint)?;
-        self.stream(Kind::DriveIo(joint), period)
+        self.stream(Kind::DriveIo(one_of("joint", joint, self.feed.joints().len())?), period)
     }
 
     /// A stream of akd_ros/DeviceIO of device number `device` every `period` seconds; its id.
     fn add_device_io(&self, device: usize, period: f64) -> PyResult<usize> {
-        self.device(device)?;
-        self.stream(Kind::DeviceIo(device), period)
+        self.stream(Kind::DeviceIo(one_of("device", device, self.feed.devices().len())?), period)
     }
 
     /// Hands out at once on `stream`, a DeviceIO stream, the DeviceIO of a change of its

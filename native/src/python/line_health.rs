@@ -7,15 +7,21 @@ use std::collections::HashMap;
 use pyo3::prelude::*;
 
 use crate::ethercat::line_health::place::Finding;
-use crate::ethercat::line_health::registers::PortCounts;
+use crate::ethercat::line_health::registers::{ErrorCounts, PortCounts};
 use crate::ethercat::line_health::LineReading;
 use crate::ros::line_diagnostics::{self, counts_words, level_of, link_words, peer_words, slave_words};
 
 /// A slave's counters that are not a port's: "processing_unit_errors", "pdi_errors".
 #[derive(IntoPyObject)]
 pub(super) struct EscCountsView {
-    pub(super) processing_unit_errors: u64,
-    pub(super) pdi_errors: u64,
+    processing_unit_errors: u64,
+    pdi_errors: u64,
+}
+
+impl<T: Into<u64>> From<ErrorCounts<T>> for EscCountsView {
+    fn from(counts: ErrorCounts<T>) -> Self {
+        EscCountsView { processing_unit_errors: counts.processing_unit.into(), pdi_errors: counts.pdi.into() }
+    }
 }
 
 /// One port of `line_health()["slaves"][n]["ports"]`: "port", "kind" ("MII", "E-bus", ...),
@@ -119,14 +125,8 @@ impl LineHealthView {
                             counted: counts_words(&slave.window.ports[port]),
                         })
                         .collect(),
-                    total: EscCountsView {
-                        processing_unit_errors: slave.totals.processing_unit,
-                        pdi_errors: slave.totals.pdi,
-                    },
-                    window: EscCountsView {
-                        processing_unit_errors: slave.window.processing_unit,
-                        pdi_errors: slave.window.pdi,
-                    },
+                    total: slave.totals.into(),
+                    window: slave.window.into(),
                     reads: slave.reads,
                     unanswered: slave.unanswered,
                     saturated: slave.saturated,

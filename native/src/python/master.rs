@@ -71,29 +71,26 @@ pub(super) fn parse_mapping(value: &Bound<'_, PyAny>) -> PyResult<Mapping> {
     Ok(Mapping::Flexible(pdos.into_iter().map(|p| p.into_iter().map(PdoEntry::from_u32).collect()).collect()))
 }
 
-/// What `Master.position_scaling` gives.
-#[derive(IntoPyObject)]
-struct PositionScalingView {
-    encoder_resolution: (u32, u32),
-    gear_ratio: (u32, u32),
-    feed_constant: (u32, u32),
-    ds402_scaling: Option<bool>,
-    counts_per_revolution: std::collections::BTreeMap<(u16, u8), Option<f64>>,
+impl<'py> IntoPyObject<'py> for scaling::Ratio {
+    type Target = pyo3::types::PyTuple;
+    type Output = Bound<'py, pyo3::types::PyTuple>;
+    type Error = PyErr;
+
+    /// Python reads a ratio as (numerator, denominator).
+    fn into_pyobject(self, py: Python<'py>) -> PyResult<Self::Output> {
+        (self.numerator, self.denominator).into_pyobject(py)
+    }
 }
 
-impl From<PositionScaling> for PositionScalingView {
-    fn from(s: PositionScaling) -> Self {
-        let pair = |r: scaling::Ratio| (r.numerator, r.denominator);
-        PositionScalingView {
-            encoder_resolution: pair(s.encoder_resolution),
-            gear_ratio: pair(s.gear_ratio),
-            feed_constant: pair(s.feed_constant),
-            ds402_scaling: s.ds402_scaling,
-            counts_per_revolution: scaling::POSITION_OBJECTS
-                .iter()
-                .map(|&((index, sub), _)| ((index, sub), s.counts_per_revolution(index, sub, None)))
-                .collect(),
-        }
+#[pymethods]
+impl PositionScaling {
+    /// For each position object (index, subindex) the counts per motor revolution it takes, None
+    /// where the objects do not tell (0x6064, 0x607A with DS402 scaling off follow the drive's
+    /// UNIT parameters, which no DS402 object gives).
+    #[getter(counts_per_revolution)]
+    fn py_counts_per_revolution(&self) -> std::collections::BTreeMap<(u16, u8), Option<f64>> {
+        let objects = scaling::POSITION_OBJECTS.iter();
+        objects.map(|&((index, sub), _)| ((index, sub), self.counts_per_revolution(index, sub, None))).collect()
     }
 }
 
@@ -441,14 +438,12 @@ impl PyMaster {
     }
 
     /// The position scaling of the drive at `position` (in PreOp or above), or None for a drive
-    /// without the DS402 scaling objects: "encoder_resolution" (0x608F), "gear_ratio" (0x6091)
-    /// and "feed_constant" (0x6092), each (numerator, denominator); "ds402_scaling", FBUS.PARAM05
-    /// bit 4, None where the drive's SDO information does not confirm the object; and
-    /// "counts_per_revolution", for each position object (index, subindex) the counts per motor
-    /// revolution it takes, None where the objects do not tell (0x6064, 0x607A with DS402
-    /// scaling off follow the drive's UNIT parameters, which no DS402 object gives).
-    fn position_scaling(&self, py: Python<'_>, position: u16) -> PyResult<Option<PositionScalingView>> {
-        Ok(self.with_slave(py, position, |s| s.position_scaling())?.map(PositionScalingView::from))
+    /// without the DS402 scaling objects: a PositionScaling, its "encoder_resolution" (0x608F),
+    /// "gear_ratio" (0x6091) and "feed_constant" (0x6092) each (numerator, denominator);
+    /// "ds402_scaling", FBUS.PARAM05 bit 4, None where the drive's SDO information does not
+    /// confirm the object; and "counts_per_revolution" by position object.
+    fn position_scaling(&self, py: Python<'_>, position: u16) -> PyResult<Option<PositionScaling>> {
+        self.with_slave(py, position, |s| s.position_scaling())
     }
 
     /// Sets the mode of operation (0x6060) of the drive at `position` by SDO, `mode` its code
@@ -600,7 +595,8 @@ impl PyMaster {
 }
 
 pub(super) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
-    m.add_class::<PyMaster>()
+    m.add_class::<PyMaster>()?;
+    m.add_class::<PositionScaling>()
 }
 
 /// Handing the master to a cycle thread and back (`akd_ros._native.Cycle`).

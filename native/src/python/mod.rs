@@ -26,48 +26,42 @@ mod sim;
 mod trajectory;
 mod units;
 
-create_exception!(_native, EtherCatError, PyException, "Base of every error raised by akd_ros._native.");
-create_exception!(_native, FrameError, EtherCatError, "A malformed or unexpected EtherCAT frame.");
-create_exception!(
-    _native,
-    LinkError,
-    EtherCatError,
-    "The operating system refused a link operation (socket, interface, permission)."
+/// The exceptions, each named once: created, and added to the module by `add_exceptions`.
+macro_rules! exceptions {
+    ($($name:ident($base:ty, $doc:literal)),* $(,)?) => {
+        $(create_exception!(_native, $name, $base, $doc);)*
+
+        /// Adds every exception to the module by its name.
+        fn add_exceptions(m: &Bound<'_, PyModule>) -> PyResult<()> {
+            $(m.add(stringify!($name), m.py().get_type::<$name>())?;)*
+            Ok(())
+        }
+    };
+}
+
+exceptions!(
+    EtherCatError(PyException, "Base of every error raised by akd_ros._native."),
+    FrameError(EtherCatError, "A malformed or unexpected EtherCAT frame."),
+    LinkError(EtherCatError, "The operating system refused a link operation (socket, interface, permission)."),
+    TimeoutError(EtherCatError, "No reply in time."),
+    WorkingCounterError(
+        EtherCatError,
+        "A datagram's working counter was not the expected one; attributes expected, got."
+    ),
+    AlStateError(
+        EtherCatError,
+        "A slave refused a state change; attributes slave, requested, actual, code, code_name."
+    ),
+    SdoAbortError(EtherCatError, "An SDO transfer was aborted; attributes index, subindex, code, code_name."),
+    MailboxError(EtherCatError, "A mailbox reply that does not fit the request or the protocol."),
+    FoeError(
+        MailboxError,
+        "A file transfer over EtherCAT refused or failed; attributes name, code, code_name where the slave refused."
+    ),
+    SiiError(EtherCatError, "The SII EEPROM content or interface is not as expected."),
+    PdoError(EtherCatError, "A process-data mapping the AKD would refuse, or an unknown one."),
+    ConfigError(EtherCatError, "A configuration value out of its allowed range."),
 );
-create_exception!(_native, TimeoutError, EtherCatError, "No reply in time.");
-create_exception!(
-    _native,
-    WorkingCounterError,
-    EtherCatError,
-    "A datagram's working counter was not the expected one; attributes expected, got."
-);
-create_exception!(
-    _native,
-    AlStateError,
-    EtherCatError,
-    "A slave refused a state change; attributes slave, requested, actual, code, code_name."
-);
-create_exception!(
-    _native,
-    SdoAbortError,
-    EtherCatError,
-    "An SDO transfer was aborted; attributes index, subindex, code, code_name."
-);
-create_exception!(
-    _native,
-    MailboxError,
-    EtherCatError,
-    "A mailbox reply that does not fit the request or the protocol."
-);
-create_exception!(
-    _native,
-    FoeError,
-    MailboxError,
-    "A file transfer over EtherCAT refused or failed; attributes name, code, code_name where the slave refused."
-);
-create_exception!(_native, SiiError, EtherCatError, "The SII EEPROM content or interface is not as expected.");
-create_exception!(_native, PdoError, EtherCatError, "A process-data mapping the AKD would refuse, or an unknown one.");
-create_exception!(_native, ConfigError, EtherCatError, "A configuration value out of its allowed range.");
 
 /// Converts a crate error into the matching Python exception, with the codes as attributes.
 pub(crate) fn to_py_err(error: Error) -> PyErr {
@@ -206,23 +200,7 @@ fn snake_case(name: &str) -> String {
 
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> pyo3::PyResult<()> {
-    let py = m.py();
-    for (name, class) in [
-        ("EtherCatError", py.get_type::<EtherCatError>()),
-        ("FrameError", py.get_type::<FrameError>()),
-        ("LinkError", py.get_type::<LinkError>()),
-        ("TimeoutError", py.get_type::<TimeoutError>()),
-        ("WorkingCounterError", py.get_type::<WorkingCounterError>()),
-        ("AlStateError", py.get_type::<AlStateError>()),
-        ("SdoAbortError", py.get_type::<SdoAbortError>()),
-        ("MailboxError", py.get_type::<MailboxError>()),
-        ("FoeError", py.get_type::<FoeError>()),
-        ("SiiError", py.get_type::<SiiError>()),
-        ("PdoError", py.get_type::<PdoError>()),
-        ("ConfigError", py.get_type::<ConfigError>()),
-    ] {
-        m.add(name, class)?;
-    }
+    add_exceptions(m)?;
     master::register(m)?;
     sim::register(m)?;
     eeprom::register(m)?;

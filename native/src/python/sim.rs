@@ -149,15 +149,7 @@ impl From<EscState> for EscStateView {
                 counted: e.counted.ports[port],
             })
             .collect();
-        EscStateView {
-            dl_status: e.dl_status.0,
-            ports,
-            registers: EscCountsView {
-                processing_unit_errors: e.registers.processing_unit.into(),
-                pdi_errors: e.registers.pdi.into(),
-            },
-            counted: EscCountsView { processing_unit_errors: e.counted.processing_unit, pdi_errors: e.counted.pdi },
-        }
+        EscStateView { dl_status: e.dl_status.0, ports, registers: e.registers.into(), counted: e.counted.into() }
     }
 }
 
@@ -224,55 +216,40 @@ impl PyVirtualBus {
         self.bus.advance(time_ns);
     }
 
-    /// Raises fault `name` in drive `position` at its next run, as its firmware would:
-    /// "following_error" (F439), "over_temperature" (F235), "sync_lost" (F125) or
-    /// "setpoints_missing" (F706), by name or as "F125".
+    /// Raises fault `name` in drive `position` at its next run, as `Simulator.inject_fault` does.
     fn inject_fault(&mut self, position: usize, name: &str) -> PyResult<()> {
-        Change::inject_fault(&self.products, position, name).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::inject_fault(&self.products, position, name))
     }
 
     /// Sets the hardware enable input of drive `position` (high at power-up).
     fn set_hardware_enable(&mut self, position: usize, high: bool) -> PyResult<()> {
-        Change::hardware_enable(&self.products, position, high).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::hardware_enable(&self.products, position, high))
     }
 
-    /// Digital input `input` (1..7) of drive `position` toggles wherever the actual position
-    /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
+    /// Digital input `input` of drive `position` toggles as `Simulator.set_input_toggles` says.
     fn set_input_toggles(&mut self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
-        Change::input_toggles(&self.products, position, input, positions).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::input_toggles(&self.products, position, input, positions))
     }
 
-    /// Digital input `input` (from 1) of slave `position` `high` or low: an AKD's 1..7 wherever
-    /// the shaft is, a digital input terminal's at its connector (the master sees it after the
-    /// terminal's input filter).
+    /// Digital input `input` (from 1) of slave `position` `high` or low, as `Simulator.set_input` says.
     fn set_input(&mut self, position: usize, input: usize, high: bool) -> PyResult<()> {
-        Change::input_level(&self.products, position, input, high).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::input_level(&self.products, position, input, high))
     }
 
-    /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
-    /// "interlock") of drive `position` active or not; a limit switch holds motion toward it.
+    /// Switch `name` of 0x60FD of drive `position` active or not, as `Simulator.set_switch` says.
     fn set_switch(&mut self, position: usize, name: &str, active: bool) -> PyResult<()> {
-        Change::switch(&self.products, position, name, active).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::switch(&self.products, position, name, active))
     }
 
-    /// Analog input `input` (from 1) of slave `position` at `volts`: an AKD's one (0x3470:04,
-    /// ±10 V over its range), an EL3102's two (±10 V).
+    /// Analog input `input` (from 1) of slave `position` at `volts`, as `Simulator.set_analog_input` says.
     #[pyo3(signature = (position, volts, input = 1))]
     fn set_analog_input(&mut self, position: usize, volts: f64, input: usize) -> PyResult<()> {
-        Change::analog_input(&self.products, position, input, volts).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::analog_input(&self.products, position, input, volts))
     }
 
-    /// Makes drive `position`'s homing runs fail as `name` says: "error" (a homing error
-    /// halfway to the reference), "no_reference" (it searches and never finds it), or "ok".
+    /// Makes drive `position`'s homing runs fail as `name` says (see `Simulator.set_homing_failure`).
     fn set_homing_failure(&mut self, position: usize, name: &str) -> PyResult<()> {
-        Change::homing_failure(&self.products, position, name).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::homing_failure(&self.products, position, name))
     }
 
     /// The drive firmware of drive `position` as a dict: "state" (its `Ds402State`),
@@ -293,16 +270,14 @@ impl PyVirtualBus {
     /// Takes the link at `port` of slave `position` down (`up` False) or up again, as
     /// `Simulator.set_link` does.
     fn set_link(&mut self, position: usize, port: usize, up: bool) -> PyResult<()> {
-        Change::link(&self.products, position, port, up).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::link(&self.products, position, port, up))
     }
 
     /// The cable into `port` of slave `position` spoils the next `frames` frames entering
     /// there, one in every `every`, as `Simulator.crc_errors` says.
     #[pyo3(signature = (position, port, frames, every = 1))]
     fn crc_errors(&mut self, position: usize, port: usize, frames: i64, every: i64) -> PyResult<()> {
-        Change::spoil_port(&self.products, position, port, frames, every).py()?.apply(&mut self.bus);
-        Ok(())
+        self.apply(Change::spoil_port(&self.products, position, port, frames, every))
     }
 
     /// The ESC of slave `position` as a dict (see `Simulator.esc_state`).
@@ -319,6 +294,12 @@ impl PyVirtualBus {
 impl PyVirtualBus {
     fn check(&self, position: usize) -> PyResult<()> {
         control::check_position(self.bus.len(), position).py()
+    }
+
+    /// Makes `change` to the line at once, or raises why it was refused.
+    fn apply(&mut self, change: Result<Change>) -> PyResult<()> {
+        change.py()?.apply(&mut self.bus);
+        Ok(())
     }
 }
 

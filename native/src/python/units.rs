@@ -5,18 +5,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyFloat, PyInt};
 
-use crate::drive::scaling::{self, JointScaling, PositionScaling, PositionUnwrap, Ratio, ScalingError};
-
-/// A drive's position scaling as `Master.position_scaling` gives it (its ratios and DS402
-/// scaling; the counts it derives are derived again here).
-#[derive(FromPyObject)]
-#[pyo3(from_item_all)]
-struct DriveScaling {
-    encoder_resolution: (u32, u32),
-    gear_ratio: (u32, u32),
-    feed_constant: (u32, u32),
-    ds402_scaling: Option<bool>,
-}
+use crate::drive::scaling::{self, JointScaling, PositionScaling, PositionUnwrap, ScalingError};
 
 /// `error` about `value` (given as Python gave it) in Python's words.
 fn refused(error: ScalingError, value: &Bound<'_, PyAny>) -> PyErr {
@@ -59,16 +48,13 @@ impl JointScaling {
         peak_torque: Option<Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let default = JointScaling::default();
-        fn or<'py>(given: Option<Bound<'py, PyAny>>, default: Bound<'py, PyAny>) -> Bound<'py, PyAny> {
-            given.unwrap_or(default)
-        }
         let float = |x: f64| PyFloat::new(py, x).into_any();
-        let cpr = or(counts_per_revolution, default.counts_per_revolution.into_pyobject(py)?.into_any());
-        let gear = or(gear_ratio, float(default.gear_ratio));
-        let direction = or(direction, 1i8.into_pyobject(py)?.into_any());
-        let offset = or(offset, float(default.offset));
-        let axis = or(axis, "rotary".into_pyobject(py)?.into_any());
-        let peak = or(peak_torque, float(default.peak_torque));
+        let cpr = counts_per_revolution.unwrap_or(default.counts_per_revolution.into_pyobject(py)?.into_any());
+        let gear = gear_ratio.unwrap_or(float(default.gear_ratio));
+        let direction = direction.unwrap_or(1i8.into_pyobject(py)?.into_any());
+        let offset = offset.unwrap_or(float(default.offset));
+        let axis = axis.unwrap_or("rotary".into_pyobject(py)?.into_any());
+        let peak = peak_torque.unwrap_or(float(default.peak_torque));
         let counts = match cpr.is_instance_of::<PyBool>() {
             true => 0,
             false => cpr.extract::<u64>().unwrap_or(0),
@@ -174,16 +160,8 @@ impl JointScaling {
     /// drive does not tell (`scaling` is `Master.position_scaling`'s, None for a drive without
     /// the DS402 scaling objects).
     #[pyo3(signature = (scaling, mapped))]
-    fn scale_mismatch(&self, scaling: Option<DriveScaling>, mapped: Vec<(u16, u8)>) -> Option<String> {
-        let s = scaling?;
-        let ratio = |(numerator, denominator): (u32, u32)| Ratio { numerator, denominator };
-        let drive = PositionScaling {
-            encoder_resolution: ratio(s.encoder_resolution),
-            gear_ratio: ratio(s.gear_ratio),
-            feed_constant: ratio(s.feed_constant),
-            ds402_scaling: s.ds402_scaling,
-        };
-        drive.mismatch(self.counts_per_revolution, |index, sub| mapped.contains(&(index, sub)))
+    fn scale_mismatch(&self, scaling: Option<PositionScaling>, mapped: Vec<(u16, u8)>) -> Option<String> {
+        scaling?.mismatch(self.counts_per_revolution, |index, sub| mapped.contains(&(index, sub)))
     }
 
     fn __hash__(&self) -> u64 {
