@@ -137,12 +137,6 @@ impl Channel {
             }
         }
     }
-
-    /// Writes `raw` (from [`encode`](Self::encode)) into `image` where the slave's data of its
-    /// direction starts at bit `start`, leaving every other bit.
-    pub fn write(&self, image: &mut [u8], start: usize, raw: u64) {
-        copy_bits(&raw.to_le_bytes(), 0, image, start + self.bit, usize::from(self.entry.bits).min(64));
-    }
 }
 
 fn mask(bits: u32) -> u64 {
@@ -225,12 +219,11 @@ mod tests {
     }
 
     #[test]
-    fn bits_and_integers_read_and_write_to_the_bit() {
+    fn bits_and_integers_read_and_encode_to_the_bit() {
         let output = one_bit("channel_2_output", Direction::Rx, 1);
-        let mut image = [0b1000_0000u8, 0];
-        output.write(&mut image, 4, output.encode(ChannelValue::Bit(true)).unwrap());
-        assert_eq!(image, [0b1010_0000, 0]);
-        assert_eq!(output.read(&image, 4), ChannelValue::Bit(true));
+        assert_eq!(output.read(&[0b1010_0000, 0], 4), ChannelValue::Bit(true));
+        assert_eq!(output.read(&[0b1000_0000, 0], 4), ChannelValue::Bit(false));
+        assert_eq!(output.encode(ChannelValue::Bit(true)), Ok(1));
         assert_eq!(output.encode(ChannelValue::Integer(1)), Ok(1));
         let refused = output.encode(ChannelValue::Integer(2)).unwrap_err().to_string();
         assert_eq!(refused, "channel channel_2_output: 2 given, allowed 0..=1 (1 bits)");

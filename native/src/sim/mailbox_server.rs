@@ -105,11 +105,6 @@ impl MailboxServer {
         &self.eoe
     }
 
-    /// The FoE side (the files written).
-    pub fn foe(&self) -> &FoeServer {
-        &self.foe
-    }
-
     /// The FoE side, to inject a busy drive.
     pub fn foe_mut(&mut self) -> &mut FoeServer {
         &mut self.foe

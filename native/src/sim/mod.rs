@@ -287,11 +287,6 @@ impl VirtualAkd {
         &self.od
     }
 
-    /// The mailbox server: the IP settings EoE gave the drive, the files FoE wrote.
-    pub fn mailbox(&self) -> &mailbox_server::MailboxServer {
-        &self.mailbox
-    }
-
     /// The mailbox server, to inject faults into its protocols (a busy FoE).
     pub fn mailbox_mut(&mut self) -> &mut mailbox_server::MailboxServer {
         &mut self.mailbox
