@@ -1,8 +1,8 @@
 //! A slave's process data by name, as the slave describes it: its channels ([`Channel`]), one
 //! per PDO entry it carries, each named after the entry's name in its SII in snake case, with
 //! its direction, its bits, its data type and where it sits in the slave's data; and their
-//! values read from and written into a process image, to the bit ([`Channel::read`],
-//! [`Channel::write`]). What an EL1004 calls "Channel 1"'s "Input" is its channel
+//! values read from a process image, to the bit ([`Channel::read`]), and encoded to be written
+//! there ([`Channel::encode`]). What an EL1004 calls "Channel 1"'s "Input" is its channel
 //! `channel_1_input`. A pure codec: the master, the cycle thread, the node's messages and the
 //! Python side read a terminal's channels from here.
 //!
@@ -56,7 +56,8 @@ impl ChannelValue {
 }
 
 /// A value a channel cannot take.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("channel {channel}: {given} given, allowed {allowed}")]
 pub struct ChannelValueError {
     /// The channel's name.
     pub channel: String,
@@ -65,14 +66,6 @@ pub struct ChannelValueError {
     /// What it takes, in words.
     pub allowed: String,
 }
-
-impl std::fmt::Display for ChannelValueError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "channel {}: {} given, allowed {}", self.channel, self.given, self.allowed)
-    }
-}
-
-impl std::error::Error for ChannelValueError {}
 
 impl Channel {
     /// Whether it is one bit.

@@ -714,7 +714,15 @@ mod tests {
     use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::ethercat::line_health::registers::ErrorCounts;
 
-    fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+    /// One datagram through `bus` at `now`: its data and working counter.
+    pub(super) fn exchange(
+        bus: &mut VirtualBus,
+        now: u64,
+        command: Command,
+        adp: u16,
+        ado: u16,
+        data: &[u8],
+    ) -> (Vec<u8>, u16) {
         served(VirtualBus::process, bus, now, (command, adp, ado), data)
     }
 

@@ -455,17 +455,8 @@ fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
 mod tests {
     use super::*;
     use crate::ethercat::frame::{Command, FrameBuilder};
+    use crate::sim::tests::exchange;
     use crate::sim::{Timing, VirtualBus};
-
-    /// One datagram through `bus` at `now`: its data and working counter.
-    fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
-        let mut buf = [0u8; 1500];
-        let mut b = FrameBuilder::new(&mut buf);
-        let slot = b.push(command, 0, adp, ado, data).unwrap();
-        let len = b.finish();
-        bus.process(&mut buf[..len], now).unwrap();
-        (slot.data(&buf[..len]).unwrap().to_vec(), slot.wkc(&buf[..len]).unwrap())
-    }
 
     fn line(spec: &str) -> VirtualBus {
         VirtualBus::of_line(&spec.parse().unwrap(), Timing::IMMEDIATE).unwrap()
