@@ -417,18 +417,10 @@ fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
                 od::entry(4, "Serial number", UNSIGNED32, 32, od::RO, id.serial_number.into()),
             ],
         ),
-        od::record(
-            0x1C00,
-            "Sync manager type",
-            ObjectCode::Array,
-            UNSIGNED8,
-            od::RO,
-            (1..=4).map(|i| od::entry(i, od::SUBINDEX_NAMES[usize::from(i)], UNSIGNED8, 8, od::RO, i.into())).collect(),
-        ),
+        od::array(0x1C00, "Sync manager type", UNSIGNED8, od::RO, od::RO, 1..=4),
         od::record(0x1C12, "RxPDO assign", ObjectCode::Array, UNSIGNED16, od::RW_PREOP, Vec::new()),
     ];
     let names = ["Inputs Ch.1", "Inputs Ch.2"];
-    let mut assign = Vec::new();
     for n in 0..channels {
         let object = images::analog_object(n);
         let entries = [PdoEntry::new(object, 1, 8), PdoEntry::new(object, 2, 16)];
@@ -443,9 +435,9 @@ fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
             od::RO,
             vec![od::entry(1, "Status", UNSIGNED8, 8, ro_tx, 0), od::entry(2, "Value", INTEGER16, 16, ro_tx, 0)],
         ));
-        assign.push(od::entry(n + 1, od::SUBINDEX_NAMES[usize::from(n) + 1], UNSIGNED16, 16, od::RW_PREOP, pdo.into()));
     }
-    let mut tx_assign = od::record(0x1C13, "TxPDO assign", ObjectCode::Array, UNSIGNED16, od::RW_PREOP, assign);
+    let pdos = (0..channels).map(|n| 0x1A00 + u64::from(n));
+    let mut tx_assign = od::array(0x1C13, "TxPDO assign", UNSIGNED16, od::RW_PREOP, od::RW_PREOP, pdos);
     tx_assign.check = Some(tx_assignment);
     objects.push(tx_assign);
     ObjectDictionary::from_objects(objects)
