@@ -167,6 +167,19 @@ pub(crate) fn array(
     record(index, name, ObjectCode::Array, t, sub0_access, entries.collect())
 }
 
+/// The identity object 0x1018 named `name`, with `id` and its revision entry named
+/// `revision_name`.
+pub(crate) fn identity_object(name: &'static str, revision_name: &'static str, id: Identity) -> Object {
+    let values = [
+        ("Vendor ID", id.vendor_id),
+        ("Product code", id.product_code),
+        (revision_name, id.revision),
+        ("Serial number", id.serial_number),
+    ];
+    let entries = (1..).zip(values).map(|(i, (n, v))| entry(i, n, data_type::UNSIGNED32, 32, RO, v.into()));
+    record(0x1018, name, ObjectCode::Record, data_type::IDENTITY, RO, entries.collect())
+}
+
 pub(crate) fn mapping_object(
     index: u16,
     name: &'static str,
@@ -346,19 +359,7 @@ impl ObjectDictionary {
             string_var(0x1008, "Manufacturer device name", "AKD"),
             string_var(0x1009, "Manufacturer hardware version", sii_image::MODEL),
             string_var(0x100A, "Manufacturer software version", sii_image::FIRMWARE),
-            record(
-                0x1018,
-                "Identity object",
-                ObjectCode::Record,
-                IDENTITY,
-                RO,
-                vec![
-                    entry(1, "Vendor ID", UNSIGNED32, 32, RO, id.vendor_id as u64),
-                    entry(2, "Product code", UNSIGNED32, 32, RO, id.product_code as u64),
-                    entry(3, "Revision number", UNSIGNED32, 32, RO, id.revision as u64),
-                    entry(4, "Serial number", UNSIGNED32, 32, RO, id.serial_number as u64),
-                ],
-            ),
+            identity_object("Identity object", "Revision number", id),
         ];
         for (i, entries) in pdo::POWER_UP_RX.iter().enumerate() {
             let mut o = mapping_object(0x1600 + i as u16, RX_NAMES[i], RW_PREOP, entries, FLEXIBLE_CAPACITY);

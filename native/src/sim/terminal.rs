@@ -398,25 +398,12 @@ fn tx_assignment(
 /// The EL3102's object dictionary: identity, its two fixed TxPDOs, their assignment, and the
 /// inputs (0x3101 and 0x3102: status byte and value).
 fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
-    use data_type::{INTEGER16, UNSIGNED16, UNSIGNED32, UNSIGNED8};
-    let id = description.identity;
+    use data_type::{INTEGER16, UNSIGNED16, UNSIGNED8};
     let Kind::AnalogInputs { channels } = description.kind else { unreachable!("an analog terminal") };
     let ro_tx = od::RO | access::TX_PDO;
     let mut objects = vec![
         od::string_var(0x1008, "Device name", description.order),
-        od::record(
-            0x1018,
-            "Identity",
-            ObjectCode::Record,
-            data_type::IDENTITY,
-            od::RO,
-            vec![
-                od::entry(1, "Vendor ID", UNSIGNED32, 32, od::RO, id.vendor_id.into()),
-                od::entry(2, "Product code", UNSIGNED32, 32, od::RO, id.product_code.into()),
-                od::entry(3, "Revision", UNSIGNED32, 32, od::RO, id.revision.into()),
-                od::entry(4, "Serial number", UNSIGNED32, 32, od::RO, id.serial_number.into()),
-            ],
-        ),
+        od::identity_object("Identity", "Revision", description.identity),
         od::array(0x1C00, "Sync manager type", UNSIGNED8, od::RO, od::RO, 1..=4),
         od::record(0x1C12, "RxPDO assign", ObjectCode::Array, UNSIGNED16, od::RW_PREOP, Vec::new()),
     ];
