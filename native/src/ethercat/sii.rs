@@ -252,6 +252,11 @@ pub struct SiiPdoEntry {
 }
 
 impl SiiPdoEntry {
+    /// An entry without flags, as the images written here carry them.
+    pub fn new(index: u16, subindex: u8, name_idx: u8, data_type: u8, bit_len: u8) -> Self {
+        SiiPdoEntry { index, subindex, name_idx, data_type, bit_len, flags: 0 }
+    }
+
     /// The entry as a mapping object value.
     pub fn pdo_entry(&self) -> PdoEntry {
         PdoEntry::new(self.index, self.subindex, self.bit_len)
@@ -1315,7 +1320,7 @@ mod tests {
             dc_sync: 0,
             name_idx: name,
             flags: 0,
-            entries: vec![SiiPdoEntry { index: 0x6041, subindex: 0, name_idx: 2, data_type: 6, bit_len: 16, flags: 0 }],
+            entries: vec![SiiPdoEntry::new(0x6041, 0, 2, 6, 16)],
         }]));
         let image = b.finish().unwrap();
         let e = Sii::parse(&image).unwrap_err().to_string();
