@@ -11,7 +11,6 @@
 //! power-cycled, lost, brought back and its outputs switched off, all in the watched cycles.
 
 use std::alloc::{GlobalAlloc, Layout, System};
-use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, AtomicI32, AtomicU64, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -105,14 +104,15 @@ fn cycle_loop_allocates_nothing() {
 
 /// The cell's run (see the module): the allocations of the watched cycles, none.
 fn devices_allocate_nothing() {
-    let address: SocketAddr = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let socket = server::bind_udp("127.0.0.1:0".parse().unwrap()).unwrap();
+    let address = socket.local_addr().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
     let line: SimLine = "ek1100,el1004,el2004,akd".parse().unwrap();
     let bus = ControlledBus::from(VirtualBus::of_line(&line, LATE_IS_NOT_MISSED).unwrap());
     let control = bus.control();
     let serving = {
         let stop = stop.clone();
-        std::thread::spawn(move || server::serve_udp(address, bus, &stop, None))
+        std::thread::spawn(move || server::serve_udp_on(socket, bus, &stop, None))
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));
     let deadline = Instant::now() + Duration::from_secs(5);
@@ -150,12 +150,13 @@ fn devices_allocate_nothing() {
 
 /// The run for one way of taking each frame's return: waited for, or `pipelined`.
 fn loop_allocates_nothing(pipelined: bool) {
-    let address: SocketAddr = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let socket = server::bind_udp("127.0.0.1:0".parse().unwrap()).unwrap();
+    let address = socket.local_addr().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
         let stop = stop.clone();
         std::thread::spawn(move || {
-            server::serve_udp(address, VirtualBus::with_timing(3, LATE_IS_NOT_MISSED), &stop, None)
+            server::serve_udp_on(socket, VirtualBus::with_timing(3, LATE_IS_NOT_MISSED), &stop, None)
         })
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));

@@ -3,7 +3,7 @@
 //! (large ones fragmented both ways, also through the smallest mailbox), and files written,
 //! read back and refused by name.
 
-use std::net::{Ipv4Addr, SocketAddr, UdpSocket};
+use std::net::{Ipv4Addr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -231,12 +231,13 @@ fn write_sm0_beside(injector: &UdpSocket, station: u16, sm0: (u16, u16), message
 fn malformed_eoe_headers_beside_the_running_cycle_disturb_neither_it_nor_the_ip_stack() {
     // Over UDP, so that a second sender's frames reach the same virtual drives as the cycle's.
     let late_is_not_missed = Timing { missed_frames: MissedFrames::Lost, ..Timing::IMMEDIATE };
-    let address: SocketAddr = UdpSocket::bind("127.0.0.1:0").unwrap().local_addr().unwrap();
+    let socket = server::bind_udp("127.0.0.1:0".parse().unwrap()).unwrap();
+    let address = socket.local_addr().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
         let stop = stop.clone();
         std::thread::spawn(move || {
-            server::serve_udp(address, VirtualBus::with_timing(2, late_is_not_missed), &stop, None)
+            server::serve_udp_on(socket, VirtualBus::with_timing(2, late_is_not_missed), &stop, None)
         })
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));

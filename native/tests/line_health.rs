@@ -11,7 +11,7 @@ use akd_native::drive::akd::AkdSlave;
 use akd_native::drive::pdo::Mapping;
 use akd_native::ethercat::al::AlState;
 use akd_native::ethercat::line_health::place::Finding;
-use akd_native::ethercat::line_health::registers::{Counter, ErrorCounts};
+use akd_native::ethercat::line_health::registers::ErrorCounts;
 use akd_native::ethercat::line_health::topology::End;
 use akd_native::ethercat::line_health::LineReading;
 use akd_native::ethercat::master::Master;
@@ -107,8 +107,8 @@ fn errors_into_a_port_1_are_named_as_the_return_path_and_counted_as_the_escs_cou
         let counted = control.esc_state(slave, QUERY_TIMEOUT).unwrap().counted;
         assert_eq!(reading.health.slaves[slave].totals, counted, "slave {slave}");
     }
-    assert_eq!(reading.health.slaves[3].totals.get(Counter::InvalidFrames(1)), 40);
-    assert_eq!(reading.health.slaves[0].totals.get(Counter::ForwardedErrors(1)), 40);
+    assert_eq!(reading.health.slaves[3].totals.ports[1].invalid_frames, 40);
+    assert_eq!(reading.health.slaves[0].totals.ports[1].forwarded_errors, 40);
     assert_eq!(reading.health.slaves[4].totals, ErrorCounts::default());
     cycle.stop().unwrap();
 }
@@ -135,8 +135,8 @@ fn a_link_taken_down_and_up_is_named_as_the_cable_it_is() {
         words.starts_with("link lost on the cable into slave 4 (joint_5) port 0, from slave 3 (joint_4) port 1: 1 "),
         "{words}"
     );
-    assert_eq!(up.health.slaves[3].totals.get(Counter::LostLinks(1)), 1);
-    assert_eq!(up.health.slaves[4].totals.get(Counter::LostLinks(0)), 1);
+    assert_eq!(up.health.slaves[3].totals.ports[1].lost_links, 1);
+    assert_eq!(up.health.slaves[4].totals.ports[0].lost_links, 1);
     cycle.stop().unwrap();
 }
 
@@ -149,8 +149,8 @@ fn a_read_at_rest_gives_what_the_escs_counted_since_power_up() {
     control.set_cable(2, false).unwrap();
     control.set_cable(2, true).unwrap();
     let reading = m.line_health().unwrap();
-    assert_eq!(reading.health.slaves[1].totals.get(Counter::LostLinks(1)), 1);
-    assert_eq!(reading.health.slaves[2].totals.get(Counter::LostLinks(0)), 1);
+    assert_eq!(reading.health.slaves[1].totals.ports[1].lost_links, 1);
+    assert_eq!(reading.health.slaves[2].totals.ports[0].lost_links, 1);
     // At rest, what the ESCs counted since power-up is what the findings place.
     let words: Vec<String> = reading.findings().iter().map(|f| f.words(label, &reading.period())).collect();
     assert_eq!(
@@ -195,8 +195,8 @@ fn a_line_of_terminals_is_read_port_by_port_as_each_esc_has_them() {
     let topology = reading.topology();
     assert_eq!(topology.peer(0, 1), Some(End::Port { slave: 1, port: 0 }));
     assert_eq!(topology.peer(0, 2), None, "the EK1100's X2 OUT has no cable on the virtual line");
-    assert_eq!(reading.health.slaves[2].totals.get(Counter::InvalidFrames(0)), 5);
-    assert_eq!(reading.health.slaves[0].totals.get(Counter::ForwardedErrors(1)), 5, "the EK1100's E-bus port");
+    assert_eq!(reading.health.slaves[2].totals.ports[0].invalid_frames, 5);
+    assert_eq!(reading.health.slaves[0].totals.ports[1].forwarded_errors, 5, "the EK1100's E-bus port");
     let names = ["EK1100", "EL1004", "EL2004", "AKD"];
     let words = reading.findings()[0].words(|s| format!("slave {s} ({})", names[s]), &reading.period());
     assert_eq!(

@@ -125,7 +125,7 @@ fn the_coupler_is_the_reference_clock_and_terminals_without_system_time_are_not_
     let dc: Vec<bool> = m.slaves().iter().map(|s| s.has_dc()).collect();
     // The ET1200 says it has DC (feature bit 2) and has no system time.
     assert_eq!(dc, [true, false, false, false, true]);
-    assert!(m.slaves()[1].esc_features & 0x0004 != 0);
+    assert!(m.slave_mut(1).unwrap().read_register(0x0008, 2).unwrap()[0] & 0x04 != 0);
     m.request_state(AlState::PreOp, STEP).unwrap();
     let fbus_param02 = m.configure_dc(1_000_000, 0).unwrap();
     assert_eq!(fbus_param02[..4], [None; 4], "nothing of the AKD's written to a terminal");

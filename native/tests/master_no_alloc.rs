@@ -2,7 +2,6 @@
 //! master exchanges with virtual AKDs served over UDP by another thread (whose allocations,
 //! the simulator's, are not the master's and are not counted).
 
-use std::net::{SocketAddr, UdpSocket};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 use std::time::Duration;
@@ -19,15 +18,13 @@ use counting::allocations;
 
 #[test]
 fn exchange_allocates_nothing() {
-    let address: SocketAddr = {
-        let probe = UdpSocket::bind("127.0.0.1:0").unwrap();
-        probe.local_addr().unwrap()
-    };
+    let socket = server::bind_udp("127.0.0.1:0".parse().unwrap()).unwrap();
+    let address = socket.local_addr().unwrap();
     let stop = Arc::new(AtomicBool::new(false));
     let serving = {
         let stop = stop.clone();
         std::thread::spawn(move || {
-            server::serve_udp(address, VirtualBus::with_timing(2, Timing::IMMEDIATE), &stop, None)
+            server::serve_udp_on(socket, VirtualBus::with_timing(2, Timing::IMMEDIATE), &stop, None)
         })
     };
     let mut m = Master::new(Box::new(Udp::connect(&address.to_string()).unwrap()), Duration::from_millis(500));

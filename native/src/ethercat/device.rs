@@ -1,8 +1,8 @@
 //! A slave's process data by name, as the slave describes it: its channels ([`Channel`]), one
 //! per PDO entry it carries, each named after the entry's name in its SII in snake case, with
 //! its direction, its bits, its data type and where it sits in the slave's data; and their
-//! values read from and written into a process image, to the bit ([`Channel::read`],
-//! [`Channel::write`]). What an EL1004 calls "Channel 1"'s "Input" is its channel
+//! values read from a process image, to the bit ([`Channel::read`]), and encoded to be written
+//! there ([`Channel::encode`]). What an EL1004 calls "Channel 1"'s "Input" is its channel
 //! `channel_1_input`. A pure codec: the master, the cycle thread, the node's messages and the
 //! Python side read a terminal's channels from here.
 //!
@@ -56,7 +56,8 @@ impl ChannelValue {
 }
 
 /// A value a channel cannot take.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("channel {channel}: {given} given, allowed {allowed}")]
 pub struct ChannelValueError {
     /// The channel's name.
     pub channel: String,
@@ -65,14 +66,6 @@ pub struct ChannelValueError {
     /// What it takes, in words.
     pub allowed: String,
 }
-
-impl std::fmt::Display for ChannelValueError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "channel {}: {} given, allowed {}", self.channel, self.given, self.allowed)
-    }
-}
-
-impl std::error::Error for ChannelValueError {}
 
 impl Channel {
     /// Whether it is one bit.
@@ -136,12 +129,6 @@ impl Channel {
                 Err(refused(given, allowed))
             }
         }
-    }
-
-    /// Writes `raw` (from [`encode`](Self::encode)) into `image` where the slave's data of its
-    /// direction starts at bit `start`, leaving every other bit.
-    pub fn write(&self, image: &mut [u8], start: usize, raw: u64) {
-        copy_bits(&raw.to_le_bytes(), 0, image, start + self.bit, usize::from(self.entry.bits).min(64));
     }
 }
 
@@ -225,12 +212,11 @@ mod tests {
     }
 
     #[test]
-    fn bits_and_integers_read_and_write_to_the_bit() {
+    fn bits_and_integers_read_and_encode_to_the_bit() {
         let output = one_bit("channel_2_output", Direction::Rx, 1);
-        let mut image = [0b1000_0000u8, 0];
-        output.write(&mut image, 4, output.encode(ChannelValue::Bit(true)).unwrap());
-        assert_eq!(image, [0b1010_0000, 0]);
-        assert_eq!(output.read(&image, 4), ChannelValue::Bit(true));
+        assert_eq!(output.read(&[0b1010_0000, 0], 4), ChannelValue::Bit(true));
+        assert_eq!(output.read(&[0b1000_0000, 0], 4), ChannelValue::Bit(false));
+        assert_eq!(output.encode(ChannelValue::Bit(true)), Ok(1));
         assert_eq!(output.encode(ChannelValue::Integer(1)), Ok(1));
         let refused = output.encode(ChannelValue::Integer(2)).unwrap_err().to_string();
         assert_eq!(refused, "channel channel_2_output: 2 given, allowed 0..=1 (1 bits)");

@@ -15,7 +15,6 @@
 //! as `01 00 A8 C0`) and the DNS name (32 bytes, zero-padded; TwinCAT sends all 32 however short
 //! the name is).
 
-use std::fmt;
 use std::net::Ipv4Addr;
 
 use crate::ethercat::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
@@ -491,9 +490,10 @@ impl Reassembler {
 
 /// An EoE message or fragment that does not fit the standard (ETG.1000.6 §5.7), or a frame
 /// that cannot be sent through EoE.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum EoeError {
     /// A message, or a field of one, cut short.
+    #[error("{what} cut short: the message has {len} bytes, it needs {needed}")]
     Truncated {
         /// The structure or field.
         what: &'static str,
@@ -503,8 +503,10 @@ pub enum EoeError {
         needed: usize,
     },
     /// A frame type outside the standard's set.
+    #[error("{0}")]
     UnknownCode(UnknownCode),
     /// A DNS name longer than its field.
+    #[error("DNS name of {len} bytes is longer than {max}")]
     DnsNameTooLong {
         /// Its length in bytes.
         len: usize,
@@ -512,8 +514,10 @@ pub enum EoeError {
         max: usize,
     },
     /// A DNS name that is not UTF-8 text.
+    #[error("DNS name is not valid text")]
     DnsNameNotText,
     /// An Ethernet frame longer than EoE carries here, or than its fragment 0 announced.
+    #[error("Ethernet frame of {len} bytes is longer than {max}")]
     FrameTooLong {
         /// Its length.
         len: usize,
@@ -521,6 +525,7 @@ pub enum EoeError {
         max: usize,
     },
     /// A mailbox too small for one 32-byte unit of a fragment.
+    #[error("a {len}-byte mailbox cannot carry an EoE fragment (it needs {min} bytes)")]
     MailboxTooSmall {
         /// The mailbox's length.
         len: usize,
@@ -528,6 +533,7 @@ pub enum EoeError {
         min: usize,
     },
     /// A fragment other than the next one of the frame being put together.
+    #[error("EoE fragment {got} of frame {frame_number} where fragment {expected} was expected")]
     OutOfOrder {
         /// Its frame number.
         frame_number: u8,
@@ -537,6 +543,7 @@ pub enum EoeError {
         got: u8,
     },
     /// A fragment whose offset is not where the frame being put together has reached.
+    #[error("EoE fragment at offset {offset} where {received} bytes were received")]
     OffsetMismatch {
         /// Its offset in bytes.
         offset: usize,
@@ -544,16 +551,19 @@ pub enum EoeError {
         received: usize,
     },
     /// A fragment other than the last whose length is not a multiple of 32 bytes.
+    #[error("EoE fragment of {len} bytes is not the last but not a multiple of 32 bytes")]
     FragmentNotWholeUnits {
         /// Its length.
         len: usize,
     },
     /// The slave's SII does not list EoE among its mailbox protocols.
+    #[error("slave {slave} does not speak EoE (SII mailbox protocols)")]
     NotSupported {
         /// Slave position.
         slave: u16,
     },
     /// The slave answered Set IP Parameter with another result than success.
+    #[error("slave {slave} answered Set IP Parameter with result 0x{result:04X} ({result_name})")]
     Refused {
         /// Slave position.
         slave: u16,
@@ -563,6 +573,7 @@ pub enum EoeError {
         result_name: &'static str,
     },
     /// A frame whose length does not round to the size its fragment 0 announced.
+    #[error("EoE frame of {received} bytes where fragment 0 announced {announced_units} units of 32 bytes")]
     SizeMismatch {
         /// The size announced, in 32-byte units.
         announced_units: u8,
@@ -570,44 +581,6 @@ pub enum EoeError {
         received: usize,
     },
 }
-
-impl fmt::Display for EoeError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            EoeError::Truncated { what, len, needed } => {
-                write!(f, "{what} cut short: the message has {len} bytes, it needs {needed}")
-            }
-            EoeError::UnknownCode(e) => write!(f, "{e}"),
-            EoeError::DnsNameTooLong { len, max } => write!(f, "DNS name of {len} bytes is longer than {max}"),
-            EoeError::DnsNameNotText => write!(f, "DNS name is not valid text"),
-            EoeError::FrameTooLong { len, max } => write!(f, "Ethernet frame of {len} bytes is longer than {max}"),
-            EoeError::MailboxTooSmall { len, min } => {
-                write!(f, "a {len}-byte mailbox cannot carry an EoE fragment (it needs {min} bytes)")
-            }
-            EoeError::OutOfOrder { frame_number, expected, got } => {
-                write!(f, "EoE fragment {got} of frame {frame_number} where fragment {expected} was expected")
-            }
-            EoeError::OffsetMismatch { offset, received } => {
-                write!(f, "EoE fragment at offset {offset} where {received} bytes were received")
-            }
-            EoeError::FragmentNotWholeUnits { len } => {
-                write!(f, "EoE fragment of {len} bytes is not the last but not a multiple of 32 bytes")
-            }
-            EoeError::NotSupported { slave } => {
-                write!(f, "slave {slave} does not speak EoE (SII mailbox protocols)")
-            }
-            EoeError::Refused { slave, result, result_name } => {
-                write!(f, "slave {slave} answered Set IP Parameter with result 0x{result:04X} ({result_name})")
-            }
-            EoeError::SizeMismatch { announced_units, received } => write!(
-                f,
-                "EoE frame of {received} bytes where fragment 0 announced {announced_units} units of 32 bytes"
-            ),
-        }
-    }
-}
-
-impl std::error::Error for EoeError {}
 
 #[cfg(test)]
 mod tests {

@@ -9,7 +9,6 @@
 //! with an empty one. Either side may end a transfer with an error.
 
 use std::borrow::Cow;
-use std::fmt;
 
 use crate::ethercat::mailbox::{MailboxHeader, MailboxType, HEADER_LEN};
 use crate::wire_code::UnknownCode;
@@ -210,9 +209,10 @@ pub fn packets(file: &[u8], room: usize) -> impl Iterator<Item = (u32, &[u8])> +
 }
 
 /// A FoE message that does not fit the standard (ETG.1000.6 §5.9), or a transfer that failed.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum FoeError {
     /// A message cut short.
+    #[error("{what} of {len} bytes is shorter than the {needed} bytes it needs")]
     Truncated {
         /// The structure.
         what: &'static str,
@@ -222,15 +222,22 @@ pub enum FoeError {
         needed: usize,
     },
     /// An opcode outside the standard's set.
+    #[error("{0}")]
     UnknownCode(UnknownCode),
     /// A file name that is not UTF-8 text.
+    #[error("FoE file name is not valid text")]
     NameNotText,
     /// The slave's SII does not list FoE among its mailbox protocols.
+    #[error("slave {slave} does not speak FoE (SII mailbox protocols)")]
     NotSupported {
         /// Slave position.
         slave: u16,
     },
     /// The slave ended the transfer of `name` with a FoE error.
+    #[error(
+        "slave {slave} refused file {name:?}: FoE error 0x{code:04X} ({code_name}){}",
+        if .text.is_empty() || .text == .code_name { String::new() } else { format!(": {}", .text) }
+    )]
     Refused {
         /// Slave position.
         slave: u16,
@@ -244,6 +251,7 @@ pub enum FoeError {
         text: String,
     },
     /// The slave answered with another message than the transfer allows.
+    #[error("slave {slave} answered the transfer of {name:?} with FoE {got} where {expected} was due")]
     Unexpected {
         /// Slave position.
         slave: u16,
@@ -255,6 +263,7 @@ pub enum FoeError {
         got: &'static str,
     },
     /// A packet or acknowledge with another number than the transfer reached.
+    #[error("slave {slave} sent FoE packet number {got} where {expected} was due")]
     PacketNumber {
         /// Slave position.
         slave: u16,
@@ -264,6 +273,7 @@ pub enum FoeError {
         got: u32,
     },
     /// A file longer than this master reads into memory.
+    #[error("file {name:?} is longer than {max} bytes")]
     TooLong {
         /// The file.
         name: String,
@@ -271,37 +281,6 @@ pub enum FoeError {
         max: usize,
     },
 }
-
-impl fmt::Display for FoeError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            FoeError::Truncated { what, len, needed } => {
-                write!(f, "{what} of {len} bytes is shorter than the {needed} bytes it needs")
-            }
-            FoeError::UnknownCode(e) => write!(f, "{e}"),
-            FoeError::NameNotText => write!(f, "FoE file name is not valid text"),
-            FoeError::NotSupported { slave } => {
-                write!(f, "slave {slave} does not speak FoE (SII mailbox protocols)")
-            }
-            FoeError::Refused { slave, name, code, code_name, text } => {
-                write!(f, "slave {slave} refused file {name:?}: FoE error 0x{code:04X} ({code_name})")?;
-                if !text.is_empty() && text != code_name {
-                    write!(f, ": {text}")?;
-                }
-                Ok(())
-            }
-            FoeError::Unexpected { slave, name, expected, got } => {
-                write!(f, "slave {slave} answered the transfer of {name:?} with FoE {got} where {expected} was due")
-            }
-            FoeError::PacketNumber { slave, expected, got } => {
-                write!(f, "slave {slave} sent FoE packet number {got} where {expected} was due")
-            }
-            FoeError::TooLong { name, max } => write!(f, "file {name:?} is longer than {max} bytes"),
-        }
-    }
-}
-
-impl std::error::Error for FoeError {}
 
 #[cfg(test)]
 mod tests {

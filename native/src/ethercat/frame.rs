@@ -9,8 +9,6 @@
 //! virtual AKD) serve the datagrams in place. Nothing here allocates, so the cyclic path can
 //! use it.
 
-use std::fmt;
-
 /// EtherType of EtherCAT frames, also the UDP port of EtherCAT-over-UDP.
 pub const ETHERTYPE: u16 = 0x88A4;
 /// Length of an Ethernet II header (destination, source, EtherType).
@@ -464,9 +462,10 @@ pub fn write_ethernet_header(out: &mut [u8], source: [u8; 6]) {
 }
 
 /// A malformed or unexpected EtherCAT frame.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum FrameError {
     /// Fewer bytes than the structure named by `what` needs.
+    #[error("truncated frame: the {what} needs {needed} bytes, the frame has {got}")]
     Truncated {
         /// The structure being decoded.
         what: &'static str,
@@ -476,12 +475,16 @@ pub enum FrameError {
         got: usize,
     },
     /// The frame header's type is not 1 (EtherCAT datagrams).
+    #[error("frame header type {0} is not 1 (EtherCAT datagrams)")]
     NotDatagrams(u8),
     /// A datagram command byte above 14.
+    #[error("unknown datagram command {0} (allowed 0..=14, NOP..FRMW)")]
     UnknownCommand(u8),
     /// A frame header announcing no datagrams.
+    #[error("frame header announces no datagrams")]
     Empty,
     /// The frame header's length differs from the datagrams' total.
+    #[error("frame header announces {header} bytes of datagrams but the datagrams take {datagrams}")]
     LengthMismatch {
         /// Length in the frame header.
         header: usize,
@@ -489,6 +492,7 @@ pub enum FrameError {
         datagrams: usize,
     },
     /// A datagram that does not fit the frame.
+    #[error("datagram of {len} data bytes does not fit the frame ({room} bytes left)")]
     TooLarge {
         /// Data length asked for.
         len: usize,
@@ -496,36 +500,9 @@ pub enum FrameError {
         room: usize,
     },
     /// Not an EtherCAT Ethernet frame (EtherType other than 0x88A4).
+    #[error("EtherType 0x{0:04X} is not EtherCAT (0x88A4)")]
     NotEtherCat(u16),
 }
-
-impl fmt::Display for FrameError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            FrameError::Truncated { what, needed, got } => {
-                write!(f, "truncated frame: the {what} needs {needed} bytes, the frame has {got}")
-            }
-            FrameError::NotDatagrams(t) => {
-                write!(f, "frame header type {t} is not 1 (EtherCAT datagrams)")
-            }
-            FrameError::UnknownCommand(c) => {
-                write!(f, "unknown datagram command {c} (allowed 0..=14, NOP..FRMW)")
-            }
-            FrameError::Empty => write!(f, "frame header announces no datagrams"),
-            FrameError::LengthMismatch { header, datagrams } => {
-                write!(f, "frame header announces {header} bytes of datagrams but the datagrams take {datagrams}")
-            }
-            FrameError::TooLarge { len, room } => {
-                write!(f, "datagram of {len} data bytes does not fit the frame ({room} bytes left)")
-            }
-            FrameError::NotEtherCat(t) => {
-                write!(f, "EtherType 0x{t:04X} is not EtherCAT (0x88A4)")
-            }
-        }
-    }
-}
-
-impl std::error::Error for FrameError {}
 
 #[cfg(test)]
 mod tests {

@@ -10,9 +10,10 @@ use std::fmt;
 use std::str::FromStr;
 
 /// Why a text is not a link spec; its text names the allowed forms.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum LinkSpecError {
     /// `sim:N` with N not a number in 1..=`max`.
+    #[error("link {spec:?}: the number of virtual AKDs must be 1..={max} (or name the slaves, sim:P1,P2,...)")]
     SimCount {
         /// The spec as given.
         spec: String,
@@ -20,6 +21,7 @@ pub enum LinkSpecError {
         max: usize,
     },
     /// `sim:SPEC` whose SPEC is no line of slaves the simulator makes.
+    #[error("link {spec:?}: {error}")]
     SimLine {
         /// The spec as given.
         spec: String,
@@ -28,11 +30,25 @@ pub enum LinkSpecError {
     },
     /// `sim...?` with an option other than `missed=late|lost|warn` or `pace=real|immediate`,
     /// or one given twice.
+    #[error(
+        "link {spec:?}: the virtual AKDs take options after '?', joined by '&', each once: \
+     missed=late (the default: a frame that comes late is missed and more than seven \
+     raise F125, as the real drive judges), missed=lost (only frames lost on the line \
+     are missed) or missed=warn (judged as the real drive, but a would-be F125 is \
+     counted and warned of instead of raised, for a host whose master thread is not \
+     real-time); pace=real (the default: AL requests and mailbox answered as slowly as \
+     the real drive answers them) or pace=immediate (at once, for tests that need speed)"
+    )]
     SimOption {
         /// The spec as given.
         spec: String,
     },
     /// An interface name followed by an option other than `busy_poll=US` with US in 0..=`max`.
+    #[error(
+        "link {spec:?}: a network interface takes one option, ?busy_poll=US with US in 0..={max}: \
+     how many µs the master busy-polls for the returning frame before it sleeps (0, the \
+     default: it sleeps at once)"
+    )]
     InterfaceOption {
         /// The spec as given.
         spec: String,
@@ -40,11 +56,14 @@ pub enum LinkSpecError {
         max: u32,
     },
     /// `udp://` without `HOST:PORT`, or with a port outside 1..=65535.
+    // The port range as the node's parameter check has always named it.
+    #[error("link {spec:?} is no udp://HOST:PORT with a port in 1..65535")]
     UdpAddress {
         /// The spec as given.
         spec: String,
     },
     /// None of the forms (empty, or a path or an address without `udp://`).
+    #[error("link {spec:?} is none of {}", LinkSpecError::allowed_forms(*.max_sim_count))]
     Unknown {
         /// The spec as given.
         spec: String,
@@ -66,45 +85,6 @@ impl LinkSpecError {
         )
     }
 }
-
-impl fmt::Display for LinkSpecError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            LinkSpecError::SimCount { spec, max } => {
-                write!(
-                    f,
-                    "link {spec:?}: the number of virtual AKDs must be 1..={max} (or name the slaves, sim:P1,P2,...)"
-                )
-            }
-            LinkSpecError::SimLine { spec, error } => write!(f, "link {spec:?}: {error}"),
-            LinkSpecError::SimOption { spec } => write!(
-                f,
-                "link {spec:?}: the virtual AKDs take options after '?', joined by '&', each once: \
-                 missed=late (the default: a frame that comes late is missed and more than seven \
-                 raise F125, as the real drive judges), missed=lost (only frames lost on the line \
-                 are missed) or missed=warn (judged as the real drive, but a would-be F125 is \
-                 counted and warned of instead of raised, for a host whose master thread is not \
-                 real-time); pace=real (the default: AL requests and mailbox answered as slowly as \
-                 the real drive answers them) or pace=immediate (at once, for tests that need speed)"
-            ),
-            LinkSpecError::InterfaceOption { spec, max } => write!(
-                f,
-                "link {spec:?}: a network interface takes one option, ?busy_poll=US with US in 0..={max}: \
-                 how many µs the master busy-polls for the returning frame before it sleeps (0, the \
-                 default: it sleeps at once)"
-            ),
-            // The port range as the node's parameter check has always named it.
-            LinkSpecError::UdpAddress { spec } => {
-                write!(f, "link {spec:?} is no udp://HOST:PORT with a port in 1..65535")
-            }
-            LinkSpecError::Unknown { spec, max_sim_count } => {
-                write!(f, "link {spec:?} is none of {}", LinkSpecError::allowed_forms(*max_sim_count))
-            }
-        }
-    }
-}
-
-impl std::error::Error for LinkSpecError {}
 
 /// The most virtual AKDs one in-process bus may hold: far more drives than one node moves, and
 /// few enough that a mistyped count does not build a bus that takes seconds per frame.
@@ -213,10 +193,15 @@ impl SimProduct {
 }
 
 /// Why a text is not a virtual line (`sim:SPEC`, `akd-sim --line SPEC`).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SimLineError {
     /// A slave that names no product the simulator makes (or an empty one: two commas in a
     /// row, or one at an end).
+    #[error(
+        "the slave at position {position}, {name:?}, is no product the simulator makes: allowed are {} \
+         (the slaves in order, separated by commas, e.g. ek1100,el1004,el2004,akd)",
+        SimProduct::allowed()
+    )]
     UnknownProduct {
         /// Its position on the line, from 0.
         position: usize,
@@ -224,6 +209,7 @@ pub enum SimLineError {
         name: String,
     },
     /// More slaves than a line may hold.
+    #[error("a line of {count} slaves: the simulator makes lines of 1 to {max}")]
     TooMany {
         /// Slaves given.
         count: usize,
@@ -232,6 +218,11 @@ pub enum SimLineError {
     },
     /// An E-bus terminal with neither a coupler nor a terminal in front of it, which a real
     /// line cannot have: the E-bus is the coupler's.
+    #[error(
+        "the slave at position {position}, {}, is an E-bus terminal: an ek1100 or another terminal goes in \
+         front of it, as on a real line",
+        .product.name()
+    )]
     NoCoupler {
         /// Its position on the line, from 0.
         position: usize,
@@ -239,30 +230,6 @@ pub enum SimLineError {
         product: SimProduct,
     },
 }
-
-impl fmt::Display for SimLineError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            SimLineError::UnknownProduct { position, name } => write!(
-                f,
-                "the slave at position {position}, {name:?}, is no product the simulator makes: allowed are {} \
-                 (the slaves in order, separated by commas, e.g. ek1100,el1004,el2004,akd)",
-                SimProduct::allowed()
-            ),
-            SimLineError::TooMany { count, max } => {
-                write!(f, "a line of {count} slaves: the simulator makes lines of 1 to {max}")
-            }
-            SimLineError::NoCoupler { position, product } => write!(
-                f,
-                "the slave at position {position}, {}, is an E-bus terminal: an ek1100 or another terminal goes in \
-                 front of it, as on a real line",
-                product.name()
-            ),
-        }
-    }
-}
-
-impl std::error::Error for SimLineError {}
 
 /// The slaves of a virtual line in the order frames pass them, 1 to [`MAX_SIM_COUNT`] of them,
 /// each E-bus terminal behind a coupler or another terminal.

@@ -4,8 +4,6 @@
 //! channel and priority, and the protocol type with a 3-bit counter. The counter lets a slave
 //! tell a repeated message from a new one; the AKD echoes the master's counter in its reply.
 
-use std::fmt;
-
 use crate::wire_code::UnknownCode;
 
 /// Length of the mailbox header.
@@ -181,9 +179,10 @@ pub fn parse_error_reply(body: &[u8]) -> Result<u16, MailboxError> {
 
 /// A mailbox message that does not fit the request or the protocol (ETG.1000.6 mailbox and
 /// CoE).
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum MailboxError {
     /// A message, or a structure in one, shorter than the structure needs.
+    #[error("{what} of {len} bytes is shorter than the {needed} bytes it needs")]
     Truncated {
         /// The structure, e.g. "SDO response" or "emergency message".
         what: &'static str,
@@ -193,6 +192,7 @@ pub enum MailboxError {
         needed: usize,
     },
     /// The mailbox header announces more data than the mailbox holds.
+    #[error("header announces {announced} bytes but the mailbox holds {holds}")]
     LengthMismatch {
         /// Length in the mailbox header.
         announced: u16,
@@ -201,28 +201,34 @@ pub enum MailboxError {
     },
     /// A wire code outside the standard's set (CoE service, SDO command specifier, SDO
     /// information opcode).
-    UnknownCode(UnknownCode),
+    #[error(transparent)]
+    UnknownCode(#[from] UnknownCode),
     /// A message of another mailbox type where CoE (3) was expected.
+    #[error("mailbox type {mailbox_type} is not CoE (3)")]
     NotCoe {
         /// The mailbox type received.
         mailbox_type: u8,
     },
     /// A name in an SDO information description that is not UTF-8 text.
+    #[error("{what} is not valid text")]
     NotText {
         /// The name's field.
         what: &'static str,
     },
     /// The slave has no mailbox: its SII lists no mailbox protocol.
+    #[error("slave {slave} has no mailbox (its SII lists no mailbox protocol)")]
     NoMailbox {
         /// Slave position.
         slave: u16,
     },
     /// The slave's SII does not list CoE among its mailbox protocols.
+    #[error("slave {slave} does not speak CoE (SII mailbox protocols)")]
     NoCoe {
         /// Slave position.
         slave: u16,
     },
     /// A message longer than the slave's mailbox (SM0).
+    #[error("message of {len} bytes does not fit slave {slave}'s {room}-byte mailbox")]
     TooLong {
         /// Slave position.
         slave: u16,
@@ -232,6 +238,7 @@ pub enum MailboxError {
         room: u16,
     },
     /// The slave answered with a mailbox error reply (ETG.1000.6 Table 30).
+    #[error("slave {slave} answered with mailbox error 0x{detail:04X} ({detail_name})")]
     ErrorReply {
         /// Slave position.
         slave: u16,
@@ -241,6 +248,7 @@ pub enum MailboxError {
         detail_name: &'static str,
     },
     /// A message of a mailbox type this master does not speak (it speaks CoE).
+    #[error("slave {slave} sent a mailbox message of type {mailbox_type} that this master does not speak (CoE is 3)")]
     UnsupportedType {
         /// Slave position.
         slave: u16,
@@ -248,6 +256,7 @@ pub enum MailboxError {
         mailbox_type: u8,
     },
     /// A CoE reply of another service than the one that answers the request.
+    #[error("slave {slave} answered {request} with CoE service {got} (expected {expected})")]
     UnexpectedService {
         /// Slave position.
         slave: u16,
@@ -259,6 +268,9 @@ pub enum MailboxError {
         expected: &'static str,
     },
     /// An SDO upload that carried another number of bytes than it announced.
+    #[error(
+        "upload of 0x{index:04X}:{subindex:02X} from slave {slave} announced {announced} bytes but carried {carried}"
+    )]
     UploadSize {
         /// Slave position.
         slave: u16,
@@ -272,6 +284,7 @@ pub enum MailboxError {
         carried: usize,
     },
     /// An SDO response that does not answer the request (other than an abort).
+    #[error("slave {slave} answered the {transfer} of 0x{index:04X}:{subindex:02X} with {response}")]
     UnexpectedResponse {
         /// Slave position.
         slave: u16,
@@ -285,8 +298,10 @@ pub enum MailboxError {
         response: String,
     },
     /// An SDO information error request without its abort code.
+    #[error("SDO information error without an abort code")]
     InfoErrorWithoutCode,
     /// An SDO information response that does not answer the request's opcode.
+    #[error("slave {slave} answered SDO information opcode {asked} with opcode {got} (expected {expected})")]
     UnexpectedOpcode {
         /// Slave position.
         slave: u16,
@@ -298,8 +313,10 @@ pub enum MailboxError {
         expected: &'static str,
     },
     /// A Get OD List response without its list type.
+    #[error("OD list response without its list type")]
     OdListWithoutType,
     /// A description of another object or entry than the one asked for.
+    #[error("asked for the description of {asked}, got {got}'s")]
     WrongDescription {
         /// What was asked, e.g. "0x6041" or "0x6041:00".
         asked: String,
@@ -307,6 +324,10 @@ pub enum MailboxError {
         got: String,
     },
     /// An SDO transfer asked of the cycle thread that needs segments, which it does not run.
+    #[error(
+        "SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave} needs a segmented transfer, which runs \
+         only with the cycle stopped"
+    )]
     NeedsSegments {
         /// "read" or "write".
         verb: &'static str,
@@ -318,6 +339,7 @@ pub enum MailboxError {
         subindex: u8,
     },
     /// A slave without a CoE mailbox asked for an SDO transfer by the cycle thread.
+    #[error("slave {slave} has no CoE mailbox for the SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave}")]
     NoCoeForTransfer {
         /// "read" or "write".
         verb: &'static str,
@@ -329,6 +351,10 @@ pub enum MailboxError {
         subindex: u8,
     },
     /// A mailbox error reply to an SDO transfer of the cycle thread.
+    #[error(
+        "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} with mailbox error \
+         0x{detail:04X} ({detail_name})"
+    )]
     TransferErrorReply {
         /// "read" or "write".
         verb: &'static str,
@@ -344,6 +370,10 @@ pub enum MailboxError {
         detail_name: &'static str,
     },
     /// Any other reply to an SDO transfer of the cycle thread.
+    #[error(
+        "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave} with \
+         something else"
+    )]
     TransferUnexpected {
         /// "read" or "write".
         verb: &'static str,
@@ -355,81 +385,6 @@ pub enum MailboxError {
         subindex: u8,
     },
 }
-
-impl fmt::Display for MailboxError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            MailboxError::Truncated { what, len, needed } => {
-                write!(f, "{what} of {len} bytes is shorter than the {needed} bytes it needs")
-            }
-            MailboxError::LengthMismatch { announced, holds } => {
-                write!(f, "header announces {announced} bytes but the mailbox holds {holds}")
-            }
-            MailboxError::UnknownCode(e) => write!(f, "{e}"),
-            MailboxError::NotCoe { mailbox_type } => write!(f, "mailbox type {mailbox_type} is not CoE (3)"),
-            MailboxError::NotText { what } => write!(f, "{what} is not valid text"),
-            MailboxError::NoMailbox { slave } => {
-                write!(f, "slave {slave} has no mailbox (its SII lists no mailbox protocol)")
-            }
-            MailboxError::NoCoe { slave } => write!(f, "slave {slave} does not speak CoE (SII mailbox protocols)"),
-            MailboxError::TooLong { slave, len, room } => {
-                write!(f, "message of {len} bytes does not fit slave {slave}'s {room}-byte mailbox")
-            }
-            MailboxError::ErrorReply { slave, detail, detail_name } => {
-                write!(f, "slave {slave} answered with mailbox error 0x{detail:04X} ({detail_name})")
-            }
-            MailboxError::UnsupportedType { slave, mailbox_type } => write!(
-                f,
-                "slave {slave} sent a mailbox message of type {mailbox_type} that this master does not speak (CoE is 3)"
-            ),
-            MailboxError::UnexpectedService { slave, request, got, expected } => {
-                write!(f, "slave {slave} answered {request} with CoE service {got} (expected {expected})")
-            }
-            MailboxError::UploadSize { slave, index, subindex, announced, carried } => write!(
-                f,
-                "upload of 0x{index:04X}:{subindex:02X} from slave {slave} announced {announced} bytes but carried {carried}"
-            ),
-            MailboxError::UnexpectedResponse { slave, transfer, index, subindex, response } => {
-                write!(f, "slave {slave} answered the {transfer} of 0x{index:04X}:{subindex:02X} with {response}")
-            }
-            MailboxError::InfoErrorWithoutCode => write!(f, "SDO information error without an abort code"),
-            MailboxError::UnexpectedOpcode { slave, asked, got, expected } => {
-                write!(f, "slave {slave} answered SDO information opcode {asked} with opcode {got} (expected {expected})")
-            }
-            MailboxError::OdListWithoutType => write!(f, "OD list response without its list type"),
-            MailboxError::WrongDescription { asked, got } => {
-                write!(f, "asked for the description of {asked}, got {got}'s")
-            }
-            MailboxError::NeedsSegments { verb, slave, index, subindex } => write!(
-                f,
-                "SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave} needs a segmented transfer, which runs \
-                 only with the cycle stopped"
-            ),
-            MailboxError::NoCoeForTransfer { verb, slave, index, subindex } => write!(
-                f,
-                "slave {slave} has no CoE mailbox for the SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave}"
-            ),
-            MailboxError::TransferErrorReply { verb, slave, index, subindex, detail, detail_name } => write!(
-                f,
-                "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} with mailbox error \
-                 0x{detail:04X} ({detail_name})"
-            ),
-            MailboxError::TransferUnexpected { verb, slave, index, subindex } => write!(
-                f,
-                "slave {slave} answered the SDO {verb} of 0x{index:04X}:{subindex:02X} of slave {slave} with \
-                 something else"
-            ),
-        }
-    }
-}
-
-impl From<UnknownCode> for MailboxError {
-    fn from(e: UnknownCode) -> Self {
-        MailboxError::UnknownCode(e)
-    }
-}
-
-impl std::error::Error for MailboxError {}
 
 #[cfg(test)]
 mod tests {

@@ -138,19 +138,12 @@ pub fn find(entries: &[PdoEntry], index: u16, subindex: u8) -> Option<(usize, Pd
 }
 
 /// A mapping entry written as text in a form other than [`PdoEntry::parse`] takes.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("entry '{text}' is not INDEX:SUB/BITS in hex, e.g. 0x6040:00/16")]
 pub struct EntrySyntaxError {
     /// The text as given.
     pub text: String,
 }
-
-impl std::fmt::Display for EntrySyntaxError {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "entry '{}' is not INDEX:SUB/BITS in hex, e.g. 0x6040:00/16", self.text)
-    }
-}
-
-impl std::error::Error for EntrySyntaxError {}
 
 impl PdoEntry {
     /// Parses an entry written as the node's parameters write it, `INDEX:SUB/BITS`: index in

@@ -4,12 +4,6 @@
 
 /// ESC type (1 byte), then revision (1) and build (2).
 pub const TYPE: u16 = 0x0000;
-/// Number of FMMUs supported (1 byte).
-pub const FMMU_COUNT: u16 = 0x0004;
-/// Number of sync managers supported (1 byte).
-pub const SM_COUNT: u16 = 0x0005;
-/// Process RAM size in KiB (1 byte).
-pub const RAM_SIZE: u16 = 0x0006;
 /// Port descriptor (1 byte).
 pub const PORT_DESCRIPTOR: u16 = 0x0007;
 /// ESC features supported (2 bytes).
@@ -34,26 +28,16 @@ pub const AL_STATUS_CODE: u16 = 0x0134;
 pub const PDI_CONTROL: u16 = 0x0140;
 /// ECAT event mask (2 bytes).
 pub const ECAT_EVENT_MASK: u16 = 0x0200;
-/// AL event mask / interrupt enable (4 bytes).
-pub const AL_EVENT_MASK: u16 = 0x0204;
 /// ECAT event request (2 bytes).
 pub const ECAT_EVENT_REQUEST: u16 = 0x0210;
-/// AL event request (4 bytes).
-pub const AL_EVENT_REQUEST: u16 = 0x0220;
 /// Watchdog divider (2 bytes), in 40 ns ticks.
 pub const WATCHDOG_DIVIDER: u16 = 0x0400;
-/// Process-data watchdog time (2 bytes), in watchdog-divider units.
-pub const WATCHDOG_TIME_PDI: u16 = 0x0410;
 /// Process-data (SM) watchdog time (2 bytes), in watchdog-divider units.
 pub const WATCHDOG_TIME_PROCESS_DATA: u16 = 0x0420;
 /// Watchdog status process data (2 bytes): bit 0 = 1 while not expired.
 pub const WATCHDOG_STATUS: u16 = 0x0440;
-/// Watchdog counter process data (1 byte).
-pub const WATCHDOG_COUNTER: u16 = 0x0442;
 /// SII EEPROM configuration (1 byte): bit 0 = PDI owns the EEPROM.
 pub const SII_CONFIG: u16 = 0x0500;
-/// SII EEPROM access state (1 byte).
-pub const SII_ACCESS: u16 = 0x0501;
 /// SII EEPROM control/status (2 bytes).
 pub const SII_CONTROL: u16 = 0x0502;
 /// SII EEPROM word address (4 bytes).
@@ -80,20 +64,12 @@ pub const DC_SYSTEM_TIME_OFFSET: u16 = 0x0920;
 pub const DC_SYSTEM_TIME_DELAY: u16 = 0x0928;
 /// DC system time difference (4 bytes): bit 31 sign, magnitude in ns.
 pub const DC_SYSTEM_TIME_DIFFERENCE: u16 = 0x092C;
-/// DC speed counter start (2 bytes).
-pub const DC_SPEED_COUNTER_START: u16 = 0x0930;
-/// DC time difference filter depth (2 bytes at 0x0934: system time, speed counter).
-pub const DC_FILTER_DEPTH: u16 = 0x0934;
-/// DC cyclic unit control (1 byte).
-pub const DC_CYCLIC_UNIT_CONTROL: u16 = 0x0980;
 /// DC activation (1 byte): bit 0 cyclic operation, bit 1 SYNC0, bit 2 SYNC1.
 pub const DC_ACTIVATION: u16 = 0x0981;
 /// DC SYNC0 start time (8 bytes, system time).
 pub const DC_SYNC0_START_TIME: u16 = 0x0990;
 /// DC SYNC0 cycle time (4 bytes, ns).
 pub const DC_SYNC0_CYCLE_TIME: u16 = 0x09A0;
-/// DC SYNC1 cycle time (4 bytes, ns).
-pub const DC_SYNC1_CYCLE_TIME: u16 = 0x09A4;
 
 /// Address of sync manager `n`'s registers.
 pub const fn sm(n: u8) -> u16 {
@@ -170,14 +146,8 @@ pub mod sii_reg {
     pub const CMD_WRITE: u16 = 0x0200;
     /// Command: reload.
     pub const CMD_RELOAD: u16 = 0x0400;
-    /// Checksum error in the ESC configuration area.
-    pub const CHECKSUM_ERROR: u16 = 0x0800;
-    /// EEPROM not loaded.
-    pub const NOT_LOADED: u16 = 0x1000;
     /// Missing acknowledge or invalid command.
     pub const ERROR_ACK: u16 = 0x2000;
-    /// Write enable missing.
-    pub const ERROR_WRITE_ENABLE: u16 = 0x4000;
     /// Interface busy.
     pub const BUSY: u16 = 0x8000;
 }

@@ -11,8 +11,6 @@
 //! Strings are ISO 8859-1 (Latin-1): each byte is one character, so any byte string decodes and
 //! encodes back unchanged.
 
-use std::fmt;
-
 /// The result of reading or writing an SII image.
 type Result<T> = std::result::Result<T, SiiError>;
 use crate::ethercat::pdo::{Direction, Pdo, PdoAssignment, PdoEntry, ProcessData};
@@ -255,6 +253,11 @@ pub struct SiiPdoEntry {
 }
 
 impl SiiPdoEntry {
+    /// An entry without flags, as the images written here carry them.
+    pub fn new(index: u16, subindex: u8, name_idx: u8, data_type: u8, bit_len: u8) -> Self {
+        SiiPdoEntry { index, subindex, name_idx, data_type, bit_len, flags: 0 }
+    }
+
     /// The entry as a mapping object value.
     pub fn pdo_entry(&self) -> PdoEntry {
         PdoEntry::new(self.index, self.subindex, self.bit_len)
@@ -1007,9 +1010,10 @@ impl Builder {
 }
 
 /// SII EEPROM content (ETG.1000.6 §5.4, ETG.2010) or its EEPROM interface not as expected.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum SiiError {
     /// A read inside a category that runs past its end.
+    #[error("the {category} category is {len} bytes: reading {read} bytes at byte {at} runs past its end")]
     CategoryOverrun {
         /// The category, e.g. "General".
         category: &'static str,
@@ -1021,6 +1025,7 @@ pub enum SiiError {
         at: usize,
     },
     /// A string with a character outside ISO 8859-1, which the SII strings use.
+    #[error("{what} {text:?} holds {character:?}, outside ISO 8859-1 (allowed U+0000..=U+00FF)")]
     NotLatin1 {
         /// The string's role.
         what: &'static str,
@@ -1030,6 +1035,7 @@ pub enum SiiError {
         character: char,
     },
     /// A string of the strings category that runs past its end.
+    #[error("string {number} of {count} announces {len} bytes but the strings category has {left} left")]
     StringOverrun {
         /// The string's number, from 1.
         number: usize,
@@ -1041,6 +1047,7 @@ pub enum SiiError {
         left: usize,
     },
     /// A category of records whose length is not a multiple of the record's.
+    #[error("the {category} category is {len} bytes, not a multiple of its {record}-byte records")]
     NotWholeRecords {
         /// The category.
         category: &'static str,
@@ -1050,6 +1057,10 @@ pub enum SiiError {
         record: usize,
     },
     /// A PDO announcing more entries than its category holds.
+    #[error(
+        "{what} 0x{index:04X} announces {count} entries ({} bytes) but the category has {left} bytes left",
+        usize::from(*.count) * 8
+    )]
     PdoEntriesOverrun {
         /// "TxPDO" or "RxPDO".
         what: &'static str,
@@ -1061,6 +1072,7 @@ pub enum SiiError {
         left: usize,
     },
     /// An image shorter than the SII header (words 0..63).
+    #[error("image of {len} bytes is shorter than the {header}-byte header")]
     ShortImage {
         /// The image's length.
         len: usize,
@@ -1068,6 +1080,7 @@ pub enum SiiError {
         header: usize,
     },
     /// A header checksum (word 7, low byte) that is not the CRC-8 of words 0..6.
+    #[error("header checksum (low byte of word 7) is 0x{stored:02X} but the CRC-8 of words 0..6 is 0x{computed:02X}")]
     Checksum {
         /// The checksum in the image.
         stored: u8,
@@ -1075,6 +1088,7 @@ pub enum SiiError {
         computed: u8,
     },
     /// No end category (0xFFFF) before the image ends.
+    #[error("no end category (0xFFFF) before the end of the {len}-byte image (after {categories} categories)")]
     NoEndCategory {
         /// The image's length.
         len: usize,
@@ -1082,6 +1096,7 @@ pub enum SiiError {
         categories: usize,
     },
     /// A category header without its length word.
+    #[error("category 0x{kind:04X} at word 0x{word:04X} has no length word")]
     NoLengthWord {
         /// Category type.
         kind: u16,
@@ -1089,6 +1104,7 @@ pub enum SiiError {
         word: usize,
     },
     /// A category that announces more words than the image has left.
+    #[error("category 0x{kind:04X} at word 0x{word:04X} announces {words} words but the image has {left} words left")]
     CategoryPastEnd {
         /// Category type.
         kind: u16,
@@ -1100,6 +1116,7 @@ pub enum SiiError {
         left: usize,
     },
     /// A string number beyond the strings category.
+    #[error("{what} names string {index} but the strings category has {count} (allowed 0..={count}, 0 = none)")]
     NoSuchString {
         /// Who names it, e.g. "the General category's name".
         what: String,
@@ -1109,6 +1126,7 @@ pub enum SiiError {
         count: usize,
     },
     /// A category longer than a length word can announce.
+    #[error("category 0x{kind:04X} of {len} bytes exceeds the 65535 words a length word holds")]
     CategoryTooLong {
         /// Category type.
         kind: u16,
@@ -1116,6 +1134,7 @@ pub enum SiiError {
         len: usize,
     },
     /// An image larger than the EEPROM its size word announces.
+    #[error("the image takes {len} bytes but the size word 0x{size_word:04X} announces an EEPROM of {eeprom} bytes")]
     ImageTooLarge {
         /// The image's length.
         len: usize,
@@ -1125,6 +1144,7 @@ pub enum SiiError {
         eeprom: usize,
     },
     /// A PDO with more entries than a count byte holds.
+    #[error("{what} 0x{index:04X} has {count} entries (allowed 0..=255)")]
     TooManyEntries {
         /// "TxPDO" or "RxPDO".
         what: &'static str,
@@ -1134,6 +1154,13 @@ pub enum SiiError {
         count: usize,
     },
     /// More strings than a count byte holds.
+    #[error(
+        "{}",
+        match .first_over {
+            None => format!("{} strings (allowed 0..=255)", .count),
+            Some(text) => format!("more than 255 strings (the 256th is {text:?})"),
+        }
+    )]
     TooManyStrings {
         /// Strings.
         count: usize,
@@ -1141,6 +1168,7 @@ pub enum SiiError {
         first_over: Option<String>,
     },
     /// A string longer than a length byte holds.
+    #[error("string {text:?} is {len} bytes (allowed 0..=255)")]
     StringTooLong {
         /// The string.
         text: String,
@@ -1148,6 +1176,7 @@ pub enum SiiError {
         len: usize,
     },
     /// A category of an odd number of bytes.
+    #[error("category 0x{kind:04X} has {len} bytes; a category is whole words")]
     OddCategory {
         /// Category type.
         kind: u16,
@@ -1155,11 +1184,16 @@ pub enum SiiError {
         len: usize,
     },
     /// Strings interned while building an image, with no strings category placed.
+    #[error("{count} strings interned but no strings category placed (call strings_here)")]
     NoStringsCategory {
         /// Strings interned.
         count: usize,
     },
     /// An EEPROM read that the ESC did not acknowledge (SII control/status register 0x0502).
+    #[error(
+        "station 0x{station:04X}: EEPROM read of word 0x{word:04X} failed (SII control 0x{control:04X}: \
+         missing acknowledge)"
+    )]
     EepromNack {
         /// Station address.
         station: u16,
@@ -1169,6 +1203,7 @@ pub enum SiiError {
         control: u16,
     },
     /// No end category before the EEPROM ends.
+    #[error("station 0x{station:04X}: no end category (0xFFFF) before the end of the {size_kbit} kbit EEPROM")]
     EepromNoEnd {
         /// Station address.
         station: u16,
@@ -1176,6 +1211,10 @@ pub enum SiiError {
         size_kbit: u32,
     },
     /// A category that runs past the EEPROM's end.
+    #[error(
+        "station 0x{station:04X}: category 0x{kind:04X} at word 0x{word:04X} of {len} words runs past the \
+         {size_kbit} kbit EEPROM"
+    )]
     EepromCategoryPastEnd {
         /// Station address.
         station: u16,
@@ -1189,6 +1228,7 @@ pub enum SiiError {
         size_kbit: u32,
     },
     /// A standard mailbox too small for an SDO message.
+    #[error("mailbox of {receive} bytes out and {send} in is smaller than the {min} bytes of an SDO message")]
     MailboxTooSmall {
         /// Receive mailbox (SM0) size.
         receive: u16,
@@ -1198,6 +1238,7 @@ pub enum SiiError {
         min: u16,
     },
     /// A PDO entry that the AKD's image names nowhere.
+    #[error("no name for PDO object 0x{index:04X}:{subindex:02X} in the AKD's image")]
     NoPdoName {
         /// Object index.
         index: u16,
@@ -1205,6 +1246,7 @@ pub enum SiiError {
         subindex: u8,
     },
     /// Any of these, of one slave found by the scan.
+    #[error("slave {position} (station 0x{station:04X}): {error}")]
     OfSlave {
         /// Slave position.
         position: u16,
@@ -1214,99 +1256,6 @@ pub enum SiiError {
         error: Box<SiiError>,
     },
 }
-
-impl fmt::Display for SiiError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            SiiError::CategoryOverrun { category, len, read, at } => {
-                write!(f, "the {category} category is {len} bytes: reading {read} bytes at byte {at} runs past its end")
-            }
-            SiiError::NotLatin1 { what, text, character } => {
-                write!(f, "{what} {text:?} holds {character:?}, outside ISO 8859-1 (allowed U+0000..=U+00FF)")
-            }
-            SiiError::StringOverrun { number, count, len, left } => {
-                write!(f, "string {number} of {count} announces {len} bytes but the strings category has {left} left")
-            }
-            SiiError::NotWholeRecords { category, len, record } => {
-                write!(f, "the {category} category is {len} bytes, not a multiple of its {record}-byte records")
-            }
-            SiiError::PdoEntriesOverrun { what, index, count, left } => write!(
-                f,
-                "{what} 0x{index:04X} announces {count} entries ({} bytes) but the category has {left} bytes left",
-                usize::from(*count) * 8
-            ),
-            SiiError::ShortImage { len, header } => {
-                write!(f, "image of {len} bytes is shorter than the {header}-byte header")
-            }
-            SiiError::Checksum { stored, computed } => write!(
-                f,
-                "header checksum (low byte of word 7) is 0x{stored:02X} but the CRC-8 of words 0..6 is 0x{computed:02X}"
-            ),
-            SiiError::NoEndCategory { len, categories } => write!(
-                f,
-                "no end category (0xFFFF) before the end of the {len}-byte image (after {categories} categories)"
-            ),
-            SiiError::NoLengthWord { kind, word } => {
-                write!(f, "category 0x{kind:04X} at word 0x{word:04X} has no length word")
-            }
-            SiiError::CategoryPastEnd { kind, word, words, left } => write!(
-                f,
-                "category 0x{kind:04X} at word 0x{word:04X} announces {words} words but the image has {left} words left"
-            ),
-            SiiError::NoSuchString { what, index, count } => write!(
-                f,
-                "{what} names string {index} but the strings category has {count} (allowed 0..={count}, 0 = none)"
-            ),
-            SiiError::CategoryTooLong { kind, len } => {
-                write!(f, "category 0x{kind:04X} of {len} bytes exceeds the 65535 words a length word holds")
-            }
-            SiiError::ImageTooLarge { len, size_word, eeprom } => write!(
-                f,
-                "the image takes {len} bytes but the size word 0x{size_word:04X} announces an EEPROM of {eeprom} bytes"
-            ),
-            SiiError::TooManyEntries { what, index, count } => {
-                write!(f, "{what} 0x{index:04X} has {count} entries (allowed 0..=255)")
-            }
-            SiiError::TooManyStrings { count, first_over: None } => write!(f, "{count} strings (allowed 0..=255)"),
-            SiiError::TooManyStrings { first_over: Some(text), .. } => {
-                write!(f, "more than 255 strings (the 256th is {text:?})")
-            }
-            SiiError::StringTooLong { text, len } => write!(f, "string {text:?} is {len} bytes (allowed 0..=255)"),
-            SiiError::OddCategory { kind, len } => {
-                write!(f, "category 0x{kind:04X} has {len} bytes; a category is whole words")
-            }
-            SiiError::NoStringsCategory { count } => {
-                write!(f, "{count} strings interned but no strings category placed (call strings_here)")
-            }
-            SiiError::EepromNack { station, word, control } => write!(
-                f,
-                "station 0x{station:04X}: EEPROM read of word 0x{word:04X} failed (SII control 0x{control:04X}: \
-                 missing acknowledge)"
-            ),
-            SiiError::EepromNoEnd { station, size_kbit } => write!(
-                f,
-                "station 0x{station:04X}: no end category (0xFFFF) before the end of the {size_kbit} kbit EEPROM"
-            ),
-            SiiError::EepromCategoryPastEnd { station, kind, word, len, size_kbit } => write!(
-                f,
-                "station 0x{station:04X}: category 0x{kind:04X} at word 0x{word:04X} of {len} words runs past the \
-                 {size_kbit} kbit EEPROM"
-            ),
-            SiiError::MailboxTooSmall { receive, send, min } => write!(
-                f,
-                "mailbox of {receive} bytes out and {send} in is smaller than the {min} bytes of an SDO message"
-            ),
-            SiiError::NoPdoName { index, subindex } => {
-                write!(f, "no name for PDO object 0x{index:04X}:{subindex:02X} in the AKD's image")
-            }
-            SiiError::OfSlave { position, station, error } => {
-                write!(f, "slave {position} (station 0x{station:04X}): {error}")
-            }
-        }
-    }
-}
-
-impl std::error::Error for SiiError {}
 
 #[cfg(test)]
 mod tests {
@@ -1372,7 +1321,7 @@ mod tests {
             dc_sync: 0,
             name_idx: name,
             flags: 0,
-            entries: vec![SiiPdoEntry { index: 0x6041, subindex: 0, name_idx: 2, data_type: 6, bit_len: 16, flags: 0 }],
+            entries: vec![SiiPdoEntry::new(0x6041, 0, 2, 6, 16)],
         }]));
         let image = b.finish().unwrap();
         let e = Sii::parse(&image).unwrap_err().to_string();

@@ -120,11 +120,6 @@ fn instant(now_ns: u64) -> Instant {
 }
 
 impl EoeServer {
-    /// The IP parameters the drive was given (the last value of each field).
-    pub fn parameters(&self) -> &IpParameters {
-        &self.parameters
-    }
-
     /// The drive's MAC address.
     fn mac(&self) -> [u8; 6] {
         self.parameters.mac.unwrap_or(DEFAULT_MAC)

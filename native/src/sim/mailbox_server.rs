@@ -105,11 +105,6 @@ impl MailboxServer {
         &self.eoe
     }
 
-    /// The FoE side (the files written).
-    pub fn foe(&self) -> &FoeServer {
-        &self.foe
-    }
-
     /// The FoE side, to inject a busy drive.
     pub fn foe_mut(&mut self) -> &mut FoeServer {
         &mut self.foe
@@ -159,8 +154,15 @@ impl MailboxServer {
         self.counter = next_counter(self.counter);
         let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + COE_HEADER_LEN + 8)];
         let len = write_message(&mut out, self.counter, CoeService::Emergency, |b| emergency.encode(b));
-        out.truncate(len);
-        self.replies.push_back(out);
+        self.queue(out, len);
+    }
+
+    /// Queues the reply in the first `len` bytes of `out`; none when `len` is 0.
+    fn queue(&mut self, mut out: Vec<u8>, len: usize) {
+        if len > 0 {
+            out.truncate(len);
+            self.replies.push_back(out);
+        }
     }
 
     /// Handles one message the master wrote to the mailbox-out buffer at bus time `now_ns`;
@@ -197,11 +199,7 @@ impl MailboxServer {
             Some(MailboxType::Eoe) => return self.serve_eoe(body, counter, now_ns, mailbox_size),
             Some(MailboxType::Foe) => {
                 let len = self.foe.handle(body, counter, request_size, &mut out);
-                if len > 0 {
-                    out.truncate(len);
-                    self.replies.push_back(out);
-                }
-                return;
+                return self.queue(out, len);
             }
             _ => return self.error(counter, MailboxErrorDetail::UnsupportedProtocol, mailbox_size),
         }
@@ -226,11 +224,8 @@ impl MailboxServer {
                         write_sdo_response(&mut out, header.counter, &response)
                     }
                 };
-                // An abort from the master is not answered.
-                if len > 0 {
-                    out.truncate(len);
-                    self.replies.push_back(out);
-                }
+                // An abort from the master is not answered (a reply of 0 bytes).
+                self.queue(out, len);
             }
             CoeService::SdoInformation => self.information(body, od, header.counter, mailbox_size),
             _ => self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
@@ -243,11 +238,7 @@ impl MailboxServer {
     fn serve_eoe(&mut self, body: &[u8], counter: u8, now_ns: u64, mailbox_size: usize) {
         let mut out = vec![0u8; mailbox_size];
         match self.eoe.handle(body, counter, now_ns, self.eoe_delays, &mut out) {
-            Ok(0) => {}
-            Ok(len) => {
-                out.truncate(len);
-                self.replies.push_back(out);
-            }
+            Ok(len) => self.queue(out, len),
             Err(EoeError::Truncated { .. }) => self.error(counter, MailboxErrorDetail::SizeTooShort, mailbox_size),
             Err(EoeError::UnknownCode(_)) => self.error(counter, MailboxErrorDetail::ServiceNotSupported, mailbox_size),
             Err(_) => self.error(counter, MailboxErrorDetail::InvalidHeader, mailbox_size),
@@ -257,8 +248,7 @@ impl MailboxServer {
     fn error(&mut self, counter: u8, detail: MailboxErrorDetail, mailbox_size: usize) {
         let mut out = vec![0u8; mailbox_size.max(HEADER_LEN + 4)];
         let len = write_error_reply(&mut out, counter, detail);
-        out.truncate(len);
-        self.replies.push_back(out);
+        self.queue(out, len);
     }
 
     /// Answers one SDO request into `out`; returns the reply's length.
@@ -469,8 +459,7 @@ impl MailboxServer {
             let h = SdoInfoHeader { opcode, incomplete: left > 0, fragments_left: left };
             let mut out = vec![0u8; mailbox_size];
             let len = write_info_message(&mut out, counter, h, chunk);
-            out.truncate(len);
-            self.replies.push_back(out);
+            self.queue(out, len);
         }
     }
 
@@ -478,8 +467,7 @@ impl MailboxServer {
         let mut out = vec![0u8; mailbox_size];
         let h = SdoInfoHeader { opcode: SdoInfoOpcode::SdoInfoErrorRequest, incomplete: false, fragments_left: 0 };
         let len = write_info_message(&mut out, counter, h, &code.0.to_le_bytes());
-        out.truncate(len);
-        self.replies.push_back(out);
+        self.queue(out, len);
     }
 }
 

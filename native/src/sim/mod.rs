@@ -287,11 +287,6 @@ impl VirtualAkd {
         &self.od
     }
 
-    /// The mailbox server: the IP settings EoE gave the drive, the files FoE wrote.
-    pub fn mailbox(&self) -> &mailbox_server::MailboxServer {
-        &self.mailbox
-    }
-
     /// The mailbox server, to inject faults into its protocols (a busy FoE).
     pub fn mailbox_mut(&mut self) -> &mut mailbox_server::MailboxServer {
         &mut self.mailbox
@@ -719,7 +714,15 @@ mod tests {
     use crate::ethercat::frame::{Command, FrameBuilder};
     use crate::ethercat::line_health::registers::ErrorCounts;
 
-    fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
+    /// One datagram through `bus` at `now`: its data and working counter.
+    pub(super) fn exchange(
+        bus: &mut VirtualBus,
+        now: u64,
+        command: Command,
+        adp: u16,
+        ado: u16,
+        data: &[u8],
+    ) -> (Vec<u8>, u16) {
         served(VirtualBus::process, bus, now, (command, adp, ado), data)
     }
 

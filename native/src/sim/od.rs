@@ -152,6 +152,34 @@ pub(crate) fn record(
     Object { index, name, object_code: code, data_type: t, entries: all, check: None }
 }
 
+/// An array whose entries, "SubIndex 001" on, have type `t`, `access` and `values`; subindex 0,
+/// their count, has `sub0_access`.
+pub(crate) fn array(
+    index: u16,
+    name: &'static str,
+    t: u16,
+    access: u16,
+    sub0_access: u16,
+    values: impl IntoIterator<Item = u64>,
+) -> Object {
+    let entries =
+        (1..).zip(values).map(|(i, value)| entry(i, SUBINDEX_NAMES[usize::from(i)], t, bits_of(t), access, value));
+    record(index, name, ObjectCode::Array, t, sub0_access, entries.collect())
+}
+
+/// The identity object 0x1018 named `name`, with `id` and its revision entry named
+/// `revision_name`.
+pub(crate) fn identity_object(name: &'static str, revision_name: &'static str, id: Identity) -> Object {
+    let values = [
+        ("Vendor ID", id.vendor_id),
+        ("Product code", id.product_code),
+        (revision_name, id.revision),
+        ("Serial number", id.serial_number),
+    ];
+    let entries = (1..).zip(values).map(|(i, (n, v))| entry(i, n, data_type::UNSIGNED32, 32, RO, v.into()));
+    record(0x1018, name, ObjectCode::Record, data_type::IDENTITY, RO, entries.collect())
+}
+
 pub(crate) fn mapping_object(
     index: u16,
     name: &'static str,
@@ -331,19 +359,7 @@ impl ObjectDictionary {
             string_var(0x1008, "Manufacturer device name", "AKD"),
             string_var(0x1009, "Manufacturer hardware version", sii_image::MODEL),
             string_var(0x100A, "Manufacturer software version", sii_image::FIRMWARE),
-            record(
-                0x1018,
-                "Identity object",
-                ObjectCode::Record,
-                IDENTITY,
-                RO,
-                vec![
-                    entry(1, "Vendor ID", UNSIGNED32, 32, RO, id.vendor_id as u64),
-                    entry(2, "Product code", UNSIGNED32, 32, RO, id.product_code as u64),
-                    entry(3, "Revision number", UNSIGNED32, 32, RO, id.revision as u64),
-                    entry(4, "Serial number", UNSIGNED32, 32, RO, id.serial_number as u64),
-                ],
-            ),
+            identity_object("Identity object", "Revision number", id),
         ];
         for (i, entries) in pdo::POWER_UP_RX.iter().enumerate() {
             let mut o = mapping_object(0x1600 + i as u16, RX_NAMES[i], RW_PREOP, entries, FLEXIBLE_CAPACITY);
@@ -362,18 +378,9 @@ impl ObjectDictionary {
             };
             objects.push(mapping_object(fixed.index, name, RO, fixed.entries, fixed.entries.len()));
         }
-        objects.push(record(
-            0x1C00,
-            "Sync manager communication type",
-            ObjectCode::Array,
-            UNSIGNED8,
-            RO,
-            (1..=4).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED8, 8, RO, i as u64)).collect(),
-        ));
+        objects.push(array(0x1C00, "Sync manager communication type", UNSIGNED8, RO, RO, 1..=4));
         for (index, name, base) in [(0x1C12, "RxPDO assign", 0x1600u64), (0x1C13, "TxPDO assign", 0x1A00)] {
-            let subs =
-                (1..=4u8).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED16, 16, RW_PREOP, base + i as u64 - 1));
-            let mut o = record(index, name, ObjectCode::Array, UNSIGNED16, RW_PREOP, subs.collect());
+            let mut o = array(index, name, UNSIGNED16, RW_PREOP, RW_PREOP, base..base + 4);
             o.check = Some(assignment);
             objects.push(o);
         }
@@ -394,14 +401,7 @@ impl ObjectDictionary {
                 ],
             ));
         }
-        objects.push(record(
-            0x2002,
-            "Manufacturer status padding",
-            ObjectCode::Array,
-            UNSIGNED8,
-            RO,
-            (1..=4).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED8, 8, RO, 0)).collect(),
-        ));
+        objects.push(array(0x2002, "Manufacturer status padding", UNSIGNED8, RO, RO, [0; 4]));
         for (index, name, t, acc) in [
             (0x2050, "Second position feedback", INTEGER32, RO),
             (0x2071, "Current command", INTEGER32, RW),
@@ -455,14 +455,7 @@ impl ObjectDictionary {
         ] {
             objects.push(var(index, name, t, acc, 0));
         }
-        objects.push(record(
-            0x3427,
-            "Feedback position",
-            ObjectCode::Array,
-            UNSIGNED32,
-            RO,
-            (1..=3).map(|i| entry(i, SUBINDEX_NAMES[i as usize], UNSIGNED32, 32, RO, 0)).collect(),
-        ));
+        objects.push(array(0x3427, "Feedback position", UNSIGNED32, RO, RO, [0; 3]));
         objects.push(record(
             0x3470,
             "Analog I/O",

@@ -149,18 +149,6 @@ fn trace_frame(trace: &mut Option<TraceSender>, bus: &ControlledBus, payload: &[
     }
 }
 
-/// Serves `bus` (a [`VirtualBus`](crate::sim::VirtualBus), or a [`ControlledBus`] whose
-/// handles the caller kept) on UDP at `bind` until `stop` is set: each datagram is an EtherCAT
-/// payload, answered to its sender. `trace`, if given, records the set-points the drives receive.
-pub fn serve_udp(
-    bind: SocketAddr,
-    bus: impl Into<ControlledBus>,
-    stop: &AtomicBool,
-    trace: Option<TraceSender>,
-) -> Result<ServerStats> {
-    serve_udp_on(bind_udp(bind)?, bus, stop, trace)
-}
-
 /// A UDP socket bound to `bind` for [`serve_udp_on`]: a caller that says it serves once its
 /// socket is bound binds it first.
 pub fn bind_udp(bind: SocketAddr) -> Result<UdpSocket> {
@@ -169,7 +157,10 @@ pub fn bind_udp(bind: SocketAddr) -> Result<UdpSocket> {
     Ok(socket)
 }
 
-/// [`serve_udp`] on a socket [`bind_udp`] bound.
+/// Serves `bus` (a [`VirtualBus`](crate::sim::VirtualBus), or a [`ControlledBus`] whose
+/// handles the caller kept) on the UDP socket [`bind_udp`] bound until `stop` is set: each
+/// datagram is an EtherCAT payload, answered to its sender. `trace`, if given, records the
+/// set-points the drives receive.
 pub fn serve_udp_on(
     socket: UdpSocket,
     bus: impl Into<ControlledBus>,
@@ -208,28 +199,8 @@ pub fn serve_udp_on(
     Ok(stats)
 }
 
-/// Serves `bus` (as [`serve_udp`] takes it) on network interface `iface` until `stop` is set:
-/// each EtherCAT frame received is processed and sent back with the first byte of its source
-/// MAC ORed with 0x02, as the real ESC marks a frame it returns (01:01:01:01:01:01 →
-/// 03:01:01:01:01:01). `trace` as for [`serve_udp`].
-///
-/// With `busy_poll` the server never sleeps: it asks the socket for the next frame again and
-/// again, and lets the firmware run every [`POLL_INTERVAL`]. A real ESC answers in hardware as
-/// the frame passes; a server woken by each frame's arrival adds the scheduler's wake-up (tens
-/// of µs on a virtual machine) to every round trip, the same for every master, which hides
-/// their differences in a benchmark. It takes a CPU of its own, under the normal scheduler.
-pub fn serve_iface(
-    iface: &str,
-    bus: impl Into<ControlledBus>,
-    stop: &AtomicBool,
-    trace: Option<TraceSender>,
-    busy_poll: bool,
-) -> Result<ServerStats> {
-    serve_iface_on(open_iface(iface, busy_poll)?, bus, stop, trace, busy_poll)
-}
-
 /// A raw socket on `iface` for [`serve_iface_on`]; refuses `busy_poll` under a real-time
-/// scheduler (see [`serve_iface`]).
+/// scheduler (see [`serve_iface_on`]).
 pub fn open_iface(iface: &str, busy_poll: bool) -> Result<RawSocket> {
     // SAFETY: sched_getscheduler(0) asks about the calling thread and touches no memory.
     if busy_poll && matches!(unsafe { libc::sched_getscheduler(0) }, libc::SCHED_FIFO | libc::SCHED_RR) {
@@ -240,7 +211,16 @@ pub fn open_iface(iface: &str, busy_poll: bool) -> Result<RawSocket> {
     Ok(socket)
 }
 
-/// [`serve_iface`] on a socket [`open_iface`] opened.
+/// Serves `bus` (as [`serve_udp_on`] takes it) on the raw socket [`open_iface`] opened until
+/// `stop` is set: each EtherCAT frame received is processed and sent back with the first byte
+/// of its source MAC ORed with 0x02, as the real ESC marks a frame it returns
+/// (01:01:01:01:01:01 → 03:01:01:01:01:01). `trace` as for [`serve_udp_on`].
+///
+/// With `busy_poll` the server never sleeps: it asks the socket for the next frame again and
+/// again, and lets the firmware run every [`POLL_INTERVAL`]. A real ESC answers in hardware as
+/// the frame passes; a server woken by each frame's arrival adds the scheduler's wake-up (tens
+/// of µs on a virtual machine) to every round trip, the same for every master, which hides
+/// their differences in a benchmark. It takes a CPU of its own, under the normal scheduler.
 pub fn serve_iface_on(
     socket: RawSocket,
     bus: impl Into<ControlledBus>,
@@ -323,12 +303,11 @@ mod tests {
 
     #[test]
     fn serves_udp_until_stopped() {
-        let probe = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let address = probe.local_addr().unwrap();
-        drop(probe);
+        let socket = bind_udp("127.0.0.1:0".parse().unwrap()).unwrap();
+        let address = socket.local_addr().unwrap();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        let server = std::thread::spawn(move || serve_udp(address, VirtualBus::new(2), &flag, None));
+        let server = std::thread::spawn(move || serve_udp_on(socket, VirtualBus::new(2), &flag, None));
         let client = UdpSocket::bind("127.0.0.1:0").unwrap();
         client.set_read_timeout(Some(Duration::from_millis(200))).unwrap();
         let mut buf = [0u8; 64];
@@ -351,14 +330,13 @@ mod tests {
 
     #[test]
     fn takes_commands_with_and_without_frames() {
-        let probe = UdpSocket::bind("127.0.0.1:0").unwrap();
-        let address = probe.local_addr().unwrap();
-        drop(probe);
+        let socket = bind_udp("127.0.0.1:0".parse().unwrap()).unwrap();
+        let address = socket.local_addr().unwrap();
         let bus = ControlledBus::from(VirtualBus::new(1));
         let control = bus.control();
         let stop = Arc::new(AtomicBool::new(false));
         let flag = stop.clone();
-        let server = std::thread::spawn(move || serve_udp(address, bus, &flag, None));
+        let server = std::thread::spawn(move || serve_udp_on(socket, bus, &flag, None));
         // No master: the server answers at its next wake-up.
         let idle = control.drive_state(0, Duration::from_secs(5)).unwrap();
         assert_eq!(idle.fault, None);
@@ -398,8 +376,7 @@ mod tests {
 
     #[test]
     fn names_a_missing_interface() {
-        let stop = AtomicBool::new(false);
-        let err = serve_iface("akd-no-such-if", VirtualBus::new(1), &stop, None, false).unwrap_err();
+        let err = open_iface("akd-no-such-if", false).unwrap_err();
         assert!(err.to_string().contains("akd-no-such-if"), "{err}");
     }
 }

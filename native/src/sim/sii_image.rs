@@ -88,15 +88,8 @@ fn header(identity: Identity) -> Header {
 fn sii_entry(b: &mut Builder, entry: PdoEntry) -> Result<SiiPdoEntry> {
     let (&MappableObject { name, .. }, data_type) = objects::mappable_object(entry.index, entry.subindex)
         .ok_or_else(|| Error::from(SiiError::NoPdoName { index: entry.index, subindex: entry.subindex }))?;
-    Ok(SiiPdoEntry {
-        index: entry.index,
-        subindex: entry.subindex,
-        name_idx: b.string(name),
-        // SII data types are the CoE codes' low byte (all the AKD maps are below 0x100).
-        data_type: data_type as u8,
-        bit_len: entry.bits,
-        flags: 0,
-    })
+    // SII data types are the CoE codes' low byte (all the AKD maps are below 0x100).
+    Ok(SiiPdoEntry::new(entry.index, entry.subindex, b.string(name), data_type as u8, entry.bits))
 }
 
 /// The PDOs of one direction in image order: flexible ones first, then the fixed ones, the

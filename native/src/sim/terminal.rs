@@ -398,37 +398,16 @@ fn tx_assignment(
 /// The EL3102's object dictionary: identity, its two fixed TxPDOs, their assignment, and the
 /// inputs (0x3101 and 0x3102: status byte and value).
 fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
-    use data_type::{INTEGER16, UNSIGNED16, UNSIGNED32, UNSIGNED8};
-    let id = description.identity;
+    use data_type::{INTEGER16, UNSIGNED16, UNSIGNED8};
     let Kind::AnalogInputs { channels } = description.kind else { unreachable!("an analog terminal") };
     let ro_tx = od::RO | access::TX_PDO;
     let mut objects = vec![
         od::string_var(0x1008, "Device name", description.order),
-        od::record(
-            0x1018,
-            "Identity",
-            ObjectCode::Record,
-            data_type::IDENTITY,
-            od::RO,
-            vec![
-                od::entry(1, "Vendor ID", UNSIGNED32, 32, od::RO, id.vendor_id.into()),
-                od::entry(2, "Product code", UNSIGNED32, 32, od::RO, id.product_code.into()),
-                od::entry(3, "Revision", UNSIGNED32, 32, od::RO, id.revision.into()),
-                od::entry(4, "Serial number", UNSIGNED32, 32, od::RO, id.serial_number.into()),
-            ],
-        ),
-        od::record(
-            0x1C00,
-            "Sync manager type",
-            ObjectCode::Array,
-            UNSIGNED8,
-            od::RO,
-            (1..=4).map(|i| od::entry(i, od::SUBINDEX_NAMES[usize::from(i)], UNSIGNED8, 8, od::RO, i.into())).collect(),
-        ),
+        od::identity_object("Identity", "Revision", description.identity),
+        od::array(0x1C00, "Sync manager type", UNSIGNED8, od::RO, od::RO, 1..=4),
         od::record(0x1C12, "RxPDO assign", ObjectCode::Array, UNSIGNED16, od::RW_PREOP, Vec::new()),
     ];
     let names = ["Inputs Ch.1", "Inputs Ch.2"];
-    let mut assign = Vec::new();
     for n in 0..channels {
         let object = images::analog_object(n);
         let entries = [PdoEntry::new(object, 1, 8), PdoEntry::new(object, 2, 16)];
@@ -443,9 +422,9 @@ fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
             od::RO,
             vec![od::entry(1, "Status", UNSIGNED8, 8, ro_tx, 0), od::entry(2, "Value", INTEGER16, 16, ro_tx, 0)],
         ));
-        assign.push(od::entry(n + 1, od::SUBINDEX_NAMES[usize::from(n) + 1], UNSIGNED16, 16, od::RW_PREOP, pdo.into()));
     }
-    let mut tx_assign = od::record(0x1C13, "TxPDO assign", ObjectCode::Array, UNSIGNED16, od::RW_PREOP, assign);
+    let pdos = (0..channels).map(|n| 0x1A00 + u64::from(n));
+    let mut tx_assign = od::array(0x1C13, "TxPDO assign", UNSIGNED16, od::RW_PREOP, od::RW_PREOP, pdos);
     tx_assign.check = Some(tx_assignment);
     objects.push(tx_assign);
     ObjectDictionary::from_objects(objects)
@@ -455,17 +434,8 @@ fn analog_dictionary(description: &TerminalSii) -> ObjectDictionary {
 mod tests {
     use super::*;
     use crate::ethercat::frame::{Command, FrameBuilder};
+    use crate::sim::tests::exchange;
     use crate::sim::{Timing, VirtualBus};
-
-    /// One datagram through `bus` at `now`: its data and working counter.
-    fn exchange(bus: &mut VirtualBus, now: u64, command: Command, adp: u16, ado: u16, data: &[u8]) -> (Vec<u8>, u16) {
-        let mut buf = [0u8; 1500];
-        let mut b = FrameBuilder::new(&mut buf);
-        let slot = b.push(command, 0, adp, ado, data).unwrap();
-        let len = b.finish();
-        bus.process(&mut buf[..len], now).unwrap();
-        (slot.data(&buf[..len]).unwrap().to_vec(), slot.wkc(&buf[..len]).unwrap())
-    }
 
     fn line(spec: &str) -> VirtualBus {
         VirtualBus::of_line(&spec.parse().unwrap(), Timing::IMMEDIATE).unwrap()

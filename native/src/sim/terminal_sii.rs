@@ -237,32 +237,12 @@ impl TerminalSii {
                     .map(|n| {
                         let object = analog_object(n);
                         let entries = vec![
-                            SiiPdoEntry {
-                                index: object,
-                                subindex: 1,
-                                name_idx: b.string("Status"),
-                                data_type: UNSIGNED8,
-                                bit_len: 8,
-                                flags: 0,
-                            },
-                            SiiPdoEntry {
-                                index: object,
-                                subindex: 2,
-                                name_idx: b.string("Value"),
-                                data_type: INTEGER16,
-                                bit_len: 16,
-                                flags: 0,
-                            },
+                            SiiPdoEntry::new(object, 1, b.string("Status"), UNSIGNED8, 8),
+                            SiiPdoEntry::new(object, 2, b.string("Value"), INTEGER16, 16),
                         ];
+                        let index = 0x1A00 + u16::from(n);
                         let name_idx = b.string(&format!("TxPDO-Map Channel {}", n + 1));
-                        SiiPdo {
-                            index: 0x1A00 + u16::from(n),
-                            sync_manager: 3,
-                            dc_sync: 0,
-                            name_idx,
-                            flags: PDO_FLAGS,
-                            entries,
-                        }
+                        SiiPdo { index, sync_manager: 3, dc_sync: 0, name_idx, flags: PDO_FLAGS, entries }
                     })
                     .collect();
                 b.push(Category::TxPdos(pdos));
@@ -287,14 +267,7 @@ fn digital_pdos(b: &mut Builder, pdo: u16, object: u16, entry: &str, channels: u
     (0..u16::from(channels))
         .map(|n| {
             let name_idx = b.string(&format!("Channel {}", n + 1));
-            let entry = SiiPdoEntry {
-                index: object + 0x10 * n,
-                subindex: 1,
-                name_idx: b.string(entry),
-                data_type: BOOLEAN,
-                bit_len: 1,
-                flags: 0,
-            };
+            let entry = SiiPdoEntry::new(object + 0x10 * n, 1, b.string(entry), BOOLEAN, 1);
             SiiPdo { index: pdo + n, sync_manager: 0, dc_sync: 0, name_idx, flags: PDO_FLAGS, entries: vec![entry] }
         })
         .collect()

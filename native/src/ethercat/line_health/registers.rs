@@ -153,23 +153,6 @@ impl<T: Copy + Default> ErrorCounts<T> {
         }
     }
 
-    /// Each count through `f`.
-    pub fn map<U: Copy + Default>(&self, f: impl Fn(T) -> U) -> ErrorCounts<U> {
-        ErrorCounts::from_values(self.values().map(f))
-    }
-
-    /// The count of `counter`.
-    pub fn get(&self, counter: Counter) -> T {
-        match counter {
-            Counter::InvalidFrames(p) => self.ports[p].invalid_frames,
-            Counter::RxErrors(p) => self.ports[p].rx_errors,
-            Counter::ForwardedErrors(p) => self.ports[p].forwarded_errors,
-            Counter::LostLinks(p) => self.ports[p].lost_links,
-            Counter::ProcessingUnit => self.processing_unit,
-            Counter::Pdi => self.pdi,
-        }
-    }
-
     /// The count of `counter`, to change it.
     pub fn get_mut(&mut self, counter: Counter) -> &mut T {
         match counter {
@@ -309,7 +292,7 @@ mod tests {
         );
         assert_eq!((counts.processing_unit, counts.pdi), (13, 14));
         assert_eq!(ErrorCounts::from_values(counts.values()), counts);
-        assert_eq!(counts.get(Counter::LostLinks(2)), 19);
+        assert_eq!(counts.ports[2].lost_links, 19);
     }
 
     #[test]

@@ -291,9 +291,9 @@ mod tests {
             tally.close_read(t * 250);
         }
         let h = tally.slave(0).unwrap();
-        assert_eq!(h.totals.get(invalid), 12);
+        assert_eq!(h.totals.ports[0].invalid_frames, 12);
         // The window: the last two reads, 12 - 9 + 12 - 12.
-        assert_eq!(h.window.get(invalid), 3);
+        assert_eq!(h.window.ports[0].invalid_frames, 3);
         assert_eq!(tally.line(), (750, 4, 500));
         assert_eq!(h.dl_status, Some(DlStatus(0x5A33)));
     }
@@ -314,7 +314,10 @@ mod tests {
         tally.take(0, &read(&[(lost, 3)]));
         tally.close_read(3);
         let h = tally.slave(0).unwrap();
-        assert_eq!((h.totals.get(lost), h.window.get(lost), h.cleared, h.found_lower), (0x98, 0x98, 1, 0));
+        assert_eq!(
+            (h.totals.ports[1].lost_links, h.window.ports[1].lost_links, h.cleared, h.found_lower),
+            (0x98, 0x98, 1, 0)
+        );
     }
 
     #[test]
@@ -335,14 +338,14 @@ mod tests {
         tally.close_read(3);
         let h = tally.slave(0).unwrap();
         assert_eq!((h.reads, h.unanswered, h.found_lower, h.cleared, h.saturated), (4, 1, 1, 1, 1));
-        assert_eq!(h.totals.get(invalid), 0x85 + 2 + 0xFF);
+        assert_eq!(h.totals.ports[1].invalid_frames, 0x85 + 2 + 0xFF);
         // Cleared by the next read; then a power cycle, no clear of ours: found lower again.
         for (t, n) in [(4, 0xFF), (5, 5), (6, 1)] {
             tally.take(0, &read(&[(invalid, n)]));
             tally.close_read(t);
         }
         let h = tally.slave(0).unwrap();
-        assert_eq!((h.cleared, h.found_lower, h.totals.get(invalid)), (2, 2, 0x85 + 2 + 0xFF + 5 + 1));
+        assert_eq!((h.cleared, h.found_lower, h.totals.ports[1].invalid_frames), (2, 2, 0x85 + 2 + 0xFF + 5 + 1));
     }
 
     #[test]

@@ -25,7 +25,6 @@ pub const MAX_ETH_FRAME_LEN: usize = ETH_HEADER_LEN + frame::MAX_PAYLOAD_LEN;
 #[derive(Debug)]
 pub struct RawSocket {
     fd: OwnedFd,
-    ifindex: i32,
     iface: String,
     kept_capabilities: Option<String>,
 }
@@ -77,17 +76,12 @@ impl RawSocket {
             switch_on(&fd, libc::SOL_PACKET, option);
         }
         let kept_capabilities = privilege::drop_after_open(iface)?;
-        Ok(RawSocket { fd, ifindex: ifindex as i32, iface: iface.to_owned(), kept_capabilities })
+        Ok(RawSocket { fd, iface: iface.to_owned(), kept_capabilities })
     }
 
     /// Which threads of the process kept their capabilities after the socket was open, when some did.
     pub fn kept_capabilities(&self) -> Option<&str> {
         self.kept_capabilities.as_deref()
-    }
-
-    /// The interface name.
-    pub fn interface(&self) -> &str {
-        &self.iface
     }
 
     /// Sends one whole Ethernet frame (headers included, no FCS).
@@ -280,11 +274,6 @@ impl RawLink {
             std::hint::spin_loop();
         }
         self.socket.recv_until(&mut self.rx, deadline)
-    }
-
-    /// The interface index the socket is bound to.
-    pub fn ifindex(&self) -> i32 {
-        self.socket.ifindex
     }
 
     /// See [`RawSocket::kept_capabilities`].

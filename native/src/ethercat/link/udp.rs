@@ -40,11 +40,6 @@ impl Udp {
         socket.connect(peer).map_err(|e| Error::io(format!("connecting to udp://{peer}"), e))?;
         Ok(Udp { socket, peer, rx: [0; frame::MAX_PAYLOAD_LEN] })
     }
-
-    /// The simulator's address.
-    pub fn peer(&self) -> SocketAddr {
-        self.peer
-    }
 }
 
 impl Link for Udp {
@@ -152,6 +147,6 @@ mod tests {
     #[test]
     fn default_port_is_the_ethertype() {
         let link = Udp::connect("127.0.0.1").unwrap();
-        assert_eq!(link.peer().port(), 34980);
+        assert_eq!(link.describe(), "udp://127.0.0.1:34980");
     }
 }

@@ -251,12 +251,6 @@ impl ProcessImage {
         &mut self.frame
     }
 
-    /// The working counter the LRW should come back with: 2 per slave that takes outputs, 1
-    /// per slave that gives inputs.
-    pub fn expected_wkc(&self) -> u16 {
-        self.expected_wkc
-    }
-
     fn slot(&self, position: u16) -> Result<ImageSlot> {
         self.slots
             .get(position as usize)
@@ -697,7 +691,7 @@ mod tests {
         assert_eq!(image.slot(0).unwrap(), whole(0, 6, 0, 6));
         assert_eq!(image.slot(2).unwrap(), whole(6, 10, 6, 28));
         assert!(image.slot(1).is_err());
-        assert_eq!(image.expected_wkc(), 6);
+        assert_eq!(image.expected_wkc, 6);
         assert_eq!((image.outputs.len(), image.inputs.len()), (16, 34));
     }
 
@@ -714,7 +708,7 @@ mod tests {
         assert_eq!((image.slot(1).unwrap().in_bit, image.slot(4).unwrap().in_offset), (0, 1));
         assert_eq!(image.slot(5).unwrap().in_offset, 7);
         // 1 (EL1004) + 2 + 2 (EL2004s) + 1 (EL3102) + 3 (AKD).
-        assert_eq!(image.expected_wkc(), 9);
+        assert_eq!(image.expected_wkc, 9);
         assert_eq!((image.outputs.len(), image.inputs.len()), (7, 13));
         let mut outputs = image.outputs.clone();
         image.slot(3).unwrap().write_outputs(&mut outputs, &[0b1010]);

@@ -79,8 +79,6 @@ pub struct Slave {
     pub station_address: u16,
     /// Station alias (register 0x0012, from SII word 4).
     pub alias: u16,
-    /// ESC features (register 0x0008); bit 2 says whether it has a distributed clock.
-    pub esc_features: u16,
     /// Whether it has a distributed clock with a system time: feature bit 2, and its system time
     /// (0x0910) answered the scan. The ET1200 of Beckhoff's digital terminals sets the bit but
     /// has no system time (a read there finds no register, working counter 0): it latches

@@ -81,7 +81,6 @@ impl Master {
             position,
             station_address: station,
             alias,
-            esc_features,
             dc,
             found,
             sii,

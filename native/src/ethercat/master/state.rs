@@ -53,6 +53,13 @@ impl AlStatus {
     pub fn code_name(&self) -> &'static str {
         al::AlStatusCode(self.code).name()
     }
+
+    /// The time-out of slave `position`, awaited to `goal` (e.g. "reach Op"), still as this says.
+    fn timed_out(&self, position: u16, goal: &str) -> Error {
+        let (state, code, code_name) = (self.state_name(), self.code, self.code_name());
+        let what = format!("slave {position} to {goal} (it is in {state}, AL status code 0x{code:04X}: {code_name})");
+        Error::Timeout { what: what.into() }
+    }
 }
 
 /// Order of the states on the way up, for stepping; Bootstrap sits beside Init.
@@ -185,15 +192,7 @@ impl Master {
             }
             self.clear_echoed_ack(position, station, status, written)?;
             if Instant::now() >= deadline {
-                return Err(Error::Timeout {
-                    what: format!(
-                        "slave {position} to return to Init (it is in {}, AL status code 0x{:04X}: {})",
-                        status.state_name(),
-                        status.code,
-                        status.code_name()
-                    )
-                    .into(),
-                });
+                return Err(status.timed_out(position, "return to Init"));
             }
             std::thread::sleep(POLL_INTERVAL);
         }
@@ -244,16 +243,7 @@ impl Master {
                 });
             }
             if Instant::now() >= deadline {
-                return Err(Error::Timeout {
-                    what: format!(
-                        "slave {position} to reach {} (it is in {}, AL status code 0x{:04X}: {})",
-                        target.name(),
-                        status.state_name(),
-                        status.code,
-                        status.code_name()
-                    )
-                    .into(),
-                });
+                return Err(status.timed_out(position, &format!("reach {}", target.name())));
             }
             std::thread::sleep(POLL_INTERVAL);
         }
