@@ -506,8 +506,10 @@ impl MailboxService {
         self.phase = Phase::Idle;
         match origin {
             Origin::ErrorCode(mut event) => {
-                if let (Event::Fault { code, .. }, Outcome::Done, [low, high, ..]) = (&mut event, outcome, value) {
-                    *code = u16::from_le_bytes([*low, *high]);
+                if let (Event::Fault { code, .. }, Outcome::Done, Ok(read)) =
+                    (&mut event, outcome, crate::drive::ds402::error_code(value))
+                {
+                    *code = read;
                 }
                 events.push(event)
             }

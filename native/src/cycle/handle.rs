@@ -488,8 +488,7 @@ impl CycleThread {
     /// The drive's error code (0x603F): the CiA 402 code of its last fault, read beside the cycle.
     pub fn drive_error_code(&self, position: u16) -> Result<u16> {
         let (index, subindex) = crate::drive::ds402::ERROR_CODE;
-        let value = self.sdo_read(position, index, subindex)?;
-        Ok(u16::from_le_bytes([value.first().copied().unwrap_or(0), value.get(1).copied().unwrap_or(0)]))
+        Ok(crate::drive::ds402::error_code(&self.sdo_read(position, index, subindex)?)?)
     }
 
     /// Writes `data` to `index:subindex` of the slave at `position` through the cycle thread.

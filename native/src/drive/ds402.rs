@@ -244,6 +244,19 @@ wire_codes! {
 /// AKD also sends in its emergency message.
 pub const ERROR_CODE: (u16, u8) = (0x603F, 0);
 
+/// The fault code in the drive's reply to a read of [`ERROR_CODE`]; a reply shorter than its two
+/// bytes is refused, never read as 0 ("no fault code").
+pub fn error_code(reply: &[u8]) -> Result<u16, crate::ethercat::mailbox::MailboxError> {
+    match reply {
+        [low, high, ..] => Ok(u16::from_le_bytes([*low, *high])),
+        _ => Err(crate::ethercat::mailbox::MailboxError::Truncated {
+            what: "error code 0x603F:00",
+            len: reply.len(),
+            needed: 2,
+        }),
+    }
+}
+
 /// CiA 402's cyclic synchronous velocity (9) and torque (10), which the AKD does not offer: by
 /// their 0x6060 value and one-word name, with why (docs/virtual_akd.md has the evidence). The
 /// virtual AKD refuses them as it refuses any other value (SDO abort 0x06090030), and the master
@@ -356,6 +369,22 @@ impl Mode {
 mod tests {
     use super::*;
     use controlword::*;
+
+    #[test]
+    fn the_error_code_reply_needs_its_two_bytes() {
+        assert_eq!(error_code(&[0x10, 0x23]), Ok(0x2310));
+        for short in [&[][..], &[0x10]] {
+            let e = error_code(short).unwrap_err();
+            assert_eq!(
+                e,
+                crate::error::MailboxError::Truncated { what: "error code 0x603F:00", len: short.len(), needed: 2 }
+            );
+            assert!(
+                e.to_string().contains("0x603F") && e.to_string().contains(&format!("{} bytes", short.len())),
+                "{e}"
+            );
+        }
+    }
 
     #[test]
     fn statusword_round_trips_every_state() {
