@@ -82,7 +82,7 @@ pub struct Snapshot {
 }
 
 /// How long a drive request may take by default before it is reported stuck.
-pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
+const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// The drives of `master` that can be sequenced, with their objects' offsets in the whole
 /// images and their latch where mapped; for the others, why not.
@@ -728,18 +728,8 @@ impl CycleThread {
     /// allocated here; a bad one is refused before anything moves. It takes over from the
     /// trajectory in force at its start, without a step. Returns its id; waits (the caller,
     /// not the cycle) at most a few cycles for the thread to take the one handed before.
-    pub fn play_trajectory(
-        &self,
-        slaves: &[u16],
-        times_ns: &[u64],
-        points: &[Vec<Knot>],
-        start_ns: Option<u64>,
-    ) -> Result<u32> {
-        self.follow_trajectory(slaves, times_ns, points, start_ns, None)
-    }
-
-    /// Plays a joint trajectory as [`play_trajectory`](Self::play_trajectory) does, judged by
-    /// `tolerances` (one per joint) where given: FollowJointTrajectory's path and goal
+    ///
+    /// Judged by `tolerances` (one per joint) where given: FollowJointTrajectory's path and goal
     /// tolerances, its goal time tolerance, and how each joint stops
     /// ([`stop_trajectory`](Self::stop_trajectory), a path violation).
     pub fn follow_trajectory(
@@ -1004,7 +994,7 @@ impl CycleThread {
         })
     }
 
-    /// The trajectory `id` (from [`play_trajectory`](Self::play_trajectory)) as the cycle
+    /// The trajectory `id` (from [`follow_trajectory`](Self::follow_trajectory)) as the cycle
     /// thread last published it: pending, running (the point approached, the time since its
     /// start) or how it ended. The statuses of the last [`trajectory_player::KEPT`] are kept.
     pub fn trajectory_status(&self, id: u32) -> Result<trajectory_player::TrajectoryStatus> {

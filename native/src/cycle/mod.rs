@@ -17,7 +17,7 @@
 //! position and the start of homing run there too ([`handshake`],
 //! [`CycleThread::start_setpoint`]), and so does the command time-out of velocity and torque
 //! streams ([`command_timeout`], [`CycleThread::set_command_timeout`]), and joint trajectories
-//! are followed there ([`trajectory_player`], [`CycleThread::play_trajectory`]).
+//! are followed there ([`trajectory_player`], [`CycleThread::follow_trajectory`]).
 //!
 //! [`CycleThread`] is the handle the other threads hold (`handle.rs`), the loop is the thread's
 //! own (`run.rs`), and what both share is here.
@@ -48,7 +48,7 @@
 use std::sync::atomic::{AtomicBool, AtomicU64};
 use std::sync::Arc;
 
-pub use handle::{Config, CycleThread, Snapshot, DEFAULT_REQUEST_TIMEOUT};
+pub use handle::{Config, CycleThread, Snapshot};
 pub use rt::RealTime;
 
 pub mod acyclic;

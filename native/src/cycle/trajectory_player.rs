@@ -178,12 +178,8 @@ pub struct Plan {
 
 impl Plan {
     /// A plan of `trajectory` (one joint per entry of `joints`) with id `id`, starting at
-    /// `start_ns` on the monotonic clock (`None`: as soon as the cycle takes it).
-    pub fn new(id: u32, start_ns: Option<u64>, joints: Vec<Joint>, trajectory: Trajectory) -> Box<Plan> {
-        Plan::judged(id, start_ns, joints, trajectory, None)
-    }
-
-    /// A plan as [`new`](Self::new) gives, judged by `tolerances` (one per joint) where given.
+    /// `start_ns` on the monotonic clock (`None`: as soon as the cycle takes it), judged by
+    /// `tolerances` (one per joint) where given.
     pub fn judged(
         id: u32,
         start_ns: Option<u64>,
@@ -804,7 +800,7 @@ mod tests {
 
     fn plan(id: u32, start_ns: Option<u64>, to: f64, after_ns: u64) -> Box<Plan> {
         let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
-        Plan::new(id, start_ns, vec![JOINT], trajectory)
+        Plan::judged(id, start_ns, vec![JOINT], trajectory, None)
     }
 
     /// A cycle at `now` ms: the player's steps around the copy, returning the target sent.
@@ -998,7 +994,7 @@ mod tests {
         // 100 counts/ms allowed: from 100, where plan 1 is at 2 ms, to 5000 in 10 ms is 490.
         let limits = Limits { max_velocity: 100_000.0, ..Limits::TARGET };
         let trajectory = Trajectory::new(1, &[10 * MS], &[vec![Knot::position(5000.0)]], Some(&[limits])).unwrap();
-        shared.give(Plan::new(2, None, vec![JOINT], trajectory)).unwrap();
+        shared.give(Plan::judged(2, None, vec![JOINT], trajectory, None)).unwrap();
         let sent: Vec<i32> = (2..=12).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
         assert_eq!(sent, [100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1000], "plan 1 went on");
         let refusal = Refusal { slave: 0, why: RefusalReason::Velocity, value: 490_000.0 };

@@ -72,9 +72,6 @@ pub struct Ratio {
 }
 
 impl Ratio {
-    /// 1/1.
-    pub const ONE: Ratio = Ratio { numerator: 1, denominator: 1 };
-
     /// The ratio's value; `None` for a zero denominator (a drive refuses to hold one).
     pub fn value(self) -> Option<f64> {
         (self.denominator != 0).then(|| self.numerator as f64 / self.denominator as f64)
@@ -118,15 +115,6 @@ pub struct PositionScaling {
 }
 
 impl PositionScaling {
-    /// The AKD at its defaults: 2^20 increments per revolution, gear and feed 1/1, DS402
-    /// scaling off.
-    pub const AKD_DEFAULT: PositionScaling = PositionScaling {
-        encoder_resolution: Ratio { numerator: DEFAULT_COUNTS_PER_REVOLUTION, denominator: 1 },
-        gear_ratio: Ratio::ONE,
-        feed_constant: Ratio::ONE,
-        ds402_scaling: Some(false),
-    };
-
     /// The scaling from the six entries of [`SCALING_ENTRIES`], in that order, and FBUS.PARAM05
     /// where known.
     pub fn from_entries(entries: [u32; 6], fbus_param05: Option<u32>) -> Self {
@@ -504,7 +492,8 @@ mod tests {
 
     #[test]
     fn the_defaults_count_2_pow_20_per_revolution_in_both_units() {
-        let s = PositionScaling::AKD_DEFAULT;
+        // The AKD at its defaults: 2^20 increments per revolution, gear and feed 1/1, DS402 scaling off.
+        let s = PositionScaling::from_entries([DEFAULT_COUNTS_PER_REVOLUTION, 1, 1, 1, 1, 1], Some(0));
         let unit_pin = Some(DEFAULT_COUNTS_PER_REVOLUTION as f64);
         for (index, sub) in [(0x6063, 0), (0x60C1, 1), (0x6064, 0), (0x607A, 0)] {
             assert_eq!(s.counts_per_revolution(index, sub, unit_pin), Some(1048576.0), "0x{index:04X}");

@@ -570,11 +570,6 @@ impl Trajectory {
         }
     }
 
-    /// Joints.
-    pub fn joints(&self) -> usize {
-        self.joints
-    }
-
     /// Points.
     pub fn points(&self) -> usize {
         self.times_ns.len()
