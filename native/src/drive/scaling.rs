@@ -353,14 +353,12 @@ impl JointScaling {
 
     /// The int32 target position for load position `position`.
     pub fn position_to_counts(&self, position: f64) -> Result<i32, ScalingError> {
-        let counts = ((finite("position", position, false)? - self.offset) / self.si_per_count()).round();
-        self.in_range("position", position, counts, INT32, |c| self.position_to_si(c)).map(|c| c as i32)
+        self.to_drive(CommandKind::Position, position).map(|c| c as i32)
     }
 
     /// The int32 target velocity (counts/s) for load velocity `velocity`.
     pub fn velocity_to_counts(&self, velocity: f64) -> Result<i32, ScalingError> {
-        let counts = (finite("velocity", velocity, false)? / self.si_per_count()).round();
-        self.in_range("velocity", velocity, counts, INT32, |c| self.velocity_to_si(c)).map(|c| c as i32)
+        self.to_drive(CommandKind::Velocity, velocity).map(|c| c as i32)
     }
 
     /// Counts/s² for load acceleration `acceleration`.
@@ -370,39 +368,31 @@ impl JointScaling {
 
     /// The int16 target torque (0.1 % of peak) for load torque (or force) `torque`.
     pub fn torque_to_drive(&self, torque: f64) -> Result<i16, ScalingError> {
-        let value = (finite("torque", torque, false)? / self.si_per_torque_unit()).round();
-        let range = (i16::MIN as i64, i16::MAX as i64);
-        self.in_range("torque", torque, value, range, |v| self.torque_to_si(v)).map(|v| v as i16)
+        self.to_drive(CommandKind::Torque, torque).map(|v| v as i16)
     }
 
-    /// The drive value of `kind` for SI `value` (counts, counts/s, 0.1 % of peak).
-    pub fn to_drive(&self, kind: CommandKind, value: f64) -> Result<i64, ScalingError> {
-        match kind {
-            CommandKind::Position => self.position_to_counts(value).map(i64::from),
-            CommandKind::Velocity => self.velocity_to_counts(value).map(i64::from),
-            CommandKind::Torque => self.torque_to_drive(value).map(i64::from),
-        }
-    }
-
-    fn in_range(
-        &self,
-        name: &'static str,
-        si: f64,
-        value: f64,
-        (low, high): (i64, i64),
-        to_si: impl Fn(f64) -> f64,
-    ) -> Result<i64, ScalingError> {
+    /// The drive value of `kind` for SI `si` (counts, counts/s, 0.1 % of peak), within the
+    /// range of the drive's object (INT32 targets, INT16 torque).
+    pub fn to_drive(&self, kind: CommandKind, si: f64) -> Result<i64, ScalingError> {
+        let linear = self.position_unit() == Unit::Metre;
+        let (name, unit, per_value, offset, (low, high)) = match kind {
+            CommandKind::Position => ("position", self.position_unit().name(), self.si_per_count(), self.offset, INT32),
+            CommandKind::Velocity => {
+                ("velocity", if linear { "m/s" } else { "rad/s" }, self.si_per_count(), 0.0, INT32)
+            }
+            CommandKind::Torque => (
+                "torque",
+                if linear { "N" } else { "N·m" },
+                self.si_per_torque_unit(),
+                0.0,
+                (i16::MIN.into(), i16::MAX.into()),
+            ),
+        };
+        let value = ((finite(name, si, false)? - offset) / per_value).round();
         if (low as f64..=high as f64).contains(&value) {
             return Ok(value as i64);
         }
-        let (a, b) = (to_si(low as f64), to_si(high as f64));
-        let unit = match (name, self.position_unit()) {
-            ("torque", Unit::Metre) => "N",
-            ("torque", _) => "N·m",
-            ("velocity", Unit::Metre) => "m/s",
-            ("velocity", _) => "rad/s",
-            (_, unit) => unit.name(),
-        };
+        let (a, b) = (low as f64 * per_value + offset, high as f64 * per_value + offset);
         let value = if value.abs() < 9.2e18 { value as i64 } else { value.signum() as i64 * i64::MAX };
         Err(ScalingError::OutOfRange { name, si, value, range: (low, high), allowed: (a.min(b), a.max(b)), unit })
     }
@@ -439,13 +429,12 @@ impl PositionScaling {
     /// objects, and what to change; `None` where they agree or the objects do not tell. The
     /// objects give positions only: velocity and torque units are the AKD's own parameters.
     pub fn mismatch(&self, counts_per_revolution: u64, mapped: impl Fn(u16, u8) -> bool) -> Option<String> {
-        let differing: Vec<((u16, u8), f64)> = POSITION_OBJECTS
+        let mut differing: Vec<((u16, u8), f64)> = POSITION_OBJECTS
             .iter()
             .filter(|((index, sub), _)| mapped(*index, *sub))
             .filter_map(|&((index, sub), _)| Some(((index, sub), self.counts_per_revolution(index, sub, None)?)))
             .filter(|&(_, counts)| counts != counts_per_revolution as f64)
             .collect();
-        let mut differing = differing;
         differing.sort_by_key(|(object, _)| *object);
         if differing.is_empty() {
             return None;
