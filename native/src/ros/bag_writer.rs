@@ -588,7 +588,7 @@ impl Writer {
                 self.changed = true;
             }
             Item::CycleTopics { cycle, black_box } => (self.cycle_topic, self.black_box_topic) = (cycle, black_box),
-            Item::Message { topic, time_ns, data } => self.write(topic, &[(time_ns, data)])?,
+            Item::Message { topic, time_ns, data } => self.write(topic, &[(time_ns, &data)])?,
             Item::Records(records) => self.take_records(records)?,
             Item::Source(source) => self.source = Some(source),
             Item::Fault(_) | Item::Finish(_) | Item::Close => unreachable!("taken by run"),
@@ -620,7 +620,7 @@ impl Writer {
                 .filter(|(i, _)| ((first + *i as u64) / per_cycle).is_multiple_of(decimation))
                 .map(|(_, (t, data))| (*t, data.as_slice()))
                 .collect();
-            self.write_refs(topic, &kept)?;
+            self.write(topic, &kept)?;
         }
         if self.options.black_box_ns.is_some() && self.black_box_topic.is_some() {
             for (i, (time_ns, data)) in records.into_iter().enumerate() {
@@ -657,6 +657,8 @@ impl Writer {
             })
             .collect();
         let wanted = merged(windows.clone());
+        // Out of the writer while what it holds is written, so it is not copied for that.
+        let ring = std::mem::take(&mut self.ring);
         let mut taken: Vec<(i64, &[u8])> = Vec::new();
         for (start, end) in wanted {
             let mut at = start;
@@ -666,9 +668,7 @@ impl Writer {
                 }
                 let stop = done_start.min(end);
                 taken.extend(
-                    self.ring
-                        .range((at - first) as usize..(stop.max(at) - first) as usize)
-                        .map(|r| (r.1, r.2.as_slice())),
+                    ring.range((at - first) as usize..(stop.max(at) - first) as usize).map(|r| (r.1, r.2.as_slice())),
                 );
                 at = at.max(done_end);
                 if at >= end {
@@ -676,13 +676,14 @@ impl Writer {
                 }
             }
         }
-        let taken: Vec<(i64, Vec<u8>)> = taken.into_iter().map(|(t, d)| (t, d.to_vec())).collect();
         self.dumped = merged(self.dumped.iter().copied().chain(windows).collect());
+        // A failed writer counts them dropped.
+        let written = self.write(topic, &taken);
+        self.ring = ring;
+        written?;
         if self.failed {
-            self.shared.counters.dropped.fetch_add(taken.len() as u64, Ordering::Relaxed);
             return Ok(());
         }
-        self.write(topic, &taken)?;
         self.count_dumps(faults.len());
         let now = Instant::now();
         match self.last_sync {
@@ -708,14 +709,9 @@ impl Writer {
         Ok(())
     }
 
-    fn write(&mut self, topic: usize, records: &[(i64, Vec<u8>)]) -> std::io::Result<()> {
-        let refs: Vec<(i64, &[u8])> = records.iter().map(|(t, d)| (*t, d.as_slice())).collect();
-        self.write_refs(topic, &refs)
-    }
-
     /// Writes `records` (time ns, data) of `topic`, in time order, starting a new file where
     /// they reach the split duration.
-    fn write_refs(&mut self, topic: usize, records: &[(i64, &[u8])]) -> std::io::Result<()> {
+    fn write(&mut self, topic: usize, records: &[(i64, &[u8])]) -> std::io::Result<()> {
         if records.is_empty() {
             return Ok(());
         }
