@@ -803,16 +803,19 @@ mod tests {
         Plan::judged(id, start_ns, vec![JOINT], trajectory, None)
     }
 
-    /// A cycle at `now` ms: the player's steps around the copy, returning the target sent.
+    /// A cycle at `now` ms whose drive is in `state` at `actual` (input 2, after the statusword):
+    /// the player's steps around the copy, returning the target sent.
     fn cycle(
         player: &mut Player,
         shared: &PlayerShared,
         events: &Events,
         image: &mut [u8; 4],
         now: u64,
-        enabled: bool,
+        (state, actual): (State, i32),
     ) -> i32 {
-        let inputs = if enabled { State::OperationEnabled } else { State::Fault }.statusword_bits().to_le_bytes();
+        let mut inputs = [0u8; 6];
+        inputs[..2].copy_from_slice(&state.statusword_bits().to_le_bytes());
+        inputs[2..].copy_from_slice(&actual.to_le_bytes());
         let setpoints = SeqBytes::new(4, image);
         let at = (now, now * MS);
         player.before_copy(shared, events, image, at);
@@ -823,6 +826,14 @@ mod tests {
         assert_eq!(&kept, image, "the set-point buffer keeps what went out");
         i32::from_le_bytes(*image)
     }
+
+    /// The drive enabled at `actual`.
+    fn at(actual: i32) -> (State, i32) {
+        (State::OperationEnabled, actual)
+    }
+
+    const ENABLED: (State, i32) = (State::OperationEnabled, 0);
+    const FAULT: (State, i32) = (State::Fault, 0);
 
     fn trajectory_events(events: &Events) -> Vec<(u32, TrajectoryState)> {
         events
@@ -842,9 +853,9 @@ mod tests {
         shared.give(plan(1, Some(3 * MS), 2000.0, 10 * MS)).unwrap();
         // A second one cannot be handed before the first is taken.
         assert!(shared.give(plan(2, None, 0.0, MS)).is_err());
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 1, true), 1000);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 1, ENABLED), 1000);
         assert_eq!(shared.live()[1].map(|s| s.state), Some(TrajectoryState::Pending));
-        let sent: Vec<i32> = (3..=14).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        let sent: Vec<i32> = (3..=14).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, ENABLED)).collect();
         // From where it was, at rest, 100 counts per ms, then held.
         assert_eq!(sent, [1000, 1100, 1200, 1300, 1400, 1500, 1600, 1700, 1800, 1900, 2000, 2000]);
         assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Running), (1, TrajectoryState::Done)]);
@@ -869,26 +880,6 @@ mod tests {
         stop_deceleration: f64::INFINITY,
     };
 
-    /// A cycle whose drive reports `actual`; returns the target sent.
-    fn judged_cycle(
-        player: &mut Player,
-        shared: &PlayerShared,
-        events: &Events,
-        image: &mut [u8; 4],
-        now: u64,
-        actual: i32,
-    ) -> i32 {
-        let mut inputs = [0u8; 6];
-        inputs[..2].copy_from_slice(&State::OperationEnabled.statusword_bits().to_le_bytes());
-        inputs[2..].copy_from_slice(&actual.to_le_bytes());
-        let setpoints = SeqBytes::new(4, image);
-        let at = (now, now * MS);
-        player.before_copy(shared, events, image, at);
-        player.observe(shared, events, &inputs, at);
-        player.apply(shared, &setpoints, image);
-        i32::from_le_bytes(*image)
-    }
-
     #[test]
     fn a_drive_past_the_path_tolerance_brakes_the_plan_to_a_standstill_and_names_it() {
         let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
@@ -896,8 +887,7 @@ mod tests {
         // 100 counts/ms, braking at 1e7 counts/s² (10 counts/ms per ms); the drive stays at 0.
         let tolerance = Tolerance { path_position: 250.0, stop_deceleration: 1e7, ..LOOSE };
         shared.give(judged(1, 1000.0, 10 * MS, tolerance, 0)).unwrap();
-        let sent: Vec<i32> =
-            (1..=16).map(|ms| judged_cycle(&mut player, &shared, &events, &mut image, ms, 0)).collect();
+        let sent: Vec<i32> = (1..=16).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, at(0))).collect();
         // At 4 ms the set-point of 3 ms (200) is within; at 5 ms that of 4 ms (300) is not: it
         // brakes from 400 at 100 counts/ms over 10 ms, 500 counts more, never a step.
         assert_eq!(sent[..7], [0, 100, 200, 300, 400, 495, 580]);
@@ -917,15 +907,14 @@ mod tests {
         let mut image = 0i32.to_le_bytes();
         shared.give(judged(1, 1000.0, 10 * MS, Tolerance { stop_deceleration: 1e7, ..LOOSE }, 0)).unwrap();
         for ms in 1..=3 {
-            judged_cycle(&mut player, &shared, &events, &mut image, ms, 0);
+            cycle(&mut player, &shared, &events, &mut image, ms, at(0));
         }
         // The set-point of 2 ms, which the drive had a cycle to follow; no velocity mapped.
         let [position, velocity, actual, actual_velocity] = shared.followed(0).unwrap();
         assert_eq!([position, velocity.round(), actual], [100.0, 100_000.0, 0.0]);
         assert!(actual_velocity.is_nan());
         shared.stop(1, |_| false);
-        let sent: Vec<i32> =
-            (4..=20).map(|ms| judged_cycle(&mut player, &shared, &events, &mut image, ms, 0)).collect();
+        let sent: Vec<i32> = (4..=20).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, at(0))).collect();
         assert_eq!(sent[..3], [300, 395, 480], "from 300 at 100 counts/ms, braking");
         assert_eq!(*sent.last().unwrap(), 800);
         assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Running), (1, TrajectoryState::Stopped)]);
@@ -937,7 +926,7 @@ mod tests {
             let base = 100 * id as u64;
             for ms in 0..9 {
                 let actual = if arrives && ms >= 5 { 995 } else { 950 };
-                judged_cycle(&mut player, &shared, &events, &mut image, base + ms, actual);
+                cycle(&mut player, &shared, &events, &mut image, base + ms, at(actual));
             }
         }
         let ended: Vec<_> = trajectory_events(&events).into_iter().filter(|e| e.1.ended()).collect();
@@ -954,13 +943,13 @@ mod tests {
             let plan = plan(id, start, 2000.0, 10 * MS);
             caller.handed(plan.status(), vec![0]);
             shared.give(plan).unwrap();
-            cycle(&mut player, &shared, &events, &mut image, id as u64, true);
+            cycle(&mut player, &shared, &events, &mut image, id as u64, ENABLED);
         }
         // The one waiting an hour for its start first, then the running one, before the cycle looks.
         caller.stop(&shared, 2);
         caller.stop(&shared, 1);
         for ms in 3..=5 {
-            cycle(&mut player, &shared, &events, &mut image, ms, true);
+            cycle(&mut player, &shared, &events, &mut image, ms, ENABLED);
         }
         let ended: Vec<_> = trajectory_events(&events).into_iter().filter(|e| e.1.ended()).collect();
         assert_eq!(ended, [(2, TrajectoryState::Stopped), (1, TrajectoryState::Stopped)]);
@@ -972,14 +961,14 @@ mod tests {
         let mut image = 1000i32.to_le_bytes();
         // Due in an hour: stopped, it ends now, and nothing was written.
         shared.give(plan(1, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         shared.stop(1, |_| false);
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 2, true), 1000);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 2, ENABLED), 1000);
         assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Stopped)]);
         // Due in an hour, its drive disabled: aborted now.
         shared.give(plan(2, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 3, true);
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 4, false), 1000);
+        cycle(&mut player, &shared, &events, &mut image, 3, ENABLED);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 4, FAULT), 1000);
         let aborted = TrajectoryState::Aborted { slave: 0, statusword: State::Fault.statusword_bits() };
         assert_eq!(trajectory_events(&events), [(2, aborted)]);
         assert_eq!(shared.live(), [None, None]);
@@ -990,12 +979,12 @@ mod tests {
         let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
         let mut image = 0i32.to_le_bytes();
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         // 100 counts/ms allowed: from 100, where plan 1 is at 2 ms, to 5000 in 10 ms is 490.
         let limits = Limits { max_velocity: 100_000.0, ..Limits::TARGET };
         let trajectory = Trajectory::new(1, &[10 * MS], &[vec![Knot::position(5000.0)]], Some(&[limits])).unwrap();
         shared.give(Plan::judged(2, None, vec![JOINT], trajectory, None)).unwrap();
-        let sent: Vec<i32> = (2..=12).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        let sent: Vec<i32> = (2..=12).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, ENABLED)).collect();
         assert_eq!(sent, [100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1000], "plan 1 went on");
         let refusal = Refusal { slave: 0, why: RefusalReason::Velocity, value: 490_000.0 };
         assert_eq!(
@@ -1009,14 +998,14 @@ mod tests {
         let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
         let mut image = 0i32.to_le_bytes();
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         shared.give(plan(2, Some(100 * MS), 0.0, MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 2, true);
+        cycle(&mut player, &shared, &events, &mut image, 2, ENABLED);
         shared.give(plan(3, Some(5 * MS), -1000.0, 10 * MS)).unwrap();
-        let sent: Vec<i32> = (3..=6).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        let sent: Vec<i32> = (3..=6).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, ENABLED)).collect();
         // Plan 1 at 100 counts/ms until plan 3 takes over at 5 ms from 400, toward -1000 in 10 ms.
         assert_eq!(sent, [200, 300, 400, 260]);
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 7, false), 260, "aborted: nothing written");
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 7, FAULT), 260, "aborted: nothing written");
         assert_eq!(
             trajectory_events(&events),
             [
