@@ -756,7 +756,8 @@ impl CycleThread {
             })
             .collect::<Result<Vec<_>>>()?;
         if let Some(t) = tolerances.as_ref().filter(|t| t.joints.len() != slaves.len()) {
-            return Err(TrajectoryError::TolerancesCount { given: t.joints.len(), joints: slaves.len() }.into());
+            let (given, joints) = (t.joints.len(), slaves.len());
+            return Err(TrajectoryError::PerJointCount { what: "tolerance", given, joints }.into());
         }
         for &slave in slaves {
             if self.shared.homings[slave as usize].status().phase.under_way() {

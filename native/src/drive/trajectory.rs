@@ -469,7 +469,9 @@ impl Trajectory {
             return Err(TrajectoryError::TimesCount { points: points.len(), times: times_ns.len() });
         }
         let limits = match limits {
-            Some(l) if l.len() != joints => return Err(TrajectoryError::LimitsCount { given: l.len(), joints }),
+            Some(l) if l.len() != joints => {
+                return Err(TrajectoryError::PerJointCount { what: "limit", given: l.len(), joints })
+            }
             Some(l) => l.to_vec(),
             None => vec![Limits::TARGET; joints],
         };
@@ -675,16 +677,11 @@ pub enum TrajectoryError {
         /// Joints of the trajectory.
         joints: usize,
     },
-    /// Limits for another number of joints than the trajectory has.
-    LimitsCount {
-        /// Limits given.
-        given: usize,
-        /// Joints of the trajectory.
-        joints: usize,
-    },
-    /// Tolerances for another number of joints than the trajectory has.
-    TolerancesCount {
-        /// Tolerances given.
+    /// Limits or tolerances for another number of joints than the trajectory has.
+    PerJointCount {
+        /// "limit" or "tolerance".
+        what: &'static str,
+        /// How many were given.
         given: usize,
         /// Joints of the trajectory.
         joints: usize,
@@ -826,11 +823,8 @@ impl TrajectoryError {
             TrajectoryError::JointCount { point, given, joints } => {
                 write!(f, "point {point} gives {given} joint value(s); the trajectory has {joints} joint(s)")
             }
-            TrajectoryError::LimitsCount { given, joints } => {
-                write!(f, "{given} joint limit(s) given; the trajectory has {joints} joint(s)")
-            }
-            TrajectoryError::TolerancesCount { given, joints } => {
-                write!(f, "{given} joint tolerance(s) given; the trajectory has {joints} joint(s)")
+            TrajectoryError::PerJointCount { what, given, joints } => {
+                write!(f, "{given} joint {what}(s) given; the trajectory has {joints} joint(s)")
             }
             TrajectoryError::BadLimits { joint: j, limits: l } => write!(
                 f,
