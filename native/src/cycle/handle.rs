@@ -29,10 +29,8 @@ use crate::ethercat::master::cyclic::ImageSlot;
 use crate::ethercat::master::Master;
 use crate::ethercat::pdo::{Direction, PdoEntry};
 
-/// Why a set-point is refused once the cycle stopped.
-fn setpoints_stopped() -> Error {
-    Unavailable::CycleStopped { consequence: "set-points no longer go out".into() }.into()
-}
+/// What a stopped cycle means for a set-point.
+const SETPOINTS_STOPPED: &str = "set-points no longer go out";
 
 /// How a cycle thread runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -372,9 +370,7 @@ impl CycleThread {
     /// Sets the outputs of the slave at `position` from the next cycle on; `data` must have
     /// their exact length. Lock-free: the cycle thread never waits for it.
     pub fn set_outputs(&self, position: u16, data: &[u8]) -> Result<()> {
-        if self.stopped() {
-            return Err(setpoints_stopped());
-        }
+        self.check_running(SETPOINTS_STOPPED)?;
         let slot = self.slot(position)?;
         slot.check_outputs_len(position, data.len())?;
         self.shared.setpoints.write().write_bits(slot.out_start_bit(), data, slot.out_bits);
@@ -523,10 +519,16 @@ impl CycleThread {
         self.shared.eoe.dropped()
     }
 
-    fn check_slave(&self, position: u16) -> Result<()> {
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "use the master's own SDO access".into() }.into());
+    /// Refuses once the cycle is stopped, saying what that means for the call.
+    fn check_running(&self, consequence: &'static str) -> Result<()> {
+        match self.stopped() {
+            true => Err(Unavailable::CycleStopped { consequence: consequence.into() }.into()),
+            false => Ok(()),
         }
+    }
+
+    fn check_slave(&self, position: u16) -> Result<()> {
+        self.check_running("use the master's own SDO access")?;
         self.check_position(position)?;
         if recovery::busy(&self.shared.recovery[position as usize]) {
             return Err(Unavailable::Recovering { slave: position }.into());
@@ -570,9 +572,7 @@ impl CycleThread {
     /// homing may take long). Replaces one under way; returns its number. Lock-free.
     pub fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<Duration>) -> Result<u32> {
         self.sequenced(position)?;
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "no set-point handshake can run".into() }.into());
-        }
+        self.check_running("no set-point handshake can run")?;
         if bits & !handshake::ALLOWED_BITS != 0 || bits & crate::drive::ds402::controlword::NEW_SETPOINT == 0 {
             return Err(SettingError::HandshakeBits { bits }.into());
         }
@@ -621,9 +621,7 @@ impl CycleThread {
     /// Replaces one under way; returns its number. Lock-free.
     pub fn start_homing(&self, position: u16, timeout: Duration) -> Result<u32> {
         let status = self.sequenced(position)?.status();
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "no homing can run".into() }.into());
-        }
+        self.check_running("no homing can run")?;
         let o = self.offsets[position as usize].unwrap_or_default();
         if homing_objects(&o).is_none() {
             return Err(Unavailable::HomingUnmapped { slave: position }.into());
@@ -691,9 +689,7 @@ impl CycleThread {
     /// set-point write that releases a held target; any other output (the drive's I/O, a
     /// latch control) leaves the target held.
     pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
-        if self.stopped() {
-            return Err(setpoints_stopped());
-        }
+        self.check_running(SETPOINTS_STOPPED)?;
         let slot = self.slot(position)?;
         let (rx, _) = self.mapping(position)?;
         let (offset, entry) = crate::ethercat::pdo::find(rx, index, subindex)
@@ -740,9 +736,7 @@ impl CycleThread {
         start_ns: Option<u64>,
         tolerances: Option<trajectory_player::Tolerances>,
     ) -> Result<u32> {
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "no trajectory can play".into() }.into());
-        }
+        self.check_running("no trajectory can play")?;
         let limits: Vec<Limits> = slaves.iter().map(|&slave| self.limits_of(slave).0).collect();
         let trajectory = Trajectory::new(slaves.len(), times_ns, points, Some(&limits))?;
         let joints = slaves
@@ -1117,9 +1111,7 @@ impl CycleThread {
     /// The device at `position`, where it has process data: a slave the cycle does not
     /// sequence (a drive's outputs are its objects', set with [`set_object`](Self::set_object)).
     fn device(&self, position: u16) -> Result<Option<ImageSlot>> {
-        if self.stopped() {
-            return Err(setpoints_stopped());
-        }
+        self.check_running(SETPOINTS_STOPPED)?;
         self.check_position(position)?;
         if self.sequenced[position as usize].is_ok() {
             return Err(Unavailable::DriveChannels { slave: position }.into());
