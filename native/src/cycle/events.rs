@@ -4,6 +4,7 @@
 //! counts, so what was missed is known.
 
 use crate::cycle::ring::Ring;
+use crate::ethercat::master::state::AlStatus;
 
 /// Events the ring holds before new ones are dropped.
 pub const CAPACITY: usize = 256;
@@ -365,6 +366,19 @@ pub enum Event {
 }
 
 impl Event {
+    /// A fault of the slave at `slave` seen in the cycle `at` (its number and wake-up time),
+    /// with the statusword and AL status of that cycle (0 where not known).
+    pub fn fault(
+        at: (u64, u64),
+        slave: u16,
+        statusword: u16,
+        al: Option<AlStatus>,
+        (source, code, action): (FaultSource, u16, Action),
+    ) -> Event {
+        let (al_status, al_status_code) = al.map_or((0, 0), |a| (a.status, a.code));
+        Event::Fault { cycle: at.0, time_ns: at.1, slave, source, code, statusword, al_status, al_status_code, action }
+    }
+
     fn encode(&self) -> [u64; 4] {
         match *self {
             Event::Latch { cycle, time_ns, slave, channel, edge, position } => [
