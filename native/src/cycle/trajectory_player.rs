@@ -340,23 +340,24 @@ impl PlayerShared {
     /// and its actual (position, velocity) judged against it, counts and counts/s; `None`
     /// while no trajectory drives it.
     pub fn followed(&self, slave: u16) -> Option<[f64; 4]> {
-        let mut bytes = vec![0u8; self.followed.len()];
-        self.followed.read(&mut bytes);
-        let at = slave as usize * FOLLOWED * 8;
-        let words = bytes.get(at..at + FOLLOWED * 8)?;
-        let word = |w: usize| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes"));
-        (word(4) == 1.0).then(|| std::array::from_fn(word))
+        self.words(slave).map(|w| [w[0], w[1], w[2], w[3]])
     }
 
     /// Drive `slave`'s set-point (position, velocity, acceleration) as the trajectory in force
     /// last had it; `None` while none drives it.
     pub fn setpoint(&self, slave: u16) -> Option<Setpoint> {
+        self.words(slave).map(|w| Setpoint { position: w[0], velocity: w[1], acceleration: w[5] })
+    }
+
+    /// Drive `slave`'s words as last published; `None` while no trajectory drives it.
+    fn words(&self, slave: u16) -> Option<[f64; FOLLOWED]> {
         let mut bytes = vec![0u8; self.followed.len()];
         self.followed.read(&mut bytes);
         let at = slave as usize * FOLLOWED * 8;
         let words = bytes.get(at..at + FOLLOWED * 8)?;
-        let word = |w: usize| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes"));
-        (word(4) == 1.0).then(|| Setpoint { position: word(0), velocity: word(1), acceleration: word(5) })
+        let words: [f64; FOLLOWED] =
+            std::array::from_fn(|w| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes")));
+        (words[4] == 1.0).then_some(words)
     }
 
     /// Hands `plan` to the cycle thread; gives it back when the last one was not taken yet.
