@@ -216,29 +216,16 @@ impl DriveStatus {
     }
 
     fn pack(self) -> u64 {
-        let progress = match self.progress {
-            Progress::Idle => 0u64,
-            Progress::InProgress => 1,
-            Progress::Done => 2,
-            Progress::Stuck => 3,
-            Progress::Lost => 4,
-        };
+        let progress = self.progress as u64;
         let mode = self.mode_display.map_or(0, |m| 0x100 | m as u8 as u64);
         self.statusword as u64 | (self.request.map_or(0, |r| r as u64) << 16) | (progress << 24) | (mode << 32)
     }
 
     fn unpack(v: u64) -> DriveStatus {
-        let progress = match (v >> 24) as u8 {
-            1 => Progress::InProgress,
-            2 => Progress::Done,
-            3 => Progress::Stuck,
-            4 => Progress::Lost,
-            _ => Progress::Idle,
-        };
         DriveStatus {
             statusword: v as u16,
             request: Request::from_u8((v >> 16) as u8),
-            progress,
+            progress: Progress::ALL.get((v >> 24) as u8 as usize).copied().unwrap_or(Progress::Idle),
             mode_display: (v >> 32 & 0x100 != 0).then_some((v >> 32) as u8 as i8),
         }
     }
