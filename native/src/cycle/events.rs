@@ -9,23 +9,16 @@ use crate::ethercat::master::state::AlStatus;
 /// Events the ring holds before new ones are dropped.
 pub const CAPACITY: usize = 256;
 
-/// A latch edge.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Edge {
-    /// The input went high.
-    Rising,
-    /// The input went low.
-    Falling,
-}
-
-impl Edge {
-    /// The edge's name as the Python API and the messages spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Edge::Rising => "rising",
-            Edge::Falling => "falling",
-        }
+named_variants! {
+    /// A latch edge.
+    pub enum Edge {
+        /// The input went high.
+        Rising => "rising",
+        /// The input went low.
+        Falling => "falling",
     }
+    /// The edge's name as the Python API and the messages spell it.
+    fn name;
 }
 
 wire_codes! {

@@ -285,26 +285,18 @@ impl Mode {
     }
 }
 
-/// What the command of a mode of operation sets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum CommandKind {
-    /// A position, in counts.
-    Position,
-    /// A velocity, in counts per second.
-    Velocity,
-    /// A torque, in 0.1 % of the drive's peak torque.
-    Torque,
-}
-
-impl CommandKind {
-    /// The command's name as the Python API spells it: "position", "velocity", "torque".
-    pub fn name(self) -> &'static str {
-        match self {
-            CommandKind::Position => "position",
-            CommandKind::Velocity => "velocity",
-            CommandKind::Torque => "torque",
-        }
+named_variants! {
+    /// What the command of a mode of operation sets.
+    pub enum CommandKind {
+        /// A position, in counts.
+        Position => "position",
+        /// A velocity, in counts per second.
+        Velocity => "velocity",
+        /// A torque, in 0.1 % of the drive's peak torque.
+        Torque => "torque",
     }
+    /// The command's name as the Python API spells it: "position", "velocity", "torque".
+    fn name;
 }
 
 impl Mode {

@@ -127,28 +127,21 @@ pub fn with_output_levels(word: u32, levels: &[(i64, bool)]) -> Result<u32, i64>
     Ok(with_outputs(word, now))
 }
 
-/// The hardware enable input as the drive shows it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum HardwareEnable {
-    /// High: the drive is switched on (which it leaves while the input is low), or shows no
-    /// warning.
-    High,
-    /// Low: the drive is not switched on and shows a warning (statusword bit 7), which the AKD
-    /// raises while the input is low, among other reasons.
-    Low,
-    /// The statusword shows no valid state.
-    Unknown,
-}
-
-impl HardwareEnable {
-    /// "high", "low" or "unknown".
-    pub fn name(self) -> &'static str {
-        match self {
-            HardwareEnable::High => "high",
-            HardwareEnable::Low => "low",
-            HardwareEnable::Unknown => "unknown",
-        }
+named_variants! {
+    /// The hardware enable input as the drive shows it, numbered as akd_ros/DriveIO's
+    /// HARDWARE_ENABLE_* constants.
+    pub enum HardwareEnable {
+        /// High: the drive is switched on (which it leaves while the input is low), or shows no
+        /// warning.
+        High = 1 => "high",
+        /// Low: the drive is not switched on and shows a warning (statusword bit 7), which the AKD
+        /// raises while the input is low, among other reasons.
+        Low = 2 => "low",
+        /// The statusword shows no valid state.
+        Unknown = 0 => "unknown",
     }
+    /// "high", "low" or "unknown".
+    fn name;
 }
 
 /// The hardware enable input as `statusword` shows it (see the module's words on the evidence).

@@ -145,26 +145,18 @@ impl JointLimits {
 /// How far past a speed limit rounding may take a value without it counting, relative.
 const SPEED_ROUNDING: f64 = 1e-9;
 
-/// Which of a joint's limits.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Limit {
-    /// Its positions.
-    Position,
-    /// Its velocity.
-    Velocity,
-    /// Its acceleration.
-    Acceleration,
-}
-
-impl Limit {
-    /// The limit's parameter name, as the node's limits.* parameters spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Limit::Position => "position",
-            Limit::Velocity => "max_velocity",
-            Limit::Acceleration => "max_acceleration",
-        }
+named_variants! {
+    /// Which of a joint's limits.
+    pub enum Limit {
+        /// Its positions.
+        Position => "position",
+        /// Its velocity.
+        Velocity => "max_velocity",
+        /// Its acceleration.
+        Acceleration => "max_acceleration",
     }
+    /// The limit's parameter name, as the node's limits.* parameters spell it.
+    fn name;
 }
 
 /// A limit gone past: the furthest value reached (signed; counts, counts/s or counts/s²) and
@@ -210,26 +202,18 @@ pub struct Scale {
     pub unit: Unit,
 }
 
-/// The unit a joint's positions are given in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Unit {
-    /// The drive's counts.
-    Counts,
-    /// Radians (a rotary joint).
-    Radian,
-    /// Metres (a linear joint).
-    Metre,
-}
-
-impl Unit {
-    /// Its symbol.
-    pub fn name(self) -> &'static str {
-        match self {
-            Unit::Counts => "counts",
-            Unit::Radian => "rad",
-            Unit::Metre => "m",
-        }
+named_variants! {
+    /// The unit a joint's positions are given in.
+    pub enum Unit {
+        /// The drive's counts.
+        Counts => "counts",
+        /// Radians (a rotary joint).
+        Radian => "rad",
+        /// Metres (a linear joint).
+        Metre => "m",
     }
+    /// Its symbol.
+    fn name;
 }
 
 impl Scale {

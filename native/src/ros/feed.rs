@@ -37,7 +37,7 @@ use std::time::{Duration, Instant};
 use super::{Device, Joint};
 use crate::cycle::{timing, CycleThread, Snapshot};
 use crate::drive::ds402::{Mode, State};
-use crate::drive::io::{DriveIo, HardwareEnable, Switch};
+use crate::drive::io::{DriveIo, Switch};
 use crate::drive::objects::DriveInputs;
 use crate::drive::scaling::PositionUnwrap;
 use crate::ethercat::device::ChannelValue;
@@ -114,11 +114,7 @@ impl FeedShared {
             input_names,
             input_numbers,
             named_inputs,
-            hardware_enable: match drive.hardware_enable() {
-                HardwareEnable::Unknown => 0,
-                HardwareEnable::High => 1,
-                HardwareEnable::Low => 2,
-            },
+            hardware_enable: drive.hardware_enable() as u8,
             analog_input: volts(drive.analog_input),
             digital_outputs_mapped: drive.digital_outputs.is_some(),
             digital_outputs: drive.digital_outputs.unwrap_or(0),
