@@ -247,7 +247,9 @@ fn a_refused_trajectory_moves_nothing() {
         let base = last_targets(&records(cycle, 20));
         let (times, points) = three_points(base);
         let joint = |limits| JointLimits { name: "joint 0".into(), limits, scale: Scale::COUNTS };
-        cycle.set_joint_limits(DRIVES[0], joint(Limits::positions(-1e9, base[0] as f64 + 120_000.0))).unwrap();
+        cycle
+            .set_joint_limits(DRIVES[0], joint(Limits { min: -1e9, max: base[0] as f64 + 120_000.0, ..Limits::TARGET }))
+            .unwrap();
         let past_a_limit = cycle.follow_trajectory(&DRIVES, &times, &points, None, None);
         cycle.set_joint_limits(DRIVES[0], joint(Limits::TARGET)).unwrap();
         let refusals = [

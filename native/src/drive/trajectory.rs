@@ -69,11 +69,6 @@ impl Limits {
         max_acceleration: f64::INFINITY,
     };
 
-    /// Positions `min ..= max` counts, at any speed.
-    pub fn positions(min: f64, max: f64) -> Limits {
-        Limits { min, max, ..Limits::TARGET }
-    }
-
     /// Whether these are limits at all: finite positions with min <= max, speeds above 0 (or
     /// infinite).
     fn valid(&self) -> bool {
@@ -1002,7 +997,8 @@ mod tests {
 
     #[test]
     fn refuses_with_the_point_the_joint_and_what_is_allowed() {
-        let limits = [Limits::positions(-10.0, 10.0), Limits::positions(0.0, 100.0)];
+        let limits =
+            [Limits { min: -10.0, max: 10.0, ..Limits::TARGET }, Limits { min: 0.0, max: 100.0, ..Limits::TARGET }];
         let refused = |times: &[u64], points: Vec<Vec<Knot>>| {
             Trajectory::new(2, times, &points, Some(&limits)).unwrap_err().to_string()
         };
@@ -1035,7 +1031,7 @@ mod tests {
         assert!(e.contains("1 point(s) but 2 time(s)"), "{e}");
         let e = Trajectory::new(2, &[S], &[p(0.0, 0.0)], Some(&limits[..1])).unwrap_err().to_string();
         assert!(e.contains("1 joint limit(s) given; the trajectory has 2 joint(s)"), "{e}");
-        let bad = [Limits::positions(1.0, 0.0), limits[1]];
+        let bad = [Limits { min: 1.0, max: 0.0, ..Limits::TARGET }, limits[1]];
         let e = Trajectory::new(2, &[S], &[p(0.0, 0.0)], Some(&bad)).unwrap_err().to_string();
         assert!(e.contains("joint 0: limits 1 ..= 0 counts"), "{e}");
         assert_eq!(Trajectory::new(1, &[], &[], None), Err(TrajectoryError::NoPoints));
