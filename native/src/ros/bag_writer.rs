@@ -31,7 +31,7 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::ros::bag_file::{BagFile, Compression};
+use crate::ros::bag_file::BagFile;
 
 /// How often the thread takes records from its [`CycleSource`]: a cycle keeps two seconds.
 pub const PULL_INTERVAL: Duration = Duration::from_millis(20);
@@ -66,8 +66,8 @@ pub struct Options {
     pub folder: PathBuf,
     /// The bag directory's name; `_2`, `_3`, ... is added when it exists.
     pub name: String,
-    /// The chunks' compression.
-    pub compression: Compression,
+    /// The chunks' compression; `None`: not compressed.
+    pub compression: Option<mcap::Compression>,
     /// The MCAP header's profile and library.
     pub profile: String,
     /// The writing library's name.
@@ -871,7 +871,7 @@ mod tests {
         Options {
             folder: dir.to_owned(),
             name: "bag".into(),
-            compression: Compression::Lz4,
+            compression: Some(mcap::Compression::Lz4),
             profile: "ros2".into(),
             library: "test".into(),
             chunk_size: 4000,
