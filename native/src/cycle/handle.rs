@@ -169,8 +169,8 @@ impl CycleThread {
             Ok(c) => c,
             Err(e) => return Err(Box::new((e, master))),
         };
-        let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
-        let master_slaves = master.slaves().len();
+        let count = master.slaves().len();
+        let slots = (0..count as u16).map(|p| master.image_slot(p).ok()).collect();
         let found = sequenced_drives(&master);
         let sequenced_count = found.iter().filter(|f| f.is_ok()).count();
         let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
@@ -182,13 +182,13 @@ impl CycleThread {
             .map(|s| s.process_data.as_ref().map_or_else(Vec::new, |d| device::channels(&s.sii, d)))
             .collect();
         // Every slave the cycle does not sequence is a device beside the drives.
-        let devices: Vec<DeviceLoop> = found
+        let mut devices: Vec<DeviceLoop> = found
             .iter()
             .enumerate()
             .filter(|(_, f)| f.is_err())
             .map(|(p, _)| DeviceLoop::new(p as u16, master.image_slot(p as u16).ok(), &channels[p]))
             .collect();
-        let drives: Vec<DriveLoop> = found
+        let mut drives: Vec<DriveLoop> = found
             .into_iter()
             .enumerate()
             .filter_map(|(p, f)| {
@@ -219,7 +219,7 @@ impl CycleThread {
                  brought back"
             ));
         }
-        let mailbox = MailboxService::new(&master);
+        let mut mailbox = MailboxService::new(&master);
         // The ports each slave's ESC has, for the line's health; without them it is not read.
         let (ports, line_health_interval) = match master.port_descriptors() {
             Ok(ports) => (ports, config.line_health.filter(|i| !i.is_zero())),
@@ -240,24 +240,22 @@ impl CycleThread {
             setpoints: SeqBytes::new(outputs.len(), &outputs),
             snapshot: SeqBytes::new(HEADER_LEN + inputs_len + outputs.len(), &[]),
             stats: CycleStats::new(period_ns),
-            drives: (0..master.slaves().len()).map(|_| sequencer::SequencerShared::default()).collect(),
+            drives: (0..count).map(|_| sequencer::SequencerShared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
-            latches: (0..master.slaves().len()).map(|_| latch::LatchShared::default()).collect(),
-            handshakes: (0..master.slaves().len()).map(|_| handshake::HandshakeShared::default()).collect(),
-            command_timeouts: (0..master.slaves().len())
-                .map(|_| command_timeout::CommandTimeoutShared::default())
-                .collect(),
-            homings: (0..master.slaves().len()).map(|_| homing::HomingShared::default()).collect(),
+            latches: (0..count).map(|_| latch::LatchShared::default()).collect(),
+            handshakes: (0..count).map(|_| handshake::HandshakeShared::default()).collect(),
+            command_timeouts: (0..count).map(|_| command_timeout::CommandTimeoutShared::default()).collect(),
+            homings: (0..count).map(|_| homing::HomingShared::default()).collect(),
             events: Events::default(),
             samples: Samples::for_drives(sequenced_count),
             sdo: SdoSlot::default(),
             eoe: eoe_frames::EoeFrames::default(),
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::DcStatusShared::new(master.clock(), &config.fbus_param02),
-            trajectories: trajectory_player::PlayerShared::new(master.slaves().len()),
+            trajectories: trajectory_player::PlayerShared::new(count),
             relay: Arc::default(),
-            recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
-            devices: (0..master.slaves().len()).map(|_| DeviceShared::default()).collect(),
+            recovery: (0..count).map(|_| recovery::SlaveRecovery::default()).collect(),
+            devices: (0..count).map(|_| DeviceShared::default()).collect(),
             supervised: supervised.is_ok(),
             line_health: line_health::LineHealthShared::new(ports, line_health_interval),
         });
@@ -267,12 +265,9 @@ impl CycleThread {
         let (ready_tx, ready_rx) = mpsc::sync_channel(1);
         let spawned = {
             let shared = shared.clone();
-            let mut drives = drives;
-            let mut devices = devices;
-            let mut mailbox = mailbox;
-            let mut player = trajectory_player::Player::new(master.slaves().len());
+            let mut player = trajectory_player::Player::new(count);
             let mut relay_buffers = recovery::RelayBuffers::default();
-            let mut line_reader = line_health::LineHealthReader::new(master.slaves().len(), &shared.line_health);
+            let mut line_reader = line_health::LineHealthReader::new(count, &shared.line_health);
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
@@ -322,7 +317,7 @@ impl CycleThread {
                 .spawn(move || recoverer.run(&shared.recovery, &shared.stop))
                 .ok()
         };
-        let joint_limits = std::sync::RwLock::new(vec![None; master_slaves]);
+        let joint_limits = std::sync::RwLock::new(vec![None; count]);
         Ok(CycleThread {
             shared,
             thread: std::sync::Mutex::new(Some(thread)),
