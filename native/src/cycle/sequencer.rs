@@ -147,8 +147,10 @@ named_variants! {
     /// How far the current request is; in Python `RequestProgress` (`RequestProgress.STUCK`,
     /// ...), which prints as its [`name`](Progress::name).
     #[cfg_attr(feature = "python", pyo3::pyclass(name = "RequestProgress", module = "akd_ros._native", frozen, eq, eq_int, rename_all = "SCREAMING_SNAKE_CASE"))]
+    #[derive(Default)]
     pub enum Progress {
         /// No request was made yet: the sequencer leaves the drive's outputs alone.
+        #[default]
         Idle => "idle",
         /// The request is under way.
         InProgress => "in_progress",
@@ -231,7 +233,9 @@ impl DriveStatus {
     }
 }
 
-/// What a drive's sequencer shares with other threads: all atomics.
+/// What a drive's sequencer shares with other threads: all atomics, all zero at first (an idle
+/// status packs as 0).
+#[derive(Default)]
 pub struct SequencerShared {
     request: AtomicU8,
     status: AtomicU64,
@@ -242,19 +246,6 @@ pub struct SequencerShared {
     rehold: AtomicU64,
     /// Controlword bit 8: the drive stops and stays enabled.
     halt: AtomicBool,
-}
-
-impl Default for SequencerShared {
-    fn default() -> Self {
-        let idle = DriveStatus { statusword: 0, request: None, progress: Progress::Idle, mode_display: None };
-        SequencerShared {
-            request: AtomicU8::new(0),
-            status: AtomicU64::new(idle.pack()),
-            setpoint_writes: AtomicU64::new(0),
-            rehold: AtomicU64::new(0),
-            halt: AtomicBool::new(false),
-        }
-    }
 }
 
 impl SequencerShared {
@@ -314,7 +305,7 @@ pub struct Observed {
 
 /// What the sequencing step writes into the drive's outputs; `None` leaves them as the user
 /// set them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SequencerOutputs {
     /// The controlword.
     pub controlword: Option<u16>,
@@ -323,7 +314,7 @@ pub struct SequencerOutputs {
 }
 
 /// The sequencing state of one drive, kept by the cycle thread.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Sequencer {
     request: Option<Request>,
     progress: Progress,
@@ -334,19 +325,6 @@ pub struct Sequencer {
     held: Option<i32>,
     /// Set-point writes counted when the target was last held.
     writes_at_hold: u64,
-}
-
-impl Default for Sequencer {
-    fn default() -> Self {
-        Sequencer {
-            request: None,
-            progress: Progress::Idle,
-            started_ns: 0,
-            reset_low_sent: false,
-            held: None,
-            writes_at_hold: 0,
-        }
-    }
 }
 
 impl Sequencer {
@@ -431,6 +409,7 @@ impl Sequencer {
 }
 
 /// A drive the cycle thread sequences: where its objects are and its sequencing state.
+#[derive(Default)]
 pub struct SequencedDrive {
     /// The drive's objects in the images (offsets within the whole images).
     pub offsets: Offsets,
@@ -451,14 +430,7 @@ pub struct SequencedDrive {
 impl SequencedDrive {
     /// A drive with its objects at `offsets`, not sequenced until a request comes.
     pub fn new(offsets: Offsets) -> Self {
-        SequencedDrive {
-            offsets,
-            sequencer: Sequencer::default(),
-            command: SequencerOutputs { controlword: None, target: None },
-            halt: false,
-            writes_before_copy: 0,
-            writes_in_outputs: 0,
-        }
+        SequencedDrive { offsets, ..SequencedDrive::default() }
     }
 
     /// Counts the set-point writes before the cycle copies the set-points into the outputs.
@@ -660,6 +632,8 @@ mod tests {
 
     #[test]
     fn status_packs_and_unpacks() {
+        let idle = DriveStatus { statusword: 0, request: None, progress: Progress::Idle, mode_display: None };
+        assert_eq!(SequencerShared::default().status(), idle, "a drive's shared state starts all zero: idle");
         for progress in [Progress::Idle, Progress::InProgress, Progress::Done, Progress::Stuck, Progress::Lost] {
             for mode_display in [None, Some(-3), Some(8)] {
                 let s = DriveStatus { statusword: 0xBEEF, request: Some(Request::QuickStop), progress, mode_display };
