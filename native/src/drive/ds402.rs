@@ -365,17 +365,9 @@ mod tests {
     #[test]
     fn the_error_code_reply_needs_its_two_bytes() {
         assert_eq!(error_code(&[0x10, 0x23]), Ok(0x2310));
-        for short in [&[][..], &[0x10]] {
-            let e = error_code(short).unwrap_err();
-            assert_eq!(
-                e,
-                crate::error::MailboxError::Truncated { what: "error code 0x603F:00", len: short.len(), needed: 2 }
-            );
-            assert!(
-                e.to_string().contains("0x603F") && e.to_string().contains(&format!("{} bytes", short.len())),
-                "{e}"
-            );
-        }
+        let e = error_code(&[0x10]).unwrap_err().to_string();
+        assert_eq!(e, "error code 0x603F:00 of 1 bytes is shorter than the 2 bytes it needs");
+        assert!(error_code(&[]).is_err());
     }
 
     #[test]
@@ -480,11 +472,8 @@ mod tests {
         for mode in Mode::ALL {
             assert_eq!(mode.command().is_none(), mode.command_objects().is_empty(), "{}", mode.name());
             for &(index, subindex) in mode.command_objects() {
-                assert!(crate::drive::pdo::mappable(crate::ethercat::pdo::Direction::Rx).any(|e| (
-                    e.index, e.subindex
-                ) == (
-                    index, subindex
-                )));
+                let this = |e: crate::ethercat::pdo::PdoEntry| (e.index, e.subindex) == (index, subindex);
+                assert!(crate::drive::pdo::mappable(crate::ethercat::pdo::Direction::Rx).any(this));
                 let (object, code) = crate::drive::objects::mappable_object(index, subindex).expect("a typed object");
                 assert_eq!(data_type::kind(code), ValueKind::SignedInteger, "{}", object.name);
                 // Torque counts in 0.1 % of peak (16 bits); positions and velocities in counts (32).
