@@ -17,7 +17,7 @@ use super::seqlock::SeqBytes;
 use super::stats::CycleStats;
 use super::supervision::Gaps;
 use super::{
-    command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, recovery, rt, sequencer,
+    command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, lock, recovery, rt, sequencer,
     supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
 use crate::drive::io::DriveIo;
@@ -1234,11 +1234,6 @@ impl CycleThread {
         lock(&self.cpu_latency).take();
         master
     }
-}
-
-/// A lock that a panicking holder left is still the same handle.
-fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 impl Drop for CycleThread {

@@ -81,6 +81,12 @@ use events::Events;
 use samples::Samples;
 use seqlock::SeqBytes;
 use stats::CycleStats;
+/// A lock that a panicking holder left is still the same handle (the cycle's callers, the
+/// node's feed and bag writer: none leaves what it guards half changed).
+pub(crate) fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
 /// The snapshot header's layout: cycle (u64), time (u64), working counter (u16), whether the
 /// cycle's inputs are fresh (u8); the input image follows, then the output image as sent.
 const HEADER_LEN: usize = 8 + 8 + 2 + 1;

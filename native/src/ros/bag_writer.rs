@@ -27,10 +27,11 @@
 use std::collections::{BTreeMap, VecDeque};
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use crate::cycle::lock;
 use crate::ros::bag_file::BagFile;
 
 /// How often the thread takes records from its [`CycleSource`]: a cycle keeps two seconds.
@@ -200,10 +201,6 @@ struct WriterShared {
     released: Condvar,
     counters: AtomicCounters,
     queue_size: usize,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 impl WriterShared {

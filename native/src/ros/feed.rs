@@ -30,12 +30,12 @@
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::{Device, Joint};
-use crate::cycle::{timing, CycleThread, Snapshot};
+use crate::cycle::{lock, timing, CycleThread, Snapshot};
 use crate::drive::ds402::{Mode, State};
 use crate::drive::io::{DriveIo, Switch};
 use crate::drive::objects::DriveInputs;
@@ -198,10 +198,6 @@ struct Outbox {
     messages: VecDeque<(usize, Vec<u8>)>,
     events: bool,
     closed: bool,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// The node's periodic publications (see the module).
