@@ -26,7 +26,6 @@
 
 use std::collections::{BTreeMap, VecDeque};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
@@ -183,15 +182,6 @@ struct Inbox {
     refusing: bool,
 }
 
-#[derive(Default)]
-struct AtomicCounters {
-    written: AtomicU64,
-    dropped: AtomicU64,
-    errors: AtomicU64,
-    black_box_dumps: AtomicU64,
-    black_box_syncs: AtomicU64,
-}
-
 struct WriterShared {
     inbox: Mutex<Inbox>,
     arrived: Condvar,
@@ -199,7 +189,7 @@ struct WriterShared {
     reported: Condvar,
     held: Mutex<bool>,
     released: Condvar,
-    counters: AtomicCounters,
+    counters: Mutex<Counters>,
     queue_size: usize,
 }
 
@@ -215,7 +205,7 @@ impl WriterShared {
         if refused {
             let messages = item.messages();
             drop(inbox);
-            self.counters.dropped.fetch_add(messages, Ordering::Relaxed);
+            lock(&self.counters).dropped += messages;
             return false;
         }
         inbox.queued += counted as usize;
@@ -251,7 +241,7 @@ impl BagWriter {
             reported: Condvar::new(),
             held: Mutex::new(false),
             released: Condvar::new(),
-            counters: AtomicCounters::default(),
+            counters: Mutex::default(),
             queue_size: options.queue_size,
         });
         let writer = Writer::new(shared.clone(), options);
@@ -323,14 +313,7 @@ impl BagWriter {
 
     /// The counters.
     pub fn counters(&self) -> Counters {
-        let c = &self.shared.counters;
-        Counters {
-            written: c.written.load(Ordering::Relaxed),
-            dropped: c.dropped.load(Ordering::Relaxed),
-            errors: c.errors.load(Ordering::Relaxed),
-            black_box_dumps: c.black_box_dumps.load(Ordering::Relaxed),
-            black_box_syncs: c.black_box_syncs.load(Ordering::Relaxed),
-        }
+        *lock(&self.shared.counters)
     }
 
     /// Waits up to `timeout` for the thread's end; whether it ended.
@@ -500,7 +483,7 @@ impl Writer {
 
     /// Stops recording for the first failure, `text`; counts every one.
     fn failed_because(&mut self, text: String) {
-        self.shared.counters.errors.fetch_add(1, Ordering::Relaxed);
+        lock(&self.shared.counters).errors += 1;
         if self.failed {
             return;
         }
@@ -514,7 +497,7 @@ impl Writer {
         inbox.items.retain(|i| matches!(i, Item::Close | Item::Finish(_) | Item::Fault(_)));
         inbox.queued = 0;
         drop(inbox);
-        self.shared.counters.dropped.fetch_add(lost, Ordering::Relaxed);
+        lock(&self.shared.counters).dropped += lost;
         self.shared.update(|r| r.failure = Some(text));
     }
 
@@ -694,7 +677,7 @@ impl Writer {
 
     fn count_dumps(&self, faults: usize) {
         if !self.failed {
-            self.shared.counters.black_box_dumps.fetch_add(faults as u64, Ordering::Relaxed);
+            lock(&self.shared.counters).black_box_dumps += faults as u64;
         }
     }
 
@@ -702,7 +685,7 @@ impl Writer {
         self.flush(true)?;
         self.last_sync = Some(now);
         self.sync_due = None;
-        self.shared.counters.black_box_syncs.fetch_add(1, Ordering::Relaxed);
+        lock(&self.shared.counters).black_box_syncs += 1;
         Ok(())
     }
 
@@ -713,7 +696,7 @@ impl Writer {
             return Ok(());
         }
         if self.failed || self.open.is_none() || topic >= self.topics.len() {
-            self.shared.counters.dropped.fetch_add(records.len() as u64, Ordering::Relaxed);
+            lock(&self.shared.counters).dropped += records.len() as u64;
             return Ok(());
         }
         let mut start = 0;
@@ -737,7 +720,7 @@ impl Writer {
             }
             self.files[open.index].add(batch[0].0, batch[batch.len() - 1].0, batch.len() as u64);
             self.topic_messages[topic] += batch.len() as u64;
-            self.shared.counters.written.fetch_add(batch.len() as u64, Ordering::Relaxed);
+            lock(&self.shared.counters).written += batch.len() as u64;
             start = end;
             if self.pending_bytes >= self.options.chunk_size {
                 self.flush(false)?;
