@@ -66,6 +66,11 @@ impl SeqBytes {
         self.bytes.len()
     }
 
+    /// Whether the buffer holds no bytes (clippy's pair to `len`).
+    pub fn is_empty(&self) -> bool {
+        self.bytes.is_empty()
+    }
+
     /// Starts a write, waiting (spinning) for another writer to finish its own. Writers other
     /// than the cycle thread take microseconds, so the wait is as short.
     pub fn write(&self) -> Writer<'_> {
