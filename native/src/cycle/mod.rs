@@ -81,8 +81,8 @@ use events::Events;
 use samples::Samples;
 use seqlock::SeqBytes;
 use stats::CycleStats;
-/// A lock that a panicking holder left is still the same handle (the cycle's callers, the
-/// node's feed and bag writer: none leaves what it guards half changed).
+/// A lock that a panicking holder left is still the same handle (the cycle's callers and the
+/// node's feed: neither leaves what it guards half changed).
 pub(crate) fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     m.lock().unwrap_or_else(|p| p.into_inner())
 }

@@ -26,11 +26,10 @@
 
 use std::collections::{BTreeMap, VecDeque};
 use std::path::PathBuf;
-use std::sync::{Arc, Condvar, Mutex};
+use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::cycle::lock;
 use crate::ros::bag_file::BagFile;
 
 /// How often the thread takes records from its [`CycleSource`]: a cycle keeps two seconds.
@@ -180,6 +179,10 @@ struct Inbox {
     queued: usize,
     /// No item is taken any more (failed or closed).
     refusing: bool,
+}
+
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 struct WriterShared {
