@@ -166,15 +166,9 @@ impl Loop<'_> {
                 d.drive.observe(&shared.drives[d.position as usize], inputs, now.1, timeout_ns);
                 if let Some(latch) = d.latch.as_mut() {
                     let slave = d.position;
+                    let (cycle, time_ns) = now;
                     latch.observe(&shared.latches[slave as usize], inputs, |channel, edge, position| {
-                        shared.events.push(Event::Latch {
-                            cycle: now.0,
-                            time_ns: now.1,
-                            slave,
-                            channel,
-                            edge,
-                            position,
-                        })
+                        shared.events.push(Event::Latch { cycle, time_ns, slave, channel, edge, position })
                     });
                 }
             }
