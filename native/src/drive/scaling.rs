@@ -127,31 +127,20 @@ impl PositionScaling {
         }
     }
 
-    /// Increments per motor revolution (0x6063, 0x60C1:01); `None` for a zero denominator.
-    pub fn increments_per_revolution(&self) -> Option<f64> {
-        self.encoder_resolution.value()
-    }
-
-    /// Position units per motor revolution (0x6064, 0x607A) as far as the DS402 objects tell
-    /// it: with DS402 scaling, feed constant over gear ratio; without it, the UNIT parameters'
-    /// (`unit_parameters`, when the caller knows them, e.g. the virtual AKD's defaults);
-    /// `None` where that is unknown.
-    pub fn position_units_per_revolution(&self, unit_parameters: Option<f64>) -> Option<f64> {
-        match self.ds402_scaling? {
-            true => {
+    /// How many of its counts object `index:subindex` counts per motor revolution: increments
+    /// (0x6063, 0x60C1:01) by the encoder resolution; position units (0x6064, 0x607A) with DS402
+    /// scaling by feed constant over gear ratio, without it by the UNIT parameters
+    /// (`unit_parameters`, when the caller knows them, e.g. the virtual AKD's defaults). `None`
+    /// for an object that holds no position or whose scale the objects do not tell (a zero
+    /// denominator, FBUS.PARAM05 not known).
+    pub fn counts_per_revolution(&self, index: u16, subindex: u8, unit_parameters: Option<f64>) -> Option<f64> {
+        match unit_of(index, subindex)? {
+            PositionUnit::Increments => self.encoder_resolution.value(),
+            PositionUnit::PositionUnits if self.ds402_scaling? => {
                 let per_motor_revolution = self.feed_constant.value()? / self.gear_ratio.value()?;
                 (per_motor_revolution.is_finite() && per_motor_revolution > 0.0).then_some(per_motor_revolution)
             }
-            false => unit_parameters,
-        }
-    }
-
-    /// How many of its counts object `index:subindex` counts per motor revolution; `None` for
-    /// an object that holds no position or whose scale the objects do not tell.
-    pub fn counts_per_revolution(&self, index: u16, subindex: u8, unit_parameters: Option<f64>) -> Option<f64> {
-        match unit_of(index, subindex)? {
-            PositionUnit::Increments => self.increments_per_revolution(),
-            PositionUnit::PositionUnits => self.position_units_per_revolution(unit_parameters),
+            PositionUnit::PositionUnits => unit_parameters,
         }
     }
 }
@@ -505,7 +494,10 @@ mod tests {
         assert_eq!(unknown.counts_per_revolution(0x6064, 0, Some(1048576.0)), None);
         assert_eq!(unknown.counts_per_revolution(0x60C1, 1, None), Some(65536.0));
         let zero = PositionScaling::from_entries([1 << 20, 0, 0, 1, 1, 1], Some(0x10));
-        assert_eq!((zero.increments_per_revolution(), zero.position_units_per_revolution(None)), (None, None));
+        assert_eq!(
+            (zero.counts_per_revolution(0x6063, 0, None), zero.counts_per_revolution(0x6064, 0, None)),
+            (None, None)
+        );
     }
 
     #[test]
