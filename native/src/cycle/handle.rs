@@ -18,7 +18,7 @@ use super::stats::CycleStats;
 use super::supervision::Gaps;
 use super::{
     command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, lock, recovery, rt, sequencer,
-    supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
+    timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
 use crate::drive::io::DriveIo;
 use crate::drive::objects::DriveInputs;
@@ -199,13 +199,7 @@ impl CycleThread {
                     drive: sequencer::SequencedDrive::new(offsets),
                     latch: latch.map(latch::Latch::new),
                     inputs: crate::drive::io::InputWatch::new(digital_inputs, offsets.statusword),
-                    watch: supervision::DriveWatch::default(),
-                    handshake: handshake::Handshake::default(),
-                    command_timeout: command_timeout::CommandTimeout::default(),
-                    homing: homing::Homing::default(),
-                    presence: recovery::Presence::default(),
-                    mailbox_counter: None,
-                    target_writes: None,
+                    ..DriveLoop::default()
                 })
             })
             .collect();

@@ -19,6 +19,7 @@ use crate::ethercat::al::AlState;
 use crate::ethercat::master::Master;
 
 /// What the cycle thread runs for one drive it sequences.
+#[derive(Default)]
 pub(super) struct DriveLoop {
     pub(super) position: u16,
     pub(super) drive: sequencer::SequencedDrive,

@@ -304,7 +304,7 @@ impl DriveIo {
 /// What the cycle thread watches of one drive's I/O to report each change in the cycle it
 /// happens: the digital inputs and the hardware enable as the statusword shows it. Where in
 /// the drive's inputs 0x60FD sits, and what the last cycle showed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct InputWatch {
     digital_inputs: Option<usize>,
     statusword: usize,
