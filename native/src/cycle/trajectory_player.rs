@@ -799,6 +799,11 @@ mod tests {
     const JOINT: Joint =
         Joint { slave: 0, targets: [Some(0), None], statusword: 0, actual: None, velocity_actual: None };
 
+    /// A player of one drive whose target last sent is `target`.
+    fn rig(target: i32) -> (PlayerShared, Events, Player, [u8; 4]) {
+        (PlayerShared::new(1), Events::default(), Player::new(1), target.to_le_bytes())
+    }
+
     fn plan(id: u32, start_ns: Option<u64>, to: f64, after_ns: u64) -> Box<Plan> {
         let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
         Plan::judged(id, start_ns, vec![JOINT], trajectory, None)
@@ -849,8 +854,7 @@ mod tests {
 
     #[test]
     fn a_plan_starts_from_the_target_sent_ends_on_its_point_and_comes_back() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 1000i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(1000);
         shared.give(plan(1, Some(3 * MS), 2000.0, 10 * MS)).unwrap();
         // A second one cannot be handed before the first is taken.
         assert!(shared.give(plan(2, None, 0.0, MS)).is_err());
@@ -883,8 +887,7 @@ mod tests {
 
     #[test]
     fn a_drive_past_the_path_tolerance_brakes_the_plan_to_a_standstill_and_names_it() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         // 100 counts/ms, braking at 1e7 counts/s² (10 counts/ms per ms); the drive stays at 0.
         let tolerance = Tolerance { path_position: 250.0, stop_deceleration: 1e7, ..LOOSE };
         shared.give(judged(1, 1000.0, 10 * MS, tolerance, 0)).unwrap();
@@ -904,8 +907,7 @@ mod tests {
 
     #[test]
     fn a_stop_brakes_and_the_goal_tolerance_waits_for_the_goal_time() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         shared.give(judged(1, 1000.0, 10 * MS, Tolerance { stop_deceleration: 1e7, ..LOOSE }, 0)).unwrap();
         for ms in 1..=3 {
             cycle(&mut player, &shared, &events, &mut image, ms, at(0));
@@ -937,8 +939,7 @@ mod tests {
 
     #[test]
     fn two_stops_asked_within_one_cycle_both_count() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 1000i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(1000);
         let caller = Caller::default();
         for (id, start) in [(1, None), (2, Some(3_600_000 * MS))] {
             let plan = plan(id, start, 2000.0, 10 * MS);
@@ -958,8 +959,7 @@ mod tests {
 
     #[test]
     fn a_plan_waiting_for_its_start_ends_at_once_on_a_stop_or_when_its_drive_leaves_operation() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 1000i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(1000);
         // Due in an hour: stopped, it ends now, and nothing was written.
         shared.give(plan(1, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
         cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
@@ -977,8 +977,7 @@ mod tests {
 
     #[test]
     fn a_plan_whose_start_would_go_past_a_limit_is_refused_and_the_one_in_force_goes_on() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
         cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         // 100 counts/ms allowed: from 100, where plan 1 is at 2 ms, to 5000 in 10 ms is 490.
@@ -996,8 +995,7 @@ mod tests {
 
     #[test]
     fn a_newer_plan_replaces_the_pending_one_then_the_running_one_and_a_drive_out_of_operation_aborts() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
         cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         shared.give(plan(2, Some(100 * MS), 0.0, MS)).unwrap();
