@@ -432,13 +432,8 @@ impl Maker {
     fn make(&mut self, due: &[Kind]) -> Vec<(usize, i64, Vec<u8>)> {
         let reading = self.read();
         let kinds: Vec<Kind> = self.streams.iter().map(|s| s.0).collect();
-        let mut made = Vec::new();
-        for (stream, kind) in kinds.into_iter().enumerate() {
-            if due.contains(&kind) {
-                made.push((stream, reading.stamp_ns, self.message(kind, &reading)));
-            }
-        }
-        made
+        let due = kinds.into_iter().enumerate().filter(|(_, kind)| due.contains(kind));
+        due.map(|(stream, kind)| (stream, reading.stamp_ns, self.message(kind, &reading))).collect()
     }
 
     fn read(&mut self) -> Reading {
@@ -468,17 +463,11 @@ impl Maker {
             let counts = self.unwrapped[k].next(inputs.position_actual.unwrap_or(0));
             position.push(joint.scale.position_to_si(counts as f64));
         }
-        let all = |values: Option<Vec<f64>>| values.unwrap_or_default();
-        let velocity = all(joints
-            .iter()
-            .zip(&reading.inputs)
-            .map(|(j, i)| i.velocity_actual.map(|v| j.scale.velocity_to_si(v.into())))
-            .collect());
-        let effort = all(joints
-            .iter()
-            .zip(&reading.inputs)
-            .map(|(j, i)| i.torque_actual.map(|t| j.scale.torque_to_si(t.into())))
-            .collect());
+        let every = |si: &dyn Fn(&Joint, &DriveInputs) -> Option<f64>| -> Vec<f64> {
+            joints.iter().zip(&reading.inputs).map(|(j, i)| si(j, i)).collect::<Option<_>>().unwrap_or_default()
+        };
+        let velocity = every(&|j, i| Some(j.scale.velocity_to_si(i.velocity_actual?.into())));
+        let effort = every(&|j, i| Some(j.scale.torque_to_si(i.torque_actual?.into())));
         let message = msgs::JointState {
             header: Header::at(reading.stamp_ns),
             name: &self.names,
