@@ -533,12 +533,9 @@ impl Trajectory {
             (None, from.velocity, lead_in.at(0.0).velocity),
             (Some(0), lead_in.at(duration_s).velocity, self.leaving(0, joint)),
         ];
-        steps.into_iter().find(|(_, a, b)| limits.steps(*a, *b)).map(|(point, from, to)| Breach::Step {
-            point,
-            from,
-            to,
-            max_acceleration: limits.max_acceleration,
-        })
+        let max_acceleration = limits.max_acceleration;
+        let (point, from, to) = steps.into_iter().find(|(_, a, b)| limits.steps(*a, *b))?;
+        Some(Breach::Step { point, from, to, max_acceleration })
     }
 
     /// The refusal of `breach` on joint `joint`'s segment to the first point.
@@ -611,14 +608,9 @@ fn check_knot(point: usize, joint: usize, knot: &Knot, limits: &Limits) -> Resul
     if knot.acceleration.is_some() && knot.velocity.is_none() {
         return Err(TrajectoryError::AccelerationWithoutVelocity { point, joint });
     }
-    if !(limits.min..=limits.max).contains(&knot.position) {
-        return Err(TrajectoryError::OutOfLimits {
-            point,
-            joint,
-            position: knot.position,
-            min: limits.min,
-            max: limits.max,
-        });
+    let (position, min, max) = (knot.position, limits.min, limits.max);
+    if !(min..=max).contains(&position) {
+        return Err(TrajectoryError::OutOfLimits { point, joint, position, min, max });
     }
     let speeds = [
         (Limit::Velocity, knot.velocity, limits.max_velocity),
