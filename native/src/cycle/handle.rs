@@ -382,10 +382,8 @@ impl CycleThread {
     pub fn request(&self, position: u16, request: sequencer::Request) -> Result<()> {
         let drive = self.sequenced(position)?;
         if self.stopped() {
-            return Err(Unavailable::CycleStopped {
-                consequence: format!("{} can no longer be sequenced", request.name()).into(),
-            }
-            .into());
+            let consequence = format!("{} can no longer be sequenced", request.name()).into();
+            return Err(Unavailable::CycleStopped { consequence }.into());
         }
         drive.request(request);
         self.shared.command_timeouts[position as usize].release();
@@ -487,12 +485,9 @@ impl CycleThread {
     /// frame was dropped (counted in [`eoe_dropped`](Self::eoe_dropped)).
     pub fn eoe_send(&self, position: u16, frame: &[u8]) -> Result<bool> {
         self.check_slave(position)?;
-        if frame.len() > crate::ethercat::eoe::MAX_FRAME_LEN {
-            return Err(crate::error::EoeError::FrameTooLong {
-                len: frame.len(),
-                max: crate::ethercat::eoe::MAX_FRAME_LEN,
-            }
-            .into());
+        let (len, max) = (frame.len(), crate::ethercat::eoe::MAX_FRAME_LEN);
+        if len > max {
+            return Err(crate::error::EoeError::FrameTooLong { len, max }.into());
         }
         Ok(self.shared.eoe.send(position, frame))
     }
@@ -796,12 +791,8 @@ impl CycleThread {
         });
         if let Some((slave, velocity)) = left {
             let (_, scale, name) = self.limits_of(slave);
-            return Err(TrajectoryError::LeavesMoving {
-                slave,
-                name,
-                velocity: scale.words(Limit::Velocity, velocity),
-            }
-            .into());
+            let velocity = scale.words(Limit::Velocity, velocity);
+            return Err(TrajectoryError::LeavesMoving { slave, name, velocity }.into());
         }
         Ok(())
     }
