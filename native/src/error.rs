@@ -366,16 +366,13 @@ impl fmt::Display for Unavailable {
             Unavailable::StepPastLimit { slave, detail } => {
                 write!(f, "slave {slave}: {detail}")
             }
-            Unavailable::NoSuchOutput { slave, name, outputs, is_input: true } => write!(
-                f,
-                "slave {slave}'s channel {name:?} is an input; its outputs: {}",
-                if outputs.is_empty() { "none".to_owned() } else { outputs.join(", ") }
-            ),
-            Unavailable::NoSuchOutput { slave, name, outputs, is_input: false } => write!(
-                f,
-                "slave {slave} has no output channel {name:?}; its outputs: {}",
-                if outputs.is_empty() { "none".to_owned() } else { outputs.join(", ") }
-            ),
+            Unavailable::NoSuchOutput { slave, name, outputs, is_input } => {
+                let outputs = if outputs.is_empty() { "none".to_owned() } else { outputs.join(", ") };
+                match is_input {
+                    true => write!(f, "slave {slave}'s channel {name:?} is an input; its outputs: {outputs}"),
+                    false => write!(f, "slave {slave} has no output channel {name:?}; its outputs: {outputs}"),
+                }
+            }
             Unavailable::ChannelValue { slave, error } => write!(f, "slave {slave}: {error}"),
             Unavailable::DriveChannels { slave } => write!(
                 f,

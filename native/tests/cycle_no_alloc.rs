@@ -299,10 +299,10 @@ fn trajectories(cycle: &CycleThread) -> Option<[Option<TrajectoryStatus>; 2]> {
     }
     let at = |ms: u64, position: f64| (ms * 1_000_000, vec![Knot { velocity: Some(0.0), ..Knot::position(position) }]);
     let ((t0, p0), (t1, p1)) = (at(5000, 5000.0), at(10_000, -5000.0));
-    let first = cycle.play_trajectory(&[1], &[t0, t1], &[p0, p1], None).unwrap();
+    let first = cycle.follow_trajectory(&[1], &[t0, t1], &[p0, p1], None, None).unwrap();
     std::thread::sleep(Duration::from_millis(50));
     let (t, p) = at(100, 0.0);
-    let second = cycle.play_trajectory(&[1], &[t], &[p], None).unwrap();
+    let second = cycle.follow_trajectory(&[1], &[t], &[p], None, None).unwrap();
     let ended = |id| cycle.trajectory_status(id).ok().filter(|s| s.state.ended());
     wait_until("the second trajectory's end", || ended(second).is_some() || !enabled());
     Some([ended(first), ended(second)])

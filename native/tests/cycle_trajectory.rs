@@ -172,7 +172,7 @@ fn play_three_points(cycle: &CycleThread) -> Played {
     let before = records(cycle, 20);
     let base = last_targets(&before);
     let (times, points) = three_points(base);
-    let id = cycle.play_trajectory(&DRIVES, &times, &points, None).unwrap();
+    let id = cycle.follow_trajectory(&DRIVES, &times, &points, None, None).unwrap();
     Played { before, base, times, points, id }
 }
 
@@ -216,7 +216,7 @@ fn a_trajectory_replaced_half_way_continues_without_a_step() {
         all.extend(records(cycle, 1000));
         // Back to the start in 1 s, from wherever the first one is then.
         let back: Vec<Vec<Knot>> = vec![base.iter().map(|&b| cubic(b as f64, 0.0)).collect()];
-        let second = cycle.play_trajectory(&DRIVES, &[S], &back, None).unwrap();
+        let second = cycle.follow_trajectory(&DRIVES, &[S], &back, None, None).unwrap();
         assert_eq!(second, first + 1);
         let status = follow(cycle, second, &mut all);
         assert_eq!(status.state, TrajectoryState::Done);
@@ -247,26 +247,31 @@ fn a_refused_trajectory_moves_nothing() {
         let base = last_targets(&records(cycle, 20));
         let (times, points) = three_points(base);
         let joint = |limits| JointLimits { name: "joint 0".into(), limits, scale: Scale::COUNTS };
-        cycle.set_joint_limits(DRIVES[0], joint(Limits::positions(-1e9, base[0] as f64 + 120_000.0))).unwrap();
-        let past_a_limit = cycle.play_trajectory(&DRIVES, &times, &points, None);
+        cycle
+            .set_joint_limits(DRIVES[0], joint(Limits { min: -1e9, max: base[0] as f64 + 120_000.0, ..Limits::TARGET }))
+            .unwrap();
+        let past_a_limit = cycle.follow_trajectory(&DRIVES, &times, &points, None, None);
         cycle.set_joint_limits(DRIVES[0], joint(Limits::TARGET)).unwrap();
         let refusals = [
             (past_a_limit, "point 1, joint 0: position"),
             (
-                cycle.play_trajectory(&DRIVES, &[S, S, 2 * S], &points, None),
+                cycle.follow_trajectory(&DRIVES, &[S, S, 2 * S], &points, None, None),
                 "point 1: time from the start 1000000000 ns is not after the previous point's 1000000000 ns",
             ),
             (
                 {
                     let mut nan = points.clone();
                     nan[2][1].velocity = Some(f64::NAN);
-                    cycle.play_trajectory(&DRIVES, &times, &nan, None)
+                    cycle.follow_trajectory(&DRIVES, &times, &nan, None, None)
                 },
                 "point 2, joint 1: velocity NaN",
             ),
-            (cycle.play_trajectory(&DRIVES[..2], &times, &points, None), "point 0 gives 3 joint value(s)"),
-            (cycle.play_trajectory(&[0, 1, 1], &times, &points, None), "drive 1 is named for joint 1 and joint 2"),
-            (cycle.play_trajectory(&[0, 1, 7], &times, &points, None), "joint 2 (drive 7)"),
+            (cycle.follow_trajectory(&DRIVES[..2], &times, &points, None, None), "point 0 gives 3 joint value(s)"),
+            (
+                cycle.follow_trajectory(&[0, 1, 1], &times, &points, None, None),
+                "drive 1 is named for joint 1 and joint 2",
+            ),
+            (cycle.follow_trajectory(&[0, 1, 7], &times, &points, None, None), "joint 2 (drive 7)"),
         ];
         for (refused, why) in refusals {
             let e = refused.unwrap_err().to_string();
@@ -317,7 +322,7 @@ fn a_drive_faulted_mid_trajectory_aborts_it_and_the_others_hold() {
         }
         assert_eq!(cycle.drive_status(1).unwrap().state(), Some(State::Fault));
         // A disabled drive cannot take a trajectory.
-        let e = cycle.play_trajectory(&[1], &[S], &[vec![Knot::position(0.0)]], None).unwrap_err().to_string();
+        let e = cycle.follow_trajectory(&[1], &[S], &[vec![Knot::position(0.0)]], None, None).unwrap_err().to_string();
         assert!(e.contains("joint 0 (drive 1): it is in Fault, not Operation enabled; enable it first"), "{e}");
     });
 }

@@ -441,17 +441,8 @@ impl MailboxService {
                 let Ok((_, coe_header, body)) = coe::split_message(&self.receive[..len]) else { return true };
                 if coe_header.service == CoeService::Emergency {
                     if let Ok(emergency) = Emergency::decode(body) {
-                        events.push(Event::Fault {
-                            cycle,
-                            time_ns,
-                            slave,
-                            source: FaultSource::Emergency,
-                            code: emergency.error_code,
-                            statusword: statusword(slave),
-                            al_status: al_status.status,
-                            al_status_code: al_status.code,
-                            action: Action::Reported,
-                        });
+                        let fault = (FaultSource::Emergency, emergency.error_code, Action::Reported);
+                        events.push(Event::fault((cycle, time_ns), slave, statusword(slave), Some(al_status), fault));
                     }
                     return true;
                 }
@@ -506,8 +497,10 @@ impl MailboxService {
         self.phase = Phase::Idle;
         match origin {
             Origin::ErrorCode(mut event) => {
-                if let (Event::Fault { code, .. }, Outcome::Done, [low, high, ..]) = (&mut event, outcome, value) {
-                    *code = u16::from_le_bytes([*low, *high]);
+                if let (Event::Fault { code, .. }, Outcome::Done, Ok(read)) =
+                    (&mut event, outcome, crate::drive::ds402::error_code(value))
+                {
+                    *code = read;
                 }
                 events.push(event)
             }

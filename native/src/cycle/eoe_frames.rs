@@ -30,8 +30,8 @@ struct Ring {
     dropped: AtomicU64,
 }
 
-impl Ring {
-    fn new() -> Self {
+impl Default for Ring {
+    fn default() -> Self {
         let cell = || Cell {
             slave: AtomicU16::new(0),
             len: AtomicU16::new(0),
@@ -44,7 +44,9 @@ impl Ring {
             dropped: AtomicU64::new(0),
         }
     }
+}
 
+impl Ring {
     /// Adds a frame; `false` (and counted) when the ring is full.
     fn push(&self, slave: u16, frame: &[u8]) -> bool {
         let head = self.head.load(Ordering::Relaxed);
@@ -81,22 +83,12 @@ impl Ring {
 }
 
 /// Both rings and the turns of the threads on the other side.
+#[derive(Default)]
 pub struct EoeFrames {
     to_drives: Ring,
     from_drives: Ring,
     senders: Mutex<()>,
     receivers: Mutex<()>,
-}
-
-impl Default for EoeFrames {
-    fn default() -> Self {
-        EoeFrames {
-            to_drives: Ring::new(),
-            from_drives: Ring::new(),
-            senders: Mutex::new(()),
-            receivers: Mutex::new(()),
-        }
-    }
 }
 
 impl EoeFrames {

@@ -4,27 +4,21 @@
 //! counts, so what was missed is known.
 
 use crate::cycle::ring::Ring;
+use crate::ethercat::master::state::AlStatus;
 
 /// Events the ring holds before new ones are dropped.
 pub const CAPACITY: usize = 256;
 
-/// A latch edge.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Edge {
-    /// The input went high.
-    Rising,
-    /// The input went low.
-    Falling,
-}
-
-impl Edge {
-    /// The edge's name as the Python API and the messages spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Edge::Rising => "rising",
-            Edge::Falling => "falling",
-        }
+named_variants! {
+    /// A latch edge.
+    pub enum Edge {
+        /// The input went high.
+        Rising => "rising",
+        /// The input went low.
+        Falling => "falling",
     }
+    /// The edge's name as the Python API and the messages spell it.
+    fn name;
 }
 
 wire_codes! {
@@ -365,6 +359,19 @@ pub enum Event {
 }
 
 impl Event {
+    /// A fault of the slave at `slave` seen in the cycle `at` (its number and wake-up time),
+    /// with the statusword and AL status of that cycle (0 where not known).
+    pub fn fault(
+        at: (u64, u64),
+        slave: u16,
+        statusword: u16,
+        al: Option<AlStatus>,
+        (source, code, action): (FaultSource, u16, Action),
+    ) -> Event {
+        let (al_status, al_status_code) = al.map_or((0, 0), |a| (a.status, a.code));
+        Event::Fault { cycle: at.0, time_ns: at.1, slave, source, code, statusword, al_status, al_status_code, action }
+    }
+
     fn encode(&self) -> [u64; 4] {
         match *self {
             Event::Latch { cycle, time_ns, slave, channel, edge, position } => [

@@ -17,8 +17,8 @@ use super::seqlock::SeqBytes;
 use super::stats::CycleStats;
 use super::supervision::Gaps;
 use super::{
-    command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, recovery, rt, sequencer,
-    supervision, timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
+    command_timeout, dc_status, eoe_frames, handshake, homing, latch, line_health, lock, recovery, rt, sequencer,
+    timing, trajectory_player, CycleShared, RealTime, HEADER_LEN,
 };
 use crate::drive::io::DriveIo;
 use crate::drive::objects::DriveInputs;
@@ -29,10 +29,8 @@ use crate::ethercat::master::cyclic::ImageSlot;
 use crate::ethercat::master::Master;
 use crate::ethercat::pdo::{Direction, PdoEntry};
 
-/// Why a set-point is refused once the cycle stopped.
-fn setpoints_stopped() -> Error {
-    Unavailable::CycleStopped { consequence: "set-points no longer go out".into() }.into()
-}
+/// What a stopped cycle means for a set-point.
+const SETPOINTS_STOPPED: &str = "set-points no longer go out";
 
 /// How a cycle thread runs.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -82,7 +80,7 @@ pub struct Snapshot {
 }
 
 /// How long a drive request may take by default before it is reported stuck.
-pub const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
+const DEFAULT_REQUEST_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// The drives of `master` that can be sequenced, with their objects' offsets in the whole
 /// images and their latch where mapped; for the others, why not.
@@ -171,8 +169,8 @@ impl CycleThread {
             Ok(c) => c,
             Err(e) => return Err(Box::new((e, master))),
         };
-        let slots = (0..master.slaves().len() as u16).map(|p| master.image_slot(p).ok()).collect();
-        let master_slaves = master.slaves().len();
+        let count = master.slaves().len();
+        let slots = (0..count as u16).map(|p| master.image_slot(p).ok()).collect();
         let found = sequenced_drives(&master);
         let sequenced_count = found.iter().filter(|f| f.is_ok()).count();
         let sequenced = found.iter().map(|f| f.as_ref().map(|_| ()).map_err(Clone::clone)).collect();
@@ -184,13 +182,13 @@ impl CycleThread {
             .map(|s| s.process_data.as_ref().map_or_else(Vec::new, |d| device::channels(&s.sii, d)))
             .collect();
         // Every slave the cycle does not sequence is a device beside the drives.
-        let devices: Vec<DeviceLoop> = found
+        let mut devices: Vec<DeviceLoop> = found
             .iter()
             .enumerate()
             .filter(|(_, f)| f.is_err())
             .map(|(p, _)| DeviceLoop::new(p as u16, master.image_slot(p as u16).ok(), &channels[p]))
             .collect();
-        let drives: Vec<DriveLoop> = found
+        let mut drives: Vec<DriveLoop> = found
             .into_iter()
             .enumerate()
             .filter_map(|(p, f)| {
@@ -201,13 +199,7 @@ impl CycleThread {
                     drive: sequencer::SequencedDrive::new(offsets),
                     latch: latch.map(latch::Latch::new),
                     inputs: crate::drive::io::InputWatch::new(digital_inputs, offsets.statusword),
-                    watch: supervision::DriveWatch::default(),
-                    handshake: handshake::Handshake::default(),
-                    command_timeout: command_timeout::CommandTimeout::default(),
-                    homing: homing::Homing::default(),
-                    presence: recovery::Presence::default(),
-                    mailbox_counter: None,
-                    target_writes: None,
+                    ..DriveLoop::default()
                 })
             })
             .collect();
@@ -221,7 +213,7 @@ impl CycleThread {
                  brought back"
             ));
         }
-        let mailbox = MailboxService::new(&master);
+        let mut mailbox = MailboxService::new(&master);
         // The ports each slave's ESC has, for the line's health; without them it is not read.
         let (ports, line_health_interval) = match master.port_descriptors() {
             Ok(ports) => (ports, config.line_health.filter(|i| !i.is_zero())),
@@ -242,24 +234,22 @@ impl CycleThread {
             setpoints: SeqBytes::new(outputs.len(), &outputs),
             snapshot: SeqBytes::new(HEADER_LEN + inputs_len + outputs.len(), &[]),
             stats: CycleStats::new(period_ns),
-            drives: (0..master.slaves().len()).map(|_| sequencer::SequencerShared::default()).collect(),
+            drives: (0..count).map(|_| sequencer::SequencerShared::default()).collect(),
             request_timeout_ns: AtomicU64::new(DEFAULT_REQUEST_TIMEOUT.as_nanos() as u64),
-            latches: (0..master.slaves().len()).map(|_| latch::LatchShared::default()).collect(),
-            handshakes: (0..master.slaves().len()).map(|_| handshake::HandshakeShared::default()).collect(),
-            command_timeouts: (0..master.slaves().len())
-                .map(|_| command_timeout::CommandTimeoutShared::default())
-                .collect(),
-            homings: (0..master.slaves().len()).map(|_| homing::HomingShared::default()).collect(),
+            latches: (0..count).map(|_| latch::LatchShared::default()).collect(),
+            handshakes: (0..count).map(|_| handshake::HandshakeShared::default()).collect(),
+            command_timeouts: (0..count).map(|_| command_timeout::CommandTimeoutShared::default()).collect(),
+            homings: (0..count).map(|_| homing::HomingShared::default()).collect(),
             events: Events::default(),
             samples: Samples::for_drives(sequenced_count),
             sdo: SdoSlot::default(),
             eoe: eoe_frames::EoeFrames::default(),
             quick_stop_on_fault: AtomicBool::new(false),
             dc: dc_status::DcStatusShared::new(master.clock(), &config.fbus_param02),
-            trajectories: trajectory_player::PlayerShared::new(master.slaves().len()),
+            trajectories: trajectory_player::PlayerShared::new(count),
             relay: Arc::default(),
-            recovery: (0..master.slaves().len()).map(|_| recovery::SlaveRecovery::default()).collect(),
-            devices: (0..master.slaves().len()).map(|_| DeviceShared::default()).collect(),
+            recovery: (0..count).map(|_| recovery::SlaveRecovery::default()).collect(),
+            devices: (0..count).map(|_| DeviceShared::default()).collect(),
             supervised: supervised.is_ok(),
             line_health: line_health::LineHealthShared::new(ports, line_health_interval),
         });
@@ -269,12 +259,9 @@ impl CycleThread {
         let (ready_tx, ready_rx) = mpsc::sync_channel(1);
         let spawned = {
             let shared = shared.clone();
-            let mut drives = drives;
-            let mut devices = devices;
-            let mut mailbox = mailbox;
-            let mut player = trajectory_player::Player::new(master.slaves().len());
+            let mut player = trajectory_player::Player::new(count);
             let mut relay_buffers = recovery::RelayBuffers::default();
-            let mut line_reader = line_health::LineHealthReader::new(master.slaves().len(), &shared.line_health);
+            let mut line_reader = line_health::LineHealthReader::new(count, &shared.line_health);
             std::thread::Builder::new().name("akd-cycle".into()).spawn(move || {
                 let mut master = master_rx.recv().ok()?;
                 let mut warnings = start_warnings;
@@ -324,7 +311,7 @@ impl CycleThread {
                 .spawn(move || recoverer.run(&shared.recovery, &shared.stop))
                 .ok()
         };
-        let joint_limits = std::sync::RwLock::new(vec![None; master_slaves]);
+        let joint_limits = std::sync::RwLock::new(vec![None; count]);
         Ok(CycleThread {
             shared,
             thread: std::sync::Mutex::new(Some(thread)),
@@ -372,9 +359,7 @@ impl CycleThread {
     /// Sets the outputs of the slave at `position` from the next cycle on; `data` must have
     /// their exact length. Lock-free: the cycle thread never waits for it.
     pub fn set_outputs(&self, position: u16, data: &[u8]) -> Result<()> {
-        if self.stopped() {
-            return Err(setpoints_stopped());
-        }
+        self.check_running(SETPOINTS_STOPPED)?;
         let slot = self.slot(position)?;
         slot.check_outputs_len(position, data.len())?;
         self.shared.setpoints.write().write_bits(slot.out_start_bit(), data, slot.out_bits);
@@ -397,10 +382,8 @@ impl CycleThread {
     pub fn request(&self, position: u16, request: sequencer::Request) -> Result<()> {
         let drive = self.sequenced(position)?;
         if self.stopped() {
-            return Err(Unavailable::CycleStopped {
-                consequence: format!("{} can no longer be sequenced", request.name()).into(),
-            }
-            .into());
+            let consequence = format!("{} can no longer be sequenced", request.name()).into();
+            return Err(Unavailable::CycleStopped { consequence }.into());
         }
         drive.request(request);
         self.shared.command_timeouts[position as usize].release();
@@ -488,8 +471,7 @@ impl CycleThread {
     /// The drive's error code (0x603F): the CiA 402 code of its last fault, read beside the cycle.
     pub fn drive_error_code(&self, position: u16) -> Result<u16> {
         let (index, subindex) = crate::drive::ds402::ERROR_CODE;
-        let value = self.sdo_read(position, index, subindex)?;
-        Ok(u16::from_le_bytes([value.first().copied().unwrap_or(0), value.get(1).copied().unwrap_or(0)]))
+        Ok(crate::drive::ds402::error_code(&self.sdo_read(position, index, subindex)?)?)
     }
 
     /// Writes `data` to `index:subindex` of the slave at `position` through the cycle thread.
@@ -503,12 +485,9 @@ impl CycleThread {
     /// frame was dropped (counted in [`eoe_dropped`](Self::eoe_dropped)).
     pub fn eoe_send(&self, position: u16, frame: &[u8]) -> Result<bool> {
         self.check_slave(position)?;
-        if frame.len() > crate::ethercat::eoe::MAX_FRAME_LEN {
-            return Err(crate::error::EoeError::FrameTooLong {
-                len: frame.len(),
-                max: crate::ethercat::eoe::MAX_FRAME_LEN,
-            }
-            .into());
+        let (len, max) = (frame.len(), crate::ethercat::eoe::MAX_FRAME_LEN);
+        if len > max {
+            return Err(crate::error::EoeError::FrameTooLong { len, max }.into());
         }
         Ok(self.shared.eoe.send(position, frame))
     }
@@ -524,10 +503,16 @@ impl CycleThread {
         self.shared.eoe.dropped()
     }
 
-    fn check_slave(&self, position: u16) -> Result<()> {
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "use the master's own SDO access".into() }.into());
+    /// Refuses once the cycle is stopped, saying what that means for the call.
+    fn check_running(&self, consequence: &'static str) -> Result<()> {
+        match self.stopped() {
+            true => Err(Unavailable::CycleStopped { consequence: consequence.into() }.into()),
+            false => Ok(()),
         }
+    }
+
+    fn check_slave(&self, position: u16) -> Result<()> {
+        self.check_running("use the master's own SDO access")?;
         self.check_position(position)?;
         if recovery::busy(&self.shared.recovery[position as usize]) {
             return Err(Unavailable::Recovering { slave: position }.into());
@@ -571,9 +556,7 @@ impl CycleThread {
     /// homing may take long). Replaces one under way; returns its number. Lock-free.
     pub fn start_setpoint(&self, position: u16, bits: u16, timeout: Option<Duration>) -> Result<u32> {
         self.sequenced(position)?;
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "no set-point handshake can run".into() }.into());
-        }
+        self.check_running("no set-point handshake can run")?;
         if bits & !handshake::ALLOWED_BITS != 0 || bits & crate::drive::ds402::controlword::NEW_SETPOINT == 0 {
             return Err(SettingError::HandshakeBits { bits }.into());
         }
@@ -622,9 +605,7 @@ impl CycleThread {
     /// Replaces one under way; returns its number. Lock-free.
     pub fn start_homing(&self, position: u16, timeout: Duration) -> Result<u32> {
         let status = self.sequenced(position)?.status();
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "no homing can run".into() }.into());
-        }
+        self.check_running("no homing can run")?;
         let o = self.offsets[position as usize].unwrap_or_default();
         if homing_objects(&o).is_none() {
             return Err(Unavailable::HomingUnmapped { slave: position }.into());
@@ -692,9 +673,7 @@ impl CycleThread {
     /// set-point write that releases a held target; any other output (the drive's I/O, a
     /// latch control) leaves the target held.
     pub fn set_object(&self, position: u16, index: u16, subindex: u8, data: &[u8]) -> Result<()> {
-        if self.stopped() {
-            return Err(setpoints_stopped());
-        }
+        self.check_running(SETPOINTS_STOPPED)?;
         let slot = self.slot(position)?;
         let (rx, _) = self.mapping(position)?;
         let (offset, entry) = crate::ethercat::pdo::find(rx, index, subindex)
@@ -729,18 +708,8 @@ impl CycleThread {
     /// allocated here; a bad one is refused before anything moves. It takes over from the
     /// trajectory in force at its start, without a step. Returns its id; waits (the caller,
     /// not the cycle) at most a few cycles for the thread to take the one handed before.
-    pub fn play_trajectory(
-        &self,
-        slaves: &[u16],
-        times_ns: &[u64],
-        points: &[Vec<Knot>],
-        start_ns: Option<u64>,
-    ) -> Result<u32> {
-        self.follow_trajectory(slaves, times_ns, points, start_ns, None)
-    }
-
-    /// Plays a joint trajectory as [`play_trajectory`](Self::play_trajectory) does, judged by
-    /// `tolerances` (one per joint) where given: FollowJointTrajectory's path and goal
+    ///
+    /// Judged by `tolerances` (one per joint) where given: FollowJointTrajectory's path and goal
     /// tolerances, its goal time tolerance, and how each joint stops
     /// ([`stop_trajectory`](Self::stop_trajectory), a path violation).
     pub fn follow_trajectory(
@@ -751,9 +720,7 @@ impl CycleThread {
         start_ns: Option<u64>,
         tolerances: Option<trajectory_player::Tolerances>,
     ) -> Result<u32> {
-        if self.stopped() {
-            return Err(Unavailable::CycleStopped { consequence: "no trajectory can play".into() }.into());
-        }
+        self.check_running("no trajectory can play")?;
         let limits: Vec<Limits> = slaves.iter().map(|&slave| self.limits_of(slave).0).collect();
         let trajectory = Trajectory::new(slaves.len(), times_ns, points, Some(&limits))?;
         let joints = slaves
@@ -767,7 +734,8 @@ impl CycleThread {
             })
             .collect::<Result<Vec<_>>>()?;
         if let Some(t) = tolerances.as_ref().filter(|t| t.joints.len() != slaves.len()) {
-            return Err(TrajectoryError::TolerancesCount { given: t.joints.len(), joints: slaves.len() }.into());
+            let (given, joints) = (t.joints.len(), slaves.len());
+            return Err(TrajectoryError::PerJointCount { what: "tolerance", given, joints }.into());
         }
         for &slave in slaves {
             if self.shared.homings[slave as usize].status().phase.under_way() {
@@ -823,12 +791,8 @@ impl CycleThread {
         });
         if let Some((slave, velocity)) = left {
             let (_, scale, name) = self.limits_of(slave);
-            return Err(TrajectoryError::LeavesMoving {
-                slave,
-                name,
-                velocity: scale.words(Limit::Velocity, velocity),
-            }
-            .into());
+            let velocity = scale.words(Limit::Velocity, velocity);
+            return Err(TrajectoryError::LeavesMoving { slave, name, velocity }.into());
         }
         Ok(())
     }
@@ -1005,7 +969,7 @@ impl CycleThread {
         })
     }
 
-    /// The trajectory `id` (from [`play_trajectory`](Self::play_trajectory)) as the cycle
+    /// The trajectory `id` (from [`follow_trajectory`](Self::follow_trajectory)) as the cycle
     /// thread last published it: pending, running (the point approached, the time since its
     /// start) or how it ended. The statuses of the last [`trajectory_player::KEPT`] are kept.
     pub fn trajectory_status(&self, id: u32) -> Result<trajectory_player::TrajectoryStatus> {
@@ -1127,9 +1091,7 @@ impl CycleThread {
     /// The device at `position`, where it has process data: a slave the cycle does not
     /// sequence (a drive's outputs are its objects', set with [`set_object`](Self::set_object)).
     fn device(&self, position: u16) -> Result<Option<ImageSlot>> {
-        if self.stopped() {
-            return Err(setpoints_stopped());
-        }
+        self.check_running(SETPOINTS_STOPPED)?;
         self.check_position(position)?;
         if self.sequenced[position as usize].is_ok() {
             return Err(Unavailable::DriveChannels { slave: position }.into());
@@ -1257,11 +1219,6 @@ impl CycleThread {
         lock(&self.cpu_latency).take();
         master
     }
-}
-
-/// A lock that a panicking holder left is still the same handle.
-fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 impl Drop for CycleThread {

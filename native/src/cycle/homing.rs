@@ -56,9 +56,10 @@ impl Outcome {
 }
 
 /// Where a drive's homing is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Phase {
     /// None asked for yet.
+    #[default]
     Idle,
     /// Taken; 0x6060 = 6 goes out until the drive shows it.
     Entering,
@@ -211,7 +212,7 @@ pub struct Objects {
 }
 
 /// One drive's homing, kept by the cycle thread.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy, Debug, Default)]
 pub struct Homing {
     request: u32,
     phase: Phase,
@@ -226,22 +227,6 @@ pub struct Homing {
     cycles: u32,
     /// The number of the last start taken or ended unstarted.
     started: u32,
-}
-
-impl Default for Homing {
-    fn default() -> Self {
-        Homing {
-            request: 0,
-            phase: Phase::Idle,
-            started_ns: 0,
-            timeout_ns: 0,
-            statusword: 0,
-            phase_ns: 0,
-            mode_before: 0,
-            cycles: 0,
-            started: 0,
-        }
-    }
 }
 
 impl Homing {

@@ -17,7 +17,7 @@
 //! position and the start of homing run there too ([`handshake`],
 //! [`CycleThread::start_setpoint`]), and so does the command time-out of velocity and torque
 //! streams ([`command_timeout`], [`CycleThread::set_command_timeout`]), and joint trajectories
-//! are followed there ([`trajectory_player`], [`CycleThread::play_trajectory`]).
+//! are followed there ([`trajectory_player`], [`CycleThread::follow_trajectory`]).
 //!
 //! [`CycleThread`] is the handle the other threads hold (`handle.rs`), the loop is the thread's
 //! own (`run.rs`), and what both share is here.
@@ -48,7 +48,7 @@
 use std::sync::atomic::{AtomicBool, AtomicU64};
 use std::sync::Arc;
 
-pub use handle::{Config, CycleThread, Snapshot, DEFAULT_REQUEST_TIMEOUT};
+pub use handle::{Config, CycleThread, Snapshot};
 pub use rt::RealTime;
 
 pub mod acyclic;
@@ -81,6 +81,12 @@ use events::Events;
 use samples::Samples;
 use seqlock::SeqBytes;
 use stats::CycleStats;
+/// A lock that a panicking holder left is still the same handle (the cycle's callers and the
+/// node's feed: neither leaves what it guards half changed).
+pub(crate) fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
+}
+
 /// The snapshot header's layout: cycle (u64), time (u64), working counter (u16), whether the
 /// cycle's inputs are fresh (u8); the input image follows, then the output image as sent.
 const HEADER_LEN: usize = 8 + 8 + 2 + 1;

@@ -19,6 +19,7 @@ use crate::ethercat::al::AlState;
 use crate::ethercat::master::Master;
 
 /// What the cycle thread runs for one drive it sequences.
+#[derive(Default)]
 pub(super) struct DriveLoop {
     pub(super) position: u16,
     pub(super) drive: sequencer::SequencedDrive,
@@ -166,15 +167,9 @@ impl Loop<'_> {
                 d.drive.observe(&shared.drives[d.position as usize], inputs, now.1, timeout_ns);
                 if let Some(latch) = d.latch.as_mut() {
                     let slave = d.position;
+                    let (cycle, time_ns) = now;
                     latch.observe(&shared.latches[slave as usize], inputs, |channel, edge, position| {
-                        shared.events.push(Event::Latch {
-                            cycle: now.0,
-                            time_ns: now.1,
-                            slave,
-                            channel,
-                            edge,
-                            position,
-                        })
+                        shared.events.push(Event::Latch { cycle, time_ns, slave, channel, edge, position })
                     });
                 }
             }
@@ -387,17 +382,8 @@ fn supervise(
         let own = exchange == Exchange::Lost || none_answered || answered(slave) || !shared.supervised;
         let gap_reported = gap.filter(|_| d.drive.enabled() && own && !spared && !d.presence.lost());
         if let Some(report) = gap_reported {
-            shared.events.push(Event::Fault {
-                cycle: report.began.0,
-                time_ns: report.began.1,
-                slave,
-                source: report.source,
-                code: report.length.min(u16::MAX as u32) as u16,
-                statusword: statusword.unwrap_or(0),
-                al_status: al_status.map_or(0, |a| a.status),
-                al_status_code: al_status.map_or(0, |a| a.code),
-                action: report.action,
-            });
+            let fault = (report.source, report.length.min(u16::MAX as u32) as u16, report.action);
+            shared.events.push(Event::fault(report.began, slave, statusword.unwrap_or(0), al_status, fault));
             if report.action == events::Action::Disabled {
                 shared.drives[slave as usize].request(sequencer::Request::Disable);
             }
@@ -427,17 +413,7 @@ fn device_presence(master: &Master, shared: &CycleShared, d: &mut DeviceLoop, an
     let al_status = master.watch().ok().and_then(|w| w.get(slave as usize)).filter(|w| w.answered).map(|w| w.al_status);
     let in_op = answered && al_status.is_some_and(|a| a.state() == Some(AlState::Op) && !a.error());
     let recovery = &shared.recovery[slave as usize];
-    let fault = |source, code, action| Event::Fault {
-        cycle: now.0,
-        time_ns: now.1,
-        slave,
-        source,
-        code,
-        statusword: 0,
-        al_status: al_status.map_or(0, |a| a.status),
-        al_status_code: al_status.map_or(0, |a| a.code),
-        action,
-    };
+    let fault = |source, code, action| Event::fault(now, slave, 0, al_status, (source, code, action));
     match d.presence.observe(answered, in_op && !recovery::restoring(recovery), now) {
         None => {}
         Some(recovery::PresenceChange::Lost { report, missing }) => {
@@ -469,17 +445,8 @@ fn presence(
     now: (u64, u64),
 ) -> bool {
     let slave = d.position;
-    let fault = |source, code, action| Event::Fault {
-        cycle: now.0,
-        time_ns: now.1,
-        slave,
-        source,
-        code,
-        statusword: statusword.unwrap_or(0),
-        al_status: al_status.map_or(0, |a| a.status),
-        al_status_code: al_status.map_or(0, |a| a.code),
-        action,
-    };
+    let fault =
+        |source, code, action| Event::fault(now, slave, statusword.unwrap_or(0), al_status, (source, code, action));
     let recovery = &shared.recovery[slave as usize];
     match d.presence.observe(answered, in_op && !recovery::restoring(recovery), now) {
         None => false,

@@ -147,8 +147,10 @@ named_variants! {
     /// How far the current request is; in Python `RequestProgress` (`RequestProgress.STUCK`,
     /// ...), which prints as its [`name`](Progress::name).
     #[cfg_attr(feature = "python", pyo3::pyclass(name = "RequestProgress", module = "akd_ros._native", frozen, eq, eq_int, rename_all = "SCREAMING_SNAKE_CASE"))]
+    #[derive(Default)]
     pub enum Progress {
         /// No request was made yet: the sequencer leaves the drive's outputs alone.
+        #[default]
         Idle => "idle",
         /// The request is under way.
         InProgress => "in_progress",
@@ -216,35 +218,24 @@ impl DriveStatus {
     }
 
     fn pack(self) -> u64 {
-        let progress = match self.progress {
-            Progress::Idle => 0u64,
-            Progress::InProgress => 1,
-            Progress::Done => 2,
-            Progress::Stuck => 3,
-            Progress::Lost => 4,
-        };
+        let progress = self.progress as u64;
         let mode = self.mode_display.map_or(0, |m| 0x100 | m as u8 as u64);
         self.statusword as u64 | (self.request.map_or(0, |r| r as u64) << 16) | (progress << 24) | (mode << 32)
     }
 
     fn unpack(v: u64) -> DriveStatus {
-        let progress = match (v >> 24) as u8 {
-            1 => Progress::InProgress,
-            2 => Progress::Done,
-            3 => Progress::Stuck,
-            4 => Progress::Lost,
-            _ => Progress::Idle,
-        };
         DriveStatus {
             statusword: v as u16,
             request: Request::from_u8((v >> 16) as u8),
-            progress,
+            progress: Progress::ALL.get((v >> 24) as u8 as usize).copied().unwrap_or(Progress::Idle),
             mode_display: (v >> 32 & 0x100 != 0).then_some((v >> 32) as u8 as i8),
         }
     }
 }
 
-/// What a drive's sequencer shares with other threads: all atomics.
+/// What a drive's sequencer shares with other threads: all atomics, all zero at first (an idle
+/// status packs as 0).
+#[derive(Default)]
 pub struct SequencerShared {
     request: AtomicU8,
     status: AtomicU64,
@@ -255,19 +246,6 @@ pub struct SequencerShared {
     rehold: AtomicU64,
     /// Controlword bit 8: the drive stops and stays enabled.
     halt: AtomicBool,
-}
-
-impl Default for SequencerShared {
-    fn default() -> Self {
-        let idle = DriveStatus { statusword: 0, request: None, progress: Progress::Idle, mode_display: None };
-        SequencerShared {
-            request: AtomicU8::new(0),
-            status: AtomicU64::new(idle.pack()),
-            setpoint_writes: AtomicU64::new(0),
-            rehold: AtomicU64::new(0),
-            halt: AtomicBool::new(false),
-        }
-    }
 }
 
 impl SequencerShared {
@@ -327,7 +305,7 @@ pub struct Observed {
 
 /// What the sequencing step writes into the drive's outputs; `None` leaves them as the user
 /// set them.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct SequencerOutputs {
     /// The controlword.
     pub controlword: Option<u16>,
@@ -336,7 +314,7 @@ pub struct SequencerOutputs {
 }
 
 /// The sequencing state of one drive, kept by the cycle thread.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Sequencer {
     request: Option<Request>,
     progress: Progress,
@@ -347,19 +325,6 @@ pub struct Sequencer {
     held: Option<i32>,
     /// Set-point writes counted when the target was last held.
     writes_at_hold: u64,
-}
-
-impl Default for Sequencer {
-    fn default() -> Self {
-        Sequencer {
-            request: None,
-            progress: Progress::Idle,
-            started_ns: 0,
-            reset_low_sent: false,
-            held: None,
-            writes_at_hold: 0,
-        }
-    }
 }
 
 impl Sequencer {
@@ -444,6 +409,7 @@ impl Sequencer {
 }
 
 /// A drive the cycle thread sequences: where its objects are and its sequencing state.
+#[derive(Default)]
 pub struct SequencedDrive {
     /// The drive's objects in the images (offsets within the whole images).
     pub offsets: Offsets,
@@ -464,14 +430,7 @@ pub struct SequencedDrive {
 impl SequencedDrive {
     /// A drive with its objects at `offsets`, not sequenced until a request comes.
     pub fn new(offsets: Offsets) -> Self {
-        SequencedDrive {
-            offsets,
-            sequencer: Sequencer::default(),
-            command: SequencerOutputs { controlword: None, target: None },
-            halt: false,
-            writes_before_copy: 0,
-            writes_in_outputs: 0,
-        }
+        SequencedDrive { offsets, ..SequencedDrive::default() }
     }
 
     /// Counts the set-point writes before the cycle copies the set-points into the outputs.
@@ -673,6 +632,8 @@ mod tests {
 
     #[test]
     fn status_packs_and_unpacks() {
+        let idle = DriveStatus { statusword: 0, request: None, progress: Progress::Idle, mode_display: None };
+        assert_eq!(SequencerShared::default().status(), idle, "a drive's shared state starts all zero: idle");
         for progress in [Progress::Idle, Progress::InProgress, Progress::Done, Progress::Stuck, Progress::Lost] {
             for mode_display in [None, Some(-3), Some(8)] {
                 let s = DriveStatus { statusword: 0xBEEF, request: Some(Request::QuickStop), progress, mode_display };

@@ -48,6 +48,13 @@ fn bump(counter: &AtomicU32) {
     counter.store(counter.load(Relaxed).wrapping_add(1), Relaxed);
 }
 
+impl Default for Histogram {
+    /// Buckets from 0 ns.
+    fn default() -> Self {
+        Histogram::new(0)
+    }
+}
+
 impl Histogram {
     /// An empty histogram whose 1 µs buckets start at `low_ns`.
     pub fn new(low_ns: u64) -> Self {
@@ -156,6 +163,7 @@ impl Histogram {
 }
 
 /// The cycle thread's counters and histograms.
+#[derive(Default)]
 pub struct CycleStats {
     /// Time from one cycle's wake-up to the next's: the period as it really was.
     pub period: Histogram,
@@ -201,22 +209,7 @@ pub struct CycleStats {
 impl CycleStats {
     /// Empty statistics for a cycle of `period_ns`.
     pub fn new(period_ns: u64) -> Self {
-        CycleStats {
-            period: Histogram::around(period_ns),
-            wake_latency: Histogram::new(0),
-            exchange: Histogram::new(0),
-            cycles: AtomicU64::new(0),
-            overruns: AtomicU64::new(0),
-            f125_stalls: AtomicU64::new(0),
-            lost_frames: AtomicU64::new(0),
-            wkc_errors: AtomicU64::new(0),
-            watch_frames: AtomicU64::new(0),
-            acyclic_lost_frames: AtomicU64::new(0),
-            acyclic_wkc_errors: AtomicU64::new(0),
-            late_returns: AtomicU64::new(0),
-            other_errors: AtomicU64::new(0),
-            setpoints_busy: AtomicU64::new(0),
-        }
+        CycleStats { period: Histogram::around(period_ns), ..CycleStats::default() }
     }
 
     /// Adds `n` to a counter (cycle thread only).

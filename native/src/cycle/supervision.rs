@@ -122,17 +122,8 @@ impl DriveWatch {
         (cycle, time_ns): (u64, u64),
     ) -> WatchEvents {
         let mut seen = WatchEvents::default();
-        let al = al_status.unwrap_or(AlStatus { status: 0, code: 0 });
-        let event = |source, code, statusword, action| Event::Fault {
-            cycle,
-            time_ns,
-            slave,
-            source,
-            code,
-            statusword,
-            al_status: al.status,
-            al_status_code: al.code,
-            action,
+        let event = |source, code, statusword, action| {
+            Event::fault((cycle, time_ns), slave, statusword, al_status, (source, code, action))
         };
         if let Some(s) = statusword {
             let in_fault = s & crate::drive::ds402::statusword::FAULT != 0;

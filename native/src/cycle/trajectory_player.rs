@@ -178,12 +178,8 @@ pub struct Plan {
 
 impl Plan {
     /// A plan of `trajectory` (one joint per entry of `joints`) with id `id`, starting at
-    /// `start_ns` on the monotonic clock (`None`: as soon as the cycle takes it).
-    pub fn new(id: u32, start_ns: Option<u64>, joints: Vec<Joint>, trajectory: Trajectory) -> Box<Plan> {
-        Plan::judged(id, start_ns, joints, trajectory, None)
-    }
-
-    /// A plan as [`new`](Self::new) gives, judged by `tolerances` (one per joint) where given.
+    /// `start_ns` on the monotonic clock (`None`: as soon as the cycle takes it), judged by
+    /// `tolerances` (one per joint) where given.
     pub fn judged(
         id: u32,
         start_ns: Option<u64>,
@@ -344,23 +340,24 @@ impl PlayerShared {
     /// and its actual (position, velocity) judged against it, counts and counts/s; `None`
     /// while no trajectory drives it.
     pub fn followed(&self, slave: u16) -> Option<[f64; 4]> {
-        let mut bytes = vec![0u8; self.followed.len()];
-        self.followed.read(&mut bytes);
-        let at = slave as usize * FOLLOWED * 8;
-        let words = bytes.get(at..at + FOLLOWED * 8)?;
-        let word = |w: usize| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes"));
-        (word(4) == 1.0).then(|| std::array::from_fn(word))
+        self.words(slave).map(|w| [w[0], w[1], w[2], w[3]])
     }
 
     /// Drive `slave`'s set-point (position, velocity, acceleration) as the trajectory in force
     /// last had it; `None` while none drives it.
     pub fn setpoint(&self, slave: u16) -> Option<Setpoint> {
+        self.words(slave).map(|w| Setpoint { position: w[0], velocity: w[1], acceleration: w[5] })
+    }
+
+    /// Drive `slave`'s words as last published; `None` while no trajectory drives it.
+    fn words(&self, slave: u16) -> Option<[f64; FOLLOWED]> {
         let mut bytes = vec![0u8; self.followed.len()];
         self.followed.read(&mut bytes);
         let at = slave as usize * FOLLOWED * 8;
         let words = bytes.get(at..at + FOLLOWED * 8)?;
-        let word = |w: usize| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes"));
-        (word(4) == 1.0).then(|| Setpoint { position: word(0), velocity: word(1), acceleration: word(5) })
+        let words: [f64; FOLLOWED] =
+            std::array::from_fn(|w| f64::from_le_bytes(words[w * 8..w * 8 + 8].try_into().expect("8 bytes")));
+        (words[4] == 1.0).then_some(words)
     }
 
     /// Hands `plan` to the cycle thread; gives it back when the last one was not taken yet.
@@ -802,21 +799,29 @@ mod tests {
     const JOINT: Joint =
         Joint { slave: 0, targets: [Some(0), None], statusword: 0, actual: None, velocity_actual: None };
 
-    fn plan(id: u32, start_ns: Option<u64>, to: f64, after_ns: u64) -> Box<Plan> {
-        let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
-        Plan::new(id, start_ns, vec![JOINT], trajectory)
+    /// A player of one drive whose target last sent is `target`.
+    fn rig(target: i32) -> (PlayerShared, Events, Player, [u8; 4]) {
+        (PlayerShared::new(1), Events::default(), Player::new(1), target.to_le_bytes())
     }
 
-    /// A cycle at `now` ms: the player's steps around the copy, returning the target sent.
+    fn plan(id: u32, start_ns: Option<u64>, to: f64, after_ns: u64) -> Box<Plan> {
+        let trajectory = Trajectory::new(1, &[after_ns], &[vec![Knot::position(to)]], None).unwrap();
+        Plan::judged(id, start_ns, vec![JOINT], trajectory, None)
+    }
+
+    /// A cycle at `now` ms whose drive is in `state` at `actual` (input 2, after the statusword):
+    /// the player's steps around the copy, returning the target sent.
     fn cycle(
         player: &mut Player,
         shared: &PlayerShared,
         events: &Events,
         image: &mut [u8; 4],
         now: u64,
-        enabled: bool,
+        (state, actual): (State, i32),
     ) -> i32 {
-        let inputs = if enabled { State::OperationEnabled } else { State::Fault }.statusword_bits().to_le_bytes();
+        let mut inputs = [0u8; 6];
+        inputs[..2].copy_from_slice(&state.statusword_bits().to_le_bytes());
+        inputs[2..].copy_from_slice(&actual.to_le_bytes());
         let setpoints = SeqBytes::new(4, image);
         let at = (now, now * MS);
         player.before_copy(shared, events, image, at);
@@ -827,6 +832,14 @@ mod tests {
         assert_eq!(&kept, image, "the set-point buffer keeps what went out");
         i32::from_le_bytes(*image)
     }
+
+    /// The drive enabled at `actual`.
+    fn at(actual: i32) -> (State, i32) {
+        (State::OperationEnabled, actual)
+    }
+
+    const ENABLED: (State, i32) = (State::OperationEnabled, 0);
+    const FAULT: (State, i32) = (State::Fault, 0);
 
     fn trajectory_events(events: &Events) -> Vec<(u32, TrajectoryState)> {
         events
@@ -841,14 +854,13 @@ mod tests {
 
     #[test]
     fn a_plan_starts_from_the_target_sent_ends_on_its_point_and_comes_back() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 1000i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(1000);
         shared.give(plan(1, Some(3 * MS), 2000.0, 10 * MS)).unwrap();
         // A second one cannot be handed before the first is taken.
         assert!(shared.give(plan(2, None, 0.0, MS)).is_err());
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 1, true), 1000);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 1, ENABLED), 1000);
         assert_eq!(shared.live()[1].map(|s| s.state), Some(TrajectoryState::Pending));
-        let sent: Vec<i32> = (3..=14).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        let sent: Vec<i32> = (3..=14).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, ENABLED)).collect();
         // From where it was, at rest, 100 counts per ms, then held.
         assert_eq!(sent, [1000, 1100, 1200, 1300, 1400, 1500, 1600, 1700, 1800, 1900, 2000, 2000]);
         assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Running), (1, TrajectoryState::Done)]);
@@ -873,35 +885,13 @@ mod tests {
         stop_deceleration: f64::INFINITY,
     };
 
-    /// A cycle whose drive reports `actual`; returns the target sent.
-    fn judged_cycle(
-        player: &mut Player,
-        shared: &PlayerShared,
-        events: &Events,
-        image: &mut [u8; 4],
-        now: u64,
-        actual: i32,
-    ) -> i32 {
-        let mut inputs = [0u8; 6];
-        inputs[..2].copy_from_slice(&State::OperationEnabled.statusword_bits().to_le_bytes());
-        inputs[2..].copy_from_slice(&actual.to_le_bytes());
-        let setpoints = SeqBytes::new(4, image);
-        let at = (now, now * MS);
-        player.before_copy(shared, events, image, at);
-        player.observe(shared, events, &inputs, at);
-        player.apply(shared, &setpoints, image);
-        i32::from_le_bytes(*image)
-    }
-
     #[test]
     fn a_drive_past_the_path_tolerance_brakes_the_plan_to_a_standstill_and_names_it() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         // 100 counts/ms, braking at 1e7 counts/s² (10 counts/ms per ms); the drive stays at 0.
         let tolerance = Tolerance { path_position: 250.0, stop_deceleration: 1e7, ..LOOSE };
         shared.give(judged(1, 1000.0, 10 * MS, tolerance, 0)).unwrap();
-        let sent: Vec<i32> =
-            (1..=16).map(|ms| judged_cycle(&mut player, &shared, &events, &mut image, ms, 0)).collect();
+        let sent: Vec<i32> = (1..=16).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, at(0))).collect();
         // At 4 ms the set-point of 3 ms (200) is within; at 5 ms that of 4 ms (300) is not: it
         // brakes from 400 at 100 counts/ms over 10 ms, 500 counts more, never a step.
         assert_eq!(sent[..7], [0, 100, 200, 300, 400, 495, 580]);
@@ -917,19 +907,17 @@ mod tests {
 
     #[test]
     fn a_stop_brakes_and_the_goal_tolerance_waits_for_the_goal_time() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         shared.give(judged(1, 1000.0, 10 * MS, Tolerance { stop_deceleration: 1e7, ..LOOSE }, 0)).unwrap();
         for ms in 1..=3 {
-            judged_cycle(&mut player, &shared, &events, &mut image, ms, 0);
+            cycle(&mut player, &shared, &events, &mut image, ms, at(0));
         }
         // The set-point of 2 ms, which the drive had a cycle to follow; no velocity mapped.
         let [position, velocity, actual, actual_velocity] = shared.followed(0).unwrap();
         assert_eq!([position, velocity.round(), actual], [100.0, 100_000.0, 0.0]);
         assert!(actual_velocity.is_nan());
         shared.stop(1, |_| false);
-        let sent: Vec<i32> =
-            (4..=20).map(|ms| judged_cycle(&mut player, &shared, &events, &mut image, ms, 0)).collect();
+        let sent: Vec<i32> = (4..=20).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, at(0))).collect();
         assert_eq!(sent[..3], [300, 395, 480], "from 300 at 100 counts/ms, braking");
         assert_eq!(*sent.last().unwrap(), 800);
         assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Running), (1, TrajectoryState::Stopped)]);
@@ -941,7 +929,7 @@ mod tests {
             let base = 100 * id as u64;
             for ms in 0..9 {
                 let actual = if arrives && ms >= 5 { 995 } else { 950 };
-                judged_cycle(&mut player, &shared, &events, &mut image, base + ms, actual);
+                cycle(&mut player, &shared, &events, &mut image, base + ms, at(actual));
             }
         }
         let ended: Vec<_> = trajectory_events(&events).into_iter().filter(|e| e.1.ended()).collect();
@@ -951,20 +939,19 @@ mod tests {
 
     #[test]
     fn two_stops_asked_within_one_cycle_both_count() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 1000i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(1000);
         let caller = Caller::default();
         for (id, start) in [(1, None), (2, Some(3_600_000 * MS))] {
             let plan = plan(id, start, 2000.0, 10 * MS);
             caller.handed(plan.status(), vec![0]);
             shared.give(plan).unwrap();
-            cycle(&mut player, &shared, &events, &mut image, id as u64, true);
+            cycle(&mut player, &shared, &events, &mut image, id as u64, ENABLED);
         }
         // The one waiting an hour for its start first, then the running one, before the cycle looks.
         caller.stop(&shared, 2);
         caller.stop(&shared, 1);
         for ms in 3..=5 {
-            cycle(&mut player, &shared, &events, &mut image, ms, true);
+            cycle(&mut player, &shared, &events, &mut image, ms, ENABLED);
         }
         let ended: Vec<_> = trajectory_events(&events).into_iter().filter(|e| e.1.ended()).collect();
         assert_eq!(ended, [(2, TrajectoryState::Stopped), (1, TrajectoryState::Stopped)]);
@@ -972,18 +959,17 @@ mod tests {
 
     #[test]
     fn a_plan_waiting_for_its_start_ends_at_once_on_a_stop_or_when_its_drive_leaves_operation() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 1000i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(1000);
         // Due in an hour: stopped, it ends now, and nothing was written.
         shared.give(plan(1, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         shared.stop(1, |_| false);
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 2, true), 1000);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 2, ENABLED), 1000);
         assert_eq!(trajectory_events(&events), [(1, TrajectoryState::Stopped)]);
         // Due in an hour, its drive disabled: aborted now.
         shared.give(plan(2, Some(3_600_000 * MS), 2000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 3, true);
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 4, false), 1000);
+        cycle(&mut player, &shared, &events, &mut image, 3, ENABLED);
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 4, FAULT), 1000);
         let aborted = TrajectoryState::Aborted { slave: 0, statusword: State::Fault.statusword_bits() };
         assert_eq!(trajectory_events(&events), [(2, aborted)]);
         assert_eq!(shared.live(), [None, None]);
@@ -991,15 +977,14 @@ mod tests {
 
     #[test]
     fn a_plan_whose_start_would_go_past_a_limit_is_refused_and_the_one_in_force_goes_on() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         // 100 counts/ms allowed: from 100, where plan 1 is at 2 ms, to 5000 in 10 ms is 490.
         let limits = Limits { max_velocity: 100_000.0, ..Limits::TARGET };
         let trajectory = Trajectory::new(1, &[10 * MS], &[vec![Knot::position(5000.0)]], Some(&[limits])).unwrap();
-        shared.give(Plan::new(2, None, vec![JOINT], trajectory)).unwrap();
-        let sent: Vec<i32> = (2..=12).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        shared.give(Plan::judged(2, None, vec![JOINT], trajectory, None)).unwrap();
+        let sent: Vec<i32> = (2..=12).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, ENABLED)).collect();
         assert_eq!(sent, [100, 200, 300, 400, 500, 600, 700, 800, 900, 1000, 1000], "plan 1 went on");
         let refusal = Refusal { slave: 0, why: RefusalReason::Velocity, value: 490_000.0 };
         assert_eq!(
@@ -1010,17 +995,16 @@ mod tests {
 
     #[test]
     fn a_newer_plan_replaces_the_pending_one_then_the_running_one_and_a_drive_out_of_operation_aborts() {
-        let (shared, events, mut player) = (PlayerShared::new(1), Events::default(), Player::new(1));
-        let mut image = 0i32.to_le_bytes();
+        let (shared, events, mut player, mut image) = rig(0);
         shared.give(plan(1, None, 1000.0, 10 * MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 1, true);
+        cycle(&mut player, &shared, &events, &mut image, 1, ENABLED);
         shared.give(plan(2, Some(100 * MS), 0.0, MS)).unwrap();
-        cycle(&mut player, &shared, &events, &mut image, 2, true);
+        cycle(&mut player, &shared, &events, &mut image, 2, ENABLED);
         shared.give(plan(3, Some(5 * MS), -1000.0, 10 * MS)).unwrap();
-        let sent: Vec<i32> = (3..=6).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, true)).collect();
+        let sent: Vec<i32> = (3..=6).map(|ms| cycle(&mut player, &shared, &events, &mut image, ms, ENABLED)).collect();
         // Plan 1 at 100 counts/ms until plan 3 takes over at 5 ms from 400, toward -1000 in 10 ms.
         assert_eq!(sent, [200, 300, 400, 260]);
-        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 7, false), 260, "aborted: nothing written");
+        assert_eq!(cycle(&mut player, &shared, &events, &mut image, 7, FAULT), 260, "aborted: nothing written");
         assert_eq!(
             trajectory_events(&events),
             [

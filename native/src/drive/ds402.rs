@@ -244,6 +244,19 @@ wire_codes! {
 /// AKD also sends in its emergency message.
 pub const ERROR_CODE: (u16, u8) = (0x603F, 0);
 
+/// The fault code in the drive's reply to a read of [`ERROR_CODE`]; a reply shorter than its two
+/// bytes is refused, never read as 0 ("no fault code").
+pub fn error_code(reply: &[u8]) -> Result<u16, crate::ethercat::mailbox::MailboxError> {
+    match reply {
+        [low, high, ..] => Ok(u16::from_le_bytes([*low, *high])),
+        _ => Err(crate::ethercat::mailbox::MailboxError::Truncated {
+            what: "error code 0x603F:00",
+            len: reply.len(),
+            needed: 2,
+        }),
+    }
+}
+
 /// CiA 402's cyclic synchronous velocity (9) and torque (10), which the AKD does not offer: by
 /// their 0x6060 value and one-word name, with why (docs/virtual_akd.md has the evidence). The
 /// virtual AKD refuses them as it refuses any other value (SDO abort 0x06090030), and the master
@@ -272,26 +285,18 @@ impl Mode {
     }
 }
 
-/// What the command of a mode of operation sets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum CommandKind {
-    /// A position, in counts.
-    Position,
-    /// A velocity, in counts per second.
-    Velocity,
-    /// A torque, in 0.1 % of the drive's peak torque.
-    Torque,
-}
-
-impl CommandKind {
-    /// The command's name as the Python API spells it: "position", "velocity", "torque".
-    pub fn name(self) -> &'static str {
-        match self {
-            CommandKind::Position => "position",
-            CommandKind::Velocity => "velocity",
-            CommandKind::Torque => "torque",
-        }
+named_variants! {
+    /// What the command of a mode of operation sets.
+    pub enum CommandKind {
+        /// A position, in counts.
+        Position => "position",
+        /// A velocity, in counts per second.
+        Velocity => "velocity",
+        /// A torque, in 0.1 % of the drive's peak torque.
+        Torque => "torque",
     }
+    /// The command's name as the Python API spells it: "position", "velocity", "torque".
+    fn name;
 }
 
 impl Mode {
@@ -356,6 +361,14 @@ impl Mode {
 mod tests {
     use super::*;
     use controlword::*;
+
+    #[test]
+    fn the_error_code_reply_needs_its_two_bytes() {
+        assert_eq!(error_code(&[0x10, 0x23]), Ok(0x2310));
+        let e = error_code(&[0x10]).unwrap_err().to_string();
+        assert_eq!(e, "error code 0x603F:00 of 1 bytes is shorter than the 2 bytes it needs");
+        assert!(error_code(&[]).is_err());
+    }
 
     #[test]
     fn statusword_round_trips_every_state() {
@@ -459,11 +472,8 @@ mod tests {
         for mode in Mode::ALL {
             assert_eq!(mode.command().is_none(), mode.command_objects().is_empty(), "{}", mode.name());
             for &(index, subindex) in mode.command_objects() {
-                assert!(crate::drive::pdo::mappable(crate::ethercat::pdo::Direction::Rx).any(|e| (
-                    e.index, e.subindex
-                ) == (
-                    index, subindex
-                )));
+                let this = |e: crate::ethercat::pdo::PdoEntry| (e.index, e.subindex) == (index, subindex);
+                assert!(crate::drive::pdo::mappable(crate::ethercat::pdo::Direction::Rx).any(this));
                 let (object, code) = crate::drive::objects::mappable_object(index, subindex).expect("a typed object");
                 assert_eq!(data_type::kind(code), ValueKind::SignedInteger, "{}", object.name);
                 // Torque counts in 0.1 % of peak (16 bits); positions and velocities in counts (32).

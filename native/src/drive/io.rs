@@ -127,28 +127,21 @@ pub fn with_output_levels(word: u32, levels: &[(i64, bool)]) -> Result<u32, i64>
     Ok(with_outputs(word, now))
 }
 
-/// The hardware enable input as the drive shows it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum HardwareEnable {
-    /// High: the drive is switched on (which it leaves while the input is low), or shows no
-    /// warning.
-    High,
-    /// Low: the drive is not switched on and shows a warning (statusword bit 7), which the AKD
-    /// raises while the input is low, among other reasons.
-    Low,
-    /// The statusword shows no valid state.
-    Unknown,
-}
-
-impl HardwareEnable {
-    /// "high", "low" or "unknown".
-    pub fn name(self) -> &'static str {
-        match self {
-            HardwareEnable::High => "high",
-            HardwareEnable::Low => "low",
-            HardwareEnable::Unknown => "unknown",
-        }
+named_variants! {
+    /// The hardware enable input as the drive shows it, numbered as akd_ros/DriveIO's
+    /// HARDWARE_ENABLE_* constants.
+    pub enum HardwareEnable {
+        /// High: the drive is switched on (which it leaves while the input is low), or shows no
+        /// warning.
+        High = 1 => "high",
+        /// Low: the drive is not switched on and shows a warning (statusword bit 7), which the AKD
+        /// raises while the input is low, among other reasons.
+        Low = 2 => "low",
+        /// The statusword shows no valid state.
+        Unknown = 0 => "unknown",
     }
+    /// "high", "low" or "unknown".
+    fn name;
 }
 
 /// The hardware enable input as `statusword` shows it (see the module's words on the evidence).
@@ -190,18 +183,6 @@ impl Carried {
     /// Whether it carries all four.
     pub fn all(self) -> bool {
         self.digital_inputs && self.analog_input && self.digital_outputs && self.analog_output
-    }
-
-    /// The names of what it carries, in the order of the fields.
-    pub fn names(self) -> impl Iterator<Item = &'static str> {
-        [
-            (self.digital_inputs, "digital inputs"),
-            (self.analog_input, "analog input"),
-            (self.digital_outputs, "digital outputs"),
-            (self.analog_output, "analog output"),
-        ]
-        .into_iter()
-        .filter_map(|(carried, name)| carried.then_some(name))
     }
 }
 
@@ -323,7 +304,7 @@ impl DriveIo {
 /// What the cycle thread watches of one drive's I/O to report each change in the cycle it
 /// happens: the digital inputs and the hardware enable as the statusword shows it. Where in
 /// the drive's inputs 0x60FD sits, and what the last cycle showed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct InputWatch {
     digital_inputs: Option<usize>,
     statusword: usize,
@@ -383,9 +364,9 @@ mod tests {
         assert_eq!(outputs(Mode::InterpolatedPosition), ["0x1720/0x1B20", "0x1722/0x1B20", "0x1723/0x1B20"]);
         assert_eq!(outputs(Mode::ProfileVelocity), ["io"]);
         let io = &mappings_for(Mode::ProfileTorque, Carried::all)[0];
-        assert_eq!((io.name.as_str(), io.carried.names().count()), ("io", 4));
+        assert_eq!((io.name.as_str(), io.carried.all()), ("io", true));
         let default = Carried::of(&pdo::DEFAULT_RX.concat(), &pdo::DEFAULT_TX.concat());
-        assert_eq!(default.names().collect::<Vec<_>>(), ["digital inputs"]);
+        assert_eq!(default, Carried { digital_inputs: true, ..Carried::default() });
     }
 
     #[test]

@@ -72,9 +72,6 @@ pub struct Ratio {
 }
 
 impl Ratio {
-    /// 1/1.
-    pub const ONE: Ratio = Ratio { numerator: 1, denominator: 1 };
-
     /// The ratio's value; `None` for a zero denominator (a drive refuses to hold one).
     pub fn value(self) -> Option<f64> {
         (self.denominator != 0).then(|| self.numerator as f64 / self.denominator as f64)
@@ -119,15 +116,6 @@ pub struct PositionScaling {
 }
 
 impl PositionScaling {
-    /// The AKD at its defaults: 2^20 increments per revolution, gear and feed 1/1, DS402
-    /// scaling off.
-    pub const AKD_DEFAULT: PositionScaling = PositionScaling {
-        encoder_resolution: Ratio { numerator: DEFAULT_COUNTS_PER_REVOLUTION, denominator: 1 },
-        gear_ratio: Ratio::ONE,
-        feed_constant: Ratio::ONE,
-        ds402_scaling: Some(false),
-    };
-
     /// The scaling from the six entries of [`SCALING_ENTRIES`], in that order, and FBUS.PARAM05
     /// where known.
     pub fn from_entries(entries: [u32; 6], fbus_param05: Option<u32>) -> Self {
@@ -140,31 +128,20 @@ impl PositionScaling {
         }
     }
 
-    /// Increments per motor revolution (0x6063, 0x60C1:01); `None` for a zero denominator.
-    pub fn increments_per_revolution(&self) -> Option<f64> {
-        self.encoder_resolution.value()
-    }
-
-    /// Position units per motor revolution (0x6064, 0x607A) as far as the DS402 objects tell
-    /// it: with DS402 scaling, feed constant over gear ratio; without it, the UNIT parameters'
-    /// (`unit_parameters`, when the caller knows them, e.g. the virtual AKD's defaults);
-    /// `None` where that is unknown.
-    pub fn position_units_per_revolution(&self, unit_parameters: Option<f64>) -> Option<f64> {
-        match self.ds402_scaling? {
-            true => {
+    /// How many of its counts object `index:subindex` counts per motor revolution: increments
+    /// (0x6063, 0x60C1:01) by the encoder resolution; position units (0x6064, 0x607A) with DS402
+    /// scaling by feed constant over gear ratio, without it by the UNIT parameters
+    /// (`unit_parameters`, when the caller knows them, e.g. the virtual AKD's defaults). `None`
+    /// for an object that holds no position or whose scale the objects do not tell (a zero
+    /// denominator, FBUS.PARAM05 not known).
+    pub fn counts_per_revolution(&self, index: u16, subindex: u8, unit_parameters: Option<f64>) -> Option<f64> {
+        match unit_of(index, subindex)? {
+            PositionUnit::Increments => self.encoder_resolution.value(),
+            PositionUnit::PositionUnits if self.ds402_scaling? => {
                 let per_motor_revolution = self.feed_constant.value()? / self.gear_ratio.value()?;
                 (per_motor_revolution.is_finite() && per_motor_revolution > 0.0).then_some(per_motor_revolution)
             }
-            false => unit_parameters,
-        }
-    }
-
-    /// How many of its counts object `index:subindex` counts per motor revolution; `None` for
-    /// an object that holds no position or whose scale the objects do not tell.
-    pub fn counts_per_revolution(&self, index: u16, subindex: u8, unit_parameters: Option<f64>) -> Option<f64> {
-        match unit_of(index, subindex)? {
-            PositionUnit::Increments => self.increments_per_revolution(),
-            PositionUnit::PositionUnits => self.position_units_per_revolution(unit_parameters),
+            PositionUnit::PositionUnits => unit_parameters,
         }
     }
 }
@@ -366,14 +343,12 @@ impl JointScaling {
 
     /// The int32 target position for load position `position`.
     pub fn position_to_counts(&self, position: f64) -> Result<i32, ScalingError> {
-        let counts = ((finite("position", position, false)? - self.offset) / self.si_per_count()).round();
-        self.in_range("position", position, counts, INT32, |c| self.position_to_si(c)).map(|c| c as i32)
+        self.to_drive(CommandKind::Position, position).map(|c| c as i32)
     }
 
     /// The int32 target velocity (counts/s) for load velocity `velocity`.
     pub fn velocity_to_counts(&self, velocity: f64) -> Result<i32, ScalingError> {
-        let counts = (finite("velocity", velocity, false)? / self.si_per_count()).round();
-        self.in_range("velocity", velocity, counts, INT32, |c| self.velocity_to_si(c)).map(|c| c as i32)
+        self.to_drive(CommandKind::Velocity, velocity).map(|c| c as i32)
     }
 
     /// Counts/s² for load acceleration `acceleration`.
@@ -383,39 +358,31 @@ impl JointScaling {
 
     /// The int16 target torque (0.1 % of peak) for load torque (or force) `torque`.
     pub fn torque_to_drive(&self, torque: f64) -> Result<i16, ScalingError> {
-        let value = (finite("torque", torque, false)? / self.si_per_torque_unit()).round();
-        let range = (i16::MIN as i64, i16::MAX as i64);
-        self.in_range("torque", torque, value, range, |v| self.torque_to_si(v)).map(|v| v as i16)
+        self.to_drive(CommandKind::Torque, torque).map(|v| v as i16)
     }
 
-    /// The drive value of `kind` for SI `value` (counts, counts/s, 0.1 % of peak).
-    pub fn to_drive(&self, kind: CommandKind, value: f64) -> Result<i64, ScalingError> {
-        match kind {
-            CommandKind::Position => self.position_to_counts(value).map(i64::from),
-            CommandKind::Velocity => self.velocity_to_counts(value).map(i64::from),
-            CommandKind::Torque => self.torque_to_drive(value).map(i64::from),
-        }
-    }
-
-    fn in_range(
-        &self,
-        name: &'static str,
-        si: f64,
-        value: f64,
-        (low, high): (i64, i64),
-        to_si: impl Fn(f64) -> f64,
-    ) -> Result<i64, ScalingError> {
+    /// The drive value of `kind` for SI `si` (counts, counts/s, 0.1 % of peak), within the
+    /// range of the drive's object (INT32 targets, INT16 torque).
+    pub fn to_drive(&self, kind: CommandKind, si: f64) -> Result<i64, ScalingError> {
+        let linear = self.position_unit() == Unit::Metre;
+        let (name, unit, per_value, offset, (low, high)) = match kind {
+            CommandKind::Position => ("position", self.position_unit().name(), self.si_per_count(), self.offset, INT32),
+            CommandKind::Velocity => {
+                ("velocity", if linear { "m/s" } else { "rad/s" }, self.si_per_count(), 0.0, INT32)
+            }
+            CommandKind::Torque => (
+                "torque",
+                if linear { "N" } else { "N·m" },
+                self.si_per_torque_unit(),
+                0.0,
+                (i16::MIN.into(), i16::MAX.into()),
+            ),
+        };
+        let value = ((finite(name, si, false)? - offset) / per_value).round();
         if (low as f64..=high as f64).contains(&value) {
             return Ok(value as i64);
         }
-        let (a, b) = (to_si(low as f64), to_si(high as f64));
-        let unit = match (name, self.position_unit()) {
-            ("torque", Unit::Metre) => "N",
-            ("torque", _) => "N·m",
-            ("velocity", Unit::Metre) => "m/s",
-            ("velocity", _) => "rad/s",
-            (_, unit) => unit.name(),
-        };
+        let (a, b) = (low as f64 * per_value + offset, high as f64 * per_value + offset);
         let value = if value.abs() < 9.2e18 { value as i64 } else { value.signum() as i64 * i64::MAX };
         Err(ScalingError::OutOfRange { name, si, value, range: (low, high), allowed: (a.min(b), a.max(b)), unit })
     }
@@ -452,13 +419,12 @@ impl PositionScaling {
     /// objects, and what to change; `None` where they agree or the objects do not tell. The
     /// objects give positions only: velocity and torque units are the AKD's own parameters.
     pub fn mismatch(&self, counts_per_revolution: u64, mapped: impl Fn(u16, u8) -> bool) -> Option<String> {
-        let differing: Vec<((u16, u8), f64)> = POSITION_OBJECTS
+        let mut differing: Vec<((u16, u8), f64)> = POSITION_OBJECTS
             .iter()
             .filter(|((index, sub), _)| mapped(*index, *sub))
             .filter_map(|&((index, sub), _)| Some(((index, sub), self.counts_per_revolution(index, sub, None)?)))
             .filter(|&(_, counts)| counts != counts_per_revolution as f64)
             .collect();
-        let mut differing = differing;
         differing.sort_by_key(|(object, _)| *object);
         if differing.is_empty() {
             return None;
@@ -505,7 +471,8 @@ mod tests {
 
     #[test]
     fn the_defaults_count_2_pow_20_per_revolution_in_both_units() {
-        let s = PositionScaling::AKD_DEFAULT;
+        // The AKD at its defaults: 2^20 increments per revolution, gear and feed 1/1, DS402 scaling off.
+        let s = PositionScaling::from_entries([DEFAULT_COUNTS_PER_REVOLUTION, 1, 1, 1, 1, 1], Some(0));
         let unit_pin = Some(DEFAULT_COUNTS_PER_REVOLUTION as f64);
         for (index, sub) in [(0x6063, 0), (0x60C1, 1), (0x6064, 0), (0x607A, 0)] {
             assert_eq!(s.counts_per_revolution(index, sub, unit_pin), Some(1048576.0), "0x{index:04X}");
@@ -528,7 +495,10 @@ mod tests {
         assert_eq!(unknown.counts_per_revolution(0x6064, 0, Some(1048576.0)), None);
         assert_eq!(unknown.counts_per_revolution(0x60C1, 1, None), Some(65536.0));
         let zero = PositionScaling::from_entries([1 << 20, 0, 0, 1, 1, 1], Some(0x10));
-        assert_eq!((zero.increments_per_revolution(), zero.position_units_per_revolution(None)), (None, None));
+        assert_eq!(
+            (zero.counts_per_revolution(0x6063, 0, None), zero.counts_per_revolution(0x6064, 0, None)),
+            (None, None)
+        );
     }
 
     #[test]

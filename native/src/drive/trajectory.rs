@@ -69,11 +69,6 @@ impl Limits {
         max_acceleration: f64::INFINITY,
     };
 
-    /// Positions `min ..= max` counts, at any speed.
-    pub fn positions(min: f64, max: f64) -> Limits {
-        Limits { min, max, ..Limits::TARGET }
-    }
-
     /// Whether these are limits at all: finite positions with min <= max, speeds above 0 (or
     /// infinite).
     fn valid(&self) -> bool {
@@ -145,26 +140,18 @@ impl JointLimits {
 /// How far past a speed limit rounding may take a value without it counting, relative.
 const SPEED_ROUNDING: f64 = 1e-9;
 
-/// Which of a joint's limits.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Limit {
-    /// Its positions.
-    Position,
-    /// Its velocity.
-    Velocity,
-    /// Its acceleration.
-    Acceleration,
-}
-
-impl Limit {
-    /// The limit's parameter name, as the node's limits.* parameters spell it.
-    pub fn name(self) -> &'static str {
-        match self {
-            Limit::Position => "position",
-            Limit::Velocity => "max_velocity",
-            Limit::Acceleration => "max_acceleration",
-        }
+named_variants! {
+    /// Which of a joint's limits.
+    pub enum Limit {
+        /// Its positions.
+        Position => "position",
+        /// Its velocity.
+        Velocity => "max_velocity",
+        /// Its acceleration.
+        Acceleration => "max_acceleration",
     }
+    /// The limit's parameter name, as the node's limits.* parameters spell it.
+    fn name;
 }
 
 /// A limit gone past: the furthest value reached (signed; counts, counts/s or counts/s²) and
@@ -210,26 +197,18 @@ pub struct Scale {
     pub unit: Unit,
 }
 
-/// The unit a joint's positions are given in.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Unit {
-    /// The drive's counts.
-    Counts,
-    /// Radians (a rotary joint).
-    Radian,
-    /// Metres (a linear joint).
-    Metre,
-}
-
-impl Unit {
-    /// Its symbol.
-    pub fn name(self) -> &'static str {
-        match self {
-            Unit::Counts => "counts",
-            Unit::Radian => "rad",
-            Unit::Metre => "m",
-        }
+named_variants! {
+    /// The unit a joint's positions are given in.
+    pub enum Unit {
+        /// The drive's counts.
+        Counts => "counts",
+        /// Radians (a rotary joint).
+        Radian => "rad",
+        /// Metres (a linear joint).
+        Metre => "m",
     }
+    /// Its symbol.
+    fn name;
 }
 
 impl Scale {
@@ -469,7 +448,9 @@ impl Trajectory {
             return Err(TrajectoryError::TimesCount { points: points.len(), times: times_ns.len() });
         }
         let limits = match limits {
-            Some(l) if l.len() != joints => return Err(TrajectoryError::LimitsCount { given: l.len(), joints }),
+            Some(l) if l.len() != joints => {
+                return Err(TrajectoryError::PerJointCount { what: "limit", given: l.len(), joints })
+            }
             Some(l) => l.to_vec(),
             None => vec![Limits::TARGET; joints],
         };
@@ -552,12 +533,9 @@ impl Trajectory {
             (None, from.velocity, lead_in.at(0.0).velocity),
             (Some(0), lead_in.at(duration_s).velocity, self.leaving(0, joint)),
         ];
-        steps.into_iter().find(|(_, a, b)| limits.steps(*a, *b)).map(|(point, from, to)| Breach::Step {
-            point,
-            from,
-            to,
-            max_acceleration: limits.max_acceleration,
-        })
+        let max_acceleration = limits.max_acceleration;
+        let (point, from, to) = steps.into_iter().find(|(_, a, b)| limits.steps(*a, *b))?;
+        Some(Breach::Step { point, from, to, max_acceleration })
     }
 
     /// The refusal of `breach` on joint `joint`'s segment to the first point.
@@ -568,11 +546,6 @@ impl Trajectory {
                 TrajectoryError::VelocityStep { point, joint, from, to, max_acceleration }
             }
         }
-    }
-
-    /// Joints.
-    pub fn joints(&self) -> usize {
-        self.joints
     }
 
     /// Points.
@@ -635,14 +608,9 @@ fn check_knot(point: usize, joint: usize, knot: &Knot, limits: &Limits) -> Resul
     if knot.acceleration.is_some() && knot.velocity.is_none() {
         return Err(TrajectoryError::AccelerationWithoutVelocity { point, joint });
     }
-    if !(limits.min..=limits.max).contains(&knot.position) {
-        return Err(TrajectoryError::OutOfLimits {
-            point,
-            joint,
-            position: knot.position,
-            min: limits.min,
-            max: limits.max,
-        });
+    let (position, min, max) = (knot.position, limits.min, limits.max);
+    if !(min..=max).contains(&position) {
+        return Err(TrajectoryError::OutOfLimits { point, joint, position, min, max });
     }
     let speeds = [
         (Limit::Velocity, knot.velocity, limits.max_velocity),
@@ -680,16 +648,11 @@ pub enum TrajectoryError {
         /// Joints of the trajectory.
         joints: usize,
     },
-    /// Limits for another number of joints than the trajectory has.
-    LimitsCount {
-        /// Limits given.
-        given: usize,
-        /// Joints of the trajectory.
-        joints: usize,
-    },
-    /// Tolerances for another number of joints than the trajectory has.
-    TolerancesCount {
-        /// Tolerances given.
+    /// Limits or tolerances for another number of joints than the trajectory has.
+    PerJointCount {
+        /// "limit" or "tolerance".
+        what: &'static str,
+        /// How many were given.
         given: usize,
         /// Joints of the trajectory.
         joints: usize,
@@ -831,11 +794,8 @@ impl TrajectoryError {
             TrajectoryError::JointCount { point, given, joints } => {
                 write!(f, "point {point} gives {given} joint value(s); the trajectory has {joints} joint(s)")
             }
-            TrajectoryError::LimitsCount { given, joints } => {
-                write!(f, "{given} joint limit(s) given; the trajectory has {joints} joint(s)")
-            }
-            TrajectoryError::TolerancesCount { given, joints } => {
-                write!(f, "{given} joint tolerance(s) given; the trajectory has {joints} joint(s)")
+            TrajectoryError::PerJointCount { what, given, joints } => {
+                write!(f, "{given} joint {what}(s) given; the trajectory has {joints} joint(s)")
             }
             TrajectoryError::BadLimits { joint: j, limits: l } => write!(
                 f,
@@ -1029,7 +989,8 @@ mod tests {
 
     #[test]
     fn refuses_with_the_point_the_joint_and_what_is_allowed() {
-        let limits = [Limits::positions(-10.0, 10.0), Limits::positions(0.0, 100.0)];
+        let limits =
+            [Limits { min: -10.0, max: 10.0, ..Limits::TARGET }, Limits { min: 0.0, max: 100.0, ..Limits::TARGET }];
         let refused = |times: &[u64], points: Vec<Vec<Knot>>| {
             Trajectory::new(2, times, &points, Some(&limits)).unwrap_err().to_string()
         };
@@ -1062,7 +1023,7 @@ mod tests {
         assert!(e.contains("1 point(s) but 2 time(s)"), "{e}");
         let e = Trajectory::new(2, &[S], &[p(0.0, 0.0)], Some(&limits[..1])).unwrap_err().to_string();
         assert!(e.contains("1 joint limit(s) given; the trajectory has 2 joint(s)"), "{e}");
-        let bad = [Limits::positions(1.0, 0.0), limits[1]];
+        let bad = [Limits { min: 1.0, max: 0.0, ..Limits::TARGET }, limits[1]];
         let e = Trajectory::new(2, &[S], &[p(0.0, 0.0)], Some(&bad)).unwrap_err().to_string();
         assert!(e.contains("joint 0: limits 1 ..= 0 counts"), "{e}");
         assert_eq!(Trajectory::new(1, &[], &[], None), Err(TrajectoryError::NoPoints));

@@ -10,7 +10,6 @@ use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 
-use crate::ros::bag_file::Compression;
 use crate::ros::bag_writer::{BagWriter, Counters, Options, Report, Topic};
 
 /// A bag being written by its thread: `BagWriter(folder, name, *, compression, ...)` (see
@@ -48,9 +47,9 @@ impl PyBagWriter {
         sync_interval: f64,
     ) -> PyResult<Self> {
         let compression = match compression {
-            "zstd" => Compression::Zstd,
-            "lz4" => Compression::Lz4,
-            "none" => Compression::None,
+            "zstd" => Some(mcap::Compression::Zstd),
+            "lz4" => Some(mcap::Compression::Lz4),
+            "none" => None,
             other => {
                 return Err(PyValueError::new_err(format!("compression {other:?} is not one of 'lz4', 'none', 'zstd'")))
             }

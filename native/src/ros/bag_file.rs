@@ -12,18 +12,7 @@ use std::io;
 use std::path::Path;
 
 use mcap::records::{MessageHeader, Metadata};
-use mcap::{McapError, WriteOptions, Writer};
-
-/// Chunk compression.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Compression {
-    /// Zstandard.
-    Zstd,
-    /// LZ4 frames.
-    Lz4,
-    /// None.
-    None,
-}
+use mcap::{Compression, McapError, WriteOptions, Writer};
 
 /// An open MCAP file being written.
 pub struct BagFile {
@@ -34,15 +23,16 @@ pub struct BagFile {
 }
 
 impl BagFile {
-    /// Creates `path` and writes the header of the `profile` (e.g. "ros2") with `library`.
-    pub fn create(path: &Path, compression: Compression, profile: &str, library: &str) -> Result<BagFile, McapError> {
+    /// Creates `path`, its chunks compressed by `compression` (`None`: not compressed), and
+    /// writes the header of the `profile` (e.g. "ros2") with `library`.
+    pub fn create(
+        path: &Path,
+        compression: Option<Compression>,
+        profile: &str,
+        library: &str,
+    ) -> Result<BagFile, McapError> {
         let file = File::create(path)?;
         let handle = file.try_clone()?;
-        let compression = match compression {
-            Compression::Zstd => Some(mcap::Compression::Zstd),
-            Compression::Lz4 => Some(mcap::Compression::Lz4),
-            Compression::None => None,
-        };
         let writer = WriteOptions::new()
             .compression(compression)
             .profile(profile)
@@ -112,7 +102,7 @@ mod tests {
         let dir = std::env::temp_dir().join(format!("akd_bag_file_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let path = dir.join("a.mcap");
-        let mut bag = BagFile::create(&path, Compression::Zstd, "ros2", "test").unwrap();
+        let mut bag = BagFile::create(&path, Some(Compression::Zstd), "ros2", "test").unwrap();
         let schema = bag.add_schema("std_msgs/msg/UInt8", "ros2msg", b"uint8 data").unwrap();
         let channel = bag.add_channel(schema, "/a", "cdr", &BTreeMap::new()).unwrap();
         for i in 0..100u8 {

@@ -26,12 +26,11 @@
 
 use std::collections::{BTreeMap, VecDeque};
 use std::path::PathBuf;
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use crate::ros::bag_file::{BagFile, Compression};
+use crate::ros::bag_file::BagFile;
 
 /// How often the thread takes records from its [`CycleSource`]: a cycle keeps two seconds.
 pub const PULL_INTERVAL: Duration = Duration::from_millis(20);
@@ -66,8 +65,8 @@ pub struct Options {
     pub folder: PathBuf,
     /// The bag directory's name; `_2`, `_3`, ... is added when it exists.
     pub name: String,
-    /// The chunks' compression.
-    pub compression: Compression,
+    /// The chunks' compression; `None`: not compressed.
+    pub compression: Option<mcap::Compression>,
     /// The MCAP header's profile and library.
     pub profile: String,
     /// The writing library's name.
@@ -182,13 +181,8 @@ struct Inbox {
     refusing: bool,
 }
 
-#[derive(Default)]
-struct AtomicCounters {
-    written: AtomicU64,
-    dropped: AtomicU64,
-    errors: AtomicU64,
-    black_box_dumps: AtomicU64,
-    black_box_syncs: AtomicU64,
+fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
+    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 struct WriterShared {
@@ -198,12 +192,8 @@ struct WriterShared {
     reported: Condvar,
     held: Mutex<bool>,
     released: Condvar,
-    counters: AtomicCounters,
+    counters: Mutex<Counters>,
     queue_size: usize,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 impl WriterShared {
@@ -218,7 +208,7 @@ impl WriterShared {
         if refused {
             let messages = item.messages();
             drop(inbox);
-            self.counters.dropped.fetch_add(messages, Ordering::Relaxed);
+            lock(&self.counters).dropped += messages;
             return false;
         }
         inbox.queued += counted as usize;
@@ -254,7 +244,7 @@ impl BagWriter {
             reported: Condvar::new(),
             held: Mutex::new(false),
             released: Condvar::new(),
-            counters: AtomicCounters::default(),
+            counters: Mutex::default(),
             queue_size: options.queue_size,
         });
         let writer = Writer::new(shared.clone(), options);
@@ -326,14 +316,7 @@ impl BagWriter {
 
     /// The counters.
     pub fn counters(&self) -> Counters {
-        let c = &self.shared.counters;
-        Counters {
-            written: c.written.load(Ordering::Relaxed),
-            dropped: c.dropped.load(Ordering::Relaxed),
-            errors: c.errors.load(Ordering::Relaxed),
-            black_box_dumps: c.black_box_dumps.load(Ordering::Relaxed),
-            black_box_syncs: c.black_box_syncs.load(Ordering::Relaxed),
-        }
+        *lock(&self.shared.counters)
     }
 
     /// Waits up to `timeout` for the thread's end; whether it ended.
@@ -503,7 +486,7 @@ impl Writer {
 
     /// Stops recording for the first failure, `text`; counts every one.
     fn failed_because(&mut self, text: String) {
-        self.shared.counters.errors.fetch_add(1, Ordering::Relaxed);
+        lock(&self.shared.counters).errors += 1;
         if self.failed {
             return;
         }
@@ -517,7 +500,7 @@ impl Writer {
         inbox.items.retain(|i| matches!(i, Item::Close | Item::Finish(_) | Item::Fault(_)));
         inbox.queued = 0;
         drop(inbox);
-        self.shared.counters.dropped.fetch_add(lost, Ordering::Relaxed);
+        lock(&self.shared.counters).dropped += lost;
         self.shared.update(|r| r.failure = Some(text));
     }
 
@@ -588,7 +571,7 @@ impl Writer {
                 self.changed = true;
             }
             Item::CycleTopics { cycle, black_box } => (self.cycle_topic, self.black_box_topic) = (cycle, black_box),
-            Item::Message { topic, time_ns, data } => self.write(topic, &[(time_ns, data)])?,
+            Item::Message { topic, time_ns, data } => self.write(topic, &[(time_ns, &data)])?,
             Item::Records(records) => self.take_records(records)?,
             Item::Source(source) => self.source = Some(source),
             Item::Fault(_) | Item::Finish(_) | Item::Close => unreachable!("taken by run"),
@@ -620,7 +603,7 @@ impl Writer {
                 .filter(|(i, _)| ((first + *i as u64) / per_cycle).is_multiple_of(decimation))
                 .map(|(_, (t, data))| (*t, data.as_slice()))
                 .collect();
-            self.write_refs(topic, &kept)?;
+            self.write(topic, &kept)?;
         }
         if self.options.black_box_ns.is_some() && self.black_box_topic.is_some() {
             for (i, (time_ns, data)) in records.into_iter().enumerate() {
@@ -657,6 +640,8 @@ impl Writer {
             })
             .collect();
         let wanted = merged(windows.clone());
+        // Out of the writer while what it holds is written, so it is not copied for that.
+        let ring = std::mem::take(&mut self.ring);
         let mut taken: Vec<(i64, &[u8])> = Vec::new();
         for (start, end) in wanted {
             let mut at = start;
@@ -666,9 +651,7 @@ impl Writer {
                 }
                 let stop = done_start.min(end);
                 taken.extend(
-                    self.ring
-                        .range((at - first) as usize..(stop.max(at) - first) as usize)
-                        .map(|r| (r.1, r.2.as_slice())),
+                    ring.range((at - first) as usize..(stop.max(at) - first) as usize).map(|r| (r.1, r.2.as_slice())),
                 );
                 at = at.max(done_end);
                 if at >= end {
@@ -676,13 +659,14 @@ impl Writer {
                 }
             }
         }
-        let taken: Vec<(i64, Vec<u8>)> = taken.into_iter().map(|(t, d)| (t, d.to_vec())).collect();
         self.dumped = merged(self.dumped.iter().copied().chain(windows).collect());
+        // A failed writer counts them dropped.
+        let written = self.write(topic, &taken);
+        self.ring = ring;
+        written?;
         if self.failed {
-            self.shared.counters.dropped.fetch_add(taken.len() as u64, Ordering::Relaxed);
             return Ok(());
         }
-        self.write(topic, &taken)?;
         self.count_dumps(faults.len());
         let now = Instant::now();
         match self.last_sync {
@@ -696,7 +680,7 @@ impl Writer {
 
     fn count_dumps(&self, faults: usize) {
         if !self.failed {
-            self.shared.counters.black_box_dumps.fetch_add(faults as u64, Ordering::Relaxed);
+            lock(&self.shared.counters).black_box_dumps += faults as u64;
         }
     }
 
@@ -704,23 +688,18 @@ impl Writer {
         self.flush(true)?;
         self.last_sync = Some(now);
         self.sync_due = None;
-        self.shared.counters.black_box_syncs.fetch_add(1, Ordering::Relaxed);
+        lock(&self.shared.counters).black_box_syncs += 1;
         Ok(())
-    }
-
-    fn write(&mut self, topic: usize, records: &[(i64, Vec<u8>)]) -> std::io::Result<()> {
-        let refs: Vec<(i64, &[u8])> = records.iter().map(|(t, d)| (*t, d.as_slice())).collect();
-        self.write_refs(topic, &refs)
     }
 
     /// Writes `records` (time ns, data) of `topic`, in time order, starting a new file where
     /// they reach the split duration.
-    fn write_refs(&mut self, topic: usize, records: &[(i64, &[u8])]) -> std::io::Result<()> {
+    fn write(&mut self, topic: usize, records: &[(i64, &[u8])]) -> std::io::Result<()> {
         if records.is_empty() {
             return Ok(());
         }
         if self.failed || self.open.is_none() || topic >= self.topics.len() {
-            self.shared.counters.dropped.fetch_add(records.len() as u64, Ordering::Relaxed);
+            lock(&self.shared.counters).dropped += records.len() as u64;
             return Ok(());
         }
         let mut start = 0;
@@ -744,7 +723,7 @@ impl Writer {
             }
             self.files[open.index].add(batch[0].0, batch[batch.len() - 1].0, batch.len() as u64);
             self.topic_messages[topic] += batch.len() as u64;
-            self.shared.counters.written.fetch_add(batch.len() as u64, Ordering::Relaxed);
+            lock(&self.shared.counters).written += batch.len() as u64;
             start = end;
             if self.pending_bytes >= self.options.chunk_size {
                 self.flush(false)?;
@@ -875,7 +854,7 @@ mod tests {
         Options {
             folder: dir.to_owned(),
             name: "bag".into(),
-            compression: Compression::Lz4,
+            compression: Some(mcap::Compression::Lz4),
             profile: "ros2".into(),
             library: "test".into(),
             chunk_size: 4000,

@@ -30,14 +30,14 @@
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
-use std::sync::{Arc, Condvar, Mutex, MutexGuard};
+use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::{Device, Joint};
-use crate::cycle::{timing, CycleThread, Snapshot};
+use crate::cycle::{lock, timing, CycleThread, Snapshot};
 use crate::drive::ds402::{Mode, State};
-use crate::drive::io::{DriveIo, HardwareEnable, Switch};
+use crate::drive::io::{DriveIo, Switch};
 use crate::drive::objects::DriveInputs;
 use crate::drive::scaling::PositionUnwrap;
 use crate::ethercat::device::ChannelValue;
@@ -114,11 +114,7 @@ impl FeedShared {
             input_names,
             input_numbers,
             named_inputs,
-            hardware_enable: match drive.hardware_enable() {
-                HardwareEnable::Unknown => 0,
-                HardwareEnable::High => 1,
-                HardwareEnable::Low => 2,
-            },
+            hardware_enable: drive.hardware_enable() as u8,
             analog_input: volts(drive.analog_input),
             digital_outputs_mapped: drive.digital_outputs.is_some(),
             digital_outputs: drive.digital_outputs.unwrap_or(0),
@@ -202,10 +198,6 @@ struct Outbox {
     messages: VecDeque<(usize, Vec<u8>)>,
     events: bool,
     closed: bool,
-}
-
-fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
-    m.lock().unwrap_or_else(|p| p.into_inner())
 }
 
 /// The node's periodic publications (see the module).
@@ -440,13 +432,8 @@ impl Maker {
     fn make(&mut self, due: &[Kind]) -> Vec<(usize, i64, Vec<u8>)> {
         let reading = self.read();
         let kinds: Vec<Kind> = self.streams.iter().map(|s| s.0).collect();
-        let mut made = Vec::new();
-        for (stream, kind) in kinds.into_iter().enumerate() {
-            if due.contains(&kind) {
-                made.push((stream, reading.stamp_ns, self.message(kind, &reading)));
-            }
-        }
-        made
+        let due = kinds.into_iter().enumerate().filter(|(_, kind)| due.contains(kind));
+        due.map(|(stream, kind)| (stream, reading.stamp_ns, self.message(kind, &reading))).collect()
     }
 
     fn read(&mut self) -> Reading {
@@ -476,17 +463,11 @@ impl Maker {
             let counts = self.unwrapped[k].next(inputs.position_actual.unwrap_or(0));
             position.push(joint.scale.position_to_si(counts as f64));
         }
-        let all = |values: Option<Vec<f64>>| values.unwrap_or_default();
-        let velocity = all(joints
-            .iter()
-            .zip(&reading.inputs)
-            .map(|(j, i)| i.velocity_actual.map(|v| j.scale.velocity_to_si(v.into())))
-            .collect());
-        let effort = all(joints
-            .iter()
-            .zip(&reading.inputs)
-            .map(|(j, i)| i.torque_actual.map(|t| j.scale.torque_to_si(t.into())))
-            .collect());
+        let every = |si: &dyn Fn(&Joint, &DriveInputs) -> Option<f64>| -> Vec<f64> {
+            joints.iter().zip(&reading.inputs).map(|(j, i)| si(j, i)).collect::<Option<_>>().unwrap_or_default()
+        };
+        let velocity = every(&|j, i| Some(j.scale.velocity_to_si(i.velocity_actual?.into())));
+        let effort = every(&|j, i| Some(j.scale.torque_to_si(i.torque_actual?.into())));
         let message = msgs::JointState {
             header: Header::at(reading.stamp_ns),
             name: &self.names,
