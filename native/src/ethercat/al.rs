@@ -71,7 +71,6 @@ wire_codes! {
     /// (ETG.1000.6 table 11), so this is the register value with the codes the AKD itself raises as
     /// constants and [`name`](AlStatusCode::name) for any code.
     pub struct AlStatusCode(u16) {
-        /// No error.
         NO_ERROR = 0x0000 => "no error",
         0x0001 => "unspecified error",
         0x0002 => "no memory",

@@ -41,21 +41,13 @@ wire_codes! {
         Fragment = 0 => "fragment",
         /// A time stamp answering a fragment that asked for one.
         TimestampResponse = 1 => "time stamp response",
-        /// Set IP Parameter request.
         SetIpRequest = 2 => "set IP parameter request",
-        /// Set IP Parameter response.
         SetIpResponse = 3 => "set IP parameter response",
-        /// Set Address Filter request.
         SetAddressFilterRequest = 4 => "set address filter request",
-        /// Set Address Filter response.
         SetAddressFilterResponse = 5 => "set address filter response",
-        /// Get IP Parameter request.
         GetIpRequest = 6 => "get IP parameter request",
-        /// Get IP Parameter response.
         GetIpResponse = 7 => "get IP parameter response",
-        /// Get Address Filter request.
         GetAddressFilterRequest = 8 => "get address filter request",
-        /// Get Address Filter response.
         GetAddressFilterResponse = 9 => "get address filter response",
     }
 }
@@ -65,17 +57,11 @@ wire_codes! {
     /// with a code outside the standard's list, so this is the wire value with the standard's
     /// codes as constants and [`name`](EoeResult::name) for any of them.
     pub struct EoeResult(u16) {
-        /// Success.
         SUCCESS = 0x0000 => "success",
-        /// Unspecified error.
         UNSPECIFIED = 0x0001 => "unspecified error",
-        /// Unsupported frame type.
         UNSUPPORTED_FRAME_TYPE = 0x0002 => "unsupported frame type",
-        /// No IP support.
         NO_IP_SUPPORT = 0x0201 => "no IP support",
-        /// DHCP not supported.
         NO_DHCP_SUPPORT = 0x0202 => "DHCP not supported",
-        /// No address filter support.
         NO_FILTER_SUPPORT = 0x0401 => "no filter support",
     } else {
         _ => "unknown EoE result",
