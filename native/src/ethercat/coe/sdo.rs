@@ -222,6 +222,7 @@ impl<'a> SdoRequest<'a> {
                 }
                 let (index, subindex) = address(body);
                 let complete_access = command & 0x10 != 0;
+                let word = u32::from_le_bytes([body[4], body[5], body[6], body[7]]);
                 match ccs {
                     ClientCommand::InitiateDownload if command & 0x02 != 0 => Ok(SdoRequest::DownloadExpedited {
                         index,
@@ -233,16 +234,12 @@ impl<'a> SdoRequest<'a> {
                         index,
                         subindex,
                         complete_access,
-                        complete_size: u32::from_le_bytes([body[4], body[5], body[6], body[7]]),
+                        complete_size: word,
                         data: &body[SDO_LEN..],
                     }),
                     ClientCommand::InitiateUpload => Ok(SdoRequest::Upload { index, subindex, complete_access }),
                     // The arm above lets only an abort get here.
-                    _ => Ok(SdoRequest::Abort {
-                        index,
-                        subindex,
-                        code: SdoAbortCode(u32::from_le_bytes([body[4], body[5], body[6], body[7]])),
-                    }),
+                    _ => Ok(SdoRequest::Abort { index, subindex, code: SdoAbortCode(word) }),
                 }
             }
         }
