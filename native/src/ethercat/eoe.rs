@@ -122,22 +122,11 @@ pub mod ip_flags {
 }
 
 impl IpParameters {
-    /// The flags word naming the fields present.
+    /// The flags word naming the fields present: bit n for the n-th field, as [`ip_flags`] lists them.
     pub fn flags(&self) -> u32 {
-        let mut flags = 0;
-        for (present, bit) in [
-            (self.mac.is_some(), ip_flags::MAC),
-            (self.ip.is_some(), ip_flags::IP),
-            (self.subnet_mask.is_some(), ip_flags::SUBNET_MASK),
-            (self.gateway.is_some(), ip_flags::GATEWAY),
-            (self.dns_server.is_some(), ip_flags::DNS_SERVER),
-            (self.dns_name.is_some(), ip_flags::DNS_NAME),
-        ] {
-            if present {
-                flags |= bit;
-            }
-        }
-        flags
+        let addresses = [self.ip, self.subnet_mask, self.gateway, self.dns_server];
+        let present = [self.mac.is_some()].into_iter().chain(addresses.map(|a| a.is_some()));
+        present.chain([self.dns_name.is_some()]).enumerate().map(|(bit, present)| u32::from(present) << bit).sum()
     }
 
     /// Encodes flags and the fields up to the last one present into `out` (at least
