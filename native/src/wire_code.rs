@@ -9,6 +9,8 @@
 //!   pattern => "name", ... }`), where a slave may send codes outside the standard's list (a
 //!   vendor's), is a newtype over the wire value: the codes this crate uses by name as
 //!   constants, a `name()` for every code of the list and the `else` patterns for the rest.
+//! - In both, a code's documentation ends with its value and name, so a code whose name says
+//!   all there is to say needs no doc comment of its own.
 //! - An enum of names (`named_variants!`: `enum Name { Variant => "text", ... } fn name;`),
 //!   optionally with discriminants (`Variant = value => "text"`), is the enum with `ALL` and
 //!   the text of each variant by the method the declaration names (`name`, `describe`, ...,
@@ -29,7 +31,7 @@ macro_rules! wire_codes {
         #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
         #[repr($raw)]
         $vis enum $name {
-            $($(#[$variant_meta])* $variant = $value,)+
+            $($(#[$variant_meta])* #[doc = concat!("`", stringify!($value), "`: ", $text, ".")] $variant = $value,)+
         }
 
         impl $name {
@@ -84,7 +86,11 @@ macro_rules! wire_codes {
         $vis struct $name(pub $raw);
 
         impl $name {
-            $($($(#[$const_meta])* pub const $constant: $name = $name($value);)?)+
+            $($(
+                $(#[$const_meta])*
+                #[doc = concat!("`", stringify!($value), "`: ", $text, ".")]
+                pub const $constant: $name = $name($value);
+            )?)+
 
             /// The code's name as the standard spells it, for any code.
             pub fn name(self) -> &'static str {

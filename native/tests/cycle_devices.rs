@@ -17,7 +17,7 @@ use akd_native::ethercat::al::AlState;
 use akd_native::ethercat::device::ChannelValue;
 use akd_native::ethercat::link_spec::{MissedFrames, Pace, SimLine};
 use akd_native::ethercat::master::Master;
-use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
+use akd_native::sim::control::{Change, SimControl, QUERY_TIMEOUT};
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 
@@ -87,7 +87,7 @@ fn outputs_by_name_reach_the_pins_and_input_edges_are_events_of_their_cycle() {
     assert_eq!(cycle.outputs(EL2004).unwrap(), [0b1010]);
 
     cycle.events();
-    control.set_input(EL1004 as usize, 3, true).unwrap();
+    control.change(Change::input_level(control.products(), EL1004 as usize, 3, true)).unwrap();
     let (seen, levels) = wait_until("the EL1004's edge", || {
         cycle.events().into_iter().find_map(|e| match e {
             Event::DeviceInputs { cycle, slave: EL1004, levels, .. } => Some((cycle, levels)),
@@ -112,7 +112,7 @@ fn a_power_cycled_terminal_comes_back_with_its_outputs_off_and_costs_the_drive_n
     cycle.set_channels(EL2004, &[("channel_1_output", ChannelValue::Bit(true))]).unwrap();
     wait_until("output 1 on", || (pins(&control) == 0b0001).then_some(()));
     cycle.events();
-    control.power_cycle(EL2004 as usize).unwrap();
+    control.change(Change::power_cycle(control.products(), EL2004 as usize)).unwrap();
     let mut seen = Vec::new();
     wait_until("the terminal lost and back", || {
         seen.extend(cycle.events());
@@ -153,7 +153,7 @@ fn the_lines_fault_reaction_switches_the_terminals_outputs_off() {
     enable(&cycle);
     cycle.set_channels(EL2004, &[("channel_1_output", ChannelValue::Bit(true))]).unwrap();
     wait_until("output 1 on", || (pins(&control) == 0b0001).then_some(()));
-    control.inject_fault(AKD as usize, "following_error").unwrap();
+    control.change(Change::inject_fault(control.products(), AKD as usize, "following_error")).unwrap();
     wait_until("the outputs off", || (pins(&control) == 0).then_some(()));
     assert_eq!(cycle.outputs(EL2004).unwrap(), [0]);
     cycle.stop().unwrap();

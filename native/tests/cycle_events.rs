@@ -18,7 +18,7 @@ use akd_native::ethercat::al::AlState;
 use akd_native::ethercat::frame::{self, Command, FrameBuilder};
 use akd_native::ethercat::link::{is_reply_to, Link};
 use akd_native::ethercat::registers::AL_CONTROL;
-use akd_native::sim::control::SimControl;
+use akd_native::sim::control::{Change, SimControl};
 use akd_native::sim::in_process::InProcess;
 
 #[path = "support/csp.rs"]
@@ -303,7 +303,7 @@ fn a_stale_cycle_records_whether_its_frame_was_lost_or_came_back_with_a_wrong_wo
     wait_for("the lost frame", &stats.lost_frames);
     // The only drive power-cycled has lost its FMMUs: the frame comes back, no slave took its
     // LRW, working counter 0, as a lost frame's record has it.
-    control.power_cycle(0).unwrap();
+    control.change(Change::power_cycle(control.products(), 0)).unwrap();
     wait_for("the wrong working counter", &stats.wkc_errors);
     cycle.stop().unwrap();
     let samples = cycle.samples();

@@ -12,7 +12,7 @@ use akd_native::drive::io;
 use akd_native::drive::pdo;
 use akd_native::drive::pdo::Mapping;
 use akd_native::ethercat::pdo::{find, PdoEntry};
-use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
+use akd_native::sim::control::{Change, SimControl, QUERY_TIMEOUT};
 
 #[path = "support/one_drive.rs"]
 mod one_drive;
@@ -89,7 +89,7 @@ fn a_change_of_the_digital_inputs_is_an_event_of_the_cycle_whose_inputs_show_it(
     cycle.samples();
     // Input 3 rises half a count past a whole count, where the rounded 0x6064 shows the crossing.
     let edge = position(&cycle) as f64 + 5000.5;
-    control.set_input_toggles(0, 3, vec![edge]).unwrap();
+    control.change(Change::input_toggles(control.products(), 0, 3, vec![edge])).unwrap();
     ramp(&cycle, 200, 60);
     let events = wait_until("the event", || {
         let events: Vec<_> = cycle.events();
@@ -102,7 +102,7 @@ fn a_change_of_the_digital_inputs_is_an_event_of_the_cycle_whose_inputs_show_it(
     let first = samples.iter().find(|s| s.position as f64 >= edge).expect("the axis crossed the edge");
     assert_eq!(seen, first.cycle, "the event is of the cycle whose 0x6064 first shows the crossing");
 
-    control.set_hardware_enable(0, false).unwrap();
+    control.change(Change::hardware_enable(control.products(), 0, false)).unwrap();
     let low = wait_until("the hardware enable's event", || {
         cycle.events().into_iter().find_map(|e| match e {
             Event::Inputs { statusword, .. } => Some(io::hardware_enable(statusword)),
@@ -117,7 +117,7 @@ fn a_limit_switch_holds_a_move_toward_it_and_lets_one_away_from_it_go() {
     let (cycle, control) = rig();
     request(&cycle, Request::Enable, State::OperationEnabled);
     let start = position(&cycle);
-    control.set_switch(0, "positive_limit", true).unwrap();
+    control.change(Change::switch(control.products(), 0, "positive_limit", true)).unwrap();
     cycles(&cycle, 5);
     assert_eq!(word(&cycle, io::DIGITAL_INPUTS, false) & 0b11, 0b10, "0x60FD bit 1");
     let target = ramp(&cycle, 200, 100);

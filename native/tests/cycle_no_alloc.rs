@@ -27,7 +27,7 @@ use akd_native::ethercat::device::ChannelValue;
 use akd_native::ethercat::link::udp::Udp;
 use akd_native::ethercat::link_spec::{MissedFrames, SimLine};
 use akd_native::ethercat::master::Master;
-use akd_native::sim::control::ControlledBus;
+use akd_native::sim::control::{Change, ControlledBus};
 use akd_native::sim::{server, Timing, VirtualBus};
 
 #[path = "support/ethernet.rs"]
@@ -128,12 +128,12 @@ fn devices_allocate_nothing() {
     let mut edges = 0;
     for n in 0..20 {
         cycle.set_channels(2, &[("channel_1_output", ChannelValue::Bit(n % 2 == 0))]).unwrap();
-        control.set_input(1, 1 + n % 4, n % 3 == 0).unwrap();
+        control.change(Change::input_level(control.products(), 1, 1 + n % 4, n % 3 == 0)).unwrap();
         let later = wait_for_cycle(&cycle, cycle.snapshot().cycle + 5);
         edges += cycle.events().iter().filter(|e| matches!(e, Event::DeviceInputs { .. })).count();
         wait_for_cycle(&cycle, later.cycle);
     }
-    control.power_cycle(2).unwrap();
+    control.change(Change::power_cycle(control.products(), 2)).unwrap();
     wait_until("the EL2004 lost and back", || cycle.recovery_status(2).unwrap().recoveries == 1);
     let recovered = cycle.events().iter().any(|e| matches!(e, Event::Fault { slave: 2, .. }));
     cycle.switch_outputs_off(2).unwrap();

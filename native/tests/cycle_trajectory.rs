@@ -26,7 +26,7 @@ use akd_native::drive::pdo::Mapping;
 use akd_native::drive::trajectory::{JointLimits, Knot, Limits, Scale, Setpoint, Trajectory};
 use akd_native::ethercat::al::AlState;
 use akd_native::ethercat::master::Master;
-use akd_native::sim::control::SimControl;
+use akd_native::sim::control::{Change, SimControl};
 use akd_native::sim::faults::Fault;
 use akd_native::sim::in_process::InProcess;
 
@@ -296,7 +296,7 @@ fn a_drive_faulted_mid_trajectory_aborts_it_and_the_others_hold() {
     on_a_steady_host(|cycle, control| {
         let Played { before: mut all, base, times, id, .. } = play_three_points(cycle);
         all.extend(records(cycle, 700));
-        control.inject_fault(1, "F235").unwrap();
+        control.change(Change::inject_fault(control.products(), 1, "F235")).unwrap();
         let status = follow(cycle, id, &mut all);
         let TrajectoryState::Aborted { slave: 1, statusword: seen } = status.state else { panic!("{status:?}") };
         assert_ne!(seen & statusword::FAULT, 0, "0x{seen:04X}");

@@ -15,7 +15,7 @@ use akd_native::ethercat::line_health::registers::ErrorCounts;
 use akd_native::ethercat::line_health::topology::End;
 use akd_native::ethercat::line_health::LineReading;
 use akd_native::ethercat::master::Master;
-use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
+use akd_native::sim::control::{Change, SimControl, QUERY_TIMEOUT};
 use akd_native::sim::in_process::InProcess;
 
 const STEP: Duration = Duration::from_secs(5);
@@ -91,7 +91,7 @@ fn errors_into_a_port_1_are_named_as_the_return_path_and_counted_as_the_escs_cou
     read_after(&cycle, 1);
     // A flaky connector between slaves 3 and 4 on the return pair: one frame in 50 entering
     // slave 3's port 1, 40 of them.
-    control.spoil_port(3, 1, 40, 50).unwrap();
+    control.change(Change::spoil_port(control.products(), 3, 1, 40, 50)).unwrap();
     let named = wait_for(&cycle, "finding", |r| !r.findings().is_empty());
     let worst = &named.findings()[0];
     assert_eq!(worst.port(), Some((3, 1)), "{worst:?}");
@@ -118,7 +118,7 @@ fn a_link_taken_down_and_up_is_named_as_the_cable_it_is() {
     let (m, control) = line_in_op();
     let cycle = cycle(m);
     read_after(&cycle, 1);
-    control.set_link(3, 1, false).unwrap();
+    control.change(Change::link(control.products(), 3, 1, false)).unwrap();
     let down = wait_for(&cycle, "link down", |r| r.findings().first().is_some_and(Finding::is_down));
     let words = down.findings()[0].words(label, &down.period());
     assert_eq!(
@@ -126,7 +126,7 @@ fn a_link_taken_down_and_up_is_named_as_the_cable_it_is() {
         "no link on the cable into slave 4 (joint_5) port 0, from slave 3 (joint_4) port 1: unreachable slave 4 \
          (joint_5), slave 5 (joint_6)"
     );
-    control.set_link(3, 1, true).unwrap();
+    control.change(Change::link(control.products(), 3, 1, true)).unwrap();
     let up = wait_for(&cycle, "the link back", |r| {
         r.health.slaves.iter().all(|s| s.answered) && r.findings().first().is_some_and(|f| !f.is_down())
     });
@@ -146,8 +146,8 @@ fn a_read_at_rest_gives_what_the_escs_counted_since_power_up() {
     let control = link.control();
     let mut m = Master::new(Box::new(link), Duration::from_millis(100));
     m.scan().unwrap();
-    control.set_cable(2, false).unwrap();
-    control.set_cable(2, true).unwrap();
+    control.change(Change::cable(control.products(), 2, false)).unwrap();
+    control.change(Change::cable(control.products(), 2, true)).unwrap();
     let reading = m.line_health().unwrap();
     assert_eq!(reading.health.slaves[1].totals.ports[1].lost_links, 1);
     assert_eq!(reading.health.slaves[2].totals.ports[0].lost_links, 1);
@@ -172,7 +172,8 @@ fn a_line_of_terminals_is_read_port_by_port_as_each_esc_has_them() {
     let line = "ek1100,el1004,el2004,akd".parse().unwrap();
     let mut bus = ControlledBus::from(VirtualBus::of_line(&line, Timing::IMMEDIATE).unwrap());
     // The EL2004's input from the EL1004, on the E-bus: every other frame, 5 of them.
-    bus.control().spoil_port(2, 0, 5, 2).unwrap();
+    let control = bus.control();
+    control.change(Change::spoil_port(control.products(), 2, 0, 5, 2)).unwrap();
     let mut frame = [0u8; 64];
     let mut builder = akd_native::ethercat::frame::FrameBuilder::new(&mut frame);
     builder.push(akd_native::ethercat::frame::Command::Brd, 0, 0, 0x0130, &[0, 0]).unwrap();

@@ -17,7 +17,7 @@ use akd_native::ethercat::frame::{self, Command};
 use akd_native::ethercat::link::Link;
 use akd_native::ethercat::master::Master;
 use akd_native::ethercat::pdo::{bit_len, layout, Direction, PdoEntry};
-use akd_native::sim::control::SimControl;
+use akd_native::sim::control::{Change, SimControl};
 use akd_native::sim::in_process::InProcess;
 use akd_native::sim::{Timing, VirtualBus};
 
@@ -806,7 +806,7 @@ fn supervision_reads_the_whole_line_by_broadcast_until_a_drive_changes_and_then_
     // second frame reading each drive, and then by the cyclic frame's own reads until the
     // mail is taken. When that second frame is lost, so is the cycle, and the next one reads
     // each drive again.
-    control.inject_fault(1, "F439").unwrap();
+    control.change(Change::inject_fault(control.products(), 1, "F439")).unwrap();
     lose_reads.store(true, Ordering::SeqCst);
     let deadline = std::time::Instant::now() + STEP;
     loop {
@@ -859,7 +859,7 @@ fn a_line_too_long_for_each_drives_reads_in_the_cyclic_frame_reads_them_in_frame
     let each = vec![[Command::Fprd; 96].to_vec(), [Command::Fprd; 32].to_vec()];
     assert_eq!(cycle(&mut m), (true, [vec![whole.clone()], each.clone()].concat()));
     assert_eq!(cycle(&mut m), (true, vec![whole.clone()]));
-    control.inject_fault(40, "F439").unwrap();
+    control.change(Change::inject_fault(control.products(), 40, "F439")).unwrap();
     let deadline = std::time::Instant::now() + STEP;
     loop {
         assert!(std::time::Instant::now() < deadline, "the emergency was never seen");

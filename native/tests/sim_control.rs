@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use akd_native::cycle::{Config, CycleThread};
 use akd_native::drive::ds402::{statusword, State};
 use akd_native::ethercat::master::Master;
-use akd_native::sim::control::{SimControl, QUERY_TIMEOUT};
+use akd_native::sim::control::{Change, SimControl, QUERY_TIMEOUT};
 use akd_native::sim::faults::Fault;
 use akd_native::sim::in_process::InProcess;
 
@@ -40,7 +40,7 @@ fn a_fault_injected_while_the_cycle_thread_owns_the_link_shows_in_the_statusword
     let (m, control) = master_in_op();
     let cycle = CycleThread::start(m, Config::new(Duration::from_millis(1))).map_err(|e| e.0).unwrap();
     assert_eq!(control.drive_state(0, STEP).unwrap().fault, None);
-    control.inject_fault(0, "F439").unwrap();
+    control.change(Change::inject_fault(control.products(), 0, "F439")).unwrap();
     let deadline = Instant::now() + Duration::from_secs(10);
     while statusword_of(&cycle.snapshot().inputs) & statusword::FAULT == 0 {
         assert!(Instant::now() < deadline, "no fault bit in {:?}", cycle.snapshot().inputs);
@@ -65,7 +65,7 @@ fn the_exchange_allocates_nothing_while_no_command_is_pending() {
     let (mut m, control) = master_in_op();
     m.exchange().unwrap();
     // A command and a query were served once, as they are in a test that uses them.
-    control.set_hardware_enable(0, true).unwrap();
+    control.change(Change::hardware_enable(control.products(), 0, true)).unwrap();
     let asking = std::thread::spawn(move || control.drive_state(0, QUERY_TIMEOUT).map(|_| control));
     while !asking.is_finished() {
         m.exchange().unwrap();

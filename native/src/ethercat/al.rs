@@ -1,20 +1,21 @@
 //! AL (application layer) states and status codes (ETG.1000.6 §6.4, AKD manual §5.3).
 
-/// An EtherCAT state machine state, as written to AL control (0x0120) and read from AL status
-/// (0x0130) bits 0–3.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
-#[repr(u8)]
-pub enum AlState {
-    /// Init: no mailbox, no process data.
-    Init = 0x01,
-    /// Pre-Operational: mailbox running.
-    PreOp = 0x02,
-    /// Bootstrap: firmware update only.
-    Bootstrap = 0x03,
-    /// Safe-Operational: inputs exchanged, outputs held safe.
-    SafeOp = 0x04,
-    /// Operational: outputs applied.
-    Op = 0x08,
+wire_codes! {
+    /// An EtherCAT state machine state, as written to AL control (0x0120) and read from AL status
+    /// (0x0130) bits 0–3.
+    #[derive(PartialOrd, Ord)]
+    pub enum AlState: u8, "AL state" {
+        /// Init: no mailbox, no process data.
+        Init = 0x01 => "Init",
+        /// Pre-Operational: mailbox running.
+        PreOp = 0x02 => "PreOp",
+        /// Bootstrap: firmware update only.
+        Bootstrap = 0x03 => "Bootstrap",
+        /// Safe-Operational: inputs exchanged, outputs held safe.
+        SafeOp = 0x04 => "SafeOp",
+        /// Operational: outputs applied.
+        Op = 0x08 => "Op",
+    }
 }
 
 /// AL status bit 4: the last state change failed; AL status code says why.
@@ -27,25 +28,7 @@ pub const AL_STATE_MASK: u16 = 0x000F;
 impl AlState {
     /// Decodes the state bits (0–3) of AL control or AL status.
     pub fn from_bits(bits: u16) -> Option<Self> {
-        match bits & AL_STATE_MASK {
-            0x01 => Some(AlState::Init),
-            0x02 => Some(AlState::PreOp),
-            0x03 => Some(AlState::Bootstrap),
-            0x04 => Some(AlState::SafeOp),
-            0x08 => Some(AlState::Op),
-            _ => None,
-        }
-    }
-
-    /// The state's name as ETG documents it.
-    pub fn name(self) -> &'static str {
-        match self {
-            AlState::Init => "Init",
-            AlState::PreOp => "PreOp",
-            AlState::Bootstrap => "Bootstrap",
-            AlState::SafeOp => "SafeOp",
-            AlState::Op => "Op",
-        }
+        AlState::try_from((bits & AL_STATE_MASK) as u8).ok()
     }
 
     /// Parses a state name, case-insensitively (`init`, `preop`, `safeop`, `op`, `bootstrap`).
@@ -71,7 +54,6 @@ wire_codes! {
     /// (ETG.1000.6 table 11), so this is the register value with the codes the AKD itself raises as
     /// constants and [`name`](AlStatusCode::name) for any code.
     pub struct AlStatusCode(u16) {
-        /// No error.
         NO_ERROR = 0x0000 => "no error",
         0x0001 => "unspecified error",
         0x0002 => "no memory",
@@ -142,7 +124,7 @@ mod tests {
 
     #[test]
     fn states_round_trip() {
-        for s in [AlState::Init, AlState::PreOp, AlState::Bootstrap, AlState::SafeOp, AlState::Op] {
+        for s in AlState::ALL {
             assert_eq!(AlState::from_bits(s as u16), Some(s));
             assert_eq!(AlState::from_bits(s as u16 | AL_ERROR_FLAG), Some(s));
             assert_eq!(AlState::parse(s.name()), Some(s));

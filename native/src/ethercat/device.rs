@@ -145,7 +145,7 @@ fn mask(bits: u32) -> u64 {
 pub fn channels(sii: &Sii, process_data: &ProcessData) -> Vec<Channel> {
     // (channel without its name yet, the entry's name, its PDO's name)
     let mut found: Vec<(Channel, String, String)> = Vec::new();
-    for direction in [Direction::Rx, Direction::Tx] {
+    for direction in Direction::ALL {
         let described = match direction {
             Direction::Rx => sii.rx_pdos(),
             Direction::Tx => sii.tx_pdos(),

@@ -41,21 +41,13 @@ wire_codes! {
         Fragment = 0 => "fragment",
         /// A time stamp answering a fragment that asked for one.
         TimestampResponse = 1 => "time stamp response",
-        /// Set IP Parameter request.
         SetIpRequest = 2 => "set IP parameter request",
-        /// Set IP Parameter response.
         SetIpResponse = 3 => "set IP parameter response",
-        /// Set Address Filter request.
         SetAddressFilterRequest = 4 => "set address filter request",
-        /// Set Address Filter response.
         SetAddressFilterResponse = 5 => "set address filter response",
-        /// Get IP Parameter request.
         GetIpRequest = 6 => "get IP parameter request",
-        /// Get IP Parameter response.
         GetIpResponse = 7 => "get IP parameter response",
-        /// Get Address Filter request.
         GetAddressFilterRequest = 8 => "get address filter request",
-        /// Get Address Filter response.
         GetAddressFilterResponse = 9 => "get address filter response",
     }
 }
@@ -65,17 +57,11 @@ wire_codes! {
     /// with a code outside the standard's list, so this is the wire value with the standard's
     /// codes as constants and [`name`](EoeResult::name) for any of them.
     pub struct EoeResult(u16) {
-        /// Success.
         SUCCESS = 0x0000 => "success",
-        /// Unspecified error.
         UNSPECIFIED = 0x0001 => "unspecified error",
-        /// Unsupported frame type.
         UNSUPPORTED_FRAME_TYPE = 0x0002 => "unsupported frame type",
-        /// No IP support.
         NO_IP_SUPPORT = 0x0201 => "no IP support",
-        /// DHCP not supported.
         NO_DHCP_SUPPORT = 0x0202 => "DHCP not supported",
-        /// No address filter support.
         NO_FILTER_SUPPORT = 0x0401 => "no filter support",
     } else {
         _ => "unknown EoE result",
@@ -136,22 +122,11 @@ pub mod ip_flags {
 }
 
 impl IpParameters {
-    /// The flags word naming the fields present.
+    /// The flags word naming the fields present: bit n for the n-th field, as [`ip_flags`] lists them.
     pub fn flags(&self) -> u32 {
-        let mut flags = 0;
-        for (present, bit) in [
-            (self.mac.is_some(), ip_flags::MAC),
-            (self.ip.is_some(), ip_flags::IP),
-            (self.subnet_mask.is_some(), ip_flags::SUBNET_MASK),
-            (self.gateway.is_some(), ip_flags::GATEWAY),
-            (self.dns_server.is_some(), ip_flags::DNS_SERVER),
-            (self.dns_name.is_some(), ip_flags::DNS_NAME),
-        ] {
-            if present {
-                flags |= bit;
-            }
-        }
-        flags
+        let addresses = [self.ip, self.subnet_mask, self.gateway, self.dns_server];
+        let present = [self.mac.is_some()].into_iter().chain(addresses.map(|a| a.is_some()));
+        present.chain([self.dns_name.is_some()]).enumerate().map(|(bit, present)| u32::from(present) << bit).sum()
     }
 
     /// Encodes flags and the fields up to the last one present into `out` (at least

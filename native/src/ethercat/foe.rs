@@ -41,29 +41,17 @@ wire_codes! {
     /// are the vendor's, so this is the wire value with the standard's codes as constants and
     /// [`name`](FoeErrorCode::name) for any of them.
     pub struct FoeErrorCode(u32) {
-        /// Not defined.
         NOT_DEFINED = 0x0000_8000 => "not defined",
-        /// Not found.
         NOT_FOUND = 0x0000_8001 => "not found",
-        /// Access denied.
         ACCESS_DENIED = 0x0000_8002 => "access denied",
-        /// Disk full.
         DISK_FULL = 0x0000_8003 => "disk full",
-        /// Illegal.
         ILLEGAL = 0x0000_8004 => "illegal",
-        /// Packet number wrong.
         PACKET_NUMBER_WRONG = 0x0000_8005 => "packet number wrong",
-        /// Already exists.
         ALREADY_EXISTS = 0x0000_8006 => "already exists",
-        /// No user.
         NO_USER = 0x0000_8007 => "no user",
-        /// Bootstrap only.
         BOOTSTRAP_ONLY = 0x0000_8008 => "bootstrap only",
-        /// Not bootstrap.
         NOT_BOOTSTRAP = 0x0000_8009 => "not bootstrap",
-        /// No rights.
         NO_RIGHTS = 0x0000_800A => "no rights",
-        /// Program error.
         PROGRAM_ERROR = 0x0000_800B => "program error",
     } else {
         _ => "vendor-specific FoE error",

@@ -9,41 +9,21 @@ use crate::wire_code::UnknownCode;
 /// Length of the mailbox header.
 pub const HEADER_LEN: usize = 6;
 
-/// The protocol a mailbox message carries (header byte 5, bits 0–3).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-#[repr(u8)]
-pub enum MailboxType {
-    /// A mailbox error reply.
-    Error = 0x00,
-    /// ADS over EtherCAT.
-    Aoe = 0x01,
-    /// Ethernet over EtherCAT.
-    Eoe = 0x02,
-    /// CANopen over EtherCAT.
-    Coe = 0x03,
-    /// File access over EtherCAT.
-    Foe = 0x04,
-    /// Servo profile over EtherCAT.
-    Soe = 0x05,
-    /// Vendor specific.
-    Voe = 0x0F,
+wire_codes! {
+    /// The protocol a mailbox message carries (header byte 5, bits 0–3).
+    pub enum MailboxType: u8, "mailbox type" {
+        /// A mailbox error reply.
+        Error = 0x00 => "mailbox error",
+        Aoe = 0x01 => "ADS over EtherCAT",
+        Eoe = 0x02 => "Ethernet over EtherCAT",
+        Coe = 0x03 => "CANopen over EtherCAT",
+        Foe = 0x04 => "File access over EtherCAT",
+        Soe = 0x05 => "Servo profile over EtherCAT",
+        Voe = 0x0F => "vendor specific",
+    }
 }
 
 impl MailboxType {
-    /// Decodes the type nibble; `None` for a reserved value.
-    pub fn from_u8(value: u8) -> Option<Self> {
-        match value & 0x0F {
-            0x00 => Some(MailboxType::Error),
-            0x01 => Some(MailboxType::Aoe),
-            0x02 => Some(MailboxType::Eoe),
-            0x03 => Some(MailboxType::Coe),
-            0x04 => Some(MailboxType::Foe),
-            0x05 => Some(MailboxType::Soe),
-            0x0F => Some(MailboxType::Voe),
-            _ => None,
-        }
-    }
-
     /// Bit of this protocol in the SII mailbox-protocol word (0x1C): AoE 0x01, EoE 0x02,
     /// CoE 0x04, FoE 0x08, SoE 0x10, VoE 0x20.
     pub fn sii_protocol_bit(self) -> u16 {
@@ -111,7 +91,7 @@ impl MailboxHeader {
 
     /// The decoded protocol type, if not reserved.
     pub fn protocol(&self) -> Option<MailboxType> {
-        MailboxType::from_u8(self.mailbox_type)
+        MailboxType::try_from(self.mailbox_type & 0x0F).ok()
     }
 
     /// The message body that follows this header in `bytes`.
@@ -137,21 +117,14 @@ pub const ERROR_BODY_LEN: usize = 4;
 wire_codes! {
     /// Detail codes of a mailbox error reply (ETG.1000.4 table 30).
     pub enum MailboxErrorDetail: u16, "mailbox error detail" {
-        /// Syntax of the 6-byte header is wrong.
         Syntax = 0x0001 => "syntax error in the mailbox header",
-        /// The mailbox protocol is not supported.
         UnsupportedProtocol = 0x0002 => "mailbox protocol not supported",
         /// The channel field is not 0.
         InvalidChannel = 0x0003 => "invalid channel",
-        /// The service in the protocol is not supported.
         ServiceNotSupported = 0x0004 => "service not supported",
-        /// The protocol header is wrong.
         InvalidHeader = 0x0005 => "invalid protocol header",
-        /// The data is too short.
         SizeTooShort = 0x0006 => "data too short",
-        /// Not enough memory in the slave.
         NoMoreMemory = 0x0007 => "no more memory",
-        /// The length is inconsistent.
         InvalidSize = 0x0008 => "inconsistent length",
     }
 }

@@ -39,13 +39,16 @@ impl PdoEntry {
     }
 }
 
-/// Which way a PDO carries data.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Direction {
-    /// Master to slave: outputs (RxPDO, sync manager 2, assignment 0x1C12).
-    Rx,
-    /// Slave to master: inputs (TxPDO, sync manager 3, assignment 0x1C13).
-    Tx,
+named_variants! {
+    /// Which way a PDO carries data.
+    pub enum Direction {
+        /// Master to slave: outputs (RxPDO, sync manager 2, assignment 0x1C12).
+        Rx => "RxPDO",
+        /// Slave to master: inputs (TxPDO, sync manager 3, assignment 0x1C13).
+        Tx => "TxPDO",
+    }
+    /// "RxPDO" or "TxPDO".
+    fn name;
 }
 
 impl Direction {
@@ -78,19 +81,11 @@ impl Direction {
             Direction::Tx => 3,
         }
     }
-
-    /// "RxPDO" or "TxPDO".
-    pub const fn name(self) -> &'static str {
-        match self {
-            Direction::Rx => "RxPDO",
-            Direction::Tx => "TxPDO",
-        }
-    }
 }
 
 /// Whether `index` is a PDO mapping object of either direction.
 pub fn is_mapping_object(index: u16) -> bool {
-    [Direction::Rx, Direction::Tx].iter().any(|d| d.mapping_objects().contains(&index))
+    Direction::ALL.iter().any(|d| d.mapping_objects().contains(&index))
 }
 
 /// Total bit length of `entries`.

@@ -321,6 +321,11 @@ impl PySimulator {
     pub(super) fn new(control: SimControl) -> Self {
         PySimulator { control }
     }
+
+    /// Sends the change `change` builds against the line, or raises why it was refused.
+    fn change(&self, change: impl FnOnce(&[SimProduct]) -> Result<Change>) -> PyResult<()> {
+        self.control.change(change(self.control.products())).py()
+    }
 }
 
 #[pymethods]
@@ -329,64 +334,64 @@ impl PySimulator {
     /// "following_error" (F439), "over_temperature" (F235), "sync_lost" (F125) or
     /// "setpoints_missing" (F706), by name or as "F125".
     fn inject_fault(&self, position: usize, name: &str) -> PyResult<()> {
-        self.control.inject_fault(position, name).py()
+        self.change(|line| Change::inject_fault(line, position, name))
     }
 
     /// Sets the hardware enable input of drive `position` (high at power-up).
     fn set_hardware_enable(&self, position: usize, high: bool) -> PyResult<()> {
-        self.control.set_hardware_enable(position, high).py()
+        self.change(|line| Change::hardware_enable(line, position, high))
     }
 
     /// Digital input `input` (1..7) of drive `position` toggles wherever the actual position
     /// (counts, 2^20 per revolution) crosses one of `positions`; it is low below all of them.
     fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> PyResult<()> {
-        self.control.set_input_toggles(position, input, positions).py()
+        self.change(|line| Change::input_toggles(line, position, input, positions))
     }
 
     /// Digital input `input` (from 1) of slave `position` `high` or low from the next frame on:
     /// an AKD's 1..7 wherever the shaft is, a digital input terminal's at its connector (the
     /// master sees it after the terminal's input filter, 3 ms).
     fn set_input(&self, position: usize, input: usize, high: bool) -> PyResult<()> {
-        self.control.set_input(position, input, high).py()
+        self.change(|line| Change::input_level(line, position, input, high))
     }
 
     /// Switch `name` of 0x60FD ("negative_limit", "positive_limit", "home_switch",
     /// "interlock") of drive `position` active or not from the next frame on; a limit switch
     /// holds motion toward it (braking with 0x6085) and lets motion away from it go.
     fn set_switch(&self, position: usize, name: &str, active: bool) -> PyResult<()> {
-        self.control.set_switch(position, name, active).py()
+        self.change(|line| Change::switch(line, position, name, active))
     }
 
     /// Analog input `input` (from 1) of slave `position` at `volts` from the next frame on: an
     /// AKD's one (0x3470:04, ±10 V over its range), an EL3102's two (±10 V).
     #[pyo3(signature = (position, volts, input = 1))]
     fn set_analog_input(&self, position: usize, volts: f64, input: usize) -> PyResult<()> {
-        self.control.set_analog_input(position, input, volts).py()
+        self.change(|line| Change::analog_input(line, position, input, volts))
     }
 
     /// Makes drive `position`'s homing runs fail from the next frame on as `name` says: "error"
     /// (a homing error halfway to the reference), "no_reference" (it searches and never finds
     /// it), or "ok".
     fn set_homing_failure(&self, position: usize, name: &str) -> PyResult<()> {
-        self.control.set_homing_failure(position, name).py()
+        self.change(|line| Change::homing_failure(line, position, name))
     }
 
     /// Power-cycles drive `position` before the next frame: it comes back as at power-up (AL
     /// Init, station address 0, mailbox and mappings reset, Not ready to switch on).
     fn power_cycle(&self, position: usize) -> PyResult<()> {
-        self.control.power_cycle(position).py()
+        self.change(|line| Change::power_cycle(line, position))
     }
 
     /// Pulls the cable in front of drive `position` out: frames stop reaching it and every
     /// drive behind it, and come back with the working counters of the drives before it only
     /// (with position 0, not at all), until `replug_cable`.
     fn pull_cable(&self, position: usize) -> PyResult<()> {
-        self.control.set_cable(position, false).py()
+        self.change(|line| Change::cable(line, position, false))
     }
 
     /// Plugs the cable in front of drive `position` back in.
     fn replug_cable(&self, position: usize) -> PyResult<()> {
-        self.control.set_cable(position, true).py()
+        self.change(|line| Change::cable(line, position, true))
     }
 
     /// Takes the link at `port` of slave `position` down (`up` False) before the next frame, or
@@ -394,7 +399,7 @@ impl PySimulator {
     /// one to the next slave), each end counting a lost link. Raises ConfigError for a port its
     /// ESC lacks or no cable of the line reaches.
     fn set_link(&self, position: usize, port: usize, up: bool) -> PyResult<()> {
-        self.control.set_link(position, port, up).py()
+        self.change(|line| Change::link(line, position, port, up))
     }
 
     /// The cable into `port` of slave `position` spoils (a CRC error) the next `frames` frames
@@ -405,7 +410,7 @@ impl PySimulator {
     /// still pending.
     #[pyo3(signature = (position, port, frames, every = 1))]
     fn crc_errors(&self, position: usize, port: usize, frames: i64, every: i64) -> PyResult<()> {
-        self.control.spoil_port(position, port, frames, every).py()
+        self.change(|line| Change::spoil_port(line, position, port, frames, every))
     }
 
     /// The ESC of slave `position` after the next frame, as a dict: "dl_status", "ports" (each
@@ -422,19 +427,19 @@ impl PySimulator {
 
     /// The next `frames` frames get no reply at all; 0 ends a burst still pending.
     fn drop_frames(&self, frames: i64) -> PyResult<()> {
-        self.control.start_burst(Burst::Lost(Burst::frames(frames).py()?)).py()
+        self.change(|_| Burst::frames(frames).map(|n| Change::Burst(Burst::Lost(n))))
     }
 
     /// The next `frames` replies come back corrupted (the frame header's length one short),
     /// so the master's codec refuses them; 0 ends a burst still pending.
     fn corrupt_frames(&self, frames: i64) -> PyResult<()> {
-        self.control.start_burst(Burst::Corrupted(Burst::frames(frames).py()?)).py()
+        self.change(|_| Burst::frames(frames).map(|n| Change::Burst(Burst::Corrupted(n))))
     }
 
     /// The next `frames` replies carry a wrong working counter in every datagram; 0 ends a
     /// burst still pending.
     fn wrong_wkc(&self, frames: i64) -> PyResult<()> {
-        self.control.start_burst(Burst::WrongWkc(Burst::frames(frames).py()?)).py()
+        self.change(|_| Burst::frames(frames).map(|n| Change::Burst(Burst::WrongWkc(n))))
     }
 
     /// The drive firmware of drive `position` after the next frame, as `VirtualBus.drive_state`

@@ -437,73 +437,11 @@ impl SimControl {
         self.sender.send(message).map_err(|_| gone())
     }
 
-    /// Raises fault `name` ("F439", "following_error", ...) in drive `position` at its next
-    /// model step after the next frame.
-    pub fn inject_fault(&self, position: usize, name: &str) -> Result<()> {
-        self.send(Message::Change(Change::inject_fault(&self.products, position, name)?))
-    }
-
-    /// Sets the hardware enable input of drive `position` before the next frame.
-    pub fn set_hardware_enable(&self, position: usize, high: bool) -> Result<()> {
-        self.send(Message::Change(Change::hardware_enable(&self.products, position, high)?))
-    }
-
-    /// Digital input `input` (1..=7) of drive `position` toggles wherever the actual position
-    /// (counts) crosses one of `positions` from the next frame on; it is low below all of them.
-    pub fn set_input_toggles(&self, position: usize, input: usize, positions: Vec<f64>) -> Result<()> {
-        self.send(Message::Change(Change::input_toggles(&self.products, position, input, positions)?))
-    }
-
-    /// Sets digital input `input` (from 1) of slave `position` `high` or low from the next frame
-    /// on (an AKD's 1..=7 wherever the shaft is, a digital input terminal's).
-    pub fn set_input(&self, position: usize, input: usize, high: bool) -> Result<()> {
-        self.send(Message::Change(Change::input_level(&self.products, position, input, high)?))
-    }
-
-    /// Sets switch `name` ("negative_limit", "positive_limit", "home_switch", "interlock") of
-    /// drive `position` `active` or not from the next frame on.
-    pub fn set_switch(&self, position: usize, name: &str, active: bool) -> Result<()> {
-        self.send(Message::Change(Change::switch(&self.products, position, name, active)?))
-    }
-
-    /// Sets analog input `input` (from 1) of slave `position` to `volts` from the next frame on.
-    pub fn set_analog_input(&self, position: usize, input: usize, volts: f64) -> Result<()> {
-        self.send(Message::Change(Change::analog_input(&self.products, position, input, volts)?))
-    }
-
-    /// Makes drive `position`'s homing runs fail from the next frame on as `name` says ("error":
-    /// a homing error halfway, "no_reference": the reference never found), or work ("ok").
-    pub fn set_homing_failure(&self, position: usize, name: &str) -> Result<()> {
-        self.send(Message::Change(Change::homing_failure(&self.products, position, name)?))
-    }
-
-    /// Power-cycles drive `position` before the next frame: it answers as at power-up.
-    pub fn power_cycle(&self, position: usize) -> Result<()> {
-        self.send(Message::Change(Change::power_cycle(&self.products, position)?))
-    }
-
-    /// Pulls the cable in front of drive `position` out (`plugged` false) before the next
-    /// frame, or plugs it back in: frames reach only the drives in front of it.
-    pub fn set_cable(&self, position: usize, plugged: bool) -> Result<()> {
-        self.send(Message::Change(Change::cable(&self.products, position, plugged)?))
-    }
-
-    /// Takes the link at `port` of slave `position` down (`up` false) before the next frame, or
-    /// up again: the cable there pulled or plugged, both its ends counting a lost link.
-    pub fn set_link(&self, position: usize, port: usize, up: bool) -> Result<()> {
-        self.send(Message::Change(Change::link(&self.products, position, port, up)?))
-    }
-
-    /// The cable into `port` of slave `position` spoils the next `frames` frames entering
-    /// there, one in every `every`, from the next frame on.
-    pub fn spoil_port(&self, position: usize, port: usize, frames: i64, every: i64) -> Result<()> {
-        self.send(Message::Change(Change::spoil_port(&self.products, position, port, frames, every)?))
-    }
-
-    /// Starts `burst` at the next frame: lost frames, corrupted replies or wrong working
-    /// counters, as many as it counts.
-    pub fn start_burst(&self, burst: Burst) -> Result<()> {
-        self.send(Message::Change(Change::Burst(burst)))
+    /// Sends `change`, which one of [`Change`]'s constructors checked against
+    /// [`products`](Self::products), to the owner, who makes it before the next frame; a change
+    /// refused there is returned as it is, and nothing is sent.
+    pub fn change(&self, change: Result<Change>) -> Result<()> {
+        self.send(Message::Change(change?))
     }
 
     /// The drive firmware's state of drive `position` after the owner's next frame; waits up
@@ -682,28 +620,28 @@ mod tests {
     fn changes_are_checked_before_they_are_sent() {
         let bus = ControlledBus::from(VirtualBus::with_timing(2, Timing::IMMEDIATE));
         let control = bus.control();
-        let e = control.inject_fault(2, "F439").unwrap_err().to_string();
-        assert!(e.contains("no slave at position 2: the bus has 2 slave(s)"), "{e}");
-        let e = control.inject_fault(0, "F1").unwrap_err().to_string();
-        assert!(e.contains("no fault named \"F1\"") && e.contains("following_error (F439)"), "{e}");
-        let e = control.set_input_toggles(1, 8, vec![1.0]).unwrap_err().to_string();
-        assert!(e.contains("digital input 8: the AKD has inputs 1 to 7"), "{e}");
-        let e = control.set_input_toggles(1, 1, vec![1.0, f64::INFINITY]).unwrap_err().to_string();
-        assert!(e.contains("toggle position inf of digital input 1 is not a finite"), "{e}");
-        let e = control.power_cycle(2).unwrap_err().to_string();
-        assert!(e.contains("no slave at position 2: the bus has 2 slave(s)"), "{e}");
-        let e = control.set_cable(3, false).unwrap_err().to_string();
-        assert!(e.contains("no slave at position 3: the bus has 2 slave(s)"), "{e}");
-        let e = control.set_link(1, 1, false).unwrap_err().to_string();
-        assert!(e.contains("no cable at port 1 of the akd at position 1: it is the last slave"), "{e}");
-        let e = control.spoil_port(0, 2, 10, 1).unwrap_err().to_string();
-        assert!(e.contains("port 2: the akd at position 0 has ports 0, 1"), "{e}");
-        let e = control.spoil_port(0, 1, 10, 0).unwrap_err().to_string();
-        assert!(e.contains("one frame in every 0: allowed are 1 (each frame) or more"), "{e}");
-        let e = control.spoil_port(0, 1, -1, 1).unwrap_err().to_string();
-        assert!(e.contains("-1 frames"), "{e}");
-        let e = control.set_hardware_enable(usize::MAX, false).unwrap_err().to_string();
-        assert!(e.contains(&format!("no slave at position {}: the bus has 2", usize::MAX)), "{e}");
+        let line = control.products();
+        let max = format!("no slave at position {}: the bus has 2", usize::MAX);
+        let refused: [(Result<Change>, &[&str]); 11] = [
+            (Change::inject_fault(line, 2, "F439"), &["no slave at position 2: the bus has 2 slave(s)"]),
+            (Change::inject_fault(line, 0, "F1"), &["no fault named \"F1\"", "following_error (F439)"]),
+            (Change::input_toggles(line, 1, 8, vec![1.0]), &["digital input 8: the AKD has inputs 1 to 7"]),
+            (
+                Change::input_toggles(line, 1, 1, vec![1.0, f64::INFINITY]),
+                &["toggle position inf of digital input 1 is not a finite"],
+            ),
+            (Change::power_cycle(line, 2), &["no slave at position 2: the bus has 2 slave(s)"]),
+            (Change::cable(line, 3, false), &["no slave at position 3: the bus has 2 slave(s)"]),
+            (Change::link(line, 1, 1, false), &["no cable at port 1 of the akd at position 1: it is the last slave"]),
+            (Change::spoil_port(line, 0, 2, 10, 1), &["port 2: the akd at position 0 has ports 0, 1"]),
+            (Change::spoil_port(line, 0, 1, 10, 0), &["one frame in every 0: allowed are 1 (each frame) or more"]),
+            (Change::spoil_port(line, 0, 1, -1, 1), &["-1 frames"]),
+            (Change::hardware_enable(line, usize::MAX, false), &[&max]),
+        ];
+        for (change, expected) in refused {
+            let e = control.change(change).unwrap_err().to_string();
+            assert!(expected.iter().all(|x| e.contains(x)), "{e}");
+        }
         // Nothing refused reached the owner.
         assert!(bus.receiver.try_recv().is_err());
     }
@@ -713,9 +651,9 @@ mod tests {
         let mut bus = ControlledBus::from(VirtualBus::with_timing(2, Timing::IMMEDIATE));
         let control = bus.control();
         frame(&mut bus, 0);
-        control.inject_fault(1, "sync_lost").unwrap();
-        control.set_hardware_enable(0, false).unwrap();
-        control.set_input_toggles(0, 1, vec![-10.0]).unwrap();
+        control.change(Change::inject_fault(control.products(), 1, "sync_lost")).unwrap();
+        control.change(Change::hardware_enable(control.products(), 0, false)).unwrap();
+        control.change(Change::input_toggles(control.products(), 0, 1, vec![-10.0])).unwrap();
         let asking = std::thread::spawn(move || control.drive_state(1, Duration::from_secs(30)));
         // The query reaches the owner's queue before the frame that answers it.
         while !asking.is_finished() {
@@ -751,7 +689,7 @@ mod tests {
         let e = control.line_counts(Duration::from_millis(10)).unwrap_err().to_string();
         assert!(e.contains("the line's counts were not answered within 10ms"), "{e}");
         drop(bus);
-        let e = control.set_hardware_enable(0, true).unwrap_err().to_string();
+        let e = control.change(Change::hardware_enable(control.products(), 0, true)).unwrap_err().to_string();
         assert!(e.contains("the virtual AKDs are gone"), "{e}");
         assert!(control.drive_state(0, QUERY_TIMEOUT).unwrap_err().to_string().contains("gone"));
         assert!(control.line_counts(QUERY_TIMEOUT).unwrap_err().to_string().contains("gone"));
@@ -761,7 +699,7 @@ mod tests {
     fn a_server_answers_between_frames() {
         let mut bus = ControlledBus::from(VirtualBus::new(1));
         let control = bus.control();
-        control.set_hardware_enable(0, false).unwrap();
+        control.change(Change::hardware_enable(control.products(), 0, false)).unwrap();
         let asking = std::thread::spawn(move || control.drive_state(0, Duration::from_secs(30)));
         while !asking.is_finished() {
             bus.serve_commands();

@@ -11,23 +11,16 @@ use crate::sim::od::{self, ObjectDictionary};
 /// DC activation bits the drive needs for SYNC0: cyclic unit (bit 0) and SYNC0 (bit 1).
 const SYNC0_ACTIVE: u8 = 0x03;
 
-/// What drives the drive's PLL.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum SyncSource {
-    /// The DC SYNC0 event.
-    Sync0,
-    /// The SM2 event of each cyclic frame.
-    Sm2,
-}
-
-impl SyncSource {
-    /// "sync0" or "sm2".
-    pub fn name(self) -> &'static str {
-        match self {
-            SyncSource::Sync0 => "sync0",
-            SyncSource::Sm2 => "sm2",
-        }
+named_variants! {
+    /// What drives the drive's PLL.
+    pub enum SyncSource {
+        /// The DC SYNC0 event.
+        Sync0 => "sync0",
+        /// The SM2 event of each cyclic frame.
+        Sm2 => "sm2",
     }
+    /// "sync0" or "sm2".
+    fn name;
 }
 
 /// One virtual AKD's synchronisation as the master set it up (`Simulator.drive_state()["dc"]`).

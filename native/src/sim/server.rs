@@ -298,6 +298,7 @@ fn line_down(error: &std::io::Error) -> bool {
 mod tests {
     use super::*;
     use crate::ethercat::frame::{Command, FrameBuilder};
+    use crate::sim::control::Change;
     use crate::sim::VirtualBus;
     use std::sync::Arc;
 
@@ -340,7 +341,7 @@ mod tests {
         // No master: the server answers at its next wake-up.
         let idle = control.drive_state(0, Duration::from_secs(5)).unwrap();
         assert_eq!(idle.fault, None);
-        control.inject_fault(0, "F125").unwrap();
+        control.change(Change::inject_fault(control.products(), 0, "F125")).unwrap();
         // The drive raises the fault when its firmware next runs, at a frame.
         let client = UdpSocket::bind("127.0.0.1:0").unwrap();
         let mut buf = [0u8; 64];
@@ -355,7 +356,11 @@ mod tests {
         }
         stop.store(true, Ordering::Relaxed);
         server.join().unwrap().unwrap();
-        assert!(control.set_hardware_enable(0, false).unwrap_err().to_string().contains("gone"));
+        assert!(control
+            .change(Change::hardware_enable(control.products(), 0, false))
+            .unwrap_err()
+            .to_string()
+            .contains("gone"));
     }
 
     #[test]

@@ -32,21 +32,15 @@ pub const SDO_OFFSET: usize = HEADER_LEN + COE_HEADER_LEN;
 wire_codes! {
     /// CoE services (CoE header bits 12–15, ETG.1000.6 Table 29).
     pub enum CoeService: u8, "CoE service" {
-        /// Emergency message.
         Emergency = 1 => "Emergency",
         /// SDO request (master to slave).
         SdoRequest = 2 => "SDO Request",
         /// SDO response (slave to master).
         SdoResponse = 3 => "SDO Response",
-        /// TxPDO.
         TxPdo = 4 => "TxPDO",
-        /// RxPDO.
         RxPdo = 5 => "RxPDO",
-        /// TxPDO remote request.
         TxPdoRemoteRequest = 6 => "TxPDO remote request",
-        /// RxPDO remote request.
         RxPdoRemoteRequest = 7 => "RxPDO remote request",
-        /// SDO information.
         SdoInformation = 8 => "SDO Information",
     }
 }

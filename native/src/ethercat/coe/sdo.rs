@@ -13,15 +13,10 @@ pub const SEGMENT_MIN_DATA: usize = 7;
 wire_codes! {
     /// Client command specifiers of an SDO request (command byte bits 5–7, CiA 301 §7.2.4.3).
     pub enum ClientCommand: u8, "SDO client command specifier" {
-        /// Download segment request.
         DownloadSegment = 0 => "download segment request",
-        /// Initiate download request.
         InitiateDownload = 1 => "initiate download request",
-        /// Initiate upload request.
         InitiateUpload = 2 => "initiate upload request",
-        /// Upload segment request.
         UploadSegment = 3 => "upload segment request",
-        /// Abort transfer.
         Abort = 4 => "abort transfer",
     }
 }
@@ -29,15 +24,10 @@ wire_codes! {
 wire_codes! {
     /// Server command specifiers of an SDO response (command byte bits 5–7, CiA 301 §7.2.4.3).
     pub enum ServerCommand: u8, "SDO server command specifier" {
-        /// Upload segment response.
         UploadSegment = 0 => "upload segment response",
-        /// Download segment response.
         DownloadSegment = 1 => "download segment response",
-        /// Initiate upload response.
         InitiateUpload = 2 => "initiate upload response",
-        /// Initiate download response.
         InitiateDownload = 3 => "initiate download response",
-        /// Abort transfer.
         Abort = 4 => "abort transfer",
     }
 }
@@ -232,6 +222,7 @@ impl<'a> SdoRequest<'a> {
                 }
                 let (index, subindex) = address(body);
                 let complete_access = command & 0x10 != 0;
+                let word = u32::from_le_bytes([body[4], body[5], body[6], body[7]]);
                 match ccs {
                     ClientCommand::InitiateDownload if command & 0x02 != 0 => Ok(SdoRequest::DownloadExpedited {
                         index,
@@ -243,16 +234,12 @@ impl<'a> SdoRequest<'a> {
                         index,
                         subindex,
                         complete_access,
-                        complete_size: u32::from_le_bytes([body[4], body[5], body[6], body[7]]),
+                        complete_size: word,
                         data: &body[SDO_LEN..],
                     }),
                     ClientCommand::InitiateUpload => Ok(SdoRequest::Upload { index, subindex, complete_access }),
                     // The arm above lets only an abort get here.
-                    _ => Ok(SdoRequest::Abort {
-                        index,
-                        subindex,
-                        code: SdoAbortCode(u32::from_le_bytes([body[4], body[5], body[6], body[7]])),
-                    }),
+                    _ => Ok(SdoRequest::Abort { index, subindex, code: SdoAbortCode(word) }),
                 }
             }
         }
@@ -390,64 +377,38 @@ wire_codes! {
     /// outside the standard's list (a manufacturer's), so this is the wire value with the
     /// standard's codes as constants and [`name`](SdoAbortCode::name) for any of them.
     pub struct SdoAbortCode(u32) {
-        /// Toggle bit not alternated.
         TOGGLE_BIT = 0x0503_0000 => "toggle bit not alternated",
-        /// SDO protocol timed out.
         TIMEOUT = 0x0504_0000 => "SDO protocol timed out",
-        /// Client/server command specifier not valid or unknown.
         BAD_COMMAND = 0x0504_0001 => "client/server command specifier not valid or unknown",
         0x0504_0002 => "invalid block size",
         0x0504_0003 => "invalid sequence number",
         0x0504_0004 => "CRC error",
-        /// Out of memory.
         OUT_OF_MEMORY = 0x0504_0005 => "out of memory",
-        /// Unsupported access to an object.
         UNSUPPORTED_ACCESS = 0x0601_0000 => "unsupported access to an object",
-        /// Attempt to read a write-only object.
         WRITE_ONLY = 0x0601_0001 => "attempt to read a write-only object",
-        /// Attempt to write a read-only object.
         READ_ONLY = 0x0601_0002 => "attempt to write a read-only object",
-        /// Subindex cannot be written, sub 0 must be 0 for write access.
         SUBINDEX_WRITE_NEEDS_ZERO = 0x0601_0003 => "subindex cannot be written, subindex 0 must be 0 for write access",
-        /// Complete access not supported.
         COMPLETE_ACCESS_UNSUPPORTED = 0x0601_0004 => "complete access not supported for objects of variable length",
         0x0601_0005 => "object length exceeds mailbox size",
         0x0601_0006 => "object mapped to RxPDO, SDO download blocked",
-        /// Object does not exist in the object dictionary.
         NO_SUCH_OBJECT = 0x0602_0000 => "object does not exist in the object dictionary",
-        /// Object cannot be mapped to the PDO.
         NOT_MAPPABLE = 0x0604_0041 => "object cannot be mapped to the PDO",
-        /// The number and length of the objects to be mapped would exceed the PDO length.
         PDO_TOO_LONG = 0x0604_0042 => "number and length of mapped objects exceed the PDO length",
-        /// General parameter incompatibility.
         PARAMETER_INCOMPATIBLE = 0x0604_0043 => "general parameter incompatibility",
-        /// General internal incompatibility in the device.
         DEVICE_INCOMPATIBLE = 0x0604_0047 => "general internal incompatibility in the device",
-        /// Access failed due to a hardware error.
         HARDWARE_ERROR = 0x0606_0000 => "access failed due to a hardware error",
-        /// Data type does not match, length of service parameter does not match.
         LENGTH_MISMATCH = 0x0607_0010 => "data type does not match, length of service parameter does not match",
-        /// Data type does not match, length of service parameter too high.
         LENGTH_TOO_HIGH = 0x0607_0012 => "data type does not match, length of service parameter too high",
-        /// Data type does not match, length of service parameter too low.
         LENGTH_TOO_LOW = 0x0607_0013 => "data type does not match, length of service parameter too low",
-        /// Subindex does not exist.
         NO_SUCH_SUBINDEX = 0x0609_0011 => "subindex does not exist",
         /// Value range of parameter exceeded (download only).
         VALUE_RANGE = 0x0609_0030 => "value range of parameter exceeded",
-        /// Value of parameter written too high.
         VALUE_TOO_HIGH = 0x0609_0031 => "value of parameter written too high",
-        /// Value of parameter written too low.
         VALUE_TOO_LOW = 0x0609_0032 => "value of parameter written too low",
-        /// Maximum value is less than minimum value.
         MAX_BELOW_MIN = 0x0609_0036 => "maximum value is less than minimum value",
-        /// General error.
         GENERAL = 0x0800_0000 => "general error",
-        /// Data cannot be transferred or stored to the application.
         CANNOT_STORE = 0x0800_0020 => "data cannot be transferred or stored to the application",
-        /// Data cannot be transferred because of local control.
         LOCAL_CONTROL = 0x0800_0021 => "data cannot be transferred or stored because of local control",
-        /// Data cannot be transferred because of the present device state.
         DEVICE_STATE = 0x0800_0022 => "data cannot be transferred or stored because of the present device state",
         /// Object dictionary dynamic generation fails or no object dictionary is present.
         NO_OBJECT_DICTIONARY = 0x0800_0023 => "no object dictionary is present",

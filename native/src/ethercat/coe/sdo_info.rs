@@ -10,17 +10,11 @@ pub const SDO_INFO_HEADER_LEN: usize = 4;
 wire_codes! {
     /// SDO information opcodes (ETG.1000.6 §5.6.3).
     pub enum SdoInfoOpcode: u8, "SDO information opcode" {
-        /// Get OD list request.
         GetOdListRequest = 0x01 => "Get OD List Request",
-        /// Get OD list response.
         GetOdListResponse = 0x02 => "Get OD List Response",
-        /// Get object description request.
         GetObjectDescriptionRequest = 0x03 => "Get Object Description Request",
-        /// Get object description response.
         GetObjectDescriptionResponse = 0x04 => "Get Object Description Response",
-        /// Get entry description request.
         GetEntryDescriptionRequest = 0x05 => "Get Entry Description Request",
-        /// Get entry description response.
         GetEntryDescriptionResponse = 0x06 => "Get Entry Description Response",
         /// SDO information error request (carries an abort code).
         SdoInfoErrorRequest = 0x07 => "SDO Info Error Request",
@@ -42,17 +36,11 @@ impl SdoInfoOpcode {
 wire_codes! {
     /// OD list types of a Get OD list request (ETG.1000.6 §5.6.3.3).
     pub enum OdListType: u16, "OD list type" {
-        /// Number of objects in each of the five lists.
         Lengths = 0x00 => "number of objects in the five lists",
-        /// All objects.
         All = 0x01 => "all objects",
-        /// Objects mappable in an RxPDO.
         RxPdoMappable = 0x02 => "RxPDO mappable objects",
-        /// Objects mappable in a TxPDO.
         TxPdoMappable = 0x03 => "TxPDO mappable objects",
-        /// Objects to be stored for a device replacement.
         Backup = 0x04 => "objects to be stored for a device replacement",
-        /// Start-up parameters.
         Startup = 0x05 => "startup parameters",
     }
 }

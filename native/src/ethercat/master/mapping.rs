@@ -52,7 +52,7 @@ impl Master {
         let station = slave.station_address;
         let process_data = slave.process_data.as_ref().ok_or(Unavailable::NoMapping { slave: position })?;
         let mut writes = Vec::with_capacity(4);
-        for direction in [Direction::Rx, Direction::Tx] {
+        for direction in Direction::ALL {
             let len = process_data.bytes(direction) as u16;
             let Some((n, start, control)) = process_data_sync_manager(&slave.sii, direction) else {
                 if len > 0 {
